@@ -1,0 +1,37 @@
+// Shared conventions of every mcdenoise kernel.
+//
+// * `real` is the compute precision: f32 by default, f64 when the build
+//   defines MC_F64 (the `<kernel>_f64` variant). Storage is always f32.
+// * Planes are one scalar channel each: `float v[]`, pixel (x, y) at y*W + x.
+// * Kernels run on an 8x8 grid over a band of rows: pixel = (gid.x, row0 + gid.y).
+// * Inputs are `readonly`; outputs are plain `buffer` (naga rejects `writeonly`).
+// * No NaN literals (naga rejects them): build NaN/Inf with uintBitsToFloat.
+
+#extension GL_EXT_shader_explicit_arithmetic_types_float64 : enable
+
+#ifdef MC_F64
+#define real double
+#define real2 dvec2
+#define real3 dvec3
+#define real4 dvec4
+#define EPS_PIVOT 1e-12
+#define JACOBI_TOL 1e-12
+#define JACOBI_SWEEPS 30
+#else
+#define real float
+#define real2 vec2
+#define real3 vec3
+#define real4 vec4
+#define EPS_PIVOT 1e-6
+#define JACOBI_TOL 1e-6
+#define JACOBI_SWEEPS 10
+#endif
+
+#define PLANE_IN(b, name) layout(std430, set = 0, binding = b) readonly buffer name##_blk { float name[]; };
+#define PLANE_OUT(b, name) layout(std430, set = 0, binding = b) buffer name##_blk { float name[]; };
+
+bool is_finite(float x) { return !isnan(x) && !isinf(x); }
+
+// Sample count as used everywhere (spec §0.2): a pixel is valid when n >= 1.
+// A non-finite or negative count is treated as 0 (invalid).
+float spp_of(float s) { return (is_finite(s) && s >= 1.0) ? s : 0.0; }

@@ -1,0 +1,160 @@
+//! The accumulation layout: what a renderer sums per pixel, as the library's
+//! GPU entry point takes it (`../shared/docs/input-format.md`, last paragraph).
+//!
+//! One buffer of planes, each plane `width * height` f32 values in row-major
+//! order, starting at a multiple of [`PLANE_ALIGN`](crate::gpu::PLANE_ALIGN)
+//! (256) bytes: plane `i` starts at byte `i * plane_stride(width * height)`.
+//! Every plane can therefore be bound on its own and no binding grows with the
+//! number of channels. Plane order:
+//!
+//! | planes | content |
+//! |---|---|
+//! | for each scalar channel `c` of [`AccumLayout::channels`] | `Σ x_c` then `Σ x_c²` (2 planes) |
+//! | if `position`: 3 | `Σ x·y`, `Σ x·z`, `Σ y·z` of the position samples |
+//! | 1 | sample count `n` (f32) |
+//!
+//! The scalar channels are colour R G B, albedo R G B, normal X Y Z, depth,
+//! then position X Y Z (optional) and visibility (optional). A miss adds 0 to
+//! every feature sum but counts as a sample (spec `input-format.md`).
+
+use crate::gpu::plane_stride;
+use crate::image::Layer;
+
+/// Which optional buffers the renderer accumulates.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub struct AccumLayout {
+    pub width: usize,
+    pub height: usize,
+    pub position: bool,
+    pub visibility: bool,
+}
+
+/// A scalar channel of the accumulation: layer and component.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub struct AccumChannel {
+    pub layer: Layer,
+    pub component: usize,
+}
+
+impl AccumLayout {
+    pub fn new(width: usize, height: usize, position: bool, visibility: bool) -> Self {
+        AccumLayout {
+            width,
+            height,
+            position,
+            visibility,
+        }
+    }
+
+    pub fn pixels(&self) -> usize {
+        self.width * self.height
+    }
+
+    /// The mean layers accumulated, in order.
+    pub fn layers(&self) -> Vec<Layer> {
+        let mut l = vec![Layer::Color, Layer::Albedo, Layer::Normal, Layer::Depth];
+        if self.position {
+            l.push(Layer::Position);
+        }
+        if self.visibility {
+            l.push(Layer::Visibility);
+        }
+        l
+    }
+
+    /// The scalar channels, in plane order.
+    pub fn channels(&self) -> Vec<AccumChannel> {
+        self.layers()
+            .into_iter()
+            .flat_map(|layer| {
+                (0..layer.channels().len()).map(move |component| AccumChannel { layer, component })
+            })
+            .collect()
+    }
+
+    /// Plane index of `Σ x` of channel number `c` (in [`channels`](Self::channels) order).
+    pub fn sum_plane(&self, c: usize) -> usize {
+        2 * c
+    }
+
+    /// Plane index of `Σ x²` of channel number `c`.
+    pub fn sumsq_plane(&self, c: usize) -> usize {
+        2 * c + 1
+    }
+
+    /// Plane index of the position cross products `Σxy, Σxz, Σyz` (k = 0, 1, 2).
+    pub fn cross_plane(&self, k: usize) -> Option<usize> {
+        assert!(k < 3);
+        self.position.then(|| 2 * self.channels().len() + k)
+    }
+
+    /// Plane index of the sample count.
+    pub fn count_plane(&self) -> usize {
+        2 * self.channels().len() + if self.position { 3 } else { 0 }
+    }
+
+    pub fn plane_count(&self) -> usize {
+        self.count_plane() + 1
+    }
+
+    /// Bytes between plane starts.
+    pub fn plane_stride(&self) -> u64 {
+        plane_stride(self.pixels())
+    }
+
+    /// Size of the whole accumulation buffer in bytes.
+    pub fn bytes(&self) -> u64 {
+        self.plane_stride() * self.plane_count() as u64
+    }
+
+    /// Index of a channel by layer and component.
+    pub fn channel_index(&self, layer: Layer, component: usize) -> Option<usize> {
+        self.channels()
+            .iter()
+            .position(|c| c.layer == layer && c.component == component)
+    }
+}
+
+/// CPU-side accumulation, as a renderer would do it: sums in f64, stored f32.
+/// Used by tests and by the built-in scene generator.
+#[derive(Clone, Debug)]
+pub struct Accumulator {
+    pub layout: AccumLayout,
+    sums: Vec<Vec<f64>>,
+}
+
+impl Accumulator {
+    pub fn new(layout: AccumLayout) -> Self {
+        Accumulator {
+            layout,
+            sums: vec![vec![0.0; layout.pixels()]; layout.plane_count()],
+        }
+    }
+
+    /// Adds one sample to pixel `p`. `values` holds one value per scalar
+    /// channel in [`AccumLayout::channels`] order.
+    pub fn add(&mut self, p: usize, values: &[f64]) {
+        let l = self.layout;
+        assert_eq!(values.len(), l.channels().len());
+        for (c, v) in values.iter().enumerate() {
+            self.sums[l.sum_plane(c)][p] += v;
+            self.sums[l.sumsq_plane(c)][p] += v * v;
+        }
+        if l.position {
+            let px = l.channel_index(Layer::Position, 0).unwrap();
+            let (x, y, z) = (values[px], values[px + 1], values[px + 2]);
+            for (k, v) in [x * y, x * z, y * z].into_iter().enumerate() {
+                self.sums[l.cross_plane(k).unwrap()][p] += v;
+            }
+        }
+        self.sums[l.count_plane()][p] += 1.0;
+    }
+
+    /// The planes as f32, in layout order.
+    pub fn planes(&self) -> Vec<Vec<f32>> {
+        self.sums
+            .iter()
+            .map(|p| p.iter().map(|&v| v as f32).collect())
+            .collect()
+    }
+}

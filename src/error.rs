@@ -1,0 +1,82 @@
+//! The library's one error type. `vk::Result` is mapped in exactly one place,
+//! [`Error::vk`]; everything a user can get wrong in a file names the file,
+//! the layer and, where it applies, the pixel.
+
+use std::path::PathBuf;
+
+use ash::vk;
+
+/// Everything that can go wrong in mcdenoise.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum Error {
+    /// No Vulkan loader (`libvulkan.so.1`) could be opened.
+    #[error("no Vulkan loader found ({0}); install one: apt-get install libvulkan1 mesa-vulkan-drivers")]
+    NoLoader(String),
+
+    /// The loader works but no device supports compute, or the requested one is missing.
+    #[error("no usable Vulkan device: {0}; for the software device: apt-get install mesa-vulkan-drivers")]
+    NoDevice(String),
+
+    /// A Vulkan call failed.
+    #[error("Vulkan call {call} failed: {result:?}")]
+    Vulkan {
+        call: &'static str,
+        result: vk::Result,
+    },
+
+    /// GPU memory allocation failed.
+    #[error("GPU allocation of {name} ({bytes} bytes) failed: {source}")]
+    Allocation {
+        name: String,
+        bytes: u64,
+        #[source]
+        source: gpu_allocator::AllocationError,
+    },
+
+    /// A SPIR-V module does not match what the Rust side declares for it
+    /// (found by reflection with naga), or naga cannot read it.
+    #[error("kernel {kernel}: {message}")]
+    Kernel { kernel: String, message: String },
+
+    /// The device lacks a feature or a limit is exceeded.
+    #[error("device limit: {0}")]
+    Limit(String),
+
+    /// A buffer handed to a dispatch has the wrong size or usage.
+    #[error("invalid argument: {0}")]
+    InvalidArgument(String),
+
+    /// Reading or writing a file failed at the OS level.
+    #[error("{}: {source}", path.display())]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+
+    /// A file is not a valid input: not an EXR, truncated, unsupported
+    /// compression, a missing or ill-sized layer, an unreadable value.
+    #[error("{}: {message}", path.display())]
+    BadInput { path: PathBuf, message: String },
+
+    /// Values that cannot be processed even after sanitation.
+    #[error("{0}")]
+    BadData(String),
+}
+
+pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+impl Error {
+    /// The one place a `vk::Result` becomes an [`Error`].
+    pub fn vk(call: &'static str) -> impl FnOnce(vk::Result) -> Error {
+        move |result| Error::Vulkan { call, result }
+    }
+
+    pub fn bad_input(path: impl Into<PathBuf>, message: impl Into<String>) -> Error {
+        Error::BadInput {
+            path: path.into(),
+            message: message.into(),
+        }
+    }
+}

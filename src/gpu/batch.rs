@@ -1,0 +1,566 @@
+//! Recording dispatches: descriptor sets, push constants, barriers, row bands,
+//! submits and timestamp queries.
+//!
+//! A [`Batch`] either owns its command buffer and submits it ([`Batch::new`],
+//! [`Batch::finish`]), splitting long work into several submits so no single
+//! submit runs longer than about a second on lavapipe, or records into a
+//! host's command buffer ([`Batch::record_into`]) and never submits.
+
+use std::sync::Arc;
+
+use ash::vk;
+
+use super::buffer::BufferSlice;
+use super::context::GpuContext;
+use super::reflect::{KernelDecl, Precision};
+use crate::error::{Error, Result};
+
+/// Estimated work one submit may hold, in floating-point operations. About
+/// 0.5–1 s on lavapipe with two cores (≈2 GFLOP/s per core measured), a few
+/// milliseconds on a discrete GPU: far from any watchdog.
+pub const DEFAULT_FLOPS_PER_SUBMIT: f64 = 2.0e9;
+
+/// GPU time of one dispatch (one band of one kernel), from timestamp queries.
+#[derive(Clone, Debug, PartialEq)]
+pub struct KernelTiming {
+    /// The kernel's name (with `_f64` for the f64 variant).
+    pub kernel: String,
+    pub rows: (u32, u32),
+    pub nanoseconds: f64,
+}
+
+/// Sums timings per kernel name, in first-seen order.
+pub fn timings_per_kernel(t: &[KernelTiming]) -> Vec<(String, f64, usize)> {
+    let mut out: Vec<(String, f64, usize)> = Vec::new();
+    for k in t {
+        match out.iter_mut().find(|o| o.0 == k.kernel) {
+            Some(o) => {
+                o.1 += k.nanoseconds;
+                o.2 += 1;
+            }
+            None => out.push((k.kernel.clone(), k.nanoseconds, 1)),
+        }
+    }
+    out
+}
+
+const SETS_PER_POOL: u32 = 64;
+const DESCRIPTORS_PER_POOL: u32 = 64 * 32;
+const QUERIES_PER_POOL: u32 = 256;
+
+enum Mode {
+    Execute { fence: vk::Fence },
+    Record,
+}
+
+/// A sequence of dispatches. See the module documentation.
+pub struct Batch {
+    ctx: Arc<GpuContext>,
+    cmd: vk::CommandBuffer,
+    mode: Mode,
+    desc_pools: Vec<vk::DescriptorPool>,
+    sets_left: u32,
+    query_pools: Vec<vk::QueryPool>,
+    queries_used: u32,
+    /// (label, rows, query index of the start stamp) per timed dispatch.
+    stamps: Vec<(String, (u32, u32), u32)>,
+    timings: Vec<KernelTiming>,
+    timestamps: bool,
+    flops_in_submit: f64,
+    /// Estimated floating-point operations per submit before it is split.
+    pub max_flops_per_submit: f64,
+    /// Number of submits so far (execute mode).
+    pub submits: u32,
+}
+
+impl Batch {
+    /// A batch with a command buffer of its own, submitted to the context's
+    /// queue. Dropping it without [`finish`](Self::finish) waits for what was
+    /// submitted and discards the rest.
+    pub fn new(ctx: &Arc<GpuContext>) -> Result<Batch> {
+        let dev = &ctx.device;
+        // SAFETY: pool and device are alive; freed in Drop.
+        let cmd = unsafe {
+            dev.allocate_command_buffers(
+                &vk::CommandBufferAllocateInfo::default()
+                    .command_pool(ctx.command_pool)
+                    .level(vk::CommandBufferLevel::PRIMARY)
+                    .command_buffer_count(1),
+            )
+        }
+        .map_err(Error::vk("vkAllocateCommandBuffers"))?[0];
+        let fence = unsafe { dev.create_fence(&vk::FenceCreateInfo::default(), None) }
+            .map_err(Error::vk("vkCreateFence"))?;
+        let mut b = Batch::empty(ctx, cmd, Mode::Execute { fence });
+        b.begin()?;
+        Ok(b)
+    }
+
+    /// Records into the host's command buffer `cmd`, which must be in the
+    /// recording state. Nothing is submitted; [`finish`](Self::finish) returns
+    /// a [`Recorded`] that must be kept alive until the host's submission of
+    /// `cmd` has completed (it owns the descriptor sets and query pools).
+    ///
+    /// # Safety
+    /// `cmd` was allocated from the context's device, from a pool of a queue
+    /// family with compute capability, and is recording. The buffers bound by
+    /// the recorded dispatches stay alive until the work completes.
+    pub unsafe fn record_into(ctx: &Arc<GpuContext>, cmd: vk::CommandBuffer) -> Batch {
+        Batch::empty(ctx, cmd, Mode::Record)
+    }
+
+    fn empty(ctx: &Arc<GpuContext>, cmd: vk::CommandBuffer, mode: Mode) -> Batch {
+        Batch {
+            ctx: ctx.clone(),
+            cmd,
+            mode,
+            desc_pools: Vec::new(),
+            sets_left: 0,
+            query_pools: Vec::new(),
+            queries_used: 0,
+            stamps: Vec::new(),
+            timings: Vec::new(),
+            timestamps: ctx.info.timestamp_period_ns > 0.0,
+            flops_in_submit: 0.0,
+            max_flops_per_submit: DEFAULT_FLOPS_PER_SUBMIT,
+            submits: 0,
+        }
+    }
+
+    fn begin(&mut self) -> Result<()> {
+        // SAFETY: command buffer is in the initial state.
+        unsafe {
+            self.ctx.device.begin_command_buffer(
+                self.cmd,
+                &vk::CommandBufferBeginInfo::default()
+                    .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT),
+            )
+        }
+        .map_err(Error::vk("vkBeginCommandBuffer"))
+    }
+
+    /// Ends, submits and waits for the current command buffer, collects its
+    /// timestamps, and starts a new one (execute mode; no-op in record mode).
+    pub fn flush(&mut self) -> Result<()> {
+        let Mode::Execute { fence } = self.mode else {
+            return Ok(());
+        };
+        let dev = &self.ctx.device;
+        // SAFETY: cmd is recording; fence unsignalled; queue used by us only.
+        unsafe {
+            dev.end_command_buffer(self.cmd)
+                .map_err(Error::vk("vkEndCommandBuffer"))?;
+            let cmds = [self.cmd];
+            let submit = [vk::SubmitInfo::default().command_buffers(&cmds)];
+            dev.queue_submit(self.ctx.queue, &submit, fence)
+                .map_err(Error::vk("vkQueueSubmit"))?;
+            dev.wait_for_fences(&[fence], true, u64::MAX)
+                .map_err(Error::vk("vkWaitForFences"))?;
+            dev.reset_fences(&[fence]).map_err(Error::vk("vkResetFences"))?;
+            dev.reset_command_buffer(self.cmd, vk::CommandBufferResetFlags::empty())
+                .map_err(Error::vk("vkResetCommandBuffer"))?;
+        }
+        self.submits += 1;
+        self.collect_timestamps()?;
+        self.flops_in_submit = 0.0;
+        self.begin()
+    }
+
+    fn collect_timestamps(&mut self) -> Result<()> {
+        if self.stamps.is_empty() {
+            return Ok(());
+        }
+        let period = self.ctx.info.timestamp_period_ns as f64;
+        let mut values = vec![0u64; self.queries_used as usize];
+        for (pi, pool) in self.query_pools.iter().enumerate() {
+            let first = pi as u32 * QUERIES_PER_POOL;
+            if first >= self.queries_used {
+                break;
+            }
+            let count = (self.queries_used - first).min(QUERIES_PER_POOL);
+            // SAFETY: queries [0, count) of the pool were written by completed work.
+            unsafe {
+                self.ctx.device.get_query_pool_results(
+                    *pool,
+                    0,
+                    &mut values[first as usize..(first + count) as usize],
+                    vk::QueryResultFlags::TYPE_64 | vk::QueryResultFlags::WAIT,
+                )
+            }
+            .map_err(Error::vk("vkGetQueryPoolResults"))?;
+        }
+        for (label, rows, q) in self.stamps.drain(..) {
+            let dt = values[q as usize + 1].wrapping_sub(values[q as usize]);
+            self.timings.push(KernelTiming {
+                kernel: label,
+                rows,
+                nanoseconds: dt as f64 * period,
+            });
+        }
+        // Reuse the pools from the start for the next submit.
+        self.queries_used = 0;
+        Ok(())
+    }
+
+    fn descriptor_set(&mut self, layout: vk::DescriptorSetLayout) -> Result<vk::DescriptorSet> {
+        let dev = &self.ctx.device;
+        if self.sets_left == 0 {
+            let sizes = [vk::DescriptorPoolSize::default()
+                .ty(vk::DescriptorType::STORAGE_BUFFER)
+                .descriptor_count(DESCRIPTORS_PER_POOL)];
+            // SAFETY: destroyed in Drop / by Recorded.
+            let pool = unsafe {
+                dev.create_descriptor_pool(
+                    &vk::DescriptorPoolCreateInfo::default()
+                        .max_sets(SETS_PER_POOL)
+                        .pool_sizes(&sizes),
+                    None,
+                )
+            }
+            .map_err(Error::vk("vkCreateDescriptorPool"))?;
+            self.desc_pools.push(pool);
+            self.sets_left = SETS_PER_POOL;
+        }
+        let layouts = [layout];
+        // SAFETY: pool has room (counted), layout alive in the cache.
+        let set = unsafe {
+            dev.allocate_descriptor_sets(
+                &vk::DescriptorSetAllocateInfo::default()
+                    .descriptor_pool(*self.desc_pools.last().unwrap())
+                    .set_layouts(&layouts),
+            )
+        }
+        .map_err(Error::vk("vkAllocateDescriptorSets"))?[0];
+        self.sets_left -= 1;
+        Ok(set)
+    }
+
+    fn query_pair(&mut self) -> Result<Option<(vk::QueryPool, u32, u32)>> {
+        if !self.timestamps {
+            return Ok(None);
+        }
+        let idx = self.queries_used;
+        let pool_idx = (idx / QUERIES_PER_POOL) as usize;
+        // A pair never straddles two pools: QUERIES_PER_POOL is even.
+        if pool_idx >= self.query_pools.len() {
+            // SAFETY: destroyed in Drop / by Recorded.
+            let pool = unsafe {
+                self.ctx.device.create_query_pool(
+                    &vk::QueryPoolCreateInfo::default()
+                        .query_type(vk::QueryType::TIMESTAMP)
+                        .query_count(QUERIES_PER_POOL),
+                    None,
+                )
+            }
+            .map_err(Error::vk("vkCreateQueryPool"))?;
+            self.query_pools.push(pool);
+        }
+        let pool = self.query_pools[pool_idx];
+        let local = idx % QUERIES_PER_POOL;
+        // SAFETY: resetting two queries of a pool we own, outside a render pass.
+        unsafe { self.ctx.device.cmd_reset_query_pool(self.cmd, pool, local, 2) };
+        self.queries_used += 2;
+        Ok(Some((pool, local, idx)))
+    }
+
+    /// A compute→compute/transfer memory barrier (recorded after every dispatch).
+    pub fn barrier(&mut self) {
+        let mb = [vk::MemoryBarrier::default()
+            .src_access_mask(vk::AccessFlags::SHADER_WRITE | vk::AccessFlags::TRANSFER_WRITE)
+            .dst_access_mask(
+                vk::AccessFlags::SHADER_READ
+                    | vk::AccessFlags::SHADER_WRITE
+                    | vk::AccessFlags::TRANSFER_READ
+                    | vk::AccessFlags::TRANSFER_WRITE,
+            )];
+        // SAFETY: cmd is recording.
+        unsafe {
+            self.ctx.device.cmd_pipeline_barrier(
+                self.cmd,
+                vk::PipelineStageFlags::COMPUTE_SHADER | vk::PipelineStageFlags::TRANSFER,
+                vk::PipelineStageFlags::COMPUTE_SHADER | vk::PipelineStageFlags::TRANSFER,
+                vk::DependencyFlags::empty(),
+                &mb,
+                &[],
+                &[],
+            )
+        };
+    }
+
+    /// Fills a range with a 32-bit pattern (e.g. zeroes counters).
+    pub fn fill(&mut self, slice: BufferSlice, value: u32) {
+        // SAFETY: cmd is recording; range inside the buffer (BufferSlice invariant).
+        unsafe {
+            self.ctx
+                .device
+                .cmd_fill_buffer(self.cmd, slice.buffer, slice.offset, slice.size & !3, value)
+        };
+        self.barrier();
+    }
+
+    /// Copies `src` into `dst` (sizes must match).
+    pub fn copy(&mut self, src: BufferSlice, dst: BufferSlice) {
+        assert_eq!(src.size, dst.size, "copy between ranges of different size");
+        let region = [vk::BufferCopy::default()
+            .src_offset(src.offset)
+            .dst_offset(dst.offset)
+            .size(src.size)];
+        // SAFETY: cmd recording; ranges inside their buffers (BufferSlice invariant).
+        unsafe { self.ctx.device.cmd_copy_buffer(self.cmd, src.buffer, dst.buffer, &region) };
+        self.barrier();
+    }
+
+    /// Records `decl` over a `width` x `height` pixel grid, split into bands of
+    /// rows so that one band holds at most `max_flops_per_submit` estimated
+    /// operations (`flops_per_pixel` is the kernel's estimate). The push
+    /// constants' third u32 (`row0`, by convention of every kernel) is set per
+    /// band. In execute mode a submit is made whenever the estimate is reached.
+    pub fn dispatch(
+        &mut self,
+        decl: &KernelDecl,
+        precision: Precision,
+        bindings: &[BufferSlice],
+        push: &[u8],
+        width: u32,
+        height: u32,
+        flops_per_pixel: f64,
+    ) -> Result<()> {
+        let p = self.ctx.pipeline(decl, precision)?;
+        if bindings.len() as u32 != p.binding_count {
+            return Err(Error::InvalidArgument(format!(
+                "kernel {} takes {} bindings, got {}",
+                decl.name,
+                p.binding_count,
+                bindings.len()
+            )));
+        }
+        if push.len() as u32 != decl.push_size || push.len() < 12 {
+            return Err(Error::InvalidArgument(format!(
+                "kernel {}: push constants of {} bytes, expected {}",
+                decl.name,
+                push.len(),
+                decl.push_size
+            )));
+        }
+        if width == 0 || height == 0 {
+            return Ok(());
+        }
+        let limit = self.ctx.info.max_storage_buffer_range as u64;
+        let align = self.ctx.info.min_storage_buffer_offset_alignment.max(1);
+        for (i, b) in bindings.iter().enumerate() {
+            if b.size > limit {
+                return Err(Error::Limit(format!(
+                    "kernel {} binding {i} ({}) is {} bytes; maxStorageBufferRange is {limit}",
+                    decl.name, decl.bindings[i].name, b.size
+                )));
+            }
+            if b.offset % align != 0 {
+                return Err(Error::InvalidArgument(format!(
+                    "kernel {} binding {i} ({}) offset {} is not a multiple of {align}",
+                    decl.name, decl.bindings[i].name, b.offset
+                )));
+            }
+        }
+        let set = self.descriptor_set(p.set_layout)?;
+        let infos: Vec<[vk::DescriptorBufferInfo; 1]> = bindings
+            .iter()
+            .map(|b| {
+                [vk::DescriptorBufferInfo::default()
+                    .buffer(b.buffer)
+                    .offset(b.offset)
+                    .range(b.size)]
+            })
+            .collect();
+        let writes: Vec<vk::WriteDescriptorSet> = infos
+            .iter()
+            .enumerate()
+            .map(|(i, info)| {
+                vk::WriteDescriptorSet::default()
+                    .dst_set(set)
+                    .dst_binding(i as u32)
+                    .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
+                    .buffer_info(info)
+            })
+            .collect();
+        let dev = self.ctx.device.clone();
+        // SAFETY: set freshly allocated, buffers valid (caller's contract).
+        unsafe { dev.update_descriptor_sets(&writes, &[]) };
+
+        let [wx, wy, _] = p.workgroup;
+        let row_flops = flops_per_pixel.max(1.0) * width as f64;
+        let mut band = ((self.max_flops_per_submit / row_flops).floor() as u32).max(1);
+        band = band.div_ceil(wy) * wy;
+        let mut push = push.to_vec();
+        let mut row0 = 0;
+        while row0 < height {
+            let rows = band.min(height - row0);
+            let band_flops = row_flops * rows as f64;
+            if self.flops_in_submit > 0.0
+                && self.flops_in_submit + band_flops > self.max_flops_per_submit
+            {
+                self.flush()?;
+            }
+            push[8..12].copy_from_slice(&row0.to_le_bytes());
+            let q = self.query_pair()?;
+            // SAFETY: cmd recording; pipeline/layout/set compatible.
+            unsafe {
+                if let Some((pool, local, _)) = q {
+                    dev.cmd_write_timestamp(self.cmd, vk::PipelineStageFlags::TOP_OF_PIPE, pool, local);
+                }
+                dev.cmd_bind_pipeline(self.cmd, vk::PipelineBindPoint::COMPUTE, p.pipeline);
+                dev.cmd_bind_descriptor_sets(
+                    self.cmd,
+                    vk::PipelineBindPoint::COMPUTE,
+                    p.layout,
+                    0,
+                    &[set],
+                    &[],
+                );
+                dev.cmd_push_constants(self.cmd, p.layout, vk::ShaderStageFlags::COMPUTE, 0, &push);
+                dev.cmd_dispatch(self.cmd, width.div_ceil(wx), rows.div_ceil(wy), 1);
+                if let Some((pool, local, _)) = q {
+                    dev.cmd_write_timestamp(
+                        self.cmd,
+                        vk::PipelineStageFlags::BOTTOM_OF_PIPE,
+                        pool,
+                        local + 1,
+                    );
+                }
+            }
+            if let Some((_, _, idx)) = q {
+                self.stamps.push((p.name.clone(), (row0, row0 + rows), idx));
+            }
+            self.barrier();
+            self.flops_in_submit += band_flops;
+            row0 += rows;
+        }
+        Ok(())
+    }
+
+    /// Submits the remaining work and waits (execute mode), and returns the
+    /// per-dispatch GPU times. In record mode returns a [`Recorded`] holder.
+    pub fn finish(mut self) -> Result<Vec<KernelTiming>> {
+        match self.mode {
+            Mode::Execute { .. } => {
+                self.flush()?;
+                Ok(std::mem::take(&mut self.timings))
+            }
+            Mode::Record => Err(Error::InvalidArgument(
+                "a recording batch ends with finish_recording()".into(),
+            )),
+        }
+    }
+
+    /// Ends a [`record_into`](Self::record_into) batch. The returned holder
+    /// must live until the host's submission has completed.
+    pub fn finish_recording(mut self) -> Recorded {
+        Recorded {
+            ctx: self.ctx.clone(),
+            desc_pools: std::mem::take(&mut self.desc_pools),
+            query_pools: std::mem::take(&mut self.query_pools),
+            stamps: std::mem::take(&mut self.stamps),
+            queries_used: self.queries_used,
+        }
+    }
+}
+
+impl Drop for Batch {
+    fn drop(&mut self) {
+        let dev = &self.ctx.device;
+        // SAFETY: execute mode: wait for the queue before freeing what the
+        // work may still use. Record mode: pools were moved to `Recorded`
+        // (finish_recording) or the recording is abandoned by the host.
+        unsafe {
+            if let Mode::Execute { fence } = self.mode {
+                let _ = dev.queue_wait_idle(self.ctx.queue);
+                dev.destroy_fence(fence, None);
+                dev.free_command_buffers(self.ctx.command_pool, &[self.cmd]);
+            }
+            for p in self.desc_pools.drain(..) {
+                dev.destroy_descriptor_pool(p, None);
+            }
+            for p in self.query_pools.drain(..) {
+                dev.destroy_query_pool(p, None);
+            }
+        }
+    }
+}
+
+/// What a recording batch leaves behind: descriptor sets and timestamp
+/// queries used by the host's command buffer. Keep it until that work has
+/// completed; then read [`timings`](Self::timings) and drop it.
+pub struct Recorded {
+    ctx: Arc<GpuContext>,
+    desc_pools: Vec<vk::DescriptorPool>,
+    query_pools: Vec<vk::QueryPool>,
+    stamps: Vec<(String, (u32, u32), u32)>,
+    queries_used: u32,
+}
+
+impl Recorded {
+    /// Per-dispatch GPU times. Call only after the host's submission completed.
+    pub fn timings(&self) -> Result<Vec<KernelTiming>> {
+        let period = self.ctx.info.timestamp_period_ns as f64;
+        let mut values = vec![0u64; self.queries_used as usize];
+        for (pi, pool) in self.query_pools.iter().enumerate() {
+            let first = pi as u32 * QUERIES_PER_POOL;
+            if first >= self.queries_used {
+                break;
+            }
+            let count = (self.queries_used - first).min(QUERIES_PER_POOL);
+            // SAFETY: the caller guarantees the work has completed.
+            unsafe {
+                self.ctx.device.get_query_pool_results(
+                    *pool,
+                    0,
+                    &mut values[first as usize..(first + count) as usize],
+                    vk::QueryResultFlags::TYPE_64 | vk::QueryResultFlags::WAIT,
+                )
+            }
+            .map_err(Error::vk("vkGetQueryPoolResults"))?;
+        }
+        Ok(self
+            .stamps
+            .iter()
+            .map(|(label, rows, q)| KernelTiming {
+                kernel: label.clone(),
+                rows: *rows,
+                nanoseconds: values[*q as usize + 1].wrapping_sub(values[*q as usize]) as f64 * period,
+            })
+            .collect())
+    }
+}
+
+impl Drop for Recorded {
+    fn drop(&mut self) {
+        // SAFETY: the host's work using these pools has completed (contract).
+        unsafe {
+            for p in self.desc_pools.drain(..) {
+                self.ctx.device.destroy_descriptor_pool(p, None);
+            }
+            for p in self.query_pools.drain(..) {
+                self.ctx.device.destroy_query_pool(p, None);
+            }
+        }
+    }
+}
+
+/// Copies `size` bytes between buffers and waits (used for staging).
+pub(crate) fn copy_buffer(
+    ctx: &Arc<GpuContext>,
+    src: vk::Buffer,
+    src_offset: u64,
+    dst: vk::Buffer,
+    dst_offset: u64,
+    size: u64,
+) -> Result<()> {
+    let mut b = Batch::new(ctx)?;
+    let region = [vk::BufferCopy::default()
+        .src_offset(src_offset)
+        .dst_offset(dst_offset)
+        .size(size)];
+    // SAFETY: cmd recording; ranges checked by the callers.
+    unsafe { ctx.device.cmd_copy_buffer(b.cmd, src, dst, &region) };
+    b.barrier();
+    b.finish().map(|_| ())
+}

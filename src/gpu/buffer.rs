@@ -1,0 +1,318 @@
+//! Named storage buffers, upload and download.
+
+use std::sync::Arc;
+
+use ash::vk;
+use gpu_allocator::vulkan::{Allocation, AllocationCreateDesc, AllocationScheme};
+use gpu_allocator::MemoryLocation;
+
+use super::context::GpuContext;
+use crate::error::{Error, Result};
+
+/// A range of a storage buffer, as a kernel binding sees it. Host-owned
+/// buffers (the embedding path) are passed this way too.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub struct BufferSlice {
+    pub buffer: vk::Buffer,
+    /// Byte offset; a multiple of the device's `minStorageBufferOffsetAlignment`.
+    pub offset: u64,
+    /// Byte size of the range.
+    pub size: u64,
+}
+
+/// A storage buffer owned by mcdenoise, freed on drop.
+pub struct GpuBuffer {
+    ctx: Arc<GpuContext>,
+    name: String,
+    buffer: vk::Buffer,
+    allocation: Option<Allocation>,
+    size: u64,
+}
+
+impl std::fmt::Debug for GpuBuffer {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "GpuBuffer({:?}, {} bytes)", self.name, self.size)
+    }
+}
+
+impl GpuBuffer {
+    /// A device-local storage buffer of `size` bytes (at least 4), named for
+    /// debuggers and leak reports. Its contents are undefined until written.
+    pub fn new(ctx: &Arc<GpuContext>, name: &str, size: u64) -> Result<GpuBuffer> {
+        Self::with_location(ctx, name, size, MemoryLocation::GpuOnly)
+    }
+
+    fn with_location(
+        ctx: &Arc<GpuContext>,
+        name: &str,
+        size: u64,
+        location: MemoryLocation,
+    ) -> Result<GpuBuffer> {
+        let size = size.max(4);
+        let info = vk::BufferCreateInfo::default()
+            .size(size)
+            .usage(
+                vk::BufferUsageFlags::STORAGE_BUFFER
+                    | vk::BufferUsageFlags::TRANSFER_SRC
+                    | vk::BufferUsageFlags::TRANSFER_DST,
+            )
+            .sharing_mode(vk::SharingMode::EXCLUSIVE);
+        // SAFETY: valid create info on a live device; destroyed in Drop.
+        let buffer = unsafe { ctx.device.create_buffer(&info, None) }
+            .map_err(Error::vk("vkCreateBuffer"))?;
+        let reqs = unsafe { ctx.device.get_buffer_memory_requirements(buffer) };
+        let alloc = ctx
+            .allocator
+            .lock()
+            .unwrap()
+            .as_mut()
+            .expect("allocator alive while the context is")
+            .allocate(&AllocationCreateDesc {
+                name,
+                requirements: reqs,
+                location,
+                linear: true,
+                allocation_scheme: AllocationScheme::GpuAllocatorManaged,
+            });
+        let allocation = match alloc {
+            Ok(a) => a,
+            Err(source) => {
+                unsafe { ctx.device.destroy_buffer(buffer, None) };
+                return Err(Error::Allocation {
+                    name: name.to_owned(),
+                    bytes: size,
+                    source,
+                });
+            }
+        };
+        // SAFETY: memory comes from this device and fits the requirements.
+        if let Err(e) = unsafe {
+            ctx.device
+                .bind_buffer_memory(buffer, allocation.memory(), allocation.offset())
+        } {
+            unsafe { ctx.device.destroy_buffer(buffer, None) };
+            let _ = ctx.allocator.lock().unwrap().as_mut().unwrap().free(allocation);
+            return Err(Error::vk("vkBindBufferMemory")(e));
+        }
+        ctx.name_object(buffer, name);
+        Ok(GpuBuffer {
+            ctx: ctx.clone(),
+            name: name.to_owned(),
+            buffer,
+            allocation: Some(allocation),
+            size,
+        })
+    }
+
+    /// A buffer holding `data`.
+    pub fn from_slice<T: bytemuck::Pod>(ctx: &Arc<GpuContext>, name: &str, data: &[T]) -> Result<GpuBuffer> {
+        let b = Self::new(ctx, name, std::mem::size_of_val(data) as u64)?;
+        b.upload(0, bytemuck::cast_slice(data))?;
+        Ok(b)
+    }
+
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    pub fn size(&self) -> u64 {
+        self.size
+    }
+
+    pub fn raw(&self) -> vk::Buffer {
+        self.buffer
+    }
+
+    /// The whole buffer as a binding.
+    pub fn slice(&self) -> BufferSlice {
+        BufferSlice {
+            buffer: self.buffer,
+            offset: 0,
+            size: self.size,
+        }
+    }
+
+    /// A byte range of the buffer as a binding.
+    pub fn range(&self, offset: u64, size: u64) -> BufferSlice {
+        assert!(offset + size <= self.size, "{}: range out of bounds", self.name);
+        BufferSlice {
+            buffer: self.buffer,
+            offset,
+            size,
+        }
+    }
+
+    /// Writes `bytes` at byte `offset` (blocking; the GPU must not be using the
+    /// buffer). Direct copy when the memory is mapped, else through a staging
+    /// buffer.
+    pub fn upload(&self, offset: u64, bytes: &[u8]) -> Result<()> {
+        if offset + bytes.len() as u64 > self.size {
+            return Err(Error::InvalidArgument(format!(
+                "upload of {} bytes at {offset} exceeds buffer {} ({} bytes)",
+                bytes.len(),
+                self.name,
+                self.size
+            )));
+        }
+        if bytes.is_empty() {
+            return Ok(());
+        }
+        if let Some(ptr) = self.allocation.as_ref().and_then(|a| a.mapped_ptr()) {
+            // SAFETY: the mapping covers the allocation; range checked above.
+            unsafe {
+                std::ptr::copy_nonoverlapping(
+                    bytes.as_ptr(),
+                    (ptr.as_ptr() as *mut u8).add(offset as usize),
+                    bytes.len(),
+                )
+            };
+            return Ok(());
+        }
+        let staging = Self::with_location(
+            &self.ctx,
+            &format!("{}.staging_up", self.name),
+            bytes.len() as u64,
+            MemoryLocation::CpuToGpu,
+        )?;
+        staging.upload(0, bytes)?;
+        super::batch::copy_buffer(&self.ctx, staging.buffer, 0, self.buffer, offset, bytes.len() as u64)
+    }
+
+    /// Reads `out.len()` bytes from byte `offset` (blocking).
+    pub fn download(&self, offset: u64, out: &mut [u8]) -> Result<()> {
+        if offset + out.len() as u64 > self.size {
+            return Err(Error::InvalidArgument(format!(
+                "download of {} bytes at {offset} exceeds buffer {}",
+                out.len(),
+                self.name
+            )));
+        }
+        if out.is_empty() {
+            return Ok(());
+        }
+        if let Some(ptr) = self.allocation.as_ref().and_then(|a| a.mapped_ptr()) {
+            // SAFETY: see upload.
+            unsafe {
+                std::ptr::copy_nonoverlapping(
+                    (ptr.as_ptr() as *const u8).add(offset as usize),
+                    out.as_mut_ptr(),
+                    out.len(),
+                )
+            };
+            return Ok(());
+        }
+        let staging = Self::with_location(
+            &self.ctx,
+            &format!("{}.staging_down", self.name),
+            out.len() as u64,
+            MemoryLocation::GpuToCpu,
+        )?;
+        super::batch::copy_buffer(&self.ctx, self.buffer, offset, staging.buffer, 0, out.len() as u64)?;
+        staging.download(0, out)
+    }
+
+    /// The whole buffer (or its first `count` elements) as a vector.
+    pub fn read_vec<T: bytemuck::Pod + Default + Clone>(&self, count: usize) -> Result<Vec<T>> {
+        let mut v = vec![T::default(); count];
+        self.download(0, bytemuck::cast_slice_mut(&mut v))?;
+        Ok(v)
+    }
+}
+
+impl Drop for GpuBuffer {
+    fn drop(&mut self) {
+        // SAFETY: the caller keeps buffers alive until GPU work using them has
+        // completed (every execute path waits before returning).
+        unsafe { self.ctx.device.destroy_buffer(self.buffer, None) };
+        if let Some(a) = self.allocation.take() {
+            if let Some(alloc) = self.ctx.allocator.lock().unwrap().as_mut() {
+                let _ = alloc.free(a);
+            }
+        }
+    }
+}
+
+/// Planes of `width * height` f32 values packed in one buffer, each starting
+/// at a multiple of [`PLANE_ALIGN`] bytes, so every plane can be bound on its
+/// own (no binding grows with the number of channels).
+#[derive(Debug)]
+pub struct PlaneSet {
+    pub buffer: GpuBuffer,
+    pub pixels: usize,
+    pub count: usize,
+    /// Bytes from one plane's start to the next.
+    pub stride: u64,
+}
+
+/// Alignment of planes inside a [`PlaneSet`] and of the accumulation layout:
+/// 256 bytes, the largest `minStorageBufferOffsetAlignment` Vulkan allows.
+pub const PLANE_ALIGN: u64 = 256;
+
+/// Byte stride of a plane of `pixels` f32 values.
+pub fn plane_stride(pixels: usize) -> u64 {
+    ((pixels as u64 * 4).max(4)).div_ceil(PLANE_ALIGN) * PLANE_ALIGN
+}
+
+impl PlaneSet {
+    pub fn new(ctx: &Arc<GpuContext>, name: &str, pixels: usize, count: usize) -> Result<PlaneSet> {
+        let stride = plane_stride(pixels);
+        let limit = ctx.info.max_storage_buffer_range as u64;
+        if pixels as u64 * 4 > limit {
+            return Err(Error::Limit(format!(
+                "one plane of {pixels} pixels ({} bytes) exceeds maxStorageBufferRange ({limit} bytes)",
+                pixels * 4
+            )));
+        }
+        let buffer = GpuBuffer::new(ctx, name, stride * count.max(1) as u64)?;
+        Ok(PlaneSet {
+            buffer,
+            pixels,
+            count,
+            stride,
+        })
+    }
+
+    /// Plane `i` as a binding.
+    pub fn plane(&self, i: usize) -> BufferSlice {
+        assert!(i < self.count, "{}: plane {i} of {}", self.buffer.name(), self.count);
+        self.buffer.range(i as u64 * self.stride, (self.pixels as u64 * 4).max(4))
+    }
+
+    pub fn upload_plane<T: bytemuck::Pod>(&self, i: usize, data: &[T]) -> Result<()> {
+        assert!(i < self.count);
+        assert_eq!(std::mem::size_of_val(data), self.pixels * 4);
+        self.buffer.upload(i as u64 * self.stride, bytemuck::cast_slice(data))
+    }
+
+    pub fn download_plane<T: bytemuck::Pod + Default + Clone>(&self, i: usize) -> Result<Vec<T>> {
+        assert!(i < self.count);
+        let mut v = vec![T::default(); self.pixels];
+        self.buffer
+            .download(i as u64 * self.stride, bytemuck::cast_slice_mut(&mut v))?;
+        Ok(v)
+    }
+
+    /// Uploads all planes at once (one copy).
+    pub fn upload_all(&self, planes: &[&[f32]]) -> Result<()> {
+        assert_eq!(planes.len(), self.count);
+        let mut bytes = vec![0u8; (self.stride * self.count as u64) as usize];
+        for (i, p) in planes.iter().enumerate() {
+            assert_eq!(p.len(), self.pixels);
+            let at = i * self.stride as usize;
+            bytes[at..at + p.len() * 4].copy_from_slice(bytemuck::cast_slice(p));
+        }
+        self.buffer.upload(0, &bytes)
+    }
+
+    /// Downloads all planes at once.
+    pub fn download_all(&self) -> Result<Vec<Vec<f32>>> {
+        let mut bytes = vec![0u8; (self.stride * self.count as u64) as usize];
+        self.buffer.download(0, &mut bytes)?;
+        Ok((0..self.count)
+            .map(|i| {
+                let at = i * self.stride as usize;
+                bytemuck::pod_collect_to_vec::<u8, f32>(&bytes[at..at + self.pixels * 4])
+            })
+            .collect())
+    }
+}

@@ -1,0 +1,554 @@
+//! Instance, physical-device choice, logical device, queue and allocator.
+
+use std::ffi::{c_void, CStr, CString};
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex};
+
+use ash::vk;
+use gpu_allocator::vulkan::{Allocator, AllocatorCreateDesc};
+
+use crate::error::{Error, Result};
+
+const VALIDATION_LAYER: &CStr = c"VK_LAYER_KHRONOS_validation";
+
+/// Whether to enable `VK_LAYER_KHRONOS_validation`.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Default)]
+pub enum Validation {
+    /// Never (the CLI default).
+    #[default]
+    Off,
+    /// When the layer is installed (what the tests use).
+    IfInstalled,
+    /// Always; creating the context fails if the layer is missing.
+    Required,
+}
+
+/// How to create a [`GpuContext`].
+#[derive(Clone, Debug, Default)]
+pub struct ContextOptions {
+    /// Device by index (as `mcdenoise info` lists them) or by a case-insensitive
+    /// substring of its name. `None`: the `MCDENOISE_DEVICE` environment
+    /// variable, else the best device (discrete > integrated > virtual > CPU).
+    pub device: Option<String>,
+    pub validation: Validation,
+}
+
+/// What `mcdenoise info` prints about a device.
+#[derive(Clone, Debug)]
+pub struct DeviceInfo {
+    pub index: usize,
+    pub name: String,
+    pub kind: vk::PhysicalDeviceType,
+    pub api_version: (u32, u32, u32),
+    pub driver: String,
+    pub max_storage_buffer_range: u32,
+    pub max_per_stage_storage_buffers: u32,
+    pub max_push_constants_size: u32,
+    pub max_shared_memory: u32,
+    pub min_storage_buffer_offset_alignment: u64,
+    pub shader_float64: bool,
+    pub shader_int64: bool,
+    pub subgroup_size: u32,
+    pub timestamp_period_ns: f32,
+    pub has_compute_queue: bool,
+}
+
+/// Messages of the validation layer: every error is counted and kept.
+#[derive(Debug, Default)]
+pub struct ValidationLog {
+    pub errors: AtomicUsize,
+    pub warnings: AtomicUsize,
+    pub messages: Mutex<Vec<String>>,
+}
+
+unsafe extern "system" fn debug_callback(
+    severity: vk::DebugUtilsMessageSeverityFlagsEXT,
+    _types: vk::DebugUtilsMessageTypeFlagsEXT,
+    data: *const vk::DebugUtilsMessengerCallbackDataEXT<'_>,
+    user: *mut c_void,
+) -> vk::Bool32 {
+    // SAFETY: `user` is the `ValidationLog` kept alive by the context that
+    // registered this callback; `data` is valid for the call (Vulkan spec).
+    let log = unsafe { &*(user as *const ValidationLog) };
+    let msg = unsafe {
+        data.as_ref()
+            .and_then(|d| d.message_as_c_str())
+            .map(|m| m.to_string_lossy().into_owned())
+            .unwrap_or_default()
+    };
+    if severity.contains(vk::DebugUtilsMessageSeverityFlagsEXT::ERROR) {
+        log.errors.fetch_add(1, Ordering::SeqCst);
+        eprintln!("[vulkan validation error] {msg}");
+        log.messages.lock().unwrap().push(msg);
+    } else if severity.contains(vk::DebugUtilsMessageSeverityFlagsEXT::WARNING) {
+        log.warnings.fetch_add(1, Ordering::SeqCst);
+        eprintln!("[vulkan validation warning] {msg}");
+        log.messages.lock().unwrap().push(msg);
+    }
+    vk::FALSE
+}
+
+/// A device that mcdenoise runs on, either created by mcdenoise or imported
+/// from a host renderer ([`GpuContext::from_raw`]).
+///
+/// Teardown order (on drop): wait for the device to be idle, free the
+/// allocator's memory blocks, destroy the command pool, then — only if this
+/// context created them — the device, the debug messenger and the instance.
+pub struct GpuContext {
+    pub(crate) entry: ash::Entry,
+    pub(crate) instance: ash::Instance,
+    pub(crate) physical: vk::PhysicalDevice,
+    pub(crate) device: ash::Device,
+    pub(crate) queue: vk::Queue,
+    pub(crate) queue_family: u32,
+    pub(crate) allocator: Mutex<Option<Allocator>>,
+    pub(crate) command_pool: vk::CommandPool,
+    pub(crate) info: DeviceInfo,
+    pub(crate) f64_enabled: bool,
+    owns_device: bool,
+    debug: Option<(ash::ext::debug_utils::Instance, vk::DebugUtilsMessengerEXT)>,
+    validation_log: Arc<ValidationLog>,
+    pub(crate) pipelines: Mutex<super::pipeline::PipelineCache>,
+}
+
+fn load_entry() -> Result<ash::Entry> {
+    // SAFETY: loading the system Vulkan loader; it is not unloaded while the
+    // returned Entry (kept in the context) lives.
+    unsafe { ash::Entry::load() }.map_err(|e| Error::NoLoader(e.to_string()))
+}
+
+fn make_instance(entry: &ash::Entry, layers: &[*const i8], debug: bool) -> Result<ash::Instance> {
+    let app_name = c"mcdenoise";
+    let app = vk::ApplicationInfo::default()
+        .application_name(app_name)
+        .engine_name(app_name)
+        .api_version(vk::API_VERSION_1_1);
+    let mut exts = Vec::new();
+    if debug {
+        exts.push(ash::ext::debug_utils::NAME.as_ptr());
+    }
+    let info = vk::InstanceCreateInfo::default()
+        .application_info(&app)
+        .enabled_layer_names(layers)
+        .enabled_extension_names(&exts);
+    // SAFETY: all pointers in `info` outlive the call.
+    unsafe { entry.create_instance(&info, None) }.map_err(|e| match e {
+        vk::Result::ERROR_INCOMPATIBLE_DRIVER => {
+            Error::NoDevice("no Vulkan driver (ICD) is installed".into())
+        }
+        e => Error::vk("vkCreateInstance")(e),
+    })
+}
+
+fn layer_available(entry: &ash::Entry, name: &CStr) -> bool {
+    // SAFETY: plain enumeration.
+    unsafe { entry.enumerate_instance_layer_properties() }
+        .map(|ls| {
+            ls.iter()
+                .any(|l| l.layer_name_as_c_str().is_ok_and(|n| n == name))
+        })
+        .unwrap_or(false)
+}
+
+fn describe(instance: &ash::Instance, pd: vk::PhysicalDevice, index: usize) -> DeviceInfo {
+    // SAFETY: `pd` was enumerated from `instance`.
+    unsafe {
+        let mut subgroup = vk::PhysicalDeviceSubgroupProperties::default();
+        let mut driver = vk::PhysicalDeviceDriverProperties::default();
+        let mut props2 = vk::PhysicalDeviceProperties2::default()
+            .push_next(&mut subgroup)
+            .push_next(&mut driver);
+        instance.get_physical_device_properties2(pd, &mut props2);
+        let p = props2.properties;
+        let features = instance.get_physical_device_features(pd);
+        let queues = instance.get_physical_device_queue_family_properties(pd);
+        let l = p.limits;
+        DeviceInfo {
+            index,
+            name: p
+                .device_name_as_c_str()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_default(),
+            kind: p.device_type,
+            api_version: (
+                vk::api_version_major(p.api_version),
+                vk::api_version_minor(p.api_version),
+                vk::api_version_patch(p.api_version),
+            ),
+            driver: driver
+                .driver_info_as_c_str()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_default(),
+            max_storage_buffer_range: l.max_storage_buffer_range,
+            max_per_stage_storage_buffers: l.max_per_stage_descriptor_storage_buffers,
+            max_push_constants_size: l.max_push_constants_size,
+            max_shared_memory: l.max_compute_shared_memory_size,
+            min_storage_buffer_offset_alignment: l.min_storage_buffer_offset_alignment,
+            shader_float64: features.shader_float64 == vk::TRUE,
+            shader_int64: features.shader_int64 == vk::TRUE,
+            subgroup_size: subgroup.subgroup_size,
+            timestamp_period_ns: l.timestamp_period,
+            has_compute_queue: queues
+                .iter()
+                .any(|q| q.queue_flags.contains(vk::QueueFlags::COMPUTE)),
+        }
+    }
+}
+
+fn rank(kind: vk::PhysicalDeviceType) -> u32 {
+    match kind {
+        vk::PhysicalDeviceType::DISCRETE_GPU => 0,
+        vk::PhysicalDeviceType::INTEGRATED_GPU => 1,
+        vk::PhysicalDeviceType::VIRTUAL_GPU => 2,
+        vk::PhysicalDeviceType::CPU => 3,
+        _ => 4,
+    }
+}
+
+/// Picks a device from `infos` by the rule of [`ContextOptions::device`].
+pub fn choose_device(infos: &[DeviceInfo], wanted: Option<&str>) -> Result<usize> {
+    let usable: Vec<&DeviceInfo> = infos.iter().filter(|d| d.has_compute_queue).collect();
+    if usable.is_empty() {
+        return Err(Error::NoDevice(if infos.is_empty() {
+            "the Vulkan loader found no device".into()
+        } else {
+            "no device has a compute queue".into()
+        }));
+    }
+    let env = std::env::var("MCDENOISE_DEVICE").ok();
+    match wanted.map(str::to_owned).or(env).filter(|s| !s.is_empty()) {
+        Some(w) => {
+            if let Ok(i) = w.parse::<usize>() {
+                return usable
+                    .iter()
+                    .find(|d| d.index == i)
+                    .map(|d| d.index)
+                    .ok_or_else(|| Error::NoDevice(format!("no device with index {i}")));
+            }
+            let lw = w.to_lowercase();
+            usable
+                .iter()
+                .find(|d| d.name.to_lowercase().contains(&lw))
+                .map(|d| d.index)
+                .ok_or_else(|| {
+                    let names: Vec<_> = usable.iter().map(|d| d.name.as_str()).collect();
+                    Error::NoDevice(format!("no device matches {w:?} (have: {})", names.join(", ")))
+                })
+        }
+        None => Ok(usable
+            .iter()
+            .min_by_key(|d| (rank(d.kind), d.index))
+            .unwrap()
+            .index),
+    }
+}
+
+/// Lists the Vulkan devices (for `mcdenoise info`) without creating a device.
+pub fn enumerate_devices() -> Result<Vec<DeviceInfo>> {
+    let entry = load_entry()?;
+    let instance = make_instance(&entry, &[], false)?;
+    // SAFETY: the instance is destroyed below and not used after.
+    let result = unsafe { instance.enumerate_physical_devices() }
+        .map_err(Error::vk("vkEnumeratePhysicalDevices"))
+        .map(|pds| {
+            pds.iter()
+                .enumerate()
+                .map(|(i, &pd)| describe(&instance, pd, i))
+                .collect()
+        });
+    unsafe { instance.destroy_instance(None) };
+    result
+}
+
+/// A host renderer's Vulkan objects, handed to [`GpuContext::from_raw`].
+#[derive(Clone)]
+pub struct ImportedDevice {
+    pub entry: ash::Entry,
+    pub instance: ash::Instance,
+    pub physical_device: vk::PhysicalDevice,
+    pub device: ash::Device,
+    /// A queue with compute capability.
+    pub queue: vk::Queue,
+    pub queue_family_index: u32,
+    /// Whether the host enabled `shaderFloat64` on `device` (f64 kernels are
+    /// only used then).
+    pub shader_float64_enabled: bool,
+}
+
+impl GpuContext {
+    /// Creates an instance and a device of its own.
+    pub fn new(options: &ContextOptions) -> Result<GpuContext> {
+        let entry = load_entry()?;
+        let want_layer = match options.validation {
+            Validation::Off => false,
+            Validation::IfInstalled => layer_available(&entry, VALIDATION_LAYER),
+            Validation::Required => {
+                if !layer_available(&entry, VALIDATION_LAYER) {
+                    return Err(Error::NoDevice(
+                        "validation requested but VK_LAYER_KHRONOS_validation is not installed \
+                         (apt-get install vulkan-validationlayers)"
+                            .into(),
+                    ));
+                }
+                true
+            }
+        };
+        let layers: Vec<*const i8> = if want_layer {
+            vec![VALIDATION_LAYER.as_ptr()]
+        } else {
+            vec![]
+        };
+        let instance = make_instance(&entry, &layers, want_layer)?;
+        let validation_log = Arc::new(ValidationLog::default());
+        let debug = if want_layer {
+            let du = ash::ext::debug_utils::Instance::new(&entry, &instance);
+            let info = vk::DebugUtilsMessengerCreateInfoEXT::default()
+                .message_severity(
+                    vk::DebugUtilsMessageSeverityFlagsEXT::ERROR
+                        | vk::DebugUtilsMessageSeverityFlagsEXT::WARNING,
+                )
+                .message_type(
+                    vk::DebugUtilsMessageTypeFlagsEXT::GENERAL
+                        | vk::DebugUtilsMessageTypeFlagsEXT::VALIDATION
+                        | vk::DebugUtilsMessageTypeFlagsEXT::PERFORMANCE,
+                )
+                .pfn_user_callback(Some(debug_callback))
+                .user_data(Arc::as_ptr(&validation_log) as *mut c_void);
+            // SAFETY: the log outlives the messenger (both owned by the context,
+            // messenger destroyed first).
+            let m = unsafe { du.create_debug_utils_messenger(&info, None) }
+                .map_err(Error::vk("vkCreateDebugUtilsMessengerEXT"))?;
+            Some((du, m))
+        } else {
+            None
+        };
+
+        let built = (|| {
+            // SAFETY: plain enumeration on a live instance.
+            let pds = unsafe { instance.enumerate_physical_devices() }
+                .map_err(Error::vk("vkEnumeratePhysicalDevices"))?;
+            let infos: Vec<DeviceInfo> = pds
+                .iter()
+                .enumerate()
+                .map(|(i, &pd)| describe(&instance, pd, i))
+                .collect();
+            let chosen = choose_device(&infos, options.device.as_deref())?;
+            let physical = pds[chosen];
+            let info = infos[chosen].clone();
+            // SAFETY: `physical` comes from this instance.
+            let families = unsafe { instance.get_physical_device_queue_family_properties(physical) };
+            let queue_family = families
+                .iter()
+                .position(|q| q.queue_flags.contains(vk::QueueFlags::COMPUTE))
+                .unwrap() as u32;
+            let priorities = [1.0f32];
+            let queue_info = [vk::DeviceQueueCreateInfo::default()
+                .queue_family_index(queue_family)
+                .queue_priorities(&priorities)];
+            let features = vk::PhysicalDeviceFeatures::default()
+                .shader_float64(info.shader_float64)
+                .shader_int64(info.shader_int64);
+            let dinfo = vk::DeviceCreateInfo::default()
+                .queue_create_infos(&queue_info)
+                .enabled_features(&features);
+            // SAFETY: valid create info; the device is destroyed by this context.
+            let device = unsafe { instance.create_device(physical, &dinfo, None) }
+                .map_err(Error::vk("vkCreateDevice"))?;
+            // SAFETY: family/index exist (created above).
+            let queue = unsafe { device.get_device_queue(queue_family, 0) };
+            Ok::<_, Error>((physical, info, device, queue, queue_family))
+        })();
+        let (physical, info, device, queue, queue_family) = match built {
+            Ok(b) => b,
+            Err(e) => {
+                // SAFETY: nothing created from the instance is alive any more.
+                unsafe {
+                    if let Some((du, m)) = &debug {
+                        du.destroy_debug_utils_messenger(*m, None);
+                    }
+                    instance.destroy_instance(None);
+                }
+                return Err(e);
+            }
+        };
+        let f64_enabled = info.shader_float64;
+        Self::finish(
+            entry,
+            instance,
+            physical,
+            device,
+            queue,
+            queue_family,
+            info,
+            f64_enabled,
+            true,
+            debug,
+            validation_log,
+        )
+    }
+
+    /// Wraps a host renderer's existing instance, device and queue: the
+    /// embedding path. mcdenoise creates its own allocator, command pool,
+    /// pipelines and buffers on `device` and destroys only those.
+    ///
+    /// # Safety
+    /// The caller guarantees that:
+    /// - `device` was created from `physical_device` of `instance`, and the
+    ///   queue `queue` belongs to `queue_family_index`, which supports compute;
+    /// - `shader_float64_enabled` is true only if that feature was enabled;
+    /// - the instance and device outlive this context (they are not destroyed
+    ///   by it), and the context is dropped before them;
+    /// - the queue is not used by another thread while mcdenoise submits to it
+    ///   (`execute` paths; `record` paths only record into the host's command
+    ///   buffers and never submit).
+    pub unsafe fn from_raw(host: ImportedDevice) -> Result<GpuContext> {
+        let info = describe(&host.instance, host.physical_device, 0);
+        Self::finish(
+            host.entry,
+            host.instance,
+            host.physical_device,
+            host.device,
+            host.queue,
+            host.queue_family_index,
+            info,
+            host.shader_float64_enabled,
+            false,
+            None,
+            Arc::new(ValidationLog::default()),
+        )
+    }
+
+    fn finish(
+        entry: ash::Entry,
+        instance: ash::Instance,
+        physical: vk::PhysicalDevice,
+        device: ash::Device,
+        queue: vk::Queue,
+        queue_family: u32,
+        info: DeviceInfo,
+        f64_enabled: bool,
+        owns_device: bool,
+        debug: Option<(ash::ext::debug_utils::Instance, vk::DebugUtilsMessengerEXT)>,
+        validation_log: Arc<ValidationLog>,
+    ) -> Result<GpuContext> {
+        let allocator = Allocator::new(&AllocatorCreateDesc {
+            instance: instance.clone(),
+            device: device.clone(),
+            physical_device: physical,
+            debug_settings: gpu_allocator::AllocatorDebugSettings {
+                log_leaks_on_shutdown: cfg!(debug_assertions),
+                ..Default::default()
+            },
+            buffer_device_address: false,
+            allocation_sizes: Default::default(),
+        })
+        .map_err(|source| Error::Allocation {
+            name: "allocator".into(),
+            bytes: 0,
+            source,
+        })?;
+        let pool_info = vk::CommandPoolCreateInfo::default()
+            .queue_family_index(queue_family)
+            .flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER);
+        // SAFETY: valid device; destroyed in Drop.
+        let command_pool = unsafe { device.create_command_pool(&pool_info, None) }
+            .map_err(Error::vk("vkCreateCommandPool"))?;
+        Ok(GpuContext {
+            entry,
+            instance,
+            physical,
+            device,
+            queue,
+            queue_family,
+            allocator: Mutex::new(Some(allocator)),
+            command_pool,
+            info,
+            f64_enabled,
+            owns_device,
+            debug,
+            validation_log,
+            pipelines: Mutex::new(Default::default()),
+        })
+    }
+
+    /// The chosen device's properties and limits.
+    pub fn info(&self) -> &DeviceInfo {
+        &self.info
+    }
+
+    /// Whether the `_f64` kernel variants can run here.
+    pub fn supports_f64(&self) -> bool {
+        self.f64_enabled
+    }
+
+    /// Number of validation-layer errors seen so far (0 without the layer).
+    pub fn validation_errors(&self) -> usize {
+        self.validation_log.errors.load(Ordering::SeqCst)
+    }
+
+    /// Whether the validation layer is active on this context.
+    pub fn validation_enabled(&self) -> bool {
+        self.debug.is_some()
+    }
+
+    /// All validation messages so far (errors and warnings).
+    pub fn validation_messages(&self) -> Vec<String> {
+        self.validation_log.messages.lock().unwrap().clone()
+    }
+
+    /// The raw device, for hosts that record mcdenoise's work.
+    pub fn raw_device(&self) -> &ash::Device {
+        &self.device
+    }
+
+    pub fn raw_instance(&self) -> &ash::Instance {
+        &self.instance
+    }
+
+    pub fn raw_entry(&self) -> &ash::Entry {
+        &self.entry
+    }
+
+    pub fn queue_family(&self) -> u32 {
+        self.queue_family
+    }
+
+    /// Waits until the device has finished all work.
+    pub fn wait_idle(&self) -> Result<()> {
+        // SAFETY: device is alive.
+        unsafe { self.device.device_wait_idle() }.map_err(Error::vk("vkDeviceWaitIdle"))
+    }
+
+    /// Debug label for a Vulkan object (no-op without the debug extension).
+    pub(crate) fn name_object<H: vk::Handle>(&self, handle: H, name: &str) {
+        if self.debug.is_none() {
+            return;
+        }
+        let Ok(cname) = CString::new(name) else { return };
+        let du = ash::ext::debug_utils::Device::new(&self.instance, &self.device);
+        let info = vk::DebugUtilsObjectNameInfoEXT::default()
+            .object_handle(handle)
+            .object_name(&cname);
+        // SAFETY: handle belongs to this device; naming failures are harmless.
+        let _ = unsafe { du.set_debug_utils_object_name(&info) };
+    }
+}
+
+impl Drop for GpuContext {
+    fn drop(&mut self) {
+        // SAFETY: teardown in dependency order; nothing is used afterwards.
+        unsafe {
+            let _ = self.device.device_wait_idle();
+            self.pipelines.lock().unwrap().destroy(&self.device);
+            drop(self.allocator.lock().unwrap().take());
+            self.device.destroy_command_pool(self.command_pool, None);
+            if self.owns_device {
+                self.device.destroy_device(None);
+                if let Some((du, m)) = self.debug.take() {
+                    du.destroy_debug_utils_messenger(m, None);
+                }
+                self.instance.destroy_instance(None);
+            }
+        }
+    }
+}

@@ -1,0 +1,193 @@
+//! Kernel declarations and their check against the compiled SPIR-V.
+//!
+//! Every kernel's host file declares its bindings and push-constant struct once
+//! (a [`KernelDecl`]). [`reflect`] reads the SPIR-V with naga and
+//! [`KernelDecl::check`] fails if binding numbers, storage access or the
+//! push-constant size disagree. The workgroup size used for dispatch comes from
+//! the reflection, never from a second copy of it.
+
+use crate::error::{Error, Result};
+
+/// Storage access of one binding, as the shader declares it.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum Access {
+    /// `readonly buffer`
+    Read,
+    /// plain `buffer` (naga rejects glslang's `writeonly`, so outputs are read-write)
+    ReadWrite,
+}
+
+/// One storage-buffer binding (set 0, binding = its index in [`KernelDecl::bindings`]).
+#[derive(Copy, Clone, Debug)]
+pub struct BindingDecl {
+    pub name: &'static str,
+    pub access: Access,
+}
+
+/// What the host knows about a kernel: its name (= `spirv/<name>.comp`), its
+/// bindings in binding order, and its push-constant size in bytes.
+#[derive(Copy, Clone, Debug)]
+pub struct KernelDecl {
+    pub name: &'static str,
+    pub bindings: &'static [BindingDecl],
+    pub push_size: u32,
+}
+
+/// Shorthand constructors for binding tables.
+pub const fn read(name: &'static str) -> BindingDecl {
+    BindingDecl {
+        name,
+        access: Access::Read,
+    }
+}
+pub const fn write(name: &'static str) -> BindingDecl {
+    BindingDecl {
+        name,
+        access: Access::ReadWrite,
+    }
+}
+
+/// Compute precision of a kernel variant (spec §0.3).
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, Default)]
+pub enum Precision {
+    /// f32 arithmetic, the default on every device.
+    #[default]
+    F32,
+    /// f64 arithmetic (`<kernel>_f64`), where the device supports `shaderFloat64`.
+    F64,
+}
+
+impl Precision {
+    pub fn suffix(self) -> &'static str {
+        match self {
+            Precision::F32 => "",
+            Precision::F64 => "_f64",
+        }
+    }
+}
+
+/// What reflection found in a module.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Reflection {
+    /// `(binding, access)` of every storage buffer in set 0, sorted by binding.
+    pub bindings: Vec<(u32, Access)>,
+    /// Size of the push-constant block, 0 if none.
+    pub push_size: u32,
+    pub workgroup_size: [u32; 3],
+    /// Bytes of workgroup-shared memory.
+    pub shared_bytes: u32,
+}
+
+/// The SPIR-V words of a compiled kernel variant (`name` + precision suffix).
+pub fn spirv(name: &str, precision: Precision) -> Option<&'static [u32]> {
+    let full = format!("{name}{}", precision.suffix());
+    super::shaders::SHADERS
+        .iter()
+        .find(|(n, _)| *n == full)
+        .map(|(_, w)| *w)
+}
+
+/// Parses, validates and reflects one SPIR-V module with naga.
+pub fn reflect(kernel: &str, words: &[u32]) -> Result<Reflection> {
+    let fail = |message: String| Error::Kernel {
+        kernel: kernel.to_owned(),
+        message,
+    };
+    let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
+    let options = naga::front::spv::Options {
+        adjust_coordinate_space: false,
+        strict_capabilities: false,
+        block_ctx_dump_prefix: None,
+    };
+    let module = naga::front::spv::parse_u8_slice(&bytes, &options)
+        .map_err(|e| fail(format!("naga cannot parse the SPIR-V: {e}")))?;
+    let caps = naga::valid::Capabilities::IMMEDIATES
+        | naga::valid::Capabilities::FLOAT64
+        | naga::valid::Capabilities::SHADER_INT64;
+    naga::valid::Validator::new(naga::valid::ValidationFlags::all(), caps)
+        .validate(&module)
+        .map_err(|e| fail(format!("naga validation failed: {:?}", e.into_inner())))?;
+
+    let mut layouter = naga::proc::Layouter::default();
+    layouter
+        .update(module.to_ctx())
+        .map_err(|e| fail(format!("layout: {e}")))?;
+
+    let mut bindings = Vec::new();
+    let mut push_size = 0;
+    let mut shared_bytes = 0;
+    for (_, var) in module.global_variables.iter() {
+        match var.space {
+            naga::AddressSpace::Storage { access } => {
+                let b = var
+                    .binding
+                    .as_ref()
+                    .ok_or_else(|| fail("storage buffer without binding".into()))?;
+                if b.group != 0 {
+                    return Err(fail(format!("binding {} is in set {}, expected 0", b.binding, b.group)));
+                }
+                let acc = if access.contains(naga::StorageAccess::STORE) {
+                    Access::ReadWrite
+                } else {
+                    Access::Read
+                };
+                bindings.push((b.binding, acc));
+            }
+            naga::AddressSpace::Immediate => push_size = layouter[var.ty].size,
+            naga::AddressSpace::WorkGroup => shared_bytes += layouter[var.ty].size,
+            naga::AddressSpace::Uniform | naga::AddressSpace::Handle => {
+                return Err(fail("only storage buffers and push constants are supported".into()))
+            }
+            _ => {}
+        }
+    }
+    bindings.sort_by_key(|b| b.0);
+    let ep = module
+        .entry_points
+        .iter()
+        .find(|e| e.stage == naga::ShaderStage::Compute)
+        .ok_or_else(|| fail("no compute entry point".into()))?;
+    Ok(Reflection {
+        bindings,
+        push_size,
+        workgroup_size: ep.workgroup_size,
+        shared_bytes,
+    })
+}
+
+impl KernelDecl {
+    /// Reflects the kernel's `precision` variant and compares it with this
+    /// declaration. Returns the reflection (for the workgroup size).
+    pub fn check(&self, precision: Precision) -> Result<Reflection> {
+        let words = spirv(self.name, precision).ok_or_else(|| Error::Kernel {
+            kernel: self.name.to_owned(),
+            message: format!("no compiled SPIR-V for variant {precision:?}"),
+        })?;
+        let r = reflect(self.name, words)?;
+        let fail = |message: String| Error::Kernel {
+            kernel: format!("{}{}", self.name, precision.suffix()),
+            message,
+        };
+        let declared: Vec<(u32, Access)> = self
+            .bindings
+            .iter()
+            .enumerate()
+            .map(|(i, b)| (i as u32, b.access))
+            .collect();
+        if declared != r.bindings {
+            return Err(fail(format!(
+                "bindings disagree: Rust declares {declared:?}, SPIR-V has {:?}",
+                r.bindings
+            )));
+        }
+        // The shader's block may be smaller than the Rust struct only by the
+        // trailing padding the struct adds for 16-byte alignment.
+        if r.push_size > self.push_size || self.push_size - r.push_size >= 16 {
+            return Err(fail(format!(
+                "push-constant size disagrees: Rust {} bytes, SPIR-V {} bytes",
+                self.push_size, r.push_size
+            )));
+        }
+        Ok(r)
+    }
+}

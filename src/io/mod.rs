@@ -1,0 +1,96 @@
+//! EXR and PNG in and out.
+//!
+//! - [`read_stats`] reads a render-statistics EXR (`../shared/docs/input-format.md`)
+//!   into a [`StatsImage`](crate::image::StatsImage); [`read_rgb`] reads a
+//!   reference image (`color.R/G/B` or bare `R/G/B`).
+//! - [`write_output`] writes the denoiser's result; [`write_stats`],
+//!   [`write_rgb`] and [`write_channels`] write the other EXR shapes (fixtures,
+//!   references, crops).
+//! - [`write_png_preview`] and [`write_heatmap_png`] write 8-bit previews.
+//! - [`inspect`](inspect::inspect), [`validate`](inspect::validate) and
+//!   [`format_report`](inspect::format_report) summarise an input file.
+//!
+//! Reading never panics on file content: every problem with a file is an
+//! [`Error::BadInput`] naming the file and, where it applies, the layer,
+//! channel or pixel. Every write is atomic ([`write_atomic`]): a reader of the
+//! destination sees either the old file or the complete new one, never a
+//! partial file, and a failed write leaves no temporary file behind.
+
+mod exr_in;
+mod exr_out;
+pub mod inspect;
+mod png_out;
+
+use std::fs::{self, File, OpenOptions};
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use crate::error::{Error, Result};
+
+pub use exr_in::{read_rgb, read_stats, MAX_DIMENSION, MAX_PIXELS};
+pub use exr_out::{write_channels, write_output, write_rgb, write_stats, OutputImage};
+pub use inspect::{format_report, inspect, spp_range, validate, ChannelStats, LayerReport};
+pub use png_out::{heat_color, srgb_preview_u8, write_heatmap_png, write_png_preview};
+
+/// Distinguishes the temporary files of concurrent writes from one process.
+static TEMP_COUNTER: AtomicU64 = AtomicU64::new(0);
+
+/// The temporary file a write to `path` goes through: `.<name>.tmp-<pid>-<n>`
+/// in the destination's directory (same file system, so the final rename is
+/// atomic).
+fn temp_path(path: &Path) -> Result<PathBuf> {
+    let name = path.file_name().ok_or_else(|| Error::Io {
+        path: path.to_path_buf(),
+        source: std::io::Error::new(std::io::ErrorKind::InvalidInput, "not a file path"),
+    })?;
+    let n = TEMP_COUNTER.fetch_add(1, Ordering::Relaxed);
+    let tmp_name = format!(".{}.tmp-{}-{}", name.to_string_lossy(), std::process::id(), n);
+    Ok(match path.parent() {
+        Some(dir) if !dir.as_os_str().is_empty() => dir.join(tmp_name),
+        _ => PathBuf::from(tmp_name),
+    })
+}
+
+/// Writes `path` atomically.
+///
+/// `write` receives a buffered writer on a fresh temporary file next to `path`
+/// (`.<name>.tmp-<pid>-<n>`); when it returns `Ok`, the data is flushed,
+/// synced to disk and the temporary file is renamed over `path`. If anything
+/// fails (including `write` itself), the temporary file is removed and `path`
+/// is left untouched. OS errors are reported as [`Error::Io`] naming `path`.
+///
+/// A directory that does not exist is not created: that is an error.
+pub fn write_atomic(
+    path: &Path,
+    write: impl FnOnce(&mut BufWriter<File>) -> Result<()>,
+) -> Result<()> {
+    let tmp = temp_path(path)?;
+    let io_err = |source: std::io::Error| Error::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let file = OpenOptions::new().write(true).create_new(true).open(&tmp).map_err(io_err)?;
+    let result = (|| {
+        let mut writer = BufWriter::new(file);
+        write(&mut writer)?;
+        writer.flush().map_err(io_err)?;
+        let file = writer.into_inner().map_err(|e| io_err(e.into_error()))?;
+        file.sync_all().map_err(io_err)?;
+        drop(file);
+        fs::rename(&tmp, path).map_err(io_err)
+    })();
+    if result.is_err() {
+        // Best effort: the temporary file may already be gone.
+        let _ = fs::remove_file(&tmp);
+    }
+    result
+}
+
+/// An encoder failure while writing `path`, as an [`Error::Io`].
+fn write_error(path: &Path, what: &str, detail: impl std::fmt::Display) -> Error {
+    Error::Io {
+        path: path.to_path_buf(),
+        source: std::io::Error::other(format!("{what}: {detail}")),
+    }
+}

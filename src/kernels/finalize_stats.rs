@@ -1,0 +1,51 @@
+//! `finalize_stats`: accumulation sums of one scalar channel → mean and
+//! variance of the mean. Twin: [`crate::reference::finalize_stats`].
+
+use crate::error::Result;
+use crate::gpu::reflect::{read, write};
+use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};
+use crate::shared::FinalizePush;
+
+pub const DECL: KernelDecl = KernelDecl {
+    name: "finalize_stats",
+    bindings: &[
+        read("sum"),
+        read("sumsq"),
+        read("count"),
+        write("mean"),
+        write("var"),
+    ],
+    push_size: std::mem::size_of::<FinalizePush>() as u32,
+};
+
+/// Estimated floating-point operations per pixel (for band splitting).
+pub const FLOPS_PER_PIXEL: f64 = 10.0;
+
+/// Records one channel's finalize over a `width` x `height` image. Every
+/// slice holds one plane of `width * height` f32 values.
+pub fn record(
+    batch: &mut Batch,
+    precision: Precision,
+    width: u32,
+    height: u32,
+    sum: BufferSlice,
+    sumsq: BufferSlice,
+    count: BufferSlice,
+    mean: BufferSlice,
+    var: BufferSlice,
+) -> Result<()> {
+    let push = FinalizePush {
+        width,
+        height,
+        ..Default::default()
+    };
+    batch.dispatch(
+        &DECL,
+        precision,
+        &[sum, sumsq, count, mean, var],
+        bytemuck::bytes_of(&push),
+        width,
+        height,
+        FLOPS_PER_PIXEL,
+    )
+}

@@ -1,0 +1,182 @@
+//! Per-pixel statistics on the GPU ([`GpuStats`]) and the finalize pass that
+//! turns a renderer's accumulation buffer into them.
+
+use std::sync::Arc;
+
+use crate::accum::AccumLayout;
+use crate::error::Result;
+use crate::gpu::{Batch, BufferSlice, GpuContext, PlaneSet, Precision};
+use crate::image::{Layer, StatsImage};
+use crate::kernels::{finalize_covariance, finalize_stats};
+use crate::shared::FinalizePush;
+
+/// A [`StatsImage`] resident on the GPU: one plane per scalar channel of each
+/// present layer, in [`Layer::ALL`] order, packed in one [`PlaneSet`].
+#[derive(Debug)]
+pub struct GpuStats {
+    pub width: usize,
+    pub height: usize,
+    pub planes: PlaneSet,
+    /// `(layer, index of its first plane)` for each present layer.
+    pub index: Vec<(Layer, usize)>,
+}
+
+impl GpuStats {
+    /// Allocates planes for `layers` (contents undefined).
+    pub fn new(ctx: &Arc<GpuContext>, name: &str, width: usize, height: usize, layers: &[Layer]) -> Result<GpuStats> {
+        let mut layers = layers.to_vec();
+        layers.sort();
+        layers.dedup();
+        let mut index = Vec::new();
+        let mut n = 0;
+        for l in layers {
+            index.push((l, n));
+            n += l.channels().len();
+        }
+        Ok(GpuStats {
+            width,
+            height,
+            planes: PlaneSet::new(ctx, name, width * height, n)?,
+            index,
+        })
+    }
+
+    /// Uploads every layer of `img`.
+    pub fn upload(ctx: &Arc<GpuContext>, name: &str, img: &StatsImage) -> Result<GpuStats> {
+        let layers: Vec<Layer> = img.layers().map(|(l, _)| l).collect();
+        let g = GpuStats::new(ctx, name, img.width, img.height, &layers)?;
+        let planes: Vec<&[f32]> = img.layers().flat_map(|(_, p)| p.iter().map(|v| v.as_slice())).collect();
+        g.planes.upload_all(&planes)?;
+        Ok(g)
+    }
+
+    /// Downloads every layer.
+    pub fn download(&self) -> Result<StatsImage> {
+        let all = self.planes.download_all()?;
+        let mut img = StatsImage::new(self.width, self.height);
+        for &(l, first) in &self.index {
+            img.set(l, all[first..first + l.channels().len()].to_vec());
+        }
+        Ok(img)
+    }
+
+    pub fn has(&self, layer: Layer) -> bool {
+        self.index.iter().any(|(l, _)| *l == layer)
+    }
+
+    /// Plane `component` of `layer` as a binding. Panics if absent.
+    pub fn plane(&self, layer: Layer, component: usize) -> BufferSlice {
+        let (_, first) = self
+            .index
+            .iter()
+            .find(|(l, _)| *l == layer)
+            .unwrap_or_else(|| panic!("layer {} not on the GPU", layer.name()));
+        assert!(component < layer.channels().len());
+        self.planes.plane(first + component)
+    }
+}
+
+/// The layers a finalize of `layout` produces.
+pub fn finalized_layers(layout: &AccumLayout) -> Vec<Layer> {
+    let mut out = vec![];
+    for l in layout.layers() {
+        out.push(l);
+        out.push(l.variance().unwrap());
+    }
+    if layout.position {
+        out.push(Layer::PositionCovariance);
+    }
+    out.push(Layer::Spp);
+    out
+}
+
+/// Records the finalize of a renderer's accumulation buffer (`accum`, laid out
+/// as [`AccumLayout`] says) into `out`, which must hold [`finalized_layers`].
+/// `spp` is copied from the count plane through the finalize of the count
+/// itself (mean of a plane of ones would be 1; the count is passed as is).
+pub fn record_finalize(
+    batch: &mut Batch,
+    precision: Precision,
+    layout: &AccumLayout,
+    accum: BufferSlice,
+    out: &GpuStats,
+) -> Result<()> {
+    let stride = layout.plane_stride();
+    let plane_bytes = (layout.pixels() as u64 * 4).max(4);
+    let plane = |i: usize| BufferSlice {
+        buffer: accum.buffer,
+        offset: accum.offset + i as u64 * stride,
+        size: plane_bytes,
+    };
+    let (w, h) = (layout.width as u32, layout.height as u32);
+    let count = plane(layout.count_plane());
+    for (c, ch) in layout.channels().iter().enumerate() {
+        finalize_stats::record(
+            batch,
+            precision,
+            w,
+            h,
+            plane(layout.sum_plane(c)),
+            plane(layout.sumsq_plane(c)),
+            count,
+            out.plane(ch.layer, ch.component),
+            out.plane(ch.layer.variance().unwrap(), ch.component),
+        )?;
+    }
+    if layout.position {
+        let p0 = layout.channel_index(Layer::Position, 0).unwrap();
+        let sums = std::array::from_fn(|a| plane(layout.sum_plane(p0 + a)));
+        let sumsqs = std::array::from_fn(|a| plane(layout.sumsq_plane(p0 + a)));
+        let cross = std::array::from_fn(|k| plane(layout.cross_plane(k).unwrap()));
+        let cov = std::array::from_fn(|k| out.plane(Layer::PositionCovariance, k));
+        finalize_covariance::record(batch, precision, w, h, sums, sumsqs, cross, count, cov)?;
+    }
+    batch.copy(count, out.plane(Layer::Spp, 0));
+    Ok(())
+}
+
+/// The same on the CPU with the scalar twins: `planes` in layout order.
+pub fn finalize_cpu(layout: &AccumLayout, planes: &[Vec<f32>]) -> StatsImage {
+    use crate::reference::{finalize_covariance::finalize_covariance, finalize_stats::finalize_stats};
+    let n = layout.pixels();
+    let push = FinalizePush {
+        width: layout.width as u32,
+        height: layout.height as u32,
+        ..Default::default()
+    };
+    let count = &planes[layout.count_plane()];
+    let mut img = StatsImage::new(layout.width, layout.height);
+    for layer in layout.layers() {
+        let k = layer.channels().len();
+        let mut means = vec![vec![0.0f32; n]; k];
+        let mut vars = vec![vec![0.0f32; n]; k];
+        for comp in 0..k {
+            let c = layout.channel_index(layer, comp).unwrap();
+            finalize_stats(
+                &push,
+                &planes[layout.sum_plane(c)],
+                &planes[layout.sumsq_plane(c)],
+                count,
+                &mut means[comp],
+                &mut vars[comp],
+            );
+        }
+        img.set(layer, means);
+        img.set(layer.variance().unwrap(), vars);
+    }
+    if layout.position {
+        let p0 = layout.channel_index(Layer::Position, 0).unwrap();
+        let mut cov: [Vec<f32>; 6] = std::array::from_fn(|_| vec![0.0; n]);
+        finalize_covariance(
+            &push,
+            std::array::from_fn(|a| planes[layout.sum_plane(p0 + a)].as_slice()),
+            std::array::from_fn(|a| planes[layout.sumsq_plane(p0 + a)].as_slice()),
+            std::array::from_fn(|k| planes[layout.cross_plane(k).unwrap()].as_slice()),
+            count,
+            &mut cov,
+        );
+        img.set(Layer::PositionCovariance, cov.to_vec());
+    }
+    img.set(Layer::Spp, vec![count.clone()]);
+    img
+}

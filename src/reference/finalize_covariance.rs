@@ -1,0 +1,46 @@
+//! Scalar twin of `spirv/finalize_covariance.comp` (f64 arithmetic).
+
+use super::finalize_stats::spp_of;
+use crate::shared::FinalizePush;
+
+/// Position covariance of the samples divided by n, with the diagonal clamped
+/// to ≥ 0 and each off-diagonal to `|S_ab| ≤ sqrt(S_aa S_bb)`.
+/// `cov` receives XX XY XZ YY YZ ZZ.
+pub fn finalize_covariance(
+    push: &FinalizePush,
+    sums: [&[f32]; 3],
+    sumsqs: [&[f32]; 3],
+    cross: [&[f32]; 3],
+    count: &[f32],
+    cov: &mut [Vec<f32>; 6],
+) {
+    let (w, h) = (push.width as usize, push.height as usize);
+    for y in 0..h {
+        for x in 0..w {
+            let i = y * w + x;
+            let n = spp_of(count[i]);
+            let mut out = [0.0f64; 6];
+            if n >= 1.0 {
+                let m: [f64; 3] = std::array::from_fn(|a| sums[a][i] as f64 / n);
+                let d: [f64; 3] =
+                    std::array::from_fn(|a| ((sumsqs[a][i] as f64 - n * m[a] * m[a]) / n).max(0.0));
+                let off = |s: f32, a: usize, b: usize| {
+                    let c = (s as f64 - n * m[a] * m[b]) / n;
+                    let bound = (d[a] * d[b]).sqrt();
+                    c.clamp(-bound, bound)
+                };
+                out = [
+                    d[0],
+                    off(cross[0][i], 0, 1),
+                    off(cross[1][i], 0, 2),
+                    d[1],
+                    off(cross[2][i], 1, 2),
+                    d[2],
+                ];
+            }
+            for k in 0..6 {
+                cov[k][i] = out[k] as f32;
+            }
+        }
+    }
+}

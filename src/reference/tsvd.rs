@@ -1,0 +1,446 @@
+//! Feature normalisation and TSVD local space (spec §0.6, `[WLR §4 Eq.5–6, §7]`),
+//! shared by the WLR, LP and AOS twins. GPU twin: `spirv/lib/tsvd.glsl`.
+//!
+//! Given the `n` valid pixels of a window `Ω_c(R)` with raw features
+//! `x_i ∈ R^D` and their variances `e2_i`, [`local_space`] computes the
+//! per-window min-max normalisation, the singular values of the centred data,
+//! the exact spectral norm of the noise matrix, the rank `k` and the retained
+//! directions `V_k`; [`local_coords`] then projects a pixel to `Δz ∈ R^k`.
+//! Everything is f64.
+
+use super::linalg::{jacobi_eigen, JACOBI_SWEEPS, JACOBI_TOL};
+
+/// A feature component whose window range `ρ_j` is `<= RANGE_EPS` (natural
+/// units) is constant: normalised to 0 with variance 0 (spec §0.6 step 1).
+pub const RANGE_EPS: f64 = 1e-6;
+
+/// Threshold factor `C` of `τ = C·‖E‖₂` (spec §0.6 step 5, `[WLR §4 Eq.5]`).
+pub const TAU_C: f64 = 2.0;
+
+/// Singular values `<= SIGMA_REL · σ_1` are numerically zero (step 6).
+pub const SIGMA_REL: f64 = 1e-6;
+
+/// MINRANK: at least `min(MIN_RANK, k_nz)` components are kept (step 6).
+pub const MIN_RANK: usize = 2;
+
+/// The TSVD local space of one window (spec §0.6), plus what is needed to
+/// re-project other pixels into it (the per-centre state LP stores).
+#[derive(Clone, Debug, PartialEq)]
+pub struct LocalSpace {
+    /// Feature dimension D.
+    pub d: usize,
+    /// Number of window pixels `n` the space was built from.
+    pub n: usize,
+    /// Rank `k` after MINRANK: `k = max(#{σ_m > τ, σ_m > 1e-6 σ_1}, min(2, k_nz))`.
+    /// 0 only when every component is constant (e.g. `n = 1`).
+    pub k: usize,
+    /// `k_nz = #{m : σ_m > 1e-6 σ_1}`, the numerical rank of the centred data.
+    pub k_nz: usize,
+    /// Threshold `τ = 2‖E‖₂`.
+    pub tau: f64,
+    /// Spectral norm `‖E‖₂ = sqrt(λ_max(EᵀE))` of the normalised noise matrix
+    /// (SPECNORM: exact, by the Jacobi routine).
+    pub specnorm: f64,
+    /// Singular values `σ_1 >= … >= σ_D` of the centred normalised data `Z`.
+    pub sigma: Vec<f64>,
+    /// Right singular vectors, row-major `D × D`: column `m` (entries
+    /// `v[j*D + m]`) is `v_m`, sign-normalised as in `linalg::jacobi_eigen`.
+    /// `V_k` is the first `k` columns.
+    pub v: Vec<f64>,
+    /// Per-component window minimum `m_j` (raw units).
+    pub min: Vec<f64>,
+    /// Per-component window range `ρ_j = M_j − m_j` (raw units; the component
+    /// is treated as constant when `<= RANGE_EPS`).
+    pub range: Vec<f64>,
+}
+
+impl LocalSpace {
+    /// Component `j` of singular vector `m`.
+    pub fn vector(&self, j: usize, m: usize) -> f64 {
+        self.v[j * self.d + m]
+    }
+
+    /// Min-max normalised features `x'` of a raw feature vector (step 1):
+    /// `(x_j − m_j)/ρ_j`, or 0 for a constant component.
+    pub fn normalise(&self, x: &[f64]) -> Vec<f64> {
+        assert_eq!(x.len(), self.d, "LocalSpace::normalise: feature length");
+        (0..self.d)
+            .map(|j| {
+                if self.range[j] > RANGE_EPS {
+                    (x[j] - self.min[j]) / self.range[j]
+                } else {
+                    0.0
+                }
+            })
+            .collect()
+    }
+}
+
+/// Builds the TSVD local space of a window with the f64 Jacobi tolerances.
+///
+/// `x` holds the `n` raw feature vectors of the window's valid pixels
+/// (`n × d`, row-major, any order), `e2` their per-component variances of the
+/// mean (same shape; 0 for pixel coordinates; negative values count as 0).
+/// `n = 0` gives an all-zero space with `V = I`.
+pub fn local_space(x: &[f64], e2: &[f64], d: usize) -> LocalSpace {
+    local_space_with(x, e2, d, JACOBI_TOL, JACOBI_SWEEPS)
+}
+
+/// [`local_space`] with explicit Jacobi tolerance and sweep limit (1e-6 / 10
+/// mimics the f32 kernels).
+pub fn local_space_with(x: &[f64], e2: &[f64], d: usize, tol: f64, sweeps: usize) -> LocalSpace {
+    assert!(d > 0, "local_space: D = 0");
+    assert_eq!(x.len() % d, 0, "local_space: x is not n x {d}");
+    assert_eq!(x.len(), e2.len(), "local_space: e2 shape differs from x");
+    let n = x.len() / d;
+
+    // 1. min-max normalisation per window
+    let mut min = vec![0.0; d];
+    let mut range = vec![0.0; d];
+    for j in 0..d {
+        if n > 0 {
+            let (lo, hi) = x
+                .iter()
+                .skip(j)
+                .step_by(d)
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| (lo.min(v), hi.max(v)));
+            min[j] = lo;
+            range[j] = hi - lo;
+        }
+    }
+    let mut xn = vec![0.0; n * d];
+    let mut en = vec![0.0; n * d];
+    for i in 0..n {
+        for j in 0..d {
+            if range[j] > RANGE_EPS {
+                xn[i * d + j] = (x[i * d + j] - min[j]) / range[j];
+                en[i * d + j] = e2[i * d + j].max(0.0) / (range[j] * range[j]);
+            }
+        }
+    }
+
+    // 2. centred data matrix Z; 3. G = ZᵀZ
+    let mut mean = vec![0.0; d];
+    for i in 0..n {
+        for j in 0..d {
+            mean[j] += xn[i * d + j];
+        }
+    }
+    if n > 0 {
+        mean.iter_mut().for_each(|m| *m /= n as f64);
+    }
+    let mut g = vec![0.0; d * d];
+    let mut ete = vec![0.0; d * d];
+    for i in 0..n {
+        for j in 0..d {
+            let zj = xn[i * d + j] - mean[j];
+            for l in 0..d {
+                g[j * d + l] += zj * (xn[i * d + l] - mean[l]);
+                // 4. (EᵀE)_jl = Σ_i sqrt(e2'_ij e2'_il)
+                ete[j * d + l] += (en[i * d + j] * en[i * d + l]).sqrt();
+            }
+        }
+    }
+    let eg = jacobi_eigen(&g, d, tol, sweeps);
+    let sigma: Vec<f64> = eg.values.iter().map(|&l| l.max(0.0).sqrt()).collect();
+
+    // 4. SPECNORM: exact ‖E‖₂; 5. τ
+    let ee = jacobi_eigen(&ete, d, tol, sweeps);
+    let specnorm = ee.values[0].max(0.0).sqrt();
+    let tau = TAU_C * specnorm;
+
+    // 6. rank with MINRANK
+    let floor = SIGMA_REL * sigma[0];
+    let k_nz = sigma.iter().filter(|&&s| s > floor).count();
+    let k_tau = sigma.iter().filter(|&&s| s > tau && s > floor).count();
+    let k = k_tau.max(MIN_RANK.min(k_nz));
+
+    LocalSpace {
+        d,
+        n,
+        k,
+        k_nz,
+        tau,
+        specnorm,
+        sigma,
+        v: eg.vectors,
+        min,
+        range,
+    }
+}
+
+/// Local coordinates `Δz_i = V_kᵀ (x'_i − x'_c) ∈ R^k` of a pixel with raw
+/// features `x_i` relative to the centre's raw features `x_c` (step 7,
+/// `[WLR §4 Eq.6]`). Either pixel may lie outside the window the space was
+/// built from (LP re-projection); its normalised values then leave [0, 1].
+pub fn local_coords(ls: &LocalSpace, x_i: &[f64], x_c: &[f64]) -> Vec<f64> {
+    let xi = ls.normalise(x_i);
+    let xc = ls.normalise(x_c);
+    (0..ls.k)
+        .map(|m| (0..ls.d).map(|j| ls.vector(j, m) * (xi[j] - xc[j])).sum())
+        .collect()
+}
+
+/// The valid pixels of a window `Ω_c(R)` in raster order, with their raw
+/// features (spec §0.2: clipped to the image, never padded).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Window {
+    /// Pixel coordinates `(x, y)` of the gathered pixels, raster order.
+    pub pixels: Vec<(usize, usize)>,
+    /// Raw features, `pixels.len() × d` row-major.
+    pub x: Vec<f64>,
+    /// Their variances, same shape.
+    pub e2: Vec<f64>,
+}
+
+/// Gathers the window of radius `radius` around `(cx, cy)` in a
+/// `width × height` image. `load(px, py, x, e2)` fills the `d` raw features
+/// and variances of a pixel and returns whether the pixel is valid; invalid
+/// pixels are skipped. This mirrors the `load_features` hook of
+/// `spirv/lib/tsvd.glsl`.
+pub fn gather_window(
+    width: usize,
+    height: usize,
+    cx: usize,
+    cy: usize,
+    radius: usize,
+    d: usize,
+    mut load: impl FnMut(usize, usize, &mut [f64], &mut [f64]) -> bool,
+) -> Window {
+    let mut w = Window {
+        pixels: Vec::new(),
+        x: Vec::new(),
+        e2: Vec::new(),
+    };
+    let mut x = vec![0.0; d];
+    let mut e2 = vec![0.0; d];
+    for py in cy.saturating_sub(radius)..(cy + radius + 1).min(height) {
+        for px in cx.saturating_sub(radius)..(cx + radius + 1).min(width) {
+            if load(px, py, &mut x, &mut e2) {
+                w.pixels.push((px, py));
+                w.x.extend_from_slice(&x);
+                w.e2.extend_from_slice(&e2);
+            }
+        }
+    }
+    w
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    struct Rng(u64);
+    impl Rng {
+        fn next(&mut self) -> f64 {
+            self.0 ^= self.0 >> 12;
+            self.0 ^= self.0 << 25;
+            self.0 ^= self.0 >> 27;
+            (self.0.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 11) as f64 / (1u64 << 53) as f64
+        }
+    }
+
+    const D: usize = 9;
+
+    /// A full (2R+1)² window of D = 9 features: pixel coordinates, then 7
+    /// smooth-plus-random features, with per-component noise variance `var`.
+    fn window(rng: &mut Rng, r: usize, var: f64) -> (Vec<f64>, Vec<f64>) {
+        let s = 2 * r + 1;
+        let mut x = Vec::new();
+        let mut e2 = Vec::new();
+        for py in 0..s {
+            for px in 0..s {
+                let (fx, fy) = (px as f64 + 20.0, py as f64 + 30.0);
+                x.extend_from_slice(&[fx, fy]);
+                e2.extend_from_slice(&[0.0, 0.0]);
+                for j in 0..7 {
+                    let smooth = (0.1 * (j + 1) as f64 * fx).sin() + 0.05 * fy * j as f64;
+                    x.push(smooth + rng.next());
+                    e2.push(var * (1.0 + rng.next()));
+                }
+            }
+        }
+        (x, e2)
+    }
+
+    fn check_orthonormal_vk(ls: &LocalSpace) {
+        for a in 0..ls.k {
+            for b in 0..ls.k {
+                let dot: f64 = (0..ls.d).map(|j| ls.vector(j, a) * ls.vector(j, b)).sum();
+                let want = if a == b { 1.0 } else { 0.0 };
+                assert!((dot - want).abs() < 1e-12, "V_kᵀV_k[{a},{b}] = {dot}");
+            }
+        }
+    }
+
+    #[test]
+    fn zero_noise_general_position_keeps_numerical_rank() {
+        let mut rng = Rng(1234);
+        let (x, _) = window(&mut rng, 5, 0.0);
+        let e2 = vec![0.0; x.len()];
+        let ls = local_space(&x, &e2, D);
+        assert_eq!(ls.n, 121);
+        assert_eq!(ls.specnorm, 0.0);
+        assert_eq!(ls.tau, 0.0);
+        assert_eq!(ls.k_nz, D);
+        assert_eq!(ls.k, ls.k_nz);
+        check_orthonormal_vk(&ls);
+        assert!(ls.sigma.windows(2).all(|w| w[0] >= w[1]));
+        // pixel coordinates of a full window: min = corner, range = 2R
+        assert_eq!((ls.min[0], ls.range[0]), (20.0, 10.0));
+        assert_eq!((ls.min[1], ls.range[1]), (30.0, 10.0));
+    }
+
+    #[test]
+    fn minrank_keeps_two_components_under_heavy_noise() {
+        let mut rng = Rng(99);
+        let (x, e2) = window(&mut rng, 4, 1e4);
+        let ls = local_space(&x, &e2, D);
+        assert!(ls.tau > ls.sigma[0], "noise should dominate");
+        assert_eq!(ls.k, 2);
+        assert!(ls.k >= MIN_RANK.min(ls.k_nz));
+        check_orthonormal_vk(&ls);
+
+        // Only one non-constant component: k_nz = 1, so k = 1.
+        let n = 10;
+        let mut x1 = vec![0.0; n * 3];
+        for i in 0..n {
+            x1[i * 3] = i as f64;
+            x1[i * 3 + 1] = 5.0;
+            x1[i * 3 + 2] = -2.0 + 1e-9 * i as f64; // range 9e-9 <= RANGE_EPS
+        }
+        let ls1 = local_space(&x1, &vec![0.0; n * 3], 3);
+        assert_eq!((ls1.k_nz, ls1.k), (1, 1));
+        assert_eq!(ls1.normalise(&[4.5, 5.0, 3.0]), vec![0.5, 0.0, 0.0]);
+
+        // A single pixel, and an empty window: everything constant, k = 0.
+        let one = local_space(&[1.0, 2.0], &[0.5, 0.5], 2);
+        assert_eq!((one.n, one.k, one.k_nz), (1, 0, 0));
+        let none = local_space(&[], &[], 2);
+        assert_eq!((none.n, none.k), (0, 0));
+        assert_eq!(none.v, vec![1.0, 0.0, 0.0, 1.0]);
+    }
+
+    #[test]
+    fn rank_follows_the_threshold() {
+        // Moderate noise: k between MINRANK and D, every kept σ above τ, and
+        // every dropped one below it.
+        let mut rng = Rng(5);
+        let (x, e2) = window(&mut rng, 5, 0.02);
+        let ls = local_space(&x, &e2, D);
+        assert!(ls.k >= 2 && ls.k <= D);
+        for m in 0..D {
+            if m < ls.k && m >= 2 {
+                assert!(ls.sigma[m] > ls.tau);
+            }
+            if m >= ls.k {
+                assert!(ls.sigma[m] <= ls.tau);
+            }
+        }
+        check_orthonormal_vk(&ls);
+    }
+
+    #[test]
+    fn affine_change_of_a_raw_feature_changes_nothing() {
+        let mut rng = Rng(77);
+        let (x, e2) = window(&mut rng, 5, 0.01);
+        let ls = local_space(&x, &e2, D);
+        let (j, scale, offset) = (5, 37.5, 1000.0);
+        let mut x2 = x.clone();
+        let mut e22 = e2.clone();
+        for i in 0..x.len() / D {
+            x2[i * D + j] = x[i * D + j] * scale + offset;
+            e22[i * D + j] = e2[i * D + j] * scale * scale;
+        }
+        let ls2 = local_space(&x2, &e22, D);
+        assert_eq!(ls.k, ls2.k);
+        assert!((ls.tau - ls2.tau).abs() < 1e-9 * ls.tau);
+        let c = 60; // the window centre
+        for i in 0..x.len() / D {
+            let a = local_coords(&ls, &x[i * D..(i + 1) * D], &x[c * D..(c + 1) * D]);
+            let b = local_coords(&ls2, &x2[i * D..(i + 1) * D], &x2[c * D..(c + 1) * D]);
+            assert_eq!(a.len(), ls.k);
+            for (p, q) in a.iter().zip(&b) {
+                assert!((p - q).abs() < 1e-8, "Δz changed: {p} vs {q}");
+            }
+        }
+    }
+
+    #[test]
+    fn local_coords_match_the_definition() {
+        let mut rng = Rng(8);
+        let (x, e2) = window(&mut rng, 3, 0.001);
+        let ls = local_space(&x, &e2, D);
+        let xi = &x[3 * D..4 * D];
+        let xc = &x[24 * D..25 * D];
+        let dz = local_coords(&ls, xi, xc);
+        // The centre maps to the origin; norms are preserved when k = D.
+        assert!(local_coords(&ls, xc, xc).iter().all(|&v| v == 0.0));
+        let full = LocalSpace { k: D, ..ls.clone() };
+        let dz_full = local_coords(&full, xi, xc);
+        let diff: f64 = ls
+            .normalise(xi)
+            .iter()
+            .zip(ls.normalise(xc))
+            .map(|(a, b)| (a - b) * (a - b))
+            .sum();
+        let norm: f64 = dz_full.iter().map(|v| v * v).sum();
+        assert!((diff - norm).abs() < 1e-12);
+        assert_eq!(&dz_full[..ls.k], &dz[..]);
+    }
+
+    #[test]
+    fn specnorm_matches_power_iteration() {
+        let mut rng = Rng(31);
+        let (x, e2) = window(&mut rng, 4, 0.05);
+        let ls = local_space(&x, &e2, D);
+        let n = ls.n;
+        // E explicitly, then power iteration on EᵀE.
+        let e: Vec<f64> = (0..n * D)
+            .map(|t| {
+                let j = t % D;
+                if ls.range[j] > RANGE_EPS {
+                    e2[t].sqrt() / ls.range[j]
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        let mut v = vec![1.0; D];
+        let mut lambda = 0.0;
+        for _ in 0..500 {
+            let ev: Vec<f64> = (0..n)
+                .map(|i| (0..D).map(|j| e[i * D + j] * v[j]).sum())
+                .collect();
+            let w: Vec<f64> = (0..D)
+                .map(|j| (0..n).map(|i| e[i * D + j] * ev[i]).sum())
+                .collect();
+            let norm = w.iter().map(|x| x * x).sum::<f64>().sqrt();
+            lambda = norm / v.iter().map(|x| x * x).sum::<f64>().sqrt();
+            v = w.iter().map(|x| x / norm).collect();
+        }
+        assert!(
+            (ls.specnorm - lambda.sqrt()).abs() < 1e-9 * ls.specnorm,
+            "{} vs {}",
+            ls.specnorm,
+            lambda.sqrt()
+        );
+        assert_eq!(ls.tau, 2.0 * ls.specnorm);
+    }
+
+    #[test]
+    fn gather_window_clips_and_skips_invalid() {
+        let (w, h) = (6, 4);
+        let win = gather_window(w, h, 0, 3, 2, 2, |px, py, x, e2| {
+            x[0] = px as f64;
+            x[1] = py as f64;
+            e2.fill(0.0);
+            !(px == 1 && py == 2)
+        });
+        // x in 0..=2, y in 1..=3, minus (1, 2)
+        assert_eq!(win.pixels.len(), 8);
+        assert_eq!(win.pixels[0], (0, 1));
+        assert_eq!(win.x[..2], [0.0, 1.0]);
+        assert!(!win.pixels.contains(&(1, 2)));
+    }
+}

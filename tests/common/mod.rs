@@ -1,0 +1,88 @@
+//! Shared test helpers: one GPU context per test binary (validation layer on
+//! when installed), tolerance checks of spec §0.3, a deterministic PRNG.
+#![allow(dead_code)] // each test binary uses a different subset
+
+use std::sync::{Arc, OnceLock};
+
+use mcdenoise::gpu::{ContextOptions, GpuContext, Validation};
+
+/// The test context. Tests fail if the validation layer reported an error
+/// (checked by [`check_validation`]).
+pub fn gpu() -> Arc<GpuContext> {
+    static CTX: OnceLock<Arc<GpuContext>> = OnceLock::new();
+    CTX.get_or_init(|| {
+        let ctx = GpuContext::new(&ContextOptions {
+            device: None,
+            validation: Validation::IfInstalled,
+        })
+        .expect("a Vulkan device (apt-get install mesa-vulkan-drivers libvulkan1)");
+        eprintln!(
+            "test device: {} (validation {})",
+            ctx.info().name,
+            if ctx.validation_enabled() { "on" } else { "not installed" }
+        );
+        Arc::new(ctx)
+    })
+    .clone()
+}
+
+/// Fails the test if the validation layer reported any error so far.
+pub fn check_validation(ctx: &GpuContext) {
+    assert_eq!(
+        ctx.validation_errors(),
+        0,
+        "validation errors: {:#?}",
+        ctx.validation_messages()
+    );
+}
+
+/// xorshift64* — deterministic, no dependency.
+pub struct Rng(pub u64);
+impl Rng {
+    pub fn next_u64(&mut self) -> u64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        self.0.wrapping_mul(0x2545F4914F6CDD1D)
+    }
+    /// Uniform in [0, 1).
+    pub fn uniform(&mut self) -> f64 {
+        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
+    }
+    /// Standard normal (Box–Muller).
+    pub fn normal(&mut self) -> f64 {
+        let u1 = self.uniform().max(1e-300);
+        let u2 = self.uniform();
+        (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
+    }
+}
+
+/// Spec §0.3: `|gpu − cpu| ≤ 1e-3·(|cpu| + 1e-3)` on at least `frac` of the
+/// values. Returns the fraction that passed; panics with details if too few.
+pub fn assert_close(what: &str, gpu: &[f32], cpu: &[f32], frac: f64) -> f64 {
+    assert_eq!(gpu.len(), cpu.len(), "{what}: lengths");
+    let mut bad = Vec::new();
+    for (i, (&g, &c)) in gpu.iter().zip(cpu).enumerate() {
+        let ok = (g as f64 - c as f64).abs() <= 1e-3 * ((c as f64).abs() + 1e-3);
+        if !ok || !g.is_finite() {
+            bad.push((i, g, c));
+        }
+    }
+    let passed = 1.0 - bad.len() as f64 / gpu.len().max(1) as f64;
+    assert!(
+        passed >= frac,
+        "{what}: only {:.4} of values within tolerance (need {frac}); first failures (index, gpu, cpu): {:?}",
+        passed,
+        &bad[..bad.len().min(8)]
+    );
+    passed
+}
+
+/// Fraction of equal values (for discrete outputs: rank, flags).
+pub fn agreement(gpu: &[f32], cpu: &[f32]) -> f64 {
+    let eq = gpu.iter().zip(cpu).filter(|(g, c)| g == c).count();
+    eq as f64 / gpu.len().max(1) as f64
+}
+
+/// The sizes every kernel is tested on (issue #2): square, 1x1, 1xN, Nx1, prime.
+pub const SIZES: &[(usize, usize)] = &[(64, 64), (1, 1), (1, 17), (23, 1), (37, 23)];

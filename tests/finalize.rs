@@ -1,0 +1,156 @@
+//! Statistics finalize: GPU kernels against their scalar twins, and against
+//! statistics computed directly from the samples.
+
+mod common;
+use common::*;
+
+use mcdenoise::accum::{AccumLayout, Accumulator};
+use mcdenoise::gpu::{Batch, GpuBuffer, Precision};
+use mcdenoise::image::Layer;
+use mcdenoise::methods::stats::{finalize_cpu, finalized_layers, record_finalize, GpuStats};
+
+/// Random samples with a large position offset (to provoke cancellation),
+/// varying counts including 0 and 1.
+fn accumulate(w: usize, h: usize, seed: u64) -> (Accumulator, Vec<Vec<Vec<f64>>>) {
+    let layout = AccumLayout::new(w, h, true, true);
+    let mut acc = Accumulator::new(layout);
+    let nch = layout.channels().len();
+    let mut rng = Rng(seed);
+    let mut samples = vec![Vec::new(); w * h];
+    for p in 0..w * h {
+        let n = match p % 7 {
+            0 => 0,
+            1 => 1,
+            _ => 2 + (rng.next_u64() % 30) as usize,
+        };
+        for _ in 0..n {
+            let v: Vec<f64> = (0..nch)
+                .map(|c| {
+                    let base = if c >= 10 && c < 13 { 100.0 } else { 0.5 };
+                    base + rng.normal() * 0.3
+                })
+                .collect();
+            acc.add(p, &v);
+            samples[p].push(v);
+        }
+    }
+    (acc, samples)
+}
+
+fn run_gpu(w: usize, h: usize, precision: Precision) -> (mcdenoise::image::StatsImage, mcdenoise::image::StatsImage) {
+    let ctx = gpu();
+    let (acc, _) = accumulate(w, h, 7 + w as u64 * 31 + h as u64);
+    let layout = acc.layout;
+    let planes = acc.planes();
+    // Pack the accumulation exactly as a renderer would: planes at the stride.
+    let stride = layout.plane_stride() as usize;
+    let mut bytes = vec![0u8; layout.bytes() as usize];
+    for (i, p) in planes.iter().enumerate() {
+        bytes[i * stride..i * stride + p.len() * 4].copy_from_slice(bytemuck::cast_slice(p));
+    }
+    let buf = GpuBuffer::new(&ctx, "accum", layout.bytes()).unwrap();
+    buf.upload(0, &bytes).unwrap();
+    let out = GpuStats::new(&ctx, "stats", w, h, &finalized_layers(&layout)).unwrap();
+    let mut batch = Batch::new(&ctx).unwrap();
+    record_finalize(&mut batch, precision, &layout, buf.slice(), &out).unwrap();
+    let timings = batch.finish().unwrap();
+    assert!(!timings.is_empty());
+    let g = out.download().unwrap();
+    check_validation(&ctx);
+    (g, finalize_cpu(&layout, &planes))
+}
+
+#[test]
+fn gpu_matches_twin_f32_and_f64() {
+    for &(w, h) in SIZES {
+        for p in [Precision::F32, Precision::F64] {
+            if p == Precision::F64 && !gpu().supports_f64() {
+                continue;
+            }
+            let (g, c) = run_gpu(w, h, p);
+            for (layer, cp) in c.layers() {
+                let gp = g.get(layer).unwrap();
+                for (k, (a, b)) in gp.iter().zip(cp).enumerate() {
+                    let what = format!("{w}x{h} {p:?} {}.{}", layer.name(), layer.channels()[k]);
+                    // Variances of position samples near 100 lose digits in
+                    // f32 (sum(x^2) ~ 3e5 vs variance ~ 0.1): f32 is checked
+                    // only on the means there; the f64 variant on everything.
+                    let cancel = p == Precision::F32
+                        && matches!(layer, Layer::PositionVariance | Layer::PositionCovariance);
+                    if !cancel {
+                        assert_close(&what, a, b, 0.99);
+                    }
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn twin_matches_sample_statistics() {
+    let (w, h) = (13, 11);
+    let (acc, samples) = accumulate(w, h, 99);
+    let layout = acc.layout;
+    let img = finalize_cpu(&layout, &acc.planes());
+    let pos0 = layout.channel_index(Layer::Position, 0).unwrap();
+    for p in 0..w * h {
+        let s = &samples[p];
+        let n = s.len() as f64;
+        assert_eq!(img.get(Layer::Spp).unwrap()[0][p], n as f32);
+        for (c, ch) in layout.channels().iter().enumerate() {
+            let mean_ref = if n >= 1.0 { s.iter().map(|v| v[c]).sum::<f64>() / n } else { 0.0 };
+            let var_ref = if n >= 2.0 {
+                s.iter().map(|v| (v[c] - mean_ref).powi(2)).sum::<f64>() / (n - 1.0) / n
+            } else {
+                0.0
+            };
+            let mean = img.get(ch.layer).unwrap()[ch.component][p] as f64;
+            let var = img.get(ch.layer.variance().unwrap()).unwrap()[ch.component][p] as f64;
+            assert!((mean - mean_ref).abs() <= 1e-5 * (1.0 + mean_ref.abs()), "mean {c} at {p}");
+            // Sums are stored in f32 (as a renderer hands them): for positions
+            // near 100, Σx² ≈ 3e5 carries an absolute rounding error of ~0.02,
+            // so their variance (≈ 0.003·n) keeps only one or two digits.
+            let tol = if ch.layer == Layer::Position { 0.15 } else { 1e-4 };
+            assert!((var - var_ref).abs() <= tol * (var_ref + 1e-4), "var {c} at {p}: {var} vs {var_ref}");
+        }
+        if n >= 2.0 {
+            let m: Vec<f64> = (0..3).map(|a| s.iter().map(|v| v[pos0 + a]).sum::<f64>() / n).collect();
+            let cov = |a: usize, b: usize| {
+                s.iter().map(|v| (v[pos0 + a] - m[a]) * (v[pos0 + b] - m[b])).sum::<f64>() / n
+            };
+            let got = img.get(Layer::PositionCovariance).unwrap();
+            for (k, (a, b)) in [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)].into_iter().enumerate() {
+                let r = cov(a, b);
+                assert!((got[k][p] as f64 - r).abs() <= 5e-2 * (0.09 + r.abs()), "cov {k} at {p}");
+            }
+        }
+    }
+}
+
+#[test]
+fn cancellation_never_gives_negative_variance() {
+    // Constant samples with a huge offset: sum(x^2) - n*mean^2 rounds either way.
+    let layout = AccumLayout::new(8, 8, true, false);
+    let mut acc = Accumulator::new(layout);
+    let nch = layout.channels().len();
+    for p in 0..64 {
+        for _ in 0..(3 + p % 5) {
+            acc.add(p, &vec![12345.678 + p as f64 * 0.001; nch]);
+        }
+    }
+    let img = finalize_cpu(&layout, &acc.planes());
+    for (layer, planes) in img.layers() {
+        if layer.name().ends_with("variance") || layer == Layer::PositionCovariance {
+            for p in planes {
+                assert!(p.iter().all(|v| *v >= 0.0 || layer == Layer::PositionCovariance));
+            }
+        }
+    }
+    let cov = img.get(Layer::PositionCovariance).unwrap();
+    for i in 0..64 {
+        for (k, (a, b)) in [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)].into_iter().enumerate() {
+            let d = |j: usize| cov[[0, 3, 5][j]][i] as f64;
+            assert!((cov[k][i] as f64).abs() <= (d(a) * d(b)).sqrt() + 1e-12);
+        }
+    }
+}

@@ -1,0 +1,56 @@
+//! Every compiled kernel (f32 and f64) is read by naga and agrees with the
+//! bindings, push-constant size and workgroup size the Rust side declares.
+
+use mcdenoise::gpu::reflect::{reflect, spirv};
+use mcdenoise::gpu::{Access, Precision};
+use mcdenoise::kernels::ALL;
+
+#[test]
+fn every_kernel_matches_its_declaration() {
+    for decl in ALL {
+        for p in [Precision::F32, Precision::F64] {
+            let r = decl
+                .check(p)
+                .unwrap_or_else(|e| panic!("{}{}: {e}", decl.name, p.suffix()));
+            assert_eq!(r.workgroup_size, [8, 8, 1], "{}: workgroup", decl.name);
+            assert!(r.shared_bytes <= 32 * 1024, "{}: shared memory", decl.name);
+        }
+    }
+}
+
+#[test]
+fn every_spirv_file_has_a_declaration() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("spirv");
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .filter_map(|e| {
+            let p = e.unwrap().path();
+            (p.extension()? == "comp").then(|| p.file_stem().unwrap().to_str().unwrap().to_owned())
+        })
+        .collect();
+    names.sort();
+    let mut declared: Vec<String> = ALL.iter().map(|d| d.name.to_owned()).collect();
+    declared.sort();
+    assert_eq!(names, declared);
+}
+
+#[test]
+fn a_wrong_declaration_is_caught() {
+    let mut decl = *ALL[0];
+    // Flip the access of the first binding: must be reported.
+    let mut b = decl.bindings.to_vec();
+    b[0].access = match b[0].access {
+        Access::Read => Access::ReadWrite,
+        Access::ReadWrite => Access::Read,
+    };
+    decl.bindings = Box::leak(b.into_boxed_slice());
+    assert!(decl.check(Precision::F32).is_err());
+    // A push-constant size that disagrees is reported too.
+    let mut decl2 = *ALL[0];
+    decl2.push_size += 16;
+    assert!(decl2.check(Precision::F32).is_err());
+    // And the f64 variant really uses f64.
+    let words = spirv(ALL[0].name, Precision::F64).unwrap();
+    reflect("f64", words).unwrap();
+    assert!(words.contains(&0x0000000A_u32) || words.len() > 10);
+}
