@@ -501,6 +501,10 @@ impl GpuContext {
         &self.device
     }
 
+    pub fn raw_physical_device(&self) -> vk::PhysicalDevice {
+        self.physical
+    }
+
     pub fn raw_instance(&self) -> &ash::Instance {
         &self.instance
     }

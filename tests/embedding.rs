@@ -1,0 +1,185 @@
+//! The embedding path: a "host renderer" creates its own Vulkan instance,
+//! device, queue, buffers and command buffer with ash; mcdenoise wraps the
+//! device (`GpuContext::from_raw`) and records its passes into the host's
+//! command buffer, which the host submits. No CPU round trip inside.
+
+mod common;
+use common::*;
+
+use std::sync::Arc;
+
+use ash::vk;
+use mcdenoise::accum::{AccumLayout, Accumulator};
+use mcdenoise::gpu::{Batch, BufferSlice, GpuContext, ImportedDevice, Precision};
+use mcdenoise::image::Layer;
+use mcdenoise::methods::stats::{finalize_cpu, finalized_layers, record_finalize, GpuStats};
+
+struct Host {
+    entry: ash::Entry,
+    instance: ash::Instance,
+    physical: vk::PhysicalDevice,
+    device: ash::Device,
+    queue: vk::Queue,
+    family: u32,
+    f64: bool,
+}
+
+fn host() -> Host {
+    unsafe {
+        let entry = ash::Entry::load().unwrap();
+        let app = vk::ApplicationInfo::default().api_version(vk::API_VERSION_1_1);
+        let instance = entry
+            .create_instance(&vk::InstanceCreateInfo::default().application_info(&app), None)
+            .unwrap();
+        let physical = instance.enumerate_physical_devices().unwrap()[0];
+        let family = instance
+            .get_physical_device_queue_family_properties(physical)
+            .iter()
+            .position(|q| q.queue_flags.contains(vk::QueueFlags::COMPUTE))
+            .unwrap() as u32;
+        let f64 = instance.get_physical_device_features(physical).shader_float64 == vk::TRUE;
+        let prio = [1.0];
+        let qi = [vk::DeviceQueueCreateInfo::default()
+            .queue_family_index(family)
+            .queue_priorities(&prio)];
+        let features = vk::PhysicalDeviceFeatures::default().shader_float64(f64);
+        let device = instance
+            .create_device(
+                physical,
+                &vk::DeviceCreateInfo::default()
+                    .queue_create_infos(&qi)
+                    .enabled_features(&features),
+                None,
+            )
+            .unwrap();
+        let queue = device.get_device_queue(family, 0);
+        Host { entry, instance, physical, device, queue, family, f64 }
+    }
+}
+
+/// A host-owned, host-visible buffer (the host's own allocation code).
+fn host_buffer(h: &Host, size: u64) -> (vk::Buffer, vk::DeviceMemory, *mut u8) {
+    unsafe {
+        let buffer = h
+            .device
+            .create_buffer(
+                &vk::BufferCreateInfo::default()
+                    .size(size)
+                    .usage(vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_SRC | vk::BufferUsageFlags::TRANSFER_DST),
+                None,
+            )
+            .unwrap();
+        let req = h.device.get_buffer_memory_requirements(buffer);
+        let props = h.instance.get_physical_device_memory_properties(h.physical);
+        let want = vk::MemoryPropertyFlags::HOST_VISIBLE | vk::MemoryPropertyFlags::HOST_COHERENT;
+        let ty = (0..props.memory_type_count)
+            .find(|&i| req.memory_type_bits & (1 << i) != 0 && props.memory_types[i as usize].property_flags.contains(want))
+            .unwrap();
+        let mem = h
+            .device
+            .allocate_memory(&vk::MemoryAllocateInfo::default().allocation_size(req.size).memory_type_index(ty), None)
+            .unwrap();
+        h.device.bind_buffer_memory(buffer, mem, 0).unwrap();
+        let ptr = h.device.map_memory(mem, 0, size, vk::MemoryMapFlags::empty()).unwrap() as *mut u8;
+        (buffer, mem, ptr)
+    }
+}
+
+#[test]
+fn host_device_and_command_buffer() {
+    let h = host();
+    let (w, hgt) = (37usize, 23usize);
+    let layout = AccumLayout::new(w, hgt, true, false);
+    let mut acc = Accumulator::new(layout);
+    let nch = layout.channels().len();
+    let mut rng = Rng(5);
+    for p in 0..w * hgt {
+        for _ in 0..(p % 9) {
+            let v: Vec<f64> = (0..nch).map(|_| rng.uniform()).collect();
+            acc.add(p, &v);
+        }
+    }
+    let planes = acc.planes();
+    let stride = layout.plane_stride() as usize;
+    let (accum_buf, accum_mem, ptr) = host_buffer(&h, layout.bytes());
+    unsafe {
+        for (i, p) in planes.iter().enumerate() {
+            std::ptr::copy_nonoverlapping(p.as_ptr() as *const u8, ptr.add(i * stride), p.len() * 4);
+        }
+    }
+
+    let ctx = Arc::new(
+        unsafe {
+            GpuContext::from_raw(ImportedDevice {
+                entry: h.entry.clone(),
+                instance: h.instance.clone(),
+                physical_device: h.physical,
+                device: h.device.clone(),
+                queue: h.queue,
+                queue_family_index: h.family,
+                shader_float64_enabled: h.f64,
+            })
+        }
+        .unwrap(),
+    );
+    let out = GpuStats::new(&ctx, "embedded_stats", w, hgt, &finalized_layers(&layout)).unwrap();
+
+    // The host's command pool and buffer.
+    let pool = unsafe {
+        h.device
+            .create_command_pool(&vk::CommandPoolCreateInfo::default().queue_family_index(h.family), None)
+            .unwrap()
+    };
+    let cmd = unsafe {
+        h.device
+            .allocate_command_buffers(
+                &vk::CommandBufferAllocateInfo::default()
+                    .command_pool(pool)
+                    .level(vk::CommandBufferLevel::PRIMARY)
+                    .command_buffer_count(1),
+            )
+            .unwrap()[0]
+    };
+    unsafe {
+        h.device
+            .begin_command_buffer(cmd, &vk::CommandBufferBeginInfo::default())
+            .unwrap()
+    };
+    let mut batch = unsafe { Batch::record_into(&ctx, cmd) };
+    let accum = BufferSlice { buffer: accum_buf, offset: 0, size: layout.bytes() };
+    record_finalize(&mut batch, Precision::F32, &layout, accum, &out).unwrap();
+    let recorded = batch.finish_recording();
+    unsafe {
+        h.device.end_command_buffer(cmd).unwrap();
+        let fence = h.device.create_fence(&vk::FenceCreateInfo::default(), None).unwrap();
+        let cmds = [cmd];
+        h.device
+            .queue_submit(h.queue, &[vk::SubmitInfo::default().command_buffers(&cmds)], fence)
+            .unwrap();
+        h.device.wait_for_fences(&[fence], true, u64::MAX).unwrap();
+        h.device.destroy_fence(fence, None);
+    }
+    let timings = recorded.timings().unwrap();
+    assert!(timings.iter().any(|t| t.kernel == "finalize_stats"));
+    drop(recorded);
+
+    let g = out.download().unwrap();
+    let c = finalize_cpu(&layout, &planes);
+    for layer in [Layer::Color, Layer::ColorVariance, Layer::Normal, Layer::PositionCovariance, Layer::Spp] {
+        for (a, b) in g.get(layer).unwrap().iter().zip(c.get(layer).unwrap()) {
+            assert_close(layer.name(), a, b, 0.99);
+        }
+    }
+
+    // Teardown in the documented order: mcdenoise's objects, then the host's.
+    drop(out);
+    drop(ctx);
+    unsafe {
+        h.device.destroy_command_pool(pool, None);
+        h.device.unmap_memory(accum_mem);
+        h.device.destroy_buffer(accum_buf, None);
+        h.device.free_memory(accum_mem, None);
+        h.device.destroy_device(None);
+        h.instance.destroy_instance(None);
+    }
+}
