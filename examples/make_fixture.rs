@@ -29,9 +29,16 @@ fn run() -> anyhow::Result<()> {
         bail!("usage: make_fixture <input.exr> <reference.exr> <x0> <y0> <w> <h> <out_stats.exr> <out_ref.exr>");
     }
     let number = |i: usize, what: &str| -> anyhow::Result<usize> {
-        args[i].parse().with_context(|| format!("{what} must be a non-negative integer, got {:?}", args[i]))
+        args[i]
+            .parse()
+            .with_context(|| format!("{what} must be a non-negative integer, got {:?}", args[i]))
     };
-    let (x0, y0, w, h) = (number(2, "x0")?, number(3, "y0")?, number(4, "w")?, number(5, "h")?);
+    let (x0, y0, w, h) = (
+        number(2, "x0")?,
+        number(3, "y0")?,
+        number(4, "w")?,
+        number(5, "h")?,
+    );
     let (input, reference) = (PathBuf::from(&args[0]), PathBuf::from(&args[1]));
     let (out_stats, out_ref) = (PathBuf::from(&args[6]), PathBuf::from(&args[7]));
 

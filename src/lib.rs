@@ -22,8 +22,11 @@ pub mod accum;
 pub mod error;
 pub mod gpu;
 pub mod image;
+pub mod io;
 pub mod kernels;
 pub mod methods;
+pub mod metrics;
+pub mod options;
 pub mod reference;
 pub mod shared;
 

@@ -253,7 +253,11 @@ fn blur_1d(src: &[f64], w: usize, h: usize, kernel: &[f64], stride: usize, len: 
         let (mut acc, mut norm) = (0.0, 0.0);
         for q in lo..=hi {
             let k = kernel[q + radius - pos];
-            let j = if stride == 1 { i - pos + q } else { q * w + i % w };
+            let j = if stride == 1 {
+                i - pos + q
+            } else {
+                q * w + i % w
+            };
             acc += k * src[j];
             norm += k;
         }
@@ -311,7 +315,8 @@ mod tests {
     fn textured(w: usize, h: usize) -> RgbImage {
         image(w, h, |i, c| {
             let (x, y) = (i % w, i / w);
-            ((x * 7 + y * 13 + c * 5) % 17) as f32 * 0.3 + if (x / 4 + y / 4) % 2 == 0 { 2.0 } else { 0.1 }
+            ((x * 7 + y * 13 + c * 5) % 17) as f32 * 0.3
+                + if (x / 4 + y / 4) % 2 == 0 { 2.0 } else { 0.1 }
         })
     }
 
@@ -349,7 +354,9 @@ mod tests {
     #[test]
     fn ssim_drops_with_noise_and_stays_in_range() {
         let r = textured(32, 32);
-        let x = image(32, 32, |i, c| r.planes[c][i] * if (i * 31 + c) % 3 == 0 { 1.5 } else { 0.7 });
+        let x = image(32, 32, |i, c| {
+            r.planes[c][i] * if (i * 31 + c) % 3 == 0 { 1.5 } else { 0.7 }
+        });
         let s = ssim(&x, &r);
         assert!(s < 0.99 && s > -1.0, "ssim = {s}");
         // Symmetric in its arguments.

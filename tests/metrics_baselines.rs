@@ -28,7 +28,10 @@ fn scenes_dir() -> Option<PathBuf> {
     if dir.is_dir() {
         Some(dir)
     } else {
-        eprintln!("note: {} is absent; skipping the baseline check", dir.display());
+        eprintln!(
+            "note: {} is absent; skipping the baseline check",
+            dir.display()
+        );
         None
     }
 }

@@ -1,1 +1,317 @@
-fn main() {}
+//! `mcdenoise`: the command-line face of the library.
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::sync::Arc;
+
+use anyhow::{bail, Context};
+use clap::{Parser, Subcommand, ValueEnum};
+
+use mcdenoise::gpu::{self, ContextOptions, GpuContext, Precision, Validation};
+use mcdenoise::io;
+use mcdenoise::methods::prepare::{prepare, PrepareReport};
+use mcdenoise::methods::Backend;
+use mcdenoise::metrics;
+use mcdenoise::options::{help_table, Options};
+
+#[derive(Parser)]
+#[command(
+    name = "mcdenoise",
+    version,
+    about = "Vulkan compute denoiser and adaptive sampler for Monte Carlo renders",
+    long_about = "Vulkan compute denoiser and adaptive sampler for Monte Carlo renders.\n\n\
+Input files are render-statistics EXRs (per-pixel mean and variance of colour, albedo, normal, \
+depth, optionally position and visibility, and the sample count); see `mcdenoise inspect`.\n\n\
+Examples:\n  mcdenoise info\n  mcdenoise inspect render.exr\n  mcdenoise compare out.exr reference.exr --heatmap err.png\n  \
+mcdenoise denoise render.exr -o out.exr --png out.png --ref reference.exr"
+)]
+struct Cli {
+    /// Vulkan device by index or name substring (see `mcdenoise info`); also MCDENOISE_DEVICE.
+    #[arg(long, global = true)]
+    device: Option<String>,
+    /// Enable the Vulkan validation layer (needs vulkan-validationlayers).
+    #[arg(long, global = true)]
+    validation: bool,
+    /// No progress output on stderr.
+    #[arg(long, short, global = true)]
+    quiet: bool,
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
+enum Method {
+    /// Weighted local regression (spec §2).
+    Wlr,
+    /// Linear predictions at sparse centres (spec §3).
+    Lp,
+    /// Adaptive polynomial rendering (spec §4).
+    Apr,
+    /// Adaptive-order polynomial fitting (spec §5).
+    Aos,
+    /// No reconstruction: the sanitised input colour (spec §0.4), for checking
+    /// inputs, the pipeline and the metrics.
+    None,
+}
+
+#[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
+enum BackendArg {
+    /// Vulkan compute kernels.
+    Gpu,
+    /// The scalar f64 reference implementation (slow, for checking).
+    Cpu,
+}
+
+#[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
+enum PassArg {
+    /// The final reconstruction (large windows).
+    Final,
+    /// An adaptive pass's reconstruction (the spec's intermediate windows).
+    Intermediate,
+}
+
+#[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
+enum PrecisionArg {
+    F32,
+    F64,
+}
+
+#[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
+enum Prefilter {
+    None,
+    /// G-buffer prefilter with world positions and SURE (spec §6).
+    Gbf,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// List Vulkan devices, which one would be used, and the limits that matter.
+    Info,
+    /// Validate a render-statistics EXR and print its layers, size, spp range,
+    /// per-layer min/max/mean and NaN/Inf counts. Exits non-zero if unreadable.
+    Inspect {
+        file: PathBuf,
+    },
+    /// Compare an image with a reference: rMSE, relMSE, PSNR and SSIM.
+    Compare {
+        image: PathBuf,
+        reference: PathBuf,
+        /// Write a per-pixel rMSE picture (PNG).
+        #[arg(long)]
+        heatmap: Option<PathBuf>,
+        /// Exit with status 1 if rMSE exceeds this.
+        #[arg(long)]
+        max_error: Option<f64>,
+    },
+    /// Denoise a render-statistics EXR.
+    #[command(after_help = help_table())]
+    Denoise {
+        input: PathBuf,
+        /// Output EXR (color.R/G/B, plus error.*, samples.Y, debug.* on request).
+        #[arg(short, long)]
+        output: PathBuf,
+        #[arg(long, value_enum, default_value = "wlr")]
+        method: Method,
+        #[arg(long, value_enum, default_value = "gpu")]
+        backend: BackendArg,
+        /// Kernel arithmetic on the GPU (f64 where the device supports it).
+        #[arg(long, value_enum, default_value = "f32")]
+        precision: PrecisionArg,
+        #[arg(long, value_enum, default_value = "final")]
+        pass: PassArg,
+        #[arg(long, value_enum, default_value = "none")]
+        prefilter: Prefilter,
+        /// Add the estimated per-pixel MSE as error.R/G/B.
+        #[arg(long)]
+        error: bool,
+        /// Add the next pass's sample counts as samples.Y (needs --budget).
+        #[arg(long, requires = "budget")]
+        sample_map: bool,
+        /// Total samples to distribute for the next pass (spec §9.2).
+        #[arg(long)]
+        budget: Option<u64>,
+        /// Add the method's debug maps as debug.* layers.
+        #[arg(long)]
+        debug_layers: bool,
+        /// Also write a tone-mapped PNG preview here.
+        #[arg(long)]
+        png: Option<PathBuf>,
+        /// Reference image: print compare's metrics after denoising.
+        #[arg(long = "ref")]
+        reference: Option<PathBuf>,
+        /// With --ref: exit with status 1 if rMSE exceeds this.
+        #[arg(long, requires = "reference")]
+        max_error: Option<f64>,
+        /// Method option key=value (repeatable); the list is below.
+        #[arg(long = "opt", value_name = "KEY=VALUE")]
+        opts: Vec<String>,
+    },
+}
+
+fn context(cli: &Cli) -> anyhow::Result<Arc<GpuContext>> {
+    let ctx = GpuContext::new(&ContextOptions {
+        device: cli.device.clone(),
+        validation: if cli.validation {
+            Validation::Required
+        } else {
+            Validation::Off
+        },
+    })?;
+    Ok(Arc::new(ctx))
+}
+
+fn info(cli: &Cli) -> anyhow::Result<()> {
+    let devices = gpu::enumerate_devices()?;
+    let chosen = gpu::choose_device(&devices, cli.device.as_deref()).ok();
+    if devices.is_empty() {
+        bail!("the Vulkan loader found no device; for the software device: apt-get install mesa-vulkan-drivers");
+    }
+    for d in &devices {
+        let mark = if Some(d.index) == chosen { "*" } else { " " };
+        println!("{mark} [{}] {} ({:?}, Vulkan {}.{}.{}, driver {})", d.index, d.name, d.kind, d.api_version.0, d.api_version.1, d.api_version.2, d.driver);
+        println!("      maxStorageBufferRange      {} bytes ({} MiB)", d.max_storage_buffer_range, d.max_storage_buffer_range / (1 << 20));
+        println!("      storage buffers per stage  {}", d.max_per_stage_storage_buffers);
+        println!("      shaderFloat64              {}", if d.shader_float64 { "yes" } else { "no" });
+        println!("      shaderInt64                {}", if d.shader_int64 { "yes" } else { "no" });
+        println!("      subgroup size              {}", d.subgroup_size);
+        println!("      shared memory              {} bytes", d.max_shared_memory);
+        println!("      push constants             {} bytes", d.max_push_constants_size);
+        println!("      timestamp period           {} ns", d.timestamp_period_ns);
+        println!("      compute queue              {}", if d.has_compute_queue { "yes" } else { "no" });
+    }
+    if chosen.is_none() {
+        bail!("no usable device among these");
+    }
+    println!("* = would be used (override with --device or MCDENOISE_DEVICE)");
+    Ok(())
+}
+
+fn print_metrics(m: &metrics::Metrics) {
+    println!("rMSE    {:.5}", m.rmse);
+    println!("relMSE  {:.5}", m.relmse);
+    println!("PSNR    {:.2} dB", m.psnr);
+    println!("SSIM    {:.4}", m.ssim);
+}
+
+/// Reads the colour of `path`: a render-statistics file or a plain RGB image.
+fn read_colour(path: &Path) -> anyhow::Result<mcdenoise::image::RgbImage> {
+    Ok(io::read_rgb(path)?)
+}
+
+fn check_error(rmse: f64, max: Option<f64>) -> anyhow::Result<bool> {
+    if let Some(max) = max {
+        if !(rmse <= max) {
+            eprintln!("rMSE {rmse:.5} exceeds --max-error {max}");
+            return Ok(false);
+        }
+    }
+    Ok(true)
+}
+
+fn same_file(a: &Path, b: &Path) -> bool {
+    match (a.canonicalize(), b.canonicalize()) {
+        (Ok(x), Ok(y)) => x == y,
+        _ => false,
+    }
+}
+
+fn run(cli: Cli) -> anyhow::Result<bool> {
+    match &cli.command {
+        Command::Info => info(&cli).map(|_| true),
+        Command::Inspect { file } => {
+            let img = io::read_stats(file)?;
+            print!("{}", io::format_report(file, &img));
+            Ok(true)
+        }
+        Command::Compare { image, reference, heatmap, max_error } => {
+            let x = read_colour(image)?;
+            let r = read_colour(reference)?;
+            let m = metrics::compare(&x, &r).with_context(|| format!("{} vs {}", image.display(), reference.display()))?;
+            print_metrics(&m);
+            if let Some(h) = heatmap {
+                let map = metrics::rmse_heatmap(&x, &r)?;
+                let mut sorted: Vec<f32> = map.iter().copied().filter(|v| v.is_finite()).collect();
+                sorted.sort_by(|a, b| a.total_cmp(b));
+                let p99 = sorted.get(sorted.len() * 99 / 100).copied().unwrap_or(1.0).max(1e-8);
+                io::write_heatmap_png(h, x.width, x.height, &map, p99)?;
+                eprintln!("heat map: {} (scale 0..{p99:.4}, the 99th percentile)", h.display());
+            }
+            check_error(m.rmse, *max_error)
+        }
+        Command::Denoise {
+            input, output, method, backend, precision, pass, prefilter, error, sample_map, budget,
+            debug_layers, png, reference, max_error, opts,
+        } => {
+            let options = Options::parse(opts)?;
+            for path in [Some(output), png.as_ref()].into_iter().flatten() {
+                if same_file(path, input) || reference.as_ref().is_some_and(|r| same_file(path, r)) {
+                    bail!("{}: refusing to overwrite an input file", path.display());
+                }
+            }
+            if *method != Method::None {
+                bail!(
+                    "method {method:?} is not in this build yet: only `--method none` (sanitised input) is; \
+                     the reconstruction methods land with their own issues"
+                );
+            }
+            if *prefilter != Prefilter::None || *sample_map || budget.is_some() || *error {
+                bail!("--prefilter, --error and --sample-map need a reconstruction method (not --method none)");
+            }
+            let _ = (pass, debug_layers, &options);
+            let img = io::read_stats(input)?;
+            let backend = match backend {
+                BackendArg::Gpu => Backend::Gpu,
+                BackendArg::Cpu => Backend::Cpu,
+            };
+            let precision = match precision {
+                PrecisionArg::F32 => Precision::F32,
+                PrecisionArg::F64 => Precision::F64,
+            };
+            let ctx = if backend == Backend::Gpu { Some(context(&cli)?) } else { None };
+            let t0 = std::time::Instant::now();
+            let (clean, report) = prepare(ctx.as_ref(), backend, precision, &img)?;
+            if !cli.quiet {
+                print_report(&report, input);
+                eprintln!("sanitised in {:.2} s ({backend:?})", t0.elapsed().as_secs_f64());
+            }
+            let color = mcdenoise::methods::prepare::colour_of(&clean);
+            let mut out = io::OutputImage { color: color.clone(), error: None, samples: None, debug: vec![] };
+            if *debug_layers {
+                // Method `none` has no maps of its own: the sanitised variance.
+                let var = clean.get(mcdenoise::image::Layer::ColorVariance).unwrap();
+                for (c, name) in ["R", "G", "B"].iter().enumerate() {
+                    out.debug.push((format!("color_variance.{name}"), var[c].clone()));
+                }
+            }
+            io::write_output(output, &out)?;
+            if let Some(p) = png {
+                io::write_png_preview(p, &color)?;
+            }
+            if let Some(r) = reference {
+                let r = read_colour(r)?;
+                let m = metrics::compare(&color, &r)?;
+                print_metrics(&m);
+                return check_error(m.rmse, *max_error);
+            }
+            Ok(true)
+        }
+    }
+}
+
+fn print_report(r: &PrepareReport, input: &Path) {
+    for line in r.messages(input) {
+        eprintln!("{line}");
+    }
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    match run(cli) {
+        Ok(true) => ExitCode::SUCCESS,
+        Ok(false) => ExitCode::from(1),
+        Err(e) => {
+            eprintln!("mcdenoise: error: {e:#}");
+            ExitCode::from(2)
+        }
+    }
+}

@@ -161,7 +161,10 @@ struct DecodedPart {
 
 impl DecodedPart {
     fn take(&mut self, name: &str) -> Option<Vec<f32>> {
-        self.planes.iter_mut().find(|(n, _)| n == name).and_then(|(_, p)| p.take())
+        self.planes
+            .iter_mut()
+            .find(|(n, _)| n == name)
+            .and_then(|(_, p)| p.take())
     }
 
     fn has(&self, name: &str) -> bool {
@@ -171,7 +174,13 @@ impl DecodedPart {
     /// `"; the file has channels: ..."`, with the part for multi-part files.
     fn context(&self) -> String {
         const SHOWN: usize = 40;
-        let mut list = self.all_names.iter().take(SHOWN).cloned().collect::<Vec<_>>().join(", ");
+        let mut list = self
+            .all_names
+            .iter()
+            .take(SHOWN)
+            .cloned()
+            .collect::<Vec<_>>()
+            .join(", ");
         if self.all_names.len() > SHOWN {
             list.push_str(&format!(", ... ({} channels)", self.all_names.len()));
         }
@@ -194,8 +203,11 @@ fn assemble_stats(path: &Path, mut part: DecodedPart) -> Result<StatsImage> {
     let mut img = StatsImage::new(part.width, part.height);
     let mut problems = Vec::new();
     for layer in Layer::ALL {
-        let names: Vec<String> =
-            layer.channels().iter().map(|c| format!("{}.{c}", layer.name())).collect();
+        let names: Vec<String> = layer
+            .channels()
+            .iter()
+            .map(|c| format!("{}.{c}", layer.name()))
+            .collect();
         let present: Vec<bool> = names.iter().map(|n| part.has(n)).collect();
         let count = present.iter().filter(|p| **p).count();
         if count == 0 {
@@ -247,7 +259,10 @@ fn decode_part(
     wanted: &dyn Fn(&str) -> bool,
 ) -> Result<DecodedPart> {
     if bytes.is_empty() {
-        return Err(Error::bad_input(path, "empty file (0 bytes): not an OpenEXR file"));
+        return Err(Error::bad_input(
+            path,
+            "empty file (0 bytes): not an OpenEXR file",
+        ));
     }
     if bytes.len() < 4 || bytes[..4] != EXR_MAGIC {
         return Err(Error::bad_input(
@@ -255,7 +270,9 @@ fn decode_part(
             "not an OpenEXR file (it does not start with the EXR magic number 76 2f 31 01)",
         ));
     }
-    match panic::catch_unwind(AssertUnwindSafe(|| decode_unguarded(path, bytes, select, wanted))) {
+    match panic::catch_unwind(AssertUnwindSafe(|| {
+        decode_unguarded(path, bytes, select, wanted)
+    })) {
         Ok(result) => result,
         Err(payload) => {
             let detail = payload
@@ -282,16 +299,20 @@ fn decode_unguarded(
     let reader = exr::block::read(Cursor::new(bytes), false).map_err(bad_exr)?;
     let part_count = reader.headers().len();
     let part_index = select(reader.headers());
-    let header: Header = reader
-        .headers()
-        .get(part_index)
-        .cloned()
-        .ok_or_else(|| Error::bad_input(path, "truncated or corrupt EXR: the file has no parts"))?;
+    let header: Header =
+        reader.headers().get(part_index).cloned().ok_or_else(|| {
+            Error::bad_input(path, "truncated or corrupt EXR: the file has no parts")
+        })?;
     check_header(path, &header, part_index, part_count)?;
 
     let (width, height) = (header.layer_size.width(), header.layer_size.height());
     let pixels = width * height;
-    let all_names: Vec<String> = header.channels.list.iter().map(|c| c.name.to_string()).collect();
+    let all_names: Vec<String> = header
+        .channels
+        .list
+        .iter()
+        .map(|c| c.name.to_string())
+        .collect();
 
     // One output slot per wanted channel, indexed by the channel's position in
     // the part's channel list (the order of the lines in a block).
@@ -345,7 +366,9 @@ fn decode_unguarded(
         if !seen.insert((bx, by)) {
             return Err(Error::bad_input(
                 path,
-                format!("truncated or corrupt EXR: two pixel blocks claim the pixels at ({bx}, {by})"),
+                format!(
+                    "truncated or corrupt EXR: two pixel blocks claim the pixels at ({bx}, {by})"
+                ),
             ));
         }
         let expected_len = header.channels.bytes_per_pixel * bw * bh;
@@ -372,7 +395,10 @@ fn decode_unguarded(
             if line.value.len() != loc.sample_count * sample_type.bytes_per_sample() {
                 return Err(Error::bad_input(
                     path,
-                    format!("truncated or corrupt EXR: a line of channel {} has the wrong length", all_names[loc.channel]),
+                    format!(
+                        "truncated or corrupt EXR: a line of channel {} has the wrong length",
+                        all_names[loc.channel]
+                    ),
                 ));
             }
             convert_samples(line.value, sample_type, dst);
@@ -412,24 +438,38 @@ fn check_header(path: &Path, header: &Header, part: usize, parts: usize) -> Resu
         ));
     }
     if let Compression::HTJ2K32 | Compression::HTJ2K256 = header.compression {
-        let name = if header.compression == Compression::HTJ2K32 { "HTJ2K32" } else { "HTJ2K256" };
+        let name = if header.compression == Compression::HTJ2K32 {
+            "HTJ2K32"
+        } else {
+            "HTJ2K256"
+        };
         return Err(Error::bad_input(
             path,
             format!("compression {name} is not supported; {RESAVE_HINT}"),
         ));
     }
-    if let Some(c) = header.channels.list.iter().find(|c| c.sampling != Vec2(1, 1)) {
+    if let Some(c) = header
+        .channels
+        .list
+        .iter()
+        .find(|c| c.sampling != Vec2(1, 1))
+    {
         return Err(Error::bad_input(
             path,
             format!(
                 "channel {} is subsampled ({}x{}); subsampled channels are not supported",
-                c.name, c.sampling.x(), c.sampling.y()
+                c.name,
+                c.sampling.x(),
+                c.sampling.y()
             ),
         ));
     }
     let (w, h) = (header.layer_size.width(), header.layer_size.height());
     if w == 0 || h == 0 {
-        return Err(Error::bad_input(path, format!("{which} is empty (data window {w}x{h})")));
+        return Err(Error::bad_input(
+            path,
+            format!("{which} is empty (data window {w}x{h})"),
+        ));
     }
     if w > MAX_DIMENSION || h > MAX_DIMENSION || w.saturating_mul(h) > MAX_PIXELS {
         return Err(Error::bad_input(
@@ -442,7 +482,10 @@ fn check_header(path: &Path, header: &Header, part: usize, parts: usize) -> Resu
     if header.chunk_count > MAX_CHUNKS {
         return Err(Error::bad_input(
             path,
-            format!("{which} has {} pixel blocks (limit {MAX_CHUNKS})", header.chunk_count),
+            format!(
+                "{which} has {} pixel blocks (limit {MAX_CHUNKS})",
+                header.chunk_count
+            ),
         ));
     }
     Ok(())
@@ -470,18 +513,22 @@ fn convert_samples(src: &[u8], sample_type: SampleType, dst: &mut [f32]) {
 }
 
 /// A human sentence for an `exr` crate error.
+///
+/// If the raw header names a compression we cannot decode (HTJ2K, ZSTD or an
+/// unknown id), that is reported whatever the decoder tripped over first: the
+/// decoder's geometry checks assume the compressions it knows.
 fn describe_exr_error(bytes: &[u8], error: exr::error::Error) -> String {
     use exr::error::Error as E;
+    if let Some(id) = unsupported_compression(bytes) {
+        return format!(
+            "compression {} is not supported; {RESAVE_HINT}",
+            compression_name(id)
+        );
+    }
     match error {
         E::NotSupported(msg) => {
             if msg.contains("compression") {
-                match unsupported_compression(bytes) {
-                    Some(id) => format!(
-                        "compression {} is not supported; {RESAVE_HINT}",
-                        compression_name(id)
-                    ),
-                    None => format!("unsupported compression method; {RESAVE_HINT}"),
-                }
+                format!("unsupported compression method; {RESAVE_HINT}")
             } else if msg.contains("sampling") {
                 "subsampled channels are not supported".to_string()
             } else if msg.contains("deep") {
@@ -521,12 +568,13 @@ fn compression_name(id: u8) -> String {
         10 => "HTJ2K256".into(),
         11 => "HTJ2K32".into(),
         12 => "ZSTD".into(),
-        other => format!("with unknown id {other}"),
+        other => format!("UNKNOWN (id {other})"),
     }
 }
 
-/// Scans the raw header attributes for a `compression` value the `exr` crate
-/// cannot read (id > 11), to name it in the error message.
+/// Scans the raw header attributes for a `compression` value that cannot be
+/// decoded (HTJ2K = 10, 11; ZSTD = 12; unknown ids), to name it in the error
+/// message.
 fn unsupported_compression(bytes: &[u8]) -> Option<u8> {
     let multipart = bytes.get(4..8).is_some_and(|v| v[1] & 0x10 != 0);
     let mut pos = 8;
@@ -548,7 +596,7 @@ fn unsupported_compression(bytes: &[u8]) -> Option<u8> {
             let size = usize::try_from(size).ok()?;
             let value = bytes.get(pos..pos + size)?;
             pos += size;
-            if name == b"compression" && size == 1 && value[0] > 11 {
+            if name == b"compression" && size == 1 && value[0] >= 10 {
                 return Some(value[0]);
             }
         }

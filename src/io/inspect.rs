@@ -78,7 +78,11 @@ fn channel_stats(name: String, plane: &[f32]) -> ChannelStats {
         name,
         min,
         max,
-        mean: if finite > 0 { sum / finite as f64 } else { f64::NAN },
+        mean: if finite > 0 {
+            sum / finite as f64
+        } else {
+            f64::NAN
+        },
         nan,
         inf,
         negative,
@@ -176,7 +180,9 @@ pub fn validate(img: &StatsImage) -> Vec<String> {
     }
 
     for mean in Layer::WITH_VARIANCE {
-        let Some(variance) = mean.variance() else { continue };
+        let Some(variance) = mean.variance() else {
+            continue;
+        };
         if img.has(variance) {
             continue;
         }
@@ -231,7 +237,11 @@ pub fn format_report(path: &Path, img: &StatsImage) -> String {
     let _ = writeln!(
         out,
         "  layers missing: {}",
-        if missing.is_empty() { "none".to_string() } else { missing.join(", ") }
+        if missing.is_empty() {
+            "none".to_string()
+        } else {
+            missing.join(", ")
+        }
     );
     match spp_range(img) {
         Some((lo, hi)) if lo == hi => {

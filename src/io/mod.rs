@@ -7,8 +7,8 @@
 //!   [`write_rgb`] and [`write_channels`] write the other EXR shapes (fixtures,
 //!   references, crops).
 //! - [`write_png_preview`] and [`write_heatmap_png`] write 8-bit previews.
-//! - [`inspect`](inspect::inspect), [`validate`](inspect::validate) and
-//!   [`format_report`](inspect::format_report) summarise an input file.
+//! - [`inspect()`](fn@inspect), [`validate`] and [`format_report`] summarise
+//!   an input file.
 //!
 //! Reading never panics on file content: every problem with a file is an
 //! [`Error::BadInput`] naming the file and, where it applies, the layer,
@@ -45,7 +45,12 @@ fn temp_path(path: &Path) -> Result<PathBuf> {
         source: std::io::Error::new(std::io::ErrorKind::InvalidInput, "not a file path"),
     })?;
     let n = TEMP_COUNTER.fetch_add(1, Ordering::Relaxed);
-    let tmp_name = format!(".{}.tmp-{}-{}", name.to_string_lossy(), std::process::id(), n);
+    let tmp_name = format!(
+        ".{}.tmp-{}-{}",
+        name.to_string_lossy(),
+        std::process::id(),
+        n
+    );
     Ok(match path.parent() {
         Some(dir) if !dir.as_os_str().is_empty() => dir.join(tmp_name),
         _ => PathBuf::from(tmp_name),
@@ -70,7 +75,11 @@ pub fn write_atomic(
         path: path.to_path_buf(),
         source,
     };
-    let file = OpenOptions::new().write(true).create_new(true).open(&tmp).map_err(io_err)?;
+    let file = OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(&tmp)
+        .map_err(io_err)?;
     let result = (|| {
         let mut writer = BufWriter::new(file);
         write(&mut writer)?;

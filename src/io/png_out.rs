@@ -12,7 +12,11 @@ use super::{write_atomic, write_error};
 /// code: `t = v / (1 + v)` (Reinhard; negative and NaN → 0, +Inf → 1), then
 /// the sRGB OETF, then rounding to 0..=255.
 pub fn srgb_preview_u8(v: f32) -> u8 {
-    let v = if v.is_nan() || v <= 0.0 { 0.0 } else { v as f64 };
+    let v = if v.is_nan() || v <= 0.0 {
+        0.0
+    } else {
+        v as f64
+    };
     let t = if v.is_infinite() { 1.0 } else { v / (1.0 + v) };
     let s = if t <= 0.003_130_8 {
         12.92 * t
@@ -97,7 +101,11 @@ pub fn write_heatmap_png(
     let scale = if max.is_finite() && max > 0.0 {
         max
     } else {
-        values.iter().copied().filter(|v| v.is_finite()).fold(0.0f32, f32::max)
+        values
+            .iter()
+            .copied()
+            .filter(|v| v.is_finite())
+            .fold(0.0f32, f32::max)
     };
     let mut data = Vec::with_capacity(values.len() * 3);
     for &v in values {

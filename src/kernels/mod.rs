@@ -7,6 +7,13 @@ use crate::gpu::KernelDecl;
 
 pub mod finalize_covariance;
 pub mod finalize_stats;
+pub mod sanitize;
+pub mod tsvd_debug;
 
 /// Every kernel, for the reflection test and `mcdenoise bench`.
-pub const ALL: &[&KernelDecl] = &[&finalize_stats::DECL, &finalize_covariance::DECL];
+pub const ALL: &[&KernelDecl] = &[
+    &finalize_stats::DECL,
+    &finalize_covariance::DECL,
+    &sanitize::DECL,
+    &tsvd_debug::DECL,
+];

@@ -1,6 +1,7 @@
 //! Sequences of kernels. Each method runs either on the GPU (the kernels) or
 //! on the CPU (their scalar twins), selected by [`Backend`].
 
+pub mod prepare;
 pub mod stats;
 
 /// Where a method runs.

@@ -1,0 +1,69 @@
+//! `sanitize`: input sanitation of one scalar channel (spec §0.4), in three
+//! stages. Twin: [`crate::reference::sanitize`].
+
+use crate::error::Result;
+use crate::gpu::reflect::{read, write};
+use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};
+use crate::shared::SanitizePush;
+
+pub const DECL: KernelDecl = KernelDecl {
+    name: "sanitize",
+    bindings: &[
+        read("value_in"),
+        read("var_in"),
+        read("spp"),
+        write("value_out"),
+        write("var_out"),
+        write("counters"),
+    ],
+    push_size: std::mem::size_of::<SanitizePush>() as u32,
+};
+
+/// Cost per pixel by stage: a 3x3 median; a 5x5 median (rarely the MAD
+/// fallback); a 7x7 window of 3x3 residuals and two 49-value medians.
+pub fn flops_per_pixel(stage: u32) -> f64 {
+    match stage {
+        0 => 40.0,
+        1 => 120.0,
+        _ => 3000.0,
+    }
+}
+
+/// Counters written by the kernel (u32 each, in this order).
+pub const COUNTERS: [&str; 4] = [
+    "non-finite values repaired",
+    "negative or non-finite variances set to 0",
+    "variances of spp<2 pixels taken from neighbours",
+    "variances estimated from the image",
+];
+
+/// Records one stage over one channel. `var_in` is ignored by stage 0 when
+/// `has_var` is false (bind any plane); `counters` holds 4 u32 and is added to.
+pub fn record(
+    batch: &mut Batch,
+    precision: Precision,
+    width: u32,
+    height: u32,
+    stage: u32,
+    has_var: bool,
+    planes: [BufferSlice; 5],
+    counters: BufferSlice,
+) -> Result<()> {
+    let push = SanitizePush {
+        width,
+        height,
+        stage,
+        has_var: has_var as u32,
+        ..Default::default()
+    };
+    let [value_in, var_in, spp, value_out, var_out] = planes;
+    batch.dispatch(
+        &DECL,
+        precision,
+        &[value_in, var_in, spp, value_out, var_out, counters],
+        bytemuck::bytes_of(&push),
+        width,
+        height,
+        flops_per_pixel(stage),
+    )
+}

@@ -1,0 +1,303 @@
+//! Input sanitation of a whole frame (spec §0.4), on the GPU or the CPU.
+//!
+//! Per scalar channel of every mean layer: stage 0 (non-finite values, variance
+//! clamp), then stage 1 (variance of spp < 2 pixels) when the variance layer
+//! exists, or stage 2 (variance estimated from the image, step 4) when it does
+//! not. `position_covariance` gets stage 0 only. The sample count is
+//! normalised by `spp_of` (non-finite or < 1 → 0, an invalid pixel).
+
+use std::path::Path;
+use std::sync::Arc;
+
+use super::stats::GpuStats;
+use super::Backend;
+use crate::error::{Error, Result};
+use crate::gpu::{Batch, BufferSlice, GpuBuffer, GpuContext, PlaneSet, Precision};
+use crate::image::{Layer, RgbImage, StatsImage};
+use crate::kernels::sanitize;
+use crate::reference::{sanitize::sanitize as sanitize_twin, spp_of};
+use crate::shared::SanitizePush;
+
+/// What sanitation repaired. Printed on stderr by the CLI (spec §0.4).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct PrepareReport {
+    /// Sums over all channels of the four counters of
+    /// [`sanitize::COUNTERS`](crate::kernels::sanitize::COUNTERS).
+    pub counters: [u64; 4],
+    /// Mean layers whose variance layer was missing and has been estimated.
+    pub estimated: Vec<Layer>,
+    /// Pixels with no valid sample count (n < 1, NaN or negative).
+    pub invalid_pixels: usize,
+}
+
+impl PrepareReport {
+    /// Lines for stderr: one per kind of repair that happened.
+    pub fn messages(&self, input: &Path) -> Vec<String> {
+        let mut out = Vec::new();
+        for l in &self.estimated {
+            out.push(format!(
+                "{}: variance estimated from the image (no {} layer)",
+                input.display(),
+                l.variance().unwrap().name()
+            ));
+        }
+        for (i, what) in sanitize::COUNTERS.iter().enumerate().take(3) {
+            if self.counters[i] > 0 {
+                out.push(format!("{}: {} {what}", input.display(), self.counters[i]));
+            }
+        }
+        if self.invalid_pixels > 0 {
+            out.push(format!(
+                "{}: {} pixels without samples (spp < 1): filled from their neighbours",
+                input.display(),
+                self.invalid_pixels
+            ));
+        }
+        out
+    }
+}
+
+/// The layers sanitation produces from an input with `layers`: every mean
+/// layer with its variance (estimated if absent), the covariance if present,
+/// and the count.
+pub fn output_layers(layers: &[Layer]) -> Vec<Layer> {
+    let mut out = Vec::new();
+    for &l in &Layer::WITH_VARIANCE {
+        if layers.contains(&l) {
+            out.push(l);
+            out.push(l.variance().unwrap());
+        }
+    }
+    if layers.contains(&Layer::PositionCovariance) {
+        out.push(Layer::PositionCovariance);
+    }
+    out.push(Layer::Spp);
+    out
+}
+
+fn check_input(img: &StatsImage) -> Result<()> {
+    for l in [Layer::Color, Layer::Spp] {
+        if !img.has(l) {
+            return Err(Error::BadData(format!("sanitation needs the {} layer", l.name())));
+        }
+    }
+    Ok(())
+}
+
+/// Sanitises `img` with the chosen backend. The GPU backend needs `ctx`.
+pub fn prepare(
+    ctx: Option<&Arc<GpuContext>>,
+    backend: Backend,
+    precision: Precision,
+    img: &StatsImage,
+) -> Result<(StatsImage, PrepareReport)> {
+    check_input(img)?;
+    match backend {
+        Backend::Cpu => Ok(prepare_cpu(img)),
+        Backend::Gpu => {
+            let ctx = ctx.ok_or_else(|| Error::InvalidArgument("the GPU backend needs a context".into()))?;
+            prepare_gpu(ctx, precision, img)
+        }
+    }
+}
+
+fn base_report(img: &StatsImage) -> PrepareReport {
+    let layers: Vec<Layer> = img.layers().map(|(l, _)| l).collect();
+    PrepareReport {
+        counters: [0; 4],
+        estimated: Layer::WITH_VARIANCE
+            .into_iter()
+            .filter(|l| layers.contains(l) && !layers.contains(&l.variance().unwrap()))
+            .collect(),
+        invalid_pixels: img.get(Layer::Spp).unwrap()[0]
+            .iter()
+            .filter(|&&s| spp_of(s) < 1.0)
+            .count(),
+    }
+}
+
+/// The CPU path: the scalar twin, stage by stage, channel by channel.
+pub fn prepare_cpu(img: &StatsImage) -> (StatsImage, PrepareReport) {
+    let (w, h) = (img.width, img.height);
+    let n = w * h;
+    let mut report = base_report(img);
+    let spp = &img.get(Layer::Spp).unwrap()[0];
+    let mut out = StatsImage::new(w, h);
+    let push = |stage: u32, has_var: bool| SanitizePush {
+        width: w as u32,
+        height: h as u32,
+        stage,
+        has_var: has_var as u32,
+        ..Default::default()
+    };
+    let mut counters = [0u32; 4];
+    for &layer in &Layer::WITH_VARIANCE {
+        let Some(values) = img.get(layer) else { continue };
+        let vars = img.get(layer.variance().unwrap());
+        let mut out_v = Vec::new();
+        let mut out_var = Vec::new();
+        for (c, value) in values.iter().enumerate() {
+            let var_in = vars.map(|v| v[c].as_slice()).unwrap_or(value);
+            let (mut a_val, mut a_var) = (vec![0.0; n], vec![0.0; n]);
+            sanitize_twin(&push(0, vars.is_some()), value, var_in, spp, &mut a_val, &mut a_var, &mut counters);
+            let (mut b_val, mut b_var) = (vec![0.0; n], vec![0.0; n]);
+            let stage = if vars.is_some() { 1 } else { 2 };
+            sanitize_twin(&push(stage, vars.is_some()), &a_val, &a_var, spp, &mut b_val, &mut b_var, &mut counters);
+            out_v.push(b_val);
+            out_var.push(b_var);
+        }
+        out.set(layer, out_v);
+        out.set(layer.variance().unwrap(), out_var);
+    }
+    if let Some(cov) = img.get(Layer::PositionCovariance) {
+        let mut planes = Vec::new();
+        for p in cov {
+            let (mut v, mut dummy) = (vec![0.0; n], vec![0.0; n]);
+            sanitize_twin(&push(0, false), p, p, spp, &mut v, &mut dummy, &mut counters);
+            planes.push(v);
+        }
+        out.set(Layer::PositionCovariance, planes);
+    }
+    out.set(Layer::Spp, vec![spp.iter().map(|&s| spp_of(s) as f32).collect()]);
+    for k in 0..4 {
+        report.counters[k] += counters[k] as u64;
+    }
+    (out, report)
+}
+
+/// Bytes between the counter blocks of two channels (offset alignment).
+const COUNTER_STRIDE: u64 = 256;
+
+/// GPU scratch for [`record_prepare`]: two ping-pong planes and the counters.
+#[derive(Debug)]
+pub struct PrepareScratch {
+    pub planes: PlaneSet,
+    pub counters: GpuBuffer,
+    pub channels: usize,
+}
+
+impl PrepareScratch {
+    pub fn new(ctx: &Arc<GpuContext>, input: &GpuStats) -> Result<PrepareScratch> {
+        let channels: usize = input
+            .index
+            .iter()
+            .filter(|(l, _)| Layer::WITH_VARIANCE.contains(l) || *l == Layer::PositionCovariance)
+            .map(|(l, _)| l.channels().len())
+            .sum();
+        Ok(PrepareScratch {
+            planes: PlaneSet::new(ctx, "prepare.scratch", input.width * input.height, 2)?,
+            counters: GpuBuffer::new(ctx, "prepare.counters", COUNTER_STRIDE * channels.max(1) as u64)?,
+            channels,
+        })
+    }
+
+    /// Sums the counters after the work has completed.
+    pub fn read_counters(&self) -> Result<[u64; 4]> {
+        let raw: Vec<u32> = self.counters.read_vec((COUNTER_STRIDE / 4) as usize * self.channels.max(1))?;
+        let mut out = [0u64; 4];
+        for c in 0..self.channels {
+            for k in 0..4 {
+                out[k] += raw[c * (COUNTER_STRIDE / 4) as usize + k] as u64;
+            }
+        }
+        Ok(out)
+    }
+}
+
+/// Records the sanitation of `input` into `out` (which holds
+/// [`output_layers`] of the input's layers). GPU-resident: nothing is read back.
+pub fn record_prepare(
+    batch: &mut Batch,
+    precision: Precision,
+    input: &GpuStats,
+    out: &GpuStats,
+    scratch: &PrepareScratch,
+) -> Result<()> {
+    let (w, h) = (input.width as u32, input.height as u32);
+    let spp = input.plane(Layer::Spp, 0);
+    let (tmp_val, tmp_var) = (scratch.planes.plane(0), scratch.planes.plane(1));
+    batch.fill(scratch.counters.slice(), 0);
+    let mut channel = 0u64;
+    let counters = |c: u64| scratch.counters.range(c * COUNTER_STRIDE, 16);
+    for &layer in &Layer::WITH_VARIANCE {
+        if !input.has(layer) {
+            continue;
+        }
+        let var_layer = layer.variance().unwrap();
+        let has_var = input.has(var_layer);
+        for c in 0..layer.channels().len() {
+            let value = input.plane(layer, c);
+            let var_in: BufferSlice = if has_var { input.plane(var_layer, c) } else { value };
+            sanitize::record(batch, precision, w, h, 0, has_var, [value, var_in, spp, tmp_val, tmp_var], counters(channel))?;
+            let stage = if has_var { 1 } else { 2 };
+            let (ov, ovar) = (out.plane(layer, c), out.plane(var_layer, c));
+            sanitize::record(batch, precision, w, h, stage, has_var, [tmp_val, tmp_var, spp, ov, ovar], counters(channel))?;
+            channel += 1;
+        }
+    }
+    if input.has(Layer::PositionCovariance) {
+        for c in 0..6 {
+            let p = input.plane(Layer::PositionCovariance, c);
+            let o = out.plane(Layer::PositionCovariance, c);
+            sanitize::record(batch, precision, w, h, 0, false, [p, p, spp, o, tmp_var], counters(channel))?;
+            channel += 1;
+        }
+    }
+    // The count itself: spp_of applied through stage 0 of a channel whose
+    // values are the counts (non-finite → median of neighbours is *not* what
+    // we want), so copy it and let every kernel apply spp_of when reading.
+    batch.copy(spp, out.plane(Layer::Spp, 0));
+    Ok(())
+}
+
+/// Upload, [`record_prepare`], download.
+pub fn prepare_gpu(ctx: &Arc<GpuContext>, precision: Precision, img: &StatsImage) -> Result<(StatsImage, PrepareReport)> {
+    let input = GpuStats::upload(ctx, "prepare.input", img)?;
+    let layers: Vec<Layer> = img.layers().map(|(l, _)| l).collect();
+    let out = GpuStats::new(ctx, "prepare.output", img.width, img.height, &output_layers(&layers))?;
+    let scratch = PrepareScratch::new(ctx, &input)?;
+    let mut batch = Batch::new(ctx)?;
+    record_prepare(&mut batch, precision, &input, &out, &scratch)?;
+    batch.finish()?;
+    let mut report = base_report(img);
+    report.counters = scratch.read_counters()?;
+    let mut clean = out.download()?;
+    // Same normalisation of the count as the CPU path.
+    let spp: Vec<f32> = clean.get(Layer::Spp).unwrap()[0].iter().map(|&s| spp_of(s) as f32).collect();
+    clean.set(Layer::Spp, vec![spp]);
+    Ok((clean, report))
+}
+
+/// The colour layer as an image, clamped to ≥ 0 (spec §0.4 step 5). Invalid
+/// pixels (n < 1) get the mean of the valid pixels of their 3x3
+/// neighbourhood, or 0 (spec §0.2).
+pub fn colour_of(img: &StatsImage) -> RgbImage {
+    let (w, h) = (img.width, img.height);
+    let col = img.get(Layer::Color).expect("colour layer");
+    let spp = &img.get(Layer::Spp).expect("spp layer")[0];
+    let valid = |i: usize| spp_of(spp[i]) >= 1.0;
+    let planes = std::array::from_fn(|c| {
+        (0..w * h)
+            .map(|i| {
+                let v = if valid(i) {
+                    col[c][i] as f64
+                } else {
+                    let (x, y) = (i % w, i / w);
+                    let (mut s, mut k) = (0.0, 0);
+                    for qy in y.saturating_sub(1)..(y + 2).min(h) {
+                        for qx in x.saturating_sub(1)..(x + 2).min(w) {
+                            let q = qy * w + qx;
+                            if valid(q) {
+                                s += col[c][q] as f64;
+                                k += 1;
+                            }
+                        }
+                    }
+                    if k > 0 { s / k as f64 } else { 0.0 }
+                };
+                v.max(0.0) as f32
+            })
+            .collect()
+    });
+    RgbImage::from_planes(w, h, planes)
+}

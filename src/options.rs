@@ -1,0 +1,226 @@
+//! Every option the spec names, as `key=value` pairs (`mcdenoise denoise
+//! --opt key=value`). One table: parsing, validation and `--help` come from it.
+
+use std::collections::BTreeMap;
+
+use crate::error::{Error, Result};
+
+/// The kind of value an option takes.
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub enum Kind {
+    /// One of the listed words.
+    Choice(&'static [&'static str]),
+    /// An integer in `[min, max]`.
+    Int(i64, i64),
+    /// A real number in `[min, max]`.
+    Real(f64, f64),
+}
+
+/// One option of the spec.
+#[derive(Copy, Clone, Debug)]
+pub struct OptionSpec {
+    pub key: &'static str,
+    pub kind: Kind,
+    pub default: &'static str,
+    /// Section of `../shared/docs/algorithms.md`.
+    pub section: &'static str,
+    pub help: &'static str,
+}
+
+/// The registry.
+pub const OPTIONS: &[OptionSpec] = &[
+    OptionSpec {
+        key: "wlr.outlier_weight",
+        kind: Kind::Choice(&["clamped", "off"]),
+        default: "clamped",
+        section: "§2.3 step 2",
+        help: "weights divided by max(var, 1) (clamped) or not at all (off)",
+    },
+    OptionSpec {
+        key: "wlr.reject",
+        kind: Kind::Choice(&["on", "off"]),
+        default: "on",
+        section: "§2.3 step 3",
+        help: "confidence-interval rejection of neighbours on grey",
+    },
+    OptionSpec {
+        key: "wlr.nonneg",
+        kind: Kind::Choice(&["on", "off"]),
+        default: "on",
+        section: "§2.3 step 5",
+        help: "positive-weight fallback when a fitted value is negative",
+    },
+    OptionSpec {
+        key: "wlr.extra_features",
+        kind: Kind::Choice(&["none", "visibility"]),
+        default: "none",
+        section: "§2.1",
+        help: "features appended to the 9 of the paper",
+    },
+    OptionSpec {
+        key: "lp.error_mode",
+        kind: Kind::Choice(&["varsub", "paper"]),
+        default: "varsub",
+        section: "§3.4",
+        help: "subtract the test pixel's variance from the prediction error (varsub, s=1) or not (paper, s=0)",
+    },
+    OptionSpec {
+        key: "apr.stages",
+        kind: Kind::Int(1, 8),
+        default: "2",
+        section: "§4.3",
+        help: "number of estimation stages T",
+    },
+    OptionSpec {
+        key: "apr.outliers",
+        kind: Kind::Choice(&["on", "off"]),
+        default: "on",
+        section: "§4.4",
+        help: "energy-preserving outlier removal before APR",
+    },
+    OptionSpec {
+        key: "outliers",
+        kind: Kind::Choice(&["off", "on"]),
+        default: "off",
+        section: "§1, §4.4",
+        help: "energy-preserving outlier removal before WLR, LP or AOS",
+    },
+    OptionSpec {
+        key: "aos.variance",
+        kind: Kind::Choice(&["paper", "sandwich"]),
+        default: "paper",
+        section: "§5.3",
+        help: "variance of the AOS fit: the paper's formula or the sandwich estimator",
+    },
+    OptionSpec {
+        key: "sampling.smooth",
+        kind: Kind::Real(0.0, 16.0),
+        default: "method",
+        section: "§9.1",
+        help: "σ of the Gaussian on the priority map (default: 1 for WLR, 0 otherwise)",
+    },
+    OptionSpec {
+        key: "sampling.passes",
+        kind: Kind::Int(1, 64),
+        default: "method",
+        section: "§9.3",
+        help: "adaptive passes N_pass (default: 5, AOS 3)",
+    },
+    OptionSpec {
+        key: "sampling.initial_spp",
+        kind: Kind::Int(1, 64),
+        default: "4",
+        section: "§9.3",
+        help: "uniform samples per pixel of pass 0",
+    },
+];
+
+/// Parsed `--opt` values, validated against [`OPTIONS`].
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Options {
+    values: BTreeMap<&'static str, String>,
+}
+
+impl Options {
+    /// Parses `key=value` strings. Unknown keys and values of the wrong kind
+    /// are errors that list what is accepted.
+    pub fn parse<S: AsRef<str>>(pairs: &[S]) -> Result<Options> {
+        let mut out = Options::default();
+        for pair in pairs {
+            let pair = pair.as_ref();
+            let (k, v) = pair.split_once('=').ok_or_else(|| {
+                Error::InvalidArgument(format!("--opt {pair:?}: expected key=value"))
+            })?;
+            let spec = OPTIONS.iter().find(|o| o.key == k.trim()).ok_or_else(|| {
+                let keys: Vec<_> = OPTIONS.iter().map(|o| o.key).collect();
+                Error::InvalidArgument(format!("unknown option {k:?}; known: {}", keys.join(", ")))
+            })?;
+            let v = v.trim();
+            let ok = match spec.kind {
+                Kind::Choice(c) => c.contains(&v),
+                Kind::Int(lo, hi) => v.parse::<i64>().is_ok_and(|x| (lo..=hi).contains(&x)),
+                Kind::Real(lo, hi) => v.parse::<f64>().is_ok_and(|x| x >= lo && x <= hi),
+            };
+            if !ok {
+                return Err(Error::InvalidArgument(format!(
+                    "option {}: {v:?} is not {}",
+                    spec.key,
+                    describe(spec.kind)
+                )));
+            }
+            out.values.insert(spec.key, v.to_owned());
+        }
+        Ok(out)
+    }
+
+    /// The value of `key`: given, else its default (`"method"` means the
+    /// method decides).
+    pub fn get(&self, key: &str) -> &str {
+        self.values.get(key).map(|s| s.as_str()).unwrap_or_else(|| {
+            OPTIONS
+                .iter()
+                .find(|o| o.key == key)
+                .unwrap_or_else(|| panic!("option {key} is not in the registry"))
+                .default
+        })
+    }
+
+    /// Whether `key` was given explicitly.
+    pub fn is_set(&self, key: &str) -> bool {
+        self.values.contains_key(key)
+    }
+
+    /// The keys given explicitly.
+    pub fn keys(&self) -> impl Iterator<Item = &str> {
+        self.values.keys().copied()
+    }
+}
+
+fn describe(kind: Kind) -> String {
+    match kind {
+        Kind::Choice(c) => format!("one of {}", c.join("|")),
+        Kind::Int(lo, hi) => format!("an integer in [{lo}, {hi}]"),
+        Kind::Real(lo, hi) => format!("a number in [{lo}, {hi}]"),
+    }
+}
+
+/// The option table as text, for `--help`.
+pub fn help_table() -> String {
+    let mut s = String::from("Options for --opt key=value (spec section, default):\n");
+    for o in OPTIONS {
+        s.push_str(&format!(
+            "  {:<22} {:<24} {} [{}; default {}]\n",
+            o.key,
+            describe(o.kind),
+            o.help,
+            o.section,
+            o.default
+        ));
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parses_and_validates() {
+        let o = Options::parse(&["wlr.reject=off", "apr.stages=3"]).unwrap();
+        assert_eq!(o.get("wlr.reject"), "off");
+        assert_eq!(o.get("apr.stages"), "3");
+        assert_eq!(o.get("lp.error_mode"), "varsub");
+        assert!(Options::parse(&["wlr.reject=maybe"]).is_err());
+        assert!(Options::parse(&["apr.stages=0"]).is_err());
+        assert!(Options::parse(&["nope=1"]).is_err());
+        assert!(Options::parse(&["wlr.reject"]).is_err());
+    }
+
+    #[test]
+    fn help_lists_every_option() {
+        let h = help_table();
+        for o in OPTIONS {
+            assert!(h.contains(o.key));
+        }
+    }
+}
