@@ -11,7 +11,9 @@ use ash::vk;
 #[non_exhaustive]
 pub enum Error {
     /// No Vulkan loader (`libvulkan.so.1`) could be opened.
-    #[error("no Vulkan loader found ({0}); install one: apt-get install libvulkan1 mesa-vulkan-drivers")]
+    #[error(
+        "no Vulkan loader found ({0}); install one: apt-get install libvulkan1 mesa-vulkan-drivers"
+    )]
     NoLoader(String),
 
     /// The loader works but no device supports compute, or the requested one is missing.

@@ -191,7 +191,10 @@ impl StatsImage {
         assert!(x0 + w <= self.width && y0 + h <= self.height);
         let mut out = StatsImage::new(w, h);
         for (layer, planes) in self.layers() {
-            let cropped = planes.iter().map(|p| crop_plane(p, self.width, x0, y0, w, h)).collect();
+            let cropped = planes
+                .iter()
+                .map(|p| crop_plane(p, self.width, x0, y0, w, h))
+                .collect();
             out.set(layer, cropped);
         }
         out

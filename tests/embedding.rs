@@ -29,7 +29,10 @@ fn host() -> Host {
         let entry = ash::Entry::load().unwrap();
         let app = vk::ApplicationInfo::default().api_version(vk::API_VERSION_1_1);
         let instance = entry
-            .create_instance(&vk::InstanceCreateInfo::default().application_info(&app), None)
+            .create_instance(
+                &vk::InstanceCreateInfo::default().application_info(&app),
+                None,
+            )
             .unwrap();
         let physical = instance.enumerate_physical_devices().unwrap()[0];
         let family = instance
@@ -37,7 +40,10 @@ fn host() -> Host {
             .iter()
             .position(|q| q.queue_flags.contains(vk::QueueFlags::COMPUTE))
             .unwrap() as u32;
-        let f64 = instance.get_physical_device_features(physical).shader_float64 == vk::TRUE;
+        let f64 = instance
+            .get_physical_device_features(physical)
+            .shader_float64
+            == vk::TRUE;
         let prio = [1.0];
         let qi = [vk::DeviceQueueCreateInfo::default()
             .queue_family_index(family)
@@ -53,7 +59,15 @@ fn host() -> Host {
             )
             .unwrap();
         let queue = device.get_device_queue(family, 0);
-        Host { entry, instance, physical, device, queue, family, f64 }
+        Host {
+            entry,
+            instance,
+            physical,
+            device,
+            queue,
+            family,
+            f64,
+        }
     }
 }
 
@@ -63,9 +77,11 @@ fn host_buffer(h: &Host, size: u64) -> (vk::Buffer, vk::DeviceMemory, *mut u8) {
         let buffer = h
             .device
             .create_buffer(
-                &vk::BufferCreateInfo::default()
-                    .size(size)
-                    .usage(vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_SRC | vk::BufferUsageFlags::TRANSFER_DST),
+                &vk::BufferCreateInfo::default().size(size).usage(
+                    vk::BufferUsageFlags::STORAGE_BUFFER
+                        | vk::BufferUsageFlags::TRANSFER_SRC
+                        | vk::BufferUsageFlags::TRANSFER_DST,
+                ),
                 None,
             )
             .unwrap();
@@ -73,14 +89,25 @@ fn host_buffer(h: &Host, size: u64) -> (vk::Buffer, vk::DeviceMemory, *mut u8) {
         let props = h.instance.get_physical_device_memory_properties(h.physical);
         let want = vk::MemoryPropertyFlags::HOST_VISIBLE | vk::MemoryPropertyFlags::HOST_COHERENT;
         let ty = (0..props.memory_type_count)
-            .find(|&i| req.memory_type_bits & (1 << i) != 0 && props.memory_types[i as usize].property_flags.contains(want))
+            .find(|&i| {
+                req.memory_type_bits & (1 << i) != 0
+                    && props.memory_types[i as usize].property_flags.contains(want)
+            })
             .unwrap();
         let mem = h
             .device
-            .allocate_memory(&vk::MemoryAllocateInfo::default().allocation_size(req.size).memory_type_index(ty), None)
+            .allocate_memory(
+                &vk::MemoryAllocateInfo::default()
+                    .allocation_size(req.size)
+                    .memory_type_index(ty),
+                None,
+            )
             .unwrap();
         h.device.bind_buffer_memory(buffer, mem, 0).unwrap();
-        let ptr = h.device.map_memory(mem, 0, size, vk::MemoryMapFlags::empty()).unwrap() as *mut u8;
+        let ptr = h
+            .device
+            .map_memory(mem, 0, size, vk::MemoryMapFlags::empty())
+            .unwrap() as *mut u8;
         (buffer, mem, ptr)
     }
 }
@@ -104,7 +131,11 @@ fn host_device_and_command_buffer() {
     let (accum_buf, accum_mem, ptr) = host_buffer(&h, layout.bytes());
     unsafe {
         for (i, p) in planes.iter().enumerate() {
-            std::ptr::copy_nonoverlapping(p.as_ptr() as *const u8, ptr.add(i * stride), p.len() * 4);
+            std::ptr::copy_nonoverlapping(
+                p.as_ptr() as *const u8,
+                ptr.add(i * stride),
+                p.len() * 4,
+            );
         }
     }
 
@@ -127,7 +158,10 @@ fn host_device_and_command_buffer() {
     // The host's command pool and buffer.
     let pool = unsafe {
         h.device
-            .create_command_pool(&vk::CommandPoolCreateInfo::default().queue_family_index(h.family), None)
+            .create_command_pool(
+                &vk::CommandPoolCreateInfo::default().queue_family_index(h.family),
+                None,
+            )
             .unwrap()
     };
     let cmd = unsafe {
@@ -146,15 +180,26 @@ fn host_device_and_command_buffer() {
             .unwrap()
     };
     let mut batch = unsafe { Batch::record_into(&ctx, cmd) };
-    let accum = BufferSlice { buffer: accum_buf, offset: 0, size: layout.bytes() };
+    let accum = BufferSlice {
+        buffer: accum_buf,
+        offset: 0,
+        size: layout.bytes(),
+    };
     record_finalize(&mut batch, Precision::F32, &layout, accum, &out).unwrap();
     let recorded = batch.finish_recording();
     unsafe {
         h.device.end_command_buffer(cmd).unwrap();
-        let fence = h.device.create_fence(&vk::FenceCreateInfo::default(), None).unwrap();
+        let fence = h
+            .device
+            .create_fence(&vk::FenceCreateInfo::default(), None)
+            .unwrap();
         let cmds = [cmd];
         h.device
-            .queue_submit(h.queue, &[vk::SubmitInfo::default().command_buffers(&cmds)], fence)
+            .queue_submit(
+                h.queue,
+                &[vk::SubmitInfo::default().command_buffers(&cmds)],
+                fence,
+            )
             .unwrap();
         h.device.wait_for_fences(&[fence], true, u64::MAX).unwrap();
         h.device.destroy_fence(fence, None);
@@ -165,7 +210,13 @@ fn host_device_and_command_buffer() {
 
     let g = out.download().unwrap();
     let c = finalize_cpu(&layout, &planes);
-    for layer in [Layer::Color, Layer::ColorVariance, Layer::Normal, Layer::PositionCovariance, Layer::Spp] {
+    for layer in [
+        Layer::Color,
+        Layer::ColorVariance,
+        Layer::Normal,
+        Layer::PositionCovariance,
+        Layer::Spp,
+    ] {
         for (a, b) in g.get(layer).unwrap().iter().zip(c.get(layer).unwrap()) {
             assert_close(layer.name(), a, b, 0.99);
         }

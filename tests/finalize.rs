@@ -37,7 +37,11 @@ fn accumulate(w: usize, h: usize, seed: u64, offset: f64) -> (Accumulator, Vec<V
     (acc, samples)
 }
 
-fn run_gpu(w: usize, h: usize, precision: Precision) -> (mcdenoise::image::StatsImage, mcdenoise::image::StatsImage) {
+fn run_gpu(
+    w: usize,
+    h: usize,
+    precision: Precision,
+) -> (mcdenoise::image::StatsImage, mcdenoise::image::StatsImage) {
     let ctx = gpu();
     let (acc, _) = accumulate(w, h, 7 + w as u64 * 31 + h as u64, 100.0);
     let layout = acc.layout;
@@ -100,7 +104,11 @@ fn twin_matches_sample_statistics() {
         let n = s.len() as f64;
         assert_eq!(img.get(Layer::Spp).unwrap()[0][p], n as f32);
         for (c, ch) in layout.channels().iter().enumerate() {
-            let mean_ref = if n >= 1.0 { s.iter().map(|v| v[c]).sum::<f64>() / n } else { 0.0 };
+            let mean_ref = if n >= 1.0 {
+                s.iter().map(|v| v[c]).sum::<f64>() / n
+            } else {
+                0.0
+            };
             let var_ref = if n >= 2.0 {
                 s.iter().map(|v| (v[c] - mean_ref).powi(2)).sum::<f64>() / (n - 1.0) / n
             } else {
@@ -108,21 +116,42 @@ fn twin_matches_sample_statistics() {
             };
             let mean = img.get(ch.layer).unwrap()[ch.component][p] as f64;
             let var = img.get(ch.layer.variance().unwrap()).unwrap()[ch.component][p] as f64;
-            assert!((mean - mean_ref).abs() <= 1e-5 * (1.0 + mean_ref.abs()), "mean {c} at {p}");
+            assert!(
+                (mean - mean_ref).abs() <= 1e-5 * (1.0 + mean_ref.abs()),
+                "mean {c} at {p}"
+            );
             // Sums are stored in f32 (as a renderer hands them): positions
             // lose digits to cancellation in Σx² − n·mean².
-            let tol = if ch.layer == Layer::Position { 2e-2 } else { 1e-4 };
-            assert!((var - var_ref).abs() <= tol * (var_ref + 1e-4), "var {c} at {p}: {var} vs {var_ref}");
+            let tol = if ch.layer == Layer::Position {
+                2e-2
+            } else {
+                1e-4
+            };
+            assert!(
+                (var - var_ref).abs() <= tol * (var_ref + 1e-4),
+                "var {c} at {p}: {var} vs {var_ref}"
+            );
         }
         if n >= 2.0 {
-            let m: Vec<f64> = (0..3).map(|a| s.iter().map(|v| v[pos0 + a]).sum::<f64>() / n).collect();
+            let m: Vec<f64> = (0..3)
+                .map(|a| s.iter().map(|v| v[pos0 + a]).sum::<f64>() / n)
+                .collect();
             let cov = |a: usize, b: usize| {
-                s.iter().map(|v| (v[pos0 + a] - m[a]) * (v[pos0 + b] - m[b])).sum::<f64>() / n
+                s.iter()
+                    .map(|v| (v[pos0 + a] - m[a]) * (v[pos0 + b] - m[b]))
+                    .sum::<f64>()
+                    / n
             };
             let got = img.get(Layer::PositionCovariance).unwrap();
-            for (k, (a, b)) in [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)].into_iter().enumerate() {
+            for (k, (a, b)) in [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)]
+                .into_iter()
+                .enumerate()
+            {
                 let r = cov(a, b);
-                assert!((got[k][p] as f64 - r).abs() <= 5e-2 * (0.09 + r.abs()), "cov {k} at {p}");
+                assert!(
+                    (got[k][p] as f64 - r).abs() <= 5e-2 * (0.09 + r.abs()),
+                    "cov {k} at {p}"
+                );
             }
         }
     }
@@ -143,13 +172,18 @@ fn cancellation_never_gives_negative_variance() {
     for (layer, planes) in img.layers() {
         if layer.name().ends_with("variance") || layer == Layer::PositionCovariance {
             for p in planes {
-                assert!(p.iter().all(|v| *v >= 0.0 || layer == Layer::PositionCovariance));
+                assert!(p
+                    .iter()
+                    .all(|v| *v >= 0.0 || layer == Layer::PositionCovariance));
             }
         }
     }
     let cov = img.get(Layer::PositionCovariance).unwrap();
     for i in 0..64 {
-        for (k, (a, b)) in [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)].into_iter().enumerate() {
+        for (k, (a, b)) in [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)]
+            .into_iter()
+            .enumerate()
+        {
             let d = |j: usize| cov[[0, 3, 5][j]][i] as f64;
             assert!((cov[k][i] as f64).abs() <= (d(a) * d(b)).sqrt() + 1e-12);
         }

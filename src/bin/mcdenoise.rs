@@ -89,9 +89,7 @@ enum Command {
     Info,
     /// Validate a render-statistics EXR and print its layers, size, spp range,
     /// per-layer min/max/mean and NaN/Inf counts. Exits non-zero if unreadable.
-    Inspect {
-        file: PathBuf,
-    },
+    Inspect { file: PathBuf },
     /// Compare an image with a reference: rMSE, relMSE, PSNR and SSIM.
     Compare {
         image: PathBuf,
@@ -168,16 +166,44 @@ fn info(cli: &Cli) -> anyhow::Result<()> {
     }
     for d in &devices {
         let mark = if Some(d.index) == chosen { "*" } else { " " };
-        println!("{mark} [{}] {} ({:?}, Vulkan {}.{}.{}, driver {})", d.index, d.name, d.kind, d.api_version.0, d.api_version.1, d.api_version.2, d.driver);
-        println!("      maxStorageBufferRange      {} bytes ({} MiB)", d.max_storage_buffer_range, d.max_storage_buffer_range / (1 << 20));
-        println!("      storage buffers per stage  {}", d.max_per_stage_storage_buffers);
-        println!("      shaderFloat64              {}", if d.shader_float64 { "yes" } else { "no" });
-        println!("      shaderInt64                {}", if d.shader_int64 { "yes" } else { "no" });
+        println!(
+            "{mark} [{}] {} ({:?}, Vulkan {}.{}.{}, driver {})",
+            d.index, d.name, d.kind, d.api_version.0, d.api_version.1, d.api_version.2, d.driver
+        );
+        println!(
+            "      maxStorageBufferRange      {} bytes ({} MiB)",
+            d.max_storage_buffer_range,
+            d.max_storage_buffer_range / (1 << 20)
+        );
+        println!(
+            "      storage buffers per stage  {}",
+            d.max_per_stage_storage_buffers
+        );
+        println!(
+            "      shaderFloat64              {}",
+            if d.shader_float64 { "yes" } else { "no" }
+        );
+        println!(
+            "      shaderInt64                {}",
+            if d.shader_int64 { "yes" } else { "no" }
+        );
         println!("      subgroup size              {}", d.subgroup_size);
-        println!("      shared memory              {} bytes", d.max_shared_memory);
-        println!("      push constants             {} bytes", d.max_push_constants_size);
-        println!("      timestamp period           {} ns", d.timestamp_period_ns);
-        println!("      compute queue              {}", if d.has_compute_queue { "yes" } else { "no" });
+        println!(
+            "      shared memory              {} bytes",
+            d.max_shared_memory
+        );
+        println!(
+            "      push constants             {} bytes",
+            d.max_push_constants_size
+        );
+        println!(
+            "      timestamp period           {} ns",
+            d.timestamp_period_ns
+        );
+        println!(
+            "      compute queue              {}",
+            if d.has_compute_queue { "yes" } else { "no" }
+        );
     }
     if chosen.is_none() {
         bail!("no usable device among these");
@@ -223,28 +249,55 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
             print!("{}", io::format_report(file, &img));
             Ok(true)
         }
-        Command::Compare { image, reference, heatmap, max_error } => {
+        Command::Compare {
+            image,
+            reference,
+            heatmap,
+            max_error,
+        } => {
             let x = read_colour(image)?;
             let r = read_colour(reference)?;
-            let m = metrics::compare(&x, &r).with_context(|| format!("{} vs {}", image.display(), reference.display()))?;
+            let m = metrics::compare(&x, &r)
+                .with_context(|| format!("{} vs {}", image.display(), reference.display()))?;
             print_metrics(&m);
             if let Some(h) = heatmap {
                 let map = metrics::rmse_heatmap(&x, &r)?;
                 let mut sorted: Vec<f32> = map.iter().copied().filter(|v| v.is_finite()).collect();
                 sorted.sort_by(|a, b| a.total_cmp(b));
-                let p99 = sorted.get(sorted.len() * 99 / 100).copied().unwrap_or(1.0).max(1e-8);
+                let p99 = sorted
+                    .get(sorted.len() * 99 / 100)
+                    .copied()
+                    .unwrap_or(1.0)
+                    .max(1e-8);
                 io::write_heatmap_png(h, x.width, x.height, &map, p99)?;
-                eprintln!("heat map: {} (scale 0..{p99:.4}, the 99th percentile)", h.display());
+                eprintln!(
+                    "heat map: {} (scale 0..{p99:.4}, the 99th percentile)",
+                    h.display()
+                );
             }
             check_error(m.rmse, *max_error)
         }
         Command::Denoise {
-            input, output, method, backend, precision, pass, prefilter, error, sample_map, budget,
-            debug_layers, png, reference, max_error, opts,
+            input,
+            output,
+            method,
+            backend,
+            precision,
+            pass,
+            prefilter,
+            error,
+            sample_map,
+            budget,
+            debug_layers,
+            png,
+            reference,
+            max_error,
+            opts,
         } => {
             let options = Options::parse(opts)?;
             for path in [Some(output), png.as_ref()].into_iter().flatten() {
-                if same_file(path, input) || reference.as_ref().is_some_and(|r| same_file(path, r)) {
+                if same_file(path, input) || reference.as_ref().is_some_and(|r| same_file(path, r))
+                {
                     bail!("{}: refusing to overwrite an input file", path.display());
                 }
             }
@@ -267,20 +320,33 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
                 PrecisionArg::F32 => Precision::F32,
                 PrecisionArg::F64 => Precision::F64,
             };
-            let ctx = if backend == Backend::Gpu { Some(context(&cli)?) } else { None };
+            let ctx = if backend == Backend::Gpu {
+                Some(context(&cli)?)
+            } else {
+                None
+            };
             let t0 = std::time::Instant::now();
             let (clean, report) = prepare(ctx.as_ref(), backend, precision, &img)?;
             if !cli.quiet {
                 print_report(&report, input);
-                eprintln!("sanitised in {:.2} s ({backend:?})", t0.elapsed().as_secs_f64());
+                eprintln!(
+                    "sanitised in {:.2} s ({backend:?})",
+                    t0.elapsed().as_secs_f64()
+                );
             }
             let color = mcdenoise::methods::prepare::colour_of(&clean);
-            let mut out = io::OutputImage { color: color.clone(), error: None, samples: None, debug: vec![] };
+            let mut out = io::OutputImage {
+                color: color.clone(),
+                error: None,
+                samples: None,
+                debug: vec![],
+            };
             if *debug_layers {
                 // Method `none` has no maps of its own: the sanitised variance.
                 let var = clean.get(mcdenoise::image::Layer::ColorVariance).unwrap();
                 for (c, name) in ["R", "G", "B"].iter().enumerate() {
-                    out.debug.push((format!("color_variance.{name}"), var[c].clone()));
+                    out.debug
+                        .push((format!("color_variance.{name}"), var[c].clone()));
                 }
             }
             io::write_output(output, &out)?;

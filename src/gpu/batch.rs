@@ -152,11 +152,15 @@ impl Batch {
                 .map_err(Error::vk("vkEndCommandBuffer"))?;
             let cmds = [self.cmd];
             let submit = [vk::SubmitInfo::default().command_buffers(&cmds)];
-            dev.queue_submit(self.ctx.queue, &submit, fence)
-                .map_err(Error::vk("vkQueueSubmit"))?;
+            {
+                let _queue = self.ctx.queue_lock.lock().unwrap();
+                dev.queue_submit(self.ctx.queue, &submit, fence)
+                    .map_err(Error::vk("vkQueueSubmit"))?;
+            }
             dev.wait_for_fences(&[fence], true, u64::MAX)
                 .map_err(Error::vk("vkWaitForFences"))?;
-            dev.reset_fences(&[fence]).map_err(Error::vk("vkResetFences"))?;
+            dev.reset_fences(&[fence])
+                .map_err(Error::vk("vkResetFences"))?;
             dev.reset_command_buffer(self.cmd, vk::CommandBufferResetFlags::empty())
                 .map_err(Error::vk("vkResetCommandBuffer"))?;
         }
@@ -258,7 +262,11 @@ impl Batch {
         let pool = self.query_pools[pool_idx];
         let local = idx % QUERIES_PER_POOL;
         // SAFETY: resetting two queries of a pool we own, outside a render pass.
-        unsafe { self.ctx.device.cmd_reset_query_pool(self.cmd, pool, local, 2) };
+        unsafe {
+            self.ctx
+                .device
+                .cmd_reset_query_pool(self.cmd, pool, local, 2)
+        };
         self.queries_used += 2;
         Ok(Some((pool, local, idx)))
     }
@@ -291,9 +299,13 @@ impl Batch {
     pub fn fill(&mut self, slice: BufferSlice, value: u32) {
         // SAFETY: cmd is recording; range inside the buffer (BufferSlice invariant).
         unsafe {
-            self.ctx
-                .device
-                .cmd_fill_buffer(self.cmd, slice.buffer, slice.offset, slice.size & !3, value)
+            self.ctx.device.cmd_fill_buffer(
+                self.cmd,
+                slice.buffer,
+                slice.offset,
+                slice.size & !3,
+                value,
+            )
         };
         self.barrier();
     }
@@ -306,7 +318,11 @@ impl Batch {
             .dst_offset(dst.offset)
             .size(src.size)];
         // SAFETY: cmd recording; ranges inside their buffers (BufferSlice invariant).
-        unsafe { self.ctx.device.cmd_copy_buffer(self.cmd, src.buffer, dst.buffer, &region) };
+        unsafe {
+            self.ctx
+                .device
+                .cmd_copy_buffer(self.cmd, src.buffer, dst.buffer, &region)
+        };
         self.barrier();
     }
 
@@ -405,7 +421,12 @@ impl Batch {
             // SAFETY: cmd recording; pipeline/layout/set compatible.
             unsafe {
                 if let Some((pool, local, _)) = q {
-                    dev.cmd_write_timestamp(self.cmd, vk::PipelineStageFlags::TOP_OF_PIPE, pool, local);
+                    dev.cmd_write_timestamp(
+                        self.cmd,
+                        vk::PipelineStageFlags::TOP_OF_PIPE,
+                        pool,
+                        local,
+                    );
                 }
                 dev.cmd_bind_pipeline(self.cmd, vk::PipelineBindPoint::COMPUTE, p.pipeline);
                 dev.cmd_bind_descriptor_sets(
@@ -467,12 +488,12 @@ impl Batch {
 impl Drop for Batch {
     fn drop(&mut self) {
         let dev = &self.ctx.device;
-        // SAFETY: execute mode: wait for the queue before freeing what the
-        // work may still use. Record mode: pools were moved to `Recorded`
-        // (finish_recording) or the recording is abandoned by the host.
+        // SAFETY: execute mode: every submit was waited for in `flush`, so
+        // nothing in flight uses these objects. Record mode: the pools were
+        // moved to `Recorded` (finish_recording), or the host abandons the
+        // recording and must not submit it.
         unsafe {
             if let Mode::Execute { fence } = self.mode {
-                let _ = dev.queue_wait_idle(self.ctx.queue);
                 dev.destroy_fence(fence, None);
                 dev.free_command_buffers(self.ctx.command_pool, &[self.cmd]);
             }
@@ -525,7 +546,8 @@ impl Recorded {
             .map(|(label, rows, q)| KernelTiming {
                 kernel: label.clone(),
                 rows: *rows,
-                nanoseconds: values[*q as usize + 1].wrapping_sub(values[*q as usize]) as f64 * period,
+                nanoseconds: values[*q as usize + 1].wrapping_sub(values[*q as usize]) as f64
+                    * period,
             })
             .collect())
     }

@@ -91,7 +91,13 @@ impl GpuBuffer {
                 .bind_buffer_memory(buffer, allocation.memory(), allocation.offset())
         } {
             unsafe { ctx.device.destroy_buffer(buffer, None) };
-            let _ = ctx.allocator.lock().unwrap().as_mut().unwrap().free(allocation);
+            let _ = ctx
+                .allocator
+                .lock()
+                .unwrap()
+                .as_mut()
+                .unwrap()
+                .free(allocation);
             return Err(Error::vk("vkBindBufferMemory")(e));
         }
         ctx.name_object(buffer, name);
@@ -105,7 +111,11 @@ impl GpuBuffer {
     }
 
     /// A buffer holding `data`.
-    pub fn from_slice<T: bytemuck::Pod>(ctx: &Arc<GpuContext>, name: &str, data: &[T]) -> Result<GpuBuffer> {
+    pub fn from_slice<T: bytemuck::Pod>(
+        ctx: &Arc<GpuContext>,
+        name: &str,
+        data: &[T],
+    ) -> Result<GpuBuffer> {
         let b = Self::new(ctx, name, std::mem::size_of_val(data) as u64)?;
         b.upload(0, bytemuck::cast_slice(data))?;
         Ok(b)
@@ -134,7 +144,11 @@ impl GpuBuffer {
 
     /// A byte range of the buffer as a binding.
     pub fn range(&self, offset: u64, size: u64) -> BufferSlice {
-        assert!(offset + size <= self.size, "{}: range out of bounds", self.name);
+        assert!(
+            offset + size <= self.size,
+            "{}: range out of bounds",
+            self.name
+        );
         BufferSlice {
             buffer: self.buffer,
             offset,
@@ -175,7 +189,14 @@ impl GpuBuffer {
             MemoryLocation::CpuToGpu,
         )?;
         staging.upload(0, bytes)?;
-        super::batch::copy_buffer(&self.ctx, staging.buffer, 0, self.buffer, offset, bytes.len() as u64)
+        super::batch::copy_buffer(
+            &self.ctx,
+            staging.buffer,
+            0,
+            self.buffer,
+            offset,
+            bytes.len() as u64,
+        )
     }
 
     /// Reads `out.len()` bytes from byte `offset` (blocking).
@@ -207,7 +228,14 @@ impl GpuBuffer {
             out.len() as u64,
             MemoryLocation::GpuToCpu,
         )?;
-        super::batch::copy_buffer(&self.ctx, self.buffer, offset, staging.buffer, 0, out.len() as u64)?;
+        super::batch::copy_buffer(
+            &self.ctx,
+            self.buffer,
+            offset,
+            staging.buffer,
+            0,
+            out.len() as u64,
+        )?;
         staging.download(0, out)
     }
 
@@ -274,14 +302,21 @@ impl PlaneSet {
 
     /// Plane `i` as a binding.
     pub fn plane(&self, i: usize) -> BufferSlice {
-        assert!(i < self.count, "{}: plane {i} of {}", self.buffer.name(), self.count);
-        self.buffer.range(i as u64 * self.stride, (self.pixels as u64 * 4).max(4))
+        assert!(
+            i < self.count,
+            "{}: plane {i} of {}",
+            self.buffer.name(),
+            self.count
+        );
+        self.buffer
+            .range(i as u64 * self.stride, (self.pixels as u64 * 4).max(4))
     }
 
     pub fn upload_plane<T: bytemuck::Pod>(&self, i: usize, data: &[T]) -> Result<()> {
         assert!(i < self.count);
         assert_eq!(std::mem::size_of_val(data), self.pixels * 4);
-        self.buffer.upload(i as u64 * self.stride, bytemuck::cast_slice(data))
+        self.buffer
+            .upload(i as u64 * self.stride, bytemuck::cast_slice(data))
     }
 
     pub fn download_plane<T: bytemuck::Pod + Default + Clone>(&self, i: usize) -> Result<Vec<T>> {

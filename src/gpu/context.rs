@@ -109,6 +109,9 @@ pub struct GpuContext {
     debug: Option<(ash::ext::debug_utils::Instance, vk::DebugUtilsMessengerEXT)>,
     validation_log: Arc<ValidationLog>,
     pub(crate) pipelines: Mutex<super::pipeline::PipelineCache>,
+    /// Vulkan requires external synchronisation of a queue: every submit
+    /// from this context holds this lock.
+    pub(crate) queue_lock: Mutex<()>,
 }
 
 fn load_entry() -> Result<ash::Entry> {
@@ -232,7 +235,10 @@ pub fn choose_device(infos: &[DeviceInfo], wanted: Option<&str>) -> Result<usize
                 .map(|d| d.index)
                 .ok_or_else(|| {
                     let names: Vec<_> = usable.iter().map(|d| d.name.as_str()).collect();
-                    Error::NoDevice(format!("no device matches {w:?} (have: {})", names.join(", ")))
+                    Error::NoDevice(format!(
+                        "no device matches {w:?} (have: {})",
+                        names.join(", ")
+                    ))
                 })
         }
         None => Ok(usable
@@ -336,7 +342,8 @@ impl GpuContext {
             let physical = pds[chosen];
             let info = infos[chosen].clone();
             // SAFETY: `physical` comes from this instance.
-            let families = unsafe { instance.get_physical_device_queue_family_properties(physical) };
+            let families =
+                unsafe { instance.get_physical_device_queue_family_properties(physical) };
             let queue_family = families
                 .iter()
                 .position(|q| q.queue_flags.contains(vk::QueueFlags::COMPUTE))
@@ -468,6 +475,7 @@ impl GpuContext {
             debug,
             validation_log,
             pipelines: Mutex::new(Default::default()),
+            queue_lock: Mutex::new(()),
         })
     }
 
@@ -528,7 +536,9 @@ impl GpuContext {
         if self.debug.is_none() {
             return;
         }
-        let Ok(cname) = CString::new(name) else { return };
+        let Ok(cname) = CString::new(name) else {
+            return;
+        };
         let du = ash::ext::debug_utils::Device::new(&self.instance, &self.device);
         let info = vk::DebugUtilsObjectNameInfoEXT::default()
             .object_handle(handle)

@@ -124,7 +124,10 @@ pub fn reflect(kernel: &str, words: &[u32]) -> Result<Reflection> {
                     .as_ref()
                     .ok_or_else(|| fail("storage buffer without binding".into()))?;
                 if b.group != 0 {
-                    return Err(fail(format!("binding {} is in set {}, expected 0", b.binding, b.group)));
+                    return Err(fail(format!(
+                        "binding {} is in set {}, expected 0",
+                        b.binding, b.group
+                    )));
                 }
                 let acc = if access.contains(naga::StorageAccess::STORE) {
                     Access::ReadWrite
@@ -136,7 +139,9 @@ pub fn reflect(kernel: &str, words: &[u32]) -> Result<Reflection> {
             naga::AddressSpace::Immediate => push_size = layouter[var.ty].size,
             naga::AddressSpace::WorkGroup => shared_bytes += layouter[var.ty].size,
             naga::AddressSpace::Uniform | naga::AddressSpace::Handle => {
-                return Err(fail("only storage buffers and push constants are supported".into()))
+                return Err(fail(
+                    "only storage buffers and push constants are supported".into(),
+                ))
             }
             _ => {}
         }

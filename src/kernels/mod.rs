@@ -17,3 +17,59 @@ pub const ALL: &[&KernelDecl] = &[
     &sanitize::DECL,
     &tsvd_debug::DECL,
 ];
+
+use std::sync::Arc;
+
+use crate::error::Result;
+use crate::gpu::{Batch, GpuBuffer, GpuContext, Precision};
+
+/// Runs one kernel once on data held by the host: binding `i` gets
+/// `inputs[i]` for `i < inputs.len()`; the following bindings are fresh
+/// zeroed buffers of `outputs[j]` 32-bit words each (f32, or u32 bits for
+/// counters), returned in order. For tests and benchmarks: it uploads and
+/// downloads everything.
+pub fn run_planes(
+    ctx: &Arc<GpuContext>,
+    decl: &KernelDecl,
+    precision: Precision,
+    push: &[u8],
+    width: usize,
+    height: usize,
+    inputs: &[&[f32]],
+    outputs: &[usize],
+    flops_per_pixel: f64,
+) -> Result<(Vec<Vec<f32>>, Vec<crate::gpu::KernelTiming>)> {
+    let mut buffers = Vec::with_capacity(inputs.len() + outputs.len());
+    for (i, p) in inputs.iter().enumerate() {
+        buffers.push(GpuBuffer::from_slice(
+            ctx,
+            &format!("{}.in{i}", decl.name),
+            p,
+        )?);
+    }
+    for (j, &len) in outputs.iter().enumerate() {
+        buffers.push(GpuBuffer::from_slice(
+            ctx,
+            &format!("{}.out{j}", decl.name),
+            &vec![0.0f32; len.max(1)],
+        )?);
+    }
+    let bindings: Vec<_> = buffers.iter().map(|b| b.slice()).collect();
+    let mut batch = Batch::new(ctx)?;
+    batch.dispatch(
+        decl,
+        precision,
+        &bindings,
+        push,
+        width as u32,
+        height as u32,
+        flops_per_pixel,
+    )?;
+    let timings = batch.finish()?;
+    let outs = outputs
+        .iter()
+        .enumerate()
+        .map(|(j, &len)| buffers[inputs.len() + j].read_vec::<f32>(len))
+        .collect::<Result<Vec<_>>>()?;
+    Ok((outs, timings))
+}

@@ -78,7 +78,10 @@ pub fn output_layers(layers: &[Layer]) -> Vec<Layer> {
 fn check_input(img: &StatsImage) -> Result<()> {
     for l in [Layer::Color, Layer::Spp] {
         if !img.has(l) {
-            return Err(Error::BadData(format!("sanitation needs the {} layer", l.name())));
+            return Err(Error::BadData(format!(
+                "sanitation needs the {} layer",
+                l.name()
+            )));
         }
     }
     Ok(())
@@ -95,7 +98,8 @@ pub fn prepare(
     match backend {
         Backend::Cpu => Ok(prepare_cpu(img)),
         Backend::Gpu => {
-            let ctx = ctx.ok_or_else(|| Error::InvalidArgument("the GPU backend needs a context".into()))?;
+            let ctx = ctx
+                .ok_or_else(|| Error::InvalidArgument("the GPU backend needs a context".into()))?;
             prepare_gpu(ctx, precision, img)
         }
     }
@@ -132,17 +136,35 @@ pub fn prepare_cpu(img: &StatsImage) -> (StatsImage, PrepareReport) {
     };
     let mut counters = [0u32; 4];
     for &layer in &Layer::WITH_VARIANCE {
-        let Some(values) = img.get(layer) else { continue };
+        let Some(values) = img.get(layer) else {
+            continue;
+        };
         let vars = img.get(layer.variance().unwrap());
         let mut out_v = Vec::new();
         let mut out_var = Vec::new();
         for (c, value) in values.iter().enumerate() {
             let var_in = vars.map(|v| v[c].as_slice()).unwrap_or(value);
             let (mut a_val, mut a_var) = (vec![0.0; n], vec![0.0; n]);
-            sanitize_twin(&push(0, vars.is_some()), value, var_in, spp, &mut a_val, &mut a_var, &mut counters);
+            sanitize_twin(
+                &push(0, vars.is_some()),
+                value,
+                var_in,
+                spp,
+                &mut a_val,
+                &mut a_var,
+                &mut counters,
+            );
             let (mut b_val, mut b_var) = (vec![0.0; n], vec![0.0; n]);
             let stage = if vars.is_some() { 1 } else { 2 };
-            sanitize_twin(&push(stage, vars.is_some()), &a_val, &a_var, spp, &mut b_val, &mut b_var, &mut counters);
+            sanitize_twin(
+                &push(stage, vars.is_some()),
+                &a_val,
+                &a_var,
+                spp,
+                &mut b_val,
+                &mut b_var,
+                &mut counters,
+            );
             out_v.push(b_val);
             out_var.push(b_var);
         }
@@ -153,12 +175,23 @@ pub fn prepare_cpu(img: &StatsImage) -> (StatsImage, PrepareReport) {
         let mut planes = Vec::new();
         for p in cov {
             let (mut v, mut dummy) = (vec![0.0; n], vec![0.0; n]);
-            sanitize_twin(&push(0, false), p, p, spp, &mut v, &mut dummy, &mut counters);
+            sanitize_twin(
+                &push(0, false),
+                p,
+                p,
+                spp,
+                &mut v,
+                &mut dummy,
+                &mut counters,
+            );
             planes.push(v);
         }
         out.set(Layer::PositionCovariance, planes);
     }
-    out.set(Layer::Spp, vec![spp.iter().map(|&s| spp_of(s) as f32).collect()]);
+    out.set(
+        Layer::Spp,
+        vec![spp.iter().map(|&s| spp_of(s) as f32).collect()],
+    );
     for k in 0..4 {
         report.counters[k] += counters[k] as u64;
     }
@@ -186,14 +219,20 @@ impl PrepareScratch {
             .sum();
         Ok(PrepareScratch {
             planes: PlaneSet::new(ctx, "prepare.scratch", input.width * input.height, 2)?,
-            counters: GpuBuffer::new(ctx, "prepare.counters", COUNTER_STRIDE * channels.max(1) as u64)?,
+            counters: GpuBuffer::new(
+                ctx,
+                "prepare.counters",
+                COUNTER_STRIDE * channels.max(1) as u64,
+            )?,
             channels,
         })
     }
 
     /// Sums the counters after the work has completed.
     pub fn read_counters(&self) -> Result<[u64; 4]> {
-        let raw: Vec<u32> = self.counters.read_vec((COUNTER_STRIDE / 4) as usize * self.channels.max(1))?;
+        let raw: Vec<u32> = self
+            .counters
+            .read_vec((COUNTER_STRIDE / 4) as usize * self.channels.max(1))?;
         let mut out = [0u64; 4];
         for c in 0..self.channels {
             for k in 0..4 {
@@ -227,11 +266,33 @@ pub fn record_prepare(
         let has_var = input.has(var_layer);
         for c in 0..layer.channels().len() {
             let value = input.plane(layer, c);
-            let var_in: BufferSlice = if has_var { input.plane(var_layer, c) } else { value };
-            sanitize::record(batch, precision, w, h, 0, has_var, [value, var_in, spp, tmp_val, tmp_var], counters(channel))?;
+            let var_in: BufferSlice = if has_var {
+                input.plane(var_layer, c)
+            } else {
+                value
+            };
+            sanitize::record(
+                batch,
+                precision,
+                w,
+                h,
+                0,
+                has_var,
+                [value, var_in, spp, tmp_val, tmp_var],
+                counters(channel),
+            )?;
             let stage = if has_var { 1 } else { 2 };
             let (ov, ovar) = (out.plane(layer, c), out.plane(var_layer, c));
-            sanitize::record(batch, precision, w, h, stage, has_var, [tmp_val, tmp_var, spp, ov, ovar], counters(channel))?;
+            sanitize::record(
+                batch,
+                precision,
+                w,
+                h,
+                stage,
+                has_var,
+                [tmp_val, tmp_var, spp, ov, ovar],
+                counters(channel),
+            )?;
             channel += 1;
         }
     }
@@ -239,7 +300,16 @@ pub fn record_prepare(
         for c in 0..6 {
             let p = input.plane(Layer::PositionCovariance, c);
             let o = out.plane(Layer::PositionCovariance, c);
-            sanitize::record(batch, precision, w, h, 0, false, [p, p, spp, o, tmp_var], counters(channel))?;
+            sanitize::record(
+                batch,
+                precision,
+                w,
+                h,
+                0,
+                false,
+                [p, p, spp, o, tmp_var],
+                counters(channel),
+            )?;
             channel += 1;
         }
     }
@@ -251,10 +321,20 @@ pub fn record_prepare(
 }
 
 /// Upload, [`record_prepare`], download.
-pub fn prepare_gpu(ctx: &Arc<GpuContext>, precision: Precision, img: &StatsImage) -> Result<(StatsImage, PrepareReport)> {
+pub fn prepare_gpu(
+    ctx: &Arc<GpuContext>,
+    precision: Precision,
+    img: &StatsImage,
+) -> Result<(StatsImage, PrepareReport)> {
     let input = GpuStats::upload(ctx, "prepare.input", img)?;
     let layers: Vec<Layer> = img.layers().map(|(l, _)| l).collect();
-    let out = GpuStats::new(ctx, "prepare.output", img.width, img.height, &output_layers(&layers))?;
+    let out = GpuStats::new(
+        ctx,
+        "prepare.output",
+        img.width,
+        img.height,
+        &output_layers(&layers),
+    )?;
     let scratch = PrepareScratch::new(ctx, &input)?;
     let mut batch = Batch::new(ctx)?;
     record_prepare(&mut batch, precision, &input, &out, &scratch)?;
@@ -263,7 +343,10 @@ pub fn prepare_gpu(ctx: &Arc<GpuContext>, precision: Precision, img: &StatsImage
     report.counters = scratch.read_counters()?;
     let mut clean = out.download()?;
     // Same normalisation of the count as the CPU path.
-    let spp: Vec<f32> = clean.get(Layer::Spp).unwrap()[0].iter().map(|&s| spp_of(s) as f32).collect();
+    let spp: Vec<f32> = clean.get(Layer::Spp).unwrap()[0]
+        .iter()
+        .map(|&s| spp_of(s) as f32)
+        .collect();
     clean.set(Layer::Spp, vec![spp]);
     Ok((clean, report))
 }
@@ -293,7 +376,11 @@ pub fn colour_of(img: &StatsImage) -> RgbImage {
                             }
                         }
                     }
-                    if k > 0 { s / k as f64 } else { 0.0 }
+                    if k > 0 {
+                        s / k as f64
+                    } else {
+                        0.0
+                    }
                 };
                 v.max(0.0) as f32
             })

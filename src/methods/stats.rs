@@ -23,7 +23,13 @@ pub struct GpuStats {
 
 impl GpuStats {
     /// Allocates planes for `layers` (contents undefined).
-    pub fn new(ctx: &Arc<GpuContext>, name: &str, width: usize, height: usize, layers: &[Layer]) -> Result<GpuStats> {
+    pub fn new(
+        ctx: &Arc<GpuContext>,
+        name: &str,
+        width: usize,
+        height: usize,
+        layers: &[Layer],
+    ) -> Result<GpuStats> {
         let mut layers = layers.to_vec();
         layers.sort();
         layers.dedup();
@@ -45,7 +51,10 @@ impl GpuStats {
     pub fn upload(ctx: &Arc<GpuContext>, name: &str, img: &StatsImage) -> Result<GpuStats> {
         let layers: Vec<Layer> = img.layers().map(|(l, _)| l).collect();
         let g = GpuStats::new(ctx, name, img.width, img.height, &layers)?;
-        let planes: Vec<&[f32]> = img.layers().flat_map(|(_, p)| p.iter().map(|v| v.as_slice())).collect();
+        let planes: Vec<&[f32]> = img
+            .layers()
+            .flat_map(|(_, p)| p.iter().map(|v| v.as_slice()))
+            .collect();
         g.planes.upload_all(&planes)?;
         Ok(g)
     }
@@ -137,7 +146,9 @@ pub fn record_finalize(
 
 /// The same on the CPU with the scalar twins: `planes` in layout order.
 pub fn finalize_cpu(layout: &AccumLayout, planes: &[Vec<f32>]) -> StatsImage {
-    use crate::reference::{finalize_covariance::finalize_covariance, finalize_stats::finalize_stats};
+    use crate::reference::{
+        finalize_covariance::finalize_covariance, finalize_stats::finalize_stats,
+    };
     let n = layout.pixels();
     let push = FinalizePush {
         width: layout.width as u32,

@@ -327,7 +327,11 @@ pub fn wls_solve(a: &[f64], rhs: &[f64], p: usize, lambda: f64) -> WlsSolve {
 /// Normal matrix `A = Σ_i w_i x_i x_iᵀ` (row-major `p × p`) of the design rows
 /// `rows` (`n × p` row-major, `x_i[0] = 1` by convention) and weights `w` (n).
 pub fn normal_matrix(rows: &[f64], p: usize, w: &[f64]) -> Vec<f64> {
-    assert_eq!(rows.len(), w.len() * p, "normal_matrix: rows are not n x {p}");
+    assert_eq!(
+        rows.len(),
+        w.len() * p,
+        "normal_matrix: rows are not n x {p}"
+    );
     let mut a = vec![0.0; p * p];
     for (x, &wi) in rows.chunks_exact(p).zip(w) {
         for r in 0..p {
@@ -500,9 +504,10 @@ mod tests {
                 );
             }
             // sign convention
-            let big = (0..d)
-                .map(|j| e.vector(j, m))
-                .fold(0.0f64, |b, x| if x.abs() > b.abs() { x } else { b });
+            let big =
+                (0..d)
+                    .map(|j| e.vector(j, m))
+                    .fold(0.0f64, |b, x| if x.abs() > b.abs() { x } else { b });
             assert!(big > 0.0);
             // orthonormality
             for m2 in 0..d {
@@ -688,7 +693,9 @@ mod tests {
         assert!(s3[2 * w + 4] > 0.0 && s3[2 * w + 4] < s3[2 * w + 3]);
         // no valid pixel in the window → 0
         let none = vec![false; w * h];
-        assert!(gaussian_smooth(&m, &none, w, h, 1.0).iter().all(|&v| v == 0.0));
+        assert!(gaussian_smooth(&m, &none, w, h, 1.0)
+            .iter()
+            .all(|&v| v == 0.0));
         assert_eq!(gaussian_radius(1.0), 3);
         assert_eq!(gaussian_radius(1.5), 5);
     }

@@ -45,7 +45,14 @@ pub fn median(v: &mut [f64]) -> f64 {
 /// `(8/9)(1.4826 · MAD(e))²` with `MAD(e) = median(|e − median(e)|)`, or 0 if
 /// there is no `e`. Validity is `spp_of(spp) >= 1`; `value` must be finite on
 /// valid pixels (stage 0 output). The caller handles an invalid centre.
-pub fn mad_variance(value: &[f32], spp: &[f32], width: usize, height: usize, x: usize, y: usize) -> f64 {
+pub fn mad_variance(
+    value: &[f32],
+    spp: &[f32],
+    width: usize,
+    height: usize,
+    x: usize,
+    y: usize,
+) -> f64 {
     let valid = |qx: usize, qy: usize| spp_of(spp[qy * width + qx]) >= 1.0;
     let mut e = Vec::with_capacity(SAN_MAX);
     for qy in y.saturating_sub(3)..(y + 4).min(height) {
@@ -127,7 +134,11 @@ pub fn sanitize(
                                 }
                             }
                         }
-                        value = if vals.is_empty() { 0.0 } else { median(&mut vals) };
+                        value = if vals.is_empty() {
+                            0.0
+                        } else {
+                            median(&mut vals)
+                        };
                         counters[0] += 1;
                     }
                     value_out[i] = value as f32;
@@ -226,7 +237,15 @@ mod tests {
             var: vec![-1.0; n],
             counters: [0; 4],
         };
-        sanitize(p, value, var, spp, &mut o.value, &mut o.var, &mut o.counters);
+        sanitize(
+            p,
+            value,
+            var,
+            spp,
+            &mut o.value,
+            &mut o.var,
+            &mut o.counters,
+        );
         o
     }
 
@@ -352,15 +371,23 @@ mod tests {
         let (w, h) = (64, 64);
         let sigma = 0.3f64;
         let mut rng = Rng(0x1234_5678_9ABC_DEF0);
-        let value: Vec<f32> = (0..w * h).map(|_| (0.5 + sigma * rng.normal()) as f32).collect();
+        let value: Vec<f32> = (0..w * h)
+            .map(|_| (0.5 + sigma * rng.normal()) as f32)
+            .collect();
         let spp = vec![16.0f32; w * h];
         let o = run(&push(w, h, 2, 0), &value, &[], &spp);
         let mean: f64 = o.var.iter().map(|&v| v as f64).sum::<f64>() / (w * h) as f64;
         let want = sigma * sigma;
-        assert!((mean - want).abs() < 0.1 * want, "estimated {mean}, want {want}");
+        assert!(
+            (mean - want).abs() < 0.1 * want,
+            "estimated {mean}, want {want}"
+        );
         let mut sorted: Vec<f64> = o.var.iter().map(|&v| v as f64).collect();
         let med = median(&mut sorted);
-        assert!((med - want).abs() < 0.1 * want, "median estimate {med}, want {want}");
+        assert!(
+            (med - want).abs() < 0.1 * want,
+            "median estimate {med}, want {want}"
+        );
         assert_eq!(o.value, value);
     }
 

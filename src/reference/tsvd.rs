@@ -103,7 +103,9 @@ pub fn local_space_with(x: &[f64], e2: &[f64], d: usize, tol: f64, sweeps: usize
                 .iter()
                 .skip(j)
                 .step_by(d)
-                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| (lo.min(v), hi.max(v)));
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| {
+                    (lo.min(v), hi.max(v))
+                });
             min[j] = lo;
             range[j] = hi - lo;
         }

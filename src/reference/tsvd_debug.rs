@@ -84,7 +84,9 @@ mod tests {
                     .collect()
             })
             .collect();
-        let var = (0..7).map(|_| (0..w * h).map(|_| 1e-3 * next()).collect()).collect();
+        let var = (0..7)
+            .map(|_| (0..w * h).map(|_| 1e-3 * next()).collect())
+            .collect();
         (feat, var)
     }
 
@@ -111,7 +113,10 @@ mod tests {
                 continue;
             }
             let k = out[0][c];
-            assert!((2.0..=9.0).contains(&k) && k.fract() == 0.0, "rank {k} at {c}");
+            assert!(
+                (2.0..=9.0).contains(&k) && k.fract() == 0.0,
+                "rank {k} at {c}"
+            );
             assert!(out[2][c] > 0.0);
             assert!((out[1][c] - 2.0 * out[2][c]).abs() <= 1e-6 * out[1][c]);
             for m in 0..8 {

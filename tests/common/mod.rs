@@ -19,7 +19,11 @@ pub fn gpu() -> Arc<GpuContext> {
         eprintln!(
             "test device: {} (validation {})",
             ctx.info().name,
-            if ctx.validation_enabled() { "on" } else { "not installed" }
+            if ctx.validation_enabled() {
+                "on"
+            } else {
+                "not installed"
+            }
         );
         Arc::new(ctx)
     })

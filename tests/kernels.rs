@@ -1,0 +1,214 @@
+//! Shared kernels on the GPU against their scalar twins (spec §0.3
+//! tolerances), f32 and f64, on the sizes of issue #2.
+
+mod common;
+use common::*;
+
+use mcdenoise::gpu::Precision;
+use mcdenoise::kernels::{run_planes, sanitize, tsvd_debug};
+use mcdenoise::reference;
+use mcdenoise::shared::{SanitizePush, TsvdPush};
+
+fn precisions() -> Vec<Precision> {
+    let mut v = vec![Precision::F32];
+    if gpu().supports_f64() {
+        v.push(Precision::F64);
+    }
+    v
+}
+
+/// A noisy channel with every kind of bad value sanitation must handle.
+fn dirty_channel(w: usize, h: usize, seed: u64) -> (Vec<f32>, Vec<f32>, Vec<f32>) {
+    let mut rng = Rng(seed);
+    let n = w * h;
+    let mut value = vec![0.0f32; n];
+    let mut var = vec![0.0f32; n];
+    let mut spp = vec![0.0f32; n];
+    for i in 0..n {
+        let (x, y) = ((i % w) as f64, (i / w) as f64);
+        value[i] = (0.5 + 0.3 * (x * 0.2).sin() * (y * 0.15).cos() + 0.05 * rng.normal()) as f32;
+        var[i] = (0.0025 * (0.5 + rng.uniform())) as f32;
+        spp[i] = match rng.next_u64() % 20 {
+            0 => 0.0,
+            1 => 1.0,
+            2 => f32::NAN,
+            _ => 16.0,
+        };
+        match rng.next_u64() % 25 {
+            0 => value[i] = f32::NAN,
+            1 => value[i] = f32::INFINITY,
+            2 => var[i] = -1e-4,
+            3 => var[i] = f32::NEG_INFINITY,
+            _ => {}
+        }
+    }
+    (value, var, spp)
+}
+
+#[test]
+fn sanitize_matches_twin() {
+    let ctx = gpu();
+    for &(w, h) in SIZES {
+        let (value, var, spp) = dirty_channel(w, h, 11 + (w * h) as u64);
+        for stage in 0..3u32 {
+            for has_var in [true, false] {
+                if stage == 1 && !has_var {
+                    continue;
+                }
+                let push = SanitizePush {
+                    width: w as u32,
+                    height: h as u32,
+                    stage,
+                    has_var: has_var as u32,
+                    ..Default::default()
+                };
+                // Stages 1 and 2 run on stage-0 output (finite values) as in the pipeline.
+                let (mut v0, mut var0, mut c) = (vec![0.0; w * h], vec![0.0; w * h], [0u32; 4]);
+                let p0 = SanitizePush { stage: 0, ..push };
+                reference::sanitize::sanitize(&p0, &value, &var, &spp, &mut v0, &mut var0, &mut c);
+                let (vin, varin) = if stage == 0 {
+                    (&value, &var)
+                } else {
+                    (&v0, &var0)
+                };
+                let (mut vc, mut varc, mut cc) = (vec![0.0; w * h], vec![0.0; w * h], [0u32; 4]);
+                reference::sanitize::sanitize(&push, vin, varin, &spp, &mut vc, &mut varc, &mut cc);
+                for p in precisions() {
+                    let (out, _) = run_planes(
+                        &ctx,
+                        &sanitize::DECL,
+                        p,
+                        bytemuck::bytes_of(&push),
+                        w,
+                        h,
+                        &[vin, varin, &spp],
+                        &[w * h, w * h, 4],
+                        100.0,
+                    )
+                    .unwrap();
+                    let what = format!("sanitize {w}x{h} stage {stage} has_var {has_var} {p:?}");
+                    assert_close(&format!("{what} value"), &out[0], &vc, 0.99);
+                    assert_close(&format!("{what} var"), &out[1], &varc, 0.99);
+                    let counters: Vec<u32> = out[2][..4].iter().map(|v| v.to_bits()).collect();
+                    assert_eq!(counters, cc.to_vec(), "{what} counters");
+                    assert!(
+                        out[0].iter().all(|v| v.is_finite()),
+                        "{what}: non-finite value left"
+                    );
+                    assert!(
+                        out[1].iter().all(|v| v.is_finite() && *v >= 0.0),
+                        "{what}: bad variance left"
+                    );
+                }
+            }
+        }
+    }
+    check_validation(&ctx);
+}
+
+/// Features with structure (planes, a sphere-like patch, an albedo edge) and
+/// noise, plus their variances.
+fn features(w: usize, h: usize, seed: u64) -> (Vec<Vec<f32>>, Vec<Vec<f32>>, Vec<f32>) {
+    let mut rng = Rng(seed);
+    let n = w * h;
+    let mut f = vec![vec![0.0f32; n]; 7];
+    let mut v = vec![vec![0.0f32; n]; 7];
+    let mut spp = vec![8.0f32; n];
+    for i in 0..n {
+        let (x, y) = ((i % w) as f64, (i / w) as f64);
+        let (cx, cy) = (w as f64 * 0.5, h as f64 * 0.5);
+        let r2 = ((x - cx).powi(2) + (y - cy).powi(2)) / (0.3 * (w.max(h) as f64)).powi(2);
+        let (nx, ny, nz, d) = if r2 < 1.0 {
+            let nz = (1.0 - r2).sqrt();
+            (
+                (x - cx) / (0.3 * w.max(h) as f64),
+                (y - cy) / (0.3 * w.max(h) as f64),
+                nz,
+                3.0 - nz,
+            )
+        } else {
+            (0.0, 1.0, 0.0, 5.0 + 0.05 * y)
+        };
+        let alb = if (x as usize / 8 + y as usize / 8) % 2 == 0 {
+            0.8
+        } else {
+            0.2
+        };
+        let base = [nx, ny, nz, d, alb, alb * 0.9, alb * 0.5];
+        let noise = [0.02, 0.02, 0.02, 0.05, 0.01, 0.01, 0.01];
+        for k in 0..7 {
+            f[k][i] = (base[k] + noise[k] * rng.normal()) as f32;
+            v[k][i] = (noise[k] * noise[k] / 8.0) as f32;
+        }
+        if rng.next_u64() % 50 == 0 {
+            spp[i] = 0.0;
+        }
+    }
+    (f, v, spp)
+}
+
+#[test]
+fn tsvd_debug_matches_twin() {
+    let ctx = gpu();
+    for &(w, h) in SIZES {
+        for radius in [5u32, 9] {
+            if radius == 9 && (w, h) != (64, 64) {
+                continue;
+            }
+            let (f, v, spp) = features(w, h, 3 + w as u64);
+            let push = TsvdPush {
+                width: w as u32,
+                height: h as u32,
+                radius,
+                ..Default::default()
+            };
+            let fr: [&[f32]; 7] = std::array::from_fn(|k| f[k].as_slice());
+            let vr: [&[f32]; 7] = std::array::from_fn(|k| v[k].as_slice());
+            let mut cpu = vec![vec![0.0f32; w * h]; 12];
+            reference::tsvd_debug::tsvd_debug(&push, fr, vr, &spp, &mut cpu);
+            let mut inputs: Vec<&[f32]> = fr.to_vec();
+            inputs.extend_from_slice(&vr);
+            inputs.push(&spp);
+            for p in precisions() {
+                let (out, _) = run_planes(
+                    &ctx,
+                    &tsvd_debug::DECL,
+                    p,
+                    bytemuck::bytes_of(&push),
+                    w,
+                    h,
+                    &inputs,
+                    &[w * h; 12],
+                    tsvd_debug::flops_per_pixel(radius),
+                )
+                .unwrap();
+                let what = format!("tsvd_debug {w}x{h} R={radius} {p:?}");
+                let agree = agreement(&out[0], &cpu[0]);
+                assert!(agree >= 0.98, "{what}: rank agreement {agree}");
+                for k in 1..12 {
+                    // σ below the f32 Jacobi's resolution (1e-6·‖G‖) are noise
+                    // in f32: compare them with an absolute floor.
+                    let name = tsvd_debug::OUTPUTS[k];
+                    if p == Precision::F32 && k >= 3 {
+                        let floor: Vec<f32> =
+                            (0..w * h).map(|i| 2e-3 * cpu[3][i].max(1e-3)).collect();
+                        let ok = out[k]
+                            .iter()
+                            .zip(&cpu[k])
+                            .zip(&floor)
+                            .filter(|((g, c), fl)| {
+                                ((**g - **c).abs() <= 1e-3 * (c.abs() + 1e-3))
+                                    || (**g - **c).abs() <= **fl
+                            })
+                            .count() as f64
+                            / (w * h) as f64;
+                        assert!(ok >= 0.99, "{what} {name}: {ok}");
+                    } else {
+                        assert_close(&format!("{what} {name}"), &out[k], &cpu[k], 0.99);
+                    }
+                }
+            }
+        }
+    }
+    check_validation(&ctx);
+}
