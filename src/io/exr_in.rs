@@ -4,7 +4,9 @@
 //! reader, so only the one part and the channels we need are converted, each
 //! straight into its f32 plane. The decoder runs on the calling thread inside
 //! `catch_unwind`: a malformed file that trips a panic in the decoder becomes
-//! an [`Error::BadInput`] like any other corrupt file.
+//! an [`Error::BadInput`] like any other corrupt file (this relies on the
+//! default `panic = "unwind"`; the `exr` crate's parallel decoder is not used
+//! because a panic on its worker threads would abort the process).
 
 use std::collections::HashSet;
 use std::io::Cursor;
@@ -515,14 +517,20 @@ fn convert_samples(src: &[u8], sample_type: SampleType, dst: &mut [f32]) {
 /// A human sentence for an `exr` crate error.
 ///
 /// If the raw header names a compression we cannot decode (HTJ2K, ZSTD or an
-/// unknown id), that is reported whatever the decoder tripped over first: the
-/// decoder's geometry checks assume the compressions it knows.
+/// unknown id), or a data window without pixels, that is reported whatever
+/// the decoder tripped over first: its geometry checks come before and assume
+/// a decodable compression and a non-empty image.
 fn describe_exr_error(bytes: &[u8], error: exr::error::Error) -> String {
     use exr::error::Error as E;
     if let Some(id) = unsupported_compression(bytes) {
         return format!(
             "compression {} is not supported; {RESAVE_HINT}",
             compression_name(id)
+        );
+    }
+    if let Some([x0, y0, x1, y1]) = empty_data_window(bytes) {
+        return format!(
+            "the image is empty (data window ({x0}, {y0}) to ({x1}, {y1}) holds no pixels)"
         );
     }
     match error {
@@ -572,37 +580,114 @@ fn compression_name(id: u8) -> String {
     }
 }
 
-/// Scans the raw header attributes for a `compression` value that cannot be
-/// decoded (HTJ2K = 10, 11; ZSTD = 12; unknown ids), to name it in the error
-/// message.
-fn unsupported_compression(bytes: &[u8]) -> Option<u8> {
+/// The raw values of every attribute called `name`, over all headers (parts),
+/// read without the `exr` crate: used to explain what the decoder rejected.
+/// Stops quietly at the first malformed attribute.
+fn raw_attributes<'a>(bytes: &'a [u8], name: &[u8]) -> Vec<&'a [u8]> {
+    let mut found = Vec::new();
     let multipart = bytes.get(4..8).is_some_and(|v| v[1] & 0x10 != 0);
     let mut pos = 8;
-    let cstr = |pos: &mut usize| -> Option<&[u8]> {
+    let cstr = |pos: &mut usize| -> Option<&'a [u8]> {
         let rest = bytes.get(*pos..)?;
         let len = rest.iter().position(|b| *b == 0)?;
         *pos += len + 1;
         Some(&rest[..len])
     };
-    for _header in 0..1024 {
-        loop {
-            let name = cstr(&mut pos)?;
-            if name.is_empty() {
-                break;
+    let mut scan = || -> Option<()> {
+        for _header in 0..1024 {
+            loop {
+                let attribute = cstr(&mut pos)?;
+                if attribute.is_empty() {
+                    break;
+                }
+                let _type_name = cstr(&mut pos)?;
+                let size = i32::from_le_bytes(bytes.get(pos..pos + 4)?.try_into().ok()?);
+                pos += 4;
+                let size = usize::try_from(size).ok()?;
+                let value = bytes.get(pos..pos + size)?;
+                pos += size;
+                if attribute == name {
+                    found.push(value);
+                }
             }
-            let _type_name = cstr(&mut pos)?;
-            let size = i32::from_le_bytes(bytes.get(pos..pos + 4)?.try_into().ok()?);
-            pos += 4;
-            let size = usize::try_from(size).ok()?;
-            let value = bytes.get(pos..pos + size)?;
-            pos += size;
-            if name == b"compression" && size == 1 && value[0] >= 10 {
-                return Some(value[0]);
+            if !multipart || bytes.get(pos) == Some(&0) {
+                return None;
             }
         }
-        if !multipart || bytes.get(pos) == Some(&0) {
-            return None;
+        None
+    };
+    scan();
+    found
+}
+
+/// A `compression` value that cannot be decoded (HTJ2K = 10, 11; ZSTD = 12;
+/// unknown ids), from the raw headers.
+fn unsupported_compression(bytes: &[u8]) -> Option<u8> {
+    raw_attributes(bytes, b"compression")
+        .into_iter()
+        .find_map(|v| (v.len() == 1 && v[0] >= 10).then_some(v[0]))
+}
+
+/// A `dataWindow` with no pixels (`max < min`), from the raw headers, as
+/// `[x_min, y_min, x_max, y_max]`.
+fn empty_data_window(bytes: &[u8]) -> Option<[i32; 4]> {
+    raw_attributes(bytes, b"dataWindow")
+        .into_iter()
+        .find_map(|v| {
+            if v.len() != 16 {
+                return None;
+            }
+            let b: [i32; 4] = std::array::from_fn(|k| {
+                i32::from_le_bytes([v[4 * k], v[4 * k + 1], v[4 * k + 2], v[4 * k + 3]])
+            });
+            (b[2] < b[0] || b[3] < b[1]).then_some(b)
+        })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A panic inside decoding (standing in for one in the `exr` crate) is
+    /// reported as a corrupt file, not propagated.
+    #[test]
+    fn a_panic_while_decoding_becomes_bad_input() {
+        let path =
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/dof_checker_64_ref.exr");
+        let bytes = std::fs::read(&path).unwrap();
+        let result = decode_part(&path, &bytes, &|_| panic!("simulated decoder bug"), &|_| {
+            true
+        });
+        match result {
+            Err(Error::BadInput { path: p, message }) => {
+                assert_eq!(p, path);
+                assert!(message.contains("simulated decoder bug"), "{message}");
+                assert!(message.contains("truncated or corrupt"), "{message}");
+            }
+            other => panic!("expected BadInput, got {:?}", other.map(|p| p.width)),
         }
     }
-    None
+
+    #[test]
+    fn raw_header_scan_finds_attributes() {
+        let path =
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/dof_checker_64_ref.exr");
+        let bytes = std::fs::read(path).unwrap();
+        assert_eq!(raw_attributes(&bytes, b"compression"), [&[3u8][..]]);
+        assert_eq!(unsupported_compression(&bytes), None);
+        assert_eq!(empty_data_window(&bytes), None);
+        assert_eq!(raw_attributes(&bytes[..20], b"compression").len(), 0);
+    }
+
+    #[test]
+    fn channel_names_parse() {
+        assert_eq!(stats_channel("normal.Z"), Some((Layer::Normal, 2)));
+        assert_eq!(
+            stats_channel("position_covariance.YZ"),
+            Some((Layer::PositionCovariance, 4))
+        );
+        assert_eq!(stats_channel("normal.W"), None);
+        assert_eq!(stats_channel("normals.X"), None);
+        assert_eq!(stats_channel("spp"), None);
+    }
 }

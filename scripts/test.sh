@@ -1,0 +1,7 @@
+#!/usr/bin/env bash
+# The whole test suite, on lavapipe with the validation layer (see README).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+bash scripts/setup.sh --tests
+# Tests pick the best device; on a machine with a real GPU set MCDENOISE_DEVICE.
+exec cargo test --no-fail-fast "$@"

@@ -1,0 +1,193 @@
+//! The `mcdenoise` binary as a user runs it: exit codes, messages, outputs.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_mcdenoise"))
+}
+
+fn fixture(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/fixtures")
+        .join(name)
+}
+
+fn tmpdir(tag: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("mcdenoise-cli-{tag}-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn run(cmd: &mut Command) -> (i32, String, String) {
+    let o = cmd.output().unwrap();
+    (
+        o.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&o.stdout).into_owned(),
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+    )
+}
+
+#[test]
+fn info_lists_a_device() {
+    let (code, out, _) = run(bin().arg("info"));
+    assert_eq!(code, 0);
+    assert!(out.contains("maxStorageBufferRange"), "{out}");
+    assert!(out.contains("shaderFloat64"));
+    assert!(
+        out.lines().any(|l| l.starts_with('*')),
+        "no device marked as used:\n{out}"
+    );
+}
+
+#[test]
+fn inspect_fixture() {
+    let (code, out, err) = run(bin()
+        .arg("inspect")
+        .arg(fixture("dof_checker_64_spp16.exr")));
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("64 x 64"), "{out}");
+    assert!(out.contains("color_variance.R"));
+    assert!(out.contains("spp"));
+}
+
+#[test]
+fn compare_and_max_error() {
+    let input = fixture("dof_checker_64_spp16.exr");
+    let reference = fixture("dof_checker_64_ref.exr");
+    let dir = tmpdir("compare");
+    let heat = dir.join("heat.png");
+    let (code, out, err) = run(bin()
+        .arg("compare")
+        .arg(&input)
+        .arg(&reference)
+        .arg("--heatmap")
+        .arg(&heat));
+    assert_eq!(code, 0, "{err}");
+    let rmse: f64 = out
+        .lines()
+        .find_map(|l| l.strip_prefix("rMSE"))
+        .unwrap()
+        .trim()
+        .parse()
+        .unwrap();
+    assert!(rmse > 0.0 && rmse < 1.0, "{out}");
+    assert!(out.contains("SSIM") && out.contains("PSNR") && out.contains("relMSE"));
+    assert!(heat.exists());
+    let (code, _, err) = run(bin()
+        .arg("compare")
+        .arg(&input)
+        .arg(&reference)
+        .args(["--max-error", "0.000001"]));
+    assert_eq!(code, 1, "{err}");
+    assert!(err.contains("exceeds"));
+    let (code, _, _) = run(bin()
+        .arg("compare")
+        .arg(&input)
+        .arg(&reference)
+        .args(["--max-error", "10"]));
+    assert_eq!(code, 0);
+}
+
+#[test]
+fn denoise_none_gpu_and_cpu_agree_and_inputs_are_protected() {
+    let input = fixture("dof_checker_64_spp16.exr");
+    let dir = tmpdir("denoise");
+    let (g, c) = (dir.join("gpu.exr"), dir.join("cpu.exr"));
+    let (code, _, err) = run(bin()
+        .arg("denoise")
+        .arg(&input)
+        .arg("-o")
+        .arg(&g)
+        .args(["--method", "none", "--png"])
+        .arg(dir.join("p.png")));
+    assert_eq!(code, 0, "{err}");
+    let (code, _, err) = run(bin().arg("denoise").arg(&input).arg("-o").arg(&c).args([
+        "--method",
+        "none",
+        "--backend",
+        "cpu",
+    ]));
+    assert_eq!(code, 0, "{err}");
+    let (code, out, _) = run(bin().arg("compare").arg(&g).arg(&c));
+    assert_eq!(code, 0);
+    assert!(out.contains("rMSE    0.00000"), "{out}");
+    assert!(dir.join("p.png").exists());
+    // Never overwrite an input.
+    let before = std::fs::read(&input).unwrap();
+    let (code, _, err) = run(bin()
+        .arg("denoise")
+        .arg(&input)
+        .arg("-o")
+        .arg(&input)
+        .args(["--method", "none"]));
+    assert_eq!(code, 2);
+    assert!(err.contains("refusing to overwrite"), "{err}");
+    assert_eq!(std::fs::read(&input).unwrap(), before);
+    // A method that is not built yet says so instead of writing anything.
+    let out = dir.join("wlr.exr");
+    let (code, _, err) = run(bin().arg("denoise").arg(&input).arg("-o").arg(&out));
+    assert_eq!(code, 2);
+    assert!(err.contains("not in this build"), "{err}");
+    assert!(!out.exists());
+    // Options are validated.
+    let (code, _, err) = run(bin()
+        .arg("denoise")
+        .arg(&input)
+        .arg("-o")
+        .arg(dir.join("x.exr"))
+        .args(["--method", "none", "--opt", "wlr.reject=perhaps"]));
+    assert_eq!(code, 2);
+    assert!(err.contains("wlr.reject"), "{err}");
+}
+
+#[test]
+fn bad_files_give_clear_errors() {
+    let dir = tmpdir("bad");
+    let text = dir.join("notes.exr");
+    std::fs::write(&text, "this is not an image").unwrap();
+    let (code, _, err) = run(bin().arg("inspect").arg(&text));
+    assert_eq!(code, 2);
+    assert!(err.contains("notes.exr"), "{err}");
+    assert!(!err.contains("panicked"), "{err}");
+    let truncated = dir.join("half.exr");
+    let bytes = std::fs::read(fixture("dof_checker_64_spp16.exr")).unwrap();
+    std::fs::write(&truncated, &bytes[..bytes.len() / 2]).unwrap();
+    let (code, _, err) = run(bin().arg("inspect").arg(&truncated));
+    assert_eq!(code, 2);
+    assert!(
+        err.contains("half.exr") && !err.contains("panicked"),
+        "{err}"
+    );
+    let (code, _, err) = run(bin().arg("inspect").arg(dir.join("missing.exr")));
+    assert_eq!(code, 2);
+    assert!(err.contains("missing.exr"), "{err}");
+}
+
+#[test]
+fn help_lists_the_spec_options() {
+    let (code, out, _) = run(bin().args(["denoise", "--help"]));
+    assert_eq!(code, 0);
+    for key in [
+        "wlr.reject",
+        "lp.error_mode",
+        "aos.variance",
+        "apr.stages",
+        "--sample-map",
+        "--budget",
+        "--pass",
+        "--debug-layers",
+        "--max-error",
+    ] {
+        assert!(out.contains(key), "--help lacks {key}");
+    }
+}
+
+#[test]
+fn demo_runs() {
+    let dir = tmpdir("demo");
+    let (code, out, err) = run(bin().arg("demo").arg("--out").arg(&dir));
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("rMSE"), "{out}");
+    assert!(dir.join("output.exr").exists() && dir.join("output.png").exists());
+}
