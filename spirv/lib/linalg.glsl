@@ -34,8 +34,9 @@
 // ||A||_F (or exactly 0), checked before each sweep, or after JACOBI_SWEEPS.
 // Out: w = eigenvalues in decreasing order (signed), V = eigenvectors, column
 // m (V[j*d + m]) for w[m], each with its largest-|.| component (first on a
-// tie) positive. Entries beyond d (resp. d*d) are set to 0.
-void jacobi_eigen(inout real A[MAX_D * MAX_D], int d, out real V[MAX_D * MAX_D], out real w[MAX_D])
+// tie) positive. Entries beyond d (resp. d*d) are set to 0. Returns the
+// number of sweeps performed.
+int jacobi_eigen(inout real A[MAX_D * MAX_D], int d, out real V[MAX_D * MAX_D], out real w[MAX_D])
 {
     for (int i = 0; i < MAX_D * MAX_D; ++i) {
         V[i] = real(0);
@@ -49,7 +50,8 @@ void jacobi_eigen(inout real A[MAX_D * MAX_D], int d, out real V[MAX_D * MAX_D],
     }
     norm = sqrt(norm);
 
-    for (int sweep = 0; sweep < JACOBI_SWEEPS; ++sweep) {
+    int sweeps = 0;
+    for (; sweeps < JACOBI_SWEEPS; ++sweeps) {
         real off = real(0);
         for (int p = 0; p < d; ++p) {
             for (int q = 0; q < d; ++q) {
@@ -142,6 +144,7 @@ void jacobi_eigen(inout real A[MAX_D * MAX_D], int d, out real V[MAX_D * MAX_D],
             }
         }
     }
+    return sweeps;
 }
 
 // Cholesky factorisation of A + diag(0, lambda, ..., lambda) with the RIDGE

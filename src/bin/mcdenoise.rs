@@ -10,7 +10,7 @@ use clap::{Parser, Subcommand, ValueEnum};
 use mcdenoise::gpu::{self, ContextOptions, GpuContext, Precision, Validation};
 use mcdenoise::io;
 use mcdenoise::methods::prepare::{prepare, PrepareReport};
-use mcdenoise::methods::Backend;
+use mcdenoise::methods::{denoise, Backend, DenoiseRequest, Method, Pass};
 use mcdenoise::metrics;
 use mcdenoise::options::{help_table, Options};
 
@@ -40,7 +40,7 @@ struct Cli {
 }
 
 #[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
-enum Method {
+enum MethodArg {
     /// Weighted local regression (spec §2).
     Wlr,
     /// Linear predictions at sparse centres (spec §3).
@@ -117,7 +117,7 @@ enum Command {
         #[arg(short, long)]
         output: PathBuf,
         #[arg(long, value_enum, default_value = "wlr")]
-        method: Method,
+        method: MethodArg,
         #[arg(long, value_enum, default_value = "gpu")]
         backend: BackendArg,
         /// Kernel arithmetic on the GPU (f64 where the device supports it).
@@ -234,7 +234,7 @@ fn read_colour(path: &Path) -> anyhow::Result<mcdenoise::image::RgbImage> {
 
 fn check_error(rmse: f64, max: Option<f64>) -> anyhow::Result<bool> {
     if let Some(max) = max {
-        if !(rmse <= max) {
+        if rmse.is_nan() || rmse > max {
             eprintln!("rMSE {rmse:.5} exceeds --max-error {max}");
             return Ok(false);
         }
@@ -255,7 +255,7 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
         Command::Info => info(&cli).map(|_| true),
         Command::Inspect { file } => {
             let img = io::read_stats(file)?;
-            print!("{}", io::format_report(file, &img));
+            println!("{}", io::format_report(file, &img).trim_end());
             Ok(true)
         }
         Command::Compare {
@@ -310,61 +310,73 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
                     bail!("{}: refusing to overwrite an input file", path.display());
                 }
             }
-            if *method != Method::None {
+            let method = match method {
+                MethodArg::Wlr => Method::Wlr,
+                MethodArg::Lp => Method::Lp,
+                MethodArg::Apr => Method::Apr,
+                MethodArg::Aos => Method::Aos,
+                MethodArg::None => Method::None,
+            };
+            if !method.available() {
                 bail!(
-                    "method {method:?} is not in this build yet: only `--method none` (sanitised input) is; \
-                     the reconstruction methods land with their own issues"
+                    "method {} is not in this build yet: only `--method none` (sanitised input) is; \
+                     the reconstruction methods land with their own issues",
+                    method.name()
                 );
             }
-            if *prefilter != Prefilter::None || *sample_map || budget.is_some() || *error {
+            if *prefilter != Prefilter::None
+                || *sample_map
+                || budget.is_some()
+                || (*error && method == Method::None)
+            {
                 bail!("--prefilter, --error and --sample-map need a reconstruction method (not --method none)");
             }
-            let _ = (pass, debug_layers, &options);
             let img = io::read_stats(input)?;
-            let backend = match backend {
+            let mut req = DenoiseRequest::new(method);
+            req.backend = match backend {
                 BackendArg::Gpu => Backend::Gpu,
                 BackendArg::Cpu => Backend::Cpu,
             };
-            let precision = match precision {
+            req.precision = match precision {
                 PrecisionArg::F32 => Precision::F32,
                 PrecisionArg::F64 => Precision::F64,
             };
-            let ctx = if backend == Backend::Gpu {
+            req.pass = match pass {
+                PassArg::Final => Pass::Final,
+                PassArg::Intermediate => Pass::Intermediate,
+            };
+            req.options = options;
+            req.error = *error;
+            req.debug = *debug_layers;
+            let ctx = if req.backend == Backend::Gpu {
                 Some(context(&cli)?)
             } else {
                 None
             };
             let t0 = std::time::Instant::now();
-            let (clean, report) = prepare(ctx.as_ref(), backend, precision, &img)?;
+            let result = denoise(ctx.as_ref(), &img, &req)?;
             if !cli.quiet {
-                print_report(&report, input);
+                print_report(&result.report, input);
                 eprintln!(
-                    "sanitised in {:.2} s ({backend:?})",
+                    "{} ({:?}) in {:.2} s",
+                    method.name(),
+                    req.backend,
                     t0.elapsed().as_secs_f64()
                 );
             }
-            let color = mcdenoise::methods::prepare::colour_of(&clean);
-            let mut out = io::OutputImage {
-                color: color.clone(),
-                error: None,
+            let out = io::OutputImage {
+                color: result.color.clone(),
+                error: result.error.clone(),
                 samples: None,
-                debug: vec![],
+                debug: result.debug.clone(),
             };
-            if *debug_layers {
-                // Method `none` has no maps of its own: the sanitised variance.
-                let var = clean.get(mcdenoise::image::Layer::ColorVariance).unwrap();
-                for (c, name) in ["R", "G", "B"].iter().enumerate() {
-                    out.debug
-                        .push((format!("color_variance.{name}"), var[c].clone()));
-                }
-            }
             io::write_output(output, &out)?;
             if let Some(p) = png {
-                io::write_png_preview(p, &color)?;
+                io::write_png_preview(p, &result.color)?;
             }
             if let Some(r) = reference {
                 let r = read_colour(r)?;
-                let m = metrics::compare(&color, &r)?;
+                let m = metrics::compare(&result.color, &r)?;
                 print_metrics(&m);
                 return check_error(m.rmse, *max_error);
             }
@@ -384,7 +396,7 @@ fn demo(cli: &Cli, out: &Path) -> anyhow::Result<bool> {
     std::fs::write(&input, DEMO_INPUT).with_context(|| input.display().to_string())?;
     std::fs::write(&reference, DEMO_REFERENCE).with_context(|| reference.display().to_string())?;
     let img = io::read_stats(&input)?;
-    print!("{}", io::format_report(&input, &img));
+    println!("{}", io::format_report(&input, &img).trim_end());
     println!();
     let ctx = context(cli)?;
     println!("device: {}", ctx.info().name);

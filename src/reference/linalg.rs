@@ -239,6 +239,11 @@ impl RidgeCholesky {
 /// or not finite. On failure `λ ← max(10λ, RIDGE_FLOOR · mean diag(A))` and
 /// the factorisation restarts, at most [`SOLVE_RETRIES`] times. `eps_pivot`
 /// is [`EPS_PIVOT`] in f64 (1e-6 mimics the f32 kernels). `λ >= 0`.
+///
+/// Note: starting from `λ = 0`, the raised ridge reaches at most
+/// `1e-6 · mean diag`, so an exactly singular system is rescued in f64 but
+/// usually still fails with the f32 threshold (GPU f32 variant); with the
+/// `λ > 0` of the methods both precisions succeed.
 pub fn ridge_cholesky(a: &[f64], p: usize, lambda: f64, eps_pivot: f64) -> RidgeCholesky {
     assert_eq!(a.len(), p * p, "ridge_cholesky: matrix is not {p}x{p}");
     let mean_diag = if p == 0 {
@@ -288,7 +293,9 @@ fn cholesky_attempt(a: &[f64], p: usize, lambda: f64, eps_pivot: f64, l: &mut [f
                 s -= l[i * p + k] * l[j * p + k];
             }
             if i == j {
-                if !(s > thresh) || !s.is_finite() {
+                // `s > thresh` is false for NaN too.
+                let pivot_ok = s > thresh && s.is_finite();
+                if !pivot_ok {
                     return false;
                 }
                 l[i * p + i] = s.sqrt();

@@ -172,7 +172,7 @@ pub fn sanitize(
                     // §0.4 step 3
                     value_out[i] = value_in[i];
                     let np = spp_of(spp[i]);
-                    if np >= 1.0 && np < 2.0 {
+                    if (1.0..2.0).contains(&np) {
                         let mut vals = Vec::with_capacity(24);
                         for qy in y.saturating_sub(2)..(y + 3).min(h) {
                             for qx in x.saturating_sub(2)..(x + 3).min(w) {
