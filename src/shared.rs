@@ -45,3 +45,54 @@ pub struct TsvdPush {
     /// Window radius R (5 or 9 in the spec; any value ≥ 1 works).
     pub radius: u32,
 }
+
+/// `spirv/wlr_fit.comp` and `spirv/wlr_final.comp`, block `Push` (spec §2).
+#[repr(C)]
+#[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct WlrPush {
+    pub width: u32,
+    pub height: u32,
+    /// First row of the band this dispatch covers.
+    pub row0: u32,
+    /// Window radius: 9 in the final pass, 5 in intermediate passes (§2.3).
+    pub radius: u32,
+    /// Bit 0: `wlr.reject` on (§2.3 step 3). Bit 1: `wlr.outlier_weight`
+    /// clamped (§2.3 step 2; off divides by nothing). Bit 2: `wlr.nonneg` on
+    /// (§2.3 step 5). See [`WLR_REJECT`], [`WLR_OUTLIER_CLAMPED`], [`WLR_NONNEG`].
+    pub options: u32,
+    pub _pad: [u32; 3],
+}
+
+/// [`WlrPush::options`] bit: confidence-interval rejection.
+pub const WLR_REJECT: u32 = 1;
+/// [`WlrPush::options`] bit: outlier weight `1/max(vbar, 1)`.
+pub const WLR_OUTLIER_CLAMPED: u32 = 2;
+/// [`WlrPush::options`] bit: positive-weight fallback.
+pub const WLR_NONNEG: u32 = 4;
+/// The spec's defaults: all three on.
+pub const WLR_DEFAULT_OPTIONS: u32 = WLR_REJECT | WLR_OUTLIER_CLAMPED | WLR_NONNEG;
+
+/// `spirv/gauss_smooth.comp`, block `Push` (spec §0.5 Gaussian map smoothing).
+#[repr(C)]
+#[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct SmoothPush {
+    pub width: u32,
+    pub height: u32,
+    /// First row of the band this dispatch covers.
+    pub row0: u32,
+    /// `ceil(3σ)`.
+    pub radius: u32,
+    pub sigma: f32,
+    pub _pad: [u32; 3],
+}
+
+/// `spirv/channel_mean.comp`, block `Push`: mean of three planes (vbar, grey).
+#[repr(C)]
+#[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct ChannelMeanPush {
+    pub width: u32,
+    pub height: u32,
+    /// First row of the band this dispatch covers.
+    pub row0: u32,
+    pub _pad: u32,
+}
