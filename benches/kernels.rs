@@ -141,7 +141,7 @@ fn main() {
             ..Default::default()
         };
         let (g, g64) = both(
-            &sanitize::DECL,
+            sanitize::decl(stage),
             bytemuck::bytes_of(&push),
             &[&value, &var, &spp],
             &[n, n, 4],
@@ -152,7 +152,7 @@ fn main() {
             reference::sanitize::sanitize(&push, &value, &var, &spp, &mut a, &mut b, &mut cnt)
         });
         row(
-            &format!("sanitize.stage{stage}.{w}x{h}"),
+            &format!("{}.{w}x{h}", sanitize::decl(stage).name),
             &filter,
             w,
             h,

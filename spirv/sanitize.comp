@@ -1,7 +1,9 @@
 #version 460
-// Input sanitation of one scalar channel plane (spec §0.4), one stage per
-// dispatch; the host runs stages 0, 1 (if the channel has a variance layer
-// and some spp < 2) or 2 (if it has none) with ping-pong planes.
+// Input sanitation of one scalar channel plane, spec §0.4 steps 1-2
+// (stage 0). The host then runs `sanitize_low_spp` (step 3) when the channel
+// has a variance layer, or `estimate_variance` (step 4) when it has none.
+// The stages are separate kernels: on lavapipe the 49-entry arrays of the
+// later stages slow every invocation of a kernel that merely contains them.
 // Scalar twin: src/reference/sanitize.rs.
 #include "lib/common.glsl"
 
@@ -98,53 +100,6 @@ void stage_repair(ivec2 p, ivec2 size, uint i)
     var_out[i] = v;
 }
 
-// Spec §0.4 step 3: a valid pixel with spp < 2 gets the median over the 5x5
-// pixels with spp >= 2 of v_q n_q, divided by max(n_p, 1); without such a
-// pixel, the step-4 estimate.
-void stage_low_spp(ivec2 p, ivec2 size, uint i)
-{
-    value_out[i] = value_in[i];
-    float np = spp_of(spp[i]);
-    if (np >= 1.0 && np < 2.0) {
-        real vals[SAN_MAX];
-        int m = 0;
-        for (int qy = max(p.y - 2, 0); qy <= min(p.y + 2, size.y - 1); ++qy) {
-            for (int qx = max(p.x - 2, 0); qx <= min(p.x + 2, size.x - 1); ++qx) {
-                uint iq = pix(ivec2(qx, qy));
-                float nq = spp_of(spp[iq]);
-                if (nq >= 2.0) {
-                    vals[m] = real(var_in[iq]) * real(nq);
-                    ++m;
-                }
-            }
-        }
-        real v;
-        if (m == 0) {
-            v = san_mad_variance(p, size);
-            atomicAdd(counters[3], 1u);
-        } else {
-            v = san_median(vals, m) / max(real(np), real(1));
-        }
-        var_out[i] = float(v);
-        atomicAdd(counters[2], 1u);
-    } else {
-        var_out[i] = var_in[i];
-    }
-}
-
-// Spec §0.4 step 4: the variance layer is missing; MAD estimate for valid
-// pixels, 0 for invalid ones.
-void stage_estimate(ivec2 p, ivec2 size, uint i)
-{
-    value_out[i] = value_in[i];
-    float v = 0.0;
-    if (san_valid(p)) {
-        v = float(san_mad_variance(p, size));
-        atomicAdd(counters[3], 1u);
-    }
-    var_out[i] = v;
-}
-
 void main()
 {
     uint x = gl_GlobalInvocationID.x;
@@ -154,12 +109,5 @@ void main()
     }
     ivec2 p = ivec2(x, y);
     ivec2 size = ivec2(push.width, push.height);
-    uint i = pix(p);
-    if (push.stage == 0u) {
-        stage_repair(p, size, i);
-    } else if (push.stage == 1u) {
-        stage_low_spp(p, size, i);
-    } else {
-        stage_estimate(p, size, i);
-    }
+    stage_repair(p, size, pix(p));
 }

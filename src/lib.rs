@@ -19,6 +19,7 @@
 //! the host's command buffer.
 
 pub mod accum;
+pub mod bench;
 pub mod error;
 pub mod gpu;
 pub mod image;

@@ -76,7 +76,7 @@ fn sanitize_matches_twin() {
                 for p in precisions() {
                     let (out, _) = run_planes(
                         &ctx,
-                        &sanitize::DECL,
+                        sanitize::decl(stage),
                         p,
                         bytemuck::bytes_of(&push),
                         w,

@@ -152,6 +152,10 @@ enum Command {
         #[arg(long = "opt", value_name = "KEY=VALUE")]
         opts: Vec<String>,
     },
+    /// Benchmark the methods: quality against references (--quality DIR) or
+    /// the time of whole denoise calls (default).
+    #[command(long_about = BENCH_LONG_ABOUT)]
+    Bench(BenchArgs),
 }
 
 fn context(cli: &Cli) -> anyhow::Result<Arc<GpuContext>> {
@@ -382,6 +386,7 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
             }
             Ok(true)
         }
+        Command::Bench(args) => bench(&cli, args),
     }
 }
 
@@ -433,6 +438,155 @@ fn print_report(r: &PrepareReport, input: &Path) {
     for line in r.messages(input) {
         eprintln!("{line}");
     }
+}
+
+/// The long help of `mcdenoise bench`.
+const BENCH_LONG_ABOUT: &str = "Benchmark the methods through the same API as `denoise`.\n\n\
+With --quality DIR: for every scene folder of DIR (sppN.exr inputs and a reference.exr, laid out \
+like ../shared/data/scenes/), every spp, method and backend: rMSE, relMSE, PSNR, SSIM against the \
+reference, wall and GPU time, and, for methods with an error estimate, the correlation of the \
+estimate with the actual error (8x8 tile means; `naive corr` uses the input's colour variance \
+instead). Cases are named method.scene.sppN; an `input` row scores the noisy input. Missing or \
+unreadable files skip their cases with a warning.\n\n\
+Without --quality: times cases named method.inputs.WxH on a synthetic 16-spp frame or --input \
+FILE: one warm-up call, then --runs timed calls; median wall time, ms per megapixel and GPU time \
+per kernel from timestamp queries.\n\n\
+Output: a Markdown table on stdout; --json / --markdown also write it to files.\n\n\
+Examples:\n  mcdenoise bench --quality ../shared/data/scenes --methods none\n  \
+mcdenoise bench --quality ../shared/data/scenes --filter spp16 --json q.json\n  \
+mcdenoise bench --size 512x512 --runs 5\n  mcdenoise bench --input scene/spp16.exr --backend both";
+
+#[derive(clap::Args)]
+struct BenchArgs {
+    /// Quality benchmark over this scenes folder (instead of the timing benchmark).
+    #[arg(long, value_name = "DIR")]
+    quality: Option<PathBuf>,
+    /// Methods to run, comma-separated [default: every method in this build].
+    #[arg(long, value_enum, value_delimiter = ',')]
+    methods: Vec<MethodArg>,
+    /// Where to run each method.
+    #[arg(long, value_enum, default_value = "gpu")]
+    backend: BenchBackendArg,
+    /// Run only the cases whose name contains this (`a|b`: either).
+    #[arg(long)]
+    filter: Option<String>,
+    /// Also write the results as JSON here.
+    #[arg(long, value_name = "FILE")]
+    json: Option<PathBuf>,
+    /// Also write the Markdown report here.
+    #[arg(long, value_name = "FILE")]
+    markdown: Option<PathBuf>,
+    /// Timing: a render-statistics file instead of the synthetic frame.
+    #[arg(long, value_name = "FILE", conflicts_with = "quality")]
+    input: Option<PathBuf>,
+    /// Timing: frame size; with --input, a centred crop [default: 256x256, or the file's size].
+    #[arg(long, value_name = "WxH", conflicts_with = "quality",
+          value_parser = |s: &str| mcdenoise::bench::parse_size(s).map_err(|e| e.to_string()))]
+    size: Option<(usize, usize)>,
+    /// Timing: timed runs per case (after one warm-up run).
+    #[arg(long, default_value_t = 3, conflicts_with = "quality")]
+    runs: usize,
+}
+
+#[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
+enum BenchBackendArg {
+    /// Vulkan compute kernels.
+    Gpu,
+    /// The scalar f64 reference implementation.
+    Cpu,
+    /// Both, one row each.
+    Both,
+}
+
+/// `mcdenoise bench`: runs [`mcdenoise::bench`], prints Markdown, writes files.
+fn bench(cli: &Cli, args: &BenchArgs) -> anyhow::Result<bool> {
+    use mcdenoise::bench::{self as b, Note};
+    let methods: Vec<Method> = args
+        .methods
+        .iter()
+        .map(|m| match m {
+            MethodArg::Wlr => Method::Wlr,
+            MethodArg::Lp => Method::Lp,
+            MethodArg::Apr => Method::Apr,
+            MethodArg::Aos => Method::Aos,
+            MethodArg::None => Method::None,
+        })
+        .collect();
+    let backends = match args.backend {
+        BenchBackendArg::Gpu => vec![Backend::Gpu],
+        BenchBackendArg::Cpu => vec![Backend::Cpu],
+        BenchBackendArg::Both => vec![Backend::Gpu, Backend::Cpu],
+    };
+    for path in [&args.json, &args.markdown].into_iter().flatten() {
+        if args.input.as_ref().is_some_and(|i| same_file(path, i)) {
+            bail!("{}: refusing to overwrite an input file", path.display());
+        }
+    }
+    let ctx = if backends.contains(&Backend::Gpu) {
+        Some(context(cli)?)
+    } else {
+        None
+    };
+    let quiet = cli.quiet;
+    let mut note = |n: Note| match n {
+        Note::Progress(s) if !quiet => eprintln!("bench: {s}"),
+        Note::Progress(_) => {}
+        Note::Warning(s) => eprintln!("bench: warning: {s}"),
+    };
+    let (markdown, json, empty) = if let Some(dir) = &args.quality {
+        let report = b::run_quality(
+            ctx.as_ref(),
+            &b::QualityConfig {
+                dir: dir.clone(),
+                methods,
+                backends,
+                filter: args.filter.clone(),
+            },
+            &mut note,
+        )?;
+        (
+            report.to_markdown(),
+            report.to_json(),
+            report.rows.is_empty(),
+        )
+    } else {
+        let report = b::run_timing(
+            ctx.as_ref(),
+            &b::TimingConfig {
+                methods,
+                backends,
+                input: match &args.input {
+                    Some(p) => b::TimingInput::File(p.clone()),
+                    None => b::TimingInput::Synthetic,
+                },
+                size: args.size,
+                runs: args.runs,
+                filter: args.filter.clone(),
+            },
+            &mut note,
+        )?;
+        (
+            report.to_markdown(),
+            report.to_json(),
+            report.rows.is_empty(),
+        )
+    };
+    print!("{markdown}");
+    if let Some(p) = &args.json {
+        b::write_text(p, &json)?;
+    }
+    if let Some(p) = &args.markdown {
+        b::write_text(p, &markdown)?;
+    }
+    if empty {
+        bail!(
+            "no benchmark case ran{}",
+            args.filter
+                .as_ref()
+                .map_or(String::new(), |f| format!(" (--filter {f:?})"))
+        );
+    }
+    Ok(true)
 }
 
 fn main() -> ExitCode {

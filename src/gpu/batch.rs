@@ -56,6 +56,9 @@ enum Mode {
 /// A sequence of dispatches. See the module documentation.
 pub struct Batch {
     ctx: Arc<GpuContext>,
+    /// Execute mode: a pool of the batch's own (command pools need external
+    /// synchronisation, so batches on different threads never share one).
+    pool: vk::CommandPool,
     cmd: vk::CommandBuffer,
     mode: Mode,
     desc_pools: Vec<vk::DescriptorPool>,
@@ -79,11 +82,20 @@ impl Batch {
     /// submitted and discards the rest.
     pub fn new(ctx: &Arc<GpuContext>) -> Result<Batch> {
         let dev = &ctx.device;
-        // SAFETY: pool and device are alive; freed in Drop.
+        // SAFETY: device alive; pool destroyed (with its buffer) in Drop.
+        let pool = unsafe {
+            dev.create_command_pool(
+                &vk::CommandPoolCreateInfo::default()
+                    .queue_family_index(ctx.queue_family)
+                    .flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER),
+                None,
+            )
+        }
+        .map_err(Error::vk("vkCreateCommandPool"))?;
         let cmd = unsafe {
             dev.allocate_command_buffers(
                 &vk::CommandBufferAllocateInfo::default()
-                    .command_pool(ctx.command_pool)
+                    .command_pool(pool)
                     .level(vk::CommandBufferLevel::PRIMARY)
                     .command_buffer_count(1),
             )
@@ -91,7 +103,7 @@ impl Batch {
         .map_err(Error::vk("vkAllocateCommandBuffers"))?[0];
         let fence = unsafe { dev.create_fence(&vk::FenceCreateInfo::default(), None) }
             .map_err(Error::vk("vkCreateFence"))?;
-        let mut b = Batch::empty(ctx, cmd, Mode::Execute { fence });
+        let mut b = Batch::empty(ctx, pool, cmd, Mode::Execute { fence });
         b.begin()?;
         Ok(b)
     }
@@ -106,12 +118,18 @@ impl Batch {
     /// family with compute capability, and is recording. The buffers bound by
     /// the recorded dispatches stay alive until the work completes.
     pub unsafe fn record_into(ctx: &Arc<GpuContext>, cmd: vk::CommandBuffer) -> Batch {
-        Batch::empty(ctx, cmd, Mode::Record)
+        Batch::empty(ctx, vk::CommandPool::null(), cmd, Mode::Record)
     }
 
-    fn empty(ctx: &Arc<GpuContext>, cmd: vk::CommandBuffer, mode: Mode) -> Batch {
+    fn empty(
+        ctx: &Arc<GpuContext>,
+        pool: vk::CommandPool,
+        cmd: vk::CommandBuffer,
+        mode: Mode,
+    ) -> Batch {
         Batch {
             ctx: ctx.clone(),
+            pool,
             cmd,
             mode,
             desc_pools: Vec::new(),
@@ -495,7 +513,7 @@ impl Drop for Batch {
         unsafe {
             if let Mode::Execute { fence } = self.mode {
                 dev.destroy_fence(fence, None);
-                dev.free_command_buffers(self.ctx.command_pool, &[self.cmd]);
+                dev.destroy_command_pool(self.pool, None);
             }
             for p in self.desc_pools.drain(..) {
                 dev.destroy_descriptor_pool(p, None);

@@ -91,8 +91,8 @@ unsafe extern "system" fn debug_callback(
 /// A device that mcdenoise runs on, either created by mcdenoise or imported
 /// from a host renderer ([`GpuContext::from_raw`]).
 ///
-/// Teardown order (on drop): wait for the device to be idle, free the
-/// allocator's memory blocks, destroy the command pool, then — only if this
+/// Teardown order (on drop): wait for the device to be idle, destroy the
+/// pipelines, free the allocator's memory blocks, then — only if this
 /// context created them — the device, the debug messenger and the instance.
 pub struct GpuContext {
     pub(crate) entry: ash::Entry,
@@ -102,7 +102,6 @@ pub struct GpuContext {
     pub(crate) queue: vk::Queue,
     pub(crate) queue_family: u32,
     pub(crate) allocator: Mutex<Option<Allocator>>,
-    pub(crate) command_pool: vk::CommandPool,
     pub(crate) info: DeviceInfo,
     pub(crate) f64_enabled: bool,
     owns_device: bool,
@@ -454,12 +453,6 @@ impl GpuContext {
             bytes: 0,
             source,
         })?;
-        let pool_info = vk::CommandPoolCreateInfo::default()
-            .queue_family_index(queue_family)
-            .flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER);
-        // SAFETY: valid device; destroyed in Drop.
-        let command_pool = unsafe { device.create_command_pool(&pool_info, None) }
-            .map_err(Error::vk("vkCreateCommandPool"))?;
         Ok(GpuContext {
             entry,
             instance,
@@ -468,7 +461,6 @@ impl GpuContext {
             queue,
             queue_family,
             allocator: Mutex::new(Some(allocator)),
-            command_pool,
             info,
             f64_enabled,
             owns_device,
@@ -555,7 +547,6 @@ impl Drop for GpuContext {
             let _ = self.device.device_wait_idle();
             self.pipelines.lock().unwrap().destroy(&self.device);
             drop(self.allocator.lock().unwrap().take());
-            self.device.destroy_command_pool(self.command_pool, None);
             if self.owns_device {
                 self.device.destroy_device(None);
                 if let Some((du, m)) = self.debug.take() {

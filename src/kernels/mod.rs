@@ -5,9 +5,11 @@
 
 use crate::gpu::KernelDecl;
 
+pub mod estimate_variance;
 pub mod finalize_covariance;
 pub mod finalize_stats;
 pub mod sanitize;
+pub mod sanitize_low_spp;
 pub mod tsvd_debug;
 
 /// Every kernel, for the reflection test and `mcdenoise bench`.
@@ -15,6 +17,8 @@ pub const ALL: &[&KernelDecl] = &[
     &finalize_stats::DECL,
     &finalize_covariance::DECL,
     &sanitize::DECL,
+    &sanitize_low_spp::DECL,
+    &estimate_variance::DECL,
     &tsvd_debug::DECL,
 ];
 

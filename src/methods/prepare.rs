@@ -245,12 +245,18 @@ impl PrepareScratch {
 
 /// Records the sanitation of `input` into `out` (which holds
 /// [`output_layers`] of the input's layers). GPU-resident: nothing is read back.
+///
+/// `low_spp`: whether some pixel may have `1 <= spp < 2` (spec §0.4 step 3).
+/// Pass `true` when unknown; `false` skips that stage (a renderer that took at
+/// least two samples everywhere knows it), which is exact because the stage
+/// only changes such pixels.
 pub fn record_prepare(
     batch: &mut Batch,
     precision: Precision,
     input: &GpuStats,
     out: &GpuStats,
     scratch: &PrepareScratch,
+    low_spp: bool,
 ) -> Result<()> {
     let (w, h) = (input.width as u32, input.height as u32);
     let spp = input.plane(Layer::Spp, 0);
@@ -271,28 +277,36 @@ pub fn record_prepare(
             } else {
                 value
             };
-            sanitize::record(
-                batch,
-                precision,
-                w,
-                h,
-                0,
-                has_var,
-                [value, var_in, spp, tmp_val, tmp_var],
-                counters(channel),
-            )?;
-            let stage = if has_var { 1 } else { 2 };
             let (ov, ovar) = (out.plane(layer, c), out.plane(var_layer, c));
-            sanitize::record(
-                batch,
-                precision,
-                w,
-                h,
-                stage,
-                has_var,
-                [tmp_val, tmp_var, spp, ov, ovar],
-                counters(channel),
-            )?;
+            if has_var && !low_spp {
+                // Stage 0 alone is the whole sanitation of this channel.
+                let planes = [value, var_in, spp, ov, ovar];
+                sanitize::record(batch, precision, w, h, 0, true, planes, counters(channel))?;
+            } else {
+                let planes = [value, var_in, spp, tmp_val, tmp_var];
+                sanitize::record(
+                    batch,
+                    precision,
+                    w,
+                    h,
+                    0,
+                    has_var,
+                    planes,
+                    counters(channel),
+                )?;
+                let stage = if has_var { 1 } else { 2 };
+                let planes = [tmp_val, tmp_var, spp, ov, ovar];
+                sanitize::record(
+                    batch,
+                    precision,
+                    w,
+                    h,
+                    stage,
+                    has_var,
+                    planes,
+                    counters(channel),
+                )?;
+            }
             channel += 1;
         }
     }
@@ -336,8 +350,12 @@ pub fn prepare_gpu(
         &output_layers(&layers),
     )?;
     let scratch = PrepareScratch::new(ctx, &input)?;
+    let low_spp = img.get(Layer::Spp).unwrap()[0].iter().any(|&s| {
+        let n = spp_of(s);
+        (1.0..2.0).contains(&n)
+    });
     let mut batch = Batch::new(ctx)?;
-    record_prepare(&mut batch, precision, &input, &out, &scratch)?;
+    record_prepare(&mut batch, precision, &input, &out, &scratch, low_spp)?;
     batch.finish()?;
     let mut report = base_report(img);
     report.counters = scratch.read_counters()?;

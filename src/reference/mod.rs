@@ -1,18 +1,25 @@
 //! Scalar f64 twins of the GLSL kernels (`spirv/<name>.comp` ↔
 //! `reference/<name>.rs`) and of the shared GLSL libraries
-//! (`spirv/lib/<name>.glsl` ↔ [`linalg`], [`tsvd`]).
+//! (`spirv/lib/<name>.glsl` ↔ [`linalg`], [`tsvd`], [`wlr`]).
 //!
 //! A twin takes the same planes (f32 slices) and push constants as its kernel
 //! and loops over the same pixel grid, computing in f64 and storing f32, so
 //! any kernel can be replaced by its twin and a GPU/CPU mismatch can be
 //! bisected kernel by kernel (spec §0.3 gives the tolerances).
 
+pub mod channel_mean;
+pub mod estimate_variance;
 pub mod finalize_covariance;
 pub mod finalize_stats;
+pub mod gauss_smooth;
 pub mod linalg;
 pub mod sanitize;
+pub mod sanitize_low_spp;
 pub mod tsvd;
 pub mod tsvd_debug;
+pub mod wlr;
+pub mod wlr_final;
+pub mod wlr_fit;
 
 /// The sample count as every kernel reads it (spec §0.2); a pixel is valid iff
 /// `spp_of(n) >= 1`. Mirrors `spp_of` in `spirv/lib/common.glsl`.

@@ -1,0 +1,163 @@
+#version 460
+// WLR steps 9-10 (spec §2.3) per pixel: the TSVD and the curvature
+// bandwidths b_j recomputed exactly as in wlr_fit (same code), the final
+// local linear fit at h = hbar_c (FEW, NONNEG, rejection per options), output
+// clamped >= 0 (§0.4 step 5), and MSE_c from the model wlr_fit stored.
+// Scalar twin: src/reference/wlr_final.rs (routines: src/reference/wlr.rs).
+//
+// flags = wlr_fit's flags | bit 1 FEW in the final fit | bit 0 SOLVE-FAIL
+// (then output y_c and MSE = vbar_c). Invalid centre (§0.2): the mean colour
+// of its valid 3x3 neighbours (or 0), mse 0, flags bit 5.
+#include "lib/common.glsl"
+
+layout(local_size_x = 8, local_size_y = 8) in;
+
+// Mirrors mcdenoise::shared::WlrPush.
+layout(push_constant) uniform Push {
+    uint width;
+    uint height;
+    uint row0;
+    uint radius;
+    uint options;
+    uint pad0;
+    uint pad1;
+    uint pad2;
+} push;
+
+PLANE_IN(0, nx)
+PLANE_IN(1, ny)
+PLANE_IN(2, nz)
+PLANE_IN(3, dep)
+PLANE_IN(4, ar)
+PLANE_IN(5, ag)
+PLANE_IN(6, ab)
+PLANE_IN(7, v_nx)
+PLANE_IN(8, v_ny)
+PLANE_IN(9, v_nz)
+PLANE_IN(10, v_dep)
+PLANE_IN(11, v_ar)
+PLANE_IN(12, v_ag)
+PLANE_IN(13, v_ab)
+PLANE_IN(14, col_r)
+PLANE_IN(15, col_g)
+PLANE_IN(16, col_b)
+PLANE_IN(17, vbar_p)
+PLANE_IN(18, spp)
+PLANE_IN(19, hbar_p)
+PLANE_IN(20, lambda1_p)
+PLANE_IN(21, kappa0_p)
+PLANE_IN(22, kappa1_p)
+PLANE_IN(23, kflags_p)
+PLANE_OUT(24, out_r)
+PLANE_OUT(25, out_g)
+PLANE_OUT(26, out_b)
+PLANE_OUT(27, mse_out)
+PLANE_OUT(28, flags_out)
+
+#define WLR_NFIT 1
+
+// As in wlr_fit.comp.
+bool load_features(ivec2 p, out real x[9], out real e2[9])
+{
+    uint i = uint(p.y) * push.width + uint(p.x);
+    x[0] = real(p.x);
+    x[1] = real(p.y);
+    x[2] = real(nx[i]);
+    x[3] = real(ny[i]);
+    x[4] = real(nz[i]);
+    x[5] = real(dep[i]);
+    x[6] = real(ar[i]);
+    x[7] = real(ag[i]);
+    x[8] = real(ab[i]);
+    e2[0] = real(0);
+    e2[1] = real(0);
+    e2[2] = real(v_nx[i]);
+    e2[3] = real(v_ny[i]);
+    e2[4] = real(v_nz[i]);
+    e2[5] = real(v_dep[i]);
+    e2[6] = real(v_ar[i]);
+    e2[7] = real(v_ag[i]);
+    e2[8] = real(v_ab[i]);
+    return spp_of(spp[i]) >= 1.0;
+}
+
+void load_colour(ivec2 p, out real3 y, out real vbar)
+{
+    uint i = uint(p.y) * push.width + uint(p.x);
+    y = real3(col_r[i], col_g[i], col_b[i]);
+    vbar = real(vbar_p[i]);
+}
+
+#include "lib/wlr.glsl"
+
+void main()
+{
+    uint x = gl_GlobalInvocationID.x;
+    uint y = push.row0 + gl_GlobalInvocationID.y;
+    if (x >= push.width || y >= push.height) {
+        return;
+    }
+    uint i = y * push.width + x;
+    ivec2 c = ivec2(x, y);
+    ivec2 size = ivec2(push.width, push.height);
+    float n = spp_of(spp[i]);
+    real3 f = real3(0);
+    float mse = 0.0;
+    int flags = 0;
+    if (n < 1.0) {
+        // §0.2: mean of the valid 3x3 neighbours.
+        real3 sum = real3(0);
+        int cnt = 0;
+        for (int qy = max(c.y - 1, 0); qy <= min(c.y + 1, size.y - 1); ++qy) {
+            for (int qx = max(c.x - 1, 0); qx <= min(c.x + 1, size.x - 1); ++qx) {
+                uint q = uint(qy) * push.width + uint(qx);
+                if (spp_of(spp[q]) >= 1.0) {
+                    sum += real3(col_r[q], col_g[q], col_b[q]);
+                    ++cnt;
+                }
+            }
+        }
+        f = cnt > 0 ? sum / real(cnt) : real3(0);
+        flags = WLR_F_INVALID;
+    } else {
+        int R = int(push.radius);
+        int kf = int(kflags_p[i] + 0.5);
+        int k_st = kf % 16;
+        flags = kf / 16;
+        double h = clamp(double(hbar_p[i]), WLR_H_MIN, WLR_H_MAX);
+        LocalSpace ls = tsvd_local_space(c, R, size);
+        WlrCentre cc = wlr_centre(c, real(n));
+        f = cc.y;
+        bool failed = false;
+        if (ls.k == 0) {
+            flags |= WLR_F_K0;
+        } else {
+            WlrProj pr = wlr_projection(ls);
+            real b[MAX_D];
+            real Hb[MAX_D];
+            if (!wlr_curvature(pr, cc, R, size, push.options, b, Hb)) {
+                flags |= WLR_F_SOLVE_FAIL;
+                failed = true;
+            } else {
+                // Step 9: step 5's fit at h = hbar_c.
+                real hs[1];
+                hs[0] = real(h);
+                WlrFit fit[1];
+                wlr_fits(pr, cc, b, hs, R, size, push.options, real(WLR_FIT_LAMBDA), fit);
+                f = fit[0].f;
+                flags |= fit[0].flags;
+                failed = (fit[0].flags & WLR_F_SOLVE_FAIL) != 0;
+            }
+        }
+        // Step 10 (SOLVE-FAIL: the error of the pass-through, vbar_c).
+        mse = failed ? float(max(cc.vbar, real(0)))
+                     : float(wlr_mse_model(double(lambda1_p[i]), double(kappa0_p[i]),
+                                           double(kappa1_p[i]), k_st, double(n), h));
+        f = max(f, real3(0));
+    }
+    out_r[i] = float(f.r);
+    out_g[i] = float(f.g);
+    out_b[i] = float(f.b);
+    mse_out[i] = mse;
+    flags_out[i] = float(flags);
+}

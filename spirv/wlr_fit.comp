@@ -1,0 +1,162 @@
+#version 460
+// WLR steps 1-7 (spec §2.3) per pixel: TSVD, curvature bandwidths b_j, the
+// five trial fits, the parametric fits (double) and h_opt with H-CASES.
+// Scalar twin: src/reference/wlr_fit.rs (routines: src/reference/wlr.rs).
+//
+// Outputs: h_opt, lambda1, kappa0, kappa1 of the MSE model
+// MSE(h) = (lambda1 h^2)^2 + (kappa0 + kappa1 h^-k)/n_c (pass-through and
+// kappa1 <= 0 pixels: lambda1 = kappa1 = 0, kappa0 = n_c MSE_fixed),
+// kflags = k + 16 flags (§2.5 bits 0, 2, 3, 4), b_1..b_3 (0 for j >= k).
+// An invalid centre gets 0 everywhere.
+#include "lib/common.glsl"
+
+layout(local_size_x = 8, local_size_y = 8) in;
+
+// Mirrors mcdenoise::shared::WlrPush.
+layout(push_constant) uniform Push {
+    uint width;
+    uint height;
+    uint row0;
+    uint radius;
+    uint options;
+    uint pad0;
+    uint pad1;
+    uint pad2;
+} push;
+
+PLANE_IN(0, nx)
+PLANE_IN(1, ny)
+PLANE_IN(2, nz)
+PLANE_IN(3, dep)
+PLANE_IN(4, ar)
+PLANE_IN(5, ag)
+PLANE_IN(6, ab)
+PLANE_IN(7, v_nx)
+PLANE_IN(8, v_ny)
+PLANE_IN(9, v_nz)
+PLANE_IN(10, v_dep)
+PLANE_IN(11, v_ar)
+PLANE_IN(12, v_ag)
+PLANE_IN(13, v_ab)
+PLANE_IN(14, col_r)
+PLANE_IN(15, col_g)
+PLANE_IN(16, col_b)
+PLANE_IN(17, vbar_p)
+PLANE_IN(18, spp)
+PLANE_OUT(19, h_opt_out)
+PLANE_OUT(20, lambda1_out)
+PLANE_OUT(21, kappa0_out)
+PLANE_OUT(22, kappa1_out)
+PLANE_OUT(23, kflags_out)
+PLANE_OUT(24, b1_out)
+PLANE_OUT(25, b2_out)
+PLANE_OUT(26, b3_out)
+
+#define WLR_NFIT 5
+
+// Features (px, py, nrm xyz, dep, albedo rgb), variances (0, 0, vn xyz, vd,
+// va rgb); valid iff spp_of >= 1 (spec §0.2, §2.1).
+bool load_features(ivec2 p, out real x[9], out real e2[9])
+{
+    uint i = uint(p.y) * push.width + uint(p.x);
+    x[0] = real(p.x);
+    x[1] = real(p.y);
+    x[2] = real(nx[i]);
+    x[3] = real(ny[i]);
+    x[4] = real(nz[i]);
+    x[5] = real(dep[i]);
+    x[6] = real(ar[i]);
+    x[7] = real(ag[i]);
+    x[8] = real(ab[i]);
+    e2[0] = real(0);
+    e2[1] = real(0);
+    e2[2] = real(v_nx[i]);
+    e2[3] = real(v_ny[i]);
+    e2[4] = real(v_nz[i]);
+    e2[5] = real(v_dep[i]);
+    e2[6] = real(v_ar[i]);
+    e2[7] = real(v_ag[i]);
+    e2[8] = real(v_ab[i]);
+    return spp_of(spp[i]) >= 1.0;
+}
+
+void load_colour(ivec2 p, out real3 y, out real vbar)
+{
+    uint i = uint(p.y) * push.width + uint(p.x);
+    y = real3(col_r[i], col_g[i], col_b[i]);
+    vbar = real(vbar_p[i]);
+}
+
+#include "lib/wlr.glsl"
+
+void main()
+{
+    uint x = gl_GlobalInvocationID.x;
+    uint y = push.row0 + gl_GlobalInvocationID.y;
+    if (x >= push.width || y >= push.height) {
+        return;
+    }
+    uint i = y * push.width + x;
+    float o[8];
+    for (int j = 0; j < 8; ++j) {
+        o[j] = 0.0;
+    }
+    float n = spp_of(spp[i]);
+    if (n >= 1.0) {
+        ivec2 c = ivec2(x, y);
+        ivec2 size = ivec2(push.width, push.height);
+        int R = int(push.radius);
+        // Step 1: TSVD (§0.6).
+        LocalSpace ls = tsvd_local_space(c, R, size);
+        WlrCentre cc = wlr_centre(c, real(n));
+        int k = ls.k;
+        int flags = 0;
+        // Pass-through model: h_opt = 0.2, MSE = vbar_c.
+        dvec4 model = dvec4(wlr_trial_h(0), 0.0lf, double(n) * double(cc.vbar), 0.0lf);
+        if (k == 0) {
+            flags |= WLR_F_K0;
+        } else {
+            WlrProj pr = wlr_projection(ls);
+            real b[MAX_D];
+            real Hb[MAX_D];
+            // Step 4.
+            if (!wlr_curvature(pr, cc, R, size, push.options, b, Hb)) {
+                flags |= WLR_F_SOLVE_FAIL;
+            } else {
+                o[5] = float(b[0]);
+                o[6] = float(b[1]);
+                o[7] = float(b[2]);
+                // Step 5: the five trial fits.
+                real hs[WLR_NFIT];
+                for (int s = 0; s < WLR_NFIT; ++s) {
+                    hs[s] = real(wlr_trial_h(s));
+                }
+                WlrFit fit[WLR_NFIT];
+                wlr_fits(pr, cc, b, hs, R, size, push.options, real(WLR_FIT_LAMBDA), fit);
+                double bias[5];
+                double var[5];
+                for (int s = 0; s < 5; ++s) {
+                    flags |= fit[s].flags & WLR_F_SOLVE_FAIL;
+                    bias[s] = double(fit[s].bias);
+                    var[s] = double(fit[s].var);
+                }
+                // Steps 6-7 in double.
+                dvec4 par = wlr_parametric(bias, var, k, double(n));
+                model = wlr_choose_h(par, k, double(n), bias[0], var[0], flags);
+            }
+        }
+        o[0] = float(model.x);
+        o[1] = float(model.y);
+        o[2] = float(model.z);
+        o[3] = float(model.w);
+        o[4] = float(k + 16 * flags);
+    }
+    h_opt_out[i] = o[0];
+    lambda1_out[i] = o[1];
+    kappa0_out[i] = o[2];
+    kappa1_out[i] = o[3];
+    kflags_out[i] = o[4];
+    b1_out[i] = o[5];
+    b2_out[i] = o[6];
+    b3_out[i] = o[7];
+}
