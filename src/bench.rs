@@ -387,8 +387,9 @@ const SPHERES: [(V3, f64, V3); 3] = [
     ([0.6, -0.4, -0.8], 0.6, [0.20, 0.45, 0.80]),
     ([1.6, -0.65, 0.9], 0.35, [0.90, 0.85, 0.30]),
 ];
-/// The ground plane `y = GROUND_Y`.
+/// The ground: the square `|x|, |z| ≤ GROUND_HALF_SIZE` of the plane `y = GROUND_Y`.
 const GROUND_Y: f64 = -1.0;
+const GROUND_HALF_SIZE: f64 = 12.0;
 
 /// Nearest sphere hit along `o + t d` (`d` unit) with `t > tmin`: (t, index).
 fn hit_sphere(o: V3, d: V3, tmin: f64) -> Option<(f64, usize)> {
@@ -430,7 +431,10 @@ fn trace(o: V3, d: V3) -> Hit {
     let sun: V3 = [2.4, 2.2, 1.9];
     let ambient: V3 = [0.25, 0.30, 0.40];
     let sphere = hit_sphere(o, d, 1e-6);
-    let ground = (d[1] < 0.0).then(|| (GROUND_Y - o[1]) / d[1]);
+    let ground = (d[1] < 0.0).then(|| (GROUND_Y - o[1]) / d[1]).filter(|&t| {
+        let p = add(o, scale(d, t));
+        p[0].abs() <= GROUND_HALF_SIZE && p[2].abs() <= GROUND_HALF_SIZE
+    });
     let (t, normal, albedo) = match (sphere, ground) {
         (Some((ts, k)), g) if g.map_or(true, |tg| ts < tg) => {
             let p = add(o, scale(d, ts));
@@ -481,7 +485,7 @@ const DISTANCE_SIGMA: f64 = 0.01;
 /// A deterministic render-statistics frame of `width × height` pixels at
 /// `spp` samples per pixel (≥ 1), for benchmarks and tests.
 ///
-/// The scene: a pinhole camera over a checkered ground plane with three
+/// The scene: a pinhole camera over a checkered ground square with three
 /// spheres, lit by a sun (with shadows) and a sky term; rays that miss see a
 /// smooth sky gradient and have all features 0 (as in the input format).
 ///

@@ -5,12 +5,16 @@
 
 use crate::gpu::KernelDecl;
 
+pub mod channel_mean;
 pub mod estimate_variance;
 pub mod finalize_covariance;
 pub mod finalize_stats;
+pub mod gauss_smooth;
 pub mod sanitize;
 pub mod sanitize_low_spp;
 pub mod tsvd_debug;
+pub mod wlr_final;
+pub mod wlr_fit;
 
 /// Every kernel, for the reflection test and `mcdenoise bench`.
 pub const ALL: &[&KernelDecl] = &[
@@ -20,6 +24,10 @@ pub const ALL: &[&KernelDecl] = &[
     &sanitize_low_spp::DECL,
     &estimate_variance::DECL,
     &tsvd_debug::DECL,
+    &channel_mean::DECL,
+    &gauss_smooth::DECL,
+    &wlr_fit::DECL,
+    &wlr_final::DECL,
 ];
 
 use std::sync::Arc;

@@ -1,0 +1,57 @@
+//! `gauss_smooth`: the Gaussian map smoothing `G_σ` of spec §0.5 over valid
+//! pixels (`spp_of >= 1`), not edge-aware; used for `hbar = G_1(h_opt)`
+//! (§2.3 step 8) and for the sampling map (§9.1 MAP-SMOOTH).
+//! Twin: [`crate::reference::gauss_smooth`].
+
+use crate::error::Result;
+use crate::gpu::reflect::{read, write};
+use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};
+use crate::shared::SmoothPush;
+
+pub const DECL: KernelDecl = KernelDecl {
+    name: "gauss_smooth",
+    bindings: &[read("map"), read("spp"), write("out")],
+    push_size: std::mem::size_of::<SmoothPush>() as u32,
+};
+
+/// The window radius `ceil(3σ)` of §0.5 (0 for `σ <= 0`).
+pub fn radius(sigma: f32) -> u32 {
+    (3.0 * sigma as f64).ceil().max(0.0) as u32
+}
+
+/// Per pixel: `(2r+1)²` neighbours × (validity, weight with one `exp`, 2 FMAs).
+pub fn flops_per_pixel(sigma: f32) -> f64 {
+    let r = radius(sigma) as f64;
+    (2.0 * r + 1.0).powi(2) * 12.0
+}
+
+/// Records `out = G_σ(map)` over a `width × height` image; `spp` gives the
+/// validity. Invalid pixels receive the smoothed value of their valid
+/// neighbours (0 if none).
+pub fn record(
+    batch: &mut Batch,
+    precision: Precision,
+    width: u32,
+    height: u32,
+    sigma: f32,
+    map: BufferSlice,
+    spp: BufferSlice,
+    out: BufferSlice,
+) -> Result<()> {
+    let push = SmoothPush {
+        width,
+        height,
+        radius: radius(sigma),
+        sigma,
+        ..Default::default()
+    };
+    batch.dispatch(
+        &DECL,
+        precision,
+        &[map, spp, out],
+        bytemuck::bytes_of(&push),
+        width,
+        height,
+        flops_per_pixel(sigma),
+    )
+}

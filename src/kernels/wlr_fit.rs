@@ -1,0 +1,111 @@
+//! `wlr_fit`: WLR steps 1–7 (spec §2.3) per pixel — TSVD (§0.6), curvature
+//! bandwidths `b_j`, the five trial fits, the parametric fits and `h_opt`.
+//! The per-pixel routines live in `spirv/lib/wlr.glsl`, shared with
+//! `wlr_final`. Twin: [`crate::reference::wlr_fit`].
+//!
+//! Outputs (bindings 19..26): `h_opt`; `λ1`, `κ0`, `κ1` of the model
+//! `MSE(h) = (λ1 h²)² + (κ0 + κ1 h^{-k})/n_c` that `wlr_final` evaluates at
+//! `hbar` (for `κ1 <= 0`, `k = 0` and SOLVE-FAIL of the curvature fit:
+//! `λ1 = κ1 = 0`, `κ0 = n_c·MSE_fixed`); `kflags = k + 16·flags` (§2.5 bits
+//! 0, 2, 3, 4); `b_1..b_3` (debug, 0 for `j >= k`). Invalid centre: all 0.
+
+use crate::error::Result;
+use crate::gpu::reflect::{read, write};
+use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};
+use crate::shared::WlrPush;
+
+pub const DECL: KernelDecl = KernelDecl {
+    name: "wlr_fit",
+    bindings: &[
+        read("normal_x"),
+        read("normal_y"),
+        read("normal_z"),
+        read("depth"),
+        read("albedo_r"),
+        read("albedo_g"),
+        read("albedo_b"),
+        read("var_normal_x"),
+        read("var_normal_y"),
+        read("var_normal_z"),
+        read("var_depth"),
+        read("var_albedo_r"),
+        read("var_albedo_g"),
+        read("var_albedo_b"),
+        read("color_r"),
+        read("color_g"),
+        read("color_b"),
+        read("vbar"),
+        read("spp"),
+        write("h_opt"),
+        write("lambda1"),
+        write("kappa0"),
+        write("kappa1"),
+        write("kflags"),
+        write("b1"),
+        write("b2"),
+        write("b3"),
+    ],
+    push_size: std::mem::size_of::<WlrPush>() as u32,
+};
+
+/// Names of the 8 output maps, in binding order.
+pub const OUTPUTS: [&str; 8] = [
+    "h_opt", "lambda1", "kappa0", "kappa1", "kflags", "b1", "b2", "b3",
+];
+
+/// Per pixel: `(2R+1)²` neighbours × (TSVD: two passes with two 9×9 Gram
+/// updates; curvature pass: projection + 15 4×4 outer products; two trial
+/// passes: projection + 5 × (kernel + 6 outer products / 3 dots)) plus the
+/// Jacobi and Cholesky solves.
+pub fn flops_per_pixel(radius: u32) -> f64 {
+    let n = ((2 * radius + 1) * (2 * radius + 1)) as f64;
+    let tsvd = 2.0 * 81.0 * 2.0 + 40.0;
+    let proj = 3.0 * 2.0 * 81.0;
+    let curv = 15.0 * 32.0 + 30.0 * 2.0;
+    let trials = 5.0 * (6.0 * 32.0 + 30.0) + 5.0 * (30.0 + 40.0);
+    n * (tsvd + proj + curv + trials) + 2.0 * 10.0 * 81.0 * 9.0 * 4.0 + 6.0 * 19.0f64.powi(3)
+}
+
+/// Records `wlr_fit` over a `width × height` image with window radius
+/// `radius` (5 intermediate, 9 final) and `options` ([`WlrPush::options`]
+/// bits). `features` = normal xyz, depth, albedo rgb; `variances` in the same
+/// order; `color` = R, G, B; `vbar` = mean colour variance; `out` = the 8 maps
+/// of [`OUTPUTS`].
+pub fn record(
+    batch: &mut Batch,
+    precision: Precision,
+    width: u32,
+    height: u32,
+    radius: u32,
+    options: u32,
+    features: [BufferSlice; 7],
+    variances: [BufferSlice; 7],
+    color: [BufferSlice; 3],
+    vbar: BufferSlice,
+    spp: BufferSlice,
+    out: [BufferSlice; 8],
+) -> Result<()> {
+    let push = WlrPush {
+        width,
+        height,
+        radius,
+        options,
+        ..Default::default()
+    };
+    let mut b = Vec::with_capacity(27);
+    b.extend_from_slice(&features);
+    b.extend_from_slice(&variances);
+    b.extend_from_slice(&color);
+    b.push(vbar);
+    b.push(spp);
+    b.extend_from_slice(&out);
+    batch.dispatch(
+        &DECL,
+        precision,
+        &b,
+        bytemuck::bytes_of(&push),
+        width,
+        height,
+        flops_per_pixel(radius),
+    )
+}
