@@ -323,8 +323,8 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
             };
             if !method.available() {
                 bail!(
-                    "method {} is not in this build yet: only `--method none` (sanitised input) is; \
-                     the reconstruction methods land with their own issues",
+                    "method {} is not in this build yet: `wlr` and `none` (sanitised input) are; \
+                     the other reconstruction methods land with their own issues",
                     method.name()
                 );
             }

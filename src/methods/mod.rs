@@ -4,6 +4,7 @@
 
 pub mod prepare;
 pub mod stats;
+pub mod wlr;
 
 use std::sync::Arc;
 
@@ -50,7 +51,7 @@ impl Method {
 
     /// Methods built into this version.
     pub fn available(self) -> bool {
-        matches!(self, Method::None)
+        matches!(self, Method::None | Method::Wlr)
     }
 }
 
@@ -116,9 +117,41 @@ pub fn denoise(
 ) -> Result<DenoiseOutput> {
     if !req.method.available() {
         return Err(Error::InvalidArgument(format!(
-            "method {} is not in this build yet: only `none` (sanitised input) is",
+            "method {} is not in this build yet: `wlr` and `none` (sanitised input) are",
             req.method.name()
         )));
+    }
+    if req.method == Method::Wlr {
+        let params = wlr::WlrParams::new(req.pass, &req.options)?;
+        let (result, report, timings) = match req.backend {
+            Backend::Cpu => {
+                if !img.has(crate::image::Layer::Color) || !img.has(crate::image::Layer::Spp) {
+                    return Err(Error::BadData("WLR needs the color and spp layers".into()));
+                }
+                let (clean, report) = prepare::prepare_cpu(img);
+                (wlr::run_cpu(&clean, params)?, report, Vec::new())
+            }
+            Backend::Gpu => {
+                let ctx = ctx.ok_or_else(|| {
+                    Error::InvalidArgument("the GPU backend needs a context".into())
+                })?;
+                wlr_gpu(ctx, req.precision, img, params)?
+            }
+        };
+        let mse = result.mse.clone();
+        return Ok(DenoiseOutput {
+            color: result.color.clone(),
+            error: req.error.then(|| {
+                RgbImage::from_planes(img.width, img.height, [mse.clone(), mse.clone(), mse])
+            }),
+            debug: if req.debug {
+                result.debug_layers()
+            } else {
+                Vec::new()
+            },
+            report,
+            timings,
+        });
     }
     let (clean, report) = prepare::prepare(ctx, req.backend, req.precision, img)?;
     match req.method {
@@ -140,4 +173,48 @@ pub fn denoise(
         }
         _ => unreachable!("checked by Method::available"),
     }
+}
+
+/// Sanitation and WLR in one GPU batch: one upload, one download.
+fn wlr_gpu(
+    ctx: &Arc<GpuContext>,
+    precision: Precision,
+    img: &StatsImage,
+    params: wlr::WlrParams,
+) -> Result<(wlr::WlrResult, prepare::PrepareReport, Vec<KernelTiming>)> {
+    use crate::image::Layer;
+    for l in [
+        Layer::Color,
+        Layer::Albedo,
+        Layer::Normal,
+        Layer::Depth,
+        Layer::Spp,
+    ] {
+        if !img.has(l) {
+            return Err(Error::BadData(format!("WLR needs the {} layer", l.name())));
+        }
+    }
+    let input = stats::GpuStats::upload(ctx, "input", img)?;
+    let layers: Vec<Layer> = img.layers().map(|(l, _)| l).collect();
+    let clean = stats::GpuStats::new(
+        ctx,
+        "clean",
+        img.width,
+        img.height,
+        &prepare::output_layers(&layers),
+    )?;
+    let scratch = prepare::PrepareScratch::new(ctx, &input)?;
+    let planes = wlr::WlrPlanes::new(ctx, img.width, img.height)?;
+    let low_spp = prepare::has_low_spp(img);
+    let mut batch = crate::gpu::Batch::new(ctx)?;
+    prepare::record_prepare(&mut batch, precision, &input, &clean, &scratch, low_spp)?;
+    wlr::record_wlr(&mut batch, precision, &clean, &planes, params)?;
+    let timings = batch.finish()?;
+    let mut report = prepare::base_report(img);
+    report.counters = scratch.read_counters()?;
+    Ok((
+        wlr::download(&planes, img.width, img.height)?,
+        report,
+        timings,
+    ))
 }

@@ -105,7 +105,8 @@ pub fn prepare(
     }
 }
 
-fn base_report(img: &StatsImage) -> PrepareReport {
+/// The report's parts known before running: estimated layers, invalid pixels.
+pub fn base_report(img: &StatsImage) -> PrepareReport {
     let layers: Vec<Layer> = img.layers().map(|(l, _)| l).collect();
     PrepareReport {
         counters: [0; 4],
@@ -350,10 +351,7 @@ pub fn prepare_gpu(
         &output_layers(&layers),
     )?;
     let scratch = PrepareScratch::new(ctx, &input)?;
-    let low_spp = img.get(Layer::Spp).unwrap()[0].iter().any(|&s| {
-        let n = spp_of(s);
-        (1.0..2.0).contains(&n)
-    });
+    let low_spp = has_low_spp(img);
     let mut batch = Batch::new(ctx)?;
     record_prepare(&mut batch, precision, &input, &out, &scratch, low_spp)?;
     batch.finish()?;
@@ -367,6 +365,12 @@ pub fn prepare_gpu(
         .collect();
     clean.set(Layer::Spp, vec![spp]);
     Ok((clean, report))
+}
+
+/// Whether some pixel has `1 <= spp < 2` (spec §0.4 step 3 applies).
+pub fn has_low_spp(img: &StatsImage) -> bool {
+    img.get(Layer::Spp)
+        .is_some_and(|s| s[0].iter().any(|&v| (1.0..2.0).contains(&spp_of(v))))
 }
 
 /// The colour layer as an image, clamped to ≥ 0 (spec §0.4 step 5). Invalid

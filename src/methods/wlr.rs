@@ -1,0 +1,303 @@
+//! WLR: weighted local regression (spec §2) as a sequence of kernels:
+//!
+//! ```text
+//! channel_mean  color_variance R,G,B → vbar
+//! wlr_fit       steps 1–7: TSVD, curvature → b_j, five trial fits, parametric fits, h_opt
+//! gauss_smooth  step 8: hbar = G_1(h_opt)
+//! wlr_final     steps 9–10: final fit with hbar, MSE
+//! ```
+//!
+//! [`record_wlr`] records them on GPU-resident, sanitised statistics
+//! ([`GpuStats`]); [`run_cpu`] runs the scalar twins in the same order.
+
+use std::sync::Arc;
+
+use super::stats::GpuStats;
+use super::Pass;
+use crate::error::{Error, Result};
+use crate::gpu::{Batch, BufferSlice, GpuContext, PlaneSet, Precision};
+use crate::image::{Layer, RgbImage, StatsImage};
+use crate::kernels::{channel_mean, gauss_smooth, wlr_final, wlr_fit};
+use crate::options::Options;
+use crate::reference;
+use crate::shared::{
+    ChannelMeanPush, SmoothPush, WlrPush, WLR_NONNEG, WLR_OUTLIER_CLAMPED, WLR_REJECT,
+};
+
+/// Window radius of the final pass (19x19) and of intermediate passes (11x11), §2.3.
+pub const RADIUS_FINAL: u32 = 9;
+pub const RADIUS_INTERMEDIATE: u32 = 5;
+/// σ of the h_opt smoothing (§2.3 step 8, H-SMOOTH).
+pub const H_SMOOTH_SIGMA: f32 = 1.0;
+
+/// The parameters of one WLR run.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub struct WlrParams {
+    pub radius: u32,
+    /// [`WlrPush::options`] bits.
+    pub options: u32,
+}
+
+impl WlrParams {
+    /// From the pass and the `wlr.*` options of the registry.
+    pub fn new(pass: Pass, opts: &Options) -> Result<WlrParams> {
+        if opts.get("wlr.extra_features") != "none" {
+            return Err(Error::InvalidArgument(
+                "wlr.extra_features: only the paper's 9 features are built (visibility would need a \
+                 wider kernel binding layout)"
+                    .into(),
+            ));
+        }
+        let mut options = 0;
+        if opts.get("wlr.reject") == "on" {
+            options |= WLR_REJECT;
+        }
+        if opts.get("wlr.outlier_weight") == "clamped" {
+            options |= WLR_OUTLIER_CLAMPED;
+        }
+        if opts.get("wlr.nonneg") == "on" {
+            options |= WLR_NONNEG;
+        }
+        Ok(WlrParams {
+            radius: match pass {
+                Pass::Final => RADIUS_FINAL,
+                Pass::Intermediate => RADIUS_INTERMEDIATE,
+            },
+            options,
+        })
+    }
+}
+
+/// Planes of the WLR chain, in this order in [`WlrPlanes::set`].
+pub const PLANES: [&str; 15] = [
+    "vbar", "h_opt", "lambda1", "kappa0", "kappa1", "kflags", "b1", "b2", "b3", "hbar", "out_r",
+    "out_g", "out_b", "mse", "flags",
+];
+const VBAR: usize = 0;
+const FIT0: usize = 1; // h_opt, λ1, κ0, κ1, kflags, b1, b2, b3
+const HBAR: usize = 9;
+const OUT0: usize = 10; // R, G, B, mse, flags
+
+/// GPU scratch and output planes of one WLR run.
+#[derive(Debug)]
+pub struct WlrPlanes {
+    pub set: PlaneSet,
+}
+
+impl WlrPlanes {
+    pub fn new(ctx: &Arc<GpuContext>, width: usize, height: usize) -> Result<WlrPlanes> {
+        Ok(WlrPlanes {
+            set: PlaneSet::new(ctx, "wlr", width * height, PLANES.len())?,
+        })
+    }
+
+    /// The output colour planes R, G, B.
+    pub fn color(&self) -> [BufferSlice; 3] {
+        std::array::from_fn(|c| self.set.plane(OUT0 + c))
+    }
+
+    /// The estimated MSE (shared by the channels, §2.3 step 10).
+    pub fn mse(&self) -> BufferSlice {
+        self.set.plane(OUT0 + 3)
+    }
+}
+
+fn features(s: &GpuStats) -> ([BufferSlice; 7], [BufferSlice; 7]) {
+    let order = [
+        (Layer::Normal, 0),
+        (Layer::Normal, 1),
+        (Layer::Normal, 2),
+        (Layer::Depth, 0),
+        (Layer::Albedo, 0),
+        (Layer::Albedo, 1),
+        (Layer::Albedo, 2),
+    ];
+    (
+        std::array::from_fn(|k| s.plane(order[k].0, order[k].1)),
+        std::array::from_fn(|k| s.plane(order[k].0.variance().unwrap(), order[k].1)),
+    )
+}
+
+/// Records WLR on sanitised statistics `clean` (which must hold colour,
+/// albedo, normal, depth, their variances and spp). Outputs stay on the GPU
+/// in `planes`.
+pub fn record_wlr(
+    batch: &mut Batch,
+    precision: Precision,
+    clean: &GpuStats,
+    planes: &WlrPlanes,
+    params: WlrParams,
+) -> Result<()> {
+    let (w, h) = (clean.width as u32, clean.height as u32);
+    let p = |i: usize| planes.set.plane(i);
+    let (feat, var) = features(clean);
+    let color: [BufferSlice; 3] = std::array::from_fn(|c| clean.plane(Layer::Color, c));
+    let cvar: [BufferSlice; 3] = std::array::from_fn(|c| clean.plane(Layer::ColorVariance, c));
+    let spp = clean.plane(Layer::Spp, 0);
+    channel_mean::record(batch, precision, w, h, cvar, p(VBAR))?;
+    let fit_out: [BufferSlice; 8] = std::array::from_fn(|k| p(FIT0 + k));
+    wlr_fit::record(
+        batch,
+        precision,
+        w,
+        h,
+        params.radius,
+        params.options,
+        feat,
+        var,
+        color,
+        p(VBAR),
+        spp,
+        fit_out,
+    )?;
+    gauss_smooth::record(
+        batch,
+        precision,
+        w,
+        h,
+        H_SMOOTH_SIGMA,
+        p(FIT0),
+        spp,
+        p(HBAR),
+    )?;
+    let fit_in: [BufferSlice; 4] = std::array::from_fn(|k| p(FIT0 + 1 + k));
+    let out: [BufferSlice; 5] = std::array::from_fn(|k| p(OUT0 + k));
+    wlr_final::record(
+        batch,
+        precision,
+        w,
+        h,
+        params.radius,
+        params.options,
+        feat,
+        var,
+        color,
+        p(VBAR),
+        spp,
+        p(HBAR),
+        fit_in,
+        out,
+    )
+}
+
+/// What a WLR run gives back on the host.
+#[derive(Clone, Debug)]
+pub struct WlrResult {
+    pub color: RgbImage,
+    /// Estimated MSE per pixel (shared by R, G, B).
+    pub mse: Vec<f32>,
+    /// All intermediate planes by name ([`PLANES`]).
+    pub planes: Vec<(String, Vec<f32>)>,
+}
+
+impl WlrResult {
+    fn from_planes(width: usize, height: usize, all: Vec<Vec<f32>>) -> WlrResult {
+        let color = RgbImage::from_planes(
+            width,
+            height,
+            [
+                all[OUT0].clone(),
+                all[OUT0 + 1].clone(),
+                all[OUT0 + 2].clone(),
+            ],
+        );
+        let mse = all[OUT0 + 3].clone();
+        WlrResult {
+            color,
+            mse,
+            planes: PLANES.iter().map(|s| s.to_string()).zip(all).collect(),
+        }
+    }
+
+    /// The debug layers of issue #3: rank, b1..b3, h_opt, hbar, flags (§2.5).
+    pub fn debug_layers(&self) -> Vec<(String, Vec<f32>)> {
+        let get = |n: &str| self.planes.iter().find(|(k, _)| k == n).unwrap().1.clone();
+        let kflags = get("kflags");
+        let rank: Vec<f32> = kflags.iter().map(|v| (*v as u32 % 16) as f32).collect();
+        vec![
+            ("rank".into(), rank),
+            ("b1".into(), get("b1")),
+            ("b2".into(), get("b2")),
+            ("b3".into(), get("b3")),
+            ("h_opt".into(), get("h_opt")),
+            ("hbar".into(), get("hbar")),
+            ("flags".into(), get("flags")),
+        ]
+    }
+}
+
+/// Downloads the planes of a finished [`record_wlr`].
+pub fn download(planes: &WlrPlanes, width: usize, height: usize) -> Result<WlrResult> {
+    Ok(WlrResult::from_planes(
+        width,
+        height,
+        planes.set.download_all()?,
+    ))
+}
+
+/// The CPU path: the scalar twins in the order of [`record_wlr`], on
+/// sanitised statistics.
+pub fn run_cpu(clean: &StatsImage, params: WlrParams) -> Result<WlrResult> {
+    let (w, h) = (clean.width, clean.height);
+    let n = w * h;
+    let need = |l: Layer| {
+        clean
+            .get(l)
+            .ok_or_else(|| Error::BadData(format!("WLR needs the {} layer", l.name())))
+    };
+    let (col, cvar) = (need(Layer::Color)?, need(Layer::ColorVariance)?);
+    let (nrm, nvar) = (need(Layer::Normal)?, need(Layer::NormalVariance)?);
+    let (dep, dvar) = (need(Layer::Depth)?, need(Layer::DepthVariance)?);
+    let (alb, avar) = (need(Layer::Albedo)?, need(Layer::AlbedoVariance)?);
+    let spp = &need(Layer::Spp)?[0];
+    let feat: [&[f32]; 7] = [
+        &nrm[0], &nrm[1], &nrm[2], &dep[0], &alb[0], &alb[1], &alb[2],
+    ];
+    let var: [&[f32]; 7] = [
+        &nvar[0], &nvar[1], &nvar[2], &dvar[0], &avar[0], &avar[1], &avar[2],
+    ];
+    let color: [&[f32]; 3] = [&col[0], &col[1], &col[2]];
+    let mut all = vec![vec![0.0f32; n]; PLANES.len()];
+
+    let push_cm = ChannelMeanPush {
+        width: w as u32,
+        height: h as u32,
+        ..Default::default()
+    };
+    let mut vbar = vec![0.0f32; n];
+    reference::channel_mean::channel_mean(&push_cm, &cvar[0], &cvar[1], &cvar[2], &mut vbar);
+
+    let push = WlrPush {
+        width: w as u32,
+        height: h as u32,
+        radius: params.radius,
+        options: params.options,
+        ..Default::default()
+    };
+    let mut fit = vec![vec![0.0f32; n]; 8];
+    reference::wlr_fit::wlr_fit(&push, feat, var, color, &vbar, spp, &mut fit);
+
+    let push_s = SmoothPush {
+        width: w as u32,
+        height: h as u32,
+        radius: gauss_smooth::radius(H_SMOOTH_SIGMA),
+        sigma: H_SMOOTH_SIGMA,
+        ..Default::default()
+    };
+    let mut hbar = vec![0.0f32; n];
+    reference::gauss_smooth::gauss_smooth(&push_s, &fit[0], spp, &mut hbar);
+
+    let mut out = vec![vec![0.0f32; n]; 5];
+    let fit_in: [&[f32]; 4] = [&fit[1], &fit[2], &fit[3], &fit[4]];
+    reference::wlr_final::wlr_final(&push, feat, var, color, &vbar, spp, &hbar, fit_in, &mut out);
+
+    all[VBAR] = vbar;
+    for (k, p) in fit.into_iter().enumerate() {
+        all[FIT0 + k] = p;
+    }
+    all[HBAR] = hbar;
+    for (k, p) in out.into_iter().enumerate() {
+        all[OUT0 + k] = p;
+    }
+    Ok(WlrResult::from_planes(w, h, all))
+}
