@@ -655,7 +655,7 @@ fn timing_benchmark_reports_cases_and_json() {
     let report = bench::run_timing(
         None,
         &TimingConfig {
-            methods: vec![],
+            methods: vec![Method::None],
             backends: vec![Backend::Cpu],
             input: TimingInput::File(dir.join("spp16.exr")),
             size: Some((16, 8)),
@@ -669,7 +669,7 @@ fn timing_benchmark_reports_cases_and_json() {
     let err = bench::run_timing(
         None,
         &TimingConfig {
-            methods: vec![],
+            methods: vec![Method::None],
             backends: vec![Backend::Cpu],
             input: TimingInput::File(dir.join("spp16.exr")),
             size: Some((65, 8)),
@@ -706,7 +706,7 @@ fn timing_benchmark_from_the_cli_on_the_gpu() {
     );
     let j = parse_json(&std::fs::read_to_string(&json).unwrap());
     assert_eq!(j.get("rows").arr()[0].get("backend").str(), "gpu");
-    assert!(j.get("device").str().len() > 0);
+    assert!(!j.get("device").str().is_empty());
 
     // Nothing selected: an error naming the filter.
     let (code, _, err) = run(Command::new(env!("CARGO_BIN_EXE_mcdenoise")).args([
