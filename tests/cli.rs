@@ -191,3 +191,22 @@ fn demo_runs() {
     assert!(out.contains("rMSE"), "{out}");
     assert!(dir.join("output.exr").exists() && dir.join("output.png").exists());
 }
+
+#[test]
+fn no_vulkan_driver_gives_a_one_line_install_hint() {
+    for args in [
+        vec!["info"],
+        vec!["demo", "--out", "/nonexistent-dir-for-mcdenoise/x"],
+    ] {
+        let (code, _, err) = run(bin()
+            .args(&args)
+            .env("VK_DRIVER_FILES", "/nonexistent-icd.json")
+            .env("VK_ICD_FILENAMES", "/nonexistent-icd.json"));
+        assert_eq!(code, 2, "{args:?}: {err}");
+        if args[0] == "info" {
+            assert_eq!(err.trim().lines().count(), 1, "{err}");
+            assert!(err.contains("apt-get install mesa-vulkan-drivers"), "{err}");
+        }
+        assert!(!err.contains("panicked"), "{err}");
+    }
+}
