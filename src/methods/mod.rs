@@ -163,12 +163,13 @@ pub fn denoise(
                     debug.push((format!("color_variance.{name}"), var[c].clone()));
                 }
             }
+            let timings = report.timings.clone();
             Ok(DenoiseOutput {
                 color: prepare::colour_of(&clean),
                 error: None,
                 debug,
                 report,
-                timings: Vec::new(),
+                timings,
             })
         }
         _ => unreachable!("checked by Method::available"),

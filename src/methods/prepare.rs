@@ -28,6 +28,8 @@ pub struct PrepareReport {
     pub estimated: Vec<Layer>,
     /// Pixels with no valid sample count (n < 1, NaN or negative).
     pub invalid_pixels: usize,
+    /// GPU time per dispatch of the sanitation (empty on the CPU).
+    pub timings: Vec<crate::gpu::KernelTiming>,
 }
 
 impl PrepareReport {
@@ -118,6 +120,7 @@ pub fn base_report(img: &StatsImage) -> PrepareReport {
             .iter()
             .filter(|&&s| spp_of(s) < 1.0)
             .count(),
+        timings: Vec::new(),
     }
 }
 
@@ -354,8 +357,9 @@ pub fn prepare_gpu(
     let low_spp = has_low_spp(img);
     let mut batch = Batch::new(ctx)?;
     record_prepare(&mut batch, precision, &input, &out, &scratch, low_spp)?;
-    batch.finish()?;
+    let timings = batch.finish()?;
     let mut report = base_report(img);
+    report.timings = timings;
     report.counters = scratch.read_counters()?;
     let mut clean = out.download()?;
     // Same normalisation of the count as the CPU path.
