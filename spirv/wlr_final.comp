@@ -2,12 +2,14 @@
 // WLR steps 9-10 (spec §2.3) per pixel: the TSVD and the curvature
 // bandwidths b_j recomputed exactly as in wlr_fit (same code), the final
 // local linear fit at h = hbar_c (FEW, NONNEG, rejection per options), output
-// clamped >= 0 (§0.4 step 5), and MSE_c from the model wlr_fit stored.
+// clamped >= 0 (§0.4 step 5), and MSE_c from the model wlr_fit stored (with
+// the stored k; hbar clamped to [0.01, 1], a no-op for consistent input).
 // Scalar twin: src/reference/wlr_final.rs (routines: src/reference/wlr.rs).
 //
 // flags = wlr_fit's flags | bit 1 FEW in the final fit | bit 0 SOLVE-FAIL
 // (then output y_c and MSE = vbar_c). Invalid centre (§0.2): the mean colour
-// of its valid 3x3 neighbours (or 0), mse 0, flags bit 5.
+// of its valid 3x3 neighbours (or 0), clamped >= 0 like every final output
+// (§0.4 step 5), mse 0, flags bit 5.
 #include "lib/common.glsl"
 
 layout(local_size_x = 8, local_size_y = 8) in;
@@ -55,6 +57,9 @@ PLANE_OUT(27, mse_out)
 PLANE_OUT(28, flags_out)
 
 #define WLR_NFIT 1
+
+
+
 
 // As in wlr_fit.comp.
 bool load_features(ivec2 p, out real x[9], out real e2[9])
@@ -117,7 +122,7 @@ void main()
                 }
             }
         }
-        f = cnt > 0 ? sum / real(cnt) : real3(0);
+        f = cnt > 0 ? max(sum / real(cnt), real3(0)) : real3(0);
         flags = WLR_F_INVALID;
     } else {
         int R = int(push.radius);

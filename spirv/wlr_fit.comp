@@ -54,6 +54,13 @@ PLANE_OUT(26, b3_out)
 
 #define WLR_NFIT 5
 
+
+
+
+
+
+#define NONE 1
+
 // Features (px, py, nrm xyz, dep, albedo rgb), variances (0, 0, vn xyz, vd,
 // va rgb); valid iff spp_of >= 1 (spec §0.2, §2.1).
 bool load_features(ivec2 p, out real x[9], out real e2[9])

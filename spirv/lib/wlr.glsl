@@ -15,10 +15,15 @@
 // kept between passes; every pass over the window reloads the features and
 // recomputes dz = P (x_i - x_c) (P = V_k^T diag(1/rho), equal to §0.6 step 7).
 // The normal equations are accumulated as real4 outer products into
-// constant-indexed realmat4 blocks (dz_1..dz_9 padded to vec4 lanes; the
-// padding lanes are exactly 0 and are dropped when the p x p system is packed
-// for the shared ridge Cholesky of linalg.glsl). The bandwidth loop of the
-// fits is unrolled by macro so that every accumulator index is a constant.
+// constant-indexed realmat4 blocks (dz_1..dz_9 padded to vec4 lanes, the
+// unused lanes exactly 0) and factored in place by a masked block Cholesky
+// with the RIDGE / SOLVE-FAIL rules of §0.5 (wlr_factor12, wlr_factor20).
+// Nothing is indexed dynamically: on lavapipe a dynamically indexed local
+// array compiles to code proportional to its size (a 19x19 generic solve cost
+// ~5 s of pipeline creation) and runs slower. The bandwidth loop of the fits
+// is unrolled by macro for the same reason. Responses are centred (y - y_c;
+// the intercept is unpenalised, so only the intercept changes), which keeps
+// the f32 biases f-hat - y_c free of cancellation.
 // Steps 6-7 (parametric fits, h_opt) are double in every variant (§0.3).
 
 #ifndef MC_WLR_GLSL
@@ -26,6 +31,9 @@
 
 #define MAX_D 9
 #define TSVD_D 9
+// The fits solve their systems with the block routines below, not with
+// linalg.glsl's WLS: keep its (unused) arrays small.
+#define MAX_P 4
 #include "lib/tsvd.glsl"
 
 #ifndef WLR_NFIT
@@ -174,21 +182,293 @@ real wlr_kernel(WlrProj pr, real4 t0, real4 t1, real t8)
 
 // --- curvature fit (step 4) -------------------------------------------------
 
-// Full design index f (0..19) of (1, dz_1..dz_9, dz_1^2..dz_9^2, pad) for the
-// compact index i (0..2k) of (1, dz_1..dz_k, dz_1^2..dz_k^2).
-int wlr_curv_full(int i, int k)
+// --- masked block Cholesky ---------------------------------------------------
+// The normal matrices are accumulated as 4x4 blocks (a, b), a <= b, of a
+// padded design whose unused components (beyond k, and padding) are exactly
+// zero. They are factored here with constant indices only (lavapipe compiles
+// dynamically indexed local arrays into code proportional to their size):
+// A + Lambda = U^T U with U block upper triangular, right-looking. An
+// inactive component gets diagonal 1 (its row and column are zero), so the
+// active components see exactly the pivots, in the same order, of the
+// Cholesky of the compact p x p system that linalg.glsl's wls_factor (and the
+// twin's ridge_cholesky) factor; the RIDGE and SOLVE-FAIL rules of §0.5 are
+// applied over the active components (wlr_ridge_attempt).
+
+// In place: the upper Cholesky factor of the symmetric block D (upper
+// triangle read; D = U^T U, lower part zeroed). Pivots of active components
+// must be > thr and finite; inactive ones are taken as 1.
+bool wlr_chol4(inout realmat4 D, bvec4 act, real thr)
 {
-    return i <= k ? i : i + 9 - k;
+    // D[c][r] is element (r, c).
+    bool ok = true;
+    real p0 = act.x ? D[0][0] : real(1);
+    ok = ok && p0 > thr && !isinf(p0);
+    real u00 = sqrt(max(p0, real(0)));
+    real u01 = D[1][0] / u00;
+    real u02 = D[2][0] / u00;
+    real u03 = D[3][0] / u00;
+    real p1 = act.y ? D[1][1] - u01 * u01 : real(1);
+    ok = ok && p1 > thr && !isinf(p1);
+    real u11 = sqrt(max(p1, real(0)));
+    real u12 = (D[2][1] - u01 * u02) / u11;
+    real u13 = (D[3][1] - u01 * u03) / u11;
+    real p2 = act.z ? D[2][2] - u02 * u02 - u12 * u12 : real(1);
+    ok = ok && p2 > thr && !isinf(p2);
+    real u22 = sqrt(max(p2, real(0)));
+    real u23 = (D[3][2] - u02 * u03 - u12 * u13) / u22;
+    real p3 = act.w ? D[3][3] - u03 * u03 - u13 * u13 - u23 * u23 : real(1);
+    ok = ok && p3 > thr && !isinf(p3);
+    real u33 = sqrt(max(p3, real(0)));
+    D = realmat4(u00, real(0), real(0), real(0),
+                 u01, u11, real(0), real(0),
+                 u02, u12, u22, real(0),
+                 u03, u13, u23, u33);
+    return ok;
 }
 
-// Element (r, c), r <= c, of the upper block triangle of a 20 x 20 matrix
-// held as 15 blocks (a, b), a <= b, in row order.
-real wlr_block20(realmat4 M[15], int r, int c)
+// U^{-T} X for an upper-triangular block U (forward substitution on rows).
+realmat4 wlr_solve_ut(realmat4 U, realmat4 X)
 {
-    int a = r >> 2;
-    int b = c >> 2;
-    int bi = a * 5 - (a * (a - 1)) / 2 + (b - a);
-    return M[bi][c & 3][r & 3];
+    realmat4 Xt = transpose(X);  // Xt[r] = row r of X
+    real4 y0 = Xt[0] / U[0][0];
+    real4 y1 = (Xt[1] - U[1][0] * y0) / U[1][1];
+    real4 y2 = (Xt[2] - U[2][0] * y0 - U[2][1] * y1) / U[2][2];
+    real4 y3 = (Xt[3] - U[3][0] * y0 - U[3][1] * y1 - U[3][2] * y2) / U[3][3];
+    return transpose(realmat4(y0, y1, y2, y3));
+}
+
+// U^{-T} v.
+real4 wlr_solve_ut_v(realmat4 U, real4 v)
+{
+    real y0 = v.x / U[0][0];
+    real y1 = (v.y - U[1][0] * y0) / U[1][1];
+    real y2 = (v.z - U[2][0] * y0 - U[2][1] * y1) / U[2][2];
+    real y3 = (v.w - U[3][0] * y0 - U[3][1] * y1 - U[3][2] * y2) / U[3][3];
+    return real4(y0, y1, y2, y3);
+}
+
+// U^{-1} v (back substitution).
+real4 wlr_solve_u_v(realmat4 U, real4 v)
+{
+    real x3 = v.w / U[3][3];
+    real x2 = (v.z - U[3][2] * x3) / U[2][2];
+    real x1 = (v.y - U[2][1] * x2 - U[3][1] * x3) / U[1][1];
+    real x0 = (v.x - U[1][0] * x1 - U[2][0] * x2 - U[3][0] * x3) / U[0][0];
+    return real4(x0, x1, x2, x3);
+}
+
+// Diagonal of a block as a vector.
+real4 wlr_diag(realmat4 D)
+{
+    return real4(D[0][0], D[1][1], D[2][2], D[3][3]);
+}
+
+// Sets the diagonal of block D to d.
+void wlr_set_diag(inout realmat4 D, real4 d)
+{
+    D[0][0] = d.x;
+    D[1][1] = d.y;
+    D[2][2] = d.z;
+    D[3][3] = d.w;
+}
+
+// Regularised diagonal of one block for attempt `attempt`: active and
+// ridged (all but the intercept) components get + lambda, inactive ones 1.
+real4 wlr_ridge_diag(real4 d, bvec4 act, bvec4 ridged, real lambda)
+{
+    return mix(real4(1), d + mix(real4(0), real4(lambda), ridged), act);
+}
+
+// The RIDGE / SOLVE-FAIL bookkeeping of §0.5 for NB diagonal blocks: the
+// ridge of this attempt (raised from the second attempt on) and the pivot
+// threshold EPS_PIVOT * max diag(A + Lambda) over the active components.
+// dsum/dcnt: sum and count of the active unregularised diagonal; dmax0/
+// dmaxr: max active diagonal without / with ridge candidates.
+#define WLR_RIDGE_STEP(attempt, lambda, mean_diag)                                   \
+    if ((attempt) > 0) {                                                             \
+        lambda = max(real(10) * lambda, real(RIDGE_FLOOR) * (mean_diag));            \
+    }
+
+// Active components of the 12-vector (1, dz_1..dz_9, pad, pad): f <= k.
+bvec4 wlr_act12(int blk, int k)
+{
+    return lessThanEqual(ivec4(4 * blk) + ivec4(0, 1, 2, 3), ivec4(k));
+}
+
+// Active components of the 20-vector (1, dz_1..dz_9, dz_1^2..dz_9^2, pad).
+bvec4 wlr_act20(int blk, int k)
+{
+    ivec4 f = ivec4(4 * blk) + ivec4(0, 1, 2, 3);
+    return bvec4(f.x <= 9 ? f.x <= k : f.x - 10 < k && f.x < 19,
+                 f.y <= 9 ? f.y <= k : f.y - 10 < k && f.y < 19,
+                 f.z <= 9 ? f.z <= k : f.z - 10 < k && f.z < 19,
+                 f.w <= 9 ? f.w <= k : f.w - 10 < k && f.w < 19);
+}
+
+// Factors the 12 x 12 system of a local linear fit (blocks B[6]: (0,0),
+// (0,1), (0,2), (1,1), (1,2), (2,2)) with the RIDGE / SOLVE-FAIL rules; on
+// success B holds U. Returns false after SOLVE_RETRIES failed retries.
+bool wlr_factor12(inout realmat4 B[6], int k, real lambda)
+{
+    bvec4 act0 = wlr_act12(0, k);
+    bvec4 act1 = wlr_act12(1, k);
+    bvec4 act2 = wlr_act12(2, k);
+    bvec4 rid0 = bvec4(false, act0.yzw);
+    real4 d0 = wlr_diag(B[0]);
+    real4 d1 = wlr_diag(B[3]);
+    real4 d2 = wlr_diag(B[5]);
+    real4 z = real4(0);
+    real4 dact = mix(z, d0, act0) + mix(z, d1, act1) + mix(z, d2, act2);
+    real mean_diag = (dact.x + dact.y + dact.z + dact.w) / real(k + 1);
+    for (int attempt = 0; attempt <= SOLVE_RETRIES; ++attempt) {
+        WLR_RIDGE_STEP(attempt, lambda, mean_diag)
+        real4 e0 = wlr_ridge_diag(d0, act0, rid0, lambda);
+        real4 e1 = wlr_ridge_diag(d1, act1, act1, lambda);
+        real4 e2 = wlr_ridge_diag(d2, act2, act2, lambda);
+        real4 m = max(mix(z, e0, act0), max(mix(z, e1, act1), mix(z, e2, act2)));
+        real thr = real(EPS_PIVOT) * max(max(m.x, m.y), max(m.z, m.w));
+        realmat4 U0 = B[0];
+        realmat4 U1 = B[1];
+        realmat4 U2 = B[2];
+        realmat4 U3 = B[3];
+        realmat4 U4 = B[4];
+        realmat4 U5 = B[5];
+        wlr_set_diag(U0, e0);
+        wlr_set_diag(U3, e1);
+        wlr_set_diag(U5, e2);
+        bool ok = wlr_chol4(U0, act0, thr);
+        U1 = wlr_solve_ut(U0, U1);
+        U2 = wlr_solve_ut(U0, U2);
+        U3 -= transpose(U1) * U1;
+        U4 -= transpose(U1) * U2;
+        U5 -= transpose(U2) * U2;
+        ok = wlr_chol4(U3, act1, thr) && ok;
+        U4 = wlr_solve_ut(U3, U4);
+        U5 -= transpose(U4) * U4;
+        ok = wlr_chol4(U5, act2, thr) && ok;
+        if (ok) {
+            B[0] = U0;
+            B[1] = U1;
+            B[2] = U2;
+            B[3] = U3;
+            B[4] = U4;
+            B[5] = U5;
+            return true;
+        }
+    }
+    return false;
+}
+
+// The first column u = (A + Lambda)^{-1} e_1 from the factor of wlr_factor12.
+void wlr_first_column12(realmat4 U[6], out real4 u0, out real4 u1, out real4 u2)
+{
+    real4 z0 = wlr_solve_ut_v(U[0], real4(1, 0, 0, 0));
+    real4 z1 = wlr_solve_ut_v(U[3], -(z0 * U[1]));
+    real4 z2 = wlr_solve_ut_v(U[5], -(z0 * U[2]) - z1 * U[4]);
+    u2 = wlr_solve_u_v(U[5], z2);
+    u1 = wlr_solve_u_v(U[3], z1 - U[4] * u2);
+    u0 = wlr_solve_u_v(U[0], z0 - U[1] * u1 - U[2] * u2);
+}
+
+// Factors the 20 x 20 curvature system (15 blocks (a, b), a <= b, row
+// order) like wlr_factor12; on success M holds U.
+bool wlr_factor20(inout realmat4 M[15], int k, real lambda)
+{
+    bvec4 act[5];
+    real4 d[5];
+    real4 z = real4(0);
+    real4 dact = z;
+    for (int b = 0; b < 5; ++b) {
+        act[b] = wlr_act20(b, k);
+    }
+    d[0] = wlr_diag(M[0]);
+    d[1] = wlr_diag(M[5]);
+    d[2] = wlr_diag(M[9]);
+    d[3] = wlr_diag(M[12]);
+    d[4] = wlr_diag(M[14]);
+    for (int b = 0; b < 5; ++b) {
+        dact += mix(z, d[b], act[b]);
+    }
+    real mean_diag = (dact.x + dact.y + dact.z + dact.w) / real(1 + 2 * k);
+    for (int attempt = 0; attempt <= SOLVE_RETRIES; ++attempt) {
+        WLR_RIDGE_STEP(attempt, lambda, mean_diag)
+        real4 e[5];
+        real4 m = z;
+        for (int b = 0; b < 5; ++b) {
+            bvec4 rid = b == 0 ? bvec4(false, act[0].yzw) : act[b];
+            e[b] = wlr_ridge_diag(d[b], act[b], rid, lambda);
+            m = max(m, mix(z, e[b], act[b]));
+        }
+        real thr = real(EPS_PIVOT) * max(max(m.x, m.y), max(m.z, m.w));
+        realmat4 U[15] = M;
+        wlr_set_diag(U[0], e[0]);
+        wlr_set_diag(U[5], e[1]);
+        wlr_set_diag(U[9], e[2]);
+        wlr_set_diag(U[12], e[3]);
+        wlr_set_diag(U[14], e[4]);
+        // block column 0
+        bool ok = wlr_chol4(U[0], act[0], thr);
+        U[1] = wlr_solve_ut(U[0], U[1]);
+        U[2] = wlr_solve_ut(U[0], U[2]);
+        U[3] = wlr_solve_ut(U[0], U[3]);
+        U[4] = wlr_solve_ut(U[0], U[4]);
+        U[5] -= transpose(U[1]) * U[1];
+        U[6] -= transpose(U[1]) * U[2];
+        U[7] -= transpose(U[1]) * U[3];
+        U[8] -= transpose(U[1]) * U[4];
+        U[9] -= transpose(U[2]) * U[2];
+        U[10] -= transpose(U[2]) * U[3];
+        U[11] -= transpose(U[2]) * U[4];
+        U[12] -= transpose(U[3]) * U[3];
+        U[13] -= transpose(U[3]) * U[4];
+        U[14] -= transpose(U[4]) * U[4];
+        // block column 1
+        ok = wlr_chol4(U[5], act[1], thr) && ok;
+        U[6] = wlr_solve_ut(U[5], U[6]);
+        U[7] = wlr_solve_ut(U[5], U[7]);
+        U[8] = wlr_solve_ut(U[5], U[8]);
+        U[9] -= transpose(U[6]) * U[6];
+        U[10] -= transpose(U[6]) * U[7];
+        U[11] -= transpose(U[6]) * U[8];
+        U[12] -= transpose(U[7]) * U[7];
+        U[13] -= transpose(U[7]) * U[8];
+        U[14] -= transpose(U[8]) * U[8];
+        // block column 2
+        ok = wlr_chol4(U[9], act[2], thr) && ok;
+        U[10] = wlr_solve_ut(U[9], U[10]);
+        U[11] = wlr_solve_ut(U[9], U[11]);
+        U[12] -= transpose(U[10]) * U[10];
+        U[13] -= transpose(U[10]) * U[11];
+        U[14] -= transpose(U[11]) * U[11];
+        // block columns 3, 4
+        ok = wlr_chol4(U[12], act[3], thr) && ok;
+        U[13] = wlr_solve_ut(U[12], U[13]);
+        U[14] -= transpose(U[13]) * U[13];
+        ok = wlr_chol4(U[14], act[4], thr) && ok;
+        if (ok) {
+            M = U;
+            return true;
+        }
+    }
+    return false;
+}
+
+// Solves U^T U x = r for the factor of wlr_factor20 and returns the
+// quadratic part (x_10..x_18) as q0 = x_10..11 (in .xy), q1 = x_12..15,
+// q2 = x_16..18 (in .xyz).
+void wlr_solve20_quadratic(realmat4 U[15], real4 r[5], out real4 q0, out real4 q1, out real4 q2)
+{
+    real4 z0 = wlr_solve_ut_v(U[0], r[0]);
+    real4 z1 = wlr_solve_ut_v(U[5], r[1] - z0 * U[1]);
+    real4 z2 = wlr_solve_ut_v(U[9], r[2] - z0 * U[2] - z1 * U[6]);
+    real4 z3 = wlr_solve_ut_v(U[12], r[3] - z0 * U[3] - z1 * U[7] - z2 * U[10]);
+    real4 z4 = wlr_solve_ut_v(U[14], r[4] - z0 * U[4] - z1 * U[8] - z2 * U[11] - z3 * U[13]);
+    real4 x4 = wlr_solve_u_v(U[14], z4);
+    real4 x3 = wlr_solve_u_v(U[12], z3 - U[13] * x4);
+    real4 x2 = wlr_solve_u_v(U[9], z2 - U[10] * x3 - U[11] * x4);
+    q0 = real4(x2.zw, real(0), real(0));
+    q1 = x3;
+    q2 = real4(x4.xyz, real(0));
 }
 
 // Step 4: weighted quadratic fit (1, dz, dz o dz), weights o_i prod K_E(dz_ij),
@@ -220,11 +500,15 @@ bool wlr_curvature(WlrProj pr, WlrCentre cc, int R, ivec2 size, uint options,
             real3 y;
             real vb;
             load_colour(q, y, vb);
+            real w = wlr_outlier_weight(vb, options);
+            // Centred responses y - y_c: only the intercept changes, and the
+            // f32 normal equations lose less to cancellation.
+            y -= cc.y;
             real4 d0;
             real4 d1;
             real d8;
             wlr_dz(pr, cc.x, x, d0, d1, d8);
-            real w = wlr_outlier_weight(vb, options) * wlr_kernel(pr, d0, d1, d8);
+            w *= wlr_kernel(pr, d0, d1, d8);
             if (w > real(0)) {
                 real4 s0 = d0 * d0;
                 real4 s1 = d1 * d1;
@@ -238,72 +522,71 @@ bool wlr_curvature(WlrProj pr, WlrCentre cc, int R, ivec2 size, uint options,
                 real4 W2 = w * X2;
                 real4 W3 = w * X3;
                 real4 W4 = w * X4;
+                // Blocks with X1 (dz_4..7) vanish for k <= 3, with X4
+                // (dz_7^2..9^2) for k <= 6: skipped (exactly zero).
                 M[0] += outerProduct(W0, X0);
-                M[1] += outerProduct(W0, X1);
                 M[2] += outerProduct(W0, X2);
                 M[3] += outerProduct(W0, X3);
-                M[4] += outerProduct(W0, X4);
-                M[5] += outerProduct(W1, X1);
-                M[6] += outerProduct(W1, X2);
-                M[7] += outerProduct(W1, X3);
-                M[8] += outerProduct(W1, X4);
                 M[9] += outerProduct(W2, X2);
                 M[10] += outerProduct(W2, X3);
-                M[11] += outerProduct(W2, X4);
                 M[12] += outerProduct(W3, X3);
-                M[13] += outerProduct(W3, X4);
-                M[14] += outerProduct(W4, X4);
                 Y[0] += y.r * W0;
-                Y[1] += y.r * W1;
                 Y[2] += y.r * W2;
                 Y[3] += y.r * W3;
-                Y[4] += y.r * W4;
                 Y[5] += y.g * W0;
-                Y[6] += y.g * W1;
                 Y[7] += y.g * W2;
                 Y[8] += y.g * W3;
-                Y[9] += y.g * W4;
                 Y[10] += y.b * W0;
-                Y[11] += y.b * W1;
                 Y[12] += y.b * W2;
                 Y[13] += y.b * W3;
-                Y[14] += y.b * W4;
+                if (pr.k > 3) {
+                    M[1] += outerProduct(W0, X1);
+                    M[5] += outerProduct(W1, X1);
+                    M[6] += outerProduct(W1, X2);
+                    M[7] += outerProduct(W1, X3);
+                    Y[1] += y.r * W1;
+                    Y[6] += y.g * W1;
+                    Y[11] += y.b * W1;
+                }
+                if (pr.k > 6) {
+                    M[4] += outerProduct(W0, X4);
+                    M[8] += outerProduct(W1, X4);
+                    M[11] += outerProduct(W2, X4);
+                    M[13] += outerProduct(W3, X4);
+                    M[14] += outerProduct(W4, X4);
+                    Y[4] += y.r * W4;
+                    Y[9] += y.g * W4;
+                    Y[14] += y.b * W4;
+                }
             }
         }
     }
 
-    // Pack the (1+2k) x (1+2k) system (upper triangle) for the ridge Cholesky.
+    // Factor, then per channel the quadratic coefficients gamma_j (step 4).
     int k = pr.k;
-    int p = 1 + 2 * k;
-    realmat4 Mc[15] = M;
-    real4 Yc[15] = Y;
-    real A[MAX_P * MAX_P];
-    for (int i = 0; i < p; ++i) {
-        int fi = wlr_curv_full(i, k);
-        for (int j = i; j < p; ++j) {
-            A[i * p + j] = wlr_block20(Mc, fi, wlr_curv_full(j, k));
-        }
-    }
-    real lambda = real(WLR_CURV_LAMBDA);
-    if (!wls_factor(A, p, lambda)) {
+    if (!wlr_factor20(M, k, real(WLR_CURV_LAMBDA))) {
         return false;
     }
+    real4 h0 = real4(0);
+    real4 h1 = real4(0);
+    real4 h2 = real4(0);
     for (int ch = 0; ch < 3; ++ch) {
-        real rhs[MAX_P];
-        for (int i = 0; i < MAX_P; ++i) {
-            rhs[i] = real(0);
+        real4 r[5];
+        for (int a = 0; a < 5; ++a) {
+            r[a] = Y[ch * 5 + a];
         }
-        for (int i = 0; i < p; ++i) {
-            int fi = wlr_curv_full(i, k);
-            rhs[i] = Yc[ch * 5 + (fi >> 2)][fi & 3];
-        }
-        wls_backsolve(A, p, rhs);
-        for (int j = 0; j < k; ++j) {
-            Hb[j] += abs(real(2) * rhs[1 + k + j]) / real(3);
-        }
+        real4 q0;
+        real4 q1;
+        real4 q2;
+        wlr_solve20_quadratic(M, r, q0, q1, q2);
+        h0 += abs(real(2) * q0) / real(3);
+        h1 += abs(real(2) * q1) / real(3);
+        h2 += abs(real(2) * q2) / real(3);
     }
-    for (int j = 0; j < k; ++j) {
-        b[j] = real(1) / sqrt(Hb[j] + real(WLR_BETA0));
+    real Hv[9] = real[9](h0.x, h0.y, h1.x, h1.y, h1.z, h1.w, h2.x, h2.y, h2.z);
+    for (int j = 0; j < 9; ++j) {
+        Hb[j] = j < k ? Hv[j] : real(0);
+        b[j] = j < k ? real(1) / sqrt(Hv[j] + real(WLR_BETA0)) : real(0);
     }
     return true;
 }
@@ -318,14 +601,23 @@ struct WlrFit {
     int npos;   // neighbours with w_i > 0
 };
 
-// Element (r, c), r <= c, of a 12 x 12 matrix held as 6 blocks (a, b), a <= b.
-real wlr_block12(realmat4 T[6 * WLR_NFIT], int s, int r, int c)
-{
-    int a = r >> 2;
-    int b = c >> 2;
-    int bi = a * 3 - (a * (a - 1)) / 2 + (b - a);
-    return T[6 * s + bi][c & 3][r & 3];
-}
+// Solve of fit s (a literal): factor its 6 blocks and take the first column
+// of the inverse; FEW / SOLVE-FAIL set the fit's flags.
+#define WLR_SOLVE(s)                                                                 \
+    if (cnt[s] <= 1) {                                                               \
+        fit[s].flags |= WLR_F_FEW;                                                   \
+    } else {                                                                         \
+        realmat4 B[6];                                                               \
+        for (int bi = 0; bi < 6; ++bi) {                                             \
+            B[bi] = T[6 * (s) + bi];                                                 \
+        }                                                                            \
+        if (!wlr_factor12(B, k, lambda)) {                                           \
+            fit[s].flags |= WLR_F_SOLVE_FAIL;                                        \
+        } else {                                                                     \
+            wlr_first_column12(B, U0[s], U1[s], U2[s]);                              \
+            any_solved = true;                                                       \
+        }                                                                            \
+    }
 
 // Per-neighbour data shared by the two passes of wlr_fits: base weight
 // acc_i o_i (0 = skip), local coordinates, colour, vbar.
@@ -351,10 +643,12 @@ bool wlr_fit_neighbour(WlrProj pr, WlrCentre cc, ivec2 q, uint options,
     }
     base = wlr_outlier_weight(vb, options);
     wlr_dz(pr, cc.x, x, d0, d1, d8);
+    y -= cc.y;  // centred responses (see wlr_fits)
     return base > real(0);
 }
 
-// Pass A body for bandwidth s (a literal): weight, count, normal matrix.
+// Pass A body for bandwidth s (a literal): weight, count, normal matrix
+// (blocks with X1 = dz_4..7 vanish for k <= 3, with X2 = dz_8..9 for k <= 7).
 #define WLR_PASS_A(s)                                                               \
     {                                                                               \
         real w = base * wlr_kernel(pr, d0 * I0[s], d1 * I1[s], d8 * I8[s]);         \
@@ -364,11 +658,15 @@ bool wlr_fit_neighbour(WlrProj pr, WlrCentre cc, ivec2 q, uint options,
             real4 W1 = w * X1;                                                      \
             real4 W2 = w * X2;                                                      \
             T[6 * s + 0] += outerProduct(W0, X0);                                   \
-            T[6 * s + 1] += outerProduct(W0, X1);                                   \
-            T[6 * s + 2] += outerProduct(W0, X2);                                   \
-            T[6 * s + 3] += outerProduct(W1, X1);                                   \
-            T[6 * s + 4] += outerProduct(W1, X2);                                   \
-            T[6 * s + 5] += outerProduct(W2, X2);                                   \
+            if (k > 3) {                                                            \
+                T[6 * s + 1] += outerProduct(W0, X1);                               \
+                T[6 * s + 3] += outerProduct(W1, X1);                               \
+                if (k > 7) {                                                        \
+                    T[6 * s + 2] += outerProduct(W0, X2);                           \
+                    T[6 * s + 4] += outerProduct(W1, X2);                           \
+                    T[6 * s + 5] += outerProduct(W2, X2);                           \
+                }                                                                   \
+            }                                                                       \
         }                                                                           \
     }
 
@@ -379,7 +677,7 @@ bool wlr_fit_neighbour(WlrProj pr, WlrCentre cc, ivec2 q, uint options,
         if (w > real(0)) {                                                          \
             real l = w * (dot(U0[s], X0) + dot(U1[s], X1) + dot(U2[s], X2));        \
             real lp = max(l, real(0));                                              \
-            S1[s] += real4(l * y, l * l * vb);                                      \
+            S1[s] += real4(l * y, l * l * vb);  /* y centred */                     \
             S2[s] += real4(lp * y, lp * lp * vb);                                   \
             S3[s] += lp;                                                            \
         }                                                                           \
@@ -393,7 +691,6 @@ void wlr_fits(WlrProj pr, WlrCentre cc, real b[MAX_D], real h[WLR_NFIT], int R, 
               uint options, real lambda, out WlrFit fit[WLR_NFIT])
 {
     int k = pr.k;
-    int np = k + 1;
     real4 I0[WLR_NFIT];
     real4 I1[WLR_NFIT];
     real I8[WLR_NFIT];
@@ -441,7 +738,6 @@ void wlr_fits(WlrProj pr, WlrCentre cc, real b[MAX_D], real h[WLR_NFIT], int R, 
     }
 
     // Solves: u_s = (A_s + Lambda)^{-1} e_1.
-    realmat4 Tc[6 * WLR_NFIT] = T;
     real4 U0[WLR_NFIT];
     real4 U1[WLR_NFIT];
     real4 U2[WLR_NFIT];
@@ -455,34 +751,21 @@ void wlr_fits(WlrProj pr, WlrCentre cc, real b[MAX_D], real h[WLR_NFIT], int R, 
         U0[s] = real4(0);
         U1[s] = real4(0);
         U2[s] = real4(0);
-        if (cnt[s] <= 1) {
-            fit[s].flags |= WLR_F_FEW;
-            continue;
-        }
-        real A[MAX_P * MAX_P];
-        for (int i = 0; i < np; ++i) {
-            for (int j = i; j < np; ++j) {
-                A[i * np + j] = wlr_block12(Tc, s, i, j);
-            }
-        }
-        real lam = lambda;
-        real u[MAX_P];
-        if (!wls_first_column(A, np, lam, u)) {
-            fit[s].flags |= WLR_F_SOLVE_FAIL;
-            continue;
-        }
-        U0[s] = real4(u[0], u[1], u[2], u[3]);
-        U1[s] = real4(u[4], u[5], u[6], u[7]);
-        U2[s] = real4(u[8], u[9], real(0), real(0));
-        any_solved = true;
     }
+    WLR_SOLVE(0)
+#if WLR_NFIT > 1
+    WLR_SOLVE(1)
+    WLR_SOLVE(2)
+    WLR_SOLVE(3)
+    WLR_SOLVE(4)
+#endif
     if (!any_solved) {
         return;
     }
 
     // Pass B: equivalent kernels and the sums of step 5.
-    real4 S1[WLR_NFIT];  // sum l y, sum l^2 vbar
-    real4 S2[WLR_NFIT];  // sum l+ y, sum l+^2 vbar
+    real4 S1[WLR_NFIT];  // sum l (y - y_c), sum l^2 vbar
+    real4 S2[WLR_NFIT];  // sum l+ (y - y_c), sum l+^2 vbar
     real S3[WLR_NFIT];   // sum l+
     for (int s = 0; s < WLR_NFIT; ++s) {
         S1[s] = real4(0);
@@ -516,16 +799,20 @@ void wlr_fits(WlrProj pr, WlrCentre cc, real b[MAX_D], real h[WLR_NFIT], int R, 
         if (fit[s].flags != 0) {
             continue;  // FEW or SOLVE-FAIL: y_c, bias 0, var vbar_c
         }
-        real3 f = S1[s].xyz;
+        // delta = f-hat - y_c = sum_i l_i (y_i - y_c), exact because sum l = 1.
+        real3 delta = S1[s].xyz;
         real var = S1[s].w;
-        if ((options & WLR_NONNEG) != 0u && any(lessThan(f, real3(0)))) {
-            real den = max(S3[s], real(WLR_NONNEG_FLOOR));
-            f = max(S2[s].xyz / den, real3(0));
+        if ((options & WLR_NONNEG) != 0u && any(lessThan(cc.y + delta, real3(0)))) {
+            real sp = S3[s];
+            real den = max(sp, real(WLR_NONNEG_FLOOR));
+            delta = sp >= real(WLR_NONNEG_FLOOR) ? S2[s].xyz / sp
+                                                 : (S2[s].xyz + cc.y * sp) / den - cc.y;
+            delta = max(delta, -cc.y);  // clamp f-hat >= 0
             var = S2[s].w / (den * den);
         }
-        fit[s].f = f;
+        fit[s].f = cc.y + delta;
         fit[s].var = var;
-        fit[s].bias = ((f.r - cc.y.r) + (f.g - cc.y.g) + (f.b - cc.y.b)) / real(3);
+        fit[s].bias = (delta.r + delta.g + delta.b) / real(3);
     }
 }
 

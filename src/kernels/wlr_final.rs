@@ -6,7 +6,7 @@
 //! Outputs (bindings 24..28): R, G, B; `mse`; `flags` as a float: `wlr_fit`'s
 //! flags | bit 1 FEW in the final fit | bit 0 SOLVE-FAIL (output `y_c`,
 //! `mse = vbar_c`) | bit 5 invalid pixel (`spp < 1`: mean colour of its valid
-//! 3×3 neighbours, `mse = 0`).
+//! 3×3 neighbours clamped `>= 0`, `mse = 0`).
 
 use crate::error::Result;
 use crate::gpu::reflect::{read, write};

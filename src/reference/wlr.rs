@@ -238,8 +238,9 @@ pub fn accepted(grey_i: f64, vbar_i: f64, c: &Centre, is_centre: bool, options: 
     if options & WLR_REJECT == 0 || is_centre {
         return true;
     }
-    // `!(a > b)`: a NaN difference is accepted, as in the kernel.
-    !((grey_i - c.grey).abs() > CI_SIGMAS * (vbar_i.max(0.0).sqrt() + c.sd) + CI_MARGIN)
+    let d = (grey_i - c.grey).abs();
+    // A NaN difference is accepted, as in the kernel (`!(d > thr)`).
+    d <= CI_SIGMAS * (vbar_i.max(0.0).sqrt() + c.sd) + CI_MARGIN || d.is_nan()
 }
 
 /// Epanechnikov kernel `K_E(t) = 0.75(1 − t²)` for `|t| < 1`, else 0.
@@ -301,6 +302,9 @@ pub fn curvature(
     for_window(p, c, radius, |q, px, py| {
         let x = p.features(px, py);
         let (y, vb) = p.colour(q);
+        // Centred responses y − y_c: only the intercept changes (as on the GPU,
+        // where this saves f32 precision).
+        let y = [y[0] - c.y[0], y[1] - c.y[1], y[2] - c.y[2]];
         let dz = pr.dz(&x, &c.x);
         let w = outlier_weight(vb, options) * kernel_weight(&dz, &ones, k);
         if w > 0.0 {
@@ -398,7 +402,9 @@ pub fn fits(
         } else {
             0.0
         };
-        (pr.dz(&x, &c.x), y, vb, base)
+        // centred responses: Σ l_i (y_i − y_c) = f̂ − y_c because Σ l_i = 1
+        let yc = [y[0] - c.y[0], y[1] - c.y[1], y[2] - c.y[2]];
+        (pr.dz(&x, &c.x), yc, vb, base)
     };
 
     // Pass A: normal matrices (upper triangles) and positive-weight counts.
@@ -458,7 +464,7 @@ pub fn fits(
         return out;
     }
 
-    // Pass B: l_i = w_i uᵀ x_i → Σ l y, Σ l² vbar and the positive parts.
+    // Pass B: l_i = w_i uᵀ x_i → Σ l (y − y_c), Σ l² vbar and the positive parts.
     let mut sy = vec![[0.0; 3]; nh];
     let mut sl2v = vec![0.0; nh];
     let mut sp = vec![0.0; nh];
@@ -493,18 +499,27 @@ pub fn fits(
             continue;
         }
         let fit = &mut out[s];
-        fit.f = sy[s];
+        // delta = f̂ − y_c = Σ l_i (y_i − y_c)
+        let mut delta = sy[s];
         fit.var = sl2v[s];
-        if options & WLR_NONNEG != 0 && fit.f.iter().any(|&v| v < 0.0) {
-            // NONNEG: l ← max(l, 0)/max(Σ max(l, 0), 1e-3), then clamp.
+        if options & WLR_NONNEG != 0 && (0..3).any(|ch| c.y[ch] + delta[ch] < 0.0) {
+            // NONNEG: l ← max(l, 0)/max(Σ max(l, 0), 1e-3), then clamp f̂ >= 0.
             let den = sp[s].max(NONNEG_FLOOR);
             for ch in 0..3 {
-                fit.f[ch] = (spy[s][ch] / den).max(0.0);
+                delta[ch] = if sp[s] >= NONNEG_FLOOR {
+                    spy[s][ch] / sp[s]
+                } else {
+                    (spy[s][ch] + c.y[ch] * sp[s]) / den - c.y[ch]
+                };
+                delta[ch] = delta[ch].max(-c.y[ch]);
             }
             fit.var = sp2v[s] / (den * den);
             fit.nonneg = true;
         }
-        fit.bias = (0..3).map(|ch| fit.f[ch] - c.y[ch]).sum::<f64>() / 3.0;
+        for ch in 0..3 {
+            fit.f[ch] = c.y[ch] + delta[ch];
+        }
+        fit.bias = (delta[0] + delta[1] + delta[2]) / 3.0;
     }
     out
 }
@@ -578,7 +593,8 @@ pub struct HChoice {
 /// Step 7 (f64) with H-CASES for `k >= 1`; `bias1`, `var1` are the trial at
 /// `h = 0.2`. Mirrors `wlr_choose_h`.
 pub fn choose_h(par: &Parametric, k: usize, n: f64, bias1: f64, var1: f64) -> HChoice {
-    if !(par.kappa1 > 0.0) {
+    // κ1 <= 0 (or NaN, as in the kernel's `!(κ1 > 0)`)
+    if par.kappa1 <= 0.0 || par.kappa1.is_nan() {
         return HChoice {
             h_opt: TRIAL_H[0],
             lambda1: 0.0,
@@ -601,7 +617,7 @@ pub fn choose_h(par: &Parametric, k: usize, n: f64, bias1: f64, var1: f64) -> HC
     let a = k as f64 * par.kappa1 / (4.0 * l2n);
     let h = a.powf(1.0 / (k as f64 + 4.0));
     c.h_opt = h.clamp(H_MIN, H_MAX);
-    if h < H_MIN || h > H_MAX {
+    if !(H_MIN..=H_MAX).contains(&h) {
         c.flags |= FLAG_CLAMPED;
     }
     c
@@ -707,9 +723,11 @@ impl Stored {
 }
 
 /// `wlr_final` at a valid centre: the TSVD and `b_j` recomputed exactly as in
-/// [`fit_pixel`], step 9 at `h = clamp(hbar, 0.01, 1)` and step 10 with the
-/// stored model. A pass-through (`k = 0`, SOLVE-FAIL of the curvature or the
-/// final fit) outputs `y_c`; a failed fit reports `MSE = vbar_c` (§0.5).
+/// [`fit_pixel`], step 9 at `h = clamp(hbar, 0.01, 1)` (a no-op for a
+/// Gaussian mean of `h_opt` values) and step 10 with the stored model and the
+/// stored `k` (the `k` its `κ`s were fitted with). A pass-through (`k = 0`,
+/// SOLVE-FAIL of the curvature or the final fit) outputs `y_c`; a failed fit
+/// reports `MSE = vbar_c` (§0.5).
 pub fn final_pixel(
     p: &Planes,
     cx: usize,
@@ -760,7 +778,8 @@ pub fn final_pixel(
 }
 
 /// §0.2: the output of an invalid pixel, the plain mean colour of the valid
-/// pixels of its 3x3 neighbourhood (0 if none).
+/// pixels of its 3x3 neighbourhood (0 if none), clamped `>= 0` like every
+/// final colour output (§0.4 step 5).
 pub fn invalid_fill(p: &Planes, cx: usize, cy: usize) -> [f64; 3] {
     let mut sum = [0.0; 3];
     let mut n = 0usize;
@@ -779,7 +798,7 @@ pub fn invalid_fill(p: &Planes, cx: usize, cy: usize) -> [f64; 3] {
     if n == 0 {
         return [0.0; 3];
     }
-    sum.map(|s| s / n as f64)
+    sum.map(|s| (s / n as f64).max(0.0))
 }
 
 /// Runs `f(x, y)` for every pixel of a `width × height` grid on all cores

@@ -15,8 +15,8 @@ pub const WLR_FINAL_OUTPUTS: usize = 5;
 /// [`WLR_FINAL_OUTPUTS`] full planes: the output colour (`>= 0`), the MSE
 /// of step 10 (`>= 0`) and the flags of §2.5 as a float (`wlr_fit`'s flags |
 /// bit 1 FEW in the final fit | bit 0 SOLVE-FAIL; bit 5 invalid pixel).
-/// An invalid centre gets the mean colour of its valid 3x3 neighbours (§0.2),
-/// `mse = 0`, flags = 32.
+/// An invalid centre gets the mean colour of its valid 3x3 neighbours (§0.2,
+/// clamped `>= 0`), `mse = 0`, flags = 32.
 pub fn wlr_final(
     push: &WlrPush,
     feat: [&[f32]; 7],
