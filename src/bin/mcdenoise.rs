@@ -86,8 +86,8 @@ enum Prefilter {
 #[derive(Subcommand)]
 enum Command {
     /// Run the built-in example (a 64x64 crop of a public 16-spp scene and its
-    /// reference, compiled into the binary): inspect it, sanitise it on the GPU,
-    /// write the results and print the metrics against the reference.
+    /// reference, compiled into the binary): inspect it, denoise it with WLR on
+    /// the GPU, write the results and print the metrics against the reference.
     Demo {
         /// Folder for the example's files and outputs.
         #[arg(long, default_value = "out/demo")]
@@ -405,32 +405,60 @@ fn demo(cli: &Cli, out: &Path) -> anyhow::Result<bool> {
     println!();
     let ctx = context(cli)?;
     println!("device: {}", ctx.info().name);
+    let r = io::read_rgb(&reference)?;
+    let input_metrics = metrics::compare(&mcdenoise::methods::prepare::colour_of(&img), &r)?;
+    let mut req = DenoiseRequest::new(Method::Wlr);
+    req.error = true;
+    req.debug = true;
     let t0 = std::time::Instant::now();
-    let (clean, report) = prepare(Some(&ctx), Backend::Gpu, Precision::F32, &img)?;
+    let result = denoise(Some(&ctx), &img, &req)?;
     let secs = t0.elapsed().as_secs_f64();
-    print_report(&report, &input);
-    let colour = mcdenoise::methods::prepare::colour_of(&clean);
+    print_report(&result.report, &input);
     let output = out.join("output.exr");
     let preview = out.join("output.png");
+    let input_preview = out.join("input.png");
     io::write_output(
         &output,
         &io::OutputImage {
-            color: colour.clone(),
-            error: None,
+            color: result.color.clone(),
+            error: result.error.clone(),
             samples: None,
-            debug: vec![],
+            debug: result.debug.clone(),
         },
     )?;
-    io::write_png_preview(&preview, &colour)?;
+    io::write_png_preview(&preview, &result.color)?;
+    io::write_png_preview(
+        &input_preview,
+        &mcdenoise::methods::prepare::colour_of(&img),
+    )?;
     println!(
-        "sanitised on the GPU in {secs:.3} s -> {} and {}",
+        "WLR on the GPU in {secs:.2} s (the first run on lavapipe also compiles the kernels) -> {} (color, error, debug layers), {}",
         output.display(),
         preview.display()
     );
-    println!("(no reconstruction method is in this build yet: the output is the sanitised input)");
-    let r = io::read_rgb(&reference)?;
-    println!("metrics of the output against {}:", reference.display());
-    print_metrics(&metrics::compare(&colour, &r)?);
+    let gpu_ms: f64 = result.timings.iter().map(|t| t.nanoseconds).sum::<f64>() / 1e6;
+    for (k, ns, n) in mcdenoise::gpu::timings_per_kernel(&result.timings) {
+        println!("  {k:<18} {:>9.1} ms  ({n} dispatches)", ns / 1e6);
+    }
+    println!("  {:<18} {gpu_ms:>9.1} ms", "total GPU");
+    let m = metrics::compare(&result.color, &r)?;
+    println!("\nagainst {}:          input     WLR", reference.display());
+    println!(
+        "  rMSE            {:>9.5} {:>9.5}",
+        input_metrics.rmse, m.rmse
+    );
+    println!(
+        "  relMSE          {:>9.5} {:>9.5}",
+        input_metrics.relmse, m.relmse
+    );
+    println!(
+        "  PSNR (dB)       {:>9.2} {:>9.2}",
+        input_metrics.psnr, m.psnr
+    );
+    println!(
+        "  SSIM            {:>9.4} {:>9.4}",
+        input_metrics.ssim, m.ssim
+    );
     Ok(true)
 }
 
