@@ -2,7 +2,9 @@
 //! compared with a committed expected image, with a threshold (not bit
 //! equality across devices). `MCDENOISE_UPDATE_GOLDENS=1 cargo test --test
 //! golden` rewrites the goldens; a failing comparison writes the output, a
-//! heat map of the difference and a side-by-side PNG next to the target dir.
+//! heat map of the difference and previews under the target dir. When both
+//! backends are checked against one golden, the CPU twin (f64, the same on
+//! every machine) runs last, so its output is what a rewrite stores.
 
 mod common;
 use common::*;
@@ -97,6 +99,16 @@ fn golden_none() {
         1e-10,
         1e-8,
     );
+}
+
+/// WLR on the fixture. Threshold: rMSE against the golden ≤ 1e-5 and no
+/// pixel's term above 1e-3 — f32 arithmetic on another device (or the f64
+/// twin) moves outputs by ~1e-4 relative at most (spec §0.3), far below the
+/// ~1e-2 rMSE a change in the algorithm produces.
+#[test]
+fn golden_wlr() {
+    check_golden("wlr_dof_checker_64", &run(Method::Wlr, Backend::Gpu), 1e-5, 1e-3);
+    check_golden("wlr_dof_checker_64", &run(Method::Wlr, Backend::Cpu), 1e-5, 1e-3);
 }
 
 #[test]
