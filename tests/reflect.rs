@@ -14,6 +14,18 @@ fn every_kernel_matches_its_declaration() {
                 .unwrap_or_else(|e| panic!("{}{}: {e}", decl.name, p.suffix()));
             assert_eq!(r.workgroup_size, [8, 8, 1], "{}: workgroup", decl.name);
             assert!(r.shared_bytes <= 32 * 1024, "{}: shared memory", decl.name);
+            // f32 variants use f64 only where the spec demands it (WLR §0.3).
+            if p == Precision::F32 {
+                assert_eq!(
+                    r.uses_f64,
+                    decl.name.starts_with("wlr_"),
+                    "{}: f64 use",
+                    decl.name
+                );
+            } else {
+                // The _f64 variant really computes in f64 (MC_F64 took effect).
+                assert!(r.uses_f64, "{}_f64 has no f64 arithmetic", decl.name);
+            }
         }
     }
 }
@@ -49,8 +61,9 @@ fn a_wrong_declaration_is_caught() {
     let mut decl2 = *ALL[0];
     decl2.push_size += 16;
     assert!(decl2.check(Precision::F32).is_err());
-    // And the f64 variant really uses f64.
-    let words = spirv(ALL[0].name, Precision::F64).unwrap();
-    reflect("f64", words).unwrap();
-    assert!(words.contains(&0x0000000A_u32) || words.len() > 10);
+    // Reflection tells f32 from f64 arithmetic.
+    let f32_words = spirv(ALL[0].name, Precision::F32).unwrap();
+    let f64_words = spirv(ALL[0].name, Precision::F64).unwrap();
+    assert!(!reflect("f32", f32_words).unwrap().uses_f64);
+    assert!(reflect("f64", f64_words).unwrap().uses_f64);
 }

@@ -61,6 +61,14 @@ impl GpuContext {
             )));
         }
         let reflection = decl.check(precision)?;
+        if reflection.uses_f64 && !self.f64_enabled {
+            return Err(Error::Limit(format!(
+                "kernel {}{} uses f64 arithmetic, which needs shaderFloat64; {} does not have it enabled",
+                decl.name,
+                precision.suffix(),
+                self.info.name
+            )));
+        }
         let words = spirv(decl.name, precision).expect("checked above");
         let label = format!("{}{}", decl.name, precision.suffix());
         let dev = &self.device;

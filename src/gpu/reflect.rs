@@ -76,6 +76,10 @@ pub struct Reflection {
     pub workgroup_size: [u32; 3],
     /// Bytes of workgroup-shared memory.
     pub shared_bytes: u32,
+    /// Whether the module uses 64-bit floats (needs `shaderFloat64`). The
+    /// WLR kernels do even in their f32 variant: spec §0.3 keeps the
+    /// parametric fits and the h_opt formula in f64.
+    pub uses_f64: bool,
 }
 
 /// The SPIR-V words of a compiled kernel variant (`name` + precision suffix).
@@ -147,6 +151,27 @@ pub fn reflect(kernel: &str, words: &[u32]) -> Result<Reflection> {
         }
     }
     bindings.sort_by_key(|b| b.0);
+    let uses_f64 = module.types.iter().any(|(_, t)| {
+        matches!(
+            t.inner,
+            naga::TypeInner::Scalar(naga::Scalar {
+                kind: naga::ScalarKind::Float,
+                width: 8
+            }) | naga::TypeInner::Vector {
+                scalar: naga::Scalar {
+                    kind: naga::ScalarKind::Float,
+                    width: 8
+                },
+                ..
+            } | naga::TypeInner::Matrix {
+                scalar: naga::Scalar {
+                    kind: naga::ScalarKind::Float,
+                    width: 8
+                },
+                ..
+            }
+        )
+    });
     let ep = module
         .entry_points
         .iter()
@@ -157,6 +182,7 @@ pub fn reflect(kernel: &str, words: &[u32]) -> Result<Reflection> {
         push_size,
         workgroup_size: ep.workgroup_size,
         shared_bytes,
+        uses_f64,
     })
 }
 
