@@ -234,3 +234,162 @@ fn host_device_and_command_buffer() {
         h.instance.destroy_instance(None);
     }
 }
+
+/// The whole library path of a renderer: its accumulation buffer → finalize →
+/// sanitation → WLR, recorded into the host's command buffer and submitted by
+/// the host; colour and MSE stay on the GPU until the test reads them. The
+/// result equals the CPU chain (twins) within the spec's tolerances.
+#[test]
+fn host_records_the_whole_wlr_chain() {
+    use mcdenoise::methods::{prepare, wlr};
+    let h = host();
+    let (w, hgt) = (24usize, 20usize);
+    let layout = AccumLayout::new(w, hgt, false, false);
+    let mut acc = Accumulator::new(layout);
+    let nch = layout.channels().len();
+    let mut rng = Rng(9);
+    for p in 0..w * hgt {
+        let (x, y) = ((p % w) as f64, (p / w) as f64);
+        for _ in 0..8 {
+            let mut v: Vec<f64> = vec![0.0; nch];
+            let edge = if x > 11.0 { 1.0 } else { 0.2 };
+            for c in 0..3 {
+                v[c] = (edge * (0.5 + 0.02 * y) + 0.2 * rng.normal()).max(0.0); // colour
+                v[3 + c] = edge; // albedo
+            }
+            v[6] = 0.0;
+            v[7] = 1.0;
+            v[8] = 0.0; // normal
+            v[9] = 3.0 + 0.1 * y + 0.01 * rng.normal(); // depth
+            acc.add(p, &v);
+        }
+    }
+    let planes = acc.planes();
+    let stride = layout.plane_stride() as usize;
+    let (accum_buf, accum_mem, ptr) = host_buffer(&h, layout.bytes());
+    unsafe {
+        for (i, p) in planes.iter().enumerate() {
+            std::ptr::copy_nonoverlapping(
+                p.as_ptr() as *const u8,
+                ptr.add(i * stride),
+                p.len() * 4,
+            );
+        }
+    }
+    let ctx = Arc::new(
+        unsafe {
+            GpuContext::from_raw(ImportedDevice {
+                entry: h.entry.clone(),
+                instance: h.instance.clone(),
+                physical_device: h.physical,
+                device: h.device.clone(),
+                queue: h.queue,
+                queue_family_index: h.family,
+                shader_float64_enabled: h.f64,
+            })
+        }
+        .unwrap(),
+    );
+    let stats = GpuStats::new(&ctx, "stats", w, hgt, &finalized_layers(&layout)).unwrap();
+    let layers: Vec<Layer> = finalized_layers(&layout);
+    let clean = GpuStats::new(&ctx, "clean", w, hgt, &prepare::output_layers(&layers)).unwrap();
+    let scratch = prepare::PrepareScratch::new(&ctx, &stats).unwrap();
+    let planes_wlr = wlr::WlrPlanes::new(&ctx, w, hgt).unwrap();
+    let params = wlr::WlrParams::new(mcdenoise::methods::Pass::Final, &Default::default()).unwrap();
+
+    let pool = unsafe {
+        h.device
+            .create_command_pool(
+                &vk::CommandPoolCreateInfo::default().queue_family_index(h.family),
+                None,
+            )
+            .unwrap()
+    };
+    let cmd = unsafe {
+        h.device
+            .allocate_command_buffers(
+                &vk::CommandBufferAllocateInfo::default()
+                    .command_pool(pool)
+                    .level(vk::CommandBufferLevel::PRIMARY)
+                    .command_buffer_count(1),
+            )
+            .unwrap()[0]
+    };
+    unsafe {
+        h.device
+            .begin_command_buffer(cmd, &vk::CommandBufferBeginInfo::default())
+            .unwrap()
+    };
+    let mut batch = unsafe { Batch::record_into(&ctx, cmd) };
+    let accum = BufferSlice {
+        buffer: accum_buf,
+        offset: 0,
+        size: layout.bytes(),
+    };
+    record_finalize(&mut batch, Precision::F32, &layout, accum, &stats).unwrap();
+    prepare::record_prepare(&mut batch, Precision::F32, &stats, &clean, &scratch, true).unwrap();
+    wlr::record_wlr(&mut batch, Precision::F32, &clean, &planes_wlr, params).unwrap();
+    let recorded = batch.finish_recording();
+    unsafe {
+        h.device.end_command_buffer(cmd).unwrap();
+        let fence = h
+            .device
+            .create_fence(&vk::FenceCreateInfo::default(), None)
+            .unwrap();
+        let cmds = [cmd];
+        h.device
+            .queue_submit(
+                h.queue,
+                &[vk::SubmitInfo::default().command_buffers(&cmds)],
+                fence,
+            )
+            .unwrap();
+        h.device.wait_for_fences(&[fence], true, u64::MAX).unwrap();
+        h.device.destroy_fence(fence, None);
+    }
+    let timings = recorded.timings().unwrap();
+    for k in [
+        "finalize_stats",
+        "sanitize",
+        "wlr_fit",
+        "gauss_smooth",
+        "wlr_final",
+    ] {
+        assert!(timings.iter().any(|t| t.kernel == k), "no timing for {k}");
+    }
+    drop(recorded);
+    let gpu = wlr::download(&planes_wlr, w, hgt).unwrap();
+
+    let finalized = finalize_cpu(&layout, &planes);
+    let (clean_cpu, _) = prepare::prepare_cpu(&finalized);
+    let cpu = wlr::run_cpu(&clean_cpu, params).unwrap();
+    for c in 0..3 {
+        assert_close(
+            &format!("colour {c}"),
+            &gpu.color.planes[c],
+            &cpu.color.planes[c],
+            0.99,
+        );
+    }
+    assert_close("mse", &gpu.mse, &cpu.mse, 0.99);
+    // The reconstruction actually denoised: smoother than the input.
+    let input = &finalized.get(Layer::Color).unwrap()[0];
+    let rough = |p: &[f32]| {
+        (1..p.len())
+            .filter(|i| i % w != 0 && i % w != 12)
+            .map(|i| (p[i] - p[i - 1]).powi(2) as f64)
+            .sum::<f64>()
+    };
+    assert!(rough(&gpu.color.planes[0]) < 0.5 * rough(input));
+
+    drop((stats, clean, scratch, planes_wlr));
+    drop(ctx);
+    unsafe {
+        h.device.destroy_command_pool(pool, None);
+        h.device.unmap_memory(accum_mem);
+        h.device.destroy_buffer(accum_buf, None);
+        h.device.free_memory(accum_mem, None);
+        h.device.destroy_device(None);
+        h.instance.destroy_instance(None);
+    }
+}
