@@ -352,6 +352,7 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
             req.options = options;
             req.error = *error;
             req.debug = *debug_layers;
+            req.progress = !cli.quiet;
             let ctx = if req.backend == Backend::Gpu {
                 Some(context(&cli)?)
             } else {

@@ -74,6 +74,12 @@ pub struct Batch {
     pub max_flops_per_submit: f64,
     /// Number of submits so far (execute mode).
     pub submits: u32,
+    /// Print progress on stderr at submit boundaries once the batch has run
+    /// for more than a second (execute mode).
+    pub progress: bool,
+    started: std::time::Instant,
+    /// (kernel, first row, last row, height) of the last recorded band.
+    last_band: Option<(String, u32, u32, u32)>,
 }
 
 impl Batch {
@@ -142,6 +148,9 @@ impl Batch {
             flops_in_submit: 0.0,
             max_flops_per_submit: DEFAULT_FLOPS_PER_SUBMIT,
             submits: 0,
+            progress: false,
+            started: std::time::Instant::now(),
+            last_band: None,
         }
     }
 
@@ -183,6 +192,12 @@ impl Batch {
                 .map_err(Error::vk("vkResetCommandBuffer"))?;
         }
         self.submits += 1;
+        if self.progress {
+            let t = self.started.elapsed().as_secs_f64();
+            if let (true, Some((k, a, b, h))) = (t > 1.0, &self.last_band) {
+                eprintln!("mcdenoise: {k} rows {a}..{b} of {h} done ({t:.1} s)");
+            }
+        }
         self.collect_timestamps()?;
         self.flops_in_submit = 0.0;
         self.begin()
@@ -469,6 +484,7 @@ impl Batch {
             if let Some((_, _, idx)) = q {
                 self.stamps.push((p.name.clone(), (row0, row0 + rows), idx));
             }
+            self.last_band = Some((p.name.clone(), row0, row0 + rows, height));
             self.barrier();
             self.flops_in_submit += band_flops;
             row0 += rows;

@@ -77,6 +77,8 @@ pub struct DenoiseRequest {
     pub error: bool,
     /// Keep the method's debug maps.
     pub debug: bool,
+    /// Report progress on stderr for runs longer than about a second.
+    pub progress: bool,
 }
 
 impl DenoiseRequest {
@@ -89,6 +91,7 @@ impl DenoiseRequest {
             options: Options::default(),
             error: false,
             debug: false,
+            progress: false,
         }
     }
 }
@@ -129,13 +132,17 @@ pub fn denoise(
                     return Err(Error::BadData("WLR needs the color and spp layers".into()));
                 }
                 let (clean, report) = prepare::prepare_cpu(img);
-                (wlr::run_cpu(&clean, params)?, report, Vec::new())
+                (
+                    wlr::run_cpu_with_progress(&clean, params, req.progress)?,
+                    report,
+                    Vec::new(),
+                )
             }
             Backend::Gpu => {
                 let ctx = ctx.ok_or_else(|| {
                     Error::InvalidArgument("the GPU backend needs a context".into())
                 })?;
-                wlr_gpu(ctx, req.precision, img, params)?
+                wlr_gpu(ctx, req.precision, img, params, req.progress)?
             }
         };
         let mse = result.mse.clone();
@@ -182,6 +189,7 @@ fn wlr_gpu(
     precision: Precision,
     img: &StatsImage,
     params: wlr::WlrParams,
+    progress: bool,
 ) -> Result<(wlr::WlrResult, prepare::PrepareReport, Vec<KernelTiming>)> {
     use crate::image::Layer;
     for l in [
@@ -208,6 +216,7 @@ fn wlr_gpu(
     let planes = wlr::WlrPlanes::new(ctx, img.width, img.height)?;
     let low_spp = prepare::has_low_spp(img);
     let mut batch = crate::gpu::Batch::new(ctx)?;
+    batch.progress = progress;
     prepare::record_prepare(&mut batch, precision, &input, &clean, &scratch, low_spp)?;
     wlr::record_wlr(&mut batch, precision, &clean, &planes, params)?;
     let timings = batch.finish()?;

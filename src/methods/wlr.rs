@@ -238,6 +238,23 @@ pub fn download(planes: &WlrPlanes, width: usize, height: usize) -> Result<WlrRe
 /// The CPU path: the scalar twins in the order of [`record_wlr`], on
 /// sanitised statistics.
 pub fn run_cpu(clean: &StatsImage, params: WlrParams) -> Result<WlrResult> {
+    run_cpu_with_progress(clean, params, false)
+}
+
+/// [`run_cpu`], printing each stage's time on stderr when `progress` is set
+/// and the run has taken more than a second.
+pub fn run_cpu_with_progress(
+    clean: &StatsImage,
+    params: WlrParams,
+    progress: bool,
+) -> Result<WlrResult> {
+    let started = std::time::Instant::now();
+    let report = |stage: &str| {
+        let t = started.elapsed().as_secs_f64();
+        if progress && t > 1.0 {
+            eprintln!("mcdenoise: {stage} (cpu) done ({t:.1} s)");
+        }
+    };
     let (w, h) = (clean.width, clean.height);
     let n = w * h;
     let need = |l: Layer| {
@@ -276,6 +293,7 @@ pub fn run_cpu(clean: &StatsImage, params: WlrParams) -> Result<WlrResult> {
     };
     let mut fit = vec![vec![0.0f32; n]; 8];
     reference::wlr_fit::wlr_fit(&push, feat, var, color, &vbar, spp, &mut fit);
+    report("wlr_fit");
 
     let push_s = SmoothPush {
         width: w as u32,
@@ -290,6 +308,7 @@ pub fn run_cpu(clean: &StatsImage, params: WlrParams) -> Result<WlrResult> {
     let mut out = vec![vec![0.0f32; n]; 5];
     let fit_in: [&[f32]; 4] = [&fit[1], &fit[2], &fit[3], &fit[4]];
     reference::wlr_final::wlr_final(&push, feat, var, color, &vbar, spp, &hbar, fit_in, &mut out);
+    report("wlr_final");
 
     all[VBAR] = vbar;
     for (k, p) in fit.into_iter().enumerate() {
