@@ -126,7 +126,12 @@ fn denoise_none_gpu_and_cpu_agree_and_inputs_are_protected() {
     assert_eq!(std::fs::read(&input).unwrap(), before);
     // A method that is not built yet says so instead of writing anything.
     let out = dir.join("lp.exr");
-    let (code, _, err) = run(bin().arg("denoise").arg(&input).arg("-o").arg(&out).args(["--method", "lp"]));
+    let (code, _, err) = run(bin()
+        .arg("denoise")
+        .arg(&input)
+        .arg("-o")
+        .arg(&out)
+        .args(["--method", "lp"]));
     assert_eq!(code, 2);
     assert!(err.contains("not in this build"), "{err}");
     assert!(!out.exists());

@@ -107,8 +107,18 @@ fn golden_none() {
 /// ~1e-2 rMSE a change in the algorithm produces.
 #[test]
 fn golden_wlr() {
-    check_golden("wlr_dof_checker_64", &run(Method::Wlr, Backend::Gpu), 1e-5, 1e-3);
-    check_golden("wlr_dof_checker_64", &run(Method::Wlr, Backend::Cpu), 1e-5, 1e-3);
+    check_golden(
+        "wlr_dof_checker_64",
+        &run(Method::Wlr, Backend::Gpu),
+        1e-5,
+        1e-3,
+    );
+    check_golden(
+        "wlr_dof_checker_64",
+        &run(Method::Wlr, Backend::Cpu),
+        1e-5,
+        1e-3,
+    );
 }
 
 #[test]
