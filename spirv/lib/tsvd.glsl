@@ -53,24 +53,90 @@ struct LocalSpace {
     real range[MAX_D];        // rho_j = M_j - m_j; constant if <= TSVD_RANGE_EPS
 };
 
+#if TSVD_D > 12
+#error "tsvd.glsl: the block accumulation supports TSVD_D <= 12"
+#endif
+
+#ifdef MC_F64
+#define tsvd_mat4 dmat4
+#else
+#define tsvd_mat4 mat4
+#endif
+
+// Macros rather than functions: array arguments would be copied in and
+// out (and inout 81-entry copies cost compile time). Constant b/br/bc/l
+// only, so every index is constant after unrolling.
+//
+// v = lanes [b, b+4) of the feature array a; lanes >= TSVD_D are 0.
+#define TSVD_PACK4(v, a, b) \
+    v = real4(0); \
+    for (int i_ = 0; i_ < 4; ++i_) { \
+        if ((b) + i_ < TSVD_D) { v[i_] = a[(b) + i_]; } \
+    }
+// a[b..] = lanes of v (lanes < TSVD_D only).
+#define TSVD_UNPACK4(a, v, b) \
+    for (int i_ = 0; i_ < 4; ++i_) { \
+        if ((b) + i_ < TSVD_D) { a[(b) + i_] = v[i_]; } \
+    }
+// Block B (B[c][r] = M[br*4 + r][bc*4 + c]) of the symmetric matrix M
+// (row-major, stride TSVD_D): upper triangle j <= l and its mirror.
+#define TSVD_UNPACK_BLOCK(M, B, br, bc) \
+    for (int r_ = 0; r_ < 4; ++r_) { \
+        for (int c_ = 0; c_ < 4; ++c_) { \
+            int j_ = (br) * 4 + r_; \
+            int l_ = (bc) * 4 + c_; \
+            if (j_ < TSVD_D && l_ < TSVD_D && j_ <= l_) { \
+                M[j_ * TSVD_D + l_] = B[c_][r_]; \
+                M[l_ * TSVD_D + j_] = B[c_][r_]; \
+            } \
+        } \
+    }
+// Column l of M, rows [br*4, br*4 + 4) from v (j <= l) and its mirror.
+#define TSVD_UNPACK_COL(M, v, br, l) \
+    for (int r_ = 0; r_ < 4; ++r_) { \
+        int j_ = (br) * 4 + r_; \
+        if (j_ < TSVD_D && j_ <= (l)) { \
+            M[j_ * TSVD_D + (l)] = v[r_]; \
+            M[(l) * TSVD_D + j_] = v[r_]; \
+        } \
+    }
+
+// 1/rho per lane, or 0 for a constant component (rho <= TSVD_RANGE_EPS).
+real4 tsvd_inv4(real4 rg)
+{
+    return mix(real4(0), real4(1) / rg, greaterThan(rg, real4(TSVD_RANGE_EPS)));
+}
+
 // Spec §0.6 steps 1-6 for the window Omega_c(R) of centre c: the clipped
 // square |q - c|_inf <= R inside [0, size), restricted to the pixels for
 // which load_features returns true, visited in raster order.
+//
+// The features are handled as real4 lanes (x0 = x[0..4), x1 = x[4..8),
+// x2 = x[8..12), lanes >= TSVD_D zero) and the Gram matrices G and E^T E
+// are accumulated as outer products into constant-indexed 4x4 blocks (the
+// upper block triangle), unpacked into the arrays of jacobi_eigen once per
+// window. Every entry sees the same operations in the same order as the
+// scalar twin.
 LocalSpace tsvd_local_space(ivec2 c, int R, ivec2 size)
 {
     LocalSpace ls;
     real x[MAX_D];
     real e2[MAX_D];
     real xc[MAX_D];
-    real sum[MAX_D];
-    real hi[MAX_D];
     load_features(c, xc, e2);
-    for (int j = 0; j < MAX_D; ++j) {
-        ls.mn[j] = real(0);
-        ls.range[j] = real(0);
-        sum[j] = real(0);
-        hi[j] = real(0);
-    }
+    real4 xc0;
+    TSVD_PACK4(xc0, xc, 0)
+    real4 mn0 = real4(0), hi0 = real4(0), sum0 = real4(0);
+#if TSVD_D > 4
+    real4 xc1;
+    TSVD_PACK4(xc1, xc, 4)
+    real4 mn1 = real4(0), hi1 = real4(0), sum1 = real4(0);
+#endif
+#if TSVD_D > 8
+    real4 xc2;
+    TSVD_PACK4(xc2, xc, 8)
+    real4 mn2 = real4(0), hi2 = real4(0), sum2 = real4(0);
+#endif
     ivec2 lo = max(c - ivec2(R), ivec2(0));
     ivec2 up = min(c + ivec2(R), size - ivec2(1));
 
@@ -81,11 +147,26 @@ LocalSpace tsvd_local_space(ivec2 c, int R, ivec2 size)
             if (!load_features(ivec2(qx, qy), x, e2)) {
                 continue;
             }
-            for (int j = 0; j < TSVD_D; ++j) {
-                ls.mn[j] = n == 0 ? x[j] : min(ls.mn[j], x[j]);
-                hi[j] = n == 0 ? x[j] : max(hi[j], x[j]);
-                sum[j] += x[j] - xc[j];
-            }
+            bool first = n == 0;
+            real4 x0;
+            TSVD_PACK4(x0, x, 0)
+            mn0 = first ? x0 : min(mn0, x0);
+            hi0 = first ? x0 : max(hi0, x0);
+            sum0 += x0 - xc0;
+#if TSVD_D > 4
+            real4 x1;
+            TSVD_PACK4(x1, x, 4)
+            mn1 = first ? x1 : min(mn1, x1);
+            hi1 = first ? x1 : max(hi1, x1);
+            sum1 += x1 - xc1;
+#endif
+#if TSVD_D > 8
+            real4 x2;
+            TSVD_PACK4(x2, x, 8)
+            mn2 = first ? x2 : min(mn2, x2);
+            hi2 = first ? x2 : max(hi2, x2);
+            sum2 += x2 - xc2;
+#endif
             ++n;
         }
     }
@@ -93,51 +174,124 @@ LocalSpace tsvd_local_space(ivec2 c, int R, ivec2 size)
 
     // Step 1: min-max normalisation. inv = 1/rho, or 0 for a constant
     // component (x' = 0, e2' = 0). mean = window mean in raw units.
-    real inv[MAX_D];
-    real mean[MAX_D];
     for (int j = 0; j < MAX_D; ++j) {
-        inv[j] = real(0);
-        mean[j] = real(0);
+        ls.mn[j] = real(0);
+        ls.range[j] = real(0);
     }
-    for (int j = 0; j < TSVD_D; ++j) {
-        ls.range[j] = hi[j] - ls.mn[j];
-        inv[j] = ls.range[j] > real(TSVD_RANGE_EPS) ? real(1) / ls.range[j] : real(0);
-        mean[j] = n > 0 ? xc[j] + sum[j] / real(n) : real(0);
-    }
+    real4 rg0 = hi0 - mn0;
+    real4 inv0 = tsvd_inv4(rg0);
+    real4 mean0 = n > 0 ? xc0 + sum0 / real(n) : real4(0);
+    TSVD_UNPACK4(ls.mn, mn0, 0)
+    TSVD_UNPACK4(ls.range, rg0, 0)
+#if TSVD_D > 4
+    real4 rg1 = hi1 - mn1;
+    real4 inv1 = tsvd_inv4(rg1);
+    real4 mean1 = n > 0 ? xc1 + sum1 / real(n) : real4(0);
+    TSVD_UNPACK4(ls.mn, mn1, 4)
+    TSVD_UNPACK4(ls.range, rg1, 4)
+#endif
+#if TSVD_D > 8
+    real4 rg2 = hi2 - mn2;
+    real4 inv2 = tsvd_inv4(rg2);
+    real4 mean2 = n > 0 ? xc2 + sum2 / real(n) : real4(0);
+    TSVD_UNPACK4(ls.mn, mn2, 8)
+    TSVD_UNPACK4(ls.range, rg2, 8)
+#endif
 
     // Pass 2, steps 2-4: G = Z^T Z with Z_ij = (x_ij - mean_j)/rho_j, and
-    // (E^T E)_jl = sum_i sqrt(e2'_ij e2'_il); upper triangles only.
+    // (E^T E)_jl = sum_i sqrt(e2'_ij e2'_il); upper block triangle only.
+    // Block Gab[col][row] = G[4a + row][4b + col].
+    tsvd_mat4 G00 = tsvd_mat4(0), E00 = tsvd_mat4(0);
+#if TSVD_D > 4
+    tsvd_mat4 G01 = tsvd_mat4(0), E01 = tsvd_mat4(0);
+    tsvd_mat4 G11 = tsvd_mat4(0), E11 = tsvd_mat4(0);
+#endif
+#if TSVD_D == 9
+    // A one-lane tail: column 8 as real4s and the scalar (8, 8).
+    real4 G08 = real4(0), E08 = real4(0);
+    real4 G18 = real4(0), E18 = real4(0);
+    real G88 = real(0), E88 = real(0);
+#elif TSVD_D > 8
+    tsvd_mat4 G02 = tsvd_mat4(0), E02 = tsvd_mat4(0);
+    tsvd_mat4 G12 = tsvd_mat4(0), E12 = tsvd_mat4(0);
+    tsvd_mat4 G22 = tsvd_mat4(0), E22 = tsvd_mat4(0);
+#endif
+    for (int qy = lo.y; qy <= up.y; ++qy) {
+        for (int qx = lo.x; qx <= up.x; ++qx) {
+            if (!load_features(ivec2(qx, qy), x, e2)) {
+                continue;
+            }
+            real4 x0, v0;
+            TSVD_PACK4(x0, x, 0)
+            TSVD_PACK4(v0, e2, 0)
+            real4 z0 = (x0 - mean0) * inv0;
+            real4 s0 = sqrt(max(v0, real4(0))) * inv0;
+            G00 += outerProduct(z0, z0);
+            E00 += outerProduct(s0, s0);
+#if TSVD_D > 4
+            real4 x1, v1;
+            TSVD_PACK4(x1, x, 4)
+            TSVD_PACK4(v1, e2, 4)
+            real4 z1 = (x1 - mean1) * inv1;
+            real4 s1 = sqrt(max(v1, real4(0))) * inv1;
+            G01 += outerProduct(z0, z1);
+            E01 += outerProduct(s0, s1);
+            G11 += outerProduct(z1, z1);
+            E11 += outerProduct(s1, s1);
+#endif
+#if TSVD_D > 8
+            real4 x2, v2;
+            TSVD_PACK4(x2, x, 8)
+            TSVD_PACK4(v2, e2, 8)
+            real4 z2 = (x2 - mean2) * inv2;
+            real4 s2 = sqrt(max(v2, real4(0))) * inv2;
+#if TSVD_D == 9
+            G08 += z0 * z2.x;
+            E08 += s0 * s2.x;
+            G18 += z1 * z2.x;
+            E18 += s1 * s2.x;
+            G88 += z2.x * z2.x;
+            E88 += s2.x * s2.x;
+#else
+            G02 += outerProduct(z0, z2);
+            E02 += outerProduct(s0, s2);
+            G12 += outerProduct(z1, z2);
+            E12 += outerProduct(s1, s2);
+            G22 += outerProduct(z2, z2);
+            E22 += outerProduct(s2, s2);
+#endif
+#endif
+        }
+    }
     real G[MAX_D * MAX_D];
     real EE[MAX_D * MAX_D];
     for (int j = 0; j < MAX_D * MAX_D; ++j) {
         G[j] = real(0);
         EE[j] = real(0);
     }
-    for (int qy = lo.y; qy <= up.y; ++qy) {
-        for (int qx = lo.x; qx <= up.x; ++qx) {
-            if (!load_features(ivec2(qx, qy), x, e2)) {
-                continue;
-            }
-            real z[MAX_D];
-            real s[MAX_D];
-            for (int j = 0; j < TSVD_D; ++j) {
-                z[j] = (x[j] - mean[j]) * inv[j];
-                s[j] = sqrt(max(e2[j], real(0))) * inv[j];
-            }
-            for (int j = 0; j < TSVD_D; ++j) {
-                for (int l = j; l < TSVD_D; ++l) {
-                    G[j * TSVD_D + l] += z[j] * z[l];
-                    EE[j * TSVD_D + l] += s[j] * s[l];
-                }
-            }
-        }
-    }
-    for (int j = 0; j < TSVD_D; ++j) {
-        for (int l = 0; l < j; ++l) {
-            G[j * TSVD_D + l] = G[l * TSVD_D + j];
-            EE[j * TSVD_D + l] = EE[l * TSVD_D + j];
-        }
-    }
+    TSVD_UNPACK_BLOCK(G, G00, 0, 0)
+    TSVD_UNPACK_BLOCK(EE, E00, 0, 0)
+#if TSVD_D > 4
+    TSVD_UNPACK_BLOCK(G, G01, 0, 1)
+    TSVD_UNPACK_BLOCK(EE, E01, 0, 1)
+    TSVD_UNPACK_BLOCK(G, G11, 1, 1)
+    TSVD_UNPACK_BLOCK(EE, E11, 1, 1)
+#endif
+#if TSVD_D == 9
+    TSVD_UNPACK_COL(G, G08, 0, 8)
+    TSVD_UNPACK_COL(EE, E08, 0, 8)
+    TSVD_UNPACK_COL(G, G18, 1, 8)
+    TSVD_UNPACK_COL(EE, E18, 1, 8)
+    G[8 * TSVD_D + 8] = G88;
+    EE[8 * TSVD_D + 8] = E88;
+#elif TSVD_D > 8
+    TSVD_UNPACK_BLOCK(G, G02, 0, 2)
+    TSVD_UNPACK_BLOCK(EE, E02, 0, 2)
+    TSVD_UNPACK_BLOCK(G, G12, 1, 2)
+    TSVD_UNPACK_BLOCK(EE, E12, 1, 2)
+    TSVD_UNPACK_BLOCK(G, G22, 2, 2)
+    TSVD_UNPACK_BLOCK(EE, E22, 2, 2)
+#endif
 
     // Step 3: singular values and right singular vectors.
     real w[MAX_D];
