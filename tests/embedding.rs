@@ -112,34 +112,9 @@ fn host_buffer(h: &Host, size: u64) -> (vk::Buffer, vk::DeviceMemory, *mut u8) {
     }
 }
 
-#[test]
-fn host_device_and_command_buffer() {
-    let h = host();
-    let (w, hgt) = (37usize, 23usize);
-    let layout = AccumLayout::new(w, hgt, true, false);
-    let mut acc = Accumulator::new(layout);
-    let nch = layout.channels().len();
-    let mut rng = Rng(5);
-    for p in 0..w * hgt {
-        for _ in 0..(p % 9) {
-            let v: Vec<f64> = (0..nch).map(|_| rng.uniform()).collect();
-            acc.add(p, &v);
-        }
-    }
-    let planes = acc.planes();
-    let stride = layout.plane_stride() as usize;
-    let (accum_buf, accum_mem, ptr) = host_buffer(&h, layout.bytes());
-    unsafe {
-        for (i, p) in planes.iter().enumerate() {
-            std::ptr::copy_nonoverlapping(
-                p.as_ptr() as *const u8,
-                ptr.add(i * stride),
-                p.len() * 4,
-            );
-        }
-    }
-
-    let ctx = Arc::new(
+/// Wraps the host's device (the documented unsafe import).
+fn import(h: &Host) -> Arc<GpuContext> {
+    Arc::new(
         unsafe {
             GpuContext::from_raw(ImportedDevice {
                 entry: h.entry.clone(),
@@ -152,42 +127,40 @@ fn host_device_and_command_buffer() {
             })
         }
         .unwrap(),
-    );
-    let out = GpuStats::new(&ctx, "embedded_stats", w, hgt, &finalized_layers(&layout)).unwrap();
+    )
+}
 
-    // The host's command pool and buffer.
-    let pool = unsafe {
-        h.device
+/// The host's own command pool and buffer: `record` fills it through
+/// `Batch::record_into`, then the host submits and waits. Returns mcdenoise's
+/// per-dispatch timings, read after completion.
+fn host_submit(
+    h: &Host,
+    ctx: &Arc<GpuContext>,
+    record: impl FnOnce(&mut Batch),
+) -> Vec<mcdenoise::gpu::KernelTiming> {
+    unsafe {
+        let pool = h
+            .device
             .create_command_pool(
                 &vk::CommandPoolCreateInfo::default().queue_family_index(h.family),
                 None,
             )
-            .unwrap()
-    };
-    let cmd = unsafe {
-        h.device
+            .unwrap();
+        let cmd = h
+            .device
             .allocate_command_buffers(
                 &vk::CommandBufferAllocateInfo::default()
                     .command_pool(pool)
                     .level(vk::CommandBufferLevel::PRIMARY)
                     .command_buffer_count(1),
             )
-            .unwrap()[0]
-    };
-    unsafe {
+            .unwrap()[0];
         h.device
             .begin_command_buffer(cmd, &vk::CommandBufferBeginInfo::default())
-            .unwrap()
-    };
-    let mut batch = unsafe { Batch::record_into(&ctx, cmd) };
-    let accum = BufferSlice {
-        buffer: accum_buf,
-        offset: 0,
-        size: layout.bytes(),
-    };
-    record_finalize(&mut batch, Precision::F32, &layout, accum, &out).unwrap();
-    let recorded = batch.finish_recording();
-    unsafe {
+            .unwrap();
+        let mut batch = Batch::record_into(ctx, cmd);
+        record(&mut batch);
+        let recorded = batch.finish_recording();
         h.device.end_command_buffer(cmd).unwrap();
         let fence = h
             .device
@@ -203,10 +176,71 @@ fn host_device_and_command_buffer() {
             .unwrap();
         h.device.wait_for_fences(&[fence], true, u64::MAX).unwrap();
         h.device.destroy_fence(fence, None);
+        let timings = recorded.timings().unwrap();
+        drop(recorded);
+        h.device.destroy_command_pool(pool, None);
+        timings
     }
-    let timings = recorded.timings().unwrap();
+}
+
+/// A host-visible buffer holding `planes` at the accumulation layout's stride.
+fn host_accum(
+    h: &Host,
+    layout: &AccumLayout,
+    planes: &[Vec<f32>],
+) -> (vk::Buffer, vk::DeviceMemory) {
+    let stride = layout.plane_stride() as usize;
+    let (buf, mem, ptr) = host_buffer(h, layout.bytes());
+    unsafe {
+        for (i, p) in planes.iter().enumerate() {
+            std::ptr::copy_nonoverlapping(
+                p.as_ptr() as *const u8,
+                ptr.add(i * stride),
+                p.len() * 4,
+            );
+        }
+    }
+    (buf, mem)
+}
+
+/// Host teardown, after every mcdenoise object is dropped (documented order).
+fn host_teardown(h: Host, buf: vk::Buffer, mem: vk::DeviceMemory) {
+    unsafe {
+        h.device.unmap_memory(mem);
+        h.device.destroy_buffer(buf, None);
+        h.device.free_memory(mem, None);
+        h.device.destroy_device(None);
+        h.instance.destroy_instance(None);
+    }
+}
+
+#[test]
+fn host_device_and_command_buffer() {
+    let h = host();
+    let (w, hgt) = (37usize, 23usize);
+    let layout = AccumLayout::new(w, hgt, true, false);
+    let mut acc = Accumulator::new(layout);
+    let nch = layout.channels().len();
+    let mut rng = Rng(5);
+    for p in 0..w * hgt {
+        for _ in 0..(p % 9) {
+            let v: Vec<f64> = (0..nch).map(|_| rng.uniform()).collect();
+            acc.add(p, &v);
+        }
+    }
+    let planes = acc.planes();
+    let (accum_buf, accum_mem) = host_accum(&h, &layout, &planes);
+    let ctx = import(&h);
+    let out = GpuStats::new(&ctx, "embedded_stats", w, hgt, &finalized_layers(&layout)).unwrap();
+    let accum = BufferSlice {
+        buffer: accum_buf,
+        offset: 0,
+        size: layout.bytes(),
+    };
+    let timings = host_submit(&h, &ctx, |batch| {
+        record_finalize(batch, Precision::F32, &layout, accum, &out).unwrap();
+    });
     assert!(timings.iter().any(|t| t.kernel == "finalize_stats"));
-    drop(recorded);
 
     let g = out.download().unwrap();
     let c = finalize_cpu(&layout, &planes);
@@ -225,14 +259,7 @@ fn host_device_and_command_buffer() {
     // Teardown in the documented order: mcdenoise's objects, then the host's.
     drop(out);
     drop(ctx);
-    unsafe {
-        h.device.destroy_command_pool(pool, None);
-        h.device.unmap_memory(accum_mem);
-        h.device.destroy_buffer(accum_buf, None);
-        h.device.free_memory(accum_mem, None);
-        h.device.destroy_device(None);
-        h.instance.destroy_instance(None);
-    }
+    host_teardown(h, accum_buf, accum_mem);
 }
 
 /// The whole library path of a renderer: its accumulation buffer → finalize →
@@ -265,31 +292,8 @@ fn host_records_the_whole_wlr_chain() {
         }
     }
     let planes = acc.planes();
-    let stride = layout.plane_stride() as usize;
-    let (accum_buf, accum_mem, ptr) = host_buffer(&h, layout.bytes());
-    unsafe {
-        for (i, p) in planes.iter().enumerate() {
-            std::ptr::copy_nonoverlapping(
-                p.as_ptr() as *const u8,
-                ptr.add(i * stride),
-                p.len() * 4,
-            );
-        }
-    }
-    let ctx = Arc::new(
-        unsafe {
-            GpuContext::from_raw(ImportedDevice {
-                entry: h.entry.clone(),
-                instance: h.instance.clone(),
-                physical_device: h.physical,
-                device: h.device.clone(),
-                queue: h.queue,
-                queue_family_index: h.family,
-                shader_float64_enabled: h.f64,
-            })
-        }
-        .unwrap(),
-    );
+    let (accum_buf, accum_mem) = host_accum(&h, &layout, &planes);
+    let ctx = import(&h);
     let stats = GpuStats::new(&ctx, "stats", w, hgt, &finalized_layers(&layout)).unwrap();
     let layers: Vec<Layer> = finalized_layers(&layout);
     let clean = GpuStats::new(&ctx, "clean", w, hgt, &prepare::output_layers(&layers)).unwrap();
@@ -297,57 +301,16 @@ fn host_records_the_whole_wlr_chain() {
     let planes_wlr = wlr::WlrPlanes::new(&ctx, w, hgt).unwrap();
     let params = wlr::WlrParams::new(mcdenoise::methods::Pass::Final, &Default::default()).unwrap();
 
-    let pool = unsafe {
-        h.device
-            .create_command_pool(
-                &vk::CommandPoolCreateInfo::default().queue_family_index(h.family),
-                None,
-            )
-            .unwrap()
-    };
-    let cmd = unsafe {
-        h.device
-            .allocate_command_buffers(
-                &vk::CommandBufferAllocateInfo::default()
-                    .command_pool(pool)
-                    .level(vk::CommandBufferLevel::PRIMARY)
-                    .command_buffer_count(1),
-            )
-            .unwrap()[0]
-    };
-    unsafe {
-        h.device
-            .begin_command_buffer(cmd, &vk::CommandBufferBeginInfo::default())
-            .unwrap()
-    };
-    let mut batch = unsafe { Batch::record_into(&ctx, cmd) };
     let accum = BufferSlice {
         buffer: accum_buf,
         offset: 0,
         size: layout.bytes(),
     };
-    record_finalize(&mut batch, Precision::F32, &layout, accum, &stats).unwrap();
-    prepare::record_prepare(&mut batch, Precision::F32, &stats, &clean, &scratch, true).unwrap();
-    wlr::record_wlr(&mut batch, Precision::F32, &clean, &planes_wlr, params).unwrap();
-    let recorded = batch.finish_recording();
-    unsafe {
-        h.device.end_command_buffer(cmd).unwrap();
-        let fence = h
-            .device
-            .create_fence(&vk::FenceCreateInfo::default(), None)
-            .unwrap();
-        let cmds = [cmd];
-        h.device
-            .queue_submit(
-                h.queue,
-                &[vk::SubmitInfo::default().command_buffers(&cmds)],
-                fence,
-            )
-            .unwrap();
-        h.device.wait_for_fences(&[fence], true, u64::MAX).unwrap();
-        h.device.destroy_fence(fence, None);
-    }
-    let timings = recorded.timings().unwrap();
+    let timings = host_submit(&h, &ctx, |batch| {
+        record_finalize(batch, Precision::F32, &layout, accum, &stats).unwrap();
+        prepare::record_prepare(batch, Precision::F32, &stats, &clean, &scratch, true).unwrap();
+        wlr::record_wlr(batch, Precision::F32, &clean, &planes_wlr, params).unwrap();
+    });
     for k in [
         "finalize_stats",
         "sanitize",
@@ -357,7 +320,6 @@ fn host_records_the_whole_wlr_chain() {
     ] {
         assert!(timings.iter().any(|t| t.kernel == k), "no timing for {k}");
     }
-    drop(recorded);
     let gpu = wlr::download(&planes_wlr, w, hgt).unwrap();
 
     let finalized = finalize_cpu(&layout, &planes);
@@ -384,12 +346,5 @@ fn host_records_the_whole_wlr_chain() {
 
     drop((stats, clean, scratch, planes_wlr));
     drop(ctx);
-    unsafe {
-        h.device.destroy_command_pool(pool, None);
-        h.device.unmap_memory(accum_mem);
-        h.device.destroy_buffer(accum_buf, None);
-        h.device.free_memory(accum_mem, None);
-        h.device.destroy_device(None);
-        h.instance.destroy_instance(None);
-    }
+    host_teardown(h, accum_buf, accum_mem);
 }

@@ -9,7 +9,7 @@ use clap::{Parser, Subcommand, ValueEnum};
 
 use mcdenoise::gpu::{self, ContextOptions, GpuContext, Precision, Validation};
 use mcdenoise::io;
-use mcdenoise::methods::prepare::{prepare, PrepareReport};
+use mcdenoise::methods::prepare::PrepareReport;
 use mcdenoise::methods::{denoise, Backend, DenoiseRequest, Method, Pass};
 use mcdenoise::metrics;
 use mcdenoise::options::{help_table, Options};
