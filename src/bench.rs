@@ -1075,12 +1075,7 @@ impl QualityReport {
                 s.push('\n');
             }
         }
-        if !self.warnings.is_empty() {
-            s.push_str("\nWarnings:\n");
-            for w in &self.warnings {
-                let _ = writeln!(s, "- {w}");
-            }
-        }
+        push_warnings(&mut s, &self.warnings);
         s
     }
 
@@ -1473,12 +1468,7 @@ impl TimingReport {
             }
             s.push_str(&markdown_table(&rows));
         }
-        if !self.warnings.is_empty() {
-            s.push_str("\nWarnings:\n");
-            for w in &self.warnings {
-                let _ = writeln!(s, "- {w}");
-            }
-        }
+        push_warnings(&mut s, &self.warnings);
         s
     }
 
@@ -1738,6 +1728,16 @@ fn write_json_string(s: &mut String, t: &str) {
         }
     }
     s.push('"');
+}
+
+/// Appends the Markdown "Warnings:" section (nothing when there are none).
+fn push_warnings(s: &mut String, warnings: &[String]) {
+    if !warnings.is_empty() {
+        s.push_str("\nWarnings:\n");
+        for w in warnings {
+            let _ = writeln!(s, "- {w}");
+        }
+    }
 }
 
 #[cfg(test)]
