@@ -137,7 +137,7 @@ void main()
         if (ls.k == 0) {
             flags |= WLR_F_K0;
         } else {
-            WlrProj pr = wlr_projection(ls);
+            TsvdProj pr = tsvd_projection(ls);
             real b[MAX_D];
             real Hb[MAX_D];
             if (!wlr_curvature(pr, cc, R, size, push.options, b, Hb)) {

@@ -123,7 +123,7 @@ void main()
         if (k == 0) {
             flags |= WLR_F_K0;
         } else {
-            WlrProj pr = wlr_projection(ls);
+            TsvdProj pr = tsvd_projection(ls);
             real b[MAX_D];
             real Hb[MAX_D];
             // Step 4.

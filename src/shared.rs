@@ -96,3 +96,25 @@ pub struct ChannelMeanPush {
     pub row0: u32,
     pub _pad: u32,
 }
+
+/// `spirv/lp_centres.comp` and `spirv/lp_gather.comp`, block `Push` (spec §3).
+#[repr(C)]
+#[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct LpPush {
+    /// Image size (the centre kernel runs on the candidate grid
+    /// `ceil(width/g) × ceil(height/g)`; its `row0` counts grid rows).
+    pub width: u32,
+    pub height: u32,
+    /// First row of the band this dispatch covers.
+    pub row0: u32,
+    /// Granularity `g` of this pass (19, 9, 4, 2, 1; §3.5). Centre kernel only.
+    pub granularity: u32,
+    /// Index of this pass (0..5); stored as `pass + 1` in the centre map.
+    pub pass: u32,
+    /// Bit 0: [`LP_VARSUB`] (`lp.error_mode = varsub`, `s = 1`, §3.4).
+    pub options: u32,
+    pub _pad: [u32; 2],
+}
+
+/// [`LpPush::options`] bit: subtract the test pixel's variance (LP-VARSUB, `s = 1`).
+pub const LP_VARSUB: u32 = 1;

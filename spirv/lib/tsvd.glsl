@@ -356,4 +356,56 @@ void tsvd_local_coords(LocalSpace ls, real xi[MAX_D], real xc[MAX_D], out real d
     }
 }
 
+#if TSVD_D == 9
+
+// Local coordinates for D = 9 (WLR, LP), twin reference::tsvd::Projection:
+// dz = P (x - x_c) with P[m][j] = V_jm / rho_j (0 for constant j and m >= k),
+// which equals step 7 (the window minimum cancels).
+// Column j of P is (P0[j], P1[j], P8[j]) = rows 0-3, 4-7, 8.
+struct TsvdProj {
+    real4 P0[9];
+    real4 P1[9];
+    real P8[9];
+    int k;
+    bvec4 m0;  // components 0-3 active (m < k)
+    bvec4 m1;  // components 4-7
+    bool m8;   // component 8
+};
+
+TsvdProj tsvd_projection(LocalSpace ls)
+{
+    TsvdProj pr;
+    pr.k = ls.k;
+    for (int j = 0; j < 9; ++j) {
+        real inv = ls.range[j] > real(TSVD_RANGE_EPS) ? real(1) / ls.range[j] : real(0);
+        real col[9];
+        for (int m = 0; m < 9; ++m) {
+            col[m] = m < ls.k ? ls.V[j * 9 + m] * inv : real(0);
+        }
+        pr.P0[j] = real4(col[0], col[1], col[2], col[3]);
+        pr.P1[j] = real4(col[4], col[5], col[6], col[7]);
+        pr.P8[j] = col[8];
+    }
+    pr.m0 = lessThan(ivec4(0, 1, 2, 3), ivec4(ls.k));
+    pr.m1 = lessThan(ivec4(4, 5, 6, 7), ivec4(ls.k));
+    pr.m8 = 8 < ls.k;
+    return pr;
+}
+
+// Local coordinates of raw features x: d0 = dz_1..4, d1 = dz_5..8, d8 = dz_9
+// (0 beyond k).
+void tsvd_dz(TsvdProj pr, real xc[MAX_D], real x[MAX_D], out real4 d0, out real4 d1, out real d8)
+{
+    d0 = real4(0);
+    d1 = real4(0);
+    d8 = real(0);
+    for (int j = 0; j < 9; ++j) {
+        real dx = x[j] - xc[j];
+        d0 += pr.P0[j] * dx;
+        d1 += pr.P1[j] * dx;
+        d8 += pr.P8[j] * dx;
+    }
+}
+#endif
+
 #endif // MC_TSVD_GLSL

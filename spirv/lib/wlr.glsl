@@ -104,54 +104,7 @@ WlrCentre wlr_centre(ivec2 c, real n)
     return cc;
 }
 
-// --- local coordinates ----------------------------------------------------
-
-// dz = P (x - x_c), P[m][j] = V_jm / rho_j (0 for constant j and m >= k).
-// Column j of P is (P0[j], P1[j], P8[j]) = rows 0-3, 4-7, 8.
-struct WlrProj {
-    real4 P0[9];
-    real4 P1[9];
-    real P8[9];
-    int k;
-    bvec4 m0;  // components 0-3 active (m < k)
-    bvec4 m1;  // components 4-7
-    bool m8;   // component 8
-};
-
-WlrProj wlr_projection(LocalSpace ls)
-{
-    WlrProj pr;
-    pr.k = ls.k;
-    for (int j = 0; j < 9; ++j) {
-        real inv = ls.range[j] > real(TSVD_RANGE_EPS) ? real(1) / ls.range[j] : real(0);
-        real col[9];
-        for (int m = 0; m < 9; ++m) {
-            col[m] = m < ls.k ? ls.V[j * 9 + m] * inv : real(0);
-        }
-        pr.P0[j] = real4(col[0], col[1], col[2], col[3]);
-        pr.P1[j] = real4(col[4], col[5], col[6], col[7]);
-        pr.P8[j] = col[8];
-    }
-    pr.m0 = lessThan(ivec4(0, 1, 2, 3), ivec4(ls.k));
-    pr.m1 = lessThan(ivec4(4, 5, 6, 7), ivec4(ls.k));
-    pr.m8 = 8 < ls.k;
-    return pr;
-}
-
-// Local coordinates of raw features x: d0 = dz_1..4, d1 = dz_5..8, d8 = dz_9
-// (0 beyond k).
-void wlr_dz(WlrProj pr, real xc[MAX_D], real x[MAX_D], out real4 d0, out real4 d1, out real d8)
-{
-    d0 = real4(0);
-    d1 = real4(0);
-    d8 = real(0);
-    for (int j = 0; j < 9; ++j) {
-        real dx = x[j] - xc[j];
-        d0 += pr.P0[j] * dx;
-        d1 += pr.P1[j] * dx;
-        d8 += pr.P8[j] * dx;
-    }
-}
+// Local coordinates: TsvdProj / tsvd_projection / tsvd_dz of lib/tsvd.glsl.
 
 // --- weights --------------------------------------------------------------
 
@@ -172,7 +125,7 @@ bool wlr_accepted(real grey_i, real vbar_i, WlrCentre cc, bool is_centre, uint o
 }
 
 // Product Epanechnikov kernel prod_{j<k} K_E(t_j), t = dz * inverse bandwidth.
-real wlr_kernel(WlrProj pr, real4 t0, real4 t1, real t8)
+real wlr_kernel(TsvdProj pr, real4 t0, real4 t1, real t8)
 {
     real4 k0 = mix(real4(1), max(real4(0), real(0.75) * (real4(1) - t0 * t0)), pr.m0);
     real4 k1 = mix(real4(1), max(real4(0), real(0.75) * (real4(1) - t1 * t1)), pr.m1);
@@ -474,7 +427,7 @@ void wlr_solve20_quadratic(realmat4 U[15], real4 r[5], out real4 q0, out real4 q
 // Step 4: weighted quadratic fit (1, dz, dz o dz), weights o_i prod K_E(dz_ij),
 // ridge 1e-3, per channel; b_j = (Hbar_j + 0.64)^(-1/2) for j < k, 0 beyond.
 // Returns false on SOLVE-FAIL (b = 0). No rejection in this fit.
-bool wlr_curvature(WlrProj pr, WlrCentre cc, int R, ivec2 size, uint options,
+bool wlr_curvature(TsvdProj pr, WlrCentre cc, int R, ivec2 size, uint options,
                    out real b[MAX_D], out real Hb[MAX_D])
 {
     realmat4 M[15];
@@ -507,7 +460,7 @@ bool wlr_curvature(WlrProj pr, WlrCentre cc, int R, ivec2 size, uint options,
             real4 d0;
             real4 d1;
             real d8;
-            wlr_dz(pr, cc.x, x, d0, d1, d8);
+            tsvd_dz(pr, cc.x, x, d0, d1, d8);
             w *= wlr_kernel(pr, d0, d1, d8);
             if (w > real(0)) {
                 real4 s0 = d0 * d0;
@@ -621,7 +574,7 @@ struct WlrFit {
 
 // Per-neighbour data shared by the two passes of wlr_fits: base weight
 // acc_i o_i (0 = skip), local coordinates, colour, vbar.
-bool wlr_fit_neighbour(WlrProj pr, WlrCentre cc, ivec2 q, uint options,
+bool wlr_fit_neighbour(TsvdProj pr, WlrCentre cc, ivec2 q, uint options,
                        out real base, out real4 d0, out real4 d1, out real d8,
                        out real3 y, out real vb)
 {
@@ -642,7 +595,7 @@ bool wlr_fit_neighbour(WlrProj pr, WlrCentre cc, ivec2 q, uint options,
         return false;
     }
     base = wlr_outlier_weight(vb, options);
-    wlr_dz(pr, cc.x, x, d0, d1, d8);
+    tsvd_dz(pr, cc.x, x, d0, d1, d8);
     y -= cc.y;  // centred responses (see wlr_fits)
     return base > real(0);
 }
@@ -687,7 +640,7 @@ bool wlr_fit_neighbour(WlrProj pr, WlrCentre cc, ivec2 q, uint options,
 // WLR_NFIT bandwidths h[s], weights acc_i o_i prod_j K_E(dz_ij / (h_s b_j)).
 // FEW (<= 1 positive weight) and SOLVE-FAIL give f = y_c, bias 0, var vbar_c
 // (flag bits 1 / 0); NONNEG when the option is on. b_j > 0 for j < k.
-void wlr_fits(WlrProj pr, WlrCentre cc, real b[MAX_D], real h[WLR_NFIT], int R, ivec2 size,
+void wlr_fits(TsvdProj pr, WlrCentre cc, real b[MAX_D], real h[WLR_NFIT], int R, ivec2 size,
               uint options, real lambda, out WlrFit fit[WLR_NFIT])
 {
     int k = pr.k;

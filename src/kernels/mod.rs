@@ -10,6 +10,9 @@ pub mod estimate_variance;
 pub mod finalize_covariance;
 pub mod finalize_stats;
 pub mod gauss_smooth;
+pub mod lp_centres;
+pub mod lp_gather;
+pub mod lp_reach;
 pub mod sanitize;
 pub mod sanitize_low_spp;
 pub mod tsvd_debug;
@@ -28,6 +31,9 @@ pub const ALL: &[&KernelDecl] = &[
     &gauss_smooth::DECL,
     &wlr_fit::DECL,
     &wlr_final::DECL,
+    &lp_centres::DECL,
+    &lp_reach::DECL,
+    &lp_gather::DECL,
 ];
 
 use std::sync::Arc;

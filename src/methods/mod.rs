@@ -2,6 +2,7 @@
 //! on the CPU (their scalar twins), selected by [`Backend`]; [`denoise`] is
 //! the one entry point the CLI and the benchmarks use.
 
+pub mod lp;
 pub mod prepare;
 pub mod stats;
 pub mod wlr;
@@ -51,7 +52,7 @@ impl Method {
 
     /// Methods built into this version.
     pub fn available(self) -> bool {
-        matches!(self, Method::None | Method::Wlr)
+        matches!(self, Method::None | Method::Wlr | Method::Lp)
     }
 }
 
@@ -120,7 +121,7 @@ pub fn denoise(
 ) -> Result<DenoiseOutput> {
     if !req.method.available() {
         return Err(Error::InvalidArgument(format!(
-            "method {} is not in this build yet: `wlr` and `none` (sanitised input) are",
+            "method {} is not in this build yet: `wlr`, `lp` and `none` (sanitised input) are",
             req.method.name()
         )));
     }
@@ -160,6 +161,39 @@ pub fn denoise(
             timings,
         });
     }
+    if req.method == Method::Lp {
+        let params = lp::LpParams::new(&req.options)?;
+        let (result, report, timings) = match req.backend {
+            Backend::Cpu => {
+                if !img.has(crate::image::Layer::Color) || !img.has(crate::image::Layer::Spp) {
+                    return Err(Error::BadData("LP needs the color and spp layers".into()));
+                }
+                let (clean, report) = prepare::prepare_cpu(img);
+                (
+                    lp::run_cpu(&clean, params, req.progress)?,
+                    report,
+                    Vec::new(),
+                )
+            }
+            Backend::Gpu => {
+                let ctx = ctx.ok_or_else(|| {
+                    Error::InvalidArgument("the GPU backend needs a context".into())
+                })?;
+                lp_gpu(ctx, req.precision, img, params, req.progress)?
+            }
+        };
+        return Ok(DenoiseOutput {
+            color: result.color.clone(),
+            error: req.error.then(|| result.error.clone()),
+            debug: if req.debug {
+                result.debug_layers()
+            } else {
+                Vec::new()
+            },
+            report,
+            timings,
+        });
+    }
     let (clean, report) = prepare::prepare(ctx, req.backend, req.precision, img)?;
     match req.method {
         Method::None => {
@@ -183,24 +217,34 @@ pub fn denoise(
     }
 }
 
-/// Sanitation and WLR in one GPU batch: one upload, one download.
-fn wlr_gpu(
+/// The layers WLR and LP read.
+const REGRESSION_LAYERS: [crate::image::Layer; 5] = [
+    crate::image::Layer::Color,
+    crate::image::Layer::Albedo,
+    crate::image::Layer::Normal,
+    crate::image::Layer::Depth,
+    crate::image::Layer::Spp,
+];
+
+/// Uploads `img`, records sanitation and then `record(batch, clean)` in one
+/// GPU batch, runs it, and returns the sanitation report and the timings.
+/// The caller downloads its outputs afterwards.
+fn gpu_chain(
     ctx: &Arc<GpuContext>,
     precision: Precision,
     img: &StatsImage,
-    params: wlr::WlrParams,
+    method: Method,
     progress: bool,
-) -> Result<(wlr::WlrResult, prepare::PrepareReport, Vec<KernelTiming>)> {
+    record: impl FnOnce(&mut crate::gpu::Batch, &stats::GpuStats) -> Result<()>,
+) -> Result<(prepare::PrepareReport, Vec<KernelTiming>)> {
     use crate::image::Layer;
-    for l in [
-        Layer::Color,
-        Layer::Albedo,
-        Layer::Normal,
-        Layer::Depth,
-        Layer::Spp,
-    ] {
+    for l in REGRESSION_LAYERS {
         if !img.has(l) {
-            return Err(Error::BadData(format!("WLR needs the {} layer", l.name())));
+            return Err(Error::BadData(format!(
+                "{} needs the {} layer",
+                method.name().to_uppercase(),
+                l.name()
+            )));
         }
     }
     let input = stats::GpuStats::upload(ctx, "input", img)?;
@@ -213,17 +257,50 @@ fn wlr_gpu(
         &prepare::output_layers(&layers),
     )?;
     let scratch = prepare::PrepareScratch::new(ctx, &input)?;
-    let planes = wlr::WlrPlanes::new(ctx, img.width, img.height)?;
     let low_spp = prepare::has_low_spp(img);
     let mut batch = crate::gpu::Batch::new(ctx)?;
     batch.progress = progress;
     prepare::record_prepare(&mut batch, precision, &input, &clean, &scratch, low_spp)?;
-    wlr::record_wlr(&mut batch, precision, &clean, &planes, params)?;
+    record(&mut batch, &clean)?;
     let timings = batch.finish()?;
     let mut report = prepare::base_report(img);
     report.counters = scratch.read_counters()?;
+    Ok((report, timings))
+}
+
+/// Sanitation and WLR in one GPU batch: one upload, one download.
+fn wlr_gpu(
+    ctx: &Arc<GpuContext>,
+    precision: Precision,
+    img: &StatsImage,
+    params: wlr::WlrParams,
+    progress: bool,
+) -> Result<(wlr::WlrResult, prepare::PrepareReport, Vec<KernelTiming>)> {
+    let planes = wlr::WlrPlanes::new(ctx, img.width, img.height)?;
+    let (report, timings) = gpu_chain(ctx, precision, img, Method::Wlr, progress, |b, clean| {
+        wlr::record_wlr(b, precision, clean, &planes, params)
+    })?;
     Ok((
         wlr::download(&planes, img.width, img.height)?,
+        report,
+        timings,
+    ))
+}
+
+/// Sanitation and LP in one GPU batch: one upload, one download.
+fn lp_gpu(
+    ctx: &Arc<GpuContext>,
+    precision: Precision,
+    img: &StatsImage,
+    params: lp::LpParams,
+    progress: bool,
+) -> Result<(lp::LpResult, prepare::PrepareReport, Vec<KernelTiming>)> {
+    let planes = lp::LpPlanes::new(ctx, img.width, img.height)?;
+    let (report, timings) = gpu_chain(ctx, precision, img, Method::Lp, progress, |b, clean| {
+        lp::record_lp(b, precision, clean, &planes, params)
+    })?;
+    Ok((
+        lp::download(&planes, img.width, img.height)?,
         report,
         timings,
     ))

@@ -1,6 +1,6 @@
 //! Scalar f64 twins of the GLSL kernels (`spirv/<name>.comp` ↔
 //! `reference/<name>.rs`) and of the shared GLSL libraries
-//! (`spirv/lib/<name>.glsl` ↔ [`linalg`], [`tsvd`], [`wlr`]).
+//! (`spirv/lib/<name>.glsl` ↔ [`linalg`], [`tsvd`], [`wlr`], [`lp`]).
 //!
 //! A twin takes the same planes (f32 slices) and push constants as its kernel
 //! and loops over the same pixel grid, computing in f64 and storing f32, so
@@ -13,6 +13,10 @@ pub mod finalize_covariance;
 pub mod finalize_stats;
 pub mod gauss_smooth;
 pub mod linalg;
+pub mod lp;
+pub mod lp_centres;
+pub mod lp_gather;
+pub mod lp_reach;
 pub mod sanitize;
 pub mod sanitize_low_spp;
 pub mod tsvd;

@@ -228,6 +228,59 @@ pub fn gather_window(
     w
 }
 
+/// Feature count of [`Projection`] (the 9 features of WLR and LP, §2.1).
+const D: usize = 9;
+
+/// The linear map from raw feature differences to local coordinates:
+/// `Δz_m = Σ_j p[m][j] (x_j − x_c,j)` with `p[m][j] = V_jm / ρ_j` for `m < k`
+/// and non-constant `j` (0 otherwise). Equal to §0.6 step 7.
+/// For the 9 features of WLR and LP (§2.1). Mirrors `TsvdProj` /
+/// `tsvd_projection` of `spirv/lib/tsvd.glsl`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Projection {
+    pub k: usize,
+    pub p: [[f64; D]; D],
+}
+
+/// Builds the [`Projection`] of a local space.
+pub fn projection(ls: &LocalSpace) -> Projection {
+    assert_eq!(ls.d, D, "tsvd::projection: D");
+    let mut p = [[0.0; D]; D];
+    for j in 0..D {
+        let inv = if ls.range[j] > RANGE_EPS {
+            1.0 / ls.range[j]
+        } else {
+            0.0
+        };
+        for m in 0..ls.k {
+            p[m][j] = ls.vector(j, m) * inv;
+        }
+    }
+    Projection { k: ls.k, p }
+}
+
+impl Projection {
+    /// `Δz` of raw features `x` relative to the centre's `xc`; 0 beyond `k`.
+    /// Mirrors `tsvd_dz`.
+    #[inline]
+    pub fn dz(&self, x: &[f64; D], xc: &[f64; D]) -> [f64; D] {
+        let mut dx = [0.0; D];
+        for j in 0..D {
+            dx[j] = x[j] - xc[j];
+        }
+        let mut dz = [0.0; D];
+        for m in 0..self.k {
+            let row = &self.p[m];
+            let mut s = 0.0;
+            for j in 0..D {
+                s += row[j] * dx[j];
+            }
+            dz[m] = s;
+        }
+        dz
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -1,0 +1,94 @@
+//! `lp_centres`: one sparse-centre pass of LP (spec §3.5) on the candidate
+//! grid of granularity `g`. A candidate `(g·gx, g·gy)` that is valid and not
+//! covered by a centre of an earlier pass (read from the `lp_reach` plane of
+//! the state before the pass, PASS-SNAPSHOT) becomes a centre: TSVD on the 19×19 window (§0.6), RLS ring
+//! by ring with the recursive error estimate (§3.3–3.4), `r_opt`, and its
+//! 36-value state ([`StateLayout`](crate::reference::lp::StateLayout)) is
+//! written to its own pixel of the state planes; nothing else is written.
+//! Twin: [`crate::reference::lp_centres`].
+
+use crate::error::Result;
+use crate::gpu::reflect::{read, write};
+use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};
+use crate::methods::lp::LpInputs;
+use crate::reference::lp_centres::grid;
+use crate::shared::LpPush;
+
+pub const DECL: KernelDecl = KernelDecl {
+    name: "lp_centres",
+    bindings: &[
+        read("normal_x"),
+        read("normal_y"),
+        read("normal_z"),
+        read("depth"),
+        read("albedo_r"),
+        read("albedo_g"),
+        read("albedo_b"),
+        read("var_normal_x"),
+        read("var_normal_y"),
+        read("var_normal_z"),
+        read("var_depth"),
+        read("var_albedo_r"),
+        read("var_albedo_g"),
+        read("var_albedo_b"),
+        read("color_r"),
+        read("color_g"),
+        read("color_b"),
+        read("var_color_r"),
+        read("var_color_g"),
+        read("var_color_b"),
+        read("spp"),
+        read("reach"),
+        write("state0"),
+        write("state1"),
+        write("state2"),
+        write("state3"),
+        write("state4"),
+        write("state5"),
+        write("state6"),
+        write("state7"),
+        write("state8"),
+    ],
+    push_size: std::mem::size_of::<LpPush>() as u32,
+};
+
+/// Per grid cell that becomes a centre: 361 neighbours × (TSVD: two passes
+/// with two 9×9 Gram updates; RLS: three projections, two 10×10 mat-vecs and
+/// one rank-1 update, 3 channels) plus two 9×9 Jacobi decompositions.
+pub fn flops_per_centre() -> f64 {
+    let n = 361.0;
+    let tsvd = 2.0 * 81.0 * 2.0 + 40.0;
+    let rls = 3.0 * 162.0 + 3.0 * 200.0 + 100.0;
+    n * (tsvd + rls) + 2.0 * 10.0 * 81.0 * 9.0 * 4.0
+}
+
+/// Records one pass (`push.granularity`, `push.pass`; `push.width/height`
+/// are the image's) over its candidate grid. `reach` is the `lp_reach` plane
+/// of the state before this pass; `state` the 9 vec4 planes.
+pub fn record(
+    batch: &mut Batch,
+    precision: Precision,
+    push: &LpPush,
+    inp: &LpInputs,
+    reach: BufferSlice,
+    state: [BufferSlice; 9],
+) -> Result<()> {
+    let mut b = Vec::with_capacity(DECL.bindings.len());
+    b.extend_from_slice(&inp.feat);
+    b.extend_from_slice(&inp.var);
+    b.extend_from_slice(&inp.color);
+    b.extend_from_slice(&inp.cvar);
+    b.push(inp.spp);
+    b.push(reach);
+    b.extend_from_slice(&state);
+    let (gw, gh) = grid(push.width, push.height, push.granularity.max(1));
+    batch.dispatch(
+        &DECL,
+        precision,
+        &b,
+        bytemuck::bytes_of(push),
+        gw,
+        gh,
+        flops_per_centre(),
+    )
+}

@@ -1,0 +1,92 @@
+//! `lp_gather`: LP's output (spec §3.5). Every pixel scans its 19×19
+//! neighbourhood of the centre state in raster order and averages the
+//! predictions `β_c + u_c·(x_i − x_c)` of the centres that cover it
+//! (`|i − c|_inf <= r_opt(c)`), their error estimates `max(ξ̂_c, 0)` and
+//! `ΔMSE = max(ξ̂_c, 0)·n_i^{-4/(k_c+4)}`. Twin:
+//! [`crate::reference::lp_gather`].
+
+use crate::error::Result;
+use crate::gpu::reflect::{read, write};
+use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};
+use crate::methods::lp::LpInputs;
+use crate::shared::LpPush;
+
+pub const DECL: KernelDecl = KernelDecl {
+    name: "lp_gather",
+    bindings: &[
+        read("normal_x"),
+        read("normal_y"),
+        read("normal_z"),
+        read("depth"),
+        read("albedo_r"),
+        read("albedo_g"),
+        read("albedo_b"),
+        read("color_r"),
+        read("color_g"),
+        read("color_b"),
+        read("spp"),
+        read("reach"),
+        read("state0"),
+        read("state1"),
+        read("state2"),
+        read("state3"),
+        read("state4"),
+        read("state5"),
+        read("state6"),
+        read("state7"),
+        read("state8"),
+        write("out_r"),
+        write("out_g"),
+        write("out_b"),
+        write("error_r"),
+        write("error_g"),
+        write("error_b"),
+        write("dmse_r"),
+        write("dmse_g"),
+        write("dmse_b"),
+        write("coverage"),
+    ],
+    push_size: std::mem::size_of::<LpPush>() as u32,
+};
+
+/// Names of the output planes, in binding order.
+pub const OUTPUTS: [&str; 10] = [
+    "out_r", "out_g", "out_b", "error_r", "error_g", "error_b", "dmse_r", "dmse_g", "dmse_b",
+    "coverage",
+];
+
+/// Per pixel: 19 reach reads, the centre-map rows they select (a few), and
+/// for each covering centre (a few to a few dozen) 36 state reads, 9
+/// feature differences and 3 × 9 FMAs.
+pub fn flops_per_pixel() -> f64 {
+    19.0 * 4.0 + 5.0 * 19.0 * 4.0 + 30.0 * 80.0
+}
+
+/// Records the gather over the whole image; `state` = the 9 vec4 planes
+/// after the last pass, `reach` their `lp_reach` plane, `out` = the planes of [`OUTPUTS`].
+pub fn record(
+    batch: &mut Batch,
+    precision: Precision,
+    push: &LpPush,
+    inp: &LpInputs,
+    reach: BufferSlice,
+    state: [BufferSlice; 9],
+    out: [BufferSlice; 10],
+) -> Result<()> {
+    let mut b = Vec::with_capacity(DECL.bindings.len());
+    b.extend_from_slice(&inp.feat);
+    b.extend_from_slice(&inp.color);
+    b.push(inp.spp);
+    b.push(reach);
+    b.extend_from_slice(&state);
+    b.extend_from_slice(&out);
+    batch.dispatch(
+        &DECL,
+        precision,
+        &b,
+        bytemuck::bytes_of(push),
+        push.width,
+        push.height,
+        flops_per_pixel(),
+    )
+}

@@ -1,0 +1,38 @@
+//! `lp_reach`: the horizontal half of LP's coverage test (spec §3.5): per
+//! pixel, the largest `r_opt` of the centres in its row that reach it
+//! horizontally (−1 if none); see [`crate::reference::lp_reach`], its twin.
+
+use crate::error::Result;
+use crate::gpu::reflect::{read, write};
+use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};
+use crate::shared::LpPush;
+
+pub const DECL: KernelDecl = KernelDecl {
+    name: "lp_reach",
+    bindings: &[read("state0"), write("reach")],
+    push_size: std::mem::size_of::<LpPush>() as u32,
+};
+
+/// Per pixel: 19 centre-map reads and compares.
+pub fn flops_per_pixel() -> f64 {
+    19.0 * 4.0
+}
+
+/// Records `reach` from state plane 0 over the whole image.
+pub fn record(
+    batch: &mut Batch,
+    precision: Precision,
+    push: &LpPush,
+    state0: BufferSlice,
+    reach: BufferSlice,
+) -> Result<()> {
+    batch.dispatch(
+        &DECL,
+        precision,
+        &[state0, reach],
+        bytemuck::bytes_of(push),
+        push.width,
+        push.height,
+        flops_per_pixel(),
+    )
+}

@@ -1,0 +1,300 @@
+//! LP: linear predictions with recursive least squares at sparse centres
+//! (spec §3), as a sequence of kernels:
+//!
+//! ```text
+//! fill          state ← 0 (no centres)
+//! for g in 19, 9, 4, 2, 1 (pass t):
+//!   lp_reach    reach ← per pixel, the largest r_opt of the centres of its row
+//!               that reach it (PASS-SNAPSHOT: coverage from earlier passes only)
+//!   lp_centres  on the candidate grid of g: uncovered candidates → TSVD + RLS + r_opt
+//! lp_reach      once more, for the gather
+//! lp_gather     every pixel: mean of the covering centres' predictions, error, ΔMSE
+//! ```
+//!
+//! [`record_lp`] records them on GPU-resident, sanitised statistics
+//! ([`GpuStats`]); [`run_cpu`] runs the scalar twins in the same order.
+//!
+//! US patent 9,892,549 B2 (Disney) covers this method.
+
+use std::sync::Arc;
+
+use super::stats::GpuStats;
+use crate::error::{Error, Result};
+use crate::gpu::{Batch, BufferSlice, GpuContext, PlaneSet, Precision};
+use crate::image::{Layer, RgbImage, StatsImage};
+use crate::kernels::{lp_centres, lp_gather, lp_reach};
+use crate::options::Options;
+use crate::reference;
+use crate::reference::lp::{StateLayout, GRANULARITIES};
+use crate::shared::{LpPush, LP_VARSUB};
+
+/// The parameters of one LP run.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub struct LpParams {
+    /// [`LpPush::options`] bits.
+    pub options: u32,
+}
+
+impl LpParams {
+    /// From the `lp.*` options of the registry. LP uses its one 19×19 window
+    /// in every pass (§9.3 PASSES), so the pass does not change anything.
+    pub fn new(opts: &Options) -> Result<LpParams> {
+        let options = match opts.get("lp.error_mode") {
+            "varsub" => LP_VARSUB,
+            _ => 0,
+        };
+        Ok(LpParams { options })
+    }
+
+    fn push(&self, width: usize, height: usize, pass: usize) -> LpPush {
+        LpPush {
+            width: width as u32,
+            height: height as u32,
+            granularity: GRANULARITIES[pass],
+            pass: pass as u32,
+            options: self.options,
+            ..Default::default()
+        }
+    }
+}
+
+/// GPU scratch and output planes of one LP run.
+#[derive(Debug)]
+pub struct LpPlanes {
+    /// The per-centre state: [`StateLayout::PLANES`] vec4 planes.
+    pub state: PlaneSet,
+    /// The `lp_reach` plane of the current state.
+    pub reach: PlaneSet,
+    /// The outputs of [`lp_gather::OUTPUTS`].
+    pub out: PlaneSet,
+}
+
+impl LpPlanes {
+    pub fn new(ctx: &Arc<GpuContext>, width: usize, height: usize) -> Result<LpPlanes> {
+        let n = width * height;
+        Ok(LpPlanes {
+            state: PlaneSet::new(ctx, "lp.state", 4 * n, StateLayout::PLANES)?,
+            reach: PlaneSet::new(ctx, "lp.reach", n, 1)?,
+            out: PlaneSet::new(ctx, "lp.out", n, lp_gather::OUTPUTS.len())?,
+        })
+    }
+
+    /// The output colour planes R, G, B.
+    pub fn color(&self) -> [BufferSlice; 3] {
+        std::array::from_fn(|c| self.out.plane(c))
+    }
+
+    /// The estimated MSE per channel.
+    pub fn error(&self) -> [BufferSlice; 3] {
+        std::array::from_fn(|c| self.out.plane(3 + c))
+    }
+
+    /// ΔMSE per channel (§3.5), the input of the sampling step (§9).
+    pub fn dmse(&self) -> [BufferSlice; 3] {
+        std::array::from_fn(|c| self.out.plane(6 + c))
+    }
+}
+
+/// The bindings LP reads from sanitised statistics.
+pub struct LpInputs {
+    pub feat: [BufferSlice; 7],
+    pub var: [BufferSlice; 7],
+    pub color: [BufferSlice; 3],
+    pub cvar: [BufferSlice; 3],
+    pub spp: BufferSlice,
+}
+
+impl LpInputs {
+    pub fn of(s: &GpuStats) -> LpInputs {
+        let order = [
+            (Layer::Normal, 0),
+            (Layer::Normal, 1),
+            (Layer::Normal, 2),
+            (Layer::Depth, 0),
+            (Layer::Albedo, 0),
+            (Layer::Albedo, 1),
+            (Layer::Albedo, 2),
+        ];
+        LpInputs {
+            feat: std::array::from_fn(|k| s.plane(order[k].0, order[k].1)),
+            var: std::array::from_fn(|k| s.plane(order[k].0.variance().unwrap(), order[k].1)),
+            color: std::array::from_fn(|c| s.plane(Layer::Color, c)),
+            cvar: std::array::from_fn(|c| s.plane(Layer::ColorVariance, c)),
+            spp: s.plane(Layer::Spp, 0),
+        }
+    }
+}
+
+/// Records LP on sanitised statistics `clean` (colour, albedo, normal, depth,
+/// their variances and spp). Outputs stay on the GPU in `planes`.
+pub fn record_lp(
+    batch: &mut Batch,
+    precision: Precision,
+    clean: &GpuStats,
+    planes: &LpPlanes,
+    params: LpParams,
+) -> Result<()> {
+    let (w, h) = (clean.width, clean.height);
+    let inp = LpInputs::of(clean);
+    batch.fill(planes.state.buffer.slice(), 0);
+    let reach = planes.reach.plane(0);
+    for pass in 0..GRANULARITIES.len() {
+        lp_reach::record(
+            batch,
+            precision,
+            &params.push(w, h, pass),
+            planes.state.plane(0),
+            reach,
+        )?;
+        lp_centres::record(
+            batch,
+            precision,
+            &params.push(w, h, pass),
+            &inp,
+            reach,
+            std::array::from_fn(|k| planes.state.plane(k)),
+        )?;
+    }
+    lp_reach::record(
+        batch,
+        precision,
+        &params.push(w, h, 0),
+        planes.state.plane(0),
+        reach,
+    )?;
+    lp_gather::record(
+        batch,
+        precision,
+        &params.push(w, h, 0),
+        &inp,
+        reach,
+        std::array::from_fn(|k| planes.state.plane(k)),
+        std::array::from_fn(|k| planes.out.plane(k)),
+    )
+}
+
+/// What an LP run gives back on the host.
+#[derive(Clone, Debug)]
+pub struct LpResult {
+    pub color: RgbImage,
+    /// Estimated MSE per pixel and channel.
+    pub error: RgbImage,
+    /// ΔMSE per pixel and channel (§3.5), for sampling.
+    pub dmse: RgbImage,
+    /// Covering centres per pixel.
+    pub coverage: Vec<f32>,
+    /// Per pixel: pass + 1 at centres (0 elsewhere), r_opt and k at centres
+    /// (-1 elsewhere).
+    pub centre_pass: Vec<f32>,
+    pub r_opt: Vec<f32>,
+    pub rank: Vec<f32>,
+}
+
+impl LpResult {
+    fn new(width: usize, height: usize, out: Vec<Vec<f32>>, state0: &[f32]) -> LpResult {
+        let n = width * height;
+        let rgb = |k: usize| {
+            RgbImage::from_planes(width, height, std::array::from_fn(|c| out[k + c].clone()))
+        };
+        let is_centre = |q: usize| state0[4 * q] > 0.0;
+        let at = |s: usize| -> Vec<f32> {
+            (0..n)
+                .map(|q| {
+                    if is_centre(q) {
+                        state0[4 * q + s]
+                    } else {
+                        -1.0
+                    }
+                })
+                .collect()
+        };
+        LpResult {
+            color: rgb(0),
+            error: rgb(3),
+            dmse: rgb(6),
+            coverage: out[9].clone(),
+            centre_pass: (0..n).map(|q| state0[4 * q]).collect(),
+            r_opt: at(StateLayout::R_OPT),
+            rank: at(StateLayout::K),
+        }
+    }
+
+    /// Fraction of the pixels that became centres.
+    pub fn centre_fraction(&self) -> f64 {
+        let n = self.centre_pass.len().max(1);
+        self.centre_pass.iter().filter(|&&p| p > 0.0).count() as f64 / n as f64
+    }
+
+    /// The debug layers of issue #4: centre mask (pass + 1), r_opt, rank,
+    /// coverage count, ΔMSE.
+    pub fn debug_layers(&self) -> Vec<(String, Vec<f32>)> {
+        let mut v = vec![
+            ("centre_pass".into(), self.centre_pass.clone()),
+            ("r_opt".into(), self.r_opt.clone()),
+            ("rank".into(), self.rank.clone()),
+            ("coverage".into(), self.coverage.clone()),
+        ];
+        for (c, name) in ["R", "G", "B"].iter().enumerate() {
+            v.push((format!("dmse.{name}"), self.dmse.planes[c].clone()));
+        }
+        v
+    }
+}
+
+/// Downloads the planes of a finished [`record_lp`].
+pub fn download(planes: &LpPlanes, width: usize, height: usize) -> Result<LpResult> {
+    let out = planes.out.download_all()?;
+    let state0 = planes.state.download_plane::<f32>(0)?;
+    Ok(LpResult::new(width, height, out, &state0))
+}
+
+/// The CPU path: the scalar twins in the order of [`record_lp`], on
+/// sanitised statistics. `progress` prints each pass on stderr once the
+/// run has taken more than a second.
+pub fn run_cpu(clean: &StatsImage, params: LpParams, progress: bool) -> Result<LpResult> {
+    let started = std::time::Instant::now();
+    let (w, h) = (clean.width, clean.height);
+    let n = w * h;
+    let need = |l: Layer| {
+        clean
+            .get(l)
+            .ok_or_else(|| Error::BadData(format!("LP needs the {} layer", l.name())))
+    };
+    let (col, cvar) = (need(Layer::Color)?, need(Layer::ColorVariance)?);
+    let (nrm, nvar) = (need(Layer::Normal)?, need(Layer::NormalVariance)?);
+    let (dep, dvar) = (need(Layer::Depth)?, need(Layer::DepthVariance)?);
+    let (alb, avar) = (need(Layer::Albedo)?, need(Layer::AlbedoVariance)?);
+    let spp = &need(Layer::Spp)?[0];
+    let p = reference::lp::Planes {
+        width: w,
+        height: h,
+        feat: [
+            &nrm[0], &nrm[1], &nrm[2], &dep[0], &alb[0], &alb[1], &alb[2],
+        ],
+        var: [
+            &nvar[0], &nvar[1], &nvar[2], &dvar[0], &avar[0], &avar[1], &avar[2],
+        ],
+        color: [&col[0], &col[1], &col[2]],
+        cvar: [&cvar[0], &cvar[1], &cvar[2]],
+        spp,
+    };
+    let mut state = vec![vec![0.0f32; 4 * n]; StateLayout::PLANES];
+    let mut reach = vec![-1.0f32; n];
+    for pass in 0..GRANULARITIES.len() {
+        let push = params.push(w, h, pass);
+        reference::lp_reach::lp_reach(&push, &state[0], &mut reach);
+        let made = reference::lp_centres::lp_centres(&push, &p, &reach, &mut state);
+        let t = started.elapsed().as_secs_f64();
+        if progress && t > 1.0 {
+            eprintln!(
+                "mcdenoise: lp pass g={} (cpu): {made} centres ({t:.1} s)",
+                GRANULARITIES[pass]
+            );
+        }
+    }
+    let mut out = vec![vec![0.0f32; n]; lp_gather::OUTPUTS.len()];
+    let push = params.push(w, h, 0);
+    reference::lp_reach::lp_reach(&push, &state[0], &mut reach);
+    reference::lp_gather::lp_gather(&push, &p, &reach, &state, &mut out);
+    Ok(LpResult::new(w, h, out, &state[0]))
+}

@@ -1,0 +1,65 @@
+//! Scalar twin of `spirv/lp_centres.comp`: one sparse-centre pass of LP
+//! (spec §3.5) — every candidate of granularity `g` that no centre of an
+//! earlier pass covers becomes a centre and gets its optimisation of
+//! §3.3–3.4 ([`super::lp::centre_fit`]).
+
+use super::lp::{centre_fit, covered, Planes, StateLayout};
+use crate::shared::{LpPush, LP_VARSUB};
+
+/// The candidate grid of granularity `g` over a `width × height` image:
+/// `ceil(width/g) × ceil(height/g)`, cell `(gx, gy)` ↔ pixel `(g·gx, g·gy)`.
+pub fn grid(width: u32, height: u32, g: u32) -> (u32, u32) {
+    (width.div_ceil(g), height.div_ceil(g))
+}
+
+/// One pass. `reach` is the [`lp_reach`](super::lp_reach) plane of the state
+/// as it was after the earlier passes (PASS-SNAPSHOT).
+/// `state` = the [`StateLayout::PLANES`] vec4 planes (`4·W·H` floats each):
+/// only the pixels that become centres are written. Returns the number of
+/// new centres.
+pub fn lp_centres(push: &LpPush, p: &Planes, reach: &[f32], state: &mut [Vec<f32>]) -> usize {
+    assert_eq!(state.len(), StateLayout::PLANES, "lp_centres: state planes");
+    let (w, h) = (p.width, p.height);
+    let g = push.granularity.max(1) as usize;
+    let s = if push.options & LP_VARSUB != 0 {
+        1.0
+    } else {
+        0.0
+    };
+    let mut cand = Vec::new();
+    for py in (0..h).step_by(g) {
+        for px in (0..w).step_by(g) {
+            if p.valid(py * w + px) && !covered(reach, w, h, px, py) {
+                cand.push((px, py));
+            }
+        }
+    }
+    let threads = std::thread::available_parallelism()
+        .map(|n| n.get())
+        .unwrap_or(1)
+        .clamp(1, cand.len().max(1));
+    let results: Vec<(usize, [f32; StateLayout::LEN])> = std::thread::scope(|scope| {
+        let cand = &cand;
+        let handles: Vec<_> = (0..threads)
+            .map(|t| {
+                scope.spawn(move || {
+                    cand.iter()
+                        .skip(t)
+                        .step_by(threads)
+                        .map(|&(px, py)| (py * w + px, centre_fit(p, px, py, s).state(push.pass)))
+                        .collect::<Vec<_>>()
+                })
+            })
+            .collect();
+        handles
+            .into_iter()
+            .flat_map(|h| h.join().expect("lp_centres: worker panicked"))
+            .collect()
+    });
+    for (q, st) in &results {
+        for (i, v) in st.iter().enumerate() {
+            state[i / 4][4 * q + i % 4] = *v;
+        }
+    }
+    results.len()
+}

@@ -1,0 +1,31 @@
+//! Scalar twin of `spirv/lp_reach.comp`: the horizontal half of LP's
+//! coverage test (spec §3.5). Pixel `i` is covered by centre `c` when
+//! `max(|dx|, |dy|) <= r_opt(c)`. With
+//! `reach(x, y) = max{ r_opt(c) : c in row y, |x − c_x| <= r_opt(c) }`
+//! (−1 if none), `i` is covered iff some row `y'` has
+//! `reach(x_i, y') >= |y_i − y'|`: the centre attaining the maximum reaches
+//! `x_i` horizontally and, having the largest radius, vertically too. The
+//! centre kernel and the gather then read 19 values of this plane instead of
+//! the 361 of the centre map.
+
+use super::lp::RADIUS;
+use crate::shared::LpPush;
+
+/// `reach` for every pixel (`row0` ignored) from state plane 0 (`(pass + 1,
+/// r_opt, ·, ·)` per pixel, vec4).
+pub fn lp_reach(push: &LpPush, state0: &[f32], reach: &mut [f32]) {
+    let (w, h) = (push.width as usize, push.height as usize);
+    for y in 0..h {
+        for x in 0..w {
+            let mut best = -1.0f32;
+            for qx in x.saturating_sub(RADIUS)..(x + RADIUS + 1).min(w) {
+                let q = y * w + qx;
+                let r = state0[4 * q + 1];
+                if state0[4 * q] > 0.0 && qx.abs_diff(x) as f32 <= r && r > best {
+                    best = r;
+                }
+            }
+            reach[y * w + x] = best;
+        }
+    }
+}
