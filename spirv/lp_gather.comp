@@ -83,19 +83,25 @@ void main()
     }
     real n_i = real(spp_of(spp[i]));
     if (n_i < real(1)) {
+        // Mean shifted by the first valid neighbour: exact when they are equal.
+        real3 first = real3(0);
         real3 sum = real3(0);
         int n = 0;
         for (int qy = max(p.y - 1, 0); qy <= min(p.y + 1, size.y - 1); ++qy) {
             for (int qx = max(p.x - 1, 0); qx <= min(p.x + 1, size.x - 1); ++qx) {
                 uint q = uint(qy) * push.width + uint(qx);
                 if (spp_of(spp[q]) >= 1.0) {
-                    sum += real3(col_r[q], col_g[q], col_b[q]);
+                    real3 c = real3(col_r[q], col_g[q], col_b[q]);
+                    if (n == 0) {
+                        first = c;
+                    }
+                    sum += c - first;
                     ++n;
                 }
             }
         }
         if (n > 0) {
-            real3 m = max(sum / real(n), real3(0));
+            real3 m = max(first + sum / real(n), real3(0));
             o[0] = float(m.r);
             o[1] = float(m.g);
             o[2] = float(m.b);
@@ -104,6 +110,9 @@ void main()
         real4 f0, f1;
         real f8;
         features(p, f0, f1, f8);
+        // Predictions are summed relative to the first one, so that equal
+        // predictions average exactly (a constant image is returned exactly).
+        real3 first = real3(0);
         real3 pred = real3(0);
         real3 err = real3(0);
         real3 dmse = real3(0);
@@ -135,7 +144,10 @@ void main()
                 f.r = beta0.r + dot(real4(s2.yzw, s3.x), d0) + dot(real4(s3.yzw, s4.x), d1) + real(s4.y) * d8;
                 f.g = beta0.g + dot(real4(s4.zw, s5.xy), d0) + dot(real4(s5.zw, s6.xy), d1) + real(s6.z) * d8;
                 f.b = beta0.b + dot(real4(s6.w, s7.xyz), d0) + dot(real4(s7.w, s8.xyz), d1) + real(s8.w) * d8;
-                pred += f;
+                if (count == 0) {
+                    first = f;
+                }
+                pred += f - first;
                 err += xi;
                 dmse += xi * real(pow(float(n_i), -4.0 / (s0.z + 4.0)));
                 ++count;
@@ -147,7 +159,7 @@ void main()
             o[2] = max(col_b[i], 0.0);
         } else {
             real n = real(count);
-            real3 m = max(pred / n, real3(0));
+            real3 m = max(first + pred / n, real3(0));
             o[0] = float(m.r);
             o[1] = float(m.g);
             o[2] = float(m.b);

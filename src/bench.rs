@@ -714,6 +714,10 @@ pub struct QualityRow {
     pub err_corr: Option<f64>,
     /// [`naive_correlation`] for the same output (only alongside `err_corr`).
     pub naive_corr: Option<f64>,
+    /// `gpu_ms` per megapixel of the input.
+    pub gpu_ms_per_mp: Option<f64>,
+    /// Fraction of the pixels that became centres (LP).
+    pub centres: Option<f64>,
 }
 
 /// Per method × backend × spp: how much the method improves on the input.
@@ -729,6 +733,19 @@ pub struct QualitySummary {
     pub mean_rmse_ratio: f64,
     /// Mean [`error_correlation`] over the scenes that had one.
     pub mean_err_corr: Option<f64>,
+}
+
+/// One method against WLR on the same scene, spp and backend.
+#[derive(Clone, Debug, PartialEq)]
+pub struct VsWlr {
+    pub scene: String,
+    pub spp: u32,
+    pub method: String,
+    pub backend: Backend,
+    /// rMSE(method) / rMSE(wlr): < 1 is better than WLR.
+    pub rmse_ratio: f64,
+    /// GPU time of WLR / GPU time of the method (> 1: the method is faster).
+    pub speedup: Option<f64>,
 }
 
 /// The result of [`run_quality`].
@@ -859,6 +876,8 @@ pub fn run_quality(
                 gpu_ms: None,
                 err_corr: None,
                 naive_corr: None,
+                gpu_ms_per_mp: None,
+                centres: None,
             });
             for &method in &ms {
                 for &backend in &backends {
@@ -948,10 +967,45 @@ fn quality_row(
         gpu_ms: gpu_ms(&out.timings),
         err_corr,
         naive_corr,
+        gpu_ms_per_mp: gpu_ms(&out.timings).map(|t| t / (img.width * img.height) as f64 * 1e6),
+        centres: out
+            .stats
+            .iter()
+            .find(|(k, _)| k == "centre_fraction")
+            .map(|(_, v)| *v),
     })
 }
 
 impl QualityReport {
+    /// Every non-WLR method row (not `input`, not `none`) that has a WLR row
+    /// of the same scene, spp and backend, in table order.
+    pub fn vs_wlr(&self) -> Vec<VsWlr> {
+        let mut v = Vec::new();
+        for r in &self.rows {
+            let Some(backend) = r.backend else { continue };
+            if r.method == "wlr" || r.method == "none" {
+                continue;
+            }
+            let Some(w) = self.rows.iter().find(|w| {
+                w.method == "wlr" && w.scene == r.scene && w.spp == r.spp && w.backend == r.backend
+            }) else {
+                continue;
+            };
+            v.push(VsWlr {
+                scene: r.scene.clone(),
+                spp: r.spp,
+                method: r.method.clone(),
+                backend,
+                rmse_ratio: r.metrics.rmse / w.metrics.rmse,
+                speedup: match (w.gpu_ms, r.gpu_ms) {
+                    (Some(a), Some(b)) if b > 0.0 => Some(a / b),
+                    _ => None,
+                },
+            });
+        }
+        v
+    }
+
     /// Per method × backend × spp (in table order): the mean over scenes of
     /// rMSE(input) / rMSE(method), and the mean error correlation.
     pub fn summary(&self) -> Vec<QualitySummary> {
@@ -1018,13 +1072,27 @@ impl QualityReport {
         }
         s.push('\n');
         let corr = self.rows.iter().any(|r| r.err_corr.is_some());
+        let centres = self.rows.iter().any(|r| r.centres.is_some());
         let mut header = vec![
-            "scene", "spp", "method", "backend", "rMSE", "relMSE", "PSNR", "SSIM", "wall s",
+            "scene",
+            "spp",
+            "method",
+            "backend",
+            "rMSE",
+            "relMSE",
+            "PSNR",
+            "SSIM",
+            "wall s",
             "GPU ms",
+            "GPU ms/MP",
         ];
         let mut align = vec![
-            "---", "---:", "---", "---", "---:", "---:", "---:", "---:", "---:", "---:",
+            "---", "---:", "---", "---", "---:", "---:", "---:", "---:", "---:", "---:", "---:",
         ];
+        if centres {
+            header.push("centres");
+            align.push("---:");
+        }
         if corr {
             header.extend(["err corr", "naive corr"]);
             align.extend(["---:", "---:"]);
@@ -1045,7 +1113,14 @@ impl QualityReport {
                 fmt_fixed(r.metrics.ssim, 4),
                 r.wall_s.map_or(String::new(), |t| format!("{t:.3}")),
                 r.gpu_ms.map_or(String::new(), |t| format!("{t:.2}")),
+                r.gpu_ms_per_mp.map_or(String::new(), |t| format!("{t:.0}")),
             ];
+            if centres {
+                cells.push(
+                    r.centres
+                        .map_or(String::new(), |c| format!("{:.2}%", 100.0 * c)),
+                );
+            }
             if corr {
                 cells.push(r.err_corr.map_or(String::new(), |c| fmt_fixed(c, 3)));
                 cells.push(r.naive_corr.map_or(String::new(), |c| fmt_fixed(c, 3)));
@@ -1075,14 +1150,45 @@ impl QualityReport {
                 s.push('\n');
             }
         }
+        let vs = self.vs_wlr();
+        if !vs.is_empty() {
+            s.push_str("\nAgainst WLR (same scene, spp and backend):\n\n");
+            let mut rows: Vec<Vec<String>> = vec![
+                [
+                    "scene",
+                    "spp",
+                    "method",
+                    "backend",
+                    "rMSE / WLR",
+                    "WLR GPU time / GPU time",
+                ]
+                .map(String::from)
+                .to_vec(),
+                ["---", "---:", "---", "---", "---:", "---:"]
+                    .map(String::from)
+                    .to_vec(),
+            ];
+            for c in &vs {
+                rows.push(vec![
+                    c.scene.clone(),
+                    c.spp.to_string(),
+                    c.method.clone(),
+                    backend_name(c.backend).into(),
+                    format!("{:.3}", c.rmse_ratio),
+                    c.speedup.map_or(String::new(), |x| format!("{x:.1}")),
+                ]);
+            }
+            s.push_str(&markdown_table(&rows));
+        }
         push_warnings(&mut s, &self.warnings);
         s
     }
 
     /// The report as JSON: `{"kind": "quality", "dir", "device", "rows": [...],
-    /// "summary": [...], "unavailable_methods": [...], "warnings": [...]}`.
+    /// "summary": [...], "vs_wlr": [...], "unavailable_methods": [...],
+    /// "warnings": [...]}`.
     /// Each row has `case scene spp method backend rmse relmse psnr ssim
-    /// wall_s gpu_ms err_corr naive_corr` (`null` where absent or
+    /// wall_s gpu_ms err_corr naive_corr gpu_ms_per_mp centres` (`null` where absent or
     /// non-finite); numbers at full precision.
     pub fn to_json(&self) -> String {
         let rows = self
@@ -1107,6 +1213,8 @@ impl QualityReport {
                     ("gpu_ms".into(), Json::opt(r.gpu_ms)),
                     ("err_corr".into(), Json::opt(r.err_corr)),
                     ("naive_corr".into(), Json::opt(r.naive_corr)),
+                    ("gpu_ms_per_mp".into(), Json::opt(r.gpu_ms_per_mp)),
+                    ("centres".into(), Json::opt(r.centres)),
                 ])
             })
             .collect();
@@ -1133,6 +1241,24 @@ impl QualityReport {
             ),
             ("rows".into(), Json::Arr(rows)),
             ("summary".into(), Json::Arr(summary)),
+            (
+                "vs_wlr".into(),
+                Json::Arr(
+                    self.vs_wlr()
+                        .into_iter()
+                        .map(|c| {
+                            Json::Obj(vec![
+                                ("scene".into(), Json::Str(c.scene)),
+                                ("spp".into(), Json::Int(c.spp as i64)),
+                                ("method".into(), Json::Str(c.method)),
+                                ("backend".into(), Json::Str(backend_name(c.backend).into())),
+                                ("rmse_ratio".into(), Json::Num(c.rmse_ratio)),
+                                ("speedup".into(), Json::opt(c.speedup)),
+                            ])
+                        })
+                        .collect(),
+                ),
+            ),
             (
                 "unavailable_methods".into(),
                 Json::Arr(
@@ -1819,7 +1945,37 @@ mod tests {
             gpu_ms: None,
             err_corr: corr,
             naive_corr: corr.map(|c| c / 2.0),
+            gpu_ms_per_mp: None,
+            centres: None,
         }
+    }
+
+    #[test]
+    fn methods_against_wlr() {
+        let mut wlr = row("wlr", Some(Backend::Gpu), 0.01, None);
+        wlr.gpu_ms = Some(1000.0);
+        let mut lp = row("lp", Some(Backend::Gpu), 0.012, None);
+        lp.gpu_ms = Some(100.0);
+        lp.centres = Some(0.05);
+        let cpu_lp = row("lp", Some(Backend::Cpu), 0.012, None);
+        let report = QualityReport {
+            dir: "scenes".into(),
+            rows: vec![row("input", None, 0.2, None), wlr, lp, cpu_lp],
+            ..Default::default()
+        };
+        let vs = report.vs_wlr();
+        assert_eq!(vs.len(), 1, "{vs:?}");
+        assert!((vs[0].rmse_ratio - 1.2).abs() < 1e-12);
+        assert_eq!(vs[0].speedup, Some(10.0));
+        let md = report.to_markdown();
+        assert!(
+            md.contains(
+                "| s     |    4 | lp     | gpu     |      1.200 |                    10.0 |"
+            ),
+            "{md}"
+        );
+        assert!(md.contains("5.00%"), "{md}");
+        assert!(report.to_json().contains(r#""rmse_ratio": 1.2"#));
     }
 
     #[test]
@@ -1849,9 +2005,9 @@ mod tests {
             md.contains("- wlr (gpu), spp 4: 20.00 over 1 scene; mean err corr 0.800"),
             "{md}"
         );
-        assert!(report
-            .to_json()
-            .contains(r#""err_corr": 0.8, "naive_corr": 0.4}"#));
+        assert!(report.to_json().contains(
+            r#""err_corr": 0.8, "naive_corr": 0.4, "gpu_ms_per_mp": null, "centres": null}"#
+        ));
     }
 
     #[test]

@@ -278,8 +278,17 @@ fn quality_table_json_and_markdown_from_the_cli() {
     assert_eq!(
         header,
         [
-            "scene", "spp", "method", "backend", "rMSE", "relMSE", "PSNR", "SSIM", "wall s",
-            "GPU ms"
+            "scene",
+            "spp",
+            "method",
+            "backend",
+            "rMSE",
+            "relMSE",
+            "PSNR",
+            "SSIM",
+            "wall s",
+            "GPU ms",
+            "GPU ms/MP"
         ]
     );
     let input_row = table_row(&out, &["tiny", "16", "input"]).unwrap_or_else(|| panic!("{out}"));

@@ -110,6 +110,8 @@ pub struct DenoiseOutput {
     pub report: prepare::PrepareReport,
     /// GPU time per dispatch (empty on the CPU backend).
     pub timings: Vec<KernelTiming>,
+    /// Named scalar statistics of the run (LP: `centre_fraction`).
+    pub stats: Vec<(String, f64)>,
 }
 
 /// Sanitises `img` and reconstructs it with `req.method`. The GPU backend
@@ -159,6 +161,7 @@ pub fn denoise(
             },
             report,
             timings,
+            stats: Vec::new(),
         });
     }
     if req.method == Method::Lp {
@@ -192,6 +195,7 @@ pub fn denoise(
             },
             report,
             timings,
+            stats: vec![("centre_fraction".into(), result.centre_fraction())],
         });
     }
     let (clean, report) = prepare::prepare(ctx, req.backend, req.precision, img)?;
@@ -211,6 +215,7 @@ pub fn denoise(
                 debug,
                 report,
                 timings,
+                stats: Vec::new(),
             })
         }
         _ => unreachable!("checked by Method::available"),

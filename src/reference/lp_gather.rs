@@ -36,6 +36,8 @@ fn pixel(p: &Planes, reach: &[f32], state: &[Vec<f32>], x: usize, y: usize) -> [
     let i = y * w + x;
     let mut o = [0.0f32; OUTPUTS];
     if !p.valid(i) {
+        // Mean shifted by the first valid neighbour: exact when they are equal.
+        let mut first = [0.0; 3];
         let mut sum = [0.0; 3];
         let mut n = 0;
         for qy in y.saturating_sub(1)..(y + 2).min(h) {
@@ -43,8 +45,11 @@ fn pixel(p: &Planes, reach: &[f32], state: &[Vec<f32>], x: usize, y: usize) -> [
                 let q = qy * w + qx;
                 if p.valid(q) {
                     let (c, _) = p.colour(q);
+                    if n == 0 {
+                        first = c;
+                    }
                     for ch in 0..3 {
-                        sum[ch] += c[ch];
+                        sum[ch] += c[ch] - first[ch];
                     }
                     n += 1;
                 }
@@ -52,13 +57,16 @@ fn pixel(p: &Planes, reach: &[f32], state: &[Vec<f32>], x: usize, y: usize) -> [
         }
         if n > 0 {
             for ch in 0..3 {
-                o[ch] = (sum[ch] / n as f64).max(0.0) as f32;
+                o[ch] = (first[ch] + sum[ch] / n as f64).max(0.0) as f32;
             }
         }
         return o;
     }
     let xi_ = p.features(x, y);
     let n_i = spp_of(p.spp[i]);
+    // Predictions are summed relative to the first one, so that equal
+    // predictions average exactly (a constant image is returned exactly).
+    let mut first = [0.0; 3];
     let mut pred = [0.0; 3];
     let mut err = [0.0; 3];
     let mut dmse = [0.0; 3];
@@ -85,7 +93,10 @@ fn pixel(p: &Planes, reach: &[f32], state: &[Vec<f32>], x: usize, y: usize) -> [
                 for j in 0..D {
                     f += st(S::U + 9 * ch + j) * (xi_[j] - xc[j]);
                 }
-                pred[ch] += f;
+                if count == 0 {
+                    first[ch] = f;
+                }
+                pred[ch] += f - first[ch];
                 let e = st(S::XI + ch).max(0.0);
                 err[ch] += e;
                 dmse[ch] += e * rate;
@@ -102,7 +113,7 @@ fn pixel(p: &Planes, reach: &[f32], state: &[Vec<f32>], x: usize, y: usize) -> [
     }
     let n = count as f64;
     for ch in 0..3 {
-        o[ch] = (pred[ch] / n).max(0.0) as f32;
+        o[ch] = (first[ch] + pred[ch] / n).max(0.0) as f32;
         o[3 + ch] = (err[ch] / n) as f32;
         o[6 + ch] = (dmse[ch] / n) as f32;
     }

@@ -1,0 +1,631 @@
+//! LP (spec §3): the kernels `lp_reach`, `lp_centres` and `lp_gather` on the
+//! GPU against their scalar twins (§0.3 tolerances), f32 and f64, the whole
+//! chain GPU vs CPU, and the invariants of §3.8.
+//!
+//! Agreement numbers are printed (`cargo test --test lp -- --nocapture`).
+
+mod common;
+use common::*;
+
+use mcdenoise::gpu::Precision;
+use mcdenoise::image::{Layer, StatsImage};
+use mcdenoise::kernels::{lp_centres, lp_gather, lp_reach, run_planes};
+use mcdenoise::methods::{denoise, lp as mlp, Backend, DenoiseRequest, Method};
+use mcdenoise::options::Options;
+use mcdenoise::reference::lp::{
+    self as rl, batch_ridge, centre_fit, regressor, Planes, Rls, StateLayout as S, MAX_P, RINGS,
+};
+use mcdenoise::reference::tsvd::projection;
+use mcdenoise::reference::{lp_centres as rc, lp_gather as rg, lp_reach as rr};
+use mcdenoise::shared::{LpPush, LP_VARSUB};
+
+fn precisions() -> Vec<Precision> {
+    let mut v = vec![Precision::F32];
+    if gpu().supports_f64() {
+        v.push(Precision::F64);
+    }
+    v
+}
+
+/// The 21 input planes of `lp_centres` (bindings 0..20): 7 features, their 7
+/// variances, colour R G B, colour variances R G B, spp.
+#[derive(Clone)]
+struct Scene {
+    w: usize,
+    h: usize,
+    planes: Vec<Vec<f32>>,
+}
+
+impl Scene {
+    fn p(&self) -> Planes<'_> {
+        let a = |k: usize| self.planes[k].as_slice();
+        Planes {
+            width: self.w,
+            height: self.h,
+            feat: std::array::from_fn(|k| a(k)),
+            var: std::array::from_fn(|k| a(7 + k)),
+            color: std::array::from_fn(|k| a(14 + k)),
+            cvar: std::array::from_fn(|k| a(17 + k)),
+            spp: a(20),
+        }
+    }
+
+    fn inputs(&self) -> Vec<&[f32]> {
+        self.planes.iter().map(|p| p.as_slice()).collect()
+    }
+
+    /// Inputs of `lp_gather` (bindings 0..10): features, colour, spp.
+    fn gather_inputs(&self) -> Vec<&[f32]> {
+        let mut v: Vec<&[f32]> = (0..7).map(|k| self.planes[k].as_slice()).collect();
+        v.extend((14..17).map(|k| self.planes[k].as_slice()));
+        v.push(&self.planes[20]);
+        v
+    }
+
+    /// As a sanitised statistics image, for the method-level paths.
+    fn image(&self) -> StatsImage {
+        let mut img = StatsImage::new(self.w, self.h);
+        let pl = |r: std::ops::Range<usize>| r.map(|k| self.planes[k].clone()).collect::<Vec<_>>();
+        img.set(Layer::Normal, pl(0..3));
+        img.set(Layer::Depth, pl(3..4));
+        img.set(Layer::Albedo, pl(4..7));
+        img.set(Layer::NormalVariance, pl(7..10));
+        img.set(Layer::DepthVariance, pl(10..11));
+        img.set(Layer::AlbedoVariance, pl(11..14));
+        img.set(Layer::Color, pl(14..17));
+        img.set(Layer::ColorVariance, pl(17..20));
+        img.set(Layer::Spp, pl(20..21));
+        img
+    }
+}
+
+/// A sphere on a tilted floor with a checker albedo; noisy features with
+/// their variances; colour = shading × albedo plus Gaussian noise of known
+/// per-channel variance; ~2% invalid pixels. `noise = 0` gives zero-variance
+/// colour.
+fn synthetic(w: usize, h: usize, seed: u64, noise: f64) -> Scene {
+    let mut rng = Rng(seed);
+    let n = w * h;
+    let mut p = vec![vec![0.0f32; n]; 21];
+    let s = w.max(h) as f64;
+    for i in 0..n {
+        let (x, y) = ((i % w) as f64, (i / w) as f64);
+        let (cx, cy, rad) = (w as f64 * 0.45, h as f64 * 0.55, 0.3 * s);
+        let r2 = ((x - cx).powi(2) + (y - cy).powi(2)) / rad.powi(2);
+        let (nx, ny, nz, d) = if r2 < 1.0 {
+            let nz = (1.0 - r2).sqrt();
+            ((x - cx) / rad, (y - cy) / rad, nz, 3.0 - nz)
+        } else {
+            (0.0, 0.8, 0.6, 5.0 + 0.05 * y)
+        };
+        let alb = if (x as usize / 8 + y as usize / 8) % 2 == 0 {
+            0.8
+        } else {
+            0.25
+        };
+        let base = [nx, ny, nz, d, alb, alb * 0.9, alb * 0.6];
+        let fsd = [0.02, 0.02, 0.02, 0.05, 0.01, 0.01, 0.01];
+        for k in 0..7 {
+            p[k][i] = (base[k] + noise.min(1.0) * fsd[k] * rng.normal()) as f32;
+            p[7 + k][i] = (noise.min(1.0) * fsd[k] * fsd[k] * (0.5 + rng.uniform())) as f32;
+        }
+        let shade = 0.2 + 0.8 * (0.3 * nx + 0.5 * ny + 0.8 * nz).max(0.0) + 0.1 * (0.15 * x).sin();
+        let sd = noise * (0.03 + 0.05 * (y / s));
+        for ch in 0..3 {
+            let v = sd * sd * (0.8 + 0.4 * rng.uniform());
+            p[14 + ch][i] = (shade * base[4 + ch] + v.sqrt() * rng.normal()) as f32;
+            p[17 + ch][i] = v as f32;
+        }
+        p[20][i] = if rng.next_u64() % 50 == 0 { 0.0 } else { 16.0 };
+    }
+    Scene { w, h, planes: p }
+}
+
+/// The committed fixture, sanitised on the CPU.
+fn fixture() -> Scene {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/fixtures/dof_checker_64_spp16.exr");
+    let img = mcdenoise::io::read_stats(&path).unwrap();
+    let (img, _) = mcdenoise::methods::prepare::prepare_cpu(&img);
+    let get = |l: Layer| img.get(l).unwrap().to_vec();
+    let mut planes = Vec::new();
+    for l in [
+        Layer::Normal,
+        Layer::Depth,
+        Layer::Albedo,
+        Layer::NormalVariance,
+        Layer::DepthVariance,
+        Layer::AlbedoVariance,
+        Layer::Color,
+        Layer::ColorVariance,
+        Layer::Spp,
+    ] {
+        planes.extend(get(l));
+    }
+    Scene {
+        w: img.width,
+        h: img.height,
+        planes,
+    }
+}
+
+fn push(sc: &Scene, pass: usize) -> LpPush {
+    LpPush {
+        width: sc.w as u32,
+        height: sc.h as u32,
+        granularity: rl::GRANULARITIES[pass],
+        pass: pass as u32,
+        options: LP_VARSUB,
+        ..Default::default()
+    }
+}
+
+/// The twin's state and reach after passes `0..passes`.
+fn twin_state(sc: &Scene, passes: usize) -> (Vec<Vec<f32>>, Vec<f32>) {
+    let n = sc.w * sc.h;
+    let mut state = vec![vec![0.0f32; 4 * n]; S::PLANES];
+    let mut reach = vec![-1.0f32; n];
+    for pass in 0..passes {
+        rr::lp_reach(&push(sc, pass), &state[0], &mut reach);
+        rc::lp_centres(&push(sc, pass), &sc.p(), &reach, &mut state);
+    }
+    rr::lp_reach(&push(sc, 0), &state[0], &mut reach);
+    (state, reach)
+}
+
+/// Value `s` of every pixel's state.
+fn values(state: &[Vec<f32>], s: usize) -> Vec<f32> {
+    (0..state[0].len() / 4)
+        .map(|q| rl::state_value(state, q, s))
+        .collect()
+}
+
+#[test]
+fn lp_reach_matches_twin_exactly() {
+    let ctx = gpu();
+    for &(w, h) in SIZES {
+        let sc = synthetic(w, h, 3, 1.0);
+        let (state, _) = twin_state(&sc, 3);
+        let mut cpu = vec![0.0f32; w * h];
+        rr::lp_reach(&push(&sc, 0), &state[0], &mut cpu);
+        let (out, _) = run_planes(
+            &ctx,
+            &lp_reach::DECL,
+            Precision::F32,
+            bytemuck::bytes_of(&push(&sc, 0)),
+            w,
+            h,
+            &[&state[0]],
+            &[w * h],
+            lp_reach::flops_per_pixel(),
+        )
+        .unwrap();
+        assert_eq!(out[0], cpu, "{w}x{h}");
+    }
+    check_validation(&ctx);
+}
+
+/// Runs one `lp_centres` pass on the GPU from the twin's state after
+/// `pass` passes, and compares with the twin's pass.
+fn compare_centres(sc: &Scene, pass: usize, prec: Precision, what: &str) {
+    let (mut cpu, reach) = twin_state(sc, pass);
+    // The reach of the state before this pass (twin_state ends with one).
+    let before = cpu.clone();
+    rc::lp_centres(&push(sc, pass), &sc.p(), &reach, &mut cpu);
+    let mut inputs = sc.inputs();
+    inputs.push(&reach);
+    for p in &before {
+        inputs.push(p);
+    }
+    let (gpu_state, ()) = run_centres_inplace(&gpu(), sc, pass, prec, &inputs).unwrap();
+    let centre = |st: &[Vec<f32>]| values(st, S::PASS);
+    assert_eq!(centre(&gpu_state), centre(&cpu), "{what}: the same centres");
+    let is_new: Vec<bool> = centre(&cpu)
+        .iter()
+        .zip(centre(&before))
+        .map(|(a, b)| *a != b)
+        .collect();
+    let pick = |st: &[Vec<f32>], s: usize, mask: &[bool]| -> Vec<f32> {
+        values(st, s)
+            .into_iter()
+            .zip(mask)
+            .filter(|(_, &m)| m)
+            .map(|(v, _)| v)
+            .collect()
+    };
+    let n_new = is_new.iter().filter(|&&b| b).count();
+    if n_new == 0 {
+        return;
+    }
+    let r_agree = agreement(
+        &pick(&gpu_state, S::R_OPT, &is_new),
+        &pick(&cpu, S::R_OPT, &is_new),
+    );
+    let k_agree = agreement(&pick(&gpu_state, S::K, &is_new), &pick(&cpu, S::K, &is_new));
+    println!("{what}: {n_new} centres, r_opt agreement {r_agree:.4}, k agreement {k_agree:.4}");
+    assert!(
+        r_agree >= 0.98 && k_agree >= 0.98,
+        "{what}: r_opt {r_agree}, k {k_agree}"
+    );
+    // Continuous values where the discrete choices agree.
+    let same: Vec<bool> = (0..is_new.len())
+        .map(|q| {
+            is_new[q]
+                && rl::state_value(&gpu_state, q, S::R_OPT) == rl::state_value(&cpu, q, S::R_OPT)
+                && rl::state_value(&gpu_state, q, S::K) == rl::state_value(&cpu, q, S::K)
+        })
+        .collect();
+    for s in S::BETA0..S::U {
+        assert_close(
+            &format!("{what} state[{s}]"),
+            &pick(&gpu_state, s, &same),
+            &pick(&cpu, s, &same),
+            0.99,
+        );
+    }
+    // u[ch] enters a dot product with feature differences: compare it as a
+    // vector, relative to its largest entry (f32 RLS loses a few digits on
+    // the small entries, which the output does not see).
+    let (mut ok, mut total, mut worst) = (0usize, 0usize, 0.0f64);
+    for q in (0..same.len()).filter(|&q| same[q]) {
+        for ch in 0..3 {
+            let u = |st: &[Vec<f32>], j: usize| rl::state_value(st, q, S::U + 9 * ch + j) as f64;
+            let scale = (0..9).map(|j| u(&cpu, j).abs()).fold(0.0, f64::max);
+            let err = (0..9)
+                .map(|j| (u(&gpu_state, j) - u(&cpu, j)).abs())
+                .fold(0.0, f64::max);
+            let rel = err / (scale + 1e-3);
+            worst = worst.max(rel);
+            ok += (rel <= 1e-3) as usize;
+            total += 1;
+        }
+    }
+    println!("{what}: u within 1e-3 of its scale on {ok}/{total} (worst {worst:.2e})");
+    assert!(
+        ok as f64 >= 0.99 * total as f64,
+        "{what}: u agrees on {ok}/{total}"
+    );
+}
+
+/// `lp_centres` keeps the state of the pixels it does not write, so the GPU
+/// run starts from the same state planes as the twin.
+fn run_centres_inplace(
+    ctx: &std::sync::Arc<mcdenoise::gpu::GpuContext>,
+    sc: &Scene,
+    pass: usize,
+    prec: Precision,
+    inputs: &[&[f32]],
+) -> mcdenoise::error::Result<(Vec<Vec<f32>>, ())> {
+    use mcdenoise::gpu::{Batch, GpuBuffer};
+    let bufs: Vec<GpuBuffer> = inputs
+        .iter()
+        .enumerate()
+        .map(|(i, p)| GpuBuffer::from_slice(ctx, &format!("lp.in{i}"), p))
+        .collect::<mcdenoise::error::Result<_>>()?;
+    let bindings: Vec<_> = bufs.iter().map(|b| b.slice()).collect();
+    let mut batch = Batch::new(ctx)?;
+    let (gw, gh) = rc::grid(sc.w as u32, sc.h as u32, rl::GRANULARITIES[pass]);
+    batch.dispatch(
+        &lp_centres::DECL,
+        prec,
+        &bindings,
+        bytemuck::bytes_of(&push(sc, pass)),
+        gw,
+        gh,
+        lp_centres::flops_per_centre(),
+    )?;
+    batch.finish()?;
+    let state = bufs[22..]
+        .iter()
+        .map(|b| b.read_vec::<f32>(4 * sc.w * sc.h))
+        .collect::<mcdenoise::error::Result<Vec<_>>>()?;
+    Ok((state, ()))
+}
+
+#[test]
+fn lp_centres_matches_twin() {
+    for prec in precisions() {
+        let sc = synthetic(64, 64, 11, 1.0);
+        for pass in [0, 2, 4] {
+            compare_centres(
+                &sc,
+                pass,
+                prec,
+                &format!("synthetic 64² pass {pass} {prec:?}"),
+            );
+        }
+        compare_centres(&fixture(), 0, prec, &format!("fixture pass 0 {prec:?}"));
+        compare_centres(&fixture(), 3, prec, &format!("fixture pass 3 {prec:?}"));
+        for &(w, h) in &SIZES[1..] {
+            let sc = synthetic(w, h, 5, 1.0);
+            compare_centres(&sc, 4, prec, &format!("{w}x{h} pass 4 {prec:?}"));
+        }
+    }
+    check_validation(&gpu());
+}
+
+#[test]
+fn lp_gather_matches_twin() {
+    let ctx = gpu();
+    for prec in precisions() {
+        for (sc, what) in [
+            (synthetic(64, 64, 2, 1.0), "synthetic 64²"),
+            (fixture(), "fixture"),
+            (synthetic(37, 23, 4, 1.0), "37x23"),
+            (synthetic(1, 17, 4, 1.0), "1x17"),
+        ] {
+            let (w, h) = (sc.w, sc.h);
+            let (state, reach) = twin_state(&sc, rl::GRANULARITIES.len());
+            let mut cpu = vec![vec![0.0f32; w * h]; rg::OUTPUTS];
+            rg::lp_gather(&push(&sc, 0), &sc.p(), &reach, &state, &mut cpu);
+            let mut inputs = sc.gather_inputs();
+            inputs.push(&reach);
+            for p in &state {
+                inputs.push(p);
+            }
+            let (out, _) = run_planes(
+                &ctx,
+                &lp_gather::DECL,
+                prec,
+                bytemuck::bytes_of(&push(&sc, 0)),
+                w,
+                h,
+                &inputs,
+                &[w * h; 10],
+                lp_gather::flops_per_pixel(),
+            )
+            .unwrap();
+            for (k, name) in lp_gather::OUTPUTS.iter().enumerate() {
+                assert_close(&format!("{what} {prec:?} {name}"), &out[k], &cpu[k], 0.99);
+            }
+            assert_eq!(out[9], cpu[9], "{what}: coverage counts");
+        }
+    }
+    check_validation(&ctx);
+}
+
+fn run(img: &StatsImage, backend: Backend, prec: Precision) -> mcdenoise::methods::DenoiseOutput {
+    let mut req = DenoiseRequest::new(Method::Lp);
+    req.backend = backend;
+    req.precision = prec;
+    req.error = true;
+    req.debug = true;
+    denoise(Some(&gpu()), img, &req).unwrap()
+}
+
+fn layer<'a>(out: &'a mcdenoise::methods::DenoiseOutput, name: &str) -> &'a [f32] {
+    &out.debug.iter().find(|(n, _)| n == name).unwrap().1
+}
+
+#[test]
+fn chain_gpu_matches_cpu_and_covers_every_pixel() {
+    for (sc, what) in [
+        (fixture(), "fixture"),
+        (synthetic(64, 64, 8, 1.0), "synthetic"),
+    ] {
+        let img = sc.image();
+        let cpu = run(&img, Backend::Cpu, Precision::F32);
+        for prec in precisions() {
+            let g = run(&img, Backend::Gpu, prec);
+            for c in 0..3 {
+                let f = assert_close(
+                    &format!("{what} {prec:?} colour {c}"),
+                    &g.color.planes[c],
+                    &cpu.color.planes[c],
+                    0.98,
+                );
+                println!("{what} {prec:?}: colour {c} within tolerance on {f:.4}");
+            }
+            let centres = agreement(layer(&g, "centre_pass"), layer(&cpu, "centre_pass"));
+            println!("{what} {prec:?}: centre map agreement {centres:.4}");
+            assert!(
+                centres >= 0.98,
+                "{what} {prec:?}: centre maps agree on {centres}"
+            );
+        }
+        for out in [&cpu, &run(&img, Backend::Gpu, Precision::F32)] {
+            let cov = layer(out, "coverage");
+            for (q, &c) in cov.iter().enumerate() {
+                let valid = sc.planes[20][q] >= 1.0;
+                assert_eq!(c >= 1.0, valid, "{what}: pixel {q} coverage {c}");
+            }
+        }
+    }
+    check_validation(&gpu());
+}
+
+#[test]
+fn zero_variance_input_is_returned_exactly() {
+    let sc = synthetic(40, 33, 21, 0.0);
+    let img = sc.image();
+    let mut outs = vec![run(&img, Backend::Cpu, Precision::F32)];
+    for prec in precisions() {
+        outs.push(run(&img, Backend::Gpu, prec));
+    }
+    for out in &outs {
+        let cp = layer(out, "centre_pass");
+        let r = layer(out, "r_opt");
+        for q in 0..sc.w * sc.h {
+            if sc.planes[20][q] < 1.0 {
+                continue;
+            }
+            assert!(
+                cp[q] > 0.0 && r[q] == 0.0,
+                "pixel {q}: every pixel a centre with r_opt 0"
+            );
+            for c in 0..3 {
+                assert_eq!(
+                    out.color.planes[c][q],
+                    sc.planes[14 + c][q].max(0.0),
+                    "pixel {q}"
+                );
+            }
+        }
+    }
+    check_validation(&gpu());
+}
+
+#[test]
+fn constant_image_is_returned_exactly() {
+    let mut sc = synthetic(48, 31, 9, 1.0);
+    for ch in 0..3 {
+        sc.planes[14 + ch]
+            .iter_mut()
+            .for_each(|v| *v = 0.37 + 0.1 * ch as f32);
+    }
+    let img = sc.image();
+    let mut outs = vec![run(&img, Backend::Cpu, Precision::F32)];
+    for prec in precisions() {
+        outs.push(run(&img, Backend::Gpu, prec));
+    }
+    for (o, out) in outs.iter().enumerate() {
+        for c in 0..3 {
+            for q in 0..sc.w * sc.h {
+                assert_eq!(
+                    out.color.planes[c][q],
+                    0.37 + 0.1 * c as f32,
+                    "output {o} pixel {q} (spp {}, coverage {})",
+                    sc.planes[20][q],
+                    layer(out, "coverage")[q]
+                );
+            }
+        }
+    }
+    check_validation(&gpu());
+}
+
+#[test]
+fn centre_fit_invariants() {
+    let sc = synthetic(30, 30, 17, 1.0);
+    let p = sc.p();
+    let s = 1.0;
+    for (cx, cy) in [(15, 14), (0, 0), (29, 3), (9, 22)] {
+        if !p.valid(cy * sc.w + cx) {
+            continue;
+        }
+        let fit = centre_fit(&p, cx, cy, s);
+        let (yc, vc) = p.colour(cy * sc.w + cx);
+        // ξ̂(0) = v_c.
+        assert_eq!(fit.curve[0], vc);
+        // Ξ(r) = Ξ(r-1) + errors of the batch ridge fit on Ω^P(r-1), r >= 2.
+        let ls = rl::local_space(&p, cx, cy);
+        let pr = projection(&ls);
+        let xc = p.features(cx, cy);
+        let mut prior = [[0.0; MAX_P]; 3];
+        for ch in 0..3 {
+            prior[ch][0] = yc[ch];
+        }
+        let pixels_within = |r: usize| -> Vec<(usize, usize)> {
+            (0..=r)
+                .flat_map(|rr| rl::ring(sc.w, sc.h, cx, cy, rr))
+                .filter(|&(x, y)| p.valid(y * sc.w + x))
+                .collect()
+        };
+        for r in 2..RINGS {
+            let train = pixels_within(r - 1);
+            let rows: Vec<[f64; MAX_P]> = train
+                .iter()
+                .map(|&(x, y)| regressor(&pr, &p.features(x, y), &xc))
+                .collect();
+            let ys: Vec<[f64; 3]> = train
+                .iter()
+                .map(|&(x, y)| p.colour(y * sc.w + x).0)
+                .collect();
+            let (beta, _) = batch_ridge(&rows, &ys, pr.k + 1, &prior);
+            let mut delta = [0.0; 3];
+            for (x, y) in rl::ring(sc.w, sc.h, cx, cy, r) {
+                let q = y * sc.w + x;
+                if !p.valid(q) {
+                    continue;
+                }
+                let z = regressor(&pr, &p.features(x, y), &xc);
+                let (yy, v) = p.colour(q);
+                for ch in 0..3 {
+                    let f: f64 = (0..=pr.k).map(|j| beta[ch][j] * z[j]).sum();
+                    delta[ch] += (f - yy[ch]).powi(2) - s * v[ch];
+                }
+            }
+            for ch in 0..3 {
+                let big_xi = |r: usize| fit.curve[r][ch] * fit.count[r] as f64;
+                let got = big_xi(r) - big_xi(r - 1);
+                assert!(
+                    (got - delta[ch]).abs() <= 1e-7 * (delta[ch].abs() + 1e-6),
+                    "({cx},{cy}) r={r} ch={ch}: {got} vs batch {}",
+                    delta[ch]
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn loo_closed_form_equals_brute_force_refits() {
+    let mut rng = Rng(77);
+    for p in [2, 4, 10] {
+        let n = 9;
+        let rows: Vec<[f64; MAX_P]> = (0..n)
+            .map(|_| {
+                let mut z = [0.0; MAX_P];
+                z[0] = 1.0;
+                for v in z.iter_mut().take(p).skip(1) {
+                    *v = rng.uniform() - 0.5;
+                }
+                z
+            })
+            .collect();
+        let ys: Vec<[f64; 3]> = (0..n)
+            .map(|_| [rng.uniform(), rng.uniform(), 2.0 * rng.uniform()])
+            .collect();
+        let mut rls = Rls::new(p, ys[0]);
+        let prior = rls.beta;
+        for (z, y) in rows.iter().zip(&ys) {
+            rls.update(z, *y);
+        }
+        rls.symmetrise();
+        for i in 0..n {
+            let den = 1.0 - rls.leverage(&rows[i]);
+            if den < rl::LOO_DEN_MIN {
+                continue;
+            }
+            let f = rls.predict(&rows[i]);
+            let others: Vec<usize> = (0..n).filter(|&j| j != i).collect();
+            let r: Vec<_> = others.iter().map(|&j| rows[j]).collect();
+            let y: Vec<_> = others.iter().map(|&j| ys[j]).collect();
+            let (beta, _) = batch_ridge(&r, &y, p, &prior);
+            for ch in 0..3 {
+                let closed = (f[ch] - ys[i][ch]) / den;
+                let brute: f64 = (0..p).map(|j| beta[ch][j] * rows[i][j]).sum::<f64>() - ys[i][ch];
+                assert!(
+                    (closed - brute).abs() <= 1e-7 * (brute.abs() + 1e-6),
+                    "p={p} i={i} ch={ch}: closed {closed} vs refit {brute}"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn error_mode_paper_changes_the_choice() {
+    let sc = fixture();
+    let img = sc.image();
+    let mut req = DenoiseRequest::new(Method::Lp);
+    req.backend = Backend::Cpu;
+    req.debug = true;
+    let varsub = denoise(None, &img, &req).unwrap();
+    req.options = Options::parse(&["lp.error_mode=paper".to_string()]).unwrap();
+    assert_eq!(
+        mlp::LpParams::new(&req.options).unwrap().options & LP_VARSUB,
+        0
+    );
+    let paper = denoise(None, &img, &req).unwrap();
+    let centres = |o: &mcdenoise::methods::DenoiseOutput| {
+        layer(o, "centre_pass").iter().filter(|&&v| v > 0.0).count()
+    };
+    // s = 0 penalises every r >= 1 by one input variance: more, smaller windows.
+    println!(
+        "centres: varsub {}, paper {}",
+        centres(&varsub),
+        centres(&paper)
+    );
+    assert!(centres(&paper) > centres(&varsub));
+}
