@@ -125,13 +125,13 @@ fn denoise_none_gpu_and_cpu_agree_and_inputs_are_protected() {
     assert!(err.contains("refusing to overwrite"), "{err}");
     assert_eq!(std::fs::read(&input).unwrap(), before);
     // A method that is not built yet says so instead of writing anything.
-    let out = dir.join("lp.exr");
+    let out = dir.join("apr.exr");
     let (code, _, err) = run(bin()
         .arg("denoise")
         .arg(&input)
         .arg("-o")
         .arg(&out)
-        .args(["--method", "lp"]));
+        .args(["--method", "apr"]));
     assert_eq!(code, 2);
     assert!(err.contains("not in this build"), "{err}");
     assert!(!out.exists());
@@ -144,6 +144,61 @@ fn denoise_none_gpu_and_cpu_agree_and_inputs_are_protected() {
         .args(["--method", "none", "--opt", "wlr.reject=perhaps"]));
     assert_eq!(code, 2);
     assert!(err.contains("wlr.reject"), "{err}");
+}
+
+#[test]
+fn denoise_lp_writes_error_and_debug_layers() {
+    let input = fixture("dof_checker_64_spp16.exr");
+    let reference = fixture("dof_checker_64_ref.exr");
+    let dir = tmpdir("lp");
+    let (g, c) = (dir.join("gpu.exr"), dir.join("cpu.exr"));
+    let (code, out, err) = run(bin()
+        .arg("denoise")
+        .arg(&input)
+        .arg("-o")
+        .arg(&g)
+        .args(["--method", "lp", "--error", "--debug-layers", "--ref"])
+        .arg(&reference));
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("rMSE"), "{out}");
+    let meta = exr::meta::MetaData::read_from_file(&g, false).unwrap();
+    let names: Vec<String> = meta.headers[0]
+        .channels
+        .list
+        .iter()
+        .map(|c| c.name.to_string())
+        .collect();
+    for want in [
+        "color.R",
+        "error.G",
+        "debug.centre_pass",
+        "debug.r_opt",
+        "debug.rank",
+        "debug.coverage",
+        "debug.dmse.B",
+    ] {
+        assert!(
+            names.iter().any(|n| n == want),
+            "{want} missing from {names:?}"
+        );
+    }
+    let (code, _, err) = run(bin().arg("denoise").arg(&input).arg("-o").arg(&c).args([
+        "--method",
+        "lp",
+        "--backend",
+        "cpu",
+        "--opt",
+        "lp.error_mode=paper",
+    ]));
+    assert_eq!(code, 0, "{err}");
+    let (code, _, err) = run(bin()
+        .arg("denoise")
+        .arg(&input)
+        .arg("-o")
+        .arg(dir.join("x.exr"))
+        .args(["--method", "lp", "--opt", "lp.error_mode=sometimes"]));
+    assert_eq!(code, 2);
+    assert!(err.contains("lp.error_mode"), "{err}");
 }
 
 #[test]

@@ -263,12 +263,12 @@ fn host_device_and_command_buffer() {
 }
 
 /// The whole library path of a renderer: its accumulation buffer → finalize →
-/// sanitation → WLR, recorded into the host's command buffer and submitted by
-/// the host; colour and MSE stay on the GPU until the test reads them. The
-/// result equals the CPU chain (twins) within the spec's tolerances.
-#[test]
-fn host_records_the_whole_wlr_chain() {
-    use mcdenoise::methods::{prepare, wlr};
+/// sanitation → WLR or LP, recorded into the host's command buffer and
+/// submitted by the host; colour and error stay on the GPU until the test
+/// reads them. The result equals the CPU chain (twins) within the spec's
+/// tolerances.
+fn host_records_a_method_chain(method: mcdenoise::methods::Method) {
+    use mcdenoise::methods::{lp, prepare, wlr, Method};
     let h = host();
     let (w, hgt) = (24usize, 20usize);
     let layout = AccumLayout::new(w, hgt, false, false);
@@ -299,7 +299,9 @@ fn host_records_the_whole_wlr_chain() {
     let clean = GpuStats::new(&ctx, "clean", w, hgt, &prepare::output_layers(&layers)).unwrap();
     let scratch = prepare::PrepareScratch::new(&ctx, &stats).unwrap();
     let planes_wlr = wlr::WlrPlanes::new(&ctx, w, hgt).unwrap();
+    let planes_lp = lp::LpPlanes::new(&ctx, w, hgt).unwrap();
     let params = wlr::WlrParams::new(mcdenoise::methods::Pass::Final, &Default::default()).unwrap();
+    let params_lp = lp::LpParams::new(&Default::default()).unwrap();
 
     let accum = BufferSlice {
         buffer: accum_buf,
@@ -309,31 +311,62 @@ fn host_records_the_whole_wlr_chain() {
     let timings = host_submit(&h, &ctx, |batch| {
         record_finalize(batch, Precision::F32, &layout, accum, &stats).unwrap();
         prepare::record_prepare(batch, Precision::F32, &stats, &clean, &scratch, true).unwrap();
-        wlr::record_wlr(batch, Precision::F32, &clean, &planes_wlr, params).unwrap();
+        match method {
+            Method::Wlr => {
+                wlr::record_wlr(batch, Precision::F32, &clean, &planes_wlr, params).unwrap()
+            }
+            Method::Lp => {
+                lp::record_lp(batch, Precision::F32, &clean, &planes_lp, params_lp).unwrap()
+            }
+            _ => unreachable!(),
+        }
     });
-    for k in [
-        "finalize_stats",
-        "sanitize",
-        "wlr_fit",
-        "gauss_smooth",
-        "wlr_final",
-    ] {
-        assert!(timings.iter().any(|t| t.kernel == k), "no timing for {k}");
+    let kernels: &[&str] = match method {
+        Method::Wlr => &[
+            "finalize_stats",
+            "sanitize",
+            "wlr_fit",
+            "gauss_smooth",
+            "wlr_final",
+        ],
+        _ => &[
+            "finalize_stats",
+            "sanitize",
+            "lp_reach",
+            "lp_centres",
+            "lp_gather",
+        ],
+    };
+    for k in kernels {
+        assert!(timings.iter().any(|t| t.kernel == *k), "no timing for {k}");
     }
-    let gpu = wlr::download(&planes_wlr, w, hgt).unwrap();
-
     let finalized = finalize_cpu(&layout, &planes);
     let (clean_cpu, _) = prepare::prepare_cpu(&finalized);
-    let cpu = wlr::run_cpu(&clean_cpu, params).unwrap();
+    let (gpu_colour, cpu_colour) = match method {
+        Method::Wlr => {
+            let gpu = wlr::download(&planes_wlr, w, hgt).unwrap();
+            let cpu = wlr::run_cpu(&clean_cpu, params).unwrap();
+            assert_close("mse", &gpu.mse, &cpu.mse, 0.99);
+            (gpu.color, cpu.color)
+        }
+        _ => {
+            let gpu = lp::download(&planes_lp, w, hgt).unwrap();
+            let cpu = lp::run_cpu(&clean_cpu, params_lp, false).unwrap();
+            for c in 0..3 {
+                assert_close("error", &gpu.error.planes[c], &cpu.error.planes[c], 0.99);
+            }
+            assert_eq!(gpu.centre_pass, cpu.centre_pass);
+            (gpu.color, cpu.color)
+        }
+    };
     for c in 0..3 {
         assert_close(
             &format!("colour {c}"),
-            &gpu.color.planes[c],
-            &cpu.color.planes[c],
+            &gpu_colour.planes[c],
+            &cpu_colour.planes[c],
             0.99,
         );
     }
-    assert_close("mse", &gpu.mse, &cpu.mse, 0.99);
     // The reconstruction actually denoised: smoother than the input.
     let input = &finalized.get(Layer::Color).unwrap()[0];
     let rough = |p: &[f32]| {
@@ -342,9 +375,19 @@ fn host_records_the_whole_wlr_chain() {
             .map(|i| (p[i] - p[i - 1]).powi(2) as f64)
             .sum::<f64>()
     };
-    assert!(rough(&gpu.color.planes[0]) < 0.5 * rough(input));
+    assert!(rough(&gpu_colour.planes[0]) < 0.5 * rough(input));
 
-    drop((stats, clean, scratch, planes_wlr));
+    drop((stats, clean, scratch, planes_wlr, planes_lp));
     drop(ctx);
     host_teardown(h, accum_buf, accum_mem);
+}
+
+#[test]
+fn host_records_the_whole_wlr_chain() {
+    host_records_a_method_chain(mcdenoise::methods::Method::Wlr);
+}
+
+#[test]
+fn host_records_the_whole_lp_chain() {
+    host_records_a_method_chain(mcdenoise::methods::Method::Lp);
 }
