@@ -42,7 +42,7 @@ impl Scene {
         Planes {
             width: self.w,
             height: self.h,
-            feat: std::array::from_fn(|k| a(k)),
+            feat: std::array::from_fn(a),
             var: std::array::from_fn(|k| a(7 + k)),
             color: std::array::from_fn(|k| a(14 + k)),
             cvar: std::array::from_fn(|k| a(17 + k)),
