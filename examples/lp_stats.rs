@@ -1,13 +1,17 @@
-//! Prints LP's centre statistics on one input (CPU twins): centre fraction
-//! per pass, the r_opt histogram and the mean coverage.
+//! Developer probe for LP on one input: centre fraction per pass, the r_opt
+//! histogram and the mean coverage (CPU twins), then with `gpu` the GPU time
+//! of every dispatch (warm run).
 //!
-//! `cargo run --release --example lp_stats -- scene/spp16.exr`
+//! `cargo run --release --example lp_stats -- scene/spp16.exr [gpu]`
 
-use mcdenoise::methods::{lp, prepare};
+use mcdenoise::gpu::{ContextOptions, GpuContext};
+use mcdenoise::methods::{denoise, lp, prepare, DenoiseRequest, Method};
 use mcdenoise::options::Options;
 
 fn main() -> mcdenoise::error::Result<()> {
-    let path = std::env::args().nth(1).expect("usage: lp_stats IN.exr");
+    let path = std::env::args()
+        .nth(1)
+        .expect("usage: lp_stats IN.exr [gpu]");
     let img = mcdenoise::io::read_stats(std::path::Path::new(&path))?;
     let (clean, _) = prepare::prepare_cpu(&img);
     let r = lp::run_cpu(&clean, lp::LpParams::new(&Options::default())?, false)?;
@@ -26,8 +30,28 @@ fn main() -> mcdenoise::error::Result<()> {
         hist[v as usize] += 1;
     }
     println!("r_opt histogram: {hist:?}");
+    let mut kh = [0usize; 10];
+    for &v in r.rank.iter().filter(|&&v| v >= 0.0) {
+        kh[v as usize] += 1;
+    }
+    println!("rank histogram: {kh:?}");
     let cov: f64 = r.coverage.iter().map(|&c| c as f64).sum::<f64>() / n;
     let max = r.coverage.iter().cloned().fold(0.0f32, f32::max);
     println!("mean coverage {cov:.2}, max {max}");
+    if std::env::args().any(|a| a == "gpu") {
+        let ctx = std::sync::Arc::new(GpuContext::new(&ContextOptions::default())?);
+        let req = DenoiseRequest::new(Method::Lp);
+        denoise(Some(&ctx), &img, &req)?;
+        let out = denoise(Some(&ctx), &img, &req)?;
+        for t in &out.timings {
+            println!(
+                "{:<12} rows {:>4}..{:<4} {:8.2} ms",
+                t.kernel,
+                t.rows.0,
+                t.rows.1,
+                t.nanoseconds / 1e6
+            );
+        }
+    }
     Ok(())
 }

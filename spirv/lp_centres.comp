@@ -105,20 +105,45 @@ bool covered(ivec2 p, ivec2 size)
     return false;
 }
 
+// Workgroup compaction: the candidates of a pass that become centres are few
+// and scattered (a few %), and a SIMD vector costs as much as its busiest
+// lane. So every invocation first tests its candidate, invocation 0 lists the
+// centres of the workgroup in invocation order, and the first m invocations
+// fit one centre each. Each centre writes only its own pixel, so the result
+// does not depend on this assignment.
+shared uint s_pixel[64];
+shared uint s_count;
+
 void main()
 {
+    uint lid = gl_LocalInvocationIndex;
     uint g = max(push.granularity, 1u);
     uint x = gl_GlobalInvocationID.x * g;
     uint y = (push.row0 + gl_GlobalInvocationID.y) * g;
-    if (x >= push.width || y >= push.height) {
-        return;
-    }
-    uint i = y * push.width + x;
-    ivec2 c = ivec2(x, y);
     ivec2 size = ivec2(push.width, push.height);
-    if (spp_of(spp[i]) < 1.0 || covered(c, size)) {
+    bool centre = x < push.width && y < push.height
+        && spp_of(spp[y * push.width + x]) >= 1.0 && !covered(ivec2(x, y), size);
+    s_pixel[lid] = centre ? y * push.width + x : 0xffffffffu;
+    barrier();
+    if (lid == 0u) {
+        uint m = 0u;
+        for (uint j = 0u; j < 64u; ++j) {
+            uint q = s_pixel[j];
+            if (q != 0xffffffffu) {
+                s_pixel[m] = q;
+                ++m;
+            }
+        }
+        s_count = m;
+    }
+    barrier();
+    if (lid >= s_count) {
         return;
     }
+    uint i = s_pixel[lid];
+    x = i % push.width;
+    y = i / push.width;
+    ivec2 c = ivec2(x, y);
     LocalSpace ls = tsvd_local_space(c, LP_RADIUS, size);
     TsvdProj pr = tsvd_projection(ls);
     real s = (push.options & LP_VARSUB) != 0u ? real(1) : real(0);

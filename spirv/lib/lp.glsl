@@ -46,12 +46,17 @@ void load_colour(ivec2 p, out real3 y, out real3 v);
 struct LpRls {
     lpmat4 P[9];
     real4 B[9];
+    // Active lane blocks: 1 + (k >= 4) + (k >= 8). The blocks of inactive
+    // lanes hold I/delta and 0 and would stay so (their zeta lanes are 0),
+    // so they are skipped: most centres have k <= 3 and need one block.
+    int nb;
 };
 
 // beta(0) = (y_c, 0, ..., 0), P(0) = I/delta (§3.3).
-LpRls lp_rls_new(real3 yc)
+LpRls lp_rls_new(real3 yc, int k)
 {
     LpRls s;
+    s.nb = 1 + (k >= 4 ? 1 : 0) + (k >= 8 ? 1 : 0);
     for (int a = 0; a < 3; ++a) {
         for (int b = 0; b < 3; ++b) {
             s.P[3 * a + b] = lpmat4(a == b ? real(1.0lf / LP_DELTA) : real(0));
@@ -79,7 +84,16 @@ real3 lp_predict(LpRls s, real4 z[3])
 void lp_p_zeta(LpRls s, real4 z[3], out real4 q[3])
 {
     for (int a = 0; a < 3; ++a) {
-        q[a] = s.P[3 * a] * z[0] + s.P[3 * a + 1] * z[1] + s.P[3 * a + 2] * z[2];
+        q[a] = real4(0);
+        if (a < s.nb) {
+            q[a] = s.P[3 * a] * z[0];
+            if (s.nb > 1) {
+                q[a] += s.P[3 * a + 1] * z[1];
+            }
+            if (s.nb > 2) {
+                q[a] += s.P[3 * a + 2] * z[2];
+            }
+        }
     }
 }
 
@@ -105,7 +119,9 @@ void lp_update(inout LpRls s, real4 z[3], real3 y)
     real3 e = y - lp_predict(s, z);
     for (int a = 0; a < 3; ++a) {
         for (int b = 0; b < 3; ++b) {
-            s.P[3 * a + b] -= outerProduct(g[a], q[b]);
+            if (a < s.nb && b < s.nb) {
+                s.P[3 * a + b] -= outerProduct(g[a], q[b]);
+            }
         }
     }
     for (int ch = 0; ch < 3; ++ch) {
@@ -119,8 +135,14 @@ void lp_update(inout LpRls s, real4 z[3], real3 y)
 void lp_symmetrise(inout LpRls s)
 {
     for (int a = 0; a < 3; ++a) {
+        if (a >= s.nb) {
+            continue;
+        }
         s.P[4 * a] = (s.P[4 * a] + transpose(s.P[4 * a])) * real(0.5);
         for (int b = a + 1; b < 3; ++b) {
+            if (b >= s.nb) {
+                continue;
+            }
             lpmat4 m = (s.P[3 * a + b] + transpose(s.P[3 * b + a])) * real(0.5);
             s.P[3 * a + b] = m;
             s.P[3 * b + a] = transpose(m);
@@ -144,11 +166,16 @@ void lp_regressor(TsvdProj pr, real xc[MAX_D], ivec2 q, out real4 z[3])
 }
 
 // Ring r of centre c (|q - c|_inf = r), clipped, valid pixels, raster order
-// (RING-ORDER). mode 0: score the current model on the ring (xi += (f - y)^2
-// - s v, n += 1); mode 1: add the ring's pixels to the RLS.
-void lp_ring(inout LpRls st, TsvdProj pr, real xc[MAX_D], ivec2 c, int r, ivec2 size, int mode,
+// (RING-ORDER), in one pass: each pixel is scored with the model of the
+// previous rings (snapshot `prev` of beta taken before the ring: xi += (f - y)^2
+// - s v, n += 1) and then added to the RLS. Scoring the whole ring first and
+// then adding it, as §3.4 words it, gives the same numbers; one pass loads
+// and projects every pixel once. With `score` false the ring is only added.
+void lp_ring(inout LpRls st, TsvdProj pr, real xc[MAX_D], ivec2 c, int r, ivec2 size, bool score,
              real s, inout real3 xi, inout int n)
 {
+    LpRls prev;
+    prev.B = st.B;
     for (int qy = max(c.y - r, 0); qy <= min(c.y + r, size.y - 1); ++qy) {
         int step = (qy == c.y - r || qy == c.y + r) ? 1 : 2 * r;
         for (int qx = c.x - r; qx <= c.x + r; qx += step) {
@@ -160,13 +187,12 @@ void lp_ring(inout LpRls st, TsvdProj pr, real xc[MAX_D], ivec2 c, int r, ivec2 
             lp_regressor(pr, xc, q, z);
             real3 y, v;
             load_colour(q, y, v);
-            if (mode == 0) {
-                real3 e = lp_predict(st, z) - y;
+            if (score) {
+                real3 e = lp_predict(prev, z) - y;
                 xi += e * e - s * v;
                 n += 1;
-            } else {
-                lp_update(st, z, y);
             }
+            lp_update(st, z, y);
         }
     }
 }
@@ -188,7 +214,7 @@ LpFit lp_centre_fit(ivec2 c, ivec2 size, TsvdProj pr, real s)
     load_features(c, xc, e2);
     real3 yc, vc;
     load_colour(c, yc, vc);
-    LpRls st = lp_rls_new(yc);
+    LpRls st = lp_rls_new(yc, pr.k);
     LpFit best;
     best.k = pr.k;
 
@@ -207,7 +233,7 @@ LpFit lp_centre_fit(ivec2 c, ivec2 size, TsvdProj pr, real s)
     // 3x3 block (LOO-DEN).
     real3 xi = real3(0);
     int n1 = 0;
-    lp_ring(st, pr, xc, c, 1, size, 1, s, xi, n1);
+    lp_ring(st, pr, xc, c, 1, size, false, s, xi, n1);
     lp_symmetrise(st);
     for (int qy = max(c.y - 1, 0); qy <= min(c.y + 1, size.y - 1); ++qy) {
         for (int qx = max(c.x - 1, 0); qx <= min(c.x + 1, size.x - 1); ++qx) {
@@ -237,8 +263,7 @@ LpFit lp_centre_fit(ivec2 c, ivec2 size, TsvdProj pr, real s)
 
     // r >= 2: score the previous model on ring r, then add the ring.
     for (int r = 2; r <= LP_RADIUS; ++r) {
-        lp_ring(st, pr, xc, c, r, size, 0, s, xi, n);
-        lp_ring(st, pr, xc, c, r, size, 1, s, xi, n);
+        lp_ring(st, pr, xc, c, r, size, true, s, xi, n);
         lp_symmetrise(st);
         real3 xr = xi / real(n);
         real total = xr.r + xr.g + xr.b;
