@@ -10,8 +10,8 @@
 // and it declares the plane `spp` (validity of ring pixels, spp_of >= 1).
 //
 // GPU notes (§3.6): one thread per centre. The regressor zeta = (1, dz) is
-// three real4 lanes (z[0] = (1, dz1, dz2, dz3), z[1] = dz4..7,
-// z[2] = (dz8, dz9, 0, 0); lanes beyond k + 1 are exactly 0). P is 3x3
+// three real4 lanes (z0 = (1, dz1, dz2, dz3), z1 = dz4..7,
+// z2 = (dz8, dz9, 0, 0); lanes beyond k + 1 are exactly 0). P is 3x3
 // blocks of realmat4 (block (a, b) at P[3a + b], entry (row 4a + r,
 // column 4b + c) at [c][r]). Every lane starts at I/delta; the lanes beyond
 // k + 1 never mix with the others because their zeta entries are 0, so the
@@ -53,106 +53,121 @@ struct LpRls {
 };
 
 // beta(0) = (y_c, 0, ..., 0), P(0) = I/delta (§3.3).
+// Every block operation below is written out with constant indices (no
+// loops over blocks): on lavapipe a loop that NIR does not unroll turns the
+// struct's arrays into scratch memory.
 LpRls lp_rls_new(real3 yc, int k)
 {
     LpRls s;
     s.nb = 1 + (k >= 4 ? 1 : 0) + (k >= 8 ? 1 : 0);
-    for (int a = 0; a < 3; ++a) {
-        for (int b = 0; b < 3; ++b) {
-            s.P[3 * a + b] = lpmat4(a == b ? real(1.0lf / LP_DELTA) : real(0));
-        }
-    }
-    for (int ch = 0; ch < 3; ++ch) {
-        s.B[3 * ch] = real4(yc[ch], 0, 0, 0);
-        s.B[3 * ch + 1] = real4(0);
-        s.B[3 * ch + 2] = real4(0);
-    }
+    lpmat4 d = lpmat4(real(1.0lf / LP_DELTA));
+    lpmat4 o = lpmat4(real(0));
+    s.P[0] = d; s.P[1] = o; s.P[2] = o;
+    s.P[3] = o; s.P[4] = d; s.P[5] = o;
+    s.P[6] = o; s.P[7] = o; s.P[8] = d;
+    s.B[0] = real4(yc.r, 0, 0, 0); s.B[1] = real4(0); s.B[2] = real4(0);
+    s.B[3] = real4(yc.g, 0, 0, 0); s.B[4] = real4(0); s.B[5] = real4(0);
+    s.B[6] = real4(yc.b, 0, 0, 0); s.B[7] = real4(0); s.B[8] = real4(0);
     return s;
 }
 
 // beta[ch]^T zeta.
-real3 lp_predict(LpRls s, real4 z[3])
+real3 lp_predict(LpRls s, real4 z0, real4 z1, real4 z2)
 {
-    real3 f;
-    for (int ch = 0; ch < 3; ++ch) {
-        f[ch] = dot(s.B[3 * ch], z[0]) + dot(s.B[3 * ch + 1], z[1]) + dot(s.B[3 * ch + 2], z[2]);
+    real3 f = real3(dot(s.B[0], z0), dot(s.B[3], z0), dot(s.B[6], z0));
+    if (s.nb > 1) {
+        f += real3(dot(s.B[1], z1), dot(s.B[4], z1), dot(s.B[7], z1));
+    }
+    if (s.nb > 2) {
+        f += real3(dot(s.B[2], z2), dot(s.B[5], z2), dot(s.B[8], z2));
     }
     return f;
 }
 
 // q = P zeta.
-void lp_p_zeta(LpRls s, real4 z[3], out real4 q[3])
+void lp_p_zeta(LpRls s, real4 z0, real4 z1, real4 z2, out real4 q0, out real4 q1, out real4 q2)
 {
-    for (int a = 0; a < 3; ++a) {
-        q[a] = real4(0);
-        if (a < s.nb) {
-            q[a] = s.P[3 * a] * z[0];
-            if (s.nb > 1) {
-                q[a] += s.P[3 * a + 1] * z[1];
-            }
-            if (s.nb > 2) {
-                q[a] += s.P[3 * a + 2] * z[2];
-            }
-        }
+    q0 = s.P[0] * z0;
+    q1 = real4(0);
+    q2 = real4(0);
+    if (s.nb > 1) {
+        q0 += s.P[1] * z1;
+        q1 = s.P[3] * z0 + s.P[4] * z1;
+    }
+    if (s.nb > 2) {
+        q0 += s.P[2] * z2;
+        q1 += s.P[5] * z2;
+        q2 = s.P[6] * z0 + s.P[7] * z1 + s.P[8] * z2;
     }
 }
 
 // zeta^T P zeta.
-real lp_leverage(LpRls s, real4 z[3])
+real lp_leverage(LpRls s, real4 z0, real4 z1, real4 z2)
 {
-    real4 q[3];
-    lp_p_zeta(s, z, q);
-    return dot(z[0], q[0]) + dot(z[1], q[1]) + dot(z[2], q[2]);
+    real4 q0, q1, q2;
+    lp_p_zeta(s, z0, z1, z2, q0, q1, q2);
+    return dot(z0, q0) + dot(z1, q1) + dot(z2, q2);
 }
 
 // One RLS update (§3.3): q = P zeta, G = q / (1 + zeta^T q), P -= G q^T,
 // beta[ch] += G (y[ch] - beta[ch]^T zeta).
-void lp_update(inout LpRls s, real4 z[3], real3 y)
+void lp_update(inout LpRls s, real4 z0, real4 z1, real4 z2, real3 y)
 {
-    real4 q[3];
-    lp_p_zeta(s, z, q);
-    real den = real(1) + dot(z[0], q[0]) + dot(z[1], q[1]) + dot(z[2], q[2]);
-    real4 g[3];
-    for (int a = 0; a < 3; ++a) {
-        g[a] = q[a] / den;
+    real4 q0, q1, q2;
+    lp_p_zeta(s, z0, z1, z2, q0, q1, q2);
+    real den = real(1) + dot(z0, q0) + dot(z1, q1) + dot(z2, q2);
+    real4 g0 = q0 / den;
+    real4 g1 = q1 / den;
+    real4 g2 = q2 / den;
+    real3 e = y - lp_predict(s, z0, z1, z2);
+    s.P[0] -= outerProduct(g0, q0);
+    s.B[0] += g0 * e.r;
+    s.B[3] += g0 * e.g;
+    s.B[6] += g0 * e.b;
+    if (s.nb > 1) {
+        s.P[1] -= outerProduct(g0, q1);
+        s.P[3] -= outerProduct(g1, q0);
+        s.P[4] -= outerProduct(g1, q1);
+        s.B[1] += g1 * e.r;
+        s.B[4] += g1 * e.g;
+        s.B[7] += g1 * e.b;
     }
-    real3 e = y - lp_predict(s, z);
-    for (int a = 0; a < 3; ++a) {
-        for (int b = 0; b < 3; ++b) {
-            if (a < s.nb && b < s.nb) {
-                s.P[3 * a + b] -= outerProduct(g[a], q[b]);
-            }
-        }
-    }
-    for (int ch = 0; ch < 3; ++ch) {
-        for (int a = 0; a < 3; ++a) {
-            s.B[3 * ch + a] += g[a] * e[ch];
-        }
+    if (s.nb > 2) {
+        s.P[2] -= outerProduct(g0, q2);
+        s.P[5] -= outerProduct(g1, q2);
+        s.P[6] -= outerProduct(g2, q0);
+        s.P[7] -= outerProduct(g2, q1);
+        s.P[8] -= outerProduct(g2, q2);
+        s.B[2] += g2 * e.r;
+        s.B[5] += g2 * e.g;
+        s.B[8] += g2 * e.b;
     }
 }
 
 // P <- (P + P^T)/2, after each ring (§3.3).
 void lp_symmetrise(inout LpRls s)
 {
-    for (int a = 0; a < 3; ++a) {
-        if (a >= s.nb) {
-            continue;
-        }
-        s.P[4 * a] = (s.P[4 * a] + transpose(s.P[4 * a])) * real(0.5);
-        for (int b = a + 1; b < 3; ++b) {
-            if (b >= s.nb) {
-                continue;
-            }
-            lpmat4 m = (s.P[3 * a + b] + transpose(s.P[3 * b + a])) * real(0.5);
-            s.P[3 * a + b] = m;
-            s.P[3 * b + a] = transpose(m);
-        }
+    s.P[0] = (s.P[0] + transpose(s.P[0])) * real(0.5);
+    if (s.nb > 1) {
+        lpmat4 m = (s.P[1] + transpose(s.P[3])) * real(0.5);
+        s.P[1] = m;
+        s.P[3] = transpose(m);
+        s.P[4] = (s.P[4] + transpose(s.P[4])) * real(0.5);
+    }
+    if (s.nb > 2) {
+        lpmat4 m2 = (s.P[2] + transpose(s.P[6])) * real(0.5);
+        s.P[2] = m2;
+        s.P[6] = transpose(m2);
+        lpmat4 m5 = (s.P[5] + transpose(s.P[7])) * real(0.5);
+        s.P[5] = m5;
+        s.P[7] = transpose(m5);
+        s.P[8] = (s.P[8] + transpose(s.P[8])) * real(0.5);
     }
 }
 
 // zeta = (1, dz) of pixel q for the centre with projection pr and raw
 // features xc.
-void lp_regressor(TsvdProj pr, real xc[MAX_D], ivec2 q, out real4 z[3])
+void lp_regressor(TsvdProj pr, real xc[MAX_D], ivec2 q, out real4 z0, out real4 z1, out real4 z2)
 {
     real x[MAX_D];
     real e2[MAX_D];
@@ -160,9 +175,9 @@ void lp_regressor(TsvdProj pr, real xc[MAX_D], ivec2 q, out real4 z[3])
     real4 d0, d1;
     real d8;
     tsvd_dz(pr, xc, x, d0, d1, d8);
-    z[0] = real4(1, d0.xyz);
-    z[1] = real4(d0.w, d1.xyz);
-    z[2] = real4(d1.w, d8, 0, 0);
+    z0 = real4(1, d0.xyz);
+    z1 = real4(d0.w, d1.xyz);
+    z2 = real4(d1.w, d8, 0, 0);
 }
 
 // Ring r of centre c (|q - c|_inf = r), clipped, valid pixels, raster order
@@ -176,6 +191,7 @@ void lp_ring(inout LpRls st, TsvdProj pr, real xc[MAX_D], ivec2 c, int r, ivec2 
 {
     LpRls prev;
     prev.B = st.B;
+    prev.nb = st.nb;
     for (int qy = max(c.y - r, 0); qy <= min(c.y + r, size.y - 1); ++qy) {
         int step = (qy == c.y - r || qy == c.y + r) ? 1 : 2 * r;
         for (int qx = c.x - r; qx <= c.x + r; qx += step) {
@@ -183,16 +199,16 @@ void lp_ring(inout LpRls st, TsvdProj pr, real xc[MAX_D], ivec2 c, int r, ivec2 
             if (qx < 0 || qx >= size.x || spp_of(spp[qy * size.x + qx]) < 1.0) {
                 continue;
             }
-            real4 z[3];
-            lp_regressor(pr, xc, q, z);
+            real4 z0, z1, z2;
+            lp_regressor(pr, xc, q, z0, z1, z2);
             real3 y, v;
             load_colour(q, y, v);
             if (score) {
-                real3 e = lp_predict(prev, z) - y;
+                real3 e = lp_predict(prev, z0, z1, z2) - y;
                 xi += e * e - s * v;
                 n += 1;
             }
-            lp_update(st, z, y);
+            lp_update(st, z0, z1, z2, y);
         }
     }
 }
@@ -219,9 +235,9 @@ LpFit lp_centre_fit(ivec2 c, ivec2 size, TsvdProj pr, real s)
     best.k = pr.k;
 
     // r = 0: the centre; xi(0) = v_c.
-    real4 z[3];
-    lp_regressor(pr, xc, c, z);
-    lp_update(st, z, yc);
+    real4 z0, z1, z2;
+    lp_regressor(pr, xc, c, z0, z1, z2);
+    lp_update(st, z0, z1, z2, yc);
     lp_symmetrise(st);
     best.r_opt = 0;
     best.B = st.B;
@@ -241,11 +257,11 @@ LpFit lp_centre_fit(ivec2 c, ivec2 size, TsvdProj pr, real s)
                 continue;
             }
             ivec2 q = ivec2(qx, qy);
-            lp_regressor(pr, xc, q, z);
+            lp_regressor(pr, xc, q, z0, z1, z2);
             real3 y, v;
             load_colour(q, y, v);
-            real den = max(real(1) - lp_leverage(st, z), real(LP_LOO_DEN_MIN));
-            real3 e = (lp_predict(st, z) - y) / den;
+            real den = max(real(1) - lp_leverage(st, z0, z1, z2), real(LP_LOO_DEN_MIN));
+            real3 e = (lp_predict(st, z0, z1, z2) - y) / den;
             xi += e * e - s * v;
             n += (qx == c.x && qy == c.y) ? 0 : 1;
         }
