@@ -172,9 +172,21 @@ void lp_regressor(TsvdProj pr, real xc[MAX_D], ivec2 q, out real4 z0, out real4 
     real x[MAX_D];
     real e2[MAX_D];
     load_features(q, x, e2);
-    real4 d0, d1;
-    real d8;
-    tsvd_dz(pr, xc, x, d0, d1, d8);
+    // tsvd_dz, with the components 5..9 (zero for k <= 4) computed only when
+    // the centre has them: most centres have k <= 3.
+    real4 d0 = real4(0);
+    real4 d1 = real4(0);
+    real d8 = real(0);
+    for (int j = 0; j < 9; ++j) {
+        d0 += pr.P0[j] * (x[j] - xc[j]);
+    }
+    if (pr.k > 4) {
+        for (int j = 0; j < 9; ++j) {
+            real dx = x[j] - xc[j];
+            d1 += pr.P1[j] * dx;
+            d8 += pr.P8[j] * dx;
+        }
+    }
     z0 = real4(1, d0.xyz);
     z1 = real4(d0.w, d1.xyz);
     z2 = real4(d1.w, d8, 0, 0);
