@@ -32,12 +32,13 @@ void main()
         return;
     }
     int w = int(push.width);
-    float best = -1.0;
+    real best = real(-1);
     for (int qx = max(int(x) - LP_RADIUS, 0); qx <= min(int(x) + LP_RADIUS, w - 1); ++qx) {
         vec4 c = st0[int(y) * w + qx];
-        if (c.x > 0.0 && float(abs(qx - int(x))) <= c.y && c.y > best) {
-            best = c.y;
+        real r = real(c.y);
+        if (c.x > 0.0 && real(abs(qx - int(x))) <= r && r > best) {
+            best = r;
         }
     }
-    reach[y * push.width + x] = best;
+    reach[y * push.width + x] = float(best);
 }
