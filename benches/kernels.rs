@@ -10,7 +10,7 @@ use mcdenoise::gpu::KernelDecl;
 use mcdenoise::gpu::{ContextOptions, GpuContext, Precision};
 use mcdenoise::kernels::{finalize_stats, run_planes, sanitize, tsvd_debug};
 use mcdenoise::reference;
-use mcdenoise::shared::{FinalizePush, SanitizePush, TsvdPush};
+use mcdenoise::shared::{FinalizePush, LpPush, SanitizePush, TsvdPush};
 
 const RUNS: usize = 5;
 
@@ -203,6 +203,140 @@ fn main() {
             g,
             g64,
             c,
+        );
+    }
+
+    // LP (spec §3) on the same features with a noisy shaded colour: the
+    // whole method on the GPU (per-kernel sums over its dispatches) and each
+    // twin on the CPU, summed over the five passes.
+    let mut rng = 12345u64;
+    let mut noise = move || {
+        rng ^= rng << 13;
+        rng ^= rng >> 7;
+        rng ^= rng << 17;
+        (rng >> 11) as f32 / (1u64 << 53) as f32 - 0.5
+    };
+    let color: Vec<Vec<f32>> = (0..3)
+        .map(|c| plane(n, |i| 0.5 + 0.3 * feats[c][i] + 0.2 * feats[4 + c][i]))
+        .map(|p| {
+            p.into_iter()
+                .map(|v| (v + 0.2 * noise()).max(0.0))
+                .collect()
+        })
+        .collect();
+    let cvar: Vec<Vec<f32>> = (0..3).map(|_| vec![0.04f32 / 12.0; n]).collect();
+    let mut img = mcdenoise::image::StatsImage::new(w, h);
+    {
+        use mcdenoise::image::Layer;
+        img.set(Layer::Color, color.clone());
+        img.set(Layer::ColorVariance, cvar.clone());
+        img.set(Layer::Normal, feats[0..3].to_vec());
+        img.set(Layer::NormalVariance, vars[0..3].to_vec());
+        img.set(Layer::Depth, feats[3..4].to_vec());
+        img.set(Layer::DepthVariance, vars[3..4].to_vec());
+        img.set(Layer::Albedo, feats[4..7].to_vec());
+        img.set(Layer::AlbedoVariance, vars[4..7].to_vec());
+        img.set(Layer::Spp, vec![spp.clone()]);
+    }
+    let gpu_lp = |p: Precision| -> Vec<(String, f64)> {
+        let mut req = mcdenoise::methods::DenoiseRequest::new(mcdenoise::methods::Method::Lp);
+        req.precision = p;
+        let mut runs: Vec<Vec<(String, f64, usize)>> = Vec::new();
+        for run in 0..=RUNS {
+            let out = mcdenoise::methods::denoise(Some(&ctx), &img, &req).expect("lp");
+            if run > 0 {
+                runs.push(mcdenoise::gpu::timings_per_kernel(&out.timings));
+            }
+        }
+        runs[0]
+            .iter()
+            .map(|(k, _, _)| {
+                let k = k.trim_end_matches("_f64").to_string();
+                let t = median(
+                    runs.iter()
+                        .map(|r| {
+                            r.iter()
+                                .filter(|(n, _, _)| n.trim_end_matches("_f64") == k)
+                                .map(|x| x.1)
+                                .sum()
+                        })
+                        .collect(),
+                );
+                (k, t)
+            })
+            .collect()
+    };
+    let g32 = gpu_lp(Precision::F32);
+    let g64 = f64ok.then(|| gpu_lp(Precision::F64));
+    // The twins, pass by pass, on the same sanitised input.
+    let (clean, _) = mcdenoise::methods::prepare::prepare_cpu(&img);
+    let get = |l: mcdenoise::image::Layer| clean.get(l).unwrap();
+    use mcdenoise::image::Layer as L;
+    let (nrm, nv, dep, dv, alb, av) = (
+        get(L::Normal),
+        get(L::NormalVariance),
+        get(L::Depth),
+        get(L::DepthVariance),
+        get(L::Albedo),
+        get(L::AlbedoVariance),
+    );
+    let (col, cv, sp) = (get(L::Color), get(L::ColorVariance), &get(L::Spp)[0]);
+    let planes = reference::lp::Planes {
+        width: w,
+        height: h,
+        feat: [
+            &nrm[0], &nrm[1], &nrm[2], &dep[0], &alb[0], &alb[1], &alb[2],
+        ],
+        var: [&nv[0], &nv[1], &nv[2], &dv[0], &av[0], &av[1], &av[2]],
+        color: [&col[0], &col[1], &col[2]],
+        cvar: [&cv[0], &cv[1], &cv[2]],
+        spp: sp,
+    };
+    let mut state = vec![vec![0.0f32; 4 * n]; reference::lp::StateLayout::PLANES];
+    let mut reach = vec![-1.0f32; n];
+    let (mut t_reach, mut t_centres) = (0.0, 0.0);
+    for pass in 0..reference::lp::GRANULARITIES.len() {
+        let push = LpPush {
+            width: w as u32,
+            height: h as u32,
+            granularity: reference::lp::GRANULARITIES[pass],
+            pass: pass as u32,
+            options: mcdenoise::shared::LP_VARSUB,
+            ..Default::default()
+        };
+        let t = Instant::now();
+        reference::lp_reach::lp_reach(&push, &state[0], &mut reach);
+        t_reach += t.elapsed().as_secs_f64() * 1e9;
+        let t = Instant::now();
+        reference::lp_centres::lp_centres(&push, &planes, &reach, &mut state);
+        t_centres += t.elapsed().as_secs_f64() * 1e9;
+    }
+    let push = LpPush {
+        width: w as u32,
+        height: h as u32,
+        ..Default::default()
+    };
+    let t = Instant::now();
+    reference::lp_reach::lp_reach(&push, &state[0], &mut reach);
+    t_reach += t.elapsed().as_secs_f64() * 1e9;
+    let mut out = vec![vec![0.0f32; n]; reference::lp_gather::OUTPUTS];
+    let t = Instant::now();
+    reference::lp_gather::lp_gather(&push, &planes, &reach, &state, &mut out);
+    let t_gather = t.elapsed().as_secs_f64() * 1e9;
+    for (k, twin) in [
+        ("lp_reach", t_reach),
+        ("lp_centres", t_centres),
+        ("lp_gather", t_gather),
+    ] {
+        let find = |v: &[(String, f64)]| v.iter().find(|(n, _)| n == k).map_or(0.0, |x| x.1);
+        row(
+            &format!("{k}.synthetic.{w}x{h}"),
+            &filter,
+            w,
+            h,
+            find(&g32),
+            g64.as_ref().map(|v| find(v)),
+            twin,
         );
     }
 }
