@@ -2,7 +2,8 @@
 //! histogram and the mean coverage (CPU twins), then with `gpu` the GPU time
 //! of every dispatch (warm run).
 //!
-//! `cargo run --release --example lp_stats -- scene/spp16.exr [gpu]`
+//! `cargo run --release --example lp_stats -- scene/spp16.exr [reference.exr] [gpu]`
+//! (with a reference: the tiles of largest estimated and actual error).
 
 use mcdenoise::gpu::{ContextOptions, GpuContext};
 use mcdenoise::methods::{denoise, lp, prepare, DenoiseRequest, Method};
@@ -38,6 +39,34 @@ fn main() -> mcdenoise::error::Result<()> {
     let cov: f64 = r.coverage.iter().map(|&c| c as f64).sum::<f64>() / n;
     let max = r.coverage.iter().cloned().fold(0.0f32, f32::max);
     println!("mean coverage {cov:.2}, max {max}");
+    let zero = r.error.planes[1].iter().filter(|&&e| e == 0.0).count();
+    println!("error estimate exactly 0 (clamped) at {:.1}% of pixels", 100.0 * zero as f64 / n);
+    if let Some(refp) = std::env::args().nth(2).filter(|a| a.ends_with(".exr")) {
+        // The tiles with the largest estimated error, and their actual error.
+        use mcdenoise::bench::{tile_means, CORRELATION_TILE};
+        let reference = mcdenoise::io::read_rgb(std::path::Path::new(&refp))?;
+        let (w, h) = (r.color.width, r.color.height);
+        let est = tile_means(w, h, CORRELATION_TILE, |i| {
+            r.error.planes.iter().map(|p| p[i] as f64).sum::<f64>() / 3.0
+        });
+        let act = tile_means(w, h, CORRELATION_TILE, |i| {
+            (0..3)
+                .map(|c| (r.color.planes[c][i] as f64 - reference.planes[c][i] as f64).powi(2))
+                .sum::<f64>()
+                / 3.0
+        });
+        let mut idx: Vec<usize> = (0..est.len()).collect();
+        idx.sort_by(|&a, &b| est[b].total_cmp(&est[a]));
+        let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+        println!("tiles: mean estimate {:.3e}, mean actual {:.3e}", mean(&est), mean(&act));
+        for &t in idx.iter().take(6) {
+            println!("  tile {t}: estimate {:.3e}, actual {:.3e}", est[t], act[t]);
+        }
+        idx.sort_by(|&a, &b| act[b].total_cmp(&act[a]));
+        for &t in idx.iter().take(4) {
+            println!("  worst actual tile {t}: estimate {:.3e}, actual {:.3e}", est[t], act[t]);
+        }
+    }
     if std::env::args().any(|a| a == "gpu") {
         let ctx = std::sync::Arc::new(GpuContext::new(&ContextOptions::default())?);
         let req = DenoiseRequest::new(Method::Lp);
