@@ -2,6 +2,7 @@
 //! on the CPU (their scalar twins), selected by [`Backend`]; [`denoise`] is
 //! the one entry point the CLI and the benchmarks use.
 
+pub mod gbf;
 pub mod lp;
 pub mod prepare;
 pub mod stats;

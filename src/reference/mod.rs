@@ -12,6 +12,7 @@ pub mod estimate_variance;
 pub mod finalize_covariance;
 pub mod finalize_stats;
 pub mod gauss_smooth;
+pub mod gbf;
 pub mod linalg;
 pub mod lp;
 pub mod lp_centres;
