@@ -40,7 +40,10 @@ fn main() -> mcdenoise::error::Result<()> {
     let max = r.coverage.iter().cloned().fold(0.0f32, f32::max);
     println!("mean coverage {cov:.2}, max {max}");
     let zero = r.error.planes[1].iter().filter(|&&e| e == 0.0).count();
-    println!("error estimate exactly 0 (clamped) at {:.1}% of pixels", 100.0 * zero as f64 / n);
+    println!(
+        "error estimate exactly 0 (clamped) at {:.1}% of pixels",
+        100.0 * zero as f64 / n
+    );
     if let Some(refp) = std::env::args().nth(2).filter(|a| a.ends_with(".exr")) {
         // The tiles with the largest estimated error, and their actual error.
         use mcdenoise::bench::{tile_means, CORRELATION_TILE};
@@ -58,13 +61,20 @@ fn main() -> mcdenoise::error::Result<()> {
         let mut idx: Vec<usize> = (0..est.len()).collect();
         idx.sort_by(|&a, &b| est[b].total_cmp(&est[a]));
         let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
-        println!("tiles: mean estimate {:.3e}, mean actual {:.3e}", mean(&est), mean(&act));
+        println!(
+            "tiles: mean estimate {:.3e}, mean actual {:.3e}",
+            mean(&est),
+            mean(&act)
+        );
         for &t in idx.iter().take(6) {
             println!("  tile {t}: estimate {:.3e}, actual {:.3e}", est[t], act[t]);
         }
         idx.sort_by(|&a, &b| act[b].total_cmp(&act[a]));
         for &t in idx.iter().take(4) {
-            println!("  worst actual tile {t}: estimate {:.3e}, actual {:.3e}", est[t], act[t]);
+            println!(
+                "  worst actual tile {t}: estimate {:.3e}, actual {:.3e}",
+                est[t], act[t]
+            );
         }
     }
     if std::env::args().any(|a| a == "gpu") {

@@ -58,6 +58,13 @@ pub const OPTIONS: &[OptionSpec] = &[
         help: "features appended to the 9 of the paper",
     },
     OptionSpec {
+        key: "gbf.prefilter",
+        kind: Kind::Choice(&["auto", "on", "off"]),
+        default: "auto",
+        section: "§1, §6",
+        help: "G-buffer prefilter of normal, albedo and depth before WLR or LP (auto: when the input has the position layers)",
+    },
+    OptionSpec {
         key: "lp.error_mode",
         kind: Kind::Choice(&["varsub", "paper"]),
         default: "varsub",

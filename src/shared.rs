@@ -118,3 +118,15 @@ pub struct LpPush {
 
 /// [`LpPush::options`] bit: subtract the test pixel's variance (LP-VARSUB, `s = 1`).
 pub const LP_VARSUB: u32 = 1;
+
+/// `spirv/gbf_sure.comp` and `spirv/gbf_filter.comp`, block `Push` (spec §6).
+#[repr(C)]
+#[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GbfPush {
+    pub width: u32,
+    pub height: u32,
+    /// First row of the band this dispatch covers.
+    pub row0: u32,
+    /// `gbf_filter`: how many of its 4 feature slots are used (1..=4).
+    pub count: u32,
+}

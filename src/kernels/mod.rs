@@ -10,6 +10,8 @@ pub mod estimate_variance;
 pub mod finalize_covariance;
 pub mod finalize_stats;
 pub mod gauss_smooth;
+pub mod gbf_filter;
+pub mod gbf_sure;
 pub mod lp_centres;
 pub mod lp_gather;
 pub mod lp_reach;
@@ -31,6 +33,8 @@ pub const ALL: &[&KernelDecl] = &[
     &gauss_smooth::DECL,
     &wlr_fit::DECL,
     &wlr_final::DECL,
+    &gbf_sure::DECL,
+    &gbf_filter::DECL,
     &lp_centres::DECL,
     &lp_reach::DECL,
     &lp_gather::DECL,

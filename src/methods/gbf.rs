@@ -1,27 +1,167 @@
-//! GBF: the G-buffer prefilter with world positions and SURE (spec §6). It
-//! replaces normal, albedo and depth (and their variances) of sanitised
-//! statistics by filtered ones before a denoiser runs (§1).
+//! GBF: the G-buffer prefilter with world positions and SURE (spec §6), as a
+//! sequence of kernels on sanitised statistics:
+//!
+//! ```text
+//! gauss_smooth ×6  S̄ = G_1.5(position_covariance)
+//! gbf_sure         SURE at h = 0, 0.4, …, 2.0 → h_opt
+//! gauss_smooth     hbar = G_1.5(h_opt)
+//! gbf_filter ×2    normal xyz + depth, albedo rgb (+ variances) at hbar
+//! copy             the filtered planes replace the features in place
+//! ```
+//!
+//! It runs before WLR or LP (spec §1) when `gbf.prefilter` says so: `auto`
+//! (the default) runs it when the input has `position`,
+//! `position_variance` and `position_covariance`.
 
+use std::sync::Arc;
+
+use super::stats::GpuStats;
 use crate::error::{Error, Result};
+use crate::gpu::{Batch, BufferSlice, GpuContext, PlaneSet, Precision};
 use crate::image::{Layer, StatsImage};
-use crate::kernels::gauss_smooth;
+use crate::kernels::{gauss_smooth, gbf_filter, gbf_sure};
+use crate::options::Options;
 use crate::reference;
-use crate::reference::gbf::{self as rg, SMOOTH_SIGMA};
-use crate::shared::SmoothPush;
+use crate::reference::gbf::SMOOTH_SIGMA;
+use crate::shared::{GbfPush, SmoothPush};
 
-/// The layers the prefilter reads.
+/// The layers the prefilter reads besides the features.
 pub const NEEDS: [Layer; 3] = [
     Layer::Position,
     Layer::PositionVariance,
     Layer::PositionCovariance,
 ];
 
-/// The feature layers it replaces, with their variances.
-pub const FEATURES: [(Layer, Layer); 3] = [
-    (Layer::Normal, Layer::NormalVariance),
-    (Layer::Albedo, Layer::AlbedoVariance),
-    (Layer::Depth, Layer::DepthVariance),
+/// Whether to prefilter an image with these layers under `opts`
+/// (`gbf.prefilter = auto | on | off`); `on` without the position layers is
+/// an error.
+pub fn wanted(opts: &Options, has: impl Fn(Layer) -> bool) -> Result<bool> {
+    let all = NEEDS.iter().all(|&l| has(l));
+    match opts.get("gbf.prefilter") {
+        "off" => Ok(false),
+        "on" if !all => Err(Error::BadData(
+            "gbf.prefilter=on needs the position, position_variance and position_covariance layers"
+                .into(),
+        )),
+        "on" => Ok(true),
+        _ => Ok(all),
+    }
+}
+
+/// The feature planes in filtering order: two groups of four slots,
+/// (normal x, y, z, depth) and (albedo r, g, b, unused).
+const GROUPS: [[(Layer, usize); 4]; 2] = [
+    [
+        (Layer::Normal, 0),
+        (Layer::Normal, 1),
+        (Layer::Normal, 2),
+        (Layer::Depth, 0),
+    ],
+    [
+        (Layer::Albedo, 0),
+        (Layer::Albedo, 1),
+        (Layer::Albedo, 2),
+        (Layer::Albedo, 2),
+    ],
 ];
+const COUNTS: [u32; 2] = [4, 3];
+
+/// GPU scratch: S̄ (6), h_opt, hbar, and 2 × 8 filter outputs.
+#[derive(Debug)]
+pub struct GbfPlanes {
+    pub set: PlaneSet,
+}
+
+const SBAR: usize = 0;
+const HOPT: usize = 6;
+const HBAR: usize = 7;
+const OUT: usize = 8;
+
+impl GbfPlanes {
+    pub fn new(ctx: &Arc<GpuContext>, width: usize, height: usize) -> Result<GbfPlanes> {
+        Ok(GbfPlanes {
+            set: PlaneSet::new(ctx, "gbf", width * height, OUT + 16)?,
+        })
+    }
+
+    /// `h_opt` and `hbar` (debug).
+    pub fn h_maps(&self) -> (BufferSlice, BufferSlice) {
+        (self.set.plane(HOPT), self.set.plane(HBAR))
+    }
+}
+
+fn smooth_push(w: usize, h: usize) -> SmoothPush {
+    SmoothPush {
+        width: w as u32,
+        height: h as u32,
+        radius: gauss_smooth::radius(SMOOTH_SIGMA),
+        sigma: SMOOTH_SIGMA,
+        ..Default::default()
+    }
+}
+
+/// Records the prefilter on sanitised statistics `clean` (which must hold
+/// the position layers and normal, albedo, depth with their variances) and
+/// replaces its feature planes with the filtered ones.
+pub fn record_gbf(
+    batch: &mut Batch,
+    precision: Precision,
+    clean: &GpuStats,
+    planes: &GbfPlanes,
+) -> Result<()> {
+    let (w, h) = (clean.width as u32, clean.height as u32);
+    let p = |i: usize| planes.set.plane(i);
+    let spp = clean.plane(Layer::Spp, 0);
+    for k in 0..6 {
+        gauss_smooth::record(
+            batch,
+            precision,
+            w,
+            h,
+            SMOOTH_SIGMA,
+            clean.plane(Layer::PositionCovariance, k),
+            spp,
+            p(SBAR + k),
+        )?;
+    }
+    let pos: [BufferSlice; 3] = std::array::from_fn(|k| clean.plane(Layer::Position, k));
+    let pos_var: [BufferSlice; 3] =
+        std::array::from_fn(|k| clean.plane(Layer::PositionVariance, k));
+    let sbar: [BufferSlice; 6] = std::array::from_fn(|k| p(SBAR + k));
+    gbf_sure::record(batch, precision, w, h, pos, pos_var, sbar, spp, p(HOPT))?;
+    gauss_smooth::record(batch, precision, w, h, SMOOTH_SIGMA, p(HOPT), spp, p(HBAR))?;
+    for (g, group) in GROUPS.iter().enumerate() {
+        let feat: [BufferSlice; 4] = std::array::from_fn(|j| clean.plane(group[j].0, group[j].1));
+        let var: [BufferSlice; 4] =
+            std::array::from_fn(|j| clean.plane(group[j].0.variance().unwrap(), group[j].1));
+        let out: [BufferSlice; 8] = std::array::from_fn(|j| p(OUT + 8 * g + j));
+        gbf_filter::record(
+            batch,
+            precision,
+            w,
+            h,
+            COUNTS[g],
+            pos,
+            sbar,
+            spp,
+            p(HBAR),
+            feat,
+            var,
+            out,
+        )?;
+    }
+    for (g, group) in GROUPS.iter().enumerate() {
+        for j in 0..COUNTS[g] as usize {
+            let (l, c) = group[j];
+            batch.copy(p(OUT + 8 * g + j), clean.plane(l, c));
+            batch.copy(
+                p(OUT + 8 * g + 4 + j),
+                clean.plane(l.variance().unwrap(), c),
+            );
+        }
+    }
+    Ok(())
+}
 
 /// What a CPU run leaves for debugging: `h_opt` and `hbar` per pixel.
 #[derive(Clone, Debug)]
@@ -30,7 +170,8 @@ pub struct GbfMaps {
     pub hbar: Vec<f32>,
 }
 
-/// The CPU path (scalar twins) on sanitised statistics, in place.
+/// The CPU path: the scalar twins in the order of [`record_gbf`], on
+/// sanitised statistics, in place.
 pub fn run_cpu(clean: &mut StatsImage) -> Result<GbfMaps> {
     for l in NEEDS {
         if !clean.has(l) {
@@ -44,15 +185,8 @@ pub fn run_cpu(clean: &mut StatsImage) -> Result<GbfMaps> {
     let n = w * h;
     let spp = clean.get(Layer::Spp).unwrap()[0].clone();
     let smooth = |map: &[f32]| {
-        let push = SmoothPush {
-            width: w as u32,
-            height: h as u32,
-            radius: gauss_smooth::radius(SMOOTH_SIGMA),
-            sigma: SMOOTH_SIGMA,
-            ..Default::default()
-        };
         let mut out = vec![0.0f32; n];
-        reference::gauss_smooth::gauss_smooth(&push, map, &spp, &mut out);
+        reference::gauss_smooth::gauss_smooth(&smooth_push(w, h), map, &spp, &mut out);
         out
     };
     let sbar: Vec<Vec<f32>> = clean
@@ -63,56 +197,51 @@ pub fn run_cpu(clean: &mut StatsImage) -> Result<GbfMaps> {
         .collect();
     let pos = clean.get(Layer::Position).unwrap();
     let pos_var = clean.get(Layer::PositionVariance).unwrap();
-    let planes = rg::Planes {
-        width: w,
-        height: h,
-        pos: std::array::from_fn(|k| pos[k].as_slice()),
-        pos_var: std::array::from_fn(|k| pos_var[k].as_slice()),
-        sbar: std::array::from_fn(|k| sbar[k].as_slice()),
-        spp: &spp,
+    let push = GbfPush {
+        width: w as u32,
+        height: h as u32,
+        ..Default::default()
     };
+    let pos_r: [&[f32]; 3] = std::array::from_fn(|k| pos[k].as_slice());
+    let sbar_r: [&[f32]; 6] = std::array::from_fn(|k| sbar[k].as_slice());
     let mut h_opt = vec![0.0f32; n];
-    let mut outs = vec![h_opt.clone()];
-    reference::wlr::par_pixels::<1>(w, h, &mut outs, |x, y| {
-        if !planes.valid(y * w + x) {
-            return [0.0];
-        }
-        [rg::choose(&rg::sure(&planes, x, y)) as f32]
-    });
-    h_opt.copy_from_slice(&outs[0]);
+    reference::gbf_sure::gbf_sure(
+        &push,
+        pos_r,
+        std::array::from_fn(|k| pos_var[k].as_slice()),
+        sbar_r,
+        &spp,
+        &mut h_opt,
+    );
     let hbar = smooth(&h_opt);
-    let mut filtered = Vec::new();
-    for (fl, vl) in FEATURES {
-        let (Some(f), Some(v)) = (clean.get(fl), clean.get(vl)) else {
-            continue;
-        };
-        let f: Vec<&[f32]> = f.iter().map(|p| p.as_slice()).collect();
-        let v: Vec<&[f32]> = v.iter().map(|p| p.as_slice()).collect();
-        let k = f.len();
-        let mut fo = vec![vec![0.0f32; n]; k];
-        let mut vo = vec![vec![0.0f32; n]; k];
-        for y in 0..h {
-            for x in 0..w {
-                let q = y * w + x;
-                if !planes.valid(q) {
-                    for j in 0..k {
-                        fo[j][q] = f[j][q];
-                        vo[j][q] = v[j][q];
-                    }
-                    continue;
-                }
-                let r = rg::filter_features(&planes, x, y, hbar[q] as f64, &f, &v);
-                for j in 0..k {
-                    fo[j][q] = r[j].0 as f32;
-                    vo[j][q] = r[j].1 as f32;
-                }
-            }
-        }
-        filtered.push((fl, fo, vl, vo));
+    let mut results = Vec::new();
+    for (g, group) in GROUPS.iter().enumerate() {
+        let get = |l: Layer, c: usize| clean.get(l).map(|p| p[c].as_slice());
+        let feat: [&[f32]; 4] = std::array::from_fn(|j| get(group[j].0, group[j].1).unwrap());
+        let var: [&[f32]; 4] =
+            std::array::from_fn(|j| get(group[j].0.variance().unwrap(), group[j].1).unwrap());
+        let mut out = vec![vec![0.0f32; n]; 8];
+        reference::gbf_filter::gbf_filter(
+            &GbfPush {
+                count: COUNTS[g],
+                ..push
+            },
+            pos_r,
+            sbar_r,
+            &spp,
+            &hbar,
+            feat,
+            var,
+            &mut out,
+        );
+        results.push(out);
     }
-    for (fl, fo, vl, vo) in filtered {
-        clean.set(fl, fo);
-        clean.set(vl, vo);
+    for (g, group) in GROUPS.iter().enumerate() {
+        for j in 0..COUNTS[g] as usize {
+            let (l, c) = group[j];
+            clean.get_mut(l).unwrap()[c] = results[g][j].clone();
+            clean.get_mut(l.variance().unwrap()).unwrap()[c] = results[g][4 + j].clone();
+        }
     }
     Ok(GbfMaps { h_opt, hbar })
 }

@@ -135,7 +135,10 @@ pub fn denoise(
                 if !img.has(crate::image::Layer::Color) || !img.has(crate::image::Layer::Spp) {
                     return Err(Error::BadData("WLR needs the color and spp layers".into()));
                 }
-                let (clean, report) = prepare::prepare_cpu(img);
+                let (mut clean, report) = prepare::prepare_cpu(img);
+                if gbf::wanted(&req.options, |l| clean.has(l))? {
+                    gbf::run_cpu(&mut clean)?;
+                }
                 (
                     wlr::run_cpu_with_progress(&clean, params, req.progress)?,
                     report,
@@ -146,7 +149,7 @@ pub fn denoise(
                 let ctx = ctx.ok_or_else(|| {
                     Error::InvalidArgument("the GPU backend needs a context".into())
                 })?;
-                wlr_gpu(ctx, req.precision, img, params, req.progress)?
+                wlr_gpu(ctx, req.precision, img, params, &req.options, req.progress)?
             }
         };
         let mse = result.mse.clone();
@@ -172,7 +175,10 @@ pub fn denoise(
                 if !img.has(crate::image::Layer::Color) || !img.has(crate::image::Layer::Spp) {
                     return Err(Error::BadData("LP needs the color and spp layers".into()));
                 }
-                let (clean, report) = prepare::prepare_cpu(img);
+                let (mut clean, report) = prepare::prepare_cpu(img);
+                if gbf::wanted(&req.options, |l| clean.has(l))? {
+                    gbf::run_cpu(&mut clean)?;
+                }
                 (
                     lp::run_cpu(&clean, params, req.progress)?,
                     report,
@@ -183,7 +189,7 @@ pub fn denoise(
                 let ctx = ctx.ok_or_else(|| {
                     Error::InvalidArgument("the GPU backend needs a context".into())
                 })?;
-                lp_gpu(ctx, req.precision, img, params, req.progress)?
+                lp_gpu(ctx, req.precision, img, params, &req.options, req.progress)?
             }
         };
         return Ok(DenoiseOutput {
@@ -274,16 +280,34 @@ fn gpu_chain(
     Ok((report, timings))
 }
 
+/// The G-buffer prefilter's scratch when `options` want it for `img` (§1).
+fn gbf_planes(
+    ctx: &Arc<GpuContext>,
+    img: &StatsImage,
+    options: &Options,
+) -> Result<Option<gbf::GbfPlanes>> {
+    if gbf::wanted(options, |l| img.has(l))? {
+        Ok(Some(gbf::GbfPlanes::new(ctx, img.width, img.height)?))
+    } else {
+        Ok(None)
+    }
+}
+
 /// Sanitation and WLR in one GPU batch: one upload, one download.
 fn wlr_gpu(
     ctx: &Arc<GpuContext>,
     precision: Precision,
     img: &StatsImage,
     params: wlr::WlrParams,
+    options: &Options,
     progress: bool,
 ) -> Result<(wlr::WlrResult, prepare::PrepareReport, Vec<KernelTiming>)> {
     let planes = wlr::WlrPlanes::new(ctx, img.width, img.height)?;
+    let pre = gbf_planes(ctx, img, options)?;
     let (report, timings) = gpu_chain(ctx, precision, img, Method::Wlr, progress, |b, clean| {
+        if let Some(g) = &pre {
+            gbf::record_gbf(b, precision, clean, g)?;
+        }
         wlr::record_wlr(b, precision, clean, &planes, params)
     })?;
     Ok((
@@ -299,10 +323,15 @@ fn lp_gpu(
     precision: Precision,
     img: &StatsImage,
     params: lp::LpParams,
+    options: &Options,
     progress: bool,
 ) -> Result<(lp::LpResult, prepare::PrepareReport, Vec<KernelTiming>)> {
     let planes = lp::LpPlanes::new(ctx, img.width, img.height)?;
+    let pre = gbf_planes(ctx, img, options)?;
     let (report, timings) = gpu_chain(ctx, precision, img, Method::Lp, progress, |b, clean| {
+        if let Some(g) = &pre {
+            gbf::record_gbf(b, precision, clean, g)?;
+        }
         lp::record_lp(b, precision, clean, &planes, params)
     })?;
     Ok((

@@ -69,8 +69,8 @@ pub struct Planes<'a> {
     pub height: usize,
     /// Position X, Y, Z.
     pub pos: [&'a [f32]; 3],
-    /// Position variance (of the mean) X, Y, Z.
-    pub pos_var: [&'a [f32]; 3],
+    /// Position variance (of the mean) X, Y, Z; only [`sure`] reads it.
+    pub pos_var: Option<[&'a [f32]; 3]>,
     /// Smoothed covariance `S̄` (six entries).
     pub sbar: [&'a [f32]; 6],
     pub spp: &'a [f32],
@@ -177,7 +177,8 @@ pub fn filter_position(p: &Planes, nb: &[Neighbour], h: f64) -> ([f64; 3], f64) 
 /// `SURE(h)` for the six trial bandwidths (step 6) at the valid pixel `c`.
 pub fn sure(p: &Planes, cx: usize, cy: usize) -> [f64; 6] {
     let c = cy * p.width + cx;
-    let vbar = (0..3).map(|k| p.pos_var[k][c] as f64).sum::<f64>() / 3.0;
+    let pv = p.pos_var.expect("gbf::sure needs the position variance");
+    let vbar = (0..3).map(|k| pv[k][c] as f64).sum::<f64>() / 3.0;
     let pc = p.position(c);
     let nb = neighbours(p, cx, cy);
     let mut out = [vbar; 6];

@@ -13,6 +13,8 @@ pub mod finalize_covariance;
 pub mod finalize_stats;
 pub mod gauss_smooth;
 pub mod gbf;
+pub mod gbf_filter;
+pub mod gbf_sure;
 pub mod linalg;
 pub mod lp;
 pub mod lp_centres;

@@ -1,0 +1,69 @@
+//! `gbf_sure`: G-buffer prefilter steps 2–7 (spec §6) — SURE over the six
+//! trial bandwidths with the regularised smoothed covariances, and `h_opt`.
+//! Twin: [`crate::reference::gbf_sure`].
+
+use crate::error::Result;
+use crate::gpu::reflect::{read, write};
+use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};
+use crate::shared::GbfPush;
+
+pub const DECL: KernelDecl = KernelDecl {
+    name: "gbf_sure",
+    bindings: &[
+        read("position_x"),
+        read("position_y"),
+        read("position_z"),
+        read("var_position_x"),
+        read("var_position_y"),
+        read("var_position_z"),
+        read("cov_xx"),
+        read("cov_xy"),
+        read("cov_xz"),
+        read("cov_yy"),
+        read("cov_yz"),
+        read("cov_zz"),
+        read("spp"),
+        write("h_opt"),
+    ],
+    push_size: std::mem::size_of::<GbfPush>() as u32,
+};
+
+/// Per pixel: 49 neighbours × (3×3 regularised inverse, distance, 5 exps
+/// and accumulations).
+pub fn flops_per_pixel() -> f64 {
+    49.0 * (60.0 + 5.0 * 30.0)
+}
+
+/// Records `h_opt` over a `width × height` image.
+pub fn record(
+    batch: &mut Batch,
+    precision: Precision,
+    width: u32,
+    height: u32,
+    pos: [BufferSlice; 3],
+    pos_var: [BufferSlice; 3],
+    sbar: [BufferSlice; 6],
+    spp: BufferSlice,
+    h_opt: BufferSlice,
+) -> Result<()> {
+    let push = GbfPush {
+        width,
+        height,
+        ..Default::default()
+    };
+    let mut b = Vec::with_capacity(14);
+    b.extend_from_slice(&pos);
+    b.extend_from_slice(&pos_var);
+    b.extend_from_slice(&sbar);
+    b.push(spp);
+    b.push(h_opt);
+    batch.dispatch(
+        &DECL,
+        precision,
+        &b,
+        bytemuck::bytes_of(&push),
+        width,
+        height,
+        flops_per_pixel(),
+    )
+}

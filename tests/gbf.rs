@@ -1,0 +1,392 @@
+//! The G-buffer prefilter (spec §6): `gbf_sure` and `gbf_filter` on the GPU
+//! against their scalar twins (§0.3 tolerances), f32 and f64, and the
+//! invariants of §6.4 on the twin routines.
+
+mod common;
+use common::*;
+
+use mcdenoise::gpu::Precision;
+use mcdenoise::image::Layer;
+use mcdenoise::kernels::{gbf_filter, gbf_sure, run_planes};
+use mcdenoise::reference::gbf::{self as rg, Planes};
+use mcdenoise::reference::{gbf_filter as rf, gbf_sure as rs};
+use mcdenoise::shared::GbfPush;
+
+fn precisions() -> Vec<Precision> {
+    let mut v = vec![Precision::F32];
+    if gpu().supports_f64() {
+        v.push(Precision::F64);
+    }
+    v
+}
+
+/// Position (3), position variance (3), smoothed covariance (6), spp, and
+/// 4 features + 4 variances.
+struct Scene {
+    w: usize,
+    h: usize,
+    pos: Vec<Vec<f32>>,
+    pos_var: Vec<Vec<f32>>,
+    sbar: Vec<Vec<f32>>,
+    spp: Vec<f32>,
+    feat: Vec<Vec<f32>>,
+    var: Vec<Vec<f32>>,
+}
+
+impl Scene {
+    fn planes(&self) -> Planes<'_> {
+        Planes {
+            width: self.w,
+            height: self.h,
+            pos: std::array::from_fn(|k| self.pos[k].as_slice()),
+            pos_var: Some(std::array::from_fn(|k| self.pos_var[k].as_slice())),
+            sbar: std::array::from_fn(|k| self.sbar[k].as_slice()),
+            spp: &self.spp,
+        }
+    }
+}
+
+/// A tilted plane and a sphere, positions blurred along a random direction
+/// per pixel (defocus-like) with matching covariance and variance; features
+/// are noisy functions of the true position; ~2% invalid pixels.
+fn synthetic(w: usize, h: usize, seed: u64, blur: f64) -> Scene {
+    let mut rng = Rng(seed);
+    let n = w * h;
+    let mut s = Scene {
+        w,
+        h,
+        pos: vec![vec![0.0; n]; 3],
+        pos_var: vec![vec![0.0; n]; 3],
+        sbar: vec![vec![0.0; n]; 6],
+        spp: vec![16.0; n],
+        feat: vec![vec![0.0; n]; 4],
+        var: vec![vec![0.0; n]; 4],
+    };
+    for i in 0..n {
+        let (x, y) = ((i % w) as f64 * 0.05, (i / w) as f64 * 0.05);
+        let z = if (x - 1.0).powi(2) + (y - 1.0).powi(2) < 0.3 {
+            0.5
+        } else {
+            2.0 + 0.2 * x
+        };
+        let t = [x, y, z];
+        let b = blur * (0.2 + rng.uniform());
+        let spread = b * b; // per-axis sample variance
+        for k in 0..3 {
+            s.pos[k][i] = (t[k] + (spread / 16.0).sqrt() * rng.normal()) as f32;
+            s.pos_var[k][i] = (spread / 16.0) as f32;
+        }
+        // XX XY XZ YY YZ ZZ
+        s.sbar[0][i] = spread as f32;
+        s.sbar[1][i] = (0.3 * spread) as f32;
+        s.sbar[3][i] = spread as f32;
+        s.sbar[5][i] = (0.5 * spread) as f32;
+        for j in 0..4 {
+            let f = (t[0] * (j + 1) as f64).sin() + t[2];
+            let v = 0.01 * blur;
+            s.feat[j][i] = (f + v.sqrt() * rng.normal()) as f32;
+            s.var[j][i] = v as f32;
+        }
+        if rng.next_u64() % 50 == 0 {
+            s.spp[i] = 0.0;
+        }
+    }
+    s
+}
+
+fn push(s: &Scene, count: u32) -> GbfPush {
+    GbfPush {
+        width: s.w as u32,
+        height: s.h as u32,
+        count,
+        ..Default::default()
+    }
+}
+
+#[test]
+fn gbf_sure_matches_twin() {
+    let ctx = gpu();
+    for &(w, h) in SIZES {
+        let s = synthetic(w, h, 3 + w as u64, 0.1);
+        let mut cpu = vec![0.0f32; w * h];
+        let p = s.planes();
+        rs::gbf_sure(
+            &push(&s, 0),
+            p.pos,
+            p.pos_var.unwrap(),
+            p.sbar,
+            &s.spp,
+            &mut cpu,
+        );
+        let mut inputs: Vec<&[f32]> = Vec::new();
+        inputs.extend(s.pos.iter().map(|v| v.as_slice()));
+        inputs.extend(s.pos_var.iter().map(|v| v.as_slice()));
+        inputs.extend(s.sbar.iter().map(|v| v.as_slice()));
+        inputs.push(&s.spp);
+        for prec in precisions() {
+            let (out, _) = run_planes(
+                &ctx,
+                &gbf_sure::DECL,
+                prec,
+                bytemuck::bytes_of(&push(&s, 0)),
+                w,
+                h,
+                &inputs,
+                &[w * h],
+                gbf_sure::flops_per_pixel(),
+            )
+            .unwrap();
+            let a = agreement(&out[0], &cpu);
+            println!("{w}x{h} {prec:?}: h_opt agreement {a:.4}");
+            assert!(a >= 0.98, "{w}x{h} {prec:?}: h_opt agrees on {a}");
+        }
+        if w * h > 100 {
+            let nonzero = cpu.iter().filter(|&&v| v > 0.0).count();
+            assert!(
+                nonzero * 4 > w * h,
+                "{w}x{h}: the prefilter filters ({nonzero})"
+            );
+        }
+    }
+    check_validation(&ctx);
+}
+
+#[test]
+fn gbf_filter_matches_twin() {
+    let ctx = gpu();
+    for &(w, h) in SIZES {
+        let s = synthetic(w, h, 7 + h as u64, 0.1);
+        let p = s.planes();
+        let mut hopt = vec![0.0f32; w * h];
+        rs::gbf_sure(
+            &push(&s, 0),
+            p.pos,
+            p.pos_var.unwrap(),
+            p.sbar,
+            &s.spp,
+            &mut hopt,
+        );
+        for count in [4u32, 3] {
+            let feat: [&[f32]; 4] = std::array::from_fn(|j| s.feat[j].as_slice());
+            let var: [&[f32]; 4] = std::array::from_fn(|j| s.var[j].as_slice());
+            let mut cpu = vec![vec![0.0f32; w * h]; 8];
+            rf::gbf_filter(
+                &push(&s, count),
+                p.pos,
+                p.sbar,
+                &s.spp,
+                &hopt,
+                feat,
+                var,
+                &mut cpu,
+            );
+            let mut inputs: Vec<&[f32]> = Vec::new();
+            inputs.extend(s.pos.iter().map(|v| v.as_slice()));
+            inputs.extend(s.sbar.iter().map(|v| v.as_slice()));
+            inputs.push(&s.spp);
+            inputs.push(&hopt);
+            inputs.extend(feat);
+            inputs.extend(var);
+            for prec in precisions() {
+                let (out, _) = run_planes(
+                    &ctx,
+                    &gbf_filter::DECL,
+                    prec,
+                    bytemuck::bytes_of(&push(&s, count)),
+                    w,
+                    h,
+                    &inputs,
+                    &[w * h; 8],
+                    gbf_filter::flops_per_pixel(),
+                )
+                .unwrap();
+                for k in 0..8 {
+                    assert_close(
+                        &format!("{w}x{h} {prec:?} count {count} out {k}"),
+                        &out[k],
+                        &cpu[k],
+                        0.99,
+                    );
+                }
+            }
+        }
+    }
+    check_validation(&ctx);
+}
+
+#[test]
+fn sure_invariants() {
+    let s = synthetic(20, 20, 5, 0.1);
+    let p = s.planes();
+    for (cx, cy) in [(10, 10), (0, 0), (19, 7)] {
+        let c = cy * s.w + cx;
+        if !p.valid(c) {
+            continue;
+        }
+        let vbar = (0..3).map(|k| s.pos_var[k][c] as f64).sum::<f64>() / 3.0;
+        let sure = rg::sure(&p, cx, cy);
+        assert_eq!(sure[0], vbar, "SURE(0) = vbar");
+        let nb = rg::neighbours(&p, cx, cy);
+        // div -> 3 as h -> 0 (only the centre keeps weight).
+        let (_, div) = rg::filter_position(&p, &nb, 1e-4);
+        assert!((div - 3.0).abs() < 1e-9, "div at h -> 0: {div}");
+        // The analytic divergence equals a central difference of p^ in p_c
+        // with S~ held fixed.
+        for &h in &[0.4, 1.2, 2.0] {
+            let (_, div) = rg::filter_position(&p, &nb, h);
+            let mut fd = 0.0;
+            for k in 0..3 {
+                let eps = 1e-6;
+                let shift = |e: f64| {
+                    let mut nb2 = nb.clone();
+                    let inv_c = p.inv_cov(c);
+                    for n in nb2.iter_mut() {
+                        if n.q == c {
+                            continue;
+                        }
+                        n.delta[k] -= e;
+                        let inv_q = p.inv_cov(n.q);
+                        let m: [f64; 6] = std::array::from_fn(|j| inv_c[j] + inv_q[j]);
+                        n.m_delta = rg::mul(m, n.delta);
+                        n.d = n.delta.iter().zip(n.m_delta).map(|(a, b)| a * b).sum();
+                    }
+                    // p^ relative to the moved centre: the centre's own
+                    // position enters with weight 1.
+                    let mut w_sum = 0.0;
+                    let mut acc = 0.0;
+                    for n in &nb2 {
+                        let w = rg::weight(n, h);
+                        let pk = if n.q == c {
+                            p.position(c)[k] + e
+                        } else {
+                            p.position(n.q)[k]
+                        };
+                        w_sum += w;
+                        acc += w * pk;
+                    }
+                    acc / w_sum
+                };
+                fd += (shift(eps) - shift(-eps)) / (2.0 * eps);
+            }
+            assert!(
+                (div - fd).abs() <= 1e-5 * fd.abs().max(1.0),
+                "h {h}: div {div} vs fd {fd}"
+            );
+        }
+    }
+}
+
+#[test]
+fn zero_position_variance_is_passed_through() {
+    let mut s = synthetic(24, 18, 9, 0.0);
+    for k in 0..3 {
+        s.pos_var[k].iter_mut().for_each(|v| *v = 0.0);
+    }
+    let p = s.planes();
+    let mut hopt = vec![1.0f32; s.w * s.h];
+    rs::gbf_sure(
+        &push(&s, 0),
+        p.pos,
+        p.pos_var.unwrap(),
+        p.sbar,
+        &s.spp,
+        &mut hopt,
+    );
+    assert!(hopt.iter().all(|&v| v == 0.0), "every h_opt = 0");
+    let feat: [&[f32]; 4] = std::array::from_fn(|j| s.feat[j].as_slice());
+    let var: [&[f32]; 4] = std::array::from_fn(|j| s.var[j].as_slice());
+    let mut out = vec![vec![0.0f32; s.w * s.h]; 8];
+    rf::gbf_filter(
+        &push(&s, 4),
+        p.pos,
+        p.sbar,
+        &s.spp,
+        &hopt,
+        feat,
+        var,
+        &mut out,
+    );
+    for j in 0..4 {
+        assert_eq!(out[j], s.feat[j]);
+        assert_eq!(out[4 + j], s.var[j]);
+    }
+}
+
+#[test]
+fn outputs_are_convex_combinations() {
+    let s = synthetic(30, 30, 13, 0.2);
+    let p = s.planes();
+    let hbar = vec![1.5f32; s.w * s.h];
+    let feat: [&[f32]; 4] = std::array::from_fn(|j| s.feat[j].as_slice());
+    let var: [&[f32]; 4] = std::array::from_fn(|j| s.var[j].as_slice());
+    let mut out = vec![vec![0.0f32; s.w * s.h]; 8];
+    rf::gbf_filter(
+        &push(&s, 4),
+        p.pos,
+        p.sbar,
+        &s.spp,
+        &hbar,
+        feat,
+        var,
+        &mut out,
+    );
+    for y in 0..s.h {
+        for x in 0..s.w {
+            let q = y * s.w + x;
+            if !p.valid(q) {
+                continue;
+            }
+            for j in 0..4 {
+                let (mut lo, mut hi) = (f32::MAX, f32::MIN);
+                for qy in y.saturating_sub(3)..(y + 4).min(s.h) {
+                    for qx in x.saturating_sub(3)..(x + 4).min(s.w) {
+                        if p.valid(qy * s.w + qx) {
+                            lo = lo.min(s.feat[j][qy * s.w + qx]);
+                            hi = hi.max(s.feat[j][qy * s.w + qx]);
+                        }
+                    }
+                }
+                let v = out[j][q];
+                assert!(
+                    v >= lo - 1e-6 && v <= hi + 1e-6,
+                    "({x},{y}) {j}: {v} not in [{lo}, {hi}]"
+                );
+                // Filtering never raises the variance above the largest input one.
+                assert!(out[4 + j][q] <= s.var[j][q] * 1.0001 + 1e-12);
+            }
+        }
+    }
+}
+
+/// The whole prefilter + WLR on the fixture (it has position layers): GPU
+/// and twins agree, and the prefilter lowers the error against the reference.
+#[test]
+fn prefilter_chain_on_the_fixture() {
+    use mcdenoise::methods::{denoise, Backend, DenoiseRequest, Method};
+    use mcdenoise::options::Options;
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures");
+    let img = mcdenoise::io::read_stats(&dir.join("dof_checker_64_spp16.exr")).unwrap();
+    assert!(img.has(Layer::PositionCovariance));
+    let reference = mcdenoise::io::read_rgb(&dir.join("dof_checker_64_ref.exr")).unwrap();
+    let run = |backend: Backend, opt: &str| {
+        let mut req = DenoiseRequest::new(Method::Wlr);
+        req.backend = backend;
+        req.options = Options::parse(&[opt.to_string()]).unwrap();
+        denoise(Some(&gpu()), &img, &req).unwrap().color
+    };
+    let g = run(Backend::Gpu, "gbf.prefilter=auto");
+    let c = run(Backend::Cpu, "gbf.prefilter=auto");
+    for k in 0..3 {
+        assert_close(&format!("colour {k}"), &g.planes[k], &c.planes[k], 0.99);
+    }
+    let off = run(Backend::Cpu, "gbf.prefilter=off");
+    let e =
+        |x: &mcdenoise::image::RgbImage| mcdenoise::metrics::compare(x, &reference).unwrap().rmse;
+    println!(
+        "fixture WLR rMSE: prefilter {:.5}, off {:.5}",
+        e(&c),
+        e(&off)
+    );
+    assert!(e(&c) < e(&off), "prefilter {} vs off {}", e(&c), e(&off));
+    check_validation(&gpu());
+}
