@@ -36,23 +36,38 @@ void main()
     real sigma = real(push.sigma);
     real num = real(0);
     real den = real(0);
-    for (int qy = max(p.y - r, 0); qy <= min(p.y + r, int(push.height) - 1); ++qy) {
-        for (int qx = max(p.x - r, 0); qx <= min(p.x + r, int(push.width) - 1); ++qx) {
-            uint q = uint(qy) * push.width + uint(qx);
-            if (spp_of(spp[q]) < 1.0) {
-                continue;
+    int x0 = max(p.x - r, 0), x1 = min(p.x + r, int(push.width) - 1);
+    if (sigma > real(0)) {
+        // g(o) = gy(o.y) gx(o.x); along a row gx follows the recurrence
+        // gx(d+1) = gx(d) q(d), q(d+1) = q(d) c with q(d) = exp(-(2d+1)k),
+        // c = exp(-2k), k = 1/(2 sigma^2): three exps per row instead of one
+        // per tap. exp in float (GLSL has no double exp): far below tolerance.
+        real k = real(1) / (real(2) * sigma * sigma);
+        real c = real(exp(float(-real(2) * k)));
+        real d0 = real(x0 - p.x);
+        real gx0 = real(exp(float(-d0 * d0 * k)));
+        real q0 = real(exp(float(-(real(2) * d0 + real(1)) * k)));
+        for (int qy = max(p.y - r, 0); qy <= min(p.y + r, int(push.height) - 1); ++qy) {
+            real dy = real(qy - p.y);
+            real gy = real(exp(float(-dy * dy * k)));
+            real gx = gx0;
+            real q = q0;
+            for (int qx = x0; qx <= x1; ++qx) {
+                uint i = uint(qy) * push.width + uint(qx);
+                if (spp_of(spp[i]) >= 1.0) {
+                    real g = gx * gy;
+                    num += g * real(map[i]);
+                    den += g;
+                }
+                gx *= q;
+                q *= c;
             }
-            ivec2 o = ivec2(qx, qy) - p;
-            real g;
-            if (sigma > real(0)) {
-                // exp in float (GLSL has no double exp): far below tolerance.
-                real r2 = real(o.x * o.x + o.y * o.y);
-                g = real(exp(float(-r2 / (real(2) * sigma * sigma))));
-            } else {
-                g = (o.x == 0 && o.y == 0) ? real(1) : real(0);
-            }
-            num += g * real(map[q]);
-            den += g;
+        }
+    } else {
+        uint i = y * push.width + x;
+        if (spp_of(spp[i]) >= 1.0) {
+            num = real(map[i]);
+            den = real(1);
         }
     }
     out_p[y * push.width + x] = den > real(0) ? float(num / den) : 0.0;
