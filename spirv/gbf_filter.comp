@@ -45,11 +45,15 @@ PLANE_OUT(25, gv2)
 PLANE_OUT(26, gv3)
 
 real3 gbf_position(uint q) { return real3(px[q], py[q], pz[q]); }
-real3 gbf_cov_a(uint q) { return real3(sxx[q], sxy[q], sxz[q]); }
-real3 gbf_cov_b(uint q) { return real3(syy[q], syz[q], szz[q]); }
 bool gbf_valid(uint q) { return spp_of(spp[q]) >= 1.0; }
 
 #include "lib/gbf.glsl"
+
+// S~^-1 of pixel q (gbf_prepare).
+realmat3 gbf_inv_cov(uint q)
+{
+    return gbf_sym(real3(sxx[q], sxy[q], sxz[q]), real3(syy[q], syz[q], szz[q]));
+}
 
 real4 feat4(uint q) { return real4(f0[q], f1[q], f2[q], f3[q]); }
 real4 var4(uint q) { return real4(v0[q], v1[q], v2[q], v3[q]); }

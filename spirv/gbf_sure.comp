@@ -1,6 +1,6 @@
 #version 460
 // G-buffer prefilter (spec §6) steps 2-7 per pixel: distances with the
-// regularised smoothed covariances, the filtered position and its divergence
+// inverse regularised smoothed covariances (gbf_prepare), the filtered position and its divergence
 // at h = 0.4 .. 2.0, SURE, and h_opt (ties to the smaller h; SURE(0) = vbar
 // of the position variances). Out: h_opt (0 for an invalid pixel).
 // One pass over the 7x7 window accumulates, per h, W, sum w D, sum w d and
@@ -35,11 +35,15 @@ PLANE_IN(12, spp)
 PLANE_OUT(13, h_opt)
 
 real3 gbf_position(uint q) { return real3(px[q], py[q], pz[q]); }
-real3 gbf_cov_a(uint q) { return real3(sxx[q], sxy[q], sxz[q]); }
-real3 gbf_cov_b(uint q) { return real3(syy[q], syz[q], szz[q]); }
 bool gbf_valid(uint q) { return spp_of(spp[q]) >= 1.0; }
 
 #include "lib/gbf.glsl"
+
+// S~^-1 of pixel q (gbf_prepare).
+realmat3 gbf_inv_cov(uint q)
+{
+    return gbf_sym(real3(sxx[q], sxy[q], sxz[q]), real3(syy[q], syz[q], szz[q]));
+}
 
 void main()
 {

@@ -7,9 +7,9 @@ use common::*;
 
 use mcdenoise::gpu::Precision;
 use mcdenoise::image::Layer;
-use mcdenoise::kernels::{gbf_filter, gbf_sure, run_planes};
+use mcdenoise::kernels::{gbf_filter, gbf_prepare, gbf_sure, run_planes};
 use mcdenoise::reference::gbf::{self as rg, Planes};
-use mcdenoise::reference::{gbf_filter as rf, gbf_sure as rs};
+use mcdenoise::reference::{gbf_filter as rf, gbf_prepare as rp, gbf_sure as rs};
 use mcdenoise::shared::GbfPush;
 
 fn precisions() -> Vec<Precision> {
@@ -20,14 +20,15 @@ fn precisions() -> Vec<Precision> {
     v
 }
 
-/// Position (3), position variance (3), smoothed covariance (6), spp, and
-/// 4 features + 4 variances.
+/// Position (3), position variance (3), covariance (6) and its prepared
+/// inverse (6), spp, and 4 features + 4 variances.
 struct Scene {
     w: usize,
     h: usize,
     pos: Vec<Vec<f32>>,
     pos_var: Vec<Vec<f32>>,
-    sbar: Vec<Vec<f32>>,
+    cov: Vec<Vec<f32>>,
+    inv: Vec<Vec<f32>>,
     spp: Vec<f32>,
     feat: Vec<Vec<f32>>,
     var: Vec<Vec<f32>>,
@@ -40,7 +41,7 @@ impl Scene {
             height: self.h,
             pos: std::array::from_fn(|k| self.pos[k].as_slice()),
             pos_var: Some(std::array::from_fn(|k| self.pos_var[k].as_slice())),
-            sbar: std::array::from_fn(|k| self.sbar[k].as_slice()),
+            inv: std::array::from_fn(|k| self.inv[k].as_slice()),
             spp: &self.spp,
         }
     }
@@ -57,7 +58,8 @@ fn synthetic(w: usize, h: usize, seed: u64, blur: f64) -> Scene {
         h,
         pos: vec![vec![0.0; n]; 3],
         pos_var: vec![vec![0.0; n]; 3],
-        sbar: vec![vec![0.0; n]; 6],
+        cov: vec![vec![0.0; n]; 6],
+        inv: vec![vec![0.0; n]; 6],
         spp: vec![16.0; n],
         feat: vec![vec![0.0; n]; 4],
         var: vec![vec![0.0; n]; 4],
@@ -77,10 +79,10 @@ fn synthetic(w: usize, h: usize, seed: u64, blur: f64) -> Scene {
             s.pos_var[k][i] = (spread / 16.0) as f32;
         }
         // XX XY XZ YY YZ ZZ
-        s.sbar[0][i] = spread as f32;
-        s.sbar[1][i] = (0.3 * spread) as f32;
-        s.sbar[3][i] = spread as f32;
-        s.sbar[5][i] = (0.5 * spread) as f32;
+        s.cov[0][i] = spread as f32;
+        s.cov[1][i] = (0.3 * spread) as f32;
+        s.cov[3][i] = spread as f32;
+        s.cov[5][i] = (0.5 * spread) as f32;
         for j in 0..4 {
             let f = (t[0] * (j + 1) as f64).sin() + t[2];
             let v = 0.01 * blur;
@@ -91,6 +93,19 @@ fn synthetic(w: usize, h: usize, seed: u64, blur: f64) -> Scene {
             s.spp[i] = 0.0;
         }
     }
+    let mut inv = vec![vec![0.0f32; n]; 6];
+    rp::gbf_prepare(
+        &GbfPush {
+            width: w as u32,
+            height: h as u32,
+            ..Default::default()
+        },
+        std::array::from_fn(|k| s.cov[k].as_slice()),
+        std::array::from_fn(|k| s.pos[k].as_slice()),
+        &s.spp,
+        &mut inv,
+    );
+    s.inv = inv;
     s
 }
 
@@ -104,6 +119,41 @@ fn push(s: &Scene, count: u32) -> GbfPush {
 }
 
 #[test]
+fn gbf_prepare_matches_twin() {
+    let ctx = gpu();
+    for &(w, h) in SIZES {
+        let s = synthetic(w, h, 2 + w as u64, 0.1);
+        let mut inputs: Vec<&[f32]> = Vec::new();
+        inputs.extend(s.cov.iter().map(|v| v.as_slice()));
+        inputs.extend(s.pos.iter().map(|v| v.as_slice()));
+        inputs.push(&s.spp);
+        for prec in precisions() {
+            let (out, _) = run_planes(
+                &ctx,
+                &gbf_prepare::DECL,
+                prec,
+                bytemuck::bytes_of(&push(&s, 0)),
+                w,
+                h,
+                &inputs,
+                &[w * h; 6],
+                gbf_prepare::flops_per_pixel(),
+            )
+            .unwrap();
+            for k in 0..6 {
+                assert_close(
+                    &format!("{w}x{h} {prec:?} inv {k}"),
+                    &out[k],
+                    &s.inv[k],
+                    0.99,
+                );
+            }
+        }
+    }
+    check_validation(&ctx);
+}
+
+#[test]
 fn gbf_sure_matches_twin() {
     let ctx = gpu();
     for &(w, h) in SIZES {
@@ -114,14 +164,14 @@ fn gbf_sure_matches_twin() {
             &push(&s, 0),
             p.pos,
             p.pos_var.unwrap(),
-            p.sbar,
+            p.inv,
             &s.spp,
             &mut cpu,
         );
         let mut inputs: Vec<&[f32]> = Vec::new();
         inputs.extend(s.pos.iter().map(|v| v.as_slice()));
         inputs.extend(s.pos_var.iter().map(|v| v.as_slice()));
-        inputs.extend(s.sbar.iter().map(|v| v.as_slice()));
+        inputs.extend(s.inv.iter().map(|v| v.as_slice()));
         inputs.push(&s.spp);
         for prec in precisions() {
             let (out, _) = run_planes(
@@ -162,7 +212,7 @@ fn gbf_filter_matches_twin() {
             &push(&s, 0),
             p.pos,
             p.pos_var.unwrap(),
-            p.sbar,
+            p.inv,
             &s.spp,
             &mut hopt,
         );
@@ -173,7 +223,7 @@ fn gbf_filter_matches_twin() {
             rf::gbf_filter(
                 &push(&s, count),
                 p.pos,
-                p.sbar,
+                p.inv,
                 &s.spp,
                 &hopt,
                 feat,
@@ -182,7 +232,7 @@ fn gbf_filter_matches_twin() {
             );
             let mut inputs: Vec<&[f32]> = Vec::new();
             inputs.extend(s.pos.iter().map(|v| v.as_slice()));
-            inputs.extend(s.sbar.iter().map(|v| v.as_slice()));
+            inputs.extend(s.inv.iter().map(|v| v.as_slice()));
             inputs.push(&s.spp);
             inputs.push(&hopt);
             inputs.extend(feat);
@@ -288,7 +338,7 @@ fn zero_position_variance_is_passed_through() {
         &push(&s, 0),
         p.pos,
         p.pos_var.unwrap(),
-        p.sbar,
+        p.inv,
         &s.spp,
         &mut hopt,
     );
@@ -299,7 +349,7 @@ fn zero_position_variance_is_passed_through() {
     rf::gbf_filter(
         &push(&s, 4),
         p.pos,
-        p.sbar,
+        p.inv,
         &s.spp,
         &hopt,
         feat,
@@ -323,7 +373,7 @@ fn outputs_are_convex_combinations() {
     rf::gbf_filter(
         &push(&s, 4),
         p.pos,
-        p.sbar,
+        p.inv,
         &s.spp,
         &hbar,
         feat,

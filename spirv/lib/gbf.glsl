@@ -1,11 +1,9 @@
 // Per-pixel routines of the G-buffer prefilter (spec §6), shared by
 // gbf_sure.comp and gbf_filter.comp. Scalar twin: src/reference/gbf.rs.
 //
-// The including kernel defines, before the include:
-//   real3 gbf_position(uint q);   position of pixel q
-//   real3 gbf_cov_a(uint q);      smoothed covariance entries (XX, XY, XZ)
-//   real3 gbf_cov_b(uint q);      and (YY, YZ, ZZ)
-//   bool gbf_valid(uint q);       spp_of >= 1
+// gbf_regularised_inverse is step 1's S-PSD regularisation and inverse of
+// a smoothed covariance (used by gbf_prepare.comp); the other kernels read
+// its output planes.
 
 #ifndef MC_GBF_GLSL
 #define MC_GBF_GLSL
@@ -28,12 +26,9 @@ real gbf_exp(real a)
 
 // S-PSD (step 1): negative diagonal entries -> 0, then
 // S~ = S + eps I, eps = max(1e-3 tr(S)/3, 1e-10 (1 + |p|^2)); returned inverted
-// by adjugate / determinant.
-realmat3 gbf_inv_cov(uint q)
+// by adjugate / determinant as (XX, XY, XZ) and (YY, YZ, ZZ).
+void gbf_regularised_inverse(real3 a, real3 b, real3 p, out real3 ia3, out real3 ib3)
 {
-    real3 a = gbf_cov_a(q);
-    real3 b = gbf_cov_b(q);
-    real3 p = gbf_position(q);
     real sxx = max(a.x, real(0));
     real syy = max(b.x, real(0));
     real szz = max(b.z, real(0));
@@ -47,7 +42,14 @@ realmat3 gbf_inv_cov(uint q)
     real ie = sb * sc - sa * se;
     real if_ = sa * sd - sb * sb;
     real r = real(1) / (sa * ia + sb * ib + sc * ic);
-    return realmat3(ia, ib, ic, ib, id, ie, ic, ie, if_) * r;
+    ia3 = real3(ia, ib, ic) * r;
+    ib3 = real3(id, ie, if_) * r;
+}
+
+// The symmetric matrix with entries (XX, XY, XZ) and (YY, YZ, ZZ).
+realmat3 gbf_sym(real3 a, real3 b)
+{
+    return realmat3(a.x, a.y, a.z, a.y, b.x, b.y, a.z, b.y, b.z);
 }
 
 #endif // MC_GBF_GLSL

@@ -13,12 +13,12 @@ pub const DECL: KernelDecl = KernelDecl {
         read("position_x"),
         read("position_y"),
         read("position_z"),
-        read("cov_xx"),
-        read("cov_xy"),
-        read("cov_xz"),
-        read("cov_yy"),
-        read("cov_yz"),
-        read("cov_zz"),
+        read("inv_xx"),
+        read("inv_xy"),
+        read("inv_xz"),
+        read("inv_yy"),
+        read("inv_yz"),
+        read("inv_zz"),
         read("spp"),
         read("hbar"),
         read("feature0"),
@@ -41,7 +41,7 @@ pub const DECL: KernelDecl = KernelDecl {
     push_size: std::mem::size_of::<GbfPush>() as u32,
 };
 
-/// Per pixel: 49 neighbours × (3×3 regularised inverse, distance, one exp,
+/// Per pixel: 49 neighbours × (distance with two stored inverses, one exp,
 /// 4 + 4 accumulations).
 pub fn flops_per_pixel() -> f64 {
     49.0 * (60.0 + 30.0 + 16.0)
@@ -56,7 +56,7 @@ pub fn record(
     height: u32,
     count: u32,
     pos: [BufferSlice; 3],
-    sbar: [BufferSlice; 6],
+    inv: [BufferSlice; 6],
     spp: BufferSlice,
     hbar: BufferSlice,
     feat: [BufferSlice; 4],
@@ -71,7 +71,7 @@ pub fn record(
     };
     let mut b = Vec::with_capacity(27);
     b.extend_from_slice(&pos);
-    b.extend_from_slice(&sbar);
+    b.extend_from_slice(&inv);
     b.push(spp);
     b.push(hbar);
     b.extend_from_slice(&feat);

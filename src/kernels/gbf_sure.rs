@@ -16,19 +16,19 @@ pub const DECL: KernelDecl = KernelDecl {
         read("var_position_x"),
         read("var_position_y"),
         read("var_position_z"),
-        read("cov_xx"),
-        read("cov_xy"),
-        read("cov_xz"),
-        read("cov_yy"),
-        read("cov_yz"),
-        read("cov_zz"),
+        read("inv_xx"),
+        read("inv_xy"),
+        read("inv_xz"),
+        read("inv_yy"),
+        read("inv_yz"),
+        read("inv_zz"),
         read("spp"),
         write("h_opt"),
     ],
     push_size: std::mem::size_of::<GbfPush>() as u32,
 };
 
-/// Per pixel: 49 neighbours × (3×3 regularised inverse, distance, 5 exps
+/// Per pixel: 49 neighbours × (distance with two stored inverses, 5 exps
 /// and accumulations).
 pub fn flops_per_pixel() -> f64 {
     49.0 * (60.0 + 5.0 * 30.0)
@@ -42,7 +42,7 @@ pub fn record(
     height: u32,
     pos: [BufferSlice; 3],
     pos_var: [BufferSlice; 3],
-    sbar: [BufferSlice; 6],
+    inv: [BufferSlice; 6],
     spp: BufferSlice,
     h_opt: BufferSlice,
 ) -> Result<()> {
@@ -54,7 +54,7 @@ pub fn record(
     let mut b = Vec::with_capacity(14);
     b.extend_from_slice(&pos);
     b.extend_from_slice(&pos_var);
-    b.extend_from_slice(&sbar);
+    b.extend_from_slice(&inv);
     b.push(spp);
     b.push(h_opt);
     batch.dispatch(

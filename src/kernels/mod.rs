@@ -11,6 +11,7 @@ pub mod finalize_covariance;
 pub mod finalize_stats;
 pub mod gauss_smooth;
 pub mod gbf_filter;
+pub mod gbf_prepare;
 pub mod gbf_sure;
 pub mod lp_centres;
 pub mod lp_gather;
@@ -33,6 +34,7 @@ pub const ALL: &[&KernelDecl] = &[
     &gauss_smooth::DECL,
     &wlr_fit::DECL,
     &wlr_final::DECL,
+    &gbf_prepare::DECL,
     &gbf_sure::DECL,
     &gbf_filter::DECL,
     &lp_centres::DECL,

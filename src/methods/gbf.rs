@@ -2,7 +2,7 @@
 //! sequence of kernels on sanitised statistics:
 //!
 //! ```text
-//! gauss_smooth ×6  S̄ = G_1.5(position_covariance)
+//! gbf_prepare      S̃⁻¹ = (G_1.5(position_covariance) + εI)⁻¹
 //! gbf_sure         SURE at h = 0, 0.4, …, 2.0 → h_opt
 //! gauss_smooth     hbar = G_1.5(h_opt)
 //! gbf_filter ×2    normal xyz + depth, albedo rgb (+ variances) at hbar
@@ -19,7 +19,7 @@ use super::stats::GpuStats;
 use crate::error::{Error, Result};
 use crate::gpu::{Batch, BufferSlice, GpuContext, PlaneSet, Precision};
 use crate::image::{Layer, StatsImage};
-use crate::kernels::{gauss_smooth, gbf_filter, gbf_sure};
+use crate::kernels::{gauss_smooth, gbf_filter, gbf_prepare, gbf_sure};
 use crate::options::Options;
 use crate::reference;
 use crate::reference::gbf::SMOOTH_SIGMA;
@@ -66,13 +66,13 @@ const GROUPS: [[(Layer, usize); 4]; 2] = [
 ];
 const COUNTS: [u32; 2] = [4, 3];
 
-/// GPU scratch: S̄ (6), h_opt, hbar, and 2 × 8 filter outputs.
+/// GPU scratch: S̃⁻¹ (6), h_opt, hbar, and 2 × 8 filter outputs.
 #[derive(Debug)]
 pub struct GbfPlanes {
     pub set: PlaneSet,
 }
 
-const SBAR: usize = 0;
+const INV: usize = 0;
 const HOPT: usize = 6;
 const HBAR: usize = 7;
 const OUT: usize = 8;
@@ -112,23 +112,13 @@ pub fn record_gbf(
     let (w, h) = (clean.width as u32, clean.height as u32);
     let p = |i: usize| planes.set.plane(i);
     let spp = clean.plane(Layer::Spp, 0);
-    for k in 0..6 {
-        gauss_smooth::record(
-            batch,
-            precision,
-            w,
-            h,
-            SMOOTH_SIGMA,
-            clean.plane(Layer::PositionCovariance, k),
-            spp,
-            p(SBAR + k),
-        )?;
-    }
     let pos: [BufferSlice; 3] = std::array::from_fn(|k| clean.plane(Layer::Position, k));
     let pos_var: [BufferSlice; 3] =
         std::array::from_fn(|k| clean.plane(Layer::PositionVariance, k));
-    let sbar: [BufferSlice; 6] = std::array::from_fn(|k| p(SBAR + k));
-    gbf_sure::record(batch, precision, w, h, pos, pos_var, sbar, spp, p(HOPT))?;
+    let cov: [BufferSlice; 6] = std::array::from_fn(|k| clean.plane(Layer::PositionCovariance, k));
+    let inv: [BufferSlice; 6] = std::array::from_fn(|k| p(INV + k));
+    gbf_prepare::record(batch, precision, w, h, cov, pos, spp, inv)?;
+    gbf_sure::record(batch, precision, w, h, pos, pos_var, inv, spp, p(HOPT))?;
     gauss_smooth::record(batch, precision, w, h, SMOOTH_SIGMA, p(HOPT), spp, p(HBAR))?;
     for (g, group) in GROUPS.iter().enumerate() {
         let feat: [BufferSlice; 4] = std::array::from_fn(|j| clean.plane(group[j].0, group[j].1));
@@ -142,7 +132,7 @@ pub fn record_gbf(
             h,
             COUNTS[g],
             pos,
-            sbar,
+            inv,
             spp,
             p(HBAR),
             feat,
@@ -189,12 +179,6 @@ pub fn run_cpu(clean: &mut StatsImage) -> Result<GbfMaps> {
         reference::gauss_smooth::gauss_smooth(&smooth_push(w, h), map, &spp, &mut out);
         out
     };
-    let sbar: Vec<Vec<f32>> = clean
-        .get(Layer::PositionCovariance)
-        .unwrap()
-        .iter()
-        .map(|p| smooth(p))
-        .collect();
     let pos = clean.get(Layer::Position).unwrap();
     let pos_var = clean.get(Layer::PositionVariance).unwrap();
     let push = GbfPush {
@@ -203,13 +187,22 @@ pub fn run_cpu(clean: &mut StatsImage) -> Result<GbfMaps> {
         ..Default::default()
     };
     let pos_r: [&[f32]; 3] = std::array::from_fn(|k| pos[k].as_slice());
-    let sbar_r: [&[f32]; 6] = std::array::from_fn(|k| sbar[k].as_slice());
+    let cov = clean.get(Layer::PositionCovariance).unwrap();
+    let mut inv = vec![vec![0.0f32; n]; 6];
+    reference::gbf_prepare::gbf_prepare(
+        &push,
+        std::array::from_fn(|k| cov[k].as_slice()),
+        pos_r,
+        &spp,
+        &mut inv,
+    );
+    let inv_r: [&[f32]; 6] = std::array::from_fn(|k| inv[k].as_slice());
     let mut h_opt = vec![0.0f32; n];
     reference::gbf_sure::gbf_sure(
         &push,
         pos_r,
         std::array::from_fn(|k| pos_var[k].as_slice()),
-        sbar_r,
+        inv_r,
         &spp,
         &mut h_opt,
     );
@@ -227,7 +220,7 @@ pub fn run_cpu(clean: &mut StatsImage) -> Result<GbfMaps> {
                 ..push
             },
             pos_r,
-            sbar_r,
+            inv_r,
             &spp,
             &hbar,
             feat,

@@ -71,8 +71,9 @@ pub struct Planes<'a> {
     pub pos: [&'a [f32]; 3],
     /// Position variance (of the mean) X, Y, Z; only [`sure`] reads it.
     pub pos_var: Option<[&'a [f32]; 3]>,
-    /// Smoothed covariance `S̄` (six entries).
-    pub sbar: [&'a [f32]; 6],
+    /// `S̃⁻¹`, the inverse of the regularised smoothed covariance (six
+    /// entries), from [`gbf_prepare`](super::gbf_prepare).
+    pub inv: [&'a [f32]; 6],
     pub spp: &'a [f32],
 }
 
@@ -88,10 +89,45 @@ impl Planes<'_> {
     }
 
     /// `S̃⁻¹` of pixel `q`.
+    #[inline]
     pub fn inv_cov(&self, q: usize) -> [f64; 6] {
-        let sbar = std::array::from_fn(|k| self.sbar[k][q] as f64);
-        inverse(regularise(sbar, self.position(q)))
+        std::array::from_fn(|k| self.inv[k][q] as f64)
     }
+}
+
+/// Steps 1 for pixel `(x, y)`: `S̄ = G_1.5(S)` over the valid pixels of the
+/// clipped 11×11 window (each of the six entries; 0 if none is valid), then
+/// S-PSD regularisation with the pixel's position and the inverse.
+pub fn prepare_pixel(
+    cov: [&[f32]; 6],
+    pos: [&[f32]; 3],
+    spp: &[f32],
+    width: usize,
+    height: usize,
+    x: usize,
+    y: usize,
+) -> [f64; 6] {
+    let sigma = SMOOTH_SIGMA as f64;
+    let r = (3.0 * sigma).ceil() as usize;
+    let mut num = [0.0; 6];
+    let mut den = 0.0;
+    for qy in y.saturating_sub(r)..(y + r + 1).min(height) {
+        for qx in x.saturating_sub(r)..(x + r + 1).min(width) {
+            let q = qy * width + qx;
+            if spp_of(spp[q]) < 1.0 {
+                continue;
+            }
+            let (dx, dy) = (qx as f64 - x as f64, qy as f64 - y as f64);
+            let g = (-(dx * dx + dy * dy) / (2.0 * sigma * sigma)).exp();
+            for k in 0..6 {
+                num[k] += g * cov[k][q] as f64;
+            }
+            den += g;
+        }
+    }
+    let sbar = num.map(|v| if den > 0.0 { v / den } else { 0.0 });
+    let q = y * width + x;
+    inverse(regularise(sbar, std::array::from_fn(|k| pos[k][q] as f64)))
 }
 
 /// One neighbour of the window: index, `Δ = p_i − p_c`, `M_i Δ` and `d_i`.

@@ -11,7 +11,7 @@ use crate::shared::GbfPush;
 pub fn gbf_filter(
     push: &GbfPush,
     pos: [&[f32]; 3],
-    sbar: [&[f32]; 6],
+    inv: [&[f32]; 6],
     spp: &[f32],
     hbar: &[f32],
     feat: [&[f32]; 4],
@@ -26,7 +26,7 @@ pub fn gbf_filter(
         height: h,
         pos,
         pos_var: None,
-        sbar,
+        inv,
         spp,
     };
     super::wlr::par_pixels::<8>(w, h, out, |x, y| {

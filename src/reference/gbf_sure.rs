@@ -6,12 +6,12 @@ use super::gbf::{choose, sure, Planes};
 use crate::shared::GbfPush;
 
 /// `h_opt` for every pixel (`row0` ignored); 0 for an invalid pixel.
-/// `sbar` = the smoothed covariance (`XX XY XZ YY YZ ZZ`).
+/// `inv` = `S̃⁻¹` from [`gbf_prepare`](super::gbf_prepare).
 pub fn gbf_sure(
     push: &GbfPush,
     pos: [&[f32]; 3],
     pos_var: [&[f32]; 3],
-    sbar: [&[f32]; 6],
+    inv: [&[f32]; 6],
     spp: &[f32],
     out: &mut [f32],
 ) {
@@ -21,7 +21,7 @@ pub fn gbf_sure(
         height: h,
         pos,
         pos_var: Some(pos_var),
-        sbar,
+        inv,
         spp,
     };
     let mut planes = vec![vec![0.0f32; w * h]];

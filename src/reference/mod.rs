@@ -14,6 +14,7 @@ pub mod finalize_stats;
 pub mod gauss_smooth;
 pub mod gbf;
 pub mod gbf_filter;
+pub mod gbf_prepare;
 pub mod gbf_sure;
 pub mod linalg;
 pub mod lp;

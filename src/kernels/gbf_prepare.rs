@@ -1,0 +1,70 @@
+//! `gbf_prepare`: G-buffer prefilter step 1 (spec §6) — the position
+//! covariance smoothed with `G_1.5` (six entries in one pass), regularised
+//! (S-PSD) and inverted: `S̃⁻¹` per pixel, which `gbf_sure` and
+//! `gbf_filter` read for every neighbour. Twin:
+//! [`crate::reference::gbf_prepare`].
+
+use crate::error::Result;
+use crate::gpu::reflect::{read, write};
+use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};
+use crate::shared::GbfPush;
+
+pub const DECL: KernelDecl = KernelDecl {
+    name: "gbf_prepare",
+    bindings: &[
+        read("cov_xx"),
+        read("cov_xy"),
+        read("cov_xz"),
+        read("cov_yy"),
+        read("cov_yz"),
+        read("cov_zz"),
+        read("position_x"),
+        read("position_y"),
+        read("position_z"),
+        read("spp"),
+        write("inv_xx"),
+        write("inv_xy"),
+        write("inv_xz"),
+        write("inv_yy"),
+        write("inv_yz"),
+        write("inv_zz"),
+    ],
+    push_size: std::mem::size_of::<GbfPush>() as u32,
+};
+
+/// Per pixel: 121 taps × (weight, 6 FMAs) and one 3×3 inverse.
+pub fn flops_per_pixel() -> f64 {
+    121.0 * 16.0 + 60.0
+}
+
+/// Records `S̃⁻¹` over a `width × height` image.
+pub fn record(
+    batch: &mut Batch,
+    precision: Precision,
+    width: u32,
+    height: u32,
+    cov: [BufferSlice; 6],
+    pos: [BufferSlice; 3],
+    spp: BufferSlice,
+    inv: [BufferSlice; 6],
+) -> Result<()> {
+    let push = GbfPush {
+        width,
+        height,
+        ..Default::default()
+    };
+    let mut b = Vec::with_capacity(16);
+    b.extend_from_slice(&cov);
+    b.extend_from_slice(&pos);
+    b.push(spp);
+    b.extend_from_slice(&inv);
+    batch.dispatch(
+        &DECL,
+        precision,
+        &b,
+        bytemuck::bytes_of(&push),
+        width,
+        height,
+        flops_per_pixel(),
+    )
+}
