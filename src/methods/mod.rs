@@ -132,13 +132,7 @@ pub fn denoise(
         let params = wlr::WlrParams::new(req.pass, &req.options)?;
         let (result, report, timings) = match req.backend {
             Backend::Cpu => {
-                if !img.has(crate::image::Layer::Color) || !img.has(crate::image::Layer::Spp) {
-                    return Err(Error::BadData("WLR needs the color and spp layers".into()));
-                }
-                let (mut clean, report) = prepare::prepare_cpu(img);
-                if gbf::wanted(&req.options, |l| clean.has(l))? {
-                    gbf::run_cpu(&mut clean)?;
-                }
+                let (clean, report) = clean_cpu(img, req)?;
                 (
                     wlr::run_cpu_with_progress(&clean, params, req.progress)?,
                     report,
@@ -146,9 +140,7 @@ pub fn denoise(
                 )
             }
             Backend::Gpu => {
-                let ctx = ctx.ok_or_else(|| {
-                    Error::InvalidArgument("the GPU backend needs a context".into())
-                })?;
+                let ctx = gpu_ctx(ctx)?;
                 wlr_gpu(ctx, req.precision, img, params, &req.options, req.progress)?
             }
         };
@@ -172,13 +164,7 @@ pub fn denoise(
         let params = lp::LpParams::new(&req.options)?;
         let (result, report, timings) = match req.backend {
             Backend::Cpu => {
-                if !img.has(crate::image::Layer::Color) || !img.has(crate::image::Layer::Spp) {
-                    return Err(Error::BadData("LP needs the color and spp layers".into()));
-                }
-                let (mut clean, report) = prepare::prepare_cpu(img);
-                if gbf::wanted(&req.options, |l| clean.has(l))? {
-                    gbf::run_cpu(&mut clean)?;
-                }
+                let (clean, report) = clean_cpu(img, req)?;
                 (
                     lp::run_cpu(&clean, params, req.progress)?,
                     report,
@@ -186,9 +172,7 @@ pub fn denoise(
                 )
             }
             Backend::Gpu => {
-                let ctx = ctx.ok_or_else(|| {
-                    Error::InvalidArgument("the GPU backend needs a context".into())
-                })?;
+                let ctx = gpu_ctx(ctx)?;
                 lp_gpu(ctx, req.precision, img, params, &req.options, req.progress)?
             }
         };
@@ -227,6 +211,30 @@ pub fn denoise(
         }
         _ => unreachable!("checked by Method::available"),
     }
+}
+
+/// The CPU path's input of WLR and LP: sanitised statistics, prefiltered
+/// when `req.options` want it (§1).
+fn clean_cpu(
+    img: &StatsImage,
+    req: &DenoiseRequest,
+) -> Result<(StatsImage, prepare::PrepareReport)> {
+    use crate::image::Layer;
+    if !img.has(Layer::Color) || !img.has(Layer::Spp) {
+        return Err(Error::BadData(format!(
+            "{} needs the color and spp layers",
+            req.method.name().to_uppercase()
+        )));
+    }
+    let (mut clean, report) = prepare::prepare_cpu(img);
+    if gbf::wanted(&req.options, |l| clean.has(l))? {
+        gbf::run_cpu(&mut clean)?;
+    }
+    Ok((clean, report))
+}
+
+fn gpu_ctx(ctx: Option<&Arc<GpuContext>>) -> Result<&Arc<GpuContext>> {
+    ctx.ok_or_else(|| Error::InvalidArgument("the GPU backend needs a context".into()))
 }
 
 /// The layers WLR and LP read.

@@ -74,29 +74,14 @@ impl Planes<'_> {
     /// Raw features and variances of pixel `(px, py)` (§2.1); returns
     /// whether the pixel is valid. Mirrors `load_features` of the kernels.
     pub fn load_features(&self, px: usize, py: usize, x: &mut [f64], e2: &mut [f64]) -> bool {
-        let q = py * self.width + px;
-        x[0] = px as f64;
-        x[1] = py as f64;
-        e2[0] = 0.0;
-        e2[1] = 0.0;
-        for j in 0..7 {
-            x[2 + j] = self.feat[j][q] as f64;
-            e2[2 + j] = self.var[j][q] as f64;
-        }
-        self.valid(q)
+        super::wlr::load_features(self.width, &self.feat, &self.var, px, py, x, e2);
+        self.valid(py * self.width + px)
     }
 
     /// Raw features only.
     #[inline]
     pub fn features(&self, px: usize, py: usize) -> [f64; D] {
-        let q = py * self.width + px;
-        let mut x = [0.0; D];
-        x[0] = px as f64;
-        x[1] = py as f64;
-        for j in 0..7 {
-            x[2 + j] = self.feat[j][q] as f64;
-        }
-        x
+        super::wlr::features(self.width, &self.feat, px, py)
     }
 
     /// Colour `y` and its per-channel variance `v` of pixel index `q`.

@@ -81,29 +81,14 @@ impl Planes<'_> {
     /// Raw features `x` and variances `e2` of pixel `(px, py)` (§2.1); returns
     /// whether the pixel is valid (`spp_of >= 1`). Mirrors `load_features`.
     pub fn load_features(&self, px: usize, py: usize, x: &mut [f64], e2: &mut [f64]) -> bool {
-        let q = py * self.width + px;
-        x[0] = px as f64;
-        x[1] = py as f64;
-        e2[0] = 0.0;
-        e2[1] = 0.0;
-        for j in 0..7 {
-            x[2 + j] = self.feat[j][q] as f64;
-            e2[2 + j] = self.var[j][q] as f64;
-        }
-        self.valid(q)
+        load_features(self.width, &self.feat, &self.var, px, py, x, e2);
+        self.valid(py * self.width + px)
     }
 
     /// Raw features only.
     #[inline]
     pub fn features(&self, px: usize, py: usize) -> [f64; D] {
-        let q = py * self.width + px;
-        let mut x = [0.0; D];
-        x[0] = px as f64;
-        x[1] = py as f64;
-        for j in 0..7 {
-            x[2 + j] = self.feat[j][q] as f64;
-        }
-        x
+        features(self.width, &self.feat, px, py)
     }
 
     /// Colour and `vbar` of pixel index `q`. Mirrors `load_colour`.
@@ -123,6 +108,43 @@ impl Planes<'_> {
     pub fn valid(&self, q: usize) -> bool {
         spp_of(self.spp[q]) >= 1.0
     }
+}
+
+/// The 9 features of §2.1 `(px, py, nrm xyz, dep, albedo rgb)` of pixel
+/// `(px, py)` and their variances `(0, 0, …)` from the 7 feature planes
+/// (normal x, y, z, depth, albedo r, g, b) and their variance planes.
+/// Mirrors the kernels' `load_features`; shared by WLR and LP.
+pub fn load_features(
+    width: usize,
+    feat: &[&[f32]; 7],
+    var: &[&[f32]; 7],
+    px: usize,
+    py: usize,
+    x: &mut [f64],
+    e2: &mut [f64],
+) {
+    let q = py * width + px;
+    x[0] = px as f64;
+    x[1] = py as f64;
+    e2[0] = 0.0;
+    e2[1] = 0.0;
+    for j in 0..7 {
+        x[2 + j] = feat[j][q] as f64;
+        e2[2 + j] = var[j][q] as f64;
+    }
+}
+
+/// The 9 raw features only (see [`load_features`]).
+#[inline]
+pub fn features(width: usize, feat: &[&[f32]; 7], px: usize, py: usize) -> [f64; D] {
+    let q = py * width + px;
+    let mut x = [0.0; D];
+    x[0] = px as f64;
+    x[1] = py as f64;
+    for j in 0..7 {
+        x[2 + j] = feat[j][q] as f64;
+    }
+    x
 }
 
 /// `grey = (R + G + B)/3` (§0.1 GREY).
