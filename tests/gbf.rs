@@ -5,20 +5,11 @@
 mod common;
 use common::*;
 
-use mcdenoise::gpu::Precision;
 use mcdenoise::image::Layer;
 use mcdenoise::kernels::{gbf_filter, gbf_prepare, gbf_sure, run_planes};
 use mcdenoise::reference::gbf::{self as rg, Planes};
 use mcdenoise::reference::{gbf_filter as rf, gbf_prepare as rp, gbf_sure as rs};
 use mcdenoise::shared::GbfPush;
-
-fn precisions() -> Vec<Precision> {
-    let mut v = vec![Precision::F32];
-    if gpu().supports_f64() {
-        v.push(Precision::F64);
-    }
-    v
-}
 
 /// Position (3), position variance (3), covariance (6) and its prepared
 /// inverse (6), spp, and 4 features + 4 variances.

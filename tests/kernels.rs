@@ -9,14 +9,6 @@ use mcdenoise::kernels::{run_planes, sanitize, tsvd_debug};
 use mcdenoise::reference;
 use mcdenoise::shared::{SanitizePush, TsvdPush};
 
-fn precisions() -> Vec<Precision> {
-    let mut v = vec![Precision::F32];
-    if gpu().supports_f64() {
-        v.push(Precision::F64);
-    }
-    v
-}
-
 /// A noisy channel with every kind of bad value sanitation must handle.
 fn dirty_channel(w: usize, h: usize, seed: u64) -> (Vec<f32>, Vec<f32>, Vec<f32>) {
     let mut rng = Rng(seed);

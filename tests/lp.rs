@@ -19,14 +19,6 @@ use mcdenoise::reference::tsvd::projection;
 use mcdenoise::reference::{lp_centres as rc, lp_gather as rg, lp_reach as rr};
 use mcdenoise::shared::{LpPush, LP_VARSUB};
 
-fn precisions() -> Vec<Precision> {
-    let mut v = vec![Precision::F32];
-    if gpu().supports_f64() {
-        v.push(Precision::F64);
-    }
-    v
-}
-
 /// The 21 input planes of `lp_centres` (bindings 0..20): 7 features, their 7
 /// variances, colour R G B, colour variances R G B, spp.
 #[derive(Clone)]

@@ -18,14 +18,6 @@ use mcdenoise::shared::{
     WLR_REJECT,
 };
 
-fn precisions() -> Vec<Precision> {
-    let mut v = vec![Precision::F32];
-    if gpu().supports_f64() {
-        v.push(Precision::F64);
-    }
-    v
-}
-
 /// The 19 input planes of `wlr_fit` (bindings 0..18): 7 features, their 7
 /// variances, colour R, G, B, vbar, spp.
 #[derive(Clone)]

@@ -246,14 +246,17 @@ const REGRESSION_LAYERS: [crate::image::Layer; 5] = [
     crate::image::Layer::Spp,
 ];
 
-/// Uploads `img`, records sanitation and then `record(batch, clean)` in one
-/// GPU batch, runs it, and returns the sanitation report and the timings.
-/// The caller downloads its outputs afterwards.
+/// Uploads `img`, records sanitation, the G-buffer prefilter when `options`
+/// want it (§1; the GPU twin of [`clean_cpu`]) and then
+/// `record(batch, clean)` in one GPU batch, runs it, and returns the
+/// sanitation report and the timings. The caller downloads its outputs
+/// afterwards.
 fn gpu_chain(
     ctx: &Arc<GpuContext>,
     precision: Precision,
     img: &StatsImage,
     method: Method,
+    options: &Options,
     progress: bool,
     record: impl FnOnce(&mut crate::gpu::Batch, &stats::GpuStats) -> Result<()>,
 ) -> Result<(prepare::PrepareReport, Vec<KernelTiming>)> {
@@ -281,24 +284,19 @@ fn gpu_chain(
     let mut batch = crate::gpu::Batch::new(ctx)?;
     batch.progress = progress;
     prepare::record_prepare(&mut batch, precision, &input, &clean, &scratch, low_spp)?;
+    let prefilter = if gbf::wanted(options, |l| img.has(l))? {
+        Some(gbf::GbfPlanes::new(ctx, img.width, img.height)?)
+    } else {
+        None
+    };
+    if let Some(g) = &prefilter {
+        gbf::record_gbf(&mut batch, precision, &clean, g)?;
+    }
     record(&mut batch, &clean)?;
     let timings = batch.finish()?;
     let mut report = prepare::base_report(img);
     report.counters = scratch.read_counters()?;
     Ok((report, timings))
-}
-
-/// The G-buffer prefilter's scratch when `options` want it for `img` (§1).
-fn gbf_planes(
-    ctx: &Arc<GpuContext>,
-    img: &StatsImage,
-    options: &Options,
-) -> Result<Option<gbf::GbfPlanes>> {
-    if gbf::wanted(options, |l| img.has(l))? {
-        Ok(Some(gbf::GbfPlanes::new(ctx, img.width, img.height)?))
-    } else {
-        Ok(None)
-    }
 }
 
 /// Sanitation and WLR in one GPU batch: one upload, one download.
@@ -311,13 +309,15 @@ fn wlr_gpu(
     progress: bool,
 ) -> Result<(wlr::WlrResult, prepare::PrepareReport, Vec<KernelTiming>)> {
     let planes = wlr::WlrPlanes::new(ctx, img.width, img.height)?;
-    let pre = gbf_planes(ctx, img, options)?;
-    let (report, timings) = gpu_chain(ctx, precision, img, Method::Wlr, progress, |b, clean| {
-        if let Some(g) = &pre {
-            gbf::record_gbf(b, precision, clean, g)?;
-        }
-        wlr::record_wlr(b, precision, clean, &planes, params)
-    })?;
+    let (report, timings) = gpu_chain(
+        ctx,
+        precision,
+        img,
+        Method::Wlr,
+        options,
+        progress,
+        |b, clean| wlr::record_wlr(b, precision, clean, &planes, params),
+    )?;
     Ok((
         wlr::download(&planes, img.width, img.height)?,
         report,
@@ -335,13 +335,15 @@ fn lp_gpu(
     progress: bool,
 ) -> Result<(lp::LpResult, prepare::PrepareReport, Vec<KernelTiming>)> {
     let planes = lp::LpPlanes::new(ctx, img.width, img.height)?;
-    let pre = gbf_planes(ctx, img, options)?;
-    let (report, timings) = gpu_chain(ctx, precision, img, Method::Lp, progress, |b, clean| {
-        if let Some(g) = &pre {
-            gbf::record_gbf(b, precision, clean, g)?;
-        }
-        lp::record_lp(b, precision, clean, &planes, params)
-    })?;
+    let (report, timings) = gpu_chain(
+        ctx,
+        precision,
+        img,
+        Method::Lp,
+        options,
+        progress,
+        |b, clean| lp::record_lp(b, precision, clean, &planes, params),
+    )?;
     Ok((
         lp::download(&planes, img.width, img.height)?,
         report,

@@ -4,7 +4,7 @@
 
 use std::sync::{Arc, OnceLock};
 
-use mcdenoise::gpu::{ContextOptions, GpuContext, Validation};
+use mcdenoise::gpu::{ContextOptions, GpuContext, Precision, Validation};
 
 /// The test context. Tests fail if the validation layer reported an error
 /// (checked by [`check_validation`]).
@@ -86,6 +86,16 @@ pub fn assert_close(what: &str, gpu: &[f32], cpu: &[f32], frac: f64) -> f64 {
 pub fn agreement(gpu: &[f32], cpu: &[f32]) -> f64 {
     let eq = gpu.iter().zip(cpu).filter(|(g, c)| g == c).count();
     eq as f64 / gpu.len().max(1) as f64
+}
+
+/// The precisions every kernel is tested in: f32, and f64 where the device
+/// has it.
+pub fn precisions() -> Vec<Precision> {
+    let mut v = vec![Precision::F32];
+    if gpu().supports_f64() {
+        v.push(Precision::F64);
+    }
+    v
 }
 
 /// The sizes every kernel is tested on (issue #2): square, 1x1, 1xN, Nx1, prime.
