@@ -23,15 +23,20 @@ pub enum Error {
     /// A Vulkan call failed.
     #[error("Vulkan call {call} failed: {result:?}")]
     Vulkan {
+        /// The Vulkan entry point.
         call: &'static str,
+        /// What it returned.
         result: vk::Result,
     },
 
     /// GPU memory allocation failed.
     #[error("GPU allocation of {name} ({bytes} bytes) failed: {source}")]
     Allocation {
+        /// The buffer's name.
         name: String,
+        /// Its size.
         bytes: u64,
+        /// The allocator's error.
         #[source]
         source: gpu_allocator::AllocationError,
     },
@@ -39,7 +44,12 @@ pub enum Error {
     /// A SPIR-V module does not match what the Rust side declares for it
     /// (found by reflection with naga), or naga cannot read it.
     #[error("kernel {kernel}: {message}")]
-    Kernel { kernel: String, message: String },
+    Kernel {
+        /// The kernel's name.
+        kernel: String,
+        /// What disagrees.
+        message: String,
+    },
 
     /// The device lacks a feature or a limit is exceeded.
     #[error("device limit: {0}")]
@@ -52,7 +62,9 @@ pub enum Error {
     /// Reading or writing a file failed at the OS level.
     #[error("{}: {source}", path.display())]
     Io {
+        /// The file.
         path: PathBuf,
+        /// The OS error.
         #[source]
         source: std::io::Error,
     },
@@ -60,13 +72,19 @@ pub enum Error {
     /// A file is not a valid input: not an EXR, truncated, unsupported
     /// compression, a missing or ill-sized layer, an unreadable value.
     #[error("{}: {message}", path.display())]
-    BadInput { path: PathBuf, message: String },
+    BadInput {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong, naming the layer and pixel where it applies.
+        message: String,
+    },
 
     /// Values that cannot be processed even after sanitation.
     #[error("{0}")]
     BadData(String),
 }
 
+/// The library's result type.
 pub type Result<T, E = Error> = std::result::Result<T, E>;
 
 impl Error {
@@ -75,6 +93,7 @@ impl Error {
         move |result| Error::Vulkan { call, result }
     }
 
+    /// A [`Error::BadInput`] for `path`.
     pub fn bad_input(path: impl Into<PathBuf>, message: impl Into<String>) -> Error {
         Error::BadInput {
             path: path.into(),

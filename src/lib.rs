@@ -1,34 +1,98 @@
 //! # mcdenoise
 //!
 //! A Vulkan compute denoiser and adaptive-sampling engine for Monte Carlo path
-//! tracing. The algorithms are specified in `../shared/docs/algorithms.md`
-//! ("the spec"); section numbers below refer to it.
+//! tracing. It reconstructs a render by local regression over the colour and
+//! the feature buffers, estimates its own error per pixel, and turns that
+//! error into the next pass's sample map. The algorithms are specified in
+//! `../shared/docs/algorithms.md` ("the spec"); section numbers refer to it.
 //!
-//! ## Layout
-//! - [`gpu`]: Vulkan plumbing (the only module that calls `ash`).
-//! - [`kernels`]: one file per GPU kernel: its binding declaration and dispatch.
-//! - [`reference`]: one file per kernel: the scalar f64 twin, shader-shaped.
-//! - [`methods`]: sequences of kernels (statistics, sanitation, ...).
-//! - [`io`]: EXR and PNG in and out; [`metrics`]: image error metrics.
+//! ## The front door: [`Denoiser`]
 //!
-//! ## Object model
-//! A [`gpu::GpuContext`] (own device, or a host's via the `unsafe`
-//! [`gpu::GpuContext::from_raw`]) → buffers ([`gpu::GpuBuffer`],
-//! [`gpu::PlaneSet`], or host buffers as [`gpu::BufferSlice`]) → passes
-//! recorded into a [`gpu::Batch`] that either submits itself or records into
-//! the host's command buffer.
+//! ```no_run
+//! use std::sync::Arc;
+//! use mcdenoise::{AccumLayout, BufferSlice, Config, Denoiser, GpuContext, Method, Source};
+//! # fn demo(ctx: Arc<GpuContext>, cmd: ash::vk::CommandBuffer, host_buffer: ash::vk::Buffer)
+//! #     -> mcdenoise::Result<()> {
+//! // Once per image size and configuration:
+//! let layout = AccumLayout::new(256, 256, true, false); // position sums, no visibility
+//! let denoiser = Denoiser::new(&ctx, Source::Accum(layout), Config::new(Method::Wlr))?;
+//! // Every frame, into the host's command buffer (the host submits it):
+//! let accum = unsafe { BufferSlice::from_raw(host_buffer, 0, layout.bytes()) };
+//! let recorded = unsafe { denoiser.record_into(cmd, Some(accum), Some(65536))? };
+//! // ... host submits `cmd` and waits for its fence ...
+//! drop(recorded);
+//! let out = denoiser.outputs()?; // colour, error, sample map: GPU buffers to bind
+//! let frame = denoiser.read()?; // or a host copy of them
+//! # Ok(()) }
+//! ```
+//!
+//! - [`GpuContext`]: mcdenoise's own device ([`GpuContext::new`]) or a host
+//!   renderer's (`unsafe` [`GpuContext::from_raw`], which states who destroys
+//!   what).
+//! - [`Denoiser`]: one configuration ([`Config`]: method, pass, precision,
+//!   prefilter, options) for one input ([`Source`]: a renderer's
+//!   accumulation planes of [`AccumLayout`], or statistics of a file). It
+//!   owns its scratch and output buffers and records the whole chain —
+//!   finalisation, sanitation (§0.4), G-buffer prefilter (§6), the method,
+//!   the error estimate, the sample map (§9) — with no CPU round trip.
+//! - [`Denoiser::record_into`] records into the host's command buffer;
+//!   [`Denoiser::run`] submits on mcdenoise's own; [`Denoiser::denoise`]
+//!   takes statistics in host memory (also on the CPU reference backend).
+//! - Outputs: [`Denoiser::outputs`] (GPU buffers) or [`Denoiser::read`]
+//!   ([`Frame`]: colour, per-channel error `E_i`, local dimension `d_i`,
+//!   samples, debug maps).
+//!
+//! ## Synchronisation contract (embedding)
+//! Work recorded into a host's command buffer starts with a memory barrier
+//! after every earlier command of that buffer and ends with one before every
+//! later command; it never submits to the host's queue. The host keeps the
+//! returned [`Recorded`] until its submission completes; buffers the
+//! denoiser owns stay alive until then even if the denoiser is dropped.
+//! Dropping a context made by [`GpuContext::from_raw`] does not wait on the
+//! host's device.
+//!
+//! ## Layers
+//! `src/bin` (CLI) → this facade → [`methods`] (sequences of kernels) →
+//! [`kernels`] (one file per GPU kernel) → [`gpu`] (Vulkan plumbing, the
+//! only module that calls `ash`). [`reference`] holds the scalar f64 twin of
+//! every kernel; [`io`] reads and writes files on the host.
 
+#![warn(missing_docs)]
+
+#[allow(missing_docs)] // internal layers: documented at their module level
 pub mod accum;
+#[allow(missing_docs)]
 pub mod bench;
 pub mod error;
+#[allow(missing_docs)]
 pub mod gpu;
+#[allow(missing_docs)]
 pub mod image;
+#[allow(missing_docs)]
 pub mod io;
+#[allow(missing_docs)]
 pub mod kernels;
+#[allow(missing_docs)]
 pub mod methods;
+#[allow(missing_docs)]
 pub mod metrics;
+#[allow(missing_docs)]
 pub mod options;
+#[allow(missing_docs)]
 pub mod reference;
+#[allow(missing_docs)]
 pub mod shared;
 
+mod denoiser;
+
+pub use accum::{AccumLayout, Accumulator};
+pub use denoiser::{Config, Denoiser, Frame, Outputs, Source};
 pub use error::{Error, Result};
+pub use gpu::{
+    choose_device, enumerate_devices, timings_per_kernel, BufferSlice, ContextOptions, DeviceInfo,
+    GpuContext, ImportedDevice, KernelTiming, Precision, Recorded, Validation,
+};
+pub use image::{Layer, RgbImage, StatsImage};
+pub use methods::prepare::{colour_of, PrepareReport};
+pub use methods::{available_names, Backend, Method, Pass, Prefilter};
+pub use options::{help_table, Options};

@@ -58,13 +58,6 @@ pub const OPTIONS: &[OptionSpec] = &[
         help: "features appended to the 9 of the paper",
     },
     OptionSpec {
-        key: "gbf.prefilter",
-        kind: Kind::Choice(&["auto", "on", "off"]),
-        default: "auto",
-        section: "§1, §6",
-        help: "G-buffer prefilter of normal, albedo and depth before WLR or LP (auto: when the input has the position layers)",
-    },
-    OptionSpec {
         key: "lp.error_mode",
         kind: Kind::Choice(&["varsub", "paper"]),
         default: "varsub",
@@ -72,53 +65,11 @@ pub const OPTIONS: &[OptionSpec] = &[
         help: "subtract the test pixel's variance from the prediction error (varsub, s=1) or not (paper, s=0)",
     },
     OptionSpec {
-        key: "apr.stages",
-        kind: Kind::Int(1, 8),
-        default: "2",
-        section: "§4.3",
-        help: "number of estimation stages T",
-    },
-    OptionSpec {
-        key: "apr.outliers",
-        kind: Kind::Choice(&["on", "off"]),
-        default: "on",
-        section: "§4.4",
-        help: "energy-preserving outlier removal before APR",
-    },
-    OptionSpec {
-        key: "outliers",
-        kind: Kind::Choice(&["off", "on"]),
-        default: "off",
-        section: "§1, §4.4",
-        help: "energy-preserving outlier removal before WLR, LP or AOS",
-    },
-    OptionSpec {
-        key: "aos.variance",
-        kind: Kind::Choice(&["paper", "sandwich"]),
-        default: "paper",
-        section: "§5.3",
-        help: "variance of the AOS fit: the paper's formula or the sandwich estimator",
-    },
-    OptionSpec {
         key: "sampling.smooth",
         kind: Kind::Real(0.0, 16.0),
         default: "method",
         section: "§9.1",
         help: "σ of the Gaussian on the priority map (default: 1 for WLR, 0 otherwise)",
-    },
-    OptionSpec {
-        key: "sampling.passes",
-        kind: Kind::Int(1, 64),
-        default: "method",
-        section: "§9.3",
-        help: "adaptive passes N_pass (default: 5, AOS 3)",
-    },
-    OptionSpec {
-        key: "sampling.initial_spp",
-        kind: Kind::Int(1, 64),
-        default: "4",
-        section: "§9.3",
-        help: "uniform samples per pixel of pass 0",
     },
 ];
 
@@ -213,12 +164,15 @@ mod tests {
 
     #[test]
     fn parses_and_validates() {
-        let o = Options::parse(&["wlr.reject=off", "apr.stages=3"]).unwrap();
+        let o = Options::parse(&["wlr.reject=off", "sampling.smooth=2"]).unwrap();
         assert_eq!(o.get("wlr.reject"), "off");
-        assert_eq!(o.get("apr.stages"), "3");
+        assert_eq!(o.get("sampling.smooth"), "2");
         assert_eq!(o.get("lp.error_mode"), "varsub");
         assert!(Options::parse(&["wlr.reject=maybe"]).is_err());
-        assert!(Options::parse(&["apr.stages=0"]).is_err());
+        assert!(Options::parse(&["sampling.smooth=-1"]).is_err());
+        // Options of stages that are not built yet are errors, not ignored.
+        assert!(Options::parse(&["apr.stages=2"]).is_err());
+        assert!(Options::parse(&["outliers=on"]).is_err());
         assert!(Options::parse(&["nope=1"]).is_err());
         assert!(Options::parse(&["wlr.reject"]).is_err());
     }

@@ -124,7 +124,8 @@ fn denoise_none_gpu_and_cpu_agree_and_inputs_are_protected() {
     assert_eq!(code, 2);
     assert!(err.contains("refusing to overwrite"), "{err}");
     assert_eq!(std::fs::read(&input).unwrap(), before);
-    // A method that is not built yet says so instead of writing anything.
+    // A method that is not built yet is refused, naming those that are,
+    // instead of writing anything.
     let out = dir.join("apr.exr");
     let (code, _, err) = run(bin()
         .arg("denoise")
@@ -133,7 +134,20 @@ fn denoise_none_gpu_and_cpu_agree_and_inputs_are_protected() {
         .arg(&out)
         .args(["--method", "apr"]));
     assert_eq!(code, 2);
-    assert!(err.contains("not in this build"), "{err}");
+    assert!(
+        err.contains("wlr") && err.contains("lp") && err.contains("none"),
+        "{err}"
+    );
+    assert!(!out.exists());
+    // So is an option of a stage that is not built yet.
+    let (code, _, err) = run(bin()
+        .arg("denoise")
+        .arg(&input)
+        .arg("-o")
+        .arg(&out)
+        .args(["--opt", "apr.stages=2"]));
+    assert_eq!(code, 2);
+    assert!(err.contains("unknown option"), "{err}");
     assert!(!out.exists());
     // Options are validated.
     let (code, _, err) = run(bin()
@@ -231,15 +245,19 @@ fn help_lists_the_spec_options() {
     for key in [
         "wlr.reject",
         "lp.error_mode",
-        "aos.variance",
-        "apr.stages",
+        "sampling.smooth",
         "--sample-map",
         "--budget",
+        "--prefilter",
         "--pass",
         "--debug-layers",
         "--max-error",
     ] {
         assert!(out.contains(key), "--help lacks {key}");
+    }
+    // Only what works is listed.
+    for missing in ["apr", "aos", "outliers"] {
+        assert!(!out.contains(missing), "--help lists {missing}");
     }
 }
 

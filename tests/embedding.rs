@@ -232,11 +232,9 @@ fn host_device_and_command_buffer() {
     let (accum_buf, accum_mem) = host_accum(&h, &layout, &planes);
     let ctx = import(&h);
     let out = GpuStats::new(&ctx, "embedded_stats", w, hgt, &finalized_layers(&layout)).unwrap();
-    let accum = BufferSlice {
-        buffer: accum_buf,
-        offset: 0,
-        size: layout.bytes(),
-    };
+    // SAFETY: the host's live storage buffer of layout.bytes() bytes,
+    // destroyed after the work completes (host_teardown).
+    let accum = unsafe { BufferSlice::from_raw(accum_buf, 0, layout.bytes()) };
     let timings = host_submit(&h, &ctx, |batch| {
         record_finalize(batch, Precision::F32, &layout, accum, &out).unwrap();
     });
@@ -303,11 +301,9 @@ fn host_records_a_method_chain(method: mcdenoise::methods::Method) {
     let params = wlr::WlrParams::new(mcdenoise::methods::Pass::Final, &Default::default()).unwrap();
     let params_lp = lp::LpParams::new(&Default::default()).unwrap();
 
-    let accum = BufferSlice {
-        buffer: accum_buf,
-        offset: 0,
-        size: layout.bytes(),
-    };
+    // SAFETY: the host's live storage buffer of layout.bytes() bytes,
+    // destroyed after the work completes (host_teardown).
+    let accum = unsafe { BufferSlice::from_raw(accum_buf, 0, layout.bytes()) };
     let timings = host_submit(&h, &ctx, |batch| {
         record_finalize(batch, Precision::F32, &layout, accum, &stats).unwrap();
         prepare::record_prepare(batch, Precision::F32, &stats, &clean, &scratch, true).unwrap();

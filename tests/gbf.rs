@@ -403,24 +403,23 @@ fn outputs_are_convex_combinations() {
 /// and twins agree, and the prefilter lowers the error against the reference.
 #[test]
 fn prefilter_chain_on_the_fixture() {
-    use mcdenoise::methods::{denoise, Backend, DenoiseRequest, Method};
-    use mcdenoise::options::Options;
+    use mcdenoise::methods::{denoise, Backend, DenoiseRequest, Method, Prefilter};
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures");
     let img = mcdenoise::io::read_stats(&dir.join("dof_checker_64_spp16.exr")).unwrap();
     assert!(img.has(Layer::PositionCovariance));
     let reference = mcdenoise::io::read_rgb(&dir.join("dof_checker_64_ref.exr")).unwrap();
-    let run = |backend: Backend, opt: &str| {
+    let run = |backend: Backend, prefilter: Prefilter| {
         let mut req = DenoiseRequest::new(Method::Wlr);
         req.backend = backend;
-        req.options = Options::parse(&[opt.to_string()]).unwrap();
+        req.prefilter = prefilter;
         denoise(Some(&gpu()), &img, &req).unwrap().color
     };
-    let g = run(Backend::Gpu, "gbf.prefilter=auto");
-    let c = run(Backend::Cpu, "gbf.prefilter=auto");
+    let g = run(Backend::Gpu, Prefilter::Auto);
+    let c = run(Backend::Cpu, Prefilter::Auto);
     for k in 0..3 {
         assert_close(&format!("colour {k}"), &g.planes[k], &c.planes[k], 0.99);
     }
-    let off = run(Backend::Cpu, "gbf.prefilter=off");
+    let off = run(Backend::Cpu, Prefilter::Off);
     let e =
         |x: &mcdenoise::image::RgbImage| mcdenoise::metrics::compare(x, &reference).unwrap().rmse;
     println!(

@@ -7,12 +7,12 @@ use std::sync::Arc;
 use anyhow::{bail, Context};
 use clap::{Parser, Subcommand, ValueEnum};
 
-use mcdenoise::gpu::{self, ContextOptions, GpuContext, Precision, Validation};
 use mcdenoise::io;
-use mcdenoise::methods::prepare::PrepareReport;
-use mcdenoise::methods::{denoise, Backend, DenoiseRequest, Method, Pass};
 use mcdenoise::metrics;
-use mcdenoise::options::{help_table, Options};
+use mcdenoise::{
+    colour_of, help_table, Backend, Config, ContextOptions, Denoiser, GpuContext, Method, Options,
+    Pass, Precision, Prefilter, PrepareReport, Source, Validation,
+};
 
 #[derive(Parser)]
 #[command(
@@ -45,10 +45,6 @@ enum MethodArg {
     Wlr,
     /// Linear predictions at sparse centres (spec §3).
     Lp,
-    /// Adaptive polynomial rendering (spec §4).
-    Apr,
-    /// Adaptive-order polynomial fitting (spec §5).
-    Aos,
     /// No reconstruction: the sanitised input colour (spec §0.4), for checking
     /// inputs, the pipeline and the metrics.
     None,
@@ -76,11 +72,45 @@ enum PrecisionArg {
     F64,
 }
 
+impl PrecisionArg {
+    fn get(self) -> Precision {
+        match self {
+            PrecisionArg::F32 => Precision::F32,
+            PrecisionArg::F64 => Precision::F64,
+        }
+    }
+}
+
 #[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
-enum Prefilter {
-    None,
-    /// G-buffer prefilter with world positions and SURE (spec §6).
+enum PrefilterArg {
+    /// The G-buffer prefilter when the input has position, position_variance
+    /// and position_covariance; none otherwise.
+    Auto,
+    /// G-buffer prefilter with world positions and SURE (spec §6); an error
+    /// without the position layers.
     Gbf,
+    /// No prefilter.
+    None,
+}
+
+impl PrefilterArg {
+    fn get(self) -> Prefilter {
+        match self {
+            PrefilterArg::Auto => Prefilter::Auto,
+            PrefilterArg::Gbf => Prefilter::On,
+            PrefilterArg::None => Prefilter::Off,
+        }
+    }
+}
+
+impl MethodArg {
+    fn get(self) -> Method {
+        match self {
+            MethodArg::Wlr => Method::Wlr,
+            MethodArg::Lp => Method::Lp,
+            MethodArg::None => Method::None,
+        }
+    }
 }
 
 #[derive(Subcommand)]
@@ -125,17 +155,13 @@ enum Command {
         precision: PrecisionArg,
         #[arg(long, value_enum, default_value = "final")]
         pass: PassArg,
-        #[arg(long, value_enum, default_value = "none")]
-        prefilter: Prefilter,
-        /// Add the estimated per-pixel MSE as error.R/G/B.
+        /// Feature prefilter before the method (spec §1, §6).
+        #[arg(long, value_enum, default_value = "auto")]
+        prefilter: PrefilterArg,
+        /// Add the estimated per-pixel MSE as error.R/G/B (method none: the
+        /// variance of the mean).
         #[arg(long)]
         error: bool,
-        /// Add the next pass's sample counts as samples.Y (needs --budget).
-        #[arg(long, requires = "budget")]
-        sample_map: bool,
-        /// Total samples to distribute for the next pass (spec §9.2).
-        #[arg(long)]
-        budget: Option<u64>,
         /// Add the method's debug maps as debug.* layers.
         #[arg(long)]
         debug_layers: bool,
@@ -151,6 +177,19 @@ enum Command {
         /// Method option key=value (repeatable); the list is below.
         #[arg(long = "opt", value_name = "KEY=VALUE")]
         opts: Vec<String>,
+    },
+    /// Sanitise a render-statistics EXR and replace its normal, albedo and
+    /// depth layers (and their variances) by the G-buffer prefilter's output
+    /// (spec §0.4, §6), so other denoisers can use the filtered features.
+    /// Needs the position, position_variance and position_covariance layers.
+    Prefilter {
+        input: PathBuf,
+        /// Output render-statistics EXR.
+        #[arg(short, long)]
+        output: PathBuf,
+        /// Kernel arithmetic on the GPU.
+        #[arg(long, value_enum, default_value = "f32")]
+        precision: PrecisionArg,
     },
     /// Benchmark the methods: quality against references (--quality DIR) or
     /// the time of whole denoise calls (default).
@@ -171,8 +210,8 @@ fn context(cli: &Cli) -> anyhow::Result<Arc<GpuContext>> {
 }
 
 fn info(cli: &Cli) -> anyhow::Result<()> {
-    let devices = gpu::enumerate_devices()?;
-    let chosen = gpu::choose_device(&devices, cli.device.as_deref()).ok();
+    let devices = mcdenoise::enumerate_devices()?;
+    let chosen = mcdenoise::choose_device(&devices, cli.device.as_deref()).ok();
     if devices.is_empty() {
         bail!("the Vulkan loader found no device; for the software device: apt-get install mesa-vulkan-drivers");
     }
@@ -299,8 +338,6 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
             pass,
             prefilter,
             error,
-            sample_map,
-            budget,
             debug_layers,
             png,
             reference,
@@ -314,64 +351,44 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
                     bail!("{}: refusing to overwrite an input file", path.display());
                 }
             }
-            let method = match method {
-                MethodArg::Wlr => Method::Wlr,
-                MethodArg::Lp => Method::Lp,
-                MethodArg::Apr => Method::Apr,
-                MethodArg::Aos => Method::Aos,
-                MethodArg::None => Method::None,
-            };
-            if !method.available() {
-                bail!(
-                    "method {} is not in this build yet: `wlr` and `none` (sanitised input) are; \
-                     the other reconstruction methods land with their own issues",
-                    method.name()
-                );
-            }
-            if *prefilter != Prefilter::None
-                || *sample_map
-                || budget.is_some()
-                || (*error && method == Method::None)
-            {
-                bail!("--prefilter, --error and --sample-map need a reconstruction method (not --method none)");
-            }
+            let method = method.get();
             let img = io::read_stats(input)?;
-            let mut req = DenoiseRequest::new(method);
-            req.backend = match backend {
-                BackendArg::Gpu => Backend::Gpu,
-                BackendArg::Cpu => Backend::Cpu,
-            };
-            req.precision = match precision {
-                PrecisionArg::F32 => Precision::F32,
-                PrecisionArg::F64 => Precision::F64,
-            };
-            req.pass = match pass {
+            let mut config = Config::new(method);
+            config.precision = precision.get();
+            config.pass = match pass {
                 PassArg::Final => Pass::Final,
                 PassArg::Intermediate => Pass::Intermediate,
             };
-            req.options = options;
-            req.error = *error;
-            req.debug = *debug_layers;
-            req.progress = !cli.quiet;
-            let ctx = if req.backend == Backend::Gpu {
-                Some(context(&cli)?)
-            } else {
-                None
+            config.prefilter = prefilter.get();
+            config.options = options;
+            config.debug = *debug_layers;
+            config.progress = !cli.quiet;
+            let source = Source::of_image(&img);
+            let denoiser = match backend {
+                BackendArg::Gpu => Denoiser::new(&context(&cli)?, source, config)?,
+                BackendArg::Cpu => Denoiser::new_cpu(source, config)?,
             };
             let t0 = std::time::Instant::now();
-            let result = denoise(ctx.as_ref(), &img, &req)?;
+            let result = denoiser
+                .denoise(&img)
+                .with_context(|| input.display().to_string())?;
             if !cli.quiet {
                 print_report(&result.report, input);
                 eprintln!(
-                    "{} ({:?}) in {:.2} s",
+                    "{} ({:?}{}) in {:.2} s",
                     method.name(),
-                    req.backend,
+                    backend,
+                    if denoiser.prefiltered() {
+                        ", G-buffer prefilter"
+                    } else {
+                        ""
+                    },
                     t0.elapsed().as_secs_f64()
                 );
             }
             let out = io::OutputImage {
                 color: result.color.clone(),
-                error: result.error.clone(),
+                error: error.then(|| result.error.clone()),
                 samples: None,
                 debug: result.debug.clone(),
             };
@@ -384,6 +401,33 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
                 let m = metrics::compare(&result.color, &r)?;
                 print_metrics(&m);
                 return check_error(m.rmse, *max_error);
+            }
+            Ok(true)
+        }
+        Command::Prefilter {
+            input,
+            output,
+            precision,
+        } => {
+            if same_file(output, input) {
+                bail!("{}: refusing to overwrite an input file", output.display());
+            }
+            let img = io::read_stats(input)?;
+            let mut config = Config::new(Method::None);
+            config.prefilter = Prefilter::On;
+            config.precision = precision.get();
+            let denoiser = Denoiser::new(&context(&cli)?, Source::of_image(&img), config)
+                .with_context(|| input.display().to_string())?;
+            let result = denoiser.denoise(&img)?;
+            if !cli.quiet {
+                print_report(&result.report, input);
+            }
+            io::write_stats(output, &denoiser.statistics()?)?;
+            if !cli.quiet {
+                eprintln!(
+                    "{}: sanitised statistics with G-buffer-prefiltered normal, albedo and depth",
+                    output.display()
+                );
             }
             Ok(true)
         }
@@ -407,12 +451,12 @@ fn demo(cli: &Cli, out: &Path) -> anyhow::Result<bool> {
     let ctx = context(cli)?;
     println!("device: {}", ctx.info().name);
     let r = io::read_rgb(&reference)?;
-    let input_metrics = metrics::compare(&mcdenoise::methods::prepare::colour_of(&img), &r)?;
-    let mut req = DenoiseRequest::new(Method::Wlr);
-    req.error = true;
-    req.debug = true;
+    let input_metrics = metrics::compare(&colour_of(&img), &r)?;
+    let mut config = Config::new(Method::Wlr);
+    config.debug = true;
+    let denoiser = Denoiser::new(&ctx, Source::of_image(&img), config)?;
     let t0 = std::time::Instant::now();
-    let result = denoise(Some(&ctx), &img, &req)?;
+    let result = denoiser.denoise(&img)?;
     let secs = t0.elapsed().as_secs_f64();
     print_report(&result.report, &input);
     let output = out.join("output.exr");
@@ -422,23 +466,20 @@ fn demo(cli: &Cli, out: &Path) -> anyhow::Result<bool> {
         &output,
         &io::OutputImage {
             color: result.color.clone(),
-            error: result.error.clone(),
+            error: Some(result.error.clone()),
             samples: None,
             debug: result.debug.clone(),
         },
     )?;
     io::write_png_preview(&preview, &result.color)?;
-    io::write_png_preview(
-        &input_preview,
-        &mcdenoise::methods::prepare::colour_of(&img),
-    )?;
+    io::write_png_preview(&input_preview, &colour_of(&img))?;
     println!(
         "WLR on the GPU in {secs:.2} s (the first run on lavapipe also compiles the kernels) -> {} (color, error, debug layers), {}",
         output.display(),
         preview.display()
     );
     let gpu_ms: f64 = result.timings.iter().map(|t| t.nanoseconds).sum::<f64>() / 1e6;
-    for (k, ns, n) in mcdenoise::gpu::timings_per_kernel(&result.timings) {
+    for (k, ns, n) in mcdenoise::timings_per_kernel(&result.timings) {
         println!("  {k:<18} {:>9.1} ms  ({n} dispatches)", ns / 1e6);
     }
     println!("  {:<18} {gpu_ms:>9.1} ms", "total GPU");
@@ -530,17 +571,7 @@ enum BenchBackendArg {
 /// `mcdenoise bench`: runs [`mcdenoise::bench`], prints Markdown, writes files.
 fn bench(cli: &Cli, args: &BenchArgs) -> anyhow::Result<bool> {
     use mcdenoise::bench::{self as b, Note};
-    let methods: Vec<Method> = args
-        .methods
-        .iter()
-        .map(|m| match m {
-            MethodArg::Wlr => Method::Wlr,
-            MethodArg::Lp => Method::Lp,
-            MethodArg::Apr => Method::Apr,
-            MethodArg::Aos => Method::Aos,
-            MethodArg::None => Method::None,
-        })
-        .collect();
+    let methods: Vec<Method> = args.methods.iter().map(|m| m.get()).collect();
     let backends = match args.backend {
         BenchBackendArg::Gpu => vec![Backend::Gpu],
         BenchBackendArg::Cpu => vec![Backend::Cpu],
@@ -618,8 +649,44 @@ fn bench(cli: &Cli, args: &BenchArgs) -> anyhow::Result<bool> {
     Ok(true)
 }
 
+/// The library reports progress and repairs through `log`; the CLI prints
+/// them on stderr (warnings always, the rest unless --quiet).
+struct StderrLog {
+    level: log::LevelFilter,
+}
+
+impl log::Log for StderrLog {
+    fn enabled(&self, m: &log::Metadata) -> bool {
+        m.level() <= self.level && m.target().starts_with("mcdenoise")
+    }
+    fn log(&self, r: &log::Record) {
+        if self.enabled(r.metadata()) {
+            match r.level() {
+                log::Level::Error | log::Level::Warn => {
+                    eprintln!(
+                        "mcdenoise: {}: {}",
+                        r.level().as_str().to_lowercase(),
+                        r.args()
+                    )
+                }
+                _ => eprintln!("mcdenoise: {}", r.args()),
+            }
+        }
+    }
+    fn flush(&self) {}
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    let level = if cli.quiet {
+        log::LevelFilter::Warn
+    } else {
+        log::LevelFilter::Info
+    };
+    static LOGGER: std::sync::OnceLock<StderrLog> = std::sync::OnceLock::new();
+    if log::set_logger(LOGGER.get_or_init(|| StderrLog { level })).is_ok() {
+        log::set_max_level(level);
+    }
     match run(cli) {
         Ok(true) => ExitCode::SUCCESS,
         Ok(false) => ExitCode::from(1),

@@ -6,6 +6,7 @@
 //! submit runs longer than about a second on lavapipe, or records into a
 //! host's command buffer ([`Batch::record_into`]) and never submits.
 
+use std::collections::HashSet;
 use std::sync::Arc;
 
 use ash::vk;
@@ -80,6 +81,9 @@ pub struct Batch {
     started: std::time::Instant,
     /// (kernel, first row, last row, height) of the last recorded band.
     last_band: Option<(String, u32, u32, u32)>,
+    /// Every buffer bound or copied so far, retained in the context until
+    /// the work is known to be complete.
+    used: HashSet<vk::Buffer>,
 }
 
 impl Batch {
@@ -115,16 +119,76 @@ impl Batch {
     }
 
     /// Records into the host's command buffer `cmd`, which must be in the
-    /// recording state. Nothing is submitted; [`finish`](Self::finish) returns
-    /// a [`Recorded`] that must be kept alive until the host's submission of
-    /// `cmd` has completed (it owns the descriptor sets and query pools).
+    /// recording state. Nothing is submitted, ever;
+    /// [`finish_recording`](Self::finish_recording) returns a [`Recorded`]
+    /// that must be kept alive until the host's submission of `cmd` has
+    /// completed (it owns the descriptor sets and query pools and keeps
+    /// mcdenoise's buffers bound by the work alive).
+    ///
+    /// Synchronisation contract: the recording starts with a memory barrier
+    /// from every earlier command of `cmd` (any stage, any write) to compute
+    /// and transfer reads and writes, and `finish_recording` ends it with a
+    /// barrier from mcdenoise's compute and transfer writes to every later
+    /// command (any stage, any access). Host writes to host-visible memory made
+    /// before the host's `vkQueueSubmit` are visible through the submit's
+    /// implicit host dependency; to read results on the host, the host waits
+    /// for its fence and (for non-coherent memory) invalidates, as for any
+    /// Vulkan work.
     ///
     /// # Safety
     /// `cmd` was allocated from the context's device, from a pool of a queue
-    /// family with compute capability, and is recording. The buffers bound by
-    /// the recorded dispatches stay alive until the work completes.
+    /// family with compute capability, is recording, and is outside a render
+    /// pass. Host buffers bound through [`BufferSlice::from_raw`] stay alive
+    /// until the work completes; the [`Recorded`] is dropped only after that
+    /// (or the recording is abandoned and never submitted).
     pub unsafe fn record_into(ctx: &Arc<GpuContext>, cmd: vk::CommandBuffer) -> Batch {
-        Batch::empty(ctx, vk::CommandPool::null(), cmd, Mode::Record)
+        let b = Batch::empty(ctx, vk::CommandPool::null(), cmd, Mode::Record);
+        b.global_barrier(
+            vk::PipelineStageFlags::ALL_COMMANDS,
+            vk::AccessFlags::MEMORY_WRITE,
+            vk::PipelineStageFlags::COMPUTE_SHADER | vk::PipelineStageFlags::TRANSFER,
+            vk::AccessFlags::SHADER_READ
+                | vk::AccessFlags::SHADER_WRITE
+                | vk::AccessFlags::TRANSFER_READ
+                | vk::AccessFlags::TRANSFER_WRITE,
+        );
+        b
+    }
+
+    fn global_barrier(
+        &self,
+        src_stage: vk::PipelineStageFlags,
+        src: vk::AccessFlags,
+        dst_stage: vk::PipelineStageFlags,
+        dst: vk::AccessFlags,
+    ) {
+        let mb = [vk::MemoryBarrier::default()
+            .src_access_mask(src)
+            .dst_access_mask(dst)];
+        // SAFETY: cmd is recording (both modes' invariant between calls).
+        unsafe {
+            self.ctx.device.cmd_pipeline_barrier(
+                self.cmd,
+                src_stage,
+                dst_stage,
+                vk::DependencyFlags::empty(),
+                &mb,
+                &[],
+                &[],
+            )
+        };
+    }
+
+    /// Retains the buffers of `slices` until this batch's work is complete.
+    fn track(&mut self, slices: &[BufferSlice]) {
+        let new: Vec<vk::Buffer> = slices
+            .iter()
+            .map(|s| s.buffer)
+            .filter(|b| self.used.insert(*b))
+            .collect();
+        if !new.is_empty() {
+            self.ctx.retain(&new);
+        }
     }
 
     fn empty(
@@ -151,6 +215,7 @@ impl Batch {
             progress: false,
             started: std::time::Instant::now(),
             last_band: None,
+            used: HashSet::new(),
         }
     }
 
@@ -172,6 +237,14 @@ impl Batch {
         let Mode::Execute { fence } = self.mode else {
             return Ok(());
         };
+        // Results are read through mapped memory after the fence: make the
+        // device's writes available to the host.
+        self.global_barrier(
+            vk::PipelineStageFlags::COMPUTE_SHADER | vk::PipelineStageFlags::TRANSFER,
+            vk::AccessFlags::SHADER_WRITE | vk::AccessFlags::TRANSFER_WRITE,
+            vk::PipelineStageFlags::HOST,
+            vk::AccessFlags::HOST_READ,
+        );
         let dev = &self.ctx.device;
         // SAFETY: cmd is recording; fence unsignalled; queue used by us only.
         unsafe {
@@ -183,6 +256,7 @@ impl Batch {
                 let _queue = self.ctx.queue_lock.lock().unwrap();
                 dev.queue_submit(self.ctx.queue, &submit, fence)
                     .map_err(Error::vk("vkQueueSubmit"))?;
+                self.ctx.count_submit();
             }
             dev.wait_for_fences(&[fence], true, u64::MAX)
                 .map_err(Error::vk("vkWaitForFences"))?;
@@ -195,7 +269,7 @@ impl Batch {
         if self.progress {
             let t = self.started.elapsed().as_secs_f64();
             if let (true, Some((k, a, b, h))) = (t > 1.0, &self.last_band) {
-                eprintln!("mcdenoise: {k} rows {a}..{b} of {h} done ({t:.1} s)");
+                log::info!("{k} rows {a}..{b} of {h} done ({t:.1} s)");
             }
         }
         self.collect_timestamps()?;
@@ -242,6 +316,12 @@ impl Batch {
     fn descriptor_set(&mut self, layout: vk::DescriptorSetLayout) -> Result<vk::DescriptorSet> {
         let dev = &self.ctx.device;
         if self.sets_left == 0 {
+            if let Some(pool) = self.ctx.take_desc_pool() {
+                self.desc_pools.push(pool);
+                self.sets_left = SETS_PER_POOL;
+            }
+        }
+        if self.sets_left == 0 {
             let sizes = [vk::DescriptorPoolSize::default()
                 .ty(vk::DescriptorType::STORAGE_BUFFER)
                 .descriptor_count(DESCRIPTORS_PER_POOL)];
@@ -280,7 +360,12 @@ impl Batch {
         let pool_idx = (idx / QUERIES_PER_POOL) as usize;
         // A pair never straddles two pools: QUERIES_PER_POOL is even.
         if pool_idx >= self.query_pools.len() {
-            // SAFETY: destroyed in Drop / by Recorded.
+            if let Some(pool) = self.ctx.take_query_pool() {
+                self.query_pools.push(pool);
+            }
+        }
+        if pool_idx >= self.query_pools.len() {
+            // SAFETY: recycled into the context by Drop / Recorded.
             let pool = unsafe {
                 self.ctx.device.create_query_pool(
                     &vk::QueryPoolCreateInfo::default()
@@ -330,6 +415,7 @@ impl Batch {
 
     /// Fills a range with a 32-bit pattern (e.g. zeroes counters).
     pub fn fill(&mut self, slice: BufferSlice, value: u32) {
+        self.track(&[slice]);
         // SAFETY: cmd is recording; range inside the buffer (BufferSlice invariant).
         unsafe {
             self.ctx.device.cmd_fill_buffer(
@@ -346,6 +432,7 @@ impl Batch {
     /// Copies `src` into `dst` (sizes must match).
     pub fn copy(&mut self, src: BufferSlice, dst: BufferSlice) {
         assert_eq!(src.size, dst.size, "copy between ranges of different size");
+        self.track(&[src, dst]);
         let region = [vk::BufferCopy::default()
             .src_offset(src.offset)
             .dst_offset(dst.offset)
@@ -410,6 +497,7 @@ impl Batch {
                 )));
             }
         }
+        self.track(bindings);
         let set = self.descriptor_set(p.set_layout)?;
         let infos: Vec<[vk::DescriptorBufferInfo; 1]> = bindings
             .iter()
@@ -509,8 +597,15 @@ impl Batch {
     /// Ends a [`record_into`](Self::record_into) batch. The returned holder
     /// must live until the host's submission has completed.
     pub fn finish_recording(mut self) -> Recorded {
+        self.global_barrier(
+            vk::PipelineStageFlags::COMPUTE_SHADER | vk::PipelineStageFlags::TRANSFER,
+            vk::AccessFlags::SHADER_WRITE | vk::AccessFlags::TRANSFER_WRITE,
+            vk::PipelineStageFlags::ALL_COMMANDS,
+            vk::AccessFlags::MEMORY_READ | vk::AccessFlags::MEMORY_WRITE,
+        );
         Recorded {
             ctx: self.ctx.clone(),
+            used: self.used.drain().collect(),
             desc_pools: std::mem::take(&mut self.desc_pools),
             query_pools: std::mem::take(&mut self.query_pools),
             stamps: std::mem::take(&mut self.stamps),
@@ -531,13 +626,13 @@ impl Drop for Batch {
                 dev.destroy_fence(fence, None);
                 dev.destroy_command_pool(self.pool, None);
             }
-            for p in self.desc_pools.drain(..) {
-                dev.destroy_descriptor_pool(p, None);
-            }
-            for p in self.query_pools.drain(..) {
-                dev.destroy_query_pool(p, None);
-            }
         }
+        self.ctx
+            .recycle_query_pools(std::mem::take(&mut self.query_pools));
+        self.ctx
+            .recycle_desc_pools(std::mem::take(&mut self.desc_pools));
+        let used: Vec<vk::Buffer> = self.used.drain().collect();
+        self.ctx.release(&used);
     }
 }
 
@@ -546,6 +641,7 @@ impl Drop for Batch {
 /// completed; then read [`timings`](Self::timings) and drop it.
 pub struct Recorded {
     ctx: Arc<GpuContext>,
+    used: Vec<vk::Buffer>,
     desc_pools: Vec<vk::DescriptorPool>,
     query_pools: Vec<vk::QueryPool>,
     stamps: Vec<(String, (u32, u32), u32)>,
@@ -589,15 +685,12 @@ impl Recorded {
 
 impl Drop for Recorded {
     fn drop(&mut self) {
-        // SAFETY: the host's work using these pools has completed (contract).
-        unsafe {
-            for p in self.desc_pools.drain(..) {
-                self.ctx.device.destroy_descriptor_pool(p, None);
-            }
-            for p in self.query_pools.drain(..) {
-                self.ctx.device.destroy_query_pool(p, None);
-            }
-        }
+        // The host's work using these pools has completed (contract).
+        self.ctx
+            .recycle_query_pools(std::mem::take(&mut self.query_pools));
+        self.ctx
+            .recycle_desc_pools(std::mem::take(&mut self.desc_pools));
+        self.ctx.release(&self.used);
     }
 }
 

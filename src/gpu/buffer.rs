@@ -11,13 +11,68 @@ use crate::error::{Error, Result};
 
 /// A range of a storage buffer, as a kernel binding sees it. Host-owned
 /// buffers (the embedding path) are passed this way too.
+///
+/// Made by [`GpuBuffer::slice`], [`GpuBuffer::range`] and
+/// [`PlaneSet::plane`] (checked against the buffer), by [`BufferSlice::sub`]
+/// (checked against the parent range), or for a host's buffer by the `unsafe`
+/// [`BufferSlice::from_raw`]. Safe code therefore cannot name a range outside
+/// a live buffer.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
 pub struct BufferSlice {
-    pub buffer: vk::Buffer,
+    pub(crate) buffer: vk::Buffer,
     /// Byte offset; a multiple of the device's `minStorageBufferOffsetAlignment`.
-    pub offset: u64,
+    pub(crate) offset: u64,
     /// Byte size of the range.
-    pub size: u64,
+    pub(crate) size: u64,
+}
+
+impl BufferSlice {
+    /// A range of a buffer mcdenoise does not own (a host renderer's).
+    ///
+    /// # Safety
+    /// `buffer` is a buffer of the device of the context the slice is used
+    /// with, created with `STORAGE_BUFFER` usage (plus `TRANSFER_SRC` /
+    /// `TRANSFER_DST` where mcdenoise copies from or fills it), bound to
+    /// memory; `offset + size` does not exceed its size; and it stays alive
+    /// until every piece of work recorded with the slice has completed.
+    pub unsafe fn from_raw(buffer: vk::Buffer, offset: u64, size: u64) -> BufferSlice {
+        BufferSlice {
+            buffer,
+            offset,
+            size,
+        }
+    }
+
+    /// The raw buffer handle.
+    pub fn buffer(&self) -> vk::Buffer {
+        self.buffer
+    }
+
+    /// Byte offset of the range in its buffer.
+    pub fn offset(&self) -> u64 {
+        self.offset
+    }
+
+    /// Byte size of the range.
+    pub fn size(&self) -> u64 {
+        self.size
+    }
+
+    /// The sub-range `[offset, offset + size)` of this range; an error if it
+    /// does not fit.
+    pub fn sub(&self, offset: u64, size: u64) -> Result<BufferSlice> {
+        match offset.checked_add(size) {
+            Some(end) if end <= self.size => Ok(BufferSlice {
+                buffer: self.buffer,
+                offset: self.offset + offset,
+                size,
+            }),
+            _ => Err(Error::InvalidArgument(format!(
+                "range [{offset}, {offset}+{size}) does not fit a buffer range of {} bytes",
+                self.size
+            ))),
+        }
+    }
 }
 
 /// A storage buffer owned by mcdenoise, freed on drop.
@@ -247,16 +302,32 @@ impl GpuBuffer {
     }
 }
 
+/// Reads `count` f32 values from `slice` (blocking: copies through a
+/// host-visible staging buffer and waits). The GPU must not be writing it.
+pub fn read_slice(ctx: &Arc<GpuContext>, slice: BufferSlice, count: usize) -> Result<Vec<f32>> {
+    let bytes = count as u64 * 4;
+    if bytes > slice.size {
+        return Err(Error::InvalidArgument(format!(
+            "reading {count} values from a range of {} bytes",
+            slice.size
+        )));
+    }
+    let mut v = vec![0.0f32; count];
+    if count == 0 {
+        return Ok(v);
+    }
+    let staging =
+        GpuBuffer::with_location(ctx, "read_slice.staging", bytes, MemoryLocation::GpuToCpu)?;
+    super::batch::copy_buffer(ctx, slice.buffer, slice.offset, staging.buffer, 0, bytes)?;
+    staging.download(0, bytemuck::cast_slice_mut(&mut v))?;
+    Ok(v)
+}
+
 impl Drop for GpuBuffer {
     fn drop(&mut self) {
-        // SAFETY: the caller keeps buffers alive until GPU work using them has
-        // completed (every execute path waits before returning).
-        unsafe { self.ctx.device.destroy_buffer(self.buffer, None) };
-        if let Some(a) = self.allocation.take() {
-            if let Some(alloc) = self.ctx.allocator.lock().unwrap().as_mut() {
-                let _ = alloc.free(a);
-            }
-        }
+        // Destroyed now, or when the last batch or `Recorded` that binds it
+        // is done (see `GpuContext::retire_buffer`).
+        self.ctx.retire_buffer(self.buffer, self.allocation.take());
     }
 }
 

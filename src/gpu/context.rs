@@ -1,11 +1,12 @@
 //! Instance, physical-device choice, logical device, queue and allocator.
 
+use std::collections::HashMap;
 use std::ffi::{c_void, CStr, CString};
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 
 use ash::vk;
-use gpu_allocator::vulkan::{Allocator, AllocatorCreateDesc};
+use gpu_allocator::vulkan::{Allocation, Allocator, AllocatorCreateDesc};
 
 use crate::error::{Error, Result};
 
@@ -78,11 +79,11 @@ unsafe extern "system" fn debug_callback(
     };
     if severity.contains(vk::DebugUtilsMessageSeverityFlagsEXT::ERROR) {
         log.errors.fetch_add(1, Ordering::SeqCst);
-        eprintln!("[vulkan validation error] {msg}");
+        log::error!("vulkan validation: {msg}");
         log.messages.lock().unwrap().push(msg);
     } else if severity.contains(vk::DebugUtilsMessageSeverityFlagsEXT::WARNING) {
         log.warnings.fetch_add(1, Ordering::SeqCst);
-        eprintln!("[vulkan validation warning] {msg}");
+        log::warn!("vulkan validation: {msg}");
         log.messages.lock().unwrap().push(msg);
     }
     vk::FALSE
@@ -91,9 +92,18 @@ unsafe extern "system" fn debug_callback(
 /// A device that mcdenoise runs on, either created by mcdenoise or imported
 /// from a host renderer ([`GpuContext::from_raw`]).
 ///
-/// Teardown order (on drop): wait for the device to be idle, destroy the
-/// pipelines, free the allocator's memory blocks, then — only if this
-/// context created them — the device, the debug messenger and the instance.
+/// Teardown order (on drop): wait for the device to be idle (only a device
+/// this context created: an imported device is the host's, and every
+/// submission mcdenoise made itself has already been waited for), destroy
+/// the pipelines, the recycled descriptor pools and any buffer whose
+/// destruction was deferred, free the allocator's memory blocks, then — only
+/// if this context created them — the device, the debug messenger and the
+/// instance.
+///
+/// Buffers in use by recorded work outlive their [`GpuBuffer`](super::GpuBuffer)
+/// handle: every [`Batch`](super::Batch) retains the buffers it binds until
+/// its work has completed (execute mode) or its [`Recorded`](super::Recorded)
+/// is dropped (record mode); a buffer dropped earlier is destroyed then.
 pub struct GpuContext {
     pub(crate) entry: ash::Entry,
     pub(crate) instance: ash::Instance,
@@ -111,6 +121,23 @@ pub struct GpuContext {
     /// Vulkan requires external synchronisation of a queue: every submit
     /// from this context holds this lock.
     pub(crate) queue_lock: Mutex<()>,
+    /// Buffers bound by work not known to be complete, and buffers dropped
+    /// while bound (destroyed when their count reaches 0).
+    in_flight: Mutex<InFlight>,
+    /// Descriptor pools of finished batches, reset and ready for reuse.
+    free_desc_pools: Mutex<Vec<vk::DescriptorPool>>,
+    /// Timestamp query pools of finished batches (queries are reset in the
+    /// command buffer before each use).
+    free_query_pools: Mutex<Vec<vk::QueryPool>>,
+    /// Queue submissions made by this context (the embedding tests check
+    /// that recording into a host's command buffer submits nothing).
+    submits: AtomicU64,
+}
+
+#[derive(Default)]
+struct InFlight {
+    refs: HashMap<vk::Buffer, u32>,
+    deferred: Vec<(vk::Buffer, Option<Allocation>)>,
 }
 
 fn load_entry() -> Result<ash::Entry> {
@@ -468,6 +495,10 @@ impl GpuContext {
             validation_log,
             pipelines: Mutex::new(Default::default()),
             queue_lock: Mutex::new(()),
+            in_flight: Mutex::new(InFlight::default()),
+            free_desc_pools: Mutex::new(Vec::new()),
+            free_query_pools: Mutex::new(Vec::new()),
+            submits: AtomicU64::new(0),
         })
     }
 
@@ -517,6 +548,97 @@ impl GpuContext {
         self.queue_family
     }
 
+    /// Number of queue submissions this context has made so far.
+    pub fn submit_count(&self) -> u64 {
+        self.submits.load(Ordering::SeqCst)
+    }
+
+    pub(crate) fn count_submit(&self) {
+        self.submits.fetch_add(1, Ordering::SeqCst);
+    }
+
+    /// Marks `buffers` as bound by work in flight.
+    pub(crate) fn retain(&self, buffers: &[vk::Buffer]) {
+        let mut f = self.in_flight.lock().unwrap();
+        for b in buffers {
+            *f.refs.entry(*b).or_insert(0) += 1;
+        }
+    }
+
+    /// The work binding `buffers` has completed: destroys those of them that
+    /// were dropped meanwhile and are no longer bound anywhere.
+    pub(crate) fn release(&self, buffers: &[vk::Buffer]) {
+        let mut dead = Vec::new();
+        {
+            let mut f = self.in_flight.lock().unwrap();
+            for b in buffers {
+                if let Some(n) = f.refs.get_mut(b) {
+                    *n -= 1;
+                    if *n == 0 {
+                        f.refs.remove(b);
+                        if let Some(i) = f.deferred.iter().position(|(d, _)| d == b) {
+                            dead.push(f.deferred.swap_remove(i));
+                        }
+                    }
+                }
+            }
+        }
+        for (b, a) in dead {
+            self.destroy_buffer(b, a);
+        }
+    }
+
+    /// Destroys `buffer` now, or once no recorded work binds it.
+    pub(crate) fn retire_buffer(&self, buffer: vk::Buffer, allocation: Option<Allocation>) {
+        {
+            let mut f = self.in_flight.lock().unwrap();
+            if f.refs.contains_key(&buffer) {
+                f.deferred.push((buffer, allocation));
+                return;
+            }
+        }
+        self.destroy_buffer(buffer, allocation);
+    }
+
+    fn destroy_buffer(&self, buffer: vk::Buffer, allocation: Option<Allocation>) {
+        // SAFETY: no recorded work that may still execute binds the buffer
+        // (its in-flight count is 0), and it belongs to this device.
+        unsafe { self.device.destroy_buffer(buffer, None) };
+        if let Some(a) = allocation {
+            if let Some(alloc) = self.allocator.lock().unwrap().as_mut() {
+                let _ = alloc.free(a);
+            }
+        }
+    }
+
+    /// A descriptor pool from the free list, if any.
+    pub(crate) fn take_desc_pool(&self) -> Option<vk::DescriptorPool> {
+        self.free_desc_pools.lock().unwrap().pop()
+    }
+
+    /// Resets `pools` (their sets are no longer used by any pending work) and
+    /// keeps them for the next batch.
+    pub(crate) fn recycle_desc_pools(&self, pools: Vec<vk::DescriptorPool>) {
+        for p in &pools {
+            // SAFETY: the caller guarantees no pending work uses the sets.
+            let _ = unsafe {
+                self.device
+                    .reset_descriptor_pool(*p, vk::DescriptorPoolResetFlags::empty())
+            };
+        }
+        self.free_desc_pools.lock().unwrap().extend(pools);
+    }
+
+    /// A timestamp query pool from the free list, if any.
+    pub(crate) fn take_query_pool(&self) -> Option<vk::QueryPool> {
+        self.free_query_pools.lock().unwrap().pop()
+    }
+
+    /// Keeps `pools` (no pending work uses them) for the next batch.
+    pub(crate) fn recycle_query_pools(&self, pools: Vec<vk::QueryPool>) {
+        self.free_query_pools.lock().unwrap().extend(pools);
+    }
+
     /// Waits until the device has finished all work.
     pub fn wait_idle(&self) -> Result<()> {
         // SAFETY: device is alive.
@@ -544,8 +666,20 @@ impl Drop for GpuContext {
     fn drop(&mut self) {
         // SAFETY: teardown in dependency order; nothing is used afterwards.
         unsafe {
-            let _ = self.device.device_wait_idle();
+            if self.owns_device {
+                let _ = self.device.device_wait_idle();
+            }
             self.pipelines.lock().unwrap().destroy(&self.device);
+            for p in self.free_desc_pools.lock().unwrap().drain(..) {
+                self.device.destroy_descriptor_pool(p, None);
+            }
+            for p in self.free_query_pools.lock().unwrap().drain(..) {
+                self.device.destroy_query_pool(p, None);
+            }
+            let deferred = std::mem::take(&mut self.in_flight.lock().unwrap().deferred);
+            for (b, a) in deferred {
+                self.destroy_buffer(b, a);
+            }
             drop(self.allocator.lock().unwrap().take());
             if self.owns_device {
                 self.device.destroy_device(None);

@@ -9,18 +9,18 @@
 //! copy             the filtered planes replace the features in place
 //! ```
 //!
-//! It runs before WLR or LP (spec §1) when `gbf.prefilter` says so: `auto`
+//! It runs before WLR or LP (spec §1) when [`Prefilter`] says so: `auto`
 //! (the default) runs it when the input has `position`,
 //! `position_variance` and `position_covariance`.
 
 use std::sync::Arc;
 
 use super::stats::GpuStats;
+use super::Prefilter;
 use crate::error::{Error, Result};
 use crate::gpu::{Batch, BufferSlice, GpuContext, PlaneSet, Precision};
 use crate::image::{Layer, StatsImage};
 use crate::kernels::{gauss_smooth, gbf_filter, gbf_prepare, gbf_sure};
-use crate::options::Options;
 use crate::reference;
 use crate::reference::gbf::SMOOTH_SIGMA;
 use crate::shared::{GbfPush, SmoothPush};
@@ -32,19 +32,18 @@ pub const NEEDS: [Layer; 3] = [
     Layer::PositionCovariance,
 ];
 
-/// Whether to prefilter an image with these layers under `opts`
-/// (`gbf.prefilter = auto | on | off`); `on` without the position layers is
-/// an error.
-pub fn wanted(opts: &Options, has: impl Fn(Layer) -> bool) -> Result<bool> {
+/// Whether to prefilter an image with these layers; [`Prefilter::On`]
+/// without the position layers is an error.
+pub fn wanted(prefilter: Prefilter, has: impl Fn(Layer) -> bool) -> Result<bool> {
     let all = NEEDS.iter().all(|&l| has(l));
-    match opts.get("gbf.prefilter") {
-        "off" => Ok(false),
-        "on" if !all => Err(Error::BadData(
-            "gbf.prefilter=on needs the position, position_variance and position_covariance layers"
+    match prefilter {
+        Prefilter::Off => Ok(false),
+        Prefilter::On if !all => Err(Error::BadData(
+            "the G-buffer prefilter needs the position, position_variance and position_covariance layers"
                 .into(),
         )),
-        "on" => Ok(true),
-        _ => Ok(all),
+        Prefilter::On => Ok(true),
+        Prefilter::Auto => Ok(all),
     }
 }
 

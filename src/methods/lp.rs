@@ -93,6 +93,11 @@ impl LpPlanes {
     pub fn dmse(&self) -> [BufferSlice; 3] {
         std::array::from_fn(|c| self.out.plane(6 + c))
     }
+
+    /// MERGE-PENDING: the local dimension plane arrives with the LP error work.
+    pub fn dim(&self) -> BufferSlice {
+        self.out.plane(9)
+    }
 }
 
 /// The bindings LP reads from sanitised statistics.
@@ -183,6 +188,8 @@ pub struct LpResult {
     pub dmse: RgbImage,
     /// Covering centres per pixel.
     pub coverage: Vec<f32>,
+    /// MERGE-PENDING: local dimension.
+    pub dim: Vec<f32>,
     /// Per pixel: pass + 1 at centres (0 elsewhere), r_opt and k at centres
     /// (-1 elsewhere).
     pub centre_pass: Vec<f32>,
@@ -213,6 +220,7 @@ impl LpResult {
             error: rgb(3),
             dmse: rgb(6),
             coverage: out[9].clone(),
+            dim: out[9].clone(),
             centre_pass: (0..n).map(|q| state0[4 * q]).collect(),
             r_opt: at(StateLayout::R_OPT),
             rank: at(StateLayout::K),
@@ -286,8 +294,8 @@ pub fn run_cpu(clean: &StatsImage, params: LpParams, progress: bool) -> Result<L
         let made = reference::lp_centres::lp_centres(&push, &p, &reach, &mut state);
         let t = started.elapsed().as_secs_f64();
         if progress && t > 1.0 {
-            eprintln!(
-                "mcdenoise: lp pass g={} (cpu): {made} centres ({t:.1} s)",
+            log::info!(
+                "lp pass g={} (cpu): {made} centres ({t:.1} s)",
                 GRANULARITIES[pass]
             );
         }

@@ -2,6 +2,7 @@
 //! on the CPU (their scalar twins), selected by [`Backend`]; [`denoise`] is
 //! the one entry point the CLI and the benchmarks use.
 
+pub mod chain;
 pub mod gbf;
 pub mod lp;
 pub mod prepare;
@@ -67,10 +68,26 @@ pub enum Pass {
     Intermediate,
 }
 
+/// The G-buffer prefilter of normal, albedo and depth (spec §6) before the
+/// method (§1).
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Default)]
+pub enum Prefilter {
+    /// When the input has `position`, `position_variance` and
+    /// `position_covariance` (the default).
+    #[default]
+    Auto,
+    /// Always; an error without those layers.
+    On,
+    /// Never.
+    Off,
+}
+
 /// What to run.
 #[derive(Clone, Debug)]
 pub struct DenoiseRequest {
     pub method: Method,
+    /// The G-buffer prefilter (ignored by `none`).
+    pub prefilter: Prefilter,
     pub backend: Backend,
     pub precision: Precision,
     pub pass: Pass,
@@ -87,6 +104,7 @@ impl DenoiseRequest {
     pub fn new(method: Method) -> Self {
         DenoiseRequest {
             method,
+            prefilter: Prefilter::Auto,
             backend: Backend::Gpu,
             precision: Precision::F32,
             pass: Pass::Final,
@@ -105,6 +123,8 @@ pub struct DenoiseOutput {
     pub color: RgbImage,
     /// Estimated MSE per pixel and channel, when requested and the method has one.
     pub error: Option<RgbImage>,
+    /// The local dimension `d_i` per pixel (§9.1; 0 for `none`).
+    pub dim: Vec<f32>,
     /// Named debug planes.
     pub debug: Vec<(String, Vec<f32>)>,
     /// What sanitation repaired.
@@ -116,7 +136,8 @@ pub struct DenoiseOutput {
 }
 
 /// Sanitises `img` and reconstructs it with `req.method`. The GPU backend
-/// needs `ctx`.
+/// needs `ctx` and runs the one GPU chain ([`chain::GpuChain`]); the CPU
+/// backend chains the scalar twins.
 pub fn denoise(
     ctx: Option<&Arc<GpuContext>>,
     img: &StatsImage,
@@ -124,110 +145,173 @@ pub fn denoise(
 ) -> Result<DenoiseOutput> {
     if !req.method.available() {
         return Err(Error::InvalidArgument(format!(
-            "method {} is not in this build yet: `wlr`, `lp` and `none` (sanitised input) are",
-            req.method.name()
+            "method {} is not in this build yet; available: {}",
+            req.method.name(),
+            available_names()
         )));
     }
-    if req.method == Method::Wlr {
-        let params = wlr::WlrParams::new(req.pass, &req.options)?;
-        let (result, report, timings) = match req.backend {
-            Backend::Cpu => {
-                let (clean, report) = clean_cpu(img, req)?;
-                (
-                    wlr::run_cpu_with_progress(&clean, params, req.progress)?,
-                    report,
-                    Vec::new(),
-                )
-            }
-            Backend::Gpu => {
-                let ctx = gpu_ctx(ctx)?;
-                wlr_gpu(ctx, req.precision, img, params, &req.options, req.progress)?
-            }
-        };
-        let mse = result.mse.clone();
-        return Ok(DenoiseOutput {
-            color: result.color.clone(),
-            error: req.error.then(|| {
-                RgbImage::from_planes(img.width, img.height, [mse.clone(), mse.clone(), mse])
-            }),
-            debug: if req.debug {
-                result.debug_layers()
+    let layers: Vec<crate::image::Layer> = img.layers().map(|(l, _)| l).collect();
+    chain::check_layers(req.method, &layers)?;
+    match req.backend {
+        Backend::Gpu => denoise_gpu(gpu_ctx(ctx)?, img, req),
+        Backend::Cpu => denoise_cpu(img, req),
+    }
+}
+
+fn denoise_gpu(
+    ctx: &Arc<GpuContext>,
+    img: &StatsImage,
+    req: &DenoiseRequest,
+) -> Result<DenoiseOutput> {
+    let chain = chain::GpuChain::new(
+        ctx,
+        chain::ChainInput::Stats {
+            width: img.width,
+            height: img.height,
+            layers: img.layers().map(|(l, _)| l).collect(),
+        },
+        chain::ChainConfig {
+            method: req.method,
+            pass: req.pass,
+            precision: req.precision,
+            prefilter: req.prefilter,
+            options: req.options.clone(),
+            low_spp: prepare::has_low_spp(img),
+        },
+    )?;
+    denoise_with_chain(&chain, img, req)
+}
+
+/// Runs an existing chain (made for [`chain::ChainInput::Stats`] of `img`'s
+/// size and layers) on `img`: upload, record, submit, wait, download.
+/// `req`'s method, pass, precision and prefilter are the chain's; its
+/// `error`, `debug` and `progress` apply.
+pub fn denoise_with_chain(
+    chain: &chain::GpuChain,
+    img: &StatsImage,
+    req: &DenoiseRequest,
+) -> Result<DenoiseOutput> {
+    let layers: Vec<crate::image::Layer> = img.layers().map(|(l, _)| l).collect();
+    let want = chain::ChainInput::Stats {
+        width: img.width,
+        height: img.height,
+        layers,
+    };
+    if chain.input_kind() != &want {
+        return Err(Error::InvalidArgument(format!(
+            "this denoiser was made for {:?}; the image is {}x{} with other layers",
+            chain.input_kind(),
+            img.width,
+            img.height
+        )));
+    }
+    let planes: Vec<&[f32]> = img
+        .layers()
+        .flat_map(|(_, p)| p.iter().map(|v| v.as_slice()))
+        .collect();
+    chain.input().planes.upload_all(&planes)?;
+    let mut batch = crate::gpu::Batch::new(chain.context())?;
+    batch.progress = req.progress;
+    chain.record(&mut batch, None)?;
+    let timings = batch.finish()?;
+    let out = chain.download(req.debug)?;
+    let mut report = prepare::base_report(img);
+    report.counters = chain.report()?.counters;
+    if req.method == Method::None {
+        report.timings = timings.clone();
+    }
+    Ok(DenoiseOutput {
+        color: out.color,
+        error: req.error.then_some(out.error),
+        dim: out.dim,
+        debug: out.debug,
+        report,
+        timings,
+        stats: out.stats,
+    })
+}
+
+fn denoise_cpu(img: &StatsImage, req: &DenoiseRequest) -> Result<DenoiseOutput> {
+    let (clean, report) = clean_cpu(img, req)?;
+    let (w, h) = (img.width, img.height);
+    let (color, error, dim, debug, stats) = match req.method {
+        Method::Wlr => {
+            let params = wlr::WlrParams::new(req.pass, &req.options)?;
+            let r = wlr::run_cpu_with_progress(&clean, params, req.progress)?;
+            let mse = r.mse.clone();
+            let dim = r.rank();
+            let debug = if req.debug {
+                r.debug_layers()
             } else {
                 Vec::new()
-            },
-            report,
-            timings,
-            stats: Vec::new(),
-        });
-    }
-    if req.method == Method::Lp {
-        let params = lp::LpParams::new(&req.options)?;
-        let (result, report, timings) = match req.backend {
-            Backend::Cpu => {
-                let (clean, report) = clean_cpu(img, req)?;
-                (
-                    lp::run_cpu(&clean, params, req.progress)?,
-                    report,
-                    Vec::new(),
-                )
-            }
-            Backend::Gpu => {
-                let ctx = gpu_ctx(ctx)?;
-                lp_gpu(ctx, req.precision, img, params, &req.options, req.progress)?
-            }
-        };
-        return Ok(DenoiseOutput {
-            color: result.color.clone(),
-            error: req.error.then(|| result.error.clone()),
-            debug: if req.debug {
-                result.debug_layers()
+            };
+            (
+                r.color,
+                RgbImage::from_planes(w, h, [mse.clone(), mse.clone(), mse]),
+                dim,
+                debug,
+                Vec::new(),
+            )
+        }
+        Method::Lp => {
+            let params = lp::LpParams::new(&req.options)?;
+            let r = lp::run_cpu(&clean, params, req.progress)?;
+            let debug = if req.debug {
+                r.debug_layers()
             } else {
                 Vec::new()
-            },
-            report,
-            timings,
-            stats: vec![("centre_fraction".into(), result.centre_fraction())],
-        });
-    }
-    let (clean, report) = prepare::prepare(ctx, req.backend, req.precision, img)?;
-    match req.method {
-        Method::None => {
+            };
+            let stats = vec![("centre_fraction".into(), r.centre_fraction())];
+            (
+                r.color.clone(),
+                r.error.clone(),
+                r.dim.clone(),
+                debug,
+                stats,
+            )
+        }
+        _ => {
+            let var = clean.get(crate::image::Layer::ColorVariance).unwrap();
+            let error =
+                RgbImage::from_planes(w, h, [var[0].clone(), var[1].clone(), var[2].clone()]);
             let mut debug = Vec::new();
             if req.debug {
-                let var = clean.get(crate::image::Layer::ColorVariance).unwrap();
                 for (c, name) in ["R", "G", "B"].iter().enumerate() {
                     debug.push((format!("color_variance.{name}"), var[c].clone()));
                 }
             }
-            let timings = report.timings.clone();
-            Ok(DenoiseOutput {
-                color: prepare::colour_of(&clean),
-                error: None,
+            (
+                prepare::colour_of(&clean),
+                error,
+                vec![0.0; w * h],
                 debug,
-                report,
-                timings,
-                stats: Vec::new(),
-            })
+                Vec::new(),
+            )
         }
-        _ => unreachable!("checked by Method::available"),
-    }
+    };
+    Ok(DenoiseOutput {
+        color,
+        error: req.error.then_some(error),
+        dim,
+        debug,
+        report,
+        timings: Vec::new(),
+        stats,
+    })
 }
 
-/// The CPU path's input of WLR and LP: sanitised statistics, prefiltered
-/// when `req.options` want it (§1).
+/// The CPU path's input of every method: sanitised statistics, prefiltered
+/// when `req.prefilter` wants it (§1).
 fn clean_cpu(
     img: &StatsImage,
     req: &DenoiseRequest,
 ) -> Result<(StatsImage, prepare::PrepareReport)> {
-    use crate::image::Layer;
-    if !img.has(Layer::Color) || !img.has(Layer::Spp) {
-        return Err(Error::BadData(format!(
-            "{} needs the color and spp layers",
-            req.method.name().to_uppercase()
-        )));
-    }
     let (mut clean, report) = prepare::prepare_cpu(img);
-    if gbf::wanted(&req.options, |l| clean.has(l))? {
+    let prefilter = match (req.method, req.prefilter) {
+        (Method::None, Prefilter::Auto) => Prefilter::Off,
+        (_, p) => p,
+    };
+    if gbf::wanted(prefilter, |l| clean.has(l))? {
         gbf::run_cpu(&mut clean)?;
     }
     Ok((clean, report))
@@ -237,116 +321,18 @@ fn gpu_ctx(ctx: Option<&Arc<GpuContext>>) -> Result<&Arc<GpuContext>> {
     ctx.ok_or_else(|| Error::InvalidArgument("the GPU backend needs a context".into()))
 }
 
-/// The layers WLR and LP read.
-const REGRESSION_LAYERS: [crate::image::Layer; 5] = [
-    crate::image::Layer::Color,
-    crate::image::Layer::Albedo,
-    crate::image::Layer::Normal,
-    crate::image::Layer::Depth,
-    crate::image::Layer::Spp,
-];
-
-/// Uploads `img`, records sanitation, the G-buffer prefilter when `options`
-/// want it (§1; the GPU twin of [`clean_cpu`]) and then
-/// `record(batch, clean)` in one GPU batch, runs it, and returns the
-/// sanitation report and the timings. The caller downloads its outputs
-/// afterwards.
-fn gpu_chain(
-    ctx: &Arc<GpuContext>,
-    precision: Precision,
-    img: &StatsImage,
-    method: Method,
-    options: &Options,
-    progress: bool,
-    record: impl FnOnce(&mut crate::gpu::Batch, &stats::GpuStats) -> Result<()>,
-) -> Result<(prepare::PrepareReport, Vec<KernelTiming>)> {
-    use crate::image::Layer;
-    for l in REGRESSION_LAYERS {
-        if !img.has(l) {
-            return Err(Error::BadData(format!(
-                "{} needs the {} layer",
-                method.name().to_uppercase(),
-                l.name()
-            )));
-        }
-    }
-    let input = stats::GpuStats::upload(ctx, "input", img)?;
-    let layers: Vec<Layer> = img.layers().map(|(l, _)| l).collect();
-    let clean = stats::GpuStats::new(
-        ctx,
-        "clean",
-        img.width,
-        img.height,
-        &prepare::output_layers(&layers),
-    )?;
-    let scratch = prepare::PrepareScratch::new(ctx, &input)?;
-    let low_spp = prepare::has_low_spp(img);
-    let mut batch = crate::gpu::Batch::new(ctx)?;
-    batch.progress = progress;
-    prepare::record_prepare(&mut batch, precision, &input, &clean, &scratch, low_spp)?;
-    let prefilter = if gbf::wanted(options, |l| img.has(l))? {
-        Some(gbf::GbfPlanes::new(ctx, img.width, img.height)?)
-    } else {
-        None
-    };
-    if let Some(g) = &prefilter {
-        gbf::record_gbf(&mut batch, precision, &clean, g)?;
-    }
-    record(&mut batch, &clean)?;
-    let timings = batch.finish()?;
-    let mut report = prepare::base_report(img);
-    report.counters = scratch.read_counters()?;
-    Ok((report, timings))
-}
-
-/// Sanitation and WLR in one GPU batch: one upload, one download.
-fn wlr_gpu(
-    ctx: &Arc<GpuContext>,
-    precision: Precision,
-    img: &StatsImage,
-    params: wlr::WlrParams,
-    options: &Options,
-    progress: bool,
-) -> Result<(wlr::WlrResult, prepare::PrepareReport, Vec<KernelTiming>)> {
-    let planes = wlr::WlrPlanes::new(ctx, img.width, img.height)?;
-    let (report, timings) = gpu_chain(
-        ctx,
-        precision,
-        img,
+/// The names of the methods in this build, for error messages.
+pub fn available_names() -> String {
+    [
         Method::Wlr,
-        options,
-        progress,
-        |b, clean| wlr::record_wlr(b, precision, clean, &planes, params),
-    )?;
-    Ok((
-        wlr::download(&planes, img.width, img.height)?,
-        report,
-        timings,
-    ))
-}
-
-/// Sanitation and LP in one GPU batch: one upload, one download.
-fn lp_gpu(
-    ctx: &Arc<GpuContext>,
-    precision: Precision,
-    img: &StatsImage,
-    params: lp::LpParams,
-    options: &Options,
-    progress: bool,
-) -> Result<(lp::LpResult, prepare::PrepareReport, Vec<KernelTiming>)> {
-    let planes = lp::LpPlanes::new(ctx, img.width, img.height)?;
-    let (report, timings) = gpu_chain(
-        ctx,
-        precision,
-        img,
         Method::Lp,
-        options,
-        progress,
-        |b, clean| lp::record_lp(b, precision, clean, &planes, params),
-    )?;
-    Ok((
-        lp::download(&planes, img.width, img.height)?,
-        report,
-        timings,
-    ))
+        Method::Apr,
+        Method::Aos,
+        Method::None,
+    ]
+    .iter()
+    .filter(|m| m.available())
+    .map(|m| m.name())
+    .collect::<Vec<_>>()
+    .join(", ")
 }

@@ -4,7 +4,7 @@
 use std::sync::Arc;
 
 use crate::accum::AccumLayout;
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::gpu::{Batch, BufferSlice, GpuContext, PlaneSet, Precision};
 use crate::image::{Layer, StatsImage};
 use crate::kernels::{finalize_covariance, finalize_stats};
@@ -110,23 +110,43 @@ pub fn record_finalize(
     accum: BufferSlice,
     out: &GpuStats,
 ) -> Result<()> {
+    if accum.size() < layout.bytes() {
+        return Err(Error::InvalidArgument(format!(
+            "the accumulation buffer range holds {} bytes; a {}x{} layout with {} planes needs {}",
+            accum.size(),
+            layout.width,
+            layout.height,
+            layout.plane_count(),
+            layout.bytes()
+        )));
+    }
+    if (out.width, out.height) != (layout.width, layout.height) {
+        return Err(Error::InvalidArgument(format!(
+            "statistics of {}x{} cannot hold a {}x{} accumulation",
+            out.width, out.height, layout.width, layout.height
+        )));
+    }
+    for l in finalized_layers(layout) {
+        if !out.has(l) {
+            return Err(Error::InvalidArgument(format!(
+                "the statistics planes lack the {} layer",
+                l.name()
+            )));
+        }
+    }
     let stride = layout.plane_stride();
     let plane_bytes = (layout.pixels() as u64 * 4).max(4);
-    let plane = |i: usize| BufferSlice {
-        buffer: accum.buffer,
-        offset: accum.offset + i as u64 * stride,
-        size: plane_bytes,
-    };
+    let plane = |i: usize| accum.sub(i as u64 * stride, plane_bytes);
     let (w, h) = (layout.width as u32, layout.height as u32);
-    let count = plane(layout.count_plane());
+    let count = plane(layout.count_plane())?;
     for (c, ch) in layout.channels().iter().enumerate() {
         finalize_stats::record(
             batch,
             precision,
             w,
             h,
-            plane(layout.sum_plane(c)),
-            plane(layout.sumsq_plane(c)),
+            plane(layout.sum_plane(c))?,
+            plane(layout.sumsq_plane(c))?,
             count,
             out.plane(ch.layer, ch.component),
             out.plane(ch.layer.variance().unwrap(), ch.component),
@@ -134,9 +154,12 @@ pub fn record_finalize(
     }
     if layout.position {
         let p0 = layout.channel_index(Layer::Position, 0).unwrap();
-        let sums = std::array::from_fn(|a| plane(layout.sum_plane(p0 + a)));
-        let sumsqs = std::array::from_fn(|a| plane(layout.sumsq_plane(p0 + a)));
-        let cross = std::array::from_fn(|k| plane(layout.cross_plane(k).unwrap()));
+        let three = |f: &dyn Fn(usize) -> usize| -> Result<[BufferSlice; 3]> {
+            Ok([plane(f(0))?, plane(f(1))?, plane(f(2))?])
+        };
+        let sums = three(&|a| layout.sum_plane(p0 + a))?;
+        let sumsqs = three(&|a| layout.sumsq_plane(p0 + a))?;
+        let cross = three(&|k| layout.cross_plane(k).unwrap())?;
         let cov = std::array::from_fn(|k| out.plane(Layer::PositionCovariance, k));
         finalize_covariance::record(batch, precision, w, h, sums, sumsqs, cross, count, cov)?;
     }

@@ -100,6 +100,11 @@ impl WlrPlanes {
     pub fn mse(&self) -> BufferSlice {
         self.set.plane(OUT0 + 3)
     }
+
+    /// `kflags`: the TSVD rank `k` in `value mod 16`, flags above (§2.5).
+    pub fn kflags(&self) -> BufferSlice {
+        self.set.plane(FIT0 + 4)
+    }
 }
 
 fn features(s: &GpuStats) -> ([BufferSlice; 7], [BufferSlice; 7]) {
@@ -209,13 +214,17 @@ impl WlrResult {
         }
     }
 
+    /// The TSVD rank `k` per pixel: the local dimension `d_i` of §9.1.
+    pub fn rank(&self) -> Vec<f32> {
+        let kflags = &self.planes.iter().find(|(k, _)| k == "kflags").unwrap().1;
+        kflags.iter().map(|v| (*v as u32 % 16) as f32).collect()
+    }
+
     /// The debug layers of issue #3: rank, b1..b3, h_opt, hbar, flags (§2.5).
     pub fn debug_layers(&self) -> Vec<(String, Vec<f32>)> {
         let get = |n: &str| self.planes.iter().find(|(k, _)| k == n).unwrap().1.clone();
-        let kflags = get("kflags");
-        let rank: Vec<f32> = kflags.iter().map(|v| (*v as u32 % 16) as f32).collect();
         vec![
-            ("rank".into(), rank),
+            ("rank".into(), self.rank()),
             ("b1".into(), get("b1")),
             ("b2".into(), get("b2")),
             ("b3".into(), get("b3")),
@@ -252,7 +261,7 @@ pub fn run_cpu_with_progress(
     let report = |stage: &str| {
         let t = started.elapsed().as_secs_f64();
         if progress && t > 1.0 {
-            eprintln!("mcdenoise: {stage} (cpu) done ({t:.1} s)");
+            log::info!("{stage} (cpu) done ({t:.1} s)");
         }
     };
     let (w, h) = (clean.width, clean.height);

@@ -1,0 +1,362 @@
+//! The public facade: [`Denoiser`]. See the crate documentation for the
+//! object model and the synchronisation contract.
+
+use std::sync::Arc;
+
+use ash::vk;
+
+use crate::accum::AccumLayout;
+use crate::error::{Error, Result};
+use crate::gpu::{Batch, BufferSlice, GpuContext, KernelTiming, Precision, Recorded};
+use crate::image::{Layer, RgbImage, StatsImage};
+use crate::methods::chain::{ChainConfig, ChainInput, GpuChain};
+use crate::methods::prepare::PrepareReport;
+use crate::methods::{self, Backend, DenoiseRequest, Method, Pass, Prefilter};
+use crate::options::Options;
+
+/// What a [`Denoiser`] is configured with. Everything that decides which
+/// kernels run and which buffers exist; fixed for the denoiser's life.
+#[derive(Clone, Debug)]
+pub struct Config {
+    /// The reconstruction method.
+    pub method: Method,
+    /// Final reconstruction or an adaptive pass's (spec §9.3 windows).
+    pub pass: Pass,
+    /// Kernel arithmetic (f64 needs `shaderFloat64`).
+    pub precision: Precision,
+    /// The G-buffer prefilter (§6).
+    pub prefilter: Prefilter,
+    /// Method options, `key=value` as `mcdenoise denoise --help` lists them.
+    pub options: Options,
+    /// Keep the method's debug maps for [`Denoiser::read`].
+    pub debug: bool,
+    /// Log progress (through `log`) for runs longer than about a second.
+    pub progress: bool,
+}
+
+impl Config {
+    /// `method` with defaults: final pass, f32, prefilter `auto`, no options.
+    pub fn new(method: Method) -> Config {
+        Config {
+            method,
+            pass: Pass::Final,
+            precision: Precision::F32,
+            prefilter: Prefilter::Auto,
+            options: Options::default(),
+            debug: false,
+            progress: false,
+        }
+    }
+
+    fn chain(&self, low_spp: bool) -> ChainConfig {
+        ChainConfig {
+            method: self.method,
+            pass: self.pass,
+            precision: self.precision,
+            prefilter: self.prefilter,
+            options: self.options.clone(),
+            low_spp,
+        }
+    }
+
+    fn request(&self, backend: Backend) -> DenoiseRequest {
+        let mut r = DenoiseRequest::new(self.method);
+        r.backend = backend;
+        r.pass = self.pass;
+        r.precision = self.precision;
+        r.prefilter = self.prefilter;
+        r.options = self.options.clone();
+        r.error = true;
+        r.debug = self.debug;
+        r.progress = self.progress;
+        r
+    }
+}
+
+/// What a [`Denoiser`] reads at each call.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Source {
+    /// A renderer's accumulation planes on the GPU (layout in
+    /// [`crate::accum`]): Σx and Σx² per scalar channel, the position cross
+    /// products, the sample count.
+    Accum(AccumLayout),
+    /// Per-pixel statistics in host memory or a file, with these layers
+    /// ([`Denoiser::denoise`] uploads them).
+    Stats {
+        /// Width in pixels.
+        width: usize,
+        /// Height in pixels.
+        height: usize,
+        /// The layers present.
+        layers: Vec<Layer>,
+    },
+}
+
+impl Source {
+    /// The source matching a statistics image.
+    pub fn of_image(img: &StatsImage) -> Source {
+        Source::Stats {
+            width: img.width,
+            height: img.height,
+            layers: img.layers().map(|(l, _)| l).collect(),
+        }
+    }
+
+    fn chain(&self) -> ChainInput {
+        match self {
+            Source::Accum(l) => ChainInput::Accum(*l),
+            Source::Stats {
+                width,
+                height,
+                layers,
+            } => ChainInput::Stats {
+                width: *width,
+                height: *height,
+                layers: layers.clone(),
+            },
+        }
+    }
+}
+
+/// The GPU-resident outputs of a [`Denoiser`]: planes of `width × height`
+/// values in row-major order, owned by the denoiser and valid while it
+/// lives; overwritten by every call. A host binds them in its own shaders
+/// (the renderer's next pass reads `samples`).
+#[derive(Copy, Clone, Debug)]
+pub struct Outputs {
+    /// Reconstructed colour R, G, B (f32).
+    pub color: [BufferSlice; 3],
+    /// Estimated MSE `E_i` per channel (f32; §9.1).
+    pub error: [BufferSlice; 3],
+    /// Next pass's samples per pixel (u32), when a budget was given.
+    pub samples: Option<BufferSlice>,
+}
+
+/// The host copy of a call's results.
+#[derive(Clone, Debug)]
+pub struct Frame {
+    /// The reconstruction, clamped to ≥ 0 (spec §0.4 step 5).
+    pub color: RgbImage,
+    /// Estimated MSE `E_i` per pixel and channel (§9.1): WLR's shared
+    /// estimate in all three channels; for `none` the variance of the mean.
+    pub error: RgbImage,
+    /// The local dimension `d_i` per pixel (§9.1): the TSVD rank for WLR,
+    /// the covering centres' mean rank for LP, 0 for `none`.
+    pub dim: Vec<f32>,
+    /// Samples per pixel for the next pass (§9.2), when a budget was given;
+    /// they sum to exactly the budget.
+    pub samples: Option<Vec<u32>>,
+    /// The method's debug maps (when [`Config::debug`]).
+    pub debug: Vec<(String, Vec<f32>)>,
+    /// What sanitation repaired (§0.4).
+    pub report: PrepareReport,
+    /// GPU time per dispatch (empty on the CPU).
+    pub timings: Vec<KernelTiming>,
+    /// Named scalar statistics (LP: `centre_fraction`).
+    pub stats: Vec<(String, f64)>,
+}
+
+enum Engine {
+    Gpu(GpuChain),
+    Cpu(Source),
+}
+
+/// One configuration of the denoiser for one image size and input layout:
+/// owns its pipelines' use, its scratch and output buffers (allocated once,
+/// reused call after call, freed on drop — after any recorded work that
+/// binds them, see [`Recorded`]).
+///
+/// Three ways to call it:
+/// - [`record_into`](Self::record_into) (`unsafe`): records the whole chain
+///   into the host's command buffer, reading the host's accumulation buffer;
+///   outputs stay on the GPU ([`outputs`](Self::outputs)). Submits nothing.
+/// - [`run`](Self::run): the same on mcdenoise's own command buffer, submitted
+///   and waited for.
+/// - [`denoise`](Self::denoise): statistics in host memory in, a [`Frame`]
+///   out (uploads, runs, downloads; also the CPU reference backend).
+pub struct Denoiser {
+    engine: Engine,
+    config: Config,
+}
+
+impl std::fmt::Debug for Denoiser {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Denoiser")
+            .field("config", &self.config)
+            .field(
+                "backend",
+                &match self.engine {
+                    Engine::Gpu(_) => "gpu",
+                    Engine::Cpu(_) => "cpu",
+                },
+            )
+            .finish()
+    }
+}
+
+impl Denoiser {
+    /// A denoiser on a GPU context (mcdenoise's own device, or a host's
+    /// through the `unsafe` [`GpuContext::from_raw`]). Allocates every buffer
+    /// and checks the configuration against the source's layers.
+    pub fn new(ctx: &Arc<GpuContext>, source: Source, config: Config) -> Result<Denoiser> {
+        let low_spp = true;
+        Ok(Denoiser {
+            engine: Engine::Gpu(GpuChain::new(ctx, source.chain(), config.chain(low_spp))?),
+            config,
+        })
+    }
+
+    /// A denoiser running the scalar f64 references on the CPU (slow; for
+    /// checking). Only [`denoise`](Self::denoise) works on it.
+    pub fn new_cpu(source: Source, config: Config) -> Result<Denoiser> {
+        if !config.method.available() {
+            return Err(Error::InvalidArgument(format!(
+                "method {} is not in this build yet; available: {}",
+                config.method.name(),
+                methods::available_names()
+            )));
+        }
+        if let Source::Stats { layers, .. } = &source {
+            methods::chain::check_layers(config.method, layers)?;
+        }
+        Ok(Denoiser {
+            engine: Engine::Cpu(source),
+            config,
+        })
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &Config {
+        &self.config
+    }
+
+    /// Whether the G-buffer prefilter runs (GPU; the CPU decides per image).
+    pub fn prefiltered(&self) -> bool {
+        match &self.engine {
+            Engine::Gpu(c) => c.prefiltered(),
+            Engine::Cpu(_) => false,
+        }
+    }
+
+    fn chain(&self) -> Result<&GpuChain> {
+        match &self.engine {
+            Engine::Gpu(c) => Ok(c),
+            Engine::Cpu(_) => Err(Error::InvalidArgument(
+                "a CPU denoiser has no GPU buffers: use denoise()".into(),
+            )),
+        }
+    }
+
+    /// The GPU-resident outputs. An error on a CPU denoiser.
+    pub fn outputs(&self) -> Result<Outputs> {
+        let c = self.chain()?;
+        Ok(Outputs {
+            color: c.color(),
+            error: c.error(),
+            samples: None,
+        })
+    }
+
+    /// Records the whole chain into the host's command buffer `cmd`:
+    /// finalisation of `accum` (for [`Source::Accum`]; `None` for
+    /// [`Source::Stats`], whose statistics must already be uploaded),
+    /// sanitation, prefilter, method, error, and the sample map when
+    /// `budget` is given. Nothing is submitted.
+    ///
+    /// The recorded work begins with a barrier after all earlier commands of
+    /// `cmd` and ends with one before all later commands (see
+    /// [`Batch::record_into`]), so the host needs no barrier of its own
+    /// between its writes of `accum` and this work, or between this work and
+    /// its reads of [`outputs`](Self::outputs).
+    ///
+    /// # Safety
+    /// - `cmd` belongs to the denoiser's device, comes from a pool of a
+    ///   compute-capable queue family, is recording, and is outside a render
+    ///   pass;
+    /// - `accum` (made with [`BufferSlice::from_raw`]) satisfies that
+    ///   function's contract and is not written by other work while this work
+    ///   runs;
+    /// - the returned [`Recorded`] is dropped only after the submission of
+    ///   `cmd` has completed (or `cmd` is never submitted); until then no
+    ///   other call on this denoiser's buffers runs concurrently on the GPU
+    ///   (two recordings of one denoiser in one command buffer run in order).
+    pub unsafe fn record_into(
+        &self,
+        cmd: vk::CommandBuffer,
+        accum: Option<BufferSlice>,
+    ) -> Result<Recorded> {
+        let chain = self.chain()?;
+        // SAFETY: forwarded to the caller (see above).
+        let mut batch = unsafe { Batch::record_into(chain.context(), cmd) };
+        batch.progress = false;
+        chain.record(&mut batch, accum)?;
+        Ok(batch.finish_recording())
+    }
+
+    /// Records the chain on mcdenoise's own command buffer, submits it to the
+    /// context's queue (split into submits of about a second on slow
+    /// devices) and waits. Returns the GPU time per dispatch.
+    ///
+    /// `accum` as for [`record_into`](Self::record_into). A host buffer passed
+    /// here must not be in use by the host's queue meanwhile.
+    pub fn run(&self, accum: Option<BufferSlice>) -> Result<Vec<KernelTiming>> {
+        let chain = self.chain()?;
+        let mut batch = Batch::new(chain.context())?;
+        batch.progress = self.config.progress;
+        chain.record(&mut batch, accum)?;
+        batch.finish()
+    }
+
+    /// Downloads the outputs of the last completed call.
+    pub fn read(&self) -> Result<Frame> {
+        let chain = self.chain()?;
+        let out = chain.download(self.config.debug)?;
+        Ok(Frame {
+            color: out.color,
+            error: out.error,
+            dim: out.dim,
+            samples: None,
+            debug: out.debug,
+            report: chain.report()?,
+            timings: Vec::new(),
+            stats: out.stats,
+        })
+    }
+
+    /// The sanitised (§0.4) and, when the prefilter runs, prefiltered (§6)
+    /// statistics of the last completed GPU call: what `mcdenoise prefilter`
+    /// writes for other denoisers.
+    pub fn statistics(&self) -> Result<StatsImage> {
+        self.chain()?.clean().download()
+    }
+
+    /// Denoises statistics in host memory (a file's, see [`crate::io`]): on
+    /// the GPU (upload, [`run`](Self::run), [`read`](Self::read)) or with the
+    /// CPU references. `img` must match the denoiser's [`Source::Stats`].
+    pub fn denoise(&self, img: &StatsImage) -> Result<Frame> {
+        let req = |b| self.config.request(b);
+        let out = match &self.engine {
+            Engine::Gpu(chain) => methods::denoise_with_chain(chain, img, &req(Backend::Gpu))?,
+            Engine::Cpu(source) => {
+                if source != &Source::of_image(img) {
+                    return Err(Error::InvalidArgument(format!(
+                        "this denoiser was made for {source:?}; the image is {}x{} with other layers",
+                        img.width, img.height
+                    )));
+                }
+                methods::denoise(None, img, &req(Backend::Cpu))?
+            }
+        };
+        let (w, h) = (img.width, img.height);
+        Ok(Frame {
+            color: out.color,
+            error: out.error.unwrap_or_else(|| RgbImage::new(w, h)),
+            dim: out.dim,
+            samples: None,
+            debug: out.debug,
+            report: out.report,
+            timings: out.timings,
+            stats: out.stats,
+        })
+    }
+}

@@ -1,0 +1,406 @@
+//! The whole GPU chain of one configuration, with its buffers: statistics
+//! finalisation (from a renderer's accumulation planes) or uploaded
+//! statistics → sanitation (§0.4) → optional G-buffer prefilter (§6) → the
+//! method (§2, §3, or none) → per-pixel error and local dimension → optional
+//! sample map (§9). Allocated once per image size and configuration, recorded
+//! call after call; nothing goes through the CPU between the stages.
+//!
+//! The public facade ([`crate::Denoiser`]) wraps this; [`super::denoise`]
+//! uses it for the GPU backend, so there is one GPU chain.
+
+use std::sync::Arc;
+
+use crate::accum::AccumLayout;
+use crate::error::{Error, Result};
+use crate::gpu::{Batch, BufferSlice, GpuContext, PlaneSet, Precision};
+use crate::image::{Layer, RgbImage};
+use crate::options::Options;
+
+use super::gbf::{self, GbfPlanes};
+use super::lp::{self, LpPlanes};
+use super::prepare::{self, PrepareReport, PrepareScratch};
+use super::stats::{self, GpuStats};
+use super::wlr::{self, WlrPlanes};
+use super::{Method, Pass, Prefilter};
+
+/// What the chain reads.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum ChainInput {
+    /// A renderer's accumulation planes ([`crate::accum`]), finalised on the
+    /// GPU at every call.
+    Accum(AccumLayout),
+    /// Per-pixel statistics with these layers (as a render-statistics file
+    /// holds them), uploaded into [`GpuChain::input`] before a call.
+    Stats {
+        /// Image width in pixels.
+        width: usize,
+        /// Image height in pixels.
+        height: usize,
+        /// The layers present.
+        layers: Vec<Layer>,
+    },
+}
+
+impl ChainInput {
+    /// `(width, height)`.
+    pub fn size(&self) -> (usize, usize) {
+        match self {
+            ChainInput::Accum(l) => (l.width, l.height),
+            ChainInput::Stats { width, height, .. } => (*width, *height),
+        }
+    }
+
+    /// The statistics layers the chain's input holds.
+    pub fn layers(&self) -> Vec<Layer> {
+        match self {
+            ChainInput::Accum(l) => stats::finalized_layers(l),
+            ChainInput::Stats { layers, .. } => layers.clone(),
+        }
+    }
+}
+
+/// The configuration of a chain (see [`crate::Config`], which mirrors it).
+#[derive(Clone, Debug)]
+pub struct ChainConfig {
+    /// The reconstruction.
+    pub method: Method,
+    /// Final or intermediate windows (§9.3).
+    pub pass: Pass,
+    /// Kernel arithmetic.
+    pub precision: Precision,
+    /// The G-buffer prefilter (§6).
+    pub prefilter: Prefilter,
+    /// Method options (`--opt`).
+    pub options: Options,
+    /// Whether some pixel may have `1 ≤ spp < 2` (runs §0.4 step 3). Always
+    /// true for accumulation input; for uploaded statistics the caller knows.
+    pub low_spp: bool,
+}
+
+enum MethodPlanes {
+    None {
+        /// A zero plane: the local dimension of the unfiltered mean.
+        zero: PlaneSet,
+    },
+    Wlr(WlrPlanes, wlr::WlrParams),
+    Lp(LpPlanes, lp::LpParams),
+}
+
+/// The GPU chain of one configuration. See the module documentation.
+pub struct GpuChain {
+    ctx: Arc<GpuContext>,
+    input_kind: ChainInput,
+    config: ChainConfig,
+    input: GpuStats,
+    clean: GpuStats,
+    scratch: PrepareScratch,
+    gbf: Option<GbfPlanes>,
+    planes: MethodPlanes,
+}
+
+impl std::fmt::Debug for GpuChain {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("GpuChain")
+            .field("input", &self.input_kind)
+            .field("method", &self.config.method)
+            .field("prefilter", &self.gbf.is_some())
+            .finish()
+    }
+}
+
+/// The layers WLR and LP read.
+pub const REGRESSION_LAYERS: [Layer; 5] = [
+    Layer::Color,
+    Layer::Albedo,
+    Layer::Normal,
+    Layer::Depth,
+    Layer::Spp,
+];
+
+/// Checks that `layers` hold what `method` reads.
+pub fn check_layers(method: Method, layers: &[Layer]) -> Result<()> {
+    let needs: &[Layer] = match method {
+        Method::None => &[Layer::Color, Layer::Spp],
+        _ => &REGRESSION_LAYERS,
+    };
+    for l in needs {
+        if !layers.contains(l) {
+            return Err(Error::BadData(format!(
+                "{} needs the {} layer",
+                method.name().to_uppercase(),
+                l.name()
+            )));
+        }
+    }
+    Ok(())
+}
+
+impl GpuChain {
+    /// Allocates every buffer of the chain and checks the configuration.
+    pub fn new(ctx: &Arc<GpuContext>, input: ChainInput, config: ChainConfig) -> Result<GpuChain> {
+        if !config.method.available() {
+            return Err(Error::InvalidArgument(format!(
+                "method {} is not in this build yet; available: {}",
+                config.method.name(),
+                super::available_names()
+            )));
+        }
+        if config.precision == Precision::F64 && !ctx.supports_f64() {
+            return Err(Error::InvalidArgument(
+                "f64 kernels need shaderFloat64, which this device does not enable".into(),
+            ));
+        }
+        let (w, h) = input.size();
+        if w == 0 || h == 0 {
+            return Err(Error::InvalidArgument(format!("empty image ({w}x{h})")));
+        }
+        let layers = input.layers();
+        check_layers(config.method, &layers)?;
+        let input_stats = GpuStats::new(ctx, "chain.input", w, h, &layers)?;
+        let clean = GpuStats::new(ctx, "chain.clean", w, h, &prepare::output_layers(&layers))?;
+        let scratch = PrepareScratch::new(ctx, &input_stats)?;
+        // `none` prefilters only when asked explicitly (`mcdenoise prefilter`).
+        let prefilter = match (config.method, config.prefilter) {
+            (Method::None, Prefilter::Auto) => Prefilter::Off,
+            (_, p) => p,
+        };
+        let gbf = if gbf::wanted(prefilter, |l| layers.contains(&l))? {
+            Some(GbfPlanes::new(ctx, w, h)?)
+        } else {
+            None
+        };
+        let planes = match config.method {
+            Method::Wlr => MethodPlanes::Wlr(
+                WlrPlanes::new(ctx, w, h)?,
+                wlr::WlrParams::new(config.pass, &config.options)?,
+            ),
+            Method::Lp => MethodPlanes::Lp(
+                LpPlanes::new(ctx, w, h)?,
+                lp::LpParams::new(&config.options)?,
+            ),
+            _ => MethodPlanes::None {
+                zero: PlaneSet::new(ctx, "none.dim", w * h, 1)?,
+            },
+        };
+        Ok(GpuChain {
+            ctx: ctx.clone(),
+            input_kind: input,
+            config,
+            input: input_stats,
+            clean,
+            scratch,
+            gbf,
+            planes,
+        })
+    }
+
+    /// The context the chain's buffers live on.
+    pub fn context(&self) -> &Arc<GpuContext> {
+        &self.ctx
+    }
+
+    /// `(width, height)`.
+    pub fn size(&self) -> (usize, usize) {
+        self.input_kind.size()
+    }
+
+    /// What the chain reads.
+    pub fn input_kind(&self) -> &ChainInput {
+        &self.input_kind
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &ChainConfig {
+        &self.config
+    }
+
+    /// Whether the G-buffer prefilter runs.
+    pub fn prefiltered(&self) -> bool {
+        self.gbf.is_some()
+    }
+
+    /// The statistics the chain starts from (for [`ChainInput::Stats`], upload
+    /// into these before recording).
+    pub fn input(&self) -> &GpuStats {
+        &self.input
+    }
+
+    /// The sanitised (and prefiltered) statistics after a run.
+    pub fn clean(&self) -> &GpuStats {
+        &self.clean
+    }
+
+    /// Records the chain. `accum` is the renderer's accumulation range for
+    /// [`ChainInput::Accum`] (checked against the layout) and must be `None`
+    /// for [`ChainInput::Stats`].
+    pub fn record(&self, batch: &mut Batch, accum: Option<BufferSlice>) -> Result<()> {
+        let p = self.config.precision;
+        match (&self.input_kind, accum) {
+            (ChainInput::Accum(layout), Some(a)) => {
+                stats::record_finalize(batch, p, layout, a, &self.input)?
+            }
+            (ChainInput::Stats { .. }, None) => {}
+            (ChainInput::Accum(_), None) => {
+                return Err(Error::InvalidArgument(
+                    "this chain reads accumulation planes: pass the buffer".into(),
+                ))
+            }
+            (ChainInput::Stats { .. }, Some(_)) => {
+                return Err(Error::InvalidArgument(
+                    "this chain reads uploaded statistics, not accumulation planes".into(),
+                ))
+            }
+        }
+        prepare::record_prepare(
+            batch,
+            p,
+            &self.input,
+            &self.clean,
+            &self.scratch,
+            self.config.low_spp,
+        )?;
+        if let Some(g) = &self.gbf {
+            gbf::record_gbf(batch, p, &self.clean, g)?;
+        }
+        match &self.planes {
+            MethodPlanes::None { zero } => {
+                batch.fill(zero.plane(0), 0);
+                Ok(())
+            }
+            MethodPlanes::Wlr(planes, params) => {
+                wlr::record_wlr(batch, p, &self.clean, planes, *params)
+            }
+            MethodPlanes::Lp(planes, params) => {
+                lp::record_lp(batch, p, &self.clean, planes, *params)
+            }
+        }
+    }
+
+    /// The reconstruction's colour planes R, G, B (method `none`: the
+    /// sanitised input, not yet clamped).
+    pub fn color(&self) -> [BufferSlice; 3] {
+        match &self.planes {
+            MethodPlanes::None { .. } => std::array::from_fn(|c| self.clean.plane(Layer::Color, c)),
+            MethodPlanes::Wlr(p, _) => p.color(),
+            MethodPlanes::Lp(p, _) => p.color(),
+        }
+    }
+
+    /// The per-pixel error estimate `E_i` per channel (§9.1): WLR's shared
+    /// MSE three times, LP's per-channel estimate, and for `none` the
+    /// variance of the mean (the MSE of the unfiltered input).
+    pub fn error(&self) -> [BufferSlice; 3] {
+        match &self.planes {
+            MethodPlanes::None { .. } => {
+                std::array::from_fn(|c| self.clean.plane(Layer::ColorVariance, c))
+            }
+            MethodPlanes::Wlr(p, _) => [p.mse(); 3],
+            MethodPlanes::Lp(p, _) => p.error(),
+        }
+    }
+
+    /// The plane the local dimension `d_i` (§9.1) is read from and how:
+    /// `(plane, true)` when it is WLR's `kflags` (rank in `value mod 16`).
+    pub fn dim_source(&self) -> (BufferSlice, bool) {
+        match &self.planes {
+            MethodPlanes::None { zero } => (zero.plane(0), false),
+            MethodPlanes::Wlr(p, _) => (p.kflags(), true),
+            MethodPlanes::Lp(p, _) => (p.dim(), false),
+        }
+    }
+
+    /// Sanitation counters of the last completed run (§0.4).
+    pub fn report(&self) -> Result<PrepareReport> {
+        let counters = self.scratch.read_counters()?;
+        Ok(PrepareReport {
+            counters,
+            estimated: Layer::WITH_VARIANCE
+                .into_iter()
+                .filter(|l| {
+                    let layers = self.input_kind.layers();
+                    layers.contains(l) && !layers.contains(&l.variance().unwrap())
+                })
+                .collect(),
+            invalid_pixels: 0,
+            timings: Vec::new(),
+        })
+    }
+
+    /// Downloads the outputs of a completed run.
+    pub fn download(&self, debug: bool) -> Result<ChainOutput> {
+        let (w, h) = self.size();
+        let rgb = |p: [BufferSlice; 3]| -> Result<RgbImage> {
+            Ok(RgbImage::from_planes(
+                w,
+                h,
+                [
+                    read(&self.ctx, p[0], w * h)?,
+                    read(&self.ctx, p[1], w * h)?,
+                    read(&self.ctx, p[2], w * h)?,
+                ],
+            ))
+        };
+        let (dim_plane, kflags) = self.dim_source();
+        let mut dim = read(&self.ctx, dim_plane, w * h)?;
+        if kflags {
+            for v in &mut dim {
+                *v = (*v as u32 % 16) as f32;
+            }
+        }
+        let mut out = ChainOutput {
+            color: rgb(self.color())?,
+            error: rgb(self.error())?,
+            dim,
+            debug: Vec::new(),
+            stats: Vec::new(),
+        };
+        match &self.planes {
+            MethodPlanes::None { .. } => {
+                let clean = self.clean.download()?;
+                out.color = prepare::colour_of(&clean);
+                if debug {
+                    for (c, name) in ["R", "G", "B"].iter().enumerate() {
+                        out.debug.push((
+                            format!("color_variance.{name}"),
+                            out.error.planes[c].clone(),
+                        ));
+                    }
+                }
+            }
+            MethodPlanes::Wlr(p, _) => {
+                if debug {
+                    out.debug = wlr::download(p, w, h)?.debug_layers();
+                }
+            }
+            MethodPlanes::Lp(p, _) => {
+                let r = lp::download(p, w, h)?;
+                out.stats
+                    .push(("centre_fraction".into(), r.centre_fraction()));
+                if debug {
+                    out.debug = r.debug_layers();
+                }
+            }
+        }
+        Ok(out)
+    }
+}
+
+/// Reads `count` f32 values of a slice owned by mcdenoise.
+fn read(ctx: &Arc<GpuContext>, s: BufferSlice, count: usize) -> Result<Vec<f32>> {
+    crate::gpu::buffer::read_slice(ctx, s, count)
+}
+
+/// The host copy of a chain's outputs.
+#[derive(Clone, Debug)]
+pub struct ChainOutput {
+    /// The reconstruction, clamped to ≥ 0 (spec §0.4 step 5).
+    pub color: RgbImage,
+    /// `E_i` per channel (§9.1).
+    pub error: RgbImage,
+    /// `d_i` (§9.1).
+    pub dim: Vec<f32>,
+    /// Named debug planes (when asked).
+    pub debug: Vec<(String, Vec<f32>)>,
+    /// Named scalar statistics (LP: `centre_fraction`).
+    pub stats: Vec<(String, f64)>,
+}
