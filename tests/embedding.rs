@@ -9,10 +9,41 @@ use common::*;
 use std::sync::Arc;
 
 use ash::vk;
-use mcdenoise::accum::{AccumLayout, Accumulator};
-use mcdenoise::gpu::{Batch, BufferSlice, GpuContext, ImportedDevice, Precision};
-use mcdenoise::image::Layer;
+use mcdenoise::gpu::Batch;
 use mcdenoise::methods::stats::{finalize_cpu, finalized_layers, record_finalize, GpuStats};
+use mcdenoise::{
+    AccumLayout, Accumulator, BufferSlice, Config, Denoiser, Frame, GpuContext, ImportedDevice,
+    Layer, Method, Precision, Source,
+};
+
+/// Messages of the validation layer on the host's own instance (the host
+/// owns the messenger; mcdenoise's imported context does not see them).
+static HOST_VALIDATION: std::sync::Mutex<Vec<String>> = std::sync::Mutex::new(Vec::new());
+
+unsafe extern "system" fn host_callback(
+    severity: vk::DebugUtilsMessageSeverityFlagsEXT,
+    _types: vk::DebugUtilsMessageTypeFlagsEXT,
+    data: *const vk::DebugUtilsMessengerCallbackDataEXT<'_>,
+    _user: *mut std::ffi::c_void,
+) -> vk::Bool32 {
+    if severity.intersects(
+        vk::DebugUtilsMessageSeverityFlagsEXT::ERROR | vk::DebugUtilsMessageSeverityFlagsEXT::WARNING,
+    ) {
+        let msg = unsafe { data.as_ref() }
+            .and_then(|d| unsafe { d.message_as_c_str() })
+            .map(|m| m.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        eprintln!("[host validation] {msg}");
+        HOST_VALIDATION.lock().unwrap().push(msg);
+    }
+    vk::FALSE
+}
+
+/// Fails if the host's validation layer reported anything.
+fn check_host_validation() {
+    let m = HOST_VALIDATION.lock().unwrap();
+    assert!(m.is_empty(), "host validation messages: {m:#?}");
+}
 
 struct Host {
     entry: ash::Entry,
@@ -22,18 +53,56 @@ struct Host {
     queue: vk::Queue,
     family: u32,
     f64: bool,
+    messenger: Option<(ash::ext::debug_utils::Instance, vk::DebugUtilsMessengerEXT)>,
 }
 
+/// A host renderer's instance and device, with the validation layer when it
+/// is installed (as every test context has).
 fn host() -> Host {
     unsafe {
         let entry = ash::Entry::load().unwrap();
         let app = vk::ApplicationInfo::default().api_version(vk::API_VERSION_1_1);
+        let layer = c"VK_LAYER_KHRONOS_validation";
+        let validation = entry
+            .enumerate_instance_layer_properties()
+            .unwrap()
+            .iter()
+            .any(|l| l.layer_name_as_c_str() == Ok(layer));
+        let layers = if validation { vec![layer.as_ptr()] } else { vec![] };
+        let exts = if validation {
+            vec![ash::ext::debug_utils::NAME.as_ptr()]
+        } else {
+            vec![]
+        };
         let instance = entry
             .create_instance(
-                &vk::InstanceCreateInfo::default().application_info(&app),
+                &vk::InstanceCreateInfo::default()
+                    .application_info(&app)
+                    .enabled_layer_names(&layers)
+                    .enabled_extension_names(&exts),
                 None,
             )
             .unwrap();
+        let messenger = validation.then(|| {
+            let du = ash::ext::debug_utils::Instance::new(&entry, &instance);
+            let m = du
+                .create_debug_utils_messenger(
+                    &vk::DebugUtilsMessengerCreateInfoEXT::default()
+                        .message_severity(
+                            vk::DebugUtilsMessageSeverityFlagsEXT::ERROR
+                                | vk::DebugUtilsMessageSeverityFlagsEXT::WARNING,
+                        )
+                        .message_type(
+                            vk::DebugUtilsMessageTypeFlagsEXT::GENERAL
+                                | vk::DebugUtilsMessageTypeFlagsEXT::VALIDATION,
+                        )
+                        .pfn_user_callback(Some(host_callback)),
+                    None,
+                )
+                .unwrap();
+            (du, m)
+        });
+        eprintln!("host validation layer: {}", if validation { "on" } else { "not installed" });
         let physical = instance.enumerate_physical_devices().unwrap()[0];
         let family = instance
             .get_physical_device_queue_family_properties(physical)
@@ -67,6 +136,7 @@ fn host() -> Host {
             queue,
             family,
             f64,
+            messenger,
         }
     }
 }
@@ -128,6 +198,59 @@ fn import(h: &Host) -> Arc<GpuContext> {
         }
         .unwrap(),
     )
+}
+
+/// The host's own command pool and buffer: `record` records mcdenoise's
+/// work into it (returning what must live until completion); the host
+/// submits and waits. Returns the per-dispatch timings.
+fn host_submit_recorded(
+    h: &Host,
+    record: impl FnOnce(vk::CommandBuffer) -> Vec<mcdenoise::Recorded>,
+) -> Vec<mcdenoise::KernelTiming> {
+    unsafe {
+        let pool = h
+            .device
+            .create_command_pool(
+                &vk::CommandPoolCreateInfo::default().queue_family_index(h.family),
+                None,
+            )
+            .unwrap();
+        let cmd = h
+            .device
+            .allocate_command_buffers(
+                &vk::CommandBufferAllocateInfo::default()
+                    .command_pool(pool)
+                    .level(vk::CommandBufferLevel::PRIMARY)
+                    .command_buffer_count(1),
+            )
+            .unwrap()[0];
+        h.device
+            .begin_command_buffer(cmd, &vk::CommandBufferBeginInfo::default())
+            .unwrap();
+        let recorded = record(cmd);
+        h.device.end_command_buffer(cmd).unwrap();
+        let fence = h
+            .device
+            .create_fence(&vk::FenceCreateInfo::default(), None)
+            .unwrap();
+        let cmds = [cmd];
+        h.device
+            .queue_submit(
+                h.queue,
+                &[vk::SubmitInfo::default().command_buffers(&cmds)],
+                fence,
+            )
+            .unwrap();
+        h.device.wait_for_fences(&[fence], true, u64::MAX).unwrap();
+        h.device.destroy_fence(fence, None);
+        let timings = recorded
+            .iter()
+            .flat_map(|r| r.timings().unwrap())
+            .collect();
+        drop(recorded);
+        h.device.destroy_command_pool(pool, None);
+        timings
+    }
 }
 
 /// The host's own command pool and buffer: `record` fills it through
@@ -210,8 +333,12 @@ fn host_teardown(h: Host, buf: vk::Buffer, mem: vk::DeviceMemory) {
         h.device.destroy_buffer(buf, None);
         h.device.free_memory(mem, None);
         h.device.destroy_device(None);
+        if let Some((du, m)) = &h.messenger {
+            du.destroy_debug_utils_messenger(*m, None);
+        }
         h.instance.destroy_instance(None);
     }
+    check_host_validation();
 }
 
 #[test]
@@ -260,19 +387,13 @@ fn host_device_and_command_buffer() {
     host_teardown(h, accum_buf, accum_mem);
 }
 
-/// The whole library path of a renderer: its accumulation buffer → finalize →
-/// sanitation → WLR or LP, recorded into the host's command buffer and
-/// submitted by the host; colour and error stay on the GPU until the test
-/// reads them. The result equals the CPU chain (twins) within the spec's
-/// tolerances.
-fn host_records_a_method_chain(method: mcdenoise::methods::Method) {
-    use mcdenoise::methods::{lp, prepare, wlr, Method};
-    let h = host();
-    let (w, hgt) = (24usize, 20usize);
+/// A renderer's accumulation of a 24×20 image with an edge at x = 12:
+/// colour, albedo, normal, depth, 8 samples per pixel.
+fn edge_scene(w: usize, hgt: usize, seed: u64) -> (AccumLayout, Vec<Vec<f32>>) {
     let layout = AccumLayout::new(w, hgt, false, false);
     let mut acc = Accumulator::new(layout);
     let nch = layout.channels().len();
-    let mut rng = Rng(9);
+    let mut rng = Rng(seed);
     for p in 0..w * hgt {
         let (x, y) = ((p % w) as f64, (p / w) as f64);
         for _ in 0..8 {
@@ -289,101 +410,138 @@ fn host_records_a_method_chain(method: mcdenoise::methods::Method) {
             acc.add(p, &v);
         }
     }
-    let planes = acc.planes();
+    (layout, acc.planes())
+}
+
+/// The CPU twin chain on the same statistics.
+fn cpu_frame(layout: &AccumLayout, planes: &[Vec<f32>], config: &Config) -> Frame {
+    let finalized = finalize_cpu(layout, planes);
+    Denoiser::new_cpu(Source::of_image(&finalized), config.clone())
+        .unwrap()
+        .denoise(&finalized)
+        .unwrap()
+}
+
+/// The whole library path of a renderer through the facade: its
+/// accumulation buffer → finalize → sanitation → WLR or LP, recorded into
+/// the host's command buffer and submitted by the host; mcdenoise submits
+/// nothing. The result equals the CPU chain (twins) within the spec's
+/// tolerances, and the reconstruction is smoother than the input.
+fn host_records_a_method_chain(method: Method) {
+    let h = host();
+    let (w, hgt) = (24usize, 20usize);
+    let (layout, planes) = edge_scene(w, hgt, 9);
     let (accum_buf, accum_mem) = host_accum(&h, &layout, &planes);
     let ctx = import(&h);
-    let stats = GpuStats::new(&ctx, "stats", w, hgt, &finalized_layers(&layout)).unwrap();
-    let layers: Vec<Layer> = finalized_layers(&layout);
-    let clean = GpuStats::new(&ctx, "clean", w, hgt, &prepare::output_layers(&layers)).unwrap();
-    let scratch = prepare::PrepareScratch::new(&ctx, &stats).unwrap();
-    let planes_wlr = wlr::WlrPlanes::new(&ctx, w, hgt).unwrap();
-    let planes_lp = lp::LpPlanes::new(&ctx, w, hgt).unwrap();
-    let params = wlr::WlrParams::new(mcdenoise::methods::Pass::Final, &Default::default()).unwrap();
-    let params_lp = lp::LpParams::new(&Default::default()).unwrap();
-
+    let config = Config::new(method);
+    let denoiser = Denoiser::new(&ctx, Source::Accum(layout), config.clone()).unwrap();
     // SAFETY: the host's live storage buffer of layout.bytes() bytes,
     // destroyed after the work completes (host_teardown).
     let accum = unsafe { BufferSlice::from_raw(accum_buf, 0, layout.bytes()) };
-    let timings = host_submit(&h, &ctx, |batch| {
-        record_finalize(batch, Precision::F32, &layout, accum, &stats).unwrap();
-        prepare::record_prepare(batch, Precision::F32, &stats, &clean, &scratch, true).unwrap();
-        match method {
-            Method::Wlr => {
-                wlr::record_wlr(batch, Precision::F32, &clean, &planes_wlr, params).unwrap()
-            }
-            Method::Lp => {
-                lp::record_lp(batch, Precision::F32, &clean, &planes_lp, params_lp).unwrap()
-            }
-            _ => unreachable!(),
-        }
+    let submits = ctx.submit_count();
+    let timings = host_submit_recorded(&h, |cmd| unsafe {
+        vec![denoiser.record_into(cmd, Some(accum)).unwrap()]
     });
+    assert_eq!(ctx.submit_count(), submits, "recording must not submit");
     let kernels: &[&str] = match method {
-        Method::Wlr => &[
-            "finalize_stats",
-            "sanitize",
-            "wlr_fit",
-            "gauss_smooth",
-            "wlr_final",
-        ],
-        _ => &[
-            "finalize_stats",
-            "sanitize",
-            "lp_reach",
-            "lp_centres",
-            "lp_gather",
-        ],
+        Method::Wlr => &["finalize_stats", "sanitize", "wlr_fit", "gauss_smooth", "wlr_final"],
+        _ => &["finalize_stats", "sanitize", "lp_reach", "lp_centres", "lp_gather"],
     };
     for k in kernels {
         assert!(timings.iter().any(|t| t.kernel == *k), "no timing for {k}");
     }
-    let finalized = finalize_cpu(&layout, &planes);
-    let (clean_cpu, _) = prepare::prepare_cpu(&finalized);
-    let (gpu_colour, cpu_colour) = match method {
-        Method::Wlr => {
-            let gpu = wlr::download(&planes_wlr, w, hgt).unwrap();
-            let cpu = wlr::run_cpu(&clean_cpu, params).unwrap();
-            assert_close("mse", &gpu.mse, &cpu.mse, 0.99);
-            (gpu.color, cpu.color)
-        }
-        _ => {
-            let gpu = lp::download(&planes_lp, w, hgt).unwrap();
-            let cpu = lp::run_cpu(&clean_cpu, params_lp, false).unwrap();
-            for c in 0..3 {
-                assert_close("error", &gpu.error.planes[c], &cpu.error.planes[c], 0.99);
-            }
-            assert_eq!(gpu.centre_pass, cpu.centre_pass);
-            (gpu.color, cpu.color)
-        }
-    };
+    let gpu = denoiser.read().unwrap();
+    let cpu = cpu_frame(&layout, &planes, &config);
     for c in 0..3 {
-        assert_close(
-            &format!("colour {c}"),
-            &gpu_colour.planes[c],
-            &cpu_colour.planes[c],
-            0.99,
-        );
+        assert_close(&format!("colour {c}"), &gpu.color.planes[c], &cpu.color.planes[c], 0.99);
+        assert_close(&format!("error {c}"), &gpu.error.planes[c], &cpu.error.planes[c], 0.99);
     }
+    let same = gpu.dim.iter().zip(&cpu.dim).filter(|(a, b)| a == b).count();
+    assert!(same as f64 >= 0.98 * (w * hgt) as f64, "d_i equal on {same} pixels");
     // The reconstruction actually denoised: smoother than the input.
-    let input = &finalized.get(Layer::Color).unwrap()[0];
+    let input = &finalize_cpu(&layout, &planes).get(Layer::Color).unwrap()[0].clone();
     let rough = |p: &[f32]| {
         (1..p.len())
             .filter(|i| i % w != 0 && i % w != 12)
             .map(|i| (p[i] - p[i - 1]).powi(2) as f64)
             .sum::<f64>()
     };
-    assert!(rough(&gpu_colour.planes[0]) < 0.5 * rough(input));
+    assert!(rough(&gpu.color.planes[0]) < 0.5 * rough(input));
 
-    drop((stats, clean, scratch, planes_wlr, planes_lp));
+    drop(denoiser);
     drop(ctx);
     host_teardown(h, accum_buf, accum_mem);
 }
 
 #[test]
 fn host_records_the_whole_wlr_chain() {
-    host_records_a_method_chain(mcdenoise::methods::Method::Wlr);
+    host_records_a_method_chain(Method::Wlr);
 }
 
 #[test]
 fn host_records_the_whole_lp_chain() {
-    host_records_a_method_chain(mcdenoise::methods::Method::Lp);
+    host_records_a_method_chain(Method::Lp);
+}
+
+/// Two configurations (WLR, and LP without prefilter at f64 where the device
+/// has it) recorded into one host command buffer, reading the same host
+/// buffer: both results equal their CPU twins.
+#[test]
+fn two_configurations_in_one_command_buffer() {
+    let h = host();
+    let (w, hgt) = (24usize, 20usize);
+    let (layout, planes) = edge_scene(w, hgt, 11);
+    let (accum_buf, accum_mem) = host_accum(&h, &layout, &planes);
+    let ctx = import(&h);
+    let a_cfg = Config::new(Method::Wlr);
+    let mut b_cfg = Config::new(Method::Lp);
+    b_cfg.precision = if ctx.supports_f64() { Precision::F64 } else { Precision::F32 };
+    let a = Denoiser::new(&ctx, Source::Accum(layout), a_cfg.clone()).unwrap();
+    let b = Denoiser::new(&ctx, Source::Accum(layout), b_cfg.clone()).unwrap();
+    let accum = unsafe { BufferSlice::from_raw(accum_buf, 0, layout.bytes()) };
+    host_submit_recorded(&h, |cmd| unsafe {
+        vec![
+            a.record_into(cmd, Some(accum)).unwrap(),
+            b.record_into(cmd, Some(accum)).unwrap(),
+        ]
+    });
+    for (d, cfg) in [(&a, &a_cfg), (&b, &b_cfg)] {
+        let gpu = d.read().unwrap();
+        let cpu = cpu_frame(&layout, &planes, cfg);
+        for c in 0..3 {
+            assert_close("colour", &gpu.color.planes[c], &cpu.color.planes[c], 0.99);
+        }
+    }
+    drop((a, b));
+    drop(ctx);
+    host_teardown(h, accum_buf, accum_mem);
+}
+
+/// Dropping the denoiser after recording and before the host submits is not
+/// a use-after-free: its buffers live until the `Recorded` is dropped (the
+/// validation layer would report a destroyed buffer in the submission).
+#[test]
+fn buffers_outlive_a_dropped_denoiser_until_the_work_completes() {
+    let h = host();
+    let (layout, planes) = edge_scene(16, 12, 3);
+    let (accum_buf, accum_mem) = host_accum(&h, &layout, &planes);
+    let ctx = import(&h);
+    let accum = unsafe { BufferSlice::from_raw(accum_buf, 0, layout.bytes()) };
+    host_submit_recorded(&h, |cmd| unsafe {
+        let d = Denoiser::new(&ctx, Source::Accum(layout), Config::new(Method::Wlr)).unwrap();
+        let r = d.record_into(cmd, Some(accum)).unwrap();
+        drop(d); // before the host's submit
+        vec![r]
+    });
+    // A wrongly sized host range is an error, not an out-of-bounds binding.
+    let d = Denoiser::new(&ctx, Source::Accum(layout), Config::new(Method::Wlr)).unwrap();
+    let short = unsafe { BufferSlice::from_raw(accum_buf, 0, layout.bytes() - 4) };
+    let err = host_submit_recorded(&h, |cmd| unsafe {
+        assert!(d.record_into(cmd, Some(short)).is_err());
+        vec![]
+    });
+    assert!(err.is_empty());
+    drop(d);
+    drop(ctx);
+    host_teardown(h, accum_buf, accum_mem);
 }
