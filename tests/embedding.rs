@@ -53,6 +53,7 @@ struct Host {
     queue: vk::Queue,
     family: u32,
     f64: bool,
+    int64: bool,
     messenger: Option<(ash::ext::debug_utils::Instance, vk::DebugUtilsMessengerEXT)>,
 }
 
@@ -117,7 +118,10 @@ fn host() -> Host {
         let qi = [vk::DeviceQueueCreateInfo::default()
             .queue_family_index(family)
             .queue_priorities(&prio)];
-        let features = vk::PhysicalDeviceFeatures::default().shader_float64(f64);
+        let int64 = instance.get_physical_device_features(physical).shader_int64 == vk::TRUE;
+        let features = vk::PhysicalDeviceFeatures::default()
+            .shader_float64(f64)
+            .shader_int64(int64);
         let device = instance
             .create_device(
                 physical,
@@ -136,6 +140,7 @@ fn host() -> Host {
             queue,
             family,
             f64,
+            int64,
             messenger,
         }
     }
@@ -194,6 +199,7 @@ fn import(h: &Host) -> Arc<GpuContext> {
                 queue: h.queue,
                 queue_family_index: h.family,
                 shader_float64_enabled: h.f64,
+                shader_int64_enabled: h.int64,
             })
         }
         .unwrap(),

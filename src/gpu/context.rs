@@ -114,6 +114,7 @@ pub struct GpuContext {
     pub(crate) allocator: Mutex<Option<Allocator>>,
     pub(crate) info: DeviceInfo,
     pub(crate) f64_enabled: bool,
+    pub(crate) int64_enabled: bool,
     owns_device: bool,
     debug: Option<(ash::ext::debug_utils::Instance, vk::DebugUtilsMessengerEXT)>,
     validation_log: Arc<ValidationLog>,
@@ -305,6 +306,9 @@ pub struct ImportedDevice {
     /// Whether the host enabled `shaderFloat64` on `device` (f64 kernels are
     /// only used then).
     pub shader_float64_enabled: bool,
+    /// Whether the host enabled `shaderInt64` on `device` (the sample-map
+    /// kernels need it).
+    pub shader_int64_enabled: bool,
 }
 
 impl GpuContext {
@@ -405,6 +409,7 @@ impl GpuContext {
             }
         };
         let f64_enabled = info.shader_float64;
+        let int64_enabled = info.shader_int64;
         Self::finish(
             entry,
             instance,
@@ -414,6 +419,7 @@ impl GpuContext {
             queue_family,
             info,
             f64_enabled,
+            int64_enabled,
             true,
             debug,
             validation_log,
@@ -428,7 +434,8 @@ impl GpuContext {
     /// The caller guarantees that:
     /// - `device` was created from `physical_device` of `instance`, and the
     ///   queue `queue` belongs to `queue_family_index`, which supports compute;
-    /// - `shader_float64_enabled` is true only if that feature was enabled;
+    /// - `shader_float64_enabled` / `shader_int64_enabled` are true only if
+    ///   those features were enabled;
     /// - the instance and device outlive this context (they are not destroyed
     ///   by it), and the context is dropped before them;
     /// - the queue is not used by another thread while mcdenoise submits to it
@@ -445,6 +452,7 @@ impl GpuContext {
             host.queue_family_index,
             info,
             host.shader_float64_enabled,
+            host.shader_int64_enabled,
             false,
             None,
             Arc::new(ValidationLog::default()),
@@ -460,6 +468,7 @@ impl GpuContext {
         queue_family: u32,
         info: DeviceInfo,
         f64_enabled: bool,
+        int64_enabled: bool,
         owns_device: bool,
         debug: Option<(ash::ext::debug_utils::Instance, vk::DebugUtilsMessengerEXT)>,
         validation_log: Arc<ValidationLog>,
@@ -490,6 +499,7 @@ impl GpuContext {
             allocator: Mutex::new(Some(allocator)),
             info,
             f64_enabled,
+            int64_enabled,
             owns_device,
             debug,
             validation_log,

@@ -69,6 +69,14 @@ impl GpuContext {
                 self.info.name
             )));
         }
+        if reflection.uses_int64 && !self.int64_enabled {
+            return Err(Error::Limit(format!(
+                "kernel {}{} uses 64-bit integers, which need shaderInt64; {} does not have it enabled",
+                decl.name,
+                precision.suffix(),
+                self.info.name
+            )));
+        }
         let words = spirv(decl.name, precision).expect("checked above");
         let label = format!("{}{}", decl.name, precision.suffix());
         let dev = &self.device;

@@ -80,6 +80,8 @@ pub struct Reflection {
     /// WLR kernels do even in their f32 variant: spec §0.3 keeps the
     /// parametric fits and the h_opt formula in f64.
     pub uses_f64: bool,
+    /// Whether the module uses 64-bit integers (needs `shaderInt64`).
+    pub uses_int64: bool,
 }
 
 /// The SPIR-V words of a compiled kernel variant (`name` + precision suffix).
@@ -172,6 +174,16 @@ pub fn reflect(kernel: &str, words: &[u32]) -> Result<Reflection> {
             }
         )
     });
+    let uses_int64 = module.types.iter().any(|(_, t)| {
+        let wide_int = |s: &naga::Scalar| {
+            matches!(s.kind, naga::ScalarKind::Uint | naga::ScalarKind::Sint) && s.width == 8
+        };
+        match &t.inner {
+            naga::TypeInner::Scalar(s) => wide_int(s),
+            naga::TypeInner::Vector { scalar, .. } => wide_int(scalar),
+            _ => false,
+        }
+    });
     let ep = module
         .entry_points
         .iter()
@@ -183,6 +195,7 @@ pub fn reflect(kernel: &str, words: &[u32]) -> Result<Reflection> {
         workgroup_size: ep.workgroup_size,
         shared_bytes,
         uses_f64,
+        uses_int64,
     })
 }
 
