@@ -5,6 +5,7 @@
 pub mod gbf;
 pub mod lp;
 pub mod prepare;
+pub mod sampling;
 pub mod stats;
 pub mod wlr;
 
