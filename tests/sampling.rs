@@ -340,7 +340,10 @@ fn gpu_sample_map(
     let mut batch = Batch::new(&ctx).unwrap();
     record_sample_map(&mut batch, precision, &inputs, &planes, budget, params).unwrap();
     batch.finish().unwrap();
-    let r = planes.maps.download_plane::<f32>(usize::from(params.sigma_s > 0.0)).unwrap();
+    let r = planes
+        .maps
+        .download_plane::<f32>(usize::from(params.sigma_s > 0.0))
+        .unwrap();
     (r, download(&planes).unwrap())
 }
 
@@ -365,7 +368,10 @@ fn priority_matches_twin() {
                 assert_eq!(counts.iter().map(|&x| x as u64).sum::<u64>(), budget as u64);
                 // The CPU path keeps the total too.
                 let cpu_counts = run_cpu(w, h, &cpu_inputs(&case), budget, &params).unwrap();
-                assert_eq!(cpu_counts.iter().map(|&x| x as u64).sum::<u64>(), budget as u64);
+                assert_eq!(
+                    cpu_counts.iter().map(|&x| x as u64).sum::<u64>(),
+                    budget as u64
+                );
             }
             // Non-finite inputs give a finite (0) priority, never NaN.
             assert!(cpu.iter().all(|x| x.is_finite()));

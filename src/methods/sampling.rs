@@ -322,7 +322,7 @@ pub struct SamplingPlanes {
 }
 
 fn pixel_count(width: usize, height: usize) -> Result<u32> {
-    let n = width.checked_mul(height).unwrap_or(usize::MAX);
+    let n = width.saturating_mul(height);
     if n == 0 || n > (u32::MAX - 64) as usize {
         return Err(Error::InvalidArgument(format!(
             "sampling: image of {width}×{height} pixels (need 1 ..= 2^32 − 65 pixels)"
@@ -332,8 +332,11 @@ fn pixel_count(width: usize, height: usize) -> Result<u32> {
 }
 
 impl SamplingPlanes {
-    /// Allocates the planes for a `width × height` image. Needs `shaderInt64`
-    /// (the allocation is u64 integer arithmetic).
+    /// Allocates the planes for a `width × height` image (1 ..= 2^32 − 65
+    /// pixels; one f32 plane must fit `maxStorageBufferRange`). Needs
+    /// `shaderInt64` (the allocation is u64 integer arithmetic): checked on the
+    /// physical device; on a device imported with `GpuContext::from_raw` the
+    /// host must also have *enabled* it.
     pub fn new(ctx: &Arc<GpuContext>, width: usize, height: usize) -> Result<SamplingPlanes> {
         if !ctx.info().shader_int64 {
             return Err(Error::Limit(
@@ -434,13 +437,8 @@ pub fn run_cpu(
     budget: u32,
     params: &SamplingParams,
 ) -> Result<Vec<u32>> {
-    Ok(allocate_cpu(
-        width,
-        height,
-        &priority_cpu(width, height, inputs, params)?,
-        inputs.spp,
-        budget,
-    )?)
+    let r = priority_cpu(width, height, inputs, params)?;
+    allocate_cpu(width, height, &r, inputs.spp, budget)
 }
 
 /// The priority map of [`run_cpu`] (after MAP-SMOOTH when σs > 0).

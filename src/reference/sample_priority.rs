@@ -21,8 +21,7 @@ pub fn sample_priority(
     let npix = push.width as usize * push.height as usize;
     for i in 0..npix {
         let n = spp_of(spp[i]);
-        let finite =
-            d[i].is_finite() && (0..3).all(|c| e[c][i].is_finite() && f[c][i].is_finite());
+        let finite = d[i].is_finite() && (0..3).all(|c| e[c][i].is_finite() && f[c][i].is_finite());
         if n < 1.0 || !finite {
             out[i] = 0.0;
             continue;
@@ -36,7 +35,7 @@ pub fn sample_priority(
             } else {
                 dv.max(0.0)
             };
-            (n as f64).powf(-4.0 / (dim + 4.0))
+            n.powf(-4.0 / (dim + 4.0))
         };
         let eps = push.eps as f64;
         let sum: f64 = (0..3)

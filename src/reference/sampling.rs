@@ -58,9 +58,5 @@ pub fn quantise(b: u32, reference: u32) -> u64 {
 
 /// `u_i = floor(2^32 q_i / S)`, exact (`q < 2^31`, so `2^32 q < 2^63`); 0 if `S = 0`.
 pub fn share_of(q: u64, s: u64) -> u64 {
-    if s == 0 {
-        0
-    } else {
-        (q << 32) / s
-    }
+    (q << 32).checked_div(s).unwrap_or(0)
 }
