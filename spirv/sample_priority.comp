@@ -5,7 +5,7 @@
 //   r = (1/3) sum_ch ΔMSE[ch] / (f̂[ch]^2 + eps)
 // d is the d plane clamped to >= 0, or floor(clamp(value, 0, 2^20)) mod 16
 // with SAMPLE_D_KFLAGS (WLR's kflags = k + 16 flags). Any non-finite input of a
-// valid pixel gives r = 0 (the sanitise rule of §9.1 for non-finite r), as
+// valid pixel (d only when used) gives r = 0 (the sanitise rule of §9.1 for non-finite r), as
 // does a non-finite result. Invalid pixels (n = 0) get 0 here; the reduction
 // (sample_reduce) gives them the global max. n^(-4/(d+4)) is evaluated with
 // float pow (GLSL has no double pow). Scalar twin: src/reference/sample_priority.rs.
@@ -51,7 +51,8 @@ void main()
     float dv = d_p[i];
     float e[3] = float[3](e0[i], e1[i], e2[i]);
     float f[3] = float[3](f0[i], f1[i], f2[i]);
-    bool finite = is_finite(dv);
+    // d is not read when E is already ΔMSE (LP may pass any plane).
+    bool finite = (push.flags & SAMPLE_E_IS_DMSE) != 0u || is_finite(dv);
     for (int c = 0; c < 3; ++c) {
         finite = finite && is_finite(e[c]) && is_finite(f[c]);
     }

@@ -407,6 +407,27 @@ fn zero_error_pixel_gets_no_samples() {
     check_validation(&gpu());
 }
 
+/// LP (E is already ΔMSE) does not read the d plane: a NaN there changes
+/// nothing.
+#[test]
+fn dmse_input_ignores_the_d_plane() {
+    let (w, h) = (23, 1);
+    let params = SamplingParams::for_method(Method::Lp).unwrap();
+    let case = priority_case(w, h, false, 5);
+    let mut nan_d = priority_case(w, h, false, 5);
+    nan_d.d = vec![f32::NAN; w * h];
+    let cpu = priority_cpu(w, h, &cpu_inputs(&case), &params).unwrap();
+    assert_eq!(
+        cpu,
+        priority_cpu(w, h, &cpu_inputs(&nan_d), &params).unwrap()
+    );
+    for p in precisions() {
+        let (r, _) = gpu_sample_map(w, h, &nan_d, p, &params, 1000);
+        assert_close(&format!("LP NaN d {p:?}"), &r, &cpu, 1.0);
+    }
+    check_validation(&gpu());
+}
+
 #[test]
 fn tree_layout_levels() {
     let l = TreeLayout::new(1);
@@ -417,4 +438,19 @@ fn tree_layout_levels() {
     let per_tree: u32 = l.levels.iter().sum();
     assert_eq!(l.entries, 3 * per_tree + per_tree - 1);
     assert!(SamplingParams::for_method(Method::None).is_err());
+}
+
+/// The table of §9.1.
+#[test]
+fn per_method_constants() {
+    use mcdenoise::methods::sampling::{EPS_AOS, EPS_DEFAULT, SIGMA_WLR};
+    let p = |m| SamplingParams::for_method(m).unwrap();
+    assert_eq!((EPS_DEFAULT, EPS_AOS, SIGMA_WLR), (1e-3, 1e-4, 1.0));
+    assert_eq!(p(Method::Wlr).eps, 1e-3);
+    assert_eq!(p(Method::Wlr).sigma_s, 1.0);
+    assert_eq!(p(Method::Wlr).dim, DimSource::Kflags);
+    assert!(p(Method::Lp).e_is_dmse && p(Method::Lp).sigma_s == 0.0);
+    assert_eq!(p(Method::Apr).eps, 1e-3);
+    assert_eq!(p(Method::Aos).eps, 1e-4);
+    assert_eq!(p(Method::Aos).sigma_s, 0.0);
 }

@@ -8,8 +8,8 @@ use crate::shared::{SamplePriorityPush, SAMPLE_D_KFLAGS, SAMPLE_E_IS_DMSE};
 /// `r = (1/3) Σ_ch max(E[ch], 0)·rate / (f̂[ch]² + ε)` with
 /// `rate = n^(−4/(d+4))`, or 1 with [`SAMPLE_E_IS_DMSE`]; `d = max(d, 0)`, or
 /// `floor(clamp(d, 0, 2^20)) mod 16` with [`SAMPLE_D_KFLAGS`]. Invalid pixels
-/// (`spp_of(n) < 1`), pixels with any non-finite input and non-finite
-/// results (as f32) get 0.
+/// (`spp_of(n) < 1`), pixels with any non-finite input (`d` only when used)
+/// and non-finite results (as f32) get 0.
 pub fn sample_priority(
     push: &SamplePriorityPush,
     e: [&[f32]; 3],
@@ -21,7 +21,9 @@ pub fn sample_priority(
     let npix = push.width as usize * push.height as usize;
     for i in 0..npix {
         let n = spp_of(spp[i]);
-        let finite = d[i].is_finite() && (0..3).all(|c| e[c][i].is_finite() && f[c][i].is_finite());
+        let d_used = push.flags & SAMPLE_E_IS_DMSE == 0;
+        let finite = (!d_used || d[i].is_finite())
+            && (0..3).all(|c| e[c][i].is_finite() && f[c][i].is_finite());
         if n < 1.0 || !finite {
             out[i] = 0.0;
             continue;
