@@ -130,3 +130,60 @@ pub struct GbfPush {
     /// `gbf_filter`: how many of its 4 feature slots are used (1..=4).
     pub count: u32,
 }
+
+/// `spirv/sample_priority.comp`, block `Push` (spec §9.1).
+#[repr(C)]
+#[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct SamplePriorityPush {
+    pub width: u32,
+    pub height: u32,
+    /// First row of the band this dispatch covers.
+    pub row0: u32,
+    /// Bits [`SAMPLE_E_IS_DMSE`] and [`SAMPLE_D_KFLAGS`].
+    pub flags: u32,
+    /// `ε` of the relative error `ΔMSE/(f̂² + ε)` (> 0; §9.1 table).
+    pub eps: f32,
+    pub _pad: [u32; 3],
+}
+
+/// [`SamplePriorityPush::flags`] bit: the error planes already hold `ΔMSE`
+/// (LP, §3.5): the factor `n^(-4/(d+4))` is skipped.
+pub const SAMPLE_E_IS_DMSE: u32 = 1;
+/// [`SamplePriorityPush::flags`] bit: the `d` plane is WLR's `kflags`
+/// (`k + 16·flags`): `d = floor(value) mod 16`.
+pub const SAMPLE_D_KFLAGS: u32 = 2;
+
+/// `spirv/sample_reduce.comp` and `spirv/sample_scan.comp`, block `Push`
+/// (spec §9.2): one level of the allocation's reduction / scan tree. Offsets
+/// count u64 entries of the tree buffer.
+#[repr(C)]
+#[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct SampleTreePush {
+    /// Dispatch grid in invocations: `8·groups_x × 8·groups_y`.
+    pub width: u32,
+    pub height: u32,
+    /// First row of the band this dispatch covers.
+    pub row0: u32,
+    /// Kernel mode (see the `.comp` headers and [`crate::kernels::sample_reduce`]).
+    pub mode: u32,
+    /// Elements of this level (pixels at the leaf level).
+    pub n: u32,
+    /// Workgroups per grid row; block `b` is at `(b % groups_x, b / groups_x)`.
+    pub groups_x: u32,
+    /// First entry of this level's elements (inner levels).
+    pub src_off: u32,
+    /// First entry of this level's output.
+    pub dst_off: u32,
+    /// First entry of the parent level's exclusive offsets, or `u32::MAX`
+    /// (`sample_scan` at the top level).
+    pub par_off: u32,
+    /// Entry of the global max (bits of max r, bit 32 = "a pixel is invalid").
+    pub max_off: u32,
+    /// Entry of `S = sum q`.
+    pub s_off: u32,
+    /// Entry of `U = sum u`.
+    pub u_off: u32,
+    /// Budget `T` of the pass (`sample_scan` leaf).
+    pub budget: u32,
+    pub _pad: [u32; 3],
+}

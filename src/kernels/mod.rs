@@ -16,6 +16,9 @@ pub mod gbf_sure;
 pub mod lp_centres;
 pub mod lp_gather;
 pub mod lp_reach;
+pub mod sample_priority;
+pub mod sample_reduce;
+pub mod sample_scan;
 pub mod sanitize;
 pub mod sanitize_low_spp;
 pub mod tsvd_debug;
@@ -40,6 +43,9 @@ pub const ALL: &[&KernelDecl] = &[
     &lp_centres::DECL,
     &lp_reach::DECL,
     &lp_gather::DECL,
+    &sample_priority::DECL,
+    &sample_reduce::DECL,
+    &sample_scan::DECL,
 ];
 
 use std::sync::Arc;

@@ -6,6 +6,7 @@ pub mod chain;
 pub mod gbf;
 pub mod lp;
 pub mod prepare;
+pub mod sampling;
 pub mod stats;
 pub mod wlr;
 

@@ -1,11 +1,14 @@
 //! Scalar f64 twins of the GLSL kernels (`spirv/<name>.comp` ↔
 //! `reference/<name>.rs`) and of the shared GLSL libraries
-//! (`spirv/lib/<name>.glsl` ↔ [`linalg`], [`tsvd`], [`wlr`], [`lp`]).
+//! (`spirv/lib/<name>.glsl` ↔ [`linalg`], [`tsvd`], [`wlr`], [`lp`],
+//! [`sampling`]).
 //!
 //! A twin takes the same planes (f32 slices) and push constants as its kernel
 //! and loops over the same pixel grid, computing in f64 and storing f32, so
 //! any kernel can be replaced by its twin and a GPU/CPU mismatch can be
-//! bisected kernel by kernel (spec §0.3 gives the tolerances).
+//! bisected kernel by kernel (spec §0.3 gives the tolerances). The twins of
+//! the sampling allocation (`sample_reduce`, `sample_scan`) are exact integer
+//! arithmetic and agree with their kernels bit for bit (§9.2).
 
 pub mod channel_mean;
 pub mod estimate_variance;
@@ -21,6 +24,10 @@ pub mod lp;
 pub mod lp_centres;
 pub mod lp_gather;
 pub mod lp_reach;
+pub mod sample_priority;
+pub mod sample_reduce;
+pub mod sample_scan;
+pub mod sampling;
 pub mod sanitize;
 pub mod sanitize_low_spp;
 pub mod tsvd;

@@ -1,0 +1,83 @@
+//! `sample_reduce`: one level of the fixed-order reduction tree of the
+//! sampling allocation (spec §9.1 sanitise, §9.2 ROUNDING). Each workgroup
+//! reduces a block of [`BLOCK`] consecutive elements of a level into one
+//! u64 entry of the tree buffer. Integer arithmetic only, so the result is
+//! bit-identical to the twin [`crate::reference::sample_reduce`].
+//! The levels are planned by [`crate::methods::sampling::TreeLayout`].
+
+use crate::error::Result;
+use crate::gpu::reflect::{read, write};
+use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};
+use crate::shared::SampleTreePush;
+
+pub const DECL: KernelDecl = KernelDecl {
+    name: "sample_reduce",
+    bindings: &[read("r"), read("spp"), write("tree")],
+    push_size: std::mem::size_of::<SampleTreePush>() as u32,
+};
+
+/// Elements per workgroup (= per tree block): the 8×8 workgroup, one
+/// element per invocation. Mirrors `SAMPLE_BLOCK` in `spirv/lib/sampling.glsl`.
+pub const BLOCK: u32 = 64;
+
+/// Leaf: the max of the sanitised `r` bits of valid pixels; bit 32 of the
+/// result is set if some pixel is invalid (`n = 0`).
+pub const MODE_LEAF_MAX: u32 = 0;
+/// Inner level of the max tree.
+pub const MODE_MAX: u32 = 1;
+/// Leaf: the sum of the quantised priorities `q_i` (`S`).
+pub const MODE_LEAF_Q: u32 = 2;
+/// Leaf: the sum of the shares `u_i = floor(2^32 q_i / S)` (`U`).
+pub const MODE_LEAF_U: u32 = 3;
+/// Inner level of a sum tree.
+pub const MODE_SUM: u32 = 4;
+
+/// A few integer operations per element and six shared-memory steps.
+pub const FLOPS_PER_ELEMENT: f64 = 16.0;
+
+/// Largest number of workgroups per grid row (below Vulkan's guaranteed
+/// `maxComputeWorkGroupCount[0]` of 65535).
+pub const MAX_GROUPS_X: u32 = 4096;
+
+/// The dispatch grid of a level of `n` elements: `(groups_x, width, height)`
+/// in invocations, `ceil(n / BLOCK)` workgroups laid out row by row.
+pub fn grid(n: u32) -> (u32, u32, u32) {
+    let groups = n.div_ceil(BLOCK).max(1);
+    let gx = groups.min(MAX_GROUPS_X);
+    let gy = groups.div_ceil(gx);
+    (gx, 8 * gx, 8 * gy)
+}
+
+/// Fills the grid fields of `push` (`width`, `height`, `groups_x`) from `push.n`.
+pub fn with_grid(mut push: SampleTreePush) -> SampleTreePush {
+    let (gx, w, h) = grid(push.n);
+    push.groups_x = gx;
+    push.width = w;
+    push.height = h;
+    push.row0 = 0;
+    push
+}
+
+/// Records one level: `push.mode`, `n`, `src_off`, `dst_off` (and for the
+/// leaf modes `max_off`, `s_off`) as in [`SampleTreePush`]; the grid fields
+/// are filled here. `r` is the f32 priority map (read as bits), `spp` the
+/// sample counts, `tree` the u64 tree buffer. Integer kernel: always the
+/// f32 variant.
+pub fn record(
+    batch: &mut Batch,
+    push: SampleTreePush,
+    r: BufferSlice,
+    spp: BufferSlice,
+    tree: BufferSlice,
+) -> Result<()> {
+    let push = with_grid(push);
+    batch.dispatch(
+        &DECL,
+        Precision::F32,
+        &[r, spp, tree],
+        bytemuck::bytes_of(&push),
+        push.width,
+        push.height,
+        FLOPS_PER_ELEMENT,
+    )
+}

@@ -1,0 +1,51 @@
+//! `sample_scan`: the down-sweep of the sampling allocation's prefix sum
+//! and the final integer counts (spec §9.2 ROUNDING steps 2–3). Each
+//! workgroup scans one block of [`BLOCK`](super::sample_reduce::BLOCK)
+//! elements in a fixed order and adds the block's offset from the level
+//! above. Integer arithmetic only: bit-identical to the twin
+//! [`crate::reference::sample_scan`].
+
+use super::sample_reduce::{with_grid, FLOPS_PER_ELEMENT};
+use crate::error::Result;
+use crate::gpu::reflect::{read, write};
+use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};
+use crate::shared::SampleTreePush;
+
+pub const DECL: KernelDecl = KernelDecl {
+    name: "sample_scan",
+    bindings: &[read("r"), read("spp"), write("tree"), write("counts")],
+    push_size: std::mem::size_of::<SampleTreePush>() as u32,
+};
+
+/// Inner level: exclusive offsets of the block sums `tree[src_off..]`,
+/// written to `tree[dst_off..]`.
+pub const MODE_INNER: u32 = 0;
+/// Leaf: `counts[i] = floor(T P_i / U) − floor(T P_{i−1} / U)`.
+pub const MODE_LEAF: u32 = 1;
+
+/// Marker for "no parent level" in [`SampleTreePush::par_off`].
+pub const NO_LEVEL: u32 = u32::MAX;
+
+/// Records one level of the down-sweep (see [`SampleTreePush`] for the
+/// fields; the grid fields are filled here). `counts` is the u32 output
+/// plane (written by the leaf mode only). Integer kernel: always the f32
+/// variant.
+pub fn record(
+    batch: &mut Batch,
+    push: SampleTreePush,
+    r: BufferSlice,
+    spp: BufferSlice,
+    tree: BufferSlice,
+    counts: BufferSlice,
+) -> Result<()> {
+    let push = with_grid(push);
+    batch.dispatch(
+        &DECL,
+        Precision::F32,
+        &[r, spp, tree, counts],
+        bytemuck::bytes_of(&push),
+        push.width,
+        push.height,
+        FLOPS_PER_ELEMENT,
+    )
+}
