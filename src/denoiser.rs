@@ -1,6 +1,7 @@
 //! The public facade: [`Denoiser`]. See the crate documentation for the
 //! object model and the synchronisation contract.
 
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
 use ash::vk;
@@ -128,7 +129,8 @@ pub struct Outputs {
     pub color: [BufferSlice; 3],
     /// Estimated MSE `E_i` per channel (f32; §9.1).
     pub error: [BufferSlice; 3],
-    /// Next pass's samples per pixel (u32), when a budget was given.
+    /// Next pass's samples per pixel (u32), valid after a call with a
+    /// budget; `None` on a device without `shaderInt64`.
     pub samples: Option<BufferSlice>,
 }
 
@@ -177,6 +179,8 @@ enum Engine {
 pub struct Denoiser {
     engine: Engine,
     config: Config,
+    /// Whether the last call computed a sample map.
+    sampled: AtomicBool,
 }
 
 impl std::fmt::Debug for Denoiser {
@@ -203,6 +207,7 @@ impl Denoiser {
         Ok(Denoiser {
             engine: Engine::Gpu(GpuChain::new(ctx, source.chain(), config.chain(low_spp))?),
             config,
+            sampled: AtomicBool::new(false),
         })
     }
 
@@ -222,6 +227,7 @@ impl Denoiser {
         Ok(Denoiser {
             engine: Engine::Cpu(source),
             config,
+            sampled: AtomicBool::new(false),
         })
     }
 
@@ -253,7 +259,7 @@ impl Denoiser {
         Ok(Outputs {
             color: c.color(),
             error: c.error(),
-            samples: None,
+            samples: c.samples(),
         })
     }
 
@@ -284,12 +290,14 @@ impl Denoiser {
         &self,
         cmd: vk::CommandBuffer,
         accum: Option<BufferSlice>,
+        budget: Option<u32>,
     ) -> Result<Recorded> {
         let chain = self.chain()?;
         // SAFETY: forwarded to the caller (see above).
         let mut batch = unsafe { Batch::record_into(chain.context(), cmd) };
         batch.progress = false;
-        chain.record(&mut batch, accum)?;
+        chain.record(&mut batch, accum, budget)?;
+        self.sampled.store(budget.is_some(), Ordering::SeqCst);
         Ok(batch.finish_recording())
     }
 
@@ -299,23 +307,34 @@ impl Denoiser {
     ///
     /// `accum` as for [`record_into`](Self::record_into). A host buffer passed
     /// here must not be in use by the host's queue meanwhile.
-    pub fn run(&self, accum: Option<BufferSlice>) -> Result<Vec<KernelTiming>> {
+    pub fn run(
+        &self,
+        accum: Option<BufferSlice>,
+        budget: Option<u32>,
+    ) -> Result<Vec<KernelTiming>> {
         let chain = self.chain()?;
         let mut batch = Batch::new(chain.context())?;
         batch.progress = self.config.progress;
-        chain.record(&mut batch, accum)?;
-        batch.finish()
+        chain.record(&mut batch, accum, budget)?;
+        let t = batch.finish()?;
+        self.sampled.store(budget.is_some(), Ordering::SeqCst);
+        Ok(t)
     }
 
     /// Downloads the outputs of the last completed call.
     pub fn read(&self) -> Result<Frame> {
         let chain = self.chain()?;
         let out = chain.download(self.config.debug)?;
+        let samples = if self.sampled.load(Ordering::SeqCst) {
+            Some(chain.download_samples()?)
+        } else {
+            None
+        };
         Ok(Frame {
             color: out.color,
             error: out.error,
             dim: out.dim,
-            samples: None,
+            samples,
             debug: out.debug,
             report: chain.report()?,
             timings: Vec::new(),
@@ -333,8 +352,12 @@ impl Denoiser {
     /// Denoises statistics in host memory (a file's, see [`crate::io`]): on
     /// the GPU (upload, [`run`](Self::run), [`read`](Self::read)) or with the
     /// CPU references. `img` must match the denoiser's [`Source::Stats`].
-    pub fn denoise(&self, img: &StatsImage) -> Result<Frame> {
-        let req = |b| self.config.request(b);
+    pub fn denoise(&self, img: &StatsImage, budget: Option<u32>) -> Result<Frame> {
+        let req = |b| {
+            let mut r = self.config.request(b);
+            r.budget = budget;
+            r
+        };
         let out = match &self.engine {
             Engine::Gpu(chain) => methods::denoise_with_chain(chain, img, &req(Backend::Gpu))?,
             Engine::Cpu(source) => {
@@ -347,12 +370,15 @@ impl Denoiser {
                 methods::denoise(None, img, &req(Backend::Cpu))?
             }
         };
+        if let Engine::Gpu(_) = self.engine {
+            self.sampled.store(budget.is_some(), Ordering::SeqCst);
+        }
         let (w, h) = (img.width, img.height);
         Ok(Frame {
             color: out.color,
             error: out.error.unwrap_or_else(|| RgbImage::new(w, h)),
             dim: out.dim,
-            samples: None,
+            samples: out.samples,
             debug: out.debug,
             report: out.report,
             timings: out.timings,

@@ -437,7 +437,9 @@ fn tree_layout_levels() {
     // Each reduction tree, the offsets and nothing else.
     let per_tree: u32 = l.levels.iter().sum();
     assert_eq!(l.entries, 3 * per_tree + per_tree - 1);
-    assert!(SamplingParams::for_method(Method::None).is_err());
+    // `none`: the variance of the mean as E, d = 0 (ΔMSE = v/n).
+    let none = SamplingParams::for_method(Method::None).unwrap();
+    assert!(!none.e_is_dmse && none.sigma_s == 0.0);
 }
 
 /// The table of §9.1.

@@ -162,6 +162,14 @@ enum Command {
         /// variance of the mean).
         #[arg(long)]
         error: bool,
+        /// Write the next pass's samples per pixel (spec §9) to this EXR, as
+        /// a u32 channel samples.Y summing to exactly --budget (also added to
+        /// the output as samples.Y).
+        #[arg(long, value_name = "MAP.exr", requires = "budget")]
+        sample_map: Option<PathBuf>,
+        /// Samples to distribute for the next pass (0 ..= 4294967295).
+        #[arg(long, requires = "sample_map")]
+        budget: Option<u32>,
         /// Add the method's debug maps as debug.* layers.
         #[arg(long)]
         debug_layers: bool,
@@ -338,6 +346,8 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
             pass,
             prefilter,
             error,
+            sample_map,
+            budget,
             debug_layers,
             png,
             reference,
@@ -345,7 +355,10 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
             opts,
         } => {
             let options = Options::parse(opts)?;
-            for path in [Some(output), png.as_ref()].into_iter().flatten() {
+            for path in [Some(output), png.as_ref(), sample_map.as_ref()]
+                .into_iter()
+                .flatten()
+            {
                 if same_file(path, input) || reference.as_ref().is_some_and(|r| same_file(path, r))
                 {
                     bail!("{}: refusing to overwrite an input file", path.display());
@@ -370,7 +383,7 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
             };
             let t0 = std::time::Instant::now();
             let result = denoiser
-                .denoise(&img)
+                .denoise(&img, *budget)
                 .with_context(|| input.display().to_string())?;
             if !cli.quiet {
                 print_report(&result.report, input);
@@ -389,10 +402,26 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
             let out = io::OutputImage {
                 color: result.color.clone(),
                 error: error.then(|| result.error.clone()),
-                samples: None,
+                samples: result
+                    .samples
+                    .as_ref()
+                    .map(|s| s.iter().map(|&v| v as f32).collect()),
                 debug: result.debug.clone(),
             };
             io::write_output(output, &out)?;
+            if let (Some(path), Some(s)) = (sample_map, &result.samples) {
+                io::write_samples(path, img.width, img.height, s)?;
+                if !cli.quiet {
+                    let max = s.iter().max().copied().unwrap_or(0);
+                    let zero = s.iter().filter(|&&v| v == 0).count();
+                    eprintln!(
+                        "{}: {} samples (budget {}), max {max} per pixel, {zero} pixels get none",
+                        path.display(),
+                        s.iter().map(|&v| v as u64).sum::<u64>(),
+                        budget.unwrap_or(0)
+                    );
+                }
+            }
             if let Some(p) = png {
                 io::write_png_preview(p, &result.color)?;
             }
@@ -418,7 +447,7 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
             config.precision = precision.get();
             let denoiser = Denoiser::new(&context(&cli)?, Source::of_image(&img), config)
                 .with_context(|| input.display().to_string())?;
-            let result = denoiser.denoise(&img)?;
+            let result = denoiser.denoise(&img, None)?;
             if !cli.quiet {
                 print_report(&result.report, input);
             }
@@ -456,7 +485,7 @@ fn demo(cli: &Cli, out: &Path) -> anyhow::Result<bool> {
     config.debug = true;
     let denoiser = Denoiser::new(&ctx, Source::of_image(&img), config)?;
     let t0 = std::time::Instant::now();
-    let result = denoiser.denoise(&img)?;
+    let result = denoiser.denoise(&img, None)?;
     let secs = t0.elapsed().as_secs_f64();
     print_report(&result.report, &input);
     let output = out.join("output.exr");

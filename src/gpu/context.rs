@@ -522,6 +522,11 @@ impl GpuContext {
         self.f64_enabled
     }
 
+    /// Whether kernels with 64-bit integers (the sample map) can run here.
+    pub fn supports_int64(&self) -> bool {
+        self.int64_enabled
+    }
+
     /// Number of validation-layer errors seen so far (0 without the layer).
     pub fn validation_errors(&self) -> usize {
         self.validation_log.errors.load(Ordering::SeqCst)

@@ -166,6 +166,36 @@ pub fn write_channels(
             })?;
         list.push(AnyChannel::new(text, FlatSamples::F32(plane.to_vec())));
     }
+    write_list(path, width, height, list)
+}
+
+/// Writes a sample map (§9.2) as one `samples.Y` channel of 32-bit unsigned
+/// integers (exact for any count), `width * height` values, row-major. Atomic.
+///
+/// # Errors
+/// As [`write_channels`].
+pub fn write_samples(path: &Path, width: usize, height: usize, counts: &[u32]) -> Result<()> {
+    if width == 0 || height == 0 || counts.len() != width * height {
+        return Err(Error::InvalidArgument(format!(
+            "{}: a sample map of {} values is not {width}x{height}",
+            path.display(),
+            counts.len()
+        )));
+    }
+    let mut list: SmallVec<[AnyChannel<FlatSamples>; 4]> = SmallVec::new();
+    list.push(AnyChannel::new(
+        Text::from("samples.Y"),
+        FlatSamples::U32(counts.to_vec()),
+    ));
+    write_list(path, width, height, list)
+}
+
+fn write_list(
+    path: &Path,
+    width: usize,
+    height: usize,
+    list: SmallVec<[AnyChannel<FlatSamples>; 4]>,
+) -> Result<()> {
     let encoding = Encoding {
         compression: Compression::ZIP16,
         blocks: Blocks::ScanLines,

@@ -29,7 +29,9 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use crate::error::{Error, Result};
 
 pub use exr_in::{read_rgb, read_stats, MAX_DIMENSION, MAX_PIXELS};
-pub use exr_out::{write_channels, write_output, write_rgb, write_stats, OutputImage};
+pub use exr_out::{
+    write_channels, write_output, write_rgb, write_samples, write_stats, OutputImage,
+};
 pub use inspect::{format_report, inspect, spp_range, validate, ChannelStats, LayerReport};
 pub use png_out::{heat_color, srgb_preview_u8, write_heatmap_png, write_png_preview};
 

@@ -19,6 +19,7 @@ use crate::options::Options;
 use super::gbf::{self, GbfPlanes};
 use super::lp::{self, LpPlanes};
 use super::prepare::{self, PrepareReport, PrepareScratch};
+use super::sampling::{self, SampleInputs, SamplingParams, SamplingPlanes};
 use super::stats::{self, GpuStats};
 use super::wlr::{self, WlrPlanes};
 use super::{Method, Pass, Prefilter};
@@ -96,6 +97,8 @@ pub struct GpuChain {
     scratch: PrepareScratch,
     gbf: Option<GbfPlanes>,
     planes: MethodPlanes,
+    /// `None` on a device without `shaderInt64` (a budget is then an error).
+    sampling: Option<(SamplingPlanes, SamplingParams)>,
 }
 
 impl std::fmt::Debug for GpuChain {
@@ -182,6 +185,19 @@ impl GpuChain {
                 zero: PlaneSet::new(ctx, "none.dim", w * h, 1)?,
             },
         };
+        let mut params = SamplingParams::for_method(config.method)?;
+        if config.options.is_set("sampling.smooth") {
+            params.sigma_s = config
+                .options
+                .get("sampling.smooth")
+                .parse()
+                .map_err(|_| Error::InvalidArgument("sampling.smooth: not a number".into()))?;
+        }
+        let sampling = if ctx.supports_int64() {
+            Some((SamplingPlanes::new(ctx, w, h)?, params))
+        } else {
+            None
+        };
         Ok(GpuChain {
             ctx: ctx.clone(),
             input_kind: input,
@@ -191,6 +207,7 @@ impl GpuChain {
             scratch,
             gbf,
             planes,
+            sampling,
         })
     }
 
@@ -232,8 +249,60 @@ impl GpuChain {
 
     /// Records the chain. `accum` is the renderer's accumulation range for
     /// [`ChainInput::Accum`] (checked against the layout) and must be `None`
-    /// for [`ChainInput::Stats`].
-    pub fn record(&self, batch: &mut Batch, accum: Option<BufferSlice>) -> Result<()> {
+    /// for [`ChainInput::Stats`]. With a `budget`, the chain ends with the
+    /// sample map of §9 for that many samples ([`GpuChain::samples`]).
+    pub fn record(
+        &self,
+        batch: &mut Batch,
+        accum: Option<BufferSlice>,
+        budget: Option<u32>,
+    ) -> Result<()> {
+        let sampling = match (budget, &self.sampling) {
+            (None, _) => None,
+            (Some(t), Some((planes, params))) => Some((t, planes, params)),
+            (Some(_), None) => {
+                return Err(Error::Limit(format!(
+                    "the sample map needs shaderInt64, which {} does not have enabled",
+                    self.ctx.info().name
+                )))
+            }
+        };
+        self.record_method(batch, accum)?;
+        if let Some((t, planes, params)) = sampling {
+            let (dim, _) = self.dim_source();
+            let inputs = SampleInputs {
+                error: self.sampling_error(),
+                dim,
+                filtered: self.color(),
+                spp: self.clean.plane(Layer::Spp, 0),
+            };
+            sampling::record_sample_map(batch, self.config.precision, &inputs, planes, t, params)?;
+        }
+        Ok(())
+    }
+
+    /// What the sample map reads as `E` (§9.1): ΔMSE for LP, else `E_i`.
+    fn sampling_error(&self) -> [BufferSlice; 3] {
+        match &self.planes {
+            MethodPlanes::Lp(p, _) => p.dmse(),
+            _ => self.error(),
+        }
+    }
+
+    /// The sample counts (u32 per pixel) of the last run with a budget.
+    pub fn samples(&self) -> Option<BufferSlice> {
+        self.sampling.as_ref().map(|(p, _)| p.counts.slice())
+    }
+
+    /// Downloads the sample counts of the last run with a budget.
+    pub fn download_samples(&self) -> Result<Vec<u32>> {
+        match &self.sampling {
+            Some((p, _)) => sampling::download(p),
+            None => Err(Error::Limit("no sample map on this device".into())),
+        }
+    }
+
+    fn record_method(&self, batch: &mut Batch, accum: Option<BufferSlice>) -> Result<()> {
         let p = self.config.precision;
         match (&self.input_kind, accum) {
             (ChainInput::Accum(layout), Some(a)) => {

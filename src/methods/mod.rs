@@ -99,6 +99,9 @@ pub struct DenoiseRequest {
     pub debug: bool,
     /// Report progress on stderr for runs longer than about a second.
     pub progress: bool,
+    /// Samples to distribute for the next pass: computes the sample map
+    /// (§9).
+    pub budget: Option<u32>,
 }
 
 impl DenoiseRequest {
@@ -113,6 +116,7 @@ impl DenoiseRequest {
             error: false,
             debug: false,
             progress: false,
+            budget: None,
         }
     }
 }
@@ -126,6 +130,8 @@ pub struct DenoiseOutput {
     pub error: Option<RgbImage>,
     /// The local dimension `d_i` per pixel (§9.1; 0 for `none`).
     pub dim: Vec<f32>,
+    /// The next pass's samples per pixel (§9.2) when `budget` was set.
+    pub samples: Option<Vec<u32>>,
     /// Named debug planes.
     pub debug: Vec<(String, Vec<f32>)>,
     /// What sanitation repaired.
@@ -213,9 +219,13 @@ pub fn denoise_with_chain(
     chain.input().planes.upload_all(&planes)?;
     let mut batch = crate::gpu::Batch::new(chain.context())?;
     batch.progress = req.progress;
-    chain.record(&mut batch, None)?;
+    chain.record(&mut batch, None, req.budget)?;
     let timings = batch.finish()?;
     let out = chain.download(req.debug)?;
+    let samples = match req.budget {
+        Some(_) => Some(chain.download_samples()?),
+        None => None,
+    };
     let mut report = prepare::base_report(img);
     report.counters = chain.report()?.counters;
     if req.method == Method::None {
@@ -225,6 +235,7 @@ pub fn denoise_with_chain(
         color: out.color,
         error: req.error.then_some(out.error),
         dim: out.dim,
+        samples,
         debug: out.debug,
         report,
         timings,
@@ -235,6 +246,7 @@ pub fn denoise_with_chain(
 fn denoise_cpu(img: &StatsImage, req: &DenoiseRequest) -> Result<DenoiseOutput> {
     let (clean, report) = clean_cpu(img, req)?;
     let (w, h) = (img.width, img.height);
+    let mut lp_dmse = None;
     let (color, error, dim, debug, stats) = match req.method {
         Method::Wlr => {
             let params = wlr::WlrParams::new(req.pass, &req.options)?;
@@ -263,6 +275,7 @@ fn denoise_cpu(img: &StatsImage, req: &DenoiseRequest) -> Result<DenoiseOutput> 
                 Vec::new()
             };
             let stats = vec![("centre_fraction".into(), r.centre_fraction())];
+            lp_dmse = Some(r.dmse.clone());
             (
                 r.color.clone(),
                 r.error.clone(),
@@ -290,10 +303,38 @@ fn denoise_cpu(img: &StatsImage, req: &DenoiseRequest) -> Result<DenoiseOutput> 
             )
         }
     };
+    let samples = match req.budget {
+        Some(t) => {
+            let mut params = sampling::SamplingParams::for_method(req.method)?;
+            // The CPU path passes the decoded rank, not WLR's kflags.
+            params.dim = sampling::DimSource::Plain;
+            if req.options.is_set("sampling.smooth") {
+                params.sigma_s = req.options.get("sampling.smooth").parse().unwrap_or(0.0);
+            }
+            let dmse;
+            let e: [&[f32]; 3] = match &lp_dmse {
+                Some(d) => {
+                    dmse = d;
+                    [&dmse.planes[0], &dmse.planes[1], &dmse.planes[2]]
+                }
+                None => [&error.planes[0], &error.planes[1], &error.planes[2]],
+            };
+            let spp = &clean.get(crate::image::Layer::Spp).unwrap()[0];
+            let inputs = sampling::CpuSampleInputs {
+                error: e,
+                dim: &dim,
+                filtered: [&color.planes[0], &color.planes[1], &color.planes[2]],
+                spp,
+            };
+            Some(sampling::run_cpu(w, h, &inputs, t, &params)?)
+        }
+        None => None,
+    };
     Ok(DenoiseOutput {
         color,
         error: req.error.then_some(error),
         dim,
+        samples,
         debug,
         report,
         timings: Vec::new(),

@@ -76,7 +76,8 @@ pub struct SamplingParams {
 impl SamplingParams {
     /// The table of §9.1: WLR (`ε = 0.001`, `σs = 1`, `d` from kflags), LP
     /// (`ε = 0.001`, ΔMSE input), APR (`ε = 0.001`), AOS (`ε = 0.0001`).
-    /// [`Method::None`] has no error estimate and is an error.
+    /// [`Method::None`]: the unfiltered mean, `E_i = v_i` with `d_i = 0`.
+    /// `options`' `sampling.smooth`, when set, replaces σs.
     pub fn for_method(method: Method) -> Result<SamplingParams> {
         let base = SamplingParams {
             eps: EPS_DEFAULT,
@@ -99,11 +100,9 @@ impl SamplingParams {
                 eps: EPS_AOS,
                 ..base
             },
-            Method::None => {
-                return Err(Error::InvalidArgument(
-                    "adaptive sampling needs a method with an error estimate (not `none`)".into(),
-                ))
-            }
+            // Not in the spec's table: the plain Monte Carlo mean, whose MSE
+            // is its variance `v_i` and falls as 1/n (`d = 0`): ΔMSE = v_i/n_i.
+            Method::None => base,
         })
     }
 
