@@ -40,8 +40,9 @@
 //!
 //! # Output
 //! Reports render as Markdown ([`QualityReport::to_markdown`],
-//! [`TimingReport::to_markdown`]) and as JSON (`to_json`, written by hand:
-//! non-finite numbers become `null`, absent values are `null`).
+//! [`TimingReport::to_markdown`]) and as JSON ([`QualityReport::to_json`],
+//! [`TimingReport::to_json`], written with `serde_json`: non-finite numbers
+//! become `null`, absent values are `null`).
 
 mod quality;
 mod report;

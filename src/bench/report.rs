@@ -4,6 +4,8 @@ use std::fmt::Write as _;
 use std::io::Write as _;
 use std::path::Path;
 
+use serde::Serialize;
+
 use super::backend_name;
 use super::quality::QualityReport;
 use super::timing::{TimingReport, TimingRow};
@@ -139,91 +141,61 @@ impl QualityReport {
     /// "warnings": [...]}`.
     /// Each row has `case scene spp method backend rmse relmse psnr ssim
     /// wall_s gpu_ms err_corr naive_corr gpu_ms_per_mp centres` (`null` where absent or
-    /// non-finite); numbers at full precision.
+    /// non-finite); numbers at full precision. Pretty-printed by `serde_json`,
+    /// with a final newline.
     pub fn to_json(&self) -> String {
-        let rows = self
-            .rows
-            .iter()
-            .map(|r| {
-                Json::Obj(vec![
-                    ("case".into(), Json::Str(r.case.clone())),
-                    ("scene".into(), Json::Str(r.scene.clone())),
-                    ("spp".into(), Json::Int(r.spp as i64)),
-                    ("method".into(), Json::Str(r.method.clone())),
-                    (
-                        "backend".into(),
-                        r.backend
-                            .map_or(Json::Null, |b| Json::Str(backend_name(b).into())),
-                    ),
-                    ("rmse".into(), Json::Num(r.metrics.rmse)),
-                    ("relmse".into(), Json::Num(r.metrics.relmse)),
-                    ("psnr".into(), Json::Num(r.metrics.psnr)),
-                    ("ssim".into(), Json::Num(r.metrics.ssim)),
-                    ("wall_s".into(), Json::opt(r.wall_s)),
-                    ("gpu_ms".into(), Json::opt(r.gpu_ms)),
-                    ("err_corr".into(), Json::opt(r.err_corr)),
-                    ("naive_corr".into(), Json::opt(r.naive_corr)),
-                    ("gpu_ms_per_mp".into(), Json::opt(r.gpu_ms_per_mp)),
-                    ("centres".into(), Json::opt(r.centres)),
-                ])
-            })
-            .collect();
-        let summary = self
-            .summary()
-            .into_iter()
-            .map(|q| {
-                Json::Obj(vec![
-                    ("method".into(), Json::Str(q.method)),
-                    ("backend".into(), Json::Str(backend_name(q.backend).into())),
-                    ("spp".into(), Json::Int(q.spp as i64)),
-                    ("scenes".into(), Json::Int(q.scenes as i64)),
-                    ("mean_rmse_ratio".into(), Json::Num(q.mean_rmse_ratio)),
-                    ("mean_err_corr".into(), Json::opt(q.mean_err_corr)),
-                ])
-            })
-            .collect();
-        Json::Obj(vec![
-            ("kind".into(), Json::Str("quality".into())),
-            ("dir".into(), Json::Str(self.dir.display().to_string())),
-            (
-                "device".into(),
-                self.device.clone().map_or(Json::Null, Json::Str),
-            ),
-            ("rows".into(), Json::Arr(rows)),
-            ("summary".into(), Json::Arr(summary)),
-            (
-                "vs_wlr".into(),
-                Json::Arr(
-                    self.vs_wlr()
-                        .into_iter()
-                        .map(|c| {
-                            Json::Obj(vec![
-                                ("scene".into(), Json::Str(c.scene)),
-                                ("spp".into(), Json::Int(c.spp as i64)),
-                                ("method".into(), Json::Str(c.method)),
-                                ("backend".into(), Json::Str(backend_name(c.backend).into())),
-                                ("rmse_ratio".into(), Json::Num(c.rmse_ratio)),
-                                ("speedup".into(), Json::opt(c.speedup)),
-                            ])
-                        })
-                        .collect(),
-                ),
-            ),
-            (
-                "unavailable_methods".into(),
-                Json::Arr(
-                    self.unavailable
-                        .iter()
-                        .map(|m| Json::Str(m.name().into()))
-                        .collect(),
-                ),
-            ),
-            (
-                "warnings".into(),
-                Json::Arr(self.warnings.iter().cloned().map(Json::Str).collect()),
-            ),
-        ])
-        .render()
+        let summary = self.summary();
+        let vs_wlr = self.vs_wlr();
+        to_json_text(&QualityJson {
+            kind: "quality",
+            dir: self.dir.display().to_string(),
+            device: self.device.as_deref(),
+            rows: self
+                .rows
+                .iter()
+                .map(|r| QualityRowJson {
+                    case: &r.case,
+                    scene: &r.scene,
+                    spp: r.spp,
+                    method: &r.method,
+                    backend: r.backend.map(backend_name),
+                    rmse: r.metrics.rmse,
+                    relmse: r.metrics.relmse,
+                    psnr: r.metrics.psnr,
+                    ssim: r.metrics.ssim,
+                    wall_s: r.wall_s,
+                    gpu_ms: r.gpu_ms,
+                    err_corr: r.err_corr,
+                    naive_corr: r.naive_corr,
+                    gpu_ms_per_mp: r.gpu_ms_per_mp,
+                    centres: r.centres,
+                })
+                .collect(),
+            summary: summary
+                .iter()
+                .map(|q| QualitySummaryJson {
+                    method: &q.method,
+                    backend: backend_name(q.backend),
+                    spp: q.spp,
+                    scenes: q.scenes,
+                    mean_rmse_ratio: q.mean_rmse_ratio,
+                    mean_err_corr: q.mean_err_corr,
+                })
+                .collect(),
+            vs_wlr: vs_wlr
+                .iter()
+                .map(|c| VsWlrJson {
+                    scene: &c.scene,
+                    spp: c.spp,
+                    method: &c.method,
+                    backend: backend_name(c.backend),
+                    rmse_ratio: c.rmse_ratio,
+                    speedup: c.speedup,
+                })
+                .collect(),
+            unavailable_methods: self.unavailable.iter().map(|m| m.name()).collect(),
+            warnings: &self.warnings,
+        })
     }
 }
 
@@ -296,68 +268,42 @@ impl TimingReport {
     /// "runs", "rows": [...], "unavailable_methods", "warnings"}`; each row
     /// has `case method backend width height wall_ms median_wall_ms
     /// ms_per_megapixel gpu_ms kernels` and each kernel `kernel gpu_ms
-    /// dispatches`.
+    /// dispatches` (`null` where absent or non-finite). Pretty-printed by
+    /// `serde_json`, with a final newline.
     pub fn to_json(&self) -> String {
-        let rows = self
-            .rows
-            .iter()
-            .map(|r| {
-                Json::Obj(vec![
-                    ("case".into(), Json::Str(r.case.clone())),
-                    ("method".into(), Json::Str(r.method.name().into())),
-                    ("backend".into(), Json::Str(backend_name(r.backend).into())),
-                    ("width".into(), Json::Int(r.width as i64)),
-                    ("height".into(), Json::Int(r.height as i64)),
-                    (
-                        "wall_ms".into(),
-                        Json::Arr(r.wall_ms.iter().map(|&t| Json::Num(t)).collect()),
-                    ),
-                    ("median_wall_ms".into(), Json::Num(r.median_wall_ms)),
-                    ("ms_per_megapixel".into(), Json::Num(r.ms_per_megapixel)),
-                    ("gpu_ms".into(), Json::opt(r.gpu_ms)),
-                    (
-                        "kernels".into(),
-                        Json::Arr(
-                            r.kernels
-                                .iter()
-                                .map(|k| {
-                                    Json::Obj(vec![
-                                        ("kernel".into(), Json::Str(k.kernel.clone())),
-                                        ("gpu_ms".into(), Json::Num(k.ms)),
-                                        ("dispatches".into(), Json::Int(k.dispatches as i64)),
-                                    ])
-                                })
-                                .collect(),
-                        ),
-                    ),
-                ])
-            })
-            .collect();
-        Json::Obj(vec![
-            ("kind".into(), Json::Str("timing".into())),
-            (
-                "device".into(),
-                self.device.clone().map_or(Json::Null, Json::Str),
-            ),
-            ("inputs".into(), Json::Str(self.inputs.clone())),
-            ("source".into(), Json::Str(self.source.clone())),
-            ("runs".into(), Json::Int(self.runs as i64)),
-            ("rows".into(), Json::Arr(rows)),
-            (
-                "unavailable_methods".into(),
-                Json::Arr(
-                    self.unavailable
+        to_json_text(&TimingJson {
+            kind: "timing",
+            device: self.device.as_deref(),
+            inputs: &self.inputs,
+            source: &self.source,
+            runs: self.runs,
+            rows: self
+                .rows
+                .iter()
+                .map(|r| TimingRowJson {
+                    case: &r.case,
+                    method: r.method.name(),
+                    backend: backend_name(r.backend),
+                    width: r.width,
+                    height: r.height,
+                    wall_ms: &r.wall_ms,
+                    median_wall_ms: r.median_wall_ms,
+                    ms_per_megapixel: r.ms_per_megapixel,
+                    gpu_ms: r.gpu_ms,
+                    kernels: r
+                        .kernels
                         .iter()
-                        .map(|m| Json::Str(m.name().into()))
+                        .map(|k| KernelJson {
+                            kernel: &k.kernel,
+                            gpu_ms: k.ms,
+                            dispatches: k.dispatches,
+                        })
                         .collect(),
-                ),
-            ),
-            (
-                "warnings".into(),
-                Json::Arr(self.warnings.iter().cloned().map(Json::Str).collect()),
-            ),
-        ])
-        .render()
+                })
+                .collect(),
+            unavailable_methods: self.unavailable.iter().map(|m| m.name()).collect(),
+            warnings: &self.warnings,
+        })
     }
 }
 
@@ -431,119 +377,108 @@ fn markdown_table(rows: &[Vec<String>]) -> String {
     s
 }
 
-/// A JSON value, rendered by hand (no serialisation dependency).
-#[derive(Clone, Debug)]
-enum Json {
-    Null,
-    Int(i64),
-    /// Non-finite numbers render as `null`.
-    Num(f64),
-    Str(String),
-    Arr(Vec<Json>),
-    Obj(Vec<(String, Json)>),
+// The JSON documents, field for field in the order they are written. They
+// borrow from the reports; the report structs themselves stay free of serde.
+// Every `f64` goes through serde_json, which writes NaN and ±∞ as `null`
+// (as the hand-written writer did); `None` is `null` too.
+
+/// Pretty-prints `doc` (two-space indents) with a final newline.
+fn to_json_text(doc: &impl Serialize) -> String {
+    let mut s = serde_json::to_string_pretty(doc)
+        .expect("the report documents hold only strings, numbers and lists");
+    s.push('\n');
+    s
 }
 
-impl Json {
-    fn opt(v: Option<f64>) -> Json {
-        v.map_or(Json::Null, Json::Num)
-    }
-
-    fn is_scalar(&self) -> bool {
-        !matches!(self, Json::Arr(_) | Json::Obj(_))
-    }
-
-    /// Pretty-printed with two-space indents; an object or array holding only
-    /// scalars goes on one line (one table row per line).
-    fn render(&self) -> String {
-        let mut s = String::new();
-        self.write(&mut s, 0);
-        s.push('\n');
-        s
-    }
-
-    fn write(&self, s: &mut String, indent: usize) {
-        match self {
-            Json::Null => s.push_str("null"),
-            Json::Int(i) => {
-                let _ = write!(s, "{i}");
-            }
-            // `{:?}` is the shortest representation that reads back to the
-            // same f64, and is valid JSON (`1.0`, `1e-7`, `0.036870001`).
-            Json::Num(v) if v.is_finite() => {
-                let _ = write!(s, "{v:?}");
-            }
-            Json::Num(_) => s.push_str("null"),
-            Json::Str(t) => write_json_string(s, t),
-            Json::Arr(items) => {
-                if items.is_empty() {
-                    s.push_str("[]");
-                } else if items.iter().all(Json::is_scalar) {
-                    s.push('[');
-                    for (i, v) in items.iter().enumerate() {
-                        if i > 0 {
-                            s.push_str(", ");
-                        }
-                        v.write(s, indent);
-                    }
-                    s.push(']');
-                } else {
-                    s.push_str("[\n");
-                    for (i, v) in items.iter().enumerate() {
-                        s.push_str(&"  ".repeat(indent + 1));
-                        v.write(s, indent + 1);
-                        s.push_str(if i + 1 < items.len() { ",\n" } else { "\n" });
-                    }
-                    s.push_str(&"  ".repeat(indent));
-                    s.push(']');
-                }
-            }
-            Json::Obj(fields) => {
-                if fields.is_empty() {
-                    s.push_str("{}");
-                } else if fields.iter().all(|(_, v)| v.is_scalar()) {
-                    s.push('{');
-                    for (i, (k, v)) in fields.iter().enumerate() {
-                        if i > 0 {
-                            s.push_str(", ");
-                        }
-                        write_json_string(s, k);
-                        s.push_str(": ");
-                        v.write(s, indent);
-                    }
-                    s.push('}');
-                } else {
-                    s.push_str("{\n");
-                    for (i, (k, v)) in fields.iter().enumerate() {
-                        s.push_str(&"  ".repeat(indent + 1));
-                        write_json_string(s, k);
-                        s.push_str(": ");
-                        v.write(s, indent + 1);
-                        s.push_str(if i + 1 < fields.len() { ",\n" } else { "\n" });
-                    }
-                    s.push_str(&"  ".repeat(indent));
-                    s.push('}');
-                }
-            }
-        }
-    }
+/// [`QualityReport::to_json`].
+#[derive(Serialize)]
+struct QualityJson<'a> {
+    kind: &'static str,
+    dir: String,
+    device: Option<&'a str>,
+    rows: Vec<QualityRowJson<'a>>,
+    summary: Vec<QualitySummaryJson<'a>>,
+    vs_wlr: Vec<VsWlrJson<'a>>,
+    unavailable_methods: Vec<&'static str>,
+    warnings: &'a [String],
 }
 
-fn write_json_string(s: &mut String, t: &str) {
-    s.push('"');
-    for c in t.chars() {
-        match c {
-            '"' => s.push_str("\\\""),
-            '\\' => s.push_str("\\\\"),
-            '\n' => s.push_str("\\n"),
-            '\r' => s.push_str("\\r"),
-            '\t' => s.push_str("\\t"),
-            c if (c as u32) < 0x20 => {
-                let _ = write!(s, "\\u{:04x}", c as u32);
-            }
-            c => s.push(c),
-        }
-    }
-    s.push('"');
+/// A [`QualityRow`](super::QualityRow), its metrics inlined.
+#[derive(Serialize)]
+struct QualityRowJson<'a> {
+    case: &'a str,
+    scene: &'a str,
+    spp: u32,
+    method: &'a str,
+    backend: Option<&'static str>,
+    rmse: f64,
+    relmse: f64,
+    psnr: f64,
+    ssim: f64,
+    wall_s: Option<f64>,
+    gpu_ms: Option<f64>,
+    err_corr: Option<f64>,
+    naive_corr: Option<f64>,
+    gpu_ms_per_mp: Option<f64>,
+    centres: Option<f64>,
+}
+
+/// A [`QualitySummary`](super::QualitySummary).
+#[derive(Serialize)]
+struct QualitySummaryJson<'a> {
+    method: &'a str,
+    backend: &'static str,
+    spp: u32,
+    scenes: usize,
+    mean_rmse_ratio: f64,
+    mean_err_corr: Option<f64>,
+}
+
+/// A [`VsWlr`](super::VsWlr).
+#[derive(Serialize)]
+struct VsWlrJson<'a> {
+    scene: &'a str,
+    spp: u32,
+    method: &'a str,
+    backend: &'static str,
+    rmse_ratio: f64,
+    speedup: Option<f64>,
+}
+
+/// [`TimingReport::to_json`].
+#[derive(Serialize)]
+struct TimingJson<'a> {
+    kind: &'static str,
+    device: Option<&'a str>,
+    inputs: &'a str,
+    source: &'a str,
+    runs: usize,
+    rows: Vec<TimingRowJson<'a>>,
+    unavailable_methods: Vec<&'static str>,
+    warnings: &'a [String],
+}
+
+/// A [`TimingRow`].
+#[derive(Serialize)]
+struct TimingRowJson<'a> {
+    case: &'a str,
+    method: &'static str,
+    backend: &'static str,
+    width: usize,
+    height: usize,
+    wall_ms: &'a [f64],
+    median_wall_ms: f64,
+    ms_per_megapixel: f64,
+    gpu_ms: Option<f64>,
+    kernels: Vec<KernelJson<'a>>,
+}
+
+/// A [`KernelRow`](super::KernelRow).
+#[derive(Serialize)]
+struct KernelJson<'a> {
+    kernel: &'a str,
+    gpu_ms: f64,
+    dispatches: usize,
 }
 
 /// Appends the Markdown "Warnings:" section (nothing when there are none).
@@ -563,22 +498,138 @@ mod tests {
     use crate::methods::Backend;
     use crate::metrics::Metrics;
 
+    /// Whether every `"key": ` is in `text`, first occurrences in the order given.
+    fn keys_in_order(text: &str, keys: &[&str]) -> bool {
+        let pos: Vec<Option<usize>> = keys
+            .iter()
+            .map(|k| text.find(&format!("\"{k}\": ")))
+            .collect();
+        pos.iter().all(Option::is_some) && pos.windows(2).all(|w| w[0] < w[1])
+    }
+
     #[test]
-    fn json_rendering() {
-        let j = Json::Obj(vec![
-            ("a".into(), Json::Num(f64::NAN)),
-            ("b".into(), Json::Str("q\"\\\n\u{1}".into())),
-            (
-                "c".into(),
-                Json::Arr(vec![Json::Num(1.0), Json::Num(1e-7), Json::Int(3)]),
+    fn json_keys_nulls_and_escapes() {
+        let mut input = row("input", None, 0.2, None);
+        input.metrics.psnr = f64::INFINITY;
+        input.metrics.ssim = f64::NAN;
+        let report = QualityReport {
+            dir: "scenes".into(),
+            rows: vec![input],
+            unavailable: vec![crate::methods::Method::Apr],
+            warnings: vec!["q\"\\\n\u{1}".into()],
+            ..Default::default()
+        };
+        let text = report.to_json();
+        assert!(text.ends_with("}\n"), "{text}");
+        assert!(
+            keys_in_order(
+                &text,
+                &[
+                    "kind",
+                    "dir",
+                    "device",
+                    "rows",
+                    "case",
+                    "scene",
+                    "spp",
+                    "method",
+                    "backend",
+                    "rmse",
+                    "relmse",
+                    "psnr",
+                    "ssim",
+                    "wall_s",
+                    "gpu_ms",
+                    "err_corr",
+                    "naive_corr",
+                    "gpu_ms_per_mp",
+                    "centres",
+                    "summary",
+                    "vs_wlr",
+                    "unavailable_methods",
+                    "warnings",
+                ]
             ),
-            ("d".into(), Json::Arr(vec![])),
-        ]);
-        let s = j.render();
-        assert!(s.contains(r#""a": null"#), "{s}");
-        assert!(s.contains(r#""b": "q\"\\\n\u0001""#), "{s}");
-        assert!(s.contains("[1.0, 1e-7, 3]"), "{s}");
-        assert!(s.contains(r#""d": []"#), "{s}");
+            "{text}"
+        );
+        assert!(text.contains(r#""q\"\\\n\u0001""#), "{text}");
+        let j: serde_json::Value = serde_json::from_str(&text).unwrap();
+        assert_eq!(j["kind"], "quality");
+        assert_eq!(j["device"], serde_json::Value::Null);
+        let r = &j["rows"][0];
+        // Non-finite numbers and absent values are both `null`.
+        assert_eq!(r["psnr"], serde_json::Value::Null);
+        assert_eq!(r["ssim"], serde_json::Value::Null);
+        assert_eq!(r["backend"], serde_json::Value::Null);
+        assert_eq!(r["wall_s"], serde_json::Value::Null);
+        assert_eq!(r["rmse"], 0.2);
+        assert_eq!(r["spp"], 4);
+        assert_eq!(j["unavailable_methods"], serde_json::json!(["apr"]));
+        assert_eq!(j["warnings"][0], "q\"\\\n\u{1}");
+    }
+
+    #[test]
+    fn timing_json_keys() {
+        let report = TimingReport {
+            inputs: "synthetic".into(),
+            source: "synthetic frame".into(),
+            runs: 2,
+            rows: vec![TimingRow {
+                case: "wlr.synthetic.4x4".into(),
+                method: crate::methods::Method::Wlr,
+                backend: Backend::Gpu,
+                width: 4,
+                height: 4,
+                wall_ms: vec![1.5, f64::NAN],
+                median_wall_ms: 1.5,
+                ms_per_megapixel: 93750.0,
+                gpu_ms: Some(1.0),
+                kernels: vec![crate::bench::KernelRow {
+                    kernel: "wlr_fit".into(),
+                    ms: 1.0,
+                    dispatches: 3,
+                }],
+            }],
+            ..Default::default()
+        };
+        let text = report.to_json();
+        assert!(
+            keys_in_order(
+                &text,
+                &[
+                    "kind",
+                    "device",
+                    "inputs",
+                    "source",
+                    "runs",
+                    "rows",
+                    "case",
+                    "method",
+                    "backend",
+                    "width",
+                    "height",
+                    "wall_ms",
+                    "median_wall_ms",
+                    "ms_per_megapixel",
+                    "gpu_ms",
+                    "kernels",
+                    "kernel",
+                    "dispatches",
+                    "unavailable_methods",
+                    "warnings",
+                ]
+            ),
+            "{text}"
+        );
+        let j: serde_json::Value = serde_json::from_str(&text).unwrap();
+        let r = &j["rows"][0];
+        assert_eq!(r["method"], "wlr");
+        assert_eq!(r["backend"], "gpu");
+        assert_eq!(r["wall_ms"], serde_json::json!([1.5, null]));
+        assert_eq!(
+            r["kernels"],
+            serde_json::json!([{"kernel": "wlr_fit", "gpu_ms": 1.0, "dispatches": 3}])
+        );
     }
 
     fn row(method: &str, backend: Option<Backend>, rmse: f64, corr: Option<f64>) -> QualityRow {
@@ -628,7 +679,8 @@ mod tests {
             "{md}"
         );
         assert!(md.contains("5.00%"), "{md}");
-        assert!(report.to_json().contains(r#""rmse_ratio": 1.2"#));
+        let j: serde_json::Value = serde_json::from_str(&report.to_json()).unwrap();
+        assert_eq!(j["vs_wlr"][0]["rmse_ratio"], 1.2);
     }
 
     #[test]
@@ -658,9 +710,12 @@ mod tests {
             md.contains("- wlr (gpu), spp 4: 20.00 over 1 scene; mean err corr 0.800"),
             "{md}"
         );
-        assert!(report.to_json().contains(
-            r#""err_corr": 0.8, "naive_corr": 0.4, "gpu_ms_per_mp": null, "centres": null}"#
-        ));
+        let j: serde_json::Value = serde_json::from_str(&report.to_json()).unwrap();
+        let wlr = &j["rows"][1];
+        assert_eq!(wlr["err_corr"], 0.8);
+        assert_eq!(wlr["naive_corr"], 0.4);
+        assert_eq!(wlr["gpu_ms_per_mp"], serde_json::Value::Null);
+        assert_eq!(wlr["centres"], serde_json::Value::Null);
     }
 
     #[test]
