@@ -1,8 +1,9 @@
 //! The benchmarks behind `mcdenoise bench`: a **quality** benchmark over a
 //! folder of scenes with references, and a **timing** benchmark of whole
-//! denoise calls. Both run every method through [`methods::denoise`], the
-//! same entry point as the CLI, so a method shows up here as soon as
-//! [`Method::available`] says it is built.
+//! denoise calls. Both run every method through
+//! [`methods::denoise`](crate::methods::denoise), the same entry point as the
+//! CLI, so a method shows up here as soon as [`Method::available`] says it is
+//! built.
 //!
 //! # Cases and filters
 //! Every measurement is a *case* with a dotted name:
@@ -24,8 +25,8 @@
 //! every method × backend (on the GPU, the first call of each method is
 //! preceded by an untimed warm-up on a 32×32 crop, which builds the
 //! pipelines): the denoise call's wall-clock time, its GPU time
-//! (sum of the returned [`KernelTiming`]s) and the [`Metrics`] of its colour
-//! against the reference. When the method returns an error estimate, the row
+//! (sum of the returned [`KernelTiming`]s) and the
+//! [`Metrics`](crate::metrics::Metrics) of its colour against the reference. When the method returns an error estimate, the row
 //! also holds [`error_correlation`] and [`naive_correlation`]. A file that is
 //! missing or unreadable skips the cases that need it with a warning naming
 //! the file; the rest of the table is still produced.
@@ -36,13 +37,16 @@
 //! warm-up call (pipelines built, allocations made), then `runs` timed calls.
 //! Reported per case: the median wall time, milliseconds per megapixel, and
 //! the GPU time per kernel from the device's timestamp queries
-//! ([`timings_per_kernel`]).
+//! ([`timings_per_kernel`](crate::gpu::timings_per_kernel)).
 //!
 //! # Output
 //! Reports render as Markdown ([`QualityReport::to_markdown`],
 //! [`TimingReport::to_markdown`]) and as JSON ([`QualityReport::to_json`],
 //! [`TimingReport::to_json`], written with `serde_json`: non-finite numbers
 //! become `null`, absent values are `null`).
+
+// Every public item of the benchmark API is documented; keep it so.
+#![warn(missing_docs)]
 
 mod quality;
 mod report;

@@ -150,7 +150,9 @@ pub struct QualityConfig {
 pub struct QualityRow {
     /// `method.scene.sppN`.
     pub case: String,
+    /// The scene folder's name.
     pub scene: String,
+    /// The samples per pixel of the input (the N of `sppN.exr`).
     pub spp: u32,
     /// A [`Method::name`], or `"input"` for the noisy input's own colour.
     pub method: String,
@@ -176,8 +178,11 @@ pub struct QualityRow {
 /// Per method × backend × spp: how much the method improves on the input.
 #[derive(Clone, Debug, PartialEq)]
 pub struct QualitySummary {
+    /// A [`Method::name`].
     pub method: String,
+    /// The backend the method ran on.
     pub backend: Backend,
+    /// The samples per pixel of the inputs.
     pub spp: u32,
     /// Scenes that had both an input row and a method row at this spp.
     pub scenes: usize,
@@ -191,9 +196,13 @@ pub struct QualitySummary {
 /// One method against WLR on the same scene, spp and backend.
 #[derive(Clone, Debug, PartialEq)]
 pub struct VsWlr {
+    /// The scene folder's name.
     pub scene: String,
+    /// The samples per pixel of the input.
     pub spp: u32,
+    /// A [`Method::name`] other than `wlr` and `none`.
     pub method: String,
+    /// The backend both methods ran on.
     pub backend: Backend,
     /// rMSE(method) / rMSE(wlr): < 1 is better than WLR.
     pub rmse_ratio: f64,
@@ -204,6 +213,7 @@ pub struct VsWlr {
 /// The result of [`run_quality`].
 #[derive(Clone, Debug, Default)]
 pub struct QualityReport {
+    /// The scenes folder the benchmark ran on.
     pub dir: PathBuf,
     /// Name of the Vulkan device, when the GPU backend was used.
     pub device: Option<String>,

@@ -35,6 +35,7 @@ pub struct TimingConfig {
     pub methods: Vec<Method>,
     /// Backends; empty = the GPU.
     pub backends: Vec<Backend>,
+    /// The frame to denoise.
     pub input: TimingInput,
     /// Synthetic: the frame size (default 256×256). File: a centred crop of
     /// this size (default: the whole file).
@@ -61,18 +62,24 @@ pub struct KernelRow {
 pub struct TimingRow {
     /// `method.inputs.WxH`.
     pub case: String,
+    /// The method denoising the frame.
     pub method: Method,
+    /// The backend it ran on.
     pub backend: Backend,
+    /// Width of the denoised frame (pixels).
     pub width: usize,
+    /// Height of the denoised frame (pixels).
     pub height: usize,
     /// Wall-clock milliseconds of each timed call.
     pub wall_ms: Vec<f64>,
+    /// Median of `wall_ms`.
     pub median_wall_ms: f64,
     /// `median_wall_ms` per million pixels.
     pub ms_per_megapixel: f64,
     /// Median over the runs of the summed kernel times (ms); `None` if the
     /// call reported no timings (CPU backend, or a method without them).
     pub gpu_ms: Option<f64>,
+    /// GPU time per kernel, in the order the last run first dispatched them.
     pub kernels: Vec<KernelRow>,
 }
 
@@ -85,8 +92,11 @@ pub struct TimingReport {
     pub inputs: String,
     /// Where the input came from (a path, or `synthetic ...`).
     pub source: String,
+    /// Timed calls per case ([`TimingConfig::runs`]).
     pub runs: usize,
+    /// One row per case × backend that ran, methods in order.
     pub rows: Vec<TimingRow>,
+    /// Requested methods that are not in this build (skipped).
     pub unavailable: Vec<Method>,
     /// Cases whose calls failed (skipped).
     pub warnings: Vec<String>,
