@@ -1,0 +1,232 @@
+//! The benchmarks behind `mcdenoise bench`: a **quality** benchmark over a
+//! folder of scenes with references, and a **timing** benchmark of whole
+//! denoise calls. Both run every method through
+//! [`methods::denoise`](crate::methods::denoise), the same entry point as the
+//! CLI, so a method shows up here as soon as [`Method::available`] says it is
+//! built.
+//!
+//! # Cases and filters
+//! Every measurement is a *case* with a dotted name:
+//!
+//! | benchmark | case name | example |
+//! |---|---|---|
+//! | quality | `method.scene.sppN` (`input.scene.sppN` for the noisy input) | `wlr.dof_checker.spp16` |
+//! | timing | `method.inputs.WxH` | `none.synthetic.256x256` |
+//!
+//! The backend is a column of its own (the same case name can run on both).
+//! A filter ([`case_matches`]) selects cases by substring; `a|b` selects the
+//! cases matching either alternative.
+//!
+//! # Quality ([`run_quality`])
+//! A folder laid out like `../shared/data/scenes/`: one subfolder per scene
+//! holding `sppN.exr` render-statistics files and a `reference.exr` (a folder
+//! that itself holds `sppN.exr` files is taken as a single scene). For every
+//! scene × spp the noisy input's colour is scored (the `input` row), then
+//! every method × backend (on the GPU, the first call of each method is
+//! preceded by an untimed warm-up on a 32×32 crop, which builds the
+//! pipelines): the denoise call's wall-clock time, its GPU time
+//! (sum of the returned [`KernelTiming`]s) and the
+//! [`Metrics`](crate::metrics::Metrics) of its colour against the reference. When the method returns an error estimate, the row
+//! also holds [`error_correlation`] and [`naive_correlation`]. A file that is
+//! missing or unreadable skips the cases that need it with a warning naming
+//! the file; the rest of the table is still produced.
+//!
+//! # Timing ([`run_timing`])
+//! One input (the deterministic [`synthetic`] frame, or a render-statistics
+//! file, optionally centre-cropped) denoised by every method × backend: one
+//! warm-up call (pipelines built, allocations made), then `runs` timed calls.
+//! Reported per case: the median wall time, milliseconds per megapixel, and
+//! the GPU time per kernel from the device's timestamp queries
+//! ([`timings_per_kernel`](crate::gpu::timings_per_kernel)).
+//!
+//! # Output
+//! Reports render as Markdown ([`QualityReport::to_markdown`],
+//! [`TimingReport::to_markdown`]) and as JSON ([`QualityReport::to_json`],
+//! [`TimingReport::to_json`], written with `serde_json`: non-finite numbers
+//! become `null`, absent values are `null`).
+
+// Every public item of the benchmark API is documented; keep it so.
+#![warn(missing_docs)]
+
+mod quality;
+mod report;
+mod scenes;
+mod synthetic;
+mod timing;
+
+pub use quality::{
+    error_correlation, naive_correlation, pearson, run_quality, tile_means, QualityConfig,
+    QualityReport, QualityRow, QualitySummary, VsWlr, CORRELATION_TILE,
+};
+pub use report::write_text;
+pub use scenes::{discover_scenes, Scene};
+pub use synthetic::{synthetic, Synthetic, SYNTHETIC_SPP};
+pub use timing::{
+    inputs_name, run_timing, KernelRow, TimingConfig, TimingInput, TimingReport, TimingRow,
+};
+
+use std::sync::Arc;
+
+use crate::error::{Error, Result};
+use crate::gpu::{GpuContext, KernelTiming};
+use crate::image::{Layer, RgbImage, StatsImage};
+use crate::io;
+use crate::methods::{Backend, DenoiseRequest, Method};
+
+/// Every method of the spec, in the order the benchmarks run them.
+pub const ALL_METHODS: [Method; 5] = [
+    Method::None,
+    Method::Wlr,
+    Method::Lp,
+    Method::Apr,
+    Method::Aos,
+];
+
+/// The method called `name` ([`Method::name`]: `none`, `wlr`, `lp`, `apr`,
+/// `aos`; case-insensitive).
+pub fn method_from_name(name: &str) -> Option<Method> {
+    ALL_METHODS
+        .into_iter()
+        .find(|m| m.name().eq_ignore_ascii_case(name.trim()))
+}
+
+/// `"gpu"` or `"cpu"`: the backend column of the tables.
+pub fn backend_name(b: Backend) -> &'static str {
+    match b {
+        Backend::Gpu => "gpu",
+        Backend::Cpu => "cpu",
+    }
+}
+
+/// Whether the case `name` is selected by `filter`: no filter (or an empty
+/// one) selects everything; otherwise the filter is split at `|` and the case
+/// is selected if its name contains any of the alternatives (plain substring
+/// matching, case-sensitive).
+pub fn case_matches(name: &str, filter: Option<&str>) -> bool {
+    match filter {
+        None | Some("") => true,
+        Some(f) => f.split('|').any(|alt| name.contains(alt)),
+    }
+}
+
+/// Parses `WxH` (e.g. `256x256`; `X` accepted too) into `(width, height)`,
+/// both ≥ 1 and within [`io::MAX_DIMENSION`].
+pub fn parse_size(s: &str) -> Result<(usize, usize)> {
+    let bad = || {
+        Error::InvalidArgument(format!(
+            "size `{s}`: expected WIDTHxHEIGHT, e.g. 256x256, each 1..={}",
+            io::MAX_DIMENSION
+        ))
+    };
+    let (w, h) = s.trim().split_once(['x', 'X']).ok_or_else(bad)?;
+    let w: usize = w.trim().parse().map_err(|_| bad())?;
+    let h: usize = h.trim().parse().map_err(|_| bad())?;
+    if w == 0 || h == 0 || w > io::MAX_DIMENSION || h > io::MAX_DIMENSION {
+        return Err(bad());
+    }
+    Ok((w, h))
+}
+
+/// Something a benchmark wants the user to see while it runs.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum Note<'a> {
+    /// Which case runs now (quiet runs drop these).
+    Progress(&'a str),
+    /// A case was skipped or a method is not built; also kept in the report.
+    Warning(&'a str),
+}
+
+/// The methods to run: `requested` deduplicated in order (all of
+/// [`ALL_METHODS`] when empty), split into (available, not built).
+fn select_methods(requested: &[Method]) -> (Vec<Method>, Vec<Method>) {
+    let wanted: Vec<Method> = if requested.is_empty() {
+        ALL_METHODS.to_vec()
+    } else {
+        let mut v = Vec::new();
+        for &m in requested {
+            if !v.contains(&m) {
+                v.push(m);
+            }
+        }
+        v
+    };
+    let explicit = !requested.is_empty();
+    let (ok, missing): (Vec<Method>, Vec<Method>) = wanted.into_iter().partition(|m| m.available());
+    // With the default list, methods that are not built are simply not run.
+    (ok, if explicit { missing } else { Vec::new() })
+}
+
+fn dedup_backends(b: &[Backend]) -> Vec<Backend> {
+    let mut v = Vec::new();
+    for &x in if b.is_empty() { &[Backend::Gpu][..] } else { b } {
+        if !v.contains(&x) {
+            v.push(x);
+        }
+    }
+    v
+}
+
+fn check_context(ctx: Option<&Arc<GpuContext>>, backends: &[Backend]) -> Result<()> {
+    if backends.contains(&Backend::Gpu) && ctx.is_none() {
+        return Err(Error::InvalidArgument(
+            "the GPU backend needs a Vulkan context".into(),
+        ));
+    }
+    Ok(())
+}
+
+/// The request the benchmarks send: the method's defaults, the error estimate
+/// asked for whenever the method can have one (every method but `none`).
+fn request(method: Method, backend: Backend) -> DenoiseRequest {
+    let mut req = DenoiseRequest::new(method);
+    req.backend = backend;
+    req.error = method != Method::None;
+    req
+}
+
+/// Sum of the GPU times in milliseconds; `None` when nothing was timed (the
+/// CPU backend, or a method that reports no timings).
+fn gpu_ms(t: &[KernelTiming]) -> Option<f64> {
+    (!t.is_empty()).then(|| t.iter().map(|k| k.nanoseconds).sum::<f64>() / 1e6)
+}
+
+/// The colour layer of a statistics image, as stored (no sanitation).
+fn colour_layer(img: &StatsImage) -> Option<RgbImage> {
+    let c = img.get(Layer::Color)?;
+    Some(RgbImage::from_planes(
+        img.width,
+        img.height,
+        [c[0].clone(), c[1].clone(), c[2].clone()],
+    ))
+}
+
+fn median(v: &[f64]) -> f64 {
+    let mut s = v.to_vec();
+    s.sort_by(|a, b| a.total_cmp(b));
+    match s.len() {
+        0 => f64::NAN,
+        n if n % 2 == 1 => s[n / 2],
+        n => 0.5 * (s[n / 2 - 1] + s[n / 2]),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn filters_and_sizes() {
+        assert!(case_matches("none.dof_checker.spp16", None));
+        assert!(case_matches("none.dof_checker.spp16", Some("")));
+        assert!(case_matches("none.dof_checker.spp16", Some("spp16")));
+        assert!(case_matches("none.dof_checker.spp16", Some("wlr|dof")));
+        assert!(!case_matches("none.dof_checker.spp16", Some("spp4")));
+        assert_eq!(parse_size("256x128").unwrap(), (256, 128));
+        assert_eq!(parse_size(" 3X5 ").unwrap(), (3, 5));
+        for bad in ["256", "0x4", "ax4", "4x", "99999999x1"] {
+            assert!(parse_size(bad).is_err(), "{bad}");
+        }
+        assert_eq!(method_from_name("WLR"), Some(Method::Wlr));
+        assert_eq!(method_from_name("x"), None);
+    }
+}

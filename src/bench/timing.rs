@@ -1,0 +1,280 @@
+//! The timing benchmark ([`run_timing`]): one input denoised by every
+//! method × backend, timed on the host and on the device.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::Instant;
+
+use super::scenes::spp_of_file_name;
+use super::synthetic::{synthetic, SYNTHETIC_SPP};
+use super::{
+    backend_name, case_matches, check_context, dedup_backends, gpu_ms, median, request,
+    select_methods, Note,
+};
+use crate::error::{Error, Result};
+use crate::gpu::{timings_per_kernel, GpuContext, KernelTiming};
+use crate::image::StatsImage;
+use crate::io;
+use crate::methods::{self, Backend, Method};
+
+/// The frame the timing benchmark denoises.
+#[derive(Clone, Debug, PartialEq)]
+pub enum TimingInput {
+    /// [`synthetic`] at [`SYNTHETIC_SPP`] spp, seed 1; `inputs` = `synthetic`.
+    Synthetic,
+    /// A render-statistics file; `inputs` = its stem (a `sppN` stem is
+    /// prefixed with its folder's name: `dof_checker-spp16`), with every
+    /// character other than letters, digits, `_` and `-` replaced by `_`.
+    File(PathBuf),
+}
+
+/// What the timing benchmark runs.
+#[derive(Clone, Debug)]
+pub struct TimingConfig {
+    /// Methods to run; empty = every method built into this version.
+    pub methods: Vec<Method>,
+    /// Backends; empty = the GPU.
+    pub backends: Vec<Backend>,
+    /// The frame to denoise.
+    pub input: TimingInput,
+    /// Synthetic: the frame size (default 256×256). File: a centred crop of
+    /// this size (default: the whole file).
+    pub size: Option<(usize, usize)>,
+    /// Timed calls per case (≥ 1), after one untimed warm-up call.
+    pub runs: usize,
+    /// Case filter ([`case_matches`]) on `method.inputs.WxH`.
+    pub filter: Option<String>,
+}
+
+/// GPU time of one kernel in one case.
+#[derive(Clone, Debug, PartialEq)]
+pub struct KernelRow {
+    /// The kernel's name (as in `spirv/<name>.comp`; `_f64` for the f64 variant).
+    pub kernel: String,
+    /// Median over the runs of the kernel's total GPU time in one call (ms).
+    pub ms: f64,
+    /// Dispatches (bands) of the kernel in one call.
+    pub dispatches: usize,
+}
+
+/// One case of the timing benchmark.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TimingRow {
+    /// `method.inputs.WxH`.
+    pub case: String,
+    /// The method denoising the frame.
+    pub method: Method,
+    /// The backend it ran on.
+    pub backend: Backend,
+    /// Width of the denoised frame (pixels).
+    pub width: usize,
+    /// Height of the denoised frame (pixels).
+    pub height: usize,
+    /// Wall-clock milliseconds of each timed call.
+    pub wall_ms: Vec<f64>,
+    /// Median of `wall_ms`.
+    pub median_wall_ms: f64,
+    /// `median_wall_ms` per million pixels.
+    pub ms_per_megapixel: f64,
+    /// Median over the runs of the summed kernel times (ms); `None` if the
+    /// call reported no timings (CPU backend, or a method without them).
+    pub gpu_ms: Option<f64>,
+    /// GPU time per kernel, in the order the last run first dispatched them.
+    pub kernels: Vec<KernelRow>,
+}
+
+/// The result of [`run_timing`].
+#[derive(Clone, Debug, Default)]
+pub struct TimingReport {
+    /// Name of the Vulkan device, when the GPU backend was used.
+    pub device: Option<String>,
+    /// The `inputs` part of the case names.
+    pub inputs: String,
+    /// Where the input came from (a path, or `synthetic ...`).
+    pub source: String,
+    /// Timed calls per case ([`TimingConfig::runs`]).
+    pub runs: usize,
+    /// One row per case × backend that ran, methods in order.
+    pub rows: Vec<TimingRow>,
+    /// Requested methods that are not in this build (skipped).
+    pub unavailable: Vec<Method>,
+    /// Cases whose calls failed (skipped).
+    pub warnings: Vec<String>,
+}
+
+/// The `inputs` name of a file (see [`TimingInput::File`]).
+pub fn inputs_name(path: &Path) -> String {
+    let stem = path
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "input".into());
+    let name = match (spp_of_file_name(&format!("{stem}.exr")), path.parent()) {
+        (Some(_), Some(parent)) => match parent
+            .canonicalize()
+            .ok()
+            .and_then(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
+        {
+            Some(dir) => format!("{dir}-{stem}"),
+            None => stem,
+        },
+        _ => stem,
+    };
+    name.chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '_' || c == '-' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect()
+}
+
+/// Runs the timing benchmark described by `cfg` (module docs). `ctx` is
+/// needed when `cfg.backends` holds the GPU.
+///
+/// # Errors
+/// `runs` is 0, the GPU backend is asked for without a context, the input
+/// file cannot be read, or the crop is larger than the file. A method call
+/// that fails skips its case with a warning.
+pub fn run_timing(
+    ctx: Option<&Arc<GpuContext>>,
+    cfg: &TimingConfig,
+    note: &mut dyn FnMut(Note),
+) -> Result<TimingReport> {
+    if cfg.runs == 0 {
+        return Err(Error::InvalidArgument("--runs must be at least 1".into()));
+    }
+    let backends = dedup_backends(&cfg.backends);
+    check_context(ctx, &backends)?;
+    let (methods, unavailable) = select_methods(&cfg.methods);
+    let (img, inputs, source) = match &cfg.input {
+        TimingInput::Synthetic => {
+            let (w, h) = cfg.size.unwrap_or((256, 256));
+            let s = synthetic(w, h, SYNTHETIC_SPP, 1);
+            (
+                s.stats,
+                "synthetic".to_string(),
+                format!("synthetic frame, {SYNTHETIC_SPP} spp, seed 1"),
+            )
+        }
+        TimingInput::File(path) => {
+            let full = io::read_stats(path)?;
+            let img = match cfg.size {
+                None => full,
+                Some((w, h)) => {
+                    if w > full.width || h > full.height {
+                        return Err(Error::InvalidArgument(format!(
+                            "{}: is {}x{}, smaller than --size {w}x{h}",
+                            path.display(),
+                            full.width,
+                            full.height
+                        )));
+                    }
+                    full.crop((full.width - w) / 2, (full.height - h) / 2, w, h)
+                }
+            };
+            (img, inputs_name(path), path.display().to_string())
+        }
+    };
+    let (w, h) = (img.width, img.height);
+    let mut report = TimingReport {
+        device: backends
+            .contains(&Backend::Gpu)
+            .then(|| ctx.map(|c| c.info().name.clone()))
+            .flatten(),
+        inputs: inputs.clone(),
+        source,
+        runs: cfg.runs,
+        unavailable: unavailable.clone(),
+        ..Default::default()
+    };
+    for m in &unavailable {
+        let msg = format!("method {} is not in this build: skipped", m.name());
+        note(Note::Warning(&msg));
+        report.warnings.push(msg);
+    }
+    for &method in &methods {
+        let case = format!("{}.{inputs}.{w}x{h}", method.name());
+        if !case_matches(&case, cfg.filter.as_deref()) {
+            continue;
+        }
+        for &backend in &backends {
+            note(Note::Progress(&format!(
+                "{case} ({})",
+                backend_name(backend)
+            )));
+            match time_case(ctx, &img, method, backend, cfg.runs) {
+                Ok((wall_ms, timings)) => {
+                    let med = median(&wall_ms);
+                    let sums: Vec<f64> = timings.iter().filter_map(|t| gpu_ms(t)).collect();
+                    let kernels = timings
+                        .last()
+                        .map(|t| timings_per_kernel(t))
+                        .unwrap_or_default()
+                        .into_iter()
+                        .map(|(kernel, _, dispatches)| {
+                            let per_run: Vec<f64> = timings
+                                .iter()
+                                .map(|t| {
+                                    t.iter()
+                                        .filter(|k| k.kernel == kernel)
+                                        .map(|k| k.nanoseconds)
+                                        .sum::<f64>()
+                                        / 1e6
+                                })
+                                .collect();
+                            KernelRow {
+                                ms: median(&per_run),
+                                kernel,
+                                dispatches,
+                            }
+                        })
+                        .collect();
+                    report.rows.push(TimingRow {
+                        case: case.clone(),
+                        method,
+                        backend,
+                        width: w,
+                        height: h,
+                        median_wall_ms: med,
+                        ms_per_megapixel: med / ((w * h) as f64 / 1e6),
+                        wall_ms,
+                        gpu_ms: (!sums.is_empty()).then(|| median(&sums)),
+                        kernels,
+                    });
+                }
+                Err(e) => {
+                    let msg = format!(
+                        "{case} ({}) skipped: {}: {e}",
+                        backend_name(backend),
+                        report.source
+                    );
+                    note(Note::Warning(&msg));
+                    report.warnings.push(msg);
+                }
+            }
+        }
+    }
+    Ok(report)
+}
+
+/// One warm-up call, then `runs` timed calls: wall ms and timings per run.
+fn time_case(
+    ctx: Option<&Arc<GpuContext>>,
+    img: &StatsImage,
+    method: Method,
+    backend: Backend,
+    runs: usize,
+) -> Result<(Vec<f64>, Vec<Vec<KernelTiming>>)> {
+    let req = request(method, backend);
+    methods::denoise(ctx, img, &req)?;
+    let (mut wall, mut timings) = (Vec::new(), Vec::new());
+    for _ in 0..runs {
+        let t0 = Instant::now();
+        let out = methods::denoise(ctx, img, &req)?;
+        wall.push(t0.elapsed().as_secs_f64() * 1e3);
+        timings.push(out.timings);
+    }
+    Ok((wall, timings))
+}
