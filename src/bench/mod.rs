@@ -55,8 +55,9 @@ mod synthetic;
 mod timing;
 
 pub use quality::{
-    error_correlation, naive_correlation, pearson, run_quality, tile_means, QualityConfig,
-    QualityReport, QualityRow, QualitySummary, VsWlr, CORRELATION_TILE,
+    error_correlation, map_share, naive_correlation, pearson, run_quality, tile_means,
+    QualityConfig, QualityReport, QualityRow, QualitySummary, VsWlr, CORRELATION_TILE,
+    MAP_BUDGET_PER_PIXEL, WORST_TILE_FRACTION,
 };
 pub use report::write_text;
 pub use scenes::{discover_scenes, Scene};
@@ -181,6 +182,17 @@ fn request(method: Method, backend: Backend) -> DenoiseRequest {
     let mut req = DenoiseRequest::new(method);
     req.backend = backend;
     req.error = method != Method::None;
+    req
+}
+
+/// [`request`] with a sample map of [`MAP_BUDGET_PER_PIXEL`] samples per
+/// pixel (the quality benchmark scores where the map sends them).
+fn request_with_map(method: Method, backend: Backend, pixels: usize) -> DenoiseRequest {
+    let mut req = request(method, backend);
+    if method != Method::None {
+        req.budget =
+            Some((pixels as u64 * MAP_BUDGET_PER_PIXEL as u64).min(u32::MAX as u64) as u32);
+    }
     req
 }
 

@@ -8,8 +8,8 @@ use std::time::Instant;
 
 use super::scenes::{discover_scenes, Scene};
 use super::{
-    backend_name, case_matches, check_context, colour_layer, dedup_backends, gpu_ms, request,
-    select_methods, Note,
+    backend_name, case_matches, check_context, colour_layer, dedup_backends, gpu_ms,
+    request_with_map, select_methods, Note,
 };
 use crate::error::Result;
 use crate::gpu::GpuContext;
@@ -42,6 +42,42 @@ pub fn tile_means(
         }
     }
     sum.iter().zip(&count).map(|(s, &n)| s / n as f64).collect()
+}
+
+/// Budget of the sample map the quality benchmark asks for, per pixel (the
+/// share below does not depend on it beyond rounding).
+pub const MAP_BUDGET_PER_PIXEL: u32 = 4;
+
+/// Fraction of [`CORRELATION_TILE`]-sized tiles counted as "worst" by
+/// [`map_share`].
+pub const WORST_TILE_FRACTION: f64 = 0.10;
+
+/// Whether a sample map points at the error: the share of its samples that
+/// falls into the 10 % of 8×8 tiles where `out` has the largest true error,
+/// measured as rMSE's per-pixel term `mean_ch (x−r)²/(r²+0.01)` against
+/// `reference`. Uniform sampling gives about 0.10. NaN for an empty map.
+pub fn map_share(samples: &[u32], out: &RgbImage, reference: &RgbImage) -> f64 {
+    let (w, h) = (out.width, out.height);
+    let heat = match metrics::rmse_heatmap(out, reference) {
+        Ok(m) => m,
+        Err(_) => return f64::NAN,
+    };
+    let err = tile_means(w, h, CORRELATION_TILE, |i| heat[i] as f64);
+    let got = tile_means(w, h, CORRELATION_TILE, |i| samples[i] as f64);
+    let mut order: Vec<usize> = (0..err.len()).collect();
+    order.sort_by(|&a, &b| err[b].total_cmp(&err[a]));
+    let worst = ((err.len() as f64 * WORST_TILE_FRACTION).round() as usize).max(1);
+    // Tile means × tile pixel counts = tile sums.
+    let tw = w.div_ceil(CORRELATION_TILE);
+    let pixels = |t: usize| {
+        let (tx, ty) = (t % tw, t / tw);
+        let cw = (w - tx * CORRELATION_TILE).min(CORRELATION_TILE);
+        let ch = (h - ty * CORRELATION_TILE).min(CORRELATION_TILE);
+        (cw * ch) as f64
+    };
+    let total: f64 = samples.iter().map(|&s| s as f64).sum();
+    let in_worst: f64 = order[..worst].iter().map(|&t| got[t] * pixels(t)).sum();
+    in_worst / total
 }
 
 /// Pearson correlation of two equally long samples, in f64. NaN if there are
@@ -169,6 +205,8 @@ pub struct QualityRow {
     pub err_corr: Option<f64>,
     /// [`naive_correlation`] for the same output (only alongside `err_corr`).
     pub naive_corr: Option<f64>,
+    /// [`map_share`] of the sample map that comes with the output.
+    pub map_share: Option<f64>,
     /// `gpu_ms` per megapixel of the input.
     pub gpu_ms_per_mp: Option<f64>,
     /// Fraction of the pixels that became centres (LP).
@@ -339,6 +377,7 @@ pub fn run_quality(
                 gpu_ms: None,
                 err_corr: None,
                 naive_corr: None,
+                map_share: None,
                 gpu_ms_per_mp: None,
                 centres: None,
             });
@@ -349,7 +388,7 @@ pub fn run_quality(
                         "{case} ({})",
                         backend_name(backend)
                     )));
-                    let req = request(method, backend);
+                    let req = request_with_map(method, backend, img.width * img.height);
                     if backend == Backend::Gpu
                         && warmed.insert((method.name(), backend_name(backend)))
                     {
@@ -419,6 +458,10 @@ fn quality_row(
         }
         None => (None, None),
     };
+    let map_share = out
+        .samples
+        .as_ref()
+        .map(|s| map_share(s, &out.color, reference));
     Ok(QualityRow {
         case: case.to_string(),
         scene: scene.name.clone(),
@@ -430,6 +473,7 @@ fn quality_row(
         gpu_ms: gpu_ms(&out.timings),
         err_corr,
         naive_corr,
+        map_share,
         gpu_ms_per_mp: gpu_ms(&out.timings).map(|t| t / (img.width * img.height) as f64 * 1e6),
         centres: out
             .stats

@@ -46,7 +46,7 @@ impl QualityReport {
             align.push("---:");
         }
         if corr {
-            header.extend(["err corr", "naive corr"]);
+            header.extend(["err corr", "naive corr", "map share"]);
             align.extend(["---:", "---:"]);
         }
         let mut rows: Vec<Vec<String>> = vec![
@@ -76,6 +76,10 @@ impl QualityReport {
             if corr {
                 cells.push(r.err_corr.map_or(String::new(), |c| fmt_fixed(c, 3)));
                 cells.push(r.naive_corr.map_or(String::new(), |c| fmt_fixed(c, 3)));
+                cells.push(
+                    r.map_share
+                        .map_or(String::new(), |c| format!("{:.1}%", 100.0 * c)),
+                );
             }
             rows.push(cells);
         }
@@ -167,6 +171,7 @@ impl QualityReport {
                     gpu_ms: r.gpu_ms,
                     err_corr: r.err_corr,
                     naive_corr: r.naive_corr,
+                    map_share: r.map_share,
                     gpu_ms_per_mp: r.gpu_ms_per_mp,
                     centres: r.centres,
                 })
@@ -419,6 +424,7 @@ struct QualityRowJson<'a> {
     gpu_ms: Option<f64>,
     err_corr: Option<f64>,
     naive_corr: Option<f64>,
+    map_share: Option<f64>,
     gpu_ms_per_mp: Option<f64>,
     centres: Option<f64>,
 }
@@ -695,7 +701,7 @@ mod tests {
             ..Default::default()
         };
         let md = report.to_markdown();
-        assert!(md.contains("| err corr | naive corr |"), "{md}");
+        assert!(md.contains("| err corr | naive corr | map share |"), "{md}");
         assert!(md.contains("|    0.800 |      0.400 |"), "{md}");
         // Rows without an estimate have blank correlation cells.
         let none = md.lines().find(|l| l.contains("| none ")).unwrap();
