@@ -296,7 +296,7 @@ fn run_centres_inplace(
         .collect::<mcdenoise::error::Result<_>>()?;
     let bindings: Vec<_> = bufs.iter().map(|b| b.slice()).collect();
     let mut batch = Batch::new(ctx)?;
-    let (gw, gh) = rc::grid(sc.w as u32, sc.h as u32, rl::GRANULARITIES[pass]);
+    let (gw, gh) = push(sc, pass).centre_grid();
     batch.dispatch(
         &lp_centres::DECL,
         prec,

@@ -3,12 +3,12 @@
 //! predictions `β_c + u_c·(x_i − x_c)` of the centres that cover it
 //! (`|i − c|_inf <= r_opt(c)`), their error estimates `max(ξ̂_c, 0)` and
 //! `ΔMSE = max(ξ̂_c, 0)·n_i^{-4/(k_c+4)}`. Twin:
-//! [`crate::reference::lp_gather`].
+//! `reference::lp_gather`.
 
+use super::lp_centres::LpInputs;
 use crate::error::Result;
 use crate::gpu::reflect::{read, write};
 use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};
-use crate::methods::lp::LpInputs;
 use crate::shared::LpPush;
 
 pub const DECL: KernelDecl = KernelDecl {

@@ -22,6 +22,7 @@ use super::stats::GpuStats;
 use crate::error::{Error, Result};
 use crate::gpu::{Batch, BufferSlice, GpuContext, PlaneSet, Precision};
 use crate::image::{Layer, RgbImage, StatsImage};
+pub use crate::kernels::lp_centres::LpInputs;
 use crate::kernels::{lp_centres, lp_gather, lp_reach};
 use crate::options::Options;
 use crate::reference;
@@ -95,33 +96,23 @@ impl LpPlanes {
     }
 }
 
-/// The bindings LP reads from sanitised statistics.
-pub struct LpInputs {
-    pub feat: [BufferSlice; 7],
-    pub var: [BufferSlice; 7],
-    pub color: [BufferSlice; 3],
-    pub cvar: [BufferSlice; 3],
-    pub spp: BufferSlice,
-}
-
-impl LpInputs {
-    pub fn of(s: &GpuStats) -> LpInputs {
-        let order = [
-            (Layer::Normal, 0),
-            (Layer::Normal, 1),
-            (Layer::Normal, 2),
-            (Layer::Depth, 0),
-            (Layer::Albedo, 0),
-            (Layer::Albedo, 1),
-            (Layer::Albedo, 2),
-        ];
-        LpInputs {
-            feat: std::array::from_fn(|k| s.plane(order[k].0, order[k].1)),
-            var: std::array::from_fn(|k| s.plane(order[k].0.variance().unwrap(), order[k].1)),
-            color: std::array::from_fn(|c| s.plane(Layer::Color, c)),
-            cvar: std::array::from_fn(|c| s.plane(Layer::ColorVariance, c)),
-            spp: s.plane(Layer::Spp, 0),
-        }
+/// The bindings of `clean` LP reads.
+pub fn lp_inputs(s: &GpuStats) -> LpInputs {
+    let order = [
+        (Layer::Normal, 0),
+        (Layer::Normal, 1),
+        (Layer::Normal, 2),
+        (Layer::Depth, 0),
+        (Layer::Albedo, 0),
+        (Layer::Albedo, 1),
+        (Layer::Albedo, 2),
+    ];
+    LpInputs {
+        feat: std::array::from_fn(|k| s.plane(order[k].0, order[k].1)),
+        var: std::array::from_fn(|k| s.plane(order[k].0.variance().unwrap(), order[k].1)),
+        color: std::array::from_fn(|c| s.plane(Layer::Color, c)),
+        cvar: std::array::from_fn(|c| s.plane(Layer::ColorVariance, c)),
+        spp: s.plane(Layer::Spp, 0),
     }
 }
 
@@ -135,7 +126,7 @@ pub fn record_lp(
     params: LpParams,
 ) -> Result<()> {
     let (w, h) = (clean.width, clean.height);
-    let inp = LpInputs::of(clean);
+    let inp = lp_inputs(clean);
     batch.fill(planes.state.buffer.slice(), 0);
     let reach = planes.reach.plane(0);
     for pass in 0..GRANULARITIES.len() {
