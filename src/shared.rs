@@ -113,7 +113,10 @@ pub struct LpPush {
     pub pass: u32,
     /// Bit 0: [`LP_VARSUB`] (`lp.error_mode = varsub`, `s = 1`, §3.4).
     pub options: u32,
-    pub _pad: [u32; 2],
+    /// `lp_gather` only: f32 values from one output plane to the next in its
+    /// packed output binding.
+    pub out_stride: u32,
+    pub _pad: u32,
 }
 
 impl LpPush {
