@@ -19,7 +19,7 @@ layout(push_constant) uniform Push {
     uint granularity;
     uint pass;
     uint options;
-    uint pad0;
+    uint out_stride;
     uint pad1;
 } push;
 

@@ -1,12 +1,20 @@
 #version 460
 // LP's output (spec §3.5), by gathering (§0.3 GATHER): every pixel scans the
 // clipped 19x19 neighbourhood of the centre state in raster order (skipping
-// the rows whose lp_reach value cannot cover it) and
-// averages, over the centres c with |i - c|_inf <= r_opt(c), the prediction
-// beta_c[ch] + u_c[ch] . (x_i - x_c), max(xi_c,ch, 0) (the error estimate)
-// and max(xi_c,ch, 0) n_i^(-4/(k_c+4)) (Delta-MSE for sampling).
+// the rows whose lp_reach value cannot cover it) and averages, over the
+// centres c with |i - c|_inf <= r_opt(c), the prediction
+// beta_c + u_c . (x_i - x_c), max(xi_c,ch, 0), the collapsed map u_c and k_c.
+// Error estimate (LP-FEATNOISE): E_i[ch] = mean_c max(xi_c,ch, 0)
+// + (sum_j |ubar[ch][j]| sd(x_ij))^2, the model error of the centres plus
+// the variance the averaged linear map (ubar = mean_c u_c) passes on from
+// pixel i's own noisy features: the largest value ubar^T Cov(x_i) ubar can
+// take when only the variances are known (fully correlated feature noise).
+// Local dimension d_i = mean_c k_c, and
+// Delta-MSE = E_i n_i^(-4/(d_i+4)) (§9.1).
 // Colour outputs are clamped >= 0 (§0.4 step 5). An invalid pixel gets the
-// mean colour of its valid 3x3 neighbours (§0.2), error 0, coverage 0.
+// mean colour of its valid 3x3 neighbours (§0.2), error, Delta-MSE,
+// coverage and d 0. The 11 outputs go to one binding, plane k at
+// k * push.out_stride.
 // Scalar twin: src/reference/lp_gather.rs.
 #include "lib/common.glsl"
 
@@ -20,7 +28,7 @@ layout(push_constant) uniform Push {
     uint granularity;
     uint pass;
     uint options;
-    uint pad0;
+    uint out_stride;
     uint pad1;
 } push;
 
@@ -31,30 +39,30 @@ PLANE_IN(3, dep)
 PLANE_IN(4, ar)
 PLANE_IN(5, ag)
 PLANE_IN(6, ab)
-PLANE_IN(7, col_r)
-PLANE_IN(8, col_g)
-PLANE_IN(9, col_b)
-PLANE_IN(10, spp)
-PLANE_IN(11, reach)
-layout(std430, set = 0, binding = 12) readonly buffer st0_blk { vec4 st0[]; };
-layout(std430, set = 0, binding = 13) readonly buffer st1_blk { vec4 st1[]; };
-layout(std430, set = 0, binding = 14) readonly buffer st2_blk { vec4 st2[]; };
-layout(std430, set = 0, binding = 15) readonly buffer st3_blk { vec4 st3[]; };
-layout(std430, set = 0, binding = 16) readonly buffer st4_blk { vec4 st4[]; };
-layout(std430, set = 0, binding = 17) readonly buffer st5_blk { vec4 st5[]; };
-layout(std430, set = 0, binding = 18) readonly buffer st6_blk { vec4 st6[]; };
-layout(std430, set = 0, binding = 19) readonly buffer st7_blk { vec4 st7[]; };
-layout(std430, set = 0, binding = 20) readonly buffer st8_blk { vec4 st8[]; };
-PLANE_OUT(21, out_r)
-PLANE_OUT(22, out_g)
-PLANE_OUT(23, out_b)
-PLANE_OUT(24, err_r)
-PLANE_OUT(25, err_g)
-PLANE_OUT(26, err_b)
-PLANE_OUT(27, dmse_r)
-PLANE_OUT(28, dmse_g)
-PLANE_OUT(29, dmse_b)
-PLANE_OUT(30, coverage)
+PLANE_IN(7, v_nx)
+PLANE_IN(8, v_ny)
+PLANE_IN(9, v_nz)
+PLANE_IN(10, v_dep)
+PLANE_IN(11, v_ar)
+PLANE_IN(12, v_ag)
+PLANE_IN(13, v_ab)
+PLANE_IN(14, col_r)
+PLANE_IN(15, col_g)
+PLANE_IN(16, col_b)
+PLANE_IN(17, spp)
+PLANE_IN(18, reach)
+layout(std430, set = 0, binding = 19) readonly buffer st0_blk { vec4 st0[]; };
+layout(std430, set = 0, binding = 20) readonly buffer st1_blk { vec4 st1[]; };
+layout(std430, set = 0, binding = 21) readonly buffer st2_blk { vec4 st2[]; };
+layout(std430, set = 0, binding = 22) readonly buffer st3_blk { vec4 st3[]; };
+layout(std430, set = 0, binding = 23) readonly buffer st4_blk { vec4 st4[]; };
+layout(std430, set = 0, binding = 24) readonly buffer st5_blk { vec4 st5[]; };
+layout(std430, set = 0, binding = 25) readonly buffer st6_blk { vec4 st6[]; };
+layout(std430, set = 0, binding = 26) readonly buffer st7_blk { vec4 st7[]; };
+layout(std430, set = 0, binding = 27) readonly buffer st8_blk { vec4 st8[]; };
+// Outputs (kernels::lp_gather::OUTPUTS): colour RGB, error RGB, Delta-MSE RGB,
+// coverage, d; plane k at k * out_stride.
+layout(std430, set = 0, binding = 28) buffer out_blk { float outp[]; };
 
 #define LP_RADIUS 9
 
@@ -77,8 +85,8 @@ void main()
     uint i = y * push.width + x;
     ivec2 p = ivec2(x, y);
     ivec2 size = ivec2(push.width, push.height);
-    float o[10];
-    for (int j = 0; j < 10; ++j) {
+    float o[11];
+    for (int j = 0; j < 11; ++j) {
         o[j] = 0.0;
     }
     real n_i = real(spp_of(spp[i]));
@@ -115,7 +123,11 @@ void main()
         real3 first = real3(0);
         real3 pred = real3(0);
         real3 err = real3(0);
-        real3 dmse = real3(0);
+        real dim = real(0);
+        // Sums of u_c[ch] (lanes as d0, d1, d8 below).
+        real4 ur0 = real4(0), ur1 = real4(0), ug0 = real4(0), ug1 = real4(0);
+        real4 ub0 = real4(0), ub1 = real4(0);
+        real3 u8 = real3(0);
         int count = 0;
         for (int qy = max(p.y - LP_RADIUS, 0); qy <= min(p.y + LP_RADIUS, size.y - 1); ++qy) {
             // Rows whose reach cannot cover p hold no covering centre.
@@ -140,16 +152,27 @@ void main()
                 real3 beta0 = real3(s0.w, s1.x, s1.y);
                 real3 xi = max(real3(s1.z, s1.w, s2.x), real3(0));
                 // u_R = s2.yzw s3 s4.xy; u_G = s4.zw s5 s6.xyz; u_B = s6.w s7 s8.
+                real4 cr0 = real4(s2.yzw, s3.x), cr1 = real4(s3.yzw, s4.x);
+                real4 cg0 = real4(s4.zw, s5.xy), cg1 = real4(s5.zw, s6.xy);
+                real4 cb0 = real4(s6.w, s7.xyz), cb1 = real4(s7.w, s8.xyz);
+                real3 uc8 = real3(s4.y, s6.z, s8.w);
                 real3 f;
-                f.r = beta0.r + dot(real4(s2.yzw, s3.x), d0) + dot(real4(s3.yzw, s4.x), d1) + real(s4.y) * d8;
-                f.g = beta0.g + dot(real4(s4.zw, s5.xy), d0) + dot(real4(s5.zw, s6.xy), d1) + real(s6.z) * d8;
-                f.b = beta0.b + dot(real4(s6.w, s7.xyz), d0) + dot(real4(s7.w, s8.xyz), d1) + real(s8.w) * d8;
+                f.r = beta0.r + dot(cr0, d0) + dot(cr1, d1) + uc8.r * d8;
+                f.g = beta0.g + dot(cg0, d0) + dot(cg1, d1) + uc8.g * d8;
+                f.b = beta0.b + dot(cb0, d0) + dot(cb1, d1) + uc8.b * d8;
+                ur0 += cr0;
+                ur1 += cr1;
+                ug0 += cg0;
+                ug1 += cg1;
+                ub0 += cb0;
+                ub1 += cb1;
+                u8 += uc8;
                 if (count == 0) {
                     first = f;
                 }
                 pred += f - first;
                 err += xi;
-                dmse += xi * real(pow(float(n_i), -4.0 / (s0.z + 4.0)));
+                dim += real(s0.z);
                 ++count;
             }
         }
@@ -163,23 +186,38 @@ void main()
             o[0] = float(m.r);
             o[1] = float(m.g);
             o[2] = float(m.b);
-            o[3] = float(err.r / n);
-            o[4] = float(err.g / n);
-            o[5] = float(err.b / n);
-            o[6] = float(dmse.r / n);
-            o[7] = float(dmse.g / n);
-            o[8] = float(dmse.b / n);
+            // Standard deviations of pixel i's features, lanes as d0, d1, d8
+            // (the positions are exact).
+            real4 w0 = sqrt(max(real4(0, 0, v_nx[i], v_ny[i]), real4(0)));
+            real4 w1 = sqrt(max(real4(v_nz[i], v_dep[i], v_ar[i], v_ag[i]), real4(0)));
+            real w8 = sqrt(max(real(v_ab[i]), real(0)));
+            real3 sd;
+            sd.r = dot(abs(ur0), w0) + dot(abs(ur1), w1) + abs(u8.r) * w8;
+            sd.g = dot(abs(ug0), w0) + dot(abs(ug1), w1) + abs(u8.g) * w8;
+            sd.b = dot(abs(ub0), w0) + dot(abs(ub1), w1) + abs(u8.b) * w8;
+            real3 fv = sd * sd / (n * n);
+            real3 e = err / n + fv;
+            real d = dim / n;
+            real rate = real(pow(float(n_i), float(-4.0 / (d + 4.0))));
+            o[3] = float(e.r);
+            o[4] = float(e.g);
+            o[5] = float(e.b);
+            o[6] = float(e.r * rate);
+            o[7] = float(e.g * rate);
+            o[8] = float(e.b * rate);
             o[9] = float(count);
+            o[10] = float(d);
         }
     }
-    out_r[i] = o[0];
-    out_g[i] = o[1];
-    out_b[i] = o[2];
-    err_r[i] = o[3];
-    err_g[i] = o[4];
-    err_b[i] = o[5];
-    dmse_r[i] = o[6];
-    dmse_g[i] = o[7];
-    dmse_b[i] = o[8];
-    coverage[i] = o[9];
+    outp[0u * push.out_stride + i] = o[0];
+    outp[1u * push.out_stride + i] = o[1];
+    outp[2u * push.out_stride + i] = o[2];
+    outp[3u * push.out_stride + i] = o[3];
+    outp[4u * push.out_stride + i] = o[4];
+    outp[5u * push.out_stride + i] = o[5];
+    outp[6u * push.out_stride + i] = o[6];
+    outp[7u * push.out_stride + i] = o[7];
+    outp[8u * push.out_stride + i] = o[8];
+    outp[9u * push.out_stride + i] = o[9];
+    outp[10u * push.out_stride + i] = o[10];
 }

@@ -113,11 +113,47 @@ pub struct LpPush {
     pub pass: u32,
     /// Bit 0: [`LP_VARSUB`] (`lp.error_mode = varsub`, `s = 1`, §3.4).
     pub options: u32,
-    pub _pad: [u32; 2],
+    /// `lp_gather` only: f32 values from one output plane to the next in its
+    /// packed output binding.
+    pub out_stride: u32,
+    pub _pad: u32,
+}
+
+impl LpPush {
+    /// The candidate grid of this pass (granularity `g`, 0 read as 1):
+    /// `ceil(width/g) × ceil(height/g)`, cell `(gx, gy)` ↔ pixel `(g·gx, g·gy)`.
+    /// `lp_centres` runs one invocation per cell.
+    pub fn centre_grid(&self) -> (u32, u32) {
+        let g = self.granularity.max(1);
+        (self.width.div_ceil(g), self.height.div_ceil(g))
+    }
 }
 
 /// [`LpPush::options`] bit: subtract the test pixel's variance (LP-VARSUB, `s = 1`).
 pub const LP_VARSUB: u32 = 1;
+
+/// Index of the values of one LP centre in its 36-float state, written by
+/// `spirv/lp_centres.comp` and read by `spirv/lp_gather.comp` (9 vec4
+/// planes: value `s` of pixel `q` at plane `s/4`, element `4q + s%4`).
+pub struct LpStateLayout;
+impl LpStateLayout {
+    /// `pass + 1` of the pass that created the centre; 0 = not a centre.
+    pub const PASS: usize = 0;
+    /// `r_opt` (§3.4).
+    pub const R_OPT: usize = 1;
+    /// TSVD rank `k_c`.
+    pub const K: usize = 2;
+    /// `β_c[ch][0]`, the prediction at the centre, R G B.
+    pub const BETA0: usize = 3;
+    /// `ξ̂_c,ch(r_opt)`, R G B.
+    pub const XI: usize = 6;
+    /// `u[ch][j]` at `U + 9 ch + j`.
+    pub const U: usize = 9;
+    /// Values per centre.
+    pub const LEN: usize = 36;
+    /// vec4 planes.
+    pub const PLANES: usize = 9;
+}
 
 /// `spirv/gbf_sure.comp` and `spirv/gbf_filter.comp`, block `Push` (spec §6).
 #[repr(C)]

@@ -46,9 +46,10 @@ impl Scene {
         self.planes.iter().map(|p| p.as_slice()).collect()
     }
 
-    /// Inputs of `lp_gather` (bindings 0..10): features, colour, spp.
+    /// Inputs of `lp_gather` (bindings 0..17): features, their variances,
+    /// colour, spp.
     fn gather_inputs(&self) -> Vec<&[f32]> {
-        let mut v: Vec<&[f32]> = (0..7).map(|k| self.planes[k].as_slice()).collect();
+        let mut v: Vec<&[f32]> = (0..14).map(|k| self.planes[k].as_slice()).collect();
         v.extend((14..17).map(|k| self.planes[k].as_slice()));
         v.push(&self.planes[20]);
         v
@@ -296,7 +297,7 @@ fn run_centres_inplace(
         .collect::<mcdenoise::error::Result<_>>()?;
     let bindings: Vec<_> = bufs.iter().map(|b| b.slice()).collect();
     let mut batch = Batch::new(ctx)?;
-    let (gw, gh) = rc::grid(sc.w as u32, sc.h as u32, rl::GRANULARITIES[pass]);
+    let (gw, gh) = push(sc, pass).centre_grid();
     batch.dispatch(
         &lp_centres::DECL,
         prec,
@@ -355,18 +356,25 @@ fn lp_gather_matches_twin() {
             for p in &state {
                 inputs.push(p);
             }
-            let (out, _) = run_planes(
+            // The outputs packed in one binding, planes w·h apart.
+            let gpush = LpPush {
+                out_stride: (w * h) as u32,
+                ..push(&sc, 0)
+            };
+            let (packed, _) = run_planes(
                 &ctx,
                 &lp_gather::DECL,
                 prec,
-                bytemuck::bytes_of(&push(&sc, 0)),
+                bytemuck::bytes_of(&gpush),
                 w,
                 h,
                 &inputs,
-                &[w * h; 10],
+                &[w * h * rg::OUTPUTS],
                 lp_gather::flops_per_pixel(),
             )
             .unwrap();
+            let out: Vec<Vec<f32>> = packed[0].chunks(w * h).map(|c| c.to_vec()).collect();
+            assert_eq!(lp_gather::OUTPUTS.len(), rg::OUTPUTS);
             for (k, name) in lp_gather::OUTPUTS.iter().enumerate() {
                 assert_close(&format!("{what} {prec:?} {name}"), &out[k], &cpu[k], 0.99);
             }
@@ -453,8 +461,24 @@ fn zero_variance_input_is_returned_exactly() {
                 );
             }
         }
+        // Nothing to estimate: ξ̂(0) = v_c = 0 and u_c = 0 (LP-FEATNOISE).
+        assert_zero_error(out, "zero variance");
     }
     check_validation(&gpu());
+}
+
+/// The error estimate and ΔMSE are exactly 0 everywhere.
+fn assert_zero_error(out: &mcdenoise::methods::DenoiseOutput, what: &str) {
+    let err = out.error.as_ref().unwrap();
+    for c in 0..3 {
+        let name = format!("dmse.{}", ["R", "G", "B"][c]);
+        for (q, (&e, &d)) in err.planes[c].iter().zip(layer(out, &name)).enumerate() {
+            assert!(
+                e == 0.0 && d == 0.0,
+                "{what}: pixel {q} ch {c}: E {e}, ΔMSE {d}"
+            );
+        }
+    }
 }
 
 #[test]
@@ -482,6 +506,72 @@ fn constant_image_is_returned_exactly() {
                 );
             }
         }
+        // Residuals 0 give ξ̂(r >= 1) = -v <= 0 and β = β(0), so u_c = 0.
+        assert_zero_error(out, &format!("constant, output {o}"));
+    }
+    check_validation(&gpu());
+}
+
+/// LP-FEATNOISE: colour exactly linear in a noisy grey albedo (a checker of
+/// 0.3 / 0.7 with noise of standard deviation σ by quadrant, 0.005 to 0.04,
+/// the same draw in the three albedo channels). The models follow the
+/// albedo, noise included, so their residuals and every ξ̂ are ~0 while the
+/// output carries the noise; the estimate must see it through the albedo
+/// variances, in level (mean within 2× of the actual error) and in where it
+/// is (tile correlation).
+#[test]
+fn error_estimate_tracks_noise_passed_on_by_features() {
+    let (w, h) = (48, 48);
+    let n = w * h;
+    let mut rng = Rng(31);
+    let mut p = vec![vec![0.0f32; n]; 21];
+    let mut truth = vec![vec![0.0f32; n]; 3];
+    for i in 0..n {
+        let (x, y) = (i % w, i / w);
+        let sigma = [0.005, 0.01, 0.02, 0.04][(x >= w / 2) as usize + 2 * (y >= h / 2) as usize];
+        let clean = if (x / 6 + y / 6) % 2 == 0 { 0.3 } else { 0.7 };
+        let a = clean + sigma * rng.normal();
+        p[2][i] = 1.0; // normal (0, 0, 1), depth 1: exact
+        p[3][i] = 1.0;
+        for k in 0..3 {
+            p[4 + k][i] = a as f32;
+            p[11 + k][i] = (sigma * sigma) as f32;
+            p[14 + k][i] = (2.0 * a) as f32;
+            p[17 + k][i] = (4.0 * sigma * sigma) as f32;
+            truth[k][i] = (2.0 * clean) as f32;
+        }
+        p[20][i] = 16.0;
+    }
+    let img = Scene { w, h, planes: p }.image();
+    let truth = mcdenoise::image::RgbImage::from_planes(
+        w,
+        h,
+        [truth[0].clone(), truth[1].clone(), truth[2].clone()],
+    );
+    let mut outs = vec![("cpu", run(&img, Backend::Cpu, Precision::F32))];
+    outs.push(("gpu", run(&img, Backend::Gpu, Precision::F32)));
+    for (what, out) in &outs {
+        let est = out.error.as_ref().unwrap();
+        let mean = |f: &dyn Fn(usize) -> f64| (0..n).map(f).sum::<f64>() / n as f64;
+        let actual = mean(&|i| {
+            (0..3)
+                .map(|c| (out.color.planes[c][i] as f64 - truth.planes[c][i] as f64).powi(2))
+                .sum::<f64>()
+                / 3.0
+        });
+        let estimated = mean(&|i| (0..3).map(|c| est.planes[c][i] as f64).sum::<f64>() / 3.0);
+        let corr = mcdenoise::bench::error_correlation(est, &out.color, &truth);
+        println!("{what}: mean estimate {estimated:.3e}, actual {actual:.3e}, tile corr {corr:.3}");
+        assert!(
+            estimated > 0.5 * actual && estimated < 2.0 * actual,
+            "{what}: mean estimate {estimated:.3e} vs actual {actual:.3e}"
+        );
+        assert!(corr > 0.8, "{what}: tile correlation {corr}");
+        let dim = layer(out, "dim");
+        assert!(
+            dim.iter().all(|&d| (0.0..=9.0).contains(&d)),
+            "{what}: d in [0, 9]"
+        );
     }
     check_validation(&gpu());
 }

@@ -3,15 +3,13 @@
 //! covered by a centre of an earlier pass (read from the `lp_reach` plane of
 //! the state before the pass, PASS-SNAPSHOT) becomes a centre: TSVD on the 19×19 window (§0.6), RLS ring
 //! by ring with the recursive error estimate (§3.3–3.4), `r_opt`, and its
-//! 36-value state ([`StateLayout`](crate::reference::lp::StateLayout)) is
+//! 36-value state ([`LpStateLayout`](crate::shared::LpStateLayout)) is
 //! written to its own pixel of the state planes; nothing else is written.
-//! Twin: [`crate::reference::lp_centres`].
+//! Twin: `reference::lp_centres`.
 
 use crate::error::Result;
 use crate::gpu::reflect::{read, write};
 use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};
-use crate::methods::lp::LpInputs;
-use crate::reference::lp_centres::grid;
 use crate::shared::LpPush;
 
 pub const DECL: KernelDecl = KernelDecl {
@@ -52,6 +50,20 @@ pub const DECL: KernelDecl = KernelDecl {
     push_size: std::mem::size_of::<LpPush>() as u32,
 };
 
+/// The planes of sanitised (and possibly prefiltered) statistics that
+/// `lp_centres` and `lp_gather` read.
+pub struct LpInputs {
+    /// normal x, y, z, depth, albedo r, g, b.
+    pub feat: [BufferSlice; 7],
+    /// Their variances (of the mean), same order.
+    pub var: [BufferSlice; 7],
+    /// Colour R, G, B.
+    pub color: [BufferSlice; 3],
+    /// Colour variances (of the mean) R, G, B.
+    pub cvar: [BufferSlice; 3],
+    pub spp: BufferSlice,
+}
+
 /// Per grid cell that becomes a centre: 361 neighbours × (TSVD: two passes
 /// with two 9×9 Gram updates; RLS: three projections, two 10×10 mat-vecs and
 /// one rank-1 update, 3 channels) plus two 9×9 Jacobi decompositions.
@@ -81,7 +93,7 @@ pub fn record(
     b.push(inp.spp);
     b.push(reach);
     b.extend_from_slice(&state);
-    let (gw, gh) = grid(push.width, push.height, push.granularity.max(1));
+    let (gw, gh) = push.centre_grid();
     batch.dispatch(
         &DECL,
         precision,

@@ -1,14 +1,17 @@
 //! `lp_gather`: LP's output (spec §3.5). Every pixel scans its 19×19
 //! neighbourhood of the centre state in raster order and averages the
 //! predictions `β_c + u_c·(x_i − x_c)` of the centres that cover it
-//! (`|i − c|_inf <= r_opt(c)`), their error estimates `max(ξ̂_c, 0)` and
-//! `ΔMSE = max(ξ̂_c, 0)·n_i^{-4/(k_c+4)}`. Twin:
-//! [`crate::reference::lp_gather`].
+//! (`|i − c|_inf <= r_opt(c)`), their `max(ξ̂_c, 0)`, maps `u_c` and ranks
+//! `k_c`. Error estimate (LP-FEATNOISE): `E_i = mean max(ξ̂_c, 0) +
+//! (Σ_j |ū_j| σ_ij)²` (`σ_ij² = var(x_ij)`); local dimension `d_i = mean k_c`;
+//! `ΔMSE = E_i·n_i^{-4/(d_i+4)}` (§9.1). The outputs ([`OUTPUTS`]) go to one
+//! binding, plane `k` at `k·out_stride` f32 values. Twin:
+//! `reference::lp_gather`.
 
+use super::lp_centres::LpInputs;
 use crate::error::Result;
 use crate::gpu::reflect::{read, write};
 use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};
-use crate::methods::lp::LpInputs;
 use crate::shared::LpPush;
 
 pub const DECL: KernelDecl = KernelDecl {
@@ -21,6 +24,13 @@ pub const DECL: KernelDecl = KernelDecl {
         read("albedo_r"),
         read("albedo_g"),
         read("albedo_b"),
+        read("var_normal_x"),
+        read("var_normal_y"),
+        read("var_normal_z"),
+        read("var_depth"),
+        read("var_albedo_r"),
+        read("var_albedo_g"),
+        read("var_albedo_b"),
         read("color_r"),
         read("color_g"),
         read("color_b"),
@@ -35,35 +45,28 @@ pub const DECL: KernelDecl = KernelDecl {
         read("state6"),
         read("state7"),
         read("state8"),
-        write("out_r"),
-        write("out_g"),
-        write("out_b"),
-        write("error_r"),
-        write("error_g"),
-        write("error_b"),
-        write("dmse_r"),
-        write("dmse_g"),
-        write("dmse_b"),
-        write("coverage"),
+        write("out"),
     ],
     push_size: std::mem::size_of::<LpPush>() as u32,
 };
 
-/// Names of the output planes, in binding order.
-pub const OUTPUTS: [&str; 10] = [
+/// Names of the output planes, in the order of the packed output binding.
+pub const OUTPUTS: [&str; 11] = [
     "out_r", "out_g", "out_b", "error_r", "error_g", "error_b", "dmse_r", "dmse_g", "dmse_b",
-    "coverage",
+    "coverage", "dim",
 ];
 
 /// Per pixel: 19 reach reads, the centre-map rows they select (a few), and
 /// for each covering centre (a few to a few dozen) 36 state reads, 9
 /// feature differences and 3 × 9 FMAs.
 pub fn flops_per_pixel() -> f64 {
-    19.0 * 4.0 + 5.0 * 19.0 * 4.0 + 30.0 * 80.0
+    19.0 * 4.0 + 5.0 * 19.0 * 4.0 + 30.0 * 100.0 + 60.0
 }
 
 /// Records the gather over the whole image; `state` = the 9 vec4 planes
-/// after the last pass, `reach` their `lp_reach` plane, `out` = the planes of [`OUTPUTS`].
+/// after the last pass, `reach` their `lp_reach` plane, `out` = one buffer
+/// holding the planes of [`OUTPUTS`], plane `k` at `k·push.out_stride` f32
+/// values.
 pub fn record(
     batch: &mut Batch,
     precision: Precision,
@@ -71,15 +74,16 @@ pub fn record(
     inp: &LpInputs,
     reach: BufferSlice,
     state: [BufferSlice; 9],
-    out: [BufferSlice; 10],
+    out: BufferSlice,
 ) -> Result<()> {
     let mut b = Vec::with_capacity(DECL.bindings.len());
     b.extend_from_slice(&inp.feat);
+    b.extend_from_slice(&inp.var);
     b.extend_from_slice(&inp.color);
     b.push(inp.spp);
     b.push(reach);
     b.extend_from_slice(&state);
-    b.extend_from_slice(&out);
+    b.push(out);
     batch.dispatch(
         &DECL,
         precision,

@@ -1,6 +1,6 @@
 //! `lp_reach`: the horizontal half of LP's coverage test (spec §3.5): per
 //! pixel, the largest `r_opt` of the centres in its row that reach it
-//! horizontally (−1 if none); see [`crate::reference::lp_reach`], its twin.
+//! horizontally (−1 if none); see its twin `reference::lp_reach`.
 
 use crate::error::Result;
 use crate::gpu::reflect::{read, write};

@@ -8,7 +8,8 @@
 //!               that reach it (PASS-SNAPSHOT: coverage from earlier passes only)
 //!   lp_centres  on the candidate grid of g: uncovered candidates → TSVD + RLS + r_opt
 //! lp_reach      once more, for the gather
-//! lp_gather     every pixel: mean of the covering centres' predictions, error, ΔMSE
+//! lp_gather     every pixel: mean of the covering centres' predictions, error
+//!               (LP-FEATNOISE), local dimension d, ΔMSE
 //! ```
 //!
 //! [`record_lp`] records them on GPU-resident, sanitised statistics
@@ -20,8 +21,9 @@ use std::sync::Arc;
 
 use super::stats::GpuStats;
 use crate::error::{Error, Result};
-use crate::gpu::{Batch, BufferSlice, GpuContext, PlaneSet, Precision};
+use crate::gpu::{plane_stride, Batch, BufferSlice, GpuContext, PlaneSet, Precision};
 use crate::image::{Layer, RgbImage, StatsImage};
+pub use crate::kernels::lp_centres::LpInputs;
 use crate::kernels::{lp_centres, lp_gather, lp_reach};
 use crate::options::Options;
 use crate::reference;
@@ -53,6 +55,7 @@ impl LpParams {
             granularity: GRANULARITIES[pass],
             pass: pass as u32,
             options: self.options,
+            out_stride: (plane_stride(width * height) / 4) as u32,
             ..Default::default()
         }
     }
@@ -65,13 +68,22 @@ pub struct LpPlanes {
     pub state: PlaneSet,
     /// The `lp_reach` plane of the current state.
     pub reach: PlaneSet,
-    /// The outputs of [`lp_gather::OUTPUTS`].
+    /// The outputs of [`lp_gather::OUTPUTS`] (bound as one buffer by the
+    /// gather).
     pub out: PlaneSet,
 }
 
 impl LpPlanes {
     pub fn new(ctx: &Arc<GpuContext>, width: usize, height: usize) -> Result<LpPlanes> {
         let n = width * height;
+        let out_bytes = plane_stride(n) * lp_gather::OUTPUTS.len() as u64;
+        let limit = ctx.info.max_storage_buffer_range as u64;
+        if out_bytes > limit {
+            return Err(Error::Limit(format!(
+                "LP's {} output planes of {width}x{height} ({out_bytes} bytes, one binding) exceed maxStorageBufferRange ({limit} bytes)",
+                lp_gather::OUTPUTS.len()
+            )));
+        }
         Ok(LpPlanes {
             state: PlaneSet::new(ctx, "lp.state", 4 * n, StateLayout::PLANES)?,
             reach: PlaneSet::new(ctx, "lp.reach", n, 1)?,
@@ -84,49 +96,41 @@ impl LpPlanes {
         std::array::from_fn(|c| self.out.plane(c))
     }
 
-    /// The estimated MSE per channel.
+    /// The estimated MSE per channel (LP-FEATNOISE, see [`LpResult::error`]).
     pub fn error(&self) -> [BufferSlice; 3] {
         std::array::from_fn(|c| self.out.plane(3 + c))
     }
 
-    /// ΔMSE per channel (§3.5), the input of the sampling step (§9).
+    /// ΔMSE per channel, `max(E, 0)·n^{-4/(d+4)}` (§3.5, §9.1), the input of
+    /// the sampling step (§9).
     pub fn dmse(&self) -> [BufferSlice; 3] {
         std::array::from_fn(|c| self.out.plane(6 + c))
     }
 
-    /// MERGE-PENDING: the local dimension plane arrives with the LP error work.
+    /// The local dimension `d_i` per pixel (§9.1): the mean TSVD rank `k_c`
+    /// of the centres that cover it (0 at invalid pixels).
     pub fn dim(&self) -> BufferSlice {
-        self.out.plane(9)
+        self.out.plane(10)
     }
 }
 
-/// The bindings LP reads from sanitised statistics.
-pub struct LpInputs {
-    pub feat: [BufferSlice; 7],
-    pub var: [BufferSlice; 7],
-    pub color: [BufferSlice; 3],
-    pub cvar: [BufferSlice; 3],
-    pub spp: BufferSlice,
-}
-
-impl LpInputs {
-    pub fn of(s: &GpuStats) -> LpInputs {
-        let order = [
-            (Layer::Normal, 0),
-            (Layer::Normal, 1),
-            (Layer::Normal, 2),
-            (Layer::Depth, 0),
-            (Layer::Albedo, 0),
-            (Layer::Albedo, 1),
-            (Layer::Albedo, 2),
-        ];
-        LpInputs {
-            feat: std::array::from_fn(|k| s.plane(order[k].0, order[k].1)),
-            var: std::array::from_fn(|k| s.plane(order[k].0.variance().unwrap(), order[k].1)),
-            color: std::array::from_fn(|c| s.plane(Layer::Color, c)),
-            cvar: std::array::from_fn(|c| s.plane(Layer::ColorVariance, c)),
-            spp: s.plane(Layer::Spp, 0),
-        }
+/// The bindings of `clean` LP reads.
+pub fn lp_inputs(s: &GpuStats) -> LpInputs {
+    let order = [
+        (Layer::Normal, 0),
+        (Layer::Normal, 1),
+        (Layer::Normal, 2),
+        (Layer::Depth, 0),
+        (Layer::Albedo, 0),
+        (Layer::Albedo, 1),
+        (Layer::Albedo, 2),
+    ];
+    LpInputs {
+        feat: std::array::from_fn(|k| s.plane(order[k].0, order[k].1)),
+        var: std::array::from_fn(|k| s.plane(order[k].0.variance().unwrap(), order[k].1)),
+        color: std::array::from_fn(|c| s.plane(Layer::Color, c)),
+        cvar: std::array::from_fn(|c| s.plane(Layer::ColorVariance, c)),
+        spp: s.plane(Layer::Spp, 0),
     }
 }
 
@@ -140,7 +144,7 @@ pub fn record_lp(
     params: LpParams,
 ) -> Result<()> {
     let (w, h) = (clean.width, clean.height);
-    let inp = LpInputs::of(clean);
+    let inp = lp_inputs(clean);
     batch.fill(planes.state.buffer.slice(), 0);
     let reach = planes.reach.plane(0);
     for pass in 0..GRANULARITIES.len() {
@@ -174,7 +178,7 @@ pub fn record_lp(
         &inp,
         reach,
         std::array::from_fn(|k| planes.state.plane(k)),
-        std::array::from_fn(|k| planes.out.plane(k)),
+        planes.out.buffer.slice(),
     )
 }
 
@@ -182,13 +186,18 @@ pub fn record_lp(
 #[derive(Clone, Debug)]
 pub struct LpResult {
     pub color: RgbImage,
-    /// Estimated MSE per pixel and channel.
+    /// Estimated MSE per pixel and channel (LP-FEATNOISE):
+    /// `E_i[ch] = mean_c max(ξ̂_c,ch, 0) + (Σ_j |ū[ch][j]| σ_ij)²` over the
+    /// centres c covering i, `ū = mean_c u_c`, `σ_ij² = var(x_ij)` (≥ 0; 0
+    /// at invalid pixels; see `reference::lp_gather::OUTPUTS`).
     pub error: RgbImage,
-    /// ΔMSE per pixel and channel (§3.5), for sampling.
+    /// ΔMSE per pixel and channel, `E_i·n_i^{-4/(d_i+4)}` (§3.5, §9.1), for
+    /// sampling.
     pub dmse: RgbImage,
     /// Covering centres per pixel.
     pub coverage: Vec<f32>,
-    /// MERGE-PENDING: local dimension.
+    /// Local dimension `d_i` per pixel (§9.1): mean `k_c` of the covering
+    /// centres (0 at invalid pixels).
     pub dim: Vec<f32>,
     /// Per pixel: pass + 1 at centres (0 elsewhere), r_opt and k at centres
     /// (-1 elsewhere).
@@ -220,7 +229,7 @@ impl LpResult {
             error: rgb(3),
             dmse: rgb(6),
             coverage: out[9].clone(),
-            dim: out[9].clone(),
+            dim: out[10].clone(),
             centre_pass: (0..n).map(|q| state0[4 * q]).collect(),
             r_opt: at(StateLayout::R_OPT),
             rank: at(StateLayout::K),
@@ -234,13 +243,14 @@ impl LpResult {
     }
 
     /// The debug layers of issue #4: centre mask (pass + 1), r_opt, rank,
-    /// coverage count, ΔMSE.
+    /// coverage count, local dimension, ΔMSE.
     pub fn debug_layers(&self) -> Vec<(String, Vec<f32>)> {
         let mut v = vec![
             ("centre_pass".into(), self.centre_pass.clone()),
             ("r_opt".into(), self.r_opt.clone()),
             ("rank".into(), self.rank.clone()),
             ("coverage".into(), self.coverage.clone()),
+            ("dim".into(), self.dim.clone()),
         ];
         for (c, name) in ["R", "G", "B"].iter().enumerate() {
             v.push((format!("dmse.{name}"), self.dmse.planes[c].clone()));

@@ -32,27 +32,8 @@ pub const MAX_P: usize = D + 1;
 /// Number of prediction sizes `r = 0..=RADIUS`.
 pub const RINGS: usize = RADIUS + 1;
 
-/// Index of the values of one centre in its 36-float state (9 vec4 planes
-/// on the GPU, value `s` of pixel `q` at plane `s/4`, element `4q + s%4`).
-pub struct StateLayout;
-impl StateLayout {
-    /// `pass + 1` of the pass that created the centre; 0 = not a centre.
-    pub const PASS: usize = 0;
-    /// `r_opt` (§3.4).
-    pub const R_OPT: usize = 1;
-    /// TSVD rank `k_c`.
-    pub const K: usize = 2;
-    /// `β_c[ch][0]`, the prediction at the centre, R G B.
-    pub const BETA0: usize = 3;
-    /// `ξ̂_c,ch(r_opt)`, R G B.
-    pub const XI: usize = 6;
-    /// `u[ch][j]` at `U + 9 ch + j`.
-    pub const U: usize = 9;
-    /// Values per centre.
-    pub const LEN: usize = 36;
-    /// vec4 planes.
-    pub const PLANES: usize = 9;
-}
+/// The per-centre state layout (shared with the kernels).
+pub use crate::shared::LpStateLayout as StateLayout;
 
 /// The planes both LP kernels read.
 #[derive(Copy, Clone, Debug)]

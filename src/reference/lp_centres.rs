@@ -6,12 +6,6 @@
 use super::lp::{centre_fit, covered, Planes, StateLayout};
 use crate::shared::{LpPush, LP_VARSUB};
 
-/// The candidate grid of granularity `g` over a `width × height` image:
-/// `ceil(width/g) × ceil(height/g)`, cell `(gx, gy)` ↔ pixel `(g·gx, g·gy)`.
-pub fn grid(width: u32, height: u32, g: u32) -> (u32, u32) {
-    (width.div_ceil(g), height.div_ceil(g))
-}
-
 /// One pass. `reach` is the [`lp_reach`](super::lp_reach) plane of the state
 /// as it was after the earlier passes (PASS-SNAPSHOT).
 /// `state` = the [`StateLayout::PLANES`] vec4 planes (`4·W·H` floats each):

@@ -1,23 +1,30 @@
 //! Scalar twin of `spirv/lp_gather.comp`: LP's output (spec §3.5). Every
 //! pixel averages the predictions of the centres that cover it, gathered in
-//! raster order over its 19×19 neighbourhood, with their error estimates.
+//! raster order over its 19×19 neighbourhood, and forms its error estimate
+//! (LP-FEATNOISE) and local dimension from them.
 
 use super::lp::{state_value, Planes, StateLayout as S, RADIUS};
 use super::spp_of;
 use super::wlr::D;
 use crate::shared::LpPush;
 
-/// Output planes: colour R G B (clamped ≥ 0), error R G B (mean of
-/// `max(ξ̂_c,ch(r_opt), 0)` over the covering centres: the estimated MSE),
-/// ΔMSE R G B (§3.5: the same mean of `max(ξ̂, 0)·n_i^{-4/(k_c+4)}`, for
-/// sampling), coverage count.
-pub const OUTPUTS: usize = 10;
+/// Output planes: colour R G B (clamped ≥ 0); error R G B, the estimated
+/// MSE `E_i[ch] = mean_c max(ξ̂_c,ch(r_opt), 0) + (Σ_j |ū[ch][j]| σ_ij)²`
+/// (LP-FEATNOISE: the centres' model error plus the variance that the
+/// averaged linear map `ū = mean_c u_c` passes on from pixel i's own noisy
+/// features, `σ_ij² = var(x_ij)` in §2.1 order, positions exact; only the
+/// variances are known, and `(Σ_j |ū_j| σ_j)²` is the largest value
+/// `ūᵀ Cov(x_i) ū` can take with them: feature noise that is fully
+/// correlated, as it is where a pixel straddles an edge); ΔMSE R G B
+/// (`E_i·n_i^{-4/(d_i+4)}`, §9.1, for sampling); coverage count; the local
+/// dimension `d_i = mean_c k_c`.
+pub const OUTPUTS: usize = 11;
 
 /// For every pixel (`row0` ignored). `state` = the vec4 state planes after
 /// the last pass, `reach` their [`lp_reach`](super::lp_reach) plane. An invalid pixel gets the mean colour of its valid 3×3
-/// neighbours (§0.2), error 0 and coverage 0. A valid pixel no centre covers
-/// (impossible after the last pass, §3.5) keeps its input colour with error,
-/// ΔMSE and coverage 0.
+/// neighbours (§0.2), error, ΔMSE, coverage and dimension 0. A valid pixel
+/// no centre covers (impossible after the last pass, §3.5) keeps its input
+/// colour with the others 0.
 pub fn lp_gather(
     push: &LpPush,
     p: &Planes,
@@ -69,7 +76,8 @@ fn pixel(p: &Planes, reach: &[f32], state: &[Vec<f32>], x: usize, y: usize) -> [
     let mut first = [0.0; 3];
     let mut pred = [0.0; 3];
     let mut err = [0.0; 3];
-    let mut dmse = [0.0; 3];
+    let mut dim = 0.0;
+    let mut usum = [[0.0; D]; 3];
     let mut count = 0usize;
     for qy in y.saturating_sub(RADIUS)..(y + RADIUS + 1).min(h) {
         // Rows whose reach (lp_reach) cannot cover i hold no covering centre.
@@ -87,20 +95,20 @@ fn pixel(p: &Planes, reach: &[f32], state: &[Vec<f32>], x: usize, y: usize) -> [
                 continue;
             }
             let xc = p.features(qx, qy);
-            let rate = n_i.powf(-4.0 / (st(S::K) + 4.0));
             for ch in 0..3 {
                 let mut f = st(S::BETA0 + ch);
                 for j in 0..D {
-                    f += st(S::U + 9 * ch + j) * (xi_[j] - xc[j]);
+                    let u = st(S::U + 9 * ch + j);
+                    f += u * (xi_[j] - xc[j]);
+                    usum[ch][j] += u;
                 }
                 if count == 0 {
                     first[ch] = f;
                 }
                 pred[ch] += f - first[ch];
-                let e = st(S::XI + ch).max(0.0);
-                err[ch] += e;
-                dmse[ch] += e * rate;
+                err[ch] += st(S::XI + ch).max(0.0);
             }
+            dim += st(S::K);
             count += 1;
         }
     }
@@ -112,11 +120,26 @@ fn pixel(p: &Planes, reach: &[f32], state: &[Vec<f32>], x: usize, y: usize) -> [
         return o;
     }
     let n = count as f64;
+    // Standard deviations of pixel i's features (§2.1 order; the positions
+    // are exact).
+    let mut sd = [0.0; D];
+    for (j, v) in sd.iter_mut().enumerate().skip(2) {
+        *v = (p.var[j - 2][i] as f64).max(0.0).sqrt();
+    }
+    let d = dim / n;
+    let rate = n_i.powf(-4.0 / (d + 4.0));
     for ch in 0..3 {
         o[ch] = (first[ch] + pred[ch] / n).max(0.0) as f32;
-        o[3 + ch] = (err[ch] / n) as f32;
-        o[6 + ch] = (dmse[ch] / n) as f32;
+        let feat = (0..D)
+            .map(|j| usum[ch][j].abs() * sd[j])
+            .sum::<f64>()
+            .powi(2)
+            / (n * n);
+        let e = err[ch] / n + feat;
+        o[3 + ch] = e as f32;
+        o[6 + ch] = (e * rate) as f32;
     }
     o[9] = count as f32;
+    o[10] = d as f32;
     o
 }
