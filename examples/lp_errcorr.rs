@@ -55,11 +55,12 @@ fn main() -> mcdenoise::error::Result<()> {
             _ => Method::Lp,
         };
         for p in pre.split(',') {
-            let mut opts = extra.clone();
-            opts.push(format!(
-                "gbf.prefilter={}",
-                if p == "off" { "off" } else { "auto" }
-            ));
+            let opts = extra.clone();
+            let prefilter = if p == "off" {
+                mcdenoise::Prefilter::Off
+            } else {
+                mcdenoise::Prefilter::Auto
+            };
             for &spp in &spps {
                 for sc in &scenes {
                     let Some((_, path)) = sc.inputs.iter().find(|(n, _)| *n == spp) else {
@@ -71,6 +72,7 @@ fn main() -> mcdenoise::error::Result<()> {
                     req.backend = backend;
                     req.error = true;
                     req.options = Options::parse(&opts)?;
+                    req.prefilter = prefilter;
                     let out = denoise(ctx.as_ref(), &img, &req)?;
                     let rmse = mcdenoise::metrics::rmse(&out.color, &reference);
                     let corr =

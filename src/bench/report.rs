@@ -655,6 +655,7 @@ mod tests {
             gpu_ms: None,
             err_corr: corr,
             naive_corr: corr.map(|c| c / 2.0),
+            map_share: None,
             gpu_ms_per_mp: None,
             centres: None,
         }
