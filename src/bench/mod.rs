@@ -186,13 +186,11 @@ fn request(method: Method, backend: Backend) -> DenoiseRequest {
 }
 
 /// [`request`] with a sample map of [`MAP_BUDGET_PER_PIXEL`] samples per
-/// pixel (the quality benchmark scores where the map sends them).
+/// pixel (the quality benchmark scores where the map sends them; for `none`
+/// the map of §9.1 with `E = v`, `d = 0`, the plain Monte Carlo baseline).
 fn request_with_map(method: Method, backend: Backend, pixels: usize) -> DenoiseRequest {
     let mut req = request(method, backend);
-    if method != Method::None {
-        req.budget =
-            Some((pixels as u64 * MAP_BUDGET_PER_PIXEL as u64).min(u32::MAX as u64) as u32);
-    }
+    req.budget = Some((pixels as u64 * MAP_BUDGET_PER_PIXEL as u64).min(u32::MAX as u64) as u32);
     req
 }
 

@@ -706,7 +706,10 @@ mod tests {
         assert!(md.contains("|    0.800 |      0.400 |"), "{md}");
         // Rows without an estimate have blank correlation cells.
         let none = md.lines().find(|l| l.contains("| none ")).unwrap();
-        assert!(none.ends_with("|          |            |"), "{none}");
+        assert!(
+            none.ends_with("|          |            |           |"),
+            "{none}"
+        );
         let summary = report.summary();
         assert_eq!(summary.len(), 2);
         assert_eq!(summary[0].method, "wlr");
