@@ -159,7 +159,7 @@ pub struct Frame {
 }
 
 enum Engine {
-    Gpu(GpuChain),
+    Gpu(Box<GpuChain>),
     Cpu(Source),
 }
 
@@ -205,7 +205,11 @@ impl Denoiser {
     pub fn new(ctx: &Arc<GpuContext>, source: Source, config: Config) -> Result<Denoiser> {
         let low_spp = true;
         Ok(Denoiser {
-            engine: Engine::Gpu(GpuChain::new(ctx, source.chain(), config.chain(low_spp))?),
+            engine: Engine::Gpu(Box::new(GpuChain::new(
+                ctx,
+                source.chain(),
+                config.chain(low_spp),
+            )?)),
             config,
             sampled: AtomicBool::new(false),
         })

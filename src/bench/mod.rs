@@ -72,7 +72,8 @@ use crate::error::{Error, Result};
 use crate::gpu::{GpuContext, KernelTiming};
 use crate::image::{Layer, RgbImage, StatsImage};
 use crate::io;
-use crate::methods::{Backend, DenoiseRequest, Method};
+use crate::methods::{Backend, Method};
+use crate::{Config, Denoiser, Source};
 
 /// Every method of the spec, in the order the benchmarks run them.
 pub const ALL_METHODS: [Method; 5] = [
@@ -176,22 +177,33 @@ fn check_context(ctx: Option<&Arc<GpuContext>>, backends: &[Backend]) -> Result<
     Ok(())
 }
 
-/// The request the benchmarks send: the method's defaults, the error estimate
-/// asked for whenever the method can have one (every method but `none`).
-fn request(method: Method, backend: Backend) -> DenoiseRequest {
-    let mut req = DenoiseRequest::new(method);
-    req.backend = backend;
-    req.error = method != Method::None;
-    req
+/// The benchmarks' front door: a [`Denoiser`] (the public facade) for
+/// `img`'s size and layers with the method's defaults, on the GPU (`ctx`) or
+/// on the CPU references.
+fn denoiser(
+    ctx: Option<&Arc<GpuContext>>,
+    img: &StatsImage,
+    method: Method,
+    backend: Backend,
+) -> Result<Denoiser> {
+    let source = Source::of_image(img);
+    match backend {
+        Backend::Gpu => {
+            let ctx = ctx.ok_or_else(|| {
+                Error::InvalidArgument("the GPU backend needs a Vulkan context".into())
+            })?;
+            Denoiser::new(ctx, source, Config::new(method))
+        }
+        Backend::Cpu => Denoiser::new_cpu(source, Config::new(method)),
+    }
 }
 
-/// [`request`] with a sample map of [`MAP_BUDGET_PER_PIXEL`] samples per
-/// pixel (the quality benchmark scores where the map sends them; for `none`
-/// the map of §9.1 with `E = v`, `d = 0`, the plain Monte Carlo baseline).
-fn request_with_map(method: Method, backend: Backend, pixels: usize) -> DenoiseRequest {
-    let mut req = request(method, backend);
-    req.budget = Some((pixels as u64 * MAP_BUDGET_PER_PIXEL as u64).min(u32::MAX as u64) as u32);
-    req
+/// The budget of the quality benchmark's sample maps: [`MAP_BUDGET_PER_PIXEL`]
+/// samples per pixel (the benchmark scores where the map sends them; for
+/// `none` the map of §9.1 with `E = v`, `d = 0`, the plain Monte Carlo
+/// baseline).
+fn map_budget(pixels: usize) -> u32 {
+    (pixels as u64 * MAP_BUDGET_PER_PIXEL as u64).min(u32::MAX as u64) as u32
 }
 
 /// Sum of the GPU times in milliseconds; `None` when nothing was timed (the

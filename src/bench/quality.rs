@@ -8,15 +8,16 @@ use std::time::Instant;
 
 use super::scenes::{discover_scenes, Scene};
 use super::{
-    backend_name, case_matches, check_context, colour_layer, dedup_backends, gpu_ms,
-    request_with_map, select_methods, Note,
+    backend_name, case_matches, check_context, colour_layer, dedup_backends, denoiser, gpu_ms,
+    map_budget, select_methods, Note,
 };
 use crate::error::Result;
 use crate::gpu::GpuContext;
 use crate::image::{Layer, RgbImage, StatsImage};
 use crate::io;
-use crate::methods::{self, Backend, DenoiseOutput, Method};
+use crate::methods::{Backend, Method};
 use crate::metrics::{self, Metrics};
+use crate::Frame;
 
 /// Side of the square tiles the error correlations average over (pixels).
 pub const CORRELATION_TILE: usize = 8;
@@ -388,17 +389,20 @@ pub fn run_quality(
                         "{case} ({})",
                         backend_name(backend)
                     )));
-                    let req = request_with_map(method, backend, img.width * img.height);
+                    let budget = map_budget(img.width * img.height);
                     if backend == Backend::Gpu
                         && warmed.insert((method.name(), backend_name(backend)))
                     {
                         // Untimed warm-up on a corner crop (builds the pipelines
                         // at a fraction of the cost); a failure shows in the timed call.
                         let (cw, ch) = (img.width.min(32), img.height.min(32));
-                        let _ = methods::denoise(ctx, &img.crop(0, 0, cw, ch), &req);
+                        let crop = img.crop(0, 0, cw, ch);
+                        let _ = denoiser(ctx, &crop, method, backend)
+                            .and_then(|d| d.denoise(&crop, Some(map_budget(cw * ch))));
                     }
                     let t0 = Instant::now();
-                    let result = methods::denoise(ctx, &img, &req);
+                    let result = denoiser(ctx, &img, method, backend)
+                        .and_then(|d| d.denoise(&img, Some(budget)));
                     let wall = t0.elapsed().as_secs_f64();
                     let out = match result {
                         Ok(out) => out,
@@ -436,7 +440,7 @@ fn quality_row(
     method: Method,
     backend: Backend,
     img: &StatsImage,
-    out: &DenoiseOutput,
+    out: &Frame,
     reference: &RgbImage,
     wall_s: f64,
 ) -> std::result::Result<QualityRow, String> {
@@ -448,15 +452,15 @@ fn quality_row(
         )
     };
     let m = metrics::compare(&out.color, reference).map_err(|e| skipped(&e))?;
-    let (err_corr, naive_corr) = match &out.error {
-        Some(est) => {
-            metrics::check_same_size(est, &out.color).map_err(|e| skipped(&e))?;
-            (
-                Some(error_correlation(est, &out.color, reference)),
-                naive_correlation(img, &out.color, reference),
-            )
-        }
-        None => (None, None),
+    // `none`'s error is the input variance: that is the naive column.
+    let (err_corr, naive_corr) = if method == Method::None {
+        (None, None)
+    } else {
+        metrics::check_same_size(&out.error, &out.color).map_err(|e| skipped(&e))?;
+        (
+            Some(error_correlation(&out.error, &out.color, reference)),
+            naive_correlation(img, &out.color, reference),
+        )
     };
     let map_share = out
         .samples

@@ -8,14 +8,14 @@ use std::time::Instant;
 use super::scenes::spp_of_file_name;
 use super::synthetic::{synthetic, SYNTHETIC_SPP};
 use super::{
-    backend_name, case_matches, check_context, dedup_backends, gpu_ms, median, request,
+    backend_name, case_matches, check_context, dedup_backends, denoiser, gpu_ms, median,
     select_methods, Note,
 };
 use crate::error::{Error, Result};
 use crate::gpu::{timings_per_kernel, GpuContext, KernelTiming};
 use crate::image::StatsImage;
 use crate::io;
-use crate::methods::{self, Backend, Method};
+use crate::methods::{Backend, Method};
 
 /// The frame the timing benchmark denoises.
 #[derive(Clone, Debug, PartialEq)]
@@ -259,7 +259,9 @@ pub fn run_timing(
     Ok(report)
 }
 
-/// One warm-up call, then `runs` timed calls: wall ms and timings per run.
+/// One warm-up call, then `runs` timed calls on one [`Denoiser`](crate::Denoiser)
+/// (its buffers allocated once, as an embedding renderer would keep it):
+/// wall ms (upload, chain, download) and timings per run.
 fn time_case(
     ctx: Option<&Arc<GpuContext>>,
     img: &StatsImage,
@@ -267,12 +269,12 @@ fn time_case(
     backend: Backend,
     runs: usize,
 ) -> Result<(Vec<f64>, Vec<Vec<KernelTiming>>)> {
-    let req = request(method, backend);
-    methods::denoise(ctx, img, &req)?;
+    let d = denoiser(ctx, img, method, backend)?;
+    d.denoise(img, None)?;
     let (mut wall, mut timings) = (Vec::new(), Vec::new());
     for _ in 0..runs {
         let t0 = Instant::now();
-        let out = methods::denoise(ctx, img, &req)?;
+        let out = d.denoise(img, None)?;
         wall.push(t0.elapsed().as_secs_f64() * 1e3);
         timings.push(out.timings);
     }

@@ -83,8 +83,8 @@ enum MethodPlanes {
         /// A zero plane: the local dimension of the unfiltered mean.
         zero: PlaneSet,
     },
-    Wlr(WlrPlanes, wlr::WlrParams),
-    Lp(LpPlanes, lp::LpParams),
+    Wlr(Box<WlrPlanes>, wlr::WlrParams),
+    Lp(Box<LpPlanes>, lp::LpParams),
 }
 
 /// The GPU chain of one configuration. See the module documentation.
@@ -174,11 +174,11 @@ impl GpuChain {
         };
         let planes = match config.method {
             Method::Wlr => MethodPlanes::Wlr(
-                WlrPlanes::new(ctx, w, h)?,
+                Box::new(WlrPlanes::new(ctx, w, h)?),
                 wlr::WlrParams::new(config.pass, &config.options)?,
             ),
             Method::Lp => MethodPlanes::Lp(
-                LpPlanes::new(ctx, w, h)?,
+                Box::new(LpPlanes::new(ctx, w, h)?),
                 lp::LpParams::new(&config.options)?,
             ),
             _ => MethodPlanes::None {
