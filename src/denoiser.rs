@@ -12,7 +12,7 @@ use crate::gpu::{Batch, BufferSlice, GpuContext, KernelTiming, Precision, Record
 use crate::image::{Layer, RgbImage, StatsImage};
 use crate::methods::chain::{ChainConfig, ChainInput, GpuChain};
 use crate::methods::prepare::PrepareReport;
-use crate::methods::{self, Backend, DenoiseRequest, Method, Pass, Prefilter};
+use crate::methods::{self, Backend, DenoiseRequest, Method, Pass, Prefilter, ProgressCallback};
 use crate::options::Options;
 
 /// What a [`Denoiser`] is configured with. Everything that decides which
@@ -179,6 +179,7 @@ enum Engine {
 pub struct Denoiser {
     engine: Engine,
     config: Config,
+    progress: Option<ProgressCallback>,
     /// Whether the last call computed a sample map.
     sampled: AtomicBool,
 }
@@ -211,6 +212,7 @@ impl Denoiser {
                 config.chain(low_spp),
             )?)),
             config,
+            progress: None,
             sampled: AtomicBool::new(false),
         })
     }
@@ -231,6 +233,7 @@ impl Denoiser {
         Ok(Denoiser {
             engine: Engine::Cpu(source),
             config,
+            progress: None,
             sampled: AtomicBool::new(false),
         })
     }
@@ -238,6 +241,14 @@ impl Denoiser {
     /// The configuration.
     pub fn config(&self) -> &Config {
         &self.config
+    }
+
+    /// Reports progress of [`run`](Self::run) and [`denoise`](Self::denoise)
+    /// on the GPU: `f(fraction, kernel)` after each submit completes, the
+    /// fraction by estimated work (0..1). Recording into a host's command
+    /// buffer reports nothing (the host submits).
+    pub fn set_progress(&mut self, f: Option<ProgressCallback>) {
+        self.progress = f;
     }
 
     /// Whether the G-buffer prefilter runs (GPU; the CPU decides per image).
@@ -319,6 +330,9 @@ impl Denoiser {
         let chain = self.chain()?;
         let mut batch = Batch::new(chain.context())?;
         batch.progress = self.config.progress;
+        if let Some(p) = &self.progress {
+            batch.on_progress = Some(chain.progress_fn(budget, accum, p.clone())?);
+        }
         chain.record(&mut batch, accum, budget)?;
         let t = batch.finish()?;
         self.sampled.store(budget.is_some(), Ordering::SeqCst);
@@ -363,7 +377,9 @@ impl Denoiser {
             r
         };
         let out = match &self.engine {
-            Engine::Gpu(chain) => methods::denoise_with_chain(chain, img, &req(Backend::Gpu))?,
+            Engine::Gpu(chain) => {
+                methods::denoise_with_chain(chain, img, &req(Backend::Gpu), self.progress.as_ref())?
+            }
             Engine::Cpu(source) => {
                 if source != &Source::of_image(img) {
                     return Err(Error::InvalidArgument(format!(

@@ -94,5 +94,5 @@ pub use gpu::{
 };
 pub use image::{Layer, RgbImage, StatsImage};
 pub use methods::prepare::{colour_of, PrepareReport};
-pub use methods::{available_names, Backend, Method, Pass, Prefilter};
+pub use methods::{available_names, Backend, Method, Pass, Prefilter, ProgressCallback};
 pub use options::{help_table, Options};

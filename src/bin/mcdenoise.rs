@@ -205,6 +205,29 @@ enum Command {
     Bench(BenchArgs),
 }
 
+/// A progress bar on stderr for a GPU denoiser when stderr is a terminal and
+/// not --quiet (nothing otherwise: logs and pipes stay clean).
+fn progress_bar(cli: &Cli, denoiser: &mut Denoiser) -> Option<indicatif::ProgressBar> {
+    use std::io::IsTerminal;
+    if cli.quiet || !std::io::stderr().is_terminal() {
+        return None;
+    }
+    let bar = indicatif::ProgressBar::new(1000);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{spinner} [{elapsed_precise}] [{wide_bar}] {percent:>3}% {msg}",
+        )
+        .ok()?,
+    );
+    bar.enable_steady_tick(std::time::Duration::from_millis(200));
+    let b = bar.clone();
+    denoiser.set_progress(Some(Arc::new(move |fraction: f64, kernel: &str| {
+        b.set_position((fraction * 1000.0) as u64);
+        b.set_message(kernel.to_string());
+    })));
+    Some(bar)
+}
+
 fn context(cli: &Cli) -> anyhow::Result<Arc<GpuContext>> {
     let ctx = GpuContext::new(&ContextOptions {
         device: cli.device.clone(),
@@ -377,14 +400,17 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
             config.debug = *debug_layers;
             config.progress = !cli.quiet;
             let source = Source::of_image(&img);
-            let denoiser = match backend {
+            let mut denoiser = match backend {
                 BackendArg::Gpu => Denoiser::new(&context(&cli)?, source, config)?,
                 BackendArg::Cpu => Denoiser::new_cpu(source, config)?,
             };
+            let bar = progress_bar(&cli, &mut denoiser);
             let t0 = std::time::Instant::now();
-            let result = denoiser
-                .denoise(&img, *budget)
-                .with_context(|| input.display().to_string())?;
+            let result = denoiser.denoise(&img, *budget);
+            if let Some(b) = bar {
+                b.finish_and_clear();
+            }
+            let result = result.with_context(|| input.display().to_string())?;
             if !cli.quiet {
                 print_report(&result.report, input);
                 eprintln!(
@@ -707,7 +733,8 @@ impl log::Log for StderrLog {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    let level = if cli.quiet {
+    // Progress lines of the CPU references only on a terminal, as the GPU bar.
+    let level = if cli.quiet || !std::io::IsTerminal::is_terminal(&std::io::stderr()) {
         log::LevelFilter::Warn
     } else {
         log::LevelFilter::Info

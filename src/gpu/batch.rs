@@ -50,9 +50,25 @@ const DESCRIPTORS_PER_POOL: u32 = 64 * 32;
 const QUERIES_PER_POOL: u32 = 256;
 
 enum Mode {
-    Execute { fence: vk::Fence },
+    Execute {
+        fence: vk::Fence,
+    },
     Record,
+    /// Records nothing: sums the estimated work (for progress totals).
+    Count,
 }
+
+/// Progress of a batch in execute mode, reported after each submit completes.
+#[derive(Clone, Debug)]
+pub struct Progress {
+    /// Estimated floating-point operations completed so far.
+    pub done_flops: f64,
+    /// The kernel of the last completed band.
+    pub kernel: String,
+}
+
+/// Receives [`Progress`] reports (see [`Batch::on_progress`]).
+pub type ProgressFn = std::sync::Arc<dyn Fn(&Progress) + Send + Sync>;
 
 /// A sequence of dispatches. See the module documentation.
 pub struct Batch {
@@ -84,6 +100,11 @@ pub struct Batch {
     /// Every buffer bound or copied so far, retained in the context until
     /// the work is known to be complete.
     used: HashSet<vk::Buffer>,
+    /// Estimated work recorded so far, and completed so far (execute mode).
+    flops_recorded: f64,
+    flops_done: f64,
+    /// Called after each submit has completed (execute mode).
+    pub on_progress: Option<ProgressFn>,
 }
 
 impl Batch {
@@ -162,6 +183,9 @@ impl Batch {
         dst_stage: vk::PipelineStageFlags,
         dst: vk::AccessFlags,
     ) {
+        if matches!(self.mode, Mode::Count) {
+            return;
+        }
         let mb = [vk::MemoryBarrier::default()
             .src_access_mask(src)
             .dst_access_mask(dst)];
@@ -216,7 +240,27 @@ impl Batch {
             started: std::time::Instant::now(),
             last_band: None,
             used: HashSet::new(),
+            flops_recorded: 0.0,
+            flops_done: 0.0,
+            on_progress: None,
         }
+    }
+
+    /// A batch that records nothing and submits nothing: recording a chain
+    /// into it only sums the work estimates ([`flops`](Self::flops)), so a
+    /// caller can show progress against a known total.
+    pub fn counting(ctx: &Arc<GpuContext>) -> Batch {
+        Batch::empty(
+            ctx,
+            vk::CommandPool::null(),
+            vk::CommandBuffer::null(),
+            Mode::Count,
+        )
+    }
+
+    /// Estimated floating-point operations recorded so far.
+    pub fn flops(&self) -> f64 {
+        self.flops_recorded
     }
 
     fn begin(&mut self) -> Result<()> {
@@ -266,10 +310,17 @@ impl Batch {
                 .map_err(Error::vk("vkResetCommandBuffer"))?;
         }
         self.submits += 1;
+        self.flops_done = self.flops_recorded;
+        if let (Some(f), Some((k, ..))) = (&self.on_progress, &self.last_band) {
+            f(&Progress {
+                done_flops: self.flops_done,
+                kernel: k.clone(),
+            });
+        }
         if self.progress {
             let t = self.started.elapsed().as_secs_f64();
             if let (true, Some((k, a, b, h))) = (t > 1.0, &self.last_band) {
-                log::info!("{k} rows {a}..{b} of {h} done ({t:.1} s)");
+                log::debug!("{k} rows {a}..{b} of {h} done ({t:.1} s)");
             }
         }
         self.collect_timestamps()?;
@@ -391,6 +442,9 @@ impl Batch {
 
     /// A compute→compute/transfer memory barrier (recorded after every dispatch).
     pub fn barrier(&mut self) {
+        if matches!(self.mode, Mode::Count) {
+            return;
+        }
         let mb = [vk::MemoryBarrier::default()
             .src_access_mask(vk::AccessFlags::SHADER_WRITE | vk::AccessFlags::TRANSFER_WRITE)
             .dst_access_mask(
@@ -415,6 +469,9 @@ impl Batch {
 
     /// Fills a range with a 32-bit pattern (e.g. zeroes counters).
     pub fn fill(&mut self, slice: BufferSlice, value: u32) {
+        if matches!(self.mode, Mode::Count) {
+            return;
+        }
         self.track(&[slice]);
         // SAFETY: cmd is recording; range inside the buffer (BufferSlice invariant).
         unsafe {
@@ -432,6 +489,9 @@ impl Batch {
     /// Copies `src` into `dst` (sizes must match).
     pub fn copy(&mut self, src: BufferSlice, dst: BufferSlice) {
         assert_eq!(src.size, dst.size, "copy between ranges of different size");
+        if matches!(self.mode, Mode::Count) {
+            return;
+        }
         self.track(&[src, dst]);
         let region = [vk::BufferCopy::default()
             .src_offset(src.offset)
@@ -497,6 +557,12 @@ impl Batch {
                 )));
             }
         }
+        let [wx, wy, _] = p.workgroup;
+        let row_flops = flops_per_pixel.max(1.0) * width as f64;
+        if matches!(self.mode, Mode::Count) {
+            self.flops_recorded += row_flops * height as f64;
+            return Ok(());
+        }
         self.track(bindings);
         let set = self.descriptor_set(p.set_layout)?;
         let infos: Vec<[vk::DescriptorBufferInfo; 1]> = bindings
@@ -523,8 +589,6 @@ impl Batch {
         // SAFETY: set freshly allocated, buffers valid (caller's contract).
         unsafe { dev.update_descriptor_sets(&writes, &[]) };
 
-        let [wx, wy, _] = p.workgroup;
-        let row_flops = flops_per_pixel.max(1.0) * width as f64;
         let mut band = ((self.max_flops_per_submit / row_flops).floor() as u32).max(1);
         band = band.div_ceil(wy) * wy;
         let mut push = push.to_vec();
@@ -575,6 +639,7 @@ impl Batch {
             self.last_band = Some((p.name.clone(), row0, row0 + rows, height));
             self.barrier();
             self.flops_in_submit += band_flops;
+            self.flops_recorded += band_flops;
             row0 += rows;
         }
         Ok(())
@@ -591,6 +656,7 @@ impl Batch {
             Mode::Record => Err(Error::InvalidArgument(
                 "a recording batch ends with finish_recording()".into(),
             )),
+            Mode::Count => Ok(Vec::new()),
         }
     }
 

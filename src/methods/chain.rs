@@ -281,6 +281,28 @@ impl GpuChain {
         Ok(())
     }
 
+    /// Estimated floating-point operations of one [`record`](Self::record)
+    /// (recorded into a counting batch: nothing runs).
+    pub fn work(&self, budget: Option<u32>, accum: Option<BufferSlice>) -> Result<f64> {
+        let mut b = Batch::counting(&self.ctx);
+        self.record(&mut b, accum, budget)?;
+        Ok(b.flops())
+    }
+
+    /// A batch progress hook that reports the completed fraction of a
+    /// [`record`](Self::record) with these arguments to `f`.
+    pub fn progress_fn(
+        &self,
+        budget: Option<u32>,
+        accum: Option<BufferSlice>,
+        f: super::ProgressCallback,
+    ) -> Result<crate::gpu::ProgressFn> {
+        let total = self.work(budget, accum)?.max(1.0);
+        Ok(Arc::new(move |p: &crate::gpu::Progress| {
+            f((p.done_flops / total).min(1.0), &p.kernel)
+        }))
+    }
+
     /// What the sample map reads as `E` (§9.1): ΔMSE for LP, else `E_i`.
     fn sampling_error(&self) -> [BufferSlice; 3] {
         match &self.planes {

@@ -69,6 +69,10 @@ pub enum Pass {
     Intermediate,
 }
 
+/// Receives the completed fraction of a GPU call (0..1, by estimated work)
+/// and the kernel that last completed.
+pub type ProgressCallback = Arc<dyn Fn(f64, &str) + Send + Sync>;
+
 /// The G-buffer prefilter of normal, albedo and depth (spec §6) before the
 /// method (§1).
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Default)]
@@ -186,17 +190,20 @@ fn denoise_gpu(
             low_spp: prepare::has_low_spp(img),
         },
     )?;
-    denoise_with_chain(&chain, img, req)
+    denoise_with_chain(&chain, img, req, None)
 }
 
 /// Runs an existing chain (made for [`chain::ChainInput::Stats`] of `img`'s
 /// size and layers) on `img`: upload, record, submit, wait, download.
 /// `req`'s method, pass, precision and prefilter are the chain's; its
 /// `error`, `debug` and `progress` apply.
+/// `progress` receives the completed fraction (0..1, by estimated work) and
+/// the last kernel after each submit.
 pub fn denoise_with_chain(
     chain: &chain::GpuChain,
     img: &StatsImage,
     req: &DenoiseRequest,
+    progress: Option<&ProgressCallback>,
 ) -> Result<DenoiseOutput> {
     let layers: Vec<crate::image::Layer> = img.layers().map(|(l, _)| l).collect();
     let want = chain::ChainInput::Stats {
@@ -219,6 +226,9 @@ pub fn denoise_with_chain(
     chain.input().planes.upload_all(&planes)?;
     let mut batch = crate::gpu::Batch::new(chain.context())?;
     batch.progress = req.progress;
+    if let Some(p) = progress {
+        batch.on_progress = Some(chain.progress_fn(req.budget, None, p.clone())?);
+    }
     chain.record(&mut batch, None, req.budget)?;
     let timings = batch.finish()?;
     let out = chain.download(req.debug)?;
