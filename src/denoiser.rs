@@ -316,6 +316,28 @@ impl Denoiser {
         Ok(batch.finish_recording())
     }
 
+    /// Records the whole chain (as [`record_into`](Self::record_into)) into a
+    /// [`Batch`] of the denoiser's context: the safe way for a client on the
+    /// same context (the built-in renderer) to put its own passes and the
+    /// denoiser's into one submission sequence, with a barrier between every
+    /// dispatch. [`read`](Self::read) after `batch.finish()`.
+    pub fn record(
+        &self,
+        batch: &mut Batch,
+        accum: Option<BufferSlice>,
+        budget: Option<u32>,
+    ) -> Result<()> {
+        let chain = self.chain()?;
+        if !Arc::ptr_eq(batch.context(), chain.context()) {
+            return Err(Error::InvalidArgument(
+                "the batch belongs to another context than the denoiser".into(),
+            ));
+        }
+        chain.record(batch, accum, budget)?;
+        self.sampled.store(budget.is_some(), Ordering::SeqCst);
+        Ok(())
+    }
+
     /// Records the chain on mcdenoise's own command buffer, submits it to the
     /// context's queue (split into submits of about a second on slow
     /// devices) and waits. Returns the GPU time per dispatch.

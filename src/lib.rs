@@ -89,8 +89,8 @@ pub use accum::{AccumLayout, Accumulator};
 pub use denoiser::{Config, Denoiser, Frame, Outputs, Source};
 pub use error::{Error, Result};
 pub use gpu::{
-    choose_device, enumerate_devices, timings_per_kernel, BufferSlice, ContextOptions, DeviceInfo,
-    GpuContext, ImportedDevice, KernelTiming, Precision, Recorded, Validation,
+    choose_device, enumerate_devices, timings_per_kernel, Batch, BufferSlice, ContextOptions,
+    DeviceInfo, GpuContext, ImportedDevice, KernelTiming, Precision, Recorded, Validation,
 };
 pub use image::{Layer, RgbImage, StatsImage};
 pub use methods::prepare::{colour_of, PrepareReport};

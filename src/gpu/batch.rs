@@ -258,6 +258,11 @@ impl Batch {
         )
     }
 
+    /// The context the batch records for.
+    pub fn context(&self) -> &Arc<GpuContext> {
+        &self.ctx
+    }
+
     /// Estimated floating-point operations recorded so far.
     pub fn flops(&self) -> f64 {
         self.flops_recorded
