@@ -84,6 +84,7 @@ pub mod reference;
 pub mod shared;
 
 mod denoiser;
+pub mod schedule;
 
 pub use accum::{AccumLayout, Accumulator};
 pub use denoiser::{Config, Denoiser, Frame, Outputs, Source};
@@ -96,3 +97,4 @@ pub use image::{Layer, RgbImage, StatsImage};
 pub use methods::prepare::{colour_of, PrepareReport};
 pub use methods::{available_names, Backend, Method, Pass, Prefilter, ProgressCallback};
 pub use options::{help_table, Options};
+pub use schedule::Schedule;
