@@ -400,9 +400,16 @@ impl GpuChain {
         }
     }
 
-    /// Sanitation counters of the last completed run (§0.4).
+    /// Sanitation counters and the invalid pixels (`spp < 1`, §0.2) of the
+    /// last completed run (§0.4).
     pub fn report(&self) -> Result<PrepareReport> {
         let counters = self.scratch.read_counters()?;
+        let (w, h) = self.size();
+        let spp = read(&self.ctx, self.clean.plane(Layer::Spp, 0), w * h)?;
+        let invalid = spp
+            .iter()
+            .filter(|&&s| crate::reference::finalize_stats::spp_of(s) < 1.0)
+            .count();
         Ok(PrepareReport {
             counters,
             estimated: Layer::WITH_VARIANCE
@@ -412,7 +419,7 @@ impl GpuChain {
                     layers.contains(l) && !layers.contains(&l.variance().unwrap())
                 })
                 .collect(),
-            invalid_pixels: 0,
+            invalid_pixels: invalid,
             timings: Vec::new(),
         })
     }
