@@ -82,6 +82,11 @@ pub enum Error {
     /// Values that cannot be processed even after sanitation.
     #[error("{0}")]
     BadData(String),
+
+    /// The work was stopped on request (Ctrl-C) between two passes; no
+    /// output was written.
+    #[error("interrupted")]
+    Interrupted,
 }
 
 /// The library's result type.
