@@ -54,7 +54,7 @@
 //! ## Layers
 //! `src/bin` (CLI) → this facade → [`methods`] (sequences of kernels) →
 //! [`kernels`] (one file per GPU kernel) → [`gpu`] (Vulkan plumbing, the
-//! only module that calls `ash`). [`reference`] holds the scalar f64 twin of
+//! only module that calls `ash`). [`mod@reference`] holds the scalar f64 twin of
 //! every kernel; [`io`] reads and writes files on the host.
 
 #![warn(missing_docs)]
