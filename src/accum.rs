@@ -23,20 +23,31 @@ use crate::image::Layer;
 /// Which optional buffers the renderer accumulates.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
 pub struct AccumLayout {
+    /// Image width in pixels.
     pub width: usize,
+    /// Image height in pixels.
     pub height: usize,
+    /// The renderer accumulates world positions: adds the position channels
+    /// X Y Z and the three cross-product planes (needed by the G-buffer
+    /// prefilter, spec §6, for the covariance `S`).
     pub position: bool,
+    /// The renderer accumulates direct-light visibility: adds one channel.
     pub visibility: bool,
 }
 
 /// A scalar channel of the accumulation: layer and component.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
 pub struct AccumChannel {
+    /// The layer the channel belongs to (mean layers only: never a variance).
     pub layer: Layer,
+    /// Component within the layer: 0, 1, 2 for R G B or X Y Z; 0 for depth and
+    /// visibility.
     pub component: usize,
 }
 
 impl AccumLayout {
+    /// A layout for a `width × height` image (pixels) with the optional
+    /// position and visibility channels.
     pub fn new(width: usize, height: usize, position: bool, visibility: bool) -> Self {
         AccumLayout {
             width,
@@ -46,6 +57,7 @@ impl AccumLayout {
         }
     }
 
+    /// Pixels per plane: `width * height`.
     pub fn pixels(&self) -> usize {
         self.width * self.height
     }
@@ -93,6 +105,8 @@ impl AccumLayout {
         2 * self.channels().len() + if self.position { 3 } else { 0 }
     }
 
+    /// Number of planes: two per scalar channel, three position cross products
+    /// if `position`, and the sample count.
     pub fn plane_count(&self) -> usize {
         self.count_plane() + 1
     }
@@ -119,11 +133,14 @@ impl AccumLayout {
 /// Used by tests and by the built-in scene generator.
 #[derive(Clone, Debug)]
 pub struct Accumulator {
+    /// The planes accumulated and their order.
     pub layout: AccumLayout,
     sums: Vec<Vec<f64>>,
 }
 
 impl Accumulator {
+    /// An all-zero accumulation (no samples yet) of `layout`; holds
+    /// [`AccumLayout::plane_count`] f64 planes of [`AccumLayout::pixels`] values.
     pub fn new(layout: AccumLayout) -> Self {
         Accumulator {
             layout,

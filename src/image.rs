@@ -11,19 +11,34 @@ use std::collections::BTreeMap;
 /// order layers are listed in (inspect output, EXR channel order).
 #[derive(Copy, Clone, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub enum Layer {
+    /// `color.R G B`: mean linear radiance of the pixel's samples.
     Color,
+    /// `color_variance.R G B`: variance of that mean (sample variance / spp).
     ColorVariance,
+    /// `albedo.R G B`: mean first-hit texture albedo.
     Albedo,
+    /// `albedo_variance.R G B`: variance of the albedo mean.
     AlbedoVariance,
+    /// `normal.X Y Z`: mean first-hit shading normal, world space.
     Normal,
+    /// `normal_variance.X Y Z`: variance of the normal mean.
     NormalVariance,
+    /// `depth.Z`: mean first-hit distance from the camera (scene units).
     Depth,
+    /// `depth_variance.Z`: variance of the depth mean.
     DepthVariance,
+    /// `position.X Y Z`: mean first-hit world position (G-buffer prefilter, spec §6).
     Position,
+    /// `position_variance.X Y Z`: variance of the position mean, per axis.
     PositionVariance,
+    /// `position_covariance.XX XY XZ YY YZ ZZ`: covariance of the position
+    /// *samples* divided by spp (`S_i`, spec §0.1).
     PositionCovariance,
+    /// `visibility.Y`: mean direct-light visibility, in 0..1 (optional).
     Visibility,
+    /// `visibility_variance.Y`: variance of the visibility mean.
     VisibilityVariance,
+    /// `spp.Y`: samples in the pixel (`n_i`; a pixel is valid when `>= 1`, spec §0.2).
     Spp,
 }
 
@@ -102,6 +117,9 @@ impl Layer {
         }
     }
 
+    /// Whether an input file must carry this layer: colour, albedo, normal,
+    /// depth and spp are required, their variances are estimated if missing,
+    /// the rest is optional.
     pub fn requirement(self) -> Requirement {
         match self {
             Layer::Color | Layer::Albedo | Layer::Normal | Layer::Depth | Layer::Spp => {
@@ -128,6 +146,7 @@ impl Layer {
         }
     }
 
+    /// The layer of an EXR layer name ([`Layer::name`]), or `None`.
     pub fn from_name(name: &str) -> Option<Layer> {
         Layer::ALL.into_iter().find(|l| l.name() == name)
     }
@@ -136,7 +155,9 @@ impl Layer {
 /// The per-pixel statistics of one frame, planar.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct StatsImage {
+    /// Width in pixels.
     pub width: usize,
+    /// Height in pixels.
     pub height: usize,
     layers: BTreeMap<Layer, Vec<Vec<f32>>>,
 }
@@ -151,6 +172,7 @@ impl StatsImage {
         }
     }
 
+    /// Pixels per plane: `width * height`.
     pub fn pixel_count(&self) -> usize {
         self.width * self.height
     }
@@ -165,18 +187,22 @@ impl StatsImage {
         self.layers.insert(layer, planes);
     }
 
+    /// Takes a layer out of the image, returning its planes if it was present.
     pub fn remove(&mut self, layer: Layer) -> Option<Vec<Vec<f32>>> {
         self.layers.remove(&layer)
     }
 
+    /// The planes of a layer (one per [`Layer::channels`] entry), if present.
     pub fn get(&self, layer: Layer) -> Option<&[Vec<f32>]> {
         self.layers.get(&layer).map(|v| v.as_slice())
     }
 
+    /// The planes of a layer, mutably, if present.
     pub fn get_mut(&mut self, layer: Layer) -> Option<&mut [Vec<f32>]> {
         self.layers.get_mut(&layer).map(|v| v.as_mut_slice())
     }
 
+    /// Whether the layer is present.
     pub fn has(&self, layer: Layer) -> bool {
         self.layers.contains_key(&layer)
     }
@@ -213,12 +239,16 @@ pub fn crop_plane(p: &[f32], width: usize, x0: usize, y0: usize, w: usize, h: us
 /// An RGB image, planar (the denoiser's colour output, a reference, an error map).
 #[derive(Clone, Debug, PartialEq)]
 pub struct RgbImage {
+    /// Width in pixels.
     pub width: usize,
+    /// Height in pixels.
     pub height: usize,
+    /// The R, G, B planes, `width * height` f32 values each, row-major.
     pub planes: [Vec<f32>; 3],
 }
 
 impl RgbImage {
+    /// A black (all-zero) image of `width × height` pixels.
     pub fn new(width: usize, height: usize) -> Self {
         let n = width * height;
         RgbImage {
@@ -228,6 +258,7 @@ impl RgbImage {
         }
     }
 
+    /// Wraps three planes; panics if a plane's length is not `width * height`.
     pub fn from_planes(width: usize, height: usize, planes: [Vec<f32>; 3]) -> Self {
         for p in &planes {
             assert_eq!(p.len(), width * height);
@@ -239,6 +270,7 @@ impl RgbImage {
         }
     }
 
+    /// A crop `[x0, x0+w) x [y0, y0+h)`, which must lie inside the image.
     pub fn crop(&self, x0: usize, y0: usize, w: usize, h: usize) -> RgbImage {
         RgbImage {
             width: w,

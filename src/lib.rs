@@ -54,33 +54,22 @@
 //! ## Layers
 //! `src/bin` (CLI) → this facade → [`methods`] (sequences of kernels) →
 //! [`kernels`] (one file per GPU kernel) → [`gpu`] (Vulkan plumbing, the
-//! only module that calls `ash`). [`reference`] holds the scalar f64 twin of
+//! only module that calls `ash`). [`mod@reference`] holds the scalar f64 twin of
 //! every kernel; [`io`] reads and writes files on the host.
 
 #![warn(missing_docs)]
 
-#[allow(missing_docs)] // internal layers: documented at their module level
 pub mod accum;
-#[allow(missing_docs)]
 pub mod bench;
 pub mod error;
-#[allow(missing_docs)]
 pub mod gpu;
-#[allow(missing_docs)]
 pub mod image;
-#[allow(missing_docs)]
 pub mod io;
-#[allow(missing_docs)]
 pub mod kernels;
-#[allow(missing_docs)]
 pub mod methods;
-#[allow(missing_docs)]
 pub mod metrics;
-#[allow(missing_docs)]
 pub mod options;
-#[allow(missing_docs)]
 pub mod reference;
-#[allow(missing_docs)]
 pub mod shared;
 
 mod denoiser;

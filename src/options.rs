@@ -19,11 +19,15 @@ pub enum Kind {
 /// One option of the spec.
 #[derive(Copy, Clone, Debug)]
 pub struct OptionSpec {
+    /// The `key` of `--opt key=value`, `<method>.<name>` (e.g. `wlr.reject`).
     pub key: &'static str,
+    /// The values it accepts; anything else is an error naming them.
     pub kind: Kind,
+    /// Value when the option is not given; `"method"` means the method decides.
     pub default: &'static str,
     /// Section of `../shared/docs/algorithms.md`.
     pub section: &'static str,
+    /// One line for `--help` ([`help_table`]).
     pub help: &'static str,
 }
 

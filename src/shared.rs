@@ -11,18 +11,24 @@ use bytemuck::{Pod, Zeroable};
 #[repr(C)]
 #[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct FinalizePush {
+    /// Image width in pixels.
     pub width: u32,
+    /// Image height in pixels.
     pub height: u32,
     /// First row of the band this dispatch covers.
     pub row0: u32,
+    /// Unused (the block's `_pad`): rounds the block to 16 bytes; 0.
     pub _pad: u32,
 }
 
-/// `spirv/sanitize.comp`, block `Push` (spec §0.4).
+/// `spirv/sanitize.comp`, `spirv/sanitize_low_spp.comp` and
+/// `spirv/estimate_variance.comp`, block `Push` (spec §0.4).
 #[repr(C)]
 #[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct SanitizePush {
+    /// Image width in pixels.
     pub width: u32,
+    /// Image height in pixels.
     pub height: u32,
     /// First row of the band this dispatch covers.
     pub row0: u32,
@@ -31,6 +37,7 @@ pub struct SanitizePush {
     pub stage: u32,
     /// 1 if the channel has a variance plane (stage 0 only reads it then).
     pub has_var: u32,
+    /// Unused (the block's `_pad[3]`): rounds the block to 32 bytes; 0.
     pub _pad: [u32; 3],
 }
 
@@ -38,7 +45,9 @@ pub struct SanitizePush {
 #[repr(C)]
 #[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct TsvdPush {
+    /// Image width in pixels.
     pub width: u32,
+    /// Image height in pixels.
     pub height: u32,
     /// First row of the band this dispatch covers.
     pub row0: u32,
@@ -50,7 +59,9 @@ pub struct TsvdPush {
 #[repr(C)]
 #[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct WlrPush {
+    /// Image width in pixels.
     pub width: u32,
+    /// Image height in pixels.
     pub height: u32,
     /// First row of the band this dispatch covers.
     pub row0: u32,
@@ -60,6 +71,7 @@ pub struct WlrPush {
     /// clamped (§2.3 step 2; off divides by nothing). Bit 2: `wlr.nonneg` on
     /// (§2.3 step 5). See [`WLR_REJECT`], [`WLR_OUTLIER_CLAMPED`], [`WLR_NONNEG`].
     pub options: u32,
+    /// Unused (the block's `pad0..pad2`): rounds the block to 32 bytes; 0.
     pub _pad: [u32; 3],
 }
 
@@ -76,13 +88,19 @@ pub const WLR_DEFAULT_OPTIONS: u32 = WLR_REJECT | WLR_OUTLIER_CLAMPED | WLR_NONN
 #[repr(C)]
 #[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct SmoothPush {
+    /// Image width in pixels.
     pub width: u32,
+    /// Image height in pixels.
     pub height: u32,
     /// First row of the band this dispatch covers.
     pub row0: u32,
     /// `ceil(3σ)`.
     pub radius: u32,
+    /// Gaussian standard deviation σ in pixels (spec §0.5): 1 for WLR's
+    /// `h_opt` map, 1.5 for GBF's, `sampling.smooth` (σs, §9.1) for the
+    /// sample map; `<= 0` is the identity on valid pixels.
     pub sigma: f32,
+    /// Unused (the block's `pad0..pad2`): rounds the block to 32 bytes; 0.
     pub _pad: [u32; 3],
 }
 
@@ -90,20 +108,25 @@ pub struct SmoothPush {
 #[repr(C)]
 #[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct ChannelMeanPush {
+    /// Image width in pixels.
     pub width: u32,
+    /// Image height in pixels.
     pub height: u32,
     /// First row of the band this dispatch covers.
     pub row0: u32,
+    /// Unused (the block's `pad0`): rounds the block to 16 bytes; 0.
     pub _pad: u32,
 }
 
-/// `spirv/lp_centres.comp` and `spirv/lp_gather.comp`, block `Push` (spec §3).
+/// `spirv/lp_centres.comp`, `spirv/lp_reach.comp` and `spirv/lp_gather.comp`,
+/// block `Push` (spec §3).
 #[repr(C)]
 #[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct LpPush {
     /// Image size (the centre kernel runs on the candidate grid
     /// `ceil(width/g) × ceil(height/g)`; its `row0` counts grid rows).
     pub width: u32,
+    /// Image height in pixels (see `width`).
     pub height: u32,
     /// First row of the band this dispatch covers.
     pub row0: u32,
@@ -116,6 +139,7 @@ pub struct LpPush {
     /// `lp_gather` only: f32 values from one output plane to the next in its
     /// packed output binding.
     pub out_stride: u32,
+    /// Unused (the block's `pad1`): rounds the block to 32 bytes; 0.
     pub _pad: u32,
 }
 
@@ -155,11 +179,14 @@ impl LpStateLayout {
     pub const PLANES: usize = 9;
 }
 
-/// `spirv/gbf_sure.comp` and `spirv/gbf_filter.comp`, block `Push` (spec §6).
+/// `spirv/gbf_prepare.comp`, `spirv/gbf_sure.comp` and `spirv/gbf_filter.comp`,
+/// block `Push` (spec §6).
 #[repr(C)]
 #[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GbfPush {
+    /// Image width in pixels.
     pub width: u32,
+    /// Image height in pixels.
     pub height: u32,
     /// First row of the band this dispatch covers.
     pub row0: u32,
@@ -171,7 +198,9 @@ pub struct GbfPush {
 #[repr(C)]
 #[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct SamplePriorityPush {
+    /// Image width in pixels.
     pub width: u32,
+    /// Image height in pixels.
     pub height: u32,
     /// First row of the band this dispatch covers.
     pub row0: u32,
@@ -179,6 +208,7 @@ pub struct SamplePriorityPush {
     pub flags: u32,
     /// `ε` of the relative error `ΔMSE/(f̂² + ε)` (> 0; §9.1 table).
     pub eps: f32,
+    /// Unused (the block's `pad0..pad2`): rounds the block to 32 bytes; 0.
     pub _pad: [u32; 3],
 }
 
@@ -197,6 +227,7 @@ pub const SAMPLE_D_KFLAGS: u32 = 2;
 pub struct SampleTreePush {
     /// Dispatch grid in invocations: `8·groups_x × 8·groups_y`.
     pub width: u32,
+    /// Dispatch grid height in invocations (`8·groups_y`; see `width`).
     pub height: u32,
     /// First row of the band this dispatch covers.
     pub row0: u32,
@@ -221,5 +252,6 @@ pub struct SampleTreePush {
     pub u_off: u32,
     /// Budget `T` of the pass (`sample_scan` leaf).
     pub budget: u32,
+    /// Unused (the block's `pad0..pad2`): rounds the block to 64 bytes; 0.
     pub _pad: [u32; 3],
 }

@@ -1,9 +1,8 @@
 //! The benchmarks behind `mcdenoise bench`: a **quality** benchmark over a
 //! folder of scenes with references, and a **timing** benchmark of whole
-//! denoise calls. Both run every method through
-//! [`methods::denoise`](crate::methods::denoise), the same entry point as the
-//! CLI, so a method shows up here as soon as [`Method::available`] says it is
-//! built.
+//! denoise calls. Both run every method through the [`Denoiser`] facade, the
+//! same entry point as the CLI, so a method shows up here as soon as
+//! [`Method::available`] says it is built.
 //!
 //! # Cases and filters
 //! Every measurement is a *case* with a dotted name:

@@ -197,7 +197,8 @@ pub struct QualityRow {
     pub backend: Option<Backend>,
     /// Of the method's colour (the raw input colour for `input`) against the reference.
     pub metrics: Metrics,
-    /// Wall-clock seconds of the [`methods::denoise`] call (not the file
+    /// Wall-clock seconds of making the case's [`Denoiser`](crate::Denoiser)
+    /// and its [`denoise`](crate::Denoiser::denoise) call (not the file
     /// reading or the metrics).
     pub wall_s: Option<f64>,
     /// Sum of the call's kernel timings (ms); `None` if none were reported.

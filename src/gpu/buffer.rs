@@ -176,14 +176,18 @@ impl GpuBuffer {
         Ok(b)
     }
 
+    /// The debug name given at creation (also the Vulkan object name).
     pub fn name(&self) -> &str {
         &self.name
     }
 
+    /// Size in bytes (at least 4: an empty buffer is given one word).
     pub fn size(&self) -> u64 {
         self.size
     }
 
+    /// The raw `vk::Buffer`, for binding it in a host's own work; the handle stays
+    /// owned by this `GpuBuffer`.
     pub fn raw(&self) -> vk::Buffer {
         self.buffer
     }
@@ -336,8 +340,11 @@ impl Drop for GpuBuffer {
 /// own (no binding grows with the number of channels).
 #[derive(Debug)]
 pub struct PlaneSet {
+    /// The one buffer holding every plane.
     pub buffer: GpuBuffer,
+    /// Values per plane: the image's `width * height` pixels.
     pub pixels: usize,
+    /// Number of planes.
     pub count: usize,
     /// Bytes from one plane's start to the next.
     pub stride: u64,
@@ -353,6 +360,9 @@ pub fn plane_stride(pixels: usize) -> u64 {
 }
 
 impl PlaneSet {
+    /// `count` planes of `pixels` f32 values in one GPU-only buffer named `name`
+    /// (`stride * count` bytes). Fails with [`Error::Limit`]
+    /// if one plane exceeds `maxStorageBufferRange`.
     pub fn new(ctx: &Arc<GpuContext>, name: &str, pixels: usize, count: usize) -> Result<PlaneSet> {
         let stride = plane_stride(pixels);
         let limit = ctx.info.max_storage_buffer_range as u64;
@@ -383,6 +393,8 @@ impl PlaneSet {
             .range(i as u64 * self.stride, (self.pixels as u64 * 4).max(4))
     }
 
+    /// Writes plane `i` from `data`: `pixels` values of a 4-byte type (f32, u32).
+    /// Blocking; the GPU must not be using the buffer. Panics on a wrong length.
     pub fn upload_plane<T: bytemuck::Pod>(&self, i: usize, data: &[T]) -> Result<()> {
         assert!(i < self.count);
         assert_eq!(std::mem::size_of_val(data), self.pixels * 4);
@@ -390,6 +402,8 @@ impl PlaneSet {
             .upload(i as u64 * self.stride, bytemuck::cast_slice(data))
     }
 
+    /// Reads plane `i` back as `pixels` values of a 4-byte type (f32, u32);
+    /// blocking.
     pub fn download_plane<T: bytemuck::Pod + Default + Clone>(&self, i: usize) -> Result<Vec<T>> {
         assert!(i < self.count);
         let mut v = vec![T::default(); self.pixels];

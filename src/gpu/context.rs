@@ -31,34 +31,57 @@ pub struct ContextOptions {
     /// substring of its name. `None`: the `MCDENOISE_DEVICE` environment
     /// variable, else the best device (discrete > integrated > virtual > CPU).
     pub device: Option<String>,
+    /// Whether to enable the Khronos validation layer (default [`Validation::Off`]).
     pub validation: Validation,
 }
 
 /// What `mcdenoise info` prints about a device.
 #[derive(Clone, Debug)]
 pub struct DeviceInfo {
+    /// Index in the loader's enumeration order (one of the forms
+    /// [`ContextOptions::device`] and `MCDENOISE_DEVICE` accept).
     pub index: usize,
+    /// Device name as the driver reports it.
     pub name: String,
+    /// Discrete, integrated, virtual GPU or CPU (software, e.g. lavapipe); the
+    /// default choice prefers them in that order.
     pub kind: vk::PhysicalDeviceType,
+    /// Vulkan API version the device supports, `(major, minor, patch)`.
     pub api_version: (u32, u32, u32),
+    /// Driver information string (`VkPhysicalDeviceDriverProperties`; may be empty).
     pub driver: String,
+    /// `maxStorageBufferRange` in bytes: the largest binding; one f32 plane
+    /// holds at most a quarter of it in pixels.
     pub max_storage_buffer_range: u32,
+    /// `maxPerStageDescriptorStorageBuffers`: the most buffers one kernel may bind.
     pub max_per_stage_storage_buffers: u32,
+    /// `maxPushConstantsSize` in bytes.
     pub max_push_constants_size: u32,
+    /// `maxComputeSharedMemorySize` in bytes.
     pub max_shared_memory: u32,
+    /// `minStorageBufferOffsetAlignment` in bytes: every binding's offset is a
+    /// multiple of it.
     pub min_storage_buffer_offset_alignment: u64,
+    /// Whether the device supports `shaderFloat64` (the `_f64` kernels).
     pub shader_float64: bool,
+    /// Whether the device supports `shaderInt64` (needed by the sample-map kernels).
     pub shader_int64: bool,
+    /// Default subgroup size in invocations (informational).
     pub subgroup_size: u32,
+    /// Nanoseconds per timestamp tick (`timestampPeriod`); 0 disables GPU timing.
     pub timestamp_period_ns: f32,
+    /// Whether some queue family supports compute; devices without one are never chosen.
     pub has_compute_queue: bool,
 }
 
 /// Messages of the validation layer: every error is counted and kept.
 #[derive(Debug, Default)]
 pub struct ValidationLog {
+    /// Validation errors reported so far.
     pub errors: AtomicUsize,
+    /// Validation warnings reported so far.
     pub warnings: AtomicUsize,
+    /// The text of every error and warning, in arrival order.
     pub messages: Mutex<Vec<String>>,
 }
 
@@ -296,12 +319,18 @@ pub fn enumerate_devices() -> Result<Vec<DeviceInfo>> {
 /// A host renderer's Vulkan objects, handed to [`GpuContext::from_raw`].
 #[derive(Clone)]
 pub struct ImportedDevice {
+    /// The Vulkan loader the host loaded `instance` with.
     pub entry: ash::Entry,
+    /// The host's instance; it outlives the context and is never destroyed by it.
     pub instance: ash::Instance,
+    /// The physical device `device` was created from.
     pub physical_device: vk::PhysicalDevice,
+    /// The host's logical device; mcdenoise creates and destroys only its own
+    /// objects on it.
     pub device: ash::Device,
     /// A queue with compute capability.
     pub queue: vk::Queue,
+    /// Queue family of `queue`; it must support compute.
     pub queue_family_index: u32,
     /// Whether the host enabled `shaderFloat64` on `device` (f64 kernels are
     /// only used then).
@@ -547,18 +576,23 @@ impl GpuContext {
         &self.device
     }
 
+    /// The physical device this context runs on.
     pub fn raw_physical_device(&self) -> vk::PhysicalDevice {
         self.physical
     }
 
+    /// The instance (mcdenoise's own, or the host's for an imported device).
     pub fn raw_instance(&self) -> &ash::Instance {
         &self.instance
     }
 
+    /// The Vulkan loader entry points.
     pub fn raw_entry(&self) -> &ash::Entry {
         &self.entry
     }
 
+    /// Queue family index of the queue mcdenoise submits to and of the command
+    /// pools it creates.
     pub fn queue_family(&self) -> u32 {
         self.queue_family
     }

@@ -11,16 +11,25 @@ use crate::error::{Error, Result};
 /// One built kernel variant.
 #[derive(Clone, Debug)]
 pub struct Pipeline {
+    /// Debug label: the kernel name plus the precision suffix (`wlr_fit_f64`);
+    /// also the name of the timing rows.
     pub name: String,
+    /// Descriptor-set layout: `binding_count` storage buffers in set 0.
     pub set_layout: vk::DescriptorSetLayout,
+    /// Pipeline layout: the set layout and one push-constant range of `push_size` bytes.
     pub layout: vk::PipelineLayout,
+    /// The compute pipeline.
     pub pipeline: vk::Pipeline,
     /// From reflection (the only source of the workgroup size).
     pub workgroup: [u32; 3],
+    /// Number of storage-buffer bindings (= [`KernelDecl::bindings`] length).
     pub binding_count: u32,
+    /// Push-constant size in bytes (= [`KernelDecl::push_size`]; 0: no range).
     pub push_size: u32,
 }
 
+/// The context's built pipelines, keyed by kernel name and precision; owned
+/// by [`GpuContext`] and destroyed with it.
 #[derive(Default)]
 pub struct PipelineCache {
     map: HashMap<(String, Precision), Pipeline>,

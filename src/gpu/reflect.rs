@@ -20,7 +20,10 @@ pub enum Access {
 /// One storage-buffer binding (set 0, binding = its index in [`KernelDecl::bindings`]).
 #[derive(Copy, Clone, Debug)]
 pub struct BindingDecl {
+    /// Name of the binding in error messages (`spp`, `value_out`); not checked
+    /// against the shader.
     pub name: &'static str,
+    /// Whether the shader only reads the buffer or also writes it.
     pub access: Access,
 }
 
@@ -28,18 +31,25 @@ pub struct BindingDecl {
 /// bindings in binding order, and its push-constant size in bytes.
 #[derive(Copy, Clone, Debug)]
 pub struct KernelDecl {
+    /// Kernel name: `spirv/<name>.comp`, and the base of the pipeline label and
+    /// of the timing rows (plus `_f64` for that variant).
     pub name: &'static str,
+    /// Storage-buffer bindings of set 0, in binding order.
     pub bindings: &'static [BindingDecl],
+    /// Push-constant size in bytes: `size_of` the `crate::shared` struct the
+    /// kernel's block mirrors (0 if it has none).
     pub push_size: u32,
 }
 
-/// Shorthand constructors for binding tables.
+/// A [`BindingDecl`] the kernel only reads ([`Access::Read`]); with [`fn@write`],
+/// the shorthand of the binding tables.
 pub const fn read(name: &'static str) -> BindingDecl {
     BindingDecl {
         name,
         access: Access::Read,
     }
 }
+/// A [`BindingDecl`] the kernel writes ([`Access::ReadWrite`]).
 pub const fn write(name: &'static str) -> BindingDecl {
     BindingDecl {
         name,
@@ -58,6 +68,7 @@ pub enum Precision {
 }
 
 impl Precision {
+    /// Suffix of the kernel variant's name: `""` for f32, `"_f64"` for f64.
     pub fn suffix(self) -> &'static str {
         match self {
             Precision::F32 => "",
@@ -73,6 +84,7 @@ pub struct Reflection {
     pub bindings: Vec<(u32, Access)>,
     /// Size of the push-constant block, 0 if none.
     pub push_size: u32,
+    /// `local_size_x/y/z` of the entry point; dispatch sizes are computed from it.
     pub workgroup_size: [u32; 3],
     /// Bytes of workgroup-shared memory.
     pub shared_bytes: u32,

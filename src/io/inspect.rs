@@ -30,7 +30,9 @@ pub struct ChannelStats {
 /// Statistics of one layer present in the image, its channels in file order.
 #[derive(Clone, Debug, PartialEq)]
 pub struct LayerReport {
+    /// Which layer the statistics describe.
     pub layer: Layer,
+    /// One entry per channel of the layer ([`Layer::channels`] order).
     pub channels: Vec<ChannelStats>,
 }
 

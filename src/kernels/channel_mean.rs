@@ -7,6 +7,8 @@ use crate::gpu::reflect::{read, write};
 use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};
 use crate::shared::ChannelMeanPush;
 
+/// Declaration of `spirv/channel_mean.comp`: its bindings in binding order and
+/// the size of [`ChannelMeanPush`]; checked against the SPIR-V by reflection.
 pub const DECL: KernelDecl = KernelDecl {
     name: "channel_mean",
     bindings: &[read("a"), read("b"), read("c"), write("out")],

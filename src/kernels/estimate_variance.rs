@@ -6,6 +6,9 @@
 use crate::gpu::KernelDecl;
 use crate::shared::SanitizePush;
 
+/// Declaration of `spirv/estimate_variance.comp`: the bindings all three
+/// sanitation stages share ([`super::sanitize::BINDINGS`]) and the size of
+/// [`SanitizePush`]; checked against the SPIR-V by reflection.
 pub const DECL: KernelDecl = KernelDecl {
     name: "estimate_variance",
     bindings: super::sanitize::BINDINGS,

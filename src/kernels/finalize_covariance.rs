@@ -7,6 +7,9 @@ use crate::gpu::reflect::{read, write};
 use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};
 use crate::shared::FinalizePush;
 
+/// Declaration of `spirv/finalize_covariance.comp`: its bindings in binding
+/// order and the size of [`FinalizePush`]; checked against the SPIR-V by
+/// reflection.
 pub const DECL: KernelDecl = KernelDecl {
     name: "finalize_covariance",
     bindings: &[
@@ -30,6 +33,8 @@ pub const DECL: KernelDecl = KernelDecl {
     push_size: std::mem::size_of::<FinalizePush>() as u32,
 };
 
+/// Estimated floating-point operations per pixel (for band splitting): three
+/// means, three variances and three clamped cross terms.
 pub const FLOPS_PER_PIXEL: f64 = 40.0;
 
 /// Records the covariance finalize. `sums` = Σx Σy Σz, `sumsqs` = Σx² Σy² Σz²,

@@ -6,6 +6,8 @@ use crate::gpu::reflect::{read, write};
 use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};
 use crate::shared::FinalizePush;
 
+/// Declaration of `spirv/finalize_stats.comp`: its bindings in binding order
+/// and the size of [`FinalizePush`]; checked against the SPIR-V by reflection.
 pub const DECL: KernelDecl = KernelDecl {
     name: "finalize_stats",
     bindings: &[

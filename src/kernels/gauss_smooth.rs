@@ -8,6 +8,8 @@ use crate::gpu::reflect::{read, write};
 use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};
 use crate::shared::SmoothPush;
 
+/// Declaration of `spirv/gauss_smooth.comp`: its bindings in binding order and
+/// the size of [`SmoothPush`]; checked against the SPIR-V by reflection.
 pub const DECL: KernelDecl = KernelDecl {
     name: "gauss_smooth",
     bindings: &[read("map"), read("spp"), write("out")],

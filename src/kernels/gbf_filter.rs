@@ -7,6 +7,8 @@ use crate::gpu::reflect::{read, write};
 use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};
 use crate::shared::GbfPush;
 
+/// Declaration of `spirv/gbf_filter.comp`: its bindings in binding order and
+/// the size of [`GbfPush`]; checked against the SPIR-V by reflection.
 pub const DECL: KernelDecl = KernelDecl {
     name: "gbf_filter",
     bindings: &[

@@ -12,6 +12,8 @@ use crate::gpu::reflect::{read, write};
 use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};
 use crate::shared::LpPush;
 
+/// Declaration of `spirv/lp_centres.comp`: its bindings in binding order and
+/// the size of [`LpPush`]; checked against the SPIR-V by reflection.
 pub const DECL: KernelDecl = KernelDecl {
     name: "lp_centres",
     bindings: &[
@@ -61,6 +63,7 @@ pub struct LpInputs {
     pub color: [BufferSlice; 3],
     /// Colour variances (of the mean) R, G, B.
     pub cvar: [BufferSlice; 3],
+    /// Sample count `n` per pixel (f32); a pixel is valid when `n >= 1`.
     pub spp: BufferSlice,
 }
 

@@ -7,6 +7,8 @@ use crate::gpu::reflect::{read, write};
 use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};
 use crate::shared::LpPush;
 
+/// Declaration of `spirv/lp_reach.comp`: its bindings in binding order and the
+/// size of [`LpPush`]; checked against the SPIR-V by reflection.
 pub const DECL: KernelDecl = KernelDecl {
     name: "lp_reach",
     bindings: &[read("state0"), write("reach")],

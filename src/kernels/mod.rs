@@ -1,6 +1,6 @@
 //! One file per GPU kernel (`spirv/<name>.comp`): its binding declaration
 //! ([`KernelDecl`]), its cost estimate and a function that records it into a
-//! [`Batch`](crate::gpu::Batch). The scalar twin of each is
+//! [`Batch`]. The scalar twin of each is
 //! `crate::reference::<name>`.
 
 use crate::gpu::KernelDecl;

@@ -8,6 +8,9 @@ use crate::gpu::reflect::{read, write};
 use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};
 use crate::shared::SamplePriorityPush;
 
+/// Declaration of `spirv/sample_priority.comp`: its bindings in binding order
+/// and the size of [`SamplePriorityPush`]; checked against the SPIR-V by
+/// reflection.
 pub const DECL: KernelDecl = KernelDecl {
     name: "sample_priority",
     bindings: &[

@@ -10,6 +10,8 @@ use crate::gpu::reflect::{read, write};
 use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};
 use crate::shared::SampleTreePush;
 
+/// Declaration of `spirv/sample_reduce.comp`: its bindings in binding order and
+/// the size of [`SampleTreePush`]; checked against the SPIR-V by reflection.
 pub const DECL: KernelDecl = KernelDecl {
     name: "sample_reduce",
     bindings: &[read("r"), read("spp"), write("tree")],

@@ -11,6 +11,8 @@ use crate::gpu::reflect::{read, write};
 use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};
 use crate::shared::SampleTreePush;
 
+/// Declaration of `spirv/sample_scan.comp`: its bindings in binding order and
+/// the size of [`SampleTreePush`]; checked against the SPIR-V by reflection.
 pub const DECL: KernelDecl = KernelDecl {
     name: "sample_scan",
     bindings: &[read("r"), read("spp"), write("tree"), write("counts")],

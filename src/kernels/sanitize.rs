@@ -29,6 +29,8 @@ pub const BINDINGS: &[BindingDecl] = &[
     write("counters"),
 ];
 
+/// Declaration of `spirv/sanitize.comp`: its bindings in binding order and the
+/// size of [`SanitizePush`]; checked against the SPIR-V by reflection.
 pub const DECL: KernelDecl = KernelDecl {
     name: "sanitize",
     bindings: BINDINGS,

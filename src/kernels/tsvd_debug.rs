@@ -8,6 +8,8 @@ use crate::gpu::reflect::{read, write};
 use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};
 use crate::shared::TsvdPush;
 
+/// Declaration of `spirv/tsvd_debug.comp`: its bindings in binding order and
+/// the size of [`TsvdPush`]; checked against the SPIR-V by reflection.
 pub const DECL: KernelDecl = KernelDecl {
     name: "tsvd_debug",
     bindings: &[

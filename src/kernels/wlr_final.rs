@@ -13,6 +13,8 @@ use crate::gpu::reflect::{read, write};
 use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};
 use crate::shared::WlrPush;
 
+/// Declaration of `spirv/wlr_final.comp`: its bindings in binding order and the
+/// size of [`WlrPush`]; checked against the SPIR-V by reflection.
 pub const DECL: KernelDecl = KernelDecl {
     name: "wlr_final",
     bindings: &[

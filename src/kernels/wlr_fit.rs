@@ -14,6 +14,8 @@ use crate::gpu::reflect::{read, write};
 use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};
 use crate::shared::WlrPush;
 
+/// Declaration of `spirv/wlr_fit.comp`: its bindings in binding order and the
+/// size of [`WlrPush`]; checked against the SPIR-V by reflection.
 pub const DECL: KernelDecl = KernelDecl {
     name: "wlr_fit",
     bindings: &[

@@ -68,6 +68,8 @@ const COUNTS: [u32; 2] = [4, 3];
 /// GPU scratch: S̃⁻¹ (6), h_opt, hbar, and 2 × 8 filter outputs.
 #[derive(Debug)]
 pub struct GbfPlanes {
+    /// Planes of `width * height` f32: `S̃⁻¹` (6), `h_opt`, `hbar`, then two
+    /// groups of 4 filtered features and 4 variances.
     pub set: PlaneSet,
 }
 
@@ -77,6 +79,7 @@ const HBAR: usize = 7;
 const OUT: usize = 8;
 
 impl GbfPlanes {
+    /// Allocates the scratch for a `width × height` image: 24 planes.
     pub fn new(ctx: &Arc<GpuContext>, width: usize, height: usize) -> Result<GbfPlanes> {
         Ok(GbfPlanes {
             set: PlaneSet::new(ctx, "gbf", width * height, OUT + 16)?,
@@ -155,7 +158,9 @@ pub fn record_gbf(
 /// What a CPU run leaves for debugging: `h_opt` and `hbar` per pixel.
 #[derive(Clone, Debug)]
 pub struct GbfMaps {
+    /// `h_opt` per pixel (§6.2 step 7): one of 0, 0.4, …, 2.0; 0 for an invalid pixel.
     pub h_opt: Vec<f32>,
+    /// `hbar = G_1.5(h_opt)` per pixel (§6.2 step 8), a continuous bandwidth.
     pub hbar: Vec<f32>,
 }
 

@@ -74,6 +74,9 @@ pub struct LpPlanes {
 }
 
 impl LpPlanes {
+    /// Allocates the planes for a `width × height` image. Fails with
+    /// [`Error::Limit`] if the output planes, bound as one buffer, exceed
+    /// `maxStorageBufferRange`.
     pub fn new(ctx: &Arc<GpuContext>, width: usize, height: usize) -> Result<LpPlanes> {
         let n = width * height;
         let out_bytes = plane_stride(n) * lp_gather::OUTPUTS.len() as u64;
@@ -185,6 +188,8 @@ pub fn record_lp(
 /// What an LP run gives back on the host.
 #[derive(Clone, Debug)]
 pub struct LpResult {
+    /// The reconstruction (§3.5: mean of the covering centres' predictions),
+    /// clamped to ≥ 0.
     pub color: RgbImage,
     /// Estimated MSE per pixel and channel (LP-FEATNOISE):
     /// `E_i[ch] = mean_c max(ξ̂_c,ch, 0) + (Σ_j |ū[ch][j]| σ_ij)²` over the
@@ -199,10 +204,13 @@ pub struct LpResult {
     /// Local dimension `d_i` per pixel (§9.1): mean `k_c` of the covering
     /// centres (0 at invalid pixels).
     pub dim: Vec<f32>,
-    /// Per pixel: pass + 1 at centres (0 elsewhere), r_opt and k at centres
-    /// (-1 elsewhere).
+    /// Per pixel: pass + 1 of the pass that made it a centre (1..=5), 0
+    /// elsewhere.
     pub centre_pass: Vec<f32>,
+    /// Per pixel: the chosen prediction radius `r_opt` (0..=9, §3.4) at
+    /// centres, -1 elsewhere.
     pub r_opt: Vec<f32>,
+    /// Per pixel: the TSVD rank `k_c` (§0.6) at centres, -1 elsewhere.
     pub rank: Vec<f32>,
 }
 

@@ -43,6 +43,8 @@ pub enum Method {
 }
 
 impl Method {
+    /// Lower-case name, as the CLI and error messages spell it (`wlr`, `lp`,
+    /// `apr`, `aos`, `none`).
     pub fn name(self) -> &'static str {
         match self {
             Method::Wlr => "wlr",
@@ -90,12 +92,18 @@ pub enum Prefilter {
 /// What to run.
 #[derive(Clone, Debug)]
 pub struct DenoiseRequest {
+    /// The reconstruction method (§2–§5, or `none`).
     pub method: Method,
     /// The G-buffer prefilter (ignored by `none`).
     pub prefilter: Prefilter,
+    /// GPU kernels or the CPU f64 reference.
     pub backend: Backend,
+    /// Compute precision of the GPU kernels (spec §0.3); ignored by the CPU
+    /// backend, which is f64 throughout.
     pub precision: Precision,
+    /// Final or intermediate pass: selects the window sizes (§9.3).
     pub pass: Pass,
+    /// Method options (`--opt key=value`).
     pub options: Options,
     /// Compute the per-pixel error estimate.
     pub error: bool,
@@ -109,6 +117,9 @@ pub struct DenoiseRequest {
 }
 
 impl DenoiseRequest {
+    /// A request for `method` with the defaults: GPU backend in f32, final pass,
+    /// automatic prefilter, default options, no error map, debug maps, progress
+    /// or sample map.
     pub fn new(method: Method) -> Self {
         DenoiseRequest {
             method,

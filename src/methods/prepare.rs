@@ -22,7 +22,7 @@ use crate::shared::SanitizePush;
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct PrepareReport {
     /// Sums over all channels of the four counters of
-    /// [`sanitize::COUNTERS`](crate::kernels::sanitize::COUNTERS).
+    /// [`sanitize::COUNTERS`].
     pub counters: [u64; 4],
     /// Mean layers whose variance layer was missing and has been estimated.
     pub estimated: Vec<Layer>,
@@ -208,12 +208,19 @@ const COUNTER_STRIDE: u64 = 256;
 /// GPU scratch for [`record_prepare`]: two ping-pong planes and the counters.
 #[derive(Debug)]
 pub struct PrepareScratch {
+    /// Two planes of `width * height` f32, value and variance, that carry a
+    /// channel between the sanitation stages.
     pub planes: PlaneSet,
+    /// One 256-byte block per channel, each starting with the four u32 counters of
+    /// [`sanitize::COUNTERS`].
     pub counters: GpuBuffer,
+    /// Number of scalar channels sanitised: those of the layers with a variance
+    /// companion, and the six of `position_covariance`.
     pub channels: usize,
 }
 
 impl PrepareScratch {
+    /// Allocates the scratch for sanitising `input` (its size and layers).
     pub fn new(ctx: &Arc<GpuContext>, input: &GpuStats) -> Result<PrepareScratch> {
         let channels: usize = input
             .index

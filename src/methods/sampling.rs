@@ -153,9 +153,13 @@ pub struct SampleInputs {
 /// The CPU twin of [`SampleInputs`]: slices of `width × height` values.
 #[derive(Copy, Clone, Debug)]
 pub struct CpuSampleInputs<'a> {
+    /// `E_i[ch]` (or `ΔMSE_i[ch]`), R, G, B, as [`SampleInputs::error`].
     pub error: [&'a [f32]; 3],
+    /// The local dimension `d_i`, as [`SampleInputs::dim`].
     pub dim: &'a [f32],
+    /// The filtered colour `f̂_i[ch]`, R, G, B.
     pub filtered: [&'a [f32]; 3],
+    /// The sample counts `n_i` (valid iff `n_i >= 1`, §0.2).
     pub spp: &'a [f32],
 }
 
@@ -168,11 +172,17 @@ pub struct TreeLayout {
     pub n: u32,
     /// `n_1 .. n_L` (so `levels.last() == 1`).
     pub levels: Vec<u32>,
-    /// First entry of level `k` (index `k − 1`) of the max, q-sum and
-    /// u-sum trees, and of the exclusive offsets of levels `1 .. L−1`.
+    /// First entry of level `k` (index `k − 1`) of the max tree (the
+    /// largest `r`, §9.1 sanitise).
     pub max_off: Vec<u32>,
+    /// First entry of level `k` (index `k − 1`) of the q-sum tree
+    /// (`S = sum_i q_i`, §9.2 step 1).
     pub q_off: Vec<u32>,
+    /// First entry of level `k` (index `k − 1`) of the u-sum tree
+    /// (`U = sum_i u_i`, §9.2 step 1).
     pub u_off: Vec<u32>,
+    /// First entry of the exclusive offsets of level `k` (index `k − 1`),
+    /// levels `1 .. L−1` only: the down-sweep of the prefix sum (§9.2 step 2).
     pub offs_off: Vec<u32>,
     /// Entries of the whole tree buffer.
     pub entries: u32,
@@ -309,7 +319,9 @@ impl TreeLayout {
 /// [`record_sample_map`] calls (each overwrites everything it reads).
 #[derive(Debug)]
 pub struct SamplingPlanes {
+    /// Width in pixels.
     pub width: usize,
+    /// Height in pixels.
     pub height: usize,
     /// Plane 0: `r` of `sample_priority`; plane 1: `G_σs(r)`.
     pub maps: PlaneSet,
@@ -317,6 +329,7 @@ pub struct SamplingPlanes {
     pub tree: GpuBuffer,
     /// `Δn_i` per pixel, u32, raster order.
     pub counts: GpuBuffer,
+    /// The tree levels for `width * height` pixels.
     pub layout: TreeLayout,
 }
 

@@ -14,8 +14,11 @@ use crate::shared::FinalizePush;
 /// present layer, in [`Layer::ALL`] order, packed in one [`PlaneSet`].
 #[derive(Debug)]
 pub struct GpuStats {
+    /// Width in pixels.
     pub width: usize,
+    /// Height in pixels.
     pub height: usize,
+    /// The planes, `width * height` f32 each; see [`GpuStats::index`].
     pub planes: PlaneSet,
     /// `(layer, index of its first plane)` for each present layer.
     pub index: Vec<(Layer, usize)>,
@@ -69,6 +72,7 @@ impl GpuStats {
         Ok(img)
     }
 
+    /// Whether `layer` is present.
     pub fn has(&self, layer: Layer) -> bool {
         self.index.iter().any(|(l, _)| *l == layer)
     }

@@ -24,8 +24,9 @@ use crate::shared::{
     ChannelMeanPush, SmoothPush, WlrPush, WLR_NONNEG, WLR_OUTLIER_CLAMPED, WLR_REJECT,
 };
 
-/// Window radius of the final pass (19x19) and of intermediate passes (11x11), §2.3.
+/// Window radius of the final pass (19x19), §2.3.
 pub const RADIUS_FINAL: u32 = 9;
+/// Window radius of intermediate (adaptive) passes (11x11), §2.3 and §9.3.
 pub const RADIUS_INTERMEDIATE: u32 = 5;
 /// σ of the h_opt smoothing (§2.3 step 8, H-SMOOTH).
 pub const H_SMOOTH_SIGMA: f32 = 1.0;
@@ -33,6 +34,7 @@ pub const H_SMOOTH_SIGMA: f32 = 1.0;
 /// The parameters of one WLR run.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
 pub struct WlrParams {
+    /// Window radius R in pixels: [`RADIUS_FINAL`] or [`RADIUS_INTERMEDIATE`].
     pub radius: u32,
     /// [`WlrPush::options`] bits.
     pub options: u32,
@@ -81,10 +83,12 @@ const OUT0: usize = 10; // R, G, B, mse, flags
 /// GPU scratch and output planes of one WLR run.
 #[derive(Debug)]
 pub struct WlrPlanes {
+    /// The [`PLANES`] of a `width × height` image, in that order.
     pub set: PlaneSet,
 }
 
 impl WlrPlanes {
+    /// Allocates the [`PLANES`] for a `width × height` image.
     pub fn new(ctx: &Arc<GpuContext>, width: usize, height: usize) -> Result<WlrPlanes> {
         Ok(WlrPlanes {
             set: PlaneSet::new(ctx, "wlr", width * height, PLANES.len())?,
@@ -188,6 +192,7 @@ pub fn record_wlr(
 /// What a WLR run gives back on the host.
 #[derive(Clone, Debug)]
 pub struct WlrResult {
+    /// The reconstruction (§2.3 step 9), clamped to ≥ 0.
     pub color: RgbImage,
     /// Estimated MSE per pixel (shared by R, G, B).
     pub mse: Vec<f32>,

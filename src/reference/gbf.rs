@@ -65,7 +65,9 @@ fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
 /// The planes the prefilter reads.
 #[derive(Copy, Clone, Debug)]
 pub struct Planes<'a> {
+    /// Image width in pixels; every plane has `width * height` values.
     pub width: usize,
+    /// Image height in pixels.
     pub height: usize,
     /// Position X, Y, Z.
     pub pos: [&'a [f32]; 3],
@@ -74,15 +76,18 @@ pub struct Planes<'a> {
     /// `S̃⁻¹`, the inverse of the regularised smoothed covariance (six
     /// entries), from [`gbf_prepare`](super::gbf_prepare).
     pub inv: [&'a [f32]; 6],
+    /// Sample count `n` per pixel (f32); valid when `spp_of(n) >= 1` (§0.2).
     pub spp: &'a [f32],
 }
 
 impl Planes<'_> {
+    /// Whether pixel index `q` is valid: `spp_of(spp[q]) >= 1` (§0.2).
     #[inline]
     pub fn valid(&self, q: usize) -> bool {
         spp_of(self.spp[q]) >= 1.0
     }
 
+    /// World position `p_q` of pixel index `q`, in f64.
     #[inline]
     pub fn position(&self, q: usize) -> [f64; 3] {
         std::array::from_fn(|k| self.pos[k][q] as f64)
@@ -133,9 +138,14 @@ pub fn prepare_pixel(
 /// One neighbour of the window: index, `Δ = p_i − p_c`, `M_i Δ` and `d_i`.
 #[derive(Clone, Debug)]
 pub struct Neighbour {
+    /// Pixel index `i` of the neighbour (`y * width + x`).
     pub q: usize,
+    /// `Δ_i = p_i − p_c`, world units.
     pub delta: [f64; 3],
+    /// `M_i Δ_i` with `M_i = S̃_c⁻¹ + S̃_i⁻¹` (step 3), reused by the
+    /// divergence (step 5).
     pub m_delta: [f64; 3],
+    /// Distance `d_i = Δ_iᵀ M_i Δ_i` (step 3; `>= 0`, 0 at the centre).
     pub d: f64,
 }
 

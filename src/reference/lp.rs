@@ -38,7 +38,9 @@ pub use crate::shared::LpStateLayout as StateLayout;
 /// The planes both LP kernels read.
 #[derive(Copy, Clone, Debug)]
 pub struct Planes<'a> {
+    /// Image width in pixels; every plane has `width * height` values.
     pub width: usize,
+    /// Image height in pixels.
     pub height: usize,
     /// normal x, y, z, depth, albedo r, g, b.
     pub feat: [&'a [f32]; 7],
@@ -48,6 +50,7 @@ pub struct Planes<'a> {
     pub color: [&'a [f32]; 3],
     /// Colour variances (of the mean) R, G, B.
     pub cvar: [&'a [f32]; 3],
+    /// Sample count `n` per pixel (f32); valid when `spp_of(n) >= 1` (§0.2).
     pub spp: &'a [f32],
 }
 
@@ -74,6 +77,7 @@ impl Planes<'_> {
         )
     }
 
+    /// Whether pixel index `q` is valid: `spp_of(spp[q]) >= 1` (§0.2).
     #[inline]
     pub fn valid(&self, q: usize) -> bool {
         spp_of(self.spp[q]) >= 1.0
@@ -113,6 +117,8 @@ pub fn ring(width: usize, height: usize, cx: usize, cy: usize, r: usize) -> Vec<
 /// colour channels, with the shared inverse covariance `P` (LP-CHANNELS).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Rls {
+    /// Regressor length `p = k_c + 1` (intercept and the `k_c` local
+    /// coordinates `Δz`), at most [`MAX_P`].
     pub p: usize,
     /// `P`, row-major `MAX_P × MAX_P` (only `p × p` used).
     pub pm: [[f64; MAX_P]; MAX_P],

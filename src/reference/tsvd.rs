@@ -238,7 +238,9 @@ const D: usize = 9;
 /// `tsvd_projection` of `spirv/lib/tsvd.glsl`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Projection {
+    /// Rank `k` of the local space (§0.6 step 6): rows `0..k` of `p` are used.
     pub k: usize,
+    /// `p[m][j] = V_jm / ρ_j` for `m < k` and non-constant feature `j`, else 0.
     pub p: [[f64; D]; D],
 }
 

@@ -64,7 +64,9 @@ pub const FLAG_INVALID: u32 = 32;
 /// The planes both WLR kernels read (bindings 0..18 of `wlr_fit`/`wlr_final`).
 #[derive(Copy, Clone, Debug)]
 pub struct Planes<'a> {
+    /// Image width in pixels; every plane has `width * height` values.
     pub width: usize,
+    /// Image height in pixels.
     pub height: usize,
     /// normal x, y, z, depth, albedo r, g, b.
     pub feat: [&'a [f32]; 7],
@@ -74,6 +76,7 @@ pub struct Planes<'a> {
     pub color: [&'a [f32]; 3],
     /// `vbar = mean of the colour variances` (§0.1).
     pub vbar: &'a [f32],
+    /// Sample count `n` per pixel (f32); valid when `spp_of(n) >= 1` (§0.2).
     pub spp: &'a [f32],
 }
 
@@ -104,6 +107,7 @@ impl Planes<'_> {
         )
     }
 
+    /// Whether pixel index `q` is valid: `spp_of(spp[q]) >= 1` (§0.2).
     #[inline]
     pub fn valid(&self, q: usize) -> bool {
         spp_of(self.spp[q]) >= 1.0
@@ -156,13 +160,17 @@ pub fn grey(y: &[f64; 3]) -> f64 {
 /// What the fits need to know about the centre pixel.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Centre {
+    /// Centre column, in pixels.
     pub cx: usize,
+    /// Centre row, in pixels.
     pub cy: usize,
     /// Raw features.
     pub x: [f64; D],
     /// Colour `y_c`.
     pub y: [f64; 3],
+    /// `vbar_c`, the mean of the colour variances (§0.1 GREY).
     pub vbar: f64,
+    /// `grey_c = (R + G + B)/3` of `y_c` (§0.1 GREY), compared in WLR-CI.
     pub grey: f64,
     /// `sqrt(max(vbar_c, 0))`.
     pub sd: f64,
@@ -520,9 +528,11 @@ pub fn simple_regression(t: &[f64], u: &[f64]) -> (f64, f64) {
 pub struct Parametric {
     /// `bias(h) ≈ λ0 + λ1 h²`.
     pub lambda0: f64,
+    /// `λ1`: slope of the bias on `h²`.
     pub lambda1: f64,
     /// `n_c·var(h) ≈ κ0 + κ1 h^{-k}`.
     pub kappa0: f64,
+    /// `κ1`: slope of `n_c·var` on `h^{-k}`.
     pub kappa1: f64,
 }
 
@@ -554,11 +564,16 @@ pub fn parametric(bias: &[f64; 5], var: &[f64; 5], k: usize, n: f64) -> Parametr
 /// The bandwidth choice of step 7 and the MSE model stored for step 10.
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub struct HChoice {
+    /// Bandwidth `h_opt` (step 7), a factor on the `b_j`: the formula's
+    /// value clamped to `[H_MIN, H_MAX]`, `H_MAX` when `λ1²·n_c` is tiny,
+    /// 0.2 when `κ1 <= 0`.
     pub h_opt: f64,
     /// The stored model: `MSE(h) = (λ1 h²)² + (κ0 + κ1 h^{-k})/n_c`. In the
     /// `κ1 <= 0` case `λ1 = κ1 = 0` and `κ0 = n_c·(bias_1² + var_1)`.
     pub lambda1: f64,
+    /// `κ0` of the stored model.
     pub kappa0: f64,
+    /// `κ1` of the stored model.
     pub kappa1: f64,
     /// [`FLAG_KAPPA`] or [`FLAG_CLAMPED`].
     pub flags: u32,
@@ -606,11 +621,18 @@ pub fn mse_model(lambda1: f64, kappa0: f64, kappa1: f64, k: usize, n: f64, h: f6
 /// Everything `wlr_fit` writes for one pixel.
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub struct FitPixel {
+    /// Bandwidth `h_opt` (step 7), in `[0.01, 1]`; 0.2 in the pass-through cases.
     pub h_opt: f64,
+    /// `λ1` of the stored MSE model (see [`HChoice::lambda1`]).
     pub lambda1: f64,
+    /// `κ0` of the stored MSE model.
     pub kappa0: f64,
+    /// `κ1` of the stored MSE model.
     pub kappa1: f64,
+    /// TSVD rank `k` of the window (§0.6; `0..=D`).
     pub k: usize,
+    /// Debug flag bits of §2.5 set by steps 1–7: [`FLAG_SOLVE_FAIL`],
+    /// [`FLAG_K0`], [`FLAG_KAPPA`], [`FLAG_CLAMPED`].
     pub flags: u32,
     /// `b_1..b_3` (0 for `j >= k`).
     pub b: [f64; 3],
@@ -672,7 +694,10 @@ pub fn fit_pixel(p: &Planes, cx: usize, cy: usize, radius: usize, options: u32) 
 pub struct FinalPixel {
     /// Output colour, clamped `>= 0`.
     pub rgb: [f64; 3],
+    /// `MSE_c` of step 10 (`>= 0`), shared by R, G, B; `vbar_c` when a fit failed.
     pub mse: f64,
+    /// Debug flag bits of §2.5: the stored `wlr_fit` flags plus [`FLAG_K0`],
+    /// [`FLAG_SOLVE_FAIL`] and [`FLAG_FEW`] of this pass.
     pub flags: u32,
 }
 
@@ -681,8 +706,11 @@ pub struct FinalPixel {
 pub struct Stored {
     /// `hbar = G_1(h_opt)` (step 8).
     pub hbar: f64,
+    /// `λ1` of the MSE model `wlr_fit` stored.
     pub lambda1: f64,
+    /// `κ0` of the MSE model `wlr_fit` stored.
     pub kappa0: f64,
+    /// `κ1` of the MSE model `wlr_fit` stored.
     pub kappa1: f64,
     /// `k + 16·flags` as written by `wlr_fit`.
     pub kflags: f64,
