@@ -453,16 +453,13 @@ fn quality_row(
         )
     };
     let m = metrics::compare(&out.color, reference).map_err(|e| skipped(&e))?;
-    // `none`'s error is the input variance: that is the naive column.
-    let (err_corr, naive_corr) = if method == Method::None {
-        (None, None)
-    } else {
-        metrics::check_same_size(&out.error, &out.color).map_err(|e| skipped(&e))?;
-        (
-            Some(error_correlation(&out.error, &out.color, reference)),
-            naive_correlation(img, &out.color, reference),
-        )
-    };
+    // Every method exports an estimate; `none`'s is the variance of the mean
+    // (the MSE of the unfiltered input).
+    metrics::check_same_size(&out.error, &out.color).map_err(|e| skipped(&e))?;
+    let (err_corr, naive_corr) = (
+        Some(error_correlation(&out.error, &out.color, reference)),
+        naive_correlation(img, &out.color, reference),
+    );
     let map_share = out
         .samples
         .as_ref()
