@@ -288,7 +288,10 @@ fn quality_table_json_and_markdown_from_the_cli() {
             "SSIM",
             "wall s",
             "GPU ms",
-            "GPU ms/MP"
+            "GPU ms/MP",
+            "err corr",
+            "naive corr",
+            "map share"
         ]
     );
     let input_row = table_row(&out, &["tiny", "16", "input"]).unwrap_or_else(|| panic!("{out}"));
@@ -308,6 +311,11 @@ fn quality_table_json_and_markdown_from_the_cli() {
     );
     let wall: f64 = none_row[8].parse().expect("wall seconds of the none row");
     assert!(wall > 0.0);
+    // none exports the variance of the mean as its error, and a sample map
+    // of 4 spp per pixel: both scored.
+    let corr: f64 = none_row[11].parse().expect("err corr of the none row");
+    assert!((-1.0..=1.0).contains(&corr), "{corr}");
+    assert!(none_row[13].ends_with('%'), "{none_row:?}");
     assert!(
         out.contains("none (gpu), spp 16:"),
         "summary line missing:\n{out}"
@@ -339,7 +347,9 @@ fn quality_table_json_and_markdown_from_the_cli() {
     assert_eq!(input_json.get("backend"), &J::Null);
     let none_json = row("none.tiny.spp16");
     assert_eq!(none_json.get("backend").str(), "gpu");
-    assert_eq!(none_json.get("err_corr"), &J::Null);
+    assert!(none_json.get("err_corr").num().abs() <= 1.0);
+    let share = none_json.get("map_share").num();
+    assert!((0.0..=1.0).contains(&share), "{share}");
     // The GPU's sanitised colour agrees with the CPU twin's (spec §0.3 tolerance).
     let img = io::read_stats(&dir.join("spp16.exr")).unwrap();
     let cpu = metrics::compare(&none_cpu(&img), &reference).unwrap().rmse;
