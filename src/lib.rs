@@ -80,6 +80,9 @@ pub mod metrics;
 pub mod options;
 #[allow(missing_docs)]
 pub mod reference;
+/// The built-in path tracer (issue #10): scenes, a BVH, and a Vulkan compute
+/// kernel that accumulates exactly the planes a [`Denoiser`] reads.
+pub mod render;
 #[allow(missing_docs)]
 pub mod shared;
 
