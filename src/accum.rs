@@ -127,6 +127,14 @@ impl AccumLayout {
             .iter()
             .position(|c| c.layer == layer && c.component == component)
     }
+
+    /// Finalises accumulation planes (`planes` in layout order, as
+    /// downloaded) on the host: mean and variance of the mean per layer, the
+    /// position covariance and `spp`, as a statistics file holds them. The
+    /// same formulas as the GPU finalisation (spec §0.2).
+    pub fn finalize(&self, planes: &[Vec<f32>]) -> crate::image::StatsImage {
+        crate::methods::stats::finalize_cpu(self, planes)
+    }
 }
 
 /// CPU-side accumulation, as a renderer would do it: sums in f64, stored f32.

@@ -70,6 +70,9 @@ pub mod methods;
 pub mod metrics;
 pub mod options;
 pub mod reference;
+/// The built-in path tracer (issue #10): scenes, a BVH, and a Vulkan compute
+/// kernel that accumulates exactly the planes a [`Denoiser`] reads.
+pub mod render;
 pub mod shared;
 
 mod denoiser;

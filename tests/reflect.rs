@@ -2,16 +2,29 @@
 //! bindings, push-constant size and workgroup size the Rust side declares.
 
 use mcdenoise::gpu::reflect::{reflect, spirv};
+use mcdenoise::gpu::KernelDecl;
 use mcdenoise::gpu::{Access, Precision};
-use mcdenoise::kernels::ALL;
+use mcdenoise::kernels::ALL as LIBRARY_KERNELS;
+
+/// The library's kernels and the built-in renderer's.
+fn all() -> impl Iterator<Item = &'static KernelDecl> {
+    LIBRARY_KERNELS
+        .iter()
+        .chain(mcdenoise::render::KERNELS)
+        .copied()
+}
 
 /// Kernels with no float arithmetic at all (the §9.2 allocation is exact
 /// integer arithmetic): their `_f64` variant is the same code.
 const INTEGER_ONLY: &[&str] = &["sample_reduce", "sample_scan"];
 
+/// Kernels that compute in f32 by design and never use `real`: the path
+/// tracer (`src/render/`), whose `_f64` variant is the same code.
+const F32_ONLY: &[&str] = &["render_trace", "render_rays"];
+
 #[test]
 fn every_kernel_matches_its_declaration() {
-    for decl in ALL {
+    for decl in all() {
         for p in [Precision::F32, Precision::F64] {
             let r = decl
                 .check(p)
@@ -29,7 +42,9 @@ fn every_kernel_matches_its_declaration() {
             } else {
                 // The _f64 variant really computes in f64 (MC_F64 took effect).
                 assert!(
-                    r.uses_f64 || INTEGER_ONLY.contains(&decl.name),
+                    r.uses_f64
+                        || INTEGER_ONLY.contains(&decl.name)
+                        || F32_ONLY.contains(&decl.name),
                     "{}_f64 has no f64 arithmetic",
                     decl.name
                 );
@@ -49,14 +64,14 @@ fn every_spirv_file_has_a_declaration() {
         })
         .collect();
     names.sort();
-    let mut declared: Vec<String> = ALL.iter().map(|d| d.name.to_owned()).collect();
+    let mut declared: Vec<String> = all().map(|d| d.name.to_owned()).collect();
     declared.sort();
     assert_eq!(names, declared);
 }
 
 #[test]
 fn a_wrong_declaration_is_caught() {
-    let mut decl = *ALL[0];
+    let mut decl = *LIBRARY_KERNELS[0];
     // Flip the access of the first binding: must be reported.
     let mut b = decl.bindings.to_vec();
     b[0].access = match b[0].access {
@@ -66,12 +81,12 @@ fn a_wrong_declaration_is_caught() {
     decl.bindings = Box::leak(b.into_boxed_slice());
     assert!(decl.check(Precision::F32).is_err());
     // A push-constant size that disagrees is reported too.
-    let mut decl2 = *ALL[0];
+    let mut decl2 = *LIBRARY_KERNELS[0];
     decl2.push_size += 16;
     assert!(decl2.check(Precision::F32).is_err());
     // Reflection tells f32 from f64 arithmetic.
-    let f32_words = spirv(ALL[0].name, Precision::F32).unwrap();
-    let f64_words = spirv(ALL[0].name, Precision::F64).unwrap();
+    let f32_words = spirv(LIBRARY_KERNELS[0].name, Precision::F32).unwrap();
+    let f64_words = spirv(LIBRARY_KERNELS[0].name, Precision::F64).unwrap();
     assert!(!reflect("f32", f32_words).unwrap().uses_f64);
     assert!(reflect("f64", f64_words).unwrap().uses_f64);
 }

@@ -1,0 +1,196 @@
+// The built-in path tracer's scene on the GPU: bindings 0-4, random
+// numbers, ray/primitive intersection and BVH traversal. Host side:
+// src/render/gpu_scene.rs (layouts) and src/render/scene.rs (the f64 twin
+// of the intersection, Primitive::intersect).
+//
+// All arithmetic is f32: the render kernels have no f64 variant of their own
+// (their `_f64` build is the same code; tests/reflect.rs exempts them).
+
+// Mirrors mcdenoise::render::gpu_scene::GpuParams.
+layout(std430, set = 0, binding = 0) readonly buffer Params {
+    vec4 cam_pos;    // xyz lens centre, w lens radius
+    vec4 lens_u;     // unit right vector
+    vec4 lens_v;     // unit up vector
+    vec4 focus_w;    // forward * focus distance
+    vec4 half_u;     // right * half image width at the focus distance
+    vec4 half_v;     // up * half image height at the focus distance
+    vec4 env;        // rgb environment radiance
+    uvec4 counts;    // nodes, primitives, max depth, lights
+} P;
+
+// Binary BVH, two vec4 per node: (min, first), (max, count). count == 0:
+// inner node with children first and first + 1; else a leaf of primitives
+// [first, first + count).
+layout(std430, set = 0, binding = 1) readonly buffer Nodes { vec4 nodes[]; };
+
+// Four vec4 per primitive (see gpu_scene.rs): p0 = (a, kind | material << 2),
+// p1 = (b, radius), p2 = (c, light pdf per unit area), p3 = (motion, 0).
+// Sphere: a = centre. Quad: corner a, edges b, c. Triangle: vertex a, edges b, c.
+layout(std430, set = 0, binding = 2) readonly buffer Prims { vec4 prims[]; };
+
+// Four vec4 per material: (kind, scale, 0, 0), colour a, colour b, emission.
+layout(std430, set = 0, binding = 3) readonly buffer Materials { vec4 mats[]; };
+
+// One vec4 per light: (primitive index bits, cumulative selection probability, 0, 0).
+layout(std430, set = 0, binding = 4) readonly buffer Lights { vec4 lights[]; };
+
+#define KIND_SPHERE 0u
+#define KIND_QUAD 1u
+#define KIND_TRIANGLE 2u
+
+#define MAT_DIFFUSE 0u
+#define MAT_CHECKER 1u
+#define MAT_NOISE 2u
+#define MAT_EMISSIVE 3u
+
+// Must cover the deepest BVH path (the host checks: gpu_scene::STACK_SIZE).
+#define STACK_SIZE 32
+#define T_INF 3.0e38
+#define PI 3.14159265358979
+
+// ---------------------------------------------------------------- random numbers
+// Counter-based: a pure function of (pixel, sample, dimension, seed), so the
+// same sample gets the same numbers however passes and bands split the work.
+// pcg4d (Jarzynski & Olano 2020, "Hash Functions for GPU Rendering").
+uvec4 pcg4d(uvec4 v)
+{
+    v = v * 1664525u + 1013904223u;
+    v.x += v.y * v.w; v.y += v.z * v.x; v.z += v.x * v.y; v.w += v.y * v.z;
+    v ^= v >> 16u;
+    v.x += v.y * v.w; v.y += v.z * v.x; v.z += v.x * v.y; v.w += v.y * v.z;
+    return v;
+}
+
+// Two uniform numbers in [0, 1) for dimension pair `dim`.
+vec2 rand2(uvec4 key, uint dim)
+{
+    uvec4 h = pcg4d(uvec4(key.x, key.y, key.z ^ (dim * 0x9E3779B9u), key.w));
+    return vec2(h.xy >> 8u) * (1.0 / 16777216.0);
+}
+
+// ---------------------------------------------------------------- intersection
+struct Hit {
+    float t;
+    int prim;   // -1: miss
+};
+
+uint prim_kind(uint i) { return floatBitsToUint(prims[4u * i].w) & 3u; }
+uint prim_material(uint i) { return floatBitsToUint(prims[4u * i].w) >> 2u; }
+
+// Nearest hit of primitive i in (tmin, tbest), or tbest.
+float intersect_prim(uint i, vec3 o, vec3 d, float time, float tmin, float tbest)
+{
+    vec4 p0 = prims[4u * i];
+    vec4 p1 = prims[4u * i + 1u];
+    vec4 p2 = prims[4u * i + 2u];
+    vec3 motion = prims[4u * i + 3u].xyz;
+    uint kind = floatBitsToUint(p0.w) & 3u;
+    vec3 oo = o - time * motion;
+    if (kind == KIND_SPHERE) {
+        vec3 oc = oo - p0.xyz;
+        float a = dot(d, d);
+        float b = dot(oc, d);
+        float c = dot(oc, oc) - p1.w * p1.w;
+        float disc = b * b - a * c;
+        if (disc < 0.0) {
+            return tbest;
+        }
+        float sq = sqrt(disc);
+        float t = (-b - sq) / a;
+        if (t <= tmin) {
+            t = (-b + sq) / a;
+        }
+        return (t > tmin && t < tbest) ? t : tbest;
+    }
+    vec3 e1 = p1.xyz;
+    vec3 e2 = p2.xyz;
+    vec3 pv = cross(d, e2);
+    float det = dot(e1, pv);
+    if (det == 0.0) {
+        return tbest;
+    }
+    float inv = 1.0 / det;
+    vec3 s = oo - p0.xyz;
+    float u = dot(s, pv) * inv;
+    vec3 q = cross(s, e1);
+    float v = dot(d, q) * inv;
+    bool inside = u >= 0.0 && v >= 0.0 && (kind == KIND_TRIANGLE ? u + v <= 1.0 : (u <= 1.0 && v <= 1.0));
+    float t = dot(e2, q) * inv;
+    return (inside && t > tmin && t < tbest) ? t : tbest;
+}
+
+// Entry distance of the ray into node n's box if it is below tbest, else T_INF.
+float box_entry(uint n, vec3 o, vec3 inv_d, float tmin, float tbest)
+{
+    vec4 lo = nodes[2u * n];
+    vec4 hi = nodes[2u * n + 1u];
+    vec3 t0 = (lo.xyz - o) * inv_d;
+    vec3 t1 = (hi.xyz - o) * inv_d;
+    vec3 tn = min(t0, t1);
+    vec3 tf = max(t0, t1);
+    float enter = max(max(tn.x, tn.y), max(tn.z, tmin));
+    float leave = min(min(tf.x, tf.y), min(tf.z, tbest));
+    return enter <= leave ? enter : T_INF;
+}
+
+// Nearest hit in (tmin, tmax) at shutter time `time`. With any_hit, returns
+// the first hit found (shadow rays).
+Hit trace(vec3 o, vec3 d, float time, float tmin, float tmax, bool any_hit)
+{
+    Hit h;
+    h.t = tmax;
+    h.prim = -1;
+    if (P.counts.x == 0u) {
+        return h;
+    }
+    // No infinities from zero components: the slab test stays NaN-free.
+    vec3 safe = mix(d, vec3(1e-30), lessThan(abs(d), vec3(1e-30)));
+    vec3 inv_d = 1.0 / safe;
+    if (box_entry(0u, o, inv_d, tmin, h.t) >= T_INF) {
+        return h;
+    }
+    uint stack[STACK_SIZE];
+    int sp = 0;
+    uint node = 0u;
+    while (true) {
+        vec4 hi = nodes[2u * node + 1u];
+        uint first = floatBitsToUint(nodes[2u * node].w);
+        uint count = floatBitsToUint(hi.w);
+        if (count > 0u) {
+            for (uint i = first; i < first + count; i++) {
+                float t = intersect_prim(i, o, d, time, tmin, h.t);
+                if (t < h.t) {
+                    h.t = t;
+                    h.prim = int(i);
+                }
+            }
+            if (any_hit && h.prim >= 0) {
+                return h;
+            }
+        } else {
+            float ta = box_entry(first, o, inv_d, tmin, h.t);
+            float tb = box_entry(first + 1u, o, inv_d, tmin, h.t);
+            if (ta < T_INF && tb < T_INF) {
+                bool a_first = ta <= tb;
+                node = a_first ? first : first + 1u;
+                stack[sp] = a_first ? first + 1u : first;
+                sp++;
+                continue;
+            }
+            if (ta < T_INF) {
+                node = first;
+                continue;
+            }
+            if (tb < T_INF) {
+                node = first + 1u;
+                continue;
+            }
+        }
+        if (sp == 0) {
+            break;
+        }
+        sp--;
+        node = stack[sp];
+    }
+    return h;
+}

@@ -1,0 +1,360 @@
+#version 460
+// The built-in path tracer: one invocation per pixel traces this pass's
+// samples of its pixel and adds their sums to the accumulation planes
+// (src/accum.rs, layout with position and visibility). Host side:
+// src/render/mod.rs. One invocation owns its pixel: no atomics.
+//
+// Per sample: box-filtered position in the pixel, thin-lens camera, shutter
+// time in [0, 1); diffuse BSDF with cosine sampling, next-event estimation
+// to emissive quads and spheres combined with BSDF sampling by MIS (power
+// heuristic), Russian roulette after 3 vertices, environment on a miss.
+#include "lib/render_scene.glsl"
+
+layout(local_size_x = 8, local_size_y = 8) in;
+
+// Mirrors mcdenoise::render::TracePush.
+layout(push_constant) uniform Push {
+    uint width;
+    uint height;
+    uint row0;
+    uint uniform_spp;   // samples per pixel when use_map == 0
+    uint use_map;       // 1: samples from spp_map
+    uint seed_lo;
+    uint seed_hi;
+    uint plane_stride;  // floats between plane starts
+    uint debug_stride;  // > 0: write each sample's 14 values to dbg (test aid)
+    uint pad0;
+    uint pad1;
+    uint pad2;
+} push;
+
+layout(std430, set = 0, binding = 5) readonly buffer SppMap { uint spp_map[]; };
+layout(std430, set = 0, binding = 6) buffer Accum { float accum[]; };
+layout(std430, set = 0, binding = 7) buffer Debug { float dbg[]; };
+
+// Plane indices of the accumulation layout with position and visibility
+// (AccumLayout: channels colour 0-2, albedo 3-5, normal 6-8, depth 9,
+// position 10-12, visibility 13; Σx at 2c, Σx² at 2c+1; cross products
+// 28-30; count 31). src/render/mod.rs tests these against AccumLayout.
+#define PLANE_CROSS 28u
+#define PLANE_COUNT 31u
+
+// Random dimensions (pairs): camera 0-1, then 4 per path vertex.
+#define DIM_PIXEL 0u
+#define DIM_LENS 1u
+#define DIM_TIME 2u
+#define DIM_VERTEX 4u
+
+// ---------------------------------------------------------------- materials
+float hash31(vec3 p)
+{
+    uvec4 h = pcg4d(uvec4(ivec4(floor(p), 0x51ED27u)));
+    return float(h.x >> 8u) * (1.0 / 16777216.0);
+}
+
+float value_noise(vec3 p)
+{
+    vec3 i = floor(p);
+    vec3 f = p - i;
+    vec3 s = f * f * (3.0 - 2.0 * f);
+    float n000 = hash31(i);
+    float n100 = hash31(i + vec3(1, 0, 0));
+    float n010 = hash31(i + vec3(0, 1, 0));
+    float n110 = hash31(i + vec3(1, 1, 0));
+    float n001 = hash31(i + vec3(0, 0, 1));
+    float n101 = hash31(i + vec3(1, 0, 1));
+    float n011 = hash31(i + vec3(0, 1, 1));
+    float n111 = hash31(i + vec3(1, 1, 1));
+    return mix(mix(mix(n000, n100, s.x), mix(n010, n110, s.x), s.y),
+               mix(mix(n001, n101, s.x), mix(n011, n111, s.x), s.y), s.z);
+}
+
+// Albedo of material m at reference-time position p.
+vec3 albedo_at(uint m, vec3 p)
+{
+    vec4 m0 = mats[4u * m];
+    uint kind = floatBitsToUint(m0.x);
+    vec3 a = mats[4u * m + 1u].xyz;
+    vec3 b = mats[4u * m + 2u].xyz;
+    if (kind == MAT_CHECKER) {
+        ivec3 c = ivec3(floor(p * m0.y + 1e-4));
+        return ((c.x + c.y + c.z) & 1) == 0 ? a : b;
+    }
+    if (kind == MAT_NOISE) {
+        vec3 q = p * m0.y;
+        float n = 0.5333 * value_noise(q) + 0.2667 * value_noise(2.03 * q) + 0.2 * value_noise(4.01 * q);
+        return mix(a, b, n);
+    }
+    return a;
+}
+
+// ---------------------------------------------------------------- sampling
+vec3 cosine_hemisphere(vec3 n, vec2 u)
+{
+    float r = sqrt(u.x);
+    float phi = 2.0 * PI * u.y;
+    vec3 t = normalize(abs(n.x) > 0.5 ? cross(n, vec3(0, 1, 0)) : cross(n, vec3(1, 0, 0)));
+    vec3 b = cross(n, t);
+    return normalize(r * cos(phi) * t + r * sin(phi) * b + sqrt(max(0.0, 1.0 - u.x)) * n);
+}
+
+vec2 concentric_disk(vec2 u)
+{
+    vec2 o = 2.0 * u - 1.0;
+    if (o.x == 0.0 && o.y == 0.0) {
+        return vec2(0.0);
+    }
+    float r, th;
+    if (abs(o.x) > abs(o.y)) {
+        r = o.x;
+        th = (PI / 4.0) * (o.y / o.x);
+    } else {
+        r = o.y;
+        th = (PI / 2.0) - (PI / 4.0) * (o.x / o.y);
+    }
+    return r * vec2(cos(th), sin(th));
+}
+
+// A point on light l at shutter time `time`: position, unit normal; returns
+// the probability density per unit area of having chosen it (selection
+// included), 0 if no light.
+float sample_light(vec2 u_sel, vec2 u, float time, out vec3 pos, out vec3 nrm, out uint prim)
+{
+    uint nl = P.counts.w;
+    uint l = 0u;
+    while (l + 1u < nl && u_sel.x >= lights[l].y) {
+        l++;
+    }
+    prim = floatBitsToUint(lights[l].x);
+    vec4 p0 = prims[4u * prim];
+    vec4 p1 = prims[4u * prim + 1u];
+    vec4 p2 = prims[4u * prim + 2u];
+    vec3 motion = prims[4u * prim + 3u].xyz;
+    if ((floatBitsToUint(p0.w) & 3u) == KIND_SPHERE) {
+        float z = 1.0 - 2.0 * u.x;
+        float r = sqrt(max(0.0, 1.0 - z * z));
+        float phi = 2.0 * PI * u.y;
+        nrm = vec3(r * cos(phi), r * sin(phi), z);
+        pos = p0.xyz + p1.w * nrm + time * motion;
+    } else {
+        pos = p0.xyz + u.x * p1.xyz + u.y * p2.xyz + time * motion;
+        nrm = normalize(cross(p1.xyz, p2.xyz));
+    }
+    return p2.w;
+}
+
+float power_heuristic(float a, float b)
+{
+    float a2 = a * a;
+    return a2 / (a2 + b * b);
+}
+
+// Geometric normal of primitive i at world point p (shutter time `time`).
+vec3 normal_at(uint i, vec3 p, float time)
+{
+    vec4 p0 = prims[4u * i];
+    vec4 p1 = prims[4u * i + 1u];
+    uint kind = floatBitsToUint(p0.w) & 3u;
+    if (kind == KIND_SPHERE) {
+        return normalize(p - time * prims[4u * i + 3u].xyz - p0.xyz);
+    }
+    return normalize(cross(p1.xyz, prims[4u * i + 2u].xyz));
+}
+
+vec3 offset_origin(vec3 p, vec3 n)
+{
+    float mag = max(max(abs(p.x), abs(p.y)), max(abs(p.z), 1.0));
+    return p + n * (1e-4 * mag);
+}
+
+// ---------------------------------------------------------------- one sample
+// Traces one camera path. Outputs the 14 channel values in AccumLayout order.
+void trace_sample(uvec4 key, uvec2 pix, out vec3 color, out vec3 albedo, out vec3 normal,
+                  out float depth, out vec3 position, out float visibility)
+{
+    color = vec3(0.0);
+    albedo = vec3(0.0);
+    normal = vec3(0.0);
+    depth = 0.0;
+    position = vec3(0.0);
+    visibility = 0.0;
+
+    vec2 jitter = rand2(key, DIM_PIXEL);
+    vec2 lens = rand2(key, DIM_LENS);
+    float time = rand2(key, DIM_TIME).x;
+    vec2 ndc = vec2(2.0 * (float(pix.x) + jitter.x) / float(push.width) - 1.0,
+                    1.0 - 2.0 * (float(pix.y) + jitter.y) / float(push.height));
+    vec3 target = P.cam_pos.xyz + P.focus_w.xyz + ndc.x * P.half_u.xyz + ndc.y * P.half_v.xyz;
+    vec2 disk = P.cam_pos.w * concentric_disk(lens);
+    vec3 o = P.cam_pos.xyz + disk.x * P.lens_u.xyz + disk.y * P.lens_v.xyz;
+    vec3 d = normalize(target - o);
+
+    vec3 beta = vec3(1.0);
+    float prev_bsdf_pdf = 0.0;   // 0: the previous vertex was the camera
+    uint max_depth = P.counts.z;
+    for (uint depth_i = 0u; depth_i <= max_depth; depth_i++) {
+        Hit h = trace(o, d, time, 0.0, T_INF, false);
+        if (h.prim < 0) {
+            color += beta * P.env.rgb;
+            break;
+        }
+        uint prim = uint(h.prim);
+        vec3 p = o + h.t * d;
+        vec3 ng = normal_at(prim, p, time);
+        bool front = dot(ng, d) < 0.0;
+        vec3 n = front ? ng : -ng;
+        uint m = prim_material(prim);
+        uint mkind = floatBitsToUint(mats[4u * m].x);
+        vec3 p_ref = p - time * prims[4u * prim + 3u].xyz;
+
+        if (mkind == MAT_EMISSIVE) {
+            vec3 le = mats[4u * m + 3u].xyz;
+            if (depth_i == 0u) {
+                albedo = clamp(le, 0.0, 1.0);
+                normal = n;
+                depth = h.t;
+                position = p_ref;
+                visibility = 1.0;
+            }
+            bool emits = front || (floatBitsToUint(prims[4u * prim].w) & 3u) == KIND_TRIANGLE;
+            if (emits) {
+                float w = 1.0;
+                float pdf_area = prims[4u * prim + 2u].w;
+                if (prev_bsdf_pdf > 0.0 && pdf_area > 0.0) {
+                    float cos_l = abs(dot(ng, d));
+                    float pdf_light = pdf_area * h.t * h.t / max(cos_l, 1e-8);
+                    w = power_heuristic(prev_bsdf_pdf, pdf_light);
+                }
+                color += beta * w * le;
+            }
+            break;
+        }
+
+        vec3 alb = albedo_at(m, p_ref);
+        if (depth_i == 0u) {
+            albedo = alb;
+            normal = n;
+            depth = h.t;
+            position = p_ref;
+            visibility = 1.0;
+        }
+        if (depth_i == max_depth) {
+            break;
+        }
+        vec3 po = offset_origin(p, n);
+        uint dim = DIM_VERTEX + 4u * depth_i;
+
+        // Next-event estimation.
+        if (P.counts.w > 0u) {
+            vec3 lp, ln;
+            uint lprim;
+            float pdf_area = sample_light(rand2(key, dim), rand2(key, dim + 1u), time, lp, ln, lprim);
+            vec3 to = lp - po;
+            float dist2 = dot(to, to);
+            float dist = sqrt(dist2);
+            vec3 wi = to / dist;
+            float cos_s = dot(n, wi);
+            float cos_l = -dot(ln, wi);
+            bool unoccluded = false;
+            if (cos_s > 0.0 && cos_l > 0.0 && pdf_area > 0.0) {
+                Hit s = trace(po, wi, time, 0.0, dist * (1.0 - 1e-4), true);
+                unoccluded = s.prim < 0;
+                if (unoccluded) {
+                    uint lm = prim_material(lprim);
+                    vec3 le = mats[4u * lm + 3u].xyz;
+                    float pdf_light = pdf_area * dist2 / cos_l;
+                    float pdf_bsdf = cos_s / PI;
+                    float w = power_heuristic(pdf_light, pdf_bsdf);
+                    color += beta * (alb / PI) * cos_s * le * (w / pdf_light);
+                }
+            }
+            if (depth_i == 0u) {
+                visibility = unoccluded ? 1.0 : 0.0;
+            }
+        }
+
+        // BSDF sampling (cosine: the weight albedo·cos/π / (cos/π) is the albedo).
+        vec3 wi = cosine_hemisphere(n, rand2(key, dim + 2u));
+        float cos_s = dot(n, wi);
+        if (cos_s <= 0.0) {
+            break;
+        }
+        prev_bsdf_pdf = cos_s / PI;
+        beta *= alb;
+        o = po;
+        d = wi;
+
+        if (depth_i >= 2u) {
+            float q = min(max(beta.r, max(beta.g, beta.b)), 1.0);
+            if (rand2(key, dim + 3u).x >= q) {
+                break;
+            }
+            beta /= q;
+        }
+    }
+    if (any(isnan(color)) || any(isinf(color))) {
+        color = vec3(0.0);
+    }
+}
+
+void main()
+{
+    uint x = gl_GlobalInvocationID.x;
+    uint y = push.row0 + gl_GlobalInvocationID.y;
+    if (x >= push.width || y >= push.height) {
+        return;
+    }
+    uint pixel = y * push.width + x;
+    uint spp = push.use_map != 0u ? spp_map[pixel] : push.uniform_spp;
+    if (spp == 0u) {
+        return;
+    }
+    uint stride = push.plane_stride;
+    uint first = uint(accum[PLANE_COUNT * stride + pixel]);
+
+    vec3 s_col = vec3(0.0), q_col = vec3(0.0);
+    vec3 s_alb = vec3(0.0), q_alb = vec3(0.0);
+    vec3 s_nrm = vec3(0.0), q_nrm = vec3(0.0);
+    vec3 s_pos = vec3(0.0), q_pos = vec3(0.0), s_cross = vec3(0.0);
+    vec4 s_dv = vec4(0.0);   // Σdepth, Σdepth², Σvis, Σvis²
+    for (uint s = 0u; s < spp; s++) {
+        uvec4 key = uvec4(pixel, first + s, push.seed_hi, push.seed_lo);
+        vec3 col, alb, nrm, pos;
+        float dep, vis;
+        trace_sample(key, uvec2(x, y), col, alb, nrm, dep, pos, vis);
+        s_col += col;
+        q_col += col * col;
+        s_alb += alb;
+        q_alb += alb * alb;
+        s_nrm += nrm;
+        q_nrm += nrm * nrm;
+        s_pos += pos;
+        q_pos += pos * pos;
+        s_cross += vec3(pos.x * pos.y, pos.x * pos.z, pos.y * pos.z);
+        s_dv += vec4(dep, dep * dep, vis, vis * vis);
+        if (push.debug_stride > 0u) {
+            uint b = (pixel * push.debug_stride + s) * 14u;
+            dbg[b + 0u] = col.r;  dbg[b + 1u] = col.g;  dbg[b + 2u] = col.b;
+            dbg[b + 3u] = alb.r;  dbg[b + 4u] = alb.g;  dbg[b + 5u] = alb.b;
+            dbg[b + 6u] = nrm.x;  dbg[b + 7u] = nrm.y;  dbg[b + 8u] = nrm.z;
+            dbg[b + 9u] = dep;
+            dbg[b + 10u] = pos.x; dbg[b + 11u] = pos.y; dbg[b + 12u] = pos.z;
+            dbg[b + 13u] = vis;
+        }
+    }
+
+#define ADD(plane, v) accum[(plane) * stride + pixel] += (v)
+    ADD(0u, s_col.r);  ADD(1u, q_col.r);  ADD(2u, s_col.g);  ADD(3u, q_col.g);
+    ADD(4u, s_col.b);  ADD(5u, q_col.b);
+    ADD(6u, s_alb.r);  ADD(7u, q_alb.r);  ADD(8u, s_alb.g);  ADD(9u, q_alb.g);
+    ADD(10u, s_alb.b); ADD(11u, q_alb.b);
+    ADD(12u, s_nrm.x); ADD(13u, q_nrm.x); ADD(14u, s_nrm.y); ADD(15u, q_nrm.y);
+    ADD(16u, s_nrm.z); ADD(17u, q_nrm.z);
+    ADD(18u, s_dv.x);  ADD(19u, s_dv.y);
+    ADD(20u, s_pos.x); ADD(21u, q_pos.x); ADD(22u, s_pos.y); ADD(23u, q_pos.y);
+    ADD(24u, s_pos.z); ADD(25u, q_pos.z);
+    ADD(26u, s_dv.z);  ADD(27u, s_dv.w);
+    ADD(PLANE_CROSS, s_cross.x); ADD(PLANE_CROSS + 1u, s_cross.y); ADD(PLANE_CROSS + 2u, s_cross.z);
+    ADD(PLANE_COUNT, float(spp));
+#undef ADD
+}

@@ -1,0 +1,315 @@
+//! The scene as the render kernels read it (`spirv/lib/render_scene.glsl`):
+//! camera parameters, a binary BVH built with `obvhs` and flattened to two
+//! vec4 per node, primitives reordered to the BVH's leaf order, materials
+//! and the light table.
+
+use bytemuck::{Pod, Zeroable};
+use obvhs::aabb::Aabb;
+use obvhs::bvh2::builder::build_bvh2;
+use obvhs::{Boundable, BvhBuildParams};
+use obvhs_glam::Vec3A;
+
+use super::scene::{Albedo, Material, Primitive, Scene, Shape, Texture, Vec3};
+use crate::error::{Error, Result};
+
+/// Entries of the traversal stack in the shader (`STACK_SIZE` in
+/// `render_scene.glsl`): the BVH may be at most this deep.
+pub const STACK_SIZE: usize = 32;
+
+/// Mirrors the `Params` block of `render_scene.glsl`.
+#[repr(C)]
+#[derive(Copy, Clone, Debug, Default, Pod, Zeroable)]
+pub struct GpuParams {
+    /// Lens centre, w: lens radius.
+    pub cam_pos: [f32; 4],
+    /// Unit right vector.
+    pub lens_u: [f32; 4],
+    /// Unit up vector.
+    pub lens_v: [f32; 4],
+    /// Forward × focus distance.
+    pub focus_w: [f32; 4],
+    /// Right × half the image width at the focus distance.
+    pub half_u: [f32; 4],
+    /// Up × half the image height at the focus distance.
+    pub half_v: [f32; 4],
+    /// Environment radiance (rgb).
+    pub env: [f32; 4],
+    /// Node count, primitive count, max depth, light count.
+    pub counts: [u32; 4],
+}
+
+/// Kinds in the low two bits of a primitive's first word.
+const KIND_SPHERE: u32 = 0;
+const KIND_QUAD: u32 = 1;
+const KIND_TRIANGLE: u32 = 2;
+
+/// Material kinds (first word of a material).
+const MAT_DIFFUSE: u32 = 0;
+const MAT_CHECKER: u32 = 1;
+const MAT_NOISE: u32 = 2;
+const MAT_EMISSIVE: u32 = 3;
+
+/// Everything the kernels read about a scene, in host memory.
+#[derive(Clone, Debug)]
+pub struct GpuScene {
+    /// Camera and counts.
+    pub params: GpuParams,
+    /// Two vec4 per node (8 f32).
+    pub nodes: Vec<[f32; 8]>,
+    /// Four vec4 per primitive (16 f32), in BVH leaf order.
+    pub prims: Vec<[f32; 16]>,
+    /// The primitives in the same order as `prims`.
+    pub primitives: Vec<Primitive>,
+    /// Four vec4 per material.
+    pub materials: Vec<[f32; 16]>,
+    /// One vec4 per light.
+    pub lights: Vec<[f32; 4]>,
+    /// Depth of the BVH (edges from the root to the deepest leaf).
+    pub depth: usize,
+}
+
+struct Bounded(Aabb);
+
+impl Boundable for Bounded {
+    fn aabb(&self) -> Aabb {
+        self.0
+    }
+}
+
+fn v3(a: Vec3) -> Vec3A {
+    Vec3A::new(a[0], a[1], a[2])
+}
+
+fn luminance(c: Vec3) -> f64 {
+    (0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]) as f64
+}
+
+impl GpuScene {
+    /// Builds the BVH and the GPU tables of `scene` for a `width × height`
+    /// image.
+    pub fn new(scene: &Scene, width: usize, height: usize) -> Result<GpuScene> {
+        let prims_in = scene.primitives()?;
+        let (nodes, order, depth) = build(&prims_in)?;
+        let primitives: Vec<Primitive> = order.iter().map(|&i| prims_in[i as usize]).collect();
+        let mats = scene.material_list();
+
+        // Lights: emissive quads and spheres, chosen in proportion to power.
+        let mut light_prims = Vec::new();
+        let mut powers = Vec::new();
+        for (i, p) in primitives.iter().enumerate() {
+            if let (Material::Emissive { radiance }, Shape::Sphere { .. } | Shape::Quad { .. }) =
+                (mats[p.material as usize].1, p.shape)
+            {
+                let power = p.area() * luminance(*radiance);
+                if power > 0.0 {
+                    light_prims.push(i);
+                    powers.push(power);
+                }
+            }
+        }
+        let total: f64 = powers.iter().sum();
+        let mut light_pdf = vec![0.0f32; primitives.len()];
+        let mut lights = Vec::new();
+        let mut cdf = 0.0;
+        for (k, (&i, &pw)) in light_prims.iter().zip(&powers).enumerate() {
+            let select = pw / total;
+            cdf += select;
+            let c = if k + 1 == light_prims.len() { 1.0 } else { cdf };
+            lights.push([f32::from_bits(i as u32), c as f32, 0.0, 0.0]);
+            light_pdf[i] = (select / primitives[i].area()) as f32;
+        }
+
+        let prims = primitives
+            .iter()
+            .zip(&light_pdf)
+            .map(|(p, &pdf)| {
+                let (kind, a, b, c, radius) = match p.shape {
+                    Shape::Sphere { center, radius } => {
+                        (KIND_SPHERE, center, [0.0; 3], [0.0; 3], radius)
+                    }
+                    Shape::Quad { corner, u, v } => (KIND_QUAD, corner, u, v, 0.0),
+                    Shape::Triangle { a, b, c } => {
+                        let e1 = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+                        let e2 = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
+                        (KIND_TRIANGLE, a, e1, e2, 0.0)
+                    }
+                };
+                let m = p.motion;
+                [
+                    a[0],
+                    a[1],
+                    a[2],
+                    f32::from_bits(kind | p.material << 2),
+                    b[0],
+                    b[1],
+                    b[2],
+                    radius,
+                    c[0],
+                    c[1],
+                    c[2],
+                    pdf,
+                    m[0],
+                    m[1],
+                    m[2],
+                    0.0,
+                ]
+            })
+            .collect();
+
+        let materials = mats
+            .iter()
+            .map(|(_, m)| {
+                let (kind, scale, a, b, e) = match m {
+                    Material::Diffuse { albedo } => match albedo {
+                        Albedo::Constant(c) => (MAT_DIFFUSE, 1.0, *c, *c, [0.0; 3]),
+                        Albedo::Texture(Texture::Checker { a, b, scale }) => {
+                            (MAT_CHECKER, *scale, *a, *b, [0.0; 3])
+                        }
+                        Albedo::Texture(Texture::Noise { a, b, scale }) => {
+                            (MAT_NOISE, *scale, *a, *b, [0.0; 3])
+                        }
+                    },
+                    Material::Emissive { radiance } => {
+                        (MAT_EMISSIVE, 1.0, [0.0; 3], [0.0; 3], *radiance)
+                    }
+                };
+                [
+                    f32::from_bits(kind),
+                    scale,
+                    0.0,
+                    0.0,
+                    a[0],
+                    a[1],
+                    a[2],
+                    0.0,
+                    b[0],
+                    b[1],
+                    b[2],
+                    0.0,
+                    e[0],
+                    e[1],
+                    e[2],
+                    0.0,
+                ]
+            })
+            .collect();
+
+        let params = camera_params(
+            scene,
+            width,
+            height,
+            nodes.len(),
+            primitives.len(),
+            lights.len(),
+        );
+        Ok(GpuScene {
+            params,
+            nodes,
+            prims,
+            primitives,
+            materials,
+            lights,
+            depth,
+        })
+    }
+}
+
+fn camera_params(
+    scene: &Scene,
+    width: usize,
+    height: usize,
+    nodes: usize,
+    prims: usize,
+    lights: usize,
+) -> GpuParams {
+    let c = &scene.camera;
+    let f = |a: Vec3| obvhs_glam::Vec3::new(a[0], a[1], a[2]);
+    let pos = f(c.position);
+    let to = f(c.look_at) - pos;
+    let forward = to.normalize();
+    let right = forward.cross(f(c.up)).normalize();
+    let up = right.cross(forward);
+    let focus = c.focus_distance.unwrap_or(to.length());
+    let half_h = (0.5 * c.fov.to_radians()).tan() * focus;
+    let half_w = half_h * width as f32 / height.max(1) as f32;
+    let v4 = |v: obvhs_glam::Vec3, w: f32| [v.x, v.y, v.z, w];
+    GpuParams {
+        cam_pos: v4(pos, c.aperture),
+        lens_u: v4(right, 0.0),
+        lens_v: v4(up, 0.0),
+        focus_w: v4(forward * focus, 0.0),
+        half_u: v4(right * half_w, 0.0),
+        half_v: v4(up * half_h, 0.0),
+        env: [
+            scene.environment[0],
+            scene.environment[1],
+            scene.environment[2],
+            0.0,
+        ],
+        counts: [nodes as u32, prims as u32, scene.max_depth, lights as u32],
+    }
+}
+
+/// Builds the BVH: returns the flattened nodes, the primitive order (leaf
+/// ranges index the reordered list) and the depth.
+fn build(prims: &[Primitive]) -> Result<(Vec<[f32; 8]>, Vec<u32>, usize)> {
+    if prims.is_empty() {
+        return Ok((Vec::new(), Vec::new(), 0));
+    }
+    let boxes: Vec<Bounded> = prims
+        .iter()
+        .map(|p| {
+            let (lo, hi) = p.bounds();
+            // Pad by a relative epsilon: the shader's f32 slab test must not
+            // miss a flat primitive lying on a box face.
+            let ext = (0..3).map(|k| hi[k] - lo[k]).fold(0.0f32, f32::max);
+            let mag = lo.iter().chain(&hi).fold(0.0f32, |m, x| m.max(x.abs()));
+            let pad = 1e-5 * ext + 1e-6 * mag + 1e-7;
+            Bounded(Aabb::new(
+                v3(lo) - Vec3A::splat(pad),
+                v3(hi) + Vec3A::splat(pad),
+            ))
+        })
+        .collect();
+    let mut params = BvhBuildParams::medium_build();
+    params.max_prims_per_leaf = 4;
+    let mut t = std::time::Duration::ZERO;
+    let bvh = build_bvh2(&boxes, params, &mut t);
+    let order = bvh.primitive_indices.clone();
+    let nodes: Vec<[f32; 8]> = bvh
+        .nodes
+        .iter()
+        .map(|n| {
+            let (lo, hi) = (n.aabb.min, n.aabb.max);
+            [
+                lo.x,
+                lo.y,
+                lo.z,
+                f32::from_bits(n.first_index),
+                hi.x,
+                hi.y,
+                hi.z,
+                f32::from_bits(n.prim_count),
+            ]
+        })
+        .collect();
+    // Depth by walking the tree (iteratively: user meshes may be deep).
+    let mut depth = 0;
+    let mut todo = vec![(0usize, 0usize)];
+    while let Some((n, d)) = todo.pop() {
+        let node = &bvh.nodes[n];
+        if node.prim_count == 0 {
+            let c = node.first_index as usize;
+            todo.push((c, d + 1));
+            todo.push((c + 1, d + 1));
+        } else {
+            depth = depth.max(d);
+        }
+    }
+    if depth > STACK_SIZE {
+        return Err(Error::Limit(format!(
+            "the scene's BVH is {depth} levels deep; the render kernel's traversal stack holds {STACK_SIZE}"
+        )));
+    }
+    Ok((nodes, order, depth))
+}

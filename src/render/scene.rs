@@ -1,0 +1,677 @@
+//! Scenes of the built-in path tracer: camera, materials, objects, and the
+//! TOML file format they are read from (see the README, "Scene files").
+//!
+//! A scene is a camera, an environment colour, a table of named materials
+//! and a list of objects. Objects become primitives — spheres,
+//! parallelograms ("quads") and triangles — each with a material and an
+//! optional linear motion over the shutter interval `[0, 1)`: at shutter
+//! time `τ` the primitive is translated by `τ · motion`.
+//!
+//! ```toml
+//! environment = [0.0, 0.0, 0.0]   # radiance of every ray that leaves the scene
+//! max_depth = 8                    # path vertices after the camera (optional)
+//!
+//! [camera]
+//! position = [0.0, 1.0, 3.5]
+//! look_at = [0.0, 1.0, 0.0]
+//! up = [0.0, 1.0, 0.0]             # optional, default +Y
+//! fov = 40.0                       # vertical field of view, degrees
+//! aperture = 0.05                  # thin-lens radius (optional, default 0: pinhole)
+//! focus_distance = 3.5             # optional, default |look_at − position|
+//!
+//! [materials.white]
+//! type = "diffuse"
+//! albedo = [0.73, 0.73, 0.73]
+//!
+//! [materials.floor]
+//! type = "diffuse"
+//! albedo = { texture = "checker", a = [0.8, 0.8, 0.8], b = [0.1, 0.1, 0.1], scale = 4.0 }
+//!
+//! [materials.lamp]
+//! type = "emissive"
+//! radiance = [17.0, 12.0, 4.0]
+//!
+//! [[objects]]
+//! type = "sphere"
+//! center = [0.0, 0.5, 0.0]
+//! radius = 0.5
+//! material = "white"
+//! motion = [0.3, 0.0, 0.0]         # optional
+//!
+//! [[objects]]
+//! type = "quad"                    # corner + s·u + t·v, s, t in [0, 1]
+//! corner = [-0.25, 1.99, -0.25]
+//! u = [0.5, 0.0, 0.0]
+//! v = [0.0, 0.0, 0.5]              # emits on the side of u × v only
+//! material = "lamp"
+//! ```
+//!
+//! Further object types: `box` (`min`, `max`, optional `rotate_y` in
+//! degrees about its centre: six quads) and `mesh` (`file = "x.obj"`,
+//! relative to the scene file, or inline `vertices = [[x, y, z], …]` and
+//! `indices = [[i, j, k], …]`; optional `scale` and `translate`). Textures
+//! (`albedo = { texture = "checker" | "noise", a, b, scale }`) are evaluated
+//! at the hit point's position at shutter time 0, in world units × `scale`.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use serde::Deserialize;
+
+use crate::error::{Error, Result};
+
+/// A 3-vector in scene files: `[x, y, z]`.
+pub type Vec3 = [f32; 3];
+
+/// The thin-lens camera.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Camera {
+    /// Centre of the lens, world units.
+    pub position: Vec3,
+    /// A point the camera looks at (the image centre).
+    pub look_at: Vec3,
+    /// Up direction (default `[0, 1, 0]`).
+    #[serde(default = "default_up")]
+    pub up: Vec3,
+    /// Vertical field of view in degrees.
+    pub fov: f32,
+    /// Radius of the lens in world units; 0 is a pinhole (everything sharp).
+    #[serde(default)]
+    pub aperture: f32,
+    /// Distance from the lens to the plane in focus; default
+    /// `|look_at − position|`.
+    #[serde(default)]
+    pub focus_distance: Option<f32>,
+}
+
+fn default_up() -> Vec3 {
+    [0.0, 1.0, 0.0]
+}
+
+fn default_max_depth() -> u32 {
+    8
+}
+
+/// A procedural albedo texture: blends colour `a` and `b`.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(tag = "texture", rename_all = "snake_case", deny_unknown_fields)]
+pub enum Texture {
+    /// 3D checkerboard of cells `1/scale` wide: `a` and `b` alternate.
+    Checker {
+        /// First colour.
+        a: Vec3,
+        /// Second colour.
+        b: Vec3,
+        /// Cells per world unit.
+        scale: f32,
+    },
+    /// Three octaves of 3D value noise, `mix(a, b, noise)`.
+    Noise {
+        /// Colour where the noise is 0.
+        a: Vec3,
+        /// Colour where the noise is 1.
+        b: Vec3,
+        /// Noise features per world unit.
+        scale: f32,
+    },
+}
+
+/// Albedo of a diffuse material: a constant RGB or a texture.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(untagged)]
+pub enum Albedo {
+    /// The same reflectance everywhere (each component in `[0, 1]`).
+    Constant(Vec3),
+    /// A procedural texture.
+    Texture(Texture),
+}
+
+/// A material, referred to by its name in the scene's material table.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum Material {
+    /// Lambertian reflection.
+    Diffuse {
+        /// Reflectance.
+        albedo: Albedo,
+    },
+    /// A light: emits `radiance` (on the front side of quads, outward on
+    /// spheres) and reflects nothing. Next-event estimation samples emissive
+    /// quads and spheres; emissive triangles are found by BSDF sampling only.
+    Emissive {
+        /// Emitted radiance, linear RGB.
+        radiance: Vec3,
+    },
+}
+
+/// An object of a scene file; see the module documentation.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum Object {
+    /// A sphere.
+    Sphere {
+        /// Centre at shutter time 0.
+        center: Vec3,
+        /// Radius.
+        radius: f32,
+        /// Material name.
+        material: String,
+        /// Translation over the whole shutter interval.
+        #[serde(default)]
+        motion: Option<Vec3>,
+    },
+    /// The parallelogram `corner + s·u + t·v`, `s, t ∈ [0, 1]`.
+    Quad {
+        /// One corner.
+        corner: Vec3,
+        /// First edge.
+        u: Vec3,
+        /// Second edge; the front side is the side of `u × v`.
+        v: Vec3,
+        /// Material name.
+        material: String,
+        /// Translation over the whole shutter interval.
+        #[serde(default)]
+        motion: Option<Vec3>,
+    },
+    /// An axis-aligned box (before `rotate_y`), as six outward-facing quads.
+    Box {
+        /// Minimum corner.
+        min: Vec3,
+        /// Maximum corner.
+        max: Vec3,
+        /// Rotation about the vertical axis through the box centre, degrees.
+        #[serde(default)]
+        rotate_y: f32,
+        /// Material name.
+        material: String,
+        /// Translation over the whole shutter interval.
+        #[serde(default)]
+        motion: Option<Vec3>,
+    },
+    /// A triangle mesh: from an OBJ file or inline.
+    Mesh {
+        /// OBJ file (relative paths are relative to the scene file).
+        #[serde(default)]
+        file: Option<PathBuf>,
+        /// Inline vertex positions (without `file`).
+        #[serde(default)]
+        vertices: Vec<Vec3>,
+        /// Inline triangles as vertex indices (without `file`).
+        #[serde(default)]
+        indices: Vec<[u32; 3]>,
+        /// Uniform scale applied to the vertices (before `translate`).
+        #[serde(default = "one")]
+        scale: f32,
+        /// Translation applied after `scale`.
+        #[serde(default)]
+        translate: Vec3,
+        /// Material name.
+        material: String,
+        /// Translation over the whole shutter interval.
+        #[serde(default)]
+        motion: Option<Vec3>,
+    },
+}
+
+fn one() -> f32 {
+    1.0
+}
+
+/// A whole scene; see the module documentation for the file format.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Scene {
+    /// The camera.
+    pub camera: Camera,
+    /// Radiance of rays that leave the scene (a uniform environment).
+    #[serde(default)]
+    pub environment: Vec3,
+    /// Maximum number of path vertices after the camera (default 8).
+    #[serde(default = "default_max_depth")]
+    pub max_depth: u32,
+    /// Materials by name.
+    #[serde(default)]
+    pub materials: BTreeMap<String, Material>,
+    /// The objects.
+    #[serde(default)]
+    pub objects: Vec<Object>,
+    /// Directory relative mesh paths are resolved against (not in the file).
+    #[serde(skip)]
+    pub base_dir: Option<PathBuf>,
+}
+
+/// One primitive, as the GPU intersects it. Positions are at shutter time 0.
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub enum Shape {
+    /// Centre and radius.
+    Sphere {
+        /// Centre.
+        center: Vec3,
+        /// Radius.
+        radius: f32,
+    },
+    /// `corner + s·u + t·v`, `s, t ∈ [0, 1]`.
+    Quad {
+        /// Corner.
+        corner: Vec3,
+        /// First edge.
+        u: Vec3,
+        /// Second edge.
+        v: Vec3,
+    },
+    /// Vertices `a`, `b`, `c`.
+    Triangle {
+        /// First vertex.
+        a: Vec3,
+        /// Second vertex.
+        b: Vec3,
+        /// Third vertex.
+        c: Vec3,
+    },
+}
+
+/// A primitive with its material (index into [`Scene::material_list`]) and
+/// motion over the shutter (zero when static).
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct Primitive {
+    /// Geometry at shutter time 0.
+    pub shape: Shape,
+    /// Material index.
+    pub material: u32,
+    /// Translation over the shutter interval.
+    pub motion: Vec3,
+}
+
+fn add(a: Vec3, b: Vec3) -> Vec3 {
+    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
+}
+fn sub(a: Vec3, b: Vec3) -> Vec3 {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+impl Primitive {
+    /// Bounding box over the shutter interval: the union of the boxes at
+    /// times 0 and 1 (motion is linear).
+    pub fn bounds(&self) -> (Vec3, Vec3) {
+        let pts: Vec<Vec3> = match self.shape {
+            Shape::Sphere { center, radius } => {
+                let r = [radius; 3];
+                vec![sub(center, r), add(center, r)]
+            }
+            Shape::Quad { corner, u, v } => {
+                vec![
+                    corner,
+                    add(corner, u),
+                    add(corner, v),
+                    add(add(corner, u), v),
+                ]
+            }
+            Shape::Triangle { a, b, c } => vec![a, b, c],
+        };
+        let mut lo = [f32::INFINITY; 3];
+        let mut hi = [f32::NEG_INFINITY; 3];
+        for p in pts.iter().flat_map(|p| [*p, add(*p, self.motion)]) {
+            for k in 0..3 {
+                lo[k] = lo[k].min(p[k]);
+                hi[k] = hi[k].max(p[k]);
+            }
+        }
+        (lo, hi)
+    }
+
+    /// Surface area (for light sampling).
+    pub fn area(&self) -> f64 {
+        let cross_len = |u: Vec3, v: Vec3| {
+            let c = cross64(u, v);
+            (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt()
+        };
+        match self.shape {
+            Shape::Sphere { radius, .. } => 4.0 * std::f64::consts::PI * (radius as f64).powi(2),
+            Shape::Quad { u, v, .. } => cross_len(u, v),
+            Shape::Triangle { a, b, c } => 0.5 * cross_len(sub(b, a), sub(c, a)),
+        }
+    }
+
+    /// The host twin of the shader's intersection: distance along `dir`
+    /// (any length; `t` is in units of `dir`) of the nearest hit in
+    /// `(tmin, ∞)` at shutter time `time`, in f64. For tests.
+    pub fn intersect(&self, origin: [f64; 3], dir: [f64; 3], time: f64, tmin: f64) -> Option<f64> {
+        let o = [
+            origin[0] - time * self.motion[0] as f64,
+            origin[1] - time * self.motion[1] as f64,
+            origin[2] - time * self.motion[2] as f64,
+        ];
+        let f = |v: Vec3| [v[0] as f64, v[1] as f64, v[2] as f64];
+        let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+        let parallelogram = |p0: [f64; 3], e1: [f64; 3], e2: [f64; 3], tri: bool| {
+            let p = cross3(dir, e2);
+            let det = dot(e1, p);
+            if det.abs() < 1e-300 {
+                return None;
+            }
+            let s = [o[0] - p0[0], o[1] - p0[1], o[2] - p0[2]];
+            let u = dot(s, p) / det;
+            let q = cross3(s, e1);
+            let v = dot(dir, q) / det;
+            let inside = u >= 0.0
+                && v >= 0.0
+                && if tri {
+                    u + v <= 1.0
+                } else {
+                    u <= 1.0 && v <= 1.0
+                };
+            let t = dot(e2, q) / det;
+            (inside && t > tmin).then_some(t)
+        };
+        match self.shape {
+            Shape::Sphere { center, radius } => {
+                let c = f(center);
+                let oc = [o[0] - c[0], o[1] - c[1], o[2] - c[2]];
+                let a = dot(dir, dir);
+                let b = dot(oc, dir);
+                let cc = dot(oc, oc) - (radius as f64).powi(2);
+                let disc = b * b - a * cc;
+                if disc < 0.0 {
+                    return None;
+                }
+                let sq = disc.sqrt();
+                [(-b - sq) / a, (-b + sq) / a]
+                    .into_iter()
+                    .find(|&t| t > tmin)
+            }
+            Shape::Quad { corner, u, v } => parallelogram(f(corner), f(u), f(v), false),
+            Shape::Triangle { a, b, c } => parallelogram(f(a), f(sub(b, a)), f(sub(c, a)), true),
+        }
+    }
+}
+
+fn cross3(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+fn cross64(a: Vec3, b: Vec3) -> [f64; 3] {
+    let f = |v: Vec3| [v[0] as f64, v[1] as f64, v[2] as f64];
+    cross3(f(a), f(b))
+}
+
+/// The scene files shipped with mcdenoise (`scenes/*.toml`), by name.
+const BUILTIN: &[(&str, &str)] = &[
+    ("cornell", include_str!("../../scenes/cornell.toml")),
+    ("dof", include_str!("../../scenes/dof.toml")),
+    ("motion", include_str!("../../scenes/motion.toml")),
+    (
+        "soft_shadows",
+        include_str!("../../scenes/soft_shadows.toml"),
+    ),
+    ("mix", include_str!("../../scenes/mix.toml")),
+];
+
+impl Scene {
+    /// Parses a scene from TOML text. Relative mesh paths resolve against
+    /// `base_dir` (the current directory when `None`). `what` names the
+    /// source in error messages.
+    pub fn from_toml(text: &str, what: &Path, base_dir: Option<&Path>) -> Result<Scene> {
+        let mut scene: Scene =
+            toml::from_str(text).map_err(|e| Error::bad_input(what, format!("{e}")))?;
+        scene.base_dir = base_dir.map(Path::to_owned);
+        scene.validate().map_err(|m| Error::bad_input(what, m))?;
+        Ok(scene)
+    }
+
+    /// Reads a scene file.
+    pub fn load(path: &Path) -> Result<Scene> {
+        let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
+            path: path.to_owned(),
+            source,
+        })?;
+        Scene::from_toml(&text, path, path.parent())
+    }
+
+    /// The names of the built-in scenes.
+    pub fn builtin_names() -> Vec<&'static str> {
+        BUILTIN.iter().map(|(n, _)| *n).collect()
+    }
+
+    /// A built-in scene by name (see [`builtin_names`](Self::builtin_names)).
+    pub fn builtin(name: &str) -> Result<Scene> {
+        let (_, text) = BUILTIN.iter().find(|(n, _)| *n == name).ok_or_else(|| {
+            Error::InvalidArgument(format!(
+                "no built-in scene {name:?}; the built-in scenes are {}",
+                Scene::builtin_names().join(", ")
+            ))
+        })?;
+        Scene::from_toml(text, Path::new(&format!("scenes/{name}.toml")), None)
+    }
+
+    /// A built-in scene's name or a scene file's path.
+    pub fn by_name_or_file(name: &str) -> Result<Scene> {
+        if BUILTIN.iter().any(|(n, _)| *n == name) {
+            Scene::builtin(name)
+        } else {
+            Scene::load(Path::new(name))
+        }
+    }
+
+    /// The source text of a built-in scene (for caching by content).
+    pub fn builtin_source(name: &str) -> Option<&'static str> {
+        BUILTIN.iter().find(|(n, _)| *n == name).map(|(_, t)| *t)
+    }
+
+    fn validate(&self) -> std::result::Result<(), String> {
+        let c = &self.camera;
+        if !(c.fov > 0.0 && c.fov < 180.0) {
+            return Err(format!(
+                "camera.fov must be in (0, 180) degrees, not {}",
+                c.fov
+            ));
+        }
+        if c.aperture < 0.0 || c.focus_distance.is_some_and(|f| f <= 0.0) {
+            return Err("camera.aperture must be ≥ 0 and focus_distance > 0".into());
+        }
+        if sub(c.look_at, c.position) == [0.0; 3] {
+            return Err("camera.look_at equals camera.position".into());
+        }
+        for (i, o) in self.objects.iter().enumerate() {
+            let m = match o {
+                Object::Sphere { material, .. }
+                | Object::Quad { material, .. }
+                | Object::Box { material, .. }
+                | Object::Mesh { material, .. } => material,
+            };
+            if !self.materials.contains_key(m) {
+                return Err(format!("object {i} uses the undefined material {m:?}"));
+            }
+        }
+        Ok(())
+    }
+
+    /// The materials in index order (the order of their names).
+    pub fn material_list(&self) -> Vec<(&str, &Material)> {
+        self.materials
+            .iter()
+            .map(|(n, m)| (n.as_str(), m))
+            .collect()
+    }
+
+    fn material_index(&self, name: &str) -> u32 {
+        self.materials
+            .keys()
+            .position(|k| k == name)
+            .expect("validated") as u32
+    }
+
+    /// The scene's primitives, in object order (meshes loaded from disk).
+    pub fn primitives(&self) -> Result<Vec<Primitive>> {
+        let mut out = Vec::new();
+        for o in &self.objects {
+            match o {
+                Object::Sphere {
+                    center,
+                    radius,
+                    material,
+                    motion,
+                } => out.push(Primitive {
+                    shape: Shape::Sphere {
+                        center: *center,
+                        radius: *radius,
+                    },
+                    material: self.material_index(material),
+                    motion: motion.unwrap_or_default(),
+                }),
+                Object::Quad {
+                    corner,
+                    u,
+                    v,
+                    material,
+                    motion,
+                } => out.push(Primitive {
+                    shape: Shape::Quad {
+                        corner: *corner,
+                        u: *u,
+                        v: *v,
+                    },
+                    material: self.material_index(material),
+                    motion: motion.unwrap_or_default(),
+                }),
+                Object::Box {
+                    min,
+                    max,
+                    rotate_y,
+                    material,
+                    motion,
+                } => {
+                    let m = self.material_index(material);
+                    for shape in box_quads(*min, *max, *rotate_y) {
+                        out.push(Primitive {
+                            shape,
+                            material: m,
+                            motion: motion.unwrap_or_default(),
+                        });
+                    }
+                }
+                Object::Mesh {
+                    file,
+                    vertices,
+                    indices,
+                    scale,
+                    translate,
+                    material,
+                    motion,
+                } => {
+                    let (verts, tris) = match file {
+                        Some(f) => self.load_obj(f)?,
+                        None => (vertices.clone(), indices.clone()),
+                    };
+                    let m = self.material_index(material);
+                    let place = |i: u32| -> Result<Vec3> {
+                        let p = verts.get(i as usize).ok_or_else(|| {
+                            Error::InvalidArgument(format!(
+                                "mesh index {i} out of range ({} vertices)",
+                                verts.len()
+                            ))
+                        })?;
+                        Ok(add([p[0] * scale, p[1] * scale, p[2] * scale], *translate))
+                    };
+                    for t in tris {
+                        out.push(Primitive {
+                            shape: Shape::Triangle {
+                                a: place(t[0])?,
+                                b: place(t[1])?,
+                                c: place(t[2])?,
+                            },
+                            material: m,
+                            motion: motion.unwrap_or_default(),
+                        });
+                    }
+                }
+            }
+        }
+        Ok(out)
+    }
+
+    fn load_obj(&self, file: &Path) -> Result<(Vec<Vec3>, Vec<[u32; 3]>)> {
+        let path = match &self.base_dir {
+            Some(d) if file.is_relative() => d.join(file),
+            _ => file.to_owned(),
+        };
+        let (models, _) = tobj::load_obj(&path, &tobj::GPU_LOAD_OPTIONS)
+            .map_err(|e| Error::bad_input(&path, format!("cannot read the OBJ file: {e}")))?;
+        let mut verts = Vec::new();
+        let mut tris = Vec::new();
+        for m in models {
+            let base = verts.len() as u32;
+            verts.extend(m.mesh.positions.chunks_exact(3).map(|p| [p[0], p[1], p[2]]));
+            tris.extend(
+                m.mesh
+                    .indices
+                    .chunks_exact(3)
+                    .map(|t| [base + t[0], base + t[1], base + t[2]]),
+            );
+        }
+        Ok((verts, tris))
+    }
+}
+
+/// The six outward-facing faces of a box rotated about the vertical axis
+/// through its centre.
+fn box_quads(min: Vec3, max: Vec3, rotate_y: f32) -> Vec<Shape> {
+    let c = [
+        0.5 * (min[0] + max[0]),
+        0.5 * (min[1] + max[1]),
+        0.5 * (min[2] + max[2]),
+    ];
+    let (s, co) = rotate_y.to_radians().sin_cos();
+    let rot = |v: Vec3| [co * v[0] + s * v[2], v[1], -s * v[0] + co * v[2]];
+    let pt = |p: Vec3| add(rot(sub(p, c)), c);
+    let d = sub(max, min);
+    let (dx, dy, dz) = ([d[0], 0.0, 0.0], [0.0, d[1], 0.0], [0.0, 0.0, d[2]]);
+    let q = |corner: Vec3, u: Vec3, v: Vec3| Shape::Quad {
+        corner: pt(corner),
+        u: rot(u),
+        v: rot(v),
+    };
+    let hi = max;
+    // Edge order does not matter here: orient_outward fixes the front side.
+    vec![
+        q(min, dz, dx),
+        q([min[0], hi[1], min[2]], dx, dz),
+        q(min, dy, dz),
+        q([hi[0], min[1], min[2]], dz, dy),
+        q(min, dx, dy),
+        q([min[0], min[1], hi[2]], dy, dx),
+    ]
+    .into_iter()
+    .map(|s| orient_outward(s, pt(c)))
+    .collect()
+}
+
+/// Swaps a quad's edges if its front (u × v) faces towards `centre`.
+fn orient_outward(s: Shape, centre: Vec3) -> Shape {
+    match s {
+        Shape::Quad { corner, u, v } => {
+            let n = cross64(u, v);
+            let mid = add(
+                corner,
+                [
+                    0.5 * (u[0] + v[0]),
+                    0.5 * (u[1] + v[1]),
+                    0.5 * (u[2] + v[2]),
+                ],
+            );
+            let out = sub(mid, centre);
+            let d = n[0] * out[0] as f64 + n[1] * out[1] as f64 + n[2] * out[2] as f64;
+            if d < 0.0 {
+                Shape::Quad { corner, u: v, v: u }
+            } else {
+                s
+            }
+        }
+        s => s,
+    }
+}

@@ -1,0 +1,486 @@
+//! The built-in path tracer (issue #10): BVH traversal against brute force,
+//! white furnace, closed forms, the accumulated statistics against a CPU
+//! recomputation, sample maps, determinism. Images are tiny (lavapipe).
+
+mod common;
+use common::*;
+
+use std::collections::BTreeMap;
+
+use mcdenoise::gpu::GpuBuffer;
+use mcdenoise::render::{
+    Albedo, Camera, Material, Object, Ray, Renderer, Samples, Scene, Shape, Texture,
+};
+use mcdenoise::{Accumulator, Batch, Layer};
+
+fn camera(position: [f32; 3], look_at: [f32; 3], fov: f32) -> Camera {
+    Camera {
+        position,
+        look_at,
+        up: [0.0, 1.0, 0.0],
+        fov,
+        aperture: 0.0,
+        focus_distance: None,
+    }
+}
+
+fn diffuse(a: [f32; 3]) -> Material {
+    Material::Diffuse {
+        albedo: Albedo::Constant(a),
+    }
+}
+
+fn scene(
+    camera: Camera,
+    environment: [f32; 3],
+    materials: Vec<(&str, Material)>,
+    objects: Vec<Object>,
+) -> Scene {
+    Scene {
+        camera,
+        environment,
+        max_depth: 8,
+        materials: materials
+            .into_iter()
+            .map(|(n, m)| (n.to_owned(), m))
+            .collect::<BTreeMap<_, _>>(),
+        objects,
+        base_dir: None,
+    }
+}
+
+fn sphere(center: [f32; 3], radius: f32, material: &str, motion: Option<[f32; 3]>) -> Object {
+    Object::Sphere {
+        center,
+        radius,
+        material: material.into(),
+        motion,
+    }
+}
+
+fn render(s: &Scene, w: usize, h: usize, spp: u32, seed: u64) -> Renderer {
+    let ctx = gpu();
+    let r = Renderer::new(&ctx, s, w, h, seed).unwrap();
+    let mut b = Batch::new(&ctx).unwrap();
+    r.record_pass(&mut b, Samples::Uniform(spp), spp as f64)
+        .unwrap();
+    b.finish().unwrap();
+    r
+}
+
+fn v(rng: &mut Rng, lo: f64, hi: f64) -> [f32; 3] {
+    std::array::from_fn(|_| (lo + (hi - lo) * rng.uniform()) as f32)
+}
+
+/// Random meshes, spheres and quads, some moving; random rays at random
+/// shutter times. The GPU's nearest hit equals a brute-force f64 search.
+#[test]
+fn bvh_traversal_equals_brute_force() {
+    let ctx = gpu();
+    let mut rng = Rng(0x5eed_1234);
+    let mut objects = Vec::new();
+    for m in 0..3 {
+        // A cloud of small triangles around a random centre.
+        let c = v(&mut rng, -3.0, 3.0);
+        let mut vertices = Vec::new();
+        let mut indices = Vec::new();
+        for t in 0..150u32 {
+            let p = v(&mut rng, -1.0, 1.0);
+            let base = [c[0] + p[0], c[1] + p[1], c[2] + p[2]];
+            for _ in 0..3 {
+                let d = v(&mut rng, -0.3, 0.3);
+                vertices.push([base[0] + d[0], base[1] + d[1], base[2] + d[2]]);
+            }
+            indices.push([3 * t, 3 * t + 1, 3 * t + 2]);
+        }
+        objects.push(Object::Mesh {
+            file: None,
+            vertices,
+            indices,
+            scale: 1.0,
+            translate: [0.0; 3],
+            material: "m".into(),
+            motion: (m == 1).then(|| v(&mut rng, -0.5, 0.5)),
+        });
+    }
+    for i in 0..30 {
+        let motion = (i % 3 == 0).then(|| v(&mut rng, -0.5, 0.5));
+        objects.push(sphere(
+            v(&mut rng, -4.0, 4.0),
+            (0.05 + 0.4 * rng.uniform()) as f32,
+            "m",
+            motion,
+        ));
+        objects.push(Object::Quad {
+            corner: v(&mut rng, -4.0, 4.0),
+            u: v(&mut rng, -1.0, 1.0),
+            v: v(&mut rng, -1.0, 1.0),
+            material: "m".into(),
+            motion: (i % 4 == 0).then(|| v(&mut rng, -0.5, 0.5)),
+        });
+    }
+    let s = scene(
+        camera([0.0, 0.0, 10.0], [0.0; 3], 40.0),
+        [0.0; 3],
+        vec![("m", diffuse([0.5; 3]))],
+        objects,
+    );
+    let r = Renderer::new(&ctx, &s, 8, 8, 0).unwrap();
+    let prims = &r.gpu_scene().primitives;
+    assert_eq!(prims.len(), 450 + 60);
+    eprintln!(
+        "BVH: {} nodes, depth {}",
+        r.gpu_scene().nodes.len(),
+        r.gpu_scene().depth
+    );
+
+    let rays: Vec<Ray> = (0..4096)
+        .map(|_| {
+            let origin = v(&mut rng, -6.0, 6.0);
+            // Aim at a random point of the scene so most rays hit something.
+            let target = v(&mut rng, -4.0, 4.0);
+            let scale = (0.5 + 2.0 * rng.uniform()) as f32; // unnormalised directions
+            Ray {
+                origin,
+                dir: std::array::from_fn(|k| (target[k] - origin[k]) * scale),
+                time: rng.uniform() as f32,
+                tmin: 0.0,
+            }
+        })
+        .collect();
+    let gpu_hits = r.trace_rays(&rays).unwrap();
+    let mut hits = 0;
+    let mut disagree = Vec::new();
+    for (ray, g) in rays.iter().zip(&gpu_hits) {
+        let o = ray.origin.map(|x| x as f64);
+        let d = ray.dir.map(|x| x as f64);
+        let t = ray.time as f64;
+        let cpu = prims
+            .iter()
+            .enumerate()
+            .filter_map(|(i, p)| p.intersect(o, d, t, 0.0).map(|t| (t, i)))
+            .min_by(|a, b| a.0.total_cmp(&b.0));
+        let tol = |t: f64| 1e-4 * (t + 1.0);
+        let ok = match (cpu, g) {
+            (None, None) => true,
+            (Some((tc, ic)), Some((tg, ig))) => {
+                hits += 1;
+                // Same primitive, or a near-tie at the same distance.
+                let tg = *tg as f64;
+                (tg - tc).abs() <= tol(tc)
+                    && (ic == *ig as usize
+                        || prims[*ig as usize]
+                            .intersect(o, d, t, 0.0)
+                            .is_some_and(|ti| (ti - tc).abs() <= tol(tc)))
+            }
+            _ => false,
+        };
+        if !ok {
+            disagree.push((ray, cpu, *g));
+        }
+    }
+    eprintln!(
+        "{hits} of {} rays hit; {} disagree",
+        rays.len(),
+        disagree.len()
+    );
+    assert!(hits > 1000, "too few hits ({hits}) for a meaningful test");
+    // f32 against f64: a ray grazing an edge may be decided differently.
+    assert!(
+        disagree.len() <= 2,
+        "GPU and brute force disagree on {} rays: {:#?}",
+        disagree.len(),
+        &disagree[..disagree.len().min(5)]
+    );
+    check_validation(&ctx);
+}
+
+/// Mean and standard error of the mean of a plane.
+fn mean_se(x: &[f32]) -> (f64, f64) {
+    let n = x.len() as f64;
+    let m = x.iter().map(|&v| v as f64).sum::<f64>() / n;
+    let var = x.iter().map(|&v| (v as f64 - m).powi(2)).sum::<f64>() / (n - 1.0);
+    (m, (var / n).sqrt())
+}
+
+/// An albedo-1 diffuse sphere in a uniform environment of radiance 1
+/// reflects exactly what it receives: the image is 1 everywhere.
+#[test]
+fn white_furnace_diffuse() {
+    let ctx = gpu();
+    let s = scene(
+        camera([0.0, 0.0, 4.0], [0.0; 3], 40.0),
+        [1.0; 3],
+        vec![("white", diffuse([1.0; 3]))],
+        vec![sphere([0.0; 3], 1.0, "white", None)],
+    );
+    let r = render(&s, 24, 24, 8, 3);
+    let st = r.statistics().unwrap();
+    let color = st.get(Layer::Color).unwrap();
+    for c in color {
+        let (m, se) = mean_se(c);
+        assert!(
+            (m - 1.0).abs() <= 4.0 * se + 1e-4,
+            "furnace mean {m} ± {se}"
+        );
+        let worst = c
+            .iter()
+            .map(|&v| (v as f64 - 1.0).abs())
+            .fold(0.0, f64::max);
+        assert!(worst < 1e-3, "a pixel is {worst} away from 1");
+    }
+    // The sphere covers the middle of the image: albedo 1 there, 0 (miss) at the corners.
+    let alb = &st.get(Layer::Albedo).unwrap()[0];
+    assert_eq!(alb[12 * 24 + 12], 1.0);
+    assert_eq!(alb[0], 0.0);
+    check_validation(&ctx);
+}
+
+/// A diffuse plane of albedo a under a uniform sky of radiance L, seen from
+/// above, has radiance a·L; and under a small spherical lamp of radiance Le
+/// and radius r at height h (no sky) radiance a·Le·r²·h / (h² + x²)^{3/2}
+/// at horizontal distance x from the lamp's foot (direct light only: next
+/// event estimation and BSDF hits of the lamp, combined by MIS).
+#[test]
+fn diffuse_plane_closed_forms() {
+    let ctx = gpu();
+    let a = [0.5f32, 0.25, 0.8];
+    let plane = |m: &str| Object::Quad {
+        corner: [-50.0, 0.0, -50.0],
+        u: [0.0, 0.0, 100.0],
+        v: [100.0, 0.0, 0.0],
+        material: m.into(),
+        motion: None,
+    };
+    let sky = [0.8f32, 1.0, 1.2];
+    let s = scene(
+        camera([0.0, 3.0, 0.5], [0.0; 3], 30.0),
+        sky,
+        vec![("p", diffuse(a))],
+        vec![plane("p")],
+    );
+    let r = render(&s, 16, 16, 4, 5);
+    let st = r.statistics().unwrap();
+    for (k, c) in st.get(Layer::Color).unwrap().iter().enumerate() {
+        let want = (a[k] * sky[k]) as f64;
+        let (m, se) = mean_se(c);
+        assert!(
+            (m - want).abs() <= 4.0 * se + 1e-4,
+            "sky: channel {k}: {m} vs {want}"
+        );
+    }
+
+    let (le, rad, h) = (20.0f32, 0.2f32, 1.5f32);
+    let s = scene(
+        camera([0.0, 2.5, 3.0], [0.0, 0.0, 0.5], 30.0),
+        [0.0; 3],
+        vec![
+            ("p", diffuse(a)),
+            ("lamp", Material::Emissive { radiance: [le; 3] }),
+        ],
+        vec![plane("p"), sphere([0.0, h, 0.0], rad, "lamp", None)],
+    );
+    let (w, hh) = (16, 16);
+    let r = render(&s, w, hh, 64, 7);
+    let st = r.statistics().unwrap();
+    let pos = st.get(Layer::Position).unwrap();
+    let color = st.get(Layer::Color).unwrap();
+    let var = st.get(Layer::ColorVariance).unwrap();
+    let mut z2 = 0.0;
+    let mut n = 0;
+    for p in 0..w * hh {
+        if pos[1][p].abs() > 1e-3 {
+            continue; // the lamp itself
+        }
+        let x2 = (pos[0][p] as f64).powi(2) + (pos[2][p] as f64).powi(2);
+        let e = (rad as f64).powi(2) * h as f64 / ((h as f64).powi(2) + x2).powf(1.5);
+        for k in 0..3 {
+            let want = a[k] as f64 * le as f64 * e;
+            let d = color[k][p] as f64 - want;
+            z2 += d * d / (var[k][p] as f64).max(1e-12);
+            n += 1;
+        }
+    }
+    // Mean squared z-score ≈ 1 when the estimate is unbiased (positions
+    // within a pixel vary, so allow some slack).
+    let z = z2 / n as f64;
+    eprintln!("lamp over plane: mean z² = {z:.3} over {n} values");
+    assert!(n > 500, "too few plane pixels");
+    assert!(
+        z < 2.0,
+        "colour departs from the closed form: mean z² = {z}"
+    );
+    check_validation(&ctx);
+}
+
+fn textured_scene() -> Scene {
+    let mut s = Scene::builtin("mix").unwrap();
+    // A moving, textured sphere in the middle of the view.
+    s.materials.insert(
+        "noise".into(),
+        Material::Diffuse {
+            albedo: Albedo::Texture(Texture::Noise {
+                a: [0.1, 0.2, 0.3],
+                b: [0.9, 0.8, 0.7],
+                scale: 5.0,
+            }),
+        },
+    );
+    s.objects.push(sphere(
+        [0.0, 0.8, 0.3],
+        0.25,
+        "noise",
+        Some([0.2, 0.1, 0.0]),
+    ));
+    s
+}
+
+/// Σ, Σ², the cross products and the count on the GPU equal a CPU
+/// accumulation of the per-sample values the kernel reports.
+#[test]
+fn statistics_equal_a_cpu_recomputation() {
+    let ctx = gpu();
+    let s = textured_scene();
+    let r = Renderer::new(&ctx, &s, 8, 8, 11).unwrap();
+    let l = r.layout();
+    let mut cpu = Accumulator::new(l);
+    for spp in [2u32, 1] {
+        let samples = r.record_pass_debug(spp).unwrap();
+        for p in 0..l.pixels() {
+            for k in 0..spp as usize {
+                let b = (p * spp as usize + k) * 14;
+                let vals: Vec<f64> = samples[b..b + 14].iter().map(|&x| x as f64).collect();
+                cpu.add(p, &vals);
+            }
+        }
+    }
+    let gpu_planes = r.download().unwrap();
+    let cpu_planes = cpu.planes();
+    for (i, (g, c)) in gpu_planes.iter().zip(&cpu_planes).enumerate() {
+        for p in 0..l.pixels() {
+            let (g, c) = (g[p] as f64, c[p] as f64);
+            assert!(
+                (g - c).abs() <= 1e-5 * (c.abs() + 1e-3),
+                "plane {i} pixel {p}: GPU {g}, CPU {c}"
+            );
+        }
+    }
+    assert!(gpu_planes[l.count_plane()].iter().all(|&n| n == 3.0));
+    // Not a degenerate scene: some colour, some misses-free pixels, some shadow.
+    let vis = &gpu_planes[l.sum_plane(13)];
+    assert!(vis.iter().any(|&v| v > 0.0) && vis.iter().any(|&v| v < 3.0));
+    check_validation(&ctx);
+}
+
+/// A pixel the sample map gives 0 samples is untouched; the others gain
+/// exactly their map's count.
+#[test]
+fn zero_sample_map_region_adds_nothing() {
+    let ctx = gpu();
+    let s = textured_scene();
+    let (w, h) = (16usize, 12usize);
+    let r = render(&s, w, h, 1, 2);
+    let before = r.download().unwrap();
+    let map: Vec<u32> = (0..w * h)
+        .map(|p| if p % w < w / 2 { 0 } else { (p % 3) as u32 + 1 })
+        .collect();
+    let mb = GpuBuffer::from_slice(&ctx, "test.map", &map).unwrap();
+    let mut b = Batch::new(&ctx).unwrap();
+    r.record_pass(&mut b, Samples::Map(mb.slice()), 1.0)
+        .unwrap();
+    b.finish().unwrap();
+    let after = r.download().unwrap();
+    let count = r.layout().count_plane();
+    let mut changed = 0;
+    for p in 0..w * h {
+        if map[p] == 0 {
+            for (i, (a, b)) in after.iter().zip(&before).enumerate() {
+                assert_eq!(
+                    a[p].to_bits(),
+                    b[p].to_bits(),
+                    "plane {i} pixel {p} changed"
+                );
+            }
+        } else {
+            assert_eq!(after[count][p], before[count][p] + map[p] as f32);
+            changed += (after[18][p] > before[18][p]) as usize;
+        }
+    }
+    // Depth grows at every hit (some edge pixels look out of the open box).
+    assert!(changed > w * h / 4, "only {changed} pixels gained depth");
+    check_validation(&ctx);
+}
+
+fn two_passes(s: &Scene, max_flops: f64, seed: u64) -> Vec<Vec<f32>> {
+    let ctx = gpu();
+    let r = Renderer::new(&ctx, s, 20, 13, seed).unwrap();
+    let mut b = Batch::new(&ctx).unwrap();
+    b.max_flops_per_submit = max_flops;
+    r.record_clear(&mut b);
+    for _ in 0..2 {
+        r.record_pass(&mut b, Samples::Uniform(2), 2.0).unwrap();
+    }
+    let submits_before = b.submits;
+    b.finish().unwrap();
+    let _ = submits_before;
+    r.download().unwrap()
+}
+
+/// The same seed gives bit-identical planes, however the rows are split
+/// into bands and submits; another seed gives other samples; four samples
+/// in one pass have the same per-sample values as two passes of two.
+#[test]
+fn rerender_is_bit_identical_and_band_independent() {
+    let ctx = gpu();
+    let s = textured_scene();
+    let one_band = two_passes(&s, 1e15, 9);
+    let r = Renderer::new(&ctx, &s, 20, 13, 9).unwrap();
+    let per_row = r.flops_per_sample() * 2.0 * 20.0;
+    // Bands of 8 rows (the workgroup height), a submit per band.
+    let banded = two_passes(&s, per_row * 3.0, 9);
+    let again = two_passes(&s, 1e15, 9);
+    for (i, ((a, b), c)) in one_band.iter().zip(&banded).zip(&again).enumerate() {
+        for p in 0..a.len() {
+            assert_eq!(a[p].to_bits(), b[p].to_bits(), "plane {i} pixel {p}: bands");
+            assert_eq!(
+                a[p].to_bits(),
+                c[p].to_bits(),
+                "plane {i} pixel {p}: rerender"
+            );
+        }
+    }
+    let other = two_passes(&s, 1e15, 10);
+    assert_ne!(one_band[0], other[0], "the seed changes nothing");
+
+    let mut b = Batch::new(&ctx).unwrap();
+    r.record_pass(&mut b, Samples::Uniform(4), 4.0).unwrap();
+    b.finish().unwrap();
+    let single = r.download().unwrap();
+    for (a, b) in one_band.iter().zip(&single) {
+        for p in 0..a.len() {
+            let (a, b) = (a[p] as f64, b[p] as f64);
+            assert!((a - b).abs() <= 1e-5 * (a.abs() + 1e-3), "{a} vs {b}");
+        }
+    }
+    check_validation(&ctx);
+}
+
+#[test]
+fn primitives_of_shapes() {
+    // The host twin of the intersection on a case by hand.
+    let p = mcdenoise::render::Primitive {
+        shape: Shape::Quad {
+            corner: [0.0, 0.0, 0.0],
+            u: [1.0, 0.0, 0.0],
+            v: [0.0, 1.0, 0.0],
+        },
+        material: 0,
+        motion: [0.0, 0.0, 1.0],
+    };
+    let t = p.intersect([0.5, 0.5, 5.0], [0.0, 0.0, -1.0], 0.5, 0.0);
+    assert_eq!(t, Some(4.5));
+    assert_eq!(
+        p.intersect([1.5, 0.5, 5.0], [0.0, 0.0, -1.0], 0.5, 0.0),
+        None
+    );
+}
