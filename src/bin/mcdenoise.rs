@@ -199,6 +199,12 @@ enum Command {
         #[arg(long, value_enum, default_value = "f32")]
         precision: PrecisionArg,
     },
+    /// Render a scene with the built-in Vulkan path tracer, uniformly or
+    /// through the adaptive loop (spec §9.3), and reconstruct it.
+    #[command(after_help = "Examples:\n  mcdenoise render --list-scenes\n  \
+mcdenoise render --scene cornell --spp 16 --adaptive -o out.exr --png out.png --reference 1024\n  \
+mcdenoise render --scene my_scene.toml --spp 64 --method lp --save-stats stats.exr -o out.exr")]
+    Render(RenderArgs),
     /// Benchmark the methods: quality against references (--quality DIR) or
     /// the time of whole denoise calls (default).
     #[command(long_about = BENCH_LONG_ABOUT)]
@@ -487,6 +493,7 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
             Ok(true)
         }
         Command::Bench(args) => bench(&cli, args),
+        Command::Render(args) => render(&cli, args),
     }
 }
 
@@ -613,6 +620,54 @@ struct BenchArgs {
     runs: usize,
 }
 
+#[derive(clap::Args)]
+struct RenderArgs {
+    /// A built-in scene (see --list-scenes) or a TOML scene file.
+    #[arg(long, required_unless_present = "list_scenes")]
+    scene: Option<String>,
+    /// List the built-in scenes and exit.
+    #[arg(long)]
+    list_scenes: bool,
+    /// Average samples per pixel of the whole render (≥ 4 with --adaptive).
+    #[arg(long, default_value_t = 16)]
+    spp: u32,
+    /// Adaptive sampling: 4 uniform spp, then passes where the sample map sends them.
+    #[arg(long)]
+    adaptive: bool,
+    /// Reconstruction (none: the plain Monte Carlo mean).
+    #[arg(long, value_enum, default_value = "wlr")]
+    method: MethodArg,
+    /// Feature prefilter before the method (spec §6).
+    #[arg(long, value_enum, default_value = "auto")]
+    prefilter: PrefilterArg,
+    /// Image size.
+    #[arg(long, value_name = "WxH", default_value = "256x256",
+          value_parser = |s: &str| mcdenoise::bench::parse_size(s).map_err(|e| e.to_string()))]
+    size: (usize, usize),
+    /// Random-number seed: the same scene, seed and options give the same image.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Output EXR (color.R/G/B and error.R/G/B).
+    #[arg(short, long, required_unless_present = "list_scenes")]
+    output: Option<PathBuf>,
+    /// Also write a tone-mapped PNG.
+    #[arg(long)]
+    png: Option<PathBuf>,
+    /// Also write the render statistics (the denoiser's input format).
+    #[arg(long, value_name = "FILE")]
+    save_stats: Option<PathBuf>,
+    /// Compare with a K-spp uniform render of the same scene (cached on disk
+    /// by scene content, size, K and seed) and print rMSE, relMSE, PSNR, SSIM.
+    #[arg(long, value_name = "K")]
+    reference: Option<u32>,
+    /// Kernel arithmetic.
+    #[arg(long, value_enum, default_value = "f32")]
+    precision: PrecisionArg,
+    /// Method option key=value (repeatable); see `mcdenoise denoise --help`.
+    #[arg(long = "opt", value_name = "KEY=VALUE")]
+    opts: Vec<String>,
+}
+
 #[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
 enum BenchBackendArg {
     /// Vulkan compute kernels.
@@ -731,6 +786,259 @@ impl log::Log for StderrLog {
     fn flush(&self) {}
 }
 
+/// Where rendered references are cached: `MCDENOISE_CACHE`, else
+/// `$XDG_CACHE_HOME/mcdenoise`, else `~/.cache/mcdenoise`, else `target/`.
+fn cache_dir() -> PathBuf {
+    if let Some(d) = std::env::var_os("MCDENOISE_CACHE") {
+        return PathBuf::from(d);
+    }
+    if let Some(d) = std::env::var_os("XDG_CACHE_HOME") {
+        return PathBuf::from(d).join("mcdenoise");
+    }
+    if let Some(h) = std::env::var_os("HOME") {
+        return PathBuf::from(h).join(".cache/mcdenoise");
+    }
+    PathBuf::from("target/mcdenoise-cache")
+}
+
+/// FNV-1a, 64 bits: a stable key for the reference cache (not a security
+/// hash; the key also holds the size, K and seed in clear).
+fn fnv1a(bytes: &[u8]) -> u64 {
+    let mut h = 0xcbf29ce484222325u64;
+    for b in bytes {
+        h ^= *b as u64;
+        h = h.wrapping_mul(0x100000001b3);
+    }
+    h
+}
+
+/// A stop flag set by Ctrl-C (installed once per process).
+fn stop_flag() -> Arc<std::sync::atomic::AtomicBool> {
+    static FLAG: std::sync::OnceLock<Arc<std::sync::atomic::AtomicBool>> =
+        std::sync::OnceLock::new();
+    FLAG.get_or_init(|| {
+        let f = Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let g = f.clone();
+        if ctrlc::set_handler(move || {
+            if g.swap(true, std::sync::atomic::Ordering::SeqCst) {
+                std::process::exit(130); // a second Ctrl-C: stop now
+            }
+            eprintln!("\nmcdenoise: stopping after this pass (Ctrl-C again to quit now)");
+        })
+        .is_err()
+        {
+            log::warn!("cannot install a Ctrl-C handler");
+        }
+        f
+    })
+    .clone()
+}
+
+/// A bar over the passes of a render on a terminal (none when piped or --quiet).
+fn pass_bar(cli: &Cli, what: &str) -> Option<indicatif::ProgressBar> {
+    use std::io::IsTerminal;
+    if cli.quiet || !std::io::stderr().is_terminal() {
+        return None;
+    }
+    let bar = indicatif::ProgressBar::new(1);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{spinner} [{elapsed_precise}] [{wide_bar}] {pos}/{len} {msg}",
+        )
+        .ok()?,
+    );
+    bar.set_message(what.to_string());
+    bar.enable_steady_tick(std::time::Duration::from_millis(200));
+    Some(bar)
+}
+
+/// The K-spp uniform reference of `scene`, rendered once and cached.
+fn reference_image(
+    cli: &Cli,
+    ctx: &Arc<GpuContext>,
+    scene: &mcdenoise::render::Scene,
+    size: (usize, usize),
+    k: u32,
+    seed: u64,
+) -> anyhow::Result<mcdenoise::RgbImage> {
+    // The reference uses its own random numbers, independent of the render's.
+    let ref_seed = seed ^ 0x5eed_5eed_5eed_5eed;
+    let content = format!("{scene:?}{:?}", scene.primitives()?);
+    let key = format!(
+        "ref-{:016x}-{}x{}-k{k}-s{seed}.exr",
+        fnv1a(content.as_bytes()),
+        size.0,
+        size.1
+    );
+    let path = cache_dir().join(key);
+    if let Ok(img) = io::read_rgb(&path) {
+        if (img.width, img.height) == size {
+            if !cli.quiet {
+                eprintln!("reference: {} (cached)", path.display());
+            }
+            return Ok(img);
+        }
+    }
+    let renderer = mcdenoise::render::Renderer::new(ctx, scene, size.0, size.1, ref_seed)?;
+    let stop = stop_flag();
+    let step = 16u32;
+    let passes = k.div_ceil(step);
+    let bar = pass_bar(cli, &format!("reference, {k} spp"));
+    if let Some(b) = &bar {
+        b.set_length(passes as u64);
+    }
+    let t0 = std::time::Instant::now();
+    for p in 0..passes {
+        if stop.load(std::sync::atomic::Ordering::SeqCst) {
+            return Err(mcdenoise::Error::Interrupted.into());
+        }
+        let spp = step.min(k - p * step);
+        let mut batch = mcdenoise::Batch::new(ctx)?;
+        renderer.record_pass(
+            &mut batch,
+            mcdenoise::render::Samples::Uniform(spp),
+            spp as f64,
+        )?;
+        batch.finish()?;
+        if let Some(b) = &bar {
+            b.set_position(p as u64 + 1);
+        }
+    }
+    if let Some(b) = bar {
+        b.finish_and_clear();
+    }
+    let img = colour_of(&renderer.statistics()?);
+    std::fs::create_dir_all(cache_dir()).ok();
+    if let Err(e) = io::write_rgb(&path, &img) {
+        log::warn!("could not cache the reference: {e}");
+    } else if !cli.quiet {
+        eprintln!(
+            "reference: {k} spp in {:.1} s, cached as {}",
+            t0.elapsed().as_secs_f64(),
+            path.display()
+        );
+    }
+    Ok(img)
+}
+
+/// `mcdenoise render`.
+fn render(cli: &Cli, args: &RenderArgs) -> anyhow::Result<bool> {
+    use mcdenoise::render::{adaptive, Renderer, Scene};
+    if args.list_scenes {
+        for name in Scene::builtin_names() {
+            let about = Scene::builtin_source(name)
+                .and_then(|s| s.lines().next())
+                .map(|l| l.trim_start_matches('#').trim().to_string())
+                .unwrap_or_default();
+            println!("{name:<14} {about}");
+        }
+        return Ok(true);
+    }
+    let (Some(name), Some(output)) = (&args.scene, &args.output) else {
+        bail!("--scene and -o are required");
+    };
+    let scene_file = Path::new(name);
+    for path in [Some(output), args.png.as_ref(), args.save_stats.as_ref()]
+        .into_iter()
+        .flatten()
+    {
+        if scene_file.exists() && same_file(path, scene_file) {
+            bail!("{}: refusing to overwrite an input file", path.display());
+        }
+    }
+    let method = args.method.get();
+    if args.adaptive && args.spp < mcdenoise::schedule::INITIAL_SPP {
+        bail!(
+            "--adaptive needs --spp of at least {} (the uniform first pass)",
+            mcdenoise::schedule::INITIAL_SPP
+        );
+    }
+    if args.spp == 0 {
+        bail!("--spp must be at least 1");
+    }
+    let scene = Scene::by_name_or_file(name)?;
+    let ctx = context(cli)?;
+    let (w, h) = args.size;
+    let renderer = Renderer::new(&ctx, &scene, w, h, args.seed)?;
+    let cfg = adaptive::LoopConfig {
+        spp: args.spp,
+        adaptive: args.adaptive,
+        method,
+        prefilter: args.prefilter.get(),
+        precision: args.precision.get(),
+        options: Options::parse(&args.opts)?,
+    };
+    let stop = stop_flag();
+    let bar = pass_bar(
+        cli,
+        &format!(
+            "{name}, {} spp{}, {}",
+            args.spp,
+            if args.adaptive { " adaptive" } else { "" },
+            method.name()
+        ),
+    );
+    let t0 = std::time::Instant::now();
+    let result = adaptive::render(&ctx, &renderer, &cfg, &stop, |p| {
+        if let Some(b) = &bar {
+            b.set_length(p.total as u64);
+            b.set_position(p.done as u64);
+        }
+    });
+    if let Some(b) = bar {
+        b.finish_and_clear();
+    }
+    let result = result?;
+    let secs = t0.elapsed().as_secs_f64();
+    let frame = &result.frame;
+    io::write_output(
+        output,
+        &io::OutputImage {
+            color: frame.color.clone(),
+            error: (method != Method::None).then(|| frame.error.clone()),
+            samples: None,
+            debug: Vec::new(),
+        },
+    )?;
+    if let Some(p) = &args.png {
+        io::write_png_preview(p, &frame.color)?;
+    }
+    let stats = renderer.statistics()?;
+    if let Some(p) = &args.save_stats {
+        io::write_stats(p, &stats)?;
+    }
+    if !cli.quiet {
+        let s = &result.split;
+        let samples = args.spp as f64 * (w * h) as f64;
+        eprintln!(
+            "{name} {w}x{h}, {} spp{} ({} passes), {}: {secs:.1} s wall; GPU: render {:.0} ms ({:.0} ksamples/s), reconstruction {:.0} ms, sampling {:.0} ms",
+            args.spp,
+            if args.adaptive { " adaptive" } else { " uniform" },
+            1 + result.schedule.as_ref().map_or(0, |s| s.budgets.len()),
+            method.name(),
+            s.render_ms,
+            samples / s.render_ms.max(1e-9),
+            s.reconstruction_ms,
+            s.sampling_ms
+        );
+        eprintln!("-> {}", output.display());
+    }
+    if let Some(k) = args.reference {
+        let r = reference_image(cli, &ctx, &scene, (w, h), k, args.seed)?;
+        let mc = metrics::compare(&colour_of(&stats), &r)?;
+        let m = metrics::compare(&frame.color, &r)?;
+        println!(
+            "against a {k}-spp reference:   Monte Carlo mean   {}",
+            method.name()
+        );
+        println!("  rMSE            {:>18.5} {:>9.5}", mc.rmse, m.rmse);
+        println!("  relMSE          {:>18.5} {:>9.5}", mc.relmse, m.relmse);
+        println!("  PSNR (dB)       {:>18.2} {:>9.2}", mc.psnr, m.psnr);
+        println!("  SSIM            {:>18.4} {:>9.4}", mc.ssim, m.ssim);
+    }
+    Ok(true)
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     // Progress lines of the CPU references only on a terminal, as the GPU bar.
@@ -746,6 +1054,10 @@ fn main() -> ExitCode {
     match run(cli) {
         Ok(true) => ExitCode::SUCCESS,
         Ok(false) => ExitCode::from(1),
+        Err(e) if matches!(e.downcast_ref(), Some(mcdenoise::Error::Interrupted)) => {
+            eprintln!("mcdenoise: interrupted; no output written");
+            ExitCode::from(130)
+        }
         Err(e) => {
             eprintln!("mcdenoise: error: {e:#}");
             ExitCode::from(2)

@@ -50,6 +50,7 @@ use crate::gpu::reflect::{read, write};
 use crate::gpu::{Batch, BufferSlice, GpuBuffer, GpuContext, KernelDecl, Precision};
 use crate::{AccumLayout, StatsImage};
 
+pub mod adaptive;
 pub mod gpu_scene;
 pub mod scene;
 

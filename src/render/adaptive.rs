@@ -1,0 +1,163 @@
+//! The adaptive loop of the papers (spec §9.3) on the built-in renderer,
+//! through the public facade only: pass 0 renders `s_0` uniform samples per
+//! pixel; each adaptive pass reconstructs (intermediate windows), turns the
+//! error into a sample map for its budget and renders that many samples where
+//! the map says; the final pass reconstructs with the final windows. The
+//! statistics, error maps and sample maps stay on the GPU between passes
+//! (one submission sequence per pass, so a stop request is honoured between
+//! passes); only the final image comes back.
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+
+use super::{Renderer, Samples};
+use crate::{
+    Batch, Config, Denoiser, Error, Frame, GpuContext, KernelTiming, Method, Options, Pass,
+    Precision, Prefilter, Result, Schedule, Source,
+};
+
+/// What to render and how.
+#[derive(Clone, Debug)]
+pub struct LoopConfig {
+    /// Average samples per pixel of the whole render (≥ 4 when adaptive).
+    pub spp: u32,
+    /// Adaptive passes (§9.3) or `spp` uniform samples in one pass.
+    pub adaptive: bool,
+    /// Reconstruction of the final image (and, when adaptive, of the
+    /// intermediate passes). `none`: the plain Monte Carlo mean (adaptive
+    /// `none` samples where the input variance is).
+    pub method: Method,
+    /// The G-buffer prefilter (§6).
+    pub prefilter: Prefilter,
+    /// Kernel arithmetic.
+    pub precision: Precision,
+    /// Method options.
+    pub options: Options,
+}
+
+/// GPU time of a render, split by what it was spent on (timestamp queries).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TimeSplit {
+    /// Path tracing (`render_trace`).
+    pub render_ms: f64,
+    /// Finalisation, sanitation, prefilter and the method, every pass.
+    pub reconstruction_ms: f64,
+    /// The sample maps (`sample_*` and MAP-SMOOTH).
+    pub sampling_ms: f64,
+}
+
+/// The result of [`render`].
+#[derive(Debug)]
+pub struct LoopResult {
+    /// The final reconstruction (colour, error, …).
+    pub frame: Frame,
+    /// The adaptive schedule, when adaptive.
+    pub schedule: Option<Schedule>,
+    /// GPU time by purpose.
+    pub split: TimeSplit,
+    /// Every dispatch's GPU time.
+    pub timings: Vec<KernelTiming>,
+}
+
+/// Where a pass stands, for progress displays.
+#[derive(Copy, Clone, Debug)]
+pub struct PassProgress {
+    /// Passes completed.
+    pub done: usize,
+    /// Passes in the render (rendering passes plus the final reconstruction).
+    pub total: usize,
+}
+
+fn add_split(split: &mut TimeSplit, timings: &[KernelTiming]) {
+    let mut sampling = false;
+    for t in timings {
+        let ms = t.nanoseconds / 1e6;
+        if t.kernel.starts_with("render_") {
+            split.render_ms += ms;
+        } else if t.kernel.starts_with("sample_") {
+            sampling = true;
+            split.sampling_ms += ms;
+        } else if sampling {
+            // MAP-SMOOTH (gauss_smooth) runs between sample_priority and the
+            // allocation.
+            split.sampling_ms += ms;
+        } else {
+            split.reconstruction_ms += ms;
+        }
+    }
+}
+
+/// Renders `renderer`'s scene as `cfg` says, into its (cleared)
+/// accumulation buffer. `stop` is checked between passes: when set, the
+/// render ends with [`Error::Interrupted`]. `progress` is called after each
+/// pass.
+pub fn render(
+    ctx: &Arc<GpuContext>,
+    renderer: &Renderer,
+    cfg: &LoopConfig,
+    stop: &AtomicBool,
+    mut progress: impl FnMut(PassProgress),
+) -> Result<LoopResult> {
+    let layout = renderer.layout();
+    let pixels = layout.pixels();
+    let config = |pass: Pass| {
+        let mut c = Config::new(cfg.method);
+        c.pass = pass;
+        c.prefilter = cfg.prefilter;
+        c.precision = cfg.precision;
+        c.options = cfg.options.clone();
+        c
+    };
+    let schedule = if cfg.adaptive {
+        Some(Schedule::for_method(cfg.method, cfg.spp, pixels)?)
+    } else {
+        None
+    };
+    let total = 2 + schedule.as_ref().map_or(0, |s| s.budgets.len());
+    let mut timings = Vec::new();
+    let mut split = TimeSplit::default();
+    let mut run = |record: &mut dyn FnMut(&mut Batch) -> Result<()>| -> Result<()> {
+        if stop.load(Ordering::SeqCst) {
+            return Err(Error::Interrupted);
+        }
+        let mut batch = Batch::new(ctx)?;
+        record(&mut batch)?;
+        let t = batch.finish()?;
+        add_split(&mut split, &t);
+        timings.extend(t);
+        Ok(())
+    };
+    let mut done = 0;
+    // Pass 0: uniform.
+    let first = schedule.as_ref().map_or(cfg.spp, |s| s.initial_spp);
+    run(&mut |b| {
+        renderer.record_clear(b);
+        renderer.record_pass(b, Samples::Uniform(first), first as f64)
+    })?;
+    done += 1;
+    progress(PassProgress { done, total });
+    if let Some(s) = &schedule {
+        let intermediate = Denoiser::new(ctx, Source::Accum(layout), config(Pass::Intermediate))?;
+        let map = intermediate
+            .outputs()?
+            .samples
+            .ok_or_else(|| Error::Limit("this device cannot compute sample maps".into()))?;
+        for &budget in &s.budgets {
+            run(&mut |b| {
+                intermediate.record(b, Some(renderer.accum()), Some(budget))?;
+                renderer.record_pass(b, Samples::Map(map), budget as f64 / pixels as f64)
+            })?;
+            done += 1;
+            progress(PassProgress { done, total });
+        }
+    }
+    let last = Denoiser::new(ctx, Source::Accum(layout), config(Pass::Final))?;
+    run(&mut |b| last.record(b, Some(renderer.accum()), None))?;
+    progress(PassProgress { done: total, total });
+    Ok(LoopResult {
+        frame: last.read()?,
+        schedule,
+        split,
+        timings,
+    })
+}
