@@ -860,7 +860,7 @@ fn reference_image(
     size: (usize, usize),
     k: u32,
     seed: u64,
-) -> anyhow::Result<mcdenoise::RgbImage> {
+) -> anyhow::Result<(mcdenoise::RgbImage, PathBuf)> {
     // The reference uses its own random numbers, independent of the render's.
     let ref_seed = seed ^ 0x5eed_5eed_5eed_5eed;
     let content = format!("{scene:?}{:?}", scene.primitives()?);
@@ -876,7 +876,7 @@ fn reference_image(
             if !cli.quiet {
                 eprintln!("reference: {} (cached)", path.display());
             }
-            return Ok(img);
+            return Ok((img, path));
         }
     }
     let renderer = mcdenoise::render::Renderer::new(ctx, scene, size.0, size.1, ref_seed)?;
@@ -918,7 +918,7 @@ fn reference_image(
             path.display()
         );
     }
-    Ok(img)
+    Ok((img, path))
 }
 
 /// `mcdenoise render`.
@@ -1024,11 +1024,12 @@ fn render(cli: &Cli, args: &RenderArgs) -> anyhow::Result<bool> {
         eprintln!("-> {}", output.display());
     }
     if let Some(k) = args.reference {
-        let r = reference_image(cli, &ctx, &scene, (w, h), k, args.seed)?;
+        let (r, path) = reference_image(cli, &ctx, &scene, (w, h), k, args.seed)?;
         let mc = metrics::compare(&colour_of(&stats), &r)?;
         let m = metrics::compare(&frame.color, &r)?;
+        println!("reference: {} ({k} spp)", path.display());
         println!(
-            "against a {k}-spp reference:   Monte Carlo mean   {}",
+            "against the reference:         Monte Carlo mean   {}",
             method.name()
         );
         println!("  rMSE            {:>18.5} {:>9.5}", mc.rmse, m.rmse);
