@@ -73,14 +73,14 @@ float value_noise(vec3 p)
 vec3 albedo_at(uint m, vec3 p)
 {
     vec4 m0 = mats[4u * m];
-    uint kind = floatBitsToUint(m0.x);
+    uint tex = floatBitsToUint(m0.x) >> 8u;
     vec3 a = mats[4u * m + 1u].xyz;
     vec3 b = mats[4u * m + 2u].xyz;
-    if (kind == MAT_CHECKER) {
+    if (tex == TEX_CHECKER) {
         ivec3 c = ivec3(floor(p * m0.y + 1e-4));
         return ((c.x + c.y + c.z) & 1) == 0 ? a : b;
     }
-    if (kind == MAT_NOISE) {
+    if (tex == TEX_NOISE) {
         vec3 q = p * m0.y;
         float n = 0.5333 * value_noise(q) + 0.2667 * value_noise(2.03 * q) + 0.2 * value_noise(4.01 * q);
         return mix(a, b, n);
@@ -88,13 +88,117 @@ vec3 albedo_at(uint m, vec3 p)
     return a;
 }
 
+// ---------------------------------------------------------------- BSDFs
+// GGX (Trowbridge-Reitz) microfacets with separable Smith masking; visible
+// normals sampled after Heitz 2018. Vectors in world space; n faces wo.
+void frame(vec3 n, out vec3 t, out vec3 b)
+{
+    t = normalize(abs(n.x) > 0.5 ? cross(n, vec3(0, 1, 0)) : cross(n, vec3(1, 0, 0)));
+    b = cross(n, t);
+}
+
+float ggx_d(float cos_h, float a)
+{
+    float a2 = a * a;
+    float k = cos_h * cos_h * (a2 - 1.0) + 1.0;
+    return a2 / (PI * k * k);
+}
+
+float ggx_g1(float cos_w, float a)
+{
+    float c2 = max(cos_w * cos_w, 1e-8);
+    float tan2 = max(1.0 - c2, 0.0) / c2;
+    return 2.0 / (1.0 + sqrt(1.0 + a * a * tan2));
+}
+
+// A visible normal for direction wo (cos_o > 0).
+vec3 ggx_sample_h(vec3 n, vec3 wo, float a, vec2 u)
+{
+    vec3 t, b;
+    frame(n, t, b);
+    vec3 wl = vec3(dot(wo, t), dot(wo, b), dot(wo, n));
+    vec3 vh = normalize(vec3(a * wl.x, a * wl.y, wl.z));
+    float len2 = vh.x * vh.x + vh.y * vh.y;
+    vec3 t1 = len2 > 0.0 ? vec3(-vh.y, vh.x, 0.0) * inversesqrt(len2) : vec3(1.0, 0.0, 0.0);
+    vec3 t2 = cross(vh, t1);
+    float r = sqrt(u.x);
+    float phi = 2.0 * PI * u.y;
+    float p1 = r * cos(phi);
+    float p2 = r * sin(phi);
+    float s = 0.5 * (1.0 + vh.z);
+    p2 = (1.0 - s) * sqrt(max(0.0, 1.0 - p1 * p1)) + s * p2;
+    vec3 nh = p1 * t1 + p2 * t2 + sqrt(max(0.0, 1.0 - p1 * p1 - p2 * p2)) * vh;
+    vec3 hl = normalize(vec3(a * nh.x, a * nh.y, max(1e-6, nh.z)));
+    return hl.x * t + hl.y * b + hl.z * n;
+}
+
+vec3 schlick(vec3 f0, float c)
+{
+    float m = clamp(1.0 - c, 0.0, 1.0);
+    float m2 = m * m;
+    return f0 + (1.0 - f0) * (m2 * m2 * m);
+}
+
+// Unpolarised Fresnel reflectance at a dielectric interface; eta = η_t/η_i.
+float fresnel_dielectric(float cos_i, float eta)
+{
+    cos_i = clamp(cos_i, 0.0, 1.0);
+    float sin_t2 = (1.0 - cos_i * cos_i) / (eta * eta);
+    if (sin_t2 >= 1.0) {
+        return 1.0;
+    }
+    float cos_t = sqrt(1.0 - sin_t2);
+    float rs = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+    float rp = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+    return 0.5 * (rs * rs + rp * rp);
+}
+
+// Probability of sampling the specular lobe of plastic.
+float plastic_spec_prob(float cos_o, float ior, vec3 alb)
+{
+    float f = fresnel_dielectric(cos_o, ior);
+    float d = (1.0 - f) * max(alb.r, max(alb.g, alb.b));
+    return clamp(f / max(f + d, 1e-6), 0.1, 0.9);
+}
+
+// BSDF × cos for a non-delta material, and the pdf of sampling wi.
+vec3 bsdf_eval(uint cls, vec3 alb, float a, float ior, vec3 n, vec3 wo, vec3 wi, out float pdf)
+{
+    float ci = dot(n, wi);
+    float co = dot(n, wo);
+    pdf = 0.0;
+    if (ci <= 0.0 || co <= 0.0) {
+        return vec3(0.0);
+    }
+    if (cls == MAT_DIFFUSE) {
+        pdf = ci / PI;
+        return alb * (ci / PI);
+    }
+    vec3 h = normalize(wo + wi);
+    float d = ggx_d(dot(n, h), a);
+    float g1o = ggx_g1(co, a);
+    float spec_pdf = d * g1o / (4.0 * co);
+    float g = g1o * ggx_g1(ci, a);
+    float spec = d * g / (4.0 * co);   // × cos_i already
+    if (cls == MAT_CONDUCTOR) {
+        pdf = spec_pdf;
+        return schlick(alb, dot(wo, h)) * spec;
+    }
+    // Plastic: a GGX dielectric coat over a diffuse base.
+    float f = fresnel_dielectric(dot(wo, h), ior);
+    float ps = plastic_spec_prob(co, ior, alb);
+    pdf = ps * spec_pdf + (1.0 - ps) * ci / PI;
+    vec3 base = alb * ((1.0 - fresnel_dielectric(co, ior)) * (1.0 - fresnel_dielectric(ci, ior)) * ci / PI);
+    return vec3(f * spec) + base;
+}
+
 // ---------------------------------------------------------------- sampling
 vec3 cosine_hemisphere(vec3 n, vec2 u)
 {
     float r = sqrt(u.x);
     float phi = 2.0 * PI * u.y;
-    vec3 t = normalize(abs(n.x) > 0.5 ? cross(n, vec3(0, 1, 0)) : cross(n, vec3(1, 0, 0)));
-    vec3 b = cross(n, t);
+    vec3 t, b;
+    frame(n, t, b);
     return normalize(r * cos(phi) * t + r * sin(phi) * b + sqrt(max(0.0, 1.0 - u.x)) * n);
 }
 
@@ -204,7 +308,7 @@ void trace_sample(uvec4 key, uvec2 pix, out vec3 color, out vec3 albedo, out vec
         bool front = dot(ng, d) < 0.0;
         vec3 n = front ? ng : -ng;
         uint m = prim_material(prim);
-        uint mkind = floatBitsToUint(mats[4u * m].x);
+        uint mkind = floatBitsToUint(mats[4u * m].x) & 255u;
         vec3 p_ref = p - time * prims[4u * prim + 3u].xyz;
 
         if (mkind == MAT_EMISSIVE) {
@@ -231,6 +335,13 @@ void trace_sample(uvec4 key, uvec2 pix, out vec3 color, out vec3 albedo, out vec
         }
 
         vec3 alb = albedo_at(m, p_ref);
+        vec4 m0 = mats[4u * m];
+        uint cls = floatBitsToUint(m0.x) & 255u;
+        float alpha = m0.z;
+        float ior = m0.w;
+        // Delta lobes (mirror, smooth or rough glass) get no next-event
+        // estimation; dielectrics are sampled by their BSDF only.
+        bool delta = cls == MAT_DIELECTRIC || (cls == MAT_CONDUCTOR && alpha < 1e-3);
         if (depth_i == 0u) {
             albedo = alb;
             normal = n;
@@ -244,8 +355,9 @@ void trace_sample(uvec4 key, uvec2 pix, out vec3 color, out vec3 albedo, out vec
         vec3 po = offset_origin(p, n);
         uint dim = DIM_VERTEX + 4u * depth_i;
 
+        vec3 wo = -d;
         // Next-event estimation.
-        if (P.counts.w > 0u) {
+        if (P.counts.w > 0u && !delta) {
             vec3 lp, ln;
             uint lprim;
             float pdf_area = sample_light(rand2(key, dim), rand2(key, dim + 1u), time, lp, ln, lprim);
@@ -263,9 +375,10 @@ void trace_sample(uvec4 key, uvec2 pix, out vec3 color, out vec3 albedo, out vec
                     uint lm = prim_material(lprim);
                     vec3 le = mats[4u * lm + 3u].xyz;
                     float pdf_light = pdf_area * dist2 / cos_l;
-                    float pdf_bsdf = cos_s / PI;
+                    float pdf_bsdf;
+                    vec3 fc = bsdf_eval(cls, alb, alpha, ior, n, wo, wi, pdf_bsdf);
                     float w = power_heuristic(pdf_light, pdf_bsdf);
-                    color += beta * (alb / PI) * cos_s * le * (w / pdf_light);
+                    color += beta * fc * le * (w / pdf_light);
                 }
             }
             if (depth_i == 0u) {
@@ -273,16 +386,60 @@ void trace_sample(uvec4 key, uvec2 pix, out vec3 color, out vec3 albedo, out vec
             }
         }
 
-        // BSDF sampling (cosine: the weight albedo·cos/π / (cos/π) is the albedo).
-        vec3 wi = cosine_hemisphere(n, rand2(key, dim + 2u));
+        // BSDF sampling.
+        vec2 u = rand2(key, dim + 2u);
+        vec2 u_rr = rand2(key, dim + 3u);   // .x roulette, .y lobe choice
+        vec3 wi;
+        vec3 weight;
+        float pdf = 0.0;
+        if (cls == MAT_DIELECTRIC) {
+            // eta = η_t/η_i across the surface in the direction of travel.
+            float eta = front ? ior : 1.0 / ior;
+            float co = dot(n, wo);
+            vec3 tint = mats[4u * m + 1u].xyz;
+            if (abs(ior - 1.0) < 1e-4) {
+                wi = d;   // index-matched: the surface is invisible
+                weight = tint;
+            } else {
+                vec3 h = alpha < 1e-3 ? n : ggx_sample_h(n, wo, alpha, u);
+                float f = fresnel_dielectric(dot(wo, h), eta);
+                if (u_rr.y < f) {
+                    wi = reflect(-wo, h);
+                    weight = vec3(1.0);
+                } else {
+                    wi = refract(-wo, h, 1.0 / eta);
+                    weight = tint;
+                }
+                if (alpha >= 1e-3) {
+                    weight *= ggx_g1(abs(dot(n, wi)), alpha);
+                }
+                // A reflection must leave on wo's side, a refraction on the other.
+                bool reflected = u_rr.y < f;
+                if (dot(wi, wi) == 0.0 || (dot(n, wi) > 0.0) != reflected || co <= 0.0) {
+                    break;
+                }
+            }
+        } else if (cls == MAT_CONDUCTOR && alpha < 1e-3) {
+            wi = reflect(-wo, n);
+            weight = schlick(alb, dot(n, wo));
+        } else if (cls == MAT_DIFFUSE) {
+            wi = cosine_hemisphere(n, u);
+            weight = alb;
+            pdf = max(dot(n, wi), 0.0) / PI;
+        } else {
+            bool spec = cls == MAT_CONDUCTOR || u_rr.y < plastic_spec_prob(dot(n, wo), ior, alb);
+            wi = spec ? reflect(-wo, ggx_sample_h(n, wo, alpha, u)) : cosine_hemisphere(n, u);
+            vec3 fc = bsdf_eval(cls, alb, alpha, ior, n, wo, wi, pdf);
+            weight = pdf > 0.0 ? fc / pdf : vec3(0.0);
+        }
         float cos_s = dot(n, wi);
-        if (cos_s <= 0.0) {
+        if ((!delta && (cos_s <= 0.0 || pdf <= 0.0)) || all(equal(weight, vec3(0.0)))) {
             break;
         }
-        prev_bsdf_pdf = cos_s / PI;
-        beta *= alb;
-        o = po;
-        d = wi;
+        prev_bsdf_pdf = delta ? 0.0 : pdf;
+        beta *= weight;
+        o = offset_origin(p, cos_s > 0.0 ? n : -n);
+        d = normalize(wi);
 
         if (depth_i >= 2u) {
             float q = min(max(beta.r, max(beta.g, beta.b)), 1.0);

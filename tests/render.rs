@@ -236,6 +236,107 @@ fn white_furnace_diffuse() {
     check_validation(&ctx);
 }
 
+/// Mean colour of a unit sphere of `material` in a uniform environment of
+/// radiance 1 (all pixels), its standard error, and the largest deviation.
+fn furnace(material: Material, spp: u32) -> (f64, f64, f64) {
+    let s = scene(
+        camera([0.0, 0.0, 4.0], [0.0; 3], 35.0),
+        [1.0; 3],
+        vec![("m", material)],
+        vec![sphere([0.0; 3], 1.0, "m", None)],
+    );
+    let r = render(&s, 16, 16, spp, 13);
+    let st = r.statistics().unwrap();
+    let c = &st.get(Layer::Color).unwrap()[1];
+    let (m, se) = mean_se(c);
+    let worst = c
+        .iter()
+        .map(|&v| (v as f64 - 1.0).abs())
+        .fold(0.0, f64::max);
+    (m, se, worst)
+}
+
+/// Lossless glossy materials in the furnace: a mirror of F0 = 1, glass of
+/// index 1 (smooth and rough: invisible) and smooth glass of index 1.5
+/// (reflection and refraction, no absorption) all render 1. A rough F0 = 1
+/// conductor loses only the energy of multiple microfacet scattering (a
+/// few percent, never more than 1), and plastic never gains energy.
+#[test]
+fn white_furnace_glossy() {
+    let ctx = gpu();
+    let exact = [
+        (
+            "mirror",
+            Material::Conductor {
+                color: [1.0; 3],
+                roughness: 0.0,
+            },
+        ),
+        (
+            "glass index 1",
+            Material::Dielectric {
+                ior: 1.0,
+                roughness: 0.0,
+                tint: [1.0; 3],
+            },
+        ),
+        (
+            "rough glass index 1",
+            Material::Dielectric {
+                ior: 1.0,
+                roughness: 0.6,
+                tint: [1.0; 3],
+            },
+        ),
+    ];
+    for (name, m) in exact {
+        let (mean, se, worst) = furnace(m, 4);
+        eprintln!("{name}: {mean} ± {se}, worst pixel {worst}");
+        assert!(worst < 1e-3, "{name}: a pixel is {worst} away from 1");
+    }
+    let (mean, se, _) = furnace(
+        Material::Dielectric {
+            ior: 1.5,
+            roughness: 0.0,
+            tint: [1.0; 3],
+        },
+        16,
+    );
+    eprintln!("glass 1.5: {mean} ± {se}");
+    assert!(
+        (mean - 1.0).abs() <= 4.0 * se + 2e-3,
+        "glass 1.5: {mean} ± {se}"
+    );
+    let (mean, se, _) = furnace(
+        // GGX width 0.09: single scattering keeps ~99 % at normal incidence
+        // (the heavy GGX tail reflects the rest below the horizon).
+        Material::Conductor {
+            color: [1.0; 3],
+            roughness: 0.3,
+        },
+        16,
+    );
+    eprintln!("rough conductor F0=1: {mean} ± {se}");
+    assert!(
+        mean <= 1.0 + 4.0 * se && mean > 0.97,
+        "rough conductor: {mean} ± {se}"
+    );
+    let (mean, se, _) = furnace(
+        Material::Plastic {
+            albedo: Albedo::Constant([1.0; 3]),
+            roughness: 0.3,
+            ior: 1.5,
+        },
+        16,
+    );
+    eprintln!("plastic albedo 1: {mean} ± {se}");
+    assert!(
+        mean <= 1.0 + 4.0 * se && mean > 0.8,
+        "plastic: {mean} ± {se}"
+    );
+    check_validation(&ctx);
+}
+
 /// A diffuse plane of albedo a under a uniform sky of radiance L, seen from
 /// above, has radiance a·L; and under a small spherical lamp of radiance Le
 /// and radius r at height h (no sky) radiance a·Le·r²·h / (h² + x²)^{3/2}
@@ -310,6 +411,109 @@ fn diffuse_plane_closed_forms() {
         z < 2.0,
         "colour departs from the closed form: mean z² = {z}"
     );
+    check_validation(&ctx);
+}
+
+/// Next-event estimation with MIS and BSDF sampling alone estimate the
+/// same image: a lamp as an emissive quad (sampled by both, MIS-weighted)
+/// against the same lamp as two emissive triangles (BSDF hits only), over
+/// diffuse, rough conductor and plastic surfaces.
+#[test]
+fn mis_agrees_with_bsdf_sampling_alone() {
+    let ctx = gpu();
+    let (c, u, v) = ([-0.6f32, 2.0, -0.6], [1.2f32, 0.0, 0.0], [0.0f32, 0.0, 1.2]);
+    let lamp_quad = Object::Quad {
+        corner: c,
+        u,
+        v,
+        material: "lamp".into(),
+        motion: None,
+    };
+    let p = |a: [f32; 3], b: [f32; 3]| [c[0] + a[0] + b[0], c[1] + a[1] + b[1], c[2] + a[2] + b[2]];
+    let lamp_tris = Object::Mesh {
+        file: None,
+        vertices: vec![c, p(u, [0.0; 3]), p(u, v), p(v, [0.0; 3])],
+        indices: vec![[0, 1, 2], [0, 2, 3]],
+        scale: 1.0,
+        translate: [0.0; 3],
+        material: "lamp".into(),
+        motion: None,
+    };
+    let build = |lamp: Object| {
+        scene(
+            camera([0.0, 1.2, 3.0], [0.0, 0.3, 0.0], 40.0),
+            [0.0; 3],
+            vec![
+                ("lamp", Material::Emissive { radiance: [4.0; 3] }),
+                (
+                    "metal",
+                    Material::Conductor {
+                        color: [0.9, 0.6, 0.3],
+                        roughness: 0.5,
+                    },
+                ),
+                (
+                    "plastic",
+                    Material::Plastic {
+                        albedo: Albedo::Constant([0.2, 0.5, 0.8]),
+                        roughness: 0.4,
+                        ior: 1.5,
+                    },
+                ),
+                ("white", diffuse([0.7; 3])),
+            ],
+            vec![
+                Object::Quad {
+                    corner: [-3.0, 0.0, -3.0],
+                    u: [0.0, 0.0, 6.0],
+                    v: [6.0, 0.0, 0.0],
+                    material: "metal".into(),
+                    motion: None,
+                },
+                sphere([-0.5, 0.4, 0.0], 0.4, "plastic", None),
+                sphere([0.5, 0.4, 0.2], 0.4, "white", None),
+                lamp,
+            ],
+        )
+    };
+    let (w, h) = (12, 12);
+    let a = render(&build(lamp_quad), w, h, 64, 21)
+        .statistics()
+        .unwrap();
+    let b = render(&build(lamp_tris), w, h, 256, 22)
+        .statistics()
+        .unwrap();
+    let (ca, va) = (
+        a.get(Layer::Color).unwrap(),
+        a.get(Layer::ColorVariance).unwrap(),
+    );
+    let (cb, vb) = (
+        b.get(Layer::Color).unwrap(),
+        b.get(Layer::ColorVariance).unwrap(),
+    );
+    let mut z2 = Vec::new();
+    for k in 0..3 {
+        let (ma, mb) = (mean_se(&ca[k]).0, mean_se(&cb[k]).0);
+        let se = |v: &[f32]| (v.iter().map(|&x| x as f64).sum::<f64>()).sqrt() / v.len() as f64;
+        let s = (se(&va[k]).powi(2) + se(&vb[k]).powi(2)).sqrt();
+        eprintln!("channel {k}: MIS {ma:.4}, BSDF only {mb:.4} (± {s:.4})");
+        assert!(
+            (ma - mb).abs() <= 4.0 * s + 1e-4,
+            "channel {k}: {ma} vs {mb} ± {s}"
+        );
+        for p in 0..w * h {
+            let var = (va[k][p] + vb[k][p]) as f64;
+            if var > 0.0 {
+                z2.push((ca[k][p] as f64 - cb[k][p] as f64).powi(2) / var);
+            }
+        }
+    }
+    // Per pixel, the BSDF-only estimate is heavy-tailed (its variance
+    // estimate too): compare the median z², 0.45 for a χ²₁ variable.
+    z2.sort_by(f64::total_cmp);
+    let median = z2[z2.len() / 2];
+    eprintln!("per pixel: median z² = {median:.3} over {}", z2.len());
+    assert!(z2.len() > 300 && median < 0.9, "median z² {median}");
     check_validation(&ctx);
 }
 

@@ -136,6 +136,40 @@ pub enum Material {
         /// Reflectance.
         albedo: Albedo,
     },
+    /// A rough metal: GGX microfacets with Schlick's Fresnel from the
+    /// reflectance at normal incidence `color` (single scattering: a rough
+    /// surface loses some energy to multiple bounces between microfacets).
+    Conductor {
+        /// Reflectance at normal incidence (F0), linear RGB.
+        color: Vec3,
+        /// Perceptual roughness in `[0, 1]`; the GGX width is its square.
+        /// 0 is a perfect mirror.
+        #[serde(default)]
+        roughness: f32,
+    },
+    /// A diffuse base under a clear GGX coat of index `ior`.
+    Plastic {
+        /// Reflectance of the base.
+        albedo: Albedo,
+        /// Perceptual roughness of the coat in `[0.05, 1]` (smaller values
+        /// are clamped to 0.05).
+        roughness: f32,
+        /// Index of refraction of the coat (default 1.5).
+        #[serde(default = "default_ior")]
+        ior: f32,
+    },
+    /// Glass: smooth (roughness 0) or rough (GGX) reflection and
+    /// refraction at index `ior` (outside: 1), tinted on transmission.
+    Dielectric {
+        /// Index of refraction inside (the side the normal points away from).
+        ior: f32,
+        /// Perceptual roughness in `[0, 1]`.
+        #[serde(default)]
+        roughness: f32,
+        /// Transmission colour per refraction (default white).
+        #[serde(default = "white")]
+        tint: Vec3,
+    },
     /// A light: emits `radiance` (on the front side of quads, outward on
     /// spheres) and reflects nothing. Next-event estimation samples emissive
     /// quads and spheres; emissive triangles are found by BSDF sampling only.
@@ -217,6 +251,14 @@ pub enum Object {
 
 fn one() -> f32 {
     1.0
+}
+
+fn default_ior() -> f32 {
+    1.5
+}
+
+fn white() -> Vec3 {
+    [1.0; 3]
 }
 
 /// A whole scene; see the module documentation for the file format.
@@ -409,6 +451,7 @@ const BUILTIN: &[(&str, &str)] = &[
         "soft_shadows",
         include_str!("../../scenes/soft_shadows.toml"),
     ),
+    ("glossy", include_str!("../../scenes/glossy.toml")),
     ("mix", include_str!("../../scenes/mix.toml")),
 ];
 
@@ -476,6 +519,17 @@ impl Scene {
         }
         if sub(c.look_at, c.position) == [0.0; 3] {
             return Err("camera.look_at equals camera.position".into());
+        }
+        for (name, m) in &self.materials {
+            let ior = match m {
+                Material::Plastic { ior, .. } | Material::Dielectric { ior, .. } => *ior,
+                _ => 1.0,
+            };
+            if !(ior > 0.0 && ior.is_finite()) {
+                return Err(format!(
+                    "material {name:?}: ior must be positive, not {ior}"
+                ));
+            }
         }
         for (i, o) in self.objects.iter().enumerate() {
             let m = match o {
