@@ -29,15 +29,21 @@ layout(push_constant) uniform Push {
 } push;
 
 layout(std430, set = 0, binding = 5) readonly buffer SppMap { uint spp_map[]; };
-layout(std430, set = 0, binding = 6) buffer Accum { float accum[]; };
-layout(std430, set = 0, binding = 7) buffer Debug { float dbg[]; };
+// The accumulation planes in four bindings of eight planes each (plane
+// 8g + k of group g at k * plane_stride), so that no binding exceeds
+// maxStorageBufferRange below 4 Mpixels.
+layout(std430, set = 0, binding = 6) buffer Accum0 { float acc0[]; };
+layout(std430, set = 0, binding = 7) buffer Accum1 { float acc1[]; };
+layout(std430, set = 0, binding = 8) buffer Accum2 { float acc2[]; };
+layout(std430, set = 0, binding = 9) buffer Accum3 { float acc3[]; };
+layout(std430, set = 0, binding = 10) buffer Debug { float dbg[]; };
 
 // Plane indices of the accumulation layout with position and visibility
 // (AccumLayout: channels colour 0-2, albedo 3-5, normal 6-8, depth 9,
 // position 10-12, visibility 13; Σx at 2c, Σx² at 2c+1; cross products
-// 28-30; count 31). src/render/mod.rs tests these against AccumLayout.
-#define PLANE_CROSS 28u
-#define PLANE_COUNT 31u
+// 28-30; count 31), written at the end of main(). src/render/mod.rs tests
+// these against AccumLayout.
+// (Planes 24-31 are group 3: visibility Σ²…count at k = 3…7.)
 
 // Random dimensions (pairs): camera 0-1, then 4 per path vertex.
 #define DIM_PIXEL 0u
@@ -467,7 +473,7 @@ void main()
         return;
     }
     uint stride = push.plane_stride;
-    uint first = uint(accum[PLANE_COUNT * stride + pixel]);
+    uint first = uint(acc3[7u * stride + pixel]);
 
     vec3 s_col = vec3(0.0), q_col = vec3(0.0);
     vec3 s_alb = vec3(0.0), q_alb = vec3(0.0);
@@ -500,18 +506,25 @@ void main()
         }
     }
 
-#define ADD(plane, v) accum[(plane) * stride + pixel] += (v)
-    ADD(0u, s_col.r);  ADD(1u, q_col.r);  ADD(2u, s_col.g);  ADD(3u, q_col.g);
-    ADD(4u, s_col.b);  ADD(5u, q_col.b);
-    ADD(6u, s_alb.r);  ADD(7u, q_alb.r);  ADD(8u, s_alb.g);  ADD(9u, q_alb.g);
-    ADD(10u, s_alb.b); ADD(11u, q_alb.b);
-    ADD(12u, s_nrm.x); ADD(13u, q_nrm.x); ADD(14u, s_nrm.y); ADD(15u, q_nrm.y);
-    ADD(16u, s_nrm.z); ADD(17u, q_nrm.z);
-    ADD(18u, s_dv.x);  ADD(19u, s_dv.y);
-    ADD(20u, s_pos.x); ADD(21u, q_pos.x); ADD(22u, s_pos.y); ADD(23u, q_pos.y);
-    ADD(24u, s_pos.z); ADD(25u, q_pos.z);
-    ADD(26u, s_dv.z);  ADD(27u, s_dv.w);
-    ADD(PLANE_CROSS, s_cross.x); ADD(PLANE_CROSS + 1u, s_cross.y); ADD(PLANE_CROSS + 2u, s_cross.z);
-    ADD(PLANE_COUNT, float(spp));
-#undef ADD
+    uint i0 = pixel;
+    uint i1 = stride + pixel;
+    uint i2 = 2u * stride + pixel;
+    uint i3 = 3u * stride + pixel;
+    uint i4 = 4u * stride + pixel;
+    uint i5 = 5u * stride + pixel;
+    uint i6 = 6u * stride + pixel;
+    uint i7 = 7u * stride + pixel;
+    // Planes 0-7: colour Σ, Σ² (R, G, B), albedo R.
+    acc0[i0] += s_col.r; acc0[i1] += q_col.r; acc0[i2] += s_col.g; acc0[i3] += q_col.g;
+    acc0[i4] += s_col.b; acc0[i5] += q_col.b; acc0[i6] += s_alb.r; acc0[i7] += q_alb.r;
+    // Planes 8-15: albedo G, B, normal X, Y.
+    acc1[i0] += s_alb.g; acc1[i1] += q_alb.g; acc1[i2] += s_alb.b; acc1[i3] += q_alb.b;
+    acc1[i4] += s_nrm.x; acc1[i5] += q_nrm.x; acc1[i6] += s_nrm.y; acc1[i7] += q_nrm.y;
+    // Planes 16-23: normal Z, depth, position X, Y.
+    acc2[i0] += s_nrm.z; acc2[i1] += q_nrm.z; acc2[i2] += s_dv.x;  acc2[i3] += s_dv.y;
+    acc2[i4] += s_pos.x; acc2[i5] += q_pos.x; acc2[i6] += s_pos.y; acc2[i7] += q_pos.y;
+    // Planes 24-31: position Z, visibility, cross products xy xz yz, count.
+    acc3[i0] += s_pos.z; acc3[i1] += q_pos.z; acc3[i2] += s_dv.z;  acc3[i3] += s_dv.w;
+    acc3[i4] += s_cross.x; acc3[i5] += s_cross.y; acc3[i6] += s_cross.z;
+    acc3[i7] += float(spp);
 }

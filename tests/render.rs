@@ -11,7 +11,7 @@ use mcdenoise::gpu::GpuBuffer;
 use mcdenoise::render::{
     Albedo, Camera, Material, Object, Ray, Renderer, Samples, Scene, Shape, Texture,
 };
-use mcdenoise::{Accumulator, Batch, Layer};
+use mcdenoise::{Accumulator, Batch, Config, Denoiser, Layer, Method, Source};
 
 fn camera(position: [f32; 3], look_at: [f32; 3], fov: f32) -> Camera {
     Camera {
@@ -687,4 +687,107 @@ fn primitives_of_shapes() {
         p.intersect([1.5, 0.5, 5.0], [0.0, 0.0, -1.0], 0.5, 0.0),
         None
     );
+}
+
+/// The renderer drives the denoiser through the facade, all in one batch:
+/// a uniform pass, a reconstruction with a sample budget, and a pass that
+/// takes the denoiser's sample map; the counts add up to the budget.
+#[test]
+fn renderer_and_denoiser_share_a_batch() {
+    let ctx = gpu();
+    if !ctx.supports_int64() {
+        eprintln!("skipped: no shaderInt64 (no sample map)");
+        return;
+    }
+    let s = Scene::builtin("cornell").unwrap();
+    let (w, h) = (24, 16);
+    let r = Renderer::new(&ctx, &s, w, h, 4).unwrap();
+    let d = Denoiser::new(&ctx, Source::Accum(r.layout()), Config::new(Method::None)).unwrap();
+    let budget = (2 * w * h) as u32;
+    let mut b = Batch::new(&ctx).unwrap();
+    r.record_clear(&mut b);
+    r.record_pass(&mut b, Samples::Uniform(4), 4.0).unwrap();
+    d.record(&mut b, Some(r.accum()), Some(budget)).unwrap();
+    let map = d.outputs().unwrap().samples.unwrap();
+    r.record_pass(&mut b, Samples::Map(map), 2.0).unwrap();
+    b.finish().unwrap();
+    let frame = d.read().unwrap();
+    let samples = frame.samples.unwrap();
+    assert_eq!(
+        samples.iter().map(|&n| n as u64).sum::<u64>(),
+        budget as u64
+    );
+    let counts = &r.download().unwrap()[r.layout().count_plane()];
+    for p in 0..w * h {
+        assert_eq!(counts[p], 4.0 + samples[p] as f32, "pixel {p}");
+    }
+    assert!(frame
+        .color
+        .planes
+        .iter()
+        .all(|c| c.iter().all(|v| v.is_finite())));
+    check_validation(&ctx);
+}
+
+/// Scene files: meshes from OBJ files next to the scene, errors that name
+/// the file and the problem.
+#[test]
+fn scene_files_load_obj_meshes_and_report_errors() {
+    let dir = std::env::temp_dir().join(format!("mcdenoise-scene-{}", std::process::id()));
+    std::fs::create_dir_all(dir.join("meshes")).unwrap();
+    // A quad face (triangulated by the loader) and a triangle.
+    std::fs::write(
+        dir.join("meshes/q.obj"),
+        "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nf 1 2 3 4\nf 1 2 5\n",
+    )
+    .unwrap();
+    let text = r#"
+[camera]
+position = [0, 0, 5]
+look_at = [0, 0, 0]
+fov = 30
+
+[materials.m]
+type = "diffuse"
+albedo = [0.5, 0.5, 0.5]
+
+[[objects]]
+type = "mesh"
+file = "meshes/q.obj"
+scale = 2.0
+translate = [1, 0, 0]
+material = "m"
+"#;
+    let path = dir.join("s.toml");
+    std::fs::write(&path, text).unwrap();
+    let s = Scene::load(&path).unwrap();
+    let prims = s.primitives().unwrap();
+    assert_eq!(prims.len(), 3);
+    assert!(prims
+        .iter()
+        .all(|p| matches!(p.shape, Shape::Triangle { .. })));
+    let Shape::Triangle { a, b, .. } = prims[0].shape else {
+        unreachable!()
+    };
+    assert_eq!((a, b), ([1.0, 0.0, 0.0], [3.0, 0.0, 0.0]));
+
+    let bad = text.replace("material = \"m\"", "material = \"nope\"");
+    std::fs::write(&path, bad).unwrap();
+    let e = Scene::load(&path).unwrap_err().to_string();
+    assert!(e.contains("s.toml") && e.contains("nope"), "{e}");
+    let bad = text.replace("fov = 30", "fov = 30\nzoom = 2");
+    std::fs::write(&path, bad).unwrap();
+    let e = Scene::load(&path).unwrap_err().to_string();
+    assert!(e.contains("zoom"), "{e}");
+    let bad = text.replace("meshes/q.obj", "meshes/missing.obj");
+    std::fs::write(&path, bad).unwrap();
+    let e = Scene::load(&path)
+        .unwrap()
+        .primitives()
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("missing.obj"), "{e}");
+    let e = Scene::builtin("nope").unwrap_err().to_string();
+    assert!(e.contains("cornell"), "{e}");
+    std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -115,7 +115,10 @@ pub const TRACE: KernelDecl = KernelDecl {
         SCENE_BINDINGS[3],
         SCENE_BINDINGS[4],
         read("spp_map"),
-        write("accum"),
+        write("accum0"),
+        write("accum1"),
+        write("accum2"),
+        write("accum3"),
         write("debug"),
     ],
     push_size: std::mem::size_of::<TracePush>() as u32,
@@ -135,6 +138,10 @@ pub const RAYS: KernelDecl = KernelDecl {
     ],
     push_size: std::mem::size_of::<RaysPush>() as u32,
 };
+
+/// Planes per accumulation binding of `render_trace` (four bindings of
+/// eight: no binding exceeds 128 MiB below 4 Mpixels).
+const ACCUM_GROUP: u64 = 8;
 
 /// Every kernel of the renderer (for the reflection test).
 pub const KERNELS: &[&KernelDecl] = &[&TRACE, &RAYS];
@@ -341,10 +348,29 @@ impl Renderer {
             ..Default::default()
         };
         let [a, b, c, d, e] = self.scene_bindings();
+        let group = |g: u64| {
+            let stride = l.plane_stride();
+            self.accum.range(
+                g * ACCUM_GROUP * stride,
+                (ACCUM_GROUP - 1) * stride + l.pixels() as u64 * 4,
+            )
+        };
         batch.dispatch(
             &TRACE,
             Precision::F32,
-            &[a, b, c, d, e, map, self.accum.slice(), dbg],
+            &[
+                a,
+                b,
+                c,
+                d,
+                e,
+                map,
+                group(0),
+                group(1),
+                group(2),
+                group(3),
+                dbg,
+            ],
             bytemuck::bytes_of(&push),
             push.width,
             push.height,
@@ -461,6 +487,7 @@ mod tests {
         assert_eq!(l.cross_plane(0), Some(28));
         assert_eq!(l.count_plane(), 31);
         assert_eq!(l.plane_count(), 32);
+        assert_eq!(l.plane_count() as u64, 4 * ACCUM_GROUP);
     }
 
     #[test]
