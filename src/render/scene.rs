@@ -46,7 +46,10 @@
 //! material = "lamp"
 //! ```
 //!
-//! Further object types: `box` (`min`, `max`, optional `rotate_y` in
+//! Further material types: `conductor` (`color` = reflectance at normal
+//! incidence, `roughness`), `plastic` (`albedo` as for diffuse, `roughness`,
+//! `ior` = 1.5) and `dielectric` (`ior`, `roughness` = 0, `tint` = white);
+//! roughness is perceptual (GGX width = roughness²). Further object types: `box` (`min`, `max`, optional `rotate_y` in
 //! degrees about its centre: six quads) and `mesh` (`file = "x.obj"`,
 //! relative to the scene file, or inline `vertices = [[x, y, z], …]` and
 //! `indices = [[i, j, k], …]`; optional `scale` and `translate`). Textures
