@@ -791,3 +791,66 @@ material = "m"
     assert!(e.contains("cornell"), "{e}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// Motion blur: a moving sphere smears across the image, while every
+/// sample's position feature lies on the sphere at shutter time 0 (the hit
+/// mapped back to the reference time) and its normal is the sphere's there.
+/// An empty scene renders its environment.
+#[test]
+fn moving_objects_report_reference_time_positions() {
+    let ctx = gpu();
+    let (c, rad, motion) = ([0.0f32, 0.0, 0.0], 0.5f32, [1.5f32, 0.0, 0.0]);
+    let s = scene(
+        camera([0.75, 0.0, 4.0], [0.75, 0.0, 0.0], 20.0),
+        [0.3; 3],
+        vec![("m", diffuse([0.6; 3]))],
+        vec![sphere(c, rad, "m", Some(motion))],
+    );
+    let r = Renderer::new(&ctx, &s, 16, 8, 1).unwrap();
+    let spp = 8;
+    let samples = r.record_pass_debug(spp).unwrap();
+    let mut hits = 0;
+    let mut hit_x = Vec::new();
+    for k in 0..16 * 8 * spp as usize {
+        let v = &samples[k * 14..k * 14 + 14];
+        if v[9] == 0.0 {
+            continue; // a miss: every feature 0
+        }
+        hits += 1;
+        let pos = [v[10], v[11], v[12]];
+        let d: Vec<f32> = (0..3).map(|a| pos[a] - c[a]).collect();
+        let dist = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+        assert!(
+            (dist - rad).abs() < 1e-3,
+            "position {pos:?} is {dist} from the centre"
+        );
+        for a in 0..3 {
+            assert!(
+                (v[6 + a] - d[a] / rad).abs() < 1e-3,
+                "normal {:?}",
+                &v[6..9]
+            );
+        }
+        let pixel = k / spp as usize;
+        hit_x.push(pixel % 16);
+    }
+    // The sphere sweeps from x = 0 to 1.5: hits span more columns than a
+    // static sphere of radius 0.5 would cover.
+    let (lo, hi) = (hit_x.iter().min().unwrap(), hit_x.iter().max().unwrap());
+    assert!(
+        hits > 100 && hi - lo >= 10,
+        "{hits} hits over columns {lo}..{hi}"
+    );
+
+    let empty = scene(
+        camera([0.0; 3], [0.0, 0.0, -1.0], 40.0),
+        [0.2, 0.4, 0.6],
+        vec![],
+        vec![],
+    );
+    let st = render(&empty, 8, 8, 2, 0).statistics().unwrap();
+    let col = st.get(Layer::Color).unwrap();
+    assert!(col[0].iter().all(|&v| v == 0.2) && col[2].iter().all(|&v| v == 0.6));
+    assert!(st.get(Layer::Depth).unwrap()[0].iter().all(|&v| v == 0.0));
+    check_validation(&ctx);
+}
