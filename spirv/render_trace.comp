@@ -37,6 +37,9 @@ layout(std430, set = 0, binding = 7) buffer Accum1 { float acc1[]; };
 layout(std430, set = 0, binding = 8) buffer Accum2 { float acc2[]; };
 layout(std430, set = 0, binding = 9) buffer Accum3 { float acc3[]; };
 layout(std430, set = 0, binding = 10) buffer Debug { float dbg[]; };
+// Per-vertex shading normals: three vec4 per entry; a triangle's entry
+// index is in the bits of its p3.w (0xffffffff: flat).
+layout(std430, set = 0, binding = 11) readonly buffer Normals { vec4 vnormals[]; };
 
 // Plane indices of the accumulation layout with position and visibility
 // (AccumLayout: channels colour 0-2, albedo 3-5, normal 6-8, depth 9,
@@ -271,6 +274,27 @@ vec3 normal_at(uint i, vec3 p, float time)
     return normalize(cross(p1.xyz, prims[4u * i + 2u].xyz));
 }
 
+// Interpolated shading normal of primitive i at reference-time point p, or
+// the geometric normal ng when it has none.
+vec3 shading_normal(uint i, vec3 p, vec3 ng)
+{
+    uint k = floatBitsToUint(prims[4u * i + 3u].w);
+    if (k == 0xffffffffu) {
+        return ng;
+    }
+    vec3 a = prims[4u * i].xyz;
+    vec3 e1 = prims[4u * i + 1u].xyz;
+    vec3 e2 = prims[4u * i + 2u].xyz;
+    vec3 c = cross(e1, e2);
+    float inv = 1.0 / dot(c, c);
+    vec3 ap = p - a;
+    float u = dot(cross(ap, e2), c) * inv;
+    float v = dot(cross(e1, ap), c) * inv;
+    vec3 ns = (1.0 - u - v) * vnormals[3u * k].xyz + u * vnormals[3u * k + 1u].xyz + v * vnormals[3u * k + 2u].xyz;
+    float len = length(ns);
+    return len > 0.0 ? ns / len : ng;
+}
+
 vec3 offset_origin(vec3 p, vec3 n)
 {
     float mag = max(max(abs(p.x), abs(p.y)), max(abs(p.z), 1.0));
@@ -312,10 +336,17 @@ void trace_sample(uvec4 key, uvec2 pix, out vec3 color, out vec3 albedo, out vec
         vec3 p = o + h.t * d;
         vec3 ng = normal_at(prim, p, time);
         bool front = dot(ng, d) < 0.0;
-        vec3 n = front ? ng : -ng;
+        vec3 ngf = front ? ng : -ng;   // geometric, facing the ray
         uint m = prim_material(prim);
         uint mkind = floatBitsToUint(mats[4u * m].x) & 255u;
         vec3 p_ref = p - time * prims[4u * prim + 3u].xyz;
+        // Shading normal on the ray's side; the geometric one where the
+        // interpolated normal faces away from the viewer.
+        vec3 n = shading_normal(prim, p_ref, ng);
+        n = front ? n : -n;
+        if (dot(n, d) >= 0.0) {
+            n = ngf;
+        }
 
         if (mkind == MAT_EMISSIVE) {
             vec3 le = mats[4u * m + 3u].xyz;
@@ -358,7 +389,7 @@ void trace_sample(uvec4 key, uvec2 pix, out vec3 color, out vec3 albedo, out vec
         if (depth_i == max_depth) {
             break;
         }
-        vec3 po = offset_origin(p, n);
+        vec3 po = offset_origin(p, ngf);
         uint dim = DIM_VERTEX + 4u * depth_i;
 
         vec3 wo = -d;
@@ -444,7 +475,7 @@ void trace_sample(uvec4 key, uvec2 pix, out vec3 color, out vec3 albedo, out vec
         }
         prev_bsdf_pdf = delta ? 0.0 : pdf;
         beta *= weight;
-        o = offset_origin(p, cos_s > 0.0 ? n : -n);
+        o = offset_origin(p, dot(ngf, wi) > 0.0 ? ngf : -ngf);
         d = normalize(wi);
 
         if (depth_i >= 2u) {

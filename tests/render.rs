@@ -97,6 +97,7 @@ fn bvh_traversal_equals_brute_force() {
             file: None,
             vertices,
             indices,
+            normals: Vec::new(),
             scale: 1.0,
             translate: [0.0; 3],
             material: "m".into(),
@@ -434,6 +435,7 @@ fn mis_agrees_with_bsdf_sampling_alone() {
         file: None,
         vertices: vec![c, p(u, [0.0; 3]), p(u, v), p(v, [0.0; 3])],
         indices: vec![[0, 1, 2], [0, 2, 3]],
+        normals: Vec::new(),
         scale: 1.0,
         translate: [0.0; 3],
         material: "lamp".into(),
@@ -680,6 +682,7 @@ fn primitives_of_shapes() {
         },
         material: 0,
         motion: [0.0, 0.0, 1.0],
+        normals: None,
     };
     let t = p.intersect([0.5, 0.5, 5.0], [0.0, 0.0, -1.0], 0.5, 0.0);
     assert_eq!(t, Some(4.5));
@@ -771,6 +774,21 @@ material = "m"
     };
     assert_eq!((a, b), ([1.0, 0.0, 0.0], [3.0, 0.0, 0.0]));
 
+    assert!(prims.iter().all(|p| p.normals.is_none()));
+    // With `vn` normals (single index: one normal per loaded vertex).
+    std::fs::write(
+        dir.join("meshes/n.obj"),
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nvn 0 1 0\nf 1//1 2//1 3//2\n",
+    )
+    .unwrap();
+    std::fs::write(&path, text.replace("meshes/q.obj", "meshes/n.obj")).unwrap();
+    let prims = Scene::load(&path).unwrap().primitives().unwrap();
+    assert_eq!(prims.len(), 1);
+    assert_eq!(
+        prims[0].normals,
+        Some([[0.0, 0.0, 1.0], [0.0, 0.0, 1.0], [0.0, 1.0, 0.0]])
+    );
+
     let bad = text.replace("material = \"m\"", "material = \"nope\"");
     std::fs::write(&path, bad).unwrap();
     let e = Scene::load(&path).unwrap_err().to_string();
@@ -852,5 +870,56 @@ fn moving_objects_report_reference_time_positions() {
     let col = st.get(Layer::Color).unwrap();
     assert!(col[0].iter().all(|&v| v == 0.2) && col[2].iter().all(|&v| v == 0.6));
     assert!(st.get(Layer::Depth).unwrap()[0].iter().all(|&v| v == 0.0));
+    check_validation(&ctx);
+}
+
+/// Meshes with per-vertex normals shade with the interpolated normal: on a
+/// flat square whose vertex normals tilt ±x, the normal feature at x is
+/// normalize(0.5·x, 0, 1).
+#[test]
+fn mesh_vertex_normals_are_interpolated() {
+    let ctx = gpu();
+    let l = 0.5f32 / (1.25f32).sqrt();
+    let r = 1.0 / (1.25f32).sqrt();
+    let s = scene(
+        camera([0.0, 0.0, 3.0], [0.0; 3], 30.0),
+        [1.0; 3],
+        vec![("m", diffuse([0.5; 3]))],
+        vec![Object::Mesh {
+            file: None,
+            vertices: vec![
+                [-1.0, -1.0, 0.0],
+                [1.0, -1.0, 0.0],
+                [1.0, 1.0, 0.0],
+                [-1.0, 1.0, 0.0],
+            ],
+            indices: vec![[0, 1, 2], [0, 2, 3]],
+            normals: vec![[-l, 0.0, r], [l, 0.0, r], [l, 0.0, r], [-l, 0.0, r]],
+            scale: 1.0,
+            translate: [0.0; 3],
+            material: "m".into(),
+            motion: None,
+        }],
+    );
+    let rd = Renderer::new(&ctx, &s, 8, 8, 3).unwrap();
+    let samples = rd.record_pass_debug(2).unwrap();
+    let mut checked = 0;
+    for v in samples.chunks_exact(14) {
+        if v[9] == 0.0 {
+            continue;
+        }
+        let x = v[10];
+        let len = (0.25 * x * x + 1.0).sqrt();
+        let want = [0.5 * x / len, 0.0, 1.0 / len];
+        for a in 0..3 {
+            assert!(
+                (v[6 + a] - want[a]).abs() < 1e-4,
+                "at x = {x}: {:?} vs {want:?}",
+                &v[6..9]
+            );
+        }
+        checked += 1;
+    }
+    assert!(checked > 64, "{checked} hits");
     check_validation(&ctx);
 }

@@ -83,6 +83,8 @@ pub struct GpuScene {
     pub materials: Vec<[f32; 16]>,
     /// One vec4 per light.
     pub lights: Vec<[f32; 4]>,
+    /// Three vec4 (vertex normals) per triangle with shading normals.
+    pub normals: Vec<[f32; 12]>,
     /// Depth of the BVH (edges from the root to the deepest leaf).
     pub depth: usize,
 }
@@ -138,10 +140,24 @@ impl GpuScene {
             light_pdf[i] = (select / primitives[i].area()) as f32;
         }
 
+        let mut normals = Vec::new();
         let prims = primitives
             .iter()
             .zip(&light_pdf)
             .map(|(p, &pdf)| {
+                let normal_index = match p.normals {
+                    Some(n) => {
+                        normals.push(std::array::from_fn(|i| {
+                            if i % 4 == 3 {
+                                0.0
+                            } else {
+                                n[i / 4][i % 4]
+                            }
+                        }));
+                        normals.len() as u32 - 1
+                    }
+                    None => u32::MAX,
+                };
                 let (kind, a, b, c, radius) = match p.shape {
                     Shape::Sphere { center, radius } => {
                         (KIND_SPHERE, center, [0.0; 3], [0.0; 3], radius)
@@ -170,7 +186,7 @@ impl GpuScene {
                     m[0],
                     m[1],
                     m[2],
-                    0.0,
+                    f32::from_bits(normal_index),
                 ]
             })
             .collect();
@@ -254,6 +270,7 @@ impl GpuScene {
             primitives,
             materials,
             lights,
+            normals,
             depth,
         })
     }

@@ -120,6 +120,7 @@ pub const TRACE: KernelDecl = KernelDecl {
         write("accum2"),
         write("accum3"),
         write("debug"),
+        read("normals"),
     ],
     push_size: std::mem::size_of::<TracePush>() as u32,
 };
@@ -181,6 +182,7 @@ pub struct Renderer {
     prims: GpuBuffer,
     materials: GpuBuffer,
     lights: GpuBuffer,
+    normals: GpuBuffer,
     accum: GpuBuffer,
     /// Bound where a binding is unused (no map, no debug output).
     dummy: GpuBuffer,
@@ -249,6 +251,7 @@ impl Renderer {
             prims: buffer_of(ctx, "render.prims", &gs.prims)?,
             materials: buffer_of(ctx, "render.materials", &gs.materials)?,
             lights: buffer_of(ctx, "render.lights", &gs.lights)?,
+            normals: buffer_of(ctx, "render.normals", &gs.normals)?,
             accum,
             dummy: GpuBuffer::from_slice(ctx, "render.dummy", &[0u32; 4])?,
             flops_per_sample: flops_per_sample(&gs),
@@ -370,6 +373,7 @@ impl Renderer {
                 group(2),
                 group(3),
                 dbg,
+                self.normals.slice(),
             ],
             bytemuck::bytes_of(&push),
             push.width,

@@ -238,6 +238,10 @@ pub enum Object {
         /// Inline triangles as vertex indices (without `file`).
         #[serde(default)]
         indices: Vec<[u32; 3]>,
+        /// Inline per-vertex shading normals (optional; without them, and
+        /// for OBJ files without `vn`, triangles are flat).
+        #[serde(default)]
+        normals: Vec<Vec3>,
         /// Uniform scale applied to the vertices (before `translate`).
         #[serde(default = "one")]
         scale: f32,
@@ -327,6 +331,8 @@ pub struct Primitive {
     pub material: u32,
     /// Translation over the shutter interval.
     pub motion: Vec3,
+    /// Per-vertex shading normals of a triangle (interpolated), if any.
+    pub normals: Option<[Vec3; 3]>,
 }
 
 fn add(a: Vec3, b: Vec3) -> Vec3 {
@@ -580,6 +586,7 @@ impl Scene {
                     },
                     material: self.material_index(material),
                     motion: motion.unwrap_or_default(),
+                    normals: None,
                 }),
                 Object::Quad {
                     corner,
@@ -595,6 +602,7 @@ impl Scene {
                     },
                     material: self.material_index(material),
                     motion: motion.unwrap_or_default(),
+                    normals: None,
                 }),
                 Object::Box {
                     min,
@@ -609,6 +617,7 @@ impl Scene {
                             shape,
                             material: m,
                             motion: motion.unwrap_or_default(),
+                            normals: None,
                         });
                     }
                 }
@@ -616,34 +625,49 @@ impl Scene {
                     file,
                     vertices,
                     indices,
+                    normals,
                     scale,
                     translate,
                     material,
                     motion,
                 } => {
-                    let (verts, tris) = match file {
+                    let (verts, tris, norms) = match file {
                         Some(f) => self.load_obj(f)?,
-                        None => (vertices.clone(), indices.clone()),
+                        None => (vertices.clone(), indices.clone(), normals.clone()),
                     };
+                    if !norms.is_empty() && norms.len() != verts.len() {
+                        return Err(Error::InvalidArgument(format!(
+                            "a mesh has {} normals for {} vertices",
+                            norms.len(),
+                            verts.len()
+                        )));
+                    }
                     let m = self.material_index(material);
-                    let place = |i: u32| -> Result<Vec3> {
-                        let p = verts.get(i as usize).ok_or_else(|| {
-                            Error::InvalidArgument(format!(
-                                "mesh index {i} out of range ({} vertices)",
-                                verts.len()
-                            ))
-                        })?;
-                        Ok(add([p[0] * scale, p[1] * scale, p[2] * scale], *translate))
+                    let get = |i: u32| -> Result<usize> {
+                        ((i as usize) < verts.len())
+                            .then_some(i as usize)
+                            .ok_or_else(|| {
+                                Error::InvalidArgument(format!(
+                                    "mesh index {i} out of range ({} vertices)",
+                                    verts.len()
+                                ))
+                            })
+                    };
+                    let place = |i: usize| {
+                        let p = verts[i];
+                        add([p[0] * scale, p[1] * scale, p[2] * scale], *translate)
                     };
                     for t in tris {
+                        let [i, j, k] = [get(t[0])?, get(t[1])?, get(t[2])?];
                         out.push(Primitive {
                             shape: Shape::Triangle {
-                                a: place(t[0])?,
-                                b: place(t[1])?,
-                                c: place(t[2])?,
+                                a: place(i),
+                                b: place(j),
+                                c: place(k),
                             },
                             material: m,
                             motion: motion.unwrap_or_default(),
+                            normals: (!norms.is_empty()).then(|| [norms[i], norms[j], norms[k]]),
                         });
                     }
                 }
@@ -652,18 +676,26 @@ impl Scene {
         Ok(out)
     }
 
-    fn load_obj(&self, file: &Path) -> Result<(Vec<Vec3>, Vec<[u32; 3]>)> {
+    #[allow(clippy::type_complexity)] // (positions, triangles, normals)
+    fn load_obj(&self, file: &Path) -> Result<(Vec<Vec3>, Vec<[u32; 3]>, Vec<Vec3>)> {
         let path = match &self.base_dir {
             Some(d) if file.is_relative() => d.join(file),
             _ => file.to_owned(),
         };
         let (models, _) = tobj::load_obj(&path, &tobj::GPU_LOAD_OPTIONS)
             .map_err(|e| Error::bad_input(&path, format!("cannot read the OBJ file: {e}")))?;
+        let with_normals = models
+            .iter()
+            .all(|m| m.mesh.normals.len() == m.mesh.positions.len());
         let mut verts = Vec::new();
         let mut tris = Vec::new();
+        let mut norms = Vec::new();
         for m in models {
             let base = verts.len() as u32;
             verts.extend(m.mesh.positions.chunks_exact(3).map(|p| [p[0], p[1], p[2]]));
+            if with_normals {
+                norms.extend(m.mesh.normals.chunks_exact(3).map(|n| [n[0], n[1], n[2]]));
+            }
             tris.extend(
                 m.mesh
                     .indices
@@ -671,7 +703,7 @@ impl Scene {
                     .map(|t| [base + t[0], base + t[1], base + t[2]]),
             );
         }
-        Ok((verts, tris))
+        Ok((verts, tris, norms))
     }
 }
 
