@@ -923,3 +923,61 @@ fn mesh_vertex_normals_are_interpolated() {
     assert!(checked > 64, "{checked} hits");
     check_validation(&ctx);
 }
+
+/// Thin lens: on a plane at the focus distance every lens sample of a pixel
+/// sample hits the same point as the pinhole ray (sharp); with the focus
+/// elsewhere the hit points spread (blur).
+#[test]
+fn thin_lens_focuses_at_the_focus_distance() {
+    let ctx = gpu();
+    let plane = Object::Quad {
+        corner: [-10.0, -10.0, 0.0],
+        u: [20.0, 0.0, 0.0],
+        v: [0.0, 20.0, 0.0],
+        material: "m".into(),
+        motion: None,
+    };
+    let positions = |aperture: f32, focus: f32| {
+        let mut cam = camera([0.0, 0.0, 3.0], [0.0; 3], 40.0);
+        cam.aperture = aperture;
+        cam.focus_distance = Some(focus);
+        let s = scene(
+            cam,
+            [1.0; 3],
+            vec![("m", diffuse([0.5; 3]))],
+            vec![plane.clone()],
+        );
+        let r = Renderer::new(&ctx, &s, 8, 8, 17).unwrap();
+        let v = r.record_pass_debug(2).unwrap();
+        v.chunks_exact(14)
+            .map(|x| [x[10], x[11], x[12]])
+            .collect::<Vec<_>>()
+    };
+    let pinhole = positions(0.0, 3.0);
+    let sharp = positions(0.3, 3.0);
+    let blurred = positions(0.3, 1.5);
+    let dist =
+        |a: &[f32; 3], b: &[f32; 3]| (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f32>().sqrt();
+    let max_sharp = pinhole
+        .iter()
+        .zip(&sharp)
+        .map(|(a, b)| dist(a, b))
+        .fold(0.0, f32::max);
+    let mean_blur = pinhole
+        .iter()
+        .zip(&blurred)
+        .map(|(a, b)| dist(a, b))
+        .sum::<f32>()
+        / pinhole.len() as f32;
+    eprintln!("in focus: max {max_sharp}; out of focus: mean {mean_blur}");
+    assert!(
+        max_sharp < 1e-4,
+        "in focus, lens samples move the hit by {max_sharp}"
+    );
+    // Circle of confusion at twice the focus distance: radius = aperture.
+    assert!(
+        mean_blur > 0.1,
+        "out of focus, the hits moved only {mean_blur}"
+    );
+    check_validation(&ctx);
+}

@@ -501,6 +501,41 @@ mod tests {
         assert_eq!(std::mem::size_of::<gpu_scene::GpuParams>(), 128);
     }
 
+    /// A 200k-triangle mesh (a bumpy 317² grid) fits the shader's stack.
+    #[test]
+    fn a_large_mesh_fits_the_traversal_stack() {
+        let n = 317u32;
+        let mut vertices = Vec::new();
+        for j in 0..=n {
+            for i in 0..=n {
+                let (x, z) = (i as f32 / n as f32, j as f32 / n as f32);
+                vertices.push([x, 0.05 * (20.0 * x).sin() * (17.0 * z).cos(), z]);
+            }
+        }
+        let mut indices = Vec::new();
+        for j in 0..n {
+            for i in 0..n {
+                let v = j * (n + 1) + i;
+                indices.push([v, v + 1, v + n + 2]);
+                indices.push([v, v + n + 2, v + n + 1]);
+            }
+        }
+        let mut s = Scene::builtin("cornell").unwrap();
+        s.objects.push(Object::Mesh {
+            file: None,
+            vertices,
+            indices,
+            normals: Vec::new(),
+            scale: 1.0,
+            translate: [0.0; 3],
+            material: "white".into(),
+            motion: None,
+        });
+        let g = GpuScene::new(&s, 8, 8).unwrap();
+        eprintln!("{} primitives, BVH depth {}", g.primitives.len(), g.depth);
+        assert!(g.primitives.len() > 200_000 && g.depth <= gpu_scene::STACK_SIZE);
+    }
+
     #[test]
     fn every_builtin_scene_parses_and_builds() {
         for name in Scene::builtin_names() {
