@@ -662,6 +662,24 @@ fn rerender_is_bit_identical_and_band_independent() {
     r.record_pass(&mut b, Samples::Uniform(4), 4.0).unwrap();
     b.finish().unwrap();
     let single = r.download().unwrap();
+    // record_uniform with a small submit budget: one sample per pass.
+    let r2 = Renderer::new(&ctx, &s, 20, 13, 9).unwrap();
+    let mut b = Batch::new(&ctx).unwrap();
+    b.max_flops_per_submit = per_row * 8.0 * 0.5;
+    r2.record_uniform(&mut b, 4).unwrap();
+    let t = b.finish().unwrap();
+    let dispatches = t.iter().filter(|k| k.kernel == "render_trace").count();
+    assert!(t.is_empty() || dispatches >= 4, "{dispatches} dispatches");
+    let split = r2.download().unwrap();
+    for (a, b) in single.iter().zip(&split) {
+        for p in 0..a.len() {
+            let (a, b) = (a[p] as f64, b[p] as f64);
+            assert!(
+                (a - b).abs() <= 1e-5 * (a.abs() + 1e-3),
+                "record_uniform: {a} vs {b}"
+            );
+        }
+    }
     for (a, b) in one_band.iter().zip(&single) {
         for p in 0..a.len() {
             let (a, b) = (a[p] as f64, b[p] as f64);

@@ -304,6 +304,11 @@ impl Renderer {
     /// accumulation buffer. `expected_spp` is the mean samples per pixel of
     /// the pass (for a map: its budget) and only sizes the row bands
     /// ([`Batch::dispatch`]); it does not change the result.
+    ///
+    /// A band is at least one workgroup (8 rows) high, so a pass of many
+    /// samples per pixel makes long dispatches (on lavapipe ~4 µs per
+    /// sample and core): split long renders into passes, e.g. with
+    /// [`record_uniform`](Self::record_uniform).
     pub fn record_pass(
         &self,
         batch: &mut Batch,
@@ -380,6 +385,24 @@ impl Renderer {
             push.height,
             self.flops_per_sample * expected_spp.max(0.0),
         )
+    }
+
+    /// Records `spp` uniform samples per pixel as several passes, each small
+    /// enough that an 8-row band stays within the batch's
+    /// [`max_flops_per_submit`](Batch::max_flops_per_submit) (a reference
+    /// render). The samples are the same as one pass of `spp` (sample
+    /// indices continue through the count plane); only the order of the
+    /// f32 additions differs.
+    pub fn record_uniform(&self, batch: &mut Batch, spp: u32) -> Result<()> {
+        let band = 8.0 * self.layout.width as f64 * self.flops_per_sample;
+        let per_pass = ((batch.max_flops_per_submit / band).floor() as u32).clamp(1, spp.max(1));
+        let mut left = spp;
+        while left > 0 {
+            let n = per_pass.min(left);
+            self.record_pass(batch, Samples::Uniform(n), n as f64)?;
+            left -= n;
+        }
+        Ok(())
     }
 
     /// Renders `spp` samples per pixel and returns each sample's 14 values
