@@ -999,3 +999,33 @@ fn thin_lens_focuses_at_the_focus_distance() {
     );
     check_validation(&ctx);
 }
+
+/// Layering (issue #10): `src/render/` uses the library like an outside
+/// renderer — the facade and `gpu` plumbing, nothing under `methods`,
+/// `kernels` or `reference` — and its shaders include only their own
+/// `lib/render*.glsl`.
+#[test]
+fn the_renderer_is_a_facade_client() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    for e in std::fs::read_dir(root.join("src/render")).unwrap() {
+        let path = e.unwrap().path();
+        let text = std::fs::read_to_string(&path).unwrap();
+        for banned in ["methods::", "kernels::", "reference::"] {
+            assert!(!text.contains(banned), "{} uses {banned}", path.display());
+        }
+    }
+    for e in std::fs::read_dir(root.join("spirv")).unwrap() {
+        let path = e.unwrap().path();
+        let name = path.file_name().unwrap().to_str().unwrap().to_owned();
+        if !name.starts_with("render") || path.is_dir() {
+            continue;
+        }
+        let text = std::fs::read_to_string(&path).unwrap();
+        for line in text
+            .lines()
+            .filter(|l| l.trim_start().starts_with("#include"))
+        {
+            assert!(line.contains("lib/render"), "{name}: {line}");
+        }
+    }
+}

@@ -24,9 +24,11 @@
 //! - Geometry: spheres, quads (and boxes of quads), triangle meshes (OBJ or
 //!   inline) in a binary BVH built by `obvhs` and traversed in the shader
 //!   with a stack of [`STACK_SIZE`](crate::render::gpu_scene::STACK_SIZE) entries.
-//! - Materials: diffuse with constant, checker or value-noise albedo;
-//!   emissive quads and spheres (next-event estimation with MIS); a uniform
-//!   environment colour.
+//! - Materials: diffuse with constant, checker or value-noise albedo; GGX
+//!   rough conductor and rough plastic (next-event estimation with MIS);
+//!   smooth and rough glass (BSDF sampling only); emissive quads and
+//!   spheres (sampled by next-event estimation), emissive triangles (found
+//!   by BSDF sampling); a uniform environment colour (BSDF sampling).
 //! - Camera: thin lens; per-object linear motion over the shutter.
 //! - Random numbers are a hash of (pixel, sample index, dimension, seed):
 //!   the sample index of a pixel's `k`-th sample is `k`, counted by the
@@ -39,7 +41,8 @@
 //! from the lens point, the position at shutter time 0 (`M⁻¹·s` for moving
 //! objects), and visibility — 1 if the next-event shadow ray at the first
 //! hit reached its light, else 0 (1 when the scene has no lights or the
-//! first hit is an emitter).
+//! first hit is an emitter, a mirror or glass, where no shadow ray is
+//! traced).
 
 use std::sync::Arc;
 
