@@ -1,6 +1,6 @@
 #version 460
 // The built-in path tracer: one invocation per pixel traces this pass's
-// samples of its pixel and adds their sums to the accumulation planes
+// samples of its pixel and adds them, one by one, to the accumulation planes
 // (src/accum.rs, layout with position and visibility). Host side:
 // src/render/mod.rs. One invocation owns its pixel: no atomics.
 //
@@ -504,13 +504,30 @@ void main()
         return;
     }
     uint stride = push.plane_stride;
-    uint first = uint(acc3[7u * stride + pixel]);
+    uint i0 = pixel;
+    uint i1 = stride + pixel;
+    uint i2 = 2u * stride + pixel;
+    uint i3 = 3u * stride + pixel;
+    uint i4 = 4u * stride + pixel;
+    uint i5 = 5u * stride + pixel;
+    uint i6 = 6u * stride + pixel;
+    uint i7 = 7u * stride + pixel;
+    float count = acc3[i7];
+    uint first = uint(count);
 
-    vec3 s_col = vec3(0.0), q_col = vec3(0.0);
-    vec3 s_alb = vec3(0.0), q_alb = vec3(0.0);
-    vec3 s_nrm = vec3(0.0), q_nrm = vec3(0.0);
-    vec3 s_pos = vec3(0.0), q_pos = vec3(0.0), s_cross = vec3(0.0);
-    vec4 s_dv = vec4(0.0);   // Σdepth, Σdepth², Σvis, Σvis²
+    // The running sums start from the planes and add the samples one by one
+    // in sample order: the planes are bit-identical however the samples are
+    // split into passes (and bands).
+    vec3 s_col = vec3(acc0[i0], acc0[i2], acc0[i4]);
+    vec3 q_col = vec3(acc0[i1], acc0[i3], acc0[i5]);
+    vec3 s_alb = vec3(acc0[i6], acc1[i0], acc1[i2]);
+    vec3 q_alb = vec3(acc0[i7], acc1[i1], acc1[i3]);
+    vec3 s_nrm = vec3(acc1[i4], acc1[i6], acc2[i0]);
+    vec3 q_nrm = vec3(acc1[i5], acc1[i7], acc2[i1]);
+    vec3 s_pos = vec3(acc2[i4], acc2[i6], acc3[i0]);
+    vec3 q_pos = vec3(acc2[i5], acc2[i7], acc3[i1]);
+    vec3 s_cross = vec3(acc3[i4], acc3[i5], acc3[i6]);
+    vec4 s_dv = vec4(acc2[i2], acc2[i3], acc3[i2], acc3[i3]);   // Σdepth, Σdepth², Σvis, Σvis²
     for (uint s = 0u; s < spp; s++) {
         uvec4 key = uvec4(pixel, first + s, push.seed_hi, push.seed_lo);
         vec3 col, alb, nrm, pos;
@@ -537,25 +554,17 @@ void main()
         }
     }
 
-    uint i0 = pixel;
-    uint i1 = stride + pixel;
-    uint i2 = 2u * stride + pixel;
-    uint i3 = 3u * stride + pixel;
-    uint i4 = 4u * stride + pixel;
-    uint i5 = 5u * stride + pixel;
-    uint i6 = 6u * stride + pixel;
-    uint i7 = 7u * stride + pixel;
     // Planes 0-7: colour Σ, Σ² (R, G, B), albedo R.
-    acc0[i0] += s_col.r; acc0[i1] += q_col.r; acc0[i2] += s_col.g; acc0[i3] += q_col.g;
-    acc0[i4] += s_col.b; acc0[i5] += q_col.b; acc0[i6] += s_alb.r; acc0[i7] += q_alb.r;
+    acc0[i0] = s_col.r; acc0[i1] = q_col.r; acc0[i2] = s_col.g; acc0[i3] = q_col.g;
+    acc0[i4] = s_col.b; acc0[i5] = q_col.b; acc0[i6] = s_alb.r; acc0[i7] = q_alb.r;
     // Planes 8-15: albedo G, B, normal X, Y.
-    acc1[i0] += s_alb.g; acc1[i1] += q_alb.g; acc1[i2] += s_alb.b; acc1[i3] += q_alb.b;
-    acc1[i4] += s_nrm.x; acc1[i5] += q_nrm.x; acc1[i6] += s_nrm.y; acc1[i7] += q_nrm.y;
+    acc1[i0] = s_alb.g; acc1[i1] = q_alb.g; acc1[i2] = s_alb.b; acc1[i3] = q_alb.b;
+    acc1[i4] = s_nrm.x; acc1[i5] = q_nrm.x; acc1[i6] = s_nrm.y; acc1[i7] = q_nrm.y;
     // Planes 16-23: normal Z, depth, position X, Y.
-    acc2[i0] += s_nrm.z; acc2[i1] += q_nrm.z; acc2[i2] += s_dv.x;  acc2[i3] += s_dv.y;
-    acc2[i4] += s_pos.x; acc2[i5] += q_pos.x; acc2[i6] += s_pos.y; acc2[i7] += q_pos.y;
+    acc2[i0] = s_nrm.z; acc2[i1] = q_nrm.z; acc2[i2] = s_dv.x;  acc2[i3] = s_dv.y;
+    acc2[i4] = s_pos.x; acc2[i5] = q_pos.x; acc2[i6] = s_pos.y; acc2[i7] = q_pos.y;
     // Planes 24-31: position Z, visibility, cross products xy xz yz, count.
-    acc3[i0] += s_pos.z; acc3[i1] += q_pos.z; acc3[i2] += s_dv.z;  acc3[i3] += s_dv.w;
-    acc3[i4] += s_cross.x; acc3[i5] += s_cross.y; acc3[i6] += s_cross.z;
-    acc3[i7] += float(spp);
+    acc3[i0] = s_pos.z; acc3[i1] = q_pos.z; acc3[i2] = s_dv.z;  acc3[i3] = s_dv.w;
+    acc3[i4] = s_cross.x; acc3[i5] = s_cross.y; acc3[i6] = s_cross.z;
+    acc3[i7] = count + float(spp);
 }

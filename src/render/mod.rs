@@ -32,8 +32,9 @@
 //! - Camera: thin lens; per-object linear motion over the shutter.
 //! - Random numbers are a hash of (pixel, sample index, dimension, seed):
 //!   the sample index of a pixel's `k`-th sample is `k`, counted by the
-//!   count plane, so the same seed and sample maps give bit-identical
-//!   planes however the work is split into bands.
+//!   count plane, and each pixel adds its samples to its planes one by one
+//!   in sample order, so the same seed gives bit-identical planes for the
+//!   same samples per pixel however they are split into passes and bands.
 //!
 //! What one sample adds (all features at the first hit; a miss adds 0 to
 //! every feature and 1 to the count): colour, albedo (emitters: their
@@ -393,9 +394,7 @@ impl Renderer {
     /// Records `spp` uniform samples per pixel as several passes, each small
     /// enough that an 8-row band stays within the batch's
     /// [`max_flops_per_submit`](Batch::max_flops_per_submit) (a reference
-    /// render). The samples are the same as one pass of `spp` (sample
-    /// indices continue through the count plane); only the order of the
-    /// f32 additions differs.
+    /// render). The planes are bit-identical to one pass of `spp`.
     pub fn record_uniform(&self, batch: &mut Batch, spp: u32) -> Result<()> {
         let band = 8.0 * self.layout.width as f64 * self.flops_per_sample;
         let per_pass = ((batch.max_flops_per_submit / band).floor() as u32).clamp(1, spp.max(1));
