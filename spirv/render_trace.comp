@@ -228,10 +228,42 @@ vec2 concentric_disk(vec2 u)
     return r * vec2(cos(th), sin(th));
 }
 
-// A point on light l at shutter time `time`: position, unit normal; returns
-// the probability density per unit area of having chosen it (selection
-// included), 0 if no light.
-float sample_light(vec2 u_sel, vec2 u, float time, out vec3 pos, out vec3 nrm, out uint prim)
+// 1 - sqrt(1 - x) without cancellation for small x.
+float one_minus_sqrt1m(float x)
+{
+    return x / (1.0 + sqrt(max(0.0, 1.0 - x)));
+}
+
+// Whether next-event estimation samples sphere `prim` by the cone it
+// subtends from p (p outside the sphere) rather than by area.
+bool sphere_cone(uint prim, vec3 p, float time, out vec3 c, out float r2, out float d2)
+{
+    c = prims[4u * prim].xyz + time * prims[4u * prim + 3u].xyz;
+    r2 = prims[4u * prim + 1u].w * prims[4u * prim + 1u].w;
+    vec3 to_c = c - p;
+    d2 = dot(to_c, to_c);
+    return (floatBitsToUint(prims[4u * prim].w) & 3u) == KIND_SPHERE && d2 > r2 * 1.0001;
+}
+
+// Solid-angle density, selection included, with which next-event
+// estimation from p picks the direction to point q of light `prim`
+// (dist2 = |q − p|², cos_l the cosine at q).
+float light_pdf(uint prim, vec3 p, float dist2, float cos_l, float time)
+{
+    float pdf_area = prims[4u * prim + 2u].w;   // selection / area
+    vec3 c;
+    float r2, d2;
+    if (sphere_cone(prim, p, time, c, r2, d2)) {
+        float select = pdf_area * 4.0 * PI * r2;
+        return select / (2.0 * PI * one_minus_sqrt1m(r2 / d2));
+    }
+    return pdf_area * dist2 / max(cos_l, 1e-8);
+}
+
+// Picks a light (by power) and a point on it as seen from p at shutter
+// time `time`: uniform in the cone a sphere subtends, uniform by area on a
+// quad (or on a sphere around p). Returns the point and its unit normal.
+void sample_light(vec2 u_sel, vec2 u, vec3 p, float time, out vec3 pos, out vec3 nrm, out uint prim)
 {
     uint nl = P.counts.w;
     uint l = 0u;
@@ -243,7 +275,23 @@ float sample_light(vec2 u_sel, vec2 u, float time, out vec3 pos, out vec3 nrm, o
     vec4 p1 = prims[4u * prim + 1u];
     vec4 p2 = prims[4u * prim + 2u];
     vec3 motion = prims[4u * prim + 3u].xyz;
-    if ((floatBitsToUint(p0.w) & 3u) == KIND_SPHERE) {
+    vec3 c;
+    float r2, d2;
+    if (sphere_cone(prim, p, time, c, r2, d2)) {
+        float d = sqrt(d2);
+        vec3 wc = (c - p) / d;
+        float omc = one_minus_sqrt1m(r2 / d2);   // 1 − cos θmax
+        float v = u.x * omc;                      // 1 − cos θ
+        float cos_t = 1.0 - v;
+        float sin2 = v * (2.0 - v);
+        float phi = 2.0 * PI * u.y;
+        vec3 t, b;
+        frame(wc, t, b);
+        vec3 dir = cos_t * wc + sqrt(sin2) * (cos(phi) * t + sin(phi) * b);
+        float dist = d * cos_t - sqrt(max(0.0, r2 - d2 * sin2));
+        pos = p + dist * dir;
+        nrm = normalize(pos - c);
+    } else if ((floatBitsToUint(p0.w) & 3u) == KIND_SPHERE) {
         float z = 1.0 - 2.0 * u.x;
         float r = sqrt(max(0.0, 1.0 - z * z));
         float phi = 2.0 * PI * u.y;
@@ -253,7 +301,6 @@ float sample_light(vec2 u_sel, vec2 u, float time, out vec3 pos, out vec3 nrm, o
         pos = p0.xyz + u.x * p1.xyz + u.y * p2.xyz + time * motion;
         nrm = normalize(cross(p1.xyz, p2.xyz));
     }
-    return p2.w;
 }
 
 float power_heuristic(float a, float b)
@@ -360,10 +407,9 @@ void trace_sample(uvec4 key, uvec2 pix, out vec3 color, out vec3 albedo, out vec
             bool emits = front || (floatBitsToUint(prims[4u * prim].w) & 3u) == KIND_TRIANGLE;
             if (emits) {
                 float w = 1.0;
-                float pdf_area = prims[4u * prim + 2u].w;
-                if (prev_bsdf_pdf > 0.0 && pdf_area > 0.0) {
-                    float cos_l = abs(dot(ng, d));
-                    float pdf_light = pdf_area * h.t * h.t / max(cos_l, 1e-8);
+                if (prev_bsdf_pdf > 0.0 && prims[4u * prim + 2u].w > 0.0) {
+                    // o is still the previous vertex's origin.
+                    float pdf_light = light_pdf(prim, o, h.t * h.t, abs(dot(ng, d)), time);
                     w = power_heuristic(prev_bsdf_pdf, pdf_light);
                 }
                 color += beta * w * le;
@@ -397,7 +443,7 @@ void trace_sample(uvec4 key, uvec2 pix, out vec3 color, out vec3 albedo, out vec
         if (P.counts.w > 0u && !delta) {
             vec3 lp, ln;
             uint lprim;
-            float pdf_area = sample_light(rand2(key, dim), rand2(key, dim + 1u), time, lp, ln, lprim);
+            sample_light(rand2(key, dim), rand2(key, dim + 1u), po, time, lp, ln, lprim);
             vec3 to = lp - po;
             float dist2 = dot(to, to);
             float dist = sqrt(dist2);
@@ -405,13 +451,13 @@ void trace_sample(uvec4 key, uvec2 pix, out vec3 color, out vec3 albedo, out vec
             float cos_s = dot(n, wi);
             float cos_l = -dot(ln, wi);
             bool unoccluded = false;
-            if (cos_s > 0.0 && cos_l > 0.0 && pdf_area > 0.0) {
+            if (cos_s > 0.0 && cos_l > 0.0) {
                 Hit s = trace(po, wi, time, 0.0, dist * (1.0 - 1e-4), true);
                 unoccluded = s.prim < 0;
                 if (unoccluded) {
                     uint lm = prim_material(lprim);
                     vec3 le = mats[4u * lm + 3u].xyz;
-                    float pdf_light = pdf_area * dist2 / cos_l;
+                    float pdf_light = light_pdf(lprim, po, dist2, cos_l, time);
                     float pdf_bsdf;
                     vec3 fc = bsdf_eval(cls, alb, alpha, ior, n, wo, wi, pdf_bsdf);
                     float w = power_heuristic(pdf_light, pdf_bsdf);
