@@ -551,7 +551,7 @@ fn statistics_equal_a_cpu_recomputation() {
     let l = r.layout();
     let mut cpu = Accumulator::new(l);
     for spp in [2u32, 1] {
-        let samples = r.record_pass_debug(spp).unwrap();
+        let samples = r.run_pass_debug(spp).unwrap();
         for p in 0..l.pixels() {
             for k in 0..spp as usize {
                 let b = (p * spp as usize + k) * 14;
@@ -840,7 +840,7 @@ fn moving_objects_report_reference_time_positions() {
     );
     let r = Renderer::new(&ctx, &s, 16, 8, 1).unwrap();
     let spp = 8;
-    let samples = r.record_pass_debug(spp).unwrap();
+    let samples = r.run_pass_debug(spp).unwrap();
     let mut hits = 0;
     let mut hit_x = Vec::new();
     for k in 0..16 * 8 * spp as usize {
@@ -916,7 +916,7 @@ fn mesh_vertex_normals_are_interpolated() {
         }],
     );
     let rd = Renderer::new(&ctx, &s, 8, 8, 3).unwrap();
-    let samples = rd.record_pass_debug(2).unwrap();
+    let samples = rd.run_pass_debug(2).unwrap();
     let mut checked = 0;
     for v in samples.chunks_exact(14) {
         if v[9] == 0.0 {
@@ -962,7 +962,7 @@ fn thin_lens_focuses_at_the_focus_distance() {
             vec![plane.clone()],
         );
         let r = Renderer::new(&ctx, &s, 8, 8, 17).unwrap();
-        let v = r.record_pass_debug(2).unwrap();
+        let v = r.run_pass_debug(2).unwrap();
         v.chunks_exact(14)
             .map(|x| [x[10], x[11], x[12]])
             .collect::<Vec<_>>()

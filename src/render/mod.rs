@@ -411,7 +411,7 @@ impl Renderer {
     /// (AccumLayout channel order), `[pixel][sample][value]` flattened, while
     /// also adding them to the accumulation buffer. A test aid: it submits
     /// and waits.
-    pub fn record_pass_debug(&self, spp: u32) -> Result<Vec<f32>> {
+    pub fn run_pass_debug(&self, spp: u32) -> Result<Vec<f32>> {
         let n = self.layout.pixels() * spp as usize * 14;
         let out = GpuBuffer::new(&self.ctx, "render.debug_samples", (n * 4) as u64)?;
         let mut batch = Batch::new(&self.ctx)?;
