@@ -1,6 +1,6 @@
 #version 460
 // The built-in path tracer: one invocation per pixel traces this pass's
-// samples of its pixel and adds their sums to the accumulation planes
+// samples of its pixel and adds them, one by one, to the accumulation planes
 // (src/accum.rs, layout with position and visibility). Host side:
 // src/render/mod.rs. One invocation owns its pixel: no atomics.
 //
@@ -29,15 +29,24 @@ layout(push_constant) uniform Push {
 } push;
 
 layout(std430, set = 0, binding = 5) readonly buffer SppMap { uint spp_map[]; };
-layout(std430, set = 0, binding = 6) buffer Accum { float accum[]; };
-layout(std430, set = 0, binding = 7) buffer Debug { float dbg[]; };
+// The accumulation planes in four bindings of eight planes each (plane
+// 8g + k of group g at k * plane_stride), so that no binding exceeds
+// maxStorageBufferRange below 4 Mpixels.
+layout(std430, set = 0, binding = 6) buffer Accum0 { float acc0[]; };
+layout(std430, set = 0, binding = 7) buffer Accum1 { float acc1[]; };
+layout(std430, set = 0, binding = 8) buffer Accum2 { float acc2[]; };
+layout(std430, set = 0, binding = 9) buffer Accum3 { float acc3[]; };
+layout(std430, set = 0, binding = 10) buffer Debug { float dbg[]; };
+// Per-vertex shading normals: three vec4 per entry; a triangle's entry
+// index is in the bits of its p3.w (0xffffffff: flat).
+layout(std430, set = 0, binding = 11) readonly buffer Normals { vec4 vnormals[]; };
 
 // Plane indices of the accumulation layout with position and visibility
 // (AccumLayout: channels colour 0-2, albedo 3-5, normal 6-8, depth 9,
 // position 10-12, visibility 13; Σx at 2c, Σx² at 2c+1; cross products
-// 28-30; count 31). src/render/mod.rs tests these against AccumLayout.
-#define PLANE_CROSS 28u
-#define PLANE_COUNT 31u
+// 28-30; count 31), written at the end of main(). src/render/mod.rs tests
+// these against AccumLayout.
+// (Planes 24-31 are group 3: visibility Σ²…count at k = 3…7.)
 
 // Random dimensions (pairs): camera 0-1, then 4 per path vertex.
 #define DIM_PIXEL 0u
@@ -73,14 +82,14 @@ float value_noise(vec3 p)
 vec3 albedo_at(uint m, vec3 p)
 {
     vec4 m0 = mats[4u * m];
-    uint kind = floatBitsToUint(m0.x);
+    uint tex = floatBitsToUint(m0.x) >> 8u;
     vec3 a = mats[4u * m + 1u].xyz;
     vec3 b = mats[4u * m + 2u].xyz;
-    if (kind == MAT_CHECKER) {
+    if (tex == TEX_CHECKER) {
         ivec3 c = ivec3(floor(p * m0.y + 1e-4));
         return ((c.x + c.y + c.z) & 1) == 0 ? a : b;
     }
-    if (kind == MAT_NOISE) {
+    if (tex == TEX_NOISE) {
         vec3 q = p * m0.y;
         float n = 0.5333 * value_noise(q) + 0.2667 * value_noise(2.03 * q) + 0.2 * value_noise(4.01 * q);
         return mix(a, b, n);
@@ -88,13 +97,117 @@ vec3 albedo_at(uint m, vec3 p)
     return a;
 }
 
+// ---------------------------------------------------------------- BSDFs
+// GGX (Trowbridge-Reitz) microfacets with separable Smith masking; visible
+// normals sampled after Heitz 2018. Vectors in world space; n faces wo.
+void frame(vec3 n, out vec3 t, out vec3 b)
+{
+    t = normalize(abs(n.x) > 0.5 ? cross(n, vec3(0, 1, 0)) : cross(n, vec3(1, 0, 0)));
+    b = cross(n, t);
+}
+
+float ggx_d(float cos_h, float a)
+{
+    float a2 = a * a;
+    float k = cos_h * cos_h * (a2 - 1.0) + 1.0;
+    return a2 / (PI * k * k);
+}
+
+float ggx_g1(float cos_w, float a)
+{
+    float c2 = max(cos_w * cos_w, 1e-8);
+    float tan2 = max(1.0 - c2, 0.0) / c2;
+    return 2.0 / (1.0 + sqrt(1.0 + a * a * tan2));
+}
+
+// A visible normal for direction wo (cos_o > 0).
+vec3 ggx_sample_h(vec3 n, vec3 wo, float a, vec2 u)
+{
+    vec3 t, b;
+    frame(n, t, b);
+    vec3 wl = vec3(dot(wo, t), dot(wo, b), dot(wo, n));
+    vec3 vh = normalize(vec3(a * wl.x, a * wl.y, wl.z));
+    float len2 = vh.x * vh.x + vh.y * vh.y;
+    vec3 t1 = len2 > 0.0 ? vec3(-vh.y, vh.x, 0.0) * inversesqrt(len2) : vec3(1.0, 0.0, 0.0);
+    vec3 t2 = cross(vh, t1);
+    float r = sqrt(u.x);
+    float phi = 2.0 * PI * u.y;
+    float p1 = r * cos(phi);
+    float p2 = r * sin(phi);
+    float s = 0.5 * (1.0 + vh.z);
+    p2 = (1.0 - s) * sqrt(max(0.0, 1.0 - p1 * p1)) + s * p2;
+    vec3 nh = p1 * t1 + p2 * t2 + sqrt(max(0.0, 1.0 - p1 * p1 - p2 * p2)) * vh;
+    vec3 hl = normalize(vec3(a * nh.x, a * nh.y, max(1e-6, nh.z)));
+    return hl.x * t + hl.y * b + hl.z * n;
+}
+
+vec3 schlick(vec3 f0, float c)
+{
+    float m = clamp(1.0 - c, 0.0, 1.0);
+    float m2 = m * m;
+    return f0 + (1.0 - f0) * (m2 * m2 * m);
+}
+
+// Unpolarised Fresnel reflectance at a dielectric interface; eta = η_t/η_i.
+float fresnel_dielectric(float cos_i, float eta)
+{
+    cos_i = clamp(cos_i, 0.0, 1.0);
+    float sin_t2 = (1.0 - cos_i * cos_i) / (eta * eta);
+    if (sin_t2 >= 1.0) {
+        return 1.0;
+    }
+    float cos_t = sqrt(1.0 - sin_t2);
+    float rs = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+    float rp = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+    return 0.5 * (rs * rs + rp * rp);
+}
+
+// Probability of sampling the specular lobe of plastic.
+float plastic_spec_prob(float cos_o, float ior, vec3 alb)
+{
+    float f = fresnel_dielectric(cos_o, ior);
+    float d = (1.0 - f) * max(alb.r, max(alb.g, alb.b));
+    return clamp(f / max(f + d, 1e-6), 0.1, 0.9);
+}
+
+// BSDF × cos for a non-delta material, and the pdf of sampling wi.
+vec3 bsdf_eval(uint cls, vec3 alb, float a, float ior, vec3 n, vec3 wo, vec3 wi, out float pdf)
+{
+    float ci = dot(n, wi);
+    float co = dot(n, wo);
+    pdf = 0.0;
+    if (ci <= 0.0 || co <= 0.0) {
+        return vec3(0.0);
+    }
+    if (cls == MAT_DIFFUSE) {
+        pdf = ci / PI;
+        return alb * (ci / PI);
+    }
+    vec3 h = normalize(wo + wi);
+    float d = ggx_d(dot(n, h), a);
+    float g1o = ggx_g1(co, a);
+    float spec_pdf = d * g1o / (4.0 * co);
+    float g = g1o * ggx_g1(ci, a);
+    float spec = d * g / (4.0 * co);   // × cos_i already
+    if (cls == MAT_CONDUCTOR) {
+        pdf = spec_pdf;
+        return schlick(alb, dot(wo, h)) * spec;
+    }
+    // Plastic: a GGX dielectric coat over a diffuse base.
+    float f = fresnel_dielectric(dot(wo, h), ior);
+    float ps = plastic_spec_prob(co, ior, alb);
+    pdf = ps * spec_pdf + (1.0 - ps) * ci / PI;
+    vec3 base = alb * ((1.0 - fresnel_dielectric(co, ior)) * (1.0 - fresnel_dielectric(ci, ior)) * ci / PI);
+    return vec3(f * spec) + base;
+}
+
 // ---------------------------------------------------------------- sampling
 vec3 cosine_hemisphere(vec3 n, vec2 u)
 {
     float r = sqrt(u.x);
     float phi = 2.0 * PI * u.y;
-    vec3 t = normalize(abs(n.x) > 0.5 ? cross(n, vec3(0, 1, 0)) : cross(n, vec3(1, 0, 0)));
-    vec3 b = cross(n, t);
+    vec3 t, b;
+    frame(n, t, b);
     return normalize(r * cos(phi) * t + r * sin(phi) * b + sqrt(max(0.0, 1.0 - u.x)) * n);
 }
 
@@ -115,10 +228,42 @@ vec2 concentric_disk(vec2 u)
     return r * vec2(cos(th), sin(th));
 }
 
-// A point on light l at shutter time `time`: position, unit normal; returns
-// the probability density per unit area of having chosen it (selection
-// included), 0 if no light.
-float sample_light(vec2 u_sel, vec2 u, float time, out vec3 pos, out vec3 nrm, out uint prim)
+// 1 - sqrt(1 - x) without cancellation for small x.
+float one_minus_sqrt1m(float x)
+{
+    return x / (1.0 + sqrt(max(0.0, 1.0 - x)));
+}
+
+// Whether next-event estimation samples sphere `prim` by the cone it
+// subtends from p (p outside the sphere) rather than by area.
+bool sphere_cone(uint prim, vec3 p, float time, out vec3 c, out float r2, out float d2)
+{
+    c = prims[4u * prim].xyz + time * prims[4u * prim + 3u].xyz;
+    r2 = prims[4u * prim + 1u].w * prims[4u * prim + 1u].w;
+    vec3 to_c = c - p;
+    d2 = dot(to_c, to_c);
+    return (floatBitsToUint(prims[4u * prim].w) & 3u) == KIND_SPHERE && d2 > r2 * 1.0001;
+}
+
+// Solid-angle density, selection included, with which next-event
+// estimation from p picks the direction to point q of light `prim`
+// (dist2 = |q − p|², cos_l the cosine at q).
+float light_pdf(uint prim, vec3 p, float dist2, float cos_l, float time)
+{
+    float pdf_area = prims[4u * prim + 2u].w;   // selection / area
+    vec3 c;
+    float r2, d2;
+    if (sphere_cone(prim, p, time, c, r2, d2)) {
+        float select = pdf_area * 4.0 * PI * r2;
+        return select / (2.0 * PI * one_minus_sqrt1m(r2 / d2));
+    }
+    return pdf_area * dist2 / max(cos_l, 1e-8);
+}
+
+// Picks a light (by power) and a point on it as seen from p at shutter
+// time `time`: uniform in the cone a sphere subtends, uniform by area on a
+// quad (or on a sphere around p). Returns the point and its unit normal.
+void sample_light(vec2 u_sel, vec2 u, vec3 p, float time, out vec3 pos, out vec3 nrm, out uint prim)
 {
     uint nl = P.counts.w;
     uint l = 0u;
@@ -130,7 +275,23 @@ float sample_light(vec2 u_sel, vec2 u, float time, out vec3 pos, out vec3 nrm, o
     vec4 p1 = prims[4u * prim + 1u];
     vec4 p2 = prims[4u * prim + 2u];
     vec3 motion = prims[4u * prim + 3u].xyz;
-    if ((floatBitsToUint(p0.w) & 3u) == KIND_SPHERE) {
+    vec3 c;
+    float r2, d2;
+    if (sphere_cone(prim, p, time, c, r2, d2)) {
+        float d = sqrt(d2);
+        vec3 wc = (c - p) / d;
+        float omc = one_minus_sqrt1m(r2 / d2);   // 1 − cos θmax
+        float v = u.x * omc;                      // 1 − cos θ
+        float cos_t = 1.0 - v;
+        float sin2 = v * (2.0 - v);
+        float phi = 2.0 * PI * u.y;
+        vec3 t, b;
+        frame(wc, t, b);
+        vec3 dir = cos_t * wc + sqrt(sin2) * (cos(phi) * t + sin(phi) * b);
+        float dist = d * cos_t - sqrt(max(0.0, r2 - d2 * sin2));
+        pos = p + dist * dir;
+        nrm = normalize(pos - c);
+    } else if ((floatBitsToUint(p0.w) & 3u) == KIND_SPHERE) {
         float z = 1.0 - 2.0 * u.x;
         float r = sqrt(max(0.0, 1.0 - z * z));
         float phi = 2.0 * PI * u.y;
@@ -140,7 +301,6 @@ float sample_light(vec2 u_sel, vec2 u, float time, out vec3 pos, out vec3 nrm, o
         pos = p0.xyz + u.x * p1.xyz + u.y * p2.xyz + time * motion;
         nrm = normalize(cross(p1.xyz, p2.xyz));
     }
-    return p2.w;
 }
 
 float power_heuristic(float a, float b)
@@ -159,6 +319,27 @@ vec3 normal_at(uint i, vec3 p, float time)
         return normalize(p - time * prims[4u * i + 3u].xyz - p0.xyz);
     }
     return normalize(cross(p1.xyz, prims[4u * i + 2u].xyz));
+}
+
+// Interpolated shading normal of primitive i at reference-time point p, or
+// the geometric normal ng when it has none.
+vec3 shading_normal(uint i, vec3 p, vec3 ng)
+{
+    uint k = floatBitsToUint(prims[4u * i + 3u].w);
+    if (k == 0xffffffffu) {
+        return ng;
+    }
+    vec3 a = prims[4u * i].xyz;
+    vec3 e1 = prims[4u * i + 1u].xyz;
+    vec3 e2 = prims[4u * i + 2u].xyz;
+    vec3 c = cross(e1, e2);
+    float inv = 1.0 / dot(c, c);
+    vec3 ap = p - a;
+    float u = dot(cross(ap, e2), c) * inv;
+    float v = dot(cross(e1, ap), c) * inv;
+    vec3 ns = (1.0 - u - v) * vnormals[3u * k].xyz + u * vnormals[3u * k + 1u].xyz + v * vnormals[3u * k + 2u].xyz;
+    float len = length(ns);
+    return len > 0.0 ? ns / len : ng;
 }
 
 vec3 offset_origin(vec3 p, vec3 n)
@@ -202,10 +383,17 @@ void trace_sample(uvec4 key, uvec2 pix, out vec3 color, out vec3 albedo, out vec
         vec3 p = o + h.t * d;
         vec3 ng = normal_at(prim, p, time);
         bool front = dot(ng, d) < 0.0;
-        vec3 n = front ? ng : -ng;
+        vec3 ngf = front ? ng : -ng;   // geometric, facing the ray
         uint m = prim_material(prim);
-        uint mkind = floatBitsToUint(mats[4u * m].x);
+        uint mkind = floatBitsToUint(mats[4u * m].x) & 255u;
         vec3 p_ref = p - time * prims[4u * prim + 3u].xyz;
+        // Shading normal on the ray's side; the geometric one where the
+        // interpolated normal faces away from the viewer.
+        vec3 n = shading_normal(prim, p_ref, ng);
+        n = front ? n : -n;
+        if (dot(n, d) >= 0.0) {
+            n = ngf;
+        }
 
         if (mkind == MAT_EMISSIVE) {
             vec3 le = mats[4u * m + 3u].xyz;
@@ -219,10 +407,9 @@ void trace_sample(uvec4 key, uvec2 pix, out vec3 color, out vec3 albedo, out vec
             bool emits = front || (floatBitsToUint(prims[4u * prim].w) & 3u) == KIND_TRIANGLE;
             if (emits) {
                 float w = 1.0;
-                float pdf_area = prims[4u * prim + 2u].w;
-                if (prev_bsdf_pdf > 0.0 && pdf_area > 0.0) {
-                    float cos_l = abs(dot(ng, d));
-                    float pdf_light = pdf_area * h.t * h.t / max(cos_l, 1e-8);
+                if (prev_bsdf_pdf > 0.0 && prims[4u * prim + 2u].w > 0.0) {
+                    // o is still the previous vertex's origin.
+                    float pdf_light = light_pdf(prim, o, h.t * h.t, abs(dot(ng, d)), time);
                     w = power_heuristic(prev_bsdf_pdf, pdf_light);
                 }
                 color += beta * w * le;
@@ -231,6 +418,13 @@ void trace_sample(uvec4 key, uvec2 pix, out vec3 color, out vec3 albedo, out vec
         }
 
         vec3 alb = albedo_at(m, p_ref);
+        vec4 m0 = mats[4u * m];
+        uint cls = floatBitsToUint(m0.x) & 255u;
+        float alpha = m0.z;
+        float ior = m0.w;
+        // Delta lobes (mirror, smooth or rough glass) get no next-event
+        // estimation; dielectrics are sampled by their BSDF only.
+        bool delta = cls == MAT_DIELECTRIC || (cls == MAT_CONDUCTOR && alpha < 1e-3);
         if (depth_i == 0u) {
             albedo = alb;
             normal = n;
@@ -241,14 +435,15 @@ void trace_sample(uvec4 key, uvec2 pix, out vec3 color, out vec3 albedo, out vec
         if (depth_i == max_depth) {
             break;
         }
-        vec3 po = offset_origin(p, n);
+        vec3 po = offset_origin(p, ngf);
         uint dim = DIM_VERTEX + 4u * depth_i;
 
+        vec3 wo = -d;
         // Next-event estimation.
-        if (P.counts.w > 0u) {
+        if (P.counts.w > 0u && !delta) {
             vec3 lp, ln;
             uint lprim;
-            float pdf_area = sample_light(rand2(key, dim), rand2(key, dim + 1u), time, lp, ln, lprim);
+            sample_light(rand2(key, dim), rand2(key, dim + 1u), po, time, lp, ln, lprim);
             vec3 to = lp - po;
             float dist2 = dot(to, to);
             float dist = sqrt(dist2);
@@ -256,16 +451,17 @@ void trace_sample(uvec4 key, uvec2 pix, out vec3 color, out vec3 albedo, out vec
             float cos_s = dot(n, wi);
             float cos_l = -dot(ln, wi);
             bool unoccluded = false;
-            if (cos_s > 0.0 && cos_l > 0.0 && pdf_area > 0.0) {
+            if (cos_s > 0.0 && cos_l > 0.0) {
                 Hit s = trace(po, wi, time, 0.0, dist * (1.0 - 1e-4), true);
                 unoccluded = s.prim < 0;
                 if (unoccluded) {
                     uint lm = prim_material(lprim);
                     vec3 le = mats[4u * lm + 3u].xyz;
-                    float pdf_light = pdf_area * dist2 / cos_l;
-                    float pdf_bsdf = cos_s / PI;
+                    float pdf_light = light_pdf(lprim, po, dist2, cos_l, time);
+                    float pdf_bsdf;
+                    vec3 fc = bsdf_eval(cls, alb, alpha, ior, n, wo, wi, pdf_bsdf);
                     float w = power_heuristic(pdf_light, pdf_bsdf);
-                    color += beta * (alb / PI) * cos_s * le * (w / pdf_light);
+                    color += beta * fc * le * (w / pdf_light);
                 }
             }
             if (depth_i == 0u) {
@@ -273,16 +469,60 @@ void trace_sample(uvec4 key, uvec2 pix, out vec3 color, out vec3 albedo, out vec
             }
         }
 
-        // BSDF sampling (cosine: the weight albedo·cos/π / (cos/π) is the albedo).
-        vec3 wi = cosine_hemisphere(n, rand2(key, dim + 2u));
+        // BSDF sampling.
+        vec2 u = rand2(key, dim + 2u);
+        vec2 u_rr = rand2(key, dim + 3u);   // .x roulette, .y lobe choice
+        vec3 wi;
+        vec3 weight;
+        float pdf = 0.0;
+        if (cls == MAT_DIELECTRIC) {
+            // eta = η_t/η_i across the surface in the direction of travel.
+            float eta = front ? ior : 1.0 / ior;
+            float co = dot(n, wo);
+            vec3 tint = mats[4u * m + 1u].xyz;
+            if (abs(ior - 1.0) < 1e-4) {
+                wi = d;   // index-matched: the surface is invisible
+                weight = tint;
+            } else {
+                vec3 h = alpha < 1e-3 ? n : ggx_sample_h(n, wo, alpha, u);
+                float f = fresnel_dielectric(dot(wo, h), eta);
+                if (u_rr.y < f) {
+                    wi = reflect(-wo, h);
+                    weight = vec3(1.0);
+                } else {
+                    wi = refract(-wo, h, 1.0 / eta);
+                    weight = tint;
+                }
+                if (alpha >= 1e-3) {
+                    weight *= ggx_g1(abs(dot(n, wi)), alpha);
+                }
+                // A reflection must leave on wo's side, a refraction on the other.
+                bool reflected = u_rr.y < f;
+                if (dot(wi, wi) == 0.0 || (dot(n, wi) > 0.0) != reflected || co <= 0.0) {
+                    break;
+                }
+            }
+        } else if (cls == MAT_CONDUCTOR && alpha < 1e-3) {
+            wi = reflect(-wo, n);
+            weight = schlick(alb, dot(n, wo));
+        } else if (cls == MAT_DIFFUSE) {
+            wi = cosine_hemisphere(n, u);
+            weight = alb;
+            pdf = max(dot(n, wi), 0.0) / PI;
+        } else {
+            bool spec = cls == MAT_CONDUCTOR || u_rr.y < plastic_spec_prob(dot(n, wo), ior, alb);
+            wi = spec ? reflect(-wo, ggx_sample_h(n, wo, alpha, u)) : cosine_hemisphere(n, u);
+            vec3 fc = bsdf_eval(cls, alb, alpha, ior, n, wo, wi, pdf);
+            weight = pdf > 0.0 ? fc / pdf : vec3(0.0);
+        }
         float cos_s = dot(n, wi);
-        if (cos_s <= 0.0) {
+        if ((!delta && (cos_s <= 0.0 || pdf <= 0.0)) || all(equal(weight, vec3(0.0)))) {
             break;
         }
-        prev_bsdf_pdf = cos_s / PI;
-        beta *= alb;
-        o = po;
-        d = wi;
+        prev_bsdf_pdf = delta ? 0.0 : pdf;
+        beta *= weight;
+        o = offset_origin(p, dot(ngf, wi) > 0.0 ? ngf : -ngf);
+        d = normalize(wi);
 
         if (depth_i >= 2u) {
             float q = min(max(beta.r, max(beta.g, beta.b)), 1.0);
@@ -310,13 +550,30 @@ void main()
         return;
     }
     uint stride = push.plane_stride;
-    uint first = uint(accum[PLANE_COUNT * stride + pixel]);
+    uint i0 = pixel;
+    uint i1 = stride + pixel;
+    uint i2 = 2u * stride + pixel;
+    uint i3 = 3u * stride + pixel;
+    uint i4 = 4u * stride + pixel;
+    uint i5 = 5u * stride + pixel;
+    uint i6 = 6u * stride + pixel;
+    uint i7 = 7u * stride + pixel;
+    float count = acc3[i7];
+    uint first = uint(count);
 
-    vec3 s_col = vec3(0.0), q_col = vec3(0.0);
-    vec3 s_alb = vec3(0.0), q_alb = vec3(0.0);
-    vec3 s_nrm = vec3(0.0), q_nrm = vec3(0.0);
-    vec3 s_pos = vec3(0.0), q_pos = vec3(0.0), s_cross = vec3(0.0);
-    vec4 s_dv = vec4(0.0);   // Σdepth, Σdepth², Σvis, Σvis²
+    // The running sums start from the planes and add the samples one by one
+    // in sample order: the planes are bit-identical however the samples are
+    // split into passes (and bands).
+    vec3 s_col = vec3(acc0[i0], acc0[i2], acc0[i4]);
+    vec3 q_col = vec3(acc0[i1], acc0[i3], acc0[i5]);
+    vec3 s_alb = vec3(acc0[i6], acc1[i0], acc1[i2]);
+    vec3 q_alb = vec3(acc0[i7], acc1[i1], acc1[i3]);
+    vec3 s_nrm = vec3(acc1[i4], acc1[i6], acc2[i0]);
+    vec3 q_nrm = vec3(acc1[i5], acc1[i7], acc2[i1]);
+    vec3 s_pos = vec3(acc2[i4], acc2[i6], acc3[i0]);
+    vec3 q_pos = vec3(acc2[i5], acc2[i7], acc3[i1]);
+    vec3 s_cross = vec3(acc3[i4], acc3[i5], acc3[i6]);
+    vec4 s_dv = vec4(acc2[i2], acc2[i3], acc3[i2], acc3[i3]);   // Σdepth, Σdepth², Σvis, Σvis²
     for (uint s = 0u; s < spp; s++) {
         uvec4 key = uvec4(pixel, first + s, push.seed_hi, push.seed_lo);
         vec3 col, alb, nrm, pos;
@@ -343,18 +600,17 @@ void main()
         }
     }
 
-#define ADD(plane, v) accum[(plane) * stride + pixel] += (v)
-    ADD(0u, s_col.r);  ADD(1u, q_col.r);  ADD(2u, s_col.g);  ADD(3u, q_col.g);
-    ADD(4u, s_col.b);  ADD(5u, q_col.b);
-    ADD(6u, s_alb.r);  ADD(7u, q_alb.r);  ADD(8u, s_alb.g);  ADD(9u, q_alb.g);
-    ADD(10u, s_alb.b); ADD(11u, q_alb.b);
-    ADD(12u, s_nrm.x); ADD(13u, q_nrm.x); ADD(14u, s_nrm.y); ADD(15u, q_nrm.y);
-    ADD(16u, s_nrm.z); ADD(17u, q_nrm.z);
-    ADD(18u, s_dv.x);  ADD(19u, s_dv.y);
-    ADD(20u, s_pos.x); ADD(21u, q_pos.x); ADD(22u, s_pos.y); ADD(23u, q_pos.y);
-    ADD(24u, s_pos.z); ADD(25u, q_pos.z);
-    ADD(26u, s_dv.z);  ADD(27u, s_dv.w);
-    ADD(PLANE_CROSS, s_cross.x); ADD(PLANE_CROSS + 1u, s_cross.y); ADD(PLANE_CROSS + 2u, s_cross.z);
-    ADD(PLANE_COUNT, float(spp));
-#undef ADD
+    // Planes 0-7: colour Σ, Σ² (R, G, B), albedo R.
+    acc0[i0] = s_col.r; acc0[i1] = q_col.r; acc0[i2] = s_col.g; acc0[i3] = q_col.g;
+    acc0[i4] = s_col.b; acc0[i5] = q_col.b; acc0[i6] = s_alb.r; acc0[i7] = q_alb.r;
+    // Planes 8-15: albedo G, B, normal X, Y.
+    acc1[i0] = s_alb.g; acc1[i1] = q_alb.g; acc1[i2] = s_alb.b; acc1[i3] = q_alb.b;
+    acc1[i4] = s_nrm.x; acc1[i5] = q_nrm.x; acc1[i6] = s_nrm.y; acc1[i7] = q_nrm.y;
+    // Planes 16-23: normal Z, depth, position X, Y.
+    acc2[i0] = s_nrm.z; acc2[i1] = q_nrm.z; acc2[i2] = s_dv.x;  acc2[i3] = s_dv.y;
+    acc2[i4] = s_pos.x; acc2[i5] = q_pos.x; acc2[i6] = s_pos.y; acc2[i7] = q_pos.y;
+    // Planes 24-31: position Z, visibility, cross products xy xz yz, count.
+    acc3[i0] = s_pos.z; acc3[i1] = q_pos.z; acc3[i2] = s_dv.z;  acc3[i3] = s_dv.w;
+    acc3[i4] = s_cross.x; acc3[i5] = s_cross.y; acc3[i6] = s_cross.z;
+    acc3[i7] = count + float(spp);
 }

@@ -28,7 +28,8 @@ layout(std430, set = 0, binding = 1) readonly buffer Nodes { vec4 nodes[]; };
 // Sphere: a = centre. Quad: corner a, edges b, c. Triangle: vertex a, edges b, c.
 layout(std430, set = 0, binding = 2) readonly buffer Prims { vec4 prims[]; };
 
-// Four vec4 per material: (kind, scale, 0, 0), colour a, colour b, emission.
+// Four vec4 per material: (class | texture << 8, texture scale, GGX alpha,
+// index of refraction), colour a, colour b, emission.
 layout(std430, set = 0, binding = 3) readonly buffer Materials { vec4 mats[]; };
 
 // One vec4 per light: (primitive index bits, cumulative selection probability, 0, 0).
@@ -38,10 +39,16 @@ layout(std430, set = 0, binding = 4) readonly buffer Lights { vec4 lights[]; };
 #define KIND_QUAD 1u
 #define KIND_TRIANGLE 2u
 
+// Material classes (low byte of a material's first word).
 #define MAT_DIFFUSE 0u
-#define MAT_CHECKER 1u
-#define MAT_NOISE 2u
 #define MAT_EMISSIVE 3u
+#define MAT_CONDUCTOR 4u
+#define MAT_PLASTIC 5u
+#define MAT_DIELECTRIC 6u
+// Albedo textures (second byte).
+#define TEX_CONSTANT 0u
+#define TEX_CHECKER 1u
+#define TEX_NOISE 2u
 
 // Must cover the deepest BVH path (the host checks: gpu_scene::STACK_SIZE).
 #define STACK_SIZE 32

@@ -43,11 +43,30 @@ const KIND_SPHERE: u32 = 0;
 const KIND_QUAD: u32 = 1;
 const KIND_TRIANGLE: u32 = 2;
 
-/// Material kinds (first word of a material).
+/// Material classes (low byte of a material's first word) and albedo
+/// textures (second byte).
 const MAT_DIFFUSE: u32 = 0;
-const MAT_CHECKER: u32 = 1;
-const MAT_NOISE: u32 = 2;
 const MAT_EMISSIVE: u32 = 3;
+const MAT_CONDUCTOR: u32 = 4;
+const MAT_PLASTIC: u32 = 5;
+const MAT_DIELECTRIC: u32 = 6;
+const TEX_CHECKER: u32 = 1;
+const TEX_NOISE: u32 = 2;
+
+/// `(texture << 8, scale, a, b)` of an albedo.
+fn albedo_words(albedo: &Albedo) -> (u32, f32, Vec3, Vec3) {
+    match albedo {
+        Albedo::Constant(c) => (0, 1.0, *c, *c),
+        Albedo::Texture(Texture::Checker { a, b, scale }) => (TEX_CHECKER << 8, *scale, *a, *b),
+        Albedo::Texture(Texture::Noise { a, b, scale }) => (TEX_NOISE << 8, *scale, *a, *b),
+    }
+}
+
+/// GGX width from perceptual roughness.
+fn ggx_alpha(roughness: f32) -> f32 {
+    let r = roughness.clamp(0.0, 1.0);
+    r * r
+}
 
 /// Everything the kernels read about a scene, in host memory.
 #[derive(Clone, Debug)]
@@ -64,6 +83,8 @@ pub struct GpuScene {
     pub materials: Vec<[f32; 16]>,
     /// One vec4 per light.
     pub lights: Vec<[f32; 4]>,
+    /// Three vec4 (vertex normals) per triangle with shading normals.
+    pub normals: Vec<[f32; 12]>,
     /// Depth of the BVH (edges from the root to the deepest leaf).
     pub depth: usize,
 }
@@ -119,10 +140,24 @@ impl GpuScene {
             light_pdf[i] = (select / primitives[i].area()) as f32;
         }
 
+        let mut normals = Vec::new();
         let prims = primitives
             .iter()
             .zip(&light_pdf)
             .map(|(p, &pdf)| {
+                let normal_index = match p.normals {
+                    Some(n) => {
+                        normals.push(std::array::from_fn(|i| {
+                            if i % 4 == 3 {
+                                0.0
+                            } else {
+                                n[i / 4][i % 4]
+                            }
+                        }));
+                        normals.len() as u32 - 1
+                    }
+                    None => u32::MAX,
+                };
                 let (kind, a, b, c, radius) = match p.shape {
                     Shape::Sphere { center, radius } => {
                         (KIND_SPHERE, center, [0.0; 3], [0.0; 3], radius)
@@ -151,7 +186,7 @@ impl GpuScene {
                     m[0],
                     m[1],
                     m[2],
-                    0.0,
+                    f32::from_bits(normal_index),
                 ]
             })
             .collect();
@@ -159,25 +194,51 @@ impl GpuScene {
         let materials = mats
             .iter()
             .map(|(_, m)| {
-                let (kind, scale, a, b, e) = match m {
-                    Material::Diffuse { albedo } => match albedo {
-                        Albedo::Constant(c) => (MAT_DIFFUSE, 1.0, *c, *c, [0.0; 3]),
-                        Albedo::Texture(Texture::Checker { a, b, scale }) => {
-                            (MAT_CHECKER, *scale, *a, *b, [0.0; 3])
-                        }
-                        Albedo::Texture(Texture::Noise { a, b, scale }) => {
-                            (MAT_NOISE, *scale, *a, *b, [0.0; 3])
-                        }
-                    },
+                let (kind, scale, a, b, e, alpha, ior) = match m {
+                    Material::Diffuse { albedo } => {
+                        let (t, scale, a, b) = albedo_words(albedo);
+                        (MAT_DIFFUSE | t, scale, a, b, [0.0; 3], 0.0, 1.0)
+                    }
+                    Material::Conductor { color, roughness } => (
+                        MAT_CONDUCTOR,
+                        1.0,
+                        *color,
+                        *color,
+                        [0.0; 3],
+                        ggx_alpha(*roughness),
+                        1.0,
+                    ),
+                    Material::Plastic {
+                        albedo,
+                        roughness,
+                        ior,
+                    } => {
+                        let (t, scale, a, b) = albedo_words(albedo);
+                        let alpha = ggx_alpha(roughness.max(0.05));
+                        (MAT_PLASTIC | t, scale, a, b, [0.0; 3], alpha, *ior)
+                    }
+                    Material::Dielectric {
+                        ior,
+                        roughness,
+                        tint,
+                    } => (
+                        MAT_DIELECTRIC,
+                        1.0,
+                        *tint,
+                        *tint,
+                        [0.0; 3],
+                        ggx_alpha(*roughness),
+                        *ior,
+                    ),
                     Material::Emissive { radiance } => {
-                        (MAT_EMISSIVE, 1.0, [0.0; 3], [0.0; 3], *radiance)
+                        (MAT_EMISSIVE, 1.0, [0.0; 3], [0.0; 3], *radiance, 0.0, 1.0)
                     }
                 };
                 [
                     f32::from_bits(kind),
                     scale,
-                    0.0,
-                    0.0,
+                    alpha,
+                    ior,
                     a[0],
                     a[1],
                     a[2],
@@ -209,6 +270,7 @@ impl GpuScene {
             primitives,
             materials,
             lights,
+            normals,
             depth,
         })
     }

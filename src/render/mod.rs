@@ -24,14 +24,17 @@
 //! - Geometry: spheres, quads (and boxes of quads), triangle meshes (OBJ or
 //!   inline) in a binary BVH built by `obvhs` and traversed in the shader
 //!   with a stack of [`STACK_SIZE`](crate::render::gpu_scene::STACK_SIZE) entries.
-//! - Materials: diffuse with constant, checker or value-noise albedo;
-//!   emissive quads and spheres (next-event estimation with MIS); a uniform
-//!   environment colour.
+//! - Materials: diffuse with constant, checker or value-noise albedo; GGX
+//!   rough conductor and rough plastic (next-event estimation with MIS);
+//!   smooth and rough glass (BSDF sampling only); emissive quads and
+//!   spheres (sampled by next-event estimation), emissive triangles (found
+//!   by BSDF sampling); a uniform environment colour (BSDF sampling).
 //! - Camera: thin lens; per-object linear motion over the shutter.
 //! - Random numbers are a hash of (pixel, sample index, dimension, seed):
 //!   the sample index of a pixel's `k`-th sample is `k`, counted by the
-//!   count plane, so the same seed and sample maps give bit-identical
-//!   planes however the work is split into bands.
+//!   count plane, and each pixel adds its samples to its planes one by one
+//!   in sample order, so the same seed gives bit-identical planes for the
+//!   same samples per pixel however they are split into passes and bands.
 //!
 //! What one sample adds (all features at the first hit; a miss adds 0 to
 //! every feature and 1 to the count): colour, albedo (emitters: their
@@ -39,7 +42,8 @@
 //! from the lens point, the position at shutter time 0 (`M⁻¹·s` for moving
 //! objects), and visibility — 1 if the next-event shadow ray at the first
 //! hit reached its light, else 0 (1 when the scene has no lights or the
-//! first hit is an emitter).
+//! first hit is an emitter, a mirror or glass, where no shadow ray is
+//! traced).
 
 use std::sync::Arc;
 
@@ -116,8 +120,12 @@ pub const TRACE: KernelDecl = KernelDecl {
         SCENE_BINDINGS[3],
         SCENE_BINDINGS[4],
         read("spp_map"),
-        write("accum"),
+        write("accum0"),
+        write("accum1"),
+        write("accum2"),
+        write("accum3"),
         write("debug"),
+        read("normals"),
     ],
     push_size: std::mem::size_of::<TracePush>() as u32,
 };
@@ -136,6 +144,10 @@ pub const RAYS: KernelDecl = KernelDecl {
     ],
     push_size: std::mem::size_of::<RaysPush>() as u32,
 };
+
+/// Planes per accumulation binding of `render_trace` (four bindings of
+/// eight: no binding exceeds 128 MiB below 4 Mpixels).
+const ACCUM_GROUP: u64 = 8;
 
 /// Every kernel of the renderer (for the reflection test).
 pub const KERNELS: &[&KernelDecl] = &[&TRACE, &RAYS];
@@ -175,6 +187,7 @@ pub struct Renderer {
     prims: GpuBuffer,
     materials: GpuBuffer,
     lights: GpuBuffer,
+    normals: GpuBuffer,
     accum: GpuBuffer,
     /// Bound where a binding is unused (no map, no debug output).
     dummy: GpuBuffer,
@@ -243,6 +256,7 @@ impl Renderer {
             prims: buffer_of(ctx, "render.prims", &gs.prims)?,
             materials: buffer_of(ctx, "render.materials", &gs.materials)?,
             lights: buffer_of(ctx, "render.lights", &gs.lights)?,
+            normals: buffer_of(ctx, "render.normals", &gs.normals)?,
             accum,
             dummy: GpuBuffer::from_slice(ctx, "render.dummy", &[0u32; 4])?,
             flops_per_sample: flops_per_sample(&gs),
@@ -295,6 +309,11 @@ impl Renderer {
     /// accumulation buffer. `expected_spp` is the mean samples per pixel of
     /// the pass (for a map: its budget) and only sizes the row bands
     /// ([`Batch::dispatch`]); it does not change the result.
+    ///
+    /// A band is at least one workgroup (8 rows) high, so a pass of many
+    /// samples per pixel makes long dispatches (on lavapipe ~4 µs per
+    /// sample and core): split long renders into passes, e.g. with
+    /// [`record_uniform`](Self::record_uniform).
     pub fn record_pass(
         &self,
         batch: &mut Batch,
@@ -342,10 +361,30 @@ impl Renderer {
             ..Default::default()
         };
         let [a, b, c, d, e] = self.scene_bindings();
+        let group = |g: u64| {
+            let stride = l.plane_stride();
+            self.accum.range(
+                g * ACCUM_GROUP * stride,
+                (ACCUM_GROUP - 1) * stride + l.pixels() as u64 * 4,
+            )
+        };
         batch.dispatch(
             &TRACE,
             Precision::F32,
-            &[a, b, c, d, e, map, self.accum.slice(), dbg],
+            &[
+                a,
+                b,
+                c,
+                d,
+                e,
+                map,
+                group(0),
+                group(1),
+                group(2),
+                group(3),
+                dbg,
+                self.normals.slice(),
+            ],
             bytemuck::bytes_of(&push),
             push.width,
             push.height,
@@ -353,11 +392,27 @@ impl Renderer {
         )
     }
 
+    /// Records `spp` uniform samples per pixel as several passes, each small
+    /// enough that an 8-row band stays within the batch's
+    /// [`max_flops_per_submit`](Batch::max_flops_per_submit) (a reference
+    /// render). The planes are bit-identical to one pass of `spp`.
+    pub fn record_uniform(&self, batch: &mut Batch, spp: u32) -> Result<()> {
+        let band = 8.0 * self.layout.width as f64 * self.flops_per_sample;
+        let per_pass = ((batch.max_flops_per_submit / band).floor() as u32).clamp(1, spp.max(1));
+        let mut left = spp;
+        while left > 0 {
+            let n = per_pass.min(left);
+            self.record_pass(batch, Samples::Uniform(n), n as f64)?;
+            left -= n;
+        }
+        Ok(())
+    }
+
     /// Renders `spp` samples per pixel and returns each sample's 14 values
     /// (AccumLayout channel order), `[pixel][sample][value]` flattened, while
     /// also adding them to the accumulation buffer. A test aid: it submits
     /// and waits.
-    pub fn record_pass_debug(&self, spp: u32) -> Result<Vec<f32>> {
+    pub fn run_pass_debug(&self, spp: u32) -> Result<Vec<f32>> {
         let n = self.layout.pixels() * spp as usize * 14;
         let out = GpuBuffer::new(&self.ctx, "render.debug_samples", (n * 4) as u64)?;
         let mut batch = Batch::new(&self.ctx)?;
@@ -462,6 +517,7 @@ mod tests {
         assert_eq!(l.cross_plane(0), Some(28));
         assert_eq!(l.count_plane(), 31);
         assert_eq!(l.plane_count(), 32);
+        assert_eq!(l.plane_count() as u64, 4 * ACCUM_GROUP);
     }
 
     #[test]
@@ -469,6 +525,41 @@ mod tests {
         assert_eq!(std::mem::size_of::<TracePush>(), 48);
         assert_eq!(std::mem::size_of::<RaysPush>(), 16);
         assert_eq!(std::mem::size_of::<gpu_scene::GpuParams>(), 128);
+    }
+
+    /// A 200k-triangle mesh (a bumpy 317² grid) fits the shader's stack.
+    #[test]
+    fn a_large_mesh_fits_the_traversal_stack() {
+        let n = 317u32;
+        let mut vertices = Vec::new();
+        for j in 0..=n {
+            for i in 0..=n {
+                let (x, z) = (i as f32 / n as f32, j as f32 / n as f32);
+                vertices.push([x, 0.05 * (20.0 * x).sin() * (17.0 * z).cos(), z]);
+            }
+        }
+        let mut indices = Vec::new();
+        for j in 0..n {
+            for i in 0..n {
+                let v = j * (n + 1) + i;
+                indices.push([v, v + 1, v + n + 2]);
+                indices.push([v, v + n + 2, v + n + 1]);
+            }
+        }
+        let mut s = Scene::builtin("cornell").unwrap();
+        s.objects.push(Object::Mesh {
+            file: None,
+            vertices,
+            indices,
+            normals: Vec::new(),
+            scale: 1.0,
+            translate: [0.0; 3],
+            material: "white".into(),
+            motion: None,
+        });
+        let g = GpuScene::new(&s, 8, 8).unwrap();
+        eprintln!("{} primitives, BVH depth {}", g.primitives.len(), g.depth);
+        assert!(g.primitives.len() > 200_000 && g.depth <= gpu_scene::STACK_SIZE);
     }
 
     #[test]

@@ -46,7 +46,10 @@
 //! material = "lamp"
 //! ```
 //!
-//! Further object types: `box` (`min`, `max`, optional `rotate_y` in
+//! Further material types: `conductor` (`color` = reflectance at normal
+//! incidence, `roughness`), `plastic` (`albedo` as for diffuse, `roughness`,
+//! `ior` = 1.5) and `dielectric` (`ior`, `roughness` = 0, `tint` = white);
+//! roughness is perceptual (GGX width = roughness²). Further object types: `box` (`min`, `max`, optional `rotate_y` in
 //! degrees about its centre: six quads) and `mesh` (`file = "x.obj"`,
 //! relative to the scene file, or inline `vertices = [[x, y, z], …]` and
 //! `indices = [[i, j, k], …]`; optional `scale` and `translate`). Textures
@@ -136,6 +139,40 @@ pub enum Material {
         /// Reflectance.
         albedo: Albedo,
     },
+    /// A rough metal: GGX microfacets with Schlick's Fresnel from the
+    /// reflectance at normal incidence `color` (single scattering: a rough
+    /// surface loses some energy to multiple bounces between microfacets).
+    Conductor {
+        /// Reflectance at normal incidence (F0), linear RGB.
+        color: Vec3,
+        /// Perceptual roughness in `[0, 1]`; the GGX width is its square.
+        /// 0 is a perfect mirror.
+        #[serde(default)]
+        roughness: f32,
+    },
+    /// A diffuse base under a clear GGX coat of index `ior`.
+    Plastic {
+        /// Reflectance of the base.
+        albedo: Albedo,
+        /// Perceptual roughness of the coat in `[0.05, 1]` (smaller values
+        /// are clamped to 0.05).
+        roughness: f32,
+        /// Index of refraction of the coat (default 1.5).
+        #[serde(default = "default_ior")]
+        ior: f32,
+    },
+    /// Glass: smooth (roughness 0) or rough (GGX) reflection and
+    /// refraction at index `ior` (outside: 1), tinted on transmission.
+    Dielectric {
+        /// Index of refraction inside (the side the normal points away from).
+        ior: f32,
+        /// Perceptual roughness in `[0, 1]`.
+        #[serde(default)]
+        roughness: f32,
+        /// Transmission colour per refraction (default white).
+        #[serde(default = "white")]
+        tint: Vec3,
+    },
     /// A light: emits `radiance` (on the front side of quads, outward on
     /// spheres) and reflects nothing. Next-event estimation samples emissive
     /// quads and spheres; emissive triangles are found by BSDF sampling only.
@@ -201,6 +238,10 @@ pub enum Object {
         /// Inline triangles as vertex indices (without `file`).
         #[serde(default)]
         indices: Vec<[u32; 3]>,
+        /// Inline per-vertex shading normals (optional; without them, and
+        /// for OBJ files without `vn`, triangles are flat).
+        #[serde(default)]
+        normals: Vec<Vec3>,
         /// Uniform scale applied to the vertices (before `translate`).
         #[serde(default = "one")]
         scale: f32,
@@ -217,6 +258,14 @@ pub enum Object {
 
 fn one() -> f32 {
     1.0
+}
+
+fn default_ior() -> f32 {
+    1.5
+}
+
+fn white() -> Vec3 {
+    [1.0; 3]
 }
 
 /// A whole scene; see the module documentation for the file format.
@@ -282,6 +331,8 @@ pub struct Primitive {
     pub material: u32,
     /// Translation over the shutter interval.
     pub motion: Vec3,
+    /// Per-vertex shading normals of a triangle (interpolated), if any.
+    pub normals: Option<[Vec3; 3]>,
 }
 
 fn add(a: Vec3, b: Vec3) -> Vec3 {
@@ -409,6 +460,7 @@ const BUILTIN: &[(&str, &str)] = &[
         "soft_shadows",
         include_str!("../../scenes/soft_shadows.toml"),
     ),
+    ("glossy", include_str!("../../scenes/glossy.toml")),
     ("mix", include_str!("../../scenes/mix.toml")),
 ];
 
@@ -477,6 +529,17 @@ impl Scene {
         if sub(c.look_at, c.position) == [0.0; 3] {
             return Err("camera.look_at equals camera.position".into());
         }
+        for (name, m) in &self.materials {
+            let ior = match m {
+                Material::Plastic { ior, .. } | Material::Dielectric { ior, .. } => *ior,
+                _ => 1.0,
+            };
+            if !(ior > 0.0 && ior.is_finite()) {
+                return Err(format!(
+                    "material {name:?}: ior must be positive, not {ior}"
+                ));
+            }
+        }
         for (i, o) in self.objects.iter().enumerate() {
             let m = match o {
                 Object::Sphere { material, .. }
@@ -523,6 +586,7 @@ impl Scene {
                     },
                     material: self.material_index(material),
                     motion: motion.unwrap_or_default(),
+                    normals: None,
                 }),
                 Object::Quad {
                     corner,
@@ -538,6 +602,7 @@ impl Scene {
                     },
                     material: self.material_index(material),
                     motion: motion.unwrap_or_default(),
+                    normals: None,
                 }),
                 Object::Box {
                     min,
@@ -552,6 +617,7 @@ impl Scene {
                             shape,
                             material: m,
                             motion: motion.unwrap_or_default(),
+                            normals: None,
                         });
                     }
                 }
@@ -559,34 +625,49 @@ impl Scene {
                     file,
                     vertices,
                     indices,
+                    normals,
                     scale,
                     translate,
                     material,
                     motion,
                 } => {
-                    let (verts, tris) = match file {
+                    let (verts, tris, norms) = match file {
                         Some(f) => self.load_obj(f)?,
-                        None => (vertices.clone(), indices.clone()),
+                        None => (vertices.clone(), indices.clone(), normals.clone()),
                     };
+                    if !norms.is_empty() && norms.len() != verts.len() {
+                        return Err(Error::InvalidArgument(format!(
+                            "a mesh has {} normals for {} vertices",
+                            norms.len(),
+                            verts.len()
+                        )));
+                    }
                     let m = self.material_index(material);
-                    let place = |i: u32| -> Result<Vec3> {
-                        let p = verts.get(i as usize).ok_or_else(|| {
-                            Error::InvalidArgument(format!(
-                                "mesh index {i} out of range ({} vertices)",
-                                verts.len()
-                            ))
-                        })?;
-                        Ok(add([p[0] * scale, p[1] * scale, p[2] * scale], *translate))
+                    let get = |i: u32| -> Result<usize> {
+                        ((i as usize) < verts.len())
+                            .then_some(i as usize)
+                            .ok_or_else(|| {
+                                Error::InvalidArgument(format!(
+                                    "mesh index {i} out of range ({} vertices)",
+                                    verts.len()
+                                ))
+                            })
+                    };
+                    let place = |i: usize| {
+                        let p = verts[i];
+                        add([p[0] * scale, p[1] * scale, p[2] * scale], *translate)
                     };
                     for t in tris {
+                        let [i, j, k] = [get(t[0])?, get(t[1])?, get(t[2])?];
                         out.push(Primitive {
                             shape: Shape::Triangle {
-                                a: place(t[0])?,
-                                b: place(t[1])?,
-                                c: place(t[2])?,
+                                a: place(i),
+                                b: place(j),
+                                c: place(k),
                             },
                             material: m,
                             motion: motion.unwrap_or_default(),
+                            normals: (!norms.is_empty()).then(|| [norms[i], norms[j], norms[k]]),
                         });
                     }
                 }
@@ -595,18 +676,26 @@ impl Scene {
         Ok(out)
     }
 
-    fn load_obj(&self, file: &Path) -> Result<(Vec<Vec3>, Vec<[u32; 3]>)> {
+    #[allow(clippy::type_complexity)] // (positions, triangles, normals)
+    fn load_obj(&self, file: &Path) -> Result<(Vec<Vec3>, Vec<[u32; 3]>, Vec<Vec3>)> {
         let path = match &self.base_dir {
             Some(d) if file.is_relative() => d.join(file),
             _ => file.to_owned(),
         };
         let (models, _) = tobj::load_obj(&path, &tobj::GPU_LOAD_OPTIONS)
             .map_err(|e| Error::bad_input(&path, format!("cannot read the OBJ file: {e}")))?;
+        let with_normals = models
+            .iter()
+            .all(|m| m.mesh.normals.len() == m.mesh.positions.len());
         let mut verts = Vec::new();
         let mut tris = Vec::new();
+        let mut norms = Vec::new();
         for m in models {
             let base = verts.len() as u32;
             verts.extend(m.mesh.positions.chunks_exact(3).map(|p| [p[0], p[1], p[2]]));
+            if with_normals {
+                norms.extend(m.mesh.normals.chunks_exact(3).map(|n| [n[0], n[1], n[2]]));
+            }
             tris.extend(
                 m.mesh
                     .indices
@@ -614,7 +703,7 @@ impl Scene {
                     .map(|t| [base + t[0], base + t[1], base + t[2]]),
             );
         }
-        Ok((verts, tris))
+        Ok((verts, tris, norms))
     }
 }
 
