@@ -9,10 +9,10 @@
 # samples. Prints a Markdown table.
 #
 #   bash benches/equal_samples.sh [--size WxH] [--spp "16 64"] [--reference K]
-#        [--scenes "cornell dof motion soft_shadows mix"] [--methods "wlr lp"] [--no-oidn]
+#        [--scenes "cornell dof motion soft_shadows glossy mix"] [--methods "wlr lp"] [--no-oidn]
 set -euo pipefail
 cd "$(dirname "$0")/.."
-size=256x256; spps="16 64"; k=4096; scenes="cornell dof motion soft_shadows mix"
+size=256x256; spps="16 64"; k=4096; scenes="cornell dof motion soft_shadows glossy mix"
 methods="wlr lp"; oidn=1
 while [ $# -gt 0 ]; do
   case "$1" in
