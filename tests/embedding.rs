@@ -264,57 +264,19 @@ fn host_submit_recorded(
     }
 }
 
-/// The host's own command pool and buffer: `record` fills it through
-/// `Batch::record_into`, then the host submits and waits. Returns mcdenoise's
-/// per-dispatch timings, read after completion.
+/// [`host_submit_recorded`] with the recording done through
+/// `Batch::record_into` (the lower-level path under the facade).
 fn host_submit(
     h: &Host,
     ctx: &Arc<GpuContext>,
     record: impl FnOnce(&mut Batch),
 ) -> Vec<mcdenoise::gpu::KernelTiming> {
-    unsafe {
-        let pool = h
-            .device
-            .create_command_pool(
-                &vk::CommandPoolCreateInfo::default().queue_family_index(h.family),
-                None,
-            )
-            .unwrap();
-        let cmd = h
-            .device
-            .allocate_command_buffers(
-                &vk::CommandBufferAllocateInfo::default()
-                    .command_pool(pool)
-                    .level(vk::CommandBufferLevel::PRIMARY)
-                    .command_buffer_count(1),
-            )
-            .unwrap()[0];
-        h.device
-            .begin_command_buffer(cmd, &vk::CommandBufferBeginInfo::default())
-            .unwrap();
-        let mut batch = Batch::record_into(ctx, cmd);
+    host_submit_recorded(h, |cmd| {
+        // SAFETY: `cmd` is the host's recording command buffer of ctx's device.
+        let mut batch = unsafe { Batch::record_into(ctx, cmd) };
         record(&mut batch);
-        let recorded = batch.finish_recording();
-        h.device.end_command_buffer(cmd).unwrap();
-        let fence = h
-            .device
-            .create_fence(&vk::FenceCreateInfo::default(), None)
-            .unwrap();
-        let cmds = [cmd];
-        h.device
-            .queue_submit(
-                h.queue,
-                &[vk::SubmitInfo::default().command_buffers(&cmds)],
-                fence,
-            )
-            .unwrap();
-        h.device.wait_for_fences(&[fence], true, u64::MAX).unwrap();
-        h.device.destroy_fence(fence, None);
-        let timings = recorded.timings().unwrap();
-        drop(recorded);
-        h.device.destroy_command_pool(pool, None);
-        timings
-    }
+        vec![batch.finish_recording()]
+    })
 }
 
 /// A host-visible buffer holding `planes` at the accumulation layout's stride.
