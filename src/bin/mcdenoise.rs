@@ -863,7 +863,13 @@ fn reference_image(
 ) -> anyhow::Result<(mcdenoise::RgbImage, PathBuf)> {
     // The reference uses its own random numbers, independent of the render's.
     let ref_seed = seed ^ 0x5eed_5eed_5eed_5eed;
-    let content = format!("{scene:?}{:?}", scene.primitives()?);
+    // The key covers the scene's content and the renderer's shaders, so a
+    // changed renderer never reuses a stale reference.
+    const RENDERER: [&str; 2] = [
+        include_str!("../../spirv/render_trace.comp"),
+        include_str!("../../spirv/lib/render_scene.glsl"),
+    ];
+    let content = format!("{scene:?}{:?}{}{}", scene.primitives()?, RENDERER[0], RENDERER[1]);
     let key = format!(
         "ref-{:016x}-{}x{}-k{k}-s{seed}.exr",
         fnv1a(content.as_bytes()),
