@@ -869,7 +869,12 @@ fn reference_image(
         include_str!("../../spirv/render_trace.comp"),
         include_str!("../../spirv/lib/render_scene.glsl"),
     ];
-    let content = format!("{scene:?}{:?}{}{}", scene.primitives()?, RENDERER[0], RENDERER[1]);
+    let content = format!(
+        "{scene:?}{:?}{}{}",
+        scene.primitives()?,
+        RENDERER[0],
+        RENDERER[1]
+    );
     let key = format!(
         "ref-{:016x}-{}x{}-k{k}-s{seed}.exr",
         fnv1a(content.as_bytes()),
