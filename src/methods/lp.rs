@@ -119,18 +119,10 @@ impl LpPlanes {
 
 /// The bindings of `clean` LP reads.
 pub fn lp_inputs(s: &GpuStats) -> LpInputs {
-    let order = [
-        (Layer::Normal, 0),
-        (Layer::Normal, 1),
-        (Layer::Normal, 2),
-        (Layer::Depth, 0),
-        (Layer::Albedo, 0),
-        (Layer::Albedo, 1),
-        (Layer::Albedo, 2),
-    ];
+    let (feat, var) = super::wlr::features(s);
     LpInputs {
-        feat: std::array::from_fn(|k| s.plane(order[k].0, order[k].1)),
-        var: std::array::from_fn(|k| s.plane(order[k].0.variance().unwrap(), order[k].1)),
+        feat,
+        var,
         color: std::array::from_fn(|c| s.plane(Layer::Color, c)),
         cvar: std::array::from_fn(|c| s.plane(Layer::ColorVariance, c)),
         spp: s.plane(Layer::Spp, 0),

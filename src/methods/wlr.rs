@@ -111,7 +111,9 @@ impl WlrPlanes {
     }
 }
 
-fn features(s: &GpuStats) -> ([BufferSlice; 7], [BufferSlice; 7]) {
+/// The 7 feature planes WLR and LP regress on (normal xyz, depth, albedo
+/// rgb, §2.1) and their variances, from sanitised statistics.
+pub(crate) fn features(s: &GpuStats) -> ([BufferSlice; 7], [BufferSlice; 7]) {
     let order = [
         (Layer::Normal, 0),
         (Layer::Normal, 1),
