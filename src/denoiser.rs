@@ -12,7 +12,9 @@ use crate::gpu::{Batch, BufferSlice, GpuContext, KernelTiming, Precision, Record
 use crate::image::{Layer, RgbImage, StatsImage};
 use crate::methods::chain::{ChainConfig, ChainInput, GpuChain};
 use crate::methods::prepare::PrepareReport;
-use crate::methods::{self, Backend, DenoiseRequest, Method, Pass, Prefilter, ProgressCallback};
+use crate::methods::{
+    self, Backend, DenoiseRequest, Method, Outliers, Pass, Prefilter, ProgressCallback,
+};
 use crate::options::Options;
 
 /// What a [`Denoiser`] is configured with. Everything that decides which
@@ -27,6 +29,9 @@ pub struct Config {
     pub precision: Precision,
     /// The G-buffer prefilter (§6).
     pub prefilter: Prefilter,
+    /// The energy-preserving outlier stage (§4.4): `Auto` runs it for every
+    /// reconstruction and not for `none`.
+    pub outliers: Outliers,
     /// Method options, `key=value` as `mcdenoise denoise --help` lists them.
     pub options: Options,
     /// Keep the method's debug maps for [`Denoiser::read`].
@@ -43,6 +48,7 @@ impl Config {
             pass: Pass::Final,
             precision: Precision::F32,
             prefilter: Prefilter::Auto,
+            outliers: Outliers::Auto,
             options: Options::default(),
             debug: false,
             progress: false,
@@ -55,6 +61,7 @@ impl Config {
             pass: self.pass,
             precision: self.precision,
             prefilter: self.prefilter,
+            outliers: self.outliers.resolve(self.method),
             options: self.options.clone(),
             low_spp,
         }
@@ -66,6 +73,7 @@ impl Config {
         r.pass = self.pass;
         r.precision = self.precision;
         r.prefilter = self.prefilter;
+        r.outliers = self.outliers;
         r.options = self.options.clone();
         r.error = true;
         r.debug = self.debug;

@@ -87,6 +87,6 @@ pub use gpu::{
 };
 pub use image::{Layer, RgbImage, StatsImage};
 pub use methods::prepare::{colour_of, PrepareReport};
-pub use methods::{available_names, Backend, Method, Pass, Prefilter, ProgressCallback};
+pub use methods::{available_names, Backend, Method, Outliers, Pass, Prefilter, ProgressCallback};
 pub use options::{help_table, Options};
 pub use schedule::Schedule;

@@ -255,3 +255,27 @@ pub struct SampleTreePush {
     /// Unused (the block's `pad0..pad2`): rounds the block to 64 bytes; 0.
     pub _pad: [u32; 3],
 }
+
+/// `spirv/lib/outliers.glsl`, block `Push`: every kernel of the outlier stage
+/// (`outlier_rows`, `outlier_detect`, `box_rows`, `outlier_weights`,
+/// `outlier_spread`; spec §4.4).
+#[repr(C)]
+#[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct OutlierPush {
+    /// Image width in pixels.
+    pub width: u32,
+    /// Image height in pixels.
+    pub height: u32,
+    /// First row of the band this dispatch covers.
+    pub row0: u32,
+    /// Window radius: 14 for detection, 43 for redistribution.
+    pub radius: u32,
+    /// `box_rows`: 0 sums the values of valid pixels, 1 counts valid pixels.
+    pub mode: u32,
+    /// Fewest valid neighbours a detection needs (OUTLIER-MIN-N).
+    pub min_n: u32,
+    /// Detection threshold in standard deviations (3).
+    pub k_sigma: f32,
+    /// DARK-WINDOW factor (1e-8).
+    pub dark: f32,
+}

@@ -17,6 +17,7 @@ fn config(method: Method, spp: u32, adaptive: bool) -> LoopConfig {
         adaptive,
         method,
         prefilter: Prefilter::Auto,
+        outliers: mcdenoise::Outliers::Auto,
         precision: Precision::F32,
         options: Options::default(),
     }

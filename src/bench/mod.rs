@@ -178,22 +178,25 @@ fn check_context(ctx: Option<&Arc<GpuContext>>, backends: &[Backend]) -> Result<
 
 /// The benchmarks' front door: a [`Denoiser`] (the public facade) for
 /// `img`'s size and layers with the method's defaults, on the GPU (`ctx`) or
-/// on the CPU references.
+/// on the CPU references, with the outlier stage as `outliers` says.
 fn denoiser(
     ctx: Option<&Arc<GpuContext>>,
     img: &StatsImage,
     method: Method,
     backend: Backend,
+    outliers: crate::Outliers,
 ) -> Result<Denoiser> {
     let source = Source::of_image(img);
+    let mut config = Config::new(method);
+    config.outliers = outliers;
     match backend {
         Backend::Gpu => {
             let ctx = ctx.ok_or_else(|| {
                 Error::InvalidArgument("the GPU backend needs a Vulkan context".into())
             })?;
-            Denoiser::new(ctx, source, Config::new(method))
+            Denoiser::new(ctx, source, config)
         }
-        Backend::Cpu => Denoiser::new_cpu(source, Config::new(method)),
+        Backend::Cpu => Denoiser::new_cpu(source, config),
     }
 }
 

@@ -44,6 +44,8 @@ pub struct TimingConfig {
     pub runs: usize,
     /// Case filter ([`case_matches`]) on `method.inputs.WxH`.
     pub filter: Option<String>,
+    /// The outlier stage (§4.4) for every method.
+    pub outliers: crate::Outliers,
 }
 
 /// GPU time of one kernel in one case.
@@ -204,7 +206,7 @@ pub fn run_timing(
                 "{case} ({})",
                 backend_name(backend)
             )));
-            match time_case(ctx, &img, method, backend, cfg.runs) {
+            match time_case(ctx, &img, method, backend, cfg.runs, cfg.outliers) {
                 Ok((wall_ms, timings)) => {
                     let med = median(&wall_ms);
                     let sums: Vec<f64> = timings.iter().filter_map(|t| gpu_ms(t)).collect();
@@ -268,8 +270,9 @@ fn time_case(
     method: Method,
     backend: Backend,
     runs: usize,
+    outliers: crate::Outliers,
 ) -> Result<(Vec<f64>, Vec<Vec<KernelTiming>>)> {
-    let d = denoiser(ctx, img, method, backend)?;
+    let d = denoiser(ctx, img, method, backend, outliers)?;
     d.denoise(img, None)?;
     let (mut wall, mut timings) = (Vec::new(), Vec::new());
     for _ in 0..runs {

@@ -11,7 +11,7 @@ use mcdenoise::io;
 use mcdenoise::metrics;
 use mcdenoise::{
     colour_of, help_table, Backend, Config, ContextOptions, Denoiser, GpuContext, Method, Options,
-    Pass, Precision, Prefilter, PrepareReport, Source, Validation,
+    Outliers, Pass, Precision, Prefilter, PrepareReport, Source, Validation,
 };
 
 #[derive(Parser)]
@@ -93,6 +93,27 @@ enum PrefilterArg {
     None,
 }
 
+#[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
+enum OutliersArg {
+    /// On for every reconstruction, off for `--method none`.
+    Auto,
+    /// Remove bright spikes before the method and put their energy back
+    /// around them after it (spec §4.4).
+    On,
+    /// Keep spikes in the input.
+    Off,
+}
+
+impl OutliersArg {
+    fn get(self) -> Outliers {
+        match self {
+            OutliersArg::Auto => Outliers::Auto,
+            OutliersArg::On => Outliers::On,
+            OutliersArg::Off => Outliers::Off,
+        }
+    }
+}
+
 impl PrefilterArg {
     fn get(self) -> Prefilter {
         match self {
@@ -158,6 +179,9 @@ enum Command {
         /// Feature prefilter before the method (spec §1, §6).
         #[arg(long, value_enum, default_value = "auto")]
         prefilter: PrefilterArg,
+        /// Energy-preserving firefly removal around the method (spec §4.4).
+        #[arg(long, value_enum, default_value = "auto")]
+        outliers: OutliersArg,
         /// Add the estimated per-pixel MSE as error.R/G/B (method none: the
         /// variance of the mean).
         #[arg(long)]
@@ -374,6 +398,7 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
             precision,
             pass,
             prefilter,
+            outliers,
             error,
             sample_map,
             budget,
@@ -402,6 +427,7 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
                 PassArg::Intermediate => Pass::Intermediate,
             };
             config.prefilter = prefilter.get();
+            config.outliers = outliers.get();
             config.options = options;
             config.debug = *debug_layers;
             config.progress = !cli.quiet;
@@ -593,6 +619,9 @@ struct BenchArgs {
     /// Quality benchmark over this scenes folder (instead of the timing benchmark).
     #[arg(long, value_name = "DIR")]
     quality: Option<PathBuf>,
+    /// The outlier stage (spec §4.4) for every method.
+    #[arg(long, value_enum, default_value = "auto")]
+    outliers: OutliersArg,
     /// Methods to run, comma-separated [default: every method in this build].
     #[arg(long, value_enum, value_delimiter = ',')]
     methods: Vec<MethodArg>,
@@ -640,6 +669,9 @@ struct RenderArgs {
     /// Feature prefilter before the method (spec §6).
     #[arg(long, value_enum, default_value = "auto")]
     prefilter: PrefilterArg,
+    /// Energy-preserving firefly removal around the method (spec §4.4).
+    #[arg(long, value_enum, default_value = "auto")]
+    outliers: OutliersArg,
     /// Image size.
     #[arg(long, value_name = "WxH", default_value = "256x256",
           value_parser = |s: &str| mcdenoise::bench::parse_size(s).map_err(|e| e.to_string()))]
@@ -711,6 +743,7 @@ fn bench(cli: &Cli, args: &BenchArgs) -> anyhow::Result<bool> {
                 methods,
                 backends,
                 filter: args.filter.clone(),
+                outliers: args.outliers.get(),
             },
             &mut note,
         )?;
@@ -732,6 +765,7 @@ fn bench(cli: &Cli, args: &BenchArgs) -> anyhow::Result<bool> {
                 size: args.size,
                 runs: args.runs,
                 filter: args.filter.clone(),
+                outliers: args.outliers.get(),
             },
             &mut note,
         )?;
@@ -976,6 +1010,7 @@ fn render(cli: &Cli, args: &RenderArgs) -> anyhow::Result<bool> {
         adaptive: args.adaptive,
         method,
         prefilter: args.prefilter.get(),
+        outliers: args.outliers.get(),
         precision: args.precision.get(),
         options: Options::parse(&args.opts)?,
     };

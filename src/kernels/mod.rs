@@ -5,6 +5,7 @@
 
 use crate::gpu::KernelDecl;
 
+pub mod box_rows;
 pub mod channel_mean;
 pub mod estimate_variance;
 pub mod finalize_covariance;
@@ -16,6 +17,10 @@ pub mod gbf_sure;
 pub mod lp_centres;
 pub mod lp_gather;
 pub mod lp_reach;
+pub mod outlier_detect;
+pub mod outlier_rows;
+pub mod outlier_spread;
+pub mod outlier_weights;
 pub mod sample_priority;
 pub mod sample_reduce;
 pub mod sample_scan;
@@ -43,6 +48,11 @@ pub const ALL: &[&KernelDecl] = &[
     &lp_centres::DECL,
     &lp_reach::DECL,
     &lp_gather::DECL,
+    &outlier_rows::DECL,
+    &outlier_detect::DECL,
+    &box_rows::DECL,
+    &outlier_weights::DECL,
+    &outlier_spread::DECL,
     &sample_priority::DECL,
     &sample_reduce::DECL,
     &sample_scan::DECL,

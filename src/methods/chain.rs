@@ -18,6 +18,7 @@ use crate::options::Options;
 
 use super::gbf::{self, GbfPlanes};
 use super::lp::{self, LpPlanes};
+use super::outliers::{self, OutlierPlanes};
 use super::prepare::{self, PrepareReport, PrepareScratch};
 use super::sampling::{self, SampleInputs, SamplingParams, SamplingPlanes};
 use super::stats::{self, GpuStats};
@@ -71,6 +72,8 @@ pub struct ChainConfig {
     pub precision: Precision,
     /// The G-buffer prefilter (§6).
     pub prefilter: Prefilter,
+    /// Whether the outlier stage (§4.4) runs.
+    pub outliers: bool,
     /// Method options (`--opt`).
     pub options: Options,
     /// Whether some pixel may have `1 ≤ spp < 2` (runs §0.4 step 3). Always
@@ -96,6 +99,7 @@ pub struct GpuChain {
     clean: GpuStats,
     scratch: PrepareScratch,
     gbf: Option<GbfPlanes>,
+    outliers: Option<OutlierPlanes>,
     planes: MethodPlanes,
     /// `None` on a device without `shaderInt64` (a budget is then an error).
     sampling: Option<(SamplingPlanes, SamplingParams)>,
@@ -107,6 +111,7 @@ impl std::fmt::Debug for GpuChain {
             .field("input", &self.input_kind)
             .field("method", &self.config.method)
             .field("prefilter", &self.gbf.is_some())
+            .field("outliers", &self.outliers.is_some())
             .finish()
     }
 }
@@ -172,6 +177,11 @@ impl GpuChain {
         } else {
             None
         };
+        let outliers = if config.outliers {
+            Some(OutlierPlanes::new(ctx, w, h)?)
+        } else {
+            None
+        };
         let planes = match config.method {
             Method::Wlr => MethodPlanes::Wlr(
                 Box::new(WlrPlanes::new(ctx, w, h)?),
@@ -206,6 +216,7 @@ impl GpuChain {
             clean,
             scratch,
             gbf,
+            outliers,
             planes,
             sampling,
         })
@@ -350,21 +361,31 @@ impl GpuChain {
             &self.scratch,
             self.config.low_spp,
         )?;
+        if let Some(o) = &self.outliers {
+            outliers::record_remove(batch, p, &self.clean, o)?;
+        }
         if let Some(g) = &self.gbf {
             gbf::record_gbf(batch, p, &self.clean, g)?;
         }
         match &self.planes {
-            MethodPlanes::None { zero } => {
-                batch.fill(zero.plane(0), 0);
-                Ok(())
-            }
+            MethodPlanes::None { zero } => batch.fill(zero.plane(0), 0),
             MethodPlanes::Wlr(planes, params) => {
-                wlr::record_wlr(batch, p, &self.clean, planes, *params)
+                wlr::record_wlr(batch, p, &self.clean, planes, *params)?
             }
             MethodPlanes::Lp(planes, params) => {
-                lp::record_lp(batch, p, &self.clean, planes, *params)
+                lp::record_lp(batch, p, &self.clean, planes, *params)?
             }
         }
+        if let Some(o) = &self.outliers {
+            let spp = self.clean.plane(Layer::Spp, 0);
+            outliers::record_restore(batch, p, spp, self.color(), o)?;
+        }
+        Ok(())
+    }
+
+    /// Whether the outlier stage runs.
+    pub fn removes_outliers(&self) -> bool {
+        self.outliers.is_some()
     }
 
     /// The reconstruction's colour planes R, G, B (method `none`: the
@@ -478,6 +499,10 @@ impl GpuChain {
                     out.debug = r.debug_layers();
                 }
             }
+        }
+        if let (true, Some(o)) = (debug, &self.outliers) {
+            out.debug
+                .extend(outliers::debug_layers(&outliers::download_excess(o)?));
         }
         Ok(out)
     }

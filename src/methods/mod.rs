@@ -5,6 +5,7 @@
 pub mod chain;
 pub mod gbf;
 pub mod lp;
+pub mod outliers;
 pub mod prepare;
 pub mod sampling;
 pub mod stats;
@@ -16,6 +17,8 @@ use crate::error::{Error, Result};
 use crate::gpu::{GpuContext, KernelTiming, Precision};
 use crate::image::{RgbImage, StatsImage};
 use crate::options::Options;
+
+pub use outliers::Outliers;
 
 /// Where a method runs.
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Default)]
@@ -96,6 +99,8 @@ pub struct DenoiseRequest {
     pub method: Method,
     /// The G-buffer prefilter (ignored by `none`).
     pub prefilter: Prefilter,
+    /// The outlier stage (§4.4); `auto` is the method's default.
+    pub outliers: Outliers,
     /// GPU kernels or the CPU f64 reference.
     pub backend: Backend,
     /// Compute precision of the GPU kernels (spec §0.3); ignored by the CPU
@@ -124,6 +129,7 @@ impl DenoiseRequest {
         DenoiseRequest {
             method,
             prefilter: Prefilter::Auto,
+            outliers: Outliers::Auto,
             backend: Backend::Gpu,
             precision: Precision::F32,
             pass: Pass::Final,
@@ -197,6 +203,7 @@ fn denoise_gpu(
             pass: req.pass,
             precision: req.precision,
             prefilter: req.prefilter,
+            outliers: req.outliers.resolve(req.method),
             options: req.options.clone(),
             low_spp: prepare::has_low_spp(img),
         },
@@ -265,10 +272,10 @@ pub fn denoise_with_chain(
 }
 
 fn denoise_cpu(img: &StatsImage, req: &DenoiseRequest) -> Result<DenoiseOutput> {
-    let (clean, report) = clean_cpu(img, req)?;
+    let (clean, report, removed) = clean_cpu(img, req)?;
     let (w, h) = (img.width, img.height);
     let mut lp_dmse = None;
-    let (color, error, dim, debug, stats) = match req.method {
+    let (mut color, error, dim, mut debug, stats) = match req.method {
         Method::Wlr => {
             let params = wlr::WlrParams::new(req.pass, &req.options)?;
             let r = wlr::run_cpu_with_progress(&clean, params, req.progress)?;
@@ -324,6 +331,15 @@ fn denoise_cpu(img: &StatsImage, req: &DenoiseRequest) -> Result<DenoiseOutput> 
             )
         }
     };
+    if let Some(r) = &removed {
+        let spp = &clean.get(crate::image::Layer::Spp).unwrap()[0];
+        let mut planes = color.planes.clone();
+        outliers::restore_cpu(w, h, spp, r, &mut planes);
+        color = RgbImage::from_planes(w, h, planes);
+        if req.debug {
+            debug.extend(outliers::debug_layers(&r.excess_f32()));
+        }
+    }
     let samples = match req.budget {
         Some(t) => {
             let mut params = sampling::SamplingParams::for_method(req.method)?;
@@ -363,13 +379,22 @@ fn denoise_cpu(img: &StatsImage, req: &DenoiseRequest) -> Result<DenoiseOutput> 
     })
 }
 
-/// The CPU path's input of every method: sanitised statistics, prefiltered
-/// when `req.prefilter` wants it (§1).
+/// The CPU path's input of every method: sanitised statistics, without
+/// outliers when `req.outliers` wants it, prefiltered when `req.prefilter`
+/// wants it (§1).
 fn clean_cpu(
     img: &StatsImage,
     req: &DenoiseRequest,
-) -> Result<(StatsImage, prepare::PrepareReport)> {
+) -> Result<(
+    StatsImage,
+    prepare::PrepareReport,
+    Option<outliers::Removed>,
+)> {
     let (mut clean, report) = prepare::prepare_cpu(img);
+    let removed = req
+        .outliers
+        .resolve(req.method)
+        .then(|| outliers::remove_cpu(&mut clean));
     let prefilter = match (req.method, req.prefilter) {
         (Method::None, Prefilter::Auto) => Prefilter::Off,
         (_, p) => p,
@@ -377,7 +402,7 @@ fn clean_cpu(
     if gbf::wanted(prefilter, |l| clean.has(l))? {
         gbf::run_cpu(&mut clean)?;
     }
-    Ok((clean, report))
+    Ok((clean, report, removed))
 }
 
 fn gpu_ctx(ctx: Option<&Arc<GpuContext>>) -> Result<&Arc<GpuContext>> {

@@ -10,6 +10,7 @@
 //! the sampling allocation (`sample_reduce`, `sample_scan`) are exact integer
 //! arithmetic and agree with their kernels bit for bit (§9.2).
 
+pub mod box_rows;
 pub mod channel_mean;
 pub mod estimate_variance;
 pub mod finalize_covariance;
@@ -24,6 +25,11 @@ pub mod lp;
 pub mod lp_centres;
 pub mod lp_gather;
 pub mod lp_reach;
+pub mod outlier_detect;
+pub mod outlier_rows;
+pub mod outlier_spread;
+pub mod outlier_weights;
+pub mod outliers;
 pub mod sample_priority;
 pub mod sample_reduce;
 pub mod sample_scan;

@@ -12,8 +12,8 @@ use std::sync::Arc;
 
 use super::{Renderer, Samples};
 use crate::{
-    Batch, Config, Denoiser, Error, Frame, GpuContext, KernelTiming, Method, Options, Pass,
-    Precision, Prefilter, Result, Schedule, Source,
+    Batch, Config, Denoiser, Error, Frame, GpuContext, KernelTiming, Method, Options, Outliers,
+    Pass, Precision, Prefilter, Result, Schedule, Source,
 };
 
 /// What to render and how.
@@ -29,6 +29,8 @@ pub struct LoopConfig {
     pub method: Method,
     /// The G-buffer prefilter (§6).
     pub prefilter: Prefilter,
+    /// The outlier stage (§4.4).
+    pub outliers: Outliers,
     /// Kernel arithmetic.
     pub precision: Precision,
     /// Method options.
@@ -104,6 +106,7 @@ pub fn render(
         let mut c = Config::new(cfg.method);
         c.pass = pass;
         c.prefilter = cfg.prefilter;
+        c.outliers = cfg.outliers;
         c.precision = cfg.precision;
         c.options = cfg.options.clone();
         c

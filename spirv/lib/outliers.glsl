@@ -1,0 +1,42 @@
+// Shared pieces of the outlier stage (spec §4.4): the push block of every
+// outlier kernel, grey, and the merge of (count, mean, M2) summaries.
+// Scalar twin: src/reference/outliers.rs.
+
+// Mirrors mcdenoise::shared::OutlierPush.
+layout(push_constant) uniform Push {
+    uint width;
+    uint height;
+    uint row0;
+    uint radius;    // 14 (detection) or 43 (redistribution)
+    uint mode;      // box_rows: 0 = sum of valid values, 1 = count of valid pixels
+    uint min_n;     // OUTLIER-MIN-N
+    float k_sigma;  // 3
+    float dark;     // DARK-WINDOW factor, 1e-8
+} push;
+
+bool valid_at(float s) { return spp_of(s) >= 1.0; }
+
+// (count, mean, M2) of a set of values; merged exactly as Chan et al.'s
+// parallel variance, so no sum of squares ever cancels.
+struct Summary {
+    real n;
+    real mean;
+    real m2;
+};
+
+Summary merge(Summary a, Summary b)
+{
+    if (b.n == real(0)) {
+        return a;
+    }
+    if (a.n == real(0)) {
+        return b;
+    }
+    real n = a.n + b.n;
+    real d = b.mean - a.mean;
+    Summary r;
+    r.n = n;
+    r.mean = a.mean + d * (b.n / n);
+    r.m2 = a.m2 + b.m2 + d * d * (a.n * b.n / n);
+    return r;
+}

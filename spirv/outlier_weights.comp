@@ -1,0 +1,62 @@
+#version 460
+// Outlier redistribution weights (spec §4.4 step 4) at each pixel o with an
+// excess e_o (0 elsewhere): S = Σ ŷ and |Ω_o| over the valid pixels of
+// Ω_o(R), R = 43, from box_rows' row sums; rho = e/S, or, when S <=
+// dark |Ω_o| (DARK-WINDOW), add = e/|Ω_o|. Scalar twin:
+// src/reference/outlier_weights.rs.
+#include "lib/common.glsl"
+#include "lib/outliers.glsl"
+
+layout(local_size_x = 8, local_size_y = 8) in;
+
+PLANE_IN(0, er)
+PLANE_IN(1, eg)
+PLANE_IN(2, eb)
+PLANE_IN(3, sr)
+PLANE_IN(4, sg)
+PLANE_IN(5, sb)
+PLANE_IN(6, cnt)
+PLANE_OUT(7, rho_r)
+PLANE_OUT(8, rho_g)
+PLANE_OUT(9, rho_b)
+PLANE_OUT(10, add_r)
+PLANE_OUT(11, add_g)
+PLANE_OUT(12, add_b)
+
+void main()
+{
+    uint x = gl_GlobalInvocationID.x;
+    uint y = push.row0 + gl_GlobalInvocationID.y;
+    if (x >= push.width || y >= push.height) {
+        return;
+    }
+    uint o = y * push.width + x;
+    real3 e = real3(er[o], eg[o], eb[o]);
+    real3 rho = real3(0);
+    real3 add = real3(0);
+    if (e != real3(0)) {
+        int r = int(push.radius);
+        real3 s = real3(0);
+        real n = real(0);
+        for (int qy = max(int(y) - r, 0); qy <= min(int(y) + r, int(push.height) - 1); ++qy) {
+            uint q = uint(qy) * push.width + x;
+            s += real3(sr[q], sg[q], sb[q]);
+            n += real(cnt[q]);
+        }
+        if (n > real(0)) {
+            for (int ch = 0; ch < 3; ++ch) {
+                if (s[ch] <= real(push.dark) * n) {
+                    add[ch] = e[ch] / n;
+                } else {
+                    rho[ch] = e[ch] / s[ch];
+                }
+            }
+        }
+    }
+    rho_r[o] = float(rho.x);
+    rho_g[o] = float(rho.y);
+    rho_b[o] = float(rho.z);
+    add_r[o] = float(add.x);
+    add_g[o] = float(add.y);
+    add_b[o] = float(add.z);
+}

@@ -1,0 +1,55 @@
+//! `outlier_spread`: applies the redistribution (spec §4.4 step 4) in place to
+//! the method's colour planes, from `box_rows` of the weights. Twin:
+//! [`crate::reference::outlier_spread`].
+
+use crate::error::Result;
+use crate::gpu::reflect::{read, write};
+use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};
+use crate::shared::OutlierPush;
+
+/// Declaration of `spirv/outlier_spread.comp`.
+pub const DECL: KernelDecl = KernelDecl {
+    name: "outlier_spread",
+    bindings: &[
+        read("rho_r"),
+        read("rho_g"),
+        read("rho_b"),
+        read("add_r"),
+        read("add_g"),
+        read("add_b"),
+        read("spp"),
+        write("yr"),
+        write("yg"),
+        write("yb"),
+    ],
+    push_size: std::mem::size_of::<OutlierPush>() as u32,
+};
+
+/// Per pixel: `2R+1` rows × 6 adds, and the update.
+pub fn flops_per_pixel(radius: u32) -> f64 {
+    (2.0 * radius as f64 + 1.0) * 6.0 + 9.0
+}
+
+/// Records `y ← max(0, y(1 + Σρ) + Σadd)`; `weights` are `box_rows` of ρ R,
+/// G, B and add R, G, B.
+pub fn record(
+    batch: &mut Batch,
+    precision: Precision,
+    push: &OutlierPush,
+    weights: [BufferSlice; 6],
+    spp: BufferSlice,
+    color: [BufferSlice; 3],
+) -> Result<()> {
+    let mut b = weights.to_vec();
+    b.push(spp);
+    b.extend(color);
+    batch.dispatch(
+        &DECL,
+        precision,
+        &b,
+        bytemuck::bytes_of(push),
+        push.width,
+        push.height,
+        flops_per_pixel(push.radius),
+    )
+}

@@ -1,0 +1,250 @@
+//! The energy-preserving outlier stage (spec §4.4), for every method, placed
+//! in the chain as spec §1 draws it:
+//!
+//! ```text
+//! sanitize → remove (steps 1–3) → G-buffer prefilter → method → restore (step 4) → sample map
+//!
+//! remove:   outlier_rows      half-row (count, mean, M2) of grey, R = 14
+//!           outlier_detect    merge → m, sd without o; spikes take the median pixel; e = y − y_q*
+//!           copy              replaced colour and variance → the sanitised statistics
+//! restore:  box_rows ×4       row sums of ŷ (3) and of the valid count, R = 43
+//!           outlier_weights   ρ = e / Σ_{87×87} ŷ (or e/|Ω| in a dark window)
+//!           box_rows ×6       row sums of ρ and of the dark shares
+//!           outlier_spread    ŷ ← max(0, ŷ(1 + Σρ) + Σ add), in place
+//! ```
+//!
+//! Every pass is a gather over fixed windows (box sums split into a row and a
+//! column pass), so the stage is deterministic and costs O(R) per pixel.
+//! The CPU path runs [`crate::reference::outliers`] from the definitions.
+
+use std::sync::Arc;
+
+use super::stats::GpuStats;
+use super::Method;
+use crate::error::Result;
+use crate::gpu::{Batch, BufferSlice, GpuContext, PlaneSet, Precision};
+use crate::image::{Layer, StatsImage};
+use crate::kernels::{box_rows, outlier_detect, outlier_rows, outlier_spread, outlier_weights};
+use crate::reference::outliers::{self as reference, DETECT_RADIUS, SPREAD_RADIUS};
+use crate::shared::OutlierPush;
+
+/// Whether the outlier stage runs (`--outliers`).
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Default)]
+pub enum Outliers {
+    /// The method's default ([`Outliers::default_for`]).
+    #[default]
+    Auto,
+    /// Always.
+    On,
+    /// Never.
+    Off,
+}
+
+impl Outliers {
+    /// Parses `auto`, `on` or `off`.
+    pub fn parse(s: &str) -> Option<Outliers> {
+        match s {
+            "auto" => Some(Outliers::Auto),
+            "on" => Some(Outliers::On),
+            "off" => Some(Outliers::Off),
+            _ => None,
+        }
+    }
+
+    /// The default: on for every reconstruction, off for `none` (whose output
+    /// is the plain Monte Carlo mean by definition).
+    pub fn default_for(method: Method) -> bool {
+        method != Method::None
+    }
+
+    /// Whether the stage runs for `method`.
+    pub fn resolve(self, method: Method) -> bool {
+        match self {
+            Outliers::Auto => Outliers::default_for(method),
+            Outliers::On => true,
+            Outliers::Off => false,
+        }
+    }
+}
+
+fn push(w: usize, h: usize, radius: usize, mode: u32) -> OutlierPush {
+    OutlierPush {
+        width: w as u32,
+        height: h as u32,
+        radius: radius as u32,
+        mode,
+        min_n: reference::MIN_NEIGHBOURS,
+        k_sigma: reference::K_SIGMA as f32,
+        dark: reference::DARK as f32,
+        ..Default::default()
+    }
+}
+
+/// The stage's planes: two six-plane scratch sets, the excess `e` (3) and the
+/// weights (6).
+#[derive(Debug)]
+pub struct OutlierPlanes {
+    planes: PlaneSet,
+    width: usize,
+    height: usize,
+}
+
+impl OutlierPlanes {
+    /// Allocates the planes for a `w × h` image.
+    pub fn new(ctx: &Arc<GpuContext>, w: usize, h: usize) -> Result<OutlierPlanes> {
+        Ok(OutlierPlanes {
+            planes: PlaneSet::new(ctx, "outliers", w * h, 21)?,
+            width: w,
+            height: h,
+        })
+    }
+
+    fn set<const N: usize>(&self, first: usize) -> [BufferSlice; N] {
+        std::array::from_fn(|i| self.planes.plane(first + i))
+    }
+
+    /// The removed excess `e_o` per channel (0 where nothing was detected).
+    pub fn excess(&self) -> [BufferSlice; 3] {
+        self.set(12)
+    }
+}
+
+/// Records steps 1–3 on the sanitised statistics `clean`, in place.
+pub fn record_remove(
+    batch: &mut Batch,
+    precision: Precision,
+    clean: &GpuStats,
+    p: &OutlierPlanes,
+) -> Result<()> {
+    let (w, h) = (p.width, p.height);
+    let color: [BufferSlice; 3] = std::array::from_fn(|c| clean.plane(Layer::Color, c));
+    let var: [BufferSlice; 3] = std::array::from_fn(|c| clean.plane(Layer::ColorVariance, c));
+    let spp = clean.plane(Layer::Spp, 0);
+    let pu = push(w, h, DETECT_RADIUS, 0);
+    let rows = p.set::<6>(0);
+    let out = p.set::<6>(6);
+    outlier_rows::record(batch, precision, &pu, color, spp, rows)?;
+    outlier_detect::record(
+        batch,
+        precision,
+        &pu,
+        color,
+        var,
+        spp,
+        rows,
+        out,
+        p.excess(),
+    )?;
+    for c in 0..3 {
+        batch.copy(out[c], color[c]);
+        batch.copy(out[3 + c], var[c]);
+    }
+    Ok(())
+}
+
+/// Records step 4 on the method's colour planes `color`, in place; `spp` gives
+/// the valid pixels.
+pub fn record_restore(
+    batch: &mut Batch,
+    precision: Precision,
+    spp: BufferSlice,
+    color: [BufferSlice; 3],
+    p: &OutlierPlanes,
+) -> Result<()> {
+    let (w, h) = (p.width, p.height);
+    let sum = push(w, h, SPREAD_RADIUS, 0);
+    let count = push(w, h, SPREAD_RADIUS, 1);
+    let a = p.set::<6>(0);
+    let b = p.set::<6>(6);
+    let weights = p.set::<6>(15);
+    for c in 0..3 {
+        box_rows::record(batch, precision, &sum, color[c], spp, a[c])?;
+    }
+    box_rows::record(batch, precision, &count, spp, spp, a[3])?;
+    outlier_weights::record(
+        batch,
+        precision,
+        &sum,
+        p.excess(),
+        [a[0], a[1], a[2]],
+        a[3],
+        weights,
+    )?;
+    for c in 0..6 {
+        box_rows::record(batch, precision, &sum, weights[c], spp, b[c])?;
+    }
+    outlier_spread::record(batch, precision, &sum, b, spp, color)?;
+    Ok(())
+}
+
+/// The debug layers of the stage: `outlier_mask` (1 where some channel's
+/// excess is non-zero) and `outlier_energy.R/G/B` (the excess `e_o`).
+pub fn debug_layers(excess: &[Vec<f32>; 3]) -> Vec<(String, Vec<f32>)> {
+    let n = excess[0].len();
+    let mask = (0..n)
+        .map(|i| {
+            if (0..3).any(|c| excess[c][i] != 0.0) {
+                1.0
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    let mut v = vec![("outlier_mask".to_string(), mask)];
+    for (c, name) in ["R", "G", "B"].iter().enumerate() {
+        v.push((format!("outlier_energy.{name}"), excess[c].clone()));
+    }
+    v
+}
+
+/// Downloads the excess planes of the last run.
+pub fn download_excess(p: &OutlierPlanes) -> Result<[Vec<f32>; 3]> {
+    Ok([
+        p.planes.download_plane(12)?,
+        p.planes.download_plane(13)?,
+        p.planes.download_plane(14)?,
+    ])
+}
+
+/// What [`remove_cpu`] removed, for [`restore_cpu`].
+#[derive(Clone, Debug)]
+pub struct Removed {
+    /// Detected pixels.
+    pub mask: Vec<bool>,
+    /// The excess per channel, f64.
+    pub excess: [Vec<f64>; 3],
+}
+
+impl Removed {
+    /// The excess as f32 planes (for [`debug_layers`]).
+    pub fn excess_f32(&self) -> [Vec<f32>; 3] {
+        std::array::from_fn(|c| self.excess[c].iter().map(|&v| v as f32).collect())
+    }
+}
+
+/// Steps 1–3 on sanitised statistics, in place (CPU path).
+pub fn remove_cpu(clean: &mut StatsImage) -> Removed {
+    let (w, h) = (clean.width, clean.height);
+    let spp = clean.get(Layer::Spp).unwrap()[0].clone();
+    let mut color: [Vec<f32>; 3] = clean
+        .get(Layer::Color)
+        .unwrap()
+        .to_vec()
+        .try_into()
+        .unwrap();
+    let mut var: [Vec<f32>; 3] = clean
+        .get(Layer::ColorVariance)
+        .unwrap()
+        .to_vec()
+        .try_into()
+        .unwrap();
+    let (mask, excess) = reference::remove(w, h, &mut color, &mut var, &spp);
+    clean.set(Layer::Color, color.to_vec());
+    clean.set(Layer::ColorVariance, var.to_vec());
+    Removed { mask, excess }
+}
+
+/// Step 4 on a reconstruction (CPU path), in place.
+pub fn restore_cpu(w: usize, h: usize, spp: &[f32], removed: &Removed, color: &mut [Vec<f32>; 3]) {
+    reference::restore(w, h, spp, &removed.mask, &removed.excess, color);
+}

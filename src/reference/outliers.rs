@@ -1,0 +1,270 @@
+//! The energy-preserving outlier stage of spec §4.4, for every method, in f64
+//! from its definitions (no box sums, no merges): the reference the kernels'
+//! twins (`outlier_rows`, `outlier_detect`, `box_rows`, `outlier_weights`,
+//! `outlier_spread`) and the CPU path use.
+//!
+//! * Steps 1–3 ([`detect`], [`replace`]), before the G-buffer prefilter and
+//!   the method (§1): a valid pixel `o` is an outlier when
+//!   `grey_o − m_o > 3·sd_o`, with `m_o`, `sd_o` the mean and (population)
+//!   standard deviation of `grey` over the valid pixels of `Ω_o(14) \ {o}`
+//!   (EXCL-CENTRE, SPIKE-SIDE). Its colour and variance are replaced by those
+//!   of the pixel of median grey in `Ω_o(14)` (WHOLE-PIXEL) and the removed
+//!   excess `e_o = y_o − y_q*` is kept per channel.
+//! * Step 4 ([`redistribute`]), after the method: `ρ_o = e_o / Σ_{Ω_o(43)} ŷ`,
+//!   `ŷ_final = ŷ·(1 + Σ_o ρ_o)`, or `e_o/|Ω_o|` added uniformly when the
+//!   window is dark (DARK-WINDOW).
+//!
+//! Decisions of ours where the spec is silent:
+//! * OUTLIER-MIN-N: a pixel with fewer than [`MIN_NEIGHBOURS`] valid
+//!   neighbours in `Ω_o(14) \ {o}` is never an outlier (with one neighbour,
+//!   `sd = 0` and every pixel brighter than it would be "detected").
+//! * OUTLIER-NOISE: a pixel is a spike only if its excess over the
+//!   neighbourhood is within `3·se_o` of its own mean, `se_o = (√v_R + √v_G +
+//!   √v_B)/3` (the standard error of grey when the channels move together).
+//!   A firefly (one sample of value x among n) has `se = y` exactly; a pixel
+//!   that is bright in every sample, such as a small light seen directly,
+//!   has `se ≈ 0` and is signal, not an outlier: without this test such a
+//!   light is removed and its energy smeared over 87×87 pixels.
+//! * OUTLIER-MEDIAN: the median of an even count is the lower one (rank
+//!   `(n−1)/2` of the sorted greys); among pixels whose grey equals it, the
+//!   lowest raster index is `q*`.
+//! * OUTLIER-CLAMP: the redistributed image is clamped to ≥ 0 (spec §0.4
+//!   step 5); [`redistribute`] itself does not clamp, so energy is exact.
+
+use super::spp_of;
+
+/// `Ω_o(14)`: the detection and median window (29×29).
+pub const DETECT_RADIUS: usize = 14;
+/// `Ω_o(43)`: the redistribution window (87×87).
+pub const SPREAD_RADIUS: usize = 43;
+/// Detection threshold in standard deviations.
+pub const K_SIGMA: f64 = 3.0;
+/// Fewest valid neighbours (centre excluded) a detection needs (OUTLIER-MIN-N).
+pub const MIN_NEIGHBOURS: u32 = 8;
+/// DARK-WINDOW: a window whose `Σ ŷ <= DARK · |Ω_o|` gets `e_o` uniformly.
+pub const DARK: f64 = 1e-8;
+
+/// `grey = (R + G + B)/3` (spec §0.1 GREY), in f64.
+pub fn grey(color: [&[f32]; 3], i: usize) -> f64 {
+    (color[0][i] as f64 + color[1][i] as f64 + color[2][i] as f64) / 3.0
+}
+
+/// The standard error of `grey_o` for channels that move together (as a
+/// spike's do): `(√v_R + √v_G + √v_B)/3` (OUTLIER-NOISE).
+pub fn grey_sd(var: [&[f32]; 3], i: usize) -> f64 {
+    (0..3)
+        .map(|c| (var[c][i].max(0.0) as f64).sqrt())
+        .sum::<f64>()
+        / 3.0
+}
+
+/// Visits the valid pixels of the clipped square window of radius `r` around
+/// `(x, y)` in raster order.
+pub fn window(
+    w: usize,
+    h: usize,
+    x: usize,
+    y: usize,
+    r: usize,
+    spp: &[f32],
+    mut f: impl FnMut(usize),
+) {
+    for qy in y.saturating_sub(r)..(y + r + 1).min(h) {
+        for qx in x.saturating_sub(r)..(x + r + 1).min(w) {
+            let q = qy * w + qx;
+            if spp_of(spp[q]) >= 1.0 {
+                f(q);
+            }
+        }
+    }
+}
+
+/// Steps 1–2 at pixel `o`: `Some(q*)` (step 3's replacement) if `o` is an
+/// outlier, else `None`.
+pub fn detect_at(
+    w: usize,
+    h: usize,
+    color: [&[f32]; 3],
+    var: [&[f32]; 3],
+    spp: &[f32],
+    o: usize,
+) -> Option<usize> {
+    if spp_of(spp[o]) < 1.0 {
+        return None;
+    }
+    let (x, y) = (o % w, o / w);
+    let (mut n, mut sum) = (0u32, 0.0);
+    window(w, h, x, y, DETECT_RADIUS, spp, |q| {
+        if q != o {
+            n += 1;
+            sum += grey(color, q);
+        }
+    });
+    if n < MIN_NEIGHBOURS {
+        return None;
+    }
+    let m = sum / n as f64;
+    let mut m2 = 0.0;
+    window(w, h, x, y, DETECT_RADIUS, spp, |q| {
+        if q != o {
+            let d = grey(color, q) - m;
+            m2 += d * d;
+        }
+    });
+    let sd = (m2 / n as f64).sqrt();
+    let excess = grey(color, o) - m;
+    if excess <= K_SIGMA * sd || excess > K_SIGMA * grey_sd(var, o) {
+        return None;
+    }
+    Some(median_at(w, h, color, spp, o))
+}
+
+/// The pixel of median grey in `Ω_o(14)`, `o` included (OUTLIER-MEDIAN).
+pub fn median_at(w: usize, h: usize, color: [&[f32]; 3], spp: &[f32], o: usize) -> usize {
+    let mut v = Vec::with_capacity((2 * DETECT_RADIUS + 1).pow(2));
+    window(w, h, o % w, o / w, DETECT_RADIUS, spp, |q| {
+        v.push((grey(color, q), q))
+    });
+    let mut g: Vec<f64> = v.iter().map(|p| p.0).collect();
+    g.sort_by(|a, b| a.total_cmp(b));
+    let med = g[(g.len() - 1) / 2];
+    v.iter().find(|p| p.0 == med).map(|p| p.1).unwrap_or(o)
+}
+
+/// Steps 1–2 for every pixel: the replacement `q*` of each outlier. All
+/// detections read the original image (spec: applied at once).
+pub fn detect(
+    w: usize,
+    h: usize,
+    color: [&[f32]; 3],
+    var: [&[f32]; 3],
+    spp: &[f32],
+) -> Vec<Option<usize>> {
+    (0..w * h)
+        .map(|o| detect_at(w, h, color, var, spp, o))
+        .collect()
+}
+
+/// Step 3: replaces every outlier's colour and variance by its `q*`'s (read
+/// from the original planes) and returns the excess `e_o = y_o − y_q*` per
+/// channel (0 elsewhere), in f64.
+pub fn replace(
+    found: &[Option<usize>],
+    color: &mut [Vec<f32>; 3],
+    var: &mut [Vec<f32>; 3],
+) -> [Vec<f64>; 3] {
+    let (c0, v0) = (color.clone(), var.clone());
+    let mut e: [Vec<f64>; 3] = std::array::from_fn(|_| vec![0.0; found.len()]);
+    for (o, q) in found.iter().enumerate() {
+        if let Some(q) = *q {
+            for ch in 0..3 {
+                e[ch][o] = c0[ch][o] as f64 - c0[ch][q] as f64;
+                color[ch][o] = c0[ch][q];
+                var[ch][o] = v0[ch][q];
+            }
+        }
+    }
+    e
+}
+
+/// Step 4 in f64, unclamped: adds the excess `e` back to `yhat` over the
+/// valid pixels of each outlier's 87×87 window, in proportion to `yhat`
+/// (or uniformly when the window is dark). `outlier` marks the pixels whose
+/// `e` is redistributed. Energy: `Σ ŷ_final − Σ ŷ = Σ_o e_o` per channel.
+pub fn redistribute(
+    w: usize,
+    h: usize,
+    spp: &[f32],
+    outlier: &[bool],
+    e: &[Vec<f64>; 3],
+    yhat: &mut [Vec<f64>; 3],
+) {
+    let n = w * h;
+    let mut rho: [Vec<f64>; 3] = std::array::from_fn(|_| vec![0.0; n]);
+    let mut add: [Vec<f64>; 3] = std::array::from_fn(|_| vec![0.0; n]);
+    for o in (0..n).filter(|&o| outlier[o]) {
+        let (x, y) = (o % w, o / w);
+        let mut cnt = 0usize;
+        let mut s = [0.0f64; 3];
+        window(w, h, x, y, SPREAD_RADIUS, spp, |q| {
+            cnt += 1;
+            for ch in 0..3 {
+                s[ch] += yhat[ch][q];
+            }
+        });
+        if cnt == 0 {
+            continue;
+        }
+        for ch in 0..3 {
+            if s[ch] <= DARK * cnt as f64 {
+                add[ch][o] = e[ch][o] / cnt as f64;
+            } else {
+                rho[ch][o] = e[ch][o] / s[ch];
+            }
+        }
+    }
+    let before = yhat.clone();
+    for i in 0..n {
+        if spp_of(spp[i]) < 1.0 {
+            continue;
+        }
+        let (x, y) = (i % w, i / w);
+        let mut r = [0.0f64; 3];
+        let mut a = [0.0f64; 3];
+        // Ω is symmetric: o's window holds i iff i's window holds o.
+        window(w, h, x, y, SPREAD_RADIUS, spp, |o| {
+            if outlier[o] {
+                for ch in 0..3 {
+                    r[ch] += rho[ch][o];
+                    a[ch] += add[ch][o];
+                }
+            }
+        });
+        for ch in 0..3 {
+            yhat[ch][i] = before[ch][i] * (1.0 + r[ch]) + a[ch];
+        }
+    }
+}
+
+/// The pre-method part (steps 1–3) on f32 planes, in place. Returns the
+/// outlier mask and the excess per channel.
+pub fn remove(
+    w: usize,
+    h: usize,
+    color: &mut [Vec<f32>; 3],
+    var: &mut [Vec<f32>; 3],
+    spp: &[f32],
+) -> (Vec<bool>, [Vec<f64>; 3]) {
+    let found = detect(
+        w,
+        h,
+        [&color[0], &color[1], &color[2]],
+        [&var[0], &var[1], &var[2]],
+        spp,
+    );
+    let e = replace(&found, color, var);
+    (found.iter().map(Option::is_some).collect(), e)
+}
+
+/// The post-method part (step 4) on f32 planes, in place, clamped to ≥ 0
+/// (OUTLIER-CLAMP).
+pub fn restore(
+    w: usize,
+    h: usize,
+    spp: &[f32],
+    outlier: &[bool],
+    e: &[Vec<f64>; 3],
+    color: &mut [Vec<f32>; 3],
+) {
+    if !outlier.iter().any(|&o| o) {
+        return;
+    }
+    let mut y: [Vec<f64>; 3] =
+        std::array::from_fn(|ch| color[ch].iter().map(|&v| v as f64).collect());
+    redistribute(w, h, spp, outlier, e, &mut y);
+    for ch in 0..3 {
+        for (c, v) in color[ch].iter_mut().zip(&y[ch]) {
+            *c = v.max(0.0) as f32;
+        }
+    }
+}

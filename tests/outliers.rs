@@ -1,0 +1,475 @@
+//! The outlier stage (spec §4.4): each kernel against its twin (§0.3), the
+//! reference's invariants (§4.5: energy conservation, no spike → no
+//! detection, a lone spike is detected), and the spike test of issue #11 for
+//! every method through the public facade.
+
+mod common;
+
+use common::*;
+use mcdenoise::image::{Layer, StatsImage};
+use mcdenoise::kernels::{
+    box_rows, outlier_detect, outlier_rows, outlier_spread, outlier_weights, run_planes,
+};
+use mcdenoise::reference::outliers as ro;
+use mcdenoise::reference::{
+    box_rows as rb, outlier_detect as rd, outlier_rows as rr, outlier_spread as rs,
+    outlier_weights as rw,
+};
+use mcdenoise::shared::OutlierPush;
+use mcdenoise::{Config, Denoiser, Method, Outliers, Source};
+
+/// A noisy image with spikes (variance = value², as one bright sample among
+/// n gives), a "light" (bright in every sample: variance 0), a dark corner
+/// and a few invalid pixels.
+struct Img {
+    w: usize,
+    h: usize,
+    color: [Vec<f32>; 3],
+    var: [Vec<f32>; 3],
+    spp: Vec<f32>,
+}
+
+fn noisy(w: usize, h: usize, seed: u64) -> Img {
+    let mut rng = Rng(seed);
+    let n = w * h;
+    let mut img = Img {
+        w,
+        h,
+        color: std::array::from_fn(|_| vec![0.0; n]),
+        var: std::array::from_fn(|_| vec![0.0; n]),
+        spp: vec![16.0; n],
+    };
+    for i in 0..n {
+        let (x, y) = ((i % w) as f64, (i / w) as f64);
+        let base = if x < w as f64 / 4.0 && y < h as f64 / 4.0 {
+            0.0 // dark corner: DARK-WINDOW
+        } else {
+            0.2 + 0.5 * x / w as f64 + 0.3 * y / h as f64
+        };
+        for c in 0..3 {
+            let v = 0.002 * (c as f64 + 1.0);
+            img.color[c][i] = (base * (1.0 + 0.1 * c as f64) + v.sqrt() * rng.normal()) as f32;
+            img.var[c][i] = v as f32;
+        }
+        let u = rng.uniform();
+        if u < 0.02 {
+            for c in 0..3 {
+                let s = (img.color[c][i].max(0.1) * 500.0) as f64;
+                img.color[c][i] = s as f32;
+                img.var[c][i] = (s * s) as f32;
+            }
+        } else if u < 0.025 {
+            for c in 0..3 {
+                img.color[c][i] = 300.0;
+                img.var[c][i] = 0.0;
+            }
+        } else if u < 0.035 {
+            img.spp[i] = 0.0;
+        }
+    }
+    img
+}
+
+fn push(img: &Img, radius: usize, mode: u32) -> OutlierPush {
+    OutlierPush {
+        width: img.w as u32,
+        height: img.h as u32,
+        radius: radius as u32,
+        mode,
+        min_n: ro::MIN_NEIGHBOURS,
+        k_sigma: ro::K_SIGMA as f32,
+        dark: ro::DARK as f32,
+        ..Default::default()
+    }
+}
+
+fn refs(v: &[Vec<f32>]) -> Vec<&[f32]> {
+    v.iter().map(|p| p.as_slice()).collect()
+}
+
+/// Splits `n` owned planes into an array of mutable slices.
+fn muts<const N: usize>(v: &mut [Vec<f32>]) -> [&mut [f32]; N] {
+    let mut it = v.iter_mut();
+    std::array::from_fn(|_| it.next().unwrap().as_mut_slice())
+}
+
+#[test]
+fn kernels_match_twins() {
+    let ctx = gpu();
+    for &(w, h) in &[(64, 64), (37, 23), (1, 17), (23, 1), (1, 1), (97, 61)] {
+        let img = noisy(w, h, 7 + w as u64);
+        let n = w * h;
+        let c3 = [&img.color[0][..], &img.color[1][..], &img.color[2][..]];
+        let v3 = [&img.var[0][..], &img.var[1][..], &img.var[2][..]];
+        for p in precisions() {
+            let what = |k: &str| format!("{k} {w}x{h} {p:?}");
+            // outlier_rows
+            let pu = push(&img, ro::DETECT_RADIUS, 0);
+            let mut rows = vec![vec![0.0f32; n]; 6];
+            rr::outlier_rows(&pu, c3, &img.spp, muts::<6>(&mut rows));
+            let mut inputs: Vec<&[f32]> = c3.to_vec();
+            inputs.push(&img.spp);
+            let (g, _) = run_planes(
+                &ctx,
+                &outlier_rows::DECL,
+                p,
+                bytemuck::bytes_of(&pu),
+                w,
+                h,
+                &inputs,
+                &[n; 6],
+                1.0,
+            )
+            .unwrap();
+            for k in 0..6 {
+                assert_close(&what("outlier_rows"), &g[k], &rows[k], 0.99);
+            }
+            // outlier_detect, from the twin's summaries
+            let mut out = vec![vec![0.0f32; n]; 9];
+            {
+                let (a, b) = out.split_at_mut(3);
+                let (b, e) = b.split_at_mut(3);
+                rd::outlier_detect(&pu, c3, v3, &img.spp, muts(a), muts(b), muts(e));
+            }
+            let mut inputs: Vec<&[f32]> = c3.to_vec();
+            inputs.extend(v3);
+            inputs.push(&img.spp);
+            inputs.extend(refs(&rows));
+            let (g, _) = run_planes(
+                &ctx,
+                &outlier_detect::DECL,
+                p,
+                bytemuck::bytes_of(&pu),
+                w,
+                h,
+                &inputs,
+                &[n; 9],
+                1.0,
+            )
+            .unwrap();
+            for k in 0..9 {
+                assert_close(&what("outlier_detect"), &g[k], &out[k], 0.99);
+            }
+            let detected = out[6].iter().filter(|&&e| e != 0.0).count();
+            if n >= 64 * 64 {
+                assert!(
+                    detected > 10,
+                    "{}: only {detected} spikes found",
+                    what("detect")
+                );
+            }
+            // box_rows: sums and counts at R = 43
+            let e3: Vec<Vec<f32>> = out[6..9].to_vec();
+            let mut sums = vec![vec![0.0f32; n]; 4];
+            for c in 0..4 {
+                let pb = push(&img, ro::SPREAD_RADIUS, (c == 3) as u32);
+                let src = if c < 3 { &img.color[c] } else { &img.spp };
+                rb::box_rows(&pb, src, &img.spp, &mut sums[c]);
+                let (g, _) = run_planes(
+                    &ctx,
+                    &box_rows::DECL,
+                    p,
+                    bytemuck::bytes_of(&pb),
+                    w,
+                    h,
+                    &[src, &img.spp],
+                    &[n],
+                    1.0,
+                )
+                .unwrap();
+                assert_close(&what("box_rows"), &g[0], &sums[c], 0.99);
+            }
+            // outlier_weights
+            let ps = push(&img, ro::SPREAD_RADIUS, 0);
+            let mut wts = vec![vec![0.0f32; n]; 6];
+            {
+                let (a, b) = wts.split_at_mut(3);
+                rw::outlier_weights(
+                    &ps,
+                    [&e3[0], &e3[1], &e3[2]],
+                    [&sums[0], &sums[1], &sums[2]],
+                    &sums[3],
+                    muts(a),
+                    muts(b),
+                );
+            }
+            let mut inputs = refs(&e3);
+            inputs.extend(refs(&sums));
+            let (g, _) = run_planes(
+                &ctx,
+                &outlier_weights::DECL,
+                p,
+                bytemuck::bytes_of(&ps),
+                w,
+                h,
+                &inputs,
+                &[n; 6],
+                1.0,
+            )
+            .unwrap();
+            for k in 0..6 {
+                assert_close(&what("outlier_weights"), &g[k], &wts[k], 0.99);
+            }
+            // outlier_spread (weights row-summed by the twin)
+            let mut wrows = vec![vec![0.0f32; n]; 6];
+            for k in 0..6 {
+                rb::box_rows(&ps, &wts[k], &img.spp, &mut wrows[k]);
+            }
+            let mut y = img.color.to_vec();
+            rs::outlier_spread(
+                &ps,
+                [&wrows[0], &wrows[1], &wrows[2]],
+                [&wrows[3], &wrows[4], &wrows[5]],
+                &img.spp,
+                muts(&mut y),
+            );
+            let mut inputs = refs(&wrows);
+            inputs.push(&img.spp);
+            let gy = spread_in_place(&ctx, p, &ps, &inputs, &img.color);
+            for c in 0..3 {
+                assert_close(&what("outlier_spread"), &gy[c], &y[c], 0.99);
+            }
+        }
+    }
+    check_validation(&ctx);
+}
+
+/// Runs `outlier_spread` with `color` uploaded as its in/out planes.
+fn spread_in_place(
+    ctx: &std::sync::Arc<mcdenoise::GpuContext>,
+    p: mcdenoise::Precision,
+    push: &OutlierPush,
+    inputs: &[&[f32]],
+    color: &[Vec<f32>; 3],
+) -> Vec<Vec<f32>> {
+    use mcdenoise::gpu::{Batch, GpuBuffer};
+    let mut bufs: Vec<GpuBuffer> = inputs
+        .iter()
+        .map(|v| GpuBuffer::from_slice(ctx, "in", v).unwrap())
+        .collect();
+    for c in color {
+        bufs.push(GpuBuffer::from_slice(ctx, "y", c).unwrap());
+    }
+    let slices: Vec<_> = bufs.iter().map(|b| b.slice()).collect();
+    let mut batch = Batch::new(ctx).unwrap();
+    batch
+        .dispatch(
+            &outlier_spread::DECL,
+            p,
+            &slices,
+            bytemuck::bytes_of(push),
+            push.width,
+            push.height,
+            1.0,
+        )
+        .unwrap();
+    batch.finish().unwrap();
+    bufs[7..]
+        .iter()
+        .map(|b| b.read_vec::<f32>(color[0].len()).unwrap())
+        .collect()
+}
+
+/// §4.5: redistribution conserves energy per channel to 1e-9 relative, in a
+/// bright and in a dark (DARK-WINDOW) neighbourhood.
+#[test]
+fn redistribution_conserves_energy() {
+    let mut img = noisy(96, 80, 3);
+    let (w, h) = (img.w, img.h);
+    let spp = img.spp.clone();
+    let (mask, e) = ro::remove(w, h, &mut img.color, &mut img.var, &spp);
+    let found = mask.iter().filter(|&&m| m).count();
+    assert!(found > 50, "{found} spikes");
+    // A spike inside the dark corner too.
+    let mut mask = mask;
+    let mut e = e;
+    let dark = 3 * w + 3;
+    mask[dark] = true;
+    for c in 0..3 {
+        e[c][dark] = 7.0;
+    }
+    let mut y: [Vec<f64>; 3] = std::array::from_fn(|c| {
+        img.color[c]
+            .iter()
+            .zip(&spp)
+            .map(|(&v, &s)| if s >= 1.0 { v.max(0.0) as f64 } else { 0.0 })
+            .collect()
+    });
+    let before: Vec<f64> = (0..3).map(|c| y[c].iter().sum()).collect();
+    ro::redistribute(w, h, &spp, &mask, &e, &mut y);
+    for c in 0..3 {
+        let after: f64 = y[c].iter().sum();
+        let want: f64 = (0..w * h).filter(|&o| mask[o]).map(|o| e[c][o]).sum();
+        let got = after - before[c];
+        assert!(
+            (got - want).abs() <= 1e-9 * want.abs(),
+            "channel {c}: added {got}, removed {want}"
+        );
+    }
+}
+
+/// §4.5: no spike → no detection; a lone firefly on a flat background is
+/// found; a pixel bright in every sample (variance 0) is not (OUTLIER-NOISE).
+#[test]
+fn detection_invariants() {
+    let (w, h) = (41, 37);
+    let n = w * h;
+    let spp = vec![8.0f32; n];
+    let flat = |v: f32| -> [Vec<f32>; 3] { std::array::from_fn(|_| vec![v; n]) };
+    let smooth: [Vec<f32>; 3] = std::array::from_fn(|c| {
+        (0..n)
+            .map(|i| 0.1 + 0.01 * (i % w) as f32 + 0.02 * c as f32)
+            .collect()
+    });
+    let var = flat(0.0);
+    let found = ro::detect(
+        w,
+        h,
+        [&smooth[0], &smooth[1], &smooth[2]],
+        [&var[0], &var[1], &var[2]],
+        &spp,
+    );
+    assert!(
+        found.iter().all(Option::is_none),
+        "smooth image: detections"
+    );
+    let o = 20 * w + 17;
+    let mut c = flat(0.5);
+    let mut v = flat(0.01);
+    for ch in 0..3 {
+        c[ch][o] = 400.0;
+        v[ch][o] = 400.0 * 400.0;
+    }
+    let found = ro::detect(w, h, [&c[0], &c[1], &c[2]], [&v[0], &v[1], &v[2]], &spp);
+    assert!(found[o].is_some(), "the firefly is not detected");
+    assert_eq!(found.iter().filter(|f| f.is_some()).count(), 1);
+    for ch in 0..3 {
+        v[ch][o] = 0.0;
+    }
+    let found = ro::detect(w, h, [&c[0], &c[1], &c[2]], [&v[0], &v[1], &v[2]], &spp);
+    assert!(
+        found.iter().all(Option::is_none),
+        "a steady light is not noise"
+    );
+}
+
+/// The committed smooth fixture (`tests/fixtures/smooth_64.exr`): colour
+/// proportional to a linear ramp (channels in fixed ratio), tiny variance, no
+/// noise; flat albedo and normal, linear depth; 16 spp.
+fn smooth_fixture() -> StatsImage {
+    let (w, h) = (64, 64);
+    let n = w * h;
+    let mut img = StatsImage::new(w, h);
+    let ramp: Vec<f32> = (0..n)
+        .map(|i| 0.2 + 0.5 * (i % w) as f32 / w as f32 + 0.3 * (i / w) as f32 / h as f32)
+        .collect();
+    let scaled = |k: f32| ramp.iter().map(|r| r * k).collect::<Vec<f32>>();
+    img.set(Layer::Color, vec![scaled(1.0), scaled(0.8), scaled(0.6)]);
+    img.set(Layer::ColorVariance, vec![vec![1e-5; n]; 3]);
+    img.set(Layer::Albedo, vec![vec![0.5; n]; 3]);
+    img.set(Layer::AlbedoVariance, vec![vec![0.0; n]; 3]);
+    img.set(
+        Layer::Normal,
+        vec![vec![0.0; n], vec![0.0; n], vec![1.0; n]],
+    );
+    img.set(Layer::NormalVariance, vec![vec![0.0; n]; 3]);
+    img.set(
+        Layer::Depth,
+        vec![(0..n).map(|i| 2.0 + (i % w) as f32 * 0.01).collect()],
+    );
+    img.set(Layer::DepthVariance, vec![vec![0.0; n]]);
+    img.set(Layer::Spp, vec![vec![16.0; n]]);
+    img
+}
+
+/// Writes the smooth fixture (run once; the file is committed).
+#[test]
+#[ignore]
+fn write_smooth_fixture() {
+    mcdenoise::io::write_stats(
+        std::path::Path::new("tests/fixtures/smooth_64.exr"),
+        &smooth_fixture(),
+    )
+    .unwrap();
+}
+
+/// Issue #11's spike test: single-pixel spikes (1000× the local mean, with a
+/// renderer's variance) injected into the smooth fixture. With the defaults,
+/// every method's output differs from its spike-free output by at most 1 % of
+/// a spike's excess at any pixel, and the image sum by the spikes' energy
+/// within 1e-6 of the image sum. `none` keeps spikes by default (its output is
+/// the Monte Carlo mean); with `--outliers on` it passes the same test.
+#[test]
+fn spikes_are_removed_and_their_energy_kept() {
+    let clean = mcdenoise::io::read_stats(std::path::Path::new("tests/fixtures/smooth_64.exr"))
+        .expect("tests/fixtures/smooth_64.exr");
+    let w = clean.width;
+    let spikes = [(20, 30), (45, 10), (50, 52)];
+    let mut spiky = clean.clone();
+    let mut energy = [0.0f64; 3];
+    {
+        let color = spiky.get(Layer::Color).unwrap().to_vec();
+        let mut var = spiky.get(Layer::ColorVariance).unwrap().to_vec();
+        let mut col = color.clone();
+        for &(x, y) in &spikes {
+            let i = y * w + x;
+            for c in 0..3 {
+                let s = color[c][i] * 1000.0;
+                energy[c] += (s - color[c][i]) as f64;
+                col[c][i] = s;
+                var[c][i] = s * s;
+            }
+        }
+        spiky.set(Layer::Color, col);
+        spiky.set(Layer::ColorVariance, var);
+    }
+    let ctx = gpu();
+    let cases = [
+        (Method::Wlr, Outliers::Auto),
+        (Method::Lp, Outliers::Auto),
+        (Method::None, Outliers::On),
+    ];
+    for (method, outliers) in cases {
+        for gpu_backend in [true, false] {
+            let run = |img: &StatsImage| {
+                let mut cfg = Config::new(method);
+                cfg.outliers = outliers;
+                let d = if gpu_backend {
+                    Denoiser::new(&ctx, Source::of_image(img), cfg).unwrap()
+                } else {
+                    Denoiser::new_cpu(Source::of_image(img), cfg).unwrap()
+                };
+                d.denoise(img, None).unwrap().color
+            };
+            let (a, b) = (run(&clean), run(&spiky));
+            let what = format!(
+                "{} on {}",
+                method.name(),
+                if gpu_backend { "GPU" } else { "CPU" }
+            );
+            for c in 0..3 {
+                let max_e = energy[c] / spikes.len() as f64;
+                let worst = a.planes[c]
+                    .iter()
+                    .zip(&b.planes[c])
+                    .map(|(&p, &q)| (q as f64 - p as f64).abs())
+                    .fold(0.0, f64::max);
+                assert!(
+                    worst <= 0.01 * max_e,
+                    "{what}, channel {c}: a pixel moved by {worst} (spike excess {max_e})"
+                );
+                let sa: f64 = a.planes[c].iter().map(|&v| v as f64).sum();
+                let sb: f64 = b.planes[c].iter().map(|&v| v as f64).sum();
+                let off = (sb - sa - energy[c]).abs();
+                assert!(
+                    off <= 1e-6 * sb,
+                    "{what}, channel {c}: sum moved by {} for spikes of {} (off by {off}, image sum {sb})",
+                    sb - sa,
+                    energy[c]
+                );
+            }
+            assert_eq!(a.planes[0].len(), clean.pixel_count());
+        }
+    }
+    check_validation(&ctx);
+}
