@@ -25,9 +25,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let img = mcdenoise::io::read_stats(Path::new(s))?;
         let reference = mcdenoise::io::read_rgb(Path::new(r))?;
         let input = mcdenoise::colour_of(&img);
+        let p = Path::new(s);
+        let scene = p.parent().and_then(|d| d.file_name()).unwrap_or_default();
         let mut row = format!(
-            "| {} | {:.5} |",
-            Path::new(s).file_stem().unwrap().to_string_lossy(),
+            "| {}/{} | {:.5} |",
+            scene.to_string_lossy(),
+            p.file_stem().unwrap().to_string_lossy(),
             rmse(&input, &reference)
         );
         let mut ratios = String::new();

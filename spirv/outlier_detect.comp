@@ -3,7 +3,8 @@
 // the (count, mean, M2) of grey over Ω_o(R) \ {o} merged from outlier_rows'
 // half-row summaries (EXCL-CENTRE); o is an outlier when count >= min_n
 // (OUTLIER-MIN-N), grey_o - m > k sd (SPIKE-SIDE, population sd) and
-// grey_o - m <= k se_o (OUTLIER-NOISE, se from the pixel's variances). An
+// grey_o - m <= k se_o (OUTLIER-NOISE, se from the pixel's variances) and
+// no 8-neighbour is above m + k sd (OUTLIER-ISOLATED). An
 // outlier takes the colour and variance of q*, the pixel of median grey in
 // Ω_o(R) with o (lower median of an even count, lowest raster index among
 // equal greys: OUTLIER-MEDIAN), found by a 32-step radix selection on the
@@ -92,8 +93,18 @@ void main()
         real se = (sqrt(max(real(vr[o]), real(0))) + sqrt(max(real(vg[o]), real(0)))
                    + sqrt(max(real(vb[o]), real(0)))) / real(3);
         real excess = grey_at(o) - s.mean;
-        if (s.n >= real(push.min_n) && excess > real(push.k_sigma) * sd
-            && excess <= real(push.k_sigma) * se) {
+        bool outlier = s.n >= real(push.min_n) && excess > real(push.k_sigma) * sd
+            && excess <= real(push.k_sigma) * se;
+        // OUTLIER-ISOLATED: a bright 8-neighbour makes o part of a feature.
+        for (int qy = max(int(y) - 1, 0); outlier && qy <= min(int(y) + 1, int(push.height) - 1); ++qy) {
+            for (int qx = max(int(x) - 1, 0); qx <= min(int(x) + 1, int(push.width) - 1); ++qx) {
+                uint j = uint(qy) * push.width + uint(qx);
+                if (j != o && valid_at(spp[j]) && grey_at(j) - s.mean > real(push.k_sigma) * sd) {
+                    outlier = false;
+                }
+            }
+        }
+        if (outlier) {
             // Rank of the median among the valid pixels of the window, o included.
             uint n = 0u;
             for (int qy = y0; qy <= y1; ++qy) {

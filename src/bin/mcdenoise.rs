@@ -45,6 +45,8 @@ enum MethodArg {
     Wlr,
     /// Linear predictions at sparse centres (spec §3).
     Lp,
+    /// Adaptive polynomial rendering: per-block polynomial order (spec §4).
+    Apr,
     /// No reconstruction: the sanitised input colour (spec §0.4), for checking
     /// inputs, the pipeline and the metrics.
     None,
@@ -129,6 +131,7 @@ impl MethodArg {
         match self {
             MethodArg::Wlr => Method::Wlr,
             MethodArg::Lp => Method::Lp,
+            MethodArg::Apr => Method::Apr,
             MethodArg::None => Method::None,
         }
     }

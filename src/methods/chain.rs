@@ -153,6 +153,12 @@ impl GpuChain {
                 super::available_names()
             )));
         }
+        if matches!(config.method, Method::Apr | Method::Aos) {
+            return Err(Error::InvalidArgument(format!(
+                "method {} runs on the CPU backend only in this build",
+                config.method.name()
+            )));
+        }
         if config.precision == Precision::F64 && !ctx.supports_f64() {
             return Err(Error::InvalidArgument(
                 "f64 kernels need shaderFloat64, which this device does not enable".into(),

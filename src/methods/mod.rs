@@ -2,6 +2,7 @@
 //! on the CPU (their scalar twins), selected by [`Backend`]; [`denoise`] is
 //! the one entry point the CLI and the benchmarks use.
 
+pub mod apr;
 pub mod chain;
 pub mod gbf;
 pub mod lp;
@@ -60,7 +61,7 @@ impl Method {
 
     /// Methods built into this version.
     pub fn available(self) -> bool {
-        matches!(self, Method::None | Method::Wlr | Method::Lp)
+        matches!(self, Method::None | Method::Wlr | Method::Lp | Method::Apr)
     }
 }
 
@@ -272,7 +273,7 @@ pub fn denoise_with_chain(
 }
 
 fn denoise_cpu(img: &StatsImage, req: &DenoiseRequest) -> Result<DenoiseOutput> {
-    let (clean, report, removed) = clean_cpu(img, req)?;
+    let (clean, report, removed, prefiltered) = clean_cpu(img, req)?;
     let (w, h) = (img.width, img.height);
     let mut lp_dmse = None;
     let (mut color, error, dim, mut debug, stats) = match req.method {
@@ -293,6 +294,12 @@ fn denoise_cpu(img: &StatsImage, req: &DenoiseRequest) -> Result<DenoiseOutput> 
                 debug,
                 Vec::new(),
             )
+        }
+        Method::Apr => {
+            let params = apr::AprParams::new(&req.options)?;
+            let r = apr::run_cpu(&clean, params, !prefiltered)?;
+            let debug = if req.debug { r.debug } else { Vec::new() };
+            (r.color, r.error, r.dim, debug, Vec::new())
         }
         Method::Lp => {
             let params = lp::LpParams::new(&req.options)?;
@@ -381,7 +388,7 @@ fn denoise_cpu(img: &StatsImage, req: &DenoiseRequest) -> Result<DenoiseOutput> 
 
 /// The CPU path's input of every method: sanitised statistics, without
 /// outliers when `req.outliers` wants it, prefiltered when `req.prefilter`
-/// wants it (§1).
+/// wants it (§1); and whether the prefilter ran.
 fn clean_cpu(
     img: &StatsImage,
     req: &DenoiseRequest,
@@ -389,6 +396,7 @@ fn clean_cpu(
     StatsImage,
     prepare::PrepareReport,
     Option<outliers::Removed>,
+    bool,
 )> {
     let (mut clean, report) = prepare::prepare_cpu(img);
     let removed = req
@@ -399,10 +407,11 @@ fn clean_cpu(
         (Method::None, Prefilter::Auto) => Prefilter::Off,
         (_, p) => p,
     };
-    if gbf::wanted(prefilter, |l| clean.has(l))? {
+    let prefiltered = gbf::wanted(prefilter, |l| clean.has(l))?;
+    if prefiltered {
         gbf::run_cpu(&mut clean)?;
     }
-    Ok((clean, report, removed))
+    Ok((clean, report, removed, prefiltered))
 }
 
 fn gpu_ctx(ctx: Option<&Arc<GpuContext>>) -> Result<&Arc<GpuContext>> {

@@ -10,6 +10,7 @@
 //! the sampling allocation (`sample_reduce`, `sample_scan`) are exact integer
 //! arithmetic and agree with their kernels bit for bit (§9.2).
 
+pub mod apr;
 pub mod box_rows;
 pub mod channel_mean;
 pub mod estimate_variance;

@@ -25,6 +25,11 @@
 //!   that is bright in every sample, such as a small light seen directly,
 //!   has `se ≈ 0` and is signal, not an outlier: without this test such a
 //!   light is removed and its energy smeared over 87×87 pixels.
+//! * OUTLIER-ISOLATED: a pixel is a spike only if none of its 8 neighbours
+//!   is itself above `m_o + 3·sd_o`. Samples are independent per pixel, so a
+//!   firefly is a single-pixel event; bright neighbours mean a feature (a
+//!   highlight seen through glass, the edge of a light) whose energy belongs
+//!   there and not spread over 87×87 pixels.
 //! * OUTLIER-MEDIAN: the median of an even count is the lower one (rank
 //!   `(n−1)/2` of the sorted greys); among pixels whose grey equals it, the
 //!   lowest raster index is `q*`.
@@ -114,6 +119,16 @@ pub fn detect_at(
     let sd = (m2 / n as f64).sqrt();
     let excess = grey(color, o) - m;
     if excess <= K_SIGMA * sd || excess > K_SIGMA * grey_sd(var, o) {
+        return None;
+    }
+    // OUTLIER-ISOLATED: a bright neighbour makes o part of a feature.
+    let mut isolated = true;
+    window(w, h, x, y, 1, spp, |q| {
+        if q != o && grey(color, q) - m > K_SIGMA * sd {
+            isolated = false;
+        }
+    });
+    if !isolated {
         return None;
     }
     Some(median_at(w, h, color, spp, o))
