@@ -18,7 +18,7 @@ fn mean(img: &mcdenoise::RgbImage) -> f64 {
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let ctx = Arc::new(GpuContext::new(&ContextOptions::default())?);
-    println!("| case | input | wlr off | wlr on | lp off | lp on | mean ratio wlr on | mean ratio lp on |");
+    println!("| case | input | wlr off | wlr on | lp off | lp on | mean ratio wlr off / on | mean ratio lp off / on |");
     println!("|---|---|---|---|---|---|---|---|");
     for arg in std::env::args().skip(1) {
         let (s, r) = arg.split_once('=').ok_or("arguments are STATS=REF")?;
@@ -40,9 +40,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 cfg.outliers = o;
                 let out = Denoiser::new(&ctx, Source::of_image(&img), cfg)?.denoise(&img, None)?;
                 row += &format!(" {:.5} |", rmse(&out.color, &reference));
-                if o == Outliers::On {
-                    ratios += &format!(" {:.4} |", mean(&out.color) / mean(&input));
-                }
+                let ratio = mean(&out.color) / mean(&input);
+                ratios += &if o == Outliers::On {
+                    format!(" {ratio:.4} |")
+                } else {
+                    format!(" {ratio:.4} /")
+                };
             }
         }
         println!("{row}{ratios}");

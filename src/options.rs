@@ -69,6 +69,13 @@ pub const OPTIONS: &[OptionSpec] = &[
         help: "subtract the test pixel's variance from the prediction error (varsub, s=1) or not (paper, s=0)",
     },
     OptionSpec {
+        key: "apr.stages",
+        kind: Kind::Int(1, 4),
+        default: "2",
+        section: "§4.3",
+        help: "error-estimation stages T (the reconstruction always filters the input)",
+    },
+    OptionSpec {
         key: "sampling.smooth",
         kind: Kind::Real(0.0, 16.0),
         default: "method",
@@ -175,7 +182,8 @@ mod tests {
         assert!(Options::parse(&["wlr.reject=maybe"]).is_err());
         assert!(Options::parse(&["sampling.smooth=-1"]).is_err());
         // Options of stages that are not built yet are errors, not ignored.
-        assert!(Options::parse(&["apr.stages=2"]).is_err());
+        assert!(Options::parse(&["aos.order=3"]).is_err());
+        assert!(Options::parse(&["apr.stages=9"]).is_err());
         assert!(Options::parse(&["outliers=on"]).is_err());
         assert!(Options::parse(&["nope=1"]).is_err());
         assert!(Options::parse(&["wlr.reject"]).is_err());

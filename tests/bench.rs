@@ -381,7 +381,7 @@ fn quality_rows_match_metrics_and_bad_files_are_skipped() {
             methods: vec![Method::None],
             backends: vec![Backend::Cpu],
             filter: None,
-            outliers: mcdenoise::Outliers::Auto,
+            stages: Default::default(),
         },
         &mut |n| {
             if let Note::Warning(w) = n {
@@ -434,7 +434,7 @@ fn quality_rows_match_metrics_and_bad_files_are_skipped() {
                 methods: vec![Method::None],
                 backends: vec![Backend::Cpu],
                 filter: Some(f.into()),
-                outliers: mcdenoise::Outliers::Auto,
+                stages: Default::default(),
             },
             &mut ignore,
         )
@@ -462,7 +462,7 @@ fn methods_not_built_are_noted_once_and_skipped() {
             methods: vec![Method::None, missing, missing],
             backends: vec![Backend::Cpu],
             filter: None,
-            outliers: mcdenoise::Outliers::Auto,
+            stages: Default::default(),
         },
         &mut ignore,
     )
@@ -651,7 +651,7 @@ fn timing_benchmark_reports_cases_and_json() {
             size: Some((32, 24)),
             runs: 2,
             filter: Some("synthetic".into()),
-            outliers: mcdenoise::Outliers::Auto,
+            stages: Default::default(),
         },
         &mut ignore,
     )
@@ -684,7 +684,7 @@ fn timing_benchmark_reports_cases_and_json() {
             size: Some((16, 8)),
             runs: 1,
             filter: None,
-            outliers: mcdenoise::Outliers::Auto,
+            stages: Default::default(),
         },
         &mut ignore,
     )
@@ -699,7 +699,7 @@ fn timing_benchmark_reports_cases_and_json() {
             size: Some((65, 8)),
             runs: 1,
             filter: None,
-            outliers: mcdenoise::Outliers::Auto,
+            stages: Default::default(),
         },
         &mut ignore,
     )

@@ -289,3 +289,25 @@ fn no_vulkan_driver_gives_a_one_line_install_hint() {
         assert!(!err.contains("panicked"), "{err}");
     }
 }
+
+/// `mcdenoise compare a b | head -1`: a reader that goes away ends the
+/// process quietly (SIGPIPE), never with a panic message.
+#[test]
+fn closed_stdout_is_not_a_panic() {
+    use std::process::Stdio;
+    let r = fixture("dof_checker_64_ref.exr");
+    for _ in 0..3 {
+        let mut child = bin()
+            .args(["compare"])
+            .arg(&r)
+            .arg(&r)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        drop(child.stdout.take());
+        let out = child.wait_with_output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!err.contains("panicked"), "{err}");
+    }
+}

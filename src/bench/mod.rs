@@ -178,17 +178,18 @@ fn check_context(ctx: Option<&Arc<GpuContext>>, backends: &[Backend]) -> Result<
 
 /// The benchmarks' front door: a [`Denoiser`] (the public facade) for
 /// `img`'s size and layers with the method's defaults, on the GPU (`ctx`) or
-/// on the CPU references, with the outlier stage as `outliers` says.
+/// on the CPU references, with the optional stages as `stages` says.
 fn denoiser(
     ctx: Option<&Arc<GpuContext>>,
     img: &StatsImage,
     method: Method,
     backend: Backend,
-    outliers: crate::Outliers,
+    stages: Stages,
 ) -> Result<Denoiser> {
     let source = Source::of_image(img);
     let mut config = Config::new(method);
-    config.outliers = outliers;
+    config.outliers = stages.outliers;
+    config.prefilter = stages.prefilter;
     match backend {
         Backend::Gpu => {
             let ctx = ctx.ok_or_else(|| {
@@ -198,6 +199,15 @@ fn denoiser(
         }
         Backend::Cpu => Denoiser::new_cpu(source, config),
     }
+}
+
+/// The optional stages of every benchmarked call.
+#[derive(Copy, Clone, Debug, Default, PartialEq, Eq)]
+pub struct Stages {
+    /// The outlier stage (§4.4).
+    pub outliers: crate::Outliers,
+    /// The G-buffer prefilter (§6).
+    pub prefilter: crate::Prefilter,
 }
 
 /// The budget of the quality benchmark's sample maps: [`MAP_BUDGET_PER_PIXEL`]

@@ -44,8 +44,8 @@ pub struct TimingConfig {
     pub runs: usize,
     /// Case filter ([`case_matches`]) on `method.inputs.WxH`.
     pub filter: Option<String>,
-    /// The outlier stage (§4.4) for every method.
-    pub outliers: crate::Outliers,
+    /// The optional stages (outliers, prefilter) for every method.
+    pub stages: super::Stages,
 }
 
 /// GPU time of one kernel in one case.
@@ -206,7 +206,7 @@ pub fn run_timing(
                 "{case} ({})",
                 backend_name(backend)
             )));
-            match time_case(ctx, &img, method, backend, cfg.runs, cfg.outliers) {
+            match time_case(ctx, &img, method, backend, cfg.runs, cfg.stages) {
                 Ok((wall_ms, timings)) => {
                     let med = median(&wall_ms);
                     let sums: Vec<f64> = timings.iter().filter_map(|t| gpu_ms(t)).collect();
@@ -270,9 +270,9 @@ fn time_case(
     method: Method,
     backend: Backend,
     runs: usize,
-    outliers: crate::Outliers,
+    stages: super::Stages,
 ) -> Result<(Vec<f64>, Vec<Vec<KernelTiming>>)> {
-    let d = denoiser(ctx, img, method, backend, outliers)?;
+    let d = denoiser(ctx, img, method, backend, stages)?;
     d.denoise(img, None)?;
     let (mut wall, mut timings) = (Vec::new(), Vec::new());
     for _ in 0..runs {

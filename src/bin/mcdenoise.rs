@@ -625,6 +625,9 @@ struct BenchArgs {
     /// The outlier stage (spec §4.4) for every method.
     #[arg(long, value_enum, default_value = "auto")]
     outliers: OutliersArg,
+    /// The G-buffer prefilter (spec §6) for every method.
+    #[arg(long, value_enum, default_value = "auto")]
+    prefilter: PrefilterArg,
     /// Methods to run, comma-separated [default: every method in this build].
     #[arg(long, value_enum, value_delimiter = ',')]
     methods: Vec<MethodArg>,
@@ -746,7 +749,10 @@ fn bench(cli: &Cli, args: &BenchArgs) -> anyhow::Result<bool> {
                 methods,
                 backends,
                 filter: args.filter.clone(),
-                outliers: args.outliers.get(),
+                stages: b::Stages {
+                    outliers: args.outliers.get(),
+                    prefilter: args.prefilter.get(),
+                },
             },
             &mut note,
         )?;
@@ -768,7 +774,10 @@ fn bench(cli: &Cli, args: &BenchArgs) -> anyhow::Result<bool> {
                 size: args.size,
                 runs: args.runs,
                 filter: args.filter.clone(),
-                outliers: args.outliers.get(),
+                stages: b::Stages {
+                    outliers: args.outliers.get(),
+                    prefilter: args.prefilter.get(),
+                },
             },
             &mut note,
         )?;
@@ -1090,6 +1099,14 @@ fn render(cli: &Cli, args: &RenderArgs) -> anyhow::Result<bool> {
 }
 
 fn main() -> ExitCode {
+    // `mcdenoise compare a b | head -1`: a closed pipe ends the process
+    // quietly, as for every Unix filter, instead of a panic in println!.
+    #[cfg(unix)]
+    // SAFETY: setting a signal's disposition to the default before any
+    // thread is started.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
     let cli = Cli::parse();
     // Progress lines of the CPU references only on a terminal, as the GPU bar.
     let level = if cli.quiet || !std::io::IsTerminal::is_terminal(&std::io::stderr()) {
