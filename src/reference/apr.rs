@@ -473,6 +473,14 @@ pub fn channel(pl: &Planes, stages: usize) -> ChannelResult {
 /// The 5×5 polynomial feature prefilter (§4.6) of one feature plane with its
 /// variance: every pixel a centre, no rejection, point-wise output, two
 /// stages.
+///
+/// Decision (PF-IDENTITY, ours): the unfiltered value is a fifth candidate,
+/// with bias 0 and error `Σ K_h σ̂² / Σ K_h` (the window's mean variance); it
+/// wins ties. Without it a noise-free feature edge (the rim of a light, an
+/// albedo step) is always blurred, since every order 0–3 has bias there, and
+/// the blurred features let the blocks mix a light with the wall next to it:
+/// on `glossy_cornell` at 4 spp APR's rMSE went from 0.017 (raw features) to
+/// 4.97 with the prefilter as specified.
 pub fn prefilter_plane(w: usize, h: usize, f: &[f64], var: &[f64], valid: &[bool]) -> Vec<f64> {
     let pl = Planes {
         w,
@@ -496,6 +504,19 @@ pub fn prefilter_plane(w: usize, h: usize, f: &[f64], var: &[f64], valid: &[bool
         for i in 0..n {
             let Some(d) = &designs[i] else { continue };
             let fit = choose(d, &pl, &yprev, &s2prev);
+            // PF-IDENTITY: the unfiltered value competes as one more
+            // candidate, with no bias and the window's mean variance.
+            let wsum: f64 = d.kh.iter().sum();
+            let xi_id = d
+                .idx
+                .iter()
+                .zip(&d.kh)
+                .map(|(&q, &k)| k * s2prev[q])
+                .sum::<f64>()
+                / wsum;
+            if xi_id <= fit.xi {
+                continue;
+            }
             ny[i] = output(d, &pl, fit.order, &beta(d, fit.order, f), i);
             if !last {
                 ns[i] = output(d, &pl, fit.order, &beta(d, fit.order, &s), i);
