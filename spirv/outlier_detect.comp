@@ -29,24 +29,21 @@ PLANE_IN(9, lq)
 PLANE_IN(10, rn)
 PLANE_IN(11, rm)
 PLANE_IN(12, rq)
-PLANE_OUT(13, out_r)
-PLANE_OUT(14, out_g)
-PLANE_OUT(15, out_b)
-PLANE_OUT(16, out_vr)
-PLANE_OUT(17, out_vg)
-PLANE_OUT(18, out_vb)
-PLANE_OUT(19, er)
-PLANE_OUT(20, eg)
-PLANE_OUT(21, eb)
+layout(std430, set = 0, binding = 13) readonly buffer keys_blk { uint keys[]; };
+PLANE_OUT(14, out_r)
+PLANE_OUT(15, out_g)
+PLANE_OUT(16, out_b)
+PLANE_OUT(17, out_vr)
+PLANE_OUT(18, out_vg)
+PLANE_OUT(19, out_vb)
+PLANE_OUT(20, er)
+PLANE_OUT(21, eg)
+PLANE_OUT(22, eb)
 
 real grey_at(uint i) { return (real(cr[i]) + real(cg[i]) + real(cb[i])) / real(3); }
 
-// Order-preserving unsigned key of a float's bits.
-uint key_of(uint i)
-{
-    uint b = floatBitsToUint(float(grey_at(i)));
-    return (b & 0x80000000u) != 0u ? ~b : (b | 0x80000000u);
-}
+// Order-preserving unsigned key of grey (outlier_rows).
+uint key_of(uint i) { return keys[i]; }
 
 Summary half_row(uint q, bool left)
 {

@@ -3,7 +3,8 @@
 // (count, mean, M2) of grey over the valid pixels of the row segments
 // [x - R, x - 1] (left) and [x + 1, x + R] (right), R = push.radius, clipped.
 // outlier_detect merges 2R + 1 rows of these into the statistics of
-// Ω(R) \ {o} without a sum of squares. Scalar twin:
+// Ω(R) \ {o} without a sum of squares; and per pixel the order-preserving
+// bits of grey (keys) its median selection scans. Scalar twin:
 // src/reference/outlier_rows.rs.
 #include "lib/common.glsl"
 #include "lib/outliers.glsl"
@@ -20,6 +21,7 @@ PLANE_OUT(6, lq)
 PLANE_OUT(7, rn)
 PLANE_OUT(8, rm)
 PLANE_OUT(9, rq)
+layout(std430, set = 0, binding = 10) buffer keys_blk { uint keys[]; };
 
 real grey_at(uint i) { return (real(cr[i]) + real(cg[i]) + real(cb[i])) / real(3); }
 
@@ -69,4 +71,7 @@ void main()
     rn[i] = float(rt.n);
     rm[i] = float(rt.mean);
     rq[i] = float(rt.m2);
+    // Order-preserving bits of the f32 grey, for outlier_detect's median.
+    uint b = floatBitsToUint(float(grey_at(i)));
+    keys[i] = (b & 0x80000000u) != 0u ? ~b : (b | 0x80000000u);
 }

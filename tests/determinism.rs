@@ -11,8 +11,10 @@ use common::{check_validation, gpu};
 use mcdenoise::{Config, Denoiser, Method, Source, StatsImage};
 
 fn fixture() -> StatsImage {
-    mcdenoise::io::read_stats(std::path::Path::new("tests/fixtures/dof_checker_64_spp16.exr"))
-        .unwrap()
+    mcdenoise::io::read_stats(std::path::Path::new(
+        "tests/fixtures/dof_checker_64_spp16.exr",
+    ))
+    .unwrap()
 }
 
 /// The methods and whether they run on the GPU in this build.
@@ -43,7 +45,9 @@ fn every_method_is_bit_identical_run_after_run() {
         let a = make(&img, method, on_gpu);
         let first = a.denoise(&img, Some(10_000)).unwrap();
         let again = a.denoise(&img, Some(10_000)).unwrap();
-        let fresh = make(&img, method, on_gpu).denoise(&img, Some(10_000)).unwrap();
+        let fresh = make(&img, method, on_gpu)
+            .denoise(&img, Some(10_000))
+            .unwrap();
         for other in [&again, &fresh] {
             for c in 0..3 {
                 assert_eq!(

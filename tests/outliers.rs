@@ -106,7 +106,8 @@ fn kernels_match_twins() {
             // outlier_rows
             let pu = push(&img, ro::DETECT_RADIUS, 0);
             let mut rows = vec![vec![0.0f32; n]; 6];
-            rr::outlier_rows(&pu, c3, &img.spp, muts::<6>(&mut rows));
+            let mut keys = vec![0u32; n];
+            rr::outlier_rows(&pu, c3, &img.spp, muts::<6>(&mut rows), &mut keys);
             let mut inputs: Vec<&[f32]> = c3.to_vec();
             inputs.push(&img.spp);
             let (g, _) = run_planes(
@@ -117,13 +118,25 @@ fn kernels_match_twins() {
                 w,
                 h,
                 &inputs,
-                &[n; 6],
+                &[n; 7],
                 1.0,
             )
             .unwrap();
             for k in 0..6 {
                 assert_close(&what("outlier_rows"), &g[k], &rows[k], 0.99);
             }
+            // Keys: the same grey to within f32 rounding (compared as greys).
+            let unkey = |k: u32| {
+                f32::from_bits(if k & 0x8000_0000 != 0 {
+                    k & 0x7fff_ffff
+                } else {
+                    !k
+                })
+            };
+            let gk: Vec<f32> = g[6].iter().map(|v| unkey(v.to_bits())).collect();
+            let ck: Vec<f32> = keys.iter().map(|&k| unkey(k)).collect();
+            assert_close(&what("outlier_rows keys"), &gk, &ck, 0.99);
+            let key_plane: Vec<f32> = g[6].clone();
             // outlier_detect, from the twin's summaries
             let mut out = vec![vec![0.0f32; n]; 9];
             {
@@ -135,6 +148,7 @@ fn kernels_match_twins() {
             inputs.extend(v3);
             inputs.push(&img.spp);
             inputs.extend(refs(&rows));
+            inputs.push(&key_plane);
             let (g, _) = run_planes(
                 &ctx,
                 &outlier_detect::DECL,

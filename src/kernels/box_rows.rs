@@ -14,9 +14,14 @@ pub const DECL: KernelDecl = KernelDecl {
     push_size: std::mem::size_of::<OutlierPush>() as u32,
 };
 
-/// Per pixel: `2R+1` taps × (validity test, add).
-pub fn flops_per_pixel(radius: u32) -> f64 {
-    (2.0 * radius as f64 + 1.0) * 2.0
+/// Pixels per invocation (`SPAN` in the shader): one full window sum, then
+/// a running sum.
+pub const SPAN: u32 = 16;
+
+/// Per invocation: `2R+1` taps for the first pixel, then 2 per pixel, × 2
+/// (validity test, add).
+pub fn flops_per_invocation(radius: u32) -> f64 {
+    ((2.0 * radius as f64 + 1.0) + 2.0 * SPAN as f64) * 2.0
 }
 
 /// Records `out = row sum of value` (`push.mode` 0) or the valid count (1).
@@ -33,8 +38,8 @@ pub fn record(
         precision,
         &[value, spp, out],
         bytemuck::bytes_of(push),
-        push.width,
+        push.width.div_ceil(SPAN),
         push.height,
-        flops_per_pixel(push.radius),
+        flops_per_invocation(push.radius),
     )
 }

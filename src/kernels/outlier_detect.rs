@@ -25,6 +25,7 @@ pub const DECL: KernelDecl = KernelDecl {
         read("rn"),
         read("rm"),
         read("rq"),
+        read("keys"),
         write("out_r"),
         write("out_g"),
         write("out_b"),
@@ -49,7 +50,8 @@ pub fn flops_per_pixel(radius: u32) -> f64 {
     d * 36.0 + DETECTED_FRACTION * 33.0 * d * d * 6.0
 }
 
-/// Records detection and replacement: `out` receives the replaced colour and
+/// Records detection and replacement (`rows`, `keys` from `outlier_rows`):
+/// `out` receives the replaced colour and
 /// variance planes (6: R, G, B, var R, G, B), `excess` the removed `e`.
 #[allow(clippy::too_many_arguments)]
 pub fn record(
@@ -60,6 +62,7 @@ pub fn record(
     var: [BufferSlice; 3],
     spp: BufferSlice,
     rows: [BufferSlice; 6],
+    keys: BufferSlice,
     out: [BufferSlice; 6],
     excess: [BufferSlice; 3],
 ) -> Result<()> {
@@ -67,6 +70,7 @@ pub fn record(
     b.extend(var);
     b.push(spp);
     b.extend(rows);
+    b.push(keys);
     b.extend(out);
     b.extend(excess);
     batch.dispatch(

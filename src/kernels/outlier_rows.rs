@@ -21,6 +21,7 @@ pub const DECL: KernelDecl = KernelDecl {
         write("rn"),
         write("rm"),
         write("rq"),
+        write("keys"),
     ],
     push_size: std::mem::size_of::<OutlierPush>() as u32,
 };
@@ -30,7 +31,8 @@ pub fn flops_per_pixel(radius: u32) -> f64 {
     2.0 * radius as f64 * 2.0 * 8.0
 }
 
-/// Records the half-row summaries of `color` into `out` (6 planes).
+/// Records the half-row summaries of `color` into `out` (6 planes) and the
+/// grey keys (u32 per pixel) into `keys`.
 pub fn record(
     batch: &mut Batch,
     precision: Precision,
@@ -38,10 +40,12 @@ pub fn record(
     color: [BufferSlice; 3],
     spp: BufferSlice,
     out: [BufferSlice; 6],
+    keys: BufferSlice,
 ) -> Result<()> {
     let mut b = color.to_vec();
     b.push(spp);
     b.extend(out);
+    b.push(keys);
     batch.dispatch(
         &DECL,
         precision,

@@ -80,8 +80,8 @@ fn push(w: usize, h: usize, radius: usize, mode: u32) -> OutlierPush {
     }
 }
 
-/// The stage's planes: two six-plane scratch sets, the excess `e` (3) and the
-/// weights (6).
+/// The stage's planes: two six-plane scratch sets, the excess `e` (3), the
+/// weights (6) and the grey keys (1).
 #[derive(Debug)]
 pub struct OutlierPlanes {
     planes: PlaneSet,
@@ -93,7 +93,7 @@ impl OutlierPlanes {
     /// Allocates the planes for a `w × h` image.
     pub fn new(ctx: &Arc<GpuContext>, w: usize, h: usize) -> Result<OutlierPlanes> {
         Ok(OutlierPlanes {
-            planes: PlaneSet::new(ctx, "outliers", w * h, 21)?,
+            planes: PlaneSet::new(ctx, "outliers", w * h, 22)?,
             width: w,
             height: h,
         })
@@ -123,7 +123,8 @@ pub fn record_remove(
     let pu = push(w, h, DETECT_RADIUS, 0);
     let rows = p.set::<6>(0);
     let out = p.set::<6>(6);
-    outlier_rows::record(batch, precision, &pu, color, spp, rows)?;
+    let keys = p.planes.plane(21);
+    outlier_rows::record(batch, precision, &pu, color, spp, rows, keys)?;
     outlier_detect::record(
         batch,
         precision,
@@ -132,6 +133,7 @@ pub fn record_remove(
         var,
         spp,
         rows,
+        keys,
         out,
         p.excess(),
     )?;

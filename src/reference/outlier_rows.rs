@@ -29,8 +29,26 @@ fn segment(
     [n, m, vals.iter().map(|v| (v - m) * (v - m)).sum()]
 }
 
-/// `out` = left count, mean, M2, right count, mean, M2.
-pub fn outlier_rows(push: &OutlierPush, color: [&[f32]; 3], spp: &[f32], out: [&mut [f32]; 6]) {
+/// The order-preserving u32 key of a grey value rounded to f32 (unsigned
+/// order of keys = numeric order of greys).
+pub fn key(g: f64) -> u32 {
+    let b = (g as f32).to_bits();
+    if b & 0x8000_0000 != 0 {
+        !b
+    } else {
+        b | 0x8000_0000
+    }
+}
+
+/// `out` = left count, mean, M2, right count, mean, M2; `keys` = [`key`] of
+/// each pixel's grey.
+pub fn outlier_rows(
+    push: &OutlierPush,
+    color: [&[f32]; 3],
+    spp: &[f32],
+    out: [&mut [f32]; 6],
+    keys: &mut [u32],
+) {
     let (w, h, r) = (
         push.width as usize,
         push.height as usize,
@@ -43,6 +61,7 @@ pub fn outlier_rows(push: &OutlierPush, color: [&[f32]; 3], spp: &[f32], out: [&
             for (k, v) in l.iter().chain(rt.iter()).enumerate() {
                 out[k][y * w + x] = *v as f32;
             }
+            keys[y * w + x] = key(grey(color, y * w + x));
         }
     }
 }
