@@ -7,7 +7,10 @@
 #include "lib/common.glsl"
 
 layout(local_size_x = 8, local_size_y = 8) in;
-layout(push_constant) uniform Push { uint width; uint height; uint row0; uint _pad; } push;
+// origin: the channel was accumulated relative to it (AccumLayout's
+// position_origin, 0 elsewhere); the mean adds it back, the variance is
+// shift-invariant and keeps the precision the shifted sums have.
+layout(push_constant) uniform Push { uint width; uint height; uint row0; float origin; } push;
 
 PLANE_IN(0, sum_in)
 PLANE_IN(1, sumsq_in)
@@ -31,6 +34,6 @@ void main() {
             var = ss / (n - real(1.0)) / n;
         }
     }
-    mean_out[i] = float(mean);
+    mean_out[i] = n >= real(1.0) ? float(real(push.origin) + mean) : 0.0;
     var_out[i] = float(var);
 }

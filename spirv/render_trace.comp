@@ -579,15 +579,19 @@ void main()
         vec3 col, alb, nrm, pos;
         float dep, vis;
         trace_sample(key, uvec2(x, y), col, alb, nrm, dep, pos, vis);
+        // Positions are accumulated relative to the lens centre (the
+        // layout's position_origin): f32 sums of raw world positions far
+        // from 0 lose the footprint's variance. A miss (depth 0) adds 0.
+        vec3 rel = dep > 0.0 ? pos - P.cam_pos.xyz : vec3(0.0);
         s_col += col;
         q_col += col * col;
         s_alb += alb;
         q_alb += alb * alb;
         s_nrm += nrm;
         q_nrm += nrm * nrm;
-        s_pos += pos;
-        q_pos += pos * pos;
-        s_cross += vec3(pos.x * pos.y, pos.x * pos.z, pos.y * pos.z);
+        s_pos += rel;
+        q_pos += rel * rel;
+        s_cross += vec3(rel.x * rel.y, rel.x * rel.z, rel.y * rel.z);
         s_dv += vec4(dep, dep * dep, vis, vis * vis);
         if (push.debug_stride > 0u) {
             uint b = (pixel * push.debug_stride + s) * 14u;

@@ -21,7 +21,7 @@ use crate::gpu::plane_stride;
 use crate::image::Layer;
 
 /// Which optional buffers the renderer accumulates.
-#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+#[derive(Copy, Clone, Debug, PartialEq)]
 pub struct AccumLayout {
     /// Image width in pixels.
     pub width: usize,
@@ -33,7 +33,19 @@ pub struct AccumLayout {
     pub position: bool,
     /// The renderer accumulates direct-light visibility: adds one channel.
     pub visibility: bool,
+    /// The position samples are accumulated relative to this point: the
+    /// renderer adds `p − origin` (and its squares and cross products), and
+    /// finalisation adds `origin` back to the mean. Choose a point near the
+    /// visible geometry (the built-in renderer uses the camera): f32 sums of
+    /// raw world positions far from 0 lose the position variance and
+    /// covariance the G-buffer prefilter reads (at |p| ≈ 1000 and 64 spp the
+    /// rounding of Σp² is larger than the variance of a pixel's footprint).
+    /// A miss adds 0, i.e. counts as a sample at the origin. Default 0.
+    pub position_origin: [f32; 3],
 }
+
+// Equality is total: the origin is finite (checked where it is set).
+impl Eq for AccumLayout {}
 
 /// A scalar channel of the accumulation: layer and component.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
@@ -54,6 +66,28 @@ impl AccumLayout {
             height,
             position,
             visibility,
+            position_origin: [0.0; 3],
+        }
+    }
+
+    /// The same layout with positions accumulated relative to `origin`
+    /// ([`AccumLayout::position_origin`]). Panics if `origin` is not finite.
+    pub fn with_position_origin(mut self, origin: [f32; 3]) -> Self {
+        assert!(
+            origin.iter().all(|v| v.is_finite()),
+            "position origin {origin:?} is not finite"
+        );
+        self.position_origin = origin;
+        self
+    }
+
+    /// What component `component` of `layer` is accumulated relative to:
+    /// the position origin for positions, 0 otherwise.
+    pub fn origin_of(&self, layer: Layer, component: usize) -> f32 {
+        if layer == Layer::Position {
+            self.position_origin[component]
+        } else {
+            0.0
         }
     }
 
@@ -157,10 +191,24 @@ impl Accumulator {
     }
 
     /// Adds one sample to pixel `p`. `values` holds one value per scalar
-    /// channel in [`AccumLayout::channels`] order.
+    /// channel in [`AccumLayout::channels`] order; positions are stored
+    /// relative to [`AccumLayout::position_origin`], and a miss (depth 0)
+    /// adds 0 to them.
     pub fn add(&mut self, p: usize, values: &[f64]) {
         let l = self.layout;
         assert_eq!(values.len(), l.channels().len());
+        // Positions relative to the origin; a miss (depth 0) adds 0.
+        let depth = values[l.channel_index(Layer::Depth, 0).unwrap()];
+        let shifted: Vec<f64> = l
+            .channels()
+            .iter()
+            .zip(values)
+            .map(|(ch, &v)| match (ch.layer, depth != 0.0) {
+                (Layer::Position, false) => 0.0,
+                _ => v - l.origin_of(ch.layer, ch.component) as f64,
+            })
+            .collect();
+        let values = &shifted[..];
         for (c, v) in values.iter().enumerate() {
             self.sums[l.sum_plane(c)][p] += v;
             self.sums[l.sumsq_plane(c)][p] += v * v;

@@ -17,8 +17,10 @@ pub struct FinalizePush {
     pub height: u32,
     /// First row of the band this dispatch covers.
     pub row0: u32,
-    /// Unused (the block's `_pad`): rounds the block to 16 bytes; 0.
-    pub _pad: u32,
+    /// `finalize_stats`: the origin the channel was accumulated relative to,
+    /// added back to the mean ([`crate::AccumLayout::position_origin`]); 0
+    /// for every other channel. Unused by `finalize_covariance` (its `_pad`).
+    pub origin: f32,
 }
 
 /// `spirv/sanitize.comp`, `spirv/sanitize_low_spp.comp` and

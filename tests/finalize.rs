@@ -189,3 +189,85 @@ fn cancellation_never_gives_negative_variance() {
         }
     }
 }
+
+/// Issue #14: world positions far from the origin (|p| ≈ 1000, a pixel
+/// footprint of 0.01, the geometry a few units from the camera) keep their
+/// variance and covariance when the renderer accumulates them relative to
+/// `position_origin` (the built-in renderer: the lens centre) — in f32 sums
+/// and the f32 kernels; accumulated raw, f32 sums cannot hold them.
+#[test]
+fn positions_far_from_the_origin_keep_their_variance() {
+    let (w, h) = (16, 8);
+    let ctx = gpu();
+    let run = |origin: [f32; 3]| {
+        let layout = AccumLayout::new(w, h, true, false).with_position_origin(origin);
+        let mut acc = Accumulator::new(layout);
+        let mut rng = Rng(5);
+        let nch = layout.channels().len();
+        let pos0 = layout.channel_index(Layer::Position, 0).unwrap();
+        let mut truth = vec![[0.0f64; 6]; w * h];
+        for (p, t) in truth.iter_mut().enumerate() {
+            let n = 64;
+            let mut s: Vec<[f64; 3]> = Vec::new();
+            for _ in 0..n {
+                let mut v: Vec<f64> = (0..nch).map(|_| 0.5 + 0.1 * rng.normal()).collect();
+                let (a, b) = (rng.normal() * 0.01, rng.normal() * 0.01);
+                // Geometry a few units from the camera (the origin), 1000
+                // units from world zero.
+                let q = [1002.0 + p as f64 * 0.01 + a, -699.0 + b, 1203.0 + 0.5 * a];
+                v[pos0..pos0 + 3].copy_from_slice(&q);
+                acc.add(p, &v);
+                s.push(q);
+            }
+            let m: Vec<f64> = (0..3)
+                .map(|c| s.iter().map(|q| q[c]).sum::<f64>() / 64.0)
+                .collect();
+            let cov = |a: usize, b: usize| {
+                s.iter().map(|q| (q[a] - m[a]) * (q[b] - m[b])).sum::<f64>() / 63.0 / 64.0
+            };
+            // position_variance: of the mean; position_covariance: of the
+            // samples, divided by n (input-format.md).
+            *t = [
+                cov(0, 0),
+                cov(1, 1),
+                cov(2, 2),
+                cov(0, 1) * 63.0,
+                cov(0, 2) * 63.0,
+                cov(1, 2) * 63.0,
+            ];
+        }
+        let planes = acc.planes();
+        let stride = layout.plane_stride() as usize;
+        let mut bytes = vec![0u8; layout.bytes() as usize];
+        for (i, p) in planes.iter().enumerate() {
+            bytes[i * stride..i * stride + p.len() * 4].copy_from_slice(bytemuck::cast_slice(p));
+        }
+        let buf = GpuBuffer::new(&ctx, "accum", layout.bytes()).unwrap();
+        buf.upload(0, &bytes).unwrap();
+        let out = GpuStats::new(&ctx, "stats", w, h, &finalized_layers(&layout)).unwrap();
+        let mut batch = Batch::new(&ctx).unwrap();
+        record_finalize(&mut batch, Precision::F32, &layout, buf.slice(), &out).unwrap();
+        batch.finish().unwrap();
+        let img = out.download().unwrap();
+        let var = img.get(Layer::PositionVariance).unwrap().to_vec();
+        let cov = img.get(Layer::PositionCovariance).unwrap().to_vec();
+        let mean = img.get(Layer::Position).unwrap().to_vec();
+        // Fraction of pixels whose variance (x) and covariance (xz) are
+        // within 5 % of the truth; and the mean is exact to f32.
+        let mut good = 0;
+        for p in 0..w * h {
+            let ok = |got: f32, want: f64| (got as f64 - want).abs() <= 0.05 * want.abs();
+            // Covariance planes: xx, xy, xz, yy, yz, zz.
+            if ok(var[0][p], truth[p][0]) && ok(cov[2][p], truth[p][4]) {
+                good += 1;
+            }
+            assert!((mean[0][p] as f64 - (1002.0 + p as f64 * 0.01)).abs() < 0.01);
+        }
+        good as f64 / (w * h) as f64
+    };
+    let shifted = run([1000.0, -700.0, 1200.0]);
+    assert!(shifted >= 0.99, "relative to the origin: {shifted}");
+    let raw = run([0.0; 3]);
+    assert!(raw < 0.5, "raw f32 sums kept the variance?! {raw}");
+    check_validation(&ctx);
+}

@@ -23,7 +23,8 @@ pub const DECL: KernelDecl = KernelDecl {
 /// Estimated floating-point operations per pixel (for band splitting).
 pub const FLOPS_PER_PIXEL: f64 = 10.0;
 
-/// Records one channel's finalize over a `width` x `height` image. Every
+/// Records one channel's finalize over a `width` x `height` image; `origin`
+/// is what the channel's samples were accumulated relative to. Every
 /// slice holds one plane of `width * height` f32 values.
 pub fn record(
     batch: &mut Batch,
@@ -35,10 +36,12 @@ pub fn record(
     count: BufferSlice,
     mean: BufferSlice,
     var: BufferSlice,
+    origin: f32,
 ) -> Result<()> {
     let push = FinalizePush {
         width,
         height,
+        origin,
         ..Default::default()
     };
     batch.dispatch(

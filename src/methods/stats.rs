@@ -154,6 +154,7 @@ pub fn record_finalize(
             count,
             out.plane(ch.layer, ch.component),
             out.plane(ch.layer.variance().unwrap(), ch.component),
+            layout.origin_of(ch.layer, ch.component),
         )?;
     }
     if layout.position {
@@ -190,6 +191,10 @@ pub fn finalize_cpu(layout: &AccumLayout, planes: &[Vec<f32>]) -> StatsImage {
         let mut vars = vec![vec![0.0f32; n]; k];
         for comp in 0..k {
             let c = layout.channel_index(layer, comp).unwrap();
+            let push = FinalizePush {
+                origin: layout.origin_of(layer, comp),
+                ..push
+            };
             finalize_stats(
                 &push,
                 &planes[layout.sum_plane(c)],

@@ -12,7 +12,8 @@ pub fn spp_of(s: f32) -> f64 {
     }
 }
 
-/// One channel: `mean = Σx / n`, `var = max(Σx² − Σx·mean, 0) / (n − 1) / n`
+/// One channel: `mean = origin + Σx / n` (the sums are relative to
+/// `push.origin`), `var = max(Σx² − Σx·mean, 0) / (n − 1) / n`
 /// (unbiased sample variance of the mean; 0 for n < 2; both 0 for n < 1).
 pub fn finalize_stats(
     push: &FinalizePush,
@@ -35,7 +36,11 @@ pub fn finalize_stats(
                     var = (sumsq[i] as f64 - s * mean).max(0.0) / (n - 1.0) / n;
                 }
             }
-            mean_out[i] = mean as f32;
+            mean_out[i] = if n >= 1.0 {
+                (push.origin as f64 + mean) as f32
+            } else {
+                0.0
+            };
             var_out[i] = var as f32;
         }
     }

@@ -244,8 +244,11 @@ impl Renderer {
                 "cannot render an image of {width}x{height} pixels"
             )));
         }
-        let layout = AccumLayout::new(width, height, true, true);
         let gs = GpuScene::new(scene, width, height)?;
+        // Positions relative to the lens centre, as render_trace adds them.
+        let c = gs.params.cam_pos;
+        let layout =
+            AccumLayout::new(width, height, true, true).with_position_origin([c[0], c[1], c[2]]);
         let accum = GpuBuffer::new(ctx, "render.accum", layout.bytes())?;
         let r = Renderer {
             ctx: ctx.clone(),
