@@ -581,8 +581,9 @@ void main()
         trace_sample(key, uvec2(x, y), col, alb, nrm, dep, pos, vis);
         // Positions are accumulated relative to the lens centre (the
         // layout's position_origin): f32 sums of raw world positions far
-        // from 0 lose the footprint's variance. A miss (depth 0) adds 0.
-        vec3 rel = dep > 0.0 ? pos - P.cam_pos.xyz : vec3(0.0);
+        // from 0 lose the footprint's variance. A miss's position is 0, as
+        // before (input-format.md), i.e. -origin relative to it.
+        vec3 rel = pos - P.cam_pos.xyz;
         s_col += col;
         q_col += col * col;
         s_alb += alb;

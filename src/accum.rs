@@ -40,7 +40,8 @@ pub struct AccumLayout {
     /// raw world positions far from 0 lose the position variance and
     /// covariance the G-buffer prefilter reads (at |p| ≈ 1000 and 64 spp the
     /// rounding of Σp² is larger than the variance of a pixel's footprint).
-    /// A miss adds 0, i.e. counts as a sample at the origin. Default 0.
+    /// A miss's position is 0 as without an origin (`−origin` relative to it).
+    /// Default 0.
     pub position_origin: [f32; 3],
 }
 
@@ -192,21 +193,16 @@ impl Accumulator {
 
     /// Adds one sample to pixel `p`. `values` holds one value per scalar
     /// channel in [`AccumLayout::channels`] order; positions are stored
-    /// relative to [`AccumLayout::position_origin`], and a miss (depth 0)
-    /// adds 0 to them.
+    /// relative to [`AccumLayout::position_origin`].
     pub fn add(&mut self, p: usize, values: &[f64]) {
         let l = self.layout;
         assert_eq!(values.len(), l.channels().len());
-        // Positions relative to the origin; a miss (depth 0) adds 0.
-        let depth = values[l.channel_index(Layer::Depth, 0).unwrap()];
+        // Positions relative to the origin.
         let shifted: Vec<f64> = l
             .channels()
             .iter()
             .zip(values)
-            .map(|(ch, &v)| match (ch.layer, depth != 0.0) {
-                (Layer::Position, false) => 0.0,
-                _ => v - l.origin_of(ch.layer, ch.component) as f64,
-            })
+            .map(|(ch, &v)| v - l.origin_of(ch.layer, ch.component) as f64)
             .collect();
         let values = &shifted[..];
         for (c, v) in values.iter().enumerate() {

@@ -430,3 +430,40 @@ fn prefilter_chain_on_the_fixture() {
     assert!(e(&c) < e(&off), "prefilter {} vs off {}", e(&c), e(&off));
     check_validation(&gpu());
 }
+
+/// GBF-PD: covariances whose pairwise entries pass Cauchy–Schwarz but whose
+/// 3×3 matrix is indefinite (xx = yy = zz = 1, xy = xz = 1, yz = −1: det −4)
+/// must not turn the filtered features into NaN, on the GPU or the CPU (a
+/// 16-spp render of the built-in motion scene had 44 such pixels).
+#[test]
+fn indefinite_covariance_gives_finite_features() {
+    use mcdenoise::{Config, Denoiser, Method, Prefilter, Source};
+    let mut img =
+        mcdenoise::io::read_stats(std::path::Path::new("tests/fixtures/dof_checker_64_spp16.exr"))
+            .unwrap();
+    let n = img.pixel_count();
+    let mut cov = img.get(Layer::PositionCovariance).unwrap().to_vec();
+    for i in (0..n).filter(|i| (i / 64) % 8 < 4) {
+        for (k, v) in [1.0, 1.0, 1.0, 1.0, -1.0, 1.0].into_iter().enumerate() {
+            cov[k][i] = v;
+        }
+    }
+    img.set(Layer::PositionCovariance, cov);
+    let ctx = gpu();
+    let mut cfg = Config::new(Method::Wlr);
+    cfg.prefilter = Prefilter::On;
+    let d = Denoiser::new(&ctx, Source::of_image(&img), cfg.clone()).unwrap();
+    let f = d.denoise(&img, None).unwrap();
+    let stats = d.statistics().unwrap();
+    let cpu = Denoiser::new_cpu(Source::of_image(&img), cfg).unwrap().denoise(&img, None).unwrap();
+    for l in [Layer::Normal, Layer::Albedo, Layer::Depth] {
+        for p in stats.get(l).unwrap() {
+            assert!(p.iter().all(|v| v.is_finite()), "{} not finite", l.name());
+        }
+    }
+    for c in 0..3 {
+        assert!(f.color.planes[c].iter().all(|v| v.is_finite()));
+        assert!(cpu.color.planes[c].iter().all(|v| v.is_finite()));
+    }
+    check_validation(&ctx);
+}

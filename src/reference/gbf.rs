@@ -18,7 +18,8 @@ pub const TRIAL_H: [f64; 6] = [0.0, 0.4, 0.8, 1.2, 1.6, 2.0];
 pub const H0: f64 = 1e-3;
 
 /// S-PSD (step 1): negative diagonal entries → 0, then
-/// `S̃ = S̄ + ε I` with `ε = max(1e-3·tr(S̄)/3, 1e-10·(1 + |p|²))`.
+/// `S̃ = S̄ + ε I` with `ε = max(1e-3·tr(S̄)/3, 1e-10·(1 + |p|²))`; not
+/// safely positive definite → its diagonal only (GBF-PD).
 pub fn regularise(sbar: [f64; 6], p: [f64; 3]) -> [f64; 6] {
     let mut s = sbar;
     for d in [0, 3, 5] {
@@ -30,7 +31,29 @@ pub fn regularise(sbar: [f64; 6], p: [f64; 3]) -> [f64; 6] {
     for d in [0, 3, 5] {
         s[d] += eps;
     }
+    // GBF-PD (ours): smoothing separately finalised entries can leave S̄
+    // indefinite (pairwise Cauchy–Schwarz clamps do not make a 3×3 matrix
+    // PSD), and `+ εI` does not always repair it: the inverse then has a
+    // negative or infinite determinant and the filter weights become NaN.
+    // Such a matrix keeps only its diagonal.
+    if !positive_definite(s) {
+        s[1] = 0.0;
+        s[2] = 0.0;
+        s[4] = 0.0;
+    }
     s
+}
+
+/// Relative tolerance of [`positive_definite`]'s leading minors.
+pub const PD_TOL: f64 = 1e-4;
+
+/// Whether `[[a b c] [b d e] [c e f]]` is safely positive definite: every
+/// leading minor above `PD_TOL` times the product of its diagonal.
+pub fn positive_definite(s: [f64; 6]) -> bool {
+    let [a, b, c, d, e, f] = s;
+    let m2 = a * d - b * b;
+    let det = a * (d * f - e * e) - b * (b * f - c * e) + c * (b * e - c * d);
+    a > 0.0 && m2 > PD_TOL * a * d && det > PD_TOL * a * d * f
 }
 
 /// Inverse of a symmetric 3×3 matrix by adjugate / determinant.
