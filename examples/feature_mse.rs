@@ -11,7 +11,9 @@ use mcdenoise::Layer;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let (rf, rest) = args.split_first().ok_or("usage: feature_mse REF.exr A.exr ...")?;
+    let (rf, rest) = args
+        .split_first()
+        .ok_or("usage: feature_mse REF.exr A.exr ...")?;
     let reference = mcdenoise::io::read_stats(Path::new(rf))?;
     for a in rest {
         let img = mcdenoise::io::read_stats(Path::new(a))?;
@@ -21,7 +23,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let spp = |s: &mcdenoise::StatsImage, i: usize| s.get(Layer::Spp).unwrap()[0][i];
         let mut row = Vec::new();
         for l in [Layer::Normal, Layer::Albedo, Layer::Depth] {
-            let (p, q) = (img.get(l).ok_or("missing layer")?, reference.get(l).ok_or("missing layer")?);
+            let (p, q) = (
+                img.get(l).ok_or("missing layer")?,
+                reference.get(l).ok_or("missing layer")?,
+            );
             let (mut s, mut n) = (0.0f64, 0usize);
             for c in 0..p.len() {
                 for i in 0..img.pixel_count() {

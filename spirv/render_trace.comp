@@ -23,8 +23,8 @@ layout(push_constant) uniform Push {
     uint seed_hi;
     uint plane_stride;  // floats between plane starts
     uint debug_stride;  // > 0: write each sample's 14 values to dbg (test aid)
-    uint pad0;
-    uint pad1;
+    uint chunk;         // this dispatch traces samples [chunk, chunk + 1) * chunk_size
+    uint chunk_size;    // of each pixel's count (RENDER_CHUNK)
     uint pad2;
 } push;
 
@@ -545,10 +545,17 @@ void main()
         return;
     }
     uint pixel = y * push.width + x;
-    uint spp = push.use_map != 0u ? spp_map[pixel] : push.uniform_spp;
-    if (spp == 0u) {
+    // llvmpipe ends every loop of an invocation once all its loops together
+    // have run 65535 iterations (LP_MAX_TGSI_LOOP_ITERATIONS, shared by all
+    // loops): a pixel tracing 1024 samples in one invocation silently kept
+    // ~256 of them. So each dispatch traces at most chunk_size samples per
+    // pixel, and the host records ceil(max count / chunk_size) dispatches.
+    uint total = push.use_map != 0u ? spp_map[pixel] : push.uniform_spp;
+    uint begin = push.chunk * push.chunk_size;
+    if (begin >= total) {
         return;
     }
+    uint spp = min(push.chunk_size, total - begin);
     uint stride = push.plane_stride;
     uint i0 = pixel;
     uint i1 = stride + pixel;
@@ -595,7 +602,7 @@ void main()
         s_cross += vec3(rel.x * rel.y, rel.x * rel.z, rel.y * rel.z);
         s_dv += vec4(dep, dep * dep, vis, vis * vis);
         if (push.debug_stride > 0u) {
-            uint b = (pixel * push.debug_stride + s) * 14u;
+            uint b = (pixel * push.debug_stride + begin + s) * 14u;
             dbg[b + 0u] = col.r;  dbg[b + 1u] = col.g;  dbg[b + 2u] = col.b;
             dbg[b + 3u] = alb.r;  dbg[b + 4u] = alb.g;  dbg[b + 5u] = alb.b;
             dbg[b + 6u] = nrm.x;  dbg[b + 7u] = nrm.y;  dbg[b + 8u] = nrm.z;

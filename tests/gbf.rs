@@ -438,9 +438,10 @@ fn prefilter_chain_on_the_fixture() {
 #[test]
 fn indefinite_covariance_gives_finite_features() {
     use mcdenoise::{Config, Denoiser, Method, Prefilter, Source};
-    let mut img =
-        mcdenoise::io::read_stats(std::path::Path::new("tests/fixtures/dof_checker_64_spp16.exr"))
-            .unwrap();
+    let mut img = mcdenoise::io::read_stats(std::path::Path::new(
+        "tests/fixtures/dof_checker_64_spp16.exr",
+    ))
+    .unwrap();
     let n = img.pixel_count();
     let mut cov = img.get(Layer::PositionCovariance).unwrap().to_vec();
     for i in (0..n).filter(|i| (i / 64) % 8 < 4) {
@@ -455,7 +456,10 @@ fn indefinite_covariance_gives_finite_features() {
     let d = Denoiser::new(&ctx, Source::of_image(&img), cfg.clone()).unwrap();
     let f = d.denoise(&img, None).unwrap();
     let stats = d.statistics().unwrap();
-    let cpu = Denoiser::new_cpu(Source::of_image(&img), cfg).unwrap().denoise(&img, None).unwrap();
+    let cpu = Denoiser::new_cpu(Source::of_image(&img), cfg)
+        .unwrap()
+        .denoise(&img, None)
+        .unwrap();
     for l in [Layer::Normal, Layer::Albedo, Layer::Depth] {
         for p in stats.get(l).unwrap() {
             assert!(p.iter().all(|v| v.is_finite()), "{} not finite", l.name());

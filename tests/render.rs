@@ -592,7 +592,7 @@ fn zero_sample_map_region_adds_nothing() {
         .collect();
     let mb = GpuBuffer::from_slice(&ctx, "test.map", &map).unwrap();
     let mut b = Batch::new(&ctx).unwrap();
-    r.record_pass(&mut b, Samples::Map(mb.slice()), 1.0)
+    r.record_pass(&mut b, Samples::Map(mb.slice(), 3), 1.0)
         .unwrap();
     b.finish().unwrap();
     let after = r.download().unwrap();
@@ -726,7 +726,10 @@ fn renderer_and_denoiser_share_a_batch() {
     r.record_pass(&mut b, Samples::Uniform(4), 4.0).unwrap();
     d.record(&mut b, Some(r.accum()), Some(budget)).unwrap();
     let map = d.outputs().unwrap().samples.unwrap();
-    r.record_pass(&mut b, Samples::Map(map), 2.0).unwrap();
+    // The map's largest count is not known before the batch runs: the
+    // budget bounds it.
+    r.record_pass(&mut b, Samples::Map(map, budget), 2.0)
+        .unwrap();
     b.finish().unwrap();
     let frame = d.read().unwrap();
     let samples = frame.samples.unwrap();
@@ -1024,4 +1027,39 @@ fn the_renderer_is_a_facade_client() {
             assert!(line.contains("lib/render"), "{name}: {line}");
         }
     }
+}
+
+/// lavapipe ends an invocation's loops after 65535 iterations in total: one
+/// pass of 1024 samples per pixel once kept only ~256 of them (the image a
+/// quarter as bright, with a count of 1024). Passes are traced in chunks of
+/// `RENDER_CHUNK` samples, so 1024 in one pass is bit-identical to four
+/// passes of 256 and as bright as 64 spp.
+#[test]
+fn many_samples_in_one_pass_are_all_traced() {
+    let ctx = gpu();
+    let s = Scene::builtin("cornell").unwrap();
+    let one = render(&s, 6, 5, 1024, 1).download().unwrap();
+    let r = Renderer::new(&ctx, &s, 6, 5, 1).unwrap();
+    for _ in 0..4 {
+        let mut b = Batch::new(&ctx).unwrap();
+        r.record_pass(&mut b, Samples::Uniform(256), 256.0).unwrap();
+        b.finish().unwrap();
+    }
+    let four = r.download().unwrap();
+    assert_eq!(one, four, "1024 in one pass differs from 4 x 256");
+    let low = render(&s, 6, 5, 64, 1).download().unwrap();
+    let l = r.layout();
+    let mean = |planes: &Vec<Vec<f32>>, n: f64| {
+        planes[l.sum_plane(0)]
+            .iter()
+            .map(|&v| v as f64)
+            .sum::<f64>()
+            / n
+    };
+    let (a, b) = (mean(&one, 1024.0), mean(&low, 64.0));
+    assert!(
+        (a / b - 1.0).abs() < 0.2,
+        "mean radiance {a} (1024 spp) vs {b} (64 spp)"
+    );
+    check_validation(&ctx);
 }

@@ -146,9 +146,16 @@ pub fn render(
             .samples
             .ok_or_else(|| Error::Limit("this device cannot compute sample maps".into()))?;
         for &budget in &s.budgets {
+            run(&mut |b| intermediate.record(b, Some(renderer.accum()), Some(budget)))?;
+            // The largest count sets how many chunk dispatches the pass takes
+            // (render::RENDER_CHUNK): one small readback per pass.
+            let max = crate::gpu::buffer::read_slice(ctx, map, pixels)?
+                .iter()
+                .map(|v| v.to_bits())
+                .max()
+                .unwrap_or(0);
             run(&mut |b| {
-                intermediate.record(b, Some(renderer.accum()), Some(budget))?;
-                renderer.record_pass(b, Samples::Map(map), budget as f64 / pixels as f64)
+                renderer.record_pass(b, Samples::Map(map, max), budget as f64 / pixels as f64)
             })?;
             done += 1;
             progress(PassProgress { done, total });

@@ -84,9 +84,22 @@ pub struct TracePush {
     /// Non-zero: each sample's 14 values go to the debug binding, this many
     /// samples per pixel apart (a test aid).
     pub debug_stride: u32,
+    /// This dispatch traces samples `[chunk·chunk_size, (chunk+1)·chunk_size)`
+    /// of each pixel's count.
+    pub chunk: u32,
+    /// [`RENDER_CHUNK`].
+    pub chunk_size: u32,
     /// Padding.
-    pub pad: [u32; 3],
+    pub pad: u32,
 }
+
+/// Samples per pixel one dispatch traces at most. lavapipe (llvmpipe) ends
+/// all loops of an invocation after 65535 iterations in total
+/// (`LP_MAX_TGSI_LOOP_ITERATIONS`, shared by every loop of the shader): one
+/// invocation tracing 1024 samples of the Cornell box silently kept ~256.
+/// A sample of the built-in scenes runs a few hundred loop iterations
+/// (BVH traversal of every ray of its path), so 8 stay far below the limit.
+pub const RENDER_CHUNK: u32 = 8;
 
 /// Push constants of `render_rays` (mirrors its `Push` block).
 #[repr(C)]
@@ -158,8 +171,10 @@ pub enum Samples {
     /// The same number in every pixel.
     Uniform(u32),
     /// One u32 per pixel (row-major), e.g. the denoiser's sample map
-    /// ([`Outputs::samples`](crate::Outputs)). A pixel with 0 costs nothing.
-    Map(BufferSlice),
+    /// ([`Outputs::samples`](crate::Outputs)), and the largest count in it
+    /// (it sets how many [`RENDER_CHUNK`]-sample dispatches the pass takes;
+    /// counts above it are not traced). A pixel with 0 costs nothing.
+    Map(BufferSlice, u32),
 }
 
 /// A ray for [`Renderer::trace_rays`].
@@ -334,9 +349,9 @@ impl Renderer {
         debug: Option<(BufferSlice, u32)>,
     ) -> Result<()> {
         let l = self.layout;
-        let (uniform_spp, use_map, map) = match samples {
-            Samples::Uniform(n) => (n, 0, self.dummy.slice()),
-            Samples::Map(m) => {
+        let (uniform_spp, use_map, map, max) = match samples {
+            Samples::Uniform(n) => (n, 0, self.dummy.slice(), n),
+            Samples::Map(m, max) => {
                 if m.size() < l.pixels() as u64 * 4 {
                     return Err(Error::InvalidArgument(format!(
                         "the sample map holds {} bytes; {} pixels need {}",
@@ -345,10 +360,10 @@ impl Renderer {
                         l.pixels() * 4
                     )));
                 }
-                (0, 1, m)
+                (0, 1, m, max)
             }
         };
-        if uniform_spp == 0 && use_map == 0 {
+        if max == 0 {
             return Ok(());
         }
         let (dbg, debug_stride) = debug.unwrap_or((self.dummy.slice(), 0));
@@ -361,6 +376,7 @@ impl Renderer {
             seed_hi: (self.seed >> 32) as u32,
             plane_stride: (l.plane_stride() / 4) as u32,
             debug_stride,
+            chunk_size: RENDER_CHUNK,
             ..Default::default()
         };
         let [a, b, c, d, e] = self.scene_bindings();
@@ -371,28 +387,37 @@ impl Renderer {
                 (ACCUM_GROUP - 1) * stride + l.pixels() as u64 * 4,
             )
         };
-        batch.dispatch(
-            &TRACE,
-            Precision::F32,
-            &[
-                a,
-                b,
-                c,
-                d,
-                e,
-                map,
-                group(0),
-                group(1),
-                group(2),
-                group(3),
-                dbg,
-                self.normals.slice(),
-            ],
-            bytemuck::bytes_of(&push),
-            push.width,
-            push.height,
-            self.flops_per_sample * expected_spp.max(0.0),
-        )
+        let bindings = [
+            a,
+            b,
+            c,
+            d,
+            e,
+            map,
+            group(0),
+            group(1),
+            group(2),
+            group(3),
+            dbg,
+            self.normals.slice(),
+        ];
+        let chunks = max.div_ceil(RENDER_CHUNK);
+        for k in 0..chunks {
+            let push = TracePush { chunk: k, ..push };
+            // Samples per pixel of this chunk, at most (sizes the bands).
+            let expected = (max - k * RENDER_CHUNK).min(RENDER_CHUNK) as f64;
+            let _ = expected_spp;
+            batch.dispatch(
+                &TRACE,
+                Precision::F32,
+                &bindings,
+                bytemuck::bytes_of(&push),
+                push.width,
+                push.height,
+                self.flops_per_sample * expected.max(1e-3),
+            )?;
+        }
+        Ok(())
     }
 
     /// Records `spp` uniform samples per pixel as several passes, each small
