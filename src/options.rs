@@ -76,6 +76,13 @@ pub const OPTIONS: &[OptionSpec] = &[
         help: "error-estimation stages T (the reconstruction always filters the input)",
     },
     OptionSpec {
+        key: "apr.prefilter",
+        kind: Kind::Choice(&["off", "on"]),
+        default: "off",
+        section: "§4.6",
+        help: "APR's own 5x5 polynomial feature prefilter when the G-buffer prefilter does not run (off: see docs/results-apr.md)",
+    },
+    OptionSpec {
         key: "sampling.smooth",
         kind: Kind::Real(0.0, 16.0),
         default: "method",

@@ -297,7 +297,7 @@ fn denoise_cpu(img: &StatsImage, req: &DenoiseRequest) -> Result<DenoiseOutput> 
         }
         Method::Apr => {
             let params = apr::AprParams::new(&req.options)?;
-            let r = apr::run_cpu(&clean, params, !prefiltered)?;
+            let r = apr::run_cpu(&clean, params, params.prefilter && !prefiltered)?;
             let debug = if req.debug { r.debug } else { Vec::new() };
             (r.color, r.error, r.dim, debug, Vec::new())
         }
