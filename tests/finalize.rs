@@ -37,6 +37,20 @@ fn accumulate(w: usize, h: usize, seed: u64, offset: f64) -> (Accumulator, Vec<V
     (acc, samples)
 }
 
+/// Packs the accumulation exactly as a renderer would (planes at the
+/// stride) into a GPU buffer.
+fn upload_accum(acc: &Accumulator) -> GpuBuffer {
+    let layout = acc.layout;
+    let stride = layout.plane_stride() as usize;
+    let mut bytes = vec![0u8; layout.bytes() as usize];
+    for (i, p) in acc.planes().iter().enumerate() {
+        bytes[i * stride..i * stride + p.len() * 4].copy_from_slice(bytemuck::cast_slice(p));
+    }
+    let buf = GpuBuffer::new(&gpu(), "accum", layout.bytes()).unwrap();
+    buf.upload(0, &bytes).unwrap();
+    buf
+}
+
 fn run_gpu(
     w: usize,
     h: usize,
@@ -45,15 +59,7 @@ fn run_gpu(
     let ctx = gpu();
     let (acc, _) = accumulate(w, h, 7 + w as u64 * 31 + h as u64, 100.0);
     let layout = acc.layout;
-    let planes = acc.planes();
-    // Pack the accumulation exactly as a renderer would: planes at the stride.
-    let stride = layout.plane_stride() as usize;
-    let mut bytes = vec![0u8; layout.bytes() as usize];
-    for (i, p) in planes.iter().enumerate() {
-        bytes[i * stride..i * stride + p.len() * 4].copy_from_slice(bytemuck::cast_slice(p));
-    }
-    let buf = GpuBuffer::new(&ctx, "accum", layout.bytes()).unwrap();
-    buf.upload(0, &bytes).unwrap();
+    let buf = upload_accum(&acc);
     let out = GpuStats::new(&ctx, "stats", w, h, &finalized_layers(&layout)).unwrap();
     let mut batch = Batch::new(&ctx).unwrap();
     record_finalize(&mut batch, precision, &layout, buf.slice(), &out).unwrap();
@@ -61,7 +67,7 @@ fn run_gpu(
     assert!(!timings.is_empty());
     let g = out.download().unwrap();
     check_validation(&ctx);
-    (g, finalize_cpu(&layout, &planes))
+    (g, finalize_cpu(&layout, &acc.planes()))
 }
 
 #[test]
@@ -236,14 +242,7 @@ fn positions_far_from_the_origin_keep_their_variance() {
                 cov(1, 2) * 63.0,
             ];
         }
-        let planes = acc.planes();
-        let stride = layout.plane_stride() as usize;
-        let mut bytes = vec![0u8; layout.bytes() as usize];
-        for (i, p) in planes.iter().enumerate() {
-            bytes[i * stride..i * stride + p.len() * 4].copy_from_slice(bytemuck::cast_slice(p));
-        }
-        let buf = GpuBuffer::new(&ctx, "accum", layout.bytes()).unwrap();
-        buf.upload(0, &bytes).unwrap();
+        let buf = upload_accum(&acc);
         let out = GpuStats::new(&ctx, "stats", w, h, &finalized_layers(&layout)).unwrap();
         let mut batch = Batch::new(&ctx).unwrap();
         record_finalize(&mut batch, Precision::F32, &layout, buf.slice(), &out).unwrap();

@@ -61,7 +61,30 @@ pub const ALL: &[&KernelDecl] = &[
 use std::sync::Arc;
 
 use crate::error::Result;
-use crate::gpu::{Batch, GpuBuffer, GpuContext, Precision};
+use crate::gpu::{Batch, BufferSlice, GpuBuffer, GpuContext, Precision};
+use crate::shared::OutlierPush;
+
+/// Records one of the outlier stage's per-pixel kernels over the push's
+/// image: the binding groups concatenated in order.
+pub(crate) fn dispatch_outlier(
+    batch: &mut Batch,
+    decl: &KernelDecl,
+    precision: Precision,
+    push: &OutlierPush,
+    groups: &[&[BufferSlice]],
+    flops_per_pixel: f64,
+) -> Result<()> {
+    let bindings: Vec<BufferSlice> = groups.concat();
+    batch.dispatch(
+        decl,
+        precision,
+        &bindings,
+        bytemuck::bytes_of(push),
+        push.width,
+        push.height,
+        flops_per_pixel,
+    )
+}
 
 /// Runs one kernel once on data held by the host: binding `i` gets
 /// `inputs[i]` for `i < inputs.len()`; the following bindings are fresh

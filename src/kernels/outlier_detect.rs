@@ -66,20 +66,12 @@ pub fn record(
     out: [BufferSlice; 6],
     excess: [BufferSlice; 3],
 ) -> Result<()> {
-    let mut b = color.to_vec();
-    b.extend(var);
-    b.push(spp);
-    b.extend(rows);
-    b.push(keys);
-    b.extend(out);
-    b.extend(excess);
-    batch.dispatch(
+    super::dispatch_outlier(
+        batch,
         &DECL,
         precision,
-        &b,
-        bytemuck::bytes_of(push),
-        push.width,
-        push.height,
+        push,
+        &[&color, &var, &[spp], &rows, &[keys], &out, &excess],
         flops_per_pixel(push.radius),
     )
 }

@@ -42,17 +42,12 @@ pub fn record(
     out: [BufferSlice; 6],
     keys: BufferSlice,
 ) -> Result<()> {
-    let mut b = color.to_vec();
-    b.push(spp);
-    b.extend(out);
-    b.push(keys);
-    batch.dispatch(
+    super::dispatch_outlier(
+        batch,
         &DECL,
         precision,
-        &b,
-        bytemuck::bytes_of(push),
-        push.width,
-        push.height,
+        push,
+        &[&color, &[spp], &out, &[keys]],
         flops_per_pixel(push.radius),
     )
 }

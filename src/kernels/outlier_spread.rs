@@ -40,16 +40,12 @@ pub fn record(
     spp: BufferSlice,
     color: [BufferSlice; 3],
 ) -> Result<()> {
-    let mut b = weights.to_vec();
-    b.push(spp);
-    b.extend(color);
-    batch.dispatch(
+    super::dispatch_outlier(
+        batch,
         &DECL,
         precision,
-        &b,
-        bytemuck::bytes_of(push),
-        push.width,
-        push.height,
+        push,
+        &[&weights, &[spp], &color],
         flops_per_pixel(push.radius),
     )
 }

@@ -44,17 +44,12 @@ pub fn record(
     count: BufferSlice,
     out: [BufferSlice; 6],
 ) -> Result<()> {
-    let mut b = excess.to_vec();
-    b.extend(sums);
-    b.push(count);
-    b.extend(out);
-    batch.dispatch(
+    super::dispatch_outlier(
+        batch,
         &DECL,
         precision,
-        &b,
-        bytemuck::bytes_of(push),
-        push.width,
-        push.height,
+        push,
+        &[&excess, &sums, &[count], &out],
         flops_per_pixel(push.radius),
     )
 }

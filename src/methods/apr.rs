@@ -57,9 +57,12 @@ pub struct AprResult {
     pub debug: Vec<(String, Vec<f32>)>,
 }
 
+/// Feature planes and their variances, f64.
+pub type FeaturePlanes = (Vec<Vec<f64>>, Vec<Vec<f64>>);
+
 /// The feature planes APR reads, in §4.1's order: normal xyz, albedo rgb,
 /// depth, visibility when present; with their variances.
-pub fn features(clean: &StatsImage) -> Result<(Vec<Vec<f64>>, Vec<Vec<f64>>)> {
+pub fn features(clean: &StatsImage) -> Result<FeaturePlanes> {
     let mut f = Vec::new();
     let mut v = Vec::new();
     for (l, lv, required) in [
