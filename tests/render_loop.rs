@@ -18,6 +18,7 @@ fn config(method: Method, spp: u32, adaptive: bool) -> LoopConfig {
         method,
         prefilter: Prefilter::Auto,
         outliers: mcdenoise::Outliers::Auto,
+        pass_cap: None,
         precision: Precision::F32,
         options: Options::default(),
     }

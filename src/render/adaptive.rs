@@ -35,6 +35,50 @@ pub struct LoopConfig {
     pub precision: Precision,
     /// Method options.
     pub options: Options,
+    /// Most samples one pixel may receive in one adaptive pass, as a
+    /// multiple of the pass's mean (`None`: no cap). The excess goes to the
+    /// other pixels in proportion to their counts, so the pass still spends
+    /// exactly its budget. A safeguard against an error estimate that keeps
+    /// pointing at the same few pixels (LP's at emitter edges: 20,067 samples
+    /// in one pixel of a 64-spp render).
+    pub pass_cap: Option<f64>,
+}
+
+/// Caps `counts` at `cap` each and gives the excess to the pixels below the
+/// cap in proportion to their counts (uniformly if those are all 0), with
+/// the exact cumulative rounding of spec §9.2, until nothing exceeds the cap.
+/// The total is unchanged; `cap · counts.len()` must be at least the total.
+pub fn cap_counts(counts: &mut [u32], cap: u32) {
+    let total: u64 = counts.iter().map(|&c| c as u64).sum();
+    assert!(
+        cap as u64 * counts.len() as u64 >= total,
+        "a cap of {cap} cannot hold {total} samples in {} pixels",
+        counts.len()
+    );
+    loop {
+        let over: u64 = counts.iter().map(|&c| c.saturating_sub(cap) as u64).sum();
+        if over == 0 {
+            return;
+        }
+        for c in counts.iter_mut() {
+            *c = (*c).min(cap);
+        }
+        let mut w: Vec<u64> = counts
+            .iter()
+            .map(|&c| if c < cap { c as u64 } else { 0 })
+            .collect();
+        if w.iter().all(|&x| x == 0) {
+            w = counts.iter().map(|&c| (c < cap) as u64).collect();
+        }
+        let sum: u64 = w.iter().sum();
+        let (mut p, mut given) = (0u64, 0u64);
+        for (c, &wi) in counts.iter_mut().zip(&w) {
+            p += wi;
+            let upto = (over as u128 * p as u128 / sum as u128) as u64;
+            *c += (upto - given) as u32;
+            given = upto;
+        }
+    }
 }
 
 /// GPU time of a render, split by what it was spent on (timestamp queries).
@@ -145,17 +189,38 @@ pub fn render(
             .outputs()?
             .samples
             .ok_or_else(|| Error::Limit("this device cannot compute sample maps".into()))?;
+        let capped = match cfg.pass_cap {
+            Some(_) => Some(crate::gpu::GpuBuffer::new(
+                ctx,
+                "loop.capped_map",
+                (pixels * 4) as u64,
+            )?),
+            None => None,
+        };
         for &budget in &s.budgets {
             run(&mut |b| intermediate.record(b, Some(renderer.accum()), Some(budget)))?;
             // The largest count sets how many chunk dispatches the pass takes
             // (render::RENDER_CHUNK): one small readback per pass.
-            let max = crate::gpu::buffer::read_slice(ctx, map, pixels)?
+            let mut counts: Vec<u32> = crate::gpu::buffer::read_slice(ctx, map, pixels)?
                 .iter()
                 .map(|v| v.to_bits())
-                .max()
-                .unwrap_or(0);
+                .collect();
+            let pass_map = match (cfg.pass_cap, &capped) {
+                (Some(k), Some(buf)) => {
+                    let mean = budget as f64 / pixels as f64;
+                    cap_counts(&mut counts, (k * mean).ceil().max(1.0) as u32);
+                    buf.upload(0, bytemuck::cast_slice(&counts))?;
+                    buf.slice()
+                }
+                _ => map,
+            };
+            let max = counts.iter().copied().max().unwrap_or(0);
             run(&mut |b| {
-                renderer.record_pass(b, Samples::Map(map, max), budget as f64 / pixels as f64)
+                renderer.record_pass(
+                    b,
+                    Samples::Map(pass_map, max),
+                    budget as f64 / pixels as f64,
+                )
             })?;
             done += 1;
             progress(PassProgress { done, total });
@@ -170,4 +235,43 @@ pub fn render(
         split,
         timings,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::cap_counts;
+
+    #[test]
+    fn cap_keeps_the_total_and_the_cap() {
+        let mut rng = 12345u64;
+        for n in [1usize, 7, 100, 1000] {
+            for cap in [1u32, 3, 10, 50] {
+                let mut c: Vec<u32> = (0..n)
+                    .map(|_| {
+                        rng = rng
+                            .wrapping_mul(6364136223846793005)
+                            .wrapping_add(1442695040888963407);
+                        let r = (rng >> 33) % 100;
+                        if r < 3 {
+                            (r * 1000) as u32
+                        } else {
+                            (r % 5) as u32
+                        }
+                    })
+                    .collect();
+                let total: u64 = c.iter().map(|&x| x as u64).sum();
+                if cap as u64 * n as u64 >= total {
+                    let zeros: Vec<bool> = c.iter().map(|&x| x == 0).collect();
+                    cap_counts(&mut c, cap);
+                    assert_eq!(c.iter().map(|&x| x as u64).sum::<u64>(), total);
+                    assert!(c.iter().all(|&x| x <= cap), "n {n} cap {cap}: {c:?}");
+                    // Pixels the map gave nothing keep nothing unless every
+                    // pixel below the cap had nothing.
+                    if c.iter().zip(&zeros).any(|(&x, &z)| !z && x < cap) {
+                        assert!(c.iter().zip(&zeros).all(|(&x, &z)| !z || x == 0));
+                    }
+                }
+            }
+        }
+    }
 }
