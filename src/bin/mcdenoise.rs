@@ -679,11 +679,12 @@ struct RenderArgs {
     #[arg(long, value_enum, default_value = "auto")]
     outliers: OutliersArg,
     /// With --adaptive: at most K times the pass's mean samples in one pixel
-    /// per pass (the excess goes to the other pixels); 0 = no cap.
-    #[arg(long, value_name = "K", default_value_t = 0.0,
+    /// per pass (the excess goes to the other pixels); 0 = no cap. Default:
+    /// 4 for LP, no cap for the others.
+    #[arg(long, value_name = "K",
           value_parser = |s: &str| s.parse::<f64>().ok().filter(|k| *k == 0.0 || (*k >= 1.0 && k.is_finite()))
               .ok_or_else(|| "0 (no cap) or a number >= 1".to_string()))]
-    pass_cap: f64,
+    pass_cap: Option<f64>,
     /// Image size.
     #[arg(long, value_name = "WxH", default_value = "256x256",
           value_parser = |s: &str| mcdenoise::bench::parse_size(s).map_err(|e| e.to_string()))]
@@ -1029,7 +1030,10 @@ fn render(cli: &Cli, args: &RenderArgs) -> anyhow::Result<bool> {
         method,
         prefilter: args.prefilter.get(),
         outliers: args.outliers.get(),
-        pass_cap: (args.pass_cap > 0.0).then_some(args.pass_cap),
+        pass_cap: match args.pass_cap {
+            None => adaptive::default_pass_cap(method),
+            Some(k) => (k > 0.0).then_some(k),
+        },
         precision: args.precision.get(),
         options: Options::parse(&args.opts)?,
     };
