@@ -27,7 +27,8 @@ real gbf_exp(real a)
 // S-PSD (step 1): negative diagonal entries -> 0, then
 // S~ = S + eps I, eps = max(1e-3 tr(S)/3, 1e-10 (1 + |p|^2)); returned inverted
 // by adjugate / determinant as (XX, XY, XZ) and (YY, YZ, ZZ); a matrix that
-// is not safely positive definite keeps its diagonal only (GBF-PD).
+// is not safely positive definite gives 1e20 I (GBF-PD: the pixel passes
+// through).
 void gbf_regularised_inverse(real3 a, real3 b, real3 p, out real3 ia3, out real3 ib3)
 {
     real sxx = max(a.x, real(0));
@@ -37,14 +38,15 @@ void gbf_regularised_inverse(real3 a, real3 b, real3 p, out real3 ia3, out real3
     real eps = max(real(1e-3) * tr / real(3), real(1e-10) * (real(1) + dot(p, p)));
     real sa = sxx + eps, sb = a.y, sc = a.z, sd = syy + eps, se = b.y, sf = szz + eps;
     // GBF-PD: not safely positive definite (leading minors above 1e-4 of
-    // their diagonal products) -> the diagonal only; else the determinant
-    // can be <= 0 and the weights NaN.
+    // their diagonal products) -> an unusable covariance: inverse 1e20 I, so
+    // every distance through it is huge and the pixel passes through (its
+    // determinant could be <= 0 and the weights NaN).
     real m2 = sa * sd - sb * sb;
     real det0 = sa * (sd * sf - se * se) - sb * (sb * sf - sc * se) + sc * (sb * se - sc * sd);
     if (!(m2 > real(1e-4) * sa * sd && det0 > real(1e-4) * sa * sd * sf)) {
-        sb = real(0);
-        sc = real(0);
-        se = real(0);
+        ia3 = real3(1e20, 0, 0);
+        ib3 = real3(1e20, 0, 1e20);
+        return;
     }
     real ia = sd * sf - se * se;
     real ib = sc * se - sb * sf;

@@ -18,8 +18,7 @@ pub const TRIAL_H: [f64; 6] = [0.0, 0.4, 0.8, 1.2, 1.6, 2.0];
 pub const H0: f64 = 1e-3;
 
 /// S-PSD (step 1): negative diagonal entries → 0, then
-/// `S̃ = S̄ + ε I` with `ε = max(1e-3·tr(S̄)/3, 1e-10·(1 + |p|²))`; not
-/// safely positive definite → its diagonal only (GBF-PD).
+/// `S̃ = S̄ + ε I` with `ε = max(1e-3·tr(S̄)/3, 1e-10·(1 + |p|²))`.
 pub fn regularise(sbar: [f64; 6], p: [f64; 3]) -> [f64; 6] {
     let mut s = sbar;
     for d in [0, 3, 5] {
@@ -31,18 +30,30 @@ pub fn regularise(sbar: [f64; 6], p: [f64; 3]) -> [f64; 6] {
     for d in [0, 3, 5] {
         s[d] += eps;
     }
-    // GBF-PD (ours): smoothing separately finalised entries can leave S̄
-    // indefinite (pairwise Cauchy–Schwarz clamps do not make a 3×3 matrix
-    // PSD), and `+ εI` does not always repair it: the inverse then has a
-    // negative or infinite determinant and the filter weights become NaN.
-    // Such a matrix keeps only its diagonal.
-    if !positive_definite(s) {
-        s[1] = 0.0;
-        s[2] = 0.0;
-        s[4] = 0.0;
-    }
     s
 }
+
+/// GBF-PD (ours): the inverse a pixel's distances use. Smoothing separately
+/// finalised entries can leave `S̄` indefinite (pairwise Cauchy–Schwarz
+/// clamps do not make a 3×3 matrix PSD) and `+ εI` does not always repair
+/// it: its inverse then has a negative or infinite determinant and the
+/// filter weights became NaN (44 pixels of a 16-spp motion render). Such a
+/// covariance says nothing usable about the pixel's footprint, so its
+/// inverse is [`UNUSABLE`]·I: every distance through it is huge, the pixel
+/// takes no neighbours and lends itself to none (it passes through).
+pub fn regularised_inverse(sbar: [f64; 6], p: [f64; 3]) -> [f64; 6] {
+    let s = regularise(sbar, p);
+    if positive_definite(s) {
+        inverse(s)
+    } else {
+        [UNUSABLE, 0.0, 0.0, UNUSABLE, 0.0, UNUSABLE]
+    }
+}
+
+/// The inverse covariance of a pixel whose covariance is not positive
+/// definite (GBF-PD): large enough that `exp(−d/2h²)` is 0 for any
+/// neighbour, small enough that `d` stays finite in f32.
+pub const UNUSABLE: f64 = 1e20;
 
 /// Relative tolerance of [`positive_definite`]'s leading minors.
 pub const PD_TOL: f64 = 1e-4;
@@ -155,7 +166,7 @@ pub fn prepare_pixel(
     }
     let sbar = num.map(|v| if den > 0.0 { v / den } else { 0.0 });
     let q = y * width + x;
-    inverse(regularise(sbar, std::array::from_fn(|k| pos[k][q] as f64)))
+    regularised_inverse(sbar, std::array::from_fn(|k| pos[k][q] as f64))
 }
 
 /// One neighbour of the window: index, `Δ = p_i − p_c`, `M_i Δ` and `d_i`.
