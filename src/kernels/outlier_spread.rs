@@ -25,9 +25,14 @@ pub const DECL: KernelDecl = KernelDecl {
     push_size: std::mem::size_of::<OutlierPush>() as u32,
 };
 
-/// Per pixel: `2R+1` rows × 6 adds, and the update.
-pub fn flops_per_pixel(radius: u32) -> f64 {
-    (2.0 * radius as f64 + 1.0) * 6.0 + 9.0
+/// Rows per invocation (`SPAN` in the shader): one full column sum, then a
+/// running sum.
+pub const SPAN: u32 = 16;
+
+/// Per invocation: `2R+1` rows × 6 adds for the first row, then per row 12
+/// adds and the update.
+pub fn flops_per_invocation(radius: u32) -> f64 {
+    (2.0 * radius as f64 + 1.0) * 6.0 + SPAN as f64 * 21.0
 }
 
 /// Records `y ← max(0, y(1 + Σρ) + Σadd)`; `weights` are `box_rows` of ρ R,
@@ -40,12 +45,14 @@ pub fn record(
     spp: BufferSlice,
     color: [BufferSlice; 3],
 ) -> Result<()> {
-    super::dispatch_outlier(
-        batch,
+    let bindings = [&weights[..], &[spp], &color].concat();
+    batch.dispatch(
         &DECL,
         precision,
-        push,
-        &[&weights, &[spp], &color],
-        flops_per_pixel(push.radius),
+        &bindings,
+        bytemuck::bytes_of(push),
+        push.width,
+        push.height.div_ceil(SPAN),
+        flops_per_invocation(push.radius),
     )
 }
