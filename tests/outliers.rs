@@ -71,16 +71,7 @@ fn noisy(w: usize, h: usize, seed: u64) -> Img {
 }
 
 fn push(img: &Img, radius: usize, mode: u32) -> OutlierPush {
-    OutlierPush {
-        width: img.w as u32,
-        height: img.h as u32,
-        radius: radius as u32,
-        mode,
-        min_n: ro::MIN_NEIGHBOURS,
-        k_sigma: ro::K_SIGMA as f32,
-        dark: ro::DARK as f32,
-        ..Default::default()
-    }
+    mcdenoise::methods::outliers::push(img.w, img.h, radius, mode)
 }
 
 fn refs(v: &[Vec<f32>]) -> Vec<&[f32]> {

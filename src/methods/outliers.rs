@@ -67,7 +67,9 @@ impl Outliers {
     }
 }
 
-fn push(w: usize, h: usize, radius: usize, mode: u32) -> OutlierPush {
+/// The push constants of the stage's kernels for a `w × h` image: the spec's
+/// constants (§4.4), window radius `radius`, `box_rows` mode `mode`.
+pub fn push(w: usize, h: usize, radius: usize, mode: u32) -> OutlierPush {
     OutlierPush {
         width: w as u32,
         height: h as u32,
