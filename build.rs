@@ -1,5 +1,7 @@
-//! Compiles every `spirv/*.comp` to SPIR-V with glslang (the `glslang` crate,
-//! built from source: nothing to install).
+//! Compiles every `spirv/*.comp` (the library's kernels) and
+//! `spirv/render/*.comp` (the built-in renderer's shaders) to SPIR-V with
+//! glslang (the `glslang` crate, built from source: nothing to install).
+//! `#include` paths are relative to `spirv/`.
 //!
 //! Each kernel is built twice: `<k>` in f32 and `<k>_f64` with `MC_F64`
 //! defined (see `spirv/lib/common.glsl`). `#include "lib/x.glsl"` lines are
@@ -44,9 +46,11 @@ fn main() {
     let out_dir = PathBuf::from(std::env::var("OUT_DIR").unwrap());
     println!("cargo:rerun-if-changed={}", root.display());
     println!("cargo:rerun-if-changed={}", root.join("lib").display());
+    println!("cargo:rerun-if-changed={}", root.join("render").display());
 
-    let mut kernels: Vec<PathBuf> = std::fs::read_dir(&root)
-        .expect("spirv/ folder")
+    let mut kernels: Vec<PathBuf> = [root.clone(), root.join("render")]
+        .iter()
+        .flat_map(|dir| std::fs::read_dir(dir).expect("spirv/ folder"))
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| p.extension().is_some_and(|x| x == "comp"))
         .collect();

@@ -55,9 +55,11 @@ fn every_kernel_matches_its_declaration() {
 
 #[test]
 fn every_spirv_file_has_a_declaration() {
+    // The library's kernels and the built-in renderer's shaders.
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("spirv");
-    let mut names: Vec<String> = std::fs::read_dir(dir)
-        .unwrap()
+    let mut names: Vec<String> = [dir.clone(), dir.join("render")]
+        .iter()
+        .flat_map(|d| std::fs::read_dir(d).unwrap())
         .filter_map(|e| {
             let p = e.unwrap().path();
             (p.extension()? == "comp").then(|| p.file_stem().unwrap().to_str().unwrap().to_owned())

@@ -919,8 +919,8 @@ fn reference_image(
     // The key covers the scene's content and the renderer's shaders, so a
     // changed renderer never reuses a stale reference.
     const RENDERER: [&str; 2] = [
-        include_str!("../../spirv/render_trace.comp"),
-        include_str!("../../spirv/lib/render_scene.glsl"),
+        include_str!("../../spirv/render/render_trace.comp"),
+        include_str!("../../spirv/render/render_scene.glsl"),
     ];
     let content = format!(
         "{scene:?}{:?}{}{}",

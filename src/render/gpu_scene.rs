@@ -1,4 +1,4 @@
-//! The scene as the render kernels read it (`spirv/lib/render_scene.glsl`):
+//! The scene as the render kernels read it (`spirv/render/render_scene.glsl`):
 //! camera parameters, a binary BVH built with `obvhs` and flattened to two
 //! vec4 per node, primitives reordered to the BVH's leaf order, materials
 //! and the light table.

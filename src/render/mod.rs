@@ -123,7 +123,7 @@ const SCENE_BINDINGS: [crate::gpu::BindingDecl; 5] = [
     read("lights"),
 ];
 
-/// The path-tracing kernel (`spirv/render_trace.comp`).
+/// The path-tracing kernel (`spirv/render/render_trace.comp`).
 pub const TRACE: KernelDecl = KernelDecl {
     name: "render_trace",
     bindings: &[
@@ -143,7 +143,7 @@ pub const TRACE: KernelDecl = KernelDecl {
     push_size: std::mem::size_of::<TracePush>() as u32,
 };
 
-/// The ray-list traversal kernel (`spirv/render_rays.comp`), a test aid.
+/// The ray-list traversal kernel (`spirv/render/render_rays.comp`), a test aid.
 pub const RAYS: KernelDecl = KernelDecl {
     name: "render_rays",
     bindings: &[

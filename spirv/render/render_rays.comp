@@ -2,7 +2,7 @@
 // Traces a list of rays through the built-in renderer's BVH and writes the
 // nearest hit (t, primitive). Test aid: tests/render.rs compares it with a
 // brute-force f64 intersection (Primitive::intersect in src/render/scene.rs).
-#include "lib/render_scene.glsl"
+#include "render/render_scene.glsl"
 
 layout(local_size_x = 8, local_size_y = 8) in;
 

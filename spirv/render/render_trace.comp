@@ -8,7 +8,7 @@
 // time in [0, 1); diffuse BSDF with cosine sampling, next-event estimation
 // to emissive quads and spheres combined with BSDF sampling by MIS (power
 // heuristic), Russian roulette after 3 vertices, environment on a miss.
-#include "lib/render_scene.glsl"
+#include "render/render_scene.glsl"
 
 layout(local_size_x = 8, local_size_y = 8) in;
 
