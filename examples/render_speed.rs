@@ -45,12 +45,12 @@ fn main() -> anyhow::Result<()> {
         let r = Renderer::new(&ctx, &scene, size, size, 1)?;
         // Warm-up: the first dispatch compiles the pipeline (llvmpipe).
         let mut b = Batch::new(&ctx)?;
-        r.record_pass(&mut b, Samples::Uniform(1), 1.0)?;
+        r.record_pass(&mut b, Samples::Uniform(1))?;
         b.finish()?;
         let mut b = Batch::new(&ctx)?;
         r.record_clear(&mut b);
         let t = Instant::now();
-        r.record_pass(&mut b, Samples::Uniform(spp), spp as f64)?;
+        r.record_pass(&mut b, Samples::Uniform(spp))?;
         let timings = b.finish()?;
         let secs = t.elapsed().as_secs_f64();
         let samples = (size * size) as f64 * spp as f64;

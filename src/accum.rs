@@ -196,22 +196,19 @@ impl Accumulator {
     /// relative to [`AccumLayout::position_origin`].
     pub fn add(&mut self, p: usize, values: &[f64]) {
         let l = self.layout;
-        assert_eq!(values.len(), l.channels().len());
+        let channels = l.channels();
+        assert_eq!(values.len(), channels.len());
         // Positions relative to the origin.
-        let shifted: Vec<f64> = l
-            .channels()
-            .iter()
-            .zip(values)
-            .map(|(ch, &v)| v - l.origin_of(ch.layer, ch.component) as f64)
-            .collect();
-        let values = &shifted[..];
-        for (c, v) in values.iter().enumerate() {
+        let shifted =
+            |c: usize| values[c] - l.origin_of(channels[c].layer, channels[c].component) as f64;
+        for c in 0..channels.len() {
+            let v = shifted(c);
             self.sums[l.sum_plane(c)][p] += v;
             self.sums[l.sumsq_plane(c)][p] += v * v;
         }
         if l.position {
             let px = l.channel_index(Layer::Position, 0).unwrap();
-            let (x, y, z) = (values[px], values[px + 1], values[px + 2]);
+            let (x, y, z) = (shifted(px), shifted(px + 1), shifted(px + 2));
             for (k, v) in [x * y, x * z, y * z].into_iter().enumerate() {
                 self.sums[l.cross_plane(k).unwrap()][p] += v;
             }

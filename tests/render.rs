@@ -62,8 +62,7 @@ fn render(s: &Scene, w: usize, h: usize, spp: u32, seed: u64) -> Renderer {
     let ctx = gpu();
     let r = Renderer::new(&ctx, s, w, h, seed).unwrap();
     let mut b = Batch::new(&ctx).unwrap();
-    r.record_pass(&mut b, Samples::Uniform(spp), spp as f64)
-        .unwrap();
+    r.record_pass(&mut b, Samples::Uniform(spp)).unwrap();
     b.finish().unwrap();
     r
 }
@@ -592,8 +591,7 @@ fn zero_sample_map_region_adds_nothing() {
         .collect();
     let mb = GpuBuffer::from_slice(&ctx, "test.map", &map).unwrap();
     let mut b = Batch::new(&ctx).unwrap();
-    r.record_pass(&mut b, Samples::Map(mb.slice(), 3), 1.0)
-        .unwrap();
+    r.record_pass(&mut b, Samples::Map(mb.slice(), 3)).unwrap();
     b.finish().unwrap();
     let after = r.download().unwrap();
     let count = r.layout().count_plane();
@@ -625,7 +623,7 @@ fn two_passes(s: &Scene, max_flops: f64, seed: u64) -> (Vec<Vec<f32>>, usize) {
     b.max_flops_per_submit = max_flops;
     r.record_clear(&mut b);
     for _ in 0..2 {
-        r.record_pass(&mut b, Samples::Uniform(2), 2.0).unwrap();
+        r.record_pass(&mut b, Samples::Uniform(2)).unwrap();
     }
     let bands = b.finish().unwrap().len();
     (r.download().unwrap(), bands)
@@ -660,7 +658,7 @@ fn rerender_is_bit_identical_and_band_independent() {
     assert_ne!(one_band[0], other[0], "the seed changes nothing");
 
     let mut b = Batch::new(&ctx).unwrap();
-    r.record_pass(&mut b, Samples::Uniform(4), 4.0).unwrap();
+    r.record_pass(&mut b, Samples::Uniform(4)).unwrap();
     b.finish().unwrap();
     let single = r.download().unwrap();
     // record_uniform with a small submit budget: one sample per pass.
@@ -723,13 +721,12 @@ fn renderer_and_denoiser_share_a_batch() {
     let budget = (2 * w * h) as u32;
     let mut b = Batch::new(&ctx).unwrap();
     r.record_clear(&mut b);
-    r.record_pass(&mut b, Samples::Uniform(4), 4.0).unwrap();
+    r.record_pass(&mut b, Samples::Uniform(4)).unwrap();
     d.record(&mut b, Some(r.accum()), Some(budget)).unwrap();
     let map = d.outputs().unwrap().samples.unwrap();
     // The map's largest count is not known before the batch runs: the
     // budget bounds it.
-    r.record_pass(&mut b, Samples::Map(map, budget), 2.0)
-        .unwrap();
+    r.record_pass(&mut b, Samples::Map(map, budget)).unwrap();
     b.finish().unwrap();
     let frame = d.read().unwrap();
     let samples = frame.samples.unwrap();
@@ -1042,7 +1039,7 @@ fn many_samples_in_one_pass_are_all_traced() {
     let r = Renderer::new(&ctx, &s, 6, 5, 1).unwrap();
     for _ in 0..4 {
         let mut b = Batch::new(&ctx).unwrap();
-        r.record_pass(&mut b, Samples::Uniform(256), 256.0).unwrap();
+        r.record_pass(&mut b, Samples::Uniform(256)).unwrap();
         b.finish().unwrap();
     }
     let four = r.download().unwrap();

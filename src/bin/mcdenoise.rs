@@ -958,11 +958,7 @@ fn reference_image(
         }
         let spp = step.min(k - p * step);
         let mut batch = mcdenoise::Batch::new(ctx)?;
-        renderer.record_pass(
-            &mut batch,
-            mcdenoise::render::Samples::Uniform(spp),
-            spp as f64,
-        )?;
+        renderer.record_pass(&mut batch, mcdenoise::render::Samples::Uniform(spp))?;
         batch.finish()?;
         if let Some(b) = &bar {
             b.set_position(p as u64 + 1);

@@ -340,9 +340,7 @@ fn denoise_cpu(img: &StatsImage, req: &DenoiseRequest) -> Result<DenoiseOutput> 
     };
     if let Some(r) = &removed {
         let spp = &clean.get(crate::image::Layer::Spp).unwrap()[0];
-        let mut planes = color.planes.clone();
-        outliers::restore_cpu(w, h, spp, r, &mut planes);
-        color = RgbImage::from_planes(w, h, planes);
+        outliers::restore_cpu(w, h, spp, r, &mut color.planes);
         if req.debug {
             debug.extend(outliers::debug_layers(&r.excess_f32()));
         }

@@ -189,7 +189,7 @@ pub fn render(
     let first = schedule.as_ref().map_or(cfg.spp, |s| s.initial_spp);
     run(&mut |b| {
         renderer.record_clear(b);
-        renderer.record_pass(b, Samples::Uniform(first), first as f64)
+        renderer.record_pass(b, Samples::Uniform(first))
     })?;
     done += 1;
     progress(PassProgress { done, total });
@@ -225,13 +225,7 @@ pub fn render(
                 _ => map,
             };
             let max = counts.iter().copied().max().unwrap_or(0);
-            run(&mut |b| {
-                renderer.record_pass(
-                    b,
-                    Samples::Map(pass_map, max),
-                    budget as f64 / pixels as f64,
-                )
-            })?;
+            run(&mut |b| renderer.record_pass(b, Samples::Map(pass_map, max)))?;
             done += 1;
             progress(PassProgress { done, total });
         }

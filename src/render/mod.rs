@@ -15,7 +15,7 @@
 //! let renderer = Renderer::new(&ctx, &scene, 256, 256, 1)?;
 //! let mut batch = Batch::new(&ctx)?;
 //! renderer.record_clear(&mut batch);
-//! renderer.record_pass(&mut batch, Samples::Uniform(4), 4.0)?;
+//! renderer.record_pass(&mut batch, Samples::Uniform(4))?;
 //! batch.finish()?;
 //! let stats = renderer.statistics()?; // mean and variance per layer
 //! # Ok(()) }
@@ -324,28 +324,19 @@ impl Renderer {
     }
 
     /// Records one pass: every pixel traces its samples and adds them to the
-    /// accumulation buffer. `expected_spp` is the mean samples per pixel of
-    /// the pass (for a map: its budget) and only sizes the row bands
-    /// ([`Batch::dispatch`]); it does not change the result.
-    ///
-    /// A band is at least one workgroup (8 rows) high, so a pass of many
-    /// samples per pixel makes long dispatches (on lavapipe ~4 µs per
-    /// sample and core): split long renders into passes, e.g. with
-    /// [`record_uniform`](Self::record_uniform).
-    pub fn record_pass(
-        &self,
-        batch: &mut Batch,
-        samples: Samples,
-        expected_spp: f64,
-    ) -> Result<()> {
-        self.record(batch, samples, expected_spp, None)
+    /// accumulation buffer, in dispatches of at most [`RENDER_CHUNK`]
+    /// samples per pixel, each split into row bands by its estimated work
+    /// ([`Batch::dispatch`]). A band is at least one workgroup (8 rows)
+    /// high; [`record_uniform`](Self::record_uniform) also splits a uniform
+    /// render into passes to keep each submit within the batch's budget.
+    pub fn record_pass(&self, batch: &mut Batch, samples: Samples) -> Result<()> {
+        self.record(batch, samples, None)
     }
 
     fn record(
         &self,
         batch: &mut Batch,
         samples: Samples,
-        expected_spp: f64,
         debug: Option<(BufferSlice, u32)>,
     ) -> Result<()> {
         let l = self.layout;
@@ -406,7 +397,6 @@ impl Renderer {
             let push = TracePush { chunk: k, ..push };
             // Samples per pixel of this chunk, at most (sizes the bands).
             let expected = (max - k * RENDER_CHUNK).min(RENDER_CHUNK) as f64;
-            let _ = expected_spp;
             batch.dispatch(
                 &TRACE,
                 Precision::F32,
@@ -430,7 +420,7 @@ impl Renderer {
         let mut left = spp;
         while left > 0 {
             let n = per_pass.min(left);
-            self.record_pass(batch, Samples::Uniform(n), n as f64)?;
+            self.record_pass(batch, Samples::Uniform(n))?;
             left -= n;
         }
         Ok(())
@@ -445,12 +435,7 @@ impl Renderer {
         let out = GpuBuffer::new(&self.ctx, "render.debug_samples", (n * 4) as u64)?;
         let mut batch = Batch::new(&self.ctx)?;
         batch.fill(out.slice(), 0);
-        self.record(
-            &mut batch,
-            Samples::Uniform(spp),
-            spp as f64,
-            Some((out.slice(), spp)),
-        )?;
+        self.record(&mut batch, Samples::Uniform(spp), Some((out.slice(), spp)))?;
         batch.finish()?;
         out.read_vec(n)
     }
