@@ -155,6 +155,30 @@ impl LpPush {
     }
 }
 
+/// `spirv/apr_block.comp` and `spirv/apr_gather.comp`, block `Push` (spec §4).
+#[repr(C)]
+#[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct AprPush {
+    /// Image width in pixels.
+    pub width: u32,
+    /// Image height in pixels.
+    pub height: u32,
+    /// First row of the band this dispatch covers (grid rows of the centre
+    /// grid in `apr_block`'s sparse mode).
+    pub row0: u32,
+    /// `apr_block`: the colour channel of the blocks (0..3).
+    pub channel: u32,
+    /// `apr_block`: 0 = the sparse centres' grid, 1 = extra centres (COVER,
+    /// one invocation per pixel).
+    pub mode: u32,
+    /// 1 on the last stage: no `β_s`; `apr_gather` writes the final planes.
+    pub last: u32,
+    /// 1 when the visibility plane is bound (else a zero feature).
+    pub has_vis: u32,
+    /// f32 values from one plane to the next in the packed bindings.
+    pub stride: u32,
+}
+
 /// [`LpPush::options`] bit: subtract the test pixel's variance (LP-VARSUB, `s = 1`).
 pub const LP_VARSUB: u32 = 1;
 

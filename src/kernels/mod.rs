@@ -5,6 +5,8 @@
 
 use crate::gpu::KernelDecl;
 
+pub mod apr_block;
+pub mod apr_gather;
 pub mod box_rows;
 pub mod channel_mean;
 pub mod estimate_variance;
@@ -48,6 +50,8 @@ pub const ALL: &[&KernelDecl] = &[
     &lp_centres::DECL,
     &lp_reach::DECL,
     &lp_gather::DECL,
+    &apr_block::DECL,
+    &apr_gather::DECL,
     &outlier_rows::DECL,
     &outlier_detect::DECL,
     &box_rows::DECL,

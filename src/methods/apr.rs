@@ -5,11 +5,19 @@
 //! `apr.prefilter=on` APR's own 5×5 polynomial prefilter (§4.6; off by
 //! default, see [`AprParams::prefilter`]).
 
+use std::sync::Arc;
+
+use super::stats::GpuStats;
 use crate::error::{Error, Result};
+use crate::gpu::{plane_stride, Batch, BufferSlice, GpuBuffer, GpuContext, PlaneSet, Precision};
 use crate::image::{Layer, RgbImage, StatsImage};
+use crate::kernels::apr_block::{self, AprChannel};
+use crate::kernels::apr_gather::{self, EXTRA_PLANES, OUTPUTS, STAGE_OUTPUTS};
 use crate::options::Options;
 use crate::reference::apr::{self as r, Planes};
+use crate::reference::apr_block::{grid, STATE};
 use crate::reference::spp_of;
+use crate::shared::AprPush;
 
 /// APR's options.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
@@ -155,6 +163,210 @@ pub fn run_cpu(
         color: RgbImage::from_planes(w, h, color),
         error: RgbImage::from_planes(w, h, error),
         dim,
+        debug,
+    })
+}
+
+/// GPU buffers of one APR run (spec §4.7): the block states of the three
+/// channels, the extra blocks' planes, two sets of stage planes (`ŷ_t`,
+/// `σ̂_t²`, used in turn) and the outputs.
+#[derive(Debug)]
+pub struct AprPlanes {
+    /// `3 × blocks × STATE` f32: the last recorded stage's block states.
+    pub state: GpuBuffer,
+    /// `3 × EXTRA_PLANES` planes (COVER blocks' values at their pixel).
+    pub extra: PlaneSet,
+    /// Stage planes, [`STAGE_OUTPUTS`] each.
+    pub stage: [PlaneSet; 2],
+    /// The [`OUTPUTS`] planes: colour RGB, error RGB, dimension, extra mask RGB.
+    pub out: PlaneSet,
+    width: usize,
+    height: usize,
+}
+
+impl AprPlanes {
+    /// Allocates the planes for a `width × height` image. Fails with
+    /// [`Error::Limit`] when a binding would exceed `maxStorageBufferRange`.
+    pub fn new(ctx: &Arc<GpuContext>, width: usize, height: usize) -> Result<AprPlanes> {
+        let n = width * height;
+        let (gw, gh) = grid(width, height);
+        let state_bytes = (3 * gw * gh * STATE * 4) as u64;
+        let limit = ctx.info.max_storage_buffer_range as u64;
+        for (what, bytes) in [
+            ("block state", state_bytes),
+            ("extra planes", plane_stride(n) * (3 * EXTRA_PLANES) as u64),
+            ("output planes", plane_stride(n) * OUTPUTS as u64),
+        ] {
+            if bytes > limit {
+                return Err(Error::Limit(format!(
+                    "APR's {what} for {width}x{height} ({bytes} bytes, one binding) exceed maxStorageBufferRange ({limit} bytes)"
+                )));
+            }
+        }
+        Ok(AprPlanes {
+            state: GpuBuffer::new(ctx, "apr.state", state_bytes)?,
+            extra: PlaneSet::new(ctx, "apr.extra", n, 3 * EXTRA_PLANES)?,
+            stage: [
+                PlaneSet::new(ctx, "apr.stage0", n, STAGE_OUTPUTS)?,
+                PlaneSet::new(ctx, "apr.stage1", n, STAGE_OUTPUTS)?,
+            ],
+            out: PlaneSet::new(ctx, "apr.out", n, OUTPUTS)?,
+            width,
+            height,
+        })
+    }
+
+    /// The output colour planes R, G, B (clamped ≥ 0).
+    pub fn color(&self) -> [BufferSlice; 3] {
+        std::array::from_fn(|c| self.out.plane(c))
+    }
+
+    /// `ξ̂_i` per channel.
+    pub fn error(&self) -> [BufferSlice; 3] {
+        std::array::from_fn(|c| self.out.plane(3 + c))
+    }
+
+    /// The blended `tr H`, mean over the channels (`d_i` of §9.1).
+    pub fn dim(&self) -> BufferSlice {
+        self.out.plane(6)
+    }
+}
+
+/// The feature bindings APR reads from `clean` (normal xyz, albedo rgb,
+/// depth, visibility) and whether visibility is present (otherwise the
+/// normal's x plane stands in and the kernels read 0).
+pub fn gpu_features(clean: &GpuStats) -> ([BufferSlice; 8], bool) {
+    let vis = clean.has(Layer::Visibility);
+    let f = [
+        clean.plane(Layer::Normal, 0),
+        clean.plane(Layer::Normal, 1),
+        clean.plane(Layer::Normal, 2),
+        clean.plane(Layer::Albedo, 0),
+        clean.plane(Layer::Albedo, 1),
+        clean.plane(Layer::Albedo, 2),
+        clean.plane(Layer::Depth, 0),
+        if vis {
+            clean.plane(Layer::Visibility, 0)
+        } else {
+            clean.plane(Layer::Normal, 0)
+        },
+    ];
+    (f, vis)
+}
+
+/// Records APR (§4.2–4.3) on sanitised (and outlier-cleaned) statistics:
+/// per stage, the sparse blocks of each channel, the extra blocks, the
+/// gather. The outputs stay on the GPU in `planes`. The feature prefilter
+/// (§4.6, `apr.prefilter=on`) runs on the CPU backend only.
+pub fn record_apr(
+    batch: &mut Batch,
+    precision: Precision,
+    clean: &GpuStats,
+    planes: &AprPlanes,
+    params: AprParams,
+) -> Result<()> {
+    let (w, h) = (clean.width, clean.height);
+    if (w, h) != (planes.width, planes.height) {
+        return Err(Error::InvalidArgument(format!(
+            "APR planes are {}x{}, the statistics {w}x{h}",
+            planes.width, planes.height
+        )));
+    }
+    let (feats, vis) = gpu_features(clean);
+    let spp = clean.plane(Layer::Spp, 0);
+    let color: [BufferSlice; 3] = std::array::from_fn(|c| clean.plane(Layer::Color, c));
+    let var: [BufferSlice; 3] = std::array::from_fn(|c| clean.plane(Layer::ColorVariance, c));
+    let stride = (plane_stride(w * h) / 4) as u32;
+    let stages = params.stages.max(1);
+    batch.fill(planes.extra.buffer.slice(), 0);
+    for stage in 1..=stages {
+        let last = stage == stages;
+        let prev = (stage >= 2).then(|| &planes.stage[stage % 2]);
+        for ch in 0..3 {
+            let chan = AprChannel {
+                y: color[ch],
+                v: var[ch],
+                yprev: prev.map_or(color[ch], |p| p.plane(ch)),
+                s2prev: prev.map_or(var[ch], |p| p.plane(3 + ch)),
+            };
+            for mode in [0, 1] {
+                let push = AprPush {
+                    width: w as u32,
+                    height: h as u32,
+                    channel: ch as u32,
+                    mode,
+                    last: last as u32,
+                    has_vis: vis as u32,
+                    stride,
+                    ..Default::default()
+                };
+                apr_block::record(
+                    batch,
+                    precision,
+                    &push,
+                    &chan,
+                    &feats,
+                    spp,
+                    planes.state.slice(),
+                    planes.extra.buffer.slice(),
+                    0.02,
+                )?;
+            }
+        }
+        let push = AprPush {
+            width: w as u32,
+            height: h as u32,
+            last: last as u32,
+            has_vis: vis as u32,
+            stride,
+            ..Default::default()
+        };
+        let dst = if last {
+            planes.out.buffer.slice()
+        } else {
+            planes.stage[(stage + 1) % 2].buffer.slice()
+        };
+        apr_gather::record(
+            batch,
+            precision,
+            &push,
+            color,
+            var,
+            &feats,
+            spp,
+            planes.state.slice(),
+            planes.extra.buffer.slice(),
+            dst,
+        )?;
+    }
+    Ok(())
+}
+
+/// Downloads a finished [`record_apr`] as the CPU path's [`AprResult`].
+pub fn download(planes: &AprPlanes) -> Result<AprResult> {
+    let (w, h) = (planes.width, planes.height);
+    let out = planes.out.download_all()?;
+    let (gw, gh) = grid(w, h);
+    let state = planes.state.read_vec::<f32>(3 * gw * gh * STATE)?;
+    let rgb = |k: usize| RgbImage::from_planes(w, h, std::array::from_fn(|c| out[k + c].clone()));
+    let mut debug = Vec::new();
+    for (c, name) in ["R", "G", "B"].iter().enumerate() {
+        let mut order = vec![0.0f32; w * h];
+        for b in 0..gw * gh {
+            let i = (b / gw) * 14 * w + (b % gw) * 14;
+            let st = &state[(c * gw * gh + b) * STATE..];
+            if st[2] > 0.0 {
+                order[i] = st[0] + 1.0;
+            }
+        }
+        debug.push((format!("apr_order.{name}"), order));
+        debug.push((format!("apr_extra.{name}"), out[7 + c].clone()));
+    }
+    debug.push(("apr_trace".into(), out[6].clone()));
+    Ok(AprResult {
+        color: rgb(0),
+        error: rgb(3),
+        dim: out[6].clone(),
         debug,
     })
 }

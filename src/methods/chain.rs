@@ -16,6 +16,7 @@ use crate::gpu::{Batch, BufferSlice, GpuContext, PlaneSet, Precision};
 use crate::image::{Layer, RgbImage};
 use crate::options::Options;
 
+use super::apr::{self, AprPlanes};
 use super::gbf::{self, GbfPlanes};
 use super::lp::{self, LpPlanes};
 use super::outliers::{self, OutlierPlanes};
@@ -88,6 +89,7 @@ enum MethodPlanes {
     },
     Wlr(Box<WlrPlanes>, wlr::WlrParams),
     Lp(Box<LpPlanes>, lp::LpParams),
+    Apr(Box<AprPlanes>, apr::AprParams),
 }
 
 /// The GPU chain of one configuration. See the module documentation.
@@ -153,7 +155,7 @@ impl GpuChain {
                 super::available_names()
             )));
         }
-        if matches!(config.method, Method::Apr | Method::Aos) {
+        if matches!(config.method, Method::Aos) {
             return Err(Error::InvalidArgument(format!(
                 "method {} runs on the CPU backend only in this build",
                 config.method.name()
@@ -197,6 +199,15 @@ impl GpuChain {
                 Box::new(LpPlanes::new(ctx, w, h)?),
                 lp::LpParams::new(&config.options)?,
             ),
+            Method::Apr => {
+                let params = apr::AprParams::new(&config.options)?;
+                if params.prefilter {
+                    return Err(Error::InvalidArgument(
+                        "apr.prefilter=on (APR's own 5x5 feature prefilter) runs on the CPU backend only; use --backend cpu, or --prefilter gbf on the GPU".into(),
+                    ));
+                }
+                MethodPlanes::Apr(Box::new(AprPlanes::new(ctx, w, h)?), params)
+            }
             _ => MethodPlanes::None {
                 zero: PlaneSet::new(ctx, "none.dim", w * h, 1)?,
             },
@@ -381,6 +392,9 @@ impl GpuChain {
             MethodPlanes::Lp(planes, params) => {
                 lp::record_lp(batch, p, &self.clean, planes, *params)?
             }
+            MethodPlanes::Apr(planes, params) => {
+                apr::record_apr(batch, p, &self.clean, planes, *params)?
+            }
         }
         if let Some(o) = &self.outliers {
             let spp = self.clean.plane(Layer::Spp, 0);
@@ -401,6 +415,7 @@ impl GpuChain {
             MethodPlanes::None { .. } => std::array::from_fn(|c| self.clean.plane(Layer::Color, c)),
             MethodPlanes::Wlr(p, _) => p.color(),
             MethodPlanes::Lp(p, _) => p.color(),
+            MethodPlanes::Apr(p, _) => p.color(),
         }
     }
 
@@ -414,6 +429,7 @@ impl GpuChain {
             }
             MethodPlanes::Wlr(p, _) => [p.mse(); 3],
             MethodPlanes::Lp(p, _) => p.error(),
+            MethodPlanes::Apr(p, _) => p.error(),
         }
     }
 
@@ -424,6 +440,7 @@ impl GpuChain {
             MethodPlanes::None { zero } => (zero.plane(0), false),
             MethodPlanes::Wlr(p, _) => (p.kflags(), true),
             MethodPlanes::Lp(p, _) => (p.dim(), false),
+            MethodPlanes::Apr(p, _) => (p.dim(), false),
         }
     }
 
@@ -503,6 +520,11 @@ impl GpuChain {
                     .push(("centre_fraction".into(), r.centre_fraction()));
                 if debug {
                     out.debug = r.debug_layers();
+                }
+            }
+            MethodPlanes::Apr(p, _) => {
+                if debug {
+                    out.debug = apr::download(p)?.debug;
                 }
             }
         }

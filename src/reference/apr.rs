@@ -98,8 +98,13 @@ pub struct Design {
     pub p: [usize; 4],
     /// Per feature plane: `s_j`, or 0 when dropped.
     pub scale: Vec<f64>,
-    /// Ridge λ.
+    /// Ridge λ: `1e-6·Σ K_h`, raised by SOLVE-FAIL retries of the largest
+    /// order's factorisation (APR-RIDGE-BLOCK), so every order of the block
+    /// uses the same λ.
     pub lambda: f64,
+    /// The largest order's factorisation failed after every retry: the block
+    /// outputs its centre value (SOLVE-FAIL), like a block of one pixel.
+    pub failed: bool,
     radius: usize,
     bandwidth: f64,
 }
@@ -202,13 +207,30 @@ pub fn design(pl: &Planes, shape: Shape, c: usize) -> Design {
         p,
         scale,
         lambda: 0.0,
+        failed: false,
         radius: r,
         bandwidth: shape.bandwidth,
     };
     d.kh = d.idx.iter().map(|&q| d.weight(w, q)).collect();
     d.rows = d.idx.iter().flat_map(|&q| d.row(pl, q)).collect();
     d.lambda = RIDGE * d.kh.iter().sum::<f64>();
+    // Decision APR-RIDGE-BLOCK (ours): SOLVE-FAIL's retries run once per
+    // block, on the largest order's matrix; the lower orders' matrices are
+    // its leading blocks, whose pivots are its first pivots, so they factor
+    // with the same λ. The GPU kernel factors once and reads every order
+    // from that factor.
+    let f = ridge_cholesky(&d.normal(MAX_ORDER), d.p3(), d.lambda, super::linalg::EPS_PIVOT);
+    d.lambda = f.lambda;
+    d.failed = f.failed;
     d
+}
+
+impl Design {
+    /// A block that fits nothing: one accepted pixel (ALONE) or a failed
+    /// factorisation (SOLVE-FAIL). It outputs its centre value.
+    pub fn degenerate(&self) -> bool {
+        self.idx.len() <= 1 || self.failed
+    }
 }
 
 /// One order's solved block: `β` of the responses asked for, the stage
@@ -223,8 +245,12 @@ pub struct Fit {
     pub trace: f64,
 }
 
-/// Solves `M_K β = X_Kᵀ W z` over the accepted pixels.
+/// Solves `M_K β = X_Kᵀ W z` over the accepted pixels. A degenerate block
+/// gives `[z_c]`: its output is the centre value wherever it is evaluated.
 pub fn beta(d: &Design, k: usize, z: &[f64]) -> Vec<f64> {
+    if d.degenerate() {
+        return vec![z[d.centre]];
+    }
     let (p, p3) = (d.p[k], d.p3());
     let m = d.normal(k);
     let mut rhs = vec![0.0; p];
@@ -300,9 +326,9 @@ pub fn stage_error(d: &Design, k: usize, yprev: &[f64], s2prev: &[f64]) -> Fit {
 }
 
 /// The order of least stage error (ties to the smaller K); ALONE when
-/// `|A_c| = 1`: order 0 with `ξ̂ = v_c` and `tr H = 1`.
+/// `|A_c| = 1` (and SOLVE-FAIL): order 0 with `ξ̂ = v_c` and `tr H = 1`.
 pub fn choose(d: &Design, pl: &Planes, yprev: &[f64], s2prev: &[f64]) -> Fit {
-    if d.idx.len() <= 1 {
+    if d.degenerate() {
         return Fit {
             order: 0,
             xi: pl.v[d.centre],
@@ -319,12 +345,11 @@ pub fn choose(d: &Design, pl: &Planes, yprev: &[f64], s2prev: &[f64]) -> Fit {
     best
 }
 
-/// A block's output `(H(K) z)_i` at a pixel `i` it accepted.
+/// A block's output `(H(K) z)_i` at a pixel `i` it accepted (`z_c` for a
+/// degenerate block, whose `β` is `[z_c]`).
 fn output(d: &Design, pl: &Planes, k: usize, beta: &[f64], i: usize) -> f64 {
-    if d.idx.len() <= 1 {
-        return pl.y[d.centre];
-    }
-    eval(&d.row(pl, i)[..d.p[k]], beta)
+    let p = d.p[k].min(beta.len());
+    eval(&d.row(pl, i)[..p], beta)
 }
 
 /// What one channel's reconstruction returns.

@@ -11,6 +11,8 @@
 //! arithmetic and agree with their kernels bit for bit (§9.2).
 
 pub mod apr;
+pub mod apr_block;
+pub mod apr_gather;
 pub mod box_rows;
 pub mod channel_mean;
 pub mod estimate_variance;

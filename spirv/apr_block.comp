@@ -1,0 +1,522 @@
+#version 460
+// One APR block (spec §4.2) of channel push.channel at one stage: the
+// accepted set A_c (confidence-interval test), the feature spreads, the
+// moments M = sum K x x^T, V = sum K^2 s2prev x x^T and X^T W of yprev, y
+// and s = sqrt(v) over the 29x29 window (mat4 blocks, constant indices),
+// one ridge Cholesky of the largest order (APR-RIDGE-BLOCK, SOLVE-FAIL
+// retries), L^-1, G = L^-1 V L^-T and E = L^-1 M0 L^-T, then for K = 0..3
+// (the leading 9, 11, 14, 18 columns): beta of yprev,
+// sum K var = sum_{a,b<p} G_ab E_ab, tr H = sum_{a<p} E_aa; a last pass over the window sums the
+// squared bias of the four orders; the order of least error wins (ties to
+// the smaller K). beta_y (and beta_s when push.last == 0) of that order.
+//
+// push.mode 0 (sparse): thread (gx, gy) <-> centre (14 gx, 14 gy); the
+// block's 52-float state (reference::apr_block::Block::state) goes to
+// state[(channel * blocks + gy * gw + gx) * 52]; an invalid centre writes
+// zeros. push.mode 1 (extra, COVER): thread <-> pixel; a valid pixel no
+// sparse centre accepts becomes a block whose values at its own pixel
+// (beta_y[0], beta_s[0], xi, tr H) go to the extra planes
+// 4 * channel + k (k * stride floats apart); such pixels are compacted per
+// workgroup, as in lp_centres.comp, since they are few.
+// Scalar twin: src/reference/apr_block.rs.
+#include "lib/common.glsl"
+
+layout(local_size_x = 8, local_size_y = 8) in;
+
+// Mirrors mcdenoise::shared::AprPush.
+layout(push_constant) uniform Push {
+    uint width;
+    uint height;
+    uint row0;
+    uint channel;
+    uint mode;
+    uint last;
+    uint has_vis;
+    uint stride;
+} push;
+
+PLANE_IN(0, ych)
+PLANE_IN(1, vch)
+PLANE_IN(2, yprev)
+PLANE_IN(3, s2prev)
+PLANE_IN(4, f0)
+PLANE_IN(5, f1)
+PLANE_IN(6, f2)
+PLANE_IN(7, f3)
+PLANE_IN(8, f4)
+PLANE_IN(9, f5)
+PLANE_IN(10, f6)
+PLANE_IN(11, f7)
+PLANE_IN(12, spp)
+PLANE_OUT(13, state)
+PLANE_OUT(14, extra)
+
+#include "lib/apr.glsl"
+
+#ifdef MC_F64
+#define aprmat4 dmat4
+#else
+#define aprmat4 mat4
+#endif
+
+// Per-invocation work arrays of the solve (row-major 18x18).
+real g_l[APR_P * APR_P];   // M + Lambda, factored in place into L
+real g_li[APR_P * APR_P];  // L^-1
+real g_v[APR_P * APR_P];   // V, then G = L^-1 V L^-T
+real g_t[APR_P * APR_P];   // L^-1 V
+real g_b[3 * APR_P];       // right-hand sides: yprev, y, s
+real g_beta[4 * 20];       // beta of yprev per order (padded to 20)
+real g_out[2 * APR_P];     // beta_y, beta_s of the chosen order
+
+// The moments as 4x4 blocks: block (a, b), a <= b, entry (4a + r, 4b + c)
+// at [c][r].
+aprmat4 M00, M01, M02, M03, M04, M11, M12, M13, M14, M22, M23, M24, M33, M34, M44;
+aprmat4 V00, V01, V02, V03, V04, V11, V12, V13, V14, V22, V23, V24, V33, V34, V44;
+
+void put_block(inout real a[APR_P * APR_P], int r0, int c0, aprmat4 m)
+{
+    for (int c = 0; c < 4; ++c) {
+        for (int r = 0; r < 4; ++r) {
+            int i = r0 + r;
+            int j = c0 + c;
+            if (i < APR_P && j < APR_P) {
+                a[i * APR_P + j] = m[c][r];
+                a[j * APR_P + i] = m[c][r];
+            }
+        }
+    }
+}
+
+void unpack_m()
+{
+    put_block(g_l, 0, 0, M00); put_block(g_l, 0, 4, M01); put_block(g_l, 0, 8, M02);
+    put_block(g_l, 0, 12, M03); put_block(g_l, 0, 16, M04); put_block(g_l, 4, 4, M11);
+    put_block(g_l, 4, 8, M12); put_block(g_l, 4, 12, M13); put_block(g_l, 4, 16, M14);
+    put_block(g_l, 8, 8, M22); put_block(g_l, 8, 12, M23); put_block(g_l, 8, 16, M24);
+    put_block(g_l, 12, 12, M33); put_block(g_l, 12, 16, M34); put_block(g_l, 16, 16, M44);
+}
+
+void unpack_v()
+{
+    put_block(g_v, 0, 0, V00); put_block(g_v, 0, 4, V01); put_block(g_v, 0, 8, V02);
+    put_block(g_v, 0, 12, V03); put_block(g_v, 0, 16, V04); put_block(g_v, 4, 4, V11);
+    put_block(g_v, 4, 8, V12); put_block(g_v, 4, 12, V13); put_block(g_v, 4, 16, V14);
+    put_block(g_v, 8, 8, V22); put_block(g_v, 8, 12, V23); put_block(g_v, 8, 16, V24);
+    put_block(g_v, 12, 12, V33); put_block(g_v, 12, 16, V34); put_block(g_v, 16, 16, V44);
+}
+
+void acc(real4 x0, real4 x1, real4 x2, real4 x3, real4 x4, real k, real kv)
+{
+    real4 w0 = k * x0, w1 = k * x1, w2 = k * x2, w3 = k * x3, w4 = k * x4;
+    M00 += outerProduct(w0, x0); M01 += outerProduct(w0, x1); M02 += outerProduct(w0, x2);
+    M03 += outerProduct(w0, x3); M04 += outerProduct(w0, x4); M11 += outerProduct(w1, x1);
+    M12 += outerProduct(w1, x2); M13 += outerProduct(w1, x3); M14 += outerProduct(w1, x4);
+    M22 += outerProduct(w2, x2); M23 += outerProduct(w2, x3); M24 += outerProduct(w2, x4);
+    M33 += outerProduct(w3, x3); M34 += outerProduct(w3, x4); M44 += outerProduct(w4, x4);
+    real4 v0 = kv * x0, v1 = kv * x1, v2 = kv * x2, v3 = kv * x3, v4 = kv * x4;
+    V00 += outerProduct(v0, x0); V01 += outerProduct(v0, x1); V02 += outerProduct(v0, x2);
+    V03 += outerProduct(v0, x3); V04 += outerProduct(v0, x4); V11 += outerProduct(v1, x1);
+    V12 += outerProduct(v1, x2); V13 += outerProduct(v1, x3); V14 += outerProduct(v1, x4);
+    V22 += outerProduct(v2, x2); V23 += outerProduct(v2, x3); V24 += outerProduct(v2, x4);
+    V33 += outerProduct(v3, x3); V34 += outerProduct(v3, x4); V44 += outerProduct(v4, x4);
+}
+
+void zero_moments()
+{
+    aprmat4 z = aprmat4(real(0));
+    M00 = z; M01 = z; M02 = z; M03 = z; M04 = z; M11 = z; M12 = z; M13 = z;
+    M14 = z; M22 = z; M23 = z; M24 = z; M33 = z; M34 = z; M44 = z;
+    V00 = z; V01 = z; V02 = z; V03 = z; V04 = z; V11 = z; V12 = z; V13 = z;
+    V14 = z; V22 = z; V23 = z; V24 = z; V33 = z; V34 = z; V44 = z;
+}
+
+// Cholesky of g_l + Lambda in place (lower; the upper part is left alone),
+// pivots tested on the kept columns only.
+bool cholesky(uint kept, real lambda)
+{
+    real max_diag = real(0);
+    for (int j = 0; j < APR_P; ++j) {
+        if ((kept & (1u << j)) != 0u) {
+            max_diag = max(max_diag, g_l[j * APR_P + j] + (j > 0 ? lambda : real(0)));
+        }
+    }
+    real thresh = real(EPS_PIVOT) * max_diag;
+    for (int i = 0; i < APR_P; ++i) {
+        for (int j = 0; j <= i; ++j) {
+            real s = g_l[i * APR_P + j] + ((i == j && i > 0) ? lambda : real(0));
+            for (int k = 0; k < j; ++k) {
+                s -= g_l[i * APR_P + k] * g_l[j * APR_P + k];
+            }
+            if (i == j) {
+                if ((kept & (1u << i)) != 0u && !(s > thresh)) {
+                    return false;
+                }
+                g_l[i * APR_P + i] = sqrt(s);
+            } else {
+                g_l[i * APR_P + j] = s / g_l[j * APR_P + j];
+            }
+        }
+    }
+    return true;
+}
+
+// g_li = L^-1 (lower; zeros above).
+void invert_lower()
+{
+    for (int j = 0; j < APR_P; ++j) {
+        for (int i = 0; i < j; ++i) {
+            g_li[i * APR_P + j] = real(0);
+        }
+        g_li[j * APR_P + j] = real(1) / g_l[j * APR_P + j];
+        for (int i = j + 1; i < APR_P; ++i) {
+            real s = real(0);
+            for (int k = j; k < i; ++k) {
+                s += g_l[i * APR_P + k] * g_li[k * APR_P + j];
+            }
+            g_li[i * APR_P + j] = -s / g_l[i * APR_P + i];
+        }
+    }
+}
+
+// x = M_K^-1 b on the leading p columns (rhs g_b[rhs * 18 ..]), into
+// dst[off ..] (entries p.. left 0); z goes through g_t's first row.
+void solve_into(int p, int rhs, bool to_out, int off)
+{
+    for (int a = 0; a < p; ++a) {
+        real s = real(0);
+        for (int k = 0; k <= a; ++k) {
+            s += g_li[a * APR_P + k] * g_b[rhs * APR_P + k];
+        }
+        g_t[a] = s;
+    }
+    for (int a = 0; a < APR_P; ++a) {
+        real s = real(0);
+        for (int k = a; k < p; ++k) {
+            s += g_li[k * APR_P + a] * g_t[k];
+        }
+        if (to_out) {
+            g_out[off + a] = s;
+        } else {
+            g_beta[off + a] = s;
+        }
+    }
+}
+
+real4 beta4(int o, int k)
+{
+    int b = o * 20 + 4 * k;
+    return real4(g_beta[b], g_beta[b + 1], g_beta[b + 2], g_beta[b + 3]);
+}
+
+struct Result {
+    int order;
+    real xi;
+    real trace;
+    bool degenerate;
+    real4 sa;
+    real4 sb;
+};
+
+Result block(ivec2 c, ivec2 size, bool with_s)
+{
+    uint ci = uint(c.y * size.x + c.x);
+    real yc = real(ych[ci]);
+    real vc = real(vch[ci]);
+    real4 fca = apr_fa(ci);
+    real4 fcb = apr_fb(ci);
+    int y0 = max(c.y - APR_R, 0), y1 = min(c.y + APR_R, size.y - 1);
+    int x0 = max(c.x - APR_R, 0), x1 = min(c.x + APR_R, size.x - 1);
+    // Pass 1: A_c and the feature spreads.
+    real4 ma = real4(0), mb = real4(0);
+    uint count = 0u;
+    for (int qy = y0; qy <= y1; ++qy) {
+        for (int qx = x0; qx <= x1; ++qx) {
+            uint q = uint(qy * size.x + qx);
+            if (!apr_valid(q) || (q != ci && !apr_accepts(yc, vc, real(ych[q]), real(vch[q])))) {
+                continue;
+            }
+            ma = max(ma, abs(apr_fa(q) - fca));
+            mb = max(mb, abs(apr_fb(q) - fcb));
+            ++count;
+        }
+    }
+    Result r;
+    r.sa = mix(real4(0), ma, greaterThan(ma, real4(APR_FEATURE_EPS)));
+    r.sb = mix(real4(0), mb, greaterThan(mb, real4(APR_FEATURE_EPS)));
+    real4 isa = mix(real4(0), real4(1) / max(ma, real4(1e-30)), greaterThan(ma, real4(APR_FEATURE_EPS)));
+    real4 isb = mix(real4(0), real4(1) / max(mb, real4(1e-30)), greaterThan(mb, real4(APR_FEATURE_EPS)));
+    uint kept = 0x3fe01u;
+    kept |= (r.sa.x > 0 ? 1u : 0u) << 1 | (r.sa.y > 0 ? 1u : 0u) << 2 | (r.sa.z > 0 ? 1u : 0u) << 3
+        | (r.sa.w > 0 ? 1u : 0u) << 4 | (r.sb.x > 0 ? 1u : 0u) << 5 | (r.sb.y > 0 ? 1u : 0u) << 6
+        | (r.sb.z > 0 ? 1u : 0u) << 7 | (r.sb.w > 0 ? 1u : 0u) << 8;
+    r.degenerate = true;
+    r.order = 0;
+    r.xi = vc;
+    r.trace = real(1);
+    for (int a = 0; a < 2 * APR_P; ++a) {
+        g_out[a] = real(0);
+    }
+    g_out[0] = yc;
+    g_out[APR_P] = with_s ? sqrt(max(vc, real(0))) : real(0);
+    if (count <= 1u) {
+        return r;
+    }
+    // Pass 2: the moments.
+    zero_moments();
+    real4 bp0 = real4(0), bp1 = real4(0), bp2 = real4(0), bp3 = real4(0), bp4 = real4(0);
+    real4 by0 = real4(0), by1 = real4(0), by2 = real4(0), by3 = real4(0), by4 = real4(0);
+    real4 bs0 = real4(0), bs1 = real4(0), bs2 = real4(0), bs3 = real4(0), bs4 = real4(0);
+    real wsum = real(0);
+    for (int qy = y0; qy <= y1; ++qy) {
+        for (int qx = x0; qx <= x1; ++qx) {
+            uint q = uint(qy * size.x + qx);
+            real yq = real(ych[q]);
+            real vq = real(vch[q]);
+            if (!apr_valid(q) || (q != ci && !apr_accepts(yc, vc, yq, vq))) {
+                continue;
+            }
+            real4 a0, a1, a2, a3, a4;
+            apr_row(ivec2(qx, qy) - c, apr_fa(q), apr_fb(q), fca, fcb, isa, isb, a0, a1, a2, a3, a4);
+            real k = apr_weight(qx - c.x, qy - c.y);
+            acc(a0, a1, a2, a3, a4, k, k * k * real(s2prev[q]));
+            real kp = k * real(yprev[q]);
+            real ky = k * yq;
+            real ks = k * sqrt(max(vq, real(0)));
+            bp0 += kp * a0; bp1 += kp * a1; bp2 += kp * a2; bp3 += kp * a3; bp4 += kp * a4;
+            by0 += ky * a0; by1 += ky * a1; by2 += ky * a2; by3 += ky * a3; by4 += ky * a4;
+            bs0 += ks * a0; bs1 += ks * a1; bs2 += ks * a2; bs3 += ks * a3; bs4 += ks * a4;
+            wsum += k;
+        }
+    }
+    real4 rb[15] = real4[15](bp0, bp1, bp2, bp3, bp4, by0, by1, by2, by3, by4, bs0, bs1, bs2, bs3, bs4);
+    for (int r3 = 0; r3 < 3; ++r3) {
+        for (int a = 0; a < APR_P; ++a) {
+            g_b[r3 * APR_P + a] = rb[r3 * 5 + a / 4][a % 4];
+        }
+    }
+    // The factorisation (APR-RIDGE-BLOCK) with SOLVE-FAIL's retries.
+    unpack_m();
+    real mean_diag = real(0);
+    uint nkept = 0u;
+    for (int j = 0; j < APR_P; ++j) {
+        if ((kept & (1u << j)) != 0u) {
+            mean_diag += g_l[j * APR_P + j];
+            ++nkept;
+        }
+    }
+    mean_diag /= real(nkept);
+    real lambda = real(APR_RIDGE) * wsum;
+    bool ok = false;
+    for (int attempt = 0; attempt <= APR_RETRIES && !ok; ++attempt) {
+        if (attempt > 0) {
+            lambda = max(real(10) * lambda, real(APR_RIDGE_FLOOR) * mean_diag);
+            unpack_m();
+        }
+        ok = cholesky(kept, lambda);
+    }
+    if (!ok) {
+        return r;
+    }
+    invert_lower();
+    unpack_v();
+    // T = L^-1 V, then G = T L^-T into g_v.
+    for (int a = 0; a < APR_P; ++a) {
+        for (int b = 0; b < APR_P; ++b) {
+            real s = real(0);
+            for (int k = 0; k <= a; ++k) {
+                s += g_li[a * APR_P + k] * g_v[k * APR_P + b];
+            }
+            g_t[a * APR_P + b] = s;
+        }
+    }
+    for (int a = 0; a < APR_P; ++a) {
+        for (int b = 0; b < APR_P; ++b) {
+            real s = real(0);
+            for (int k = 0; k <= b; ++k) {
+                s += g_t[a * APR_P + k] * g_li[b * APR_P + k];
+            }
+            g_v[a * APR_P + b] = s;
+        }
+    }
+    // E = L^-1 M0 L^-T into g_l (L is no longer needed; M0 = M without the
+    // ridge): tr H_K = sum_{a<p} E_aa, sum K var = sum_{a,b<p} G_ab E_ab
+    // (no cancellation in f32, unlike p - lambda sum (M^-1)_jj).
+    unpack_m();
+    for (int a = 0; a < APR_P; ++a) {
+        for (int b = 0; b < APR_P; ++b) {
+            real s = real(0);
+            for (int k = 0; k <= a; ++k) {
+                s += g_li[a * APR_P + k] * g_l[k * APR_P + b];
+            }
+            g_t[a * APR_P + b] = s;
+        }
+    }
+    for (int a = 0; a < APR_P; ++a) {
+        for (int b = 0; b < APR_P; ++b) {
+            real s = real(0);
+            for (int k = 0; k <= b; ++k) {
+                s += g_t[a * APR_P + k] * g_li[b * APR_P + k];
+            }
+            g_l[a * APR_P + b] = s;
+        }
+    }
+    // Nested sums by the band between orders: order K adds the rows and
+    // columns p_{K-1} .. p_K - 1.
+    real varsum[4];
+    real trace[4];
+    real vs = real(0), tr = real(0);
+    int lo = 0;
+    for (int o = 0; o < 4; ++o) {
+        int p = o == 0 ? 9 : (o == 1 ? 11 : (o == 2 ? 14 : 18));
+        for (int a = 0; a < p; ++a) {
+            for (int b = (a < lo ? lo : 0); b < p; ++b) {
+                vs += g_v[a * APR_P + b] * g_l[a * APR_P + b];
+            }
+        }
+        for (int a = lo; a < p; ++a) {
+            tr += g_l[a * APR_P + a];
+        }
+        varsum[o] = vs;
+        trace[o] = tr;
+        lo = p;
+        g_beta[o * 20 + 18] = real(0);
+        g_beta[o * 20 + 19] = real(0);
+    }
+    // The four betas of yprev (g_t is free again).
+    solve_into(9, 0, false, 0);
+    solve_into(11, 0, false, 20);
+    solve_into(14, 0, false, 40);
+    solve_into(18, 0, false, 60);
+    // Pass 3: the squared bias of each order.
+    real4 B00 = beta4(0, 0), B01 = beta4(0, 1), B02 = beta4(0, 2), B03 = beta4(0, 3), B04 = beta4(0, 4);
+    real4 B10 = beta4(1, 0), B11 = beta4(1, 1), B12 = beta4(1, 2), B13 = beta4(1, 3), B14 = beta4(1, 4);
+    real4 B20 = beta4(2, 0), B21 = beta4(2, 1), B22 = beta4(2, 2), B23 = beta4(2, 3), B24 = beta4(2, 4);
+    real4 B30 = beta4(3, 0), B31 = beta4(3, 1), B32 = beta4(3, 2), B33 = beta4(3, 3), B34 = beta4(3, 4);
+    real4 rss = real4(0);
+    for (int qy = y0; qy <= y1; ++qy) {
+        for (int qx = x0; qx <= x1; ++qx) {
+            uint q = uint(qy * size.x + qx);
+            if (!apr_valid(q) || (q != ci && !apr_accepts(yc, vc, real(ych[q]), real(vch[q])))) {
+                continue;
+            }
+            real4 a0, a1, a2, a3, a4;
+            apr_row(ivec2(qx, qy) - c, apr_fa(q), apr_fb(q), fca, fcb, isa, isb, a0, a1, a2, a3, a4);
+            real yp = real(yprev[q]);
+            real4 e = real4(
+                dot(a0, B00) + dot(a1, B01) + dot(a2, B02) + dot(a3, B03) + dot(a4, B04),
+                dot(a0, B10) + dot(a1, B11) + dot(a2, B12) + dot(a3, B13) + dot(a4, B14),
+                dot(a0, B20) + dot(a1, B21) + dot(a2, B22) + dot(a3, B23) + dot(a4, B24),
+                dot(a0, B30) + dot(a1, B31) + dot(a2, B32) + dot(a3, B33) + dot(a4, B34)) - yp;
+            rss += apr_weight(qx - c.x, qy - c.y) * e * e;
+        }
+    }
+    real4 xi = (rss + real4(varsum[0], varsum[1], varsum[2], varsum[3])) / wsum;
+    int best = 0;
+    real bx = xi.x;
+    if (xi.y < bx) { best = 1; bx = xi.y; }
+    if (xi.z < bx) { best = 2; bx = xi.z; }
+    if (xi.w < bx) { best = 3; bx = xi.w; }
+    int p = best == 0 ? 9 : (best == 1 ? 11 : (best == 2 ? 14 : 18));
+    solve_into(p, 1, true, 0);
+    if (with_s) {
+        solve_into(p, 2, true, APR_P);
+    } else {
+        for (int a = 0; a < APR_P; ++a) {
+            g_out[APR_P + a] = real(0);
+        }
+    }
+    r.degenerate = false;
+    r.order = best;
+    r.xi = bx;
+    r.trace = trace[best];
+    return r;
+}
+
+// Whether some valid sparse centre within 14 accepts pixel p.
+bool covered(ivec2 p, ivec2 size)
+{
+    uint i = uint(p.y * size.x + p.x);
+    real yi = real(ych[i]);
+    real vi = real(vch[i]);
+    for (int cy = apr_first_centre(p.y); cy <= min(p.y + APR_R, size.y - 1); cy += APR_R) {
+        for (int cx = apr_first_centre(p.x); cx <= min(p.x + APR_R, size.x - 1); cx += APR_R) {
+            uint c = uint(cy * size.x + cx);
+            if (apr_valid(c) && (c == i || apr_accepts(real(ych[c]), real(vch[c]), yi, vi))) {
+                return true;
+            }
+        }
+    }
+    return false;
+}
+
+shared uint s_pixel[64];
+shared uint s_count;
+
+void main()
+{
+    ivec2 size = ivec2(push.width, push.height);
+    bool with_s = push.last == 0u;
+    int gw = (size.x + APR_R - 1) / APR_R;
+    int gh = (size.y + APR_R - 1) / APR_R;
+    if (push.mode == 0u) {
+        ivec2 g = ivec2(gl_GlobalInvocationID.x, push.row0 + gl_GlobalInvocationID.y);
+        if (g.x >= gw || g.y >= gh) {
+            return;
+        }
+        ivec2 c = g * APR_R;
+        uint base = (push.channel * uint(gw * gh) + uint(g.y * gw + g.x)) * uint(APR_STATE);
+        if (!apr_valid(uint(c.y * size.x + c.x))) {
+            for (int k = 0; k < APR_STATE; ++k) {
+                state[base + uint(k)] = 0.0;
+            }
+            return;
+        }
+        Result r = block(c, size, with_s);
+        state[base] = float(r.order);
+        state[base + 1u] = float(r.xi);
+        state[base + 2u] = float(r.trace);
+        state[base + 3u] = r.degenerate ? 1.0 : 0.0;
+        for (int a = 0; a < APR_P; ++a) {
+            state[base + 4u + uint(a)] = float(g_out[a]);
+            state[base + 22u + uint(a)] = float(g_out[APR_P + a]);
+        }
+        real s8[8] = real[8](r.sa.x, r.sa.y, r.sa.z, r.sa.w, r.sb.x, r.sb.y, r.sb.z, r.sb.w);
+        for (int j = 0; j < 8; ++j) {
+            state[base + 40u + uint(j)] = float(s8[j]);
+        }
+        for (int j = 48; j < APR_STATE; ++j) {
+            state[base + uint(j)] = 0.0;
+        }
+        return;
+    }
+    // Extra mode: compact this workgroup's uncovered pixels.
+    uint lid = gl_LocalInvocationIndex;
+    uint x = gl_GlobalInvocationID.x;
+    uint y = push.row0 + gl_GlobalInvocationID.y;
+    bool mine = x < push.width && y < push.height && apr_valid(y * push.width + x)
+        && !covered(ivec2(x, y), size);
+    s_pixel[lid] = mine ? y * push.width + x : 0xffffffffu;
+    barrier();
+    if (lid == 0u) {
+        uint m = 0u;
+        for (uint j = 0u; j < 64u; ++j) {
+            uint q = s_pixel[j];
+            if (q != 0xffffffffu) {
+                s_pixel[m] = q;
+                ++m;
+            }
+        }
+        s_count = m;
+    }
+    barrier();
+    if (lid >= s_count) {
+        return;
+    }
+    uint i = s_pixel[lid];
+    Result r = block(ivec2(i % push.width, i / push.width), size, with_s);
+    uint e = 4u * push.channel * push.stride + i;
+    extra[e] = float(g_out[0]);
+    extra[e + push.stride] = float(g_out[APR_P]);
+    extra[e + 2u * push.stride] = float(r.xi);
+    extra[e + 3u * push.stride] = float(r.trace);
+}

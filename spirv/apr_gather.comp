@@ -1,0 +1,154 @@
+#version 460
+// APR's blend (spec §4.3, Eq. 6), by gathering: for every pixel and
+// channel, the K_h-weighted mean, over the valid sparse centres within 14
+// (raster order) that accept the pixel, of the block's x_i^T beta_y (and
+// x_i^T beta_s before the last stage), xi and tr H; a valid pixel no block
+// accepts takes its extra block's values (apr_block.comp, extra mode).
+// Last stage (push.last = 1): colour (clamped >= 0), error, the mean over
+// the channels of tr H (local dimension d_i), extra mask: 10 planes.
+// Earlier stages: y-hat and sigma-hat^2 (the blend of H s, squared): 6
+// planes. Planes are push.stride floats apart in the `dst` binding. An
+// invalid pixel (§0.2): the mean of its valid 3x3 neighbours (0 if none),
+// error v, dimension 1; earlier stages keep y and v.
+// Scalar twin: src/reference/apr_gather.rs.
+#include "lib/common.glsl"
+
+layout(local_size_x = 8, local_size_y = 8) in;
+
+// Mirrors mcdenoise::shared::AprPush.
+layout(push_constant) uniform Push {
+    uint width;
+    uint height;
+    uint row0;
+    uint channel;
+    uint mode;
+    uint last;
+    uint has_vis;
+    uint stride;
+} push;
+
+PLANE_IN(0, col_r)
+PLANE_IN(1, col_g)
+PLANE_IN(2, col_b)
+PLANE_IN(3, var_r)
+PLANE_IN(4, var_g)
+PLANE_IN(5, var_b)
+PLANE_IN(6, f0)
+PLANE_IN(7, f1)
+PLANE_IN(8, f2)
+PLANE_IN(9, f3)
+PLANE_IN(10, f4)
+PLANE_IN(11, f5)
+PLANE_IN(12, f6)
+PLANE_IN(13, f7)
+PLANE_IN(14, spp)
+PLANE_IN(15, state)
+PLANE_IN(16, extra)
+PLANE_OUT(17, dst)
+
+#include "lib/apr.glsl"
+
+real yof(int ch, uint i) { return real(ch == 0 ? col_r[i] : (ch == 1 ? col_g[i] : col_b[i])); }
+real vof(int ch, uint i) { return real(ch == 0 ? var_r[i] : (ch == 1 ? var_g[i] : var_b[i])); }
+
+real4 st4(uint b) { return real4(state[b], state[b + 1u], state[b + 2u], state[b + 3u]); }
+
+real fill(int ch, ivec2 p, ivec2 size)
+{
+    real s = real(0);
+    int n = 0;
+    for (int qy = max(p.y - 1, 0); qy <= min(p.y + 1, size.y - 1); ++qy) {
+        for (int qx = max(p.x - 1, 0); qx <= min(p.x + 1, size.x - 1); ++qx) {
+            uint q = uint(qy * size.x + qx);
+            if (apr_valid(q)) {
+                s += yof(ch, q);
+                ++n;
+            }
+        }
+    }
+    return n > 0 ? s / real(n) : real(0);
+}
+
+void main()
+{
+    ivec2 p = ivec2(gl_GlobalInvocationID.x, push.row0 + gl_GlobalInvocationID.y);
+    ivec2 size = ivec2(push.width, push.height);
+    if (p.x >= size.x || p.y >= size.y) {
+        return;
+    }
+    uint i = uint(p.y * size.x + p.x);
+    bool last = push.last != 0u;
+    uint st = push.stride;
+    int gw = (size.x + APR_R - 1) / APR_R;
+    int gh = (size.y + APR_R - 1) / APR_R;
+    bool valid = apr_valid(i);
+    real4 fa = apr_fa(i);
+    real4 fb = apr_fb(i);
+    real dim = real(0);
+    for (int ch = 0; ch < 3; ++ch) {
+        real yi = yof(ch, i);
+        real vi = vof(ch, i);
+        real oy, os, oe, od, ox;
+        if (!valid) {
+            oy = last ? fill(ch, p, size) : yi;
+            os = sqrt(max(vi, real(0)));
+            oe = vi;
+            od = real(1);
+            ox = real(0);
+        } else {
+            real ws = real(0), ay = real(0), as_ = real(0), ae = real(0), ad = real(0);
+            for (int cy = apr_first_centre(p.y); cy <= min(p.y + APR_R, size.y - 1); cy += APR_R) {
+                for (int cx = apr_first_centre(p.x); cx <= min(p.x + APR_R, size.x - 1); cx += APR_R) {
+                    uint c = uint(cy * size.x + cx);
+                    if (!apr_valid(c) || (c != i && !apr_accepts(yof(ch, c), vof(ch, c), yi, vi))) {
+                        continue;
+                    }
+                    uint b = (uint(ch) * uint(gw * gh) + uint((cy / APR_R) * gw + cx / APR_R))
+                        * uint(APR_STATE);
+                    real4 x0, x1, x2, x3, x4;
+                    real4 sa = st4(b + 40u);
+                    real4 sb = st4(b + 44u);
+                    real4 isa = mix(real4(0), real4(1) / max(sa, real4(1e-30)), greaterThan(sa, real4(0)));
+                    real4 isb = mix(real4(0), real4(1) / max(sb, real4(1e-30)), greaterThan(sb, real4(0)));
+                    apr_row(p - ivec2(cx, cy), fa, fb, apr_fa(c), apr_fb(c), isa, isb, x0, x1, x2, x3, x4);
+                    real k = apr_weight(p.x - cx, p.y - cy);
+                    ws += k;
+                    ay += k * (dot(x0, st4(b + 4u)) + dot(x1, st4(b + 8u)) + dot(x2, st4(b + 12u))
+                        + dot(x3, st4(b + 16u)) + dot(x4, real4(state[b + 20u], state[b + 21u], 0, 0)));
+                    if (!last) {
+                        as_ += k * (dot(x0, st4(b + 22u)) + dot(x1, st4(b + 26u)) + dot(x2, st4(b + 30u))
+                            + dot(x3, st4(b + 34u)) + dot(x4, real4(state[b + 38u], state[b + 39u], 0, 0)));
+                    }
+                    ae += k * real(state[b + 1u]);
+                    ad += k * real(state[b + 2u]);
+                }
+            }
+            if (ws > real(0)) {
+                oy = ay / ws;
+                os = as_ / ws;
+                oe = ae / ws;
+                od = ad / ws;
+                ox = real(0);
+            } else {
+                uint e = 4u * uint(ch) * st + i;
+                oy = real(extra[e]);
+                os = real(extra[e + st]);
+                oe = real(extra[e + 2u * st]);
+                od = real(extra[e + 3u * st]);
+                ox = real(1);
+            }
+        }
+        if (last) {
+            dst[uint(ch) * st + i] = float(max(oy, real(0)));
+            dst[uint(3 + ch) * st + i] = float(oe);
+            dst[uint(7 + ch) * st + i] = float(ox);
+            dim += od / real(3);
+        } else {
+            dst[uint(ch) * st + i] = float(oy);
+            dst[uint(3 + ch) * st + i] = float(os * os);
+        }
+    }
+    if (last) {
+        dst[6u * st + i] = float(dim);
+    }
+}

@@ -1,0 +1,70 @@
+// APR's shared per-block routines (spec §4.2-4.3), used by apr_block.comp
+// and apr_gather.comp. Scalar twins: src/reference/apr_block.rs (design,
+// weights, acceptance, coverage) and src/reference/apr_gather.rs.
+//
+// The including kernel declares, before the include: the push block `push`
+// (AprPush: width, height, row0, channel, mode, last, has_vis, stride), the
+// feature planes f0..f7 (normal xyz, albedo rgb, depth, visibility) and
+// `spp`.
+//
+// Design row (fixed 18 columns, reference::apr_block): five real4,
+// x0 = (1, dnx, dny, dnz), x1 = (dar, dag, dab, ddepth),
+// x2 = (dvis, u, v, uu), x3 = (uv, vv, uuu, uuv), x4 = (uvv, vvv, 0, 0),
+// with d = (f_i - f_c) / s (0 for a dropped feature) and u, v the offsets
+// divided by R = 14. Order K uses the leading 9, 11, 14, 18 columns.
+
+#ifndef MC_APR_GLSL
+#define MC_APR_GLSL
+
+#define APR_R 14
+#define APR_P 18
+#define APR_REJECT 3.0
+#define APR_RIDGE 1e-6
+#define APR_FEATURE_EPS 1e-6
+#define APR_STATE 52
+#define APR_RIDGE_FLOOR 1e-8
+#define APR_RETRIES 3
+
+bool apr_valid(uint i) { return spp_of(spp[i]) >= 1.0; }
+
+// Normal xyz and albedo r.
+real4 apr_fa(uint i) { return real4(f0[i], f1[i], f2[i], f3[i]); }
+// Albedo g b, depth, visibility (0 without the plane: has_vis = 0).
+real4 apr_fb(uint i)
+{
+    return real4(f4[i], f5[i], f6[i], push.has_vis != 0u ? f7[i] : 0.0);
+}
+
+// K_h(i) for the offset (dx, dy), h = 14. GLSL has no f64 exp: computed in
+// f32 (twin: f64, the difference is within spec §0.3).
+real apr_weight(int dx, int dy)
+{
+    return real(exp(-float(dx * dx + dy * dy) / float(2 * APR_R * APR_R)));
+}
+
+// The confidence-interval test (§4.2 step 1) of pixel q in the block of c.
+bool apr_accepts(real yc, real vc, real yq, real vq)
+{
+    return abs(yq - yc) <= real(APR_REJECT) * sqrt(max(vq + vc, real(0)));
+}
+
+// The design row of pixel q (position dq = q - c) for a block with centre
+// features (fca, fcb) and inverse spreads (isa, isb; 0 = dropped).
+void apr_row(ivec2 dq, real4 fa, real4 fb, real4 fca, real4 fcb, real4 isa, real4 isb,
+             out real4 x0, out real4 x1, out real4 x2, out real4 x3, out real4 x4)
+{
+    real4 d = (fa - fca) * isa;
+    real4 e = (fb - fcb) * isb;
+    real u = real(dq.x) / real(APR_R);
+    real v = real(dq.y) / real(APR_R);
+    x0 = real4(1, d.xyz);
+    x1 = real4(d.w, e.xyz);
+    x2 = real4(e.w, u, v, u * u);
+    x3 = real4(u * v, v * v, u * u * u, u * u * v);
+    x4 = real4(u * v * v, v * v * v, 0, 0);
+}
+
+// The first sparse centre coordinate whose window holds a (|a - c| <= 14).
+int apr_first_centre(int a) { return ((max(a - APR_R, 0) + APR_R - 1) / APR_R) * APR_R; }
+
+#endif

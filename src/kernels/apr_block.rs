@@ -1,0 +1,88 @@
+//! `apr_block`: one APR block (spec §4.2) per invocation, for one channel
+//! and stage: acceptance, feature spreads, the moments over the 29×29
+//! window, one ridge Cholesky (APR-RIDGE-BLOCK), the error of orders 0..3
+//! from `L⁻¹` and a bias pass, the chosen order's `β_y` (and `β_s`). Sparse
+//! mode writes each grid block's 52-float state
+//! ([`reference::apr_block::Block::state`](crate::reference::apr_block::Block::state));
+//! extra mode (COVER) makes a block of every valid pixel no sparse centre
+//! accepts and writes its values at that pixel to the extra planes. Twin:
+//! `reference::apr_block`.
+
+use crate::error::Result;
+use crate::gpu::reflect::{read, write};
+use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};
+use crate::reference::apr_block::{grid, P};
+use crate::shared::AprPush;
+
+/// Declaration of `spirv/apr_block.comp`; checked against the SPIR-V by
+/// reflection.
+pub const DECL: KernelDecl = KernelDecl {
+    name: "apr_block",
+    bindings: &[
+        read("y"),
+        read("v"),
+        read("yprev"),
+        read("s2prev"),
+        read("normal_x"),
+        read("normal_y"),
+        read("normal_z"),
+        read("albedo_r"),
+        read("albedo_g"),
+        read("albedo_b"),
+        read("depth"),
+        read("visibility"),
+        read("spp"),
+        write("state"),
+        write("extra"),
+    ],
+    push_size: std::mem::size_of::<AprPush>() as u32,
+};
+
+/// The planes one channel's blocks read.
+#[derive(Clone, Copy)]
+pub struct AprChannel {
+    /// The channel's values and variances (outlier-cleaned).
+    pub y: BufferSlice,
+    /// See `y`.
+    pub v: BufferSlice,
+    /// `ŷ_{t−1}` (stage 1: `y`).
+    pub yprev: BufferSlice,
+    /// `σ̂²_{t−1}` (stage 1: `v`).
+    pub s2prev: BufferSlice,
+}
+
+/// Per block: three passes over 841 pixels (the moments: 30 4×4 outer
+/// products, 960 flops a pixel; the bias: 4 × 18 multiply-adds) and the
+/// 18×18 factorisation, inverse and `L⁻¹VL⁻ᵀ` (~12,000 flops).
+pub fn flops_per_block() -> f64 {
+    let p = P as f64;
+    841.0 * (960.0 + 3.0 * 40.0 + 160.0) + 2.0 * p * p * p
+}
+
+/// Records the sparse blocks (`push.mode = 0`) over the centre grid, or the
+/// extra blocks (`push.mode = 1`) over the pixels. `feats`: normal xyz,
+/// albedo rgb, depth, visibility (any plane with `push.has_vis = 0`).
+/// `extra_flops`: the expected fraction of pixels that become extra blocks
+/// (for the band split and progress).
+pub fn record(
+    batch: &mut Batch,
+    precision: Precision,
+    push: &AprPush,
+    ch: &AprChannel,
+    feats: &[BufferSlice; 8],
+    spp: BufferSlice,
+    state: BufferSlice,
+    extra: BufferSlice,
+    extra_fraction: f64,
+) -> Result<()> {
+    let mut b = vec![ch.y, ch.v, ch.yprev, ch.s2prev];
+    b.extend_from_slice(feats);
+    b.extend([spp, state, extra]);
+    let (w, h, flops) = if push.mode == 0 {
+        let (gw, gh) = grid(push.width as usize, push.height as usize);
+        (gw as u32, gh as u32, flops_per_block())
+    } else {
+        (push.width, push.height, flops_per_block() * extra_fraction + 100.0)
+    };
+    batch.dispatch(&DECL, precision, &b, bytemuck::bytes_of(push), w, h, flops)
+}

@@ -1,0 +1,72 @@
+//! `apr_gather`: APR's blend (spec §4.3, Eq. 6) for every pixel and channel:
+//! the `K_h`-weighted mean of the accepting sparse blocks' `x_iᵀβ`, `ξ̂` and
+//! `tr H`, or the pixel's extra block. Writes `ŷ_t`, `σ̂_t²` (6 planes)
+//! before the last stage and colour, error, dimension and extra mask
+//! ([`OUTPUTS`]) at the last, `push.stride` f32 values apart in one binding.
+//! Twin: `reference::apr_gather`.
+
+use crate::error::Result;
+use crate::gpu::reflect::{read, write};
+use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};
+pub use crate::reference::apr_gather::{EXTRA_PLANES, OUTPUTS, STAGE_OUTPUTS};
+use crate::shared::AprPush;
+
+/// Declaration of `spirv/apr_gather.comp`; checked against the SPIR-V by
+/// reflection.
+pub const DECL: KernelDecl = KernelDecl {
+    name: "apr_gather",
+    bindings: &[
+        read("color_r"),
+        read("color_g"),
+        read("color_b"),
+        read("var_r"),
+        read("var_g"),
+        read("var_b"),
+        read("normal_x"),
+        read("normal_y"),
+        read("normal_z"),
+        read("albedo_r"),
+        read("albedo_g"),
+        read("albedo_b"),
+        read("depth"),
+        read("visibility"),
+        read("spp"),
+        read("state"),
+        read("extra"),
+        write("dst"),
+    ],
+    push_size: std::mem::size_of::<AprPush>() as u32,
+};
+
+/// Per pixel and channel: up to 4 blocks (9 on the grid lines), each a
+/// design row and two 18-term dot products.
+pub const FLOPS_PER_PIXEL: f64 = 3.0 * 4.0 * 120.0;
+
+/// Records the gather of one stage (`push.last`).
+pub fn record(
+    batch: &mut Batch,
+    precision: Precision,
+    push: &AprPush,
+    color: [BufferSlice; 3],
+    var: [BufferSlice; 3],
+    feats: &[BufferSlice; 8],
+    spp: BufferSlice,
+    state: BufferSlice,
+    extra: BufferSlice,
+    dst: BufferSlice,
+) -> Result<()> {
+    let mut b = Vec::with_capacity(DECL.bindings.len());
+    b.extend_from_slice(&color);
+    b.extend_from_slice(&var);
+    b.extend_from_slice(feats);
+    b.extend([spp, state, extra, dst]);
+    batch.dispatch(
+        &DECL,
+        precision,
+        &b,
+        bytemuck::bytes_of(push),
+        push.width,
+        push.height,
+        FLOPS_PER_PIXEL,
+    )
+}

@@ -1,0 +1,447 @@
+//! Scalar twin of `spirv/apr_block.comp`: one APR block (spec §4.2) of one
+//! channel and one stage, as the GPU computes it, in f64.
+//!
+//! The design has a fixed layout of [`P`] = 18 columns,
+//! `[1, 8 scaled features, u, v, u², uv, v², u³, u²v, uv², v³]`; a dropped
+//! feature (spread ≤ 1e-6 over `A_c`, or an absent visibility plane) is a
+//! column of zeros. With the ridge on every column but the intercept, a zero
+//! column decouples (`M⁻¹` has `1/λ` there and `0` elsewhere in its row), so
+//! `H`, `β` on the other columns and `tr H` equal those of the compact design
+//! of [`super::apr`]. Order K uses the leading [`PK`]`[K]` columns.
+//!
+//! One pass over the window finds `A_c` and the feature spreads; a second
+//! accumulates `M = Σ K_h x xᵀ`, `V = Σ K_h² σ̂²_{t−1} x xᵀ` and the right-hand
+//! sides; `M + Λ` is factored once (`L`, APR-RIDGE-BLOCK) and inverted
+//! (`L⁻¹`, lower triangular), and the leading blocks of `L⁻¹` serve every
+//! order: `M_K⁻¹ = L_K⁻ᵀ L_K⁻¹`. With `G = L⁻¹ V L⁻ᵀ` and
+//! `E = L⁻¹ M0 L⁻ᵀ` (`M0 = M`, no ridge), `tr H(K) = Σ_{a<p_K} E_aa` and
+//! `Σ_i K_h(i) var(i) = tr(M_K⁻¹ V_K M_K⁻¹ M0_K) = Σ_{a,b<p_K} G_ab E_ab`;
+//! a third pass sums the squared bias `Σ K_h (x_iᵀ β_K − ŷ_{t−1}(i))²` of the
+//! four orders.
+
+use super::linalg::{EPS_PIVOT, RIDGE_FLOOR, SOLVE_RETRIES};
+use super::spp_of;
+
+/// Design columns.
+pub const P: usize = 18;
+/// Feature columns (normal xyz, albedo rgb, depth, visibility).
+pub const NF: usize = 8;
+/// Columns of order K: `1 + NF + (K+1)(K+2)/2 − 1`.
+pub const PK: [usize; 4] = [9, 11, 14, 18];
+/// Window radius and centre spacing (29×29 blocks every 14 pixels).
+pub const RADIUS: i64 = 14;
+/// Kernel bandwidth h.
+pub const BANDWIDTH: f64 = 14.0;
+/// Confidence-interval rejection factor.
+pub const REJECT_K: f64 = 3.0;
+/// Ridge factor (`λ = 1e-6·Σ K_h`).
+pub const RIDGE: f64 = 1e-6;
+/// Features whose spread is at most this are dropped.
+pub const FEATURE_EPS: f64 = 1e-6;
+/// f32 values per (block, channel) in the state buffer, [`Block::state`].
+pub const STATE: usize = 52;
+
+/// What a block kernel reads for one channel and stage: f32 planes as on
+/// the GPU.
+#[derive(Clone, Copy)]
+pub struct Inputs<'a> {
+    /// Width in pixels.
+    pub w: usize,
+    /// Height in pixels.
+    pub h: usize,
+    /// The channel's (outlier-cleaned) values `y`.
+    pub y: &'a [f32],
+    /// Their variances `v`.
+    pub v: &'a [f32],
+    /// `ŷ_{t−1}` (stage 1: `y`).
+    pub yprev: &'a [f32],
+    /// `σ̂²_{t−1}` (stage 1: `v`).
+    pub s2prev: &'a [f32],
+    /// Feature planes in §4.1's order; `None`: absent (a zero column).
+    pub feats: [Option<&'a [f32]>; NF],
+    /// Sample counts (valid iff `spp_of >= 1`).
+    pub spp: &'a [f32],
+}
+
+impl Inputs<'_> {
+    /// Whether pixel `i` is valid (§0.2).
+    pub fn valid(&self, i: usize) -> bool {
+        spp_of(self.spp[i]) >= 1.0
+    }
+
+    /// Feature `j` at pixel `i` (0 when absent).
+    pub fn feat(&self, j: usize, i: usize) -> f64 {
+        self.feats[j].map_or(0.0, |f| f[i] as f64)
+    }
+
+    /// The confidence-interval test of §4.2 step 1 (`i` always accepts
+    /// itself; the caller checks validity).
+    pub fn accepts(&self, c: usize, i: usize) -> bool {
+        i == c
+            || (self.y[i] as f64 - self.y[c] as f64).abs()
+                <= REJECT_K * (self.v[i] as f64 + self.v[c] as f64).max(0.0).sqrt()
+    }
+}
+
+/// Kernel weight `K_h(i)` of pixel `i` in the block of `c`.
+pub fn weight(w: usize, c: usize, i: usize) -> f64 {
+    let dx = (i % w) as f64 - (c % w) as f64;
+    let dy = (i / w) as f64 - (c / w) as f64;
+    (-(dx * dx + dy * dy) / (2.0 * BANDWIDTH * BANDWIDTH)).exp()
+}
+
+/// The design row of pixel `i` in the block of `c` with feature spreads
+/// `scales` (0: dropped).
+pub fn row(inp: &Inputs, c: usize, scales: &[f64; NF], i: usize) -> [f64; P] {
+    let w = inp.w;
+    let u = ((i % w) as f64 - (c % w) as f64) / RADIUS as f64;
+    let v = ((i / w) as f64 - (c / w) as f64) / RADIUS as f64;
+    let mut x = [0.0; P];
+    x[0] = 1.0;
+    for j in 0..NF {
+        if scales[j] > 0.0 {
+            x[1 + j] = (inp.feat(j, i) - inp.feat(j, c)) / scales[j];
+        }
+    }
+    x[9..].copy_from_slice(&[
+        u,
+        v,
+        u * u,
+        u * v,
+        v * v,
+        u * u * u,
+        u * u * v,
+        u * v * v,
+        v * v * v,
+    ]);
+    x
+}
+
+/// The clipped window of `c` in raster order: `(pixel)` of valid pixels
+/// `c` accepts.
+pub fn accepted(inp: &Inputs, c: usize) -> Vec<usize> {
+    let (w, h) = (inp.w as i64, inp.h as i64);
+    let (cx, cy) = ((c as i64) % w, (c as i64) / w);
+    let mut v = Vec::new();
+    for qy in (cy - RADIUS).max(0)..=(cy + RADIUS).min(h - 1) {
+        for qx in (cx - RADIUS).max(0)..=(cx + RADIUS).min(w - 1) {
+            let q = (qy * w + qx) as usize;
+            if inp.valid(q) && inp.accepts(c, q) {
+                v.push(q);
+            }
+        }
+    }
+    v
+}
+
+/// One block's result: what the state keeps (§4.2 step 6).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Block {
+    /// The chosen order `K̂`.
+    pub order: usize,
+    /// `ξ̂_c(K̂)`.
+    pub xi: f64,
+    /// `tr H(K̂)`.
+    pub trace: f64,
+    /// ALONE or SOLVE-FAIL: `β` is the centre value only.
+    pub degenerate: bool,
+    /// `β_y` (entries past `PK[K̂]` are 0).
+    pub beta_y: [f64; P],
+    /// `β_s`, `s = √v` (0 when not asked).
+    pub beta_s: [f64; P],
+    /// Feature spreads `s_j` (0: dropped).
+    pub scales: [f64; NF],
+}
+
+impl Block {
+    /// The f32 state layout shared with the GPU: `[K̂, ξ̂, tr H, degenerate,
+    /// β_y (18), β_s (18), s_j (8), 0 × 4]`.
+    pub fn state(&self) -> [f32; STATE] {
+        let mut s = [0.0f32; STATE];
+        s[0] = self.order as f32;
+        s[1] = self.xi as f32;
+        s[2] = self.trace as f32;
+        s[3] = self.degenerate as u8 as f32;
+        for j in 0..P {
+            s[4 + j] = self.beta_y[j] as f32;
+            s[22 + j] = self.beta_s[j] as f32;
+        }
+        for j in 0..NF {
+            s[40 + j] = self.scales[j] as f32;
+        }
+        s
+    }
+
+    /// The block's output `x_iᵀ β` (of `β_y`, or `β_s` with `s`) at pixel `i`.
+    pub fn eval(&self, inp: &Inputs, c: usize, i: usize, s: bool) -> f64 {
+        let x = row(inp, c, &self.scales, i);
+        let b = if s { &self.beta_s } else { &self.beta_y };
+        x.iter().zip(b).map(|(x, b)| x * b).sum()
+    }
+}
+
+/// Lower Cholesky factor of `M + Λ` (18×18, row-major), pivots tested on
+/// the kept columns only (a dropped column's pivot is exactly λ). `None` on
+/// a failed pivot.
+fn cholesky(m: &[[f64; P]; P], kept: &[bool; P], lambda: f64, eps: f64) -> Option<[[f64; P]; P]> {
+    let a = |i: usize, j: usize| m[i][j] + if i == j && i > 0 { lambda } else { 0.0 };
+    let max_diag = (0..P)
+        .filter(|&j| kept[j])
+        .map(|j| a(j, j))
+        .fold(0.0, f64::max);
+    let mut l = [[0.0; P]; P];
+    for i in 0..P {
+        for j in 0..=i {
+            let mut s = a(i, j);
+            for k in 0..j {
+                s -= l[i][k] * l[j][k];
+            }
+            if i == j {
+                // `s > thresh` is false for NaN too (as in linalg).
+                if kept[i] && !(s > eps * max_diag && s.is_finite()) {
+                    return None;
+                }
+                l[i][i] = s.sqrt();
+            } else {
+                l[i][j] = s / l[j][j];
+            }
+        }
+    }
+    Some(l)
+}
+
+/// `L⁻¹` of a lower-triangular `L`.
+fn invert_lower(l: &[[f64; P]; P]) -> [[f64; P]; P] {
+    let mut r = [[0.0; P]; P];
+    for j in 0..P {
+        r[j][j] = 1.0 / l[j][j];
+        for i in j + 1..P {
+            let mut s = 0.0;
+            for k in j..i {
+                s += l[i][k] * r[k][j];
+            }
+            r[i][j] = -s / l[i][i];
+        }
+    }
+    r
+}
+
+/// `M_K⁻¹ b` on the leading `p` columns: `L_K⁻ᵀ (L_K⁻¹ b)`.
+fn solve(li: &[[f64; P]; P], p: usize, b: &[f64; P]) -> [f64; P] {
+    let mut z = [0.0; P];
+    for a in 0..p {
+        z[a] = (0..=a).map(|k| li[a][k] * b[k]).sum();
+    }
+    let mut x = [0.0; P];
+    for a in 0..p {
+        x[a] = (a..p).map(|k| li[k][a] * z[k]).sum();
+    }
+    x
+}
+
+/// One block of channel `inp` centred at `c` (a valid pixel), stage
+/// `(yprev, s2prev)`; `with_s`: also `β_s` (every stage but the last).
+pub fn block(inp: &Inputs, c: usize, with_s: bool, eps: f64) -> Block {
+    let w = inp.w;
+    let acc = accepted(inp, c);
+    let mut scales = [0.0; NF];
+    for (j, s) in scales.iter_mut().enumerate() {
+        if inp.feats[j].is_none() {
+            continue;
+        }
+        let fc = inp.feat(j, c);
+        let m = acc
+            .iter()
+            .map(|&q| (inp.feat(j, q) - fc).abs())
+            .fold(0.0, f64::max);
+        *s = if m <= FEATURE_EPS { 0.0 } else { m };
+    }
+    let degenerate = |scales| {
+        let mut by = [0.0; P];
+        let mut bs = [0.0; P];
+        by[0] = inp.y[c] as f64;
+        bs[0] = (inp.v[c] as f64).max(0.0).sqrt();
+        Block {
+            order: 0,
+            xi: inp.v[c] as f64,
+            trace: 1.0,
+            degenerate: true,
+            beta_y: by,
+            beta_s: if with_s { bs } else { [0.0; P] },
+            scales,
+        }
+    };
+    if acc.len() <= 1 {
+        return degenerate(scales);
+    }
+    let mut m = [[0.0; P]; P];
+    let mut vm = [[0.0; P]; P];
+    let (mut bp, mut by, mut bs) = ([0.0; P], [0.0; P], [0.0; P]);
+    let mut wsum = 0.0;
+    for &q in &acc {
+        let x = row(inp, c, &scales, q);
+        let k = weight(w, c, q);
+        let kv = k * k * inp.s2prev[q] as f64;
+        let (yp, y, s) = (
+            inp.yprev[q] as f64,
+            inp.y[q] as f64,
+            (inp.v[q] as f64).max(0.0).sqrt(),
+        );
+        for a in 0..P {
+            for b in 0..P {
+                m[a][b] += k * x[a] * x[b];
+                vm[a][b] += kv * x[a] * x[b];
+            }
+            bp[a] += k * x[a] * yp;
+            by[a] += k * x[a] * y;
+            bs[a] += k * x[a] * s;
+        }
+        wsum += k;
+    }
+    let mut kept = [true; P];
+    for j in 0..NF {
+        kept[1 + j] = scales[j] > 0.0;
+    }
+    let nkept = kept.iter().filter(|&&k| k).count();
+    let mean_diag = (0..P).filter(|&j| kept[j]).map(|j| m[j][j]).sum::<f64>() / nkept as f64;
+    let mut lambda = RIDGE * wsum;
+    let mut factor = None;
+    for attempt in 0..=SOLVE_RETRIES {
+        if attempt > 0 {
+            lambda = (10.0 * lambda).max(RIDGE_FLOOR * mean_diag);
+        }
+        factor = cholesky(&m, &kept, lambda, eps);
+        if factor.is_some() {
+            break;
+        }
+    }
+    let Some(l) = factor else {
+        return degenerate(scales);
+    };
+    let li = invert_lower(&l);
+    // G = L⁻¹ V L⁻ᵀ.
+    let mut t = [[0.0; P]; P];
+    for a in 0..P {
+        for b in 0..P {
+            t[a][b] = (0..=a).map(|k| li[a][k] * vm[k][b]).sum();
+        }
+    }
+    let mut g = [[0.0; P]; P];
+    for a in 0..P {
+        for b in 0..P {
+            g[a][b] = (0..=b).map(|k| t[a][k] * li[b][k]).sum();
+        }
+    }
+    // E = L⁻¹ M0 L⁻ᵀ (M0 without the ridge): tr H_K = Σ_{a<p} E_aa and
+    // Σ K_h var = tr(M_K⁻¹ V_K M_K⁻¹ M0_K) = Σ_{a,b<p} G_ab E_ab, both free of
+    // the cancellation of `p − λ Σ (M⁻¹)_jj` in f32.
+    let mut t = [[0.0; P]; P];
+    for a in 0..P {
+        for b in 0..P {
+            t[a][b] = (0..=a).map(|k| li[a][k] * m[k][b]).sum();
+        }
+    }
+    let mut e = [[0.0; P]; P];
+    for a in 0..P {
+        for b in 0..P {
+            e[a][b] = (0..=b).map(|k| t[a][k] * li[b][k]).sum();
+        }
+    }
+    let mut betas = [[0.0; P]; 4];
+    let mut varsum = [0.0; 4];
+    let mut trace = [0.0; 4];
+    for (k, &p) in PK.iter().enumerate() {
+        betas[k] = solve(&li, p, &bp);
+        for a in 0..p {
+            trace[k] += e[a][a];
+            for b in 0..p {
+                varsum[k] += g[a][b] * e[a][b];
+            }
+        }
+    }
+    let mut rss = [0.0; 4];
+    for &q in &acc {
+        let x = row(inp, c, &scales, q);
+        let k = weight(w, c, q);
+        let yp = inp.yprev[q] as f64;
+        for o in 0..4 {
+            let r: f64 = x.iter().zip(&betas[o]).map(|(x, b)| x * b).sum::<f64>() - yp;
+            rss[o] += k * r * r;
+        }
+    }
+    let mut best = 0;
+    let xi = |o: usize| (rss[o] + varsum[o]) / wsum;
+    for o in 1..4 {
+        if xi(o) < xi(best) {
+            best = o;
+        }
+    }
+    Block {
+        order: best,
+        xi: xi(best),
+        trace: trace[best],
+        degenerate: false,
+        beta_y: solve(&li, PK[best], &by),
+        beta_s: if with_s {
+            solve(&li, PK[best], &bs)
+        } else {
+            [0.0; P]
+        },
+        scales,
+    }
+}
+
+/// The sparse centres' grid: `ceil(w/14) × ceil(h/14)`, cell `(gx, gy)` ↔
+/// pixel `(14 gx, 14 gy)`.
+pub fn grid(w: usize, h: usize) -> (usize, usize) {
+    (w.div_ceil(RADIUS as usize), h.div_ceil(RADIUS as usize))
+}
+
+/// Whether some valid sparse centre within 14 accepts pixel `i` (valid).
+/// A pixel none accepts becomes an extra centre (COVER).
+pub fn covered(inp: &Inputs, i: usize) -> bool {
+    covering(inp.w, inp.h, i)
+        .into_iter()
+        .any(|c| inp.valid(c) && inp.accepts(c, i))
+}
+
+/// The sparse centres with `|i − c|_inf <= 14`, in raster order.
+pub fn covering(w: usize, h: usize, i: usize) -> Vec<usize> {
+    let r = RADIUS as usize;
+    let (x, y) = (i % w, i / w);
+    let lo = |a: usize| a.saturating_sub(r).div_ceil(r) * r;
+    let mut v = Vec::new();
+    let mut cy = lo(y);
+    while cy <= (y + r).min(h - 1) {
+        let mut cx = lo(x);
+        while cx <= (x + r).min(w - 1) {
+            v.push(cy * w + cx);
+            cx += r;
+        }
+        cy += r;
+    }
+    v
+}
+
+/// The kernel in sparse mode: the state of every sparse block of the
+/// channel (`grid` order; all zero for an invalid centre, order −1).
+pub fn sparse(inp: &Inputs, with_s: bool, eps: f64) -> Vec<Option<Block>> {
+    let (gw, gh) = grid(inp.w, inp.h);
+    let r = RADIUS as usize;
+    (0..gw * gh)
+        .map(|b| {
+            let c = (b / gw) * r * inp.w + (b % gw) * r;
+            inp.valid(c).then(|| block(inp, c, with_s, eps))
+        })
+        .collect()
+}
+
+/// The kernel in extra mode at pixel `i`: `Some(block)` when `i` is a valid
+/// pixel no sparse block accepts (its output is `β[0]`, the fit at its own
+/// centre).
+pub fn extra(inp: &Inputs, i: usize, with_s: bool, eps: f64) -> Option<Block> {
+    (inp.valid(i) && !covered(inp, i)).then(|| block(inp, i, with_s, eps))
+}
+
+/// The pivot threshold of the f64 twin (§0.5).
+pub const EPS: f64 = EPS_PIVOT;

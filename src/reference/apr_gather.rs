@@ -1,0 +1,166 @@
+//! Scalar twin of `spirv/apr_gather.comp`: APR's blend (spec §4.3, Eq. 6)
+//! for every pixel and channel. A valid pixel averages, with the weights
+//! `K_h^c(i)`, the outputs `x_iᵀβ` of the sparse blocks within 14 that
+//! accept it (in raster order), their `ξ̂_c` and `tr H_c`; a pixel none
+//! accepts takes its own extra block's values (COVER, written by
+//! `apr_block` in extra mode). Every stage but the last writes `ŷ_t` and
+//! `σ̂_t²` (the blend of `H s`, squared); the last writes the colour
+//! (clamped ≥ 0), `ξ̂_i`, the mean over the channels of `tr H` (the local
+//! dimension `d_i` of §9.1) and the extra-centre mask.
+//!
+//! An invalid pixel (§0.2) outputs the mean of the valid pixels of its 3×3
+//! neighbourhood in `y` (0 if none), error `v_i`, dimension 1; in an
+//! intermediate stage it keeps `y_i`, `v_i`.
+
+use super::apr_block::{covering, row, weight, Inputs, NF, P, STATE};
+
+/// Extra planes per channel, written by `apr_block` in extra mode at the
+/// pixels no sparse block accepts: `β_y[0]`, `β_s[0]`, `ξ̂`, `tr H`.
+pub const EXTRA_PLANES: usize = 4;
+
+/// Output planes of the last stage: colour R G B, error R G B, dimension,
+/// extra mask R G B.
+pub const OUTPUTS: usize = 10;
+/// Output planes of an intermediate stage: `ŷ` R G B, `σ̂²` R G B.
+pub const STAGE_OUTPUTS: usize = 6;
+
+/// One state record of `state` (a channel's `grid` of blocks): `None` for
+/// an invalid centre (all-zero record, degenerate flag unset and `β` zero
+/// can not tell; the caller checks validity).
+fn eval(inp: &Inputs, st: &[f32], c: usize, i: usize, s: bool) -> f64 {
+    let mut scales = [0.0; NF];
+    for (j, sc) in scales.iter_mut().enumerate() {
+        *sc = st[40 + j] as f64;
+    }
+    let x = row(inp, c, &scales, i);
+    let off = if s { 22 } else { 4 };
+    (0..P).map(|j| x[j] * st[off + j] as f64).sum()
+}
+
+/// The gather of one stage: `inp[ch]` the channels' inputs (the stage's
+/// `yprev`/`s2prev` are not read), `state[ch]` their block states
+/// (`grid` order, [`STATE`] f32 each), `extra` the `3·EXTRA_PLANES` extra
+/// planes. Returns [`OUTPUTS`] planes when `last`, else [`STAGE_OUTPUTS`].
+pub fn apr_gather(inp: &[Inputs; 3], state: &[Vec<f32>; 3], extra: &[Vec<f32>], last: bool) -> Vec<Vec<f32>> {
+    let (w, h) = (inp[0].w, inp[0].h);
+    let n = w * h;
+    let (gw, _) = super::apr_block::grid(w, h);
+    let r = super::apr_block::RADIUS as usize;
+    let mut out = vec![vec![0.0f32; n]; if last { OUTPUTS } else { STAGE_OUTPUTS }];
+    for i in 0..n {
+        let mut dim = 0.0;
+        for ch in 0..3 {
+            let pl = &inp[ch];
+            let (y, s, e, d, ex) = if !pl.valid(i) {
+                let fill = invalid_fill(pl, i);
+                let v = (pl.v[i] as f64).max(0.0);
+                (if last { fill } else { pl.y[i] as f64 }, v.sqrt(), pl.v[i] as f64, 1.0, 0.0)
+            } else {
+                let (mut ws, mut ay, mut as_, mut ae, mut ad) = (0.0, 0.0, 0.0, 0.0, 0.0);
+                for c in covering(w, h, i) {
+                    if !pl.valid(c) || !pl.accepts(c, i) {
+                        continue;
+                    }
+                    let b = (c / w / r) * gw + (c % w) / r;
+                    let st = &state[ch][b * STATE..(b + 1) * STATE];
+                    let k = weight(w, c, i);
+                    ws += k;
+                    ay += k * eval(pl, st, c, i, false);
+                    if !last {
+                        as_ += k * eval(pl, st, c, i, true);
+                    }
+                    ae += k * st[1] as f64;
+                    ad += k * st[2] as f64;
+                }
+                if ws > 0.0 {
+                    (ay / ws, as_ / ws, ae / ws, ad / ws, 0.0)
+                } else {
+                    let x = |k: usize| extra[ch * super::apr_gather::EXTRA_PLANES + k][i] as f64;
+                    (x(0), x(1), x(2), x(3), 1.0)
+                }
+            };
+            if last {
+                out[ch][i] = y.max(0.0) as f32;
+                out[3 + ch][i] = e as f32;
+                out[7 + ch][i] = ex as f32;
+                dim += d / 3.0;
+            } else {
+                out[ch][i] = y as f32;
+                out[3 + ch][i] = (s * s) as f32;
+            }
+        }
+        if last {
+            out[6][i] = dim as f32;
+        }
+    }
+    out
+}
+
+/// §0.2: the mean of the valid pixels of `i`'s 3×3 neighbourhood in `y`
+/// (0 if none).
+pub fn invalid_fill(pl: &Inputs, i: usize) -> f64 {
+    let (w, h) = (pl.w, pl.h);
+    let (x, y) = (i % w, i / w);
+    let (mut s, mut n) = (0.0, 0usize);
+    for qy in y.saturating_sub(1)..(y + 2).min(h) {
+        for qx in x.saturating_sub(1)..(x + 2).min(w) {
+            let q = qy * w + qx;
+            if pl.valid(q) {
+                s += pl.y[q] as f64;
+                n += 1;
+            }
+        }
+    }
+    if n > 0 {
+        s / n as f64
+    } else {
+        0.0
+    }
+}
+
+/// The whole of APR on one image with the twins, in the kernels' order
+/// (per stage: sparse blocks, extra blocks, gather): `inp[ch]` with
+/// `yprev = y`, `s2prev = v`; `eps` the pivot threshold (1e-12 for f64).
+/// Returns the last gather's [`OUTPUTS`] planes and the last stage's
+/// states.
+pub fn run(inp: &[Inputs; 3], stages: usize, eps: f64) -> (Vec<Vec<f32>>, [Vec<f32>; 3]) {
+    let (w, h) = (inp[0].w, inp[0].h);
+    let n = w * h;
+    let stages = stages.max(1);
+    let mut prev: Option<Vec<Vec<f32>>> = None;
+    for stage in 1..=stages {
+        let last = stage == stages;
+        let chans: [Inputs; 3] = std::array::from_fn(|ch| {
+            let mut c = inp[ch];
+            if let Some(p) = &prev {
+                c.yprev = &p[ch];
+                c.s2prev = &p[3 + ch];
+            }
+            c
+        });
+        // Extend the borrows of `prev` over this stage.
+        let state: [Vec<f32>; 3] = std::array::from_fn(|ch| {
+            super::apr_block::sparse(&chans[ch], !last, eps)
+                .iter()
+                .flat_map(|b| b.as_ref().map_or([0.0f32; STATE], |b| b.state()))
+                .collect()
+        });
+        let mut extra = vec![vec![0.0f32; n]; 3 * EXTRA_PLANES];
+        for (ch, pl) in chans.iter().enumerate() {
+            for i in 0..n {
+                if let Some(b) = super::apr_block::extra(pl, i, !last, eps) {
+                    extra[ch * EXTRA_PLANES][i] = b.beta_y[0] as f32;
+                    extra[ch * EXTRA_PLANES + 1][i] = b.beta_s[0] as f32;
+                    extra[ch * EXTRA_PLANES + 2][i] = b.xi as f32;
+                    extra[ch * EXTRA_PLANES + 3][i] = b.trace as f32;
+                }
+            }
+        }
+        let out = apr_gather(&chans, &state, &extra, last);
+        if last {
+            return (out, state);
+        }
+        prev = Some(out);
+    }
+    unreachable!("stages >= 1")
+}
