@@ -19,6 +19,7 @@
 // 4 * channel + k (k * stride floats apart); such pixels are compacted per
 // workgroup, as in lp_centres.comp, since they are few.
 // Scalar twin: src/reference/apr_block.rs.
+#extension GL_EXT_control_flow_attributes : require
 #include "lib/common.glsl"
 
 layout(local_size_x = 8, local_size_y = 8) in;
@@ -59,51 +60,12 @@ PLANE_OUT(14, extra)
 #define aprmat4 mat4
 #endif
 
-// Per-invocation work arrays of the solve (row-major 18x18).
-real g_l[APR_P * APR_P];   // M + Lambda, factored in place into L
-real g_li[APR_P * APR_P];  // L^-1
-real g_v[APR_P * APR_P];   // V, then G = L^-1 V L^-T
-real g_t[APR_P * APR_P];   // L^-1 V
-real g_b[3 * APR_P];       // right-hand sides: yprev, y, s
-real g_beta[4 * 20];       // beta of yprev per order (padded to 20)
-real g_out[2 * APR_P];     // beta_y, beta_s of the chosen order
-
 // The moments as 4x4 blocks: block (a, b), a <= b, entry (4a + r, 4b + c)
 // at [c][r].
 aprmat4 M00, M01, M02, M03, M04, M11, M12, M13, M14, M22, M23, M24, M33, M34, M44;
 aprmat4 V00, V01, V02, V03, V04, V11, V12, V13, V14, V22, V23, V24, V33, V34, V44;
 
-void put_block(inout real a[APR_P * APR_P], int r0, int c0, aprmat4 m)
-{
-    for (int c = 0; c < 4; ++c) {
-        for (int r = 0; r < 4; ++r) {
-            int i = r0 + r;
-            int j = c0 + c;
-            if (i < APR_P && j < APR_P) {
-                a[i * APR_P + j] = m[c][r];
-                a[j * APR_P + i] = m[c][r];
-            }
-        }
-    }
-}
-
-void unpack_m()
-{
-    put_block(g_l, 0, 0, M00); put_block(g_l, 0, 4, M01); put_block(g_l, 0, 8, M02);
-    put_block(g_l, 0, 12, M03); put_block(g_l, 0, 16, M04); put_block(g_l, 4, 4, M11);
-    put_block(g_l, 4, 8, M12); put_block(g_l, 4, 12, M13); put_block(g_l, 4, 16, M14);
-    put_block(g_l, 8, 8, M22); put_block(g_l, 8, 12, M23); put_block(g_l, 8, 16, M24);
-    put_block(g_l, 12, 12, M33); put_block(g_l, 12, 16, M34); put_block(g_l, 16, 16, M44);
-}
-
-void unpack_v()
-{
-    put_block(g_v, 0, 0, V00); put_block(g_v, 0, 4, V01); put_block(g_v, 0, 8, V02);
-    put_block(g_v, 0, 12, V03); put_block(g_v, 0, 16, V04); put_block(g_v, 4, 4, V11);
-    put_block(g_v, 4, 8, V12); put_block(g_v, 4, 12, V13); put_block(g_v, 4, 16, V14);
-    put_block(g_v, 8, 8, V22); put_block(g_v, 8, 12, V23); put_block(g_v, 8, 16, V24);
-    put_block(g_v, 12, 12, V33); put_block(g_v, 12, 16, V34); put_block(g_v, 16, 16, V44);
-}
+#include "lib/apr_solve.glsl"
 
 void acc(real4 x0, real4 x1, real4 x2, real4 x3, real4 x4, real k, real kv)
 {
@@ -130,84 +92,6 @@ void zero_moments()
     V14 = z; V22 = z; V23 = z; V24 = z; V33 = z; V34 = z; V44 = z;
 }
 
-// Cholesky of g_l + Lambda in place (lower; the upper part is left alone),
-// pivots tested on the kept columns only.
-bool cholesky(uint kept, real lambda)
-{
-    real max_diag = real(0);
-    for (int j = 0; j < APR_P; ++j) {
-        if ((kept & (1u << j)) != 0u) {
-            max_diag = max(max_diag, g_l[j * APR_P + j] + (j > 0 ? lambda : real(0)));
-        }
-    }
-    real thresh = real(EPS_PIVOT) * max_diag;
-    for (int i = 0; i < APR_P; ++i) {
-        for (int j = 0; j <= i; ++j) {
-            real s = g_l[i * APR_P + j] + ((i == j && i > 0) ? lambda : real(0));
-            for (int k = 0; k < j; ++k) {
-                s -= g_l[i * APR_P + k] * g_l[j * APR_P + k];
-            }
-            if (i == j) {
-                if ((kept & (1u << i)) != 0u && !(s > thresh)) {
-                    return false;
-                }
-                g_l[i * APR_P + i] = sqrt(s);
-            } else {
-                g_l[i * APR_P + j] = s / g_l[j * APR_P + j];
-            }
-        }
-    }
-    return true;
-}
-
-// g_li = L^-1 (lower; zeros above).
-void invert_lower()
-{
-    for (int j = 0; j < APR_P; ++j) {
-        for (int i = 0; i < j; ++i) {
-            g_li[i * APR_P + j] = real(0);
-        }
-        g_li[j * APR_P + j] = real(1) / g_l[j * APR_P + j];
-        for (int i = j + 1; i < APR_P; ++i) {
-            real s = real(0);
-            for (int k = j; k < i; ++k) {
-                s += g_l[i * APR_P + k] * g_li[k * APR_P + j];
-            }
-            g_li[i * APR_P + j] = -s / g_l[i * APR_P + i];
-        }
-    }
-}
-
-// x = M_K^-1 b on the leading p columns (rhs g_b[rhs * 18 ..]), into
-// dst[off ..] (entries p.. left 0); z goes through g_t's first row.
-void solve_into(int p, int rhs, bool to_out, int off)
-{
-    for (int a = 0; a < p; ++a) {
-        real s = real(0);
-        for (int k = 0; k <= a; ++k) {
-            s += g_li[a * APR_P + k] * g_b[rhs * APR_P + k];
-        }
-        g_t[a] = s;
-    }
-    for (int a = 0; a < APR_P; ++a) {
-        real s = real(0);
-        for (int k = a; k < p; ++k) {
-            s += g_li[k * APR_P + a] * g_t[k];
-        }
-        if (to_out) {
-            g_out[off + a] = s;
-        } else {
-            g_beta[off + a] = s;
-        }
-    }
-}
-
-real4 beta4(int o, int k)
-{
-    int b = o * 20 + 4 * k;
-    return real4(g_beta[b], g_beta[b + 1], g_beta[b + 2], g_beta[b + 3]);
-}
-
 struct Result {
     int order;
     real xi;
@@ -215,6 +99,8 @@ struct Result {
     bool degenerate;
     real4 sa;
     real4 sb;
+    real4 by0, by1, by2, by3, by4;
+    real4 bs0, bs1, bs2, bs3, bs4;
 };
 
 Result block(ivec2 c, ivec2 size, bool with_s)
@@ -253,11 +139,10 @@ Result block(ivec2 c, ivec2 size, bool with_s)
     r.order = 0;
     r.xi = vc;
     r.trace = real(1);
-    for (int a = 0; a < 2 * APR_P; ++a) {
-        g_out[a] = real(0);
-    }
-    g_out[0] = yc;
-    g_out[APR_P] = with_s ? sqrt(max(vc, real(0))) : real(0);
+    r.by0 = real4(yc, 0, 0, 0);
+    r.bs0 = real4(with_s ? sqrt(max(vc, real(0))) : real(0), 0, 0, 0);
+    r.by1 = real4(0); r.by2 = real4(0); r.by3 = real4(0); r.by4 = real4(0);
+    r.bs1 = real4(0); r.bs2 = real4(0); r.bs3 = real4(0); r.bs4 = real4(0);
     if (count <= 1u) {
         return r;
     }
@@ -288,110 +173,51 @@ Result block(ivec2 c, ivec2 size, bool with_s)
             wsum += k;
         }
     }
-    real4 rb[15] = real4[15](bp0, bp1, bp2, bp3, bp4, by0, by1, by2, by3, by4, bs0, bs1, bs2, bs3, bs4);
-    for (int r3 = 0; r3 < 3; ++r3) {
-        for (int a = 0; a < APR_P; ++a) {
-            g_b[r3 * APR_P + a] = rb[r3 * 5 + a / 4][a % 4];
-        }
-    }
-    // The factorisation (APR-RIDGE-BLOCK) with SOLVE-FAIL's retries.
-    unpack_m();
-    real mean_diag = real(0);
-    uint nkept = 0u;
-    for (int j = 0; j < APR_P; ++j) {
-        if ((kept & (1u << j)) != 0u) {
-            mean_diag += g_l[j * APR_P + j];
-            ++nkept;
-        }
-    }
-    mean_diag /= real(nkept);
+    // The factorisation (APR-RIDGE-BLOCK) with SOLVE-FAIL's retries; the
+    // threshold and the retry floor from the kept columns' diagonal.
+    real4 kd0 = real4(M00[0][0], M00[1][1], M00[2][2], M00[3][3]);
+    real4 kd1 = real4(M11[0][0], M11[1][1], M11[2][2], M11[3][3]);
+    real4 kd2 = real4(M22[0][0], M22[1][1], M22[2][2], M22[3][3]);
+    real4 kd3 = real4(M33[0][0], M33[1][1], M33[2][2], M33[3][3]);
+    real4 kd4 = real4(M44[0][0], M44[1][1], 0, 0);
+    real4 k0 = real4(1, r.sa.x > 0 ? 1 : 0, r.sa.y > 0 ? 1 : 0, r.sa.z > 0 ? 1 : 0);
+    real4 k1 = real4(r.sa.w > 0 ? 1 : 0, r.sb.x > 0 ? 1 : 0, r.sb.y > 0 ? 1 : 0, r.sb.z > 0 ? 1 : 0);
+    real4 k2 = real4(r.sb.w > 0 ? 1 : 0, 1, 1, 1);
+    real4 k3 = real4(1);
+    real4 k4 = real4(1, 1, 0, 0);
+    real mean_diag = (dot(kd0, k0) + dot(kd1, k1) + dot(kd2, k2) + dot(kd3, k3) + dot(kd4, k4))
+        / (dot(k0, real4(1)) + dot(k1, real4(1)) + dot(k2, real4(1)) + dot(k3, real4(1)) + dot(k4, real4(1)));
+    real4 kmax0 = kd0 * k0, kmax1 = kd1 * k1, kmax2 = kd2 * k2, kmax3 = kd3 * k3, kmax4 = kd4 * k4;
     real lambda = real(APR_RIDGE) * wsum;
     bool ok = false;
-    for (int attempt = 0; attempt <= APR_RETRIES && !ok; ++attempt) {
+    [[dont_unroll]] for (int attempt = 0; attempt <= APR_RETRIES && !ok; ++attempt) {
         if (attempt > 0) {
             lambda = max(real(10) * lambda, real(APR_RIDGE_FLOOR) * mean_diag);
-            unpack_m();
         }
-        ok = cholesky(kept, lambda);
+        // Diagonals with the ridge (not on the intercept).
+        real4 lam = real4(lambda);
+        real4 mx = max(max(max(kmax0 + k0 * real4(0, lambda, lambda, lambda), kmax1 + k1 * lam),
+                           max(kmax2 + k2 * lam, kmax3 + k3 * lam)), kmax4 + k4 * lam);
+        real thresh = real(EPS_PIVOT) * max(max(mx.x, mx.y), max(mx.z, mx.w));
+        ok = apr_factor(lambda, kept, thresh);
     }
     if (!ok) {
         return r;
     }
-    invert_lower();
-    unpack_v();
-    // T = L^-1 V, then G = T L^-T into g_v.
-    for (int a = 0; a < APR_P; ++a) {
-        for (int b = 0; b < APR_P; ++b) {
-            real s = real(0);
-            for (int k = 0; k <= a; ++k) {
-                s += g_li[a * APR_P + k] * g_v[k * APR_P + b];
-            }
-            g_t[a * APR_P + b] = s;
-        }
-    }
-    for (int a = 0; a < APR_P; ++a) {
-        for (int b = 0; b < APR_P; ++b) {
-            real s = real(0);
-            for (int k = 0; k <= b; ++k) {
-                s += g_t[a * APR_P + k] * g_li[b * APR_P + k];
-            }
-            g_v[a * APR_P + b] = s;
-        }
-    }
-    // E = L^-1 M0 L^-T into g_l (L is no longer needed; M0 = M without the
-    // ridge): tr H_K = sum_{a<p} E_aa, sum K var = sum_{a,b<p} G_ab E_ab
-    // (no cancellation in f32, unlike p - lambda sum (M^-1)_jj).
-    unpack_m();
-    for (int a = 0; a < APR_P; ++a) {
-        for (int b = 0; b < APR_P; ++b) {
-            real s = real(0);
-            for (int k = 0; k <= a; ++k) {
-                s += g_li[a * APR_P + k] * g_l[k * APR_P + b];
-            }
-            g_t[a * APR_P + b] = s;
-        }
-    }
-    for (int a = 0; a < APR_P; ++a) {
-        for (int b = 0; b < APR_P; ++b) {
-            real s = real(0);
-            for (int k = 0; k <= b; ++k) {
-                s += g_t[a * APR_P + k] * g_li[b * APR_P + k];
-            }
-            g_l[a * APR_P + b] = s;
-        }
-    }
-    // Nested sums by the band between orders: order K adds the rows and
-    // columns p_{K-1} .. p_K - 1.
-    real varsum[4];
-    real trace[4];
-    real vs = real(0), tr = real(0);
-    int lo = 0;
-    for (int o = 0; o < 4; ++o) {
-        int p = o == 0 ? 9 : (o == 1 ? 11 : (o == 2 ? 14 : 18));
-        for (int a = 0; a < p; ++a) {
-            for (int b = (a < lo ? lo : 0); b < p; ++b) {
-                vs += g_v[a * APR_P + b] * g_l[a * APR_P + b];
-            }
-        }
-        for (int a = lo; a < p; ++a) {
-            tr += g_l[a * APR_P + a];
-        }
-        varsum[o] = vs;
-        trace[o] = tr;
-        lo = p;
-        g_beta[o * 20 + 18] = real(0);
-        g_beta[o * 20 + 19] = real(0);
-    }
-    // The four betas of yprev (g_t is free again).
-    solve_into(9, 0, false, 0);
-    solve_into(11, 0, false, 20);
-    solve_into(14, 0, false, 40);
-    solve_into(18, 0, false, 60);
+    apr_products();
+    real4 xi = real4(0);
+    real4 trace = real4(0);
+    real4 B00, B01, B02, B03, B04, B10, B11, B12, B13, B14;
+    real4 B20, B21, B22, B23, B24, B30, B31, B32, B33, B34;
+    apr_order_sums(9, trace.x, xi.x);
+    apr_order_sums(11, trace.y, xi.y);
+    apr_order_sums(14, trace.z, xi.z);
+    apr_order_sums(18, trace.w, xi.w);
+    apr_solve(9, bp0, bp1, bp2, bp3, bp4, B00, B01, B02, B03, B04);
+    apr_solve(11, bp0, bp1, bp2, bp3, bp4, B10, B11, B12, B13, B14);
+    apr_solve(14, bp0, bp1, bp2, bp3, bp4, B20, B21, B22, B23, B24);
+    apr_solve(18, bp0, bp1, bp2, bp3, bp4, B30, B31, B32, B33, B34);
     // Pass 3: the squared bias of each order.
-    real4 B00 = beta4(0, 0), B01 = beta4(0, 1), B02 = beta4(0, 2), B03 = beta4(0, 3), B04 = beta4(0, 4);
-    real4 B10 = beta4(1, 0), B11 = beta4(1, 1), B12 = beta4(1, 2), B13 = beta4(1, 3), B14 = beta4(1, 4);
-    real4 B20 = beta4(2, 0), B21 = beta4(2, 1), B22 = beta4(2, 2), B23 = beta4(2, 3), B24 = beta4(2, 4);
-    real4 B30 = beta4(3, 0), B31 = beta4(3, 1), B32 = beta4(3, 2), B33 = beta4(3, 3), B34 = beta4(3, 4);
     real4 rss = real4(0);
     for (int qy = y0; qy <= y1; ++qy) {
         for (int qx = x0; qx <= x1; ++qx) {
@@ -410,25 +236,22 @@ Result block(ivec2 c, ivec2 size, bool with_s)
             rss += apr_weight(qx - c.x, qy - c.y) * e * e;
         }
     }
-    real4 xi = (rss + real4(varsum[0], varsum[1], varsum[2], varsum[3])) / wsum;
+    xi = (rss + xi) / wsum;
     int best = 0;
     real bx = xi.x;
-    if (xi.y < bx) { best = 1; bx = xi.y; }
-    if (xi.z < bx) { best = 2; bx = xi.z; }
-    if (xi.w < bx) { best = 3; bx = xi.w; }
+    real bt = trace.x;
+    if (xi.y < bx) { best = 1; bx = xi.y; bt = trace.y; }
+    if (xi.z < bx) { best = 2; bx = xi.z; bt = trace.z; }
+    if (xi.w < bx) { best = 3; bx = xi.w; bt = trace.w; }
     int p = best == 0 ? 9 : (best == 1 ? 11 : (best == 2 ? 14 : 18));
-    solve_into(p, 1, true, 0);
+    apr_solve(p, by0, by1, by2, by3, by4, r.by0, r.by1, r.by2, r.by3, r.by4);
     if (with_s) {
-        solve_into(p, 2, true, APR_P);
-    } else {
-        for (int a = 0; a < APR_P; ++a) {
-            g_out[APR_P + a] = real(0);
-        }
+        apr_solve(p, bs0, bs1, bs2, bs3, bs4, r.bs0, r.bs1, r.bs2, r.bs3, r.bs4);
     }
     r.degenerate = false;
     r.order = best;
     r.xi = bx;
-    r.trace = trace[best];
+    r.trace = bt;
     return r;
 }
 
@@ -476,9 +299,15 @@ void main()
         state[base + 1u] = float(r.xi);
         state[base + 2u] = float(r.trace);
         state[base + 3u] = r.degenerate ? 1.0 : 0.0;
-        for (int a = 0; a < APR_P; ++a) {
-            state[base + 4u + uint(a)] = float(g_out[a]);
-            state[base + 22u + uint(a)] = float(g_out[APR_P + a]);
+        real4 by[5] = real4[5](r.by0, r.by1, r.by2, r.by3, r.by4);
+        real4 bs[5] = real4[5](r.bs0, r.bs1, r.bs2, r.bs3, r.bs4);
+        for (int k = 0; k < 5; ++k) {
+            for (int t = 0; t < 4; ++t) {
+                if (4 * k + t < APR_P) {
+                    state[base + 4u + uint(4 * k + t)] = float(by[k][t]);
+                    state[base + 22u + uint(4 * k + t)] = float(bs[k][t]);
+                }
+            }
         }
         real s8[8] = real[8](r.sa.x, r.sa.y, r.sa.z, r.sa.w, r.sb.x, r.sb.y, r.sb.z, r.sb.w);
         for (int j = 0; j < 8; ++j) {
@@ -515,8 +344,8 @@ void main()
     uint i = s_pixel[lid];
     Result r = block(ivec2(i % push.width, i / push.width), size, with_s);
     uint e = 4u * push.channel * push.stride + i;
-    extra[e] = float(g_out[0]);
-    extra[e + push.stride] = float(g_out[APR_P]);
+    extra[e] = float(r.by0.x);
+    extra[e + push.stride] = float(r.bs0.x);
     extra[e + 2u * push.stride] = float(r.xi);
     extra[e + 3u * push.stride] = float(r.trace);
 }
