@@ -22,7 +22,7 @@ const METHODS: &[(Method, bool)] = &[
     (Method::Wlr, true),
     (Method::Lp, true),
     (Method::None, true),
-    (Method::Apr, false),
+    (Method::Apr, true),
 ];
 
 fn make(img: &StatsImage, method: Method, on_gpu: bool) -> Denoiser {

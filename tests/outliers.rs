@@ -432,6 +432,7 @@ fn spikes_are_removed_and_their_energy_kept() {
     let cases = [
         (Method::Wlr, Outliers::Auto),
         (Method::Lp, Outliers::Auto),
+        (Method::Apr, Outliers::Auto),
         (Method::None, Outliers::On),
     ];
     for (method, outliers) in cases {
@@ -466,8 +467,16 @@ fn spikes_are_removed_and_their_energy_kept() {
                 let sa: f64 = a.planes[c].iter().map(|&v| v as f64).sum();
                 let sb: f64 = b.planes[c].iter().map(|&v| v as f64).sum();
                 let off = (sb - sa - energy[c]).abs();
+                // APR: 1.8e-6 measured (CPU and GPU alike). The spike pixel
+                // holds its median neighbour after removal, not its spike-free
+                // value, and APR's blocks weigh that pixel with a hat-column
+                // sum ≠ 1 (its acceptance test differs), so the output moves
+                // by (colsum − 1)·(median − original): a fit difference, not
+                // lost energy (the stage's own balance is exact to 1e-9 in
+                // `redistribution_conserves_energy`).
+                let tol = if method == Method::Apr { 3e-6 } else { 1e-6 };
                 assert!(
-                    off <= 1e-6 * sb,
+                    off <= tol * sb,
                     "{what}, channel {c}: sum moved by {} for spikes of {} (off by {off}, image sum {sb})",
                     sb - sa,
                     energy[c]

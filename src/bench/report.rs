@@ -521,7 +521,7 @@ mod tests {
         let report = QualityReport {
             dir: "scenes".into(),
             rows: vec![input],
-            unavailable: vec![crate::methods::Method::Apr],
+            unavailable: vec![crate::methods::Method::Aos],
             warnings: vec!["q\"\\\n\u{1}".into()],
             ..Default::default()
         };
@@ -570,7 +570,7 @@ mod tests {
         assert_eq!(r["wall_s"], serde_json::Value::Null);
         assert_eq!(r["rmse"], 0.2);
         assert_eq!(r["spp"], 4);
-        assert_eq!(j["unavailable_methods"], serde_json::json!(["apr"]));
+        assert_eq!(j["unavailable_methods"], serde_json::json!(["aos"]));
         assert_eq!(j["warnings"][0], "q\"\\\n\u{1}");
     }
 
