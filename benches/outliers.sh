@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# The outlier stage (spec §4.4, issue #11): rMSE of the input and of WLR and
-# LP with the stage off and on, and the image mean of the output relative to
+# The outlier stage (spec §4.4, issue #11): rMSE of the input and of WLR,
+# LP and APR with the stage off and on, and the image mean of the output relative to
 # the input's, on the public scenes (4, 16, 64 spp) and on the built-in
 # firefly scene `glossy` (128², same spp levels, against a K-spp reference).
 #

@@ -1,6 +1,6 @@
 //! The outlier stage's table (issue #11): for each (statistics, reference)
 //! pair given as `STATS=REF` arguments, the input's rMSE and each method's
-//! rMSE with the stage off and on, with the output's image mean relative to
+//! rMSE (WLR, LP, APR) with the stage off and on, with the output's image mean relative to
 //! the input's. GPU, f32, prefilter auto. Used by `benches/outliers.sh`.
 //!
 //!     cargo run --release --example outlier_table -- a.exr=ref.exr ...
@@ -18,8 +18,8 @@ fn mean(img: &mcdenoise::RgbImage) -> f64 {
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let ctx = Arc::new(GpuContext::new(&ContextOptions::default())?);
-    println!("| case | input | wlr off | wlr on | lp off | lp on | mean ratio wlr off / on | mean ratio lp off / on |");
-    println!("|---|---|---|---|---|---|---|---|");
+    println!("| case | input | wlr off | wlr on | lp off | lp on | apr off | apr on | mean ratio wlr off / on | mean ratio lp off / on | mean ratio apr off / on |");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|");
     for arg in std::env::args().skip(1) {
         let (s, r) = arg.split_once('=').ok_or("arguments are STATS=REF")?;
         let img = mcdenoise::io::read_stats(Path::new(s))?;
@@ -34,7 +34,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             rmse(&input, &reference)
         );
         let mut ratios = String::new();
-        for m in [Method::Wlr, Method::Lp] {
+        for m in [Method::Wlr, Method::Lp, Method::Apr] {
             for o in [Outliers::Off, Outliers::On] {
                 let mut cfg = Config::new(m);
                 cfg.outliers = o;
