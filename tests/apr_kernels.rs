@@ -40,7 +40,8 @@ pub fn image(w: usize, h: usize, seed: u64, vis: bool) -> Img {
     let mut v: [Vec<f32>; 3] = std::array::from_fn(|_| vec![0.0; n]);
     for ch in 0..3 {
         for i in 0..n {
-            let t = 0.3 + 0.1 * ch as f64 + 0.004 * (i / w) as f64 + if edge(i) { 0.5 } else { 0.0 };
+            let t =
+                0.3 + 0.1 * ch as f64 + 0.004 * (i / w) as f64 + if edge(i) { 0.5 } else { 0.0 };
             y[ch][i] = (t + 0.05 * rng.normal()) as f32;
             v[ch][i] = (0.0025 * (0.5 + rng.uniform())) as f32;
         }
@@ -54,7 +55,14 @@ pub fn image(w: usize, h: usize, seed: u64, vis: bool) -> Img {
     let spp = (0..n)
         .map(|_| if rng.uniform() < 0.03 { 0.0 } else { 4.0 })
         .collect();
-    Img { w, h, y, v, feats, spp }
+    Img {
+        w,
+        h,
+        y,
+        v,
+        feats,
+        spp,
+    }
 }
 
 impl Img {
@@ -91,7 +99,14 @@ fn block_twin_equals_the_reference() {
         let mut checked = 0;
         for ch in 0..3 {
             let (y, v) = (f64s(&img.y[ch]), f64s(&img.v[ch]));
-            let pl = Planes { w: img.w, h: img.h, y: &y, v: &v, feats: &feats, valid: &valid };
+            let pl = Planes {
+                w: img.w,
+                h: img.h,
+                y: &y,
+                v: &v,
+                feats: &feats,
+                valid: &valid,
+            };
             let inp = img.inputs(ch);
             for c in (0..img.w * img.h).step_by(37) {
                 if !valid[c] {
@@ -102,8 +117,18 @@ fn block_twin_equals_the_reference() {
                 let tb = b::block(&inp, c, true, b::EPS);
                 assert_eq!(tb.order, fit.order, "c={c} ch={ch}");
                 assert_eq!(tb.degenerate, d.degenerate());
-                assert!(close(tb.xi, fit.xi, 1e-9), "c={c}: xi {} vs {}", tb.xi, fit.xi);
-                assert!(close(tb.trace, fit.trace, 1e-9), "c={c}: trace {} vs {}", tb.trace, fit.trace);
+                assert!(
+                    close(tb.xi, fit.xi, 1e-9),
+                    "c={c}: xi {} vs {}",
+                    tb.xi,
+                    fit.xi
+                );
+                assert!(
+                    close(tb.trace, fit.trace, 1e-9),
+                    "c={c}: trace {} vs {}",
+                    tb.trace,
+                    fit.trace
+                );
                 let by = r::beta(&d, fit.order, &y);
                 let s: Vec<f64> = v.iter().map(|v| v.max(0.0).sqrt()).collect();
                 let bs = r::beta(&d, fit.order, &s);
@@ -112,8 +137,14 @@ fn block_twin_equals_the_reference() {
                     let p = by.len();
                     let (ry, rs) = (r::eval(&x[..p], &by), r::eval(&x[..p], &bs));
                     let (ty, ts) = (tb.eval(&inp, c, q, false), tb.eval(&inp, c, q, true));
-                    assert!((ry - ty).abs() <= 1e-9 * (ry.abs() + 1.0), "c={c} q={q}: {ty} vs {ry}");
-                    assert!((rs - ts).abs() <= 1e-9 * (rs.abs() + 1.0), "c={c} q={q}: {ts} vs {rs}");
+                    assert!(
+                        (ry - ty).abs() <= 1e-9 * (ry.abs() + 1.0),
+                        "c={c} q={q}: {ty} vs {ry}"
+                    );
+                    assert!(
+                        (rs - ts).abs() <= 1e-9 * (rs.abs() + 1.0),
+                        "c={c} q={q}: {ts} vs {rs}"
+                    );
                 }
                 checked += 1;
             }
@@ -135,17 +166,34 @@ fn twin_run_equals_the_reference_channel() {
     let mut extras = 0;
     for ch in 0..3 {
         let (y, v) = (f64s(&img.y[ch]), f64s(&img.v[ch]));
-        let pl = Planes { w: img.w, h: img.h, y: &y, v: &v, feats: &feats, valid: &valid };
+        let pl = Planes {
+            w: img.w,
+            h: img.h,
+            y: &y,
+            v: &v,
+            feats: &feats,
+            valid: &valid,
+        };
         let res = r::channel(&pl, 2);
         for i in 0..img.w * img.h {
             if !valid[i] {
                 continue;
             }
             let (tc, rc) = (out[ch][i] as f64, res.color[i].max(0.0));
-            assert!((tc - rc).abs() <= 1e-4 * (rc.abs() + 1e-3), "ch={ch} i={i}: colour {tc} vs {rc}");
+            assert!(
+                (tc - rc).abs() <= 1e-4 * (rc.abs() + 1e-3),
+                "ch={ch} i={i}: colour {tc} vs {rc}"
+            );
             let (te, re) = (out[3 + ch][i] as f64, res.error[i]);
-            assert!((te - re).abs() <= 1e-4 * (re.abs() + 1e-6), "ch={ch} i={i}: error {te} vs {re}");
-            assert_eq!(out[7 + ch][i] as f64, res.extra[i], "ch={ch} i={i}: extra mask");
+            assert!(
+                (te - re).abs() <= 1e-4 * (re.abs() + 1e-6),
+                "ch={ch} i={i}: error {te} vs {re}"
+            );
+            assert_eq!(
+                out[7 + ch][i] as f64,
+                res.extra[i],
+                "ch={ch} i={i}: extra mask"
+            );
             extras += res.extra[i] as usize;
         }
     }
@@ -187,11 +235,25 @@ fn gpu_kernels_match_the_twins() {
         let inp: [Inputs; 3] = std::array::from_fn(|ch| img.inputs(ch));
         let gs = GpuStats::upload(&ctx, "apr.test", &stats(&img)).unwrap();
         for precision in common::precisions() {
-            let eps = if precision == mcdenoise::gpu::Precision::F64 { b::EPS } else { 1e-6 };
+            let eps = if precision == mcdenoise::gpu::Precision::F64 {
+                b::EPS
+            } else {
+                1e-6
+            };
             let (cpu, cpu_state) = apr_gather::run(&inp, 2, eps);
             let planes = AprPlanes::new(&ctx, w, h).unwrap();
             let mut batch = Batch::new(&ctx).unwrap();
-            apr::record_apr(&mut batch, precision, &gs, &planes, AprParams { stages: 2, prefilter: false }).unwrap();
+            apr::record_apr(
+                &mut batch,
+                precision,
+                &gs,
+                &planes,
+                AprParams {
+                    stages: 2,
+                    prefilter: false,
+                },
+            )
+            .unwrap();
             batch.finish().unwrap();
             let out = planes.out.download_all().unwrap();
             let what = |k: usize| format!("{w}x{h} {precision:?} plane {k}");
@@ -203,7 +265,10 @@ fn gpu_kernels_match_the_twins() {
                 assert!(a >= 0.98, "{}: extra mask agreement {a}", what(k));
             }
             let (gw, gh) = b::grid(w, h);
-            let state = planes.state.read_vec::<f32>(3 * gw * gh * b::STATE).unwrap();
+            let state = planes
+                .state
+                .read_vec::<f32>(3 * gw * gh * b::STATE)
+                .unwrap();
             let orders = |s: &[f32]| -> Vec<f32> { s.chunks(b::STATE).map(|r| r[0]).collect() };
             let cpu_orders: Vec<f32> = cpu_state.iter().flat_map(|s| orders(s)).collect();
             let a = common::agreement(&orders(&state), &cpu_orders);

@@ -140,12 +140,12 @@ fn denoise_none_gpu_and_cpu_agree_and_inputs_are_protected() {
     );
     // APR's own feature prefilter runs on the CPU backend only: on the GPU
     // it is a clear error.
-    let (code, _, err) = run(bin()
-        .arg("denoise")
-        .arg(&input)
-        .arg("-o")
-        .arg(&out)
-        .args(["--method", "apr", "--opt", "apr.prefilter=on"]));
+    let (code, _, err) = run(bin().arg("denoise").arg(&input).arg("-o").arg(&out).args([
+        "--method",
+        "apr",
+        "--opt",
+        "apr.prefilter=on",
+    ]));
     assert_eq!(code, 2);
     assert!(err.contains("CPU backend"), "{err}");
     assert!(!out.exists());

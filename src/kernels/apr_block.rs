@@ -82,7 +82,11 @@ pub fn record(
         let (gw, gh) = grid(push.width as usize, push.height as usize);
         (gw as u32, gh as u32, flops_per_block())
     } else {
-        (push.width, push.height, flops_per_block() * extra_fraction + 100.0)
+        (
+            push.width,
+            push.height,
+            flops_per_block() * extra_fraction + 100.0,
+        )
     };
     batch.dispatch(&DECL, precision, &b, bytemuck::bytes_of(push), w, h, flops)
 }

@@ -219,7 +219,12 @@ pub fn design(pl: &Planes, shape: Shape, c: usize) -> Design {
     // its leading blocks, whose pivots are its first pivots, so they factor
     // with the same λ. The GPU kernel factors once and reads every order
     // from that factor.
-    let f = ridge_cholesky(&d.normal(MAX_ORDER), d.p3(), d.lambda, super::linalg::EPS_PIVOT);
+    let f = ridge_cholesky(
+        &d.normal(MAX_ORDER),
+        d.p3(),
+        d.lambda,
+        super::linalg::EPS_PIVOT,
+    );
     d.lambda = f.lambda;
     d.failed = f.failed;
     d

@@ -28,16 +28,9 @@ pub const P: usize = 18;
 pub const NF: usize = 8;
 /// Columns of order K: `1 + NF + (K+1)(K+2)/2 − 1`.
 pub const PK: [usize; 4] = [9, 11, 14, 18];
-/// Window radius and centre spacing (29×29 blocks every 14 pixels).
-pub const RADIUS: i64 = 14;
-/// Kernel bandwidth h.
-pub const BANDWIDTH: f64 = 14.0;
-/// Confidence-interval rejection factor.
-pub const REJECT_K: f64 = 3.0;
-/// Ridge factor (`λ = 1e-6·Σ K_h`).
-pub const RIDGE: f64 = 1e-6;
-/// Features whose spread is at most this are dropped.
-pub const FEATURE_EPS: f64 = 1e-6;
+pub use super::apr::{BANDWIDTH, FEATURE_EPS, REJECT_K, RIDGE};
+/// Window radius and centre spacing (29×29 blocks every 14 pixels), signed.
+pub const RADIUS: i64 = super::apr::RADIUS as i64;
 /// f32 values per (block, channel) in the state buffer, [`Block::state`].
 pub const STATE: usize = 52;
 
@@ -226,6 +219,23 @@ fn invert_lower(l: &[[f64; P]; P]) -> [[f64; P]; P] {
     r
 }
 
+/// `L⁻¹ X L⁻ᵀ` for a lower-triangular `L⁻¹`.
+fn sandwich(li: &[[f64; P]; P], x: &[[f64; P]; P]) -> [[f64; P]; P] {
+    let mut t = [[0.0; P]; P];
+    for a in 0..P {
+        for b in 0..P {
+            t[a][b] = (0..=a).map(|k| li[a][k] * x[k][b]).sum();
+        }
+    }
+    let mut o = [[0.0; P]; P];
+    for a in 0..P {
+        for b in 0..P {
+            o[a][b] = (0..=b).map(|k| t[a][k] * li[b][k]).sum();
+        }
+    }
+    o
+}
+
 /// `M_K⁻¹ b` on the leading `p` columns: `L_K⁻ᵀ (L_K⁻¹ b)`.
 fn solve(li: &[[f64; P]; P], p: usize, b: &[f64; P]) -> [f64; P] {
     let mut z = [0.0; P];
@@ -319,34 +329,11 @@ pub fn block(inp: &Inputs, c: usize, with_s: bool, eps: f64) -> Block {
         return degenerate(scales);
     };
     let li = invert_lower(&l);
-    // G = L⁻¹ V L⁻ᵀ.
-    let mut t = [[0.0; P]; P];
-    for a in 0..P {
-        for b in 0..P {
-            t[a][b] = (0..=a).map(|k| li[a][k] * vm[k][b]).sum();
-        }
-    }
-    let mut g = [[0.0; P]; P];
-    for a in 0..P {
-        for b in 0..P {
-            g[a][b] = (0..=b).map(|k| t[a][k] * li[b][k]).sum();
-        }
-    }
-    // E = L⁻¹ M0 L⁻ᵀ (M0 without the ridge): tr H_K = Σ_{a<p} E_aa and
-    // Σ K_h var = tr(M_K⁻¹ V_K M_K⁻¹ M0_K) = Σ_{a,b<p} G_ab E_ab, both free of
-    // the cancellation of `p − λ Σ (M⁻¹)_jj` in f32.
-    let mut t = [[0.0; P]; P];
-    for a in 0..P {
-        for b in 0..P {
-            t[a][b] = (0..=a).map(|k| li[a][k] * m[k][b]).sum();
-        }
-    }
-    let mut e = [[0.0; P]; P];
-    for a in 0..P {
-        for b in 0..P {
-            e[a][b] = (0..=b).map(|k| t[a][k] * li[b][k]).sum();
-        }
-    }
+    // G = L⁻¹ V L⁻ᵀ and E = L⁻¹ M0 L⁻ᵀ (M0 without the ridge): tr H_K =
+    // Σ_{a<p} E_aa and Σ K_h var = tr(M_K⁻¹ V_K M_K⁻¹ M0_K) = Σ_{a,b<p} G_ab E_ab,
+    // both free of the cancellation of `p − λ Σ (M⁻¹)_jj` in f32.
+    let g = sandwich(&li, &vm);
+    let e = sandwich(&li, &m);
     let mut betas = [[0.0; P]; 4];
     let mut varsum = [0.0; 4];
     let mut trace = [0.0; 4];

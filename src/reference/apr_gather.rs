@@ -41,7 +41,12 @@ fn eval(inp: &Inputs, st: &[f32], c: usize, i: usize, s: bool) -> f64 {
 /// `yprev`/`s2prev` are not read), `state[ch]` their block states
 /// (`grid` order, [`STATE`] f32 each), `extra` the `3·EXTRA_PLANES` extra
 /// planes. Returns [`OUTPUTS`] planes when `last`, else [`STAGE_OUTPUTS`].
-pub fn apr_gather(inp: &[Inputs; 3], state: &[Vec<f32>; 3], extra: &[Vec<f32>], last: bool) -> Vec<Vec<f32>> {
+pub fn apr_gather(
+    inp: &[Inputs; 3],
+    state: &[Vec<f32>; 3],
+    extra: &[Vec<f32>],
+    last: bool,
+) -> Vec<Vec<f32>> {
     let (w, h) = (inp[0].w, inp[0].h);
     let n = w * h;
     let (gw, _) = super::apr_block::grid(w, h);
@@ -54,7 +59,13 @@ pub fn apr_gather(inp: &[Inputs; 3], state: &[Vec<f32>; 3], extra: &[Vec<f32>], 
             let (y, s, e, d, ex) = if !pl.valid(i) {
                 let fill = invalid_fill(pl, i);
                 let v = (pl.v[i] as f64).max(0.0);
-                (if last { fill } else { pl.y[i] as f64 }, v.sqrt(), pl.v[i] as f64, 1.0, 0.0)
+                (
+                    if last { fill } else { pl.y[i] as f64 },
+                    v.sqrt(),
+                    pl.v[i] as f64,
+                    1.0,
+                    0.0,
+                )
             } else {
                 let (mut ws, mut ay, mut as_, mut ae, mut ad) = (0.0, 0.0, 0.0, 0.0, 0.0);
                 for c in covering(w, h, i) {
