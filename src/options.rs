@@ -80,7 +80,7 @@ pub const OPTIONS: &[OptionSpec] = &[
         kind: Kind::Choice(&["off", "on"]),
         default: "off",
         section: "§4.6",
-        help: "APR's own 5x5 polynomial feature prefilter when the G-buffer prefilter does not run (off: see docs/results-apr.md)",
+        help: "APR's own 5x5 polynomial feature prefilter when the G-buffer prefilter does not run; CPU backend only (off: see docs/results-apr.md)",
     },
     OptionSpec {
         key: "sampling.smooth",
