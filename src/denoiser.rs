@@ -38,6 +38,15 @@ pub struct Config {
     pub debug: bool,
     /// Log progress (through `log`) for runs longer than about a second.
     pub progress: bool,
+    /// Whether some pixel may have `1 <= spp < 2` (GPU backend). Spec §0.4
+    /// step 3 gives such a pixel a variance from its neighbours, which costs
+    /// one more pass over every channel (about 270 ms of a 256² call on
+    /// lavapipe). `true` by default; a renderer that takes 0 or at least 2
+    /// samples in every pixel sets `false` (the built-in adaptive loop does),
+    /// and a caller holding the image on the host can use
+    /// [`crate::methods::prepare::has_low_spp`]. `false` with such pixels
+    /// present leaves their one-sample variance (0) in place.
+    pub low_spp: bool,
 }
 
 impl Config {
@@ -52,6 +61,7 @@ impl Config {
             options: Options::default(),
             debug: false,
             progress: false,
+            low_spp: true,
         }
     }
 
@@ -212,7 +222,7 @@ impl Denoiser {
     /// through the `unsafe` [`GpuContext::from_raw`]). Allocates every buffer
     /// and checks the configuration against the source's layers.
     pub fn new(ctx: &Arc<GpuContext>, source: Source, config: Config) -> Result<Denoiser> {
-        let low_spp = true;
+        let low_spp = config.low_spp;
         Ok(Denoiser {
             engine: Engine::Gpu(Box::new(GpuChain::new(
                 ctx,

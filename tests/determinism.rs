@@ -8,6 +8,7 @@
 mod common;
 
 use common::{check_validation, gpu};
+use mcdenoise::image::Layer;
 use mcdenoise::{Config, Denoiser, Method, Source, StatsImage};
 
 fn fixture() -> StatsImage {
@@ -95,4 +96,29 @@ fn every_method_runs_on_edge_sizes() {
         }
     }
     check_validation(&gpu());
+}
+
+/// `Config::low_spp = false` skips spec §0.4 step 3, which only changes
+/// pixels with `1 <= spp < 2`: on the 16-spp fixture the output is
+/// bit-identical either way; with some one-sample pixels it is not (their
+/// variance then stays 0 instead of coming from the neighbours).
+#[test]
+fn low_spp_off_is_exact_without_one_sample_pixels() {
+    let img = fixture();
+    assert!(!mcdenoise::methods::prepare::has_low_spp(&img));
+    let run = |img: &StatsImage, low_spp: bool| {
+        let mut cfg = Config::new(Method::Lp);
+        cfg.low_spp = low_spp;
+        let d = Denoiser::new(&gpu(), Source::of_image(img), cfg).unwrap();
+        bits(&d.denoise(img, None).unwrap().color.planes.concat())
+    };
+    assert_eq!(run(&img, true), run(&img, false));
+    let mut one = img.clone();
+    let mut spp = one.get(Layer::Spp).unwrap().to_vec();
+    for i in (0..spp[0].len()).step_by(7) {
+        spp[0][i] = 1.0;
+    }
+    one.set(Layer::Spp, spp);
+    assert!(mcdenoise::methods::prepare::has_low_spp(&one));
+    assert_ne!(run(&one, true), run(&one, false));
 }

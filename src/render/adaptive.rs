@@ -156,6 +156,12 @@ pub fn render(
 ) -> Result<LoopResult> {
     let layout = renderer.layout();
     let pixels = layout.pixels();
+    let schedule = if cfg.adaptive {
+        Some(Schedule::for_method(cfg.method, cfg.spp, pixels)?)
+    } else {
+        None
+    };
+    let first_spp = schedule.as_ref().map_or(cfg.spp, |s| s.initial_spp);
     let config = |pass: Pass| {
         let mut c = Config::new(cfg.method);
         c.pass = pass;
@@ -163,12 +169,10 @@ pub fn render(
         c.outliers = cfg.outliers;
         c.precision = cfg.precision;
         c.options = cfg.options.clone();
+        // Pass 0 gives every pixel `first` samples and later passes only
+        // add: no pixel has 1 <= spp < 2 unless `first` is 1 (§0.4 step 3).
+        c.low_spp = first_spp < 2;
         c
-    };
-    let schedule = if cfg.adaptive {
-        Some(Schedule::for_method(cfg.method, cfg.spp, pixels)?)
-    } else {
-        None
     };
     let total = 2 + schedule.as_ref().map_or(0, |s| s.budgets.len());
     let mut timings = Vec::new();
@@ -186,7 +190,7 @@ pub fn render(
     };
     let mut done = 0;
     // Pass 0: uniform.
-    let first = schedule.as_ref().map_or(cfg.spp, |s| s.initial_spp);
+    let first = first_spp;
     run(&mut |b| {
         renderer.record_clear(b);
         renderer.record_pass(b, Samples::Uniform(first))
