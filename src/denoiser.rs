@@ -44,8 +44,8 @@ pub struct Config {
     /// lavapipe). `true` by default; a renderer that takes 0 or at least 2
     /// samples in every pixel sets `false` (the built-in adaptive loop does),
     /// and a caller holding the image on the host can use
-    /// [`crate::methods::prepare::has_low_spp`]. `false` with such pixels
-    /// present leaves their one-sample variance (0) in place.
+    /// [`crate::has_low_spp`]. `false` with such pixels present leaves their
+    /// one-sample variance (0) in place.
     pub low_spp: bool,
 }
 

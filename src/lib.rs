@@ -86,7 +86,7 @@ pub use gpu::{
     DeviceInfo, GpuContext, ImportedDevice, KernelTiming, Precision, Recorded, Validation,
 };
 pub use image::{Layer, RgbImage, StatsImage};
-pub use methods::prepare::{colour_of, PrepareReport};
+pub use methods::prepare::{colour_of, has_low_spp, PrepareReport};
 pub use methods::{available_names, Backend, Method, Outliers, Pass, Prefilter, ProgressCallback};
 pub use options::{help_table, Options};
 pub use schedule::Schedule;

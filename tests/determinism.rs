@@ -105,7 +105,7 @@ fn every_method_runs_on_edge_sizes() {
 #[test]
 fn low_spp_off_is_exact_without_one_sample_pixels() {
     let img = fixture();
-    assert!(!mcdenoise::methods::prepare::has_low_spp(&img));
+    assert!(!mcdenoise::has_low_spp(&img));
     let run = |img: &StatsImage, low_spp: bool| {
         let mut cfg = Config::new(Method::Lp);
         cfg.low_spp = low_spp;
@@ -119,6 +119,6 @@ fn low_spp_off_is_exact_without_one_sample_pixels() {
         spp[0][i] = 1.0;
     }
     one.set(Layer::Spp, spp);
-    assert!(mcdenoise::methods::prepare::has_low_spp(&one));
+    assert!(mcdenoise::has_low_spp(&one));
     assert_ne!(run(&one, true), run(&one, false));
 }

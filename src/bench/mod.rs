@@ -190,7 +190,7 @@ fn denoiser(
     let mut config = Config::new(method);
     config.outliers = stages.outliers;
     config.prefilter = stages.prefilter;
-    config.low_spp = crate::methods::prepare::has_low_spp(img);
+    config.low_spp = crate::has_low_spp(img);
     match backend {
         Backend::Gpu => {
             let ctx = ctx.ok_or_else(|| {

@@ -10,8 +10,8 @@ use clap::{Parser, Subcommand, ValueEnum};
 use mcdenoise::io;
 use mcdenoise::metrics;
 use mcdenoise::{
-    colour_of, help_table, Backend, Config, ContextOptions, Denoiser, GpuContext, Method, Options,
-    Outliers, Pass, Precision, Prefilter, PrepareReport, Source, Validation,
+    colour_of, has_low_spp, help_table, Backend, Config, ContextOptions, Denoiser, GpuContext,
+    Method, Options, Outliers, Pass, Precision, Prefilter, PrepareReport, Source, Validation,
 };
 
 #[derive(Parser)]
@@ -434,7 +434,7 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
             config.options = options;
             config.debug = *debug_layers;
             config.progress = !cli.quiet;
-            config.low_spp = mcdenoise::methods::prepare::has_low_spp(&img);
+            config.low_spp = has_low_spp(&img);
             let source = Source::of_image(&img);
             let mut denoiser = match backend {
                 BackendArg::Gpu => Denoiser::new(&context(&cli)?, source, config)?,
@@ -507,7 +507,7 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
             let mut config = Config::new(Method::None);
             config.prefilter = Prefilter::On;
             config.precision = precision.get();
-            config.low_spp = mcdenoise::methods::prepare::has_low_spp(&img);
+            config.low_spp = has_low_spp(&img);
             let denoiser = Denoiser::new(&context(&cli)?, Source::of_image(&img), config)
                 .with_context(|| input.display().to_string())?;
             let result = denoiser.denoise(&img, None)?;
@@ -547,7 +547,7 @@ fn demo(cli: &Cli, out: &Path) -> anyhow::Result<bool> {
     let input_metrics = metrics::compare(&colour_of(&img), &r)?;
     let mut config = Config::new(Method::Wlr);
     config.debug = true;
-    config.low_spp = mcdenoise::methods::prepare::has_low_spp(&img);
+    config.low_spp = has_low_spp(&img);
     let denoiser = Denoiser::new(&ctx, Source::of_image(&img), config)?;
     let t0 = std::time::Instant::now();
     let result = denoiser.denoise(&img, None)?;
