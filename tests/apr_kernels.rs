@@ -84,6 +84,40 @@ fn f64s(v: &[f32]) -> Vec<f64> {
     v.iter().map(|&x| x as f64).collect()
 }
 
+/// Channel `ch` of an [`Img`] in f64, for `reference::apr`.
+struct RefChannel {
+    w: usize,
+    h: usize,
+    y: Vec<f64>,
+    v: Vec<f64>,
+    feats: Vec<Vec<f64>>,
+    valid: Vec<bool>,
+}
+
+impl RefChannel {
+    fn new(img: &Img, ch: usize) -> RefChannel {
+        RefChannel {
+            w: img.w,
+            h: img.h,
+            y: f64s(&img.y[ch]),
+            v: f64s(&img.v[ch]),
+            feats: img.feats.iter().map(|f| f64s(f)).collect(),
+            valid: img.spp.iter().map(|&s| s >= 1.0).collect(),
+        }
+    }
+
+    fn planes(&self) -> Planes<'_> {
+        Planes {
+            w: self.w,
+            h: self.h,
+            y: &self.y,
+            v: &self.v,
+            feats: &self.feats,
+            valid: &self.valid,
+        }
+    }
+}
+
 fn close(a: f64, b: f64, tol: f64) -> bool {
     (a - b).abs() <= tol * (a.abs().max(b.abs()) + 1e-12)
 }
@@ -94,26 +128,17 @@ fn close(a: f64, b: f64, tol: f64) -> bool {
 fn block_twin_equals_the_reference() {
     for vis in [true, false] {
         let img = image(45, 38, 7, vis);
-        let feats: Vec<Vec<f64>> = img.feats.iter().map(|f| f64s(f)).collect();
-        let valid: Vec<bool> = img.spp.iter().map(|&s| s >= 1.0).collect();
         let mut checked = 0;
         for ch in 0..3 {
-            let (y, v) = (f64s(&img.y[ch]), f64s(&img.v[ch]));
-            let pl = Planes {
-                w: img.w,
-                h: img.h,
-                y: &y,
-                v: &v,
-                feats: &feats,
-                valid: &valid,
-            };
+            let rc = RefChannel::new(&img, ch);
+            let (pl, y, v, valid) = (rc.planes(), &rc.y, &rc.v, &rc.valid);
             let inp = img.inputs(ch);
             for c in (0..img.w * img.h).step_by(37) {
                 if !valid[c] {
                     continue;
                 }
                 let d = r::design(&pl, r::BLOCK, c);
-                let fit = r::choose(&d, &pl, &y, &v);
+                let fit = r::choose(&d, &pl, y, v);
                 let tb = b::block(&inp, c, true, b::EPS);
                 assert_eq!(tb.order, fit.order, "c={c} ch={ch}");
                 assert_eq!(tb.degenerate, d.degenerate());
@@ -129,7 +154,7 @@ fn block_twin_equals_the_reference() {
                     tb.trace,
                     fit.trace
                 );
-                let by = r::beta(&d, fit.order, &y);
+                let by = r::beta(&d, fit.order, y);
                 let s: Vec<f64> = v.iter().map(|v| v.max(0.0).sqrt()).collect();
                 let bs = r::beta(&d, fit.order, &s);
                 for &q in &d.idx {
@@ -159,22 +184,13 @@ fn block_twin_equals_the_reference() {
 #[test]
 fn twin_run_equals_the_reference_channel() {
     let img = image(43, 31, 3, true);
-    let feats: Vec<Vec<f64>> = img.feats.iter().map(|f| f64s(f)).collect();
-    let valid: Vec<bool> = img.spp.iter().map(|&s| s >= 1.0).collect();
     let inp: [Inputs; 3] = std::array::from_fn(|ch| img.inputs(ch));
     let (out, _) = apr_gather::run(&inp, 2, b::EPS);
     let mut extras = 0;
     for ch in 0..3 {
-        let (y, v) = (f64s(&img.y[ch]), f64s(&img.v[ch]));
-        let pl = Planes {
-            w: img.w,
-            h: img.h,
-            y: &y,
-            v: &v,
-            feats: &feats,
-            valid: &valid,
-        };
-        let res = r::channel(&pl, 2);
+        let rc = RefChannel::new(&img, ch);
+        let valid = &rc.valid;
+        let res = r::channel(&rc.planes(), 2);
         for i in 0..img.w * img.h {
             if !valid[i] {
                 continue;

@@ -62,7 +62,7 @@ pub fn flops_per_block() -> f64 {
 /// Records the sparse blocks (`push.mode = 0`) over the centre grid, or the
 /// extra blocks (`push.mode = 1`) over the pixels. `feats`: normal xyz,
 /// albedo rgb, depth, visibility (any plane with `push.has_vis = 0`).
-/// `extra_flops`: the expected fraction of pixels that become extra blocks
+/// `extra_fraction`: the expected fraction of pixels that become extra blocks
 /// (for the band split and progress).
 pub fn record(
     batch: &mut Batch,

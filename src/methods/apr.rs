@@ -15,7 +15,7 @@ use crate::kernels::apr_block::{self, AprChannel};
 use crate::kernels::apr_gather::{self, EXTRA_PLANES, OUTPUTS, STAGE_OUTPUTS};
 use crate::options::Options;
 use crate::reference::apr::{self as r, Planes};
-use crate::reference::apr_block::{grid, STATE};
+use crate::reference::apr_block::{grid, RADIUS, STATE};
 use crate::reference::spp_of;
 use crate::shared::AprPush;
 
@@ -353,7 +353,8 @@ pub fn download(planes: &AprPlanes) -> Result<AprResult> {
     for (c, name) in ["R", "G", "B"].iter().enumerate() {
         let mut order = vec![0.0f32; w * h];
         for b in 0..gw * gh {
-            let i = (b / gw) * 14 * w + (b % gw) * 14;
+            let r = RADIUS as usize;
+            let i = (b / gw) * r * w + (b % gw) * r;
             let st = &state[(c * gw * gh + b) * STATE..];
             if st[2] > 0.0 {
                 order[i] = st[0] + 1.0;

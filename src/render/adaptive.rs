@@ -169,8 +169,8 @@ pub fn render(
         c.outliers = cfg.outliers;
         c.precision = cfg.precision;
         c.options = cfg.options.clone();
-        // Pass 0 gives every pixel `first` samples and later passes only
-        // add: no pixel has 1 <= spp < 2 unless `first` is 1 (§0.4 step 3).
+        // Pass 0 gives every pixel `first_spp` samples and later passes only
+        // add: no pixel has 1 <= spp < 2 unless `first_spp` is 1 (§0.4 step 3).
         c.low_spp = first_spp < 2;
         c
     };
@@ -190,10 +190,9 @@ pub fn render(
     };
     let mut done = 0;
     // Pass 0: uniform.
-    let first = first_spp;
     run(&mut |b| {
         renderer.record_clear(b);
-        renderer.record_pass(b, Samples::Uniform(first))
+        renderer.record_pass(b, Samples::Uniform(first_spp))
     })?;
     done += 1;
     progress(PassProgress { done, total });
