@@ -2,7 +2,8 @@
 // One APR block (spec §4.2) of channel push.channel at one stage: the
 // accepted set A_c (confidence-interval test), the feature spreads, the
 // moments M = sum K x x^T, V = sum K^2 s2prev x x^T and X^T W of yprev, y
-// and s = sqrt(v) over the 29x29 window (mat4 blocks, constant indices),
+// and s = sqrt(v) over the 29x29 window (K = K_h, times 1/max(v, 1) with
+// APR_CLAMPED in push.flags: APR-OUTLIER-W) (mat4 blocks, constant indices),
 // one ridge Cholesky of the largest order (APR-RIDGE-BLOCK, SOLVE-FAIL
 // retries), L^-1, G = L^-1 V L^-T and E = L^-1 M0 L^-T, then for K = 0..3
 // (the leading 9, 11, 14, 18 columns): beta of yprev,
@@ -32,7 +33,7 @@ layout(push_constant) uniform Push {
     uint channel;
     uint mode;
     uint last;
-    uint has_vis;
+    uint flags;
     uint stride;
 } push;
 
@@ -162,7 +163,7 @@ Result block(ivec2 c, ivec2 size, bool with_s)
             }
             real4 a0, a1, a2, a3, a4;
             apr_row(ivec2(qx, qy) - c, apr_fa(q), apr_fb(q), fca, fcb, isa, isb, a0, a1, a2, a3, a4);
-            real k = apr_weight(qx - c.x, qy - c.y);
+            real k = apr_fit_weight(apr_weight(qx - c.x, qy - c.y), vq);
             acc(a0, a1, a2, a3, a4, k, k * k * real(s2prev[q]));
             real kp = k * real(yprev[q]);
             real ky = k * yq;
@@ -222,7 +223,8 @@ Result block(ivec2 c, ivec2 size, bool with_s)
     for (int qy = y0; qy <= y1; ++qy) {
         for (int qx = x0; qx <= x1; ++qx) {
             uint q = uint(qy * size.x + qx);
-            if (!apr_valid(q) || (q != ci && !apr_accepts(yc, vc, real(ych[q]), real(vch[q])))) {
+            real vq = real(vch[q]);
+            if (!apr_valid(q) || (q != ci && !apr_accepts(yc, vc, real(ych[q]), vq))) {
                 continue;
             }
             real4 a0, a1, a2, a3, a4;
@@ -233,7 +235,7 @@ Result block(ivec2 c, ivec2 size, bool with_s)
                 dot(a0, B10) + dot(a1, B11) + dot(a2, B12) + dot(a3, B13) + dot(a4, B14),
                 dot(a0, B20) + dot(a1, B21) + dot(a2, B22) + dot(a3, B23) + dot(a4, B24),
                 dot(a0, B30) + dot(a1, B31) + dot(a2, B32) + dot(a3, B33) + dot(a4, B34)) - yp;
-            rss += apr_weight(qx - c.x, qy - c.y) * e * e;
+            rss += apr_fit_weight(apr_weight(qx - c.x, qy - c.y), vq) * e * e;
         }
     }
     xi = (rss + xi) / wsum;

@@ -23,7 +23,7 @@ layout(push_constant) uniform Push {
     uint channel;
     uint mode;
     uint last;
-    uint has_vis;
+    uint flags;
     uint stride;
 } push;
 

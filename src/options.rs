@@ -76,6 +76,13 @@ pub const OPTIONS: &[OptionSpec] = &[
         help: "error-estimation stages T (the reconstruction always filters the input)",
     },
     OptionSpec {
+        key: "apr.outlier_weight",
+        kind: Kind::Choice(&["clamped", "off"]),
+        default: "clamped",
+        section: "§4.2 (APR-OUTLIER-W)",
+        help: "block kernel K_h divided by max(var, 1) per channel (clamped), as WLR's outlier weight, or K_h alone (off, the paper)",
+    },
+    OptionSpec {
         key: "apr.prefilter",
         kind: Kind::Choice(&["off", "on"]),
         default: "off",

@@ -173,11 +173,18 @@ pub struct AprPush {
     pub mode: u32,
     /// 1 on the last stage: no `β_s`; `apr_gather` writes the final planes.
     pub last: u32,
-    /// 1 when the visibility plane is bound (else a zero feature).
-    pub has_vis: u32,
+    /// Bits: [`APR_VIS`], [`APR_CLAMPED`].
+    pub flags: u32,
     /// f32 values from one plane to the next in the packed bindings.
     pub stride: u32,
 }
+
+/// [`AprPush::flags`] bit: the visibility plane is bound (else a zero
+/// feature).
+pub const APR_VIS: u32 = 1;
+/// [`AprPush::flags`] bit (`apr_block`): the block kernel is `K_h·o_i`,
+/// `o_i = 1/max(v_i, 1)` (APR-OUTLIER-W).
+pub const APR_CLAMPED: u32 = 2;
 
 /// [`LpPush::options`] bit: subtract the test pixel's variance (LP-VARSUB, `s = 1`).
 pub const LP_VARSUB: u32 = 1;

@@ -20,6 +20,8 @@ pub struct Img {
     pub v: [Vec<f32>; 3],
     pub feats: Vec<Vec<f32>>,
     pub spp: Vec<f32>,
+    /// APR-OUTLIER-W in the twins' inputs.
+    pub clamped: bool,
 }
 
 pub fn image(w: usize, h: usize, seed: u64, vis: bool) -> Img {
@@ -52,6 +54,14 @@ pub fn image(w: usize, h: usize, seed: u64, vis: bool) -> Img {
             y[ch][i % n] = 40.0;
         }
     }
+    // Pixels dominated by one bright sample (variance > 1): accepted by the
+    // confidence interval, weighted by 1/v under APR-OUTLIER-W.
+    for i in (3..n).step_by(17) {
+        for ch in 0..3 {
+            y[ch][i] += 4.0;
+            v[ch][i] = 3.0 + ch as f32;
+        }
+    }
     let spp = (0..n)
         .map(|_| if rng.uniform() < 0.03 { 0.0 } else { 4.0 })
         .collect();
@@ -62,6 +72,7 @@ pub fn image(w: usize, h: usize, seed: u64, vis: bool) -> Img {
         v,
         feats,
         spp,
+        clamped: true,
     }
 }
 
@@ -76,6 +87,7 @@ impl Img {
             s2prev: &self.v[ch],
             feats: std::array::from_fn(|j| self.feats.get(j).map(|f| f.as_slice())),
             spp: &self.spp,
+            clamped: self.clamped,
         }
     }
 }
@@ -126,8 +138,14 @@ fn close(a: f64, b: f64, tol: f64) -> bool {
 /// `(H y)_i` at every accepted pixel, to 1e-9.
 #[test]
 fn block_twin_equals_the_reference() {
-    for vis in [true, false] {
-        let img = image(45, 38, 7, vis);
+    for (vis, clamped) in [(true, true), (false, true), (true, false)] {
+        let mut img = image(45, 38, 7, vis);
+        img.clamped = clamped;
+        let shape = if clamped {
+            r::BLOCK
+        } else {
+            r::BLOCK_UNWEIGHTED
+        };
         let mut checked = 0;
         for ch in 0..3 {
             let rc = RefChannel::new(&img, ch);
@@ -137,7 +155,7 @@ fn block_twin_equals_the_reference() {
                 if !valid[c] {
                     continue;
                 }
-                let d = r::design(&pl, r::BLOCK, c);
+                let d = r::design(&pl, shape, c);
                 let fit = r::choose(&d, &pl, y, v);
                 let tb = b::block(&inp, c, true, b::EPS);
                 assert_eq!(tb.order, fit.order, "c={c} ch={ch}");
@@ -183,37 +201,45 @@ fn block_twin_equals_the_reference() {
 /// stage planes in f32, as the GPU does, so 1e-4 relative.
 #[test]
 fn twin_run_equals_the_reference_channel() {
-    let img = image(43, 31, 3, true);
-    let inp: [Inputs; 3] = std::array::from_fn(|ch| img.inputs(ch));
-    let (out, _) = apr_gather::run(&inp, 2, b::EPS);
-    let mut extras = 0;
-    for ch in 0..3 {
-        let rc = RefChannel::new(&img, ch);
-        let valid = &rc.valid;
-        let res = r::channel(&rc.planes(), 2);
-        for i in 0..img.w * img.h {
-            if !valid[i] {
-                continue;
+    for clamped in [true, false] {
+        let mut img = image(43, 31, 3, true);
+        img.clamped = clamped;
+        let shape = if clamped {
+            r::BLOCK
+        } else {
+            r::BLOCK_UNWEIGHTED
+        };
+        let inp: [Inputs; 3] = std::array::from_fn(|ch| img.inputs(ch));
+        let (out, _) = apr_gather::run(&inp, 2, b::EPS);
+        let mut extras = 0;
+        for ch in 0..3 {
+            let rc = RefChannel::new(&img, ch);
+            let valid = &rc.valid;
+            let res = r::channel(&rc.planes(), 2, shape);
+            for i in 0..img.w * img.h {
+                if !valid[i] {
+                    continue;
+                }
+                let (tc, rc) = (out[ch][i] as f64, res.color[i].max(0.0));
+                assert!(
+                    (tc - rc).abs() <= 1e-4 * (rc.abs() + 1e-3),
+                    "ch={ch} i={i}: colour {tc} vs {rc}"
+                );
+                let (te, re) = (out[3 + ch][i] as f64, res.error[i]);
+                assert!(
+                    (te - re).abs() <= 1e-4 * (re.abs() + 1e-6),
+                    "ch={ch} i={i}: error {te} vs {re}"
+                );
+                assert_eq!(
+                    out[7 + ch][i] as f64,
+                    res.extra[i],
+                    "ch={ch} i={i}: extra mask"
+                );
+                extras += res.extra[i] as usize;
             }
-            let (tc, rc) = (out[ch][i] as f64, res.color[i].max(0.0));
-            assert!(
-                (tc - rc).abs() <= 1e-4 * (rc.abs() + 1e-3),
-                "ch={ch} i={i}: colour {tc} vs {rc}"
-            );
-            let (te, re) = (out[3 + ch][i] as f64, res.error[i]);
-            assert!(
-                (te - re).abs() <= 1e-4 * (re.abs() + 1e-6),
-                "ch={ch} i={i}: error {te} vs {re}"
-            );
-            assert_eq!(
-                out[7 + ch][i] as f64,
-                res.extra[i],
-                "ch={ch} i={i}: extra mask"
-            );
-            extras += res.extra[i] as usize;
         }
+        assert!(extras >= 4, "the spikes become extra centres ({extras})");
     }
-    assert!(extras >= 4, "the spikes become extra centres ({extras})");
 }
 
 fn stats(img: &Img) -> mcdenoise::image::StatsImage {
@@ -246,8 +272,14 @@ fn gpu_kernels_match_the_twins() {
     use mcdenoise::methods::apr::{self, AprParams, AprPlanes};
     use mcdenoise::methods::stats::GpuStats;
     let ctx = common::gpu();
-    for (w, h, vis) in [(45, 38, true), (29, 17, false), (1, 9, true)] {
-        let img = image(w, h, 11, vis);
+    for (w, h, vis, clamped) in [
+        (45, 38, true, true),
+        (29, 17, false, true),
+        (1, 9, true, true),
+        (45, 38, true, false),
+    ] {
+        let mut img = image(w, h, 11, vis);
+        img.clamped = clamped;
         let inp: [Inputs; 3] = std::array::from_fn(|ch| img.inputs(ch));
         let gs = GpuStats::upload(&ctx, "apr.test", &stats(&img)).unwrap();
         for precision in common::precisions() {
@@ -267,12 +299,13 @@ fn gpu_kernels_match_the_twins() {
                 AprParams {
                     stages: 2,
                     prefilter: false,
+                    clamped,
                 },
             )
             .unwrap();
             batch.finish().unwrap();
             let out = planes.out.download_all().unwrap();
-            let what = |k: usize| format!("{w}x{h} {precision:?} plane {k}");
+            let what = |k: usize| format!("{w}x{h} {precision:?} clamped={clamped} plane {k}");
             for k in [0, 1, 2, 3, 4, 5, 6] {
                 common::assert_close(&what(k), &out[k], &cpu[k], 0.99);
             }

@@ -3,7 +3,7 @@
 // weights, acceptance, coverage) and src/reference/apr_gather.rs.
 //
 // The including kernel declares, before the include: the push block `push`
-// (AprPush: width, height, row0, channel, mode, last, has_vis, stride), the
+// (AprPush: width, height, row0, channel, mode, last, flags, stride), the
 // feature planes f0..f7 (normal xyz, albedo rgb, depth, visibility) and
 // `spp`.
 //
@@ -24,15 +24,18 @@
 #define APR_STATE 52
 #define APR_RIDGE_FLOOR 1e-8
 #define APR_RETRIES 3
+// AprPush.flags bits (mirror mcdenoise::shared::APR_VIS, APR_CLAMPED).
+#define APR_VIS 1u
+#define APR_CLAMPED 2u
 
 bool apr_valid(uint i) { return spp_of(spp[i]) >= 1.0; }
 
 // Normal xyz and albedo r.
 real4 apr_fa(uint i) { return real4(f0[i], f1[i], f2[i], f3[i]); }
-// Albedo g b, depth, visibility (0 without the plane: has_vis = 0).
+// Albedo g b, depth, visibility (0 without the plane: no APR_VIS).
 real4 apr_fb(uint i)
 {
-    return real4(f4[i], f5[i], f6[i], push.has_vis != 0u ? f7[i] : 0.0);
+    return real4(f4[i], f5[i], f6[i], (push.flags & APR_VIS) != 0u ? f7[i] : 0.0);
 }
 
 // K_h(i) for the offset (dx, dy), h = 14. GLSL has no f64 exp: computed in
@@ -40,6 +43,13 @@ real4 apr_fb(uint i)
 real apr_weight(int dx, int dy)
 {
     return real(exp(-float(dx * dx + dy * dy) / float(2 * APR_R * APR_R)));
+}
+
+// The block's kernel at a pixel with spatial weight k and variance vq:
+// K_h * o_q, o_q = 1 / max(vq, 1) with APR_CLAMPED (APR-OUTLIER-W).
+real apr_fit_weight(real k, real vq)
+{
+    return (push.flags & APR_CLAMPED) != 0u ? k / max(vq, real(1)) : k;
 }
 
 // The confidence-interval test (§4.2 step 1) of pixel q in the block of c.

@@ -61,7 +61,7 @@ pub fn flops_per_block() -> f64 {
 
 /// Records the sparse blocks (`push.mode = 0`) over the centre grid, or the
 /// extra blocks (`push.mode = 1`) over the pixels. `feats`: normal xyz,
-/// albedo rgb, depth, visibility (any plane with `push.has_vis = 0`).
+/// albedo rgb, depth, visibility (any plane without `APR_VIS` in `push.flags`).
 /// `extra_fraction`: the expected fraction of pixels that become extra blocks
 /// (for the band split and progress).
 pub fn record(

@@ -17,7 +17,7 @@ use crate::options::Options;
 use crate::reference::apr::{self as r, Planes};
 use crate::reference::apr_block::{grid, RADIUS, STATE};
 use crate::reference::spp_of;
-use crate::shared::AprPush;
+use crate::shared::{AprPush, APR_CLAMPED, APR_VIS};
 
 /// APR's options.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
@@ -30,6 +30,10 @@ pub struct AprParams {
     /// the wall with the light (glossy_cornell at 4 spp: rMSE 1.37 against
     /// the input's 0.27; 0.017 without it).
     pub prefilter: bool,
+    /// `apr.outlier_weight=clamped` (default): the block kernel is
+    /// `K_h·o_i`, `o_i = 1/max(v_i, 1)` (decision APR-OUTLIER-W, see
+    /// [`r::outlier_weight`]).
+    pub clamped: bool,
 }
 
 impl AprParams {
@@ -47,6 +51,7 @@ impl AprParams {
         Ok(AprParams {
             stages,
             prefilter: opts.get("apr.prefilter") == "on",
+            clamped: opts.get("apr.outlier_weight") == "clamped",
         })
     }
 }
@@ -138,7 +143,12 @@ pub fn run_cpu(
             feats: &feats,
             valid: &valid,
         };
-        let res = r::channel(&pl, params.stages);
+        let block = if params.clamped {
+            r::BLOCK
+        } else {
+            r::BLOCK_UNWEIGHTED
+        };
+        let res = r::channel(&pl, params.stages, block);
         for i in 0..n {
             let out = if valid[i] {
                 res.color[i]
@@ -254,6 +264,11 @@ pub fn gpu_features(clean: &GpuStats) -> ([BufferSlice; 8], bool) {
     (f, vis)
 }
 
+/// [`AprPush::flags`] of a dispatch.
+fn apr_flags(vis: bool, clamped: bool) -> u32 {
+    (if vis { APR_VIS } else { 0 }) | (if clamped { APR_CLAMPED } else { 0 })
+}
+
 /// Records APR (§4.2–4.3) on sanitised (and outlier-cleaned) statistics:
 /// per stage, the sparse blocks of each channel, the extra blocks, the
 /// gather. The outputs stay on the GPU in `planes`. The feature prefilter
@@ -296,7 +311,7 @@ pub fn record_apr(
                     channel: ch as u32,
                     mode,
                     last: last as u32,
-                    has_vis: vis as u32,
+                    flags: apr_flags(vis, params.clamped),
                     stride,
                     ..Default::default()
                 };
@@ -317,7 +332,7 @@ pub fn record_apr(
             width: w as u32,
             height: h as u32,
             last: last as u32,
-            has_vis: vis as u32,
+            flags: apr_flags(vis, false),
             stride,
             ..Default::default()
         };

@@ -11,7 +11,7 @@
 //!
 //! One pass over the window finds `A_c` and the feature spreads; a second
 //! accumulates `M = Σ K_h x xᵀ`, `V = Σ K_h² σ̂²_{t−1} x xᵀ` and the right-hand
-//! sides; `M + Λ` is factored once (`L`, APR-RIDGE-BLOCK) and inverted
+//! sides (`K_h` times `1/max(v, 1)` under APR-OUTLIER-W, as everywhere below); `M + Λ` is factored once (`L`, APR-RIDGE-BLOCK) and inverted
 //! (`L⁻¹`, lower triangular), and the leading blocks of `L⁻¹` serve every
 //! order: `M_K⁻¹ = L_K⁻ᵀ L_K⁻¹`. With `G = L⁻¹ V L⁻ᵀ` and
 //! `E = L⁻¹ M0 L⁻ᵀ` (`M0 = M`, no ridge), `tr H(K) = Σ_{a<p_K} E_aa` and
@@ -54,6 +54,8 @@ pub struct Inputs<'a> {
     pub feats: [Option<&'a [f32]>; NF],
     /// Sample counts (valid iff `spp_of >= 1`).
     pub spp: &'a [f32],
+    /// APR-OUTLIER-W: the kernel is `K_h·o_i` ([`super::apr::outlier_weight`]).
+    pub clamped: bool,
 }
 
 impl Inputs<'_> {
@@ -65,6 +67,11 @@ impl Inputs<'_> {
     /// Feature `j` at pixel `i` (0 when absent).
     pub fn feat(&self, j: usize, i: usize) -> f64 {
         self.feats[j].map_or(0.0, |f| f[i] as f64)
+    }
+
+    /// The block's kernel at pixel `q`: `K_h(q)·o_q` (APR-OUTLIER-W).
+    pub fn fit_weight(&self, c: usize, q: usize) -> f64 {
+        weight(self.w, c, q) * super::apr::outlier_weight(self.v[q] as f64, self.clamped)
     }
 
     /// The confidence-interval test of §4.2 step 1 (`i` always accepts
@@ -252,7 +259,6 @@ fn solve(li: &[[f64; P]; P], p: usize, b: &[f64; P]) -> [f64; P] {
 /// One block of channel `inp` centred at `c` (a valid pixel), stage
 /// `(yprev, s2prev)`; `with_s`: also `β_s` (every stage but the last).
 pub fn block(inp: &Inputs, c: usize, with_s: bool, eps: f64) -> Block {
-    let w = inp.w;
     let acc = accepted(inp, c);
     let mut scales = [0.0; NF];
     for (j, s) in scales.iter_mut().enumerate() {
@@ -290,7 +296,7 @@ pub fn block(inp: &Inputs, c: usize, with_s: bool, eps: f64) -> Block {
     let mut wsum = 0.0;
     for &q in &acc {
         let x = row(inp, c, &scales, q);
-        let k = weight(w, c, q);
+        let k = inp.fit_weight(c, q);
         let kv = k * k * inp.s2prev[q] as f64;
         let (yp, y, s) = (
             inp.yprev[q] as f64,
@@ -349,7 +355,7 @@ pub fn block(inp: &Inputs, c: usize, with_s: bool, eps: f64) -> Block {
     let mut rss = [0.0; 4];
     for &q in &acc {
         let x = row(inp, c, &scales, q);
-        let k = weight(w, c, q);
+        let k = inp.fit_weight(c, q);
         let yp = inp.yprev[q] as f64;
         for o in 0..4 {
             let r: f64 = x.iter().zip(&betas[o]).map(|(x, b)| x * b).sum::<f64>() - yp;
