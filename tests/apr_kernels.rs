@@ -141,11 +141,7 @@ fn block_twin_equals_the_reference() {
     for (vis, clamped) in [(true, true), (false, true), (true, false)] {
         let mut img = image(45, 38, 7, vis);
         img.clamped = clamped;
-        let shape = if clamped {
-            r::BLOCK
-        } else {
-            r::BLOCK_UNWEIGHTED
-        };
+        let shape = r::block_shape(clamped);
         let mut checked = 0;
         for ch in 0..3 {
             let rc = RefChannel::new(&img, ch);
@@ -204,11 +200,7 @@ fn twin_run_equals_the_reference_channel() {
     for clamped in [true, false] {
         let mut img = image(43, 31, 3, true);
         img.clamped = clamped;
-        let shape = if clamped {
-            r::BLOCK
-        } else {
-            r::BLOCK_UNWEIGHTED
-        };
+        let shape = r::block_shape(clamped);
         let inp: [Inputs; 3] = std::array::from_fn(|ch| img.inputs(ch));
         let (out, _) = apr_gather::run(&inp, 2, b::EPS);
         let mut extras = 0;

@@ -143,12 +143,7 @@ pub fn run_cpu(
             feats: &feats,
             valid: &valid,
         };
-        let block = if params.clamped {
-            r::BLOCK
-        } else {
-            r::BLOCK_UNWEIGHTED
-        };
-        let res = r::channel(&pl, params.stages, block);
+        let res = r::channel(&pl, params.stages, r::block_shape(params.clamped));
         for i in 0..n {
             let out = if valid[i] {
                 res.color[i]

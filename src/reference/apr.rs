@@ -105,6 +105,15 @@ pub const BLOCK_UNWEIGHTED: Shape = Shape {
     ..BLOCK
 };
 
+/// [`BLOCK`] with `apr.outlier_weight=clamped`, [`BLOCK_UNWEIGHTED`] with `off`.
+pub fn block_shape(clamped: bool) -> Shape {
+    if clamped {
+        BLOCK
+    } else {
+        BLOCK_UNWEIGHTED
+    }
+}
+
 /// The feature prefilter's blocks (§4.6).
 pub const PREFILTER: Shape = Shape {
     radius: PREFILTER_RADIUS,
