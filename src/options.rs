@@ -76,6 +76,27 @@ pub const OPTIONS: &[OptionSpec] = &[
         help: "error-estimation stages T (the reconstruction always filters the input)",
     },
     OptionSpec {
+        key: "aos.variance",
+        kind: Kind::Choice(&["paper", "sandwich"]),
+        default: "paper",
+        section: "§5.3 step 5 (AOS-VAR)",
+        help: "order-l variance: [A⁻¹BA⁻¹]_00·σ*² as the paper writes it (paper), or Σ l_i² vbar_i, the exact variance of the estimate (sandwich)",
+    },
+    OptionSpec {
+        key: "aos.bias_test",
+        kind: Kind::Choice(&["on", "off"]),
+        default: "on",
+        section: "§5.3 step 5 (AOS-BIAS-TEST)",
+        help: "an order's estimated bias counts only when above 2 standard errors of its estimate (on), or always (off, the paper)",
+    },
+    OptionSpec {
+        key: "aos.identity",
+        kind: Kind::Choice(&["on", "off"]),
+        default: "on",
+        section: "§5.3 step 6 (AOS-IDENTITY)",
+        help: "the pixel's input competes as a candidate with MSE = its variance (on), or not (off, the paper)",
+    },
+    OptionSpec {
         key: "apr.outlier_weight",
         kind: Kind::Choice(&["clamped", "off"]),
         default: "clamped",

@@ -47,6 +47,8 @@ enum MethodArg {
     Lp,
     /// Adaptive polynomial rendering: per-block polynomial order (spec §4).
     Apr,
+    /// Adaptive-order polynomial fitting in feature space: per-pixel order 1 or 3 (spec §5); CPU backend only in this build.
+    Aos,
     /// No reconstruction: the sanitised input colour (spec §0.4), for checking
     /// inputs, the pipeline and the metrics.
     None,
@@ -132,6 +134,7 @@ impl MethodArg {
             MethodArg::Wlr => Method::Wlr,
             MethodArg::Lp => Method::Lp,
             MethodArg::Apr => Method::Apr,
+            MethodArg::Aos => Method::Aos,
             MethodArg::None => Method::None,
         }
     }

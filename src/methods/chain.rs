@@ -157,7 +157,7 @@ impl GpuChain {
         }
         if matches!(config.method, Method::Aos) {
             return Err(Error::InvalidArgument(format!(
-                "method {} runs on the CPU backend only in this build",
+                "method {} runs on the CPU backend only in this build (--backend cpu); its GPU kernels are not built yet",
                 config.method.name()
             )));
         }

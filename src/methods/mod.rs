@@ -2,6 +2,7 @@
 //! on the CPU (their scalar twins), selected by [`Backend`]; [`denoise`] is
 //! the one entry point the CLI and the benchmarks use.
 
+pub mod aos;
 pub mod apr;
 pub mod chain;
 pub mod gbf;
@@ -61,7 +62,10 @@ impl Method {
 
     /// Methods built into this version.
     pub fn available(self) -> bool {
-        matches!(self, Method::None | Method::Wlr | Method::Lp | Method::Apr)
+        matches!(
+            self,
+            Method::None | Method::Wlr | Method::Lp | Method::Apr | Method::Aos
+        )
     }
 }
 
@@ -298,6 +302,12 @@ fn denoise_cpu(img: &StatsImage, req: &DenoiseRequest) -> Result<DenoiseOutput> 
         Method::Apr => {
             let params = apr::AprParams::new(&req.options)?;
             let r = apr::run_cpu(&clean, params, params.prefilter && !prefiltered)?;
+            let debug = if req.debug { r.debug } else { Vec::new() };
+            (r.color, r.error, r.dim, debug, Vec::new())
+        }
+        Method::Aos => {
+            let params = aos::AosParams::new(req.pass, &req.options)?;
+            let r = aos::run_cpu(&clean, params, prefiltered)?;
             let debug = if req.debug { r.debug } else { Vec::new() };
             (r.color, r.error, r.dim, debug, Vec::new())
         }

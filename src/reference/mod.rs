@@ -10,6 +10,7 @@
 //! the sampling allocation (`sample_reduce`, `sample_scan`) are exact integer
 //! arithmetic and agree with their kernels bit for bit (§9.2).
 
+pub mod aos;
 pub mod apr;
 pub mod apr_block;
 pub mod apr_gather;

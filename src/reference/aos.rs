@@ -1,0 +1,593 @@
+//! AOS, adaptive-order polynomial fitting in feature space (spec §5), in f64
+//! from the definitions: the reference of the CPU path (and of GPU kernels
+//! to come).
+//!
+//! Per pixel `c`: the TSVD local space (§0.6) of the window's features
+//! `(px, py, depth, albedo rgb, normal xyz[, visibility])`, the local
+//! coordinates `Δz ∈ R^k`, a spatial Gaussian kernel (`h = R`), and the
+//! *partial* polynomial design of element-wise powers
+//! `[1, Δz, Δz², …, Δz⁵]` (columns ordered by power, so order `l`'s design
+//! is a leading block). One order-5 fit on grey gives the bias image of each
+//! candidate order `l ∈ {1, 3}` (its next two powers, AOS-ONEFIT) and `σ*²`;
+//! the order of least `var_l + bias_l²` filters each channel.
+//!
+//! [`nlmeans`] is the feature prefilter of §5.2.
+
+use super::linalg::{ridge_cholesky, RidgeCholesky, EPS_PIVOT};
+use super::tsvd::{local_coords, local_space};
+
+/// Window radius of the final pass (19×19).
+pub const RADIUS_FINAL: usize = 9;
+/// Window radius of the intermediate passes (11×11).
+pub const RADIUS_INTERMEDIATE: usize = 5;
+/// Candidate orders `l` (Alg. 1: `l = 1, 1 + a, …, p_max`).
+pub const ORDERS: [usize; 2] = [1, 3];
+/// Increment `a`: order `l`'s bias comes from powers `l+1 ..= l+a`.
+pub const INCREMENT: usize = 2;
+/// The high order `P* = p_max + a` fitted once (AOS-ONEFIT).
+pub const P_STAR: usize = 5;
+/// Ridge factor: `λ = 1e-5·Σ K_i` (§5.3 step 3).
+pub const RIDGE: f64 = 1e-5;
+/// AOS-SCALE: a column whose weighted RMS is below this is dropped.
+pub const RMS_EPS: f64 = 1e-12;
+/// `ε` of the sampling formula for AOS (§5.3 step 8).
+pub const EPSILON: f64 = 1e-4;
+/// NL-means search radius (11×11, NLM-PARAMS).
+pub const NLM_SEARCH: usize = 5;
+/// NL-means patch radius (7×7, NLM-PARAMS).
+pub const NLM_PATCH: usize = 3;
+/// NL-means `k` (NLM-K).
+pub const NLM_K: f64 = 1.0;
+
+/// The variance estimate of §5.3 step 5 (`aos.variance`).
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Default)]
+pub enum Variance {
+    /// `[A_l⁻¹ B_l A_l⁻¹]_00 · σ*²` (the paper as written, default).
+    #[default]
+    Paper,
+    /// `Σ_i (l^{(l)}_i)² vbar_i`, the exact variance of the order-l estimate.
+    Sandwich,
+}
+
+/// The image AOS reads: colour and its variance, the feature planes in §5.1's
+/// order after the prefilter, their variances, validity.
+#[derive(Clone, Copy)]
+pub struct Planes<'a> {
+    /// Width in pixels.
+    pub w: usize,
+    /// Height in pixels.
+    pub h: usize,
+    /// Colour R, G, B.
+    pub color: [&'a [f64]; 3],
+    /// `vbar`: the mean of the three colour variances (§0.1).
+    pub vbar: &'a [f64],
+    /// Feature planes: depth, albedo r g b, normal x y z[, visibility]
+    /// (pixel coordinates are added by [`Planes::features`]).
+    pub feats: &'a [Vec<f64>],
+    /// Their variances (of the mean).
+    pub fvar: &'a [Vec<f64>],
+    /// Valid pixels (§0.2).
+    pub valid: &'a [bool],
+}
+
+impl Planes<'_> {
+    /// Feature dimension `D`: 2 coordinates + the planes (10, or 9 without
+    /// visibility).
+    pub fn d(&self) -> usize {
+        2 + self.feats.len()
+    }
+
+    /// Raw features and variances of pixel `q` (§5.1): `(px, py, …)` with
+    /// variance 0 for the coordinates.
+    pub fn features(&self, q: usize, x: &mut [f64], e2: &mut [f64]) {
+        x[0] = (q % self.w) as f64;
+        x[1] = (q / self.w) as f64;
+        e2[0] = 0.0;
+        e2[1] = 0.0;
+        for (j, (f, v)) in self.feats.iter().zip(self.fvar).enumerate() {
+            x[2 + j] = f[q];
+            e2[2 + j] = v[q];
+        }
+    }
+
+    /// `grey = (R + G + B)/3` of pixel `q` (§0.1).
+    pub fn grey(&self, q: usize) -> f64 {
+        (self.color[0][q] + self.color[1][q] + self.color[2][q]) / 3.0
+    }
+}
+
+/// The design of one pixel's window at order [`P_STAR`]: accepted (valid)
+/// pixels, kernel weights, scaled columns.
+#[derive(Clone, Debug)]
+pub struct Design {
+    /// The centre pixel.
+    pub centre: usize,
+    /// The window's valid pixels in raster order.
+    pub idx: Vec<usize>,
+    /// `K_i = exp(−|i−c|²/(2h²))`, `h = R` (AOS-H).
+    pub kh: Vec<f64>,
+    /// The TSVD rank `k` (§0.6), the local dimension `d` of the sample map.
+    pub rank: usize,
+    /// Columns kept, as `(power v, component j)`; column 0 (`(0, 0)`) is the
+    /// intercept. Ordered by power, then component.
+    pub cols: Vec<(usize, usize)>,
+    /// Rows, `idx.len() × cols.len()` row-major, scaled (AOS-SCALE).
+    pub rows: Vec<f64>,
+    /// Ridge `λ = 1e-5·Σ K_i` (before SOLVE-FAIL retries).
+    pub lambda: f64,
+}
+
+impl Design {
+    /// Number of columns of order ≤ `l` (the leading block).
+    pub fn p(&self, l: usize) -> usize {
+        self.cols.iter().filter(|c| c.0 <= l).count()
+    }
+
+    /// `Σ_i w_i x_i x_iᵀ` over the leading `p` columns with weights `w`.
+    fn gram(&self, p: usize, w: impl Fn(usize) -> f64) -> Vec<f64> {
+        let pc = self.cols.len();
+        let mut a = vec![0.0; p * p];
+        for r in 0..self.idx.len() {
+            let x = &self.rows[r * pc..r * pc + p];
+            let wr = w(r);
+            for i in 0..p {
+                for j in 0..p {
+                    a[i * p + j] += wr * x[i] * x[j];
+                }
+            }
+        }
+        a
+    }
+
+    /// Row `r`'s leading `p` entries.
+    pub fn row(&self, r: usize, p: usize) -> &[f64] {
+        let pc = self.cols.len();
+        &self.rows[r * pc..r * pc + p]
+    }
+}
+
+/// Builds the design of pixel `c` with window radius `radius` (§5.3 steps
+/// 1–3, the columns up to order [`P_STAR`]).
+pub fn design(pl: &Planes, c: usize, radius: usize) -> Design {
+    let (w, h) = (pl.w, pl.h);
+    let (cx, cy) = (c % w, c / w);
+    let d = pl.d();
+    let mut idx = Vec::new();
+    let mut x = Vec::new();
+    let mut e2 = Vec::new();
+    let (mut xi, mut ei) = (vec![0.0; d], vec![0.0; d]);
+    for qy in cy.saturating_sub(radius)..(cy + radius + 1).min(h) {
+        for qx in cx.saturating_sub(radius)..(cx + radius + 1).min(w) {
+            let q = qy * w + qx;
+            if !pl.valid[q] {
+                continue;
+            }
+            pl.features(q, &mut xi, &mut ei);
+            idx.push(q);
+            x.extend_from_slice(&xi);
+            e2.extend_from_slice(&ei);
+        }
+    }
+    let ls = local_space(&x, &e2, d);
+    let mut xc = vec![0.0; d];
+    pl.features(c, &mut xc, &mut ei);
+    let k = ls.k;
+    let dz: Vec<Vec<f64>> = (0..idx.len())
+        .map(|r| local_coords(&ls, &x[r * d..(r + 1) * d], &xc))
+        .collect();
+    let bw = radius.max(1) as f64;
+    let kh: Vec<f64> = idx
+        .iter()
+        .map(|&q| {
+            let dx = (q % w) as f64 - cx as f64;
+            let dy = (q / w) as f64 - cy as f64;
+            (-(dx * dx + dy * dy) / (2.0 * bw * bw)).exp()
+        })
+        .collect();
+    let ksum: f64 = kh.iter().sum();
+    // Columns by power, then component; AOS-SCALE divides each by its
+    // weighted RMS and drops the ones below RMS_EPS.
+    let mut cols = vec![(0, 0)];
+    let mut scale = vec![1.0];
+    for v in 1..=P_STAR {
+        for j in 0..k {
+            let ms = dz
+                .iter()
+                .zip(&kh)
+                .map(|(z, &kw)| kw * z[j].powi(v as i32).powi(2))
+                .sum::<f64>()
+                / ksum;
+            let rms = ms.sqrt();
+            if rms >= RMS_EPS {
+                cols.push((v, j));
+                scale.push(1.0 / rms);
+            }
+        }
+    }
+    let rows: Vec<f64> = dz
+        .iter()
+        .flat_map(|z| {
+            cols.iter()
+                .zip(&scale)
+                .map(|(&(v, j), &s)| if v == 0 { 1.0 } else { z[j].powi(v as i32) * s })
+                .collect::<Vec<_>>()
+        })
+        .collect();
+    Design {
+        centre: c,
+        idx,
+        kh,
+        rank: k,
+        cols,
+        rows,
+        lambda: RIDGE * ksum,
+    }
+}
+
+/// One order's weighted least-squares system: the factor of
+/// `A = XᵀWX + Λ` over the leading `p` columns and `u = A⁻¹ e_1`.
+#[derive(Clone, Debug)]
+pub struct Fit {
+    /// Columns used.
+    pub p: usize,
+    /// The ridge Cholesky factor (SOLVE-FAIL retries included).
+    pub chol: RidgeCholesky,
+    /// `u = A⁻¹ e_1`: the equivalent kernel is `l_i = K_i uᵀ x_i` (§0.5).
+    pub u: Vec<f64>,
+}
+
+impl Fit {
+    /// `β = A⁻¹ Xᵀ W z` over the design's pixels (`z` of a pixel index).
+    pub fn beta(&self, d: &Design, z: impl Fn(usize) -> f64) -> Vec<f64> {
+        let mut rhs = vec![0.0; self.p];
+        for (r, (&q, &kw)) in d.idx.iter().zip(&d.kh).enumerate() {
+            let zq = z(q);
+            for (a, x) in rhs.iter_mut().zip(d.row(r, self.p)) {
+                *a += kw * x * zq;
+            }
+        }
+        self.chol.solve(&rhs)
+    }
+
+    /// The equivalent kernel `l_i = K_i uᵀ x_i` at the centre (§0.5).
+    pub fn kernel(&self, d: &Design) -> Vec<f64> {
+        (0..d.idx.len())
+            .map(|r| {
+                d.kh[r]
+                    * d.row(r, self.p)
+                        .iter()
+                        .zip(&self.u)
+                        .map(|(x, u)| x * u)
+                        .sum::<f64>()
+            })
+            .collect()
+    }
+
+    /// `[A⁻¹ B A⁻¹]_00 = uᵀ B u` with `B = Xᵀ W² X` (§5.3 step 5).
+    pub fn sandwich00(&self, d: &Design) -> f64 {
+        let b = d.gram(self.p, |r| d.kh[r] * d.kh[r]);
+        let p = self.p;
+        let mut s = 0.0;
+        for i in 0..p {
+            for j in 0..p {
+                s += self.u[i] * b[i * p + j] * self.u[j];
+            }
+        }
+        s
+    }
+}
+
+/// Factors order `l`'s system (all columns of power ≤ `l`) with ridge
+/// `lambda`; `None` on SOLVE-FAIL.
+pub fn fit(d: &Design, l: usize, lambda: f64) -> Option<Fit> {
+    let p = d.p(l);
+    let a = d.gram(p, |r| d.kh[r]);
+    let chol = ridge_cholesky(&a, p, lambda, EPS_PIVOT);
+    if chol.failed {
+        return None;
+    }
+    let mut e1 = vec![0.0; p];
+    e1[0] = 1.0;
+    let u = chol.solve(&e1);
+    Some(Fit { p, chol, u })
+}
+
+/// Decision AOS-BIAS-TEST (ours; option `aos.bias_test`): an order's
+/// estimated bias counts in its MSE only when it is significant,
+/// `|bias_l| > BIAS_Z · sd(bias_l)`. The bias estimate is a linear function
+/// of the data, `Σ_j g_j grey_j`, so its variance `Σ_j g_j² vbar_j` is known.
+/// Without the test the noise of the estimate decides the order. Order 1's
+/// bias comes from the order-2 and order-3 coefficients of the order-5 fit
+/// (AOS-ONEFIT), which are as noisy as that fit. On an affine image with
+/// noise σ, the estimate's standard error is about 0.26σ, while order 1's
+/// own standard error is 0.05σ. AOS then chose order 3 on 58 % of an affine
+/// half, whatever σ was (`tests/aos.rs`).
+pub const BIAS_Z: f64 = 2.0;
+
+/// The choices of §5.3 that are options.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub struct Settings {
+    /// `aos.variance` (AOS-VAR).
+    pub variance: Variance,
+    /// `aos.bias_test` (AOS-BIAS-TEST).
+    pub bias_test: bool,
+    /// `aos.identity` (AOS-IDENTITY, see [`pixel`]).
+    pub identity: bool,
+}
+
+impl Settings {
+    /// The spec's AOS as written: no bias test, no identity candidate.
+    pub const SPEC: Settings = Settings {
+        variance: Variance::Paper,
+        bias_test: false,
+        identity: false,
+    };
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Settings {
+            variance: Variance::Paper,
+            bias_test: true,
+            identity: true,
+        }
+    }
+}
+
+/// What one pixel's reconstruction returns (§5.3 steps 6–8 and §5.5's debug
+/// outputs).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Pixel {
+    /// The output colour.
+    pub color: [f64; 3],
+    /// `MSE_c = MSE_l̂`, shared by the channels (`vbar_c` for the input).
+    pub mse: f64,
+    /// The chosen order `l̂`; 0: the pixel's input (AOS-IDENTITY or
+    /// AOS-FALLBACK).
+    pub order: usize,
+    /// TSVD rank `k` (the local dimension `d`).
+    pub rank: usize,
+    /// `bias_l` for l = 1, 3 (0 where not computed).
+    pub bias: [f64; 2],
+    /// The standard error of each `bias_l` estimate.
+    pub bias_sd: [f64; 2],
+    /// `var_l` for l = 1, 3.
+    pub var: [f64; 2],
+    /// `σ*²` of the order-5 fit.
+    pub sigma2: f64,
+}
+
+/// AOS at pixel `c` (§5.3). `lambda_factor` is [`RIDGE`] (tests use 0).
+///
+/// Decision AOS-FALLBACK (ours, after §0.5 SOLVE-FAIL): a pixel whose rank
+/// is 0 (a window of one pixel), or whose order-5 system fails, outputs its
+/// input with error `vbar_c`. An order whose own system fails is not a
+/// candidate.
+///
+/// Decision AOS-IDENTITY (ours; option `aos.identity`): the pixel's own
+/// input is a third candidate, with bias 0 and MSE `vbar_c`. It is the same
+/// idea as APR's PF-IDENTITY. AOS has a fixed spatial bandwidth and no
+/// rejection, so a sharp, nearly noise-free highlight with the same
+/// features as its surroundings is spread over 19×19 pixels by every
+/// order. On glossy_cornell at 64 spp AOS's rMSE was 0.0278 against the
+/// input's 0.0222; with the candidate it is 0.0028.
+pub fn pixel(pl: &Planes, c: usize, radius: usize, set: Settings, lambda_factor: f64) -> Pixel {
+    let fallback = |rank: usize| Pixel {
+        color: [pl.color[0][c], pl.color[1][c], pl.color[2][c]],
+        mse: pl.vbar[c],
+        order: 0,
+        rank,
+        bias: [0.0; 2],
+        bias_sd: [0.0; 2],
+        var: [0.0; 2],
+        sigma2: 0.0,
+    };
+    let d = design(pl, c, radius);
+    if d.rank == 0 {
+        return fallback(0);
+    }
+    let lambda = lambda_factor * d.kh.iter().sum::<f64>();
+    let Some(star) = fit(&d, P_STAR, lambda) else {
+        return fallback(d.rank);
+    };
+    let pc = d.cols.len();
+    let beta_star = star.beta(&d, |q| pl.grey(q));
+    let lstar = star.kernel(&d);
+    let sigma2: f64 = lstar
+        .iter()
+        .zip(&d.idx)
+        .map(|(l, &q)| l * l * pl.vbar[q])
+        .sum();
+    let mut best: Option<(usize, f64, Vec<f64>)> = None;
+    let mut out = Pixel {
+        rank: d.rank,
+        sigma2,
+        ..fallback(d.rank)
+    };
+    for (o, &l) in ORDERS.iter().enumerate() {
+        let Some(f) = fit(&d, l, lambda) else {
+            continue;
+        };
+        let high = |col: &(usize, usize)| col.0 > l && col.0 <= l + INCREMENT;
+        // Bias image ξ_i: the order-5 fit's terms of powers l+1 ..= l+a.
+        let xi: Vec<f64> = (0..d.idx.len())
+            .map(|r| {
+                d.cols
+                    .iter()
+                    .zip(d.row(r, pc))
+                    .zip(&beta_star)
+                    .filter(|((col, _), _)| high(col))
+                    .map(|((_, x), b)| x * b)
+                    .sum()
+            })
+            .collect();
+        let kern = f.kernel(&d);
+        let bias: f64 = kern.iter().zip(&xi).map(|(k, x)| k * x).sum();
+        // bias = Σ_j g_j grey_j with g_j = K_j x*_jᵀ A*⁻¹ P_l Σ_i l_i x*_i.
+        let mut t = vec![0.0; pc];
+        for (r, &k) in kern.iter().enumerate() {
+            for (tv, x) in t.iter_mut().zip(d.row(r, pc)) {
+                *tv += k * x;
+            }
+        }
+        for (tv, col) in t.iter_mut().zip(&d.cols) {
+            if !high(col) {
+                *tv = 0.0;
+            }
+        }
+        let qv = star.chol.solve(&t);
+        let bias_var: f64 = (0..d.idx.len())
+            .map(|r| {
+                let g = d.kh[r]
+                    * d.row(r, pc)
+                        .iter()
+                        .zip(&qv)
+                        .map(|(x, q)| x * q)
+                        .sum::<f64>();
+                g * g * pl.vbar[d.idx[r]]
+            })
+            .sum();
+        let var = match set.variance {
+            Variance::Paper => f.sandwich00(&d) * sigma2,
+            Variance::Sandwich => kern
+                .iter()
+                .zip(&d.idx)
+                .map(|(k, &q)| k * k * pl.vbar[q])
+                .sum(),
+        };
+        let counted = if !set.bias_test || bias * bias > BIAS_Z * BIAS_Z * bias_var {
+            bias
+        } else {
+            0.0
+        };
+        let mse = var + counted * counted;
+        out.bias[o] = bias;
+        out.bias_sd[o] = bias_var.sqrt();
+        out.var[o] = var;
+        if best.as_ref().map_or(true, |b| mse < b.1) {
+            best = Some((l, mse, kern));
+        }
+    }
+    let Some((l, mse, kern)) = best else {
+        return out;
+    };
+    if set.identity && pl.vbar[c] < mse {
+        return out;
+    }
+    for ch in 0..3 {
+        out.color[ch] = kern
+            .iter()
+            .zip(&d.idx)
+            .map(|(k, &q)| k * pl.color[ch][q])
+            .sum();
+    }
+    out.order = l;
+    out.mse = mse;
+    out
+}
+
+/// AOS over the image: every valid pixel (invalid ones are left to the
+/// caller, §0.2), split over the machine's threads by pixel ranges (the
+/// result does not depend on the split).
+pub fn run(pl: &Planes, radius: usize, set: Settings) -> Vec<Option<Pixel>> {
+    let n = pl.w * pl.h;
+    let threads = std::thread::available_parallelism()
+        .map_or(1, |t| t.get())
+        .clamp(1, 16);
+    let chunk = n.div_ceil(threads).max(1);
+    std::thread::scope(|s| {
+        let parts: Vec<_> = (0..n)
+            .step_by(chunk)
+            .map(|lo| {
+                s.spawn(move || {
+                    (lo..(lo + chunk).min(n))
+                        .map(|c| pl.valid[c].then(|| pixel(pl, c, radius, set, RIDGE)))
+                        .collect::<Vec<_>>()
+                })
+            })
+            .collect();
+        parts
+            .into_iter()
+            .flat_map(|p| p.join().expect("AOS worker panicked"))
+            .collect()
+    })
+}
+
+/// The NL-means weight `w_pq = exp(−max(0, Dist_pq))` of §5.2 for a buffer
+/// of `g.len()` channels with variances `vg`.
+pub fn nlm_weight(
+    w: usize,
+    h: usize,
+    g: &[&[f64]],
+    vg: &[&[f64]],
+    valid: &[bool],
+    p: usize,
+    q: usize,
+) -> f64 {
+    let (px, py) = ((p % w) as i64, (p / w) as i64);
+    let (qx, qy) = ((q % w) as i64, (q / w) as i64);
+    let r = NLM_PATCH as i64;
+    let (mut sum, mut count) = (0.0, 0usize);
+    for oy in -r..=r {
+        for ox in -r..=r {
+            let (ax, ay, bx, by) = (px + ox, py + oy, qx + ox, qy + oy);
+            let inside = |x: i64, y: i64| x >= 0 && y >= 0 && x < w as i64 && y < h as i64;
+            if !inside(ax, ay) || !inside(bx, by) {
+                continue;
+            }
+            let (a, b) = ((ay * w as i64 + ax) as usize, (by * w as i64 + bx) as usize);
+            if !valid[a] || !valid[b] {
+                continue;
+            }
+            count += 1;
+            for (gc, vc) in g.iter().zip(vg) {
+                let (va, vb) = (vc[a].max(0.0), vc[b].max(0.0));
+                let diff = gc[a] - gc[b];
+                sum += (diff * diff - (va + va.min(vb))) / (1e-10 + NLM_K * NLM_K * (va + vb));
+            }
+        }
+    }
+    if count == 0 {
+        return 1.0;
+    }
+    let dist = sum / (g.len() * count) as f64;
+    (-dist.max(0.0)).exp()
+}
+
+/// The variance-aware NL-means prefilter of one buffer (§5.2): filtered
+/// channels and their propagated variances. Invalid pixels keep their input.
+pub fn nlmeans(
+    w: usize,
+    h: usize,
+    g: &[&[f64]],
+    vg: &[&[f64]],
+    valid: &[bool],
+) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
+    let mut out: Vec<Vec<f64>> = g.iter().map(|c| c.to_vec()).collect();
+    let mut var: Vec<Vec<f64>> = vg.iter().map(|c| c.to_vec()).collect();
+    let r = NLM_SEARCH;
+    for p in 0..w * h {
+        if !valid[p] {
+            continue;
+        }
+        let (px, py) = (p % w, p / w);
+        let mut ws = Vec::new();
+        for qy in py.saturating_sub(r)..(py + r + 1).min(h) {
+            for qx in px.saturating_sub(r)..(px + r + 1).min(w) {
+                let q = qy * w + qx;
+                if valid[q] {
+                    ws.push((q, nlm_weight(w, h, g, vg, valid, p, q)));
+                }
+            }
+        }
+        let total: f64 = ws.iter().map(|x| x.1).sum();
+        for ch in 0..g.len() {
+            out[ch][p] = ws.iter().map(|&(q, wq)| wq * g[ch][q]).sum::<f64>() / total;
+            var[ch][p] = ws
+                .iter()
+                .map(|&(q, wq)| (wq / total).powi(2) * vg[ch][q].max(0.0))
+                .sum();
+        }
+    }
+    (out, var)
+}
