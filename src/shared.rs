@@ -106,6 +106,22 @@ pub struct SmoothPush {
     pub _pad: [u32; 3],
 }
 
+/// `spirv/peak_fma.comp` and `spirv/peak_copy.comp`, block `Push`: the
+/// device-peak micro-kernels of `mcdenoise bench` (issue #13).
+#[repr(C)]
+#[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct PeakPush {
+    /// Invocations per row.
+    pub width: u32,
+    /// Rows.
+    pub height: u32,
+    /// First row of the band this dispatch covers.
+    pub row0: u32,
+    /// `peak_fma`: rounds of eight real4 FMAs per invocation (unused by
+    /// `peak_copy`).
+    pub iterations: u32,
+}
+
 /// `spirv/channel_mean.comp`, block `Push`: mean of three planes (vbar, grey).
 #[repr(C)]
 #[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]

@@ -47,12 +47,16 @@
 // Every public item of the benchmark API is documented; keep it so.
 #![warn(missing_docs)]
 
+mod peak;
 mod quality;
 mod report;
 mod scenes;
 mod synthetic;
 mod timing;
 
+pub use peak::{
+    measure_peak, Peak, Spread, COPY_ROWS, COPY_WIDTH, FMA_ITERATIONS, FMA_ROWS, FMA_WIDTH,
+};
 pub use quality::{
     error_correlation, map_share, naive_correlation, pearson, run_quality, tile_means,
     QualityConfig, QualityReport, QualityRow, QualitySummary, VsWlr, CORRELATION_TILE,

@@ -219,6 +219,11 @@ impl TimingReport {
             let _ = writeln!(s, "Device: {d}");
         }
         s.push('\n');
+        if let Some(p) = &self.peak {
+            let _ = writeln!(s, "Device limits ({} runs after a warm-up):\n", p.runs);
+            s.push_str(&p.to_markdown());
+            s.push('\n');
+        }
         let mut rows: Vec<Vec<String>> = vec![
             ["case", "backend", "median wall ms", "ms/MP", "GPU ms"]
                 .map(String::from)
@@ -243,23 +248,42 @@ impl TimingReport {
         if with_kernels.is_empty() {
             s.push_str("Per-kernel GPU times: none reported by these cases.\n");
         } else {
-            s.push_str("Per-kernel GPU times (median over the runs):\n\n");
+            s.push_str(
+                "Per-kernel GPU times (median over the runs); GFLOP/s from each kernel's \
+                 counted flops (`src/kernels/<name>.rs`), and their fraction of the device's \
+                 FMA peak for the kernel's precision (median of `peak_fma`):\n\n",
+            );
             let mut rows: Vec<Vec<String>> = vec![
-                ["case", "backend", "kernel", "GPU ms", "dispatches"]
-                    .map(String::from)
-                    .to_vec(),
-                ["---", "---", "---", "---:", "---:"]
+                [
+                    "case",
+                    "backend",
+                    "kernel",
+                    "GPU ms",
+                    "dispatches",
+                    "GFLOP/s",
+                    "% of peak",
+                ]
+                .map(String::from)
+                .to_vec(),
+                ["---", "---", "---", "---:", "---:", "---:", "---:"]
                     .map(String::from)
                     .to_vec(),
             ];
             for r in with_kernels {
                 for k in &r.kernels {
+                    let fraction = self
+                        .peak
+                        .as_ref()
+                        .and_then(|p| p.flops_for(&k.kernel))
+                        .map_or(String::new(), |p| format!("{:.1}", 100.0 * k.gflops / p));
                     rows.push(vec![
                         r.case.clone(),
                         backend_name(r.backend).into(),
                         k.kernel.clone(),
                         format!("{:.3}", k.ms),
                         k.dispatches.to_string(),
+                        format!("{:.2}", k.gflops),
+                        fraction,
                     ]);
                 }
             }
@@ -270,10 +294,12 @@ impl TimingReport {
     }
 
     /// The report as JSON: `{"kind": "timing", "device", "inputs", "source",
-    /// "runs", "rows": [...], "unavailable_methods", "warnings"}`; each row
-    /// has `case method backend width height wall_ms median_wall_ms
-    /// ms_per_megapixel gpu_ms kernels` and each kernel `kernel gpu_ms
-    /// dispatches` (`null` where absent or non-finite). Pretty-printed by
+    /// "runs", "peak", "rows": [...], "unavailable_methods", "warnings"}`;
+    /// `peak` is `{runs, fma_f32, fma_f64, copy}` with `{min, median, max}`
+    /// each (GFLOP/s, GB/s) or `null`; each row has `case method backend
+    /// width height wall_ms median_wall_ms ms_per_megapixel gpu_ms kernels`
+    /// and each kernel `kernel gpu_ms dispatches gflops` (`null` where
+    /// absent or non-finite). Pretty-printed by
     /// `serde_json`, with a final newline.
     pub fn to_json(&self) -> String {
         to_json_text(&TimingJson {
@@ -282,6 +308,7 @@ impl TimingReport {
             inputs: &self.inputs,
             source: &self.source,
             runs: self.runs,
+            peak: self.peak.as_ref(),
             rows: self
                 .rows
                 .iter()
@@ -302,6 +329,7 @@ impl TimingReport {
                             kernel: &k.kernel,
                             gpu_ms: k.ms,
                             dispatches: k.dispatches,
+                            gflops: k.gflops,
                         })
                         .collect(),
                 })
@@ -344,7 +372,7 @@ fn fmt_fixed(v: f64, decimals: usize) -> String {
 
 /// A Markdown table from rows of cells (header, alignment row, body), padded
 /// so the columns line up in a terminal.
-fn markdown_table(rows: &[Vec<String>]) -> String {
+pub(super) fn markdown_table(rows: &[Vec<String>]) -> String {
     let cols = rows.iter().map(|r| r.len()).max().unwrap_or(0);
     let width: Vec<usize> = (0..cols)
         .map(|c| {
@@ -459,6 +487,7 @@ struct TimingJson<'a> {
     inputs: &'a str,
     source: &'a str,
     runs: usize,
+    peak: Option<&'a super::Peak>,
     rows: Vec<TimingRowJson<'a>>,
     unavailable_methods: Vec<&'static str>,
     warnings: &'a [String],
@@ -485,6 +514,7 @@ struct KernelJson<'a> {
     kernel: &'a str,
     gpu_ms: f64,
     dispatches: usize,
+    gflops: f64,
 }
 
 /// Appends the Markdown "Warnings:" section (nothing when there are none).
@@ -594,6 +624,7 @@ mod tests {
                     kernel: "wlr_fit".into(),
                     ms: 1.0,
                     dispatches: 3,
+                    gflops: 2.5,
                 }],
             }],
             ..Default::default()
@@ -608,6 +639,7 @@ mod tests {
                     "inputs",
                     "source",
                     "runs",
+                    "peak",
                     "rows",
                     "case",
                     "method",
@@ -621,6 +653,7 @@ mod tests {
                     "kernels",
                     "kernel",
                     "dispatches",
+                    "gflops",
                     "unavailable_methods",
                     "warnings",
                 ]
@@ -629,12 +662,13 @@ mod tests {
         );
         let j: serde_json::Value = serde_json::from_str(&text).unwrap();
         let r = &j["rows"][0];
+        assert_eq!(j["peak"], serde_json::Value::Null);
         assert_eq!(r["method"], "wlr");
         assert_eq!(r["backend"], "gpu");
         assert_eq!(r["wall_ms"], serde_json::json!([1.5, null]));
         assert_eq!(
             r["kernels"],
-            serde_json::json!([{"kernel": "wlr_fit", "gpu_ms": 1.0, "dispatches": 3}])
+            serde_json::json!([{"kernel": "wlr_fit", "gpu_ms": 1.0, "dispatches": 3, "gflops": 2.5}])
         );
     }
 

@@ -57,6 +57,10 @@ pub struct KernelRow {
     pub ms: f64,
     /// Dispatches (bands) of the kernel in one call.
     pub dispatches: usize,
+    /// Median over the runs of the achieved GFLOP/s: the flops the kernel's
+    /// cost function counts (its host file, `src/kernels/<name>.rs`) over
+    /// its GPU time.
+    pub gflops: f64,
 }
 
 /// One case of the timing benchmark.
@@ -102,6 +106,9 @@ pub struct TimingReport {
     pub unavailable: Vec<Method>,
     /// Cases whose calls failed (skipped).
     pub warnings: Vec<String>,
+    /// The device's measured limits ([`super::measure_peak`]), when the GPU
+    /// backend ran; each kernel's rate is shown as a fraction of them.
+    pub peak: Option<super::Peak>,
 }
 
 /// The `inputs` name of a file (see [`TimingInput::File`]).
@@ -191,6 +198,17 @@ pub fn run_timing(
         unavailable: unavailable.clone(),
         ..Default::default()
     };
+    if let (true, Some(c)) = (backends.contains(&Backend::Gpu), ctx) {
+        note(Note::Progress("device limits (peak_fma, peak_copy)"));
+        match super::measure_peak(c, cfg.runs) {
+            Ok(p) => report.peak = Some(p),
+            Err(e) => {
+                let msg = format!("device limits not measured: {e}");
+                note(Note::Warning(&msg));
+                report.warnings.push(msg);
+            }
+        }
+    }
     for m in &unavailable {
         let msg = format!("method {} is not in this build: skipped", m.name());
         note(Note::Warning(&msg));
@@ -226,8 +244,21 @@ pub fn run_timing(
                                         / 1e6
                                 })
                                 .collect();
+                            let rates: Vec<f64> = timings
+                                .iter()
+                                .map(|t| {
+                                    let (f, ns) = t
+                                        .iter()
+                                        .filter(|k| k.kernel == kernel)
+                                        .fold((0.0, 0.0), |(f, ns), k| {
+                                            (f + k.flops, ns + k.nanoseconds)
+                                        });
+                                    f / ns.max(1e-9)
+                                })
+                                .collect();
                             KernelRow {
                                 ms: median(&per_run),
+                                gflops: median(&rates),
                                 kernel,
                                 dispatches,
                             }

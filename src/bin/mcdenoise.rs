@@ -659,6 +659,10 @@ struct BenchArgs {
     /// Timing: timed runs per case (after one warm-up run).
     #[arg(long, default_value_t = 3, conflicts_with = "quality")]
     runs: usize,
+    /// Only the device's limits: FMA GFLOP/s (f32, f64) and copy GB/s,
+    /// min/median/max over --runs (the timing benchmark measures them too).
+    #[arg(long, conflicts_with_all = ["quality", "input", "size", "methods"])]
+    peak: bool,
 }
 
 #[derive(clap::Args)]
@@ -754,6 +758,25 @@ fn bench(cli: &Cli, args: &BenchArgs) -> anyhow::Result<bool> {
         Note::Progress(_) => {}
         Note::Warning(s) => eprintln!("bench: warning: {s}"),
     };
+    if args.peak {
+        let ctx = context(cli)?;
+        let p = b::measure_peak(&ctx, args.runs)?;
+        let markdown = format!(
+            "Device: {}\n\nDevice limits ({} runs after a warm-up):\n\n{}",
+            ctx.info().name,
+            p.runs,
+            p.to_markdown()
+        );
+        print!("{markdown}");
+        if let Some(path) = &args.json {
+            let text = serde_json::to_string_pretty(&p)? + "\n";
+            b::write_text(path, &text)?;
+        }
+        if let Some(path) = &args.markdown {
+            b::write_text(path, &markdown)?;
+        }
+        return Ok(true);
+    }
     let (markdown, json, empty) = if let Some(dir) = &args.quality {
         let report = b::run_quality(
             ctx.as_ref(),

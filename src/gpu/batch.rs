@@ -30,6 +30,10 @@ pub struct KernelTiming {
     pub rows: (u32, u32),
     /// GPU time between the dispatch's two timestamps, in nanoseconds.
     pub nanoseconds: f64,
+    /// The floating-point operations the kernel's cost function counts for
+    /// this band (`flops_per_pixel × width × rows`, see each kernel's host
+    /// file); with `nanoseconds`, the achieved rate of `mcdenoise bench`.
+    pub flops: f64,
 }
 
 /// Sums timings per kernel name, in first-seen order.
@@ -85,7 +89,7 @@ pub struct Batch {
     query_pools: Vec<vk::QueryPool>,
     queries_used: u32,
     /// (label, rows, query index of the start stamp) per timed dispatch.
-    stamps: Vec<(String, (u32, u32), u32)>,
+    stamps: Vec<(String, (u32, u32), u32, f64)>,
     timings: Vec<KernelTiming>,
     timestamps: bool,
     flops_in_submit: f64,
@@ -358,12 +362,13 @@ impl Batch {
             }
             .map_err(Error::vk("vkGetQueryPoolResults"))?;
         }
-        for (label, rows, q) in self.stamps.drain(..) {
+        for (label, rows, q, flops) in self.stamps.drain(..) {
             let dt = values[q as usize + 1].wrapping_sub(values[q as usize]);
             self.timings.push(KernelTiming {
                 kernel: label,
                 rows,
                 nanoseconds: dt as f64 * period,
+                flops,
             });
         }
         // Reuse the pools from the start for the next submit.
@@ -641,7 +646,8 @@ impl Batch {
                 }
             }
             if let Some((_, _, idx)) = q {
-                self.stamps.push((p.name.clone(), (row0, row0 + rows), idx));
+                self.stamps
+                    .push((p.name.clone(), (row0, row0 + rows), idx, band_flops));
             }
             self.last_band = Some((p.name.clone(), row0, row0 + rows, height));
             self.barrier();
@@ -717,7 +723,7 @@ pub struct Recorded {
     used: Vec<vk::Buffer>,
     desc_pools: Vec<vk::DescriptorPool>,
     query_pools: Vec<vk::QueryPool>,
-    stamps: Vec<(String, (u32, u32), u32)>,
+    stamps: Vec<(String, (u32, u32), u32, f64)>,
     queries_used: u32,
 }
 
@@ -746,9 +752,10 @@ impl Recorded {
         Ok(self
             .stamps
             .iter()
-            .map(|(label, rows, q)| KernelTiming {
+            .map(|(label, rows, q, flops)| KernelTiming {
                 kernel: label.clone(),
                 rows: *rows,
+                flops: *flops,
                 nanoseconds: values[*q as usize + 1].wrapping_sub(values[*q as usize]) as f64
                     * period,
             })

@@ -23,6 +23,8 @@ pub mod outlier_detect;
 pub mod outlier_rows;
 pub mod outlier_spread;
 pub mod outlier_weights;
+pub mod peak_copy;
+pub mod peak_fma;
 pub mod sample_priority;
 pub mod sample_reduce;
 pub mod sample_scan;
@@ -60,6 +62,8 @@ pub const ALL: &[&KernelDecl] = &[
     &sample_priority::DECL,
     &sample_reduce::DECL,
     &sample_scan::DECL,
+    &peak_fma::DECL,
+    &peak_copy::DECL,
 ];
 
 use std::sync::Arc;

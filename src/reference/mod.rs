@@ -34,6 +34,8 @@ pub mod outlier_rows;
 pub mod outlier_spread;
 pub mod outlier_weights;
 pub mod outliers;
+pub mod peak_copy;
+pub mod peak_fma;
 pub mod sample_priority;
 pub mod sample_reduce;
 pub mod sample_scan;
