@@ -113,8 +113,9 @@ pub struct Design {
     pub cols: Vec<(usize, usize)>,
     /// Rows, `idx.len() × cols.len()` row-major, scaled (AOS-SCALE).
     pub rows: Vec<f64>,
-    /// Ridge `λ = 1e-5·Σ K_i` (before SOLVE-FAIL retries).
-    pub lambda: f64,
+    /// `Σ_i K_i x_i x_iᵀ` over all columns (unregularised), formed once:
+    /// every order's normal matrix is a leading block of it.
+    pub normal: Vec<f64>,
 }
 
 impl Design {
@@ -213,15 +214,17 @@ pub fn design(pl: &Planes, c: usize, radius: usize) -> Design {
                 .collect::<Vec<_>>()
         })
         .collect();
-    Design {
+    let mut d = Design {
         centre: c,
         idx,
         kh,
         rank: k,
         cols,
         rows,
-        lambda: RIDGE * ksum,
-    }
+        normal: Vec::new(),
+    };
+    d.normal = d.gram(d.cols.len(), |r| d.kh[r]);
+    d
 }
 
 /// One order's weighted least-squares system: the factor of
@@ -280,8 +283,10 @@ impl Fit {
 /// Factors order `l`'s system (all columns of power ≤ `l`) with ridge
 /// `lambda`; `None` on SOLVE-FAIL.
 pub fn fit(d: &Design, l: usize, lambda: f64) -> Option<Fit> {
-    let p = d.p(l);
-    let a = d.gram(p, |r| d.kh[r]);
+    let (p, pc) = (d.p(l), d.cols.len());
+    let a: Vec<f64> = (0..p)
+        .flat_map(|i| d.normal[i * pc..i * pc + p].iter().copied())
+        .collect();
     let chol = ridge_cholesky(&a, p, lambda, EPS_PIVOT);
     if chol.failed {
         return None;
@@ -487,29 +492,10 @@ pub fn pixel(pl: &Planes, c: usize, radius: usize, set: Settings, lambda_factor:
 }
 
 /// AOS over the image: every valid pixel (invalid ones are left to the
-/// caller, §0.2), split over the machine's threads by pixel ranges (the
-/// result does not depend on the split).
+/// caller, §0.2), on all cores ([`super::par_map`]).
 pub fn run(pl: &Planes, radius: usize, set: Settings) -> Vec<Option<Pixel>> {
-    let n = pl.w * pl.h;
-    let threads = std::thread::available_parallelism()
-        .map_or(1, |t| t.get())
-        .clamp(1, 16);
-    let chunk = n.div_ceil(threads).max(1);
-    std::thread::scope(|s| {
-        let parts: Vec<_> = (0..n)
-            .step_by(chunk)
-            .map(|lo| {
-                s.spawn(move || {
-                    (lo..(lo + chunk).min(n))
-                        .map(|c| pl.valid[c].then(|| pixel(pl, c, radius, set, RIDGE)))
-                        .collect::<Vec<_>>()
-                })
-            })
-            .collect();
-        parts
-            .into_iter()
-            .flat_map(|p| p.join().expect("AOS worker panicked"))
-            .collect()
+    super::par_map(pl.w * pl.h, |c| {
+        pl.valid[c].then(|| pixel(pl, c, radius, set, RIDGE))
     })
 }
 

@@ -28,27 +28,9 @@ pub fn lp_centres(push: &LpPush, p: &Planes, reach: &[f32], state: &mut [Vec<f32
             }
         }
     }
-    let threads = std::thread::available_parallelism()
-        .map(|n| n.get())
-        .unwrap_or(1)
-        .clamp(1, cand.len().max(1));
-    let results: Vec<(usize, [f32; StateLayout::LEN])> = std::thread::scope(|scope| {
-        let cand = &cand;
-        let handles: Vec<_> = (0..threads)
-            .map(|t| {
-                scope.spawn(move || {
-                    cand.iter()
-                        .skip(t)
-                        .step_by(threads)
-                        .map(|&(px, py)| (py * w + px, centre_fit(p, px, py, s).state(push.pass)))
-                        .collect::<Vec<_>>()
-                })
-            })
-            .collect();
-        handles
-            .into_iter()
-            .flat_map(|h| h.join().expect("lp_centres: worker panicked"))
-            .collect()
+    let results: Vec<(usize, [f32; StateLayout::LEN])> = super::par_map(cand.len(), |i| {
+        let (px, py) = cand[i];
+        (py * w + px, centre_fit(p, px, py, s).state(push.pass))
     });
     for (q, st) in &results {
         for (i, v) in st.iter().enumerate() {

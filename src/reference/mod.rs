@@ -48,6 +48,36 @@ pub mod wlr;
 pub mod wlr_final;
 pub mod wlr_fit;
 
+/// Maps `f` over `0..n` on all cores and returns the results in index
+/// order. Indices are interleaved over `std::thread::scope` threads (thread
+/// `t` takes `t, t + T, …`), so uneven costs spread evenly; the result does
+/// not depend on the thread count. The twins' CPU paths (WLR's pixels, LP's
+/// centres, AOS's pixels) share it.
+pub fn par_map<T: Send>(n: usize, f: impl Fn(usize) -> T + Sync) -> Vec<T> {
+    let threads = std::thread::available_parallelism()
+        .map(|t| t.get())
+        .unwrap_or(1)
+        .clamp(1, n.max(1));
+    let parts: Vec<Vec<T>> = std::thread::scope(|scope| {
+        let f = &f;
+        let handles: Vec<_> = (0..threads)
+            .map(|t| scope.spawn(move || (t..n).step_by(threads).map(f).collect::<Vec<T>>()))
+            .collect();
+        handles
+            .into_iter()
+            .map(|h| h.join().expect("par_map: worker panicked"))
+            .collect()
+    });
+    let mut iters: Vec<_> = parts.into_iter().map(|p| p.into_iter()).collect();
+    (0..n)
+        .map(|i| {
+            iters[i % threads]
+                .next()
+                .expect("par_map: every index mapped")
+        })
+        .collect()
+}
+
 /// The sample count as every kernel reads it (spec §0.2); a pixel is valid iff
 /// `spp_of(n) >= 1`. Mirrors `spp_of` in `spirv/lib/common.glsl`.
 pub use finalize_stats::spp_of;

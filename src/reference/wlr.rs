@@ -804,8 +804,8 @@ pub fn invalid_fill(p: &Planes, cx: usize, cy: usize) -> [f64; 3] {
 }
 
 /// Runs `f(x, y)` for every pixel of a `width × height` grid on all cores
-/// (rows interleaved over `std::thread::scope` threads; the result does not
-/// depend on the thread count) and scatters the `N` values per pixel into
+/// (rows through [`super::par_map`]; the result does not depend on the
+/// thread count) and scatters the `N` values per pixel into
 /// `out[0..N]` (full planes).
 pub fn par_pixels<const N: usize>(
     width: usize,
@@ -817,28 +817,9 @@ pub fn par_pixels<const N: usize>(
     for o in out.iter().take(N) {
         assert!(o.len() >= width * height, "par_pixels: plane size");
     }
-    let threads = std::thread::available_parallelism()
-        .map(|n| n.get())
-        .unwrap_or(1)
-        .clamp(1, height.max(1));
-    let rows: Vec<Vec<(usize, Vec<[f32; N]>)>> = std::thread::scope(|scope| {
-        let f = &f;
-        let handles: Vec<_> = (0..threads)
-            .map(|t| {
-                scope.spawn(move || {
-                    (t..height)
-                        .step_by(threads)
-                        .map(|y| (y, (0..width).map(|x| f(x, y)).collect()))
-                        .collect()
-                })
-            })
-            .collect();
-        handles
-            .into_iter()
-            .map(|h| h.join().expect("par_pixels: worker panicked"))
-            .collect()
-    });
-    for (y, row) in rows.into_iter().flatten() {
+    let rows: Vec<Vec<[f32; N]>> =
+        super::par_map(height, |y| (0..width).map(|x| f(x, y)).collect());
+    for (y, row) in rows.into_iter().enumerate() {
         for (x, v) in row.into_iter().enumerate() {
             for (j, &val) in v.iter().enumerate() {
                 out[j][y * width + x] = val;
