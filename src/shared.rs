@@ -328,3 +328,36 @@ pub struct OutlierPush {
     /// DARK-WINDOW factor (1e-8).
     pub dark: f32,
 }
+
+/// `spirv/aos_nlm.comp`, `spirv/aos_space.comp` and `spirv/aos_fit.comp`,
+/// block `Push` (spec §5).
+#[repr(C)]
+#[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct AosPush {
+    /// Image width in pixels.
+    pub width: u32,
+    /// Image height in pixels.
+    pub height: u32,
+    /// First row of the band this dispatch covers, relative to `base_row`.
+    pub row0: u32,
+    /// Window radius R (9 final, 5 intermediate; `aos_space`, `aos_fit`).
+    pub radius: u32,
+    /// `aos_nlm`: channels of the buffer (1 or 3).
+    pub channels: u32,
+    /// `aos_fit`: bits [`AOS_SANDWICH`], [`AOS_BIAS_TEST`], [`AOS_IDENTITY`].
+    pub flags: u32,
+    /// The image row of the scratch buffer's first row: `aos_space` and
+    /// `aos_fit` cover rows `base_row + row0 ..` and index the per-pixel
+    /// projections from `base_row` (row bands bound the scratch's size).
+    pub base_row: u32,
+    /// f32 values from one plane to the next in the packed output binding
+    /// (`aos_nlm`, `aos_fit`).
+    pub stride: u32,
+}
+
+/// [`AosPush::flags`]: `aos.variance=sandwich` (AOS-VAR).
+pub const AOS_SANDWICH: u32 = 1;
+/// [`AosPush::flags`]: `aos.bias_test=on` (AOS-BIAS-TEST).
+pub const AOS_BIAS_TEST: u32 = 2;
+/// [`AosPush::flags`]: `aos.identity=on` (AOS-IDENTITY).
+pub const AOS_IDENTITY: u32 = 4;

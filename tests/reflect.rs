@@ -33,13 +33,21 @@ fn every_kernel_matches_its_declaration() {
             let r = decl
                 .check(p)
                 .unwrap_or_else(|e| panic!("{}{}: {e}", decl.name, p.suffix()));
-            assert_eq!(r.workgroup_size, [8, 8, 1], "{}: workgroup", decl.name);
+            // One workgroup per pixel for aos_fit (spec §5.4); the dispatch
+            // counts invocations in x by THREADS per pixel.
+            let wg = if decl.name == "aos_fit" {
+                [mcdenoise::kernels::aos_fit::THREADS, 1, 1]
+            } else {
+                [8, 8, 1]
+            };
+            assert_eq!(r.workgroup_size, wg, "{}: workgroup", decl.name);
             assert!(r.shared_bytes <= 32 * 1024, "{}: shared memory", decl.name);
-            // f32 variants use f64 only where the spec demands it (WLR §0.3).
+            // f32 variants use f64 only where the spec demands it (WLR §0.3) or our
+            // decision AOS-F64 does (spirv/aos_fit.comp).
             if p == Precision::F32 {
                 assert_eq!(
                     r.uses_f64,
-                    decl.name.starts_with("wlr_"),
+                    decl.name.starts_with("wlr_") || decl.name == "aos_fit",
                     "{}: f64 use",
                     decl.name
                 );

@@ -47,7 +47,7 @@ enum MethodArg {
     Lp,
     /// Adaptive polynomial rendering: per-block polynomial order (spec §4).
     Apr,
-    /// Adaptive-order polynomial fitting in feature space: per-pixel order 1 or 3 (spec §5); CPU backend only in this build.
+    /// Adaptive-order polynomial fitting in feature space: per-pixel order 1 or 3 (spec §5).
     Aos,
     /// No reconstruction: the sanitised input colour (spec §0.4), for checking
     /// inputs, the pipeline and the metrics.

@@ -5,6 +5,9 @@
 
 use crate::gpu::KernelDecl;
 
+pub mod aos_fit;
+pub mod aos_nlm;
+pub mod aos_space;
 pub mod apr_block;
 pub mod apr_gather;
 pub mod box_rows;
@@ -52,6 +55,9 @@ pub const ALL: &[&KernelDecl] = &[
     &lp_centres::DECL,
     &lp_reach::DECL,
     &lp_gather::DECL,
+    &aos_nlm::DECL,
+    &aos_space::DECL,
+    &aos_fit::DECL,
     &apr_block::DECL,
     &apr_gather::DECL,
     &outlier_rows::DECL,

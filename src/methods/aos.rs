@@ -1,15 +1,28 @@
-//! AOS (spec §5) on the CPU: the NL-means feature prefilter (§5.2; only
-//! visibility when the G-buffer prefilter already ran, PREFILTER-STACK),
-//! then [`crate::reference::aos::run`] per pixel. GPU kernels are not built
-//! yet: on the GPU backend `--method aos` is a clear error.
+//! AOS (spec §5): the NL-means feature prefilter (§5.2; only visibility
+//! when the G-buffer prefilter already ran, PREFILTER-STACK), then per pixel
+//! the TSVD local space and the adaptive-order fits.
+//!
+//! On the CPU, [`crate::reference::aos::run`]. On the GPU (spec §5.4),
+//! three kernels: `aos_nlm` per feature buffer, then per band of rows
+//! `aos_space` (the local spaces, [`SPACE`] f32 per pixel in a scratch sized
+//! for the band) and `aos_fit` (one workgroup per pixel).
 
+use std::sync::Arc;
+
+use super::stats::GpuStats;
 use super::Pass;
 use crate::error::{Error, Result};
+use crate::gpu::{Batch, BufferSlice, GpuBuffer, GpuContext, PlaneSet, Precision};
 use crate::image::{Layer, RgbImage, StatsImage};
+use crate::kernels::aos_fit::{self, DEBUG_NAMES, OUTPUTS};
+use crate::kernels::aos_nlm;
+use crate::kernels::aos_space::{self, SPACE};
+use crate::kernels::channel_mean;
 use crate::options::Options;
 use crate::reference::aos::{self as r, Settings, Variance};
 use crate::reference::apr::invalid_fill;
 use crate::reference::spp_of;
+use crate::shared::{AosPush, AOS_BIAS_TEST, AOS_IDENTITY, AOS_SANDWICH};
 
 /// AOS's options.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
@@ -197,5 +210,226 @@ pub fn run_cpu(clean: &StatsImage, params: AosParams, gbf_ran: bool) -> Result<A
         error: RgbImage::from_planes(w, h, [mse.clone(), mse.clone(), mse]),
         dim,
         debug: out_debug,
+    })
+}
+
+/// The feature planes of the GPU path: per buffer (depth, albedo, normal,
+/// visibility) its NL-means output, channels then variances, at
+/// [`FEAT_BASE`]`[b]`.
+const FEAT_PLANES: usize = 16;
+/// First plane of each buffer's block in [`AosPlanes::feat`].
+const FEAT_BASE: [usize; 4] = [0, 2, 8, 14];
+
+/// Most bytes of one band's scratch of local spaces (and never more than
+/// `maxStorageBufferRange`).
+const SPACE_BAND_BYTES: u64 = 64 << 20;
+
+/// GPU buffers of one AOS run.
+#[derive(Debug)]
+pub struct AosPlanes {
+    /// NL-means outputs ([`FEAT_PLANES`]; the visibility block stays 0 when
+    /// the input has none: a constant feature, see `reference::aos_space`).
+    pub feat: PlaneSet,
+    /// `vbar`.
+    pub vbar: PlaneSet,
+    /// Local spaces of one band of rows.
+    pub space: GpuBuffer,
+    /// Rows per band.
+    pub band_rows: usize,
+    /// The [`OUTPUTS`] planes of `aos_fit`.
+    pub out: PlaneSet,
+    width: usize,
+    height: usize,
+}
+
+impl AosPlanes {
+    /// Allocates the planes for a `width × height` image.
+    pub fn new(ctx: &Arc<GpuContext>, width: usize, height: usize) -> Result<AosPlanes> {
+        let n = width * height;
+        let row_bytes = (width * SPACE * 4) as u64;
+        let cap = SPACE_BAND_BYTES.min(ctx.info.max_storage_buffer_range as u64);
+        if row_bytes > cap {
+            return Err(Error::Limit(format!(
+                "AOS's local spaces of one row of {width} pixels ({row_bytes} bytes) exceed one binding ({cap} bytes)"
+            )));
+        }
+        let band_rows = ((cap / row_bytes) as usize).clamp(1, height.max(1));
+        Ok(AosPlanes {
+            feat: PlaneSet::new(ctx, "aos.feat", n, FEAT_PLANES)?,
+            vbar: PlaneSet::new(ctx, "aos.vbar", n, 1)?,
+            space: GpuBuffer::new(ctx, "aos.space", band_rows as u64 * row_bytes)?,
+            band_rows,
+            out: PlaneSet::new(ctx, "aos.out", n, OUTPUTS)?,
+            width,
+            height,
+        })
+    }
+
+    /// The output colour planes R, G, B (clamped ≥ 0).
+    pub fn color(&self) -> [BufferSlice; 3] {
+        std::array::from_fn(|c| self.out.plane(c))
+    }
+
+    /// `MSE_c` (shared by the channels).
+    pub fn mse(&self) -> BufferSlice {
+        self.out.plane(3)
+    }
+
+    /// The TSVD rank (`d_i` of §9.1).
+    pub fn dim(&self) -> BufferSlice {
+        self.out.plane(5)
+    }
+}
+
+/// [`AosPush::flags`] of the settings.
+fn flags(set: Settings) -> u32 {
+    (if set.variance == Variance::Sandwich {
+        AOS_SANDWICH
+    } else {
+        0
+    }) | (if set.bias_test { AOS_BIAS_TEST } else { 0 })
+        | (if set.identity { AOS_IDENTITY } else { 0 })
+}
+
+/// The mean TSVD rank the cost count assumes (measured on the public
+/// scenes' windows: mostly 2 to 4).
+const COST_RANK: f64 = 3.0;
+
+/// Records AOS on sanitised (and outlier-cleaned, prefiltered) statistics;
+/// the outputs stay on the GPU in `planes`. `gbf_ran`: only visibility is
+/// NL-means filtered (PREFILTER-STACK).
+pub fn record_aos(
+    batch: &mut Batch,
+    precision: Precision,
+    clean: &GpuStats,
+    planes: &AosPlanes,
+    params: AosParams,
+    gbf_ran: bool,
+) -> Result<()> {
+    let (w, h) = (clean.width, clean.height);
+    if (w, h) != (planes.width, planes.height) {
+        return Err(Error::InvalidArgument(format!(
+            "AOS planes are {}x{}, the statistics {w}x{h}",
+            planes.width, planes.height
+        )));
+    }
+    let spp = clean.plane(Layer::Spp, 0);
+    let color: [BufferSlice; 3] = std::array::from_fn(|c| clean.plane(Layer::Color, c));
+    let cvar: [BufferSlice; 3] = std::array::from_fn(|c| clean.plane(Layer::ColorVariance, c));
+    channel_mean::record(
+        batch,
+        precision,
+        w as u32,
+        h as u32,
+        cvar,
+        planes.vbar.plane(0),
+    )?;
+    let stride = (planes.feat.stride / 4) as u32;
+    let base_push = AosPush {
+        width: w as u32,
+        height: h as u32,
+        radius: params.radius as u32,
+        flags: flags(params.settings),
+        ..Default::default()
+    };
+    let mut feats = Vec::with_capacity(8);
+    let mut vars = Vec::with_capacity(8);
+    for (b, (layer, vlayer, _, required)) in BUFFERS.into_iter().enumerate() {
+        let base = FEAT_BASE[b];
+        let nc = if b == 1 || b == 2 { 3 } else { 1 };
+        if !clean.has(layer) {
+            if required {
+                return Err(Error::BadData(format!(
+                    "AOS needs the {} layer",
+                    layer.name()
+                )));
+            }
+            // A constant (zero) feature with zero variance.
+            batch.fill(planes.feat.plane(base), 0);
+            batch.fill(planes.feat.plane(base + 1), 0);
+            feats.push(planes.feat.plane(base));
+            vars.push(planes.feat.plane(base + 1));
+            continue;
+        }
+        let g: Vec<BufferSlice> = (0..nc).map(|c| clean.plane(layer, c)).collect();
+        // Sanitation gives every feature its variance layer (§0.4).
+        let vg: Vec<BufferSlice> = (0..nc).map(|c| clean.plane(vlayer, c)).collect();
+        if layer == Layer::Visibility || !gbf_ran {
+            let push = AosPush {
+                channels: nc as u32,
+                stride,
+                ..base_push
+            };
+            let pick = |v: &[BufferSlice]| -> [BufferSlice; 3] {
+                std::array::from_fn(|c| v[c.min(nc - 1)])
+            };
+            let dst = planes.feat.buffer.range(
+                base as u64 * planes.feat.stride,
+                (2 * nc - 1) as u64 * planes.feat.stride + (w * h * 4) as u64,
+            );
+            aos_nlm::record(batch, precision, &push, pick(&g), pick(&vg), spp, dst)?;
+            for c in 0..nc {
+                feats.push(planes.feat.plane(base + c));
+                vars.push(planes.feat.plane(base + nc + c));
+            }
+        } else {
+            feats.extend(g);
+            vars.extend(vg);
+        }
+    }
+    let feats: [BufferSlice; 8] = feats.try_into().expect("eight feature planes");
+    let vars: [BufferSlice; 8] = vars.try_into().expect("eight variance planes");
+    let out_stride = (planes.out.stride / 4) as u32;
+    let mut y0 = 0;
+    while y0 < h {
+        let rows = planes.band_rows.min(h - y0);
+        let push = AosPush {
+            base_row: y0 as u32,
+            stride: out_stride,
+            ..base_push
+        };
+        aos_space::record(
+            batch,
+            precision,
+            &push,
+            rows as u32,
+            &feats,
+            &vars,
+            spp,
+            planes.space.slice(),
+        )?;
+        aos_fit::record(
+            batch,
+            precision,
+            &push,
+            rows as u32,
+            &feats,
+            color,
+            planes.vbar.plane(0),
+            spp,
+            planes.space.slice(),
+            planes.out.buffer.slice(),
+            COST_RANK,
+        )?;
+        y0 += rows;
+    }
+    Ok(())
+}
+
+/// Downloads a finished [`record_aos`] as the CPU path's [`AosResult`]
+/// (debug layers: §5.5's, without the prefiltered features).
+pub fn download(planes: &AosPlanes) -> Result<AosResult> {
+    let (w, h) = (planes.width, planes.height);
+    let out = planes.out.download_all()?;
+    let rgb = |k: usize| RgbImage::from_planes(w, h, std::array::from_fn(|c| out[k + c].clone()));
+    Ok(AosResult {
+        color: rgb(0),
+        error: RgbImage::from_planes(w, h, [out[3].clone(), out[3].clone(), out[3].clone()]),
+        dim: out[5].clone(),
+        debug: DEBUG_NAMES
+            .iter()
+            .enumerate()
+            .map(|(i, n)| (n.to_string(), out[4 + i].clone()))
+            .collect(),
     })
 }

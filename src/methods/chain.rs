@@ -16,6 +16,7 @@ use crate::gpu::{Batch, BufferSlice, GpuContext, PlaneSet, Precision};
 use crate::image::{Layer, RgbImage};
 use crate::options::Options;
 
+use super::aos::{self, AosPlanes};
 use super::apr::{self, AprPlanes};
 use super::gbf::{self, GbfPlanes};
 use super::lp::{self, LpPlanes};
@@ -90,6 +91,7 @@ enum MethodPlanes {
     Wlr(Box<WlrPlanes>, wlr::WlrParams),
     Lp(Box<LpPlanes>, lp::LpParams),
     Apr(Box<AprPlanes>, apr::AprParams),
+    Aos(Box<AosPlanes>, aos::AosParams),
 }
 
 /// The GPU chain of one configuration. See the module documentation.
@@ -155,12 +157,6 @@ impl GpuChain {
                 super::available_names()
             )));
         }
-        if matches!(config.method, Method::Aos) {
-            return Err(Error::InvalidArgument(format!(
-                "method {} runs on the CPU backend only in this build (--backend cpu); its GPU kernels are not built yet",
-                config.method.name()
-            )));
-        }
         if config.precision == Precision::F64 && !ctx.supports_f64() {
             return Err(Error::InvalidArgument(
                 "f64 kernels need shaderFloat64, which this device does not enable".into(),
@@ -208,6 +204,10 @@ impl GpuChain {
                 }
                 MethodPlanes::Apr(Box::new(AprPlanes::new(ctx, w, h)?), params)
             }
+            Method::Aos => MethodPlanes::Aos(
+                Box::new(AosPlanes::new(ctx, w, h)?),
+                aos::AosParams::new(config.pass, &config.options)?,
+            ),
             _ => MethodPlanes::None {
                 zero: PlaneSet::new(ctx, "none.dim", w * h, 1)?,
             },
@@ -395,6 +395,9 @@ impl GpuChain {
             MethodPlanes::Apr(planes, params) => {
                 apr::record_apr(batch, p, &self.clean, planes, *params)?
             }
+            MethodPlanes::Aos(planes, params) => {
+                aos::record_aos(batch, p, &self.clean, planes, *params, self.gbf.is_some())?
+            }
         }
         if let Some(o) = &self.outliers {
             let spp = self.clean.plane(Layer::Spp, 0);
@@ -416,6 +419,7 @@ impl GpuChain {
             MethodPlanes::Wlr(p, _) => p.color(),
             MethodPlanes::Lp(p, _) => p.color(),
             MethodPlanes::Apr(p, _) => p.color(),
+            MethodPlanes::Aos(p, _) => p.color(),
         }
     }
 
@@ -430,6 +434,7 @@ impl GpuChain {
             MethodPlanes::Wlr(p, _) => [p.mse(); 3],
             MethodPlanes::Lp(p, _) => p.error(),
             MethodPlanes::Apr(p, _) => p.error(),
+            MethodPlanes::Aos(p, _) => [p.mse(); 3],
         }
     }
 
@@ -441,6 +446,7 @@ impl GpuChain {
             MethodPlanes::Wlr(p, _) => (p.kflags(), true),
             MethodPlanes::Lp(p, _) => (p.dim(), false),
             MethodPlanes::Apr(p, _) => (p.dim(), false),
+            MethodPlanes::Aos(p, _) => (p.dim(), false),
         }
     }
 
@@ -525,6 +531,11 @@ impl GpuChain {
             MethodPlanes::Apr(p, _) => {
                 if debug {
                     out.debug = apr::download(p)?.debug;
+                }
+            }
+            MethodPlanes::Aos(p, _) => {
+                if debug {
+                    out.debug = aos::download(p)?.debug;
                 }
             }
         }

@@ -280,6 +280,27 @@ impl Fit {
     }
 }
 
+impl Fit {
+    /// Order `l`'s system as the leading block of this (order-5) fit: the
+    /// Cholesky factor of a leading block of `A + Λ` is the leading block of
+    /// the factor, at the same ridge (decision AOS-ONE-RIDGE, see [`pixel`]).
+    pub fn leading(&self, d: &Design, l: usize) -> Fit {
+        let (p, pc) = (d.p(l), self.p);
+        let l_lead: Vec<f64> = (0..p)
+            .flat_map(|i| self.chol.l[i * pc..i * pc + p].iter().copied())
+            .collect();
+        let chol = RidgeCholesky {
+            p,
+            l: l_lead,
+            ..self.chol.clone()
+        };
+        let mut e1 = vec![0.0; p];
+        e1[0] = 1.0;
+        let u = chol.solve(&e1);
+        Fit { p, chol, u }
+    }
+}
+
 /// Factors order `l`'s system (all columns of power ≤ `l`) with ridge
 /// `lambda`; `None` on SOLVE-FAIL.
 pub fn fit(d: &Design, l: usize, lambda: f64) -> Option<Fit> {
@@ -366,8 +387,13 @@ pub struct Pixel {
 ///
 /// Decision AOS-FALLBACK (ours, after §0.5 SOLVE-FAIL): a pixel whose rank
 /// is 0 (a window of one pixel), or whose order-5 system fails, outputs its
-/// input with error `vbar_c`. An order whose own system fails is not a
-/// candidate.
+/// input with error `vbar_c`.
+///
+/// Decision AOS-ONE-RIDGE (ours, after §0.5 SOLVE-FAIL): the orders share
+/// the order-5 system's factorisation, so they share its ridge. Each order's
+/// factor is the leading block of the order-5 factor (§5.4), and when the
+/// order-5 system needs a raised ridge, orders 1 and 3 use it too. The GPU
+/// factors once per pixel.
 ///
 /// Decision AOS-IDENTITY (ours; option `aos.identity`): the pixel's own
 /// input is a third candidate, with bias 0 and MSE `vbar_c`. It is the same
@@ -410,9 +436,7 @@ pub fn pixel(pl: &Planes, c: usize, radius: usize, set: Settings, lambda_factor:
         ..fallback(d.rank)
     };
     for (o, &l) in ORDERS.iter().enumerate() {
-        let Some(f) = fit(&d, l, lambda) else {
-            continue;
-        };
+        let f = star.leading(&d, l);
         let high = |col: &(usize, usize)| col.0 > l && col.0 <= l + INCREMENT;
         // Bias image ξ_i: the order-5 fit's terms of powers l+1 ..= l+a.
         let xi: Vec<f64> = (0..d.idx.len())

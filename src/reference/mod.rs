@@ -11,6 +11,9 @@
 //! arithmetic and agree with their kernels bit for bit (§9.2).
 
 pub mod aos;
+pub mod aos_fit;
+pub mod aos_nlm;
+pub mod aos_space;
 pub mod apr;
 pub mod apr_block;
 pub mod apr_gather;

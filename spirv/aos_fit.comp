@@ -1,0 +1,681 @@
+#version 460
+// AOS steps 2-8 (spec §5.3) at one pixel per workgroup of 64 invocations
+// (§5.4): AOS-SCALE, the order-5 partial power design (at most 51 columns),
+// its normal matrix in workgroup memory, one blocked Cholesky whose leading
+// blocks serve orders 1 and 3 (AOS-ONE-RIDGE), the bias, variance and MSE of
+// each order, the choice, the output. See src/reference/aos_fit.rs for the
+// algebra; that file is the scalar twin.
+//
+// Dispatch: width * 64 invocations by the band's rows; workgroup (x, y) is
+// pixel (x, base_row + row0 + y). Reads the projection of aos_space
+// (SPACE floats per pixel, indexed from base_row). Writes OUTPUTS planes of
+// `dst` (stride push.stride): colour RGB (clamped >= 0), MSE, order, rank,
+// bias1, var1, bias3, var3, sigma*^2, sd(bias1), sd(bias3).
+//
+// Decision AOS-F64 (ours; an exception to §0.3's f32 default, like WLR's
+// parametric fits): this kernel computes in f64 in both variants. The
+// order-5 design's powers dz, dz^3, dz^5 are nearly collinear, so the ridge
+// system's condition number reaches ~1e6; in f32 the error estimates came
+// out up to 10x off (MSE) and the biases up to 25 % of their standard
+// error, while the colour stayed within 1e-3 (tests/aos_kernels.rs).
+#ifndef MC_F64
+#define MC_F64 1
+#endif
+#include "lib/common.glsl"
+
+layout(local_size_x = 64) in;
+
+// Mirrors mcdenoise::shared::AosPush.
+layout(push_constant) uniform Push {
+    uint width;
+    uint height;
+    uint row0;
+    uint radius;
+    uint channels;
+    uint flags;
+    uint base_row;
+    uint stride;
+} push;
+
+// depth, albedo rgb, normal xyz, visibility (a zero plane when absent).
+PLANE_IN(0, f0)
+PLANE_IN(1, f1)
+PLANE_IN(2, f2)
+PLANE_IN(3, f3)
+PLANE_IN(4, f4)
+PLANE_IN(5, f5)
+PLANE_IN(6, f6)
+PLANE_IN(7, f7)
+PLANE_IN(8, col_r)
+PLANE_IN(9, col_g)
+PLANE_IN(10, col_b)
+PLANE_IN(11, vbar)
+PLANE_IN(12, spp)
+PLANE_IN(13, space)
+PLANE_OUT(14, dst)
+
+#define AOS_SANDWICH 1u
+#define AOS_BIAS_TEST 2u
+#define AOS_IDENTITY 4u
+
+#define NT 64        // invocations per pixel
+#define D 10         // features
+#define SPACE 101    // floats per pixel in `space`
+#define NC 51        // most columns: 1 + 5 D
+#define NB 13        // blocks of 4 columns: ceil(NC / 4)
+#define XS 52        // staged design row stride: NB * 4
+#define NE 1326      // NC (NC + 1) / 2: a packed lower triangle
+#define CH0 64       // window rows per chunk, pass 0
+#define CH 16        // window rows per chunk, passes 1 and 2
+#define NSUM 7       // pass 2's sums
+
+#define RIDGE_F 1e-5
+#define RMS_EPS 1e-12
+#define BIAS_Z 2.0
+#define SOLVE_RETRIES 3
+#define RIDGE_FLOOR 1e-8
+
+// One array of workgroup memory; the regions below are reused between
+// phases (f64: 26.6 KiB, under lavapipe's 32 KiB).
+#define S_N 0                 // N, packed lower (i >= j at i(i+1)/2 + j)
+#define S_L (S_N + NE)        // the Cholesky factor, packed lower
+#define S_V (S_L + NE)        // vectors of NC: rhs R G B, beta*, u*, u1, u3, q1, q3
+#define V_RHS (S_V)
+#define V_BETA (S_V + 3 * NC)
+#define V_US (S_V + 4 * NC)
+#define V_U1 (S_V + 5 * NC)
+#define V_U3 (S_V + 6 * NC)
+#define V_Q1 (S_V + 7 * NC)
+#define V_Q3 (S_V + 8 * NC)
+#define S_MOM (S_V + 9 * NC)  // pass 0: weighted mean squares, (v-1)*D + j
+#define S_SCALE (S_MOM + 5 * D)
+#define S_P (S_SCALE + NC)    // the centre's projection, m*D + j
+#define S_XC (S_P + D * D)    // the centre's features
+#define S_SC (S_XC + D)       // scalars, below
+#define S_SIZE (S_SC + 8)
+// Pass 0 staging (in S_L): dz rows, then K.
+#define P0_DZ (S_L)
+#define P0_K (S_L + CH0 * D)
+// Passes 1-2 staging (in S_L): design rows, dz rows, K, colour + vbar.
+#define X_X (S_L)
+#define X_DZ (S_L + CH * XS)
+#define X_K (X_DZ + CH * D)
+#define X_Y (X_K + CH)
+// Pass 2 partial sums (in S_N, free by then).
+#define P2_SUM (S_N)
+// Scalars.
+#define SC_KSUM 0
+#define SC_THRESH 1
+#define SC_LAMBDA 2
+#define SC_BIAS1 3
+#define SC_BIAS3 4
+#define SC_MEAN_DIAG 5
+
+shared real S[S_SIZE];
+shared int s_colv[NC];
+shared int s_colj[NC];
+// k, p1, p3, p5, pivot flag
+shared int s_int[5];
+
+int lidx(int i, int j) { return i >= j ? i * (i + 1) / 2 + j : j * (j + 1) / 2 + i; }
+
+// Packed lower-triangle index e -> (i, j), i >= j.
+ivec2 tri(int e)
+{
+    int i = int((sqrt(8.0 * float(e) + 1.0) - 1.0) * 0.5);
+    while ((i + 1) * (i + 2) / 2 <= e) {
+        ++i;
+    }
+    while (i * (i + 1) / 2 > e) {
+        --i;
+    }
+    return ivec2(i, e - i * (i + 1) / 2);
+}
+
+bool valid_at(uint i) { return spp_of(spp[i]) >= 1.0; }
+
+real feature(int j, uint q)
+{
+    switch (j) {
+    case 0: return real(f0[q]);
+    case 1: return real(f1[q]);
+    case 2: return real(f2[q]);
+    case 3: return real(f3[q]);
+    case 4: return real(f4[q]);
+    case 5: return real(f5[q]);
+    case 6: return real(f6[q]);
+    default: return real(f7[q]);
+    }
+}
+
+real powi(real z, int v)
+{
+    real p = real(1);
+    for (int a = 0; a < v; ++a) {
+        p *= z;
+    }
+    return p;
+}
+
+// Window row r (raster order over the (2R+1)^2 square) of centre c: kernel
+// weight (0 outside the image or invalid) and local coordinates.
+void load_row(ivec2 c, int r, out real kw, out real dz[D], out uint q)
+{
+    int R = int(push.radius);
+    int wd = 2 * R + 1;
+    ivec2 p = c + ivec2(r % wd - R, r / wd - R);
+    kw = real(0);
+    q = 0u;
+    for (int m = 0; m < D; ++m) {
+        dz[m] = real(0);
+    }
+    if (p.x < 0 || p.y < 0 || p.x >= int(push.width) || p.y >= int(push.height)) {
+        return;
+    }
+    q = uint(p.y) * push.width + uint(p.x);
+    if (!valid_at(q)) {
+        return;
+    }
+    real dx[D];
+    dx[0] = real(p.x) - S[S_XC];
+    dx[1] = real(p.y) - S[S_XC + 1];
+    for (int j = 0; j < 8; ++j) {
+        dx[2 + j] = feature(j, q) - S[S_XC + 2 + j];
+    }
+    for (int m = 0; m < D; ++m) {
+        real s = real(0);
+        for (int j = 0; j < D; ++j) {
+            s += S[S_P + m * D + j] * dx[j];
+        }
+        dz[m] = s;
+    }
+    real bw = real(max(R, 1));
+    real d2 = real((p.x - c.x) * (p.x - c.x) + (p.y - c.y) * (p.y - c.y));
+    kw = real(exp(float(-d2 / (real(2) * bw * bw))));
+}
+
+// Stages rows [base, base + CH): dz, K, colour and vbar by the first CH
+// invocations, then the design rows (p5 columns) by all.
+void stage(ivec2 c, int base, int nrows, uint t, int p5)
+{
+    if (t < uint(CH)) {
+        int rr = int(t);
+        real kw = real(0);
+        real dz[D];
+        uint q = 0u;
+        if (base + rr < nrows) {
+            load_row(c, base + rr, kw, dz, q);
+        } else {
+            for (int m = 0; m < D; ++m) {
+                dz[m] = real(0);
+            }
+        }
+        for (int m = 0; m < D; ++m) {
+            S[X_DZ + rr * D + m] = dz[m];
+        }
+        S[X_K + rr] = kw;
+        bool use = kw > real(0);
+        S[X_Y + rr * 4] = use ? real(col_r[q]) : real(0);
+        S[X_Y + rr * 4 + 1] = use ? real(col_g[q]) : real(0);
+        S[X_Y + rr * 4 + 2] = use ? real(col_b[q]) : real(0);
+        S[X_Y + rr * 4 + 3] = use ? real(vbar[q]) : real(0);
+    }
+    barrier();
+    // Columns p5 .. 4 ceil(p5/4) are 0 (whole blocks of 4 are read).
+    int pw = (p5 + 3) / 4 * 4;
+    for (int e = int(t); e < CH * pw; e += NT) {
+        int rr = e / pw;
+        int i = e - rr * pw;
+        real x = real(0);
+        if (i < p5) {
+            int v = s_colv[i];
+            x = v == 0 ? real(1) : powi(S[X_DZ + rr * D + s_colj[i]], v) * S[S_SCALE + i];
+        }
+        S[X_X + rr * XS + i] = x;
+    }
+    barrier();
+}
+
+// Solves (leading p x p block of L L^T) x = b in place at S[at ..].
+void tri_solve(int p, int at)
+{
+    for (int i = 0; i < p; ++i) {
+        real s = S[at + i];
+        for (int k = 0; k < i; ++k) {
+            s -= S[S_L + i * (i + 1) / 2 + k] * S[at + k];
+        }
+        S[at + i] = s / S[S_L + i * (i + 1) / 2 + i];
+    }
+    for (int i = p - 1; i >= 0; --i) {
+        real s = S[at + i];
+        for (int k = i + 1; k < p; ++k) {
+            s -= S[S_L + k * (k + 1) / 2 + i] * S[at + k];
+        }
+        S[at + i] = s / S[S_L + i * (i + 1) / 2 + i];
+    }
+}
+
+void write_out(uint i, real o[13])
+{
+    for (int a = 0; a < 13; ++a) {
+        dst[uint(a) * push.stride + i] = float(o[a]);
+    }
+}
+
+// The input pixel (AOS-FALLBACK, AOS-IDENTITY): colour, error vbar_c.
+void input_out(uint i, inout real o[13])
+{
+    o[0] = max(real(col_r[i]), real(0));
+    o[1] = max(real(col_g[i]), real(0));
+    o[2] = max(real(col_b[i]), real(0));
+    o[3] = real(vbar[i]);
+    o[4] = real(0);
+}
+
+void main()
+{
+    uint t = gl_LocalInvocationID.x;
+    int w = int(push.width);
+    int h = int(push.height);
+    ivec2 c = ivec2(gl_WorkGroupID.x, int(push.base_row + push.row0 + gl_WorkGroupID.y));
+    if (c.x >= w || c.y >= h) {
+        return;
+    }
+    uint ci = uint(c.y * w + c.x);
+    real o[13];
+    for (int a = 0; a < 13; ++a) {
+        o[a] = real(0);
+    }
+    // §0.2: an invalid centre takes the mean of its valid 3x3 neighbours.
+    if (!valid_at(ci)) {
+        if (t == 0u) {
+            real3 s = real3(0);
+            int n = 0;
+            for (int qy = max(c.y - 1, 0); qy <= min(c.y + 1, h - 1); ++qy) {
+                for (int qx = max(c.x - 1, 0); qx <= min(c.x + 1, w - 1); ++qx) {
+                    uint q = uint(qy * w + qx);
+                    if (valid_at(q)) {
+                        s += real3(col_r[q], col_g[q], col_b[q]);
+                        ++n;
+                    }
+                }
+            }
+            s = n > 0 ? s / real(n) : real3(0);
+            o[0] = max(s.x, real(0));
+            o[1] = max(s.y, real(0));
+            o[2] = max(s.z, real(0));
+            write_out(ci, o);
+        }
+        return;
+    }
+    uint so = ((uint(c.y) - push.base_row) * push.width + uint(c.x)) * uint(SPACE);
+    int k = int(space[so + uint(D * D)]);
+    input_out(ci, o);
+    o[5] = real(k);
+    if (k == 0) {
+        if (t == 0u) {
+            write_out(ci, o);
+        }
+        return;
+    }
+    // The centre's projection and features.
+    for (int e = int(t); e < D * D; e += NT) {
+        S[S_P + e] = real(space[so + uint(e)]);
+    }
+    if (t < uint(D)) {
+        S[S_XC + t] = t == 0u ? real(c.x) : (t == 1u ? real(c.y) : feature(int(t) - 2, ci));
+    }
+    barrier();
+    int R = int(push.radius);
+    int nrows = (2 * R + 1) * (2 * R + 1);
+
+    // Pass 0: sum K, sum K (dz_j^v)^2 for v = 1..5, j < k.
+    real mom = real(0);
+    int mv = int(t) / D + 1;
+    int mj = int(t) % D;
+    for (int base = 0; base < nrows; base += CH0) {
+        {
+            real kw = real(0);
+            real dz[D];
+            uint q;
+            if (base + int(t) < nrows) {
+                load_row(c, base + int(t), kw, dz, q);
+            } else {
+                for (int m = 0; m < D; ++m) {
+                    dz[m] = real(0);
+                }
+            }
+            for (int m = 0; m < D; ++m) {
+                S[P0_DZ + int(t) * D + m] = dz[m];
+            }
+            S[P0_K + t] = kw;
+        }
+        barrier();
+        if (t < uint(5 * D) && mj < k) {
+            for (int rr = 0; rr < CH0; ++rr) {
+                real pw = powi(S[P0_DZ + rr * D + mj], mv);
+                mom += S[P0_K + rr] * pw * pw;
+            }
+        } else if (t == uint(5 * D)) {
+            for (int rr = 0; rr < CH0; ++rr) {
+                mom += S[P0_K + rr];
+            }
+        }
+        barrier();
+    }
+    if (t < uint(5 * D)) {
+        S[S_MOM + t] = mom;
+    } else if (t == uint(5 * D)) {
+        S[S_SC + SC_KSUM] = mom;
+    }
+    barrier();
+    // AOS-SCALE: columns by power, then component; drop RMS < 1e-12.
+    if (t == 0u) {
+        real ksum = S[S_SC + SC_KSUM];
+        int n = 1;
+        s_colv[0] = 0;
+        s_colj[0] = 0;
+        S[S_SCALE] = real(1);
+        for (int v = 1; v <= 5; ++v) {
+            for (int j = 0; j < k; ++j) {
+                real rms = sqrt(S[S_MOM + (v - 1) * D + j] / ksum);
+                if (rms >= real(RMS_EPS)) {
+                    s_colv[n] = v;
+                    s_colj[n] = j;
+                    S[S_SCALE + n] = real(1) / rms;
+                    ++n;
+                }
+            }
+            if (v == 1) {
+                s_int[1] = n;
+            } else if (v == 3) {
+                s_int[2] = n;
+            }
+        }
+        s_int[3] = n;
+    }
+    barrier();
+    int p1 = s_int[1];
+    int p3 = s_int[2];
+    int p5 = s_int[3];
+    int ne = p5 * (p5 + 1) / 2;
+
+    // Pass 1: N = sum K x x^T, rhs = sum K x y. Invocation t < p5 owns
+    // column t of N and accumulates it in blocks of 4 rows: the row's x_t is
+    // the invocation's own, the blocks of x are the same for every
+    // invocation (uniform loads, no gathers).
+    // Thirteen named accumulators: a local array would be indexed per
+    // invocation (lavapipe does not unroll the block loop).
+    real4 acc0 = real4(0), acc1 = real4(0), acc2 = real4(0), acc3 = real4(0);
+    real4 acc4 = real4(0), acc5 = real4(0), acc6 = real4(0), acc7 = real4(0);
+    real4 acc8 = real4(0), acc9 = real4(0), acc10 = real4(0), acc11 = real4(0);
+    real4 acc12 = real4(0);
+    real3 racc = real3(0);
+    int nblk = (p5 + 3) / 4;
+    for (int base = 0; base < nrows; base += CH) {
+        stage(c, base, nrows, t, p5);
+        if (t < uint(p5)) {
+            for (int rr = 0; rr < CH; ++rr) {
+                int xr = X_X + rr * XS;
+                real kx = S[X_K + rr] * S[xr + int(t)];
+#define ACC_STEP(b) \
+                if (b < nblk) { \
+                    int o = xr + 4 * b; \
+                    acc##b += kx * real4(S[o], S[o + 1], S[o + 2], S[o + 3]); \
+                }
+                ACC_STEP(0) ACC_STEP(1) ACC_STEP(2) ACC_STEP(3) ACC_STEP(4)
+                ACC_STEP(5) ACC_STEP(6) ACC_STEP(7) ACC_STEP(8) ACC_STEP(9)
+                ACC_STEP(10) ACC_STEP(11) ACC_STEP(12)
+#undef ACC_STEP
+                racc += kx * real3(S[X_Y + rr * 4], S[X_Y + rr * 4 + 1], S[X_Y + rr * 4 + 2]);
+            }
+        }
+        barrier();
+    }
+    if (t < uint(p5)) {
+        int j = int(t);
+#define ACC_OUT(b) \
+        for (int a = 0; a < 4; ++a) { \
+            int i = 4 * b + a; \
+            if (i >= j && i < p5) { \
+                S[S_N + i * (i + 1) / 2 + j] = acc##b[a]; \
+            } \
+        }
+        ACC_OUT(0) ACC_OUT(1) ACC_OUT(2) ACC_OUT(3) ACC_OUT(4) ACC_OUT(5) ACC_OUT(6)
+        ACC_OUT(7) ACC_OUT(8) ACC_OUT(9) ACC_OUT(10) ACC_OUT(11) ACC_OUT(12)
+#undef ACC_OUT
+        S[V_RHS + j] = racc.x;
+        S[V_RHS + NC + j] = racc.y;
+        S[V_RHS + 2 * NC + j] = racc.z;
+    }
+    barrier();
+
+    // Ridge Cholesky of N + diag(0, lambda, ...) with SOLVE-FAIL retries
+    // (§0.5), right-looking, one column per step.
+    if (t == 0u) {
+        real md = real(0);
+        for (int i = 0; i < p5; ++i) {
+            md += S[S_N + i * (i + 1) / 2 + i];
+        }
+        S[S_SC + SC_MEAN_DIAG] = md / real(p5);
+        S[S_SC + SC_LAMBDA] = real(RIDGE_F) * S[S_SC + SC_KSUM];
+    }
+    barrier();
+    bool ok = false;
+    for (int attempt = 0; attempt <= SOLVE_RETRIES; ++attempt) {
+        if (t == 0u) {
+            real lam = S[S_SC + SC_LAMBDA];
+            if (attempt > 0) {
+                lam = max(real(10) * lam, real(RIDGE_FLOOR) * S[S_SC + SC_MEAN_DIAG]);
+                S[S_SC + SC_LAMBDA] = lam;
+            }
+            real mx = real(0);
+            for (int i = 0; i < p5; ++i) {
+                mx = max(mx, S[S_N + i * (i + 1) / 2 + i] + (i > 0 ? lam : real(0)));
+            }
+            S[S_SC + SC_THRESH] = real(EPS_PIVOT) * mx;
+        }
+        barrier();
+        real lam = S[S_SC + SC_LAMBDA];
+        for (int e = int(t); e < ne; e += NT) {
+            ivec2 ij = tri(e);
+            S[S_L + e] = S[S_N + e] + (ij.x == ij.y && ij.x > 0 ? lam : real(0));
+        }
+        barrier();
+        for (int kk = 0; kk < p5; ++kk) {
+            if (t == 0u) {
+                int dk = kk * (kk + 1) / 2 + kk;
+                real piv = S[S_L + dk];
+                bool good = piv > S[S_SC + SC_THRESH] && !isnan(piv) && !isinf(piv);
+                s_int[4] = good ? 1 : 0;
+                if (good) {
+                    S[S_L + dk] = sqrt(piv);
+                }
+            }
+            barrier();
+            if (s_int[4] == 0) {
+                break;
+            }
+            real lkk = S[S_L + kk * (kk + 1) / 2 + kk];
+            for (int i = kk + 1 + int(t); i < p5; i += NT) {
+                S[S_L + i * (i + 1) / 2 + kk] /= lkk;
+            }
+            barrier();
+            int m = p5 - kk - 1;
+            for (int e = int(t); e < m * (m + 1) / 2; e += NT) {
+                ivec2 ab = tri(e);
+                int i = kk + 1 + ab.x;
+                int j = kk + 1 + ab.y;
+                S[S_L + i * (i + 1) / 2 + j] -= S[S_L + i * (i + 1) / 2 + kk] * S[S_L + j * (j + 1) / 2 + kk];
+            }
+            barrier();
+        }
+        if (s_int[4] != 0) {
+            ok = true;
+            break;
+        }
+        barrier();
+    }
+    if (!ok) {
+        // AOS-FALLBACK: the input.
+        if (t == 0u) {
+            write_out(ci, o);
+        }
+        return;
+    }
+
+    // u* = A*^-1 e1, beta* = A*^-1 rhs_grey, u_l = A_l^-1 e1 (leading blocks).
+    for (int i = int(t); i < p5; i += NT) {
+        real e1 = i == 0 ? real(1) : real(0);
+        S[V_US + i] = e1;
+        S[V_U1 + i] = e1;
+        S[V_U3 + i] = e1;
+        S[V_BETA + i] = (S[V_RHS + i] + S[V_RHS + NC + i] + S[V_RHS + 2 * NC + i]) / real(3);
+    }
+    barrier();
+    if (t == 0u) {
+        tri_solve(p5, V_US);
+    } else if (t == 1u) {
+        tri_solve(p5, V_BETA);
+    } else if (t == 2u) {
+        tri_solve(p1, V_U1);
+    } else if (t == 3u) {
+        tri_solve(p3, V_U3);
+    }
+    barrier();
+    // bias_l = u_l^T N[0..p_l, :] beta_high; t_l = N[:, 0..p_l] u_l on the
+    // high powers (into V_Q*, solved next).
+    for (int i = int(t); i < p5; i += NT) {
+        int v = s_colv[i];
+        real t1 = real(0);
+        real t3 = real(0);
+        if (v > 1 && v <= 3) {
+            for (int j = 0; j < p1; ++j) {
+                t1 += S[S_N + lidx(i, j)] * S[V_U1 + j];
+            }
+        }
+        if (v > 3 && v <= 5) {
+            for (int j = 0; j < p3; ++j) {
+                t3 += S[S_N + lidx(i, j)] * S[V_U3 + j];
+            }
+        }
+        S[V_Q1 + i] = t1;
+        S[V_Q3 + i] = t3;
+    }
+    if (t == uint(NT - 1) || t == uint(NT - 2)) {
+        int lo = t == uint(NT - 1) ? 1 : 3;
+        int pl = lo == 1 ? p1 : p3;
+        int ua = lo == 1 ? V_U1 : V_U3;
+        real b = real(0);
+        for (int i = 0; i < pl; ++i) {
+            real nb = real(0);
+            for (int j = 0; j < p5; ++j) {
+                int v = s_colv[j];
+                if (v > lo && v <= lo + 2) {
+                    nb += S[S_N + lidx(i, j)] * S[V_BETA + j];
+                }
+            }
+            b += S[ua + i] * nb;
+        }
+        S[S_SC + (lo == 1 ? SC_BIAS1 : SC_BIAS3)] = b;
+    }
+    barrier();
+    if (t == 0u) {
+        tri_solve(p5, V_Q1);
+    } else if (t == 1u) {
+        tri_solve(p5, V_Q3);
+    }
+    barrier();
+
+    // Pass 2: sigma*^2 = sum K^2 (u*.x)^2 vbar; per order sum K^2 (u_l.x)^2,
+    // the same times vbar, and sum K^2 (q_l.x)^2 vbar.
+    real sums[NSUM];
+    for (int a = 0; a < NSUM; ++a) {
+        sums[a] = real(0);
+    }
+    for (int base = 0; base < nrows; base += CH) {
+        stage(c, base, nrows, t, p5);
+        if (t < uint(CH)) {
+            int rr = int(t);
+            real kw = S[X_K + rr];
+            if (kw > real(0)) {
+                real vb = S[X_Y + rr * 4 + 3];
+                int xr = X_X + rr * XS;
+                real ds = real(0);
+                real g1 = real(0);
+                real g3 = real(0);
+                real d1 = real(0);
+                real d3 = real(0);
+                for (int i = 0; i < p5; ++i) {
+                    real xv = S[xr + i];
+                    ds += S[V_US + i] * xv;
+                    g1 += S[V_Q1 + i] * xv;
+                    g3 += S[V_Q3 + i] * xv;
+                    d1 += i < p1 ? S[V_U1 + i] * xv : real(0);
+                    d3 += i < p3 ? S[V_U3 + i] * xv : real(0);
+                }
+                real k2 = kw * kw;
+                sums[0] += k2 * ds * ds * vb;
+                sums[1] += k2 * d1 * d1;
+                sums[2] += k2 * d1 * d1 * vb;
+                sums[3] += k2 * g1 * g1 * vb;
+                sums[4] += k2 * d3 * d3;
+                sums[5] += k2 * d3 * d3 * vb;
+                sums[6] += k2 * g3 * g3 * vb;
+            }
+        }
+        barrier();
+    }
+    if (t < uint(CH)) {
+        for (int a = 0; a < NSUM; ++a) {
+            S[P2_SUM + int(t) * NSUM + a] = sums[a];
+        }
+    }
+    barrier();
+    if (t != 0u) {
+        return;
+    }
+    real tot[NSUM];
+    for (int a = 0; a < NSUM; ++a) {
+        tot[a] = real(0);
+        for (int rr = 0; rr < CH; ++rr) {
+            tot[a] += S[P2_SUM + rr * NSUM + a];
+        }
+    }
+    real sigma2 = tot[0];
+    o[10] = sigma2;
+    int best = -1;
+    real best_mse = real(0);
+    for (int oi = 0; oi < 2; ++oi) {
+        int b0 = 1 + 3 * oi;
+        real var = (push.flags & AOS_SANDWICH) != 0u ? tot[b0 + 1] : tot[b0] * sigma2;
+        real bias = S[S_SC + (oi == 0 ? SC_BIAS1 : SC_BIAS3)];
+        real bvar = tot[b0 + 2];
+        bool counts = (push.flags & AOS_BIAS_TEST) == 0u || bias * bias > real(BIAS_Z * BIAS_Z) * bvar;
+        real cb = counts ? bias : real(0);
+        real mse = var + cb * cb;
+        o[6 + 2 * oi] = bias;
+        o[7 + 2 * oi] = var;
+        o[11 + oi] = sqrt(max(bvar, real(0)));
+        if (best < 0 || mse < best_mse) {
+            best = oi;
+            best_mse = mse;
+        }
+    }
+    if ((push.flags & AOS_IDENTITY) != 0u && real(vbar[ci]) < best_mse) {
+        write_out(ci, o);
+        return;
+    }
+    int pl = best == 0 ? p1 : p3;
+    int ua = best == 0 ? V_U1 : V_U3;
+    real3 m = real3(0);
+    for (int i = 0; i < pl; ++i) {
+        m += S[ua + i] * real3(S[V_RHS + i], S[V_RHS + NC + i], S[V_RHS + 2 * NC + i]);
+    }
+    o[0] = max(m.x, real(0));
+    o[1] = max(m.y, real(0));
+    o[2] = max(m.z, real(0));
+    o[3] = best_mse;
+    o[4] = real(best == 0 ? 1 : 3);
+    write_out(ci, o);
+}

@@ -1,0 +1,84 @@
+//! `aos_fit`: AOS's fits (spec §5.3 steps 2–8), one workgroup of
+//! [`THREADS`] invocations per pixel with the order-5 normal matrix in
+//! workgroup memory (§5.4). Reads `aos_space`'s projections; writes
+//! [`OUTPUTS`] planes `push.stride` f32 values apart in one binding. Twin:
+//! [`crate::reference::aos_fit`], which also states the algebra.
+
+use crate::error::Result;
+use crate::gpu::reflect::{read, write};
+use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};
+pub use crate::reference::aos_fit::{DEBUG_NAMES, MAX_COLS, OUTPUTS};
+use crate::shared::AosPush;
+
+/// Invocations per pixel (the kernel's `local_size_x`).
+pub const THREADS: u32 = 64;
+
+/// Declaration of `spirv/aos_fit.comp`; checked against the SPIR-V by
+/// reflection.
+pub const DECL: KernelDecl = KernelDecl {
+    name: "aos_fit",
+    bindings: &[
+        read("depth"),
+        read("albedo_r"),
+        read("albedo_g"),
+        read("albedo_b"),
+        read("normal_x"),
+        read("normal_y"),
+        read("normal_z"),
+        read("visibility"),
+        read("color_r"),
+        read("color_g"),
+        read("color_b"),
+        read("vbar"),
+        read("spp"),
+        read("space"),
+        write("dst"),
+    ],
+    push_size: std::mem::size_of::<AosPush>() as u32,
+};
+
+/// Per pixel with `p` design columns (`1 + 5k`, at most [`MAX_COLS`]) over
+/// `n = (2R+1)²` window pixels: three window passes each projecting the
+/// row (10×10) and forming its powers (~260 flops), pass 0's 50 moments,
+/// pass 1's `p(p+1)/2` Gram entries and `3p` right-hand sides (3 flops
+/// each), pass 2's five dot products and seven sums; the Cholesky
+/// (`p³/3`) and seven triangular solves (`2p²` each). The rank varies per
+/// pixel: the count takes `p = 1 + 5·rank`.
+pub fn flops_per_pixel(radius: u32, rank: f64) -> f64 {
+    let n = ((2 * radius + 1) * (2 * radius + 1)) as f64;
+    let p = 1.0 + 5.0 * rank;
+    n * (3.0 * 260.0 + 50.0 * 3.0 + 3.0 * p * (p + 1.0) / 2.0 + 6.0 * p + 10.0 * p + 20.0)
+        + p * p * p / 3.0
+        + 7.0 * 2.0 * p * p
+}
+
+/// Records the fits of rows `push.base_row + [0, rows)` (`push.flags`:
+/// `AOS_SANDWICH`, `AOS_BIAS_TEST`, `AOS_IDENTITY`). `rank` is the mean TSVD
+/// rank assumed by the cost count (progress and the roofline only).
+pub fn record(
+    batch: &mut Batch,
+    precision: Precision,
+    push: &AosPush,
+    rows: u32,
+    feats: &[BufferSlice; 8],
+    color: [BufferSlice; 3],
+    vbar: BufferSlice,
+    spp: BufferSlice,
+    space: BufferSlice,
+    dst: BufferSlice,
+    rank: f64,
+) -> Result<()> {
+    let mut b = Vec::with_capacity(DECL.bindings.len());
+    b.extend_from_slice(feats);
+    b.extend_from_slice(&color);
+    b.extend([vbar, spp, space, dst]);
+    batch.dispatch(
+        &DECL,
+        precision,
+        &b,
+        bytemuck::bytes_of(push),
+        push.width * THREADS,
+        rows,
+        flops_per_pixel(push.radius, rank) / THREADS as f64,
+    )
+}

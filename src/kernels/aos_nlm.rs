@@ -1,0 +1,59 @@
+//! `aos_nlm`: AOS's variance-aware NL-means feature prefilter (spec §5.2)
+//! of one buffer of 1 or 3 channels. Writes the filtered channels, then
+//! their propagated variances, `push.stride` f32 values apart in one
+//! binding. Twin: [`crate::reference::aos_nlm`].
+
+use crate::error::Result;
+use crate::gpu::reflect::{read, write};
+use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};
+use crate::shared::AosPush;
+
+/// Declaration of `spirv/aos_nlm.comp`; checked against the SPIR-V by
+/// reflection.
+pub const DECL: KernelDecl = KernelDecl {
+    name: "aos_nlm",
+    bindings: &[
+        read("g0"),
+        read("g1"),
+        read("g2"),
+        read("vg0"),
+        read("vg1"),
+        read("vg2"),
+        read("spp"),
+        write("dst"),
+    ],
+    push_size: std::mem::size_of::<AosPush>() as u32,
+};
+
+/// Per pixel: `11²` candidates × `7²` patch offsets × (per channel a
+/// difference, its square, the variance terms and a division: ~8 flops)
+/// plus per candidate the weight's exponential and the weighted sums.
+pub fn flops_per_pixel(channels: u32) -> f64 {
+    121.0 * (49.0 * 8.0 * channels as f64 + 20.0 + 4.0 * channels as f64)
+}
+
+/// Records the prefilter of one buffer: `g` and `vg` hold `push.channels`
+/// planes (the others any plane, unread), `dst` `2·channels` planes.
+pub fn record(
+    batch: &mut Batch,
+    precision: Precision,
+    push: &AosPush,
+    g: [BufferSlice; 3],
+    vg: [BufferSlice; 3],
+    spp: BufferSlice,
+    dst: BufferSlice,
+) -> Result<()> {
+    let mut b = Vec::with_capacity(DECL.bindings.len());
+    b.extend_from_slice(&g);
+    b.extend_from_slice(&vg);
+    b.extend([spp, dst]);
+    batch.dispatch(
+        &DECL,
+        precision,
+        &b,
+        bytemuck::bytes_of(push),
+        push.width,
+        push.height,
+        flops_per_pixel(push.channels),
+    )
+}
