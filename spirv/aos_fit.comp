@@ -23,6 +23,12 @@
 #endif
 #include "lib/common.glsl"
 
+#ifdef MC_F64
+#define rmat4 dmat4
+#else
+#define rmat4 mat4
+#endif
+
 layout(local_size_x = 64) in;
 
 // Mirrors mcdenoise::shared::AosPush.
@@ -62,8 +68,7 @@ PLANE_OUT(14, dst)
 #define D 10         // features
 #define SPACE 101    // floats per pixel in `space`
 #define NC 51        // most columns: 1 + 5 D
-#define NB 13        // blocks of 4 columns: ceil(NC / 4)
-#define XS 52        // staged design row stride: NB * 4
+#define XS 56        // staged row stride: 51 columns, 3 colours, padding
 #define NE 1326      // NC (NC + 1) / 2: a packed lower triangle
 #define CH0 64       // window rows per chunk, pass 0
 #define CH 16        // window rows per chunk, passes 1 and 2
@@ -134,6 +139,14 @@ ivec2 tri(int e)
 
 bool valid_at(uint i) { return spp_of(spp[i]) >= 1.0; }
 
+// The centre's projection P (columns j: rows 0-3, 4-7, 8-9) and features,
+// per invocation: constant indices, so lavapipe keeps them in vector
+// registers instead of gathering them from workgroup memory for every row.
+real4 g_pa[D];
+real4 g_pb[D];
+real2 g_pc[D];
+real g_xc[D];
+
 real feature(int j, uint q)
 {
     switch (j) {
@@ -177,21 +190,28 @@ void load_row(ivec2 c, int r, out real kw, out real dz[D], out uint q)
         return;
     }
     real dx[D];
-    dx[0] = real(p.x) - S[S_XC];
-    dx[1] = real(p.y) - S[S_XC + 1];
+    dx[0] = real(p.x) - g_xc[0];
+    dx[1] = real(p.y) - g_xc[1];
     for (int j = 0; j < 8; ++j) {
-        dx[2 + j] = feature(j, q) - S[S_XC + 2 + j];
+        dx[2 + j] = feature(j, q) - g_xc[2 + j];
     }
-    for (int m = 0; m < D; ++m) {
-        real s = real(0);
-        for (int j = 0; j < D; ++j) {
-            s += S[S_P + m * D + j] * dx[j];
-        }
-        dz[m] = s;
+    real4 d0 = real4(0);
+    real4 d1 = real4(0);
+    real2 d2 = real2(0);
+    for (int j = 0; j < D; ++j) {
+        d0 += g_pa[j] * dx[j];
+        d1 += g_pb[j] * dx[j];
+        d2 += g_pc[j] * dx[j];
     }
+    for (int m = 0; m < 4; ++m) {
+        dz[m] = d0[m];
+        dz[4 + m] = d1[m];
+    }
+    dz[8] = d2.x;
+    dz[9] = d2.y;
     real bw = real(max(R, 1));
-    real d2 = real((p.x - c.x) * (p.x - c.x) + (p.y - c.y) * (p.y - c.y));
-    kw = real(exp(float(-d2 / (real(2) * bw * bw))));
+    real r2 = real((p.x - c.x) * (p.x - c.x) + (p.y - c.y) * (p.y - c.y));
+    kw = real(exp(float(-r2 / (real(2) * bw * bw))));
 }
 
 // Stages rows [base, base + CH): dz, K, colour and vbar by the first CH
@@ -221,8 +241,9 @@ void stage(ivec2 c, int base, int nrows, uint t, int p5)
         S[X_Y + rr * 4 + 3] = use ? real(vbar[q]) : real(0);
     }
     barrier();
-    // Columns p5 .. 4 ceil(p5/4) are 0 (whole blocks of 4 are read).
-    int pw = (p5 + 3) / 4 * 4;
+    // Columns p5 .. p5+2 hold colour (the right-hand sides of pass 1);
+    // the rest up to a multiple of 4 is 0 (whole blocks of 4 are read).
+    int pw = (p5 + 3 + 3) / 4 * 4;
     for (int e = int(t); e < CH * pw; e += NT) {
         int rr = e / pw;
         int i = e - rr * pw;
@@ -230,6 +251,8 @@ void stage(ivec2 c, int base, int nrows, uint t, int p5)
         if (i < p5) {
             int v = s_colv[i];
             x = v == 0 ? real(1) : powi(S[X_DZ + rr * D + s_colj[i]], v) * S[S_SCALE + i];
+        } else if (i < p5 + 3) {
+            x = S[X_Y + rr * 4 + (i - p5)];
         }
         S[X_X + rr * XS + i] = x;
     }
@@ -326,6 +349,12 @@ void main()
         S[S_XC + t] = t == 0u ? real(c.x) : (t == 1u ? real(c.y) : feature(int(t) - 2, ci));
     }
     barrier();
+    for (int j = 0; j < D; ++j) {
+        g_pa[j] = real4(S[S_P + j], S[S_P + D + j], S[S_P + 2 * D + j], S[S_P + 3 * D + j]);
+        g_pb[j] = real4(S[S_P + 4 * D + j], S[S_P + 5 * D + j], S[S_P + 6 * D + j], S[S_P + 7 * D + j]);
+        g_pc[j] = real2(S[S_P + 8 * D + j], S[S_P + 9 * D + j]);
+        g_xc[j] = S[S_XC + j];
+    }
     int R = int(push.radius);
     int nrows = (2 * R + 1) * (2 * R + 1);
 
@@ -400,53 +429,58 @@ void main()
     int p5 = s_int[3];
     int ne = p5 * (p5 + 1) / 2;
 
-    // Pass 1: N = sum K x x^T, rhs = sum K x y. Invocation t < p5 owns
-    // column t of N and accumulates it in blocks of 4 rows: the row's x_t is
-    // the invocation's own, the blocks of x are the same for every
-    // invocation (uniform loads, no gathers).
-    // Thirteen named accumulators: a local array would be indexed per
-    // invocation (lavapipe does not unroll the block loop).
-    real4 acc0 = real4(0), acc1 = real4(0), acc2 = real4(0), acc3 = real4(0);
-    real4 acc4 = real4(0), acc5 = real4(0), acc6 = real4(0), acc7 = real4(0);
-    real4 acc8 = real4(0), acc9 = real4(0), acc10 = real4(0), acc11 = real4(0);
-    real4 acc12 = real4(0);
-    real3 racc = real3(0);
-    int nblk = (p5 + 3) / 4;
+    // Pass 1: N = sum K x x^T and rhs = sum K x y, as one Gram matrix of
+    // the rows extended by y (columns p5 .. p5+2). Invocation t owns the
+    // 4x4 blocks t and t + 64 of its lower block triangle and accumulates
+    // outer products: 8 loads of workgroup memory per 16 multiply-adds
+    // (loads dominate on lavapipe).
+    int pe = p5 + 3;
+    int nb = (pe + 3) / 4;
+    int npairs = nb * (nb + 1) / 2;
+    bool own0 = int(t) < npairs;
+    bool own1 = int(t) + NT < npairs;
+    ivec2 bp0 = tri(min(int(t), npairs - 1));
+    ivec2 bp1 = tri(min(int(t) + NT, npairs - 1));
+    rmat4 m0 = rmat4(0);
+    rmat4 m1 = rmat4(0);
     for (int base = 0; base < nrows; base += CH) {
         stage(c, base, nrows, t, p5);
-        if (t < uint(p5)) {
+        if (own0) {
             for (int rr = 0; rr < CH; ++rr) {
-                int xr = X_X + rr * XS;
-                real kx = S[X_K + rr] * S[xr + int(t)];
-#define ACC_STEP(b) \
-                if (b < nblk) { \
-                    int o = xr + 4 * b; \
-                    acc##b += kx * real4(S[o], S[o + 1], S[o + 2], S[o + 3]); \
+                real kw = S[X_K + rr];
+                if (kw > real(0)) {
+                    int xr = X_X + rr * XS;
+                    int oi = xr + 4 * bp0.x;
+                    int oj = xr + 4 * bp0.y;
+                    m0 += outerProduct(kw * real4(S[oi], S[oi + 1], S[oi + 2], S[oi + 3]),
+                                       real4(S[oj], S[oj + 1], S[oj + 2], S[oj + 3]));
+                    if (own1) {
+                        oi = xr + 4 * bp1.x;
+                        oj = xr + 4 * bp1.y;
+                        m1 += outerProduct(kw * real4(S[oi], S[oi + 1], S[oi + 2], S[oi + 3]),
+                                           real4(S[oj], S[oj + 1], S[oj + 2], S[oj + 3]));
+                    }
                 }
-                ACC_STEP(0) ACC_STEP(1) ACC_STEP(2) ACC_STEP(3) ACC_STEP(4)
-                ACC_STEP(5) ACC_STEP(6) ACC_STEP(7) ACC_STEP(8) ACC_STEP(9)
-                ACC_STEP(10) ACC_STEP(11) ACC_STEP(12)
-#undef ACC_STEP
-                racc += kx * real3(S[X_Y + rr * 4], S[X_Y + rr * 4 + 1], S[X_Y + rr * 4 + 2]);
             }
         }
         barrier();
     }
-    if (t < uint(p5)) {
-        int j = int(t);
-#define ACC_OUT(b) \
-        for (int a = 0; a < 4; ++a) { \
-            int i = 4 * b + a; \
-            if (i >= j && i < p5) { \
-                S[S_N + i * (i + 1) / 2 + j] = acc##b[a]; \
-            } \
+    for (int h2 = 0; h2 < 2; ++h2) {
+        if (h2 == 0 ? own0 : own1) {
+            ivec2 bp = h2 == 0 ? bp0 : bp1;
+            for (int a = 0; a < 4; ++a) {
+                for (int b = 0; b < 4; ++b) {
+                    int i = 4 * bp.x + a;
+                    int j = 4 * bp.y + b;
+                    real v = h2 == 0 ? m0[b][a] : m1[b][a];
+                    if (j < p5 && i >= j && i < p5) {
+                        S[S_N + i * (i + 1) / 2 + j] = v;
+                    } else if (j < p5 && i >= p5 && i < pe) {
+                        S[V_RHS + (i - p5) * NC + j] = v;
+                    }
+                }
+            }
         }
-        ACC_OUT(0) ACC_OUT(1) ACC_OUT(2) ACC_OUT(3) ACC_OUT(4) ACC_OUT(5) ACC_OUT(6)
-        ACC_OUT(7) ACC_OUT(8) ACC_OUT(9) ACC_OUT(10) ACC_OUT(11) ACC_OUT(12)
-#undef ACC_OUT
-        S[V_RHS + j] = racc.x;
-        S[V_RHS + NC + j] = racc.y;
-        S[V_RHS + 2 * NC + j] = racc.z;
     }
     barrier();
 
