@@ -1,9 +1,10 @@
 #version 460
 // AOS steps 2-8 (spec §5.3) at one pixel per workgroup of 64 invocations
-// (§5.4): AOS-SCALE, the order-5 partial power design (at most 51 columns),
-// its normal matrix in workgroup memory, one blocked Cholesky whose leading
-// blocks serve orders 1 and 3 (AOS-ONE-RIDGE), the bias, variance and MSE of
-// each order, the choice, the output. See src/reference/aos_fit.rs for the
+// (§5.4): one pass over the window accumulates the Gram matrices of the raw
+// order-5 power design (at most 51 columns) extended by colour; AOS-SCALE
+// from their diagonal; one Cholesky whose leading blocks serve orders 1 and
+// 3 (AOS-ONE-RIDGE); the bias, variance and MSE of each order as quadratic
+// forms; the choice; the output. See src/reference/aos_fit.rs for the
 // algebra; that file is the scalar twin.
 //
 // Dispatch: width * 64 invocations by the band's rows; workgroup (x, y) is
@@ -67,12 +68,12 @@ PLANE_OUT(14, dst)
 #define NT 64        // invocations per pixel
 #define D 10         // features
 #define SPACE 101    // floats per pixel in `space`
-#define NC 51        // most columns: 1 + 5 D
-#define XS 56        // staged row stride: 51 columns, 3 colours, padding
+#define NC 51        // most design columns: 1 + 5 D
+#define XS 56        // extended row stride: 51 columns, 3 colours, padding
 #define NE 1326      // NC (NC + 1) / 2: a packed lower triangle
-#define CH0 64       // window rows per chunk, pass 0
-#define CH 16        // window rows per chunk, passes 1 and 2
-#define NSUM 7       // pass 2's sums
+#define NER 1485     // 54 * 55 / 2: the extended raw Gram's lower triangle
+#define CH 16        // window rows per staged chunk
+#define NSUM 7       // quadratic forms
 
 #define RIDGE_F 1e-5
 #define RMS_EPS 1e-12
@@ -80,11 +81,11 @@ PLANE_OUT(14, dst)
 #define SOLVE_RETRIES 3
 #define RIDGE_FLOOR 1e-8
 
-// One array of workgroup memory; the regions below are reused between
-// phases (f64: 26.6 KiB, under lavapipe's 32 KiB).
-#define S_N 0                 // N, packed lower (i >= j at i(i+1)/2 + j)
-#define S_L (S_N + NE)        // the Cholesky factor, packed lower
-#define S_V (S_L + NE)        // vectors of NC: rhs R G B, beta*, u*, u1, u3, q1, q3
+// One array of workgroup memory; regions are reused between phases
+// (f64: 29.6 KiB, under lavapipe's 32 KiB).
+#define S_N 0                 // raw extended Gram, then the compact N (packed lower)
+#define S_L (S_N + NER)       // the Cholesky factor (packed lower); staging before
+#define S_V (S_L + NE)        // compact vectors: rhs R G B, beta*, u*, u1, u3, q1, q3
 #define V_RHS (S_V)
 #define V_BETA (S_V + 3 * NC)
 #define V_US (S_V + 4 * NC)
@@ -92,22 +93,17 @@ PLANE_OUT(14, dst)
 #define V_U3 (S_V + 6 * NC)
 #define V_Q1 (S_V + 7 * NC)
 #define V_Q3 (S_V + 8 * NC)
-#define S_MOM (S_V + 9 * NC)  // pass 0: weighted mean squares, (v-1)*D + j
-#define S_SCALE (S_MOM + 5 * D)
-#define S_P (S_SCALE + NC)    // the centre's projection, m*D + j
-#define S_XC (S_P + D * D)    // the centre's features
-#define S_SC (S_XC + D)       // scalars, below
+#define V_RAW (S_V + 9 * NC)  // u*, u1, u3, q1, q3 in the raw layout, scaled (stride XS)
+#define S_SCALE (V_RAW + 5 * XS)  // raw column scale (0: dropped)
+#define S_SC (S_SCALE + NC)   // scalars, below
 #define S_SIZE (S_SC + 8)
-// Pass 0 staging (in S_L): dz rows, then K.
-#define P0_DZ (S_L)
-#define P0_K (S_L + CH0 * D)
-// Passes 1-2 staging (in S_L): design rows, dz rows, K, colour + vbar.
+// Staging (in S_L): extended rows, dz rows, K, colour + vbar.
 #define X_X (S_L)
 #define X_DZ (S_L + CH * XS)
 #define X_K (X_DZ + CH * D)
 #define X_Y (X_K + CH)
-// Pass 2 partial sums (in S_N, free by then).
-#define P2_SUM (S_N)
+// Quadratic-form partial sums (in S_L, free after the solves).
+#define QF_SUM (S_L)
 // Scalars.
 #define SC_KSUM 0
 #define SC_THRESH 1
@@ -117,9 +113,9 @@ PLANE_OUT(14, dst)
 #define SC_MEAN_DIAG 5
 
 shared real S[S_SIZE];
-shared int s_colv[NC];
-shared int s_colj[NC];
-// k, p1, p3, p5, pivot flag
+shared int s_colv[NC];   // compact column -> power
+shared int s_cidx[NC];   // raw column -> compact column, -1 if dropped
+// p1, p3, p5, pivot flag, any column dropped
 shared int s_int[5];
 
 int lidx(int i, int j) { return i >= j ? i * (i + 1) / 2 + j : j * (j + 1) / 2 + i; }
@@ -170,6 +166,8 @@ real powi(real z, int v)
     return p;
 }
 
+real4 load4(int o) { return real4(S[o], S[o + 1], S[o + 2], S[o + 3]); }
+
 // Window row r (raster order over the (2R+1)^2 square) of centre c: kernel
 // weight (0 outside the image or invalid) and local coordinates.
 void load_row(ivec2 c, int r, out real kw, out real dz[D], out uint q)
@@ -215,8 +213,10 @@ void load_row(ivec2 c, int r, out real kw, out real dz[D], out uint q)
 }
 
 // Stages rows [base, base + CH): dz, K, colour and vbar by the first CH
-// invocations, then the design rows (p5 columns) by all.
-void stage(ivec2 c, int base, int nrows, uint t, int p5)
+// invocations, then by all the extended raw rows: column 0 = 1, column
+// 1 + (v-1) k + j = dz_j^v (v = 1..5, j < k), then R, G, B, then 0 up to a
+// multiple of 4 (whole blocks of 4 are read).
+void stage(ivec2 c, int base, int nrows, uint t, int k)
 {
     if (t < uint(CH)) {
         int rr = int(t);
@@ -241,18 +241,18 @@ void stage(ivec2 c, int base, int nrows, uint t, int p5)
         S[X_Y + rr * 4 + 3] = use ? real(vbar[q]) : real(0);
     }
     barrier();
-    // Columns p5 .. p5+2 hold colour (the right-hand sides of pass 1);
-    // the rest up to a multiple of 4 is 0 (whole blocks of 4 are read).
-    int pw = (p5 + 3 + 3) / 4 * 4;
+    int pr = 1 + 5 * k;
+    int pw = (pr + 3 + 3) / 4 * 4;
     for (int e = int(t); e < CH * pw; e += NT) {
         int rr = e / pw;
         int i = e - rr * pw;
         real x = real(0);
-        if (i < p5) {
-            int v = s_colv[i];
-            x = v == 0 ? real(1) : powi(S[X_DZ + rr * D + s_colj[i]], v) * S[S_SCALE + i];
-        } else if (i < p5 + 3) {
-            x = S[X_Y + rr * 4 + (i - p5)];
+        if (i == 0) {
+            x = real(1);
+        } else if (i < pr) {
+            x = powi(S[X_DZ + rr * D + (i - 1) % k], (i - 1) / k + 1);
+        } else if (i < pr + 3) {
+            x = S[X_Y + rr * 4 + (i - pr)];
         }
         S[X_X + rr * XS + i] = x;
     }
@@ -285,15 +285,8 @@ void write_out(uint i, real o[13])
     }
 }
 
-// The input pixel (AOS-FALLBACK, AOS-IDENTITY): colour, error vbar_c.
-void input_out(uint i, inout real o[13])
-{
-    o[0] = max(real(col_r[i]), real(0));
-    o[1] = max(real(col_g[i]), real(0));
-    o[2] = max(real(col_b[i]), real(0));
-    o[3] = real(vbar[i]);
-    o[4] = real(0);
-}
+// u^T M v over one 4x4 block (rows of M: block I, columns: block J).
+real qform(rmat4 m, real4 u, real4 v) { return dot(u, m * v); }
 
 void main()
 {
@@ -331,9 +324,13 @@ void main()
         }
         return;
     }
+    // AOS-FALLBACK and AOS-IDENTITY output: the input, error vbar_c.
+    o[0] = max(real(col_r[ci]), real(0));
+    o[1] = max(real(col_g[ci]), real(0));
+    o[2] = max(real(col_b[ci]), real(0));
+    o[3] = real(vbar[ci]);
     uint so = ((uint(c.y) - push.base_row) * push.width + uint(c.x)) * uint(SPACE);
     int k = int(space[so + uint(D * D)]);
-    input_out(ci, o);
     o[5] = real(k);
     if (k == 0) {
         if (t == 0u) {
@@ -341,130 +338,62 @@ void main()
         }
         return;
     }
-    // The centre's projection and features.
-    for (int e = int(t); e < D * D; e += NT) {
-        S[S_P + e] = real(space[so + uint(e)]);
-    }
-    if (t < uint(D)) {
-        S[S_XC + t] = t == 0u ? real(c.x) : (t == 1u ? real(c.y) : feature(int(t) - 2, ci));
-    }
-    barrier();
     for (int j = 0; j < D; ++j) {
-        g_pa[j] = real4(S[S_P + j], S[S_P + D + j], S[S_P + 2 * D + j], S[S_P + 3 * D + j]);
-        g_pb[j] = real4(S[S_P + 4 * D + j], S[S_P + 5 * D + j], S[S_P + 6 * D + j], S[S_P + 7 * D + j]);
-        g_pc[j] = real2(S[S_P + 8 * D + j], S[S_P + 9 * D + j]);
-        g_xc[j] = S[S_XC + j];
+        g_pa[j] = real4(space[so + uint(j)], space[so + uint(D + j)], space[so + uint(2 * D + j)], space[so + uint(3 * D + j)]);
+        g_pb[j] = real4(space[so + uint(4 * D + j)], space[so + uint(5 * D + j)], space[so + uint(6 * D + j)], space[so + uint(7 * D + j)]);
+        g_pc[j] = real2(space[so + uint(8 * D + j)], space[so + uint(9 * D + j)]);
+    }
+    g_xc[0] = real(c.x);
+    g_xc[1] = real(c.y);
+    for (int j = 0; j < 8; ++j) {
+        g_xc[2 + j] = feature(j, ci);
     }
     int R = int(push.radius);
     int nrows = (2 * R + 1) * (2 * R + 1);
+    int pr = 1 + 5 * k;
 
-    // Pass 0: sum K, sum K (dz_j^v)^2 for v = 1..5, j < k.
-    real mom = real(0);
-    int mv = int(t) / D + 1;
-    int mj = int(t) % D;
-    for (int base = 0; base < nrows; base += CH0) {
-        {
-            real kw = real(0);
-            real dz[D];
-            uint q;
-            if (base + int(t) < nrows) {
-                load_row(c, base + int(t), kw, dz, q);
-            } else {
-                for (int m = 0; m < D; ++m) {
-                    dz[m] = real(0);
-                }
-            }
-            for (int m = 0; m < D; ++m) {
-                S[P0_DZ + int(t) * D + m] = dz[m];
-            }
-            S[P0_K + t] = kw;
-        }
-        barrier();
-        if (t < uint(5 * D) && mj < k) {
-            for (int rr = 0; rr < CH0; ++rr) {
-                real pw = powi(S[P0_DZ + rr * D + mj], mv);
-                mom += S[P0_K + rr] * pw * pw;
-            }
-        } else if (t == uint(5 * D)) {
-            for (int rr = 0; rr < CH0; ++rr) {
-                mom += S[P0_K + rr];
-            }
-        }
-        barrier();
-    }
-    if (t < uint(5 * D)) {
-        S[S_MOM + t] = mom;
-    } else if (t == uint(5 * D)) {
-        S[S_SC + SC_KSUM] = mom;
-    }
-    barrier();
-    // AOS-SCALE: columns by power, then component; drop RMS < 1e-12.
-    if (t == 0u) {
-        real ksum = S[S_SC + SC_KSUM];
-        int n = 1;
-        s_colv[0] = 0;
-        s_colj[0] = 0;
-        S[S_SCALE] = real(1);
-        for (int v = 1; v <= 5; ++v) {
-            for (int j = 0; j < k; ++j) {
-                real rms = sqrt(S[S_MOM + (v - 1) * D + j] / ksum);
-                if (rms >= real(RMS_EPS)) {
-                    s_colv[n] = v;
-                    s_colj[n] = j;
-                    S[S_SCALE + n] = real(1) / rms;
-                    ++n;
-                }
-            }
-            if (v == 1) {
-                s_int[1] = n;
-            } else if (v == 3) {
-                s_int[2] = n;
-            }
-        }
-        s_int[3] = n;
-    }
-    barrier();
-    int p1 = s_int[1];
-    int p3 = s_int[2];
-    int p5 = s_int[3];
-    int ne = p5 * (p5 + 1) / 2;
-
-    // Pass 1: N = sum K x x^T and rhs = sum K x y, as one Gram matrix of
-    // the rows extended by y (columns p5 .. p5+2). Invocation t owns the
-    // 4x4 blocks t and t + 64 of its lower block triangle and accumulates
-    // outer products: 8 loads of workgroup memory per 16 multiply-adds
-    // (loads dominate on lavapipe).
-    int pe = p5 + 3;
+    // The one window pass: the Gram matrices of the raw rows extended by
+    // colour, as 4x4 outer-product blocks (8 loads of workgroup memory per
+    // 48 multiply-adds: loads dominate on lavapipe). Invocation t owns the
+    // blocks t and t + 64 of the lower block triangle, with three weights:
+    // N = sum K x x^T (and the right-hand sides sum K x y), B = sum K^2 x x^T,
+    // G = sum K^2 vbar x x^T.
+    int pe = pr + 3;
     int nb = (pe + 3) / 4;
     int npairs = nb * (nb + 1) / 2;
     bool own0 = int(t) < npairs;
     bool own1 = int(t) + NT < npairs;
     ivec2 bp0 = tri(min(int(t), npairs - 1));
     ivec2 bp1 = tri(min(int(t) + NT, npairs - 1));
-    rmat4 m0 = rmat4(0);
-    rmat4 m1 = rmat4(0);
+    rmat4 n0 = rmat4(0), b0 = rmat4(0), g0 = rmat4(0);
+    rmat4 n1 = rmat4(0), b1 = rmat4(0), g1 = rmat4(0);
     for (int base = 0; base < nrows; base += CH) {
-        stage(c, base, nrows, t, p5);
+        stage(c, base, nrows, t, k);
         if (own0) {
             for (int rr = 0; rr < CH; ++rr) {
                 real kw = S[X_K + rr];
                 if (kw > real(0)) {
+                    real k2 = kw * kw;
+                    real kv = k2 * S[X_Y + rr * 4 + 3];
                     int xr = X_X + rr * XS;
-                    int oi = xr + 4 * bp0.x;
-                    int oj = xr + 4 * bp0.y;
-                    m0 += outerProduct(kw * real4(S[oi], S[oi + 1], S[oi + 2], S[oi + 3]),
-                                       real4(S[oj], S[oj + 1], S[oj + 2], S[oj + 3]));
+                    real4 xi = load4(xr + 4 * bp0.x);
+                    real4 xj = load4(xr + 4 * bp0.y);
+                    n0 += outerProduct(kw * xi, xj);
+                    b0 += outerProduct(k2 * xi, xj);
+                    g0 += outerProduct(kv * xi, xj);
                     if (own1) {
-                        oi = xr + 4 * bp1.x;
-                        oj = xr + 4 * bp1.y;
-                        m1 += outerProduct(kw * real4(S[oi], S[oi + 1], S[oi + 2], S[oi + 3]),
-                                           real4(S[oj], S[oj + 1], S[oj + 2], S[oj + 3]));
+                        xi = load4(xr + 4 * bp1.x);
+                        xj = load4(xr + 4 * bp1.y);
+                        n1 += outerProduct(kw * xi, xj);
+                        b1 += outerProduct(k2 * xi, xj);
+                        g1 += outerProduct(kv * xi, xj);
                     }
                 }
             }
         }
         barrier();
     }
+    // The raw N and right-hand sides to workgroup memory.
     for (int h2 = 0; h2 < 2; ++h2) {
         if (h2 == 0 ? own0 : own1) {
             ivec2 bp = h2 == 0 ? bp0 : bp1;
@@ -472,13 +401,80 @@ void main()
                 for (int b = 0; b < 4; ++b) {
                     int i = 4 * bp.x + a;
                     int j = 4 * bp.y + b;
-                    real v = h2 == 0 ? m0[b][a] : m1[b][a];
-                    if (j < p5 && i >= j && i < p5) {
+                    real v = h2 == 0 ? n0[b][a] : n1[b][a];
+                    if (j < pr && i >= j && i < pr) {
                         S[S_N + i * (i + 1) / 2 + j] = v;
-                    } else if (j < p5 && i >= p5 && i < pe) {
-                        S[V_RHS + (i - p5) * NC + j] = v;
+                    } else if (j < pr && i >= pr && i < pe) {
+                        S[V_RHS + (i - pr) * NC + j] = v;
                     }
                 }
+            }
+        }
+    }
+    barrier();
+    // AOS-SCALE from the raw diagonal: rms_r = sqrt(N_rr / sum K); columns
+    // below RMS_EPS are dropped; order by power, then component.
+    if (t == 0u) {
+        real ksum = S[S_N];
+        S[S_SC + SC_KSUM] = ksum;
+        S[S_SCALE] = real(1);
+        s_cidx[0] = 0;
+        s_colv[0] = 0;
+        int n = 1;
+        for (int r = 1; r < pr; ++r) {
+            real rms = sqrt(S[S_N + r * (r + 1) / 2 + r] / ksum);
+            int v = (r - 1) / k + 1;
+            if (rms >= real(RMS_EPS)) {
+                S[S_SCALE + r] = real(1) / rms;
+                s_cidx[r] = n;
+                s_colv[n] = v;
+                ++n;
+            } else {
+                S[S_SCALE + r] = real(0);
+                s_cidx[r] = -1;
+            }
+            if (r == k) {
+                s_int[0] = n;
+            } else if (r == 3 * k) {
+                s_int[1] = n;
+            }
+        }
+        s_int[2] = n;
+        s_int[4] = n < pr ? 1 : 0;
+    }
+    barrier();
+    int p1 = s_int[0];
+    int p3 = s_int[1];
+    int p5 = s_int[2];
+    int ne = p5 * (p5 + 1) / 2;
+    if (s_int[4] == 0) {
+        // Usual case: nothing dropped, scale in place.
+        for (int e = int(t); e < ne; e += NT) {
+            ivec2 ij = tri(e);
+            S[S_N + e] *= S[S_SCALE + ij.x] * S[S_SCALE + ij.y];
+        }
+        for (int i = int(t); i < p5; i += NT) {
+            real sc = S[S_SCALE + i];
+            S[V_RHS + i] *= sc;
+            S[V_RHS + NC + i] *= sc;
+            S[V_RHS + 2 * NC + i] *= sc;
+        }
+    } else if (t == 0u) {
+        // A dropped column: compact in place (targets never pass sources).
+        for (int i = 0; i < pr; ++i) {
+            int ci2 = s_cidx[i];
+            if (ci2 < 0) {
+                continue;
+            }
+            real si = S[S_SCALE + i];
+            for (int j = 0; j <= i; ++j) {
+                int cj = s_cidx[j];
+                if (cj >= 0) {
+                    S[S_N + ci2 * (ci2 + 1) / 2 + cj] = S[S_N + i * (i + 1) / 2 + j] * si * S[S_SCALE + j];
+                }
+            }
+            for (int ch = 0; ch < 3; ++ch) {
+                S[V_RHS + ch * NC + ci2] = S[V_RHS + ch * NC + i] * si;
             }
         }
     }
@@ -521,13 +517,13 @@ void main()
                 int dk = kk * (kk + 1) / 2 + kk;
                 real piv = S[S_L + dk];
                 bool good = piv > S[S_SC + SC_THRESH] && !isnan(piv) && !isinf(piv);
-                s_int[4] = good ? 1 : 0;
+                s_int[3] = good ? 1 : 0;
                 if (good) {
                     S[S_L + dk] = sqrt(piv);
                 }
             }
             barrier();
-            if (s_int[4] == 0) {
+            if (s_int[3] == 0) {
                 break;
             }
             real lkk = S[S_L + kk * (kk + 1) / 2 + kk];
@@ -544,7 +540,7 @@ void main()
             }
             barrier();
         }
-        if (s_int[4] != 0) {
+        if (s_int[3] != 0) {
             ok = true;
             break;
         }
@@ -559,12 +555,12 @@ void main()
     }
 
     // u* = A*^-1 e1, beta* = A*^-1 rhs_grey, u_l = A_l^-1 e1 (leading blocks).
-    for (int i = int(t); i < p5; i += NT) {
+    for (int i = int(t); i < NC; i += NT) {
         real e1 = i == 0 ? real(1) : real(0);
         S[V_US + i] = e1;
         S[V_U1 + i] = e1;
         S[V_U3 + i] = e1;
-        S[V_BETA + i] = (S[V_RHS + i] + S[V_RHS + NC + i] + S[V_RHS + 2 * NC + i]) / real(3);
+        S[V_BETA + i] = i < p5 ? (S[V_RHS + i] + S[V_RHS + NC + i] + S[V_RHS + 2 * NC + i]) / real(3) : real(0);
     }
     barrier();
     if (t == 0u) {
@@ -579,18 +575,20 @@ void main()
     barrier();
     // bias_l = u_l^T N[0..p_l, :] beta_high; t_l = N[:, 0..p_l] u_l on the
     // high powers (into V_Q*, solved next).
-    for (int i = int(t); i < p5; i += NT) {
-        int v = s_colv[i];
+    for (int i = int(t); i < NC; i += NT) {
         real t1 = real(0);
         real t3 = real(0);
-        if (v > 1 && v <= 3) {
-            for (int j = 0; j < p1; ++j) {
-                t1 += S[S_N + lidx(i, j)] * S[V_U1 + j];
+        if (i < p5) {
+            int v = s_colv[i];
+            if (v > 1 && v <= 3) {
+                for (int j = 0; j < p1; ++j) {
+                    t1 += S[S_N + lidx(i, j)] * S[V_U1 + j];
+                }
             }
-        }
-        if (v > 3 && v <= 5) {
-            for (int j = 0; j < p3; ++j) {
-                t3 += S[S_N + lidx(i, j)] * S[V_U3 + j];
+            if (v > 3 && v <= 5) {
+                for (int j = 0; j < p3; ++j) {
+                    t3 += S[S_N + lidx(i, j)] * S[V_U3 + j];
+                }
             }
         }
         S[V_Q1 + i] = t1;
@@ -602,14 +600,14 @@ void main()
         int ua = lo == 1 ? V_U1 : V_U3;
         real b = real(0);
         for (int i = 0; i < pl; ++i) {
-            real nb = real(0);
+            real nb2 = real(0);
             for (int j = 0; j < p5; ++j) {
                 int v = s_colv[j];
                 if (v > lo && v <= lo + 2) {
-                    nb += S[S_N + lidx(i, j)] * S[V_BETA + j];
+                    nb2 += S[S_N + lidx(i, j)] * S[V_BETA + j];
                 }
             }
-            b += S[ua + i] * nb;
+            b += S[ua + i] * nb2;
         }
         S[S_SC + (lo == 1 ? SC_BIAS1 : SC_BIAS3)] = b;
     }
@@ -621,49 +619,44 @@ void main()
     }
     barrier();
 
-    // Pass 2: sigma*^2 = sum K^2 (u*.x)^2 vbar; per order sum K^2 (u_l.x)^2,
-    // the same times vbar, and sum K^2 (q_l.x)^2 vbar.
-    real sums[NSUM];
+    // The vectors of the quadratic forms in the raw layout, scaled:
+    // u.x_scaled = (s . u_raw).x_raw; 0 for dropped and colour columns.
+    for (int r = int(t); r < XS; r += NT) {
+        int cr = r < pr ? s_cidx[r] : -1;
+        real sc = cr >= 0 ? S[S_SCALE + r] : real(0);
+        int cc = max(cr, 0);
+        S[V_RAW + r] = sc * S[V_US + cc];
+        S[V_RAW + XS + r] = sc * S[V_U1 + cc];
+        S[V_RAW + 2 * XS + r] = sc * S[V_U3 + cc];
+        S[V_RAW + 3 * XS + r] = sc * S[V_Q1 + cc];
+        S[V_RAW + 4 * XS + r] = sc * S[V_Q3 + cc];
+    }
+    barrier();
+    // sigma*^2 = u*^T G u*; per order l: u_l^T B u_l (the paper's
+    // [A^-1 B A^-1]_00), u_l^T G u_l (sandwich), q_l^T G q_l (bias variance).
+    real qs[NSUM];
     for (int a = 0; a < NSUM; ++a) {
-        sums[a] = real(0);
+        qs[a] = real(0);
     }
-    for (int base = 0; base < nrows; base += CH) {
-        stage(c, base, nrows, t, p5);
-        if (t < uint(CH)) {
-            int rr = int(t);
-            real kw = S[X_K + rr];
-            if (kw > real(0)) {
-                real vb = S[X_Y + rr * 4 + 3];
-                int xr = X_X + rr * XS;
-                real ds = real(0);
-                real g1 = real(0);
-                real g3 = real(0);
-                real d1 = real(0);
-                real d3 = real(0);
-                for (int i = 0; i < p5; ++i) {
-                    real xv = S[xr + i];
-                    ds += S[V_US + i] * xv;
-                    g1 += S[V_Q1 + i] * xv;
-                    g3 += S[V_Q3 + i] * xv;
-                    d1 += i < p1 ? S[V_U1 + i] * xv : real(0);
-                    d3 += i < p3 ? S[V_U3 + i] * xv : real(0);
-                }
-                real k2 = kw * kw;
-                sums[0] += k2 * ds * ds * vb;
-                sums[1] += k2 * d1 * d1;
-                sums[2] += k2 * d1 * d1 * vb;
-                sums[3] += k2 * g1 * g1 * vb;
-                sums[4] += k2 * d3 * d3;
-                sums[5] += k2 * d3 * d3 * vb;
-                sums[6] += k2 * g3 * g3 * vb;
-            }
+    for (int h2 = 0; h2 < 2; ++h2) {
+        if (h2 == 0 ? own0 : own1) {
+            ivec2 bp = h2 == 0 ? bp0 : bp1;
+            rmat4 mb = h2 == 0 ? b0 : b1;
+            rmat4 mg = h2 == 0 ? g0 : g1;
+            real f = bp.x == bp.y ? real(1) : real(2);
+            int oi = 4 * bp.x;
+            int oj = 4 * bp.y;
+            qs[0] += f * qform(mg, load4(V_RAW + oi), load4(V_RAW + oj));
+            qs[1] += f * qform(mb, load4(V_RAW + XS + oi), load4(V_RAW + XS + oj));
+            qs[2] += f * qform(mg, load4(V_RAW + XS + oi), load4(V_RAW + XS + oj));
+            qs[3] += f * qform(mg, load4(V_RAW + 3 * XS + oi), load4(V_RAW + 3 * XS + oj));
+            qs[4] += f * qform(mb, load4(V_RAW + 2 * XS + oi), load4(V_RAW + 2 * XS + oj));
+            qs[5] += f * qform(mg, load4(V_RAW + 2 * XS + oi), load4(V_RAW + 2 * XS + oj));
+            qs[6] += f * qform(mg, load4(V_RAW + 4 * XS + oi), load4(V_RAW + 4 * XS + oj));
         }
-        barrier();
     }
-    if (t < uint(CH)) {
-        for (int a = 0; a < NSUM; ++a) {
-            S[P2_SUM + int(t) * NSUM + a] = sums[a];
-        }
+    for (int a = 0; a < NSUM; ++a) {
+        S[QF_SUM + int(t) * NSUM + a] = qs[a];
     }
     barrier();
     if (t != 0u) {
@@ -672,8 +665,8 @@ void main()
     real tot[NSUM];
     for (int a = 0; a < NSUM; ++a) {
         tot[a] = real(0);
-        for (int rr = 0; rr < CH; ++rr) {
-            tot[a] += S[P2_SUM + rr * NSUM + a];
+        for (int l = 0; l < NT; ++l) {
+            tot[a] += S[QF_SUM + l * NSUM + a];
         }
     }
     real sigma2 = tot[0];
@@ -681,10 +674,10 @@ void main()
     int best = -1;
     real best_mse = real(0);
     for (int oi = 0; oi < 2; ++oi) {
-        int b0 = 1 + 3 * oi;
-        real var = (push.flags & AOS_SANDWICH) != 0u ? tot[b0 + 1] : tot[b0] * sigma2;
+        int b0i = 1 + 3 * oi;
+        real var = (push.flags & AOS_SANDWICH) != 0u ? tot[b0i + 1] : tot[b0i] * sigma2;
         real bias = S[S_SC + (oi == 0 ? SC_BIAS1 : SC_BIAS3)];
-        real bvar = tot[b0 + 2];
+        real bvar = tot[b0i + 2];
         bool counts = (push.flags & AOS_BIAS_TEST) == 0u || bias * bias > real(BIAS_Z * BIAS_Z) * bvar;
         real cb = counts ? bias : real(0);
         real mse = var + cb * cb;

@@ -38,20 +38,23 @@ pub const DECL: KernelDecl = KernelDecl {
 };
 
 /// Per pixel with `p` design columns (`1 + 5k`, at most [`MAX_COLS`]) over
-/// `n = (2R+1)²` window pixels: three window passes each projecting the
-/// row (10×10) and forming its powers (~260 flops); pass 0's 50 moments;
-/// pass 1's Gram matrix of the rows extended by the three colours, as the
-/// `nb(nb+1)/2` 4×4 blocks of its lower block triangle (`nb = ⌈(p+3)/4⌉`,
-/// 32 flops per block and row); pass 2's five dot products and seven sums;
-/// the Cholesky (`p³/3`) and seven triangular solves (`2p²` each). The rank
-/// varies per pixel: the count takes `p = 1 + 5·rank`.
+/// `n = (2R+1)²` window pixels, in its one window pass: the row's
+/// projection (10×10 plus the feature differences, ~220 flops) and powers
+/// (~50), and three Gram matrices (weights `K`, `K²`, `K² vbar`) of the rows
+/// extended by the three colours, as the `nb(nb+1)/2` 4×4 blocks of the
+/// lower block triangle (`nb = ⌈(p+3)/4⌉`, 32 flops per block, row and
+/// matrix). After it: the Cholesky (`p³/3`), seven triangular solves
+/// (`2p²` each) and seven quadratic forms over the blocks. The rank varies
+/// per pixel: the count takes `p = 1 + 5·rank`.
 pub fn flops_per_pixel(radius: u32, rank: f64) -> f64 {
     let n = ((2 * radius + 1) * (2 * radius + 1)) as f64;
     let p = 1.0 + 5.0 * rank;
     let nb = ((p + 3.0) / 4.0).ceil();
-    n * (3.0 * 260.0 + 50.0 * 3.0 + 32.0 * nb * (nb + 1.0) / 2.0 + 10.0 * p + 20.0)
+    let pairs = nb * (nb + 1.0) / 2.0;
+    n * (220.0 + 50.0 + 3.0 * 32.0 * pairs)
         + p * p * p / 3.0
         + 7.0 * 2.0 * p * p
+        + 7.0 * 40.0 * pairs
 }
 
 /// Records the fits of rows `push.base_row + [0, rows)` (`push.flags`:

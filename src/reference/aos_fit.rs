@@ -2,23 +2,23 @@
 //! steps 2–8) in the algebra the kernel uses, one workgroup per pixel.
 //!
 //! [`super::aos::pixel`] builds every equivalent kernel and bias image
-//! explicitly. The kernel forms only what a fixed amount of workgroup memory
-//! holds: the normal matrix `N = Σ K_i x_i x_iᵀ` of the order-5 design (at
-//! most 51 columns), the right-hand sides `Σ K_i x_i y_i[ch]`, and one
-//! Cholesky factor whose leading blocks serve orders 1 and 3
-//! (AOS-ONE-RIDGE). Everything else follows from them:
+//! explicitly. The kernel makes one pass over the window and forms only
+//! what a fixed amount of workgroup memory holds: three Gram matrices of
+//! the raw design rows `[1, Δz_j^v (v = 1..5, j < k)]` extended by colour,
+//! `N = Σ K_i x_i x_iᵀ` (with the right-hand sides `Σ K_i x_i y_i[ch]`),
+//! `B = Σ K_i² x_i x_iᵀ` and `G = Σ K_i² vbar_i x_i x_iᵀ`. AOS-SCALE comes
+//! from `N`'s diagonal (the weighted mean squares), so the scaled, compact
+//! matrices are `s_i s_j` times the raw entries. One Cholesky factor of `N`
+//! serves all orders through its leading blocks (AOS-ONE-RIDGE). Then:
 //!
 //! * `u_l = A_l⁻¹ e_1`, so the output is `m̂[ch] = u_lᵀ (X_lᵀ W y[ch])`;
 //! * `bias_l = Σ_i l_i ξ_i = u_lᵀ N[0..p_l, :] β*_high` (the order-5
 //!   coefficients of powers `l+1 ..= l+2`);
 //! * `t_l = N[:, 0..p_l] u_l` restricted to those powers and `q_l = A*⁻¹ t_l`
 //!   give the bias estimate's weights `g_i = K_i q_lᵀ x_i`;
-//! * one more pass over the window sums `K_i² (u·x_i)²` (times `vbar_i`) for
-//!   `u*`, `u_1`, `u_3`, and `K_i² (q_l·x_i)² vbar_i`: `σ*²`, the paper's
-//!   `[A⁻¹BA⁻¹]_00 = Σ l_i²`, the sandwich variance and the bias variance.
-//!
-//! The AOS-SCALE column scales come from a first pass: the weighted mean
-//! square of `Δz_j^v` for every power and component.
+//! * the sums over the window are quadratic forms: `σ*² = u*ᵀ G u*`, the
+//!   paper's `[A⁻¹BA⁻¹]_00 = u_lᵀ B u_l`, the sandwich variance
+//!   `u_lᵀ G u_l` and the bias variance `q_lᵀ G q_l`.
 
 use super::aos::{BIAS_Z, INCREMENT, P_STAR, RIDGE, RMS_EPS};
 use super::aos_space::{features, Proj, D};
@@ -81,13 +81,6 @@ pub fn fill(w: usize, h: usize, plane: &[f32], spp: &[f32], c: usize) -> f64 {
     }
 }
 
-/// One window row: kernel weight and the design row (compact columns).
-struct Row {
-    q: usize,
-    k: f64,
-    x: Vec<f64>,
-}
-
 /// The [`OUTPUTS`] values of pixel `c` with projection `proj`.
 pub fn fit_pixel(push: &AosPush, inp: &FitInputs, c: usize, proj: &Proj) -> [f64; OUTPUTS] {
     let (w, h) = (push.width as usize, push.height as usize);
@@ -114,9 +107,15 @@ pub fn fit_pixel(push: &AosPush, inp: &FitInputs, c: usize, proj: &Proj) -> [f64
     let (cx, cy) = (c % w, c / w);
     let xc = features(w, &inp.feats, c);
     let bw = r.max(1) as f64;
-    // Pass 0: Δz and K of the window's valid pixels (raster order), the
-    // weighted mean squares of every power.
-    let mut win: Vec<(usize, f64, [f64; D])> = Vec::new();
+    // The one window pass: valid pixels in raster order, the raw extended
+    // rows [1, Δz_j^v (v = 1..5, j < k), R, G, B], and three Gram matrices:
+    // N (weight K), B (K²) and G (K² vbar).
+    let pr = 1 + P_STAR * k;
+    let pe = pr + 3;
+    let mut nr = vec![0.0; pe * pe];
+    let mut br = vec![0.0; pr * pr];
+    let mut gr = vec![0.0; pr * pr];
+    let mut xr = vec![0.0; pe];
     for qy in cy.saturating_sub(r)..(cy + r + 1).min(h) {
         for qx in cx.saturating_sub(r)..(cx + r + 1).min(w) {
             let q = qy * w + qx;
@@ -125,51 +124,61 @@ pub fn fit_pixel(push: &AosPush, inp: &FitInputs, c: usize, proj: &Proj) -> [f64
             }
             let (dx, dy) = (qx as f64 - cx as f64, qy as f64 - cy as f64);
             let kw = (-(dx * dx + dy * dy) / (2.0 * bw * bw)).exp();
-            win.push((q, kw, proj.dz(&features(w, &inp.feats, q), &xc)));
+            let dz = proj.dz(&features(w, &inp.feats, q), &xc);
+            xr[0] = 1.0;
+            for i in 1..pr {
+                xr[i] = powi(dz[(i - 1) % k], (i - 1) / k + 1);
+            }
+            for ch in 0..3 {
+                xr[pr + ch] = col(ch, q);
+            }
+            let (k2, kv) = (kw * kw, kw * kw * vbar(q));
+            for i in 0..pe {
+                for j in 0..=i {
+                    nr[i * pe + j] += kw * xr[i] * xr[j];
+                    if i < pr {
+                        br[i * pr + j] += k2 * xr[i] * xr[j];
+                        gr[i * pr + j] += kv * xr[i] * xr[j];
+                    }
+                }
+            }
         }
     }
-    let ksum: f64 = win.iter().map(|t| t.1).sum();
+    // AOS-SCALE from the raw diagonal; columns below RMS_EPS are dropped.
+    let ksum = nr[0];
     let mut cols: Vec<(usize, usize, f64)> = vec![(0, 0, 1.0)];
-    for v in 1..=P_STAR {
-        for j in 0..k {
-            let ms: f64 = win.iter().map(|t| t.1 * powi(t.2[j], 2 * v)).sum::<f64>();
-            let rms = (ms / ksum).sqrt();
-            if rms >= RMS_EPS {
-                cols.push((v, j, 1.0 / rms));
-            }
+    for i in 1..pr {
+        let rms = (nr[i * pe + i] / ksum).sqrt();
+        if rms >= RMS_EPS {
+            cols.push(((i - 1) / k + 1, i, 1.0 / rms));
         }
     }
     let pc = cols.len();
     let p_of = |l: usize| cols.iter().filter(|c| c.0 <= l).count();
-    let rows: Vec<Row> = win
-        .iter()
-        .map(|&(q, kw, dz)| Row {
-            q,
-            k: kw,
-            x: cols
-                .iter()
-                .map(|&(v, j, s)| if v == 0 { 1.0 } else { powi(dz[j], v) * s })
-                .collect(),
-        })
-        .collect();
-    // Pass 1: N and the right-hand sides.
-    let mut n = vec![0.0; pc * pc];
-    let mut rhs = [vec![0.0; pc], vec![0.0; pc], vec![0.0; pc]];
-    for row in &rows {
-        for i in 0..pc {
-            for j in 0..=i {
-                n[i * pc + j] += row.k * row.x[i] * row.x[j];
-            }
-            for (ch, b) in rhs.iter_mut().enumerate() {
-                b[i] += row.k * row.x[i] * col(ch, row.q);
+    let sym = |m: &[f64], stride: usize, a: usize, b: usize| {
+        if a >= b {
+            m[a * stride + b]
+        } else {
+            m[b * stride + a]
+        }
+    };
+    let compact = |m: &[f64], stride: usize| -> Vec<f64> {
+        let mut out = vec![0.0; pc * pc];
+        for (i, ci) in cols.iter().enumerate() {
+            for (j, cj) in cols.iter().enumerate() {
+                out[i * pc + j] = sym(m, stride, ci.1, cj.1) * ci.2 * cj.2;
             }
         }
-    }
-    for i in 0..pc {
-        for j in 0..i {
-            n[j * pc + i] = n[i * pc + j];
-        }
-    }
+        out
+    };
+    let n = compact(&nr, pe);
+    let bm = compact(&br, pr);
+    let gm = compact(&gr, pr);
+    let rhs: [Vec<f64>; 3] = std::array::from_fn(|ch| {
+        cols.iter()
+            .map(|c| nr[(pr + ch) * pe + c.1] * c.2)
+            .collect()
+    });
     let chol = ridge_cholesky(&n, pc, RIDGE * ksum, EPS_PIVOT);
     if chol.failed {
         return o;
@@ -229,21 +238,32 @@ pub fn fit_pixel(push: &AosPush, inp: &FitInputs, c: usize, proj: &Proj) -> [f64
             .collect();
         qs[o_i] = solve(pc, &t);
     }
-    // Pass 2: σ*², Σ l², Σ l² vbar, Σ g² vbar.
-    let dot = |a: &[f64], x: &[f64]| a.iter().zip(x).map(|(a, x)| a * x).sum::<f64>();
-    let (mut sigma2, mut sq, mut sw, mut bv) = (0.0, [0.0; 2], [0.0; 2], [0.0; 2]);
-    for row in &rows {
-        let k2 = row.k * row.k;
-        let vb = vbar(row.q);
-        let ds = dot(&u_star, &row.x);
-        sigma2 += k2 * ds * ds * vb;
-        for o_i in 0..2 {
-            let d = dot(&us[o_i], &row.x[..ps[o_i]]);
-            sq[o_i] += k2 * d * d;
-            sw[o_i] += k2 * d * d * vb;
-            let g = dot(&qs[o_i], &row.x);
-            bv[o_i] += k2 * g * g * vb;
+    // σ*² = u*ᵀ G u*; per order u_lᵀ B u_l (the paper's [A⁻¹BA⁻¹]_00),
+    // u_lᵀ G u_l (sandwich) and q_lᵀ G q_l (the bias variance): the sums
+    // Σ K²(a·x_i)²(vbar_i) as quadratic forms.
+    let qf = |m: &[f64], a: &[f64]| -> f64 {
+        let mut s = 0.0;
+        for (i, ai) in a.iter().enumerate() {
+            for (j, aj) in a.iter().enumerate() {
+                s += ai * m[i * pc + j] * aj;
+            }
         }
+        s
+    };
+    let pad = |u: &[f64]| -> Vec<f64> {
+        let mut v = u.to_vec();
+        v.resize(pc, 0.0);
+        v
+    };
+    let sigma2 = qf(&gm, &u_star);
+    let mut sq = [0.0; 2];
+    let mut sw = [0.0; 2];
+    let mut bv = [0.0; 2];
+    for o_i in 0..2 {
+        let u = pad(&us[o_i]);
+        sq[o_i] = qf(&bm, &u);
+        sw[o_i] = qf(&gm, &u);
+        bv[o_i] = qf(&gm, &qs[o_i]);
     }
     let mut best: Option<(usize, f64)> = None;
     for o_i in 0..2 {
@@ -272,7 +292,12 @@ pub fn fit_pixel(push: &AosPush, inp: &FitInputs, c: usize, proj: &Proj) -> [f64
         return o;
     }
     for ch in 0..3 {
-        o[ch] = dot(&us[o_i], &rhs[ch][..ps[o_i]]).max(0.0);
+        o[ch] = us[o_i]
+            .iter()
+            .zip(&rhs[ch])
+            .map(|(u, y)| u * y)
+            .sum::<f64>()
+            .max(0.0);
     }
     o[3] = mse;
     o[4] = orders[o_i] as f64;
