@@ -72,7 +72,7 @@ PLANE_OUT(14, dst)
 #define XS 56        // extended row stride: 51 columns, 3 colours, padding
 #define NE 1326      // NC (NC + 1) / 2: a packed lower triangle
 #define NER 1485     // 54 * 55 / 2: the extended raw Gram's lower triangle
-#define CH 16        // window rows per staged chunk
+#define CH 32        // window rows per staged chunk
 #define NSUM 7       // quadratic forms
 
 #define RIDGE_F 1e-5
@@ -97,9 +97,10 @@ PLANE_OUT(14, dst)
 #define S_SCALE (V_RAW + 5 * XS)  // raw column scale (0: dropped)
 #define S_SC (S_SCALE + NC)   // scalars, below
 #define S_SIZE (S_SC + 8)
-// Staging (in S_L): extended rows, dz rows, K, colour + vbar.
-#define X_X (S_L)
-#define X_DZ (S_L + CH * XS)
+// Staging (in S_N and S_L, free during the window pass): extended rows,
+// dz rows, K, colour + vbar.
+#define X_X (S_N)
+#define X_DZ (X_X + CH * XS)
 #define X_K (X_DZ + CH * D)
 #define X_Y (X_K + CH)
 // Quadratic-form partial sums (in S_L, free after the solves).
@@ -168,13 +169,12 @@ real powi(real z, int v)
 
 real4 load4(int o) { return real4(S[o], S[o + 1], S[o + 2], S[o + 3]); }
 
-// Window row r (raster order over the (2R+1)^2 square) of centre c: kernel
-// weight (0 outside the image or invalid) and local coordinates.
-void load_row(ivec2 c, int r, out real kw, out real dz[D], out uint q)
+// The window pixel at offset `off` from centre c: kernel weight (0 outside
+// the image or invalid) and local coordinates.
+void load_row(ivec2 c, ivec2 off, out real kw, out real dz[D], out uint q)
 {
     int R = int(push.radius);
-    int wd = 2 * R + 1;
-    ivec2 p = c + ivec2(r % wd - R, r / wd - R);
+    ivec2 p = c + off;
     kw = real(0);
     q = 0u;
     for (int m = 0; m < D; ++m) {
@@ -212,19 +212,24 @@ void load_row(ivec2 c, int r, out real kw, out real dz[D], out uint q)
     kw = real(exp(float(-r2 / (real(2) * bw * bw))));
 }
 
-// Stages rows [base, base + CH): dz, K, colour and vbar by the first CH
-// invocations, then by all the extended raw rows: column 0 = 1, column
-// 1 + (v-1) k + j = dz_j^v (v = 1..5, j < k), then R, G, B, then 0 up to a
-// multiple of 4 (whole blocks of 4 are read).
-void stage(ivec2 c, int base, int nrows, uint t, int k)
+// Stages rows [base, base + CH) of the window (raster order). Invocation
+// t < CH loads row base + t, whose offset from the centre it keeps in
+// `off` (advanced by CH rows per call: no integer division, which lavapipe
+// does lane by lane). Then invocation t writes, for row t % 32, the powers
+// of components j = t/32, t/32 + 2, ... < k into the extended raw row:
+// column 0 = 1, column 1 + (v-1) k + j = dz_j^v, then R, G, B, then 0 up to
+// a multiple of 4 (whole blocks of 4 are read).
+void stage(ivec2 c, int base, int nrows, uint t, int k, inout ivec2 off)
 {
+    int R = int(push.radius);
+    int wd = 2 * R + 1;
     if (t < uint(CH)) {
         int rr = int(t);
         real kw = real(0);
         real dz[D];
         uint q = 0u;
         if (base + rr < nrows) {
-            load_row(c, base + rr, kw, dz, q);
+            load_row(c, off - ivec2(R), kw, dz, q);
         } else {
             for (int m = 0; m < D; ++m) {
                 dz[m] = real(0);
@@ -239,22 +244,33 @@ void stage(ivec2 c, int base, int nrows, uint t, int k)
         S[X_Y + rr * 4 + 1] = use ? real(col_g[q]) : real(0);
         S[X_Y + rr * 4 + 2] = use ? real(col_b[q]) : real(0);
         S[X_Y + rr * 4 + 3] = use ? real(vbar[q]) : real(0);
+        off.x += CH;
+        while (off.x >= wd) {
+            off.x -= wd;
+            off.y += 1;
+        }
     }
     barrier();
     int pr = 1 + 5 * k;
     int pw = (pr + 3 + 3) / 4 * 4;
-    for (int e = int(t); e < CH * pw; e += NT) {
-        int rr = e / pw;
-        int i = e - rr * pw;
-        real x = real(0);
-        if (i == 0) {
-            x = real(1);
-        } else if (i < pr) {
-            x = powi(S[X_DZ + rr * D + (i - 1) % k], (i - 1) / k + 1);
-        } else if (i < pr + 3) {
-            x = S[X_Y + rr * 4 + (i - pr)];
+    int rr = int(t) & (CH - 1);
+    int xr = X_X + rr * XS;
+    for (int j = int(t) >> 5; j < k; j += NT / CH) {
+        real z = S[X_DZ + rr * D + j];
+        real pv = z;
+        for (int v = 0; v < 5; ++v) {
+            S[xr + 1 + v * k + j] = pv;
+            pv *= z;
         }
-        S[X_X + rr * XS + i] = x;
+    }
+    if ((int(t) >> 5) == 0) {
+        S[xr] = real(1);
+        for (int ch = 0; ch < 3; ++ch) {
+            S[xr + pr + ch] = S[X_Y + rr * 4 + ch];
+        }
+        for (int i = pr + 3; i < pw; ++i) {
+            S[xr + i] = real(0);
+        }
     }
     barrier();
 }
@@ -367,8 +383,10 @@ void main()
     ivec2 bp1 = tri(min(int(t) + NT, npairs - 1));
     rmat4 n0 = rmat4(0), b0 = rmat4(0), g0 = rmat4(0);
     rmat4 n1 = rmat4(0), b1 = rmat4(0), g1 = rmat4(0);
+    int wd = 2 * R + 1;
+    ivec2 off = ivec2(int(t) % wd, int(t) / wd);
     for (int base = 0; base < nrows; base += CH) {
-        stage(c, base, nrows, t, k);
+        stage(c, base, nrows, t, k, off);
         if (own0) {
             for (int rr = 0; rr < CH; ++rr) {
                 real kw = S[X_K + rr];
