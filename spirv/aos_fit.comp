@@ -64,7 +64,6 @@ PLANE_OUT(14, dst)
 #define AOS_SANDWICH 1u
 #define AOS_BIAS_TEST 2u
 #define AOS_IDENTITY 4u
-#define AOS_CONSISTENCY 8u
 
 #define NT 64        // invocations per pixel
 #define D 10         // features
@@ -79,7 +78,6 @@ PLANE_OUT(14, dst)
 #define RIDGE_F 1e-5
 #define RMS_EPS 1e-12
 #define BIAS_Z 2.0
-#define CONS_Z 3.0
 #define SOLVE_RETRIES 3
 #define RIDGE_FLOOR 1e-8
 
@@ -700,22 +698,7 @@ void main()
         real bvar = tot[b0i + 2];
         bool counts = (push.flags & AOS_BIAS_TEST) == 0u || bias * bias > real(BIAS_Z * BIAS_Z) * bvar;
         real cb = counts ? bias : real(0);
-        real b2 = cb * cb;
-        if ((push.flags & AOS_CONSISTENCY) != 0u) {
-            // AOS-CONSISTENCY: the fit's grey value against the pixel's own.
-            int pl2 = oi == 0 ? p1 : p3;
-            int ua2 = oi == 0 ? V_U1 : V_U3;
-            real mg = real(0);
-            for (int i = 0; i < pl2; ++i) {
-                mg += S[ua2 + i] * ((S[V_RHS + i] + S[V_RHS + NC + i] + S[V_RHS + 2 * NC + i]) / real(3));
-            }
-            real yc = (real(col_r[ci]) + real(col_g[ci]) + real(col_b[ci])) / real(3);
-            real d2 = (mg - yc) * (mg - yc);
-            if (d2 > real(CONS_Z * CONS_Z) * (real(vbar[ci]) + var)) {
-                b2 = max(b2, d2 - real(vbar[ci]));
-            }
-        }
-        real mse = var + b2;
+        real mse = var + cb * cb;
         o[6 + 2 * oi] = bias;
         o[7 + 2 * oi] = var;
         o[11 + oi] = sqrt(max(bvar, real(0)));

@@ -97,13 +97,6 @@ pub const OPTIONS: &[OptionSpec] = &[
         help: "the pixel's input competes as a candidate with MSE = its variance (on), or not (off, the paper)",
     },
     OptionSpec {
-        key: "aos.consistency",
-        kind: Kind::Choice(&["on", "off"]),
-        default: "on",
-        section: "§5.3 step 5 (AOS-CONSISTENCY)",
-        help: "a fit more than 3 standard deviations from the pixel's own input counts that difference as bias (on), or not (off, the paper)",
-    },
-    OptionSpec {
         key: "apr.outlier_weight",
         kind: Kind::Choice(&["clamped", "off"]),
         default: "clamped",

@@ -344,8 +344,7 @@ pub struct AosPush {
     pub radius: u32,
     /// `aos_nlm`: channels of the buffer (1 or 3).
     pub channels: u32,
-    /// `aos_fit`: bits [`AOS_SANDWICH`], [`AOS_BIAS_TEST`], [`AOS_IDENTITY`],
-    /// [`AOS_CONSISTENCY`].
+    /// `aos_fit`: bits [`AOS_SANDWICH`], [`AOS_BIAS_TEST`], [`AOS_IDENTITY`].
     pub flags: u32,
     /// The image row of the scratch buffer's first row: `aos_space` and
     /// `aos_fit` cover rows `base_row + row0 ..` and index the per-pixel
@@ -362,5 +361,3 @@ pub const AOS_SANDWICH: u32 = 1;
 pub const AOS_BIAS_TEST: u32 = 2;
 /// [`AosPush::flags`]: `aos.identity=on` (AOS-IDENTITY).
 pub const AOS_IDENTITY: u32 = 4;
-/// [`AosPush::flags`]: `aos.consistency=on` (AOS-CONSISTENCY).
-pub const AOS_CONSISTENCY: u32 = 8;

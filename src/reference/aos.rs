@@ -330,31 +330,6 @@ pub fn fit(d: &Design, l: usize, lambda: f64) -> Option<Fit> {
 /// half, whatever σ was (`tests/aos.rs`).
 pub const BIAS_Z: f64 = 2.0;
 
-/// Decision AOS-CONSISTENCY (ours; option `aos.consistency`): the fit's
-/// grey value `m_l` at the centre is checked against the pixel's own,
-/// unbiased input. When `(m_l − grey_c)² > CONS_Z²·(vbar_c + var_l)`, the
-/// difference is counted as a bias: `bias_l² ≥ (m_l − grey_c)² − vbar_c`.
-///
-/// Why: AOS-BIAS-TEST drops a bias whose estimate is uncertain, and the
-/// estimate is most uncertain exactly where it matters most. Next to a
-/// light seen directly (the built-in `mix` scene at 16 spp), the window
-/// holds the light's edge pixels, whose variance is huge. The order-1 bias
-/// was 2.5 there, but its standard error was larger than 1.25, so it did not
-/// count. AOS then wrote 2.9 where the input and the truth are 0.06–0.09,
-/// and was worse than its input over the image (rMSE 0.194 against 0.095).
-pub const CONS_Z: f64 = 3.0;
-
-/// AOS-CONSISTENCY's bias² for a fit that differs from the input by `diff`
-/// (0 when the difference is within `CONS_Z` standard deviations).
-pub fn consistency_bias2(diff: f64, vbar_c: f64, var: f64) -> f64 {
-    let d2 = diff * diff;
-    if d2 > CONS_Z * CONS_Z * (vbar_c + var) {
-        d2 - vbar_c
-    } else {
-        0.0
-    }
-}
-
 /// The choices of §5.3 that are options.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
 pub struct Settings {
@@ -364,8 +339,6 @@ pub struct Settings {
     pub bias_test: bool,
     /// `aos.identity` (AOS-IDENTITY, see [`pixel`]).
     pub identity: bool,
-    /// `aos.consistency` (AOS-CONSISTENCY, see [`CONS_Z`]).
-    pub consistency: bool,
 }
 
 impl Settings {
@@ -374,7 +347,6 @@ impl Settings {
         variance: Variance::Paper,
         bias_test: false,
         identity: false,
-        consistency: false,
     };
 }
 
@@ -384,7 +356,6 @@ impl Default for Settings {
             variance: Variance::Paper,
             bias_test: true,
             identity: true,
-            consistency: true,
         }
     }
 }
@@ -518,13 +489,7 @@ pub fn pixel(pl: &Planes, c: usize, radius: usize, set: Settings, lambda_factor:
         } else {
             0.0
         };
-        let mut b2 = counted * counted;
-        if set.consistency {
-            // AOS-CONSISTENCY: the fit's grey value against the pixel's own.
-            let m: f64 = kern.iter().zip(&d.idx).map(|(k, &q)| k * pl.grey(q)).sum();
-            b2 = b2.max(consistency_bias2(m - pl.grey(c), pl.vbar[c], var));
-        }
-        let mse = var + b2;
+        let mse = var + counted * counted;
         out.bias[o] = bias;
         out.bias_sd[o] = bias_var.sqrt();
         out.var[o] = var;

@@ -20,11 +20,11 @@
 //!   paper's `[A⁻¹BA⁻¹]_00 = u_lᵀ B u_l`, the sandwich variance
 //!   `u_lᵀ G u_l` and the bias variance `q_lᵀ G q_l`.
 
-use super::aos::{consistency_bias2, BIAS_Z, INCREMENT, P_STAR, RIDGE, RMS_EPS};
+use super::aos::{BIAS_Z, INCREMENT, P_STAR, RIDGE, RMS_EPS};
 use super::aos_space::{features, Proj, D};
 use super::linalg::{ridge_cholesky, EPS_PIVOT};
 use super::spp_of;
-use crate::shared::{AosPush, AOS_BIAS_TEST, AOS_CONSISTENCY, AOS_IDENTITY, AOS_SANDWICH};
+use crate::shared::{AosPush, AOS_BIAS_TEST, AOS_IDENTITY, AOS_SANDWICH};
 
 /// Output planes, in order: colour R G B (clamped ≥ 0), `MSE_c`, the chosen
 /// order (0: the input), rank `k`, `bias_1`, `var_1`, `bias_3`, `var_3`,
@@ -278,13 +278,7 @@ pub fn fit_pixel(push: &AosPush, inp: &FitInputs, c: usize, proj: &Proj) -> [f64
         } else {
             0.0
         };
-        let mut b2 = counted * counted;
-        if push.flags & AOS_CONSISTENCY != 0 {
-            let m: f64 = us[o_i].iter().zip(&grey).map(|(u, g)| u * g).sum();
-            let yc = (col(0, c) + col(1, c) + col(2, c)) / 3.0;
-            b2 = b2.max(consistency_bias2(m - yc, vbar(c), var));
-        }
-        let mse = var + b2;
+        let mse = var + counted * counted;
         o[6 + 2 * o_i] = b;
         o[7 + 2 * o_i] = var;
         o[11 + o_i] = bv[o_i].sqrt();
