@@ -64,6 +64,7 @@ PLANE_OUT(14, dst)
 #define AOS_SANDWICH 1u
 #define AOS_BIAS_TEST 2u
 #define AOS_IDENTITY 4u
+#define AOS_OUTLIER_W 8u
 
 #define NT 64        // invocations per pixel
 #define D 10         // features
@@ -210,6 +211,10 @@ void load_row(ivec2 c, ivec2 off, out real kw, out real dz[D], out uint q)
     real bw = real(max(R, 1));
     real r2 = real((p.x - c.x) * (p.x - c.x) + (p.y - c.y) * (p.y - c.y));
     kw = real(exp(float(-r2 / (real(2) * bw * bw))));
+    if ((push.flags & AOS_OUTLIER_W) != 0u) {
+        // AOS-OUTLIER-W: K / max(vbar, 1).
+        kw /= max(real(vbar[q]), real(1));
+    }
 }
 
 // Stages rows [base, base + CH) of the window (raster order). Invocation

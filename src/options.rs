@@ -97,6 +97,13 @@ pub const OPTIONS: &[OptionSpec] = &[
         help: "the pixel's input competes as a candidate with MSE = its variance (on), or not (off, the paper)",
     },
     OptionSpec {
+        key: "aos.outlier_weight",
+        kind: Kind::Choice(&["clamped", "off"]),
+        default: "clamped",
+        section: "§5.3 step 2 (AOS-OUTLIER-W)",
+        help: "kernel K divided by max(vbar, 1), as WLR's outlier weight (clamped), or K alone (off, the paper)",
+    },
+    OptionSpec {
         key: "apr.outlier_weight",
         kind: Kind::Choice(&["clamped", "off"]),
         default: "clamped",

@@ -22,21 +22,23 @@ use crate::options::Options;
 use crate::reference::aos::{self as r, Settings, Variance};
 use crate::reference::apr::invalid_fill;
 use crate::reference::spp_of;
-use crate::shared::{AosPush, AOS_BIAS_TEST, AOS_IDENTITY, AOS_SANDWICH};
+use crate::shared::{AosPush, AOS_BIAS_TEST, AOS_IDENTITY, AOS_OUTLIER_W, AOS_SANDWICH};
 
 /// AOS's options.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
 pub struct AosParams {
     /// Window radius: 9 in the final pass, 5 in intermediate ones (§5.1).
     pub radius: usize,
-    /// `aos.variance`, `aos.bias_test`, `aos.identity` (§5.3, and our
-    /// decisions AOS-BIAS-TEST and AOS-IDENTITY in `reference::aos`).
+    /// `aos.variance`, `aos.bias_test`, `aos.identity`,
+    /// `aos.outlier_weight` (§5.3, and our decisions AOS-BIAS-TEST,
+    /// AOS-IDENTITY and AOS-OUTLIER-W in `reference::aos`).
     pub settings: Settings,
 }
 
 impl AosParams {
     /// From the pass and `--opt aos.variance=paper|sandwich`,
-    /// `aos.bias_test=on|off`, `aos.identity=on|off`.
+    /// `aos.bias_test=on|off`, `aos.identity=on|off`,
+    /// `aos.outlier_weight=clamped|off`.
     pub fn new(pass: Pass, opts: &Options) -> Result<AosParams> {
         let variance = match opts.get("aos.variance") {
             "paper" => Variance::Paper,
@@ -56,6 +58,7 @@ impl AosParams {
                 variance,
                 bias_test: opts.get("aos.bias_test") == "on",
                 identity: opts.get("aos.identity") == "on",
+                outlier_weight: opts.get("aos.outlier_weight") == "clamped",
             },
         })
     }
@@ -289,6 +292,7 @@ fn flags(set: Settings) -> u32 {
         0
     }) | (if set.bias_test { AOS_BIAS_TEST } else { 0 })
         | (if set.identity { AOS_IDENTITY } else { 0 })
+        | (if set.outlier_weight { AOS_OUTLIER_W } else { 0 })
 }
 
 /// The mean TSVD rank the cost count assumes (measured on the public

@@ -20,11 +20,11 @@
 //!   paper's `[A⁻¹BA⁻¹]_00 = u_lᵀ B u_l`, the sandwich variance
 //!   `u_lᵀ G u_l` and the bias variance `q_lᵀ G q_l`.
 
-use super::aos::{BIAS_Z, INCREMENT, P_STAR, RIDGE, RMS_EPS};
+use super::aos::{outlier_weight, BIAS_Z, INCREMENT, P_STAR, RIDGE, RMS_EPS};
 use super::aos_space::{features, Proj, D};
 use super::linalg::{ridge_cholesky, EPS_PIVOT};
 use super::spp_of;
-use crate::shared::{AosPush, AOS_BIAS_TEST, AOS_IDENTITY, AOS_SANDWICH};
+use crate::shared::{AosPush, AOS_BIAS_TEST, AOS_IDENTITY, AOS_OUTLIER_W, AOS_SANDWICH};
 
 /// Output planes, in order: colour R G B (clamped ≥ 0), `MSE_c`, the chosen
 /// order (0: the input), rank `k`, `bias_1`, `var_1`, `bias_3`, `var_3`,
@@ -123,7 +123,10 @@ pub fn fit_pixel(push: &AosPush, inp: &FitInputs, c: usize, proj: &Proj) -> [f64
                 continue;
             }
             let (dx, dy) = (qx as f64 - cx as f64, qy as f64 - cy as f64);
-            let kw = (-(dx * dx + dy * dy) / (2.0 * bw * bw)).exp();
+            let mut kw = (-(dx * dx + dy * dy) / (2.0 * bw * bw)).exp();
+            if push.flags & AOS_OUTLIER_W != 0 {
+                kw *= outlier_weight(vbar(q));
+            }
             let dz = proj.dz(&features(w, &inp.feats, q), &xc);
             xr[0] = 1.0;
             for i in 1..pr {
