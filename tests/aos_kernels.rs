@@ -122,8 +122,9 @@ fn settings_flags(s: Settings) -> u32 {
 }
 
 /// The twin (normal matrix, one factorisation, sums) equals the reference's
-/// explicit kernels and bias images to 1e-7 on every pixel, for the default
-/// settings, the spec's and the sandwich variance, at both radii.
+/// explicit kernels and bias images to 1e-7 (1e-10 absolute) on every
+/// pixel, for the default settings, the spec's and the sandwich variance,
+/// at both radii.
 #[test]
 fn twin_matches_the_reference() {
     let img = image(27, 21, 7, true);

@@ -310,7 +310,32 @@ fn time_case(
         let t0 = Instant::now();
         let out = d.denoise(img, None)?;
         wall.push(t0.elapsed().as_secs_f64() * 1e3);
-        timings.push(out.timings);
+        let mut t = out.timings;
+        count_lp_centres(&mut t, &out.stats, img.width * img.height);
+        timings.push(t);
     }
     Ok((wall, timings))
+}
+
+/// `lp_centres` is dispatched over every candidate cell of every pass, and
+/// its count ([`crate::kernels::lp_centres::flops_per_centre`] per cell)
+/// charges each the work of a centre. Only the cells that become centres do
+/// that work (the others return after a reach test), so the flops of a run
+/// are rescaled to `centre_fraction × pixels` centres.
+fn count_lp_centres(t: &mut [KernelTiming], stats: &[(String, f64)], pixels: usize) {
+    let Some(&(_, fraction)) = stats.iter().find(|(k, _)| k == "centre_fraction") else {
+        return;
+    };
+    let counted: f64 = t
+        .iter()
+        .filter(|k| k.kernel == "lp_centres")
+        .map(|k| k.flops)
+        .sum();
+    if counted <= 0.0 {
+        return;
+    }
+    let actual = fraction * pixels as f64 * crate::kernels::lp_centres::flops_per_centre();
+    for k in t.iter_mut().filter(|k| k.kernel == "lp_centres") {
+        k.flops *= actual / counted;
+    }
 }

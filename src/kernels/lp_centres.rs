@@ -67,7 +67,9 @@ pub struct LpInputs {
     pub spp: BufferSlice,
 }
 
-/// Per grid cell that becomes a centre: 361 neighbours × (TSVD: two passes
+/// Per grid cell that becomes a centre (the dispatch charges it to every
+/// candidate cell; `bench` rescales a run's total to the cells that became
+/// centres): 361 neighbours × (TSVD: two passes
 /// with two 9×9 Gram updates; RLS: three projections, two 10×10 mat-vecs and
 /// one rank-1 update, 3 channels) plus two 9×9 Jacobi decompositions.
 pub fn flops_per_centre() -> f64 {
