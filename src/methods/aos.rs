@@ -163,17 +163,8 @@ pub fn run_cpu(clean: &StatsImage, params: AosParams, gbf_ran: bool) -> Result<A
     let mut color: [Vec<f32>; 3] = std::array::from_fn(|_| vec![0.0; n]);
     let mut mse = vec![0.0f32; n];
     let mut dim = vec![0.0f32; n];
-    let names = [
-        "aos_order",
-        "aos_rank",
-        "aos_bias1",
-        "aos_var1",
-        "aos_bias3",
-        "aos_var3",
-        "aos_sigma2",
-        "aos_bias_sd1",
-        "aos_bias_sd3",
-    ];
+    // The GPU kernel's debug planes, in its order.
+    let names = DEBUG_NAMES;
     let mut layers: Vec<Vec<f32>> = vec![vec![0.0; n]; names.len()];
     for i in 0..n {
         match &res[i] {
