@@ -24,6 +24,7 @@ const METHODS: &[(Method, bool)] = &[
     (Method::Lp, true),
     (Method::None, true),
     (Method::Apr, true),
+    (Method::Aos, true),
 ];
 
 fn make(img: &StatsImage, method: Method, on_gpu: bool) -> Denoiser {
