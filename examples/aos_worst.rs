@@ -1,6 +1,7 @@
 //! The pixels where AOS (CPU path, defaults) adds the most squared error
 //! over its input, with what AOS decided there: input, output, reference,
-//! `vbar`, chosen order (0: the input), rank, MSE, biases and variances.
+//! `vbar`, chosen order (0: the input), rank, MSE, biases and variances;
+//! and what share of a 12-spp sample map each chosen order gets.
 //! Usage: `cargo run --release --example aos_worst -- stats.exr ref.exr [N [KEY=VALUE ...]]`
 //! (the trailing arguments are `--opt` options).
 use mcdenoise::image::Layer;
@@ -16,7 +17,7 @@ fn main() {
     cfg.options = mcdenoise::options::Options::parse(&opts).unwrap();
     let f = Denoiser::new_cpu(Source::of_image(&img), cfg)
         .unwrap()
-        .denoise(&img, None)
+        .denoise(&img, Some(12 * (img.width * img.height) as u32))
         .unwrap();
     let input = mcdenoise::colour_of(&img);
     let var = img.get(Layer::ColorVariance).unwrap();
@@ -41,6 +42,21 @@ fn main() {
     let total_in: f64 = (0..w * img.height).map(|i| se(&input.planes, i)).sum();
     let total_out: f64 = (0..w * img.height).map(|i| se(&f.color.planes, i)).sum();
     println!("relative squared error summed: input {total_in:.3}, AOS {total_out:.3}");
+    // The sample map for 12 more samples per pixel on average: what share
+    // each chosen order (0: the input) gets.
+    let samples = f.samples.as_ref().unwrap();
+    let total: f64 = samples.iter().map(|&s| s as f64).sum();
+    for o in [0.0f32, 1.0, 3.0] {
+        let px: Vec<usize> = (0..w * img.height)
+            .filter(|&i| dbg("aos_order")[i] == o)
+            .collect();
+        let share: f64 = px.iter().map(|&i| samples[i] as f64).sum::<f64>() / total;
+        println!(
+            "order {o}: {:.1} % of the pixels, {:.1} % of the next pass's samples",
+            100.0 * px.len() as f64 / (w * img.height) as f64,
+            100.0 * share
+        );
+    }
     let mut idx: Vec<usize> = (0..w * img.height).collect();
     let gain = |i: usize| se(&f.color.planes, i) - se(&input.planes, i);
     idx.sort_by(|p, q| gain(*q).partial_cmp(&gain(*p)).unwrap());
