@@ -4,4 +4,6 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh --tests
 # Tests pick the best device; on a machine with a real GPU set MCDENOISE_DEVICE.
+# The validation layer is required: without it every GPU test fails.
+export MCDENOISE_REQUIRE_VALIDATION=1
 exec cargo test --no-fail-fast "$@"

@@ -2,6 +2,8 @@
 //! `../shared/docs/input-format.md`, every kind of bad input (an error naming
 //! the file and the problem, never a panic) and atomic writes.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 
 use exr::prelude::{
@@ -52,16 +54,6 @@ impl Drop for TempDir {
 
 fn manifest_dir() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
-
-fn scenes_dir() -> Option<PathBuf> {
-    let dir = manifest_dir().join("../shared/data/scenes");
-    if dir.is_dir() {
-        Some(dir)
-    } else {
-        eprintln!("note: {} is absent; skipping", dir.display());
-        None
-    }
 }
 
 fn fixture(name: &str) -> PathBuf {
@@ -246,7 +238,7 @@ fn fixture_reads_and_matches_the_scene_crop() {
     for path in ["dof_checker_64_spp16.exr", "dof_checker_64_ref.exr"] {
         assert!(std::fs::metadata(fixture(path)).unwrap().len() < 1 << 20);
     }
-    let Some(scenes) = scenes_dir() else { return };
+    let scenes = common::scenes_dir();
     let full = read_stats(&scenes.join("dof_checker/spp16.exr")).unwrap();
     assert_bit_identical(&full.crop(120, 104, 64, 64), &stats);
     let full_ref = read_rgb(&scenes.join("dof_checker/reference.exr")).unwrap();
@@ -255,7 +247,7 @@ fn fixture_reads_and_matches_the_scene_crop() {
 
 #[test]
 fn public_scene_files_read() {
-    let Some(scenes) = scenes_dir() else { return };
+    let scenes = common::scenes_dir();
     for scene in ["dof_checker", "glossy_cornell", "indirect_room"] {
         for spp in [4.0f32, 16.0, 64.0] {
             let path = scenes.join(scene).join(format!("spp{spp}.exr"));

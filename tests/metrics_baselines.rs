@@ -2,9 +2,10 @@
 //! "input" column of `../shared/data/scenes/BASELINES.md` to the precision the
 //! table prints (5 decimal places: 4 significant digits from 0.01 up, 3 below):
 //! this pins down both the EXR reader and the metric definition.
-//! Skipped (with a note) when the scenes directory is absent.
+//! Fails when the scenes directory is absent (CI puts `../shared` beside the
+//! checkout).
 
-use std::path::PathBuf;
+mod common;
 
 use mcdenoise::image::{Layer, RgbImage};
 use mcdenoise::io::{read_rgb, read_stats};
@@ -23,19 +24,6 @@ const BASELINES: [(&str, u32, f64); 9] = [
     ("indirect_room", 64, 0.01946),
 ];
 
-fn scenes_dir() -> Option<PathBuf> {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data/scenes");
-    if dir.is_dir() {
-        Some(dir)
-    } else {
-        eprintln!(
-            "note: {} is absent; skipping the baseline check",
-            dir.display()
-        );
-        None
-    }
-}
-
 /// Equal as printed in BASELINES.md: both round to the same 5 decimal places.
 fn same_as_printed(measured: f64, table: f64) -> bool {
     (measured * 1e5).round() == (table * 1e5).round()
@@ -43,7 +31,7 @@ fn same_as_printed(measured: f64, table: f64) -> bool {
 
 #[test]
 fn input_rmse_matches_baselines() {
-    let Some(dir) = scenes_dir() else { return };
+    let dir = common::scenes_dir();
     let mut failures = Vec::new();
     for (scene, spp, expected) in BASELINES {
         let stats = read_stats(&dir.join(scene).join(format!("spp{spp}.exr"))).unwrap();

@@ -6,16 +6,31 @@ use std::sync::{Arc, OnceLock};
 
 use mcdenoise::gpu::{ContextOptions, GpuContext, Precision, Validation};
 
+/// Set (to 1) by `scripts/test.sh`, the README's test command: the
+/// validation layer is then required, and a machine without it fails every
+/// GPU test instead of running them unchecked.
+pub const REQUIRE_VALIDATION: &str = "MCDENOISE_REQUIRE_VALIDATION";
+
 /// The test context. Tests fail if the validation layer reported an error
 /// (checked by [`check_validation`]).
 pub fn gpu() -> Arc<GpuContext> {
     static CTX: OnceLock<Arc<GpuContext>> = OnceLock::new();
     CTX.get_or_init(|| {
+        let required = std::env::var(REQUIRE_VALIDATION).is_ok_and(|v| v == "1");
         let ctx = GpuContext::new(&ContextOptions {
             device: None,
-            validation: Validation::IfInstalled,
+            validation: if required {
+                Validation::Required
+            } else {
+                Validation::IfInstalled
+            },
         })
-        .expect("a Vulkan device (apt-get install mesa-vulkan-drivers libvulkan1)");
+        .unwrap_or_else(|e| {
+            panic!(
+                "{e}\n(a Vulkan device: apt-get install mesa-vulkan-drivers libvulkan1; \
+                 with {REQUIRE_VALIDATION}=1 also the validation layer: vulkan-validationlayers)"
+            )
+        });
         eprintln!(
             "test device: {} (validation {})",
             ctx.info().name,
@@ -100,3 +115,15 @@ pub fn precisions() -> Vec<Precision> {
 
 /// The sizes every kernel is tested on (issue #2): square, 1x1, 1xN, Nx1, prime.
 pub const SIZES: &[(usize, usize)] = &[(64, 64), (1, 1), (1, 17), (23, 1), (37, 23)];
+
+/// `../shared/data/scenes` beside the checkout. The tests that read it fail
+/// when it is absent (CI puts `../shared` there), rather than pass unchecked.
+pub fn scenes_dir() -> std::path::PathBuf {
+    let dir = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data/scenes");
+    assert!(
+        dir.is_dir(),
+        "{} is absent: these tests need the public scenes beside the checkout (../shared)",
+        dir.display()
+    );
+    dir
+}
