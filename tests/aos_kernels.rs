@@ -11,7 +11,7 @@ use mcdenoise::reference::aos::{self as r, Planes, Settings, Variance};
 use mcdenoise::reference::aos_fit::{self, FitInputs, OUTPUTS};
 use mcdenoise::reference::aos_nlm;
 use mcdenoise::reference::aos_space::{self, SPACE};
-use mcdenoise::shared::{AosPush, AOS_BIAS_TEST, AOS_IDENTITY, AOS_OUTLIER_W, AOS_SANDWICH};
+use mcdenoise::shared::AosPush;
 
 /// f32 planes: features (depth, albedo rgb, normal xyz, visibility) with an
 /// edge and noise, their variances, a colour that is smooth in the features
@@ -111,16 +111,6 @@ fn close(a: f64, b: f64, tol: f64) -> bool {
     (a - b).abs() <= tol * (a.abs().max(b.abs()) + 1e-9)
 }
 
-fn settings_flags(s: Settings) -> u32 {
-    (if s.variance == Variance::Sandwich {
-        AOS_SANDWICH
-    } else {
-        0
-    }) | (if s.bias_test { AOS_BIAS_TEST } else { 0 })
-        | (if s.identity { AOS_IDENTITY } else { 0 })
-        | (if s.outlier_weight { AOS_OUTLIER_W } else { 0 })
-}
-
 /// The twin (normal matrix, one factorisation, sums) equals the reference's
 /// explicit kernels and bias images to 1e-7 (1e-10 absolute) on every
 /// pixel, for the default settings, the spec's and the sandwich variance,
@@ -150,7 +140,7 @@ fn twin_matches_the_reference() {
     let mut orders = [0usize; 4];
     for radius in [5usize, 9] {
         for set in [Settings::default(), Settings::SPEC, sandwich] {
-            let push = img.push(radius as u32, settings_flags(set));
+            let push = img.push(radius as u32, set.flags());
             for c in 0..n {
                 if !valid[c] {
                     continue;
@@ -206,7 +196,7 @@ fn gpu_kernels_match_the_twins() {
     for (w, h, vis, radius) in [(31, 23, true, 9u32), (19, 13, false, 5), (1, 9, true, 5)] {
         let img = image(w, h, 3, vis);
         let n = w * h;
-        let flags = AOS_BIAS_TEST | AOS_IDENTITY | AOS_OUTLIER_W;
+        let flags = Settings::default().flags();
         let push = img.push(radius, flags);
         for precision in common::precisions() {
             let what = |k: &str| format!("{w}x{h} vis={vis} R={radius} {precision:?}: {k}");

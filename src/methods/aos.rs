@@ -22,7 +22,7 @@ use crate::options::Options;
 use crate::reference::aos::{self as r, Settings, Variance};
 use crate::reference::apr::invalid_fill;
 use crate::reference::spp_of;
-use crate::shared::{AosPush, AOS_BIAS_TEST, AOS_IDENTITY, AOS_OUTLIER_W, AOS_SANDWICH};
+use crate::shared::AosPush;
 
 /// AOS's options.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
@@ -275,17 +275,6 @@ impl AosPlanes {
     }
 }
 
-/// [`AosPush::flags`] of the settings.
-fn flags(set: Settings) -> u32 {
-    (if set.variance == Variance::Sandwich {
-        AOS_SANDWICH
-    } else {
-        0
-    }) | (if set.bias_test { AOS_BIAS_TEST } else { 0 })
-        | (if set.identity { AOS_IDENTITY } else { 0 })
-        | (if set.outlier_weight { AOS_OUTLIER_W } else { 0 })
-}
-
 /// The mean TSVD rank the cost count assumes (measured on the public
 /// scenes' windows: mostly 2 to 4).
 const COST_RANK: f64 = 3.0;
@@ -324,14 +313,14 @@ pub fn record_aos(
         width: w as u32,
         height: h as u32,
         radius: params.radius as u32,
-        flags: flags(params.settings),
+        flags: params.settings.flags(),
         ..Default::default()
     };
     let mut feats = Vec::with_capacity(8);
     let mut vars = Vec::with_capacity(8);
     for (b, (layer, vlayer, _, required)) in BUFFERS.into_iter().enumerate() {
         let base = FEAT_BASE[b];
-        let nc = if b == 1 || b == 2 { 3 } else { 1 };
+        let nc = layer.channels().len();
         if !clean.has(layer) {
             if required {
                 return Err(Error::BadData(format!(

@@ -373,6 +373,17 @@ pub struct Settings {
 }
 
 impl Settings {
+    /// The `aos_fit` kernel's [`crate::shared::AosPush::flags`] for these
+    /// settings.
+    pub fn flags(&self) -> u32 {
+        use crate::shared::{AOS_BIAS_TEST, AOS_IDENTITY, AOS_OUTLIER_W, AOS_SANDWICH};
+        let bit = |on: bool, b: u32| if on { b } else { 0 };
+        bit(self.variance == Variance::Sandwich, AOS_SANDWICH)
+            | bit(self.bias_test, AOS_BIAS_TEST)
+            | bit(self.identity, AOS_IDENTITY)
+            | bit(self.outlier_weight, AOS_OUTLIER_W)
+    }
+
     /// The spec's AOS as written: no bias test, no identity candidate.
     pub const SPEC: Settings = Settings {
         variance: Variance::Paper,

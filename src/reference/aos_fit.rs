@@ -60,34 +60,16 @@ pub struct FitInputs<'a> {
     pub spp: &'a [f32],
 }
 
-/// The mean of the valid 3×3 neighbours of an invalid pixel (0 if none),
-/// as every method fills invalid pixels (§0.2).
-pub fn fill(w: usize, h: usize, plane: &[f32], spp: &[f32], c: usize) -> f64 {
-    let (cx, cy) = (c % w, c / w);
-    let (mut s, mut n) = (0.0, 0);
-    for qy in cy.saturating_sub(1)..(cy + 2).min(h) {
-        for qx in cx.saturating_sub(1)..(cx + 2).min(w) {
-            let q = qy * w + qx;
-            if spp_of(spp[q]) >= 1.0 {
-                s += plane[q] as f64;
-                n += 1;
-            }
-        }
-    }
-    if n > 0 {
-        s / n as f64
-    } else {
-        0.0
-    }
-}
-
 /// The [`OUTPUTS`] values of pixel `c` with projection `proj`.
 pub fn fit_pixel(push: &AosPush, inp: &FitInputs, c: usize, proj: &Proj) -> [f64; OUTPUTS] {
     let (w, h) = (push.width as usize, push.height as usize);
     let mut o = [0.0; OUTPUTS];
     if spp_of(inp.spp[c]) < 1.0 {
         for ch in 0..3 {
-            o[ch] = fill(w, h, inp.color[ch], inp.spp, c).max(0.0);
+            let plane = inp.color[ch];
+            o[ch] =
+                super::valid_mean_3x3(w, h, c, |q| spp_of(inp.spp[q]) >= 1.0, |q| plane[q] as f64)
+                    .max(0.0);
         }
         return o;
     }

@@ -10,7 +10,7 @@
 //! the singular vectors' signs, which no fitted value depends on).
 
 use super::spp_of;
-use super::tsvd::{gather_window, local_space, RANGE_EPS};
+use super::tsvd::{gather_window, local_space, projection, Projection};
 use crate::shared::AosPush;
 
 /// Feature dimension: `(px, py, dep, a_r, a_g, a_b, nrm_x, nrm_y, nrm_z, vis)`.
@@ -19,26 +19,10 @@ pub const D: usize = 10;
 /// `m·D + j`), then `k`.
 pub const SPACE: usize = D * D + 1;
 
-/// A pixel's local space as the projection `Δz_m = Σ_j p[m][j](x_j − x_c,j)`,
-/// `p[m][j] = V_jm/ρ_j` for `m < k` and non-constant `j`, else 0.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Proj {
-    /// TSVD rank `k` (0 for an invalid centre or a constant window).
-    pub k: usize,
-    /// The projection.
-    pub p: [[f64; D]; D],
-}
+/// A pixel's local space as the projection `Δz = P (x − x_c)` (§0.6).
+pub type Proj = Projection<D>;
 
-impl Proj {
-    /// `Δz` of raw features `x` relative to the centre's `xc` (0 beyond `k`).
-    pub fn dz(&self, x: &[f64; D], xc: &[f64; D]) -> [f64; D] {
-        let mut dz = [0.0; D];
-        for (m, out) in dz.iter_mut().enumerate().take(self.k) {
-            *out = (0..D).map(|j| self.p[m][j] * (x[j] - xc[j])).sum();
-        }
-        dz
-    }
-
+impl Projection<D> {
     /// Reads pixel `i`'s projection from a scratch of [`SPACE`] f32 each.
     pub fn read(scratch: &[f32], i: usize) -> Proj {
         let s = &scratch[i * SPACE..(i + 1) * SPACE];
@@ -78,12 +62,11 @@ pub fn space_pixel(
     cy: usize,
 ) -> Proj {
     let (w, h) = (push.width as usize, push.height as usize);
-    let mut out = Proj {
-        k: 0,
-        p: [[0.0; D]; D],
-    };
     if spp_of(spp[cy * w + cx]) < 1.0 {
-        return out;
+        return Proj {
+            k: 0,
+            p: [[0.0; D]; D],
+        };
     }
     let win = gather_window(w, h, cx, cy, push.radius as usize, D, |px, py, x, e2| {
         let q = py * w + px;
@@ -95,19 +78,7 @@ pub fn space_pixel(
         }
         spp_of(spp[q]) >= 1.0
     });
-    let ls = local_space(&win.x, &win.e2, D);
-    out.k = ls.k;
-    for j in 0..D {
-        let inv = if ls.range[j] > RANGE_EPS {
-            1.0 / ls.range[j]
-        } else {
-            0.0
-        };
-        for m in 0..ls.k {
-            out.p[m][j] = ls.vector(j, m) * inv;
-        }
-    }
-    out
+    projection(&local_space(&win.x, &win.e2, D))
 }
 
 /// The scratch of rows `push.base_row ..` (to the image's end): [`SPACE`]

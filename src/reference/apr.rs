@@ -610,20 +610,5 @@ pub fn prefilter_plane(w: usize, h: usize, f: &[f64], var: &[f64], valid: &[bool
 /// §0.2: an invalid pixel's output, the plain mean of the valid pixels of its
 /// 3×3 neighbourhood in `y` (0 if none).
 pub fn invalid_fill(w: usize, h: usize, y: &[f64], valid: &[bool], i: usize) -> f64 {
-    let (x, yy) = (i % w, i / w);
-    let (mut s, mut n) = (0.0, 0usize);
-    for qy in yy.saturating_sub(1)..(yy + 2).min(h) {
-        for qx in x.saturating_sub(1)..(x + 2).min(w) {
-            let q = qy * w + qx;
-            if valid[q] {
-                s += y[q];
-                n += 1;
-            }
-        }
-    }
-    if n > 0 {
-        s / n as f64
-    } else {
-        0.0
-    }
+    super::valid_mean_3x3(w, h, i, |q| valid[q], |q| y[q])
 }

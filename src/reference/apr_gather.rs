@@ -110,23 +110,7 @@ pub fn apr_gather(
 /// §0.2: the mean of the valid pixels of `i`'s 3×3 neighbourhood in `y`
 /// (0 if none).
 pub fn invalid_fill(pl: &Inputs, i: usize) -> f64 {
-    let (w, h) = (pl.w, pl.h);
-    let (x, y) = (i % w, i / w);
-    let (mut s, mut n) = (0.0, 0usize);
-    for qy in y.saturating_sub(1)..(y + 2).min(h) {
-        for qx in x.saturating_sub(1)..(x + 2).min(w) {
-            let q = qy * w + qx;
-            if pl.valid(q) {
-                s += pl.y[q] as f64;
-                n += 1;
-            }
-        }
-    }
-    if n > 0 {
-        s / n as f64
-    } else {
-        0.0
-    }
+    super::valid_mean_3x3(pl.w, pl.h, i, |q| pl.valid(q), |q| pl.y[q] as f64)
 }
 
 /// The whole of APR on one image with the twins, in the kernels' order

@@ -51,6 +51,34 @@ pub mod wlr;
 pub mod wlr_final;
 pub mod wlr_fit;
 
+/// §0.2: the output of an invalid pixel `i` of a `w × h` image, the mean
+/// of `value` over the valid pixels of its 3×3 neighbourhood in raster
+/// order (0 if none). Every method's fill (WLR, APR, AOS and their twins).
+pub fn valid_mean_3x3(
+    w: usize,
+    h: usize,
+    i: usize,
+    valid: impl Fn(usize) -> bool,
+    value: impl Fn(usize) -> f64,
+) -> f64 {
+    let (x, y) = (i % w, i / w);
+    let (mut s, mut n) = (0.0, 0usize);
+    for qy in y.saturating_sub(1)..(y + 2).min(h) {
+        for qx in x.saturating_sub(1)..(x + 2).min(w) {
+            let q = qy * w + qx;
+            if valid(q) {
+                s += value(q);
+                n += 1;
+            }
+        }
+    }
+    if n > 0 {
+        s / n as f64
+    } else {
+        0.0
+    }
+}
+
 /// Maps `f` over `0..n` on all cores and returns the results in index
 /// order. Indices are interleaved over `std::thread::scope` threads (thread
 /// `t` takes `t, t + T, …`), so uneven costs spread evenly; the result does

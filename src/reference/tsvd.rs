@@ -228,24 +228,26 @@ pub fn gather_window(
     w
 }
 
-/// Feature count of [`Projection`] (the 9 features of WLR and LP, §2.1).
-const D: usize = 9;
+/// Feature count of WLR's and LP's [`Projection`] (the 9 features of §2.1),
+/// its default.
+const D9: usize = 9;
 
 /// The linear map from raw feature differences to local coordinates:
 /// `Δz_m = Σ_j p[m][j] (x_j − x_c,j)` with `p[m][j] = V_jm / ρ_j` for `m < k`
 /// and non-constant `j` (0 otherwise). Equal to §0.6 step 7.
-/// For the 9 features of WLR and LP (§2.1). Mirrors `TsvdProj` /
-/// `tsvd_projection` of `spirv/lib/tsvd.glsl`.
+/// For `D` features: 9 for WLR and LP (§2.1, mirrors `TsvdProj` /
+/// `tsvd_projection` of `spirv/lib/tsvd.glsl`), 10 for AOS (§5.1, stored
+/// per pixel by `aos_space`).
 #[derive(Clone, Debug, PartialEq)]
-pub struct Projection {
+pub struct Projection<const D: usize = D9> {
     /// Rank `k` of the local space (§0.6 step 6): rows `0..k` of `p` are used.
     pub k: usize,
     /// `p[m][j] = V_jm / ρ_j` for `m < k` and non-constant feature `j`, else 0.
     pub p: [[f64; D]; D],
 }
 
-/// Builds the [`Projection`] of a local space.
-pub fn projection(ls: &LocalSpace) -> Projection {
+/// Builds the [`Projection`] of a local space of `D` features.
+pub fn projection<const D: usize>(ls: &LocalSpace) -> Projection<D> {
     assert_eq!(ls.d, D, "tsvd::projection: D");
     let mut p = [[0.0; D]; D];
     for j in 0..D {
@@ -261,7 +263,7 @@ pub fn projection(ls: &LocalSpace) -> Projection {
     Projection { k: ls.k, p }
 }
 
-impl Projection {
+impl<const D: usize> Projection<D> {
     /// `Δz` of raw features `x` relative to the centre's `xc`; 0 beyond `k`.
     /// Mirrors `tsvd_dz`.
     #[inline]

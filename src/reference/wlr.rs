@@ -783,24 +783,10 @@ pub fn final_pixel(
 /// pixels of its 3x3 neighbourhood (0 if none), clamped `>= 0` like every
 /// final colour output (§0.4 step 5).
 pub fn invalid_fill(p: &Planes, cx: usize, cy: usize) -> [f64; 3] {
-    let mut sum = [0.0; 3];
-    let mut n = 0usize;
-    for py in cy.saturating_sub(1)..(cy + 2).min(p.height) {
-        for px in cx.saturating_sub(1)..(cx + 2).min(p.width) {
-            let q = py * p.width + px;
-            if p.valid(q) {
-                let (y, _) = p.colour(q);
-                for ch in 0..3 {
-                    sum[ch] += y[ch];
-                }
-                n += 1;
-            }
-        }
-    }
-    if n == 0 {
-        return [0.0; 3];
-    }
-    sum.map(|s| (s / n as f64).max(0.0))
+    let i = cy * p.width + cx;
+    [0, 1, 2].map(|ch| {
+        super::valid_mean_3x3(p.width, p.height, i, |q| p.valid(q), |q| p.colour(q).0[ch]).max(0.0)
+    })
 }
 
 /// Runs `f(x, y)` for every pixel of a `width × height` grid on all cores
