@@ -65,6 +65,7 @@ PLANE_OUT(14, dst)
 #define AOS_BIAS_TEST 2u
 #define AOS_IDENTITY 4u
 #define AOS_OUTLIER_W 8u
+#define AOS_RESIDUAL 16u
 
 #define NT 64        // invocations per pixel
 #define D 10         // features
@@ -79,6 +80,8 @@ PLANE_OUT(14, dst)
 #define RIDGE_F 1e-5
 #define RMS_EPS 1e-12
 #define BIAS_Z 2.0
+#define RESIDUAL_Z 3.0
+#define RESIDUAL_VBAR_FLOOR 1e-20
 #define SOLVE_RETRIES 3
 #define RIDGE_FLOOR 1e-8
 
@@ -113,6 +116,7 @@ PLANE_OUT(14, dst)
 #define SC_BIAS1 3
 #define SC_BIAS3 4
 #define SC_MEAN_DIAG 5
+#define SC_VC 6               // AOS-RESIDUAL's centre variance
 
 shared real S[S_SIZE];
 shared int s_colv[NC];   // compact column -> power
@@ -144,6 +148,9 @@ real4 g_pa[D];
 real4 g_pb[D];
 real2 g_pc[D];
 real g_xc[D];
+// AOS-RESIDUAL: this invocation's sum of K ln max(vbar, floor) over the
+// window rows it staged (f32 logarithm: GLSL has no f64 one).
+real g_lnsum = real(0);
 
 real feature(int j, uint q)
 {
@@ -245,6 +252,9 @@ void stage(ivec2 c, int base, int nrows, uint t, int k, inout ivec2 off)
         }
         S[X_K + rr] = kw;
         bool use = kw > real(0);
+        if (use) {
+            g_lnsum += kw * real(log(max(vbar[q], float(RESIDUAL_VBAR_FLOOR))));
+        }
         S[X_Y + rr * 4] = use ? real(col_r[q]) : real(0);
         S[X_Y + rr * 4 + 1] = use ? real(col_g[q]) : real(0);
         S[X_Y + rr * 4 + 2] = use ? real(col_b[q]) : real(0);
@@ -304,6 +314,19 @@ void write_out(uint i, real o[13])
     for (int a = 0; a < 13; ++a) {
         dst[uint(a) * push.stride + i] = float(o[a]);
     }
+}
+
+// AOS-RESIDUAL's threshold for n samples: Student's t quantile at the 3 sigma
+// level with n - 1 degrees of freedom (reference::aos::residual_threshold).
+real residual_threshold(real n)
+{
+    real nu = max(n - real(1), real(1));
+    real z = real(RESIDUAL_Z);
+    real z3 = z * z * z;
+    real z5 = z3 * z * z;
+    real z7 = z5 * z * z;
+    return z + (z3 + z) / (real(4) * nu) + (real(5) * z5 + real(16) * z3 + real(3) * z) / (real(96) * nu * nu)
+        + (real(3) * z7 + real(19) * z5 + real(17) * z3 - real(15) * z) / (real(384) * nu * nu * nu);
 }
 
 // u^T M v over one 4x4 block (rows of M: block I, columns: block J).
@@ -416,6 +439,10 @@ void main()
         }
         barrier();
     }
+    // The lanes' sums of K ln vbar (S_L is free until the Cholesky).
+    if (t < uint(CH)) {
+        S[S_L + int(t)] = g_lnsum;
+    }
     // The raw N and right-hand sides to workgroup memory.
     for (int h2 = 0; h2 < 2; ++h2) {
         if (h2 == 0 ? own0 : own1) {
@@ -440,6 +467,11 @@ void main()
     if (t == 0u) {
         real ksum = S[S_N];
         S[S_SC + SC_KSUM] = ksum;
+        real lnsum = real(0);
+        for (int i = 0; i < CH; ++i) {
+            lnsum += S[S_L + i];
+        }
+        S[S_SC + SC_VC] = max(real(vbar[ci]), real(exp(float(lnsum / ksum))));
         S[S_SCALE] = real(1);
         s_cidx[0] = 0;
         s_colv[0] = 0;
@@ -703,7 +735,27 @@ void main()
         real bvar = tot[b0i + 2];
         bool counts = (push.flags & AOS_BIAS_TEST) == 0u || bias * bias > real(BIAS_Z * BIAS_Z) * bvar;
         real cb = counts ? bias : real(0);
-        real mse = var + cb * cb;
+        real bias2 = cb * cb;
+        if ((push.flags & AOS_RESIDUAL) != 0u) {
+            // AOS-RESIDUAL: res = u_l . rhs_grey - grey_c, and its variance
+            // u_l^T G u_l - l_c^2 vbar_c + (l_c - 1)^2 v_c, l_c = K_c u_l[0].
+            int pl = oi == 0 ? p1 : p3;
+            int ua = oi == 0 ? V_U1 : V_U3;
+            real fit = real(0);
+            for (int i = 0; i < pl; ++i) {
+                fit += S[ua + i] * ((S[V_RHS + i] + S[V_RHS + NC + i] + S[V_RHS + 2 * NC + i]) / real(3));
+            }
+            real vc = real(vbar[ci]);
+            real res = fit - (real(col_r[ci]) + real(col_g[ci]) + real(col_b[ci])) / real(3);
+            real kc = (push.flags & AOS_OUTLIER_W) != 0u ? real(1) / max(vc, real(1)) : real(1);
+            real lc = kc * S[ua];
+            real rv = tot[b0i + 1] - lc * lc * vc + (lc - real(1)) * (lc - real(1)) * S[S_SC + SC_VC];
+            real zn = residual_threshold(real(spp_of(spp[ci])));
+            if (res * res > zn * zn * rv) {
+                bias2 = max(bias2, res * res - rv);
+            }
+        }
+        real mse = var + bias2;
         o[6 + 2 * oi] = bias;
         o[7 + 2 * oi] = var;
         o[11 + oi] = sqrt(max(bvar, real(0)));

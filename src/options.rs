@@ -104,6 +104,13 @@ pub const OPTIONS: &[OptionSpec] = &[
         help: "kernel K divided by max(vbar, 1), as WLR's outlier weight (clamped), or K alone (off, the paper)",
     },
     OptionSpec {
+        key: "aos.residual",
+        kind: Kind::Choice(&["on", "off"]),
+        default: "on",
+        section: "§5.3 step 5 (AOS-RESIDUAL)",
+        help: "an order's residual at the pixel, when above 3 standard errors, bounds its bias from below (on), or not (off, the paper)",
+    },
+    OptionSpec {
         key: "apr.outlier_weight",
         kind: Kind::Choice(&["clamped", "off"]),
         default: "clamped",

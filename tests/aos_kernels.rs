@@ -52,6 +52,14 @@ fn image(w: usize, h: usize, seed: u64, vis: bool) -> Img {
             .map(|i| {
                 let f = feats[1][i] as f64 + 0.5 * (feats[4][i] as f64).powi(3);
                 let t = 0.4 + 0.1 * ch as f64 + f + if i == n / 2 + w / 3 { 4.0 } else { 0.0 };
+                // A 3x3 checker the features do not see in the bottom third
+                // (AOS-RESIDUAL fires there).
+                let (x, y) = (i % w, i / w);
+                let t = t + if 3 * y >= 2 * h && (x / 3 + y / 3) % 2 == 0 {
+                    0.5
+                } else {
+                    0.0
+                };
                 (t + 0.05 * rng.normal()) as f32
             })
             .collect()
@@ -124,6 +132,7 @@ fn twin_matches_the_reference() {
     let color: [Vec<f64>; 3] = std::array::from_fn(|c| f64s(&img.color[c]));
     let vbar = f64s(&img.vbar);
     let valid: Vec<bool> = img.spp.iter().map(|&s| s >= 1.0).collect();
+    let spp = f64s(&img.spp);
     let pl = Planes {
         w: img.w,
         h: img.h,
@@ -132,6 +141,7 @@ fn twin_matches_the_reference() {
         feats: &feats,
         fvar: &fvar,
         valid: &valid,
+        spp: &spp,
     };
     let sandwich = Settings {
         variance: Variance::Sandwich,
@@ -185,6 +195,21 @@ fn twin_matches_the_reference() {
         orders[0] > 0 && orders[1] > 0 && orders[3] > 0,
         "{orders:?}"
     );
+    // AOS-RESIDUAL changes the error estimate on the checker, so its
+    // branch is compared too.
+    let no_residual = Settings {
+        residual: false,
+        ..Settings::default()
+    };
+    let fired = (0..n)
+        .filter(|&c| valid[c])
+        .filter(|&c| {
+            let a = r::pixel(&pl, c, 9, Settings::default(), r::RIDGE);
+            let b = r::pixel(&pl, c, 9, no_residual, r::RIDGE);
+            a.mse != b.mse
+        })
+        .count();
+    assert!(fired >= 20, "AOS-RESIDUAL fired on {fired} pixels");
 }
 
 /// `aos_nlm`, `aos_space` and `aos_fit` against their twins, f32 and f64,

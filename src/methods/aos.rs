@@ -30,15 +30,16 @@ pub struct AosParams {
     /// Window radius: 9 in the final pass, 5 in intermediate ones (§5.1).
     pub radius: usize,
     /// `aos.variance`, `aos.bias_test`, `aos.identity`,
-    /// `aos.outlier_weight` (§5.3, and our decisions AOS-BIAS-TEST,
-    /// AOS-IDENTITY and AOS-OUTLIER-W in `reference::aos`).
+    /// `aos.outlier_weight`, `aos.residual` (§5.3, and our decisions
+    /// AOS-BIAS-TEST, AOS-IDENTITY, AOS-OUTLIER-W and AOS-RESIDUAL in
+    /// `reference::aos`).
     pub settings: Settings,
 }
 
 impl AosParams {
     /// From the pass and `--opt aos.variance=paper|sandwich`,
     /// `aos.bias_test=on|off`, `aos.identity=on|off`,
-    /// `aos.outlier_weight=clamped|off`.
+    /// `aos.outlier_weight=clamped|off`, `aos.residual=on|off`.
     pub fn new(pass: Pass, opts: &Options) -> Result<AosParams> {
         let variance = match opts.get("aos.variance") {
             "paper" => Variance::Paper,
@@ -59,6 +60,7 @@ impl AosParams {
                 bias_test: opts.get("aos.bias_test") == "on",
                 identity: opts.get("aos.identity") == "on",
                 outlier_weight: opts.get("aos.outlier_weight") == "clamped",
+                residual: opts.get("aos.residual") == "on",
             },
         })
     }
@@ -111,10 +113,8 @@ pub fn run_cpu(clean: &StatsImage, params: AosParams, gbf_ran: bool) -> Result<A
     let vbar: Vec<f64> = (0..n)
         .map(|i| (cvar[0][i] + cvar[1][i] + cvar[2][i]) as f64 / 3.0)
         .collect();
-    let valid: Vec<bool> = need(Layer::Spp)?[0]
-        .iter()
-        .map(|&s| spp_of(s) >= 1.0)
-        .collect();
+    let spp: Vec<f64> = need(Layer::Spp)?[0].iter().map(|&s| spp_of(s)).collect();
+    let valid: Vec<bool> = spp.iter().map(|&s| s >= 1.0).collect();
     let mut feats = Vec::new();
     let mut fvar = Vec::new();
     let mut debug = Vec::new();
@@ -158,6 +158,7 @@ pub fn run_cpu(clean: &StatsImage, params: AosParams, gbf_ran: bool) -> Result<A
         feats: &feats,
         fvar: &fvar,
         valid: &valid,
+        spp: &spp,
     };
     let res = r::run(&pl, params.radius, params.settings);
     let mut color: [Vec<f32>; 3] = std::array::from_fn(|_| vec![0.0; n]);

@@ -68,6 +68,8 @@ pub struct Planes<'a> {
     pub fvar: &'a [Vec<f64>],
     /// Valid pixels (§0.2).
     pub valid: &'a [bool],
+    /// Sample counts (AOS-RESIDUAL's threshold).
+    pub spp: &'a [f64],
 }
 
 impl Planes<'_> {
@@ -359,6 +361,49 @@ pub fn fit(d: &Design, l: usize, lambda: f64) -> Option<Fit> {
 /// half, whatever σ was (`tests/aos.rs`).
 pub const BIAS_Z: f64 = 2.0;
 
+/// AOS-RESIDUAL (see [`pixel`]): the test's level in standard errors for
+/// many samples.
+pub const RESIDUAL_Z: f64 = 3.0;
+
+/// AOS-RESIDUAL: `vbar` below this counts as this in the window's geometric
+/// mean (a zero variance has no logarithm).
+pub const RESIDUAL_VBAR_FLOOR: f64 = 1e-20;
+
+/// AOS-RESIDUAL's threshold for a pixel of `n` samples: the one-sided
+/// `Φ(−3)` quantile of Student's t with `ν = n − 1` degrees of freedom (at
+/// least 1), by its Cornish–Fisher expansion to `ν⁻³`
+/// (`z + (z³+z)/4ν + (5z⁵+16z³+3z)/96ν² + (3z⁷+19z⁵+17z³−15z)/384ν³`).
+/// The variance the test divides by is itself estimated from the pixel's
+/// samples, so a few samples need a much larger ratio: 8.5 at 4 samples,
+/// 3.6 at 16, 3.1 at 64, 3 in the limit.
+pub fn residual_threshold(n: f64) -> f64 {
+    let nu = (n - 1.0).max(1.0);
+    let z = RESIDUAL_Z;
+    let (z3, z5, z7) = (z.powi(3), z.powi(5), z.powi(7));
+    z + (z3 + z) / (4.0 * nu)
+        + (5.0 * z5 + 16.0 * z3 + 3.0 * z) / (96.0 * nu * nu)
+        + (3.0 * z7 + 19.0 * z5 + 17.0 * z3 - 15.0 * z) / (384.0 * nu * nu * nu)
+}
+
+/// AOS-RESIDUAL's variance of the pixel itself: `max(vbar_c, v_geo)` with
+/// `v_geo = exp(Σ K_i ln max(vbar_i, floor) / Σ K_i)`, the window's
+/// kernel-weighted geometric mean (`lnsum = Σ K_i ln …`, `ksum = Σ K_i`).
+pub fn residual_centre_var(vbar_c: f64, lnsum: f64, ksum: f64) -> f64 {
+    vbar_c.max((lnsum / ksum).exp())
+}
+
+/// AOS-RESIDUAL: the bias² an order's residual at the centre shows, or 0.
+/// `res = ŷ_l − grey_c`; `res_var = Σ_i (l_i − δ_ic)² v_i` with the
+/// centre's `v` from [`residual_centre_var`]; `n` the centre's samples.
+pub fn residual_bias2(res: f64, res_var: f64, n: f64) -> f64 {
+    let z = residual_threshold(n);
+    if res * res > z * z * res_var {
+        res * res - res_var
+    } else {
+        0.0
+    }
+}
+
 /// The choices of §5.3 that are options.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
 pub struct Settings {
@@ -370,26 +415,32 @@ pub struct Settings {
     pub identity: bool,
     /// `aos.outlier_weight` (AOS-OUTLIER-W, see [`outlier_weight`]).
     pub outlier_weight: bool,
+    /// `aos.residual` (AOS-RESIDUAL, see [`pixel`]).
+    pub residual: bool,
 }
 
 impl Settings {
     /// The `aos_fit` kernel's [`crate::shared::AosPush::flags`] for these
     /// settings.
     pub fn flags(&self) -> u32 {
-        use crate::shared::{AOS_BIAS_TEST, AOS_IDENTITY, AOS_OUTLIER_W, AOS_SANDWICH};
+        use crate::shared::{
+            AOS_BIAS_TEST, AOS_IDENTITY, AOS_OUTLIER_W, AOS_RESIDUAL, AOS_SANDWICH,
+        };
         let bit = |on: bool, b: u32| if on { b } else { 0 };
         bit(self.variance == Variance::Sandwich, AOS_SANDWICH)
             | bit(self.bias_test, AOS_BIAS_TEST)
             | bit(self.identity, AOS_IDENTITY)
             | bit(self.outlier_weight, AOS_OUTLIER_W)
+            | bit(self.residual, AOS_RESIDUAL)
     }
 
-    /// The spec's AOS as written: no bias test, no identity candidate.
+    /// The spec's AOS as written: none of our decisions.
     pub const SPEC: Settings = Settings {
         variance: Variance::Paper,
         bias_test: false,
         identity: false,
         outlier_weight: false,
+        residual: false,
     };
 }
 
@@ -400,6 +451,7 @@ impl Default for Settings {
             bias_test: true,
             identity: true,
             outlier_weight: true,
+            residual: true,
         }
     }
 }
@@ -432,6 +484,21 @@ pub struct Pixel {
 /// Decision AOS-FALLBACK (ours, after §0.5 SOLVE-FAIL): a pixel whose rank
 /// is 0 (a window of one pixel), or whose order-5 system fails, outputs its
 /// input with error `vbar_c`.
+///
+/// Decision AOS-RESIDUAL (ours; option `aos.residual`): an order's own
+/// residual at the centre bounds its bias from below. `res = ŷ_l − grey_c`
+/// has `E[res²] = bias_l² + Σ_i (l_i − δ_ic)² v_i`. Where `res²` exceeds
+/// that variance [`residual_threshold`]`(n_c)²` times, `res² − res_var`
+/// replaces `bias_l²` if larger. The order-5 fit only sees the bias that
+/// powers 2–5 of the same features explain; a fit that is off because the
+/// features do not explain the colour (a defocused edge, the ceiling next
+/// to a light) kept an error estimate of ~1e-6 where the error was 0.1, so
+/// the sample map starved those pixels and uniform AOS came out worse than
+/// its input on the built-in dof and mix scenes at 64 spp. The centre's
+/// `v_c` is [`residual_centre_var`]: a pixel that missed the rare bright
+/// paths of its neighbours has a variance estimate far below its true
+/// variance, and with `vbar_c` alone the test fired on indirect light
+/// (indirect_room at 16 spp: 0.00160 → 0.01126).
 ///
 /// Decision AOS-ONE-RIDGE (ours, after §0.5 SOLVE-FAIL): the orders share
 /// the order-5 system's factorisation, so they share its ridge. Each order's
@@ -474,6 +541,12 @@ pub fn pixel(pl: &Planes, c: usize, radius: usize, set: Settings, lambda_factor:
         .map(|(l, &q)| l * l * pl.vbar[q])
         .sum();
     let mut best: Option<(usize, f64, Vec<f64>)> = None;
+    let lnsum: f64 =
+        d.kh.iter()
+            .zip(&d.idx)
+            .map(|(k, &q)| k * pl.vbar[q].max(RESIDUAL_VBAR_FLOOR).ln())
+            .sum();
+    let v_c = residual_centre_var(pl.vbar[c], lnsum, d.kh.iter().sum());
     let mut out = Pixel {
         rank: d.rank,
         sigma2,
@@ -533,7 +606,20 @@ pub fn pixel(pl: &Planes, c: usize, radius: usize, set: Settings, lambda_factor:
         } else {
             0.0
         };
-        let mse = var + counted * counted;
+        let mut bias2 = counted * counted;
+        if set.residual {
+            let (mut res, mut res_var) = (-pl.grey(c), 0.0);
+            for (&k, &q) in kern.iter().zip(&d.idx) {
+                res += k * pl.grey(q);
+                res_var += if q == c {
+                    (k - 1.0) * (k - 1.0) * v_c
+                } else {
+                    k * k * pl.vbar[q]
+                };
+            }
+            bias2 = bias2.max(residual_bias2(res, res_var, pl.spp[c]));
+        }
+        let mse = var + bias2;
         out.bias[o] = bias;
         out.bias_sd[o] = bias_var.sqrt();
         out.var[o] = var;

@@ -18,13 +18,22 @@
 //!   give the bias estimate's weights `g_i = K_i q_lᵀ x_i`;
 //! * the sums over the window are quadratic forms: `σ*² = u*ᵀ G u*`, the
 //!   paper's `[A⁻¹BA⁻¹]_00 = u_lᵀ B u_l`, the sandwich variance
-//!   `u_lᵀ G u_l` and the bias variance `q_lᵀ G q_l`.
+//!   `u_lᵀ G u_l` and the bias variance `q_lᵀ G q_l`;
+//! * AOS-RESIDUAL: `res_l = u_lᵀ (X_lᵀ W grey) − grey_c`, and with the
+//!   centre's weight `l_c = K_c u_l[0]` (its row is `e_1`),
+//!   `Σ_i (l_i − δ_ic)² v_i = u_lᵀ G u_l − l_c² vbar_c + (l_c − 1)² v_c`;
+//!   the window pass also sums `K_i ln max(vbar_i, floor)` for `v_c`.
 
-use super::aos::{outlier_weight, BIAS_Z, INCREMENT, P_STAR, RIDGE, RMS_EPS};
+use super::aos::{
+    outlier_weight, residual_bias2, residual_centre_var, BIAS_Z, INCREMENT, P_STAR,
+    RESIDUAL_VBAR_FLOOR, RIDGE, RMS_EPS,
+};
 use super::aos_space::{features, Proj, D};
 use super::linalg::{ridge_cholesky, EPS_PIVOT};
 use super::spp_of;
-use crate::shared::{AosPush, AOS_BIAS_TEST, AOS_IDENTITY, AOS_OUTLIER_W, AOS_SANDWICH};
+use crate::shared::{
+    AosPush, AOS_BIAS_TEST, AOS_IDENTITY, AOS_OUTLIER_W, AOS_RESIDUAL, AOS_SANDWICH,
+};
 
 /// Output planes, in order: colour R G B (clamped ≥ 0), `MSE_c`, the chosen
 /// order (0: the input), rank `k`, `bias_1`, `var_1`, `bias_3`, `var_3`,
@@ -98,6 +107,7 @@ pub fn fit_pixel(push: &AosPush, inp: &FitInputs, c: usize, proj: &Proj) -> [f64
     let mut br = vec![0.0; pr * pr];
     let mut gr = vec![0.0; pr * pr];
     let mut xr = vec![0.0; pe];
+    let mut lnsum = 0.0;
     for qy in cy.saturating_sub(r)..(cy + r + 1).min(h) {
         for qx in cx.saturating_sub(r)..(cx + r + 1).min(w) {
             let q = qy * w + qx;
@@ -117,6 +127,7 @@ pub fn fit_pixel(push: &AosPush, inp: &FitInputs, c: usize, proj: &Proj) -> [f64
             for ch in 0..3 {
                 xr[pr + ch] = col(ch, q);
             }
+            lnsum += kw * vbar(q).max(RESIDUAL_VBAR_FLOOR).ln();
             let (k2, kv) = (kw * kw, kw * kw * vbar(q));
             for i in 0..pe {
                 for j in 0..=i {
@@ -250,6 +261,7 @@ pub fn fit_pixel(push: &AosPush, inp: &FitInputs, c: usize, proj: &Proj) -> [f64
         sw[o_i] = qf(&gm, &u);
         bv[o_i] = qf(&gm, &qs[o_i]);
     }
+    let v_c = residual_centre_var(vbar(c), lnsum, ksum);
     let mut best: Option<(usize, f64)> = None;
     for o_i in 0..2 {
         let var = if push.flags & AOS_SANDWICH != 0 {
@@ -263,7 +275,20 @@ pub fn fit_pixel(push: &AosPush, inp: &FitInputs, c: usize, proj: &Proj) -> [f64
         } else {
             0.0
         };
-        let mse = var + counted * counted;
+        let mut bias2 = counted * counted;
+        if push.flags & AOS_RESIDUAL != 0 {
+            let fit: f64 = us[o_i].iter().zip(&grey).map(|(u, y)| u * y).sum();
+            let res = fit - (col(0, c) + col(1, c) + col(2, c)) / 3.0;
+            let kc = if push.flags & AOS_OUTLIER_W != 0 {
+                outlier_weight(vbar(c))
+            } else {
+                1.0
+            };
+            let lc = kc * us[o_i][0];
+            let res_var = sw[o_i] - lc * lc * vbar(c) + (lc - 1.0) * (lc - 1.0) * v_c;
+            bias2 = bias2.max(residual_bias2(res, res_var, spp_of(inp.spp[c])));
+        }
+        let mse = var + bias2;
         o[6 + 2 * o_i] = b;
         o[7 + 2 * o_i] = var;
         o[11 + o_i] = bv[o_i].sqrt();
