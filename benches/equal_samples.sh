@@ -10,14 +10,16 @@
 #
 #   bash benches/equal_samples.sh [--size WxH] [--spp "16 64"] [--reference K]
 #        [--scenes "cornell dof motion soft_shadows glossy mix"] [--methods "wlr lp"] [--no-oidn]
+#        [--opt KEY=VALUE ...]   (passed to every reconstructing render)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 size=256x256; spps="16 64"; k=4096; scenes="cornell dof motion soft_shadows glossy mix"
-methods="wlr lp"; oidn=1
+methods="wlr lp"; oidn=1; opts=()
 while [ $# -gt 0 ]; do
   case "$1" in
     --size) size=$2; shift 2;; --spp) spps=$2; shift 2;; --reference) k=$2; shift 2;;
     --scenes) scenes=$2; shift 2;; --methods) methods=$2; shift 2;; --no-oidn) oidn=0; shift;;
+    --opt) opts+=(--opt "$2"); shift 2;;
     *) echo "unknown argument $1" >&2; exit 2;;
   esac
 done
@@ -41,9 +43,9 @@ for s in $scenes; do
     ref=$(echo "$out" | awk '/^reference:/ {print $2}')
     row+=" $(echo "$out" | rmse) |"
     for m in $methods; do
-      u=$($bin render --quiet --scene "$s" --size "$size" --spp "$n" --method "$m" \
+      u=$($bin render --quiet --scene "$s" --size "$size" --spp "$n" --method "$m" "${opts[@]}" \
             --reference "$k" -o "$work/$s-$n-$m-uniform.exr" | rmse)
-      a=$($bin render --quiet --scene "$s" --size "$size" --spp "$n" --method "$m" --adaptive \
+      a=$($bin render --quiet --scene "$s" --size "$size" --spp "$n" --method "$m" --adaptive "${opts[@]}" \
             --reference "$k" -o "$work/$s-$n-$m-adaptive.exr" | rmse)
       row+=" $u | $a | $(awk -v a="$a" -v u="$u" 'BEGIN {printf "%.2f", a/u}') |"
     done

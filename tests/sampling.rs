@@ -389,7 +389,11 @@ fn priority_matches_twin() {
 #[test]
 fn zero_error_pixel_gets_no_samples() {
     let (w, h) = (37, 23);
-    let params = SamplingParams::for_method(Method::Apr).unwrap();
+    // APR's §9.1 parameters without our MAP-SMOOTH-APR.
+    let params = SamplingParams {
+        sigma_s: 0.0,
+        ..SamplingParams::for_method(Method::Apr).unwrap()
+    };
     let mut case = priority_case(w, h, false, 99);
     for ch in 0..3 {
         case.e[ch][200] = 0.0;
@@ -442,7 +446,7 @@ fn tree_layout_levels() {
     assert!(!none.e_is_dmse && none.sigma_s == 0.0);
 }
 
-/// The table of §9.1.
+/// The table of §9.1, and our σs for APR and AOS.
 #[test]
 fn per_method_constants() {
     use mcdenoise::methods::sampling::{EPS_AOS, EPS_DEFAULT, SIGMA_WLR};
@@ -454,5 +458,7 @@ fn per_method_constants() {
     assert!(p(Method::Lp).e_is_dmse && p(Method::Lp).sigma_s == 0.0);
     assert_eq!(p(Method::Apr).eps, 1e-3);
     assert_eq!(p(Method::Aos).eps, 1e-4);
-    assert_eq!(p(Method::Aos).sigma_s, 0.0);
+    // Ours (MAP-SMOOTH-APR, MAP-SMOOTH-AOS): the spec's σs is 0.
+    assert_eq!(p(Method::Apr).sigma_s, 4.0);
+    assert_eq!(p(Method::Aos).sigma_s, 2.0);
 }

@@ -188,12 +188,13 @@ fn denoiser(
     img: &StatsImage,
     method: Method,
     backend: Backend,
-    stages: Stages,
+    stages: &Stages,
 ) -> Result<Denoiser> {
     let source = Source::of_image(img);
     let mut config = Config::new(method);
     config.outliers = stages.outliers;
     config.prefilter = stages.prefilter;
+    config.options = stages.options.clone();
     config.low_spp = crate::has_low_spp(img);
     match backend {
         Backend::Gpu => {
@@ -206,13 +207,16 @@ fn denoiser(
     }
 }
 
-/// The optional stages of every benchmarked call.
-#[derive(Copy, Clone, Debug, Default, PartialEq, Eq)]
+/// The optional stages and method options of every benchmarked call.
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct Stages {
     /// The outlier stage (§4.4).
     pub outliers: crate::Outliers,
     /// The G-buffer prefilter (§6).
     pub prefilter: crate::Prefilter,
+    /// `--opt KEY=VALUE` method options (those of other methods are ignored
+    /// by a method, as in `denoise`).
+    pub options: crate::options::Options,
 }
 
 /// The budget of the quality benchmark's sample maps: [`MAP_BUDGET_PER_PIXEL`]

@@ -400,11 +400,11 @@ pub fn run_quality(
                         // at a fraction of the cost); a failure shows in the timed call.
                         let (cw, ch) = (img.width.min(32), img.height.min(32));
                         let crop = img.crop(0, 0, cw, ch);
-                        let _ = denoiser(ctx, &crop, method, backend, cfg.stages)
+                        let _ = denoiser(ctx, &crop, method, backend, &cfg.stages)
                             .and_then(|d| d.denoise(&crop, Some(map_budget(cw * ch))));
                     }
                     let t0 = Instant::now();
-                    let result = denoiser(ctx, &img, method, backend, cfg.stages)
+                    let result = denoiser(ctx, &img, method, backend, &cfg.stages)
                         .and_then(|d| d.denoise(&img, Some(budget)));
                     let wall = t0.elapsed().as_secs_f64();
                     let out = match result {

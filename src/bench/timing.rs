@@ -224,7 +224,7 @@ pub fn run_timing(
                 "{case} ({})",
                 backend_name(backend)
             )));
-            match time_case(ctx, &img, method, backend, cfg.runs, cfg.stages) {
+            match time_case(ctx, &img, method, backend, cfg.runs, &cfg.stages) {
                 Ok((wall_ms, timings)) => {
                     let med = median(&wall_ms);
                     let sums: Vec<f64> = timings.iter().filter_map(|t| gpu_ms(t)).collect();
@@ -301,7 +301,7 @@ fn time_case(
     method: Method,
     backend: Backend,
     runs: usize,
-    stages: super::Stages,
+    stages: &super::Stages,
 ) -> Result<(Vec<f64>, Vec<Vec<KernelTiming>>)> {
     let d = denoiser(ctx, img, method, backend, stages)?;
     d.denoise(img, None)?;

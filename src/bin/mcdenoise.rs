@@ -663,6 +663,10 @@ struct BenchArgs {
     /// min/median/max over --runs (the timing benchmark measures them too).
     #[arg(long, conflicts_with_all = ["quality", "input", "size", "methods"])]
     peak: bool,
+    /// Method option key=value for every case (repeatable); see
+    /// `mcdenoise denoise --help`.
+    #[arg(long = "opt", value_name = "KEY=VALUE")]
+    opts: Vec<String>,
 }
 
 #[derive(clap::Args)]
@@ -788,6 +792,7 @@ fn bench(cli: &Cli, args: &BenchArgs) -> anyhow::Result<bool> {
                 stages: b::Stages {
                     outliers: args.outliers.get(),
                     prefilter: args.prefilter.get(),
+                    options: Options::parse(&args.opts)?,
                 },
             },
             &mut note,
@@ -813,6 +818,7 @@ fn bench(cli: &Cli, args: &BenchArgs) -> anyhow::Result<bool> {
                 stages: b::Stages {
                     outliers: args.outliers.get(),
                     prefilter: args.prefilter.get(),
+                    options: Options::parse(&args.opts)?,
                 },
             },
             &mut note,

@@ -45,8 +45,17 @@ use crate::shared::{
 pub const EPS_DEFAULT: f32 = 1e-3;
 /// `ε` of §9.1 for AOS.
 pub const EPS_AOS: f32 = 1e-4;
-/// MAP-SMOOTH σs of WLR (§9.1); every other method uses 0 (no smoothing).
+/// MAP-SMOOTH σs of WLR (§9.1); LP and the plain mean use 0 (no smoothing).
 pub const SIGMA_WLR: f32 = 1.0;
+/// MAP-SMOOTH σs of AOS (ours, MAP-SMOOTH-AOS; the spec's default is 0).
+/// A regression method's error at a pixel falls with the samples of its
+/// whole window, not of the pixel alone; unsmoothed, AOS's map put its
+/// samples into isolated pixels and lost to uniform sampling on every
+/// built-in scene (1.14–1.92× the uniform rMSE; `docs/results-adaptive.md`).
+pub const SIGMA_AOS: f32 = 2.0;
+/// MAP-SMOOTH σs of APR (ours, MAP-SMOOTH-APR; the spec's default is 0),
+/// for the reason of [`SIGMA_AOS`] and APR's wider kernel (`h = 14`).
+pub const SIGMA_APR: f32 = 4.0;
 
 /// How the `d` plane holds the local dimension `d_i` of §9.1.
 #[derive(Copy, Clone, Debug, Default, PartialEq, Eq)]
@@ -75,7 +84,8 @@ pub struct SamplingParams {
 
 impl SamplingParams {
     /// The table of §9.1: WLR (`ε = 0.001`, `σs = 1`, `d` from kflags), LP
-    /// (`ε = 0.001`, ΔMSE input), APR (`ε = 0.001`), AOS (`ε = 0.0001`).
+    /// (`ε = 0.001`, ΔMSE input), APR (`ε = 0.001`, `σs` [`SIGMA_APR`]), AOS
+    /// (`ε = 0.0001`, `σs` [`SIGMA_AOS`]).
     /// [`Method::None`]: the unfiltered mean, `E_i = v_i` with `d_i = 0`.
     /// `options`' `sampling.smooth`, when set, replaces σs.
     pub fn for_method(method: Method) -> Result<SamplingParams> {
@@ -95,9 +105,13 @@ impl SamplingParams {
                 e_is_dmse: true,
                 ..base
             },
-            Method::Apr => base,
+            Method::Apr => SamplingParams {
+                sigma_s: SIGMA_APR,
+                ..base
+            },
             Method::Aos => SamplingParams {
                 eps: EPS_AOS,
+                sigma_s: SIGMA_AOS,
                 ..base
             },
             // Not in the spec's table: the plain Monte Carlo mean, whose MSE
