@@ -332,3 +332,95 @@ fn closed_stdout_is_not_a_panic() {
         assert!(!err.contains("panicked"), "{err}");
     }
 }
+
+/// `denoise --frames` (issue #14's batches): every frame of the sequence
+/// into the output pattern, one GPU device; a corrupt frame is reported by
+/// number and path and skipped, the others are written, the exit status is
+/// 1. `--resume` skips the complete outputs and redoes a corrupt one.
+#[test]
+fn denoise_frames_continues_past_a_bad_frame_and_resumes() {
+    let dir = tmpdir("frames");
+    let (inp, out) = (dir.join("in"), dir.join("out"));
+    std::fs::create_dir_all(&inp).unwrap();
+    std::fs::create_dir_all(&out).unwrap();
+    for n in [1, 2, 3, 12] {
+        std::fs::copy(
+            fixture("dof_checker_64_spp16.exr"),
+            inp.join(format!("f_{n:04}.exr")),
+        )
+        .unwrap();
+    }
+    std::fs::write(inp.join("f_0002.exr"), b"not an exr").unwrap();
+    let frames = |extra: &[&str]| {
+        run(bin()
+            .arg("denoise")
+            .arg("--frames")
+            .arg(inp.join("f_####.exr"))
+            .arg("-o")
+            .arg(out.join("o_####.exr"))
+            .args(["--method", "lp"])
+            .args(extra))
+    };
+    let (code, _, err) = frames(&[]);
+    assert_eq!(code, 1, "{err}");
+    assert!(err.contains("4 frames"), "{err}");
+    assert!(
+        err.contains("3 denoised") && err.contains("1 failed"),
+        "{err}"
+    );
+    assert!(
+        err.contains("failed frame 2") && err.contains("f_0002.exr"),
+        "{err}"
+    );
+    for n in [1, 3, 12] {
+        let img = mcdenoise::io::read_rgb(&out.join(format!("o_{n:04}.exr"))).unwrap();
+        assert_eq!((img.width, img.height), (64, 64));
+    }
+    assert!(!out.join("o_0002.exr").exists());
+    // The same frame denoised alone gives the same image.
+    let single = dir.join("single.exr");
+    let (code, _, err) = run(bin()
+        .arg("denoise")
+        .arg(inp.join("f_0003.exr"))
+        .arg("-o")
+        .arg(&single)
+        .args(["--method", "lp"]));
+    assert_eq!(code, 0, "{err}");
+    let a = mcdenoise::io::read_rgb(&single).unwrap();
+    let b = mcdenoise::io::read_rgb(&out.join("o_0003.exr")).unwrap();
+    assert_eq!(a.planes, b.planes);
+    // --resume: two complete outputs are skipped, a corrupt one is redone.
+    std::fs::write(out.join("o_0012.exr"), b"truncated").unwrap();
+    let (code, _, err) = frames(&["--resume"]);
+    assert_eq!(code, 1, "{err}");
+    assert!(
+        err.contains("1 denoised") && err.contains("2 skipped") && err.contains("1 failed"),
+        "{err}"
+    );
+    assert!(mcdenoise::io::read_rgb(&out.join("o_0012.exr")).is_ok());
+    // Once the bad frame is fixed, the sequence completes.
+    std::fs::copy(fixture("dof_checker_64_spp16.exr"), inp.join("f_0002.exr")).unwrap();
+    let (code, _, err) = frames(&["--resume"]);
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        err.contains("1 denoised") && err.contains("3 skipped"),
+        "{err}"
+    );
+    // A pattern without #, and --resume without --frames, are usage errors.
+    let (code, _, err) = run(bin()
+        .arg("denoise")
+        .arg("--frames")
+        .arg(inp.join("f.exr"))
+        .arg("-o")
+        .arg(out.join("o_####.exr")));
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("run of #"), "{err}");
+    let (code, _, _) = run(bin()
+        .arg("denoise")
+        .arg(inp.join("f_0001.exr"))
+        .arg("-o")
+        .arg(dir.join("x.exr"))
+        .arg("--resume"));
+    assert_eq!(code, 2);
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -11,7 +11,8 @@ use mcdenoise::io;
 use mcdenoise::metrics;
 use mcdenoise::{
     colour_of, has_low_spp, help_table, Backend, Config, ContextOptions, Denoiser, GpuContext,
-    Method, Options, Outliers, Pass, Precision, Prefilter, PrepareReport, Source, Validation,
+    Method, Options, Outliers, Pass, Precision, Prefilter, PrepareReport, Source, StatsImage,
+    Validation,
 };
 
 #[derive(Parser)]
@@ -166,13 +167,26 @@ enum Command {
         #[arg(long)]
         max_error: Option<f64>,
     },
-    /// Denoise a render-statistics EXR.
+    /// Denoise a render-statistics EXR, or a sequence of them (--frames).
     #[command(after_help = help_table())]
     Denoise {
-        input: PathBuf,
-        /// Output EXR (color.R/G/B, plus error.*, samples.Y, debug.* on request).
+        #[arg(required_unless_present = "frames")]
+        input: Option<PathBuf>,
+        /// Output EXR (color.R/G/B, plus error.*, samples.Y, debug.* on request);
+        /// with --frames, a pattern such as out/frame_####.exr.
         #[arg(short, long)]
         output: PathBuf,
+        /// Denoise every existing frame of a sequence, such as
+        /// 'dir/frame_####.exr' (the #s: the zero-padded frame number), into
+        /// the --output pattern, with one device and one set of pipelines. A
+        /// bad frame is reported and skipped; the exit status is 1 if any
+        /// frame failed.
+        #[arg(long, value_name = "PATTERN", conflicts_with_all = ["input", "sample_map", "png", "reference"])]
+        frames: Option<PathBuf>,
+        /// With --frames: skip frames whose output exists and reads as a
+        /// complete image.
+        #[arg(long)]
+        resume: bool,
         #[arg(long, value_enum, default_value = "wlr")]
         method: MethodArg,
         #[arg(long, value_enum, default_value = "gpu")]
@@ -399,6 +413,8 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
         Command::Denoise {
             input,
             output,
+            frames,
+            resume,
             method,
             backend,
             precision,
@@ -415,6 +431,38 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
             opts,
         } => {
             let options = Options::parse(opts)?;
+            let method = method.get();
+            let config_for = |img: &StatsImage| {
+                let mut config = Config::new(method);
+                config.precision = precision.get();
+                config.pass = match pass {
+                    PassArg::Final => Pass::Final,
+                    PassArg::Intermediate => Pass::Intermediate,
+                };
+                config.prefilter = prefilter.get();
+                config.outliers = outliers.get();
+                config.options = options.clone();
+                config.debug = *debug_layers;
+                config.progress = !cli.quiet;
+                config.low_spp = has_low_spp(img);
+                config
+            };
+            let Some(input) = input else {
+                let frames = frames.as_ref().expect("clap: input or --frames");
+                return denoise_frames(
+                    &cli,
+                    frames,
+                    output,
+                    *resume,
+                    *backend,
+                    *error,
+                    &config_for,
+                );
+            };
+            if *resume {
+                // clap's `requires` does not hold a flag back here.
+                bail!("--resume needs --frames");
+            }
             for path in [Some(output), png.as_ref(), sample_map.as_ref()]
                 .into_iter()
                 .flatten()
@@ -424,20 +472,8 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
                     bail!("{}: refusing to overwrite an input file", path.display());
                 }
             }
-            let method = method.get();
             let img = io::read_stats(input)?;
-            let mut config = Config::new(method);
-            config.precision = precision.get();
-            config.pass = match pass {
-                PassArg::Final => Pass::Final,
-                PassArg::Intermediate => Pass::Intermediate,
-            };
-            config.prefilter = prefilter.get();
-            config.outliers = outliers.get();
-            config.options = options;
-            config.debug = *debug_layers;
-            config.progress = !cli.quiet;
-            config.low_spp = has_low_spp(&img);
+            let config = config_for(&img);
             let source = Source::of_image(&img);
             let mut denoiser = match backend {
                 BackendArg::Gpu => Denoiser::new(&context(&cli)?, source, config)?,
@@ -529,6 +565,100 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
         Command::Bench(args) => bench(&cli, args),
         Command::Render(args) => render(&cli, args),
     }
+}
+
+/// `denoise --frames`: every existing frame of `pattern` into `output`'s
+/// pattern, on one device; a denoiser is reused while the frames keep their
+/// size and layers. A frame that fails is reported and skipped; the summary
+/// lists them, and the result is `false` (exit status 1) if any failed.
+fn denoise_frames(
+    cli: &Cli,
+    pattern: &Path,
+    output: &Path,
+    resume: bool,
+    backend: BackendArg,
+    error: bool,
+    config_for: &dyn Fn(&StatsImage) -> Config,
+) -> anyhow::Result<bool> {
+    let inp = io::frames::FramePattern::parse(pattern)?;
+    let outp = io::frames::FramePattern::parse(output)?;
+    let frames = inp.list()?;
+    let ctx = match backend {
+        BackendArg::Gpu => Some(context(cli)?),
+        BackendArg::Cpu => None,
+    };
+    let mut cached: Option<(Source, bool, Denoiser)> = None;
+    let (mut done, mut skipped) = (0usize, 0usize);
+    let mut failed: Vec<(u64, String)> = Vec::new();
+    let t0 = std::time::Instant::now();
+    for frame in &frames {
+        let out = outp.path(frame.number);
+        if resume && out.exists() && io::read_rgb(&out).is_ok() {
+            skipped += 1;
+            continue;
+        }
+        let mut attempt = || -> anyhow::Result<()> {
+            if same_file(&out, &frame.path) {
+                bail!("{}: refusing to overwrite an input file", out.display());
+            }
+            let img = io::read_stats(&frame.path)?;
+            let source = Source::of_image(&img);
+            let low_spp = has_low_spp(&img);
+            let reuse = matches!(&cached, Some((s, l, _)) if *s == source && *l == low_spp);
+            if !reuse {
+                let config = config_for(&img);
+                let d = match &ctx {
+                    Some(ctx) => Denoiser::new(ctx, source.clone(), config)?,
+                    None => Denoiser::new_cpu(source.clone(), config)?,
+                };
+                cached = Some((source, low_spp, d));
+            }
+            let denoiser = &cached.as_ref().expect("just set").2;
+            let result = denoiser.denoise(&img, None)?;
+            io::write_output(
+                &out,
+                &io::OutputImage {
+                    color: result.color,
+                    error: error.then_some(result.error),
+                    samples: None,
+                    debug: result.debug,
+                },
+            )?;
+            Ok(())
+        };
+        match attempt() {
+            Ok(()) => {
+                done += 1;
+                if !cli.quiet {
+                    eprintln!(
+                        "frame {}: {} -> {}",
+                        frame.number,
+                        frame.path.display(),
+                        out.display()
+                    );
+                }
+            }
+            Err(e) => {
+                let msg = format!("{e:#}");
+                eprintln!(
+                    "frame {}: {} failed: {msg}",
+                    frame.number,
+                    frame.path.display()
+                );
+                failed.push((frame.number, msg));
+            }
+        }
+    }
+    eprintln!(
+        "{} frames in {:.1} s: {done} denoised, {skipped} skipped (output complete, --resume), {} failed",
+        frames.len(),
+        t0.elapsed().as_secs_f64(),
+        failed.len()
+    );
+    for (n, msg) in &failed {
+        eprintln!("  failed frame {n}: {msg}");
+    }
+    Ok(failed.is_empty())
 }
 
 /// The built-in example: `tests/fixtures/dof_checker_64_*.exr`.

@@ -9,6 +9,7 @@
 //! - [`write_png_preview`] and [`write_heatmap_png`] write 8-bit previews.
 //! - [`inspect()`](fn@inspect), [`validate`] and [`format_report`] summarise
 //!   an input file.
+//! - [`frames`] lists the frames of a `frame_####.exr` sequence.
 //!
 //! Reading never panics on file content: every problem with a file is an
 //! [`Error::BadInput`] naming the file and, where it applies, the layer,
@@ -18,6 +19,7 @@
 
 mod exr_in;
 mod exr_out;
+pub mod frames;
 pub mod inspect;
 mod png_out;
 
