@@ -123,3 +123,83 @@ fn low_spp_off_is_exact_without_one_sample_pixels() {
     assert!(mcdenoise::has_low_spp(&one));
     assert_ne!(run(&one, true), run(&one, false));
 }
+
+/// Issue #14's numeric range, through the facade on the GPU, every method
+/// with its defaults and a sample map: a pixel of colour 1e30 with variance
+/// 1e30 (its square overflows f32), one with a denormal variance (1e-40),
+/// one with a single sample next to pixels with 5000. The output, the error
+/// estimate and the map stay finite, the budget is exact, the huge pixel
+/// keeps its value (every method passes it through: its variance gives it no
+/// weight in its neighbours' fits) and the pixels away from the changed
+/// ones keep the image they have without them.
+#[test]
+fn huge_tiny_and_mixed_sample_counts_stay_finite() {
+    let base = fixture().crop(0, 0, 64, 64);
+    let mut img = base.clone();
+    let huge = 40 * 64 + 20;
+    let mut colour = img.get(Layer::Color).unwrap().to_vec();
+    let mut var = img.get(Layer::ColorVariance).unwrap().to_vec();
+    let mut spp = img.get(Layer::Spp).unwrap().to_vec();
+    for c in 0..3 {
+        colour[c][huge] = 1e30;
+        var[c][huge] = 1e30;
+        var[c][10 * 64 + 50] = 1e-40;
+    }
+    for i in [30 * 64 + 40, 30 * 64 + 41, 31 * 64 + 40, 31 * 64 + 41] {
+        spp[0][i] = 5000.0;
+    }
+    spp[0][30 * 64 + 42] = 1.0;
+    img.set(Layer::Color, colour);
+    img.set(Layer::ColorVariance, var);
+    img.set(Layer::Spp, spp);
+    for &(method, on_gpu) in METHODS {
+        let budget = 4 * 64 * 64;
+        let f = make(&img, method, on_gpu)
+            .denoise(&img, Some(budget))
+            .unwrap_or_else(|e| panic!("{}: {e}", method.name()));
+        let what = method.name();
+        for c in 0..3 {
+            let bad = f.color.planes[c].iter().filter(|v| !v.is_finite()).count();
+            assert_eq!(bad, 0, "{what}: {bad} non-finite colour values");
+            let bad = f.error.planes[c].iter().filter(|v| !v.is_finite()).count();
+            assert_eq!(bad, 0, "{what}: {bad} non-finite error values");
+        }
+        let s: u64 = f.samples.unwrap().iter().map(|&s| s as u64).sum();
+        assert_eq!(s, budget as u64, "{what}: budget");
+        // The huge pixel keeps its value (no method spreads it), and the
+        // pixels more than 28 from every changed pixel (APR's reach: a block
+        // centre up to 14 away, its radius 14) keep the unchanged image's
+        // output.
+        assert_eq!(f.color.planes[0][huge], 1e30, "{what}: the huge pixel");
+        let plain = make(&base, method, on_gpu).denoise(&base, None).unwrap();
+        let changed = [
+            (20, 40),
+            (50, 10),
+            (40, 30),
+            (41, 30),
+            (42, 30),
+            (40, 31),
+            (41, 31),
+        ];
+        let mut compared = 0;
+        for i in 0..64 * 64 {
+            let (x, y) = ((i % 64) as i64, (i / 64) as i64);
+            if changed
+                .iter()
+                .any(|&(cx, cy)| (x - cx).abs().max((y - cy).abs()) <= 28)
+            {
+                continue;
+            }
+            compared += 1;
+            for c in 0..3 {
+                let (a, b) = (f.color.planes[c][i], plain.color.planes[c][i]);
+                assert!(
+                    (a - b).abs() <= 1e-5 * b.abs().max(1.0),
+                    "{what}: pixel ({x}, {y}) {a} against {b} without the changes"
+                );
+            }
+        }
+        assert!(compared > 150, "{compared}");
+    }
+    check_validation(&gpu());
+}
