@@ -121,8 +121,8 @@ fn close(a: f64, b: f64, tol: f64) -> bool {
 
 /// The twin (normal matrix, one factorisation, sums) equals the reference's
 /// explicit kernels and bias images to 1e-7 (1e-10 absolute) on every
-/// pixel, for the default settings, the spec's and the sandwich variance,
-/// at both radii.
+/// pixel, for the default settings, the spec's, the sandwich variance and
+/// the defaults without the outlier weight, at both radii.
 #[test]
 fn twin_matches_the_reference() {
     let img = image(27, 21, 7, true);
@@ -149,7 +149,11 @@ fn twin_matches_the_reference() {
     };
     let mut orders = [0usize; 4];
     for radius in [5usize, 9] {
-        for set in [Settings::default(), Settings::SPEC, sandwich] {
+        let unweighted = Settings {
+            outlier_weight: false,
+            ..Settings::default()
+        };
+        for set in [Settings::default(), Settings::SPEC, sandwich, unweighted] {
             let push = img.push(radius as u32, set.flags());
             for c in 0..n {
                 if !valid[c] {

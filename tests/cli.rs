@@ -335,8 +335,10 @@ fn closed_stdout_is_not_a_panic() {
 
 /// `denoise --frames` (issue #14's batches): every frame of the sequence
 /// into the output pattern, one GPU device; a corrupt frame is reported by
-/// number and path and skipped, the others are written, the exit status is
-/// 1. `--resume` skips the complete outputs and redoes a corrupt one.
+/// number and path and skipped, the others are written (each as a single
+/// run writes it, one frame with other content), the exit status is 1.
+/// `--resume` skips the complete outputs and redoes a corrupt one; an
+/// output pattern naming the inputs is refused.
 #[test]
 fn denoise_frames_continues_past_a_bad_frame_and_resumes() {
     let dir = tmpdir("frames");
@@ -351,6 +353,22 @@ fn denoise_frames_continues_past_a_bad_frame_and_resumes() {
         .unwrap();
     }
     std::fs::write(inp.join("f_0002.exr"), b"not an exr").unwrap();
+    // Frame 3 differs from frames 1 and 12 (colour ×3, variance ×9), so
+    // state carried over by the reused denoiser would show.
+    let mut brighter = mcdenoise::io::read_stats(&fixture("dof_checker_64_spp16.exr")).unwrap();
+    for (layer, k) in [
+        (mcdenoise::Layer::Color, 3.0f32),
+        (mcdenoise::Layer::ColorVariance, 9.0),
+    ] {
+        let planes: Vec<Vec<f32>> = brighter
+            .get(layer)
+            .unwrap()
+            .iter()
+            .map(|p| p.iter().map(|v| v * k).collect())
+            .collect();
+        brighter.set(layer, planes);
+    }
+    mcdenoise::io::write_stats(&inp.join("f_0003.exr"), &brighter).unwrap();
     let frames = |extra: &[&str]| {
         run(bin()
             .arg("denoise")
@@ -406,6 +424,17 @@ fn denoise_frames_continues_past_a_bad_frame_and_resumes() {
         err.contains("1 denoised") && err.contains("3 skipped"),
         "{err}"
     );
+    // An output pattern that names input frames is refused up front, also
+    // with --resume (a statistics file reads as a complete image).
+    let (code, _, err) = run(bin()
+        .arg("denoise")
+        .arg("--frames")
+        .arg(inp.join("f_####.exr"))
+        .arg("-o")
+        .arg(inp.join("f_####.exr"))
+        .arg("--resume"));
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("refusing to overwrite input frames"), "{err}");
     // A pattern without #, and --resume without --frames, are usage errors.
     let (code, _, err) = run(bin()
         .arg("denoise")

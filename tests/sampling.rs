@@ -352,8 +352,23 @@ fn gpu_sample_map(
 #[test]
 fn priority_matches_twin() {
     for method in [Method::Wlr, Method::Lp, Method::Apr, Method::Aos] {
-        let params = SamplingParams::for_method(method).unwrap();
-        for &(w, h) in &[(64usize, 64usize), (1, 1), (1, 17), (23, 1), (37, 23)] {
+        // Each method's parameters, and the same without MAP-SMOOTH (where
+        // the non-finite inputs' priority is checked to be exactly 0).
+        let own = SamplingParams::for_method(method).unwrap();
+        let unsmoothed = SamplingParams {
+            sigma_s: 0.0,
+            ..own
+        };
+        let variants = if own.sigma_s > 0.0 {
+            vec![own, unsmoothed]
+        } else {
+            vec![own]
+        };
+        for (params, &(w, h)) in variants.into_iter().flat_map(|p| {
+            [(64usize, 64usize), (1, 1), (1, 17), (23, 1), (37, 23)]
+                .iter()
+                .map(move |s| (p, s))
+        }) {
             let case = priority_case(w, h, params.dim == DimSource::Kflags, 0x1000 + w as u64);
             let cpu = priority_cpu(w, h, &cpu_inputs(&case), &params).unwrap();
             for p in precisions() {

@@ -583,6 +583,22 @@ fn denoise_frames(
     let inp = io::frames::FramePattern::parse(pattern)?;
     let outp = io::frames::FramePattern::parse(output)?;
     let frames = inp.list()?;
+    // Every input frame, resolved, so that no output (of any frame number)
+    // lands on an input, through a symbolic link either.
+    let inputs: std::collections::HashSet<PathBuf> = frames
+        .iter()
+        .filter_map(|f| f.path.canonicalize().ok())
+        .collect();
+    if frames
+        .iter()
+        .any(|f| inputs.contains(&outp.path(f.number).canonicalize().unwrap_or_default()))
+    {
+        bail!(
+            "{}: refusing to overwrite input frames ({} names them)",
+            output.display(),
+            pattern.display()
+        );
+    }
     let ctx = match backend {
         BackendArg::Gpu => Some(context(cli)?),
         BackendArg::Cpu => None,
@@ -598,14 +614,13 @@ fn denoise_frames(
             continue;
         }
         let mut attempt = || -> anyhow::Result<()> {
-            if same_file(&out, &frame.path) {
-                bail!("{}: refusing to overwrite an input file", out.display());
-            }
             let img = io::read_stats(&frame.path)?;
             let source = Source::of_image(&img);
             let low_spp = has_low_spp(&img);
             let reuse = matches!(&cached, Some((s, l, _)) if *s == source && *l == low_spp);
             if !reuse {
+                // The previous chain's buffers go before the next one's.
+                cached = None;
                 let config = config_for(&img);
                 let d = match &ctx {
                     Some(ctx) => Denoiser::new(ctx, source.clone(), config)?,
@@ -615,6 +630,9 @@ fn denoise_frames(
             }
             let denoiser = &cached.as_ref().expect("just set").2;
             let result = denoiser.denoise(&img, None)?;
+            if !cli.quiet {
+                print_report(&result.report, &frame.path);
+            }
             io::write_output(
                 &out,
                 &io::OutputImage {
