@@ -59,13 +59,23 @@ PLANE_IN(10, col_b)
 PLANE_IN(11, vbar)
 PLANE_IN(12, spp)
 PLANE_IN(13, space)
-PLANE_OUT(14, dst)
+// The features' variances, in the order of f0..f7 (AOS-FEATNOISE).
+PLANE_IN(14, fv0)
+PLANE_IN(15, fv1)
+PLANE_IN(16, fv2)
+PLANE_IN(17, fv3)
+PLANE_IN(18, fv4)
+PLANE_IN(19, fv5)
+PLANE_IN(20, fv6)
+PLANE_IN(21, fv7)
+PLANE_OUT(22, dst)
 
 #define AOS_SANDWICH 1u
 #define AOS_BIAS_TEST 2u
 #define AOS_IDENTITY 4u
 #define AOS_OUTLIER_W 8u
 #define AOS_RESIDUAL 16u
+#define AOS_FEATNOISE 32u
 
 #define NT 64        // invocations per pixel
 #define D 10         // features
@@ -100,7 +110,9 @@ PLANE_OUT(14, dst)
 #define V_RAW (S_V + 9 * NC)  // u*, u1, u3, q1, q3 in the raw layout, scaled (stride XS)
 #define S_SCALE (V_RAW + 5 * XS)  // raw column scale (0: dropped)
 #define S_SC (S_SCALE + NC)   // scalars, below
-#define S_SIZE (S_SC + 8)
+#define V_B1 (S_SC + 8)       // beta_1, beta_3 on grey (AOS-FEATNOISE)
+#define V_B3 (V_B1 + NC)
+#define S_SIZE (V_B3 + NC)
 // Staging (in S_N and S_L, free during the window pass): extended rows,
 // dz rows, K, colour + vbar.
 #define X_X (S_N)
@@ -163,6 +175,20 @@ real feature(int j, uint q)
     case 5: return real(f5[q]);
     case 6: return real(f6[q]);
     default: return real(f7[q]);
+    }
+}
+
+real feature_var(int j, uint q)
+{
+    switch (j) {
+    case 0: return real(fv0[q]);
+    case 1: return real(fv1[q]);
+    case 2: return real(fv2[q]);
+    case 3: return real(fv3[q]);
+    case 4: return real(fv4[q]);
+    case 5: return real(fv5[q]);
+    case 6: return real(fv6[q]);
+    default: return real(fv7[q]);
     }
 }
 
@@ -616,6 +642,8 @@ void main()
         S[V_U1 + i] = e1;
         S[V_U3 + i] = e1;
         S[V_BETA + i] = i < p5 ? (S[V_RHS + i] + S[V_RHS + NC + i] + S[V_RHS + 2 * NC + i]) / real(3) : real(0);
+        S[V_B1 + i] = S[V_BETA + i];
+        S[V_B3 + i] = S[V_BETA + i];
     }
     barrier();
     if (t == 0u) {
@@ -626,6 +654,10 @@ void main()
         tri_solve(p1, V_U1);
     } else if (t == 3u) {
         tri_solve(p3, V_U3);
+    } else if (t == 4u) {
+        tri_solve(p1, V_B1);
+    } else if (t == 5u) {
+        tri_solve(p3, V_B3);
     }
     barrier();
     // bias_l = u_l^T N[0..p_l, :] beta_high; t_l = N[:, 0..p_l] u_l on the
@@ -778,6 +810,31 @@ void main()
     o[1] = max(m.y, real(0));
     o[2] = max(m.z, real(0));
     o[3] = best_mse;
+    if ((push.flags & AOS_FEATNOISE) != 0u) {
+        // AOS-FEATNOISE: g_j = sum_m beta_(1,m) s_(1,m) P[m][j] and
+        // (sum_j |g_j| sigma_j)^2 (pixel coordinates are noiseless).
+        int ba = best == 0 ? V_B1 : V_B3;
+        real4 ca = real4(0);
+        real4 cb = real4(0);
+        real2 cc = real2(0);
+        for (int m = 0; m < k; ++m) {
+            int cm = s_cidx[1 + m];
+            real cv = cm >= 0 ? S[ba + cm] * S[S_SCALE + 1 + m] : real(0);
+            if (m < 4) {
+                ca[m] = cv;
+            } else if (m < 8) {
+                cb[m - 4] = cv;
+            } else {
+                cc[m - 8] = cv;
+            }
+        }
+        real fs = real(0);
+        for (int j = 2; j < D; ++j) {
+            real gj = dot(ca, g_pa[j]) + dot(cb, g_pb[j]) + dot(cc, g_pc[j]);
+            fs += abs(gj) * sqrt(max(feature_var(j - 2, ci), real(0)));
+        }
+        o[3] += fs * fs;
+    }
     o[4] = real(best == 0 ? 1 : 3);
     write_out(ci, o);
 }

@@ -111,6 +111,13 @@ pub const OPTIONS: &[OptionSpec] = &[
         help: "an order's residual at the pixel, when above 3 standard errors, bounds its bias from below (on), or not (off, the paper)",
     },
     OptionSpec {
+        key: "aos.feature_noise",
+        kind: Kind::Choice(&["on", "off"]),
+        default: "on",
+        section: "§5.3 step 5 (AOS-FEATNOISE)",
+        help: "an order's MSE includes the variance its output inherits from the pixel's own noisy features (on), or not (off, the paper)",
+    },
+    OptionSpec {
         key: "apr.outlier_weight",
         kind: Kind::Choice(&["clamped", "off"]),
         default: "clamped",

@@ -345,7 +345,7 @@ pub struct AosPush {
     /// `aos_nlm`: channels of the buffer (1 or 3).
     pub channels: u32,
     /// `aos_fit`: bits [`AOS_SANDWICH`], [`AOS_BIAS_TEST`], [`AOS_IDENTITY`],
-    /// [`AOS_OUTLIER_W`], [`AOS_RESIDUAL`].
+    /// [`AOS_OUTLIER_W`], [`AOS_RESIDUAL`], [`AOS_FEATNOISE`].
     pub flags: u32,
     /// The image row of the scratch buffer's first row: `aos_space` and
     /// `aos_fit` cover rows `base_row + row0 ..` and index the per-pixel
@@ -366,3 +366,5 @@ pub const AOS_IDENTITY: u32 = 4;
 pub const AOS_OUTLIER_W: u32 = 8;
 /// [`AosPush::flags`]: AOS-RESIDUAL (`aos.residual=on`).
 pub const AOS_RESIDUAL: u32 = 16;
+/// [`AosPush::flags`]: AOS-FEATNOISE (`aos.feature_noise=on`).
+pub const AOS_FEATNOISE: u32 = 32;

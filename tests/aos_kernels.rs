@@ -98,6 +98,7 @@ impl Img {
             color: std::array::from_fn(|c| self.color[c].as_slice()),
             vbar: &self.vbar,
             spp: &self.spp,
+            fvar: self.va(),
         }
     }
     fn push(&self, radius: u32, flags: u32) -> AosPush {
@@ -308,6 +309,7 @@ fn gpu_kernels_match_the_twins() {
             inputs.push(&img.vbar);
             inputs.push(&img.spp);
             inputs.push(&cpu_space);
+            inputs.extend(img.va());
             let p = AosPush {
                 stride: n as u32,
                 ..push

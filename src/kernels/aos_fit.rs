@@ -32,6 +32,14 @@ pub const DECL: KernelDecl = KernelDecl {
         read("vbar"),
         read("spp"),
         read("space"),
+        read("var_depth"),
+        read("var_albedo_r"),
+        read("var_albedo_g"),
+        read("var_albedo_b"),
+        read("var_normal_x"),
+        read("var_normal_y"),
+        read("var_normal_z"),
+        read("var_visibility"),
         write("dst"),
     ],
     push_size: std::mem::size_of::<AosPush>() as u32,
@@ -58,7 +66,8 @@ pub fn flops_per_pixel(radius: u32, rank: f64) -> f64 {
 }
 
 /// Records the fits of rows `push.base_row + [0, rows)` (`push.flags`:
-/// `AOS_SANDWICH`, `AOS_BIAS_TEST`, `AOS_IDENTITY`). `rank` is the mean TSVD
+/// `AOS_SANDWICH`, `AOS_BIAS_TEST`, `AOS_IDENTITY`, `AOS_OUTLIER_W`,
+/// `AOS_RESIDUAL`, `AOS_FEATNOISE`). `vars`: the features' variances. `rank` is the mean TSVD
 /// rank assumed by the cost count (progress and the roofline only).
 pub fn record(
     batch: &mut Batch,
@@ -70,13 +79,16 @@ pub fn record(
     vbar: BufferSlice,
     spp: BufferSlice,
     space: BufferSlice,
+    vars: &[BufferSlice; 8],
     dst: BufferSlice,
     rank: f64,
 ) -> Result<()> {
     let mut b = Vec::with_capacity(DECL.bindings.len());
     b.extend_from_slice(feats);
     b.extend_from_slice(&color);
-    b.extend([vbar, spp, space, dst]);
+    b.extend([vbar, spp, space]);
+    b.extend_from_slice(vars);
+    b.push(dst);
     batch.dispatch(
         &DECL,
         precision,

@@ -61,6 +61,7 @@ impl AosParams {
                 identity: opts.get("aos.identity") == "on",
                 outlier_weight: opts.get("aos.outlier_weight") == "clamped",
                 residual: opts.get("aos.residual") == "on",
+                feature_noise: opts.get("aos.feature_noise") == "on",
             },
         })
     }
@@ -393,6 +394,7 @@ pub fn record_aos(
             planes.vbar.plane(0),
             spp,
             planes.space.slice(),
+            &vars,
             planes.out.buffer.slice(),
             COST_RANK,
         )?;

@@ -14,7 +14,7 @@
 //! [`nlmeans`] is the feature prefilter of §5.2.
 
 use super::linalg::{ridge_cholesky, RidgeCholesky, EPS_PIVOT};
-use super::tsvd::{local_coords, local_space};
+use super::tsvd::{local_coords, local_space, RANGE_EPS};
 
 /// Window radius of the final pass (19×19).
 pub const RADIUS_FINAL: usize = 9;
@@ -118,6 +118,13 @@ pub struct Design {
     /// `Σ_i K_i x_i x_iᵀ` over all columns (unregularised), formed once:
     /// every order's normal matrix is a leading block of it.
     pub normal: Vec<f64>,
+    /// Each column's AOS-SCALE factor.
+    pub scale: Vec<f64>,
+    /// `∂Δz_m/∂x_j` = the projection `P[m][j]` (`rank × d` row-major):
+    /// AOS-FEATNOISE's chain rule.
+    pub grad: Vec<f64>,
+    /// The centre's feature standard deviations (of the mean), `d` values.
+    pub centre_sd: Vec<f64>,
 }
 
 impl Design {
@@ -198,6 +205,19 @@ pub fn design_with(pl: &Planes, c: usize, radius: usize, outlier_weight_on: bool
     let ls = local_space(&x, &e2, d);
     let mut xc = vec![0.0; d];
     pl.features(c, &mut xc, &mut ei);
+    let centre_sd: Vec<f64> = ei.iter().map(|v| v.max(0.0).sqrt()).collect();
+    let grad: Vec<f64> = (0..ls.k)
+        .flat_map(|m| {
+            let ls = &ls;
+            (0..d).map(move |j| {
+                if ls.range[j] > RANGE_EPS {
+                    ls.vector(j, m) / ls.range[j]
+                } else {
+                    0.0
+                }
+            })
+        })
+        .collect();
     let k = ls.k;
     let dz: Vec<Vec<f64>> = (0..idx.len())
         .map(|r| local_coords(&ls, &x[r * d..(r + 1) * d], &xc))
@@ -253,6 +273,9 @@ pub fn design_with(pl: &Planes, c: usize, radius: usize, outlier_weight_on: bool
         cols,
         rows,
         normal: Vec::new(),
+        scale,
+        grad,
+        centre_sd,
     };
     d.normal = d.gram(d.cols.len(), |r| d.kh[r]);
     d
@@ -361,6 +384,35 @@ pub fn fit(d: &Design, l: usize, lambda: f64) -> Option<Fit> {
 /// half, whatever σ was (`tests/aos.rs`).
 pub const BIAS_Z: f64 = 2.0;
 
+/// Decision AOS-FEATNOISE (ours; option `aos.feature_noise`): the variance
+/// the chosen order's output inherits from the centre's own noisy features,
+/// added to the exported error `MSE_c` (the sample map's `E_i`); the order
+/// choice does not see it. Every `Δz_i = P (x_i − x_c)` moves with the centre's
+/// features, so the fitted value moves by `−∇f·P δx_c`; at `Δz = 0` only the
+/// power-1 columns have a gradient. With `g_j = Σ_m β_(1,m) s_(1,m) P[m][j]`
+/// (`β` the order's coefficients on grey, `s` the AOS-SCALE factors) the
+/// term is `(Σ_j |g_j| σ_j)²`, the features' noise taken as fully
+/// correlated (they are means over the same samples), as LP-FEATNOISE does
+/// for LP. Why: at the edge of a light, a pixel's albedo, normal and
+/// visibility carry the same coverage noise as its colour, so the fit
+/// follows them and reproduces the noisy input with a residual of 0 and an
+/// estimated MSE of ~0.01 where its squared error was 27–54
+/// (glossy_cornell), which decided `err corr` there.
+pub fn feature_noise(d: &Design, beta: &[f64]) -> f64 {
+    let dim = d.centre_sd.len();
+    let mut g = vec![0.0; dim];
+    for (i, &(v, m)) in d.cols.iter().enumerate().take(beta.len()) {
+        if v == 1 {
+            let c = beta[i] * d.scale[i];
+            for (gj, p) in g.iter_mut().zip(&d.grad[m * dim..(m + 1) * dim]) {
+                *gj += c * p;
+            }
+        }
+    }
+    let s: f64 = g.iter().zip(&d.centre_sd).map(|(g, sd)| g.abs() * sd).sum();
+    s * s
+}
+
 /// AOS-RESIDUAL (see [`pixel`]): the test's level in standard errors for
 /// many samples.
 pub const RESIDUAL_Z: f64 = 3.0;
@@ -417,6 +469,8 @@ pub struct Settings {
     pub outlier_weight: bool,
     /// `aos.residual` (AOS-RESIDUAL, see [`pixel`]).
     pub residual: bool,
+    /// `aos.feature_noise` (AOS-FEATNOISE, see [`feature_noise`]).
+    pub feature_noise: bool,
 }
 
 impl Settings {
@@ -424,7 +478,7 @@ impl Settings {
     /// settings.
     pub fn flags(&self) -> u32 {
         use crate::shared::{
-            AOS_BIAS_TEST, AOS_IDENTITY, AOS_OUTLIER_W, AOS_RESIDUAL, AOS_SANDWICH,
+            AOS_BIAS_TEST, AOS_FEATNOISE, AOS_IDENTITY, AOS_OUTLIER_W, AOS_RESIDUAL, AOS_SANDWICH,
         };
         let bit = |on: bool, b: u32| if on { b } else { 0 };
         bit(self.variance == Variance::Sandwich, AOS_SANDWICH)
@@ -432,6 +486,7 @@ impl Settings {
             | bit(self.identity, AOS_IDENTITY)
             | bit(self.outlier_weight, AOS_OUTLIER_W)
             | bit(self.residual, AOS_RESIDUAL)
+            | bit(self.feature_noise, AOS_FEATNOISE)
     }
 
     /// The spec's AOS as written: none of our decisions.
@@ -441,6 +496,7 @@ impl Settings {
         identity: false,
         outlier_weight: false,
         residual: false,
+        feature_noise: false,
     };
 }
 
@@ -452,6 +508,7 @@ impl Default for Settings {
             identity: true,
             outlier_weight: true,
             residual: true,
+            feature_noise: true,
         }
     }
 }
@@ -541,6 +598,7 @@ pub fn pixel(pl: &Planes, c: usize, radius: usize, set: Settings, lambda_factor:
         .map(|(l, &q)| l * l * pl.vbar[q])
         .sum();
     let mut best: Option<(usize, f64, Vec<f64>)> = None;
+    let mut best_fit: Option<Fit> = None;
     let lnsum: f64 =
         d.kh.iter()
             .zip(&d.idx)
@@ -625,9 +683,10 @@ pub fn pixel(pl: &Planes, c: usize, radius: usize, set: Settings, lambda_factor:
         out.var[o] = var;
         if best.as_ref().map_or(true, |b| mse < b.1) {
             best = Some((l, mse, kern));
+            best_fit = Some(f);
         }
     }
-    let Some((l, mse, kern)) = best else {
+    let (Some((l, mse, kern)), Some(f)) = (best, best_fit) else {
         return out;
     };
     if set.identity && pl.vbar[c] < mse {
@@ -642,6 +701,9 @@ pub fn pixel(pl: &Planes, c: usize, radius: usize, set: Settings, lambda_factor:
     }
     out.order = l;
     out.mse = mse;
+    if set.feature_noise {
+        out.mse += feature_noise(&d, &f.beta(&d, |q| pl.grey(q)));
+    }
     out
 }
 

@@ -22,7 +22,9 @@
 //! * AOS-RESIDUAL: `res_l = u_lᵀ (X_lᵀ W grey) − grey_c`, and with the
 //!   centre's weight `l_c = K_c u_l[0]` (its row is `e_1`),
 //!   `Σ_i (l_i − δ_ic)² v_i = u_lᵀ G u_l − l_c² vbar_c + (l_c − 1)² v_c`;
-//!   the window pass also sums `K_i ln max(vbar_i, floor)` for `v_c`.
+//!   the window pass also sums `K_i ln max(vbar_i, floor)` for `v_c`;
+//! * AOS-FEATNOISE: `β_l = A_l⁻¹ (X_lᵀ W grey)`, and with the power-1
+//!   columns' `β s` and the projection, `(Σ_j |Σ_m β_m s_m P[m][j]| σ_j)²`.
 
 use super::aos::{
     outlier_weight, residual_bias2, residual_centre_var, BIAS_Z, INCREMENT, P_STAR,
@@ -32,7 +34,7 @@ use super::aos_space::{features, Proj, D};
 use super::linalg::{ridge_cholesky, EPS_PIVOT};
 use super::spp_of;
 use crate::shared::{
-    AosPush, AOS_BIAS_TEST, AOS_IDENTITY, AOS_OUTLIER_W, AOS_RESIDUAL, AOS_SANDWICH,
+    AosPush, AOS_BIAS_TEST, AOS_FEATNOISE, AOS_IDENTITY, AOS_OUTLIER_W, AOS_RESIDUAL, AOS_SANDWICH,
 };
 
 /// Output planes, in order: colour R G B (clamped ≥ 0), `MSE_c`, the chosen
@@ -67,6 +69,9 @@ pub struct FitInputs<'a> {
     pub vbar: &'a [f32],
     /// Sample counts.
     pub spp: &'a [f32],
+    /// The features' variances (of the mean), in the order of `feats`
+    /// (AOS-FEATNOISE).
+    pub fvar: [&'a [f32]; 8],
 }
 
 /// The [`OUTPUTS`] values of pixel `c` with projection `proj`.
@@ -310,6 +315,28 @@ pub fn fit_pixel(push: &AosPush, inp: &FitInputs, c: usize, proj: &Proj) -> [f64
             .max(0.0);
     }
     o[3] = mse;
+    if push.flags & AOS_FEATNOISE != 0 {
+        // AOS-FEATNOISE: g_j = Σ_m β_(1,m) s_(1,m) P[m][j].
+        let beta_l = solve(ps[o_i], &grey);
+        let mut g = [0.0; D];
+        for (col, b) in cols.iter().zip(&beta_l) {
+            if col.0 == 1 {
+                let m = col.1 - 1;
+                for (gj, p) in g.iter_mut().zip(&proj.p[m]) {
+                    *gj += b * col.2 * p;
+                }
+            }
+        }
+        let sd = |j: usize| {
+            if j < 2 {
+                0.0
+            } else {
+                (inp.fvar[j - 2][c] as f64).max(0.0).sqrt()
+            }
+        };
+        let s: f64 = (0..D).map(|j| g[j].abs() * sd(j)).sum();
+        o[3] += s * s;
+    }
     o[4] = orders[o_i] as f64;
     o
 }
