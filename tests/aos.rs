@@ -539,3 +539,74 @@ fn aos_denoises_the_fixture_on_both_backends() {
     assert_eq!(s, 4096);
     common::check_validation(&ctx);
 }
+
+/// AOS-FEATNOISE: the colour is `0.3 + 0.5·depth` exactly, with depth an
+/// irregular pattern (so the TSVD keeps it apart from the pixel
+/// coordinates) whose mean has variance `σ² = 1e-4` at every pixel; the
+/// other features are constant. The fit reproduces the colour, and the
+/// exported error rises by the variance the output inherits from the
+/// centre's depth, `(0.5·σ)² = 2.5e-5`, without changing the output; with
+/// zero feature variances it does not rise.
+#[test]
+fn feature_noise_is_the_fitted_gradient_times_the_feature_sd() {
+    let (w, h) = (31, 27);
+    let n = w * h;
+    let depth: Vec<f64> = (0..n)
+        .map(|i| {
+            let (x, y) = ((i % w) as f64, (i / w) as f64);
+            0.1 + 0.8 * ((x * 0.37 + y * 0.61).sin() * 43.7).sin().abs()
+        })
+        .collect();
+    let y: Vec<f64> = depth.iter().map(|d| 0.3 + 0.5 * d).collect();
+    let img = |fvar_depth: f64| Img {
+        w,
+        h,
+        color: [y.clone(), y.clone(), y.clone()],
+        vbar: vec![1e-6; n],
+        feats: vec![
+            depth.clone(),
+            vec![0.5; n],
+            vec![0.5; n],
+            vec![0.5; n],
+            vec![0.0; n],
+            vec![0.0; n],
+            vec![1.0; n],
+        ],
+        fvar: std::iter::once(vec![fvar_depth; n])
+            .chain((0..6).map(|_| vec![0.0; n]))
+            .collect(),
+        valid: vec![true; n],
+        spp: vec![64.0; n],
+    };
+    let (noisy, clean) = (img(1e-4), img(0.0));
+    let off = Settings {
+        feature_noise: false,
+        ..Settings::default()
+    };
+    for c in [13 * w + 15, 10 * w + 12, 16 * w + 18] {
+        let on = r::pixel(
+            &noisy.planes(),
+            c,
+            r::RADIUS_FINAL,
+            Settings::default(),
+            r::RIDGE,
+        );
+        let base = r::pixel(&noisy.planes(), c, r::RADIUS_FINAL, off, r::RIDGE);
+        assert!(on.order > 0, "pixel {c}: the fit is used");
+        assert_eq!(on.color, base.color);
+        let added = on.mse - base.mse;
+        assert!(
+            (added - 2.5e-5).abs() < 0.01 * 2.5e-5,
+            "pixel {c}: added {added}, want 2.5e-5"
+        );
+        let zero = r::pixel(
+            &clean.planes(),
+            c,
+            r::RADIUS_FINAL,
+            Settings::default(),
+            r::RIDGE,
+        );
+        let zero_off = r::pixel(&clean.planes(), c, r::RADIUS_FINAL, off, r::RIDGE);
+        assert_eq!(zero.mse, zero_off.mse, "pixel {c}");
+    }
+}
