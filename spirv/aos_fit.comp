@@ -10,8 +10,9 @@
 // Dispatch: width * 64 invocations by the band's rows; workgroup (x, y) is
 // pixel (x, base_row + row0 + y). Reads the projection of aos_space
 // (SPACE floats per pixel, indexed from base_row). Writes OUTPUTS planes of
-// `dst` (stride push.stride): colour RGB (clamped >= 0), MSE, order, rank,
-// bias1, var1, bias3, var3, sigma*^2, sd(bias1), sd(bias3).
+// `dst` (stride push.stride): colour RGB (clamped >= 0), the exported error
+// (MSE + AOS-FEATNOISE), order, rank, bias1, var1, bias3, var3, sigma*^2,
+// sd(bias1), sd(bias3), MSE (the sample map's E).
 //
 // Decision AOS-F64 (ours; an exception to §0.3's f32 default, like WLR's
 // parametric fits): this kernel computes in f64 in both variants. The
@@ -335,9 +336,9 @@ void tri_solve(int p, int at)
     }
 }
 
-void write_out(uint i, real o[13])
+void write_out(uint i, real o[14])
 {
-    for (int a = 0; a < 13; ++a) {
+    for (int a = 0; a < 14; ++a) {
         dst[uint(a) * push.stride + i] = float(o[a]);
     }
 }
@@ -368,8 +369,8 @@ void main()
         return;
     }
     uint ci = uint(c.y * w + c.x);
-    real o[13];
-    for (int a = 0; a < 13; ++a) {
+    real o[14];
+    for (int a = 0; a < 14; ++a) {
         o[a] = real(0);
     }
     // §0.2: an invalid centre takes the mean of its valid 3x3 neighbours.
@@ -399,6 +400,7 @@ void main()
     o[1] = max(real(col_g[ci]), real(0));
     o[2] = max(real(col_b[ci]), real(0));
     o[3] = real(vbar[ci]);
+    o[13] = o[3];
     uint so = ((uint(c.y) - push.base_row) * push.width + uint(c.x)) * uint(SPACE);
     int k = int(space[so + uint(D * D)]);
     o[5] = real(k);
@@ -810,6 +812,7 @@ void main()
     o[1] = max(m.y, real(0));
     o[2] = max(m.z, real(0));
     o[3] = best_mse;
+    o[13] = best_mse;
     if ((push.flags & AOS_FEATNOISE) != 0u) {
         // AOS-FEATNOISE: g_j = sum_m beta_(1,m) s_(1,m) P[m][j] and
         // (sum_j |g_j| sigma_j)^2 (pixel coordinates are noiseless).

@@ -545,8 +545,8 @@ fn aos_denoises_the_fixture_on_both_backends() {
 /// coordinates) whose mean has variance `σ² = 1e-4` at every pixel; the
 /// other features are constant. The fit reproduces the colour, and the
 /// exported error rises by the variance the output inherits from the
-/// centre's depth, `(0.5·σ)² = 2.5e-5`, without changing the output; with
-/// zero feature variances it does not rise.
+/// centre's depth, `(0.5·σ)² = 2.5e-5`, without changing the output or the
+/// sample map's `MSE_c`; with zero feature variances it does not rise.
 #[test]
 fn feature_noise_is_the_fitted_gradient_times_the_feature_sd() {
     let (w, h) = (31, 27);
@@ -593,8 +593,9 @@ fn feature_noise_is_the_fitted_gradient_times_the_feature_sd() {
         );
         let base = r::pixel(&noisy.planes(), c, r::RADIUS_FINAL, off, r::RIDGE);
         assert!(on.order > 0, "pixel {c}: the fit is used");
-        assert_eq!(on.color, base.color);
-        let added = on.mse - base.mse;
+        assert_eq!((on.color, on.mse), (base.color, base.mse));
+        assert_eq!(base.feat_var, 0.0);
+        let added = on.feat_var;
         assert!(
             (added - 2.5e-5).abs() < 0.01 * 2.5e-5,
             "pixel {c}: added {added}, want 2.5e-5"
@@ -607,6 +608,6 @@ fn feature_noise_is_the_fitted_gradient_times_the_feature_sd() {
             r::RIDGE,
         );
         let zero_off = r::pixel(&clean.planes(), c, r::RADIUS_FINAL, off, r::RIDGE);
-        assert_eq!(zero.mse, zero_off.mse, "pixel {c}");
+        assert_eq!((zero.mse, zero.feat_var), (zero_off.mse, 0.0), "pixel {c}");
     }
 }

@@ -72,14 +72,17 @@ impl AosParams {
 pub struct AosResult {
     /// The reconstruction, clamped to ≥ 0.
     pub color: RgbImage,
-    /// `MSE_c` per pixel (the same in the three channels, §5.3 step 8).
+    /// The error estimate per pixel: `MSE_c` plus AOS-FEATNOISE's term (the
+    /// same in the three channels).
     pub error: RgbImage,
+    /// `MSE_c` (§5.3 step 8), the sample map's `E_i`.
+    pub map_error: Vec<f32>,
     /// The TSVD rank `k` per pixel (the local dimension `d` of §9.1).
     pub dim: Vec<f32>,
     /// Debug layers (§5.5): `aos_order` (0: the input), `aos_rank`,
     /// `aos_bias1`, `aos_var1`, `aos_bias3`, `aos_var3`, `aos_sigma2`,
-    /// `aos_bias_sd1`, `aos_bias_sd3`, and the prefiltered features
-    /// `aos_feature.*`.
+    /// `aos_bias_sd1`, `aos_bias_sd3`, `aos_map_mse`, and the prefiltered
+    /// features `aos_feature.*`.
     pub debug: Vec<(String, Vec<f32>)>,
 }
 
@@ -164,6 +167,7 @@ pub fn run_cpu(clean: &StatsImage, params: AosParams, gbf_ran: bool) -> Result<A
     let res = r::run(&pl, params.radius, params.settings);
     let mut color: [Vec<f32>; 3] = std::array::from_fn(|_| vec![0.0; n]);
     let mut mse = vec![0.0f32; n];
+    let mut map_mse = vec![0.0f32; n];
     let mut dim = vec![0.0f32; n];
     // The GPU kernel's debug planes, in its order.
     let names = DEBUG_NAMES;
@@ -174,7 +178,8 @@ pub fn run_cpu(clean: &StatsImage, params: AosParams, gbf_ran: bool) -> Result<A
                 for ch in 0..3 {
                     color[ch][i] = p.color[ch].max(0.0) as f32;
                 }
-                mse[i] = p.mse as f32;
+                mse[i] = (p.mse + p.feat_var) as f32;
+                map_mse[i] = p.mse as f32;
                 dim[i] = p.rank as f32;
                 let vals = [
                     p.order as f64,
@@ -186,6 +191,7 @@ pub fn run_cpu(clean: &StatsImage, params: AosParams, gbf_ran: bool) -> Result<A
                     p.sigma2,
                     p.bias_sd[0],
                     p.bias_sd[1],
+                    p.mse,
                 ];
                 for (l, v) in layers.iter_mut().zip(vals) {
                     l[i] = v as f32;
@@ -204,6 +210,7 @@ pub fn run_cpu(clean: &StatsImage, params: AosParams, gbf_ran: bool) -> Result<A
     Ok(AosResult {
         color: RgbImage::from_planes(w, h, color),
         error: RgbImage::from_planes(w, h, [mse.clone(), mse.clone(), mse]),
+        map_error: map_mse,
         dim,
         debug: out_debug,
     })
@@ -269,6 +276,11 @@ impl AosPlanes {
     /// `MSE_c` (shared by the channels).
     pub fn mse(&self) -> BufferSlice {
         self.out.plane(3)
+    }
+
+    /// `MSE_c` without AOS-FEATNOISE's term: the sample map's `E_i`.
+    pub fn map_mse(&self) -> BufferSlice {
+        self.out.plane(13)
     }
 
     /// The TSVD rank (`d_i` of §9.1).
@@ -412,6 +424,7 @@ pub fn download(planes: &AosPlanes) -> Result<AosResult> {
     Ok(AosResult {
         color: rgb(0),
         error: RgbImage::from_planes(w, h, [out[3].clone(), out[3].clone(), out[3].clone()]),
+        map_error: out[13].clone(),
         dim: out[5].clone(),
         debug: DEBUG_NAMES
             .iter()

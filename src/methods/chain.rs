@@ -331,10 +331,12 @@ impl GpuChain {
         }))
     }
 
-    /// What the sample map reads as `E` (§9.1): ΔMSE for LP, else `E_i`.
+    /// What the sample map reads as `E` (§9.1): ΔMSE for LP, `MSE_c`
+    /// without AOS-FEATNOISE for AOS, else `E_i`.
     fn sampling_error(&self) -> [BufferSlice; 3] {
         match &self.planes {
             MethodPlanes::Lp(p, _) => p.dmse(),
+            MethodPlanes::Aos(p, _) => [p.map_mse(); 3],
             _ => self.error(),
         }
     }

@@ -279,7 +279,9 @@ pub fn denoise_with_chain(
 fn denoise_cpu(img: &StatsImage, req: &DenoiseRequest) -> Result<DenoiseOutput> {
     let (clean, report, removed, prefiltered) = clean_cpu(img, req)?;
     let (w, h) = (img.width, img.height);
-    let mut lp_dmse = None;
+    // What the sample map reads as E when it is not the exported error: LP's
+    // ΔMSE, AOS's MSE_c without AOS-FEATNOISE.
+    let mut map_e: Option<RgbImage> = None;
     let (mut color, error, dim, mut debug, stats) = match req.method {
         Method::Wlr => {
             let params = wlr::WlrParams::new(req.pass, &req.options)?;
@@ -309,6 +311,8 @@ fn denoise_cpu(img: &StatsImage, req: &DenoiseRequest) -> Result<DenoiseOutput> 
             let params = aos::AosParams::new(req.pass, &req.options)?;
             let r = aos::run_cpu(&clean, params, prefiltered)?;
             let debug = if req.debug { r.debug } else { Vec::new() };
+            let m = r.map_error;
+            map_e = Some(RgbImage::from_planes(w, h, [m.clone(), m.clone(), m]));
             (r.color, r.error, r.dim, debug, Vec::new())
         }
         Method::Lp => {
@@ -320,7 +324,7 @@ fn denoise_cpu(img: &StatsImage, req: &DenoiseRequest) -> Result<DenoiseOutput> 
                 Vec::new()
             };
             let stats = vec![("centre_fraction".into(), r.centre_fraction())];
-            lp_dmse = Some(r.dmse.clone());
+            map_e = Some(r.dmse.clone());
             (
                 r.color.clone(),
                 r.error.clone(),
@@ -364,7 +368,7 @@ fn denoise_cpu(img: &StatsImage, req: &DenoiseRequest) -> Result<DenoiseOutput> 
                 params.sigma_s = req.options.get("sampling.smooth").parse().unwrap_or(0.0);
             }
             let dmse;
-            let e: [&[f32]; 3] = match &lp_dmse {
+            let e: [&[f32]; 3] = match &map_e {
                 Some(d) => {
                     dmse = d;
                     [&dmse.planes[0], &dmse.planes[1], &dmse.planes[2]]

@@ -37,13 +37,14 @@ use crate::shared::{
     AosPush, AOS_BIAS_TEST, AOS_FEATNOISE, AOS_IDENTITY, AOS_OUTLIER_W, AOS_RESIDUAL, AOS_SANDWICH,
 };
 
-/// Output planes, in order: colour R G B (clamped ≥ 0), `MSE_c`, the chosen
-/// order (0: the input), rank `k`, `bias_1`, `var_1`, `bias_3`, `var_3`,
-/// `σ*²`, `sd(bias_1)`, `sd(bias_3)`.
-pub const OUTPUTS: usize = 13;
+/// Output planes, in order: colour R G B (clamped ≥ 0), the exported error
+/// (`MSE_c` plus AOS-FEATNOISE's term), the chosen order (0: the input),
+/// rank `k`, `bias_1`, `var_1`, `bias_3`, `var_3`, `σ*²`, `sd(bias_1)`,
+/// `sd(bias_3)`, `MSE_c` (the sample map's `E_i`).
+pub const OUTPUTS: usize = 14;
 
-/// Names of the debug planes 4..13 (§5.5).
-pub const DEBUG_NAMES: [&str; 9] = [
+/// Names of the debug planes 4..14 (§5.5).
+pub const DEBUG_NAMES: [&str; 10] = [
     "aos_order",
     "aos_rank",
     "aos_bias1",
@@ -53,6 +54,7 @@ pub const DEBUG_NAMES: [&str; 9] = [
     "aos_sigma2",
     "aos_bias_sd1",
     "aos_bias_sd3",
+    "aos_map_mse",
 ];
 
 /// Most columns of the order-5 design: `1 + 5·D`.
@@ -94,6 +96,7 @@ pub fn fit_pixel(push: &AosPush, inp: &FitInputs, c: usize, proj: &Proj) -> [f64
         o[ch] = col(ch, c).max(0.0);
     }
     o[3] = vbar(c);
+    o[13] = vbar(c);
     o[5] = proj.k as f64;
     let k = proj.k;
     if k == 0 {
@@ -315,6 +318,7 @@ pub fn fit_pixel(push: &AosPush, inp: &FitInputs, c: usize, proj: &Proj) -> [f64
             .max(0.0);
     }
     o[3] = mse;
+    o[13] = mse;
     if push.flags & AOS_FEATNOISE != 0 {
         // AOS-FEATNOISE: g_j = Σ_m β_(1,m) s_(1,m) P[m][j].
         let beta_l = solve(ps[o_i], &grey);
