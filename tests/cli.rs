@@ -124,6 +124,23 @@ fn denoise_none_gpu_and_cpu_agree_and_inputs_are_protected() {
     assert_eq!(code, 2);
     assert!(err.contains("refusing to overwrite"), "{err}");
     assert_eq!(std::fs::read(&input).unwrap(), before);
+    // Through a hard link (issue #14): the same file under another name is
+    // not recognised, but the atomic write renames a new file over the
+    // link's name, so the input's data stay as they were.
+    let copy = dir.join("input_copy.exr");
+    std::fs::copy(&input, &copy).unwrap();
+    let link = dir.join("hard_link.exr");
+    let _ = std::fs::remove_file(&link);
+    std::fs::hard_link(&copy, &link).unwrap();
+    let (code, _, err) = run(bin()
+        .arg("denoise")
+        .arg(&copy)
+        .arg("-o")
+        .arg(&link)
+        .args(["--method", "none", "--quiet"]));
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(std::fs::read(&copy).unwrap(), before);
+    assert_ne!(std::fs::read(&link).unwrap(), before);
     // AOS runs on the GPU and on the CPU, and the two agree.
     let out = dir.join("aos.exr");
     let (code, _, err) = run(bin()
