@@ -219,6 +219,24 @@ pub struct Stages {
     pub options: crate::options::Options,
 }
 
+impl Stages {
+    /// One line for the reports: `outliers auto, prefilter auto` and the
+    /// options given, `key=value` in key order.
+    pub fn describe(&self) -> String {
+        let mut s = format!(
+            "outliers {:?}, prefilter {:?}",
+            self.outliers, self.prefilter
+        )
+        .to_lowercase();
+        let mut keys: Vec<&str> = self.options.keys().collect();
+        keys.sort_unstable();
+        for k in keys {
+            s.push_str(&format!(", {k}={}", self.options.get(k)));
+        }
+        s
+    }
+}
+
 /// The budget of the quality benchmark's sample maps: [`MAP_BUDGET_PER_PIXEL`]
 /// samples per pixel (the benchmark scores where the map sends them; for
 /// `none` the map of §9.1 with `E = v`, `d = 0`, the plain Monte Carlo
@@ -256,6 +274,24 @@ fn median(v: &[f64]) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn stages_describe_the_settings() {
+        assert_eq!(
+            Stages::default().describe(),
+            "outliers auto, prefilter auto"
+        );
+        let s = Stages {
+            outliers: crate::Outliers::Off,
+            prefilter: crate::Prefilter::On,
+            options: crate::options::Options::parse(&["aos.variance=sandwich", "aos.residual=off"])
+                .unwrap(),
+        };
+        assert_eq!(
+            s.describe(),
+            "outliers off, prefilter on, aos.residual=off, aos.variance=sandwich"
+        );
+    }
 
     #[test]
     fn filters_and_sizes() {

@@ -265,6 +265,9 @@ pub struct QualityReport {
     pub unavailable: Vec<Method>,
     /// Skipped cases: each message names the case or scene and the file.
     pub warnings: Vec<String>,
+    /// The optional stages and `--opt` options of every case
+    /// ([`super::Stages::describe`]).
+    pub settings: String,
 }
 
 /// Runs the quality benchmark described by `cfg` (module docs). `ctx` is
@@ -292,6 +295,7 @@ pub fn run_quality(
             .then(|| ctx.map(|c| c.info().name.clone()))
             .flatten(),
         unavailable: unavailable.clone(),
+        settings: cfg.stages.describe(),
         ..Default::default()
     };
     let warn = |report: &mut QualityReport, note: &mut dyn FnMut(Note), msg: String| {

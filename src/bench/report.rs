@@ -22,6 +22,9 @@ impl QualityReport {
         if let Some(d) = &self.device {
             let _ = writeln!(s, "Device: {d}");
         }
+        if !self.settings.is_empty() {
+            let _ = writeln!(s, "Settings: {}", self.settings);
+        }
         s.push('\n');
         let corr = self.rows.iter().any(|r| r.err_corr.is_some());
         let centres = self.rows.iter().any(|r| r.centres.is_some());
@@ -154,6 +157,7 @@ impl QualityReport {
             kind: "quality",
             dir: self.dir.display().to_string(),
             device: self.device.as_deref(),
+            settings: &self.settings,
             rows: self
                 .rows
                 .iter()
@@ -217,6 +221,9 @@ impl TimingReport {
         );
         if let Some(d) = &self.device {
             let _ = writeln!(s, "Device: {d}");
+        }
+        if !self.settings.is_empty() {
+            let _ = writeln!(s, "Settings: {}", self.settings);
         }
         s.push('\n');
         if let Some(p) = &self.peak {
@@ -305,6 +312,7 @@ impl TimingReport {
         to_json_text(&TimingJson {
             kind: "timing",
             device: self.device.as_deref(),
+            settings: &self.settings,
             inputs: &self.inputs,
             source: &self.source,
             runs: self.runs,
@@ -429,6 +437,7 @@ struct QualityJson<'a> {
     kind: &'static str,
     dir: String,
     device: Option<&'a str>,
+    settings: &'a str,
     rows: Vec<QualityRowJson<'a>>,
     summary: Vec<QualitySummaryJson<'a>>,
     vs_wlr: Vec<VsWlrJson<'a>>,
@@ -484,6 +493,7 @@ struct VsWlrJson<'a> {
 struct TimingJson<'a> {
     kind: &'static str,
     device: Option<&'a str>,
+    settings: &'a str,
     inputs: &'a str,
     source: &'a str,
     runs: usize,

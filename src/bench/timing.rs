@@ -106,6 +106,9 @@ pub struct TimingReport {
     pub unavailable: Vec<Method>,
     /// Cases whose calls failed (skipped).
     pub warnings: Vec<String>,
+    /// The optional stages and `--opt` options of every case
+    /// ([`super::Stages::describe`]).
+    pub settings: String,
     /// The device's measured limits ([`super::measure_peak`]), when the GPU
     /// backend ran; each kernel's rate is shown as a fraction of them.
     pub peak: Option<super::Peak>,
@@ -196,6 +199,7 @@ pub fn run_timing(
         source,
         runs: cfg.runs,
         unavailable: unavailable.clone(),
+        settings: cfg.stages.describe(),
         ..Default::default()
     };
     if let (true, Some(c)) = (backends.contains(&Backend::Gpu), ctx) {
