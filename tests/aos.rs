@@ -21,6 +21,23 @@ struct Img {
 }
 
 impl Img {
+    /// A grey image (`y` in every channel, variance of the mean `vbar`):
+    /// every pixel valid with 64 samples, noiseless features (no
+    /// visibility).
+    fn grey(w: usize, h: usize, y: Vec<f64>, vbar: Vec<f64>, feats: Vec<Vec<f64>>) -> Img {
+        let n = w * h;
+        Img {
+            w,
+            h,
+            color: [y.clone(), y.clone(), y],
+            vbar,
+            fvar: vec![vec![0.0; n]; feats.len()],
+            feats,
+            valid: vec![true; n],
+            spp: vec![64.0; n],
+        }
+    }
+
     fn planes(&self) -> Planes<'_> {
         Planes {
             w: self.w,
@@ -33,6 +50,20 @@ impl Img {
             spp: &self.spp,
         }
     }
+}
+
+/// The features `depth`, constant albedo 0.5, normal (0, 0, 1).
+fn depth_features(depth: &[f64]) -> Vec<Vec<f64>> {
+    let n = depth.len();
+    vec![
+        depth.to_vec(),
+        vec![0.5; n],
+        vec![0.5; n],
+        vec![0.5; n],
+        vec![0.0; n],
+        vec![0.0; n],
+        vec![1.0; n],
+    ]
 }
 
 /// Noisy features with an edge, noisy colour, a few invalid pixels.
@@ -258,24 +289,7 @@ fn cubic_half_gets_order_three_and_affine_half_order_one() {
         }
     };
     let y: Vec<f64> = (0..n).map(|i| truth(i) + sigma * rng.normal()).collect();
-    let img = Img {
-        w,
-        h,
-        color: [y.clone(), y.clone(), y],
-        vbar: vec![sigma * sigma; n],
-        feats: vec![
-            depth.clone(),
-            vec![0.5; n],
-            vec![0.5; n],
-            vec![0.5; n],
-            vec![0.0; n],
-            vec![0.0; n],
-            vec![1.0; n],
-        ],
-        fvar: vec![vec![0.0; n]; 7],
-        valid: vec![true; n],
-        spp: vec![64.0; n],
-    };
+    let img = Img::grey(w, h, y, vec![sigma * sigma; n], depth_features(&depth));
     let pl = img.planes();
     let fractions = |set: Settings| -> (f64, f64) {
         let res = r::run(&pl, r::RADIUS_FINAL, set);
@@ -337,18 +351,10 @@ fn a_noise_free_peak_is_not_spread() {
             }
         })
         .collect();
-    let img = Img {
-        w,
-        h,
-        color: [y.clone(), y.clone(), y],
-        vbar: (0..n)
-            .map(|i| if i == peak { 0.0 } else { sigma * sigma })
-            .collect(),
-        feats: vec![vec![0.5; n]; 7],
-        fvar: vec![vec![0.0; n]; 7],
-        valid: vec![true; n],
-        spp: vec![64.0; n],
-    };
+    let vbar = (0..n)
+        .map(|i| if i == peak { 0.0 } else { sigma * sigma })
+        .collect();
+    let img = Img::grey(w, h, y, vbar, vec![vec![0.5; n]; 7]);
     let pl = img.planes();
     let near =
         |i: usize, d: usize| i != peak && (i % w).abs_diff(20) <= d && (i / w).abs_diff(20) <= d;
@@ -399,18 +405,10 @@ fn a_noisy_bright_band_does_not_bleed() {
             }
         })
         .collect();
-    let img = Img {
-        w,
-        h,
-        color: [y.clone(), y.clone(), y],
-        vbar: (0..n)
-            .map(|i| if band(i) { 20.0 } else { sigma * sigma })
-            .collect(),
-        feats: vec![vec![0.5; n]; 7],
-        fvar: vec![vec![0.0; n]; 7],
-        valid: vec![true; n],
-        spp: vec![64.0; n],
-    };
+    let vbar = (0..n)
+        .map(|i| if band(i) { 20.0 } else { sigma * sigma })
+        .collect();
+    let img = Img::grey(w, h, y, vbar, vec![vec![0.5; n]; 7]);
     let pl = img.planes();
     let worst = |set: Settings| -> f64 {
         (0..n)
@@ -466,16 +464,8 @@ fn a_texture_the_features_miss_is_caught_by_the_residual() {
         }
     };
     let y: Vec<f64> = (0..n).map(|i| truth(i) + sigma * rng.normal()).collect();
-    let img = Img {
-        w,
-        h,
-        color: [y.clone(), y.clone(), y],
-        vbar: vec![sigma * sigma; n],
-        feats: (0..7).map(|k| vec![0.2 + 0.1 * k as f64; n]).collect(),
-        fvar: vec![vec![0.0; n]; 7],
-        valid: vec![true; n],
-        spp: vec![64.0; n],
-    };
+    let feats = (0..7).map(|k| vec![0.2 + 0.1 * k as f64; n]).collect();
+    let img = Img::grey(w, h, y, vec![sigma * sigma; n], feats);
     let pl = img.planes();
     // Pixels at least R = 9 from the border.
     let inner = |i: usize| (9..w - 9).contains(&(i % w)) && (9..h - 9).contains(&(i / w));
@@ -558,25 +548,10 @@ fn feature_noise_is_the_fitted_gradient_times_the_feature_sd() {
         })
         .collect();
     let y: Vec<f64> = depth.iter().map(|d| 0.3 + 0.5 * d).collect();
-    let img = |fvar_depth: f64| Img {
-        w,
-        h,
-        color: [y.clone(), y.clone(), y.clone()],
-        vbar: vec![1e-6; n],
-        feats: vec![
-            depth.clone(),
-            vec![0.5; n],
-            vec![0.5; n],
-            vec![0.5; n],
-            vec![0.0; n],
-            vec![0.0; n],
-            vec![1.0; n],
-        ],
-        fvar: std::iter::once(vec![fvar_depth; n])
-            .chain((0..6).map(|_| vec![0.0; n]))
-            .collect(),
-        valid: vec![true; n],
-        spp: vec![64.0; n],
+    let img = |fvar_depth: f64| {
+        let mut img = Img::grey(w, h, y.clone(), vec![1e-6; n], depth_features(&depth));
+        img.fvar[0] = vec![fvar_depth; n];
+        img
     };
     let (noisy, clean) = (img(1e-4), img(0.0));
     let off = Settings {

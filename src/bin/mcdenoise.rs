@@ -894,6 +894,11 @@ fn bench(cli: &Cli, args: &BenchArgs) -> anyhow::Result<bool> {
         BenchBackendArg::Cpu => vec![Backend::Cpu],
         BenchBackendArg::Both => vec![Backend::Gpu, Backend::Cpu],
     };
+    let stages = b::Stages {
+        outliers: args.outliers.get(),
+        prefilter: args.prefilter.get(),
+        options: Options::parse(&args.opts)?,
+    };
     for path in [&args.json, &args.markdown].into_iter().flatten() {
         if args.input.as_ref().is_some_and(|i| same_file(path, i)) {
             bail!("{}: refusing to overwrite an input file", path.display());
@@ -937,11 +942,7 @@ fn bench(cli: &Cli, args: &BenchArgs) -> anyhow::Result<bool> {
                 methods,
                 backends,
                 filter: args.filter.clone(),
-                stages: b::Stages {
-                    outliers: args.outliers.get(),
-                    prefilter: args.prefilter.get(),
-                    options: Options::parse(&args.opts)?,
-                },
+                stages,
             },
             &mut note,
         )?;
@@ -963,11 +964,7 @@ fn bench(cli: &Cli, args: &BenchArgs) -> anyhow::Result<bool> {
                 size: args.size,
                 runs: args.runs,
                 filter: args.filter.clone(),
-                stages: b::Stages {
-                    outliers: args.outliers.get(),
-                    prefilter: args.prefilter.get(),
-                    options: Options::parse(&args.opts)?,
-                },
+                stages,
             },
             &mut note,
         )?;

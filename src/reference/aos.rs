@@ -14,7 +14,7 @@
 //! [`nlmeans`] is the feature prefilter of §5.2.
 
 use super::linalg::{ridge_cholesky, RidgeCholesky, EPS_PIVOT};
-use super::tsvd::{local_coords, local_space, RANGE_EPS};
+use super::tsvd::{local_coords, local_space};
 
 /// Window radius of the final pass (19×19).
 pub const RADIUS_FINAL: usize = 9;
@@ -207,16 +207,8 @@ pub fn design_with(pl: &Planes, c: usize, radius: usize, outlier_weight_on: bool
     pl.features(c, &mut xc, &mut ei);
     let centre_sd: Vec<f64> = ei.iter().map(|v| v.max(0.0).sqrt()).collect();
     let grad: Vec<f64> = (0..ls.k)
-        .flat_map(|m| {
-            let ls = &ls;
-            (0..d).map(move |j| {
-                if ls.range[j] > RANGE_EPS {
-                    ls.vector(j, m) / ls.range[j]
-                } else {
-                    0.0
-                }
-            })
-        })
+        .flat_map(|m| (0..d).map(move |j| (m, j)))
+        .map(|(m, j)| ls.projection_entry(m, j))
         .collect();
     let k = ls.k;
     let dz: Vec<Vec<f64>> = (0..idx.len())
@@ -391,13 +383,17 @@ pub const BIAS_Z: f64 = 2.0;
 /// dof_checker 46 % worse at 4 spp (the input won where 4-spp features are
 /// noisy), and in the map it made adaptive AOS worse on cornell, motion and
 /// soft_shadows at 64 spp (1.38, 1.13, 1.49 × uniform against 1.19, 0.77,
-/// 0.87). Its noise falls as `1/n`, not at the rate the map assumes. Every `Δz_i = P (x_i − x_c)` moves with the centre's
-/// features, so the fitted value moves by `−∇f·P δx_c`; at `Δz = 0` only the
-/// power-1 columns have a gradient. With `g_j = Σ_m β_(1,m) s_(1,m) P[m][j]`
+/// 0.87). Its noise falls as `1/n`, not at the rate the map assumes.
+///
+/// Every `Δz_i = P (x_i − x_c)` moves with the centre's features, so the
+/// fitted value moves by `−∇f·P δx_c`; at `Δz = 0` only the power-1
+/// columns have a gradient. With `g_j = Σ_m β_(1,m) s_(1,m) P[m][j]`
 /// (`β` the order's coefficients on grey, `s` the AOS-SCALE factors) the
 /// term is `(Σ_j |g_j| σ_j)²`, the features' noise taken as fully
 /// correlated (they are means over the same samples), as LP-FEATNOISE does
-/// for LP. Why: at the edge of a light, a pixel's albedo, normal and
+/// for LP.
+///
+/// Why: at the edge of a light, a pixel's albedo, normal and
 /// visibility carry the same coverage noise as its colour, so the fit
 /// follows them and reproduces the noisy input with a residual of 0 and an
 /// estimated MSE of ~0.01 where its squared error was 27–54
@@ -609,12 +605,16 @@ pub fn pixel(pl: &Planes, c: usize, radius: usize, set: Settings, lambda_factor:
         .sum();
     let mut best: Option<(usize, f64, Vec<f64>)> = None;
     let mut best_fit: Option<Fit> = None;
-    let lnsum: f64 =
-        d.kh.iter()
-            .zip(&d.idx)
-            .map(|(k, &q)| k * pl.vbar[q].max(RESIDUAL_VBAR_FLOOR).ln())
-            .sum();
-    let v_c = residual_centre_var(pl.vbar[c], lnsum, d.kh.iter().sum());
+    // AOS-RESIDUAL's variance of the centre, from the window's geometric
+    // mean of vbar.
+    let v_c = set.residual.then(|| {
+        let lnsum: f64 =
+            d.kh.iter()
+                .zip(&d.idx)
+                .map(|(k, &q)| k * pl.vbar[q].max(RESIDUAL_VBAR_FLOOR).ln())
+                .sum();
+        residual_centre_var(pl.vbar[c], lnsum, d.kh.iter().sum())
+    });
     let mut out = Pixel {
         rank: d.rank,
         sigma2,
@@ -675,7 +675,7 @@ pub fn pixel(pl: &Planes, c: usize, radius: usize, set: Settings, lambda_factor:
             0.0
         };
         let mut bias2 = counted * counted;
-        if set.residual {
+        if let Some(v_c) = v_c {
             let (mut res, mut res_var) = (-pl.grey(c), 0.0);
             for (&k, &q) in kern.iter().zip(&d.idx) {
                 res += k * pl.grey(q);

@@ -60,6 +60,17 @@ impl LocalSpace {
         self.v[j * self.d + m]
     }
 
+    /// `∂Δz_m/∂x_j` of raw features: `V_jm / ρ_j`, or 0 for a constant
+    /// component (the entries of [`Projection::p`]).
+    pub fn projection_entry(&self, m: usize, j: usize) -> f64 {
+        let inv = if self.range[j] > RANGE_EPS {
+            1.0 / self.range[j]
+        } else {
+            0.0
+        };
+        self.vector(j, m) * inv
+    }
+
     /// Min-max normalised features `x'` of a raw feature vector (step 1):
     /// `(x_j − m_j)/ρ_j`, or 0 for a constant component.
     pub fn normalise(&self, x: &[f64]) -> Vec<f64> {
@@ -250,14 +261,9 @@ pub struct Projection<const D: usize = D9> {
 pub fn projection<const D: usize>(ls: &LocalSpace) -> Projection<D> {
     assert_eq!(ls.d, D, "tsvd::projection: D");
     let mut p = [[0.0; D]; D];
-    for j in 0..D {
-        let inv = if ls.range[j] > RANGE_EPS {
-            1.0 / ls.range[j]
-        } else {
-            0.0
-        };
-        for m in 0..ls.k {
-            p[m][j] = ls.vector(j, m) * inv;
+    for (m, row) in p.iter_mut().enumerate().take(ls.k) {
+        for (j, v) in row.iter_mut().enumerate() {
+            *v = ls.projection_entry(m, j);
         }
     }
     Projection { k: ls.k, p }
