@@ -4,13 +4,13 @@
 // half-row summaries (EXCL-CENTRE); o is an outlier when count >= min_n
 // (OUTLIER-MIN-N), grey_o - m > k sd (SPIKE-SIDE, population sd) and
 // grey_o - m <= k se_o (OUTLIER-NOISE, se from the pixel's variances) and
-// no 8-neighbour is above m + k sd (OUTLIER-ISOLATED). An
-// outlier takes the colour and variance of q*, the pixel of median grey in
-// Ω_o(R) with o (lower median of an even count, lowest raster index among
-// equal greys: OUTLIER-MEDIAN), found by a 32-step radix selection on the
-// order-preserving bits of grey (no local array); e = y_o - y_q* per channel,
-// 0 elsewhere. Every read is of the original planes (detections applied at
-// once). Scalar twin: src/reference/outlier_detect.rs.
+// no 8-neighbour is above m + k sd (OUTLIER-ISOLATED). Every pixel's
+// colour and variance are copied to the outputs with e = 0; a detected
+// pixel is appended to the queue, whose entries outlier_median replaces by
+// the median pixel. The median lives in its own kernel because a kernel
+// merely containing its 32 scans of the window ran ~9x slower on lavapipe,
+// and because a queue keeps all SIMD lanes of the median busy.
+// Scalar twin: src/reference/outlier_detect.rs.
 #include "lib/common.glsl"
 #include "lib/outliers.glsl"
 
@@ -29,21 +29,21 @@ PLANE_IN(9, lq)
 PLANE_IN(10, rn)
 PLANE_IN(11, rm)
 PLANE_IN(12, rq)
-layout(std430, set = 0, binding = 13) readonly buffer keys_blk { uint keys[]; };
-PLANE_OUT(14, out_r)
-PLANE_OUT(15, out_g)
-PLANE_OUT(16, out_b)
-PLANE_OUT(17, out_vr)
-PLANE_OUT(18, out_vg)
-PLANE_OUT(19, out_vb)
-PLANE_OUT(20, er)
-PLANE_OUT(21, eg)
-PLANE_OUT(22, eb)
+PLANE_OUT(13, out_r)
+PLANE_OUT(14, out_g)
+PLANE_OUT(15, out_b)
+PLANE_OUT(16, out_vr)
+PLANE_OUT(17, out_vg)
+PLANE_OUT(18, out_vb)
+PLANE_OUT(19, er)
+PLANE_OUT(20, eg)
+PLANE_OUT(21, eb)
+// [0..3): indirect dispatch arguments of outlier_median (x counts started
+// groups of 64 entries; y = z = 1, set by the host), [3]: entries, then the
+// detected pixels. The host zeroes x and the count before the dispatch.
+layout(std430, set = 0, binding = 22) buffer queue_blk { uint queue[]; };
 
 real grey_at(uint i) { return (real(cr[i]) + real(cg[i]) + real(cb[i])) / real(3); }
-
-// Order-preserving unsigned key of grey (outlier_rows).
-uint key_of(uint i) { return keys[i]; }
 
 Summary half_row(uint q, bool left)
 {
@@ -65,7 +65,6 @@ void main()
     int r = int(push.radius);
     int x0 = max(int(x) - r, 0), x1 = min(int(x) + r, int(push.width) - 1);
     int y0 = max(int(y) - r, 0), y1 = min(int(y) + r, int(push.height) - 1);
-    uint q = o;
     if (valid_at(spp[o])) {
         Summary s;
         s.n = real(0);
@@ -102,52 +101,24 @@ void main()
             }
         }
         if (outlier) {
-            // Rank of the median among the valid pixels of the window, o included.
-            uint n = 0u;
-            for (int qy = y0; qy <= y1; ++qy) {
-                for (int qx = x0; qx <= x1; ++qx) {
-                    n += valid_at(spp[uint(qy) * push.width + uint(qx)]) ? 1u : 0u;
-                }
-            }
-            uint k = (n - 1u) / 2u;
-            uint prefix = 0u;
-            for (int bit = 31; bit >= 0; --bit) {
-                uint hi = bit == 31 ? 0u : (0xFFFFFFFFu << uint(bit + 1));
-                uint zeros = 0u;
-                for (int qy = y0; qy <= y1; ++qy) {
-                    for (int qx = x0; qx <= x1; ++qx) {
-                        uint j = uint(qy) * push.width + uint(qx);
-                        if (valid_at(spp[j])) {
-                            uint kj = key_of(j);
-                            zeros += ((kj & hi) == prefix && (kj & (1u << uint(bit))) == 0u) ? 1u : 0u;
-                        }
-                    }
-                }
-                if (k >= zeros) {
-                    k -= zeros;
-                    prefix |= 1u << uint(bit);
-                }
-            }
-            // The lowest raster index holding the median key.
-            bool found = false;
-            for (int qy = y0; qy <= y1 && !found; ++qy) {
-                for (int qx = x0; qx <= x1 && !found; ++qx) {
-                    uint j = uint(qy) * push.width + uint(qx);
-                    if (valid_at(spp[j]) && key_of(j) == prefix) {
-                        q = j;
-                        found = true;
-                    }
-                }
+            // Queue o for outlier_median (dispatched indirectly: one
+            // workgroup of 64 per 64 entries; the order of the queue does
+            // not matter, each entry is replaced on its own).
+            uint at = atomicAdd(queue[3], 1u);
+            queue[4u + at] = o;
+            if (at % 64u == 0u) {
+                atomicAdd(queue[0], 1u);
             }
         }
     }
-    out_r[o] = cr[q];
-    out_g[o] = cg[q];
-    out_b[o] = cb[q];
-    out_vr[o] = vr[q];
-    out_vg[o] = vg[q];
-    out_vb[o] = vb[q];
-    er[o] = float(real(cr[o]) - real(cr[q]));
-    eg[o] = float(real(cg[o]) - real(cg[q]));
-    eb[o] = float(real(cb[o]) - real(cb[q]));
+    // Every pixel starts as a copy; outlier_median overwrites the queued ones.
+    out_r[o] = cr[o];
+    out_g[o] = cg[o];
+    out_b[o] = cb[o];
+    out_vr[o] = vr[o];
+    out_vg[o] = vg[o];
+    out_vb[o] = vb[o];
+    er[o] = 0.0;
+    eg[o] = 0.0;
+    eb[o] = 0.0;
 }

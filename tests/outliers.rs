@@ -6,14 +6,16 @@
 mod common;
 
 use common::*;
+use mcdenoise::gpu::{Batch, GpuBuffer, GpuContext, Precision};
 use mcdenoise::image::{Layer, StatsImage};
 use mcdenoise::kernels::{
-    box_rows, outlier_detect, outlier_rows, outlier_spread, outlier_weights, run_planes,
+    box_rows, outlier_detect, outlier_median, outlier_rows, outlier_spread, outlier_weights,
+    run_planes,
 };
 use mcdenoise::reference::outliers as ro;
 use mcdenoise::reference::{
-    box_rows as rb, outlier_detect as rd, outlier_rows as rr, outlier_spread as rs,
-    outlier_weights as rw,
+    box_rows as rb, outlier_detect as rd, outlier_median as rm, outlier_rows as rr,
+    outlier_spread as rs, outlier_weights as rw,
 };
 use mcdenoise::shared::OutlierPush;
 use mcdenoise::{Config, Denoiser, Method, Outliers, Source};
@@ -84,6 +86,71 @@ fn muts<const N: usize>(v: &mut [Vec<f32>]) -> [&mut [f32]; N] {
     std::array::from_fn(|_| it.next().unwrap().as_mut_slice())
 }
 
+/// Runs outlier_detect and the indirect outlier_median through their
+/// `record` functions: the nine output planes and the queue's words.
+fn detect_and_replace(
+    ctx: &std::sync::Arc<GpuContext>,
+    p: Precision,
+    pu: &OutlierPush,
+    img: &Img,
+    rows: &[Vec<f32>],
+    keys: &[f32],
+) -> (Vec<Vec<f32>>, Vec<u32>) {
+    let n = img.w * img.h;
+    let up = |v: &[f32]| GpuBuffer::from_slice(ctx, "test.in", v).unwrap();
+    let color: Vec<GpuBuffer> = img.color.iter().map(|v| up(v)).collect();
+    let var: Vec<GpuBuffer> = img.var.iter().map(|v| up(v)).collect();
+    let spp = up(&img.spp);
+    let rows: Vec<GpuBuffer> = rows.iter().map(|v| up(v)).collect();
+    let keys = up(keys);
+    let out: Vec<GpuBuffer> = (0..9).map(|_| up(&vec![0.0; n])).collect();
+    // Garbage in the queue's header: record() must reset it.
+    let queue = GpuBuffer::from_slice(
+        ctx,
+        "test.queue",
+        &vec![7u32; outlier_detect::queue_words(n)],
+    )
+    .unwrap();
+    let s = |b: &[GpuBuffer]| -> Vec<_> { b.iter().map(|b| b.slice()).collect() };
+    let (cs, vs, rs, os) = (s(&color), s(&var), s(&rows), s(&out));
+    let mut batch = Batch::new(ctx).unwrap();
+    let three = |v: &[_], at: usize| -> [_; 3] { std::array::from_fn(|i| v[at + i]) };
+    let six = |v: &[_], at: usize| -> [_; 6] { std::array::from_fn(|i| v[at + i]) };
+    outlier_detect::record(
+        &mut batch,
+        p,
+        pu,
+        three(&cs, 0),
+        three(&vs, 0),
+        spp.slice(),
+        six(&rs, 0),
+        six(&os, 0),
+        three(&os, 6),
+        queue.slice(),
+    )
+    .unwrap();
+    outlier_median::record(
+        &mut batch,
+        p,
+        pu,
+        three(&cs, 0),
+        three(&vs, 0),
+        spp.slice(),
+        keys.slice(),
+        queue.slice(),
+        six(&os, 0),
+        three(&os, 6),
+    )
+    .unwrap();
+    batch.finish().unwrap();
+    (
+        out.iter().map(|b| b.read_vec::<f32>(n).unwrap()).collect(),
+        queue
+            .read_vec::<u32>(outlier_detect::queue_words(n))
+            .unwrap(),
+    )
+}
+
 #[test]
 fn kernels_match_twins() {
     let ctx = gpu();
@@ -128,33 +195,42 @@ fn kernels_match_twins() {
             let ck: Vec<f32> = keys.iter().map(|&k| unkey(k)).collect();
             assert_close(&what("outlier_rows keys"), &gk, &ck, 0.99);
             let key_plane: Vec<f32> = g[6].clone();
-            // outlier_detect, from the twin's summaries
+            // outlier_detect then outlier_median (indirect, from the
+            // queue), from the twin's summaries and keys
             let mut out = vec![vec![0.0f32; n]; 9];
+            let list = {
+                let (a, b) = out.split_at_mut(3);
+                let (b, e) = b.split_at_mut(3);
+                rd::outlier_detect(&pu, c3, v3, &img.spp, muts(a), muts(b), muts(e))
+            };
             {
                 let (a, b) = out.split_at_mut(3);
                 let (b, e) = b.split_at_mut(3);
-                rd::outlier_detect(&pu, c3, v3, &img.spp, muts(a), muts(b), muts(e));
+                rm::outlier_median(&pu, c3, v3, &img.spp, &list, muts(a), muts(b), muts(e));
             }
-            let mut inputs: Vec<&[f32]> = c3.to_vec();
-            inputs.extend(v3);
-            inputs.push(&img.spp);
-            inputs.extend(refs(&rows));
-            inputs.push(&key_plane);
-            let (g, _) = run_planes(
-                &ctx,
-                &outlier_detect::DECL,
-                p,
-                bytemuck::bytes_of(&pu),
-                w,
-                h,
-                &inputs,
-                &[n; 9],
-                1.0,
-            )
-            .unwrap();
+            let (g, queue) = detect_and_replace(&ctx, p, &pu, &img, &rows, &key_plane);
             for k in 0..9 {
-                assert_close(&what("outlier_detect"), &g[k], &out[k], 0.99);
+                assert_close(
+                    &what("outlier_detect + outlier_median"),
+                    &g[k],
+                    &out[k],
+                    0.99,
+                );
             }
+            // The queue holds the detected pixels (in any order), and its
+            // dispatch arguments count the started groups of 64.
+            let mut queued: Vec<usize> = queue[4..4 + queue[3] as usize]
+                .iter()
+                .map(|&o| o as usize)
+                .collect();
+            queued.sort_unstable();
+            assert_eq!(queued, list, "{}", what("queue"));
+            assert_eq!(
+                queue[..3],
+                [list.len().div_ceil(64) as u32, 1, 1],
+                "{}",
+                what("indirect arguments")
+            );
             let detected = out[6].iter().filter(|&&e| e != 0.0).count();
             if n >= 64 * 64 {
                 assert!(

@@ -35,8 +35,11 @@ fn every_kernel_matches_its_declaration() {
                 .unwrap_or_else(|e| panic!("{}{}: {e}", decl.name, p.suffix()));
             // One workgroup per pixel for aos_fit (spec §5.4); the dispatch
             // counts invocations in x by THREADS per pixel.
+            // outlier_median runs one invocation per queued pixel.
             let wg = if decl.name == "aos_fit" {
                 [mcdenoise::kernels::aos_fit::THREADS, 1, 1]
+            } else if decl.name == "outlier_median" {
+                [mcdenoise::kernels::outlier_median::GROUP, 1, 1]
             } else {
                 [8, 8, 1]
             };

@@ -13,6 +13,7 @@ use ash::vk;
 
 use super::buffer::BufferSlice;
 use super::context::GpuContext;
+use super::pipeline::Pipeline;
 use super::reflect::{KernelDecl, Precision};
 use crate::error::{Error, Result};
 
@@ -463,14 +464,17 @@ impl Batch {
                 vk::AccessFlags::SHADER_READ
                     | vk::AccessFlags::SHADER_WRITE
                     | vk::AccessFlags::TRANSFER_READ
-                    | vk::AccessFlags::TRANSFER_WRITE,
+                    | vk::AccessFlags::TRANSFER_WRITE
+                    | vk::AccessFlags::INDIRECT_COMMAND_READ,
             )];
         // SAFETY: cmd is recording.
         unsafe {
             self.ctx.device.cmd_pipeline_barrier(
                 self.cmd,
                 vk::PipelineStageFlags::COMPUTE_SHADER | vk::PipelineStageFlags::TRANSFER,
-                vk::PipelineStageFlags::COMPUTE_SHADER | vk::PipelineStageFlags::TRANSFER,
+                vk::PipelineStageFlags::COMPUTE_SHADER
+                    | vk::PipelineStageFlags::TRANSFER
+                    | vk::PipelineStageFlags::DRAW_INDIRECT,
                 vk::DependencyFlags::empty(),
                 &mb,
                 &[],
@@ -534,40 +538,9 @@ impl Batch {
         flops_per_pixel: f64,
     ) -> Result<()> {
         let p = self.ctx.pipeline(decl, precision)?;
-        if bindings.len() as u32 != p.binding_count {
-            return Err(Error::InvalidArgument(format!(
-                "kernel {} takes {} bindings, got {}",
-                decl.name,
-                p.binding_count,
-                bindings.len()
-            )));
-        }
-        if push.len() as u32 != decl.push_size || push.len() < 12 {
-            return Err(Error::InvalidArgument(format!(
-                "kernel {}: push constants of {} bytes, expected {}",
-                decl.name,
-                push.len(),
-                decl.push_size
-            )));
-        }
+        check_bindings(&self.ctx, decl, p.binding_count, bindings, push)?;
         if width == 0 || height == 0 {
             return Ok(());
-        }
-        let limit = self.ctx.info.max_storage_buffer_range as u64;
-        let align = self.ctx.info.min_storage_buffer_offset_alignment.max(1);
-        for (i, b) in bindings.iter().enumerate() {
-            if b.size > limit {
-                return Err(Error::Limit(format!(
-                    "kernel {} binding {i} ({}) is {} bytes; maxStorageBufferRange is {limit}",
-                    decl.name, decl.bindings[i].name, b.size
-                )));
-            }
-            if b.offset % align != 0 {
-                return Err(Error::InvalidArgument(format!(
-                    "kernel {} binding {i} ({}) offset {} is not a multiple of {align}",
-                    decl.name, decl.bindings[i].name, b.offset
-                )));
-            }
         }
         let [wx, wy, _] = p.workgroup;
         let row_flops = flops_per_pixel.max(1.0) * width as f64;
@@ -575,6 +548,72 @@ impl Batch {
             self.flops_recorded += row_flops * height as f64;
             return Ok(());
         }
+        let set = self.bind_set(&p, bindings)?;
+        let mut band = ((self.max_flops_per_submit / row_flops).floor() as u32).max(1);
+        band = band.div_ceil(wy) * wy;
+        let mut push = push.to_vec();
+        let mut row0 = 0;
+        while row0 < height {
+            let rows = band.min(height - row0);
+            push[8..12].copy_from_slice(&row0.to_le_bytes());
+            self.record_one(
+                &p,
+                set,
+                &push,
+                (row0, row0 + rows, height),
+                row_flops * rows as f64,
+                |dev, cmd| {
+                    // SAFETY: cmd recording, the pipeline bound by record_one.
+                    unsafe { dev.cmd_dispatch(cmd, width.div_ceil(wx), rows.div_ceil(wy), 1) }
+                },
+            )?;
+            row0 += rows;
+        }
+        Ok(())
+    }
+
+    /// Records `decl` once with its workgroup count read on the device from
+    /// `args` (three u32: x, y, z, as `vkCmdDispatchIndirect` takes them),
+    /// which an earlier kernel of the batch wrote. For work whose size only
+    /// the data knows (the outlier stage's detected pixels); it cannot be
+    /// split into bands, so `flops` (the caller's bound on the work) must
+    /// stay far below a watchdog on any device. The push constants' `row0`
+    /// is 0.
+    pub fn dispatch_indirect(
+        &mut self,
+        decl: &KernelDecl,
+        precision: Precision,
+        bindings: &[BufferSlice],
+        push: &[u8],
+        args: BufferSlice,
+        flops: f64,
+    ) -> Result<()> {
+        let p = self.ctx.pipeline(decl, precision)?;
+        check_bindings(&self.ctx, decl, p.binding_count, bindings, push)?;
+        if args.size < 12 || args.offset % 4 != 0 {
+            return Err(Error::InvalidArgument(format!(
+                "kernel {}: indirect arguments need 12 bytes at a 4-byte offset",
+                decl.name
+            )));
+        }
+        if matches!(self.mode, Mode::Count) {
+            self.flops_recorded += flops;
+            return Ok(());
+        }
+        let set = self.bind_set(&p, bindings)?;
+        self.track(&[args]);
+        let mut push = push.to_vec();
+        push[8..12].copy_from_slice(&0u32.to_le_bytes());
+        self.record_one(&p, set, &push, (0, 0, 0), flops, |dev, cmd| {
+            // SAFETY: cmd recording; args inside its buffer (BufferSlice
+            // invariant), created with INDIRECT_BUFFER usage.
+            unsafe { dev.cmd_dispatch_indirect(cmd, args.buffer, args.offset) }
+        })
+    }
+
+    /// Allocates and writes the descriptor set of one dispatch and retains
+    /// its buffers.
+    fn bind_set(&mut self, p: &Pipeline, bindings: &[BufferSlice]) -> Result<vk::DescriptorSet> {
         self.track(bindings);
         let set = self.descriptor_set(p.set_layout)?;
         let infos: Vec<[vk::DescriptorBufferInfo; 1]> = bindings
@@ -597,64 +636,63 @@ impl Batch {
                     .buffer_info(info)
             })
             .collect();
-        let dev = self.ctx.device.clone();
         // SAFETY: set freshly allocated, buffers valid (caller's contract).
-        unsafe { dev.update_descriptor_sets(&writes, &[]) };
+        unsafe { self.ctx.device.update_descriptor_sets(&writes, &[]) };
+        Ok(set)
+    }
 
-        let mut band = ((self.max_flops_per_submit / row_flops).floor() as u32).max(1);
-        band = band.div_ceil(wy) * wy;
-        let mut push = push.to_vec();
-        let mut row0 = 0;
-        while row0 < height {
-            let rows = band.min(height - row0);
-            let band_flops = row_flops * rows as f64;
-            if self.flops_in_submit > 0.0
-                && self.flops_in_submit + band_flops > self.max_flops_per_submit
-            {
-                self.flush()?;
-            }
-            push[8..12].copy_from_slice(&row0.to_le_bytes());
-            let q = self.query_pair()?;
-            // SAFETY: cmd recording; pipeline/layout/set compatible.
-            unsafe {
-                if let Some((pool, local, _)) = q {
-                    dev.cmd_write_timestamp(
-                        self.cmd,
-                        vk::PipelineStageFlags::TOP_OF_PIPE,
-                        pool,
-                        local,
-                    );
-                }
-                dev.cmd_bind_pipeline(self.cmd, vk::PipelineBindPoint::COMPUTE, p.pipeline);
-                dev.cmd_bind_descriptor_sets(
-                    self.cmd,
-                    vk::PipelineBindPoint::COMPUTE,
-                    p.layout,
-                    0,
-                    &[set],
-                    &[],
-                );
-                dev.cmd_push_constants(self.cmd, p.layout, vk::ShaderStageFlags::COMPUTE, 0, &push);
-                dev.cmd_dispatch(self.cmd, width.div_ceil(wx), rows.div_ceil(wy), 1);
-                if let Some((pool, local, _)) = q {
-                    dev.cmd_write_timestamp(
-                        self.cmd,
-                        vk::PipelineStageFlags::BOTTOM_OF_PIPE,
-                        pool,
-                        local + 1,
-                    );
-                }
-            }
-            if let Some((_, _, idx)) = q {
-                self.stamps
-                    .push((p.name.clone(), (row0, row0 + rows), idx, band_flops));
-            }
-            self.last_band = Some((p.name.clone(), row0, row0 + rows, height));
-            self.barrier();
-            self.flops_in_submit += band_flops;
-            self.flops_recorded += band_flops;
-            row0 += rows;
+    /// Records one dispatch (`dispatch` records the command itself) with its
+    /// pipeline, set and push constants, between two timestamps, then a
+    /// barrier; submits first when the batch's work would pass
+    /// `max_flops_per_submit`. `band` is (first row, end row, height).
+    fn record_one(
+        &mut self,
+        p: &Pipeline,
+        set: vk::DescriptorSet,
+        push: &[u8],
+        band: (u32, u32, u32),
+        flops: f64,
+        dispatch: impl FnOnce(&ash::Device, vk::CommandBuffer),
+    ) -> Result<()> {
+        if self.flops_in_submit > 0.0 && self.flops_in_submit + flops > self.max_flops_per_submit {
+            self.flush()?;
         }
+        let dev = self.ctx.device.clone();
+        let q = self.query_pair()?;
+        // SAFETY: cmd recording; pipeline/layout/set compatible.
+        unsafe {
+            if let Some((pool, local, _)) = q {
+                dev.cmd_write_timestamp(self.cmd, vk::PipelineStageFlags::TOP_OF_PIPE, pool, local);
+            }
+            dev.cmd_bind_pipeline(self.cmd, vk::PipelineBindPoint::COMPUTE, p.pipeline);
+            dev.cmd_bind_descriptor_sets(
+                self.cmd,
+                vk::PipelineBindPoint::COMPUTE,
+                p.layout,
+                0,
+                &[set],
+                &[],
+            );
+            dev.cmd_push_constants(self.cmd, p.layout, vk::ShaderStageFlags::COMPUTE, 0, push);
+        }
+        dispatch(&dev, self.cmd);
+        if let Some((pool, local, idx)) = q {
+            // SAFETY: as above.
+            unsafe {
+                dev.cmd_write_timestamp(
+                    self.cmd,
+                    vk::PipelineStageFlags::BOTTOM_OF_PIPE,
+                    pool,
+                    local + 1,
+                )
+            };
+            self.stamps
+                .push((p.name.clone(), (band.0, band.1), idx, flops));
+        }
+        self.last_band = Some((p.name.clone(), band.0, band.1, band.2));
+        self.barrier();
+        self.flops_in_submit += flops;
+        self.flops_recorded += flops;
         Ok(())
     }
 
@@ -691,6 +729,51 @@ impl Batch {
             queries_used: self.queries_used,
         }
     }
+}
+
+/// The checks every dispatch makes before recording: the binding count and
+/// push size of the kernel's reflection, no binding above
+/// `maxStorageBufferRange`, offsets aligned.
+fn check_bindings(
+    ctx: &GpuContext,
+    decl: &KernelDecl,
+    binding_count: u32,
+    bindings: &[BufferSlice],
+    push: &[u8],
+) -> Result<()> {
+    if bindings.len() as u32 != binding_count {
+        return Err(Error::InvalidArgument(format!(
+            "kernel {} takes {} bindings, got {}",
+            decl.name,
+            binding_count,
+            bindings.len()
+        )));
+    }
+    if push.len() as u32 != decl.push_size || push.len() < 12 {
+        return Err(Error::InvalidArgument(format!(
+            "kernel {}: push constants of {} bytes, expected {}",
+            decl.name,
+            push.len(),
+            decl.push_size
+        )));
+    }
+    let limit = ctx.info.max_storage_buffer_range as u64;
+    let align = ctx.info.min_storage_buffer_offset_alignment.max(1);
+    for (i, b) in bindings.iter().enumerate() {
+        if b.size > limit {
+            return Err(Error::Limit(format!(
+                "kernel {} binding {i} ({}) is {} bytes; maxStorageBufferRange is {limit}",
+                decl.name, decl.bindings[i].name, b.size
+            )));
+        }
+        if b.offset % align != 0 {
+            return Err(Error::InvalidArgument(format!(
+                "kernel {} binding {i} ({}) offset {} is not a multiple of {align}",
+                decl.name, decl.bindings[i].name, b.offset
+            )));
+        }
+    }
+    Ok(())
 }
 
 impl Drop for Batch {

@@ -23,6 +23,7 @@ pub mod lp_centres;
 pub mod lp_gather;
 pub mod lp_reach;
 pub mod outlier_detect;
+pub mod outlier_median;
 pub mod outlier_rows;
 pub mod outlier_spread;
 pub mod outlier_weights;
@@ -62,6 +63,7 @@ pub const ALL: &[&KernelDecl] = &[
     &apr_gather::DECL,
     &outlier_rows::DECL,
     &outlier_detect::DECL,
+    &outlier_median::DECL,
     &box_rows::DECL,
     &outlier_weights::DECL,
     &outlier_spread::DECL,

@@ -1,6 +1,7 @@
-//! `outlier_detect`: outlier detection and replacement (spec §4.4 steps 1–3)
-//! from `outlier_rows`' summaries; the median (a 32-step radix selection over
-//! the window) runs only at detected pixels. Twin:
+//! `outlier_detect`: outlier detection (spec §4.4 step 1) from
+//! `outlier_rows`' summaries. It copies every pixel's colour and variance
+//! (with `e = 0`) and queues the detected pixels for
+//! [`super::outlier_median`], which replaces them. Twin:
 //! [`crate::reference::outlier_detect`].
 
 use crate::error::Result;
@@ -25,7 +26,6 @@ pub const DECL: KernelDecl = KernelDecl {
         read("rn"),
         read("rm"),
         read("rq"),
-        read("keys"),
         write("out_r"),
         write("out_g"),
         write("out_b"),
@@ -35,24 +35,27 @@ pub const DECL: KernelDecl = KernelDecl {
         write("er"),
         write("eg"),
         write("eb"),
+        write("queue"),
     ],
     push_size: std::mem::size_of::<OutlierPush>() as u32,
 };
 
-/// Fraction of pixels assumed detected, for the cost estimate (measured on
-/// 4-spp renders of the built-in scenes: well under 1 %).
-pub const DETECTED_FRACTION: f64 = 0.01;
-
-/// Per pixel: `2R+1` merges of three summaries (≈ 12 flops each), plus at the
-/// detected fraction 33 scans of the `(2R+1)²` window (≈ 6 each).
+/// Per pixel: `2R+1` merges of three summaries (≈ 12 flops each).
 pub fn flops_per_pixel(radius: u32) -> f64 {
     let d = 2.0 * radius as f64 + 1.0;
-    d * 36.0 + DETECTED_FRACTION * 33.0 * d * d * 6.0
+    d * 36.0
 }
 
-/// Records detection and replacement (`rows`, `keys` from `outlier_rows`):
-/// `out` receives the replaced colour and
-/// variance planes (6: R, G, B, var R, G, B), `excess` the removed `e`.
+/// Words of the queue for `pixels` pixels: the indirect dispatch arguments
+/// (3), the entry count, then at most one entry per pixel.
+pub fn queue_words(pixels: usize) -> usize {
+    4 + pixels
+}
+
+/// Records detection (`rows` from `outlier_rows`): `out` receives a copy of
+/// the colour and variance planes (6: R, G, B, var R, G, B), `excess` zeroes,
+/// and `queue` (of [`queue_words`]) the detected pixels. Its header is reset
+/// here (x and count 0, y and z 1).
 #[allow(clippy::too_many_arguments)]
 pub fn record(
     batch: &mut Batch,
@@ -62,16 +65,18 @@ pub fn record(
     var: [BufferSlice; 3],
     spp: BufferSlice,
     rows: [BufferSlice; 6],
-    keys: BufferSlice,
     out: [BufferSlice; 6],
     excess: [BufferSlice; 3],
+    queue: BufferSlice,
 ) -> Result<()> {
+    batch.fill(queue.sub(0, 16)?, 0);
+    batch.fill(queue.sub(4, 8)?, 1);
     super::dispatch_outlier(
         batch,
         &DECL,
         precision,
         push,
-        &[&color, &var, &[spp], &rows, &[keys], &out, &excess],
+        &[&color, &var, &[spp], &rows, &out, &excess, &[queue]],
         flops_per_pixel(push.radius),
     )
 }

@@ -30,7 +30,7 @@ pub const DECL: KernelDecl = KernelDecl {
 
 /// Per pixel: the excess test, and at detected pixels `2R+1` rows × 4 adds.
 pub fn flops_per_pixel(radius: u32) -> f64 {
-    3.0 + super::outlier_detect::DETECTED_FRACTION * (2.0 * radius as f64 + 1.0) * 4.0
+    3.0 + super::outlier_median::DETECTED_FRACTION * (2.0 * radius as f64 + 1.0) * 4.0
 }
 
 /// Records the weights: `sums` are `box_rows` of ŷ per channel, `count` of the

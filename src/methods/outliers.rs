@@ -5,7 +5,8 @@
 //! sanitize → remove (steps 1–3) → G-buffer prefilter → method → restore (step 4) → sample map
 //!
 //! remove:   outlier_rows      half-row (count, mean, M2) of grey, R = 14
-//!           outlier_detect    merge → m, sd without o; spikes take the median pixel; e = y − y_q*
+//!           outlier_detect    merge → m, sd without o; copy; queue the spikes
+//!           outlier_median    (indirect, per queued spike) the median pixel; e = y − y_q*
 //!           copy              replaced colour and variance → the sanitised statistics
 //! restore:  box_rows ×4       row sums of ŷ (3) and of the valid count, R = 43
 //!           outlier_weights   ρ = e / Σ_{87×87} ŷ (or e/|Ω| in a dark window)
@@ -22,9 +23,11 @@ use std::sync::Arc;
 use super::stats::GpuStats;
 use super::Method;
 use crate::error::Result;
-use crate::gpu::{Batch, BufferSlice, GpuContext, PlaneSet, Precision};
+use crate::gpu::{Batch, BufferSlice, GpuBuffer, GpuContext, PlaneSet, Precision};
 use crate::image::{Layer, StatsImage};
-use crate::kernels::{box_rows, outlier_detect, outlier_rows, outlier_spread, outlier_weights};
+use crate::kernels::{
+    box_rows, outlier_detect, outlier_median, outlier_rows, outlier_spread, outlier_weights,
+};
 use crate::reference::outliers::{self as reference, DETECT_RADIUS, SPREAD_RADIUS};
 use crate::shared::OutlierPush;
 
@@ -83,10 +86,11 @@ pub fn push(w: usize, h: usize, radius: usize, mode: u32) -> OutlierPush {
 }
 
 /// The stage's planes: two six-plane scratch sets, the excess `e` (3), the
-/// weights (6) and the grey keys (1).
+/// weights (6) and the grey keys (1); and the queue of detected pixels.
 #[derive(Debug)]
 pub struct OutlierPlanes {
     planes: PlaneSet,
+    queue: GpuBuffer,
     width: usize,
     height: usize,
 }
@@ -96,6 +100,11 @@ impl OutlierPlanes {
     pub fn new(ctx: &Arc<GpuContext>, w: usize, h: usize) -> Result<OutlierPlanes> {
         Ok(OutlierPlanes {
             planes: PlaneSet::new(ctx, "outliers", w * h, 22)?,
+            queue: GpuBuffer::new(
+                ctx,
+                "outliers.queue",
+                4 * outlier_detect::queue_words(w * h) as u64,
+            )?,
             width: w,
             height: h,
         })
@@ -127,6 +136,7 @@ pub fn record_remove(
     let out = p.set::<6>(6);
     let keys = p.planes.plane(21);
     outlier_rows::record(batch, precision, &pu, color, spp, rows, keys)?;
+    let queue = p.queue.slice();
     outlier_detect::record(
         batch,
         precision,
@@ -135,7 +145,19 @@ pub fn record_remove(
         var,
         spp,
         rows,
+        out,
+        p.excess(),
+        queue,
+    )?;
+    outlier_median::record(
+        batch,
+        precision,
+        &pu,
+        color,
+        var,
+        spp,
         keys,
+        queue,
         out,
         p.excess(),
     )?;

@@ -33,6 +33,7 @@ pub mod lp_centres;
 pub mod lp_gather;
 pub mod lp_reach;
 pub mod outlier_detect;
+pub mod outlier_median;
 pub mod outlier_rows;
 pub mod outlier_spread;
 pub mod outlier_weights;

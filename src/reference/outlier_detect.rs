@@ -1,14 +1,14 @@
-//! Scalar twin of `spirv/outlier_detect.comp`: outlier detection and
-//! replacement (spec §4.4 steps 1–3). The kernel merges `outlier_rows`'
-//! half-row summaries; the twin computes the same statistics of
-//! `Ω_o(14) \ {o}` from their definition ([`super::outliers::detect_at`]), so
-//! it reads no summaries.
+//! Scalar twin of `spirv/outlier_detect.comp`: outlier detection (spec §4.4
+//! step 1). The kernel merges `outlier_rows`' half-row summaries; the twin
+//! computes the same statistics of `Ω_o(14) \ {o}` from their definition
+//! ([`super::outliers::is_outlier`]), so it reads no summaries.
 
-use super::outliers::{detect_at, DETECT_RADIUS, K_SIGMA, MIN_NEIGHBOURS};
+use super::outliers::{is_outlier, DETECT_RADIUS, K_SIGMA, MIN_NEIGHBOURS};
 use crate::shared::OutlierPush;
 
-/// Writes the replaced colour and variance (a copy where nothing is detected)
-/// and the excess `e = y_o − y_q*` (0 elsewhere).
+/// Copies the colour and variance, zeroes the excess `e`, and returns the
+/// detected pixels in raster order (the kernel's queue holds the same set
+/// in any order).
 pub fn outlier_detect(
     push: &OutlierPush,
     color: [&[f32]; 3],
@@ -17,7 +17,7 @@ pub fn outlier_detect(
     out_color: [&mut [f32]; 3],
     out_var: [&mut [f32]; 3],
     e: [&mut [f32]; 3],
-) {
+) -> Vec<usize> {
     assert_eq!(
         push.radius as usize, DETECT_RADIUS,
         "the twin implements R = 14"
@@ -25,12 +25,12 @@ pub fn outlier_detect(
     assert_eq!(push.min_n, MIN_NEIGHBOURS);
     assert_eq!(push.k_sigma as f64, K_SIGMA);
     let (w, h) = (push.width as usize, push.height as usize);
-    for o in 0..w * h {
-        let q = detect_at(w, h, color, var, spp, o).unwrap_or(o);
-        for ch in 0..3 {
-            out_color[ch][o] = color[ch][q];
-            out_var[ch][o] = var[ch][q];
-            e[ch][o] = (color[ch][o] as f64 - color[ch][q] as f64) as f32;
-        }
+    for ch in 0..3 {
+        out_color[ch].copy_from_slice(color[ch]);
+        out_var[ch].copy_from_slice(var[ch]);
+        e[ch].fill(0.0);
     }
+    (0..w * h)
+        .filter(|&o| is_outlier(w, h, color, var, spp, o))
+        .collect()
 }

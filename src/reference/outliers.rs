@@ -84,18 +84,18 @@ pub fn window(
     }
 }
 
-/// Steps 1–2 at pixel `o`: `Some(q*)` (step 3's replacement) if `o` is an
-/// outlier, else `None`.
-pub fn detect_at(
+/// Step 1 at pixel `o`: whether it is an outlier (SPIKE-SIDE,
+/// OUTLIER-NOISE, OUTLIER-MIN-N, OUTLIER-ISOLATED).
+pub fn is_outlier(
     w: usize,
     h: usize,
     color: [&[f32]; 3],
     var: [&[f32]; 3],
     spp: &[f32],
     o: usize,
-) -> Option<usize> {
+) -> bool {
     if spp_of(spp[o]) < 1.0 {
-        return None;
+        return false;
     }
     let (x, y) = (o % w, o / w);
     let (mut n, mut sum) = (0u32, 0.0);
@@ -106,7 +106,7 @@ pub fn detect_at(
         }
     });
     if n < MIN_NEIGHBOURS {
-        return None;
+        return false;
     }
     let m = sum / n as f64;
     let mut m2 = 0.0;
@@ -119,7 +119,7 @@ pub fn detect_at(
     let sd = (m2 / n as f64).sqrt();
     let excess = grey(color, o) - m;
     if excess <= K_SIGMA * sd || excess > K_SIGMA * grey_sd(var, o) {
-        return None;
+        return false;
     }
     // OUTLIER-ISOLATED: a bright neighbour makes o part of a feature.
     let mut isolated = true;
@@ -129,9 +129,22 @@ pub fn detect_at(
         }
     });
     if !isolated {
-        return None;
+        return false;
     }
-    Some(median_at(w, h, color, spp, o))
+    true
+}
+
+/// Steps 1–2 at pixel `o`: `Some(q*)` (step 3's replacement) if `o` is an
+/// outlier, else `None`.
+pub fn detect_at(
+    w: usize,
+    h: usize,
+    color: [&[f32]; 3],
+    var: [&[f32]; 3],
+    spp: &[f32],
+    o: usize,
+) -> Option<usize> {
+    is_outlier(w, h, color, var, spp, o).then(|| median_at(w, h, color, spp, o))
 }
 
 /// The pixel of median grey in `Ω_o(14)`, `o` included (OUTLIER-MEDIAN).
