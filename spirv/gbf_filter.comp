@@ -1,9 +1,11 @@
 #version 460
 // G-buffer prefilter (spec §6) steps 9-10 per pixel: the 7x7 weights with
 // h = hbar (H0: hbar < 1e-3 passes the pixel through, as does an invalid
-// pixel), and for each of `count` (<= 4) feature planes the filtered value
-// sum w g / W and its propagated variance sum w^2 var(g) / W^2 (GBF-VAR).
-// Unused slots write 0. Scalar twin: src/reference/gbf_filter.rs.
+// pixel), and for each of the seven features gbf_pack packed (normal x y z,
+// depth, albedo r g b) the filtered value sum w g / W and its propagated
+// variance sum w^2 var(g) / W^2 (GBF-VAR), written to seven + seven planes
+// (the feature planes themselves: this kernel reads only the packed copies).
+// Scalar twin: src/reference/gbf_filter.rs.
 #include "lib/common.glsl"
 
 layout(local_size_x = 8, local_size_y = 8) in;
@@ -27,22 +29,24 @@ PLANE_IN(7, syz)
 PLANE_IN(8, szz)
 PLANE_IN(9, spp)
 PLANE_IN(10, hbar)
-PLANE_IN(11, f0)
-PLANE_IN(12, f1)
-PLANE_IN(13, f2)
-PLANE_IN(14, f3)
-PLANE_IN(15, v0)
-PLANE_IN(16, v1)
-PLANE_IN(17, v2)
-PLANE_IN(18, v3)
-PLANE_OUT(19, g0)
-PLANE_OUT(20, g1)
-PLANE_OUT(21, g2)
-PLANE_OUT(22, g3)
-PLANE_OUT(23, gv0)
-PLANE_OUT(24, gv1)
-PLANE_OUT(25, gv2)
-PLANE_OUT(26, gv3)
+layout(std430, set = 0, binding = 11) readonly buffer fa_blk { vec4 fa[]; };
+layout(std430, set = 0, binding = 12) readonly buffer fb_blk { vec4 fb[]; };
+layout(std430, set = 0, binding = 13) readonly buffer va_blk { vec4 va[]; };
+layout(std430, set = 0, binding = 14) readonly buffer vb_blk { vec4 vb[]; };
+PLANE_OUT(15, g0)
+PLANE_OUT(16, g1)
+PLANE_OUT(17, g2)
+PLANE_OUT(18, g3)
+PLANE_OUT(19, g4)
+PLANE_OUT(20, g5)
+PLANE_OUT(21, g6)
+PLANE_OUT(22, gv0)
+PLANE_OUT(23, gv1)
+PLANE_OUT(24, gv2)
+PLANE_OUT(25, gv3)
+PLANE_OUT(26, gv4)
+PLANE_OUT(27, gv5)
+PLANE_OUT(28, gv6)
 
 real3 gbf_position(uint q) { return real3(px[q], py[q], pz[q]); }
 bool gbf_valid(uint q) { return spp_of(spp[q]) >= 1.0; }
@@ -55,57 +59,93 @@ realmat3 gbf_inv_cov(uint q)
     return gbf_sym(real3(sxx[q], sxy[q], sxz[q]), real3(syy[q], syz[q], szz[q]));
 }
 
-real4 feat4(uint q) { return real4(f0[q], f1[q], f2[q], f3[q]); }
-real4 var4(uint q) { return real4(v0[q], v1[q], v2[q], v3[q]); }
+#define TILE (8 + 2 * GBF_RADIUS)
+// The workgroup's 8x8 pixels and their 3-pixel halo, staged once: a shared
+// load costs lavapipe much less than a storage-buffer load.
+shared vec4 t_pos[TILE * TILE];  // position, valid (1) or not (0, also outside)
+shared vec4 t_ia[TILE * TILE];   // S~^-1 XX XY XZ YY
+shared vec2 t_ib[TILE * TILE];   // S~^-1 YZ ZZ
+shared vec4 t_fa[TILE * TILE];
+shared vec4 t_fb[TILE * TILE];
+shared vec4 t_va[TILE * TILE];
+shared vec4 t_vb[TILE * TILE];
 
 void main()
 {
+    ivec2 org = ivec2(gl_WorkGroupID.x * 8u, push.row0 + gl_WorkGroupID.y * 8u) - GBF_RADIUS;
+    for (uint k = gl_LocalInvocationIndex; k < uint(TILE * TILE); k += 64u) {
+        ivec2 t = org + ivec2(k % uint(TILE), k / uint(TILE));
+        t_pos[k] = vec4(0);
+        if (t.x >= 0 && t.y >= 0 && t.x < int(push.width) && t.y < int(push.height)) {
+            uint q = uint(t.y) * push.width + uint(t.x);
+            if (gbf_valid(q)) {
+                t_pos[k] = vec4(px[q], py[q], pz[q], 1.0);
+                t_ia[k] = vec4(sxx[q], sxy[q], sxz[q], syy[q]);
+                t_ib[k] = vec2(syz[q], szz[q]);
+                t_fa[k] = fa[q];
+                t_fb[k] = fb[q];
+                t_va[k] = va[q];
+                t_vb[k] = vb[q];
+            }
+        }
+    }
+    barrier();
     uint x = gl_GlobalInvocationID.x;
     uint y = push.row0 + gl_GlobalInvocationID.y;
     if (x >= push.width || y >= push.height) {
         return;
     }
     uint c = y * push.width + x;
-    bvec4 used = lessThan(uvec4(0, 1, 2, 3), uvec4(push.count));
     real h = real(hbar[c]);
-    real4 g = feat4(c);
-    real4 gv = var4(c);
+    real4 ga = real4(fa[c]);
+    real4 gb = real4(fb[c]);
+    real4 gva = real4(va[c]);
+    real4 gvb = real4(vb[c]);
     if (gbf_valid(c) && h >= real(GBF_H0)) {
         real3 pc = gbf_position(c);
         realmat3 inv_c = gbf_inv_cov(c);
         real W = real(0);
-        real4 sg = real4(0);
-        real4 sv = real4(0);
-        int x0 = max(int(x) - GBF_RADIUS, 0), x1 = min(int(x) + GBF_RADIUS, int(push.width) - 1);
-        int y0 = max(int(y) - GBF_RADIUS, 0), y1 = min(int(y) + GBF_RADIUS, int(push.height) - 1);
-        for (int qy = y0; qy <= y1; ++qy) {
-            for (int qx = x0; qx <= x1; ++qx) {
-                uint q = uint(qy) * push.width + uint(qx);
-                if (!gbf_valid(q)) {
+        real4 sa = real4(0), sb = real4(0), sva = real4(0), svb = real4(0);
+        uint lc = (gl_LocalInvocationID.y + uint(GBF_RADIUS)) * uint(TILE)
+            + gl_LocalInvocationID.x + uint(GBF_RADIUS);
+        for (int dy = -GBF_RADIUS; dy <= GBF_RADIUS; ++dy) {
+            for (int dx = -GBF_RADIUS; dx <= GBF_RADIUS; ++dx) {
+                uint lq = uint(int(lc) + dy * TILE + dx);
+                vec4 tp = t_pos[lq];
+                if (tp.w == 0.0) {
                     continue;
                 }
                 real w = real(1);
-                if (q != c) {
-                    real3 dlt = gbf_position(q) - pc;
-                    real d = dot(dlt, (inv_c + gbf_inv_cov(q)) * dlt);
+                if (lq != lc) {
+                    vec4 ia = t_ia[lq];
+                    real3 dlt = real3(tp.xyz) - pc;
+                    real d = dot(dlt, (inv_c + gbf_sym(real3(ia.xyz), real3(ia.w, t_ib[lq]))) * dlt);
                     w = gbf_exp(-d / (real(2) * h * h));
                 }
                 W += w;
-                sg += w * feat4(q);
-                sv += w * w * var4(q);
+                sa += w * real4(t_fa[lq]);
+                sb += w * real4(t_fb[lq]);
+                sva += (w * w) * real4(t_va[lq]);
+                svb += (w * w) * real4(t_vb[lq]);
             }
         }
-        g = sg / W;
-        gv = sv / (W * W);
+        ga = sa / W;
+        gb = sb / W;
+        gva = sva / (W * W);
+        gvb = svb / (W * W);
     }
-    g = mix(real4(0), g, used);
-    gv = mix(real4(0), gv, used);
-    g0[c] = float(g.x);
-    g1[c] = float(g.y);
-    g2[c] = float(g.z);
-    g3[c] = float(g.w);
-    gv0[c] = float(gv.x);
-    gv1[c] = float(gv.y);
-    gv2[c] = float(gv.z);
-    gv3[c] = float(gv.w);
+    g0[c] = float(ga.x);
+    g1[c] = float(ga.y);
+    g2[c] = float(ga.z);
+    g3[c] = float(ga.w);
+    g4[c] = float(gb.x);
+    g5[c] = float(gb.y);
+    g6[c] = float(gb.z);
+    gv0[c] = float(gva.x);
+    gv1[c] = float(gva.y);
+    gv2[c] = float(gva.z);
+    gv3[c] = float(gva.w);
+    gv4[c] = float(gvb.x);
+    gv5[c] = float(gvb.y);
+    gv6[c] = float(gvb.z);
 }

@@ -1,9 +1,10 @@
 #version 460
 // G-buffer prefilter (spec §6) step 1 per pixel: S = G_1.5(position
-// covariance) over the valid pixels of the clipped 11x11 window (all six
-// entries in one pass), S-PSD regularisation with the pixel's position, and
-// the inverse S~^-1 (six planes XX XY XZ YY YZ ZZ) that gbf_sure and
-// gbf_filter read for every neighbour.
+// covariance) over the valid pixels of the clipped 11x11 window, as the
+// column pass over gauss_rows' row sums of the six entries (and of their
+// weights, den), S-PSD regularisation with the pixel's position, and the
+// inverse S~^-1 (six planes XX XY XZ YY YZ ZZ) that gbf_sure and gbf_filter
+// read for every neighbour.
 // Scalar twin: src/reference/gbf_prepare.rs.
 #include "lib/common.glsl"
 
@@ -17,16 +18,16 @@ layout(push_constant) uniform Push {
     uint count;
 } push;
 
-PLANE_IN(0, cxx)
-PLANE_IN(1, cxy)
-PLANE_IN(2, cxz)
-PLANE_IN(3, cyy)
-PLANE_IN(4, cyz)
-PLANE_IN(5, czz)
-PLANE_IN(6, px)
-PLANE_IN(7, py)
-PLANE_IN(8, pz)
-PLANE_IN(9, spp)
+PLANE_IN(0, sxx)
+PLANE_IN(1, sxy)
+PLANE_IN(2, sxz)
+PLANE_IN(3, syy)
+PLANE_IN(4, syz)
+PLANE_IN(5, szz)
+PLANE_IN(6, den)
+PLANE_IN(7, px)
+PLANE_IN(8, py)
+PLANE_IN(9, pz)
 PLANE_OUT(10, ixx)
 PLANE_OUT(11, ixy)
 PLANE_OUT(12, ixz)
@@ -35,6 +36,7 @@ PLANE_OUT(14, iyz)
 PLANE_OUT(15, izz)
 
 #include "lib/gbf.glsl"
+#include "lib/gauss.glsl"
 
 #define GBF_SIGMA 1.5
 #define GBF_SMOOTH_RADIUS 5
@@ -46,37 +48,21 @@ void main()
     if (x >= push.width || y >= push.height) {
         return;
     }
-    ivec2 p = ivec2(x, y);
-    int x0 = max(p.x - GBF_SMOOTH_RADIUS, 0), x1 = min(p.x + GBF_SMOOTH_RADIUS, int(push.width) - 1);
-    // Weights as in gauss_smooth.comp: gy(dy) gx(dx), gx by the recurrence
-    // gx(d+1) = gx(d) q(d), q(d+1) = q(d) c (exp in float).
-    real k = real(1) / (real(2) * real(GBF_SIGMA) * real(GBF_SIGMA));
-    real c = real(exp(float(-real(2) * k)));
-    real d0 = real(x0 - p.x);
-    real gx0 = real(exp(float(-d0 * d0 * k)));
-    real q0 = real(exp(float(-(real(2) * d0 + real(1)) * k)));
+    int y0 = max(int(y) - GBF_SMOOTH_RADIUS, 0);
+    int y1 = min(int(y) + GBF_SMOOTH_RADIUS, int(push.height) - 1);
+    GaussLine l = gauss_line(real(GBF_SIGMA), y0 - int(y));
     real3 na = real3(0);
     real3 nb = real3(0);
-    real den = real(0);
-    for (int qy = max(p.y - GBF_SMOOTH_RADIUS, 0); qy <= min(p.y + GBF_SMOOTH_RADIUS, int(push.height) - 1); ++qy) {
-        real dy = real(qy - p.y);
-        real gy = real(exp(float(-dy * dy * k)));
-        real gx = gx0;
-        real q = q0;
-        for (int qx = x0; qx <= x1; ++qx) {
-            uint i = uint(qy) * push.width + uint(qx);
-            if (spp_of(spp[i]) >= 1.0) {
-                real g = gx * gy;
-                na += g * real3(cxx[i], cxy[i], cxz[i]);
-                nb += g * real3(cyy[i], cyz[i], czz[i]);
-                den += g;
-            }
-            gx *= q;
-            q *= c;
-        }
+    real d = real(0);
+    for (int qy = y0; qy <= y1; ++qy) {
+        uint q = uint(qy) * push.width + x;
+        na += l.g * real3(sxx[q], sxy[q], sxz[q]);
+        nb += l.g * real3(syy[q], syz[q], szz[q]);
+        d += l.g * real(den[q]);
+        gauss_step(l);
     }
-    real3 a = den > real(0) ? na / den : real3(0);
-    real3 b = den > real(0) ? nb / den : real3(0);
+    real3 a = d > real(0) ? na / d : real3(0);
+    real3 b = d > real(0) ? nb / d : real3(0);
     uint i = y * push.width + x;
     real3 ia, ib;
     gbf_regularised_inverse(a, b, real3(px[i], py[i], pz[i]), ia, ib);

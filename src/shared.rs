@@ -102,8 +102,11 @@ pub struct SmoothPush {
     /// `h_opt` map, 1.5 for GBF's, `sampling.smooth` (σs, §9.1) for the
     /// sample map; `<= 0` is the identity on valid pixels.
     pub sigma: f32,
-    /// Unused (the block's `pad0..pad2`): rounds the block to 32 bytes; 0.
-    pub _pad: [u32; 3],
+    /// `gauss_rows`: how many of its six planes to smooth (1..=6); unused
+    /// by the other kernels.
+    pub count: u32,
+    /// Unused (the block's `pad1`, `pad2`): rounds the block to 32 bytes; 0.
+    pub _pad: [u32; 2],
 }
 
 /// `spirv/peak_fma.comp` and `spirv/peak_copy.comp`, block `Push`: the

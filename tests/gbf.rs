@@ -5,14 +5,15 @@
 mod common;
 use common::*;
 
+use mcdenoise::gpu::{Batch, GpuBuffer};
 use mcdenoise::image::Layer;
-use mcdenoise::kernels::{gbf_filter, gbf_prepare, gbf_sure, run_planes};
+use mcdenoise::kernels::{gbf_filter, gbf_pack, gbf_prepare, gbf_sure, run_planes};
 use mcdenoise::reference::gbf::{self as rg, Planes};
-use mcdenoise::reference::{gbf_filter as rf, gbf_prepare as rp, gbf_sure as rs};
+use mcdenoise::reference::{gbf_filter as rf, gbf_pack as rk, gbf_prepare as rp, gbf_sure as rs};
 use mcdenoise::shared::GbfPush;
 
 /// Position (3), position variance (3), covariance (6) and its prepared
-/// inverse (6), spp, and 4 features + 4 variances.
+/// inverse (6), spp, and 7 features + 7 variances (as the prefilter filters).
 struct Scene {
     w: usize,
     h: usize,
@@ -52,8 +53,8 @@ fn synthetic(w: usize, h: usize, seed: u64, blur: f64) -> Scene {
         cov: vec![vec![0.0; n]; 6],
         inv: vec![vec![0.0; n]; 6],
         spp: vec![16.0; n],
-        feat: vec![vec![0.0; n]; 4],
-        var: vec![vec![0.0; n]; 4],
+        feat: vec![vec![0.0; n]; 7],
+        var: vec![vec![0.0; n]; 7],
     };
     for i in 0..n {
         let (x, y) = ((i % w) as f64 * 0.05, (i / w) as f64 * 0.05);
@@ -74,7 +75,7 @@ fn synthetic(w: usize, h: usize, seed: u64, blur: f64) -> Scene {
         s.cov[1][i] = (0.3 * spread) as f32;
         s.cov[3][i] = spread as f32;
         s.cov[5][i] = (0.5 * spread) as f32;
-        for j in 0..4 {
+        for j in 0..7 {
             let f = (t[0] * (j + 1) as f64).sin() + t[2];
             let v = 0.01 * blur;
             s.feat[j][i] = (f + v.sqrt() * rng.normal()) as f32;
@@ -84,20 +85,35 @@ fn synthetic(w: usize, h: usize, seed: u64, blur: f64) -> Scene {
             s.spp[i] = 0.0;
         }
     }
-    let mut inv = vec![vec![0.0f32; n]; 6];
-    rp::gbf_prepare(
-        &GbfPush {
-            width: w as u32,
-            height: h as u32,
-            ..Default::default()
-        },
+    let inv = rp::prepare(
+        w,
+        h,
         std::array::from_fn(|k| s.cov[k].as_slice()),
         std::array::from_fn(|k| s.pos[k].as_slice()),
         &s.spp,
-        &mut inv,
     );
     s.inv = inv;
     s
+}
+
+/// The twins of gbf_pack and gbf_filter at `hbar`: 7 features, 7 variances.
+fn filter_twin(s: &Scene, hbar: &[f32]) -> Vec<Vec<f32>> {
+    let p = s.planes();
+    let packed = rk::gbf_pack(
+        std::array::from_fn(|j| s.feat[j].as_slice()),
+        std::array::from_fn(|j| s.var[j].as_slice()),
+    );
+    let mut out = vec![vec![0.0f32; s.w * s.h]; 14];
+    rf::gbf_filter(
+        &push(s, 0),
+        p.pos,
+        p.inv,
+        &s.spp,
+        hbar,
+        std::array::from_fn(|k| packed[k].as_slice()),
+        &mut out,
+    );
+    out
 }
 
 fn push(s: &Scene, count: u32) -> GbfPush {
@@ -114,23 +130,49 @@ fn gbf_prepare_matches_twin() {
     let ctx = gpu();
     for &(w, h) in SIZES {
         let s = synthetic(w, h, 2 + w as u64, 0.1);
-        let mut inputs: Vec<&[f32]> = Vec::new();
-        inputs.extend(s.cov.iter().map(|v| v.as_slice()));
-        inputs.extend(s.pos.iter().map(|v| v.as_slice()));
-        inputs.push(&s.spp);
-        for prec in precisions() {
-            let (out, _) = run_planes(
-                &ctx,
-                &gbf_prepare::DECL,
-                prec,
-                bytemuck::bytes_of(&push(&s, 0)),
+        // The separable twin (row sums stored in f32) against the 2-D
+        // definition of step 1, in f64.
+        for (i, _) in s.spp.iter().enumerate() {
+            let def = rg::prepare_pixel(
+                std::array::from_fn(|k| s.cov[k].as_slice()),
+                std::array::from_fn(|k| s.pos[k].as_slice()),
+                &s.spp,
                 w,
                 h,
-                &inputs,
-                &[w * h; 6],
-                gbf_prepare::flops_per_pixel(),
+                i % w,
+                i / w,
+            );
+            for k in 0..6 {
+                let (a, b) = (s.inv[k][i] as f64, def[k]);
+                assert!(
+                    (a - b).abs() <= 1e-5 * b.abs().max(1e-6),
+                    "{w}x{h} pixel {i} entry {k}: separable {a} vs definition {b}"
+                );
+            }
+        }
+        for prec in precisions() {
+            let up = |v: &[f32]| GpuBuffer::from_slice(&ctx, "test.in", v).unwrap();
+            let cov: Vec<GpuBuffer> = s.cov.iter().map(|v| up(v)).collect();
+            let pos: Vec<GpuBuffer> = s.pos.iter().map(|v| up(v)).collect();
+            let spp = up(&s.spp);
+            let zero = vec![0.0f32; w * h];
+            let scratch: Vec<GpuBuffer> = (0..7).map(|_| up(&zero)).collect();
+            let inv: Vec<GpuBuffer> = (0..6).map(|_| up(&zero)).collect();
+            let mut batch = Batch::new(&ctx).unwrap();
+            gbf_prepare::record(
+                &mut batch,
+                prec,
+                w as u32,
+                h as u32,
+                std::array::from_fn(|k| cov[k].slice()),
+                std::array::from_fn(|k| pos[k].slice()),
+                spp.slice(),
+                std::array::from_fn(|k| scratch[k].slice()),
+                std::array::from_fn(|k| inv[k].slice()),
             )
             .unwrap();
+            batch.finish().unwrap();
+            let out: Vec<Vec<f32>> = inv.iter().map(|b| b.read_vec(w * h).unwrap()).collect();
             for k in 0..6 {
                 assert_close(
                     &format!("{w}x{h} {prec:?} inv {k}"),
@@ -207,48 +249,59 @@ fn gbf_filter_matches_twin() {
             &s.spp,
             &mut hopt,
         );
-        for count in [4u32, 3] {
-            let feat: [&[f32]; 4] = std::array::from_fn(|j| s.feat[j].as_slice());
-            let var: [&[f32]; 4] = std::array::from_fn(|j| s.var[j].as_slice());
-            let mut cpu = vec![vec![0.0f32; w * h]; 8];
-            rf::gbf_filter(
-                &push(&s, count),
-                p.pos,
-                p.inv,
-                &s.spp,
-                &hopt,
-                feat,
-                var,
-                &mut cpu,
+        let cpu = filter_twin(&s, &hopt);
+        for prec in precisions() {
+            let up = |v: &[f32]| GpuBuffer::from_slice(&ctx, "test.in", v).unwrap();
+            let bufs = |v: &[Vec<f32>]| -> Vec<GpuBuffer> { v.iter().map(|p| up(p)).collect() };
+            let (pos, inv, feat, var) = (bufs(&s.pos), bufs(&s.inv), bufs(&s.feat), bufs(&s.var));
+            let (spp, hbar) = (up(&s.spp), up(&hopt));
+            let packed: Vec<GpuBuffer> = (0..4).map(|_| up(&vec![0.0; 4 * w * h])).collect();
+            let out: Vec<GpuBuffer> = (0..14).map(|_| up(&vec![0.0; w * h])).collect();
+            let mut batch = Batch::new(&ctx).unwrap();
+            let sl = |v: &[GpuBuffer], k: usize| v[k].slice();
+            gbf_pack::record(
+                &mut batch,
+                prec,
+                w as u32,
+                h as u32,
+                std::array::from_fn(|k| sl(&feat, k)),
+                std::array::from_fn(|k| sl(&var, k)),
+                std::array::from_fn(|k| sl(&packed, k)),
+            )
+            .unwrap();
+            gbf_filter::record(
+                &mut batch,
+                prec,
+                w as u32,
+                h as u32,
+                std::array::from_fn(|k| sl(&pos, k)),
+                std::array::from_fn(|k| sl(&inv, k)),
+                spp.slice(),
+                hbar.slice(),
+                std::array::from_fn(|k| sl(&packed, k)),
+                std::array::from_fn(|k| sl(&out, k)),
+            )
+            .unwrap();
+            batch.finish().unwrap();
+            // The packing itself, exactly.
+            let twin = rk::gbf_pack(
+                std::array::from_fn(|j| s.feat[j].as_slice()),
+                std::array::from_fn(|j| s.var[j].as_slice()),
             );
-            let mut inputs: Vec<&[f32]> = Vec::new();
-            inputs.extend(s.pos.iter().map(|v| v.as_slice()));
-            inputs.extend(s.inv.iter().map(|v| v.as_slice()));
-            inputs.push(&s.spp);
-            inputs.push(&hopt);
-            inputs.extend(feat);
-            inputs.extend(var);
-            for prec in precisions() {
-                let (out, _) = run_planes(
-                    &ctx,
-                    &gbf_filter::DECL,
-                    prec,
-                    bytemuck::bytes_of(&push(&s, count)),
-                    w,
-                    h,
-                    &inputs,
-                    &[w * h; 8],
-                    gbf_filter::flops_per_pixel(),
-                )
-                .unwrap();
-                for k in 0..8 {
-                    assert_close(
-                        &format!("{w}x{h} {prec:?} count {count} out {k}"),
-                        &out[k],
-                        &cpu[k],
-                        0.99,
-                    );
-                }
+            for k in 0..4 {
+                assert_eq!(
+                    packed[k].read_vec::<f32>(4 * w * h).unwrap(),
+                    twin[k],
+                    "pack {k}"
+                );
+            }
+            for k in 0..14 {
+                assert_close(
+                    &format!("{w}x{h} {prec:?} out {k}"),
+                    &out[k].read_vec::<f32>(w * h).unwrap(),
+                    &cpu[k],
+                    0.99,
+                );
             }
         }
     }
@@ -334,22 +387,10 @@ fn zero_position_variance_is_passed_through() {
         &mut hopt,
     );
     assert!(hopt.iter().all(|&v| v == 0.0), "every h_opt = 0");
-    let feat: [&[f32]; 4] = std::array::from_fn(|j| s.feat[j].as_slice());
-    let var: [&[f32]; 4] = std::array::from_fn(|j| s.var[j].as_slice());
-    let mut out = vec![vec![0.0f32; s.w * s.h]; 8];
-    rf::gbf_filter(
-        &push(&s, 4),
-        p.pos,
-        p.inv,
-        &s.spp,
-        &hopt,
-        feat,
-        var,
-        &mut out,
-    );
-    for j in 0..4 {
+    let out = filter_twin(&s, &hopt);
+    for j in 0..7 {
         assert_eq!(out[j], s.feat[j]);
-        assert_eq!(out[4 + j], s.var[j]);
+        assert_eq!(out[7 + j], s.var[j]);
     }
 }
 
@@ -358,26 +399,14 @@ fn outputs_are_convex_combinations() {
     let s = synthetic(30, 30, 13, 0.2);
     let p = s.planes();
     let hbar = vec![1.5f32; s.w * s.h];
-    let feat: [&[f32]; 4] = std::array::from_fn(|j| s.feat[j].as_slice());
-    let var: [&[f32]; 4] = std::array::from_fn(|j| s.var[j].as_slice());
-    let mut out = vec![vec![0.0f32; s.w * s.h]; 8];
-    rf::gbf_filter(
-        &push(&s, 4),
-        p.pos,
-        p.inv,
-        &s.spp,
-        &hbar,
-        feat,
-        var,
-        &mut out,
-    );
+    let out = filter_twin(&s, &hbar);
     for y in 0..s.h {
         for x in 0..s.w {
             let q = y * s.w + x;
             if !p.valid(q) {
                 continue;
             }
-            for j in 0..4 {
+            for j in 0..7 {
                 let (mut lo, mut hi) = (f32::MAX, f32::MIN);
                 for qy in y.saturating_sub(3)..(y + 4).min(s.h) {
                     for qx in x.saturating_sub(3)..(x + 4).min(s.w) {
@@ -393,7 +422,7 @@ fn outputs_are_convex_combinations() {
                     "({x},{y}) {j}: {v} not in [{lo}, {hi}]"
                 );
                 // Filtering never raises the variance above the largest input one.
-                assert!(out[4 + j][q] <= s.var[j][q] * 1.0001 + 1e-12);
+                assert!(out[7 + j][q] <= s.var[j][q] * 1.0001 + 1e-12);
             }
         }
     }

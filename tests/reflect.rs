@@ -22,9 +22,9 @@ const INTEGER_ONLY: &[&str] = &["sample_reduce", "sample_scan"];
 /// tracer (`src/render/`), whose `_f64` variant is the same code.
 const F32_ONLY: &[&str] = &["render_trace", "render_rays"];
 
-/// Kernels that only move data (the bandwidth probe of `bench --peak`):
-/// their `_f64` variant is the same code.
-const COPY_ONLY: &[&str] = &["peak_copy"];
+/// Kernels that only move data (the bandwidth probe of `bench --peak`, the
+/// G-buffer prefilter's packing): their `_f64` variant is the same code.
+const COPY_ONLY: &[&str] = &["peak_copy", "gbf_pack"];
 
 #[test]
 fn every_kernel_matches_its_declaration() {

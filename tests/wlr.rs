@@ -8,7 +8,7 @@
 mod common;
 use common::*;
 
-use mcdenoise::gpu::Precision;
+use mcdenoise::gpu::{Batch, GpuBuffer, Precision};
 use mcdenoise::image::Layer;
 use mcdenoise::kernels::{channel_mean, gauss_smooth, run_planes, wlr_final, wlr_fit};
 use mcdenoise::reference::wlr::{self as rw, Planes, D, FLAG_FEW, FLAG_K0, FLAG_SOLVE_FAIL};
@@ -165,7 +165,7 @@ fn twin_fit(sc: &Scene, push: &WlrPush) -> (Vec<Vec<f32>>, Vec<f32>) {
         ..Default::default()
     };
     let mut hbar = vec![0.0f32; n];
-    reference::gauss_smooth::gauss_smooth(&sp, &fit[0], sc.spp(), &mut hbar);
+    reference::gauss_smooth::smooth(&sp, &fit[0], sc.spp(), &mut hbar);
     (fit, hbar)
 }
 
@@ -350,7 +350,7 @@ fn gauss_smooth_matches_twin() {
                 ..Default::default()
             };
             let mut cpu = vec![0.0f32; w * h];
-            reference::gauss_smooth::gauss_smooth(&push, &map, sc.spp(), &mut cpu);
+            reference::gauss_smooth::smooth(&push, &map, sc.spp(), &mut cpu);
             // The twin agrees with the shared routine of linalg.rs.
             if sigma > 0.0 {
                 let valid: Vec<bool> = sc.spp().iter().map(|&s| spp_of(s) >= 1.0).collect();
@@ -369,18 +369,26 @@ fn gauss_smooth_matches_twin() {
                 }
             }
             for p in precisions() {
-                let (out, _) = run_planes(
-                    &ctx,
-                    &gauss_smooth::DECL,
+                // Both passes (gauss_rows, then the column pass).
+                let up = |v: &[f32]| GpuBuffer::from_slice(&ctx, "test.in", v).unwrap();
+                let (m, spp) = (up(&map), up(sc.spp()));
+                let zero = vec![0.0f32; w * h];
+                let (s0, s1, o) = (up(&zero), up(&zero), up(&zero));
+                let mut batch = Batch::new(&ctx).unwrap();
+                gauss_smooth::record(
+                    &mut batch,
                     p,
-                    bytemuck::bytes_of(&push),
-                    w,
-                    h,
-                    &[&map, sc.spp()],
-                    &[w * h],
-                    gauss_smooth::flops_per_pixel(sigma),
+                    w as u32,
+                    h as u32,
+                    sigma,
+                    m.slice(),
+                    spp.slice(),
+                    [s0.slice(), s1.slice()],
+                    o.slice(),
                 )
                 .unwrap();
+                batch.finish().unwrap();
+                let out = [o.read_vec::<f32>(w * h).unwrap()];
                 assert_close(
                     &format!("gauss_smooth {w}x{h} sigma {sigma} {p:?}"),
                     &out[0],

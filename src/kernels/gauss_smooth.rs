@@ -1,6 +1,8 @@
 //! `gauss_smooth`: the Gaussian map smoothing `G_σ` of spec §0.5 over valid
 //! pixels (`spp_of >= 1`), not edge-aware; used for `hbar = G_1(h_opt)`
-//! (§2.3 step 8) and for the sampling map (§9.1 MAP-SMOOTH).
+//! (§2.3 step 8), `G_1.5` (§6.2 step 8) and for the sampling map (§9.1
+//! MAP-SMOOTH). Separable: [`super::gauss_rows`] sums the rows, this kernel
+//! the columns (`2(2r+1)` taps per pixel instead of `(2r+1)²`).
 //! Twin: [`crate::reference::gauss_smooth`].
 
 use crate::error::Result;
@@ -12,7 +14,7 @@ use crate::shared::SmoothPush;
 /// the size of [`SmoothPush`]; checked against the SPIR-V by reflection.
 pub const DECL: KernelDecl = KernelDecl {
     name: "gauss_smooth",
-    bindings: &[read("map"), read("spp"), write("out")],
+    bindings: &[read("num"), read("den"), write("out")],
     push_size: std::mem::size_of::<SmoothPush>() as u32,
 };
 
@@ -21,15 +23,17 @@ pub fn radius(sigma: f32) -> u32 {
     (3.0 * sigma as f64).ceil().max(0.0) as u32
 }
 
-/// Per pixel: `(2r+1)²` neighbours × (validity, weight with one `exp`, 2 FMAs).
+/// Per pixel: `2r+1` rows × (2 FMAs, weight step), and a division.
 pub fn flops_per_pixel(sigma: f32) -> f64 {
     let r = radius(sigma) as f64;
-    (2.0 * r + 1.0).powi(2) * 12.0
+    (2.0 * r + 1.0) * 6.0 + 4.0
 }
 
-/// Records `out = G_σ(map)` over a `width × height` image; `spp` gives the
-/// validity. Invalid pixels receive the smoothed value of their valid
-/// neighbours (0 if none).
+/// Records `out = G_σ(map)` over a `width × height` image (both passes);
+/// `spp` gives the validity, `scratch` (2 planes) holds the row sums.
+/// Invalid pixels receive the smoothed value of their valid neighbours (0
+/// if none).
+#[allow(clippy::too_many_arguments)]
 pub fn record(
     batch: &mut Batch,
     precision: Precision,
@@ -38,8 +42,22 @@ pub fn record(
     sigma: f32,
     map: BufferSlice,
     spp: BufferSlice,
+    scratch: [BufferSlice; 2],
     out: BufferSlice,
 ) -> Result<()> {
+    let [num, den] = scratch;
+    super::gauss_rows::record(
+        batch,
+        precision,
+        width,
+        height,
+        sigma,
+        radius(sigma),
+        &[map],
+        spp,
+        &[num],
+        den,
+    )?;
     let push = SmoothPush {
         width,
         height,
@@ -50,7 +68,7 @@ pub fn record(
     batch.dispatch(
         &DECL,
         precision,
-        &[map, spp, out],
+        &[num, den, out],
         bytemuck::bytes_of(&push),
         width,
         height,

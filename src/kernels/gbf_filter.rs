@@ -1,6 +1,7 @@
-//! `gbf_filter`: G-buffer prefilter steps 9–10 (spec §6) — up to four
-//! feature planes filtered with the 7×7 weights at `hbar`, with propagated
-//! variances (GBF-VAR). Twin: [`crate::reference::gbf_filter`].
+//! `gbf_filter`: G-buffer prefilter steps 9–10 (spec §6) — the seven
+//! features [`super::gbf_pack`] packed, filtered with the 7×7 weights at
+//! `hbar` in one pass, with propagated variances (GBF-VAR). Twin:
+//! [`crate::reference::gbf_filter`].
 
 use crate::error::Result;
 use crate::gpu::reflect::{read, write};
@@ -23,62 +24,55 @@ pub const DECL: KernelDecl = KernelDecl {
         read("inv_zz"),
         read("spp"),
         read("hbar"),
-        read("feature0"),
-        read("feature1"),
-        read("feature2"),
-        read("feature3"),
-        read("var_feature0"),
-        read("var_feature1"),
-        read("var_feature2"),
-        read("var_feature3"),
+        read("features_a"),
+        read("features_b"),
+        read("variances_a"),
+        read("variances_b"),
         write("out0"),
         write("out1"),
         write("out2"),
         write("out3"),
+        write("out4"),
+        write("out5"),
+        write("out6"),
         write("var_out0"),
         write("var_out1"),
         write("var_out2"),
         write("var_out3"),
+        write("var_out4"),
+        write("var_out5"),
+        write("var_out6"),
     ],
     push_size: std::mem::size_of::<GbfPush>() as u32,
 };
 
 /// Per pixel: 49 neighbours × (distance with two stored inverses, one exp,
-/// 4 + 4 accumulations).
+/// 8 + 8 accumulations).
 pub fn flops_per_pixel() -> f64 {
-    49.0 * (60.0 + 30.0 + 16.0)
+    49.0 * (60.0 + 30.0 + 32.0)
 }
 
-/// Records the filtering of the first `count` (1..=4) of `feat` (and `var`);
-/// unused slots must still be bound (any plane) and their outputs get 0.
+/// Records the filtering of the packed features (`packed` from
+/// [`super::gbf_pack`]) into `out` (7 features, then their 7 variances).
+#[allow(clippy::too_many_arguments)]
 pub fn record(
     batch: &mut Batch,
     precision: Precision,
     width: u32,
     height: u32,
-    count: u32,
     pos: [BufferSlice; 3],
     inv: [BufferSlice; 6],
     spp: BufferSlice,
     hbar: BufferSlice,
-    feat: [BufferSlice; 4],
-    var: [BufferSlice; 4],
-    out: [BufferSlice; 8],
+    packed: [BufferSlice; 4],
+    out: [BufferSlice; 14],
 ) -> Result<()> {
     let push = GbfPush {
         width,
         height,
-        count,
         ..Default::default()
     };
-    let mut b = Vec::with_capacity(27);
-    b.extend_from_slice(&pos);
-    b.extend_from_slice(&inv);
-    b.push(spp);
-    b.push(hbar);
-    b.extend_from_slice(&feat);
-    b.extend_from_slice(&var);
-    b.extend_from_slice(&out);
+    let b: Vec<BufferSlice> = [&pos[..], &inv, &[spp, hbar], &packed, &out].concat();
     batch.dispatch(
         &DECL,
         precision,

@@ -1,8 +1,8 @@
 //! `gbf_prepare`: G-buffer prefilter step 1 (spec §6) — the position
-//! covariance smoothed with `G_1.5` (six entries in one pass), regularised
-//! (S-PSD) and inverted: `S̃⁻¹` per pixel, which `gbf_sure` and
-//! `gbf_filter` read for every neighbour. Twin:
-//! [`crate::reference::gbf_prepare`].
+//! covariance smoothed with `G_1.5` (the column pass over
+//! [`super::gauss_rows`]' row sums of the six entries), regularised (S-PSD)
+//! and inverted: `S̃⁻¹` per pixel, which `gbf_sure` and `gbf_filter` read
+//! for every neighbour. Twin: [`crate::reference::gbf_prepare`].
 
 use crate::error::Result;
 use crate::gpu::reflect::{read, write};
@@ -14,16 +14,16 @@ use crate::shared::GbfPush;
 pub const DECL: KernelDecl = KernelDecl {
     name: "gbf_prepare",
     bindings: &[
-        read("cov_xx"),
-        read("cov_xy"),
-        read("cov_xz"),
-        read("cov_yy"),
-        read("cov_yz"),
-        read("cov_zz"),
+        read("rows_xx"),
+        read("rows_xy"),
+        read("rows_xz"),
+        read("rows_yy"),
+        read("rows_yz"),
+        read("rows_zz"),
+        read("rows_weight"),
         read("position_x"),
         read("position_y"),
         read("position_z"),
-        read("spp"),
         write("inv_xx"),
         write("inv_xy"),
         write("inv_xz"),
@@ -34,12 +34,14 @@ pub const DECL: KernelDecl = KernelDecl {
     push_size: std::mem::size_of::<GbfPush>() as u32,
 };
 
-/// Per pixel: 121 taps × (weight, 6 FMAs) and one 3×3 inverse.
+/// Per pixel: 11 rows × (weight step, 7 FMAs) and one 3×3 inverse.
 pub fn flops_per_pixel() -> f64 {
-    121.0 * 16.0 + 60.0
+    11.0 * 16.0 + 60.0
 }
 
-/// Records `S̃⁻¹` over a `width × height` image.
+/// Records `S̃⁻¹` over a `width × height` image (with its row pass);
+/// `scratch` (7 planes) holds the row sums.
+#[allow(clippy::too_many_arguments)]
 pub fn record(
     batch: &mut Batch,
     precision: Precision,
@@ -48,17 +50,30 @@ pub fn record(
     cov: [BufferSlice; 6],
     pos: [BufferSlice; 3],
     spp: BufferSlice,
+    scratch: [BufferSlice; 7],
     inv: [BufferSlice; 6],
 ) -> Result<()> {
+    let sigma = crate::reference::gbf::SMOOTH_SIGMA;
+    super::gauss_rows::record(
+        batch,
+        precision,
+        width,
+        height,
+        sigma,
+        super::gauss_smooth::radius(sigma),
+        &cov,
+        spp,
+        &scratch[..6],
+        scratch[6],
+    )?;
     let push = GbfPush {
         width,
         height,
         ..Default::default()
     };
     let mut b = Vec::with_capacity(16);
-    b.extend_from_slice(&cov);
+    b.extend_from_slice(&scratch);
     b.extend_from_slice(&pos);
-    b.push(spp);
     b.extend_from_slice(&inv);
     batch.dispatch(
         &DECL,

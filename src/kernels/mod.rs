@@ -15,8 +15,10 @@ pub mod channel_mean;
 pub mod estimate_variance;
 pub mod finalize_covariance;
 pub mod finalize_stats;
+pub mod gauss_rows;
 pub mod gauss_smooth;
 pub mod gbf_filter;
+pub mod gbf_pack;
 pub mod gbf_prepare;
 pub mod gbf_sure;
 pub mod lp_centres;
@@ -47,12 +49,14 @@ pub const ALL: &[&KernelDecl] = &[
     &estimate_variance::DECL,
     &tsvd_debug::DECL,
     &channel_mean::DECL,
+    &gauss_rows::DECL,
     &gauss_smooth::DECL,
     &wlr_fit::DECL,
     &wlr_final::DECL,
     &gbf_prepare::DECL,
     &gbf_sure::DECL,
     &gbf_filter::DECL,
+    &gbf_pack::DECL,
     &lp_centres::DECL,
     &lp_reach::DECL,
     &lp_gather::DECL,

@@ -2,11 +2,12 @@
 //! sequence of kernels on sanitised statistics:
 //!
 //! ```text
-//! gbf_prepare      S̃⁻¹ = (G_1.5(position_covariance) + εI)⁻¹
+//! gauss_rows       row sums of the position covariance (6) and the weights
+//! gbf_prepare      S̃⁻¹ = (G_1.5(position_covariance) + εI)⁻¹ (column sums)
 //! gbf_sure         SURE at h = 0, 0.4, …, 2.0 → h_opt
-//! gauss_smooth     hbar = G_1.5(h_opt)
-//! gbf_filter ×2    normal xyz + depth, albedo rgb (+ variances) at hbar
-//! copy             the filtered planes replace the features in place
+//! gauss_rows, gauss_smooth   hbar = G_1.5(h_opt)
+//! gbf_pack         normal xyz + depth, albedo rgb and their variances → 4 vec4 planes
+//! gbf_filter       all seven at hbar, written over the feature planes
 //! ```
 //!
 //! It runs before WLR or LP (spec §1) when [`Prefilter`] says so: `auto`
@@ -20,7 +21,7 @@ use super::Prefilter;
 use crate::error::{Error, Result};
 use crate::gpu::{Batch, BufferSlice, GpuContext, PlaneSet, Precision};
 use crate::image::{Layer, StatsImage};
-use crate::kernels::{gauss_smooth, gbf_filter, gbf_prepare, gbf_sure};
+use crate::kernels::{gauss_smooth, gbf_filter, gbf_pack, gbf_prepare, gbf_sure};
 use crate::reference;
 use crate::reference::gbf::SMOOTH_SIGMA;
 use crate::shared::{GbfPush, SmoothPush};
@@ -47,48 +48,52 @@ pub fn wanted(prefilter: Prefilter, has: impl Fn(Layer) -> bool) -> Result<bool>
     }
 }
 
-/// The feature planes in filtering order: two groups of four slots,
-/// (normal x, y, z, depth) and (albedo r, g, b, unused).
-const GROUPS: [[(Layer, usize); 4]; 2] = [
-    [
-        (Layer::Normal, 0),
-        (Layer::Normal, 1),
-        (Layer::Normal, 2),
-        (Layer::Depth, 0),
-    ],
-    [
-        (Layer::Albedo, 0),
-        (Layer::Albedo, 1),
-        (Layer::Albedo, 2),
-        (Layer::Albedo, 2),
-    ],
+/// The feature planes in filtering (and packing) order.
+const FEATURES: [(Layer, usize); 7] = [
+    (Layer::Normal, 0),
+    (Layer::Normal, 1),
+    (Layer::Normal, 2),
+    (Layer::Depth, 0),
+    (Layer::Albedo, 0),
+    (Layer::Albedo, 1),
+    (Layer::Albedo, 2),
 ];
-const COUNTS: [u32; 2] = [4, 3];
 
-/// GPU scratch: S̃⁻¹ (6), h_opt, hbar, and 2 × 8 filter outputs.
+/// GPU scratch: S̃⁻¹ (6), h_opt, hbar, and 16 planes that hold first the
+/// row sums of the two smoothings, then the four packed vec4 planes.
 #[derive(Debug)]
 pub struct GbfPlanes {
-    /// Planes of `width * height` f32: `S̃⁻¹` (6), `h_opt`, `hbar`, then two
-    /// groups of 4 filtered features and 4 variances.
+    /// Planes of `width * height` f32: `S̃⁻¹` (6), `h_opt`, `hbar`, then
+    /// 16 planes of scratch and packed features.
     pub set: PlaneSet,
+    pixels: usize,
 }
 
 const INV: usize = 0;
 const HOPT: usize = 6;
 const HBAR: usize = 7;
-const OUT: usize = 8;
+const SCRATCH: usize = 8;
 
 impl GbfPlanes {
     /// Allocates the scratch for a `width × height` image: 24 planes.
     pub fn new(ctx: &Arc<GpuContext>, width: usize, height: usize) -> Result<GbfPlanes> {
         Ok(GbfPlanes {
-            set: PlaneSet::new(ctx, "gbf", width * height, OUT + 16)?,
+            set: PlaneSet::new(ctx, "gbf", width * height, SCRATCH + 16)?,
+            pixels: width * height,
         })
     }
 
     /// `h_opt` and `hbar` (debug).
     pub fn h_maps(&self) -> (BufferSlice, BufferSlice) {
         (self.set.plane(HOPT), self.set.plane(HBAR))
+    }
+
+    /// Packed vec4 plane `k` (0..4): it spans the four scalar planes from
+    /// `SCRATCH + 4k`, whose strides hold at least `16 × pixels` bytes.
+    fn packed(&self, k: usize) -> Result<BufferSlice> {
+        let first = self.set.plane(SCRATCH + 4 * k);
+        let whole = self.set.buffer.slice();
+        whole.sub(first.offset() - whole.offset(), 16 * self.pixels as u64)
     }
 }
 
@@ -119,40 +124,34 @@ pub fn record_gbf(
         std::array::from_fn(|k| clean.plane(Layer::PositionVariance, k));
     let cov: [BufferSlice; 6] = std::array::from_fn(|k| clean.plane(Layer::PositionCovariance, k));
     let inv: [BufferSlice; 6] = std::array::from_fn(|k| p(INV + k));
-    gbf_prepare::record(batch, precision, w, h, cov, pos, spp, inv)?;
+    let scratch: [BufferSlice; 7] = std::array::from_fn(|k| p(SCRATCH + k));
+    gbf_prepare::record(batch, precision, w, h, cov, pos, spp, scratch, inv)?;
     gbf_sure::record(batch, precision, w, h, pos, pos_var, inv, spp, p(HOPT))?;
-    gauss_smooth::record(batch, precision, w, h, SMOOTH_SIGMA, p(HOPT), spp, p(HBAR))?;
-    for (g, group) in GROUPS.iter().enumerate() {
-        let feat: [BufferSlice; 4] = std::array::from_fn(|j| clean.plane(group[j].0, group[j].1));
-        let var: [BufferSlice; 4] =
-            std::array::from_fn(|j| clean.plane(group[j].0.variance().unwrap(), group[j].1));
-        let out: [BufferSlice; 8] = std::array::from_fn(|j| p(OUT + 8 * g + j));
-        gbf_filter::record(
-            batch,
-            precision,
-            w,
-            h,
-            COUNTS[g],
-            pos,
-            inv,
-            spp,
-            p(HBAR),
-            feat,
-            var,
-            out,
-        )?;
-    }
-    for (g, group) in GROUPS.iter().enumerate() {
-        for j in 0..COUNTS[g] as usize {
-            let (l, c) = group[j];
-            batch.copy(p(OUT + 8 * g + j), clean.plane(l, c));
-            batch.copy(
-                p(OUT + 8 * g + 4 + j),
-                clean.plane(l.variance().unwrap(), c),
-            );
-        }
-    }
-    Ok(())
+    gauss_smooth::record(
+        batch,
+        precision,
+        w,
+        h,
+        SMOOTH_SIGMA,
+        p(HOPT),
+        spp,
+        [scratch[0], scratch[1]],
+        p(HBAR),
+    )?;
+    let feat: [BufferSlice; 7] = std::array::from_fn(|j| clean.plane(FEATURES[j].0, FEATURES[j].1));
+    let var: [BufferSlice; 7] = std::array::from_fn(|j| {
+        let (l, c) = FEATURES[j];
+        clean.plane(l.variance().expect("features have variances"), c)
+    });
+    let packed = [
+        planes.packed(0)?,
+        planes.packed(1)?,
+        planes.packed(2)?,
+        planes.packed(3)?,
+    ];
+    gbf_pack::record(batch, precision, w, h, feat, var, packed)?;
+    let out: [BufferSlice; 14] = std::array::from_fn(|k| if k < 7 { feat[k] } else { var[k - 7] });
+    gbf_filter::record(batch, precision, w, h, pos, inv, spp, p(HBAR), packed, out)
 }
 
 /// What a CPU run leaves for debugging: `h_opt` and `hbar` per pixel.
@@ -180,7 +179,7 @@ pub fn run_cpu(clean: &mut StatsImage) -> Result<GbfMaps> {
     let spp = clean.get(Layer::Spp).unwrap()[0].clone();
     let smooth = |map: &[f32]| {
         let mut out = vec![0.0f32; n];
-        reference::gauss_smooth::gauss_smooth(&smooth_push(w, h), map, &spp, &mut out);
+        reference::gauss_smooth::smooth(&smooth_push(w, h), map, &spp, &mut out);
         out
     };
     let pos = clean.get(Layer::Position).unwrap();
@@ -192,13 +191,12 @@ pub fn run_cpu(clean: &mut StatsImage) -> Result<GbfMaps> {
     };
     let pos_r: [&[f32]; 3] = std::array::from_fn(|k| pos[k].as_slice());
     let cov = clean.get(Layer::PositionCovariance).unwrap();
-    let mut inv = vec![vec![0.0f32; n]; 6];
-    reference::gbf_prepare::gbf_prepare(
-        &push,
+    let inv = reference::gbf_prepare::prepare(
+        w,
+        h,
         std::array::from_fn(|k| cov[k].as_slice()),
         pos_r,
         &spp,
-        &mut inv,
     );
     let inv_r: [&[f32]; 6] = std::array::from_fn(|k| inv[k].as_slice());
     let mut h_opt = vec![0.0f32; n];
@@ -211,34 +209,29 @@ pub fn run_cpu(clean: &mut StatsImage) -> Result<GbfMaps> {
         &mut h_opt,
     );
     let hbar = smooth(&h_opt);
-    let mut results = Vec::new();
-    for (g, group) in GROUPS.iter().enumerate() {
-        let get = |l: Layer, c: usize| clean.get(l).map(|p| p[c].as_slice());
-        let feat: [&[f32]; 4] = std::array::from_fn(|j| get(group[j].0, group[j].1).unwrap());
-        let var: [&[f32]; 4] =
-            std::array::from_fn(|j| get(group[j].0.variance().unwrap(), group[j].1).unwrap());
-        let mut out = vec![vec![0.0f32; n]; 8];
-        reference::gbf_filter::gbf_filter(
-            &GbfPush {
-                count: COUNTS[g],
-                ..push
-            },
-            pos_r,
-            inv_r,
-            &spp,
-            &hbar,
-            feat,
-            var,
-            &mut out,
-        );
-        results.push(out);
+    let get = |l: Layer, c: usize| clean.get(l).map(|p| p[c].as_slice());
+    let feat: [&[f32]; 7] = std::array::from_fn(|j| get(FEATURES[j].0, FEATURES[j].1).unwrap());
+    let var: [&[f32]; 7] = std::array::from_fn(|j| {
+        let (l, c) = FEATURES[j];
+        get(l.variance().unwrap(), c).unwrap()
+    });
+    let packed = reference::gbf_pack::gbf_pack(feat, var);
+    let mut out = vec![vec![0.0f32; n]; 14];
+    reference::gbf_filter::gbf_filter(
+        &push,
+        pos_r,
+        inv_r,
+        &spp,
+        &hbar,
+        std::array::from_fn(|k| packed[k].as_slice()),
+        &mut out,
+    );
+    let mut out = out.into_iter();
+    for (l, c) in FEATURES {
+        clean.get_mut(l).unwrap()[c] = out.next().unwrap();
     }
-    for (g, group) in GROUPS.iter().enumerate() {
-        for j in 0..COUNTS[g] as usize {
-            let (l, c) = group[j];
-            clean.get_mut(l).unwrap()[c] = results[g][j].clone();
-            clean.get_mut(l.variance().unwrap()).unwrap()[c] = results[g][4 + j].clone();
-        }
+    for (l, c) in FEATURES {
+        clean.get_mut(l.variance().unwrap()).unwrap()[c] = out.next().unwrap();
     }
     Ok(GbfMaps { h_opt, hbar })
 }

@@ -337,7 +337,8 @@ pub struct SamplingPlanes {
     pub width: usize,
     /// Height in pixels.
     pub height: usize,
-    /// Plane 0: `r` of `sample_priority`; plane 1: `G_σs(r)`.
+    /// Plane 0: `r` of `sample_priority`; plane 1: `G_σs(r)`; planes 2–3:
+    /// the smoothing's row sums.
     pub maps: PlaneSet,
     /// The reduction and scan trees ([`TreeLayout`]), u64 entries.
     pub tree: GpuBuffer,
@@ -374,7 +375,7 @@ impl SamplingPlanes {
         Ok(SamplingPlanes {
             width,
             height,
-            maps: PlaneSet::new(ctx, "sampling.maps", n as usize, 2)?,
+            maps: PlaneSet::new(ctx, "sampling.maps", n as usize, 4)?,
             tree: GpuBuffer::new(ctx, "sampling.tree", layout.entries as u64 * 8)?,
             counts: GpuBuffer::new(ctx, "sampling.counts", n as u64 * 4)?,
             layout,
@@ -421,6 +422,7 @@ pub fn record_sample_map(
             params.sigma_s,
             planes.maps.plane(0),
             inputs.spp,
+            [planes.maps.plane(2), planes.maps.plane(3)],
             planes.maps.plane(1),
         )?;
     }
@@ -504,7 +506,7 @@ pub fn priority_cpu(
             ..Default::default()
         };
         let mut s = vec![0.0f32; n];
-        reference::gauss_smooth::gauss_smooth(&push, &r, inputs.spp, &mut s);
+        reference::gauss_smooth::smooth(&push, &r, inputs.spp, &mut s);
         r = s;
     }
     Ok(r)

@@ -169,6 +169,8 @@ pub fn record_wlr(
         H_SMOOTH_SIGMA,
         p(FIT0),
         spp,
+        // wlr_final's output planes are free until it runs: row sums.
+        [p(OUT0), p(OUT0 + 1)],
         p(HBAR),
     )?;
     let fit_in: [BufferSlice; 4] = std::array::from_fn(|k| p(FIT0 + 1 + k));
@@ -319,7 +321,7 @@ pub fn run_cpu_with_progress(
         ..Default::default()
     };
     let mut hbar = vec![0.0f32; n];
-    reference::gauss_smooth::gauss_smooth(&push_s, &fit[0], spp, &mut hbar);
+    reference::gauss_smooth::smooth(&push_s, &fit[0], spp, &mut hbar);
 
     let mut out = vec![vec![0.0f32; n]; 5];
     let fit_in: [&[f32]; 4] = [&fit[1], &fit[2], &fit[3], &fit[4]];

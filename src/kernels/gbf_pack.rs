@@ -1,0 +1,69 @@
+//! `gbf_pack`: packs the seven feature planes the G-buffer prefilter
+//! filters (normal x y z, depth, albedo r g b) and their variances into four
+//! vec4 planes for [`super::gbf_filter`]. Twin: [`crate::reference::gbf_pack`].
+
+use crate::error::Result;
+use crate::gpu::reflect::{read, write};
+use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};
+use crate::shared::GbfPush;
+
+/// Declaration of `spirv/gbf_pack.comp`.
+pub const DECL: KernelDecl = KernelDecl {
+    name: "gbf_pack",
+    bindings: &[
+        read("feature0"),
+        read("feature1"),
+        read("feature2"),
+        read("feature3"),
+        read("feature4"),
+        read("feature5"),
+        read("feature6"),
+        read("var_feature0"),
+        read("var_feature1"),
+        read("var_feature2"),
+        read("var_feature3"),
+        read("var_feature4"),
+        read("var_feature5"),
+        read("var_feature6"),
+        write("features_a"),
+        write("features_b"),
+        write("variances_a"),
+        write("variances_b"),
+    ],
+    push_size: std::mem::size_of::<GbfPush>() as u32,
+};
+
+/// Per pixel: no arithmetic, 14 loads and 16 stores (counted as 1 so the
+/// band estimate stays positive).
+pub fn flops_per_pixel() -> f64 {
+    1.0
+}
+
+/// Records the packing of `feat` and `var` (7 planes each) into `packed`
+/// (4 vec4 planes of `width × height × 16` bytes: features 0–3, features
+/// 4–6 and 0, the same of the variances).
+pub fn record(
+    batch: &mut Batch,
+    precision: Precision,
+    width: u32,
+    height: u32,
+    feat: [BufferSlice; 7],
+    var: [BufferSlice; 7],
+    packed: [BufferSlice; 4],
+) -> Result<()> {
+    let push = GbfPush {
+        width,
+        height,
+        ..Default::default()
+    };
+    let b: Vec<BufferSlice> = [&feat[..], &var, &packed].concat();
+    batch.dispatch(
+        &DECL,
+        precision,
+        &b,
+        bytemuck::bytes_of(&push),
+        width,
+        height,
+        flops_per_pixel(),
+    )
+}
