@@ -75,8 +75,40 @@ void features(ivec2 p, out real4 f0, out real4 f1, out real f8)
     f8 = real(ab[i]);
 }
 
+// The workgroup's 8x8 pixels and their 9-pixel halo: the first state plane
+// staged once (a shared load costs lavapipe far less than a storage-buffer
+// load), and per tile row the columns that hold a centre, in order. Each
+// pixel then visits only the centres of its window's rows, in the raster
+// order of the window scan, so the sums are the same as a full scan's.
+#define TILE (8 + 2 * LP_RADIUS)
+shared vec4 t_s0[TILE * TILE];
+shared uint t_list[TILE * TILE];
+shared uint t_count[TILE];
+
 void main()
 {
+    ivec2 org = ivec2(gl_WorkGroupID.x * 8u, push.row0 + gl_WorkGroupID.y * 8u) - LP_RADIUS;
+    uint lid = gl_LocalInvocationIndex;
+    for (uint k = lid; k < uint(TILE * TILE); k += 64u) {
+        ivec2 t = org + ivec2(k % uint(TILE), k / uint(TILE));
+        vec4 s = vec4(0);
+        if (t.x >= 0 && t.y >= 0 && t.x < int(push.width) && t.y < int(push.height)) {
+            s = st0[uint(t.y) * push.width + uint(t.x)];
+        }
+        t_s0[k] = s;
+    }
+    barrier();
+    if (lid < uint(TILE)) {
+        uint m = 0u;
+        for (uint col = 0u; col < uint(TILE); ++col) {
+            if (t_s0[lid * uint(TILE) + col].x > 0.0) {
+                t_list[lid * uint(TILE) + m] = col;
+                ++m;
+            }
+        }
+        t_count[lid] = m;
+    }
+    barrier();
     uint x = gl_GlobalInvocationID.x;
     uint y = push.row0 + gl_GlobalInvocationID.y;
     if (x >= push.width || y >= push.height) {
@@ -134,10 +166,15 @@ void main()
             if (reach[uint(qy) * push.width + x] < float(abs(qy - p.y))) {
                 continue;
             }
-            for (int qx = max(p.x - LP_RADIUS, 0); qx <= min(p.x + LP_RADIUS, size.x - 1); ++qx) {
+            uint row = uint(qy - org.y);
+            for (uint e = 0u; e < t_count[row]; ++e) {
+                // A centre beyond the window's columns is farther than any
+                // r_opt (<= LP_RADIUS): the coverage test drops it.
+                uint col = t_list[row * uint(TILE) + e];
+                int qx = org.x + int(col);
                 uint q = uint(qy) * push.width + uint(qx);
-                vec4 s0 = st0[q];
-                if (s0.x <= 0.0 || float(max(abs(qx - p.x), abs(qy - p.y))) > s0.y) {
+                vec4 s0 = t_s0[row * uint(TILE) + col];
+                if (float(max(abs(qx - p.x), abs(qy - p.y))) > s0.y) {
                     continue;
                 }
                 real4 c0, c1;
