@@ -2,7 +2,7 @@
 // Outlier replacement (spec §4.4 step 2-3) for the pixels outlier_detect
 // queued: o takes the colour and variance of q*, the pixel of median grey
 // in Ω_o(R) with o (lower median of an even count, lowest raster index
-// among equal greys: OUTLIER-MEDIAN), found by a 32-step radix selection on
+// among equal greys: OUTLIER-MEDIAN), found by an 8-step radix selection (4-bit digits) on
 // the order-preserving bits of grey from outlier_rows (no local array);
 // e = y_o - y_q* per channel. Every read is of the original planes, so the
 // entries are independent and the queue's order does not matter.
@@ -32,6 +32,22 @@ PLANE_OUT(15, er)
 PLANE_OUT(16, eg)
 PLANE_OUT(17, eb)
 
+// Moves rank k past the counts of c (digits base..base+3) until it falls
+// inside one: that digit.
+void walk(uvec4 c, uint base, inout uint k, inout uint digit, inout bool found)
+{
+    for (int t = 0; t < 4; ++t) {
+        if (!found) {
+            if (k >= c[t]) {
+                k -= c[t];
+            } else {
+                digit = base + uint(t);
+                found = true;
+            }
+        }
+    }
+}
+
 void main()
 {
     uint at = gl_GlobalInvocationID.x;
@@ -51,23 +67,36 @@ void main()
         }
     }
     uint k = (n - 1u) / 2u;
+    // Eight 4-bit digits, most significant first: per digit one scan counts
+    // the keys under the prefix by digit value (16 counters as four uvec4,
+    // constant-indexed), and the digit is where rank k falls. A quarter of
+    // the scans (and loads) of a bit-by-bit selection, the same result.
     uint prefix = 0u;
-    for (int bit = 31; bit >= 0; --bit) {
-        uint hi = bit == 31 ? 0u : (0xFFFFFFFFu << uint(bit + 1));
-        uint zeros = 0u;
+    for (int shift = 28; shift >= 0; shift -= 4) {
+        uint hi = shift == 28 ? 0u : (0xFFFFFFFFu << uint(shift + 4));
+        uvec4 c0 = uvec4(0), c1 = uvec4(0), c2 = uvec4(0), c3 = uvec4(0);
         for (int qy = y0; qy <= y1; ++qy) {
             for (int qx = x0; qx <= x1; ++qx) {
                 uint j = uint(qy) * push.width + uint(qx);
                 if (valid_at(spp[j])) {
                     uint kj = keys[j];
-                    zeros += ((kj & hi) == prefix && (kj & (1u << uint(bit))) == 0u) ? 1u : 0u;
+                    if ((kj & hi) == prefix) {
+                        uvec4 d = uvec4((kj >> uint(shift)) & 15u);
+                        c0 += uvec4(equal(d, uvec4(0u, 1u, 2u, 3u)));
+                        c1 += uvec4(equal(d, uvec4(4u, 5u, 6u, 7u)));
+                        c2 += uvec4(equal(d, uvec4(8u, 9u, 10u, 11u)));
+                        c3 += uvec4(equal(d, uvec4(12u, 13u, 14u, 15u)));
+                    }
                 }
             }
         }
-        if (k >= zeros) {
-            k -= zeros;
-            prefix |= 1u << uint(bit);
-        }
+        uint digit = 15u;
+        bool found = false;
+        walk(c0, 0u, k, digit, found);
+        walk(c1, 4u, k, digit, found);
+        walk(c2, 8u, k, digit, found);
+        walk(c3, 12u, k, digit, found);
+        prefix |= digit << uint(shift);
     }
     // The lowest raster index holding the median key.
     uint q = o;

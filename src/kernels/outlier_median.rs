@@ -1,6 +1,6 @@
 //! `outlier_median`: outlier replacement (spec §4.4 steps 2–3) at the pixels
 //! [`super::outlier_detect`] queued: each takes the colour and variance of
-//! its window's median pixel (a 32-step radix selection over the window),
+//! its window's median pixel (an 8-step radix selection over the window, 4-bit digits),
 //! and `e = y_o − y_q*`. Dispatched indirectly, one invocation per queued
 //! pixel. Twin: [`crate::reference::outlier_median`].
 
@@ -43,11 +43,11 @@ pub const GROUP: u32 = 64;
 /// 4-spp renders of the built-in scenes: well under 1 %).
 pub const DETECTED_FRACTION: f64 = 0.01;
 
-/// Per queued pixel: 33 scans of the `(2R+1)²` window (≈ 6 flops per
-/// pixel each).
+/// Per queued pixel: 10 scans of the `(2R+1)²` window (≈ 12 operations
+/// per pixel each: the 16 digit counters).
 pub fn flops_per_entry(radius: u32) -> f64 {
     let d = 2.0 * radius as f64 + 1.0;
-    33.0 * d * d * 6.0
+    10.0 * d * d * 12.0
 }
 
 /// Records the replacement of the queued pixels (`keys` from
@@ -56,8 +56,8 @@ pub fn flops_per_entry(radius: u32) -> f64 {
 ///
 /// The dispatch cannot be split into bands. Its worst case is bounded:
 /// OUTLIER-ISOLATED never detects two 8-neighbours, so at most a quarter of
-/// the pixels are queued: ≈ 0.17 MFLOP per entry at R = 14, at most
-/// ≈ 42 GFLOP per megapixel, milliseconds on a discrete GPU. The cost
+/// the pixels are queued: ≈ 0.1 MFLOP per entry at R = 14, at most
+/// ≈ 25 GFLOP per megapixel, milliseconds on a discrete GPU. The cost
 /// estimate assumes [`DETECTED_FRACTION`].
 #[allow(clippy::too_many_arguments)]
 pub fn record(
