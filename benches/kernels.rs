@@ -186,12 +186,12 @@ fn main() {
             &tsvd_debug::DECL,
             bytemuck::bytes_of(&push),
             &inputs,
-            &[n; 12],
+            &[n; 13],
             tsvd_debug::flops_per_pixel(radius),
         );
         let fr: [&[f32]; 7] = std::array::from_fn(|k| feats[k].as_slice());
         let vr: [&[f32]; 7] = std::array::from_fn(|k| vars[k].as_slice());
-        let mut out = vec![vec![0.0f32; n]; 12];
+        let mut out = vec![vec![0.0f32; n]; 13];
         let t = Instant::now();
         reference::tsvd_debug::tsvd_debug(&push, fr, vr, &spp, &mut out);
         let c = t.elapsed().as_secs_f64() * 1e9;

@@ -1,6 +1,8 @@
 #version 460
-// TSVD debug outputs (spec §0.6): rank k, tau, ||E||_2 and sigma_1..sigma_9
-// of the 9-D WLR feature set (spec §2.1) over Omega_c(R), per pixel.
+// TSVD debug outputs (spec §0.6): rank k, tau, ||E||_2 (exact) and
+// sigma_1..sigma_9 of the 9-D WLR feature set (spec §2.1) over Omega_c(R),
+// per pixel; and the rank as the methods compute it (||E||_2 exact only
+// where the bounds of tsvd_lmax_bounds cannot decide it), which must equal k.
 // Scalar twin: src/reference/tsvd_debug.rs.
 #include "lib/common.glsl"
 
@@ -41,6 +43,7 @@ PLANE_OUT(23, sigma6_out)
 PLANE_OUT(24, sigma7_out)
 PLANE_OUT(25, sigma8_out)
 PLANE_OUT(26, sigma9_out)
+PLANE_OUT(27, rank_methods_out)
 
 #define MAX_D 9
 #define TSVD_D 9
@@ -81,14 +84,16 @@ void main()
         return;
     }
     uint i = y * push.width + x;
-    float o[12];
-    for (int j = 0; j < 12; ++j) {
+    float o[13];
+    for (int j = 0; j < 13; ++j) {
         o[j] = 0.0;
     }
     // §0.2: an invalid centre gets 0 everywhere.
     if (spp_of(spp[i]) >= 1.0) {
         // §0.6 steps 1-6 over Omega_c(R).
-        LocalSpace ls = tsvd_local_space(ivec2(x, y), int(push.radius), ivec2(push.width, push.height));
+        ivec2 size = ivec2(push.width, push.height);
+        LocalSpace ls = tsvd_local_space_with(ivec2(x, y), int(push.radius), size, true);
+        o[12] = float(tsvd_local_space(ivec2(x, y), int(push.radius), size).k);
         o[0] = float(ls.k);
         o[1] = float(ls.tau);
         o[2] = float(ls.specnorm);
@@ -108,4 +113,5 @@ void main()
     sigma7_out[i] = o[9];
     sigma8_out[i] = o[10];
     sigma9_out[i] = o[11];
+    rank_methods_out[i] = o[12];
 }

@@ -156,7 +156,7 @@ fn tsvd_debug_matches_twin() {
             };
             let fr: [&[f32]; 7] = std::array::from_fn(|k| f[k].as_slice());
             let vr: [&[f32]; 7] = std::array::from_fn(|k| v[k].as_slice());
-            let mut cpu = vec![vec![0.0f32; w * h]; 12];
+            let mut cpu = vec![vec![0.0f32; w * h]; 13];
             reference::tsvd_debug::tsvd_debug(&push, fr, vr, &spp, &mut cpu);
             let mut inputs: Vec<&[f32]> = fr.to_vec();
             inputs.extend_from_slice(&vr);
@@ -170,13 +170,16 @@ fn tsvd_debug_matches_twin() {
                     w,
                     h,
                     &inputs,
-                    &[w * h; 12],
+                    &[w * h; 13],
                     tsvd_debug::flops_per_pixel(radius),
                 )
                 .unwrap();
                 let what = format!("tsvd_debug {w}x{h} R={radius} {p:?}");
                 let agree = agreement(&out[0], &cpu[0]);
                 assert!(agree >= 0.98, "{what}: rank agreement {agree}");
+                // The methods' rank (exact ||E||_2 only where its bounds
+                // cannot decide) is the exact rank at every pixel.
+                assert_eq!(out[12], out[0], "{what}: the methods' rank");
                 for k in 1..12 {
                     // σ below the f32 Jacobi's resolution (1e-6·‖G‖) are noise
                     // in f32: compare them with an absolute floor.
@@ -224,7 +227,7 @@ fn row_bands_and_submits_are_bit_identical() {
         for p in f.iter().chain(v.iter()).chain(std::iter::once(&spp)) {
             bufs.push(GpuBuffer::from_slice(&ctx, "in", p).unwrap());
         }
-        for _ in 0..12 {
+        for _ in 0..13 {
             bufs.push(GpuBuffer::from_slice(&ctx, "out", &vec![0.0f32; w * h]).unwrap());
         }
         let slices: Vec<_> = bufs.iter().map(|b| b.slice()).collect();
@@ -254,7 +257,7 @@ fn row_bands_and_submits_are_bit_identical() {
     assert_eq!(bands1, 1);
     assert!(bands >= 5, "expected several bands, got {bands}");
     assert!(submits >= 4, "expected several submits, got {submits}");
-    for k in 0..12 {
+    for k in 0..13 {
         let a: Vec<u32> = one[k].iter().map(|x| x.to_bits()).collect();
         let b: Vec<u32> = many[k].iter().map(|x| x.to_bits()).collect();
         assert_eq!(

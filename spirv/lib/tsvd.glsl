@@ -46,7 +46,7 @@ struct LocalSpace {
     int k;          // rank after MINRANK (0 only if every component is constant)
     int k_nz;       // #{sigma_m > 1e-6 sigma_1}
     real tau;       // 2 ||E||_2
-    real specnorm;  // ||E||_2, exact (SPECNORM)
+    real specnorm;  // ||E||_2: exact (SPECNORM) where it decides k, else an upper bound
     real sigma[MAX_D];        // sigma_1 >= ... >= sigma_D
     real V[MAX_D * MAX_D];    // row-major D x D (stride TSVD_D), column m = v_m
     real mn[MAX_D];           // window minimum m_j (raw units)
@@ -107,6 +107,59 @@ real4 tsvd_inv4(real4 rg)
     return mix(real4(0), real4(1) / rg, greaterThan(rg, real4(TSVD_RANGE_EPS)));
 }
 
+// Bounds on lambda_max of the D x D matrix A = E^T E (symmetric, no negative
+// entry): TSVD_POWER_STEPS power iterations from the ones vector give v >= 0
+// with max 1; with the positive p = v + 1e-3, lo = p^T A p / p^T p (a Rayleigh
+// quotient never exceeds lambda_max) and hi = max_j (A p)_j / p_j (the
+// Collatz-Wielandt bound of a non-negative matrix). Both 0 for A = 0.
+#define TSVD_POWER_STEPS 6
+#define TSVD_BOUND_MARGIN 1e-4
+void tsvd_lmax_bounds(real A[MAX_D * MAX_D], out real lo, out real hi)
+{
+    real v[MAX_D];
+    real u[MAX_D];
+    for (int j = 0; j < MAX_D; ++j) {
+        v[j] = j < TSVD_D ? real(1) : real(0);
+        u[j] = real(0);
+    }
+    for (int it = 0; it <= TSVD_POWER_STEPS; ++it) {
+        if (it == TSVD_POWER_STEPS) {
+            // The final vector (max 1), made positive.
+            for (int j = 0; j < TSVD_D; ++j) {
+                v[j] += real(1e-3);
+            }
+        }
+        real mx = real(0);
+        for (int j = 0; j < TSVD_D; ++j) {
+            real s = real(0);
+            for (int l = 0; l < TSVD_D; ++l) {
+                s += A[j * TSVD_D + l] * v[l];
+            }
+            u[j] = s;
+            mx = max(mx, s);
+        }
+        if (it == TSVD_POWER_STEPS) {
+            break;
+        }
+        if (mx <= real(0)) {
+            lo = real(0);
+            hi = real(0);
+            return;
+        }
+        for (int j = 0; j < TSVD_D; ++j) {
+            v[j] = u[j] / mx;
+        }
+    }
+    real pap = real(0), pp = real(0);
+    hi = real(0);
+    for (int j = 0; j < TSVD_D; ++j) {
+        pap += v[j] * u[j];
+        pp += v[j] * v[j];
+        hi = max(hi, u[j] / v[j]);
+    }
+    lo = pap / pp;
+}
+
 // Spec §0.6 steps 1-6 for the window Omega_c(R) of centre c: the clipped
 // square |q - c|_inf <= R inside [0, size), restricted to the pixels for
 // which load_features returns true, visited in raster order.
@@ -117,7 +170,7 @@ real4 tsvd_inv4(real4 rg)
 // upper block triangle), unpacked into the arrays of jacobi_eigen once per
 // window. Every entry sees the same operations in the same order as the
 // scalar twin.
-LocalSpace tsvd_local_space(ivec2 c, int R, ivec2 size)
+LocalSpace tsvd_local_space_with(ivec2 c, int R, ivec2 size, bool exact_specnorm)
 {
     LocalSpace ls;
     real x[MAX_D];
@@ -300,11 +353,38 @@ LocalSpace tsvd_local_space(ivec2 c, int R, ivec2 size)
         ls.sigma[m] = sqrt(max(w[m], real(0)));
     }
 
-    // Steps 4-5: SPECNORM, tau.
-    real Ve[MAX_D * MAX_D];
-    jacobi_eigen(EE, TSVD_D, Ve, w);
-    ls.specnorm = sqrt(max(w[0], real(0)));
-    ls.tau = real(TSVD_TAU_C) * ls.specnorm;
+    // Steps 4-5: SPECNORM, tau. Unless exact_specnorm (tsvd_debug's tau and
+    // ||E||_2 outputs) only the rank k depends on tau, and lambda_max(E^T E)
+    // lies in [lo, hi]
+    // (tsvd_lmax_bounds). Unless some sigma_m above the floor falls where
+    // the two bounds (widened by TSVD_BOUND_MARGIN) could rank it
+    // differently, tau = C sqrt(hi) ranks every sigma_m as the exact value
+    // would, and the second eigenproblem is skipped: the same k, at a
+    // fraction of the cost.
+    bool exact = true;
+    if (!exact_specnorm) {
+        real lo, hi;
+        tsvd_lmax_bounds(EE, lo, hi);
+        real tl = real(TSVD_TAU_C) * sqrt(max(lo, real(0))) * (real(1) - real(TSVD_BOUND_MARGIN));
+        real tu = real(TSVD_TAU_C) * sqrt(max(hi, real(0))) * (real(1) + real(TSVD_BOUND_MARGIN));
+        real floor_b = real(TSVD_SIGMA_REL) * ls.sigma[0];
+        exact = false;
+        for (int m = 0; m < TSVD_D; ++m) {
+            if (ls.sigma[m] > floor_b && ls.sigma[m] > tl && ls.sigma[m] <= tu) {
+                exact = true;
+            }
+        }
+        if (!exact) {
+            ls.specnorm = sqrt(max(hi, real(0)));
+            ls.tau = real(TSVD_TAU_C) * ls.specnorm;
+        }
+    }
+    if (exact) {
+        real Ve[MAX_D * MAX_D];
+        jacobi_eigen(EE, TSVD_D, Ve, w);
+        ls.specnorm = sqrt(max(w[0], real(0)));
+        ls.tau = real(TSVD_TAU_C) * ls.specnorm;
+    }
 
     // Step 6: rank with MINRANK.
     real floor_s = real(TSVD_SIGMA_REL) * ls.sigma[0];
@@ -321,6 +401,13 @@ LocalSpace tsvd_local_space(ivec2 c, int R, ivec2 size)
     ls.k_nz = k_nz;
     ls.k = max(k, min(TSVD_MIN_RANK, k_nz));
     return ls;
+}
+
+// The local space as the methods use it: ||E||_2 exact only where it decides
+// the rank.
+LocalSpace tsvd_local_space(ivec2 c, int R, ivec2 size)
+{
+    return tsvd_local_space_with(c, R, size, false);
 }
 
 // Min-max normalised features x' of raw features x (step 1): (x_j - m_j)/rho_j,

@@ -40,25 +40,41 @@ pub const DECL: KernelDecl = KernelDecl {
         write("sigma7"),
         write("sigma8"),
         write("sigma9"),
+        write("rank_methods"),
     ],
     push_size: std::mem::size_of::<TsvdPush>() as u32,
 };
 
-/// Names of the 12 output maps, in binding order.
-pub const OUTPUTS: [&str; 12] = [
-    "rank", "tau", "specnorm", "sigma1", "sigma2", "sigma3", "sigma4", "sigma5", "sigma6",
-    "sigma7", "sigma8", "sigma9",
+/// Names of the 13 output maps, in binding order. `rank_methods` is the rank
+/// as WLR, LP and AOS compute it (`‖E‖₂` exact only where bounds on it
+/// cannot decide the rank, `tsvd_lmax_bounds` in `spirv/lib/tsvd.glsl`);
+/// it must equal `rank`.
+pub const OUTPUTS: [&str; 13] = [
+    "rank",
+    "tau",
+    "specnorm",
+    "sigma1",
+    "sigma2",
+    "sigma3",
+    "sigma4",
+    "sigma5",
+    "sigma6",
+    "sigma7",
+    "sigma8",
+    "sigma9",
+    "rank_methods",
 ];
 
-/// Per pixel: (2R+1)² neighbours × (min/max, two 9×9 Gram matrices) plus two
-/// 9×9 Jacobi solves.
+/// Per pixel, twice (the exact local space and the methods'):
+/// (2R+1)² neighbours × (min/max, two 9×9 Gram matrices) plus two 9×9
+/// Jacobi solves.
 pub fn flops_per_pixel(radius: u32) -> f64 {
     let n = ((2 * radius + 1) * (2 * radius + 1)) as f64;
-    n * (18.0 + 2.0 * 81.0 * 2.0) + 2.0 * 10.0 * 81.0 * 9.0 * 4.0
+    2.0 * (n * (18.0 + 2.0 * 81.0 * 2.0) + 2.0 * 10.0 * 81.0 * 9.0 * 4.0)
 }
 
 /// Records the debug kernel. `features` = normal xyz, depth, albedo rgb;
-/// `variances` in the same order; `out` = the 12 maps of [`OUTPUTS`].
+/// `variances` in the same order; `out` = the 13 maps of [`OUTPUTS`].
 pub fn record(
     batch: &mut Batch,
     precision: Precision,
@@ -68,7 +84,7 @@ pub fn record(
     features: [BufferSlice; 7],
     variances: [BufferSlice; 7],
     spp: BufferSlice,
-    out: [BufferSlice; 12],
+    out: [BufferSlice; 13],
 ) -> Result<()> {
     let push = TsvdPush {
         width,

@@ -9,14 +9,16 @@ use crate::shared::TsvdPush;
 /// (spec §2.1), with variances `(0, 0, vn_x, vn_y, vn_z, vd, va_r, va_g, va_b)`.
 pub const TSVD_DEBUG_D: usize = 9;
 
-/// Number of output planes: rank (as float), τ, ‖E‖₂, σ_1..σ_9 — bindings
-/// 15..26 of the kernel, in this order.
-pub const TSVD_DEBUG_OUTPUTS: usize = 3 + TSVD_DEBUG_D;
+/// Number of output planes: rank (as float), τ, ‖E‖₂, σ_1..σ_9, and the rank
+/// again (the kernel's rank as the methods compute it, which must be the
+/// same) — bindings 15..27 of the kernel, in this order.
+pub const TSVD_DEBUG_OUTPUTS: usize = 4 + TSVD_DEBUG_D;
 
 /// For every pixel `c` of the `push.width × push.height` image (`row0` is
 /// ignored: all bands at once), builds the TSVD local space (spec §0.6) of
 /// `Ω_c(push.radius)` (clipped, valid pixels only, `spp_of >= 1`) and writes
-/// `out[0] = k`, `out[1] = τ`, `out[2] = ‖E‖₂`, `out[3 + m] = σ_{m+1}`.
+/// `out[0] = k`, `out[1] = τ`, `out[2] = ‖E‖₂`, `out[3 + m] = σ_{m+1}`,
+/// `out[12] = k`.
 /// An invalid centre gets 0 in every output.
 ///
 /// `feat` are the planes nx, ny, nz, depth, ar, ag, ab (kernel bindings 0..6),
@@ -61,6 +63,7 @@ pub fn tsvd_debug(
             for m in 0..TSVD_DEBUG_D {
                 out[3 + m][c] = ls.sigma[m] as f32;
             }
+            out[3 + TSVD_DEBUG_D][c] = ls.k as f32;
         }
     }
 }
