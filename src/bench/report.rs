@@ -258,7 +258,9 @@ impl TimingReport {
             s.push_str(
                 "Per-kernel GPU times (median over the runs); GFLOP/s from each kernel's \
                  counted flops (`src/kernels/<name>.rs`), and their fraction of the device's \
-                 FMA peak for the kernel's precision (median of `peak_fma`):\n\n",
+                 FMA peak for the kernel's precision (median of `peak_fma`); GB/s from its \
+                 compulsory traffic (each bound range read or written once per dispatch), and \
+                 its fraction of the copy bandwidth (median of `peak_copy`):\n\n",
             );
             let mut rows: Vec<Vec<String>> = vec![
                 [
@@ -269,12 +271,16 @@ impl TimingReport {
                     "dispatches",
                     "GFLOP/s",
                     "% of peak",
+                    "GB/s",
+                    "% of copy",
                 ]
                 .map(String::from)
                 .to_vec(),
-                ["---", "---", "---", "---:", "---:", "---:", "---:"]
-                    .map(String::from)
-                    .to_vec(),
+                [
+                    "---", "---", "---", "---:", "---:", "---:", "---:", "---:", "---:",
+                ]
+                .map(String::from)
+                .to_vec(),
             ];
             for r in with_kernels {
                 for k in &r.kernels {
@@ -283,6 +289,9 @@ impl TimingReport {
                         .as_ref()
                         .and_then(|p| p.flops_for(&k.kernel))
                         .map_or(String::new(), |p| format!("{:.1}", 100.0 * k.gflops / p));
+                    let copy = self.peak.as_ref().map_or(String::new(), |p| {
+                        format!("{:.1}", 100.0 * k.gbs / p.copy.median)
+                    });
                     rows.push(vec![
                         r.case.clone(),
                         backend_name(r.backend).into(),
@@ -291,6 +300,8 @@ impl TimingReport {
                         k.dispatches.to_string(),
                         format!("{:.2}", k.gflops),
                         fraction,
+                        format!("{:.2}", k.gbs),
+                        copy,
                     ]);
                 }
             }
@@ -305,7 +316,7 @@ impl TimingReport {
     /// `peak` is `{runs, fma_f32, fma_f64, copy}` with `{min, median, max}`
     /// each (GFLOP/s, GB/s) or `null`; each row has `case method backend
     /// width height wall_ms median_wall_ms ms_per_megapixel gpu_ms kernels`
-    /// and each kernel `kernel gpu_ms dispatches gflops` (`null` where
+    /// and each kernel `kernel gpu_ms dispatches gflops gbs` (`null` where
     /// absent or non-finite). Pretty-printed by
     /// `serde_json`, with a final newline.
     pub fn to_json(&self) -> String {
@@ -338,6 +349,7 @@ impl TimingReport {
                             gpu_ms: k.ms,
                             dispatches: k.dispatches,
                             gflops: k.gflops,
+                            gbs: k.gbs,
                         })
                         .collect(),
                 })
@@ -525,6 +537,7 @@ struct KernelJson<'a> {
     gpu_ms: f64,
     dispatches: usize,
     gflops: f64,
+    gbs: f64,
 }
 
 /// Appends the Markdown "Warnings:" section (nothing when there are none).
@@ -635,6 +648,7 @@ mod tests {
                     ms: 1.0,
                     dispatches: 3,
                     gflops: 2.5,
+                    gbs: 0.5,
                 }],
             }],
             ..Default::default()
@@ -664,6 +678,7 @@ mod tests {
                     "kernel",
                     "dispatches",
                     "gflops",
+                    "gbs",
                     "unavailable_methods",
                     "warnings",
                 ]
@@ -678,7 +693,7 @@ mod tests {
         assert_eq!(r["wall_ms"], serde_json::json!([1.5, null]));
         assert_eq!(
             r["kernels"],
-            serde_json::json!([{"kernel": "wlr_fit", "gpu_ms": 1.0, "dispatches": 3, "gflops": 2.5}])
+            serde_json::json!([{"kernel": "wlr_fit", "gpu_ms": 1.0, "dispatches": 3, "gflops": 2.5, "gbs": 0.5}])
         );
     }
 

@@ -61,6 +61,10 @@ pub struct KernelRow {
     /// cost function counts (its host file, `src/kernels/<name>.rs`) over
     /// its GPU time.
     pub gflops: f64,
+    /// Median over the runs of the achieved GB/s: the kernel's compulsory
+    /// traffic (every bound range read or written once per dispatch,
+    /// [`crate::gpu::KernelTiming::bytes`]) over its GPU time.
+    pub gbs: f64,
 }
 
 /// One case of the timing benchmark.
@@ -260,9 +264,22 @@ pub fn run_timing(
                                     f / ns.max(1e-9)
                                 })
                                 .collect();
+                            let bandwidths: Vec<f64> = timings
+                                .iter()
+                                .map(|t| {
+                                    let (b, ns) = t
+                                        .iter()
+                                        .filter(|k| k.kernel == kernel)
+                                        .fold((0.0, 0.0), |(b, ns), k| {
+                                            (b + k.bytes, ns + k.nanoseconds)
+                                        });
+                                    b / ns.max(1e-9)
+                                })
+                                .collect();
                             KernelRow {
                                 ms: median(&per_run),
                                 gflops: median(&rates),
+                                gbs: median(&bandwidths),
                                 kernel,
                                 dispatches,
                             }

@@ -35,6 +35,11 @@ pub struct KernelTiming {
     /// this band (`flops_per_pixel × width × rows`, see each kernel's host
     /// file); with `nanoseconds`, the achieved rate of `mcdenoise bench`.
     pub flops: f64,
+    /// The compulsory memory traffic of the band: every bound range read or
+    /// written once, in proportion to the band's rows (for an indirect
+    /// dispatch, the caller's estimate). With `nanoseconds`, the achieved
+    /// bandwidth of `mcdenoise bench`'s roofline.
+    pub bytes: f64,
 }
 
 /// Sums timings per kernel name, in first-seen order.
@@ -90,7 +95,7 @@ pub struct Batch {
     query_pools: Vec<vk::QueryPool>,
     queries_used: u32,
     /// (label, rows, query index of the start stamp) per timed dispatch.
-    stamps: Vec<(String, (u32, u32), u32, f64)>,
+    stamps: Vec<(String, (u32, u32), u32, f64, f64)>,
     timings: Vec<KernelTiming>,
     timestamps: bool,
     flops_in_submit: f64,
@@ -363,13 +368,14 @@ impl Batch {
             }
             .map_err(Error::vk("vkGetQueryPoolResults"))?;
         }
-        for (label, rows, q, flops) in self.stamps.drain(..) {
+        for (label, rows, q, flops, bytes) in self.stamps.drain(..) {
             let dt = values[q as usize + 1].wrapping_sub(values[q as usize]);
             self.timings.push(KernelTiming {
                 kernel: label,
                 rows,
                 nanoseconds: dt as f64 * period,
                 flops,
+                bytes,
             });
         }
         // Reuse the pools from the start for the next submit.
@@ -549,6 +555,7 @@ impl Batch {
             return Ok(());
         }
         let set = self.bind_set(&p, bindings)?;
+        let row_bytes = bindings.iter().map(|b| b.size as f64).sum::<f64>() / height as f64;
         let mut band = ((self.max_flops_per_submit / row_flops).floor() as u32).max(1);
         band = band.div_ceil(wy) * wy;
         let mut push = push.to_vec();
@@ -561,7 +568,7 @@ impl Batch {
                 set,
                 &push,
                 (row0, row0 + rows, height),
-                row_flops * rows as f64,
+                (row_flops * rows as f64, row_bytes * rows as f64),
                 |dev, cmd| {
                     // SAFETY: cmd recording, the pipeline bound by record_one.
                     unsafe { dev.cmd_dispatch(cmd, width.div_ceil(wx), rows.div_ceil(wy), 1) }
@@ -578,7 +585,8 @@ impl Batch {
     /// the data knows (the outlier stage's detected pixels); it cannot be
     /// split into bands, so `flops` (the caller's bound on the work) must
     /// stay far below a watchdog on any device. The push constants' `row0`
-    /// is 0.
+    /// is 0. `bytes` estimates its memory traffic (for the roofline).
+    #[allow(clippy::too_many_arguments)]
     pub fn dispatch_indirect(
         &mut self,
         decl: &KernelDecl,
@@ -587,6 +595,7 @@ impl Batch {
         push: &[u8],
         args: BufferSlice,
         flops: f64,
+        bytes: f64,
     ) -> Result<()> {
         let p = self.ctx.pipeline(decl, precision)?;
         check_bindings(&self.ctx, decl, p.binding_count, bindings, push)?;
@@ -604,7 +613,7 @@ impl Batch {
         self.track(&[args]);
         let mut push = push.to_vec();
         push[8..12].copy_from_slice(&0u32.to_le_bytes());
-        self.record_one(&p, set, &push, (0, 0, 0), flops, |dev, cmd| {
+        self.record_one(&p, set, &push, (0, 0, 0), (flops, bytes), |dev, cmd| {
             // SAFETY: cmd recording; args inside its buffer (BufferSlice
             // invariant), created with INDIRECT_BUFFER usage.
             unsafe { dev.cmd_dispatch_indirect(cmd, args.buffer, args.offset) }
@@ -644,16 +653,18 @@ impl Batch {
     /// Records one dispatch (`dispatch` records the command itself) with its
     /// pipeline, set and push constants, between two timestamps, then a
     /// barrier; submits first when the batch's work would pass
-    /// `max_flops_per_submit`. `band` is (first row, end row, height).
+    /// `max_flops_per_submit`. `band` is (first row, end row, height), `work`
+    /// the estimated (flops, bytes).
     fn record_one(
         &mut self,
         p: &Pipeline,
         set: vk::DescriptorSet,
         push: &[u8],
         band: (u32, u32, u32),
-        flops: f64,
+        work: (f64, f64),
         dispatch: impl FnOnce(&ash::Device, vk::CommandBuffer),
     ) -> Result<()> {
+        let (flops, bytes) = work;
         if self.flops_in_submit > 0.0 && self.flops_in_submit + flops > self.max_flops_per_submit {
             self.flush()?;
         }
@@ -687,7 +698,7 @@ impl Batch {
                 )
             };
             self.stamps
-                .push((p.name.clone(), (band.0, band.1), idx, flops));
+                .push((p.name.clone(), (band.0, band.1), idx, flops, bytes));
         }
         self.last_band = Some((p.name.clone(), band.0, band.1, band.2));
         self.barrier();
@@ -806,7 +817,7 @@ pub struct Recorded {
     used: Vec<vk::Buffer>,
     desc_pools: Vec<vk::DescriptorPool>,
     query_pools: Vec<vk::QueryPool>,
-    stamps: Vec<(String, (u32, u32), u32, f64)>,
+    stamps: Vec<(String, (u32, u32), u32, f64, f64)>,
     queries_used: u32,
 }
 
@@ -835,10 +846,11 @@ impl Recorded {
         Ok(self
             .stamps
             .iter()
-            .map(|(label, rows, q, flops)| KernelTiming {
+            .map(|(label, rows, q, flops, bytes)| KernelTiming {
                 kernel: label.clone(),
                 rows: *rows,
                 flops: *flops,
+                bytes: *bytes,
                 nanoseconds: values[*q as usize + 1].wrapping_sub(values[*q as usize]) as f64
                     * period,
             })

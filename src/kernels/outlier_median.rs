@@ -43,11 +43,15 @@ pub const GROUP: u32 = 64;
 /// 4-spp renders of the built-in scenes: well under 1 %).
 pub const DETECTED_FRACTION: f64 = 0.01;
 
+/// Pixels of the `(2R+1)²` window.
+fn window_pixels(radius: u32) -> f64 {
+    (2.0 * radius as f64 + 1.0).powi(2)
+}
+
 /// Per queued pixel: 10 scans of the `(2R+1)²` window (≈ 12 operations
 /// per pixel each: the 16 digit counters).
 pub fn flops_per_entry(radius: u32) -> f64 {
-    let d = 2.0 * radius as f64 + 1.0;
-    10.0 * d * d * 12.0
+    10.0 * window_pixels(radius) * 12.0
 }
 
 /// Records the replacement of the queued pixels (`keys` from
@@ -82,5 +86,7 @@ pub fn record(
         bytemuck::bytes_of(push),
         queue.sub(0, 12)?,
         pixels * DETECTED_FRACTION * flops_per_entry(push.radius),
+        // Per entry: the window's keys and spp, its own 18 values.
+        pixels * DETECTED_FRACTION * (window_pixels(push.radius) * 8.0 + 72.0),
     )
 }
