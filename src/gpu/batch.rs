@@ -57,6 +57,10 @@ pub fn timings_per_kernel(t: &[KernelTiming]) -> Vec<(String, f64, usize)> {
     out
 }
 
+/// A timed dispatch waiting for its timestamps: (label, rows, query index of
+/// the start stamp, flops, bytes).
+type Stamp = (String, (u32, u32), u32, f64, f64);
+
 const SETS_PER_POOL: u32 = 64;
 const DESCRIPTORS_PER_POOL: u32 = 64 * 32;
 const QUERIES_PER_POOL: u32 = 256;
@@ -94,8 +98,8 @@ pub struct Batch {
     sets_left: u32,
     query_pools: Vec<vk::QueryPool>,
     queries_used: u32,
-    /// (label, rows, query index of the start stamp) per timed dispatch.
-    stamps: Vec<(String, (u32, u32), u32, f64, f64)>,
+    /// The timed dispatches whose timestamps are not read yet.
+    stamps: Vec<Stamp>,
     timings: Vec<KernelTiming>,
     timestamps: bool,
     flops_in_submit: f64,
@@ -817,7 +821,7 @@ pub struct Recorded {
     used: Vec<vk::Buffer>,
     desc_pools: Vec<vk::DescriptorPool>,
     query_pools: Vec<vk::QueryPool>,
-    stamps: Vec<(String, (u32, u32), u32, f64, f64)>,
+    stamps: Vec<Stamp>,
     queries_used: u32,
 }
 

@@ -49,15 +49,7 @@ pub fn wanted(prefilter: Prefilter, has: impl Fn(Layer) -> bool) -> Result<bool>
 }
 
 /// The feature planes in filtering (and packing) order.
-const FEATURES: [(Layer, usize); 7] = [
-    (Layer::Normal, 0),
-    (Layer::Normal, 1),
-    (Layer::Normal, 2),
-    (Layer::Depth, 0),
-    (Layer::Albedo, 0),
-    (Layer::Albedo, 1),
-    (Layer::Albedo, 2),
-];
+const FEATURES: [(Layer, usize); 7] = super::wlr::FEATURE_PLANES;
 
 /// GPU scratch: S̃⁻¹ (6), h_opt, hbar, and 16 planes that hold first the
 /// row sums of the two smoothings, then the four packed vec4 planes.
@@ -138,11 +130,7 @@ pub fn record_gbf(
         [scratch[0], scratch[1]],
         p(HBAR),
     )?;
-    let feat: [BufferSlice; 7] = std::array::from_fn(|j| clean.plane(FEATURES[j].0, FEATURES[j].1));
-    let var: [BufferSlice; 7] = std::array::from_fn(|j| {
-        let (l, c) = FEATURES[j];
-        clean.plane(l.variance().expect("features have variances"), c)
-    });
+    let (feat, var) = super::wlr::features(clean);
     let packed = [
         planes.packed(0)?,
         planes.packed(1)?,

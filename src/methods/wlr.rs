@@ -111,18 +111,22 @@ impl WlrPlanes {
     }
 }
 
-/// The 7 feature planes WLR and LP regress on (normal xyz, depth, albedo
-/// rgb, §2.1) and their variances, from sanitised statistics.
+/// The 7 feature planes WLR and LP regress on, and the G-buffer prefilter
+/// filters (normal xyz, depth, albedo rgb, §2.1), as (layer, channel).
+pub(crate) const FEATURE_PLANES: [(Layer, usize); 7] = [
+    (Layer::Normal, 0),
+    (Layer::Normal, 1),
+    (Layer::Normal, 2),
+    (Layer::Depth, 0),
+    (Layer::Albedo, 0),
+    (Layer::Albedo, 1),
+    (Layer::Albedo, 2),
+];
+
+/// The planes of [`FEATURE_PLANES`] and their variances, from sanitised
+/// statistics.
 pub(crate) fn features(s: &GpuStats) -> ([BufferSlice; 7], [BufferSlice; 7]) {
-    let order = [
-        (Layer::Normal, 0),
-        (Layer::Normal, 1),
-        (Layer::Normal, 2),
-        (Layer::Depth, 0),
-        (Layer::Albedo, 0),
-        (Layer::Albedo, 1),
-        (Layer::Albedo, 2),
-    ];
+    let order = FEATURE_PLANES;
     (
         std::array::from_fn(|k| s.plane(order[k].0, order[k].1)),
         std::array::from_fn(|k| s.plane(order[k].0.variance().unwrap(), order[k].1)),
