@@ -15,7 +15,7 @@ layout(push_constant) uniform Push {
     uint width;
     uint height;
     uint row0;
-    uint count;
+    uint base;      // gbf_pack, gbf_filter: first row of the packed bindings
 } push;
 
 PLANE_IN(0, px)
@@ -82,10 +82,11 @@ void main()
                 t_pos[k] = vec4(px[q], py[q], pz[q], 1.0);
                 t_ia[k] = vec4(sxx[q], sxy[q], sxz[q], syy[q]);
                 t_ib[k] = vec2(syz[q], szz[q]);
-                t_fa[k] = fa[q];
-                t_fb[k] = fb[q];
-                t_va[k] = va[q];
-                t_vb[k] = vb[q];
+                uint qk = q - push.base * push.width;
+                t_fa[k] = fa[qk];
+                t_fb[k] = fb[qk];
+                t_va[k] = va[qk];
+                t_vb[k] = vb[qk];
             }
         }
     }
@@ -97,10 +98,12 @@ void main()
     }
     uint c = y * push.width + x;
     real h = real(hbar[c]);
-    real4 ga = real4(fa[c]);
-    real4 gb = real4(fb[c]);
-    real4 gva = real4(va[c]);
-    real4 gvb = real4(vb[c]);
+    // The packed planes start at row push.base (row chunks, methods/gbf.rs).
+    uint ck = c - push.base * push.width;
+    real4 ga = real4(fa[ck]);
+    real4 gb = real4(fb[ck]);
+    real4 gva = real4(va[ck]);
+    real4 gvb = real4(vb[ck]);
     if (gbf_valid(c) && h >= real(GBF_H0)) {
         real3 pc = gbf_position(c);
         realmat3 inv_c = gbf_inv_cov(c);

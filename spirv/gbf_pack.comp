@@ -15,7 +15,7 @@ layout(push_constant) uniform Push {
     uint width;
     uint height;
     uint row0;
-    uint count;
+    uint base;      // gbf_pack, gbf_filter: first row of the packed bindings
 } push;
 
 PLANE_IN(0, f0)
@@ -45,8 +45,10 @@ void main()
         return;
     }
     uint i = y * push.width + x;
-    fa[i] = vec4(f0[i], f1[i], f2[i], f3[i]);
-    fb[i] = vec4(f4[i], f5[i], f6[i], 0.0);
-    va[i] = vec4(v0[i], v1[i], v2[i], v3[i]);
-    vb[i] = vec4(v4[i], v5[i], v6[i], 0.0);
+    // The packed planes start at row push.base (row chunks, methods/gbf.rs).
+    uint k = i - push.base * push.width;
+    fa[k] = vec4(f0[i], f1[i], f2[i], f3[i]);
+    fb[k] = vec4(f4[i], f5[i], f6[i], 0.0);
+    va[k] = vec4(v0[i], v1[i], v2[i], v3[i]);
+    vb[k] = vec4(v4[i], v5[i], v6[i], 0.0);
 }

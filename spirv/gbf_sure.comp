@@ -16,7 +16,7 @@ layout(push_constant) uniform Push {
     uint width;
     uint height;
     uint row0;
-    uint count;
+    uint base;      // gbf_pack, gbf_filter: first row of the packed bindings
 } push;
 
 PLANE_IN(0, px)

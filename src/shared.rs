@@ -242,8 +242,10 @@ pub struct GbfPush {
     pub height: u32,
     /// First row of the band this dispatch covers.
     pub row0: u32,
-    /// `gbf_filter`: how many of its 4 feature slots are used (1..=4).
-    pub count: u32,
+    /// `gbf_pack` and `gbf_filter`: the image row at which their packed
+    /// vec4 bindings start (0 unless the image is filtered in row chunks,
+    /// see `methods::gbf`); unused by the other kernels.
+    pub base: u32,
 }
 
 /// `spirv/sample_priority.comp`, block `Push` (spec §9.1).

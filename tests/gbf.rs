@@ -116,11 +116,11 @@ fn filter_twin(s: &Scene, hbar: &[f32]) -> Vec<Vec<f32>> {
     out
 }
 
-fn push(s: &Scene, count: u32) -> GbfPush {
+fn push(s: &Scene, base: u32) -> GbfPush {
     GbfPush {
         width: s.w as u32,
         height: s.h as u32,
-        count,
+        base,
         ..Default::default()
     }
 }
@@ -264,6 +264,7 @@ fn gbf_filter_matches_twin() {
                 prec,
                 w as u32,
                 h as u32,
+                (0, h as u32),
                 std::array::from_fn(|k| sl(&feat, k)),
                 std::array::from_fn(|k| sl(&var, k)),
                 std::array::from_fn(|k| sl(&packed, k)),
@@ -274,6 +275,8 @@ fn gbf_filter_matches_twin() {
                 prec,
                 w as u32,
                 h as u32,
+                (0, h as u32),
+                0,
                 std::array::from_fn(|k| sl(&pos, k)),
                 std::array::from_fn(|k| sl(&inv, k)),
                 spp.slice(),
@@ -304,6 +307,49 @@ fn gbf_filter_matches_twin() {
                 );
             }
         }
+    }
+    check_validation(&ctx);
+}
+
+/// An image whose packed planes do not fit one binding is packed, then
+/// filtered, in chunks of rows: the output is bit-identical to one chunk.
+#[test]
+fn row_chunks_are_bit_identical() {
+    use mcdenoise::gpu::Precision;
+    use mcdenoise::methods::gbf::{record_gbf_chunked, GbfPlanes};
+    use mcdenoise::methods::stats::GpuStats;
+    let ctx = gpu();
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures");
+    let img = mcdenoise::io::read_stats(&dir.join("dof_checker_64_spp16.exr")).unwrap();
+    let run = |max_binding: u64| {
+        let stats = GpuStats::upload(&ctx, "test.stats", &img).unwrap();
+        let planes = GbfPlanes::new(&ctx, img.width, img.height).unwrap();
+        let mut batch = Batch::new(&ctx).unwrap();
+        record_gbf_chunked(&mut batch, Precision::F32, &stats, &planes, max_binding).unwrap();
+        let timings = batch.finish().unwrap();
+        let filters = timings.iter().filter(|t| t.kernel == "gbf_filter").count();
+        (stats.download().unwrap(), filters)
+    };
+    let (one, n1) = run(u64::MAX);
+    // 24 rows of 16-byte pixels: chunks of 8 rows.
+    let (many, n8) = run(24 * 16 * img.width as u64);
+    assert_eq!(n1, 1, "one chunk");
+    assert_eq!(n8, img.height.div_ceil(8), "chunks of 8 rows");
+    for layer in [
+        Layer::Normal,
+        Layer::NormalVariance,
+        Layer::Albedo,
+        Layer::AlbedoVariance,
+        Layer::Depth,
+        Layer::DepthVariance,
+    ] {
+        let (a, b) = (one.get(layer).unwrap(), many.get(layer).unwrap());
+        for (c, (pa, pb)) in a.iter().zip(b).enumerate() {
+            let bits = |p: &[f32]| p.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(pa), bits(pb), "{layer:?} channel {c}");
+        }
+        // And the prefilter did change the features.
+        assert_ne!(a, img.get(layer).unwrap(), "{layer:?} unfiltered");
     }
     check_validation(&ctx);
 }

@@ -547,23 +547,55 @@ impl Batch {
         height: u32,
         flops_per_pixel: f64,
     ) -> Result<()> {
+        self.dispatch_rows(
+            decl,
+            precision,
+            bindings,
+            push,
+            width,
+            (0, height),
+            flops_per_pixel,
+        )
+    }
+
+    /// [`dispatch`](Self::dispatch) over the rows `[first, end)` of the grid
+    /// only (`first` a multiple of the workgroup height), for bindings that
+    /// cover a chunk of the image.
+    #[allow(clippy::too_many_arguments)]
+    pub fn dispatch_rows(
+        &mut self,
+        decl: &KernelDecl,
+        precision: Precision,
+        bindings: &[BufferSlice],
+        push: &[u8],
+        width: u32,
+        (first, height): (u32, u32),
+        flops_per_pixel: f64,
+    ) -> Result<()> {
         let p = self.ctx.pipeline(decl, precision)?;
         check_bindings(&self.ctx, decl, p.binding_count, bindings, push)?;
-        if width == 0 || height == 0 {
+        if width == 0 || height <= first {
             return Ok(());
         }
         let [wx, wy, _] = p.workgroup;
+        if first % wy != 0 {
+            return Err(Error::InvalidArgument(format!(
+                "kernel {}: first row {first} is not a multiple of the workgroup height {wy}",
+                decl.name
+            )));
+        }
         let row_flops = flops_per_pixel.max(1.0) * width as f64;
         if matches!(self.mode, Mode::Count) {
-            self.flops_recorded += row_flops * height as f64;
+            self.flops_recorded += row_flops * (height - first) as f64;
             return Ok(());
         }
         let set = self.bind_set(&p, bindings)?;
-        let row_bytes = bindings.iter().map(|b| b.size as f64).sum::<f64>() / height as f64;
+        let row_bytes =
+            bindings.iter().map(|b| b.size as f64).sum::<f64>() / (height - first) as f64;
         let mut band = ((self.max_flops_per_submit / row_flops).floor() as u32).max(1);
         band = band.div_ceil(wy) * wy;
         let mut push = push.to_vec();
-        let mut row0 = 0;
+        let mut row0 = first;
         while row0 < height {
             let rows = band.min(height - row0);
             push[8..12].copy_from_slice(&row0.to_le_bytes());

@@ -52,14 +52,19 @@ pub fn flops_per_pixel() -> f64 {
     49.0 * (60.0 + 30.0 + 32.0)
 }
 
-/// Records the filtering of the packed features (`packed` from
-/// [`super::gbf_pack`]) into `out` (7 features, then their 7 variances).
+/// Records the filtering of the image rows `rows` (`[first, end)`, `first`
+/// a multiple of 8) from the packed features (`packed` from
+/// [`super::gbf_pack`]: ranges that start at image row `base` and cover the
+/// rows `rows` ± 3) into `out` (7 features, then their 7 variances; full
+/// planes).
 #[allow(clippy::too_many_arguments)]
 pub fn record(
     batch: &mut Batch,
     precision: Precision,
     width: u32,
     height: u32,
+    rows: (u32, u32),
+    base: u32,
     pos: [BufferSlice; 3],
     inv: [BufferSlice; 6],
     spp: BufferSlice,
@@ -70,16 +75,17 @@ pub fn record(
     let push = GbfPush {
         width,
         height,
+        base,
         ..Default::default()
     };
     let b: Vec<BufferSlice> = [&pos[..], &inv, &[spp, hbar], &packed, &out].concat();
-    batch.dispatch(
+    batch.dispatch_rows(
         &DECL,
         precision,
         &b,
         bytemuck::bytes_of(&push),
         width,
-        height,
+        rows,
         flops_per_pixel(),
     )
 }

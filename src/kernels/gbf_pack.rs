@@ -39,14 +39,17 @@ pub fn flops_per_pixel() -> f64 {
     1.0
 }
 
-/// Records the packing of `feat` and `var` (7 planes each) into `packed`
-/// (4 vec4 planes of `width × height × 16` bytes: features 0–3, features
-/// 4–6 and 0, the same of the variances).
+/// Records the packing of the image rows `rows` (`[first, end)`, `first` a
+/// multiple of 8) of `feat` and `var` (7 full planes each) into `packed`
+/// (4 vec4 ranges of `(end − first) × width × 16` bytes, starting at row
+/// `first`: features 0–3, features 4–6 and 0, the same of the variances).
+#[allow(clippy::too_many_arguments)]
 pub fn record(
     batch: &mut Batch,
     precision: Precision,
     width: u32,
     height: u32,
+    rows: (u32, u32),
     feat: [BufferSlice; 7],
     var: [BufferSlice; 7],
     packed: [BufferSlice; 4],
@@ -54,16 +57,17 @@ pub fn record(
     let push = GbfPush {
         width,
         height,
+        base: rows.0,
         ..Default::default()
     };
     let b: Vec<BufferSlice> = [&feat[..], &var, &packed].concat();
-    batch.dispatch(
+    batch.dispatch_rows(
         &DECL,
         precision,
         &b,
         bytemuck::bytes_of(&push),
         width,
-        height,
+        rows,
         flops_per_pixel(),
     )
 }

@@ -80,13 +80,39 @@ impl GbfPlanes {
         (self.set.plane(HOPT), self.set.plane(HBAR))
     }
 
-    /// Packed vec4 plane `k` (0..4): it spans the four scalar planes from
-    /// `SCRATCH + 4k`, whose strides hold at least `16 × pixels` bytes.
-    fn packed(&self, k: usize) -> Result<BufferSlice> {
-        let first = self.set.plane(SCRATCH + 4 * k);
+    /// Rows `[first, end)` of packed vec4 plane `k` (0..4), a `width`-pixel
+    /// image: the plane spans the four scalar planes from `SCRATCH + 4k`,
+    /// whose strides hold at least `16 × pixels` bytes.
+    fn packed(&self, k: usize, width: usize, (first, end): (u32, u32)) -> Result<BufferSlice> {
+        let plane = self.set.plane(SCRATCH + 4 * k);
         let whole = self.set.buffer.slice();
-        whole.sub(first.offset() - whole.offset(), 16 * self.pixels as u64)
+        let row = 16 * width as u64;
+        debug_assert!(end as u64 * row <= 16 * self.pixels as u64);
+        whole.sub(
+            plane.offset() - whole.offset() + first as u64 * row,
+            (end - first) as u64 * row,
+        )
     }
+}
+
+/// Rows per chunk of `gbf_pack` and `gbf_filter` for a `width`-pixel image
+/// whose packed bindings may not exceed `max_binding` bytes: a multiple of 8
+/// such that a chunk and 8 rows of halo on each side fit (the filter reads 3).
+/// The whole image, `height`, when it fits in one.
+fn chunk_rows(width: usize, height: usize, max_binding: u64) -> Result<u32> {
+    let row = 16 * width as u64;
+    if height as u64 * row <= max_binding {
+        return Ok(height as u32);
+    }
+    let rows = (max_binding / row).saturating_sub(16) / 8 * 8;
+    if rows == 0 {
+        return Err(Error::Limit(format!(
+            "the G-buffer prefilter needs {} bytes per binding for 24 rows of a {width}-pixel \
+             image; maxStorageBufferRange is {max_binding}",
+            24 * row
+        )));
+    }
+    Ok(rows as u32)
 }
 
 fn smooth_push(w: usize, h: usize) -> SmoothPush {
@@ -107,6 +133,23 @@ pub fn record_gbf(
     precision: Precision,
     clean: &GpuStats,
     planes: &GbfPlanes,
+) -> Result<()> {
+    let limit = batch.context().info.max_storage_buffer_range as u64;
+    record_gbf_chunked(batch, precision, clean, planes, limit)
+}
+
+/// [`record_gbf`] with the packed vec4 bindings of `gbf_pack` and
+/// `gbf_filter` limited to `max_binding` bytes: above that the image is
+/// packed, then filtered, in chunks of rows ([`chunk_rows`]); every chunk
+/// is packed before any is filtered, since the filter writes over the
+/// feature planes the packing reads. The output does not depend on the
+/// chunks (tested).
+pub fn record_gbf_chunked(
+    batch: &mut Batch,
+    precision: Precision,
+    clean: &GpuStats,
+    planes: &GbfPlanes,
+    max_binding: u64,
 ) -> Result<()> {
     let (w, h) = (clean.width as u32, clean.height as u32);
     let p = |i: usize| planes.set.plane(i);
@@ -131,15 +174,41 @@ pub fn record_gbf(
         p(HBAR),
     )?;
     let (feat, var) = super::wlr::features(clean);
-    let packed = [
-        planes.packed(0)?,
-        planes.packed(1)?,
-        planes.packed(2)?,
-        planes.packed(3)?,
-    ];
-    gbf_pack::record(batch, precision, w, h, feat, var, packed)?;
+    let chunk = chunk_rows(clean.width, clean.height, max_binding)?;
+    let packed = |rows: (u32, u32)| -> Result<[BufferSlice; 4]> {
+        Ok([
+            planes.packed(0, clean.width, rows)?,
+            planes.packed(1, clean.width, rows)?,
+            planes.packed(2, clean.width, rows)?,
+            planes.packed(3, clean.width, rows)?,
+        ])
+    };
+    let chunks: Vec<(u32, u32)> = (0..h)
+        .step_by(chunk as usize)
+        .map(|r0| (r0, (r0 + chunk).min(h)))
+        .collect();
+    for &rows in &chunks {
+        gbf_pack::record(batch, precision, w, h, rows, feat, var, packed(rows)?)?;
+    }
     let out: [BufferSlice; 14] = std::array::from_fn(|k| if k < 7 { feat[k] } else { var[k - 7] });
-    gbf_filter::record(batch, precision, w, h, pos, inv, spp, p(HBAR), packed, out)
+    for &(r0, r1) in &chunks {
+        let halo = (r0.saturating_sub(8), (r1 + 8).min(h));
+        gbf_filter::record(
+            batch,
+            precision,
+            w,
+            h,
+            (r0, r1),
+            halo.0,
+            pos,
+            inv,
+            spp,
+            p(HBAR),
+            packed(halo)?,
+            out,
+        )?;
+    }
+    Ok(())
 }
 
 /// What a CPU run leaves for debugging: `h_opt` and `hbar` per pixel.
