@@ -105,9 +105,11 @@ void main()
             // workgroup of 64 per 64 entries; the order of the queue does
             // not matter, each entry is replaced on its own).
             uint at = atomicAdd(queue[3], 1u);
-            queue[4u + at] = o;
-            if (at % 64u == 0u) {
-                atomicAdd(queue[0], 1u);
+            if (at < queue_capacity()) {
+                queue[4u + at] = o;
+                if (at % 64u == 0u && at / 64u < QUEUE_MAX_GROUPS) {
+                    atomicAdd(queue[0], 1u);
+                }
             }
         }
     }

@@ -6,7 +6,8 @@
 // the order-preserving bits of grey from outlier_rows (no local array);
 // e = y_o - y_q* per channel. Every read is of the original planes, so the
 // entries are independent and the queue's order does not matter.
-// Dispatched indirectly, one invocation per entry.
+// Dispatched indirectly, one invocation per entry (striding past 65535
+// workgroups).
 // Scalar twin: src/reference/outlier_median.rs.
 #include "lib/common.glsl"
 #include "lib/outliers.glsl"
@@ -48,13 +49,9 @@ void walk(uvec4 c, uint base, inout uint k, inout uint digit, inout bool found)
     }
 }
 
-void main()
+// The replacement of the queued pixel o.
+void replace(uint o)
 {
-    uint at = gl_GlobalInvocationID.x;
-    if (at >= queue[3]) {
-        return;
-    }
-    uint o = queue[4u + at];
     int x = int(o % push.width), y = int(o / push.width);
     int r = int(push.radius);
     int x0 = max(x - r, 0), x1 = min(x + r, int(push.width) - 1);
@@ -119,4 +116,12 @@ void main()
     er[o] = float(real(cr[o]) - real(cr[q]));
     eg[o] = float(real(cg[o]) - real(cg[q]));
     eb[o] = float(real(cb[o]) - real(cb[q]));
+}
+
+void main()
+{
+    uint entries = min(queue[3], queue_capacity());
+    for (uint at = gl_GlobalInvocationID.x; at < entries; at += gl_NumWorkGroups.x * 64u) {
+        replace(queue[4u + at]);
+    }
 }

@@ -108,7 +108,7 @@ fn detect_and_replace(
     let queue = GpuBuffer::from_slice(
         ctx,
         "test.queue",
-        &vec![7u32; outlier_detect::queue_words(n)],
+        &vec![7u32; outlier_detect::queue_words(img.w, img.h)],
     )
     .unwrap();
     let s = |b: &[GpuBuffer]| -> Vec<_> { b.iter().map(|b| b.slice()).collect() };
@@ -146,7 +146,7 @@ fn detect_and_replace(
     (
         out.iter().map(|b| b.read_vec::<f32>(n).unwrap()).collect(),
         queue
-            .read_vec::<u32>(outlier_detect::queue_words(n))
+            .read_vec::<u32>(outlier_detect::queue_words(img.w, img.h))
             .unwrap(),
     )
 }

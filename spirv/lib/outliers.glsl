@@ -16,6 +16,16 @@ layout(push_constant) uniform Push {
 
 bool valid_at(float s) { return spp_of(s) >= 1.0; }
 
+// Entries of the queue of detected pixels (outlier_detect, outlier_median):
+// OUTLIER-ISOLATED never detects two 8-neighbours, so at most one pixel of
+// each 2x2 block; entries past it (a near-tie the two tests round apart)
+// are not queued.
+uint queue_capacity() { return ((push.width + 1u) / 2u) * ((push.height + 1u) / 2u); }
+
+// Workgroups of 64 an indirect dispatch may have (maxComputeWorkGroupCount
+// is at least 65535); outlier_median strides over the rest.
+#define QUEUE_MAX_GROUPS 65535u
+
 // (count, mean, M2) of a set of values; merged exactly as Chan et al.'s
 // parallel variance, so no sum of squares ever cancels.
 struct Summary {

@@ -340,8 +340,12 @@ impl Batch {
         }
         if self.progress {
             let t = self.started.elapsed().as_secs_f64();
-            if let (true, Some((k, a, b, h))) = (t > 1.0, &self.last_band) {
-                log::debug!("{k} rows {a}..{b} of {h} done ({t:.1} s)");
+            match (t > 1.0, &self.last_band) {
+                (true, Some((k, _, _, 0))) => log::debug!("{k} done ({t:.1} s)"),
+                (true, Some((k, a, b, h))) => {
+                    log::debug!("{k} rows {a}..{b} of {h} done ({t:.1} s)")
+                }
+                _ => {}
             }
         }
         self.collect_timestamps()?;
@@ -590,8 +594,14 @@ impl Batch {
             return Ok(());
         }
         let set = self.bind_set(&p, bindings)?;
-        let row_bytes =
-            bindings.iter().map(|b| b.size as f64).sum::<f64>() / (height - first) as f64;
+        // A range bound twice (unused slots of a kernel) is traffic once.
+        let mut ranges: Vec<(vk::Buffer, u64, u64)> = bindings
+            .iter()
+            .map(|b| (b.buffer, b.offset, b.size))
+            .collect();
+        ranges.sort_unstable();
+        ranges.dedup();
+        let row_bytes = ranges.iter().map(|r| r.2 as f64).sum::<f64>() / (height - first) as f64;
         let mut band = ((self.max_flops_per_submit / row_flops).floor() as u32).max(1);
         band = band.div_ceil(wy) * wy;
         let mut push = push.to_vec();

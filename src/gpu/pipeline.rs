@@ -78,6 +78,16 @@ impl GpuContext {
                 self.info.name
             )));
         }
+        if reflection.shared_bytes > self.info.max_shared_memory {
+            return Err(Error::Limit(format!(
+                "kernel {}{} uses {} bytes of shared memory; {} allows {}",
+                decl.name,
+                precision.suffix(),
+                reflection.shared_bytes,
+                self.info.name,
+                self.info.max_shared_memory
+            )));
+        }
         if reflection.uses_int64 && !self.int64_enabled {
             return Err(Error::Limit(format!(
                 "kernel {}{} uses 64-bit integers, which need shaderInt64; {} does not have it enabled",

@@ -46,10 +46,12 @@ pub fn flops_per_pixel(radius: u32) -> f64 {
     d * 36.0
 }
 
-/// Words of the queue for `pixels` pixels: the indirect dispatch arguments
-/// (3), the entry count, then at most one entry per pixel.
-pub fn queue_words(pixels: usize) -> usize {
-    4 + pixels
+/// Words of the queue of a `width × height` image: the indirect dispatch
+/// arguments (3), the entry count, then the entries: at most one pixel per
+/// 2×2 block (OUTLIER-ISOLATED never detects two 8-neighbours; the kernels
+/// drop any excess, `queue_capacity` in `spirv/lib/outliers.glsl`).
+pub fn queue_words(width: usize, height: usize) -> usize {
+    4 + width.div_ceil(2) * height.div_ceil(2)
 }
 
 /// Records detection (`rows` from `outlier_rows`): `out` receives a copy of

@@ -60,9 +60,11 @@ pub fn flops_per_entry(radius: u32) -> f64 {
 ///
 /// The dispatch cannot be split into bands. Its worst case is bounded:
 /// OUTLIER-ISOLATED never detects two 8-neighbours, so at most a quarter of
-/// the pixels are queued: ≈ 0.1 MFLOP per entry at R = 14, at most
-/// ≈ 25 GFLOP per megapixel, milliseconds on a discrete GPU. The cost
-/// estimate assumes [`DETECTED_FRACTION`].
+/// the pixels are queued (the queue's capacity; the kernels drop any
+/// excess): ≈ 0.1 MFLOP per entry at R = 14, at most ≈ 25 GFLOP per
+/// megapixel, milliseconds on a discrete GPU. At most 65535 workgroups are
+/// dispatched; the invocations stride over more entries. The cost estimate
+/// assumes [`DETECTED_FRACTION`].
 #[allow(clippy::too_many_arguments)]
 pub fn record(
     batch: &mut Batch,

@@ -103,7 +103,7 @@ impl OutlierPlanes {
             queue: GpuBuffer::new(
                 ctx,
                 "outliers.queue",
-                4 * outlier_detect::queue_words(w * h) as u64,
+                4 * outlier_detect::queue_words(w, h) as u64,
             )?,
             width: w,
             height: h,
