@@ -625,7 +625,8 @@ fn raw_attributes<'a>(bytes: &'a [u8], name: &[u8]) -> Vec<&'a [u8]> {
 fn unsupported_compression(bytes: &[u8]) -> Option<u8> {
     raw_attributes(bytes, b"compression")
         .into_iter()
-        .find_map(|v| (v.len() == 1 && v[0] >= 10).then_some(v[0]))
+        // Lazy: `then_some(v[0])` would index an empty value (found by tests/fuzz.rs).
+        .find_map(|v| (v.len() == 1 && v[0] >= 10).then(|| v[0]))
 }
 
 /// A `dataWindow` with no pixels (`max < min`), from the raw headers, as
