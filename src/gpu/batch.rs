@@ -61,6 +61,9 @@ pub fn timings_per_kernel(t: &[KernelTiming]) -> Vec<(String, f64, usize)> {
 /// the start stamp, flops, bytes).
 type Stamp = (String, (u32, u32), u32, f64, f64);
 
+/// A dispatch's band of rows: (first row, end row, height).
+type Band = (u32, u32, u32);
+
 const SETS_PER_POOL: u32 = 64;
 const DESCRIPTORS_PER_POOL: u32 = 64 * 32;
 const QUERIES_PER_POOL: u32 = 256;
@@ -111,8 +114,9 @@ pub struct Batch {
     /// for more than a second (execute mode).
     pub progress: bool,
     started: std::time::Instant,
-    /// (kernel, first row, last row, height) of the last recorded band.
-    last_band: Option<(String, u32, u32, u32)>,
+    /// The kernel of the last recorded dispatch, with (first row, end row,
+    /// height) of its band (none for an indirect dispatch).
+    last_band: Option<(String, Option<Band>)>,
     /// Every buffer bound or copied so far, retained in the context until
     /// the work is known to be complete.
     used: HashSet<vk::Buffer>,
@@ -341,10 +345,10 @@ impl Batch {
         if self.progress {
             let t = self.started.elapsed().as_secs_f64();
             match (t > 1.0, &self.last_band) {
-                (true, Some((k, _, _, 0))) => log::debug!("{k} done ({t:.1} s)"),
-                (true, Some((k, a, b, h))) => {
+                (true, Some((k, Some((a, b, h))))) => {
                     log::debug!("{k} rows {a}..{b} of {h} done ({t:.1} s)")
                 }
+                (true, Some((k, None))) => log::debug!("{k} done ({t:.1} s)"),
                 _ => {}
             }
         }
@@ -613,7 +617,7 @@ impl Batch {
                 &p,
                 set,
                 &push,
-                (row0, row0 + rows, height),
+                Some((row0, row0 + rows, height)),
                 (row_flops * rows as f64, row_bytes * rows as f64),
                 |dev, cmd| {
                     // SAFETY: cmd recording, the pipeline bound by record_one.
@@ -659,7 +663,7 @@ impl Batch {
         self.track(&[args]);
         let mut push = push.to_vec();
         push[8..12].copy_from_slice(&0u32.to_le_bytes());
-        self.record_one(&p, set, &push, (0, 0, 0), (flops, bytes), |dev, cmd| {
+        self.record_one(&p, set, &push, None, (flops, bytes), |dev, cmd| {
             // SAFETY: cmd recording; args inside its buffer (BufferSlice
             // invariant), created with INDIRECT_BUFFER usage.
             unsafe { dev.cmd_dispatch_indirect(cmd, args.buffer, args.offset) }
@@ -699,14 +703,15 @@ impl Batch {
     /// Records one dispatch (`dispatch` records the command itself) with its
     /// pipeline, set and push constants, between two timestamps, then a
     /// barrier; submits first when the batch's work would pass
-    /// `max_flops_per_submit`. `band` is (first row, end row, height), `work`
+    /// `max_flops_per_submit`. `band` is (first row, end row, height), none
+    /// for an indirect dispatch; `work`
     /// the estimated (flops, bytes).
     fn record_one(
         &mut self,
         p: &Pipeline,
         set: vk::DescriptorSet,
         push: &[u8],
-        band: (u32, u32, u32),
+        band: Option<Band>,
         work: (f64, f64),
         dispatch: impl FnOnce(&ash::Device, vk::CommandBuffer),
     ) -> Result<()> {
@@ -743,10 +748,15 @@ impl Batch {
                     local + 1,
                 )
             };
-            self.stamps
-                .push((p.name.clone(), (band.0, band.1), idx, flops, bytes));
+            self.stamps.push((
+                p.name.clone(),
+                band.map_or((0, 0), |b| (b.0, b.1)),
+                idx,
+                flops,
+                bytes,
+            ));
         }
-        self.last_band = Some((p.name.clone(), band.0, band.1, band.2));
+        self.last_band = Some((p.name.clone(), band));
         self.barrier();
         self.flops_in_submit += flops;
         self.flops_recorded += flops;

@@ -20,7 +20,7 @@ pub const DECL: KernelDecl = KernelDecl {
 
 /// The window radius `ceil(3σ)` of §0.5 (0 for `σ <= 0`).
 pub fn radius(sigma: f32) -> u32 {
-    (3.0 * sigma as f64).ceil().max(0.0) as u32
+    crate::reference::linalg::gaussian_radius(sigma as f64) as u32
 }
 
 /// Per pixel: `2r+1` rows × (2 FMAs, weight step), and a division.

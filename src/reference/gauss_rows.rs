@@ -50,3 +50,25 @@ pub fn gauss_rows(
         }
     }
 }
+
+/// The column pass at pixel `(x, y)` of a `w × h` image: for each plane, the
+/// sum over the rows `|q.y − y| <= radius` (clipped) of its column of
+/// `weight(q.y − y) · plane(x, q.y)`, in f64. Shared by the twins of
+/// `gauss_smooth` (a map's row sums and their weights) and `gbf_prepare`
+/// (six covariance entries and their weights).
+pub fn column_sums<const N: usize>(
+    (w, h): (usize, usize),
+    radius: usize,
+    sigma: f64,
+    planes: [&[f32]; N],
+    (x, y): (usize, usize),
+) -> [f64; N] {
+    let mut s = [0.0f64; N];
+    for qy in y.saturating_sub(radius)..(y + radius + 1).min(h) {
+        let g = weight(sigma, qy as f64 - y as f64);
+        for (acc, p) in s.iter_mut().zip(&planes) {
+            *acc += g * p[qy * w + x] as f64;
+        }
+    }
+    s
+}

@@ -3,7 +3,7 @@
 //! step 8, and for the sampling map, §9.1), as the column pass over
 //! [`gauss_rows`]' row sums; [`smooth`] runs both passes.
 
-use super::gauss_rows::{gauss_rows, weight};
+use super::gauss_rows::{column_sums, gauss_rows};
 use crate::shared::SmoothPush;
 
 /// For every pixel (`row0` ignored): `Σ gy·num / Σ gy·den` over the rows
@@ -11,16 +11,10 @@ use crate::shared::SmoothPush;
 /// sum to 0.
 pub fn gauss_smooth(push: &SmoothPush, num: &[f32], den: &[f32], out: &mut [f32]) {
     let (w, h) = (push.width as usize, push.height as usize);
-    let r = push.radius as usize;
-    let sigma = push.sigma as f64;
+    let (r, sigma) = (push.radius as usize, push.sigma as f64);
     for y in 0..h {
         for x in 0..w {
-            let (mut n, mut d) = (0.0, 0.0);
-            for qy in y.saturating_sub(r)..(y + r + 1).min(h) {
-                let g = weight(sigma, qy as f64 - y as f64);
-                n += g * num[qy * w + x] as f64;
-                d += g * den[qy * w + x] as f64;
-            }
+            let [n, d] = column_sums((w, h), r, sigma, [num, den], (x, y));
             out[y * w + x] = if d > 0.0 { (n / d) as f32 } else { 0.0 };
         }
     }

@@ -3,8 +3,9 @@
 //! [`super::gauss_rows`]' row sums), regularised (S-PSD) and inverted
 //! ([`super::gbf::regularised_inverse`]); [`prepare`] runs both passes.
 
-use super::gauss_rows::{gauss_rows, weight};
+use super::gauss_rows::{column_sums, gauss_rows};
 use super::gbf::{regularised_inverse, SMOOTH_SIGMA};
+use super::linalg::gaussian_radius;
 use crate::shared::{GbfPush, SmoothPush};
 
 /// `S̃⁻¹` (six planes, `XX XY XZ YY YZ ZZ`) for every pixel (`row0`
@@ -20,19 +21,12 @@ pub fn gbf_prepare(
     assert_eq!(out.len(), 6, "gbf_prepare: output planes");
     let (w, h) = (push.width as usize, push.height as usize);
     let sigma = SMOOTH_SIGMA as f64;
-    let r = (3.0 * sigma).ceil() as usize;
+    let r = gaussian_radius(sigma);
+    let planes = [rows[0], rows[1], rows[2], rows[3], rows[4], rows[5], den];
     super::wlr::par_pixels::<6>(w, h, out, |x, y| {
-        let mut num = [0.0f64; 6];
-        let mut d = 0.0;
-        for qy in y.saturating_sub(r)..(y + r + 1).min(h) {
-            let g = weight(sigma, qy as f64 - y as f64);
-            let q = qy * w + x;
-            for k in 0..6 {
-                num[k] += g * rows[k][q] as f64;
-            }
-            d += g * den[q] as f64;
-        }
-        let sbar = num.map(|v| if d > 0.0 { v / d } else { 0.0 });
+        let s = column_sums((w, h), r, sigma, planes, (x, y));
+        let d = s[6];
+        let sbar: [f64; 6] = std::array::from_fn(|k| if d > 0.0 { s[k] / d } else { 0.0 });
         let c = y * w + x;
         regularised_inverse(sbar, std::array::from_fn(|k| pos[k][c] as f64)).map(|v| v as f32)
     });
@@ -51,7 +45,7 @@ pub fn prepare(
     let push = SmoothPush {
         width: w as u32,
         height: h as u32,
-        radius: (3.0 * SMOOTH_SIGMA as f64).ceil() as u32,
+        radius: gaussian_radius(SMOOTH_SIGMA as f64) as u32,
         sigma: SMOOTH_SIGMA,
         ..Default::default()
     };
