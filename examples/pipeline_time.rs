@@ -28,7 +28,16 @@ fn main() {
     let scratch = PrepareScratch::new(&ctx, &input).unwrap();
     let t = std::time::Instant::now();
     let mut batch = Batch::new(&ctx).unwrap();
-    record_prepare(&mut batch, Precision::F32, &input, &out, &scratch, true).unwrap();
+    record_prepare(
+        &mut batch,
+        Precision::F32,
+        &input,
+        &out,
+        &scratch,
+        true,
+        [0, 0],
+    )
+    .unwrap();
     let tim = batch.finish().unwrap();
     println!("wall {:.3}", t.elapsed().as_secs_f64());
     for t in tim.iter().take(6) {

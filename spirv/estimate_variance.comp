@@ -13,8 +13,20 @@ layout(push_constant) uniform Push {
     uint row0;
     uint stage;    // 0: steps 1-2, 1: step 3, 2: step 4
     uint has_var;  // stage 0 reads var_in only when 1
-    uint _pad[3];
+    uint skip_lo;  // margins not counted: left | top << 16
+    uint skip_hi;  // right | bottom << 16
+    uint _pad;
 } push;
+
+// Whether a repair at p is counted: outside the margins SanitizePush::skip_lo
+// and skip_hi leave out (a tile's halo; 0 counts every pixel).
+bool san_counts(ivec2 p)
+{
+    uvec2 lo = uvec2(push.skip_lo & 0xffffu, push.skip_lo >> 16);
+    uvec2 hi = uvec2(push.skip_hi & 0xffffu, push.skip_hi >> 16);
+    return all(greaterThanEqual(uvec2(p), lo)) && uint(p.x) + hi.x < push.width
+        && uint(p.y) + hi.y < push.height;
+}
 
 PLANE_IN(0, value_in)
 PLANE_IN(1, var_in)
@@ -50,7 +62,7 @@ void stage_estimate(ivec2 p, ivec2 size, uint i)
     float v = 0.0;
     if (san_valid(p)) {
         v = float(san_mad_variance(p, size));
-        atomicAdd(counters[3], 1u);
+        atomicAdd(counters[3], san_counts(p) ? 1u : 0u);
     }
     var_out[i] = v;
 }

@@ -1,6 +1,6 @@
 #version 460
 // One sparse-centre pass of LP (spec §3.5) on the candidate grid of
-// granularity g: thread (gx, gy) <-> candidate pixel (g gx, g gy). A valid
+// granularity g: thread (gx, gy) <-> candidate pixel (phi + g gx, phi + g gy). A valid
 // candidate no centre of an earlier pass covers (read from the `reach` plane
 // of the state before this pass: PASS-SNAPSHOT) becomes a centre:
 // TSVD on the 19x19 window (§0.6), RLS ring by ring with the recursive error
@@ -20,7 +20,7 @@ layout(push_constant) uniform Push {
     uint pass;
     uint options;
     uint out_stride;
-    uint pad1;
+    uint phase;
 } push;
 
 PLANE_IN(0, nx)
@@ -118,8 +118,9 @@ void main()
 {
     uint lid = gl_LocalInvocationIndex;
     uint g = max(push.granularity, 1u);
-    uint x = gl_GlobalInvocationID.x * g;
-    uint y = (push.row0 + gl_GlobalInvocationID.y) * g;
+    // The candidate grid's phase (LpPush::phase): image coordinates mod g.
+    uint x = (push.phase & 0xffffu) + gl_GlobalInvocationID.x * g;
+    uint y = (push.phase >> 16) + (push.row0 + gl_GlobalInvocationID.y) * g;
     ivec2 size = ivec2(push.width, push.height);
     bool centre = x < push.width && y < push.height
         && spp_of(spp[y * push.width + x]) >= 1.0 && !covered(ivec2(x, y), size);

@@ -16,8 +16,20 @@ layout(push_constant) uniform Push {
     uint row0;
     uint stage;    // 0: steps 1-2, 1: step 3, 2: step 4
     uint has_var;  // stage 0 reads var_in only when 1
-    uint _pad[3];
+    uint skip_lo;  // margins not counted: left | top << 16
+    uint skip_hi;  // right | bottom << 16
+    uint _pad;
 } push;
+
+// Whether a repair at p is counted: outside the margins SanitizePush::skip_lo
+// and skip_hi leave out (a tile's halo; 0 counts every pixel).
+bool san_counts(ivec2 p)
+{
+    uvec2 lo = uvec2(push.skip_lo & 0xffffu, push.skip_lo >> 16);
+    uvec2 hi = uvec2(push.skip_hi & 0xffffu, push.skip_hi >> 16);
+    return all(greaterThanEqual(uvec2(p), lo)) && uint(p.x) + hi.x < push.width
+        && uint(p.y) + hi.y < push.height;
+}
 
 PLANE_IN(0, value_in)
 PLANE_IN(1, var_in)
@@ -104,7 +116,7 @@ void stage_repair(ivec2 p, ivec2 size, uint i)
     bool repaired = !is_finite(b);
     if (repaired) {
         b = float(median_neighbours(p, size));
-        atomicAdd(counters[0], 1u);
+        atomicAdd(counters[0], san_counts(p) ? 1u : 0u);
     }
     value_out[i] = b;
 
@@ -115,7 +127,7 @@ void stage_repair(ivec2 p, ivec2 size, uint i)
     if (push.has_var != 0u) {
         v = var_in[i];
         if (!is_finite(v) || v < 0.0) {
-            atomicAdd(counters[1], 1u);
+            atomicAdd(counters[1], san_counts(p) ? 1u : 0u);
         }
         if (repaired) {
             bool found = false;

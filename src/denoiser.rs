@@ -12,6 +12,7 @@ use crate::gpu::{Batch, BufferSlice, GpuContext, KernelTiming, Precision, Record
 use crate::image::{Layer, RgbImage, StatsImage};
 use crate::methods::chain::{ChainConfig, ChainInput, GpuChain};
 use crate::methods::prepare::PrepareReport;
+use crate::methods::tiles::{Choice, Tile, TiledChain};
 use crate::methods::{
     self, Backend, DenoiseRequest, Method, Outliers, Pass, Prefilter, ProgressCallback,
 };
@@ -47,6 +48,14 @@ pub struct Config {
     /// [`crate::has_low_spp`]. `false` with such pixels present leaves their
     /// one-sample variance (0) in place.
     pub low_spp: bool,
+    /// Device memory cap in bytes for [`Source::Stats`] inputs: an image
+    /// whose chain would need more is denoised in tiles that fit
+    /// ([`crate::methods::tiles`]; bit-identical to a whole run). `None`:
+    /// three quarters of the largest device-local heap.
+    pub max_memory: Option<u64>,
+    /// Tiles of at most this many pixels per side (plus their halo), even
+    /// when the whole image would fit; `None` tiles only when needed.
+    pub tile: Option<usize>,
 }
 
 impl Config {
@@ -62,6 +71,8 @@ impl Config {
             debug: false,
             progress: false,
             low_spp: true,
+            max_memory: None,
+            tile: None,
         }
     }
 
@@ -178,6 +189,7 @@ pub struct Frame {
 
 enum Engine {
     Gpu(Box<GpuChain>),
+    Tiled(Box<TiledChain>),
     Cpu(Source),
 }
 
@@ -210,6 +222,7 @@ impl std::fmt::Debug for Denoiser {
                 "backend",
                 &match self.engine {
                     Engine::Gpu(_) => "gpu",
+                    Engine::Tiled(_) => "gpu, tiled",
                     Engine::Cpu(_) => "cpu",
                 },
             )
@@ -221,14 +234,28 @@ impl Denoiser {
     /// A denoiser on a GPU context (mcdenoise's own device, or a host's
     /// through the `unsafe` [`GpuContext::from_raw`]). Allocates every buffer
     /// and checks the configuration against the source's layers.
+    ///
+    /// Statistics ([`Source::Stats`]) whose chain does not fit — a binding
+    /// over `maxStorageBufferRange`, or more device memory than
+    /// [`Config::max_memory`] — or with [`Config::tile`] set are denoised
+    /// in tiles by [`denoise`](Self::denoise) (see [`Denoiser::tiles`]); such
+    /// a denoiser has no GPU-resident outputs. An accumulation source that
+    /// does not fit is an [`Error::Limit`].
     pub fn new(ctx: &Arc<GpuContext>, source: Source, config: Config) -> Result<Denoiser> {
         let low_spp = config.low_spp;
+        let engine = match TiledChain::choose(
+            ctx,
+            source.chain(),
+            config.chain(low_spp),
+            config.max_memory,
+            config.tile,
+            ctx.supports_int64(),
+        )? {
+            Choice::Whole(c) => Engine::Gpu(c),
+            Choice::Tiled(t) => Engine::Tiled(t),
+        };
         Ok(Denoiser {
-            engine: Engine::Gpu(Box::new(GpuChain::new(
-                ctx,
-                source.chain(),
-                config.chain(low_spp),
-            )?)),
+            engine,
             config,
             progress: None,
             sampled: AtomicBool::new(false),
@@ -273,13 +300,35 @@ impl Denoiser {
     pub fn prefiltered(&self) -> bool {
         match &self.engine {
             Engine::Gpu(c) => c.prefiltered(),
+            Engine::Tiled(t) => {
+                let (c, layers) = (t.config(), t.layers());
+                crate::methods::chain::prefilter_runs(c.method, c.prefilter, layers)
+                    .unwrap_or(false)
+            }
             Engine::Cpu(_) => false,
+        }
+    }
+
+    /// The tiles (interior and the part of the image each reads) when this
+    /// denoiser works in tiles, and the halo in pixels; `None` for a whole
+    /// image.
+    pub fn tiles(&self) -> Option<(&[Tile], usize)> {
+        match &self.engine {
+            Engine::Tiled(t) => Some((t.tiles(), t.halo().total())),
+            _ => None,
         }
     }
 
     fn chain(&self) -> Result<&GpuChain> {
         match &self.engine {
             Engine::Gpu(c) => Ok(c),
+            Engine::Tiled(t) => {
+                let (w, h) = t.size();
+                Err(Error::Limit(format!(
+                    "this denoiser works in {} tiles ({w}x{h} does not fit one chain, or tiles were asked for): it has no GPU-resident outputs; use denoise()",
+                    t.tiles().len()
+                )))
+            }
             Engine::Cpu(_) => Err(Error::InvalidArgument(
                 "a CPU denoiser has no GPU buffers: use denoise()".into(),
             )),
@@ -420,6 +469,13 @@ impl Denoiser {
             Engine::Gpu(chain) => {
                 methods::denoise_with_chain(chain, img, &req(Backend::Gpu), self.progress.as_ref())?
             }
+            Engine::Tiled(t) => t.denoise(
+                img,
+                budget,
+                self.config.debug,
+                self.config.progress,
+                self.progress.as_ref(),
+            )?,
             Engine::Cpu(source) => {
                 if source != &Source::of_image(img) {
                     return Err(Error::InvalidArgument(format!(
@@ -430,7 +486,7 @@ impl Denoiser {
                 methods::denoise(None, img, &req(Backend::Cpu))?
             }
         };
-        if let Engine::Gpu(_) = self.engine {
+        if let Engine::Gpu(_) | Engine::Tiled(_) = self.engine {
             self.sampled.store(budget.is_some(), Ordering::SeqCst);
         }
         let (w, h) = (img.width, img.height);

@@ -39,8 +39,27 @@ pub struct SanitizePush {
     pub stage: u32,
     /// 1 if the channel has a variance plane (stage 0 only reads it then).
     pub has_var: u32,
-    /// Unused (the block's `_pad[3]`): rounds the block to 32 bytes; 0.
-    pub _pad: [u32; 3],
+    /// Margins of the image whose repairs are not counted, packed
+    /// `left | top << 16` (a tile's halo, [`crate::methods::tiles`]: the
+    /// counters then count each pixel of the whole image once); 0 counts all.
+    pub skip_lo: u32,
+    /// The `right | bottom << 16` margins (see `skip_lo`).
+    pub skip_hi: u32,
+    /// Unused (the block's `_pad`): rounds the block to 32 bytes; 0.
+    pub _pad: u32,
+}
+
+impl SanitizePush {
+    /// Whether a repair at pixel `(x, y)` is counted (outside the skipped
+    /// margins).
+    pub fn counts(&self, x: usize, y: usize) -> bool {
+        let (l, t) = (self.skip_lo & 0xffff, self.skip_lo >> 16);
+        let (r, b) = (self.skip_hi & 0xffff, self.skip_hi >> 16);
+        x >= l as usize
+            && y >= t as usize
+            && x + (r as usize) < self.width as usize
+            && y + (b as usize) < self.height as usize
+    }
 }
 
 /// `spirv/tsvd_debug.comp`, block `Push` (spec §0.6).
@@ -160,17 +179,39 @@ pub struct LpPush {
     /// `lp_gather` only: f32 values from one output plane to the next in its
     /// packed output binding.
     pub out_stride: u32,
-    /// Unused (the block's `pad1`): rounds the block to 32 bytes; 0.
-    pub _pad: u32,
+    /// `lp_centres` only: the candidate grid's phase `(φx, φy)` packed as
+    /// `φx | φy << 16`, each `< g`: the candidates are the pixels
+    /// `(φx + g·gx, φy + g·gy)`. 0 for a whole image; a tile whose first
+    /// pixel is `(ox, oy)` of the image uses `φ = (−o) mod g`, so that its
+    /// candidates are the image's (spec §3.5: `px mod g = 0` in image
+    /// coordinates; see [`LpPush::phase_for`]).
+    pub phase: u32,
 }
 
 impl LpPush {
     /// The candidate grid of this pass (granularity `g`, 0 read as 1):
-    /// `ceil(width/g) × ceil(height/g)`, cell `(gx, gy)` ↔ pixel `(g·gx, g·gy)`.
-    /// `lp_centres` runs one invocation per cell.
+    /// `ceil((width−φx)/g) × ceil((height−φy)/g)`, cell `(gx, gy)` ↔ pixel
+    /// `(φx + g·gx, φy + g·gy)`. `lp_centres` runs one invocation per cell.
     pub fn centre_grid(&self) -> (u32, u32) {
         let g = self.granularity.max(1);
-        (self.width.div_ceil(g), self.height.div_ceil(g))
+        let (fx, fy) = self.phase_xy();
+        (
+            self.width.saturating_sub(fx).div_ceil(g),
+            self.height.saturating_sub(fy).div_ceil(g),
+        )
+    }
+
+    /// `(φx, φy)` of [`LpPush::phase`].
+    pub fn phase_xy(&self) -> (u32, u32) {
+        (self.phase & 0xffff, self.phase >> 16)
+    }
+
+    /// The packed phase for granularity `g` of a tile whose pixel `(0, 0)`
+    /// is pixel `origin` of the image.
+    pub fn phase_for(g: u32, origin: (u32, u32)) -> u32 {
+        let g = g.max(1);
+        let f = |o: u32| (g - o % g) % g;
+        f(origin.0) | f(origin.1) << 16
     }
 }
 

@@ -47,11 +47,19 @@ fn sanitize_matches_twin() {
                 if stage == 1 && !has_var {
                     continue;
                 }
+                // Every other case leaves margins uncounted (a tile's halo).
+                let (skip_lo, skip_hi) = if (stage + has_var as u32) % 2 == 1 {
+                    (2 | 1 << 16, 3 | 2 << 16)
+                } else {
+                    (0, 0)
+                };
                 let push = SanitizePush {
                     width: w as u32,
                     height: h as u32,
                     stage,
                     has_var: has_var as u32,
+                    skip_lo,
+                    skip_hi,
                     ..Default::default()
                 };
                 // Stages 1 and 2 run on stage-0 output (finite values) as in the pipeline.

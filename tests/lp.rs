@@ -26,6 +26,8 @@ struct Scene {
     w: usize,
     h: usize,
     planes: Vec<Vec<f32>>,
+    /// Where the scene's pixel (0, 0) lies in a larger image (a tile).
+    origin: (u32, u32),
 }
 
 impl Scene {
@@ -111,7 +113,12 @@ fn synthetic(w: usize, h: usize, seed: u64, noise: f64) -> Scene {
         }
         p[20][i] = if rng.next_u64() % 50 == 0 { 0.0 } else { 16.0 };
     }
-    Scene { w, h, planes: p }
+    Scene {
+        w,
+        h,
+        planes: p,
+        origin: (0, 0),
+    }
 }
 
 /// The committed fixture, sanitised on the CPU.
@@ -139,6 +146,7 @@ fn fixture() -> Scene {
         w: img.width,
         h: img.height,
         planes,
+        origin: (0, 0),
     }
 }
 
@@ -149,6 +157,7 @@ fn push(sc: &Scene, pass: usize) -> LpPush {
         granularity: rl::GRANULARITIES[pass],
         pass: pass as u32,
         options: LP_VARSUB,
+        phase: LpPush::phase_for(rl::GRANULARITIES[pass], sc.origin),
         ..Default::default()
     }
 }
@@ -326,6 +335,15 @@ fn lp_centres_matches_twin() {
                 prec,
                 &format!("synthetic 64² pass {pass} {prec:?}"),
             );
+        }
+        // As one tile of a larger image whose pixel (0, 0) is (7, 30):
+        // the candidate grids keep the image's phase.
+        let tile = Scene {
+            origin: (7, 30),
+            ..synthetic(64, 64, 11, 1.0)
+        };
+        for pass in [0, 1, 2] {
+            compare_centres(&tile, pass, prec, &format!("tile pass {pass} {prec:?}"));
         }
         compare_centres(&fixture(), 0, prec, &format!("fixture pass 0 {prec:?}"));
         compare_centres(&fixture(), 3, prec, &format!("fixture pass 3 {prec:?}"));
@@ -542,7 +560,13 @@ fn error_estimate_tracks_noise_passed_on_by_features() {
         }
         p[20][i] = 16.0;
     }
-    let img = Scene { w, h, planes: p }.image();
+    let img = Scene {
+        w,
+        h,
+        planes: p,
+        origin: (0, 0),
+    }
+    .image();
     let truth = mcdenoise::image::RgbImage::from_planes(
         w,
         h,

@@ -229,6 +229,16 @@ enum Command {
         /// Method option key=value (repeatable); the list is below.
         #[arg(long = "opt", value_name = "KEY=VALUE")]
         opts: Vec<String>,
+        /// Device memory cap in MB (GPU): an image whose chain needs more is
+        /// denoised in tiles that fit, each with the halo its method's
+        /// windows need; the output is bit-identical to a whole run.
+        /// Default: three quarters of the device's largest local heap.
+        #[arg(long, value_name = "MB", value_parser = clap::value_parser!(u64).range(1..))]
+        max_memory: Option<u64>,
+        /// Denoise in tiles of at most N×N pixels (plus halo) even when the
+        /// whole image fits (GPU).
+        #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
+        tile: Option<u64>,
     },
     /// Sanitise a render-statistics EXR and replace its normal, albedo and
     /// depth layers (and their variances) by the G-buffer prefilter's output
@@ -310,6 +320,11 @@ fn info(cli: &Cli) -> anyhow::Result<()> {
         println!(
             "      storage buffers per stage  {}",
             d.max_per_stage_storage_buffers
+        );
+        println!(
+            "      device-local heap          {} MiB (default memory cap {} MiB)",
+            d.device_local_heap >> 20,
+            mcdenoise::methods::tiles::default_cap(d) >> 20
         );
         println!(
             "      shaderFloat64              {}",
@@ -429,9 +444,14 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
             reference,
             max_error,
             opts,
+            max_memory,
+            tile,
         } => {
             let options = Options::parse(opts)?;
             let method = method.get();
+            if (max_memory.is_some() || tile.is_some()) && matches!(backend, BackendArg::Cpu) {
+                bail!("--max-memory and --tile apply to the GPU backend");
+            }
             let config_for = |img: &StatsImage| {
                 let mut config = Config::new(method);
                 config.precision = precision.get();
@@ -445,6 +465,8 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
                 config.debug = *debug_layers;
                 config.progress = !cli.quiet;
                 config.low_spp = has_low_spp(img);
+                config.max_memory = max_memory.map(|mb| mb.saturating_mul(1 << 20));
+                config.tile = tile.map(|t| t as usize);
                 config
             };
             let Some(input) = input else {
@@ -488,8 +510,12 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
             let result = result.with_context(|| input.display().to_string())?;
             if !cli.quiet {
                 print_report(&result.report, input);
+                let tiles = match denoiser.tiles() {
+                    Some((t, halo)) => format!(", {} tiles with a halo of {halo} px", t.len()),
+                    None => String::new(),
+                };
                 eprintln!(
-                    "{} ({:?}{}) in {:.2} s",
+                    "{} ({:?}{}{tiles}) in {:.2} s",
                     method.name(),
                     backend,
                     if denoiser.prefiltered() {

@@ -157,6 +157,7 @@ impl GpuBuffer {
             return Err(Error::vk("vkBindBufferMemory")(e));
         }
         ctx.name_object(buffer, name);
+        ctx.count_allocation(size);
         Ok(GpuBuffer {
             ctx: ctx.clone(),
             name: name.to_owned(),
@@ -332,6 +333,7 @@ impl Drop for GpuBuffer {
     fn drop(&mut self) {
         // Destroyed now, or when the last batch or `Recorded` that binds it
         // is done (see `GpuContext::retire_buffer`).
+        self.ctx.count_free(self.size);
         self.ctx.retire_buffer(self.buffer, self.allocation.take());
     }
 }

@@ -72,6 +72,10 @@ pub struct DeviceInfo {
     pub timestamp_period_ns: f32,
     /// Whether some queue family supports compute; devices without one are never chosen.
     pub has_compute_queue: bool,
+    /// Size in bytes of the largest `DEVICE_LOCAL` memory heap (on lavapipe,
+    /// host memory): what the default memory cap of a tiled run is taken
+    /// from (`methods::tiles`).
+    pub device_local_heap: u64,
 }
 
 /// Messages of the validation layer: every error is counted and kept.
@@ -156,6 +160,10 @@ pub struct GpuContext {
     /// Queue submissions made by this context (the embedding tests check
     /// that recording into a host's command buffer submits nothing).
     submits: AtomicU64,
+    /// Bytes of the live [`super::GpuBuffer`]s made on this context, and
+    /// the most there have been at once.
+    pub(crate) allocated: AtomicU64,
+    pub(crate) peak_allocated: AtomicU64,
 }
 
 #[derive(Default)]
@@ -244,6 +252,15 @@ fn describe(instance: &ash::Instance, pd: vk::PhysicalDevice, index: usize) -> D
             has_compute_queue: queues
                 .iter()
                 .any(|q| q.queue_flags.contains(vk::QueueFlags::COMPUTE)),
+            device_local_heap: {
+                let mem = instance.get_physical_device_memory_properties(pd);
+                mem.memory_heaps[..mem.memory_heap_count as usize]
+                    .iter()
+                    .filter(|h| h.flags.contains(vk::MemoryHeapFlags::DEVICE_LOCAL))
+                    .map(|h| h.size)
+                    .max()
+                    .unwrap_or(0)
+            },
         }
     }
 }
@@ -538,6 +555,8 @@ impl GpuContext {
             free_desc_pools: Mutex::new(Vec::new()),
             free_query_pools: Mutex::new(Vec::new()),
             submits: AtomicU64::new(0),
+            allocated: AtomicU64::new(0),
+            peak_allocated: AtomicU64::new(0),
         })
     }
 
@@ -604,6 +623,34 @@ impl GpuContext {
 
     pub(crate) fn count_submit(&self) {
         self.submits.fetch_add(1, Ordering::SeqCst);
+    }
+
+    /// Bytes of device memory held by the live buffers made on this context
+    /// (requested sizes; the allocator's block rounding not included).
+    pub fn allocated_bytes(&self) -> u64 {
+        self.allocated.load(Ordering::SeqCst)
+    }
+
+    /// The most [`allocated_bytes`](Self::allocated_bytes) has been since
+    /// the context was made or since [`reset_peak`](Self::reset_peak).
+    pub fn peak_allocated_bytes(&self) -> u64 {
+        self.peak_allocated.load(Ordering::SeqCst)
+    }
+
+    /// Restarts [`peak_allocated_bytes`](Self::peak_allocated_bytes) from the
+    /// bytes allocated now.
+    pub fn reset_peak(&self) {
+        self.peak_allocated
+            .store(self.allocated_bytes(), Ordering::SeqCst);
+    }
+
+    pub(crate) fn count_allocation(&self, bytes: u64) {
+        let now = self.allocated.fetch_add(bytes, Ordering::SeqCst) + bytes;
+        self.peak_allocated.fetch_max(now, Ordering::SeqCst);
+    }
+
+    pub(crate) fn count_free(&self, bytes: u64) {
+        self.allocated.fetch_sub(bytes, Ordering::SeqCst);
     }
 
     /// Marks `buffers` as bound by work in flight.

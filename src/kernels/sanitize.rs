@@ -64,34 +64,25 @@ pub const COUNTERS: [&str; 4] = [
     "variances estimated from the image",
 ];
 
-/// Records one stage over one channel: `planes` = value_in, var_in, spp,
-/// value_out, var_out. `var_in` is ignored by stage 0 when `has_var` is false
-/// (bind any plane); `counters` holds 4 u32 and is added to.
+/// Records one stage (`push.stage`) over one channel: `planes` = value_in,
+/// var_in, spp, value_out, var_out. `var_in` is ignored by stage 0 when
+/// `push.has_var` is 0 (bind any plane); `counters` holds 4 u32 and is added
+/// to (repairs outside the margins of `push.skip_lo`/`skip_hi`).
 pub fn record(
     batch: &mut Batch,
     precision: Precision,
-    width: u32,
-    height: u32,
-    stage: u32,
-    has_var: bool,
+    push: SanitizePush,
     planes: [BufferSlice; 5],
     counters: BufferSlice,
 ) -> Result<()> {
-    let push = SanitizePush {
-        width,
-        height,
-        stage,
-        has_var: has_var as u32,
-        ..Default::default()
-    };
     let [value_in, var_in, spp, value_out, var_out] = planes;
     batch.dispatch(
-        decl(stage),
+        decl(push.stage),
         precision,
         &[value_in, var_in, spp, value_out, var_out, counters],
         bytemuck::bytes_of(&push),
-        width,
-        height,
-        flops_per_pixel(stage),
+        push.width,
+        push.height,
+        flops_per_pixel(push.stage),
     )
 }

@@ -24,6 +24,7 @@ use super::outliers::{self, OutlierPlanes};
 use super::prepare::{self, PrepareReport, PrepareScratch};
 use super::sampling::{self, SampleInputs, SamplingParams, SamplingPlanes};
 use super::stats::{self, GpuStats};
+use super::tiles::{self, Rect};
 use super::wlr::{self, WlrPlanes};
 use super::{Method, Pass, Prefilter};
 
@@ -81,6 +82,30 @@ pub struct ChainConfig {
     /// Whether some pixel may have `1 ≤ spp < 2` (runs §0.4 step 3). Always
     /// true for accumulation input; for uploaded statistics the caller knows.
     pub low_spp: bool,
+}
+
+/// Where a chain's image lies in a larger image of which it is one tile
+/// ([`super::tiles`]); the default is a whole image.
+#[derive(Copy, Clone, Debug, Default, PartialEq, Eq)]
+pub struct Placement {
+    /// The image pixel of the chain's pixel `(0, 0)` (LP's candidate grids
+    /// keep the image's phase, §3.5).
+    pub origin: (u32, u32),
+    /// Margins (the halo) whose sanitation repairs are not counted,
+    /// `[left | top << 16, right | bottom << 16]`
+    /// ([`crate::shared::SanitizePush::skip_lo`]).
+    pub skip: [u32; 2],
+}
+
+/// Whether the G-buffer prefilter runs for `method` with `prefilter` on an
+/// input with `layers` (`none` prefilters only when asked explicitly, as
+/// `mcdenoise prefilter` does).
+pub fn prefilter_runs(method: Method, prefilter: Prefilter, layers: &[Layer]) -> Result<bool> {
+    let prefilter = match (method, prefilter) {
+        (Method::None, Prefilter::Auto) => Prefilter::Off,
+        (_, p) => p,
+    };
+    gbf::wanted(prefilter, |l| layers.contains(&l))
 }
 
 enum MethodPlanes {
@@ -171,12 +196,7 @@ impl GpuChain {
         let input_stats = GpuStats::new(ctx, "chain.input", w, h, &layers)?;
         let clean = GpuStats::new(ctx, "chain.clean", w, h, &prepare::output_layers(&layers))?;
         let scratch = PrepareScratch::new(ctx, &input_stats)?;
-        // `none` prefilters only when asked explicitly (`mcdenoise prefilter`).
-        let prefilter = match (config.method, config.prefilter) {
-            (Method::None, Prefilter::Auto) => Prefilter::Off,
-            (_, p) => p,
-        };
-        let gbf = if gbf::wanted(prefilter, |l| layers.contains(&l))? {
+        let gbf = if prefilter_runs(config.method, config.prefilter, &layers)? {
             Some(GbfPlanes::new(ctx, w, h)?)
         } else {
             None
@@ -295,7 +315,7 @@ impl GpuChain {
                 )))
             }
         };
-        self.record_method(batch, accum)?;
+        self.record_method(batch, accum, Placement::default())?;
         if let Some((t, planes, params)) = sampling {
             let (dim, _) = self.dim_source();
             let inputs = SampleInputs {
@@ -354,7 +374,48 @@ impl GpuChain {
         }
     }
 
-    fn record_method(&self, batch: &mut Batch, accum: Option<BufferSlice>) -> Result<()> {
+    /// Records the chain as one tile of a larger image ([`super::tiles`]):
+    /// no sample map allocation, but with `priority` the §9.1 priority map
+    /// ([`download_priority_in`](Self::download_priority_in)), whose
+    /// allocation runs over the whole image. Uploaded statistics only.
+    pub fn record_tile(&self, batch: &mut Batch, at: Placement, priority: bool) -> Result<()> {
+        self.record_method(batch, None, at)?;
+        if priority {
+            let Some((planes, params)) = &self.sampling else {
+                return Err(Error::Limit(format!(
+                    "the sample map needs shaderInt64, which {} does not have enabled",
+                    self.ctx.info().name
+                )));
+            };
+            let (dim, _) = self.dim_source();
+            let inputs = SampleInputs {
+                error: self.sampling_error(),
+                dim,
+                filtered: self.color(),
+                spp: self.clean.plane(Layer::Spp, 0),
+            };
+            sampling::record_priority(batch, self.config.precision, &inputs, planes, params)?;
+        }
+        Ok(())
+    }
+
+    /// The priority map of the last [`record_tile`](Self::record_tile) with
+    /// `priority`, cropped to `rect`.
+    pub fn download_priority_in(&self, rect: Rect) -> Result<Vec<f32>> {
+        let Some((planes, params)) = &self.sampling else {
+            return Err(Error::Limit("no sample map on this device".into()));
+        };
+        let (w, h) = self.size();
+        let all = read(&self.ctx, planes.priority(params), w * h)?;
+        Ok(tiles::crop(&all, w, rect))
+    }
+
+    fn record_method(
+        &self,
+        batch: &mut Batch,
+        accum: Option<BufferSlice>,
+        at: Placement,
+    ) -> Result<()> {
         let p = self.config.precision;
         match (&self.input_kind, accum) {
             (ChainInput::Accum(layout), Some(a)) => {
@@ -379,6 +440,7 @@ impl GpuChain {
             &self.clean,
             &self.scratch,
             self.config.low_spp,
+            at.skip,
         )?;
         if let Some(o) = &self.outliers {
             outliers::record_remove(batch, p, &self.clean, o)?;
@@ -392,7 +454,11 @@ impl GpuChain {
                 wlr::record_wlr(batch, p, &self.clean, planes, *params)?
             }
             MethodPlanes::Lp(planes, params) => {
-                lp::record_lp(batch, p, &self.clean, planes, *params)?
+                let params = lp::LpParams {
+                    origin: at.origin,
+                    ..*params
+                };
+                lp::record_lp(batch, p, &self.clean, planes, params)?
             }
             MethodPlanes::Apr(planes, params) => {
                 apr::record_apr(batch, p, &self.clean, planes, *params)?
@@ -455,9 +521,18 @@ impl GpuChain {
     /// Sanitation counters and the invalid pixels (`spp < 1`, §0.2) of the
     /// last completed run (§0.4).
     pub fn report(&self) -> Result<PrepareReport> {
+        self.report_in(None)
+    }
+
+    /// [`report`](Self::report), the invalid pixels counted in `rect` only
+    /// (a tile's interior; its counters skip the halo already).
+    pub fn report_in(&self, rect: Option<Rect>) -> Result<PrepareReport> {
         let counters = self.scratch.read_counters()?;
         let (w, h) = self.size();
-        let spp = read(&self.ctx, self.clean.plane(Layer::Spp, 0), w * h)?;
+        let mut spp = read(&self.ctx, self.clean.plane(Layer::Spp, 0), w * h)?;
+        if let Some(r) = rect {
+            spp = tiles::crop(&spp, w, r);
+        }
         let invalid = spp
             .iter()
             .filter(|&&s| crate::reference::finalize_stats::spp_of(s) < 1.0)
@@ -478,6 +553,51 @@ impl GpuChain {
 
     /// Downloads the outputs of a completed run.
     pub fn download(&self, debug: bool) -> Result<ChainOutput> {
+        self.download_in(debug, None)
+    }
+
+    /// [`download`](Self::download), every plane cropped to `rect` (a tile's
+    /// interior) and the statistics computed over it.
+    pub fn download_in(&self, debug: bool, rect: Option<Rect>) -> Result<ChainOutput> {
+        let out = self.download_whole(debug)?;
+        let Some(r) = rect else {
+            return Ok(out);
+        };
+        let (w, _) = self.size();
+        let c = |p: &[f32]| tiles::crop(p, w, r);
+        let rgb = |i: &RgbImage| i.crop(r.x0, r.y0, r.width(), r.height());
+        let mut debug_planes = Vec::with_capacity(out.debug.len());
+        let mut centre_pass = None;
+        for (name, p) in &out.debug {
+            if p.len() != w * self.size().1 {
+                return Err(Error::Limit(format!(
+                    "the debug layer {name} is not one value per pixel: it cannot be tiled"
+                )));
+            }
+            debug_planes.push((name.clone(), c(p)));
+        }
+        if let MethodPlanes::Lp(p, _) = &self.planes {
+            let state0 = p.state.download_plane::<f32>(0)?;
+            let pass: Vec<f32> = (0..state0.len() / 4).map(|q| state0[4 * q]).collect();
+            centre_pass = Some(c(&pass));
+        }
+        let stats = match centre_pass {
+            Some(cp) => vec![(
+                "centre_fraction".to_string(),
+                cp.iter().filter(|&&v| v > 0.0).count() as f64 / cp.len().max(1) as f64,
+            )],
+            None => out.stats,
+        };
+        Ok(ChainOutput {
+            color: rgb(&out.color),
+            error: rgb(&out.error),
+            dim: c(&out.dim),
+            debug: debug_planes,
+            stats,
+        })
+    }
+
+    fn download_whole(&self, debug: bool) -> Result<ChainOutput> {
         let (w, h) = self.size();
         let rgb = |p: [BufferSlice; 3]| -> Result<RgbImage> {
             Ok(RgbImage::from_planes(

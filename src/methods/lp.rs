@@ -35,6 +35,10 @@ use crate::shared::{LpPush, LP_VARSUB};
 pub struct LpParams {
     /// [`LpPush::options`] bits.
     pub options: u32,
+    /// Where the chain's pixel `(0, 0)` lies in the whole image: `(0, 0)`
+    /// except for a tile ([`super::tiles`]), whose candidate grids keep the
+    /// image's phase (§3.5 `px mod g = 0`, [`LpPush::phase_for`]).
+    pub origin: (u32, u32),
 }
 
 impl LpParams {
@@ -45,7 +49,10 @@ impl LpParams {
             "varsub" => LP_VARSUB,
             _ => 0,
         };
-        Ok(LpParams { options })
+        Ok(LpParams {
+            options,
+            origin: (0, 0),
+        })
     }
 
     fn push(&self, width: usize, height: usize, pass: usize) -> LpPush {
@@ -56,7 +63,8 @@ impl LpParams {
             pass: pass as u32,
             options: self.options,
             out_stride: (plane_stride(width * height) / 4) as u32,
-            ..Default::default()
+            phase: LpPush::phase_for(GRANULARITIES[pass], self.origin),
+            row0: 0,
         }
     }
 }

@@ -11,6 +11,7 @@ pub mod outliers;
 pub mod prepare;
 pub mod sampling;
 pub mod stats;
+pub mod tiles;
 pub mod wlr;
 
 use std::sync::Arc;

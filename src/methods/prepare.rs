@@ -261,6 +261,10 @@ impl PrepareScratch {
 /// Pass `true` when unknown; `false` skips that stage (a renderer that took at
 /// least two samples everywhere knows it), which is exact because the stage
 /// only changes such pixels.
+///
+/// `skip`: margins whose repairs are not counted, `[left | top << 16,
+/// right | bottom << 16]` ([`SanitizePush::skip_lo`]; a tile's halo), or
+/// `[0, 0]`.
 pub fn record_prepare(
     batch: &mut Batch,
     precision: Precision,
@@ -268,8 +272,18 @@ pub fn record_prepare(
     out: &GpuStats,
     scratch: &PrepareScratch,
     low_spp: bool,
+    skip: [u32; 2],
 ) -> Result<()> {
     let (w, h) = (input.width as u32, input.height as u32);
+    let push = |stage: u32, has_var: bool| SanitizePush {
+        width: w,
+        height: h,
+        stage,
+        has_var: has_var as u32,
+        skip_lo: skip[0],
+        skip_hi: skip[1],
+        ..Default::default()
+    };
     let spp = input.plane(Layer::Spp, 0);
     let (tmp_val, tmp_var) = (scratch.planes.plane(0), scratch.planes.plane(1));
     batch.fill(scratch.counters.slice(), 0);
@@ -292,16 +306,13 @@ pub fn record_prepare(
             if has_var && !low_spp {
                 // Stage 0 alone is the whole sanitation of this channel.
                 let planes = [value, var_in, spp, ov, ovar];
-                sanitize::record(batch, precision, w, h, 0, true, planes, counters(channel))?;
+                sanitize::record(batch, precision, push(0, true), planes, counters(channel))?;
             } else {
                 let planes = [value, var_in, spp, tmp_val, tmp_var];
                 sanitize::record(
                     batch,
                     precision,
-                    w,
-                    h,
-                    0,
-                    has_var,
+                    push(0, has_var),
                     planes,
                     counters(channel),
                 )?;
@@ -310,10 +321,7 @@ pub fn record_prepare(
                 sanitize::record(
                     batch,
                     precision,
-                    w,
-                    h,
-                    stage,
-                    has_var,
+                    push(stage, has_var),
                     planes,
                     counters(channel),
                 )?;
@@ -328,10 +336,7 @@ pub fn record_prepare(
             sanitize::record(
                 batch,
                 precision,
-                w,
-                h,
-                0,
-                false,
+                push(0, false),
                 [p, p, spp, o, tmp_var],
                 counters(channel),
             )?;
@@ -363,7 +368,15 @@ pub fn prepare_gpu(
     let scratch = PrepareScratch::new(ctx, &input)?;
     let low_spp = has_low_spp(img);
     let mut batch = Batch::new(ctx)?;
-    record_prepare(&mut batch, precision, &input, &out, &scratch, low_spp)?;
+    record_prepare(
+        &mut batch,
+        precision,
+        &input,
+        &out,
+        &scratch,
+        low_spp,
+        [0, 0],
+    )?;
     let timings = batch.finish()?;
     let mut report = base_report(img);
     report.timings = timings;

@@ -401,6 +401,20 @@ pub fn record_sample_map(
     budget: u32,
     params: &SamplingParams,
 ) -> Result<()> {
+    record_priority(batch, precision, inputs, planes, params)?;
+    record_allocation(batch, planes.priority(params), inputs.spp, planes, budget)
+}
+
+/// Records the priority map of §9.1 (in `precision`) and its optional
+/// MAP-SMOOTH into `planes` ([`SamplingPlanes::priority`]): the part of
+/// [`record_sample_map`] that is local to each pixel's neighbourhood.
+pub fn record_priority(
+    batch: &mut Batch,
+    precision: Precision,
+    inputs: &SampleInputs,
+    planes: &SamplingPlanes,
+    params: &SamplingParams,
+) -> Result<()> {
     params.check()?;
     let (w, h) = (planes.width as u32, planes.height as u32);
     sample_priority::record(
@@ -426,7 +440,7 @@ pub fn record_sample_map(
             planes.maps.plane(1),
         )?;
     }
-    record_allocation(batch, planes.priority(params), inputs.spp, planes, budget)
+    Ok(())
 }
 
 /// Records §9.1 sanitise and §9.2 ROUNDING on a priority map `r` (f32 plane

@@ -20,9 +20,10 @@ pub fn lp_centres(push: &LpPush, p: &Planes, reach: &[f32], state: &mut [Vec<f32
     } else {
         0.0
     };
+    let (fx, fy) = push.phase_xy();
     let mut cand = Vec::new();
-    for py in (0..h).step_by(g) {
-        for px in (0..w).step_by(g) {
+    for py in (fy as usize..h).step_by(g) {
+        for px in (fx as usize..w).step_by(g) {
             if p.valid(py * w + px) && !covered(reach, w, h, px, py) {
                 cand.push((px, py));
             }

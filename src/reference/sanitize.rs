@@ -139,7 +139,7 @@ pub fn sanitize(
                         } else {
                             median(&mut vals)
                         };
-                        counters[0] += 1;
+                        counters[0] += u32::from(push.counts(x, y));
                     }
                     value_out[i] = value as f32;
                     // §0.4 steps 1 (variance of a repaired value) and 2
@@ -147,7 +147,7 @@ pub fn sanitize(
                     if push.has_var != 0 {
                         let v = var_in[i];
                         if !v.is_finite() || v < 0.0 {
-                            counters[1] += 1;
+                            counters[1] += u32::from(push.counts(x, y));
                         }
                         var = v as f64;
                         if repaired {
@@ -184,12 +184,12 @@ pub fn sanitize(
                             }
                         }
                         var_out[i] = if vals.is_empty() {
-                            counters[3] += 1;
+                            counters[3] += u32::from(push.counts(x, y));
                             mad_variance(value_in, spp, w, h, x, y) as f32
                         } else {
                             (median(&mut vals) / np.max(1.0)) as f32
                         };
-                        counters[2] += 1;
+                        counters[2] += u32::from(push.counts(x, y));
                     } else {
                         var_out[i] = var_in[i];
                     }
@@ -198,7 +198,7 @@ pub fn sanitize(
                     // §0.4 step 4
                     value_out[i] = value_in[i];
                     var_out[i] = if valid(x, y) {
-                        counters[3] += 1;
+                        counters[3] += u32::from(push.counts(x, y));
                         mad_variance(value_in, spp, w, h, x, y) as f32
                     } else {
                         0.0

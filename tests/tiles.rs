@@ -1,0 +1,467 @@
+//! Issue #14's tiling, through the public facade: an image denoised in
+//! tiles with their halos (`methods::tiles`) gives output bit-identical to
+//! the whole image's — colour, error, local dimension, the sample map, the
+//! sanitation report and LP's centre fraction — for every method with its
+//! defaults (outlier stage and G-buffer prefilter included), with tiles cut
+//! along x and along y. The images are strips (480×32, 32×480: ≤ 128²
+//! pixels) so that tiles are narrower than the image by more than twice the
+//! largest halo (APR's 200 px) while the suite stays small. The input has
+//! what the halo must carry across a cut: fireflies (the outlier stage)
+//! next to tile borders, non-finite values and negative variances
+//! (sanitation step 1–2), one-sample and empty pixels (step 3, §0.2).
+//! The 4096² and 4099×2053 runs are the ignored
+//! `large_images_through_every_method`.
+
+mod common;
+
+use common::{check_validation, gpu};
+use mcdenoise::image::Layer;
+use mcdenoise::{Config, Denoiser, Error, Frame, Method, Outliers, Prefilter, Source, StatsImage};
+
+/// The committed 64² fixture (with positions: the prefilter runs) repeated
+/// over `w × h`, with the hazards of the module documentation planted at
+/// columns (or rows) near the cuts of 60-pixel tiles.
+fn strip(w: usize, h: usize) -> StatsImage {
+    let src = mcdenoise::io::read_stats(std::path::Path::new(
+        "tests/fixtures/dof_checker_64_spp16.exr",
+    ))
+    .unwrap();
+    let mut img = StatsImage::new(w, h);
+    for (layer, planes) in src.layers() {
+        let tiled = planes
+            .iter()
+            .map(|p| {
+                (0..w * h)
+                    .map(|i| p[(i / w % 64) * 64 + i % w % 64])
+                    .collect()
+            })
+            .collect();
+        img.set(layer, tiled);
+    }
+    let along = |t: usize| {
+        if w >= h {
+            (t % w, h / 2)
+        } else {
+            (w / 2, t % h)
+        }
+    };
+    let at = |t: usize| {
+        let (x, y) = along(t);
+        y * w + x
+    };
+    // Fireflies on both sides of cuts and deep inside halos.
+    for (k, t) in [59, 60, 61, 119, 180, 241, 300, 361, 420]
+        .into_iter()
+        .enumerate()
+    {
+        let i = at(t) + k % 3;
+        for c in 0..3 {
+            img.get_mut(Layer::Color).unwrap()[c][i] *= 1000.0;
+            img.get_mut(Layer::ColorVariance).unwrap()[c][i] *= 1e6;
+        }
+    }
+    img.get_mut(Layer::Color).unwrap()[1][at(62)] = f32::NAN;
+    img.get_mut(Layer::Color).unwrap()[0][at(238)] = f32::INFINITY;
+    img.get_mut(Layer::ColorVariance).unwrap()[2][at(121)] = -1.0;
+    img.get_mut(Layer::Spp).unwrap()[0][at(179)] = 0.0;
+    img.get_mut(Layer::Spp).unwrap()[0][at(299)] = 1.0;
+    img.get_mut(Layer::Spp).unwrap()[0][at(302)] = 1.0;
+    img
+}
+
+fn bits(v: &[f32]) -> Vec<u32> {
+    v.iter().map(|x| x.to_bits()).collect()
+}
+
+fn assert_identical(what: &str, a: &Frame, b: &Frame) {
+    let w = a.color.width;
+    for c in 0..3 {
+        let (pa, pb) = (&a.color.planes[c], &b.color.planes[c]);
+        let diff: Vec<usize> = (0..pa.len())
+            .filter(|&i| pa[i].to_bits() != pb[i].to_bits())
+            .collect();
+        if let Some(&i) = diff.first() {
+            panic!(
+                "{what}: colour {c} differs at {} pixels, first ({}, {}): {} against {}",
+                diff.len(),
+                i % w,
+                i / w,
+                pa[i],
+                pb[i]
+            );
+        }
+        assert_eq!(
+            bits(&a.color.planes[c]),
+            bits(&b.color.planes[c]),
+            "{what}: colour {c}"
+        );
+        assert_eq!(
+            bits(&a.error.planes[c]),
+            bits(&b.error.planes[c]),
+            "{what}: error {c}"
+        );
+    }
+    assert_eq!(bits(&a.dim), bits(&b.dim), "{what}: local dimension");
+    assert_eq!(a.samples, b.samples, "{what}: sample map");
+    assert_eq!(a.report.counters, b.report.counters, "{what}: repairs");
+    assert_eq!(
+        a.report.invalid_pixels, b.report.invalid_pixels,
+        "{what}: invalid pixels"
+    );
+    assert_eq!(a.stats, b.stats, "{what}: statistics");
+    assert_eq!(a.debug.len(), b.debug.len(), "{what}: debug layers");
+    for ((na, pa), (nb, pb)) in a.debug.iter().zip(&b.debug) {
+        assert_eq!(na, nb, "{what}: debug layer names");
+        assert_eq!(bits(pa), bits(pb), "{what}: debug layer {na}");
+    }
+}
+
+/// Runs `config` on `img` whole and in tiles of `tile` px; checks that the
+/// tiles really cut the image (some tile reads less than all of it) and
+/// that the outputs are bit-identical.
+fn check(img: &StatsImage, config: Config, tile: usize, what: &str) {
+    let ctx = gpu();
+    let budget = Some((img.width * img.height * 3) as u32);
+    let whole = Denoiser::new(&ctx, Source::of_image(img), config.clone()).unwrap();
+    assert!(whole.tiles().is_none(), "{what}: a small image runs whole");
+    let a = whole.denoise(img, budget).unwrap();
+    drop(whole);
+    let tiled = Denoiser::new(
+        &ctx,
+        Source::of_image(img),
+        Config {
+            tile: Some(tile),
+            ..config
+        },
+    )
+    .unwrap();
+    let (tiles, halo) = tiled.tiles().expect("tiles were asked for");
+    let (w, h) = (img.width, img.height);
+    assert!(tiles.len() > 1, "{what}: {} tile", tiles.len());
+    assert!(
+        tiles.iter().any(|t| t.outer.pixels() < w * h),
+        "{what}: every tile reads the whole image (halo {halo})"
+    );
+    let b = tiled.denoise(img, budget).unwrap();
+    assert_eq!(
+        b.samples
+            .as_ref()
+            .map(|s| s.iter().map(|&v| v as u64).sum::<u64>()),
+        budget.map(u64::from),
+        "{what}: the budget"
+    );
+    println!("{what}: {} tiles, halo {halo}: identical", tiles.len());
+    assert_identical(what, &a, &b);
+}
+
+#[test]
+fn every_method_tiled_along_x_is_bit_identical() {
+    let img = strip(480, 32);
+    for method in [Method::Lp, Method::Wlr, Method::Apr, Method::Aos] {
+        check(
+            &img,
+            Config::new(method),
+            60,
+            &format!("{} 480x32", method.name()),
+        );
+    }
+    check_validation(&gpu());
+}
+
+#[test]
+fn tiles_along_y_and_the_stages_of_none_are_bit_identical() {
+    let img = strip(32, 480);
+    let mut lp = Config::new(Method::Lp);
+    lp.debug = true;
+    check(&img, lp, 60, "lp 32x480 with debug layers");
+    // `none` with the outlier stage and the prefilter forced on: the stages
+    // around the method, cheaply, along both axes.
+    let mut none = Config::new(Method::None);
+    none.outliers = Outliers::On;
+    none.prefilter = Prefilter::On;
+    none.debug = true;
+    check(&img, none.clone(), 50, "none + outliers + prefilter 32x480");
+    check(
+        &strip(480, 32),
+        none,
+        50,
+        "none + outliers + prefilter 480x32",
+    );
+    check_validation(&gpu());
+}
+
+#[test]
+fn a_memory_cap_tiles_automatically_and_identically() {
+    let ctx = gpu();
+    let img = strip(640, 24);
+    let config = Config::new(Method::Lp);
+    let before = ctx.allocated_bytes();
+    let whole = Denoiser::new(&ctx, Source::of_image(&img), config.clone()).unwrap();
+    let whole_bytes = ctx.allocated_bytes() - before;
+    let a = whole.denoise(&img, None).unwrap();
+    drop(whole);
+    // A cap of 75 % of what the whole chain holds: tiles of ≈ 120 px
+    // (plus 2 × 172 of halo and up to 15 of alignment) fit it.
+    let cap = whole_bytes * 3 / 4;
+    let capped = Config {
+        max_memory: Some(cap),
+        ..config.clone()
+    };
+    let d = Denoiser::new(&ctx, Source::of_image(&img), capped).unwrap();
+    let (tiles, _) = d.tiles().expect("the cap forces tiles");
+    assert!(tiles.len() > 1);
+    let before = ctx.allocated_bytes();
+    ctx.reset_peak();
+    let b = d.denoise(&img, None).unwrap();
+    let peak = ctx.peak_allocated_bytes() - before;
+    println!(
+        "whole chain {:.1} MB; cap {:.1} MB: {} tiles, peak device allocation {:.1} MB",
+        whole_bytes as f64 / 1e6,
+        cap as f64 / 1e6,
+        tiles.len(),
+        peak as f64 / 1e6
+    );
+    assert!(peak <= cap, "peak {peak} bytes over the cap of {cap}");
+    assert_identical("lp capped", &a, &b);
+    // A cap too small for any tile is a clear error, not a panic.
+    let tiny = Config {
+        max_memory: Some(whole_bytes / 20),
+        ..config
+    };
+    match Denoiser::new(&ctx, Source::of_image(&img), tiny) {
+        Err(Error::Limit(m)) => assert!(m.contains("memory cap"), "{m}"),
+        other => panic!("expected a limit error, got {other:?}"),
+    }
+    check_validation(&ctx);
+}
+
+#[test]
+fn a_tiled_denoiser_says_what_it_cannot_do() {
+    let ctx = gpu();
+    let img = strip(128, 32);
+    let d = Denoiser::new(
+        &ctx,
+        Source::of_image(&img),
+        Config {
+            tile: Some(40),
+            ..Config::new(Method::None)
+        },
+    )
+    .unwrap();
+    d.denoise(&img, None).unwrap();
+    for e in [d.outputs().err(), d.read().err()] {
+        match e {
+            Some(Error::Limit(m)) => assert!(m.contains("tiles"), "{m}"),
+            other => panic!("expected a limit error, got {other:?}"),
+        }
+    }
+    // Tiles read statistics in host memory, not a renderer's accumulation.
+    let layout = mcdenoise::AccumLayout::new(128, 32, false, false);
+    let r = Denoiser::new(
+        &ctx,
+        Source::Accum(layout),
+        Config {
+            tile: Some(40),
+            ..Config::new(Method::Lp)
+        },
+    );
+    assert!(matches!(r, Err(Error::InvalidArgument(_))), "{r:?}");
+    check_validation(&ctx);
+}
+
+/// The large cases of issue #14 (ignored; run with `--ignored --nocapture`):
+/// 4096×4096 and 4099×2053 through every method with its defaults, tiled as
+/// the default memory cap decides, with a sample map. Prints wall time, the
+/// tiles, peak device allocation and peak resident memory per case; checks
+/// finite output and the exact budget. `MCDENOISE_LARGE_INPUT`: a statistics
+/// EXR, mirrored and repeated to size (default: the built-in `mix` scene
+/// rendered at 512², 16 spp, into a temporary directory).
+/// `MCDENOISE_LARGE_METHODS` (e.g. `lp,apr`) and `MCDENOISE_LARGE_SIZES`
+/// (e.g. `4099x2053`) narrow the run; `MCDENOISE_LARGE_WHOLE=1` also runs
+/// each case untiled under a 20 GB cap where its bindings fit, and checks
+/// that the tiled output is bit-identical.
+#[test]
+#[ignore]
+fn large_images_through_every_method() {
+    let ctx = gpu();
+    let dir = std::env::temp_dir().join(format!("mcdenoise-large-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let input = match std::env::var_os("MCDENOISE_LARGE_INPUT") {
+        Some(p) => std::path::PathBuf::from(p),
+        None => {
+            let stats = dir.join("mix_512_16.exr");
+            let status = std::process::Command::new(env!("CARGO_BIN_EXE_mcdenoise"))
+                .args([
+                    "-q", "render", "--scene", "mix", "--spp", "16", "--size", "512x512",
+                ])
+                .args(["--method", "none", "-o"])
+                .arg(dir.join("none.exr"))
+                .arg("--save-stats")
+                .arg(&stats)
+                .status()
+                .unwrap();
+            assert!(status.success(), "rendering the input");
+            stats
+        }
+    };
+    let base = mcdenoise::io::read_stats(&input).unwrap();
+    let methods: Vec<Method> = match std::env::var("MCDENOISE_LARGE_METHODS") {
+        Ok(list) => list
+            .split(',')
+            .map(|m| match m.trim() {
+                "none" => Method::None,
+                "wlr" => Method::Wlr,
+                "lp" => Method::Lp,
+                "apr" => Method::Apr,
+                "aos" => Method::Aos,
+                other => panic!("unknown method {other}"),
+            })
+            .collect(),
+        Err(_) => vec![
+            Method::None,
+            Method::Lp,
+            Method::Apr,
+            Method::Wlr,
+            Method::Aos,
+        ],
+    };
+    let sizes: Vec<(usize, usize)> = match std::env::var("MCDENOISE_LARGE_SIZES") {
+        Ok(list) => list
+            .split(',')
+            .map(|s| {
+                let (w, h) = s.trim().split_once('x').expect("WxH");
+                (w.parse().unwrap(), h.parse().unwrap())
+            })
+            .collect(),
+        Err(_) => vec![(4099, 2053), (4096, 4096)],
+    };
+    let whole = std::env::var("MCDENOISE_LARGE_WHOLE").is_ok_and(|v| v == "1");
+    println!(
+        "| size | method | tiles | halo | tile interior | wall s | peak device MB | peak RSS MB | whole run |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|");
+    for &(w, h) in &sizes {
+        let img = mirrored(&base, w, h);
+        let budget = Some((w * h * 4) as u32);
+        for &method in &methods {
+            let mut config = Config::new(method);
+            config.low_spp = mcdenoise::has_low_spp(&img);
+            let run =
+                |config: Config| -> Option<(Frame, Option<(usize, usize, usize)>, f64, u64, u64)> {
+                    let before = ctx.allocated_bytes();
+                    ctx.reset_peak();
+                    reset_peak_rss();
+                    let t0 = std::time::Instant::now();
+                    let d = match Denoiser::new(&ctx, Source::of_image(&img), config) {
+                        Ok(d) => d,
+                        Err(Error::Limit(m)) => {
+                            println!("{w}x{h} {}: {m}", method.name());
+                            return None;
+                        }
+                        Err(e) => panic!("{e}"),
+                    };
+                    let tiles = d.tiles().map(|(t, halo)| {
+                        let side = t
+                            .iter()
+                            .map(|t| t.inner.width().max(t.inner.height()))
+                            .max();
+                        (t.len(), halo, side.unwrap_or(0))
+                    });
+                    let f = d.denoise(&img, budget).unwrap();
+                    let secs = t0.elapsed().as_secs_f64();
+                    let peak = ctx.peak_allocated_bytes().saturating_sub(before);
+                    Some((f, tiles, secs, peak, peak_rss()))
+                };
+            let (f, tiles, secs, peak, rss) = run(config.clone()).expect("the default cap tiles");
+            let sum: u64 = f.samples.as_ref().unwrap().iter().map(|&v| v as u64).sum();
+            assert_eq!(
+                Some(sum),
+                budget.map(u64::from),
+                "{w}x{h} {}: budget",
+                method.name()
+            );
+            for c in 0..3 {
+                assert!(
+                    f.color.planes[c].iter().all(|v| v.is_finite() && *v >= 0.0),
+                    "{w}x{h} {}: colour",
+                    method.name()
+                );
+            }
+            let whole_note = if whole && tiles.is_some() {
+                let big = Config {
+                    max_memory: Some(20_000 << 20),
+                    ..config.clone()
+                };
+                match run(big) {
+                    Some((g, None, s, p, r)) => {
+                        assert_identical(&format!("{w}x{h} {}", method.name()), &g, &f);
+                        format!(
+                            "identical; whole: {s:.1} s, {:.0} MB device, {:.0} MB RSS",
+                            p as f64 / 1e6,
+                            r as f64 / 1e6
+                        )
+                    }
+                    Some(_) => "whole run tiled as well".into(),
+                    None => "does not fit one chain".into(),
+                }
+            } else {
+                "—".into()
+            };
+            let (n, halo, side) = tiles.unwrap_or((1, 0, w.max(h)));
+            println!(
+                "| {w}×{h} | {} | {n} | {halo} | {side} | {secs:.1} | {:.0} | {:.0} | {whole_note} |",
+                method.name(),
+                peak as f64 / 1e6,
+                rss as f64 / 1e6
+            );
+        }
+    }
+    std::fs::remove_dir_all(&dir).ok();
+    check_validation(&ctx);
+}
+
+/// `base` mirrored and repeated over `w × h` (no seams).
+fn mirrored(base: &StatsImage, w: usize, h: usize) -> StatsImage {
+    let (bw, bh) = (base.width, base.height);
+    let fold = |i: usize, n: usize| {
+        let k = i % (2 * n);
+        if k < n {
+            k
+        } else {
+            2 * n - 1 - k
+        }
+    };
+    let mut img = StatsImage::new(w, h);
+    for (layer, planes) in base.layers() {
+        let out = planes
+            .iter()
+            .map(|p| {
+                let mut v = Vec::with_capacity(w * h);
+                for y in 0..h {
+                    let row = fold(y, bh) * bw;
+                    v.extend((0..w).map(|x| p[row + fold(x, bw)]));
+                }
+                v
+            })
+            .collect();
+        img.set(layer, out);
+    }
+    img
+}
+
+/// Resets the process's peak resident set (Linux: `clear_refs` 5).
+fn reset_peak_rss() {
+    let _ = std::fs::write("/proc/self/clear_refs", "5");
+}
+
+/// The process's peak resident set in bytes (`VmHWM`), 0 if unknown.
+fn peak_rss() -> u64 {
+    std::fs::read_to_string("/proc/self/status")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("VmHWM:"))
+                .and_then(|l| l.split_whitespace().nth(1)?.parse::<u64>().ok())
+        })
+        .map_or(0, |kb| kb * 1024)
+}
