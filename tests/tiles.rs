@@ -346,32 +346,31 @@ fn large_images_through_every_method() {
         for &method in &methods {
             let mut config = Config::new(method);
             config.low_spp = mcdenoise::has_low_spp(&img);
-            let run =
-                |config: Config| -> Option<(Frame, Option<(usize, usize, usize)>, f64, u64, u64)> {
-                    let before = ctx.allocated_bytes();
-                    ctx.reset_peak();
-                    reset_peak_rss();
-                    let t0 = std::time::Instant::now();
-                    let d = match Denoiser::new(&ctx, Source::of_image(&img), config) {
-                        Ok(d) => d,
-                        Err(Error::Limit(m)) => {
-                            println!("{w}x{h} {}: {m}", method.name());
-                            return None;
-                        }
-                        Err(e) => panic!("{e}"),
-                    };
-                    let tiles = d.tiles().map(|(t, halo)| {
-                        let side = t
-                            .iter()
-                            .map(|t| t.inner.width().max(t.inner.height()))
-                            .max();
-                        (t.len(), halo, side.unwrap_or(0))
-                    });
-                    let f = d.denoise(&img, budget).unwrap();
-                    let secs = t0.elapsed().as_secs_f64();
-                    let peak = ctx.peak_allocated_bytes().saturating_sub(before);
-                    Some((f, tiles, secs, peak, peak_rss()))
+            let run = |config: Config| -> Option<Run> {
+                let before = ctx.allocated_bytes();
+                ctx.reset_peak();
+                reset_peak_rss();
+                let t0 = std::time::Instant::now();
+                let d = match Denoiser::new(&ctx, Source::of_image(&img), config) {
+                    Ok(d) => d,
+                    Err(Error::Limit(m)) => {
+                        println!("{w}x{h} {}: {m}", method.name());
+                        return None;
+                    }
+                    Err(e) => panic!("{e}"),
                 };
+                let tiles = d.tiles().map(|(t, halo)| {
+                    let side = t
+                        .iter()
+                        .map(|t| t.inner.width().max(t.inner.height()))
+                        .max();
+                    (t.len(), halo, side.unwrap_or(0))
+                });
+                let f = d.denoise(&img, budget).unwrap();
+                let secs = t0.elapsed().as_secs_f64();
+                let peak = ctx.peak_allocated_bytes().saturating_sub(before);
+                Some((f, tiles, secs, peak, peak_rss()))
+            };
             let (f, tiles, secs, peak, rss) = run(config.clone()).expect("the default cap tiles");
             let sum: u64 = f.samples.as_ref().unwrap().iter().map(|&v| v as u64).sum();
             assert_eq!(
@@ -419,6 +418,10 @@ fn large_images_through_every_method() {
     std::fs::remove_dir_all(&dir).ok();
     check_validation(&ctx);
 }
+
+/// One large run: the frame, (tiles, halo, largest interior side) when
+/// tiled, wall seconds, peak device bytes, peak resident bytes.
+type Run = (Frame, Option<(usize, usize, usize)>, f64, u64, u64);
 
 /// `base` mirrored and repeated over `w × h` (no seams).
 fn mirrored(base: &StatsImage, w: usize, h: usize) -> StatsImage {
