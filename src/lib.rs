@@ -62,6 +62,8 @@
 pub mod accum;
 pub mod bench;
 pub mod error;
+#[doc(hidden)]
+pub mod fault;
 pub mod gpu;
 pub mod image;
 pub mod io;
