@@ -137,9 +137,11 @@ pub struct Batch {
     pub on_progress: Option<ProgressFn>,
     /// A submit whose completion was not seen (its wait failed).
     pending: bool,
-    /// The work recorded since the last submit, for error messages: kernel
-    /// names with their bands, or a transfer's description.
+    /// The dispatches recorded since the last submit, for error messages:
+    /// kernel names with their bands (none for an indirect dispatch).
     work: Vec<(String, Option<Band>)>,
+    /// Descriptions of the other work since the last submit (transfers).
+    notes: Vec<String>,
 }
 
 impl Batch {
@@ -296,40 +298,49 @@ impl Batch {
             on_progress: None,
             pending: false,
             work: Vec::new(),
+            notes: Vec::new(),
         }
     }
 
     /// Names the work recorded since the last submit (for error messages;
     /// dispatches name themselves).
     pub(crate) fn note(&mut self, what: String) {
-        self.work.push((what, None));
+        self.notes.push(what);
     }
 
-    /// What the current submit holds, for error messages: "kernels a (rows
-    /// 0..32 of 64), b" or a transfer's description.
+    /// What the current submit holds, for error messages: "kernels a ×3,
+    /// b (rows 0..32 of 64)" (each kernel once, in recording order, with its
+    /// number of dispatches, or its band when that is part of the image), or
+    /// a transfer's description.
     fn describe_work(&self) -> String {
-        if self.work.is_empty() {
-            return "recorded transfers".into();
+        let mut kernels: Vec<(&str, usize, Option<Band>)> = Vec::new();
+        for (name, band) in &self.work {
+            match kernels.iter_mut().find(|k| k.0 == name) {
+                Some(k) => k.1 += 1,
+                None => kernels.push((name, 1, *band)),
+            }
         }
-        const SHOWN: usize = 6;
-        let mut parts: Vec<String> = self
-            .work
+        const SHOWN: usize = 8;
+        let mut parts: Vec<String> = kernels
             .iter()
             .take(SHOWN)
-            .map(|(what, band)| match band {
-                Some((a, b, h)) => format!("{what} (rows {a}..{b} of {h})"),
-                None => what.clone(),
+            .map(|&(name, n, band)| match band {
+                _ if n > 1 => format!("{name} ×{n}"),
+                Some((a, b, h)) if (a, b) != (0, h) => format!("{name} (rows {a}..{b} of {h})"),
+                _ => name.to_owned(),
             })
             .collect();
-        if self.work.len() > SHOWN {
-            parts.push(format!("{} more", self.work.len() - SHOWN));
+        if kernels.len() > SHOWN {
+            parts.push(format!("{} more", kernels.len() - SHOWN));
         }
-        let kernels = self.work.iter().any(|(_, band)| band.is_some());
-        format!(
-            "{}{}",
-            if kernels { "kernels " } else { "" },
-            parts.join(", ")
-        )
+        let mut described: Vec<String> = self.notes.clone();
+        if !parts.is_empty() {
+            described.insert(0, format!("kernels {}", parts.join(", ")));
+        }
+        if described.is_empty() {
+            return "recorded transfers".into();
+        }
+        described.join("; ")
     }
 
     /// The error of a failed submit or wait: a device loss marks the
@@ -426,6 +437,7 @@ impl Batch {
                 Err(r) => return Err(self.failed("vkWaitForFences", r, during)),
             }
             self.work.clear();
+            self.notes.clear();
             dev.reset_fences(&[fence])
                 .map_err(Error::vk("vkResetFences"))?;
             dev.reset_command_buffer(self.cmd, vk::CommandBufferResetFlags::empty())
@@ -699,7 +711,7 @@ impl Batch {
             self.flops_recorded += row_flops * (height - first) as f64;
             return Ok(());
         }
-        let set = self.bind_set(&p, bindings)?;
+        let set = self.bind_set(&p, bindings).map_err(recording(&p.name))?;
         // A range bound twice (unused slots of a kernel) is traffic once.
         let mut ranges: Vec<(vk::Buffer, u64, u64)> = bindings
             .iter()
@@ -761,7 +773,7 @@ impl Batch {
             self.flops_recorded += flops;
             return Ok(());
         }
-        let set = self.bind_set(&p, bindings)?;
+        let set = self.bind_set(&p, bindings).map_err(recording(&p.name))?;
         self.track(&[args]);
         let mut push = push.to_vec();
         push[8..12].copy_from_slice(&0u32.to_le_bytes());
@@ -822,7 +834,7 @@ impl Batch {
             self.flush()?;
         }
         let dev = self.ctx.device.clone();
-        let q = self.query_pair()?;
+        let q = self.query_pair().map_err(recording(&p.name))?;
         // SAFETY: cmd recording; pipeline/layout/set compatible.
         unsafe {
             if let Some((pool, local, _)) = q {
@@ -902,6 +914,19 @@ impl Batch {
             stamps: std::mem::take(&mut self.stamps),
             queries_used: self.queries_used,
         }
+    }
+}
+
+/// A failed Vulkan call while recording `kernel` (a descriptor or query
+/// pool that cannot be made): an [`Error::Gpu`] naming the kernel.
+fn recording(kernel: &str) -> impl FnOnce(Error) -> Error + '_ {
+    move |e| match e {
+        Error::Vulkan { call, result } => Error::Gpu {
+            during: format!("the recording of kernel {kernel}"),
+            call,
+            result,
+        },
+        e => e,
     }
 }
 

@@ -186,7 +186,7 @@ impl GpuContext {
             })
             .collect();
         let failed = |call: &'static str| {
-            let during = format!("building the pipeline of kernel {label}");
+            let during = format!("the pipeline build of kernel {label}");
             move |result| Error::Gpu {
                 during,
                 call,
