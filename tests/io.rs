@@ -1112,6 +1112,7 @@ fn unreadable_inputs_are_named() {
             Err(e @ (Error::Io { .. } | Error::BadInput { .. })) => e.to_string(),
             other => panic!("{name}: {other:?}"),
         };
+        eprintln!("read_stats of {name}: {message}");
         assert!(message.contains(name), "{message}");
     }
 }
