@@ -29,6 +29,46 @@ pub enum Error {
         result: vk::Result,
     },
 
+    /// Recorded GPU work failed to run (not a device loss): `vkQueueSubmit`
+    /// returned an error such as `ERROR_OUT_OF_DEVICE_MEMORY`, or building a
+    /// kernel's pipeline failed. The context stays usable; after an
+    /// out-of-memory error ([`Error::is_out_of_memory`]) smaller work may
+    /// succeed.
+    #[error("{call} failed with {result:?} during {during}")]
+    Gpu {
+        /// What was running or being built: the kernels of the failed
+        /// submit (with their rows), a buffer copy, or a pipeline.
+        during: String,
+        /// The Vulkan entry point.
+        call: &'static str,
+        /// What it returned.
+        result: vk::Result,
+    },
+
+    /// The device was lost (`ERROR_DEVICE_LOST`) while running `during`.
+    /// The context cannot continue: every later call on it returns this same
+    /// error; create a new [`GpuContext`](crate::GpuContext).
+    #[error(
+        "the GPU device was lost during {during}; this context cannot continue (create a new one)"
+    )]
+    DeviceLost {
+        /// The kernels (with their rows) or copy of the submit that was
+        /// running when the loss was reported.
+        during: String,
+    },
+
+    /// Waiting for submitted work took longer than the context's fence
+    /// timeout ([`GpuContext::set_fence_timeout`](crate::GpuContext::set_fence_timeout)).
+    /// The device is treated as hung, as if lost: every later call on the
+    /// context returns this same error.
+    #[error("the GPU did not finish {during} within {seconds} s (the fence timeout); this context cannot continue (create a new one, or raise the timeout)")]
+    Timeout {
+        /// The kernels (with their rows) or copy of the submit waited for.
+        during: String,
+        /// The timeout in seconds.
+        seconds: f64,
+    },
+
     /// GPU memory allocation failed.
     #[error("GPU allocation of {name} ({bytes} bytes) failed: {source}")]
     Allocation {
@@ -96,6 +136,31 @@ impl Error {
     /// The one place a `vk::Result` becomes an [`Error`].
     pub fn vk(call: &'static str) -> impl FnOnce(vk::Result) -> Error {
         move |result| Error::Vulkan { call, result }
+    }
+
+    /// Whether this is an out-of-memory error (device or host, from an
+    /// allocation, a submit or a pipeline build): the context is still
+    /// usable and smaller work may succeed.
+    pub fn is_out_of_memory(&self) -> bool {
+        let oom = |r: &vk::Result| {
+            matches!(
+                *r,
+                vk::Result::ERROR_OUT_OF_DEVICE_MEMORY | vk::Result::ERROR_OUT_OF_HOST_MEMORY
+            )
+        };
+        match self {
+            Error::Allocation { source, .. } => {
+                matches!(source, gpu_allocator::AllocationError::OutOfMemory)
+            }
+            Error::Vulkan { result, .. } | Error::Gpu { result, .. } => oom(result),
+            _ => false,
+        }
+    }
+
+    /// Whether the context this error came from can no longer be used
+    /// ([`Error::DeviceLost`] or [`Error::Timeout`]).
+    pub fn is_device_lost(&self) -> bool {
+        matches!(self, Error::DeviceLost { .. } | Error::Timeout { .. })
     }
 
     /// A [`Error::BadInput`] for `path`.

@@ -51,6 +51,19 @@
 //! Dropping a context made by [`GpuContext::from_raw`] does not wait on the
 //! host's device.
 //!
+//! ## Faults
+//! Every GPU failure is an [`Error`]: out of memory ([`Error::is_out_of_memory`])
+//! names the buffer, kernel or submit and leaves the context usable, so the
+//! next call (or a smaller one) can succeed; a lost device or a fence wait
+//! longer than [`GpuContext::fence_timeout`] (60 s per submit by default)
+//! names the kernels that were running and marks the context lost
+//! ([`Error::is_device_lost`]): every later call on it returns the same
+//! error, and the caller makes a new context. A constructor that fails
+//! half-way destroys what it had created. Output files are written
+//! atomically; a full disk or an unwritable path is an [`Error::Io`] naming
+//! the file, and leaves no partial file. (`docs/robustness.md` lists the
+//! faults tested.)
+//!
 //! ## Layers
 //! `src/bin` (CLI) → this facade → [`methods`] (sequences of kernels) →
 //! [`kernels`] (one file per GPU kernel) → [`gpu`] (Vulkan plumbing, the
@@ -62,6 +75,8 @@
 pub mod accum;
 pub mod bench;
 pub mod error;
+#[doc(hidden)]
+pub mod fault;
 pub mod gpu;
 pub mod image;
 pub mod io;

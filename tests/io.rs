@@ -958,6 +958,165 @@ fn writes_are_atomic() {
     assert_eq!(dir.entries(), ["a_directory", "p.png", "stats.exr"]);
 }
 
+/// The OS error of an [`Error::Io`] for `path`.
+fn os_error(result: mcdenoise::Result<()>, path: &Path) -> (i32, String) {
+    match result {
+        Err(e @ Error::Io { .. }) => {
+            let message = e.to_string();
+            let Error::Io { path: p, source } = e else {
+                unreachable!()
+            };
+            assert_eq!(p, path, "{message}");
+            (source.raw_os_error().unwrap_or(0), message)
+        }
+        other => panic!("expected an Io error for {}, got {other:?}", path.display()),
+    }
+}
+
+/// A full disk (injected: `mcdenoise::fault`), at every point of a write,
+/// for each writer: an error naming the destination and "No space left on
+/// device", no partial or temporary file, an existing file untouched.
+#[test]
+fn a_full_disk_leaves_no_partial_file() {
+    use mcdenoise::fault::Plan;
+    let dir = TempDir::new("full_disk");
+    let stats = synthetic_stats(16, 9, &REQUIRED);
+    let color = RgbImage::from_planes(
+        4,
+        3,
+        [
+            (0..12).map(|i| i as f32).collect(),
+            vec![0.5; 12],
+            vec![2.0; 12],
+        ],
+    );
+    let output = OutputImage {
+        color: color.clone(),
+        error: Some(color.clone()),
+        samples: Some(vec![3.0; 12]),
+        debug: vec![],
+    };
+    type Writer<'a> = Box<dyn Fn(&Path) -> mcdenoise::Result<()> + 'a>;
+    let writers: [(&str, Writer); 3] = [
+        ("stats.exr", Box::new(|p| write_stats(p, &stats))),
+        ("out.exr", Box::new(|p| write_output(p, &output))),
+        ("preview.png", Box::new(|p| write_png_preview(p, &color))),
+    ];
+    for (name, write) in &writers {
+        let path = dir.path(name);
+        // The bytes a complete write takes.
+        let plan = Plan::new();
+        write(&path).unwrap();
+        let total = plan.bytes_written();
+        drop(plan);
+        let complete = std::fs::read(&path).unwrap();
+        std::fs::remove_file(&path).unwrap();
+        assert!(
+            total >= complete.len() as u64 && total > 8,
+            "{name}: {total}"
+        );
+
+        for limit in [0, 1, total / 2, total - 1] {
+            for existing in [false, true] {
+                if existing {
+                    std::fs::write(&path, b"the previous output").unwrap();
+                }
+                let plan = Plan::new().fail_write_after(limit, libc::ENOSPC);
+                let result = write(&path);
+                assert_eq!(plan.bytes_written(), limit, "{name}: stops at the limit");
+                drop(plan);
+                let (errno, message) = os_error(result, &path);
+                if !existing {
+                    eprintln!("{name}, disk full after {limit} of {total} bytes: {message}");
+                }
+                assert_eq!(errno, libc::ENOSPC, "{name} at {limit}: {message}");
+                assert!(
+                    message.contains(name) && message.contains("No space left on device"),
+                    "{message}"
+                );
+                if existing {
+                    assert_eq!(std::fs::read(&path).unwrap(), b"the previous output");
+                    std::fs::remove_file(&path).unwrap();
+                }
+                assert!(
+                    dir.entries().is_empty(),
+                    "{name} at {limit}: {:?}",
+                    dir.entries()
+                );
+            }
+        }
+        // Exactly enough room: the write completes.
+        let plan = Plan::new().fail_write_after(total, libc::ENOSPC);
+        write(&path).unwrap();
+        drop(plan);
+        assert_eq!(std::fs::read(&path).unwrap(), complete, "{name}");
+        std::fs::remove_file(&path).unwrap();
+    }
+}
+
+/// An unwritable destination (injected, since root ignores permissions): the
+/// temporary file cannot be created (read-only file system), or the final
+/// rename fails (permission denied); also a destination whose directory is a
+/// file. Each is an error naming the destination, with nothing left behind.
+#[test]
+fn unwritable_destinations_are_named_and_leave_nothing() {
+    use mcdenoise::fault::{Call, Failure, Plan};
+    let dir = TempDir::new("unwritable");
+    let img = synthetic_stats(4, 4, &REQUIRED);
+    let path = dir.path("out.exr");
+    for (call, errno, text) in [
+        (Call::FileCreate, libc::EROFS, "Read-only file system"),
+        (Call::FileRename, libc::EACCES, "Permission denied"),
+        (Call::FileWrite, libc::EIO, "Input/output error"),
+    ] {
+        for existing in [false, true] {
+            if existing {
+                std::fs::write(&path, b"old").unwrap();
+            }
+            let plan = Plan::new().fail(call, 1, Failure::Os(errno));
+            let result = write_stats(&path, &img);
+            assert!(plan.all_fired(), "{call:?}");
+            drop(plan);
+            let (got, message) = os_error(result, &path);
+            eprintln!("write_stats, {call:?} fails (existing file: {existing}): {message}");
+            assert_eq!(got, errno, "{call:?}: {message}");
+            assert!(
+                message.contains("out.exr") && message.contains(text),
+                "{message}"
+            );
+            if existing {
+                assert_eq!(std::fs::read(&path).unwrap(), b"old");
+                std::fs::remove_file(&path).unwrap();
+            }
+            assert!(dir.entries().is_empty(), "{call:?}: {:?}", dir.entries());
+        }
+    }
+    // A path through a regular file: not a directory.
+    std::fs::write(dir.path("file"), b"x").unwrap();
+    let through = dir.path("file/out.exr");
+    let (errno, message) = os_error(write_stats(&through, &img), &through);
+    assert_eq!(errno, libc::ENOTDIR, "{message}");
+    assert_eq!(dir.entries(), ["file"]);
+}
+
+/// Unreadable inputs: a directory, and a path through a regular file, are
+/// errors naming the path (as a missing file is, above).
+#[test]
+fn unreadable_inputs_are_named() {
+    let dir = TempDir::new("unreadable");
+    std::fs::create_dir(dir.path("a_directory.exr")).unwrap();
+    std::fs::write(dir.path("file"), b"x").unwrap();
+    for name in ["a_directory.exr", "file/stats.exr"] {
+        let path = dir.path(name);
+        let message = match read_stats(&path) {
+            Err(e @ (Error::Io { .. } | Error::BadInput { .. })) => e.to_string(),
+            other => panic!("{name}: {other:?}"),
+        };
+        eprintln!("read_stats of {name}: {message}");
+        assert!(message.contains(name), "{message}");
+    }
+}
+
 fn decode_png(path: &Path) -> (u32, u32, Vec<u8>) {
     let decoder = png::Decoder::new(std::fs::File::open(path).unwrap());
     let mut reader = decoder.read_info().unwrap();

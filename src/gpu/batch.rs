@@ -5,6 +5,15 @@
 //! [`Batch::finish`]), splitting long work into several submits so no single
 //! submit runs longer than about a second on lavapipe, or records into a
 //! host's command buffer ([`Batch::record_into`]) and never submits.
+//!
+//! Faults: every fence wait has the context's timeout
+//! ([`GpuContext::fence_timeout`], 60 s per submit by default). A failed
+//! submit or wait names the work it held ([`Error::Gpu`], or
+//! [`Error::DeviceLost`] / [`Error::Timeout`], which also mark the context
+//! lost). A batch dropped after a failed wait waits again (up to the
+//! timeout) before it destroys its command pool and fence; if the device
+//! still does not answer, it leaks them rather than destroy objects the
+//! device may be using.
 
 use std::collections::HashSet;
 use std::sync::Arc;
@@ -12,10 +21,11 @@ use std::sync::Arc;
 use ash::vk;
 
 use super::buffer::BufferSlice;
-use super::context::GpuContext;
+use super::context::{GpuContext, Lost};
 use super::pipeline::Pipeline;
 use super::reflect::{KernelDecl, Precision};
 use crate::error::{Error, Result};
+use crate::fault::{self, Call, Object};
 
 /// Estimated work one submit may hold, in floating-point operations. About
 /// 0.5–1 s on lavapipe with two cores (≈2 GFLOP/s per core measured), a few
@@ -125,6 +135,13 @@ pub struct Batch {
     flops_done: f64,
     /// Called after each submit has completed (execute mode).
     pub on_progress: Option<ProgressFn>,
+    /// A submit whose completion was not seen (its wait failed).
+    pending: bool,
+    /// The dispatches recorded since the last submit, for error messages:
+    /// kernel names with their bands (none for an indirect dispatch).
+    work: Vec<(String, Option<Band>)>,
+    /// Descriptions of the other work since the last submit (transfers).
+    notes: Vec<String>,
 }
 
 impl Batch {
@@ -132,29 +149,45 @@ impl Batch {
     /// queue. Dropping it without [`finish`](Self::finish) waits for what was
     /// submitted and discards the rest.
     pub fn new(ctx: &Arc<GpuContext>) -> Result<Batch> {
+        ctx.check_alive()?;
         let dev = &ctx.device;
         // SAFETY: device alive; pool destroyed (with its buffer) in Drop.
-        let pool = unsafe {
-            dev.create_command_pool(
-                &vk::CommandPoolCreateInfo::default()
-                    .queue_family_index(ctx.queue_family)
-                    .flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER),
-                None,
-            )
-        }
-        .map_err(Error::vk("vkCreateCommandPool"))?;
-        let cmd = unsafe {
-            dev.allocate_command_buffers(
-                &vk::CommandBufferAllocateInfo::default()
-                    .command_pool(pool)
-                    .level(vk::CommandBufferLevel::PRIMARY)
-                    .command_buffer_count(1),
-            )
-        }
-        .map_err(Error::vk("vkAllocateCommandBuffers"))?[0];
-        let fence = unsafe { dev.create_fence(&vk::FenceCreateInfo::default(), None) }
+        let pool = fault::vk(Call::CreateCommandPool)
+            .and_then(|()| unsafe {
+                dev.create_command_pool(
+                    &vk::CommandPoolCreateInfo::default()
+                        .queue_family_index(ctx.queue_family)
+                        .flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER),
+                    None,
+                )
+            })
+            .map_err(Error::vk("vkCreateCommandPool"))?;
+        fault::created(Object::CommandPool);
+        // From here on the batch's Drop destroys the pool and the fence (a
+        // null fence is skipped) if a later step fails.
+        let mut b = Batch::empty(
+            ctx,
+            pool,
+            vk::CommandBuffer::null(),
+            Mode::Execute {
+                fence: vk::Fence::null(),
+            },
+        );
+        b.cmd = fault::vk(Call::AllocateCommandBuffer)
+            .and_then(|()| unsafe {
+                dev.allocate_command_buffers(
+                    &vk::CommandBufferAllocateInfo::default()
+                        .command_pool(pool)
+                        .level(vk::CommandBufferLevel::PRIMARY)
+                        .command_buffer_count(1),
+                )
+            })
+            .map_err(Error::vk("vkAllocateCommandBuffers"))?[0];
+        let fence = fault::vk(Call::CreateFence)
+            .and_then(|()| unsafe { dev.create_fence(&vk::FenceCreateInfo::default(), None) })
             .map_err(Error::vk("vkCreateFence"))?;
-        let mut b = Batch::empty(ctx, pool, cmd, Mode::Execute { fence });
+        fault::created(Object::Fence);
+        b.mode = Mode::Execute { fence };
         b.begin()?;
         Ok(b)
     }
@@ -263,6 +296,63 @@ impl Batch {
             flops_recorded: 0.0,
             flops_done: 0.0,
             on_progress: None,
+            pending: false,
+            work: Vec::new(),
+            notes: Vec::new(),
+        }
+    }
+
+    /// Names the work recorded since the last submit (for error messages;
+    /// dispatches name themselves).
+    pub(crate) fn note(&mut self, what: String) {
+        self.notes.push(what);
+    }
+
+    /// What the current submit holds, for error messages: "kernels a ×3,
+    /// b (rows 0..32 of 64)" (each kernel once, in recording order, with its
+    /// number of dispatches, or its band when that is part of the image), or
+    /// a transfer's description.
+    fn describe_work(&self) -> String {
+        let mut kernels: Vec<(&str, usize, Option<Band>)> = Vec::new();
+        for (name, band) in &self.work {
+            match kernels.iter_mut().find(|k| k.0 == name) {
+                Some(k) => k.1 += 1,
+                None => kernels.push((name, 1, *band)),
+            }
+        }
+        const SHOWN: usize = 8;
+        let mut parts: Vec<String> = kernels
+            .iter()
+            .take(SHOWN)
+            .map(|&(name, n, band)| match band {
+                _ if n > 1 => format!("{name} ×{n}"),
+                Some((a, b, h)) if (a, b) != (0, h) => format!("{name} (rows {a}..{b} of {h})"),
+                _ => name.to_owned(),
+            })
+            .collect();
+        if kernels.len() > SHOWN {
+            parts.push(format!("{} more", kernels.len() - SHOWN));
+        }
+        let mut described: Vec<String> = self.notes.clone();
+        if !parts.is_empty() {
+            described.insert(0, format!("kernels {}", parts.join(", ")));
+        }
+        if described.is_empty() {
+            return "recorded transfers".into();
+        }
+        described.join("; ")
+    }
+
+    /// The error of a failed submit or wait: a device loss marks the
+    /// context lost.
+    fn failed(&self, call: &'static str, result: vk::Result, during: String) -> Error {
+        match result {
+            vk::Result::ERROR_DEVICE_LOST => self.ctx.mark_lost(Lost::Device(during)),
+            result => Error::Gpu {
+                during,
+                call,
+                result,
+            },
         }
     }
 
@@ -314,7 +404,9 @@ impl Batch {
             vk::PipelineStageFlags::HOST,
             vk::AccessFlags::HOST_READ,
         );
-        let dev = &self.ctx.device;
+        self.ctx.check_alive()?;
+        let dev = self.ctx.device.clone();
+        let during = self.describe_work();
         // SAFETY: cmd is recording; fence unsignalled; queue used by us only.
         unsafe {
             dev.end_command_buffer(self.cmd)
@@ -323,12 +415,29 @@ impl Batch {
             let submit = [vk::SubmitInfo::default().command_buffers(&cmds)];
             {
                 let _queue = self.ctx.queue_lock.lock().unwrap();
-                dev.queue_submit(self.ctx.queue, &submit, fence)
-                    .map_err(Error::vk("vkQueueSubmit"))?;
+                if let Err(r) = fault::vk(Call::QueueSubmit)
+                    .and_then(|()| dev.queue_submit(self.ctx.queue, &submit, fence))
+                {
+                    return Err(self.failed("vkQueueSubmit", r, during));
+                }
                 self.ctx.count_submit();
             }
-            dev.wait_for_fences(&[fence], true, u64::MAX)
-                .map_err(Error::vk("vkWaitForFences"))?;
+            self.pending = true;
+            let timeout = self.ctx.fence_timeout();
+            let ns = u64::try_from(timeout.as_nanos()).unwrap_or(u64::MAX);
+            match fault::vk(Call::WaitForFences)
+                .and_then(|()| dev.wait_for_fences(&[fence], true, ns))
+            {
+                Ok(()) => self.pending = false,
+                Err(vk::Result::TIMEOUT) => {
+                    return Err(self
+                        .ctx
+                        .mark_lost(Lost::Timeout(during, timeout.as_secs_f64())))
+                }
+                Err(r) => return Err(self.failed("vkWaitForFences", r, during)),
+            }
+            self.work.clear();
+            self.notes.clear();
             dev.reset_fences(&[fence])
                 .map_err(Error::vk("vkResetFences"))?;
             dev.reset_command_buffer(self.cmd, vk::CommandBufferResetFlags::empty())
@@ -407,16 +516,19 @@ impl Batch {
             let sizes = [vk::DescriptorPoolSize::default()
                 .ty(vk::DescriptorType::STORAGE_BUFFER)
                 .descriptor_count(DESCRIPTORS_PER_POOL)];
-            // SAFETY: destroyed in Drop / by Recorded.
-            let pool = unsafe {
-                dev.create_descriptor_pool(
-                    &vk::DescriptorPoolCreateInfo::default()
-                        .max_sets(SETS_PER_POOL)
-                        .pool_sizes(&sizes),
-                    None,
-                )
-            }
-            .map_err(Error::vk("vkCreateDescriptorPool"))?;
+            // SAFETY: recycled into the context by Drop / Recorded, which
+            // destroys it.
+            let pool = fault::vk(Call::CreateDescriptorPool)
+                .and_then(|()| unsafe {
+                    dev.create_descriptor_pool(
+                        &vk::DescriptorPoolCreateInfo::default()
+                            .max_sets(SETS_PER_POOL)
+                            .pool_sizes(&sizes),
+                        None,
+                    )
+                })
+                .map_err(Error::vk("vkCreateDescriptorPool"))?;
+            fault::created(Object::DescriptorPool);
             self.desc_pools.push(pool);
             self.sets_left = SETS_PER_POOL;
         }
@@ -457,6 +569,7 @@ impl Batch {
                 )
             }
             .map_err(Error::vk("vkCreateQueryPool"))?;
+            fault::created(Object::QueryPool);
             self.query_pools.push(pool);
         }
         let pool = self.query_pools[pool_idx];
@@ -580,6 +693,7 @@ impl Batch {
         (first, height): (u32, u32),
         flops_per_pixel: f64,
     ) -> Result<()> {
+        // (`pipeline` fails on a lost context.)
         let p = self.ctx.pipeline(decl, precision)?;
         check_bindings(&self.ctx, decl, p.binding_count, bindings, push)?;
         if width == 0 || height <= first {
@@ -597,7 +711,7 @@ impl Batch {
             self.flops_recorded += row_flops * (height - first) as f64;
             return Ok(());
         }
-        let set = self.bind_set(&p, bindings)?;
+        let set = self.bind_set(&p, bindings).map_err(recording(&p.name))?;
         // A range bound twice (unused slots of a kernel) is traffic once.
         let mut ranges: Vec<(vk::Buffer, u64, u64)> = bindings
             .iter()
@@ -659,7 +773,7 @@ impl Batch {
             self.flops_recorded += flops;
             return Ok(());
         }
-        let set = self.bind_set(&p, bindings)?;
+        let set = self.bind_set(&p, bindings).map_err(recording(&p.name))?;
         self.track(&[args]);
         let mut push = push.to_vec();
         push[8..12].copy_from_slice(&0u32.to_le_bytes());
@@ -720,7 +834,7 @@ impl Batch {
             self.flush()?;
         }
         let dev = self.ctx.device.clone();
-        let q = self.query_pair()?;
+        let q = self.query_pair().map_err(recording(&p.name))?;
         // SAFETY: cmd recording; pipeline/layout/set compatible.
         unsafe {
             if let Some((pool, local, _)) = q {
@@ -757,6 +871,11 @@ impl Batch {
             ));
         }
         self.last_band = Some((p.name.clone(), band));
+        match (self.work.last_mut(), band) {
+            // Bands of one dispatch in one submit: one entry.
+            (Some((name, Some(last))), Some(b)) if *name == p.name && last.1 == b.0 => last.1 = b.1,
+            _ => self.work.push((p.name.clone(), band)),
+        }
         self.barrier();
         self.flops_in_submit += flops;
         self.flops_recorded += flops;
@@ -795,6 +914,19 @@ impl Batch {
             stamps: std::mem::take(&mut self.stamps),
             queries_used: self.queries_used,
         }
+    }
+}
+
+/// A failed Vulkan call while recording `kernel` (a descriptor or query
+/// pool that cannot be made): an [`Error::Gpu`] naming the kernel.
+fn recording(kernel: &str) -> impl FnOnce(Error) -> Error + '_ {
+    move |e| match e {
+        Error::Vulkan { call, result } => Error::Gpu {
+            during: format!("the recording of kernel {kernel}"),
+            call,
+            result,
+        },
+        e => e,
     }
 }
 
@@ -846,16 +978,37 @@ fn check_bindings(
 impl Drop for Batch {
     fn drop(&mut self) {
         let dev = &self.ctx.device;
-        // SAFETY: execute mode: every submit was waited for in `flush`, so
-        // nothing in flight uses these objects. Record mode: the pools were
-        // moved to `Recorded` (finish_recording), or the host abandons the
-        // recording and must not submit it.
-        unsafe {
-            if let Mode::Execute { fence } = self.mode {
-                dev.destroy_fence(fence, None);
+        if let Mode::Execute { fence } = self.mode {
+            if self.pending {
+                // A wait failed: wait again before destroying anything the
+                // device may still use. A lost device runs nothing any more.
+                let ns = u64::try_from(self.ctx.fence_timeout().as_nanos()).unwrap_or(u64::MAX);
+                // SAFETY: the fence belongs to this device.
+                match unsafe { dev.wait_for_fences(&[fence], true, ns) } {
+                    Ok(()) | Err(vk::Result::ERROR_DEVICE_LOST) => self.pending = false,
+                    Err(r) => {
+                        log::error!(
+                            "the device did not finish a submit ({r:?}): leaking its command pool, \
+                             fence, descriptor sets and buffers rather than destroying them in use"
+                        );
+                        return;
+                    }
+                }
+            }
+            // SAFETY: every submit has completed (waited for in `flush` or
+            // above), so nothing in flight uses these objects; null handles
+            // (a constructor that failed half-way) are skipped.
+            unsafe {
+                if fence != vk::Fence::null() {
+                    dev.destroy_fence(fence, None);
+                    fault::destroyed(Object::Fence);
+                }
                 dev.destroy_command_pool(self.pool, None);
+                fault::destroyed(Object::CommandPool);
             }
         }
+        // Record mode: the pools were moved to `Recorded` (finish_recording),
+        // or the host abandons the recording and must not submit it.
         self.ctx
             .recycle_query_pools(std::mem::take(&mut self.query_pools));
         self.ctx
@@ -928,6 +1081,7 @@ impl Drop for Recorded {
 /// Copies `size` bytes between buffers and waits (used for staging).
 pub(crate) fn copy_buffer(
     ctx: &Arc<GpuContext>,
+    what: String,
     src: vk::Buffer,
     src_offset: u64,
     dst: vk::Buffer,
@@ -935,6 +1089,7 @@ pub(crate) fn copy_buffer(
     size: u64,
 ) -> Result<()> {
     let mut b = Batch::new(ctx)?;
+    b.note(what);
     let region = [vk::BufferCopy::default()
         .src_offset(src_offset)
         .dst_offset(dst_offset)

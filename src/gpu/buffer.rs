@@ -8,6 +8,7 @@ use gpu_allocator::MemoryLocation;
 
 use super::context::GpuContext;
 use crate::error::{Error, Result};
+use crate::fault::{self, Call, Object};
 
 /// A range of a storage buffer, as a kernel binding sees it. Host-owned
 /// buffers (the embedding path) are passed this way too.
@@ -103,6 +104,7 @@ impl GpuBuffer {
         size: u64,
         location: MemoryLocation,
     ) -> Result<GpuBuffer> {
+        ctx.check_alive()?;
         let size = size.max(4);
         let info = vk::BufferCreateInfo::default()
             .size(size)
@@ -114,26 +116,31 @@ impl GpuBuffer {
             )
             .sharing_mode(vk::SharingMode::EXCLUSIVE);
         // SAFETY: valid create info on a live device; destroyed in Drop.
-        let buffer = unsafe { ctx.device.create_buffer(&info, None) }
+        let buffer = fault::vk(Call::CreateBuffer)
+            .and_then(|()| unsafe { ctx.device.create_buffer(&info, None) })
             .map_err(Error::vk("vkCreateBuffer"))?;
+        fault::created(Object::Buffer);
         let reqs = unsafe { ctx.device.get_buffer_memory_requirements(buffer) };
-        let alloc = ctx
-            .allocator
-            .lock()
-            .unwrap()
-            .as_mut()
-            .expect("allocator alive while the context is")
-            .allocate(&AllocationCreateDesc {
-                name,
-                requirements: reqs,
-                location,
-                linear: true,
-                allocation_scheme: AllocationScheme::GpuAllocatorManaged,
-            });
+        let alloc = match fault::vk(Call::Allocate) {
+            Err(r) => Err(super::context::allocation_error(r)),
+            Ok(()) => ctx
+                .allocator
+                .lock()
+                .unwrap()
+                .as_mut()
+                .expect("allocator alive while the context is")
+                .allocate(&AllocationCreateDesc {
+                    name,
+                    requirements: reqs,
+                    location,
+                    linear: true,
+                    allocation_scheme: AllocationScheme::GpuAllocatorManaged,
+                }),
+        };
         let allocation = match alloc {
             Ok(a) => a,
             Err(source) => {
-                unsafe { ctx.device.destroy_buffer(buffer, None) };
+                ctx.retire_buffer(buffer, None);
                 return Err(Error::Allocation {
                     name: name.to_owned(),
                     bytes: size,
@@ -141,19 +148,13 @@ impl GpuBuffer {
                 });
             }
         };
+        fault::created(Object::Allocation);
         // SAFETY: memory comes from this device and fits the requirements.
         if let Err(e) = unsafe {
             ctx.device
                 .bind_buffer_memory(buffer, allocation.memory(), allocation.offset())
         } {
-            unsafe { ctx.device.destroy_buffer(buffer, None) };
-            let _ = ctx
-                .allocator
-                .lock()
-                .unwrap()
-                .as_mut()
-                .unwrap()
-                .free(allocation);
+            ctx.retire_buffer(buffer, Some(allocation));
             return Err(Error::vk("vkBindBufferMemory")(e));
         }
         ctx.name_object(buffer, name);
@@ -252,6 +253,7 @@ impl GpuBuffer {
         staging.upload(0, bytes)?;
         super::batch::copy_buffer(
             &self.ctx,
+            format!("the upload to {}", self.name),
             staging.buffer,
             0,
             self.buffer,
@@ -291,6 +293,7 @@ impl GpuBuffer {
         )?;
         super::batch::copy_buffer(
             &self.ctx,
+            format!("the download from {}", self.name),
             self.buffer,
             offset,
             staging.buffer,
@@ -324,7 +327,15 @@ pub fn read_slice(ctx: &Arc<GpuContext>, slice: BufferSlice, count: usize) -> Re
     }
     let staging =
         GpuBuffer::with_location(ctx, "read_slice.staging", bytes, MemoryLocation::GpuToCpu)?;
-    super::batch::copy_buffer(ctx, slice.buffer, slice.offset, staging.buffer, 0, bytes)?;
+    super::batch::copy_buffer(
+        ctx,
+        "a read-back copy".into(),
+        slice.buffer,
+        slice.offset,
+        staging.buffer,
+        0,
+        bytes,
+    )?;
     staging.download(0, bytemuck::cast_slice_mut(&mut v))?;
     Ok(v)
 }

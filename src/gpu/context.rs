@@ -2,13 +2,15 @@
 
 use std::collections::HashMap;
 use std::ffi::{c_void, CStr, CString};
-use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
+use std::time::Duration;
 
 use ash::vk;
 use gpu_allocator::vulkan::{Allocation, Allocator, AllocatorCreateDesc};
 
 use crate::error::{Error, Result};
+use crate::fault::{self, Call, Object};
 
 const VALIDATION_LAYER: &CStr = c"VK_LAYER_KHRONOS_validation";
 
@@ -119,6 +121,13 @@ unsafe extern "system" fn debug_callback(
 /// A device that mcdenoise runs on, either created by mcdenoise or imported
 /// from a host renderer ([`GpuContext::from_raw`]).
 ///
+/// Faults: a device loss (`ERROR_DEVICE_LOST` from a submit or a fence
+/// wait) or a fence wait longer than [`fence_timeout`](Self::fence_timeout)
+/// marks the context lost ([`is_lost`](Self::is_lost)); from then on every
+/// call that would touch the device (a batch, a buffer, a pipeline, a
+/// dispatch) returns the same [`Error::DeviceLost`] or [`Error::Timeout`].
+/// An out-of-memory error does not: the context stays usable.
+///
 /// Teardown order (on drop): wait for the device to be idle (only a device
 /// this context created: an imported device is the host's, and every
 /// submission mcdenoise made itself has already been waited for), destroy
@@ -164,6 +173,71 @@ pub struct GpuContext {
     /// the most there have been at once.
     pub(crate) allocated: AtomicU64,
     pub(crate) peak_allocated: AtomicU64,
+    /// Set once the device is lost or hung (the fast check of `lost`).
+    lost_flag: AtomicBool,
+    /// Why the context cannot continue: the first loss or timeout.
+    lost: Mutex<Option<Lost>>,
+    /// How long a fence wait may take, in nanoseconds.
+    fence_timeout_ns: AtomicU64,
+}
+
+/// The default of [`GpuContext::fence_timeout`]: 60 s for one submit. A
+/// submit holds about a second of estimated work on lavapipe (see
+/// [`DEFAULT_FLOPS_PER_SUBMIT`](super::batch::DEFAULT_FLOPS_PER_SUBMIT)), a
+/// few milliseconds on a discrete GPU.
+pub const DEFAULT_FENCE_TIMEOUT: Duration = Duration::from_secs(60);
+
+/// Why a context cannot continue.
+#[derive(Clone, Debug)]
+pub(crate) enum Lost {
+    /// `ERROR_DEVICE_LOST` while running the described work.
+    Device(String),
+    /// A fence wait passed the timeout (seconds) while running the described work.
+    Timeout(String, f64),
+}
+
+impl Lost {
+    fn error(&self) -> Error {
+        match self {
+            Lost::Device(during) => Error::DeviceLost {
+                during: during.clone(),
+            },
+            Lost::Timeout(during, seconds) => Error::Timeout {
+                during: during.clone(),
+                seconds: *seconds,
+            },
+        }
+    }
+}
+
+/// What [`GpuContext::new`] has created so far: destroyed on drop, in
+/// reverse order, unless moved into the context. A failure after the
+/// instance (the messenger, the device, the allocator) leaks nothing.
+struct Partial {
+    instance: Option<ash::Instance>,
+    debug: Option<(ash::ext::debug_utils::Instance, vk::DebugUtilsMessengerEXT)>,
+    device: Option<ash::Device>,
+}
+
+impl Drop for Partial {
+    fn drop(&mut self) {
+        // SAFETY: nothing else was created from these objects (the allocator
+        // is made last, and a failed one holds no memory).
+        unsafe {
+            if let Some(d) = self.device.take() {
+                d.destroy_device(None);
+                fault::destroyed(Object::Device);
+            }
+            if let Some((du, m)) = self.debug.take() {
+                du.destroy_debug_utils_messenger(m, None);
+                fault::destroyed(Object::DebugMessenger);
+            }
+            if let Some(i) = self.instance.take() {
+                i.destroy_instance(None);
+                fault::destroyed(Object::Instance);
+            }
+        }
+    }
 }
 
 #[derive(Default)]
@@ -193,12 +267,16 @@ fn make_instance(entry: &ash::Entry, layers: &[*const i8], debug: bool) -> Resul
         .enabled_layer_names(layers)
         .enabled_extension_names(&exts);
     // SAFETY: all pointers in `info` outlive the call.
-    unsafe { entry.create_instance(&info, None) }.map_err(|e| match e {
-        vk::Result::ERROR_INCOMPATIBLE_DRIVER => {
-            Error::NoDevice("no Vulkan driver (ICD) is installed".into())
-        }
-        e => Error::vk("vkCreateInstance")(e),
-    })
+    let instance = fault::vk(Call::CreateInstance)
+        .and_then(|()| unsafe { entry.create_instance(&info, None) })
+        .map_err(|e| match e {
+            vk::Result::ERROR_INCOMPATIBLE_DRIVER => {
+                Error::NoDevice("no Vulkan driver (ICD) is installed".into())
+            }
+            e => Error::vk("vkCreateInstance")(e),
+        })?;
+    fault::created(Object::Instance);
+    Ok(instance)
 }
 
 fn layer_available(entry: &ash::Entry, name: &CStr) -> bool {
@@ -330,6 +408,7 @@ pub fn enumerate_devices() -> Result<Vec<DeviceInfo>> {
                 .collect()
         });
     unsafe { instance.destroy_instance(None) };
+    fault::destroyed(Object::Instance);
     result
 }
 
@@ -357,6 +436,47 @@ pub struct ImportedDevice {
     pub shader_int64_enabled: bool,
 }
 
+/// The context's memory allocator on `device`.
+fn make_allocator(
+    instance: &ash::Instance,
+    device: &ash::Device,
+    physical: vk::PhysicalDevice,
+) -> Result<Allocator> {
+    let err = |source| Error::Allocation {
+        name: "allocator".into(),
+        bytes: 0,
+        source,
+    };
+    if let Err(r) = fault::vk(Call::CreateAllocator) {
+        return Err(err(allocation_error(r)));
+    }
+    let allocator = Allocator::new(&AllocatorCreateDesc {
+        instance: instance.clone(),
+        device: device.clone(),
+        physical_device: physical,
+        debug_settings: gpu_allocator::AllocatorDebugSettings {
+            log_leaks_on_shutdown: cfg!(debug_assertions),
+            ..Default::default()
+        },
+        buffer_device_address: false,
+        allocation_sizes: Default::default(),
+    })
+    .map_err(err)?;
+    fault::created(Object::Allocator);
+    Ok(allocator)
+}
+
+/// The allocator's error for an injected Vulkan result (out-of-memory codes
+/// become its out-of-memory error, as a real exhaustion does).
+pub(crate) fn allocation_error(r: vk::Result) -> gpu_allocator::AllocationError {
+    match r {
+        vk::Result::ERROR_OUT_OF_DEVICE_MEMORY | vk::Result::ERROR_OUT_OF_HOST_MEMORY => {
+            gpu_allocator::AllocationError::OutOfMemory
+        }
+        r => gpu_allocator::AllocationError::Internal(format!("{r:?}")),
+    }
+}
+
 impl GpuContext {
     /// Creates an instance and a device of its own.
     pub fn new(options: &ContextOptions) -> Result<GpuContext> {
@@ -380,9 +500,16 @@ impl GpuContext {
         } else {
             vec![]
         };
-        let instance = make_instance(&entry, &layers, want_layer)?;
+        // Declared before `partial`, so that it outlives the messenger that
+        // points at it when `partial` destroys what it holds.
         let validation_log = Arc::new(ValidationLog::default());
-        let debug = if want_layer {
+        let mut partial = Partial {
+            instance: Some(make_instance(&entry, &layers, want_layer)?),
+            debug: None,
+            device: None,
+        };
+        let instance = partial.instance.clone().expect("just created");
+        if want_layer {
             let du = ash::ext::debug_utils::Instance::new(&entry, &instance);
             let info = vk::DebugUtilsMessengerCreateInfoEXT::default()
                 .message_severity(
@@ -398,78 +525,72 @@ impl GpuContext {
                 .user_data(Arc::as_ptr(&validation_log) as *mut c_void);
             // SAFETY: the log outlives the messenger (both owned by the context,
             // messenger destroyed first).
-            let m = unsafe { du.create_debug_utils_messenger(&info, None) }
+            let m = fault::vk(Call::CreateDebugMessenger)
+                .and_then(|()| unsafe { du.create_debug_utils_messenger(&info, None) })
                 .map_err(Error::vk("vkCreateDebugUtilsMessengerEXT"))?;
-            Some((du, m))
-        } else {
-            None
-        };
+            fault::created(Object::DebugMessenger);
+            partial.debug = Some((du, m));
+        }
 
-        let built = (|| {
-            // SAFETY: plain enumeration on a live instance.
-            let pds = unsafe { instance.enumerate_physical_devices() }
-                .map_err(Error::vk("vkEnumeratePhysicalDevices"))?;
-            let infos: Vec<DeviceInfo> = pds
-                .iter()
-                .enumerate()
-                .map(|(i, &pd)| describe(&instance, pd, i))
-                .collect();
-            let chosen = choose_device(&infos, options.device.as_deref())?;
-            let physical = pds[chosen];
-            let info = infos[chosen].clone();
-            // SAFETY: `physical` comes from this instance.
-            let families =
-                unsafe { instance.get_physical_device_queue_family_properties(physical) };
-            let queue_family = families
-                .iter()
-                .position(|q| q.queue_flags.contains(vk::QueueFlags::COMPUTE))
-                .unwrap() as u32;
-            let priorities = [1.0f32];
-            let queue_info = [vk::DeviceQueueCreateInfo::default()
-                .queue_family_index(queue_family)
-                .queue_priorities(&priorities)];
-            let features = vk::PhysicalDeviceFeatures::default()
-                .shader_float64(info.shader_float64)
-                .shader_int64(info.shader_int64);
-            let dinfo = vk::DeviceCreateInfo::default()
-                .queue_create_infos(&queue_info)
-                .enabled_features(&features);
-            // SAFETY: valid create info; the device is destroyed by this context.
-            let device = unsafe { instance.create_device(physical, &dinfo, None) }
-                .map_err(Error::vk("vkCreateDevice"))?;
-            // SAFETY: family/index exist (created above).
-            let queue = unsafe { device.get_device_queue(queue_family, 0) };
-            Ok::<_, Error>((physical, info, device, queue, queue_family))
-        })();
-        let (physical, info, device, queue, queue_family) = match built {
-            Ok(b) => b,
-            Err(e) => {
-                // SAFETY: nothing created from the instance is alive any more.
-                unsafe {
-                    if let Some((du, m)) = &debug {
-                        du.destroy_debug_utils_messenger(*m, None);
-                    }
-                    instance.destroy_instance(None);
-                }
-                return Err(e);
-            }
-        };
+        // SAFETY: plain enumeration on a live instance.
+        let pds = unsafe { instance.enumerate_physical_devices() }
+            .map_err(Error::vk("vkEnumeratePhysicalDevices"))?;
+        let infos: Vec<DeviceInfo> = pds
+            .iter()
+            .enumerate()
+            .map(|(i, &pd)| describe(&instance, pd, i))
+            .collect();
+        let chosen = choose_device(&infos, options.device.as_deref())?;
+        let physical = pds[chosen];
+        let info = infos[chosen].clone();
+        // SAFETY: `physical` comes from this instance.
+        let families = unsafe { instance.get_physical_device_queue_family_properties(physical) };
+        let queue_family = families
+            .iter()
+            .position(|q| q.queue_flags.contains(vk::QueueFlags::COMPUTE))
+            .unwrap() as u32;
+        let priorities = [1.0f32];
+        let queue_info = [vk::DeviceQueueCreateInfo::default()
+            .queue_family_index(queue_family)
+            .queue_priorities(&priorities)];
+        let features = vk::PhysicalDeviceFeatures::default()
+            .shader_float64(info.shader_float64)
+            .shader_int64(info.shader_int64);
+        let dinfo = vk::DeviceCreateInfo::default()
+            .queue_create_infos(&queue_info)
+            .enabled_features(&features);
+        // SAFETY: valid create info; the device is destroyed by `partial` or
+        // by the context.
+        let device = fault::vk(Call::CreateDevice)
+            .and_then(|()| unsafe { instance.create_device(physical, &dinfo, None) })
+            .map_err(Error::vk("vkCreateDevice"))?;
+        fault::created(Object::Device);
+        partial.device = Some(device.clone());
+        // SAFETY: family/index exist (created above).
+        let queue = unsafe { device.get_device_queue(queue_family, 0) };
+        let allocator = make_allocator(&instance, &device, physical)?;
+
+        // Everything exists: the context owns it from here on.
+        partial.device = None;
+        partial.instance = None;
+        let debug = partial.debug.take();
         let f64_enabled = info.shader_float64;
         let int64_enabled = info.shader_int64;
-        Self::finish(
+        Ok(Self::assemble(
             entry,
             instance,
             physical,
             device,
             queue,
             queue_family,
+            allocator,
             info,
             f64_enabled,
             int64_enabled,
             true,
             debug,
             validation_log,
-        )
+        ))
     }
 
     /// Wraps a host renderer's existing instance, device and queue: the
@@ -489,53 +610,40 @@ impl GpuContext {
     ///   buffers and never submit).
     pub unsafe fn from_raw(host: ImportedDevice) -> Result<GpuContext> {
         let info = describe(&host.instance, host.physical_device, 0);
-        Self::finish(
+        let allocator = make_allocator(&host.instance, &host.device, host.physical_device)?;
+        Ok(Self::assemble(
             host.entry,
             host.instance,
             host.physical_device,
             host.device,
             host.queue,
             host.queue_family_index,
+            allocator,
             info,
             host.shader_float64_enabled,
             host.shader_int64_enabled,
             false,
             None,
             Arc::new(ValidationLog::default()),
-        )
+        ))
     }
 
-    fn finish(
+    fn assemble(
         entry: ash::Entry,
         instance: ash::Instance,
         physical: vk::PhysicalDevice,
         device: ash::Device,
         queue: vk::Queue,
         queue_family: u32,
+        allocator: Allocator,
         info: DeviceInfo,
         f64_enabled: bool,
         int64_enabled: bool,
         owns_device: bool,
         debug: Option<(ash::ext::debug_utils::Instance, vk::DebugUtilsMessengerEXT)>,
         validation_log: Arc<ValidationLog>,
-    ) -> Result<GpuContext> {
-        let allocator = Allocator::new(&AllocatorCreateDesc {
-            instance: instance.clone(),
-            device: device.clone(),
-            physical_device: physical,
-            debug_settings: gpu_allocator::AllocatorDebugSettings {
-                log_leaks_on_shutdown: cfg!(debug_assertions),
-                ..Default::default()
-            },
-            buffer_device_address: false,
-            allocation_sizes: Default::default(),
-        })
-        .map_err(|source| Error::Allocation {
-            name: "allocator".into(),
-            bytes: 0,
-            source,
-        })?;
-        Ok(GpuContext {
+    ) -> GpuContext {
+        GpuContext {
             entry,
             instance,
             physical,
@@ -557,7 +665,10 @@ impl GpuContext {
             submits: AtomicU64::new(0),
             allocated: AtomicU64::new(0),
             peak_allocated: AtomicU64::new(0),
-        })
+            lost_flag: AtomicBool::new(false),
+            lost: Mutex::new(None),
+            fence_timeout_ns: AtomicU64::new(DEFAULT_FENCE_TIMEOUT.as_nanos() as u64),
+        }
     }
 
     /// The chosen device's properties and limits.
@@ -700,10 +811,12 @@ impl GpuContext {
         // SAFETY: no recorded work that may still execute binds the buffer
         // (its in-flight count is 0), and it belongs to this device.
         unsafe { self.device.destroy_buffer(buffer, None) };
+        fault::destroyed(Object::Buffer);
         if let Some(a) = allocation {
             if let Some(alloc) = self.allocator.lock().unwrap().as_mut() {
                 let _ = alloc.free(a);
             }
+            fault::destroyed(Object::Allocation);
         }
     }
 
@@ -737,8 +850,67 @@ impl GpuContext {
 
     /// Waits until the device has finished all work.
     pub fn wait_idle(&self) -> Result<()> {
+        self.check_alive()?;
         // SAFETY: device is alive.
-        unsafe { self.device.device_wait_idle() }.map_err(Error::vk("vkDeviceWaitIdle"))
+        unsafe { self.device.device_wait_idle() }.map_err(|r| match r {
+            vk::Result::ERROR_DEVICE_LOST => {
+                self.mark_lost(Lost::Device("vkDeviceWaitIdle".into()))
+            }
+            r => Error::vk("vkDeviceWaitIdle")(r),
+        })
+    }
+
+    /// Whether the device was lost or hung (see the type's documentation):
+    /// every later call on this context fails.
+    pub fn is_lost(&self) -> bool {
+        self.lost_flag.load(Ordering::Acquire)
+    }
+
+    /// The error of a lost context, `Ok` while it is usable. Checked before
+    /// any work that touches the device.
+    pub(crate) fn check_alive(&self) -> Result<()> {
+        if !self.is_lost() {
+            return Ok(());
+        }
+        Err(self
+            .lost
+            .lock()
+            .unwrap()
+            .as_ref()
+            .expect("set before the flag")
+            .error())
+    }
+
+    /// Marks the context lost (the first reason is kept) and returns the
+    /// error every call now gets.
+    pub(crate) fn mark_lost(&self, why: Lost) -> Error {
+        let mut lost = self.lost.lock().unwrap();
+        let first = lost.get_or_insert(why).clone();
+        self.lost_flag.store(true, Ordering::Release);
+        log::error!("{}", first.error());
+        first.error()
+    }
+
+    /// How long mcdenoise waits for one submit before it treats the device
+    /// as hung: [`Error::Timeout`], and the context is lost. Default
+    /// [`DEFAULT_FENCE_TIMEOUT`] (60 s; a submit holds about a second of work
+    /// on lavapipe).
+    pub fn fence_timeout(&self) -> Duration {
+        Duration::from_nanos(self.fence_timeout_ns.load(Ordering::Relaxed))
+    }
+
+    /// Sets [`fence_timeout`](Self::fence_timeout) for later waits (any
+    /// thread). Raise it for devices far slower than lavapipe on two cores.
+    pub fn set_fence_timeout(&self, timeout: Duration) {
+        let ns = u64::try_from(timeout.as_nanos()).unwrap_or(u64::MAX);
+        self.fence_timeout_ns.store(ns, Ordering::Relaxed);
+    }
+
+    /// The validation messages' log, shared: it stays readable after the
+    /// context is dropped, so a test can check that the teardown itself was
+    /// valid.
+    pub fn validation_log(&self) -> Arc<ValidationLog> {
+        self.validation_log.clone()
     }
 
     /// Debug label for a Vulkan object (no-op without the debug extension).
@@ -768,21 +940,28 @@ impl Drop for GpuContext {
             self.pipelines.lock().unwrap().destroy(&self.device);
             for p in self.free_desc_pools.lock().unwrap().drain(..) {
                 self.device.destroy_descriptor_pool(p, None);
+                fault::destroyed(Object::DescriptorPool);
             }
             for p in self.free_query_pools.lock().unwrap().drain(..) {
                 self.device.destroy_query_pool(p, None);
+                fault::destroyed(Object::QueryPool);
             }
             let deferred = std::mem::take(&mut self.in_flight.lock().unwrap().deferred);
             for (b, a) in deferred {
                 self.destroy_buffer(b, a);
             }
-            drop(self.allocator.lock().unwrap().take());
+            if self.allocator.lock().unwrap().take().is_some() {
+                fault::destroyed(Object::Allocator);
+            }
             if self.owns_device {
                 self.device.destroy_device(None);
+                fault::destroyed(Object::Device);
                 if let Some((du, m)) = self.debug.take() {
                     du.destroy_debug_utils_messenger(m, None);
+                    fault::destroyed(Object::DebugMessenger);
                 }
                 self.instance.destroy_instance(None);
+                fault::destroyed(Object::Instance);
             }
         }
     }

@@ -1,12 +1,20 @@
 //! Compute pipelines, built once per (kernel, precision) and cached.
+//!
+//! Build-once: the cache holds one slot per key, and a thread building a
+//! kernel holds that slot's lock (never the whole cache's), so two threads
+//! asking for the same pipeline get the same one, built once, while other
+//! kernels build in parallel. A failed build leaves the slot empty (the next
+//! call tries again) and destroys what it had created.
 
 use std::collections::HashMap;
+use std::sync::{Arc, Mutex};
 
 use ash::vk;
 
 use super::context::GpuContext;
 use super::reflect::{spirv, KernelDecl, Precision};
 use crate::error::{Error, Result};
+use crate::fault::{self, Call, Object};
 
 /// One built kernel variant.
 #[derive(Clone, Debug)]
@@ -32,17 +40,67 @@ pub struct Pipeline {
 /// by [`GpuContext`] and destroyed with it.
 #[derive(Default)]
 pub struct PipelineCache {
-    map: HashMap<(String, Precision), Pipeline>,
+    map: HashMap<(String, Precision), Slot>,
 }
+
+/// One key's pipeline, `None` until built; its lock is held while building.
+type Slot = Arc<Mutex<Option<Pipeline>>>;
 
 impl PipelineCache {
     pub(crate) fn destroy(&mut self, device: &ash::Device) {
-        for (_, p) in self.map.drain() {
-            // SAFETY: called at teardown after the device is idle.
-            unsafe {
-                device.destroy_pipeline(p.pipeline, None);
-                device.destroy_pipeline_layout(p.layout, None);
-                device.destroy_descriptor_set_layout(p.set_layout, None);
+        for (_, slot) in self.map.drain() {
+            let built = slot.lock().unwrap_or_else(|e| e.into_inner()).take();
+            if let Some(p) = built {
+                drop(Objects {
+                    device,
+                    set_layout: p.set_layout,
+                    layout: p.layout,
+                    pipeline: p.pipeline,
+                });
+            }
+        }
+    }
+}
+
+/// A pipeline's objects, destroyed on drop (null handles are skipped): a
+/// build that fails half-way drops what it made; a finished build moves the
+/// handles out ([`Objects::keep`]).
+struct Objects<'a> {
+    device: &'a ash::Device,
+    set_layout: vk::DescriptorSetLayout,
+    layout: vk::PipelineLayout,
+    pipeline: vk::Pipeline,
+}
+
+impl Objects<'_> {
+    /// The handles, no longer destroyed by this value.
+    fn keep(mut self) -> (vk::DescriptorSetLayout, vk::PipelineLayout, vk::Pipeline) {
+        (
+            std::mem::take(&mut self.set_layout),
+            std::mem::take(&mut self.layout),
+            std::mem::take(&mut self.pipeline),
+        )
+    }
+}
+
+impl Drop for Objects<'_> {
+    fn drop(&mut self) {
+        // SAFETY: no recorded work uses them (a failed build was never bound;
+        // the cache destroys at teardown after the device is idle); children
+        // before parents.
+        unsafe {
+            if self.pipeline != vk::Pipeline::null() {
+                self.device.destroy_pipeline(self.pipeline, None);
+                fault::destroyed(Object::Pipeline);
+            }
+            if self.layout != vk::PipelineLayout::null() {
+                self.device.destroy_pipeline_layout(self.layout, None);
+                fault::destroyed(Object::PipelineLayout);
+            }
+            if self.set_layout != vk::DescriptorSetLayout::null() {
+                self.device
+                    .destroy_descriptor_set_layout(self.set_layout, None);
+                fault::destroyed(Object::DescriptorSetLayout);
             }
         }
     }
@@ -50,12 +108,30 @@ impl PipelineCache {
 
 impl GpuContext {
     /// The pipeline of `decl` in `precision`, built (and checked against its
-    /// SPIR-V by reflection) on first use.
+    /// SPIR-V by reflection) on first use; built once even when several
+    /// threads ask at the same time (see the module documentation).
     pub fn pipeline(&self, decl: &KernelDecl, precision: Precision) -> Result<Pipeline> {
+        self.check_alive()?;
         let key = (decl.name.to_owned(), precision);
-        if let Some(p) = self.pipelines.lock().unwrap().map.get(&key) {
+        let slot = self
+            .pipelines
+            .lock()
+            .unwrap()
+            .map
+            .entry(key)
+            .or_default()
+            .clone();
+        // A build that panicked left the slot empty: building again is fine.
+        let mut slot = slot.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(p) = slot.as_ref() {
             return Ok(p.clone());
         }
+        let p = self.build_pipeline(decl, precision)?;
+        *slot = Some(p.clone());
+        Ok(p)
+    }
+
+    fn build_pipeline(&self, decl: &KernelDecl, precision: Precision) -> Result<Pipeline> {
         if precision == Precision::F64 && !self.f64_enabled {
             return Err(Error::Limit(format!(
                 "kernel {}_f64 needs shaderFloat64, which {} does not support",
@@ -109,44 +185,75 @@ impl GpuContext {
                     .stage_flags(vk::ShaderStageFlags::COMPUTE)
             })
             .collect();
-        // SAFETY: create infos reference live locals; objects are destroyed by
-        // the cache at teardown.
+        let failed = |call: &'static str| {
+            let during = format!("the pipeline build of kernel {label}");
+            move |result| Error::Gpu {
+                during,
+                call,
+                result,
+            }
+        };
+        let mut objects = Objects {
+            device: dev,
+            set_layout: vk::DescriptorSetLayout::null(),
+            layout: vk::PipelineLayout::null(),
+            pipeline: vk::Pipeline::null(),
+        };
+        // SAFETY: create infos reference live locals; `objects` destroys what
+        // was created if a later step fails, the cache at teardown otherwise.
         unsafe {
-            let set_layout = dev
-                .create_descriptor_set_layout(
-                    &vk::DescriptorSetLayoutCreateInfo::default().bindings(&bindings),
-                    None,
-                )
-                .map_err(Error::vk("vkCreateDescriptorSetLayout"))?;
+            objects.set_layout = fault::vk(Call::CreateDescriptorSetLayout)
+                .and_then(|()| {
+                    dev.create_descriptor_set_layout(
+                        &vk::DescriptorSetLayoutCreateInfo::default().bindings(&bindings),
+                        None,
+                    )
+                })
+                .map_err(failed("vkCreateDescriptorSetLayout"))?;
+            fault::created(Object::DescriptorSetLayout);
             let ranges = [vk::PushConstantRange::default()
                 .stage_flags(vk::ShaderStageFlags::COMPUTE)
                 .offset(0)
                 .size(decl.push_size)];
-            let layouts = [set_layout];
+            let layouts = [objects.set_layout];
             let mut layout_info = vk::PipelineLayoutCreateInfo::default().set_layouts(&layouts);
             if decl.push_size > 0 {
                 layout_info = layout_info.push_constant_ranges(&ranges);
             }
-            let layout = dev
-                .create_pipeline_layout(&layout_info, None)
-                .map_err(Error::vk("vkCreatePipelineLayout"))?;
-            let module = dev
-                .create_shader_module(&vk::ShaderModuleCreateInfo::default().code(words), None)
-                .map_err(Error::vk("vkCreateShaderModule"))?;
+            objects.layout = fault::vk(Call::CreatePipelineLayout)
+                .and_then(|()| dev.create_pipeline_layout(&layout_info, None))
+                .map_err(failed("vkCreatePipelineLayout"))?;
+            fault::created(Object::PipelineLayout);
+            let module = fault::vk(Call::CreateShaderModule)
+                .and_then(|()| {
+                    dev.create_shader_module(
+                        &vk::ShaderModuleCreateInfo::default().code(words),
+                        None,
+                    )
+                })
+                .map_err(failed("vkCreateShaderModule"))?;
+            fault::created(Object::ShaderModule);
             let stage = vk::PipelineShaderStageCreateInfo::default()
                 .stage(vk::ShaderStageFlags::COMPUTE)
                 .module(module)
                 .name(c"main");
             let info = [vk::ComputePipelineCreateInfo::default()
                 .stage(stage)
-                .layout(layout)];
-            let pipeline = dev
-                .create_compute_pipelines(vk::PipelineCache::null(), &info, None)
-                .map_err(|(_, e)| Error::vk("vkCreateComputePipelines")(e));
+                .layout(objects.layout)];
+            let pipeline = fault::vk(Call::CreateComputePipeline)
+                .and_then(|()| {
+                    dev.create_compute_pipelines(vk::PipelineCache::null(), &info, None)
+                        .map_err(|(_, e)| e)
+                })
+                .map_err(failed("vkCreateComputePipelines"));
+            // The module is only needed while the pipeline is created.
             dev.destroy_shader_module(module, None);
-            let pipeline = pipeline?[0];
-            self.name_object(pipeline, &label);
-            let p = Pipeline {
+            fault::destroyed(Object::ShaderModule);
+            objects.pipeline = pipeline?[0];
+            fault::created(Object::Pipeline);
+            self.name_object(objects.pipeline, &label);
+            let (set_layout, layout, pipeline) = objects.keep();
+            Ok(Pipeline {
                 name: label,
                 set_layout,
                 layout,
@@ -154,9 +261,7 @@ impl GpuContext {
                 workgroup: reflection.workgroup_size,
                 binding_count: n,
                 push_size: decl.push_size,
-            };
-            self.pipelines.lock().unwrap().map.insert(key, p.clone());
-            Ok(p)
+            })
         }
     }
 }

@@ -209,10 +209,14 @@ fn write_list(
     );
     let image = Image::from_layer(layer);
     write_atomic(path, |writer| {
-        image
-            .write()
-            .to_buffered(writer)
-            .map_err(|e| write_error(path, "EXR encoding failed", e))
+        image.write().to_buffered(writer).map_err(|e| match e {
+            // The OS's error as it is (a full disk, an I/O error).
+            exr::error::Error::Io(source) => Error::Io {
+                path: path.to_path_buf(),
+                source,
+            },
+            e => write_error(path, "EXR encoding failed", e),
+        })
     })
 }
 

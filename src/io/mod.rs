@@ -24,11 +24,12 @@ pub mod inspect;
 mod png_out;
 
 use std::fs::{self, File, OpenOptions};
-use std::io::{BufWriter, Write};
+use std::io::{BufWriter, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use crate::error::{Error, Result};
+use crate::fault::{self, Call};
 
 pub use exr_in::{read_rgb, read_stats, MAX_DIMENSION, MAX_PIXELS};
 pub use exr_out::{
@@ -61,37 +62,68 @@ fn temp_path(path: &Path) -> Result<PathBuf> {
     })
 }
 
+/// The writer [`write_atomic`] hands out: a buffered temporary file.
+/// (Writes go through the test-only fault hook, which can make them fail
+/// like a full disk.)
+pub struct TempFile {
+    inner: BufWriter<File>,
+}
+
+impl Write for TempFile {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        if let Some((allowed, error)) = fault::write_budget(buf.len()) {
+            self.inner.write_all(&buf[..allowed])?;
+            return Err(error);
+        }
+        self.inner.write_all(buf)?;
+        Ok(buf.len())
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.inner.flush()
+    }
+}
+
+impl Seek for TempFile {
+    fn seek(&mut self, pos: SeekFrom) -> std::io::Result<u64> {
+        self.inner.seek(pos)
+    }
+}
+
 /// Writes `path` atomically.
 ///
 /// `write` receives a buffered writer on a fresh temporary file next to `path`
 /// (`.<name>.tmp-<pid>-<n>`); when it returns `Ok`, the data is flushed,
 /// synced to disk and the temporary file is renamed over `path`. If anything
 /// fails (including `write` itself), the temporary file is removed and `path`
-/// is left untouched. OS errors are reported as [`Error::Io`] naming `path`.
+/// is left untouched. OS errors are reported as [`Error::Io`] naming `path`
+/// (a full disk: "No space left on device").
 ///
 /// A directory that does not exist is not created: that is an error.
-pub fn write_atomic(
-    path: &Path,
-    write: impl FnOnce(&mut BufWriter<File>) -> Result<()>,
-) -> Result<()> {
+pub fn write_atomic(path: &Path, write: impl FnOnce(&mut TempFile) -> Result<()>) -> Result<()> {
     let tmp = temp_path(path)?;
     let io_err = |source: std::io::Error| Error::Io {
         path: path.to_path_buf(),
         source,
     };
-    let file = OpenOptions::new()
-        .write(true)
-        .create_new(true)
-        .open(&tmp)
+    let file = fault::os(Call::FileCreate)
+        .and_then(|()| OpenOptions::new().write(true).create_new(true).open(&tmp))
         .map_err(io_err)?;
     let result = (|| {
-        let mut writer = BufWriter::new(file);
+        let mut writer = TempFile {
+            inner: BufWriter::new(file),
+        };
         write(&mut writer)?;
         writer.flush().map_err(io_err)?;
-        let file = writer.into_inner().map_err(|e| io_err(e.into_error()))?;
+        let file = writer
+            .inner
+            .into_inner()
+            .map_err(|e| io_err(e.into_error()))?;
         file.sync_all().map_err(io_err)?;
         drop(file);
-        fs::rename(&tmp, path).map_err(io_err)
+        fault::os(Call::FileRename)
+            .and_then(|()| fs::rename(&tmp, path))
+            .map_err(io_err)
     })();
     if result.is_err() {
         // Best effort: the temporary file may already be gone.

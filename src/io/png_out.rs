@@ -136,7 +136,14 @@ fn write_rgb8_png(path: &Path, width: usize, height: usize, data: &[u8]) -> Resu
         encoder.set_color(png::ColorType::Rgb);
         encoder.set_depth(png::BitDepth::Eight);
         encoder.set_source_srgb(png::SrgbRenderingIntent::Perceptual);
-        let png_err = |e: png::EncodingError| write_error(path, "PNG encoding failed", e);
+        let png_err = |e: png::EncodingError| match e {
+            // The OS's error as it is (a full disk, an I/O error).
+            png::EncodingError::IoError(source) => Error::Io {
+                path: path.to_path_buf(),
+                source,
+            },
+            e => write_error(path, "PNG encoding failed", e),
+        };
         let mut png = encoder.write_header().map_err(png_err)?;
         png.write_image_data(data).map_err(png_err)?;
         png.finish().map_err(png_err)
