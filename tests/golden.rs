@@ -156,3 +156,114 @@ fn a_wrong_image_fails_and_leaves_a_diff() {
         Path::new(env!("CARGO_TARGET_TMPDIR")).join("golden-failures/none_dof_checker_64.diff.png");
     assert!(diff.exists());
 }
+
+/// APR on the fixture, same thresholds as WLR.
+#[test]
+fn golden_apr() {
+    check_golden(
+        "apr_dof_checker_64",
+        &run(Method::Apr, Backend::Gpu),
+        1e-5,
+        1e-3,
+    );
+    check_golden(
+        "apr_dof_checker_64",
+        &run(Method::Apr, Backend::Cpu),
+        1e-5,
+        1e-3,
+    );
+}
+
+/// AOS on the fixture: the rMSE threshold of WLR; per pixel, the GPU may
+/// resolve a near-tie of the order choice (1 or 3) differently from the f64
+/// twin (spec §0.3 allows it on 2 % of the pixels: one pixel of the fixture,
+/// term 1.5e-2 on lavapipe), so its pixel bound is 3e-2; the twin's is 1e-3.
+#[test]
+fn golden_aos() {
+    check_golden(
+        "aos_dof_checker_64",
+        &run(Method::Aos, Backend::Gpu),
+        1e-5,
+        3e-2,
+    );
+    check_golden(
+        "aos_dof_checker_64",
+        &run(Method::Aos, Backend::Cpu),
+        1e-5,
+        1e-3,
+    );
+}
+
+/// rMSE terms of `out` against `reference` per pixel (mean of the channels).
+fn terms(out: &RgbImage, reference: &RgbImage) -> Vec<f64> {
+    (0..out.width * out.height)
+        .map(|i| {
+            (0..3)
+                .map(|c| {
+                    let (x, r) = (out.planes[c][i] as f64, reference.planes[c][i] as f64);
+                    (x - r) * (x - r) / (r * r + 0.01)
+                })
+                .sum::<f64>()
+                / 3.0
+        })
+        .collect()
+}
+
+/// Every method's error against the committed converged reference of the
+/// fixture, bounded three ways, so that a regression confined to a few
+/// percent of the pixels or to the borders fails even when the goldens are
+/// rewritten: the whole image's rMSE, the rMSE of the 6-pixel border band,
+/// and the 98th percentile of the per-pixel terms. Bounds: the values
+/// measured on lavapipe (2026-11-24, printed) × 1.3.
+#[test]
+fn every_method_is_bounded_against_the_reference() {
+    let reference = io::read_rgb(&fixture("dof_checker_64_ref.exr")).unwrap();
+    let (w, h) = (reference.width, reference.height);
+    let border = |i: usize| {
+        let (x, y) = (i % w, i / w);
+        x < 6 || y < 6 || x + 6 >= w || y + 6 >= h
+    };
+    // (method, whole, border, 98th percentile) as measured.
+    let measured: [(Method, f64, f64, f64); 5] = [
+        (Method::None, 0.04357, 0.04317, 0.2966),
+        (Method::Wlr, 0.01110, 0.01150, 0.1070),
+        (Method::Lp, 0.01375, 0.01501, 0.1449),
+        (Method::Apr, 0.02148, 0.02172, 0.2016),
+        (Method::Aos, 0.02133, 0.02221, 0.2259),
+    ];
+    for (method, whole, band, p98) in measured {
+        let out = run(method, Backend::Gpu);
+        let t = terms(&out, &reference);
+        let mean = |f: &dyn Fn(usize) -> bool| {
+            let v: Vec<f64> = (0..t.len()).filter(|&i| f(i)).map(|i| t[i]).collect();
+            v.iter().sum::<f64>() / v.len() as f64
+        };
+        let got_whole = mean(&|_| true);
+        let got_band = mean(&border);
+        let mut sorted = t.clone();
+        sorted.sort_by(f64::total_cmp);
+        let got_p98 = sorted[(sorted.len() * 98) / 100];
+        println!(
+            "{}: rMSE {got_whole:.5}, border {got_band:.5}, p98 {got_p98:.5}",
+            method.name()
+        );
+        assert!(
+            got_whole <= whole * 1.3,
+            "{}: rMSE {got_whole} over {}",
+            method.name(),
+            whole * 1.3
+        );
+        assert!(
+            got_band <= band * 1.3,
+            "{}: border rMSE {got_band} over {}",
+            method.name(),
+            band * 1.3
+        );
+        assert!(
+            got_p98 <= p98 * 1.3,
+            "{}: 98th percentile {got_p98} over {}",
+            method.name(),
+            p98 * 1.3
+        );
+    }
+}
