@@ -323,7 +323,7 @@ fn row_chunks_are_bit_identical() {
     let img = mcdenoise::io::read_stats(&dir.join("dof_checker_64_spp16.exr")).unwrap();
     let run = |max_binding: u64| {
         let stats = GpuStats::upload(&ctx, "test.stats", &img).unwrap();
-        let planes = GbfPlanes::new(&ctx, img.width, img.height).unwrap();
+        let planes = GbfPlanes::new(&ctx, img.width, img.height, None).unwrap();
         let mut batch = Batch::new(&ctx).unwrap();
         record_gbf_chunked(&mut batch, Precision::F32, &stats, &planes, max_binding).unwrap();
         let timings = batch.finish().unwrap();

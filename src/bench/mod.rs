@@ -47,6 +47,7 @@
 // Every public item of the benchmark API is documented; keep it so.
 #![warn(missing_docs)]
 
+mod memory;
 mod peak;
 mod quality;
 mod report;
@@ -54,6 +55,7 @@ mod scenes;
 mod synthetic;
 mod timing;
 
+pub use memory::{peak_rss_bytes, reset_peak_rss};
 pub use peak::{
     measure_peak, Peak, Spread, COPY_ROWS, COPY_WIDTH, FMA_ITERATIONS, FMA_ROWS, FMA_WIDTH,
 };

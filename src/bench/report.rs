@@ -232,10 +232,18 @@ impl TimingReport {
             s.push('\n');
         }
         let mut rows: Vec<Vec<String>> = vec![
-            ["case", "backend", "median wall ms", "ms/MP", "GPU ms"]
-                .map(String::from)
-                .to_vec(),
-            ["---", "---", "---:", "---:", "---:"]
+            [
+                "case",
+                "backend",
+                "median wall ms",
+                "ms/MP",
+                "GPU ms",
+                "peak device MB",
+                "peak RSS MB",
+            ]
+            .map(String::from)
+            .to_vec(),
+            ["---", "---", "---:", "---:", "---:", "---:", "---:"]
                 .map(String::from)
                 .to_vec(),
         ];
@@ -246,6 +254,8 @@ impl TimingReport {
                 format!("{:.2}", r.median_wall_ms),
                 format!("{:.2}", r.ms_per_megapixel),
                 r.gpu_ms.map_or(String::new(), |t| format!("{t:.2}")),
+                r.device_mb.map_or(String::new(), |m| format!("{m:.0}")),
+                r.rss_mb.map_or(String::new(), |m| format!("{m:.0}")),
             ]);
         }
         s.push_str(&markdown_table(&rows));
@@ -315,7 +325,8 @@ impl TimingReport {
     /// "runs", "peak", "rows": [...], "unavailable_methods", "warnings"}`;
     /// `peak` is `{runs, fma_f32, fma_f64, copy}` with `{min, median, max}`
     /// each (GFLOP/s, GB/s) or `null`; each row has `case method backend
-    /// width height wall_ms median_wall_ms ms_per_megapixel gpu_ms kernels`
+    /// width height wall_ms median_wall_ms ms_per_megapixel gpu_ms device_mb
+    /// rss_mb kernels`
     /// and each kernel `kernel gpu_ms dispatches gflops gbs` (`null` where
     /// absent or non-finite). Pretty-printed by
     /// `serde_json`, with a final newline.
@@ -341,6 +352,8 @@ impl TimingReport {
                     median_wall_ms: r.median_wall_ms,
                     ms_per_megapixel: r.ms_per_megapixel,
                     gpu_ms: r.gpu_ms,
+                    device_mb: r.device_mb,
+                    rss_mb: r.rss_mb,
                     kernels: r
                         .kernels
                         .iter()
@@ -527,6 +540,8 @@ struct TimingRowJson<'a> {
     median_wall_ms: f64,
     ms_per_megapixel: f64,
     gpu_ms: Option<f64>,
+    device_mb: Option<f64>,
+    rss_mb: Option<f64>,
     kernels: Vec<KernelJson<'a>>,
 }
 
@@ -643,6 +658,8 @@ mod tests {
                 median_wall_ms: 1.5,
                 ms_per_megapixel: 93750.0,
                 gpu_ms: Some(1.0),
+                device_mb: Some(12.0),
+                rss_mb: None,
                 kernels: vec![crate::bench::KernelRow {
                     kernel: "wlr_fit".into(),
                     ms: 1.0,
@@ -674,6 +691,8 @@ mod tests {
                     "median_wall_ms",
                     "ms_per_megapixel",
                     "gpu_ms",
+                    "device_mb",
+                    "rss_mb",
                     "kernels",
                     "kernel",
                     "dispatches",

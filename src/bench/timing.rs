@@ -91,6 +91,13 @@ pub struct TimingRow {
     pub gpu_ms: Option<f64>,
     /// GPU time per kernel, in the order the last run first dispatched them.
     pub kernels: Vec<KernelRow>,
+    /// Peak device allocation of the case in MB (10⁶ bytes): the denoiser's
+    /// buffers and the transfers' staging, from its creation to its last
+    /// call; `None` on the CPU backend.
+    pub device_mb: Option<f64>,
+    /// Peak resident memory of the process during the case in MB (Linux;
+    /// the input image, already read, included).
+    pub rss_mb: Option<f64>,
 }
 
 /// The result of [`run_timing`].
@@ -233,7 +240,7 @@ pub fn run_timing(
                 backend_name(backend)
             )));
             match time_case(ctx, &img, method, backend, cfg.runs, &cfg.stages) {
-                Ok((wall_ms, timings)) => {
+                Ok((wall_ms, timings, device_mb, rss_mb)) => {
                     let med = median(&wall_ms);
                     let sums: Vec<f64> = timings.iter().filter_map(|t| gpu_ms(t)).collect();
                     let kernels = timings
@@ -296,6 +303,8 @@ pub fn run_timing(
                         wall_ms,
                         gpu_ms: (!sums.is_empty()).then(|| median(&sums)),
                         kernels,
+                        device_mb,
+                        rss_mb,
                     });
                 }
                 Err(e) => {
@@ -313,9 +322,14 @@ pub fn run_timing(
     Ok(report)
 }
 
+/// One case's wall ms per run, timings per run, peak device MB, peak
+/// resident MB.
+type CaseResult = (Vec<f64>, Vec<Vec<KernelTiming>>, Option<f64>, Option<f64>);
+
 /// One warm-up call, then `runs` timed calls on one [`Denoiser`](crate::Denoiser)
 /// (its buffers allocated once, as an embedding renderer would keep it):
-/// wall ms (upload, chain, download) and timings per run.
+/// wall ms (upload, chain, download) and timings per run, and the case's
+/// peak device allocation and resident memory.
 fn time_case(
     ctx: Option<&Arc<GpuContext>>,
     img: &StatsImage,
@@ -323,7 +337,12 @@ fn time_case(
     backend: Backend,
     runs: usize,
     stages: &super::Stages,
-) -> Result<(Vec<f64>, Vec<Vec<KernelTiming>>)> {
+) -> Result<CaseResult> {
+    let device_base = ctx.map(|c| {
+        c.reset_peak();
+        c.allocated_bytes()
+    });
+    super::reset_peak_rss();
     let d = denoiser(ctx, img, method, backend, stages)?;
     d.denoise(img, None)?;
     let (mut wall, mut timings) = (Vec::new(), Vec::new());
@@ -335,7 +354,14 @@ fn time_case(
         count_lp_centres(&mut t, &out.stats, img.width * img.height);
         timings.push(t);
     }
-    Ok((wall, timings))
+    let mb = |b: u64| b as f64 / 1e6;
+    let device_mb = match (backend, ctx, device_base) {
+        (Backend::Gpu, Some(c), Some(base)) => {
+            Some(mb(c.peak_allocated_bytes().saturating_sub(base)))
+        }
+        _ => None,
+    };
+    Ok((wall, timings, device_mb, super::peak_rss_bytes().map(mb)))
 }
 
 /// `lp_centres` is dispatched over every candidate cell of every pass, and

@@ -351,11 +351,14 @@ impl Drop for GpuBuffer {
 
 /// Planes of `width * height` f32 values packed in one buffer, each starting
 /// at a multiple of [`PLANE_ALIGN`] bytes, so every plane can be bound on its
-/// own (no binding grows with the number of channels).
+/// own (no binding grows with the number of channels). The buffer is the
+/// set's own ([`PlaneSet::new`]) or shared with other sets whose lifetimes
+/// within a recording do not overlap ([`PlaneSet::view`] of an arena).
 #[derive(Debug)]
 pub struct PlaneSet {
-    /// The one buffer holding every plane.
-    pub buffer: GpuBuffer,
+    buffer: Arc<GpuBuffer>,
+    /// Where the first plane starts in the buffer (bytes).
+    base: u64,
     /// Values per plane: the image's `width * height` pixels.
     pub pixels: usize,
     /// Number of planes.
@@ -373,26 +376,87 @@ pub fn plane_stride(pixels: usize) -> u64 {
     ((pixels as u64 * 4).max(4)).div_ceil(PLANE_ALIGN) * PLANE_ALIGN
 }
 
+fn check_plane(ctx: &GpuContext, pixels: usize) -> Result<()> {
+    let limit = ctx.info.max_storage_buffer_range as u64;
+    if pixels as u64 * 4 > limit {
+        return Err(Error::Limit(format!(
+            "one plane of {pixels} pixels ({} bytes) exceeds maxStorageBufferRange ({limit} bytes)",
+            pixels * 4
+        )));
+    }
+    Ok(())
+}
+
 impl PlaneSet {
     /// `count` planes of `pixels` f32 values in one GPU-only buffer named `name`
     /// (`stride * count` bytes). Fails with [`Error::Limit`]
     /// if one plane exceeds `maxStorageBufferRange`.
     pub fn new(ctx: &Arc<GpuContext>, name: &str, pixels: usize, count: usize) -> Result<PlaneSet> {
+        check_plane(ctx, pixels)?;
         let stride = plane_stride(pixels);
-        let limit = ctx.info.max_storage_buffer_range as u64;
-        if pixels as u64 * 4 > limit {
-            return Err(Error::Limit(format!(
-                "one plane of {pixels} pixels ({} bytes) exceeds maxStorageBufferRange ({limit} bytes)",
-                pixels * 4
-            )));
-        }
         let buffer = GpuBuffer::new(ctx, name, stride * count.max(1) as u64)?;
         Ok(PlaneSet {
-            buffer,
+            buffer: Arc::new(buffer),
+            base: 0,
             pixels,
             count,
             stride,
         })
+    }
+
+    /// `count` planes of `pixels` f32 values inside `arena`, from byte
+    /// `offset` (a multiple of [`PLANE_ALIGN`]): storage shared with other
+    /// views whose contents are dead while this one is in use (the chain's
+    /// stage scratch). Fails if they do not fit the arena.
+    pub fn view(
+        arena: &Arc<GpuBuffer>,
+        offset: u64,
+        pixels: usize,
+        count: usize,
+    ) -> Result<PlaneSet> {
+        check_plane(&arena.ctx, pixels)?;
+        let stride = plane_stride(pixels);
+        let bytes = stride * count.max(1) as u64;
+        if offset % PLANE_ALIGN != 0 || offset + bytes > arena.size() {
+            return Err(Error::InvalidArgument(format!(
+                "{}: {count} planes of {pixels} pixels at {offset} do not fit its {} bytes",
+                arena.name(),
+                arena.size()
+            )));
+        }
+        Ok(PlaneSet {
+            buffer: arena.clone(),
+            base: offset,
+            pixels,
+            count,
+            stride,
+        })
+    }
+
+    /// Bytes of `count` planes of `pixels` values (what [`PlaneSet::view`]
+    /// needs in an arena).
+    pub fn bytes(pixels: usize, count: usize) -> u64 {
+        plane_stride(pixels) * count.max(1) as u64
+    }
+
+    /// The name of the buffer the planes live in.
+    pub fn name(&self) -> &str {
+        self.buffer.name()
+    }
+
+    /// Every plane, as one binding (`stride * count` bytes).
+    pub fn all(&self) -> BufferSlice {
+        self.range(0, self.stride * self.count.max(1) as u64)
+    }
+
+    /// `size` bytes from byte `offset` of the set, as a binding.
+    pub fn range(&self, offset: u64, size: u64) -> BufferSlice {
+        assert!(
+            offset + size <= self.stride * self.count.max(1) as u64,
+            "{}: range {offset}+{size} outside the set",
+            self.buffer.name()
+        );
+        self.buffer.range(self.base + offset, size)
     }
 
     /// Plane `i` as a binding.
@@ -403,8 +467,10 @@ impl PlaneSet {
             self.buffer.name(),
             self.count
         );
-        self.buffer
-            .range(i as u64 * self.stride, (self.pixels as u64 * 4).max(4))
+        self.buffer.range(
+            self.base + i as u64 * self.stride,
+            (self.pixels as u64 * 4).max(4),
+        )
     }
 
     /// Writes plane `i` from `data`: `pixels` values of a 4-byte type (f32, u32).
@@ -412,8 +478,10 @@ impl PlaneSet {
     pub fn upload_plane<T: bytemuck::Pod>(&self, i: usize, data: &[T]) -> Result<()> {
         assert!(i < self.count);
         assert_eq!(std::mem::size_of_val(data), self.pixels * 4);
-        self.buffer
-            .upload(i as u64 * self.stride, bytemuck::cast_slice(data))
+        self.buffer.upload(
+            self.base + i as u64 * self.stride,
+            bytemuck::cast_slice(data),
+        )
     }
 
     /// Reads plane `i` back as `pixels` values of a 4-byte type (f32, u32);
@@ -421,8 +489,10 @@ impl PlaneSet {
     pub fn download_plane<T: bytemuck::Pod + Default + Clone>(&self, i: usize) -> Result<Vec<T>> {
         assert!(i < self.count);
         let mut v = vec![T::default(); self.pixels];
-        self.buffer
-            .download(i as u64 * self.stride, bytemuck::cast_slice_mut(&mut v))?;
+        self.buffer.download(
+            self.base + i as u64 * self.stride,
+            bytemuck::cast_slice_mut(&mut v),
+        )?;
         Ok(v)
     }
 
@@ -435,13 +505,13 @@ impl PlaneSet {
             let at = i * self.stride as usize;
             bytes[at..at + p.len() * 4].copy_from_slice(bytemuck::cast_slice(p));
         }
-        self.buffer.upload(0, &bytes)
+        self.buffer.upload(self.base, &bytes)
     }
 
     /// Downloads all planes at once.
     pub fn download_all(&self) -> Result<Vec<Vec<f32>>> {
         let mut bytes = vec![0u8; (self.stride * self.count as u64) as usize];
-        self.buffer.download(0, &mut bytes)?;
+        self.buffer.download(self.base, &mut bytes)?;
         Ok((0..self.count)
             .map(|i| {
                 let at = i * self.stride as usize;

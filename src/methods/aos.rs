@@ -361,7 +361,7 @@ pub fn record_aos(
             let pick = |v: &[BufferSlice]| -> [BufferSlice; 3] {
                 std::array::from_fn(|c| v[c.min(nc - 1)])
             };
-            let dst = planes.feat.buffer.range(
+            let dst = planes.feat.range(
                 base as u64 * planes.feat.stride,
                 (2 * nc - 1) as u64 * planes.feat.stride + (w * h * 4) as u64,
             );
@@ -407,7 +407,7 @@ pub fn record_aos(
             spp,
             planes.space.slice(),
             &vars,
-            planes.out.buffer.slice(),
+            planes.out.all(),
             COST_RANK,
         )?;
         y0 += rows;

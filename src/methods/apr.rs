@@ -288,7 +288,7 @@ pub fn record_apr(
     let var: [BufferSlice; 3] = std::array::from_fn(|c| clean.plane(Layer::ColorVariance, c));
     let stride = (plane_stride(w * h) / 4) as u32;
     let stages = params.stages.max(1);
-    batch.fill(planes.extra.buffer.slice(), 0);
+    batch.fill(planes.extra.all(), 0);
     for stage in 1..=stages {
         let last = stage == stages;
         let prev = (stage >= 2).then(|| &planes.stage[stage % 2]);
@@ -318,7 +318,7 @@ pub fn record_apr(
                     &feats,
                     spp,
                     planes.state.slice(),
-                    planes.extra.buffer.slice(),
+                    planes.extra.all(),
                     0.02,
                 )?;
             }
@@ -332,9 +332,9 @@ pub fn record_apr(
             ..Default::default()
         };
         let dst = if last {
-            planes.out.buffer.slice()
+            planes.out.all()
         } else {
-            planes.stage[(stage + 1) % 2].buffer.slice()
+            planes.stage[(stage + 1) % 2].all()
         };
         apr_gather::record(
             batch,
@@ -345,7 +345,7 @@ pub fn record_apr(
             &feats,
             spp,
             planes.state.slice(),
-            planes.extra.buffer.slice(),
+            planes.extra.all(),
             dst,
         )?;
     }

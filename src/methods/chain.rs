@@ -12,7 +12,7 @@ use std::sync::Arc;
 
 use crate::accum::AccumLayout;
 use crate::error::{Error, Result};
-use crate::gpu::{Batch, BufferSlice, GpuContext, PlaneSet, Precision};
+use crate::gpu::{Batch, BufferSlice, GpuBuffer, GpuContext, PlaneSet, Precision};
 use crate::image::{Layer, RgbImage};
 use crate::options::Options;
 
@@ -196,13 +196,43 @@ impl GpuChain {
         let input_stats = GpuStats::new(ctx, "chain.input", w, h, &layers)?;
         let clean = GpuStats::new(ctx, "chain.clean", w, h, &prepare::output_layers(&layers))?;
         let scratch = PrepareScratch::new(ctx, &input_stats)?;
-        let gbf = if prefilter_runs(config.method, config.prefilter, &layers)? {
-            Some(GbfPlanes::new(ctx, w, h)?)
+        // Stage scratch whose lifetimes do not overlap shares one arena: the
+        // outlier stage's (before the prefilter, and again after the
+        // method), the prefilter's, LP's state. LP's first state plane is read
+        // after the run, so the outlier scratch starts after it.
+        let n = w * h;
+        let with_gbf = prefilter_runs(config.method, config.prefilter, &layers)?;
+        let lp = config.method == Method::Lp;
+        let keep = if lp { LpPlanes::kept_bytes(n) } else { 0 };
+        let arena_bytes = [
+            if with_gbf {
+                PlaneSet::bytes(n, gbf::PLANES)
+            } else {
+                0
+            },
+            if config.outliers {
+                keep + PlaneSet::bytes(n, outliers::SCRATCH)
+            } else {
+                0
+            },
+            if lp { LpPlanes::scratch_bytes(n) } else { 0 },
+        ];
+        let arena = match arena_bytes.iter().max() {
+            Some(&b) if b > 0 => Some(Arc::new(GpuBuffer::new(ctx, "chain.arena", b)?)),
+            _ => None,
+        };
+        let gbf = if with_gbf {
+            Some(GbfPlanes::new(ctx, w, h, arena.as_ref())?)
         } else {
             None
         };
         let outliers = if config.outliers {
-            Some(OutlierPlanes::new(ctx, w, h)?)
+            Some(OutlierPlanes::new(
+                ctx,
+                w,
+                h,
+                arena.as_ref().map(|a| (a, keep)),
+            )?)
         } else {
             None
         };
@@ -212,7 +242,7 @@ impl GpuChain {
                 wlr::WlrParams::new(config.pass, &config.options)?,
             ),
             Method::Lp => MethodPlanes::Lp(
-                Box::new(LpPlanes::new(ctx, w, h)?),
+                Box::new(LpPlanes::new(ctx, w, h, arena.as_ref())?),
                 lp::LpParams::new(&config.options)?,
             ),
             Method::Apr => {

@@ -19,7 +19,7 @@ use std::sync::Arc;
 use super::stats::GpuStats;
 use super::Prefilter;
 use crate::error::{Error, Result};
-use crate::gpu::{Batch, BufferSlice, GpuContext, PlaneSet, Precision};
+use crate::gpu::{Batch, BufferSlice, GpuBuffer, GpuContext, PlaneSet, Precision};
 use crate::image::{Layer, StatsImage};
 use crate::kernels::{gauss_smooth, gbf_filter, gbf_pack, gbf_prepare, gbf_sure};
 use crate::reference;
@@ -65,14 +65,25 @@ const INV: usize = 0;
 const HOPT: usize = 6;
 const HBAR: usize = 7;
 const SCRATCH: usize = 8;
+/// Planes of [`GbfPlanes`].
+pub const PLANES: usize = SCRATCH + 16;
 
 impl GbfPlanes {
-    /// Allocates the scratch for a `width × height` image: 24 planes.
-    pub fn new(ctx: &Arc<GpuContext>, width: usize, height: usize) -> Result<GbfPlanes> {
-        Ok(GbfPlanes {
-            set: PlaneSet::new(ctx, "gbf", width * height, SCRATCH + 16)?,
-            pixels: width * height,
-        })
+    /// Allocates the scratch for a `width × height` image: [`PLANES`]
+    /// planes, in `arena` (from its start, [`PlaneSet::view`]) when given:
+    /// nothing of it is needed once the prefilter has written its outputs.
+    pub fn new(
+        ctx: &Arc<GpuContext>,
+        width: usize,
+        height: usize,
+        arena: Option<&Arc<GpuBuffer>>,
+    ) -> Result<GbfPlanes> {
+        let n = width * height;
+        let set = match arena {
+            Some(a) => PlaneSet::view(a, 0, n, PLANES)?,
+            None => PlaneSet::new(ctx, "gbf", n, PLANES)?,
+        };
+        Ok(GbfPlanes { set, pixels: n })
     }
 
     /// `h_opt` and `hbar` (debug).
@@ -85,7 +96,7 @@ impl GbfPlanes {
     /// whose strides hold at least `16 × pixels` bytes.
     fn packed(&self, k: usize, width: usize, (first, end): (u32, u32)) -> Result<BufferSlice> {
         let plane = self.set.plane(SCRATCH + 4 * k);
-        let whole = self.set.buffer.slice();
+        let whole = self.set.all();
         let row = 16 * width as u64;
         debug_assert!(end as u64 * row <= 16 * self.pixels as u64);
         whole.sub(

@@ -21,7 +21,7 @@ use std::sync::Arc;
 
 use super::stats::GpuStats;
 use crate::error::{Error, Result};
-use crate::gpu::{plane_stride, Batch, BufferSlice, GpuContext, PlaneSet, Precision};
+use crate::gpu::{plane_stride, Batch, BufferSlice, GpuBuffer, GpuContext, PlaneSet, Precision};
 use crate::image::{Layer, RgbImage, StatsImage};
 pub use crate::kernels::lp_centres::LpInputs;
 use crate::kernels::{lp_centres, lp_gather, lp_reach};
@@ -85,7 +85,12 @@ impl LpPlanes {
     /// Allocates the planes for a `width × height` image. Fails with
     /// [`Error::Limit`] if the output planes, bound as one buffer, exceed
     /// `maxStorageBufferRange`.
-    pub fn new(ctx: &Arc<GpuContext>, width: usize, height: usize) -> Result<LpPlanes> {
+    pub fn new(
+        ctx: &Arc<GpuContext>,
+        width: usize,
+        height: usize,
+        arena: Option<&Arc<GpuBuffer>>,
+    ) -> Result<LpPlanes> {
         let n = width * height;
         let out_bytes = plane_stride(n) * lp_gather::OUTPUTS.len() as u64;
         let limit = ctx.info.max_storage_buffer_range as u64;
@@ -95,11 +100,39 @@ impl LpPlanes {
                 lp_gather::OUTPUTS.len()
             )));
         }
+        let (state, reach) = match arena {
+            Some(a) => (
+                PlaneSet::view(a, 0, 4 * n, StateLayout::PLANES)?,
+                PlaneSet::view(a, Self::state_bytes(n), n, 1)?,
+            ),
+            None => (
+                PlaneSet::new(ctx, "lp.state", 4 * n, StateLayout::PLANES)?,
+                PlaneSet::new(ctx, "lp.reach", n, 1)?,
+            ),
+        };
         Ok(LpPlanes {
-            state: PlaneSet::new(ctx, "lp.state", 4 * n, StateLayout::PLANES)?,
-            reach: PlaneSet::new(ctx, "lp.reach", n, 1)?,
+            state,
+            reach,
             out: PlaneSet::new(ctx, "lp.out", n, lp_gather::OUTPUTS.len())?,
         })
+    }
+
+    fn state_bytes(n: usize) -> u64 {
+        PlaneSet::bytes(4 * n, StateLayout::PLANES)
+    }
+
+    /// Bytes of the scratch (state and reach) an arena must hold for `n`
+    /// pixels: dead once `lp_gather` has written the outputs, except the
+    /// first state plane ([`LpPlanes::kept_bytes`]), which [`download`]
+    /// reads (centres, `r_opt`, ranks).
+    pub fn scratch_bytes(n: usize) -> u64 {
+        Self::state_bytes(n) + PlaneSet::bytes(n, 1)
+    }
+
+    /// Bytes at the start of the arena that must survive until [`download`]:
+    /// the first state plane.
+    pub fn kept_bytes(n: usize) -> u64 {
+        PlaneSet::bytes(4 * n, 1)
     }
 
     /// The output colour planes R, G, B.
@@ -148,7 +181,7 @@ pub fn record_lp(
 ) -> Result<()> {
     let (w, h) = (clean.width, clean.height);
     let inp = lp_inputs(clean);
-    batch.fill(planes.state.buffer.slice(), 0);
+    batch.fill(planes.state.all(), 0);
     let reach = planes.reach.plane(0);
     for pass in 0..GRANULARITIES.len() {
         lp_reach::record(
@@ -181,7 +214,7 @@ pub fn record_lp(
         &inp,
         reach,
         std::array::from_fn(|k| planes.state.plane(k)),
-        planes.out.buffer.slice(),
+        planes.out.all(),
     )
 }
 

@@ -89,17 +89,39 @@ pub fn push(w: usize, h: usize, radius: usize, mode: u32) -> OutlierPush {
 /// weights (6) and the grey keys (1); and the queue of detected pixels.
 #[derive(Debug)]
 pub struct OutlierPlanes {
+    /// Scratch of each step ([`SCRATCH`] planes): dead between
+    /// [`record_remove`] and [`record_restore`], so it may live in the
+    /// chain's arena.
     planes: PlaneSet,
+    /// The removed excess `e_o` (3 planes), alive from the removal to the
+    /// restoration.
+    excess: PlaneSet,
     queue: GpuBuffer,
     width: usize,
     height: usize,
 }
 
+/// Scratch planes of the stage: row summaries (6) and outputs (6) of the
+/// detection, or the box sums (6) of the restoration; the weights (6); the
+/// median keys (1).
+pub const SCRATCH: usize = 19;
+
 impl OutlierPlanes {
-    /// Allocates the planes for a `w × h` image.
-    pub fn new(ctx: &Arc<GpuContext>, w: usize, h: usize) -> Result<OutlierPlanes> {
+    /// Allocates the planes for a `w × h` image; the scratch in an arena
+    /// from a byte offset ([`PlaneSet::view`]) when given.
+    pub fn new(
+        ctx: &Arc<GpuContext>,
+        w: usize,
+        h: usize,
+        arena: Option<(&Arc<GpuBuffer>, u64)>,
+    ) -> Result<OutlierPlanes> {
+        let planes = match arena {
+            Some((a, offset)) => PlaneSet::view(a, offset, w * h, SCRATCH)?,
+            None => PlaneSet::new(ctx, "outliers", w * h, SCRATCH)?,
+        };
         Ok(OutlierPlanes {
-            planes: PlaneSet::new(ctx, "outliers", w * h, 22)?,
+            planes,
+            excess: PlaneSet::new(ctx, "outliers.excess", w * h, 3)?,
             queue: GpuBuffer::new(
                 ctx,
                 "outliers.queue",
@@ -116,7 +138,7 @@ impl OutlierPlanes {
 
     /// The removed excess `e_o` per channel (0 where nothing was detected).
     pub fn excess(&self) -> [BufferSlice; 3] {
-        self.set(12)
+        std::array::from_fn(|c| self.excess.plane(c))
     }
 }
 
@@ -134,7 +156,7 @@ pub fn record_remove(
     let pu = push(w, h, DETECT_RADIUS, 0);
     let rows = p.set::<6>(0);
     let out = p.set::<6>(6);
-    let keys = p.planes.plane(21);
+    let keys = p.planes.plane(18);
     outlier_rows::record(batch, precision, &pu, color, spp, rows, keys)?;
     let queue = p.queue.slice();
     outlier_detect::record(
@@ -182,7 +204,7 @@ pub fn record_restore(
     let count = push(w, h, SPREAD_RADIUS, 1);
     let a = p.set::<6>(0);
     let b = p.set::<6>(6);
-    let weights = p.set::<6>(15);
+    let weights = p.set::<6>(12);
     for c in 0..3 {
         box_rows::record(batch, precision, &sum, color[c], spp, a[c])?;
     }
@@ -226,9 +248,9 @@ pub fn debug_layers(excess: &[Vec<f32>; 3]) -> Vec<(String, Vec<f32>)> {
 /// Downloads the excess planes of the last run.
 pub fn download_excess(p: &OutlierPlanes) -> Result<[Vec<f32>; 3]> {
     Ok([
-        p.planes.download_plane(12)?,
-        p.planes.download_plane(13)?,
-        p.planes.download_plane(14)?,
+        p.excess.download_plane(0)?,
+        p.excess.download_plane(1)?,
+        p.excess.download_plane(2)?,
     ])
 }
 
