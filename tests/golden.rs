@@ -84,6 +84,14 @@ fn run(method: Method, backend: Backend) -> RgbImage {
     out.color
 }
 
+/// `method` on the GPU, then its CPU twin (whose output a rewrite stores),
+/// against the golden `name`: rMSE ≤ 1e-5 for both; per pixel ≤
+/// `gpu_pixel` on the GPU and 1e-3 for the twin.
+fn check_both(method: Method, name: &str, gpu_pixel: f64) {
+    check_golden(name, &run(method, Backend::Gpu), 1e-5, gpu_pixel);
+    check_golden(name, &run(method, Backend::Cpu), 1e-5, 1e-3);
+}
+
 #[test]
 fn golden_none() {
     // Sanitised input: a GPU/CPU difference here is a sanitation bug.
@@ -107,18 +115,7 @@ fn golden_none() {
 /// ~1e-2 rMSE a change in the algorithm produces.
 #[test]
 fn golden_wlr() {
-    check_golden(
-        "wlr_dof_checker_64",
-        &run(Method::Wlr, Backend::Gpu),
-        1e-5,
-        1e-3,
-    );
-    check_golden(
-        "wlr_dof_checker_64",
-        &run(Method::Wlr, Backend::Cpu),
-        1e-5,
-        1e-3,
-    );
+    check_both(Method::Wlr, "wlr_dof_checker_64", 1e-3);
 }
 
 /// LP on the fixture, same thresholds as WLR. A different `r_opt` at a
@@ -126,18 +123,7 @@ fn golden_wlr() {
 /// about their noise level; the per-pixel bound leaves room for that.
 #[test]
 fn golden_lp() {
-    check_golden(
-        "lp_dof_checker_64",
-        &run(Method::Lp, Backend::Gpu),
-        1e-5,
-        1e-3,
-    );
-    check_golden(
-        "lp_dof_checker_64",
-        &run(Method::Lp, Backend::Cpu),
-        1e-5,
-        1e-3,
-    );
+    check_both(Method::Lp, "lp_dof_checker_64", 1e-3);
 }
 
 #[test]
@@ -160,18 +146,7 @@ fn a_wrong_image_fails_and_leaves_a_diff() {
 /// APR on the fixture, same thresholds as WLR.
 #[test]
 fn golden_apr() {
-    check_golden(
-        "apr_dof_checker_64",
-        &run(Method::Apr, Backend::Gpu),
-        1e-5,
-        1e-3,
-    );
-    check_golden(
-        "apr_dof_checker_64",
-        &run(Method::Apr, Backend::Cpu),
-        1e-5,
-        1e-3,
-    );
+    check_both(Method::Apr, "apr_dof_checker_64", 1e-3);
 }
 
 /// AOS on the fixture: the rMSE threshold of WLR; per pixel, the GPU may
@@ -180,18 +155,7 @@ fn golden_apr() {
 /// term 1.5e-2 on lavapipe), so its pixel bound is 3e-2; the twin's is 1e-3.
 #[test]
 fn golden_aos() {
-    check_golden(
-        "aos_dof_checker_64",
-        &run(Method::Aos, Backend::Gpu),
-        1e-5,
-        3e-2,
-    );
-    check_golden(
-        "aos_dof_checker_64",
-        &run(Method::Aos, Backend::Cpu),
-        1e-5,
-        1e-3,
-    );
+    check_both(Method::Aos, "aos_dof_checker_64", 3e-2);
 }
 
 /// rMSE terms of `out` against `reference` per pixel (mean of the channels).

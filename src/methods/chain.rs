@@ -154,6 +154,14 @@ pub const REGRESSION_LAYERS: [Layer; 5] = [
     Layer::Spp,
 ];
 
+/// The error of a sample map asked of a device without `shaderInt64`.
+pub fn no_int64(ctx: &GpuContext) -> Error {
+    Error::Limit(format!(
+        "the sample map needs shaderInt64, which {} does not have enabled",
+        ctx.info().name
+    ))
+}
+
 /// Checks that `layers` hold what `method` reads.
 pub fn check_layers(method: Method, layers: &[Layer]) -> Result<()> {
     let needs: &[Layer] = match method {
@@ -262,14 +270,7 @@ impl GpuChain {
                 zero: PlaneSet::new(ctx, "none.dim", w * h, 1)?,
             },
         };
-        let mut params = SamplingParams::for_method(config.method)?;
-        if config.options.is_set("sampling.smooth") {
-            params.sigma_s = config
-                .options
-                .get("sampling.smooth")
-                .parse()
-                .map_err(|_| Error::InvalidArgument("sampling.smooth: not a number".into()))?;
-        }
+        let params = SamplingParams::with_options(config.method, &config.options)?;
         let sampling = if ctx.supports_int64() {
             Some((SamplingPlanes::new(ctx, w, h)?, params))
         } else {
@@ -338,22 +339,11 @@ impl GpuChain {
         let sampling = match (budget, &self.sampling) {
             (None, _) => None,
             (Some(t), Some((planes, params))) => Some((t, planes, params)),
-            (Some(_), None) => {
-                return Err(Error::Limit(format!(
-                    "the sample map needs shaderInt64, which {} does not have enabled",
-                    self.ctx.info().name
-                )))
-            }
+            (Some(_), None) => return Err(no_int64(&self.ctx)),
         };
         self.record_method(batch, accum, Placement::default())?;
         if let Some((t, planes, params)) = sampling {
-            let (dim, _) = self.dim_source();
-            let inputs = SampleInputs {
-                error: self.sampling_error(),
-                dim,
-                filtered: self.color(),
-                spp: self.clean.plane(Layer::Spp, 0),
-            };
+            let inputs = self.sample_inputs();
             sampling::record_sample_map(batch, self.config.precision, &inputs, planes, t, params)?;
         }
         Ok(())
@@ -379,6 +369,16 @@ impl GpuChain {
         Ok(Arc::new(move |p: &crate::gpu::Progress| {
             f((p.done_flops / total).min(1.0), &p.kernel)
         }))
+    }
+
+    /// What the sample map reads (§9.1).
+    fn sample_inputs(&self) -> SampleInputs {
+        SampleInputs {
+            error: self.sampling_error(),
+            dim: self.dim_source().0,
+            filtered: self.color(),
+            spp: self.clean.plane(Layer::Spp, 0),
+        }
     }
 
     /// What the sample map reads as `E` (§9.1): ΔMSE for LP, `MSE_c`
@@ -412,18 +412,9 @@ impl GpuChain {
         self.record_method(batch, None, at)?;
         if priority {
             let Some((planes, params)) = &self.sampling else {
-                return Err(Error::Limit(format!(
-                    "the sample map needs shaderInt64, which {} does not have enabled",
-                    self.ctx.info().name
-                )));
+                return Err(no_int64(&self.ctx));
             };
-            let (dim, _) = self.dim_source();
-            let inputs = SampleInputs {
-                error: self.sampling_error(),
-                dim,
-                filtered: self.color(),
-                spp: self.clean.plane(Layer::Spp, 0),
-            };
+            let inputs = self.sample_inputs();
             sampling::record_priority(batch, self.config.precision, &inputs, planes, params)?;
         }
         Ok(())

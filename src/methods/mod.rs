@@ -362,12 +362,9 @@ fn denoise_cpu(img: &StatsImage, req: &DenoiseRequest) -> Result<DenoiseOutput> 
     }
     let samples = match req.budget {
         Some(t) => {
-            let mut params = sampling::SamplingParams::for_method(req.method)?;
+            let mut params = sampling::SamplingParams::with_options(req.method, &req.options)?;
             // The CPU path passes the decoded rank, not WLR's kflags.
             params.dim = sampling::DimSource::Plain;
-            if req.options.is_set("sampling.smooth") {
-                params.sigma_s = req.options.get("sampling.smooth").parse().unwrap_or(0.0);
-            }
             let dmse;
             let e: [&[f32]; 3] = match &map_e {
                 Some(d) => {

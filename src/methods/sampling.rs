@@ -120,6 +120,22 @@ impl SamplingParams {
         })
     }
 
+    /// [`SamplingParams::for_method`] with `options`' `sampling.smooth`, when
+    /// set, as σs.
+    pub fn with_options(
+        method: Method,
+        options: &crate::options::Options,
+    ) -> Result<SamplingParams> {
+        let mut params = Self::for_method(method)?;
+        if options.is_set("sampling.smooth") {
+            params.sigma_s = options
+                .get("sampling.smooth")
+                .parse()
+                .map_err(|_| Error::InvalidArgument("sampling.smooth: not a number".into()))?;
+        }
+        Ok(params)
+    }
+
     fn check(&self) -> Result<()> {
         if !(self.eps.is_finite() && self.eps > 0.0) || self.sigma_s.is_nan() {
             return Err(Error::InvalidArgument(format!(

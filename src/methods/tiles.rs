@@ -139,14 +139,7 @@ impl Halo {
 /// when `prefiltered` (see the module documentation for the derivation).
 pub fn halo(config: &ChainConfig, prefiltered: bool) -> Result<Halo> {
     let mut parts = Vec::new();
-    let mut sampling = SamplingParams::for_method(config.method)?;
-    if config.options.is_set("sampling.smooth") {
-        sampling.sigma_s = config
-            .options
-            .get("sampling.smooth")
-            .parse()
-            .map_err(|_| Error::InvalidArgument("sampling.smooth: not a number".into()))?;
-    }
+    let sampling = SamplingParams::with_options(config.method, &config.options)?;
     if sampling.sigma_s > 0.0 {
         parts.push((
             "sample map smoothing (§9.1)",
@@ -542,10 +535,7 @@ impl TiledChain {
             )));
         }
         if budget.is_some() && !self.ctx.supports_int64() {
-            return Err(Error::Limit(format!(
-                "the sample map needs shaderInt64, which {} does not have enabled",
-                self.ctx.info().name
-            )));
+            return Err(super::chain::no_int64(&self.ctx));
         }
         let n = w * h;
         let mut color = RgbImage::new(w, h);
