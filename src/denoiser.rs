@@ -103,6 +103,13 @@ impl Config {
     }
 }
 
+/// The device memory cap a [`Denoiser`] on `device` uses when
+/// [`Config::max_memory`] is `None` (three quarters of its largest
+/// device-local heap).
+pub fn default_memory_cap(device: &crate::gpu::DeviceInfo) -> u64 {
+    crate::methods::tiles::default_cap(device)
+}
+
 /// What a [`Denoiser`] reads at each call.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum Source {

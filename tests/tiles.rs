@@ -349,7 +349,7 @@ fn large_images_through_every_method() {
             let run = |config: Config| -> Option<Run> {
                 let before = ctx.allocated_bytes();
                 ctx.reset_peak();
-                reset_peak_rss();
+                mcdenoise::bench::reset_peak_rss();
                 let t0 = std::time::Instant::now();
                 let d = match Denoiser::new(&ctx, Source::of_image(&img), config) {
                     Ok(d) => d,
@@ -369,7 +369,13 @@ fn large_images_through_every_method() {
                 let f = d.denoise(&img, budget).unwrap();
                 let secs = t0.elapsed().as_secs_f64();
                 let peak = ctx.peak_allocated_bytes().saturating_sub(before);
-                Some((f, tiles, secs, peak, peak_rss()))
+                Some((
+                    f,
+                    tiles,
+                    secs,
+                    peak,
+                    mcdenoise::bench::peak_rss_bytes().unwrap_or(0),
+                ))
             };
             let (f, tiles, secs, peak, rss) = run(config.clone()).expect("the default cap tiles");
             let sum: u64 = f.samples.as_ref().unwrap().iter().map(|&v| v as u64).sum();
@@ -450,21 +456,4 @@ fn mirrored(base: &StatsImage, w: usize, h: usize) -> StatsImage {
         img.set(layer, out);
     }
     img
-}
-
-/// Resets the process's peak resident set (Linux: `clear_refs` 5).
-fn reset_peak_rss() {
-    let _ = std::fs::write("/proc/self/clear_refs", "5");
-}
-
-/// The process's peak resident set in bytes (`VmHWM`), 0 if unknown.
-fn peak_rss() -> u64 {
-    std::fs::read_to_string("/proc/self/status")
-        .ok()
-        .and_then(|s| {
-            s.lines()
-                .find(|l| l.starts_with("VmHWM:"))
-                .and_then(|l| l.split_whitespace().nth(1)?.parse::<u64>().ok())
-        })
-        .map_or(0, |kb| kb * 1024)
 }

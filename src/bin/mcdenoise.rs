@@ -324,7 +324,7 @@ fn info(cli: &Cli) -> anyhow::Result<()> {
         println!(
             "      device-local heap          {} MiB (default memory cap {} MiB)",
             d.device_local_heap >> 20,
-            mcdenoise::methods::tiles::default_cap(d) >> 20
+            mcdenoise::default_memory_cap(d) >> 20
         );
         println!(
             "      shaderFloat64              {}",

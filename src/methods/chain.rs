@@ -542,18 +542,9 @@ impl GpuChain {
     /// Sanitation counters and the invalid pixels (`spp < 1`, §0.2) of the
     /// last completed run (§0.4).
     pub fn report(&self) -> Result<PrepareReport> {
-        self.report_in(None)
-    }
-
-    /// [`report`](Self::report), the invalid pixels counted in `rect` only
-    /// (a tile's interior; its counters skip the halo already).
-    pub fn report_in(&self, rect: Option<Rect>) -> Result<PrepareReport> {
-        let counters = self.scratch.read_counters()?;
+        let counters = self.counters()?;
         let (w, h) = self.size();
-        let mut spp = read(&self.ctx, self.clean.plane(Layer::Spp, 0), w * h)?;
-        if let Some(r) = rect {
-            spp = tiles::crop(&spp, w, r);
-        }
+        let spp = read(&self.ctx, self.clean.plane(Layer::Spp, 0), w * h)?;
         let invalid = spp
             .iter()
             .filter(|&&s| crate::reference::finalize_stats::spp_of(s) < 1.0)
@@ -572,53 +563,47 @@ impl GpuChain {
         })
     }
 
+    /// The sanitation counters of the last completed run (§0.4; a tile's
+    /// skip its halo).
+    pub fn counters(&self) -> Result<[u64; 4]> {
+        self.scratch.read_counters()
+    }
+
     /// Downloads the outputs of a completed run.
     pub fn download(&self, debug: bool) -> Result<ChainOutput> {
-        self.download_in(debug, None)
+        self.download_whole(debug, None)
     }
 
     /// [`download`](Self::download), every plane cropped to `rect` (a tile's
     /// interior) and the statistics computed over it.
     pub fn download_in(&self, debug: bool, rect: Option<Rect>) -> Result<ChainOutput> {
-        let out = self.download_whole(debug)?;
+        let out = self.download_whole(debug, rect)?;
         let Some(r) = rect else {
             return Ok(out);
         };
-        let (w, _) = self.size();
+        let (w, h) = self.size();
         let c = |p: &[f32]| tiles::crop(p, w, r);
         let rgb = |i: &RgbImage| i.crop(r.x0, r.y0, r.width(), r.height());
         let mut debug_planes = Vec::with_capacity(out.debug.len());
-        let mut centre_pass = None;
         for (name, p) in &out.debug {
-            if p.len() != w * self.size().1 {
+            if p.len() != w * h {
                 return Err(Error::Limit(format!(
                     "the debug layer {name} is not one value per pixel: it cannot be tiled"
                 )));
             }
             debug_planes.push((name.clone(), c(p)));
         }
-        if let MethodPlanes::Lp(p, _) = &self.planes {
-            let state0 = p.state.download_plane::<f32>(0)?;
-            let pass: Vec<f32> = (0..state0.len() / 4).map(|q| state0[4 * q]).collect();
-            centre_pass = Some(c(&pass));
-        }
-        let stats = match centre_pass {
-            Some(cp) => vec![(
-                "centre_fraction".to_string(),
-                cp.iter().filter(|&&v| v > 0.0).count() as f64 / cp.len().max(1) as f64,
-            )],
-            None => out.stats,
-        };
         Ok(ChainOutput {
             color: rgb(&out.color),
             error: rgb(&out.error),
             dim: c(&out.dim),
             debug: debug_planes,
-            stats,
+            stats: out.stats,
         })
     }
 
-    fn download_whole(&self, debug: bool) -> Result<ChainOutput> {
+    /// The whole planes; the statistics over `rect` (all pixels if `None`).
+    fn download_whole(&self, debug: bool, rect: Option<Rect>) -> Result<ChainOutput> {
         let (w, h) = self.size();
         let rgb = |p: [BufferSlice; 3]| -> Result<RgbImage> {
             Ok(RgbImage::from_planes(
@@ -665,8 +650,11 @@ impl GpuChain {
             }
             MethodPlanes::Lp(p, _) => {
                 let r = lp::download(p, w, h)?;
-                out.stats
-                    .push(("centre_fraction".into(), r.centre_fraction()));
+                let fraction = match rect {
+                    Some(rc) => lp::centre_fraction(&tiles::crop(&r.centre_pass, w, rc)),
+                    None => r.centre_fraction(),
+                };
+                out.stats.push(("centre_fraction".into(), fraction));
                 if debug {
                     out.debug = r.debug_layers();
                 }

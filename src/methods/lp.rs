@@ -218,6 +218,13 @@ pub fn record_lp(
     )
 }
 
+/// Fraction of the pixels of a [`LpResult::centre_pass`] plane (or a crop of
+/// it) that became centres.
+pub fn centre_fraction(centre_pass: &[f32]) -> f64 {
+    let n = centre_pass.len().max(1);
+    centre_pass.iter().filter(|&&p| p > 0.0).count() as f64 / n as f64
+}
+
 /// What an LP run gives back on the host.
 #[derive(Clone, Debug)]
 pub struct LpResult {
@@ -279,8 +286,7 @@ impl LpResult {
 
     /// Fraction of the pixels that became centres.
     pub fn centre_fraction(&self) -> f64 {
-        let n = self.centre_pass.len().max(1);
-        self.centre_pass.iter().filter(|&&p| p > 0.0).count() as f64 / n as f64
+        centre_fraction(&self.centre_pass)
     }
 
     /// The debug layers of issue #4: centre mask (pass + 1), r_opt, rank,

@@ -261,7 +261,7 @@ pub fn denoise_with_chain(
         None => None,
     };
     let mut report = prepare::base_report(img);
-    report.counters = chain.report()?.counters;
+    report.counters = chain.counters()?;
     if req.method == Method::None {
         report.timings = timings.clone();
     }

@@ -579,9 +579,8 @@ impl TiledChain {
                 let tile_timings = batch.finish()?;
                 let local = t.inner_local();
                 let out = chain.download_in(debug, Some(local))?;
-                let r = chain.report_in(Some(local))?;
-                for c in 0..4 {
-                    report.counters[c] += r.counters[c];
+                for (total, c) in report.counters.iter_mut().zip(chain.counters()?) {
+                    *total += c;
                 }
                 paste_rgb(&mut color, &out.color, t.inner);
                 paste_rgb(&mut error, &out.error, t.inner);
