@@ -22,17 +22,24 @@ fn main() {
         "tests/fixtures/dof_checker_64_spp16.exr",
     ))
     .unwrap();
-    let input = GpuStats::upload(&ctx, "in", &img).unwrap();
     let layers: Vec<Layer> = img.layers().map(|(l, _)| l).collect();
-    let out = GpuStats::new(&ctx, "out", img.width, img.height, &output_layers(&layers)).unwrap();
-    let scratch = PrepareScratch::new(&ctx, &input).unwrap();
+    let stats = GpuStats::new(
+        &ctx,
+        "stats",
+        img.width,
+        img.height,
+        &output_layers(&layers),
+    )
+    .unwrap();
+    stats.upload_image(&img).unwrap();
+    let scratch = PrepareScratch::new(&ctx, &stats).unwrap();
     let t = std::time::Instant::now();
     let mut batch = Batch::new(&ctx).unwrap();
     record_prepare(
         &mut batch,
         Precision::F32,
-        &input,
-        &out,
+        &layers,
+        &stats,
         &scratch,
         true,
         [0, 0],

@@ -118,7 +118,8 @@ pub enum Source {
     /// products, the sample count.
     Accum(AccumLayout),
     /// Per-pixel statistics in host memory or a file, with these layers
-    /// ([`Denoiser::denoise`] uploads them).
+    /// ([`Denoiser::denoise`] uploads them; [`Denoiser::upload`] before each
+    /// [`Denoiser::run`] or recording).
     Stats {
         /// Width in pixels.
         width: usize,
@@ -463,27 +464,55 @@ impl Denoiser {
         self.chain()?.clean().download()
     }
 
+    /// Uploads statistics in host memory for the next GPU call
+    /// ([`run`](Self::run), [`record`](Self::record),
+    /// [`record_into`](Self::record_into)) of a denoiser made for
+    /// [`Source::Stats`] of their size and layers. Every call consumes its
+    /// upload: the chain sanitises and prefilters the statistics in place
+    /// (one copy of them on the device, not two), so a call without a new
+    /// upload is an error.
+    pub fn upload(&self, img: &StatsImage) -> Result<()> {
+        self.chain()?.upload(img)
+    }
+
     /// Denoises statistics in host memory (a file's, see [`crate::io`]): on
     /// the GPU (upload, [`run`](Self::run), [`read`](Self::read)) or with the
     /// CPU references. `img` must match the denoiser's [`Source::Stats`].
     pub fn denoise(&self, img: &StatsImage, budget: Option<u32>) -> Result<Frame> {
+        self.denoise_image(Image::Borrowed(img), budget)
+    }
+
+    /// [`denoise`](Self::denoise), freeing `img` as soon as it is uploaded
+    /// (when the denoiser works on one GPU chain), so the host's copy of the
+    /// statistics is not held while the GPU works: what a tool that reads a
+    /// file and denoises it wants.
+    pub fn denoise_owned(&self, img: StatsImage, budget: Option<u32>) -> Result<Frame> {
+        self.denoise_image(Image::Owned(img), budget)
+    }
+
+    fn denoise_image(&self, img: Image<'_>, budget: Option<u32>) -> Result<Frame> {
         let req = |b| {
             let mut r = self.config.request(b);
             r.budget = budget;
             r
         };
+        let (w, h) = (img.get().width, img.get().height);
         let out = match &self.engine {
             Engine::Gpu(chain) => {
-                methods::denoise_with_chain(chain, img, &req(Backend::Gpu), self.progress.as_ref())?
+                let report = methods::prepare::base_report(img.get());
+                chain.upload(img.get())?;
+                drop(img);
+                methods::run_uploaded(chain, report, &req(Backend::Gpu), self.progress.as_ref())?
             }
             Engine::Tiled(t) => t.denoise(
-                img,
+                img.get(),
                 budget,
                 self.config.debug,
                 self.config.progress,
                 self.progress.as_ref(),
             )?,
             Engine::Cpu(source) => {
+                let img = img.get();
                 if source != &Source::of_image(img) {
                     return Err(Error::InvalidArgument(format!(
                         "this denoiser was made for {source:?}; the image is {}x{} with other layers",
@@ -496,7 +525,6 @@ impl Denoiser {
         if let Engine::Gpu(_) | Engine::Tiled(_) = self.engine {
             self.sampled.store(budget.is_some(), Ordering::SeqCst);
         }
-        let (w, h) = (img.width, img.height);
         Ok(Frame {
             color: out.color,
             error: out.error.unwrap_or_else(|| RgbImage::new(w, h)),
@@ -507,5 +535,21 @@ impl Denoiser {
             timings: out.timings,
             stats: out.stats,
         })
+    }
+}
+
+/// The statistics a denoise call reads: the caller's, or given to the call
+/// (freed after the upload).
+enum Image<'a> {
+    Borrowed(&'a StatsImage),
+    Owned(StatsImage),
+}
+
+impl Image<'_> {
+    fn get(&self) -> &StatsImage {
+        match self {
+            Image::Borrowed(i) => i,
+            Image::Owned(i) => i,
+        }
     }
 }

@@ -37,7 +37,10 @@
 //!   the error estimate, the sample map (§9) — with no CPU round trip.
 //! - [`Denoiser::record_into`] records into the host's command buffer;
 //!   [`Denoiser::run`] submits on mcdenoise's own; [`Denoiser::denoise`]
-//!   takes statistics in host memory (also on the CPU reference backend).
+//!   takes statistics in host memory (also on the CPU reference backend),
+//!   and [`Denoiser::denoise_owned`] frees them once they are uploaded.
+//!   Statistics are sanitised and prefiltered in place on the device, so
+//!   each call on [`Source::Stats`] consumes its [`Denoiser::upload`].
 //! - Outputs: [`Denoiser::outputs`] (GPU buffers) or [`Denoiser::read`]
 //!   ([`Frame`]: colour, per-channel error `E_i`, local dimension `d_i`,
 //!   samples, debug maps).

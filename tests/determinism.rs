@@ -203,3 +203,54 @@ fn huge_tiny_and_mixed_sample_counts_stay_finite() {
     }
     check_validation(&gpu());
 }
+
+/// The chain sanitises and prefilters the uploaded statistics in place (one
+/// copy on the device): every GPU call consumes its upload. A call without a
+/// new upload is a clear error, not a second sanitation of sanitised data;
+/// `upload` + `run` + `read` and `denoise_owned` give `denoise`'s output bit
+/// for bit, and the statistics `statistics()` returns are those of the call.
+#[test]
+fn a_gpu_call_consumes_its_upload() {
+    let img = fixture();
+    let ctx = gpu();
+    for method in [Method::Lp, Method::None] {
+        let d = Denoiser::new(&ctx, Source::of_image(&img), Config::new(method)).unwrap();
+        let first = d.denoise(&img, Some(5_000)).unwrap();
+        let clean = d.statistics().unwrap();
+        let err = d.run(None, Some(5_000)).unwrap_err().to_string();
+        assert!(err.contains("upload"), "{}: {err}", method.name());
+        d.upload(&img).unwrap();
+        d.run(None, Some(5_000)).unwrap();
+        let again = d.read().unwrap();
+        let owned = d.denoise_owned(img.clone(), Some(5_000)).unwrap();
+        for other in [&again, &owned] {
+            for c in 0..3 {
+                assert_eq!(
+                    bits(&first.color.planes[c]),
+                    bits(&other.color.planes[c]),
+                    "{}: colour",
+                    method.name()
+                );
+                assert_eq!(
+                    bits(&first.error.planes[c]),
+                    bits(&other.error.planes[c]),
+                    "{}: error",
+                    method.name()
+                );
+            }
+            assert_eq!(first.samples, other.samples, "{}: samples", method.name());
+            assert_eq!(first.report.counters, other.report.counters);
+        }
+        let clean_again = d.statistics().unwrap();
+        for (l, p) in clean.layers() {
+            let q = clean_again.get(l).unwrap();
+            for c in 0..p.len() {
+                assert_eq!(bits(&p[c]), bits(&q[c]), "{}: {}", method.name(), l.name());
+            }
+        }
+        // An image of another size is refused before anything is written.
+        let crop = img.crop(0, 0, 8, 8);
+        assert!(d.upload(&crop).is_err());
+    }
+    check_validation(&ctx);
+}

@@ -275,6 +275,7 @@ fn batch_and_buffer_creation_failures_leak_nothing() {
         let img = fixture();
         let denoiser =
             Denoiser::new(&ctx, Source::of_image(&img), Config::new(Method::None)).unwrap();
+        denoiser.upload(&img).unwrap();
         let plan = Plan::new().fail(
             Call::CreateDescriptorPool,
             1,
@@ -448,7 +449,8 @@ fn a_fence_wait_past_the_timeout_is_an_error_not_a_hang() {
     let d = Denoiser::new(&ctx, Source::of_image(&img), Config::new(Method::Lp)).unwrap();
     let reference = d.denoise(&img, None).unwrap();
     // A real timeout: LP's kernels take far longer than a nanosecond on any
-    // device. The statistics are uploaded (by the call above).
+    // device.
+    d.upload(&img).unwrap();
     let mut batch = Batch::new(&ctx).unwrap();
     d.record(&mut batch, None, None).unwrap();
     ctx.set_fence_timeout(Duration::from_nanos(1));

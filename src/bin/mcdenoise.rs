@@ -503,7 +503,9 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
             };
             let bar = progress_bar(&cli, &mut denoiser);
             let t0 = std::time::Instant::now();
-            let result = denoiser.denoise(&img, *budget);
+            let (width, height) = (img.width, img.height);
+            // The host's copy of the statistics goes once they are uploaded.
+            let result = denoiser.denoise_owned(img, *budget);
             if let Some(b) = bar {
                 b.finish_and_clear();
             }
@@ -527,17 +529,17 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
                 );
             }
             let out = io::OutputImage {
-                color: result.color.clone(),
-                error: error.then(|| result.error.clone()),
+                color: result.color,
+                error: error.then_some(result.error),
                 samples: result
                     .samples
                     .as_ref()
                     .map(|s| s.iter().map(|&v| v as f32).collect()),
-                debug: result.debug.clone(),
+                debug: result.debug,
             };
             io::write_output(output, &out)?;
             if let (Some(path), Some(s)) = (sample_map, &result.samples) {
-                io::write_samples(path, img.width, img.height, s)?;
+                io::write_samples(path, width, height, s)?;
                 if !cli.quiet {
                     let max = s.iter().max().copied().unwrap_or(0);
                     let zero = s.iter().filter(|&&v| v == 0).count();
@@ -550,11 +552,11 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
                 }
             }
             if let Some(p) = png {
-                io::write_png_preview(p, &result.color)?;
+                io::write_png_preview(p, &out.color)?;
             }
             if let Some(r) = reference {
                 let r = read_colour(r)?;
-                let m = metrics::compare(&result.color, &r)?;
+                let m = metrics::compare(&out.color, &r)?;
                 print_metrics(&m);
                 return check_error(m.rmse, *max_error);
             }
@@ -655,7 +657,7 @@ fn denoise_frames(
                 cached = Some((source, low_spp, d));
             }
             let denoiser = &cached.as_ref().expect("just set").2;
-            let result = denoiser.denoise(&img, None)?;
+            let result = denoiser.denoise_owned(img, None)?;
             if !cli.quiet {
                 print_report(&result.report, &frame.path);
             }

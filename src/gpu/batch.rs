@@ -368,6 +368,12 @@ impl Batch {
         )
     }
 
+    /// Whether this batch only counts work ([`Batch::counting`]): nothing it
+    /// records will run.
+    pub fn is_counting(&self) -> bool {
+        matches!(self.mode, Mode::Count)
+    }
+
     /// The context the batch records for.
     pub fn context(&self) -> &Arc<GpuContext> {
         &self.ctx
@@ -1079,23 +1085,17 @@ impl Drop for Recorded {
 }
 
 /// Copies `size` bytes between buffers and waits (used for staging).
-pub(crate) fn copy_buffer(
+pub(crate) fn copy_regions(
     ctx: &Arc<GpuContext>,
     what: String,
     src: vk::Buffer,
-    src_offset: u64,
     dst: vk::Buffer,
-    dst_offset: u64,
-    size: u64,
+    regions: &[vk::BufferCopy],
 ) -> Result<()> {
     let mut b = Batch::new(ctx)?;
     b.note(what);
-    let region = [vk::BufferCopy::default()
-        .src_offset(src_offset)
-        .dst_offset(dst_offset)
-        .size(size)];
     // SAFETY: cmd recording; ranges checked by the callers.
-    unsafe { ctx.device.cmd_copy_buffer(b.cmd, src, dst, &region) };
+    unsafe { ctx.device.cmd_copy_buffer(b.cmd, src, dst, regions) };
     b.barrier();
     b.finish().map(|_| ())
 }

@@ -220,87 +220,116 @@ impl GpuBuffer {
 
     /// Writes `bytes` at byte `offset` (blocking; the GPU must not be using the
     /// buffer). Direct copy when the memory is mapped, else through a staging
-    /// buffer.
+    /// buffer of at most [`STAGING_CHUNK`] bytes.
     pub fn upload(&self, offset: u64, bytes: &[u8]) -> Result<()> {
-        if offset + bytes.len() as u64 > self.size {
-            return Err(Error::InvalidArgument(format!(
-                "upload of {} bytes at {offset} exceeds buffer {} ({} bytes)",
-                bytes.len(),
-                self.name,
-                self.size
-            )));
-        }
-        if bytes.is_empty() {
-            return Ok(());
+        self.upload_regions(&[(offset, bytes)])
+    }
+
+    /// Writes each `(byte offset, bytes)` region (blocking; the GPU must not be
+    /// using the buffer): direct copies when the memory is mapped, else
+    /// through one staging buffer of at most [`STAGING_CHUNK`] bytes, filled
+    /// and copied chunk by chunk. No region is copied on the host first.
+    pub fn upload_regions(&self, regions: &[(u64, &[u8])]) -> Result<()> {
+        for &(offset, bytes) in regions {
+            if offset + bytes.len() as u64 > self.size {
+                return Err(Error::InvalidArgument(format!(
+                    "upload of {} bytes at {offset} exceeds buffer {} ({} bytes)",
+                    bytes.len(),
+                    self.name,
+                    self.size
+                )));
+            }
         }
         if let Some(ptr) = self.allocation.as_ref().and_then(|a| a.mapped_ptr()) {
-            // SAFETY: the mapping covers the allocation; range checked above.
-            unsafe {
-                std::ptr::copy_nonoverlapping(
-                    bytes.as_ptr(),
-                    (ptr.as_ptr() as *mut u8).add(offset as usize),
-                    bytes.len(),
-                )
-            };
+            for &(offset, bytes) in regions {
+                // SAFETY: the mapping covers the allocation; range checked above.
+                unsafe {
+                    std::ptr::copy_nonoverlapping(
+                        bytes.as_ptr(),
+                        (ptr.as_ptr() as *mut u8).add(offset as usize),
+                        bytes.len(),
+                    )
+                };
+            }
+            return Ok(());
+        }
+        let total: u64 = regions.iter().map(|r| r.1.len() as u64).sum();
+        if total == 0 {
             return Ok(());
         }
         let staging = Self::with_location(
             &self.ctx,
             &format!("{}.staging_up", self.name),
-            bytes.len() as u64,
+            total.min(STAGING_CHUNK),
             MemoryLocation::CpuToGpu,
         )?;
-        staging.upload(0, bytes)?;
-        super::batch::copy_buffer(
-            &self.ctx,
-            format!("the upload to {}", self.name),
-            staging.buffer,
-            0,
-            self.buffer,
-            offset,
-            bytes.len() as u64,
-        )
+        let what = format!("the upload to {}", self.name);
+        let mut copies = Vec::new();
+        let mut used = 0u64;
+        for &(offset, bytes) in regions {
+            let mut done = 0usize;
+            while done < bytes.len() {
+                let n = (bytes.len() - done).min((staging.size - used) as usize);
+                staging.upload(used, &bytes[done..done + n])?;
+                copies.push(
+                    vk::BufferCopy::default()
+                        .src_offset(used)
+                        .dst_offset(offset + done as u64)
+                        .size(n as u64),
+                );
+                used += n as u64;
+                done += n;
+                if used == staging.size {
+                    let c = std::mem::take(&mut copies);
+                    super::batch::copy_regions(
+                        &self.ctx,
+                        what.clone(),
+                        staging.buffer,
+                        self.buffer,
+                        &c,
+                    )?;
+                    used = 0;
+                }
+            }
+        }
+        if !copies.is_empty() {
+            super::batch::copy_regions(&self.ctx, what, staging.buffer, self.buffer, &copies)?;
+        }
+        Ok(())
     }
 
     /// Reads `out.len()` bytes from byte `offset` (blocking).
     pub fn download(&self, offset: u64, out: &mut [u8]) -> Result<()> {
-        if offset + out.len() as u64 > self.size {
-            return Err(Error::InvalidArgument(format!(
-                "download of {} bytes at {offset} exceeds buffer {}",
-                out.len(),
-                self.name
-            )));
-        }
-        if out.is_empty() {
-            return Ok(());
+        self.download_regions(&mut [(offset, out)])
+    }
+
+    /// Reads each `(byte offset, destination)` region (blocking): direct
+    /// copies when the memory is mapped, else through one staging buffer of
+    /// at most [`STAGING_CHUNK`] bytes, chunk by chunk.
+    pub fn download_regions(&self, regions: &mut [(u64, &mut [u8])]) -> Result<()> {
+        for (offset, out) in regions.iter() {
+            if *offset + out.len() as u64 > self.size {
+                return Err(Error::InvalidArgument(format!(
+                    "download of {} bytes at {offset} exceeds buffer {}",
+                    out.len(),
+                    self.name
+                )));
+            }
         }
         if let Some(ptr) = self.allocation.as_ref().and_then(|a| a.mapped_ptr()) {
-            // SAFETY: see upload.
-            unsafe {
-                std::ptr::copy_nonoverlapping(
-                    (ptr.as_ptr() as *const u8).add(offset as usize),
-                    out.as_mut_ptr(),
-                    out.len(),
-                )
-            };
+            for (offset, out) in regions.iter_mut() {
+                // SAFETY: see upload_regions.
+                unsafe {
+                    std::ptr::copy_nonoverlapping(
+                        (ptr.as_ptr() as *const u8).add(*offset as usize),
+                        out.as_mut_ptr(),
+                        out.len(),
+                    )
+                };
+            }
             return Ok(());
         }
-        let staging = Self::with_location(
-            &self.ctx,
-            &format!("{}.staging_down", self.name),
-            out.len() as u64,
-            MemoryLocation::GpuToCpu,
-        )?;
-        super::batch::copy_buffer(
-            &self.ctx,
-            format!("the download from {}", self.name),
-            self.buffer,
-            offset,
-            staging.buffer,
-            0,
-            out.len() as u64,
-        )?;
-        staging.download(0, out)
+        staged_download(&self.ctx, &self.name, self.buffer, regions)
     }
 
     /// The whole buffer (or its first `count` elements) as a vector.
@@ -322,22 +351,72 @@ pub fn read_slice(ctx: &Arc<GpuContext>, slice: BufferSlice, count: usize) -> Re
         )));
     }
     let mut v = vec![0.0f32; count];
-    if count == 0 {
-        return Ok(v);
-    }
-    let staging =
-        GpuBuffer::with_location(ctx, "read_slice.staging", bytes, MemoryLocation::GpuToCpu)?;
-    super::batch::copy_buffer(
+    staged_download(
         ctx,
-        "a read-back copy".into(),
+        "read_slice",
         slice.buffer,
-        slice.offset,
-        staging.buffer,
-        0,
-        bytes,
+        &mut [(slice.offset, bytemuck::cast_slice_mut(&mut v))],
     )?;
-    staging.download(0, bytemuck::cast_slice_mut(&mut v))?;
     Ok(v)
+}
+
+/// Largest staging buffer one upload or download allocates: bigger transfers
+/// go through it in chunks, so a transfer never needs a second copy of its
+/// data in memory.
+pub const STAGING_CHUNK: u64 = 32 << 20;
+
+/// Copies each `(byte offset in src, destination)` region of the device
+/// buffer `src` to the host through one staging buffer of at most
+/// [`STAGING_CHUNK`] bytes (`name` names it).
+fn staged_download(
+    ctx: &Arc<GpuContext>,
+    name: &str,
+    src: vk::Buffer,
+    regions: &mut [(u64, &mut [u8])],
+) -> Result<()> {
+    let total: u64 = regions.iter().map(|r| r.1.len() as u64).sum();
+    if total == 0 {
+        return Ok(());
+    }
+    let staging = GpuBuffer::with_location(
+        ctx,
+        &format!("{name}.staging_down"),
+        total.min(STAGING_CHUNK),
+        MemoryLocation::GpuToCpu,
+    )?;
+    let what = format!("the download from {name}");
+    // Pieces of the current chunk: (region, offset in it, staging offset, len).
+    let mut pieces: Vec<(usize, usize, u64, usize)> = Vec::new();
+    let mut used = 0u64;
+    let n_regions = regions.len();
+    for r in 0..n_regions {
+        let len = regions[r].1.len();
+        let mut done = 0usize;
+        while done < len {
+            let n = (len - done).min((staging.size - used) as usize);
+            pieces.push((r, done, used, n));
+            used += n as u64;
+            done += n;
+            let last = r + 1 == n_regions && done == len;
+            if used == staging.size || last {
+                let copies: Vec<vk::BufferCopy> = pieces
+                    .iter()
+                    .map(|&(r, at, s, n)| {
+                        vk::BufferCopy::default()
+                            .src_offset(regions[r].0 + at as u64)
+                            .dst_offset(s)
+                            .size(n as u64)
+                    })
+                    .collect();
+                super::batch::copy_regions(ctx, what.clone(), src, staging.buffer, &copies)?;
+                for (r, at, s, n) in pieces.drain(..) {
+                    staging.download(s, &mut regions[r].1[at..at + n])?;
+                }
+                used = 0;
+            }
+        }
+    }
+    Ok(())
 }
 
 impl Drop for GpuBuffer {
@@ -496,27 +575,49 @@ impl PlaneSet {
         Ok(v)
     }
 
-    /// Uploads all planes at once (one copy).
+    /// Uploads all planes at once, each straight from its slice (no host
+    /// copy of the set; see [`GpuBuffer::upload_regions`]).
     pub fn upload_all(&self, planes: &[&[f32]]) -> Result<()> {
         assert_eq!(planes.len(), self.count);
-        let mut bytes = vec![0u8; (self.stride * self.count as u64) as usize];
-        for (i, p) in planes.iter().enumerate() {
-            assert_eq!(p.len(), self.pixels);
-            let at = i * self.stride as usize;
-            bytes[at..at + p.len() * 4].copy_from_slice(bytemuck::cast_slice(p));
-        }
-        self.buffer.upload(self.base, &bytes)
+        let regions: Vec<(u64, &[u8])> = planes
+            .iter()
+            .enumerate()
+            .map(|(i, p)| {
+                assert_eq!(p.len(), self.pixels);
+                (self.base + i as u64 * self.stride, bytemuck::cast_slice(p))
+            })
+            .collect();
+        self.buffer.upload_regions(&regions)
     }
 
-    /// Downloads all planes at once.
-    pub fn download_all(&self) -> Result<Vec<Vec<f32>>> {
-        let mut bytes = vec![0u8; (self.stride * self.count as u64) as usize];
-        self.buffer.download(self.base, &mut bytes)?;
-        Ok((0..self.count)
-            .map(|i| {
-                let at = i * self.stride as usize;
-                bytemuck::pod_collect_to_vec::<u8, f32>(&bytes[at..at + self.pixels * 4])
+    /// Uploads plane `i` from `data` for each `(i, data)` (as
+    /// [`upload_all`](Self::upload_all), for some of the planes).
+    pub fn upload_some(&self, planes: &[(usize, &[f32])]) -> Result<()> {
+        let regions: Vec<(u64, &[u8])> = planes
+            .iter()
+            .map(|&(i, p)| {
+                assert!(i < self.count);
+                assert_eq!(p.len(), self.pixels);
+                (self.base + i as u64 * self.stride, bytemuck::cast_slice(p))
             })
-            .collect())
+            .collect();
+        self.buffer.upload_regions(&regions)
+    }
+
+    /// Downloads all planes at once, each straight into its vector.
+    pub fn download_all(&self) -> Result<Vec<Vec<f32>>> {
+        let mut out = vec![vec![0.0f32; self.pixels]; self.count];
+        let mut regions: Vec<(u64, &mut [u8])> = out
+            .iter_mut()
+            .enumerate()
+            .map(|(i, p)| {
+                (
+                    self.base + i as u64 * self.stride,
+                    bytemuck::cast_slice_mut(p.as_mut_slice()),
+                )
+            })
+            .collect();
+        self.buffer.download_regions(&mut regions)?;
+        Ok(out)
     }
 }

@@ -8,12 +8,13 @@
 //! The public facade ([`crate::Denoiser`]) wraps this; [`super::denoise`]
 //! uses it for the GPU backend, so there is one GPU chain.
 
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
 use crate::accum::AccumLayout;
 use crate::error::{Error, Result};
 use crate::gpu::{Batch, BufferSlice, GpuBuffer, GpuContext, PlaneSet, Precision};
-use crate::image::{Layer, RgbImage};
+use crate::image::{Layer, RgbImage, StatsImage};
 use crate::options::Options;
 
 use super::aos::{self, AosPlanes};
@@ -124,8 +125,13 @@ pub struct GpuChain {
     ctx: Arc<GpuContext>,
     input_kind: ChainInput,
     config: ChainConfig,
-    input: GpuStats,
-    clean: GpuStats,
+    /// The statistics: uploaded or finalised, then sanitised, filtered and
+    /// prefiltered in place by every call (their planes are
+    /// [`prepare::output_layers`] of the source's).
+    stats: GpuStats,
+    /// Whether `stats` holds an upload no call has consumed yet
+    /// ([`ChainInput::Stats`]).
+    uploaded: AtomicBool,
     scratch: PrepareScratch,
     gbf: Option<GbfPlanes>,
     outliers: Option<OutlierPlanes>,
@@ -201,9 +207,10 @@ impl GpuChain {
         }
         let layers = input.layers();
         check_layers(config.method, &layers)?;
-        let input_stats = GpuStats::new(ctx, "chain.input", w, h, &layers)?;
-        let clean = GpuStats::new(ctx, "chain.clean", w, h, &prepare::output_layers(&layers))?;
-        let scratch = PrepareScratch::new(ctx, &input_stats)?;
+        // One set of planes: the source's statistics are sanitised in place
+        // (prepare::record_prepare), with room for the variances it estimates.
+        let stats = GpuStats::new(ctx, "chain.stats", w, h, &prepare::output_layers(&layers))?;
+        let scratch = PrepareScratch::new(ctx, &stats)?;
         // Stage scratch whose lifetimes do not overlap shares one arena: the
         // outlier stage's (before the prefilter, and again after the
         // method), the prefilter's, LP's state. LP's first state plane is read
@@ -280,8 +287,8 @@ impl GpuChain {
             ctx: ctx.clone(),
             input_kind: input,
             config,
-            input: input_stats,
-            clean,
+            stats,
+            uploaded: AtomicBool::new(false),
             scratch,
             gbf,
             outliers,
@@ -315,15 +322,31 @@ impl GpuChain {
         self.gbf.is_some()
     }
 
-    /// The statistics the chain starts from (for [`ChainInput::Stats`], upload
-    /// into these before recording).
-    pub fn input(&self) -> &GpuStats {
-        &self.input
+    /// Uploads the statistics of one call ([`ChainInput::Stats`]; `img` has
+    /// the chain's size and layers). Every call consumes its upload: the
+    /// chain sanitises and prefilters the statistics in place.
+    pub fn upload(&self, img: &StatsImage) -> Result<()> {
+        self.ctx.check_alive()?;
+        let want = ChainInput::Stats {
+            width: img.width,
+            height: img.height,
+            layers: img.layers().map(|(l, _)| l).collect(),
+        };
+        if self.input_kind != want {
+            return Err(Error::InvalidArgument(format!(
+                "this denoiser was made for {:?}; the image is {}x{} with other layers",
+                self.input_kind, img.width, img.height
+            )));
+        }
+        self.uploaded.store(false, Ordering::SeqCst);
+        self.stats.upload_image(img)?;
+        self.uploaded.store(true, Ordering::SeqCst);
+        Ok(())
     }
 
     /// The sanitised (and prefiltered) statistics after a run.
     pub fn clean(&self) -> &GpuStats {
-        &self.clean
+        &self.stats
     }
 
     /// Records the chain. `accum` is the renderer's accumulation range for
@@ -377,7 +400,7 @@ impl GpuChain {
             error: self.sampling_error(),
             dim: self.dim_source().0,
             filtered: self.color(),
-            spp: self.clean.plane(Layer::Spp, 0),
+            spp: self.stats.plane(Layer::Spp, 0),
         }
     }
 
@@ -440,9 +463,21 @@ impl GpuChain {
         let p = self.config.precision;
         match (&self.input_kind, accum) {
             (ChainInput::Accum(layout), Some(a)) => {
-                stats::record_finalize(batch, p, layout, a, &self.input)?
+                stats::record_finalize(batch, p, layout, a, &self.stats)?
             }
-            (ChainInput::Stats { .. }, None) => {}
+            (ChainInput::Stats { .. }, None) => {
+                // A counting batch runs nothing, so it consumes nothing.
+                let fresh = if batch.is_counting() {
+                    self.uploaded.load(Ordering::SeqCst)
+                } else {
+                    self.uploaded.swap(false, Ordering::SeqCst)
+                };
+                if !fresh {
+                    return Err(Error::InvalidArgument(
+                        "no statistics uploaded for this call: every call sanitises its upload in place, so upload the statistics again before each call (Denoiser::upload, or Denoiser::denoise)".into(),
+                    ));
+                }
+            }
             (ChainInput::Accum(_), None) => {
                 return Err(Error::InvalidArgument(
                     "this chain reads accumulation planes: pass the buffer".into(),
@@ -457,39 +492,39 @@ impl GpuChain {
         prepare::record_prepare(
             batch,
             p,
-            &self.input,
-            &self.clean,
+            &self.input_kind.layers(),
+            &self.stats,
             &self.scratch,
             self.config.low_spp,
             at.skip,
         )?;
         if let Some(o) = &self.outliers {
-            outliers::record_remove(batch, p, &self.clean, o)?;
+            outliers::record_remove(batch, p, &self.stats, o)?;
         }
         if let Some(g) = &self.gbf {
-            gbf::record_gbf(batch, p, &self.clean, g)?;
+            gbf::record_gbf(batch, p, &self.stats, g)?;
         }
         match &self.planes {
             MethodPlanes::None { zero } => batch.fill(zero.plane(0), 0),
             MethodPlanes::Wlr(planes, params) => {
-                wlr::record_wlr(batch, p, &self.clean, planes, *params)?
+                wlr::record_wlr(batch, p, &self.stats, planes, *params)?
             }
             MethodPlanes::Lp(planes, params) => {
                 let params = lp::LpParams {
                     origin: at.origin,
                     ..*params
                 };
-                lp::record_lp(batch, p, &self.clean, planes, params)?
+                lp::record_lp(batch, p, &self.stats, planes, params)?
             }
             MethodPlanes::Apr(planes, params) => {
-                apr::record_apr(batch, p, &self.clean, planes, *params)?
+                apr::record_apr(batch, p, &self.stats, planes, *params)?
             }
             MethodPlanes::Aos(planes, params) => {
-                aos::record_aos(batch, p, &self.clean, planes, *params, self.gbf.is_some())?
+                aos::record_aos(batch, p, &self.stats, planes, *params, self.gbf.is_some())?
             }
         }
         if let Some(o) = &self.outliers {
-            let spp = self.clean.plane(Layer::Spp, 0);
+            let spp = self.stats.plane(Layer::Spp, 0);
             outliers::record_restore(batch, p, spp, self.color(), o)?;
         }
         Ok(())
@@ -504,7 +539,7 @@ impl GpuChain {
     /// sanitised input, not yet clamped).
     pub fn color(&self) -> [BufferSlice; 3] {
         match &self.planes {
-            MethodPlanes::None { .. } => std::array::from_fn(|c| self.clean.plane(Layer::Color, c)),
+            MethodPlanes::None { .. } => std::array::from_fn(|c| self.stats.plane(Layer::Color, c)),
             MethodPlanes::Wlr(p, _) => p.color(),
             MethodPlanes::Lp(p, _) => p.color(),
             MethodPlanes::Apr(p, _) => p.color(),
@@ -518,7 +553,7 @@ impl GpuChain {
     pub fn error(&self) -> [BufferSlice; 3] {
         match &self.planes {
             MethodPlanes::None { .. } => {
-                std::array::from_fn(|c| self.clean.plane(Layer::ColorVariance, c))
+                std::array::from_fn(|c| self.stats.plane(Layer::ColorVariance, c))
             }
             MethodPlanes::Wlr(p, _) => [p.mse(); 3],
             MethodPlanes::Lp(p, _) => p.error(),
@@ -544,7 +579,7 @@ impl GpuChain {
     pub fn report(&self) -> Result<PrepareReport> {
         let counters = self.counters()?;
         let (w, h) = self.size();
-        let spp = read(&self.ctx, self.clean.plane(Layer::Spp, 0), w * h)?;
+        let spp = read(&self.ctx, self.stats.plane(Layer::Spp, 0), w * h)?;
         let invalid = spp
             .iter()
             .filter(|&&s| crate::reference::finalize_stats::spp_of(s) < 1.0)
@@ -632,7 +667,8 @@ impl GpuChain {
         };
         match &self.planes {
             MethodPlanes::None { .. } => {
-                let clean = self.clean.download()?;
+                // The colour and the count only (not every layer).
+                let clean = self.stats.download_layers(&[Layer::Color, Layer::Spp])?;
                 out.color = prepare::colour_of(&clean);
                 if debug {
                     for (c, name) in ["R", "G", "B"].iter().enumerate() {
@@ -649,15 +685,19 @@ impl GpuChain {
                 }
             }
             MethodPlanes::Lp(p, _) => {
-                let r = lp::download(p, w, h)?;
+                // All of LP's planes only for the debug layers.
+                let centre_pass = if debug {
+                    let r = lp::download(p, w, h)?;
+                    out.debug = r.debug_layers();
+                    r.centre_pass
+                } else {
+                    lp::download_centre_pass(p)?
+                };
                 let fraction = match rect {
-                    Some(rc) => lp::centre_fraction(&tiles::crop(&r.centre_pass, w, rc)),
-                    None => r.centre_fraction(),
+                    Some(rc) => lp::centre_fraction(&tiles::crop(&centre_pass, w, rc)),
+                    None => lp::centre_fraction(&centre_pass),
                 };
                 out.stats.push(("centre_fraction".into(), fraction));
-                if debug {
-                    out.debug = r.debug_layers();
-                }
             }
             MethodPlanes::Apr(p, _) => {
                 if debug {

@@ -313,6 +313,13 @@ pub fn download(planes: &LpPlanes, width: usize, height: usize) -> Result<LpResu
     Ok(LpResult::new(width, height, out, &state0))
 }
 
+/// The centre plane alone ([`LpResult::centre_pass`]: pass + 1 at centres,
+/// else 0), for the centre fraction when no debug layers are asked for.
+pub fn download_centre_pass(planes: &LpPlanes) -> Result<Vec<f32>> {
+    let state0 = planes.state.download_plane::<f32>(0)?;
+    Ok(state0.chunks_exact(4).map(|s| s[0]).collect())
+}
+
 /// The CPU path: the scalar twins in the order of [`record_lp`], on
 /// sanitised statistics. `progress` prints each pass on stderr once the
 /// run has taken more than a second.

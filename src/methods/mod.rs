@@ -229,25 +229,19 @@ pub fn denoise_with_chain(
     req: &DenoiseRequest,
     progress: Option<&ProgressCallback>,
 ) -> Result<DenoiseOutput> {
-    let layers: Vec<crate::image::Layer> = img.layers().map(|(l, _)| l).collect();
-    let want = chain::ChainInput::Stats {
-        width: img.width,
-        height: img.height,
-        layers,
-    };
-    if chain.input_kind() != &want {
-        return Err(Error::InvalidArgument(format!(
-            "this denoiser was made for {:?}; the image is {}x{} with other layers",
-            chain.input_kind(),
-            img.width,
-            img.height
-        )));
-    }
-    let planes: Vec<&[f32]> = img
-        .layers()
-        .flat_map(|(_, p)| p.iter().map(|v| v.as_slice()))
-        .collect();
-    chain.input().planes.upload_all(&planes)?;
+    chain.upload(img)?;
+    run_uploaded(chain, prepare::base_report(img), req, progress)
+}
+
+/// [`denoise_with_chain`] after [`chain::GpuChain::upload`]: record, submit,
+/// wait, download. `report` is [`prepare::base_report`] of the uploaded
+/// image (the caller may have freed it).
+pub fn run_uploaded(
+    chain: &chain::GpuChain,
+    mut report: prepare::PrepareReport,
+    req: &DenoiseRequest,
+    progress: Option<&ProgressCallback>,
+) -> Result<DenoiseOutput> {
     let mut batch = crate::gpu::Batch::new(chain.context())?;
     batch.progress = req.progress;
     if let Some(p) = progress {
@@ -260,7 +254,6 @@ pub fn denoise_with_chain(
         Some(_) => Some(chain.download_samples()?),
         None => None,
     };
-    let mut report = prepare::base_report(img);
     report.counters = chain.counters()?;
     if req.method == Method::None {
         report.timings = timings.clone();

@@ -12,7 +12,7 @@ use std::sync::Arc;
 use super::stats::GpuStats;
 use super::Backend;
 use crate::error::{Error, Result};
-use crate::gpu::{Batch, BufferSlice, GpuBuffer, GpuContext, PlaneSet, Precision};
+use crate::gpu::{Batch, GpuBuffer, GpuContext, PlaneSet, Precision};
 use crate::image::{Layer, RgbImage, StatsImage};
 use crate::kernels::sanitize;
 use crate::reference::{sanitize::sanitize as sanitize_twin, spp_of};
@@ -254,8 +254,16 @@ impl PrepareScratch {
     }
 }
 
-/// Records the sanitation of `input` into `out` (which holds
-/// [`output_layers`] of the input's layers). GPU-resident: nothing is read back.
+/// Records the sanitation of the statistics in `stats`, in place. `stats`
+/// holds [`output_layers`] of `layers`, the layers the source provides (the
+/// planes of the variances sanitation estimates are written, not read).
+/// GPU-resident: nothing is read back.
+///
+/// In place: a channel's stage 0 reads a pixel's neighbours, so it reads a
+/// copy (the scratch planes) and writes the statistics' own planes; with two
+/// stages, the first writes the scratch and the second the statistics. The
+/// statistics are therefore consumed: running this twice on them is not
+/// running it once (the caller uploads or finalises them before every call).
 ///
 /// `low_spp`: whether some pixel may have `1 <= spp < 2` (spec §0.4 step 3).
 /// Pass `true` when unknown; `false` skips that stage (a renderer that took at
@@ -268,13 +276,13 @@ impl PrepareScratch {
 pub fn record_prepare(
     batch: &mut Batch,
     precision: Precision,
-    input: &GpuStats,
-    out: &GpuStats,
+    layers: &[Layer],
+    stats: &GpuStats,
     scratch: &PrepareScratch,
     low_spp: bool,
     skip: [u32; 2],
 ) -> Result<()> {
-    let (w, h) = (input.width as u32, input.height as u32);
+    let (w, h) = (stats.width as u32, stats.height as u32);
     let push = |stage: u32, has_var: bool| SanitizePush {
         width: w,
         height: h,
@@ -284,30 +292,29 @@ pub fn record_prepare(
         skip_hi: skip[1],
         ..Default::default()
     };
-    let spp = input.plane(Layer::Spp, 0);
+    let spp = stats.plane(Layer::Spp, 0);
     let (tmp_val, tmp_var) = (scratch.planes.plane(0), scratch.planes.plane(1));
     batch.fill(scratch.counters.slice(), 0);
     let mut channel = 0u64;
     let counters = |c: u64| scratch.counters.range(c * COUNTER_STRIDE, 16);
     for &layer in &Layer::WITH_VARIANCE {
-        if !input.has(layer) {
+        if !layers.contains(&layer) {
             continue;
         }
         let var_layer = layer.variance().unwrap();
-        let has_var = input.has(var_layer);
+        let has_var = layers.contains(&var_layer);
         for c in 0..layer.channels().len() {
-            let value = input.plane(layer, c);
-            let var_in: BufferSlice = if has_var {
-                input.plane(var_layer, c)
-            } else {
-                value
-            };
-            let (ov, ovar) = (out.plane(layer, c), out.plane(var_layer, c));
+            let (value, var) = (stats.plane(layer, c), stats.plane(var_layer, c));
             if has_var && !low_spp {
                 // Stage 0 alone is the whole sanitation of this channel.
-                let planes = [value, var_in, spp, ov, ovar];
+                batch.copy(value, tmp_val);
+                batch.copy(var, tmp_var);
+                let planes = [tmp_val, tmp_var, spp, value, var];
                 sanitize::record(batch, precision, push(0, true), planes, counters(channel))?;
             } else {
+                // Without a variance, stage 0 reads the value as a stand-in
+                // and stage 2 estimates the variance plane.
+                let var_in = if has_var { var } else { value };
                 let planes = [value, var_in, spp, tmp_val, tmp_var];
                 sanitize::record(
                     batch,
@@ -317,7 +324,7 @@ pub fn record_prepare(
                     counters(channel),
                 )?;
                 let stage = if has_var { 1 } else { 2 };
-                let planes = [tmp_val, tmp_var, spp, ov, ovar];
+                let planes = [tmp_val, tmp_var, spp, value, var];
                 sanitize::record(
                     batch,
                     precision,
@@ -329,24 +336,22 @@ pub fn record_prepare(
             channel += 1;
         }
     }
-    if input.has(Layer::PositionCovariance) {
+    if layers.contains(&Layer::PositionCovariance) {
         for c in 0..6 {
-            let p = input.plane(Layer::PositionCovariance, c);
-            let o = out.plane(Layer::PositionCovariance, c);
+            let p = stats.plane(Layer::PositionCovariance, c);
+            batch.copy(p, tmp_val);
             sanitize::record(
                 batch,
                 precision,
                 push(0, false),
-                [p, p, spp, o, tmp_var],
+                [tmp_val, tmp_val, spp, p, tmp_var],
                 counters(channel),
             )?;
             channel += 1;
         }
     }
-    // The count itself: spp_of applied through stage 0 of a channel whose
-    // values are the counts (non-finite → median of neighbours is *not* what
-    // we want), so copy it and let every kernel apply spp_of when reading.
-    batch.copy(spp, out.plane(Layer::Spp, 0));
+    // The count itself is not sanitised (every kernel applies spp_of when
+    // reading it): a non-finite count is not repaired by a neighbour median.
     Ok(())
 }
 
@@ -356,23 +361,23 @@ pub fn prepare_gpu(
     precision: Precision,
     img: &StatsImage,
 ) -> Result<(StatsImage, PrepareReport)> {
-    let input = GpuStats::upload(ctx, "prepare.input", img)?;
     let layers: Vec<Layer> = img.layers().map(|(l, _)| l).collect();
-    let out = GpuStats::new(
+    let stats = GpuStats::new(
         ctx,
-        "prepare.output",
+        "prepare.stats",
         img.width,
         img.height,
         &output_layers(&layers),
     )?;
-    let scratch = PrepareScratch::new(ctx, &input)?;
+    stats.upload_image(img)?;
+    let scratch = PrepareScratch::new(ctx, &stats)?;
     let low_spp = has_low_spp(img);
     let mut batch = Batch::new(ctx)?;
     record_prepare(
         &mut batch,
         precision,
-        &input,
-        &out,
+        &layers,
+        &stats,
         &scratch,
         low_spp,
         [0, 0],
@@ -381,7 +386,7 @@ pub fn prepare_gpu(
     let mut report = base_report(img);
     report.timings = timings;
     report.counters = scratch.read_counters()?;
-    let mut clean = out.download()?;
+    let mut clean = stats.download()?;
     // Same normalisation of the count as the CPU path.
     let spp: Vec<f32> = clean.get(Layer::Spp).unwrap()[0]
         .iter()

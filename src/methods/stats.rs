@@ -62,12 +62,60 @@ impl GpuStats {
         Ok(g)
     }
 
+    /// Uploads every layer of `img` into its planes (`img` may lack layers
+    /// these statistics have, as sanitation's estimated variances; every
+    /// layer of `img` must be present here).
+    pub fn upload_image(&self, img: &StatsImage) -> Result<()> {
+        if (img.width, img.height) != (self.width, self.height) {
+            return Err(Error::InvalidArgument(format!(
+                "{}: a {}x{} image into {}x{} planes",
+                self.planes.name(),
+                img.width,
+                img.height,
+                self.width,
+                self.height
+            )));
+        }
+        let mut planes: Vec<(usize, &[f32])> = Vec::new();
+        for (l, p) in img.layers() {
+            let Some(&(_, first)) = self.index.iter().find(|(x, _)| *x == l) else {
+                return Err(Error::InvalidArgument(format!(
+                    "{}: no {} layer",
+                    self.planes.name(),
+                    l.name()
+                )));
+            };
+            planes.extend(p.iter().enumerate().map(|(c, v)| (first + c, v.as_slice())));
+        }
+        self.planes.upload_some(&planes)
+    }
+
     /// Downloads every layer.
     pub fn download(&self) -> Result<StatsImage> {
         let all = self.planes.download_all()?;
         let mut img = StatsImage::new(self.width, self.height);
         for &(l, first) in &self.index {
             img.set(l, all[first..first + l.channels().len()].to_vec());
+        }
+        Ok(img)
+    }
+
+    /// Downloads `layers` (each must be present) into an image holding only
+    /// them.
+    pub fn download_layers(&self, layers: &[Layer]) -> Result<StatsImage> {
+        let mut img = StatsImage::new(self.width, self.height);
+        for &l in layers {
+            let Some(&(_, first)) = self.index.iter().find(|(x, _)| *x == l) else {
+                return Err(Error::InvalidArgument(format!(
+                    "{}: no {} layer",
+                    self.planes.name(),
+                    l.name()
+                )));
+            };
+            let planes = (first..first + l.channels().len())
+                .map(|i| self.planes.download_plane::<f32>(i))
+                .collect::<Result<Vec<_>>>()?;
+            img.set(l, planes);
         }
         Ok(img)
     }

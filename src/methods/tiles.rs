@@ -568,11 +568,8 @@ impl TiledChain {
             for i in members {
                 let t = self.tiles[i];
                 let sub = img.crop(t.outer.x0, t.outer.y0, ow, oh);
-                let planes: Vec<&[f32]> = sub
-                    .layers()
-                    .flat_map(|(_, p)| p.iter().map(|v| v.as_slice()))
-                    .collect();
-                chain.input().planes.upload_all(&planes)?;
+                chain.upload(&sub)?;
+                drop(sub);
                 let mut batch = crate::gpu::Batch::new(&self.ctx)?;
                 batch.progress = batch_progress;
                 chain.record_tile(&mut batch, t.placement(), budget.is_some())?;
