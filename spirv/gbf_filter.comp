@@ -59,98 +59,128 @@ realmat3 gbf_inv_cov(uint q)
     return gbf_sym(real3(sxx[q], sxy[q], sxz[q]), real3(syy[q], syz[q], szz[q]));
 }
 
-#define TILE (8 + 2 * GBF_RADIUS)
-// The workgroup's 8x8 pixels and their 3-pixel halo, staged once: a shared
-// load costs lavapipe much less than a storage-buffer load. 20,384 bytes:
-// above Vulkan's guaranteed 16 KiB, within every desktop GPU's 32-64 KiB;
-// a device with less gets a clear error when the pipeline is built.
-shared vec4 t_pos[TILE * TILE];  // position, valid (1) or not (0, also outside)
-shared vec4 t_ia[TILE * TILE];   // S~^-1 XX XY XZ YY
-shared vec2 t_ib[TILE * TILE];   // S~^-1 YZ ZZ
-shared vec4 t_fa[TILE * TILE];
-shared vec4 t_fb[TILE * TILE];
-shared vec4 t_va[TILE * TILE];
-shared vec4 t_vb[TILE * TILE];
+// Register blocking: an invocation filters GBF_PX consecutive pixels of a
+// row. Each neighbour of their joint window (GBF_PX + 6 wide) is loaded once
+// and accumulated into every pixel whose 7x7 window holds it, so a pixel
+// costs (GBF_PX + 6) / GBF_PX neighbour loads per window column instead of 7
+// (lavapipe pays per lane and float loaded). Each pixel still sums its
+// neighbours in raster order (dy, then dx), so the result is the same as one
+// invocation per pixel. The loops over the joint window's columns and over
+// the pixels are unrolled: every array index is a constant.
+#extension GL_EXT_control_flow_attributes : require
+#define GBF_PX 8
+#define GBF_SPAN (GBF_PX + 2 * GBF_RADIUS)
 
 void main()
 {
-    ivec2 org = ivec2(gl_WorkGroupID.x * 8u, push.row0 + gl_WorkGroupID.y * 8u) - GBF_RADIUS;
-    for (uint k = gl_LocalInvocationIndex; k < uint(TILE * TILE); k += 64u) {
-        ivec2 t = org + ivec2(k % uint(TILE), k / uint(TILE));
-        t_pos[k] = vec4(0);
-        if (t.x >= 0 && t.y >= 0 && t.x < int(push.width) && t.y < int(push.height)) {
-            uint q = uint(t.y) * push.width + uint(t.x);
-            if (gbf_valid(q)) {
-                t_pos[k] = vec4(px[q], py[q], pz[q], 1.0);
-                t_ia[k] = vec4(sxx[q], sxy[q], sxz[q], syy[q]);
-                t_ib[k] = vec2(syz[q], szz[q]);
-                uint qk = q - push.base * push.width;
-                t_fa[k] = fa[qk];
-                t_fb[k] = fb[qk];
-                t_va[k] = va[qk];
-                t_vb[k] = vb[qk];
-            }
-        }
-    }
-    barrier();
-    uint x = gl_GlobalInvocationID.x;
+    uint x0 = gl_GlobalInvocationID.x * uint(GBF_PX);
     uint y = push.row0 + gl_GlobalInvocationID.y;
-    if (x >= push.width || y >= push.height) {
+    if (x0 >= push.width || y >= push.height) {
         return;
     }
-    uint c = y * push.width + x;
-    real h = real(hbar[c]);
-    // The packed planes start at row push.base (row chunks, methods/gbf.rs).
-    uint ck = c - push.base * push.width;
-    real4 ga = real4(fa[ck]);
-    real4 gb = real4(fb[ck]);
-    real4 gva = real4(va[ck]);
-    real4 gvb = real4(vb[ck]);
-    if (gbf_valid(c) && h >= real(GBF_H0)) {
-        real3 pc = gbf_position(c);
-        realmat3 inv_c = gbf_inv_cov(c);
-        real W = real(0);
-        real4 sa = real4(0), sb = real4(0), sva = real4(0), svb = real4(0);
-        uint lc = (gl_LocalInvocationID.y + uint(GBF_RADIUS)) * uint(TILE)
-            + gl_LocalInvocationID.x + uint(GBF_RADIUS);
-        for (int dy = -GBF_RADIUS; dy <= GBF_RADIUS; ++dy) {
-            for (int dx = -GBF_RADIUS; dx <= GBF_RADIUS; ++dx) {
-                uint lq = uint(int(lc) + dy * TILE + dx);
-                vec4 tp = t_pos[lq];
-                if (tp.w == 0.0) {
-                    continue;
-                }
-                real w = real(1);
-                if (lq != lc) {
-                    vec4 ia = t_ia[lq];
-                    real3 dlt = real3(tp.xyz) - pc;
-                    real d = dot(dlt, (inv_c + gbf_sym(real3(ia.xyz), real3(ia.w, t_ib[lq]))) * dlt);
-                    w = gbf_exp(-d / (real(2) * h * h));
-                }
-                W += w;
-                sa += w * real4(t_fa[lq]);
-                sb += w * real4(t_fb[lq]);
-                sva += (w * w) * real4(t_va[lq]);
-                svb += (w * w) * real4(t_vb[lq]);
+    bool act[GBF_PX];
+    real h2[GBF_PX];
+    real3 pc[GBF_PX];
+    realmat3 inv_c[GBF_PX];
+    real W[GBF_PX];
+    real4 sa[GBF_PX], sb[GBF_PX], sva[GBF_PX], svb[GBF_PX];
+    bool any_act = false;
+    [[unroll]] for (int p = 0; p < GBF_PX; ++p) {
+        uint x = x0 + uint(p);
+        act[p] = false;
+        h2[p] = real(1);
+        pc[p] = real3(0);
+        inv_c[p] = realmat3(0);
+        W[p] = real(0);
+        sa[p] = real4(0);
+        sb[p] = real4(0);
+        sva[p] = real4(0);
+        svb[p] = real4(0);
+        if (x < push.width) {
+            uint c = y * push.width + x;
+            real h = real(hbar[c]);
+            if (gbf_valid(c) && h >= real(GBF_H0)) {
+                act[p] = true;
+                h2[p] = real(2) * h * h;
+                pc[p] = gbf_position(c);
+                inv_c[p] = gbf_inv_cov(c);
+                any_act = true;
             }
         }
-        ga = sa / W;
-        gb = sb / W;
-        gva = sva / (W * W);
-        gvb = svb / (W * W);
     }
-    g0[c] = float(ga.x);
-    g1[c] = float(ga.y);
-    g2[c] = float(ga.z);
-    g3[c] = float(ga.w);
-    g4[c] = float(gb.x);
-    g5[c] = float(gb.y);
-    g6[c] = float(gb.z);
-    gv0[c] = float(gva.x);
-    gv1[c] = float(gva.y);
-    gv2[c] = float(gva.z);
-    gv3[c] = float(gva.w);
-    gv4[c] = float(gvb.x);
-    gv5[c] = float(gvb.y);
-    gv6[c] = float(gvb.z);
+    if (any_act) {
+        for (int dy = -GBF_RADIUS; dy <= GBF_RADIUS; ++dy) {
+            int qy = int(y) + dy;
+            if (qy < 0 || qy >= int(push.height)) {
+                continue;
+            }
+            [[unroll]] for (int u = 0; u < GBF_SPAN; ++u) {
+                int qx = int(x0) - GBF_RADIUS + u;
+                if (qx < 0 || qx >= int(push.width)) {
+                    continue;
+                }
+                uint q = uint(qy) * push.width + uint(qx);
+                if (!gbf_valid(q)) {
+                    continue;
+                }
+                real3 pq = gbf_position(q);
+                realmat3 inv_q = gbf_inv_cov(q);
+                uint qk = q - push.base * push.width;
+                real4 qa = real4(fa[qk]);
+                real4 qb = real4(fb[qk]);
+                real4 qva = real4(va[qk]);
+                real4 qvb = real4(vb[qk]);
+                [[unroll]] for (int p = 0; p < GBF_PX; ++p) {
+                    int dx = u - GBF_RADIUS - p;
+                    if (dx < -GBF_RADIUS || dx > GBF_RADIUS || !act[p]) {
+                        continue;
+                    }
+                    real w = real(1);
+                    if (dx != 0 || dy != 0) {
+                        real3 dlt = pq - pc[p];
+                        real d = dot(dlt, (inv_c[p] + inv_q) * dlt);
+                        w = gbf_exp(-d / h2[p]);
+                    }
+                    W[p] += w;
+                    sa[p] += w * qa;
+                    sb[p] += w * qb;
+                    sva[p] += (w * w) * qva;
+                    svb[p] += (w * w) * qvb;
+                }
+            }
+        }
+    }
+    [[unroll]] for (int p = 0; p < GBF_PX; ++p) {
+        uint x = x0 + uint(p);
+        if (x >= push.width) {
+            continue;
+        }
+        uint c = y * push.width + x;
+        // The packed planes start at row push.base (row chunks, methods/gbf.rs).
+        uint ck = c - push.base * push.width;
+        real4 ga = real4(fa[ck]);
+        real4 gb = real4(fb[ck]);
+        real4 gva = real4(va[ck]);
+        real4 gvb = real4(vb[ck]);
+        if (act[p]) {
+            ga = sa[p] / W[p];
+            gb = sb[p] / W[p];
+            gva = sva[p] / (W[p] * W[p]);
+            gvb = svb[p] / (W[p] * W[p]);
+        }
+        g0[c] = float(ga.x);
+        g1[c] = float(ga.y);
+        g2[c] = float(ga.z);
+        g3[c] = float(ga.w);
+        g4[c] = float(gb.x);
+        g5[c] = float(gb.y);
+        g6[c] = float(gb.z);
+        gv0[c] = float(gva.x);
+        gv1[c] = float(gva.y);
+        gv2[c] = float(gva.z);
+        gv3[c] = float(gva.w);
+        gv4[c] = float(gvb.x);
+        gv5[c] = float(gvb.y);
+        gv6[c] = float(gvb.z);
+    }
 }

@@ -46,6 +46,9 @@ pub const DECL: KernelDecl = KernelDecl {
     push_size: std::mem::size_of::<GbfPush>() as u32,
 };
 
+/// Pixels of a row one invocation filters (`GBF_PX` in the shader).
+pub const PIXELS_PER_INVOCATION: u32 = 8;
+
 /// Per pixel: 49 neighbours × (distance with two stored inverses, one exp,
 /// 8 + 8 accumulations).
 pub fn flops_per_pixel() -> f64 {
@@ -79,13 +82,15 @@ pub fn record(
         ..Default::default()
     };
     let b: Vec<BufferSlice> = [&pos[..], &inv, &[spp, hbar], &packed, &out].concat();
+    // One invocation per PIXELS_PER_INVOCATION pixels of a row (register
+    // blocking: the shader's GBF_PX).
     batch.dispatch_rows(
         &DECL,
         precision,
         &b,
         bytemuck::bytes_of(&push),
-        width,
+        width.div_ceil(PIXELS_PER_INVOCATION),
         rows,
-        flops_per_pixel(),
+        flops_per_pixel() * PIXELS_PER_INVOCATION as f64,
     )
 }
