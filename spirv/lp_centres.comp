@@ -1,15 +1,14 @@
 #version 460
-// One sparse-centre pass of LP (spec §3.5) on the candidate grid of
-// granularity g: thread (gx, gy) <-> candidate pixel (phi + g gx, phi + g gy). A valid
-// candidate no centre of an earlier pass covers (read from the `reach` plane
-// of the state before this pass: PASS-SNAPSHOT) becomes a centre:
-// TSVD on the 19x19 window (§0.6), RLS ring by ring with the recursive error
-// estimate (§3.3-3.4), r_opt; its 36-value state (reference::lp::StateLayout)
-// goes to its own pixel of the 9 vec4 state planes. Nothing else is written.
+// One sparse-centre pass of LP (spec §3.5), for the centres lp_select queued
+// (one band of the candidate grid; dispatched indirectly, one invocation per
+// entry, so every SIMD lane fits a centre): TSVD on the 19x19 window
+// (§0.6), RLS ring by ring with the recursive error estimate (§3.3-3.4),
+// r_opt; its 36-value state (reference::lp::StateLayout) goes to its own
+// pixel of the 9 vec4 state planes. Nothing else is written.
 // Scalar twin: src/reference/lp_centres.rs (routines: src/reference/lp.rs).
 #include "lib/common.glsl"
 
-layout(local_size_x = 8, local_size_y = 8) in;
+layout(local_size_x = 64) in;
 
 // Mirrors mcdenoise::shared::LpPush.
 layout(push_constant) uniform Push {
@@ -44,7 +43,7 @@ PLANE_IN(17, var_r)
 PLANE_IN(18, var_g)
 PLANE_IN(19, var_b)
 PLANE_IN(20, spp)
-PLANE_IN(21, reach)
+layout(std430, set = 0, binding = 21) readonly buffer queue_blk { uint queue[]; };
 layout(std430, set = 0, binding = 22) buffer st0_blk { vec4 st0[]; };
 layout(std430, set = 0, binding = 23) buffer st1_blk { vec4 st1[]; };
 layout(std430, set = 0, binding = 24) buffer st2_blk { vec4 st2[]; };
@@ -92,58 +91,11 @@ void load_colour(ivec2 p, out real3 y, out real3 v)
 
 #include "lib/lp.glsl"
 
-// Covered by a centre of an earlier pass (|p - c|_inf <= r_opt(c), §3.5):
-// some row y' within 9 has reach(p.x, y') >= |p.y - y'| (lp_reach.comp,
-// computed from the state before this pass: PASS-SNAPSHOT).
-bool covered(ivec2 p, ivec2 size)
+// The fit of the centre at pixel i, written to its pixel of the state.
+void fit(uint i, ivec2 size)
 {
-    for (int qy = max(p.y - LP_RADIUS, 0); qy <= min(p.y + LP_RADIUS, size.y - 1); ++qy) {
-        if (reach[qy * size.x + p.x] >= float(abs(qy - p.y))) {
-            return true;
-        }
-    }
-    return false;
-}
-
-// Workgroup compaction: the candidates of a pass that become centres are few
-// and scattered (a few %), and a SIMD vector costs as much as its busiest
-// lane. So every invocation first tests its candidate, invocation 0 lists the
-// centres of the workgroup in invocation order, and the first m invocations
-// fit one centre each. Each centre writes only its own pixel, so the result
-// does not depend on this assignment.
-shared uint s_pixel[64];
-shared uint s_count;
-
-void main()
-{
-    uint lid = gl_LocalInvocationIndex;
-    uint g = max(push.granularity, 1u);
-    // The candidate grid's phase (LpPush::phase): image coordinates mod g.
-    uint x = (push.phase & 0xffffu) + gl_GlobalInvocationID.x * g;
-    uint y = (push.phase >> 16) + (push.row0 + gl_GlobalInvocationID.y) * g;
-    ivec2 size = ivec2(push.width, push.height);
-    bool centre = x < push.width && y < push.height
-        && spp_of(spp[y * push.width + x]) >= 1.0 && !covered(ivec2(x, y), size);
-    s_pixel[lid] = centre ? y * push.width + x : 0xffffffffu;
-    barrier();
-    if (lid == 0u) {
-        uint m = 0u;
-        for (uint j = 0u; j < 64u; ++j) {
-            uint q = s_pixel[j];
-            if (q != 0xffffffffu) {
-                s_pixel[m] = q;
-                ++m;
-            }
-        }
-        s_count = m;
-    }
-    barrier();
-    if (lid >= s_count) {
-        return;
-    }
-    uint i = s_pixel[lid];
-    x = i % push.width;
-    y = i / push.width;
+    uint x = i % push.width;
+    uint y = i / push.width;
     ivec2 c = ivec2(x, y);
     LocalSpace ls = tsvd_local_space(c, LP_RADIUS, size);
     TsvdProj pr = tsvd_projection(ls);
@@ -171,4 +123,14 @@ void main()
     st6[i] = vec4(o[24], o[25], o[26], o[27]);
     st7[i] = vec4(o[28], o[29], o[30], o[31]);
     st8[i] = vec4(o[32], o[33], o[34], o[35]);
+}
+
+void main()
+{
+    ivec2 size = ivec2(push.width, push.height);
+    uint count = min(queue[3], uint(queue.length()) - 4u);
+    uint stride = gl_NumWorkGroups.x * 64u;
+    for (uint e = gl_GlobalInvocationID.x; e < count; e += stride) {
+        fit(queue[4u + e], size);
+    }
 }

@@ -9,14 +9,14 @@ use common::*;
 
 use mcdenoise::gpu::Precision;
 use mcdenoise::image::{Layer, StatsImage};
-use mcdenoise::kernels::{lp_centres, lp_gather, lp_reach, run_planes};
+use mcdenoise::kernels::{lp_centres, lp_gather, lp_reach, lp_select, run_planes};
 use mcdenoise::methods::{denoise, lp as mlp, Backend, DenoiseRequest, Method};
 use mcdenoise::options::Options;
 use mcdenoise::reference::lp::{
     self as rl, batch_ridge, centre_fit, regressor, Planes, Rls, StateLayout as S, MAX_P, RINGS,
 };
 use mcdenoise::reference::tsvd::projection;
-use mcdenoise::reference::{lp_centres as rc, lp_gather as rg, lp_reach as rr};
+use mcdenoise::reference::{lp_centres as rc, lp_gather as rg, lp_reach as rr, lp_select as rs};
 use mcdenoise::shared::{LpPush, LP_VARSUB};
 
 /// The 21 input planes of `lp_centres` (bindings 0..20): 7 features, their 7
@@ -207,6 +207,50 @@ fn lp_reach_matches_twin_exactly() {
     check_validation(&ctx);
 }
 
+/// `lp_select` queues exactly the twin's centres of a band (in any order),
+/// and the header's workgroup count covers them.
+#[test]
+fn lp_select_matches_twin() {
+    use mcdenoise::gpu::{Batch, GpuBuffer};
+    let ctx = gpu();
+    for (sc, pass, rows) in [
+        (synthetic(64, 64, 3, 1.0), 2, (0, 8)),
+        (synthetic(64, 64, 3, 1.0), 4, (8, 24)),
+        (synthetic(37, 23, 5, 1.0), 3, (0, 8)),
+        (fixture(), 0, (0, 8)),
+    ] {
+        let (_, reach) = twin_state(&sc, pass);
+        let p = push(&sc, pass);
+        let mut cpu = rs::lp_select(&p, &sc.p(), &reach, rows);
+        let spp = GpuBuffer::from_slice(&ctx, "spp", &sc.planes[20]).unwrap();
+        let rb = GpuBuffer::from_slice(&ctx, "reach", &reach).unwrap();
+        let words = lp_select::queue_words(sc.w, sc.h);
+        let queue = GpuBuffer::new(&ctx, "queue", 4 * words as u64).unwrap();
+        let mut batch = Batch::new(&ctx).unwrap();
+        lp_select::record(
+            &mut batch,
+            Precision::F32,
+            &p,
+            spp.slice(),
+            rb.slice(),
+            queue.slice(),
+            rows,
+        )
+        .unwrap();
+        batch.finish().unwrap();
+        let q: Vec<u32> = queue.read_vec(words).unwrap();
+        let count = q[3] as usize;
+        let mut gpu_list = q[4..4 + count].to_vec();
+        gpu_list.sort_unstable();
+        cpu.sort_unstable();
+        assert_eq!(gpu_list, cpu, "pass {pass} rows {rows:?}");
+        assert_eq!((q[1], q[2]), (1, 1));
+        assert_eq!(q[0] as usize, count.div_ceil(64), "workgroups");
+        assert!(count > 0 || pass > 0, "pass 0 always has centres");
+    }
+    check_validation(&ctx);
+}
+
 /// Runs one `lp_centres` pass on the GPU from the twin's state after
 /// `pass` passes, and compares with the twin's pass.
 fn compare_centres(sc: &Scene, pass: usize, prec: Precision, what: &str) {
@@ -305,16 +349,29 @@ fn run_centres_inplace(
         .map(|(i, p)| GpuBuffer::from_slice(ctx, &format!("lp.in{i}"), p))
         .collect::<mcdenoise::error::Result<_>>()?;
     let bindings: Vec<_> = bufs.iter().map(|b| b.slice()).collect();
+    let queue = GpuBuffer::new(
+        ctx,
+        "lp.queue",
+        4 * lp_select::queue_words(sc.w, sc.h) as u64,
+    )?;
+    let inp = lp_centres::LpInputs {
+        feat: std::array::from_fn(|k| bindings[k]),
+        var: std::array::from_fn(|k| bindings[7 + k]),
+        color: std::array::from_fn(|k| bindings[14 + k]),
+        cvar: std::array::from_fn(|k| bindings[17 + k]),
+        spp: bindings[20],
+    };
     let mut batch = Batch::new(ctx)?;
-    let (gw, gh) = push(sc, pass).centre_grid();
-    batch.dispatch(
-        &lp_centres::DECL,
+    // Small bands, so that a pass takes several (the queue is reset per band).
+    batch.max_flops_per_submit = 8.0 * lp_centres::flops_per_centre() * 16.0;
+    lp_centres::record(
+        &mut batch,
         prec,
-        &bindings,
-        bytemuck::bytes_of(&push(sc, pass)),
-        gw,
-        gh,
-        lp_centres::flops_per_centre(),
+        &push(sc, pass),
+        &inp,
+        bindings[21],
+        queue.slice(),
+        std::array::from_fn(|k| bindings[22 + k]),
     )?;
     batch.finish()?;
     let state = bufs[22..]

@@ -19,8 +19,9 @@ fn all() -> impl Iterator<Item = &'static KernelDecl> {
 const INTEGER_ONLY: &[&str] = &["sample_reduce", "sample_scan"];
 
 /// Kernels that compute in f32 by design and never use `real`: the path
-/// tracer (`src/render/`), whose `_f64` variant is the same code.
-const F32_ONLY: &[&str] = &["render_trace", "render_rays"];
+/// tracer (`src/render/`), and LP's centre selection (it compares stored
+/// f32 reaches with distances); their `_f64` variant is the same code.
+const F32_ONLY: &[&str] = &["render_trace", "render_rays", "lp_select"];
 
 /// Kernels that only move data (the bandwidth probe of `bench --peak`, the
 /// G-buffer prefilter's packing): their `_f64` variant is the same code.
@@ -35,11 +36,13 @@ fn every_kernel_matches_its_declaration() {
                 .unwrap_or_else(|e| panic!("{}{}: {e}", decl.name, p.suffix()));
             // One workgroup per pixel for aos_fit (spec §5.4); the dispatch
             // counts invocations in x by THREADS per pixel.
-            // outlier_median runs one invocation per queued pixel.
+            // outlier_median and lp_centres run one invocation per queued pixel.
             let wg = if decl.name == "aos_fit" {
                 [mcdenoise::kernels::aos_fit::THREADS, 1, 1]
             } else if decl.name == "outlier_median" {
                 [mcdenoise::kernels::outlier_median::GROUP, 1, 1]
+            } else if decl.name == "lp_centres" {
+                [mcdenoise::kernels::lp_centres::GROUP, 1, 1]
             } else {
                 [8, 8, 1]
             };

@@ -1,10 +1,14 @@
 //! `lp_centres`: one sparse-centre pass of LP (spec §3.5) on the candidate
-//! grid of granularity `g`. A candidate `(g·gx, g·gy)` that is valid and not
-//! covered by a centre of an earlier pass (read from the `lp_reach` plane of
-//! the state before the pass, PASS-SNAPSHOT) becomes a centre: TSVD on the 19×19 window (§0.6), RLS ring
-//! by ring with the recursive error estimate (§3.3–3.4), `r_opt`, and its
-//! 36-value state ([`LpStateLayout`](crate::shared::LpStateLayout)) is
-//! written to its own pixel of the state planes; nothing else is written.
+//! grid of granularity `g`. Band by band, [`super::lp_select`] queues the
+//! candidates `(g·gx, g·gy)` that are valid and not covered by a centre of
+//! an earlier pass (PASS-SNAPSHOT), and this kernel, dispatched indirectly
+//! with one invocation per queued centre, fits each: TSVD on the 19×19
+//! window (§0.6), RLS ring by ring with the recursive error estimate
+//! (§3.3–3.4), `r_opt`, and its 36-value state
+//! ([`LpStateLayout`](crate::shared::LpStateLayout)) is written to its own
+//! pixel of the state planes; nothing else is written. The centres of a
+//! late pass are a few % of its candidates: fitted on the grid, most SIMD
+//! lanes idled beside the one busy lane of a workgroup.
 //! Twin: `reference::lp_centres`.
 
 use crate::error::Result;
@@ -38,7 +42,7 @@ pub const DECL: KernelDecl = KernelDecl {
         read("var_color_g"),
         read("var_color_b"),
         read("spp"),
-        read("reach"),
+        read("queue"),
         write("state0"),
         write("state1"),
         write("state2"),
@@ -51,6 +55,10 @@ pub const DECL: KernelDecl = KernelDecl {
     ],
     push_size: std::mem::size_of::<LpPush>() as u32,
 };
+
+/// Invocations per workgroup (`local_size_x`): one per queued centre;
+/// `lp_select` counts the indirect dispatch's workgroups in units of it.
+pub const GROUP: u32 = 64;
 
 /// The planes of sanitised (and possibly prefiltered) statistics that
 /// `lp_centres` and `lp_gather` read.
@@ -80,14 +88,19 @@ pub fn flops_per_centre() -> f64 {
 }
 
 /// Records one pass (`push.granularity`, `push.pass`; `push.width/height`
-/// are the image's) over its candidate grid. `reach` is the `lp_reach` plane
-/// of the state before this pass; `state` the 9 vec4 planes.
+/// are the image's) over its candidate grid, in bands of grid rows whose
+/// bound (every candidate a centre) stays within the batch's work per
+/// submit: per band, [`super::lp_select`] into `queue` (of
+/// [`super::lp_select::queue_words`]), then the fits. `reach` is the
+/// `lp_reach` plane of the state before this pass; `state` the 9 vec4
+/// planes.
 pub fn record(
     batch: &mut Batch,
     precision: Precision,
     push: &LpPush,
     inp: &LpInputs,
     reach: BufferSlice,
+    queue: BufferSlice,
     state: [BufferSlice; 9],
 ) -> Result<()> {
     let mut b = Vec::with_capacity(DECL.bindings.len());
@@ -96,16 +109,42 @@ pub fn record(
     b.extend_from_slice(&inp.color);
     b.extend_from_slice(&inp.cvar);
     b.push(inp.spp);
-    b.push(reach);
+    b.push(queue);
     b.extend_from_slice(&state);
     let (gw, gh) = push.centre_grid();
-    batch.dispatch(
-        &DECL,
-        precision,
-        &b,
-        bytemuck::bytes_of(push),
-        gw,
-        gh,
-        flops_per_centre(),
-    )
+    if gw == 0 || gh == 0 {
+        return Ok(());
+    }
+    let row_flops = gw as f64 * flops_per_centre();
+    // Multiples of lp_select's workgroup height.
+    let band = ((batch.max_flops_per_submit / row_flops).floor() as u32)
+        .max(1)
+        .div_ceil(8)
+        * 8;
+    // Compulsory traffic of a band: its share of the bound ranges.
+    let bytes: f64 = b.iter().map(|s| s.size() as f64).sum::<f64>() / gh as f64;
+    let mut row0 = 0;
+    while row0 < gh {
+        let rows = band.min(gh - row0);
+        super::lp_select::record(
+            batch,
+            precision,
+            push,
+            inp.spp,
+            reach,
+            queue,
+            (row0, row0 + rows),
+        )?;
+        batch.dispatch_indirect(
+            &DECL,
+            precision,
+            &b,
+            bytemuck::bytes_of(push),
+            queue.sub(0, 12)?,
+            row_flops * rows as f64,
+            bytes * rows as f64,
+        )?;
+        row0 += rows;
+    }
+    Ok(())
 }

@@ -24,6 +24,7 @@ pub mod gbf_sure;
 pub mod lp_centres;
 pub mod lp_gather;
 pub mod lp_reach;
+pub mod lp_select;
 pub mod outlier_detect;
 pub mod outlier_median;
 pub mod outlier_rows;
@@ -59,6 +60,7 @@ pub const ALL: &[&KernelDecl] = &[
     &gbf_pack::DECL,
     &lp_centres::DECL,
     &lp_reach::DECL,
+    &lp_select::DECL,
     &lp_gather::DECL,
     &aos_nlm::DECL,
     &aos_space::DECL,

@@ -24,7 +24,7 @@ use crate::error::{Error, Result};
 use crate::gpu::{plane_stride, Batch, BufferSlice, GpuBuffer, GpuContext, PlaneSet, Precision};
 use crate::image::{Layer, RgbImage, StatsImage};
 pub use crate::kernels::lp_centres::LpInputs;
-use crate::kernels::{lp_centres, lp_gather, lp_reach};
+use crate::kernels::{lp_centres, lp_gather, lp_reach, lp_select};
 use crate::options::Options;
 use crate::reference;
 use crate::reference::lp::{StateLayout, GRANULARITIES};
@@ -76,6 +76,8 @@ pub struct LpPlanes {
     pub state: PlaneSet,
     /// The `lp_reach` plane of the current state.
     pub reach: PlaneSet,
+    /// The queue of a band's centres (`lp_select` → `lp_centres`), u32.
+    pub queue: PlaneSet,
     /// The outputs of [`lp_gather::OUTPUTS`] (bound as one buffer by the
     /// gather).
     pub out: PlaneSet,
@@ -100,19 +102,23 @@ impl LpPlanes {
                 lp_gather::OUTPUTS.len()
             )));
         }
-        let (state, reach) = match arena {
+        let q = lp_select::queue_words(width, height);
+        let (state, reach, queue) = match arena {
             Some(a) => (
                 PlaneSet::view(a, 0, 4 * n, StateLayout::PLANES)?,
                 PlaneSet::view(a, Self::state_bytes(n), n, 1)?,
+                PlaneSet::view(a, Self::state_bytes(n) + PlaneSet::bytes(n, 1), q, 1)?,
             ),
             None => (
                 PlaneSet::new(ctx, "lp.state", 4 * n, StateLayout::PLANES)?,
                 PlaneSet::new(ctx, "lp.reach", n, 1)?,
+                PlaneSet::new(ctx, "lp.queue", q, 1)?,
             ),
         };
         Ok(LpPlanes {
             state,
             reach,
+            queue,
             out: PlaneSet::new(ctx, "lp.out", n, lp_gather::OUTPUTS.len())?,
         })
     }
@@ -121,12 +127,14 @@ impl LpPlanes {
         PlaneSet::bytes(4 * n, StateLayout::PLANES)
     }
 
-    /// Bytes of the scratch (state and reach) an arena must hold for `n`
-    /// pixels: dead once `lp_gather` has written the outputs, except the
-    /// first state plane ([`LpPlanes::kept_bytes`]), which [`download`]
-    /// reads (centres, `r_opt`, ranks).
+    /// Bytes of the scratch (state, reach and the centre queue) an arena
+    /// must hold for `n` pixels: dead once `lp_gather` has written the
+    /// outputs, except the first state plane ([`LpPlanes::kept_bytes`]),
+    /// which [`download`] reads (centres, `r_opt`, ranks).
     pub fn scratch_bytes(n: usize) -> u64 {
-        Self::state_bytes(n) + PlaneSet::bytes(n, 1)
+        Self::state_bytes(n)
+            + PlaneSet::bytes(n, 1)
+            + PlaneSet::bytes(n + lp_select::HEADER_WORDS, 1)
     }
 
     /// Bytes at the start of the arena that must survive until [`download`]:
@@ -197,6 +205,7 @@ pub fn record_lp(
             &params.push(w, h, pass),
             &inp,
             reach,
+            planes.queue.plane(0),
             std::array::from_fn(|k| planes.state.plane(k)),
         )?;
     }

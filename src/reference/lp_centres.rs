@@ -1,9 +1,9 @@
 //! Scalar twin of `spirv/lp_centres.comp`: one sparse-centre pass of LP
 //! (spec §3.5) — every candidate of granularity `g` that no centre of an
-//! earlier pass covers becomes a centre and gets its optimisation of
-//! §3.3–3.4 ([`super::lp::centre_fit`]).
+//! earlier pass covers ([`super::lp_select`]) becomes a centre and gets its
+//! optimisation of §3.3–3.4 ([`super::lp::centre_fit`]).
 
-use super::lp::{centre_fit, covered, Planes, StateLayout};
+use super::lp::{centre_fit, Planes, StateLayout};
 use crate::shared::{LpPush, LP_VARSUB};
 
 /// One pass. `reach` is the [`lp_reach`](super::lp_reach) plane of the state
@@ -13,22 +13,17 @@ use crate::shared::{LpPush, LP_VARSUB};
 /// new centres.
 pub fn lp_centres(push: &LpPush, p: &Planes, reach: &[f32], state: &mut [Vec<f32>]) -> usize {
     assert_eq!(state.len(), StateLayout::PLANES, "lp_centres: state planes");
-    let (w, h) = (p.width, p.height);
-    let g = push.granularity.max(1) as usize;
+    let w = p.width;
     let s = if push.options & LP_VARSUB != 0 {
         1.0
     } else {
         0.0
     };
-    let (fx, fy) = push.phase_xy();
-    let mut cand = Vec::new();
-    for py in (fy as usize..h).step_by(g) {
-        for px in (fx as usize..w).step_by(g) {
-            if p.valid(py * w + px) && !covered(reach, w, h, px, py) {
-                cand.push((px, py));
-            }
-        }
-    }
+    let (_, gh) = push.centre_grid();
+    let cand: Vec<(usize, usize)> = super::lp_select::lp_select(push, p, reach, (0, gh))
+        .into_iter()
+        .map(|q| (q as usize % w, q as usize / w))
+        .collect();
     let results: Vec<(usize, [f32; StateLayout::LEN])> = super::par_map(cand.len(), |i| {
         let (px, py) = cand[i];
         (py * w + px, centre_fit(p, px, py, s).state(push.pass))

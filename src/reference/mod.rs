@@ -34,6 +34,7 @@ pub mod lp;
 pub mod lp_centres;
 pub mod lp_gather;
 pub mod lp_reach;
+pub mod lp_select;
 pub mod outlier_detect;
 pub mod outlier_median;
 pub mod outlier_rows;

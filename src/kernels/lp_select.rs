@@ -1,0 +1,60 @@
+//! `lp_select`: the centres of one band of one sparse-centre pass of LP
+//! (spec §3.5) — the candidates of granularity `g` that are valid and
+//! covered by no centre of an earlier pass (read from the `lp_reach` plane
+//! of the state before the pass, PASS-SNAPSHOT) — appended to the queue
+//! [`super::lp_centres`] fits, dispatched indirectly. Twin:
+//! `reference::lp_select`.
+
+use crate::error::Result;
+use crate::gpu::reflect::{read, write};
+use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};
+use crate::shared::LpPush;
+
+/// Declaration of `spirv/lp_select.comp`: its bindings in binding order and
+/// the size of [`LpPush`]; checked against the SPIR-V by reflection.
+pub const DECL: KernelDecl = KernelDecl {
+    name: "lp_select",
+    bindings: &[read("spp"), read("reach"), write("queue")],
+    push_size: std::mem::size_of::<LpPush>() as u32,
+};
+
+/// Words of the queue header: workgroups x, y, z (as
+/// `vkCmdDispatchIndirect` reads them), then the entry count.
+pub const HEADER_WORDS: usize = 4;
+
+/// Words of a queue that holds any band of any pass of a `width × height`
+/// image (at most one entry per pixel).
+pub fn queue_words(width: usize, height: usize) -> usize {
+    HEADER_WORDS + width * height
+}
+
+/// Per candidate: up to 19 reach reads and compares, one append.
+pub fn flops_per_candidate() -> f64 {
+    19.0 * 3.0 + 4.0
+}
+
+/// Records the selection of the grid rows `rows` (`[first, end)` of
+/// [`LpPush::centre_grid`], `first` a multiple of 8) into `queue` (of
+/// [`queue_words`]; its header is reset here).
+pub fn record(
+    batch: &mut Batch,
+    precision: Precision,
+    push: &LpPush,
+    spp: BufferSlice,
+    reach: BufferSlice,
+    queue: BufferSlice,
+    rows: (u32, u32),
+) -> Result<()> {
+    batch.fill(queue.sub(0, 16)?, 0);
+    batch.fill(queue.sub(4, 8)?, 1);
+    let (gw, _) = push.centre_grid();
+    batch.dispatch_rows(
+        &DECL,
+        precision,
+        &[spp, reach, queue],
+        bytemuck::bytes_of(push),
+        gw,
+        rows,
+        flops_per_candidate(),
+    )
+}
