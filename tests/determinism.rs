@@ -40,6 +40,25 @@ fn bits(v: &[f32]) -> Vec<u32> {
     v.iter().map(|x| x.to_bits()).collect()
 }
 
+/// Colour, error and sample map bit for bit.
+fn same_frame(first: &mcdenoise::Frame, other: &mcdenoise::Frame, method: Method) {
+    for c in 0..3 {
+        assert_eq!(
+            bits(&first.color.planes[c]),
+            bits(&other.color.planes[c]),
+            "{}: colour",
+            method.name()
+        );
+        assert_eq!(
+            bits(&first.error.planes[c]),
+            bits(&other.error.planes[c]),
+            "{}: error",
+            method.name()
+        );
+    }
+    assert_eq!(first.samples, other.samples, "{}: samples", method.name());
+}
+
 #[test]
 fn every_method_is_bit_identical_run_after_run() {
     let img = fixture();
@@ -51,21 +70,7 @@ fn every_method_is_bit_identical_run_after_run() {
             .denoise(&img, Some(10_000))
             .unwrap();
         for other in [&again, &fresh] {
-            for c in 0..3 {
-                assert_eq!(
-                    bits(&first.color.planes[c]),
-                    bits(&other.color.planes[c]),
-                    "{}: colour",
-                    method.name()
-                );
-                assert_eq!(
-                    bits(&first.error.planes[c]),
-                    bits(&other.error.planes[c]),
-                    "{}: error",
-                    method.name()
-                );
-            }
-            assert_eq!(first.samples, other.samples, "{}: samples", method.name());
+            same_frame(&first, other, method);
         }
     }
     check_validation(&gpu());
@@ -224,21 +229,7 @@ fn a_gpu_call_consumes_its_upload() {
         let again = d.read().unwrap();
         let owned = d.denoise_owned(img.clone(), Some(5_000)).unwrap();
         for other in [&again, &owned] {
-            for c in 0..3 {
-                assert_eq!(
-                    bits(&first.color.planes[c]),
-                    bits(&other.color.planes[c]),
-                    "{}: colour",
-                    method.name()
-                );
-                assert_eq!(
-                    bits(&first.error.planes[c]),
-                    bits(&other.error.planes[c]),
-                    "{}: error",
-                    method.name()
-                );
-            }
-            assert_eq!(first.samples, other.samples, "{}: samples", method.name());
+            same_frame(&first, other, method);
             assert_eq!(first.report.counters, other.report.counters);
         }
         let clean_again = d.statistics().unwrap();
