@@ -15,34 +15,38 @@ pub const REQUIRE_VALIDATION: &str = "MCDENOISE_REQUIRE_VALIDATION";
 /// (checked by [`check_validation`]).
 pub fn gpu() -> Arc<GpuContext> {
     static CTX: OnceLock<Arc<GpuContext>> = OnceLock::new();
-    CTX.get_or_init(|| {
-        let required = std::env::var(REQUIRE_VALIDATION).is_ok_and(|v| v == "1");
-        let ctx = GpuContext::new(&ContextOptions {
-            device: None,
-            validation: if required {
-                Validation::Required
-            } else {
-                Validation::IfInstalled
-            },
-        })
-        .unwrap_or_else(|e| {
-            panic!(
-                "{e}\n(a Vulkan device: apt-get install mesa-vulkan-drivers libvulkan1; \
-                 with {REQUIRE_VALIDATION}=1 also the validation layer: vulkan-validationlayers)"
-            )
-        });
-        eprintln!(
-            "test device: {} (validation {})",
-            ctx.info().name,
-            if ctx.validation_enabled() {
-                "on"
-            } else {
-                "not installed"
-            }
-        );
-        Arc::new(ctx)
+    CTX.get_or_init(own_gpu).clone()
+}
+
+/// A context of the test's own (the validation layer as for [`gpu`]): for
+/// tests that measure the context's allocations, which the other tests of
+/// the binary, running in parallel on the shared context, would add to.
+pub fn own_gpu() -> Arc<GpuContext> {
+    let required = std::env::var(REQUIRE_VALIDATION).is_ok_and(|v| v == "1");
+    let ctx = GpuContext::new(&ContextOptions {
+        device: None,
+        validation: if required {
+            Validation::Required
+        } else {
+            Validation::IfInstalled
+        },
     })
-    .clone()
+    .unwrap_or_else(|e| {
+        panic!(
+            "{e}\n(a Vulkan device: apt-get install mesa-vulkan-drivers libvulkan1; \
+             with {REQUIRE_VALIDATION}=1 also the validation layer: vulkan-validationlayers)"
+        )
+    });
+    eprintln!(
+        "test device: {} (validation {})",
+        ctx.info().name,
+        if ctx.validation_enabled() {
+            "on"
+        } else {
+            "not installed"
+        }
+    );
+    Arc::new(ctx)
 }
 
 /// Fails the test if the validation layer reported any error so far.
