@@ -253,47 +253,29 @@ impl GpuBuffer {
             }
             return Ok(());
         }
-        let total: u64 = regions.iter().map(|r| r.1.len() as u64).sum();
-        if total == 0 {
+        let chunks = staging_chunks(regions.iter().map(|r| r.1.len()));
+        let Some(size) = chunks.iter().map(|c| c.bytes()).max() else {
             return Ok(());
-        }
+        };
         let staging = Self::with_location(
             &self.ctx,
             &format!("{}.staging_up", self.name),
-            total.min(STAGING_CHUNK),
+            size,
             MemoryLocation::CpuToGpu,
         )?;
         let what = format!("the upload to {}", self.name);
-        let mut copies = Vec::new();
-        let mut used = 0u64;
-        for &(offset, bytes) in regions {
-            let mut done = 0usize;
-            while done < bytes.len() {
-                let n = (bytes.len() - done).min((staging.size - used) as usize);
-                staging.upload(used, &bytes[done..done + n])?;
-                copies.push(
-                    vk::BufferCopy::default()
-                        .src_offset(used)
-                        .dst_offset(offset + done as u64)
-                        .size(n as u64),
-                );
-                used += n as u64;
-                done += n;
-                if used == staging.size {
-                    let c = std::mem::take(&mut copies);
-                    super::batch::copy_regions(
-                        &self.ctx,
-                        what.clone(),
-                        staging.buffer,
-                        self.buffer,
-                        &c,
-                    )?;
-                    used = 0;
-                }
+        for chunk in &chunks {
+            for p in &chunk.0 {
+                staging.upload(p.staging, &regions[p.region].1[p.at..p.at + p.len])?;
             }
-        }
-        if !copies.is_empty() {
-            super::batch::copy_regions(&self.ctx, what, staging.buffer, self.buffer, &copies)?;
+            let copies = chunk.copies(|p| (p.staging, regions[p.region].0 + p.at as u64));
+            super::batch::copy_regions(
+                &self.ctx,
+                what.clone(),
+                staging.buffer,
+                self.buffer,
+                &copies,
+            )?;
         }
         Ok(())
     }
@@ -374,49 +356,89 @@ fn staged_download(
     src: vk::Buffer,
     regions: &mut [(u64, &mut [u8])],
 ) -> Result<()> {
-    let total: u64 = regions.iter().map(|r| r.1.len() as u64).sum();
-    if total == 0 {
+    let chunks = staging_chunks(regions.iter().map(|r| r.1.len()));
+    let Some(size) = chunks.iter().map(|c| c.bytes()).max() else {
         return Ok(());
-    }
+    };
     let staging = GpuBuffer::with_location(
         ctx,
         &format!("{name}.staging_down"),
-        total.min(STAGING_CHUNK),
+        size,
         MemoryLocation::GpuToCpu,
     )?;
     let what = format!("the download from {name}");
-    // Pieces of the current chunk: (region, offset in it, staging offset, len).
-    let mut pieces: Vec<(usize, usize, u64, usize)> = Vec::new();
+    for chunk in &chunks {
+        let copies = chunk.copies(|p| (regions[p.region].0 + p.at as u64, p.staging));
+        super::batch::copy_regions(ctx, what.clone(), src, staging.buffer, &copies)?;
+        for p in &chunk.0 {
+            staging.download(p.staging, &mut regions[p.region].1[p.at..p.at + p.len])?;
+        }
+    }
+    Ok(())
+}
+
+/// A piece of a staged transfer: bytes `[at, at + len)` of region `region`,
+/// at byte `staging` of the staging buffer.
+struct Piece {
+    region: usize,
+    at: usize,
+    staging: u64,
+    len: usize,
+}
+
+/// The pieces that fill the staging buffer once.
+struct Chunk(Vec<Piece>);
+
+impl Chunk {
+    /// Bytes of the staging buffer the chunk uses.
+    fn bytes(&self) -> u64 {
+        self.0.last().map_or(0, |p| p.staging + p.len as u64)
+    }
+
+    /// One copy per piece, `(src, dst)` offsets from `ends`.
+    fn copies(&self, ends: impl Fn(&Piece) -> (u64, u64)) -> Vec<vk::BufferCopy> {
+        self.0
+            .iter()
+            .map(|p| {
+                let (src, dst) = ends(p);
+                vk::BufferCopy::default()
+                    .src_offset(src)
+                    .dst_offset(dst)
+                    .size(p.len as u64)
+            })
+            .collect()
+    }
+}
+
+/// Regions of `lens` bytes, in order, cut into chunks of at most
+/// [`STAGING_CHUNK`] bytes (a region may span chunks); empty regions are
+/// skipped, so no bytes give no chunk.
+fn staging_chunks(lens: impl Iterator<Item = usize>) -> Vec<Chunk> {
+    let mut chunks = Vec::new();
+    let mut cur = Vec::new();
     let mut used = 0u64;
-    let n_regions = regions.len();
-    for r in 0..n_regions {
-        let len = regions[r].1.len();
-        let mut done = 0usize;
-        while done < len {
-            let n = (len - done).min((staging.size - used) as usize);
-            pieces.push((r, done, used, n));
+    for (region, len) in lens.enumerate() {
+        let mut at = 0usize;
+        while at < len {
+            let n = (len - at).min((STAGING_CHUNK - used) as usize);
+            cur.push(Piece {
+                region,
+                at,
+                staging: used,
+                len: n,
+            });
             used += n as u64;
-            done += n;
-            let last = r + 1 == n_regions && done == len;
-            if used == staging.size || last {
-                let copies: Vec<vk::BufferCopy> = pieces
-                    .iter()
-                    .map(|&(r, at, s, n)| {
-                        vk::BufferCopy::default()
-                            .src_offset(regions[r].0 + at as u64)
-                            .dst_offset(s)
-                            .size(n as u64)
-                    })
-                    .collect();
-                super::batch::copy_regions(ctx, what.clone(), src, staging.buffer, &copies)?;
-                for (r, at, s, n) in pieces.drain(..) {
-                    staging.download(s, &mut regions[r].1[at..at + n])?;
-                }
+            at += n;
+            if used == STAGING_CHUNK {
+                chunks.push(Chunk(std::mem::take(&mut cur)));
                 used = 0;
             }
         }
     }
-    Ok(())
+    if !cur.is_empty() {
+        chunks.push(Chunk(cur));
+    }
+    chunks
 }
 
 impl Drop for GpuBuffer {
@@ -538,6 +560,11 @@ impl PlaneSet {
         self.buffer.range(self.base + offset, size)
     }
 
+    /// Byte offset of plane `i` in the buffer.
+    fn offset(&self, i: usize) -> u64 {
+        self.base + i as u64 * self.stride
+    }
+
     /// Plane `i` as a binding.
     pub fn plane(&self, i: usize) -> BufferSlice {
         assert!(
@@ -546,10 +573,8 @@ impl PlaneSet {
             self.buffer.name(),
             self.count
         );
-        self.buffer.range(
-            self.base + i as u64 * self.stride,
-            (self.pixels as u64 * 4).max(4),
-        )
+        self.buffer
+            .range(self.offset(i), (self.pixels as u64 * 4).max(4))
     }
 
     /// Writes plane `i` from `data`: `pixels` values of a 4-byte type (f32, u32).
@@ -557,10 +582,8 @@ impl PlaneSet {
     pub fn upload_plane<T: bytemuck::Pod>(&self, i: usize, data: &[T]) -> Result<()> {
         assert!(i < self.count);
         assert_eq!(std::mem::size_of_val(data), self.pixels * 4);
-        self.buffer.upload(
-            self.base + i as u64 * self.stride,
-            bytemuck::cast_slice(data),
-        )
+        self.buffer
+            .upload(self.offset(i), bytemuck::cast_slice(data))
     }
 
     /// Reads plane `i` back as `pixels` values of a 4-byte type (f32, u32);
@@ -568,10 +591,8 @@ impl PlaneSet {
     pub fn download_plane<T: bytemuck::Pod + Default + Clone>(&self, i: usize) -> Result<Vec<T>> {
         assert!(i < self.count);
         let mut v = vec![T::default(); self.pixels];
-        self.buffer.download(
-            self.base + i as u64 * self.stride,
-            bytemuck::cast_slice_mut(&mut v),
-        )?;
+        self.buffer
+            .download(self.offset(i), bytemuck::cast_slice_mut(&mut v))?;
         Ok(v)
     }
 
@@ -579,15 +600,8 @@ impl PlaneSet {
     /// copy of the set; see [`GpuBuffer::upload_regions`]).
     pub fn upload_all(&self, planes: &[&[f32]]) -> Result<()> {
         assert_eq!(planes.len(), self.count);
-        let regions: Vec<(u64, &[u8])> = planes
-            .iter()
-            .enumerate()
-            .map(|(i, p)| {
-                assert_eq!(p.len(), self.pixels);
-                (self.base + i as u64 * self.stride, bytemuck::cast_slice(p))
-            })
-            .collect();
-        self.buffer.upload_regions(&regions)
+        let planes: Vec<(usize, &[f32])> = planes.iter().copied().enumerate().collect();
+        self.upload_some(&planes)
     }
 
     /// Uploads plane `i` from `data` for each `(i, data)` (as
@@ -598,7 +612,7 @@ impl PlaneSet {
             .map(|&(i, p)| {
                 assert!(i < self.count);
                 assert_eq!(p.len(), self.pixels);
-                (self.base + i as u64 * self.stride, bytemuck::cast_slice(p))
+                (self.offset(i), bytemuck::cast_slice(p))
             })
             .collect();
         self.buffer.upload_regions(&regions)
@@ -610,14 +624,43 @@ impl PlaneSet {
         let mut regions: Vec<(u64, &mut [u8])> = out
             .iter_mut()
             .enumerate()
-            .map(|(i, p)| {
-                (
-                    self.base + i as u64 * self.stride,
-                    bytemuck::cast_slice_mut(p.as_mut_slice()),
-                )
-            })
+            .map(|(i, p)| (self.offset(i), bytemuck::cast_slice_mut(p.as_mut_slice())))
             .collect();
         self.buffer.download_regions(&mut regions)?;
         Ok(out)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{staging_chunks, STAGING_CHUNK};
+
+    /// Every byte of every region lands once, in order, in chunks that fill
+    /// the staging buffer from 0 and never pass it.
+    #[test]
+    fn staging_chunks_cover_every_region_once() {
+        let c = STAGING_CHUNK as usize;
+        let lens = [c / 2 + 3, 0, c + c / 3, 5, c - 8];
+        let chunks = staging_chunks(lens.iter().copied());
+        let mut next = vec![0usize; lens.len()];
+        let mut region = 0;
+        for chunk in &chunks {
+            let mut staging = 0u64;
+            for p in &chunk.0 {
+                assert_eq!(p.staging, staging);
+                assert!(p.len > 0);
+                while next[region] == lens[region] {
+                    region += 1;
+                }
+                assert_eq!((p.region, p.at), (region, next[region]));
+                next[region] += p.len;
+                staging += p.len as u64;
+            }
+            assert!(chunk.bytes() <= STAGING_CHUNK && chunk.bytes() == staging);
+        }
+        assert_eq!(next, lens);
+        let total: usize = lens.iter().sum();
+        assert_eq!(chunks.len(), total.div_ceil(c));
+        assert!(staging_chunks([0usize, 0].into_iter()).is_empty());
     }
 }

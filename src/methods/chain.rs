@@ -48,6 +48,15 @@ pub enum ChainInput {
 }
 
 impl ChainInput {
+    /// The statistics of `img`: its size and layers.
+    pub fn of_image(img: &StatsImage) -> ChainInput {
+        ChainInput::Stats {
+            width: img.width,
+            height: img.height,
+            layers: img.layers().map(|(l, _)| l).collect(),
+        }
+    }
+
     /// `(width, height)`.
     pub fn size(&self) -> (usize, usize) {
         match self {
@@ -327,12 +336,7 @@ impl GpuChain {
     /// chain sanitises and prefilters the statistics in place.
     pub fn upload(&self, img: &StatsImage) -> Result<()> {
         self.ctx.check_alive()?;
-        let want = ChainInput::Stats {
-            width: img.width,
-            height: img.height,
-            layers: img.layers().map(|(l, _)| l).collect(),
-        };
-        if self.input_kind != want {
+        if self.input_kind != ChainInput::of_image(img) {
             return Err(Error::InvalidArgument(format!(
                 "this denoiser was made for {:?}; the image is {}x{} with other layers",
                 self.input_kind, img.width, img.height

@@ -199,11 +199,7 @@ fn denoise_gpu(
 ) -> Result<DenoiseOutput> {
     let chain = chain::GpuChain::new(
         ctx,
-        chain::ChainInput::Stats {
-            width: img.width,
-            height: img.height,
-            layers: img.layers().map(|(l, _)| l).collect(),
-        },
+        chain::ChainInput::of_image(img),
         chain::ChainConfig {
             method: req.method,
             pass: req.pass,

@@ -54,11 +54,7 @@ impl GpuStats {
     pub fn upload(ctx: &Arc<GpuContext>, name: &str, img: &StatsImage) -> Result<GpuStats> {
         let layers: Vec<Layer> = img.layers().map(|(l, _)| l).collect();
         let g = GpuStats::new(ctx, name, img.width, img.height, &layers)?;
-        let planes: Vec<&[f32]> = img
-            .layers()
-            .flat_map(|(_, p)| p.iter().map(|v| v.as_slice()))
-            .collect();
-        g.planes.upload_all(&planes)?;
+        g.upload_image(img)?;
         Ok(g)
     }
 
@@ -78,13 +74,9 @@ impl GpuStats {
         }
         let mut planes: Vec<(usize, &[f32])> = Vec::new();
         for (l, p) in img.layers() {
-            let Some(&(_, first)) = self.index.iter().find(|(x, _)| *x == l) else {
-                return Err(Error::InvalidArgument(format!(
-                    "{}: no {} layer",
-                    self.planes.name(),
-                    l.name()
-                )));
-            };
+            let first = self.first_plane(l).ok_or_else(|| {
+                Error::InvalidArgument(format!("{}: no {} layer", self.planes.name(), l.name()))
+            })?;
             planes.extend(p.iter().enumerate().map(|(c, v)| (first + c, v.as_slice())));
         }
         self.planes.upload_some(&planes)
@@ -105,19 +97,23 @@ impl GpuStats {
     pub fn download_layers(&self, layers: &[Layer]) -> Result<StatsImage> {
         let mut img = StatsImage::new(self.width, self.height);
         for &l in layers {
-            let Some(&(_, first)) = self.index.iter().find(|(x, _)| *x == l) else {
-                return Err(Error::InvalidArgument(format!(
-                    "{}: no {} layer",
-                    self.planes.name(),
-                    l.name()
-                )));
-            };
+            let first = self.first_plane(l).ok_or_else(|| {
+                Error::InvalidArgument(format!("{}: no {} layer", self.planes.name(), l.name()))
+            })?;
             let planes = (first..first + l.channels().len())
                 .map(|i| self.planes.download_plane::<f32>(i))
                 .collect::<Result<Vec<_>>>()?;
             img.set(l, planes);
         }
         Ok(img)
+    }
+
+    /// The index of `layer`'s first plane, if present.
+    fn first_plane(&self, layer: Layer) -> Option<usize> {
+        self.index
+            .iter()
+            .find(|(l, _)| *l == layer)
+            .map(|&(_, f)| f)
     }
 
     /// Whether `layer` is present.
@@ -127,10 +123,8 @@ impl GpuStats {
 
     /// Plane `component` of `layer` as a binding. Panics if absent.
     pub fn plane(&self, layer: Layer, component: usize) -> BufferSlice {
-        let (_, first) = self
-            .index
-            .iter()
-            .find(|(l, _)| *l == layer)
+        let first = self
+            .first_plane(layer)
             .unwrap_or_else(|| panic!("layer {} not on the GPU", layer.name()));
         assert!(component < layer.channels().len());
         self.planes.plane(first + component)
