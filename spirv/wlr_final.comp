@@ -1,7 +1,7 @@
 #version 460
-// WLR steps 9-10 (spec §2.3) per pixel: the TSVD and the curvature
-// bandwidths b_j recomputed exactly as in wlr_fit (same code), the final
-// local linear fit at h = hbar_c (FEW, NONNEG, rejection per options), output
+// WLR steps 9-10 (spec §2.3) per pixel: the local space and the curvature
+// bandwidths b_j that wlr_fit stored (`state`, lib/wlr.glsl WLR_STATE_IN), the
+// final local linear fit at h = hbar_c (FEW, NONNEG, rejection per options), output
 // clamped >= 0 (§0.4 step 5), and MSE_c from the model wlr_fit stored (with
 // the stored k; hbar clamped to [0.01, 1], a no-op for consistent input).
 // Scalar twin: src/reference/wlr_final.rs (routines: src/reference/wlr.rs).
@@ -21,7 +21,7 @@ layout(push_constant) uniform Push {
     uint row0;
     uint radius;
     uint options;
-    uint pad0;
+    uint ring_rows;
     uint pad1;
     uint pad2;
 } push;
@@ -33,35 +33,31 @@ PLANE_IN(3, dep)
 PLANE_IN(4, ar)
 PLANE_IN(5, ag)
 PLANE_IN(6, ab)
-PLANE_IN(7, v_nx)
-PLANE_IN(8, v_ny)
-PLANE_IN(9, v_nz)
-PLANE_IN(10, v_dep)
-PLANE_IN(11, v_ar)
-PLANE_IN(12, v_ag)
-PLANE_IN(13, v_ab)
-PLANE_IN(14, col_r)
-PLANE_IN(15, col_g)
-PLANE_IN(16, col_b)
-PLANE_IN(17, vbar_p)
-PLANE_IN(18, spp)
-PLANE_IN(19, hbar_p)
-PLANE_IN(20, lambda1_p)
-PLANE_IN(21, kappa0_p)
-PLANE_IN(22, kappa1_p)
-PLANE_IN(23, kflags_p)
-PLANE_OUT(24, out_r)
-PLANE_OUT(25, out_g)
-PLANE_OUT(26, out_b)
-PLANE_OUT(27, mse_out)
-PLANE_OUT(28, flags_out)
+PLANE_IN(7, col_r)
+PLANE_IN(8, col_g)
+PLANE_IN(9, col_b)
+PLANE_IN(10, vbar_p)
+PLANE_IN(11, spp)
+PLANE_IN(12, hbar_p)
+PLANE_IN(13, lambda1_p)
+PLANE_IN(14, kappa0_p)
+PLANE_IN(15, kappa1_p)
+PLANE_IN(16, kflags_p)
+layout(std430, set = 0, binding = 17) readonly buffer state_blk { real4 state[]; };
+#define WLR_STATE_IN
+PLANE_OUT(18, out_r)
+PLANE_OUT(19, out_g)
+PLANE_OUT(20, out_b)
+PLANE_OUT(21, mse_out)
+PLANE_OUT(22, flags_out)
 
 #define WLR_NFIT 1
 
 
 
 
-// As in wlr_fit.comp.
+// The features as in wlr_fit.comp; the fits do not read the variances (only
+// the TSVD does, and wlr_fit's is reused).
 bool load_features(ivec2 p, out real x[9], out real e2[9])
 {
     uint i = uint(p.y) * push.width + uint(p.x);
@@ -74,15 +70,9 @@ bool load_features(ivec2 p, out real x[9], out real e2[9])
     x[6] = real(ar[i]);
     x[7] = real(ag[i]);
     x[8] = real(ab[i]);
-    e2[0] = real(0);
-    e2[1] = real(0);
-    e2[2] = real(v_nx[i]);
-    e2[3] = real(v_ny[i]);
-    e2[4] = real(v_nz[i]);
-    e2[5] = real(v_dep[i]);
-    e2[6] = real(v_ar[i]);
-    e2[7] = real(v_ag[i]);
-    e2[8] = real(v_ab[i]);
+    for (int j = 0; j < 9; ++j) {
+        e2[j] = real(0);
+    }
     return spp_of(spp[i]) >= 1.0;
 }
 
@@ -130,17 +120,15 @@ void main()
         int k_st = kf % 16;
         flags = kf / 16;
         double h = clamp(double(hbar_p[i]), WLR_H_MIN, WLR_H_MAX);
-        LocalSpace ls = tsvd_local_space(c, R, size);
         WlrCentre cc = wlr_centre(c, real(n));
         f = cc.y;
         bool failed = false;
-        if (ls.k == 0) {
+        if (k_st == 0) {
             flags |= WLR_F_K0;
         } else {
-            TsvdProj pr = tsvd_projection(ls);
+            TsvdProj pr;
             real b[MAX_D];
-            real Hb[MAX_D];
-            if (!wlr_curvature(pr, cc, R, size, push.options, b, Hb)) {
+            if (!wlr_state_load(c, k_st, pr, b)) {
                 flags |= WLR_F_SOLVE_FAIL;
                 failed = true;
             } else {

@@ -6,8 +6,10 @@
 // Outputs: h_opt, lambda1, kappa0, kappa1 of the MSE model
 // MSE(h) = (lambda1 h^2)^2 + (kappa0 + kappa1 h^-k)/n_c (pass-through and
 // kappa1 <= 0 pixels: lambda1 = kappa1 = 0, kappa0 = n_c MSE_fixed),
-// kflags = k + 16 flags (§2.5 bits 0, 2, 3, 4), b_1..b_3 (0 for j >= k).
-// An invalid centre gets 0 everywhere.
+// kflags = k + 16 flags (§2.5 bits 0, 2, 3, 4), b_1..b_3 (0 for j >= k);
+// for k >= 1 the local space and the b_j in `state` (lib/wlr.glsl,
+// WLR_STATE_OUT), which wlr_final reads. An invalid centre gets 0 everywhere
+// (and no state).
 #include "lib/common.glsl"
 
 layout(local_size_x = 8, local_size_y = 8) in;
@@ -19,7 +21,7 @@ layout(push_constant) uniform Push {
     uint row0;
     uint radius;
     uint options;
-    uint pad0;
+    uint ring_rows;
     uint pad1;
     uint pad2;
 } push;
@@ -51,6 +53,9 @@ PLANE_OUT(23, kflags_out)
 PLANE_OUT(24, b1_out)
 PLANE_OUT(25, b2_out)
 PLANE_OUT(26, b3_out)
+// The centre state for wlr_final (lib/wlr.glsl, WLR_STATE_OUT).
+layout(std430, set = 0, binding = 27) buffer state_blk { real4 state[]; };
+#define WLR_STATE_OUT
 
 #define WLR_NFIT 5
 
@@ -127,7 +132,14 @@ void main()
             real b[MAX_D];
             real Hb[MAX_D];
             // Step 4.
-            if (!wlr_curvature(pr, cc, R, size, push.options, b, Hb)) {
+            bool curved = wlr_curvature(pr, cc, R, size, push.options, b, Hb);
+            if (!curved) {
+                for (int j = 0; j < MAX_D; ++j) {
+                    b[j] = real(0);
+                }
+            }
+            wlr_state_store(c, pr, b, curved);
+            if (!curved) {
                 flags |= WLR_F_SOLVE_FAIL;
             } else {
                 o[5] = float(b[0]);

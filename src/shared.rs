@@ -92,8 +92,12 @@ pub struct WlrPush {
     /// clamped (§2.3 step 2; off divides by nothing). Bit 2: `wlr.nonneg` on
     /// (§2.3 step 5). See [`WLR_REJECT`], [`WLR_OUTLIER_CLAMPED`], [`WLR_NONNEG`].
     pub options: u32,
-    /// Unused (the block's `pad0..pad2`): rounds the block to 32 bytes; 0.
-    pub _pad: [u32; 3],
+    /// Rows of the ring that holds the centre state `wlr_fit` leaves for
+    /// `wlr_final`: pixel (x, y) lives in its row `y mod ring_rows`
+    /// (`spirv/lib/wlr.glsl`, `WLR_STATE`). At least 1.
+    pub ring_rows: u32,
+    /// Unused (the block's `pad1`, `pad2`): rounds the block to 32 bytes; 0.
+    pub _pad: [u32; 2],
 }
 
 /// [`WlrPush::options`] bit: confidence-interval rejection.

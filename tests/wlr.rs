@@ -1,9 +1,11 @@
 //! WLR kernels (spec §2) on the GPU against their scalar twins (§0.3
 //! tolerances), f32 and f64, and the invariants of §2.6 on the twin routines.
 //!
-//! Each kernel is compared in isolation: `wlr_final` gets the twin's
-//! `wlr_fit` and `gauss_smooth` outputs on both sides. Agreement numbers are
-//! printed (`cargo test --test wlr -- --nocapture`).
+//! Each kernel is compared as much in isolation as it can be: `wlr_final`
+//! gets the twin's `hbar` and MSE model (`λ1`, `κ0`, `κ1`) on both sides, and
+//! on the GPU the rank and the centre state (local space, `b_j`) of the GPU's
+//! `wlr_fit`, which it reads instead of recomputing them. Agreement numbers
+//! are printed (`cargo test --test wlr -- --nocapture`).
 
 mod common;
 use common::*;
@@ -185,6 +187,71 @@ fn twin_final(sc: &Scene, push: &WlrPush, fit: &[Vec<f32>], hbar: &[f32]) -> Vec
     out
 }
 
+/// Words of `wlr_fit`'s centre-state ring for the whole image
+/// (`ring_rows` = height).
+fn state_words(sc: &Scene, p: Precision) -> usize {
+    let word = if p == Precision::F64 { 2 } else { 1 };
+    sc.w * sc.h * wlr_fit::STATE_WORDS * word
+}
+
+/// GPU `wlr_fit` over the whole image: its 8 maps and its centre state.
+fn gpu_fit(sc: &Scene, push: &WlrPush, p: Precision) -> (Vec<Vec<f32>>, Vec<f32>) {
+    let push = WlrPush {
+        ring_rows: sc.h as u32,
+        ..*push
+    };
+    let mut outs = vec![sc.w * sc.h; 8];
+    outs.push(state_words(sc, p));
+    let (mut o, _) = run_planes(
+        &gpu(),
+        &wlr_fit::DECL,
+        p,
+        bytemuck::bytes_of(&push),
+        sc.w,
+        sc.h,
+        &sc.inputs(),
+        &outs,
+        wlr_fit::flops_per_pixel(push.radius),
+    )
+    .unwrap();
+    let state = o.pop().unwrap();
+    (o, state)
+}
+
+/// GPU `wlr_final` on `hbar`, the maps `λ1`, `κ0`, `κ1`, `kflags` and the
+/// centre state of [`gpu_fit`].
+fn gpu_final(
+    sc: &Scene,
+    push: &WlrPush,
+    p: Precision,
+    hbar: &[f32],
+    fit: [&[f32]; 4],
+    state: &[f32],
+) -> Vec<Vec<f32>> {
+    let push = WlrPush {
+        ring_rows: sc.h as u32,
+        ..*push
+    };
+    let mut inputs: Vec<&[f32]> = sc.feat().to_vec();
+    inputs.extend(sc.color());
+    inputs.extend([sc.vbar(), sc.spp(), hbar]);
+    inputs.extend(fit);
+    inputs.push(state);
+    run_planes(
+        &gpu(),
+        &wlr_final::DECL,
+        p,
+        bytemuck::bytes_of(&push),
+        sc.w,
+        sc.h,
+        &inputs,
+        &[sc.w * sc.h; 5],
+        wlr_final::flops_per_pixel(push.radius),
+    )
+    .unwrap()
+    .0
+}
+
 /// `k` and the flags of a kflags plane.
 fn split_kflags(p: &[f32]) -> (Vec<f32>, Vec<f32>) {
     let k = p.iter().map(|&v| (v as u32 % 16) as f32).collect();
@@ -206,32 +273,15 @@ fn compare_wlr_with(
     options: u32,
     fit_frac_f32: f64,
 ) -> String {
-    let ctx = gpu();
     let (w, h) = (sc.w, sc.h);
     let n = w * h;
     let push = wlr_push(sc, radius, options);
     let (cfit, hbar) = twin_fit(sc, &push);
     let cfin = twin_final(sc, &push, &cfit, &hbar);
-    let mut fin_in = sc.inputs();
-    fin_in.push(&hbar);
-    for p in &cfit[1..5] {
-        fin_in.push(p);
-    }
     let mut summary = String::new();
     for p in precisions() {
         let tag = format!("{what} {w}x{h} R={radius} opt={options} {p:?}");
-        let (gfit, _) = run_planes(
-            &ctx,
-            &wlr_fit::DECL,
-            p,
-            bytemuck::bytes_of(&push),
-            w,
-            h,
-            &sc.inputs(),
-            &[n; 8],
-            wlr_fit::flops_per_pixel(radius),
-        )
-        .unwrap();
+        let (gfit, state) = gpu_fit(sc, &push, p);
         let (gk, gf) = split_kflags(&gfit[4]);
         let (ck, cf) = split_kflags(&cfit[4]);
         let ak = agreement(&gk, &ck);
@@ -258,18 +308,8 @@ fn compare_wlr_with(
             );
             worst = worst.min(fr);
         }
-        let (gfin, _) = run_planes(
-            &ctx,
-            &wlr_final::DECL,
-            p,
-            bytemuck::bytes_of(&push),
-            w,
-            h,
-            &fin_in,
-            &[n; 5],
-            wlr_final::flops_per_pixel(radius),
-        )
-        .unwrap();
+        let model = [&cfit[1][..], &cfit[2][..], &cfit[3][..], &gfit[4][..]];
+        let gfin = gpu_final(sc, &push, p, &hbar, model, &state);
         let afl = agreement(&gfin[4], &cfin[4]);
         assert!(afl >= 0.98, "{tag}: wlr_final flags agreement {afl}");
         let mut worst_fin = 1.0f64;
@@ -582,24 +622,10 @@ fn constant_image_is_returned_exactly() {
         fitted as f64 > 0.9 * n as f64,
         "only {fitted} pixels fitted"
     );
-    let mut fin_in = sc.inputs();
-    fin_in.push(&hbar);
-    for p in &fit[1..5] {
-        fin_in.push(p);
-    }
     for p in precisions() {
-        let (g, _) = run_planes(
-            &gpu(),
-            &wlr_final::DECL,
-            p,
-            bytemuck::bytes_of(&push),
-            sc.w,
-            sc.h,
-            &fin_in,
-            &[n; 5],
-            wlr_final::flops_per_pixel(5),
-        )
-        .unwrap();
+        let (gfit, state) = gpu_fit(&sc, &push, p);
+        let model = [&fit[1][..], &fit[2][..], &fit[3][..], &gfit[4][..]];
+        let g = gpu_final(&sc, &push, p, &hbar, model, &state);
         let tol = if p == Precision::F32 { 1e-5 } else { 1e-6 };
         for i in 0..n {
             if spp_of(sc.spp()[i]) >= 1.0 {

@@ -861,4 +861,69 @@ double wlr_mse_model(double lambda1, double kappa0, double kappa1, int k, double
     return max(bb * bb + (kappa0 + kappa1 * wlr_inv_pow(h, k)) / n, 0.0lf);
 }
 
+// --- the centre state wlr_fit leaves for wlr_final -----------------------------
+// wlr_final needs, per centre, the local space and the curvature bandwidths
+// of wlr_fit (steps 1 and 4: the TSVD and the curvature fit are two thirds of
+// a centre's work). wlr_fit stores them, wlr_final reads them back: the same
+// values, so the same output as recomputing them. Per pixel WLR_STATE_VEC4
+// real4 in `state`, declared by the kernel, which then defines WLR_STATE_OUT
+// (wlr_fit: the store) or WLR_STATE_IN (wlr_final: the load):
+//   [0, 9) P0[j], [9, 18) P1[j], 18 P8[0..4), 19 P8[4..8),
+//   20 (P8[8], b_1, b_2, b_3), 21 (b_4..b_7), 22 (b_8, b_9, ok, 0),
+// ok = 1 when the curvature fit succeeded. Pixel (x, y) lives in row
+// y mod push.ring_rows of a ring of rows (src/methods/wlr.rs: the host runs
+// wlr_fit a band of rows ahead of wlr_final).
+#define WLR_STATE_VEC4 23
+
+#if defined(WLR_STATE_OUT) || defined(WLR_STATE_IN)
+
+uint wlr_state_base(ivec2 c)
+{
+    return ((uint(c.y) % push.ring_rows) * push.width + uint(c.x)) * uint(WLR_STATE_VEC4);
+}
+#endif
+
+#ifdef WLR_STATE_OUT
+void wlr_state_store(ivec2 c, TsvdProj pr, real b[MAX_D], bool ok)
+{
+    uint s = wlr_state_base(c);
+    for (int j = 0; j < 9; ++j) {
+        state[s + j] = pr.P0[j];
+        state[s + 9 + j] = pr.P1[j];
+    }
+    state[s + 18] = real4(pr.P8[0], pr.P8[1], pr.P8[2], pr.P8[3]);
+    state[s + 19] = real4(pr.P8[4], pr.P8[5], pr.P8[6], pr.P8[7]);
+    state[s + 20] = real4(pr.P8[8], b[0], b[1], b[2]);
+    state[s + 21] = real4(b[3], b[4], b[5], b[6]);
+    state[s + 22] = real4(b[7], b[8], ok ? real(1) : real(0), real(0));
+}
+#endif // WLR_STATE_OUT
+
+#ifdef WLR_STATE_IN
+
+// The local space (rank k, from kflags) and b of centre c; false when the
+// curvature fit failed (SOLVE-FAIL).
+bool wlr_state_load(ivec2 c, int k, out TsvdProj pr, out real b[MAX_D])
+{
+    uint s = wlr_state_base(c);
+    for (int j = 0; j < 9; ++j) {
+        pr.P0[j] = state[s + j];
+        pr.P1[j] = state[s + 9 + j];
+    }
+    real4 t18 = state[s + 18];
+    real4 t19 = state[s + 19];
+    real4 t20 = state[s + 20];
+    real4 t21 = state[s + 21];
+    real4 t22 = state[s + 22];
+    pr.P8 = real[9](t18.x, t18.y, t18.z, t18.w, t19.x, t19.y, t19.z, t19.w, t20.x);
+    b = real[9](t20.y, t20.z, t20.w, t21.x, t21.y, t21.z, t21.w, t22.x, t22.y);
+    pr.k = k;
+    pr.m0 = lessThan(ivec4(0, 1, 2, 3), ivec4(k));
+    pr.m1 = lessThan(ivec4(4, 5, 6, 7), ivec4(k));
+    pr.m8 = 8 < k;
+    return t22.z != real(0);
+}
+
+#endif // WLR_STATE_IN
+
 #endif // MC_WLR_GLSL

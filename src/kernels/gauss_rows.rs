@@ -52,6 +52,35 @@ pub fn record(
     sums: &[BufferSlice],
     den: BufferSlice,
 ) -> Result<()> {
+    record_rows(
+        batch,
+        precision,
+        (width, height),
+        (0, height),
+        sigma,
+        radius,
+        maps,
+        spp,
+        sums,
+        den,
+    )
+}
+
+/// [`record`] over the rows `[first, end)` of a `width × height` image only
+/// (`first` a multiple of 8): a row's sums need no other row.
+#[allow(clippy::too_many_arguments)]
+pub fn record_rows(
+    batch: &mut Batch,
+    precision: Precision,
+    (width, height): (u32, u32),
+    rows: (u32, u32),
+    sigma: f32,
+    radius: u32,
+    maps: &[BufferSlice],
+    spp: BufferSlice,
+    sums: &[BufferSlice],
+    den: BufferSlice,
+) -> Result<()> {
     if !(maps.len() == 1 || maps.len() == 6) || sums.len() != maps.len() {
         return Err(Error::InvalidArgument(format!(
             "gauss_rows smooths 1 or 6 maps into as many sums, got {} and {}",
@@ -72,13 +101,13 @@ pub fn record(
     b.push(spp);
     b.extend((0..6).map(|k| sums[k % sums.len()]));
     b.push(den);
-    batch.dispatch(
+    batch.dispatch_rows(
         &DECL,
         precision,
         &b,
         bytemuck::bytes_of(&push),
         width,
-        height,
+        rows,
         flops_per_pixel(radius, maps.len()),
     )
 }

@@ -45,19 +45,61 @@ pub fn record(
     scratch: [BufferSlice; 2],
     out: BufferSlice,
 ) -> Result<()> {
-    let [num, den] = scratch;
-    super::gauss_rows::record(
+    let size = (width, height);
+    record_row_sums(
         batch,
         precision,
-        width,
-        height,
+        size,
+        (0, height),
+        sigma,
+        map,
+        spp,
+        scratch,
+    )?;
+    record_columns(batch, precision, size, (0, height), sigma, scratch, out)
+}
+
+/// The first pass of [`record`] over the rows `[first, end)` only (`first` a
+/// multiple of 8): the row sums of `map` and of the weights into `scratch`.
+#[allow(clippy::too_many_arguments)]
+pub fn record_row_sums(
+    batch: &mut Batch,
+    precision: Precision,
+    (width, height): (u32, u32),
+    rows: (u32, u32),
+    sigma: f32,
+    map: BufferSlice,
+    spp: BufferSlice,
+    scratch: [BufferSlice; 2],
+) -> Result<()> {
+    let [num, den] = scratch;
+    super::gauss_rows::record_rows(
+        batch,
+        precision,
+        (width, height),
+        rows,
         sigma,
         radius(sigma),
         &[map],
         spp,
         &[num],
         den,
-    )?;
+    )
+}
+
+/// The second pass of [`record`] over the output rows `[first, end)` only
+/// (`first` a multiple of 8): it reads the row sums of the rows within
+/// [`radius`] of them, which [`record_row_sums`] must have written.
+pub fn record_columns(
+    batch: &mut Batch,
+    precision: Precision,
+    (width, height): (u32, u32),
+    rows: (u32, u32),
+    sigma: f32,
+    scratch: [BufferSlice; 2],
+    out: BufferSlice,
+) -> Result<()> {
+    let [num, den] = scratch;
     let push = SmoothPush {
         width,
         height,
@@ -65,13 +107,13 @@ pub fn record(
         sigma,
         ..Default::default()
     };
-    batch.dispatch(
+    batch.dispatch_rows(
         &DECL,
         precision,
         &[num, den, out],
         bytemuck::bytes_of(&push),
         width,
-        height,
+        rows,
         flops_per_pixel(sigma),
     )
 }

@@ -8,6 +8,9 @@
 //! `hbar` (for `κ1 <= 0`, `k = 0` and SOLVE-FAIL of the curvature fit:
 //! `λ1 = κ1 = 0`, `κ0 = n_c·MSE_fixed`); `kflags = k + 16·flags` (§2.5 bits
 //! 0, 2, 3, 4); `b_1..b_3` (debug, 0 for `j >= k`). Invalid centre: all 0.
+//! Binding 27, `state`: per centre with `k >= 1`, the local space and the
+//! `b_j` that `wlr_final` reads back instead of recomputing them
+//! ([`STATE_WORDS`] per pixel, in a ring of [`WlrPush::ring_rows`] rows).
 
 use crate::error::Result;
 use crate::gpu::reflect::{read, write};
@@ -46,6 +49,7 @@ pub const DECL: KernelDecl = KernelDecl {
         write("b1"),
         write("b2"),
         write("b3"),
+        write("state"),
     ],
     push_size: std::mem::size_of::<WlrPush>() as u32,
 };
@@ -54,6 +58,10 @@ pub const DECL: KernelDecl = KernelDecl {
 pub const OUTPUTS: [&str; 8] = [
     "h_opt", "lambda1", "kappa0", "kappa1", "kflags", "b1", "b2", "b3",
 ];
+
+/// Words (of the kernel's precision, f32 or f64) of the centre state per
+/// pixel: 23 `vec4` (`WLR_STATE_VEC4` in `spirv/lib/wlr.glsl`).
+pub const STATE_WORDS: usize = 23 * 4;
 
 /// Per pixel: `(2R+1)²` neighbours × (TSVD: two passes with two 9×9 Gram
 /// updates; curvature pass: projection + 15 4×4 outer products; two trial
@@ -68,46 +76,51 @@ pub fn flops_per_pixel(radius: u32) -> f64 {
     n * (tsvd + proj + curv + trials) + 2.0 * 10.0 * 81.0 * 9.0 * 4.0 + 6.0 * 19.0f64.powi(3)
 }
 
-/// Records `wlr_fit` over a `width × height` image with window radius
-/// `radius` (5 intermediate, 9 final) and `options` ([`WlrPush::options`]
-/// bits). `features` = normal xyz, depth, albedo rgb; `variances` in the same
-/// order; `color` = R, G, B; `vbar` = mean colour variance; `out` = the 8 maps
-/// of [`OUTPUTS`].
+/// Records `wlr_fit` over the rows `rows = [first, end)` (`first` a multiple
+/// of 8) of a `width × height` image with window radius `radius` (5
+/// intermediate, 9 final) and `options` ([`WlrPush::options`] bits).
+/// `features` = normal xyz, depth, albedo rgb; `variances` in the same order;
+/// `color` = R, G, B; `vbar` = mean colour variance; `out` = the 8 maps of
+/// [`OUTPUTS`]; `state` = a ring of `ring_rows` rows of [`STATE_WORDS`]
+/// per pixel, which must hold the rows `wlr_final` will read.
+#[allow(clippy::too_many_arguments)]
 pub fn record(
     batch: &mut Batch,
     precision: Precision,
-    width: u32,
-    height: u32,
-    radius: u32,
-    options: u32,
+    (width, height): (u32, u32),
+    rows: (u32, u32),
+    (radius, options): (u32, u32),
     features: [BufferSlice; 7],
     variances: [BufferSlice; 7],
     color: [BufferSlice; 3],
     vbar: BufferSlice,
     spp: BufferSlice,
     out: [BufferSlice; 8],
+    (state, ring_rows): (BufferSlice, u32),
 ) -> Result<()> {
     let push = WlrPush {
         width,
         height,
         radius,
         options,
+        ring_rows,
         ..Default::default()
     };
-    let mut b = Vec::with_capacity(27);
+    let mut b = Vec::with_capacity(28);
     b.extend_from_slice(&features);
     b.extend_from_slice(&variances);
     b.extend_from_slice(&color);
     b.push(vbar);
     b.push(spp);
     b.extend_from_slice(&out);
-    batch.dispatch(
+    b.push(state);
+    batch.dispatch_rows(
         &DECL,
         precision,
         &b,
         bytemuck::bytes_of(&push),
         width,
-        height,
+        rows,
         flops_per_pixel(radius),
     )
 }

@@ -261,10 +261,13 @@ impl GpuChain {
             None
         };
         let planes = match config.method {
-            Method::Wlr => MethodPlanes::Wlr(
-                Box::new(WlrPlanes::new(ctx, w, h)?),
-                wlr::WlrParams::new(config.pass, &config.options)?,
-            ),
+            Method::Wlr => {
+                let params = wlr::WlrParams::new(config.pass, &config.options)?;
+                MethodPlanes::Wlr(
+                    Box::new(WlrPlanes::new(ctx, w, h, params, config.precision)?),
+                    params,
+                )
+            }
             Method::Lp => MethodPlanes::Lp(
                 Box::new(LpPlanes::new(ctx, w, h, arena.as_ref())?),
                 lp::LpParams::new(&config.options)?,

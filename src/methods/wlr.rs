@@ -15,7 +15,7 @@ use std::sync::Arc;
 use super::stats::GpuStats;
 use super::Pass;
 use crate::error::{Error, Result};
-use crate::gpu::{Batch, BufferSlice, GpuContext, PlaneSet, Precision};
+use crate::gpu::{Batch, BufferSlice, GpuContext, PlaneSet, Precision, DEFAULT_FLOPS_PER_SUBMIT};
 use crate::image::{Layer, RgbImage, StatsImage};
 use crate::kernels::{channel_mean, gauss_smooth, wlr_final, wlr_fit};
 use crate::options::Options;
@@ -80,18 +80,56 @@ const FIT0: usize = 1; // h_opt, λ1, κ0, κ1, kflags, b1, b2, b3
 const HBAR: usize = 9;
 const OUT0: usize = 10; // R, G, B, mse, flags
 
+/// Rows `wlr_final` lags behind `wlr_fit` in [`record_wlr`]: at least the
+/// radius of the `h_opt` smoothing, and a multiple of the kernels' workgroup
+/// height.
+const LAG_ROWS: u32 = 8;
+
+/// Rows of `wlr_fit` per step of [`record_wlr`]: the band one submit holds
+/// ([`DEFAULT_FLOPS_PER_SUBMIT`]), rounded up to the workgroup height.
+fn chunk_rows(width: usize, radius: u32) -> u32 {
+    let row = wlr_fit::flops_per_pixel(radius) * width.max(1) as f64;
+    let rows = (DEFAULT_FLOPS_PER_SUBMIT / row).floor().max(1.0) as u32;
+    rows.div_ceil(LAG_ROWS) * LAG_ROWS
+}
+
 /// GPU scratch and output planes of one WLR run.
 #[derive(Debug)]
 pub struct WlrPlanes {
     /// The [`PLANES`] of a `width × height` image, in that order.
     pub set: PlaneSet,
+    /// The row sums of the `h_opt` smoothing (2 planes).
+    smooth: PlaneSet,
+    /// The ring of centre states `wlr_fit` leaves for `wlr_final`
+    /// ([`wlr_fit::STATE_WORDS`] per pixel, `ring_rows` rows).
+    state: PlaneSet,
+    ring_rows: u32,
+    chunk_rows: u32,
 }
 
 impl WlrPlanes {
-    /// Allocates the [`PLANES`] for a `width × height` image.
-    pub fn new(ctx: &Arc<GpuContext>, width: usize, height: usize) -> Result<WlrPlanes> {
+    /// Allocates the [`PLANES`] for a `width × height` image, and the scratch
+    /// of a run with `params` at `precision`.
+    pub fn new(
+        ctx: &Arc<GpuContext>,
+        width: usize,
+        height: usize,
+        params: WlrParams,
+        precision: Precision,
+    ) -> Result<WlrPlanes> {
+        let chunk_rows = chunk_rows(width, params.radius);
+        let ring_rows = (chunk_rows + LAG_ROWS).min(height.max(1) as u32);
+        let word = match precision {
+            Precision::F32 => 1,
+            Precision::F64 => 2,
+        };
+        let state_words = ring_rows as usize * width.max(1) * wlr_fit::STATE_WORDS * word;
         Ok(WlrPlanes {
             set: PlaneSet::new(ctx, "wlr", width * height, PLANES.len())?,
+            smooth: PlaneSet::new(ctx, "wlr_smooth", width * height, 2)?,
+            state: PlaneSet::new(ctx, "wlr_state", state_words, 1)?,
+            ring_rows,
+            chunk_rows,
         })
     }
 
@@ -151,50 +189,74 @@ pub fn record_wlr(
     let spp = clean.plane(Layer::Spp, 0);
     channel_mean::record(batch, precision, w, h, cvar, p(VBAR))?;
     let fit_out: [BufferSlice; 8] = std::array::from_fn(|k| p(FIT0 + k));
-    wlr_fit::record(
-        batch,
-        precision,
-        w,
-        h,
-        params.radius,
-        params.options,
-        feat,
-        var,
-        color,
-        p(VBAR),
-        spp,
-        fit_out,
-    )?;
-    gauss_smooth::record(
-        batch,
-        precision,
-        w,
-        h,
-        H_SMOOTH_SIGMA,
-        p(FIT0),
-        spp,
-        // wlr_final's output planes are free until it runs: row sums.
-        [p(OUT0), p(OUT0 + 1)],
-        p(HBAR),
-    )?;
     let fit_in: [BufferSlice; 4] = std::array::from_fn(|k| p(FIT0 + 1 + k));
     let out: [BufferSlice; 5] = std::array::from_fn(|k| p(OUT0 + k));
-    wlr_final::record(
-        batch,
-        precision,
-        w,
-        h,
-        params.radius,
-        params.options,
-        feat,
-        var,
-        color,
-        p(VBAR),
-        spp,
-        p(HBAR),
-        fit_in,
-        out,
-    )
+    let scratch = [planes.smooth.plane(0), planes.smooth.plane(1)];
+    let ring = (planes.state.plane(0), planes.ring_rows);
+    let wr = (params.radius, params.options);
+    let size = (w, h);
+    // wlr_fit runs a band of rows ahead; wlr_final follows LAG_ROWS behind,
+    // once the smoothing of h_opt has every row it needs, and reads the
+    // centre states of its rows from the ring before wlr_fit overwrites them
+    // (the ring holds chunk_rows + LAG_ROWS rows).
+    let (mut fitted, mut done) = (0u32, 0u32);
+    while done < h {
+        let end = (fitted + planes.chunk_rows).min(h);
+        wlr_fit::record(
+            batch,
+            precision,
+            size,
+            (fitted, end),
+            wr,
+            feat,
+            var,
+            color,
+            p(VBAR),
+            spp,
+            fit_out,
+            ring,
+        )?;
+        gauss_smooth::record_row_sums(
+            batch,
+            precision,
+            size,
+            (fitted, end),
+            H_SMOOTH_SIGMA,
+            p(FIT0),
+            spp,
+            scratch,
+        )?;
+        fitted = end;
+        let ready = if end == h { h } else { end - LAG_ROWS };
+        if ready > done {
+            gauss_smooth::record_columns(
+                batch,
+                precision,
+                size,
+                (done, ready),
+                H_SMOOTH_SIGMA,
+                scratch,
+                p(HBAR),
+            )?;
+            wlr_final::record(
+                batch,
+                precision,
+                size,
+                (done, ready),
+                wr,
+                feat,
+                color,
+                p(VBAR),
+                spp,
+                p(HBAR),
+                fit_in,
+                ring,
+                out,
+            )?;
+            done = ready;
+        }
+    }
+    Ok(())
 }
 
 /// What a WLR run gives back on the host.
