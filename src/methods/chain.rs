@@ -222,11 +222,15 @@ impl GpuChain {
         let scratch = PrepareScratch::new(ctx, &stats)?;
         // Stage scratch whose lifetimes do not overlap shares one arena: the
         // outlier stage's (before the prefilter, and again after the
-        // method), the prefilter's, LP's state. LP's first state plane is read
+        // method), the prefilter's, LP's state, WLR's scratch and ring. LP's first state plane is read
         // after the run, so the outlier scratch starts after it.
         let n = w * h;
         let with_gbf = prefilter_runs(config.method, config.prefilter, &layers)?;
         let lp = config.method == Method::Lp;
+        let wlr_params = match config.method {
+            Method::Wlr => Some(wlr::WlrParams::new(config.pass, &config.options)?),
+            _ => None,
+        };
         let keep = if lp { LpPlanes::kept_bytes(n) } else { 0 };
         let arena_bytes = [
             if with_gbf {
@@ -240,6 +244,10 @@ impl GpuChain {
                 0
             },
             if lp { LpPlanes::scratch_bytes(n) } else { 0 },
+            match wlr_params {
+                Some(params) => WlrPlanes::scratch_bytes((w, h), params, config.precision),
+                None => 0,
+            },
         ];
         let arena = match arena_bytes.iter().max() {
             Some(&b) if b > 0 => Some(Arc::new(GpuBuffer::new(ctx, "chain.arena", b)?)),
@@ -264,7 +272,13 @@ impl GpuChain {
             Method::Wlr => {
                 let params = wlr::WlrParams::new(config.pass, &config.options)?;
                 MethodPlanes::Wlr(
-                    Box::new(WlrPlanes::new(ctx, w, h, params, config.precision)?),
+                    Box::new(WlrPlanes::new(
+                        ctx,
+                        (w, h),
+                        params,
+                        config.precision,
+                        arena.as_ref(),
+                    )?),
                     params,
                 )
             }

@@ -15,7 +15,9 @@ use std::sync::Arc;
 use super::stats::GpuStats;
 use super::Pass;
 use crate::error::{Error, Result};
-use crate::gpu::{Batch, BufferSlice, GpuContext, PlaneSet, Precision, DEFAULT_FLOPS_PER_SUBMIT};
+use crate::gpu::{
+    Batch, BufferSlice, GpuBuffer, GpuContext, PlaneSet, Precision, DEFAULT_FLOPS_PER_SUBMIT,
+};
 use crate::image::{Layer, RgbImage, StatsImage};
 use crate::kernels::{channel_mean, gauss_smooth, wlr_final, wlr_fit};
 use crate::options::Options;
@@ -70,15 +72,23 @@ impl WlrParams {
     }
 }
 
-/// Planes of the WLR chain, in this order in [`WlrPlanes::set`].
-pub const PLANES: [&str; 15] = [
-    "vbar", "h_opt", "lambda1", "kappa0", "kappa1", "kflags", "b1", "b2", "b3", "hbar", "out_r",
-    "out_g", "out_b", "mse", "flags",
+/// The planes of a WLR run that outlive it (the debug layers, the outputs,
+/// the rank the sample map reads), in this order in [`WlrPlanes::set`].
+pub const PLANES: [&str; 11] = [
+    "h_opt", "kflags", "b1", "b2", "b3", "hbar", "out_r", "out_g", "out_b", "mse", "flags",
 ];
+const H_OPT: usize = 0;
+const KFLAGS: usize = 1;
+const B1: usize = 2; // b1, b2, b3
+const HBAR: usize = 5;
+const OUT0: usize = 6; // R, G, B, mse, flags
+
+/// Scratch planes, dead once `wlr_final` has run: vbar, the MSE model `λ1`,
+/// `κ0`, `κ1` (`wlr_fit` → `wlr_final`), the row sums of the smoothing.
+const SCRATCH: usize = 6;
 const VBAR: usize = 0;
-const FIT0: usize = 1; // h_opt, λ1, κ0, κ1, kflags, b1, b2, b3
-const HBAR: usize = 9;
-const OUT0: usize = 10; // R, G, B, mse, flags
+const MODEL: usize = 1; // λ1, κ0, κ1
+const SMOOTH: usize = 4; // numerator, weights
 
 /// Rows `wlr_final` lags behind `wlr_fit` in [`record_wlr`]: at least the
 /// radius of the `h_opt` smoothing, and a multiple of the kernels' workgroup
@@ -98,39 +108,70 @@ fn chunk_rows(width: usize, radius: u32) -> u32 {
 pub struct WlrPlanes {
     /// The [`PLANES`] of a `width × height` image, in that order.
     pub set: PlaneSet,
-    /// The row sums of the `h_opt` smoothing (2 planes).
-    smooth: PlaneSet,
+    /// The [`SCRATCH`] planes (in the chain's arena when it has one).
+    scratch: PlaneSet,
     /// The ring of centre states `wlr_fit` leaves for `wlr_final`
-    /// ([`wlr_fit::STATE_WORDS`] per pixel, `ring_rows` rows).
+    /// ([`wlr_fit::STATE_WORDS`] per pixel, `ring_rows` rows), after the
+    /// scratch planes.
     state: PlaneSet,
     ring_rows: u32,
     chunk_rows: u32,
 }
 
+/// The geometry of the centre-state ring: (rows per step, ring rows, words).
+fn ring(width: usize, height: usize, params: WlrParams, precision: Precision) -> (u32, u32, usize) {
+    let chunk_rows = chunk_rows(width, params.radius);
+    let ring_rows = (chunk_rows + LAG_ROWS).min(height.max(1) as u32);
+    let word = match precision {
+        Precision::F32 => 1,
+        Precision::F64 => 2,
+    };
+    let words = ring_rows as usize * width.max(1) * wlr_fit::STATE_WORDS * word;
+    (chunk_rows, ring_rows, words)
+}
+
 impl WlrPlanes {
     /// Allocates the [`PLANES`] for a `width × height` image, and the scratch
-    /// of a run with `params` at `precision`.
+    /// of a run with `params` at `precision`: in `arena` from its start when
+    /// given (it must hold [`WlrPlanes::scratch_bytes`]; nothing else may use
+    /// it while WLR runs), else in buffers of its own.
     pub fn new(
         ctx: &Arc<GpuContext>,
-        width: usize,
-        height: usize,
+        (width, height): (usize, usize),
         params: WlrParams,
         precision: Precision,
+        arena: Option<&Arc<GpuBuffer>>,
     ) -> Result<WlrPlanes> {
-        let chunk_rows = chunk_rows(width, params.radius);
-        let ring_rows = (chunk_rows + LAG_ROWS).min(height.max(1) as u32);
-        let word = match precision {
-            Precision::F32 => 1,
-            Precision::F64 => 2,
+        let n = width * height;
+        let (chunk_rows, ring_rows, words) = ring(width, height, params, precision);
+        let (scratch, state) = match arena {
+            Some(a) => (
+                PlaneSet::view(a, 0, n, SCRATCH)?,
+                PlaneSet::view(a, PlaneSet::bytes(n, SCRATCH), words, 1)?,
+            ),
+            None => (
+                PlaneSet::new(ctx, "wlr.scratch", n, SCRATCH)?,
+                PlaneSet::new(ctx, "wlr.state", words, 1)?,
+            ),
         };
-        let state_words = ring_rows as usize * width.max(1) * wlr_fit::STATE_WORDS * word;
         Ok(WlrPlanes {
-            set: PlaneSet::new(ctx, "wlr", width * height, PLANES.len())?,
-            smooth: PlaneSet::new(ctx, "wlr_smooth", width * height, 2)?,
-            state: PlaneSet::new(ctx, "wlr_state", state_words, 1)?,
+            set: PlaneSet::new(ctx, "wlr", n, PLANES.len())?,
+            scratch,
+            state,
             ring_rows,
             chunk_rows,
         })
+    }
+
+    /// Bytes of the scratch an arena must hold for a run of `params` at
+    /// `precision` on a `width × height` image.
+    pub fn scratch_bytes(
+        (width, height): (usize, usize),
+        params: WlrParams,
+        precision: Precision,
+    ) -> u64 {
+        let (_, _, words) = ring(width, height, params, precision);
+        PlaneSet::bytes(width * height, SCRATCH) + PlaneSet::bytes(words, 1)
     }
 
     /// The output colour planes R, G, B.
@@ -145,7 +186,7 @@ impl WlrPlanes {
 
     /// `kflags`: the TSVD rank `k` in `value mod 16`, flags above (§2.5).
     pub fn kflags(&self) -> BufferSlice {
-        self.set.plane(FIT0 + 4)
+        self.set.plane(KFLAGS)
     }
 }
 
@@ -183,15 +224,26 @@ pub fn record_wlr(
 ) -> Result<()> {
     let (w, h) = (clean.width as u32, clean.height as u32);
     let p = |i: usize| planes.set.plane(i);
+    let q = |i: usize| planes.scratch.plane(i);
     let (feat, var) = features(clean);
     let color: [BufferSlice; 3] = std::array::from_fn(|c| clean.plane(Layer::Color, c));
     let cvar: [BufferSlice; 3] = std::array::from_fn(|c| clean.plane(Layer::ColorVariance, c));
     let spp = clean.plane(Layer::Spp, 0);
-    channel_mean::record(batch, precision, w, h, cvar, p(VBAR))?;
-    let fit_out: [BufferSlice; 8] = std::array::from_fn(|k| p(FIT0 + k));
-    let fit_in: [BufferSlice; 4] = std::array::from_fn(|k| p(FIT0 + 1 + k));
+    channel_mean::record(batch, precision, w, h, cvar, q(VBAR))?;
+    let model: [BufferSlice; 3] = std::array::from_fn(|k| q(MODEL + k));
+    let fit_out: [BufferSlice; 8] = [
+        p(H_OPT),
+        model[0],
+        model[1],
+        model[2],
+        p(KFLAGS),
+        p(B1),
+        p(B1 + 1),
+        p(B1 + 2),
+    ];
+    let fit_in: [BufferSlice; 4] = [model[0], model[1], model[2], p(KFLAGS)];
     let out: [BufferSlice; 5] = std::array::from_fn(|k| p(OUT0 + k));
-    let scratch = [planes.smooth.plane(0), planes.smooth.plane(1)];
+    let scratch = [q(SMOOTH), q(SMOOTH + 1)];
     let ring = (planes.state.plane(0), planes.ring_rows);
     let wr = (params.radius, params.options);
     let size = (w, h);
@@ -211,7 +263,7 @@ pub fn record_wlr(
             feat,
             var,
             color,
-            p(VBAR),
+            q(VBAR),
             spp,
             fit_out,
             ring,
@@ -222,7 +274,7 @@ pub fn record_wlr(
             size,
             (fitted, end),
             H_SMOOTH_SIGMA,
-            p(FIT0),
+            p(H_OPT),
             spp,
             scratch,
         )?;
@@ -246,7 +298,7 @@ pub fn record_wlr(
                 wr,
                 feat,
                 color,
-                p(VBAR),
+                q(VBAR),
                 spp,
                 p(HBAR),
                 fit_in,
@@ -358,7 +410,6 @@ pub fn run_cpu_with_progress(
         &nvar[0], &nvar[1], &nvar[2], &dvar[0], &avar[0], &avar[1], &avar[2],
     ];
     let color: [&[f32]; 3] = [&col[0], &col[1], &col[2]];
-    let mut all = vec![vec![0.0f32; n]; PLANES.len()];
 
     let push_cm = ChannelMeanPush {
         width: w as u32,
@@ -394,13 +445,8 @@ pub fn run_cpu_with_progress(
     reference::wlr_final::wlr_final(&push, feat, var, color, &vbar, spp, &hbar, fit_in, &mut out);
     report("wlr_final");
 
-    all[VBAR] = vbar;
-    for (k, p) in fit.into_iter().enumerate() {
-        all[FIT0 + k] = p;
-    }
-    all[HBAR] = hbar;
-    for (k, p) in out.into_iter().enumerate() {
-        all[OUT0 + k] = p;
-    }
+    let [h_opt, _, _, _, kflags, b1, b2, b3] = <[Vec<f32>; 8]>::try_from(fit).unwrap();
+    let [r, g, b, mse, flags] = <[Vec<f32>; 5]>::try_from(out).unwrap();
+    let all = vec![h_opt, kflags, b1, b2, b3, hbar, r, g, b, mse, flags];
     Ok(WlrResult::from_planes(w, h, all))
 }
