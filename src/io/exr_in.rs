@@ -5,15 +5,19 @@
 //! straight into its f32 plane. The decoder runs on the calling thread inside
 //! `catch_unwind`: a malformed file that trips a panic in the decoder becomes
 //! an [`Error::BadInput`] like any other corrupt file (this relies on the
-//! default `panic = "unwind"`; the `exr` crate's parallel decoder is not used
-//! because a panic on its worker threads would abort the process).
+//! default `panic = "unwind"`). The blocks are decompressed on scoped threads
+//! of our own ([`decompress_blocks`]), each under `catch_unwind` too; the
+//! `exr` crate's parallel decoder is not used because a panic on its worker
+//! threads would abort the process.
 
 use std::collections::HashSet;
 use std::io::Cursor;
 use std::panic::{self, AssertUnwindSafe};
 use std::path::Path;
+use std::sync::{mpsc, Arc, Mutex};
 
 use exr::block::reader::ChunksReader;
+use exr::block::UncompressedBlock;
 use exr::compression::Compression;
 use exr::math::Vec2;
 use exr::meta::attribute::SampleType;
@@ -276,18 +280,93 @@ fn decode_part(
         decode_unguarded(path, bytes, select, wanted)
     })) {
         Ok(result) => result,
-        Err(payload) => {
-            let detail = payload
-                .downcast_ref::<&str>()
-                .map(|s| s.to_string())
-                .or_else(|| payload.downcast_ref::<String>().cloned())
-                .unwrap_or_else(|| "decoder panicked".into());
-            Err(Error::bad_input(
-                path,
-                format!("truncated or corrupt EXR: the decoder failed ({detail})"),
-            ))
-        }
+        Err(payload) => Err(Error::bad_input(
+            path,
+            format!(
+                "truncated or corrupt EXR: the decoder failed ({})",
+                panic_detail(payload.as_ref())
+            ),
+        )),
     }
+}
+
+/// The message of a caught panic.
+fn panic_detail(payload: &(dyn std::any::Any + Send)) -> String {
+    payload
+        .downcast_ref::<&str>()
+        .map(|s| s.to_string())
+        .or_else(|| payload.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "decoder panicked".into())
+}
+
+/// Most threads [`decompress_blocks`] decompresses on.
+const DECODE_THREADS: usize = 4;
+
+/// Reads the chunks of `chunks` on one thread, decompresses them on up to
+/// [`DECODE_THREADS`] (one per core), and hands each block to `each` on the
+/// calling thread, in the order they finish. The first error `each` returns
+/// stops the work and is returned. A panic in a decompressing thread becomes
+/// that block's error; one while reading propagates to the caller (whose
+/// `catch_unwind` reports it) once every thread has stopped.
+fn decompress_blocks<C: ChunksReader + Send>(
+    chunks: C,
+    each: &mut dyn FnMut(exr::error::Result<UncompressedBlock>) -> Result<()>,
+) -> Result<()> {
+    let workers = std::thread::available_parallelism()
+        .map_or(1, |n| n.get())
+        .min(DECODE_THREADS);
+    if workers <= 1 {
+        let mut decompressor = chunks.sequential_decompressor(false);
+        while let Some(block) = decompressor.decompress_next_block() {
+            each(block)?;
+        }
+        return Ok(());
+    }
+    let meta = chunks.meta_data().clone();
+    std::thread::scope(|scope| {
+        let (chunk_tx, chunk_rx) = mpsc::sync_channel(2 * workers);
+        let (block_tx, block_rx) = mpsc::sync_channel(2 * workers);
+        // Every thread stops when the other end of its channel is gone: the
+        // reader once every worker has dropped its handle on the chunks,
+        // the workers once this thread drops the blocks' receiver.
+        scope.spawn(move || {
+            for chunk in chunks {
+                if chunk_tx.send(chunk).is_err() {
+                    break;
+                }
+            }
+        });
+        let chunk_rx = Arc::new(Mutex::new(chunk_rx));
+        for _ in 0..workers {
+            let (rx, tx, meta) = (Arc::clone(&chunk_rx), block_tx.clone(), &meta);
+            scope.spawn(move || loop {
+                let next = match rx.lock() {
+                    Ok(rx) => rx.recv(),
+                    Err(_) => break,
+                };
+                let Ok(chunk) = next else { break };
+                let block = chunk.and_then(|c| {
+                    panic::catch_unwind(AssertUnwindSafe(|| {
+                        UncompressedBlock::decompress_chunk(c, meta, false)
+                    }))
+                    .unwrap_or_else(|p| {
+                        let detail = panic_detail(p.as_ref());
+                        Err(exr::error::Error::Invalid(
+                            format!("the decoder failed ({detail})").into(),
+                        ))
+                    })
+                });
+                if tx.send(block).is_err() {
+                    break;
+                }
+            });
+        }
+        drop((chunk_rx, block_tx));
+        for block in block_rx {
+            each(block)?;
+        }
+        Ok(())
+    })
 }
 
 fn decode_unguarded(
@@ -347,15 +426,13 @@ fn decode_unguarded(
             block.layer == part_index && tile.level_index == base_level
         })
         .map_err(bad_exr)?;
-    let mut decompressor = chunks.sequential_decompressor(false);
-
     let mut seen = HashSet::with_capacity(expected_blocks);
-    while let Some(block) = decompressor.decompress_next_block() {
+    decompress_blocks(chunks, &mut |block| {
         let block = block.map_err(bad_exr)?;
         let index = block.index;
         if index.layer != part_index || index.level != base_level {
             // A corrupt offset table pointing elsewhere; coverage is checked below.
-            continue;
+            return Ok(());
         }
         let (bx, by) = (index.pixel_position.x(), index.pixel_position.y());
         let (bw, bh) = (index.pixel_size.width(), index.pixel_size.height());
@@ -405,7 +482,8 @@ fn decode_unguarded(
             }
             convert_samples(line.value, sample_type, dst);
         }
-    }
+        Ok(())
+    })?;
     if seen.len() != expected_blocks {
         return Err(Error::bad_input(
             path,
