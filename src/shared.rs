@@ -94,7 +94,7 @@ pub struct WlrPush {
     pub options: u32,
     /// Rows of the ring that holds the centre state `wlr_fit` leaves for
     /// `wlr_final`: pixel (x, y) lives in its row `y mod ring_rows`
-    /// (`spirv/lib/wlr.glsl`, `WLR_STATE`). At least 1.
+    /// (`spirv/lib/wlr.glsl`, `WLR_STATE_OUT`, `WLR_STATE_IN`). At least 1.
     pub ring_rows: u32,
     /// Unused (the block's `pad1`, `pad2`): rounds the block to 32 bytes; 0.
     pub _pad: [u32; 2],

@@ -680,14 +680,16 @@ impl Batch {
             bindings,
             push,
             width,
-            (0, height),
+            ((0, height), height),
             flops_per_pixel,
         )
     }
 
     /// [`dispatch`](Self::dispatch) over the rows `[first, end)` of the grid
-    /// only (`first` a multiple of the workgroup height), for bindings that
-    /// cover a chunk of the image.
+    /// only (`first` a multiple of the workgroup height). `grid_rows`: how
+    /// many grid rows the bindings cover, for the traffic estimate (each
+    /// bound range counts once over that many rows): the grid's height when
+    /// they hold the whole image, `end - first` when they hold this chunk.
     #[allow(clippy::too_many_arguments)]
     pub fn dispatch_rows(
         &mut self,
@@ -696,7 +698,7 @@ impl Batch {
         bindings: &[BufferSlice],
         push: &[u8],
         width: u32,
-        (first, height): (u32, u32),
+        ((first, height), grid_rows): ((u32, u32), u32),
         flops_per_pixel: f64,
     ) -> Result<()> {
         // (`pipeline` fails on a lost context.)
@@ -725,7 +727,8 @@ impl Batch {
             .collect();
         ranges.sort_unstable();
         ranges.dedup();
-        let row_bytes = ranges.iter().map(|r| r.2 as f64).sum::<f64>() / (height - first) as f64;
+        let row_bytes =
+            ranges.iter().map(|r| r.2 as f64).sum::<f64>() / grid_rows.max(height - first) as f64;
         let mut band = ((self.max_flops_per_submit / row_flops).floor() as u32).max(1);
         band = band.div_ceil(wy) * wy;
         let mut push = push.to_vec();

@@ -299,16 +299,24 @@ fn panic_detail(payload: &(dyn std::any::Any + Send)) -> String {
         .unwrap_or_else(|| "decoder panicked".into())
 }
 
+/// The `exr` error a caught panic of the decoder becomes.
+fn decoder_failed(payload: &(dyn std::any::Any + Send)) -> exr::error::Error {
+    let detail = panic_detail(payload);
+    exr::error::Error::Invalid(format!("the decoder failed ({detail})").into())
+}
+
 /// Most threads [`decompress_blocks`] decompresses on.
 const DECODE_THREADS: usize = 4;
 
 /// Reads the chunks of `chunks` on one thread, decompresses them on up to
 /// [`DECODE_THREADS`] (one per core), and hands each block to `each` on the
 /// calling thread, in the order they finish. The first error `each` returns
-/// stops the work and is returned. A panic in a decompressing thread becomes
-/// that block's error; one while reading propagates to the caller (whose
-/// `catch_unwind` reports it) once every thread has stopped.
+/// stops the work and is returned. A panic while reading or decompressing
+/// becomes that chunk's error. With several corrupt blocks, which one is
+/// reported depends on which thread gets there first. A thread that cannot
+/// be started is an [`Error::Io`] on `path`.
 fn decompress_blocks<C: ChunksReader + Send>(
+    path: &Path,
     chunks: C,
     each: &mut dyn FnMut(exr::error::Result<UncompressedBlock>) -> Result<()>,
 ) -> Result<()> {
@@ -329,37 +337,46 @@ fn decompress_blocks<C: ChunksReader + Send>(
         // Every thread stops when the other end of its channel is gone: the
         // reader once every worker has dropped its handle on the chunks,
         // the workers once this thread drops the blocks' receiver.
-        scope.spawn(move || {
-            for chunk in chunks {
-                if chunk_tx.send(chunk).is_err() {
-                    break;
+        let spawn_failed = |source| Error::Io {
+            path: path.to_path_buf(),
+            source,
+        };
+        std::thread::Builder::new()
+            .spawn_scoped(scope, move || {
+                // A panic while reading becomes the next chunk's error.
+                let mut chunks = chunks;
+                loop {
+                    let next = panic::catch_unwind(AssertUnwindSafe(|| chunks.next()))
+                        .unwrap_or_else(|p| Some(Err(decoder_failed(p.as_ref()))));
+                    let Some(chunk) = next else { break };
+                    let failed = chunk.is_err();
+                    if chunk_tx.send(chunk).is_err() || failed {
+                        break;
+                    }
                 }
-            }
-        });
+            })
+            .map_err(spawn_failed)?;
         let chunk_rx = Arc::new(Mutex::new(chunk_rx));
         for _ in 0..workers {
             let (rx, tx, meta) = (Arc::clone(&chunk_rx), block_tx.clone(), &meta);
-            scope.spawn(move || loop {
-                let next = match rx.lock() {
-                    Ok(rx) => rx.recv(),
-                    Err(_) => break,
-                };
-                let Ok(chunk) = next else { break };
-                let block = chunk.and_then(|c| {
-                    panic::catch_unwind(AssertUnwindSafe(|| {
-                        UncompressedBlock::decompress_chunk(c, meta, false)
-                    }))
-                    .unwrap_or_else(|p| {
-                        let detail = panic_detail(p.as_ref());
-                        Err(exr::error::Error::Invalid(
-                            format!("the decoder failed ({detail})").into(),
-                        ))
-                    })
-                });
-                if tx.send(block).is_err() {
-                    break;
-                }
-            });
+            std::thread::Builder::new()
+                .spawn_scoped(scope, move || loop {
+                    let next = match rx.lock() {
+                        Ok(rx) => rx.recv(),
+                        Err(_) => break,
+                    };
+                    let Ok(chunk) = next else { break };
+                    let block = chunk.and_then(|c| {
+                        panic::catch_unwind(AssertUnwindSafe(|| {
+                            UncompressedBlock::decompress_chunk(c, meta, false)
+                        }))
+                        .unwrap_or_else(|p| Err(decoder_failed(p.as_ref())))
+                    });
+                    if tx.send(block).is_err() {
+                        break;
+                    }
+                })
+                .map_err(spawn_failed)?;
         }
         drop((chunk_rx, block_tx));
         for block in block_rx {
@@ -427,7 +444,7 @@ fn decode_unguarded(
         })
         .map_err(bad_exr)?;
     let mut seen = HashSet::with_capacity(expected_blocks);
-    decompress_blocks(chunks, &mut |block| {
+    decompress_blocks(path, chunks, &mut |block| {
         let block = block.map_err(bad_exr)?;
         let index = block.index;
         if index.layer != part_index || index.level != base_level {

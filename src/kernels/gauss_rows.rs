@@ -107,7 +107,7 @@ pub fn record_rows(
         &b,
         bytemuck::bytes_of(&push),
         width,
-        rows,
+        (rows, height),
         flops_per_pixel(radius, maps.len()),
     )
 }

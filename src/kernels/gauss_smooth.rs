@@ -113,7 +113,7 @@ pub fn record_columns(
         &[num, den, out],
         bytemuck::bytes_of(&push),
         width,
-        rows,
+        (rows, height),
         flops_per_pixel(sigma),
     )
 }

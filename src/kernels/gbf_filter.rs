@@ -90,7 +90,7 @@ pub fn record(
         &b,
         bytemuck::bytes_of(&push),
         width.div_ceil(PIXELS_PER_INVOCATION),
-        rows,
+        (rows, rows.1 - rows.0),
         flops_per_pixel() * PIXELS_PER_INVOCATION as f64,
     )
 }

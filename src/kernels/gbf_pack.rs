@@ -67,7 +67,7 @@ pub fn record(
         &b,
         bytemuck::bytes_of(&push),
         width,
-        rows,
+        (rows, rows.1 - rows.0),
         flops_per_pixel(),
     )
 }

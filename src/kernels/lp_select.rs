@@ -47,14 +47,14 @@ pub fn record(
 ) -> Result<()> {
     batch.fill(queue.sub(0, 16)?, 0);
     batch.fill(queue.sub(4, 8)?, 1);
-    let (gw, _) = push.centre_grid();
+    let (gw, gh) = push.centre_grid();
     batch.dispatch_rows(
         &DECL,
         precision,
         &[spp, reach, queue],
         bytemuck::bytes_of(push),
         gw,
-        rows,
+        (rows, gh),
         flops_per_candidate(),
     )
 }

@@ -105,7 +105,7 @@ pub fn record(
         &b,
         bytemuck::bytes_of(&push),
         width,
-        rows,
+        (rows, height),
         flops_per_pixel(radius),
     )
 }

@@ -222,15 +222,12 @@ impl GpuChain {
         let scratch = PrepareScratch::new(ctx, &stats)?;
         // Stage scratch whose lifetimes do not overlap shares one arena: the
         // outlier stage's (before the prefilter, and again after the
-        // method), the prefilter's, LP's state, WLR's scratch and ring. LP's first state plane is read
-        // after the run, so the outlier scratch starts after it.
+        // method), the prefilter's, LP's state, WLR's scratch. LP's first
+        // state plane is read after the run, so the outlier scratch starts
+        // after it.
         let n = w * h;
         let with_gbf = prefilter_runs(config.method, config.prefilter, &layers)?;
         let lp = config.method == Method::Lp;
-        let wlr_params = match config.method {
-            Method::Wlr => Some(wlr::WlrParams::new(config.pass, &config.options)?),
-            _ => None,
-        };
         let keep = if lp { LpPlanes::kept_bytes(n) } else { 0 };
         let arena_bytes = [
             if with_gbf {
@@ -244,9 +241,10 @@ impl GpuChain {
                 0
             },
             if lp { LpPlanes::scratch_bytes(n) } else { 0 },
-            match wlr_params {
-                Some(params) => WlrPlanes::scratch_bytes((w, h), params, config.precision),
-                None => 0,
+            if config.method == Method::Wlr {
+                WlrPlanes::scratch_bytes((w, h))
+            } else {
+                0
             },
         ];
         let arena = match arena_bytes.iter().max() {
@@ -275,7 +273,6 @@ impl GpuChain {
                     Box::new(WlrPlanes::new(
                         ctx,
                         (w, h),
-                        params,
                         config.precision,
                         arena.as_ref(),
                     )?),

@@ -15,9 +15,7 @@ use std::sync::Arc;
 use super::stats::GpuStats;
 use super::Pass;
 use crate::error::{Error, Result};
-use crate::gpu::{
-    Batch, BufferSlice, GpuBuffer, GpuContext, PlaneSet, Precision, DEFAULT_FLOPS_PER_SUBMIT,
-};
+use crate::gpu::{Batch, BufferSlice, GpuBuffer, GpuContext, PlaneSet, Precision};
 use crate::image::{Layer, RgbImage, StatsImage};
 use crate::kernels::{channel_mean, gauss_smooth, wlr_final, wlr_fit};
 use crate::options::Options;
@@ -95,13 +93,13 @@ const SMOOTH: usize = 4; // numerator, weights
 /// height.
 const LAG_ROWS: u32 = 8;
 
-/// Rows of `wlr_fit` per step of [`record_wlr`]: the band one submit holds
-/// ([`DEFAULT_FLOPS_PER_SUBMIT`]), rounded up to the workgroup height.
-fn chunk_rows(width: usize, radius: u32) -> u32 {
-    let row = wlr_fit::flops_per_pixel(radius) * width.max(1) as f64;
-    let rows = (DEFAULT_FLOPS_PER_SUBMIT / row).floor().max(1.0) as u32;
-    rows.div_ceil(LAG_ROWS) * LAG_ROWS
-}
+/// Rows of `wlr_fit` per step of [`record_wlr`]: one workgroup row, the
+/// smallest band a dispatch makes (at the final radius a row of 256 pixels
+/// already fills a submit). The centre-state ring then holds
+/// `CHUNK_ROWS + LAG_ROWS` rows whatever the image, so its size grows with
+/// the width only, and the tiler's memory model (a line through two square
+/// sizes, `tiles::ChainMemory`) charges it more than it takes above them.
+const CHUNK_ROWS: u32 = 8;
 
 /// GPU scratch and output planes of one WLR run.
 #[derive(Debug)]
@@ -111,67 +109,56 @@ pub struct WlrPlanes {
     /// The [`SCRATCH`] planes (in the chain's arena when it has one).
     scratch: PlaneSet,
     /// The ring of centre states `wlr_fit` leaves for `wlr_final`
-    /// ([`wlr_fit::STATE_WORDS`] per pixel, `ring_rows` rows), after the
-    /// scratch planes.
+    /// ([`wlr_fit::STATE_WORDS`] per pixel, `ring_rows` rows). A buffer of
+    /// its own: in the arena, its size (∝ width) would bend the tiler's
+    /// linear memory model below the truth.
     state: PlaneSet,
     ring_rows: u32,
-    chunk_rows: u32,
-}
-
-/// The geometry of the centre-state ring: (rows per step, ring rows, words).
-fn ring(width: usize, height: usize, params: WlrParams, precision: Precision) -> (u32, u32, usize) {
-    let chunk_rows = chunk_rows(width, params.radius);
-    let ring_rows = (chunk_rows + LAG_ROWS).min(height.max(1) as u32);
-    let word = match precision {
-        Precision::F32 => 1,
-        Precision::F64 => 2,
-    };
-    let words = ring_rows as usize * width.max(1) * wlr_fit::STATE_WORDS * word;
-    (chunk_rows, ring_rows, words)
 }
 
 impl WlrPlanes {
-    /// Allocates the [`PLANES`] for a `width × height` image, and the scratch
-    /// of a run with `params` at `precision`: in `arena` from its start when
-    /// given (it must hold [`WlrPlanes::scratch_bytes`]; nothing else may use
-    /// it while WLR runs), else in buffers of its own.
+    /// Allocates the [`PLANES`] for a `width × height` image, the centre-state
+    /// ring of a run at `precision`, and the [`SCRATCH`] planes: in `arena`
+    /// from its start when given (it must hold [`WlrPlanes::scratch_bytes`];
+    /// nothing else may use it while WLR runs), else in a buffer of their own.
+    /// Fails with [`Error::Limit`] when the ring, one binding, exceeds
+    /// `maxStorageBufferRange` (a width of ~22,000 pixels in f32, half that
+    /// in f64; tiling narrows it).
     pub fn new(
         ctx: &Arc<GpuContext>,
         (width, height): (usize, usize),
-        params: WlrParams,
         precision: Precision,
         arena: Option<&Arc<GpuBuffer>>,
     ) -> Result<WlrPlanes> {
         let n = width * height;
-        let (chunk_rows, ring_rows, words) = ring(width, height, params, precision);
-        let (scratch, state) = match arena {
-            Some(a) => (
-                PlaneSet::view(a, 0, n, SCRATCH)?,
-                PlaneSet::view(a, PlaneSet::bytes(n, SCRATCH), words, 1)?,
-            ),
-            None => (
-                PlaneSet::new(ctx, "wlr.scratch", n, SCRATCH)?,
-                PlaneSet::new(ctx, "wlr.state", words, 1)?,
-            ),
+        let ring_rows = (CHUNK_ROWS + LAG_ROWS).min(height.max(1) as u32);
+        let word = match precision {
+            Precision::F32 => 4,
+            Precision::F64 => 8,
+        };
+        let ring_bytes =
+            ring_rows as u64 * width.max(1) as u64 * (wlr_fit::STATE_WORDS * word) as u64;
+        let limit = ctx.info.max_storage_buffer_range as u64;
+        if ring_bytes > limit {
+            return Err(Error::Limit(format!(
+                "WLR's centre-state ring for a width of {width} pixels ({ring_rows} rows, {ring_bytes} bytes, one binding) exceeds maxStorageBufferRange ({limit} bytes); denoise in tiles (--tile)"
+            )));
+        }
+        let scratch = match arena {
+            Some(a) => PlaneSet::view(a, 0, n, SCRATCH)?,
+            None => PlaneSet::new(ctx, "wlr.scratch", n, SCRATCH)?,
         };
         Ok(WlrPlanes {
             set: PlaneSet::new(ctx, "wlr", n, PLANES.len())?,
             scratch,
-            state,
+            state: PlaneSet::new(ctx, "wlr.state", (ring_bytes / 4) as usize, 1)?,
             ring_rows,
-            chunk_rows,
         })
     }
 
-    /// Bytes of the scratch an arena must hold for a run of `params` at
-    /// `precision` on a `width × height` image.
-    pub fn scratch_bytes(
-        (width, height): (usize, usize),
-        params: WlrParams,
-        precision: Precision,
-    ) -> u64 {
-        let (_, _, words) = ring(width, height, params, precision);
-        PlaneSet::bytes(width * height, SCRATCH) + PlaneSet::bytes(words, 1)
+    /// Bytes of the scratch an arena must hold for a `width × height` image.
+    pub fn scratch_bytes((width, height): (usize, usize)) -> u64 {
+        PlaneSet::bytes(width * height, SCRATCH)
     }
 
     /// The output colour planes R, G, B.
@@ -248,12 +235,14 @@ pub fn record_wlr(
     let wr = (params.radius, params.options);
     let size = (w, h);
     // wlr_fit runs a band of rows ahead; wlr_final follows LAG_ROWS behind,
-    // once the smoothing of h_opt has every row it needs, and reads the
-    // centre states of its rows from the ring before wlr_fit overwrites them
-    // (the ring holds chunk_rows + LAG_ROWS rows).
+    // once the smoothing of h_opt has every row it needs (its radius, 3, is
+    // at most LAG_ROWS: the rows [ready, ready + radius) are fitted), and
+    // reads the centre states of its rows from the ring before wlr_fit
+    // overwrites them (the ring holds CHUNK_ROWS + LAG_ROWS rows).
+    debug_assert!(gauss_smooth::radius(H_SMOOTH_SIGMA) <= LAG_ROWS);
     let (mut fitted, mut done) = (0u32, 0u32);
     while done < h {
-        let end = (fitted + planes.chunk_rows).min(h);
+        let end = (fitted + CHUNK_ROWS).min(h);
         wlr_fit::record(
             batch,
             precision,
@@ -318,7 +307,8 @@ pub struct WlrResult {
     pub color: RgbImage,
     /// Estimated MSE per pixel (shared by R, G, B).
     pub mse: Vec<f32>,
-    /// All intermediate planes by name ([`PLANES`]).
+    /// The planes that outlive a run, by name ([`PLANES`]: the outputs, the
+    /// rank and the debug maps; not the scratch of `wlr_fit` → `wlr_final`).
     pub planes: Vec<(String, Vec<f32>)>,
 }
 
