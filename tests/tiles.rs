@@ -15,6 +15,7 @@
 mod common;
 
 use common::{check_validation, gpu, own_gpu};
+use mcdenoise::gpu::Precision;
 use mcdenoise::image::Layer;
 use mcdenoise::{Config, Denoiser, Error, Frame, Method, Outliers, Prefilter, Source, StatsImage};
 
@@ -458,4 +459,42 @@ fn mirrored(base: &StatsImage, w: usize, h: usize) -> StatsImage {
         img.set(layer, out);
     }
     img
+}
+
+/// WLR's centre-state ring (16 rows of the image's width, one binding) of
+/// a wide, short image that runs whole exceeds `maxStorageBufferRange` in
+/// f64: a limit error that names it and the way out, raised before any
+/// work; in tiles the same image is accepted.
+#[test]
+fn a_wlr_ring_wider_than_a_binding_is_a_limit_error() {
+    let ctx = gpu();
+    if !ctx.supports_f64() {
+        return;
+    }
+    let limit = ctx.info().max_storage_buffer_range as usize;
+    // 16 rows × width × 92 f64 words over the limit, in at most 512² pixels.
+    let w = limit / (16 * 92 * 8) + 8;
+    if w * 16 > 512 * 512 {
+        return; // a device whose binding is this large tiles such images anyway
+    }
+    let img = strip(w, 16);
+    let config = Config {
+        precision: Precision::F64,
+        ..Config::new(Method::Wlr)
+    };
+    match Denoiser::new(&ctx, Source::of_image(&img), config.clone()) {
+        Err(Error::Limit(m)) => {
+            assert!(
+                m.contains("centre-state ring") && m.contains("--tile"),
+                "{m}"
+            )
+        }
+        other => panic!("expected a limit error, got {other:?}"),
+    }
+    let tiled = Config {
+        tile: Some(4096),
+        ..config
+    };
+    assert!(Denoiser::new(&ctx, Source::of_image(&img), tiled).is_ok());
+    check_validation(&ctx);
 }
