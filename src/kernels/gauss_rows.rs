@@ -38,38 +38,11 @@ pub fn flops_per_pixel(radius: u32, maps: usize) -> f64 {
 
 /// Records the row sums of `maps` (1 or 6 planes) into `sums` (as many) and
 /// of the weights into `den`, for `G_σ` with `radius` (`ceil(3σ)`, or 0 for
-/// `σ <= 0`).
+/// `σ <= 0`), over the rows `rows = [first, end)` of a `width × height`
+/// image (`first` a multiple of 8; `(0, height)` for all): a row's sums need
+/// no other row.
 #[allow(clippy::too_many_arguments)]
 pub fn record(
-    batch: &mut Batch,
-    precision: Precision,
-    width: u32,
-    height: u32,
-    sigma: f32,
-    radius: u32,
-    maps: &[BufferSlice],
-    spp: BufferSlice,
-    sums: &[BufferSlice],
-    den: BufferSlice,
-) -> Result<()> {
-    record_rows(
-        batch,
-        precision,
-        (width, height),
-        (0, height),
-        sigma,
-        radius,
-        maps,
-        spp,
-        sums,
-        den,
-    )
-}
-
-/// [`record`] over the rows `[first, end)` of a `width × height` image only
-/// (`first` a multiple of 8): a row's sums need no other row.
-#[allow(clippy::too_many_arguments)]
-pub fn record_rows(
     batch: &mut Batch,
     precision: Precision,
     (width, height): (u32, u32),

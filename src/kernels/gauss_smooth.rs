@@ -73,7 +73,7 @@ pub fn record_row_sums(
     scratch: [BufferSlice; 2],
 ) -> Result<()> {
     let [num, den] = scratch;
-    super::gauss_rows::record_rows(
+    super::gauss_rows::record(
         batch,
         precision,
         (width, height),

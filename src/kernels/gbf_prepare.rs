@@ -57,8 +57,8 @@ pub fn record(
     super::gauss_rows::record(
         batch,
         precision,
-        width,
-        height,
+        (width, height),
+        (0, height),
         sigma,
         super::gauss_smooth::radius(sigma),
         &cov,
