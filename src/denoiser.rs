@@ -458,8 +458,9 @@ impl Denoiser {
     }
 
     /// The sanitised (§0.4) and, when the prefilter runs, prefiltered (§6)
-    /// statistics of the last completed GPU call: what `mcdenoise prefilter`
-    /// writes for other denoisers.
+    /// statistics of the last completed GPU call on one chain. A tiled
+    /// denoiser keeps none: [`denoise_with_statistics`](Self::denoise_with_statistics)
+    /// gathers them from its tiles.
     pub fn statistics(&self) -> Result<StatsImage> {
         self.chain()?.clean().download()
     }
@@ -490,13 +491,48 @@ impl Denoiser {
         self.denoise_image(Image::Owned(img), budget)
     }
 
+    /// [`denoise`](Self::denoise), also returning the statistics the method
+    /// read: sanitised (§0.4) and, when the prefilter ran, with its normal,
+    /// albedo and depth (and their variances). On one GPU chain they are
+    /// [`statistics`](Self::statistics) after the call; a tiled denoiser
+    /// gathers every tile's interior as it goes. Not on the CPU backend.
+    pub fn denoise_with_statistics(
+        &self,
+        img: &StatsImage,
+        budget: Option<u32>,
+    ) -> Result<(Frame, StatsImage)> {
+        if let Engine::Cpu(_) = self.engine {
+            return Err(Error::InvalidArgument(
+                "the CPU backend does not keep the statistics it denoised: use the GPU".into(),
+            ));
+        }
+        let (frame, stats) = self.denoise_kept(Image::Borrowed(img), budget, true)?;
+        let stats = match stats {
+            Some(s) => s,
+            None => self.statistics()?,
+        };
+        Ok((frame, stats))
+    }
+
     fn denoise_image(&self, img: Image<'_>, budget: Option<u32>) -> Result<Frame> {
+        Ok(self.denoise_kept(img, budget, false)?.0)
+    }
+
+    /// The denoise call; with `statistics`, a tiled denoiser also returns
+    /// the statistics of its tiles' interiors.
+    fn denoise_kept(
+        &self,
+        img: Image<'_>,
+        budget: Option<u32>,
+        statistics: bool,
+    ) -> Result<(Frame, Option<StatsImage>)> {
         let req = |b| {
             let mut r = self.config.request(b);
             r.budget = budget;
             r
         };
         let (w, h) = (img.get().width, img.get().height);
+        let mut kept = None;
         let out = match &self.engine {
             Engine::Gpu(chain) => {
                 let report = methods::prepare::base_report(img.get());
@@ -504,13 +540,17 @@ impl Denoiser {
                 drop(img);
                 methods::run_uploaded(chain, report, &req(Backend::Gpu), self.progress.as_ref())?
             }
-            Engine::Tiled(t) => t.denoise(
-                img.get(),
-                budget,
-                self.config.debug,
-                self.config.progress,
-                self.progress.as_ref(),
-            )?,
+            Engine::Tiled(t) => {
+                let (out, stats) = t.denoise(
+                    img.get(),
+                    budget,
+                    (self.config.debug, statistics),
+                    self.config.progress,
+                    self.progress.as_ref(),
+                )?;
+                kept = stats;
+                out
+            }
             Engine::Cpu(source) => {
                 let img = img.get();
                 if source != &Source::of_image(img) {
@@ -525,7 +565,7 @@ impl Denoiser {
         if let Engine::Gpu(_) | Engine::Tiled(_) = self.engine {
             self.sampled.store(budget.is_some(), Ordering::SeqCst);
         }
-        Ok(Frame {
+        let frame = Frame {
             color: out.color,
             error: out.error.unwrap_or_else(|| RgbImage::new(w, h)),
             dim: out.dim,
@@ -534,7 +574,8 @@ impl Denoiser {
             report: out.report,
             timings: out.timings,
             stats: out.stats,
-        })
+        };
+        Ok((frame, kept))
     }
 }
 

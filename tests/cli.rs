@@ -470,3 +470,42 @@ fn denoise_frames_continues_past_a_bad_frame_and_resumes() {
     assert_eq!(code, 2);
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// `mcdenoise prefilter` writes readable statistics with every input layer;
+/// in tiles (`--tile`) the file is byte-identical; it refuses to overwrite
+/// its input.
+#[test]
+fn prefilter_writes_the_same_statistics_whole_and_tiled() {
+    let dir = tmpdir("prefilter");
+    let input = fixture("dof_checker_64_spp16.exr");
+    let (whole, tiled) = (dir.join("whole.exr"), dir.join("tiled.exr"));
+    for (out, extra) in [(&whole, vec![]), (&tiled, vec!["--tile", "24"])] {
+        let (code, _, err) = run(bin()
+            .args(["-q", "prefilter"])
+            .arg(&input)
+            .arg("-o")
+            .arg(out)
+            .args(&extra));
+        assert_eq!(code, 0, "{err}");
+    }
+    let a = std::fs::read(&whole).unwrap();
+    assert_eq!(a, std::fs::read(&tiled).unwrap(), "tiled output differs");
+    let stats = mcdenoise::io::read_stats(&whole).unwrap();
+    let raw = mcdenoise::io::read_stats(&input).unwrap();
+    for (layer, _) in raw.layers() {
+        assert!(stats.has(layer), "{} missing", layer.name());
+    }
+    // The prefilter replaced the normals.
+    assert_ne!(
+        stats.get(mcdenoise::image::Layer::Normal),
+        raw.get(mcdenoise::image::Layer::Normal)
+    );
+    let (code, _, err) = run(bin()
+        .args(["-q", "prefilter"])
+        .arg(&input)
+        .arg("-o")
+        .arg(&input));
+    assert_ne!(code, 0);
+    assert!(err.contains("refusing to overwrite"), "{err}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

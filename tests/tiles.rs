@@ -498,3 +498,48 @@ fn a_wlr_ring_wider_than_a_binding_is_a_limit_error() {
     assert!(Denoiser::new(&ctx, Source::of_image(&img), tiled).is_ok());
     check_validation(&ctx);
 }
+
+/// What `mcdenoise prefilter` writes, tiled: the sanitised, prefiltered
+/// statistics gathered from the tiles' interiors equal, bit for bit, those
+/// of one chain over the whole image (every layer, along both axes).
+#[test]
+fn tiled_statistics_are_those_of_one_chain() {
+    let ctx = gpu();
+    for (w, h) in [(160, 24), (24, 160)] {
+        let img = strip(w, h);
+        let mut config = Config::new(Method::None);
+        config.prefilter = Prefilter::On;
+        let whole = Denoiser::new(&ctx, Source::of_image(&img), config.clone()).unwrap();
+        assert!(whole.tiles().is_none());
+        let (_, a) = whole.denoise_with_statistics(&img, None).unwrap();
+        let tiled = Denoiser::new(
+            &ctx,
+            Source::of_image(&img),
+            Config {
+                tile: Some(40),
+                ..config
+            },
+        )
+        .unwrap();
+        assert!(tiled.tiles().is_some_and(|(t, _)| t.len() > 1));
+        let (_, b) = tiled.denoise_with_statistics(&img, None).unwrap();
+        let la: Vec<Layer> = a.layers().map(|(l, _)| l).collect();
+        let lb: Vec<Layer> = b.layers().map(|(l, _)| l).collect();
+        assert_eq!(la, lb, "{w}x{h}: layers");
+        assert!(la.contains(&Layer::Normal) && la.contains(&Layer::ColorVariance));
+        for (layer, planes) in a.layers() {
+            for (c, (pa, pb)) in planes.iter().zip(b.get(layer).unwrap()).enumerate() {
+                let diff = pa
+                    .iter()
+                    .zip(pb)
+                    .position(|(x, y)| x.to_bits() != y.to_bits());
+                assert!(
+                    diff.is_none(),
+                    "{w}x{h} {}[{c}]: pixel {diff:?}",
+                    layer.name()
+                );
+            }
+        }
+    }
+    check_validation(&ctx);
+}

@@ -522,10 +522,10 @@ impl TiledChain {
         &self,
         img: &StatsImage,
         budget: Option<u32>,
-        debug: bool,
+        (debug, statistics): (bool, bool),
         batch_progress: bool,
         progress: Option<&ProgressCallback>,
-    ) -> Result<DenoiseOutput> {
+    ) -> Result<(DenoiseOutput, Option<StatsImage>)> {
         let (w, h) = (self.width, self.height);
         let layers: Vec<Layer> = img.layers().map(|(l, _)| l).collect();
         if (img.width, img.height) != (w, h) || layers != self.layers {
@@ -546,6 +546,8 @@ impl TiledChain {
         let mut report = prepare::base_report(img);
         let mut timings: Vec<KernelTiming> = Vec::new();
         let mut centres = 0.0f64;
+        // The sanitised (and prefiltered) statistics of every tile's interior.
+        let mut clean: Option<StatsImage> = None;
         // Group the tiles by outer size: one chain per size, one at a time.
         let mut groups: BTreeMap<(usize, usize), Vec<usize>> = BTreeMap::new();
         for (i, t) in self.tiles.iter().enumerate() {
@@ -578,6 +580,17 @@ impl TiledChain {
                 let out = chain.download_in(debug, Some(local))?;
                 for (total, c) in report.counters.iter_mut().zip(chain.counters()?) {
                     *total += c;
+                }
+                if statistics {
+                    let tile = chain.clean().download()?;
+                    let all = clean.get_or_insert_with(|| {
+                        let mut all = StatsImage::new(w, h);
+                        for (layer, planes) in tile.layers() {
+                            all.set(layer, vec![vec![0.0; n]; planes.len()]);
+                        }
+                        all
+                    });
+                    paste_stats(all, &tile, local, t.inner);
                 }
                 paste_rgb(&mut color, &out.color, t.inner);
                 paste_rgb(&mut error, &out.error, t.inner);
@@ -620,7 +633,7 @@ impl TiledChain {
         if self.config.method == Method::None {
             report.timings = timings.clone();
         }
-        Ok(DenoiseOutput {
+        let out = DenoiseOutput {
             color,
             error: Some(error),
             dim,
@@ -629,7 +642,8 @@ impl TiledChain {
             report,
             timings,
             stats,
-        })
+        };
+        Ok((out, clean))
     }
 
     /// §9.2 on the whole image's priority map.
@@ -655,6 +669,19 @@ impl TiledChain {
         )?;
         timings.extend(batch.finish()?);
         sampling::download(&planes)
+    }
+}
+
+/// Pastes the rectangle `from` of the tile's statistics `tile` into `all`
+/// at `at` (same size), layer by layer.
+fn paste_stats(all: &mut StatsImage, tile: &StatsImage, from: Rect, at: Rect) {
+    let width = all.width;
+    for (layer, planes) in tile.layers() {
+        if let Some(dst) = all.get_mut(layer) {
+            for (d, p) in dst.iter_mut().zip(planes) {
+                paste(d, width, &crop(p, tile.width, from), at);
+            }
+        }
     }
 }
 
