@@ -3,12 +3,17 @@
 //! ```text
 //! channel_mean  color_variance R,G,B → vbar
 //! wlr_fit       steps 1–7: TSVD, curvature → b_j, five trial fits, parametric fits, h_opt
+//!               (and each centre's local space and b_j, for wlr_final)
 //! gauss_smooth  step 8: hbar = G_1(h_opt)
 //! wlr_final     steps 9–10: final fit with hbar, MSE
 //! ```
 //!
 //! [`record_wlr`] records them on GPU-resident, sanitised statistics
-//! ([`GpuStats`]); [`run_cpu`] runs the scalar twins in the same order.
+//! ([`GpuStats`]), 8 rows at a time: `wlr_fit` runs 8 rows ahead of the
+//! smoothing's column pass and `wlr_final`, so the centre states live in a
+//! ring of 16 rows. [`run_cpu`] runs the scalar twins in the same order,
+//! each over the whole image (the twin of `wlr_final` recomputes the local
+//! space: the same values).
 
 use std::sync::Arc;
 
