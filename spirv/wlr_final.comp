@@ -26,30 +26,27 @@ layout(push_constant) uniform Push {
     uint pad2;
 } push;
 
-PLANE_IN(0, nx)
-PLANE_IN(1, ny)
-PLANE_IN(2, nz)
-PLANE_IN(3, dep)
-PLANE_IN(4, ar)
-PLANE_IN(5, ag)
-PLANE_IN(6, ab)
-PLANE_IN(7, col_r)
-PLANE_IN(8, col_g)
-PLANE_IN(9, col_b)
-PLANE_IN(10, vbar_p)
-PLANE_IN(11, spp)
-PLANE_IN(12, hbar_p)
-PLANE_IN(13, lambda1_p)
-PLANE_IN(14, kappa0_p)
-PLANE_IN(15, kappa1_p)
-PLANE_IN(16, kflags_p)
-layout(std430, set = 0, binding = 17) readonly buffer state_blk { real4 state[]; };
+// The features packed by gbf_pack, as in wlr_fit.comp (the variances are
+// not read: only the TSVD reads them, and wlr_fit's is reused).
+layout(std430, set = 0, binding = 0) readonly buffer fa_blk { vec4 fa[]; };
+layout(std430, set = 0, binding = 1) readonly buffer fb_blk { vec4 fb[]; };
+PLANE_IN(2, col_r)
+PLANE_IN(3, col_g)
+PLANE_IN(4, col_b)
+PLANE_IN(5, vbar_p)
+PLANE_IN(6, spp)
+PLANE_IN(7, hbar_p)
+PLANE_IN(8, lambda1_p)
+PLANE_IN(9, kappa0_p)
+PLANE_IN(10, kappa1_p)
+PLANE_IN(11, kflags_p)
+layout(std430, set = 0, binding = 12) readonly buffer state_blk { real4 state[]; };
 #define WLR_STATE_IN
-PLANE_OUT(18, out_r)
-PLANE_OUT(19, out_g)
-PLANE_OUT(20, out_b)
-PLANE_OUT(21, mse_out)
-PLANE_OUT(22, flags_out)
+PLANE_OUT(13, out_r)
+PLANE_OUT(14, out_g)
+PLANE_OUT(15, out_b)
+PLANE_OUT(16, mse_out)
+PLANE_OUT(17, flags_out)
 
 #define WLR_NFIT 1
 
@@ -61,15 +58,17 @@ PLANE_OUT(22, flags_out)
 bool load_features(ivec2 p, out real x[9], out real e2[9])
 {
     uint i = uint(p.y) * push.width + uint(p.x);
+    vec4 a = fa[i];
+    vec4 b = fb[i];
     x[0] = real(p.x);
     x[1] = real(p.y);
-    x[2] = real(nx[i]);
-    x[3] = real(ny[i]);
-    x[4] = real(nz[i]);
-    x[5] = real(dep[i]);
-    x[6] = real(ar[i]);
-    x[7] = real(ag[i]);
-    x[8] = real(ab[i]);
+    x[2] = real(a.x);
+    x[3] = real(a.y);
+    x[4] = real(a.z);
+    x[5] = real(a.w);
+    x[6] = real(b.x);
+    x[7] = real(b.y);
+    x[8] = real(b.z);
     for (int j = 0; j < 9; ++j) {
         e2[j] = real(0);
     }

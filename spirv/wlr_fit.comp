@@ -26,35 +26,28 @@ layout(push_constant) uniform Push {
     uint pad2;
 } push;
 
-PLANE_IN(0, nx)
-PLANE_IN(1, ny)
-PLANE_IN(2, nz)
-PLANE_IN(3, dep)
-PLANE_IN(4, ar)
-PLANE_IN(5, ag)
-PLANE_IN(6, ab)
-PLANE_IN(7, v_nx)
-PLANE_IN(8, v_ny)
-PLANE_IN(9, v_nz)
-PLANE_IN(10, v_dep)
-PLANE_IN(11, v_ar)
-PLANE_IN(12, v_ag)
-PLANE_IN(13, v_ab)
-PLANE_IN(14, col_r)
-PLANE_IN(15, col_g)
-PLANE_IN(16, col_b)
-PLANE_IN(17, vbar_p)
-PLANE_IN(18, spp)
-PLANE_OUT(19, h_opt_out)
-PLANE_OUT(20, lambda1_out)
-PLANE_OUT(21, kappa0_out)
-PLANE_OUT(22, kappa1_out)
-PLANE_OUT(23, kflags_out)
-PLANE_OUT(24, b1_out)
-PLANE_OUT(25, b2_out)
-PLANE_OUT(26, b3_out)
+// The features and their variances, packed by gbf_pack: (normal xyz,
+// depth), (albedo rgb, 0), and the same of the variances; one vec4 load
+// instead of four scalar ones (llvmpipe pays per load).
+layout(std430, set = 0, binding = 0) readonly buffer fa_blk { vec4 fa[]; };
+layout(std430, set = 0, binding = 1) readonly buffer fb_blk { vec4 fb[]; };
+layout(std430, set = 0, binding = 2) readonly buffer va_blk { vec4 va[]; };
+layout(std430, set = 0, binding = 3) readonly buffer vb_blk { vec4 vb[]; };
+PLANE_IN(4, col_r)
+PLANE_IN(5, col_g)
+PLANE_IN(6, col_b)
+PLANE_IN(7, vbar_p)
+PLANE_IN(8, spp)
+PLANE_OUT(9, h_opt_out)
+PLANE_OUT(10, lambda1_out)
+PLANE_OUT(11, kappa0_out)
+PLANE_OUT(12, kappa1_out)
+PLANE_OUT(13, kflags_out)
+PLANE_OUT(14, b1_out)
+PLANE_OUT(15, b2_out)
+PLANE_OUT(16, b3_out)
 // The centre state for wlr_final (lib/wlr.glsl, WLR_STATE_OUT).
-layout(std430, set = 0, binding = 27) buffer state_blk { real4 state[]; };
+layout(std430, set = 0, binding = 17) buffer state_blk { real4 state[]; };
 #define WLR_STATE_OUT
 
 #define WLR_NFIT 5
@@ -71,24 +64,28 @@ layout(std430, set = 0, binding = 27) buffer state_blk { real4 state[]; };
 bool load_features(ivec2 p, out real x[9], out real e2[9])
 {
     uint i = uint(p.y) * push.width + uint(p.x);
+    vec4 a = fa[i];
+    vec4 b = fb[i];
+    vec4 u = va[i];
+    vec4 v = vb[i];
     x[0] = real(p.x);
     x[1] = real(p.y);
-    x[2] = real(nx[i]);
-    x[3] = real(ny[i]);
-    x[4] = real(nz[i]);
-    x[5] = real(dep[i]);
-    x[6] = real(ar[i]);
-    x[7] = real(ag[i]);
-    x[8] = real(ab[i]);
+    x[2] = real(a.x);
+    x[3] = real(a.y);
+    x[4] = real(a.z);
+    x[5] = real(a.w);
+    x[6] = real(b.x);
+    x[7] = real(b.y);
+    x[8] = real(b.z);
     e2[0] = real(0);
     e2[1] = real(0);
-    e2[2] = real(v_nx[i]);
-    e2[3] = real(v_ny[i]);
-    e2[4] = real(v_nz[i]);
-    e2[5] = real(v_dep[i]);
-    e2[6] = real(v_ar[i]);
-    e2[7] = real(v_ag[i]);
-    e2[8] = real(v_ab[i]);
+    e2[2] = real(u.x);
+    e2[3] = real(u.y);
+    e2[4] = real(u.z);
+    e2[5] = real(u.w);
+    e2[6] = real(v.x);
+    e2[7] = real(v.y);
+    e2[8] = real(v.z);
     return spp_of(spp[i]) >= 1.0;
 }
 

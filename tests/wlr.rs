@@ -20,8 +20,9 @@ use mcdenoise::shared::{
     WLR_REJECT,
 };
 
-/// The 19 input planes of `wlr_fit` (bindings 0..18): 7 features, their 7
-/// variances, colour R, G, B, vbar, spp.
+/// The 19 input planes of WLR: 7 features, their 7 variances, colour R, G,
+/// B, vbar, spp (the kernels get the features and variances packed,
+/// [`packed`]).
 #[derive(Clone)]
 struct Scene {
     w: usize,
@@ -30,9 +31,6 @@ struct Scene {
 }
 
 impl Scene {
-    fn inputs(&self) -> Vec<&[f32]> {
-        self.planes.iter().map(|p| p.as_slice()).collect()
-    }
     fn feat(&self) -> [&[f32]; 7] {
         std::array::from_fn(|k| self.planes[k].as_slice())
     }
@@ -194,6 +192,25 @@ fn state_words(sc: &Scene, p: Precision) -> usize {
     sc.w * sc.h * wlr_fit::STATE_WORDS * word
 }
 
+/// The features and their variances as `gbf_pack` packs them for the WLR
+/// kernels: (normal xyz, depth), (albedo rgb, 0), and the same of the
+/// variances, as 4 vec4 planes.
+fn packed(sc: &Scene) -> [Vec<f32>; 4] {
+    let n = sc.w * sc.h;
+    let (f, v) = (sc.feat(), sc.var());
+    let pack = |p: [&[f32]; 7], first: usize| -> Vec<f32> {
+        (0..n)
+            .flat_map(|i| {
+                (0..4).map(move |c| match first + c {
+                    j if j < 7 => p[j][i],
+                    _ => 0.0,
+                })
+            })
+            .collect()
+    };
+    [pack(f, 0), pack(f, 4), pack(v, 0), pack(v, 4)]
+}
+
 /// GPU `wlr_fit` over the whole image: its 8 maps and its centre state.
 fn gpu_fit(sc: &Scene, push: &WlrPush, p: Precision) -> (Vec<Vec<f32>>, Vec<f32>) {
     let push = WlrPush {
@@ -202,6 +219,10 @@ fn gpu_fit(sc: &Scene, push: &WlrPush, p: Precision) -> (Vec<Vec<f32>>, Vec<f32>
     };
     let mut outs = vec![sc.w * sc.h; 8];
     outs.push(state_words(sc, p));
+    let pk = packed(sc);
+    let mut inputs: Vec<&[f32]> = pk.iter().map(|v| v.as_slice()).collect();
+    inputs.extend(sc.color());
+    inputs.extend([sc.vbar(), sc.spp()]);
     let (mut o, _) = run_planes(
         &gpu(),
         &wlr_fit::DECL,
@@ -209,7 +230,7 @@ fn gpu_fit(sc: &Scene, push: &WlrPush, p: Precision) -> (Vec<Vec<f32>>, Vec<f32>
         bytemuck::bytes_of(&push),
         sc.w,
         sc.h,
-        &sc.inputs(),
+        &inputs,
         &outs,
         wlr_fit::flops_per_pixel(push.radius),
     )
@@ -232,7 +253,8 @@ fn gpu_final(
         ring_rows: sc.h as u32,
         ..*push
     };
-    let mut inputs: Vec<&[f32]> = sc.feat().to_vec();
+    let pk = packed(sc);
+    let mut inputs: Vec<&[f32]> = vec![&pk[0], &pk[1]];
     inputs.extend(sc.color());
     inputs.extend([sc.vbar(), sc.spp(), hbar]);
     inputs.extend(fit);

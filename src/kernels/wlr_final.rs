@@ -4,7 +4,7 @@
 //! clamped `>= 0`, and `MSE_c` from the model stored by `wlr_fit`. Twin:
 //! [`crate::reference::wlr_final`].
 //!
-//! Outputs (bindings 18..22): R, G, B; `mse`; `flags` as a float: `wlr_fit`'s
+//! Outputs (bindings 13..17): R, G, B; `mse`; `flags` as a float: `wlr_fit`'s
 //! flags | bit 1 FEW in the final fit | bit 0 SOLVE-FAIL (output `y_c`,
 //! `mse = vbar_c`) | bit 5 invalid pixel (`spp < 1`: mean colour of its valid
 //! 3×3 neighbours clamped `>= 0`, `mse = 0`).
@@ -19,13 +19,8 @@ use crate::shared::WlrPush;
 pub const DECL: KernelDecl = KernelDecl {
     name: "wlr_final",
     bindings: &[
-        read("normal_x"),
-        read("normal_y"),
-        read("normal_z"),
-        read("depth"),
-        read("albedo_r"),
-        read("albedo_g"),
-        read("albedo_b"),
+        read("features_a"),
+        read("features_b"),
         read("color_r"),
         read("color_g"),
         read("color_b"),
@@ -61,7 +56,8 @@ pub fn flops_per_pixel(radius: u32) -> f64 {
 
 /// Records `wlr_final` over the rows `rows = [first, end)` (`first` a
 /// multiple of 8) of a `width × height` image. Inputs as
-/// [`super::wlr_fit::record`] without the variances, plus `hbar = G_1(h_opt)`
+/// [`super::wlr_fit::record`] without the packed variances (`packed` = the
+/// first two of its four planes), plus `hbar = G_1(h_opt)`
 /// (`gauss_smooth` with σ = 1), `fit` = the `λ1`, `κ0`, `κ1`, `kflags` maps of
 /// `wlr_fit` and its centre state ring (same `radius`, `options`,
 /// `ring_rows`, and still holding these rows). `out` = the 5 maps of
@@ -73,7 +69,7 @@ pub fn record(
     (width, height): (u32, u32),
     rows: (u32, u32),
     (radius, options): (u32, u32),
-    features: [BufferSlice; 7],
+    packed: [BufferSlice; 2],
     color: [BufferSlice; 3],
     vbar: BufferSlice,
     spp: BufferSlice,
@@ -90,8 +86,8 @@ pub fn record(
         ring_rows,
         ..Default::default()
     };
-    let mut b = Vec::with_capacity(23);
-    b.extend_from_slice(&features);
+    let mut b = Vec::with_capacity(18);
+    b.extend_from_slice(&packed);
     b.extend_from_slice(&color);
     b.push(vbar);
     b.push(spp);

@@ -8,7 +8,7 @@
 //! `hbar` (for `κ1 <= 0`, `k = 0` and SOLVE-FAIL of the curvature fit:
 //! `λ1 = κ1 = 0`, `κ0 = n_c·MSE_fixed`); `kflags = k + 16·flags` (§2.5 bits
 //! 0, 2, 3, 4); `b_1..b_3` (debug, 0 for `j >= k`). Invalid centre: all 0.
-//! Binding 27, `state`: per centre with `k >= 1`, the local space and the
+//! Binding 17, `state`: per centre with `k >= 1`, the local space and the
 //! `b_j` that `wlr_final` reads back instead of recomputing them
 //! ([`STATE_WORDS`] per pixel, in a ring of [`WlrPush::ring_rows`] rows).
 
@@ -22,20 +22,10 @@ use crate::shared::WlrPush;
 pub const DECL: KernelDecl = KernelDecl {
     name: "wlr_fit",
     bindings: &[
-        read("normal_x"),
-        read("normal_y"),
-        read("normal_z"),
-        read("depth"),
-        read("albedo_r"),
-        read("albedo_g"),
-        read("albedo_b"),
-        read("var_normal_x"),
-        read("var_normal_y"),
-        read("var_normal_z"),
-        read("var_depth"),
-        read("var_albedo_r"),
-        read("var_albedo_g"),
-        read("var_albedo_b"),
+        read("features_a"),
+        read("features_b"),
+        read("variances_a"),
+        read("variances_b"),
         read("color_r"),
         read("color_g"),
         read("color_b"),
@@ -79,8 +69,9 @@ pub fn flops_per_pixel(radius: u32) -> f64 {
 /// Records `wlr_fit` over the rows `rows = [first, end)` (`first` a multiple
 /// of 8) of a `width × height` image with window radius `radius` (5
 /// intermediate, 9 final) and `options` ([`WlrPush::options`] bits).
-/// `features` = normal xyz, depth, albedo rgb; `variances` in the same order;
-/// `color` = R, G, B; `vbar` = mean colour variance; `out` = the 8 maps of
+/// `packed` = the features (normal xyz, depth, albedo rgb) and their
+/// variances as `gbf_pack` packs them (4 vec4 planes); `color` = R, G, B;
+/// `vbar` = mean colour variance; `out` = the 8 maps of
 /// [`OUTPUTS`]; `state` = a ring of `ring_rows` rows of [`STATE_WORDS`]
 /// per pixel, which must hold the rows `wlr_final` will read.
 #[allow(clippy::too_many_arguments)]
@@ -90,8 +81,7 @@ pub fn record(
     (width, height): (u32, u32),
     rows: (u32, u32),
     (radius, options): (u32, u32),
-    features: [BufferSlice; 7],
-    variances: [BufferSlice; 7],
+    packed: [BufferSlice; 4],
     color: [BufferSlice; 3],
     vbar: BufferSlice,
     spp: BufferSlice,
@@ -106,9 +96,8 @@ pub fn record(
         ring_rows,
         ..Default::default()
     };
-    let mut b = Vec::with_capacity(28);
-    b.extend_from_slice(&features);
-    b.extend_from_slice(&variances);
+    let mut b = Vec::with_capacity(18);
+    b.extend_from_slice(&packed);
     b.extend_from_slice(&color);
     b.push(vbar);
     b.push(spp);

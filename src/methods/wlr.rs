@@ -22,7 +22,7 @@ use super::Pass;
 use crate::error::{Error, Result};
 use crate::gpu::{Batch, BufferSlice, GpuBuffer, GpuContext, PlaneSet, Precision};
 use crate::image::{Layer, RgbImage, StatsImage};
-use crate::kernels::{channel_mean, gauss_smooth, wlr_final, wlr_fit};
+use crate::kernels::{channel_mean, gauss_smooth, gbf_pack, wlr_final, wlr_fit};
 use crate::options::Options;
 use crate::reference;
 use crate::shared::{
@@ -87,8 +87,11 @@ const HBAR: usize = 5;
 const OUT0: usize = 6; // R, G, B, mse, flags
 
 /// Scratch planes, dead once `wlr_final` has run: vbar, the MSE model `λ1`,
-/// `κ0`, `κ1` (`wlr_fit` → `wlr_final`), the row sums of the smoothing.
+/// `κ0`, `κ1` (`wlr_fit` → `wlr_final`), the row sums of the smoothing;
+/// after them the features and their variances packed by `gbf_pack` (4
+/// vec4 planes: the kernels load a vec4 instead of four scalars).
 const SCRATCH: usize = 6;
+const PACKED: usize = 4;
 const VBAR: usize = 0;
 const MODEL: usize = 1; // λ1, κ0, κ1
 const SMOOTH: usize = 4; // numerator, weights
@@ -113,6 +116,8 @@ pub struct WlrPlanes {
     pub set: PlaneSet,
     /// The [`SCRATCH`] planes (in the chain's arena when it has one).
     scratch: PlaneSet,
+    /// The [`PACKED`] vec4 planes, after them.
+    packed: PlaneSet,
     /// The ring of centre states `wlr_fit` leaves for `wlr_final`
     /// ([`wlr_fit::STATE_WORDS`] per pixel, `ring_rows` rows). A buffer of
     /// its own: in the arena, its size (∝ width) would bend the tiler's
@@ -149,13 +154,20 @@ impl WlrPlanes {
                 "WLR's centre-state ring for a width of {width} pixels ({ring_rows} rows, {ring_bytes} bytes, one binding) exceeds maxStorageBufferRange ({limit} bytes); denoise in tiles (--tile)"
             )));
         }
-        let scratch = match arena {
-            Some(a) => PlaneSet::view(a, 0, n, SCRATCH)?,
-            None => PlaneSet::new(ctx, "wlr.scratch", n, SCRATCH)?,
+        let (scratch, packed) = match arena {
+            Some(a) => (
+                PlaneSet::view(a, 0, n, SCRATCH)?,
+                PlaneSet::view(a, PlaneSet::bytes(n, SCRATCH), 4 * n, PACKED)?,
+            ),
+            None => (
+                PlaneSet::new(ctx, "wlr.scratch", n, SCRATCH)?,
+                PlaneSet::new(ctx, "wlr.packed", 4 * n, PACKED)?,
+            ),
         };
         Ok(WlrPlanes {
             set: PlaneSet::new(ctx, "wlr", n, PLANES.len())?,
             scratch,
+            packed,
             state: PlaneSet::new(ctx, "wlr.state", (ring_bytes / 4) as usize, 1)?,
             ring_rows,
         })
@@ -163,7 +175,8 @@ impl WlrPlanes {
 
     /// Bytes of the scratch an arena must hold for a `width × height` image.
     pub fn scratch_bytes((width, height): (usize, usize)) -> u64 {
-        PlaneSet::bytes(width * height, SCRATCH)
+        let n = width * height;
+        PlaneSet::bytes(n, SCRATCH) + PlaneSet::bytes(4 * n, PACKED)
     }
 
     /// The output colour planes R, G, B.
@@ -236,6 +249,8 @@ pub fn record_wlr(
     let fit_in: [BufferSlice; 4] = [model[0], model[1], model[2], p(KFLAGS)];
     let out: [BufferSlice; 5] = std::array::from_fn(|k| p(OUT0 + k));
     let scratch = [q(SMOOTH), q(SMOOTH + 1)];
+    let packed: [BufferSlice; 4] = std::array::from_fn(|k| planes.packed.plane(k));
+    gbf_pack::record(batch, precision, w, h, (0, h), feat, var, packed)?;
     let ring = (planes.state.plane(0), planes.ring_rows);
     let wr = (params.radius, params.options);
     let size = (w, h);
@@ -254,8 +269,7 @@ pub fn record_wlr(
             size,
             (fitted, end),
             wr,
-            feat,
-            var,
+            packed,
             color,
             q(VBAR),
             spp,
@@ -290,7 +304,7 @@ pub fn record_wlr(
                 size,
                 (done, ready),
                 wr,
-                feat,
+                [packed[0], packed[1]],
                 color,
                 q(VBAR),
                 spp,
