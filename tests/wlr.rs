@@ -21,8 +21,8 @@ use mcdenoise::shared::{
 };
 
 /// The 19 input planes of WLR: 7 features, their 7 variances, colour R, G,
-/// B, vbar, spp (the kernels get the features and variances packed,
-/// [`packed`]).
+/// B, vbar, spp (the kernels get the features and variances packed, as
+/// `reference::gbf_pack` packs them).
 #[derive(Clone)]
 struct Scene {
     w: usize,
@@ -192,25 +192,6 @@ fn state_words(sc: &Scene, p: Precision) -> usize {
     sc.w * sc.h * wlr_fit::STATE_WORDS * word
 }
 
-/// The features and their variances as `gbf_pack` packs them for the WLR
-/// kernels: (normal xyz, depth), (albedo rgb, 0), and the same of the
-/// variances, as 4 vec4 planes.
-fn packed(sc: &Scene) -> [Vec<f32>; 4] {
-    let n = sc.w * sc.h;
-    let (f, v) = (sc.feat(), sc.var());
-    let pack = |p: [&[f32]; 7], first: usize| -> Vec<f32> {
-        (0..n)
-            .flat_map(|i| {
-                (0..4).map(move |c| match first + c {
-                    j if j < 7 => p[j][i],
-                    _ => 0.0,
-                })
-            })
-            .collect()
-    };
-    [pack(f, 0), pack(f, 4), pack(v, 0), pack(v, 4)]
-}
-
 /// GPU `wlr_fit` over the whole image: its 8 maps and its centre state.
 fn gpu_fit(sc: &Scene, push: &WlrPush, p: Precision) -> (Vec<Vec<f32>>, Vec<f32>) {
     let push = WlrPush {
@@ -219,7 +200,7 @@ fn gpu_fit(sc: &Scene, push: &WlrPush, p: Precision) -> (Vec<Vec<f32>>, Vec<f32>
     };
     let mut outs = vec![sc.w * sc.h; 8];
     outs.push(state_words(sc, p));
-    let pk = packed(sc);
+    let pk = reference::gbf_pack::gbf_pack(sc.feat(), sc.var());
     let mut inputs: Vec<&[f32]> = pk.iter().map(|v| v.as_slice()).collect();
     inputs.extend(sc.color());
     inputs.extend([sc.vbar(), sc.spp()]);
@@ -253,7 +234,7 @@ fn gpu_final(
         ring_rows: sc.h as u32,
         ..*push
     };
-    let pk = packed(sc);
+    let pk = reference::gbf_pack::gbf_pack(sc.feat(), sc.var());
     let mut inputs: Vec<&[f32]> = vec![&pk[0], &pk[1]];
     inputs.extend(sc.color());
     inputs.extend([sc.vbar(), sc.spp(), hbar]);

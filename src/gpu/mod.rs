@@ -7,10 +7,7 @@ pub mod context;
 pub mod pipeline;
 pub mod reflect;
 
-pub use batch::{
-    timings_per_kernel, Batch, KernelTiming, Progress, ProgressFn, Recorded,
-    DEFAULT_FLOPS_PER_SUBMIT,
-};
+pub use batch::{timings_per_kernel, Batch, KernelTiming, Progress, ProgressFn, Recorded};
 pub use buffer::{plane_stride, BufferSlice, GpuBuffer, PlaneSet, PLANE_ALIGN};
 pub use context::{
     choose_device, enumerate_devices, ContextOptions, DeviceInfo, GpuContext, ImportedDevice,
