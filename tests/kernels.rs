@@ -277,3 +277,21 @@ fn row_bands_and_submits_are_bit_identical() {
     }
     check_validation(&ctx);
 }
+
+/// `PlaneSet::download_strided` reads every `step`-th value of a plane in
+/// bounded chunks: the same values as a whole download, across several
+/// chunks and a last partial one, for a plane inside a set.
+#[test]
+fn strided_download_equals_a_whole_download() {
+    let ctx = gpu();
+    let n = (1 << 18) * 2 + 4 * 37;
+    let set = mcdenoise::gpu::PlaneSet::new(&ctx, "strided", n, 2).unwrap();
+    let a: Vec<f32> = (0..n).map(|i| i as f32 * 0.5).collect();
+    let b: Vec<f32> = (0..n).map(|i| -(i as f32)).collect();
+    set.upload_plane(0, &a).unwrap();
+    set.upload_plane(1, &b).unwrap();
+    for step in [1, 4] {
+        let want: Vec<f32> = b.iter().step_by(step).copied().collect();
+        assert_eq!(set.download_strided(1, step).unwrap(), want, "step {step}");
+    }
+}

@@ -538,6 +538,8 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
                     t0.elapsed().as_secs_f64()
                 );
             }
+            // The device memory goes before the writer needs its own.
+            drop(denoiser);
             let out = io::OutputImage {
                 color: result.color,
                 error: error.then_some(result.error),

@@ -596,6 +596,29 @@ impl PlaneSet {
         Ok(v)
     }
 
+    /// Every `step`-th f32 of plane `i` (values `0, step, 2·step, …`): the
+    /// first component of a vec4 plane with `step = 4`. Read in chunks of at
+    /// most 1 MiB, so the host never holds a copy of the whole plane.
+    pub fn download_strided(&self, i: usize, step: usize) -> Result<Vec<f32>> {
+        assert!(i < self.count && step > 0);
+        const CHUNK: usize = 1 << 18;
+        let mut out = Vec::with_capacity(self.pixels.div_ceil(step));
+        let mut buf = vec![0.0f32; CHUNK.min(self.pixels)];
+        let mut start = 0;
+        while start < self.pixels {
+            // Chunks start at multiples of `step` (CHUNK is a multiple of 4).
+            let len = (CHUNK - CHUNK % step).min(self.pixels - start);
+            let b = &mut buf[..len];
+            self.buffer.download(
+                self.offset(i) + start as u64 * 4,
+                bytemuck::cast_slice_mut(b),
+            )?;
+            out.extend(b.iter().step_by(step));
+            start += len;
+        }
+        Ok(out)
+    }
+
     /// Uploads all planes at once, each straight from its slice (no host
     /// copy of the set; see [`GpuBuffer::upload_regions`]).
     pub fn upload_all(&self, planes: &[&[f32]]) -> Result<()> {

@@ -325,8 +325,7 @@ pub fn download(planes: &LpPlanes, width: usize, height: usize) -> Result<LpResu
 /// The centre plane alone ([`LpResult::centre_pass`]: pass + 1 at centres,
 /// else 0), for the centre fraction when no debug layers are asked for.
 pub fn download_centre_pass(planes: &LpPlanes) -> Result<Vec<f32>> {
-    let state0 = planes.state.download_plane::<f32>(0)?;
-    Ok(state0.chunks_exact(4).map(|s| s[0]).collect())
+    planes.state.download_strided(0, 4)
 }
 
 /// The CPU path: the scalar twins in the order of [`record_lp`], on
