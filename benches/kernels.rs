@@ -311,9 +311,11 @@ fn main() {
         reference::lp_centres::lp_centres(&push, &planes, &reach, &mut state);
         t_centres += t.elapsed().as_secs_f64() * 1e9;
     }
+    // The reach over every pass's centres, for the gather.
     let push = LpPush {
         width: w as u32,
         height: h as u32,
+        pass: reference::lp::GRANULARITIES.len() as u32,
         ..Default::default()
     };
     let t = Instant::now();

@@ -4,7 +4,8 @@
 // entry, so every SIMD lane fits a centre): TSVD on the 19x19 window
 // (§0.6), RLS ring by ring with the recursive error estimate (§3.3-3.4),
 // r_opt; its 36-value state (reference::lp::StateLayout) goes to its own
-// pixel of the 9 vec4 state planes. Nothing else is written.
+// pixel of the 9 vec4 state planes (planes 1..8 a ring of rows,
+// LpPush::ring_rows). Nothing else is written.
 // Scalar twin: src/reference/lp_centres.rs (routines: src/reference/lp.rs).
 #include "lib/common.glsl"
 
@@ -20,6 +21,7 @@ layout(push_constant) uniform Push {
     uint options;
     uint out_stride;
     uint phase;
+    uint ring_rows;
 } push;
 
 PLANE_IN(0, nx)
@@ -115,14 +117,17 @@ void fit(uint i, ivec2 size)
         }
     }
     st0[i] = vec4(o[0], o[1], o[2], o[3]);
-    st1[i] = vec4(o[4], o[5], o[6], o[7]);
-    st2[i] = vec4(o[8], o[9], o[10], o[11]);
-    st3[i] = vec4(o[12], o[13], o[14], o[15]);
-    st4[i] = vec4(o[16], o[17], o[18], o[19]);
-    st5[i] = vec4(o[20], o[21], o[22], o[23]);
-    st6[i] = vec4(o[24], o[25], o[26], o[27]);
-    st7[i] = vec4(o[28], o[29], o[30], o[31]);
-    st8[i] = vec4(o[32], o[33], o[34], o[35]);
+    // Planes 1..8 are a ring of push.ring_rows rows (LpPush::ring_rows).
+    uint ring = push.ring_rows == 0u ? push.height : push.ring_rows;
+    uint r = (y % ring) * push.width + x;
+    st1[r] = vec4(o[4], o[5], o[6], o[7]);
+    st2[r] = vec4(o[8], o[9], o[10], o[11]);
+    st3[r] = vec4(o[12], o[13], o[14], o[15]);
+    st4[r] = vec4(o[16], o[17], o[18], o[19]);
+    st5[r] = vec4(o[20], o[21], o[22], o[23]);
+    st6[r] = vec4(o[24], o[25], o[26], o[27]);
+    st7[r] = vec4(o[28], o[29], o[30], o[31]);
+    st8[r] = vec4(o[32], o[33], o[34], o[35]);
 }
 
 void main()

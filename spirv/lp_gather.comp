@@ -30,6 +30,7 @@ layout(push_constant) uniform Push {
     uint options;
     uint out_stride;
     uint pad1;
+    uint ring_rows;
 } push;
 
 PLANE_IN(0, nx)
@@ -161,9 +162,13 @@ void main()
         real4 ub0 = real4(0), ub1 = real4(0);
         real3 u8 = real3(0);
         int count = 0;
+        // The reach plane and state planes 1..8 are rings of push.ring_rows
+        // rows (LpPush::ring_rows).
+        uint ring = push.ring_rows == 0u ? push.height : push.ring_rows;
         for (int qy = max(p.y - LP_RADIUS, 0); qy <= min(p.y + LP_RADIUS, size.y - 1); ++qy) {
+            uint rrow = (uint(qy) % ring) * push.width;
             // Rows whose reach cannot cover p hold no covering centre.
-            if (reach[uint(qy) * push.width + x] < float(abs(qy - p.y))) {
+            if (reach[rrow + x] < float(abs(qy - p.y))) {
                 continue;
             }
             uint row = uint(qy - org.y);
@@ -172,7 +177,7 @@ void main()
                 // r_opt (<= LP_RADIUS): the coverage test drops it.
                 uint col = t_list[row * uint(TILE) + e];
                 int qx = org.x + int(col);
-                uint q = uint(qy) * push.width + uint(qx);
+                uint q = rrow + uint(qx);
                 vec4 s0 = t_s0[row * uint(TILE) + col];
                 if (float(max(abs(qx - p.x), abs(qy - p.y))) > s0.y) {
                     continue;

@@ -15,7 +15,9 @@
 // Scalar twin: src/reference/lp_select.rs.
 #include "lib/common.glsl"
 
-layout(local_size_x = 8, local_size_y = 8) in;
+// One grid row per workgroup row, so a dispatch covers any range of grid
+// rows (the wavefront of methods::lp).
+layout(local_size_x = 64, local_size_y = 1) in;
 
 // Mirrors mcdenoise::shared::LpPush.
 layout(push_constant) uniform Push {
@@ -27,6 +29,7 @@ layout(push_constant) uniform Push {
     uint options;
     uint out_stride;
     uint phase;
+    uint ring_rows;
 } push;
 
 PLANE_IN(0, spp)
@@ -41,10 +44,12 @@ layout(std430, set = 0, binding = 2) buffer queue_blk { uint queue[]; };
 
 // Covered by a centre of an earlier pass (|p - c|_inf <= r_opt(c), §3.5):
 // some row y' within 9 has reach(p.x, y') >= |p.y - y'| (lp_reach.comp).
+// The reach plane is a ring of push.ring_rows rows (LpPush::ring_rows).
 bool covered(ivec2 p, ivec2 size)
 {
+    int ring = int(push.ring_rows == 0u ? push.height : push.ring_rows);
     for (int qy = max(p.y - LP_RADIUS, 0); qy <= min(p.y + LP_RADIUS, size.y - 1); ++qy) {
-        if (reach[qy * size.x + p.x] >= float(abs(qy - p.y))) {
+        if (reach[(qy % ring) * size.x + p.x] >= float(abs(qy - p.y))) {
             return true;
         }
     }

@@ -190,6 +190,13 @@ pub struct LpPush {
     /// candidates are the image's (spec §3.5: `px mod g = 0` in image
     /// coordinates; see [`LpPush::phase_for`]).
     pub phase: u32,
+    /// Rows of the ring that holds the state planes 1..8 and the `lp_reach`
+    /// plane: pixel row `y` lives at ring row `y mod ring_rows` (state plane
+    /// 0, the centre map, is whole). 0 = the image's height (no ring).
+    /// `record_lp` runs the passes as a wavefront over the rows, so a row's
+    /// state is dead `ring_rows` rows after it was made
+    /// (`methods::lp`, LP-RING).
+    pub ring_rows: u32,
 }
 
 impl LpPush {

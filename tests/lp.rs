@@ -171,8 +171,16 @@ fn twin_state(sc: &Scene, passes: usize) -> (Vec<Vec<f32>>, Vec<f32>) {
         rr::lp_reach(&push(sc, pass), &state[0], &mut reach);
         rc::lp_centres(&push(sc, pass), &sc.p(), &reach, &mut state);
     }
-    rr::lp_reach(&push(sc, 0), &state[0], &mut reach);
+    rr::lp_reach(&reach_all(sc), &state[0], &mut reach);
     (state, reach)
+}
+
+/// The push of the reach over every pass's centres (the gather's).
+fn reach_all(sc: &Scene) -> LpPush {
+    LpPush {
+        pass: rl::GRANULARITIES.len() as u32,
+        ..push(sc, 0)
+    }
 }
 
 /// Value `s` of every pixel's state.
@@ -188,21 +196,30 @@ fn lp_reach_matches_twin_exactly() {
     for &(w, h) in SIZES {
         let sc = synthetic(w, h, 3, 1.0);
         let (state, _) = twin_state(&sc, 3);
-        let mut cpu = vec![0.0f32; w * h];
-        rr::lp_reach(&push(&sc, 0), &state[0], &mut cpu);
-        let (out, _) = run_planes(
-            &ctx,
-            &lp_reach::DECL,
-            Precision::F32,
-            bytemuck::bytes_of(&push(&sc, 0)),
-            w,
-            h,
-            &[&state[0]],
-            &[w * h],
-            lp_reach::flops_per_pixel(),
-        )
-        .unwrap();
-        assert_eq!(out[0], cpu, "{w}x{h}");
+        // Before pass 2 (the centres of passes 0 and 1), and over all three.
+        for p in [
+            LpPush {
+                pass: 2,
+                ..push(&sc, 0)
+            },
+            reach_all(&sc),
+        ] {
+            let mut cpu = vec![0.0f32; w * h];
+            rr::lp_reach(&p, &state[0], &mut cpu);
+            let (out, _) = run_planes(
+                &ctx,
+                &lp_reach::DECL,
+                Precision::F32,
+                bytemuck::bytes_of(&p),
+                w,
+                h,
+                &[&state[0]],
+                &[w * h],
+                lp_reach::flops_per_pixel(),
+            )
+            .unwrap();
+            assert_eq!(out[0], cpu, "{w}x{h} before pass {}", p.pass);
+        }
     }
     check_validation(&ctx);
 }
@@ -372,6 +389,7 @@ fn run_centres_inplace(
         bindings[21],
         queue.slice(),
         std::array::from_fn(|k| bindings[22 + k]),
+        None,
     )?;
     batch.finish()?;
     let state = bufs[22..]
@@ -791,4 +809,115 @@ fn error_mode_paper_changes_the_choice() {
         centres(&paper)
     );
     assert!(centres(&paper) > centres(&varsub));
+}
+
+/// LP-RING: `record_lp`'s wavefront over the rows, on an image more than
+/// twice as tall as the state ring, gives bit for bit the outputs and the
+/// centre map of the spec's order (each pass over the whole image, then the
+/// gather), recorded here from the kernels with whole-image planes.
+#[test]
+fn the_row_wavefront_equals_pass_by_pass() {
+    use mcdenoise::gpu::{plane_stride, Batch, PlaneSet};
+    use mcdenoise::methods::stats::GpuStats;
+    let ctx = gpu();
+    let (w, h) = (29, 2 * mlp::RING_ROWS as usize + 37);
+    let n = w * h;
+    let sc = synthetic(w, h, 13, 1.0);
+    let stats = GpuStats::upload(&ctx, "lp.stats", &sc.image()).unwrap();
+    let params = mlp::LpParams::new(&Options::default()).unwrap();
+    let planes = mlp::LpPlanes::new(&ctx, w, h, None).unwrap();
+    assert!((planes.ring_rows as usize) < h / 2, "the ring wraps twice");
+    let mut batch = Batch::new(&ctx).unwrap();
+    // Small bands, so that the fits of a pass's band take several.
+    batch.max_flops_per_submit = 4.0 * lp_centres::flops_per_centre() * w as f64;
+    mlp::record_lp(&mut batch, Precision::F32, &stats, &planes, params).unwrap();
+    batch.finish().unwrap();
+    let ring = mlp::download(&planes, w, h).unwrap();
+
+    let inp = mlp::lp_inputs(&stats);
+    let state = PlaneSet::new(&ctx, "lp.state", 4 * n, S::PLANES).unwrap();
+    let reach = PlaneSet::new(&ctx, "lp.reach", n, 1).unwrap();
+    let queue = PlaneSet::new(&ctx, "lp.queue", lp_select::queue_words(w, h), 1).unwrap();
+    let out = PlaneSet::new(&ctx, "lp.out", n, lp_gather::OUTPUTS.len()).unwrap();
+    let st: [_; 9] = std::array::from_fn(|k| state.plane(k));
+    let whole = |pass: usize| LpPush {
+        width: w as u32,
+        height: h as u32,
+        granularity: rl::GRANULARITIES[pass.min(4)],
+        pass: pass as u32,
+        options: LP_VARSUB,
+        out_stride: (plane_stride(n) / 4) as u32,
+        ..Default::default()
+    };
+    let mut batch = Batch::new(&ctx).unwrap();
+    batch.fill(state.all(), 0);
+    for pass in 0..rl::GRANULARITIES.len() {
+        let p = whole(pass);
+        lp_reach::record(
+            &mut batch,
+            Precision::F32,
+            &p,
+            st[0],
+            reach.plane(0),
+            (0, h as u32),
+        )
+        .unwrap();
+        let (r, q) = (reach.plane(0), queue.plane(0));
+        lp_centres::record(&mut batch, Precision::F32, &p, &inp, r, q, st, None).unwrap();
+    }
+    let p = whole(rl::GRANULARITIES.len());
+    lp_reach::record(
+        &mut batch,
+        Precision::F32,
+        &p,
+        st[0],
+        reach.plane(0),
+        (0, h as u32),
+    )
+    .unwrap();
+    let (r, o) = (reach.plane(0), out.all());
+    lp_gather::record(
+        &mut batch,
+        Precision::F32,
+        &p,
+        &inp,
+        r,
+        st,
+        o,
+        (0, h as u32),
+    )
+    .unwrap();
+    batch.finish().unwrap();
+    let planes_out = out.download_all().unwrap();
+    let state0 = state.download_plane::<f32>(0).unwrap();
+    let centres: Vec<f32> = state0.chunks_exact(4).map(|s| s[0]).collect();
+
+    assert!(
+        ring.centre_pass.iter().any(|&p| p >= 3.0),
+        "later passes made centres"
+    );
+    // Bit for bit: the number of pixels that differ and the first of them.
+    let same = |what: &str, a: &[f32], b: &[f32]| {
+        let diff: Vec<usize> = (0..n)
+            .filter(|&q| a[q].to_bits() != b[q].to_bits())
+            .collect();
+        assert!(
+            diff.is_empty(),
+            "{what}: {} pixels differ, the first ({}, {}): {} against {}",
+            diff.len(),
+            diff[0] % w,
+            diff[0] / w,
+            a[diff[0]],
+            b[diff[0]]
+        );
+    };
+    same("centre map", &ring.centre_pass, &centres);
+    for c in 0..3 {
+        same("colour", &ring.color.planes[c], &planes_out[c]);
+        same("error", &ring.error.planes[c], &planes_out[3 + c]);
+        same("ΔMSE", &ring.dmse.planes[c], &planes_out[6 + c]);
+    }
+    same("coverage", &ring.coverage, &planes_out[9]);
+    same("dimension", &ring.dim, &planes_out[10]);
+    check_validation(&ctx);
 }

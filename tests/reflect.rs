@@ -43,6 +43,9 @@ fn every_kernel_matches_its_declaration() {
                 [mcdenoise::kernels::outlier_median::GROUP, 1, 1]
             } else if decl.name == "lp_centres" {
                 [mcdenoise::kernels::lp_centres::GROUP, 1, 1]
+            } else if decl.name == "lp_reach" || decl.name == "lp_select" {
+                // One row per workgroup row: any range of rows (LP-RING).
+                [64, 1, 1]
             } else {
                 [8, 8, 1]
             };

@@ -88,12 +88,14 @@ pub fn flops_per_centre() -> f64 {
 }
 
 /// Records one pass (`push.granularity`, `push.pass`; `push.width/height`
-/// are the image's) over its candidate grid, in bands of grid rows whose
-/// bound (every candidate a centre) stays within the batch's work per
+/// are the image's) over the grid rows `[first, end)` of its candidate grid
+/// ([`LpPush::centre_grid`]; `None`: all of them), in bands of grid rows
+/// whose bound (every candidate a centre) stays within the batch's work per
 /// submit: per band, [`super::lp_select`] into `queue` (of
 /// [`super::lp_select::queue_words`]), then the fits. `reach` is the
-/// `lp_reach` plane of the state before this pass; `state` the 9 vec4
-/// planes.
+/// `lp_reach` plane of the centres of earlier passes; `state` the 9 vec4
+/// planes (planes 1..8 and `reach` rings of [`LpPush::ring_rows`] rows).
+#[allow(clippy::too_many_arguments)]
 pub fn record(
     batch: &mut Batch,
     precision: Precision,
@@ -102,6 +104,7 @@ pub fn record(
     reach: BufferSlice,
     queue: BufferSlice,
     state: [BufferSlice; 9],
+    rows: Option<(u32, u32)>,
 ) -> Result<()> {
     let mut b = Vec::with_capacity(DECL.bindings.len());
     b.extend_from_slice(&inp.feat);
@@ -112,20 +115,18 @@ pub fn record(
     b.push(queue);
     b.extend_from_slice(&state);
     let (gw, gh) = push.centre_grid();
-    if gw == 0 || gh == 0 {
+    let (first, end) = rows.unwrap_or((0, gh));
+    let end = end.min(gh);
+    if gw == 0 || first >= end {
         return Ok(());
     }
     let row_flops = gw as f64 * flops_per_centre();
-    // Multiples of lp_select's workgroup height.
-    let band = ((batch.max_flops_per_submit / row_flops).floor() as u32)
-        .max(1)
-        .div_ceil(8)
-        * 8;
+    let band = ((batch.max_flops_per_submit / row_flops).floor() as u32).max(1);
     // Compulsory traffic of a band: its share of the bound ranges.
     let bytes: f64 = b.iter().map(|s| s.size() as f64).sum::<f64>() / gh as f64;
-    let mut row0 = 0;
-    while row0 < gh {
-        let rows = band.min(gh - row0);
+    let mut row0 = first;
+    while row0 < end {
+        let rows = band.min(end - row0);
         super::lp_select::record(
             batch,
             precision,

@@ -65,10 +65,13 @@ pub fn flops_per_pixel() -> f64 {
     19.0 * 4.0 + 5.0 * 19.0 * 4.0 + 30.0 * 100.0 + 60.0
 }
 
-/// Records the gather over the whole image; `state` = the 9 vec4 planes
-/// after the last pass, `reach` their `lp_reach` plane, `out` = one buffer
+/// Records the gather over the rows `[first, end)` (`first` a multiple of
+/// 8); `state` = the 9 vec4 planes once every pass is done within 9 rows of
+/// them (planes 1..8 and `reach` rings of [`LpPush::ring_rows`] rows),
+/// `reach` their `lp_reach` plane over every pass, `out` = one buffer
 /// holding the planes of [`OUTPUTS`], plane `k` at `k·push.out_stride` f32
 /// values.
+#[allow(clippy::too_many_arguments)]
 pub fn record(
     batch: &mut Batch,
     precision: Precision,
@@ -77,6 +80,7 @@ pub fn record(
     reach: BufferSlice,
     state: [BufferSlice; 9],
     out: BufferSlice,
+    rows: (u32, u32),
 ) -> Result<()> {
     let mut b = Vec::with_capacity(DECL.bindings.len());
     b.extend_from_slice(&inp.feat);
@@ -86,13 +90,13 @@ pub fn record(
     b.push(reach);
     b.extend_from_slice(&state);
     b.push(out);
-    batch.dispatch(
+    batch.dispatch_rows(
         &DECL,
         precision,
         &b,
         bytemuck::bytes_of(push),
         push.width,
-        push.height,
+        (rows, push.height),
         flops_per_pixel(),
     )
 }

@@ -1,6 +1,7 @@
 //! `lp_reach`: the horizontal half of LP's coverage test (spec §3.5): per
-//! pixel, the largest `r_opt` of the centres in its row that reach it
-//! horizontally (−1 if none); see its twin `reference::lp_reach`.
+//! pixel, the largest `r_opt` of the centres of earlier passes in its row
+//! that reach it horizontally (−1 if none); see its twin
+//! `reference::lp_reach`.
 
 use crate::error::Result;
 use crate::gpu::reflect::{read, write};
@@ -20,21 +21,25 @@ pub fn flops_per_pixel() -> f64 {
     19.0 * 4.0
 }
 
-/// Records `reach` from state plane 0 over the whole image.
+/// Records `reach` of the centres made before `push.pass` (PASS-SNAPSHOT;
+/// `push.pass` = 5 for all of them) from state plane 0, over the rows
+/// `[first, end)` (any range: one row per workgroup row), into `reach`, a
+/// ring of [`LpPush::ring_rows`] rows.
 pub fn record(
     batch: &mut Batch,
     precision: Precision,
     push: &LpPush,
     state0: BufferSlice,
     reach: BufferSlice,
+    rows: (u32, u32),
 ) -> Result<()> {
-    batch.dispatch(
+    batch.dispatch_rows(
         &DECL,
         precision,
         &[state0, reach],
         bytemuck::bytes_of(push),
         push.width,
-        push.height,
+        (rows, push.height),
         flops_per_pixel(),
     )
 }

@@ -34,8 +34,9 @@ pub fn flops_per_candidate() -> f64 {
 }
 
 /// Records the selection of the grid rows `rows` (`[first, end)` of
-/// [`LpPush::centre_grid`], `first` a multiple of 8) into `queue` (of
-/// [`queue_words`]; its header is reset here).
+/// [`LpPush::centre_grid`], any range: one grid row per workgroup row) into
+/// `queue` (of [`queue_words`]; its header is reset here). `reach` is a
+/// ring of [`LpPush::ring_rows`] rows.
 pub fn record(
     batch: &mut Batch,
     precision: Precision,

@@ -4,16 +4,17 @@
 //! ```text
 //! fill          state ← 0 (no centres)
 //! for g in 19, 9, 4, 2, 1 (pass t):
-//!   lp_reach    reach ← per pixel, the largest r_opt of the centres of its row
-//!               that reach it (PASS-SNAPSHOT: coverage from earlier passes only)
+//!   lp_reach    reach ← per pixel, the largest r_opt of the centres of earlier
+//!               passes in its row that reach it (PASS-SNAPSHOT)
 //!   lp_centres  on the candidate grid of g: uncovered candidates → TSVD + RLS + r_opt
-//! lp_reach      once more, for the gather
+//! lp_reach      once more, over every pass, for the gather
 //! lp_gather     every pixel: mean of the covering centres' predictions, error
 //!               (LP-FEATNOISE), local dimension d, ΔMSE
 //! ```
 //!
 //! [`record_lp`] records them on GPU-resident, sanitised statistics
-//! ([`GpuStats`]); [`run_cpu`] runs the scalar twins in the same order.
+//! ([`GpuStats`]) as a wavefront over the rows, with most of the state in a
+//! ring of rows (LP-RING); [`run_cpu`] runs the scalar twins pass by pass.
 //!
 //! US patent 9,892,549 B2 (Disney) covers this method.
 
@@ -65,28 +66,52 @@ impl LpParams {
             out_stride: (plane_stride(width * height) / 4) as u32,
             phase: LpPush::phase_for(GRANULARITIES[pass], self.origin),
             row0: 0,
+            ring_rows: 0,
         }
     }
 }
 
+/// Pixel rows per step of [`record_lp`]'s wavefront: each pass, and the
+/// gather, advances by one band of this height per step.
+pub const BAND_ROWS: u32 = 32;
+/// Rows by which each pass (and the gather) trails the one before it: at
+/// least LP's radius 9, so that a pass's candidates see every centre of the
+/// earlier passes that can cover them (PASS-SNAPSHOT).
+pub const LAG_ROWS: u32 = 16;
+/// Rows of the ring of state planes 1..8 and of the reach planes
+/// (LP-RING): a row's state is written at most `4·LAG_ROWS` rows behind the
+/// front and read by the gather up to `5·LAG_ROWS + 9` rows behind it, so a
+/// ring of more than `5·LAG_ROWS + BAND_ROWS + 9` rows never overwrites a
+/// row that is still to be read.
+pub const RING_ROWS: u32 = 128;
+const _: () = assert!(RING_ROWS > 5 * LAG_ROWS + BAND_ROWS + 9 && LAG_ROWS >= 9);
+const _: () = assert!(BAND_ROWS % 8 == 0 && LAG_ROWS % 8 == 0);
+
 /// GPU scratch and output planes of one LP run.
 #[derive(Debug)]
 pub struct LpPlanes {
-    /// The per-centre state: [`StateLayout::PLANES`] vec4 planes.
-    pub state: PlaneSet,
-    /// The `lp_reach` plane of the current state.
+    /// State plane 0 of every pixel (the centre map: `pass + 1`, `r_opt`,
+    /// `k`, `β0` R), vec4.
+    pub state0: PlaneSet,
+    /// State planes 1..8 ([`StateLayout`]), vec4, a ring of
+    /// [`ring_rows`](Self::ring_rows) rows (LP-RING).
+    pub ring: PlaneSet,
+    /// The `lp_reach` planes of the centres before each pass, and of all of
+    /// them for the gather (6), rings of [`ring_rows`](Self::ring_rows) rows.
     pub reach: PlaneSet,
     /// The queue of a band's centres (`lp_select` → `lp_centres`), u32.
     pub queue: PlaneSet,
     /// The outputs of [`lp_gather::OUTPUTS`] (bound as one buffer by the
     /// gather).
     pub out: PlaneSet,
+    /// Rows of the rings: [`RING_ROWS`], or the height if it is smaller.
+    pub ring_rows: u32,
 }
 
 impl LpPlanes {
     /// Allocates the planes for a `width × height` image. Fails with
-    /// [`Error::Limit`] if the output planes, bound as one buffer, exceed
-    /// `maxStorageBufferRange`.
+    /// [`Error::Limit`] if the output planes, bound as one buffer, or a ring
+    /// plane exceed `maxStorageBufferRange`.
     pub fn new(
         ctx: &Arc<GpuContext>,
         width: usize,
@@ -102,45 +127,66 @@ impl LpPlanes {
                 lp_gather::OUTPUTS.len()
             )));
         }
+        let ring_rows = Self::ring_rows(height);
+        let ring_px = width * ring_rows as usize;
+        if ring_px as u64 * 16 > limit {
+            return Err(Error::Limit(format!(
+                "LP's state ring of {ring_rows} rows of {width} pixels ({} bytes per plane) exceeds maxStorageBufferRange ({limit} bytes): use tiles (--tile)",
+                ring_px * 16
+            )));
+        }
         let q = lp_select::queue_words(width, height);
-        let (state, reach, queue) = match arena {
+        let (state0, queue) = match arena {
             Some(a) => (
-                PlaneSet::view(a, 0, 4 * n, StateLayout::PLANES)?,
-                PlaneSet::view(a, Self::state_bytes(n), n, 1)?,
-                PlaneSet::view(a, Self::state_bytes(n) + PlaneSet::bytes(n, 1), q, 1)?,
+                PlaneSet::view(a, 0, 4 * n, 1)?,
+                PlaneSet::view(a, PlaneSet::bytes(4 * n, 1), q, 1)?,
             ),
             None => (
-                PlaneSet::new(ctx, "lp.state", 4 * n, StateLayout::PLANES)?,
-                PlaneSet::new(ctx, "lp.reach", n, 1)?,
+                PlaneSet::new(ctx, "lp.state0", 4 * n, 1)?,
                 PlaneSet::new(ctx, "lp.queue", q, 1)?,
             ),
         };
         Ok(LpPlanes {
-            state,
-            reach,
+            state0,
+            // A ring grows with the width, not the area: buffers of their
+            // own, outside the arena the tiler's memory model scales by area.
+            ring: PlaneSet::new(ctx, "lp.ring", 4 * ring_px, StateLayout::PLANES - 1)?,
+            reach: PlaneSet::new(ctx, "lp.reach", ring_px, GRANULARITIES.len() + 1)?,
             queue,
             out: PlaneSet::new(ctx, "lp.out", n, lp_gather::OUTPUTS.len())?,
+            ring_rows,
         })
     }
 
-    fn state_bytes(n: usize) -> u64 {
-        PlaneSet::bytes(4 * n, StateLayout::PLANES)
+    /// Rows of the rings for an image `height` rows high.
+    pub fn ring_rows(height: usize) -> u32 {
+        RING_ROWS.min(height.max(1) as u32)
     }
 
-    /// Bytes of the scratch (state, reach and the centre queue) an arena
+    /// Bytes of the scratch (state plane 0 and the centre queue) an arena
     /// must hold for `n` pixels: dead once `lp_gather` has written the
-    /// outputs, except the first state plane ([`LpPlanes::kept_bytes`]),
-    /// which [`download`] reads (centres, `r_opt`, ranks).
+    /// outputs, except state plane 0 ([`LpPlanes::kept_bytes`]), which
+    /// [`download`] reads (centres, `r_opt`, ranks).
     pub fn scratch_bytes(n: usize) -> u64 {
-        Self::state_bytes(n)
-            + PlaneSet::bytes(n, 1)
-            + PlaneSet::bytes(n + lp_select::HEADER_WORDS, 1)
+        PlaneSet::bytes(4 * n, 1) + PlaneSet::bytes(n + lp_select::HEADER_WORDS, 1)
     }
 
     /// Bytes at the start of the arena that must survive until [`download`]:
-    /// the first state plane.
+    /// state plane 0.
     pub fn kept_bytes(n: usize) -> u64 {
         PlaneSet::bytes(4 * n, 1)
+    }
+
+    /// The 9 state planes as the kernels bind them: plane 0 whole, 1..8 the
+    /// ring.
+    pub fn state(&self) -> [BufferSlice; 9] {
+        std::array::from_fn(|k| {
+            if k == 0 {
+                self.state0.plane(0)
+            } else {
+                self.ring.plane(k - 1)
+            }
+        })
     }
 
     /// The output colour planes R, G, B.
@@ -180,6 +226,17 @@ pub fn lp_inputs(s: &GpuStats) -> LpInputs {
 
 /// Records LP on sanitised statistics `clean` (colour, albedo, normal, depth,
 /// their variances and spp). Outputs stay on the GPU in `planes`.
+///
+/// LP-RING: the five passes and the gather run as a wavefront over the
+/// rows. At each step every pass fits the candidates of one band of
+/// [`BAND_ROWS`] rows, pass `t` [`LAG_ROWS`]`·t` rows behind the front and
+/// the gather `5·LAG_ROWS` behind it. Before its band, a pass computes the
+/// reach of the centres of the earlier passes on the rows its candidates'
+/// coverage test newly reads (up to 9 rows below the band), where the
+/// earlier passes are complete. Pass `t`'s centres are therefore those of
+/// the spec's pass-by-pass order (PASS-SNAPSHOT), but a row's state is dead
+/// once the gather has passed it, so state planes 1..8 (128 of the state's
+/// 144 bytes per pixel) are a ring of [`RING_ROWS`] rows.
 pub fn record_lp(
     batch: &mut Batch,
     precision: Precision,
@@ -188,43 +245,71 @@ pub fn record_lp(
     params: LpParams,
 ) -> Result<()> {
     let (w, h) = (clean.width, clean.height);
+    let height = h as u32;
     let inp = lp_inputs(clean);
-    batch.fill(planes.state.all(), 0);
-    let reach = planes.reach.plane(0);
-    for pass in 0..GRANULARITIES.len() {
-        lp_reach::record(
-            batch,
-            precision,
-            &params.push(w, h, pass),
-            planes.state.plane(0),
-            reach,
-        )?;
-        lp_centres::record(
-            batch,
-            precision,
-            &params.push(w, h, pass),
-            &inp,
-            reach,
-            planes.queue.plane(0),
-            std::array::from_fn(|k| planes.state.plane(k)),
-        )?;
+    let state = planes.state();
+    let passes = GRANULARITIES.len();
+    batch.fill(planes.state0.all(), 0);
+    // Per pass (and the gather): the rows whose reach is computed.
+    let mut reach_done = [0u32; GRANULARITIES.len() + 1];
+    let mut front = 0u32;
+    while front < height + passes as u32 * LAG_ROWS {
+        for (t, done) in reach_done.iter_mut().enumerate() {
+            // This pass's band: the front's band moved up by the lag (the
+            // first one clipped at row 0).
+            let (lag, end) = (t as u32 * LAG_ROWS, front + BAND_ROWS);
+            if end <= lag || front.saturating_sub(lag) >= height {
+                continue;
+            }
+            let (a, b) = (front.saturating_sub(lag), (end - lag).min(height));
+            let push = LpPush {
+                pass: t as u32,
+                ring_rows: planes.ring_rows,
+                ..params.push(w, h, t.min(passes - 1))
+            };
+            let reach_end = (b + reference::lp::RADIUS as u32).min(height);
+            if *done < reach_end {
+                lp_reach::record(
+                    batch,
+                    precision,
+                    &push,
+                    state[0],
+                    planes.reach.plane(t),
+                    (*done, reach_end),
+                )?;
+                *done = reach_end;
+            }
+            if t < passes {
+                // The grid rows whose candidates lie in rows [a, b).
+                let g = GRANULARITIES[t];
+                let fy = push.phase_xy().1;
+                let grid = |y: u32| y.saturating_sub(fy).div_ceil(g);
+                lp_centres::record(
+                    batch,
+                    precision,
+                    &push,
+                    &inp,
+                    planes.reach.plane(t),
+                    planes.queue.plane(0),
+                    state,
+                    Some((grid(a), grid(b))),
+                )?;
+            } else {
+                lp_gather::record(
+                    batch,
+                    precision,
+                    &push,
+                    &inp,
+                    planes.reach.plane(t),
+                    state,
+                    planes.out.all(),
+                    (a, b),
+                )?;
+            }
+        }
+        front += BAND_ROWS;
     }
-    lp_reach::record(
-        batch,
-        precision,
-        &params.push(w, h, 0),
-        planes.state.plane(0),
-        reach,
-    )?;
-    lp_gather::record(
-        batch,
-        precision,
-        &params.push(w, h, 0),
-        &inp,
-        reach,
-        std::array::from_fn(|k| planes.state.plane(k)),
-        planes.out.all(),
-    )
+    Ok(())
 }
 
 /// Fraction of the pixels of a [`LpResult::centre_pass`] plane (or a crop of
@@ -318,14 +403,14 @@ impl LpResult {
 /// Downloads the planes of a finished [`record_lp`].
 pub fn download(planes: &LpPlanes, width: usize, height: usize) -> Result<LpResult> {
     let out = planes.out.download_all()?;
-    let state0 = planes.state.download_plane::<f32>(0)?;
+    let state0 = planes.state0.download_plane::<f32>(0)?;
     Ok(LpResult::new(width, height, out, &state0))
 }
 
 /// The centre plane alone ([`LpResult::centre_pass`]: pass + 1 at centres,
 /// else 0), for the centre fraction when no debug layers are asked for.
 pub fn download_centre_pass(planes: &LpPlanes) -> Result<Vec<f32>> {
-    planes.state.download_strided(0, 4)
+    planes.state0.download_strided(0, 4)
 }
 
 /// The CPU path: the scalar twins in the order of [`record_lp`], on
@@ -373,7 +458,11 @@ pub fn run_cpu(clean: &StatsImage, params: LpParams, progress: bool) -> Result<L
         }
     }
     let mut out = vec![vec![0.0f32; n]; lp_gather::OUTPUTS.len()];
-    let push = params.push(w, h, 0);
+    // The reach of every pass's centres.
+    let push = LpPush {
+        pass: GRANULARITIES.len() as u32,
+        ..params.push(w, h, 0)
+    };
     reference::lp_reach::lp_reach(&push, &state[0], &mut reach);
     reference::lp_gather::lp_gather(&push, &p, &reach, &state, &mut out);
     Ok(LpResult::new(w, h, out, &state[0]))

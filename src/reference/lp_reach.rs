@@ -11,17 +11,21 @@
 use super::lp::RADIUS;
 use crate::shared::LpPush;
 
-/// `reach` for every pixel (`row0` ignored) from state plane 0 (`(pass + 1,
-/// r_opt, ·, ·)` per pixel, vec4).
+/// `reach` for every pixel (`row0` and `ring_rows` ignored: the whole
+/// plane) from state plane 0 (`(pass + 1, r_opt, ·, ·)` per pixel, vec4),
+/// over the centres made in a pass before `push.pass` (PASS-SNAPSHOT; 5:
+/// all of them).
 pub fn lp_reach(push: &LpPush, state0: &[f32], reach: &mut [f32]) {
     let (w, h) = (push.width as usize, push.height as usize);
+    let before = push.pass as f32;
     for y in 0..h {
         for x in 0..w {
             let mut best = -1.0f32;
             for qx in x.saturating_sub(RADIUS)..(x + RADIUS + 1).min(w) {
                 let q = y * w + qx;
                 let r = state0[4 * q + 1];
-                if state0[4 * q] > 0.0 && qx.abs_diff(x) as f32 <= r && r > best {
+                let made = state0[4 * q];
+                if made > 0.0 && made <= before && qx.abs_diff(x) as f32 <= r && r > best {
                     best = r;
                 }
             }
