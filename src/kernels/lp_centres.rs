@@ -121,7 +121,12 @@ pub fn record(
         return Ok(());
     }
     let row_flops = gw as f64 * flops_per_centre();
-    let band = ((batch.max_flops_per_submit / row_flops).floor() as u32).max(1);
+    // At least 8 grid rows: a band's centres are a few % of its candidates,
+    // and an indirect dispatch of a handful of centres leaves cores idle.
+    let band = ((batch.max_flops_per_submit / row_flops).floor() as u32)
+        .max(1)
+        .div_ceil(8)
+        * 8;
     // Compulsory traffic of a band: its share of the bound ranges.
     let bytes: f64 = b.iter().map(|s| s.size() as f64).sum::<f64>() / gh as f64;
     let mut row0 = first;

@@ -73,7 +73,7 @@ impl LpParams {
 
 /// Pixel rows per step of [`record_lp`]'s wavefront: each pass, and the
 /// gather, advances by one band of this height per step.
-pub const BAND_ROWS: u32 = 32;
+pub const BAND_ROWS: u32 = 64;
 /// Rows by which each pass (and the gather) trails the one before it: at
 /// least LP's radius 9, so that a pass's candidates see every centre of the
 /// earlier passes that can cover them (PASS-SNAPSHOT).
@@ -83,7 +83,7 @@ pub const LAG_ROWS: u32 = 16;
 /// front and read by the gather up to `5·LAG_ROWS + 9` rows behind it, so a
 /// ring of more than `5·LAG_ROWS + BAND_ROWS + 9` rows never overwrites a
 /// row that is still to be read.
-pub const RING_ROWS: u32 = 128;
+pub const RING_ROWS: u32 = 160;
 const _: () = assert!(RING_ROWS > 5 * LAG_ROWS + BAND_ROWS + 9 && LAG_ROWS >= 9);
 const _: () = assert!(BAND_ROWS % 8 == 0 && LAG_ROWS % 8 == 0);
 
