@@ -37,6 +37,11 @@ pub struct Config {
     pub options: Options,
     /// Keep the method's debug maps for [`Denoiser::read`].
     pub debug: bool,
+    /// Download the error estimate into [`Frame::error`] (the default).
+    /// `false` skips the download of its three planes and leaves
+    /// [`Frame::error`] empty (0×0); the sample map still reads the estimate
+    /// on the device.
+    pub error: bool,
     /// Log progress (through `log`) for runs longer than about a second.
     pub progress: bool,
     /// Whether some pixel may have `1 <= spp < 2` (GPU backend). Spec §0.4
@@ -69,6 +74,7 @@ impl Config {
             outliers: Outliers::Auto,
             options: Options::default(),
             debug: false,
+            error: true,
             progress: false,
             low_spp: true,
             max_memory: None,
@@ -96,7 +102,7 @@ impl Config {
         r.prefilter = self.prefilter;
         r.outliers = self.outliers;
         r.options = self.options.clone();
-        r.error = true;
+        r.error = self.error;
         r.debug = self.debug;
         r.progress = self.progress;
         r
@@ -178,6 +184,7 @@ pub struct Frame {
     pub color: RgbImage,
     /// Estimated MSE `E_i` per pixel and channel (§9.1): WLR's shared
     /// estimate in all three channels; for `none` the variance of the mean.
+    /// Empty (0×0) when [`Config::error`] is `false`.
     pub error: RgbImage,
     /// The local dimension `d_i` per pixel (§9.1): the TSVD rank for WLR,
     /// the covering centres' mean rank for LP, 0 for `none`.
@@ -439,7 +446,7 @@ impl Denoiser {
     /// Downloads the outputs of the last completed call.
     pub fn read(&self) -> Result<Frame> {
         let chain = self.chain()?;
-        let out = chain.download(self.config.debug)?;
+        let out = chain.download(self.config.debug, self.config.error)?;
         let samples = if self.sampled.load(Ordering::SeqCst) {
             Some(chain.download_samples()?)
         } else {
@@ -531,7 +538,6 @@ impl Denoiser {
             r.budget = budget;
             r
         };
-        let (w, h) = (img.get().width, img.get().height);
         let mut kept = None;
         let out = match &self.engine {
             Engine::Gpu(chain) => {
@@ -544,7 +550,7 @@ impl Denoiser {
                 let (out, stats) = t.denoise(
                     img.get(),
                     budget,
-                    (self.config.debug, statistics),
+                    (self.config.debug, statistics, self.config.error),
                     self.config.progress,
                     self.progress.as_ref(),
                 )?;
@@ -567,7 +573,7 @@ impl Denoiser {
         }
         let frame = Frame {
             color: out.color,
-            error: out.error.unwrap_or_else(|| RgbImage::new(w, h)),
+            error: out.error.unwrap_or_else(|| RgbImage::new(0, 0)),
             dim: out.dim,
             samples: out.samples,
             debug: out.debug,

@@ -245,3 +245,40 @@ fn a_gpu_call_consumes_its_upload() {
     }
     check_validation(&ctx);
 }
+
+/// `Config::error = false` skips the error estimate's download: the frame's
+/// error is empty, and the colour and the sample map are those of a call
+/// that downloads it, on one chain and in tiles.
+#[test]
+fn without_the_error_download_nothing_else_changes() {
+    let img = fixture();
+    for (method, _) in METHODS {
+        for tile in [None, Some(40)] {
+            let run = |error: bool| {
+                let mut config = Config::new(*method);
+                config.error = error;
+                config.tile = tile;
+                let d = Denoiser::new(&gpu(), Source::of_image(&img), config).unwrap();
+                d.denoise(&img, Some(2 * 64 * 64)).unwrap()
+            };
+            let (with, without) = (run(true), run(false));
+            let what = format!("{} tile {tile:?}", method.name());
+            assert_eq!((with.error.width, with.error.height), (64, 64), "{what}");
+            assert_eq!(
+                (without.error.width, without.error.height),
+                (0, 0),
+                "{what}"
+            );
+            for c in 0..3 {
+                assert_eq!(
+                    bits(&with.color.planes[c]),
+                    bits(&without.color.planes[c]),
+                    "{what}: colour"
+                );
+            }
+            assert_eq!(with.samples, without.samples, "{what}: samples");
+            assert_eq!(bits(&with.dim), bits(&without.dim), "{what}: dimension");
+        }
+    }
+    check_validation(&gpu());
+}

@@ -473,6 +473,8 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
                 config.outliers = outliers.get();
                 config.options = options.clone();
                 config.debug = *debug_layers;
+                // The error estimate comes back only when it is written.
+                config.error = *error;
                 config.progress = !cli.quiet;
                 config.low_spp = has_low_spp(img);
                 config.max_memory = max_memory.map(|mb| mb.saturating_mul(1 << 20));

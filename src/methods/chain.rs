@@ -622,15 +622,16 @@ impl GpuChain {
         self.scratch.read_counters()
     }
 
-    /// Downloads the outputs of a completed run.
-    pub fn download(&self, debug: bool) -> Result<ChainOutput> {
-        self.download_whole(debug, None)
+    /// Downloads the outputs of a completed run; the error estimate only
+    /// with `error` (else [`ChainOutput::error`] is empty, 0×0).
+    pub fn download(&self, debug: bool, error: bool) -> Result<ChainOutput> {
+        self.download_whole(debug, error, None)
     }
 
     /// [`download`](Self::download), every plane cropped to `rect` (a tile's
     /// interior) and the statistics computed over it.
-    pub fn download_in(&self, debug: bool, rect: Option<Rect>) -> Result<ChainOutput> {
-        let out = self.download_whole(debug, rect)?;
+    pub fn download_in(&self, debug: bool, error: bool, rect: Option<Rect>) -> Result<ChainOutput> {
+        let out = self.download_whole(debug, error, rect)?;
         let Some(r) = rect else {
             return Ok(out);
         };
@@ -648,7 +649,11 @@ impl GpuChain {
         }
         Ok(ChainOutput {
             color: rgb(&out.color),
-            error: rgb(&out.error),
+            error: if error {
+                rgb(&out.error)
+            } else {
+                RgbImage::new(0, 0)
+            },
             dim: c(&out.dim),
             debug: debug_planes,
             stats: out.stats,
@@ -656,7 +661,7 @@ impl GpuChain {
     }
 
     /// The whole planes; the statistics over `rect` (all pixels if `None`).
-    fn download_whole(&self, debug: bool, rect: Option<Rect>) -> Result<ChainOutput> {
+    fn download_whole(&self, debug: bool, error: bool, rect: Option<Rect>) -> Result<ChainOutput> {
         let (w, h) = self.size();
         let rgb = |p: [BufferSlice; 3]| -> Result<RgbImage> {
             Ok(RgbImage::from_planes(
@@ -678,7 +683,11 @@ impl GpuChain {
         }
         let mut out = ChainOutput {
             color: rgb(self.color())?,
-            error: rgb(self.error())?,
+            error: if error || debug {
+                rgb(self.error())?
+            } else {
+                RgbImage::new(0, 0)
+            },
             dim,
             debug: Vec::new(),
             stats: Vec::new(),
@@ -746,7 +755,7 @@ fn read(ctx: &Arc<GpuContext>, s: BufferSlice, count: usize) -> Result<Vec<f32>>
 pub struct ChainOutput {
     /// The reconstruction, clamped to ≥ 0 (spec §0.4 step 5).
     pub color: RgbImage,
-    /// `E_i` per channel (§9.1).
+    /// `E_i` per channel (§9.1); empty (0×0) when not downloaded.
     pub error: RgbImage,
     /// `d_i` (§9.1).
     pub dim: Vec<f32>,

@@ -245,7 +245,7 @@ pub fn run_uploaded(
     }
     chain.record(&mut batch, None, req.budget)?;
     let timings = batch.finish()?;
-    let out = chain.download(req.debug)?;
+    let out = chain.download(req.debug, req.error)?;
     let samples = match req.budget {
         Some(_) => Some(chain.download_samples()?),
         None => None,

@@ -522,7 +522,7 @@ impl TiledChain {
         &self,
         img: &StatsImage,
         budget: Option<u32>,
-        (debug, statistics): (bool, bool),
+        (debug, statistics, want_error): (bool, bool, bool),
         batch_progress: bool,
         progress: Option<&ProgressCallback>,
     ) -> Result<(DenoiseOutput, Option<StatsImage>)> {
@@ -539,7 +539,11 @@ impl TiledChain {
         }
         let n = w * h;
         let mut color = RgbImage::new(w, h);
-        let mut error = RgbImage::new(w, h);
+        let mut error = if want_error {
+            RgbImage::new(w, h)
+        } else {
+            RgbImage::new(0, 0)
+        };
         let mut dim = vec![0.0f32; n];
         let mut priority = budget.map(|_| vec![0.0f32; n]);
         let mut debug_planes: Vec<(String, Vec<f32>)> = Vec::new();
@@ -577,7 +581,7 @@ impl TiledChain {
                 chain.record_tile(&mut batch, t.placement(), budget.is_some())?;
                 let tile_timings = batch.finish()?;
                 let local = t.inner_local();
-                let out = chain.download_in(debug, Some(local))?;
+                let out = chain.download_in(debug, want_error, Some(local))?;
                 for (total, c) in report.counters.iter_mut().zip(chain.counters()?) {
                     *total += c;
                 }
@@ -593,7 +597,9 @@ impl TiledChain {
                     paste_stats(all, &tile, local, t.inner);
                 }
                 paste_rgb(&mut color, &out.color, t.inner);
-                paste_rgb(&mut error, &out.error, t.inner);
+                if want_error {
+                    paste_rgb(&mut error, &out.error, t.inner);
+                }
                 paste(&mut dim, w, &out.dim, t.inner);
                 if let Some(p) = priority.as_mut() {
                     let plane = chain.download_priority_in(local)?;
@@ -635,7 +641,7 @@ impl TiledChain {
         }
         let out = DenoiseOutput {
             color,
-            error: Some(error),
+            error: want_error.then_some(error),
             dim,
             samples,
             debug: debug_planes,
