@@ -66,6 +66,10 @@ layout(std430, set = 0, binding = 27) readonly buffer st8_blk { vec4 st8[]; };
 layout(std430, set = 0, binding = 28) buffer out_blk { float outp[]; };
 
 #define LP_RADIUS 9
+// mcdenoise::shared::LP_SKIP_*.
+#define LP_SKIP_ERROR 2u
+#define LP_SKIP_DMSE 4u
+#define LP_SKIP_COVERAGE 8u
 
 // Raw features (px, py, nrm xyz, dep, albedo rgb) as lanes f0, f1, f8.
 void features(ivec2 p, out real4 f0, out real4 f1, out real f8)
@@ -251,15 +255,22 @@ void main()
             o[10] = float(d);
         }
     }
+    // Planes nobody reads back are not written (LpPush::options, LP_SKIP_*).
     outp[0u * push.out_stride + i] = o[0];
     outp[1u * push.out_stride + i] = o[1];
     outp[2u * push.out_stride + i] = o[2];
-    outp[3u * push.out_stride + i] = o[3];
-    outp[4u * push.out_stride + i] = o[4];
-    outp[5u * push.out_stride + i] = o[5];
-    outp[6u * push.out_stride + i] = o[6];
-    outp[7u * push.out_stride + i] = o[7];
-    outp[8u * push.out_stride + i] = o[8];
-    outp[9u * push.out_stride + i] = o[9];
+    if ((push.options & LP_SKIP_ERROR) == 0u) {
+        outp[3u * push.out_stride + i] = o[3];
+        outp[4u * push.out_stride + i] = o[4];
+        outp[5u * push.out_stride + i] = o[5];
+    }
+    if ((push.options & LP_SKIP_DMSE) == 0u) {
+        outp[6u * push.out_stride + i] = o[6];
+        outp[7u * push.out_stride + i] = o[7];
+        outp[8u * push.out_stride + i] = o[8];
+    }
+    if ((push.options & LP_SKIP_COVERAGE) == 0u) {
+        outp[9u * push.out_stride + i] = o[9];
+    }
     outp[10u * push.out_stride + i] = o[10];
 }

@@ -91,6 +91,8 @@ impl Config {
             outliers: self.outliers.resolve(self.method),
             options: self.options.clone(),
             low_spp,
+            debug: self.debug,
+            error: self.error,
         }
     }
 

@@ -259,10 +259,20 @@ pub const APR_CLAMPED: u32 = 2;
 
 /// [`LpPush::options`] bit: subtract the test pixel's variance (LP-VARSUB, `s = 1`).
 pub const LP_VARSUB: u32 = 1;
+/// [`LpPush::options`] bit, `lp_gather`: do not write the error planes (no
+/// one reads them back).
+pub const LP_SKIP_ERROR: u32 = 2;
+/// [`LpPush::options`] bit, `lp_gather`: do not write the ΔMSE planes (no
+/// sample map and no debug layers).
+pub const LP_SKIP_DMSE: u32 = 4;
+/// [`LpPush::options`] bit, `lp_gather`: do not write the coverage plane
+/// (no debug layers).
+pub const LP_SKIP_COVERAGE: u32 = 8;
 
 /// Index of the values of one LP centre in its 36-float state, written by
 /// `spirv/lp_centres.comp` and read by `spirv/lp_gather.comp` (9 vec4
-/// planes: value `s` of pixel `q` at plane `s/4`, element `4q + s%4`).
+/// planes: value `s` of pixel `q` at plane `s/4`, element `4q + s%4` for plane
+/// 0, the centre map; planes 1..8 are rings of rows, [`LpPush::ring_rows`]).
 pub struct LpStateLayout;
 impl LpStateLayout {
     /// `pass + 1` of the pass that created the centre; 0 = not a centre.

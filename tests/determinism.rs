@@ -246,23 +246,28 @@ fn a_gpu_call_consumes_its_upload() {
     check_validation(&ctx);
 }
 
-/// `Config::error = false` skips the error estimate's download: the frame's
-/// error is empty, and the colour and the sample map are those of a call
-/// that downloads it, on one chain and in tiles.
+/// `Config::error = false` skips the error estimate's download (and LP's
+/// gather skips the planes nobody reads): the frame's error is empty, and
+/// the colour, dimension and sample map are those of a call that downloads
+/// it, on one chain and in tiles, with and without a sample map.
 #[test]
 fn without_the_error_download_nothing_else_changes() {
     let img = fixture();
     for (method, _) in METHODS {
-        for tile in [None, Some(40)] {
+        for (tile, budget) in [
+            (None, None),
+            (None, Some(2 * 64 * 64)),
+            (Some(40), Some(8192)),
+        ] {
             let run = |error: bool| {
                 let mut config = Config::new(*method);
                 config.error = error;
                 config.tile = tile;
                 let d = Denoiser::new(&gpu(), Source::of_image(&img), config).unwrap();
-                d.denoise(&img, Some(2 * 64 * 64)).unwrap()
+                d.denoise(&img, budget).unwrap()
             };
             let (with, without) = (run(true), run(false));
-            let what = format!("{} tile {tile:?}", method.name());
+            let what = format!("{} tile {tile:?} budget {budget:?}", method.name());
             assert_eq!((with.error.width, with.error.height), (64, 64), "{what}");
             assert_eq!(
                 (without.error.width, without.error.height),

@@ -16,6 +16,7 @@ use crate::error::{Error, Result};
 use crate::gpu::{Batch, BufferSlice, GpuBuffer, GpuContext, PlaneSet, Precision};
 use crate::image::{Layer, RgbImage, StatsImage};
 use crate::options::Options;
+use crate::shared::{LP_SKIP_COVERAGE, LP_SKIP_DMSE, LP_SKIP_ERROR};
 
 use super::aos::{self, AosPlanes};
 use super::apr::{self, AprPlanes};
@@ -92,6 +93,11 @@ pub struct ChainConfig {
     /// Whether some pixel may have `1 ≤ spp < 2` (runs §0.4 step 3). Always
     /// true for accumulation input; for uploaded statistics the caller knows.
     pub low_spp: bool,
+    /// Whether the debug planes are read back: without them (and without
+    /// `error`) LP's gather skips the planes nobody reads.
+    pub debug: bool,
+    /// Whether the error estimate is read back.
+    pub error: bool,
 }
 
 /// Where a chain's image lies in a larger image of which it is one tile
@@ -320,6 +326,17 @@ impl GpuChain {
         })
     }
 
+    /// Bytes of the chain's buffers that grow with the width of a
+    /// `width × height` image rather than its area (the rings of rows of LP
+    /// and WLR), for the tiler's memory model.
+    pub fn ring_bytes(config: &ChainConfig, width: usize, height: usize) -> u64 {
+        match config.method {
+            Method::Lp => LpPlanes::ring_bytes(width, height),
+            Method::Wlr => WlrPlanes::ring_bytes(width, height, config.precision),
+            _ => 0,
+        }
+    }
+
     /// The context the chain's buffers live on.
     pub fn context(&self) -> &Arc<GpuContext> {
         &self.ctx
@@ -382,7 +399,7 @@ impl GpuChain {
             (Some(t), Some((planes, params))) => Some((t, planes, params)),
             (Some(_), None) => return Err(no_int64(&self.ctx)),
         };
-        self.record_method(batch, accum, Placement::default())?;
+        self.record_method(batch, accum, Placement::default(), budget.is_some())?;
         if let Some((t, planes, params)) = sampling {
             let inputs = self.sample_inputs();
             sampling::record_sample_map(batch, self.config.precision, &inputs, planes, t, params)?;
@@ -450,7 +467,7 @@ impl GpuChain {
     /// ([`download_priority_in`](Self::download_priority_in)), whose
     /// allocation runs over the whole image. Uploaded statistics only.
     pub fn record_tile(&self, batch: &mut Batch, at: Placement, priority: bool) -> Result<()> {
-        self.record_method(batch, None, at)?;
+        self.record_method(batch, None, at, priority)?;
         if priority {
             let Some((planes, params)) = &self.sampling else {
                 return Err(no_int64(&self.ctx));
@@ -472,11 +489,14 @@ impl GpuChain {
         Ok(tiles::crop(&all, w, rect))
     }
 
+    /// The chain up to the method's outputs; `maps`: the sample map or its
+    /// priority reads them after.
     fn record_method(
         &self,
         batch: &mut Batch,
         accum: Option<BufferSlice>,
         at: Placement,
+        maps: bool,
     ) -> Result<()> {
         let p = self.config.precision;
         match (&self.input_kind, accum) {
@@ -528,9 +548,18 @@ impl GpuChain {
                 wlr::record_wlr(batch, p, &self.stats, planes, *params)?
             }
             MethodPlanes::Lp(planes, params) => {
+                let c = &self.config;
+                let skip = [
+                    (c.error || c.debug, LP_SKIP_ERROR),
+                    (maps || c.debug, LP_SKIP_DMSE),
+                    (c.debug, LP_SKIP_COVERAGE),
+                ];
                 let params = lp::LpParams {
                     origin: at.origin,
-                    ..*params
+                    options: skip
+                        .iter()
+                        .filter(|(read, _)| !read)
+                        .fold(params.options, |o, (_, bit)| o | bit),
                 };
                 lp::record_lp(batch, p, &self.stats, planes, params)?
             }
@@ -683,7 +712,8 @@ impl GpuChain {
         }
         let mut out = ChainOutput {
             color: rgb(self.color())?,
-            error: if error || debug {
+            // `none`'s debug layers are its error planes (the variances).
+            error: if error || (debug && matches!(self.planes, MethodPlanes::None { .. })) {
                 rgb(self.error())?
             } else {
                 RgbImage::new(0, 0)
@@ -740,6 +770,9 @@ impl GpuChain {
         if let (true, Some(o)) = (debug, &self.outliers) {
             out.debug
                 .extend(outliers::debug_layers(&outliers::download_excess(o)?));
+        }
+        if !error {
+            out.error = RgbImage::new(0, 0);
         }
         Ok(out)
     }

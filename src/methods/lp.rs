@@ -149,7 +149,8 @@ impl LpPlanes {
         Ok(LpPlanes {
             state0,
             // A ring grows with the width, not the area: buffers of their
-            // own, outside the arena the tiler's memory model scales by area.
+            // own, outside the arena (whose size the tiler's memory model
+            // scales by area; it counts the rings by `ring_bytes`).
             ring: PlaneSet::new(ctx, "lp.ring", 4 * ring_px, StateLayout::PLANES - 1)?,
             reach: PlaneSet::new(ctx, "lp.reach", ring_px, GRANULARITIES.len() + 1)?,
             queue,
@@ -161,6 +162,14 @@ impl LpPlanes {
     /// Rows of the rings for an image `height` rows high.
     pub fn ring_rows(height: usize) -> u32 {
         RING_ROWS.min(height.max(1) as u32)
+    }
+
+    /// Bytes of the rings (state planes 1..8 and the reach planes) of a
+    /// `width × height` image: they grow with the width, not the area.
+    pub fn ring_bytes(width: usize, height: usize) -> u64 {
+        let px = width * Self::ring_rows(height) as usize;
+        PlaneSet::bytes(4 * px, StateLayout::PLANES - 1)
+            + PlaneSet::bytes(px, GRANULARITIES.len() + 1)
     }
 
     /// Bytes of the scratch (state plane 0 and the centre queue) an arena

@@ -208,6 +208,8 @@ fn denoise_gpu(
             outliers: req.outliers.resolve(req.method),
             options: req.options.clone(),
             low_spp: prepare::has_low_spp(img),
+            debug: req.debug,
+            error: req.error,
         },
     )?;
     denoise_with_chain(&chain, img, req, None)

@@ -268,14 +268,17 @@ pub const SMALL: usize = 512 * 512;
 /// work on the halo.
 pub const MIN_TILE: usize = 16;
 
-/// Device memory of a chain of `n` pixels, `fixed + per_pixel · n` bytes,
-/// measured by allocating two small chains of the same configuration.
-#[derive(Copy, Clone, Debug, PartialEq)]
+/// Device memory of a `w × h` chain, `fixed + per_pixel · w·h` bytes plus
+/// its rings of rows ([`GpuChain::ring_bytes`], known exactly), measured by
+/// allocating two small chains of the same configuration.
+#[derive(Clone, Debug)]
 pub struct ChainMemory {
     /// Bytes that do not grow with the image.
     pub fixed: f64,
     /// Bytes per pixel.
     pub per_pixel: f64,
+    /// The configuration, for the rings.
+    config: ChainConfig,
 }
 
 impl ChainMemory {
@@ -285,6 +288,8 @@ impl ChainMemory {
         layers: &[Layer],
         config: &ChainConfig,
     ) -> Result<ChainMemory> {
+        // Without the rings: at these sizes a ring covers the whole height,
+        // so it would be charged per pixel.
         let bytes = |side: usize| -> Result<f64> {
             let before = ctx.allocated_bytes();
             let input = ChainInput::Stats {
@@ -295,19 +300,22 @@ impl ChainMemory {
             let chain = GpuChain::new(ctx, input, config.clone())?;
             let b = ctx.allocated_bytes().saturating_sub(before);
             drop(chain);
-            Ok(b as f64)
+            Ok(b as f64 - GpuChain::ring_bytes(config, side, side) as f64)
         };
         let (a, b) = (bytes(64)?, bytes(128)?);
         let per_pixel = ((b - a) / (128.0 * 128.0 - 64.0 * 64.0)).max(0.0);
         Ok(ChainMemory {
             fixed: (a - per_pixel * 64.0 * 64.0).max(0.0),
             per_pixel,
+            config: config.clone(),
         })
     }
 
-    /// Bytes of a chain of `pixels` pixels.
-    pub fn bytes(&self, pixels: usize) -> f64 {
-        self.fixed + self.per_pixel * pixels as f64
+    /// Bytes of a `width × height` chain.
+    pub fn bytes(&self, width: usize, height: usize) -> f64 {
+        self.fixed
+            + self.per_pixel * (width * height) as f64
+            + GpuChain::ring_bytes(&self.config, width, height) as f64
     }
 }
 
@@ -390,7 +398,7 @@ impl TiledChain {
         }
         let cap = max_memory.unwrap_or_else(|| default_cap(ctx.info())) as f64;
         let mem = ChainMemory::measure(ctx, &layers, &config)?;
-        let whole_fits = mem.bytes(w * h) <= cap;
+        let whole_fits = mem.bytes(w, h) <= cap;
         if tile.is_none() && whole_fits {
             match GpuChain::new(ctx, input.clone(), config.clone()) {
                 Ok(c) => return Ok(Choice::Whole(Box::new(c))),
@@ -403,7 +411,7 @@ impl TiledChain {
         } else {
             format!(
                 "its chain needs ≈ {} MB of device memory, over the cap of {} MB",
-                (mem.bytes(w * h) / 1e6).ceil(),
+                (mem.bytes(w, h) / 1e6).ceil(),
                 (cap / 1e6).floor()
             )
         };
@@ -436,13 +444,16 @@ impl TiledChain {
             None => {
                 // The largest interior whose tile (clipped to the image)
                 // fits the cap.
-                let outer = |s: usize| (s + 2 * hl + align).min(w) * (s + 2 * hl + align).min(h);
-                let fits = |s: usize| mem.bytes(outer(s)) + global <= cap;
+                let outer = |s: usize| ((s + 2 * hl + align).min(w), (s + 2 * hl + align).min(h));
+                let fits = |s: usize| {
+                    let (ow, oh) = outer(s);
+                    mem.bytes(ow, oh) + global <= cap
+                };
                 if !fits(MIN_TILE) {
                     return Err(Error::Limit(format!(
                         "{w}x{h} with {}: {why}, and a tile of {MIN_TILE}² pixels with its halo of {hl} needs ≈ {} MB: raise the memory cap",
                         config.method.name(),
-                        ((mem.bytes(outer(MIN_TILE)) + global) / 1e6).ceil()
+                        ((mem.bytes(outer(MIN_TILE).0, outer(MIN_TILE).1) + global) / 1e6).ceil()
                     )));
                 }
                 let (mut lo, mut hi) = (MIN_TILE, w.max(h));

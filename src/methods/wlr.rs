@@ -142,12 +142,7 @@ impl WlrPlanes {
     ) -> Result<WlrPlanes> {
         let n = width * height;
         let ring_rows = (CHUNK_ROWS + LAG_ROWS).min(height.max(1) as u32);
-        let word = match precision {
-            Precision::F32 => 4,
-            Precision::F64 => 8,
-        };
-        let ring_bytes =
-            ring_rows as u64 * width.max(1) as u64 * (wlr_fit::STATE_WORDS * word) as u64;
+        let ring_bytes = Self::ring_bytes(width, height, precision);
         let limit = ctx.info.max_storage_buffer_range as u64;
         if ring_bytes > limit {
             return Err(Error::Limit(format!(
@@ -171,6 +166,17 @@ impl WlrPlanes {
             state: PlaneSet::new(ctx, "wlr.state", (ring_bytes / 4) as usize, 1)?,
             ring_rows,
         })
+    }
+
+    /// Bytes of the centre-state ring of a `width × height` image at
+    /// `precision`: it grows with the width, not the area.
+    pub fn ring_bytes(width: usize, height: usize, precision: Precision) -> u64 {
+        let ring_rows = (CHUNK_ROWS + LAG_ROWS).min(height.max(1) as u32);
+        let word = match precision {
+            Precision::F32 => 4,
+            Precision::F64 => 8,
+        };
+        ring_rows as u64 * width.max(1) as u64 * (wlr_fit::STATE_WORDS * word) as u64
     }
 
     /// Bytes of the scratch an arena must hold for a `width × height` image.

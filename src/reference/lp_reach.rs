@@ -2,7 +2,8 @@
 //! coverage test (spec §3.5). Pixel `i` is covered by centre `c` when
 //! `max(|dx|, |dy|) <= r_opt(c)`. With
 //! `reach(x, y) = max{ r_opt(c) : c in row y, |x − c_x| <= r_opt(c) }`
-//! (−1 if none), `i` is covered iff some row `y'` has
+//! (−1 if none) over the centres made before the current pass
+//! (PASS-SNAPSHOT), `i` is covered by one of them iff some row `y'` has
 //! `reach(x_i, y') >= |y_i − y'|`: the centre attaining the maximum reaches
 //! `x_i` horizontally and, having the largest radius, vertically too. The
 //! centre kernel and the gather then read 19 values of this plane instead of
