@@ -150,6 +150,11 @@ void main()
     out_r[i] = float(f.r);
     out_g[i] = float(f.g);
     out_b[i] = float(f.b);
-    mse_out[i] = mse;
-    flags_out[i] = float(flags);
+    // Planes nobody reads back are not written (WlrPush::options).
+    if ((push.options & WLR_SKIP_MSE) == 0u) {
+        mse_out[i] = mse;
+    }
+    if ((push.options & WLR_SKIP_DEBUG) == 0u) {
+        flags_out[i] = float(flags);
+    }
 }

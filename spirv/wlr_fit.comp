@@ -172,7 +172,10 @@ void main()
     kappa0_out[i] = o[2];
     kappa1_out[i] = o[3];
     kflags_out[i] = o[4];
-    b1_out[i] = o[5];
-    b2_out[i] = o[6];
-    b3_out[i] = o[7];
+    // The bandwidths are debug layers only (wlr_final reads the state).
+    if ((push.options & WLR_SKIP_DEBUG) == 0u) {
+        b1_out[i] = o[5];
+        b2_out[i] = o[6];
+        b3_out[i] = o[7];
+    }
 }

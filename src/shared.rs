@@ -108,6 +108,12 @@ pub const WLR_OUTLIER_CLAMPED: u32 = 2;
 pub const WLR_NONNEG: u32 = 4;
 /// The spec's defaults: all three on.
 pub const WLR_DEFAULT_OPTIONS: u32 = WLR_REJECT | WLR_OUTLIER_CLAMPED | WLR_NONNEG;
+/// [`WlrPush::options`] bit: `wlr_fit` does not write the `b_j` planes and
+/// `wlr_final` not the flags plane (no debug layers are read back).
+pub const WLR_SKIP_DEBUG: u32 = 8;
+/// [`WlrPush::options`] bit: `wlr_final` does not write the MSE plane (no
+/// error download, sample map or debug layers read it).
+pub const WLR_SKIP_MSE: u32 = 16;
 
 /// `spirv/gauss_smooth.comp`, block `Push` (spec §0.5 Gaussian map smoothing).
 #[repr(C)]

@@ -62,6 +62,8 @@
 #define WLR_REJECT 1u
 #define WLR_OUTLIER_CLAMPED 2u
 #define WLR_NONNEG 4u
+#define WLR_SKIP_DEBUG 8u
+#define WLR_SKIP_MSE 16u
 
 // Debug flag bits (§2.5; mirror reference::wlr::FLAG_*).
 #define WLR_F_SOLVE_FAIL 1

@@ -16,7 +16,7 @@ use crate::error::{Error, Result};
 use crate::gpu::{Batch, BufferSlice, GpuBuffer, GpuContext, PlaneSet, Precision};
 use crate::image::{Layer, RgbImage, StatsImage};
 use crate::options::Options;
-use crate::shared::{LP_SKIP_COVERAGE, LP_SKIP_DMSE, LP_SKIP_ERROR};
+use crate::shared::{LP_SKIP_COVERAGE, LP_SKIP_DMSE, LP_SKIP_ERROR, WLR_SKIP_DEBUG, WLR_SKIP_MSE};
 
 use super::aos::{self, AosPlanes};
 use super::apr::{self, AprPlanes};
@@ -312,7 +312,7 @@ impl GpuChain {
         } else {
             None
         };
-        Ok(GpuChain {
+        let chain = GpuChain {
             ctx: ctx.clone(),
             input_kind: input,
             config,
@@ -323,7 +323,20 @@ impl GpuChain {
             outliers,
             planes,
             sampling,
-        })
+        };
+        if let ChainInput::Stats { .. } = chain.input_kind {
+            // Every pipeline of a run is built now (a counting batch records
+            // nothing but builds them), while the chain's device memory is
+            // untouched: lavapipe compiles with LLVM, whose transient heap
+            // would otherwise add to the run's peak (docs/performance.md,
+            // seventh part). A renderer's chain builds them on its first run.
+            // (A counting batch checks for an upload like a real one.)
+            chain.uploaded.store(true, Ordering::SeqCst);
+            let warm = chain.work(None, None);
+            chain.uploaded.store(false, Ordering::SeqCst);
+            warm?;
+        }
+        Ok(chain)
     }
 
     /// Bytes of the chain's buffers that grow with the width of a
@@ -545,7 +558,16 @@ impl GpuChain {
         match &self.planes {
             MethodPlanes::None { zero } => batch.fill(zero.plane(0), 0),
             MethodPlanes::Wlr(planes, params) => {
-                wlr::record_wlr(batch, p, &self.stats, planes, *params)?
+                let c = &self.config;
+                let skip = [
+                    (c.debug, WLR_SKIP_DEBUG),
+                    (maps || c.error || c.debug, WLR_SKIP_MSE),
+                ];
+                let params = wlr::WlrParams {
+                    options: skip_bits(params.options, &skip),
+                    ..*params
+                };
+                wlr::record_wlr(batch, p, &self.stats, planes, params)?
             }
             MethodPlanes::Lp(planes, params) => {
                 let c = &self.config;
@@ -556,10 +578,7 @@ impl GpuChain {
                 ];
                 let params = lp::LpParams {
                     origin: at.origin,
-                    options: skip
-                        .iter()
-                        .filter(|(read, _)| !read)
-                        .fold(params.options, |o, (_, bit)| o | bit),
+                    options: skip_bits(params.options, &skip),
                 };
                 lp::record_lp(batch, p, &self.stats, planes, params)?
             }
@@ -776,6 +795,14 @@ impl GpuChain {
         }
         Ok(out)
     }
+}
+
+/// `options` with the skip bit of every `(read, bit)` whose planes nobody
+/// reads back.
+fn skip_bits(options: u32, skip: &[(bool, u32)]) -> u32 {
+    skip.iter()
+        .filter(|(read, _)| !read)
+        .fold(options, |o, (_, bit)| o | bit)
 }
 
 /// Reads `count` f32 values of a slice owned by mcdenoise.
