@@ -877,30 +877,26 @@ fn wavefront_equals_pass_by_pass(w: usize, h: usize, origin: (u32, u32)) {
     };
     let mut batch = Batch::new(&ctx).unwrap();
     batch.fill(state.all(), 0);
-    for pass in 0..rl::GRANULARITIES.len() {
-        let p = whole(pass);
+    // The reach over the whole image of the centres made before `p.pass`.
+    let reach_before = |batch: &mut Batch, p: &LpPush| {
         lp_reach::record(
-            &mut batch,
+            batch,
             Precision::F32,
-            &p,
+            p,
             st[0],
             reach.plane(0),
             (0, h as u32),
         )
-        .unwrap();
+        .unwrap()
+    };
+    for pass in 0..rl::GRANULARITIES.len() {
+        let p = whole(pass);
+        reach_before(&mut batch, &p);
         let (r, q) = (reach.plane(0), queue.plane(0));
         lp_centres::record(&mut batch, Precision::F32, &p, &inp, r, q, st, None).unwrap();
     }
     let p = whole(rl::GRANULARITIES.len());
-    lp_reach::record(
-        &mut batch,
-        Precision::F32,
-        &p,
-        st[0],
-        reach.plane(0),
-        (0, h as u32),
-    )
-    .unwrap();
+    reach_before(&mut batch, &p);
     let (r, o) = (reach.plane(0), out.all());
     lp_gather::record(
         &mut batch,
