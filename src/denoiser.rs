@@ -448,7 +448,7 @@ impl Denoiser {
     /// Downloads the outputs of the last completed call.
     pub fn read(&self) -> Result<Frame> {
         let chain = self.chain()?;
-        let out = chain.download(self.config.debug, self.config.error)?;
+        let out = chain.download()?;
         let samples = if self.sampled.load(Ordering::SeqCst) {
             Some(chain.download_samples()?)
         } else {
@@ -552,7 +552,7 @@ impl Denoiser {
                 let (out, stats) = t.denoise(
                     img.get(),
                     budget,
-                    (self.config.debug, statistics, self.config.error),
+                    statistics,
                     self.config.progress,
                     self.progress.as_ref(),
                 )?;

@@ -330,11 +330,7 @@ impl GpuChain {
             // untouched: lavapipe compiles with LLVM, whose transient heap
             // would otherwise add to the run's peak (docs/performance.md,
             // seventh part). A renderer's chain builds them on its first run.
-            // (A counting batch checks for an upload like a real one.)
-            chain.uploaded.store(true, Ordering::SeqCst);
-            let warm = chain.work(None, None);
-            chain.uploaded.store(false, Ordering::SeqCst);
-            warm?;
+            chain.work(None, None)?;
         }
         Ok(chain)
     }
@@ -517,13 +513,9 @@ impl GpuChain {
                 stats::record_finalize(batch, p, layout, a, &self.stats)?
             }
             (ChainInput::Stats { .. }, None) => {
-                // A counting batch runs nothing, so it consumes nothing.
-                let fresh = if batch.is_counting() {
-                    self.uploaded.load(Ordering::SeqCst)
-                } else {
-                    self.uploaded.swap(false, Ordering::SeqCst)
-                };
-                if !fresh {
+                // A counting batch runs nothing, so it neither needs nor
+                // consumes an upload; a real run consumes the one it reads.
+                if !batch.is_counting() && !self.uploaded.swap(false, Ordering::SeqCst) {
                     return Err(Error::InvalidArgument(
                         "no statistics uploaded for this call: every call sanitises its upload in place, so upload the statistics again before each call (Denoiser::upload, or Denoiser::denoise)".into(),
                     ));
@@ -670,16 +662,18 @@ impl GpuChain {
         self.scratch.read_counters()
     }
 
-    /// Downloads the outputs of a completed run; the error estimate only
-    /// with `error` (else [`ChainOutput::error`] is empty, 0×0).
-    pub fn download(&self, debug: bool, error: bool) -> Result<ChainOutput> {
-        self.download_whole(debug, error, None)
+    /// Downloads the outputs of a completed run: the debug planes only with
+    /// [`ChainConfig::debug`], the error estimate only with
+    /// [`ChainConfig::error`] (else [`ChainOutput::error`] is empty, 0×0) —
+    /// the kernels skip the planes the configuration does not read.
+    pub fn download(&self) -> Result<ChainOutput> {
+        self.download_whole(None)
     }
 
     /// [`download`](Self::download), every plane cropped to `rect` (a tile's
     /// interior) and the statistics computed over it.
-    pub fn download_in(&self, debug: bool, error: bool, rect: Option<Rect>) -> Result<ChainOutput> {
-        let out = self.download_whole(debug, error, rect)?;
+    pub fn download_in(&self, rect: Option<Rect>) -> Result<ChainOutput> {
+        let out = self.download_whole(rect)?;
         let Some(r) = rect else {
             return Ok(out);
         };
@@ -697,7 +691,7 @@ impl GpuChain {
         }
         Ok(ChainOutput {
             color: rgb(&out.color),
-            error: if error {
+            error: if self.config.error {
                 rgb(&out.error)
             } else {
                 RgbImage::new(0, 0)
@@ -709,7 +703,8 @@ impl GpuChain {
     }
 
     /// The whole planes; the statistics over `rect` (all pixels if `None`).
-    fn download_whole(&self, debug: bool, error: bool, rect: Option<Rect>) -> Result<ChainOutput> {
+    fn download_whole(&self, rect: Option<Rect>) -> Result<ChainOutput> {
+        let (debug, error) = (self.config.debug, self.config.error);
         let (w, h) = self.size();
         let rgb = |p: [BufferSlice; 3]| -> Result<RgbImage> {
             Ok(RgbImage::from_planes(

@@ -217,8 +217,9 @@ fn denoise_gpu(
 
 /// Runs an existing chain (made for [`chain::ChainInput::Stats`] of `img`'s
 /// size and layers) on `img`: upload, record, submit, wait, download.
-/// `req`'s method, pass, precision and prefilter are the chain's; its
-/// `error`, `debug` and `progress` apply.
+/// `req`'s method, pass, precision, prefilter, `error` and `debug` are the
+/// chain's ([`chain::ChainConfig`] decides what is downloaded); its
+/// `budget` and `progress` apply.
 /// `progress` receives the completed fraction (0..1, by estimated work) and
 /// the last kernel after each submit.
 pub fn denoise_with_chain(
@@ -247,7 +248,7 @@ pub fn run_uploaded(
     }
     chain.record(&mut batch, None, req.budget)?;
     let timings = batch.finish()?;
-    let out = chain.download(req.debug, req.error)?;
+    let out = chain.download()?;
     let samples = match req.budget {
         Some(_) => Some(chain.download_samples()?),
         None => None,

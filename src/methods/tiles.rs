@@ -533,7 +533,7 @@ impl TiledChain {
         &self,
         img: &StatsImage,
         budget: Option<u32>,
-        (debug, statistics, want_error): (bool, bool, bool),
+        statistics: bool,
         batch_progress: bool,
         progress: Option<&ProgressCallback>,
     ) -> Result<(DenoiseOutput, Option<StatsImage>)> {
@@ -549,6 +549,7 @@ impl TiledChain {
             return Err(super::chain::no_int64(&self.ctx));
         }
         let n = w * h;
+        let want_error = self.config.error;
         let mut color = RgbImage::new(w, h);
         let mut error = if want_error {
             RgbImage::new(w, h)
@@ -592,7 +593,7 @@ impl TiledChain {
                 chain.record_tile(&mut batch, t.placement(), budget.is_some())?;
                 let tile_timings = batch.finish()?;
                 let local = t.inner_local();
-                let out = chain.download_in(debug, want_error, Some(local))?;
+                let out = chain.download_in(Some(local))?;
                 for (total, c) in report.counters.iter_mut().zip(chain.counters()?) {
                     *total += c;
                 }
