@@ -32,7 +32,7 @@ fn main() {
     )
     .unwrap();
     stats.upload_image(&img).unwrap();
-    let scratch = PrepareScratch::new(&ctx, &stats).unwrap();
+    let scratch = PrepareScratch::new(&ctx, &stats, None).unwrap();
     let t = std::time::Instant::now();
     let mut batch = Batch::new(&ctx).unwrap();
     record_prepare(

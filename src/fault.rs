@@ -174,6 +174,9 @@ struct State {
     write_limit: Option<(u64, i32)>,
     /// Bytes written through hooked writers since the plan was armed.
     written: u64,
+    /// Reads of device buffers go through a staging copy even where the
+    /// memory is mapped ([`Plan::staged_reads`]).
+    staged_reads: bool,
 }
 
 thread_local! {
@@ -229,6 +232,15 @@ impl Plan {
         self
     }
 
+    /// Reads of mcdenoise's device buffers on this thread take the path of a
+    /// device whose memory the host cannot map (a staging buffer, a copy, a
+    /// submit), as on a discrete GPU, instead of reading lavapipe's mapped
+    /// memory directly: so that faults can be injected into that path.
+    pub fn staged_reads(self) -> Plan {
+        with_state(|s| s.staged_reads = true);
+        self
+    }
+
     /// How many times `call` was reached on this thread since the plan was
     /// armed (including failed ones).
     pub fn calls(&self, call: Call) -> u64 {
@@ -269,6 +281,14 @@ fn count(s: &State, call: Call) -> u64 {
         .iter()
         .find(|(c, _)| *c == call)
         .map_or(0, |(_, n)| *n)
+}
+
+/// Whether reads may use a buffer's mapping ([`Plan::staged_reads`]).
+pub(crate) fn mapped_reads() -> bool {
+    if ARMED.load(Ordering::Relaxed) == 0 {
+        return true;
+    }
+    PLAN.with(|p| !p.borrow().as_ref().is_some_and(|s| s.staged_reads))
 }
 
 /// Counts a call of `call` and returns the failure armed for it, if any.

@@ -159,6 +159,16 @@ impl GpuBuffer {
         }
         ctx.name_object(buffer, name);
         ctx.count_allocation(size);
+        // Only coherent mappings: a direct read then needs no invalidation.
+        let coherent = allocation
+            .memory_properties()
+            .contains(vk::MemoryPropertyFlags::HOST_COHERENT);
+        if let (Some(ptr), true) = (allocation.mapped_ptr(), coherent) {
+            ctx.mapped
+                .lock()
+                .unwrap()
+                .insert(buffer, (ptr.as_ptr() as usize, size));
+        }
         Ok(GpuBuffer {
             ctx: ctx.clone(),
             name: name.to_owned(),
@@ -322,8 +332,10 @@ impl GpuBuffer {
     }
 }
 
-/// Reads `count` f32 values from `slice` (blocking: copies through a
-/// host-visible staging buffer and waits). The GPU must not be writing it.
+/// Reads `count` f32 values from `slice` (blocking). The GPU must not be
+/// writing it. A range of a mapped [`GpuBuffer`] of this context is copied
+/// directly; any other (device-local memory, a host's buffer) through a
+/// host-visible staging buffer, waiting for the copy.
 pub fn read_slice(ctx: &Arc<GpuContext>, slice: BufferSlice, count: usize) -> Result<Vec<f32>> {
     let bytes = count as u64 * 4;
     if bytes > slice.size {
@@ -333,6 +345,27 @@ pub fn read_slice(ctx: &Arc<GpuContext>, slice: BufferSlice, count: usize) -> Re
         )));
     }
     let mut v = vec![0.0f32; count];
+    // A lost device's memory holds nothing to read.
+    ctx.check_alive()?;
+    if fault::mapped_reads() {
+        let mapped = ctx.mapped.lock().unwrap();
+        if let Some(&(base, size)) = mapped.get(&slice.buffer) {
+            if slice.offset + bytes <= size {
+                // SAFETY: the buffer is alive while it is registered (its
+                // Drop unregisters it under this lock before the memory
+                // can be freed), the range lies inside its mapping, and
+                // only coherent mappings are registered.
+                unsafe {
+                    std::ptr::copy_nonoverlapping(
+                        (base as *const u8).add(slice.offset as usize),
+                        v.as_mut_ptr() as *mut u8,
+                        bytes as usize,
+                    )
+                };
+                return Ok(v);
+            }
+        }
+    }
     staged_download(
         ctx,
         "read_slice",
@@ -446,6 +479,9 @@ impl Drop for GpuBuffer {
         // Destroyed now, or when the last batch or `Recorded` that binds it
         // is done (see `GpuContext::retire_buffer`).
         self.ctx.count_free(self.size);
+        // Unregistered before the memory can go: a read_slice holding the
+        // lock finishes its copy first.
+        self.ctx.mapped.lock().unwrap().remove(&self.buffer);
         self.ctx.retire_buffer(self.buffer, self.allocation.take());
     }
 }

@@ -169,6 +169,11 @@ pub struct GpuContext {
     /// Queue submissions made by this context (the embedding tests check
     /// that recording into a host's command buffer submits nothing).
     submits: AtomicU64,
+    /// The host address and size of every live [`super::GpuBuffer`] whose
+    /// memory is mapped (all of them on a device whose memory is host
+    /// memory, as lavapipe's): [`super::buffer::read_slice`] reads those
+    /// directly instead of through a staging copy.
+    pub(crate) mapped: Mutex<HashMap<vk::Buffer, (usize, u64)>>,
     /// Bytes of the live [`super::GpuBuffer`]s made on this context, and
     /// the most there have been at once.
     pub(crate) allocated: AtomicU64,
@@ -662,6 +667,7 @@ impl GpuContext {
             in_flight: Mutex::new(InFlight::default()),
             free_desc_pools: Mutex::new(Vec::new()),
             free_query_pools: Mutex::new(Vec::new()),
+            mapped: Mutex::new(HashMap::new()),
             submits: AtomicU64::new(0),
             allocated: AtomicU64::new(0),
             peak_allocated: AtomicU64::new(0),

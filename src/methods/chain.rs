@@ -225,17 +225,17 @@ impl GpuChain {
         // One set of planes: the source's statistics are sanitised in place
         // (prepare::record_prepare), with room for the variances it estimates.
         let stats = GpuStats::new(ctx, "chain.stats", w, h, &prepare::output_layers(&layers))?;
-        let scratch = PrepareScratch::new(ctx, &stats)?;
-        // Stage scratch whose lifetimes do not overlap shares one arena: the
-        // outlier stage's (before the prefilter, and again after the
-        // method), the prefilter's, LP's state, WLR's scratch. LP's first
-        // state plane is read after the run, so the outlier scratch starts
-        // after it.
+        // Stage scratch whose lifetimes do not overlap shares one arena:
+        // sanitation's, the outlier stage's (before the prefilter, and again
+        // after the method), the prefilter's, LP's state, WLR's scratch.
+        // LP's first state plane is read after the run, so the outlier
+        // scratch starts after it.
         let n = w * h;
         let with_gbf = prefilter_runs(config.method, config.prefilter, &layers)?;
         let lp = config.method == Method::Lp;
         let keep = if lp { LpPlanes::kept_bytes(n) } else { 0 };
         let arena_bytes = [
+            PlaneSet::bytes(n, prepare::PLANES),
             if with_gbf {
                 PlaneSet::bytes(n, gbf::PLANES)
             } else {
@@ -257,6 +257,7 @@ impl GpuChain {
             Some(&b) if b > 0 => Some(Arc::new(GpuBuffer::new(ctx, "chain.arena", b)?)),
             _ => None,
         };
+        let scratch = PrepareScratch::new(ctx, &stats, arena.as_ref())?;
         let gbf = if with_gbf {
             Some(GbfPlanes::new(ctx, w, h, arena.as_ref())?)
         } else {

@@ -205,6 +205,9 @@ pub fn prepare_cpu(img: &StatsImage) -> (StatsImage, PrepareReport) {
 /// Bytes between the counter blocks of two channels (offset alignment).
 const COUNTER_STRIDE: u64 = 256;
 
+/// Planes of [`PrepareScratch`]: value and variance of one channel.
+pub const PLANES: usize = 2;
+
 /// GPU scratch for [`record_prepare`]: two ping-pong planes and the counters.
 #[derive(Debug)]
 pub struct PrepareScratch {
@@ -220,8 +223,15 @@ pub struct PrepareScratch {
 }
 
 impl PrepareScratch {
-    /// Allocates the scratch for sanitising `input` (its size and layers).
-    pub fn new(ctx: &Arc<GpuContext>, input: &GpuStats) -> Result<PrepareScratch> {
+    /// Allocates the scratch for sanitising `input` (its size and layers):
+    /// the [`PLANES`] planes at the start of `arena` when given (nothing of
+    /// them is read after [`record_prepare`]), else a buffer of their own.
+    pub fn new(
+        ctx: &Arc<GpuContext>,
+        input: &GpuStats,
+        arena: Option<&Arc<GpuBuffer>>,
+    ) -> Result<PrepareScratch> {
+        let n = input.width * input.height;
         let channels: usize = input
             .index
             .iter()
@@ -229,7 +239,10 @@ impl PrepareScratch {
             .map(|(l, _)| l.channels().len())
             .sum();
         Ok(PrepareScratch {
-            planes: PlaneSet::new(ctx, "prepare.scratch", input.width * input.height, 2)?,
+            planes: match arena {
+                Some(a) => PlaneSet::view(a, 0, n, PLANES)?,
+                None => PlaneSet::new(ctx, "prepare.scratch", n, PLANES)?,
+            },
             counters: GpuBuffer::new(
                 ctx,
                 "prepare.counters",
@@ -370,7 +383,7 @@ pub fn prepare_gpu(
         &output_layers(&layers),
     )?;
     stats.upload_image(img)?;
-    let scratch = PrepareScratch::new(ctx, &stats)?;
+    let scratch = PrepareScratch::new(ctx, &stats, None)?;
     let low_spp = has_low_spp(img);
     let mut batch = Batch::new(ctx)?;
     record_prepare(
