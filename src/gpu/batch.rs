@@ -909,11 +909,16 @@ impl Batch {
     /// Ends a [`record_into`](Self::record_into) batch. The returned holder
     /// must live until the host's submission has completed.
     pub fn finish_recording(mut self) -> Recorded {
+        // To every later command, and to the host: after the host's fence,
+        // mcdenoise reads its outputs through mapped memory (`read_slice`),
+        // which a fence wait alone does not make visible.
         self.global_barrier(
             vk::PipelineStageFlags::COMPUTE_SHADER | vk::PipelineStageFlags::TRANSFER,
             vk::AccessFlags::SHADER_WRITE | vk::AccessFlags::TRANSFER_WRITE,
-            vk::PipelineStageFlags::ALL_COMMANDS,
-            vk::AccessFlags::MEMORY_READ | vk::AccessFlags::MEMORY_WRITE,
+            vk::PipelineStageFlags::ALL_COMMANDS | vk::PipelineStageFlags::HOST,
+            vk::AccessFlags::MEMORY_READ
+                | vk::AccessFlags::MEMORY_WRITE
+                | vk::AccessFlags::HOST_READ,
         );
         Recorded {
             ctx: self.ctx.clone(),

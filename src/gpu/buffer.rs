@@ -189,6 +189,29 @@ impl GpuBuffer {
         Ok(b)
     }
 
+    /// The host address of the buffer's memory when it is mapped and
+    /// coherent: then uploads and downloads copy directly, with no flush or
+    /// invalidation. Otherwise they go through a staging buffer.
+    fn coherent_mapping(&self) -> Option<std::ptr::NonNull<std::ffi::c_void>> {
+        let a = self.allocation.as_ref()?;
+        let coherent = a
+            .memory_properties()
+            .contains(vk::MemoryPropertyFlags::HOST_COHERENT);
+        a.mapped_ptr().filter(|_| coherent)
+    }
+
+    /// A staging buffer must be coherently mapped: its own transfers are
+    /// direct (else they would stage again).
+    fn check_staging(&self) -> Result<()> {
+        match self.coherent_mapping() {
+            Some(_) => Ok(()),
+            None => Err(Error::Limit(format!(
+                "{}: the device offers no host-visible, host-coherent memory for staging",
+                self.name
+            ))),
+        }
+    }
+
     /// The debug name given at creation (also the Vulkan object name).
     pub fn name(&self) -> &str {
         &self.name
@@ -250,7 +273,7 @@ impl GpuBuffer {
                 )));
             }
         }
-        if let Some(ptr) = self.allocation.as_ref().and_then(|a| a.mapped_ptr()) {
+        if let Some(ptr) = self.coherent_mapping() {
             for &(offset, bytes) in regions {
                 // SAFETY: the mapping covers the allocation; range checked above.
                 unsafe {
@@ -273,6 +296,7 @@ impl GpuBuffer {
             size,
             MemoryLocation::CpuToGpu,
         )?;
+        staging.check_staging()?;
         let what = format!("the upload to {}", self.name);
         for chunk in &chunks {
             for p in &chunk.0 {
@@ -308,7 +332,7 @@ impl GpuBuffer {
                 )));
             }
         }
-        if let Some(ptr) = self.allocation.as_ref().and_then(|a| a.mapped_ptr()) {
+        if let Some(ptr) = self.coherent_mapping() {
             for (offset, out) in regions.iter_mut() {
                 // SAFETY: see upload_regions.
                 unsafe {
@@ -399,6 +423,7 @@ fn staged_download(
         size,
         MemoryLocation::GpuToCpu,
     )?;
+    staging.check_staging()?;
     let what = format!("the download from {name}");
     for chunk in &chunks {
         let copies = chunk.copies(|p| (regions[p.region].0 + p.at as u64, p.staging));
