@@ -69,6 +69,13 @@ pub const OPTIONS: &[OptionSpec] = &[
         help: "subtract the test pixel's variance from the prediction error (varsub, s=1) or not (paper, s=0)",
     },
     OptionSpec {
+        key: "lp.centre_test",
+        kind: Kind::Choice(&["on", "off"]),
+        default: "on",
+        section: "§3.4",
+        help: "a window whose model misses its own centre by more than 3 standard errors counts that miss for every pixel of the window (ours; off: the spec)",
+    },
+    OptionSpec {
         key: "apr.stages",
         kind: Kind::Int(1, 4),
         default: "2",

@@ -184,7 +184,8 @@ pub struct LpPush {
     pub granularity: u32,
     /// Index of this pass (0..5); stored as `pass + 1` in the centre map.
     pub pass: u32,
-    /// Bit 0: [`LP_VARSUB`] (`lp.error_mode = varsub`, `s = 1`, §3.4).
+    /// Bit 0: [`LP_VARSUB`] (`lp.error_mode = varsub`, `s = 1`, §3.4);
+    /// bit 4: [`LP_CENTRE_TEST`]; bits 1..3: the gather's `LP_SKIP_*`.
     pub options: u32,
     /// `lp_gather` only: f32 values from one output plane to the next in its
     /// packed output binding.
@@ -274,6 +275,10 @@ pub const LP_SKIP_DMSE: u32 = 4;
 /// [`LpPush::options`] bit, `lp_gather`: do not write the coverage plane
 /// (no debug layers).
 pub const LP_SKIP_COVERAGE: u32 = 8;
+/// [`LpPush::options`] bit: LP-CENTRE-TEST (`lp.centre_test = on`): a window
+/// whose model misses its own centre by more than 3 standard errors counts
+/// that miss as the error of every pixel of the window (§3.4, ours).
+pub const LP_CENTRE_TEST: u32 = 16;
 
 /// Index of the values of one LP centre in its 36-float state, written by
 /// `spirv/lp_centres.comp` and read by `spirv/lp_gather.comp` (9 vec4

@@ -17,7 +17,7 @@ use mcdenoise::reference::lp::{
 };
 use mcdenoise::reference::tsvd::projection;
 use mcdenoise::reference::{lp_centres as rc, lp_gather as rg, lp_reach as rr, lp_select as rs};
-use mcdenoise::shared::{LpPush, LP_VARSUB};
+use mcdenoise::shared::{LpPush, LP_CENTRE_TEST, LP_VARSUB};
 
 /// The 21 input planes of `lp_centres` (bindings 0..20): 7 features, their 7
 /// variances, colour R G B, colour variances R G B, spp.
@@ -156,7 +156,8 @@ fn push(sc: &Scene, pass: usize) -> LpPush {
         height: sc.h as u32,
         granularity: rl::GRANULARITIES[pass],
         pass: pass as u32,
-        options: LP_VARSUB,
+        // The defaults (LP-VARSUB, LP-CENTRE-TEST).
+        options: LP_VARSUB | LP_CENTRE_TEST,
         phase: LpPush::phase_for(rl::GRANULARITIES[pass], sc.origin),
         ..Default::default()
     }
@@ -684,7 +685,7 @@ fn centre_fit_invariants() {
         if !p.valid(cy * sc.w + cx) {
             continue;
         }
-        let fit = centre_fit(&p, cx, cy, s);
+        let fit = centre_fit(&p, cx, cy, s, false);
         let (yc, vc) = p.colour(cy * sc.w + cx);
         // ξ̂(0) = v_c.
         assert_eq!(fit.curve[0], vc);
@@ -870,7 +871,7 @@ fn wavefront_equals_pass_by_pass(w: usize, h: usize, origin: (u32, u32)) {
         height: h as u32,
         granularity: rl::GRANULARITIES[pass.min(4)],
         pass: pass as u32,
-        options: LP_VARSUB,
+        options: LP_VARSUB | LP_CENTRE_TEST,
         out_stride: (plane_stride(n) / 4) as u32,
         phase: LpPush::phase_for(rl::GRANULARITIES[pass.min(4)], origin),
         ..Default::default()
@@ -943,4 +944,55 @@ fn wavefront_equals_pass_by_pass(w: usize, h: usize, origin: (u32, u32)) {
     }
     same("coverage", &ring.coverage, &planes_out[9]);
     same("dimension", &ring.dim, &planes_out[10]);
+}
+
+/// LP-CENTRE-TEST on `tests/fixtures/glossy_highlight_40_spp64.exr`, a
+/// 40×40 crop of the built-in `glossy` scene at 64 spp: a 2×2 highlight of
+/// the small lamp (means 86–94, variances of the mean 242–367) at (20, 20).
+/// Under §3.4 as written the centre on the highlight takes the whole 19×19
+/// window: its own variance makes `r = 0` look worse than a window whose
+/// model misses it by ~80, and LP turns the highlight into a blob of ~5
+/// over the window. With the test (the default) it keeps a small window
+/// and the highlight. CPU twins and GPU kernels alike.
+#[test]
+fn the_centre_test_keeps_a_highlight_from_taking_the_whole_window() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/fixtures/glossy_highlight_40_spp64.exr");
+    let img = mcdenoise::io::read_stats(&path).unwrap();
+    let ctx = gpu();
+    let (w, q) = (img.width, 20 * img.width + 20);
+    let input = img.get(Layer::Color).unwrap()[0][q];
+    assert!(input > 80.0, "{input}");
+    for backend in [Backend::Cpu, Backend::Gpu] {
+        let run = |test: &str| {
+            let mut req = DenoiseRequest::new(Method::Lp);
+            req.backend = backend;
+            req.debug = true;
+            req.options = Options::parse(&[format!("lp.centre_test={test}")]).unwrap();
+            let out = denoise(Some(&ctx), &img, &req).unwrap();
+            let r_opt = out.debug.iter().find(|(n, _)| n == "r_opt").unwrap().1[q];
+            // The mean |output - input| over the 19×19 window, highlight aside.
+            let c = &out.color.planes[0];
+            let inp = &img.get(Layer::Color).unwrap()[0];
+            let (mut sum, mut k) = (0.0f64, 0);
+            for y in 11..30 {
+                for x in 11..30 {
+                    if !(20..22).contains(&x) || !(20..22).contains(&y) {
+                        sum += (c[y * w + x] - inp[y * w + x]).abs() as f64;
+                        k += 1;
+                    }
+                }
+            }
+            (r_opt, c[q], sum / k as f64)
+        };
+        let (r_spec, at_spec, spread_spec) = run("off");
+        let (r_test, at_test, spread_test) = run("on");
+        let what = format!("{backend:?}: spec r_opt {r_spec}, {at_spec} at the highlight, mean change {spread_spec}; test r_opt {r_test}, {at_test}, {spread_test}");
+        assert_eq!(r_spec, 9.0, "{what}");
+        assert!(at_spec < 20.0 && spread_spec > 2.0, "the blob: {what}");
+        assert!(r_test <= 1.0, "{what}");
+        assert!((at_test - input).abs() < 0.1 * input, "{what}");
+        assert!(spread_test < 0.5, "{what}");
+    }
+    check_validation(&ctx);
 }

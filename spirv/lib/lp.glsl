@@ -40,6 +40,10 @@
 #define LP_LOO_DEN_MIN 1e-4lf
 // LpPush.options bit (mirror mcdenoise::shared::LP_VARSUB).
 #define LP_VARSUB 1u
+// LpPush.options bit (mirror mcdenoise::shared::LP_CENTRE_TEST).
+#define LP_CENTRE_TEST 16u
+// LP-CENTRE-TEST's threshold (mirror reference::lp::CENTRE_TEST_Z2).
+#define LP_CENTRE_TEST_Z2 9.0
 
 void load_colour(ivec2 p, out real3 y, out real3 v);
 
@@ -233,9 +237,18 @@ struct LpFit {
     real3 xi;    // xi-hat_ch(r_opt)
 };
 
+// LP-CENTRE-TEST (twin: reference::lp::centre_miss): the error a window's
+// model adds for missing its own centre by more than 3 standard errors.
+real3 lp_centre_miss(real3 miss, real3 vc, real s)
+{
+    real3 m2 = miss * miss;
+    real3 add = m2 - s * vc;
+    return mix(real3(0), add, greaterThan(m2, real(LP_CENTRE_TEST_Z2) * vc));
+}
+
 // Spec §3.3-3.4 for the valid centre c with projection pr; s = 1 (VARSUB)
-// or 0 (paper-literal).
-LpFit lp_centre_fit(ivec2 c, ivec2 size, TsvdProj pr, real s)
+// or 0 (paper-literal); centre_test: LP-CENTRE-TEST.
+LpFit lp_centre_fit(ivec2 c, ivec2 size, TsvdProj pr, real s, bool centre_test)
 {
     real xc[MAX_D];
     real e2[MAX_D];
@@ -249,6 +262,7 @@ LpFit lp_centre_fit(ivec2 c, ivec2 size, TsvdProj pr, real s)
     // r = 0: the centre; xi(0) = v_c.
     real4 z0, z1, z2;
     lp_regressor(pr, xc, c, z0, z1, z2);
+    real4 c0 = z0, c1 = z1, c2 = z2;  // the centre's regressor
     lp_update(st, z0, z1, z2, yc);
     lp_symmetrise(st);
     best.r_opt = 0;
@@ -280,6 +294,9 @@ LpFit lp_centre_fit(ivec2 c, ivec2 size, TsvdProj pr, real s)
     }
     {
         real3 xr = xi / real(n);
+        if (centre_test) {
+            xr += lp_centre_miss(lp_predict(st, c0, c1, c2) - yc, vc, s);
+        }
         real total = xr.r + xr.g + xr.b;
         if (total < best_total) {
             best_total = total;
@@ -294,6 +311,9 @@ LpFit lp_centre_fit(ivec2 c, ivec2 size, TsvdProj pr, real s)
         lp_ring(st, pr, xc, c, r, size, true, s, xi, n);
         lp_symmetrise(st);
         real3 xr = xi / real(n);
+        if (centre_test) {
+            xr += lp_centre_miss(lp_predict(st, c0, c1, c2) - yc, vc, s);
+        }
         real total = xr.r + xr.g + xr.b;
         if (total < best_total) {
             best_total = total;

@@ -29,7 +29,7 @@ use crate::kernels::{lp_centres, lp_gather, lp_reach, lp_select};
 use crate::options::Options;
 use crate::reference;
 use crate::reference::lp::{StateLayout, GRANULARITIES};
-use crate::shared::{LpPush, LP_VARSUB};
+use crate::shared::{LpPush, LP_CENTRE_TEST, LP_VARSUB};
 
 /// The parameters of one LP run.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
@@ -48,6 +48,9 @@ impl LpParams {
     pub fn new(opts: &Options) -> Result<LpParams> {
         let options = match opts.get("lp.error_mode") {
             "varsub" => LP_VARSUB,
+            _ => 0,
+        } | match opts.get("lp.centre_test") {
+            "on" => LP_CENTRE_TEST,
             _ => 0,
         };
         Ok(LpParams {

@@ -247,9 +247,30 @@ impl CentreFit {
     }
 }
 
+/// LP-CENTRE-TEST's threshold: a squared miss at the centre above this many
+/// times the centre's variance of the mean (3 standard errors).
+pub const CENTRE_TEST_Z2: f64 = 9.0;
+
+/// LP-CENTRE-TEST (ours, `lp.centre_test`): the error a window's model adds
+/// for missing its own centre, per channel. `miss = β(k(r))ᵀζ_c − y_c` is
+/// the model's prediction at the centre minus the centre's mean; where
+/// `miss² > 9·v_c` the model is significantly wrong at the very pixel it
+/// was fitted for, and `miss² − s·v_c` (the error against the truth, as in
+/// the ring terms) is counted for every pixel of the window, i.e. added to
+/// `ξ̂(r)`; otherwise 0.
+pub fn centre_miss(miss: f64, v_c: f64, s: f64) -> f64 {
+    let m2 = miss * miss;
+    if m2 > CENTRE_TEST_Z2 * v_c {
+        m2 - s * v_c
+    } else {
+        0.0
+    }
+}
+
 /// Spec §3.3–3.4 for the valid centre `(cx, cy)`. `s` is the test-variance
-/// correction of LP-VARSUB (1, default) or the paper-literal 0.
-pub fn centre_fit(p: &Planes, cx: usize, cy: usize, s: f64) -> CentreFit {
+/// correction of LP-VARSUB (1, default) or the paper-literal 0;
+/// `centre_test` adds [`centre_miss`] to every `ξ̂(r ≥ 1)`.
+pub fn centre_fit(p: &Planes, cx: usize, cy: usize, s: f64, centre_test: bool) -> CentreFit {
     let ls = local_space(p, cx, cy);
     let pr = projection(&ls);
     let k = pr.k;
@@ -296,8 +317,17 @@ pub fn centre_fit(p: &Planes, cx: usize, cy: usize, s: f64) -> CentreFit {
             }
         }
     }
+    let zeta_c = zeta_of(cx, cy);
     let mut consider = |r: usize, xi_acc: &[f64; 3], n: usize, rls: &Rls| {
-        let xi: [f64; 3] = std::array::from_fn(|ch| xi_acc[ch] / n as f64);
+        let at_centre = rls.predict(&zeta_c);
+        let xi: [f64; 3] = std::array::from_fn(|ch| {
+            let miss = if centre_test {
+                centre_miss(at_centre[ch] - yc[ch], vc[ch], s)
+            } else {
+                0.0
+            };
+            xi_acc[ch] / n as f64 + miss
+        });
         curve[r] = xi;
         count[r] = n;
         let total: f64 = xi.iter().sum();

@@ -4,7 +4,7 @@
 //! optimisation of §3.3–3.4 ([`super::lp::centre_fit`]).
 
 use super::lp::{centre_fit, Planes, StateLayout};
-use crate::shared::{LpPush, LP_VARSUB};
+use crate::shared::{LpPush, LP_CENTRE_TEST, LP_VARSUB};
 
 /// One pass. `reach` is the [`lp_reach`](super::lp_reach) plane of the state
 /// as it was after the earlier passes (PASS-SNAPSHOT).
@@ -26,7 +26,10 @@ pub fn lp_centres(push: &LpPush, p: &Planes, reach: &[f32], state: &mut [Vec<f32
         .collect();
     let results: Vec<(usize, [f32; StateLayout::LEN])> = super::par_map(cand.len(), |i| {
         let (px, py) = cand[i];
-        (py * w + px, centre_fit(p, px, py, s).state(push.pass))
+        (
+            py * w + px,
+            centre_fit(p, px, py, s, push.options & LP_CENTRE_TEST != 0).state(push.pass),
+        )
     });
     for (q, st) in &results {
         for (i, v) in st.iter().enumerate() {
