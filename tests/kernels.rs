@@ -5,7 +5,7 @@ mod common;
 use common::*;
 
 use mcdenoise::gpu::Precision;
-use mcdenoise::kernels::{run_planes, sanitize, tsvd_debug};
+use mcdenoise::kernels::{run_planes, sanitize, sanitize_quads, tsvd_debug};
 use mcdenoise::reference;
 use mcdenoise::shared::{SanitizePush, TsvdPush};
 
@@ -35,6 +35,72 @@ fn dirty_channel(w: usize, h: usize, seed: u64) -> (Vec<f32>, Vec<f32>, Vec<f32>
         }
     }
     (value, var, spp)
+}
+
+/// `sanitize_quads` (stage 0, four pixels per invocation) against the twin
+/// and bit for bit against `sanitize` on dirty channels (NaN, infinite and
+/// negative values, invalid pixels), with and without a variance, counted
+/// margins or not, on widths that are multiples of 4.
+#[test]
+fn sanitize_quads_equals_sanitize() {
+    let ctx = gpu();
+    for &(w, h) in &[(4, 1), (4, 9), (8, 8), (12, 5), (64, 64), (132, 17)] {
+        assert!(sanitize_quads::fits(w as u32));
+        let (value, var, spp) = dirty_channel(w, h, 5 + (w * h) as u64);
+        for has_var in [true, false] {
+            let (skip_lo, skip_hi) = if has_var {
+                (0, 0)
+            } else {
+                (1 | 2 << 16, 2 | 1 << 16)
+            };
+            let push = SanitizePush {
+                width: w as u32,
+                height: h as u32,
+                stage: 0,
+                has_var: has_var as u32,
+                skip_lo,
+                skip_hi,
+                ..Default::default()
+            };
+            let (mut vc, mut varc, mut cc) = (vec![0.0; w * h], vec![0.0; w * h], [0u32; 4]);
+            reference::sanitize_quads::sanitize_quads(
+                &push, &value, &var, &spp, &mut vc, &mut varc, &mut cc,
+            );
+            for p in precisions() {
+                let run = |decl| {
+                    run_planes(
+                        &ctx,
+                        decl,
+                        p,
+                        bytemuck::bytes_of(&push),
+                        w,
+                        h,
+                        &[&value, &var, &spp],
+                        &[w * h, w * h, 4],
+                        100.0,
+                    )
+                    .unwrap()
+                    .0
+                };
+                let quads = run(&sanitize_quads::DECL);
+                let scalar = run(&sanitize::DECL);
+                let what = format!("sanitize_quads {w}x{h} has_var {has_var} {p:?}");
+                assert_close(&format!("{what} value"), &quads[0], &vc, 0.99);
+                assert_close(&format!("{what} var"), &quads[1], &varc, 0.99);
+                let counters: Vec<u32> = quads[2][..4].iter().map(|v| v.to_bits()).collect();
+                assert_eq!(counters, cc.to_vec(), "{what} counters");
+                assert!(
+                    cc[0] > 0 || w * h < 256,
+                    "{what}: the channel had no repair"
+                );
+                let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                for k in 0..3 {
+                    assert_eq!(bits(&quads[k]), bits(&scalar[k]), "{what}: output {k}");
+                }
+            }
+        }
+    }
+    check_validation(&ctx);
 }
 
 #[test]

@@ -37,6 +37,7 @@ pub mod sample_reduce;
 pub mod sample_scan;
 pub mod sanitize;
 pub mod sanitize_low_spp;
+pub mod sanitize_quads;
 pub mod tsvd_debug;
 pub mod wlr_final;
 pub mod wlr_fit;
@@ -47,6 +48,7 @@ pub const ALL: &[&KernelDecl] = &[
     &finalize_covariance::DECL,
     &sanitize::DECL,
     &sanitize_low_spp::DECL,
+    &sanitize_quads::DECL,
     &estimate_variance::DECL,
     &tsvd_debug::DECL,
     &channel_mean::DECL,

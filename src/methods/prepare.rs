@@ -14,7 +14,7 @@ use super::Backend;
 use crate::error::{Error, Result};
 use crate::gpu::{Batch, GpuBuffer, GpuContext, PlaneSet, Precision};
 use crate::image::{Layer, RgbImage, StatsImage};
-use crate::kernels::sanitize;
+use crate::kernels::{sanitize, sanitize_quads};
 use crate::reference::{sanitize::sanitize as sanitize_twin, spp_of};
 use crate::shared::SanitizePush;
 
@@ -267,6 +267,23 @@ impl PrepareScratch {
     }
 }
 
+/// Stage 0 of one channel (§0.4 steps 1–2): `sanitize_quads` when the width
+/// is a multiple of 4 (the same result, a quarter of the buffer accesses),
+/// else `sanitize`.
+fn stage0(
+    batch: &mut Batch,
+    precision: Precision,
+    push: SanitizePush,
+    planes: [crate::gpu::BufferSlice; 5],
+    counters: crate::gpu::BufferSlice,
+) -> Result<()> {
+    if sanitize_quads::fits(push.width) {
+        sanitize_quads::record(batch, precision, push, planes, counters)
+    } else {
+        sanitize::record(batch, precision, push, planes, counters)
+    }
+}
+
 /// Records the sanitation of the statistics in `stats`, in place. `stats`
 /// holds [`output_layers`] of `layers`, the layers the source provides (the
 /// planes of the variances sanitation estimates are written, not read).
@@ -323,13 +340,13 @@ pub fn record_prepare(
                 batch.copy(value, tmp_val);
                 batch.copy(var, tmp_var);
                 let planes = [tmp_val, tmp_var, spp, value, var];
-                sanitize::record(batch, precision, push(0, true), planes, counters(channel))?;
+                stage0(batch, precision, push(0, true), planes, counters(channel))?;
             } else {
                 // Without a variance, stage 0 reads the value as a stand-in
                 // and stage 2 estimates the variance plane.
                 let var_in = if has_var { var } else { value };
                 let planes = [value, var_in, spp, tmp_val, tmp_var];
-                sanitize::record(
+                stage0(
                     batch,
                     precision,
                     push(0, has_var),
@@ -353,7 +370,7 @@ pub fn record_prepare(
         for c in 0..6 {
             let p = stats.plane(Layer::PositionCovariance, c);
             batch.copy(p, tmp_val);
-            sanitize::record(
+            stage0(
                 batch,
                 precision,
                 push(0, false),

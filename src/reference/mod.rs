@@ -49,6 +49,7 @@ pub mod sample_scan;
 pub mod sampling;
 pub mod sanitize;
 pub mod sanitize_low_spp;
+pub mod sanitize_quads;
 pub mod tsvd;
 pub mod tsvd_debug;
 pub mod wlr;
