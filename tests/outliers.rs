@@ -550,7 +550,15 @@ fn spikes_are_removed_and_their_energy_kept() {
                 // by (colsum − 1)·(median − original): a fit difference, not
                 // lost energy (the stage's own balance is exact to 1e-9 in
                 // `redistribution_conserves_energy`).
-                let tol = if method == Method::Apr { 3e-6 } else { 1e-6 };
+                // LP: 1.1e-6 measured on the GPU since LP-CENTRE-TEST (1e-6
+                // held with `lp.centre_test=off`): the same fit difference.
+                // The spike pixel's median value changes a window's miss at
+                // its centre, so a centre near it can choose another window.
+                let tol = match method {
+                    Method::Apr => 3e-6,
+                    Method::Lp => 2e-6,
+                    _ => 1e-6,
+                };
                 assert!(
                     off <= tol * sb,
                     "{what}, channel {c}: sum moved by {} for spikes of {} (off by {off}, image sum {sb})",
