@@ -285,6 +285,7 @@ fn help_lists_the_spec_options() {
     for key in [
         "wlr.reject",
         "lp.error_mode",
+        "lp.centre_test",
         "sampling.smooth",
         "--sample-map",
         "--budget",

@@ -236,6 +236,7 @@ fn option_strings_never_panic() {
         Just("aos.residual".to_string()),
         Just("sampling.smooth".to_string()),
         Just("lp.error_mode".to_string()),
+        Just("lp.centre_test".to_string()),
         ".{0,24}",
     ];
     let pair = (
