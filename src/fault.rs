@@ -174,8 +174,8 @@ struct State {
     write_limit: Option<(u64, i32)>,
     /// Bytes written through hooked writers since the plan was armed.
     written: u64,
-    /// Reads of device buffers go through a staging copy even where the
-    /// memory is mapped ([`Plan::staged_reads`]).
+    /// `read_slice` goes through a staging copy even where the memory is
+    /// mapped ([`Plan::staged_reads`]).
     staged_reads: bool,
 }
 
@@ -232,10 +232,12 @@ impl Plan {
         self
     }
 
-    /// Reads of mcdenoise's device buffers on this thread take the path of a
-    /// device whose memory the host cannot map (a staging buffer, a copy, a
-    /// submit), as on a discrete GPU, instead of reading lavapipe's mapped
-    /// memory directly: so that faults can be injected into that path.
+    /// Plane reads through `gpu::buffer::read_slice` (a chain's outputs) on
+    /// this thread take the path of a device whose memory the host cannot
+    /// map (a staging buffer, a copy, a submit), as on a discrete GPU,
+    /// instead of reading lavapipe's mapped memory directly: so that faults
+    /// can be injected into that path. `GpuBuffer`'s own downloads are not
+    /// affected (a staging buffer is read through its mapping).
     pub fn staged_reads(self) -> Plan {
         with_state(|s| s.staged_reads = true);
         self
@@ -283,7 +285,7 @@ fn count(s: &State, call: Call) -> u64 {
         .map_or(0, |(_, n)| *n)
 }
 
-/// Whether reads may use a buffer's mapping ([`Plan::staged_reads`]).
+/// Whether `read_slice` may use a buffer's mapping ([`Plan::staged_reads`]).
 pub(crate) fn mapped_reads() -> bool {
     if ARMED.load(Ordering::Relaxed) == 0 {
         return true;

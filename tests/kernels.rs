@@ -37,6 +37,20 @@ fn dirty_channel(w: usize, h: usize, seed: u64) -> (Vec<f32>, Vec<f32>, Vec<f32>
     (value, var, spp)
 }
 
+/// A sanitation kernel's outputs (value, variance, counters as `run_planes`
+/// returns them) against its twin's, within §0.3's tolerance; the counters
+/// exactly.
+fn assert_matches_twin(
+    what: &str,
+    out: &[Vec<f32>],
+    (value, var, counters): (&[f32], &[f32], &[u32; 4]),
+) {
+    assert_close(&format!("{what} value"), &out[0], value, 0.99);
+    assert_close(&format!("{what} var"), &out[1], var, 0.99);
+    let got: Vec<u32> = out[2][..4].iter().map(|v| v.to_bits()).collect();
+    assert_eq!(got, counters.to_vec(), "{what} counters");
+}
+
 /// `sanitize_quads` (stage 0, four pixels per invocation) against the twin
 /// and bit for bit against `sanitize` on dirty channels (NaN, infinite and
 /// negative values, invalid pixels), with and without a variance, counted
@@ -85,10 +99,7 @@ fn sanitize_quads_equals_sanitize() {
                 let quads = run(&sanitize_quads::DECL);
                 let scalar = run(&sanitize::DECL);
                 let what = format!("sanitize_quads {w}x{h} has_var {has_var} {p:?}");
-                assert_close(&format!("{what} value"), &quads[0], &vc, 0.99);
-                assert_close(&format!("{what} var"), &quads[1], &varc, 0.99);
-                let counters: Vec<u32> = quads[2][..4].iter().map(|v| v.to_bits()).collect();
-                assert_eq!(counters, cc.to_vec(), "{what} counters");
+                assert_matches_twin(&what, &quads, (&vc, &varc, &cc));
                 assert!(
                     cc[0] > 0 || w * h < 256,
                     "{what}: the channel had no repair"
@@ -153,10 +164,7 @@ fn sanitize_matches_twin() {
                     )
                     .unwrap();
                     let what = format!("sanitize {w}x{h} stage {stage} has_var {has_var} {p:?}");
-                    assert_close(&format!("{what} value"), &out[0], &vc, 0.99);
-                    assert_close(&format!("{what} var"), &out[1], &varc, 0.99);
-                    let counters: Vec<u32> = out[2][..4].iter().map(|v| v.to_bits()).collect();
-                    assert_eq!(counters, cc.to_vec(), "{what} counters");
+                    assert_matches_twin(&what, &out, (&vc, &varc, &cc));
                     assert!(
                         out[0].iter().all(|v| v.is_finite()),
                         "{what}: non-finite value left"

@@ -159,23 +159,21 @@ impl GpuBuffer {
         }
         ctx.name_object(buffer, name);
         ctx.count_allocation(size);
-        // Only coherent mappings: a direct read then needs no invalidation.
-        let coherent = allocation
-            .memory_properties()
-            .contains(vk::MemoryPropertyFlags::HOST_COHERENT);
-        if let (Some(ptr), true) = (allocation.mapped_ptr(), coherent) {
-            ctx.mapped
-                .lock()
-                .unwrap()
-                .insert(buffer, (ptr.as_ptr() as usize, size));
-        }
-        Ok(GpuBuffer {
+        let b = GpuBuffer {
             ctx: ctx.clone(),
             name: name.to_owned(),
             buffer,
             allocation: Some(allocation),
             size,
-        })
+        };
+        // Only coherent mappings: a direct read then needs no invalidation.
+        if let Some(ptr) = b.coherent_mapping() {
+            ctx.mapped
+                .lock()
+                .unwrap()
+                .insert(buffer, (ptr.as_ptr() as usize, size));
+        }
+        Ok(b)
     }
 
     /// A buffer holding `data`.

@@ -75,14 +75,38 @@ pub fn record(
     planes: [BufferSlice; 5],
     counters: BufferSlice,
 ) -> Result<()> {
+    let grid = (push.width, flops_per_pixel(push.stage));
+    record_grid(
+        batch,
+        decl(push.stage),
+        precision,
+        push,
+        planes,
+        counters,
+        grid,
+    )
+}
+
+/// Dispatches a kernel with the sanitation layout over `grid_width`
+/// invocations per row of `push.height` rows, each costing `flops`
+/// (`sanitize_quads` runs a quarter as many, each on four pixels).
+pub(super) fn record_grid(
+    batch: &mut Batch,
+    decl: &KernelDecl,
+    precision: Precision,
+    push: SanitizePush,
+    planes: [BufferSlice; 5],
+    counters: BufferSlice,
+    (grid_width, flops): (u32, f64),
+) -> Result<()> {
     let [value_in, var_in, spp, value_out, var_out] = planes;
     batch.dispatch(
-        decl(push.stage),
+        decl,
         precision,
         &[value_in, var_in, spp, value_out, var_out, counters],
         bytemuck::bytes_of(&push),
-        push.width,
+        grid_width,
         push.height,
-        flops_per_pixel(push.stage),
+        flops,
     )
 }

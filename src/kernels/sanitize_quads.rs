@@ -40,14 +40,6 @@ pub fn record(
             push.stage, push.width
         )));
     }
-    let [value_in, var_in, spp, value_out, var_out] = planes;
-    batch.dispatch(
-        &DECL,
-        precision,
-        &[value_in, var_in, spp, value_out, var_out, counters],
-        bytemuck::bytes_of(&push),
-        push.width / 4,
-        push.height,
-        4.0 * super::sanitize::flops_per_pixel(0),
-    )
+    let grid = (push.width / 4, 4.0 * super::sanitize::flops_per_pixel(0));
+    super::sanitize::record_grid(batch, &DECL, precision, push, planes, counters, grid)
 }

@@ -141,7 +141,7 @@ impl WlrPlanes {
         arena: Option<&Arc<GpuBuffer>>,
     ) -> Result<WlrPlanes> {
         let n = width * height;
-        let ring_rows = (CHUNK_ROWS + LAG_ROWS).min(height.max(1) as u32);
+        let ring_rows = Self::ring_rows(height);
         let ring_bytes = Self::ring_bytes(width, height, precision);
         let limit = ctx.info.max_storage_buffer_range as u64;
         if ring_bytes > limit {
@@ -168,10 +168,15 @@ impl WlrPlanes {
         })
     }
 
+    /// Rows of the centre-state ring for an image `height` rows tall.
+    fn ring_rows(height: usize) -> u32 {
+        (CHUNK_ROWS + LAG_ROWS).min(height.max(1) as u32)
+    }
+
     /// Bytes of the centre-state ring of a `width × height` image at
     /// `precision`: it grows with the width, not the area.
     pub fn ring_bytes(width: usize, height: usize, precision: Precision) -> u64 {
-        let ring_rows = (CHUNK_ROWS + LAG_ROWS).min(height.max(1) as u32);
+        let ring_rows = Self::ring_rows(height);
         let word = match precision {
             Precision::F32 => 4,
             Precision::F64 => 8,

@@ -319,13 +319,9 @@ pub fn centre_fit(p: &Planes, cx: usize, cy: usize, s: f64, centre_test: bool) -
     }
     let zeta_c = zeta_of(cx, cy);
     let mut consider = |r: usize, xi_acc: &[f64; 3], n: usize, rls: &Rls| {
-        let at_centre = rls.predict(&zeta_c);
+        let at_centre = centre_test.then(|| rls.predict(&zeta_c));
         let xi: [f64; 3] = std::array::from_fn(|ch| {
-            let miss = if centre_test {
-                centre_miss(at_centre[ch] - yc[ch], vc[ch], s)
-            } else {
-                0.0
-            };
+            let miss = at_centre.map_or(0.0, |f| centre_miss(f[ch] - yc[ch], vc[ch], s));
             xi_acc[ch] / n as f64 + miss
         });
         curve[r] = xi;
