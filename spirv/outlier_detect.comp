@@ -1,15 +1,16 @@
 #version 460
 // Outlier detection and replacement (spec §4.4 steps 1-3). Per valid pixel o:
 // the (count, mean, M2) of grey over Ω_o(R) \ {o} merged from outlier_rows'
-// half-row summaries (EXCL-CENTRE); o is an outlier when count >= min_n
-// (OUTLIER-MIN-N), grey_o - m > k sd (SPIKE-SIDE, population sd) and
-// grey_o - m <= k se_o (OUTLIER-NOISE, se from the pixel's variances) and
-// no 8-neighbour is above m + k sd (OUTLIER-ISOLATED). Every pixel's
-// colour and variance are copied to the outputs with e = 0; a detected
-// pixel is appended to the queue, whose entries outlier_median replaces by
-// the median pixel. The median lives in its own kernel because a kernel
-// merely containing its 32 scans of the window ran ~9x slower on lavapipe,
-// and because a queue keeps all SIMD lanes of the median busy.
+// row summaries (the row of o without o: EXCL-CENTRE); o is an outlier when
+// count >= min_n (OUTLIER-MIN-N), grey_o - m > k sd (SPIKE-SIDE, population
+// sd) and grey_o - m <= k se_o (OUTLIER-NOISE, se from the pixel's
+// variances) and no 8-neighbour is above m + k sd (OUTLIER-ISOLATED, on
+// outlier_grey's plane). Every pixel's colour and variance are copied to
+// the outputs with e = 0; a detected pixel is appended to the queue, whose
+// entries outlier_median replaces by the median pixel. The median lives in
+// its own kernel because a kernel merely containing its 32 scans of the
+// window ran ~9x slower on lavapipe, and because a queue keeps all SIMD
+// lanes of the median busy.
 // Scalar twin: src/reference/outlier_detect.rs.
 #include "lib/common.glsl"
 #include "lib/outliers.glsl"
@@ -23,34 +24,45 @@ PLANE_IN(3, vr)
 PLANE_IN(4, vg)
 PLANE_IN(5, vb)
 PLANE_IN(6, spp)
-PLANE_IN(7, ln)
-PLANE_IN(8, lm)
-PLANE_IN(9, lq)
-PLANE_IN(10, rn)
-PLANE_IN(11, rm)
-PLANE_IN(12, rq)
-PLANE_OUT(13, out_r)
-PLANE_OUT(14, out_g)
-PLANE_OUT(15, out_b)
-PLANE_OUT(16, out_vr)
-PLANE_OUT(17, out_vg)
-PLANE_OUT(18, out_vb)
-PLANE_OUT(19, er)
-PLANE_OUT(20, eg)
-PLANE_OUT(21, eb)
+PLANE_IN(7, grey)
+PLANE_IN(8, wn)
+PLANE_IN(9, wm)
+PLANE_IN(10, wq)
+PLANE_IN(11, xn)
+PLANE_IN(12, xm)
+PLANE_IN(13, xq)
+PLANE_OUT(14, out_r)
+PLANE_OUT(15, out_g)
+PLANE_OUT(16, out_b)
+PLANE_OUT(17, out_vr)
+PLANE_OUT(18, out_vg)
+PLANE_OUT(19, out_vb)
+PLANE_OUT(20, er)
+PLANE_OUT(21, eg)
+PLANE_OUT(22, eb)
 // [0..3): indirect dispatch arguments of outlier_median (x counts started
 // groups of 64 entries; y = z = 1, set by the host), [3]: entries, then the
 // detected pixels. The host zeroes x and the count before the dispatch.
-layout(std430, set = 0, binding = 22) buffer queue_blk { uint queue[]; };
+layout(std430, set = 0, binding = 23) buffer queue_blk { uint queue[]; };
 
 real grey_at(uint i) { return (real(cr[i]) + real(cg[i]) + real(cb[i])) / real(3); }
 
-Summary half_row(uint q, bool left)
+// Row summary at q: with the pixel of column x (rows other than o's) or
+// without it (o's row).
+Summary with_x(uint q)
 {
     Summary s;
-    s.n = real(left ? ln[q] : rn[q]);
-    s.mean = real(left ? lm[q] : rm[q]);
-    s.m2 = real(left ? lq[q] : rq[q]);
+    s.n = real(wn[q]);
+    s.mean = real(wm[q]);
+    s.m2 = real(wq[q]);
+    return s;
+}
+Summary without_x(uint q)
+{
+    Summary s;
+    s.n = real(xn[q]);
+    s.mean = real(xm[q]);
+    s.m2 = real(xq[q]);
     return s;
 }
 
@@ -70,18 +82,13 @@ void main()
         s.n = real(0);
         s.mean = real(0);
         s.m2 = real(0);
-        for (int qy = y0; qy <= y1; ++qy) {
-            uint c = uint(qy) * push.width + x;
-            Summary row = half_row(c, true);
-            if (qy != int(y) && valid_at(spp[c])) {
-                Summary one;
-                one.n = real(1);
-                one.mean = grey_at(c);
-                one.m2 = real(0);
-                row = merge(row, one);
-            }
-            row = merge(row, half_row(c, false));
-            s = merge(s, row);
+        // Rows in order, o's own without o.
+        for (int qy = y0; qy < int(y); ++qy) {
+            s = merge(s, with_x(uint(qy) * push.width + x));
+        }
+        s = merge(s, without_x(o));
+        for (int qy = int(y) + 1; qy <= y1; ++qy) {
+            s = merge(s, with_x(uint(qy) * push.width + x));
         }
         real sd = sqrt(max(s.m2 / max(s.n, real(1)), real(0)));
         // OUTLIER-NOISE: the excess must also be within k standard errors of
@@ -95,7 +102,8 @@ void main()
         for (int qy = max(int(y) - 1, 0); outlier && qy <= min(int(y) + 1, int(push.height) - 1); ++qy) {
             for (int qx = max(int(x) - 1, 0); qx <= min(int(x) + 1, int(push.width) - 1); ++qx) {
                 uint j = uint(qy) * push.width + uint(qx);
-                if (j != o && valid_at(spp[j]) && grey_at(j) - s.mean > real(push.k_sigma) * sd) {
+                float gj = grey[j];  // NaN (invalid): never above
+                if (j != o && !isnan(gj) && real(gj) - s.mean > real(push.k_sigma) * sd) {
                     outlier = false;
                 }
             }

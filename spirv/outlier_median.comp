@@ -3,7 +3,8 @@
 // queued: o takes the colour and variance of q*, the pixel of median grey
 // in Ω_o(R) with o (lower median of an even count, lowest raster index
 // among equal greys: OUTLIER-MEDIAN), found by an 8-step radix selection (4-bit digits) on
-// the order-preserving bits of grey from outlier_rows (no local array);
+// the order-preserving bits of grey from outlier_grey (0: invalid; no local
+// array);
 // e = y_o - y_q* per channel. Every read is of the original planes, so the
 // entries are independent and the queue's order does not matter.
 // Dispatched indirectly, one invocation per entry (striding past 65535
@@ -20,18 +21,17 @@ PLANE_IN(2, cb)
 PLANE_IN(3, vr)
 PLANE_IN(4, vg)
 PLANE_IN(5, vb)
-PLANE_IN(6, spp)
-layout(std430, set = 0, binding = 7) readonly buffer keys_blk { uint keys[]; };
-layout(std430, set = 0, binding = 8) readonly buffer queue_blk { uint queue[]; };
-PLANE_OUT(9, out_r)
-PLANE_OUT(10, out_g)
-PLANE_OUT(11, out_b)
-PLANE_OUT(12, out_vr)
-PLANE_OUT(13, out_vg)
-PLANE_OUT(14, out_vb)
-PLANE_OUT(15, er)
-PLANE_OUT(16, eg)
-PLANE_OUT(17, eb)
+layout(std430, set = 0, binding = 6) readonly buffer keys_blk { uint keys[]; };
+layout(std430, set = 0, binding = 7) readonly buffer queue_blk { uint queue[]; };
+PLANE_OUT(8, out_r)
+PLANE_OUT(9, out_g)
+PLANE_OUT(10, out_b)
+PLANE_OUT(11, out_vr)
+PLANE_OUT(12, out_vg)
+PLANE_OUT(13, out_vb)
+PLANE_OUT(14, er)
+PLANE_OUT(15, eg)
+PLANE_OUT(16, eb)
 
 // Moves rank k past the counts of c (digits base..base+3) until it falls
 // inside one: that digit.
@@ -60,7 +60,7 @@ void replace(uint o)
     uint n = 0u;
     for (int qy = y0; qy <= y1; ++qy) {
         for (int qx = x0; qx <= x1; ++qx) {
-            n += valid_at(spp[uint(qy) * push.width + uint(qx)]) ? 1u : 0u;
+            n += keys[uint(qy) * push.width + uint(qx)] != 0u ? 1u : 0u;
         }
     }
     uint k = (n - 1u) / 2u;
@@ -74,9 +74,8 @@ void replace(uint o)
         uvec4 c0 = uvec4(0), c1 = uvec4(0), c2 = uvec4(0), c3 = uvec4(0);
         for (int qy = y0; qy <= y1; ++qy) {
             for (int qx = x0; qx <= x1; ++qx) {
-                uint j = uint(qy) * push.width + uint(qx);
-                if (valid_at(spp[j])) {
-                    uint kj = keys[j];
+                uint kj = keys[uint(qy) * push.width + uint(qx)];
+                if (kj != 0u) {
                     if ((kj & hi) == prefix) {
                         uvec4 d = uvec4((kj >> uint(shift)) & 15u);
                         c0 += uvec4(equal(d, uvec4(0u, 1u, 2u, 3u)));
@@ -101,7 +100,7 @@ void replace(uint o)
     for (int qy = y0; qy <= y1 && !found; ++qy) {
         for (int qx = x0; qx <= x1 && !found; ++qx) {
             uint j = uint(qy) * push.width + uint(qx);
-            if (valid_at(spp[j]) && keys[j] == prefix) {
+            if (keys[j] == prefix) {
                 q = j;
                 found = true;
             }

@@ -1,30 +1,23 @@
 #version 460
 // Outlier detection, row part (spec §4.4 step 1): per pixel (x, y), the
-// (count, mean, M2) of grey over the valid pixels of the row segments
-// [x - R, x - 1] (left) and [x + 1, x + R] (right), R = push.radius, clipped.
-// outlier_detect merges 2R + 1 rows of these into the statistics of
-// Ω(R) \ {o} without a sum of squares; and per pixel the order-preserving
-// bits of grey (keys) its median selection scans. Scalar twin:
+// (count, mean, M2) of grey over the valid pixels of the row segment
+// [x - R, x + R] (R = push.radius, clipped), once with (x) itself and once
+// without (o): outlier_detect merges 2R + 1 rows of these into the
+// statistics of Ω(R) \ {o} without a sum of squares, the row of o without
+// it (EXCL-CENTRE). Each is merged from the two-pass summaries of the left
+// [x - R, x - 1] and right [x + 1, x + R] half-rows; grey and validity come
+// from outlier_grey's plane (NaN: invalid). Scalar twin:
 // src/reference/outlier_rows.rs.
 #include "lib/common.glsl"
 #include "lib/outliers.glsl"
-
 layout(local_size_x = 8, local_size_y = 8) in;
-
-PLANE_IN(0, cr)
-PLANE_IN(1, cg)
-PLANE_IN(2, cb)
-PLANE_IN(3, spp)
-PLANE_OUT(4, ln)
-PLANE_OUT(5, lm)
-PLANE_OUT(6, lq)
-PLANE_OUT(7, rn)
-PLANE_OUT(8, rm)
-PLANE_OUT(9, rq)
-layout(std430, set = 0, binding = 10) buffer keys_blk { uint keys[]; };
-
-real grey_at(uint i) { return (real(cr[i]) + real(cg[i]) + real(cb[i])) / real(3); }
-
+PLANE_IN(0, grey)
+PLANE_OUT(1, wn)
+PLANE_OUT(2, wm)
+PLANE_OUT(3, wq)
+PLANE_OUT(4, xn)
+PLANE_OUT(5, xm)
+PLANE_OUT(6, xq)
 // Two-pass (count, mean, M2) of row y over [a, b].
 Summary segment(uint y, int a, int b)
 {
@@ -34,10 +27,10 @@ Summary segment(uint y, int a, int b)
     s.m2 = real(0);
     real sum = real(0);
     for (int qx = a; qx <= b; ++qx) {
-        uint q = y * push.width + uint(qx);
-        if (valid_at(spp[q])) {
+        float g = grey[y * push.width + uint(qx)];
+        if (!isnan(g)) {
             s.n += real(1);
-            sum += grey_at(q);
+            sum += real(g);
         }
     }
     if (s.n == real(0)) {
@@ -45,15 +38,14 @@ Summary segment(uint y, int a, int b)
     }
     s.mean = sum / s.n;
     for (int qx = a; qx <= b; ++qx) {
-        uint q = y * push.width + uint(qx);
-        if (valid_at(spp[q])) {
-            real d = grey_at(q) - s.mean;
+        float g = grey[y * push.width + uint(qx)];
+        if (!isnan(g)) {
+            real d = real(g) - s.mean;
             s.m2 += d * d;
         }
     }
     return s;
 }
-
 void main()
 {
     uint x = gl_GlobalInvocationID.x;
@@ -65,13 +57,21 @@ void main()
     int r = int(push.radius);
     Summary l = segment(y, max(int(x) - r, 0), int(x) - 1);
     Summary rt = segment(y, int(x) + 1, min(int(x) + r, int(push.width) - 1));
-    ln[i] = float(l.n);
-    lm[i] = float(l.mean);
-    lq[i] = float(l.m2);
-    rn[i] = float(rt.n);
-    rm[i] = float(rt.mean);
-    rq[i] = float(rt.m2);
-    // Order-preserving bits of the f32 grey, for outlier_detect's median.
-    uint b = floatBitsToUint(float(grey_at(i)));
-    keys[i] = (b & 0x80000000u) != 0u ? ~b : (b | 0x80000000u);
+    Summary c;
+    c.n = real(0);
+    c.mean = real(0);
+    c.m2 = real(0);
+    float g = grey[i];
+    if (!isnan(g)) {
+        c.n = real(1);
+        c.mean = real(g);
+    }
+    Summary with_x = merge(merge(l, c), rt);
+    Summary without = merge(l, rt);
+    wn[i] = float(with_x.n);
+    wm[i] = float(with_x.mean);
+    wq[i] = float(with_x.m2);
+    xn[i] = float(without.n);
+    xm[i] = float(without.mean);
+    xq[i] = float(without.m2);
 }

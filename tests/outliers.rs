@@ -9,13 +9,13 @@ use common::*;
 use mcdenoise::gpu::{Batch, GpuBuffer, GpuContext, Precision};
 use mcdenoise::image::{Layer, StatsImage};
 use mcdenoise::kernels::{
-    box_rows, outlier_detect, outlier_median, outlier_rows, outlier_spread, outlier_weights,
-    run_planes,
+    box_rows, outlier_detect, outlier_grey, outlier_median, outlier_rows, outlier_spread,
+    outlier_weights, run_planes,
 };
 use mcdenoise::reference::outliers as ro;
 use mcdenoise::reference::{
-    box_rows as rb, outlier_detect as rd, outlier_median as rm, outlier_rows as rr,
-    outlier_spread as rs, outlier_weights as rw,
+    box_rows as rb, outlier_detect as rd, outlier_grey as rg, outlier_median as rm,
+    outlier_rows as rr, outlier_spread as rs, outlier_weights as rw,
 };
 use mcdenoise::shared::OutlierPush;
 use mcdenoise::{Config, Denoiser, Method, Outliers, Source};
@@ -93,6 +93,7 @@ fn detect_and_replace(
     p: Precision,
     pu: &OutlierPush,
     img: &Img,
+    grey: &[f32],
     rows: &[Vec<f32>],
     keys: &[f32],
 ) -> (Vec<Vec<f32>>, Vec<u32>) {
@@ -101,6 +102,7 @@ fn detect_and_replace(
     let color: Vec<GpuBuffer> = img.color.iter().map(|v| up(v)).collect();
     let var: Vec<GpuBuffer> = img.var.iter().map(|v| up(v)).collect();
     let spp = up(&img.spp);
+    let grey = up(grey);
     let rows: Vec<GpuBuffer> = rows.iter().map(|v| up(v)).collect();
     let keys = up(keys);
     let out: Vec<GpuBuffer> = (0..9).map(|_| up(&vec![0.0; n])).collect();
@@ -123,6 +125,7 @@ fn detect_and_replace(
         three(&cs, 0),
         three(&vs, 0),
         spp.slice(),
+        grey.slice(),
         six(&rs, 0),
         six(&os, 0),
         three(&os, 6),
@@ -135,7 +138,6 @@ fn detect_and_replace(
         pu,
         three(&cs, 0),
         three(&vs, 0),
-        spp.slice(),
         keys.slice(),
         queue.slice(),
         six(&os, 0),
@@ -161,13 +163,60 @@ fn kernels_match_twins() {
         let v3 = [&img.var[0][..], &img.var[1][..], &img.var[2][..]];
         for p in precisions() {
             let what = |k: &str| format!("{k} {w}x{h} {p:?}");
-            // outlier_rows
+            // outlier_grey
             let pu = push(&img, ro::DETECT_RADIUS, 0);
-            let mut rows = vec![vec![0.0f32; n]; 6];
+            let mut grey = vec![0.0f32; n];
             let mut keys = vec![0u32; n];
-            rr::outlier_rows(&pu, c3, &img.spp, muts::<6>(&mut rows), &mut keys);
+            rg::outlier_grey(&pu, c3, &img.spp, &mut grey, &mut keys);
             let mut inputs: Vec<&[f32]> = c3.to_vec();
             inputs.push(&img.spp);
+            let (g, _) = run_planes(
+                &ctx,
+                &outlier_grey::DECL,
+                p,
+                bytemuck::bytes_of(&pu),
+                w,
+                h,
+                &inputs,
+                &[n; 2],
+                1.0,
+            )
+            .unwrap();
+            // NaN and key 0 exactly at the invalid pixels; elsewhere the same
+            // grey to within f32 rounding, and the key of the kernel's grey.
+            for i in 0..n {
+                let valid = img.spp[i] >= 1.0;
+                assert_eq!(
+                    g[0][i].is_nan(),
+                    !valid,
+                    "{} grey at {i}",
+                    what("outlier_grey")
+                );
+                assert_eq!(
+                    g[1][i].to_bits() == 0,
+                    !valid,
+                    "{} key at {i}",
+                    what("outlier_grey")
+                );
+                if valid {
+                    assert_eq!(
+                        rg::unkey(g[1][i].to_bits()),
+                        g[0][i],
+                        "{}",
+                        what("key of grey")
+                    );
+                }
+            }
+            let finite = |v: &[f32]| -> Vec<f32> {
+                v.iter()
+                    .map(|x| if x.is_nan() { 0.0 } else { *x })
+                    .collect()
+            };
+            assert_close(&what("outlier_grey"), &finite(&g[0]), &finite(&grey), 0.99);
+            let key_plane: Vec<f32> = g[1].clone();
+            // outlier_rows, from the twin's grey
+            let mut rows = vec![vec![0.0f32; n]; 6];
+            rr::outlier_rows(&pu, &grey, muts::<6>(&mut rows));
             let (g, _) = run_planes(
                 &ctx,
                 &outlier_rows::DECL,
@@ -175,26 +224,14 @@ fn kernels_match_twins() {
                 bytemuck::bytes_of(&pu),
                 w,
                 h,
-                &inputs,
-                &[n; 7],
+                &[&grey],
+                &[n; 6],
                 1.0,
             )
             .unwrap();
             for k in 0..6 {
                 assert_close(&what("outlier_rows"), &g[k], &rows[k], 0.99);
             }
-            // Keys: the same grey to within f32 rounding (compared as greys).
-            let unkey = |k: u32| {
-                f32::from_bits(if k & 0x8000_0000 != 0 {
-                    k & 0x7fff_ffff
-                } else {
-                    !k
-                })
-            };
-            let gk: Vec<f32> = g[6].iter().map(|v| unkey(v.to_bits())).collect();
-            let ck: Vec<f32> = keys.iter().map(|&k| unkey(k)).collect();
-            assert_close(&what("outlier_rows keys"), &gk, &ck, 0.99);
-            let key_plane: Vec<f32> = g[6].clone();
             // outlier_detect then outlier_median (indirect, from the
             // queue), from the twin's summaries and keys
             let mut out = vec![vec![0.0f32; n]; 9];
@@ -208,7 +245,7 @@ fn kernels_match_twins() {
                 let (b, e) = b.split_at_mut(3);
                 rm::outlier_median(&pu, c3, v3, &img.spp, &list, muts(a), muts(b), muts(e));
             }
-            let (g, queue) = detect_and_replace(&ctx, p, &pu, &img, &rows, &key_plane);
+            let (g, queue) = detect_and_replace(&ctx, p, &pu, &img, &grey, &rows, &key_plane);
             for k in 0..9 {
                 assert_close(
                     &what("outlier_detect + outlier_median"),

@@ -26,6 +26,7 @@ pub mod lp_gather;
 pub mod lp_reach;
 pub mod lp_select;
 pub mod outlier_detect;
+pub mod outlier_grey;
 pub mod outlier_median;
 pub mod outlier_rows;
 pub mod outlier_spread;
@@ -69,6 +70,7 @@ pub const ALL: &[&KernelDecl] = &[
     &aos_fit::DECL,
     &apr_block::DECL,
     &apr_gather::DECL,
+    &outlier_grey::DECL,
     &outlier_rows::DECL,
     &outlier_detect::DECL,
     &outlier_median::DECL,

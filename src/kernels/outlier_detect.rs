@@ -1,5 +1,5 @@
 //! `outlier_detect`: outlier detection (spec §4.4 step 1) from
-//! `outlier_rows`' summaries. It copies every pixel's colour and variance
+//! `outlier_rows`' summaries and `outlier_grey`'s plane. It copies every pixel's colour and variance
 //! (with `e = 0`) and queues the detected pixels for
 //! [`super::outlier_median`], which replaces them. Twin:
 //! [`crate::reference::outlier_detect`].
@@ -20,12 +20,13 @@ pub const DECL: KernelDecl = KernelDecl {
         read("vg"),
         read("vb"),
         read("spp"),
-        read("ln"),
-        read("lm"),
-        read("lq"),
-        read("rn"),
-        read("rm"),
-        read("rq"),
+        read("grey"),
+        read("wn"),
+        read("wm"),
+        read("wq"),
+        read("xn"),
+        read("xm"),
+        read("xq"),
         write("out_r"),
         write("out_g"),
         write("out_b"),
@@ -40,10 +41,11 @@ pub const DECL: KernelDecl = KernelDecl {
     push_size: std::mem::size_of::<OutlierPush>() as u32,
 };
 
-/// Per pixel: `2R+1` merges of three summaries (≈ 12 flops each).
+/// Per pixel: `2R+1` merges of row summaries (≈ 12 flops each) and the
+/// 8-neighbour test (≈ 3 each).
 pub fn flops_per_pixel(radius: u32) -> f64 {
     let d = 2.0 * radius as f64 + 1.0;
-    d * 36.0
+    d * 12.0 + 24.0
 }
 
 /// Words of the queue of a `width × height` image: the indirect dispatch
@@ -54,7 +56,8 @@ pub fn queue_words(width: usize, height: usize) -> usize {
     4 + width.div_ceil(2) * height.div_ceil(2)
 }
 
-/// Records detection (`rows` from `outlier_rows`): `out` receives a copy of
+/// Records detection (`grey` from `outlier_grey`, `rows` from
+/// `outlier_rows`): `out` receives a copy of
 /// the colour and variance planes (6: R, G, B, var R, G, B), `excess` zeroes,
 /// and `queue` (of [`queue_words`]) the detected pixels. Its header is reset
 /// here (x and count 0, y and z 1).
@@ -66,6 +69,7 @@ pub fn record(
     color: [BufferSlice; 3],
     var: [BufferSlice; 3],
     spp: BufferSlice,
+    grey: BufferSlice,
     rows: [BufferSlice; 6],
     out: [BufferSlice; 6],
     excess: [BufferSlice; 3],
@@ -78,7 +82,7 @@ pub fn record(
         &DECL,
         precision,
         push,
-        &[&color, &var, &[spp], &rows, &out, &excess, &[queue]],
+        &[&color, &var, &[spp, grey], &rows, &out, &excess, &[queue]],
         flops_per_pixel(push.radius),
     )
 }

@@ -19,7 +19,6 @@ pub const DECL: KernelDecl = KernelDecl {
         read("vr"),
         read("vg"),
         read("vb"),
-        read("spp"),
         read("keys"),
         read("queue"),
         write("out_r"),
@@ -55,7 +54,7 @@ pub fn flops_per_entry(radius: u32) -> f64 {
 }
 
 /// Records the replacement of the queued pixels (`keys` from
-/// `outlier_rows`, `queue` from `outlier_detect`) into `out` (6: R, G, B,
+/// `outlier_grey`, 0 where invalid; `queue` from `outlier_detect`) into `out` (6: R, G, B,
 /// var R, G, B) and `excess`.
 ///
 /// The dispatch cannot be split into bands. Its worst case is bounded:
@@ -72,14 +71,12 @@ pub fn record(
     push: &OutlierPush,
     color: [BufferSlice; 3],
     var: [BufferSlice; 3],
-    spp: BufferSlice,
     keys: BufferSlice,
     queue: BufferSlice,
     out: [BufferSlice; 6],
     excess: [BufferSlice; 3],
 ) -> Result<()> {
-    let bindings: Vec<BufferSlice> =
-        [&color[..], &var, &[spp, keys, queue], &out, &excess].concat();
+    let bindings: Vec<BufferSlice> = [&color[..], &var, &[keys, queue], &out, &excess].concat();
     let pixels = push.width as f64 * push.height as f64;
     batch.dispatch_indirect(
         &DECL,
@@ -88,7 +85,7 @@ pub fn record(
         bytemuck::bytes_of(push),
         queue.sub(0, 12)?,
         pixels * DETECTED_FRACTION * flops_per_entry(push.radius),
-        // Per entry: the window's keys and spp, its own 18 values.
-        pixels * DETECTED_FRACTION * (window_pixels(push.radius) * 8.0 + 72.0),
+        // Per entry: the window's keys, its own 18 values.
+        pixels * DETECTED_FRACTION * (window_pixels(push.radius) * 4.0 + 72.0),
     )
 }

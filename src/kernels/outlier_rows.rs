@@ -1,6 +1,7 @@
 //! `outlier_rows`: the row part of the outlier statistics (spec §4.4 step 1):
-//! per pixel, (count, mean, M2) of grey over the left and right row segments
-//! of radius R. Twin: [`crate::reference::outlier_rows`].
+//! per pixel, (count, mean, M2) of grey over the row segment of radius R,
+//! with and without the pixel itself, from [`super::outlier_grey`]'s plane.
+//! Twin: [`crate::reference::outlier_rows`].
 
 use crate::error::Result;
 use crate::gpu::reflect::{read, write};
@@ -11,43 +12,38 @@ use crate::shared::OutlierPush;
 pub const DECL: KernelDecl = KernelDecl {
     name: "outlier_rows",
     bindings: &[
-        read("cr"),
-        read("cg"),
-        read("cb"),
-        read("spp"),
-        write("ln"),
-        write("lm"),
-        write("lq"),
-        write("rn"),
-        write("rm"),
-        write("rq"),
-        write("keys"),
+        read("grey"),
+        write("wn"),
+        write("wm"),
+        write("wq"),
+        write("xn"),
+        write("xm"),
+        write("xq"),
     ],
     push_size: std::mem::size_of::<OutlierPush>() as u32,
 };
 
-/// Per pixel: `2R` neighbours × two passes × (3 loads, grey, 2 FMAs) ≈ 8 each.
+/// Per pixel: `2R` neighbours × two passes × (load, test, 2 FMAs) ≈ 4
+/// each, and three merges (≈ 12 each).
 pub fn flops_per_pixel(radius: u32) -> f64 {
-    2.0 * radius as f64 * 2.0 * 8.0
+    2.0 * radius as f64 * 2.0 * 4.0 + 36.0
 }
 
-/// Records the half-row summaries of `color` into `out` (6 planes) and the
-/// grey keys (u32 per pixel) into `keys`.
+/// Records the row summaries of `grey` (from [`super::outlier_grey`]) into
+/// `out`: count, mean, M2 with the pixel, then without it.
 pub fn record(
     batch: &mut Batch,
     precision: Precision,
     push: &OutlierPush,
-    color: [BufferSlice; 3],
-    spp: BufferSlice,
+    grey: BufferSlice,
     out: [BufferSlice; 6],
-    keys: BufferSlice,
 ) -> Result<()> {
     super::dispatch_outlier(
         batch,
         &DECL,
         precision,
         push,
-        &[&color, &[spp], &out, &[keys]],
+        &[&[grey], &out],
         flops_per_pixel(push.radius),
     )
 }

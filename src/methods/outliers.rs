@@ -4,7 +4,8 @@
 //! ```text
 //! sanitize → remove (steps 1–3) → G-buffer prefilter → method → restore (step 4) → sample map
 //!
-//! remove:   outlier_rows      half-row (count, mean, M2) of grey, R = 14
+//! remove:   outlier_grey      grey (NaN: invalid) and its order-preserving key
+//!           outlier_rows      row (count, mean, M2) of grey with and without x, R = 14
 //!           outlier_detect    merge → m, sd without o; copy; queue the spikes
 //!           outlier_median    (indirect, per queued spike) the median pixel; e = y − y_q*
 //!           copy              replaced colour and variance → the sanitised statistics
@@ -26,7 +27,8 @@ use crate::error::Result;
 use crate::gpu::{Batch, BufferSlice, GpuBuffer, GpuContext, PlaneSet, Precision};
 use crate::image::{Layer, StatsImage};
 use crate::kernels::{
-    box_rows, outlier_detect, outlier_median, outlier_rows, outlier_spread, outlier_weights,
+    box_rows, outlier_detect, outlier_grey, outlier_median, outlier_rows, outlier_spread,
+    outlier_weights,
 };
 use crate::reference::outliers::{self as reference, DETECT_RADIUS, SPREAD_RADIUS};
 use crate::shared::OutlierPush;
@@ -86,7 +88,8 @@ pub fn push(w: usize, h: usize, radius: usize, mode: u32) -> OutlierPush {
 }
 
 /// The stage's planes: two six-plane scratch sets, the excess `e` (3), the
-/// weights (6) and the grey keys (1); and the queue of detected pixels.
+/// weights (6) or grey (1), and the grey keys (1); and the queue of
+/// detected pixels.
 #[derive(Debug)]
 pub struct OutlierPlanes {
     /// Scratch of each step ([`SCRATCH`] planes): dead between
@@ -101,9 +104,9 @@ pub struct OutlierPlanes {
     height: usize,
 }
 
-/// Scratch planes of the stage: row summaries (6) and outputs (6) of the
-/// detection, or the box sums (6) of the restoration; the weights (6); the
-/// median keys (1).
+/// Scratch planes of the stage: row summaries (6), outputs (6) and grey (1)
+/// of the detection, or the box sums (12) and weights (6) of the
+/// restoration; the median keys (1).
 pub const SCRATCH: usize = 19;
 
 impl OutlierPlanes {
@@ -156,8 +159,10 @@ pub fn record_remove(
     let pu = push(w, h, DETECT_RADIUS, 0);
     let rows = p.set::<6>(0);
     let out = p.set::<6>(6);
+    let grey = p.planes.plane(12);
     let keys = p.planes.plane(18);
-    outlier_rows::record(batch, precision, &pu, color, spp, rows, keys)?;
+    outlier_grey::record(batch, precision, &pu, color, spp, grey, keys)?;
+    outlier_rows::record(batch, precision, &pu, grey, rows)?;
     let queue = p.queue.slice();
     outlier_detect::record(
         batch,
@@ -166,6 +171,7 @@ pub fn record_remove(
         color,
         var,
         spp,
+        grey,
         rows,
         out,
         p.excess(),
@@ -177,7 +183,6 @@ pub fn record_remove(
         &pu,
         color,
         var,
-        spp,
         keys,
         queue,
         out,

@@ -1,0 +1,49 @@
+//! Scalar twin of `spirv/outlier_grey.comp`: per pixel, grey rounded to f32
+//! (NaN where the pixel is invalid) and its order-preserving key (0 where
+//! invalid), spec §4.4 step 1.
+
+use super::outliers::grey;
+use super::spp_of;
+use crate::shared::OutlierPush;
+
+/// The order-preserving u32 key of a grey value rounded to f32 (unsigned
+/// order of keys = numeric order of greys). Never 0 for a non-NaN grey.
+pub fn key(g: f64) -> u32 {
+    let b = (g as f32).to_bits();
+    if b & 0x8000_0000 != 0 {
+        !b
+    } else {
+        b | 0x8000_0000
+    }
+}
+
+/// The grey of a key from [`key`] (the inverse on f32 values).
+pub fn unkey(k: u32) -> f32 {
+    f32::from_bits(if k & 0x8000_0000 != 0 {
+        k & 0x7fff_ffff
+    } else {
+        !k
+    })
+}
+
+/// `grey_out` = grey as f32 (NaN where invalid), `keys` = [`key`] of it (0
+/// where invalid).
+pub fn outlier_grey(
+    push: &OutlierPush,
+    color: [&[f32]; 3],
+    spp: &[f32],
+    grey_out: &mut [f32],
+    keys: &mut [u32],
+) {
+    let n = push.width as usize * push.height as usize;
+    for i in 0..n {
+        if spp_of(spp[i]) >= 1.0 {
+            let g = grey(color, i);
+            grey_out[i] = g as f32;
+            keys[i] = key(g);
+        } else {
+            grey_out[i] = f32::NAN;
+            keys[i] = 0;
+        }
+    }
+}
