@@ -204,6 +204,36 @@ pub struct Frame {
     pub stats: Vec<(String, f64)>,
 }
 
+/// Side of the image [`Denoiser::warm_up`] builds a chain for (small, and a
+/// multiple of 4 like most real widths, for `sanitize_quads`).
+const WARM_UP_SIZE: usize = 16;
+
+/// Pipelines being built by [`Denoiser::warm_up`]. Dropping it (or
+/// [`WarmUp::wait`]) waits until the thread is done.
+#[must_use = "dropping a WarmUp waits for its pipelines"]
+#[derive(Debug)]
+pub struct WarmUp(Option<std::thread::JoinHandle<()>>);
+
+impl WarmUp {
+    /// Waits for the pipelines to be built.
+    pub fn wait(mut self) {
+        self.join();
+    }
+
+    fn join(&mut self) {
+        if let Some(h) = self.0.take() {
+            // A panic there is the caller's Denoiser::new's to report.
+            let _ = h.join();
+        }
+    }
+}
+
+impl Drop for WarmUp {
+    fn drop(&mut self) {
+        self.join();
+    }
+}
+
 enum Engine {
     Gpu(Box<GpuChain>),
     Tiled(Box<TiledChain>),
@@ -277,6 +307,37 @@ impl Denoiser {
             progress: None,
             sampled: AtomicBool::new(false),
         })
+    }
+
+    /// Starts building, on a thread of its own, the compute pipelines a
+    /// denoiser with `config` on statistics with every layer would use, and
+    /// returns at once. A caller overlaps this with reading its input: on
+    /// lavapipe, creating LP's pipelines takes about half a second of one
+    /// core (`lp_centres` alone 0.44 s), which [`Denoiser::new`] would
+    /// otherwise spend before anything runs. A later [`Denoiser::new`] on the
+    /// same context takes the built pipelines, or waits for the one being
+    /// built. Only a hint: a pipeline that fails here is built again, and its
+    /// error reported, by [`Denoiser::new`]. Dropping the returned
+    /// [`WarmUp`] waits for the thread. Nothing happens with the CPU backend.
+    pub fn warm_up(ctx: &Arc<GpuContext>, config: &Config) -> WarmUp {
+        let ctx = ctx.clone();
+        let mut config = config.clone();
+        config.progress = false;
+        config.max_memory = None;
+        config.tile = None;
+        let spawned = std::thread::Builder::new()
+            .name("mcdenoise-warm-up".into())
+            .spawn(move || {
+                // A chain counts its work when it is made, which asks the
+                // context for every pipeline it records: building them.
+                let source = Source::Stats {
+                    width: WARM_UP_SIZE,
+                    height: WARM_UP_SIZE,
+                    layers: Layer::ALL.to_vec(),
+                };
+                let _ = Denoiser::new(&ctx, source, config);
+            });
+        WarmUp(spawned.ok())
     }
 
     /// A denoiser running the scalar f64 references on the CPU (slow; for

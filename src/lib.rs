@@ -97,7 +97,7 @@ mod denoiser;
 pub mod schedule;
 
 pub use accum::{AccumLayout, Accumulator};
-pub use denoiser::{default_memory_cap, Config, Denoiser, Frame, Outputs, Source};
+pub use denoiser::{default_memory_cap, Config, Denoiser, Frame, Outputs, Source, WarmUp};
 pub use error::{Error, Result};
 pub use gpu::{
     choose_device, enumerate_devices, timings_per_kernel, Batch, BufferSlice, ContextOptions,

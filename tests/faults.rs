@@ -229,6 +229,42 @@ fn concurrent_builds_of_one_pipeline_build_it_once() {
     close(ctx, log, &baseline);
 }
 
+/// `Denoiser::warm_up` builds, on its own thread, every pipeline a denoiser
+/// of that configuration then uses: the denoiser's thread creates none (it
+/// does without the warm-up), the output is the same, nothing leaks.
+#[test]
+fn warm_up_builds_every_pipeline_the_denoiser_uses() {
+    let _serial = serial();
+    let baseline = fault::live();
+    let img = fixture();
+    for method in [Method::Lp, Method::Wlr] {
+        let config = Config::new(method);
+        let mut runs = Vec::new();
+        for warm in [false, true] {
+            let (ctx, log) = context();
+            if warm {
+                Denoiser::warm_up(&ctx, &config).wait();
+            }
+            let plan = Plan::new();
+            let d = Denoiser::new(&ctx, Source::of_image(&img), config.clone()).unwrap();
+            let frame = d.denoise(&img, None).unwrap();
+            let built = plan.calls(Call::CreateComputePipeline);
+            if warm {
+                assert_eq!(built, 0, "{method:?}: pipelines built after the warm-up");
+            } else {
+                assert!(built >= 5, "{method:?}: only {built} pipelines built");
+            }
+            runs.push(bits(&frame));
+            drop((plan, d));
+            close(ctx, log, &baseline);
+        }
+        assert!(
+            runs[0] == runs[1],
+            "{method:?}: the warm-up changed the output"
+        );
+    }
+}
+
 #[test]
 fn batch_and_buffer_creation_failures_leak_nothing() {
     let _serial = serial();

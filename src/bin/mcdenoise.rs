@@ -462,7 +462,8 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
             if (max_memory.is_some() || tile.is_some()) && matches!(backend, BackendArg::Cpu) {
                 bail!("--max-memory and --tile apply to the GPU backend");
             }
-            let config_for = |img: &StatsImage| {
+            // Everything but what only the pixels tell (low_spp).
+            let base_config = || {
                 let mut config = Config::new(method);
                 config.precision = precision.get();
                 config.pass = match pass {
@@ -476,9 +477,13 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
                 // The error estimate comes back only when it is written.
                 config.error = *error;
                 config.progress = !cli.quiet;
-                config.low_spp = has_low_spp(img);
                 config.max_memory = max_memory.map(|mb| mb.saturating_mul(1 << 20));
                 config.tile = tile.map(|t| t as usize);
+                config
+            };
+            let config_for = |img: &StatsImage| {
+                let mut config = base_config();
+                config.low_spp = has_low_spp(img);
                 config
             };
             let Some(input) = input else {
@@ -490,6 +495,7 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
                     *resume,
                     *backend,
                     *error,
+                    &base_config(),
                     &config_for,
                 );
             };
@@ -506,13 +512,20 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
                     bail!("{}: refusing to overwrite an input file", path.display());
                 }
             }
+            let ctx = match backend {
+                BackendArg::Gpu => Some(context(&cli)?),
+                BackendArg::Cpu => None,
+            };
+            // The pipelines build while the file is read.
+            let warm = ctx.as_ref().map(|c| Denoiser::warm_up(c, &base_config()));
             let img = io::read_stats(input)?;
             let config = config_for(&img);
             let source = Source::of_image(&img);
-            let mut denoiser = match backend {
-                BackendArg::Gpu => Denoiser::new(&context(&cli)?, source, config)?,
-                BackendArg::Cpu => Denoiser::new_cpu(source, config)?,
+            let mut denoiser = match &ctx {
+                Some(ctx) => Denoiser::new(ctx, source, config)?,
+                None => Denoiser::new_cpu(source, config)?,
             };
+            drop(warm);
             let bar = progress_bar(&cli, &mut denoiser);
             let t0 = std::time::Instant::now();
             let (width, height) = (img.width, img.height);
@@ -627,6 +640,7 @@ fn denoise_frames(
     resume: bool,
     backend: BackendArg,
     error: bool,
+    base_config: &Config,
     config_for: &dyn Fn(&StatsImage) -> Config,
 ) -> anyhow::Result<bool> {
     let inp = io::frames::FramePattern::parse(pattern)?;
@@ -652,6 +666,8 @@ fn denoise_frames(
         BackendArg::Gpu => Some(context(cli)?),
         BackendArg::Cpu => None,
     };
+    // The pipelines build while the first frame is read.
+    let mut warm = ctx.as_ref().map(|c| Denoiser::warm_up(c, base_config));
     let mut cached: Option<(Source, bool, Denoiser)> = None;
     let (mut done, mut skipped) = (0usize, 0usize);
     let mut failed: Vec<(u64, String)> = Vec::new();
@@ -664,6 +680,7 @@ fn denoise_frames(
         }
         let mut attempt = || -> anyhow::Result<()> {
             let img = io::read_stats(&frame.path)?;
+            warm.take();
             let source = Source::of_image(&img);
             let low_spp = has_low_spp(&img);
             let reuse = matches!(&cached, Some((s, l, _)) if *s == source && *l == low_spp);
