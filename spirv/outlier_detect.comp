@@ -5,7 +5,7 @@
 // count >= min_n (OUTLIER-MIN-N), grey_o - m > k sd (SPIKE-SIDE, population
 // sd) and grey_o - m <= k se_o (OUTLIER-NOISE, se from the pixel's
 // variances) and no 8-neighbour is above m + k sd (OUTLIER-ISOLATED, on
-// outlier_grey's plane). Every pixel's colour and variance are copied to
+// outlier_grey's keys). Every pixel's colour and variance are copied to
 // the outputs with e = 0; a detected pixel is appended to the queue, whose
 // entries outlier_median replaces by the median pixel. The median lives in
 // its own kernel because a kernel merely containing its 32 scans of the
@@ -24,7 +24,7 @@ PLANE_IN(3, vr)
 PLANE_IN(4, vg)
 PLANE_IN(5, vb)
 PLANE_IN(6, spp)
-PLANE_IN(7, grey)
+layout(std430, set = 0, binding = 7) readonly buffer keys_blk { uint keys[]; };
 PLANE_IN(8, wn)
 PLANE_IN(9, wm)
 PLANE_IN(10, wq)
@@ -102,8 +102,8 @@ void main()
         for (int qy = max(int(y) - 1, 0); outlier && qy <= min(int(y) + 1, int(push.height) - 1); ++qy) {
             for (int qx = max(int(x) - 1, 0); qx <= min(int(x) + 1, int(push.width) - 1); ++qx) {
                 uint j = uint(qy) * push.width + uint(qx);
-                float gj = grey[j];  // NaN (invalid): never above
-                if (j != o && !isnan(gj) && real(gj) - s.mean > real(push.k_sigma) * sd) {
+                real gj;
+                if (j != o && key_grey(keys[j], gj) && gj - s.mean > real(push.k_sigma) * sd) {
                     outlier = false;
                 }
             }

@@ -6,12 +6,11 @@
 // statistics of Ω(R) \ {o} without a sum of squares, the row of o without
 // it (EXCL-CENTRE). Each is merged from the two-pass summaries of the left
 // [x - R, x - 1] and right [x + 1, x + R] half-rows; grey and validity come
-// from outlier_grey's plane (NaN: invalid). Scalar twin:
-// src/reference/outlier_rows.rs.
+// from outlier_grey's keys. Scalar twin: src/reference/outlier_rows.rs.
 #include "lib/common.glsl"
 #include "lib/outliers.glsl"
 layout(local_size_x = 8, local_size_y = 8) in;
-PLANE_IN(0, grey)
+layout(std430, set = 0, binding = 0) readonly buffer keys_blk { uint keys[]; };
 PLANE_OUT(1, wn)
 PLANE_OUT(2, wm)
 PLANE_OUT(3, wq)
@@ -27,10 +26,10 @@ Summary segment(uint y, int a, int b)
     s.m2 = real(0);
     real sum = real(0);
     for (int qx = a; qx <= b; ++qx) {
-        float g = grey[y * push.width + uint(qx)];
-        if (!isnan(g)) {
+        real g;
+        if (key_grey(keys[y * push.width + uint(qx)], g)) {
             s.n += real(1);
-            sum += real(g);
+            sum += g;
         }
     }
     if (s.n == real(0)) {
@@ -38,9 +37,9 @@ Summary segment(uint y, int a, int b)
     }
     s.mean = sum / s.n;
     for (int qx = a; qx <= b; ++qx) {
-        float g = grey[y * push.width + uint(qx)];
-        if (!isnan(g)) {
-            real d = real(g) - s.mean;
+        real g;
+        if (key_grey(keys[y * push.width + uint(qx)], g)) {
+            real d = g - s.mean;
             s.m2 += d * d;
         }
     }
@@ -61,10 +60,10 @@ void main()
     c.n = real(0);
     c.mean = real(0);
     c.m2 = real(0);
-    float g = grey[i];
-    if (!isnan(g)) {
+    real g;
+    if (key_grey(keys[i], g)) {
         c.n = real(1);
-        c.mean = real(g);
+        c.mean = g;
     }
     Summary with_x = merge(merge(l, c), rt);
     Summary without = merge(l, rt);

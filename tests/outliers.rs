@@ -93,7 +93,6 @@ fn detect_and_replace(
     p: Precision,
     pu: &OutlierPush,
     img: &Img,
-    grey: &[f32],
     rows: &[Vec<f32>],
     keys: &[f32],
 ) -> (Vec<Vec<f32>>, Vec<u32>) {
@@ -102,7 +101,6 @@ fn detect_and_replace(
     let color: Vec<GpuBuffer> = img.color.iter().map(|v| up(v)).collect();
     let var: Vec<GpuBuffer> = img.var.iter().map(|v| up(v)).collect();
     let spp = up(&img.spp);
-    let grey = up(grey);
     let rows: Vec<GpuBuffer> = rows.iter().map(|v| up(v)).collect();
     let keys = up(keys);
     let out: Vec<GpuBuffer> = (0..9).map(|_| up(&vec![0.0; n])).collect();
@@ -125,7 +123,7 @@ fn detect_and_replace(
         three(&cs, 0),
         three(&vs, 0),
         spp.slice(),
-        grey.slice(),
+        keys.slice(),
         six(&rs, 0),
         six(&os, 0),
         three(&os, 6),
@@ -165,9 +163,8 @@ fn kernels_match_twins() {
             let what = |k: &str| format!("{k} {w}x{h} {p:?}");
             // outlier_grey
             let pu = push(&img, ro::DETECT_RADIUS, 0);
-            let mut grey = vec![0.0f32; n];
             let mut keys = vec![0u32; n];
-            rg::outlier_grey(&pu, c3, &img.spp, &mut grey, &mut keys);
+            rg::outlier_grey(&pu, c3, &img.spp, &mut keys);
             let mut inputs: Vec<&[f32]> = c3.to_vec();
             inputs.push(&img.spp);
             let (g, _) = run_planes(
@@ -178,45 +175,29 @@ fn kernels_match_twins() {
                 w,
                 h,
                 &inputs,
-                &[n; 2],
+                &[n],
                 1.0,
             )
             .unwrap();
-            // NaN and key 0 exactly at the invalid pixels; elsewhere the same
-            // grey to within f32 rounding, and the key of the kernel's grey.
+            // Key 0 exactly at the invalid pixels; elsewhere the same grey to
+            // within f32 rounding (compared as greys).
+            let gk: Vec<Option<f32>> = g[0].iter().map(|v| rg::unkey(v.to_bits())).collect();
+            let ck: Vec<Option<f32>> = keys.iter().map(|&k| rg::unkey(k)).collect();
             for i in 0..n {
-                let valid = img.spp[i] >= 1.0;
                 assert_eq!(
-                    g[0][i].is_nan(),
-                    !valid,
-                    "{} grey at {i}",
-                    what("outlier_grey")
-                );
-                assert_eq!(
-                    g[1][i].to_bits() == 0,
-                    !valid,
+                    gk[i].is_none(),
+                    img.spp[i] < 1.0,
                     "{} key at {i}",
                     what("outlier_grey")
                 );
-                if valid {
-                    assert_eq!(
-                        rg::unkey(g[1][i].to_bits()),
-                        g[0][i],
-                        "{}",
-                        what("key of grey")
-                    );
-                }
             }
-            let finite = |v: &[f32]| -> Vec<f32> {
-                v.iter()
-                    .map(|x| if x.is_nan() { 0.0 } else { *x })
-                    .collect()
-            };
-            assert_close(&what("outlier_grey"), &finite(&g[0]), &finite(&grey), 0.99);
-            let key_plane: Vec<f32> = g[1].clone();
-            // outlier_rows, from the twin's grey
+            let flat =
+                |v: &[Option<f32>]| -> Vec<f32> { v.iter().map(|x| x.unwrap_or(0.0)).collect() };
+            assert_close(&what("outlier_grey"), &flat(&gk), &flat(&ck), 0.99);
+            // outlier_rows, from the twin's keys
             let mut rows = vec![vec![0.0f32; n]; 6];
-            rr::outlier_rows(&pu, &grey, muts::<6>(&mut rows));
+            rr::outlier_rows(&pu, &keys, muts::<6>(&mut rows));
+            let key_bits: Vec<f32> = keys.iter().map(|&k| f32::from_bits(k)).collect();
             let (g, _) = run_planes(
                 &ctx,
                 &outlier_rows::DECL,
@@ -224,7 +205,7 @@ fn kernels_match_twins() {
                 bytemuck::bytes_of(&pu),
                 w,
                 h,
-                &[&grey],
+                &[&key_bits],
                 &[n; 6],
                 1.0,
             )
@@ -245,7 +226,7 @@ fn kernels_match_twins() {
                 let (b, e) = b.split_at_mut(3);
                 rm::outlier_median(&pu, c3, v3, &img.spp, &list, muts(a), muts(b), muts(e));
             }
-            let (g, queue) = detect_and_replace(&ctx, p, &pu, &img, &grey, &rows, &key_plane);
+            let (g, queue) = detect_and_replace(&ctx, p, &pu, &img, &rows, &key_bits);
             for k in 0..9 {
                 assert_close(
                     &what("outlier_detect + outlier_median"),

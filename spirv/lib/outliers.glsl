@@ -16,6 +16,15 @@ layout(push_constant) uniform Push {
 
 bool valid_at(float s) { return spp_of(s) >= 1.0; }
 
+// The grey of outlier_grey's key k (its inverse, exact); false for k = 0
+// (an invalid pixel).
+bool key_grey(uint k, out real g)
+{
+    uint b = (k & 0x80000000u) != 0u ? (k & 0x7fffffffu) : ~k;
+    g = real(uintBitsToFloat(b));
+    return k != 0u;
+}
+
 // Entries of the queue of detected pixels (outlier_detect, outlier_median):
 // OUTLIER-ISOLATED never detects two 8-neighbours, so at most one pixel of
 // each 2x2 block; entries past it (a near-tie the two tests round apart)

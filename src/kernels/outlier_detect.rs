@@ -1,5 +1,5 @@
 //! `outlier_detect`: outlier detection (spec §4.4 step 1) from
-//! `outlier_rows`' summaries and `outlier_grey`'s plane. It copies every pixel's colour and variance
+//! `outlier_rows`' summaries and `outlier_grey`'s keys. It copies every pixel's colour and variance
 //! (with `e = 0`) and queues the detected pixels for
 //! [`super::outlier_median`], which replaces them. Twin:
 //! [`crate::reference::outlier_detect`].
@@ -20,7 +20,7 @@ pub const DECL: KernelDecl = KernelDecl {
         read("vg"),
         read("vb"),
         read("spp"),
-        read("grey"),
+        read("keys"),
         read("wn"),
         read("wm"),
         read("wq"),
@@ -56,7 +56,7 @@ pub fn queue_words(width: usize, height: usize) -> usize {
     4 + width.div_ceil(2) * height.div_ceil(2)
 }
 
-/// Records detection (`grey` from `outlier_grey`, `rows` from
+/// Records detection (`keys` from `outlier_grey`, `rows` from
 /// `outlier_rows`): `out` receives a copy of
 /// the colour and variance planes (6: R, G, B, var R, G, B), `excess` zeroes,
 /// and `queue` (of [`queue_words`]) the detected pixels. Its header is reset
@@ -69,7 +69,7 @@ pub fn record(
     color: [BufferSlice; 3],
     var: [BufferSlice; 3],
     spp: BufferSlice,
-    grey: BufferSlice,
+    keys: BufferSlice,
     rows: [BufferSlice; 6],
     out: [BufferSlice; 6],
     excess: [BufferSlice; 3],
@@ -82,7 +82,7 @@ pub fn record(
         &DECL,
         precision,
         push,
-        &[&color, &var, &[spp, grey], &rows, &out, &excess, &[queue]],
+        &[&color, &var, &[spp, keys], &rows, &out, &excess, &[queue]],
         flops_per_pixel(push.radius),
     )
 }

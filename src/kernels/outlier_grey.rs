@@ -1,9 +1,9 @@
 //! `outlier_grey`: the first pass of the outlier stage (spec §4.4 step 1):
-//! per pixel, grey rounded to f32 (NaN where invalid) and its
-//! order-preserving key (0 where invalid), so that the window kernels after
-//! it ([`super::outlier_rows`], [`super::outlier_detect`],
-//! [`super::outlier_median`]) load one plane per neighbour. Twin:
-//! [`crate::reference::outlier_grey`].
+//! per pixel, the order-preserving key of grey rounded to f32 (0 where the
+//! pixel is invalid), so that the window kernels after it
+//! ([`super::outlier_rows`], [`super::outlier_detect`],
+//! [`super::outlier_median`]) load one plane per neighbour and decode grey
+//! from it exactly. Twin: [`crate::reference::outlier_grey`].
 
 use crate::error::Result;
 use crate::gpu::reflect::{read, write};
@@ -18,7 +18,6 @@ pub const DECL: KernelDecl = KernelDecl {
         read("cg"),
         read("cb"),
         read("spp"),
-        write("grey"),
         write("keys"),
     ],
     push_size: std::mem::size_of::<OutlierPush>() as u32,
@@ -30,15 +29,13 @@ pub fn flops_per_pixel() -> f64 {
     5.0
 }
 
-/// Records grey (f32 per pixel) into `grey` and the keys (u32 per pixel)
-/// into `keys`.
+/// Records the keys of grey (u32 per pixel) into `keys`.
 pub fn record(
     batch: &mut Batch,
     precision: Precision,
     push: &OutlierPush,
     color: [BufferSlice; 3],
     spp: BufferSlice,
-    grey: BufferSlice,
     keys: BufferSlice,
 ) -> Result<()> {
     super::dispatch_outlier(
@@ -46,7 +43,7 @@ pub fn record(
         &DECL,
         precision,
         push,
-        &[&color, &[spp, grey, keys]],
+        &[&color, &[spp, keys]],
         flops_per_pixel(),
     )
 }

@@ -1,6 +1,6 @@
 //! `outlier_rows`: the row part of the outlier statistics (spec §4.4 step 1):
 //! per pixel, (count, mean, M2) of grey over the row segment of radius R,
-//! with and without the pixel itself, from [`super::outlier_grey`]'s plane.
+//! with and without the pixel itself, from [`super::outlier_grey`]'s keys.
 //! Twin: [`crate::reference::outlier_rows`].
 
 use crate::error::Result;
@@ -12,7 +12,7 @@ use crate::shared::OutlierPush;
 pub const DECL: KernelDecl = KernelDecl {
     name: "outlier_rows",
     bindings: &[
-        read("grey"),
+        read("keys"),
         write("wn"),
         write("wm"),
         write("wq"),
@@ -23,19 +23,19 @@ pub const DECL: KernelDecl = KernelDecl {
     push_size: std::mem::size_of::<OutlierPush>() as u32,
 };
 
-/// Per pixel: `2R` neighbours × two passes × (load, test, 2 FMAs) ≈ 4
-/// each, and three merges (≈ 12 each).
+/// Per pixel: `2R` neighbours × two passes × (load, decode, test, 2 FMAs)
+/// ≈ 5 each, and three merges (≈ 12 each).
 pub fn flops_per_pixel(radius: u32) -> f64 {
-    2.0 * radius as f64 * 2.0 * 4.0 + 36.0
+    2.0 * radius as f64 * 2.0 * 5.0 + 36.0
 }
 
-/// Records the row summaries of `grey` (from [`super::outlier_grey`]) into
-/// `out`: count, mean, M2 with the pixel, then without it.
+/// Records the row summaries of grey (`keys` from [`super::outlier_grey`])
+/// into `out`: count, mean, M2 with the pixel, then without it.
 pub fn record(
     batch: &mut Batch,
     precision: Precision,
     push: &OutlierPush,
-    grey: BufferSlice,
+    keys: BufferSlice,
     out: [BufferSlice; 6],
 ) -> Result<()> {
     super::dispatch_outlier(
@@ -43,7 +43,7 @@ pub fn record(
         &DECL,
         precision,
         push,
-        &[&[grey], &out],
+        &[&[keys], &out],
         flops_per_pixel(push.radius),
     )
 }

@@ -4,7 +4,7 @@
 //! ```text
 //! sanitize → remove (steps 1–3) → G-buffer prefilter → method → restore (step 4) → sample map
 //!
-//! remove:   outlier_grey      grey (NaN: invalid) and its order-preserving key
+//! remove:   outlier_grey      order-preserving key of grey (0: invalid)
 //!           outlier_rows      row (count, mean, M2) of grey with and without x, R = 14
 //!           outlier_detect    merge → m, sd without o; copy; queue the spikes
 //!           outlier_median    (indirect, per queued spike) the median pixel; e = y − y_q*
@@ -88,8 +88,7 @@ pub fn push(w: usize, h: usize, radius: usize, mode: u32) -> OutlierPush {
 }
 
 /// The stage's planes: two six-plane scratch sets, the excess `e` (3), the
-/// weights (6) or grey (1), and the grey keys (1); and the queue of
-/// detected pixels.
+/// weights (6) and the grey keys (1); and the queue of detected pixels.
 #[derive(Debug)]
 pub struct OutlierPlanes {
     /// Scratch of each step ([`SCRATCH`] planes): dead between
@@ -104,9 +103,9 @@ pub struct OutlierPlanes {
     height: usize,
 }
 
-/// Scratch planes of the stage: row summaries (6), outputs (6) and grey (1)
-/// of the detection, or the box sums (12) and weights (6) of the
-/// restoration; the median keys (1).
+/// Scratch planes of the stage: row summaries (6) and outputs (6) of the
+/// detection, or the box sums (12) and weights (6) of the restoration; the
+/// keys of grey (1).
 pub const SCRATCH: usize = 19;
 
 impl OutlierPlanes {
@@ -159,10 +158,9 @@ pub fn record_remove(
     let pu = push(w, h, DETECT_RADIUS, 0);
     let rows = p.set::<6>(0);
     let out = p.set::<6>(6);
-    let grey = p.planes.plane(12);
     let keys = p.planes.plane(18);
-    outlier_grey::record(batch, precision, &pu, color, spp, grey, keys)?;
-    outlier_rows::record(batch, precision, &pu, grey, rows)?;
+    outlier_grey::record(batch, precision, &pu, color, spp, keys)?;
+    outlier_rows::record(batch, precision, &pu, keys, rows)?;
     let queue = p.queue.slice();
     outlier_detect::record(
         batch,
@@ -171,7 +169,7 @@ pub fn record_remove(
         color,
         var,
         spp,
-        grey,
+        keys,
         rows,
         out,
         p.excess(),

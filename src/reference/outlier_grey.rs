@@ -1,6 +1,6 @@
-//! Scalar twin of `spirv/outlier_grey.comp`: per pixel, grey rounded to f32
-//! (NaN where the pixel is invalid) and its order-preserving key (0 where
-//! invalid), spec §4.4 step 1.
+//! Scalar twin of `spirv/outlier_grey.comp`: per pixel, the order-preserving
+//! key of grey rounded to f32 (0 where the pixel is invalid), spec §4.4
+//! step 1.
 
 use super::outliers::grey;
 use super::spp_of;
@@ -17,33 +17,26 @@ pub fn key(g: f64) -> u32 {
     }
 }
 
-/// The grey of a key from [`key`] (the inverse on f32 values).
-pub fn unkey(k: u32) -> f32 {
-    f32::from_bits(if k & 0x8000_0000 != 0 {
-        k & 0x7fff_ffff
-    } else {
-        !k
+/// The grey of a key from [`key`] (its inverse on f32 values); `None` for
+/// 0, an invalid pixel's key.
+pub fn unkey(k: u32) -> Option<f32> {
+    (k != 0).then(|| {
+        f32::from_bits(if k & 0x8000_0000 != 0 {
+            k & 0x7fff_ffff
+        } else {
+            !k
+        })
     })
 }
 
-/// `grey_out` = grey as f32 (NaN where invalid), `keys` = [`key`] of it (0
-/// where invalid).
-pub fn outlier_grey(
-    push: &OutlierPush,
-    color: [&[f32]; 3],
-    spp: &[f32],
-    grey_out: &mut [f32],
-    keys: &mut [u32],
-) {
+/// `keys` = [`key`] of each valid pixel's grey, 0 where invalid.
+pub fn outlier_grey(push: &OutlierPush, color: [&[f32]; 3], spp: &[f32], keys: &mut [u32]) {
     let n = push.width as usize * push.height as usize;
     for i in 0..n {
-        if spp_of(spp[i]) >= 1.0 {
-            let g = grey(color, i);
-            grey_out[i] = g as f32;
-            keys[i] = key(g);
+        keys[i] = if spp_of(spp[i]) >= 1.0 {
+            key(grey(color, i))
         } else {
-            grey_out[i] = f32::NAN;
-            keys[i] = 0;
-        }
+            0
+        };
     }
 }
