@@ -8,8 +8,8 @@
 // outlier_grey's keys). Every pixel's colour and variance are copied to
 // the outputs with e = 0; a detected pixel is appended to the queue, whose
 // entries outlier_median replaces by the median pixel. The median lives in
-// its own kernel because a kernel merely containing its 32 scans of the
-// window ran ~9x slower on lavapipe, and because a queue keeps all SIMD
+// its own kernel because a kernel merely containing its scans of the window
+// (then 32, now 10) ran ~9x slower on lavapipe, and because a queue keeps all SIMD
 // lanes of the median busy.
 // Scalar twin: src/reference/outlier_detect.rs.
 #include "lib/common.glsl"

@@ -204,8 +204,9 @@ pub struct Frame {
     pub stats: Vec<(String, f64)>,
 }
 
-/// Side of the image [`Denoiser::warm_up`] builds a chain for (small, and a
-/// multiple of 4 like most real widths, for `sanitize_quads`).
+/// Side of the image [`Denoiser::warm_up`] builds a chain for: small, and a
+/// multiple of 4 like most real widths (`sanitize_quads`; other widths use
+/// `sanitize`, built by the denoiser itself).
 const WARM_UP_SIZE: usize = 16;
 
 /// Pipelines being built by [`Denoiser::warm_up`]. Dropping it (or
@@ -310,34 +311,66 @@ impl Denoiser {
     }
 
     /// Starts building, on a thread of its own, the compute pipelines a
-    /// denoiser with `config` on statistics with every layer would use, and
-    /// returns at once. A caller overlaps this with reading its input: on
+    /// denoiser of `config` on `source` will use (its chain on a 16×16
+    /// image with the same layers, and the sample map's kernels when the
+    /// device can compute one), and returns at once. A caller overlaps this
+    /// with work of its own (reading its input, building its scene): on
     /// lavapipe, creating LP's pipelines takes about half a second of one
     /// core (`lp_centres` alone 0.44 s), which [`Denoiser::new`] would
-    /// otherwise spend before anything runs. A later [`Denoiser::new`] on the
-    /// same context takes the built pipelines, or waits for the one being
-    /// built. Only a hint: a pipeline that fails here is built again, and its
-    /// error reported, by [`Denoiser::new`]. Dropping the returned
-    /// [`WarmUp`] waits for the thread. Nothing happens with the CPU backend.
-    pub fn warm_up(ctx: &Arc<GpuContext>, config: &Config) -> WarmUp {
+    /// otherwise spend before anything runs. A later [`Denoiser::new`] on
+    /// the same context takes the built pipelines, or waits for the one
+    /// being built. A hint only: a pipeline that fails to build here is
+    /// built again, and its error reported, by [`Denoiser::new`] or the
+    /// first call.
+    ///
+    /// The returned [`WarmUp`] holds a reference to `ctx` and waits for the
+    /// thread when dropped: with a context made by
+    /// [`GpuContext::from_raw`], drop it before destroying the device.
+    pub fn warm_up(ctx: &Arc<GpuContext>, source: &Source, config: &Config) -> WarmUp {
         let ctx = ctx.clone();
         let mut config = config.clone();
         config.progress = false;
         config.max_memory = None;
         config.tile = None;
+        let source = match source {
+            Source::Accum(layout) => Source::Accum(AccumLayout {
+                width: WARM_UP_SIZE,
+                height: WARM_UP_SIZE,
+                ..*layout
+            }),
+            Source::Stats { layers, .. } => Source::Stats {
+                width: WARM_UP_SIZE,
+                height: WARM_UP_SIZE,
+                layers: layers.clone(),
+            },
+        };
         let spawned = std::thread::Builder::new()
             .name("mcdenoise-warm-up".into())
+            // As much stack as a main thread: a driver's compiler may recurse.
+            .stack_size(8 << 20)
             .spawn(move || {
-                // A chain counts its work when it is made, which asks the
-                // context for every pipeline it records: building them.
-                let source = Source::Stats {
-                    width: WARM_UP_SIZE,
-                    height: WARM_UP_SIZE,
-                    layers: Layer::ALL.to_vec(),
-                };
-                let _ = Denoiser::new(&ctx, source, config);
+                let _ = Denoiser::warm_up_chain(&ctx, source, config);
             });
         WarmUp(spawned.ok())
+    }
+
+    /// [`warm_up`](Self::warm_up)'s thread: counting a chain's work (with a
+    /// sample map when the device can make one) records every kernel into
+    /// a batch that runs nothing, which asks the context for, and so builds,
+    /// each pipeline.
+    fn warm_up_chain(ctx: &Arc<GpuContext>, source: Source, config: Config) -> Result<()> {
+        let accum = match &source {
+            Source::Accum(layout) => Some(crate::gpu::GpuBuffer::new(
+                ctx,
+                "warm_up.accum",
+                layout.bytes(),
+            )?),
+            Source::Stats { .. } => None,
+        };
+        let d = Denoiser::new(ctx, source, config)?;
+        let budget = ctx.supports_int64().then_some(1);
+        d.chain()?.work(budget, accum.as_ref().map(|a| a.slice()))?;
+        Ok(())
     }
 
     /// A denoiser running the scalar f64 references on the CPU (slow; for

@@ -11,7 +11,9 @@
 //! - **Scope.** A plan applies only to calls made on the thread that armed
 //!   it, from its creation until it is dropped, so tests running in parallel
 //!   in one process do not see each other's faults. mcdenoise makes every
-//!   Vulkan and file call of an operation on the caller's thread.
+//!   Vulkan and file call of an operation on the caller's thread, except the
+//!   pipeline builds of [`crate::Denoiser::warm_up`], which run on a thread
+//!   of their own (a plan armed by the caller does not see them).
 //! - **Cost.** Unarmed, each hooked call loads one atomic (the number of
 //!   threads with a plan) and goes on; an armed plan costs a thread-local
 //!   lookup per hooked call.

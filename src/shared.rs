@@ -384,8 +384,8 @@ pub struct SampleTreePush {
 }
 
 /// `spirv/lib/outliers.glsl`, block `Push`: every kernel of the outlier stage
-/// (`outlier_rows`, `outlier_detect`, `box_rows`, `outlier_weights`,
-/// `outlier_spread`; spec §4.4).
+/// (`outlier_grey`, `outlier_rows`, `outlier_detect`, `outlier_median`,
+/// `box_rows`, `outlier_weights`, `outlier_spread`; spec §4.4).
 #[repr(C)]
 #[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct OutlierPush {

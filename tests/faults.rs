@@ -229,32 +229,48 @@ fn concurrent_builds_of_one_pipeline_build_it_once() {
     close(ctx, log, &baseline);
 }
 
-/// `Denoiser::warm_up` builds, on its own thread, every pipeline a denoiser
-/// of that configuration then uses: the denoiser's thread creates none (it
-/// does without the warm-up), the output is the same, nothing leaks.
+/// `Denoiser::warm_up` builds, on its own thread (the caller's thread
+/// creates no pipeline while it waits), every pipeline a denoiser of that
+/// source and configuration then uses, the sample map's included: the
+/// denoiser's thread creates none (it does without the warm-up). A denoiser
+/// made while the warm-up is still building gives the same output; nothing
+/// leaks.
 #[test]
 fn warm_up_builds_every_pipeline_the_denoiser_uses() {
     let _serial = serial();
     let baseline = fault::live();
     let img = fixture();
+    let source = Source::of_image(&img);
     for method in [Method::Lp, Method::Wlr] {
         let config = Config::new(method);
         let mut runs = Vec::new();
-        for warm in [false, true] {
+        for mode in ["cold", "warmed", "concurrent"] {
             let (ctx, log) = context();
-            if warm {
-                Denoiser::warm_up(&ctx, &config).wait();
-            }
             let plan = Plan::new();
-            let d = Denoiser::new(&ctx, Source::of_image(&img), config.clone()).unwrap();
-            let frame = d.denoise(&img, None).unwrap();
-            let built = plan.calls(Call::CreateComputePipeline);
-            if warm {
-                assert_eq!(built, 0, "{method:?}: pipelines built after the warm-up");
-            } else {
-                assert!(built >= 5, "{method:?}: only {built} pipelines built");
+            let warm = (mode != "cold").then(|| Denoiser::warm_up(&ctx, &source, &config));
+            let warm = match mode {
+                "warmed" => {
+                    warm.unwrap().wait();
+                    let built = plan.calls(Call::CreateComputePipeline);
+                    assert_eq!(
+                        built, 0,
+                        "{method:?}: the warm-up built on the caller's thread"
+                    );
+                    None
+                }
+                _ => warm,
+            };
+            let before = plan.calls(Call::CreateComputePipeline);
+            let d = Denoiser::new(&ctx, source.clone(), config.clone()).unwrap();
+            let frame = d.denoise(&img, Some(4096)).unwrap();
+            let built = plan.calls(Call::CreateComputePipeline) - before;
+            match mode {
+                "cold" => assert!(built >= 8, "{method:?}: only {built} pipelines built"),
+                "warmed" => assert_eq!(built, 0, "{method:?}: pipelines built after the warm-up"),
+                _ => {}
             }
-            runs.push(bits(&frame));
+            drop(warm);
+            runs.push((bits(&frame), frame.samples.clone()));
             drop((plan, d));
             close(ctx, log, &baseline);
         }
@@ -262,6 +278,38 @@ fn warm_up_builds_every_pipeline_the_denoiser_uses() {
             runs[0] == runs[1],
             "{method:?}: the warm-up changed the output"
         );
+        assert!(
+            runs[0] == runs[2],
+            "{method:?}: a concurrent warm-up changed the output"
+        );
+    }
+    // An accumulation source: its finalisation kernels too.
+    let layout = mcdenoise::AccumLayout::new(64, 48, true, false);
+    let config = Config::new(Method::Lp);
+    for warmed in [false, true] {
+        let (ctx, log) = context();
+        if warmed {
+            Denoiser::warm_up(&ctx, &Source::Accum(layout), &config).wait();
+        }
+        // No samples anywhere: every pixel invalid, every kernel recorded.
+        let accum = GpuBuffer::new(&ctx, "test.accum", layout.bytes()).unwrap();
+        let plan = Plan::new();
+        let d = Denoiser::new(&ctx, Source::Accum(layout), config.clone()).unwrap();
+        d.run(Some(accum.slice()), Some(1000)).unwrap();
+        let built = plan.calls(Call::CreateComputePipeline);
+        if warmed {
+            assert_eq!(
+                built, 0,
+                "accumulation source: pipelines built after the warm-up"
+            );
+        } else {
+            assert!(
+                built >= 8,
+                "accumulation source: only {built} pipelines built"
+            );
+        }
+        drop((plan, d, accum));
+        close(ctx, log, &baseline);
     }
 }
 

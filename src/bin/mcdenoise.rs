@@ -512,18 +512,36 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
                     bail!("{}: refusing to overwrite an input file", path.display());
                 }
             }
-            let ctx = match backend {
-                BackendArg::Gpu => Some(context(&cli)?),
+            // The pipelines build while the file is read (from its headers'
+            // layers); a file whose headers do not read goes straight to
+            // read_stats, whose error names the problem.
+            let hint = match backend {
+                BackendArg::Gpu => io::read_stats_layers(input).ok(),
                 BackendArg::Cpu => None,
             };
-            // The pipelines build while the file is read.
-            let warm = ctx.as_ref().map(|c| Denoiser::warm_up(c, &base_config()));
+            let (mut ctx, mut warm) = (None, None);
+            if let Some((width, height, layers)) = hint {
+                let c = context(&cli)?;
+                let source = Source::Stats {
+                    width,
+                    height,
+                    layers,
+                };
+                warm = Some(Denoiser::warm_up(&c, &source, &base_config()));
+                ctx = Some(c);
+            }
             let img = io::read_stats(input)?;
             let config = config_for(&img);
             let source = Source::of_image(&img);
-            let mut denoiser = match &ctx {
-                Some(ctx) => Denoiser::new(ctx, source, config)?,
-                None => Denoiser::new_cpu(source, config)?,
+            let mut denoiser = match backend {
+                BackendArg::Gpu => {
+                    let ctx = match ctx {
+                        Some(c) => c,
+                        None => context(&cli)?,
+                    };
+                    Denoiser::new(&ctx, source, config)?
+                }
+                BackendArg::Cpu => Denoiser::new_cpu(source, config)?,
             };
             drop(warm);
             let bar = progress_bar(&cli, &mut denoiser);
@@ -666,8 +684,9 @@ fn denoise_frames(
         BackendArg::Gpu => Some(context(cli)?),
         BackendArg::Cpu => None,
     };
-    // The pipelines build while the first frame is read.
-    let mut warm = ctx.as_ref().map(|c| Denoiser::warm_up(c, base_config));
+    // The pipelines build while the first frame that needs them is read.
+    let mut warm: Option<mcdenoise::WarmUp> = None;
+    let mut warmed = false;
     let mut cached: Option<(Source, bool, Denoiser)> = None;
     let (mut done, mut skipped) = (0usize, 0usize);
     let mut failed: Vec<(u64, String)> = Vec::new();
@@ -679,8 +698,18 @@ fn denoise_frames(
             continue;
         }
         let mut attempt = || -> anyhow::Result<()> {
+            if let (false, Some(ctx)) = (warmed, &ctx) {
+                warmed = true;
+                if let Ok((width, height, layers)) = io::read_stats_layers(&frame.path) {
+                    let source = Source::Stats {
+                        width,
+                        height,
+                        layers,
+                    };
+                    warm = Some(Denoiser::warm_up(ctx, &source, base_config));
+                }
+            }
             let img = io::read_stats(&frame.path)?;
-            warm.take();
             let source = Source::of_image(&img);
             let low_spp = has_low_spp(&img);
             let reuse = matches!(&cached, Some((s, l, _)) if *s == source && *l == low_spp);
@@ -693,6 +722,7 @@ fn denoise_frames(
                     None => Denoiser::new_cpu(source.clone(), config)?,
                 };
                 cached = Some((source, low_spp, d));
+                warm.take();
             }
             let denoiser = &cached.as_ref().expect("just set").2;
             let result = denoiser.denoise_owned(img, None)?;

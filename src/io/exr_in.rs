@@ -75,6 +75,50 @@ pub fn read_stats(path: &Path) -> Result<StatsImage> {
     assemble_stats(path, part)
 }
 
+/// The size and the complete layers of a render-statistics EXR, from its
+/// headers alone (the part [`read_stats`] would read): what a caller needs
+/// to prepare for the file (for example [`crate::Denoiser::warm_up`]) while
+/// its pixels are still being read. Checks nothing else: [`read_stats`]
+/// decides whether the file is usable.
+///
+/// # Errors
+/// [`Error::Io`] if the file cannot be opened; [`Error::BadInput`] if its
+/// headers cannot be parsed.
+pub fn read_stats_layers(path: &Path) -> Result<(usize, usize, Vec<Layer>)> {
+    let file = std::fs::File::open(path).map_err(|source| Error::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let meta = panic::catch_unwind(AssertUnwindSafe(|| {
+        exr::meta::MetaData::read_from_buffered(std::io::BufReader::new(file), false)
+    }))
+    .map_err(|_| Error::bad_input(path, "unreadable headers"))?
+    .map_err(|e| Error::bad_input(path, format!("unreadable headers: {e}")))?;
+    let headers = &meta.headers[..];
+    let header = headers
+        .get(find_part(headers, &["color.R"]))
+        .ok_or_else(|| Error::bad_input(path, "no part"))?;
+    let present: HashSet<String> = header
+        .channels
+        .list
+        .iter()
+        .map(|c| c.name.to_string())
+        .collect();
+    let layers = Layer::ALL
+        .into_iter()
+        .filter(|l| {
+            l.channels()
+                .iter()
+                .all(|c| present.contains(&format!("{}.{c}", l.name())))
+        })
+        .collect();
+    Ok((
+        header.layer_size.width(),
+        header.layer_size.height(),
+        layers,
+    ))
+}
+
 /// Reads a reference (or any colour) image: channels `color.R/G/B`, or bare
 /// `R/G/B` when there is no `color` layer. In a multi-part file the first part
 /// with `color.R`, else the first with `R`, is used. Everything else about the

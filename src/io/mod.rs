@@ -31,7 +31,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use crate::error::{Error, Result};
 use crate::fault::{self, Call};
 
-pub use exr_in::{read_rgb, read_stats, MAX_DIMENSION, MAX_PIXELS};
+pub use exr_in::{read_rgb, read_stats, read_stats_layers, MAX_DIMENSION, MAX_PIXELS};
 pub use exr_out::{
     write_channels, write_output, write_rgb, write_samples, write_stats, OutputImage,
 };

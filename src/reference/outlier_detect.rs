@@ -1,5 +1,5 @@
 //! Scalar twin of `spirv/outlier_detect.comp`: outlier detection (spec §4.4
-//! step 1). The kernel merges `outlier_rows`' half-row summaries; the twin
+//! step 1). The kernel merges `outlier_rows`' row summaries; the twin
 //! computes the same statistics of `Ω_o(14) \ {o}` from their definition
 //! ([`super::outliers::is_outlier`]), so it reads no summaries.
 

@@ -1,7 +1,7 @@
 //! The energy-preserving outlier stage of spec §4.4, for every method, in f64
 //! from its definitions (no box sums, no merges): the reference the kernels'
-//! twins (`outlier_rows`, `outlier_detect`, `box_rows`, `outlier_weights`,
-//! `outlier_spread`) and the CPU path use.
+//! twins (`outlier_grey`, `outlier_rows`, `outlier_detect`, `outlier_median`,
+//! `box_rows`, `outlier_weights`, `outlier_spread`) and the CPU path use.
 //!
 //! * Steps 1–3 ([`detect`], [`replace`]), before the G-buffer prefilter and
 //!   the method (§1): a valid pixel `o` is an outlier when
