@@ -287,6 +287,17 @@ fn compare_wlr_with(
         let (gfit, state) = gpu_fit(sc, &push, p);
         let (gk, gf) = split_kflags(&gfit[4]);
         let (ck, cf) = split_kflags(&cfit[4]);
+        // Both rank classes of lib/wlr.glsl's loops (k <= 3, k >= 4).
+        let small = ck.iter().filter(|&&k| (1.0..=3.0).contains(&k)).count();
+        let large = ck.iter().filter(|&&k| k >= 4.0).count();
+        eprintln!("{tag}: {small} pixels with k <= 3, {large} with k >= 4");
+        if what == "synthetic" || what == "fixture" {
+            // These two scenes compare both loops of each pair with the twin.
+            assert!(
+                small >= n / 20 && large >= n / 20,
+                "{tag}: {small} pixels with k <= 3 and {large} with k >= 4: one rank class barely tested"
+            );
+        }
         let ak = agreement(&gk, &ck);
         let af = agreement(&gf, &cf);
         assert!(ak >= 0.98, "{tag}: k agreement {ak}");

@@ -479,6 +479,17 @@ TsvdProj tsvd_projection(LocalSpace ls)
     return pr;
 }
 
+// d0 of tsvd_dz alone (the same sums in the same order): all of dz when
+// k <= 4.
+real4 tsvd_dz0(TsvdProj pr, real xc[MAX_D], real x[MAX_D])
+{
+    real4 d0 = real4(0);
+    for (int j = 0; j < 9; ++j) {
+        d0 += pr.P0[j] * (x[j] - xc[j]);
+    }
+    return d0;
+}
+
 // Local coordinates of raw features x: d0 = dz_1..4, d1 = dz_5..8, d8 = dz_9
 // (0 beyond k).
 void tsvd_dz(TsvdProj pr, real xc[MAX_D], real x[MAX_D], out real4 d0, out real4 d1, out real d8)

@@ -135,6 +135,27 @@ real wlr_kernel(TsvdProj pr, real4 t0, real4 t1, real t8)
     return ((k0.x * k0.y) * (k0.z * k0.w)) * ((k1.x * k1.y) * (k1.z * k1.w)) * k8;
 }
 
+// wlr_kernel for k <= 3, with the same products (the factors of components
+// >= k are exactly 1): t1 and t8 are not needed.
+real wlr_kernel3(TsvdProj pr, real4 t0)
+{
+    real4 k0 = mix(real4(1), max(real4(0), real(0.75) * (real4(1) - t0 * t0)), pr.m0);
+    return ((k0.x * k0.y) * (k0.z * k0.w)) * ((real(1) * real(1)) * (real(1) * real(1))) * real(1);
+}
+
+// --- rank classes -------------------------------------------------------------
+// Most pixels have k <= 3 (88 % of WLR's at 512^2 on the built-in mix scene),
+// where every design component beyond dz_3 is exactly 0. Each loop over the
+// window that builds on the local coordinates comes twice: a short one for
+// k <= 3 (only the non-zero blocks, dz_1..4 only) and the general one. A
+// pixel runs exactly one of the two (the other's row range is empty), and
+// each of its sums takes the same terms in the same order either way, so
+// the output is the same. The point is lavapipe (Mesa 22.3), which runs both
+// sides of every branch under a lane mask (gallivm's if_cond only pushes a
+// mask) but leaves a loop once no lane of the SIMD vector iterates: where
+// all 8 lanes have k <= 3 the general loop costs one idle iteration. On a
+// GPU with uniform branches the two loops cost what one does.
+
 // --- curvature fit (step 4) -------------------------------------------------
 
 // --- masked block Cholesky ---------------------------------------------------
@@ -444,7 +465,72 @@ bool wlr_curvature(TsvdProj pr, WlrCentre cc, int R, ivec2 size, uint options,
     }
     ivec2 lo = max(cc.c - ivec2(R), ivec2(0));
     ivec2 up = min(cc.c + ivec2(R), size - ivec2(1));
-    for (int qy = lo.y; qy <= up.y; ++qy) {
+    // k <= 3: the design (1, dz_1..3, dz_1^2..3^2) has non-zero blocks 0,
+    // 2, 3, 9, 10, 12 only (see "rank classes" above); the general loop
+    // below gives the same sums.
+    int end = up.y + 1;
+    int lo3 = pr.k <= 3 ? lo.y : end;
+    int lo9 = pr.k <= 3 ? end : lo.y;
+    // Their non-zero entries come from A = (1, dz_1..3) and B = (dz_1^2..3^2,
+    // 0): three outer products (AA, AB, BB) and two right-hand sides per
+    // channel, each entry the same products summed in the same order as
+    // the general loop's; scattered into the blocks after the loop.
+    realmat4 AA = realmat4(0);
+    realmat4 AB = realmat4(0);
+    realmat4 BB = realmat4(0);
+    real4 YA[3] = real4[3](real4(0), real4(0), real4(0));
+    real4 YB[3] = real4[3](real4(0), real4(0), real4(0));
+    for (int qy = lo3; qy < end; ++qy) {
+        for (int qx = lo.x; qx <= up.x; ++qx) {
+            ivec2 q = ivec2(qx, qy);
+            real x[MAX_D];
+            real e2[MAX_D];
+            if (!load_features(q, x, e2)) {
+                continue;
+            }
+            real3 y;
+            real vb;
+            load_colour(q, y, vb);
+            real w = wlr_outlier_weight(vb, options);
+            y -= cc.y;
+            real4 d0 = tsvd_dz0(pr, cc.x, x);
+            w *= wlr_kernel3(pr, d0);
+            if (w > real(0)) {
+                real4 s0 = d0 * d0;
+                real4 A = real4(real(1), d0.xyz);
+                real4 B = real4(s0.xyz, real(0));
+                real4 WA = w * A;
+                real4 WB = w * B;
+                AA += outerProduct(WA, A);
+                AB += outerProduct(WA, B);
+                BB += outerProduct(WB, B);
+                YA[0] += y.r * WA;
+                YB[0] += y.r * WB;
+                YA[1] += y.g * WA;
+                YB[1] += y.g * WB;
+                YA[2] += y.b * WA;
+                YB[2] += y.b * WB;
+            }
+        }
+    }
+    if (pr.k <= 3) {
+        // Design layout (1, dz_1..9, dz_1^2..9^2, pad): dz_1^2, dz_2^2 are
+        // components 10, 11 (block 2, lanes z, w), dz_3^2 is 12 (block 3,
+        // lane x). M[c][r] is entry (r, c).
+        real4 z = real4(0);
+        M[0] = AA;
+        M[2] = realmat4(z, z, AB[0], AB[1]);
+        M[3] = realmat4(AB[2], z, z, z);
+        M[9] = realmat4(z, z, real4(real(0), real(0), BB[0].xy), real4(real(0), real(0), BB[1].xy));
+        M[10] = realmat4(real4(real(0), real(0), BB[2].xy), z, z, z);
+        M[12] = realmat4(real4(BB[2].z, real(0), real(0), real(0)), z, z, z);
+        for (int ch = 0; ch < 3; ++ch) {
+            Y[ch * 5 + 0] = YA[ch];
+            Y[ch * 5 + 2] = real4(real(0), real(0), YB[ch].xy);
+            Y[ch * 5 + 3] = real4(YB[ch].z, real(0), real(0), real(0));
+        }
+    }
+    for (int qy = lo9; qy < end; ++qy) {
         for (int qx = lo.x; qx <= up.x; ++qx) {
             ivec2 q = ivec2(qx, qy);
             real x[MAX_D];
@@ -575,17 +661,12 @@ struct WlrFit {
     }
 
 // Per-neighbour data shared by the two passes of wlr_fits: base weight
-// acc_i o_i (0 = skip), local coordinates, colour, vbar.
-bool wlr_fit_neighbour(TsvdProj pr, WlrCentre cc, ivec2 q, uint options,
-                       out real base, out real4 d0, out real4 d1, out real d8,
-                       out real3 y, out real vb)
+// acc_i o_i (0 = skip), raw features, colour, vbar.
+bool wlr_fit_accept(WlrCentre cc, ivec2 q, uint options, out real base, out real x[MAX_D],
+                    out real3 y, out real vb)
 {
-    real x[MAX_D];
     real e2[MAX_D];
     base = real(0);
-    d0 = real4(0);
-    d1 = real4(0);
-    d8 = real(0);
     y = real3(0);
     vb = real(0);
     if (!load_features(q, x, e2)) {
@@ -597,9 +678,37 @@ bool wlr_fit_neighbour(TsvdProj pr, WlrCentre cc, ivec2 q, uint options,
         return false;
     }
     base = wlr_outlier_weight(vb, options);
-    tsvd_dz(pr, cc.x, x, d0, d1, d8);
     y -= cc.y;  // centred responses (see wlr_fits)
     return base > real(0);
+}
+
+// wlr_fit_accept and the local coordinates.
+bool wlr_fit_neighbour(TsvdProj pr, WlrCentre cc, ivec2 q, uint options,
+                       out real base, out real4 d0, out real4 d1, out real d8,
+                       out real3 y, out real vb)
+{
+    real x[MAX_D];
+    d0 = real4(0);
+    d1 = real4(0);
+    d8 = real(0);
+    if (!wlr_fit_accept(cc, q, options, base, x, y, vb)) {
+        return false;
+    }
+    tsvd_dz(pr, cc.x, x, d0, d1, d8);
+    return true;
+}
+
+// The same for k <= 3: dz_1..4 only (the rest is 0).
+bool wlr_fit_neighbour3(TsvdProj pr, WlrCentre cc, ivec2 q, uint options,
+                        out real base, out real4 d0, out real3 y, out real vb)
+{
+    real x[MAX_D];
+    d0 = real4(0);
+    if (!wlr_fit_accept(cc, q, options, base, x, y, vb)) {
+        return false;
+    }
+    d0 = tsvd_dz0(pr, cc.x, x);
+    return true;
 }
 
 // Pass A body for bandwidth s (a literal): weight, count, normal matrix
@@ -622,6 +731,30 @@ bool wlr_fit_neighbour(TsvdProj pr, WlrCentre cc, ivec2 q, uint options,
                     T[6 * s + 5] += outerProduct(W2, X2);                           \
                 }                                                                   \
             }                                                                       \
+        }                                                                           \
+    }
+
+// Pass A for k <= 3: block (0, 0) only (the others stay exactly 0).
+#define WLR_PASS_A3(s)                                                              \
+    {                                                                               \
+        real w = base * wlr_kernel3(pr, d0 * I0[s]);                                \
+        if (w > real(0)) {                                                          \
+            cnt[s] += 1;                                                            \
+            real4 W0 = w * X0;                                                      \
+            T[6 * s + 0] += outerProduct(W0, X0);                                   \
+        }                                                                           \
+    }
+
+// Pass B for k <= 3 (u's components beyond dz_3 are exactly 0).
+#define WLR_PASS_B3(s)                                                              \
+    {                                                                               \
+        real w = base * wlr_kernel3(pr, d0 * I0[s]);                                \
+        if (w > real(0)) {                                                          \
+            real l = w * dot(U0[s], X0);                                            \
+            real lp = max(l, real(0));                                              \
+            S1[s] += real4(l * y, l * l * vb);  /* y centred */                     \
+            S2[s] += real4(lp * y, lp * lp * vb);                                   \
+            S3[s] += lp;                                                            \
         }                                                                           \
     }
 
@@ -667,8 +800,33 @@ void wlr_fits(TsvdProj pr, WlrCentre cc, real b[MAX_D], real h[WLR_NFIT], int R,
     ivec2 lo = max(cc.c - ivec2(R), ivec2(0));
     ivec2 up = min(cc.c + ivec2(R), size - ivec2(1));
 
+    // Rows of the k <= 3 loops and of the general ones: one range is empty
+    // (see "rank classes" above).
+    int end = up.y + 1;
+    int lo3 = k <= 3 ? lo.y : end;
+    int lo9 = k <= 3 ? end : lo.y;
+
     // Pass A: normal matrices and positive-weight counts.
-    for (int qy = lo.y; qy <= up.y; ++qy) {
+    for (int qy = lo3; qy < end; ++qy) {
+        for (int qx = lo.x; qx <= up.x; ++qx) {
+            real base;
+            real4 d0;
+            real3 y;
+            real vb;
+            if (!wlr_fit_neighbour3(pr, cc, ivec2(qx, qy), options, base, d0, y, vb)) {
+                continue;
+            }
+            real4 X0 = real4(real(1), d0.xyz);
+            WLR_PASS_A3(0)
+#if WLR_NFIT > 1
+            WLR_PASS_A3(1)
+            WLR_PASS_A3(2)
+            WLR_PASS_A3(3)
+            WLR_PASS_A3(4)
+#endif
+        }
+    }
+    for (int qy = lo9; qy < end; ++qy) {
         for (int qx = lo.x; qx <= up.x; ++qx) {
             real base;
             real4 d0;
@@ -727,7 +885,26 @@ void wlr_fits(TsvdProj pr, WlrCentre cc, real b[MAX_D], real h[WLR_NFIT], int R,
         S2[s] = real4(0);
         S3[s] = real(0);
     }
-    for (int qy = lo.y; qy <= up.y; ++qy) {
+    for (int qy = lo3; qy < end; ++qy) {
+        for (int qx = lo.x; qx <= up.x; ++qx) {
+            real base;
+            real4 d0;
+            real3 y;
+            real vb;
+            if (!wlr_fit_neighbour3(pr, cc, ivec2(qx, qy), options, base, d0, y, vb)) {
+                continue;
+            }
+            real4 X0 = real4(real(1), d0.xyz);
+            WLR_PASS_B3(0)
+#if WLR_NFIT > 1
+            WLR_PASS_B3(1)
+            WLR_PASS_B3(2)
+            WLR_PASS_B3(3)
+            WLR_PASS_B3(4)
+#endif
+        }
+    }
+    for (int qy = lo9; qy < end; ++qy) {
         for (int qx = lo.x; qx <= up.x; ++qx) {
             real base;
             real4 d0;
