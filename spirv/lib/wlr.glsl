@@ -447,6 +447,25 @@ void wlr_solve20_quadratic(realmat4 U[15], real4 r[5], out real4 q0, out real4 q
     q2 = real4(x4.xyz, real(0));
 }
 
+// A valid neighbour q of the curvature fit: raw features, centred colour
+// y - y_c (only the intercept changes, and the f32 normal equations lose
+// less to cancellation) and the outlier weight o_q.
+bool wlr_curvature_neighbour(WlrCentre cc, ivec2 q, uint options, out real x[MAX_D], out real3 y,
+                             out real w)
+{
+    real e2[MAX_D];
+    y = real3(0);
+    w = real(0);
+    if (!load_features(q, x, e2)) {
+        return false;
+    }
+    real vb;
+    load_colour(q, y, vb);
+    w = wlr_outlier_weight(vb, options);
+    y -= cc.y;
+    return true;
+}
+
 // Step 4: weighted quadratic fit (1, dz, dz o dz), weights o_i prod K_E(dz_ij),
 // ridge 1e-3, per channel; b_j = (Hbar_j + 0.64)^(-1/2) for j < k, 0 beyond.
 // Returns false on SOLVE-FAIL (b = 0). No rejection in this fit.
@@ -482,17 +501,12 @@ bool wlr_curvature(TsvdProj pr, WlrCentre cc, int R, ivec2 size, uint options,
     real4 YB[3] = real4[3](real4(0), real4(0), real4(0));
     for (int qy = lo3; qy < end; ++qy) {
         for (int qx = lo.x; qx <= up.x; ++qx) {
-            ivec2 q = ivec2(qx, qy);
             real x[MAX_D];
-            real e2[MAX_D];
-            if (!load_features(q, x, e2)) {
+            real3 y;
+            real w;
+            if (!wlr_curvature_neighbour(cc, ivec2(qx, qy), options, x, y, w)) {
                 continue;
             }
-            real3 y;
-            real vb;
-            load_colour(q, y, vb);
-            real w = wlr_outlier_weight(vb, options);
-            y -= cc.y;
             real4 d0 = tsvd_dz0(pr, cc.x, x);
             w *= wlr_kernel3(pr, d0);
             if (w > real(0)) {
@@ -532,19 +546,12 @@ bool wlr_curvature(TsvdProj pr, WlrCentre cc, int R, ivec2 size, uint options,
     }
     for (int qy = lo9; qy < end; ++qy) {
         for (int qx = lo.x; qx <= up.x; ++qx) {
-            ivec2 q = ivec2(qx, qy);
             real x[MAX_D];
-            real e2[MAX_D];
-            if (!load_features(q, x, e2)) {
+            real3 y;
+            real w;
+            if (!wlr_curvature_neighbour(cc, ivec2(qx, qy), options, x, y, w)) {
                 continue;
             }
-            real3 y;
-            real vb;
-            load_colour(q, y, vb);
-            real w = wlr_outlier_weight(vb, options);
-            // Centred responses y - y_c: only the intercept changes, and the
-            // f32 normal equations lose less to cancellation.
-            y -= cc.y;
             real4 d0;
             real4 d1;
             real d8;
@@ -771,6 +778,51 @@ bool wlr_fit_neighbour3(TsvdProj pr, WlrCentre cc, ivec2 q, uint options,
         }                                                                           \
     }
 
+// PASS (a literal, WLR_PASS_A3 ... WLR_PASS_B) for every fit.
+#if WLR_NFIT > 1
+#define WLR_EACH_FIT(PASS) PASS(0) PASS(1) PASS(2) PASS(3) PASS(4)
+#else
+#define WLR_EACH_FIT(PASS) PASS(0)
+#endif
+
+// The k <= 3 loop of wlr_fits over the rows [lo3, end) of the window, with
+// PASS (WLR_PASS_A3 or WLR_PASS_B3) per neighbour and fit.
+#define WLR_LOOP3(PASS)                                                             \
+    for (int qy = lo3; qy < end; ++qy) {                                            \
+        for (int qx = lo.x; qx <= up.x; ++qx) {                                     \
+            real base;                                                              \
+            real4 d0;                                                               \
+            real3 y;                                                                \
+            real vb;                                                                \
+            if (!wlr_fit_neighbour3(pr, cc, ivec2(qx, qy), options, base, d0, y, vb)) { \
+                continue;                                                           \
+            }                                                                       \
+            real4 X0 = real4(real(1), d0.xyz);                                      \
+            WLR_EACH_FIT(PASS)                                                      \
+        }                                                                           \
+    }
+
+// The general loop over the rows [lo9, end), with PASS (WLR_PASS_A or
+// WLR_PASS_B).
+#define WLR_LOOP9(PASS)                                                             \
+    for (int qy = lo9; qy < end; ++qy) {                                            \
+        for (int qx = lo.x; qx <= up.x; ++qx) {                                     \
+            real base;                                                              \
+            real4 d0;                                                               \
+            real4 d1;                                                               \
+            real d8;                                                                \
+            real3 y;                                                                \
+            real vb;                                                                \
+            if (!wlr_fit_neighbour(pr, cc, ivec2(qx, qy), options, base, d0, d1, d8, y, vb)) { \
+                continue;                                                           \
+            }                                                                       \
+            real4 X0 = real4(real(1), d0.xyz);                                      \
+            real4 X1 = real4(d0.w, d1.xyz);                                         \
+            real4 X2 = real4(d1.w, d8, real(0), real(0));                           \
+            WLR_EACH_FIT(PASS)                                                      \
+        }                                                                           \
+    }
+
 // Steps 5 / 9: local linear fits (1, dz) (p = k+1, ridge `lambda`) at the
 // WLR_NFIT bandwidths h[s], weights acc_i o_i prod_j K_E(dz_ij / (h_s b_j)).
 // FEW (<= 1 positive weight) and SOLVE-FAIL give f = y_c, bias 0, var vbar_c
@@ -807,48 +859,8 @@ void wlr_fits(TsvdProj pr, WlrCentre cc, real b[MAX_D], real h[WLR_NFIT], int R,
     int lo9 = k <= 3 ? end : lo.y;
 
     // Pass A: normal matrices and positive-weight counts.
-    for (int qy = lo3; qy < end; ++qy) {
-        for (int qx = lo.x; qx <= up.x; ++qx) {
-            real base;
-            real4 d0;
-            real3 y;
-            real vb;
-            if (!wlr_fit_neighbour3(pr, cc, ivec2(qx, qy), options, base, d0, y, vb)) {
-                continue;
-            }
-            real4 X0 = real4(real(1), d0.xyz);
-            WLR_PASS_A3(0)
-#if WLR_NFIT > 1
-            WLR_PASS_A3(1)
-            WLR_PASS_A3(2)
-            WLR_PASS_A3(3)
-            WLR_PASS_A3(4)
-#endif
-        }
-    }
-    for (int qy = lo9; qy < end; ++qy) {
-        for (int qx = lo.x; qx <= up.x; ++qx) {
-            real base;
-            real4 d0;
-            real4 d1;
-            real d8;
-            real3 y;
-            real vb;
-            if (!wlr_fit_neighbour(pr, cc, ivec2(qx, qy), options, base, d0, d1, d8, y, vb)) {
-                continue;
-            }
-            real4 X0 = real4(real(1), d0.xyz);
-            real4 X1 = real4(d0.w, d1.xyz);
-            real4 X2 = real4(d1.w, d8, real(0), real(0));
-            WLR_PASS_A(0)
-#if WLR_NFIT > 1
-            WLR_PASS_A(1)
-            WLR_PASS_A(2)
-            WLR_PASS_A(3)
-            WLR_PASS_A(4)
-#endif
-        }
-    }
+    WLR_LOOP3(WLR_PASS_A3)
+    WLR_LOOP9(WLR_PASS_A)
 
     // Solves: u_s = (A_s + Lambda)^{-1} e_1.
     real4 U0[WLR_NFIT];
@@ -885,48 +897,8 @@ void wlr_fits(TsvdProj pr, WlrCentre cc, real b[MAX_D], real h[WLR_NFIT], int R,
         S2[s] = real4(0);
         S3[s] = real(0);
     }
-    for (int qy = lo3; qy < end; ++qy) {
-        for (int qx = lo.x; qx <= up.x; ++qx) {
-            real base;
-            real4 d0;
-            real3 y;
-            real vb;
-            if (!wlr_fit_neighbour3(pr, cc, ivec2(qx, qy), options, base, d0, y, vb)) {
-                continue;
-            }
-            real4 X0 = real4(real(1), d0.xyz);
-            WLR_PASS_B3(0)
-#if WLR_NFIT > 1
-            WLR_PASS_B3(1)
-            WLR_PASS_B3(2)
-            WLR_PASS_B3(3)
-            WLR_PASS_B3(4)
-#endif
-        }
-    }
-    for (int qy = lo9; qy < end; ++qy) {
-        for (int qx = lo.x; qx <= up.x; ++qx) {
-            real base;
-            real4 d0;
-            real4 d1;
-            real d8;
-            real3 y;
-            real vb;
-            if (!wlr_fit_neighbour(pr, cc, ivec2(qx, qy), options, base, d0, d1, d8, y, vb)) {
-                continue;
-            }
-            real4 X0 = real4(real(1), d0.xyz);
-            real4 X1 = real4(d0.w, d1.xyz);
-            real4 X2 = real4(d1.w, d8, real(0), real(0));
-            WLR_PASS_B(0)
-#if WLR_NFIT > 1
-            WLR_PASS_B(1)
-            WLR_PASS_B(2)
-            WLR_PASS_B(3)
-            WLR_PASS_B(4)
-#endif
-        }
-    }
+    WLR_LOOP3(WLR_PASS_B3)
+    WLR_LOOP9(WLR_PASS_B)
     for (int s = 0; s < WLR_NFIT; ++s) {
         if (fit[s].flags != 0) {
             continue;  // FEW or SOLVE-FAIL: y_c, bias 0, var vbar_c
