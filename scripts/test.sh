@@ -6,4 +6,8 @@ bash scripts/setup.sh --tests
 # Tests pick the best device; on a machine with a real GPU set MCDENOISE_DEVICE.
 # The validation layer is required: without it every GPU test fails.
 export MCDENOISE_REQUIRE_VALIDATION=1
+# The API docs' links must resolve (the whole suite only, not a filtered run).
+if [ $# -eq 0 ]; then
+  RUSTDOCFLAGS="-D warnings" cargo doc --no-deps --lib --quiet
+fi
 exec cargo test --no-fail-fast "$@"

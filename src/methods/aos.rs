@@ -230,7 +230,7 @@ const SPACE_BAND_BYTES: u64 = 64 << 20;
 /// GPU buffers of one AOS run.
 #[derive(Debug)]
 pub struct AosPlanes {
-    /// NL-means outputs ([`FEAT_PLANES`]; the visibility block stays 0 when
+    /// NL-means outputs (`FEAT_PLANES`; the visibility block stays 0 when
     /// the input has none: a constant feature, see `reference::aos_space`).
     pub feat: PlaneSet,
     /// `vbar`.

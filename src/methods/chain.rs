@@ -37,7 +37,7 @@ pub enum ChainInput {
     /// GPU at every call.
     Accum(AccumLayout),
     /// Per-pixel statistics with these layers (as a render-statistics file
-    /// holds them), uploaded into [`GpuChain::input`] before a call.
+    /// holds them), uploaded into the chain ([`GpuChain::upload`]) before a call.
     Stats {
         /// Image width in pixels.
         width: usize,

@@ -151,7 +151,7 @@ pub fn record_gbf(
 
 /// [`record_gbf`] with the packed vec4 bindings of `gbf_pack` and
 /// `gbf_filter` limited to `max_binding` bytes: above that the image is
-/// packed, then filtered, in chunks of rows ([`chunk_rows`]); every chunk
+/// packed, then filtered, in chunks of rows (`chunk_rows`); every chunk
 /// is packed before any is filtered, since the filter writes over the
 /// feature planes the packing reads. The output does not depend on the
 /// chunks (tested).

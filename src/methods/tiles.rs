@@ -10,13 +10,13 @@
 //! Three things depend on where a tile lies in the image, not only on its
 //! pixels, and are carried over:
 //! - LP's candidate grids (§3.5, `px mod g = 0`): the tile's grid phase
-//!   ([`crate::shared::LpPush::phase_for`], from [`Tile::origin`]);
+//!   ([`crate::shared::LpPush::phase_for`], from the tile's origin, [`Tile::placement`]);
 //! - APR's sparse centres every 14 pixels (§4.3), and the 16-pixel spans
 //!   over which the outlier redistribution restarts its running box sums:
 //!   the tile's first column and row are multiples of both ([`alignment`]),
 //!   so its grids and spans are the image's;
 //! - the sanitation counters (§0.4): a tile counts the repairs of its
-//!   interior only ([`Tile::skip`]), so the report counts each pixel once.
+//!   interior only ([`Tile::placement`]'s margins), so the report counts each pixel once.
 //!
 //! What is global by nature, the sample map's allocation (§9.2: the sum of
 //! the priorities, their prefix sum), runs once, untiled, on the priority
@@ -263,7 +263,7 @@ pub fn plan(width: usize, height: usize, tile: usize, halo: usize, align: usize)
 /// configuration.
 pub const SMALL: usize = 512 * 512;
 
-/// The smallest tile interior (pixels per side) [`TiledChain::new`] accepts
+/// The smallest tile interior (pixels per side) [`TiledChain::choose`] accepts
 /// when it has to choose one: smaller tiles would spend almost all their
 /// work on the halo.
 pub const MIN_TILE: usize = 16;

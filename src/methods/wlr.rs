@@ -128,7 +128,7 @@ pub struct WlrPlanes {
 
 impl WlrPlanes {
     /// Allocates the [`PLANES`] for a `width × height` image, the centre-state
-    /// ring of a run at `precision`, and the [`SCRATCH`] planes: in `arena`
+    /// ring of a run at `precision`, and the `SCRATCH` planes: in `arena`
     /// from its start when given (it must hold [`WlrPlanes::scratch_bytes`];
     /// nothing else may use it while WLR runs), else in a buffer of their own.
     /// Fails with [`Error::Limit`] when the ring, one binding, exceeds
