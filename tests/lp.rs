@@ -271,7 +271,9 @@ fn lp_select_matches_twin() {
 
 /// Runs one `lp_centres` pass on the GPU from the twin's state after
 /// `pass` passes, and compares with the twin's pass.
-fn compare_centres(sc: &Scene, pass: usize, prec: Precision, what: &str) {
+/// Compares one pass of `lp_centres` with its twin; returns how many new
+/// centres have k <= 3 and k >= 4 (the two loops of lib/lp.glsl's rings).
+fn compare_centres(sc: &Scene, pass: usize, prec: Precision, what: &str) -> (usize, usize) {
     let (mut cpu, reach) = twin_state(sc, pass);
     // The reach of the state before this pass (twin_state ends with one).
     let before = cpu.clone();
@@ -299,8 +301,13 @@ fn compare_centres(sc: &Scene, pass: usize, prec: Precision, what: &str) {
     };
     let n_new = is_new.iter().filter(|&&b| b).count();
     if n_new == 0 {
-        return;
+        return (0, 0);
     }
+    let ks = pick(&cpu, S::K, &is_new);
+    let classes = (
+        ks.iter().filter(|&&k| k <= 3.0).count(),
+        ks.iter().filter(|&&k| k >= 4.0).count(),
+    );
     let r_agree = agreement(
         &pick(&gpu_state, S::R_OPT, &is_new),
         &pick(&cpu, S::R_OPT, &is_new),
@@ -349,6 +356,7 @@ fn compare_centres(sc: &Scene, pass: usize, prec: Precision, what: &str) {
         ok as f64 >= 0.99 * total as f64,
         "{what}: u agrees on {ok}/{total}"
     );
+    classes
 }
 
 /// `lp_centres` keeps the state of the pixels it does not write, so the GPU
@@ -403,14 +411,19 @@ fn run_centres_inplace(
 #[test]
 fn lp_centres_matches_twin() {
     for prec in precisions() {
+        let mut classes = (0, 0);
+        let mut add = |c: (usize, usize)| {
+            classes.0 += c.0;
+            classes.1 += c.1;
+        };
         let sc = synthetic(64, 64, 11, 1.0);
         for pass in [0, 2, 4] {
-            compare_centres(
+            add(compare_centres(
                 &sc,
                 pass,
                 prec,
                 &format!("synthetic 64² pass {pass} {prec:?}"),
-            );
+            ));
         }
         // As one tile of a larger image whose pixel (0, 0) is (7, 30):
         // the candidate grids keep the image's phase.
@@ -419,14 +432,43 @@ fn lp_centres_matches_twin() {
             ..synthetic(64, 64, 11, 1.0)
         };
         for pass in [0, 1, 2] {
-            compare_centres(&tile, pass, prec, &format!("tile pass {pass} {prec:?}"));
+            add(compare_centres(
+                &tile,
+                pass,
+                prec,
+                &format!("tile pass {pass} {prec:?}"),
+            ));
         }
-        compare_centres(&fixture(), 0, prec, &format!("fixture pass 0 {prec:?}"));
-        compare_centres(&fixture(), 3, prec, &format!("fixture pass 3 {prec:?}"));
+        add(compare_centres(
+            &fixture(),
+            0,
+            prec,
+            &format!("fixture pass 0 {prec:?}"),
+        ));
+        add(compare_centres(
+            &fixture(),
+            3,
+            prec,
+            &format!("fixture pass 3 {prec:?}"),
+        ));
         for &(w, h) in &SIZES[1..] {
             let sc = synthetic(w, h, 5, 1.0);
-            compare_centres(&sc, 4, prec, &format!("{w}x{h} pass 4 {prec:?}"));
+            add(compare_centres(
+                &sc,
+                4,
+                prec,
+                &format!("{w}x{h} pass 4 {prec:?}"),
+            ));
         }
+        // Both rank classes of the ring loops were compared with the twin.
+        println!(
+            "{prec:?}: {} centres with k <= 3, {} with k >= 4",
+            classes.0, classes.1
+        );
+        assert!(
+            classes.0 >= 20 && classes.1 >= 20,
+            "{prec:?}: centres with k <= 3 / k >= 4: {classes:?}"
+        );
     }
     check_validation(&gpu());
 }

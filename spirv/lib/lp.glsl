@@ -208,7 +208,10 @@ void lp_ring(inout LpRls st, TsvdProj pr, real xc[MAX_D], ivec2 c, int r, ivec2 
     LpRls prev;
     prev.B = st.B;
     prev.nb = st.nb;
-    for (int qy = max(c.y - r, 0); qy <= min(c.y + r, size.y - 1); ++qy) {
+    // A centre with one block (k <= 3) takes lp_ring3 instead: no rows here.
+    int y0 = max(c.y - r, 0);
+    int y1 = st.nb == 1 ? y0 - 1 : min(c.y + r, size.y - 1);
+    for (int qy = y0; qy <= y1; ++qy) {
         int step = (qy == c.y - r || qy == c.y + r) ? 1 : 2 * r;
         for (int qx = c.x - r; qx <= c.x + r; qx += step) {
             ivec2 q = ivec2(qx, qy);
@@ -225,6 +228,67 @@ void lp_ring(inout LpRls st, TsvdProj pr, real xc[MAX_D], ivec2 c, int r, ivec2 
                 n += 1;
             }
             lp_update(st, z0, z1, z2, y);
+        }
+    }
+}
+
+// The one-block forms of lp_regressor, lp_update and lp_ring, for a centre
+// with k <= 3 (nb = 1: zeta = (1, dz_1..3), the other blocks inactive).
+// They compute the same numbers with only block 0: lavapipe (Mesa 22.3) runs
+// both sides of every branch under a lane mask, so the general functions'
+// `if (s.nb > 1)` blocks cost even where no lane needs them, but it leaves a
+// loop once no lane iterates. Each ring is visited by lp_ring3 (rows only
+// when nb = 1) and by lp_ring (rows only when nb > 1): a centre takes
+// exactly one, in the same order, and a SIMD vector of one-block centres
+// skips the general loop's work.
+real4 lp_regressor3(TsvdProj pr, real xc[MAX_D], ivec2 q)
+{
+    real x[MAX_D];
+    real e2[MAX_D];
+    load_features(q, x, e2);
+    real4 d0 = real4(0);
+    for (int j = 0; j < 9; ++j) {
+        d0 += pr.P0[j] * (x[j] - xc[j]);
+    }
+    return real4(1, d0.xyz);
+}
+
+void lp_update3(inout LpRls s, real4 z0, real3 y)
+{
+    real4 q0 = s.P[0] * z0;
+    real den = real(1) + dot(z0, q0);
+    real4 g0 = q0 / den;
+    real3 e = y - real3(dot(s.B[0], z0), dot(s.B[3], z0), dot(s.B[6], z0));
+    s.P[0] -= outerProduct(g0, q0);
+    s.B[0] += g0 * e.r;
+    s.B[3] += g0 * e.g;
+    s.B[6] += g0 * e.b;
+}
+
+void lp_ring3(inout LpRls st, TsvdProj pr, real xc[MAX_D], ivec2 c, int r, ivec2 size, bool score,
+              real s, inout real3 xi, inout int n)
+{
+    real4 p0 = st.B[0];
+    real4 p3 = st.B[3];
+    real4 p6 = st.B[6];
+    int y0 = max(c.y - r, 0);
+    int y1 = st.nb == 1 ? min(c.y + r, size.y - 1) : y0 - 1;
+    for (int qy = y0; qy <= y1; ++qy) {
+        int step = (qy == c.y - r || qy == c.y + r) ? 1 : 2 * r;
+        for (int qx = c.x - r; qx <= c.x + r; qx += step) {
+            ivec2 q = ivec2(qx, qy);
+            if (qx < 0 || qx >= size.x || spp_of(spp[qy * size.x + qx]) < 1.0) {
+                continue;
+            }
+            real4 z0 = lp_regressor3(pr, xc, q);
+            real3 y, v;
+            load_colour(q, y, v);
+            if (score) {
+                real3 e = real3(dot(p0, z0), dot(p3, z0), dot(p6, z0)) - y;
+                xi += e * e - s * v;
+                n += 1;
+            }
+            lp_update3(st, z0, y);
         }
     }
 }
@@ -275,6 +339,7 @@ LpFit lp_centre_fit(ivec2 c, ivec2 size, TsvdProj pr, real s, bool centre_test)
     // 3x3 block (LOO-DEN).
     real3 xi = real3(0);
     int n1 = 0;
+    lp_ring3(st, pr, xc, c, 1, size, false, s, xi, n1);
     lp_ring(st, pr, xc, c, 1, size, false, s, xi, n1);
     lp_symmetrise(st);
     for (int qy = max(c.y - 1, 0); qy <= min(c.y + 1, size.y - 1); ++qy) {
@@ -308,6 +373,7 @@ LpFit lp_centre_fit(ivec2 c, ivec2 size, TsvdProj pr, real s, bool centre_test)
 
     // r >= 2: score the previous model on ring r, then add the ring.
     for (int r = 2; r <= LP_RADIUS; ++r) {
+        lp_ring3(st, pr, xc, c, r, size, true, s, xi, n);
         lp_ring(st, pr, xc, c, r, size, true, s, xi, n);
         lp_symmetrise(st);
         real3 xr = xi / real(n);
