@@ -53,16 +53,25 @@ void main()
     real2 b = real2(0);
     real d = real(0);
     uint row = y * push.width;
-    // Uniform branches on the plane count: a load costs the same as a few
-    // dozen flops on lavapipe, so unused planes are not read.
-    for (int qx = x0; qx <= x1; ++qx) {
+    // One tap loop per plane count, the other's range empty: lavapipe runs
+    // both sides of a branch (an `if (push.count > 1u)` read and summed the
+    // five other planes in a one-plane dispatch too) but leaves a loop
+    // whose lanes are all done after one idle pass. The sums are the same.
+    bool many = push.count > 1u;
+    for (int qx = x0; qx <= (many ? x0 - 1 : x1); ++qx) {
         uint i = row + uint(qx);
         if (spp_of(spp[i]) >= 1.0) {
             a.x += l.g * real(m0[i]);
-            if (push.count > 1u) {
-                a.yzw += l.g * real3(m1[i], m2[i], m3[i]);
-                b += l.g * real2(m4[i], m5[i]);
-            }
+            d += l.g;
+        }
+        gauss_step(l);
+    }
+    for (int qx = x0; qx <= (many ? x1 : x0 - 1); ++qx) {
+        uint i = row + uint(qx);
+        if (spp_of(spp[i]) >= 1.0) {
+            a.x += l.g * real(m0[i]);
+            a.yzw += l.g * real3(m1[i], m2[i], m3[i]);
+            b += l.g * real2(m4[i], m5[i]);
             d += l.g;
         }
         gauss_step(l);
