@@ -276,6 +276,14 @@ fn bad_files_give_clear_errors() {
     let (code, _, err) = run(bin().arg("inspect").arg(dir.join("missing.exr")));
     assert_eq!(code, 2);
     assert!(err.contains("missing.exr"), "{err}");
+    // The OS error once, not once per level of the error chain.
+    let (code, _, err) = run(bin()
+        .args(["denoise", "-o"])
+        .arg(dir.join("out.exr"))
+        .arg(dir.join("missing.exr")));
+    assert_eq!(code, 2);
+    assert!(err.contains("missing.exr"), "{err}");
+    assert_eq!(err.matches("os error").count(), 1, "{err}");
 }
 
 #[test]
