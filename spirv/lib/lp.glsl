@@ -75,10 +75,16 @@ LpRls lp_rls_new(real3 yc, int k)
     return s;
 }
 
+// beta[ch]^T zeta over block 0 only: all of it when nb = 1.
+real3 lp_predict3(LpRls s, real4 z0)
+{
+    return real3(dot(s.B[0], z0), dot(s.B[3], z0), dot(s.B[6], z0));
+}
+
 // beta[ch]^T zeta.
 real3 lp_predict(LpRls s, real4 z0, real4 z1, real4 z2)
 {
-    real3 f = real3(dot(s.B[0], z0), dot(s.B[3], z0), dot(s.B[6], z0));
+    real3 f = lp_predict3(s, z0);
     if (s.nb > 1) {
         f += real3(dot(s.B[1], z1), dot(s.B[4], z1), dot(s.B[7], z1));
     }
@@ -176,14 +182,12 @@ void lp_regressor(TsvdProj pr, real xc[MAX_D], ivec2 q, out real4 z0, out real4 
     real x[MAX_D];
     real e2[MAX_D];
     load_features(q, x, e2);
-    // tsvd_dz, with the components 5..9 (zero for k <= 4) computed only when
-    // the centre has them: most centres have k <= 3.
-    real4 d0 = real4(0);
+    // tsvd_dz, with the components 5..9 (zero for k <= 4) under a branch on
+    // the centre's rank (skipped where branches are uniform; lavapipe runs
+    // it anyway, and centres with k <= 3 use lp_regressor3).
+    real4 d0 = tsvd_dz0(pr, xc, x);
     real4 d1 = real4(0);
     real d8 = real(0);
-    for (int j = 0; j < 9; ++j) {
-        d0 += pr.P0[j] * (x[j] - xc[j]);
-    }
     if (pr.k > 4) {
         for (int j = 0; j < 9; ++j) {
             real dx = x[j] - xc[j];
@@ -246,11 +250,7 @@ real4 lp_regressor3(TsvdProj pr, real xc[MAX_D], ivec2 q)
     real x[MAX_D];
     real e2[MAX_D];
     load_features(q, x, e2);
-    real4 d0 = real4(0);
-    for (int j = 0; j < 9; ++j) {
-        d0 += pr.P0[j] * (x[j] - xc[j]);
-    }
-    return real4(1, d0.xyz);
+    return real4(1, tsvd_dz0(pr, xc, x).xyz);
 }
 
 void lp_update3(inout LpRls s, real4 z0, real3 y)
@@ -258,7 +258,7 @@ void lp_update3(inout LpRls s, real4 z0, real3 y)
     real4 q0 = s.P[0] * z0;
     real den = real(1) + dot(z0, q0);
     real4 g0 = q0 / den;
-    real3 e = y - real3(dot(s.B[0], z0), dot(s.B[3], z0), dot(s.B[6], z0));
+    real3 e = y - lp_predict3(s, z0);
     s.P[0] -= outerProduct(g0, q0);
     s.B[0] += g0 * e.r;
     s.B[3] += g0 * e.g;
@@ -268,9 +268,8 @@ void lp_update3(inout LpRls s, real4 z0, real3 y)
 void lp_ring3(inout LpRls st, TsvdProj pr, real xc[MAX_D], ivec2 c, int r, ivec2 size, bool score,
               real s, inout real3 xi, inout int n)
 {
-    real4 p0 = st.B[0];
-    real4 p3 = st.B[3];
-    real4 p6 = st.B[6];
+    LpRls prev;  // the model of the previous rings, as in lp_ring
+    prev.B = st.B;
     int y0 = max(c.y - r, 0);
     int y1 = st.nb == 1 ? min(c.y + r, size.y - 1) : y0 - 1;
     for (int qy = y0; qy <= y1; ++qy) {
@@ -284,7 +283,7 @@ void lp_ring3(inout LpRls st, TsvdProj pr, real xc[MAX_D], ivec2 c, int r, ivec2
             real3 y, v;
             load_colour(q, y, v);
             if (score) {
-                real3 e = real3(dot(p0, z0), dot(p3, z0), dot(p6, z0)) - y;
+                real3 e = lp_predict3(prev, z0) - y;
                 xi += e * e - s * v;
                 n += 1;
             }
