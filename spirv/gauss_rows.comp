@@ -39,51 +39,91 @@ PLANE_OUT(11, s4)
 PLANE_OUT(12, s5)
 PLANE_OUT(13, den)
 
+// Register blocking: an invocation sums GR_PX consecutive pixels of a row.
+// Each tap of their joint window (GR_PX + 2r wide) is loaded once and added
+// to every pixel whose window holds it (lavapipe pays per lane and float
+// loaded: (GR_PX + 2r) / GR_PX taps per pixel instead of 2r + 1). Each
+// pixel's weights step only inside its own window, so every pixel's sum
+// takes the same taps, weights and order as one invocation per pixel.
+#extension GL_EXT_control_flow_attributes : require
+#define GR_PX 8
+
 void main()
 {
-    uint x = gl_GlobalInvocationID.x;
+    uint x0 = gl_GlobalInvocationID.x * uint(GR_PX);
     uint y = push.row0 + gl_GlobalInvocationID.y;
-    if (x >= push.width || y >= push.height) {
+    if (x0 >= push.width || y >= push.height) {
         return;
     }
     int r = int(push.radius);
-    int x0 = max(int(x) - r, 0), x1 = min(int(x) + r, int(push.width) - 1);
-    GaussLine l = gauss_line(real(push.sigma), x0 - int(x));
-    real4 a = real4(0);
-    real2 b = real2(0);
-    real d = real(0);
+    int last = int(push.width) - 1;
+    int u0 = max(int(x0) - r, 0), u1 = min(int(x0) + GR_PX - 1 + r, last);
+    GaussLine l[GR_PX];
+    int lo[GR_PX], hi[GR_PX];  // each pixel's clipped window
+    real4 a[GR_PX];
+    real2 b[GR_PX];
+    real d[GR_PX];
+    [[unroll]] for (int p = 0; p < GR_PX; ++p) {
+        int x = int(x0) + p;
+        lo[p] = max(x - r, 0);
+        hi[p] = min(x + r, last);
+        l[p] = gauss_line(real(push.sigma), lo[p] - x);
+        a[p] = real4(0);
+        b[p] = real2(0);
+        d[p] = real(0);
+    }
     uint row = y * push.width;
     // One tap loop per plane count, the other's range empty: lavapipe runs
     // both sides of a branch (an `if (push.count > 1u)` read and summed the
     // five other planes in a one-plane dispatch too) but leaves a loop
     // whose lanes are all done after one idle pass. The sums are the same.
     bool many = push.count > 1u;
-    for (int qx = x0; qx <= (many ? x0 - 1 : x1); ++qx) {
-        uint i = row + uint(qx);
-        if (spp_of(spp[i]) >= 1.0) {
-            a.x += l.g * real(m0[i]);
-            d += l.g;
+    for (int u = u0; u <= (many ? u0 - 1 : u1); ++u) {
+        uint i = row + uint(u);
+        bool valid = spp_of(spp[i]) >= 1.0;
+        real v0 = real(m0[i]);
+        [[unroll]] for (int p = 0; p < GR_PX; ++p) {
+            bool in_ = u >= lo[p] && u <= hi[p];
+            // A select, not a zero weight: a tap outside the window or
+            // invalid may hold anything (0 * inf is NaN), and adding +0
+            // leaves a sum as it is.
+            bool use = in_ && valid;
+            a[p].x += use ? l[p].g * v0 : real(0);
+            d[p] += use ? l[p].g : real(0);
+            if (in_) {
+                gauss_step(l[p]);
+            }
         }
-        gauss_step(l);
     }
-    for (int qx = x0; qx <= (many ? x1 : x0 - 1); ++qx) {
-        uint i = row + uint(qx);
-        if (spp_of(spp[i]) >= 1.0) {
-            a.x += l.g * real(m0[i]);
-            a.yzw += l.g * real3(m1[i], m2[i], m3[i]);
-            b += l.g * real2(m4[i], m5[i]);
-            d += l.g;
+    for (int u = u0; u <= (many ? u1 : u0 - 1); ++u) {
+        uint i = row + uint(u);
+        bool valid = spp_of(spp[i]) >= 1.0;
+        real4 va = real4(m0[i], m1[i], m2[i], m3[i]);
+        real2 vb = real2(m4[i], m5[i]);
+        [[unroll]] for (int p = 0; p < GR_PX; ++p) {
+            bool in_ = u >= lo[p] && u <= hi[p];
+            bool use = in_ && valid;
+            a[p] += use ? l[p].g * va : real4(0);
+            b[p] += use ? l[p].g * vb : real2(0);
+            d[p] += use ? l[p].g : real(0);
+            if (in_) {
+                gauss_step(l[p]);
+            }
         }
-        gauss_step(l);
     }
-    uint o = row + x;
-    s0[o] = float(a.x);
-    if (push.count > 1u) {
-        s1[o] = float(a.y);
-        s2[o] = float(a.z);
-        s3[o] = float(a.w);
-        s4[o] = float(b.x);
-        s5[o] = float(b.y);
+    [[unroll]] for (int p = 0; p < GR_PX; ++p) {
+        if (x0 + uint(p) >= push.width) {
+            continue;
+        }
+        uint o = row + x0 + uint(p);
+        s0[o] = float(a[p].x);
+        if (push.count > 1u) {
+            s1[o] = float(a[p].y);
+            s2[o] = float(a[p].z);
+            s3[o] = float(a[p].w);
+            s4[o] = float(b[p].x);
+            s5[o] = float(b[p].y);
+        }
+        den[o] = float(d[p]);
     }
-    den[o] = float(d);
 }

@@ -59,58 +59,66 @@ realmat3 gbf_inv_cov(uint q)
     return gbf_sym(real3(sxx[q], sxy[q], sxz[q]), real3(syy[q], syz[q], szz[q]));
 }
 
-// Register blocking: an invocation filters GBF_PX consecutive pixels of a
-// row. Each neighbour of their joint window (GBF_PX + 6 wide) is loaded once
-// and accumulated into every pixel whose 7x7 window holds it, so a pixel
-// costs (GBF_PX + 6) / GBF_PX neighbour loads per window column instead of 7
-// (lavapipe pays per lane and float loaded). Each pixel still sums its
-// neighbours in raster order (dy, then dx), so the result is the same as one
-// invocation per pixel. The loops over the joint window's columns and over
-// the pixels are unrolled: every array index is a constant.
+// Register blocking: an invocation filters GBF_ROWS x GBF_PX pixels (rows
+// y0 .. y0 + GBF_ROWS - 1, columns x0 .. x0 + GBF_PX - 1). Each neighbour of
+// their joint window (GBF_PX + 6 wide, GBF_ROWS + 6 tall) is loaded once and
+// accumulated into every pixel whose 7x7 window holds it, so a pixel costs
+// (GBF_PX + 6)(GBF_ROWS + 6) / (GBF_PX GBF_ROWS) neighbour loads instead of
+// 49 (lavapipe pays per lane and float loaded, and a storage-buffer load
+// more than a shared-memory one). Each pixel still sums its neighbours in
+// raster order (dy, then dx), so the result is the same as one invocation
+// per pixel. The loops over the joint window's columns and over the pixels
+// are unrolled: every array index is a constant; a window row outside a
+// pixel's rows is masked off.
 #extension GL_EXT_control_flow_attributes : require
 #define GBF_PX 8
+#define GBF_ROWS 2
+#define GBF_N (GBF_PX * GBF_ROWS)
 #define GBF_SPAN (GBF_PX + 2 * GBF_RADIUS)
 
 void main()
 {
     uint x0 = gl_GlobalInvocationID.x * uint(GBF_PX);
-    uint y = push.row0 + gl_GlobalInvocationID.y;
-    if (x0 >= push.width || y >= push.height) {
+    uint y0 = (push.row0 + gl_GlobalInvocationID.y) * uint(GBF_ROWS);
+    if (x0 >= push.width || y0 >= push.height) {
         return;
     }
-    bool act[GBF_PX];
-    real h2[GBF_PX];
-    real3 pc[GBF_PX];
-    realmat3 inv_c[GBF_PX];
-    real W[GBF_PX];
-    real4 sa[GBF_PX], sb[GBF_PX], sva[GBF_PX], svb[GBF_PX];
+    bool act[GBF_N];
+    real k2[GBF_N];  // -log2(e) / (2 h^2): w = 2^(d k2), no division per neighbour
+    real3 pc[GBF_N];
+    realmat3 inv_c[GBF_N];
+    real W[GBF_N];
+    // (albedo r g b and its variances: the packed planes' fourth entry is padding)
+    real4 sa[GBF_N], sva[GBF_N];
+    real3 sb[GBF_N], svb[GBF_N];
     bool any_act = false;
-    [[unroll]] for (int p = 0; p < GBF_PX; ++p) {
-        uint x = x0 + uint(p);
-        act[p] = false;
-        h2[p] = real(1);
-        pc[p] = real3(0);
-        inv_c[p] = realmat3(0);
-        W[p] = real(0);
-        sa[p] = real4(0);
-        sb[p] = real4(0);
-        sva[p] = real4(0);
-        svb[p] = real4(0);
-        if (x < push.width) {
+    [[unroll]] for (int k = 0; k < GBF_N; ++k) {
+        uint x = x0 + uint(k % GBF_PX);
+        uint y = y0 + uint(k / GBF_PX);
+        act[k] = false;
+        k2[k] = real(0);
+        pc[k] = real3(0);
+        inv_c[k] = realmat3(0);
+        W[k] = real(0);
+        sa[k] = real4(0);
+        sb[k] = real3(0);
+        sva[k] = real4(0);
+        svb[k] = real3(0);
+        if (x < push.width && y < push.height) {
             uint c = y * push.width + x;
             real h = real(hbar[c]);
             if (gbf_valid(c) && h >= real(GBF_H0)) {
-                act[p] = true;
-                h2[p] = real(2) * h * h;
-                pc[p] = gbf_position(c);
-                inv_c[p] = gbf_inv_cov(c);
+                act[k] = true;
+                k2[k] = real(-GBF_LOG2E) / (real(2) * h * h);
+                pc[k] = gbf_position(c);
+                inv_c[k] = gbf_inv_cov(c);
                 any_act = true;
             }
         }
     }
     if (any_act) {
-        for (int dy = -GBF_RADIUS; dy <= GBF_RADIUS; ++dy) {
-            int qy = int(y) + dy;
+        for (int v = -GBF_RADIUS; v <= GBF_RADIUS + GBF_ROWS - 1; ++v) {
+            int qy = int(y0) + v;
             if (qy < 0 || qy >= int(push.height)) {
                 continue;
             }
@@ -127,46 +135,51 @@ void main()
                 realmat3 inv_q = gbf_inv_cov(q);
                 uint qk = q - push.base * push.width;
                 real4 qa = real4(fa[qk]);
-                real4 qb = real4(fb[qk]);
+                real3 qb = real3(fb[qk].xyz);
                 real4 qva = real4(va[qk]);
-                real4 qvb = real4(vb[qk]);
-                [[unroll]] for (int p = 0; p < GBF_PX; ++p) {
-                    int dx = u - GBF_RADIUS - p;
-                    if (dx < -GBF_RADIUS || dx > GBF_RADIUS || !act[p]) {
+                real3 qvb = real3(vb[qk].xyz);
+                [[unroll]] for (int k = 0; k < GBF_N; ++k) {
+                    int dx = u - GBF_RADIUS - k % GBF_PX;
+                    int dy = v - k / GBF_PX;
+                    if (dx < -GBF_RADIUS || dx > GBF_RADIUS) {
+                        continue;
+                    }
+                    if (dy < -GBF_RADIUS || dy > GBF_RADIUS || !act[k]) {
                         continue;
                     }
                     real w = real(1);
                     if (dx != 0 || dy != 0) {
-                        real3 dlt = pq - pc[p];
-                        real d = dot(dlt, (inv_c[p] + inv_q) * dlt);
-                        w = gbf_exp(-d / h2[p]);
+                        real3 dlt = pq - pc[k];
+                        real d = dot(dlt, (inv_c[k] + inv_q) * dlt);
+                        w = gbf_exp2(d * k2[k]);
                     }
-                    W[p] += w;
-                    sa[p] += w * qa;
-                    sb[p] += w * qb;
-                    sva[p] += (w * w) * qva;
-                    svb[p] += (w * w) * qvb;
+                    W[k] += w;
+                    sa[k] += w * qa;
+                    sb[k] += w * qb;
+                    sva[k] += (w * w) * qva;
+                    svb[k] += (w * w) * qvb;
                 }
             }
         }
     }
-    [[unroll]] for (int p = 0; p < GBF_PX; ++p) {
-        uint x = x0 + uint(p);
-        if (x >= push.width) {
+    [[unroll]] for (int k = 0; k < GBF_N; ++k) {
+        uint x = x0 + uint(k % GBF_PX);
+        uint y = y0 + uint(k / GBF_PX);
+        if (x >= push.width || y >= push.height) {
             continue;
         }
         uint c = y * push.width + x;
         // The packed planes start at row push.base (row chunks, methods/gbf.rs).
         uint ck = c - push.base * push.width;
         real4 ga = real4(fa[ck]);
-        real4 gb = real4(fb[ck]);
+        real3 gb = real3(fb[ck].xyz);
         real4 gva = real4(va[ck]);
-        real4 gvb = real4(vb[ck]);
-        if (act[p]) {
-            ga = sa[p] / W[p];
-            gb = sb[p] / W[p];
-            gva = sva[p] / (W[p] * W[p]);
-            gvb = svb[p] / (W[p] * W[p]);
+        real3 gvb = real3(vb[ck].xyz);
+        if (act[k]) {
+            ga = sa[k] / W[k];
+            gb = sb[k] / W[k];
+            gva = sva[k] / (W[k] * W[k]);
+            gvb = svb[k] / (W[k] * W[k]);
         }
         g0[c] = float(ga.x);
         g1[c] = float(ga.y);

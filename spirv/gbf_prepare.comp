@@ -41,35 +41,70 @@ PLANE_OUT(15, izz)
 #define GBF_SIGMA 1.5
 #define GBF_SMOOTH_RADIUS 5
 
+// Register blocking: an invocation prepares GP_ROWS consecutive pixels of a
+// column. Each row of their joint column window (GP_ROWS + 10 tall) is
+// loaded once and added to every pixel whose window holds it (lavapipe pays
+// per lane and float loaded); each pixel's weights step only inside its own
+// window, so its sums take the same rows, weights and order as one
+// invocation per pixel.
+#extension GL_EXT_control_flow_attributes : require
+#define GP_ROWS 8
+
 void main()
 {
     uint x = gl_GlobalInvocationID.x;
-    uint y = push.row0 + gl_GlobalInvocationID.y;
-    if (x >= push.width || y >= push.height) {
+    uint y0 = (push.row0 + gl_GlobalInvocationID.y) * uint(GP_ROWS);
+    if (x >= push.width || y0 >= push.height) {
         return;
     }
-    int y0 = max(int(y) - GBF_SMOOTH_RADIUS, 0);
-    int y1 = min(int(y) + GBF_SMOOTH_RADIUS, int(push.height) - 1);
-    GaussLine l = gauss_line(real(GBF_SIGMA), y0 - int(y));
-    real3 na = real3(0);
-    real3 nb = real3(0);
-    real d = real(0);
-    for (int qy = y0; qy <= y1; ++qy) {
-        uint q = uint(qy) * push.width + x;
-        na += l.g * real3(sxx[q], sxy[q], sxz[q]);
-        nb += l.g * real3(syy[q], syz[q], szz[q]);
-        d += l.g * real(den[q]);
-        gauss_step(l);
+    int last = int(push.height) - 1;
+    int v0 = max(int(y0) - GBF_SMOOTH_RADIUS, 0);
+    int v1 = min(int(y0) + GP_ROWS - 1 + GBF_SMOOTH_RADIUS, last);
+    GaussLine l[GP_ROWS];
+    int lo[GP_ROWS], hi[GP_ROWS];  // each pixel's clipped window
+    real3 na[GP_ROWS], nb[GP_ROWS];
+    real d[GP_ROWS];
+    [[unroll]] for (int p = 0; p < GP_ROWS; ++p) {
+        int y = int(y0) + p;
+        lo[p] = max(y - GBF_SMOOTH_RADIUS, 0);
+        hi[p] = min(y + GBF_SMOOTH_RADIUS, last);
+        l[p] = gauss_line(real(GBF_SIGMA), lo[p] - y);
+        na[p] = real3(0);
+        nb[p] = real3(0);
+        d[p] = real(0);
     }
-    real3 a = d > real(0) ? na / d : real3(0);
-    real3 b = d > real(0) ? nb / d : real3(0);
-    uint i = y * push.width + x;
-    real3 ia, ib;
-    gbf_regularised_inverse(a, b, real3(px[i], py[i], pz[i]), ia, ib);
-    ixx[i] = float(ia.x);
-    ixy[i] = float(ia.y);
-    ixz[i] = float(ia.z);
-    iyy[i] = float(ib.x);
-    iyz[i] = float(ib.y);
-    izz[i] = float(ib.z);
+    for (int v = v0; v <= v1; ++v) {
+        uint q = uint(v) * push.width + x;
+        real3 ra = real3(sxx[q], sxy[q], sxz[q]);
+        real3 rb = real3(syy[q], syz[q], szz[q]);
+        real rd = real(den[q]);
+        [[unroll]] for (int p = 0; p < GP_ROWS; ++p) {
+            // A select, not a zero weight (a row outside the window may
+            // hold anything; adding +0 leaves a sum as it is).
+            bool in_ = v >= lo[p] && v <= hi[p];
+            na[p] += in_ ? l[p].g * ra : real3(0);
+            nb[p] += in_ ? l[p].g * rb : real3(0);
+            d[p] += in_ ? l[p].g * rd : real(0);
+            if (in_) {
+                gauss_step(l[p]);
+            }
+        }
+    }
+    [[unroll]] for (int p = 0; p < GP_ROWS; ++p) {
+        uint y = y0 + uint(p);
+        if (y >= push.height) {
+            continue;
+        }
+        real3 a = d[p] > real(0) ? na[p] / d[p] : real3(0);
+        real3 b = d[p] > real(0) ? nb[p] / d[p] : real3(0);
+        uint i = y * push.width + x;
+        real3 ia, ib;
+        gbf_regularised_inverse(a, b, real3(px[i], py[i], pz[i]), ia, ib);
+        ixx[i] = float(ia.x);
+        ixy[i] = float(ia.y);
+        ixz[i] = float(ia.z);
+        iyy[i] = float(ib.x);
+        iyz[i] = float(ib.y);
+        izz[i] = float(ib.z);
+    }
 }

@@ -28,24 +28,43 @@ PLANE_OUT(1, reach)
 
 #define LP_RADIUS 9
 
+// Register blocking: an invocation computes LR_PX consecutive pixels of a
+// row. Each centre-map entry of their joint window (LR_PX + 18 wide) is
+// loaded once and compared for every pixel (lavapipe pays per lane and
+// float loaded: (LR_PX + 18) / LR_PX loads per pixel instead of 19). A
+// maximum does not depend on the order, so the result is the same.
+#extension GL_EXT_control_flow_attributes : require
+#define LR_PX 8
+
 void main()
 {
-    uint x = gl_GlobalInvocationID.x;
+    uint x0 = gl_GlobalInvocationID.x * uint(LR_PX);
     uint y = push.row0 + gl_GlobalInvocationID.y;
-    if (x >= push.width || y >= push.height) {
+    if (x0 >= push.width || y >= push.height) {
         return;
     }
     int w = int(push.width);
-    real best = real(-1);
+    real best[LR_PX];
+    [[unroll]] for (int p = 0; p < LR_PX; ++p) {
+        best[p] = real(-1);
+    }
     // A centre's map value is pass + 1: made before push.pass iff <= push.pass.
     float before = float(push.pass);
-    for (int qx = max(int(x) - LP_RADIUS, 0); qx <= min(int(x) + LP_RADIUS, w - 1); ++qx) {
-        vec4 c = st0[int(y) * w + qx];
+    int u1 = min(int(x0) + LR_PX - 1 + LP_RADIUS, w - 1);
+    for (int qx = max(int(x0) - LP_RADIUS, 0); qx <= u1; ++qx) {
+        vec2 c = st0[int(y) * w + qx].xy;
         real r = real(c.y);
-        if (c.x > 0.0 && c.x <= before && real(abs(qx - int(x))) <= r && r > best) {
-            best = r;
+        bool made = c.x > 0.0 && c.x <= before;
+        [[unroll]] for (int p = 0; p < LR_PX; ++p) {
+            if (made && real(abs(qx - int(x0) - p)) <= r && r > best[p]) {
+                best[p] = r;
+            }
         }
     }
     uint ring = push.ring_rows == 0u ? push.height : push.ring_rows;
-    reach[(y % ring) * push.width + x] = float(best);
+    [[unroll]] for (int p = 0; p < LR_PX; ++p) {
+        if (x0 + uint(p) < push.width) {
+            reach[(y % ring) * push.width + x0 + uint(p)] = float(best[p]);
+        }
+    }
 }

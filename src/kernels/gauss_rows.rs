@@ -31,6 +31,9 @@ pub const DECL: KernelDecl = KernelDecl {
     push_size: std::mem::size_of::<SmoothPush>() as u32,
 };
 
+/// Pixels of a row one invocation sums (`GR_PX` in the shader).
+pub const PIXELS_PER_INVOCATION: u32 = 8;
+
 /// Per pixel: `2r+1` taps × (validity, one FMA per map, weight step).
 pub fn flops_per_pixel(radius: u32, maps: usize) -> f64 {
     (2.0 * radius as f64 + 1.0) * (4.0 + 2.0 * maps as f64)
@@ -79,8 +82,10 @@ pub fn record(
         precision,
         &b,
         bytemuck::bytes_of(&push),
-        width,
+        // One invocation per PIXELS_PER_INVOCATION pixels of a row
+        // (register blocking: the shader's GR_PX).
+        width.div_ceil(PIXELS_PER_INVOCATION),
         (rows, height),
-        flops_per_pixel(radius, maps.len()),
+        flops_per_pixel(radius, maps.len()) * PIXELS_PER_INVOCATION as f64,
     )
 }

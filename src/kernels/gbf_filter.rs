@@ -3,7 +3,7 @@
 //! `hbar` in one pass, with propagated variances (GBF-VAR). Twin:
 //! [`crate::reference::gbf_filter`].
 
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::gpu::reflect::{read, write};
 use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};
 use crate::shared::GbfPush;
@@ -49,6 +49,10 @@ pub const DECL: KernelDecl = KernelDecl {
 /// Pixels of a row one invocation filters (`GBF_PX` in the shader).
 pub const PIXELS_PER_INVOCATION: u32 = 8;
 
+/// Rows one invocation filters (`GBF_ROWS` in the shader): a chunk's first
+/// row must be a multiple of 8 of them (the workgroup's height in blocks).
+pub const ROWS_PER_INVOCATION: u32 = 2;
+
 /// Per pixel: 49 neighbours × (distance with two stored inverses, one exp,
 /// 8 + 8 accumulations).
 pub fn flops_per_pixel() -> f64 {
@@ -56,7 +60,7 @@ pub fn flops_per_pixel() -> f64 {
 }
 
 /// Records the filtering of the image rows `rows` (`[first, end)`, `first`
-/// a multiple of 8) from the packed features (`packed` from
+/// a multiple of 16 and `end` even or the image's height) from the packed features (`packed` from
 /// [`super::gbf_pack`]: ranges that start at image row `base` and cover the
 /// rows `rows` ± 3) into `out` (7 features, then their 7 variances; full
 /// planes).
@@ -82,15 +86,25 @@ pub fn record(
         ..Default::default()
     };
     let b: Vec<BufferSlice> = [&pos[..], &inv, &[spp, hbar], &packed, &out].concat();
-    // One invocation per PIXELS_PER_INVOCATION pixels of a row (register
-    // blocking: the shader's GBF_PX).
+    // One invocation per ROWS_PER_INVOCATION x PIXELS_PER_INVOCATION pixels
+    // (register blocking: the shader's GBF_ROWS x GBF_PX); the grid's rows
+    // are blocks of rows.
+    let r = ROWS_PER_INVOCATION;
+    if rows.0 % (8 * r) != 0 || (rows.1 % r != 0 && rows.1 != height) {
+        return Err(Error::InvalidArgument(format!(
+            "gbf_filter: rows {rows:?} must start at a multiple of {} and end at an even row \
+             or the image's height",
+            8 * r
+        )));
+    }
+    let grid = (rows.0 / r, rows.1.div_ceil(r));
     batch.dispatch_rows(
         &DECL,
         precision,
         &b,
         bytemuck::bytes_of(&push),
         width.div_ceil(PIXELS_PER_INVOCATION),
-        (rows, rows.1 - rows.0),
-        flops_per_pixel() * PIXELS_PER_INVOCATION as f64,
+        (grid, grid.1 - grid.0),
+        flops_per_pixel() * (PIXELS_PER_INVOCATION * r) as f64,
     )
 }

@@ -34,6 +34,9 @@ pub const DECL: KernelDecl = KernelDecl {
     push_size: std::mem::size_of::<GbfPush>() as u32,
 };
 
+/// Pixels of a column one invocation prepares (`GP_ROWS` in the shader).
+pub const ROWS_PER_INVOCATION: u32 = 8;
+
 /// Per pixel: 11 rows × (weight step, 7 FMAs) and one 3×3 inverse.
 pub fn flops_per_pixel() -> f64 {
     11.0 * 16.0 + 60.0
@@ -75,13 +78,16 @@ pub fn record(
     b.extend_from_slice(&scratch);
     b.extend_from_slice(&pos);
     b.extend_from_slice(&inv);
-    batch.dispatch(
+    // One invocation per ROWS_PER_INVOCATION pixels of a column (register
+    // blocking: the shader's GP_ROWS); the grid's rows are blocks of rows.
+    let grid_rows = height.div_ceil(ROWS_PER_INVOCATION);
+    batch.dispatch_rows(
         &DECL,
         precision,
         &b,
         bytemuck::bytes_of(&push),
         width,
-        height,
-        flops_per_pixel(),
+        ((0, grid_rows), grid_rows),
+        flops_per_pixel() * ROWS_PER_INVOCATION as f64,
     )
 }

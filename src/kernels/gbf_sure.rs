@@ -30,6 +30,9 @@ pub const DECL: KernelDecl = KernelDecl {
     push_size: std::mem::size_of::<GbfPush>() as u32,
 };
 
+/// Pixels of a row one invocation computes (`SURE_PX` in the shader).
+pub const PIXELS_PER_INVOCATION: u32 = 4;
+
 /// Per pixel: 49 neighbours × (distance with two stored inverses, 5 exps
 /// and accumulations).
 pub fn flops_per_pixel() -> f64 {
@@ -59,13 +62,15 @@ pub fn record(
     b.extend_from_slice(&inv);
     b.push(spp);
     b.push(h_opt);
-    batch.dispatch(
+    // One invocation per PIXELS_PER_INVOCATION pixels of a row (register
+    // blocking: the shader's SURE_PX).
+    batch.dispatch_rows(
         &DECL,
         precision,
         &b,
         bytemuck::bytes_of(&push),
-        width,
-        height,
-        flops_per_pixel(),
+        width.div_ceil(PIXELS_PER_INVOCATION),
+        ((0, height), height),
+        flops_per_pixel() * PIXELS_PER_INVOCATION as f64,
     )
 }

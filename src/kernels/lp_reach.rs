@@ -16,6 +16,9 @@ pub const DECL: KernelDecl = KernelDecl {
     push_size: std::mem::size_of::<LpPush>() as u32,
 };
 
+/// Pixels of a row one invocation computes (`LR_PX` in the shader).
+pub const PIXELS_PER_INVOCATION: u32 = 8;
+
 /// Per pixel: 19 centre-map reads and compares.
 pub fn flops_per_pixel() -> f64 {
     19.0 * 4.0
@@ -38,8 +41,10 @@ pub fn record(
         precision,
         &[state0, reach],
         bytemuck::bytes_of(push),
-        push.width,
+        // One invocation per PIXELS_PER_INVOCATION pixels of a row
+        // (register blocking: the shader's LR_PX).
+        push.width.div_ceil(PIXELS_PER_INVOCATION),
         (rows, push.height),
-        flops_per_pixel(),
+        flops_per_pixel() * PIXELS_PER_INVOCATION as f64,
     )
 }
