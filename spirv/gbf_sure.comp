@@ -55,7 +55,7 @@ realmat3 gbf_inv_cov(uint q)
 // still sums its neighbours in raster order (dy, then dx), the centre (whose
 // difference is exactly 0) with weight 1, as one invocation per pixel did.
 #extension GL_EXT_control_flow_attributes : require
-#define SURE_PX 4
+#define SURE_PX 2
 #define TILE_W (8 * SURE_PX + 2 * GBF_RADIUS)
 #define TILE_H (8 + 2 * GBF_RADIUS)
 shared vec4 t_pos[TILE_W * TILE_H];  // position, valid (1) or not (0, also outside)

@@ -37,10 +37,10 @@ pub struct Config {
     pub options: Options,
     /// Keep the method's debug maps for [`Denoiser::read`].
     pub debug: bool,
-    /// Download the error estimate into [`Frame::error`] (the default).
-    /// `false` skips the download of its three planes and leaves
-    /// [`Frame::error`] empty (0×0); the sample map still reads the estimate
-    /// on the device.
+    /// Download the error estimate into [`Frame::error`] and the local
+    /// dimension into [`Frame::dim`] (the default). `false` skips the
+    /// download of their four planes and leaves both empty; the sample map
+    /// still reads them on the device.
     pub error: bool,
     /// Log progress (through `log`) for runs longer than about a second.
     pub progress: bool,
@@ -189,7 +189,8 @@ pub struct Frame {
     /// Empty (0×0) when [`Config::error`] is `false`.
     pub error: RgbImage,
     /// The local dimension `d_i` per pixel (§9.1): the TSVD rank for WLR,
-    /// the covering centres' mean rank for LP, 0 for `none`.
+    /// the covering centres' mean rank for LP, 0 for `none`. Empty when
+    /// [`Config::error`] is `false`.
     pub dim: Vec<f32>,
     /// Samples per pixel for the next pass (§9.2), when a budget was given;
     /// they sum to exactly the budget.
@@ -312,8 +313,9 @@ impl Denoiser {
 
     /// Starts building, on a thread of its own, the compute pipelines a
     /// denoiser of `config` on `source` will use (its chain on a 16×16
-    /// image with the same layers, and the sample map's kernels when the
-    /// device can compute one), and returns at once. A caller overlaps this
+    /// image with the same layers, and with `sample_map` — the calls will
+    /// pass a budget — the sample map's kernels when the device can
+    /// compute one), and returns at once. A caller overlaps this
     /// with work of its own (reading its input, building its scene): on
     /// lavapipe, creating LP's pipelines takes about half a second of one
     /// core (`lp_centres` alone 0.44 s), which [`Denoiser::new`] would
@@ -321,12 +323,19 @@ impl Denoiser {
     /// the same context takes the built pipelines, or waits for the one
     /// being built. A hint only: a pipeline that fails to build here is
     /// built again, and its error reported, by [`Denoiser::new`] or the
-    /// first call.
+    /// first call. Every pipeline built stays in the context (on lavapipe
+    /// each holds its machine code, 1–3 MB of resident memory), so a
+    /// warm-up builds only what the calls will use.
     ///
     /// The returned [`WarmUp`] holds a reference to `ctx` and waits for the
     /// thread when dropped: with a context made by
     /// [`GpuContext::from_raw`], drop it before destroying the device.
-    pub fn warm_up(ctx: &Arc<GpuContext>, source: &Source, config: &Config) -> WarmUp {
+    pub fn warm_up(
+        ctx: &Arc<GpuContext>,
+        source: &Source,
+        config: &Config,
+        sample_map: bool,
+    ) -> WarmUp {
         let ctx = ctx.clone();
         let mut config = config.clone();
         config.progress = false;
@@ -349,16 +358,21 @@ impl Denoiser {
             // As much stack as a main thread: a driver's compiler may recurse.
             .stack_size(8 << 20)
             .spawn(move || {
-                let _ = Denoiser::warm_up_chain(&ctx, source, config);
+                let _ = Denoiser::warm_up_chain(&ctx, source, config, sample_map);
             });
         WarmUp(spawned.ok())
     }
 
     /// [`warm_up`](Self::warm_up)'s thread: counting a chain's work (with a
-    /// sample map when the device can make one) records every kernel into
-    /// a batch that runs nothing, which asks the context for, and so builds,
-    /// each pipeline.
-    fn warm_up_chain(ctx: &Arc<GpuContext>, source: Source, config: Config) -> Result<()> {
+    /// sample map when asked and the device can make one) records every
+    /// kernel into a batch that runs nothing, which asks the context for,
+    /// and so builds, each pipeline.
+    fn warm_up_chain(
+        ctx: &Arc<GpuContext>,
+        source: Source,
+        config: Config,
+        sample_map: bool,
+    ) -> Result<()> {
         let accum = match &source {
             Source::Accum(layout) => Some(crate::gpu::GpuBuffer::new(
                 ctx,
@@ -368,7 +382,7 @@ impl Denoiser {
             Source::Stats { .. } => None,
         };
         let d = Denoiser::new(ctx, source, config)?;
-        let budget = ctx.supports_int64().then_some(1);
+        let budget = (sample_map && ctx.supports_int64()).then_some(1);
         d.chain()?.work(budget, accum.as_ref().map(|a| a.slice()))?;
         Ok(())
     }

@@ -247,7 +247,7 @@ fn warm_up_builds_every_pipeline_the_denoiser_uses() {
         for mode in ["cold", "warmed", "concurrent"] {
             let (ctx, log) = context();
             let plan = Plan::new();
-            let warm = (mode != "cold").then(|| Denoiser::warm_up(&ctx, &source, &config));
+            let warm = (mode != "cold").then(|| Denoiser::warm_up(&ctx, &source, &config, true));
             let warm = match mode {
                 "warmed" => {
                     warm.unwrap().wait();
@@ -289,7 +289,7 @@ fn warm_up_builds_every_pipeline_the_denoiser_uses() {
     for warmed in [false, true] {
         let (ctx, log) = context();
         if warmed {
-            Denoiser::warm_up(&ctx, &Source::Accum(layout), &config).wait();
+            Denoiser::warm_up(&ctx, &Source::Accum(layout), &config, true).wait();
         }
         // No samples anywhere: every pixel invalid, every kernel recorded.
         let accum = GpuBuffer::new(&ctx, "test.accum", layout.bytes()).unwrap();
@@ -311,6 +311,30 @@ fn warm_up_builds_every_pipeline_the_denoiser_uses() {
         drop((plan, d, accum));
         close(ctx, log, &baseline);
     }
+    // Without the sample map: a call without a budget then builds nothing,
+    // and the map's kernels (sample_priority, sample_reduce, sample_scan)
+    // were left for a call with a budget.
+    let config = Config::new(Method::Lp);
+    let (ctx, log) = context();
+    Denoiser::warm_up(&ctx, &source, &config, false).wait();
+    let plan = Plan::new();
+    let d = Denoiser::new(&ctx, source.clone(), config).unwrap();
+    d.denoise(&img, None).unwrap();
+    assert_eq!(
+        plan.calls(Call::CreateComputePipeline),
+        0,
+        "pipelines built after a warm-up without the sample map"
+    );
+    if ctx.supports_int64() {
+        d.denoise(&img, Some(4096)).unwrap();
+        assert_eq!(
+            plan.calls(Call::CreateComputePipeline),
+            3,
+            "the sample map's three kernels, built by the first call with a budget"
+        );
+    }
+    drop((plan, d));
+    close(ctx, log, &baseline);
 }
 
 #[test]

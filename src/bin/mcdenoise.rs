@@ -486,6 +486,15 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
                 config.low_spp = has_low_spp(img);
                 config
             };
+            // The warm-up's, before the pixels are read: as if every pixel
+            // had 2 samples or more (the usual render), so the spp < 2
+            // stage's pipeline (resident memory for the process's life) is
+            // built only by a call whose pixels need it.
+            let warm_config = || {
+                let mut config = base_config();
+                config.low_spp = false;
+                config
+            };
             let Some(input) = input else {
                 let frames = frames.as_ref().expect("clap: input or --frames");
                 return denoise_frames(
@@ -495,7 +504,7 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
                     *resume,
                     *backend,
                     *error,
-                    &base_config(),
+                    &warm_config(),
                     &config_for,
                 );
             };
@@ -527,7 +536,12 @@ fn run(cli: Cli) -> anyhow::Result<bool> {
                     height,
                     layers,
                 };
-                warm = Some(Denoiser::warm_up(&c, &source, &base_config()));
+                warm = Some(Denoiser::warm_up(
+                    &c,
+                    &source,
+                    &warm_config(),
+                    budget.is_some(),
+                ));
                 ctx = Some(c);
             }
             let img = io::read_stats(input)?;
@@ -658,7 +672,7 @@ fn denoise_frames(
     resume: bool,
     backend: BackendArg,
     error: bool,
-    base_config: &Config,
+    warm_config: &Config,
     config_for: &dyn Fn(&StatsImage) -> Config,
 ) -> anyhow::Result<bool> {
     let inp = io::frames::FramePattern::parse(pattern)?;
@@ -706,7 +720,7 @@ fn denoise_frames(
                         height,
                         layers,
                     };
-                    warm = Some(Denoiser::warm_up(ctx, &source, base_config));
+                    warm = Some(Denoiser::warm_up(ctx, &source, warm_config, false));
                 }
             }
             let img = io::read_stats(&frame.path)?;

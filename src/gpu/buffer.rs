@@ -678,6 +678,32 @@ impl PlaneSet {
         Ok(out)
     }
 
+    /// How many values of [`download_strided`](Self::download_strided)`(i,
+    /// step)` satisfy `pred`, read in chunks: no host copy of the plane (a
+    /// count at the end of a run, when the host's memory is at its peak).
+    pub fn count_strided(
+        &self,
+        i: usize,
+        step: usize,
+        pred: impl Fn(f32) -> bool,
+    ) -> Result<usize> {
+        assert!(i < self.count && step > 0);
+        const CHUNK: usize = 1 << 16;
+        let mut buf = vec![0.0f32; CHUNK.min(self.pixels)];
+        let (mut start, mut n) = (0, 0);
+        while start < self.pixels {
+            let len = (CHUNK - CHUNK % step).min(self.pixels - start);
+            let b = &mut buf[..len];
+            self.buffer.download(
+                self.offset(i) + start as u64 * 4,
+                bytemuck::cast_slice_mut(b),
+            )?;
+            n += b.iter().step_by(step).filter(|&&v| pred(v)).count();
+            start += len;
+        }
+        Ok(n)
+    }
+
     /// Uploads all planes at once, each straight from its slice (no host
     /// copy of the set; see [`GpuBuffer::upload_regions`]).
     pub fn upload_all(&self, planes: &[&[f32]]) -> Result<()> {

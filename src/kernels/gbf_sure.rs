@@ -31,7 +31,7 @@ pub const DECL: KernelDecl = KernelDecl {
 };
 
 /// Pixels of a row one invocation computes (`SURE_PX` in the shader).
-pub const PIXELS_PER_INVOCATION: u32 = 4;
+pub const PIXELS_PER_INVOCATION: u32 = 2;
 
 /// Per pixel: 49 neighbours × (distance with two stored inverses, 5 exps
 /// and accumulations).

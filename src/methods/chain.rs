@@ -96,7 +96,7 @@ pub struct ChainConfig {
     /// Whether the debug planes are read back: without them (and without
     /// `error`) LP's gather skips the planes nobody reads.
     pub debug: bool,
-    /// Whether the error estimate is read back.
+    /// Whether the error estimate and the local dimension are read back.
     pub error: bool,
 }
 
@@ -697,7 +697,11 @@ impl GpuChain {
             } else {
                 RgbImage::new(0, 0)
             },
-            dim: c(&out.dim),
+            dim: if self.config.error {
+                c(&out.dim)
+            } else {
+                Vec::new()
+            },
             debug: debug_planes,
             stats: out.stats,
         })
@@ -718,8 +722,15 @@ impl GpuChain {
                 ],
             ))
         };
+        // The local dimension comes with the error estimate (what a
+        // caller of the sample map's inputs reads): not downloaded without
+        // it, as the output is at its peak of host memory here.
         let (dim_plane, kflags) = self.dim_source();
-        let mut dim = read(&self.ctx, dim_plane, w * h)?;
+        let mut dim = if error {
+            read(&self.ctx, dim_plane, w * h)?
+        } else {
+            Vec::new()
+        };
         if kflags {
             for v in &mut dim {
                 *v = (*v as u32 % 16) as f32;
@@ -758,16 +769,21 @@ impl GpuChain {
             }
             MethodPlanes::Lp(p, _) => {
                 // All of LP's planes only for the debug layers.
-                let centre_pass = if debug {
+                let fraction = if debug {
                     let r = lp::download(p, w, h)?;
                     out.debug = r.debug_layers();
-                    r.centre_pass
+                    match rect {
+                        Some(rc) => lp::centre_fraction(&tiles::crop(&r.centre_pass, w, rc)),
+                        None => r.centre_fraction(),
+                    }
                 } else {
-                    lp::download_centre_pass(p)?
-                };
-                let fraction = match rect {
-                    Some(rc) => lp::centre_fraction(&tiles::crop(&centre_pass, w, rc)),
-                    None => lp::centre_fraction(&centre_pass),
+                    match rect {
+                        Some(rc) => {
+                            lp::centre_fraction(&tiles::crop(&lp::download_centre_pass(p)?, w, rc))
+                        }
+                        // Counted without a host copy of the plane.
+                        None => lp::count_centre_fraction(p)?,
+                    }
                 };
                 out.stats.push(("centre_fraction".into(), fraction));
             }
@@ -813,7 +829,7 @@ pub struct ChainOutput {
     pub color: RgbImage,
     /// `E_i` per channel (§9.1); empty (0×0) when not downloaded.
     pub error: RgbImage,
-    /// `d_i` (§9.1).
+    /// `d_i` (§9.1); empty when not downloaded (with the error estimate).
     pub dim: Vec<f32>,
     /// Named debug planes (when asked).
     pub debug: Vec<(String, Vec<f32>)>,

@@ -425,6 +425,13 @@ pub fn download_centre_pass(planes: &LpPlanes) -> Result<Vec<f32>> {
     planes.state0.download_strided(0, 4)
 }
 
+/// [`centre_fraction`] of the centre-pass plane, counted on the host in
+/// chunks of the device plane (no copy of it).
+pub fn count_centre_fraction(planes: &LpPlanes) -> Result<f64> {
+    let n = planes.state0.pixels.div_ceil(4).max(1);
+    Ok(planes.state0.count_strided(0, 4, |p| p > 0.0)? as f64 / n as f64)
+}
+
 /// The CPU path: the scalar twins in the order of [`record_lp`], on
 /// sanitised statistics. `progress` prints each pass on stderr once the
 /// run has taken more than a second.

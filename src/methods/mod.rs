@@ -155,7 +155,8 @@ pub struct DenoiseOutput {
     pub color: RgbImage,
     /// Estimated MSE per pixel and channel, when requested and the method has one.
     pub error: Option<RgbImage>,
-    /// The local dimension `d_i` per pixel (§9.1; 0 for `none`).
+    /// The local dimension `d_i` per pixel (§9.1; 0 for `none`); empty
+    /// without the error estimate (`error`).
     pub dim: Vec<f32>,
     /// The next pass's samples per pixel (§9.2) when `budget` was set.
     pub samples: Option<Vec<u32>>,
@@ -379,7 +380,8 @@ fn denoise_cpu(img: &StatsImage, req: &DenoiseRequest) -> Result<DenoiseOutput> 
     Ok(DenoiseOutput {
         color,
         error: req.error.then_some(error),
-        dim,
+        // As the GPU path: the local dimension comes with the error estimate.
+        dim: if req.error { dim } else { Vec::new() },
         samples,
         debug,
         report,

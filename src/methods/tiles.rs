@@ -556,7 +556,8 @@ impl TiledChain {
         } else {
             RgbImage::new(0, 0)
         };
-        let mut dim = vec![0.0f32; n];
+        // The local dimension comes with the error estimate (chain.rs).
+        let mut dim = vec![0.0f32; if want_error { n } else { 0 }];
         let mut priority = budget.map(|_| vec![0.0f32; n]);
         let mut debug_planes: Vec<(String, Vec<f32>)> = Vec::new();
         let mut report = prepare::base_report(img);
@@ -612,7 +613,9 @@ impl TiledChain {
                 if want_error {
                     paste_rgb(&mut error, &out.error, t.inner);
                 }
-                paste(&mut dim, w, &out.dim, t.inner);
+                if want_error {
+                    paste(&mut dim, w, &out.dim, t.inner);
+                }
                 if let Some(p) = priority.as_mut() {
                     let plane = chain.download_priority_in(local)?;
                     paste(p, w, &plane, t.inner);
