@@ -88,7 +88,8 @@ void main()
     real3 pc[GBF_N];
     realmat3 inv_c[GBF_N];
     real W[GBF_N];
-    // (albedo r g b and its variances: the packed planes' fourth entry is padding)
+    // (albedo r g b and its variances: the packed planes' fourth entry is
+    // not read)
     real4 sa[GBF_N], sva[GBF_N];
     real3 sb[GBF_N], svb[GBF_N];
     bool any_act = false;

@@ -52,8 +52,8 @@ realmat3 gbf_inv_cov(uint q)
 // pays per lane and float loaded from shared memory (the loads, not the
 // arithmetic, were ~3/4 of this kernel's time), so a pixel costs
 // (SURE_PX + 6) / SURE_PX tile reads per window row instead of 7. Each pixel
-// still sums its neighbours in raster order (dy, then dx), the centre (whose
-// difference is exactly 0) with weight 1, as one invocation per pixel did.
+// still sums its neighbours in raster order (dy, then dx), the centre with
+// its weight 1 only, as one invocation per pixel did.
 #extension GL_EXT_control_flow_attributes : require
 #define SURE_PX 2
 #define TILE_W (8 * SURE_PX + 2 * GBF_RADIUS)
@@ -142,13 +142,15 @@ void main()
                 t = w1 * w1;
                 real wv[5] = real[5](t * t, w1, gbf_exp2(d * real(-GBF_LOG2E / (0.32 * 9.0))), w3,
                                      gbf_exp2(d * real(-GBF_LOG2E / (0.32 * 25.0))));
+                // The centre adds its weight only (its difference is 0 for a
+                // finite position; a select keeps a non-finite one out).
                 bool centre = dx == 0 && dy == 0;
                 [[unroll]] for (int s = 0; s < 5; ++s) {
                     real w = centre ? real(1) : wv[s];
                     W[p][s] += w;
-                    sw_d[p][s] += w * dlt;
-                    sw_dd[p][s] += w * d;
-                    sw_md[p][s] += w * md;
+                    sw_d[p][s] += centre ? real3(0) : w * dlt;
+                    sw_dd[p][s] += centre ? real(0) : w * d;
+                    sw_md[p][s] += centre ? real3(0) : w * md;
                 }
             }
         }

@@ -313,7 +313,9 @@ pub struct GbfPush {
     pub width: u32,
     /// Image height in pixels.
     pub height: u32,
-    /// First row of the band this dispatch covers.
+    /// First grid row of the band this dispatch covers: an image row, but a
+    /// block of 8 rows for `gbf_prepare` and of 2 for `gbf_filter`
+    /// (register blocking, see their host files).
     pub row0: u32,
     /// `gbf_pack` and `gbf_filter`: the image row at which their packed
     /// vec4 bindings start (0 unless the image is filtered in row chunks,

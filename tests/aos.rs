@@ -516,6 +516,7 @@ fn aos_denoises_the_fixture_on_both_backends() {
     assert!(out < 0.75 * input, "AOS {out} vs input {input}");
     let s: u64 = f.samples.unwrap().iter().map(|&s| s as u64).sum();
     assert_eq!(s, 4096);
+    assert_eq!(f.dim.len(), 64 * 64);
     assert!(f.dim.iter().all(|&k| (0.0..=10.0).contains(&k)));
     // The GPU facade gives the same image and spends the same budget.
     let ctx = common::gpu();

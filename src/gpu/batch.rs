@@ -42,7 +42,9 @@ pub const DEFAULT_FLOPS_PER_SUBMIT: f64 = 2.0e9;
 pub struct KernelTiming {
     /// The kernel's name (with `_f64` for the f64 variant).
     pub kernel: String,
-    /// The band of image rows the dispatch covered, `[first, end)`.
+    /// The band of grid rows the dispatch covered, `[first, end)`: image
+    /// rows, except for a kernel whose invocations compute blocks of rows
+    /// (`gbf_prepare`, `gbf_filter`), where a grid row is one block.
     pub rows: (u32, u32),
     /// GPU time between the dispatch's two timestamps, in nanoseconds.
     pub nanoseconds: f64,

@@ -659,8 +659,9 @@ impl PlaneSet {
     /// first component of a vec4 plane with `step = 4`. Read in chunks of at
     /// most 1 MiB, so the host never holds a copy of the whole plane.
     pub fn download_strided(&self, i: usize, step: usize) -> Result<Vec<f32>> {
-        assert!(i < self.count && step > 0);
         const CHUNK: usize = 1 << 18;
+        // (A chunk holds whole steps.)
+        assert!(i < self.count && step > 0 && step <= CHUNK);
         let mut out = Vec::with_capacity(self.pixels.div_ceil(step));
         let mut buf = vec![0.0f32; CHUNK.min(self.pixels)];
         let mut start = 0;
@@ -687,8 +688,9 @@ impl PlaneSet {
         step: usize,
         pred: impl Fn(f32) -> bool,
     ) -> Result<usize> {
-        assert!(i < self.count && step > 0);
         const CHUNK: usize = 1 << 16;
+        // (A chunk holds whole steps.)
+        assert!(i < self.count && step > 0 && step <= CHUNK);
         let mut buf = vec![0.0f32; CHUNK.min(self.pixels)];
         let (mut start, mut n) = (0, 0);
         while start < self.pixels {

@@ -60,7 +60,8 @@ pub fn flops_per_pixel() -> f64 {
 }
 
 /// Records the filtering of the image rows `rows` (`[first, end)`, `first`
-/// a multiple of 16 and `end` even or the image's height) from the packed features (`packed` from
+/// and `end` multiples of 16, or `end` the image's height: the dispatch
+/// covers whole workgroups of 16 rows) from the packed features (`packed` from
 /// [`super::gbf_pack`]: ranges that start at image row `base` and cover the
 /// rows `rows` ± 3) into `out` (7 features, then their 7 variances; full
 /// planes).
@@ -90,10 +91,10 @@ pub fn record(
     // (register blocking: the shader's GBF_ROWS x GBF_PX); the grid's rows
     // are blocks of rows.
     let r = ROWS_PER_INVOCATION;
-    if rows.0 % (8 * r) != 0 || (rows.1 % r != 0 && rows.1 != height) {
+    if rows.0 % (8 * r) != 0 || (rows.1 % (8 * r) != 0 && rows.1 != height) {
         return Err(Error::InvalidArgument(format!(
-            "gbf_filter: rows {rows:?} must start at a multiple of {} and end at an even row \
-             or the image's height",
+            "gbf_filter: rows {rows:?} must start and end at multiples of {} (or end at the \
+             image's height)",
             8 * r
         )));
     }

@@ -116,7 +116,8 @@ pub struct DenoiseRequest {
     pub pass: Pass,
     /// Method options (`--opt key=value`).
     pub options: Options,
-    /// Compute the per-pixel error estimate.
+    /// Compute the per-pixel error estimate, and return it with the local
+    /// dimension (without it [`DenoiseOutput::dim`] is empty).
     pub error: bool,
     /// Keep the method's debug maps.
     pub debug: bool,
