@@ -657,25 +657,10 @@ impl PlaneSet {
 
     /// Every `step`-th f32 of plane `i` (values `0, step, 2·step, …`): the
     /// first component of a vec4 plane with `step = 4`. Read in chunks of at
-    /// most 1 MiB, so the host never holds a copy of the whole plane.
+    /// most 256 KiB, so the host never holds a copy of the whole plane.
     pub fn download_strided(&self, i: usize, step: usize) -> Result<Vec<f32>> {
-        const CHUNK: usize = 1 << 18;
-        // (A chunk holds whole steps.)
-        assert!(i < self.count && step > 0 && step <= CHUNK);
         let mut out = Vec::with_capacity(self.pixels.div_ceil(step));
-        let mut buf = vec![0.0f32; CHUNK.min(self.pixels)];
-        let mut start = 0;
-        while start < self.pixels {
-            // Chunks start at multiples of `step` (CHUNK is a multiple of 4).
-            let len = (CHUNK - CHUNK % step).min(self.pixels - start);
-            let b = &mut buf[..len];
-            self.buffer.download(
-                self.offset(i) + start as u64 * 4,
-                bytemuck::cast_slice_mut(b),
-            )?;
-            out.extend(b.iter().step_by(step));
-            start += len;
-        }
+        self.for_each_strided(i, step, |v| out.push(v))?;
         Ok(out)
     }
 
@@ -688,22 +673,31 @@ impl PlaneSet {
         step: usize,
         pred: impl Fn(f32) -> bool,
     ) -> Result<usize> {
+        let mut n = 0;
+        self.for_each_strided(i, step, |v| n += pred(v) as usize)?;
+        Ok(n)
+    }
+
+    /// Calls `f` on every `step`-th f32 of plane `i`, in order, reading the
+    /// plane in chunks of at most 256 KiB.
+    fn for_each_strided(&self, i: usize, step: usize, mut f: impl FnMut(f32)) -> Result<()> {
         const CHUNK: usize = 1 << 16;
         // (A chunk holds whole steps.)
         assert!(i < self.count && step > 0 && step <= CHUNK);
         let mut buf = vec![0.0f32; CHUNK.min(self.pixels)];
-        let (mut start, mut n) = (0, 0);
+        let mut start = 0;
         while start < self.pixels {
+            // Chunks start at multiples of `step`.
             let len = (CHUNK - CHUNK % step).min(self.pixels - start);
             let b = &mut buf[..len];
             self.buffer.download(
                 self.offset(i) + start as u64 * 4,
                 bytemuck::cast_slice_mut(b),
             )?;
-            n += b.iter().step_by(step).filter(|&&v| pred(v)).count();
+            b.iter().step_by(step).for_each(|&v| f(v));
             start += len;
         }
-        Ok(n)
+        Ok(())
     }
 
     /// Uploads all planes at once, each straight from its slice (no host
