@@ -399,7 +399,9 @@ pub struct OutlierPush {
     pub row0: u32,
     /// Window radius: 14 for detection, 43 for redistribution.
     pub radius: u32,
-    /// `box_rows`: 0 sums the values of valid pixels, 1 counts valid pixels.
+    /// `box_rows`: how many planes one dispatch sums over the valid pixels
+    /// (2 or 4), plus [`BOX_COUNT_LAST`] when the fourth counts them instead
+    /// (set by `kernels::box_rows::record`).
     pub mode: u32,
     /// Fewest valid neighbours a detection needs (OUTLIER-MIN-N).
     pub min_n: u32,
@@ -408,6 +410,11 @@ pub struct OutlierPush {
     /// DARK-WINDOW factor (1e-8).
     pub dark: f32,
 }
+
+/// [`OutlierPush::mode`] flag of `box_rows`: the last plane counts the valid
+/// pixels (its value is not read). The twin `reference::box_rows` counts when
+/// it is set.
+pub const BOX_COUNT_LAST: u32 = 8;
 
 /// `spirv/aos_nlm.comp`, `spirv/aos_space.comp` and `spirv/aos_fit.comp`,
 /// block `Push` (spec §5).

@@ -17,7 +17,7 @@ use mcdenoise::reference::{
     box_rows as rb, outlier_detect as rd, outlier_grey as rg, outlier_median as rm,
     outlier_rows as rr, outlier_spread as rs, outlier_weights as rw,
 };
-use mcdenoise::shared::OutlierPush;
+use mcdenoise::shared::{OutlierPush, BOX_COUNT_LAST};
 use mcdenoise::{Config, Denoiser, Method, Outliers, Source};
 
 /// A noisy image with spikes (variance = value², as one bright sample among
@@ -263,27 +263,58 @@ fn kernels_match_twins() {
                     what("detect")
                 );
             }
-            // box_rows: sums and counts at R = 43
+            // box_rows: the colour's sums and the valid count at R = 43, in
+            // one dispatch (four planes, the last one counted), and two
+            // planes in another.
             let e3: Vec<Vec<f32>> = out[6..9].to_vec();
             let mut sums = vec![vec![0.0f32; n]; 4];
             for c in 0..4 {
-                let pb = push(&img, ro::SPREAD_RADIUS, (c == 3) as u32);
+                let mode = if c == 3 { BOX_COUNT_LAST } else { 0 };
                 let src = if c < 3 { &img.color[c] } else { &img.spp };
-                rb::box_rows(&pb, src, &img.spp, &mut sums[c]);
-                let (g, _) = run_planes(
-                    &ctx,
-                    &box_rows::DECL,
-                    p,
-                    bytemuck::bytes_of(&pb),
-                    w,
-                    h,
-                    &[src, &img.spp],
-                    &[n],
-                    1.0,
-                )
-                .unwrap();
-                assert_close(&what("box_rows"), &g[0], &sums[c], 0.99);
+                rb::box_rows(
+                    &push(&img, ro::SPREAD_RADIUS, mode),
+                    src,
+                    &img.spp,
+                    &mut sums[c],
+                );
             }
+            let pb = push(&img, ro::SPREAD_RADIUS, 4 | BOX_COUNT_LAST);
+            let (g, _) = run_planes(
+                &ctx,
+                &box_rows::DECL,
+                p,
+                bytemuck::bytes_of(&pb),
+                w.div_ceil(box_rows::SPAN as usize),
+                h,
+                &[
+                    &img.color[0],
+                    &img.color[1],
+                    &img.color[2],
+                    &img.spp,
+                    &img.spp,
+                ],
+                &[n; 4],
+                1.0,
+            )
+            .unwrap();
+            for c in 0..4 {
+                assert_close(&what("box_rows"), &g[c], &sums[c], 0.99);
+            }
+            let pb = push(&img, ro::SPREAD_RADIUS, 2);
+            let (g, _) = run_planes(
+                &ctx,
+                &box_rows::DECL,
+                p,
+                bytemuck::bytes_of(&pb),
+                w.div_ceil(box_rows::SPAN as usize),
+                h,
+                &[&img.color[2], &img.color[0], &img.spp, &img.spp, &img.spp],
+                &[n; 4],
+                1.0,
+            )
+            .unwrap();
+            assert_close(&what("box_rows, 2 planes"), &g[0], &sums[2], 0.99);
+            assert_close(&what("box_rows, 2 planes"), &g[1], &sums[0], 0.99);
             // outlier_weights
             let ps = push(&img, ro::SPREAD_RADIUS, 0);
             let mut wts = vec![vec![0.0f32; n]; 6];

@@ -9,9 +9,9 @@
 //!           outlier_detect    merge → m, sd without o; copy; queue the spikes
 //!           outlier_median    (indirect, per queued spike) the median pixel; e = y − y_q*
 //!           copy              replaced colour and variance → the sanitised statistics
-//! restore:  box_rows ×4       row sums of ŷ (3) and of the valid count, R = 43
+//! restore:  box_rows          row sums of ŷ (3) and of the valid count, R = 43
 //!           outlier_weights   ρ = e / Σ_{87×87} ŷ (or e/|Ω| in a dark window)
-//!           box_rows ×6       row sums of ρ and of the dark shares
+//!           box_rows ×2       row sums of ρ and of the dark shares (4 + 2 planes)
 //!           outlier_spread    ŷ ← max(0, ŷ(1 + Σρ) + Σ add), in place
 //! ```
 //!
@@ -26,6 +26,7 @@ use super::Method;
 use crate::error::Result;
 use crate::gpu::{Batch, BufferSlice, GpuBuffer, GpuContext, PlaneSet, Precision};
 use crate::image::{Layer, StatsImage};
+use crate::kernels::box_rows::BoxPlanes;
 use crate::kernels::{
     box_rows, outlier_detect, outlier_grey, outlier_median, outlier_rows, outlier_spread,
     outlier_weights,
@@ -204,14 +205,18 @@ pub fn record_restore(
 ) -> Result<()> {
     let (w, h) = (p.width, p.height);
     let sum = push(w, h, SPREAD_RADIUS, 0);
-    let count = push(w, h, SPREAD_RADIUS, 1);
     let a = p.set::<6>(0);
     let b = p.set::<6>(6);
     let weights = p.set::<6>(12);
-    for c in 0..3 {
-        box_rows::record(batch, precision, &sum, color[c], spp, a[c])?;
-    }
-    box_rows::record(batch, precision, &count, spp, spp, a[3])?;
+    // The colour's row sums and the valid count in one dispatch.
+    box_rows::record(
+        batch,
+        precision,
+        &sum,
+        BoxPlanes::SumsAndCount(&color),
+        spp,
+        &a[..4],
+    )?;
     outlier_weights::record(
         batch,
         precision,
@@ -221,9 +226,22 @@ pub fn record_restore(
         a[3],
         weights,
     )?;
-    for c in 0..6 {
-        box_rows::record(batch, precision, &sum, weights[c], spp, b[c])?;
-    }
+    box_rows::record(
+        batch,
+        precision,
+        &sum,
+        BoxPlanes::Sums(&weights[..4]),
+        spp,
+        &b[..4],
+    )?;
+    box_rows::record(
+        batch,
+        precision,
+        &sum,
+        BoxPlanes::Sums(&weights[4..]),
+        spp,
+        &b[4..],
+    )?;
     outlier_spread::record(batch, precision, &sum, b, spp, color)?;
     Ok(())
 }

@@ -1,9 +1,9 @@
-//! Scalar twin of `spirv/box_rows.comp`: the row part of a box sum over valid
-//! pixels, `Σ_{|qx − x| <= R, valid} value` (mode 0) or the count of valid
-//! pixels (mode 1).
+//! Scalar twin of `spirv/box_rows.comp`, one plane at a time: the row part of
+//! a box sum over valid pixels, `Σ_{|qx − x| <= R, valid} value`, or the count
+//! of valid pixels when `push.mode` has [`BOX_COUNT_LAST`].
 
 use super::spp_of;
-use crate::shared::OutlierPush;
+use crate::shared::{OutlierPush, BOX_COUNT_LAST};
 
 /// Row sums (or counts) of `value` over `|qx − x| <= push.radius`, clipped.
 pub fn box_rows(push: &OutlierPush, value: &[f32], spp: &[f32], out: &mut [f32]) {
@@ -18,7 +18,11 @@ pub fn box_rows(push: &OutlierPush, value: &[f32], spp: &[f32], out: &mut [f32])
             for qx in x.saturating_sub(r)..(x + r + 1).min(w) {
                 let q = y * w + qx;
                 if spp_of(spp[q]) >= 1.0 {
-                    s += if push.mode == 1 { 1.0 } else { value[q] as f64 };
+                    s += if push.mode & BOX_COUNT_LAST != 0 {
+                        1.0
+                    } else {
+                        value[q] as f64
+                    };
                 }
             }
             out[y * w + x] = s as f32;
