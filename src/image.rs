@@ -102,6 +102,14 @@ impl Layer {
         }
     }
 
+    /// Full EXR channel names of the layer (`layer.channel`), in order.
+    pub fn channel_names(self) -> Vec<String> {
+        self.channels()
+            .iter()
+            .map(|c| format!("{}.{c}", self.name()))
+            .collect()
+    }
+
     /// EXR channel names of the layer (the part after the dot), in order.
     pub fn channels(self) -> &'static [&'static str] {
         match self {

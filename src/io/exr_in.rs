@@ -98,19 +98,11 @@ pub fn read_stats_layers(path: &Path) -> Result<(usize, usize, Vec<Layer>)> {
     let header = headers
         .get(find_part(headers, &["color.R"]))
         .ok_or_else(|| Error::bad_input(path, "no part"))?;
-    let present: HashSet<String> = header
-        .channels
-        .list
-        .iter()
-        .map(|c| c.name.to_string())
-        .collect();
+    // The complete layers, as assemble_stats keeps them.
+    let present: HashSet<String> = part_channel_names(header).into_iter().collect();
     let layers = Layer::ALL
         .into_iter()
-        .filter(|l| {
-            l.channels()
-                .iter()
-                .all(|c| present.contains(&format!("{}.{c}", l.name())))
-        })
+        .filter(|l| l.channel_names().iter().all(|n| present.contains(n)))
         .collect();
     Ok((
         header.layer_size.width(),
@@ -185,6 +177,16 @@ fn stats_channel(name: &str) -> Option<(Layer, usize)> {
     Some((layer, index))
 }
 
+/// The names of a part's channels, in the order of its channel list.
+fn part_channel_names(header: &Header) -> Vec<String> {
+    header
+        .channels
+        .list
+        .iter()
+        .map(|c| c.name.to_string())
+        .collect()
+}
+
 /// The first part holding one of `channel_names` (tried in order), else part 0.
 fn find_part(headers: &[Header], channel_names: &[&str]) -> usize {
     channel_names
@@ -253,11 +255,7 @@ fn assemble_stats(path: &Path, mut part: DecodedPart) -> Result<StatsImage> {
     let mut img = StatsImage::new(part.width, part.height);
     let mut problems = Vec::new();
     for layer in Layer::ALL {
-        let names: Vec<String> = layer
-            .channels()
-            .iter()
-            .map(|c| format!("{}.{c}", layer.name()))
-            .collect();
+        let names = layer.channel_names();
         let present: Vec<bool> = names.iter().map(|n| part.has(n)).collect();
         let count = present.iter().filter(|p| **p).count();
         if count == 0 {
@@ -449,12 +447,7 @@ fn decode_unguarded(
 
     let (width, height) = (header.layer_size.width(), header.layer_size.height());
     let pixels = width * height;
-    let all_names: Vec<String> = header
-        .channels
-        .list
-        .iter()
-        .map(|c| c.name.to_string())
-        .collect();
+    let all_names = part_channel_names(&header);
 
     // One output slot per wanted channel, indexed by the channel's position in
     // the part's channel list (the order of the lines in a block).

@@ -328,7 +328,12 @@ pub fn record_lp(
 /// it) that became centres.
 pub fn centre_fraction(centre_pass: &[f32]) -> f64 {
     let n = centre_pass.len().max(1);
-    centre_pass.iter().filter(|&&p| p > 0.0).count() as f64 / n as f64
+    centre_pass.iter().filter(|&&p| is_centre(p)).count() as f64 / n as f64
+}
+
+/// Whether a centre-pass value marks a centre (pass + 1 > 0).
+fn is_centre(centre_pass: f32) -> bool {
+    centre_pass > 0.0
 }
 
 /// What an LP run gives back on the host.
@@ -429,7 +434,7 @@ pub fn download_centre_pass(planes: &LpPlanes) -> Result<Vec<f32>> {
 /// chunks of the device plane (no copy of it).
 pub fn count_centre_fraction(planes: &LpPlanes) -> Result<f64> {
     let n = planes.state0.pixels.div_ceil(4).max(1);
-    Ok(planes.state0.count_strided(0, 4, |p| p > 0.0)? as f64 / n as f64)
+    Ok(planes.state0.count_strided(0, 4, is_centre)? as f64 / n as f64)
 }
 
 /// The CPU path: the scalar twins in the order of [`record_lp`], on
