@@ -91,7 +91,6 @@ PLANE_OUT(22, dst)
 #define RIDGE_F 1e-5
 #define RMS_EPS 1e-12
 #define BIAS_Z 2.0
-#define RESIDUAL_Z 3.0
 #define RESIDUAL_VBAR_FLOOR 1e-20
 #define SOLVE_RETRIES 3
 #define RIDGE_FLOOR 1e-8
@@ -341,19 +340,6 @@ void write_out(uint i, real o[14])
     for (int a = 0; a < 14; ++a) {
         dst[uint(a) * push.stride + i] = float(o[a]);
     }
-}
-
-// AOS-RESIDUAL's threshold for n samples: Student's t quantile at the 3 sigma
-// level with n - 1 degrees of freedom (reference::aos::residual_threshold).
-real residual_threshold(real n)
-{
-    real nu = max(n - real(1), real(1));
-    real z = real(RESIDUAL_Z);
-    real z3 = z * z * z;
-    real z5 = z3 * z * z;
-    real z7 = z5 * z * z;
-    return z + (z3 + z) / (real(4) * nu) + (real(5) * z5 + real(16) * z3 + real(3) * z) / (real(96) * nu * nu)
-        + (real(3) * z7 + real(19) * z5 + real(17) * z3 - real(15) * z) / (real(384) * nu * nu * nu);
 }
 
 // u^T M v over one 4x4 block (rows of M: block I, columns: block J).
@@ -784,7 +770,7 @@ void main()
             real kc = (push.flags & AOS_OUTLIER_W) != 0u ? real(1) / max(vc, real(1)) : real(1);
             real lc = kc * S[ua];
             real rv = tot[b0i + 1] - lc * lc * vc + (lc - real(1)) * (lc - real(1)) * S[S_SC + SC_VC];
-            real zn = residual_threshold(real(spp_of(spp[ci])));
+            real zn = t_threshold3(real(spp_of(spp[ci])));
             if (res * res > zn * zn * rv) {
                 bias2 = max(bias2, res * res - rv);
             }

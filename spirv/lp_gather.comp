@@ -11,6 +11,10 @@
 // take when only the variances are known (fully correlated feature noise).
 // Local dimension d_i = mean_c k_c, and
 // Delta-MSE = E_i n_i^(-4/(d_i+4)) (§9.1).
+// LP-PIXEL-TEST (ours, LpPush.options bit LP_PIXEL_TEST): a centre whose
+// prediction at pixel i misses i's mean by more than t_threshold3(n_i)
+// standard errors is left out of i's average; if every centre is, i keeps
+// its input with E_i = v_i, Delta-MSE = v_i / n_i, d_i = 0 and coverage 0.
 // Colour outputs are clamped >= 0 (§0.4 step 5). An invalid pixel gets the
 // mean colour of its valid 3x3 neighbours (§0.2), error, Delta-MSE,
 // coverage and d 0. The 11 outputs go to one binding, plane k at
@@ -50,26 +54,33 @@ PLANE_IN(13, v_ab)
 PLANE_IN(14, col_r)
 PLANE_IN(15, col_g)
 PLANE_IN(16, col_b)
-PLANE_IN(17, spp)
-PLANE_IN(18, reach)
-layout(std430, set = 0, binding = 19) readonly buffer st0_blk { vec4 st0[]; };
-layout(std430, set = 0, binding = 20) readonly buffer st1_blk { vec4 st1[]; };
-layout(std430, set = 0, binding = 21) readonly buffer st2_blk { vec4 st2[]; };
-layout(std430, set = 0, binding = 22) readonly buffer st3_blk { vec4 st3[]; };
-layout(std430, set = 0, binding = 23) readonly buffer st4_blk { vec4 st4[]; };
-layout(std430, set = 0, binding = 24) readonly buffer st5_blk { vec4 st5[]; };
-layout(std430, set = 0, binding = 25) readonly buffer st6_blk { vec4 st6[]; };
-layout(std430, set = 0, binding = 26) readonly buffer st7_blk { vec4 st7[]; };
-layout(std430, set = 0, binding = 27) readonly buffer st8_blk { vec4 st8[]; };
+PLANE_IN(17, cv_r)
+PLANE_IN(18, cv_g)
+PLANE_IN(19, cv_b)
+PLANE_IN(20, spp)
+PLANE_IN(21, reach)
+layout(std430, set = 0, binding = 22) readonly buffer st0_blk { vec4 st0[]; };
+layout(std430, set = 0, binding = 23) readonly buffer st1_blk { vec4 st1[]; };
+layout(std430, set = 0, binding = 24) readonly buffer st2_blk { vec4 st2[]; };
+layout(std430, set = 0, binding = 25) readonly buffer st3_blk { vec4 st3[]; };
+layout(std430, set = 0, binding = 26) readonly buffer st4_blk { vec4 st4[]; };
+layout(std430, set = 0, binding = 27) readonly buffer st5_blk { vec4 st5[]; };
+layout(std430, set = 0, binding = 28) readonly buffer st6_blk { vec4 st6[]; };
+layout(std430, set = 0, binding = 29) readonly buffer st7_blk { vec4 st7[]; };
+layout(std430, set = 0, binding = 30) readonly buffer st8_blk { vec4 st8[]; };
 // Outputs (kernels::lp_gather::OUTPUTS): colour RGB, error RGB, Delta-MSE RGB,
 // coverage, d; plane k at k * out_stride.
-layout(std430, set = 0, binding = 28) buffer out_blk { float outp[]; };
+layout(std430, set = 0, binding = 31) buffer out_blk { float outp[]; };
 
 #define LP_RADIUS 9
 // mcdenoise::shared::LP_SKIP_*.
 #define LP_SKIP_ERROR 2u
 #define LP_SKIP_DMSE 4u
 #define LP_SKIP_COVERAGE 8u
+#define LP_PIXEL_TEST 32u
+// LP-PIXEL-TEST: the smallest variance the test divides by
+// (reference::lp_gather::PIXEL_TEST_VAR_FLOOR).
+#define PIXEL_TEST_VAR_FLOOR 1e-20
 
 // Raw features (px, py, nrm xyz, dep, albedo rgb) as lanes f0, f1, f8.
 void features(ivec2 p, out real4 f0, out real4 f1, out real f8)
@@ -166,6 +177,30 @@ void main()
         real4 ub0 = real4(0), ub1 = real4(0);
         real3 u8 = real3(0);
         int count = 0;
+        // LP-PIXEL-TEST: a centre whose prediction misses pixel i's own mean
+        // by more than t_threshold3(n_i) standard errors (all channels
+        // together) does not predict i. The variance is the larger of i's
+        // and the mean over its valid 3x3 neighbourhood (raster order, i
+        // included): a pixel whose few samples all agree has a variance
+        // estimate far below its true one.
+        real3 y_i = real3(col_r[i], col_g[i], col_b[i]);
+        real lim = real(-1);
+        if ((push.options & LP_PIXEL_TEST) != 0u) {
+            real vn = real(0);
+            int nn = 0;
+            for (int qy = max(p.y - 1, 0); qy <= min(p.y + 1, size.y - 1); ++qy) {
+                for (int qx = max(p.x - 1, 0); qx <= min(p.x + 1, size.x - 1); ++qx) {
+                    uint q = uint(qy) * push.width + uint(qx);
+                    if (spp_of(spp[q]) >= 1.0) {
+                        vn += real(cv_r[q]) + real(cv_g[q]) + real(cv_b[q]);
+                        ++nn;
+                    }
+                }
+            }
+            real v_i = real(cv_r[i]) + real(cv_g[i]) + real(cv_b[i]);
+            real tz = t_threshold3(n_i);
+            lim = tz * tz * max(max(v_i, vn / real(nn)), real(PIXEL_TEST_VAR_FLOOR));
+        }
         // The reach plane and state planes 1..8 are rings of push.ring_rows
         // rows (LpPush::ring_rows).
         uint ring = push.ring_rows == 0u ? push.height : push.ring_rows;
@@ -206,6 +241,10 @@ void main()
                 f.r = beta0.r + dot(cr0, d0) + dot(cr1, d1) + uc8.r * d8;
                 f.g = beta0.g + dot(cg0, d0) + dot(cg1, d1) + uc8.g * d8;
                 f.b = beta0.b + dot(cb0, d0) + dot(cb1, d1) + uc8.b * d8;
+                real3 res = f - y_i;
+                if (lim >= real(0) && dot(res, res) > lim) {
+                    continue;
+                }
                 ur0 += cr0;
                 ur1 += cr1;
                 ug0 += cg0;
@@ -223,9 +262,18 @@ void main()
             }
         }
         if (count == 0) {
+            // No centre predicts i (LP-PIXEL-TEST rejected them all): the
+            // input, whose error is its variance of the mean, falling as
+            // 1/n (d = 0).
             o[0] = max(col_r[i], 0.0);
             o[1] = max(col_g[i], 0.0);
             o[2] = max(col_b[i], 0.0);
+            o[3] = cv_r[i];
+            o[4] = cv_g[i];
+            o[5] = cv_b[i];
+            o[6] = float(real(cv_r[i]) / n_i);
+            o[7] = float(real(cv_g[i]) / n_i);
+            o[8] = float(real(cv_b[i]) / n_i);
         } else {
             real n = real(count);
             real3 m = max(first + pred / n, real3(0));

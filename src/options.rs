@@ -76,6 +76,13 @@ pub const OPTIONS: &[OptionSpec] = &[
         help: "a window whose model misses its own centre by more than 3 standard errors counts that miss for every pixel of the window (ours; off: the spec)",
     },
     OptionSpec {
+        key: "lp.pixel_test",
+        kind: Kind::Choice(&["on", "off"]),
+        default: "on",
+        section: "§3.5",
+        help: "a centre whose prediction misses a pixel's own mean by more than 3 standard errors (Student's t for its sample count) does not predict that pixel (ours; off: the spec)",
+    },
+    OptionSpec {
         key: "apr.stages",
         kind: Kind::Int(1, 4),
         default: "2",

@@ -185,7 +185,8 @@ pub struct LpPush {
     /// Index of this pass (0..5); stored as `pass + 1` in the centre map.
     pub pass: u32,
     /// Bit 0: [`LP_VARSUB`] (`lp.error_mode = varsub`, `s = 1`, §3.4);
-    /// bit 4: [`LP_CENTRE_TEST`]; bits 1..3: the gather's `LP_SKIP_*`.
+    /// bit 4: [`LP_CENTRE_TEST`]; bit 5: [`LP_PIXEL_TEST`]; bits 1..3: the
+    /// gather's `LP_SKIP_*`.
     pub options: u32,
     /// `lp_gather` only: f32 values from one output plane to the next in its
     /// packed output binding.
@@ -279,6 +280,11 @@ pub const LP_SKIP_COVERAGE: u32 = 8;
 /// whose model misses its own centre by more than 3 standard errors counts
 /// that miss as the error of every pixel of the window (§3.4, ours).
 pub const LP_CENTRE_TEST: u32 = 16;
+/// [`LpPush::options`] bit, `lp_gather`: LP-PIXEL-TEST (`lp.pixel_test =
+/// on`): a centre whose prediction misses a pixel's own mean by more than
+/// [`t_threshold3`](crate::reference::t_threshold3) standard errors does
+/// not predict that pixel (§3.5, ours).
+pub const LP_PIXEL_TEST: u32 = 32;
 
 /// Index of the values of one LP centre in its 36-float state, written by
 /// `spirv/lp_centres.comp` and read by `spirv/lp_gather.comp` (9 vec4

@@ -4,7 +4,10 @@
 //! (`|i − c|_inf <= r_opt(c)`), their `max(ξ̂_c, 0)`, maps `u_c` and ranks
 //! `k_c`. Error estimate (LP-FEATNOISE): `E_i = mean max(ξ̂_c, 0) +
 //! (Σ_j |ū_j| σ_ij)²` (`σ_ij² = var(x_ij)`); local dimension `d_i = mean k_c`;
-//! `ΔMSE = E_i·n_i^{-4/(d_i+4)}` (§9.1). The outputs ([`OUTPUTS`]) go to one
+//! `ΔMSE = E_i·n_i^{-4/(d_i+4)}` (§9.1). With LP-PIXEL-TEST
+//! (`LP_PIXEL_TEST`, `reference::lp_gather::OUTPUTS`) a centre whose
+//! prediction misses the pixel's own mean by more than `t_threshold3(n_i)`
+//! standard errors is left out. The outputs ([`OUTPUTS`]) go to one
 //! binding, plane `k` at `k·out_stride` f32 values. Twin:
 //! `reference::lp_gather`.
 
@@ -36,6 +39,9 @@ pub const DECL: KernelDecl = KernelDecl {
         read("color_r"),
         read("color_g"),
         read("color_b"),
+        read("var_color_r"),
+        read("var_color_g"),
+        read("var_color_b"),
         read("spp"),
         read("reach"),
         read("state0"),
@@ -60,9 +66,10 @@ pub const OUTPUTS: [&str; 11] = [
 
 /// Per pixel: 19 reach reads, the centre-map rows they select (a few), and
 /// for each covering centre (a few to a few dozen) 36 state reads, 9
-/// feature differences and 3 × 9 FMAs.
+/// feature differences, 3 × 9 FMAs and LP-PIXEL-TEST's squared miss (6);
+/// once, the test's 3×3 variance mean (27 adds) and threshold (~30).
 pub fn flops_per_pixel() -> f64 {
-    19.0 * 4.0 + 5.0 * 19.0 * 4.0 + 30.0 * 100.0 + 60.0
+    19.0 * 4.0 + 5.0 * 19.0 * 4.0 + 30.0 * 106.0 + 60.0 + 57.0
 }
 
 /// Records the gather over the rows `[first, end)` (`first` a multiple of
@@ -86,6 +93,7 @@ pub fn record(
     b.extend_from_slice(&inp.feat);
     b.extend_from_slice(&inp.var);
     b.extend_from_slice(&inp.color);
+    b.extend_from_slice(&inp.cvar);
     b.push(inp.spp);
     b.push(reach);
     b.extend_from_slice(&state);

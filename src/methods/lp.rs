@@ -29,7 +29,7 @@ use crate::kernels::{lp_centres, lp_gather, lp_reach, lp_select};
 use crate::options::Options;
 use crate::reference;
 use crate::reference::lp::{StateLayout, GRANULARITIES};
-use crate::shared::{LpPush, LP_CENTRE_TEST, LP_VARSUB};
+use crate::shared::{LpPush, LP_CENTRE_TEST, LP_PIXEL_TEST, LP_VARSUB};
 
 /// The parameters of one LP run.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
@@ -51,6 +51,9 @@ impl LpParams {
             _ => 0,
         } | match opts.get("lp.centre_test") {
             "on" => LP_CENTRE_TEST,
+            _ => 0,
+        } | match opts.get("lp.pixel_test") {
+            "on" => LP_PIXEL_TEST,
             _ => 0,
         };
         Ok(LpParams {

@@ -413,29 +413,9 @@ pub fn feature_noise(d: &Design, beta: &[f64]) -> f64 {
     s * s
 }
 
-/// AOS-RESIDUAL (see [`pixel`]): the test's level in standard errors for
-/// many samples.
-pub const RESIDUAL_Z: f64 = 3.0;
-
 /// AOS-RESIDUAL: `vbar` below this counts as this in the window's geometric
 /// mean (a zero variance has no logarithm).
 pub const RESIDUAL_VBAR_FLOOR: f64 = 1e-20;
-
-/// AOS-RESIDUAL's threshold for a pixel of `n` samples: the one-sided
-/// `Φ(−3)` quantile of Student's t with `ν = n − 1` degrees of freedom (at
-/// least 1), by its Cornish–Fisher expansion to `ν⁻³`
-/// (`z + (z³+z)/4ν + (5z⁵+16z³+3z)/96ν² + (3z⁷+19z⁵+17z³−15z)/384ν³`).
-/// The variance the test divides by is itself estimated from the pixel's
-/// samples, so a few samples need a much larger ratio: 8.5 at 4 samples,
-/// 3.6 at 16, 3.1 at 64, 3 in the limit.
-pub fn residual_threshold(n: f64) -> f64 {
-    let nu = (n - 1.0).max(1.0);
-    let z = RESIDUAL_Z;
-    let (z3, z5, z7) = (z.powi(3), z.powi(5), z.powi(7));
-    z + (z3 + z) / (4.0 * nu)
-        + (5.0 * z5 + 16.0 * z3 + 3.0 * z) / (96.0 * nu * nu)
-        + (3.0 * z7 + 19.0 * z5 + 17.0 * z3 - 15.0 * z) / (384.0 * nu * nu * nu)
-}
 
 /// AOS-RESIDUAL's variance of the pixel itself: `max(vbar_c, v_geo)` with
 /// `v_geo = exp(Σ K_i ln max(vbar_i, floor) / Σ K_i)`, the window's
@@ -448,7 +428,7 @@ pub fn residual_centre_var(vbar_c: f64, lnsum: f64, ksum: f64) -> f64 {
 /// `res = ŷ_l − grey_c`; `res_var = Σ_i (l_i − δ_ic)² v_i` with the
 /// centre's `v` from [`residual_centre_var`]; `n` the centre's samples.
 pub fn residual_bias2(res: f64, res_var: f64, n: f64) -> f64 {
-    let z = residual_threshold(n);
+    let z = super::t_threshold3(n);
     if res * res > z * z * res_var {
         res * res - res_var
     } else {
@@ -550,7 +530,7 @@ pub struct Pixel {
 /// Decision AOS-RESIDUAL (ours; option `aos.residual`): an order's own
 /// residual at the centre bounds its bias from below. `res = ŷ_l − grey_c`
 /// has `E[res²] = bias_l² + Σ_i (l_i − δ_ic)² v_i`. Where `res²` exceeds
-/// that variance [`residual_threshold`]`(n_c)²` times, `res² − res_var`
+/// that variance [`t_threshold3`](super::t_threshold3)`(n_c)²` times, `res² − res_var`
 /// replaces `bias_l²` if larger. The order-5 fit only sees the bias that
 /// powers 2–5 of the same features explain; a fit that is off because the
 /// features do not explain the colour (a defocused edge, the ceiling next

@@ -4,9 +4,13 @@
 //! (LP-FEATNOISE) and local dimension from them.
 
 use super::lp::{state_value, Planes, StateLayout as S, RADIUS};
-use super::spp_of;
 use super::wlr::D;
-use crate::shared::LpPush;
+use super::{spp_of, t_threshold3, valid_mean_3x3};
+use crate::shared::{LpPush, LP_PIXEL_TEST};
+
+/// LP-PIXEL-TEST: the smallest variance the test divides by (a pixel and
+/// neighbourhood of zero variance reject any miss above ~1e-10).
+pub const PIXEL_TEST_VAR_FLOOR: f64 = 1e-20;
 
 /// Output planes: colour R G B (clamped ≥ 0); error R G B, the estimated
 /// MSE `E_i[ch] = mean_c max(ξ̂_c,ch(r_opt), 0) + (Σ_j |ū[ch][j]| σ_ij)²`
@@ -18,13 +22,25 @@ use crate::shared::LpPush;
 /// correlated, as it is where a pixel straddles an edge); ΔMSE R G B
 /// (`E_i·n_i^{-4/(d_i+4)}`, §9.1, for sampling); coverage count; the local
 /// dimension `d_i = mean_c k_c`.
+///
+/// Decision LP-PIXEL-TEST (ours, `lp.pixel_test`, [`LP_PIXEL_TEST`]): a
+/// centre's prediction `f_c(i)` enters pixel i's average only if
+/// `Σ_ch (f_c(i)[ch] − y_i[ch])² <= t² · max(Σ_ch v_i[ch], v̄_i)`, with `t`
+/// = [`t_threshold3`]`(n_i)` and `v̄_i` the mean of `Σ_ch v` over i's valid
+/// 3×3 neighbourhood (i included; a pixel whose few samples happen to agree
+/// has a variance estimate far below its true one). A centre's window is
+/// chosen by its mean error over the window (§3.4), so a centre on a bright,
+/// noisy highlight takes a 19×19 window whose linear model, dominated by the
+/// highlight, predicts ~3 at dark pixels of 0.08 several pixels away: the
+/// mean hides them. If every covering centre is left out, i keeps its input
+/// colour with `E_i = v_i`, `ΔMSE = v_i/n_i` (`d = 0`) and coverage 0.
 pub const OUTPUTS: usize = 11;
 
 /// For every pixel (`row0` ignored). `state` = the vec4 state planes after
 /// the last pass, `reach` their [`lp_reach`](super::lp_reach) plane. An invalid pixel gets the mean colour of its valid 3×3
 /// neighbours (§0.2), error, ΔMSE, coverage and dimension 0. A valid pixel
-/// no centre covers (impossible after the last pass, §3.5) keeps its input
-/// colour with the others 0.
+/// no centre predicts (all left out by LP-PIXEL-TEST; without it,
+/// impossible after the last pass, §3.5) keeps its input colour.
 pub fn lp_gather(
     push: &LpPush,
     p: &Planes,
@@ -35,10 +51,27 @@ pub fn lp_gather(
     assert_eq!(out.len(), OUTPUTS, "lp_gather: output planes");
     let (w, h) = (p.width, p.height);
     assert_eq!((push.width as usize, push.height as usize), (w, h));
-    super::wlr::par_pixels::<OUTPUTS>(w, h, out, |x, y| pixel(p, reach, state, x, y));
+    let test = push.options & LP_PIXEL_TEST != 0;
+    super::wlr::par_pixels::<OUTPUTS>(w, h, out, |x, y| pixel(p, reach, state, test, x, y));
 }
 
-fn pixel(p: &Planes, reach: &[f32], state: &[Vec<f32>], x: usize, y: usize) -> [f32; OUTPUTS] {
+/// LP-PIXEL-TEST's limit on the squared miss `Σ_ch (f − y_i)²` at the valid
+/// pixel `i` (see [`OUTPUTS`]).
+fn pixel_test_limit(p: &Planes, i: usize) -> f64 {
+    let vsum = |q: usize| p.colour(q).1.iter().sum::<f64>();
+    let vbar = valid_mean_3x3(p.width, p.height, i, |q| p.valid(q), vsum);
+    let t = t_threshold3(spp_of(p.spp[i]));
+    t * t * vsum(i).max(vbar).max(PIXEL_TEST_VAR_FLOOR)
+}
+
+fn pixel(
+    p: &Planes,
+    reach: &[f32],
+    state: &[Vec<f32>],
+    test: bool,
+    x: usize,
+    y: usize,
+) -> [f32; OUTPUTS] {
     let (w, h) = (p.width, p.height);
     let i = y * w + x;
     let mut o = [0.0f32; OUTPUTS];
@@ -71,6 +104,8 @@ fn pixel(p: &Planes, reach: &[f32], state: &[Vec<f32>], x: usize, y: usize) -> [
     }
     let xi_ = p.features(x, y);
     let n_i = spp_of(p.spp[i]);
+    let (y_i, v_i) = p.colour(i);
+    let limit = test.then(|| pixel_test_limit(p, i));
     // Predictions are summed relative to the first one, so that equal
     // predictions average exactly (a constant image is returned exactly).
     let mut first = [0.0; 3];
@@ -95,17 +130,23 @@ fn pixel(p: &Planes, reach: &[f32], state: &[Vec<f32>], x: usize, y: usize) -> [
                 continue;
             }
             let xc = p.features(qx, qy);
+            let f: [f64; 3] = std::array::from_fn(|ch| {
+                (0..D).fold(st(S::BETA0 + ch), |f, j| {
+                    f + st(S::U + 9 * ch + j) * (xi_[j] - xc[j])
+                })
+            });
+            let miss2: f64 = (0..3).map(|ch| (f[ch] - y_i[ch]).powi(2)).sum();
+            if limit.is_some_and(|l| miss2 > l) {
+                continue;
+            }
             for ch in 0..3 {
-                let mut f = st(S::BETA0 + ch);
                 for j in 0..D {
-                    let u = st(S::U + 9 * ch + j);
-                    f += u * (xi_[j] - xc[j]);
-                    usum[ch][j] += u;
+                    usum[ch][j] += st(S::U + 9 * ch + j);
                 }
                 if count == 0 {
-                    first[ch] = f;
+                    first[ch] = f[ch];
                 }
-                pred[ch] += f - first[ch];
+                pred[ch] += f[ch] - first[ch];
                 err[ch] += st(S::XI + ch).max(0.0);
             }
             dim += st(S::K);
@@ -113,9 +154,13 @@ fn pixel(p: &Planes, reach: &[f32], state: &[Vec<f32>], x: usize, y: usize) -> [
         }
     }
     if count == 0 {
-        let (c, _) = p.colour(i);
+        // No centre predicts i (only LP-PIXEL-TEST leaves a valid pixel
+        // so): its input, whose error is its variance of the mean, falling
+        // as 1/n (d = 0).
         for ch in 0..3 {
-            o[ch] = c[ch].max(0.0) as f32;
+            o[ch] = y_i[ch].max(0.0) as f32;
+            o[3 + ch] = v_i[ch] as f32;
+            o[6 + ch] = (v_i[ch] / n_i) as f32;
         }
         return o;
     }

@@ -57,6 +57,23 @@ pub mod wlr;
 pub mod wlr_final;
 pub mod wlr_fit;
 
+/// A 3σ test's threshold for a mean whose variance is estimated from its own
+/// `n` samples: the one-sided `Φ(−3)` quantile of Student's t with
+/// `ν = max(n − 1, 1)` degrees of freedom, by its Cornish–Fisher expansion
+/// to `ν⁻³` (`z + (z³+z)/4ν + (5z⁵+16z³+3z)/96ν² +
+/// (3z⁷+19z⁵+17z³−15z)/384ν³`, `z = 3`). The variance the test divides by
+/// is itself estimated, so a few samples need a much larger ratio: 8.5 at 4
+/// samples, 3.6 at 16, 3.1 at 64, 3 in the limit. AOS-RESIDUAL and
+/// LP-PIXEL-TEST; GLSL `t_threshold3` in `spirv/lib/common.glsl`.
+pub fn t_threshold3(n: f64) -> f64 {
+    let nu = (n - 1.0).max(1.0);
+    let z: f64 = 3.0;
+    let (z3, z5, z7) = (z.powi(3), z.powi(5), z.powi(7));
+    z + (z3 + z) / (4.0 * nu)
+        + (5.0 * z5 + 16.0 * z3 + 3.0 * z) / (96.0 * nu * nu)
+        + (3.0 * z7 + 19.0 * z5 + 17.0 * z3 - 15.0 * z) / (384.0 * nu * nu * nu)
+}
+
 /// §0.2: the output of an invalid pixel `i` of a `w × h` image, the mean
 /// of `value` over the valid pixels of its 3×3 neighbourhood in raster
 /// order (0 if none). Every method's fill (WLR, APR, AOS and their twins).
