@@ -470,7 +470,7 @@ fn per_method_constants() {
     assert_eq!(p(Method::Wlr).eps, 1e-3);
     assert_eq!(p(Method::Wlr).sigma_s, 1.0);
     assert_eq!(p(Method::Wlr).dim, DimSource::Kflags);
-    assert!(p(Method::Lp).e_is_dmse && p(Method::Lp).sigma_s == 0.0);
+    assert!(p(Method::Lp).e_is_dmse && p(Method::Lp).sigma_s == 1.0);
     assert_eq!(p(Method::Apr).eps, 1e-3);
     assert_eq!(p(Method::Aos).eps, 1e-4);
     // Ours (MAP-SMOOTH-APR, MAP-SMOOTH-AOS): the spec's σs is 0.
