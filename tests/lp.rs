@@ -519,7 +519,14 @@ fn lp_gather_matches_twin() {
                 for (k, name) in lp_gather::OUTPUTS.iter().enumerate() {
                     assert_close(&format!("{what} {prec:?} {name}"), &out[k], &cpu[k], 0.99);
                 }
-                assert_eq!(out[9], cpu[9], "{what}: coverage counts");
+                if pixel_test == 0 {
+                    assert_eq!(out[9], cpu[9], "{what}: coverage counts");
+                } else {
+                    // LP-PIXEL-TEST compares a prediction with a limit: f32
+                    // and f64 may fall on either side where they are close.
+                    let same = agreement(&out[9], &cpu[9]);
+                    assert!(same >= 0.999, "{what}: coverage counts agree on {same}");
+                }
             }
         }
     }

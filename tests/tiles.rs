@@ -204,7 +204,7 @@ fn a_memory_cap_tiles_automatically_and_identically() {
     let a = whole.denoise(&img, None).unwrap();
     drop(whole);
     // A cap of 75 % of what the whole chain holds: tiles of ≈ 120 px
-    // (plus 2 × 172 of halo and up to 15 of alignment) fit it.
+    // (plus 2 × 175 of halo and up to 15 of alignment) fit it.
     let cap = whole_bytes * 3 / 4;
     let capped = Config {
         max_memory: Some(cap),

@@ -1,7 +1,7 @@
 //! `lp_gather`: LP's output (spec §3.5). Every pixel scans its 19×19
 //! neighbourhood of the centre state in raster order and averages the
 //! predictions `β_c + u_c·(x_i − x_c)` of the centres that cover it
-//! (`|i − c|_inf <= r_opt(c)`), their `max(ξ̂_c, 0)`, maps `u_c` and ranks
+//! (`|i − c|_inf <= r_opt(c)`; less those LP-PIXEL-TEST leaves out), their `max(ξ̂_c, 0)`, maps `u_c` and ranks
 //! `k_c`. Error estimate (LP-FEATNOISE): `E_i = mean max(ξ̂_c, 0) +
 //! (Σ_j |ū_j| σ_ij)²` (`σ_ij² = var(x_ij)`); local dimension `d_i = mean k_c`;
 //! `ΔMSE = E_i·n_i^{-4/(d_i+4)}` (§9.1). With LP-PIXEL-TEST

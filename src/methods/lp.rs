@@ -8,8 +8,9 @@
 //!               passes in its row that reach it (PASS-SNAPSHOT)
 //!   lp_centres  on the candidate grid of g: uncovered candidates → TSVD + RLS + r_opt
 //! lp_reach      once more, over every pass, for the gather
-//! lp_gather     every pixel: mean of the covering centres' predictions, error
-//!               (LP-FEATNOISE), local dimension d, ΔMSE
+//! lp_gather     every pixel: mean of the covering centres' predictions (less
+//!               those LP-PIXEL-TEST leaves out), error (LP-FEATNOISE),
+//!               local dimension d, ΔMSE
 //! ```
 //!
 //! [`record_lp`] records them on GPU-resident, sanitised statistics
@@ -221,7 +222,8 @@ impl LpPlanes {
     }
 
     /// The local dimension `d_i` per pixel (§9.1): the mean TSVD rank `k_c`
-    /// of the centres that cover it (0 at invalid pixels).
+    /// of the centres that predict it (0 at invalid pixels and where
+    /// LP-PIXEL-TEST left every centre out).
     pub fn dim(&self) -> BufferSlice {
         self.out.plane(10)
     }
@@ -342,21 +344,23 @@ fn is_centre(centre_pass: f32) -> bool {
 /// What an LP run gives back on the host.
 #[derive(Clone, Debug)]
 pub struct LpResult {
-    /// The reconstruction (§3.5: mean of the covering centres' predictions),
-    /// clamped to ≥ 0.
+    /// The reconstruction (§3.5: mean of the covering centres' predictions,
+    /// less those LP-PIXEL-TEST leaves out; the input where it leaves out
+    /// all), clamped to ≥ 0.
     pub color: RgbImage,
     /// Estimated MSE per pixel and channel (LP-FEATNOISE):
     /// `E_i[ch] = mean_c max(ξ̂_c,ch, 0) + (Σ_j |ū[ch][j]| σ_ij)²` over the
-    /// centres c covering i, `ū = mean_c u_c`, `σ_ij² = var(x_ij)` (≥ 0; 0
-    /// at invalid pixels; see `reference::lp_gather::OUTPUTS`).
+    /// centres c predicting i, `ū = mean_c u_c`, `σ_ij² = var(x_ij)` (≥ 0; 0
+    /// at invalid pixels, `v_i` where no centre predicts i; see
+    /// `reference::lp_gather::OUTPUTS`).
     pub error: RgbImage,
     /// ΔMSE per pixel and channel, `E_i·n_i^{-4/(d_i+4)}` (§3.5, §9.1), for
     /// sampling.
     pub dmse: RgbImage,
-    /// Covering centres per pixel.
+    /// Centres per pixel that cover it and predict it (LP-PIXEL-TEST).
     pub coverage: Vec<f32>,
-    /// Local dimension `d_i` per pixel (§9.1): mean `k_c` of the covering
-    /// centres (0 at invalid pixels).
+    /// Local dimension `d_i` per pixel (§9.1): mean `k_c` of the centres
+    /// that predict it (0 at invalid pixels and where none does).
     pub dim: Vec<f32>,
     /// Per pixel: pass + 1 of the pass that made it a centre (1..=5), 0
     /// elsewhere.

@@ -30,7 +30,7 @@
 //!
 //! | stage | adds | why |
 //! |---|---|---|
-//! | sample map priority, MAP-SMOOTH (§9.1) | `ceil(3 σs)`: WLR 3, APR 12, AOS 6, LP and none 0 | `G_σs(r)` |
+//! | sample map priority, MAP-SMOOTH (§9.1) | `ceil(3 σs)`: WLR and LP 3, APR 12, AOS 6, none 0 | `G_σs(r)` |
 //! | outlier redistribution (§4.4 step 4) | 86 | `ŷ_final(i)` sums `ρ_o` over `o ∈ Ω_i(43)`, and `ρ_o` sums `ŷ` over `Ω_o(43)` |
 //! | WLR (§2.3) | `R + 3`: 12 final, 8 intermediate | fits over `Ω_c(R)`; `hbar = G_1(h_opt)` (3) |
 //! | LP (§3.5) | `9·(P + 1)` = 54 | pass `t`'s centres depend on the reach of the centres of earlier passes within 9, each fitted over its 19×19 window: `9(t + 1)` for `t < P = 5`; the gather reads the centres within 9 |
@@ -41,7 +41,7 @@
 //! | sanitation (§0.4) | 5 | step 1: 3×3 (1); then step 3 (5×5: 2) or step 4 (3×3 residuals, 7×7 MAD: 4) |
 //!
 //! With the defaults (final pass, outlier stage on, prefilter on): WLR 133,
-//! LP 172, APR 200, AOS 141, and `none` 5 (it runs no outlier stage and no
+//! LP 175, APR 200, AOS 141, and `none` 5 (it runs no outlier stage and no
 //! prefilter by default). [`halo`] computes it for any configuration.
 
 use std::collections::BTreeMap;
