@@ -181,25 +181,31 @@ void main()
         // by more than t_threshold3(n_i) standard errors (all channels
         // together) does not predict i. The variance is the larger of i's
         // and the mean over its valid 3x3 neighbourhood (raster order, i
-        // included): a pixel whose few samples all agree has a variance
-        // estimate far below its true one.
+        // included) without its largest value: a pixel whose few samples all
+        // agree has a variance estimate far below its true one, and the local
+        // noise says so; a single neighbour on the edge of a bright light
+        // does not.
         real3 y_i = real3(col_r[i], col_g[i], col_b[i]);
         real lim = real(-1);
         if ((push.options & LP_PIXEL_TEST) != 0u) {
             real vn = real(0);
+            real vmax = real(0);
             int nn = 0;
             for (int qy = max(p.y - 1, 0); qy <= min(p.y + 1, size.y - 1); ++qy) {
                 for (int qx = max(p.x - 1, 0); qx <= min(p.x + 1, size.x - 1); ++qx) {
                     uint q = uint(qy) * push.width + uint(qx);
                     if (spp_of(spp[q]) >= 1.0) {
-                        vn += real(cv_r[q]) + real(cv_g[q]) + real(cv_b[q]);
+                        real vq = real(cv_r[q]) + real(cv_g[q]) + real(cv_b[q]);
+                        vn += vq;
+                        vmax = max(vmax, vq);
                         ++nn;
                     }
                 }
             }
             real v_i = real(cv_r[i]) + real(cv_g[i]) + real(cv_b[i]);
             real tz = t_threshold3(n_i);
-            lim = tz * tz * max(max(v_i, vn / real(nn)), real(PIXEL_TEST_VAR_FLOOR));
+            real vbar = nn > 1 ? (vn - vmax) / real(nn - 1) : vn;
+            lim = tz * tz * max(max(v_i, vbar), real(PIXEL_TEST_VAR_FLOOR));
         }
         // The reach plane and state planes 1..8 are rings of push.ring_rows
         // rows (LpPush::ring_rows).

@@ -5,7 +5,7 @@
 
 use super::lp::{state_value, Planes, StateLayout as S, RADIUS};
 use super::wlr::D;
-use super::{spp_of, t_threshold3, valid_mean_3x3};
+use super::{spp_of, t_threshold3};
 use crate::shared::{LpPush, LP_PIXEL_TEST};
 
 /// LP-PIXEL-TEST: the smallest variance the test divides by (a pixel and
@@ -27,8 +27,10 @@ pub const PIXEL_TEST_VAR_FLOOR: f64 = 1e-20;
 /// centre's prediction `f_c(i)` enters pixel i's average only if
 /// `Σ_ch (f_c(i)[ch] − y_i[ch])² <= t² · max(Σ_ch v_i[ch], v̄_i)`, with `t`
 /// = [`t_threshold3`]`(n_i)` and `v̄_i` the mean of `Σ_ch v` over i's valid
-/// 3×3 neighbourhood (i included; a pixel whose few samples happen to agree
-/// has a variance estimate far below its true one). A centre's window is
+/// 3×3 neighbourhood without its largest value (i included; a pixel whose
+/// few samples happen to agree has a variance estimate far below its true
+/// one, and the local level of noise says so; one neighbour that straddles
+/// the edge of a bright light does not). A centre's window is
 /// chosen by its mean error over the window (§3.4), so a centre on a bright,
 /// noisy highlight takes a 19×19 window whose linear model, dominated by the
 /// highlight, predicts ~3 at dark pixels of 0.08 several pixels away: the
@@ -59,7 +61,26 @@ pub fn lp_gather(
 /// pixel `i` (see [`OUTPUTS`]).
 fn pixel_test_limit(p: &Planes, i: usize) -> f64 {
     let vsum = |q: usize| p.colour(q).1.iter().sum::<f64>();
-    let vbar = valid_mean_3x3(p.width, p.height, i, |q| p.valid(q), vsum);
+    let (w, h) = (p.width, p.height);
+    let (x, y) = (i % w, i / w);
+    let (mut sum, mut max, mut n) = (0.0f64, 0.0f64, 0usize);
+    for qy in y.saturating_sub(1)..(y + 2).min(h) {
+        for qx in x.saturating_sub(1)..(x + 2).min(w) {
+            let q = qy * w + qx;
+            if p.valid(q) {
+                let v = vsum(q);
+                sum += v;
+                max = max.max(v);
+                n += 1;
+            }
+        }
+    }
+    // The mean without the largest value (the pixel itself is valid: n >= 1).
+    let vbar = if n > 1 {
+        (sum - max) / (n - 1) as f64
+    } else {
+        sum
+    };
     let t = t_threshold3(spp_of(p.spp[i]));
     t * t * vsum(i).max(vbar).max(PIXEL_TEST_VAR_FLOOR)
 }
