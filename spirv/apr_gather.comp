@@ -96,6 +96,23 @@ void main()
             od = real(1);
             ox = real(0);
         } else {
+            real vs = real(0), vmax = real(0);
+            int nn = 0;
+            for (int qy = max(p.y - 1, 0); qy <= min(p.y + 1, size.y - 1); ++qy) {
+                for (int qx = max(p.x - 1, 0); qx <= min(p.x + 1, size.x - 1); ++qx) {
+                    uint q = uint(qy * size.x + qx);
+                    if (apr_valid(q)) {
+                        real vq = vof(ch, q);
+                        vs += vq;
+                        vmax = max(vmax, vq);
+                        ++nn;
+                    }
+                }
+            }
+            real vbar = nn > 1 ? (vs - vmax) / real(nn - 1) : vs;
+            real tz = t_threshold3(real(spp_of(spp[i])));
+            real lim = tz * tz * max(max(vi, vbar), real(1e-20));
+            bool missed = false;
             real ws = real(0), ay = real(0), as_ = real(0), ae = real(0), ad = real(0);
             for (int cy = apr_first_centre(p.y); cy <= min(p.y + APR_R, size.y - 1); cy += APR_R) {
                 for (int cx = apr_first_centre(p.x); cx <= min(p.x + APR_R, size.x - 1); cx += APR_R) {
@@ -112,9 +129,14 @@ void main()
                     real4 isb = mix(real4(0), real4(1) / max(sb, real4(1e-30)), greaterThan(sb, real4(0)));
                     apr_row(p - ivec2(cx, cy), fa, fb, apr_fa(c), apr_fb(c), isa, isb, x0, x1, x2, x3, x4);
                     real k = apr_weight(p.x - cx, p.y - cy);
+                    real py = dot(x0, st4(b + 4u)) + dot(x1, st4(b + 8u)) + dot(x2, st4(b + 12u))
+                        + dot(x3, st4(b + 16u)) + dot(x4, real4(state[b + 20u], state[b + 21u], 0, 0));
+                    if ((py - yi) * (py - yi) > lim) {
+                        missed = true;
+                        continue;
+                    }
                     ws += k;
-                    ay += k * (dot(x0, st4(b + 4u)) + dot(x1, st4(b + 8u)) + dot(x2, st4(b + 12u))
-                        + dot(x3, st4(b + 16u)) + dot(x4, real4(state[b + 20u], state[b + 21u], 0, 0)));
+                    ay += k * py;
                     if (!last) {
                         as_ += k * (dot(x0, st4(b + 22u)) + dot(x1, st4(b + 26u)) + dot(x2, st4(b + 30u))
                             + dot(x3, st4(b + 34u)) + dot(x4, real4(state[b + 38u], state[b + 39u], 0, 0)));
@@ -128,6 +150,12 @@ void main()
                 os = as_ / ws;
                 oe = ae / ws;
                 od = ad / ws;
+                ox = real(0);
+            } else if (missed) {
+                oy = yi;
+                os = sqrt(max(vi, real(0)));
+                oe = vi;
+                od = real(0);
                 ox = real(0);
             } else {
                 uint e = 4u * uint(ch) * st + i;
