@@ -4,6 +4,11 @@
 // (raster order) that accept the pixel, of the block's x_i^T beta_y (and
 // x_i^T beta_s before the last stage), xi and tr H; a valid pixel no block
 // accepts takes its extra block's values (apr_block.comp, extra mode).
+// APR-PIXEL-TEST (push.flags & APR_PIXEL_TEST, ours): a block whose
+// prediction x_i^T beta_y misses y_i by more than t_threshold3(n_i)
+// standard errors (variance: the larger of v_i and the channel's 3x3 mean
+// of v without its largest value) is left out; a pixel whose accepting
+// blocks are all left out keeps y_i, error v_i, dimension 0.
 // Last stage (push.last = 1): colour (clamped >= 0), error, the mean over
 // the channels of tr H (local dimension d_i), extra mask: 10 planes.
 // Earlier stages: y-hat and sigma-hat^2 (the blend of H s, squared): 6
@@ -47,6 +52,9 @@ PLANE_IN(16, extra)
 PLANE_OUT(17, dst)
 
 #include "lib/apr.glsl"
+
+// mcdenoise::shared::APR_PIXEL_TEST.
+#define APR_PIXEL_TEST 4u
 
 real yof(int ch, uint i) { return real(ch == 0 ? col_r[i] : (ch == 1 ? col_g[i] : col_b[i])); }
 real vof(int ch, uint i) { return real(ch == 0 ? var_r[i] : (ch == 1 ? var_g[i] : var_b[i])); }
@@ -111,7 +119,8 @@ void main()
             }
             real vbar = nn > 1 ? (vs - vmax) / real(nn - 1) : vs;
             real tz = t_threshold3(real(spp_of(spp[i])));
-            real lim = tz * tz * max(max(vi, vbar), real(1e-20));
+            // APR-PIXEL-TEST off: no limit.
+            real lim = (push.flags & APR_PIXEL_TEST) != 0u ? tz * tz * max(max(vi, vbar), real(1e-20)) : real(-1);
             bool missed = false;
             real ws = real(0), ay = real(0), as_ = real(0), ae = real(0), ad = real(0);
             for (int cy = apr_first_centre(p.y); cy <= min(p.y + APR_R, size.y - 1); cy += APR_R) {
@@ -131,7 +140,7 @@ void main()
                     real k = apr_weight(p.x - cx, p.y - cy);
                     real py = dot(x0, st4(b + 4u)) + dot(x1, st4(b + 8u)) + dot(x2, st4(b + 12u))
                         + dot(x3, st4(b + 16u)) + dot(x4, real4(state[b + 20u], state[b + 21u], 0, 0));
-                    if ((py - yi) * (py - yi) > lim) {
+                    if (lim >= real(0) && (py - yi) * (py - yi) > lim) {
                         missed = true;
                         continue;
                     }

@@ -139,6 +139,13 @@ pub const OPTIONS: &[OptionSpec] = &[
         help: "block kernel K_h divided by max(var, 1) per channel (clamped), as WLR's outlier weight, or K_h alone (off, the paper)",
     },
     OptionSpec {
+        key: "apr.pixel_test",
+        kind: Kind::Choice(&["on", "off"]),
+        default: "on",
+        section: "§4.3",
+        help: "a block whose prediction misses a pixel's own mean by more than 3 standard errors (Student's t for its sample count) does not predict that pixel (ours, as lp.pixel_test; off: the spec)",
+    },
+    OptionSpec {
         key: "apr.prefilter",
         kind: Kind::Choice(&["off", "on"]),
         default: "off",

@@ -252,7 +252,7 @@ pub struct AprPush {
     pub mode: u32,
     /// 1 on the last stage: no `β_s`; `apr_gather` writes the final planes.
     pub last: u32,
-    /// Bits: [`APR_VIS`], [`APR_CLAMPED`].
+    /// Bits: [`APR_VIS`], [`APR_CLAMPED`], [`APR_PIXEL_TEST`].
     pub flags: u32,
     /// f32 values from one plane to the next in the packed bindings.
     pub stride: u32,
@@ -264,6 +264,11 @@ pub const APR_VIS: u32 = 1;
 /// [`AprPush::flags`] bit (`apr_block`): the block kernel is `K_h·o_i`,
 /// `o_i = 1/max(v_i, 1)` (APR-OUTLIER-W).
 pub const APR_CLAMPED: u32 = 2;
+/// [`AprPush::flags`] bit (`apr_gather`): APR-PIXEL-TEST (`apr.pixel_test =
+/// on`): a block whose prediction misses a pixel's own mean by more than
+/// [`t_threshold3`](crate::reference::t_threshold3) standard errors does
+/// not predict that pixel (ours, after LP-PIXEL-TEST).
+pub const APR_PIXEL_TEST: u32 = 4;
 
 /// [`LpPush::options`] bit: subtract the test pixel's variance (LP-VARSUB, `s = 1`).
 pub const LP_VARSUB: u32 = 1;

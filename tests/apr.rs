@@ -170,7 +170,7 @@ fn implicit_error_equals_explicit_hat_matrix() {
 fn constant_and_zero_variance_images_are_reproduced() {
     let mut img = random(45, 31, 4);
     img.y = vec![0.37; img.w * img.h];
-    let res = r::channel(&img.planes(), 2, r::BLOCK);
+    let res = r::channel(&img.planes(), 2, r::BLOCK, None);
     for (i, &v) in res.color.iter().enumerate() {
         if img.valid[i] {
             assert!((v - 0.37).abs() < 1e-12, "pixel {i}: {v}");
@@ -178,7 +178,7 @@ fn constant_and_zero_variance_images_are_reproduced() {
     }
     let mut img = random(45, 31, 5);
     img.v = vec![0.0; img.w * img.h];
-    let res = r::channel(&img.planes(), 2, r::BLOCK);
+    let res = r::channel(&img.planes(), 2, r::BLOCK, None);
     for (i, &v) in res.color.iter().enumerate() {
         if img.valid[i] {
             assert!(
@@ -215,7 +215,7 @@ fn one_sample_clusters_do_not_bleed_into_their_blocks() {
     }
     // Worst deviation from 0.1 at the pixels at least 3 from the cluster.
     let worst = |block: r::Shape| -> f64 {
-        let res = r::channel(&img.planes(), 2, block);
+        let res = r::channel(&img.planes(), 2, block, None);
         (0..n)
             .filter(|&i| (i / w).abs_diff(21) >= 3 || (i % w).abs_diff(28) >= 4)
             .map(|i| (res.color[i] - 0.1).abs())

@@ -22,6 +22,8 @@ pub struct Img {
     pub spp: Vec<f32>,
     /// APR-OUTLIER-W in the twins' inputs.
     pub clamped: bool,
+    /// APR-PIXEL-TEST in the gather (the default).
+    pub pixel_test: bool,
 }
 
 pub fn image(w: usize, h: usize, seed: u64, vis: bool) -> Img {
@@ -73,6 +75,7 @@ pub fn image(w: usize, h: usize, seed: u64, vis: bool) -> Img {
         feats,
         spp,
         clamped: true,
+        pixel_test: true,
     }
 }
 
@@ -88,6 +91,7 @@ impl Img {
             feats: std::array::from_fn(|j| self.feats.get(j).map(|f| f.as_slice())),
             spp: &self.spp,
             clamped: self.clamped,
+            pixel_test: self.pixel_test,
         }
     }
 }
@@ -207,7 +211,7 @@ fn twin_run_equals_the_reference_channel() {
         for ch in 0..3 {
             let rc = RefChannel::new(&img, ch);
             let valid = &rc.valid;
-            let res = r::channel(&rc.planes(), 2, shape);
+            let res = r::channel(&rc.planes(), 2, shape, Some(&img.spp));
             for i in 0..img.w * img.h {
                 if !valid[i] {
                     continue;
@@ -292,6 +296,7 @@ fn gpu_kernels_match_the_twins() {
                     stages: 2,
                     prefilter: false,
                     clamped,
+                    pixel_test: img.pixel_test,
                 },
             )
             .unwrap();

@@ -17,7 +17,7 @@ use crate::options::Options;
 use crate::reference::apr::{self as r, Planes};
 use crate::reference::apr_block::{grid, RADIUS, STATE};
 use crate::reference::spp_of;
-use crate::shared::{AprPush, APR_CLAMPED, APR_VIS};
+use crate::shared::{AprPush, APR_CLAMPED, APR_PIXEL_TEST, APR_VIS};
 
 /// APR's options.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
@@ -34,6 +34,9 @@ pub struct AprParams {
     /// `K_h·o_i`, `o_i = 1/max(v_i, 1)` (decision APR-OUTLIER-W, see
     /// [`r::outlier_weight`]).
     pub clamped: bool,
+    /// `apr.pixel_test=on` (default): APR-PIXEL-TEST (see
+    /// `reference::apr_gather::apr_gather`).
+    pub pixel_test: bool,
 }
 
 impl AprParams {
@@ -52,6 +55,7 @@ impl AprParams {
             stages,
             prefilter: opts.get("apr.prefilter") == "on",
             clamped: opts.get("apr.outlier_weight") == "clamped",
+            pixel_test: opts.get("apr.pixel_test") == "on",
         })
     }
 }
@@ -143,7 +147,13 @@ pub fn run_cpu(
             feats: &feats,
             valid: &valid,
         };
-        let res = r::channel(&pl, params.stages, r::block_shape(params.clamped));
+        let spp = &need(Layer::Spp)?[0];
+        let res = r::channel(
+            &pl,
+            params.stages,
+            r::block_shape(params.clamped),
+            params.pixel_test.then_some(spp.as_slice()),
+        );
         for i in 0..n {
             let out = if valid[i] {
                 res.color[i]
@@ -327,7 +337,7 @@ pub fn record_apr(
             width: w as u32,
             height: h as u32,
             last: last as u32,
-            flags: apr_flags(vis, false),
+            flags: apr_flags(vis, false) | if params.pixel_test { APR_PIXEL_TEST } else { 0 },
             stride,
             ..Default::default()
         };

@@ -447,7 +447,14 @@ pub fn covering(w: usize, h: usize, i: usize, valid: &[bool]) -> Vec<usize> {
 
 /// APR on one channel (§4.2–4.3): `pl.y`, `pl.v` are the channel, features
 /// already prefiltered; `block` is [`BLOCK`] or [`BLOCK_UNWEIGHTED`].
-pub fn channel(pl: &Planes, stages: usize, block: Shape) -> ChannelResult {
+/// `pixel_test`: the sample counts for APR-PIXEL-TEST (ours, see
+/// [`pixel_test_limit`]), `None` for §4.3 as written.
+pub fn channel(
+    pl: &Planes,
+    stages: usize,
+    block: Shape,
+    pixel_test: Option<&[f32]>,
+) -> ChannelResult {
     let (w, h) = (pl.w, pl.h);
     let n = w * h;
     let s: Vec<f64> = pl.v.iter().map(|v| v.max(0.0).sqrt()).collect();
@@ -512,23 +519,37 @@ pub fn channel(pl: &Planes, stages: usize, block: Shape) -> ChannelResult {
                 dim[i] = f.trace;
                 continue;
             }
+            let limit =
+                pixel_test.map(|spp| pixel_test_limit(w, h, |q| pl.v[q], |q| pl.valid[q], spp, i));
             let (mut wsum, mut acc_y, mut acc_s, mut acc_e, mut acc_d) = (0.0, 0.0, 0.0, 0.0, 0.0);
             for &b in &cover[i] {
                 let d = &designs[b];
                 let kw = d.weight(w, i);
                 let k = fits[b].order;
+                let fy = output(d, pl, k, &by[b], i);
+                if limit.is_some_and(|l| (fy - pl.y[i]).powi(2) > l) {
+                    continue;
+                }
                 wsum += kw;
-                acc_y += kw * output(d, pl, k, &by[b], i);
+                acc_y += kw * fy;
                 if !last {
                     acc_s += kw * output(d, pl, k, &bs[b], i);
                 }
                 acc_e += kw * fits[b].xi;
                 acc_d += kw * fits[b].trace;
             }
-            ny[i] = acc_y / wsum;
-            ns[i] = acc_s / wsum;
-            err[i] = acc_e / wsum;
-            dim[i] = acc_d / wsum;
+            if wsum > 0.0 {
+                ny[i] = acc_y / wsum;
+                ns[i] = acc_s / wsum;
+                err[i] = acc_e / wsum;
+                dim[i] = acc_d / wsum;
+            } else {
+                // APR-PIXEL-TEST left out every accepting block: the input.
+                ny[i] = pl.y[i];
+                ns[i] = s[i];
+                err[i] = pl.v[i];
+                dim[i] = 0.0;
+            }
         }
         if last {
             for (b, &c) in cs.iter().enumerate() {
@@ -543,6 +564,43 @@ pub fn channel(pl: &Planes, stages: usize, block: Shape) -> ChannelResult {
         }
     }
     result
+}
+
+/// APR-PIXEL-TEST (ours, `apr.pixel_test`, after LP-PIXEL-TEST): the limit
+/// on a block's squared miss `(x_iᵀβ_y − y_i)²` at the valid pixel `i`,
+/// `t²·max(v_i, v̄_i, 1e-20)` with `t` = [`t_threshold3`](super::t_threshold3)`(n_i)`
+/// and `v̄_i` the mean of `v` over i's valid 3×3 neighbourhood (raster
+/// order, i included) without its largest value. A block above it does
+/// not predict i; a pixel whose accepting blocks are all above it keeps
+/// its input (`y_i`, error `v_i`, dimension 0). It keeps APR's blocks from
+/// painting a firefly cluster's level over dark pixels (built-in mix).
+pub fn pixel_test_limit(
+    w: usize,
+    h: usize,
+    v: impl Fn(usize) -> f64,
+    valid: impl Fn(usize) -> bool,
+    spp: &[f32],
+    i: usize,
+) -> f64 {
+    let (x, y) = (i % w, i / w);
+    let (mut sum, mut max, mut n) = (0.0f64, 0.0f64, 0usize);
+    for qy in y.saturating_sub(1)..(y + 2).min(h) {
+        for qx in x.saturating_sub(1)..(x + 2).min(w) {
+            let q = qy * w + qx;
+            if valid(q) {
+                sum += v(q);
+                max = max.max(v(q));
+                n += 1;
+            }
+        }
+    }
+    let vbar = if n > 1 {
+        (sum - max) / (n - 1) as f64
+    } else {
+        sum
+    };
+    let t = super::t_threshold3(super::spp_of(spp[i]));
+    t * t * v(i).max(vbar).max(1e-20)
 }
 
 /// The 5×5 polynomial feature prefilter (§4.6) of one feature plane with its

@@ -67,6 +67,18 @@ pub fn apr_gather(
                     0.0,
                 )
             } else {
+                let limit = pl.pixel_test.then(|| {
+                    super::apr::pixel_test_limit(
+                        w,
+                        h,
+                        |q| pl.v[q] as f64,
+                        |q| pl.valid(q),
+                        pl.spp,
+                        i,
+                    )
+                });
+                let yi = pl.y[i] as f64;
+                let mut missed = false;
                 let (mut ws, mut ay, mut as_, mut ae, mut ad) = (0.0, 0.0, 0.0, 0.0, 0.0);
                 for c in covering(w, h, i) {
                     if !pl.valid(c) || !pl.accepts(c, i) {
@@ -75,8 +87,13 @@ pub fn apr_gather(
                     let b = (c / w / r) * gw + (c % w) / r;
                     let st = &state[ch][b * STATE..(b + 1) * STATE];
                     let k = weight(w, c, i);
+                    let fy = eval(pl, st, c, i, false);
+                    if limit.is_some_and(|l| (fy - yi).powi(2) > l) {
+                        missed = true;
+                        continue;
+                    }
                     ws += k;
-                    ay += k * eval(pl, st, c, i, false);
+                    ay += k * fy;
                     if !last {
                         as_ += k * eval(pl, st, c, i, true);
                     }
@@ -85,6 +102,10 @@ pub fn apr_gather(
                 }
                 if ws > 0.0 {
                     (ay / ws, as_ / ws, ae / ws, ad / ws, 0.0)
+                } else if missed {
+                    // APR-PIXEL-TEST left out every accepting block.
+                    let v = pl.v[i] as f64;
+                    (yi, v.max(0.0).sqrt(), v, 0.0, 0.0)
                 } else {
                     let x = |k: usize| extra[ch * super::apr_gather::EXTRA_PLANES + k][i] as f64;
                     (x(0), x(1), x(2), x(3), 1.0)
