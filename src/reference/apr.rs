@@ -519,8 +519,8 @@ pub fn channel(
                 dim[i] = f.trace;
                 continue;
             }
-            let limit =
-                pixel_test.map(|spp| pixel_test_limit(w, h, |q| pl.v[q], |q| pl.valid[q], spp, i));
+            let limit = pixel_test
+                .map(|spp| super::pixel_test_limit(w, h, |q| pl.v[q], |q| pl.valid[q], spp, i));
             let (mut wsum, mut acc_y, mut acc_s, mut acc_e, mut acc_d) = (0.0, 0.0, 0.0, 0.0, 0.0);
             for &b in &cover[i] {
                 let d = &designs[b];
@@ -566,42 +566,13 @@ pub fn channel(
     result
 }
 
-/// APR-PIXEL-TEST (ours, `apr.pixel_test`, after LP-PIXEL-TEST): the limit
-/// on a block's squared miss `(x_iᵀβ_y − y_i)²` at the valid pixel `i`,
-/// `t²·max(v_i, v̄_i, 1e-20)` with `t` = [`t_threshold3`](super::t_threshold3)`(n_i)`
-/// and `v̄_i` the mean of `v` over i's valid 3×3 neighbourhood (raster
-/// order, i included) without its largest value. A block above it does
-/// not predict i; a pixel whose accepting blocks are all above it keeps
-/// its input (`y_i`, error `v_i`, dimension 0). It keeps APR's blocks from
-/// painting a firefly cluster's level over dark pixels (built-in mix).
-pub fn pixel_test_limit(
-    w: usize,
-    h: usize,
-    v: impl Fn(usize) -> f64,
-    valid: impl Fn(usize) -> bool,
-    spp: &[f32],
-    i: usize,
-) -> f64 {
-    let (x, y) = (i % w, i / w);
-    let (mut sum, mut max, mut n) = (0.0f64, 0.0f64, 0usize);
-    for qy in y.saturating_sub(1)..(y + 2).min(h) {
-        for qx in x.saturating_sub(1)..(x + 2).min(w) {
-            let q = qy * w + qx;
-            if valid(q) {
-                sum += v(q);
-                max = max.max(v(q));
-                n += 1;
-            }
-        }
-    }
-    let vbar = if n > 1 {
-        (sum - max) / (n - 1) as f64
-    } else {
-        sum
-    };
-    let t = super::t_threshold3(super::spp_of(spp[i]));
-    t * t * v(i).max(vbar).max(1e-20)
-}
+/// APR-PIXEL-TEST (ours, `apr.pixel_test`, after LP-PIXEL-TEST): a block
+/// whose squared miss `(x_iᵀβ_y − y_i)²` at the valid pixel `i` exceeds
+/// [`pixel_test_limit`] of the channel's `v` does
+/// not predict i; a pixel whose accepting blocks all do keeps its input
+/// (`y_i`, error `v_i`, dimension 0). It keeps APR's blocks from painting a
+/// firefly cluster's level over dark pixels (built-in mix).
+pub use super::pixel_test_limit;
 
 /// The 5×5 polynomial feature prefilter (§4.6) of one feature plane with its
 /// variance: every pixel a centre, no rejection, point-wise output, two

@@ -5,12 +5,10 @@
 
 use super::lp::{state_value, Planes, StateLayout as S, RADIUS};
 use super::wlr::D;
-use super::{spp_of, t_threshold3};
+use super::{pixel_test_limit, spp_of};
 use crate::shared::{LpPush, LP_PIXEL_TEST};
 
-/// LP-PIXEL-TEST: the smallest variance the test divides by (a pixel and
-/// neighbourhood of zero variance reject any miss above ~1e-10).
-pub const PIXEL_TEST_VAR_FLOOR: f64 = 1e-20;
+pub use super::PIXEL_TEST_VAR_FLOOR;
 
 /// Output planes: colour R G B (clamped ≥ 0); error R G B, the estimated
 /// MSE `E_i[ch] = mean_c max(ξ̂_c,ch(r_opt), 0) + (Σ_j |ū[ch][j]| σ_ij)²`
@@ -26,7 +24,7 @@ pub const PIXEL_TEST_VAR_FLOOR: f64 = 1e-20;
 /// Decision LP-PIXEL-TEST (ours, `lp.pixel_test`, [`LP_PIXEL_TEST`]): a
 /// centre's prediction `f_c(i)` enters pixel i's average only if
 /// `Σ_ch (f_c(i)[ch] − y_i[ch])² <= t² · max(Σ_ch v_i[ch], v̄_i)`, with `t`
-/// = [`t_threshold3`]`(n_i)` and `v̄_i` the mean of `Σ_ch v` over i's valid
+/// = [`t_threshold3`](super::t_threshold3)`(n_i)` and `v̄_i` the mean of `Σ_ch v` over i's valid
 /// 3×3 neighbourhood without its largest value (i included; a pixel whose
 /// few samples happen to agree has a variance estimate far below its true
 /// one, and the local level of noise says so; one neighbour that straddles
@@ -58,31 +56,11 @@ pub fn lp_gather(
 }
 
 /// LP-PIXEL-TEST's limit on the squared miss `Σ_ch (f − y_i)²` at the valid
-/// pixel `i` (see [`OUTPUTS`]).
-fn pixel_test_limit(p: &Planes, i: usize) -> f64 {
+/// pixel `i` (see [`OUTPUTS`]): [`pixel_test_limit`] of the summed colour
+/// variances.
+fn lp_pixel_limit(p: &Planes, i: usize) -> f64 {
     let vsum = |q: usize| p.colour(q).1.iter().sum::<f64>();
-    let (w, h) = (p.width, p.height);
-    let (x, y) = (i % w, i / w);
-    let (mut sum, mut max, mut n) = (0.0f64, 0.0f64, 0usize);
-    for qy in y.saturating_sub(1)..(y + 2).min(h) {
-        for qx in x.saturating_sub(1)..(x + 2).min(w) {
-            let q = qy * w + qx;
-            if p.valid(q) {
-                let v = vsum(q);
-                sum += v;
-                max = max.max(v);
-                n += 1;
-            }
-        }
-    }
-    // The mean without the largest value (the pixel itself is valid: n >= 1).
-    let vbar = if n > 1 {
-        (sum - max) / (n - 1) as f64
-    } else {
-        sum
-    };
-    let t = t_threshold3(spp_of(p.spp[i]));
-    t * t * vsum(i).max(vbar).max(PIXEL_TEST_VAR_FLOOR)
+    pixel_test_limit(p.width, p.height, vsum, |q| p.valid(q), p.spp, i)
 }
 
 fn pixel(
@@ -126,7 +104,7 @@ fn pixel(
     let xi_ = p.features(x, y);
     let n_i = spp_of(p.spp[i]);
     let (y_i, v_i) = p.colour(i);
-    let limit = test.then(|| pixel_test_limit(p, i));
+    let limit = test.then(|| lp_pixel_limit(p, i));
     // Predictions are summed relative to the first one, so that equal
     // predictions average exactly (a constant image is returned exactly).
     let mut first = [0.0; 3];
