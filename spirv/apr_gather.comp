@@ -104,23 +104,24 @@ void main()
             od = real(1);
             ox = real(0);
         } else {
-            real vs = real(0), vmax = real(0);
-            int nn = 0;
-            for (int qy = max(p.y - 1, 0); qy <= min(p.y + 1, size.y - 1); ++qy) {
-                for (int qx = max(p.x - 1, 0); qx <= min(p.x + 1, size.x - 1); ++qx) {
-                    uint q = uint(qy * size.x + qx);
-                    if (apr_valid(q)) {
-                        real vq = vof(ch, q);
-                        vs += vq;
-                        vmax = max(vmax, vq);
-                        ++nn;
+            // APR-PIXEL-TEST off: no limit (-1).
+            real lim = real(-1);
+            if ((push.flags & APR_PIXEL_TEST) != 0u) {
+                real vs = real(0), vmax = real(0);
+                int nn = 0;
+                for (int qy = max(p.y - 1, 0); qy <= min(p.y + 1, size.y - 1); ++qy) {
+                    for (int qx = max(p.x - 1, 0); qx <= min(p.x + 1, size.x - 1); ++qx) {
+                        uint q = uint(qy * size.x + qx);
+                        if (apr_valid(q)) {
+                            real vq = vof(ch, q);
+                            vs += vq;
+                            vmax = max(vmax, vq);
+                            ++nn;
+                        }
                     }
                 }
+                lim = pixel_test_limit(real(spp_of(spp[i])), vi, vs, vmax, nn);
             }
-            real vbar = nn > 1 ? (vs - vmax) / real(nn - 1) : vs;
-            real tz = t_threshold3(real(spp_of(spp[i])));
-            // APR-PIXEL-TEST off: no limit.
-            real lim = (push.flags & APR_PIXEL_TEST) != 0u ? tz * tz * max(max(vi, vbar), real(1e-20)) : real(-1);
             bool missed = false;
             real ws = real(0), ay = real(0), as_ = real(0), ae = real(0), ad = real(0);
             for (int cy = apr_first_centre(p.y); cy <= min(p.y + APR_R, size.y - 1); cy += APR_R) {

@@ -78,9 +78,6 @@ layout(std430, set = 0, binding = 31) buffer out_blk { float outp[]; };
 #define LP_SKIP_DMSE 4u
 #define LP_SKIP_COVERAGE 8u
 #define LP_PIXEL_TEST 32u
-// LP-PIXEL-TEST: the smallest variance the test divides by
-// (reference::lp_gather::PIXEL_TEST_VAR_FLOOR).
-#define PIXEL_TEST_VAR_FLOOR 1e-20
 
 // Raw features (px, py, nrm xyz, dep, albedo rgb) as lanes f0, f1, f8.
 void features(ivec2 p, out real4 f0, out real4 f1, out real f8)
@@ -203,9 +200,7 @@ void main()
                 }
             }
             real v_i = real(cv_r[i]) + real(cv_g[i]) + real(cv_b[i]);
-            real tz = t_threshold3(n_i);
-            real vbar = nn > 1 ? (vn - vmax) / real(nn - 1) : vn;
-            lim = tz * tz * max(max(v_i, vbar), real(PIXEL_TEST_VAR_FLOOR));
+            lim = pixel_test_limit(n_i, v_i, vn, vmax, nn);
         }
         // The reach plane and state planes 1..8 are rings of push.ring_rows
         // rows (LpPush::ring_rows).

@@ -51,3 +51,16 @@ real t_threshold3(real n)
     return z + (z3 + z) / (real(4) * nu) + (real(5) * z5 + real(16) * z3 + real(3) * z) / (real(96) * nu * nu)
         + (real(3) * z7 + real(19) * z5 + real(17) * z3 - real(15) * z) / (real(384) * nu * nu * nu);
 }
+
+// LP-PIXEL-TEST and APR-PIXEL-TEST (twin: reference::pixel_test_limit): the
+// limit on a prediction's squared miss at a valid pixel of n samples and
+// variance v_i, from the sum, largest value and count of the variances over
+// its valid 3x3 neighbourhood (i included): t_threshold3(n)^2 times the
+// larger of v_i and the neighbourhood mean without its largest value.
+#define PIXEL_TEST_VAR_FLOOR 1e-20
+real pixel_test_limit(real n, real v_i, real vsum, real vmax, int count)
+{
+    real vbar = count > 1 ? (vsum - vmax) / real(count - 1) : vsum;
+    real t = t_threshold3(n);
+    return t * t * max(max(v_i, vbar), real(PIXEL_TEST_VAR_FLOOR));
+}
