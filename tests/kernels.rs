@@ -290,6 +290,68 @@ fn tsvd_debug_matches_twin() {
     check_validation(&ctx);
 }
 
+/// NOISE-CONST (spec §0.6 step 1, ours) on the GPU: an albedo that spans
+/// only float rounding with a rounding variance, as f32 averages over
+/// different sample counts give, is constant; the depth edge keeps its
+/// component. GPU rank = twin rank = 3 along the edge (2 without the
+/// decision), in both precisions.
+#[test]
+fn tsvd_a_rounding_range_does_not_set_tau() {
+    let ctx = gpu();
+    let (w, h) = (24usize, 24usize);
+    let mut rng = Rng(5);
+    let n = w * h;
+    let mut f = vec![vec![0.0f32; n]; 7];
+    let mut v = vec![vec![0.0f32; n]; 7];
+    let spp = vec![64.0f32; n];
+    for i in 0..n {
+        let y = i / w;
+        f[2][i] = 1.0; // normal (0, 0, 1)
+        f[3][i] = (if y < h / 2 { 4.7 } else { 5.0 } + 1e-3 * rng.normal()) as f32;
+        v[3][i] = 1e-6;
+        for k in 4..7 {
+            f[k][i] = 0.73 + [0.0f32, 2e-6, -2e-6][(i * 7 + k) % 3];
+            v[k][i] = 1e-8;
+        }
+    }
+    let push = TsvdPush {
+        width: w as u32,
+        height: h as u32,
+        radius: 5,
+        ..Default::default()
+    };
+    let fr: [&[f32]; 7] = std::array::from_fn(|k| f[k].as_slice());
+    let vr: [&[f32]; 7] = std::array::from_fn(|k| v[k].as_slice());
+    let mut cpu = vec![vec![0.0f32; n]; 13];
+    reference::tsvd_debug::tsvd_debug(&push, fr, vr, &spp, &mut cpu);
+    let mut inputs: Vec<&[f32]> = fr.to_vec();
+    inputs.extend_from_slice(&vr);
+    inputs.push(&spp);
+    let edge = (0..w).map(|x| (h / 2) * w + x).collect::<Vec<_>>();
+    for &i in &edge {
+        assert_eq!(cpu[0][i], 3.0, "twin rank at {i}");
+    }
+    for p in precisions() {
+        let (out, _) = run_planes(
+            &ctx,
+            &tsvd_debug::DECL,
+            p,
+            bytemuck::bytes_of(&push),
+            w,
+            h,
+            &inputs,
+            &[n; 13],
+            tsvd_debug::flops_per_pixel(5),
+        )
+        .unwrap();
+        for &i in &edge {
+            assert_eq!(out[0][i], 3.0, "{p:?}: GPU rank at {i}");
+            assert_eq!(out[12][i], 3.0, "{p:?}: the methods' rank at {i}");
+        }
+    }
+    check_validation(&ctx);
+}
+
 /// Splitting a dispatch into row bands and several submits changes nothing:
 /// the output is bit-identical to one band in one submit (same device).
 #[test]

@@ -35,6 +35,9 @@
 #define TSVD_TAU_C 2.0
 #define TSVD_SIGMA_REL 1e-6
 #define TSVD_MIN_RANK 2
+// NOISE-CONST (reference::tsvd::NOISE_RANGE_C): a component whose window
+// range is at most this times its RMS noise sqrt(mean e2) is constant.
+#define TSVD_NOISE_RANGE_C 2.0
 
 // The kernel's feature loader (see the top of this file).
 bool load_features(ivec2 p, out real x[MAX_D], out real e2[MAX_D]);
@@ -179,16 +182,16 @@ LocalSpace tsvd_local_space_with(ivec2 c, int R, ivec2 size, bool exact_specnorm
     load_features(c, xc, e2);
     real4 xc0;
     TSVD_PACK4(xc0, xc, 0)
-    real4 mn0 = real4(0), hi0 = real4(0), sum0 = real4(0);
+    real4 mn0 = real4(0), hi0 = real4(0), sum0 = real4(0), es0 = real4(0);
 #if TSVD_D > 4
     real4 xc1;
     TSVD_PACK4(xc1, xc, 4)
-    real4 mn1 = real4(0), hi1 = real4(0), sum1 = real4(0);
+    real4 mn1 = real4(0), hi1 = real4(0), sum1 = real4(0), es1 = real4(0);
 #endif
 #if TSVD_D > 8
     real4 xc2;
     TSVD_PACK4(xc2, xc, 8)
-    real4 mn2 = real4(0), hi2 = real4(0), sum2 = real4(0);
+    real4 mn2 = real4(0), hi2 = real4(0), sum2 = real4(0), es2 = real4(0);
 #endif
     ivec2 lo = max(c - ivec2(R), ivec2(0));
     ivec2 up = min(c + ivec2(R), size - ivec2(1));
@@ -206,12 +209,18 @@ LocalSpace tsvd_local_space_with(ivec2 c, int R, ivec2 size, bool exact_specnorm
             mn0 = first ? x0 : min(mn0, x0);
             hi0 = first ? x0 : max(hi0, x0);
             sum0 += x0 - xc0;
+            real4 v0;
+            TSVD_PACK4(v0, e2, 0)
+            es0 += max(v0, real4(0));
 #if TSVD_D > 4
             real4 x1;
             TSVD_PACK4(x1, x, 4)
             mn1 = first ? x1 : min(mn1, x1);
             hi1 = first ? x1 : max(hi1, x1);
             sum1 += x1 - xc1;
+            real4 v1;
+            TSVD_PACK4(v1, e2, 4)
+            es1 += max(v1, real4(0));
 #endif
 #if TSVD_D > 8
             real4 x2;
@@ -219,6 +228,9 @@ LocalSpace tsvd_local_space_with(ivec2 c, int R, ivec2 size, bool exact_specnorm
             mn2 = first ? x2 : min(mn2, x2);
             hi2 = first ? x2 : max(hi2, x2);
             sum2 += x2 - xc2;
+            real4 v2;
+            TSVD_PACK4(v2, e2, 8)
+            es2 += max(v2, real4(0));
 #endif
             ++n;
         }
@@ -232,12 +244,16 @@ LocalSpace tsvd_local_space_with(ivec2 c, int R, ivec2 size, bool exact_specnorm
         ls.range[j] = real(0);
     }
     real4 rg0 = hi0 - mn0;
+    // NOISE-CONST: no wider than 2 RMS noise -> constant (range 0).
+    rg0 = mix(rg0, real4(0), lessThanEqual(rg0, real(TSVD_NOISE_RANGE_C) * sqrt(es0 / real(max(n, 1)))));
     real4 inv0 = tsvd_inv4(rg0);
     real4 mean0 = n > 0 ? xc0 + sum0 / real(n) : real4(0);
     TSVD_UNPACK4(ls.mn, mn0, 0)
     TSVD_UNPACK4(ls.range, rg0, 0)
 #if TSVD_D > 4
     real4 rg1 = hi1 - mn1;
+    // NOISE-CONST: no wider than 2 RMS noise -> constant (range 0).
+    rg1 = mix(rg1, real4(0), lessThanEqual(rg1, real(TSVD_NOISE_RANGE_C) * sqrt(es1 / real(max(n, 1)))));
     real4 inv1 = tsvd_inv4(rg1);
     real4 mean1 = n > 0 ? xc1 + sum1 / real(n) : real4(0);
     TSVD_UNPACK4(ls.mn, mn1, 4)
@@ -245,6 +261,8 @@ LocalSpace tsvd_local_space_with(ivec2 c, int R, ivec2 size, bool exact_specnorm
 #endif
 #if TSVD_D > 8
     real4 rg2 = hi2 - mn2;
+    // NOISE-CONST: no wider than 2 RMS noise -> constant (range 0).
+    rg2 = mix(rg2, real4(0), lessThanEqual(rg2, real(TSVD_NOISE_RANGE_C) * sqrt(es2 / real(max(n, 1)))));
     real4 inv2 = tsvd_inv4(rg2);
     real4 mean2 = n > 0 ? xc2 + sum2 / real(n) : real4(0);
     TSVD_UNPACK4(ls.mn, mn2, 8)

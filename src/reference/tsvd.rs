@@ -14,6 +14,18 @@ use super::linalg::{jacobi_eigen, JACOBI_SWEEPS, JACOBI_TOL};
 /// units) is constant: normalised to 0 with variance 0 (spec §0.6 step 1).
 pub const RANGE_EPS: f64 = 1e-6;
 
+/// Decision NOISE-CONST (ours, after spec §0.6 step 1): a component whose
+/// window range is at most `NOISE_RANGE_C` times its RMS noise,
+/// `ρ_j <= 2·sqrt(mean_i e2_ij)`, is constant too. Its standard deviation
+/// over the window is at most `ρ_j/2`, below its own noise, so step 6 could
+/// never keep it; kept in `E`, its normalised noise `e2/ρ_j²` (huge for a
+/// range of float rounding) would set `τ` for every other component. The
+/// case is real: an albedo of exactly 0.73 averaged in f32 over different
+/// sample counts (adaptive sampling) spans ~2e-6 with a rounding "variance"
+/// of ~1e-8, `‖E‖₂` became ~800, and every window along an edge fell to
+/// MINRANK's two pixel coordinates.
+pub const NOISE_RANGE_C: f64 = 2.0;
+
 /// Threshold factor `C` of `τ = C·‖E‖₂` (spec §0.6 step 5, `[WLR §4 Eq.5]`).
 pub const TAU_C: f64 = 2.0;
 
@@ -119,6 +131,11 @@ pub fn local_space_with(x: &[f64], e2: &[f64], d: usize, tol: f64, sweeps: usize
                 });
             min[j] = lo;
             range[j] = hi - lo;
+            // NOISE-CONST
+            let esum: f64 = e2.iter().skip(j).step_by(d).map(|&v| v.max(0.0)).sum();
+            if range[j] <= NOISE_RANGE_C * (esum / n as f64).sqrt() {
+                range[j] = 0.0;
+            }
         }
     }
     let mut xn = vec![0.0; n * d];
@@ -384,6 +401,33 @@ mod tests {
         let none = local_space(&[], &[], 2);
         assert_eq!((none.n, none.k), (0, 0));
         assert_eq!(none.v, vec![1.0, 0.0, 0.0, 1.0]);
+    }
+
+    /// NOISE-CONST: a component spanning only float rounding (an albedo of
+    /// 0.73 averaged in f32 over different sample counts) with a rounding
+    /// variance does not set τ for the others: a depth edge keeps its
+    /// component. Without the decision ‖E‖₂ ≈ 900 and k = MINRANK = 2.
+    #[test]
+    fn a_rounding_range_is_constant_and_does_not_set_tau() {
+        let mut rng = Rng(42);
+        let (r, d) = (9usize, 4usize);
+        let mut x = Vec::new();
+        let mut e2 = Vec::new();
+        for py in 0..2 * r + 1 {
+            for px in 0..2 * r + 1 {
+                let depth = if py < r { 4.7 } else { 5.0 } + 1e-3 * rng.next();
+                let albedo = 0.73 + 2e-6 * rng.next();
+                x.extend_from_slice(&[px as f64, py as f64, depth, albedo]);
+                e2.extend_from_slice(&[0.0, 0.0, 1e-6, 1e-8]);
+            }
+        }
+        let ls = local_space(&x, &e2, d);
+        assert_eq!(ls.range[3], 0.0, "the albedo is constant");
+        assert!(ls.range[2] > 0.29, "the depth is not");
+        assert!(ls.specnorm < 1.0, "‖E‖₂ = {}", ls.specnorm);
+        assert_eq!(ls.k, 3, "σ = {:?}, τ = {}", ls.sigma, ls.tau);
+        // The albedo's range is 2e-6, above RANGE_EPS: step 1 alone keeps it.
+        assert!(x.iter().skip(3).step_by(d).fold(0.0f64, |m, &v| m.max(v)) - 0.73 > RANGE_EPS);
     }
 
     #[test]
