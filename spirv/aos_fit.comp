@@ -160,8 +160,9 @@ real4 g_pa[D];
 real4 g_pb[D];
 real2 g_pc[D];
 real g_xc[D];
-// AOS-RESIDUAL: this invocation's sum of K ln max(vbar, floor) over the
-// window rows it staged (f32 logarithm: GLSL has no f64 one).
+// AOS-RESIDUAL: this invocation's sum of K ln max(n vbar, floor) (the
+// per-sample variance) over the window rows it staged (f32 logarithm: GLSL
+// has no f64 one).
 real g_lnsum = real(0);
 
 real feature(int j, uint q)
@@ -279,7 +280,7 @@ void stage(ivec2 c, int base, int nrows, uint t, int k, inout ivec2 off)
         S[X_K + rr] = kw;
         bool use = kw > real(0);
         if (use) {
-            g_lnsum += kw * real(log(max(vbar[q], float(RESIDUAL_VBAR_FLOOR))));
+            g_lnsum += kw * real(log(max(vbar[q] * float(spp_of(spp[q])), float(RESIDUAL_VBAR_FLOOR))));
         }
         S[X_Y + rr * 4] = use ? real(col_r[q]) : real(0);
         S[X_Y + rr * 4 + 1] = use ? real(col_g[q]) : real(0);
@@ -485,7 +486,7 @@ void main()
         for (int i = 0; i < CH; ++i) {
             lnsum += S[S_L + i];
         }
-        S[S_SC + SC_VC] = max(real(vbar[ci]), real(exp(float(lnsum / ksum))));
+        S[S_SC + SC_VC] = max(real(vbar[ci]), real(exp(float(lnsum / ksum))) / max(real(spp_of(spp[ci])), real(1)));
         S[S_SCALE] = real(1);
         s_cidx[0] = 0;
         s_colv[0] = 0;

@@ -587,3 +587,31 @@ fn feature_noise_is_the_fitted_gradient_times_the_feature_sd() {
         assert_eq!((zero.mse, zero.feat_var), (zero_off.mse, 0.0), "pixel {c}");
     }
 }
+
+/// AOS-RESIDUAL's centre variance is the window's geometric mean of the
+/// *per-sample* variances over the centre's own sample count: under uniform
+/// sampling it is the geometric mean of `vbar`; a centre with 8× the
+/// samples of its window gets 1/8 of that (not its neighbours' larger
+/// variances of the mean, which hid a biased fit at the ceiling edge of the
+/// adaptive cornell scene); and never less than its own `vbar_c`.
+#[test]
+fn the_residual_centre_variance_follows_the_centre_sample_count() {
+    use mcdenoise::reference::aos::{residual_centre_var, residual_ln_term};
+    // A window of 5 pixels with equal weights: vbar 1e-3, 2e-3, 4e-3 ... at 16 spp.
+    let vbars = [1e-3, 2e-3, 4e-3, 8e-3, 16e-3];
+    let k = [1.0; 5];
+    let lnsum = |n: f64| -> f64 {
+        vbars
+            .iter()
+            .zip(&k)
+            .map(|(v, k)| k * residual_ln_term(*v, n))
+            .sum()
+    };
+    let geo = 4e-3; // geometric mean of vbars
+    let uniform = residual_centre_var(1e-4, lnsum(16.0), 5.0, 16.0);
+    assert!((uniform / geo - 1.0).abs() < 1e-12, "{uniform}");
+    let more = residual_centre_var(1e-4, lnsum(16.0), 5.0, 128.0);
+    assert!((more / (geo / 8.0) - 1.0).abs() < 1e-12, "{more}");
+    let own = residual_centre_var(1e-2, lnsum(16.0), 5.0, 128.0);
+    assert_eq!(own, 1e-2);
+}

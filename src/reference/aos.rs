@@ -417,11 +417,21 @@ pub fn feature_noise(d: &Design, beta: &[f64]) -> f64 {
 /// mean (a zero variance has no logarithm).
 pub const RESIDUAL_VBAR_FLOOR: f64 = 1e-20;
 
-/// AOS-RESIDUAL's variance of the pixel itself: `max(vbar_c, v_geo)` with
-/// `v_geo = exp(Σ K_i ln max(vbar_i, floor) / Σ K_i)`, the window's
-/// kernel-weighted geometric mean (`lnsum = Σ K_i ln …`, `ksum = Σ K_i`).
-pub fn residual_centre_var(vbar_c: f64, lnsum: f64, ksum: f64) -> f64 {
-    vbar_c.max((lnsum / ksum).exp())
+/// AOS-RESIDUAL's variance of the pixel itself: `max(vbar_c, s_geo / n_c)`
+/// with `s_geo = exp(Σ K_i ln max(n_i vbar_i, floor) / Σ K_i)`, the window's
+/// kernel-weighted geometric mean of the *per-sample* variances
+/// (`lnsum = Σ K_i ln …`, `ksum = Σ K_i`), over the centre's sample count
+/// `n_c`. Under uniform sampling that is the geometric mean of `vbar`; under
+/// adaptive sampling a centre with more samples than its window is not
+/// given its neighbours' larger variances of the mean.
+pub fn residual_centre_var(vbar_c: f64, lnsum: f64, ksum: f64, n_c: f64) -> f64 {
+    vbar_c.max((lnsum / ksum).exp() / n_c.max(1.0))
+}
+
+/// The term of [`residual_centre_var`]'s `lnsum` for a window pixel with
+/// variance of the mean `vbar` over `n` samples.
+pub fn residual_ln_term(vbar: f64, n: f64) -> f64 {
+    (vbar * n).max(RESIDUAL_VBAR_FLOOR).ln()
 }
 
 /// AOS-RESIDUAL: the bias² an order's residual at the centre shows, or 0.
@@ -591,9 +601,9 @@ pub fn pixel(pl: &Planes, c: usize, radius: usize, set: Settings, lambda_factor:
         let lnsum: f64 =
             d.kh.iter()
                 .zip(&d.idx)
-                .map(|(k, &q)| k * pl.vbar[q].max(RESIDUAL_VBAR_FLOOR).ln())
+                .map(|(k, &q)| k * residual_ln_term(pl.vbar[q], pl.spp[q]))
                 .sum();
-        residual_centre_var(pl.vbar[c], lnsum, d.kh.iter().sum())
+        residual_centre_var(pl.vbar[c], lnsum, d.kh.iter().sum(), pl.spp[c])
     });
     let mut out = Pixel {
         rank: d.rank,

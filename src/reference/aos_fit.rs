@@ -27,8 +27,8 @@
 //!   columns' `β s` and the projection, `(Σ_j |Σ_m β_m s_m P[m][j]| σ_j)²`.
 
 use super::aos::{
-    outlier_weight, residual_bias2, residual_centre_var, BIAS_Z, INCREMENT, P_STAR,
-    RESIDUAL_VBAR_FLOOR, RIDGE, RMS_EPS,
+    outlier_weight, residual_bias2, residual_centre_var, residual_ln_term, BIAS_Z, INCREMENT,
+    P_STAR, RIDGE, RMS_EPS,
 };
 use super::aos_space::{features, Proj, D};
 use super::linalg::{ridge_cholesky, EPS_PIVOT};
@@ -135,7 +135,7 @@ pub fn fit_pixel(push: &AosPush, inp: &FitInputs, c: usize, proj: &Proj) -> [f64
             for ch in 0..3 {
                 xr[pr + ch] = col(ch, q);
             }
-            lnsum += kw * vbar(q).max(RESIDUAL_VBAR_FLOOR).ln();
+            lnsum += kw * residual_ln_term(vbar(q), spp_of(inp.spp[q]));
             let (k2, kv) = (kw * kw, kw * kw * vbar(q));
             for i in 0..pe {
                 for j in 0..=i {
@@ -269,7 +269,7 @@ pub fn fit_pixel(push: &AosPush, inp: &FitInputs, c: usize, proj: &Proj) -> [f64
         sw[o_i] = qf(&gm, &u);
         bv[o_i] = qf(&gm, &qs[o_i]);
     }
-    let v_c = residual_centre_var(vbar(c), lnsum, ksum);
+    let v_c = residual_centre_var(vbar(c), lnsum, ksum, spp_of(inp.spp[c]));
     let mut best: Option<(usize, f64)> = None;
     for o_i in 0..2 {
         let var = if push.flags & AOS_SANDWICH != 0 {
