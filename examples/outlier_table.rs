@@ -1,9 +1,10 @@
 //! The outlier stage's table (issue #11): for each (statistics, reference)
 //! pair given as `STATS=REF` arguments, the input's rMSE and each method's
-//! rMSE (WLR, LP, APR) with the stage off and on, with the output's image mean relative to
-//! the input's. GPU, f32, prefilter auto. Used by `benches/outliers.sh`.
+//! rMSE (WLR, LP, APR, AOS, or those of `--methods a,b`) with the stage off
+//! and on, with the output's image mean relative to the input's. GPU, f32,
+//! prefilter auto. Used by `benches/outliers.sh`.
 //!
-//!     cargo run --release --example outlier_table -- a.exr=ref.exr ...
+//!     cargo run --release --example outlier_table -- [--methods wlr,lp] a.exr=ref.exr ...
 
 use std::path::Path;
 use std::sync::Arc;
@@ -17,10 +18,33 @@ fn mean(img: &mcdenoise::RgbImage) -> f64 {
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let mut args: Vec<String> = std::env::args().skip(1).collect();
+    let mut methods = vec![Method::Wlr, Method::Lp, Method::Apr, Method::Aos];
+    if args.first().is_some_and(|a| a == "--methods") {
+        let list = args.get(1).ok_or("--methods needs a list")?.clone();
+        let all = [Method::Wlr, Method::Lp, Method::Apr, Method::Aos];
+        methods = list
+            .split(',')
+            .map(|m| {
+                all.into_iter()
+                    .find(|a| a.name() == m)
+                    .ok_or(format!("--methods: unknown method {m}"))
+            })
+            .collect::<Result<_, _>>()?;
+        args.drain(..2);
+    }
     let ctx = Arc::new(GpuContext::new(&ContextOptions::default())?);
-    println!("| case | input | wlr off | wlr on | lp off | lp on | apr off | apr on | mean ratio wlr off / on | mean ratio lp off / on | mean ratio apr off / on |");
-    println!("|---|---|---|---|---|---|---|---|---|---|---|");
-    for arg in std::env::args().skip(1) {
+    let names: Vec<&str> = methods.iter().map(|m| m.name()).collect();
+    let mut head = String::from("| case | input |");
+    for n in &names {
+        head += &format!(" {n} off | {n} on |");
+    }
+    for n in &names {
+        head += &format!(" mean ratio {n} off / on |");
+    }
+    println!("{head}");
+    println!("|{}", "---|".repeat(2 + 3 * names.len()));
+    for arg in args {
         let (s, r) = arg.split_once('=').ok_or("arguments are STATS=REF")?;
         let img = mcdenoise::io::read_stats(Path::new(s))?;
         let reference = mcdenoise::io::read_rgb(Path::new(r))?;
@@ -34,7 +58,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             rmse(&input, &reference)
         );
         let mut ratios = String::new();
-        for m in [Method::Wlr, Method::Lp, Method::Apr] {
+        for &m in &methods {
             for o in [Outliers::Off, Outliers::On] {
                 let mut cfg = Config::new(m);
                 cfg.outliers = o;
