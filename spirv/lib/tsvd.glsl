@@ -209,18 +209,12 @@ LocalSpace tsvd_local_space_with(ivec2 c, int R, ivec2 size, bool exact_specnorm
             mn0 = first ? x0 : min(mn0, x0);
             hi0 = first ? x0 : max(hi0, x0);
             sum0 += x0 - xc0;
-            real4 v0;
-            TSVD_PACK4(v0, e2, 0)
-            es0 += max(v0, real4(0));
 #if TSVD_D > 4
             real4 x1;
             TSVD_PACK4(x1, x, 4)
             mn1 = first ? x1 : min(mn1, x1);
             hi1 = first ? x1 : max(hi1, x1);
             sum1 += x1 - xc1;
-            real4 v1;
-            TSVD_PACK4(v1, e2, 4)
-            es1 += max(v1, real4(0));
 #endif
 #if TSVD_D > 8
             real4 x2;
@@ -228,9 +222,6 @@ LocalSpace tsvd_local_space_with(ivec2 c, int R, ivec2 size, bool exact_specnorm
             mn2 = first ? x2 : min(mn2, x2);
             hi2 = first ? x2 : max(hi2, x2);
             sum2 += x2 - xc2;
-            real4 v2;
-            TSVD_PACK4(v2, e2, 8)
-            es2 += max(v2, real4(0));
 #endif
             ++n;
         }
@@ -244,16 +235,12 @@ LocalSpace tsvd_local_space_with(ivec2 c, int R, ivec2 size, bool exact_specnorm
         ls.range[j] = real(0);
     }
     real4 rg0 = hi0 - mn0;
-    // NOISE-CONST: no wider than 2 RMS noise -> constant (range 0).
-    rg0 = mix(rg0, real4(0), lessThanEqual(rg0, real(TSVD_NOISE_RANGE_C) * sqrt(es0 / real(max(n, 1)))));
     real4 inv0 = tsvd_inv4(rg0);
     real4 mean0 = n > 0 ? xc0 + sum0 / real(n) : real4(0);
     TSVD_UNPACK4(ls.mn, mn0, 0)
     TSVD_UNPACK4(ls.range, rg0, 0)
 #if TSVD_D > 4
     real4 rg1 = hi1 - mn1;
-    // NOISE-CONST: no wider than 2 RMS noise -> constant (range 0).
-    rg1 = mix(rg1, real4(0), lessThanEqual(rg1, real(TSVD_NOISE_RANGE_C) * sqrt(es1 / real(max(n, 1)))));
     real4 inv1 = tsvd_inv4(rg1);
     real4 mean1 = n > 0 ? xc1 + sum1 / real(n) : real4(0);
     TSVD_UNPACK4(ls.mn, mn1, 4)
@@ -261,8 +248,6 @@ LocalSpace tsvd_local_space_with(ivec2 c, int R, ivec2 size, bool exact_specnorm
 #endif
 #if TSVD_D > 8
     real4 rg2 = hi2 - mn2;
-    // NOISE-CONST: no wider than 2 RMS noise -> constant (range 0).
-    rg2 = mix(rg2, real4(0), lessThanEqual(rg2, real(TSVD_NOISE_RANGE_C) * sqrt(es2 / real(max(n, 1)))));
     real4 inv2 = tsvd_inv4(rg2);
     real4 mean2 = n > 0 ? xc2 + sum2 / real(n) : real4(0);
     TSVD_UNPACK4(ls.mn, mn2, 8)
@@ -297,6 +282,7 @@ LocalSpace tsvd_local_space_with(ivec2 c, int R, ivec2 size, bool exact_specnorm
             TSVD_PACK4(v0, e2, 0)
             real4 z0 = (x0 - mean0) * inv0;
             real4 s0 = sqrt(max(v0, real4(0))) * inv0;
+            es0 += max(v0, real4(0));
             G00 += outerProduct(z0, z0);
             E00 += outerProduct(s0, s0);
 #if TSVD_D > 4
@@ -305,6 +291,7 @@ LocalSpace tsvd_local_space_with(ivec2 c, int R, ivec2 size, bool exact_specnorm
             TSVD_PACK4(v1, e2, 4)
             real4 z1 = (x1 - mean1) * inv1;
             real4 s1 = sqrt(max(v1, real4(0))) * inv1;
+            es1 += max(v1, real4(0));
             G01 += outerProduct(z0, z1);
             E01 += outerProduct(s0, s1);
             G11 += outerProduct(z1, z1);
@@ -316,6 +303,7 @@ LocalSpace tsvd_local_space_with(ivec2 c, int R, ivec2 size, bool exact_specnorm
             TSVD_PACK4(v2, e2, 8)
             real4 z2 = (x2 - mean2) * inv2;
             real4 s2 = sqrt(max(v2, real4(0))) * inv2;
+            es2 += max(v2, real4(0));
 #if TSVD_D == 9
             G08 += z0 * z2.x;
             E08 += s0 * s2.x;
@@ -334,6 +322,44 @@ LocalSpace tsvd_local_space_with(ivec2 c, int R, ivec2 size, bool exact_specnorm
 #endif
         }
     }
+    // NOISE-CONST: a component no wider than TSVD_NOISE_RANGE_C RMS noise
+    // is constant (range 0). Its mean noise comes from pass 2, which loads
+    // e2 anyway; its rows and columns of G and E^T E are zeroed, which is
+    // what x' = 0, e2' = 0 would have accumulated (the twin's order).
+    real4 keep0 = mix(real4(1), real4(0), lessThanEqual(rg0, real(TSVD_NOISE_RANGE_C) * sqrt(es0 / real(max(n, 1)))));
+    rg0 *= keep0;
+    TSVD_UNPACK4(ls.range, rg0, 0)
+    G00 = matrixCompMult(G00, outerProduct(keep0, keep0));
+    E00 = matrixCompMult(E00, outerProduct(keep0, keep0));
+#if TSVD_D > 4
+    real4 keep1 = mix(real4(1), real4(0), lessThanEqual(rg1, real(TSVD_NOISE_RANGE_C) * sqrt(es1 / real(max(n, 1)))));
+    rg1 *= keep1;
+    TSVD_UNPACK4(ls.range, rg1, 4)
+    G01 = matrixCompMult(G01, outerProduct(keep0, keep1));
+    E01 = matrixCompMult(E01, outerProduct(keep0, keep1));
+    G11 = matrixCompMult(G11, outerProduct(keep1, keep1));
+    E11 = matrixCompMult(E11, outerProduct(keep1, keep1));
+#endif
+#if TSVD_D > 8
+    real4 keep2 = mix(real4(1), real4(0), lessThanEqual(rg2, real(TSVD_NOISE_RANGE_C) * sqrt(es2 / real(max(n, 1)))));
+    rg2 *= keep2;
+    TSVD_UNPACK4(ls.range, rg2, 8)
+#if TSVD_D == 9
+    G08 *= keep0 * keep2.x;
+    E08 *= keep0 * keep2.x;
+    G18 *= keep1 * keep2.x;
+    E18 *= keep1 * keep2.x;
+    G88 *= keep2.x;
+    E88 *= keep2.x;
+#else
+    G02 = matrixCompMult(G02, outerProduct(keep0, keep2));
+    E02 = matrixCompMult(E02, outerProduct(keep0, keep2));
+    G12 = matrixCompMult(G12, outerProduct(keep1, keep2));
+    E12 = matrixCompMult(E12, outerProduct(keep1, keep2));
+    G22 = matrixCompMult(G22, outerProduct(keep2, keep2));
+    E22 = matrixCompMult(E22, outerProduct(keep2, keep2));
+#endif
+#endif
     real G[MAX_D * MAX_D];
     real EE[MAX_D * MAX_D];
     for (int j = 0; j < MAX_D * MAX_D; ++j) {
