@@ -136,6 +136,12 @@ shared int s_cidx[NC];   // raw column -> compact column, -1 if dropped
 // p1, p3, p5, pivot flag, any column dropped
 shared int s_int[5];
 
+// Runs the following statement only for invocations where `cond` holds, as
+// a loop of 0 or 1 iterations: llvmpipe runs both sides of an `if` under a
+// mask in every SIMD vector, but skips a loop no lane of the vector
+// iterates, so the vectors without such an invocation skip the work.
+#define ONLY(cond) for (int once_ = ((cond) ? 0 : 1); once_ < 1; ++once_)
+
 int lidx(int i, int j) { return i >= j ? i * (i + 1) / 2 + j : j * (j + 1) / 2 + i; }
 
 // Packed lower-triangle index e -> (i, j), i >= j.
@@ -262,7 +268,8 @@ void stage(ivec2 c, int base, int nrows, uint t, int k, inout ivec2 off)
 {
     int R = int(push.radius);
     int wd = 2 * R + 1;
-    if (t < uint(CH)) {
+    ONLY(t < uint(CH))
+    {
         int rr = int(t);
         real kw = real(0);
         real dz[D];
@@ -305,7 +312,8 @@ void stage(ivec2 c, int base, int nrows, uint t, int k, inout ivec2 off)
             pv *= z;
         }
     }
-    if ((int(t) >> 5) == 0) {
+    ONLY((int(t) >> 5) == 0)
+    {
         S[xr] = real(1);
         for (int ch = 0; ch < 3; ++ch) {
             S[xr + pr + ch] = S[X_Y + rr * 4 + ch];
@@ -345,6 +353,8 @@ void write_out(uint i, real o[14])
 
 // u^T M v over one 4x4 block (rows of M: block I, columns: block J).
 real qform(rmat4 m, real4 u, real4 v) { return dot(u, m * v); }
+
+void pick(uint ci, int k, int p1, int p3, real o[14]);
 
 void main()
 {
@@ -428,9 +438,17 @@ void main()
     rmat4 n1 = rmat4(0), b1 = rmat4(0), g1 = rmat4(0);
     int wd = 2 * R + 1;
     ivec2 off = ivec2(int(t) % wd, int(t) / wd);
+    // Each block slot's row loop is a loop over its ownership (0 or 1
+    // times), not an `if`: llvmpipe runs both sides of a branch under a
+    // mask, but leaves a loop once no lane of the SIMD vector iterates, so
+    // vectors of invocations that own no block (most of the 64 at ranks
+    // 2-4: 10-21 block pairs) skip the row loop instead of running it
+    // masked. The sums and their order are unchanged.
+    int run0 = own0 ? 1 : 0;
+    int run1 = own1 ? 1 : 0;
     for (int base = 0; base < nrows; base += CH) {
         stage(c, base, nrows, t, k, off);
-        if (own0) {
+        for (int s0 = 0; s0 < run0; ++s0) {
             for (int rr = 0; rr < CH; ++rr) {
                 real kw = S[X_K + rr];
                 if (kw > real(0)) {
@@ -442,13 +460,21 @@ void main()
                     n0 += outerProduct(kw * xi, xj);
                     b0 += outerProduct(k2 * xi, xj);
                     g0 += outerProduct(kv * xi, xj);
-                    if (own1) {
-                        xi = load4(xr + 4 * bp1.x);
-                        xj = load4(xr + 4 * bp1.y);
-                        n1 += outerProduct(kw * xi, xj);
-                        b1 += outerProduct(k2 * xi, xj);
-                        g1 += outerProduct(kv * xi, xj);
-                    }
+                }
+            }
+        }
+        for (int s1 = 0; s1 < run1; ++s1) {
+            for (int rr = 0; rr < CH; ++rr) {
+                real kw = S[X_K + rr];
+                if (kw > real(0)) {
+                    real k2 = kw * kw;
+                    real kv = k2 * S[X_Y + rr * 4 + 3];
+                    int xr = X_X + rr * XS;
+                    real4 xi = load4(xr + 4 * bp1.x);
+                    real4 xj = load4(xr + 4 * bp1.y);
+                    n1 += outerProduct(kw * xi, xj);
+                    b1 += outerProduct(k2 * xi, xj);
+                    g1 += outerProduct(kv * xi, xj);
                 }
             }
         }
@@ -479,7 +505,8 @@ void main()
     barrier();
     // AOS-SCALE from the raw diagonal: rms_r = sqrt(N_rr / sum K); columns
     // below RMS_EPS are dropped; order by power, then component.
-    if (t == 0u) {
+    ONLY(t == 0u)
+    {
         real ksum = S[S_N];
         S[S_SC + SC_KSUM] = ksum;
         real lnsum = real(0);
@@ -635,18 +662,11 @@ void main()
         S[V_B3 + i] = S[V_BETA + i];
     }
     barrier();
-    if (t == 0u) {
-        tri_solve(p5, V_US);
-    } else if (t == 1u) {
-        tri_solve(p5, V_BETA);
-    } else if (t == 2u) {
-        tri_solve(p1, V_U1);
-    } else if (t == 3u) {
-        tri_solve(p3, V_U3);
-    } else if (t == 4u) {
-        tri_solve(p1, V_B1);
-    } else if (t == 5u) {
-        tri_solve(p3, V_B3);
+    ONLY(t < 6u)
+    {
+        int sp = t == 0u || t == 1u ? p5 : (t == 2u || t == 4u ? p1 : p3);
+        int sa = t == 0u ? V_US : (t == 1u ? V_BETA : (t == 2u ? V_U1 : (t == 3u ? V_U3 : (t == 4u ? V_B1 : V_B3))));
+        tri_solve(sp, sa);
     }
     barrier();
     // bias_l = u_l^T N[0..p_l, :] beta_high; t_l = N[:, 0..p_l] u_l on the
@@ -670,7 +690,8 @@ void main()
         S[V_Q1 + i] = t1;
         S[V_Q3 + i] = t3;
     }
-    if (t == uint(NT - 1) || t == uint(NT - 2)) {
+    ONLY(t == uint(NT - 1) || t == uint(NT - 2))
+    {
         int lo = t == uint(NT - 1) ? 1 : 3;
         int pl = lo == 1 ? p1 : p3;
         int ua = lo == 1 ? V_U1 : V_U3;
@@ -688,10 +709,9 @@ void main()
         S[S_SC + (lo == 1 ? SC_BIAS1 : SC_BIAS3)] = b;
     }
     barrier();
-    if (t == 0u) {
-        tri_solve(p5, V_Q1);
-    } else if (t == 1u) {
-        tri_solve(p5, V_Q3);
+    ONLY(t < 2u)
+    {
+        tri_solve(p5, t == 0u ? V_Q1 : V_Q3);
     }
     barrier();
 
@@ -735,9 +755,17 @@ void main()
         S[QF_SUM + int(t) * NSUM + a] = qs[a];
     }
     barrier();
-    if (t != 0u) {
-        return;
+    ONLY(t == 0u)
+    {
+        pick(ci, k, p1, p3, o);
     }
+}
+
+// The choice of order (thread 0, after the quadratic forms' partial sums are
+// in QF_SUM): sigma*^2, each order's bias, variance and MSE, AOS-RESIDUAL,
+// AOS-IDENTITY, the output and AOS-FEATNOISE.
+void pick(uint ci, int k, int p1, int p3, real o[14])
+{
     real tot[NSUM];
     for (int a = 0; a < NSUM; ++a) {
         tot[a] = real(0);
