@@ -564,6 +564,7 @@ fn spikes_are_removed_and_their_energy_kept() {
         (Method::Wlr, Outliers::Auto),
         (Method::Lp, Outliers::Auto),
         (Method::Apr, Outliers::Auto),
+        (Method::Aos, Outliers::Auto),
         (Method::None, Outliers::On),
     ];
     for (method, outliers) in cases {
