@@ -166,7 +166,7 @@ real4 g_pa[D];
 real4 g_pb[D];
 real2 g_pc[D];
 real g_xc[D];
-// AOS-RESIDUAL: this invocation's sum of K ln max(n vbar, floor) (the
+// AOS-RESIDUAL: this invocation's sum of K (ln max(vbar, floor) + ln n) (the
 // per-sample variance) over the window rows it staged (f32 logarithm: GLSL
 // has no f64 one).
 real g_lnsum = real(0);
@@ -287,7 +287,7 @@ void stage(ivec2 c, int base, int nrows, uint t, int k, inout ivec2 off)
         S[X_K + rr] = kw;
         bool use = kw > real(0);
         if (use) {
-            g_lnsum += kw * real(log(max(vbar[q] * float(spp_of(spp[q])), float(RESIDUAL_VBAR_FLOOR))));
+            g_lnsum += kw * real(log(max(vbar[q], float(RESIDUAL_VBAR_FLOOR))) + log(max(spp_of(spp[q]), 1.0)));
         }
         S[X_Y + rr * 4] = use ? real(col_r[q]) : real(0);
         S[X_Y + rr * 4 + 1] = use ? real(col_g[q]) : real(0);

@@ -71,8 +71,16 @@ fn image(w: usize, h: usize, seed: u64, vis: bool) -> Img {
             (if i % 13 == 3 { 3.0 + v } else { v }) as f32
         })
         .collect();
+    // Sample counts differ from pixel to pixel, as under adaptive sampling
+    // (AOS-RESIDUAL's per-sample variance and its threshold see them).
     let spp = (0..n)
-        .map(|i| if i % 37 == 5 { 0.0 } else { 16.0 })
+        .map(|i| {
+            if i % 37 == 5 {
+                0.0
+            } else {
+                [16.0, 4.0, 64.0, 256.0][i % 4]
+            }
+        })
         .collect();
     Img {
         w,

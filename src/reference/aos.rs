@@ -429,9 +429,11 @@ pub fn residual_centre_var(vbar_c: f64, lnsum: f64, ksum: f64, n_c: f64) -> f64 
 }
 
 /// The term of [`residual_centre_var`]'s `lnsum` for a window pixel with
-/// variance of the mean `vbar` over `n` samples.
+/// variance of the mean `vbar` over `n ≥ 1` samples: `ln max(vbar, floor) +
+/// ln n` (a sum of logarithms, so that the f32 GPU kernel never forms the
+/// product, which could overflow).
 pub fn residual_ln_term(vbar: f64, n: f64) -> f64 {
-    (vbar * n).max(RESIDUAL_VBAR_FLOOR).ln()
+    vbar.max(RESIDUAL_VBAR_FLOOR).ln() + n.max(1.0).ln()
 }
 
 /// AOS-RESIDUAL: the bias² an order's residual at the centre shows, or 0.
