@@ -110,6 +110,18 @@ real4 tsvd_inv4(real4 rg)
     return mix(real4(0), real4(1) / rg, greaterThan(rg, real4(TSVD_RANGE_EPS)));
 }
 
+// NOISE-CONST's mask of a block: entries of columns or rows whose keep is 0
+// become 0 by selection (not by multiplication, which would turn an
+// overflowed inf into NaN where the twin has 0).
+tsvd_mat4 tsvd_keep_block(tsvd_mat4 m, real4 krow, real4 kcol)
+{
+    for (int c_ = 0; c_ < 4; ++c_) {
+        m[c_] = mix(real4(0), m[c_], greaterThan(krow * kcol[c_], real4(0)));
+    }
+    return m;
+}
+real4 tsvd_keep4(real4 v, real4 k) { return mix(real4(0), v, greaterThan(k, real4(0))); }
+
 // Bounds on lambda_max of the D x D matrix A = E^T E (symmetric, no negative
 // entry): TSVD_POWER_STEPS power iterations from the ones vector give v >= 0
 // with max 1; with the positive p = v + 1e-3, lo = p^T A p / p^T p (a Rayleigh
@@ -324,40 +336,40 @@ LocalSpace tsvd_local_space_with(ivec2 c, int R, ivec2 size, bool exact_specnorm
     }
     // NOISE-CONST: a component no wider than TSVD_NOISE_RANGE_C RMS noise
     // is constant (range 0). Its mean noise comes from pass 2, which loads
-    // e2 anyway; its rows and columns of G and E^T E are zeroed, which is
+    // e2 anyway; its rows and columns of G and E^T E are set to 0, which is
     // what x' = 0, e2' = 0 would have accumulated (the twin's order).
     real4 keep0 = mix(real4(1), real4(0), lessThanEqual(rg0, real(TSVD_NOISE_RANGE_C) * sqrt(es0 / real(max(n, 1)))));
     rg0 *= keep0;
     TSVD_UNPACK4(ls.range, rg0, 0)
-    G00 = matrixCompMult(G00, outerProduct(keep0, keep0));
-    E00 = matrixCompMult(E00, outerProduct(keep0, keep0));
+    G00 = tsvd_keep_block(G00, keep0, keep0);
+    E00 = tsvd_keep_block(E00, keep0, keep0);
 #if TSVD_D > 4
     real4 keep1 = mix(real4(1), real4(0), lessThanEqual(rg1, real(TSVD_NOISE_RANGE_C) * sqrt(es1 / real(max(n, 1)))));
     rg1 *= keep1;
     TSVD_UNPACK4(ls.range, rg1, 4)
-    G01 = matrixCompMult(G01, outerProduct(keep0, keep1));
-    E01 = matrixCompMult(E01, outerProduct(keep0, keep1));
-    G11 = matrixCompMult(G11, outerProduct(keep1, keep1));
-    E11 = matrixCompMult(E11, outerProduct(keep1, keep1));
+    G01 = tsvd_keep_block(G01, keep0, keep1);
+    E01 = tsvd_keep_block(E01, keep0, keep1);
+    G11 = tsvd_keep_block(G11, keep1, keep1);
+    E11 = tsvd_keep_block(E11, keep1, keep1);
 #endif
 #if TSVD_D > 8
     real4 keep2 = mix(real4(1), real4(0), lessThanEqual(rg2, real(TSVD_NOISE_RANGE_C) * sqrt(es2 / real(max(n, 1)))));
     rg2 *= keep2;
     TSVD_UNPACK4(ls.range, rg2, 8)
 #if TSVD_D == 9
-    G08 *= keep0 * keep2.x;
-    E08 *= keep0 * keep2.x;
-    G18 *= keep1 * keep2.x;
-    E18 *= keep1 * keep2.x;
-    G88 *= keep2.x;
-    E88 *= keep2.x;
+    G08 = tsvd_keep4(G08, keep0 * keep2.x);
+    E08 = tsvd_keep4(E08, keep0 * keep2.x);
+    G18 = tsvd_keep4(G18, keep1 * keep2.x);
+    E18 = tsvd_keep4(E18, keep1 * keep2.x);
+    G88 = keep2.x > real(0) ? G88 : real(0);
+    E88 = keep2.x > real(0) ? E88 : real(0);
 #else
-    G02 = matrixCompMult(G02, outerProduct(keep0, keep2));
-    E02 = matrixCompMult(E02, outerProduct(keep0, keep2));
-    G12 = matrixCompMult(G12, outerProduct(keep1, keep2));
-    E12 = matrixCompMult(E12, outerProduct(keep1, keep2));
-    G22 = matrixCompMult(G22, outerProduct(keep2, keep2));
-    E22 = matrixCompMult(E22, outerProduct(keep2, keep2));
+    G02 = tsvd_keep_block(G02, keep0, keep2);
+    E02 = tsvd_keep_block(E02, keep0, keep2);
+    G12 = tsvd_keep_block(G12, keep1, keep2);
+    E12 = tsvd_keep_block(E12, keep1, keep2);
+    G22 = tsvd_keep_block(G22, keep2, keep2);
+    E22 = tsvd_keep_block(E22, keep2, keep2);
 #endif
 #endif
     real G[MAX_D * MAX_D];
