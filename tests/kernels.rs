@@ -221,6 +221,39 @@ fn features(w: usize, h: usize, seed: u64) -> (Vec<Vec<f32>>, Vec<Vec<f32>>, Vec
     (f, v, spp)
 }
 
+/// `tsvd_debug`'s twin output (13 planes) and its GPU output in `p`, for
+/// the features `f`, their variances `v` and the counts `spp`.
+fn tsvd_debug_runs(
+    ctx: &std::sync::Arc<mcdenoise::GpuContext>,
+    push: &TsvdPush,
+    f: &[Vec<f32>],
+    v: &[Vec<f32>],
+    spp: &[f32],
+    p: Precision,
+) -> (Vec<Vec<f32>>, Vec<Vec<f32>>) {
+    let n = (push.width * push.height) as usize;
+    let fr: [&[f32]; 7] = std::array::from_fn(|k| f[k].as_slice());
+    let vr: [&[f32]; 7] = std::array::from_fn(|k| v[k].as_slice());
+    let mut cpu = vec![vec![0.0f32; n]; 13];
+    reference::tsvd_debug::tsvd_debug(push, fr, vr, spp, &mut cpu);
+    let mut inputs: Vec<&[f32]> = fr.to_vec();
+    inputs.extend_from_slice(&vr);
+    inputs.push(spp);
+    let (out, _) = run_planes(
+        ctx,
+        &tsvd_debug::DECL,
+        p,
+        bytemuck::bytes_of(push),
+        push.width as usize,
+        push.height as usize,
+        &inputs,
+        &[n; 13],
+        tsvd_debug::flops_per_pixel(push.radius),
+    )
+    .unwrap();
+    (cpu, out)
+}
+
 #[test]
 fn tsvd_debug_matches_twin() {
     let ctx = gpu();
@@ -236,26 +269,8 @@ fn tsvd_debug_matches_twin() {
                 radius,
                 ..Default::default()
             };
-            let fr: [&[f32]; 7] = std::array::from_fn(|k| f[k].as_slice());
-            let vr: [&[f32]; 7] = std::array::from_fn(|k| v[k].as_slice());
-            let mut cpu = vec![vec![0.0f32; w * h]; 13];
-            reference::tsvd_debug::tsvd_debug(&push, fr, vr, &spp, &mut cpu);
-            let mut inputs: Vec<&[f32]> = fr.to_vec();
-            inputs.extend_from_slice(&vr);
-            inputs.push(&spp);
             for p in precisions() {
-                let (out, _) = run_planes(
-                    &ctx,
-                    &tsvd_debug::DECL,
-                    p,
-                    bytemuck::bytes_of(&push),
-                    w,
-                    h,
-                    &inputs,
-                    &[w * h; 13],
-                    tsvd_debug::flops_per_pixel(radius),
-                )
-                .unwrap();
+                let (cpu, out) = tsvd_debug_runs(&ctx, &push, &f, &v, &spp, p);
                 let what = format!("tsvd_debug {w}x{h} R={radius} {p:?}");
                 let agree = agreement(&out[0], &cpu[0]);
                 assert!(agree >= 0.98, "{what}: rank agreement {agree}");
@@ -320,31 +335,11 @@ fn tsvd_a_rounding_range_does_not_set_tau() {
         radius: 5,
         ..Default::default()
     };
-    let fr: [&[f32]; 7] = std::array::from_fn(|k| f[k].as_slice());
-    let vr: [&[f32]; 7] = std::array::from_fn(|k| v[k].as_slice());
-    let mut cpu = vec![vec![0.0f32; n]; 13];
-    reference::tsvd_debug::tsvd_debug(&push, fr, vr, &spp, &mut cpu);
-    let mut inputs: Vec<&[f32]> = fr.to_vec();
-    inputs.extend_from_slice(&vr);
-    inputs.push(&spp);
     let edge = (0..w).map(|x| (h / 2) * w + x).collect::<Vec<_>>();
-    for &i in &edge {
-        assert_eq!(cpu[0][i], 3.0, "twin rank at {i}");
-    }
     for p in precisions() {
-        let (out, _) = run_planes(
-            &ctx,
-            &tsvd_debug::DECL,
-            p,
-            bytemuck::bytes_of(&push),
-            w,
-            h,
-            &inputs,
-            &[n; 13],
-            tsvd_debug::flops_per_pixel(5),
-        )
-        .unwrap();
+        let (cpu, out) = tsvd_debug_runs(&ctx, &push, &f, &v, &spp, p);
         for &i in &edge {
+            assert_eq!(cpu[0][i], 3.0, "twin rank at {i}");
             assert_eq!(out[0][i], 3.0, "{p:?}: GPU rank at {i}");
             assert_eq!(out[12][i], 3.0, "{p:?}: the methods' rank at {i}");
         }
