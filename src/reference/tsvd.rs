@@ -375,12 +375,28 @@ mod tests {
 
     #[test]
     fn minrank_keeps_two_components_under_heavy_noise() {
+        // Noise above every σ, but within NOISE-CONST's bound nowhere: all
+        // nine components stay, τ drops them all, MINRANK keeps two.
         let mut rng = Rng(99);
-        let (x, e2) = window(&mut rng, 4, 1e4);
+        let (x, e2) = window(&mut rng, 4, 0.3);
         let ls = local_space(&x, &e2, D);
-        assert!(ls.tau > ls.sigma[0], "noise should dominate");
+        assert!(ls.range.iter().all(|&r| r > 0.0), "ranges {:?}", ls.range);
+        assert!(
+            ls.tau > ls.sigma[0],
+            "noise should dominate: τ {} σ {:?}",
+            ls.tau,
+            ls.sigma
+        );
         assert_eq!(ls.k, 2);
         assert!(ls.k >= MIN_RANK.min(ls.k_nz));
+        check_orthonormal_vk(&ls);
+
+        // Noise far above the features' ranges: NOISE-CONST makes the seven
+        // noisy components constant; the pixel coordinates remain.
+        let (x, e2) = window(&mut rng, 4, 1e4);
+        let ls = local_space(&x, &e2, D);
+        assert!(ls.range[2..].iter().all(|&r| r == 0.0));
+        assert_eq!((ls.k_nz, ls.k), (2, 2));
         check_orthonormal_vk(&ls);
 
         // Only one non-constant component: k_nz = 1, so k = 1.
