@@ -356,6 +356,25 @@ real qform(rmat4 m, real4 u, real4 v) { return dot(u, m * v); }
 
 void pick(uint ci, int k, int p1, int p3, real o[14]);
 
+// Adds the staged chunk's rows to one owned block pair bp of the three Gram
+// matrices: N (weight K), B (K^2) and G (K^2 vbar).
+void chunk_blocks(ivec2 bp, inout rmat4 n, inout rmat4 b, inout rmat4 g)
+{
+    for (int rr = 0; rr < CH; ++rr) {
+        real kw = S[X_K + rr];
+        if (kw > real(0)) {
+            real k2 = kw * kw;
+            real kv = k2 * S[X_Y + rr * 4 + 3];
+            int xr = X_X + rr * XS;
+            real4 xi = load4(xr + 4 * bp.x);
+            real4 xj = load4(xr + 4 * bp.y);
+            n += outerProduct(kw * xi, xj);
+            b += outerProduct(k2 * xi, xj);
+            g += outerProduct(kv * xi, xj);
+        }
+    }
+}
+
 void main()
 {
     uint t = gl_LocalInvocationID.x;
@@ -449,34 +468,10 @@ void main()
     for (int base = 0; base < nrows; base += CH) {
         stage(c, base, nrows, t, k, off);
         for (int s0 = 0; s0 < run0; ++s0) {
-            for (int rr = 0; rr < CH; ++rr) {
-                real kw = S[X_K + rr];
-                if (kw > real(0)) {
-                    real k2 = kw * kw;
-                    real kv = k2 * S[X_Y + rr * 4 + 3];
-                    int xr = X_X + rr * XS;
-                    real4 xi = load4(xr + 4 * bp0.x);
-                    real4 xj = load4(xr + 4 * bp0.y);
-                    n0 += outerProduct(kw * xi, xj);
-                    b0 += outerProduct(k2 * xi, xj);
-                    g0 += outerProduct(kv * xi, xj);
-                }
-            }
+            chunk_blocks(bp0, n0, b0, g0);
         }
         for (int s1 = 0; s1 < run1; ++s1) {
-            for (int rr = 0; rr < CH; ++rr) {
-                real kw = S[X_K + rr];
-                if (kw > real(0)) {
-                    real k2 = kw * kw;
-                    real kv = k2 * S[X_Y + rr * 4 + 3];
-                    int xr = X_X + rr * XS;
-                    real4 xi = load4(xr + 4 * bp1.x);
-                    real4 xj = load4(xr + 4 * bp1.y);
-                    n1 += outerProduct(kw * xi, xj);
-                    b1 += outerProduct(k2 * xi, xj);
-                    g1 += outerProduct(kv * xi, xj);
-                }
-            }
+            chunk_blocks(bp1, n1, b1, g1);
         }
         barrier();
     }

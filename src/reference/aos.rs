@@ -418,7 +418,8 @@ pub fn feature_noise(d: &Design, beta: &[f64]) -> f64 {
 pub const RESIDUAL_VBAR_FLOOR: f64 = 1e-20;
 
 /// AOS-RESIDUAL's variance of the pixel itself: `max(vbar_c, s_geo / n_c)`
-/// with `s_geo = exp(Σ K_i ln max(n_i vbar_i, floor) / Σ K_i)`, the window's
+/// with `s_geo = exp(Σ K_i (ln max(vbar_i, floor) + ln n_i) / Σ K_i)` (the
+/// terms of [`residual_ln_term`]), the window's
 /// kernel-weighted geometric mean of the *per-sample* variances
 /// (`lnsum = Σ K_i ln …`, `ksum = Σ K_i`), over the centre's sample count
 /// `n_c`. Under uniform sampling that is the geometric mean of `vbar`; under

@@ -447,8 +447,13 @@ pub fn covering(w: usize, h: usize, i: usize, valid: &[bool]) -> Vec<usize> {
 
 /// APR on one channel (§4.2–4.3): `pl.y`, `pl.v` are the channel, features
 /// already prefiltered; `block` is [`BLOCK`] or [`BLOCK_UNWEIGHTED`].
-/// `pixel_test`: the sample counts for APR-PIXEL-TEST (ours, see
-/// [`pixel_test_limit`]), `None` for §4.3 as written.
+/// `pixel_test`: the sample counts for APR-PIXEL-TEST, `None` for §4.3 as
+/// written. APR-PIXEL-TEST (ours, `apr.pixel_test`, after LP-PIXEL-TEST): a
+/// block whose squared miss `(x_iᵀβ_y − y_i)²` at the valid pixel `i`
+/// exceeds [`pixel_test_limit`](super::pixel_test_limit) of the channel's
+/// `v` does not predict i; a pixel whose accepting blocks all do keeps its
+/// input (`y_i`, error `v_i`, dimension 0). It keeps APR's blocks from
+/// painting a firefly cluster's level over dark pixels (built-in mix).
 pub fn channel(
     pl: &Planes,
     stages: usize,
@@ -565,14 +570,6 @@ pub fn channel(
     }
     result
 }
-
-/// APR-PIXEL-TEST (ours, `apr.pixel_test`, after LP-PIXEL-TEST): a block
-/// whose squared miss `(x_iᵀβ_y − y_i)²` at the valid pixel `i` exceeds
-/// [`pixel_test_limit`] of the channel's `v` does
-/// not predict i; a pixel whose accepting blocks all do keeps its input
-/// (`y_i`, error `v_i`, dimension 0). It keeps APR's blocks from painting a
-/// firefly cluster's level over dark pixels (built-in mix).
-pub use super::pixel_test_limit;
 
 /// The 5×5 polynomial feature prefilter (§4.6) of one feature plane with its
 /// variance: every pixel a centre, no rejection, point-wise output, two

@@ -56,7 +56,7 @@ pub struct Inputs<'a> {
     pub spp: &'a [f32],
     /// APR-OUTLIER-W: the kernel is `K_h·o_i` ([`super::apr::outlier_weight`]).
     pub clamped: bool,
-    /// APR-PIXEL-TEST in the gather ([`super::apr::pixel_test_limit`]).
+    /// APR-PIXEL-TEST in the gather ([`super::apr::channel`], [`super::pixel_test_limit`]).
     pub pixel_test: bool,
 }
 

@@ -68,14 +68,7 @@ pub fn apr_gather(
                 )
             } else {
                 let limit = pl.pixel_test.then(|| {
-                    super::apr::pixel_test_limit(
-                        w,
-                        h,
-                        |q| pl.v[q] as f64,
-                        |q| pl.valid(q),
-                        pl.spp,
-                        i,
-                    )
+                    super::pixel_test_limit(w, h, |q| pl.v[q] as f64, |q| pl.valid(q), pl.spp, i)
                 });
                 let yi = pl.y[i] as f64;
                 let mut missed = false;

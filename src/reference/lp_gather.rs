@@ -8,8 +8,6 @@ use super::wlr::D;
 use super::{pixel_test_limit, spp_of};
 use crate::shared::{LpPush, LP_PIXEL_TEST};
 
-pub use super::PIXEL_TEST_VAR_FLOOR;
-
 /// Output planes: colour R G B (clamped ≥ 0); error R G B, the estimated
 /// MSE `E_i[ch] = mean_c max(ξ̂_c,ch(r_opt), 0) + (Σ_j |ū[ch][j]| σ_ij)²`
 /// (LP-FEATNOISE: the centres' model error plus the variance that the
