@@ -136,12 +136,6 @@ shared int s_cidx[NC];   // raw column -> compact column, -1 if dropped
 // p1, p3, p5, pivot flag, any column dropped
 shared int s_int[5];
 
-// Runs the following statement only for invocations where `cond` holds, as
-// a loop of 0 or 1 iterations: llvmpipe runs both sides of an `if` under a
-// mask in every SIMD vector, but skips a loop no lane of the vector
-// iterates, so the vectors without such an invocation skip the work.
-#define ONLY(cond) for (int once_ = ((cond) ? 0 : 1); once_ < 1; ++once_)
-
 int lidx(int i, int j) { return i >= j ? i * (i + 1) / 2 + j : j * (j + 1) / 2 + i; }
 
 // Packed lower-triangle index e -> (i, j), i >= j.

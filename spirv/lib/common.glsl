@@ -27,6 +27,12 @@
 #define JACOBI_SWEEPS 10
 #endif
 
+// Runs the following statement only for invocations where `cond` holds, as
+// a loop of 0 or 1 iterations: llvmpipe runs both sides of an `if` under a
+// mask in every SIMD vector, but skips a loop no lane of the vector
+// iterates, so the vectors without such an invocation skip the work.
+#define ONLY(cond) for (int once_ = ((cond) ? 0 : 1); once_ < 1; ++once_)
+
 #define PLANE_IN(b, name) layout(std430, set = 0, binding = b) readonly buffer name##_blk { float name[]; };
 #define PLANE_OUT(b, name) layout(std430, set = 0, binding = b) buffer name##_blk { float name[]; };
 

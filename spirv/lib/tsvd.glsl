@@ -14,8 +14,8 @@
 //         return spp_of(spp[index]) >= 1.0;   // false: p is not in any window
 //     }
 //
-// The routine calls load_features twice per window pixel (min/max/mean pass,
-// then the centred sums); loads a pass does not use are dead code.
+// The routine calls load_features once per window pixel (twice in a window
+// wide enough to overflow raw f32 co-moments, see TSVD_WIDE_RANGE).
 
 #ifndef MC_TSVD_GLSL
 #define MC_TSVD_GLSL
@@ -175,6 +175,24 @@ void tsvd_lmax_bounds(real A[MAX_D * MAX_D], out real lo, out real hi)
     lo = pap / pp;
 }
 
+// Scales block m (m[c][r] = M[4a + r][4b + c]) to M_jl inv_j inv_l: the
+// column factor first, then the row's, so that two small factors do not
+// underflow as a product.
+tsvd_mat4 tsvd_scale_block(tsvd_mat4 m, real4 inv_row, real4 inv_col)
+{
+    for (int c_ = 0; c_ < 4; ++c_) {
+        m[c_] = (m[c_] * inv_col[c_]) * inv_row;
+    }
+    return m;
+}
+
+// TSVD-ONE-PASS's limits: the pass below accumulates raw (unnormalised)
+// sums; a window whose feature range exceeds TSVD_WIDE_RANGE (S1 S1^T grows
+// as n^2 rho^2) or whose feature variances sum past TSVD_WIDE_E2 could
+// overflow f32 there, and takes the normalised second pass instead.
+#define TSVD_WIDE_RANGE 1e15
+#define TSVD_WIDE_E2 1e36
+
 // Spec §0.6 steps 1-6 for the window Omega_c(R) of centre c: the clipped
 // square |q - c|_inf <= R inside [0, size), restricted to the pixels for
 // which load_features returns true, visited in raster order.
@@ -183,8 +201,17 @@ void tsvd_lmax_bounds(real A[MAX_D * MAX_D], out real lo, out real hi)
 // x2 = x[8..12), lanes >= TSVD_D zero) and the Gram matrices G and E^T E
 // are accumulated as outer products into constant-indexed 4x4 blocks (the
 // upper block triangle), unpacked into the arrays of jacobi_eigen once per
-// window. Every entry sees the same operations in the same order as the
-// scalar twin.
+// window.
+//
+// One pass over the window (TSVD-ONE-PASS, ours): min, max, the sums
+// S1 = sum y and S2 = sum y y^T of y = x - x_c (the centre's features: pixel
+// coordinates become small integers, whose sums and n S2 - S1 S1^T are
+// exact, so a tile's offset changes no rounding and the coordinate block
+// is rounded once, where near-equal spreads in x and y make the
+// eigenvectors sensitive), sqrt(e2) sqrt(e2)^T and sum e2, all in raw units; G = C_jl / (rho_j rho_l) and E^T E likewise once the ranges are
+// known. The twin's normalise-then-sum (f64) is the same matrix up to
+// rounding. A window wide enough to overflow raw f32 co-moments (never in a
+// real image) runs the twin's normalised second pass.
 LocalSpace tsvd_local_space_with(ivec2 c, int R, ivec2 size, bool exact_specnorm)
 {
     LocalSpace ls;
@@ -194,85 +221,19 @@ LocalSpace tsvd_local_space_with(ivec2 c, int R, ivec2 size, bool exact_specnorm
     load_features(c, xc, e2);
     real4 xc0;
     TSVD_PACK4(xc0, xc, 0)
-    real4 mn0 = real4(0), hi0 = real4(0), sum0 = real4(0), es0 = real4(0);
+    real4 mn0 = real4(0), hi0 = real4(0), sy0 = real4(0), es0 = real4(0);
+    tsvd_mat4 G00 = tsvd_mat4(0), E00 = tsvd_mat4(0);
 #if TSVD_D > 4
     real4 xc1;
     TSVD_PACK4(xc1, xc, 4)
-    real4 mn1 = real4(0), hi1 = real4(0), sum1 = real4(0), es1 = real4(0);
+    real4 mn1 = real4(0), hi1 = real4(0), sy1 = real4(0), es1 = real4(0);
+    tsvd_mat4 G01 = tsvd_mat4(0), E01 = tsvd_mat4(0);
+    tsvd_mat4 G11 = tsvd_mat4(0), E11 = tsvd_mat4(0);
 #endif
 #if TSVD_D > 8
     real4 xc2;
     TSVD_PACK4(xc2, xc, 8)
-    real4 mn2 = real4(0), hi2 = real4(0), sum2 = real4(0), es2 = real4(0);
-#endif
-    ivec2 lo = max(c - ivec2(R), ivec2(0));
-    ivec2 up = min(c + ivec2(R), size - ivec2(1));
-
-    // Pass 1: min, max and the mean (shifted by the centre for precision).
-    int n = 0;
-    for (int qy = lo.y; qy <= up.y; ++qy) {
-        for (int qx = lo.x; qx <= up.x; ++qx) {
-            if (!load_features(ivec2(qx, qy), x, e2)) {
-                continue;
-            }
-            bool first = n == 0;
-            real4 x0;
-            TSVD_PACK4(x0, x, 0)
-            mn0 = first ? x0 : min(mn0, x0);
-            hi0 = first ? x0 : max(hi0, x0);
-            sum0 += x0 - xc0;
-#if TSVD_D > 4
-            real4 x1;
-            TSVD_PACK4(x1, x, 4)
-            mn1 = first ? x1 : min(mn1, x1);
-            hi1 = first ? x1 : max(hi1, x1);
-            sum1 += x1 - xc1;
-#endif
-#if TSVD_D > 8
-            real4 x2;
-            TSVD_PACK4(x2, x, 8)
-            mn2 = first ? x2 : min(mn2, x2);
-            hi2 = first ? x2 : max(hi2, x2);
-            sum2 += x2 - xc2;
-#endif
-            ++n;
-        }
-    }
-    ls.n = n;
-
-    // Step 1: min-max normalisation. inv = 1/rho, or 0 for a constant
-    // component (x' = 0, e2' = 0). mean = window mean in raw units.
-    for (int j = 0; j < MAX_D; ++j) {
-        ls.mn[j] = real(0);
-        ls.range[j] = real(0);
-    }
-    real4 rg0 = hi0 - mn0;
-    real4 inv0 = tsvd_inv4(rg0);
-    real4 mean0 = n > 0 ? xc0 + sum0 / real(n) : real4(0);
-    TSVD_UNPACK4(ls.mn, mn0, 0)
-    TSVD_UNPACK4(ls.range, rg0, 0)
-#if TSVD_D > 4
-    real4 rg1 = hi1 - mn1;
-    real4 inv1 = tsvd_inv4(rg1);
-    real4 mean1 = n > 0 ? xc1 + sum1 / real(n) : real4(0);
-    TSVD_UNPACK4(ls.mn, mn1, 4)
-    TSVD_UNPACK4(ls.range, rg1, 4)
-#endif
-#if TSVD_D > 8
-    real4 rg2 = hi2 - mn2;
-    real4 inv2 = tsvd_inv4(rg2);
-    real4 mean2 = n > 0 ? xc2 + sum2 / real(n) : real4(0);
-    TSVD_UNPACK4(ls.mn, mn2, 8)
-    TSVD_UNPACK4(ls.range, rg2, 8)
-#endif
-
-    // Pass 2, steps 2-4: G = Z^T Z with Z_ij = (x_ij - mean_j)/rho_j, and
-    // (E^T E)_jl = sum_i sqrt(e2'_ij e2'_il); upper block triangle only.
-    // Block Gab[col][row] = G[4a + row][4b + col].
-    tsvd_mat4 G00 = tsvd_mat4(0), E00 = tsvd_mat4(0);
-#if TSVD_D > 4
-    tsvd_mat4 G01 = tsvd_mat4(0), E01 = tsvd_mat4(0);
-    tsvd_mat4 G11 = tsvd_mat4(0), E11 = tsvd_mat4(0);
+    real4 mn2 = real4(0), hi2 = real4(0), sy2 = real4(0), es2 = real4(0);
 #endif
 #if TSVD_D == 9
     // A one-lane tail: column 8 as real4s and the scalar (8, 8).
@@ -284,67 +245,201 @@ LocalSpace tsvd_local_space_with(ivec2 c, int R, ivec2 size, bool exact_specnorm
     tsvd_mat4 G12 = tsvd_mat4(0), E12 = tsvd_mat4(0);
     tsvd_mat4 G22 = tsvd_mat4(0), E22 = tsvd_mat4(0);
 #endif
+    ivec2 lo = max(c - ivec2(R), ivec2(0));
+    ivec2 up = min(c + ivec2(R), size - ivec2(1));
+
+    int n = 0;
     for (int qy = lo.y; qy <= up.y; ++qy) {
         for (int qx = lo.x; qx <= up.x; ++qx) {
             if (!load_features(ivec2(qx, qy), x, e2)) {
                 continue;
             }
+            bool first = n == 0;
+            ++n;
             real4 x0, v0;
             TSVD_PACK4(x0, x, 0)
             TSVD_PACK4(v0, e2, 0)
-            real4 z0 = (x0 - mean0) * inv0;
-            real4 s0 = sqrt(max(v0, real4(0))) * inv0;
+            mn0 = first ? x0 : min(mn0, x0);
+            hi0 = first ? x0 : max(hi0, x0);
+            real4 y0 = x0 - xc0;
+            sy0 += y0;
+            real4 r0 = sqrt(max(v0, real4(0)));
             es0 += max(v0, real4(0));
-            G00 += outerProduct(z0, z0);
-            E00 += outerProduct(s0, s0);
+            G00 += outerProduct(y0, y0);
+            E00 += outerProduct(r0, r0);
 #if TSVD_D > 4
             real4 x1, v1;
             TSVD_PACK4(x1, x, 4)
             TSVD_PACK4(v1, e2, 4)
-            real4 z1 = (x1 - mean1) * inv1;
-            real4 s1 = sqrt(max(v1, real4(0))) * inv1;
+            mn1 = first ? x1 : min(mn1, x1);
+            hi1 = first ? x1 : max(hi1, x1);
+            real4 y1 = x1 - xc1;
+            sy1 += y1;
+            real4 r1 = sqrt(max(v1, real4(0)));
             es1 += max(v1, real4(0));
-            G01 += outerProduct(z0, z1);
-            E01 += outerProduct(s0, s1);
-            G11 += outerProduct(z1, z1);
-            E11 += outerProduct(s1, s1);
+            G01 += outerProduct(y0, y1);
+            E01 += outerProduct(r0, r1);
+            G11 += outerProduct(y1, y1);
+            E11 += outerProduct(r1, r1);
 #endif
 #if TSVD_D > 8
             real4 x2, v2;
             TSVD_PACK4(x2, x, 8)
             TSVD_PACK4(v2, e2, 8)
-            real4 z2 = (x2 - mean2) * inv2;
-            real4 s2 = sqrt(max(v2, real4(0))) * inv2;
+            mn2 = first ? x2 : min(mn2, x2);
+            hi2 = first ? x2 : max(hi2, x2);
+            real4 y2 = x2 - xc2;
+            sy2 += y2;
+            real4 r2 = sqrt(max(v2, real4(0)));
             es2 += max(v2, real4(0));
 #if TSVD_D == 9
-            G08 += z0 * z2.x;
-            E08 += s0 * s2.x;
-            G18 += z1 * z2.x;
-            E18 += s1 * s2.x;
-            G88 += z2.x * z2.x;
-            E88 += s2.x * s2.x;
+            G08 += y0 * y2.x;
+            E08 += r0 * r2.x;
+            G18 += y1 * y2.x;
+            E18 += r1 * r2.x;
+            G88 += y2.x * y2.x;
+            E88 += r2.x * r2.x;
 #else
-            G02 += outerProduct(z0, z2);
-            E02 += outerProduct(s0, s2);
-            G12 += outerProduct(z1, z2);
-            E12 += outerProduct(s1, s2);
-            G22 += outerProduct(z2, z2);
-            E22 += outerProduct(s2, s2);
+            G02 += outerProduct(y0, y2);
+            E02 += outerProduct(r0, r2);
+            G12 += outerProduct(y1, y2);
+            E12 += outerProduct(r1, r2);
+            G22 += outerProduct(y2, y2);
+            E22 += outerProduct(r2, r2);
 #endif
 #endif
+        }
+    }
+    ls.n = n;
+
+    // Step 1: min-max normalisation. inv = 1/rho, or 0 for a constant
+    // component (x' = 0, e2' = 0).
+    for (int j = 0; j < MAX_D; ++j) {
+        ls.mn[j] = real(0);
+        ls.range[j] = real(0);
+    }
+    real4 rg0 = hi0 - mn0;
+    real4 inv0 = tsvd_inv4(rg0);
+    TSVD_UNPACK4(ls.mn, mn0, 0)
+    bool wide = any(greaterThan(rg0, real4(TSVD_WIDE_RANGE))) || any(greaterThan(es0, real4(TSVD_WIDE_E2)));
+#if TSVD_D > 4
+    real4 rg1 = hi1 - mn1;
+    real4 inv1 = tsvd_inv4(rg1);
+    TSVD_UNPACK4(ls.mn, mn1, 4)
+    wide = wide || any(greaterThan(rg1, real4(TSVD_WIDE_RANGE))) || any(greaterThan(es1, real4(TSVD_WIDE_E2)));
+#endif
+#if TSVD_D > 8
+    real4 rg2 = hi2 - mn2;
+    real4 inv2 = tsvd_inv4(rg2);
+    TSVD_UNPACK4(ls.mn, mn2, 8)
+    wide = wide || any(greaterThan(rg2, real4(TSVD_WIDE_RANGE))) || any(greaterThan(es2, real4(TSVD_WIDE_E2)));
+#endif
+
+    // Steps 2-4 from the raw sums: G = Z^T Z with Z_ij = (x_ij - mean_j)/rho_j,
+    // i.e. ((n S2_jl - S1_j S1_l) / n) / (rho_j rho_l), and
+    // (E^T E)_jl = sum_i sqrt(e2'_ij e2'_il) (sy = S1, G = S2 before this).
+    real nn = real(max(n, 1));
+    G00 = tsvd_scale_block((G00 * nn - outerProduct(sy0, sy0)) / nn, inv0, inv0);
+    E00 = tsvd_scale_block(E00, inv0, inv0);
+#if TSVD_D > 4
+    G01 = tsvd_scale_block((G01 * nn - outerProduct(sy0, sy1)) / nn, inv0, inv1);
+    E01 = tsvd_scale_block(E01, inv0, inv1);
+    G11 = tsvd_scale_block((G11 * nn - outerProduct(sy1, sy1)) / nn, inv1, inv1);
+    E11 = tsvd_scale_block(E11, inv1, inv1);
+#endif
+#if TSVD_D == 9
+    G08 = (((G08 * nn - sy0 * sy2.x) / nn) * inv2.x) * inv0;
+    E08 = (E08 * inv2.x) * inv0;
+    G18 = (((G18 * nn - sy1 * sy2.x) / nn) * inv2.x) * inv1;
+    E18 = (E18 * inv2.x) * inv1;
+    G88 = (((G88 * nn - sy2.x * sy2.x) / nn) * inv2.x) * inv2.x;
+    E88 = (E88 * inv2.x) * inv2.x;
+#elif TSVD_D > 8
+    G02 = tsvd_scale_block((G02 * nn - outerProduct(sy0, sy2)) / nn, inv0, inv2);
+    E02 = tsvd_scale_block(E02, inv0, inv2);
+    G12 = tsvd_scale_block((G12 * nn - outerProduct(sy1, sy2)) / nn, inv1, inv2);
+    E12 = tsvd_scale_block(E12, inv1, inv2);
+    G22 = tsvd_scale_block((G22 * nn - outerProduct(sy2, sy2)) / nn, inv2, inv2);
+    E22 = tsvd_scale_block(E22, inv2, inv2);
+#endif
+
+    // The normalised second pass of a wide window (the twin's order of
+    // operations; skipped by every SIMD vector without such a window).
+    ONLY(wide)
+    {
+        G00 = tsvd_mat4(0); E00 = tsvd_mat4(0);
+#if TSVD_D > 4
+        G01 = tsvd_mat4(0); E01 = tsvd_mat4(0);
+        G11 = tsvd_mat4(0); E11 = tsvd_mat4(0);
+#endif
+#if TSVD_D == 9
+        G08 = real4(0); E08 = real4(0);
+        G18 = real4(0); E18 = real4(0);
+        G88 = real(0); E88 = real(0);
+#elif TSVD_D > 8
+        G02 = tsvd_mat4(0); E02 = tsvd_mat4(0);
+        G12 = tsvd_mat4(0); E12 = tsvd_mat4(0);
+        G22 = tsvd_mat4(0); E22 = tsvd_mat4(0);
+#endif
+        for (int qy = lo.y; qy <= up.y; ++qy) {
+            for (int qx = lo.x; qx <= up.x; ++qx) {
+                if (!load_features(ivec2(qx, qy), x, e2)) {
+                    continue;
+                }
+                real4 x0, v0;
+                TSVD_PACK4(x0, x, 0)
+                TSVD_PACK4(v0, e2, 0)
+                real4 z0 = ((x0 - xc0) - sy0 / nn) * inv0;
+                real4 s0 = sqrt(max(v0, real4(0))) * inv0;
+                G00 += outerProduct(z0, z0);
+                E00 += outerProduct(s0, s0);
+#if TSVD_D > 4
+                real4 x1, v1;
+                TSVD_PACK4(x1, x, 4)
+                TSVD_PACK4(v1, e2, 4)
+                real4 z1 = ((x1 - xc1) - sy1 / nn) * inv1;
+                real4 s1 = sqrt(max(v1, real4(0))) * inv1;
+                G01 += outerProduct(z0, z1);
+                E01 += outerProduct(s0, s1);
+                G11 += outerProduct(z1, z1);
+                E11 += outerProduct(s1, s1);
+#endif
+#if TSVD_D > 8
+                real4 x2, v2;
+                TSVD_PACK4(x2, x, 8)
+                TSVD_PACK4(v2, e2, 8)
+                real4 z2 = ((x2 - xc2) - sy2 / nn) * inv2;
+                real4 s2 = sqrt(max(v2, real4(0))) * inv2;
+#if TSVD_D == 9
+                G08 += z0 * z2.x;
+                E08 += s0 * s2.x;
+                G18 += z1 * z2.x;
+                E18 += s1 * s2.x;
+                G88 += z2.x * z2.x;
+                E88 += s2.x * s2.x;
+#else
+                G02 += outerProduct(z0, z2);
+                E02 += outerProduct(s0, s2);
+                G12 += outerProduct(z1, z2);
+                E12 += outerProduct(s1, s2);
+                G22 += outerProduct(z2, z2);
+                E22 += outerProduct(s2, s2);
+#endif
+#endif
+            }
         }
     }
     // NOISE-CONST: a component no wider than TSVD_NOISE_RANGE_C RMS noise
     // is constant (range 0). Its mean noise comes from pass 2, which loads
     // e2 anyway; its rows and columns of G and E^T E are set to 0, which is
     // what x' = 0, e2' = 0 would have accumulated (the twin's order).
-    real4 keep0 = mix(real4(1), real4(0), lessThanEqual(rg0, real(TSVD_NOISE_RANGE_C) * sqrt(es0 / real(max(n, 1)))));
+    real4 keep0 = mix(real4(1), real4(0), lessThanEqual(rg0, real(TSVD_NOISE_RANGE_C) * sqrt(es0 / nn)));
     rg0 *= keep0;
     TSVD_UNPACK4(ls.range, rg0, 0)
     G00 = tsvd_keep_block(G00, keep0, keep0);
     E00 = tsvd_keep_block(E00, keep0, keep0);
 #if TSVD_D > 4
-    real4 keep1 = mix(real4(1), real4(0), lessThanEqual(rg1, real(TSVD_NOISE_RANGE_C) * sqrt(es1 / real(max(n, 1)))));
+    real4 keep1 = mix(real4(1), real4(0), lessThanEqual(rg1, real(TSVD_NOISE_RANGE_C) * sqrt(es1 / nn)));
     rg1 *= keep1;
     TSVD_UNPACK4(ls.range, rg1, 4)
     G01 = tsvd_keep_block(G01, keep0, keep1);
@@ -353,7 +448,7 @@ LocalSpace tsvd_local_space_with(ivec2 c, int R, ivec2 size, bool exact_specnorm
     E11 = tsvd_keep_block(E11, keep1, keep1);
 #endif
 #if TSVD_D > 8
-    real4 keep2 = mix(real4(1), real4(0), lessThanEqual(rg2, real(TSVD_NOISE_RANGE_C) * sqrt(es2 / real(max(n, 1)))));
+    real4 keep2 = mix(real4(1), real4(0), lessThanEqual(rg2, real(TSVD_NOISE_RANGE_C) * sqrt(es2 / nn)));
     rg2 *= keep2;
     TSVD_UNPACK4(ls.range, rg2, 8)
 #if TSVD_D == 9

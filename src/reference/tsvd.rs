@@ -7,6 +7,19 @@
 //! the exact spectral norm of the noise matrix, the rank `k` and the retained
 //! directions `V_k`; [`local_coords`] then projects a pixel to `Δz ∈ R^k`.
 //! Everything is f64.
+//!
+//! Decision TSVD-ONE-PASS (ours): `G = ZᵀZ` is formed from the window's
+//! sums `S1 = Σ y` and `S2 = Σ y yᵀ` of `y = x − x_ref` (the window's first
+//! pixel here, the centre on the GPU), as
+//! `G_jl = ((n S2_jl − S1_j S1_l)/n)/(ρ_j ρ_l)`, and `EᵀE` from
+//! `Σ sqrt(e2_j e2_l)` scaled by `1/(ρ_j ρ_l)`: the same matrices as the
+//! spec's normalise-centre-multiply, which lets the GPU visit a window once
+//! instead of twice (its min/max/mean pass was a fifth of LP's centre
+//! loads). For the pixel coordinates (integers) every sum and
+//! `n S2 − S1 S1ᵀ` is exact, so equal spreads in x and y give exactly equal
+//! entries here and on the GPU. A window whose range or feature variance
+//! could overflow f32 raw sums takes a normalised second pass on the GPU
+//! (`TSVD_WIDE_RANGE`, `TSVD_WIDE_E2` in `spirv/lib/tsvd.glsl`).
 
 use super::linalg::{jacobi_eigen, JACOBI_SWEEPS, JACOBI_TOL};
 
@@ -138,37 +151,37 @@ pub fn local_space_with(x: &[f64], e2: &[f64], d: usize, tol: f64, sweeps: usize
             }
         }
     }
-    let mut xn = vec![0.0; n * d];
-    let mut en = vec![0.0; n * d];
-    for i in 0..n {
-        for j in 0..d {
-            if range[j] > RANGE_EPS {
-                xn[i * d + j] = (x[i * d + j] - min[j]) / range[j];
-                en[i * d + j] = e2[i * d + j].max(0.0) / (range[j] * range[j]);
-            }
-        }
-    }
-
-    // 2. centred data matrix Z; 3. G = ZᵀZ
-    let mut mean = vec![0.0; d];
-    for i in 0..n {
-        for j in 0..d {
-            mean[j] += xn[i * d + j];
-        }
-    }
-    if n > 0 {
-        mean.iter_mut().for_each(|m| *m /= n as f64);
-    }
-    let mut g = vec![0.0; d * d];
+    // 2. centred data matrix Z; 3. G = ZᵀZ; 4. (EᵀE)_jl = Σ_i sqrt(e2'_ij e2'_il).
+    // TSVD-ONE-PASS (ours): from the sums S1 = Σ y, S2 = Σ y yᵀ of
+    // y = x − x_0 (the first pixel), G_jl = ((n S2_jl − S1_j S1_l) / n) /
+    // (ρ_j ρ_l), as the GPU computes it in one pass over the window: for
+    // pixel coordinates (integers) every sum and n S2 − S1 S1ᵀ is exact, so
+    // equal spreads in x and y give exactly equal entries on both sides
+    // (the order of equal singular values is then the index order), where
+    // normalising first rounds the two differently.
+    let inv: Vec<f64> = range
+        .iter()
+        .map(|&r| if r > RANGE_EPS { 1.0 / r } else { 0.0 })
+        .collect();
+    let mut s1 = vec![0.0; d];
+    let mut s2 = vec![0.0; d * d];
     let mut ete = vec![0.0; d * d];
     for i in 0..n {
         for j in 0..d {
-            let zj = xn[i * d + j] - mean[j];
+            let yj = x[i * d + j] - x[j];
+            s1[j] += yj;
             for l in 0..d {
-                g[j * d + l] += zj * (xn[i * d + l] - mean[l]);
-                // 4. (EᵀE)_jl = Σ_i sqrt(e2'_ij e2'_il)
-                ete[j * d + l] += (en[i * d + j] * en[i * d + l]).sqrt();
+                s2[j * d + l] += yj * (x[i * d + l] - x[l]);
+                ete[j * d + l] += (e2[i * d + j].max(0.0) * e2[i * d + l].max(0.0)).sqrt();
             }
+        }
+    }
+    let nf = n.max(1) as f64;
+    let mut g = vec![0.0; d * d];
+    for j in 0..d {
+        for l in 0..d {
+            g[j * d + l] = (nf * s2[j * d + l] - s1[j] * s1[l]) / nf * inv[j] * inv[l];
+            ete[j * d + l] *= inv[j] * inv[l];
         }
     }
     let eg = jacobi_eigen(&g, d, tol, sweeps);
