@@ -193,6 +193,34 @@ tsvd_mat4 tsvd_scale_block(tsvd_mat4 m, real4 inv_row, real4 inv_col)
 #define TSVD_WIDE_RANGE 1e15
 #define TSVD_WIDE_E2 1e36
 
+// One pixel's terms of G (from a*) and E^T E (from b*), lanes as x0, x1,
+// x2, into the blocks of tsvd_local_space_with (declared there).
+#define TSVD_ACC0(a0, b0) \
+    G00 += outerProduct(a0, a0); \
+    E00 += outerProduct(b0, b0);
+#define TSVD_ACC1(a0, a1, b0, b1) \
+    G01 += outerProduct(a0, a1); \
+    E01 += outerProduct(b0, b1); \
+    G11 += outerProduct(a1, a1); \
+    E11 += outerProduct(b1, b1);
+#if TSVD_D == 9
+#define TSVD_ACC2(a0, a1, a2, b0, b1, b2) \
+    G08 += a0 * a2.x; \
+    E08 += b0 * b2.x; \
+    G18 += a1 * a2.x; \
+    E18 += b1 * b2.x; \
+    G88 += a2.x * a2.x; \
+    E88 += b2.x * b2.x;
+#else
+#define TSVD_ACC2(a0, a1, a2, b0, b1, b2) \
+    G02 += outerProduct(a0, a2); \
+    E02 += outerProduct(b0, b2); \
+    G12 += outerProduct(a1, a2); \
+    E12 += outerProduct(b1, b2); \
+    G22 += outerProduct(a2, a2); \
+    E22 += outerProduct(b2, b2);
+#endif
+
 // Spec §0.6 steps 1-6 for the window Omega_c(R) of centre c: the clipped
 // square |q - c|_inf <= R inside [0, size), restricted to the pixels for
 // which load_features returns true, visited in raster order.
@@ -265,8 +293,7 @@ LocalSpace tsvd_local_space_with(ivec2 c, int R, ivec2 size, bool exact_specnorm
             sy0 += y0;
             real4 r0 = sqrt(max(v0, real4(0)));
             es0 += max(v0, real4(0));
-            G00 += outerProduct(y0, y0);
-            E00 += outerProduct(r0, r0);
+            TSVD_ACC0(y0, r0)
 #if TSVD_D > 4
             real4 x1, v1;
             TSVD_PACK4(x1, x, 4)
@@ -277,10 +304,7 @@ LocalSpace tsvd_local_space_with(ivec2 c, int R, ivec2 size, bool exact_specnorm
             sy1 += y1;
             real4 r1 = sqrt(max(v1, real4(0)));
             es1 += max(v1, real4(0));
-            G01 += outerProduct(y0, y1);
-            E01 += outerProduct(r0, r1);
-            G11 += outerProduct(y1, y1);
-            E11 += outerProduct(r1, r1);
+            TSVD_ACC1(y0, y1, r0, r1)
 #endif
 #if TSVD_D > 8
             real4 x2, v2;
@@ -292,21 +316,7 @@ LocalSpace tsvd_local_space_with(ivec2 c, int R, ivec2 size, bool exact_specnorm
             sy2 += y2;
             real4 r2 = sqrt(max(v2, real4(0)));
             es2 += max(v2, real4(0));
-#if TSVD_D == 9
-            G08 += y0 * y2.x;
-            E08 += r0 * r2.x;
-            G18 += y1 * y2.x;
-            E18 += r1 * r2.x;
-            G88 += y2.x * y2.x;
-            E88 += r2.x * r2.x;
-#else
-            G02 += outerProduct(y0, y2);
-            E02 += outerProduct(r0, r2);
-            G12 += outerProduct(y1, y2);
-            E12 += outerProduct(r1, r2);
-            G22 += outerProduct(y2, y2);
-            E22 += outerProduct(r2, r2);
-#endif
+            TSVD_ACC2(y0, y1, y2, r0, r1, r2)
 #endif
         }
     }
@@ -391,18 +401,14 @@ LocalSpace tsvd_local_space_with(ivec2 c, int R, ivec2 size, bool exact_specnorm
                 TSVD_PACK4(v0, e2, 0)
                 real4 z0 = ((x0 - xc0) - sy0 / nn) * inv0;
                 real4 s0 = sqrt(max(v0, real4(0))) * inv0;
-                G00 += outerProduct(z0, z0);
-                E00 += outerProduct(s0, s0);
+                TSVD_ACC0(z0, s0)
 #if TSVD_D > 4
                 real4 x1, v1;
                 TSVD_PACK4(x1, x, 4)
                 TSVD_PACK4(v1, e2, 4)
                 real4 z1 = ((x1 - xc1) - sy1 / nn) * inv1;
                 real4 s1 = sqrt(max(v1, real4(0))) * inv1;
-                G01 += outerProduct(z0, z1);
-                E01 += outerProduct(s0, s1);
-                G11 += outerProduct(z1, z1);
-                E11 += outerProduct(s1, s1);
+                TSVD_ACC1(z0, z1, s0, s1)
 #endif
 #if TSVD_D > 8
                 real4 x2, v2;
@@ -410,21 +416,7 @@ LocalSpace tsvd_local_space_with(ivec2 c, int R, ivec2 size, bool exact_specnorm
                 TSVD_PACK4(v2, e2, 8)
                 real4 z2 = ((x2 - xc2) - sy2 / nn) * inv2;
                 real4 s2 = sqrt(max(v2, real4(0))) * inv2;
-#if TSVD_D == 9
-                G08 += z0 * z2.x;
-                E08 += s0 * s2.x;
-                G18 += z1 * z2.x;
-                E18 += s1 * s2.x;
-                G88 += z2.x * z2.x;
-                E88 += s2.x * s2.x;
-#else
-                G02 += outerProduct(z0, z2);
-                E02 += outerProduct(s0, s2);
-                G12 += outerProduct(z1, z2);
-                E12 += outerProduct(s1, s2);
-                G22 += outerProduct(z2, z2);
-                E22 += outerProduct(s2, s2);
-#endif
+                TSVD_ACC2(z0, z1, z2, s0, s1, s2)
 #endif
             }
         }
