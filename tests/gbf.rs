@@ -546,3 +546,45 @@ fn indefinite_covariance_gives_finite_features() {
     }
     check_validation(&ctx);
 }
+
+/// AOS-NO-GBF (`Prefilter::resolve`): with `auto`, AOS skips the G-buffer
+/// prefilter on an input that has the position layers (its own NL-means
+/// filters every feature), the other methods run it, and `on` still runs
+/// it for AOS. The CPU path resolves `auto` the same way (its AOS output
+/// equals the one with the prefilter off).
+#[test]
+fn aos_skips_the_prefilter_by_default() {
+    use mcdenoise::methods::{denoise, Backend, DenoiseRequest, Method, Prefilter};
+    use mcdenoise::{Config, Denoiser, Source};
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures");
+    let img = mcdenoise::io::read_stats(&dir.join("dof_checker_64_spp16.exr")).unwrap();
+    assert!(img.has(Layer::PositionCovariance));
+    let ctx = gpu();
+    for (method, prefilter, runs) in [
+        (Method::Aos, Prefilter::Auto, false),
+        (Method::Aos, Prefilter::On, true),
+        (Method::Wlr, Prefilter::Auto, true),
+        (Method::Lp, Prefilter::Auto, true),
+        (Method::Apr, Prefilter::Auto, true),
+        (Method::None, Prefilter::Auto, false),
+    ] {
+        let mut config = Config::new(method);
+        config.prefilter = prefilter;
+        let d = Denoiser::new(&ctx, Source::of_image(&img), config).unwrap();
+        assert_eq!(d.prefiltered(), runs, "{method:?} with {prefilter:?}");
+    }
+    let cpu = |prefilter: Prefilter| {
+        let mut req = DenoiseRequest::new(Method::Aos);
+        req.backend = Backend::Cpu;
+        req.prefilter = prefilter;
+        denoise(Some(&ctx), &img, &req).unwrap().color
+    };
+    let (auto, off, on) = (
+        cpu(Prefilter::Auto),
+        cpu(Prefilter::Off),
+        cpu(Prefilter::On),
+    );
+    assert_eq!(auto.planes, off.planes, "CPU AOS: auto is off");
+    assert_ne!(auto.planes, on.planes, "CPU AOS: on prefilters");
+    check_validation(&ctx);
+}

@@ -89,7 +89,8 @@ impl PrecisionArg {
 #[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
 enum PrefilterArg {
     /// The G-buffer prefilter when the input has position, position_variance
-    /// and position_covariance; none otherwise.
+    /// and position_covariance, for wlr, lp and apr; none otherwise, and
+    /// none for aos (its own NL-means prefilter does better there).
     Auto,
     /// G-buffer prefilter with world positions and SURE (spec §6); an error
     /// without the position layers.

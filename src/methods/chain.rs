@@ -117,11 +117,7 @@ pub struct Placement {
 /// input with `layers` (`none` prefilters only when asked explicitly, as
 /// `mcdenoise prefilter` does).
 pub fn prefilter_runs(method: Method, prefilter: Prefilter, layers: &[Layer]) -> Result<bool> {
-    let prefilter = match (method, prefilter) {
-        (Method::None, Prefilter::Auto) => Prefilter::Off,
-        (_, p) => p,
-    };
-    gbf::wanted(prefilter, |l| layers.contains(&l))
+    gbf::wanted(prefilter.resolve(method), |l| layers.contains(&l))
 }
 
 enum MethodPlanes {

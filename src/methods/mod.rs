@@ -89,13 +89,30 @@ pub type ProgressCallback = Arc<dyn Fn(f64, &str) + Send + Sync>;
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Default)]
 pub enum Prefilter {
     /// When the input has `position`, `position_variance` and
-    /// `position_covariance` (the default).
+    /// `position_covariance` (the default), for WLR, LP and APR; never for
+    /// `none` and AOS ([`Prefilter::resolve`]).
     #[default]
     Auto,
     /// Always; an error without those layers.
     On,
     /// Never.
     Off,
+}
+
+impl Prefilter {
+    /// What `self` means for `method`. `Auto` is `Off` for `none` (its
+    /// output is the Monte Carlo mean) and for AOS (decision AOS-NO-GBF,
+    /// ours): AOS then runs its own NL-means on every feature (§5.2)
+    /// instead of only on visibility (PREFILTER-STACK, §1), and its rMSE
+    /// is 27–72 % lower on the motion-blur and depth-of-field scenes and on
+    /// dof_checker, within 10 % either way on the other public scenes
+    /// (`docs/results-adaptive.md`, `docs/results-aos.md`).
+    pub fn resolve(self, method: Method) -> Prefilter {
+        match (method, self) {
+            (Method::None | Method::Aos, Prefilter::Auto) => Prefilter::Off,
+            (_, p) => p,
+        }
+    }
 }
 
 /// What to run.
@@ -408,11 +425,7 @@ fn clean_cpu(
         .outliers
         .resolve(req.method)
         .then(|| outliers::remove_cpu(&mut clean));
-    let prefilter = match (req.method, req.prefilter) {
-        (Method::None, Prefilter::Auto) => Prefilter::Off,
-        (_, p) => p,
-    };
-    let prefiltered = gbf::wanted(prefilter, |l| clean.has(l))?;
+    let prefiltered = gbf::wanted(req.prefilter.resolve(req.method), |l| clean.has(l))?;
     if prefiltered {
         gbf::run_cpu(&mut clean)?;
     }
