@@ -103,9 +103,11 @@ impl Prefilter {
     /// What `self` means for `method`. `Auto` is `Off` for `none` (its
     /// output is the Monte Carlo mean) and for AOS (decision AOS-NO-GBF,
     /// ours): AOS then runs its own NL-means on every feature (§5.2)
-    /// instead of only on visibility (PREFILTER-STACK, §1), and its rMSE
-    /// is 27–72 % lower on the motion-blur and depth-of-field scenes and on
-    /// dof_checker, within 10 % either way on the other public scenes
+    /// instead of only on visibility (PREFILTER-STACK, §1). Its rMSE with
+    /// GBF was 27–72 % higher on the built-in motion-blur and
+    /// depth-of-field scenes and ~45 % higher on dof_checker; on
+    /// glossy_cornell and indirect_room the two are within 8 %, except
+    /// indirect_room at 4 spp, where GBF is 15 % better
     /// (`docs/results-adaptive.md`, `docs/results-aos.md`).
     pub fn resolve(self, method: Method) -> Prefilter {
         match (method, self) {
