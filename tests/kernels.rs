@@ -318,12 +318,13 @@ fn tsvd_debug_matches_twin() {
     check_validation(&ctx);
 }
 
-/// TSVD-ONE-PASS (`spirv/lib/tsvd.glsl`): the GPU accumulates raw
-/// co-moments in one pass. Features far from the origin (depth around 1e4)
-/// must not lose the spread to cancellation, and a window whose range (a
-/// sky at depth 1e20) or feature variance (1e37) would overflow raw f32
-/// sums takes the normalised second pass: both agree with the twin as
-/// `tsvd_debug_matches_twin` requires.
+/// TSVD-ONE-PASS (`spirv/lib/tsvd.glsl`): the GPU accumulates raw sums in
+/// one pass. Features far from the origin (depth around 1e4) must not lose
+/// the spread to cancellation, and a window whose range (a sky at depth
+/// 1e20) would overflow raw f32 sums takes the normalised second pass (in
+/// f32; without it this test fails). A feature variance of 1e37 is a
+/// robustness check: NOISE-CONST drops that component. All agree with the
+/// twin as `tsvd_debug_matches_twin` requires.
 #[test]
 fn tsvd_far_and_wide_features_match_twin() {
     let ctx = gpu();

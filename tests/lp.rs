@@ -326,9 +326,17 @@ fn compare_centres(sc: &Scene, pass: usize, prec: Precision, what: &str) -> (usi
         .collect();
     // ξ is a difference of near-equal sums (Σ e² − v): f32 loses up to
     // ~2e-3 of it on single centres (1.7e-3 before TSVD-ONE-PASS as after).
-    // The 99 % of §0.3 is meant for images; a pass with fewer than 100 new
-    // centres may have one such centre.
-    let frac = |n: usize| if n < 100 { 1.0 - 1.0 / n as f64 } else { 0.99 };
+    // The 99 % of §0.3 is meant for images; in f32 a pass with fewer than
+    // 100 new centres may have one such centre, never off by more than
+    // 5e-3. β0 and f64 keep the 99 %.
+    let xi_f32 = |s: usize| prec == Precision::F32 && (S::XI..S::XI + 3).contains(&s);
+    let frac = |n: usize, s: usize| {
+        if xi_f32(s) && (10..100).contains(&n) {
+            1.0 - 1.0 / n as f64
+        } else {
+            0.99
+        }
+    };
     for s in S::BETA0..S::U {
         let (g, c) = (pick(&gpu_state, s, &same), pick(&cpu, s, &same));
         let worst = g
@@ -337,7 +345,10 @@ fn compare_centres(sc: &Scene, pass: usize, prec: Precision, what: &str) -> (usi
             .map(|(g, c)| (g - c).abs() / (c.abs() + 1e-3))
             .fold(0.0f32, f32::max);
         println!("{what} state[{s}]: worst relative difference {worst:.2e}");
-        assert_close(&format!("{what} state[{s}]"), &g, &c, frac(c.len()));
+        if xi_f32(s) {
+            assert!(worst <= 5e-3, "{what} state[{s}]: worst {worst}");
+        }
+        assert_close(&format!("{what} state[{s}]"), &g, &c, frac(c.len(), s));
     }
     // u[ch] enters a dot product with feature differences: compare it as a
     // vector, relative to its largest entry (f32 RLS loses a few digits on

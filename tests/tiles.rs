@@ -166,6 +166,11 @@ fn every_method_tiled_along_x_is_bit_identical() {
             &format!("{} 480x32", method.name()),
         );
     }
+    // AOS with the G-buffer prefilter (not its default since AOS-NO-GBF):
+    // its NL-means then filters only visibility (PREFILTER-STACK).
+    let mut aos_gbf = Config::new(Method::Aos);
+    aos_gbf.prefilter = Prefilter::On;
+    check(&img, aos_gbf, 60, "aos --prefilter gbf 480x32");
     check_validation(&gpu());
 }
 

@@ -187,9 +187,12 @@ tsvd_mat4 tsvd_scale_block(tsvd_mat4 m, real4 inv_row, real4 inv_col)
 }
 
 // TSVD-ONE-PASS's limits: the pass below accumulates raw (unnormalised)
-// sums; a window whose feature range exceeds TSVD_WIDE_RANGE (S1 S1^T grows
-// as n^2 rho^2) or whose feature variances sum past TSVD_WIDE_E2 could
-// overflow f32 there, and takes the normalised second pass instead.
+// sums. A window whose feature range exceeds TSVD_WIDE_RANGE could overflow
+// f32 there (n S2 and S1 S1^T grow as n^2 rho^2: safe for n up to ~1.8e4,
+// R <= 66) and takes the normalised second pass instead. TSVD_WIDE_E2 is
+// belt and braces: a component whose variances sum past it is kept only if
+// its range exceeds ~1e17 (NOISE-CONST), which is wide already, and a
+// dropped one's overflowed entries are zeroed by selection.
 #define TSVD_WIDE_RANGE 1e15
 #define TSVD_WIDE_E2 1e36
 
@@ -231,15 +234,20 @@ tsvd_mat4 tsvd_scale_block(tsvd_mat4 m, real4 inv_row, real4 inv_col)
 // upper block triangle), unpacked into the arrays of jacobi_eigen once per
 // window.
 //
-// One pass over the window (TSVD-ONE-PASS, ours): min, max, the sums
-// S1 = sum y and S2 = sum y y^T of y = x - x_c (the centre's features: pixel
-// coordinates become small integers, whose sums and n S2 - S1 S1^T are
-// exact, so a tile's offset changes no rounding and the coordinate block
-// is rounded once, where near-equal spreads in x and y make the
-// eigenvectors sensitive), sqrt(e2) sqrt(e2)^T and sum e2, all in raw units; G = C_jl / (rho_j rho_l) and E^T E likewise once the ranges are
-// known. The twin's normalise-then-sum (f64) is the same matrix up to
-// rounding. A window wide enough to overflow raw f32 co-moments (never in a
-// real image) runs the twin's normalised second pass.
+// One pass over the window (TSVD-ONE-PASS, ours; the twin computes the
+// same formula in f64): min, max, the sums S1 = sum y and S2 = sum y y^T of
+// y = x - x_c, sqrt(e2) sqrt(e2)^T and sum e2, all in raw units; then
+// G_jl = ((n S2_jl - S1_j S1_l) / n) / (rho_j rho_l) and E^T E scaled alike
+// once the ranges are known. Pixel coordinates become small integers whose
+// sums and n S2 - S1 S1^T are exact for R <= 11 (n S2 < 2^24): a tile's
+// offset changes no rounding, and the coordinate block is rounded once,
+// where near-equal spreads in x and y make the eigenvectors sensitive.
+// Shifting by the centre rather than the mean amplifies f32 rounding in
+// n S2 - S1 S1^T by (var + d^2)/var, d = mean - x_c: at most n - 1 (a
+// centre that is an outlier of an otherwise flat feature), typically
+// ~n^1.5 eps ~ 4e-4 relative at R = 9, inside §0.3's 1e-3. A window wide
+// enough to overflow raw f32 sums (never in a real image) runs the spec's
+// normalised second pass.
 LocalSpace tsvd_local_space_with(ivec2 c, int R, ivec2 size, bool exact_specnorm)
 {
     LocalSpace ls;
@@ -373,8 +381,9 @@ LocalSpace tsvd_local_space_with(ivec2 c, int R, ivec2 size, bool exact_specnorm
     E22 = tsvd_scale_block(E22, inv2, inv2);
 #endif
 
-    // The normalised second pass of a wide window (the twin's order of
-    // operations; skipped by every SIMD vector without such a window).
+    // The normalised second pass of a wide window (normalise, centre,
+    // multiply, as the spec words it; skipped by every SIMD vector without
+    // such a window).
     ONLY(wide)
     {
         G00 = tsvd_mat4(0); E00 = tsvd_mat4(0);
@@ -422,9 +431,9 @@ LocalSpace tsvd_local_space_with(ivec2 c, int R, ivec2 size, bool exact_specnorm
         }
     }
     // NOISE-CONST: a component no wider than TSVD_NOISE_RANGE_C RMS noise
-    // is constant (range 0). Its mean noise comes from pass 2, which loads
-    // e2 anyway; its rows and columns of G and E^T E are set to 0, which is
-    // what x' = 0, e2' = 0 would have accumulated (the twin's order).
+    // is constant (range 0). Its mean noise comes from the one pass, which
+    // loads e2 anyway; its rows and columns of G and E^T E are set to 0 by
+    // selection, which is what x' = 0, e2' = 0 would have accumulated.
     real4 keep0 = mix(real4(1), real4(0), lessThanEqual(rg0, real(TSVD_NOISE_RANGE_C) * sqrt(es0 / nn)));
     rg0 *= keep0;
     TSVD_UNPACK4(ls.range, rg0, 0)

@@ -36,12 +36,13 @@ pub const DECL: KernelDecl = KernelDecl {
     push_size: std::mem::size_of::<AosPush>() as u32,
 };
 
-/// Per pixel: two passes over the `(2R+1)²` window, each with a 10×10
-/// symmetric Gram update (55 multiply-adds) and the normalisation, plus two
-/// 10×10 Jacobi eigen-decompositions (~6 sweeps × 45 rotations × 60 flops).
+/// Per pixel: one pass over the `(2R+1)²` window (TSVD-ONE-PASS) with two
+/// 10×10 symmetric Gram updates, `G` and `EᵀE` (2 × 55 multiply-adds), and
+/// the sums, ranges and square roots (~40 flops), plus two 10×10 Jacobi
+/// eigen-decompositions (~6 sweeps × 45 rotations × 60 flops).
 pub fn flops_per_pixel(radius: u32) -> f64 {
     let n = ((2 * radius + 1) * (2 * radius + 1)) as f64;
-    n * 2.0 * (2.0 * 55.0 + 20.0) + 2.0 * 6.0 * 45.0 * 60.0
+    n * (2.0 * 2.0 * 55.0 + 40.0) + 2.0 * 6.0 * 45.0 * 60.0
 }
 
 /// Records the local spaces of rows `push.base_row + [0, rows)`;

@@ -77,7 +77,7 @@ pub struct LpInputs {
 
 /// Per grid cell that becomes a centre (the dispatch charges it to every
 /// candidate cell; `bench` rescales a run's total to the cells that became
-/// centres): 361 neighbours × (TSVD: two passes
+/// centres): 361 neighbours × (TSVD: one pass
 /// with two 9×9 Gram updates; RLS: three projections, two 10×10 mat-vecs and
 /// one rank-1 update, 3 channels) plus two 9×9 Jacobi decompositions.
 pub fn flops_per_centre() -> f64 {

@@ -53,8 +53,8 @@ pub const OUTPUTS: [&str; 8] = [
 /// pixel: 23 `vec4` (`WLR_STATE_VEC4` in `spirv/lib/wlr.glsl`).
 pub const STATE_WORDS: usize = 23 * 4;
 
-/// Per pixel: `(2R+1)²` neighbours × (TSVD: two passes with two 9×9 Gram
-/// updates; curvature pass: projection + 15 4×4 outer products; two trial
+/// Per pixel: `(2R+1)²` neighbours × (TSVD: one pass with two 9×9 Gram
+/// updates, TSVD-ONE-PASS; curvature pass: projection + 15 4×4 outer products; two trial
 /// passes: projection + 5 × (kernel + 6 outer products / 3 dots)) plus the
 /// Jacobi and Cholesky solves.
 pub fn flops_per_pixel(radius: u32) -> f64 {

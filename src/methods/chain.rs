@@ -114,8 +114,8 @@ pub struct Placement {
 }
 
 /// Whether the G-buffer prefilter runs for `method` with `prefilter` on an
-/// input with `layers` (`none` prefilters only when asked explicitly, as
-/// `mcdenoise prefilter` does).
+/// input with `layers` ([`Prefilter::resolve`]: `none` and AOS prefilter
+/// only when asked explicitly, as `mcdenoise prefilter` does for `none`).
 pub fn prefilter_runs(method: Method, prefilter: Prefilter, layers: &[Layer]) -> Result<bool> {
     gbf::wanted(prefilter.resolve(method), |l| layers.contains(&l))
 }

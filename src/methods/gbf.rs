@@ -10,9 +10,10 @@
 //! gbf_filter       all seven at hbar, written over the feature planes
 //! ```
 //!
-//! It runs before WLR or LP (spec §1) when [`Prefilter`] says so: `auto`
-//! (the default) runs it when the input has `position`,
-//! `position_variance` and `position_covariance`.
+//! It runs before the method (spec §1) when [`Prefilter::resolve`] says
+//! so: `auto` (the default) runs it for WLR, LP and APR when the input has
+//! `position`, `position_variance` and `position_covariance`, and never
+//! for `none` and AOS (AOS-NO-GBF).
 
 use std::sync::Arc;
 

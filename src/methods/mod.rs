@@ -106,7 +106,7 @@ impl Prefilter {
     /// instead of only on visibility (PREFILTER-STACK, §1). Its rMSE with
     /// GBF was 27–72 % higher on the built-in motion-blur and
     /// depth-of-field scenes and ~45 % higher on dof_checker; on
-    /// glossy_cornell and indirect_room the two are within 8 %, except
+    /// glossy_cornell and indirect_room the two are within 9 %, except
     /// indirect_room at 4 spp, where GBF is 15 % better
     /// (`docs/results-adaptive.md`, `docs/results-aos.md`).
     pub fn resolve(self, method: Method) -> Prefilter {

@@ -40,9 +40,10 @@
 //! | outlier detection and replacement (§4.4 steps 1–3) | 14 | `m_o`, `sd_o` and the median over `Ω_o(14)` |
 //! | sanitation (§0.4) | 5 | step 1: 3×3 (1); then step 3 (5×5: 2) or step 4 (3×3 residuals, 7×7 MAD: 4) |
 //!
-//! With the defaults (final pass, outlier stage on, prefilter on): WLR 133,
-//! LP 175, APR 200, AOS 141, and `none` 5 (it runs no outlier stage and no
-//! prefilter by default). [`halo`] computes it for any configuration.
+//! With the defaults (final pass, outlier stage on, prefilter where `auto`
+//! runs it): WLR 133, LP 175, APR 200, AOS 128 (no prefilter by default,
+//! AOS-NO-GBF; 141 with `--prefilter gbf`), and `none` 5 (it runs no
+//! outlier stage and no prefilter by default). [`halo`] computes it for any configuration.
 
 use std::collections::BTreeMap;
 use std::sync::Arc;

@@ -358,6 +358,66 @@ mod tests {
         (x, e2)
     }
 
+    /// TSVD-ONE-PASS against the spec's words: σ² equal the eigenvalues of
+    /// `ZᵀZ` built explicitly (min-max normalise, centre on the mean,
+    /// multiply), and ‖E‖₂ that of `EᵀE` from the normalised variances, on
+    /// windows whose features sit far from 0 (depth-like offsets of 1e3)
+    /// and whose centre is an outlier.
+    #[test]
+    fn one_pass_sums_give_the_spec_matrices() {
+        let mut rng = Rng(17);
+        for (offset, outlier) in [(0.0, false), (1e3, false), (1e3, true)] {
+            let (mut x, e2) = window(&mut rng, 4, 1e-3);
+            let n = x.len() / D;
+            for i in 0..n {
+                x[i * D + 5] += offset;
+            }
+            if outlier {
+                x[(n / 2) * D + 6] += 5.0;
+            }
+            let ls = local_space(&x, &e2, D);
+            let (min, max) = (0..D)
+                .map(|j| {
+                    let col = (0..n).map(|i| x[i * D + j]);
+                    (
+                        col.clone().fold(f64::INFINITY, f64::min),
+                        col.fold(f64::NEG_INFINITY, f64::max),
+                    )
+                })
+                .unzip::<_, _, Vec<f64>, Vec<f64>>();
+            let xn = |i: usize, j: usize| (x[i * D + j] - min[j]) / (max[j] - min[j]);
+            let mean: Vec<f64> = (0..D)
+                .map(|j| (0..n).map(|i| xn(i, j)).sum::<f64>() / n as f64)
+                .collect();
+            let mut g = vec![0.0; D * D];
+            let mut ete = vec![0.0; D * D];
+            for i in 0..n {
+                for j in 0..D {
+                    for l in 0..D {
+                        g[j * D + l] += (xn(i, j) - mean[j]) * (xn(i, l) - mean[l]);
+                        let r2 = |j: usize| e2[i * D + j] / (max[j] - min[j]).powi(2);
+                        ete[j * D + l] += (r2(j) * r2(l)).sqrt();
+                    }
+                }
+            }
+            let eg = jacobi_eigen(&g, D, JACOBI_TOL, JACOBI_SWEEPS);
+            for m in 0..D {
+                let want = eg.values[m].max(0.0).sqrt();
+                assert!(
+                    (ls.sigma[m] - want).abs() <= 1e-9 * (want + eg.values[0].sqrt()),
+                    "offset {offset}, outlier {outlier}: σ_{m} {} against {want}",
+                    ls.sigma[m]
+                );
+            }
+            let spec = jacobi_eigen(&ete, D, JACOBI_TOL, JACOBI_SWEEPS).values[0].sqrt();
+            assert!(
+                (ls.specnorm - spec).abs() <= 1e-9 * spec,
+                "‖E‖₂ {} against {spec}",
+                ls.specnorm
+            );
+        }
+    }
+
     fn check_orthonormal_vk(ls: &LocalSpace) {
         for a in 0..ls.k {
             for b in 0..ls.k {
