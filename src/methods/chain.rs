@@ -117,7 +117,7 @@ pub struct Placement {
 /// input with `layers` ([`Prefilter::resolve`]: `none` and AOS prefilter
 /// only when asked explicitly, as `mcdenoise prefilter` does for `none`).
 pub fn prefilter_runs(method: Method, prefilter: Prefilter, layers: &[Layer]) -> Result<bool> {
-    gbf::wanted(prefilter.resolve(method), |l| layers.contains(&l))
+    gbf::wanted(method, prefilter, |l| layers.contains(&l))
 }
 
 enum MethodPlanes {

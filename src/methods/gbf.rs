@@ -18,7 +18,7 @@
 use std::sync::Arc;
 
 use super::stats::GpuStats;
-use super::Prefilter;
+use super::{Method, Prefilter};
 use crate::error::{Error, Result};
 use crate::gpu::{Batch, BufferSlice, GpuBuffer, GpuContext, PlaneSet, Precision};
 use crate::image::{Layer, StatsImage};
@@ -34,11 +34,12 @@ pub const NEEDS: [Layer; 3] = [
     Layer::PositionCovariance,
 ];
 
-/// Whether to prefilter an image with these layers; [`Prefilter::On`]
-/// without the position layers is an error.
-pub fn wanted(prefilter: Prefilter, has: impl Fn(Layer) -> bool) -> Result<bool> {
+/// Whether to prefilter an image with these layers before `method`
+/// ([`Prefilter::resolve`] says what `prefilter` means for it);
+/// [`Prefilter::On`] without the position layers is an error.
+pub fn wanted(method: Method, prefilter: Prefilter, has: impl Fn(Layer) -> bool) -> Result<bool> {
     let all = NEEDS.iter().all(|&l| has(l));
-    match prefilter {
+    match prefilter.resolve(method) {
         Prefilter::Off => Ok(false),
         Prefilter::On if !all => Err(Error::BadData(
             "the G-buffer prefilter needs the position, position_variance and position_covariance layers"

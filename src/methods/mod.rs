@@ -427,7 +427,7 @@ fn clean_cpu(
         .outliers
         .resolve(req.method)
         .then(|| outliers::remove_cpu(&mut clean));
-    let prefiltered = gbf::wanted(req.prefilter.resolve(req.method), |l| clean.has(l))?;
+    let prefiltered = gbf::wanted(req.method, req.prefilter, |l| clean.has(l))?;
     if prefiltered {
         gbf::run_cpu(&mut clean)?;
     }
