@@ -498,44 +498,53 @@ LocalSpace tsvd_local_space_with(ivec2 c, int R, ivec2 size, bool exact_specnorm
     TSVD_UNPACK_BLOCK(EE, E22, 2, 2)
 #endif
 
-    // Step 3: singular values and right singular vectors.
+    // Step 3: singular values and right singular vectors; then, where
+    // needed, step 5's exact ||E||_2 = sqrt(lambda_max(E^T E)). Both
+    // eigenproblems go through one call site (a pass loop): lavapipe
+    // inlines every call, and translating a second copy of the solver cost
+    // lp_centres', wlr_fit's and aos_space's pipeline builds ~0.1 s each.
     real w[MAX_D];
-    jacobi_eigen(G, TSVD_D, ls.V, w);
-    for (int m = 0; m < MAX_D; ++m) {
-        ls.sigma[m] = sqrt(max(w[m], real(0)));
-    }
-
-    // Steps 4-5: SPECNORM, tau. Unless exact_specnorm (tsvd_debug's tau and
-    // ||E||_2 outputs) only the rank k depends on tau, and lambda_max(E^T E)
-    // lies in [lo, hi]
-    // (tsvd_lmax_bounds). Unless some sigma_m above the floor falls where
-    // the two bounds (widened by TSVD_BOUND_MARGIN) could rank it
-    // differently, tau = C sqrt(hi) ranks every sigma_m as the exact value
-    // would, and the second eigenproblem is skipped: the same k, at a
-    // fraction of the cost.
+    real A[MAX_D * MAX_D] = G;
+    real Vj[MAX_D * MAX_D];
     bool exact = true;
-    if (!exact_specnorm) {
-        real lo, hi;
-        tsvd_lmax_bounds(EE, lo, hi);
-        real tl = real(TSVD_TAU_C) * sqrt(max(lo, real(0))) * (real(1) - real(TSVD_BOUND_MARGIN));
-        real tu = real(TSVD_TAU_C) * sqrt(max(hi, real(0))) * (real(1) + real(TSVD_BOUND_MARGIN));
-        real floor_b = real(TSVD_SIGMA_REL) * ls.sigma[0];
-        exact = false;
-        for (int m = 0; m < TSVD_D; ++m) {
-            if (ls.sigma[m] > floor_b && ls.sigma[m] > tl && ls.sigma[m] <= tu) {
-                exact = true;
+    for (int pass = 0; pass < 2; ++pass) {
+        jacobi_eigen(A, TSVD_D, Vj, w);
+        if (pass == 1) {
+            ls.specnorm = sqrt(max(w[0], real(0)));
+            ls.tau = real(TSVD_TAU_C) * ls.specnorm;
+            break;
+        }
+        ls.V = Vj;
+        for (int m = 0; m < MAX_D; ++m) {
+            ls.sigma[m] = sqrt(max(w[m], real(0)));
+        }
+
+        // Steps 4-5: SPECNORM, tau. Unless exact_specnorm (tsvd_debug's tau
+        // and ||E||_2 outputs) only the rank k depends on tau, and
+        // lambda_max(E^T E) lies in [lo, hi] (tsvd_lmax_bounds). Unless some
+        // sigma_m above the floor falls where the two bounds (widened by
+        // TSVD_BOUND_MARGIN) could rank it differently, tau = C sqrt(hi)
+        // ranks every sigma_m as the exact value would, and the second
+        // eigenproblem is skipped: the same k, at a fraction of the cost.
+        if (!exact_specnorm) {
+            real lo, hi;
+            tsvd_lmax_bounds(EE, lo, hi);
+            real tl = real(TSVD_TAU_C) * sqrt(max(lo, real(0))) * (real(1) - real(TSVD_BOUND_MARGIN));
+            real tu = real(TSVD_TAU_C) * sqrt(max(hi, real(0))) * (real(1) + real(TSVD_BOUND_MARGIN));
+            real floor_b = real(TSVD_SIGMA_REL) * ls.sigma[0];
+            exact = false;
+            for (int m = 0; m < TSVD_D; ++m) {
+                if (ls.sigma[m] > floor_b && ls.sigma[m] > tl && ls.sigma[m] <= tu) {
+                    exact = true;
+                }
+            }
+            if (!exact) {
+                ls.specnorm = sqrt(max(hi, real(0)));
+                ls.tau = real(TSVD_TAU_C) * ls.specnorm;
+                break;
             }
         }
-        if (!exact) {
-            ls.specnorm = sqrt(max(hi, real(0)));
-            ls.tau = real(TSVD_TAU_C) * ls.specnorm;
-        }
-    }
-    if (exact) {
-        real Ve[MAX_D * MAX_D];
-        jacobi_eigen(EE, TSVD_D, Ve, w);
-        ls.specnorm = sqrt(max(w[0], real(0)));
-        ls.tau = real(TSVD_TAU_C) * ls.specnorm;
+        A = EE;
     }
 
     // Step 6: rank with MINRANK.
