@@ -24,37 +24,29 @@ layout(push_constant) uniform Push {
     uint ring_rows;
 } push;
 
-PLANE_IN(0, nx)
-PLANE_IN(1, ny)
-PLANE_IN(2, nz)
-PLANE_IN(3, dep)
-PLANE_IN(4, ar)
-PLANE_IN(5, ag)
-PLANE_IN(6, ab)
-PLANE_IN(7, v_nx)
-PLANE_IN(8, v_ny)
-PLANE_IN(9, v_nz)
-PLANE_IN(10, v_dep)
-PLANE_IN(11, v_ar)
-PLANE_IN(12, v_ag)
-PLANE_IN(13, v_ab)
-PLANE_IN(14, col_r)
-PLANE_IN(15, col_g)
-PLANE_IN(16, col_b)
-PLANE_IN(17, var_r)
-PLANE_IN(18, var_g)
-PLANE_IN(19, var_b)
-PLANE_IN(20, spp)
-layout(std430, set = 0, binding = 21) readonly buffer queue_blk { uint queue[]; };
-layout(std430, set = 0, binding = 22) buffer st0_blk { vec4 st0[]; };
-layout(std430, set = 0, binding = 23) buffer st1_blk { vec4 st1[]; };
-layout(std430, set = 0, binding = 24) buffer st2_blk { vec4 st2[]; };
-layout(std430, set = 0, binding = 25) buffer st3_blk { vec4 st3[]; };
-layout(std430, set = 0, binding = 26) buffer st4_blk { vec4 st4[]; };
-layout(std430, set = 0, binding = 27) buffer st5_blk { vec4 st5[]; };
-layout(std430, set = 0, binding = 28) buffer st6_blk { vec4 st6[]; };
-layout(std430, set = 0, binding = 29) buffer st7_blk { vec4 st7[]; };
-layout(std430, set = 0, binding = 30) buffer st8_blk { vec4 st8[]; };
+// The features and their variances packed by gbf_pack (PACKED-LP): fa =
+// normal xyz, depth; fb = albedo rgb, 0; va, vb the same of the variances.
+layout(std430, set = 0, binding = 0) readonly buffer fa_blk { vec4 fa[]; };
+layout(std430, set = 0, binding = 1) readonly buffer fb_blk { vec4 fb[]; };
+layout(std430, set = 0, binding = 2) readonly buffer va_blk { vec4 va[]; };
+layout(std430, set = 0, binding = 3) readonly buffer vb_blk { vec4 vb[]; };
+PLANE_IN(4, col_r)
+PLANE_IN(5, col_g)
+PLANE_IN(6, col_b)
+PLANE_IN(7, var_r)
+PLANE_IN(8, var_g)
+PLANE_IN(9, var_b)
+PLANE_IN(10, spp)
+layout(std430, set = 0, binding = 11) readonly buffer queue_blk { uint queue[]; };
+layout(std430, set = 0, binding = 12) buffer st0_blk { vec4 st0[]; };
+layout(std430, set = 0, binding = 13) buffer st1_blk { vec4 st1[]; };
+layout(std430, set = 0, binding = 14) buffer st2_blk { vec4 st2[]; };
+layout(std430, set = 0, binding = 15) buffer st3_blk { vec4 st3[]; };
+layout(std430, set = 0, binding = 16) buffer st4_blk { vec4 st4[]; };
+layout(std430, set = 0, binding = 17) buffer st5_blk { vec4 st5[]; };
+layout(std430, set = 0, binding = 18) buffer st6_blk { vec4 st6[]; };
+layout(std430, set = 0, binding = 19) buffer st7_blk { vec4 st7[]; };
+layout(std430, set = 0, binding = 20) buffer st8_blk { vec4 st8[]; };
 
 #define NONE 1
 
@@ -63,24 +55,28 @@ layout(std430, set = 0, binding = 30) buffer st8_blk { vec4 st8[]; };
 bool load_features(ivec2 p, out real x[9], out real e2[9])
 {
     uint i = uint(p.y) * push.width + uint(p.x);
+    vec4 a = fa[i];
+    vec4 b = fb[i];
     x[0] = real(p.x);
     x[1] = real(p.y);
-    x[2] = real(nx[i]);
-    x[3] = real(ny[i]);
-    x[4] = real(nz[i]);
-    x[5] = real(dep[i]);
-    x[6] = real(ar[i]);
-    x[7] = real(ag[i]);
-    x[8] = real(ab[i]);
+    x[2] = real(a.x);
+    x[3] = real(a.y);
+    x[4] = real(a.z);
+    x[5] = real(a.w);
+    x[6] = real(b.x);
+    x[7] = real(b.y);
+    x[8] = real(b.z);
+    vec4 u = va[i];
+    vec4 v = vb[i];
     e2[0] = real(0);
     e2[1] = real(0);
-    e2[2] = real(v_nx[i]);
-    e2[3] = real(v_ny[i]);
-    e2[4] = real(v_nz[i]);
-    e2[5] = real(v_dep[i]);
-    e2[6] = real(v_ar[i]);
-    e2[7] = real(v_ag[i]);
-    e2[8] = real(v_ab[i]);
+    e2[2] = real(u.x);
+    e2[3] = real(u.y);
+    e2[4] = real(u.z);
+    e2[5] = real(u.w);
+    e2[6] = real(v.x);
+    e2[7] = real(v.y);
+    e2[8] = real(v.z);
     return spp_of(spp[i]) >= 1.0;
 }
 

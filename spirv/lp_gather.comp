@@ -37,40 +37,32 @@ layout(push_constant) uniform Push {
     uint ring_rows;
 } push;
 
-PLANE_IN(0, nx)
-PLANE_IN(1, ny)
-PLANE_IN(2, nz)
-PLANE_IN(3, dep)
-PLANE_IN(4, ar)
-PLANE_IN(5, ag)
-PLANE_IN(6, ab)
-PLANE_IN(7, v_nx)
-PLANE_IN(8, v_ny)
-PLANE_IN(9, v_nz)
-PLANE_IN(10, v_dep)
-PLANE_IN(11, v_ar)
-PLANE_IN(12, v_ag)
-PLANE_IN(13, v_ab)
-PLANE_IN(14, col_r)
-PLANE_IN(15, col_g)
-PLANE_IN(16, col_b)
-PLANE_IN(17, cv_r)
-PLANE_IN(18, cv_g)
-PLANE_IN(19, cv_b)
-PLANE_IN(20, spp)
-PLANE_IN(21, reach)
-layout(std430, set = 0, binding = 22) readonly buffer st0_blk { vec4 st0[]; };
-layout(std430, set = 0, binding = 23) readonly buffer st1_blk { vec4 st1[]; };
-layout(std430, set = 0, binding = 24) readonly buffer st2_blk { vec4 st2[]; };
-layout(std430, set = 0, binding = 25) readonly buffer st3_blk { vec4 st3[]; };
-layout(std430, set = 0, binding = 26) readonly buffer st4_blk { vec4 st4[]; };
-layout(std430, set = 0, binding = 27) readonly buffer st5_blk { vec4 st5[]; };
-layout(std430, set = 0, binding = 28) readonly buffer st6_blk { vec4 st6[]; };
-layout(std430, set = 0, binding = 29) readonly buffer st7_blk { vec4 st7[]; };
-layout(std430, set = 0, binding = 30) readonly buffer st8_blk { vec4 st8[]; };
+// The features and their variances packed by gbf_pack (PACKED-LP): fa =
+// normal xyz, depth; fb = albedo rgb, 0; va, vb the same of the variances.
+layout(std430, set = 0, binding = 0) readonly buffer fa_blk { vec4 fa[]; };
+layout(std430, set = 0, binding = 1) readonly buffer fb_blk { vec4 fb[]; };
+layout(std430, set = 0, binding = 2) readonly buffer va_blk { vec4 va[]; };
+layout(std430, set = 0, binding = 3) readonly buffer vb_blk { vec4 vb[]; };
+PLANE_IN(4, col_r)
+PLANE_IN(5, col_g)
+PLANE_IN(6, col_b)
+PLANE_IN(7, cv_r)
+PLANE_IN(8, cv_g)
+PLANE_IN(9, cv_b)
+PLANE_IN(10, spp)
+PLANE_IN(11, reach)
+layout(std430, set = 0, binding = 12) readonly buffer st0_blk { vec4 st0[]; };
+layout(std430, set = 0, binding = 13) readonly buffer st1_blk { vec4 st1[]; };
+layout(std430, set = 0, binding = 14) readonly buffer st2_blk { vec4 st2[]; };
+layout(std430, set = 0, binding = 15) readonly buffer st3_blk { vec4 st3[]; };
+layout(std430, set = 0, binding = 16) readonly buffer st4_blk { vec4 st4[]; };
+layout(std430, set = 0, binding = 17) readonly buffer st5_blk { vec4 st5[]; };
+layout(std430, set = 0, binding = 18) readonly buffer st6_blk { vec4 st6[]; };
+layout(std430, set = 0, binding = 19) readonly buffer st7_blk { vec4 st7[]; };
+layout(std430, set = 0, binding = 20) readonly buffer st8_blk { vec4 st8[]; };
 // Outputs (kernels::lp_gather::OUTPUTS): colour RGB, error RGB, Delta-MSE RGB,
 // coverage, d; plane k at k * out_stride.
-layout(std430, set = 0, binding = 31) buffer out_blk { float outp[]; };
+layout(std430, set = 0, binding = 21) buffer out_blk { float outp[]; };
 
 #define LP_RADIUS 9
 // mcdenoise::shared::LP_SKIP_*.
@@ -83,9 +75,11 @@ layout(std430, set = 0, binding = 31) buffer out_blk { float outp[]; };
 void features(ivec2 p, out real4 f0, out real4 f1, out real f8)
 {
     uint i = uint(p.y) * push.width + uint(p.x);
-    f0 = real4(p.x, p.y, nx[i], ny[i]);
-    f1 = real4(nz[i], dep[i], ar[i], ag[i]);
-    f8 = real(ab[i]);
+    vec4 a = fa[i];
+    vec4 b = fb[i];
+    f0 = real4(p.x, p.y, a.x, a.y);
+    f1 = real4(a.z, a.w, b.x, b.y);
+    f8 = real(b.z);
 }
 
 // The workgroup's 8x8 pixels and their 9-pixel halo: the first state plane
@@ -283,9 +277,11 @@ void main()
             o[2] = float(m.b);
             // Standard deviations of pixel i's features, lanes as d0, d1, d8
             // (the positions are exact).
-            real4 w0 = sqrt(max(real4(0, 0, v_nx[i], v_ny[i]), real4(0)));
-            real4 w1 = sqrt(max(real4(v_nz[i], v_dep[i], v_ar[i], v_ag[i]), real4(0)));
-            real w8 = sqrt(max(real(v_ab[i]), real(0)));
+            vec4 u = va[i];
+            vec4 v = vb[i];
+            real4 w0 = sqrt(max(real4(0, 0, u.x, u.y), real4(0)));
+            real4 w1 = sqrt(max(real4(u.z, u.w, v.x, v.y), real4(0)));
+            real w8 = sqrt(max(real(v.z), real(0)));
             real3 sd;
             sd.r = dot(abs(ur0), w0) + dot(abs(ur1), w1) + abs(u8.r) * w8;
             sd.g = dot(abs(ug0), w0) + dot(abs(ug1), w1) + abs(u8.g) * w8;

@@ -19,8 +19,9 @@ use mcdenoise::reference::tsvd::projection;
 use mcdenoise::reference::{lp_centres as rc, lp_gather as rg, lp_reach as rr, lp_select as rs};
 use mcdenoise::shared::{LpPush, LP_CENTRE_TEST, LP_PIXEL_TEST, LP_VARSUB};
 
-/// The 21 input planes of `lp_centres` (bindings 0..20): 7 features, their 7
-/// variances, colour R G B, colour variances R G B, spp.
+/// The 21 statistics planes LP reads: 7 features, their 7 variances,
+/// colour R G B, colour variances R G B, spp (the kernels take the first 14
+/// packed: [`Scene::kernel_inputs`]).
 #[derive(Clone)]
 struct Scene {
     w: usize,
@@ -44,15 +45,30 @@ impl Scene {
         }
     }
 
-    fn inputs(&self) -> Vec<&[f32]> {
-        self.planes.iter().map(|p| p.as_slice()).collect()
+    /// The features and their variances as `gbf_pack` packs them (PACKED-LP):
+    /// normal xyz and depth, albedo rgb and 0, the same of the variances.
+    fn packed(&self) -> Vec<Vec<f32>> {
+        let n = self.w * self.h;
+        let pack = |first: usize, lanes: usize| -> Vec<f32> {
+            let mut v = vec![0.0f32; 4 * n];
+            for i in 0..n {
+                for l in 0..lanes {
+                    v[4 * i + l] = self.planes[first + l][i];
+                }
+            }
+            v
+        };
+        vec![pack(0, 4), pack(4, 3), pack(7, 4), pack(11, 3)]
     }
 
-    /// Inputs of `lp_gather` (bindings 0..21): features, their variances,
-    /// colour, colour variances, spp.
-    fn gather_inputs(&self) -> Vec<&[f32]> {
-        // Features, their variances, colour, colour variances, spp.
-        (0..21).map(|k| self.planes[k].as_slice()).collect()
+    /// The inputs `lp_centres` and `lp_gather` bind first (bindings 0..11):
+    /// the `packed` planes, colour, colour variances, spp.
+    fn kernel_inputs<'a>(&'a self, packed: &'a [Vec<f32>]) -> Vec<&'a [f32]> {
+        packed
+            .iter()
+            .map(|p| p.as_slice())
+            .chain((14..21).map(|k| self.planes[k].as_slice()))
+            .collect()
     }
 
     /// As a sanitised statistics image, for the method-level paths.
@@ -276,7 +292,8 @@ fn compare_centres(sc: &Scene, pass: usize, prec: Precision, what: &str) -> (usi
     // The reach of the state before this pass (twin_state ends with one).
     let before = cpu.clone();
     rc::lp_centres(&push(sc, pass), &sc.p(), &reach, &mut cpu);
-    let mut inputs = sc.inputs();
+    let packed = sc.packed();
+    let mut inputs = sc.kernel_inputs(&packed);
     inputs.push(&reach);
     for p in &before {
         inputs.push(p);
@@ -397,11 +414,10 @@ fn run_centres_inplace(
         4 * lp_select::queue_words(sc.w, sc.h) as u64,
     )?;
     let inp = lp_centres::LpInputs {
-        feat: std::array::from_fn(|k| bindings[k]),
-        var: std::array::from_fn(|k| bindings[7 + k]),
-        color: std::array::from_fn(|k| bindings[14 + k]),
-        cvar: std::array::from_fn(|k| bindings[17 + k]),
-        spp: bindings[20],
+        packed: std::array::from_fn(|k| bindings[k]),
+        color: std::array::from_fn(|k| bindings[4 + k]),
+        cvar: std::array::from_fn(|k| bindings[7 + k]),
+        spp: bindings[10],
     };
     let mut batch = Batch::new(ctx)?;
     // Small bands, so that a pass takes several (the queue is reset per band).
@@ -411,13 +427,13 @@ fn run_centres_inplace(
         prec,
         &push(sc, pass),
         &inp,
-        bindings[21],
+        bindings[11],
         queue.slice(),
-        std::array::from_fn(|k| bindings[22 + k]),
+        std::array::from_fn(|k| bindings[12 + k]),
         None,
     )?;
     batch.finish()?;
-    let state = bufs[22..]
+    let state = bufs[12..]
         .iter()
         .map(|b| b.read_vec::<f32>(4 * sc.w * sc.h))
         .collect::<mcdenoise::error::Result<Vec<_>>>()?;
@@ -510,7 +526,8 @@ fn lp_gather_matches_twin() {
                     ..push(&sc, 0)
                 };
                 rg::lp_gather(&cpush, &sc.p(), &reach, &state, &mut cpu);
-                let mut inputs = sc.gather_inputs();
+                let packed_in = sc.packed();
+                let mut inputs = sc.kernel_inputs(&packed_in);
                 inputs.push(&reach);
                 for p in &state {
                     inputs.push(p);
@@ -966,7 +983,7 @@ fn wavefront_equals_pass_by_pass(w: usize, h: usize, origin: (u32, u32)) {
     batch.finish().unwrap();
     let ring = mlp::download(&planes, w, h).unwrap();
 
-    let inp = mlp::lp_inputs(&stats);
+    let inp = mlp::lp_inputs(&stats, &planes);
     let state = PlaneSet::new(&ctx, "lp.state", 4 * n, S::PLANES).unwrap();
     let reach = PlaneSet::new(&ctx, "lp.reach", n, 1).unwrap();
     let queue = PlaneSet::new(&ctx, "lp.queue", lp_select::queue_words(w, h), 1).unwrap();

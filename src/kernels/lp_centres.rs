@@ -21,20 +21,10 @@ use crate::shared::LpPush;
 pub const DECL: KernelDecl = KernelDecl {
     name: "lp_centres",
     bindings: &[
-        read("normal_x"),
-        read("normal_y"),
-        read("normal_z"),
-        read("depth"),
-        read("albedo_r"),
-        read("albedo_g"),
-        read("albedo_b"),
-        read("var_normal_x"),
-        read("var_normal_y"),
-        read("var_normal_z"),
-        read("var_depth"),
-        read("var_albedo_r"),
-        read("var_albedo_g"),
-        read("var_albedo_b"),
+        read("features_a"),
+        read("features_b"),
+        read("variances_a"),
+        read("variances_b"),
         read("color_r"),
         read("color_g"),
         read("color_b"),
@@ -63,10 +53,10 @@ pub const GROUP: u32 = 64;
 /// The planes of sanitised (and possibly prefiltered) statistics that
 /// `lp_centres` and `lp_gather` read.
 pub struct LpInputs {
-    /// normal x, y, z, depth, albedo r, g, b.
-    pub feat: [BufferSlice; 7],
-    /// Their variances (of the mean), same order.
-    pub var: [BufferSlice; 7],
+    /// The features and their variances packed by [`super::gbf_pack`]
+    /// (PACKED-LP): normal xyz and depth, albedo rgb and 0, the same of the
+    /// variances; vec4 planes of the whole image.
+    pub packed: [BufferSlice; 4],
     /// Colour R, G, B.
     pub color: [BufferSlice; 3],
     /// Colour variances (of the mean) R, G, B.
@@ -107,8 +97,7 @@ pub fn record(
     rows: Option<(u32, u32)>,
 ) -> Result<()> {
     let mut b = Vec::with_capacity(DECL.bindings.len());
-    b.extend_from_slice(&inp.feat);
-    b.extend_from_slice(&inp.var);
+    b.extend_from_slice(&inp.packed);
     b.extend_from_slice(&inp.color);
     b.extend_from_slice(&inp.cvar);
     b.push(inp.spp);

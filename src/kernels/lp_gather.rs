@@ -22,20 +22,10 @@ use crate::shared::LpPush;
 pub const DECL: KernelDecl = KernelDecl {
     name: "lp_gather",
     bindings: &[
-        read("normal_x"),
-        read("normal_y"),
-        read("normal_z"),
-        read("depth"),
-        read("albedo_r"),
-        read("albedo_g"),
-        read("albedo_b"),
-        read("var_normal_x"),
-        read("var_normal_y"),
-        read("var_normal_z"),
-        read("var_depth"),
-        read("var_albedo_r"),
-        read("var_albedo_g"),
-        read("var_albedo_b"),
+        read("features_a"),
+        read("features_b"),
+        read("variances_a"),
+        read("variances_b"),
         read("color_r"),
         read("color_g"),
         read("color_b"),
@@ -90,8 +80,7 @@ pub fn record(
     rows: (u32, u32),
 ) -> Result<()> {
     let mut b = Vec::with_capacity(DECL.bindings.len());
-    b.extend_from_slice(&inp.feat);
-    b.extend_from_slice(&inp.var);
+    b.extend_from_slice(&inp.packed);
     b.extend_from_slice(&inp.color);
     b.extend_from_slice(&inp.cvar);
     b.push(inp.spp);

@@ -26,7 +26,7 @@ use crate::error::{Error, Result};
 use crate::gpu::{plane_stride, Batch, BufferSlice, GpuBuffer, GpuContext, PlaneSet, Precision};
 use crate::image::{Layer, RgbImage, StatsImage};
 pub use crate::kernels::lp_centres::LpInputs;
-use crate::kernels::{lp_centres, lp_gather, lp_reach, lp_select};
+use crate::kernels::{gbf_pack, lp_centres, lp_gather, lp_reach, lp_select};
 use crate::options::Options;
 use crate::reference;
 use crate::reference::lp::{StateLayout, GRANULARITIES};
@@ -108,6 +108,10 @@ pub struct LpPlanes {
     pub reach: PlaneSet,
     /// The queue of a band's centres (`lp_select` → `lp_centres`), u32.
     pub queue: PlaneSet,
+    /// The features and their variances as 4 vec4 planes (PACKED-LP,
+    /// [`gbf_pack`]'s layout), which `lp_centres` and `lp_gather` read: a
+    /// vec4 load costs lavapipe about what one scalar load does.
+    pub packed: PlaneSet,
     /// The outputs of [`lp_gather::OUTPUTS`] (bound as one buffer by the
     /// gather).
     pub out: PlaneSet,
@@ -143,14 +147,20 @@ impl LpPlanes {
             )));
         }
         let q = lp_select::queue_words(width, height);
-        let (state0, queue) = match arena {
-            Some(a) => (
-                PlaneSet::view(a, 0, 4 * n, 1)?,
-                PlaneSet::view(a, PlaneSet::bytes(4 * n, 1), q, 1)?,
-            ),
+        let (state0, queue, packed) = match arena {
+            Some(a) => {
+                let at = PlaneSet::bytes(4 * n, 1);
+                let packed_at = at + PlaneSet::bytes(q, 1);
+                (
+                    PlaneSet::view(a, 0, 4 * n, 1)?,
+                    PlaneSet::view(a, at, q, 1)?,
+                    PlaneSet::view(a, packed_at, 4 * n, PACKED)?,
+                )
+            }
             None => (
                 PlaneSet::new(ctx, "lp.state0", 4 * n, 1)?,
                 PlaneSet::new(ctx, "lp.queue", q, 1)?,
+                PlaneSet::new(ctx, "lp.packed", 4 * n, PACKED)?,
             ),
         };
         Ok(LpPlanes {
@@ -161,6 +171,7 @@ impl LpPlanes {
             ring: PlaneSet::new(ctx, "lp.ring", 4 * ring_px, StateLayout::PLANES - 1)?,
             reach: PlaneSet::new(ctx, "lp.reach", ring_px, GRANULARITIES.len() + 1)?,
             queue,
+            packed,
             out: PlaneSet::new(ctx, "lp.out", n, lp_gather::OUTPUTS.len())?,
             ring_rows,
         })
@@ -179,12 +190,16 @@ impl LpPlanes {
             + PlaneSet::bytes(px, GRANULARITIES.len() + 1)
     }
 
-    /// Bytes of the scratch (state plane 0 and the centre queue) an arena
-    /// must hold for `n` pixels: dead once `lp_gather` has written the
-    /// outputs, except state plane 0 ([`LpPlanes::kept_bytes`]), which
-    /// [`download`] reads (centres, `r_opt`, ranks).
+    /// Bytes of the scratch (state plane 0, the centre queue and the packed
+    /// features) an arena must hold for `n` pixels: dead once `lp_gather`
+    /// has written the outputs, except state plane 0
+    /// ([`LpPlanes::kept_bytes`]), which [`download`] reads (centres,
+    /// `r_opt`, ranks). With the prefilter (24 planes) or the outlier stage
+    /// (23) in the same arena, its 21 planes add nothing to it.
     pub fn scratch_bytes(n: usize) -> u64 {
-        PlaneSet::bytes(4 * n, 1) + PlaneSet::bytes(n + lp_select::HEADER_WORDS, 1)
+        PlaneSet::bytes(4 * n, 1)
+            + PlaneSet::bytes(lp_select::queue_words(n, 1), 1)
+            + PlaneSet::bytes(4 * n, PACKED)
     }
 
     /// Bytes at the start of the arena that must survive until [`download`]:
@@ -229,12 +244,14 @@ impl LpPlanes {
     }
 }
 
-/// The bindings of `clean` LP reads.
-pub fn lp_inputs(s: &GpuStats) -> LpInputs {
-    let (feat, var) = super::wlr::features(s);
+/// vec4 planes of [`LpPlanes::packed`].
+const PACKED: usize = 4;
+
+/// The bindings LP reads: `clean`'s colour, variances and counts, and the
+/// features packed into `planes` by [`record_lp`].
+pub fn lp_inputs(s: &GpuStats, planes: &LpPlanes) -> LpInputs {
     LpInputs {
-        feat,
-        var,
+        packed: std::array::from_fn(|k| planes.packed.plane(k)),
         color: std::array::from_fn(|c| s.plane(Layer::Color, c)),
         cvar: std::array::from_fn(|c| s.plane(Layer::ColorVariance, c)),
         spp: s.plane(Layer::Spp, 0),
@@ -263,7 +280,19 @@ pub fn record_lp(
 ) -> Result<()> {
     let (w, h) = (clean.width, clean.height);
     let height = h as u32;
-    let inp = lp_inputs(clean);
+    let inp = lp_inputs(clean, planes);
+    // PACKED-LP: the features and their variances as 4 vec4 planes.
+    let (feat, var) = super::wlr::features(clean);
+    gbf_pack::record(
+        batch,
+        precision,
+        w as u32,
+        height,
+        (0, height),
+        feat,
+        var,
+        inp.packed,
+    )?;
     let state = planes.state();
     let passes = GRANULARITIES.len();
     batch.fill(planes.state0.all(), 0);
