@@ -50,8 +50,9 @@ layout(std430, set = 0, binding = 20) buffer st8_blk { vec4 st8[]; };
 
 #define NONE 1
 
-// Features (px, py, nrm xyz, dep, albedo rgb), variances (0, 0, vn xyz, vd,
-// va rgb); valid iff spp_of >= 1 (spec §0.2, §2.1).
+// Features (px, py, normal xyz, depth, albedo rgb), variances (0, 0, then
+// those of the normal, depth and albedo); valid iff spp_of >= 1 (spec §0.2,
+// §2.1).
 bool load_features(ivec2 p, out real x[9], out real e2[9])
 {
     uint i = uint(p.y) * push.width + uint(p.x);

@@ -50,8 +50,9 @@ pub const DECL: KernelDecl = KernelDecl {
 /// `lp_select` counts the indirect dispatch's workgroups in units of it.
 pub const GROUP: u32 = 64;
 
-/// The planes of sanitised (and possibly prefiltered) statistics that
-/// `lp_centres` and `lp_gather` read.
+/// What `lp_centres` and `lp_gather` read: a packed copy of the sanitised
+/// (and possibly prefiltered) features and their variances, and the
+/// statistics' colour, colour variances and counts.
 pub struct LpInputs {
     /// The features and their variances packed by [`super::gbf_pack`]
     /// (PACKED-LP): normal xyz and depth, albedo rgb and 0, the same of the

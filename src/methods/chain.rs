@@ -223,9 +223,10 @@ impl GpuChain {
         let stats = GpuStats::new(ctx, "chain.stats", w, h, &prepare::output_layers(&layers))?;
         // Stage scratch whose lifetimes do not overlap shares one arena:
         // sanitation's, the outlier stage's (before the prefilter, and again
-        // after the method), the prefilter's, LP's state, WLR's scratch.
-        // LP's first state plane is read after the run, so the outlier
-        // scratch starts after it.
+        // after the method), the prefilter's, LP's state plane 0, queue and
+        // packed features, WLR's scratch. LP's first state plane is read
+        // after the run, so the outlier scratch starts after it (and
+        // overlaps LP's queue and packed features, dead by then).
         let n = w * h;
         let with_gbf = prefilter_runs(config.method, config.prefilter, &layers)?;
         let lp = config.method == Method::Lp;

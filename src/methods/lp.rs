@@ -2,6 +2,7 @@
 //! (spec §3), as a sequence of kernels:
 //!
 //! ```text
+//! gbf_pack      features and their variances → 4 vec4 planes (PACKED-LP)
 //! fill          state ← 0 (no centres)
 //! for g in 19, 9, 4, 2, 1 (pass t):
 //!   lp_reach    reach ← per pixel, the largest r_opt of the centres of earlier
@@ -248,7 +249,8 @@ impl LpPlanes {
 const PACKED: usize = 4;
 
 /// The bindings LP reads: `clean`'s colour, variances and counts, and the
-/// features packed into `planes` by [`record_lp`].
+/// features packed into `planes` by [`record_lp`] (valid from that packing
+/// until the chain's arena is used by a later stage).
 pub fn lp_inputs(s: &GpuStats, planes: &LpPlanes) -> LpInputs {
     LpInputs {
         packed: std::array::from_fn(|k| planes.packed.plane(k)),
