@@ -9,7 +9,7 @@
 // Scalar twin: src/reference/lp_centres.rs (routines: src/reference/lp.rs).
 #include "lib/common.glsl"
 
-layout(local_size_x = 64) in;
+layout(local_size_x = LP_CENTRES_GROUP) in;
 
 // Mirrors mcdenoise::shared::LpPush.
 layout(push_constant) uniform Push {
@@ -131,7 +131,7 @@ void main()
 {
     ivec2 size = ivec2(push.width, push.height);
     uint count = min(queue[3], uint(queue.length()) - 4u);
-    uint stride = gl_NumWorkGroups.x * 64u;
+    uint stride = gl_NumWorkGroups.x * LP_CENTRES_GROUP;
     for (uint e = gl_GlobalInvocationID.x; e < count; e += stride) {
         fit(queue[4u + e], size);
     }

@@ -38,8 +38,8 @@ layout(std430, set = 0, binding = 2) buffer queue_blk { uint queue[]; };
 
 // Half-width of LP's window (LP_RADIUS in lib/lp.glsl).
 #define LP_RADIUS 9
-// Workgroups of lp_centres (64 invocations each); its invocations stride
-// over the entries beyond.
+// Workgroups of lp_centres (LP_CENTRES_GROUP invocations each); its
+// invocations stride over the entries beyond.
 #define LP_QUEUE_MAX_GROUPS 65535u
 
 // Covered by a centre of an earlier pass (|p - c|_inf <= r_opt(c), §3.5):
@@ -72,7 +72,7 @@ void main()
     uint at = atomicAdd(queue[3], 1u);
     if (at < uint(queue.length()) - 4u) {
         queue[4u + at] = i;
-        if (at % 64u == 0u && at / 64u < LP_QUEUE_MAX_GROUPS) {
+        if (at % LP_CENTRES_GROUP == 0u && at / LP_CENTRES_GROUP < LP_QUEUE_MAX_GROUPS) {
             atomicAdd(queue[0], 1u);
         }
     }

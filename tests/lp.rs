@@ -277,7 +277,11 @@ fn lp_select_matches_twin() {
         cpu.sort_unstable();
         assert_eq!(gpu_list, cpu, "pass {pass} rows {rows:?}");
         assert_eq!((q[1], q[2]), (1, 1));
-        assert_eq!(q[0] as usize, count.div_ceil(64), "workgroups");
+        assert_eq!(
+            q[0] as usize,
+            count.div_ceil(mcdenoise::kernels::lp_centres::GROUP as usize),
+            "workgroups"
+        );
         assert!(count > 0 || pass > 0, "pass 0 always has centres");
     }
     check_validation(&ctx);

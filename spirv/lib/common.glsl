@@ -64,6 +64,15 @@ real t_threshold3(real n)
 // its valid 3x3 neighbourhood (i included): t_threshold3(n)^2 times the
 // larger of v_i and the neighbourhood mean without its largest value.
 #define PIXEL_TEST_VAR_FLOOR 1e-20
+
+// Invocations per workgroup of lp_centres (mirror
+// kernels::lp_centres::GROUP), the unit in which lp_select counts its
+// indirect dispatch: one SIMD vector on lavapipe (256-bit, 8 lanes). A band
+// of a late pass queues a few dozen to a few hundred centres whose cost
+// differs from lane to lane (rank, image border); lavapipe hands whole
+// workgroups to its threads, so 8-centre groups keep both cores busy to the
+// end of the dispatch where 64-centre groups left one idle.
+#define LP_CENTRES_GROUP 8u
 real pixel_test_limit(real n, real v_i, real vsum, real vmax, int count)
 {
     real vbar = count > 1 ? (vsum - vmax) / real(count - 1) : vsum;
