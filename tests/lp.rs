@@ -302,7 +302,22 @@ fn compare_centres(sc: &Scene, pass: usize, prec: Precision, what: &str) -> (usi
     for p in &before {
         inputs.push(p);
     }
-    let (gpu_state, ()) = run_centres_inplace(&gpu(), sc, pass, prec, &inputs).unwrap();
+    let (gpu_state, submits) = run_centres_inplace(&gpu(), sc, pass, prec, &inputs).unwrap();
+    // A band's selection and fits share one submit (Batch::unit): each band
+    // flushes the one before it, and `finish` the last (dispatch by
+    // dispatch, every selection went into a submit of its own: 2 per band).
+    let p = push(sc, pass);
+    let (gw, gh) = p.centre_grid();
+    let row_flops = gw as f64 * lp_centres::flops_per_centre();
+    let band = ((centres_budget() / row_flops).floor() as u32)
+        .max(1)
+        .div_ceil(8)
+        * 8;
+    assert_eq!(
+        submits,
+        gh.div_ceil(band) - 1,
+        "{what}: submits before finish"
+    );
     let centre = |st: &[Vec<f32>]| values(st, S::PASS);
     assert_eq!(centre(&gpu_state), centre(&cpu), "{what}: the same centres");
     let is_new: Vec<bool> = centre(&cpu)
@@ -396,15 +411,22 @@ fn compare_centres(sc: &Scene, pass: usize, prec: Precision, what: &str) -> (usi
     classes
 }
 
+/// The work per submit of [`run_centres_inplace`]'s batch: less than a band
+/// of 8 grid rows of a 64² image in the later passes.
+fn centres_budget() -> f64 {
+    8.0 * 16.0 * lp_centres::flops_per_centre()
+}
+
 /// `lp_centres` keeps the state of the pixels it does not write, so the GPU
-/// run starts from the same state planes as the twin.
+/// run starts from the same state planes as the twin. Also returns the
+/// batch's submits before `finish`.
 fn run_centres_inplace(
     ctx: &std::sync::Arc<mcdenoise::gpu::GpuContext>,
     sc: &Scene,
     pass: usize,
     prec: Precision,
     inputs: &[&[f32]],
-) -> mcdenoise::error::Result<(Vec<Vec<f32>>, ())> {
+) -> mcdenoise::error::Result<(Vec<Vec<f32>>, u32)> {
     use mcdenoise::gpu::{Batch, GpuBuffer};
     let bufs: Vec<GpuBuffer> = inputs
         .iter()
@@ -425,7 +447,7 @@ fn run_centres_inplace(
     };
     let mut batch = Batch::new(ctx)?;
     // Small bands, so that a pass takes several (the queue is reset per band).
-    batch.max_flops_per_submit = 8.0 * lp_centres::flops_per_centre() * 16.0;
+    batch.max_flops_per_submit = centres_budget();
     lp_centres::record(
         &mut batch,
         prec,
@@ -436,12 +458,13 @@ fn run_centres_inplace(
         std::array::from_fn(|k| bindings[12 + k]),
         None,
     )?;
+    let submits = batch.submits;
     batch.finish()?;
     let state = bufs[12..]
         .iter()
         .map(|b| b.read_vec::<f32>(4 * sc.w * sc.h))
         .collect::<mcdenoise::error::Result<Vec<_>>>()?;
-    Ok((state, ()))
+    Ok((state, submits))
 }
 
 #[test]

@@ -123,6 +123,8 @@ pub struct Batch {
     timings: Vec<KernelTiming>,
     timestamps: bool,
     flops_in_submit: f64,
+    /// Inside [`unit`](Self::unit): its dispatches were charged up front.
+    in_unit: bool,
     /// Estimated floating-point operations per submit before it is split.
     pub max_flops_per_submit: f64,
     /// Number of submits so far (execute mode).
@@ -294,6 +296,7 @@ impl Batch {
             timings: Vec::new(),
             timestamps: ctx.info.timestamp_period_ns > 0.0,
             flops_in_submit: 0.0,
+            in_unit: false,
             max_flops_per_submit: DEFAULT_FLOPS_PER_SUBMIT,
             submits: 0,
             progress: false,
@@ -759,6 +762,35 @@ impl Batch {
         Ok(())
     }
 
+    /// Records what `record` records as one unit of at most `flops`
+    /// estimated operations: a new submit starts before it if the unit would
+    /// pass [`max_flops_per_submit`](Self::max_flops_per_submit), and none
+    /// inside it. For dispatches whose bound holds only together, such as a
+    /// queue one kernel fills and the next consume (LP's `lp_select` and
+    /// `lp_centres`): checked one by one, the small first kernel was flushed
+    /// in a submit of its own before each bounded dispatch. The dispatches
+    /// keep their own estimates for the timings and the progress.
+    pub fn unit<T>(
+        &mut self,
+        flops: f64,
+        record: impl FnOnce(&mut Batch) -> Result<T>,
+    ) -> Result<T> {
+        if self.in_unit {
+            return Err(Error::InvalidArgument("Batch::unit inside a unit".into()));
+        }
+        if matches!(self.mode, Mode::Execute { .. })
+            && self.flops_in_submit > 0.0
+            && self.flops_in_submit + flops > self.max_flops_per_submit
+        {
+            self.flush()?;
+        }
+        self.flops_in_submit += flops;
+        self.in_unit = true;
+        let out = record(self);
+        self.in_unit = false;
+        out
+    }
+
     /// Records `decl` once with its workgroup count read on the device from
     /// `args` (three u32: x, y, z, as `vkCmdDispatchIndirect` takes them),
     /// which an earlier kernel of the batch wrote. For work whose size only
@@ -846,7 +878,10 @@ impl Batch {
         dispatch: impl FnOnce(&ash::Device, vk::CommandBuffer),
     ) -> Result<()> {
         let (flops, bytes) = work;
-        if self.flops_in_submit > 0.0 && self.flops_in_submit + flops > self.max_flops_per_submit {
+        if !self.in_unit
+            && self.flops_in_submit > 0.0
+            && self.flops_in_submit + flops > self.max_flops_per_submit
+        {
             self.flush()?;
         }
         let dev = self.ctx.device.clone();
@@ -893,7 +928,9 @@ impl Batch {
             _ => self.work.push((p.name.clone(), band)),
         }
         self.barrier();
-        self.flops_in_submit += flops;
+        if !self.in_unit {
+            self.flops_in_submit += flops;
+        }
         self.flops_recorded += flops;
         Ok(())
     }

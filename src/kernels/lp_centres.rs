@@ -89,8 +89,8 @@ pub fn flops_per_centre() -> f64 {
 /// are the image's) over the grid rows `[first, end)` of its candidate grid
 /// ([`LpPush::centre_grid`]; `None`: all of them), in bands of grid rows
 /// whose bound (every candidate a centre) stays within the batch's work per
-/// submit: per band, [`super::lp_select`] into `queue` (of
-/// [`super::lp_select::queue_words`]), then the fits. `reach` is the
+/// submit: per band, in one [`Batch::unit`], [`super::lp_select`] into
+/// `queue` (of [`super::lp_select::queue_words`]), then the fits. `reach` is the
 /// `lp_reach` plane of the centres of earlier passes; `state` the 9 vec4
 /// planes (planes 1..8 and `reach` rings of [`LpPush::ring_rows`] rows).
 #[allow(clippy::too_many_arguments)]
@@ -126,27 +126,33 @@ pub fn record(
         * 8;
     // Compulsory traffic of a band: its share of the bound ranges.
     let bytes: f64 = b.iter().map(|s| s.size() as f64).sum::<f64>() / gh as f64;
+    let select_flops = gw as f64 * super::lp_select::flops_per_candidate();
     let mut row0 = first;
     while row0 < end {
         let rows = band.min(end - row0);
-        super::lp_select::record(
-            batch,
-            precision,
-            push,
-            inp.spp,
-            reach,
-            queue,
-            (row0, row0 + rows),
-        )?;
-        batch.dispatch_indirect(
-            &DECL,
-            precision,
-            &b,
-            bytemuck::bytes_of(push),
-            queue.sub(0, 12)?,
-            row_flops * rows as f64,
-            bytes * rows as f64,
-        )?;
+        // The selection and the fits of its queue in one submit (checked
+        // dispatch by dispatch, the selection went alone into a submit
+        // before each band's fits).
+        batch.unit((select_flops + row_flops) * rows as f64, |batch| {
+            super::lp_select::record(
+                batch,
+                precision,
+                push,
+                inp.spp,
+                reach,
+                queue,
+                (row0, row0 + rows),
+            )?;
+            batch.dispatch_indirect(
+                &DECL,
+                precision,
+                &b,
+                bytemuck::bytes_of(push),
+                queue.sub(0, 12)?,
+                row_flops * rows as f64,
+                bytes * rows as f64,
+            )
+        })?;
         row0 += rows;
     }
     Ok(())
