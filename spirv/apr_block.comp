@@ -17,11 +17,12 @@
 // out on the block grid, 8x8 workgroups over 19x19 blocks at 256^2 left 37 %
 // of the lanes idle beside heavy ones); the block's 52-float state (reference::apr_block::Block::state) goes to
 // state[(channel * blocks + gy * gw + gx) * 52]; an invalid centre writes
-// zeros. push.mode 1 (extra, COVER): thread <-> pixel; a valid pixel no
-// sparse centre accepts becomes a block whose values at its own pixel
-// (beta_y[0], beta_s[0], xi, tr H) go to the extra planes
-// 4 * channel + k (k * stride floats apart); such pixels are compacted per
-// workgroup, as in lp_centres.comp, since they are few.
+// zeros. push.mode 1 (extra, COVER, selection): thread <-> pixel of the
+// band; a valid pixel no sparse centre accepts is appended to the queue
+// (binding 15). push.mode 2 (extra, fits; dispatched indirectly on the
+// queue, one invocation per entry): each such pixel becomes a block whose
+// values at its own pixel (beta_y[0], beta_s[0], xi, tr H) go to the extra
+// planes 4 * channel + k (k * stride floats apart).
 // Scalar twin: src/reference/apr_block.rs.
 #extension GL_EXT_control_flow_attributes : require
 #include "lib/common.glsl"
@@ -55,6 +56,9 @@ PLANE_IN(11, f7)
 PLANE_IN(12, spp)
 PLANE_OUT(13, state)
 PLANE_OUT(14, extra)
+// Modes 1 and 2: the band's extra blocks, [workgroups x, 1, 1, count,
+// pixel indices...] (the caller resets the header before the band).
+layout(std430, set = 0, binding = 15) buffer queue_blk { uint queue[]; };
 
 #include "lib/apr.glsl"
 
@@ -277,9 +281,6 @@ bool covered(ivec2 p, ivec2 size)
     return false;
 }
 
-shared uint s_pixel[64];
-shared uint s_count;
-
 void main()
 {
     ivec2 size = ivec2(push.width, push.height);
@@ -324,34 +325,35 @@ void main()
         }
         return;
     }
-    // Extra mode: compact this workgroup's uncovered pixels.
-    uint lid = gl_LocalInvocationIndex;
-    uint x = gl_GlobalInvocationID.x;
-    uint y = push.row0 + gl_GlobalInvocationID.y;
-    bool mine = x < push.width && y < push.height && apr_valid(y * push.width + x)
-        && !covered(ivec2(x, y), size);
-    s_pixel[lid] = mine ? y * push.width + x : 0xffffffffu;
-    barrier();
-    if (lid == 0u) {
-        uint m = 0u;
-        for (uint j = 0u; j < 64u; ++j) {
-            uint q = s_pixel[j];
-            if (q != 0xffffffffu) {
-                s_pixel[m] = q;
-                ++m;
+    if (push.mode == 1u) {
+        // Extra blocks, selection: a valid pixel no sparse centre accepts
+        // is appended to the queue, in workgroups of 64 for mode 2.
+        uint x = gl_GlobalInvocationID.x;
+        uint y = push.row0 + gl_GlobalInvocationID.y;
+        if (x < push.width && y < push.height && apr_valid(y * push.width + x)
+            && !covered(ivec2(x, y), size)) {
+            uint at = atomicAdd(queue[3], 1u);
+            if (at < uint(queue.length()) - 4u) {
+                queue[4u + at] = y * push.width + x;
+                if (at % 64u == 0u && at / 64u < 65535u) {
+                    atomicAdd(queue[0], 1u);
+                }
             }
         }
-        s_count = m;
-    }
-    barrier();
-    if (lid >= s_count) {
         return;
     }
-    uint i = s_pixel[lid];
-    Result r = block(ivec2(i % push.width, i / push.width), size, with_s);
-    uint e = 4u * push.channel * push.stride + i;
-    extra[e] = float(r.by0.x);
-    extra[e + push.stride] = float(r.bs0.x);
-    extra[e + 2u * push.stride] = float(r.xi);
-    extra[e + 3u * push.stride] = float(r.trace);
+    // Extra blocks, fits (mode 2, dispatched indirectly on the queue): every
+    // SIMD lane holds one (APR-EXTRA-QUEUE; compacted per 8x8 workgroup, a
+    // tile's one or two extra pixels left most lanes of their vector idle).
+    uint count = min(queue[3], uint(queue.length()) - 4u);
+    uint stride = gl_NumWorkGroups.x * 64u;
+    for (uint e = gl_WorkGroupID.x * 64u + gl_LocalInvocationIndex; e < count; e += stride) {
+        uint i = queue[4u + e];
+        Result r = block(ivec2(i % push.width, i / push.width), size, with_s);
+        uint o = 4u * push.channel * push.stride + i;
+        extra[o] = float(r.by0.x);
+        extra[o + push.stride] = float(r.bs0.x);
+        extra[o + 2u * push.stride] = float(r.xi);
+        extra[o + 3u * push.stride] = float(r.trace);
+    }
 }

@@ -247,8 +247,9 @@ pub struct AprPush {
     pub row0: u32,
     /// `apr_block`: the colour channel of the blocks (0..3).
     pub channel: u32,
-    /// `apr_block`: 0 = the sparse centres' grid, 1 = extra centres (COVER,
-    /// one invocation per pixel).
+    /// `apr_block`: 0 = the sparse centres' grid, 1 = extra centres (COVER)
+    /// selected into a queue, one invocation per pixel, 2 = their fits, one
+    /// invocation per queued pixel (set by `apr_block::record`).
     pub mode: u32,
     /// 1 on the last stage: no `β_s`; `apr_gather` writes the final planes.
     pub last: u32,

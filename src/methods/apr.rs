@@ -191,6 +191,8 @@ pub struct AprPlanes {
     pub state: GpuBuffer,
     /// `3 × EXTRA_PLANES` planes (COVER blocks' values at their pixel).
     pub extra: PlaneSet,
+    /// The queue of a band's extra blocks (u32, `apr_block::queue_words`).
+    pub queue: GpuBuffer,
     /// Stage planes, [`STAGE_OUTPUTS`] each.
     pub stage: [PlaneSet; 2],
     /// The [`OUTPUTS`] planes: colour RGB, error RGB, dimension, extra mask RGB.
@@ -221,6 +223,11 @@ impl AprPlanes {
         Ok(AprPlanes {
             state: GpuBuffer::new(ctx, "apr.state", state_bytes)?,
             extra: PlaneSet::new(ctx, "apr.extra", n, 3 * EXTRA_PLANES)?,
+            queue: GpuBuffer::new(
+                ctx,
+                "apr.queue",
+                4 * apr_block::queue_words(width, height) as u64,
+            )?,
             stage: [
                 PlaneSet::new(ctx, "apr.stage0", n, STAGE_OUTPUTS)?,
                 PlaneSet::new(ctx, "apr.stage1", n, STAGE_OUTPUTS)?,
@@ -327,8 +334,11 @@ pub fn record_apr(
                     &chan,
                     &feats,
                     spp,
-                    planes.state.slice(),
-                    planes.extra.all(),
+                    (
+                        planes.state.slice(),
+                        planes.extra.all(),
+                        planes.queue.slice(),
+                    ),
                     0.02,
                 )?;
             }
