@@ -333,20 +333,14 @@ void main()
         uint y = push.row0 + gl_GlobalInvocationID.y;
         if (x < push.width && y < push.height && apr_valid(y * push.width + x)
             && !covered(ivec2(x, y), size)) {
-            uint at = atomicAdd(queue[3], 1u);
-            if (at < uint(queue.length()) - 4u) {
-                queue[4u + at] = y * push.width + x;
-                if (at % 64u == 0u && at / 64u < 65535u) {
-                    atomicAdd(queue[0], 1u);
-                }
-            }
+            QUEUE_APPEND(queue, y * push.width + x, 64u, QUEUE_ROOM(queue))
         }
         return;
     }
     // Extra blocks, fits (mode 2, dispatched indirectly on the queue): every
     // SIMD lane holds one (APR-EXTRA-QUEUE; compacted per 8x8 workgroup, a
     // tile's one or two extra pixels left most lanes of their vector idle).
-    uint count = min(queue[3], uint(queue.length()) - 4u);
+    uint count = min(queue[3], QUEUE_ROOM(queue));
     uint stride = gl_NumWorkGroups.x * 64u;
     for (uint e = gl_WorkGroupID.x * 64u + gl_LocalInvocationIndex; e < count; e += stride) {
         uint i = queue[4u + e];

@@ -130,7 +130,7 @@ void fit(uint i, ivec2 size)
 void main()
 {
     ivec2 size = ivec2(push.width, push.height);
-    uint count = min(queue[3], uint(queue.length()) - 4u);
+    uint count = min(queue[3], QUEUE_ROOM(queue));
     uint stride = gl_NumWorkGroups.x * LP_CENTRES_GROUP;
     for (uint e = gl_GlobalInvocationID.x; e < count; e += stride) {
         fit(queue[4u + e], size);

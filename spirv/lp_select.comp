@@ -38,10 +38,6 @@ layout(std430, set = 0, binding = 2) buffer queue_blk { uint queue[]; };
 
 // Half-width of LP's window (LP_RADIUS in lib/lp.glsl).
 #define LP_RADIUS 9
-// Workgroups of lp_centres (LP_CENTRES_GROUP invocations each); its
-// invocations stride over the entries beyond.
-#define LP_QUEUE_MAX_GROUPS 65535u
-
 // Covered by a centre of an earlier pass (|p - c|_inf <= r_opt(c), §3.5):
 // some row y' within 9 has reach(p.x, y') >= |p.y - y'| (lp_reach.comp).
 // The reach plane is a ring of push.ring_rows rows (LpPush::ring_rows).
@@ -69,11 +65,5 @@ void main()
     if (spp_of(spp[i]) < 1.0 || covered(ivec2(x, y), ivec2(push.width, push.height))) {
         return;
     }
-    uint at = atomicAdd(queue[3], 1u);
-    if (at < uint(queue.length()) - 4u) {
-        queue[4u + at] = i;
-        if (at % LP_CENTRES_GROUP == 0u && at / LP_CENTRES_GROUP < LP_QUEUE_MAX_GROUPS) {
-            atomicAdd(queue[0], 1u);
-        }
-    }
+    QUEUE_APPEND(queue, i, LP_CENTRES_GROUP, QUEUE_ROOM(queue))
 }

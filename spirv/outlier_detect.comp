@@ -112,13 +112,7 @@ void main()
             // Queue o for outlier_median (dispatched indirectly: one
             // workgroup of 64 per 64 entries; the order of the queue does
             // not matter, each entry is replaced on its own).
-            uint at = atomicAdd(queue[3], 1u);
-            if (at < queue_capacity()) {
-                queue[4u + at] = o;
-                if (at % 64u == 0u && at / 64u < QUEUE_MAX_GROUPS) {
-                    atomicAdd(queue[0], 1u);
-                }
-            }
+            QUEUE_APPEND(queue, o, 64u, queue_capacity())
         }
     }
     // Every pixel starts as a copy; outlier_median overwrites the queued ones.

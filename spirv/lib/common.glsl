@@ -73,6 +73,28 @@ real t_threshold3(real n)
 // workgroups to its threads, so 8-centre groups keep both cores busy to the
 // end of the dispatch where 64-centre groups left one idle.
 #define LP_CENTRES_GROUP 8u
+
+// Work queues that kernels fill for an indirect dispatch (Batch::reset_queue
+// clears the header): [workgroups x, y, z, count, entries...]. The order of
+// the entries is whatever the atomics give, so each consumer must handle an
+// entry on its own.
+// Workgroups an indirect dispatch may have (maxComputeWorkGroupCount is at
+// least 65535); the consumers stride over the entries beyond.
+#define QUEUE_MAX_GROUPS 65535u
+// Entries a queue buffer q has room for.
+#define QUEUE_ROOM(q) (uint(q.length()) - 4u)
+// Appends `value` to queue q unless `capacity` entries are there, counting
+// the consumer's workgroups of `group` entries.
+#define QUEUE_APPEND(q, value, group, capacity) \
+    { \
+        uint at_ = atomicAdd(q[3], 1u); \
+        if (at_ < (capacity)) { \
+            q[4u + at_] = (value); \
+            if (at_ % (group) == 0u && at_ / (group) < QUEUE_MAX_GROUPS) { \
+                atomicAdd(q[0], 1u); \
+            } \
+        } \
+    }
 real pixel_test_limit(real n, real v_i, real vsum, real vmax, int count)
 {
     real vbar = count > 1 ? (vsum - vmax) / real(count - 1) : vsum;

@@ -31,10 +31,6 @@ bool key_grey(uint k, out real g)
 // are not queued.
 uint queue_capacity() { return ((push.width + 1u) / 2u) * ((push.height + 1u) / 2u); }
 
-// Workgroups of 64 an indirect dispatch may have (maxComputeWorkGroupCount
-// is at least 65535); outlier_median strides over the rest.
-#define QUEUE_MAX_GROUPS 65535u
-
 // (count, mean, M2) of a set of values; merged exactly as Chan et al.'s
 // parallel variance, so no sum of squares ever cancels.
 struct Summary {

@@ -37,6 +37,12 @@ use crate::fault::{self, Call, Object};
 /// 2743 ms, one bench call each), so it stays.
 pub const DEFAULT_FLOPS_PER_SUBMIT: f64 = 2.0e9;
 
+/// Words of the header of a work queue that kernels fill on the device for
+/// an indirect dispatch: workgroups x, y, z (as `vkCmdDispatchIndirect`
+/// reads them), then the entry count; the entries follow
+/// (`QUEUE_APPEND` in `spirv/lib/common.glsl`).
+pub const QUEUE_HEADER_WORDS: usize = 4;
+
 /// GPU time of one dispatch (one band of one kernel), from timestamp queries.
 #[derive(Clone, Debug, PartialEq)]
 pub struct KernelTiming {
@@ -739,8 +745,7 @@ impl Batch {
         ranges.dedup();
         let row_bytes =
             ranges.iter().map(|r| r.2 as f64).sum::<f64>() / grid_rows.max(height - first) as f64;
-        let mut band = ((self.max_flops_per_submit / row_flops).floor() as u32).max(1);
-        band = band.div_ceil(wy) * wy;
+        let band = self.band_rows(row_flops, wy);
         let mut push = push.to_vec();
         let mut row0 = first;
         while row0 < height {
@@ -762,6 +767,25 @@ impl Batch {
         Ok(())
     }
 
+    /// Rows per band of work estimated at `row_flops` per row: as many as
+    /// fit in [`max_flops_per_submit`](Self::max_flops_per_submit), at
+    /// least one, rounded up to a multiple of `multiple` (a workgroup's
+    /// height, or the rows a queue's band is selected in).
+    pub fn band_rows(&self, row_flops: f64, multiple: u32) -> u32 {
+        ((self.max_flops_per_submit / row_flops).floor() as u32)
+            .max(1)
+            .div_ceil(multiple)
+            * multiple
+    }
+
+    /// Records the reset of a work queue's header ([`QUEUE_HEADER_WORDS`]):
+    /// no workgroups (x = 0, y = z = 1) and no entries.
+    pub fn reset_queue(&mut self, queue: BufferSlice) -> Result<()> {
+        self.fill(queue.sub(0, 16)?, 0);
+        self.fill(queue.sub(4, 8)?, 1);
+        Ok(())
+    }
+
     /// Records what `record` records as one unit of at most `flops`
     /// estimated operations: a new submit starts before it if the unit would
     /// pass [`max_flops_per_submit`](Self::max_flops_per_submit), and none
@@ -778,10 +802,7 @@ impl Batch {
         if self.in_unit {
             return Err(Error::InvalidArgument("Batch::unit inside a unit".into()));
         }
-        if matches!(self.mode, Mode::Execute { .. })
-            && self.flops_in_submit > 0.0
-            && self.flops_in_submit + flops > self.max_flops_per_submit
-        {
+        if self.flops_in_submit > 0.0 && self.flops_in_submit + flops > self.max_flops_per_submit {
             self.flush()?;
         }
         self.flops_in_submit += flops;

@@ -7,7 +7,9 @@ pub mod context;
 pub mod pipeline;
 pub mod reflect;
 
-pub use batch::{timings_per_kernel, Batch, KernelTiming, Progress, ProgressFn, Recorded};
+pub use batch::{
+    timings_per_kernel, Batch, KernelTiming, Progress, ProgressFn, Recorded, QUEUE_HEADER_WORDS,
+};
 pub use buffer::{plane_stride, BufferSlice, GpuBuffer, PlaneSet, PLANE_ALIGN};
 pub use context::{
     choose_device, enumerate_devices, ContextOptions, DeviceInfo, GpuContext, ImportedDevice,

@@ -10,7 +10,7 @@
 
 use crate::error::Result;
 use crate::gpu::reflect::{read, write};
-use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};
+use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision, QUEUE_HEADER_WORDS};
 use crate::reference::apr_block::{grid, P};
 use crate::shared::AprPush;
 
@@ -99,18 +99,14 @@ pub fn record(
     }
     // Bands whose expected extra blocks stay within a submit's work.
     let px_flops = flops_per_block() * extra_fraction + SELECT_FLOPS;
-    let band = ((batch.max_flops_per_submit / (px_flops * w as f64)).floor() as u32)
-        .max(1)
-        .div_ceil(8)
-        * 8;
+    let band = batch.band_rows(px_flops * w as f64, 8);
     let fit = AprPush { mode: 2, ..*push };
     let mut row0 = 0;
     while row0 < h {
         let rows = band.min(h - row0);
         let px = (w * rows) as f64;
         batch.unit(px * px_flops, |batch| {
-            batch.fill(queue.sub(0, 16)?, 0);
-            batch.fill(queue.sub(4, 8)?, 1);
+            batch.reset_queue(queue)?;
             batch.dispatch_rows(
                 &DECL,
                 precision,
@@ -142,5 +138,5 @@ const SELECT_FLOPS: f64 = 100.0;
 /// Words of the extra blocks' queue of a `width × height` image: the
 /// indirect dispatch's header (x, y, z), the count, one entry per pixel.
 pub fn queue_words(width: usize, height: usize) -> usize {
-    4 + width * height
+    QUEUE_HEADER_WORDS + width * height
 }

@@ -120,10 +120,7 @@ pub fn record(
     let row_flops = gw as f64 * flops_per_centre();
     // At least 8 grid rows: a band's centres are a few % of its candidates,
     // and an indirect dispatch of a handful of centres leaves cores idle.
-    let band = ((batch.max_flops_per_submit / row_flops).floor() as u32)
-        .max(1)
-        .div_ceil(8)
-        * 8;
+    let band = batch.band_rows(row_flops, 8);
     // Compulsory traffic of a band: its share of the bound ranges.
     let bytes: f64 = b.iter().map(|s| s.size() as f64).sum::<f64>() / gh as f64;
     let select_flops = gw as f64 * super::lp_select::flops_per_candidate();

@@ -7,7 +7,7 @@
 
 use crate::error::Result;
 use crate::gpu::reflect::{read, write};
-use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};
+use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision, QUEUE_HEADER_WORDS};
 use crate::shared::LpPush;
 
 /// Declaration of `spirv/lp_select.comp`: its bindings in binding order and
@@ -18,14 +18,10 @@ pub const DECL: KernelDecl = KernelDecl {
     push_size: std::mem::size_of::<LpPush>() as u32,
 };
 
-/// Words of the queue header: workgroups x, y, z (as
-/// `vkCmdDispatchIndirect` reads them), then the entry count.
-pub const HEADER_WORDS: usize = 4;
-
 /// Words of a queue that holds any band of any pass of a `width × height`
 /// image (at most one entry per pixel).
 pub fn queue_words(width: usize, height: usize) -> usize {
-    HEADER_WORDS + width * height
+    QUEUE_HEADER_WORDS + width * height
 }
 
 /// Per candidate: up to 19 reach reads and compares, one append.
@@ -46,8 +42,7 @@ pub fn record(
     queue: BufferSlice,
     rows: (u32, u32),
 ) -> Result<()> {
-    batch.fill(queue.sub(0, 16)?, 0);
-    batch.fill(queue.sub(4, 8)?, 1);
+    batch.reset_queue(queue)?;
     let (gw, gh) = push.centre_grid();
     batch.dispatch_rows(
         &DECL,

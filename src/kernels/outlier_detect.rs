@@ -6,7 +6,7 @@
 
 use crate::error::Result;
 use crate::gpu::reflect::{read, write};
-use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};
+use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision, QUEUE_HEADER_WORDS};
 use crate::shared::OutlierPush;
 
 /// Declaration of `spirv/outlier_detect.comp`.
@@ -53,7 +53,7 @@ pub fn flops_per_pixel(radius: u32) -> f64 {
 /// 2×2 block (OUTLIER-ISOLATED never detects two 8-neighbours; the kernels
 /// drop any excess, `queue_capacity` in `spirv/lib/outliers.glsl`).
 pub fn queue_words(width: usize, height: usize) -> usize {
-    4 + width.div_ceil(2) * height.div_ceil(2)
+    QUEUE_HEADER_WORDS + width.div_ceil(2) * height.div_ceil(2)
 }
 
 /// Records detection (`keys` from `outlier_grey`, `rows` from
@@ -75,8 +75,7 @@ pub fn record(
     excess: [BufferSlice; 3],
     queue: BufferSlice,
 ) -> Result<()> {
-    batch.fill(queue.sub(0, 16)?, 0);
-    batch.fill(queue.sub(4, 8)?, 1);
+    batch.reset_queue(queue)?;
     super::dispatch_outlier(
         batch,
         &DECL,
