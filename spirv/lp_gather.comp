@@ -199,62 +199,91 @@ void main()
         // The reach plane and state planes 1..8 are rings of push.ring_rows
         // rows (LpPush::ring_rows).
         uint ring = push.ring_rows == 0u ? push.height : push.ring_rows;
-        for (int qy = max(p.y - LP_RADIUS, 0); qy <= min(p.y + LP_RADIUS, size.y - 1); ++qy) {
-            uint rrow = (uint(qy) % ring) * push.width;
-            // Rows whose reach cannot cover p hold no covering centre.
-            if (reach[rrow + x] < float(abs(qy - p.y))) {
+        // The covering centres in raster order, one per iteration of the
+        // outer loop; the inner loop finds the next one from the tile's
+        // lists (shared memory, cheap), row by row. llvmpipe runs a loop's
+        // body once under an all-off mask when no lane enters it, so a loop
+        // over the centres inside a loop over the rows cost the whole
+        // prediction body once per row (~180 of ~380 ms at 1 MP); here the
+        // body runs about once per covering centre.
+        int qy_end = min(p.y + LP_RADIUS, size.y - 1);
+        int qy = max(p.y - LP_RADIUS, 0) - 1;  // the current row (none yet)
+        uint ry_next = uint(qy + 1) % ring;    // the ring row of qy + 1
+        uint rrow = 0u;                        // the ring row of qy, times the width
+        uint row = 0u;                         // the tile row of qy
+        uint e = 0u;                           // the next entry of row's list
+        uint m = 0u;                           // entries of row's list to visit
+        while (true) {
+            bool found = false;
+            int qx = 0;
+            vec4 s0 = vec4(0);
+            while (true) {
+                if (e < m) {
+                    // A centre beyond the window's columns is farther than
+                    // any r_opt (<= LP_RADIUS): the coverage test drops it.
+                    uint col = t_list[row * uint(TILE) + e];
+                    ++e;
+                    qx = org.x + int(col);
+                    s0 = t_s0[row * uint(TILE) + col];
+                    if (float(max(abs(qx - p.x), abs(qy - p.y))) <= s0.y) {
+                        found = true;
+                        break;
+                    }
+                } else {
+                    if (qy >= qy_end) {
+                        break;
+                    }
+                    ++qy;
+                    rrow = ry_next * push.width;
+                    ry_next = ry_next + 1u == ring ? 0u : ry_next + 1u;
+                    row = uint(qy - org.y);
+                    e = 0u;
+                    // Rows whose reach cannot cover p hold no covering centre.
+                    m = reach[rrow + x] < float(abs(qy - p.y)) ? 0u : t_count[row];
+                }
+            }
+            if (!found) {
+                break;
+            }
+            uint q = rrow + uint(qx);
+            real4 c0, c1;
+            real c8;
+            features(ivec2(qx, qy), c0, c1, c8);
+            real4 d0 = f0 - c0;
+            real4 d1 = f1 - c1;
+            real d8 = f8 - c8;
+            // State values 3..35 (StateLayout): beta0 RGB, xi RGB, u[ch][0..9).
+            vec4 s1 = st1[q], s2 = st2[q], s3 = st3[q], s4 = st4[q];
+            vec4 s5 = st5[q], s6 = st6[q], s7 = st7[q], s8 = st8[q];
+            real3 beta0 = real3(s0.w, s1.x, s1.y);
+            real3 xi = max(real3(s1.z, s1.w, s2.x), real3(0));
+            // u_R = s2.yzw s3 s4.xy; u_G = s4.zw s5 s6.xyz; u_B = s6.w s7 s8.
+            real4 cr0 = real4(s2.yzw, s3.x), cr1 = real4(s3.yzw, s4.x);
+            real4 cg0 = real4(s4.zw, s5.xy), cg1 = real4(s5.zw, s6.xy);
+            real4 cb0 = real4(s6.w, s7.xyz), cb1 = real4(s7.w, s8.xyz);
+            real3 uc8 = real3(s4.y, s6.z, s8.w);
+            real3 f;
+            f.r = beta0.r + dot(cr0, d0) + dot(cr1, d1) + uc8.r * d8;
+            f.g = beta0.g + dot(cg0, d0) + dot(cg1, d1) + uc8.g * d8;
+            f.b = beta0.b + dot(cb0, d0) + dot(cb1, d1) + uc8.b * d8;
+            real3 res = f - y_i;
+            if (lim >= real(0) && dot(res, res) > lim) {
                 continue;
             }
-            uint row = uint(qy - org.y);
-            for (uint e = 0u; e < t_count[row]; ++e) {
-                // A centre beyond the window's columns is farther than any
-                // r_opt (<= LP_RADIUS): the coverage test drops it.
-                uint col = t_list[row * uint(TILE) + e];
-                int qx = org.x + int(col);
-                uint q = rrow + uint(qx);
-                vec4 s0 = t_s0[row * uint(TILE) + col];
-                if (float(max(abs(qx - p.x), abs(qy - p.y))) > s0.y) {
-                    continue;
-                }
-                real4 c0, c1;
-                real c8;
-                features(ivec2(qx, qy), c0, c1, c8);
-                real4 d0 = f0 - c0;
-                real4 d1 = f1 - c1;
-                real d8 = f8 - c8;
-                // State values 3..35 (StateLayout): beta0 RGB, xi RGB, u[ch][0..9).
-                vec4 s1 = st1[q], s2 = st2[q], s3 = st3[q], s4 = st4[q];
-                vec4 s5 = st5[q], s6 = st6[q], s7 = st7[q], s8 = st8[q];
-                real3 beta0 = real3(s0.w, s1.x, s1.y);
-                real3 xi = max(real3(s1.z, s1.w, s2.x), real3(0));
-                // u_R = s2.yzw s3 s4.xy; u_G = s4.zw s5 s6.xyz; u_B = s6.w s7 s8.
-                real4 cr0 = real4(s2.yzw, s3.x), cr1 = real4(s3.yzw, s4.x);
-                real4 cg0 = real4(s4.zw, s5.xy), cg1 = real4(s5.zw, s6.xy);
-                real4 cb0 = real4(s6.w, s7.xyz), cb1 = real4(s7.w, s8.xyz);
-                real3 uc8 = real3(s4.y, s6.z, s8.w);
-                real3 f;
-                f.r = beta0.r + dot(cr0, d0) + dot(cr1, d1) + uc8.r * d8;
-                f.g = beta0.g + dot(cg0, d0) + dot(cg1, d1) + uc8.g * d8;
-                f.b = beta0.b + dot(cb0, d0) + dot(cb1, d1) + uc8.b * d8;
-                real3 res = f - y_i;
-                if (lim >= real(0) && dot(res, res) > lim) {
-                    continue;
-                }
-                ur0 += cr0;
-                ur1 += cr1;
-                ug0 += cg0;
-                ug1 += cg1;
-                ub0 += cb0;
-                ub1 += cb1;
-                u8 += uc8;
-                if (count == 0) {
-                    first = f;
-                }
-                pred += f - first;
-                err += xi;
-                dim += real(s0.z);
-                ++count;
+            ur0 += cr0;
+            ur1 += cr1;
+            ug0 += cg0;
+            ug1 += cg1;
+            ub0 += cb0;
+            ub1 += cb1;
+            u8 += uc8;
+            if (count == 0) {
+                first = f;
             }
+            pred += f - first;
+            err += xi;
+            dim += real(s0.z);
+            ++count;
         }
         if (count == 0) {
             // No centre predicts i (LP-PIXEL-TEST rejected them all): the
