@@ -43,9 +43,14 @@ layout(std430, set = 0, binding = 2) buffer queue_blk { uint queue[]; };
 // The reach plane is a ring of push.ring_rows rows (LpPush::ring_rows).
 bool covered(ivec2 p, ivec2 size)
 {
+    // The ring row advances with qy, wrapping at ring: an integer division
+    // per row (llvmpipe divides one lane at a time) was most of this
+    // kernel's time.
     int ring = int(push.ring_rows == 0u ? push.height : push.ring_rows);
-    for (int qy = max(p.y - LP_RADIUS, 0); qy <= min(p.y + LP_RADIUS, size.y - 1); ++qy) {
-        if (reach[(qy % ring) * size.x + p.x] >= float(abs(qy - p.y))) {
+    int qy0 = max(p.y - LP_RADIUS, 0);
+    int ry = qy0 % ring;
+    for (int qy = qy0; qy <= min(p.y + LP_RADIUS, size.y - 1); ++qy, ry = ry + 1 == ring ? 0 : ry + 1) {
+        if (reach[ry * size.x + p.x] >= float(abs(qy - p.y))) {
             return true;
         }
     }
