@@ -349,3 +349,57 @@ fn gpu_kernels_match_the_twins() {
     }
     common::check_validation(&ctx);
 }
+
+/// NLM-BOX sums each pixel's 7×7 box of patch terms directly: a pair with a
+/// huge term (a spike of tiny variance) beside small ones must leave no
+/// rounding in the boxes that do not hold it (running sums with a
+/// subtraction would). Every value within §0.3 of the twin, f32 and f64,
+/// on an image wider and taller than one workgroup's tile.
+#[test]
+fn nlm_huge_terms_stay_in_their_boxes() {
+    let ctx = common::gpu();
+    let (w, h) = (29usize, 21usize);
+    let n = w * h;
+    let mut rng = Rng(5);
+    let g: Vec<f32> = (0..n)
+        .map(|i| {
+            let (x, y) = ((i % w) as f32, (i / w) as f32);
+            0.3 + 0.01 * x + 0.02 * y + 0.01 * rng.uniform() as f32
+        })
+        .collect();
+    let mut g = g;
+    let mut vg = vec![1e-4f32; n];
+    for &(x, y) in &[(7usize, 6usize), (20, 14)] {
+        g[y * w + x] = 1e4;
+        vg[y * w + x] = 1e-9;
+    }
+    let spp = vec![16.0f32; n];
+    let p = AosPush {
+        width: w as u32,
+        height: h as u32,
+        channels: 1,
+        stride: n as u32,
+        ..Default::default()
+    };
+    let gs: Vec<&[f32]> = vec![&g; 3];
+    let vs: Vec<&[f32]> = vec![&vg; 3];
+    let cpu = aos_nlm::aos_nlm(&p, &gs, &vs, &spp).concat();
+    let mut inputs = gs.clone();
+    inputs.extend(&vs);
+    inputs.push(&spp);
+    for precision in common::precisions() {
+        let (out, _) = kernels::run_planes(
+            &ctx,
+            &knlm::DECL,
+            precision,
+            bytemuck::bytes_of(&p),
+            w,
+            h,
+            &inputs,
+            &[2 * n],
+            1.0,
+        )
+        .unwrap();
+        common::assert_close(&format!("nlm spikes {precision:?}"), &out[0], &cpu, 1.0);
+    }
+}

@@ -25,11 +25,18 @@ pub const DECL: KernelDecl = KernelDecl {
     push_size: std::mem::size_of::<AosPush>() as u32,
 };
 
-/// Per pixel: `11²` candidates × `7²` patch offsets × (per channel a
-/// difference, its square, the variance terms and a division: ~8 flops)
-/// plus per candidate the weight's exponential and the weighted sums.
+/// Per pixel and per each of the `11²` candidate offsets (NLM-BOX, the
+/// kernel's offset-by-offset form): a share `14²/64` of the workgroup's
+/// patch-centre terms (per channel a difference, its square, the variance
+/// terms and a division: ~8 flops, plus ~2), the 7×7 box sums of the term
+/// and of the pair count as 7-row then 7-column sums (`(14·8 + 8·8)·6·2/64`
+/// adds), and the weight's exponential (~20), its quotient and the weighted
+/// sums.
 pub fn flops_per_pixel(channels: u32) -> f64 {
-    121.0 * (49.0 * 8.0 * channels as f64 + 20.0 + 4.0 * channels as f64)
+    let c = channels as f64;
+    let terms = 14.0 * 14.0 / 64.0 * (8.0 * c + 2.0);
+    let boxes = (14.0 * 8.0 + 8.0 * 8.0) * 6.0 * 2.0 / 64.0;
+    121.0 * (terms + boxes + 25.0 + 4.0 * c)
 }
 
 /// Records the prefilter of one buffer: `g` and `vg` hold `push.channels`
