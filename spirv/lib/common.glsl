@@ -29,8 +29,13 @@
 
 // Runs the following statement only for invocations where `cond` holds, as
 // a loop of 0 or 1 iterations: llvmpipe runs both sides of an `if` under a
-// mask in every SIMD vector, but skips a loop no lane of the vector
-// iterates, so the vectors without such an invocation skip the work.
+// mask in every SIMD vector, and leaves a loop at the end of the first
+// iteration in which no lane of the vector is active, so the vectors
+// without such an invocation pass through the body once under an all-off
+// mask (gallivm branches into a loop unconditionally) and through each loop
+// inside it once: cheap for a body made of loops, not for a long straight
+// one. The same holds for any loop: a heavy body inside a loop that is
+// entered often with no trips costs one pass per entry (lp_gather).
 #define ONLY(cond) for (int once_ = ((cond) ? 0 : 1); once_ < 1; ++once_)
 
 #define PLANE_IN(b, name) layout(std430, set = 0, binding = b) readonly buffer name##_blk { float name[]; };
