@@ -309,20 +309,17 @@ void main()
         state[base + 3u] = r.degenerate ? 1.0 : 0.0;
         real4 by[5] = real4[5](r.by0, r.by1, r.by2, r.by3, r.by4);
         real4 bs[5] = real4[5](r.bs0, r.bs1, r.bs2, r.bs3, r.bs4);
+        // beta_y and beta_s each fill 5 vec4 slots, the entries past APR_P 0.
         for (int k = 0; k < 5; ++k) {
             for (int t = 0; t < 4; ++t) {
-                if (4 * k + t < APR_P) {
-                    state[base + 4u + uint(4 * k + t)] = float(by[k][t]);
-                    state[base + 22u + uint(4 * k + t)] = float(bs[k][t]);
-                }
+                bool used = 4 * k + t < APR_P;
+                state[base + uint(APR_ST_BETA_Y + 4 * k + t)] = used ? float(by[k][t]) : 0.0;
+                state[base + uint(APR_ST_BETA_S + 4 * k + t)] = used ? float(bs[k][t]) : 0.0;
             }
         }
         real s8[8] = real[8](r.sa.x, r.sa.y, r.sa.z, r.sa.w, r.sb.x, r.sb.y, r.sb.z, r.sb.w);
         for (int j = 0; j < 8; ++j) {
-            state[base + 40u + uint(j)] = float(s8[j]);
-        }
-        for (int j = 48; j < APR_STATE; ++j) {
-            state[base + uint(j)] = 0.0;
+            state[base + uint(APR_ST_SCALES + j)] = float(s8[j]);
         }
         return;
     }

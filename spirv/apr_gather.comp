@@ -47,7 +47,9 @@ PLANE_IN(11, f5)
 PLANE_IN(12, f6)
 PLANE_IN(13, f7)
 PLANE_IN(14, spp)
-PLANE_IN(15, state)
+// The blocks' state records (apr_block), read as vec4s (APR-STATE-VEC4:
+// beta_y, beta_s and the spreads start on multiples of 4).
+layout(std430, set = 0, binding = 15) readonly buffer state_blk { vec4 state[]; };
 PLANE_IN(16, extra)
 PLANE_OUT(17, dst)
 
@@ -59,7 +61,7 @@ PLANE_OUT(17, dst)
 real yof(int ch, uint i) { return real(ch == 0 ? col_r[i] : (ch == 1 ? col_g[i] : col_b[i])); }
 real vof(int ch, uint i) { return real(ch == 0 ? var_r[i] : (ch == 1 ? var_g[i] : var_b[i])); }
 
-real4 st4(uint b) { return real4(state[b], state[b + 1u], state[b + 2u], state[b + 3u]); }
+real4 st4(uint b4) { return real4(state[b4]); }
 
 real fill(int ch, ivec2 p, ivec2 size)
 {
@@ -130,17 +132,21 @@ void main()
                     if (!apr_valid(c) || (c != i && !apr_accepts(yof(ch, c), vof(ch, c), yi, vi))) {
                         continue;
                     }
+                    // The record's vec4 index (APR_STATE / 4 per block).
                     uint b = (uint(ch) * uint(gw * gh) + uint((cy / APR_R) * gw + cx / APR_R))
-                        * uint(APR_STATE);
+                        * uint(APR_STATE / 4);
+                    uint by = b + uint(APR_ST_BETA_Y / 4);
+                    uint bs = b + uint(APR_ST_BETA_S / 4);
                     real4 x0, x1, x2, x3, x4;
-                    real4 sa = st4(b + 40u);
-                    real4 sb = st4(b + 44u);
+                    real4 sa = st4(b + uint(APR_ST_SCALES / 4));
+                    real4 sb = st4(b + uint(APR_ST_SCALES / 4) + 1u);
                     real4 isa = mix(real4(0), real4(1) / max(sa, real4(1e-30)), greaterThan(sa, real4(0)));
                     real4 isb = mix(real4(0), real4(1) / max(sb, real4(1e-30)), greaterThan(sb, real4(0)));
                     apr_row(p - ivec2(cx, cy), fa, fb, apr_fa(c), apr_fb(c), isa, isb, x0, x1, x2, x3, x4);
                     real k = apr_weight(p.x - cx, p.y - cy);
-                    real py = dot(x0, st4(b + 4u)) + dot(x1, st4(b + 8u)) + dot(x2, st4(b + 12u))
-                        + dot(x3, st4(b + 16u)) + dot(x4, real4(state[b + 20u], state[b + 21u], 0, 0));
+                    // x4's last two entries are 0, as are the records' (past APR_P).
+                    real py = dot(x0, st4(by)) + dot(x1, st4(by + 1u)) + dot(x2, st4(by + 2u))
+                        + dot(x3, st4(by + 3u)) + dot(x4, st4(by + 4u));
                     if (lim >= real(0) && (py - yi) * (py - yi) > lim) {
                         missed = true;
                         continue;
@@ -148,11 +154,12 @@ void main()
                     ws += k;
                     ay += k * py;
                     if (!last) {
-                        as_ += k * (dot(x0, st4(b + 22u)) + dot(x1, st4(b + 26u)) + dot(x2, st4(b + 30u))
-                            + dot(x3, st4(b + 34u)) + dot(x4, real4(state[b + 38u], state[b + 39u], 0, 0)));
+                        as_ += k * (dot(x0, st4(bs)) + dot(x1, st4(bs + 1u)) + dot(x2, st4(bs + 2u))
+                            + dot(x3, st4(bs + 3u)) + dot(x4, st4(bs + 4u)));
                     }
-                    ae += k * real(state[b + 1u]);
-                    ad += k * real(state[b + 2u]);
+                    vec4 head = state[b];  // order, xi, tr H, degenerate
+                    ae += k * real(head.y);
+                    ad += k * real(head.z);
                 }
             }
             if (ws > real(0)) {

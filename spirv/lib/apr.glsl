@@ -22,6 +22,12 @@
 #define APR_RIDGE 1e-6
 #define APR_FEATURE_EPS 1e-6
 #define APR_STATE 52
+// Offsets in a block's state record (mirror reference::apr_block::ST_*):
+// beta_y, beta_s and the feature spreads start on multiples of 4, so that
+// apr_gather reads them as vec4s (APR-STATE-VEC4).
+#define APR_ST_BETA_Y 4
+#define APR_ST_BETA_S 24
+#define APR_ST_SCALES 44
 #define APR_RIDGE_FLOOR 1e-8
 #define APR_RETRIES 3
 // AprPush.flags bits (mirror mcdenoise::shared::APR_VIS, APR_CLAMPED).

@@ -33,6 +33,14 @@ pub use super::apr::{BANDWIDTH, FEATURE_EPS, REJECT_K, RIDGE};
 pub const RADIUS: i64 = super::apr::RADIUS as i64;
 /// f32 values per (block, channel) in the state buffer, [`Block::state`].
 pub const STATE: usize = 52;
+/// Offsets in a state record ([`Block::state`]): `β_y`, `β_s` and the
+/// feature spreads, each starting on a multiple of 4 so that the gather
+/// reads them as whole vec4s (APR-STATE-VEC4).
+pub const ST_BETA_Y: usize = 4;
+/// See [`ST_BETA_Y`].
+pub const ST_BETA_S: usize = 24;
+/// See [`ST_BETA_Y`].
+pub const ST_SCALES: usize = 44;
 
 /// What a block kernel reads for one channel and stage: f32 planes as on
 /// the GPU.
@@ -157,7 +165,8 @@ pub struct Block {
 
 impl Block {
     /// The f32 state layout shared with the GPU: `[K̂, ξ̂, tr H, degenerate,
-    /// β_y (18), β_s (18), s_j (8), 0 × 4]`.
+    /// β_y (18), 0 × 2, β_s (18), 0 × 2, s_j (8)]` ([`ST_BETA_Y`],
+    /// [`ST_BETA_S`], [`ST_SCALES`]).
     pub fn state(&self) -> [f32; STATE] {
         let mut s = [0.0f32; STATE];
         s[0] = self.order as f32;
@@ -165,11 +174,11 @@ impl Block {
         s[2] = self.trace as f32;
         s[3] = self.degenerate as u8 as f32;
         for j in 0..P {
-            s[4 + j] = self.beta_y[j] as f32;
-            s[22 + j] = self.beta_s[j] as f32;
+            s[ST_BETA_Y + j] = self.beta_y[j] as f32;
+            s[ST_BETA_S + j] = self.beta_s[j] as f32;
         }
         for j in 0..NF {
-            s[40 + j] = self.scales[j] as f32;
+            s[ST_SCALES + j] = self.scales[j] as f32;
         }
         s
     }

@@ -12,7 +12,7 @@
 //! neighbourhood in `y` (0 if none), error `v_i`, dimension 1; in an
 //! intermediate stage it keeps `y_i`, `v_i`.
 
-use super::apr_block::{covering, row, weight, Inputs, NF, P, STATE};
+use super::apr_block::{covering, row, weight, Inputs, NF, P, STATE, ST_BETA_S, ST_BETA_Y, ST_SCALES};
 
 /// Extra planes per channel, written by `apr_block` in extra mode at the
 /// pixels no sparse block accepts: `β_y[0]`, `β_s[0]`, `ξ̂`, `tr H`.
@@ -30,10 +30,10 @@ pub const STAGE_OUTPUTS: usize = 6;
 fn eval(inp: &Inputs, st: &[f32], c: usize, i: usize, s: bool) -> f64 {
     let mut scales = [0.0; NF];
     for (j, sc) in scales.iter_mut().enumerate() {
-        *sc = st[40 + j] as f64;
+        *sc = st[ST_SCALES + j] as f64;
     }
     let x = row(inp, c, &scales, i);
-    let off = if s { 22 } else { 4 };
+    let off = if s { ST_BETA_S } else { ST_BETA_Y };
     (0..P).map(|j| x[j] * st[off + j] as f64).sum()
 }
 
