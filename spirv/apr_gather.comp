@@ -17,6 +17,7 @@
 // error v, dimension 1; earlier stages keep y and v.
 // Scalar twin: src/reference/apr_gather.rs.
 #include "lib/common.glsl"
+#extension GL_EXT_control_flow_attributes : require
 
 layout(local_size_x = 8, local_size_y = 8) in;
 
@@ -94,10 +95,85 @@ void main()
     bool valid = apr_valid(i);
     real4 fa = apr_fa(i);
     real4 fb = apr_fb(i);
+    real3 yi3 = real3(col_r[i], col_g[i], col_b[i]);
+    real3 vi3 = real3(var_r[i], var_g[i], var_b[i]);
+    // APR-PIXEL-TEST off: no limit (-1). One scan of the 3x3 neighbourhood
+    // for the three channels (each channel's sums in the order of a scan of
+    // its own).
+    real3 lim = real3(-1);
+    if (valid && (push.flags & APR_PIXEL_TEST) != 0u) {
+        real3 vs = real3(0), vmax = real3(0);
+        int nn = 0;
+        for (int qy = max(p.y - 1, 0); qy <= min(p.y + 1, size.y - 1); ++qy) {
+            for (int qx = max(p.x - 1, 0); qx <= min(p.x + 1, size.x - 1); ++qx) {
+                uint q = uint(qy * size.x + qx);
+                if (apr_valid(q)) {
+                    real3 vq = real3(var_r[q], var_g[q], var_b[q]);
+                    vs += vq;
+                    vmax = max(vmax, vq);
+                    ++nn;
+                }
+            }
+        }
+        real n_i = real(spp_of(spp[i]));
+        [[unroll]] for (int ch = 0; ch < 3; ++ch) {
+            lim[ch] = pixel_test_limit(n_i, vi3[ch], vs[ch], vmax[ch], nn);
+        }
+    }
+    // The blend, centre by centre in raster order, the three channels of a
+    // centre together (APR-GATHER-CENTRES): its validity, features, colour
+    // and spatial weight are loaded and computed once for the three.
+    bvec3 missed = bvec3(false);
+    real3 ws = real3(0), ay = real3(0), as_ = real3(0), ae = real3(0), ad = real3(0);
+    for (int cy = apr_first_centre(p.y); valid && cy <= min(p.y + APR_R, size.y - 1); cy += APR_R) {
+        for (int cx = apr_first_centre(p.x); cx <= min(p.x + APR_R, size.x - 1); cx += APR_R) {
+            uint c = uint(cy * size.x + cx);
+            if (!apr_valid(c)) {
+                continue;
+            }
+            real4 fca = apr_fa(c);
+            real4 fcb = apr_fb(c);
+            real3 yc3 = real3(col_r[c], col_g[c], col_b[c]);
+            real3 vc3 = real3(var_r[c], var_g[c], var_b[c]);
+            real k = apr_weight(p.x - cx, p.y - cy);
+            uint cell = uint((cy / APR_R) * gw + cx / APR_R);
+            [[unroll]] for (int ch = 0; ch < 3; ++ch) {
+                if (c != i && !apr_accepts(yc3[ch], vc3[ch], yi3[ch], vi3[ch])) {
+                    continue;
+                }
+                // The record's vec4 index (APR_STATE / 4 per block).
+                uint b = (uint(ch) * uint(gw * gh) + cell) * uint(APR_STATE / 4);
+                uint by = b + uint(APR_ST_BETA_Y / 4);
+                uint bs = b + uint(APR_ST_BETA_S / 4);
+                real4 x0, x1, x2, x3, x4;
+                real4 sa = st4(b + uint(APR_ST_SCALES / 4));
+                real4 sb = st4(b + uint(APR_ST_SCALES / 4) + 1u);
+                real4 isa = mix(real4(0), real4(1) / max(sa, real4(1e-30)), greaterThan(sa, real4(0)));
+                real4 isb = mix(real4(0), real4(1) / max(sb, real4(1e-30)), greaterThan(sb, real4(0)));
+                apr_row(p - ivec2(cx, cy), fa, fb, fca, fcb, isa, isb, x0, x1, x2, x3, x4);
+                // x4's last two entries are 0, as are the records' (past APR_P).
+                real py = dot(x0, st4(by)) + dot(x1, st4(by + 1u)) + dot(x2, st4(by + 2u))
+                    + dot(x3, st4(by + 3u)) + dot(x4, st4(by + 4u));
+                if (lim[ch] >= real(0) && (py - yi3[ch]) * (py - yi3[ch]) > lim[ch]) {
+                    missed[ch] = true;
+                    continue;
+                }
+                ws[ch] += k;
+                ay[ch] += k * py;
+                if (!last) {
+                    as_[ch] += k * (dot(x0, st4(bs)) + dot(x1, st4(bs + 1u)) + dot(x2, st4(bs + 2u))
+                        + dot(x3, st4(bs + 3u)) + dot(x4, st4(bs + 4u)));
+                }
+                vec4 head = state[b];  // order, xi, tr H, degenerate
+                ae[ch] += k * real(head.y);
+                ad[ch] += k * real(head.z);
+            }
+        }
+    }
     real dim = real(0);
-    for (int ch = 0; ch < 3; ++ch) {
-        real yi = yof(ch, i);
-        real vi = vof(ch, i);
+    [[unroll]] for (int ch = 0; ch < 3; ++ch) {
+        real yi = yi3[ch];
+        real vi = vi3[ch];
         real oy, os, oe, od, ox;
         if (!valid) {
             oy = last ? fill(ch, p, size) : yi;
@@ -105,83 +181,25 @@ void main()
             oe = vi;
             od = real(1);
             ox = real(0);
+        } else if (ws[ch] > real(0)) {
+            oy = ay[ch] / ws[ch];
+            os = as_[ch] / ws[ch];
+            oe = ae[ch] / ws[ch];
+            od = ad[ch] / ws[ch];
+            ox = real(0);
+        } else if (missed[ch]) {
+            oy = yi;
+            os = sqrt(max(vi, real(0)));
+            oe = vi;
+            od = real(0);
+            ox = real(0);
         } else {
-            // APR-PIXEL-TEST off: no limit (-1).
-            real lim = real(-1);
-            if ((push.flags & APR_PIXEL_TEST) != 0u) {
-                real vs = real(0), vmax = real(0);
-                int nn = 0;
-                for (int qy = max(p.y - 1, 0); qy <= min(p.y + 1, size.y - 1); ++qy) {
-                    for (int qx = max(p.x - 1, 0); qx <= min(p.x + 1, size.x - 1); ++qx) {
-                        uint q = uint(qy * size.x + qx);
-                        if (apr_valid(q)) {
-                            real vq = vof(ch, q);
-                            vs += vq;
-                            vmax = max(vmax, vq);
-                            ++nn;
-                        }
-                    }
-                }
-                lim = pixel_test_limit(real(spp_of(spp[i])), vi, vs, vmax, nn);
-            }
-            bool missed = false;
-            real ws = real(0), ay = real(0), as_ = real(0), ae = real(0), ad = real(0);
-            for (int cy = apr_first_centre(p.y); cy <= min(p.y + APR_R, size.y - 1); cy += APR_R) {
-                for (int cx = apr_first_centre(p.x); cx <= min(p.x + APR_R, size.x - 1); cx += APR_R) {
-                    uint c = uint(cy * size.x + cx);
-                    if (!apr_valid(c) || (c != i && !apr_accepts(yof(ch, c), vof(ch, c), yi, vi))) {
-                        continue;
-                    }
-                    // The record's vec4 index (APR_STATE / 4 per block).
-                    uint b = (uint(ch) * uint(gw * gh) + uint((cy / APR_R) * gw + cx / APR_R))
-                        * uint(APR_STATE / 4);
-                    uint by = b + uint(APR_ST_BETA_Y / 4);
-                    uint bs = b + uint(APR_ST_BETA_S / 4);
-                    real4 x0, x1, x2, x3, x4;
-                    real4 sa = st4(b + uint(APR_ST_SCALES / 4));
-                    real4 sb = st4(b + uint(APR_ST_SCALES / 4) + 1u);
-                    real4 isa = mix(real4(0), real4(1) / max(sa, real4(1e-30)), greaterThan(sa, real4(0)));
-                    real4 isb = mix(real4(0), real4(1) / max(sb, real4(1e-30)), greaterThan(sb, real4(0)));
-                    apr_row(p - ivec2(cx, cy), fa, fb, apr_fa(c), apr_fb(c), isa, isb, x0, x1, x2, x3, x4);
-                    real k = apr_weight(p.x - cx, p.y - cy);
-                    // x4's last two entries are 0, as are the records' (past APR_P).
-                    real py = dot(x0, st4(by)) + dot(x1, st4(by + 1u)) + dot(x2, st4(by + 2u))
-                        + dot(x3, st4(by + 3u)) + dot(x4, st4(by + 4u));
-                    if (lim >= real(0) && (py - yi) * (py - yi) > lim) {
-                        missed = true;
-                        continue;
-                    }
-                    ws += k;
-                    ay += k * py;
-                    if (!last) {
-                        as_ += k * (dot(x0, st4(bs)) + dot(x1, st4(bs + 1u)) + dot(x2, st4(bs + 2u))
-                            + dot(x3, st4(bs + 3u)) + dot(x4, st4(bs + 4u)));
-                    }
-                    vec4 head = state[b];  // order, xi, tr H, degenerate
-                    ae += k * real(head.y);
-                    ad += k * real(head.z);
-                }
-            }
-            if (ws > real(0)) {
-                oy = ay / ws;
-                os = as_ / ws;
-                oe = ae / ws;
-                od = ad / ws;
-                ox = real(0);
-            } else if (missed) {
-                oy = yi;
-                os = sqrt(max(vi, real(0)));
-                oe = vi;
-                od = real(0);
-                ox = real(0);
-            } else {
-                uint e = 4u * uint(ch) * st + i;
-                oy = real(extra[e]);
-                os = real(extra[e + st]);
-                oe = real(extra[e + 2u * st]);
-                od = real(extra[e + 3u * st]);
-                ox = real(1);
-            }
+            uint e = 4u * uint(ch) * st + i;
+            oy = real(extra[e]);
+            os = real(extra[e + st]);
+            oe = real(extra[e + 2u * st]);
+            od = real(extra[e + 3u * st]);
+            ox = real(1);
         }
         if (last) {
             dst[uint(ch) * st + i] = float(max(oy, real(0)));
