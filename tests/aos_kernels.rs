@@ -252,24 +252,10 @@ fn gpu_kernels_match_the_twins() {
                 let vg: Vec<&[f32]> = (0..3)
                     .map(|c| img.fvar[first + c.min(nc as usize - 1)].as_slice())
                     .collect();
-                let mut inputs = g.clone();
-                inputs.extend(&vg);
-                inputs.push(&img.spp);
-                let (out, _) = kernels::run_planes(
-                    &ctx,
-                    &knlm::DECL,
-                    precision,
-                    bytemuck::bytes_of(&p),
-                    w,
-                    h,
-                    &inputs,
-                    &[2 * nc as usize * n],
-                    1.0,
-                )
-                .unwrap();
+                let out = run_nlm(&ctx, precision, &p, &g, &vg, &img.spp);
                 let cpu = aos_nlm::aos_nlm(&p, &g, &vg, &img.spp);
                 let cpu: Vec<f32> = cpu.concat();
-                common::assert_close(&what(&format!("nlm {nc} channels")), &out[0], &cpu, 0.99);
+                common::assert_close(&what(&format!("nlm {nc} channels")), &out, &cpu, 0.99);
             }
             // Local spaces: ranks, and the projections where the ranks agree.
             let mut inputs: Vec<&[f32]> = img.fa().to_vec();
@@ -384,22 +370,36 @@ fn nlm_huge_terms_stay_in_their_boxes() {
     let gs: Vec<&[f32]> = vec![&g; 3];
     let vs: Vec<&[f32]> = vec![&vg; 3];
     let cpu = aos_nlm::aos_nlm(&p, &gs, &vs, &spp).concat();
-    let mut inputs = gs.clone();
-    inputs.extend(&vs);
-    inputs.push(&spp);
     for precision in common::precisions() {
-        let (out, _) = kernels::run_planes(
-            &ctx,
-            &knlm::DECL,
-            precision,
-            bytemuck::bytes_of(&p),
-            w,
-            h,
-            &inputs,
-            &[2 * n],
-            1.0,
-        )
-        .unwrap();
-        common::assert_close(&format!("nlm spikes {precision:?}"), &out[0], &cpu, 1.0);
+        let out = run_nlm(&ctx, precision, &p, &gs, &vs, &spp);
+        common::assert_close(&format!("nlm spikes {precision:?}"), &out, &cpu, 1.0);
     }
+}
+
+/// `aos_nlm` on the GPU: the `2·channels` output planes, concatenated.
+fn run_nlm(
+    ctx: &std::sync::Arc<mcdenoise::gpu::GpuContext>,
+    precision: mcdenoise::gpu::Precision,
+    p: &AosPush,
+    g: &[&[f32]],
+    vg: &[&[f32]],
+    spp: &[f32],
+) -> Vec<f32> {
+    let (w, h) = (p.width as usize, p.height as usize);
+    let mut inputs = g.to_vec();
+    inputs.extend(vg);
+    inputs.push(spp);
+    let (mut out, _) = kernels::run_planes(
+        ctx,
+        &knlm::DECL,
+        precision,
+        bytemuck::bytes_of(p),
+        w,
+        h,
+        &inputs,
+        &[2 * p.channels as usize * w * h],
+        1.0,
+    )
+    .unwrap();
+    out.remove(0)
 }

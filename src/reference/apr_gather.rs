@@ -12,7 +12,9 @@
 //! neighbourhood in `y` (0 if none), error `v_i`, dimension 1; in an
 //! intermediate stage it keeps `y_i`, `v_i`.
 
-use super::apr_block::{covering, row, weight, Inputs, NF, P, STATE, ST_BETA_S, ST_BETA_Y, ST_SCALES};
+use super::apr_block::{
+    covering, row, weight, Inputs, NF, P, STATE, ST_BETA_S, ST_BETA_Y, ST_SCALES,
+};
 
 /// Extra planes per channel, written by `apr_block` in extra mode at the
 /// pixels no sparse block accepts: `β_y[0]`, `β_s[0]`, `ξ̂`, `tr H`.
