@@ -117,8 +117,8 @@ PLANE_OUT(22, dst)
 // dz rows, K, colour + vbar.
 #define X_X (S_N)
 #define X_DZ (X_X + CH * XS)
-#define X_K (X_DZ + CH * D)
-#define X_Y (X_K + CH)
+#define X_Y (X_DZ + CH * D)
+#define X_K (X_Y + 4 * CH)    // per row (K, K^2, K^2 vbar, 0): one vec4
 // Quadratic-form partial sums (in S_L, free after the solves).
 #define QF_SUM (S_L)
 // Scalars.
@@ -130,7 +130,11 @@ PLANE_OUT(22, dst)
 #define SC_MEAN_DIAG 5
 #define SC_VC 6               // AOS-RESIDUAL's centre variance
 
-shared real S[S_SIZE];
+// As vec4s (APR-STATE-VEC4's lesson: llvmpipe pays per load and lane, not
+// per float): the window pass reads a staged row's blocks as whole vec4s
+// (AOS-SHARED-VEC4); every other access is to one entry, S_AT(i).
+shared real4 S4[(S_SIZE + 3) / 4];
+#define S_AT(i) S4[(i) >> 2][(i) & 3]
 shared int s_colv[NC];   // compact column -> power
 shared int s_cidx[NC];   // raw column -> compact column, -1 if dropped
 // p1, p3, p5, pivot flag, any column dropped
@@ -202,7 +206,9 @@ real powi(real z, int v)
     return p;
 }
 
-real4 load4(int o) { return real4(S[o], S[o + 1], S[o + 2], S[o + 3]); }
+real4 load4(int o) { return real4(S_AT(o), S_AT(o + 1), S_AT(o + 2), S_AT(o + 3)); }
+// The same at an offset that is a multiple of 4: one vec4 load.
+real4 load4a(int o) { return S4[o >> 2]; }
 
 // The window pixel at offset `off` from centre c: kernel weight (0 outside
 // the image or invalid) and local coordinates.
@@ -276,17 +282,24 @@ void stage(ivec2 c, int base, int nrows, uint t, int k, inout ivec2 off)
             }
         }
         for (int m = 0; m < D; ++m) {
-            S[X_DZ + rr * D + m] = dz[m];
+            S_AT(X_DZ + rr * D + m) = dz[m];
         }
-        S[X_K + rr] = kw;
         bool use = kw > real(0);
+        // The row's three weights (0 for an unused row), read as one vec4
+        // by chunk_blocks.
+        real vb = use ? real(vbar[q]) : real(0);
+        real k2 = kw * kw;
+        S_AT(X_K + rr * 4) = kw;
+        S_AT(X_K + rr * 4 + 1) = k2;
+        S_AT(X_K + rr * 4 + 2) = k2 * vb;
+        S_AT(X_K + rr * 4 + 3) = real(0);
         if (use) {
             g_lnsum += kw * real(log(max(vbar[q], float(RESIDUAL_VBAR_FLOOR))) + log(max(spp_of(spp[q]), 1.0)));
         }
-        S[X_Y + rr * 4] = use ? real(col_r[q]) : real(0);
-        S[X_Y + rr * 4 + 1] = use ? real(col_g[q]) : real(0);
-        S[X_Y + rr * 4 + 2] = use ? real(col_b[q]) : real(0);
-        S[X_Y + rr * 4 + 3] = use ? real(vbar[q]) : real(0);
+        S_AT(X_Y + rr * 4) = use ? real(col_r[q]) : real(0);
+        S_AT(X_Y + rr * 4 + 1) = use ? real(col_g[q]) : real(0);
+        S_AT(X_Y + rr * 4 + 2) = use ? real(col_b[q]) : real(0);
+        S_AT(X_Y + rr * 4 + 3) = vb;
         off.x += CH;
         while (off.x >= wd) {
             off.x -= wd;
@@ -299,42 +312,42 @@ void stage(ivec2 c, int base, int nrows, uint t, int k, inout ivec2 off)
     int rr = int(t) & (CH - 1);
     int xr = X_X + rr * XS;
     for (int j = int(t) >> 5; j < k; j += NT / CH) {
-        real z = S[X_DZ + rr * D + j];
+        real z = S_AT(X_DZ + rr * D + j);
         real pv = z;
         for (int v = 0; v < 5; ++v) {
-            S[xr + 1 + v * k + j] = pv;
+            S_AT(xr + 1 + v * k + j) = pv;
             pv *= z;
         }
     }
     ONLY((int(t) >> 5) == 0)
     {
-        S[xr] = real(1);
+        S_AT(xr) = real(1);
         for (int ch = 0; ch < 3; ++ch) {
-            S[xr + pr + ch] = S[X_Y + rr * 4 + ch];
+            S_AT(xr + pr + ch) = S_AT(X_Y + rr * 4 + ch);
         }
         for (int i = pr + 3; i < pw; ++i) {
-            S[xr + i] = real(0);
+            S_AT(xr + i) = real(0);
         }
     }
     barrier();
 }
 
-// Solves (leading p x p block of L L^T) x = b in place at S[at ..].
+// Solves (leading p x p block of L L^T) x = b in place at S_AT(at ..).
 void tri_solve(int p, int at)
 {
     for (int i = 0; i < p; ++i) {
-        real s = S[at + i];
+        real s = S_AT(at + i);
         for (int k = 0; k < i; ++k) {
-            s -= S[S_L + i * (i + 1) / 2 + k] * S[at + k];
+            s -= S_AT(S_L + i * (i + 1) / 2 + k) * S_AT(at + k);
         }
-        S[at + i] = s / S[S_L + i * (i + 1) / 2 + i];
+        S_AT(at + i) = s / S_AT(S_L + i * (i + 1) / 2 + i);
     }
     for (int i = p - 1; i >= 0; --i) {
-        real s = S[at + i];
+        real s = S_AT(at + i);
         for (int k = i + 1; k < p; ++k) {
-            s -= S[S_L + k * (k + 1) / 2 + i] * S[at + k];
+            s -= S_AT(S_L + k * (k + 1) / 2 + i) * S_AT(at + k);
         }
-        S[at + i] = s / S[S_L + i * (i + 1) / 2 + i];
+        S_AT(at + i) = s / S_AT(S_L + i * (i + 1) / 2 + i);
     }
 }
 
@@ -355,13 +368,15 @@ void pick(uint ci, int k, int p1, int p3, real o[14]);
 void chunk_blocks(ivec2 bp, inout rmat4 n, inout rmat4 b, inout rmat4 g)
 {
     for (int rr = 0; rr < CH; ++rr) {
-        real kw = S[X_K + rr];
+        real4 wk = load4a(X_K + 4 * rr);
+        real kw = wk.x;
         if (kw > real(0)) {
-            real k2 = kw * kw;
-            real kv = k2 * S[X_Y + rr * 4 + 3];
+            real k2 = wk.y;
+            real kv = wk.z;
             int xr = X_X + rr * XS;
-            real4 xi = load4(xr + 4 * bp.x);
-            real4 xj = load4(xr + 4 * bp.y);
+            // X_X and XS are multiples of 4.
+            real4 xi = load4a(xr + 4 * bp.x);
+            real4 xj = load4a(xr + 4 * bp.y);
             n += outerProduct(kw * xi, xj);
             b += outerProduct(k2 * xi, xj);
             g += outerProduct(kv * xi, xj);
@@ -471,7 +486,7 @@ void main()
     }
     // The lanes' sums of K ln vbar (S_L is free until the Cholesky).
     if (t < uint(CH)) {
-        S[S_L + int(t)] = g_lnsum;
+        S_AT(S_L + int(t)) = g_lnsum;
     }
     // The raw N and right-hand sides to workgroup memory.
     for (int h2 = 0; h2 < 2; ++h2) {
@@ -483,9 +498,9 @@ void main()
                     int j = 4 * bp.y + b;
                     real v = h2 == 0 ? n0[b][a] : n1[b][a];
                     if (j < pr && i >= j && i < pr) {
-                        S[S_N + i * (i + 1) / 2 + j] = v;
+                        S_AT(S_N + i * (i + 1) / 2 + j) = v;
                     } else if (j < pr && i >= pr && i < pe) {
-                        S[V_RHS + (i - pr) * NC + j] = v;
+                        S_AT(V_RHS + (i - pr) * NC + j) = v;
                     }
                 }
             }
@@ -496,27 +511,27 @@ void main()
     // below RMS_EPS are dropped; order by power, then component.
     ONLY(t == 0u)
     {
-        real ksum = S[S_N];
-        S[S_SC + SC_KSUM] = ksum;
+        real ksum = S_AT(S_N);
+        S_AT(S_SC + SC_KSUM) = ksum;
         real lnsum = real(0);
         for (int i = 0; i < CH; ++i) {
-            lnsum += S[S_L + i];
+            lnsum += S_AT(S_L + i);
         }
-        S[S_SC + SC_VC] = max(real(vbar[ci]), real(exp(float(lnsum / ksum))) / max(real(spp_of(spp[ci])), real(1)));
-        S[S_SCALE] = real(1);
+        S_AT(S_SC + SC_VC) = max(real(vbar[ci]), real(exp(float(lnsum / ksum))) / max(real(spp_of(spp[ci])), real(1)));
+        S_AT(S_SCALE) = real(1);
         s_cidx[0] = 0;
         s_colv[0] = 0;
         int n = 1;
         for (int r = 1; r < pr; ++r) {
-            real rms = sqrt(S[S_N + r * (r + 1) / 2 + r] / ksum);
+            real rms = sqrt(S_AT(S_N + r * (r + 1) / 2 + r) / ksum);
             int v = (r - 1) / k + 1;
             if (rms >= real(RMS_EPS)) {
-                S[S_SCALE + r] = real(1) / rms;
+                S_AT(S_SCALE + r) = real(1) / rms;
                 s_cidx[r] = n;
                 s_colv[n] = v;
                 ++n;
             } else {
-                S[S_SCALE + r] = real(0);
+                S_AT(S_SCALE + r) = real(0);
                 s_cidx[r] = -1;
             }
             if (r == k) {
@@ -537,13 +552,13 @@ void main()
         // Usual case: nothing dropped, scale in place.
         for (int e = int(t); e < ne; e += NT) {
             ivec2 ij = tri(e);
-            S[S_N + e] *= S[S_SCALE + ij.x] * S[S_SCALE + ij.y];
+            S_AT(S_N + e) *= S_AT(S_SCALE + ij.x) * S_AT(S_SCALE + ij.y);
         }
         for (int i = int(t); i < p5; i += NT) {
-            real sc = S[S_SCALE + i];
-            S[V_RHS + i] *= sc;
-            S[V_RHS + NC + i] *= sc;
-            S[V_RHS + 2 * NC + i] *= sc;
+            real sc = S_AT(S_SCALE + i);
+            S_AT(V_RHS + i) *= sc;
+            S_AT(V_RHS + NC + i) *= sc;
+            S_AT(V_RHS + 2 * NC + i) *= sc;
         }
     } else if (t == 0u) {
         // A dropped column: compact in place (targets never pass sources).
@@ -552,15 +567,15 @@ void main()
             if (ci2 < 0) {
                 continue;
             }
-            real si = S[S_SCALE + i];
+            real si = S_AT(S_SCALE + i);
             for (int j = 0; j <= i; ++j) {
                 int cj = s_cidx[j];
                 if (cj >= 0) {
-                    S[S_N + ci2 * (ci2 + 1) / 2 + cj] = S[S_N + i * (i + 1) / 2 + j] * si * S[S_SCALE + j];
+                    S_AT(S_N + ci2 * (ci2 + 1) / 2 + cj) = S_AT(S_N + i * (i + 1) / 2 + j) * si * S_AT(S_SCALE + j);
                 }
             }
             for (int ch = 0; ch < 3; ++ch) {
-                S[V_RHS + ch * NC + ci2] = S[V_RHS + ch * NC + i] * si;
+                S_AT(V_RHS + ch * NC + ci2) = S_AT(V_RHS + ch * NC + i) * si;
             }
         }
     }
@@ -571,50 +586,50 @@ void main()
     if (t == 0u) {
         real md = real(0);
         for (int i = 0; i < p5; ++i) {
-            md += S[S_N + i * (i + 1) / 2 + i];
+            md += S_AT(S_N + i * (i + 1) / 2 + i);
         }
-        S[S_SC + SC_MEAN_DIAG] = md / real(p5);
-        S[S_SC + SC_LAMBDA] = real(RIDGE_F) * S[S_SC + SC_KSUM];
+        S_AT(S_SC + SC_MEAN_DIAG) = md / real(p5);
+        S_AT(S_SC + SC_LAMBDA) = real(RIDGE_F) * S_AT(S_SC + SC_KSUM);
     }
     barrier();
     bool ok = false;
     for (int attempt = 0; attempt <= SOLVE_RETRIES; ++attempt) {
         if (t == 0u) {
-            real lam = S[S_SC + SC_LAMBDA];
+            real lam = S_AT(S_SC + SC_LAMBDA);
             if (attempt > 0) {
-                lam = max(real(10) * lam, real(RIDGE_FLOOR) * S[S_SC + SC_MEAN_DIAG]);
-                S[S_SC + SC_LAMBDA] = lam;
+                lam = max(real(10) * lam, real(RIDGE_FLOOR) * S_AT(S_SC + SC_MEAN_DIAG));
+                S_AT(S_SC + SC_LAMBDA) = lam;
             }
             real mx = real(0);
             for (int i = 0; i < p5; ++i) {
-                mx = max(mx, S[S_N + i * (i + 1) / 2 + i] + (i > 0 ? lam : real(0)));
+                mx = max(mx, S_AT(S_N + i * (i + 1) / 2 + i) + (i > 0 ? lam : real(0)));
             }
-            S[S_SC + SC_THRESH] = real(EPS_PIVOT) * mx;
+            S_AT(S_SC + SC_THRESH) = real(EPS_PIVOT) * mx;
         }
         barrier();
-        real lam = S[S_SC + SC_LAMBDA];
+        real lam = S_AT(S_SC + SC_LAMBDA);
         for (int e = int(t); e < ne; e += NT) {
             ivec2 ij = tri(e);
-            S[S_L + e] = S[S_N + e] + (ij.x == ij.y && ij.x > 0 ? lam : real(0));
+            S_AT(S_L + e) = S_AT(S_N + e) + (ij.x == ij.y && ij.x > 0 ? lam : real(0));
         }
         barrier();
         for (int kk = 0; kk < p5; ++kk) {
             if (t == 0u) {
                 int dk = kk * (kk + 1) / 2 + kk;
-                real piv = S[S_L + dk];
-                bool good = piv > S[S_SC + SC_THRESH] && !isnan(piv) && !isinf(piv);
+                real piv = S_AT(S_L + dk);
+                bool good = piv > S_AT(S_SC + SC_THRESH) && !isnan(piv) && !isinf(piv);
                 s_int[3] = good ? 1 : 0;
                 if (good) {
-                    S[S_L + dk] = sqrt(piv);
+                    S_AT(S_L + dk) = sqrt(piv);
                 }
             }
             barrier();
             if (s_int[3] == 0) {
                 break;
             }
-            real lkk = S[S_L + kk * (kk + 1) / 2 + kk];
+            real lkk = S_AT(S_L + kk * (kk + 1) / 2 + kk);
             for (int i = kk + 1 + int(t); i < p5; i += NT) {
-                S[S_L + i * (i + 1) / 2 + kk] /= lkk;
+                S_AT(S_L + i * (i + 1) / 2 + kk) /= lkk;
             }
             barrier();
             int m = p5 - kk - 1;
@@ -622,7 +637,7 @@ void main()
                 ivec2 ab = tri(e);
                 int i = kk + 1 + ab.x;
                 int j = kk + 1 + ab.y;
-                S[S_L + i * (i + 1) / 2 + j] -= S[S_L + i * (i + 1) / 2 + kk] * S[S_L + j * (j + 1) / 2 + kk];
+                S_AT(S_L + i * (i + 1) / 2 + j) -= S_AT(S_L + i * (i + 1) / 2 + kk) * S_AT(S_L + j * (j + 1) / 2 + kk);
             }
             barrier();
         }
@@ -643,12 +658,12 @@ void main()
     // u* = A*^-1 e1, beta* = A*^-1 rhs_grey, u_l = A_l^-1 e1 (leading blocks).
     for (int i = int(t); i < NC; i += NT) {
         real e1 = i == 0 ? real(1) : real(0);
-        S[V_US + i] = e1;
-        S[V_U1 + i] = e1;
-        S[V_U3 + i] = e1;
-        S[V_BETA + i] = i < p5 ? (S[V_RHS + i] + S[V_RHS + NC + i] + S[V_RHS + 2 * NC + i]) / real(3) : real(0);
-        S[V_B1 + i] = S[V_BETA + i];
-        S[V_B3 + i] = S[V_BETA + i];
+        S_AT(V_US + i) = e1;
+        S_AT(V_U1 + i) = e1;
+        S_AT(V_U3 + i) = e1;
+        S_AT(V_BETA + i) = i < p5 ? (S_AT(V_RHS + i) + S_AT(V_RHS + NC + i) + S_AT(V_RHS + 2 * NC + i)) / real(3) : real(0);
+        S_AT(V_B1 + i) = S_AT(V_BETA + i);
+        S_AT(V_B3 + i) = S_AT(V_BETA + i);
     }
     barrier();
     ONLY(t < 6u)
@@ -667,17 +682,17 @@ void main()
             int v = s_colv[i];
             if (v > 1 && v <= 3) {
                 for (int j = 0; j < p1; ++j) {
-                    t1 += S[S_N + lidx(i, j)] * S[V_U1 + j];
+                    t1 += S_AT(S_N + lidx(i, j)) * S_AT(V_U1 + j);
                 }
             }
             if (v > 3 && v <= 5) {
                 for (int j = 0; j < p3; ++j) {
-                    t3 += S[S_N + lidx(i, j)] * S[V_U3 + j];
+                    t3 += S_AT(S_N + lidx(i, j)) * S_AT(V_U3 + j);
                 }
             }
         }
-        S[V_Q1 + i] = t1;
-        S[V_Q3 + i] = t3;
+        S_AT(V_Q1 + i) = t1;
+        S_AT(V_Q3 + i) = t3;
     }
     ONLY(t == uint(NT - 1) || t == uint(NT - 2))
     {
@@ -690,12 +705,12 @@ void main()
             for (int j = 0; j < p5; ++j) {
                 int v = s_colv[j];
                 if (v > lo && v <= lo + 2) {
-                    nb2 += S[S_N + lidx(i, j)] * S[V_BETA + j];
+                    nb2 += S_AT(S_N + lidx(i, j)) * S_AT(V_BETA + j);
                 }
             }
-            b += S[ua + i] * nb2;
+            b += S_AT(ua + i) * nb2;
         }
-        S[S_SC + (lo == 1 ? SC_BIAS1 : SC_BIAS3)] = b;
+        S_AT(S_SC + (lo == 1 ? SC_BIAS1 : SC_BIAS3)) = b;
     }
     barrier();
     ONLY(t < 2u)
@@ -708,13 +723,13 @@ void main()
     // u.x_scaled = (s . u_raw).x_raw; 0 for dropped and colour columns.
     for (int r = int(t); r < XS; r += NT) {
         int cr = r < pr ? s_cidx[r] : -1;
-        real sc = cr >= 0 ? S[S_SCALE + r] : real(0);
+        real sc = cr >= 0 ? S_AT(S_SCALE + r) : real(0);
         int cc = max(cr, 0);
-        S[V_RAW + r] = sc * S[V_US + cc];
-        S[V_RAW + XS + r] = sc * S[V_U1 + cc];
-        S[V_RAW + 2 * XS + r] = sc * S[V_U3 + cc];
-        S[V_RAW + 3 * XS + r] = sc * S[V_Q1 + cc];
-        S[V_RAW + 4 * XS + r] = sc * S[V_Q3 + cc];
+        S_AT(V_RAW + r) = sc * S_AT(V_US + cc);
+        S_AT(V_RAW + XS + r) = sc * S_AT(V_U1 + cc);
+        S_AT(V_RAW + 2 * XS + r) = sc * S_AT(V_U3 + cc);
+        S_AT(V_RAW + 3 * XS + r) = sc * S_AT(V_Q1 + cc);
+        S_AT(V_RAW + 4 * XS + r) = sc * S_AT(V_Q3 + cc);
     }
     barrier();
     // sigma*^2 = u*^T G u*; per order l: u_l^T B u_l (the paper's
@@ -741,7 +756,7 @@ void main()
         }
     }
     for (int a = 0; a < NSUM; ++a) {
-        S[QF_SUM + int(t) * NSUM + a] = qs[a];
+        S_AT(QF_SUM + int(t) * NSUM + a) = qs[a];
     }
     barrier();
     ONLY(t == 0u)
@@ -759,7 +774,7 @@ void pick(uint ci, int k, int p1, int p3, real o[14])
     for (int a = 0; a < NSUM; ++a) {
         tot[a] = real(0);
         for (int l = 0; l < NT; ++l) {
-            tot[a] += S[QF_SUM + l * NSUM + a];
+            tot[a] += S_AT(QF_SUM + l * NSUM + a);
         }
     }
     real sigma2 = tot[0];
@@ -769,7 +784,7 @@ void pick(uint ci, int k, int p1, int p3, real o[14])
     for (int oi = 0; oi < 2; ++oi) {
         int b0i = 1 + 3 * oi;
         real var = (push.flags & AOS_SANDWICH) != 0u ? tot[b0i + 1] : tot[b0i] * sigma2;
-        real bias = S[S_SC + (oi == 0 ? SC_BIAS1 : SC_BIAS3)];
+        real bias = S_AT(S_SC + (oi == 0 ? SC_BIAS1 : SC_BIAS3));
         real bvar = tot[b0i + 2];
         bool counts = (push.flags & AOS_BIAS_TEST) == 0u || bias * bias > real(BIAS_Z * BIAS_Z) * bvar;
         real cb = counts ? bias : real(0);
@@ -781,13 +796,13 @@ void pick(uint ci, int k, int p1, int p3, real o[14])
             int ua = oi == 0 ? V_U1 : V_U3;
             real fit = real(0);
             for (int i = 0; i < pl; ++i) {
-                fit += S[ua + i] * ((S[V_RHS + i] + S[V_RHS + NC + i] + S[V_RHS + 2 * NC + i]) / real(3));
+                fit += S_AT(ua + i) * ((S_AT(V_RHS + i) + S_AT(V_RHS + NC + i) + S_AT(V_RHS + 2 * NC + i)) / real(3));
             }
             real vc = real(vbar[ci]);
             real res = fit - (real(col_r[ci]) + real(col_g[ci]) + real(col_b[ci])) / real(3);
             real kc = (push.flags & AOS_OUTLIER_W) != 0u ? real(1) / max(vc, real(1)) : real(1);
-            real lc = kc * S[ua];
-            real rv = tot[b0i + 1] - lc * lc * vc + (lc - real(1)) * (lc - real(1)) * S[S_SC + SC_VC];
+            real lc = kc * S_AT(ua);
+            real rv = tot[b0i + 1] - lc * lc * vc + (lc - real(1)) * (lc - real(1)) * S_AT(S_SC + SC_VC);
             real zn = t_threshold3(real(spp_of(spp[ci])));
             if (res * res > zn * zn * rv) {
                 bias2 = max(bias2, res * res - rv);
@@ -810,7 +825,7 @@ void pick(uint ci, int k, int p1, int p3, real o[14])
     int ua = best == 0 ? V_U1 : V_U3;
     real3 m = real3(0);
     for (int i = 0; i < pl; ++i) {
-        m += S[ua + i] * real3(S[V_RHS + i], S[V_RHS + NC + i], S[V_RHS + 2 * NC + i]);
+        m += S_AT(ua + i) * real3(S_AT(V_RHS + i), S_AT(V_RHS + NC + i), S_AT(V_RHS + 2 * NC + i));
     }
     o[0] = max(m.x, real(0));
     o[1] = max(m.y, real(0));
@@ -826,7 +841,7 @@ void pick(uint ci, int k, int p1, int p3, real o[14])
         real2 cc = real2(0);
         for (int m = 0; m < k; ++m) {
             int cm = s_cidx[1 + m];
-            real cv = cm >= 0 ? S[ba + cm] * S[S_SCALE + 1 + m] : real(0);
+            real cv = cm >= 0 ? S_AT(ba + cm) * S_AT(S_SCALE + 1 + m) : real(0);
             if (m < 4) {
                 ca[m] = cv;
             } else if (m < 8) {
