@@ -46,20 +46,16 @@ PLANE_IN(0, ych)
 PLANE_IN(1, vch)
 PLANE_IN(2, yprev)
 PLANE_IN(3, s2prev)
-PLANE_IN(4, f0)
-PLANE_IN(5, f1)
-PLANE_IN(6, f2)
-PLANE_IN(7, f3)
-PLANE_IN(8, f4)
-PLANE_IN(9, f5)
-PLANE_IN(10, f6)
-PLANE_IN(11, f7)
-PLANE_IN(12, spp)
-PLANE_OUT(13, state)
-PLANE_OUT(14, extra)
+// The features packed by apr_pack (APR-PACKED): normal xyz, albedo r;
+// albedo g b, depth, visibility.
+layout(std430, set = 0, binding = 4) readonly buffer fa_blk { vec4 fa[]; };
+layout(std430, set = 0, binding = 5) readonly buffer fb_blk { vec4 fb[]; };
+PLANE_IN(6, spp)
+PLANE_OUT(7, state)
+PLANE_OUT(8, extra)
 // Modes 1 and 2: the band's extra blocks, [workgroups x, 1, 1, count,
 // pixel indices...] (the caller resets the header before the band).
-layout(std430, set = 0, binding = 15) buffer queue_blk { uint queue[]; };
+layout(std430, set = 0, binding = 9) buffer queue_blk { uint queue[]; };
 
 #include "lib/apr.glsl"
 

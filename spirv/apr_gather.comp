@@ -39,20 +39,16 @@ PLANE_IN(2, col_b)
 PLANE_IN(3, var_r)
 PLANE_IN(4, var_g)
 PLANE_IN(5, var_b)
-PLANE_IN(6, f0)
-PLANE_IN(7, f1)
-PLANE_IN(8, f2)
-PLANE_IN(9, f3)
-PLANE_IN(10, f4)
-PLANE_IN(11, f5)
-PLANE_IN(12, f6)
-PLANE_IN(13, f7)
-PLANE_IN(14, spp)
+// The features packed by apr_pack (APR-PACKED): normal xyz, albedo r;
+// albedo g b, depth, visibility.
+layout(std430, set = 0, binding = 6) readonly buffer fa_blk { vec4 fa[]; };
+layout(std430, set = 0, binding = 7) readonly buffer fb_blk { vec4 fb[]; };
+PLANE_IN(8, spp)
 // The blocks' state records (apr_block), read as vec4s (APR-STATE-VEC4:
 // beta_y, beta_s and the spreads start on multiples of 4).
-layout(std430, set = 0, binding = 15) readonly buffer state_blk { vec4 state[]; };
-PLANE_IN(16, extra)
-PLANE_OUT(17, dst)
+layout(std430, set = 0, binding = 9) readonly buffer state_blk { vec4 state[]; };
+PLANE_IN(10, extra)
+PLANE_OUT(11, dst)
 
 #include "lib/apr.glsl"
 

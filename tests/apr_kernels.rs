@@ -331,3 +331,40 @@ fn gpu_kernels_match_the_twins() {
     }
     common::check_validation(&ctx);
 }
+
+/// `apr_pack` (APR-PACKED) equals its twin bit for bit, with and without
+/// visibility (without it the fourth lane of the second plane is 0).
+#[test]
+fn apr_pack_matches_its_twin() {
+    let ctx = common::gpu();
+    let (w, h) = (13usize, 7usize);
+    let n = w * h;
+    let feats: Vec<Vec<f32>> = (0..8)
+        .map(|j| (0..n).map(|i| (j * 100 + i) as f32 * 0.25 - 3.0).collect())
+        .collect();
+    let refs: [&[f32]; 8] = std::array::from_fn(|j| feats[j].as_slice());
+    for vis in [false, true] {
+        let push = mcdenoise::shared::AprPush {
+            width: w as u32,
+            height: h as u32,
+            flags: if vis { mcdenoise::shared::APR_VIS } else { 0 },
+            ..Default::default()
+        };
+        let (out, _) = mcdenoise::kernels::run_planes(
+            &ctx,
+            &mcdenoise::kernels::apr_pack::DECL,
+            mcdenoise::gpu::Precision::F32,
+            bytemuck::bytes_of(&push),
+            w,
+            h,
+            &refs,
+            &[4 * n, 4 * n],
+            1.0,
+        )
+        .unwrap();
+        let twin = mcdenoise::reference::apr_pack::apr_pack(refs, vis);
+        assert_eq!(out[0], twin[0], "plane a, vis {vis}");
+        assert_eq!(out[1], twin[1], "plane b, vis {vis}");
+        assert!(vis || out[1].chunks(4).all(|p| p[3] == 0.0));
+    }
+}

@@ -24,8 +24,8 @@ const INTEGER_ONLY: &[&str] = &["sample_reduce", "sample_scan"];
 const F32_ONLY: &[&str] = &["render_trace", "render_rays", "lp_select"];
 
 /// Kernels that only move data (the bandwidth probe of `bench --peak`, the
-/// G-buffer prefilter's packing): their `_f64` variant is the same code.
-const COPY_ONLY: &[&str] = &["peak_copy", "gbf_pack"];
+/// G-buffer prefilter's and APR's packing): their `_f64` variant is the same code.
+const COPY_ONLY: &[&str] = &["peak_copy", "gbf_pack", "apr_pack"];
 
 #[test]
 fn every_kernel_matches_its_declaration() {

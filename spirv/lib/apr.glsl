@@ -36,13 +36,10 @@
 
 bool apr_valid(uint i) { return spp_of(spp[i]) >= 1.0; }
 
-// Normal xyz and albedo r.
-real4 apr_fa(uint i) { return real4(f0[i], f1[i], f2[i], f3[i]); }
-// Albedo g b, depth, visibility (0 without the plane: no APR_VIS).
-real4 apr_fb(uint i)
-{
-    return real4(f4[i], f5[i], f6[i], (push.flags & APR_VIS) != 0u ? f7[i] : 0.0);
-}
+// Normal xyz and albedo r (apr_pack's plane fa).
+real4 apr_fa(uint i) { return real4(fa[i]); }
+// Albedo g b, depth, visibility (apr_pack's plane fb: 0 without APR_VIS).
+real4 apr_fb(uint i) { return real4(fb[i]); }
 
 // K_h(i) for the offset (dx, dy), h = 14. GLSL has no f64 exp: computed in
 // f32 (twin: f64, the difference is within spec §0.3).

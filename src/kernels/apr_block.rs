@@ -23,14 +23,8 @@ pub const DECL: KernelDecl = KernelDecl {
         read("v"),
         read("yprev"),
         read("s2prev"),
-        read("normal_x"),
-        read("normal_y"),
-        read("normal_z"),
-        read("albedo_r"),
-        read("albedo_g"),
-        read("albedo_b"),
-        read("depth"),
-        read("visibility"),
+        read("features_a"),
+        read("features_b"),
         read("spp"),
         write("state"),
         write("extra"),
@@ -69,8 +63,8 @@ pub fn flops_per_block() -> f64 {
 /// one invocation per entry (APR-EXTRA-QUEUE: compacted per 8×8 workgroup
 /// instead, a tile's one or two extra pixels left most lanes of their SIMD
 /// vector idle; the extra blocks took 350 of `apr_block`'s 680 ms at 256²).
-/// `feats`: normal xyz, albedo rgb, depth, visibility (any plane without
-/// `APR_VIS` in `push.flags`). `extra_fraction`: the expected fraction of
+/// `feats`: the two vec4 planes of [`super::apr_pack`] (normal xyz, albedo
+/// r; albedo g b, depth, visibility or 0). `extra_fraction`: the expected fraction of
 /// pixels that become extra blocks (for the band split and progress).
 #[allow(clippy::too_many_arguments)]
 pub fn record(
@@ -78,7 +72,7 @@ pub fn record(
     precision: Precision,
     push: &AprPush,
     ch: &AprChannel,
-    feats: &[BufferSlice; 8],
+    feats: &[BufferSlice; 2],
     spp: BufferSlice,
     (state, extra, queue): (BufferSlice, BufferSlice, BufferSlice),
     extra_fraction: f64,

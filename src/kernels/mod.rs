@@ -10,6 +10,7 @@ pub mod aos_nlm;
 pub mod aos_space;
 pub mod apr_block;
 pub mod apr_gather;
+pub mod apr_pack;
 pub mod box_rows;
 pub mod channel_mean;
 pub mod estimate_variance;
@@ -70,6 +71,7 @@ pub const ALL: &[&KernelDecl] = &[
     &aos_fit::DECL,
     &apr_block::DECL,
     &apr_gather::DECL,
+    &apr_pack::DECL,
     &outlier_grey::DECL,
     &outlier_rows::DECL,
     &outlier_detect::DECL,

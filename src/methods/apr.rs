@@ -13,6 +13,7 @@ use crate::gpu::{plane_stride, Batch, BufferSlice, GpuBuffer, GpuContext, PlaneS
 use crate::image::{Layer, RgbImage, StatsImage};
 use crate::kernels::apr_block::{self, AprChannel};
 use crate::kernels::apr_gather::{self, EXTRA_PLANES, OUTPUTS, STAGE_OUTPUTS};
+use crate::kernels::apr_pack;
 use crate::options::Options;
 use crate::reference::apr::{self as r, Planes};
 use crate::reference::apr_block::{grid, RADIUS, STATE};
@@ -197,6 +198,8 @@ pub struct AprPlanes {
     pub stage: [PlaneSet; 2],
     /// The [`OUTPUTS`] planes: colour RGB, error RGB, dimension, extra mask RGB.
     pub out: PlaneSet,
+    /// The features packed by [`apr_pack`] (2 vec4 planes, APR-PACKED).
+    pub packed: PlaneSet,
     width: usize,
     height: usize,
 }
@@ -233,6 +236,7 @@ impl AprPlanes {
                 PlaneSet::new(ctx, "apr.stage1", n, STAGE_OUTPUTS)?,
             ],
             out: PlaneSet::new(ctx, "apr.out", n, OUTPUTS)?,
+            packed: PlaneSet::new(ctx, "apr.packed", 4 * n, 2)?,
             width,
             height,
         })
@@ -305,6 +309,20 @@ pub fn record_apr(
     let var: [BufferSlice; 3] = std::array::from_fn(|c| clean.plane(Layer::ColorVariance, c));
     let stride = (plane_stride(w * h) / 4) as u32;
     let stages = params.stages.max(1);
+    // APR-PACKED: the features as 2 vec4 planes, read by every stage.
+    let packed = [planes.packed.plane(0), planes.packed.plane(1)];
+    apr_pack::record(
+        batch,
+        precision,
+        &AprPush {
+            width: w as u32,
+            height: h as u32,
+            flags: apr_flags(vis, false),
+            ..Default::default()
+        },
+        &feats,
+        packed,
+    )?;
     batch.fill(planes.extra.all(), 0);
     for stage in 1..=stages {
         let last = stage == stages;
@@ -332,7 +350,7 @@ pub fn record_apr(
                     precision,
                     &push,
                     &chan,
-                    &feats,
+                    &packed,
                     spp,
                     (
                         planes.state.slice(),
@@ -362,7 +380,7 @@ pub fn record_apr(
             &push,
             color,
             var,
-            &feats,
+            &packed,
             spp,
             planes.state.slice(),
             planes.extra.all(),

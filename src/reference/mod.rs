@@ -17,6 +17,7 @@ pub mod aos_space;
 pub mod apr;
 pub mod apr_block;
 pub mod apr_gather;
+pub mod apr_pack;
 pub mod box_rows;
 pub mod channel_mean;
 pub mod estimate_variance;
