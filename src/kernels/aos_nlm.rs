@@ -50,17 +50,8 @@ pub fn record(
     spp: BufferSlice,
     dst: BufferSlice,
 ) -> Result<()> {
-    let mut b = Vec::with_capacity(DECL.bindings.len());
-    b.extend_from_slice(&g);
-    b.extend_from_slice(&vg);
-    b.extend([spp, dst]);
-    batch.dispatch(
-        &DECL,
-        precision,
-        &b,
-        bytemuck::bytes_of(push),
-        push.width,
-        push.height,
-        flops_per_pixel(push.channels),
-    )
+    let size = (push.width, push.height);
+    let groups: [&[BufferSlice]; 3] = [&g, &vg, &[spp, dst]];
+    let flops = flops_per_pixel(push.channels);
+    super::dispatch_groups(batch, &DECL, precision, push, size, &groups, flops)
 }

@@ -58,17 +58,15 @@ pub fn record(
     spp: BufferSlice,
     space: BufferSlice,
 ) -> Result<()> {
-    let mut b = Vec::with_capacity(DECL.bindings.len());
-    b.extend_from_slice(feats);
-    b.extend_from_slice(vars);
-    b.extend([spp, space]);
-    batch.dispatch(
+    let groups: [&[BufferSlice]; 3] = [feats, vars, &[spp, space]];
+    let flops = flops_per_pixel(push.radius);
+    super::dispatch_groups(
+        batch,
         &DECL,
         precision,
-        &b,
-        bytemuck::bytes_of(push),
-        push.width,
-        rows,
-        flops_per_pixel(push.radius),
+        push,
+        (push.width, rows),
+        &groups,
+        flops,
     )
 }

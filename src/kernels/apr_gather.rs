@@ -49,18 +49,8 @@ pub fn record(
     extra: BufferSlice,
     dst: BufferSlice,
 ) -> Result<()> {
-    let mut b = Vec::with_capacity(DECL.bindings.len());
-    b.extend_from_slice(&color);
-    b.extend_from_slice(&var);
-    b.extend_from_slice(feats);
-    b.extend([spp, state, extra, dst]);
-    batch.dispatch(
-        &DECL,
-        precision,
-        &b,
-        bytemuck::bytes_of(push),
-        push.width,
-        push.height,
-        FLOPS_PER_PIXEL,
-    )
+    let size = (push.width, push.height);
+    let groups: [&[BufferSlice]; 4] = [&color, &var, feats, &[spp, state, extra, dst]];
+    let flops = FLOPS_PER_PIXEL;
+    super::dispatch_groups(batch, &DECL, precision, push, size, &groups, flops)
 }

@@ -41,14 +41,8 @@ pub fn record(
     feats: &[BufferSlice; 8],
     out: [BufferSlice; 2],
 ) -> Result<()> {
-    let b: Vec<BufferSlice> = [&feats[..], &out].concat();
-    batch.dispatch(
-        &DECL,
-        precision,
-        &b,
-        bytemuck::bytes_of(push),
-        push.width,
-        push.height,
-        flops_per_pixel(),
-    )
+    let size = (push.width, push.height);
+    let groups: [&[BufferSlice]; 2] = [feats, &out];
+    let flops = flops_per_pixel();
+    super::dispatch_groups(batch, &DECL, precision, push, size, &groups, flops)
 }

@@ -92,6 +92,30 @@ use crate::error::Result;
 use crate::gpu::{Batch, BufferSlice, GpuBuffer, GpuContext, Precision};
 use crate::shared::OutlierPush;
 
+/// Records a per-pixel kernel over a `width × height` grid (in bands, as
+/// [`Batch::dispatch`]): the binding groups concatenated in order, `push`
+/// as the push constants.
+pub(crate) fn dispatch_groups<P: bytemuck::Pod>(
+    batch: &mut Batch,
+    decl: &KernelDecl,
+    precision: Precision,
+    push: &P,
+    (width, height): (u32, u32),
+    groups: &[&[BufferSlice]],
+    flops_per_pixel: f64,
+) -> Result<()> {
+    let bindings: Vec<BufferSlice> = groups.concat();
+    batch.dispatch(
+        decl,
+        precision,
+        &bindings,
+        bytemuck::bytes_of(push),
+        width,
+        height,
+        flops_per_pixel,
+    )
+}
+
 /// Records one of the outlier stage's per-pixel kernels over the push's
 /// image: the binding groups concatenated in order.
 pub(crate) fn dispatch_outlier(
@@ -102,16 +126,8 @@ pub(crate) fn dispatch_outlier(
     groups: &[&[BufferSlice]],
     flops_per_pixel: f64,
 ) -> Result<()> {
-    let bindings: Vec<BufferSlice> = groups.concat();
-    batch.dispatch(
-        decl,
-        precision,
-        &bindings,
-        bytemuck::bytes_of(push),
-        push.width,
-        push.height,
-        flops_per_pixel,
-    )
+    let size = (push.width, push.height);
+    dispatch_groups(batch, decl, precision, push, size, groups, flops_per_pixel)
 }
 
 /// Runs one kernel once on data held by the host: binding `i` gets
