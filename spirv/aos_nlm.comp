@@ -68,6 +68,31 @@ shared real s_t[NLM_NB * NLM_TA * NLM_TA];
 // The same of the count of valid pairs (1 where both pixels are valid).
 shared real s_n[NLM_NB * NLM_TA * NLM_TA];
 
+// The sums of 7 consecutive entries of s_t and s_n along one line of 14
+// (entries base + j stride), written in place over the line's first 8:
+// summed directly, not as running differences (a huge t next to small ones
+// would leave its rounding in sums that do not hold it). Every index into
+// the unrolled register windows is a constant.
+void nlm_box7(uint base, uint stride)
+{
+    real ct[NLM_TA];
+    real cn[NLM_TA];
+    [[unroll]] for (int j = 0; j < NLM_TA; ++j) {
+        ct[j] = s_t[base + uint(j) * stride];
+        cn[j] = s_n[base + uint(j) * stride];
+    }
+    [[unroll]] for (int j = 0; j < 8; ++j) {
+        real a = ct[j];
+        real m = cn[j];
+        [[unroll]] for (int o = 1; o < NLM_PD; ++o) {
+            a += ct[j + o];
+            m += cn[j + o];
+        }
+        s_t[base + uint(j) * stride] = a;
+        s_n[base + uint(j) * stride] = m;
+    }
+}
+
 // Offset o (raster order over the search window) in the staged region.
 int nlm_offset(uint o)
 {
@@ -132,49 +157,15 @@ void main()
             }
         }
         barrier();
-        // The 7x7 box sums, in place and without running differences (a
-        // huge t next to small ones would leave its rounding in boxes that do
-        // not hold it): sums over 7 rows, one lane per offset and column,
-        // then over 7 columns of those, one lane per offset and tile row.
-        // Every index into the unrolled register windows is a constant.
+        // The 7x7 box sums, in place: sums over 7 rows, one lane per offset
+        // and column, then over 7 columns of those, one lane per offset and
+        // tile row (nlm_box7).
         for (uint k = lid; k < uint(NLM_NB * NLM_TA); k += 64u) {
-            uint base = (k / uint(NLM_TA)) * uint(NLM_TA * NLM_TA) + k % uint(NLM_TA);
-            real ct[NLM_TA];
-            real cn[NLM_TA];
-            [[unroll]] for (int r = 0; r < NLM_TA; ++r) {
-                ct[r] = s_t[base + uint(r * NLM_TA)];
-                cn[r] = s_n[base + uint(r * NLM_TA)];
-            }
-            [[unroll]] for (int r = 0; r < 8; ++r) {
-                real a = ct[r];
-                real m = cn[r];
-                [[unroll]] for (int y = 1; y < NLM_PD; ++y) {
-                    a += ct[r + y];
-                    m += cn[r + y];
-                }
-                s_t[base + uint(r * NLM_TA)] = a;
-                s_n[base + uint(r * NLM_TA)] = m;
-            }
+            nlm_box7((k / uint(NLM_TA)) * uint(NLM_TA * NLM_TA) + k % uint(NLM_TA), uint(NLM_TA));
         }
         barrier();
         for (uint k = lid; k < uint(NLM_NB * 8); k += 64u) {
-            uint base = (k / 8u) * uint(NLM_TA * NLM_TA) + (k % 8u) * uint(NLM_TA);
-            real ct[NLM_TA];
-            real cn[NLM_TA];
-            [[unroll]] for (int c = 0; c < NLM_TA; ++c) {
-                ct[c] = s_t[base + uint(c)];
-                cn[c] = s_n[base + uint(c)];
-            }
-            [[unroll]] for (int c = 0; c < 8; ++c) {
-                real a = ct[c];
-                real m = cn[c];
-                [[unroll]] for (int x = 1; x < NLM_PD; ++x) {
-                    a += ct[c + x];
-                    m += cn[c + x];
-                }
-                s_t[base + uint(c)] = a;
-                s_n[base + uint(c)] = m;
-            }
+            nlm_box7((k / 8u) * uint(NLM_TA * NLM_TA) + (k % 8u) * uint(NLM_TA), 1u);
         }
         barrier();
         // The candidates q = p + d of the batch, in raster order: inside

@@ -56,7 +56,6 @@ PLANE_OUT(11, dst)
 #define APR_PIXEL_TEST 4u
 
 real yof(int ch, uint i) { return real(ch == 0 ? col_r[i] : (ch == 1 ? col_g[i] : col_b[i])); }
-real vof(int ch, uint i) { return real(ch == 0 ? var_r[i] : (ch == 1 ? var_g[i] : var_b[i])); }
 
 real4 st4(uint b4) { return real4(state[b4]); }
 
