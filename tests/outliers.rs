@@ -209,7 +209,7 @@ fn kernels_match_twins() {
                 &outlier_rows::DECL,
                 p,
                 bytemuck::bytes_of(&pu),
-                w,
+                w.div_ceil(outlier_rows::PX as usize),
                 h,
                 &[&key_bits],
                 &[n; 6],
