@@ -2,12 +2,16 @@
 // Outlier redistribution weights (spec §4.4 step 4) at each pixel o with an
 // excess e_o (0 elsewhere): S = Σ ŷ and |Ω_o| over the valid pixels of
 // Ω_o(R), R = 43, from box_rows' row sums; rho = e/S, or, when S <=
-// dark |Ω_o| (DARK-WINDOW), add = e/|Ω_o|. Scalar twin:
-// src/reference/outlier_weights.rs.
+// dark |Ω_o| (DARK-WINDOW), add = e/|Ω_o|. Only the pixels outlier_detect
+// queued can have an excess: dispatched indirectly over that queue, one
+// invocation per entry (striding past 65535 workgroups), on outputs the
+// host has zeroed, so every SIMD lane sums a window (a per-pixel grid ran
+// each window's 87 rows for the whole vector of a detected pixel).
+// Scalar twin: src/reference/outlier_weights.rs.
 #include "lib/common.glsl"
 #include "lib/outliers.glsl"
 
-layout(local_size_x = 8, local_size_y = 8) in;
+layout(local_size_x = 64) in;
 
 PLANE_IN(0, er)
 PLANE_IN(1, eg)
@@ -22,15 +26,13 @@ PLANE_OUT(9, rho_b)
 PLANE_OUT(10, add_r)
 PLANE_OUT(11, add_g)
 PLANE_OUT(12, add_b)
+layout(std430, set = 0, binding = 13) readonly buffer queue_blk { uint queue[]; };
 
-void main()
+// The weights of the queued pixel o.
+void weigh(uint o)
 {
-    uint x = gl_GlobalInvocationID.x;
-    uint y = push.row0 + gl_GlobalInvocationID.y;
-    if (x >= push.width || y >= push.height) {
-        return;
-    }
-    uint o = y * push.width + x;
+    uint x = o % push.width;
+    uint y = o / push.width;
     real3 e = real3(er[o], eg[o], eb[o]);
     real3 rho = real3(0);
     real3 add = real3(0);
@@ -59,4 +61,12 @@ void main()
     add_r[o] = float(add.x);
     add_g[o] = float(add.y);
     add_b[o] = float(add.z);
+}
+
+void main()
+{
+    uint entries = min(queue[3], queue_capacity());
+    for (uint at = gl_GlobalInvocationID.x; at < entries; at += gl_NumWorkGroups.x * 64u) {
+        weigh(queue[4u + at]);
+    }
 }

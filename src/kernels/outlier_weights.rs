@@ -1,6 +1,7 @@
 //! `outlier_weights`: the redistribution weights `ρ_o = e_o / Σ_{Ω_o(43)} ŷ`
-//! (or the DARK-WINDOW share) at pixels with an excess (spec §4.4 step 4).
-//! Twin: [`crate::reference::outlier_weights`].
+//! (or the DARK-WINDOW share) at pixels with an excess (spec §4.4 step 4),
+//! dispatched indirectly over the queue of detected pixels
+//! ([`super::outlier_detect`]). Twin: [`crate::reference::outlier_weights`].
 
 use crate::error::Result;
 use crate::gpu::reflect::{read, write};
@@ -24,17 +25,25 @@ pub const DECL: KernelDecl = KernelDecl {
         write("add_r"),
         write("add_g"),
         write("add_b"),
+        read("queue"),
     ],
     push_size: std::mem::size_of::<OutlierPush>() as u32,
 };
 
-/// Per pixel: the excess test, and at detected pixels `2R+1` rows × 4 adds.
-pub fn flops_per_pixel(radius: u32) -> f64 {
-    3.0 + super::outlier_median::DETECTED_FRACTION * (2.0 * radius as f64 + 1.0) * 4.0
+/// Per queued pixel: the excess test, `2R+1` rows × 4 adds and the
+/// divisions.
+pub fn flops_per_entry(radius: u32) -> f64 {
+    12.0 + (2.0 * radius as f64 + 1.0) * 4.0
 }
 
-/// Records the weights: `sums` are `box_rows` of ŷ per channel, `count` of the
-/// valid count; `out` = ρ R, G, B, add R, G, B.
+/// Records the weights: `sums` are `box_rows` of ŷ per channel, `count` of
+/// the valid count; `out` = ρ R, G, B, add R, G, B, zeroed here and then
+/// written at the pixels of `queue` (from [`super::outlier_detect`], the
+/// only ones whose `excess` can be non-zero). Like
+/// [`super::outlier_median`]'s, the indirect dispatch is one unit (its
+/// bound: ≈ 360 flops per entry, a quarter of the pixels at most); the cost
+/// estimate assumes [`super::outlier_median::DETECTED_FRACTION`].
+#[allow(clippy::too_many_arguments)]
 pub fn record(
     batch: &mut Batch,
     precision: Precision,
@@ -42,14 +51,22 @@ pub fn record(
     excess: [BufferSlice; 3],
     sums: [BufferSlice; 3],
     count: BufferSlice,
+    queue: BufferSlice,
     out: [BufferSlice; 6],
 ) -> Result<()> {
-    super::dispatch_outlier(
-        batch,
+    for plane in out {
+        batch.fill(plane, 0);
+    }
+    let bindings: Vec<BufferSlice> = [&excess[..], &sums, &[count], &out, &[queue]].concat();
+    let entries = push.width as f64 * push.height as f64 * super::outlier_median::DETECTED_FRACTION;
+    batch.dispatch_indirect(
         &DECL,
         precision,
-        push,
-        &[&excess, &sums, &[count], &out],
-        flops_per_pixel(push.radius),
+        &bindings,
+        bytemuck::bytes_of(push),
+        queue.sub(0, 12)?,
+        entries * flops_per_entry(push.radius),
+        // Per entry: the window's column of 4 row sums, its excess and weights.
+        entries * ((2.0 * push.radius as f64 + 1.0) * 16.0 + 40.0),
     )
 }

@@ -10,7 +10,8 @@
 //!           outlier_median    (indirect, per queued spike) the median pixel; e = y − y_q*
 //!           copy              replaced colour and variance → the sanitised statistics
 //! restore:  box_rows          row sums of ŷ (3) and of the valid count, R = 43
-//!           outlier_weights   ρ = e / Σ_{87×87} ŷ (or e/|Ω| in a dark window)
+//!           outlier_weights   ρ = e / Σ_{87×87} ŷ (or e/|Ω| in a dark window),
+//!                             (indirect, per queued pixel; 0 elsewhere)
 //!           box_rows ×2       row sums of ρ and of the dark shares (4 + 2 planes)
 //!           outlier_spread    ŷ ← max(0, ŷ(1 + Σρ) + Σ add), in place
 //! ```
@@ -224,6 +225,7 @@ pub fn record_restore(
         p.excess(),
         [a[0], a[1], a[2]],
         a[3],
+        p.queue.slice(),
         weights,
     )?;
     box_rows::record(
