@@ -5,9 +5,9 @@
 // count >= min_n (OUTLIER-MIN-N), grey_o - m > k sd (SPIKE-SIDE, population
 // sd) and grey_o - m <= k se_o (OUTLIER-NOISE, se from the pixel's
 // variances) and no 8-neighbour is above m + k sd (OUTLIER-ISOLATED, on
-// outlier_grey's keys). Every pixel's colour and variance are copied to
-// the outputs with e = 0; a detected pixel is appended to the queue, whose
-// entries outlier_median replaces by the median pixel. The median lives in
+// outlier_grey's keys). A detected pixel is appended to the queue, whose
+// entries outlier_median replaces by the median pixel (and outlier_apply
+// writes back): nothing else is written. The median lives in
 // its own kernel because a kernel merely containing its scans of the window
 // (then 32, now 10) ran ~9x slower on lavapipe, and because a queue keeps all SIMD
 // lanes of the median busy.
@@ -31,19 +31,10 @@ PLANE_IN(10, wq)
 PLANE_IN(11, xn)
 PLANE_IN(12, xm)
 PLANE_IN(13, xq)
-PLANE_OUT(14, out_r)
-PLANE_OUT(15, out_g)
-PLANE_OUT(16, out_b)
-PLANE_OUT(17, out_vr)
-PLANE_OUT(18, out_vg)
-PLANE_OUT(19, out_vb)
-PLANE_OUT(20, er)
-PLANE_OUT(21, eg)
-PLANE_OUT(22, eb)
 // [0..3): indirect dispatch arguments of outlier_median (x counts started
 // groups of 64 entries; y = z = 1, set by the host), [3]: entries, then the
 // detected pixels. The host zeroes x and the count before the dispatch.
-layout(std430, set = 0, binding = 23) buffer queue_blk { uint queue[]; };
+layout(std430, set = 0, binding = 14) buffer queue_blk { uint queue[]; };
 
 real grey_at(uint i) { return (real(cr[i]) + real(cg[i]) + real(cb[i])) / real(3); }
 
@@ -115,14 +106,4 @@ void main()
             QUEUE_APPEND(queue, o, 64u, queue_capacity())
         }
     }
-    // Every pixel starts as a copy; outlier_median overwrites the queued ones.
-    out_r[o] = cr[o];
-    out_g[o] = cg[o];
-    out_b[o] = cb[o];
-    out_vr[o] = vr[o];
-    out_vg[o] = vg[o];
-    out_vb[o] = vb[o];
-    er[o] = 0.0;
-    eg[o] = 0.0;
-    eb[o] = 0.0;
 }

@@ -1,6 +1,8 @@
 #version 460
 // Outlier replacement (spec §4.4 step 2-3) for the pixels outlier_detect
-// queued: o takes the colour and variance of q*, the pixel of median grey
+// queued: o takes the colour and variance of q* (written to o's pixel of
+// the replacement planes; outlier_apply puts them into the statistics), q*
+// the pixel of median grey
 // in Ω_o(R) with o (lower median of an even count, lowest raster index
 // among equal greys: OUTLIER-MEDIAN), found by an 8-step radix selection (4-bit digits) on
 // the order-preserving bits of grey from outlier_grey (0: invalid; no local

@@ -9,13 +9,13 @@ use common::*;
 use mcdenoise::gpu::{Batch, GpuBuffer, GpuContext, Precision};
 use mcdenoise::image::{Layer, StatsImage};
 use mcdenoise::kernels::{
-    box_rows, outlier_detect, outlier_grey, outlier_median, outlier_rows, outlier_spread,
-    outlier_weights, run_planes,
+    box_rows, outlier_apply, outlier_detect, outlier_grey, outlier_median, outlier_rows,
+    outlier_spread, outlier_weights, run_planes,
 };
 use mcdenoise::reference::outliers as ro;
 use mcdenoise::reference::{
-    box_rows as rb, outlier_detect as rd, outlier_grey as rg, outlier_median as rm,
-    outlier_rows as rr, outlier_spread as rs, outlier_weights as rw,
+    box_rows as rb, outlier_apply as ra, outlier_detect as rd, outlier_grey as rg,
+    outlier_median as rm, outlier_rows as rr, outlier_spread as rs, outlier_weights as rw,
 };
 use mcdenoise::shared::{OutlierPush, BOX_COUNT_LAST};
 use mcdenoise::{Config, Denoiser, Method, Outliers, Source};
@@ -86,8 +86,9 @@ fn muts<const N: usize>(v: &mut [Vec<f32>]) -> [&mut [f32]; N] {
     std::array::from_fn(|_| it.next().unwrap().as_mut_slice())
 }
 
-/// Runs outlier_detect and the indirect outlier_median through their
-/// `record` functions: the nine output planes and the queue's words.
+/// Runs outlier_detect and the indirect outlier_median and outlier_apply
+/// through their `record` functions: the colour and variance planes after
+/// them, the excess (nine planes) and the queue's words.
 fn detect_and_replace(
     ctx: &std::sync::Arc<GpuContext>,
     p: Precision,
@@ -98,12 +99,15 @@ fn detect_and_replace(
 ) -> (Vec<Vec<f32>>, Vec<u32>) {
     let n = img.w * img.h;
     let up = |v: &[f32]| GpuBuffer::from_slice(ctx, "test.in", v).unwrap();
-    let color: Vec<GpuBuffer> = img.color.iter().map(|v| up(v)).collect();
-    let var: Vec<GpuBuffer> = img.var.iter().map(|v| up(v)).collect();
+    // The statistics (colour then variance, changed in place) and the
+    // excess (garbage first: record() must zero it).
+    let out: Vec<GpuBuffer> = (img.color.iter().chain(&img.var).map(|v| up(v)))
+        .chain((0..3).map(|_| up(&vec![f32::NAN; n])))
+        .collect();
     let spp = up(&img.spp);
     let rows: Vec<GpuBuffer> = rows.iter().map(|v| up(v)).collect();
     let keys = up(keys);
-    let out: Vec<GpuBuffer> = (0..9).map(|_| up(&vec![0.0; n])).collect();
+    let rep: Vec<GpuBuffer> = (0..6).map(|_| up(&vec![f32::NAN; n])).collect();
     // Garbage in the queue's header: record() must reset it.
     let queue = GpuBuffer::from_slice(
         ctx,
@@ -112,7 +116,8 @@ fn detect_and_replace(
     )
     .unwrap();
     let s = |b: &[GpuBuffer]| -> Vec<_> { b.iter().map(|b| b.slice()).collect() };
-    let (cs, vs, rs, os) = (s(&color), s(&var), s(&rows), s(&out));
+    let (rs, os, reps) = (s(&rows), s(&out), s(&rep));
+    let (cs, vs) = (&os[..3], &os[3..6]);
     let mut batch = Batch::new(ctx).unwrap();
     let three = |v: &[_], at: usize| -> [_; 3] { std::array::from_fn(|i| v[at + i]) };
     let six = |v: &[_], at: usize| -> [_; 6] { std::array::from_fn(|i| v[at + i]) };
@@ -120,12 +125,11 @@ fn detect_and_replace(
         &mut batch,
         p,
         pu,
-        three(&cs, 0),
-        three(&vs, 0),
+        three(cs, 0),
+        three(vs, 0),
         spp.slice(),
         keys.slice(),
         six(&rs, 0),
-        six(&os, 0),
         three(&os, 6),
         queue.slice(),
     )
@@ -134,12 +138,22 @@ fn detect_and_replace(
         &mut batch,
         p,
         pu,
-        three(&cs, 0),
-        three(&vs, 0),
+        three(cs, 0),
+        three(vs, 0),
         keys.slice(),
         queue.slice(),
-        six(&os, 0),
+        six(&reps, 0),
         three(&os, 6),
+    )
+    .unwrap();
+    outlier_apply::record(
+        &mut batch,
+        p,
+        pu,
+        six(&reps, 0),
+        three(cs, 0),
+        three(vs, 0),
+        queue.slice(),
     )
     .unwrap();
     batch.finish().unwrap();
@@ -261,21 +275,34 @@ fn kernels_match_twins() {
             }
             // outlier_detect then outlier_median (indirect, from the
             // queue), from the twin's summaries and keys
-            let mut out = vec![vec![0.0f32; n]; 9];
-            let list = {
-                let (a, b) = out.split_at_mut(3);
-                let (b, e) = b.split_at_mut(3);
-                rd::outlier_detect(&pu, c3, v3, &img.spp, muts(a), muts(b), muts(e))
-            };
+            // (the statistics after the stage, colour then variance, and
+            // the excess)
+            let mut out: Vec<Vec<f32>> = img.color.iter().chain(&img.var).cloned().collect();
+            out.extend((0..3).map(|_| vec![f32::NAN; n]));
+            let list = rd::outlier_detect(&pu, c3, v3, &img.spp, muts(&mut out[6..]));
+            let mut rep = vec![vec![0.0f32; n]; 6];
+            {
+                let (a, b) = rep.split_at_mut(3);
+                rm::outlier_median(
+                    &pu,
+                    c3,
+                    v3,
+                    &img.spp,
+                    &list,
+                    muts(a),
+                    muts(b),
+                    muts(&mut out[6..]),
+                );
+            }
             {
                 let (a, b) = out.split_at_mut(3);
-                let (b, e) = b.split_at_mut(3);
-                rm::outlier_median(&pu, c3, v3, &img.spp, &list, muts(a), muts(b), muts(e));
+                let r6: [&[f32]; 6] = std::array::from_fn(|k| rep[k].as_slice());
+                ra::outlier_apply(&list, r6, muts(a), muts(&mut b[..3]));
             }
             let (g, queue) = detect_and_replace(&ctx, p, &pu, &img, &rows, &key_bits);
             for k in 0..9 {
                 assert_close(
-                    &what("outlier_detect + outlier_median"),
+                    &what("outlier_detect + outlier_median + outlier_apply"),
                     &g[k],
                     &out[k],
                     0.99,

@@ -1,7 +1,7 @@
 //! `outlier_detect`: outlier detection (spec §4.4 step 1) from
-//! `outlier_rows`' summaries and `outlier_grey`'s keys. It copies every pixel's colour and variance
-//! (with `e = 0`) and queues the detected pixels for
-//! [`super::outlier_median`], which replaces them. Twin:
+//! `outlier_rows`' summaries and `outlier_grey`'s keys. It queues the
+//! detected pixels for [`super::outlier_median`], which finds their
+//! replacements, and [`super::outlier_apply`], which writes them. Twin:
 //! [`crate::reference::outlier_detect`].
 
 use crate::error::Result;
@@ -27,15 +27,6 @@ pub const DECL: KernelDecl = KernelDecl {
         read("xn"),
         read("xm"),
         read("xq"),
-        write("out_r"),
-        write("out_g"),
-        write("out_b"),
-        write("out_vr"),
-        write("out_vg"),
-        write("out_vb"),
-        write("er"),
-        write("eg"),
-        write("eb"),
         write("queue"),
     ],
     push_size: std::mem::size_of::<OutlierPush>() as u32,
@@ -57,10 +48,9 @@ pub fn queue_words(width: usize, height: usize) -> usize {
 }
 
 /// Records detection (`keys` from `outlier_grey`, `rows` from
-/// `outlier_rows`): `out` receives a copy of
-/// the colour and variance planes (6: R, G, B, var R, G, B), `excess` zeroes,
-/// and `queue` (of [`queue_words`]) the detected pixels. Its header is reset
-/// here (x and count 0, y and z 1).
+/// `outlier_rows`): `excess` is zeroed (by fills) and `queue` (of
+/// [`queue_words`]) receives the detected pixels. Its header is reset here
+/// (x and count 0, y and z 1).
 #[allow(clippy::too_many_arguments)]
 pub fn record(
     batch: &mut Batch,
@@ -71,17 +61,19 @@ pub fn record(
     spp: BufferSlice,
     keys: BufferSlice,
     rows: [BufferSlice; 6],
-    out: [BufferSlice; 6],
     excess: [BufferSlice; 3],
     queue: BufferSlice,
 ) -> Result<()> {
     batch.reset_queue(queue)?;
+    for plane in excess {
+        batch.fill(plane, 0);
+    }
     super::dispatch_outlier(
         batch,
         &DECL,
         precision,
         push,
-        &[&color, &var, &[spp, keys], &rows, &out, &excess, &[queue]],
+        &[&color, &var, &[spp, keys], &rows, &[queue]],
         flops_per_pixel(push.radius),
     )
 }

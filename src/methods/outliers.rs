@@ -6,9 +6,9 @@
 //!
 //! remove:   outlier_grey      order-preserving key of grey (0: invalid)
 //!           outlier_rows      row (count, mean, M2) of grey with and without x, R = 14
-//!           outlier_detect    merge → m, sd without o; copy; queue the spikes
+//!           outlier_detect    merge → m, sd without o; queue the spikes; e ← 0
 //!           outlier_median    (indirect, per queued spike) the median pixel; e = y − y_q*
-//!           copy              replaced colour and variance → the sanitised statistics
+//!           outlier_apply     (indirect) its colour and variance → the sanitised statistics
 //! restore:  box_rows          row sums of ŷ (3) and of the valid count, R = 43
 //!           outlier_weights   ρ = e / Σ_{87×87} ŷ (or e/|Ω| in a dark window),
 //!                             (indirect, per queued pixel; 0 elsewhere)
@@ -29,8 +29,8 @@ use crate::gpu::{Batch, BufferSlice, GpuBuffer, GpuContext, PlaneSet, Precision}
 use crate::image::{Layer, StatsImage};
 use crate::kernels::box_rows::BoxPlanes;
 use crate::kernels::{
-    box_rows, outlier_detect, outlier_grey, outlier_median, outlier_rows, outlier_spread,
-    outlier_weights,
+    box_rows, outlier_apply, outlier_detect, outlier_grey, outlier_median, outlier_rows,
+    outlier_spread, outlier_weights,
 };
 use crate::reference::outliers::{self as reference, DETECT_RADIUS, SPREAD_RADIUS};
 use crate::shared::OutlierPush;
@@ -105,7 +105,7 @@ pub struct OutlierPlanes {
     height: usize,
 }
 
-/// Scratch planes of the stage: row summaries (6) and outputs (6) of the
+/// Scratch planes of the stage: row summaries (6) and replacements (6) of the
 /// detection, or the box sums (12) and weights (6) of the restoration; the
 /// keys of grey (1).
 pub const SCRATCH: usize = 19;
@@ -159,7 +159,7 @@ pub fn record_remove(
     let spp = clean.plane(Layer::Spp, 0);
     let pu = push(w, h, DETECT_RADIUS, 0);
     let rows = p.set::<6>(0);
-    let out = p.set::<6>(6);
+    let rep = p.set::<6>(6);
     let keys = p.planes.plane(18);
     outlier_grey::record(batch, precision, &pu, color, spp, keys)?;
     outlier_rows::record(batch, precision, &pu, keys, rows)?;
@@ -173,7 +173,6 @@ pub fn record_remove(
         spp,
         keys,
         rows,
-        out,
         p.excess(),
         queue,
     )?;
@@ -185,14 +184,10 @@ pub fn record_remove(
         var,
         keys,
         queue,
-        out,
+        rep,
         p.excess(),
     )?;
-    for c in 0..3 {
-        batch.copy(out[c], color[c]);
-        batch.copy(out[3 + c], var[c]);
-    }
-    Ok(())
+    outlier_apply::record(batch, precision, &pu, rep, color, var, queue)
 }
 
 /// Records step 4 on the method's colour planes `color`, in place; `spp` gives

@@ -6,16 +6,13 @@
 use super::outliers::{is_outlier, DETECT_RADIUS, K_SIGMA, MIN_NEIGHBOURS};
 use crate::shared::OutlierPush;
 
-/// Copies the colour and variance, zeroes the excess `e`, and returns the
-/// detected pixels in raster order (the kernel's queue holds the same set
-/// in any order).
+/// Zeroes the excess `e` and returns the detected pixels in raster order
+/// (the kernel's queue holds the same set in any order).
 pub fn outlier_detect(
     push: &OutlierPush,
     color: [&[f32]; 3],
     var: [&[f32]; 3],
     spp: &[f32],
-    out_color: [&mut [f32]; 3],
-    out_var: [&mut [f32]; 3],
     e: [&mut [f32]; 3],
 ) -> Vec<usize> {
     assert_eq!(
@@ -25,10 +22,8 @@ pub fn outlier_detect(
     assert_eq!(push.min_n, MIN_NEIGHBOURS);
     assert_eq!(push.k_sigma as f64, K_SIGMA);
     let (w, h) = (push.width as usize, push.height as usize);
-    for ch in 0..3 {
-        out_color[ch].copy_from_slice(color[ch]);
-        out_var[ch].copy_from_slice(var[ch]);
-        e[ch].fill(0.0);
+    for plane in e {
+        plane.fill(0.0);
     }
     (0..w * h)
         .filter(|&o| is_outlier(w, h, color, var, spp, o))
