@@ -191,7 +191,8 @@ pub struct LpPush {
     /// `lp_gather` only: f32 values from one output plane to the next in its
     /// packed output binding.
     pub out_stride: u32,
-    /// `lp_centres` only: the candidate grid's phase `(φx, φy)` packed as
+    /// `lp_select` and `lp_reach` (which computes only the candidates'
+    /// columns): the candidate grid's phase `(φx, φy)` packed as
     /// `φx | φy << 16`, each `< g`: the candidates are the pixels
     /// `(φx + g·gx, φy + g·gy)`. 0 for a whole image; a tile whose first
     /// pixel is `(ox, oy)` of the image uses `φ = (−o) mod g`, so that its

@@ -211,13 +211,27 @@ fn lp_reach_matches_twin_exactly() {
     for &(w, h) in SIZES {
         let sc = synthetic(w, h, 3, 1.0);
         let (state, _) = twin_state(&sc, 3);
-        // Before pass 2 (the centres of passes 0 and 1), and over all three.
+        // Before pass 2 (the centres of passes 0 and 1) at the candidate
+        // columns of passes 0 and 2, and over all three at every column (the
+        // gather's) and at pass 1's.
         for p in [
             LpPush {
                 pass: 2,
                 ..push(&sc, 0)
             },
-            reach_all(&sc),
+            LpPush {
+                pass: 2,
+                ..push(&sc, 2)
+            },
+            LpPush {
+                granularity: 1,
+                phase: 0,
+                ..reach_all(&sc)
+            },
+            LpPush {
+                pass: rl::GRANULARITIES.len() as u32,
+                ..push(&sc, 1)
+            },
         ] {
             let mut cpu = vec![0.0f32; w * h];
             rr::lp_reach(&p, &state[0], &mut cpu);
@@ -233,7 +247,22 @@ fn lp_reach_matches_twin_exactly() {
                 lp_reach::flops_per_pixel(),
             )
             .unwrap();
-            assert_eq!(out[0], cpu, "{w}x{h} before pass {}", p.pass);
+            // The kernel writes the candidate columns only (0 elsewhere here).
+            let mut checked = 0;
+            for y in 0..h {
+                for x in lp_reach::columns(&p, w as u32) {
+                    let i = y * w + x;
+                    assert_eq!(
+                        out[0][i], cpu[i],
+                        "{w}x{h} before pass {}, g {}, pixel ({x}, {y})",
+                        p.pass, p.granularity
+                    );
+                    checked += 1;
+                }
+            }
+            if p.granularity == 1 {
+                assert_eq!(checked, w * h);
+            }
         }
     }
     check_validation(&ctx);
