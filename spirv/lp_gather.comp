@@ -91,6 +91,13 @@ void features(ivec2 p, out real4 f0, out real4 f1, out real f8)
 shared vec4 t_s0[TILE * TILE];
 shared uint t_list[TILE * TILE];
 shared uint t_count[TILE];
+// LP-PIXEL-TEST's inputs over the workgroup's pixels and a 1-pixel halo:
+// per pixel the sum of its three colour variances, and whether it is valid
+// (outside the image: not). Staged once: 4 loads per tile pixel instead of
+// 4 per pixel of each of the 9 neighbourhoods that hold it.
+#define VT 10
+shared real t_v[VT * VT];
+shared bool t_vok[VT * VT];
 
 void main()
 {
@@ -103,6 +110,20 @@ void main()
             s = st0[uint(t.y) * push.width + uint(t.x)];
         }
         t_s0[k] = s;
+    }
+    for (uint k = lid; k < uint(VT * VT); k += 64u) {
+        ivec2 t = org + (LP_RADIUS - 1) + ivec2(k % uint(VT), k / uint(VT));
+        real v = real(0);
+        bool ok = false;
+        if (t.x >= 0 && t.y >= 0 && t.x < int(push.width) && t.y < int(push.height)) {
+            uint q = uint(t.y) * push.width + uint(t.x);
+            ok = spp_of(spp[q]) >= 1.0;
+            if (ok) {
+                v = real(cv_r[q]) + real(cv_g[q]) + real(cv_b[q]);
+            }
+        }
+        t_v[k] = v;
+        t_vok[k] = ok;
     }
     barrier();
     if (lid < uint(TILE)) {
@@ -182,11 +203,13 @@ void main()
             real vn = real(0);
             real vmax = real(0);
             int nn = 0;
-            for (int qy = max(p.y - 1, 0); qy <= min(p.y + 1, size.y - 1); ++qy) {
-                for (int qx = max(p.x - 1, 0); qx <= min(p.x + 1, size.x - 1); ++qx) {
-                    uint q = uint(qy) * push.width + uint(qx);
-                    if (spp_of(spp[q]) >= 1.0) {
-                        real vq = real(cv_r[q]) + real(cv_g[q]) + real(cv_b[q]);
+            // Raster order; the staged tile (halo included) holds them.
+            uint c = (gl_LocalInvocationID.y + 1u) * uint(VT) + gl_LocalInvocationID.x + 1u;
+            for (int dy = -1; dy <= 1; ++dy) {
+                for (int dx = -1; dx <= 1; ++dx) {
+                    uint t = uint(int(c) + dy * VT + dx);
+                    if (t_vok[t]) {
+                        real vq = t_v[t];
                         vn += vq;
                         vmax = max(vmax, vq);
                         ++nn;
