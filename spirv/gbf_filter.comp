@@ -72,7 +72,7 @@ realmat3 gbf_inv_cov(uint q)
 // pixel's rows is masked off.
 #extension GL_EXT_control_flow_attributes : require
 #define GBF_PX 8
-#define GBF_ROWS 3
+#define GBF_ROWS 2
 #define GBF_N (GBF_PX * GBF_ROWS)
 #define GBF_SPAN (GBF_PX + 2 * GBF_RADIUS)
 

@@ -51,7 +51,7 @@ pub const PIXELS_PER_INVOCATION: u32 = 8;
 
 /// Rows one invocation filters (`GBF_ROWS` in the shader): a chunk's first
 /// row must be a multiple of 8 of them (the workgroup's height in blocks).
-pub const ROWS_PER_INVOCATION: u32 = 3;
+pub const ROWS_PER_INVOCATION: u32 = 2;
 
 /// Per pixel: 49 neighbours × (distance with two stored inverses, one exp,
 /// 8 + 8 accumulations).
@@ -60,8 +60,8 @@ pub fn flops_per_pixel() -> f64 {
 }
 
 /// Records the filtering of the image rows `rows` (`[first, end)`, `first`
-/// and `end` multiples of 24, or `end` the image's height: the dispatch
-/// covers whole workgroups of 24 rows) from the packed features (`packed` from
+/// and `end` multiples of 16, or `end` the image's height: the dispatch
+/// covers whole workgroups of 16 rows) from the packed features (`packed` from
 /// [`super::gbf_pack`]: ranges that start at image row `base` and cover the
 /// rows `rows` ± 3) into `out` (7 features, then their 7 variances; full
 /// planes).

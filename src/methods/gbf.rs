@@ -109,23 +109,21 @@ impl GbfPlanes {
 }
 
 /// Rows per chunk of `gbf_pack` and `gbf_filter` for a `width`-pixel image
-/// whose packed bindings may not exceed `max_binding` bytes: a multiple of
-/// 24 (`gbf_filter` works on blocks of [`gbf_filter::ROWS_PER_INVOCATION`]
-/// = 3 rows, grouped by 8) such that a chunk and 8 rows of halo on each side
-/// fit (the filter reads 3). The whole image, `height`, when it fits in one.
+/// whose packed bindings may not exceed `max_binding` bytes: a multiple of 16
+/// (`gbf_filter` works on blocks of 2 rows, grouped by 8) such that a chunk
+/// and 8 rows of halo on each side fit (the filter reads 3).
+/// The whole image, `height`, when it fits in one.
 fn chunk_rows(width: usize, height: usize, max_binding: u64) -> Result<u32> {
     let row = 16 * width as u64;
     if height as u64 * row <= max_binding {
         return Ok(height as u32);
     }
-    let block = 8 * gbf_filter::ROWS_PER_INVOCATION as u64;
-    let rows = (max_binding / row).saturating_sub(16) / block * block;
+    let rows = (max_binding / row).saturating_sub(16) / 16 * 16;
     if rows == 0 {
         return Err(Error::Limit(format!(
-            "the G-buffer prefilter needs {} bytes per binding for {} rows of a {width}-pixel \
+            "the G-buffer prefilter needs {} bytes per binding for 32 rows of a {width}-pixel \
              image; maxStorageBufferRange is {max_binding}",
-            (block + 16) * row,
-            block + 16
+            32 * row
         )));
     }
     Ok(rows as u32)
