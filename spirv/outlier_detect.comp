@@ -6,8 +6,8 @@
 // sd) and grey_o - m <= k se_o (OUTLIER-NOISE, se from the pixel's
 // variances) and no 8-neighbour is above m + k sd (OUTLIER-ISOLATED, on
 // outlier_grey's keys). A detected pixel is appended to the queue, whose
-// entries outlier_median replaces by the median pixel (and outlier_apply
-// writes back): nothing else is written. The median lives in
+// entries outlier_median replaces by the median pixel (and, in its second
+// mode, writes back): nothing else is written. The median lives in
 // its own kernel because a kernel merely containing its scans of the window
 // (then 32, now 10) ran ~9x slower on lavapipe, and because a queue keeps all SIMD
 // lanes of the median busy.

@@ -1,7 +1,8 @@
 #version 460
 // Outlier replacement (spec §4.4 step 2-3) for the pixels outlier_detect
 // queued: o takes the colour and variance of q* (written to o's pixel of
-// the replacement planes; outlier_apply puts them into the statistics), q*
+// the replacement planes; the OUTLIER_APPLY mode below puts them into the
+// statistics), q*
 // the pixel of median grey
 // in Ω_o(R) with o (lower median of an even count, lowest raster index
 // among equal greys: OUTLIER-MEDIAN), found by an 8-step radix selection (4-bit digits) on
@@ -11,18 +12,23 @@
 // entries are independent and the queue's order does not matter.
 // Dispatched indirectly, one invocation per entry (striding past 65535
 // workgroups).
+// A second dispatch over the same queue with push.mode = OUTLIER_APPLY
+// writes the replacements into the statistics, in place (this one cannot:
+// the median pixel of one entry may be another entry). One pipeline for
+// both: each pipeline holds about 1 MB of lavapipe's resident memory.
 // Scalar twin: src/reference/outlier_median.rs.
 #include "lib/common.glsl"
 #include "lib/outliers.glsl"
 
 layout(local_size_x = 64) in;
 
-PLANE_IN(0, cr)
-PLANE_IN(1, cg)
-PLANE_IN(2, cb)
-PLANE_IN(3, vr)
-PLANE_IN(4, vg)
-PLANE_IN(5, vb)
+// Read by the median; written by OUTLIER_APPLY.
+PLANE_OUT(0, cr)
+PLANE_OUT(1, cg)
+PLANE_OUT(2, cb)
+PLANE_OUT(3, vr)
+PLANE_OUT(4, vg)
+PLANE_OUT(5, vb)
 layout(std430, set = 0, binding = 6) readonly buffer keys_blk { uint keys[]; };
 layout(std430, set = 0, binding = 7) readonly buffer queue_blk { uint queue[]; };
 PLANE_OUT(8, out_r)
@@ -119,10 +125,32 @@ void replace(uint o)
     eb[o] = float(real(cb[o]) - real(cb[q]));
 }
 
+// mcdenoise::shared::OUTLIER_APPLY.
+#define OUTLIER_APPLY 1u
+
+// The replacement of the queued pixel o, from the replacement planes into
+// the statistics.
+void apply(uint o)
+{
+    cr[o] = out_r[o];
+    cg[o] = out_g[o];
+    cb[o] = out_b[o];
+    vr[o] = out_vr[o];
+    vg[o] = out_vg[o];
+    vb[o] = out_vb[o];
+}
+
 void main()
 {
     uint entries = min(queue[3], queue_capacity());
-    for (uint at = gl_GlobalInvocationID.x; at < entries; at += gl_NumWorkGroups.x * 64u) {
+    uint stride = gl_NumWorkGroups.x * 64u;
+    // One loop per mode, the other's range empty (llvmpipe would run both
+    // sides of a branch).
+    bool applying = push.mode == OUTLIER_APPLY;
+    for (uint at = gl_GlobalInvocationID.x; at < (applying ? 0u : entries); at += stride) {
         replace(queue[4u + at]);
+    }
+    for (uint at = gl_GlobalInvocationID.x; at < (applying ? entries : 0u); at += stride) {
+        apply(queue[4u + at]);
     }
 }

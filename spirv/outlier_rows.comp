@@ -1,8 +1,8 @@
 #version 460
 // Outlier detection, row part (spec §4.4 step 1): per pixel (x, y), the
 // (count, mean, M2) of grey over the valid pixels of the row segment
-// [x - R, x + R] (R = OUTLIER_DETECT_R, clipped), once with (x) itself and
-// once without (o): outlier_detect merges 2R + 1 rows of these into the
+// [x - R, x + R] (R = push.radius, clipped), once with (x) itself and once
+// without (o): outlier_detect merges 2R + 1 rows of these into the
 // statistics of Ω(R) \ {o} without a sum of squares, the row of o without
 // it (EXCL-CENTRE). Each is merged from the two-pass summaries of the left
 // [x - R, x - 1] and right [x + 1, x + R] half-rows; grey and validity come
@@ -17,83 +17,60 @@ PLANE_OUT(3, wq)
 PLANE_OUT(4, xn)
 PLANE_OUT(5, xm)
 PLANE_OUT(6, xq)
-
-// Register blocking: an invocation computes ROWS_PX consecutive pixels of a
-// row. The keys of their joint segment (ROWS_PX + 2R wide) are loaded and
-// decoded once into registers; each pixel's half-rows are then summed from
-// them with constant indices (the loops are unrolled), in the order of one
-// invocation per pixel, so the result is the same: ~(ROWS_PX + 2R) / ROWS_PX
-// loads per pixel instead of 4R + 1 (lavapipe pays per lane and value
-// loaded). Dispatched over ceil(width / ROWS_PX) x height invocations.
-#extension GL_EXT_control_flow_attributes : require
-#define ROWS_PX 8
-#define R OUTLIER_DETECT_R
-#define ROWS_SPAN (ROWS_PX + 2 * R)
-
-// Two-pass (count, mean, M2) of the valid greys g[a..a + R) (ok), into s.
-#define SEGMENT(s, a)                                       \
-    {                                                       \
-        s.n = real(0);                                      \
-        s.mean = real(0);                                   \
-        s.m2 = real(0);                                     \
-        real sum_ = real(0);                                \
-        [[unroll]] for (int u_ = 0; u_ < R; ++u_) {         \
-            if (ok[(a) + u_]) {                             \
-                s.n += real(1);                             \
-                sum_ += g[(a) + u_];                        \
-            }                                               \
-        }                                                   \
-        if (s.n != real(0)) {                               \
-            s.mean = sum_ / s.n;                            \
-            [[unroll]] for (int u_ = 0; u_ < R; ++u_) {     \
-                if (ok[(a) + u_]) {                         \
-                    real d_ = g[(a) + u_] - s.mean;         \
-                    s.m2 += d_ * d_;                        \
-                }                                           \
-            }                                               \
-        }                                                   \
+// Two-pass (count, mean, M2) of row y over [a, b].
+Summary segment(uint y, int a, int b)
+{
+    Summary s;
+    s.n = real(0);
+    s.mean = real(0);
+    s.m2 = real(0);
+    real sum = real(0);
+    for (int qx = a; qx <= b; ++qx) {
+        real g;
+        if (key_grey(keys[y * push.width + uint(qx)], g)) {
+            s.n += real(1);
+            sum += g;
+        }
     }
-
+    if (s.n == real(0)) {
+        return s;
+    }
+    s.mean = sum / s.n;
+    for (int qx = a; qx <= b; ++qx) {
+        real g;
+        if (key_grey(keys[y * push.width + uint(qx)], g)) {
+            real d = g - s.mean;
+            s.m2 += d * d;
+        }
+    }
+    return s;
+}
 void main()
 {
-    uint x0 = gl_GlobalInvocationID.x * uint(ROWS_PX);
+    uint x = gl_GlobalInvocationID.x;
     uint y = push.row0 + gl_GlobalInvocationID.y;
-    if (x0 >= push.width || y >= push.height) {
+    if (x >= push.width || y >= push.height) {
         return;
     }
-    // Entry u: column x0 - R + u (invalid outside the image).
-    real g[ROWS_SPAN];
-    bool ok[ROWS_SPAN];
-    [[unroll]] for (int u = 0; u < ROWS_SPAN; ++u) {
-        int qx = int(x0) - R + u;
-        g[u] = real(0);
-        ok[u] = false;
-        if (qx >= 0 && qx < int(push.width)) {
-            real gv;
-            ok[u] = key_grey(keys[y * push.width + uint(qx)], gv);
-            g[u] = ok[u] ? gv : real(0);
-        }
+    uint i = y * push.width + x;
+    int r = int(push.radius);
+    Summary l = segment(y, max(int(x) - r, 0), int(x) - 1);
+    Summary rt = segment(y, int(x) + 1, min(int(x) + r, int(push.width) - 1));
+    Summary c;
+    c.n = real(0);
+    c.mean = real(0);
+    c.m2 = real(0);
+    real g;
+    if (key_grey(keys[i], g)) {
+        c.n = real(1);
+        c.mean = g;
     }
-    [[unroll]] for (int p = 0; p < ROWS_PX; ++p) {
-        if (x0 + uint(p) >= push.width) {
-            continue;
-        }
-        uint i = y * push.width + x0 + uint(p);
-        // The pixel is entry p + R; its half-rows start at p and p + R + 1.
-        Summary l, rt;
-        SEGMENT(l, p)
-        SEGMENT(rt, p + R + 1)
-        Summary c;
-        c.n = ok[p + R] ? real(1) : real(0);
-        c.mean = ok[p + R] ? g[p + R] : real(0);
-        c.m2 = real(0);
-        Summary with_x = merge(merge(l, c), rt);
-        Summary without = merge(l, rt);
-        wn[i] = float(with_x.n);
-        wm[i] = float(with_x.mean);
-        wq[i] = float(with_x.m2);
-        xn[i] = float(without.n);
-        xm[i] = float(without.mean);
-        xq[i] = float(without.m2);
-    }
+    Summary with_x = merge(merge(l, c), rt);
+    Summary without = merge(l, rt);
+    wn[i] = float(with_x.n);
+    wm[i] = float(with_x.mean);
+    wq[i] = float(with_x.m2);
+    xn[i] = float(without.n);
+    xm[i] = float(without.mean);
+    xq[i] = float(without.m2);
 }

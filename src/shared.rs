@@ -414,7 +414,8 @@ pub struct OutlierPush {
     pub radius: u32,
     /// `box_rows`: how many planes one dispatch sums over the valid pixels
     /// (2 or 4), plus [`BOX_COUNT_LAST`] when the fourth counts them instead
-    /// (set by `kernels::box_rows::record`).
+    /// (set by `kernels::box_rows::record`); `outlier_median`: 0, or
+    /// [`OUTLIER_APPLY`] (set by `kernels::outlier_median`).
     pub mode: u32,
     /// Fewest valid neighbours a detection needs (OUTLIER-MIN-N).
     pub min_n: u32,
@@ -428,6 +429,10 @@ pub struct OutlierPush {
 /// pixels (its value is not read). The twin `reference::box_rows` counts when
 /// it is set.
 pub const BOX_COUNT_LAST: u32 = 8;
+
+/// [`OutlierPush::mode`] of `outlier_median`'s second dispatch: write the
+/// replacements it found into the statistics.
+pub const OUTLIER_APPLY: u32 = 1;
 
 /// `spirv/aos_nlm.comp`, `spirv/aos_space.comp` and `spirv/aos_fit.comp`,
 /// block `Push` (spec §5).

@@ -9,13 +9,13 @@ use common::*;
 use mcdenoise::gpu::{Batch, GpuBuffer, GpuContext, Precision};
 use mcdenoise::image::{Layer, StatsImage};
 use mcdenoise::kernels::{
-    box_rows, outlier_apply, outlier_detect, outlier_grey, outlier_median, outlier_rows,
-    outlier_spread, outlier_weights, run_planes,
+    box_rows, outlier_detect, outlier_grey, outlier_median, outlier_rows, outlier_spread,
+    outlier_weights, run_planes,
 };
 use mcdenoise::reference::outliers as ro;
 use mcdenoise::reference::{
-    box_rows as rb, outlier_apply as ra, outlier_detect as rd, outlier_grey as rg,
-    outlier_median as rm, outlier_rows as rr, outlier_spread as rs, outlier_weights as rw,
+    box_rows as rb, outlier_detect as rd, outlier_grey as rg, outlier_median as rm,
+    outlier_rows as rr, outlier_spread as rs, outlier_weights as rw,
 };
 use mcdenoise::shared::{OutlierPush, BOX_COUNT_LAST};
 use mcdenoise::{Config, Denoiser, Method, Outliers, Source};
@@ -86,8 +86,8 @@ fn muts<const N: usize>(v: &mut [Vec<f32>]) -> [&mut [f32]; N] {
     std::array::from_fn(|_| it.next().unwrap().as_mut_slice())
 }
 
-/// Runs outlier_detect and the indirect outlier_median and outlier_apply
-/// through their `record` functions: the colour and variance planes after
+/// Runs outlier_detect and the indirect outlier_median (both modes) through
+/// their `record` functions: the colour and variance planes after
 /// them, the excess (nine planes) and the queue's words.
 fn detect_and_replace(
     ctx: &std::sync::Arc<GpuContext>,
@@ -146,14 +146,16 @@ fn detect_and_replace(
         three(&os, 6),
     )
     .unwrap();
-    outlier_apply::record(
+    outlier_median::record_apply(
         &mut batch,
         p,
         pu,
-        six(&reps, 0),
         three(cs, 0),
         three(vs, 0),
+        keys.slice(),
         queue.slice(),
+        six(&reps, 0),
+        three(&os, 6),
     )
     .unwrap();
     batch.finish().unwrap();
@@ -263,7 +265,7 @@ fn kernels_match_twins() {
                 &outlier_rows::DECL,
                 p,
                 bytemuck::bytes_of(&pu),
-                w.div_ceil(outlier_rows::PX as usize),
+                w,
                 h,
                 &[&key_bits],
                 &[n; 6],
@@ -297,12 +299,12 @@ fn kernels_match_twins() {
             {
                 let (a, b) = out.split_at_mut(3);
                 let r6: [&[f32]; 6] = std::array::from_fn(|k| rep[k].as_slice());
-                ra::outlier_apply(&list, r6, muts(a), muts(&mut b[..3]));
+                rm::outlier_apply(&list, r6, muts(a), muts(&mut b[..3]));
             }
             let (g, queue) = detect_and_replace(&ctx, p, &pu, &img, &rows, &key_bits);
             for k in 0..9 {
                 assert_close(
-                    &what("outlier_detect + outlier_median + outlier_apply"),
+                    &what("outlier_detect + outlier_median (both modes)"),
                     &g[k],
                     &out[k],
                     0.99,

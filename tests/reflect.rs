@@ -24,9 +24,8 @@ const INTEGER_ONLY: &[&str] = &["sample_reduce", "sample_scan"];
 const F32_ONLY: &[&str] = &["render_trace", "render_rays", "lp_select"];
 
 /// Kernels that only move data (the bandwidth probe of `bench --peak`, the
-/// G-buffer prefilter's and APR's packing, the outlier stage's write-back):
-/// their `_f64` variant is the same code.
-const COPY_ONLY: &[&str] = &["peak_copy", "gbf_pack", "apr_pack", "outlier_apply"];
+/// G-buffer prefilter's and APR's packing): their `_f64` variant is the same code.
+const COPY_ONLY: &[&str] = &["peak_copy", "gbf_pack", "apr_pack"];
 
 #[test]
 fn every_kernel_matches_its_declaration() {
@@ -37,11 +36,11 @@ fn every_kernel_matches_its_declaration() {
                 .unwrap_or_else(|e| panic!("{}{}: {e}", decl.name, p.suffix()));
             // One workgroup per pixel for aos_fit (spec §5.4); the dispatch
             // counts invocations in x by THREADS per pixel.
-            // outlier_median, outlier_weights, outlier_apply and lp_centres
-            // run one invocation per queued pixel.
+            // outlier_median, outlier_weights and lp_centres run one
+            // invocation per queued pixel.
             let wg = if decl.name == "aos_fit" {
                 [mcdenoise::kernels::aos_fit::THREADS, 1, 1]
-            } else if ["outlier_median", "outlier_weights", "outlier_apply"].contains(&decl.name) {
+            } else if ["outlier_median", "outlier_weights"].contains(&decl.name) {
                 [mcdenoise::kernels::outlier_median::GROUP, 1, 1]
             } else if decl.name == "lp_centres" {
                 [mcdenoise::kernels::lp_centres::GROUP, 1, 1]

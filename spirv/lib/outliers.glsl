@@ -14,11 +14,6 @@ layout(push_constant) uniform Push {
     float dark;     // DARK-WINDOW factor, 1e-8
 } push;
 
-// The detection radius R of spec §4.4 steps 1-3 (14), fixed at compile time
-// for the kernels whose loops it unrolls (outlier_rows, outlier_detect);
-// mirrors mcdenoise::reference::outliers::DETECT_RADIUS.
-#define OUTLIER_DETECT_R 14
-
 bool valid_at(float s) { return spp_of(s) >= 1.0; }
 
 // The grey of outlier_grey's key k (its inverse, exact); false for k = 0

@@ -26,7 +26,6 @@ pub mod lp_centres;
 pub mod lp_gather;
 pub mod lp_reach;
 pub mod lp_select;
-pub mod outlier_apply;
 pub mod outlier_detect;
 pub mod outlier_grey;
 pub mod outlier_median;
@@ -77,7 +76,6 @@ pub const ALL: &[&KernelDecl] = &[
     &outlier_rows::DECL,
     &outlier_detect::DECL,
     &outlier_median::DECL,
-    &outlier_apply::DECL,
     &box_rows::DECL,
     &outlier_weights::DECL,
     &outlier_spread::DECL,

@@ -1,7 +1,7 @@
 //! `outlier_detect`: outlier detection (spec §4.4 step 1) from
 //! `outlier_rows`' summaries and `outlier_grey`'s keys. It queues the
 //! detected pixels for [`super::outlier_median`], which finds their
-//! replacements, and [`super::outlier_apply`], which writes them. Twin:
+//! replacements and then writes them ([`super::outlier_median::record_apply`]). Twin:
 //! [`crate::reference::outlier_detect`].
 
 use crate::error::Result;

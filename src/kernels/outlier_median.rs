@@ -1,24 +1,26 @@
 //! `outlier_median`: outlier replacement (spec §4.4 steps 2–3) at the pixels
 //! [`super::outlier_detect`] queued: each takes the colour and variance of
-//! its window's median pixel (an 8-step radix selection over the window, 4-bit digits),
-//! and `e = y_o − y_q*`. Dispatched indirectly, one invocation per queued
-//! pixel. Twin: [`crate::reference::outlier_median`].
+//! its window's median pixel (an 8-step radix selection over the window,
+//! 4-bit digits), written to the replacement planes, and `e = y_o − y_q*`;
+//! a second dispatch ([`record_apply`]) writes the replacements into the
+//! statistics. Dispatched indirectly, one invocation per queued pixel.
+//! Twin: [`crate::reference::outlier_median`].
 
 use crate::error::Result;
 use crate::gpu::reflect::{read, write};
 use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};
-use crate::shared::OutlierPush;
+use crate::shared::{OutlierPush, OUTLIER_APPLY};
 
 /// Declaration of `spirv/outlier_median.comp`.
 pub const DECL: KernelDecl = KernelDecl {
     name: "outlier_median",
     bindings: &[
-        read("cr"),
-        read("cg"),
-        read("cb"),
-        read("vr"),
-        read("vg"),
-        read("vb"),
+        write("cr"),
+        write("cg"),
+        write("cb"),
+        write("vr"),
+        write("vg"),
+        write("vb"),
         read("keys"),
         read("queue"),
         write("out_r"),
@@ -78,14 +80,49 @@ pub fn record(
 ) -> Result<()> {
     let bindings: Vec<BufferSlice> = [&color[..], &var, &[keys, queue], &out, &excess].concat();
     let pixels = push.width as f64 * push.height as f64;
+    let push = OutlierPush { mode: 0, ..*push };
     batch.dispatch_indirect(
         &DECL,
         precision,
         &bindings,
-        bytemuck::bytes_of(push),
+        bytemuck::bytes_of(&push),
         queue.sub(0, 12)?,
         pixels * DETECTED_FRACTION * flops_per_entry(push.radius),
         // Per entry: the window's keys, its own 18 values.
         pixels * DETECTED_FRACTION * (window_pixels(push.radius) * 4.0 + 72.0),
+    )
+}
+
+/// Records the second dispatch ([`OUTLIER_APPLY`]): at the pixels of
+/// `queue`, the replacements [`record`] wrote to `out` go into `color` and
+/// `var`, in place; nothing else is read or written (so the stage never
+/// copies the statistics). The same bindings as [`record`]; `keys` and
+/// `excess` are not accessed.
+#[allow(clippy::too_many_arguments)]
+pub fn record_apply(
+    batch: &mut Batch,
+    precision: Precision,
+    push: &OutlierPush,
+    color: [BufferSlice; 3],
+    var: [BufferSlice; 3],
+    keys: BufferSlice,
+    queue: BufferSlice,
+    out: [BufferSlice; 6],
+    excess: [BufferSlice; 3],
+) -> Result<()> {
+    let bindings: Vec<BufferSlice> = [&color[..], &var, &[keys, queue], &out, &excess].concat();
+    let entries = push.width as f64 * push.height as f64 * DETECTED_FRACTION;
+    let push = OutlierPush {
+        mode: OUTLIER_APPLY,
+        ..*push
+    };
+    batch.dispatch_indirect(
+        &DECL,
+        precision,
+        &bindings,
+        bytemuck::bytes_of(&push),
+        queue.sub(0, 12)?,
+        entries,
+        entries * 52.0,
     )
 }

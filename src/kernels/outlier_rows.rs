@@ -3,10 +3,9 @@
 //! with and without the pixel itself, from [`super::outlier_grey`]'s keys.
 //! Twin: [`crate::reference::outlier_rows`].
 
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::gpu::reflect::{read, write};
 use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};
-use crate::reference::outliers::DETECT_RADIUS;
 use crate::shared::OutlierPush;
 
 /// Declaration of `spirv/outlier_rows.comp`.
@@ -24,22 +23,14 @@ pub const DECL: KernelDecl = KernelDecl {
     push_size: std::mem::size_of::<OutlierPush>() as u32,
 };
 
-/// Pixels per invocation (`ROWS_PX` in the shader): the keys of their joint
-/// segment are loaded once.
-pub const PX: u32 = 8;
-
-/// Per pixel: `2R` neighbours × two passes × (test, 2 FMAs) ≈ 4 each, a
-/// share of the joint segment's loads and decodes (≈ 2 each), and three
-/// merges (≈ 12 each).
+/// Per pixel: `2R` neighbours × two passes × (load, decode, test, 2 FMAs)
+/// ≈ 5 each, and three merges (≈ 12 each).
 pub fn flops_per_pixel(radius: u32) -> f64 {
-    let r = radius as f64;
-    2.0 * r * 2.0 * 4.0 + 2.0 * (PX as f64 + 2.0 * r) / PX as f64 + 36.0
+    2.0 * radius as f64 * 2.0 * 5.0 + 36.0
 }
 
 /// Records the row summaries of grey (`keys` from [`super::outlier_grey`])
-/// into `out`: count, mean, M2 with the pixel, then without it. The
-/// shader's radius is [`DETECT_RADIUS`] (unrolled); another `push.radius`
-/// is an error.
+/// into `out`: count, mean, M2 with the pixel, then without it.
 pub fn record(
     batch: &mut Batch,
     precision: Precision,
@@ -47,13 +38,12 @@ pub fn record(
     keys: BufferSlice,
     out: [BufferSlice; 6],
 ) -> Result<()> {
-    if push.radius as usize != DETECT_RADIUS {
-        return Err(Error::InvalidArgument(format!(
-            "outlier_rows is compiled for radius {DETECT_RADIUS}, not {}",
-            push.radius
-        )));
-    }
-    let size = (push.width.div_ceil(PX), push.height);
-    let flops = flops_per_pixel(push.radius) * PX as f64;
-    super::dispatch_groups(batch, &DECL, precision, push, size, &[&[keys], &out], flops)
+    super::dispatch_outlier(
+        batch,
+        &DECL,
+        precision,
+        push,
+        &[&[keys], &out],
+        flops_per_pixel(push.radius),
+    )
 }

@@ -8,7 +8,7 @@
 //!           outlier_rows      row (count, mean, M2) of grey with and without x, R = 14
 //!           outlier_detect    merge → m, sd without o; queue the spikes; e ← 0
 //!           outlier_median    (indirect, per queued spike) the median pixel; e = y − y_q*
-//!           outlier_apply     (indirect) its colour and variance → the sanitised statistics
+//!           outlier_median    (OUTLIER_APPLY) its colour and variance → the sanitised statistics
 //! restore:  box_rows          row sums of ŷ (3) and of the valid count, R = 43
 //!           outlier_weights   ρ = e / Σ_{87×87} ŷ (or e/|Ω| in a dark window),
 //!                             (indirect, per queued pixel; 0 elsewhere)
@@ -29,8 +29,8 @@ use crate::gpu::{Batch, BufferSlice, GpuBuffer, GpuContext, PlaneSet, Precision}
 use crate::image::{Layer, StatsImage};
 use crate::kernels::box_rows::BoxPlanes;
 use crate::kernels::{
-    box_rows, outlier_apply, outlier_detect, outlier_grey, outlier_median, outlier_rows,
-    outlier_spread, outlier_weights,
+    box_rows, outlier_detect, outlier_grey, outlier_median, outlier_rows, outlier_spread,
+    outlier_weights,
 };
 use crate::reference::outliers::{self as reference, DETECT_RADIUS, SPREAD_RADIUS};
 use crate::shared::OutlierPush;
@@ -187,7 +187,17 @@ pub fn record_remove(
         rep,
         p.excess(),
     )?;
-    outlier_apply::record(batch, precision, &pu, rep, color, var, queue)
+    outlier_median::record_apply(
+        batch,
+        precision,
+        &pu,
+        color,
+        var,
+        keys,
+        queue,
+        rep,
+        p.excess(),
+    )
 }
 
 /// Records step 4 on the method's colour planes `color`, in place; `spp` gives

@@ -36,7 +36,6 @@ pub mod lp_centres;
 pub mod lp_gather;
 pub mod lp_reach;
 pub mod lp_select;
-pub mod outlier_apply;
 pub mod outlier_detect;
 pub mod outlier_grey;
 pub mod outlier_median;

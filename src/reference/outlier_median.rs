@@ -1,6 +1,7 @@
 //! Scalar twin of `spirv/outlier_median.comp`: outlier replacement (spec
 //! §4.4 steps 2–3) at the detected pixels, from the definition's median
-//! ([`super::outliers::median_at`]).
+//! ([`super::outliers::median_at`]), and (its `OUTLIER_APPLY` mode) the
+//! replacements written into the statistics.
 
 use super::outliers::{median_at, DETECT_RADIUS};
 use crate::shared::OutlierPush;
@@ -31,6 +32,22 @@ pub fn outlier_median(
             out_color[ch][o] = color[ch][q];
             out_var[ch][o] = var[ch][q];
             e[ch][o] = (color[ch][o] as f64 - color[ch][q] as f64) as f32;
+        }
+    }
+}
+
+/// `color[ch][o] = rep[ch][o]` and `var[ch][o] = rep[3 + ch][o]` for every
+/// `o` of `detected`.
+pub fn outlier_apply(
+    detected: &[usize],
+    rep: [&[f32]; 6],
+    color: [&mut [f32]; 3],
+    var: [&mut [f32]; 3],
+) {
+    for (ch, (c, v)) in color.into_iter().zip(var).enumerate() {
+        for &o in detected {
+            c[o] = rep[ch][o];
+            v[o] = rep[3 + ch][o];
         }
     }
 }
