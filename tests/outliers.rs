@@ -134,30 +134,21 @@ fn detect_and_replace(
         queue.slice(),
     )
     .unwrap();
-    outlier_median::record(
-        &mut batch,
-        p,
-        pu,
-        three(cs, 0),
-        three(vs, 0),
-        keys.slice(),
-        queue.slice(),
-        six(&reps, 0),
-        three(&os, 6),
-    )
-    .unwrap();
-    outlier_median::record_apply(
-        &mut batch,
-        p,
-        pu,
-        three(cs, 0),
-        three(vs, 0),
-        keys.slice(),
-        queue.slice(),
-        six(&reps, 0),
-        three(&os, 6),
-    )
-    .unwrap();
+    for step in [outlier_median::Step::Find, outlier_median::Step::Apply] {
+        outlier_median::record(
+            &mut batch,
+            p,
+            pu,
+            step,
+            three(cs, 0),
+            three(vs, 0),
+            keys.slice(),
+            queue.slice(),
+            six(&reps, 0),
+            three(&os, 6),
+        )
+        .unwrap();
+    }
     batch.finish().unwrap();
     (
         out.iter().map(|b| b.read_vec::<f32>(n).unwrap()).collect(),

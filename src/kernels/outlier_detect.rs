@@ -1,7 +1,7 @@
 //! `outlier_detect`: outlier detection (spec §4.4 step 1) from
 //! `outlier_rows`' summaries and `outlier_grey`'s keys. It queues the
 //! detected pixels for [`super::outlier_median`], which finds their
-//! replacements and then writes them ([`super::outlier_median::record_apply`]). Twin:
+//! replacements and then writes them ([`super::outlier_median::Step::Apply`]). Twin:
 //! [`crate::reference::outlier_detect`].
 
 use crate::error::Result;

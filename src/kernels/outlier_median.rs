@@ -2,7 +2,7 @@
 //! [`super::outlier_detect`] queued: each takes the colour and variance of
 //! its window's median pixel (an 8-step radix selection over the window,
 //! 4-bit digits), written to the replacement planes, and `e = y_o − y_q*`;
-//! a second dispatch ([`record_apply`]) writes the replacements into the
+//! a second dispatch ([`Step::Apply`]) writes the replacements into the
 //! statistics. Dispatched indirectly, one invocation per queued pixel.
 //! Twin: [`crate::reference::outlier_median`].
 
@@ -55,11 +55,24 @@ pub fn flops_per_entry(radius: u32) -> f64 {
     10.0 * window_pixels(radius) * 12.0
 }
 
-/// Records the replacement of the queued pixels (`keys` from
-/// `outlier_grey`, 0 where invalid; `queue` from `outlier_detect`) into `out` (6: R, G, B,
-/// var R, G, B) and `excess`.
+/// The two dispatches of the kernel, in this order.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Step {
+    /// Each queued pixel's median pixel: its colour and variance into
+    /// `out`, and `excess`.
+    Find,
+    /// [`OUTLIER_APPLY`]: at the queued pixels, `out` into `color` and
+    /// `var`, in place; nothing else is read or written (so the stage never
+    /// copies the statistics).
+    Apply,
+}
+
+/// Records one step of the replacement of the queued pixels (`keys` from
+/// `outlier_grey`, 0 where invalid; `queue` from `outlier_detect`): the
+/// medians into `out` (6: R, G, B, var R, G, B) and `excess`, or those into
+/// `color` and `var`. Both steps take the same bindings.
 ///
-/// The dispatch cannot be split into bands. Its worst case is bounded:
+/// A dispatch cannot be split into bands. Its worst case is bounded:
 /// OUTLIER-ISOLATED never detects two 8-neighbours, so at most a quarter of
 /// the pixels are queued (the queue's capacity; the kernels drop any
 /// excess): ≈ 0.1 MFLOP per entry at R = 14, at most ≈ 25 GFLOP per
@@ -71,38 +84,7 @@ pub fn record(
     batch: &mut Batch,
     precision: Precision,
     push: &OutlierPush,
-    color: [BufferSlice; 3],
-    var: [BufferSlice; 3],
-    keys: BufferSlice,
-    queue: BufferSlice,
-    out: [BufferSlice; 6],
-    excess: [BufferSlice; 3],
-) -> Result<()> {
-    let bindings: Vec<BufferSlice> = [&color[..], &var, &[keys, queue], &out, &excess].concat();
-    let pixels = push.width as f64 * push.height as f64;
-    let push = OutlierPush { mode: 0, ..*push };
-    batch.dispatch_indirect(
-        &DECL,
-        precision,
-        &bindings,
-        bytemuck::bytes_of(&push),
-        queue.sub(0, 12)?,
-        pixels * DETECTED_FRACTION * flops_per_entry(push.radius),
-        // Per entry: the window's keys, its own 18 values.
-        pixels * DETECTED_FRACTION * (window_pixels(push.radius) * 4.0 + 72.0),
-    )
-}
-
-/// Records the second dispatch ([`OUTLIER_APPLY`]): at the pixels of
-/// `queue`, the replacements [`record`] wrote to `out` go into `color` and
-/// `var`, in place; nothing else is read or written (so the stage never
-/// copies the statistics). The same bindings as [`record`]; `keys` and
-/// `excess` are not accessed.
-#[allow(clippy::too_many_arguments)]
-pub fn record_apply(
-    batch: &mut Batch,
-    precision: Precision,
-    push: &OutlierPush,
+    step: Step,
     color: [BufferSlice; 3],
     var: [BufferSlice; 3],
     keys: BufferSlice,
@@ -112,17 +94,23 @@ pub fn record_apply(
 ) -> Result<()> {
     let bindings: Vec<BufferSlice> = [&color[..], &var, &[keys, queue], &out, &excess].concat();
     let entries = push.width as f64 * push.height as f64 * DETECTED_FRACTION;
-    let push = OutlierPush {
-        mode: OUTLIER_APPLY,
-        ..*push
+    let (mode, flops, bytes) = match step {
+        // Per entry: the window's keys, its own 18 values.
+        Step::Find => (
+            0,
+            flops_per_entry(push.radius),
+            window_pixels(push.radius) * 4.0 + 72.0,
+        ),
+        Step::Apply => (OUTLIER_APPLY, 1.0, 52.0),
     };
+    let push = OutlierPush { mode, ..*push };
     batch.dispatch_indirect(
         &DECL,
         precision,
         &bindings,
         bytemuck::bytes_of(&push),
         queue.sub(0, 12)?,
-        entries,
-        entries * 52.0,
+        entries * flops,
+        entries * bytes,
     )
 }

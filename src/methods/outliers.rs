@@ -176,28 +176,21 @@ pub fn record_remove(
         p.excess(),
         queue,
     )?;
-    outlier_median::record(
-        batch,
-        precision,
-        &pu,
-        color,
-        var,
-        keys,
-        queue,
-        rep,
-        p.excess(),
-    )?;
-    outlier_median::record_apply(
-        batch,
-        precision,
-        &pu,
-        color,
-        var,
-        keys,
-        queue,
-        rep,
-        p.excess(),
-    )
+    for step in [outlier_median::Step::Find, outlier_median::Step::Apply] {
+        outlier_median::record(
+            batch,
+            precision,
+            &pu,
+            step,
+            color,
+            var,
+            keys,
+            queue,
+            rep,
+            p.excess(),
+        )?;
+    }
+    Ok(())
 }
 
 /// Records step 4 on the method's colour planes `color`, in place; `spp` gives
