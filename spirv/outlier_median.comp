@@ -2,13 +2,11 @@
 // Outlier replacement (spec §4.4 step 2-3) for the pixels outlier_detect
 // queued: o takes the colour and variance of q* (written to o's pixel of
 // the replacement planes; the OUTLIER_APPLY mode below puts them into the
-// statistics), q*
-// the pixel of median grey
-// in Ω_o(R) with o (lower median of an even count, lowest raster index
-// among equal greys: OUTLIER-MEDIAN), found by an 8-step radix selection (4-bit digits) on
-// the order-preserving bits of grey from outlier_grey (0: invalid; no local
-// array);
-// e = y_o - y_q* per channel. Every read is of the original planes, so the
+// statistics), q* the pixel of median grey in Ω_o(R) with o (lower median
+// of an even count, lowest raster index among equal greys:
+// OUTLIER-MEDIAN), found by an 8-step radix selection (4-bit digits) on the
+// order-preserving bits of grey from outlier_grey (0: invalid; no local
+// array); e = y_o - y_q* per channel. Every read is of the original planes, so the
 // entries are independent and the queue's order does not matter.
 // Dispatched indirectly, one invocation per entry (striding past 65535
 // workgroups).
