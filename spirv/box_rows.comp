@@ -15,8 +15,10 @@
 //
 // Dispatched over ceil(width / SPAN) x height invocations. Each invocation
 // covers SPAN consecutive pixels of a row: one full window sum, then a
-// running sum (add the entering tap, drop the leaving one), restarted every
-// SPAN pixels so f32 rounding cannot accumulate.
+// running sum (add the entering tap, drop the leaving one), both kept
+// exactly as a pair (TWO_SUM_ADD, lib/outliers.glsl): a plain running sum
+// keeps the rounding of every large value it passed, and a window of zeros
+// beside a light must sum to 0 (DARK-WINDOW).
 #include "lib/common.glsl"
 #include "lib/outliers.glsl"
 
@@ -32,7 +34,7 @@ PLANE_OUT(6, o1)
 PLANE_OUT(7, o2)
 PLANE_OUT(8, o3)
 
-#define SPAN 16
+#define SPAN 32
 // mcdenoise::shared::BOX_COUNT_LAST.
 #define BOX_COUNT_LAST 8u
 
@@ -79,16 +81,19 @@ void store2(uint i, real2 s)
     o1[i] = float(s.y);
 }
 
-// The full window sum at x0, then the running sum along the span.
+// The full window sum at x0, then the running sum along the span, as the
+// exact pair hi + lo.
 #define BOX_SPAN(T, TAP, STORE)                                          \
     {                                                                    \
-        T s = T(0);                                                      \
+        precise T hi = T(0);                                             \
+        precise T lo = T(0);                                             \
         for (int qx = int(x0) - r; qx <= int(x0) + r; ++qx) {            \
-            s += TAP(y, qx);                                             \
+            TWO_SUM_ADD(T, hi, lo, TAP(y, qx))                           \
         }                                                                \
         for (uint x = x0; x < x1; ++x) {                                 \
-            STORE(y * push.width + x, s);                                \
-            s += TAP(y, int(x) + r + 1) - TAP(y, int(x) - r);            \
+            STORE(y * push.width + x, hi + lo);                          \
+            TWO_SUM_ADD(T, hi, lo, TAP(y, int(x) + r + 1))               \
+            TWO_SUM_ADD(T, hi, lo, -TAP(y, int(x) - r))                  \
         }                                                                \
     }
 

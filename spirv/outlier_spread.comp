@@ -23,18 +23,19 @@ PLANE_OUT(9, yb)
 
 // Each invocation covers SPAN consecutive rows of one column: one full
 // column sum, then a running sum (add the entering row, drop the leaving
-// one), restarted every SPAN rows. Dispatched over width x ceil(height/SPAN).
-#define SPAN 16
+// one), both kept exactly as pairs (TWO_SUM_ADD, lib/outliers.glsl), so a
+// large weight that has left the window leaves no rounding behind.
+// Dispatched over width x ceil(height/SPAN).
+#define SPAN 32
 
-void load_row(int qy, uint x, inout real3 rho, inout real3 add, real sign)
-{
-    if (qy < 0 || qy >= int(push.height)) {
-        return;
+// The row qy's weights, times sign, into the pairs (rows outside the image
+// add nothing).
+#define LOAD_ROW(qy, sign)                                                      \
+    if ((qy) >= 0 && (qy) < int(push.height)) {                                 \
+        uint q_ = uint(qy) * push.width + x;                                    \
+        TWO_SUM_ADD(real3, rho_hi, rho_lo, (sign) * real3(rho_r[q_], rho_g[q_], rho_b[q_])) \
+        TWO_SUM_ADD(real3, add_hi, add_lo, (sign) * real3(add_r[q_], add_g[q_], add_b[q_])) \
     }
-    uint q = uint(qy) * push.width + x;
-    rho += sign * real3(rho_r[q], rho_g[q], rho_b[q]);
-    add += sign * real3(add_r[q], add_g[q], add_b[q]);
-}
 
 void main()
 {
@@ -44,14 +45,18 @@ void main()
         return;
     }
     int r = int(push.radius);
-    real3 rho = real3(0);
-    real3 add = real3(0);
+    precise real3 rho_hi = real3(0);
+    precise real3 rho_lo = real3(0);
+    precise real3 add_hi = real3(0);
+    precise real3 add_lo = real3(0);
     for (int qy = int(y0) - r; qy <= int(y0) + r; ++qy) {
-        load_row(qy, x, rho, add, real(1));
+        LOAD_ROW(qy, real(1))
     }
     uint y1 = min(y0 + SPAN, push.height);
     for (uint y = y0; y < y1; ++y) {
         uint i = y * push.width + x;
+        real3 rho = rho_hi + rho_lo;
+        real3 add = add_hi + add_lo;
         if (valid_at(spp[i]) && (rho != real3(0) || add != real3(0))) {
             real3 v = real3(yr[i], yg[i], yb[i]) * (real3(1) + rho) + add;
             v = max(v, real3(0));
@@ -59,7 +64,7 @@ void main()
             yg[i] = float(v.y);
             yb[i] = float(v.z);
         }
-        load_row(int(y) + r + 1, x, rho, add, real(1));
-        load_row(int(y) - r, x, rho, add, real(-1));
+        LOAD_ROW(int(y) + r + 1, real(1))
+        LOAD_ROW(int(y) - r, real(-1))
     }
 }

@@ -674,3 +674,55 @@ fn spikes_are_removed_and_their_energy_kept() {
     }
     check_validation(&ctx);
 }
+
+/// DARK-WINDOW next to a light: a spike on a black background whose 87×87
+/// window ends just short of a very bright column (a light with a faint
+/// glow) keeps its energy: the window's sum is 0, so the spike's excess is
+/// spread uniformly. Box sums that run across the light must not leave its
+/// rounding in the sums of windows that no longer hold it.
+#[test]
+fn dark_window_next_to_a_light_keeps_the_energy() {
+    let (w, h) = (128, 64);
+    let n = w * h;
+    let mut img = StatsImage::new(w, h);
+    let mut color = vec![0.0f32; n];
+    let mut var = vec![0.0f32; n];
+    for y in 0..h {
+        color[y * w + 25] = 1.0e4;
+        color[y * w + 24] = 0.123_456_7;
+        color[y * w + 26] = 0.765_432_1;
+    }
+    let spike = 32 * w + 70;
+    color[spike] = 1.0;
+    var[spike] = 1.0;
+    img.set(
+        Layer::Color,
+        vec![color.clone(), color.clone(), color.clone()],
+    );
+    img.set(Layer::ColorVariance, vec![var.clone(), var.clone(), var]);
+    img.set(Layer::Spp, vec![vec![16.0; n]]);
+    let ctx = gpu();
+    for gpu_backend in [true, false] {
+        let mut cfg = Config::new(Method::None);
+        cfg.outliers = Outliers::On;
+        let d = if gpu_backend {
+            Denoiser::new(&ctx, Source::of_image(&img), cfg).unwrap()
+        } else {
+            Denoiser::new_cpu(Source::of_image(&img), cfg).unwrap()
+        };
+        let out = d.denoise(&img, None).unwrap().color;
+        let sum_in: f64 = color.iter().map(|&v| v as f64).sum();
+        let sum_out: f64 = out.planes[0].iter().map(|&v| v as f64).sum();
+        let moved: f64 = (0..n)
+            .filter(|&i| i != spike && color[i] == 0.0)
+            .map(|i| out.planes[0][i] as f64)
+            .sum();
+        eprintln!("gpu {gpu_backend}: in {sum_in} out {sum_out} spread {moved}");
+        assert!(
+            (moved - 1.0).abs() < 1e-3,
+            "{}: the spike's energy spread over its dark window is {moved}, not 1",
+            if gpu_backend { "GPU" } else { "CPU" }
+        );
+    }
+    check_validation(&ctx);
+}

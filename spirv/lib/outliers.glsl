@@ -31,6 +31,21 @@ bool key_grey(uint k, out real g)
 // are not queued.
 uint queue_capacity() { return ((push.width + 1u) / 2u) * ((push.height + 1u) / 2u); }
 
+// hi + lo += x without rounding error (Knuth's TwoSum; component-wise for
+// vectors): the running box sums of box_rows and outlier_spread keep the
+// exact sum as an unevaluated pair, so a large value that has left the
+// window leaves no rounding behind (a window of zeros next to a light sums
+// to 0, which DARK-WINDOW tests). hi and lo must be `precise`.
+#define TWO_SUM_ADD(T, hi, lo, x)                       \
+    {                                                   \
+        T x_ = (x);                                     \
+        precise T s_ = hi + x_;                         \
+        precise T b_ = s_ - hi;                         \
+        precise T e_ = (hi - (s_ - b_)) + (x_ - b_);    \
+        hi = s_;                                        \
+        lo += e_;                                       \
+    }
+
 // (count, mean, M2) of a set of values; merged exactly as Chan et al.'s
 // parallel variance, so no sum of squares ever cancels.
 struct Summary {

@@ -25,13 +25,13 @@ pub const DECL: KernelDecl = KernelDecl {
 };
 
 /// Pixels per invocation (`SPAN` in the shader): one full window sum, then
-/// a running sum.
-pub const SPAN: u32 = 16;
+/// a running sum, both exact pairs (TwoSum).
+pub const SPAN: u32 = 32;
 
 /// Per invocation: `2R+1` taps for the first pixel, then 2 per pixel, ×
-/// (validity test, one add per plane).
+/// (validity test, one TwoSum of 6 adds per plane).
 pub fn flops_per_invocation(radius: u32, planes: usize) -> f64 {
-    ((2.0 * radius as f64 + 1.0) + 2.0 * SPAN as f64) * (1.0 + planes as f64)
+    ((2.0 * radius as f64 + 1.0) + 2.0 * SPAN as f64) * (1.0 + 6.0 * planes as f64)
 }
 
 /// What the planes of one [`record`] hold.

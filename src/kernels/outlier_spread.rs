@@ -26,13 +26,13 @@ pub const DECL: KernelDecl = KernelDecl {
 };
 
 /// Rows per invocation (`SPAN` in the shader): one full column sum, then a
-/// running sum.
-pub const SPAN: u32 = 16;
+/// running sum, both exact pairs (TwoSum).
+pub const SPAN: u32 = 32;
 
-/// Per invocation: `2R+1` rows × 6 adds for the first row, then per row 12
-/// adds and the update.
+/// Per invocation: `2R+1` rows × 6 TwoSums (6 adds each) for the first
+/// row, then per row 12 TwoSums and the update (≈ 15).
 pub fn flops_per_invocation(radius: u32) -> f64 {
-    (2.0 * radius as f64 + 1.0) * 6.0 + SPAN as f64 * 21.0
+    (2.0 * radius as f64 + 1.0) * 36.0 + SPAN as f64 * (72.0 + 15.0)
 }
 
 /// Records `y ← max(0, y(1 + Σρ) + Σadd)`; `weights` are `box_rows` of ρ R,

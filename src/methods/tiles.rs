@@ -194,9 +194,10 @@ pub const SANITIZE_HALO: usize = 5;
 /// The multiple of which a tile's first column and row must be, so that
 /// what depends on the position in the image stays as in a whole run:
 /// APR's centre spacing (14, §4.3) for APR, and with the outlier stage the
-/// spans of 16 pixels over which `box_rows` (along x) and `outlier_spread`
-/// (along y) restart their running sums (so every sum is the same f32
-/// rounding sequence): the least common multiple, or 1.
+/// spans of 32 pixels over which `box_rows` (along x) and `outlier_spread`
+/// (along y) restart their running sums (exact pairs, but their last
+/// rounding depends on the sequence, which must be the same): the least
+/// common multiple, or 1.
 pub fn alignment(config: &ChainConfig) -> usize {
     let apr = match config.method {
         Method::Apr => reference::apr::RADIUS,
