@@ -130,6 +130,34 @@ pub(crate) fn dispatch_outlier(
     dispatch_groups(batch, decl, precision, push, size, groups, flops_per_pixel)
 }
 
+/// Records one of the outlier stage's kernels over the queue of detected
+/// pixels (`outlier_detect`'s, whose header holds the indirect dispatch
+/// arguments): the binding groups concatenated in order, one invocation per
+/// entry. The cost estimate (`flops` and `bytes` per entry) assumes
+/// [`outlier_median::DETECTED_FRACTION`] of the push's image is queued.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn dispatch_queued(
+    batch: &mut Batch,
+    decl: &KernelDecl,
+    precision: Precision,
+    push: &OutlierPush,
+    groups: &[&[BufferSlice]],
+    queue: BufferSlice,
+    flops: f64,
+    bytes: f64,
+) -> Result<()> {
+    let entries = push.width as f64 * push.height as f64 * outlier_median::DETECTED_FRACTION;
+    batch.dispatch_indirect(
+        decl,
+        precision,
+        &groups.concat(),
+        bytemuck::bytes_of(push),
+        queue.sub(0, 12)?,
+        entries * flops,
+        entries * bytes,
+    )
+}
+
 /// Runs one kernel once on data held by the host: binding `i` gets
 /// `inputs[i]` for `i < inputs.len()`; the following bindings are fresh
 /// zeroed buffers of `outputs[j]` 32-bit words each (f32, or u32 bits for

@@ -92,8 +92,6 @@ pub fn record(
     out: [BufferSlice; 6],
     excess: [BufferSlice; 3],
 ) -> Result<()> {
-    let bindings: Vec<BufferSlice> = [&color[..], &var, &[keys, queue], &out, &excess].concat();
-    let entries = push.width as f64 * push.height as f64 * DETECTED_FRACTION;
     let (mode, flops, bytes) = match step {
         // Per entry: the window's keys, its own 18 values.
         Step::Find => (
@@ -104,13 +102,6 @@ pub fn record(
         Step::Apply => (OUTLIER_APPLY, 1.0, 52.0),
     };
     let push = OutlierPush { mode, ..*push };
-    batch.dispatch_indirect(
-        &DECL,
-        precision,
-        &bindings,
-        bytemuck::bytes_of(&push),
-        queue.sub(0, 12)?,
-        entries * flops,
-        entries * bytes,
-    )
+    let groups: [&[BufferSlice]; 5] = [&color, &var, &[keys, queue], &out, &excess];
+    super::dispatch_queued(batch, &DECL, precision, &push, &groups, queue, flops, bytes)
 }

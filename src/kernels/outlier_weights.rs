@@ -57,16 +57,9 @@ pub fn record(
     for plane in out {
         batch.fill(plane, 0);
     }
-    let bindings: Vec<BufferSlice> = [&excess[..], &sums, &[count], &out, &[queue]].concat();
-    let entries = push.width as f64 * push.height as f64 * super::outlier_median::DETECTED_FRACTION;
-    batch.dispatch_indirect(
-        &DECL,
-        precision,
-        &bindings,
-        bytemuck::bytes_of(push),
-        queue.sub(0, 12)?,
-        entries * flops_per_entry(push.radius),
-        // Per entry: the window's column of 4 row sums, its excess and weights.
-        entries * ((2.0 * push.radius as f64 + 1.0) * 16.0 + 40.0),
-    )
+    let groups: [&[BufferSlice]; 5] = [&excess, &sums, &[count], &out, &[queue]];
+    // Per entry: the window's column of 4 row sums, its excess and weights.
+    let bytes = (2.0 * push.radius as f64 + 1.0) * 16.0 + 40.0;
+    let flops = flops_per_entry(push.radius);
+    super::dispatch_queued(batch, &DECL, precision, push, &groups, queue, flops, bytes)
 }
