@@ -473,5 +473,17 @@ fn strided_download_equals_a_whole_download() {
     for step in [1, 3, 4] {
         let want: Vec<f32> = b.iter().step_by(step).copied().collect();
         assert_eq!(set.download_strided(1, step).unwrap(), want, "step {step}");
+        let mut groups: Vec<f32> = Vec::new();
+        let mut sizes = Vec::new();
+        set.for_each_group(1, step, |g| {
+            groups.extend_from_slice(g);
+            sizes.push(g.len());
+        })
+        .unwrap();
+        assert_eq!(groups, b, "groups of {step}");
+        assert!(
+            sizes[..sizes.len() - 1].iter().all(|&l| l == step),
+            "step {step}"
+        );
     }
 }

@@ -1226,3 +1226,60 @@ fn the_pixel_test_keeps_dark_pixels_out_of_a_highlight_window() {
     }
     check_validation(&ctx);
 }
+
+/// LP's census, the statistics `bench` counts the work of `lp_centres` and
+/// `lp_gather` by, counted on the host from the device's centre map (with
+/// and without the debug layers): `centre_fraction` the centres per pixel,
+/// `centre_flops` their fits' work at their ranks, `covering` the pixels
+/// their `r_opt` squares cover (clipped) per pixel — at least the mean
+/// coverage, which counts only the valid pixels the gather predicts.
+#[test]
+fn census_counts_centres_their_ranks_and_the_pixels_they_cover() {
+    let (w, h) = (64usize, 48usize);
+    let sc = synthetic(w, h, 5, 1.0);
+    let img = sc.image();
+    let opts = ["lp.pixel_test=off"];
+    let dbg = run_with(&img, Backend::Gpu, Precision::F32, &opts);
+    let mut req = DenoiseRequest::new(Method::Lp);
+    req.options = Options::parse(&opts).unwrap();
+    let plain = denoise(Some(&gpu()), &img, &req).unwrap();
+    let n = (w * h) as f64;
+    let (pass, rank, r_opt) = (
+        layer(&dbg, "centre_pass"),
+        layer(&dbg, "rank"),
+        layer(&dbg, "r_opt"),
+    );
+    let (mut centres, mut flops, mut covered) = (0.0, 0.0, 0.0);
+    for q in (0..w * h).filter(|&q| pass[q] > 0.0) {
+        let (x, y, r) = ((q % w) as i64, (q / w) as i64, r_opt[q] as i64);
+        let span = |c: i64, n: i64| ((c + r).min(n - 1) - (c - r).max(0) + 1) as f64;
+        centres += 1.0;
+        flops += mcdenoise::kernels::lp_centres::flops_of_centre(rank[q] as u32);
+        covered += span(x, w as i64) * span(y, h as i64);
+    }
+    let coverage = layer(&dbg, "coverage")
+        .iter()
+        .map(|&c| c as f64)
+        .sum::<f64>();
+    assert!(
+        centres > 10.0 && coverage > n,
+        "{centres} centres, coverage {coverage}"
+    );
+    assert!(
+        covered >= coverage,
+        "{covered} covered, coverage {coverage}"
+    );
+    let stat = |out: &mcdenoise::methods::DenoiseOutput, name: &str| {
+        out.stats.iter().find(|(k, _)| k == name).unwrap().1
+    };
+    for out in [&dbg, &plain] {
+        assert_eq!(stat(out, "centre_fraction"), centres / n);
+        assert!((stat(out, "centre_flops") - flops / n).abs() <= 1e-9 * flops / n);
+        assert_eq!(stat(out, "covering"), covered / n);
+    }
+    // A centre of higher rank costs more; the bands' bound is above all.
+    let f = mcdenoise::kernels::lp_centres::flops_of_centre;
+    assert!(f(2) < f(3) && f(3) < f(9));
+    assert!(f(9) < mcdenoise::kernels::lp_centres::flops_per_centre());
+    check_validation(&gpu());
+}

@@ -351,7 +351,7 @@ fn time_case(
         let out = d.denoise(img, None)?;
         wall.push(t0.elapsed().as_secs_f64() * 1e3);
         let mut t = out.timings;
-        count_lp_centres(&mut t, &out.stats, img.width * img.height);
+        count_lp(&mut t, &out.stats, img.width * img.height);
         timings.push(t);
     }
     let mb = |b: u64| b as f64 / 1e6;
@@ -364,25 +364,43 @@ fn time_case(
     Ok((wall, timings, device_mb, super::peak_rss_bytes().map(mb)))
 }
 
-/// `lp_centres` is dispatched over every candidate cell of every pass, and
-/// its count ([`crate::kernels::lp_centres::flops_per_centre`] per cell)
-/// charges each the work of a centre. Only the cells that become centres do
-/// that work (the others return after a reach test), so the flops of a run
-/// are rescaled to `centre_fraction × pixels` centres.
-fn count_lp_centres(t: &mut [KernelTiming], stats: &[(String, f64)], pixels: usize) {
-    let Some(&(_, fraction)) = stats.iter().find(|(k, _)| k == "centre_fraction") else {
-        return;
-    };
+/// LP's two data-dependent kernels are dispatched with upper bounds of
+/// their work, which size the bands: `lp_centres` charges every candidate
+/// cell of every pass the fit of a centre of the largest rank
+/// ([`crate::kernels::lp_centres::flops_per_centre`]), `lp_gather` every
+/// pixel 30 covering centres. A run's census (LP's statistics
+/// `centre_flops` and `covering`, [`crate::methods::lp::Census`]) gives the
+/// work the method did: each centre's fit at its rank
+/// ([`crate::kernels::lp_centres::flops_of_centre`]) and each pixel's
+/// predictions by the centres that cover it
+/// ([`crate::kernels::lp_gather::flops_of_pixel`]); the kernels' flops are
+/// rescaled to those.
+fn count_lp(t: &mut [KernelTiming], stats: &[(String, f64)], pixels: usize) {
+    let stat = |name: &str| stats.iter().find(|(k, _)| k == name).map(|&(_, v)| v);
+    let n = pixels as f64;
+    if let Some(f) = stat("centre_flops") {
+        rescale(t, "lp_centres", f * n);
+    }
+    if let Some(c) = stat("covering") {
+        rescale(
+            t,
+            "lp_gather",
+            crate::kernels::lp_gather::flops_of_pixel(c) * n,
+        );
+    }
+}
+
+/// Scales the flops of `kernel`'s timings so that they sum to `actual`.
+fn rescale(t: &mut [KernelTiming], kernel: &str, actual: f64) {
     let counted: f64 = t
         .iter()
-        .filter(|k| k.kernel == "lp_centres")
+        .filter(|k| k.kernel == kernel)
         .map(|k| k.flops)
         .sum();
     if counted <= 0.0 {
         return;
     }
-    let actual = fraction * pixels as f64 * crate::kernels::lp_centres::flops_per_centre();
-    for k in t.iter_mut().filter(|k| k.kernel == "lp_centres") {
+    for k in t.iter_mut().filter(|k| k.kernel == kernel) {
         k.flops *= actual / counted;
     }
 }

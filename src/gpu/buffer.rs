@@ -664,23 +664,17 @@ impl PlaneSet {
         Ok(out)
     }
 
-    /// How many values of [`download_strided`](Self::download_strided)`(i,
-    /// step)` satisfy `pred`, read in chunks: no host copy of the plane (a
-    /// count at the end of a run, when the host's memory is at its peak).
-    pub fn count_strided(
-        &self,
-        i: usize,
-        step: usize,
-        pred: impl Fn(f32) -> bool,
-    ) -> Result<usize> {
-        let mut n = 0;
-        self.for_each_strided(i, step, |v| n += pred(v) as usize)?;
-        Ok(n)
-    }
-
     /// Calls `f` on every `step`-th f32 of plane `i`, in order, reading the
     /// plane in chunks of at most 256 KiB.
     fn for_each_strided(&self, i: usize, step: usize, mut f: impl FnMut(f32)) -> Result<()> {
+        self.for_each_group(i, step, |g| f(g[0]))
+    }
+
+    /// Calls `f` on each group of `step` consecutive f32 of plane `i` (the
+    /// last one possibly shorter), in order, reading the plane in chunks of
+    /// at most 256 KiB: a vec4 plane's texels with `step` 4, no host copy
+    /// of the plane.
+    pub fn for_each_group(&self, i: usize, step: usize, mut f: impl FnMut(&[f32])) -> Result<()> {
         const CHUNK: usize = 1 << 16;
         // (A chunk holds whole steps.)
         assert!(i < self.count && step > 0 && step <= CHUNK);
@@ -694,7 +688,7 @@ impl PlaneSet {
                 self.offset(i) + start as u64 * 4,
                 bytemuck::cast_slice_mut(b),
             )?;
-            b.iter().step_by(step).for_each(|&v| f(v));
+            b.chunks(step).for_each(&mut f);
             start += len;
         }
         Ok(())

@@ -53,10 +53,12 @@ pub const PIXELS_PER_INVOCATION: u32 = 8;
 /// row must be a multiple of 8 of them (the workgroup's height in blocks).
 pub const ROWS_PER_INVOCATION: u32 = 2;
 
-/// Per pixel: 49 neighbours × (distance with two stored inverses, one exp,
-/// 8 + 8 accumulations).
+/// Per pixel, 49 neighbours × the work of one: the distance as in
+/// [`super::gbf_sure::flops_per_pixel`] (29), the weight (one multiply and
+/// an `exp2`, [`EXP_FLOPS`](super::EXP_FLOPS)), and the sums W, Σ w g of
+/// the seven features (14) and Σ w² var(g) of their variances (1 + 14).
 pub fn flops_per_pixel() -> f64 {
-    49.0 * (60.0 + 30.0 + 32.0)
+    49.0 * (29.0 + 1.0 + super::EXP_FLOPS + 1.0 + 14.0 + 15.0)
 }
 
 /// Records the filtering of the image rows `rows` (`[first, end)`, `first`

@@ -33,10 +33,14 @@ pub const DECL: KernelDecl = KernelDecl {
 /// Pixels of a row one invocation computes (`SURE_PX` in the shader).
 pub const PIXELS_PER_INVOCATION: u32 = 2;
 
-/// Per pixel: 49 neighbours × (distance with two stored inverses, 5 exps
-/// and accumulations).
+/// Per pixel, 49 neighbours × the work of one: the difference of the
+/// positions (3), the sum of the two stored symmetric inverses (6), the
+/// matrix-vector product (15) and the distance (5); the five weights (three
+/// scaled `exp2`, two of the others by four squarings: 3 + 3 ×
+/// [`EXP_FLOPS`](super::EXP_FLOPS) + 4); and per weight the sums W, Σ w Δ,
+/// Σ w d and Σ w MΔ (1 + 6 + 2 + 6 = 15).
 pub fn flops_per_pixel() -> f64 {
-    49.0 * (60.0 + 5.0 * 30.0)
+    49.0 * (3.0 + 6.0 + 15.0 + 5.0 + 3.0 + 3.0 * super::EXP_FLOPS + 4.0 + 5.0 * 15.0)
 }
 
 /// Records `h_opt` over a `width × height` image.

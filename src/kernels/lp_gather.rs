@@ -58,8 +58,25 @@ pub const OUTPUTS: [&str; 11] = [
 /// for each covering centre (a few to a few dozen) 36 state reads, 9
 /// feature differences, 3 × 9 FMAs and LP-PIXEL-TEST's squared miss (6);
 /// once, the test's 3×3 variance mean (27 adds) and threshold (~30).
+///
+/// An upper bound (30 covering centres), which sizes the bands; `bench`
+/// counts [`flops_of_pixel`] with the run's mean number of covering
+/// centres instead.
 pub fn flops_per_pixel() -> f64 {
     19.0 * 4.0 + 5.0 * 19.0 * 4.0 + 30.0 * 106.0 + 60.0 + 57.0
+}
+
+/// The work of a pixel covered by `centres` centres on average, as the
+/// method needs it: per covering centre the 9 feature differences, three
+/// predictions of 9 multiply-adds and β0 (57), LP-PIXEL-TEST's squared miss
+/// (8), and the sums of `u` (27), of the prediction, error and rank (10):
+/// 102; once, the test's 3×3 variance mean and threshold (~50), the
+/// feature noise (7 square roots, three 9-term sums of `|ū|·σ` and their
+/// squares: ~100), the means, the error and the ΔMSE rate (a power: ~40).
+/// Finding the covering centres in the tile's lists is integer work, not
+/// counted.
+pub fn flops_of_pixel(centres: f64) -> f64 {
+    190.0 + 102.0 * centres
 }
 
 /// Records the gather over the rows `[first, end)` (`first` a multiple of

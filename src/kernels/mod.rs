@@ -44,6 +44,11 @@ pub mod tsvd_debug;
 pub mod wlr_final;
 pub mod wlr_fit;
 
+/// Flops an exponential counts for in the kernels' cost functions:
+/// llvmpipe's `exp2` is a range reduction and a degree-5 polynomial, about
+/// 15 vector operations (an `exp` is the same after one multiply).
+pub const EXP_FLOPS: f64 = 15.0;
+
 /// Every kernel, for the reflection test and `mcdenoise bench`.
 pub const ALL: &[&KernelDecl] = &[
     &finalize_stats::DECL,

@@ -765,24 +765,16 @@ impl GpuChain {
                 }
             }
             MethodPlanes::Lp(p, _) => {
-                // All of LP's planes only for the debug layers.
-                let fraction = if debug {
+                // All of LP's planes only for the debug layers; the census
+                // without a host copy of the centre map.
+                let census = if debug {
                     let r = lp::download(p, w, h)?;
                     out.debug = r.debug_layers();
-                    match rect {
-                        Some(rc) => lp::centre_fraction(&tiles::crop(&r.centre_pass, w, rc)),
-                        None => r.centre_fraction(),
-                    }
+                    r.census(w, rect)
                 } else {
-                    match rect {
-                        Some(rc) => {
-                            lp::centre_fraction(&tiles::crop(&lp::download_centre_pass(p)?, w, rc))
-                        }
-                        // Counted without a host copy of the plane.
-                        None => lp::count_centre_fraction(p)?,
-                    }
+                    lp::census(p, w, h, rect)?
                 };
-                out.stats.push(("centre_fraction".into(), fraction));
+                out.stats.extend(census.stats());
             }
             MethodPlanes::Apr(p, _) => {
                 if debug {

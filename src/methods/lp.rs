@@ -23,6 +23,7 @@
 use std::sync::Arc;
 
 use super::stats::GpuStats;
+use super::tiles::Rect;
 use crate::error::{Error, Result};
 use crate::gpu::{plane_stride, Batch, BufferSlice, GpuBuffer, GpuContext, PlaneSet, Precision};
 use crate::image::{Layer, RgbImage, StatsImage};
@@ -372,6 +373,75 @@ fn is_centre(centre_pass: f32) -> bool {
     centre_pass > 0.0
 }
 
+/// What a run's centre map says about its work, for the statistics of a
+/// run ([`Census::stats`]) and `bench`'s flop counts: the centres of a
+/// rectangle of the image, the work of their fits
+/// ([`lp_centres::flops_of_centre`] of each one's rank) and the pixels they
+/// cover (each one's `(2 r_opt + 1)²` square, clipped to the image), which
+/// the gather predicts one by one.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Census {
+    /// The map's width and height, and the rectangle counted.
+    size: (usize, usize),
+    rect: Rect,
+    /// Pixels of the rectangle.
+    pub pixels: usize,
+    /// Centres in it.
+    pub centres: usize,
+    /// Σ over those centres of [`lp_centres::flops_of_centre`].
+    pub centre_flops: f64,
+    /// Σ over those centres of the pixels their square covers.
+    pub covered: f64,
+}
+
+impl Census {
+    /// An empty census of the `rect` (the whole image when `None`) of a
+    /// `width × height` centre map.
+    fn new(width: usize, height: usize, rect: Option<Rect>) -> Census {
+        let rect = rect.unwrap_or(Rect {
+            x0: 0,
+            y0: 0,
+            x1: width,
+            y1: height,
+        });
+        Census {
+            size: (width, height),
+            rect,
+            pixels: rect.width() * rect.height(),
+            centres: 0,
+            centre_flops: 0.0,
+            covered: 0.0,
+        }
+    }
+
+    /// Counts pixel `q` (raster order) of the map, whose state is
+    /// (pass + 1, `r_opt`, `k`).
+    fn add(&mut self, q: usize, [pass, r_opt, k]: [f32; 3]) {
+        let ((w, h), r) = (self.size, self.rect);
+        let (x, y) = (q % w.max(1), q / w.max(1));
+        if !is_centre(pass) || x < r.x0 || x >= r.x1 || y < r.y0 || y >= r.y1 {
+            return;
+        }
+        let ro = r_opt.max(0.0) as usize;
+        let side = |p: usize, n: usize| (p + ro).min(n - 1) + 1 - p.saturating_sub(ro);
+        self.centres += 1;
+        self.centre_flops += lp_centres::flops_of_centre(k.max(0.0) as u32);
+        self.covered += (side(x, w) * side(y, h)) as f64;
+    }
+
+    /// Per pixel of the rectangle: `centre_fraction` (centres),
+    /// `centre_flops` (their fits' work) and `covering` (centres covering a
+    /// pixel, on average). A tiled run weights each tile's by its pixels.
+    pub fn stats(&self) -> Vec<(String, f64)> {
+        let n = self.pixels.max(1) as f64;
+        vec![
+            ("centre_fraction".into(), self.centres as f64 / n),
+            ("centre_flops".into(), self.centre_flops / n),
+            ("covering".into(), self.covered / n),
+        ]
+    }
+}
+
 /// What an LP run gives back on the host.
 #[derive(Clone, Debug)]
 pub struct LpResult {
@@ -438,6 +508,17 @@ impl LpResult {
         centre_fraction(&self.centre_pass)
     }
 
+    /// The [`Census`] of the `rect` (the whole image when `None`) of this
+    /// `width`-wide result.
+    pub fn census(&self, width: usize, rect: Option<Rect>) -> Census {
+        let height = self.centre_pass.len() / width.max(1);
+        let mut c = Census::new(width, height, rect);
+        for q in 0..self.centre_pass.len() {
+            c.add(q, [self.centre_pass[q], self.r_opt[q], self.rank[q]]);
+        }
+        c
+    }
+
     /// The debug layers of issue #4: centre mask (pass + 1), r_opt, rank,
     /// coverage count, local dimension, ΔMSE.
     pub fn debug_layers(&self) -> Vec<(String, Vec<f32>)> {
@@ -462,17 +543,22 @@ pub fn download(planes: &LpPlanes, width: usize, height: usize) -> Result<LpResu
     Ok(LpResult::new(width, height, out, &state0))
 }
 
-/// The centre plane alone ([`LpResult::centre_pass`]: pass + 1 at centres,
-/// else 0), for the centre fraction when no debug layers are asked for.
-pub fn download_centre_pass(planes: &LpPlanes) -> Result<Vec<f32>> {
-    planes.state0.download_strided(0, 4)
-}
-
-/// [`centre_fraction`] of the centre-pass plane, counted on the host in
-/// chunks of the device plane (no copy of it).
-pub fn count_centre_fraction(planes: &LpPlanes) -> Result<f64> {
-    let n = planes.state0.pixels.div_ceil(4).max(1);
-    Ok(planes.state0.count_strided(0, 4, is_centre)? as f64 / n as f64)
+/// The [`Census`] of the `rect` (the whole image when `None`) of a finished
+/// [`record_lp`] on a `width × height` image, counted on the host in chunks
+/// of the device's centre map (no copy of it).
+pub fn census(
+    planes: &LpPlanes,
+    width: usize,
+    height: usize,
+    rect: Option<Rect>,
+) -> Result<Census> {
+    let mut c = Census::new(width, height, rect);
+    let mut q = 0;
+    planes.state0.for_each_group(0, 4, |t| {
+        c.add(q, [t[0], t[StateLayout::R_OPT], t[StateLayout::K]]);
+        q += 1;
+    })?;
+    Ok(c)
 }
 
 /// The CPU path: the scalar twins in the order of [`record_lp`], on

@@ -337,7 +337,7 @@ fn denoise_cpu(img: &StatsImage, req: &DenoiseRequest) -> Result<DenoiseOutput> 
             } else {
                 Vec::new()
             };
-            let stats = vec![("centre_fraction".into(), r.centre_fraction())];
+            let stats = r.census(clean.width, None).stats();
             map_e = Some(r.dmse.clone());
             (
                 r.color.clone(),

@@ -564,7 +564,8 @@ impl TiledChain {
         let mut debug_planes: Vec<(String, Vec<f32>)> = Vec::new();
         let mut report = prepare::base_report(img);
         let mut timings: Vec<KernelTiming> = Vec::new();
-        let mut centres = 0.0f64;
+        // Per-pixel statistics (LP's census), summed over the tiles' pixels.
+        let mut sums: Vec<(String, f64)> = Vec::new();
         // The sanitised (and prefiltered) statistics of every tile's interior.
         let mut clean: Option<StatsImage> = None;
         // Group the tiles by outer size: one chain per size, one at a time.
@@ -633,8 +634,10 @@ impl TiledChain {
                     paste(&mut debug_planes[slot].1, w, plane, t.inner);
                 }
                 for (name, v) in &out.stats {
-                    if name == "centre_fraction" {
-                        centres += v * t.inner.pixels() as f64;
+                    let add = v * t.inner.pixels() as f64;
+                    match sums.iter_mut().find(|(n, _)| n == name) {
+                        Some((_, s)) => *s += add,
+                        None => sums.push((name.clone(), add)),
                     }
                 }
                 timings.extend(tile_timings);
@@ -648,11 +651,10 @@ impl TiledChain {
             (Some(t), Some(r)) => Some(self.allocate(img, &r, t, &mut timings)?),
             _ => None,
         };
-        let stats = if self.config.method == Method::Lp {
-            vec![("centre_fraction".to_string(), centres / n.max(1) as f64)]
-        } else {
-            Vec::new()
-        };
+        let stats = sums
+            .into_iter()
+            .map(|(name, s)| (name, s / n.max(1) as f64))
+            .collect();
         if self.config.method == Method::None {
             report.timings = timings.clone();
         }
