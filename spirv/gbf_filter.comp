@@ -27,29 +27,30 @@ PLANE_IN(5, sxz)
 PLANE_IN(6, syy)
 PLANE_IN(7, syz)
 PLANE_IN(8, szz)
-PLANE_IN(9, spp)
-PLANE_IN(10, hbar)
-layout(std430, set = 0, binding = 11) readonly buffer fa_blk { vec4 fa[]; };
-layout(std430, set = 0, binding = 12) readonly buffer fb_blk { vec4 fb[]; };
-layout(std430, set = 0, binding = 13) readonly buffer va_blk { vec4 va[]; };
-layout(std430, set = 0, binding = 14) readonly buffer vb_blk { vec4 vb[]; };
-PLANE_OUT(15, g0)
-PLANE_OUT(16, g1)
-PLANE_OUT(17, g2)
-PLANE_OUT(18, g3)
-PLANE_OUT(19, g4)
-PLANE_OUT(20, g5)
-PLANE_OUT(21, g6)
-PLANE_OUT(22, gv0)
-PLANE_OUT(23, gv1)
-PLANE_OUT(24, gv2)
-PLANE_OUT(25, gv3)
-PLANE_OUT(26, gv4)
-PLANE_OUT(27, gv5)
-PLANE_OUT(28, gv6)
+PLANE_IN(9, hbar)
+layout(std430, set = 0, binding = 10) readonly buffer fa_blk { vec4 fa[]; };
+layout(std430, set = 0, binding = 11) readonly buffer fb_blk { vec4 fb[]; };
+layout(std430, set = 0, binding = 12) readonly buffer va_blk { vec4 va[]; };
+layout(std430, set = 0, binding = 13) readonly buffer vb_blk { vec4 vb[]; };
+PLANE_OUT(14, g0)
+PLANE_OUT(15, g1)
+PLANE_OUT(16, g2)
+PLANE_OUT(17, g3)
+PLANE_OUT(18, g4)
+PLANE_OUT(19, g5)
+PLANE_OUT(20, g6)
+PLANE_OUT(21, gv0)
+PLANE_OUT(22, gv1)
+PLANE_OUT(23, gv2)
+PLANE_OUT(24, gv3)
+PLANE_OUT(25, gv4)
+PLANE_OUT(26, gv5)
+PLANE_OUT(27, gv6)
 
 real3 gbf_position(uint q) { return real3(px[q], py[q], pz[q]); }
-bool gbf_valid(uint q) { return spp_of(spp[q]) >= 1.0; }
+// PACKED-SPP: the sample count is the fourth lane of the packed albedo
+// (index k of the packed bindings, which start at row push.base).
+bool gbf_valid(uint k) { return spp_of(fb[k].w) >= 1.0; }
 
 #include "lib/gbf.glsl"
 
@@ -108,7 +109,7 @@ void main()
         if (x < push.width && y < push.height) {
             uint c = y * push.width + x;
             real h = real(hbar[c]);
-            if (gbf_valid(c) && h >= real(GBF_H0)) {
+            if (gbf_valid(c - push.base * push.width) && h >= real(GBF_H0)) {
                 act[k] = true;
                 k2[k] = real(-GBF_LOG2E) / (real(2) * h * h);
                 pc[k] = gbf_position(c);
@@ -129,12 +130,12 @@ void main()
                     continue;
                 }
                 uint q = uint(qy) * push.width + uint(qx);
-                if (!gbf_valid(q)) {
+                uint qk = q - push.base * push.width;
+                if (!gbf_valid(qk)) {
                     continue;
                 }
                 real3 pq = gbf_position(q);
                 realmat3 inv_q = gbf_inv_cov(q);
-                uint qk = q - push.base * push.width;
                 real4 qa = real4(fa[qk]);
                 real3 qb = real3(fb[qk].xyz);
                 real4 qva = real4(va[qk]);

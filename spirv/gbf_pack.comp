@@ -1,10 +1,13 @@
 #version 460
 // G-buffer prefilter (spec §6): packs the seven feature planes it filters
 // (normal x y z, depth, albedo r g b) and their variances into four vec4
-// planes, (normal, depth), (albedo, 0) and the same of the variances, for
+// planes, (normal, depth), (albedo, spp), (their variances, 0), for
 // gbf_filter: one binding per four planes lets it filter all seven in one
 // dispatch (one distance and one exp per neighbour instead of two) and
-// write its results over the feature planes it no longer reads.
+// write its results over the feature planes it no longer reads. The sample
+// count rides in the albedo's fourth lane (PACKED-SPP): a kernel that reads
+// a neighbour's features learns whether it is valid without another load
+// (lavapipe pays per lane and load, not per byte).
 // Scalar twin: src/reference/gbf_pack.rs.
 #include "lib/common.glsl"
 
@@ -32,10 +35,11 @@ PLANE_IN(10, v3)
 PLANE_IN(11, v4)
 PLANE_IN(12, v5)
 PLANE_IN(13, v6)
-layout(std430, set = 0, binding = 14) buffer fa_blk { vec4 fa[]; };
-layout(std430, set = 0, binding = 15) buffer fb_blk { vec4 fb[]; };
-layout(std430, set = 0, binding = 16) buffer va_blk { vec4 va[]; };
-layout(std430, set = 0, binding = 17) buffer vb_blk { vec4 vb[]; };
+PLANE_IN(14, spp)
+layout(std430, set = 0, binding = 15) buffer fa_blk { vec4 fa[]; };
+layout(std430, set = 0, binding = 16) buffer fb_blk { vec4 fb[]; };
+layout(std430, set = 0, binding = 17) buffer va_blk { vec4 va[]; };
+layout(std430, set = 0, binding = 18) buffer vb_blk { vec4 vb[]; };
 
 void main()
 {
@@ -48,7 +52,7 @@ void main()
     // The packed planes start at row push.base (row chunks, methods/gbf.rs).
     uint k = i - push.base * push.width;
     fa[k] = vec4(f0[i], f1[i], f2[i], f3[i]);
-    fb[k] = vec4(f4[i], f5[i], f6[i], 0.0);
+    fb[k] = vec4(f4[i], f5[i], f6[i], spp[i]);
     va[k] = vec4(v0[i], v1[i], v2[i], v3[i]);
     vb[k] = vec4(v4[i], v5[i], v6[i], 0.0);
 }

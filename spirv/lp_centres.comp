@@ -25,7 +25,8 @@ layout(push_constant) uniform Push {
 } push;
 
 // The features and their variances packed by gbf_pack (PACKED-LP): fa =
-// normal xyz, depth; fb = albedo rgb, 0; va, vb the same of the variances.
+// normal xyz, depth; fb = albedo rgb, spp (PACKED-SPP: a pixel's validity
+// comes with its features); va, vb the variances of fa and fb.xyz.
 layout(std430, set = 0, binding = 0) readonly buffer fa_blk { vec4 fa[]; };
 layout(std430, set = 0, binding = 1) readonly buffer fb_blk { vec4 fb[]; };
 layout(std430, set = 0, binding = 2) readonly buffer va_blk { vec4 va[]; };
@@ -36,17 +37,16 @@ PLANE_IN(6, col_b)
 PLANE_IN(7, var_r)
 PLANE_IN(8, var_g)
 PLANE_IN(9, var_b)
-PLANE_IN(10, spp)
-layout(std430, set = 0, binding = 11) readonly buffer queue_blk { uint queue[]; };
-layout(std430, set = 0, binding = 12) buffer st0_blk { vec4 st0[]; };
-layout(std430, set = 0, binding = 13) buffer st1_blk { vec4 st1[]; };
-layout(std430, set = 0, binding = 14) buffer st2_blk { vec4 st2[]; };
-layout(std430, set = 0, binding = 15) buffer st3_blk { vec4 st3[]; };
-layout(std430, set = 0, binding = 16) buffer st4_blk { vec4 st4[]; };
-layout(std430, set = 0, binding = 17) buffer st5_blk { vec4 st5[]; };
-layout(std430, set = 0, binding = 18) buffer st6_blk { vec4 st6[]; };
-layout(std430, set = 0, binding = 19) buffer st7_blk { vec4 st7[]; };
-layout(std430, set = 0, binding = 20) buffer st8_blk { vec4 st8[]; };
+layout(std430, set = 0, binding = 10) readonly buffer queue_blk { uint queue[]; };
+layout(std430, set = 0, binding = 11) buffer st0_blk { vec4 st0[]; };
+layout(std430, set = 0, binding = 12) buffer st1_blk { vec4 st1[]; };
+layout(std430, set = 0, binding = 13) buffer st2_blk { vec4 st2[]; };
+layout(std430, set = 0, binding = 14) buffer st3_blk { vec4 st3[]; };
+layout(std430, set = 0, binding = 15) buffer st4_blk { vec4 st4[]; };
+layout(std430, set = 0, binding = 16) buffer st5_blk { vec4 st5[]; };
+layout(std430, set = 0, binding = 17) buffer st6_blk { vec4 st6[]; };
+layout(std430, set = 0, binding = 18) buffer st7_blk { vec4 st7[]; };
+layout(std430, set = 0, binding = 19) buffer st8_blk { vec4 st8[]; };
 
 #define NONE 1
 
@@ -78,7 +78,14 @@ bool load_features(ivec2 p, out real x[9], out real e2[9])
     e2[6] = real(v.x);
     e2[7] = real(v.y);
     e2[8] = real(v.z);
-    return spp_of(spp[i]) >= 1.0;
+    return spp_of(b.w) >= 1.0;
+}
+
+// Whether pixel i is valid (PACKED-SPP; its features' load, which follows,
+// is the same one).
+bool lp_valid(uint i)
+{
+    return spp_of(fb[i].w) >= 1.0;
 }
 
 void load_colour(ivec2 p, out real3 y, out real3 v)

@@ -72,7 +72,7 @@ bool load_features(ivec2 p, out real x[9], out real e2[9])
     for (int j = 0; j < 9; ++j) {
         e2[j] = real(0);
     }
-    return spp_of(spp[i]) >= 1.0;
+    return spp_of(b.w) >= 1.0;  // PACKED-SPP
 }
 
 void load_colour(ivec2 p, out real3 y, out real vbar)

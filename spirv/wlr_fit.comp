@@ -86,7 +86,7 @@ bool load_features(ivec2 p, out real x[9], out real e2[9])
     e2[6] = real(v.x);
     e2[7] = real(v.y);
     e2[8] = real(v.z);
-    return spp_of(spp[i]) >= 1.0;
+    return spp_of(b.w) >= 1.0;  // PACKED-SPP
 }
 
 void load_colour(ivec2 p, out real3 y, out real vbar)

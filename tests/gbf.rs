@@ -102,6 +102,7 @@ fn filter_twin(s: &Scene, hbar: &[f32]) -> Vec<Vec<f32>> {
     let packed = rk::gbf_pack(
         std::array::from_fn(|j| s.feat[j].as_slice()),
         std::array::from_fn(|j| s.var[j].as_slice()),
+        &s.spp,
     );
     let mut out = vec![vec![0.0f32; s.w * s.h]; 14];
     rf::gbf_filter(
@@ -267,6 +268,7 @@ fn gbf_filter_matches_twin() {
                 (0, h as u32),
                 std::array::from_fn(|k| sl(&feat, k)),
                 std::array::from_fn(|k| sl(&var, k)),
+                spp.slice(),
                 std::array::from_fn(|k| sl(&packed, k)),
             )
             .unwrap();
@@ -279,7 +281,6 @@ fn gbf_filter_matches_twin() {
                 0,
                 std::array::from_fn(|k| sl(&pos, k)),
                 std::array::from_fn(|k| sl(&inv, k)),
-                spp.slice(),
                 hbar.slice(),
                 std::array::from_fn(|k| sl(&packed, k)),
                 std::array::from_fn(|k| sl(&out, k)),
@@ -290,6 +291,7 @@ fn gbf_filter_matches_twin() {
             let twin = rk::gbf_pack(
                 std::array::from_fn(|j| s.feat[j].as_slice()),
                 std::array::from_fn(|j| s.var[j].as_slice()),
+                &s.spp,
             );
             for k in 0..4 {
                 assert_eq!(

@@ -45,20 +45,16 @@ impl Scene {
         }
     }
 
-    /// The features and their variances as `gbf_pack` packs them (PACKED-LP):
-    /// normal xyz and depth, albedo rgb and 0, the same of the variances.
+    /// The features, their variances and the sample counts as `gbf_pack`
+    /// packs them (PACKED-LP, PACKED-SPP), by its twin.
     fn packed(&self) -> Vec<Vec<f32>> {
-        let n = self.w * self.h;
-        let pack = |first: usize, lanes: usize| -> Vec<f32> {
-            let mut v = vec![0.0f32; 4 * n];
-            for i in 0..n {
-                for l in 0..lanes {
-                    v[4 * i + l] = self.planes[first + l][i];
-                }
-            }
-            v
-        };
-        vec![pack(0, 4), pack(4, 3), pack(7, 4), pack(11, 3)]
+        let p = |k: usize| self.planes[k].as_slice();
+        mcdenoise::reference::gbf_pack::gbf_pack(
+            std::array::from_fn(p),
+            std::array::from_fn(|k| p(7 + k)),
+            p(20),
+        )
+        .to_vec()
     }
 
     /// The inputs `lp_centres` and `lp_gather` bind first (bindings 0..11):

@@ -200,7 +200,7 @@ fn gpu_fit(sc: &Scene, push: &WlrPush, p: Precision) -> (Vec<Vec<f32>>, Vec<f32>
     };
     let mut outs = vec![sc.w * sc.h; 8];
     outs.push(state_words(sc, p));
-    let pk = reference::gbf_pack::gbf_pack(sc.feat(), sc.var());
+    let pk = reference::gbf_pack::gbf_pack(sc.feat(), sc.var(), sc.spp());
     let mut inputs: Vec<&[f32]> = pk.iter().map(|v| v.as_slice()).collect();
     inputs.extend(sc.color());
     inputs.extend([sc.vbar(), sc.spp()]);
@@ -234,7 +234,7 @@ fn gpu_final(
         ring_rows: sc.h as u32,
         ..*push
     };
-    let pk = reference::gbf_pack::gbf_pack(sc.feat(), sc.var());
+    let pk = reference::gbf_pack::gbf_pack(sc.feat(), sc.var(), sc.spp());
     let mut inputs: Vec<&[f32]> = vec![&pk[0], &pk[1]];
     inputs.extend(sc.color());
     inputs.extend([sc.vbar(), sc.spp(), hbar]);

@@ -7,7 +7,8 @@
 //              the 9 features of spec §2.1 and validity (tsvd.glsl hook);
 //   void load_colour(ivec2 p, out real3 y, out real3 v)
 //              colour and its per-channel variance of the mean;
-// and it declares the plane `spp` (validity of ring pixels, spp_of >= 1).
+//   bool lp_valid(uint i)
+//              whether pixel i (y * width + x) is valid (spp_of >= 1).
 //
 // GPU notes (§3.6): one thread per centre. The regressor zeta = (1, dz) is
 // three real4 lanes (z0 = (1, dz1, dz2, dz3), z1 = dz4..7,
@@ -46,6 +47,7 @@
 #define LP_CENTRE_TEST_Z2 9.0
 
 void load_colour(ivec2 p, out real3 y, out real3 v);
+bool lp_valid(uint i);
 
 struct LpRls {
     lpmat4 P[9];
@@ -219,7 +221,7 @@ void lp_ring(inout LpRls st, TsvdProj pr, real xc[MAX_D], ivec2 c, int r, ivec2 
         int step = (qy == c.y - r || qy == c.y + r) ? 1 : 2 * r;
         for (int qx = c.x - r; qx <= c.x + r; qx += step) {
             ivec2 q = ivec2(qx, qy);
-            if (qx < 0 || qx >= size.x || spp_of(spp[qy * size.x + qx]) < 1.0) {
+            if (qx < 0 || qx >= size.x || !lp_valid(uint(qy * size.x + qx))) {
                 continue;
             }
             real4 z0, z1, z2;
@@ -276,7 +278,7 @@ void lp_ring3(inout LpRls st, TsvdProj pr, real xc[MAX_D], ivec2 c, int r, ivec2
         int step = (qy == c.y - r || qy == c.y + r) ? 1 : 2 * r;
         for (int qx = c.x - r; qx <= c.x + r; qx += step) {
             ivec2 q = ivec2(qx, qy);
-            if (qx < 0 || qx >= size.x || spp_of(spp[qy * size.x + qx]) < 1.0) {
+            if (qx < 0 || qx >= size.x || !lp_valid(uint(qy * size.x + qx))) {
                 continue;
             }
             real4 z0 = lp_regressor3(pr, xc, q);
@@ -343,7 +345,7 @@ LpFit lp_centre_fit(ivec2 c, ivec2 size, TsvdProj pr, real s, bool centre_test)
     lp_symmetrise(st);
     for (int qy = max(c.y - 1, 0); qy <= min(c.y + 1, size.y - 1); ++qy) {
         for (int qx = max(c.x - 1, 0); qx <= min(c.x + 1, size.x - 1); ++qx) {
-            if (spp_of(spp[qy * size.x + qx]) < 1.0) {
+            if (!lp_valid(uint(qy * size.x + qx))) {
                 continue;
             }
             ivec2 q = ivec2(qx, qy);

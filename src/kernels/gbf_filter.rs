@@ -22,7 +22,6 @@ pub const DECL: KernelDecl = KernelDecl {
         read("inv_yy"),
         read("inv_yz"),
         read("inv_zz"),
-        read("spp"),
         read("hbar"),
         read("features_a"),
         read("features_b"),
@@ -77,7 +76,6 @@ pub fn record(
     base: u32,
     pos: [BufferSlice; 3],
     inv: [BufferSlice; 6],
-    spp: BufferSlice,
     hbar: BufferSlice,
     packed: [BufferSlice; 4],
     out: [BufferSlice; 14],
@@ -88,7 +86,7 @@ pub fn record(
         base,
         ..Default::default()
     };
-    let b: Vec<BufferSlice> = [&pos[..], &inv, &[spp, hbar], &packed, &out].concat();
+    let b: Vec<BufferSlice> = [&pos[..], &inv, &[hbar], &packed, &out].concat();
     // One invocation per ROWS_PER_INVOCATION x PIXELS_PER_INVOCATION pixels
     // (register blocking: the shader's GBF_ROWS x GBF_PX); the grid's rows
     // are blocks of rows.

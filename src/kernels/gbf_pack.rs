@@ -25,6 +25,7 @@ pub const DECL: KernelDecl = KernelDecl {
         read("var_feature4"),
         read("var_feature5"),
         read("var_feature6"),
+        read("spp"),
         write("features_a"),
         write("features_b"),
         write("variances_a"),
@@ -40,9 +41,10 @@ pub fn flops_per_pixel() -> f64 {
 }
 
 /// Records the packing of the image rows `rows` (`[first, end)`, `first` a
-/// multiple of 8) of `feat` and `var` (7 full planes each) into `packed`
-/// (4 vec4 ranges of `(end − first) × width × 16` bytes, starting at row
-/// `first`: features 0–3, features 4–6 and 0, the same of the variances).
+/// multiple of 8) of `feat` and `var` (7 full planes each) and the sample
+/// counts `spp` into `packed` (4 vec4 ranges of `(end − first) × width × 16`
+/// bytes, starting at row `first`: features 0–3, features 4–6 and spp
+/// (PACKED-SPP), variances 0–3, variances 4–6 and 0).
 #[allow(clippy::too_many_arguments)]
 pub fn record(
     batch: &mut Batch,
@@ -52,6 +54,7 @@ pub fn record(
     rows: (u32, u32),
     feat: [BufferSlice; 7],
     var: [BufferSlice; 7],
+    spp: BufferSlice,
     packed: [BufferSlice; 4],
 ) -> Result<()> {
     let push = GbfPush {
@@ -60,7 +63,7 @@ pub fn record(
         base: rows.0,
         ..Default::default()
     };
-    let b: Vec<BufferSlice> = [&feat[..], &var, &packed].concat();
+    let b: Vec<BufferSlice> = [&feat[..], &var, &[spp], &packed].concat();
     batch.dispatch_rows(
         &DECL,
         precision,

@@ -31,7 +31,6 @@ pub const DECL: KernelDecl = KernelDecl {
         read("var_color_r"),
         read("var_color_g"),
         read("var_color_b"),
-        read("spp"),
         read("queue"),
         write("state0"),
         write("state1"),
@@ -62,8 +61,9 @@ pub const GROUP: u32 = 8;
 /// statistics' colour, colour variances and counts.
 pub struct LpInputs {
     /// The features and their variances packed by [`super::gbf_pack`]
-    /// (PACKED-LP): normal xyz and depth, albedo rgb and 0, the same of the
-    /// variances; vec4 planes of the whole image.
+    /// (PACKED-LP): normal xyz and depth, albedo rgb and spp (PACKED-SPP:
+    /// `lp_centres` learns a pixel's validity from it), the variances of
+    /// those features and 0; vec4 planes of the whole image.
     pub packed: [BufferSlice; 4],
     /// Colour R, G, B.
     pub color: [BufferSlice; 3],
@@ -137,7 +137,6 @@ pub fn record(
     b.extend_from_slice(&inp.packed);
     b.extend_from_slice(&inp.color);
     b.extend_from_slice(&inp.cvar);
-    b.push(inp.spp);
     b.push(queue);
     b.extend_from_slice(&state);
     let (gw, gh) = push.centre_grid();

@@ -202,7 +202,7 @@ pub fn record_gbf_chunked(
         .map(|r0| (r0, (r0 + chunk).min(h)))
         .collect();
     for &rows in &chunks {
-        gbf_pack::record(batch, precision, w, h, rows, feat, var, packed(rows)?)?;
+        gbf_pack::record(batch, precision, w, h, rows, feat, var, spp, packed(rows)?)?;
     }
     let out: [BufferSlice; 14] = std::array::from_fn(|k| if k < 7 { feat[k] } else { var[k - 7] });
     for &(r0, r1) in &chunks {
@@ -216,7 +216,6 @@ pub fn record_gbf_chunked(
             halo.0,
             pos,
             inv,
-            spp,
             p(HBAR),
             packed(halo)?,
             out,
@@ -286,7 +285,7 @@ pub fn run_cpu(clean: &mut StatsImage) -> Result<GbfMaps> {
         let (l, c) = FEATURES[j];
         get(l.variance().unwrap(), c).unwrap()
     });
-    let packed = reference::gbf_pack::gbf_pack(feat, var);
+    let packed = reference::gbf_pack::gbf_pack(feat, var, &spp);
     let mut out = vec![vec![0.0f32; n]; 14];
     reference::gbf_filter::gbf_filter(
         &push,

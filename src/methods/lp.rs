@@ -294,6 +294,7 @@ pub fn record_lp(
         (0, height),
         feat,
         var,
+        inp.spp,
         inp.packed,
     )?;
     let state = planes.state();

@@ -261,7 +261,7 @@ pub fn record_wlr(
     let out: [BufferSlice; 5] = std::array::from_fn(|k| p(OUT0 + k));
     let scratch = [q(SMOOTH), q(SMOOTH + 1)];
     let packed: [BufferSlice; 4] = std::array::from_fn(|k| planes.packed.plane(k));
-    gbf_pack::record(batch, precision, w, h, (0, h), feat, var, packed)?;
+    gbf_pack::record(batch, precision, w, h, (0, h), feat, var, spp, packed)?;
     let ring = (planes.state.plane(0), planes.ring_rows);
     let wr = (params.radius, params.options);
     let size = (w, h);
