@@ -32,10 +32,11 @@
 // ends up nearly diagonal). Sweeps rotate every pair (p, q), p < q, in row
 // order; they stop when the off-diagonal Frobenius norm is < JACOBI_TOL *
 // ||A||_F (or exactly 0), checked before each sweep, or after JACOBI_SWEEPS.
-// Out: V = the accumulated rotations (V[j*d + m]), in the diagonal's order
-// (jacobi_order sorts them). Entries of V beyond d*d are set to 0. Returns
-// the number of sweeps performed.
-int jacobi_sweeps(inout real A[MAX_D * MAX_D], int d, out real V[MAX_D * MAX_D])
+// Out: w = eigenvalues in decreasing order (signed), V = eigenvectors, column
+// m (V[j*d + m]) for w[m], each with its largest-|.| component (first on a
+// tie) positive. Entries beyond d (resp. d*d) are set to 0. Returns the
+// number of sweeps performed.
+int jacobi_eigen(inout real A[MAX_D * MAX_D], int d, out real V[MAX_D * MAX_D], out real w[MAX_D])
 {
     for (int i = 0; i < MAX_D * MAX_D; ++i) {
         V[i] = real(0);
@@ -106,14 +107,7 @@ int jacobi_sweeps(inout real A[MAX_D * MAX_D], int d, out real V[MAX_D * MAX_D])
             }
         }
     }
-    return sweeps;
-}
 
-// The eigenpairs of jacobi_sweeps' result: w = the diagonal in decreasing
-// order (signed; entries beyond d are 0), V's columns permuted alike, each
-// with its largest-|.| component (first on a tie) positive.
-void jacobi_order(inout real A[MAX_D * MAX_D], int d, inout real V[MAX_D * MAX_D], out real w[MAX_D])
-{
     for (int i = 0; i < MAX_D; ++i) {
         w[i] = i < d ? A[i * d + i] : real(0);
     }
@@ -150,15 +144,6 @@ void jacobi_order(inout real A[MAX_D * MAX_D], int d, inout real V[MAX_D * MAX_D
             }
         }
     }
-}
-
-// Cyclic Jacobi eigen-decomposition (jacobi_sweeps, then jacobi_order): w =
-// eigenvalues in decreasing order, V = eigenvectors, column m (V[j*d + m])
-// for w[m]. Returns the number of sweeps performed.
-int jacobi_eigen(inout real A[MAX_D * MAX_D], int d, out real V[MAX_D * MAX_D], out real w[MAX_D])
-{
-    int sweeps = jacobi_sweeps(A, d, V);
-    jacobi_order(A, d, V, w);
     return sweeps;
 }
 

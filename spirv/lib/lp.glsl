@@ -25,8 +25,6 @@
 
 #define MAX_D 9
 #define TSVD_D 9
-// JACOBI-COMPACT (tsvd.glsl): the eigenproblems on their active components.
-#define TSVD_JACOBI_COMPACT
 // LP solves nothing with linalg.glsl's WLS: keep its (unused) arrays small.
 #define MAX_P 4
 #include "lib/tsvd.glsl"

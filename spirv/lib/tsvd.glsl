@@ -248,69 +248,6 @@ tsvd_mat4 tsvd_scale_block(tsvd_mat4 m, real4 inv_row, real4 inv_col)
 // ~n^1.5 eps ~ 4e-4 relative at R = 9, inside §0.3's 1e-3. A window wide
 // enough to overflow raw f32 sums (never in a real image) runs the spec's
 // normalised second pass.
-#ifdef TSVD_JACOBI_COMPACT
-// JACOBI-COMPACT (a kernel defines TSVD_JACOBI_COMPACT): jacobi_eigen of
-// the symmetric TSVD_D x TSVD_D matrix A (G or E^T E; row-major, stride
-// TSVD_D), run on its active components packed together. A component is
-// inactive when its row is 0: a constant one (x' = 0, e2' = 0), and in
-// E^T E the pixel coordinates. Such a row and column are 0 and stay 0 (a
-// rotation of p and q changes row k only through A[k][p] and A[k][q]), so
-// every rotation they take part in is the sweep's `apq == 0` skip and every
-// update of their entries, or of their rows of V, writes the 0 it reads:
-// the sweeps over the packed active rows and columns perform the same
-// rotations on the same values in the same order, and the norms add the
-// same non-zero terms in the same order. Unpacked, the diagonal and V are
-// the full problem's (inactive j: 0 and e_j), which jacobi_order sorts as
-// it would have: the result is bit-identical. A sweep costs about the cube
-// of the active order. (LP only: the packing's code costs WLR's pipeline
-// ~2 MB of resident memory that its bar does not leave.)
-void tsvd_eigen_compact(real A[MAX_D * MAX_D], out real V[MAX_D * MAX_D], out real w[MAX_D])
-{
-    int idx[MAX_D];
-    for (int j = 0; j < MAX_D; ++j) {
-        idx[j] = 0;
-    }
-    int na = 0;
-    for (int j = 0; j < TSVD_D; ++j) {
-        bool on = false;
-        for (int l = 0; l < TSVD_D; ++l) {
-            on = on || A[j * TSVD_D + l] != real(0);
-        }
-        if (on) {
-            idx[na] = j;
-            ++na;
-        }
-    }
-    real C[MAX_D * MAX_D];
-    for (int i = 0; i < MAX_D * MAX_D; ++i) {
-        C[i] = real(0);
-    }
-    for (int a = 0; a < na; ++a) {
-        for (int b = 0; b < na; ++b) {
-            C[a * na + b] = A[idx[a] * TSVD_D + idx[b]];
-        }
-    }
-    real Vc[MAX_D * MAX_D];
-    jacobi_sweeps(C, na, Vc);
-    // Unpacked: A's diagonal (all jacobi_order reads) and V.
-    for (int i = 0; i < MAX_D * MAX_D; ++i) {
-        A[i] = real(0);
-        V[i] = real(0);
-    }
-    for (int j = 0; j < TSVD_D; ++j) {
-        V[j * TSVD_D + j] = real(1);
-    }
-    for (int a = 0; a < na; ++a) {
-        int ja = idx[a];
-        A[ja * TSVD_D + ja] = C[a * na + a];
-        for (int b = 0; b < na; ++b) {
-            V[idx[b] * TSVD_D + ja] = Vc[b * na + a];
-        }
-    }
-    jacobi_order(A, TSVD_D, V, w);
-}
-#endif
-
 LocalSpace tsvd_local_space_with(ivec2 c, int R, ivec2 size, bool exact_specnorm)
 {
     LocalSpace ls;
@@ -571,11 +508,7 @@ LocalSpace tsvd_local_space_with(ivec2 c, int R, ivec2 size, bool exact_specnorm
     real Vj[MAX_D * MAX_D];
     bool exact = true;
     for (int pass = 0; pass < 2; ++pass) {
-#ifdef TSVD_JACOBI_COMPACT
-        tsvd_eigen_compact(A, Vj, w);
-#else
         jacobi_eigen(A, TSVD_D, Vj, w);
-#endif
         if (pass == 1) {
             ls.specnorm = sqrt(max(w[0], real(0)));
             ls.tau = real(TSVD_TAU_C) * ls.specnorm;
