@@ -352,6 +352,7 @@ fn time_case(
         wall.push(t0.elapsed().as_secs_f64() * 1e3);
         let mut t = out.timings;
         count_lp(&mut t, &out.stats, img.width * img.height);
+        count_by_rank(&mut t, method, &out.dim, (img.width, img.height));
         timings.push(t);
     }
     let mb = |b: u64| b as f64 / 1e6;
@@ -390,6 +391,58 @@ fn count_lp(t: &mut [KernelTiming], stats: &[(String, f64)], pixels: usize) {
     }
 }
 
+/// WLR's and AOS's fits are dispatched with bounds of their work, which
+/// size the bands (`wlr_fit`, `wlr_final`: rank 9 with every neighbour in
+/// every kernel's support; `aos_fit`: its block layout at rank 3). The
+/// run's rank map (`dim`: WLR's and AOS's TSVD rank per pixel, 0 for an
+/// invalid pixel) gives the work the method did: each pixel's fits at its
+/// rank over its window clipped to the image
+/// ([`crate::kernels::wlr_fit::flops_of_pixel`],
+/// [`crate::kernels::wlr_final::flops_of_pixel`],
+/// [`crate::kernels::aos_fit::flops_of_pixel`]), in the final pass's
+/// window (the bench's); the kernels' flops are rescaled to those. Rank 0
+/// is taken for an invalid pixel (no work): a valid one has rank 0 only
+/// when it is its window's one valid pixel. A rank map of the wrong size
+/// (none downloaded) leaves the flops as dispatched.
+fn count_by_rank(t: &mut [KernelTiming], method: Method, dim: &[f32], (w, h): (usize, usize)) {
+    use crate::kernels::{aos_fit, wlr_final, wlr_fit};
+    type PixelFlops = fn(f64, u32) -> f64;
+    let (radius, kernels): (usize, &[(&str, PixelFlops)]) = match method {
+        Method::Wlr => (
+            crate::methods::wlr::RADIUS_FINAL as usize,
+            &[
+                ("wlr_fit", wlr_fit::flops_of_pixel),
+                ("wlr_final", wlr_final::flops_of_pixel),
+            ],
+        ),
+        Method::Aos => (
+            crate::reference::aos::RADIUS_FINAL,
+            &[("aos_fit", aos_fit::flops_of_pixel)],
+        ),
+        _ => return,
+    };
+    if dim.len() != w * h || w == 0 {
+        return;
+    }
+    // The window's extent along a row or column, clipped to the image.
+    let extent = |n: usize| -> Vec<f64> {
+        (0..n)
+            .map(|i| ((i + radius).min(n - 1) + 1 - i.saturating_sub(radius)) as f64)
+            .collect()
+    };
+    let (ex, ey) = (extent(w), extent(h));
+    for &(name, of_pixel) in kernels {
+        let actual: f64 = dim
+            .iter()
+            .enumerate()
+            .filter(|&(_, &k)| k >= 0.5)
+            .map(|(i, &k)| of_pixel(ex[i % w] * ey[i / w], k.round() as u32))
+            .sum();
+        rescale(t, name, actual);
+        rescale(t, &format!("{name}_f64"), actual);
+    }
+}
+
 /// Scales the flops of `kernel`'s timings so that they sum to `actual`.
 fn rescale(t: &mut [KernelTiming], kernel: &str, actual: f64) {
     let counted: f64 = t
@@ -402,5 +455,62 @@ fn rescale(t: &mut [KernelTiming], kernel: &str, actual: f64) {
     }
     for k in t.iter_mut().filter(|k| k.kernel == kernel) {
         k.flops *= actual / counted;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn timing(kernel: &str, flops: f64) -> KernelTiming {
+        KernelTiming {
+            kernel: kernel.into(),
+            rows: (0, 8),
+            nanoseconds: 1e6,
+            flops,
+            bytes: 0.0,
+        }
+    }
+
+    #[test]
+    fn count_by_rank_charges_each_pixel_its_rank_and_window() {
+        use crate::kernels::{aos_fit, wlr_final, wlr_fit};
+        let (w, h) = (40, 3);
+        // Rank 3 everywhere but one invalid pixel (rank 0).
+        let mut dim = vec![3.0f32; w * h];
+        dim[5] = 0.0;
+        let mut t = vec![
+            timing("wlr_fit", 1e9),
+            timing("wlr_fit", 2e9),
+            timing("wlr_final", 1e9),
+            timing("gauss_smooth", 7.0),
+        ];
+        count_by_rank(&mut t, Method::Wlr, &dim, (w, h));
+        // R = 9: every window spans the 3 rows; 19 columns away from the
+        // sides.
+        let (mut fit, mut fin) = (0.0, 0.0);
+        for i in (0..w * h).filter(|&i| i != 5) {
+            let x = i % w;
+            let n = ((x + 9).min(w - 1) + 1 - x.saturating_sub(9)) as f64 * 3.0;
+            fit += wlr_fit::flops_of_pixel(n, 3);
+            fin += wlr_final::flops_of_pixel(n, 3);
+        }
+        let sum =
+            |name: &str| -> f64 { t.iter().filter(|k| k.kernel == name).map(|k| k.flops).sum() };
+        assert!((sum("wlr_fit") - fit).abs() < 1e-6 * fit);
+        assert!((sum("wlr_final") - fin).abs() < 1e-6 * fin);
+        // In proportion to what the bands were charged.
+        assert!((t[1].flops - 2.0 * t[0].flops).abs() < 1e-6 * t[1].flops);
+        assert_eq!(t[3].flops, 7.0);
+        // AOS's kernel, and none of WLR's, for AOS.
+        let mut t = vec![timing("aos_fit", 1e9), timing("wlr_fit", 1e9)];
+        count_by_rank(&mut t, Method::Aos, &dim, (w, h));
+        assert!(t[0].flops < 1e9 && t[0].flops > 0.0);
+        assert!(t[0].flops > 119.0 * aos_fit::flops_of_pixel(30.0, 3));
+        assert!(t[0].flops < 119.0 * aos_fit::flops_of_pixel(57.0, 3));
+        assert_eq!(t[1].flops, 1e9);
+        // No rank map: unchanged.
+        count_by_rank(&mut t, Method::Aos, &[], (w, h));
+        assert_eq!(t[1].flops, 1e9);
     }
 }

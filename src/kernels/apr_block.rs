@@ -46,12 +46,67 @@ pub struct AprChannel {
     pub s2prev: BufferSlice,
 }
 
-/// Per block: three passes over 841 pixels (the moments: 30 4×4 outer
-/// products, 960 flops a pixel; the bias: 4 × 18 multiply-adds) and the
-/// 18×18 factorisation, inverse and `L⁻¹VL⁻ᵀ` (~12,000 flops).
-pub fn flops_per_block() -> f64 {
+/// Typical share of a sparse block's window that its confidence-interval
+/// test accepts, measured with the CPU twins' inputs (after the outlier
+/// stage, 16 spp): 0.83 (glossy_cornell), 0.97 (indirect_room), 0.93
+/// (dof_checker), mean over the channels.
+pub const SPARSE_ACCEPTED: f64 = 0.9;
+/// The same for an extra block (COVER: a pixel no sparse centre accepts,
+/// typically a spike or a thin feature, which few neighbours accept):
+/// 0.20–0.21 (glossy_cornell), 0.46–0.48 (dof_checker).
+pub const EXTRA_ACCEPTED: f64 = 0.3;
+
+/// The work of one block whose 29×29 window holds `window` valid pixels
+/// (841 inside the image), `accepted` of them in its accepted set `A_c`
+/// (spec §4.2), as implemented (`p = 18` columns; without visibility its
+/// column is 0 but still computed):
+/// - per valid window pixel, the acceptance test in each of the three
+///   passes (7 each);
+/// - per accepted pixel: pass 1, the feature spreads (16); pass 2, the
+///   design row (25: 8 scaled differences, `u`, `v`, 7 monomials), the
+///   weight (`K_h`: 1 and an exponential, [`EXP_FLOPS`](super::EXP_FLOPS);
+///   APR-OUTLIER-W: 2), the weighted rows and the `p(p+1)/2` multiply-adds
+///   of the lower triangles of `M` and `V` (722), the three right-hand
+///   sides (114); pass 3, the row and the weight again, the four orders'
+///   predictions (`2·(9+11+14+18)`) and weighted squared errors (16);
+/// - once: the ridge Cholesky (`p³/3`, square roots and divisions: 2115),
+///   `L⁻¹` (1962), `G = L⁻¹VL⁻ᵀ` and `E = L⁻¹ML⁻ᵀ` (`L⁻¹` times a symmetric
+///   matrix, then the lower half of the product by `L⁻ᵀ`: 8436 each), the
+///   four orders' traces and variance sums over the symmetric blocks (826),
+///   their `β` of `ŷ_{t−1}` (1548), `β_y` and `β_s` of the chosen order
+///   (at most 1368) and the rest (70).
+///
+/// Not counted: the two padding columns of the `mat4` blocks, the upper
+/// block triangle of the symmetric moments.
+/// Flops: an add, multiply or compare (min/max) 1, a multiply-add 2, a
+/// division or square root 1, an exponential [`EXP_FLOPS`](super::EXP_FLOPS).
+pub fn flops_of_block(window: f64, accepted: f64) -> f64 {
     let p = P as f64;
-    841.0 * (960.0 + 3.0 * 40.0 + 160.0) + 2.0 * p * p * p
+    let weight = 1.0 + super::EXP_FLOPS + 2.0;
+    let moments = 2.0 * (p + p * (p + 1.0)) + 2.0;
+    let pass2 = 25.0 + weight + moments + 114.0;
+    let pass3 = 25.0 + weight + 2.0 * (9.0 + 11.0 + 14.0 + 18.0) + 4.0 + 12.0;
+    let once = 2115.0 + 1962.0 + 2.0 * 8436.0 + 826.0 + 1548.0 + 1368.0 + 70.0;
+    window * 21.0 + accepted * (16.0 + pass2 + pass3) + once
+}
+
+/// An upper bound of [`flops_of_block`], which sizes the extra blocks'
+/// bands: a full 29×29 window, every pixel accepted.
+pub fn flops_per_block() -> f64 {
+    flops_of_block(841.0, 841.0)
+}
+
+/// Mean over the centres `0, step, 2·step, …` of a row of `len` pixels of
+/// the extent of their windows `[c − 14, c + 14]` clipped to the row.
+fn mean_extent(len: u32, step: usize) -> f64 {
+    let r = 14i64;
+    let n = len as i64;
+    let (mut sum, mut count) = (0i64, 0i64);
+    for c in (0..n).step_by(step) {
+        sum += (c + r).min(n - 1) - (c - r).max(0) + 1;
+        count += 1;
+    }
+    sum as f64 / count.max(1) as f64
 }
 
 /// Records the sparse blocks (`push.mode = 0`; in raster order on a grid 8
@@ -65,7 +120,9 @@ pub fn flops_per_block() -> f64 {
 /// vector idle; the extra blocks took 350 of `apr_block`'s 680 ms at 256²).
 /// `feats`: the two vec4 planes of [`super::apr_pack`] (normal xyz, albedo
 /// r; albedo g b, depth, visibility or 0). `extra_fraction`: the expected fraction of
-/// pixels that become extra blocks (for the band split and progress).
+/// pixels that become extra blocks (for the band split, the progress and
+/// the timings' count; 1.4–2.0 % on glossy_cornell, 0.1–0.3 % on
+/// dof_checker, ~0 on indirect_room at 16 spp, per channel).
 #[allow(clippy::too_many_arguments)]
 pub fn record(
     batch: &mut Batch,
@@ -85,14 +142,23 @@ pub fn record(
         // APR-LINEAR-BLOCKS: the blocks in raster order on a grid 8 wide.
         let (gw, gh) = grid(push.width as usize, push.height as usize);
         let rows = (gw * gh).div_ceil(8) as u32;
-        return batch.dispatch(&DECL, precision, &b, push_bytes, 8, rows, flops_per_block());
+        // The blocks' typical work (their windows clipped to the image,
+        // SPARSE_ACCEPTED of them accepted), spread over the grid's
+        // invocations (the last row's idle lanes charged nothing).
+        let window = mean_extent(push.width, 14) * mean_extent(push.height, 14);
+        let block = flops_of_block(window, SPARSE_ACCEPTED * window);
+        let per_lane = block * (gw * gh) as f64 / (8.0 * rows.max(1) as f64);
+        return batch.dispatch(&DECL, precision, &b, push_bytes, 8, rows, per_lane);
     }
     let (w, h) = (push.width, push.height);
     if w == 0 || h == 0 {
         return Ok(());
     }
-    // Bands whose expected extra blocks stay within a submit's work.
+    // Bands whose expected extra blocks stay within a submit's work, each
+    // charged as a full block; the timings get their typical work.
     let px_flops = flops_per_block() * extra_fraction + SELECT_FLOPS;
+    let window = mean_extent(w, 1) * mean_extent(h, 1);
+    let extra_block = flops_of_block(window, EXTRA_ACCEPTED * window);
     let band = batch.band_rows(px_flops * w as f64, 8);
     let fit = AprPush { mode: 2, ..*push };
     let mut row0 = 0;
@@ -116,7 +182,7 @@ pub fn record(
                 &b,
                 bytemuck::bytes_of(&fit),
                 queue.sub(0, 12)?,
-                px * extra_fraction * flops_per_block(),
+                px * extra_fraction * extra_block,
                 0.0,
             )
         })?;
@@ -125,12 +191,28 @@ pub fn record(
     Ok(())
 }
 
-/// Per pixel of the extra blocks' selection: the acceptance test against
-/// the (at most four) sparse centres within 14.
-const SELECT_FLOPS: f64 = 100.0;
+/// Per pixel of the extra blocks' selection: the acceptance test (7)
+/// against the sparse centres within 14 until one accepts (2 to 9 of them
+/// in reach; usually the first accepts): four tests.
+const SELECT_FLOPS: f64 = 28.0;
 
 /// Words of the extra blocks' queue of a `width × height` image: the
 /// indirect dispatch's header (x, y, z), the count, one entry per pixel.
 pub fn queue_words(width: usize, height: usize) -> usize {
     QUEUE_HEADER_WORDS + width * height
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn windows_clipped_to_the_image() {
+        // 256: centres 0, 14, …, 252; extents 15, 29 (17 of them), 18.
+        assert!((mean_extent(256, 14) - (15.0 + 17.0 * 29.0 + 18.0) / 19.0).abs() < 1e-12);
+        assert_eq!(mean_extent(1, 14), 1.0);
+        assert!(mean_extent(1000, 1) < 29.0);
+        assert!(flops_of_block(841.0, 0.9 * 841.0) < flops_per_block());
+        assert!(flops_of_block(10.0, 1.0) > 0.0);
+    }
 }

@@ -88,30 +88,26 @@ pub fn flops_per_centre() -> f64 {
 
 /// The work of a centre of TSVD rank `rank` (`p = rank + 1` regressors) with
 /// a full 19×19 window (spec §0.6, §3.3–3.4), as the algorithm needs it:
-/// - per window pixel, the TSVD pass: the 9 components' minimum and maximum
-///   (18), their difference from the centre and its sum (18), the square
-///   roots of the 7 noisy components' variances and their sum (14), the 45
-///   products of the Gram sum (90) and the 28 of the noise sum (56): 196;
+/// - per window pixel, the TSVD pass ([`super::wlr_fit::TSVD_PASS`], as
+///   WLR counts it);
 /// - per window pixel, the RLS: the projection (9 differences, `9·rank`
 ///   multiply-adds), `Pζ` and the rank-1 update of `P` (`4p²`), `ζᵀPζ` and
 ///   the gain (`3p`), per channel the prediction, residual and `β` update
 ///   (`3·(4p + 1)`) and the score (9);
 /// - once, ring 1's leave-one-out pass over 9 pixels (projection, leverage
 ///   `2p² + 2p`, predictions `6p`);
-/// - once, a cyclic Jacobi decomposition of the 9×9 Gram matrix: 6 sweeps
-///   (typical) of 36 rotations of ~160 flops; the bounds on `‖E‖₂` spare
-///   the second one for most centres (TSVD-ONE-JACOBI).
+/// - once, the rest of the TSVD: the Jacobi sweeps at their typical count,
+///   the scaling, the bounds on `‖E‖₂`, the rank and the projection
+///   ([`super::wlr_fit::tsvd_once`]).
 ///
 /// A mat4 block holding a 3×3 problem, or the duplicate half of a symmetric
 /// matrix, is not counted: it is the kernel's layout, not the method's work.
 pub fn flops_of_centre(rank: u32) -> f64 {
     let (k, p) = (rank as f64, rank as f64 + 1.0);
-    let tsvd = 18.0 + 18.0 + 14.0 + 90.0 + 56.0;
     let project = 9.0 + 18.0 * k;
     let rls = project + 4.0 * p * p + 3.0 * p + 3.0 * (4.0 * p + 1.0) + 9.0;
     let loo = 9.0 * (project + 2.0 * p * p + 2.0 * p + 6.0 * p);
-    let jacobi = 6.0 * 36.0 * 160.0;
-    361.0 * (tsvd + rls) + loo + jacobi
+    361.0 * (super::wlr_fit::TSVD_PASS + rls) + loo + super::wlr_fit::tsvd_once(k)
 }
 
 /// Records one pass (`push.granularity`, `push.pass`; `push.width/height`

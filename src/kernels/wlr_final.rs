@@ -44,14 +44,42 @@ pub const DECL: KernelDecl = KernelDecl {
 /// Names of the 5 output maps, in binding order.
 pub const OUTPUTS: [&str; 5] = ["out_r", "out_g", "out_b", "mse", "flags"];
 
-/// Per pixel: `(2R+1)²` neighbours × (two final-fit passes: projection,
-/// kernel, 6 outer products / 3 dots) plus the Cholesky solve and the
-/// centre state read.
+/// Typical share of a centre's valid window pixels in the support of the
+/// final fit's kernel (`h = hbar_c`), measured with the CPU twins at `h_opt`
+/// (R = 9, one centre in 64) on glossy_cornell, indirect_room and
+/// dof_checker at 16 spp: 0.686, 0.716, 0.490.
+pub const FINAL_SUPPORT: f64 = 0.63;
+
+/// `wlr_final`'s work at a valid centre of rank `rank` whose window holds
+/// `window` valid pixels: step 9's fit at one bandwidth, counted as
+/// [`super::wlr_fit`]'s trial fits are (two passes; WLR-CI's share
+/// [`super::wlr_fit::ACCEPTED`], the kernel's support [`FINAL_SUPPORT`]),
+/// and step 10's MSE model and the centre (~30). The local space and the
+/// `b_j` are read from `wlr_fit`'s centre state, not recomputed; a pixel of
+/// rank 0 passes through (0). The padded lanes of the `mat4` blocks, the
+/// duplicate half of the normal matrix and the neighbours outside the
+/// kernel's support are not counted. `mcdenoise bench` charges each pixel
+/// this at its rank; the dispatch charges the bound [`flops_per_pixel`].
+/// Flops: an add, multiply or compare (min/max) 1, a multiply-add 2, a
+/// division or square root 1, an exponential [`EXP_FLOPS`](super::EXP_FLOPS).
+pub fn flops_of_pixel(window: f64, rank: u32) -> f64 {
+    if rank == 0 {
+        return 0.0;
+    }
+    super::wlr_fit::fits_flops(
+        window,
+        rank as f64,
+        super::wlr_fit::ACCEPTED,
+        &[FINAL_SUPPORT],
+    ) + 30.0
+}
+
+/// An upper bound of [`flops_of_pixel`], which sizes the bands: a full
+/// `(2R+1)²` window, rank 9, every neighbour accepted and inside the
+/// kernel's support.
 pub fn flops_per_pixel(radius: u32) -> f64 {
     let n = ((2 * radius + 1) * (2 * radius + 1)) as f64;
-    let proj = 2.0 * 2.0 * 81.0;
-    let fit = (6.0 * 32.0 + 30.0) + (30.0 + 40.0);
-    n * (proj + fit) + 2.0 * 12.0f64.powi(3)
+    super::wlr_fit::fits_flops(n, 9.0, 1.0, &[1.0]) + 30.0
 }
 
 /// Records `wlr_final` over the rows `rows = [first, end)` (`first` a
