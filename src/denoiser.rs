@@ -201,7 +201,7 @@ pub struct Frame {
     pub report: PrepareReport,
     /// GPU time per dispatch (empty on the CPU).
     pub timings: Vec<KernelTiming>,
-    /// Named scalar statistics (LP: `centre_fraction`).
+    /// Named scalar statistics (LP: `centre_fraction`, `centre_flops`, `covering`, [`crate::methods::lp::Census`]).
     pub stats: Vec<(String, f64)>,
 }
 

@@ -822,6 +822,6 @@ pub struct ChainOutput {
     pub dim: Vec<f32>,
     /// Named debug planes (when asked).
     pub debug: Vec<(String, Vec<f32>)>,
-    /// Named scalar statistics (LP: `centre_fraction`).
+    /// Named scalar statistics (LP: `centre_fraction`, `centre_flops`, `covering`, [`crate::methods::lp::Census`]).
     pub stats: Vec<(String, f64)>,
 }

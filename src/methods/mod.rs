@@ -186,7 +186,7 @@ pub struct DenoiseOutput {
     pub report: prepare::PrepareReport,
     /// GPU time per dispatch (empty on the CPU backend).
     pub timings: Vec<KernelTiming>,
-    /// Named scalar statistics of the run (LP: `centre_fraction`).
+    /// Named scalar statistics of the run (LP: `centre_fraction`, `centre_flops`, `covering`, [`crate::methods::lp::Census`]).
     pub stats: Vec<(String, f64)>,
 }
 
