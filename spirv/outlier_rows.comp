@@ -17,7 +17,6 @@ PLANE_OUT(3, wq)
 PLANE_OUT(4, xn)
 PLANE_OUT(5, xm)
 PLANE_OUT(6, xq)
-// Two-pass (count, mean, M2) of row y over [a, b].
 // (count, mean, M2) of row y over [a, b], in one pass (ROWS-ONE-PASS):
 // the sums of d = g - s and d^2 with s the segment's first valid grey, M2 =
 // sum d^2 - (sum d)^2 / n. Shifting by a member of the set bounds the
