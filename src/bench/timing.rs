@@ -427,7 +427,7 @@ fn count_by_rank(t: &mut [KernelTiming], method: Method, dim: &[f32], (w, h): (u
     // The window's extent along a row or column, clipped to the image.
     let extent = |n: usize| -> Vec<f64> {
         (0..n)
-            .map(|i| ((i + radius).min(n - 1) + 1 - i.saturating_sub(radius)) as f64)
+            .map(|i| crate::kernels::clipped_span(i, radius, n) as f64)
             .collect()
     };
     let (ex, ey) = (extent(w), extent(h));

@@ -94,8 +94,7 @@ pub fn flops_per_pixel(radius: u32, rank: f64) -> f64 {
 /// and `G` (never read), the duplicate half of a symmetric matrix.
 /// `mcdenoise bench` charges each pixel this at its rank (AOS's rank map);
 /// a pixel of rank 0 (or invalid) does no fit (0).
-/// Flops: an add, multiply or compare (min/max) 1, a multiply-add 2, a
-/// division or square root 1, an exponential [`EXP_FLOPS`](super::EXP_FLOPS).
+/// Flops as [`EXP_FLOPS`](super::EXP_FLOPS) counts them.
 pub fn flops_of_pixel(window: f64, rank: u32) -> f64 {
     if rank == 0 {
         return 0.0;

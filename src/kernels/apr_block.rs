@@ -78,8 +78,7 @@ pub const EXTRA_ACCEPTED: f64 = 0.3;
 ///
 /// Not counted: the two padding columns of the `mat4` blocks, the upper
 /// block triangle of the symmetric moments.
-/// Flops: an add, multiply or compare (min/max) 1, a multiply-add 2, a
-/// division or square root 1, an exponential [`EXP_FLOPS`](super::EXP_FLOPS).
+/// Flops as [`EXP_FLOPS`](super::EXP_FLOPS) counts them.
 pub fn flops_of_block(window: f64, accepted: f64) -> f64 {
     let p = P as f64;
     let weight = 1.0 + super::EXP_FLOPS + 2.0;
@@ -99,14 +98,10 @@ pub fn flops_per_block() -> f64 {
 /// Mean over the centres `0, step, 2·step, …` of a row of `len` pixels of
 /// the extent of their windows `[c − 14, c + 14]` clipped to the row.
 fn mean_extent(len: u32, step: usize) -> f64 {
-    let r = 14i64;
-    let n = len as i64;
-    let (mut sum, mut count) = (0i64, 0i64);
-    for c in (0..n).step_by(step) {
-        sum += (c + r).min(n - 1) - (c - r).max(0) + 1;
-        count += 1;
-    }
-    sum as f64 / count.max(1) as f64
+    let n = len as usize;
+    let centres = (0..n).step_by(step);
+    let sum: usize = centres.clone().map(|c| super::clipped_span(c, 14, n)).sum();
+    sum as f64 / centres.count().max(1) as f64
 }
 
 /// Records the sparse blocks (`push.mode = 0`; in raster order on a grid 8

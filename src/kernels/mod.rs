@@ -46,8 +46,17 @@ pub mod wlr_fit;
 
 /// Flops an exponential counts for in the kernels' cost functions:
 /// llvmpipe's `exp2` is a range reduction and a degree-5 polynomial, about
-/// 15 vector operations (an `exp` is the same after one multiply).
+/// 15 vector operations (an `exp` is the same after one multiply). The
+/// rest of the convention: an add, multiply or compare (min/max) 1, a
+/// multiply-add 2, a division or square root 1.
 pub const EXP_FLOPS: f64 = 15.0;
+
+/// Pixels of the span `[c − r, c + r]` inside `[0, n)` (`c < n`): a
+/// window's extent along one axis, clipped to the image (the cost
+/// functions' and `bench`'s count of a window's pixels).
+pub fn clipped_span(c: usize, r: usize, n: usize) -> usize {
+    (c + r).min(n - 1) + 1 - c.saturating_sub(r)
+}
 
 /// Every kernel, for the reflection test and `mcdenoise bench`.
 pub const ALL: &[&KernelDecl] = &[

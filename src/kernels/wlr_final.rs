@@ -60,8 +60,7 @@ pub const FINAL_SUPPORT: f64 = 0.63;
 /// duplicate half of the normal matrix and the neighbours outside the
 /// kernel's support are not counted. `mcdenoise bench` charges each pixel
 /// this at its rank; the dispatch charges the bound [`flops_per_pixel`].
-/// Flops: an add, multiply or compare (min/max) 1, a multiply-add 2, a
-/// division or square root 1, an exponential [`EXP_FLOPS`](super::EXP_FLOPS).
+/// Flops as [`EXP_FLOPS`](super::EXP_FLOPS) counts them.
 pub fn flops_of_pixel(window: f64, rank: u32) -> f64 {
     if rank == 0 {
         return 0.0;

@@ -150,8 +150,7 @@ fn curvature_flops(window: f64, k: f64, support: f64) -> f64 {
 /// under a SIMD mask) are not counted. `mcdenoise bench` charges each pixel
 /// this at its rank (WLR's rank map); the dispatch charges the bound
 /// [`flops_per_pixel`].
-/// Flops: an add, multiply or compare (min/max) 1, a multiply-add 2, a
-/// division or square root 1, an exponential [`EXP_FLOPS`](super::EXP_FLOPS).
+/// Flops as [`EXP_FLOPS`](super::EXP_FLOPS) counts them.
 pub fn flops_of_pixel(window: f64, rank: u32) -> f64 {
     flops_with(window, rank, ACCEPTED, CURVATURE_SUPPORT, &TRIAL_SUPPORT)
 }

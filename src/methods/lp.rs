@@ -28,7 +28,7 @@ use crate::error::{Error, Result};
 use crate::gpu::{plane_stride, Batch, BufferSlice, GpuBuffer, GpuContext, PlaneSet, Precision};
 use crate::image::{Layer, RgbImage, StatsImage};
 pub use crate::kernels::lp_centres::LpInputs;
-use crate::kernels::{gbf_pack, lp_centres, lp_gather, lp_reach, lp_select};
+use crate::kernels::{clipped_span, gbf_pack, lp_centres, lp_gather, lp_reach, lp_select};
 use crate::options::Options;
 use crate::reference;
 use crate::reference::lp::{StateLayout, GRANULARITIES};
@@ -385,8 +385,6 @@ pub struct Census {
     /// The map's width and height, and the rectangle counted.
     size: (usize, usize),
     rect: Rect,
-    /// Pixels of the rectangle.
-    pub pixels: usize,
     /// Centres in it.
     pub centres: usize,
     /// Σ over those centres of [`lp_centres::flops_of_centre`].
@@ -408,7 +406,6 @@ impl Census {
         Census {
             size: (width, height),
             rect,
-            pixels: rect.width() * rect.height(),
             centres: 0,
             centre_flops: 0.0,
             covered: 0.0,
@@ -424,17 +421,16 @@ impl Census {
             return;
         }
         let ro = r_opt.max(0.0) as usize;
-        let side = |p: usize, n: usize| (p + ro).min(n - 1) + 1 - p.saturating_sub(ro);
         self.centres += 1;
         self.centre_flops += lp_centres::flops_of_centre(k.max(0.0) as u32);
-        self.covered += (side(x, w) * side(y, h)) as f64;
+        self.covered += (clipped_span(x, ro, w) * clipped_span(y, ro, h)) as f64;
     }
 
     /// Per pixel of the rectangle: `centre_fraction` (centres),
     /// `centre_flops` (their fits' work) and `covering` (centres covering a
     /// pixel, on average). A tiled run weights each tile's by its pixels.
     pub fn stats(&self) -> Vec<(String, f64)> {
-        let n = self.pixels.max(1) as f64;
+        let n = (self.rect.width() * self.rect.height()).max(1) as f64;
         vec![
             ("centre_fraction".into(), self.centres as f64 / n),
             ("centre_flops".into(), self.centre_flops / n),
