@@ -1,7 +1,7 @@
 #version 460
-// LP's output (spec §3.5), by gathering (§0.3 GATHER): every pixel scans the
-// clipped 19x19 neighbourhood of the centre state in raster order (skipping
-// the rows whose lp_reach value cannot cover it) and averages, over the
+// LP's output (spec §3.5), by gathering (§0.3 GATHER): every pixel visits
+// the centres of its clipped 19x19 neighbourhood in raster order (from its
+// workgroup's list, LP-GATHER-UNION below) and averages, over the
 // centres c with |i - c|_inf <= r_opt(c), the prediction
 // beta_c + u_c . (x_i - x_c), max(xi_c,ch, 0), the collapsed map u_c and k_c.
 // Error estimate (LP-FEATNOISE): E_i[ch] = mean_c max(xi_c,ch, 0)
@@ -50,19 +50,18 @@ PLANE_IN(7, cv_r)
 PLANE_IN(8, cv_g)
 PLANE_IN(9, cv_b)
 PLANE_IN(10, spp)
-PLANE_IN(11, reach)
-layout(std430, set = 0, binding = 12) readonly buffer st0_blk { vec4 st0[]; };
-layout(std430, set = 0, binding = 13) readonly buffer st1_blk { vec4 st1[]; };
-layout(std430, set = 0, binding = 14) readonly buffer st2_blk { vec4 st2[]; };
-layout(std430, set = 0, binding = 15) readonly buffer st3_blk { vec4 st3[]; };
-layout(std430, set = 0, binding = 16) readonly buffer st4_blk { vec4 st4[]; };
-layout(std430, set = 0, binding = 17) readonly buffer st5_blk { vec4 st5[]; };
-layout(std430, set = 0, binding = 18) readonly buffer st6_blk { vec4 st6[]; };
-layout(std430, set = 0, binding = 19) readonly buffer st7_blk { vec4 st7[]; };
-layout(std430, set = 0, binding = 20) readonly buffer st8_blk { vec4 st8[]; };
+layout(std430, set = 0, binding = 11) readonly buffer st0_blk { vec4 st0[]; };
+layout(std430, set = 0, binding = 12) readonly buffer st1_blk { vec4 st1[]; };
+layout(std430, set = 0, binding = 13) readonly buffer st2_blk { vec4 st2[]; };
+layout(std430, set = 0, binding = 14) readonly buffer st3_blk { vec4 st3[]; };
+layout(std430, set = 0, binding = 15) readonly buffer st4_blk { vec4 st4[]; };
+layout(std430, set = 0, binding = 16) readonly buffer st5_blk { vec4 st5[]; };
+layout(std430, set = 0, binding = 17) readonly buffer st6_blk { vec4 st6[]; };
+layout(std430, set = 0, binding = 18) readonly buffer st7_blk { vec4 st7[]; };
+layout(std430, set = 0, binding = 19) readonly buffer st8_blk { vec4 st8[]; };
 // Outputs (kernels::lp_gather::OUTPUTS): colour RGB, error RGB, Delta-MSE RGB,
 // coverage, d; plane k at k * out_stride.
-layout(std430, set = 0, binding = 21) buffer out_blk { float outp[]; };
+layout(std430, set = 0, binding = 20) buffer out_blk { float outp[]; };
 
 #define LP_RADIUS 9
 // mcdenoise::shared::LP_SKIP_*.
@@ -84,13 +83,21 @@ void features(ivec2 p, out real4 f0, out real4 f1, out real f8)
 
 // The workgroup's 8x8 pixels and their 9-pixel halo: the first state plane
 // staged once (a shared load costs lavapipe far less than a storage-buffer
-// load), and per tile row the columns that hold a centre, in order. Each
-// pixel then visits only the centres of its window's rows, in the raster
-// order of the window scan, so the sums are the same as a full scan's.
+// load), then the list of the centres that cover at least one pixel of the
+// tile, in raster order (LP-GATHER-UNION): every pixel walks the same list,
+// one centre per iteration, and tests its own coverage. A pixel's covering
+// centres are a subset of the list in the same raster order, so its sums
+// take the same terms in the same order as a scan of its window.
 #define TILE (8 + 2 * LP_RADIUS)
 shared vec4 t_s0[TILE * TILE];
-shared uint t_list[TILE * TILE];
+// Per tile row, the columns of its centres that reach the tile (in order),
+// and their number; then the whole list: the centres' tile indices and
+// their index in the state rings.
+shared uint t_rows[TILE * TILE];
 shared uint t_count[TILE];
+shared uint t_list[TILE * TILE];
+shared uint t_ring[TILE * TILE];
+shared uint t_n;
 // LP-PIXEL-TEST's inputs over the workgroup's pixels and a 1-pixel halo:
 // per pixel the sum of its three colour variances, and whether it is valid
 // (outside the image: not). Staged once: 4 loads per tile pixel instead of
@@ -98,6 +105,13 @@ shared uint t_count[TILE];
 #define VT 10
 shared real t_v[VT * VT];
 shared bool t_vok[VT * VT];
+
+// The distance from tile coordinate t to the workgroup's pixels (tile
+// coordinates LP_RADIUS .. LP_RADIUS + 7) along one axis.
+int to_tile(int t)
+{
+    return max(max(LP_RADIUS - t, t - (LP_RADIUS + 7)), 0);
+}
 
 void main()
 {
@@ -126,15 +140,39 @@ void main()
         t_vok[k] = ok;
     }
     barrier();
+    // State planes 1..8 are rings of push.ring_rows rows (LpPush::ring_rows).
+    uint ring = push.ring_rows == 0u ? push.height : push.ring_rows;
     if (lid < uint(TILE)) {
+        // Tile row lid: its centres whose square r_opt reaches the tile.
         uint m = 0u;
+        int dy = to_tile(int(lid));
         for (uint col = 0u; col < uint(TILE); ++col) {
-            if (t_s0[lid * uint(TILE) + col].x > 0.0) {
-                t_list[lid * uint(TILE) + m] = col;
+            vec4 s = t_s0[lid * uint(TILE) + col];
+            if (s.x > 0.0 && float(max(dy, to_tile(int(col)))) <= s.y) {
+                t_rows[lid * uint(TILE) + m] = col;
                 ++m;
             }
         }
         t_count[lid] = m;
+    }
+    barrier();
+    if (lid < uint(TILE)) {
+        // Row lid's place in the list: after the centres of the rows above.
+        uint at = 0u;
+        for (uint r = 0u; r < uint(TILE); ++r) {
+            at += r < lid ? t_count[r] : 0u;
+        }
+        uint m = t_count[lid];
+        if (lid + 1u == uint(TILE)) {
+            t_n = at + m;
+        }
+        // A row with a centre lies in the image (t_s0 is 0 outside).
+        uint rrow = (uint(org.y + int(lid)) % ring) * push.width;
+        for (uint e = 0u; e < m; ++e) {
+            uint col = t_rows[lid * uint(TILE) + e];
+            t_list[at + e] = lid * uint(TILE) + col;
+            t_ring[at + e] = rrow + uint(org.x + int(col));
+        }
     }
     barrier();
     uint x = gl_GlobalInvocationID.x;
@@ -219,56 +257,19 @@ void main()
             real v_i = real(cv_r[i]) + real(cv_g[i]) + real(cv_b[i]);
             lim = pixel_test_limit(n_i, v_i, vn, vmax, nn);
         }
-        // The reach plane and state planes 1..8 are rings of push.ring_rows
-        // rows (LpPush::ring_rows).
-        uint ring = push.ring_rows == 0u ? push.height : push.ring_rows;
-        // The covering centres in raster order, one per iteration of the
-        // outer loop; the inner loop finds the next one from the tile's
-        // lists (shared memory, cheap), row by row. llvmpipe runs a loop's
-        // body once under an all-off mask when no lane enters it, so a loop
-        // over the centres inside a loop over the rows cost the whole
-        // prediction body once per row (~180 of ~380 ms at 1 MP); here the
-        // body runs about once per covering centre.
-        int qy_end = min(p.y + LP_RADIUS, size.y - 1);
-        int qy = max(p.y - LP_RADIUS, 0) - 1;  // the current row (none yet)
-        uint ry_next = uint(qy + 1) % ring;    // the ring row of qy + 1
-        uint rrow = 0u;                        // the ring row of qy, times the width
-        uint row = 0u;                         // the tile row of qy
-        uint e = 0u;                           // the next entry of row's list
-        uint m = 0u;                           // entries of row's list to visit
-        while (true) {
-            bool found = false;
-            int qx = 0;
-            vec4 s0 = vec4(0);
-            while (true) {
-                if (e < m) {
-                    // A centre beyond the window's columns is farther than
-                    // any r_opt (<= LP_RADIUS): the coverage test drops it.
-                    uint col = t_list[row * uint(TILE) + e];
-                    ++e;
-                    qx = org.x + int(col);
-                    s0 = t_s0[row * uint(TILE) + col];
-                    if (float(max(abs(qx - p.x), abs(qy - p.y))) <= s0.y) {
-                        found = true;
-                        break;
-                    }
-                } else {
-                    if (qy >= qy_end) {
-                        break;
-                    }
-                    ++qy;
-                    rrow = ry_next * push.width;
-                    ry_next = ry_next + 1u == ring ? 0u : ry_next + 1u;
-                    row = uint(qy - org.y);
-                    e = 0u;
-                    // Rows whose reach cannot cover p hold no covering centre.
-                    m = reach[rrow + x] < float(abs(qy - p.y)) ? 0u : t_count[row];
-                }
+        // The tile's list, one centre per iteration (the same number of
+        // iterations for every lane: llvmpipe runs a loop's body while any
+        // lane is in it), each pixel keeping the centres that cover it.
+        uint n_list = t_n;
+        for (uint k = 0u; k < n_list; ++k) {
+            uint t = t_list[k];
+            int qx = org.x + int(t % uint(TILE));
+            int qy = org.y + int(t / uint(TILE));
+            vec4 s0 = t_s0[t];
+            if (float(max(abs(qx - p.x), abs(qy - p.y))) > s0.y) {
+                continue;
             }
-            if (!found) {
-                break;
-            }
-            uint q = rrow + uint(qx);
+            uint q = t_ring[k];
             real4 c0, c1;
             real c8;
             features(ivec2(qx, qy), c0, c1, c8);

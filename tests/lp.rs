@@ -580,7 +580,6 @@ fn lp_gather_matches_twin() {
                 rg::lp_gather(&cpush, &sc.p(), &reach, &state, &mut cpu);
                 let packed_in = sc.packed();
                 let mut inputs = sc.kernel_inputs(&packed_in);
-                inputs.push(&reach);
                 for p in &state {
                     inputs.push(p);
                 }
@@ -1072,16 +1071,13 @@ fn wavefront_equals_pass_by_pass(w: usize, h: usize, origin: (u32, u32)) {
         lp_centres::record(&mut batch, Precision::F32, &p, &inp, r, q, st, None).unwrap();
     }
     let p = whole(rl::GRANULARITIES.len());
-    reach_before(&mut batch, &p);
-    let (r, o) = (reach.plane(0), out.all());
     lp_gather::record(
         &mut batch,
         Precision::F32,
         &p,
         &inp,
-        r,
         st,
-        o,
+        out.all(),
         (0, h as u32),
     )
     .unwrap();

@@ -1,5 +1,6 @@
-//! `lp_gather`: LP's output (spec §3.5). Every pixel scans its 19×19
-//! neighbourhood of the centre state in raster order and averages the
+//! `lp_gather`: LP's output (spec §3.5). Every pixel visits the centres of
+//! its 19×19 neighbourhood in raster order (from its workgroup's list of the
+//! centres that reach the 8×8 tile, LP-GATHER-UNION) and averages the
 //! predictions `β_c + u_c·(x_i − x_c)` of the centres that cover it
 //! (`|i − c|_inf <= r_opt(c)`; less those LP-PIXEL-TEST leaves out), their `max(ξ̂_c, 0)`, maps `u_c` and ranks
 //! `k_c`. Error estimate (LP-FEATNOISE): `E_i = mean max(ξ̂_c, 0) +
@@ -33,7 +34,6 @@ pub const DECL: KernelDecl = KernelDecl {
         read("var_color_g"),
         read("var_color_b"),
         read("spp"),
-        read("reach"),
         read("state0"),
         read("state1"),
         read("state2"),
@@ -54,7 +54,7 @@ pub const OUTPUTS: [&str; 11] = [
     "coverage", "dim",
 ];
 
-/// Per pixel: 19 reach reads, the centre-map rows they select (a few), and
+/// Per pixel: for each centre of its tile's list a coverage test (4), and
 /// for each covering centre (a few to a few dozen) 36 state reads, 9
 /// feature differences, 3 × 9 FMAs and LP-PIXEL-TEST's squared miss (6);
 /// once, the test's 3×3 variance mean (27 adds) and threshold (~30).
@@ -63,7 +63,7 @@ pub const OUTPUTS: [&str; 11] = [
 /// counts [`flops_of_pixel`] with the run's mean number of covering
 /// centres instead.
 pub fn flops_per_pixel() -> f64 {
-    19.0 * 4.0 + 5.0 * 19.0 * 4.0 + 30.0 * 106.0 + 60.0 + 57.0
+    60.0 * 4.0 + 30.0 * 106.0 + 60.0 + 57.0
 }
 
 /// The work of a pixel covered by `centres` centres on average, as the
@@ -73,7 +73,7 @@ pub fn flops_per_pixel() -> f64 {
 /// 102; once, the test's 3×3 variance mean and threshold (~50), the
 /// feature noise (7 square roots, three 9-term sums of `|ū|·σ` and their
 /// squares: ~100), the means, the error and the ΔMSE rate (a power: ~40).
-/// Finding the covering centres in the tile's lists is integer work, not
+/// Finding the covering centres in the tile's list is integer work, not
 /// counted.
 pub fn flops_of_pixel(centres: f64) -> f64 {
     190.0 + 102.0 * centres
@@ -81,8 +81,7 @@ pub fn flops_of_pixel(centres: f64) -> f64 {
 
 /// Records the gather over the rows `[first, end)` (`first` a multiple of
 /// 8); `state` = the 9 vec4 planes once every pass is done within 9 rows of
-/// them (planes 1..8 and `reach` rings of [`LpPush::ring_rows`] rows),
-/// `reach` their `lp_reach` plane over every pass, `out` = one buffer
+/// them (planes 1..8 rings of [`LpPush::ring_rows`] rows), `out` = one buffer
 /// holding the planes of [`OUTPUTS`], plane `k` at `k·push.out_stride` f32
 /// values.
 #[allow(clippy::too_many_arguments)]
@@ -91,7 +90,6 @@ pub fn record(
     precision: Precision,
     push: &LpPush,
     inp: &LpInputs,
-    reach: BufferSlice,
     state: [BufferSlice; 9],
     out: BufferSlice,
     rows: (u32, u32),
@@ -101,7 +99,6 @@ pub fn record(
     b.extend_from_slice(&inp.color);
     b.extend_from_slice(&inp.cvar);
     b.push(inp.spp);
-    b.push(reach);
     b.extend_from_slice(&state);
     b.push(out);
     batch.dispatch_rows(

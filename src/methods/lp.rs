@@ -8,7 +8,6 @@
 //!   lp_reach    reach ← per pixel, the largest r_opt of the centres of earlier
 //!               passes in its row that reach it (PASS-SNAPSHOT)
 //!   lp_centres  on the candidate grid of g: uncovered candidates → TSVD + RLS + r_opt
-//! lp_reach      once more, over every pass, for the gather
 //! lp_gather     every pixel: mean of the covering centres' predictions (less
 //!               those LP-PIXEL-TEST leaves out), error (LP-FEATNOISE),
 //!               local dimension d, ΔMSE
@@ -105,8 +104,8 @@ pub struct LpPlanes {
     /// State planes 1..8 ([`StateLayout`]), vec4, a ring of
     /// [`ring_rows`](Self::ring_rows) rows (LP-RING).
     pub ring: PlaneSet,
-    /// The `lp_reach` planes of the centres before each pass, and of all of
-    /// them for the gather (6), rings of [`ring_rows`](Self::ring_rows) rows.
+    /// The `lp_reach` planes of the centres before each pass (5), rings of
+    /// [`ring_rows`](Self::ring_rows) rows.
     pub reach: PlaneSet,
     /// The queue of a band's centres (`lp_select` → `lp_centres`), u32.
     pub queue: PlaneSet,
@@ -171,7 +170,7 @@ impl LpPlanes {
             // own, outside the arena (whose size the tiler's memory model
             // scales by area; it counts the rings by `ring_bytes`).
             ring: PlaneSet::new(ctx, "lp.ring", 4 * ring_px, StateLayout::PLANES - 1)?,
-            reach: PlaneSet::new(ctx, "lp.reach", ring_px, GRANULARITIES.len() + 1)?,
+            reach: PlaneSet::new(ctx, "lp.reach", ring_px, GRANULARITIES.len())?,
             queue,
             packed,
             out: PlaneSet::new(ctx, "lp.out", n, lp_gather::OUTPUTS.len())?,
@@ -188,8 +187,7 @@ impl LpPlanes {
     /// `width × height` image: they grow with the width, not the area.
     pub fn ring_bytes(width: usize, height: usize) -> u64 {
         let px = width * Self::ring_rows(height) as usize;
-        PlaneSet::bytes(4 * px, StateLayout::PLANES - 1)
-            + PlaneSet::bytes(px, GRANULARITIES.len() + 1)
+        PlaneSet::bytes(4 * px, StateLayout::PLANES - 1) + PlaneSet::bytes(px, GRANULARITIES.len())
     }
 
     /// Bytes of the scratch (state plane 0, the centre queue and the packed
@@ -300,11 +298,11 @@ pub fn record_lp(
     let state = planes.state();
     let passes = GRANULARITIES.len();
     batch.fill(planes.state0.all(), 0);
-    // Per pass (and the gather): the rows whose reach is computed.
-    let mut reach_done = [0u32; GRANULARITIES.len() + 1];
+    // Per pass: the rows whose reach is computed (the gather needs none).
+    let mut reach_done = [0u32; GRANULARITIES.len()];
     let mut front = 0u32;
     while front < height + passes as u32 * LAG_ROWS {
-        for (t, done) in reach_done.iter_mut().enumerate() {
+        for t in 0..=passes {
             // This pass's band: the front's band moved up by the lag (the
             // first one clipped at row 0).
             let (lag, end) = (t as u32 * LAG_ROWS, front + BAND_ROWS);
@@ -317,19 +315,20 @@ pub fn record_lp(
                 ring_rows: planes.ring_rows,
                 ..params.push(w, h, t.min(passes - 1))
             };
-            let reach_end = (b + reference::lp::RADIUS as u32).min(height);
-            if *done < reach_end {
-                lp_reach::record(
-                    batch,
-                    precision,
-                    &push,
-                    state[0],
-                    planes.reach.plane(t),
-                    (*done, reach_end),
-                )?;
-                *done = reach_end;
-            }
             if t < passes {
+                let done = &mut reach_done[t];
+                let reach_end = (b + reference::lp::RADIUS as u32).min(height);
+                if *done < reach_end {
+                    lp_reach::record(
+                        batch,
+                        precision,
+                        &push,
+                        state[0],
+                        planes.reach.plane(t),
+                        (*done, reach_end),
+                    )?;
+                    *done = reach_end;
+                }
                 // The grid rows whose candidates lie in rows [a, b).
                 let g = GRANULARITIES[t];
                 let fy = push.phase_xy().1;
@@ -350,7 +349,6 @@ pub fn record_lp(
                     precision,
                     &push,
                     &inp,
-                    planes.reach.plane(t),
                     state,
                     planes.out.all(),
                     (a, b),
