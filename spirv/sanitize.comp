@@ -18,7 +18,7 @@ layout(push_constant) uniform Push {
     uint has_var;  // stage 0 reads var_in only when 1
     uint skip_lo;  // margins not counted: left | top << 16
     uint skip_hi;  // right | bottom << 16
-    uint _pad;
+    uint in_place; // sanitize_quads only
 } push;
 
 PLANE_IN(0, value_in)

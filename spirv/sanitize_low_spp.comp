@@ -14,7 +14,7 @@ layout(push_constant) uniform Push {
     uint has_var;  // stage 0 reads var_in only when 1
     uint skip_lo;  // margins not counted: left | top << 16
     uint skip_hi;  // right | bottom << 16
-    uint _pad;
+    uint in_place; // sanitize_quads only
 } push;
 
 // Whether a repair at p is counted: outside the margins SanitizePush::skip_lo

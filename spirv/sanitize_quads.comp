@@ -23,7 +23,7 @@ layout(push_constant) uniform Push {
     uint has_var;  // var_in is read only when 1
     uint skip_lo;  // margins not counted: left | top << 16
     uint skip_hi;  // right | bottom << 16
-    uint _pad;
+    uint in_place; // 1: the outputs already hold the inputs (clean quads not written)
 } push;
 
 layout(std430, set = 0, binding = 0) readonly buffer value_in_blk { vec4 value_in[]; };
@@ -63,8 +63,11 @@ void main()
         clean = clean && all_finite(v) && all(greaterThanEqual(v, vec4(0.0)));
     }
     if (clean) {
-        value_out[q] = b;
-        var_out[q] = v;
+        // In place (push.in_place), the outputs hold these values already.
+        if (push.in_place == 0u) {
+            value_out[q] = b;
+            var_out[q] = v;
+        }
         return;
     }
     ivec2 size = ivec2(push.width, push.height);

@@ -45,8 +45,11 @@ pub struct SanitizePush {
     pub skip_lo: u32,
     /// The `right | bottom << 16` margins (see `skip_lo`).
     pub skip_hi: u32,
-    /// Unused (the block's `_pad`): rounds the block to 32 bytes; 0.
-    pub _pad: u32,
+    /// `sanitize_quads`: 1 when its outputs already hold its inputs (the
+    /// in-place path of `methods::prepare`, which copies a channel before
+    /// repairing it), so a quad that needs no repair is not written; 0
+    /// writes every quad. Unused by the other kernels (0).
+    pub in_place: u32,
 }
 
 impl SanitizePush {

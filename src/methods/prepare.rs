@@ -340,7 +340,11 @@ pub fn record_prepare(
                 batch.copy(value, tmp_val);
                 batch.copy(var, tmp_var);
                 let planes = [tmp_val, tmp_var, spp, value, var];
-                stage0(batch, precision, push(0, true), planes, counters(channel))?;
+                let push = SanitizePush {
+                    in_place: 1,
+                    ..push(0, true)
+                };
+                stage0(batch, precision, push, planes, counters(channel))?;
             } else {
                 // Without a variance, stage 0 reads the value as a stand-in
                 // and stage 2 estimates the variance plane.
@@ -370,10 +374,15 @@ pub fn record_prepare(
         for c in 0..6 {
             let p = stats.plane(Layer::PositionCovariance, c);
             batch.copy(p, tmp_val);
+            // tmp_var, the variance output, is not read: in place too.
+            let push = SanitizePush {
+                in_place: 1,
+                ..push(0, false)
+            };
             stage0(
                 batch,
                 precision,
-                push(0, false),
+                push,
                 [tmp_val, tmp_val, spp, p, tmp_var],
                 counters(channel),
             )?;
