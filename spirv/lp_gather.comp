@@ -81,23 +81,24 @@ void features(ivec2 p, out real4 f0, out real4 f1, out real f8)
     f8 = real(b.z);
 }
 
-// The workgroup's 8x8 pixels and their 9-pixel halo: the first state plane
-// staged once (a shared load costs lavapipe far less than a storage-buffer
-// load), then the list of the centres that cover at least one pixel of the
-// tile, in raster order (LP-GATHER-UNION): every pixel walks the same list,
-// one centre per iteration, and tests its own coverage. A pixel's covering
-// centres are a subset of the list in the same raster order, so its sums
-// take the same terms in the same order as a scan of its window.
+// The workgroup's 8x8 pixels and their 9-pixel halo (LP-GATHER-UNION): the
+// list of the centres that cover at least one pixel of the tile, in raster
+// order. Every pixel walks the same list, one centre per iteration, and
+// tests its own coverage. A pixel's covering centres are a subset of the
+// list in the same raster order, so its sums take the same terms in the same
+// order as a scan of its window. The list is found by all 64 lanes, each
+// scanning its share of the 26x26 tile of the centre map and appending what
+// it finds (in any order), then put in raster order by counting, for each
+// entry, the entries before it (a list holds a few dozen at most).
 #define TILE (8 + 2 * LP_RADIUS)
-shared vec4 t_s0[TILE * TILE];
-// Per tile row, the columns of its centres that reach the tile (in order),
-// and their number; then the whole list: the centres' tile indices and
-// their index in the state rings.
-shared uint t_rows[TILE * TILE];
-shared uint t_count[TILE];
-shared uint t_list[TILE * TILE];
-shared uint t_ring[TILE * TILE];
+// The tile indices found, in the order found, and their number.
+shared uint t_found[TILE * TILE];
 shared uint t_n;
+// In raster order: per centre its tile index (as a float, exact), r_opt, k
+// and beta0 R (state plane 0 without its centre flag), and its index in the
+// state rings.
+shared vec4 t_c[TILE * TILE];
+shared uint t_ring[TILE * TILE];
 // LP-PIXEL-TEST's inputs over the workgroup's pixels and a 1-pixel halo:
 // per pixel the sum of its three colour variances, and whether it is valid
 // (outside the image: not). Staged once: 4 loads per tile pixel instead of
@@ -117,13 +118,8 @@ void main()
 {
     ivec2 org = ivec2(gl_WorkGroupID.x * 8u, push.row0 + gl_WorkGroupID.y * 8u) - LP_RADIUS;
     uint lid = gl_LocalInvocationIndex;
-    for (uint k = lid; k < uint(TILE * TILE); k += 64u) {
-        ivec2 t = org + ivec2(k % uint(TILE), k / uint(TILE));
-        vec4 s = vec4(0);
-        if (t.x >= 0 && t.y >= 0 && t.x < int(push.width) && t.y < int(push.height)) {
-            s = st0[uint(t.y) * push.width + uint(t.x)];
-        }
-        t_s0[k] = s;
+    if (lid == 0u) {
+        t_n = 0u;
     }
     for (uint k = lid; k < uint(VT * VT); k += 64u) {
         ivec2 t = org + (LP_RADIUS - 1) + ivec2(k % uint(VT), k / uint(VT));
@@ -140,39 +136,30 @@ void main()
         t_vok[k] = ok;
     }
     barrier();
-    // State planes 1..8 are rings of push.ring_rows rows (LpPush::ring_rows).
-    uint ring = push.ring_rows == 0u ? push.height : push.ring_rows;
-    if (lid < uint(TILE)) {
-        // Tile row lid: its centres whose square r_opt reaches the tile.
-        uint m = 0u;
-        int dy = to_tile(int(lid));
-        for (uint col = 0u; col < uint(TILE); ++col) {
-            vec4 s = t_s0[lid * uint(TILE) + col];
-            if (s.x > 0.0 && float(max(dy, to_tile(int(col)))) <= s.y) {
-                t_rows[lid * uint(TILE) + m] = col;
-                ++m;
+    for (uint k = lid; k < uint(TILE * TILE); k += 64u) {
+        ivec2 t = org + ivec2(k % uint(TILE), k / uint(TILE));
+        if (t.x >= 0 && t.y >= 0 && t.x < int(push.width) && t.y < int(push.height)) {
+            vec4 s = st0[uint(t.y) * push.width + uint(t.x)];
+            int d = max(to_tile(int(k % uint(TILE))), to_tile(int(k / uint(TILE))));
+            if (s.x > 0.0 && float(d) <= s.y) {
+                t_found[atomicAdd(t_n, 1u)] = k;
             }
         }
-        t_count[lid] = m;
     }
     barrier();
-    if (lid < uint(TILE)) {
-        // Row lid's place in the list: after the centres of the rows above.
+    // State planes 1..8 are rings of push.ring_rows rows (LpPush::ring_rows).
+    uint ring = push.ring_rows == 0u ? push.height : push.ring_rows;
+    uint n_list = t_n;
+    for (uint e = lid; e < n_list; e += 64u) {
+        uint k = t_found[e];
         uint at = 0u;
-        for (uint r = 0u; r < uint(TILE); ++r) {
-            at += r < lid ? t_count[r] : 0u;
+        for (uint f = 0u; f < n_list; ++f) {
+            at += t_found[f] < k ? 1u : 0u;
         }
-        uint m = t_count[lid];
-        if (lid + 1u == uint(TILE)) {
-            t_n = at + m;
-        }
-        // A row with a centre lies in the image (t_s0 is 0 outside).
-        uint rrow = (uint(org.y + int(lid)) % ring) * push.width;
-        for (uint e = 0u; e < m; ++e) {
-            uint col = t_rows[lid * uint(TILE) + e];
-            t_list[at + e] = lid * uint(TILE) + col;
-            t_ring[at + e] = rrow + uint(org.x + int(col));
-        }
+        ivec2 t = org + ivec2(k % uint(TILE), k / uint(TILE));
+        vec4 s = st0[uint(t.y) * push.width + uint(t.x)];
+        t_c[at] = vec4(float(k), s.yzw);
+        t_ring[at] = (uint(t.y) % ring) * push.width + uint(t.x);
     }
     barrier();
     uint x = gl_GlobalInvocationID.x;
@@ -260,12 +247,11 @@ void main()
         // The tile's list, one centre per iteration (the same number of
         // iterations for every lane: llvmpipe runs a loop's body while any
         // lane is in it), each pixel keeping the centres that cover it.
-        uint n_list = t_n;
         for (uint k = 0u; k < n_list; ++k) {
-            uint t = t_list[k];
+            vec4 s0 = t_c[k];
+            uint t = uint(s0.x);
             int qx = org.x + int(t % uint(TILE));
             int qy = org.y + int(t / uint(TILE));
-            vec4 s0 = t_s0[t];
             if (float(max(abs(qx - p.x), abs(qy - p.y))) > s0.y) {
                 continue;
             }

@@ -560,63 +560,104 @@ fn lp_centres_matches_twin() {
 #[test]
 fn lp_gather_matches_twin() {
     let ctx = gpu();
+    for (sc, what) in [
+        (synthetic(64, 64, 2, 1.0), "synthetic 64²"),
+        (fixture(), "fixture"),
+        (synthetic(37, 23, 4, 1.0), "37x23"),
+        (synthetic(1, 17, 4, 1.0), "1x17"),
+    ] {
+        let (state, reach) = twin_state(&sc, rl::GRANULARITIES.len());
+        check_gather(&ctx, &sc, &state, &reach, what);
+    }
+    check_validation(&ctx);
+}
+
+/// A centre map far denser than LP makes: every pixel a centre, with r_opt
+/// from 0 to 9, so a workgroup's list (LP-GATHER-UNION) holds every pixel of
+/// its 26×26 tile, more entries than its 64 lanes.
+#[test]
+fn lp_gather_matches_twin_on_a_dense_centre_map() {
+    let ctx = gpu();
+    let sc = synthetic(40, 37, 2, 1.0);
+    let (w, n) = (sc.w, sc.w * sc.h);
+    let (mut state, _) = twin_state(&sc, rl::GRANULARITIES.len());
+    let made = (0..n).find(|&q| state[0][4 * q] > 0.0).expect("a centre");
+    for q in 0..n {
+        if state[0][4 * q] > 0.0 {
+            continue;
+        }
+        // A copy of a real centre's fit (its β0, ξ and u), at this pixel.
+        for plane in state.iter_mut() {
+            let from: [f32; 4] = plane[4 * made..4 * made + 4].try_into().unwrap();
+            plane[4 * q..4 * q + 4].copy_from_slice(&from);
+        }
+        state[0][4 * q] = 1.0;
+        state[0][4 * q + 1] = ((q % w) * 7 + (q / w) * 3) as f32 % 10.0;
+    }
+    let mut reach = vec![-1.0f32; n];
+    rr::lp_reach(&reach_all(&sc), &state[0], &mut reach);
+    check_gather(&ctx, &sc, &state, &reach, "dense");
+    check_validation(&ctx);
+}
+
+/// `lp_gather` on the GPU against its twin on the centre state `state`
+/// (`reach`: the reach over every pass, which the twin reads), with and
+/// without LP-PIXEL-TEST, in every precision.
+fn check_gather(
+    ctx: &std::sync::Arc<mcdenoise::gpu::GpuContext>,
+    sc: &Scene,
+    state: &[Vec<f32>],
+    reach: &[f32],
+    what: &str,
+) {
+    let (w, h) = (sc.w, sc.h);
     for prec in precisions() {
-        for (sc, what) in [
-            (synthetic(64, 64, 2, 1.0), "synthetic 64²"),
-            (fixture(), "fixture"),
-            (synthetic(37, 23, 4, 1.0), "37x23"),
-            (synthetic(1, 17, 4, 1.0), "1x17"),
-        ] {
-            let (w, h) = (sc.w, sc.h);
-            let (state, reach) = twin_state(&sc, rl::GRANULARITIES.len());
-            for pixel_test in [LP_PIXEL_TEST, 0] {
-                let options = LP_VARSUB | LP_CENTRE_TEST | pixel_test;
-                let what = format!("{what} (options {options})");
-                let mut cpu = vec![vec![0.0f32; w * h]; rg::OUTPUTS];
-                let cpush = LpPush {
-                    options,
-                    ..push(&sc, 0)
-                };
-                rg::lp_gather(&cpush, &sc.p(), &reach, &state, &mut cpu);
-                let packed_in = sc.packed();
-                let mut inputs = sc.kernel_inputs(&packed_in);
-                for p in &state {
-                    inputs.push(p);
-                }
-                // The outputs packed in one binding, planes w·h apart.
-                let gpush = LpPush {
-                    out_stride: (w * h) as u32,
-                    ..cpush
-                };
-                let (packed, _) = run_planes(
-                    &ctx,
-                    &lp_gather::DECL,
-                    prec,
-                    bytemuck::bytes_of(&gpush),
-                    w,
-                    h,
-                    &inputs,
-                    &[w * h * rg::OUTPUTS],
-                    lp_gather::flops_per_pixel(),
-                )
-                .unwrap();
-                let out: Vec<Vec<f32>> = packed[0].chunks(w * h).map(|c| c.to_vec()).collect();
-                assert_eq!(lp_gather::OUTPUTS.len(), rg::OUTPUTS);
-                for (k, name) in lp_gather::OUTPUTS.iter().enumerate() {
-                    assert_close(&format!("{what} {prec:?} {name}"), &out[k], &cpu[k], 0.99);
-                }
-                if pixel_test == 0 {
-                    assert_eq!(out[9], cpu[9], "{what}: coverage counts");
-                } else {
-                    // LP-PIXEL-TEST compares a prediction with a limit: f32
-                    // and f64 may fall on either side where they are close.
-                    let same = agreement(&out[9], &cpu[9]);
-                    assert!(same >= 0.999, "{what}: coverage counts agree on {same}");
-                }
+        for pixel_test in [LP_PIXEL_TEST, 0] {
+            let options = LP_VARSUB | LP_CENTRE_TEST | pixel_test;
+            let what = format!("{what} (options {options})");
+            let mut cpu = vec![vec![0.0f32; w * h]; rg::OUTPUTS];
+            let cpush = LpPush {
+                options,
+                ..push(sc, 0)
+            };
+            rg::lp_gather(&cpush, &sc.p(), reach, state, &mut cpu);
+            let packed_in = sc.packed();
+            let mut inputs = sc.kernel_inputs(&packed_in);
+            for p in state {
+                inputs.push(p);
+            }
+            // The outputs packed in one binding, planes w·h apart.
+            let gpush = LpPush {
+                out_stride: (w * h) as u32,
+                ..cpush
+            };
+            let (packed, _) = run_planes(
+                ctx,
+                &lp_gather::DECL,
+                prec,
+                bytemuck::bytes_of(&gpush),
+                w,
+                h,
+                &inputs,
+                &[w * h * rg::OUTPUTS],
+                lp_gather::flops_per_pixel(),
+            )
+            .unwrap();
+            let out: Vec<Vec<f32>> = packed[0].chunks(w * h).map(|c| c.to_vec()).collect();
+            assert_eq!(lp_gather::OUTPUTS.len(), rg::OUTPUTS);
+            for (k, name) in lp_gather::OUTPUTS.iter().enumerate() {
+                assert_close(&format!("{what} {prec:?} {name}"), &out[k], &cpu[k], 0.99);
+            }
+            if pixel_test == 0 {
+                assert_eq!(out[9], cpu[9], "{what}: coverage counts");
+            } else {
+                // LP-PIXEL-TEST compares a prediction with a limit: f32
+                // and f64 may fall on either side where they are close.
+                let same = agreement(&out[9], &cpu[9]);
+                assert!(same >= 0.999, "{what}: coverage counts agree on {same}");
             }
         }
     }
-    check_validation(&ctx);
 }
 
 fn run(img: &StatsImage, backend: Backend, prec: Precision) -> mcdenoise::methods::DenoiseOutput {
