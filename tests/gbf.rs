@@ -254,8 +254,11 @@ fn gbf_filter_matches_twin() {
         for prec in precisions() {
             let up = |v: &[f32]| GpuBuffer::from_slice(&ctx, "test.in", v).unwrap();
             let bufs = |v: &[Vec<f32>]| -> Vec<GpuBuffer> { v.iter().map(|p| up(p)).collect() };
-            let (pos, inv, feat, var) = (bufs(&s.pos), bufs(&s.inv), bufs(&s.feat), bufs(&s.var));
-            let (spp, hbar) = (up(&s.spp), up(&hopt));
+            // gbf_pack's inputs as whole vec4s (PACK-QUADS).
+            let quads =
+                |v: &[Vec<f32>]| -> Vec<GpuBuffer> { v.iter().map(|p| up(&padded(p))).collect() };
+            let (pos, inv, feat, var) = (bufs(&s.pos), bufs(&s.inv), quads(&s.feat), quads(&s.var));
+            let (spp, hbar) = (up(&padded(&s.spp)), up(&hopt));
             let packed: Vec<GpuBuffer> = (0..4).map(|_| up(&vec![0.0; 4 * w * h])).collect();
             let out: Vec<GpuBuffer> = (0..14).map(|_| up(&vec![0.0; w * h])).collect();
             let mut batch = Batch::new(&ctx).unwrap();
@@ -308,6 +311,93 @@ fn gbf_filter_matches_twin() {
                     0.99,
                 );
             }
+        }
+    }
+    check_validation(&ctx);
+}
+
+/// `v` followed by NaNs up to a multiple of 4 values: a plane bound as
+/// whole vec4s, whose values past the plane must not be packed.
+fn padded(v: &[f32]) -> Vec<f32> {
+    let mut p = v.to_vec();
+    p.resize(v.len().div_ceil(4) * 4, f32::NAN);
+    p
+}
+
+/// PACK-QUADS: gbf_pack reads four pixels per invocation, across row ends
+/// when the width is not a multiple of 4, and in chunks of rows: the packed
+/// planes are the twin's exactly, nothing is written past a chunk, and a
+/// plane not bound as whole vec4s is an error, not a read past its range.
+#[test]
+fn gbf_pack_matches_twin_in_chunks_and_partial_quads() {
+    let ctx = gpu();
+    for &(w, h) in &[(37usize, 41usize), (5, 35), (64, 33), (1, 17), (3, 1)] {
+        let s = synthetic(w, h, 11 + w as u64, 0.1);
+        let n = w * h;
+        let up = |v: &[f32]| GpuBuffer::from_slice(&ctx, "test.in", v).unwrap();
+        let quads =
+            |v: &[Vec<f32>]| -> Vec<GpuBuffer> { v.iter().map(|p| up(&padded(p))).collect() };
+        let (feat, var, spp) = (quads(&s.feat), quads(&s.var), up(&padded(&s.spp)));
+        let twin = rk::gbf_pack(
+            std::array::from_fn(|j| s.feat[j].as_slice()),
+            std::array::from_fn(|j| s.var[j].as_slice()),
+            &s.spp,
+        );
+        for chunk in [16u32, 32, h as u32] {
+            // Each chunk into its own ranges, which start at its first row;
+            // a sentinel after them must stay.
+            let mut batch = Batch::new(&ctx).unwrap();
+            let mut outs = vec![];
+            for r0 in (0..h as u32).step_by(chunk as usize) {
+                let r1 = (r0 + chunk).min(h as u32);
+                let len = 4 * (r1 - r0) as usize * w;
+                let packed: Vec<GpuBuffer> = (0..4).map(|_| up(&vec![-7.0; len + 4])).collect();
+                let sl = |v: &[GpuBuffer], k: usize| v[k].slice();
+                gbf_pack::record(
+                    &mut batch,
+                    mcdenoise::gpu::Precision::F32,
+                    w as u32,
+                    h as u32,
+                    (r0, r1),
+                    std::array::from_fn(|k| sl(&feat, k)),
+                    std::array::from_fn(|k| sl(&var, k)),
+                    spp.slice(),
+                    std::array::from_fn(|k| packed[k].slice().sub(0, 4 * len as u64).unwrap()),
+                )
+                .unwrap();
+                outs.push((r0 as usize, len, packed));
+            }
+            batch.finish().unwrap();
+            for (r0, len, packed) in outs {
+                for (k, p) in packed.iter().enumerate() {
+                    let got = p.read_vec::<f32>(len + 4).unwrap();
+                    let want = &twin[k][4 * r0 * w..4 * r0 * w + len];
+                    let same = got[..len]
+                        .iter()
+                        .zip(want)
+                        .all(|(a, b)| a.to_bits() == b.to_bits());
+                    assert!(same, "{w}x{h}, chunks of {chunk}, rows from {r0}: pack {k}");
+                    assert_eq!(&got[len..], &[-7.0; 4], "{w}x{h}: written past the chunk");
+                }
+            }
+        }
+        // Planes bound at their exact size, when that is not whole vec4s.
+        if n % 4 != 0 {
+            let exact: Vec<GpuBuffer> = s.feat.iter().map(|p| up(p)).collect();
+            let packed: Vec<GpuBuffer> = (0..4).map(|_| up(&vec![0.0; 4 * n])).collect();
+            let mut batch = Batch::new(&ctx).unwrap();
+            let err = gbf_pack::record(
+                &mut batch,
+                mcdenoise::gpu::Precision::F32,
+                w as u32,
+                h as u32,
+                (0, h as u32),
+                std::array::from_fn(|k| exact[k].slice()),
+                std::array::from_fn(|k| var[k].slice()),
+                spp.slice(),
+                std::array::from_fn(|k| packed[k].slice()),
+            );
+            assert!(err.is_err(), "{w}x{h}: unpadded planes accepted");
         }
     }
     check_validation(&ctx);

@@ -636,6 +636,15 @@ impl PlaneSet {
             .range(self.offset(i), (self.pixels as u64 * 4).max(4))
     }
 
+    /// Plane `i` as a binding of whole vec4s: its range rounded up to a
+    /// multiple of 16 bytes (inside its stride), for a kernel that reads it
+    /// four values at a time (`gbf_pack`); the values past `pixels` are not
+    /// the plane's.
+    pub fn plane_quads(&self, i: usize) -> BufferSlice {
+        let p = self.plane(i);
+        self.buffer.range(p.offset, p.size.div_ceil(16) * 16)
+    }
+
     /// Writes plane `i` from `data`: `pixels` values of a 4-byte type (f32, u32).
     /// Blocking; the GPU must not be using the buffer. Panics on a wrong length.
     pub fn upload_plane<T: bytemuck::Pod>(&self, i: usize, data: &[T]) -> Result<()> {

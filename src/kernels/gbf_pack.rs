@@ -2,7 +2,7 @@
 //! filters (normal x y z, depth, albedo r g b) and their variances into four
 //! vec4 planes for [`super::gbf_filter`]. Twin: [`crate::reference::gbf_pack`].
 
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::gpu::reflect::{read, write};
 use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};
 use crate::shared::GbfPush;
@@ -34,17 +34,19 @@ pub const DECL: KernelDecl = KernelDecl {
     push_size: std::mem::size_of::<GbfPush>() as u32,
 };
 
-/// Per pixel: no arithmetic, 14 loads and 16 stores (counted as 1 so the
-/// band estimate stays positive).
+/// Per pixel: no arithmetic, 15/4 vec4 loads and 4 vec4 stores (counted
+/// as 1 so the band estimate stays positive).
 pub fn flops_per_pixel() -> f64 {
     1.0
 }
 
 /// Records the packing of the image rows `rows` (`[first, end)`, `first` a
-/// multiple of 8) of `feat` and `var` (7 full planes each) and the sample
+/// multiple of 16) of `feat` and `var` (7 full planes each) and the sample
 /// counts `spp` into `packed` (4 vec4 ranges of `(end − first) × width × 16`
 /// bytes, starting at row `first`: features 0–3, features 4–6 and spp
-/// (PACKED-SPP), variances 0–3, variances 4–6 and 0).
+/// (PACKED-SPP), variances 0–3, variances 4–6 and 0). PACK-QUADS: the
+/// inputs are read as vec4s, so each must be bound as whole vec4s up to
+/// pixel `end × width` (`PlaneSet::plane_quads`); an error otherwise.
 #[allow(clippy::too_many_arguments)]
 pub fn record(
     batch: &mut Batch,
@@ -57,20 +59,46 @@ pub fn record(
     spp: BufferSlice,
     packed: [BufferSlice; 4],
 ) -> Result<()> {
+    let (first, end) = (rows.0, rows.1.min(height));
+    if first % 16 != 0 {
+        return Err(Error::InvalidArgument(format!(
+            "gbf_pack: first row {first} is not a multiple of 16"
+        )));
+    }
+    let need = (end as u64 * width as u64 * 4).div_ceil(16) * 16;
+    if let Some(k) = feat
+        .iter()
+        .chain(&var)
+        .chain([&spp])
+        .position(|b| b.size() < need)
+    {
+        return Err(Error::InvalidArgument(format!(
+            "gbf_pack: input {k} is bound as {} bytes; it is read as whole vec4s up to byte {need} (PlaneSet::plane_quads)",
+            [&feat[..], &var, &[spp]].concat()[k].size()
+        )));
+    }
+    // Push `height`: the end of the rows packed (see the shader).
     let push = GbfPush {
         width,
-        height,
-        base: rows.0,
+        height: end,
+        base: first,
         ..Default::default()
     };
     let b: Vec<BufferSlice> = [&feat[..], &var, &[spp], &packed].concat();
+    // Grid rows of ceil(width / 4) quads over the run of pixels of `rows`.
+    let w4 = width.div_ceil(4);
+    let quad_rows = |n: u32| {
+        (n as u64 * width as u64)
+            .div_ceil(4)
+            .div_ceil(w4.max(1) as u64) as u32
+    };
     batch.dispatch_rows(
         &DECL,
         precision,
         &b,
         bytemuck::bytes_of(&push),
-        width,
-        (rows, rows.1 - rows.0),
-        flops_per_pixel(),
+        w4,
+        ((first, first + quad_rows(end - first)), quad_rows(height)),
+        flops_per_pixel() * 4.0,
     )
 }

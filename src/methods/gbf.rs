@@ -202,6 +202,7 @@ pub fn record_gbf_chunked(
         .map(|r0| (r0, (r0 + chunk).min(h)))
         .collect();
     for &rows in &chunks {
+        let spp = clean.plane_quads(Layer::Spp, 0);
         gbf_pack::record(batch, precision, w, h, rows, feat, var, spp, packed(rows)?)?;
     }
     let out: [BufferSlice; 14] = std::array::from_fn(|k| if k < 7 { feat[k] } else { var[k - 7] });

@@ -292,7 +292,7 @@ pub fn record_lp(
         (0, height),
         feat,
         var,
-        inp.spp,
+        clean.plane_quads(Layer::Spp, 0),
         inp.packed,
     )?;
     let state = planes.state();

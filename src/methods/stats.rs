@@ -129,6 +129,16 @@ impl GpuStats {
         assert!(component < layer.channels().len());
         self.planes.plane(first + component)
     }
+
+    /// [`plane`](Self::plane) as a binding of whole vec4s
+    /// ([`PlaneSet::plane_quads`]).
+    pub fn plane_quads(&self, layer: Layer, component: usize) -> BufferSlice {
+        let first = self
+            .first_plane(layer)
+            .unwrap_or_else(|| panic!("layer {} not on the GPU", layer.name()));
+        assert!(component < layer.channels().len());
+        self.planes.plane_quads(first + component)
+    }
 }
 
 /// The layers a finalize of `layout` produces.

@@ -219,12 +219,13 @@ pub(crate) const FEATURE_PLANES: [(Layer, usize); 7] = [
 ];
 
 /// The planes of [`FEATURE_PLANES`] and their variances, from sanitised
-/// statistics.
+/// statistics, bound as whole vec4s ([`GpuStats::plane_quads`]), as
+/// `gbf_pack` reads them.
 pub(crate) fn features(s: &GpuStats) -> ([BufferSlice; 7], [BufferSlice; 7]) {
     let order = FEATURE_PLANES;
     (
-        std::array::from_fn(|k| s.plane(order[k].0, order[k].1)),
-        std::array::from_fn(|k| s.plane(order[k].0.variance().unwrap(), order[k].1)),
+        std::array::from_fn(|k| s.plane_quads(order[k].0, order[k].1)),
+        std::array::from_fn(|k| s.plane_quads(order[k].0.variance().unwrap(), order[k].1)),
     )
 }
 
@@ -261,7 +262,8 @@ pub fn record_wlr(
     let out: [BufferSlice; 5] = std::array::from_fn(|k| p(OUT0 + k));
     let scratch = [q(SMOOTH), q(SMOOTH + 1)];
     let packed: [BufferSlice; 4] = std::array::from_fn(|k| planes.packed.plane(k));
-    gbf_pack::record(batch, precision, w, h, (0, h), feat, var, spp, packed)?;
+    let spp_quads = clean.plane_quads(Layer::Spp, 0);
+    gbf_pack::record(batch, precision, w, h, (0, h), feat, var, spp_quads, packed)?;
     let ring = (planes.state.plane(0), planes.ring_rows);
     let wr = (params.radius, params.options);
     let size = (w, h);
