@@ -5,7 +5,7 @@
 // some row y' has reach(x_i, y') >= |y_i - y'|. Only the columns of the
 // candidate grid of push.granularity (x = phase_x mod g) are written: the
 // only ones lp_select reads (1/19 of the row before the second pass; all
-// of it for the gather, g = 1). One row per workgroup row, so a dispatch
+// of it for the last, g = 1). One row per workgroup row, so a dispatch
 // covers any range of rows (the wavefront of methods::lp); the plane is a
 // ring of push.ring_rows rows (LpPush::ring_rows).
 // Scalar twin: src/reference/lp_reach.rs.

@@ -203,7 +203,7 @@ pub struct LpPush {
     /// coordinates; see [`LpPush::phase_for`]).
     pub phase: u32,
     /// Rows of the ring that holds the state planes 1..8 and the `lp_reach`
-    /// plane: pixel row `y` lives at ring row `y mod ring_rows` (state plane
+    /// planes: pixel row `y` lives at ring row `y mod ring_rows` (state plane
     /// 0, the centre map, is whole). 0 = the image's height (no ring).
     /// `record_lp` runs the passes as a wavefront over the rows, so a row's
     /// state is dead `ring_rows` rows after it was made

@@ -1,7 +1,10 @@
 //! Scalar twin of `spirv/lp_gather.comp`: LP's output (spec §3.5). Every
 //! pixel averages the predictions of the centres that cover it, gathered in
 //! raster order over its 19×19 neighbourhood, and forms its error estimate
-//! (LP-FEATNOISE) and local dimension from them.
+//! (LP-FEATNOISE) and local dimension from them. The twin skips the window
+//! rows that the `lp_reach` plane says hold no covering centre; the kernel
+//! walks a list of its 8×8 tile's centres instead (LP-GATHER-UNION): the
+//! same centres in the same order, so the same sums.
 
 use super::lp::{state_value, Planes, StateLayout as S, RADIUS};
 use super::wlr::D;

@@ -6,8 +6,10 @@
 //! (PASS-SNAPSHOT), `i` is covered by one of them iff some row `y'` has
 //! `reach(x_i, y') >= |y_i − y'|`: the centre attaining the maximum reaches
 //! `x_i` horizontally and, having the largest radius, vertically too. The
-//! centre kernel and the gather then read 19 values of this plane instead of
-//! the 361 of the centre map.
+//! centre kernel's coverage test then reads 19 values of this plane instead
+//! of the 361 of the centre map (the GPU gather reads none: it lists its
+//! tile's centres itself, LP-GATHER-UNION; this twin's gather still skips
+//! rows by it).
 
 use super::lp::RADIUS;
 use crate::shared::LpPush;
