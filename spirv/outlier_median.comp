@@ -4,9 +4,10 @@
 // the replacement planes; the OUTLIER_APPLY mode below puts them into the
 // statistics), q* the pixel of median grey in Ω_o(R) with o (lower median
 // of an even count, lowest raster index among equal greys:
-// OUTLIER-MEDIAN), found by an 8-step radix selection (4-bit digits) on the
-// order-preserving bits of grey from outlier_grey (0: invalid; no local
-// array); e = y_o - y_q* per channel. Every read is of the original planes, so the
+// OUTLIER-MEDIAN), found by a radix selection of at most 8 steps (4-bit
+// digits, stopping once one key carries the digits chosen: MEDIAN-EARLY)
+// on the order-preserving bits of grey from outlier_grey (0: invalid; no
+// local array); e = y_o - y_q* per channel. Every read is of the original planes, so the
 // entries are independent and the queue's order does not matter.
 // Dispatched indirectly, one invocation per entry (striding past 65535
 // workgroups).
@@ -40,8 +41,8 @@ PLANE_OUT(15, eg)
 PLANE_OUT(16, eb)
 
 // Moves rank k past the counts of c (digits base..base+3) until it falls
-// inside one: that digit.
-void walk(uvec4 c, uint base, inout uint k, inout uint digit, inout bool found)
+// inside one: that digit, and the number of keys in it.
+void walk(uvec4 c, uint base, inout uint k, inout uint digit, inout uint in_digit, inout bool found)
 {
     for (int t = 0; t < 4; ++t) {
         if (!found) {
@@ -49,6 +50,7 @@ void walk(uvec4 c, uint base, inout uint k, inout uint digit, inout bool found)
                 k -= c[t];
             } else {
                 digit = base + uint(t);
+                in_digit = c[t];
                 found = true;
             }
         }
@@ -62,21 +64,22 @@ void replace(uint o)
     int r = int(push.radius);
     int x0 = max(x - r, 0), x1 = min(x + r, int(push.width) - 1);
     int y0 = max(y - r, 0), y1 = min(y + r, int(push.height) - 1);
-    // Rank of the median among the valid pixels of the window, o included.
-    uint n = 0u;
-    for (int qy = y0; qy <= y1; ++qy) {
-        for (int qx = x0; qx <= x1; ++qx) {
-            n += keys[uint(qy) * push.width + uint(qx)] != 0u ? 1u : 0u;
-        }
-    }
-    uint k = (n - 1u) / 2u;
+    // k: the rank of the median among the valid pixels of the window, o
+    // included, from the first digit's counts (every valid key).
+    uint k = 0u;
     // Eight 4-bit digits, most significant first: per digit one scan counts
     // the keys under the prefix by digit value (16 counters as four uvec4,
     // constant-indexed), and the digit is where rank k falls. A quarter of
     // the scans (and loads) of a bit-by-bit selection, the same result.
+    // MEDIAN-EARLY: once a single key carries the digits chosen so far, it
+    // is the median; the remaining digits' scans are skipped (a SIMD vector
+    // stops when all its lanes have), and the last scan finds the first
+    // pixel whose key carries them (the same pixel: the key is unique).
     uint prefix = 0u;
-    for (int shift = 28; shift >= 0; shift -= 4) {
-        uint hi = shift == 28 ? 0u : (0xFFFFFFFFu << uint(shift + 4));
+    uint mask = 0u;  // the bits of the digits chosen so far
+    bool unique = false;
+    for (int shift = 28; shift >= 0 && !unique; shift -= 4) {
+        uint hi = mask;
         uvec4 c0 = uvec4(0), c1 = uvec4(0), c2 = uvec4(0), c3 = uvec4(0);
         for (int qy = y0; qy <= y1; ++qy) {
             for (int qx = x0; qx <= x1; ++qx) {
@@ -92,13 +95,20 @@ void replace(uint o)
                 }
             }
         }
+        if (shift == 28) {
+            uvec4 all4 = c0 + c1 + c2 + c3;
+            k = (all4.x + all4.y + all4.z + all4.w - 1u) / 2u;
+        }
         uint digit = 15u;
+        uint in_digit = 0u;
         bool found = false;
-        walk(c0, 0u, k, digit, found);
-        walk(c1, 4u, k, digit, found);
-        walk(c2, 8u, k, digit, found);
-        walk(c3, 12u, k, digit, found);
+        walk(c0, 0u, k, digit, in_digit, found);
+        walk(c1, 4u, k, digit, in_digit, found);
+        walk(c2, 8u, k, digit, in_digit, found);
+        walk(c3, 12u, k, digit, in_digit, found);
         prefix |= digit << uint(shift);
+        mask |= 15u << uint(shift);
+        unique = in_digit == 1u;
     }
     // The lowest raster index holding the median key.
     uint q = o;
@@ -106,7 +116,8 @@ void replace(uint o)
     for (int qy = y0; qy <= y1 && !found; ++qy) {
         for (int qx = x0; qx <= x1 && !found; ++qx) {
             uint j = uint(qy) * push.width + uint(qx);
-            if (keys[j] == prefix) {
+            uint kj = keys[j];
+            if (kj != 0u && (kj & mask) == prefix) {
                 q = j;
                 found = true;
             }

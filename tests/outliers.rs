@@ -309,6 +309,18 @@ fn kernels_match_twins() {
                 .collect();
             queued.sort_unstable();
             assert_eq!(queued, list, "{}", what("queue"));
+            // Each spike's median pixel q* is the twin's: the colour and
+            // variance copied from it are the twin's bit for bit.
+            for k in 0..6 {
+                for &o in &list {
+                    assert_eq!(
+                        g[k][o].to_bits(),
+                        out[k][o].to_bits(),
+                        "{}: plane {k} at spike {o}",
+                        what("outlier_median's median pixel")
+                    );
+                }
+            }
             assert_eq!(
                 queue[..3],
                 [list.len().div_ceil(64) as u32, 1, 1],
