@@ -123,21 +123,23 @@ impl GpuStats {
 
     /// Plane `component` of `layer` as a binding. Panics if absent.
     pub fn plane(&self, layer: Layer, component: usize) -> BufferSlice {
-        let first = self
-            .first_plane(layer)
-            .unwrap_or_else(|| panic!("layer {} not on the GPU", layer.name()));
-        assert!(component < layer.channels().len());
-        self.planes.plane(first + component)
+        self.planes.plane(self.plane_index(layer, component))
     }
 
     /// [`plane`](Self::plane) as a binding of whole vec4s
     /// ([`PlaneSet::plane_quads`]).
     pub fn plane_quads(&self, layer: Layer, component: usize) -> BufferSlice {
+        self.planes.plane_quads(self.plane_index(layer, component))
+    }
+
+    /// The index in [`planes`](Self::planes) of plane `component` of
+    /// `layer`. Panics if absent.
+    fn plane_index(&self, layer: Layer, component: usize) -> usize {
         let first = self
             .first_plane(layer)
             .unwrap_or_else(|| panic!("layer {} not on the GPU", layer.name()));
         assert!(component < layer.channels().len());
-        self.planes.plane_quads(first + component)
+        first + component
     }
 }
 
