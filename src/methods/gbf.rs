@@ -201,9 +201,21 @@ pub fn record_gbf_chunked(
         .step_by(chunk as usize)
         .map(|r0| (r0, (r0 + chunk).min(h)))
         .collect();
+    // gbf_pack reads its inputs as whole vec4s (PACK-QUADS; `feat` and
+    // `var` are bound so by wlr::features).
+    let spp_quads = clean.plane_quads(Layer::Spp, 0);
     for &rows in &chunks {
-        let spp = clean.plane_quads(Layer::Spp, 0);
-        gbf_pack::record(batch, precision, w, h, rows, feat, var, spp, packed(rows)?)?;
+        gbf_pack::record(
+            batch,
+            precision,
+            w,
+            h,
+            rows,
+            feat,
+            var,
+            spp_quads,
+            packed(rows)?,
+        )?;
     }
     let out: [BufferSlice; 14] = std::array::from_fn(|k| if k < 7 { feat[k] } else { var[k - 7] });
     for &(r0, r1) in &chunks {
