@@ -11,6 +11,7 @@
 use crate::error::Result;
 use crate::gpu::reflect::{read, write};
 use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision, QUEUE_HEADER_WORDS};
+use crate::reference::apr::RADIUS;
 use crate::reference::apr_block::{grid, P};
 use crate::shared::AprPush;
 
@@ -96,11 +97,15 @@ pub fn flops_per_block() -> f64 {
 }
 
 /// Mean over the centres `0, step, 2·step, …` of a row of `len` pixels of
-/// the extent of their windows `[c − 14, c + 14]` clipped to the row.
+/// the extent of their windows `[c − R, c + R]` ([`RADIUS`]) clipped to the
+/// row.
 fn mean_extent(len: u32, step: usize) -> f64 {
     let n = len as usize;
     let centres = (0..n).step_by(step);
-    let sum: usize = centres.clone().map(|c| super::clipped_span(c, 14, n)).sum();
+    let sum: usize = centres
+        .clone()
+        .map(|c| super::clipped_span(c, RADIUS, n))
+        .sum();
     sum as f64 / centres.count().max(1) as f64
 }
 
@@ -140,7 +145,7 @@ pub fn record(
         // The blocks' typical work (their windows clipped to the image,
         // SPARSE_ACCEPTED of them accepted), spread over the grid's
         // invocations (the last row's idle lanes charged nothing).
-        let window = mean_extent(push.width, 14) * mean_extent(push.height, 14);
+        let window = mean_extent(push.width, RADIUS) * mean_extent(push.height, RADIUS);
         let block = flops_of_block(window, SPARSE_ACCEPTED * window);
         let per_lane = block * (gw * gh) as f64 / (8.0 * rows.max(1) as f64);
         return batch.dispatch(&DECL, precision, &b, push_bytes, 8, rows, per_lane);

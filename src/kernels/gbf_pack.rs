@@ -65,16 +65,13 @@ pub fn record(
             "gbf_pack: first row {first} is not a multiple of 16"
         )));
     }
+    // The 15 inputs, then the 4 packed outputs.
+    let b: Vec<BufferSlice> = [&feat[..], &var, &[spp], &packed].concat();
     let need = (end as u64 * width as u64 * 4).div_ceil(16) * 16;
-    if let Some(k) = feat
-        .iter()
-        .chain(&var)
-        .chain([&spp])
-        .position(|b| b.size() < need)
-    {
+    if let Some((k, short)) = b[..15].iter().enumerate().find(|(_, s)| s.size() < need) {
         return Err(Error::InvalidArgument(format!(
             "gbf_pack: input {k} is bound as {} bytes; it is read as whole vec4s up to byte {need} (PlaneSet::plane_quads)",
-            [&feat[..], &var, &[spp]].concat()[k].size()
+            short.size()
         )));
     }
     // Push `height`: the end of the rows packed (see the shader).
@@ -84,7 +81,6 @@ pub fn record(
         base: first,
         ..Default::default()
     };
-    let b: Vec<BufferSlice> = [&feat[..], &var, &[spp], &packed].concat();
     // Grid rows of ceil(width / 4) quads over the run of pixels of `rows`.
     let w4 = width.div_ceil(4);
     let quad_rows = |n: u32| {
