@@ -390,13 +390,6 @@ impl Denoiser {
     /// A denoiser running the scalar f64 references on the CPU (slow; for
     /// checking). Only [`denoise`](Self::denoise) works on it.
     pub fn new_cpu(source: Source, config: Config) -> Result<Denoiser> {
-        if !config.method.available() {
-            return Err(Error::InvalidArgument(format!(
-                "method {} is not in this build yet; available: {}",
-                config.method.name(),
-                methods::available_names()
-            )));
-        }
         if let Source::Stats { layers, .. } = &source {
             methods::chain::check_layers(config.method, layers)?;
         }

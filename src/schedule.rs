@@ -56,15 +56,12 @@ impl Schedule {
         })
     }
 
-    /// The spec's schedule for `method`: `s_0` = 4, `N_pass` = 5 (WLR, LP,
-    /// APR; PASSES decision), 3 (AOS), and 5 for `none` (its map follows the
-    /// input variance).
+    /// The spec's schedule for `method`: `s_0` = 4 and the method's
+    /// `N_pass` ([`crate::MethodInfo::passes`]: 5 for WLR, LP and APR, the
+    /// PASSES decision; 3 for AOS; 5 for `none`, whose map follows the input
+    /// variance).
     pub fn for_method(method: Method, total_spp: u32, pixels: usize) -> Result<Schedule> {
-        let passes = match method {
-            Method::Aos => 3,
-            _ => 5,
-        };
-        Schedule::new(total_spp, pixels, INITIAL_SPP, passes)
+        Schedule::new(total_spp, pixels, INITIAL_SPP, method.info().passes)
     }
 
     /// Total samples of the whole render.

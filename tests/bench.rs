@@ -448,32 +448,6 @@ fn quality_rows_match_metrics_and_bad_files_are_skipped() {
     let _ = std::fs::remove_dir_all(&root);
 }
 
-#[test]
-fn methods_not_built_are_noted_once_and_skipped() {
-    let Some(missing) = bench::ALL_METHODS.into_iter().find(|m| !m.available()) else {
-        return; // every method is built: nothing to skip
-    };
-    let root = tmpdir("unavailable");
-    fixture_scene(&root, "tiny", true);
-    let report = bench::run_quality(
-        None,
-        &QualityConfig {
-            dir: root.clone(),
-            methods: vec![Method::None, missing, missing],
-            backends: vec![Backend::Cpu],
-            filter: None,
-            stages: Default::default(),
-        },
-        &mut ignore,
-    )
-    .unwrap();
-    assert_eq!(report.unavailable, vec![missing]);
-    assert_eq!(report.warnings.len(), 1, "{:?}", report.warnings);
-    assert!(report.warnings[0].contains(missing.name()));
-    assert_eq!(report.rows.len(), 2);
-    let _ = std::fs::remove_dir_all(&root);
-}
-
 /// A 256x256 reference and an output with spatially varying noise.
 fn noisy_pair(rng: &mut Rng) -> (RgbImage, RgbImage) {
     let (w, h) = (256, 256);

@@ -1,8 +1,8 @@
 //! The benchmarks behind `mcdenoise bench`: a **quality** benchmark over a
 //! folder of scenes with references, and a **timing** benchmark of whole
 //! denoise calls. Both run every method through the [`Denoiser`] facade, the
-//! same entry point as the CLI, so a method shows up here as soon as
-//! [`Method::available`] says it is built.
+//! same entry point as the CLI, so a method shows up here as soon as it is
+//! in the registry ([`crate::methods::REGISTRY`]).
 //!
 //! # Cases and filters
 //! Every measurement is a *case* with a dotted name:
@@ -80,21 +80,9 @@ use crate::io;
 use crate::methods::{Backend, Method};
 use crate::{Config, Denoiser, Source};
 
-/// Every method of the spec, in the order the benchmarks run them.
-pub const ALL_METHODS: [Method; 5] = [
-    Method::None,
-    Method::Wlr,
-    Method::Lp,
-    Method::Apr,
-    Method::Aos,
-];
-
-/// The method called `name` ([`Method::name`]: `none`, `wlr`, `lp`, `apr`,
-/// `aos`; case-insensitive).
+/// The method called `name` ([`Method::from_name`]).
 pub fn method_from_name(name: &str) -> Option<Method> {
-    ALL_METHODS
-        .into_iter()
-        .find(|m| m.name().eq_ignore_ascii_case(name.trim()))
+    Method::from_name(name)
 }
 
 /// `"gpu"` or `"cpu"`: the backend column of the tables.
@@ -139,15 +127,15 @@ pub fn parse_size(s: &str) -> Result<(usize, usize)> {
 pub enum Note<'a> {
     /// Which case runs now (quiet runs drop these).
     Progress(&'a str),
-    /// A case was skipped or a method is not built; also kept in the report.
+    /// A case was skipped; also kept in the report.
     Warning(&'a str),
 }
 
-/// The methods to run: `requested` deduplicated in order (all of
-/// [`ALL_METHODS`] when empty), split into (available, not built).
-fn select_methods(requested: &[Method]) -> (Vec<Method>, Vec<Method>) {
-    let wanted: Vec<Method> = if requested.is_empty() {
-        ALL_METHODS.to_vec()
+/// The methods to run: `requested` deduplicated in order (every method,
+/// [`Method::all`], when empty).
+fn select_methods(requested: &[Method]) -> Vec<Method> {
+    if requested.is_empty() {
+        Method::all().collect()
     } else {
         let mut v = Vec::new();
         for &m in requested {
@@ -156,11 +144,7 @@ fn select_methods(requested: &[Method]) -> (Vec<Method>, Vec<Method>) {
             }
         }
         v
-    };
-    let explicit = !requested.is_empty();
-    let (ok, missing): (Vec<Method>, Vec<Method>) = wanted.into_iter().partition(|m| m.available());
-    // With the default list, methods that are not built are simply not run.
-    (ok, if explicit { missing } else { Vec::new() })
+    }
 }
 
 fn dedup_backends(b: &[Backend]) -> Vec<Backend> {

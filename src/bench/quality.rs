@@ -261,8 +261,6 @@ pub struct QualityReport {
     pub device: Option<String>,
     /// Table rows, by scene, spp, then input first and methods in order.
     pub rows: Vec<QualityRow>,
-    /// Requested methods that are not in this build (skipped).
-    pub unavailable: Vec<Method>,
     /// Skipped cases: each message names the case or scene and the file.
     pub warnings: Vec<String>,
     /// The optional stages and `--opt` options of every case
@@ -287,14 +285,13 @@ pub fn run_quality(
     let backends = dedup_backends(&cfg.backends);
     check_context(ctx, &backends)?;
     let scenes = discover_scenes(&cfg.dir)?;
-    let (methods, unavailable) = select_methods(&cfg.methods);
+    let methods = select_methods(&cfg.methods);
     let mut report = QualityReport {
         dir: cfg.dir.clone(),
         device: backends
             .contains(&Backend::Gpu)
             .then(|| ctx.map(|c| c.info().name.clone()))
             .flatten(),
-        unavailable: unavailable.clone(),
         settings: cfg.stages.describe(),
         ..Default::default()
     };
@@ -302,13 +299,6 @@ pub fn run_quality(
         note(Note::Warning(&msg));
         report.warnings.push(msg);
     };
-    for m in &unavailable {
-        warn(
-            &mut report,
-            note,
-            format!("method {} is not in this build: skipped", m.name()),
-        );
-    }
     let filter = cfg.filter.as_deref();
     // GPU method × backend pairs already warmed up (pipelines built).
     let mut warmed: BTreeSet<(&'static str, &'static str)> = BTreeSet::new();

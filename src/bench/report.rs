@@ -144,8 +144,7 @@ impl QualityReport {
     }
 
     /// The report as JSON: `{"kind": "quality", "dir", "device", "rows": [...],
-    /// "summary": [...], "vs_wlr": [...], "unavailable_methods": [...],
-    /// "warnings": [...]}`.
+    /// "summary": [...], "vs_wlr": [...], "warnings": [...]}`.
     /// Each row has `case scene spp method backend rmse relmse psnr ssim
     /// wall_s gpu_ms err_corr naive_corr gpu_ms_per_mp centres` (`null` where absent or
     /// non-finite); numbers at full precision. Pretty-printed by `serde_json`,
@@ -202,7 +201,6 @@ impl QualityReport {
                     speedup: c.speedup,
                 })
                 .collect(),
-            unavailable_methods: self.unavailable.iter().map(|m| m.name()).collect(),
             warnings: &self.warnings,
         })
     }
@@ -322,7 +320,7 @@ impl TimingReport {
     }
 
     /// The report as JSON: `{"kind": "timing", "device", "inputs", "source",
-    /// "runs", "peak", "rows": [...], "unavailable_methods", "warnings"}`;
+    /// "runs", "peak", "rows": [...], "warnings"}`;
     /// `peak` is `{runs, fma_f32, fma_f64, copy}` with `{min, median, max}`
     /// each (GFLOP/s, GB/s) or `null`; each row has `case method backend
     /// width height wall_ms median_wall_ms ms_per_megapixel gpu_ms device_mb
@@ -367,7 +365,6 @@ impl TimingReport {
                         .collect(),
                 })
                 .collect(),
-            unavailable_methods: self.unavailable.iter().map(|m| m.name()).collect(),
             warnings: &self.warnings,
         })
     }
@@ -466,7 +463,6 @@ struct QualityJson<'a> {
     rows: Vec<QualityRowJson<'a>>,
     summary: Vec<QualitySummaryJson<'a>>,
     vs_wlr: Vec<VsWlrJson<'a>>,
-    unavailable_methods: Vec<&'static str>,
     warnings: &'a [String],
 }
 
@@ -524,7 +520,6 @@ struct TimingJson<'a> {
     runs: usize,
     peak: Option<&'a super::Peak>,
     rows: Vec<TimingRowJson<'a>>,
-    unavailable_methods: Vec<&'static str>,
     warnings: &'a [String],
 }
 
@@ -589,7 +584,6 @@ mod tests {
         let report = QualityReport {
             dir: "scenes".into(),
             rows: vec![input],
-            unavailable: vec![crate::methods::Method::Aos],
             warnings: vec!["q\"\\\n\u{1}".into()],
             ..Default::default()
         };
@@ -620,7 +614,6 @@ mod tests {
                     "centres",
                     "summary",
                     "vs_wlr",
-                    "unavailable_methods",
                     "warnings",
                 ]
             ),
@@ -638,7 +631,6 @@ mod tests {
         assert_eq!(r["wall_s"], serde_json::Value::Null);
         assert_eq!(r["rmse"], 0.2);
         assert_eq!(r["spp"], 4);
-        assert_eq!(j["unavailable_methods"], serde_json::json!(["aos"]));
         assert_eq!(j["warnings"][0], "q\"\\\n\u{1}");
     }
 
@@ -698,7 +690,6 @@ mod tests {
                     "dispatches",
                     "gflops",
                     "gbs",
-                    "unavailable_methods",
                     "warnings",
                 ]
             ),

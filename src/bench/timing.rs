@@ -113,8 +113,6 @@ pub struct TimingReport {
     pub runs: usize,
     /// One row per case × backend that ran, methods in order.
     pub rows: Vec<TimingRow>,
-    /// Requested methods that are not in this build (skipped).
-    pub unavailable: Vec<Method>,
     /// Cases whose calls failed (skipped).
     pub warnings: Vec<String>,
     /// The optional stages and `--opt` options of every case
@@ -170,7 +168,7 @@ pub fn run_timing(
     }
     let backends = dedup_backends(&cfg.backends);
     check_context(ctx, &backends)?;
-    let (methods, unavailable) = select_methods(&cfg.methods);
+    let methods = select_methods(&cfg.methods);
     let (img, inputs, source) = match &cfg.input {
         TimingInput::Synthetic => {
             let (w, h) = cfg.size.unwrap_or((256, 256));
@@ -209,7 +207,6 @@ pub fn run_timing(
         inputs: inputs.clone(),
         source,
         runs: cfg.runs,
-        unavailable: unavailable.clone(),
         settings: cfg.stages.describe(),
         ..Default::default()
     };
@@ -223,11 +220,6 @@ pub fn run_timing(
                 report.warnings.push(msg);
             }
         }
-    }
-    for m in &unavailable {
-        let msg = format!("method {} is not in this build: skipped", m.name());
-        note(Note::Warning(&msg));
-        report.warnings.push(msg);
     }
     for &method in &methods {
         let case = format!("{}.{inputs}.{w}x{h}", method.name());

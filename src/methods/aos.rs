@@ -9,8 +9,12 @@
 
 use std::sync::Arc;
 
+use super::chain::ChainOutput;
+use super::registry::{self, CpuResult, GpuStage, MethodInfo, StageRun, REGRESSION_LAYERS};
+use super::sampling::{self, DimSource, SamplingParams};
 use super::stats::GpuStats;
-use super::Pass;
+use super::tiles::Rect;
+use super::{Method, Pass};
 use crate::error::{Error, Result};
 use crate::gpu::{Batch, BufferSlice, GpuBuffer, GpuContext, PlaneSet, Precision};
 use crate::image::{Layer, RgbImage, StatsImage};
@@ -432,4 +436,101 @@ pub fn download(planes: &AosPlanes) -> Result<AosResult> {
             .map(|(i, n)| (n.to_string(), out[4 + i].clone()))
             .collect(),
     })
+}
+
+/// AOS's entry in the method registry.
+pub static INFO: MethodInfo = MethodInfo {
+    method: Method::Aos,
+    name: "aos",
+    about: "adaptive-order polynomial fitting in feature space: per-pixel order 1 or 3 (spec §5)",
+    needs: &REGRESSION_LAYERS,
+    // AOS-NO-GBF: its own NL-means prefilter (§5.2) does better.
+    prefilter_auto: false,
+    outliers_auto: true,
+    passes: 3,
+    pass_cap: None,
+    sampling: SamplingParams {
+        eps: sampling::EPS_AOS,
+        sigma_s: sampling::SIGMA_AOS,
+        e_is_dmse: false,
+        dim: DimSource::Plain,
+    },
+    align: 1,
+    halo: |c| {
+        let r = AosParams::new(c.pass, &c.options)?.radius;
+        Ok(r + r::NLM_SEARCH + r::NLM_PATCH)
+    },
+    arena_bytes: registry::no_bytes,
+    arena_kept: registry::nothing_kept,
+    ring_bytes: registry::no_bytes,
+    gpu: |a| {
+        Ok(Box::new(AosStage {
+            planes: AosPlanes::new(a.ctx, a.size.0, a.size.1)?,
+            params: AosParams::new(a.config.pass, &a.config.options)?,
+        }))
+    },
+    cpu: |clean, a| {
+        let params = AosParams::new(a.pass, &a.options)?;
+        let r = run_cpu(clean, params, a.prefiltered)?;
+        let (w, h) = (clean.width, clean.height);
+        let m = r.map_error;
+        Ok(CpuResult {
+            color: r.color,
+            error: r.error,
+            dim: r.dim,
+            debug: if a.debug { r.debug } else { Vec::new() },
+            stats: Vec::new(),
+            map_error: Some(RgbImage::from_planes(w, h, [m.clone(), m.clone(), m])),
+        })
+    },
+};
+
+/// AOS's GPU stage.
+struct AosStage {
+    planes: AosPlanes,
+    params: AosParams,
+}
+
+impl GpuStage for AosStage {
+    fn record(&self, batch: &mut Batch, run: &StageRun) -> Result<()> {
+        record_aos(
+            batch,
+            run.precision,
+            run.stats,
+            &self.planes,
+            self.params,
+            run.prefiltered,
+        )
+    }
+
+    fn color(&self, _: &GpuStats) -> [BufferSlice; 3] {
+        self.planes.color()
+    }
+
+    fn error(&self, _: &GpuStats) -> [BufferSlice; 3] {
+        [self.planes.mse(); 3]
+    }
+
+    /// `MSE_c` without AOS-FEATNOISE's term.
+    fn sampling_error(&self, _: &GpuStats) -> [BufferSlice; 3] {
+        [self.planes.map_mse(); 3]
+    }
+
+    fn dim(&self) -> (BufferSlice, bool) {
+        (self.planes.dim(), false)
+    }
+
+    fn download(
+        &self,
+        _: &GpuStats,
+        _: (usize, usize),
+        _: Option<Rect>,
+        debug: bool,
+        out: &mut ChainOutput,
+    ) -> Result<()> {
+        if debug {
+            out.debug = download(&self.planes)?.debug;
+        }
+        Ok(())
+    }
 }

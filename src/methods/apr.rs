@@ -7,7 +7,12 @@
 
 use std::sync::Arc;
 
+use super::chain::ChainOutput;
+use super::registry::{self, CpuResult, GpuStage, MethodInfo, StageRun, REGRESSION_LAYERS};
+use super::sampling::{self, DimSource, SamplingParams};
 use super::stats::GpuStats;
+use super::tiles::Rect;
+use super::Method;
 use crate::error::{Error, Result};
 use crate::gpu::{plane_stride, Batch, BufferSlice, GpuBuffer, GpuContext, PlaneSet, Precision};
 use crate::image::{Layer, RgbImage, StatsImage};
@@ -418,4 +423,94 @@ pub fn download(planes: &AprPlanes) -> Result<AprResult> {
         dim: out[6].clone(),
         debug,
     })
+}
+
+/// APR's entry in the method registry.
+pub static INFO: MethodInfo = MethodInfo {
+    method: Method::Apr,
+    name: "apr",
+    about: "adaptive polynomial rendering: per-block polynomial order (spec §4; US patent 9,959,664 B2)",
+    needs: &REGRESSION_LAYERS,
+    prefilter_auto: true,
+    outliers_auto: true,
+    passes: 5,
+    pass_cap: None,
+    sampling: SamplingParams {
+        eps: sampling::EPS_DEFAULT,
+        sigma_s: sampling::SIGMA_APR,
+        e_is_dmse: false,
+        dim: DimSource::Plain,
+    },
+    // The sparse centres lie every RADIUS pixels (§4.3).
+    align: RADIUS as usize,
+    halo: |c| {
+        let r = RADIUS as usize;
+        let stages = AprParams::new(&c.options)?.stages.max(1);
+        Ok(r + 2 * r * stages)
+    },
+    arena_bytes: registry::no_bytes,
+    arena_kept: registry::nothing_kept,
+    ring_bytes: registry::no_bytes,
+    gpu: |a| {
+        let params = AprParams::new(&a.config.options)?;
+        if params.prefilter {
+            return Err(Error::InvalidArgument(
+                "apr.prefilter=on (APR's own 5x5 feature prefilter) runs on the CPU backend only; use --backend cpu, or --prefilter gbf on the GPU".into(),
+            ));
+        }
+        Ok(Box::new(AprStage {
+            planes: AprPlanes::new(a.ctx, a.size.0, a.size.1)?,
+            params,
+        }))
+    },
+    cpu: |clean, a| {
+        let params = AprParams::new(&a.options)?;
+        let r = run_cpu(clean, params, params.prefilter && !a.prefiltered)?;
+        Ok(CpuResult {
+            color: r.color,
+            error: r.error,
+            dim: r.dim,
+            debug: if a.debug { r.debug } else { Vec::new() },
+            stats: Vec::new(),
+            map_error: None,
+        })
+    },
+};
+
+/// APR's GPU stage.
+struct AprStage {
+    planes: AprPlanes,
+    params: AprParams,
+}
+
+impl GpuStage for AprStage {
+    fn record(&self, batch: &mut Batch, run: &StageRun) -> Result<()> {
+        record_apr(batch, run.precision, run.stats, &self.planes, self.params)
+    }
+
+    fn color(&self, _: &GpuStats) -> [BufferSlice; 3] {
+        self.planes.color()
+    }
+
+    fn error(&self, _: &GpuStats) -> [BufferSlice; 3] {
+        self.planes.error()
+    }
+
+    fn dim(&self) -> (BufferSlice, bool) {
+        (self.planes.dim(), false)
+    }
+
+    fn download(
+        &self,
+        _: &GpuStats,
+        _: (usize, usize),
+        _: Option<Rect>,
+        debug: bool,
+        out: &mut ChainOutput,
+    ) -> Result<()> {
+        if debug {
+            out.debug = download(&self.planes)?.debug;
+        }
+        Ok(())
+    }
 }

@@ -16,18 +16,14 @@ use crate::error::{Error, Result};
 use crate::gpu::{Batch, BufferSlice, GpuBuffer, GpuContext, PlaneSet, Precision};
 use crate::image::{Layer, RgbImage, StatsImage};
 use crate::options::Options;
-use crate::shared::{LP_SKIP_COVERAGE, LP_SKIP_DMSE, LP_SKIP_ERROR, WLR_SKIP_DEBUG, WLR_SKIP_MSE};
 
-use super::aos::{self, AosPlanes};
-use super::apr::{self, AprPlanes};
 use super::gbf::{self, GbfPlanes};
-use super::lp::{self, LpPlanes};
 use super::outliers::{self, OutlierPlanes};
 use super::prepare::{self, PrepareReport, PrepareScratch};
+use super::registry::{GpuStage, StageArgs, StageRun};
 use super::sampling::{self, SampleInputs, SamplingParams, SamplingPlanes};
 use super::stats::{self, GpuStats};
 use super::tiles::{self, Rect};
-use super::wlr::{self, WlrPlanes};
 use super::{Method, Pass, Prefilter};
 
 /// What the chain reads.
@@ -120,17 +116,6 @@ pub fn prefilter_runs(method: Method, prefilter: Prefilter, layers: &[Layer]) ->
     gbf::wanted(method, prefilter, |l| layers.contains(&l))
 }
 
-enum MethodPlanes {
-    None {
-        /// A zero plane: the local dimension of the unfiltered mean.
-        zero: PlaneSet,
-    },
-    Wlr(Box<WlrPlanes>, wlr::WlrParams),
-    Lp(Box<LpPlanes>, lp::LpParams),
-    Apr(Box<AprPlanes>, apr::AprParams),
-    Aos(Box<AosPlanes>, aos::AosParams),
-}
-
 /// The GPU chain of one configuration. See the module documentation.
 pub struct GpuChain {
     ctx: Arc<GpuContext>,
@@ -146,7 +131,7 @@ pub struct GpuChain {
     scratch: PrepareScratch,
     gbf: Option<GbfPlanes>,
     outliers: Option<OutlierPlanes>,
-    planes: MethodPlanes,
+    method: Box<dyn GpuStage>,
     /// `None` on a device without `shaderInt64` (a budget is then an error).
     sampling: Option<(SamplingPlanes, SamplingParams)>,
 }
@@ -162,14 +147,7 @@ impl std::fmt::Debug for GpuChain {
     }
 }
 
-/// The layers WLR and LP read.
-pub const REGRESSION_LAYERS: [Layer; 5] = [
-    Layer::Color,
-    Layer::Albedo,
-    Layer::Normal,
-    Layer::Depth,
-    Layer::Spp,
-];
+pub use super::registry::REGRESSION_LAYERS;
 
 /// The error of a sample map asked of a device without `shaderInt64`.
 pub fn no_int64(ctx: &GpuContext) -> Error {
@@ -181,11 +159,7 @@ pub fn no_int64(ctx: &GpuContext) -> Error {
 
 /// Checks that `layers` hold what `method` reads.
 pub fn check_layers(method: Method, layers: &[Layer]) -> Result<()> {
-    let needs: &[Layer] = match method {
-        Method::None => &[Layer::Color, Layer::Spp],
-        _ => &REGRESSION_LAYERS,
-    };
-    for l in needs {
+    for l in method.info().needs {
         if !layers.contains(l) {
             return Err(Error::BadData(format!(
                 "{} needs the {} layer",
@@ -200,13 +174,6 @@ pub fn check_layers(method: Method, layers: &[Layer]) -> Result<()> {
 impl GpuChain {
     /// Allocates every buffer of the chain and checks the configuration.
     pub fn new(ctx: &Arc<GpuContext>, input: ChainInput, config: ChainConfig) -> Result<GpuChain> {
-        if !config.method.available() {
-            return Err(Error::InvalidArgument(format!(
-                "method {} is not in this build yet; available: {}",
-                config.method.name(),
-                super::available_names()
-            )));
-        }
         if config.precision == Precision::F64 && !ctx.supports_f64() {
             return Err(Error::InvalidArgument(
                 "f64 kernels need shaderFloat64, which this device does not enable".into(),
@@ -229,8 +196,8 @@ impl GpuChain {
         // overlaps LP's queue and packed features, dead by then).
         let n = w * h;
         let with_gbf = prefilter_runs(config.method, config.prefilter, &layers)?;
-        let lp = config.method == Method::Lp;
-        let keep = if lp { LpPlanes::kept_bytes(n) } else { 0 };
+        let info = config.method.info();
+        let keep = (info.arena_kept)(n);
         let arena_bytes = [
             PlaneSet::bytes(n, prepare::PLANES),
             if with_gbf {
@@ -243,12 +210,7 @@ impl GpuChain {
             } else {
                 0
             },
-            if lp { LpPlanes::scratch_bytes(n) } else { 0 },
-            if config.method == Method::Wlr {
-                WlrPlanes::scratch_bytes((w, h))
-            } else {
-                0
-            },
+            (info.arena_bytes)(&config, (w, h)),
         ];
         let arena = match arena_bytes.iter().max() {
             Some(&b) if b > 0 => Some(Arc::new(GpuBuffer::new(ctx, "chain.arena", b)?)),
@@ -270,40 +232,12 @@ impl GpuChain {
         } else {
             None
         };
-        let planes = match config.method {
-            Method::Wlr => {
-                let params = wlr::WlrParams::new(config.pass, &config.options)?;
-                MethodPlanes::Wlr(
-                    Box::new(WlrPlanes::new(
-                        ctx,
-                        (w, h),
-                        config.precision,
-                        arena.as_ref(),
-                    )?),
-                    params,
-                )
-            }
-            Method::Lp => MethodPlanes::Lp(
-                Box::new(LpPlanes::new(ctx, w, h, arena.as_ref())?),
-                lp::LpParams::new(&config.options)?,
-            ),
-            Method::Apr => {
-                let params = apr::AprParams::new(&config.options)?;
-                if params.prefilter {
-                    return Err(Error::InvalidArgument(
-                        "apr.prefilter=on (APR's own 5x5 feature prefilter) runs on the CPU backend only; use --backend cpu, or --prefilter gbf on the GPU".into(),
-                    ));
-                }
-                MethodPlanes::Apr(Box::new(AprPlanes::new(ctx, w, h)?), params)
-            }
-            Method::Aos => MethodPlanes::Aos(
-                Box::new(AosPlanes::new(ctx, w, h)?),
-                aos::AosParams::new(config.pass, &config.options)?,
-            ),
-            _ => MethodPlanes::None {
-                zero: PlaneSet::new(ctx, "none.dim", w * h, 1)?,
-            },
-        };
+        let method = (info.gpu)(&StageArgs {
+            ctx,
+            config: &config,
+            size: (w, h),
+            arena: arena.as_ref(),
+        })?;
         let params = SamplingParams::with_options(config.method, &config.options)?;
         let sampling = if ctx.supports_int64() {
             Some((SamplingPlanes::new(ctx, w, h)?, params))
@@ -319,7 +253,7 @@ impl GpuChain {
             scratch,
             gbf,
             outliers,
-            planes,
+            method,
             sampling,
         };
         if let ChainInput::Stats { .. } = chain.input_kind {
@@ -337,11 +271,7 @@ impl GpuChain {
     /// `width × height` image rather than its area (the rings of rows of LP
     /// and WLR), for the tiler's memory model.
     pub fn ring_bytes(config: &ChainConfig, width: usize, height: usize) -> u64 {
-        match config.method {
-            Method::Lp => LpPlanes::ring_bytes(width, height),
-            Method::Wlr => WlrPlanes::ring_bytes(width, height, config.precision),
-            _ => 0,
-        }
+        (config.method.info().ring_bytes)(config, (width, height))
     }
 
     /// The context the chain's buffers live on.
@@ -449,11 +379,7 @@ impl GpuChain {
     /// What the sample map reads as `E` (§9.1): ΔMSE for LP, `MSE_c`
     /// without AOS-FEATNOISE for AOS, else `E_i`.
     fn sampling_error(&self) -> [BufferSlice; 3] {
-        match &self.planes {
-            MethodPlanes::Lp(p, _) => p.dmse(),
-            MethodPlanes::Aos(p, _) => [p.map_mse(); 3],
-            _ => self.error(),
-        }
+        self.method.sampling_error(&self.stats)
     }
 
     /// The sample counts (u32 per pixel) of the last run with a budget.
@@ -545,40 +471,17 @@ impl GpuChain {
         if let Some(g) = &self.gbf {
             gbf::record_gbf(batch, p, &self.stats, g)?;
         }
-        match &self.planes {
-            MethodPlanes::None { zero } => batch.fill(zero.plane(0), 0),
-            MethodPlanes::Wlr(planes, params) => {
-                let c = &self.config;
-                let skip = [
-                    (c.debug, WLR_SKIP_DEBUG),
-                    (maps || c.error || c.debug, WLR_SKIP_MSE),
-                ];
-                let params = wlr::WlrParams {
-                    options: skip_bits(params.options, &skip),
-                    ..*params
-                };
-                wlr::record_wlr(batch, p, &self.stats, planes, params)?
-            }
-            MethodPlanes::Lp(planes, params) => {
-                let c = &self.config;
-                let skip = [
-                    (c.error || c.debug, LP_SKIP_ERROR),
-                    (maps || c.debug, LP_SKIP_DMSE),
-                    (c.debug, LP_SKIP_COVERAGE),
-                ];
-                let params = lp::LpParams {
-                    origin: at.origin,
-                    options: skip_bits(params.options, &skip),
-                };
-                lp::record_lp(batch, p, &self.stats, planes, params)?
-            }
-            MethodPlanes::Apr(planes, params) => {
-                apr::record_apr(batch, p, &self.stats, planes, *params)?
-            }
-            MethodPlanes::Aos(planes, params) => {
-                aos::record_aos(batch, p, &self.stats, planes, *params, self.gbf.is_some())?
-            }
-        }
+        self.method.record(
+            batch,
+            &StageRun {
+                precision: p,
+                stats: &self.stats,
+                config: &self.config,
+                maps,
+                origin: at.origin,
+                prefiltered: self.gbf.is_some(),
+            },
+        )?;
         if let Some(o) = &self.outliers {
             let spp = self.stats.plane(Layer::Spp, 0);
             outliers::record_restore(batch, p, spp, self.color(), o)?;
@@ -594,40 +497,20 @@ impl GpuChain {
     /// The reconstruction's colour planes R, G, B (method `none`: the
     /// sanitised input, not yet clamped).
     pub fn color(&self) -> [BufferSlice; 3] {
-        match &self.planes {
-            MethodPlanes::None { .. } => std::array::from_fn(|c| self.stats.plane(Layer::Color, c)),
-            MethodPlanes::Wlr(p, _) => p.color(),
-            MethodPlanes::Lp(p, _) => p.color(),
-            MethodPlanes::Apr(p, _) => p.color(),
-            MethodPlanes::Aos(p, _) => p.color(),
-        }
+        self.method.color(&self.stats)
     }
 
     /// The per-pixel error estimate `E_i` per channel (§9.1): WLR's shared
     /// MSE three times, LP's per-channel estimate, and for `none` the
     /// variance of the mean (the MSE of the unfiltered input).
     pub fn error(&self) -> [BufferSlice; 3] {
-        match &self.planes {
-            MethodPlanes::None { .. } => {
-                std::array::from_fn(|c| self.stats.plane(Layer::ColorVariance, c))
-            }
-            MethodPlanes::Wlr(p, _) => [p.mse(); 3],
-            MethodPlanes::Lp(p, _) => p.error(),
-            MethodPlanes::Apr(p, _) => p.error(),
-            MethodPlanes::Aos(p, _) => [p.mse(); 3],
-        }
+        self.method.error(&self.stats)
     }
 
     /// The plane the local dimension `d_i` (§9.1) is read from and how:
     /// `(plane, true)` when it is WLR's `kflags` (rank in `value mod 16`).
     pub fn dim_source(&self) -> (BufferSlice, bool) {
-        match &self.planes {
-            MethodPlanes::None { zero } => (zero.plane(0), false),
-            MethodPlanes::Wlr(p, _) => (p.kflags(), true),
-            MethodPlanes::Lp(p, _) => (p.dim(), false),
-            MethodPlanes::Apr(p, _) => (p.dim(), false),
-            MethodPlanes::Aos(p, _) => (p.dim(), false),
-        }
+        self.method.dim()
     }
 
     /// Sanitation counters and the invalid pixels (`spp < 1`, §0.2) of the
@@ -735,8 +618,7 @@ impl GpuChain {
         }
         let mut out = ChainOutput {
             color: rgb(self.color())?,
-            // `none`'s debug layers are its error planes (the variances).
-            error: if error || (debug && matches!(self.planes, MethodPlanes::None { .. })) {
+            error: if error {
                 rgb(self.error())?
             } else {
                 RgbImage::new(0, 0)
@@ -745,48 +627,8 @@ impl GpuChain {
             debug: Vec::new(),
             stats: Vec::new(),
         };
-        match &self.planes {
-            MethodPlanes::None { .. } => {
-                // The colour and the count only (not every layer).
-                let clean = self.stats.download_layers(&[Layer::Color, Layer::Spp])?;
-                out.color = prepare::colour_of(&clean);
-                if debug {
-                    for (c, name) in ["R", "G", "B"].iter().enumerate() {
-                        out.debug.push((
-                            format!("color_variance.{name}"),
-                            out.error.planes[c].clone(),
-                        ));
-                    }
-                }
-            }
-            MethodPlanes::Wlr(p, _) => {
-                if debug {
-                    out.debug = wlr::download(p, w, h)?.debug_layers();
-                }
-            }
-            MethodPlanes::Lp(p, _) => {
-                // All of LP's planes only for the debug layers; the census
-                // without a host copy of the centre map.
-                let census = if debug {
-                    let r = lp::download(p, w, h)?;
-                    out.debug = r.debug_layers();
-                    r.census(w, rect)
-                } else {
-                    lp::census(p, w, h, rect)?
-                };
-                out.stats.extend(census.stats());
-            }
-            MethodPlanes::Apr(p, _) => {
-                if debug {
-                    out.debug = apr::download(p)?.debug;
-                }
-            }
-            MethodPlanes::Aos(p, _) => {
-                if debug {
-                    out.debug = aos::download(p)?.debug;
-                }
-            }
-        }
+        self.method
+            .download(&self.stats, (w, h), rect, debug, &mut out)?;
         if let (true, Some(o)) = (debug, &self.outliers) {
             out.debug
                 .extend(outliers::debug_layers(&outliers::download_excess(o)?));
@@ -800,7 +642,7 @@ impl GpuChain {
 
 /// `options` with the skip bit of every `(read, bit)` whose planes nobody
 /// reads back.
-fn skip_bits(options: u32, skip: &[(bool, u32)]) -> u32 {
+pub(crate) fn skip_bits(options: u32, skip: &[(bool, u32)]) -> u32 {
     skip.iter()
         .filter(|(read, _)| !read)
         .fold(options, |o, (_, bit)| o | bit)

@@ -21,8 +21,12 @@
 
 use std::sync::Arc;
 
+use super::chain::ChainOutput;
+use super::registry::{CpuResult, GpuStage, MethodInfo, StageRun, REGRESSION_LAYERS};
+use super::sampling::{self, DimSource, SamplingParams};
 use super::stats::GpuStats;
 use super::tiles::Rect;
+use super::Method;
 use crate::error::{Error, Result};
 use crate::gpu::{plane_stride, Batch, BufferSlice, GpuBuffer, GpuContext, PlaneSet, Precision};
 use crate::image::{Layer, RgbImage, StatsImage};
@@ -31,7 +35,9 @@ use crate::kernels::{clipped_span, gbf_pack, lp_centres, lp_gather, lp_reach, lp
 use crate::options::Options;
 use crate::reference;
 use crate::reference::lp::{StateLayout, GRANULARITIES};
-use crate::shared::{LpPush, LP_CENTRE_TEST, LP_PIXEL_TEST, LP_VARSUB};
+use crate::shared::{
+    LpPush, LP_CENTRE_TEST, LP_PIXEL_TEST, LP_SKIP_COVERAGE, LP_SKIP_DMSE, LP_SKIP_ERROR, LP_VARSUB,
+};
 
 /// The parameters of one LP run.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
@@ -609,4 +615,110 @@ pub fn run_cpu(clean: &StatsImage, params: LpParams, progress: bool) -> Result<L
     reference::lp_reach::lp_reach(&push, &state[0], &mut reach);
     reference::lp_gather::lp_gather(&push, &p, &reach, &state, &mut out);
     Ok(LpResult::new(w, h, out, &state[0]))
+}
+
+/// LP's entry in the method registry.
+pub static INFO: MethodInfo = MethodInfo {
+    method: Method::Lp,
+    name: "lp",
+    about: "linear predictions at sparse centres (spec §3; US patent 9,892,549 B2)",
+    needs: &REGRESSION_LAYERS,
+    prefilter_auto: true,
+    outliers_auto: true,
+    passes: 5,
+    // LP-CAP: LP's map concentrates samples at emitter edges.
+    pass_cap: Some(4.0),
+    sampling: SamplingParams {
+        eps: sampling::EPS_DEFAULT,
+        sigma_s: sampling::SIGMA_LP,
+        e_is_dmse: true,
+        dim: DimSource::Plain,
+    },
+    align: 1,
+    halo: |_| Ok(reference::lp::RADIUS * (GRANULARITIES.len() + 1)),
+    arena_bytes: |_, (w, h)| LpPlanes::scratch_bytes(w * h),
+    arena_kept: LpPlanes::kept_bytes,
+    ring_bytes: |_, (w, h)| LpPlanes::ring_bytes(w, h),
+    gpu: |a| {
+        Ok(Box::new(LpStage {
+            planes: LpPlanes::new(a.ctx, a.size.0, a.size.1, a.arena)?,
+            params: LpParams::new(&a.config.options)?,
+        }))
+    },
+    cpu: |clean, a| {
+        let params = LpParams::new(&a.options)?;
+        let r = run_cpu(clean, params, a.progress)?;
+        Ok(CpuResult {
+            debug: if a.debug {
+                r.debug_layers()
+            } else {
+                Vec::new()
+            },
+            stats: r.census(clean.width, None).stats(),
+            map_error: Some(r.dmse.clone()),
+            color: r.color,
+            error: r.error,
+            dim: r.dim,
+        })
+    },
+};
+
+/// LP's GPU stage.
+struct LpStage {
+    planes: LpPlanes,
+    params: LpParams,
+}
+
+impl GpuStage for LpStage {
+    fn record(&self, batch: &mut Batch, run: &StageRun) -> Result<()> {
+        let c = run.config;
+        let skip = [
+            (c.error || c.debug, LP_SKIP_ERROR),
+            (run.maps || c.debug, LP_SKIP_DMSE),
+            (c.debug, LP_SKIP_COVERAGE),
+        ];
+        let params = LpParams {
+            origin: run.origin,
+            options: super::chain::skip_bits(self.params.options, &skip),
+        };
+        record_lp(batch, run.precision, run.stats, &self.planes, params)
+    }
+
+    fn color(&self, _: &GpuStats) -> [BufferSlice; 3] {
+        self.planes.color()
+    }
+
+    fn error(&self, _: &GpuStats) -> [BufferSlice; 3] {
+        self.planes.error()
+    }
+
+    /// ΔMSE (§3.5 already folds in the rate).
+    fn sampling_error(&self, _: &GpuStats) -> [BufferSlice; 3] {
+        self.planes.dmse()
+    }
+
+    fn dim(&self) -> (BufferSlice, bool) {
+        (self.planes.dim(), false)
+    }
+
+    fn download(
+        &self,
+        _: &GpuStats,
+        (w, h): (usize, usize),
+        rect: Option<Rect>,
+        debug: bool,
+        out: &mut ChainOutput,
+    ) -> Result<()> {
+        // All of LP's planes only for the debug layers; the census without
+        // a host copy of the centre map.
+        let census = if debug {
+            let r = download(&self.planes, w, h)?;
+            out.debug = r.debug_layers();
+            r.census(w, rect)
+        } else {
+            census(&self.planes, w, h, rect)?
+        };
+        out.stats.extend(census.stats());
+        Ok(())
+    }
 }

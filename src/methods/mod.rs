@@ -7,8 +7,10 @@ pub mod apr;
 pub mod chain;
 pub mod gbf;
 pub mod lp;
+pub mod none;
 pub mod outliers;
 pub mod prepare;
+pub mod registry;
 pub mod sampling;
 pub mod stats;
 pub mod tiles;
@@ -22,6 +24,7 @@ use crate::image::{RgbImage, StatsImage};
 use crate::options::Options;
 
 pub use outliers::Outliers;
+pub use registry::MethodInfo;
 
 /// Where a method runs.
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Default)]
@@ -33,8 +36,9 @@ pub enum Backend {
     Cpu,
 }
 
-/// The reconstruction methods of the spec.
-#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+/// The reconstruction methods. What each one is, needs and defaults to is
+/// its [`MethodInfo`] in the [`REGISTRY`] ([`Method::info`]).
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Hash)]
 pub enum Method {
     /// Weighted local regression (§2).
     Wlr,
@@ -48,25 +52,42 @@ pub enum Method {
     None,
 }
 
+/// Every method's entry, in the order of [`Method`]'s variants (the order
+/// the benchmarks run them in is [`Method::all`]'s).
+pub static REGISTRY: [&MethodInfo; 5] =
+    [&wlr::INFO, &lp::INFO, &apr::INFO, &aos::INFO, &none::INFO];
+
 impl Method {
+    /// The method's registry entry.
+    pub fn info(self) -> &'static MethodInfo {
+        REGISTRY[self as usize]
+    }
+
     /// Lower-case name, as the CLI and error messages spell it (`wlr`, `lp`,
     /// `apr`, `aos`, `none`).
     pub fn name(self) -> &'static str {
-        match self {
-            Method::Wlr => "wlr",
-            Method::Lp => "lp",
-            Method::Apr => "apr",
-            Method::Aos => "aos",
-            Method::None => "none",
-        }
+        self.info().name
     }
 
-    /// Methods built into this version.
-    pub fn available(self) -> bool {
-        matches!(
-            self,
-            Method::None | Method::Wlr | Method::Lp | Method::Apr | Method::Aos
+    /// Every method: `none` first, then the reconstructions in registry
+    /// order.
+    pub fn all() -> impl Iterator<Item = Method> {
+        let none = std::iter::once(Method::None);
+        none.chain(
+            REGISTRY
+                .iter()
+                .map(|i| i.method)
+                .filter(|&m| m != Method::None),
         )
+    }
+
+    /// The method called `name` (case-insensitive, surrounding blanks
+    /// ignored).
+    pub fn from_name(name: &str) -> Option<Method> {
+        REGISTRY
+            .iter()
+            .find(|i| i.name.eq_ignore_ascii_case(name.trim()))
+            .map(|i| i.method)
     }
 }
 
@@ -110,9 +131,9 @@ impl Prefilter {
     /// indirect_room at 4 spp, where GBF is 15 % better
     /// (`docs/results-adaptive.md`, `docs/results-aos.md`).
     pub fn resolve(self, method: Method) -> Prefilter {
-        match (method, self) {
-            (Method::None | Method::Aos, Prefilter::Auto) => Prefilter::Off,
-            (_, p) => p,
+        match self {
+            Prefilter::Auto if !method.info().prefilter_auto => Prefilter::Off,
+            p => p,
         }
     }
 }
@@ -198,13 +219,6 @@ pub fn denoise(
     img: &StatsImage,
     req: &DenoiseRequest,
 ) -> Result<DenoiseOutput> {
-    if !req.method.available() {
-        return Err(Error::InvalidArgument(format!(
-            "method {} is not in this build yet; available: {}",
-            req.method.name(),
-            available_names()
-        )));
-    }
     let layers: Vec<crate::image::Layer> = img.layers().map(|(l, _)| l).collect();
     chain::check_layers(req.method, &layers)?;
     match req.backend {
@@ -293,79 +307,23 @@ pub fn run_uploaded(
 fn denoise_cpu(img: &StatsImage, req: &DenoiseRequest) -> Result<DenoiseOutput> {
     let (clean, report, removed, prefiltered) = clean_cpu(img, req)?;
     let (w, h) = (img.width, img.height);
-    // What the sample map reads as E when it is not the exported error: LP's
-    // ΔMSE, AOS's MSE_c without AOS-FEATNOISE.
-    let mut map_e: Option<RgbImage> = None;
-    let (mut color, error, dim, mut debug, stats) = match req.method {
-        Method::Wlr => {
-            let params = wlr::WlrParams::new(req.pass, &req.options)?;
-            let r = wlr::run_cpu_with_progress(&clean, params, req.progress)?;
-            let mse = r.mse.clone();
-            let dim = r.rank();
-            let debug = if req.debug {
-                r.debug_layers()
-            } else {
-                Vec::new()
-            };
-            (
-                r.color,
-                RgbImage::from_planes(w, h, [mse.clone(), mse.clone(), mse]),
-                dim,
-                debug,
-                Vec::new(),
-            )
-        }
-        Method::Apr => {
-            let params = apr::AprParams::new(&req.options)?;
-            let r = apr::run_cpu(&clean, params, params.prefilter && !prefiltered)?;
-            let debug = if req.debug { r.debug } else { Vec::new() };
-            (r.color, r.error, r.dim, debug, Vec::new())
-        }
-        Method::Aos => {
-            let params = aos::AosParams::new(req.pass, &req.options)?;
-            let r = aos::run_cpu(&clean, params, prefiltered)?;
-            let debug = if req.debug { r.debug } else { Vec::new() };
-            let m = r.map_error;
-            map_e = Some(RgbImage::from_planes(w, h, [m.clone(), m.clone(), m]));
-            (r.color, r.error, r.dim, debug, Vec::new())
-        }
-        Method::Lp => {
-            let params = lp::LpParams::new(&req.options)?;
-            let r = lp::run_cpu(&clean, params, req.progress)?;
-            let debug = if req.debug {
-                r.debug_layers()
-            } else {
-                Vec::new()
-            };
-            let stats = r.census(clean.width, None).stats();
-            map_e = Some(r.dmse.clone());
-            (
-                r.color.clone(),
-                r.error.clone(),
-                r.dim.clone(),
-                debug,
-                stats,
-            )
-        }
-        _ => {
-            let var = clean.get(crate::image::Layer::ColorVariance).unwrap();
-            let error =
-                RgbImage::from_planes(w, h, [var[0].clone(), var[1].clone(), var[2].clone()]);
-            let mut debug = Vec::new();
-            if req.debug {
-                for (c, name) in ["R", "G", "B"].iter().enumerate() {
-                    debug.push((format!("color_variance.{name}"), var[c].clone()));
-                }
-            }
-            (
-                prepare::colour_of(&clean),
-                error,
-                vec![0.0; w * h],
-                debug,
-                Vec::new(),
-            )
-        }
-    };
+    let registry::CpuResult {
+        mut color,
+        error,
+        dim,
+        mut debug,
+        stats,
+        map_error: map_e,
+    } = (req.method.info().cpu)(
+        &clean,
+        &registry::CpuArgs {
+            pass: req.pass,
+            options: req.options.clone(),
+            progress: req.progress,
+            debug: req.debug,
+            prefiltered,
+        },
+    )?;
     if let Some(r) = &removed {
         let spp = &clean.get(crate::image::Layer::Spp).unwrap()[0];
         outliers::restore_cpu(w, h, spp, r, &mut color.planes);
@@ -438,18 +396,36 @@ fn gpu_ctx(ctx: Option<&Arc<GpuContext>>) -> Result<&Arc<GpuContext>> {
     ctx.ok_or_else(|| Error::InvalidArgument("the GPU backend needs a context".into()))
 }
 
-/// The names of the methods in this build, for error messages.
+/// The names of the methods, for error messages.
 pub fn available_names() -> String {
-    [
-        Method::Wlr,
-        Method::Lp,
-        Method::Apr,
-        Method::Aos,
-        Method::None,
-    ]
-    .iter()
-    .filter(|m| m.available())
-    .map(|m| m.name())
-    .collect::<Vec<_>>()
-    .join(", ")
+    REGISTRY
+        .iter()
+        .map(|i| i.name)
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn registry_is_indexed_by_the_enum_and_names_are_unique() {
+        for (i, info) in REGISTRY.iter().enumerate() {
+            assert_eq!(info.method as usize, i, "{} is out of place", info.name);
+            assert_eq!(Method::from_name(info.name), Some(info.method));
+            assert_eq!(
+                Method::from_name(&format!(" {} ", info.name.to_uppercase())),
+                Some(info.method)
+            );
+            assert!(info.passes >= 1 && info.align >= 1, "{}", info.name);
+        }
+        let mut names: Vec<&str> = REGISTRY.iter().map(|i| i.name).collect();
+        names.sort();
+        names.dedup();
+        assert_eq!(names.len(), REGISTRY.len());
+        assert_eq!(Method::all().count(), REGISTRY.len());
+        assert_eq!(Method::all().next(), Some(Method::None));
+        assert_eq!(Method::from_name("nope"), None);
+    }
 }

@@ -58,10 +58,11 @@ impl Outliers {
         }
     }
 
-    /// The default: on for every reconstruction, off for `none` (whose output
-    /// is the plain Monte Carlo mean by definition).
+    /// The method's default ([`super::MethodInfo::outliers_auto`]): on for
+    /// every reconstruction, off for `none` (whose output is the plain Monte
+    /// Carlo mean by definition).
     pub fn default_for(method: Method) -> bool {
-        method != Method::None
+        method.info().outliers_auto
     }
 
     /// Whether the stage runs for `method`.

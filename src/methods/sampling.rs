@@ -96,36 +96,7 @@ impl SamplingParams {
     /// [`Method::None`]: the unfiltered mean, `E_i = v_i` with `d_i = 0`.
     /// `options`' `sampling.smooth`, when set, replaces σs.
     pub fn for_method(method: Method) -> Result<SamplingParams> {
-        let base = SamplingParams {
-            eps: EPS_DEFAULT,
-            sigma_s: 0.0,
-            e_is_dmse: false,
-            dim: DimSource::Plain,
-        };
-        Ok(match method {
-            Method::Wlr => SamplingParams {
-                sigma_s: SIGMA_WLR,
-                dim: DimSource::Kflags,
-                ..base
-            },
-            Method::Lp => SamplingParams {
-                sigma_s: SIGMA_LP,
-                e_is_dmse: true,
-                ..base
-            },
-            Method::Apr => SamplingParams {
-                sigma_s: SIGMA_APR,
-                ..base
-            },
-            Method::Aos => SamplingParams {
-                eps: EPS_AOS,
-                sigma_s: SIGMA_AOS,
-                ..base
-            },
-            // Not in the spec's table: the plain Monte Carlo mean, whose MSE
-            // is its variance `v_i` and falls as 1/n (`d = 0`): ΔMSE = v_i/n_i.
-            Method::None => base,
-        })
+        Ok(method.info().sampling)
     }
 
     /// [`SamplingParams::for_method`] with `options`' `sampling.smooth`, when

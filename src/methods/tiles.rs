@@ -56,7 +56,7 @@ use crate::reference;
 
 use super::chain::{prefilter_runs, ChainConfig, ChainInput, GpuChain, Placement};
 use super::sampling::{self, SamplingParams, SamplingPlanes};
-use super::{prepare, DenoiseOutput, Method, Pass, ProgressCallback};
+use super::{prepare, DenoiseOutput, Method, ProgressCallback};
 
 /// A rectangle of pixels `[x0, x1) × [y0, y1)`.
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -152,29 +152,7 @@ pub fn halo(config: &ChainConfig, prefiltered: bool) -> Result<Halo> {
     if config.outliers {
         parts.push(("outlier redistribution (§4.4 step 4)", 2 * spread));
     }
-    let method = match config.method {
-        Method::None => 0,
-        Method::Wlr => {
-            let r = super::wlr::WlrParams::new(config.pass, &config.options)?.radius as usize;
-            r + gauss_smooth::radius(super::wlr::H_SMOOTH_SIGMA) as usize
-        }
-        Method::Lp => {
-            let r = reference::lp::RADIUS;
-            r * (reference::lp::GRANULARITIES.len() + 1)
-        }
-        Method::Apr => {
-            let r = reference::apr::RADIUS;
-            let stages = super::apr::AprParams::new(&config.options)?.stages.max(1);
-            r + 2 * r * stages
-        }
-        Method::Aos => {
-            let r = match config.pass {
-                Pass::Final => reference::aos::RADIUS_FINAL,
-                Pass::Intermediate => reference::aos::RADIUS_INTERMEDIATE,
-            };
-            r + reference::aos::NLM_SEARCH + reference::aos::NLM_PATCH
-        }
-    };
+    let method = (config.method.info().halo)(config)?;
     parts.push(("method", method));
     if prefiltered {
         let s = gauss_smooth::radius(reference::gbf::SMOOTH_SIGMA) as usize;
@@ -193,16 +171,14 @@ pub const SANITIZE_HALO: usize = 5;
 
 /// The multiple of which a tile's first column and row must be, so that
 /// what depends on the position in the image stays as in a whole run:
-/// APR's centre spacing (14, §4.3) for APR, and with the outlier stage the
+/// the method's grid ([`super::MethodInfo::align`]: APR's centre spacing,
+/// 14, §4.3), and with the outlier stage the
 /// spans of 32 pixels over which `box_rows` (along x) and `outlier_spread`
 /// (along y) restart their running sums (exact pairs, but their last
 /// rounding depends on the sequence, which must be the same): the least
 /// common multiple, or 1.
 pub fn alignment(config: &ChainConfig) -> usize {
-    let apr = match config.method {
-        Method::Apr => reference::apr::RADIUS,
-        _ => 1,
-    };
+    let grid = config.method.info().align;
     let spans = if config.outliers {
         let (a, b) = (
             crate::kernels::box_rows::SPAN as usize,
@@ -212,7 +188,7 @@ pub fn alignment(config: &ChainConfig) -> usize {
     } else {
         1
     };
-    lcm(apr, spans)
+    lcm(grid, spans)
 }
 
 fn lcm(a: usize, b: usize) -> usize {

@@ -17,8 +17,12 @@
 
 use std::sync::Arc;
 
+use super::chain::ChainOutput;
+use super::registry::{self, CpuResult, GpuStage, MethodInfo, StageRun, REGRESSION_LAYERS};
+use super::sampling::{self, DimSource, SamplingParams};
 use super::stats::GpuStats;
-use super::Pass;
+use super::tiles::Rect;
+use super::{Method, Pass};
 use crate::error::{Error, Result};
 use crate::gpu::{Batch, BufferSlice, GpuBuffer, GpuContext, PlaneSet, Precision};
 use crate::image::{Layer, RgbImage, StatsImage};
@@ -27,6 +31,7 @@ use crate::options::Options;
 use crate::reference;
 use crate::shared::{
     ChannelMeanPush, SmoothPush, WlrPush, WLR_NONNEG, WLR_OUTLIER_CLAMPED, WLR_REJECT,
+    WLR_SKIP_DEBUG, WLR_SKIP_MSE,
 };
 
 /// Window radius of the final pass (19x19), §2.3.
@@ -471,4 +476,104 @@ pub fn run_cpu_with_progress(
     let [r, g, b, mse, flags] = <[Vec<f32>; 5]>::try_from(out).unwrap();
     let all = vec![h_opt, kflags, b1, b2, b3, hbar, r, g, b, mse, flags];
     Ok(WlrResult::from_planes(w, h, all))
+}
+
+/// WLR's entry in the method registry.
+pub static INFO: MethodInfo = MethodInfo {
+    method: Method::Wlr,
+    name: "wlr",
+    about: "weighted local regression (spec §2)",
+    needs: &REGRESSION_LAYERS,
+    prefilter_auto: true,
+    outliers_auto: true,
+    passes: 5,
+    pass_cap: None,
+    sampling: SamplingParams {
+        eps: sampling::EPS_DEFAULT,
+        sigma_s: sampling::SIGMA_WLR,
+        e_is_dmse: false,
+        dim: DimSource::Kflags,
+    },
+    align: 1,
+    halo: |c| {
+        let r = WlrParams::new(c.pass, &c.options)?.radius as usize;
+        Ok(r + gauss_smooth::radius(H_SMOOTH_SIGMA) as usize)
+    },
+    arena_bytes: |_, size| WlrPlanes::scratch_bytes(size),
+    arena_kept: registry::nothing_kept,
+    ring_bytes: |c, (w, h)| WlrPlanes::ring_bytes(w, h, c.precision),
+    gpu: |a| {
+        Ok(Box::new(WlrStage {
+            planes: WlrPlanes::new(a.ctx, a.size, a.config.precision, a.arena)?,
+            params: WlrParams::new(a.config.pass, &a.config.options)?,
+        }))
+    },
+    cpu: |clean, a| {
+        let params = WlrParams::new(a.pass, &a.options)?;
+        let r = run_cpu_with_progress(clean, params, a.progress)?;
+        let mse = r.mse.clone();
+        Ok(CpuResult {
+            error: RgbImage::from_planes(
+                clean.width,
+                clean.height,
+                [mse.clone(), mse.clone(), mse],
+            ),
+            dim: r.rank(),
+            debug: if a.debug {
+                r.debug_layers()
+            } else {
+                Vec::new()
+            },
+            color: r.color,
+            stats: Vec::new(),
+            map_error: None,
+        })
+    },
+};
+
+/// WLR's GPU stage.
+struct WlrStage {
+    planes: WlrPlanes,
+    params: WlrParams,
+}
+
+impl GpuStage for WlrStage {
+    fn record(&self, batch: &mut Batch, run: &StageRun) -> Result<()> {
+        let c = run.config;
+        let skip = [
+            (c.debug, WLR_SKIP_DEBUG),
+            (run.maps || c.error || c.debug, WLR_SKIP_MSE),
+        ];
+        let params = WlrParams {
+            options: super::chain::skip_bits(self.params.options, &skip),
+            ..self.params
+        };
+        record_wlr(batch, run.precision, run.stats, &self.planes, params)
+    }
+
+    fn color(&self, _: &GpuStats) -> [BufferSlice; 3] {
+        self.planes.color()
+    }
+
+    fn error(&self, _: &GpuStats) -> [BufferSlice; 3] {
+        [self.planes.mse(); 3]
+    }
+
+    fn dim(&self) -> (BufferSlice, bool) {
+        (self.planes.kflags(), true)
+    }
+
+    fn download(
+        &self,
+        _: &GpuStats,
+        (w, h): (usize, usize),
+        _: Option<Rect>,
+        debug: bool,
+        out: &mut ChainOutput,
+    ) -> Result<()> {
+        if debug {
+            out.debug = download(&self.planes, w, h)?.debug_layers();
+        }
+        Ok(())
+    }
 }

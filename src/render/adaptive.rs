@@ -45,13 +45,10 @@ pub struct LoopConfig {
 }
 
 /// The per-pass cap a method's adaptive render uses by default
-/// ([`LoopConfig::pass_cap`]): 4× the pass's mean for LP, none otherwise.
-/// Measured at 128², 64 spp, against 1024-spp references (docs/results-adaptive.md):
-/// LP's map sent up to 20,067 samples to one pixel and adaptive LP lost to
-/// uniform LP on 5 of 6 scenes; capped at 4× it wins on all 6 (mean ratio
-/// 0.82). WLR's map is not that concentrated: the cap moves it by ±2 %.
+/// ([`LoopConfig::pass_cap`], [`crate::MethodInfo::pass_cap`]): 4× the
+/// pass's mean for LP (LP-CAP), none otherwise.
 pub fn default_pass_cap(method: Method) -> Option<f64> {
-    (method == Method::Lp).then_some(4.0)
+    method.info().pass_cap
 }
 
 /// Caps `counts` at `cap` each and gives the excess to the pixels below the

@@ -1,0 +1,177 @@
+//! The method registry: everything the chain, the tiler, the sampler, the
+//! schedule, the benchmarks and the CLI need to know of a reconstruction
+//! method, in one [`MethodInfo`] per method.
+//!
+//! A method is one module that defines its [`MethodInfo`] (its layers,
+//! defaults, sampling parameters, halo, memory model, its GPU stage behind
+//! [`GpuStage`] and its CPU path) plus one line in
+//! [`REGISTRY`](super::REGISTRY). Nothing else in the crate matches on the
+//! method.
+
+use std::sync::Arc;
+
+use super::chain::{ChainConfig, ChainOutput};
+use super::sampling::SamplingParams;
+use super::stats::GpuStats;
+use super::tiles::Rect;
+use super::{Method, Pass};
+use crate::error::Result;
+use crate::gpu::{Batch, BufferSlice, GpuBuffer, GpuContext, Precision};
+use crate::image::{Layer, RgbImage, StatsImage};
+use crate::options::Options;
+
+/// The layers every regression method reads (§0.1); their variances are
+/// estimated when missing (§0.4 step 4).
+pub const REGRESSION_LAYERS: [Layer; 5] = [
+    Layer::Color,
+    Layer::Albedo,
+    Layer::Normal,
+    Layer::Depth,
+    Layer::Spp,
+];
+
+/// One method's entry in the registry.
+#[derive(Debug)]
+pub struct MethodInfo {
+    /// The method this entry describes.
+    pub method: Method,
+    /// Lower-case name, as the CLI, the benchmarks and messages spell it.
+    pub name: &'static str,
+    /// One line for `--help`.
+    pub about: &'static str,
+    /// The statistics layers it reads; a missing one is an error naming it.
+    pub needs: &'static [Layer],
+    /// Whether `--prefilter auto` runs the G-buffer prefilter (§6) before it
+    /// when the input has the position layers.
+    pub prefilter_auto: bool,
+    /// Whether `--outliers auto` runs the outlier stage (§4.4) around it.
+    pub outliers_auto: bool,
+    /// Adaptive passes after the uniform pass 0 (§9.3 `N_pass`).
+    pub passes: u32,
+    /// The adaptive loop's default per-pass cap, as a multiple of the pass's
+    /// mean samples per pixel (`None`: no cap).
+    pub pass_cap: Option<f64>,
+    /// Its parameters of §9.1 (before `sampling.smooth`).
+    pub sampling: SamplingParams,
+    /// The multiple of which a tile's first column and row must be so that
+    /// its grid keeps the image's phase (1: no grid).
+    pub align: usize,
+    /// The method's own reach in pixels for a configuration (its chain of
+    /// windows), which the tiler adds to the other stages' halos.
+    pub halo: fn(&ChainConfig) -> Result<usize>,
+    /// Bytes of scratch the method takes from the chain's arena for a
+    /// `(width, height)` image (0: none; the arena is shared with the other
+    /// stages' scratch, whose lifetimes do not overlap).
+    pub arena_bytes: fn(&ChainConfig, (usize, usize)) -> u64,
+    /// Bytes at the start of its arena scratch that must outlive the
+    /// outlier stage's restoration (read back after the run) for `n` pixels.
+    pub arena_kept: fn(usize) -> u64,
+    /// Bytes of its buffers that grow with the width rather than the area
+    /// (rings of rows), for the tiler's memory model.
+    pub ring_bytes: fn(&ChainConfig, (usize, usize)) -> u64,
+    /// Allocates its GPU stage.
+    pub gpu: fn(&StageArgs) -> Result<Box<dyn GpuStage>>,
+    /// Runs it on the CPU (the scalar twins) on sanitised statistics.
+    pub cpu: fn(&StatsImage, &CpuArgs) -> Result<CpuResult>,
+}
+
+/// What a method's [`MethodInfo::gpu`] constructor gets.
+pub struct StageArgs<'a> {
+    /// The device.
+    pub ctx: &'a Arc<GpuContext>,
+    /// The chain's configuration.
+    pub config: &'a ChainConfig,
+    /// `(width, height)`.
+    pub size: (usize, usize),
+    /// The chain's arena (at least [`MethodInfo::arena_bytes`] long), if any.
+    pub arena: Option<&'a Arc<GpuBuffer>>,
+}
+
+/// What one recording of a stage needs to know of the run.
+pub struct StageRun<'a> {
+    /// Kernel arithmetic.
+    pub precision: Precision,
+    /// The sanitised (outlier-cleaned, prefiltered) statistics.
+    pub stats: &'a GpuStats,
+    /// The chain's configuration.
+    pub config: &'a ChainConfig,
+    /// Whether the sample map or its priority reads the error planes after.
+    pub maps: bool,
+    /// The image pixel of the chain's pixel `(0, 0)` (a tile's origin).
+    pub origin: (u32, u32),
+    /// Whether the G-buffer prefilter ran before the method.
+    pub prefiltered: bool,
+}
+
+/// A method's GPU stage: its buffers and how to record it. Outputs stay on
+/// the GPU until [`GpuStage::download`].
+pub trait GpuStage: Send + Sync {
+    /// Records the method on `run.stats`.
+    fn record(&self, batch: &mut Batch, run: &StageRun) -> Result<()>;
+    /// The reconstruction's colour planes R, G, B.
+    fn color(&self, stats: &GpuStats) -> [BufferSlice; 3];
+    /// The per-pixel error estimate `E_i` per channel (§9.1).
+    fn error(&self, stats: &GpuStats) -> [BufferSlice; 3];
+    /// What the sample map reads as `E` (§9.1); the exported error unless
+    /// the method says otherwise.
+    fn sampling_error(&self, stats: &GpuStats) -> [BufferSlice; 3] {
+        self.error(stats)
+    }
+    /// The plane the local dimension `d_i` is read from, and whether it is
+    /// WLR's `kflags` (rank in `value mod 16`).
+    fn dim(&self) -> (BufferSlice, bool);
+    /// Adds its debug planes (with `debug`) and run statistics to `out`
+    /// after a completed run; `rect` crops the statistics to a tile's
+    /// interior.
+    fn download(
+        &self,
+        stats: &GpuStats,
+        size: (usize, usize),
+        rect: Option<Rect>,
+        debug: bool,
+        out: &mut ChainOutput,
+    ) -> Result<()>;
+}
+
+/// What a method's CPU path gets besides the statistics.
+#[derive(Clone, Debug)]
+pub struct CpuArgs {
+    /// Final or intermediate windows.
+    pub pass: Pass,
+    /// Method options.
+    pub options: Options,
+    /// Progress lines on stderr for long runs.
+    pub progress: bool,
+    /// Whether the debug maps are wanted.
+    pub debug: bool,
+    /// Whether the G-buffer prefilter ran.
+    pub prefiltered: bool,
+}
+
+/// A method's CPU output.
+#[derive(Clone, Debug)]
+pub struct CpuResult {
+    /// The reconstruction.
+    pub color: RgbImage,
+    /// `E_i` per channel.
+    pub error: RgbImage,
+    /// `d_i` per pixel.
+    pub dim: Vec<f32>,
+    /// Named debug planes (empty unless asked).
+    pub debug: Vec<(String, Vec<f32>)>,
+    /// Named run statistics.
+    pub stats: Vec<(String, f64)>,
+    /// What the sample map reads as `E` when it is not `error`.
+    pub map_error: Option<RgbImage>,
+}
+
+/// A [`MethodInfo::arena_bytes`], [`MethodInfo::ring_bytes`] for methods
+/// that have none.
+pub fn no_bytes(_: &ChainConfig, _: (usize, usize)) -> u64 {
+    0
+}
+
+/// A [`MethodInfo::arena_kept`] for methods that keep nothing in the arena.
+pub fn nothing_kept(_: usize) -> u64 {
+    0
+}
