@@ -56,6 +56,7 @@ use crate::{AccumLayout, StatsImage};
 
 pub mod adaptive;
 pub mod gpu_scene;
+pub mod reference;
 pub mod scene;
 
 pub use gpu_scene::GpuScene;

@@ -1,0 +1,106 @@
+//! Option values the subcommands share, and their library meanings.
+
+use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
+use clap::ValueEnum;
+
+use mcdenoise::{Method, Outliers, Pass, Precision, Prefilter, REGISTRY};
+
+/// `--method`: any method of the registry, by name (its help line from the
+/// registry too).
+pub fn method_parser() -> impl TypedValueParser<Value = Method> {
+    PossibleValuesParser::new(
+        REGISTRY
+            .iter()
+            .map(|i| PossibleValue::new(i.name).help(i.about)),
+    )
+    .map(|name| Method::from_name(&name).expect("a registered name"))
+}
+
+/// `--size WxH`.
+pub fn parse_size(s: &str) -> Result<(usize, usize), String> {
+    mcdenoise::bench::parse_size(s).map_err(|e| e.to_string())
+}
+
+#[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
+pub enum BackendArg {
+    /// Vulkan compute kernels.
+    Gpu,
+    /// The scalar f64 reference implementation (slow, for checking).
+    Cpu,
+}
+
+#[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
+pub enum PassArg {
+    /// The final reconstruction (large windows).
+    Final,
+    /// An adaptive pass's reconstruction (the spec's intermediate windows).
+    Intermediate,
+}
+
+impl PassArg {
+    pub fn get(self) -> Pass {
+        match self {
+            PassArg::Final => Pass::Final,
+            PassArg::Intermediate => Pass::Intermediate,
+        }
+    }
+}
+
+#[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
+pub enum PrecisionArg {
+    F32,
+    F64,
+}
+
+impl PrecisionArg {
+    pub fn get(self) -> Precision {
+        match self {
+            PrecisionArg::F32 => Precision::F32,
+            PrecisionArg::F64 => Precision::F64,
+        }
+    }
+}
+
+#[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
+pub enum PrefilterArg {
+    /// The G-buffer prefilter when the input has position, position_variance
+    /// and position_covariance, for the methods that want it (wlr, lp, apr);
+    /// none for aos (its own NL-means prefilter does better there).
+    Auto,
+    /// G-buffer prefilter with world positions and SURE (spec §6); an error
+    /// without the position layers.
+    Gbf,
+    /// No prefilter.
+    None,
+}
+
+impl PrefilterArg {
+    pub fn get(self) -> Prefilter {
+        match self {
+            PrefilterArg::Auto => Prefilter::Auto,
+            PrefilterArg::Gbf => Prefilter::On,
+            PrefilterArg::None => Prefilter::Off,
+        }
+    }
+}
+
+#[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
+pub enum OutliersArg {
+    /// On for every reconstruction, off for `--method none`.
+    Auto,
+    /// Remove bright spikes before the method and put their energy back
+    /// around them after it (spec §4.4).
+    On,
+    /// Keep spikes in the input.
+    Off,
+}
+
+impl OutliersArg {
+    pub fn get(self) -> Outliers {
+        match self {
+            OutliersArg::Auto => Outliers::Auto,
+            OutliersArg::On => Outliers::On,
+            OutliersArg::Off => Outliers::Off,
+        }
+    }
+}

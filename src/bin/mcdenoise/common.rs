@@ -1,0 +1,143 @@
+//! What the subcommands share: the device, progress display, Ctrl-C, output
+//! checks and metric printing.
+
+use std::io::IsTerminal;
+use std::path::Path;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, OnceLock};
+use std::time::Duration;
+
+use mcdenoise::{
+    io, metrics, ContextOptions, Denoiser, GpuContext, PrepareReport, RgbImage, Validation,
+};
+
+use crate::Cli;
+
+/// The device `--device` (or the default) names, with validation on request.
+pub fn context(cli: &Cli) -> anyhow::Result<Arc<GpuContext>> {
+    let ctx = GpuContext::new(&ContextOptions {
+        device: cli.device.clone(),
+        validation: if cli.validation {
+            Validation::Required
+        } else {
+            Validation::Off
+        },
+    })?;
+    Ok(Arc::new(ctx))
+}
+
+/// Whether progress may be drawn: stderr is a terminal and not --quiet
+/// (logs and pipes stay clean).
+fn interactive(cli: &Cli) -> bool {
+    !cli.quiet && std::io::stderr().is_terminal()
+}
+
+fn bar(template: &str, len: u64) -> Option<indicatif::ProgressBar> {
+    let bar = indicatif::ProgressBar::new(len);
+    bar.set_style(indicatif::ProgressStyle::with_template(template).ok()?);
+    bar.enable_steady_tick(Duration::from_millis(200));
+    Some(bar)
+}
+
+/// A progress bar on stderr for a GPU denoiser (none when not interactive).
+pub fn progress_bar(cli: &Cli, denoiser: &mut Denoiser) -> Option<indicatif::ProgressBar> {
+    if !interactive(cli) {
+        return None;
+    }
+    let bar = bar(
+        "{spinner} [{elapsed_precise}] [{wide_bar}] {percent:>3}% {msg}",
+        1000,
+    )?;
+    let b = bar.clone();
+    denoiser.set_progress(Some(Arc::new(move |fraction: f64, kernel: &str| {
+        b.set_position((fraction * 1000.0) as u64);
+        b.set_message(kernel.to_string());
+    })));
+    Some(bar)
+}
+
+/// A bar over the passes of a render (none when not interactive).
+pub fn pass_bar(cli: &Cli, what: &str) -> Option<indicatif::ProgressBar> {
+    if !interactive(cli) {
+        return None;
+    }
+    let bar = bar(
+        "{spinner} [{elapsed_precise}] [{wide_bar}] {pos}/{len} {msg}",
+        1,
+    )?;
+    bar.set_message(what.to_string());
+    Some(bar)
+}
+
+/// A stop flag set by Ctrl-C (installed once per process); a second Ctrl-C
+/// exits at once.
+pub fn stop_flag() -> Arc<AtomicBool> {
+    static FLAG: OnceLock<Arc<AtomicBool>> = OnceLock::new();
+    FLAG.get_or_init(|| {
+        let f = Arc::new(AtomicBool::new(false));
+        let g = f.clone();
+        if ctrlc::set_handler(move || {
+            if g.swap(true, Ordering::SeqCst) {
+                std::process::exit(130);
+            }
+            eprintln!("\nmcdenoise: stopping after this pass (Ctrl-C again to quit now)");
+        })
+        .is_err()
+        {
+            log::warn!("cannot install a Ctrl-C handler");
+        }
+        f
+    })
+    .clone()
+}
+
+/// Whether two paths name the same existing file.
+pub fn same_file(a: &Path, b: &Path) -> bool {
+    match (a.canonicalize(), b.canonicalize()) {
+        (Ok(x), Ok(y)) => x == y,
+        _ => false,
+    }
+}
+
+/// Refuses any of `outputs` that is one of `inputs`.
+pub fn refuse_overwrite<'a>(
+    outputs: impl IntoIterator<Item = &'a Path>,
+    inputs: &[&Path],
+) -> anyhow::Result<()> {
+    for out in outputs {
+        if inputs.iter().any(|i| same_file(out, i)) {
+            anyhow::bail!("{}: refusing to overwrite an input file", out.display());
+        }
+    }
+    Ok(())
+}
+
+/// `Ok(false)` (exit status 1) when `rmse` exceeds `max`.
+pub fn check_error(rmse: f64, max: Option<f64>) -> bool {
+    match max {
+        Some(max) if rmse.is_nan() || rmse > max => {
+            eprintln!("rMSE {rmse:.5} exceeds --max-error {max}");
+            false
+        }
+        _ => true,
+    }
+}
+
+pub fn print_metrics(m: &metrics::Metrics) {
+    println!("rMSE    {:.5}", m.rmse);
+    println!("relMSE  {:.5}", m.relmse);
+    println!("PSNR    {:.2} dB", m.psnr);
+    println!("SSIM    {:.4}", m.ssim);
+}
+
+/// The colour of `path`: a render-statistics file or a plain RGB image.
+pub fn read_colour(path: &Path) -> anyhow::Result<RgbImage> {
+    Ok(io::read_rgb(path)?)
+}
+
+/// What sanitation repaired, on stderr.
+pub fn print_report(r: &PrepareReport, input: &Path) {
+    for line in r.messages(input) {
+        eprintln!("{line}");
+    }
+}
