@@ -18,7 +18,7 @@ while [ $# -gt 0 ]; do
     *) echo "outliers.sh: unknown argument $1" >&2; exit 2 ;;
   esac
 done
-cargo build --release --quiet --example outlier_table
+cargo build --release --quiet -p mcdenoise-tools --bin outlier_table
 bin=target/release/mcdenoise
 work=target/outliers; mkdir -p "$work"
 export MCDENOISE_CACHE=${MCDENOISE_CACHE:-$work/cache}
@@ -33,4 +33,4 @@ for n in 4 16 64; do
         --reference "$k" -o "$work/glossy-$n-none.exr" --save-stats "$work/glossy_spp$n.exr")
   pairs+=("$work/glossy_spp$n.exr=$(echo "$out" | awk '/^reference:/ {print $2}')")
 done
-target/release/examples/outlier_table --methods "$methods" "${pairs[@]}"
+target/release/outlier_table --methods "$methods" "${pairs[@]}"

@@ -15,11 +15,11 @@ while [ $# -gt 0 ]; do
     *) echo "unknown argument $1" >&2; exit 2;;
   esac
 done
-cargo build --release --quiet --example feature_mse
+cargo build --release --quiet -p mcdenoise-tools --bin feature_mse
 bin=target/release/mcdenoise
 work=target/prefilter_features; mkdir -p "$work"
 export MCDENOISE_CACHE=${MCDENOISE_CACHE:-$work/cache}
-fmse() { target/release/examples/feature_mse "$@"; }
+fmse() { target/release/feature_mse "$@"; }
 for s in motion dof; do
   ref_stats="$work/$s-$size-k$k-ref-stats.exr"
   [ -f "$ref_stats" ] || $bin render --quiet --scene "$s" --size "$size" --spp "$k" --seed 7 \
