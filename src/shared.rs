@@ -1,4 +1,5 @@
-//! Structs shared between the host and the GLSL kernels: push constants.
+//! What the host, the GLSL kernels and their scalar twins share: push
+//! constants, and the constants and layouts at the end of this module.
 //!
 //! Each is `#[repr(C)]` + [`bytemuck::Pod`] and mirrors one `push_constant`
 //! block in `spirv/` (named in its doc). Sizes and offsets are tested in
@@ -476,3 +477,67 @@ pub const AOS_OUTLIER_W: u32 = 8;
 pub const AOS_RESIDUAL: u32 = 16;
 /// [`AosPush::flags`]: AOS-FEATNOISE (`aos.feature_noise=on`).
 pub const AOS_FEATNOISE: u32 = 32;
+
+// Constants the kernels and their scalar twins share (layouts and sizes that
+// both the host dispatch and the twin must agree on). `src/kernels` reads
+// them from here, never from `src/reference`.
+
+/// APR's window radius and centre spacing: 29×29 blocks every 14 pixels
+/// (spec §4.3).
+pub const APR_RADIUS: usize = 14;
+/// APR's design columns at order 3: the intercept, 8 features and the 9
+/// non-constant monomials of `(u, v)` up to degree 3 (spec §4.1).
+pub const APR_P: usize = 18;
+/// APR's extra-block planes per channel (COVER, spec §4.3).
+pub const APR_EXTRA_PLANES: usize = 4;
+/// APR's output planes of the last stage: colour R G B, error R G B,
+/// dimension, extra mask R G B.
+pub const APR_OUTPUTS: usize = 10;
+/// APR's output planes of an intermediate stage: `ŷ` R G B, `σ̂²` R G B.
+pub const APR_STAGE_OUTPUTS: usize = 6;
+
+/// APR's sparse centres' grid: `ceil(w/14) × ceil(h/14)`, cell `(gx, gy)` ↔
+/// pixel `(14 gx, 14 gy)`.
+pub fn apr_grid(w: usize, h: usize) -> (usize, usize) {
+    (w.div_ceil(APR_RADIUS), h.div_ceil(APR_RADIUS))
+}
+
+/// AOS's feature dimension: `(px, py, dep, a_r, a_g, a_b, nrm_x, nrm_y,
+/// nrm_z, vis)` (spec §5.3).
+pub const AOS_D: usize = 10;
+/// f32 values per pixel of AOS's local-space scratch: `P` row-major
+/// (`P[m][j]` at `m·D + j`), then `k`.
+pub const AOS_SPACE: usize = AOS_D * AOS_D + 1;
+/// AOS's highest polynomial order (the order-5 fit shared by orders 1 and
+/// 3, AOS-ONE-RIDGE).
+pub const AOS_P_STAR: usize = 5;
+/// Most columns of AOS's order-5 design: `1 + 5·D`.
+pub const AOS_MAX_COLS: usize = 1 + AOS_P_STAR * AOS_D;
+/// `aos_fit`'s output planes, in order: colour R G B (clamped ≥ 0), the
+/// exported error (`MSE_c` plus AOS-FEATNOISE's term), the chosen order (0:
+/// the input), rank `k`, `bias_1`, `var_1`, `bias_3`, `var_3`, `σ*²`,
+/// `sd(bias_1)`, `sd(bias_3)`, `MSE_c` (the sample map's `E_i`).
+pub const AOS_OUTPUTS: usize = 14;
+/// Names of `aos_fit`'s debug planes 4..14 (spec §5.5).
+pub const AOS_DEBUG_NAMES: [&str; 10] = [
+    "aos_order",
+    "aos_rank",
+    "aos_bias1",
+    "aos_var1",
+    "aos_bias3",
+    "aos_var3",
+    "aos_sigma2",
+    "aos_bias_sd1",
+    "aos_bias_sd3",
+    "aos_map_mse",
+];
+
+/// σ of the G-buffer prefilter's Gaussian smoothing of the `h` map and of
+/// `S` (spec §6.2).
+pub const GBF_SMOOTH_SIGMA: f32 = 1.5;
+
+/// The radius of a Gaussian map smoothing of width `sigma` (spec §0.5:
+/// `ceil(3σ)`, 0 for σ ≤ 0).
+pub fn gaussian_radius(sigma: f64) -> usize {
+    (3.0 * sigma).ceil().max(0.0) as usize
+}

@@ -2,13 +2,15 @@
 //! [`THREADS`] invocations per pixel with the order-5 normal matrix in
 //! workgroup memory (§5.4). Reads `aos_space`'s projections; writes
 //! [`OUTPUTS`] planes `push.stride` f32 values apart in one binding. Twin:
-//! [`crate::reference::aos_fit`], which also states the algebra.
+//! `reference::aos_fit`, which also states the algebra.
 
 use crate::error::Result;
 use crate::gpu::reflect::{read, write};
 use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};
-pub use crate::reference::aos_fit::{DEBUG_NAMES, MAX_COLS, OUTPUTS};
 use crate::shared::AosPush;
+pub use crate::shared::{
+    AOS_DEBUG_NAMES as DEBUG_NAMES, AOS_MAX_COLS as MAX_COLS, AOS_OUTPUTS as OUTPUTS,
+};
 
 /// Invocations per pixel (the kernel's `local_size_x`).
 pub const THREADS: u32 = 64;

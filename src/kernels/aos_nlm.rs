@@ -1,7 +1,7 @@
 //! `aos_nlm`: AOS's variance-aware NL-means feature prefilter (spec §5.2)
 //! of one buffer of 1 or 3 channels. Writes the filtered channels, then
 //! their propagated variances, `push.stride` f32 values apart in one
-//! binding. Twin: [`crate::reference::aos_nlm`].
+//! binding. Twin: `reference::aos_nlm`.
 
 use crate::error::Result;
 use crate::gpu::reflect::{read, write};

@@ -1,13 +1,13 @@
 //! `aos_space`: AOS's per-pixel TSVD local space (spec §5.3 step 1, §0.6)
 //! over the 10 features of §5.1, stored as the projection `P` and rank `k`
 //! ([`SPACE`] f32 per pixel) that `aos_fit` reads. Covers the rows
-//! `base_row + [0, rows)`. Twin: [`crate::reference::aos_space`].
+//! `base_row + [0, rows)`. Twin: `reference::aos_space`.
 
 use crate::error::Result;
 use crate::gpu::reflect::{read, write};
 use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};
-pub use crate::reference::aos_space::SPACE;
 use crate::shared::AosPush;
+pub use crate::shared::AOS_SPACE as SPACE;
 
 /// Declaration of `spirv/aos_space.comp`; checked against the SPIR-V by
 /// reflection.

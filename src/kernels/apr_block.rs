@@ -3,7 +3,7 @@
 //! window, one ridge Cholesky (APR-RIDGE-BLOCK), the error of orders 0..3
 //! from `L⁻¹` and a bias pass, the chosen order's `β_y` (and `β_s`). Sparse
 //! mode writes each grid block's 52-float state
-//! ([`reference::apr_block::Block::state`](crate::reference::apr_block::Block::state));
+//! (`reference::apr_block::Block::state`);
 //! extra mode (COVER) makes a block of every valid pixel no sparse centre
 //! accepts and writes its values at that pixel to the extra planes. Twin:
 //! `reference::apr_block`.
@@ -11,9 +11,8 @@
 use crate::error::Result;
 use crate::gpu::reflect::{read, write};
 use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision, QUEUE_HEADER_WORDS};
-use crate::reference::apr::RADIUS;
-use crate::reference::apr_block::{grid, P};
 use crate::shared::AprPush;
+use crate::shared::{apr_grid as grid, APR_P as P, APR_RADIUS as RADIUS};
 
 /// Declaration of `spirv/apr_block.comp`; checked against the SPIR-V by
 /// reflection.

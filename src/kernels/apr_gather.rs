@@ -8,8 +8,10 @@
 use crate::error::Result;
 use crate::gpu::reflect::{read, write};
 use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};
-pub use crate::reference::apr_gather::{EXTRA_PLANES, OUTPUTS, STAGE_OUTPUTS};
 use crate::shared::AprPush;
+pub use crate::shared::{
+    APR_EXTRA_PLANES as EXTRA_PLANES, APR_OUTPUTS as OUTPUTS, APR_STAGE_OUTPUTS as STAGE_OUTPUTS,
+};
 
 /// Declaration of `spirv/apr_gather.comp`; checked against the SPIR-V by
 /// reflection.

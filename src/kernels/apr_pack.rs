@@ -1,6 +1,6 @@
 //! `apr_pack`: APR's features (normal xyz, albedo rgb, depth, visibility)
 //! packed into two vec4 planes for [`super::apr_block`] and
-//! [`super::apr_gather`] (APR-PACKED). Twin: [`crate::reference::apr_pack`].
+//! [`super::apr_gather`] (APR-PACKED). Twin: `reference::apr_pack`.
 
 use crate::error::Result;
 use crate::gpu::reflect::{read, write};

@@ -1,6 +1,6 @@
 //! `box_rows`: the row part of a box sum (or count) over valid pixels; the
 //! outlier redistribution's column kernels finish it (spec §4.4 step 4).
-//! Twin: [`crate::reference::box_rows`].
+//! Twin: `reference::box_rows`.
 
 use crate::error::{Error, Result};
 use crate::gpu::reflect::{read, write};

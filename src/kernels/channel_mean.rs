@@ -1,6 +1,6 @@
 //! `channel_mean`: `out = (a + b + c)/3` per pixel — `vbar` from the three
 //! colour variances (spec §0.1 GREY), or `grey` from the colour.
-//! Twin: [`crate::reference::channel_mean`].
+//! Twin: `reference::channel_mean`.
 
 use crate::error::Result;
 use crate::gpu::reflect::{read, write};

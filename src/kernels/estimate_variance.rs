@@ -1,7 +1,7 @@
 //! `estimate_variance`: spec §0.4 step 4 (the variance layer is missing: MAD
 //! estimate from local residuals). Bindings, push constants and `record` are
 //! shared with [`super::sanitize`] (call `sanitize::record` with stage 2).
-//! Twin: [`crate::reference::estimate_variance`].
+//! Twin: `reference::estimate_variance`.
 
 use crate::gpu::KernelDecl;
 use crate::shared::SanitizePush;

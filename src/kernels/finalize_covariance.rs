@@ -1,6 +1,6 @@
 //! `finalize_covariance`: position sums → covariance of the position samples
 //! divided by n (6 planes XX XY XZ YY YZ ZZ). Twin:
-//! [`crate::reference::finalize_covariance`].
+//! `reference::finalize_covariance`.
 
 use crate::error::Result;
 use crate::gpu::reflect::{read, write};

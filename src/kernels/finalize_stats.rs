@@ -1,5 +1,5 @@
 //! `finalize_stats`: accumulation sums of one scalar channel → mean and
-//! variance of the mean. Twin: [`crate::reference::finalize_stats`].
+//! variance of the mean. Twin: `reference::finalize_stats`.
 
 use crate::error::Result;
 use crate::gpu::reflect::{read, write};

@@ -2,7 +2,7 @@
 //! (spec §0.5) for one map or six, with the row sums of the weights over
 //! the valid pixels. Its column passes are `gauss_smooth` (one map) and
 //! `gbf_prepare` (the six covariance entries). Twin:
-//! [`crate::reference::gauss_rows`].
+//! `reference::gauss_rows`.
 
 use crate::error::{Error, Result};
 use crate::gpu::reflect::{read, write};

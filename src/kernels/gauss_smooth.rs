@@ -3,7 +3,7 @@
 //! (§2.3 step 8), `G_1.5` (§6.2 step 8) and for the sampling map (§9.1
 //! MAP-SMOOTH). Separable: [`super::gauss_rows`] sums the rows, this kernel
 //! the columns (`2(2r+1)` taps per pixel instead of `(2r+1)²`).
-//! Twin: [`crate::reference::gauss_smooth`].
+//! Twin: `reference::gauss_smooth`.
 
 use crate::error::Result;
 use crate::gpu::reflect::{read, write};
@@ -20,7 +20,7 @@ pub const DECL: KernelDecl = KernelDecl {
 
 /// The window radius `ceil(3σ)` of §0.5 (0 for `σ <= 0`).
 pub fn radius(sigma: f32) -> u32 {
-    crate::reference::linalg::gaussian_radius(sigma as f64) as u32
+    crate::shared::gaussian_radius(sigma as f64) as u32
 }
 
 /// Per pixel: `2r+1` rows × (2 FMAs, weight step), and a division.

@@ -1,7 +1,7 @@
 //! `gbf_filter`: G-buffer prefilter steps 9–10 (spec §6) — the seven
 //! features [`super::gbf_pack`] packed, filtered with the 7×7 weights at
 //! `hbar` in one pass, with propagated variances (GBF-VAR). Twin:
-//! [`crate::reference::gbf_filter`].
+//! `reference::gbf_filter`.
 
 use crate::error::{Error, Result};
 use crate::gpu::reflect::{read, write};

@@ -1,6 +1,6 @@
 //! `gbf_pack`: packs the seven feature planes the G-buffer prefilter
 //! filters (normal x y z, depth, albedo r g b) and their variances into four
-//! vec4 planes for [`super::gbf_filter`]. Twin: [`crate::reference::gbf_pack`].
+//! vec4 planes for [`super::gbf_filter`]. Twin: `reference::gbf_pack`.
 
 use crate::error::{Error, Result};
 use crate::gpu::reflect::{read, write};

@@ -2,7 +2,7 @@
 //! covariance smoothed with `G_1.5` (the column pass over
 //! [`super::gauss_rows`]' row sums of the six entries), regularised (S-PSD)
 //! and inverted: `S̃⁻¹` per pixel, which `gbf_sure` and `gbf_filter` read
-//! for every neighbour. Twin: [`crate::reference::gbf_prepare`].
+//! for every neighbour. Twin: `reference::gbf_prepare`.
 
 use crate::error::Result;
 use crate::gpu::reflect::{read, write};
@@ -56,7 +56,7 @@ pub fn record(
     scratch: [BufferSlice; 7],
     inv: [BufferSlice; 6],
 ) -> Result<()> {
-    let sigma = crate::reference::gbf::SMOOTH_SIGMA;
+    let sigma = crate::shared::GBF_SMOOTH_SIGMA;
     super::gauss_rows::record(
         batch,
         precision,

@@ -1,6 +1,6 @@
 //! `gbf_sure`: G-buffer prefilter steps 2–7 (spec §6) — SURE over the six
 //! trial bandwidths with the regularised smoothed covariances, and `h_opt`.
-//! Twin: [`crate::reference::gbf_sure`].
+//! Twin: `reference::gbf_sure`.
 
 use crate::error::Result;
 use crate::gpu::reflect::{read, write};

@@ -1,7 +1,8 @@
 //! One file per GPU kernel (`spirv/<name>.comp`): its binding declaration
 //! ([`KernelDecl`]), its cost estimate and a function that records it into a
-//! [`Batch`]. The scalar twin of each is
-//! `crate::reference::<name>`.
+//! [`Batch`]. The scalar twin of each is `src/reference/<name>.rs`; the
+//! constants both need live in [`crate::shared`], so nothing here imports
+//! the twins.
 
 use crate::gpu::KernelDecl;
 

@@ -2,7 +2,7 @@
 //! `outlier_rows`' summaries and `outlier_grey`'s keys. It queues the
 //! detected pixels for [`super::outlier_median`], which finds their
 //! replacements and then writes them ([`super::outlier_median::Step::Apply`]). Twin:
-//! [`crate::reference::outlier_detect`].
+//! `reference::outlier_detect`.
 
 use crate::error::Result;
 use crate::gpu::reflect::{read, write};

@@ -3,7 +3,7 @@
 //! pixel is invalid), so that the window kernels after it
 //! ([`super::outlier_rows`], [`super::outlier_detect`],
 //! [`super::outlier_median`]) load one plane per neighbour and decode grey
-//! from it exactly. Twin: [`crate::reference::outlier_grey`].
+//! from it exactly. Twin: `reference::outlier_grey`.
 
 use crate::error::Result;
 use crate::gpu::reflect::{read, write};

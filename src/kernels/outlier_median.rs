@@ -4,7 +4,7 @@
 //! 4-bit digits), written to the replacement planes, and `e = y_o − y_q*`;
 //! a second dispatch ([`Step::Apply`]) writes the replacements into the
 //! statistics. Dispatched indirectly, one invocation per queued pixel.
-//! Twin: [`crate::reference::outlier_median`].
+//! Twin: `reference::outlier_median`.
 
 use crate::error::Result;
 use crate::gpu::reflect::{read, write};

@@ -1,7 +1,7 @@
 //! `outlier_rows`: the row part of the outlier statistics (spec §4.4 step 1):
 //! per pixel, (count, mean, M2) of grey over the row segment of radius R,
 //! with and without the pixel itself, from [`super::outlier_grey`]'s keys.
-//! Twin: [`crate::reference::outlier_rows`].
+//! Twin: `reference::outlier_rows`.
 
 use crate::error::Result;
 use crate::gpu::reflect::{read, write};

@@ -1,6 +1,6 @@
 //! `outlier_spread`: applies the redistribution (spec §4.4 step 4) in place to
 //! the method's colour planes, from `box_rows` of the weights. Twin:
-//! [`crate::reference::outlier_spread`].
+//! `reference::outlier_spread`.
 
 use crate::error::Result;
 use crate::gpu::reflect::{read, write};

@@ -1,7 +1,7 @@
 //! `outlier_weights`: the redistribution weights `ρ_o = e_o / Σ_{Ω_o(43)} ŷ`
 //! (or the DARK-WINDOW share) at pixels with an excess (spec §4.4 step 4),
 //! dispatched indirectly over the queue of detected pixels
-//! ([`super::outlier_detect`]). Twin: [`crate::reference::outlier_weights`].
+//! ([`super::outlier_detect`]). Twin: `reference::outlier_weights`.
 
 use crate::error::Result;
 use crate::gpu::reflect::{read, write};

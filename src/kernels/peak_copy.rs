@@ -1,6 +1,6 @@
 //! `peak_copy`: the device's memory bandwidth for `mcdenoise bench` (issue
 //! #13): `dst[i] = src[i]`, one f32 per invocation. Twin:
-//! [`crate::reference::peak_copy`].
+//! `reference::peak_copy`.
 
 use crate::error::Result;
 use crate::gpu::reflect::{read, write};

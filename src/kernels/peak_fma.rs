@@ -1,6 +1,6 @@
 //! `peak_fma`: the device's arithmetic peak for `mcdenoise bench` (issue
 //! #13). Every invocation runs `push.iterations` rounds of eight independent
-//! `real4` FMAs and stores one value. Twin: [`crate::reference::peak_fma`].
+//! `real4` FMAs and stores one value. Twin: `reference::peak_fma`.
 
 use crate::error::Result;
 use crate::gpu::reflect::write;

@@ -1,7 +1,7 @@
 //! `sample_priority`: the per-pixel sampling priority `r_i` of spec §9.1
 //! (relative MSE reduction, REL-CHANNELS), before MAP-SMOOTH and before the
 //! global part of the sanitise rule (which [`super::sample_reduce`] applies).
-//! Twin: [`crate::reference::sample_priority`].
+//! Twin: `reference::sample_priority`.
 
 use crate::error::Result;
 use crate::gpu::reflect::{read, write};

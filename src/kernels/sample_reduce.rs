@@ -2,7 +2,7 @@
 //! sampling allocation (spec §9.1 sanitise, §9.2 ROUNDING). Each workgroup
 //! reduces a block of [`BLOCK`] consecutive elements of a level into one
 //! u64 entry of the tree buffer. Integer arithmetic only, so the result is
-//! bit-identical to the twin [`crate::reference::sample_reduce`].
+//! bit-identical to the twin `reference::sample_reduce`.
 //! The levels are planned by [`crate::methods::sampling::TreeLayout`].
 
 use crate::error::Result;

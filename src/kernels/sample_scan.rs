@@ -3,7 +3,7 @@
 //! workgroup scans one block of [`BLOCK`](super::sample_reduce::BLOCK)
 //! elements in a fixed order and adds the block's offset from the level
 //! above. Integer arithmetic only: bit-identical to the twin
-//! [`crate::reference::sample_scan`].
+//! `reference::sample_scan`.
 
 use super::sample_reduce::{with_grid, FLOPS_PER_ELEMENT};
 use crate::error::Result;

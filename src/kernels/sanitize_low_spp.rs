@@ -1,7 +1,7 @@
 //! `sanitize_low_spp`: spec §0.4 step 3 (variance of pixels with spp < 2).
 //! Bindings, push constants and `record` are shared with
 //! [`super::sanitize`] (call `sanitize::record` with stage 1).
-//! Twin: [`crate::reference::sanitize_low_spp`].
+//! Twin: `reference::sanitize_low_spp`.
 
 use crate::gpu::KernelDecl;
 use crate::shared::SanitizePush;

@@ -4,7 +4,7 @@
 //! counters are `sanitize`'s bit for bit; it exists because llvmpipe pays
 //! per storage-buffer access, so a quarter of the accesses makes the stage
 //! that much cheaper. Bindings and push constants are `sanitize`'s.
-//! Twin: [`crate::reference::sanitize_quads`].
+//! Twin: `reference::sanitize_quads`.
 
 use crate::error::{Error, Result};
 use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};

@@ -1,7 +1,7 @@
 //! `tsvd_debug`: the feature normalisation and TSVD local space of spec §0.6
 //! at every pixel, written as debug maps (rank k, τ, ‖E‖₂, σ₁..σ₉). The
 //! routine itself lives in `spirv/lib/tsvd.glsl` and is shared by the WLR,
-//! LP and AOS kernels. Twin: [`crate::reference::tsvd_debug`].
+//! LP and AOS kernels. Twin: `reference::tsvd_debug`.
 
 use crate::error::Result;
 use crate::gpu::reflect::{read, write};

@@ -2,7 +2,7 @@
 //! the `b_j` that `wlr_fit` stored in its centre state (the same values the
 //! twin recomputes), the final local linear fit at `h = hbar_c`, output
 //! clamped `>= 0`, and `MSE_c` from the model stored by `wlr_fit`. Twin:
-//! [`crate::reference::wlr_final`].
+//! `reference::wlr_final`.
 //!
 //! Outputs (bindings 13..17): R, G, B; `mse`; `flags` as a float: `wlr_fit`'s
 //! flags | bit 1 FEW in the final fit | bit 0 SOLVE-FAIL (output `y_c`,

@@ -1,7 +1,7 @@
 //! `wlr_fit`: WLR steps 1–7 (spec §2.3) per pixel — TSVD (§0.6), curvature
 //! bandwidths `b_j`, the five trial fits, the parametric fits and `h_opt`.
 //! The per-pixel routines live in `spirv/lib/wlr.glsl`, shared with
-//! `wlr_final`. Twin: [`crate::reference::wlr_fit`].
+//! `wlr_final`. Twin: `reference::wlr_fit`.
 //!
 //! Outputs (bindings 19..26): `h_opt`; `λ1`, `κ0`, `κ1` of the model
 //! `MSE(h) = (λ1 h²)² + (κ0 + κ1 h^{-k})/n_c` that `wlr_final` evaluates at

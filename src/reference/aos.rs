@@ -25,7 +25,7 @@ pub const ORDERS: [usize; 2] = [1, 3];
 /// Increment `a`: order `l`'s bias comes from powers `l+1 ..= l+a`.
 pub const INCREMENT: usize = 2;
 /// The high order `P* = p_max + a` fitted once (AOS-ONEFIT).
-pub const P_STAR: usize = 5;
+pub use crate::shared::AOS_P_STAR as P_STAR;
 /// Ridge factor: `λ = 1e-5·Σ K_i` (§5.3 step 3).
 pub const RIDGE: f64 = 1e-5;
 /// AOS-SCALE: a column whose weighted RMS is below this is dropped.

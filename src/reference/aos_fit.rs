@@ -37,28 +37,9 @@ use crate::shared::{
     AosPush, AOS_BIAS_TEST, AOS_FEATNOISE, AOS_IDENTITY, AOS_OUTLIER_W, AOS_RESIDUAL, AOS_SANDWICH,
 };
 
-/// Output planes, in order: colour R G B (clamped ≥ 0), the exported error
-/// (`MSE_c` plus AOS-FEATNOISE's term), the chosen order (0: the input),
-/// rank `k`, `bias_1`, `var_1`, `bias_3`, `var_3`, `σ*²`, `sd(bias_1)`,
-/// `sd(bias_3)`, `MSE_c` (the sample map's `E_i`).
-pub const OUTPUTS: usize = 14;
-
-/// Names of the debug planes 4..14 (§5.5).
-pub const DEBUG_NAMES: [&str; 10] = [
-    "aos_order",
-    "aos_rank",
-    "aos_bias1",
-    "aos_var1",
-    "aos_bias3",
-    "aos_var3",
-    "aos_sigma2",
-    "aos_bias_sd1",
-    "aos_bias_sd3",
-    "aos_map_mse",
-];
-
-/// Most columns of the order-5 design: `1 + 5·D`.
-pub const MAX_COLS: usize = 1 + P_STAR * D;
+pub use crate::shared::{
+    AOS_DEBUG_NAMES as DEBUG_NAMES, AOS_MAX_COLS as MAX_COLS, AOS_OUTPUTS as OUTPUTS,
+};
 
 /// The planes `aos_fit` reads.
 #[derive(Clone, Copy)]

@@ -13,11 +13,7 @@ use super::spp_of;
 use super::tsvd::{gather_window, local_space, projection, Projection};
 use crate::shared::AosPush;
 
-/// Feature dimension: `(px, py, dep, a_r, a_g, a_b, nrm_x, nrm_y, nrm_z, vis)`.
-pub const D: usize = 10;
-/// f32 values per pixel in the scratch: `P` row-major (`P[m][j]` at
-/// `m·D + j`), then `k`.
-pub const SPACE: usize = D * D + 1;
+pub use crate::shared::{AOS_D as D, AOS_SPACE as SPACE};
 
 /// A pixel's local space as the projection `Δz = P (x − x_c)` (§0.6).
 pub type Proj = Projection<D>;

@@ -18,8 +18,8 @@
 
 use super::linalg::ridge_cholesky;
 
-/// Window radius R (29×29 blocks) and centre spacing.
-pub const RADIUS: usize = 14;
+/// Window radius and centre spacing (29×29 blocks every 14 pixels).
+pub use crate::shared::APR_RADIUS as RADIUS;
 /// Gaussian kernel bandwidth h (half the window).
 pub const BANDWIDTH: f64 = 14.0;
 /// Candidate orders K = 0..=MAX_ORDER.

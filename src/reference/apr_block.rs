@@ -23,7 +23,7 @@ use super::linalg::{EPS_PIVOT, RIDGE_FLOOR, SOLVE_RETRIES};
 use super::spp_of;
 
 /// Design columns.
-pub const P: usize = 18;
+pub use crate::shared::APR_P as P;
 /// Feature columns (normal xyz, albedo rgb, depth, visibility).
 pub const NF: usize = 8;
 /// Columns of order K: `1 + NF + (K+1)(K+2)/2 − 1`.
@@ -395,11 +395,7 @@ pub fn block(inp: &Inputs, c: usize, with_s: bool, eps: f64) -> Block {
     }
 }
 
-/// The sparse centres' grid: `ceil(w/14) × ceil(h/14)`, cell `(gx, gy)` ↔
-/// pixel `(14 gx, 14 gy)`.
-pub fn grid(w: usize, h: usize) -> (usize, usize) {
-    (w.div_ceil(RADIUS as usize), h.div_ceil(RADIUS as usize))
-}
+pub use crate::shared::apr_grid as grid;
 
 /// Whether some valid sparse centre within 14 accepts pixel `i` (valid).
 /// A pixel none accepts becomes an extra centre (COVER).

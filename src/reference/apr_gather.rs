@@ -16,15 +16,9 @@ use super::apr_block::{
     covering, row, weight, Inputs, NF, P, STATE, ST_BETA_S, ST_BETA_Y, ST_SCALES,
 };
 
-/// Extra planes per channel, written by `apr_block` in extra mode at the
-/// pixels no sparse block accepts: `β_y[0]`, `β_s[0]`, `ξ̂`, `tr H`.
-pub const EXTRA_PLANES: usize = 4;
-
-/// Output planes of the last stage: colour R G B, error R G B, dimension,
-/// extra mask R G B.
-pub const OUTPUTS: usize = 10;
-/// Output planes of an intermediate stage: `ŷ` R G B, `σ̂²` R G B.
-pub const STAGE_OUTPUTS: usize = 6;
+pub use crate::shared::{
+    APR_EXTRA_PLANES as EXTRA_PLANES, APR_OUTPUTS as OUTPUTS, APR_STAGE_OUTPUTS as STAGE_OUTPUTS,
+};
 
 /// One state record of `state` (a channel's `grid` of blocks): `None` for
 /// an invalid centre (all-zero record, degenerate flag unset and `β` zero

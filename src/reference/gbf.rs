@@ -11,7 +11,7 @@ use super::spp_of;
 /// Window radius: 7×7 (§6.2 step 4).
 pub const RADIUS: usize = 3;
 /// σ of the covariance smoothing and of the bandwidth smoothing (steps 1, 8).
-pub const SMOOTH_SIGMA: f32 = 1.5;
+pub use crate::shared::GBF_SMOOTH_SIGMA as SMOOTH_SIGMA;
 /// Trial bandwidths (step 7).
 pub const TRIAL_H: [f64; 6] = [0.0, 0.4, 0.8, 1.2, 1.6, 2.0];
 /// H0: `hbar < H0` passes the pixel through (step 8).

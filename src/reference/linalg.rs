@@ -406,9 +406,7 @@ pub fn equivalent_kernel(rows: &[f64], p: usize, w: &[f64], lambda: f64) -> WlsK
 }
 
 /// Radius `ceil(3σ)` of the [`gaussian_smooth`] window.
-pub fn gaussian_radius(sigma: f64) -> usize {
-    (3.0 * sigma).ceil().max(0.0) as usize
-}
+pub use crate::shared::gaussian_radius;
 
 /// `G_σ(m)(x, y)`: the Gaussian-weighted mean of `m` over the valid pixels `q`
 /// with `|q - p|_inf <= ceil(3σ)` (clipped to the image), weights
