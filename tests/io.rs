@@ -1,5 +1,5 @@
 //! EXR/PNG input and output: round trips, the accepted variations of
-//! `../shared/docs/input-format.md`, every kind of bad input (an error naming
+//! `docs/input-format.md`, every kind of bad input (an error naming
 //! the file and the problem, never a panic) and atomic writes.
 
 mod common;
@@ -227,7 +227,7 @@ fn write_stats_read_stats_round_trip_is_exact() {
 }
 
 #[test]
-fn fixture_reads_and_matches_the_scene_crop() {
+fn fixture_reads() {
     let stats = read_stats(&fixture("dof_checker_64_spp16.exr")).unwrap();
     let reference = read_rgb(&fixture("dof_checker_64_ref.exr")).unwrap();
     assert_eq!((stats.width, stats.height), (64, 64));
@@ -237,42 +237,6 @@ fn fixture_reads_and_matches_the_scene_crop() {
     assert_eq!(spp_range(&stats), Some((16.0, 16.0)));
     for path in ["dof_checker_64_spp16.exr", "dof_checker_64_ref.exr"] {
         assert!(std::fs::metadata(fixture(path)).unwrap().len() < 1 << 20);
-    }
-    let scenes = common::scenes_dir();
-    let full = read_stats(&scenes.join("dof_checker/spp16.exr")).unwrap();
-    assert_bit_identical(&full.crop(120, 104, 64, 64), &stats);
-    let full_ref = read_rgb(&scenes.join("dof_checker/reference.exr")).unwrap();
-    assert_eq!(full_ref.crop(120, 104, 64, 64), reference);
-}
-
-#[test]
-fn public_scene_files_read() {
-    let scenes = common::scenes_dir();
-    for scene in ["dof_checker", "glossy_cornell", "indirect_room"] {
-        for spp in [4.0f32, 16.0, 64.0] {
-            let path = scenes.join(scene).join(format!("spp{spp}.exr"));
-            let img = read_stats(&path).unwrap();
-            assert_eq!((img.width, img.height), (256, 256), "{}", path.display());
-            let layers: Vec<Layer> = img.layers().map(|(l, _)| l).collect();
-            assert_eq!(
-                layers,
-                Layer::ALL[..11]
-                    .iter()
-                    .copied()
-                    .chain([Layer::Spp])
-                    .collect::<Vec<_>>()
-            );
-            assert_eq!(spp_range(&img), Some((spp, spp)));
-            let warnings = validate(&img);
-            assert!(warnings.is_empty(), "{}: {warnings:?}", path.display());
-        }
-        let reference = read_rgb(&scenes.join(scene).join("reference.exr")).unwrap();
-        assert_eq!((reference.width, reference.height), (256, 256));
-        assert!(reference
-            .planes
-            .iter()
-            .flatten()
-            .all(|v| v.is_finite() && *v >= 0.0));
     }
 }
 

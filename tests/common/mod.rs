@@ -119,15 +119,3 @@ pub fn precisions() -> Vec<Precision> {
 
 /// The sizes every kernel is tested on (issue #2): square, 1x1, 1xN, Nx1, prime.
 pub const SIZES: &[(usize, usize)] = &[(64, 64), (1, 1), (1, 17), (23, 1), (37, 23)];
-
-/// `../shared/data/scenes` beside the checkout. The tests that read it fail
-/// when it is absent (CI puts `../shared` there), rather than pass unchecked.
-pub fn scenes_dir() -> std::path::PathBuf {
-    let dir = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data/scenes");
-    assert!(
-        dir.is_dir(),
-        "{} is absent: these tests need the public scenes beside the checkout (../shared)",
-        dir.display()
-    );
-    dir
-}
