@@ -8,7 +8,7 @@
 // pixel takes `sanitize`'s path (lib/sanitize_repair.glsl), so the result
 // is `sanitize`'s bit for bit. Why: llvmpipe pays per storage-buffer
 // access, not per byte, so a quarter of the accesses makes the stage about
-// 3x faster (docs/performance.md, ninth part).
+// 3x faster (SANITIZE-QUADS).
 // Scalar twin: src/reference/sanitize_quads.rs (= sanitize's stage 0).
 #include "lib/common.glsl"
 

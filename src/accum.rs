@@ -1,5 +1,5 @@
 //! The accumulation layout: what a renderer sums per pixel, as the library's
-//! GPU entry point takes it (`../shared/docs/input-format.md`, last paragraph).
+//! GPU entry point takes it (`docs/input-format.md`, last paragraph).
 //!
 //! One buffer of planes, each plane `width * height` f32 values in row-major
 //! order, starting at a multiple of [`PLANE_ALIGN`](crate::gpu::PLANE_ALIGN)

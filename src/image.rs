@@ -1,5 +1,5 @@
 //! Planar per-pixel statistics: the in-memory form of a render-statistics EXR
-//! (`../shared/docs/input-format.md`) and of the GPU planes.
+//! (`docs/input-format.md`) and of the GPU planes.
 //!
 //! Every scalar channel is one plane of `width * height` f32 values in row-major
 //! order (pixel `(x, y)` at index `y * width + x`). A [`StatsImage`] holds the

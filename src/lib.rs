@@ -4,7 +4,7 @@
 //! tracing. It reconstructs a render by local regression over the colour and
 //! the feature buffers, estimates its own error per pixel, and turns that
 //! error into the next pass's sample map. The algorithms are specified in
-//! `../shared/docs/algorithms.md` ("the spec"); section numbers refer to it.
+//! `docs/algorithms.md` ("the spec"); section numbers refer to it.
 //!
 //! ## The front door: [`Denoiser`]
 //!

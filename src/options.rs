@@ -25,7 +25,7 @@ pub struct OptionSpec {
     pub kind: Kind,
     /// Value when the option is not given; `"method"` means the method decides.
     pub default: &'static str,
-    /// Section of `../shared/docs/algorithms.md`.
+    /// Section of `docs/algorithms.md`.
     pub section: &'static str,
     /// One line for `--help` ([`help_table`]).
     pub help: &'static str,

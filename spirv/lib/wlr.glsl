@@ -11,7 +11,7 @@
 //   void load_colour(ivec2 p, out real3 y, out real vbar)
 //              colour and vbar of a pixel.
 //
-// GPU notes (§2.4, /work/shared/docs/lavapipe.md): no per-neighbour state is
+// GPU notes (§2.4, docs/lavapipe.md): no per-neighbour state is
 // kept between passes; every pass over the window reloads the features and
 // recomputes dz = P (x_i - x_c) (P = V_k^T diag(1/rho), equal to §0.6 step 7).
 // The normal equations are accumulated as real4 outer products into

@@ -270,7 +270,7 @@ impl GpuContext {
 /// Returns the heap pages a pipeline compile freed to the system. lavapipe
 /// compiles every pipeline with LLVM on the process heap; glibc keeps what
 /// the compiler freed as resident memory (41 MB of LP's 570 MB peak at
-/// 1 MP, 68 MB of WLR's 541: `docs/performance.md`, seventh part).
+/// 1 MP, 68 MB of WLR's 541; decision HEAP-TRIM).
 /// `malloc_trim(0)` gives the free pages inside the heap back, once per
 /// pipeline (a context builds each once); LP's whole process did not get
 /// measurably slower.

@@ -44,7 +44,7 @@ const EXR_MAGIC: [u8; 4] = [0x76, 0x2f, 0x31, 0x01];
 /// The remedy appended to every unsupported-compression message.
 const RESAVE_HINT: &str = "re-save with ZIP, PIZ, RLE or no compression";
 
-/// Reads a render-statistics EXR (`../shared/docs/input-format.md`).
+/// Reads a render-statistics EXR (`docs/input-format.md`).
 ///
 /// - Part: in a multi-part file, the first part with a `color.R` channel;
 ///   otherwise the only (or first) part.

@@ -1,6 +1,6 @@
 //! EXR and PNG in and out.
 //!
-//! - [`read_stats`] reads a render-statistics EXR (`../shared/docs/input-format.md`)
+//! - [`read_stats`] reads a render-statistics EXR (`docs/input-format.md`)
 //!   into a [`StatsImage`](crate::image::StatsImage); [`read_rgb`] reads a
 //!   reference image (`color.R/G/B` or bare `R/G/B`).
 //! - [`write_output`] writes the denoiser's result; [`write_stats`],

@@ -260,8 +260,8 @@ impl GpuChain {
             // Every pipeline of a run is built now (a counting batch records
             // nothing but builds them), while the chain's device memory is
             // untouched: lavapipe compiles with LLVM, whose transient heap
-            // would otherwise add to the run's peak (docs/performance.md,
-            // seventh part). A renderer's chain builds them on its first run.
+            // would otherwise add to the run's peak (BUILD-FIRST). A
+            // renderer's chain builds them on its first run.
             chain.work(None, None)?;
         }
         Ok(chain)
