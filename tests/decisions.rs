@@ -52,12 +52,15 @@ fn is_head(w: &str) -> bool {
     let mut chars = w.chars();
     matches!(chars.next(), Some(c) if c.is_ascii_uppercase())
         && w.len() >= 2
-        && w.chars().all(|c| c.is_ascii_uppercase() || c.is_ascii_digit())
+        && w.chars()
+            .all(|c| c.is_ascii_uppercase() || c.is_ascii_digit())
 }
 
 /// `[A-Z0-9]+`
 fn is_group(w: &str) -> bool {
-    !w.is_empty() && w.chars().all(|c| c.is_ascii_uppercase() || c.is_ascii_digit())
+    !w.is_empty()
+        && w.chars()
+            .all(|c| c.is_ascii_uppercase() || c.is_ascii_digit())
 }
 
 /// The tokens of `text` that match `\b[A-Z][A-Z0-9]+(-[A-Z0-9]+)+\b`.
@@ -147,7 +150,13 @@ fn the_scanner_finds_tags_as_grep_does() {
     let got: Vec<&str> = t.iter().map(String::as_str).collect();
     assert_eq!(
         got,
-        ["AB-C", "LP-PIXEL-TEST", "MAP-SMOOTH-LP", "NOISE-CONST", "SPIR-V"]
+        [
+            "AB-C",
+            "LP-PIXEL-TEST",
+            "MAP-SMOOTH-LP",
+            "NOISE-CONST",
+            "SPIR-V"
+        ]
     );
 }
 
@@ -178,7 +187,9 @@ fn every_record_is_titled_and_linked_from_the_index() {
     let mut count = 0;
     for r in records {
         let name = r.file_name().unwrap().to_string_lossy().into_owned();
-        let Some(tag) = name.strip_suffix(".md") else { continue };
+        let Some(tag) = name.strip_suffix(".md") else {
+            continue;
+        };
         if tag == "README" {
             continue;
         }
@@ -193,7 +204,11 @@ fn every_record_is_titled_and_linked_from_the_index() {
         }
     }
     assert!(count > 0, "no records in docs/decisions/");
-    assert!(problems.is_empty(), "decision records:\n  {}", problems.join("\n  "));
+    assert!(
+        problems.is_empty(),
+        "decision records:\n  {}",
+        problems.join("\n  ")
+    );
 }
 
 #[test]
@@ -207,5 +222,8 @@ fn every_index_link_names_a_record() {
             broken.push(target.to_string());
         }
     }
-    assert!(broken.is_empty(), "README.md links to missing records: {broken:?}");
+    assert!(
+        broken.is_empty(),
+        "README.md links to missing records: {broken:?}"
+    );
 }

@@ -7,7 +7,7 @@ use common::*;
 use std::process::Command;
 use std::sync::atomic::AtomicBool;
 
-use mcdenoise::render::adaptive::{render, LoopConfig};
+use mcdenoise::render::adaptive::{next_budget, render, LoopConfig, StopRules};
 use mcdenoise::render::{Renderer, Scene};
 use mcdenoise::{Layer, Method, Options, Precision, Prefilter};
 
@@ -21,7 +21,155 @@ fn config(method: Method, spp: u32, adaptive: bool) -> LoopConfig {
         pass_cap: None,
         precision: Precision::F32,
         options: Options::default(),
+        stop: None,
     }
+}
+
+/// `config` rendering open-ended under `rules`.
+fn open(method: Method, adaptive: bool, rules: StopRules) -> LoopConfig {
+    LoopConfig {
+        stop: Some(rules),
+        ..config(method, 4, adaptive)
+    }
+}
+
+/// Total samples in the renderer's count plane.
+fn samples_of(r: &Renderer) -> f64 {
+    let stats = r.statistics().unwrap();
+    stats.get(Layer::Spp).unwrap()[0]
+        .iter()
+        .map(|&s| s as f64)
+        .sum()
+}
+
+/// A target the reconstruction after pass 0 already meets renders nothing
+/// more: 4 spp, one estimate, and the output is that reconstruction.
+#[test]
+fn a_target_met_after_pass_0_renders_nothing_more() {
+    let ctx = gpu();
+    let scene = Scene::builtin("cornell").unwrap();
+    let (w, h) = (16, 12);
+    for adaptive in [true, false] {
+        let r = Renderer::new(&ctx, &scene, w, h, 5).unwrap();
+        let rules = StopRules {
+            target_error: Some(1e9),
+            time_limit: None,
+            max_spp: 64,
+        };
+        let mut estimates = Vec::new();
+        let out = render(
+            &ctx,
+            &r,
+            &open(Method::Wlr, adaptive, rules),
+            &AtomicBool::new(false),
+            |p| estimates.extend(p.estimate),
+        )
+        .unwrap();
+        assert_eq!(samples_of(&r), 4.0 * (w * h) as f64);
+        assert_eq!(out.samples, 4 * (w * h) as u64);
+        assert_eq!(estimates.len(), 1, "{estimates:?}");
+        assert!(estimates[0].is_finite() && estimates[0] > 0.0);
+    }
+    check_validation(&ctx);
+}
+
+/// An unreachable target spends exactly up to --max-spp and never past it,
+/// in whole passes, adaptive or uniform; the estimate falls as it goes.
+#[test]
+fn max_spp_is_never_exceeded() {
+    let ctx = gpu();
+    let scene = Scene::builtin("soft_shadows").unwrap();
+    let (w, h) = (16, 16);
+    for (method, adaptive) in [
+        (Method::Wlr, true),
+        (Method::Lp, true),
+        (Method::None, false),
+    ] {
+        let r = Renderer::new(&ctx, &scene, w, h, 9).unwrap();
+        let rules = StopRules {
+            target_error: Some(1e-12),
+            time_limit: None,
+            max_spp: 13,
+        };
+        let mut estimates = Vec::new();
+        let out = render(
+            &ctx,
+            &r,
+            &open(method, adaptive, rules),
+            &AtomicBool::new(false),
+            |p| estimates.extend(p.estimate),
+        )
+        .unwrap();
+        let total = samples_of(&r);
+        assert!(total <= 13.0 * (w * h) as f64, "{method:?}: {total}");
+        assert_eq!(total, out.samples as f64);
+        // Passes stop once less than one sample per pixel is left.
+        assert!(total > 12.0 * (w * h) as f64, "{method:?}: {total}");
+        assert!(estimates.len() >= 2, "{method:?}: {estimates:?}");
+        assert!(
+            estimates.last().unwrap() < estimates.first().unwrap(),
+            "{method:?}: {estimates:?}"
+        );
+    }
+    check_validation(&ctx);
+}
+
+/// A time limit stops the render at the last pass that fits: the whole
+/// render takes at most the limit plus one pass.
+#[test]
+fn the_time_limit_is_honoured_within_one_pass() {
+    let ctx = gpu();
+    let scene = Scene::builtin("cornell").unwrap();
+    let r = Renderer::new(&ctx, &scene, 32, 32, 2).unwrap();
+    let limit = std::time::Duration::from_secs_f64(3.0);
+    let rules = StopRules {
+        target_error: None,
+        time_limit: Some(limit),
+        max_spp: 100_000,
+    };
+    let t0 = std::time::Instant::now();
+    let mut passes = Vec::new();
+    render(
+        &ctx,
+        &r,
+        &open(Method::Wlr, true, rules),
+        &AtomicBool::new(false),
+        |_| passes.push(t0.elapsed().as_secs_f64()),
+    )
+    .unwrap();
+    let total = t0.elapsed().as_secs_f64();
+    let longest = passes
+        .windows(2)
+        .map(|p| p[1] - p[0])
+        .fold(passes[0], f64::max);
+    assert!(
+        total <= limit.as_secs_f64() + longest,
+        "{total:.2} s for a limit of {limit:?} (longest pass {longest:.2} s, {passes:?})"
+    );
+    assert!(passes.len() >= 2, "{passes:?}");
+    check_validation(&ctx);
+}
+
+/// The next budget: doubling with no target, α = 1 after one pass, the
+/// measured decay after two, at least a sample per pixel, never past the cap.
+#[test]
+fn next_budget_follows_the_decay() {
+    // No target: double, within the cap.
+    assert_eq!(next_budget(&[(400.0, 1.0)], None, 100, 10_000), 400);
+    assert_eq!(next_budget(&[(400.0, 1.0)], None, 100, 500), 100);
+    assert_eq!(next_budget(&[(500.0, 1.0)], None, 100, 500), 0);
+    // α = 1: halving the error needs twice the samples: 400 more.
+    assert_eq!(next_budget(&[(400.0, 0.2)], Some(0.1), 100, 10_000), 400);
+    // A target nearly met still takes a sample per pixel.
+    assert_eq!(next_budget(&[(400.0, 0.1001)], Some(0.1), 100, 10_000), 100);
+    // Measured α = 0.5 (4× the samples halved the error): to halve it
+    // again takes 4× the samples, capped at doubling.
+    let h = [(100.0, 0.4), (400.0, 0.2)];
+    assert_eq!(next_budget(&h, Some(0.1), 100, 10_000), 400);
+    // Measured α = 2 is clamped to 1.5: 0.2 → 0.18 needs 400·(10/9)^(2/3) − 400.
+    let h = [(200.0, 0.8), (400.0, 0.2)];
+    let want = (400.0f64 * (0.2f64 / 0.18).powf(1.0 / 1.5) - 400.0).max(100.0);
+    assert_eq!(next_budget(&h, Some(0.18), 100, 10_000), want.ceil() as u64);
 }
 
 /// An adaptive run ends with exactly the requested average: the count plane

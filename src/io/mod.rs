@@ -36,7 +36,9 @@ pub use exr_out::{
     write_channels, write_output, write_rgb, write_samples, write_stats, OutputImage,
 };
 pub use inspect::{format_report, inspect, spp_range, validate, ChannelStats, LayerReport};
-pub use png_out::{heat_color, srgb_preview_u8, write_heatmap_png, write_png_preview};
+pub use png_out::{
+    heat_color, srgb_preview_u8, write_heatmap_png, write_panels, write_png_preview, Panel,
+};
 
 /// Distinguishes the temporary files of concurrent writes from one process.
 static TEMP_COUNTER: AtomicU64 = AtomicU64::new(0);

@@ -149,3 +149,86 @@ fn write_rgb8_png(path: &Path, width: usize, height: usize, data: &[u8]) -> Resu
         png.finish().map_err(png_err)
     })
 }
+
+/// One panel of a [`write_panels`] strip.
+#[derive(Clone, Copy, Debug)]
+pub enum Panel<'a> {
+    /// A linear HDR image, tone-mapped as [`write_png_preview`] does.
+    Colour(&'a RgbImage),
+    /// A scalar plane as [`write_heatmap_png`] draws it, scaled to `max`.
+    Heat(&'a [f32], f32),
+}
+
+/// Grey between the panels of a strip.
+const GAP_GREY: u8 = 40;
+
+/// Writes `panels` (each `width × height`) side by side, `gap` grey pixels
+/// apart, as one 8-bit RGB PNG: a figure of a render's input, sample map,
+/// reconstruction, error estimate and reference. Atomic.
+///
+/// # Errors
+/// [`Error::InvalidArgument`] when there are no panels or a panel is not
+/// `width × height`; [`Error::Io`] naming `path` if writing fails.
+pub fn write_panels(
+    path: &Path,
+    width: usize,
+    height: usize,
+    panels: &[Panel],
+    gap: usize,
+) -> Result<()> {
+    let n = width * height;
+    let bad = |what: String| Error::InvalidArgument(format!("{}: {what}", path.display()));
+    if panels.is_empty() || n == 0 {
+        return Err(bad("a figure needs at least one non-empty panel".into()));
+    }
+    let mut pixels: Vec<Vec<[u8; 3]>> = Vec::with_capacity(panels.len());
+    for p in panels {
+        let px: Vec<[u8; 3]> = match *p {
+            Panel::Colour(img) => {
+                if (img.width, img.height) != (width, height) {
+                    return Err(bad(format!(
+                        "a {}x{} panel in a {width}x{height} figure",
+                        img.width, img.height
+                    )));
+                }
+                (0..n)
+                    .map(|i| std::array::from_fn(|c| srgb_preview_u8(img.planes[c][i])))
+                    .collect()
+            }
+            Panel::Heat(values, max) => {
+                if values.len() != n {
+                    return Err(bad(format!(
+                        "a heat panel of {} values in a {width}x{height} figure",
+                        values.len()
+                    )));
+                }
+                values
+                    .iter()
+                    .map(|&v| {
+                        if v.is_nan() || v == f32::INFINITY {
+                            heat_color(1.0)
+                        } else if max > 0.0 {
+                            heat_color(v / max)
+                        } else {
+                            heat_color(0.0)
+                        }
+                    })
+                    .collect()
+            }
+        };
+        pixels.push(px);
+    }
+    let total_w = panels.len() * width + (panels.len() - 1) * gap;
+    let mut data = Vec::with_capacity(total_w * height * 3);
+    for y in 0..height {
+        for (k, px) in pixels.iter().enumerate() {
+            if k > 0 {
+                data.extend(std::iter::repeat(GAP_GREY).take(gap * 3));
+            }
+            for x in 0..width {
+                data.extend_from_slice(&px[y * width + x]);
+            }
+        }
+    }
+    write_rgb8_png(path, total_w, height, &data)
+}

@@ -6,11 +6,20 @@
 //! statistics, error maps and sample maps stay on the GPU between passes
 //! (one submission sequence per pass, so a stop request is honoured between
 //! passes); only the final image comes back.
+//!
+//! With [`StopRules`] the number of passes is open: after each pass the final
+//! reconstruction's *estimated* rMSE ([`crate::metrics::estimated_rmse`]) is
+//! compared with a target, the next pass's budget is predicted from how the
+//! estimate fell so far, and a time limit stops the render at the last pass
+//! that fits. `--max-spp` bounds the samples in every case.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
+use std::time::Instant;
 
 use super::{Renderer, Samples};
+use crate::gpu::GpuBuffer;
+use crate::schedule::INITIAL_SPP;
 use crate::{
     Batch, Config, Denoiser, Error, Frame, GpuContext, KernelTiming, Method, Options, Outliers,
     Pass, Precision, Prefilter, Result, Schedule, Source,
@@ -42,6 +51,60 @@ pub struct LoopConfig {
     /// pointing at the same few pixels (LP's at emitter edges: 20,067 samples
     /// in one pixel of a 64-spp render).
     pub pass_cap: Option<f64>,
+    /// Open-ended rendering ([`StopRules`]): passes continue until a target
+    /// error, a time limit or a sample bound stops them. `None`: the fixed
+    /// schedule of `spp` (§9.3).
+    pub stop: Option<StopRules>,
+}
+
+/// When an open-ended render stops: at the first pass after which the
+/// final reconstruction's estimated rMSE is at most `target_error`, at the
+/// last pass that fits in `time_limit`, or when the average reaches
+/// `max_spp`, whichever comes first.
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct StopRules {
+    /// Estimated rMSE (`mean E_i / (f̂_i² + 0.01)`) to reach.
+    pub target_error: Option<f64>,
+    /// Wall time the render may take, reconstructions included.
+    pub time_limit: Option<std::time::Duration>,
+    /// Samples per pixel on average that the render never exceeds (at
+    /// least 1).
+    pub max_spp: u32,
+}
+
+/// The slowest and fastest decay of the estimated error with the samples,
+/// `e ∝ S^-α`, that the budget prediction assumes: regression errors fall
+/// at `n^{-4/(d+4)}` (α ≥ 1/3 for d ≤ 8), Monte Carlo noise at `n^-1`;
+/// adaptive passes can do a little better while they remove the worst
+/// pixels' error.
+const DECAY: (f64, f64) = (0.3, 1.5);
+
+/// The next open-ended pass's budget in samples: enough to reach `target`
+/// if the estimate keeps falling as it did over the last two passes
+/// (`history`: total samples and estimate after each pass; α = 1 after the
+/// first), at least one sample per pixel, at most doubling the samples so
+/// far, and never past `cap` in total.
+pub fn next_budget(history: &[(f64, f64)], target: Option<f64>, pixels: usize, cap: u64) -> u64 {
+    let &(spent, e) = history.last().expect("pass 0 has run");
+    let spent_u = spent as u64;
+    if spent_u >= cap {
+        return 0;
+    }
+    let doubling = spent.max(pixels as f64);
+    let want = match target {
+        Some(t) if t > 0.0 && e > t => {
+            let alpha = match history {
+                [.., (s0, e0), (s1, e1)] if *s1 > *s0 && *e0 > 0.0 && *e1 > 0.0 => {
+                    ((e0 / e1).ln() / (s1 / s0).ln()).clamp(DECAY.0, DECAY.1)
+                }
+                _ => 1.0,
+            };
+            let needed = spent * (e / t).powf(1.0 / alpha);
+            (needed - spent).clamp(pixels as f64, doubling)
+        }
+        _ => doubling,
+    };
+    (want.ceil() as u64).min(cap - spent_u)
 }
 
 /// The per-pass cap a method's adaptive render uses by default
@@ -110,15 +173,25 @@ pub struct LoopResult {
     pub split: TimeSplit,
     /// Every dispatch's GPU time.
     pub timings: Vec<KernelTiming>,
+    /// Samples rendered in all.
+    pub samples: u64,
 }
 
-/// Where a pass stands, for progress displays.
+/// Where a render stands after a pass, for progress displays.
 #[derive(Copy, Clone, Debug)]
-pub struct PassProgress {
+pub struct PassProgress<'a> {
     /// Passes completed.
     pub done: usize,
-    /// Passes in the render (rendering passes plus the final reconstruction).
+    /// Passes in the render (rendering passes plus the final
+    /// reconstruction); for an open-ended render, the passes so far plus one.
     pub total: usize,
+    /// Samples per pixel so far, on average.
+    pub spp: f64,
+    /// An open-ended render's estimated rMSE of the final reconstruction
+    /// after this pass.
+    pub estimate: Option<f64>,
+    /// That reconstruction.
+    pub frame: Option<&'a Frame>,
 }
 
 fn add_split(split: &mut TimeSplit, timings: &[KernelTiming]) {
@@ -149,96 +222,255 @@ pub fn render(
     renderer: &Renderer,
     cfg: &LoopConfig,
     stop: &AtomicBool,
-    mut progress: impl FnMut(PassProgress),
+    progress: impl FnMut(&PassProgress),
 ) -> Result<LoopResult> {
-    let layout = renderer.layout();
-    let pixels = layout.pixels();
-    let schedule = if cfg.adaptive {
-        Some(Schedule::for_method(cfg.method, cfg.spp, pixels)?)
-    } else {
-        None
+    let run = Runner {
+        ctx,
+        renderer,
+        cfg,
+        stop,
+        timings: Vec::new(),
+        split: TimeSplit::default(),
+        samples: 0,
     };
-    let first_spp = schedule.as_ref().map_or(cfg.spp, |s| s.initial_spp);
-    let config = |pass: Pass| {
+    match cfg.stop {
+        None => run.fixed(progress),
+        Some(rules) => run.open(rules, progress),
+    }
+}
+
+/// One render's state: what it has spent and timed.
+struct Runner<'a> {
+    ctx: &'a Arc<GpuContext>,
+    renderer: &'a Renderer,
+    cfg: &'a LoopConfig,
+    stop: &'a AtomicBool,
+    timings: Vec<KernelTiming>,
+    split: TimeSplit,
+    /// Samples rendered so far.
+    samples: u64,
+}
+
+impl Runner<'_> {
+    fn pixels(&self) -> usize {
+        self.renderer.layout().pixels()
+    }
+
+    fn spp(&self) -> f64 {
+        self.samples as f64 / self.pixels() as f64
+    }
+
+    /// A denoiser of the loop's configuration for `pass`, on the renderer's
+    /// planes. Pass 0 gives every pixel at least `first_spp` samples and
+    /// later passes only add: no pixel has `1 <= spp < 2` unless
+    /// `first_spp` is 1 (§0.4 step 3).
+    fn denoiser(&self, pass: Pass, first_spp: u32) -> Result<Denoiser> {
+        let cfg = self.cfg;
         let mut c = Config::new(cfg.method);
         c.pass = pass;
         c.prefilter = cfg.prefilter;
         c.outliers = cfg.outliers;
         c.precision = cfg.precision;
         c.options = cfg.options.clone();
-        // Pass 0 gives every pixel `first_spp` samples and later passes only
-        // add: no pixel has 1 <= spp < 2 unless `first_spp` is 1 (§0.4 step 3).
         c.low_spp = first_spp < 2;
-        c
-    };
-    let total = 2 + schedule.as_ref().map_or(0, |s| s.budgets.len());
-    let mut timings = Vec::new();
-    let mut split = TimeSplit::default();
-    let mut run = |record: &mut dyn FnMut(&mut Batch) -> Result<()>| -> Result<()> {
-        if stop.load(Ordering::SeqCst) {
+        Denoiser::new(self.ctx, Source::Accum(self.renderer.layout()), c)
+    }
+
+    /// Records, submits and times one batch.
+    fn submit(&mut self, record: &mut dyn FnMut(&mut Batch) -> Result<()>) -> Result<()> {
+        if self.stop.load(Ordering::SeqCst) {
             return Err(Error::Interrupted);
         }
-        let mut batch = Batch::new(ctx)?;
+        let mut batch = Batch::new(self.ctx)?;
         record(&mut batch)?;
         let t = batch.finish()?;
-        add_split(&mut split, &t);
-        timings.extend(t);
+        add_split(&mut self.split, &t);
+        self.timings.extend(t);
         Ok(())
-    };
-    let mut done = 0;
-    // Pass 0: uniform.
-    run(&mut |b| {
-        renderer.record_clear(b);
-        renderer.record_pass(b, Samples::Uniform(first_spp))
-    })?;
-    done += 1;
-    progress(PassProgress { done, total });
-    if let Some(s) = &schedule {
-        let intermediate = Denoiser::new(ctx, Source::Accum(layout), config(Pass::Intermediate))?;
+    }
+
+    /// Pass 0: `spp` uniform samples per pixel on cleared planes.
+    fn first_pass(&mut self, spp: u32) -> Result<()> {
+        let r = self.renderer;
+        self.submit(&mut |b| {
+            r.record_clear(b);
+            r.record_pass(b, Samples::Uniform(spp))
+        })?;
+        self.samples = spp as u64 * self.pixels() as u64;
+        Ok(())
+    }
+
+    /// One adaptive pass: `intermediate`'s reconstruction and sample map for
+    /// `budget`, capped as the configuration says, then the samples.
+    fn adaptive_pass(
+        &mut self,
+        intermediate: &Denoiser,
+        capped: Option<&GpuBuffer>,
+        budget: u32,
+    ) -> Result<()> {
+        let pixels = self.pixels();
+        let r = self.renderer;
+        self.submit(&mut |b| intermediate.record(b, Some(r.accum()), Some(budget)))?;
         let map = intermediate
             .outputs()?
             .samples
             .ok_or_else(|| Error::Limit("this device cannot compute sample maps".into()))?;
-        let capped = match cfg.pass_cap {
-            Some(_) => Some(crate::gpu::GpuBuffer::new(
-                ctx,
-                "loop.capped_map",
-                (pixels * 4) as u64,
-            )?),
-            None => None,
+        // The largest count sets how many chunk dispatches the pass takes
+        // (render::RENDER_CHUNK): one small readback per pass.
+        let mut counts: Vec<u32> = crate::gpu::buffer::read_slice(self.ctx, map, pixels)?
+            .iter()
+            .map(|v| v.to_bits())
+            .collect();
+        let pass_map = match (self.cfg.pass_cap, capped) {
+            (Some(k), Some(buf)) => {
+                let mean = budget as f64 / pixels as f64;
+                cap_counts(&mut counts, (k * mean).ceil().max(1.0) as u32);
+                buf.upload(0, bytemuck::cast_slice(&counts))?;
+                buf.slice()
+            }
+            _ => map,
         };
-        for &budget in &s.budgets {
-            run(&mut |b| intermediate.record(b, Some(renderer.accum()), Some(budget)))?;
-            // The largest count sets how many chunk dispatches the pass takes
-            // (render::RENDER_CHUNK): one small readback per pass.
-            let mut counts: Vec<u32> = crate::gpu::buffer::read_slice(ctx, map, pixels)?
-                .iter()
-                .map(|v| v.to_bits())
-                .collect();
-            let pass_map = match (cfg.pass_cap, &capped) {
-                (Some(k), Some(buf)) => {
-                    let mean = budget as f64 / pixels as f64;
-                    cap_counts(&mut counts, (k * mean).ceil().max(1.0) as u32);
-                    buf.upload(0, bytemuck::cast_slice(&counts))?;
-                    buf.slice()
-                }
-                _ => map,
-            };
-            let max = counts.iter().copied().max().unwrap_or(0);
-            run(&mut |b| renderer.record_pass(b, Samples::Map(pass_map, max)))?;
-            done += 1;
-            progress(PassProgress { done, total });
+        let max = counts.iter().copied().max().unwrap_or(0);
+        self.submit(&mut |b| r.record_pass(b, Samples::Map(pass_map, max)))?;
+        self.samples += budget as u64;
+        Ok(())
+    }
+
+    /// The buffer of capped counts, when the configuration caps.
+    fn capped_buffer(&self) -> Result<Option<GpuBuffer>> {
+        match self.cfg.pass_cap {
+            Some(_) => Ok(Some(GpuBuffer::new(
+                self.ctx,
+                "loop.capped_map",
+                (self.pixels() * 4) as u64,
+            )?)),
+            None => Ok(None),
         }
     }
-    let last = Denoiser::new(ctx, Source::Accum(layout), config(Pass::Final))?;
-    run(&mut |b| last.record(b, Some(renderer.accum()), None))?;
-    progress(PassProgress { done: total, total });
-    Ok(LoopResult {
-        frame: last.read()?,
-        schedule,
-        split,
-        timings,
-    })
+
+    /// `last`'s reconstruction of the planes as they are.
+    fn reconstruct(&mut self, last: &Denoiser) -> Result<Frame> {
+        let r = self.renderer;
+        self.submit(&mut |b| last.record(b, Some(r.accum()), None))?;
+        last.read()
+    }
+
+    fn result(self, frame: Frame, schedule: Option<Schedule>) -> LoopResult {
+        LoopResult {
+            frame,
+            schedule,
+            split: self.split,
+            timings: self.timings,
+            samples: self.samples,
+        }
+    }
+
+    /// The spec's fixed schedule (§9.3), or `spp` uniform samples in one
+    /// pass.
+    fn fixed(mut self, mut progress: impl FnMut(&PassProgress)) -> Result<LoopResult> {
+        let cfg = self.cfg;
+        let schedule = if cfg.adaptive {
+            Some(Schedule::for_method(cfg.method, cfg.spp, self.pixels())?)
+        } else {
+            None
+        };
+        let first_spp = schedule.as_ref().map_or(cfg.spp, |s| s.initial_spp);
+        let total = 2 + schedule.as_ref().map_or(0, |s| s.budgets.len());
+        let mut report = |runner: &Runner, done: usize| {
+            progress(&PassProgress {
+                done,
+                total,
+                spp: runner.spp(),
+                estimate: None,
+                frame: None,
+            })
+        };
+        self.first_pass(first_spp)?;
+        let mut done = 1;
+        report(&self, done);
+        if let Some(s) = &schedule {
+            let intermediate = self.denoiser(Pass::Intermediate, first_spp)?;
+            let capped = self.capped_buffer()?;
+            for &budget in &s.budgets {
+                self.adaptive_pass(&intermediate, capped.as_ref(), budget)?;
+                done += 1;
+                report(&self, done);
+            }
+        }
+        let last = self.denoiser(Pass::Final, first_spp)?;
+        let frame = self.reconstruct(&last)?;
+        report(&self, total);
+        Ok(self.result(frame, schedule))
+    }
+
+    /// Open-ended: passes until a stop rule holds (see [`StopRules`]).
+    fn open(
+        mut self,
+        rules: StopRules,
+        mut progress: impl FnMut(&PassProgress),
+    ) -> Result<LoopResult> {
+        let started = Instant::now();
+        let pixels = self.pixels();
+        let cap = rules.max_spp.max(1) as u64 * pixels as u64;
+        let first_spp = INITIAL_SPP.min(rules.max_spp.max(1));
+        let last = self.denoiser(Pass::Final, first_spp)?;
+        let intermediate = match self.cfg.adaptive {
+            true => Some(self.denoiser(Pass::Intermediate, first_spp)?),
+            false => None,
+        };
+        let capped = self.capped_buffer()?;
+        let t = Instant::now();
+        self.first_pass(first_spp)?;
+        // Seconds per sample of the passes so far, and of a reconstruction.
+        let mut per_sample = t.elapsed().as_secs_f64() / self.samples as f64;
+        let mut history: Vec<(f64, f64)> = Vec::new();
+        let mut done = 1;
+        loop {
+            let t = Instant::now();
+            let frame = self.reconstruct(&last)?;
+            let mut overhead = t.elapsed().as_secs_f64();
+            let e = crate::metrics::estimated_rmse(&frame.color, &frame.error);
+            history.push((self.samples as f64, e));
+            progress(&PassProgress {
+                done,
+                total: done + 1,
+                spp: self.spp(),
+                estimate: Some(e),
+                frame: Some(&frame),
+            });
+            let met = rules.target_error.is_some_and(|t| e <= t);
+            let mut budget = next_budget(&history, rules.target_error, pixels, cap);
+            if let (Some(limit), false) = (rules.time_limit, met) {
+                // The next pass's samples at the rate so far, and its
+                // reconstructions (the map's, when adaptive, and the check).
+                if intermediate.is_some() {
+                    overhead *= 2.0;
+                }
+                let left = limit.as_secs_f64() - started.elapsed().as_secs_f64() - overhead;
+                let fits = (left / per_sample).max(0.0) as u64;
+                budget = budget.min(fits / pixels as u64 * pixels as u64);
+            }
+            if met || budget < pixels as u64 {
+                return Ok(self.result(frame, None));
+            }
+            let before = self.samples;
+            let t = Instant::now();
+            match &intermediate {
+                Some(d) => {
+                    let budget = u32::try_from(budget).unwrap_or(u32::MAX);
+                    self.adaptive_pass(d, capped.as_ref(), budget)?;
+                }
+                None => {
+                    let spp = u32::try_from(budget / pixels as u64).unwrap_or(u32::MAX);
+                    let r = self.renderer;
+                    self.submit(&mut |b| r.record_pass(b, Samples::Uniform(spp)))?;
+                    self.samples += spp as u64 * pixels as u64;
+                }
+            }
+            per_sample = t.elapsed().as_secs_f64() / (self.samples - before) as f64;
+            done += 1;
+        }
+    }
 }
 
 #[cfg(test)]

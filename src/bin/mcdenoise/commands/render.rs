@@ -65,6 +65,32 @@ pub struct Args {
     /// by scene content, size, K and seed) and print rMSE, relMSE, PSNR, SSIM.
     #[arg(long, value_name = "K")]
     reference: Option<u32>,
+    /// Render until the reconstruction's estimated rMSE (mean E_i/(f̂_i²+0.01)
+    /// over pixels and channels) is at most E: passes continue, each sized
+    /// from how the estimate fell so far, bounded by --max-spp. Uniform
+    /// passes without --adaptive.
+    #[arg(long, value_name = "E", conflicts_with = "spp",
+          value_parser = |s: &str| s.parse::<f64>().ok().filter(|e| *e > 0.0 && e.is_finite())
+              .ok_or_else(|| "a positive number".to_string()))]
+    target_error: Option<f64>,
+    /// Stop at the last pass that fits in this many seconds of wall time
+    /// (with or without --target-error), bounded by --max-spp.
+    #[arg(long, value_name = "S", conflicts_with = "spp",
+          value_parser = |s: &str| s.parse::<f64>().ok().filter(|t| *t > 0.0 && t.is_finite())
+              .map(std::time::Duration::from_secs_f64)
+              .ok_or_else(|| "a positive number of seconds".to_string()))]
+    time_limit: Option<std::time::Duration>,
+    /// With --target-error or --time-limit: the most samples per pixel on
+    /// average the render may take.
+    #[arg(long, value_name = "N", default_value_t = 1024,
+          value_parser = clap::value_parser!(u32).range(1..))]
+    max_spp: u32,
+    /// Write a figure (PNG): the Monte Carlo input (with --adaptive, a
+    /// uniform render of the same samples per pixel and seed), the samples
+    /// per pixel, the reconstruction, its estimated error and, with
+    /// --reference, the reference, side by side.
+    #[arg(long, value_name = "PNG")]
+    figure: Option<PathBuf>,
     /// Kernel arithmetic.
     #[arg(long, value_enum, default_value = "f32")]
     precision: PrecisionArg,
@@ -125,6 +151,81 @@ fn reference_image(
     Ok((r.image, r.path))
 }
 
+/// The figure of `--figure`: input, samples per pixel, reconstruction,
+/// estimated error and reference, side by side.
+#[allow(clippy::too_many_arguments)] // the render's pieces, as render() holds them
+fn write_figure(
+    cli: &Cli,
+    a: &Args,
+    ctx: &std::sync::Arc<GpuContext>,
+    scene: &Scene,
+    stats: &mcdenoise::StatsImage,
+    frame: &mcdenoise::Frame,
+    reference: Option<&(RgbImage, PathBuf)>,
+    path: &Path,
+) -> anyhow::Result<()> {
+    let (w, h) = a.size;
+    let spp = &stats
+        .get(mcdenoise::Layer::Spp)
+        .expect("the renderer's statistics hold spp")[0];
+    let mean_spp = spp.iter().map(|&s| s as f64).sum::<f64>() / (w * h) as f64;
+    // With --adaptive the input panel is a uniform render of the same
+    // samples per pixel and seed: what the samples would have been.
+    let input = if a.adaptive {
+        let uniform = Renderer::new(ctx, scene, w, h, a.seed)?;
+        let mut batch = mcdenoise::Batch::new(ctx)?;
+        uniform.record_clear(&mut batch);
+        uniform.record_uniform(&mut batch, mean_spp.round().max(1.0) as u32)?;
+        batch.finish()?;
+        colour_of(&uniform.statistics()?)
+    } else {
+        colour_of(stats)
+    };
+    // The error as relative MSE, the scale of rMSE, up to its 99th
+    // percentile; the counts up to their 99th percentile.
+    let rel: Vec<f32> = (0..w * h)
+        .map(|i| {
+            (0..3)
+                .map(|c| {
+                    let f = frame.color.planes[c][i];
+                    frame.error.planes[c][i].max(0.0) / (f * f + 0.01)
+                })
+                .sum::<f32>()
+                / 3.0
+        })
+        .collect();
+    let p99 = |v: &[f32]| {
+        let mut s: Vec<f32> = v.iter().copied().filter(|x| x.is_finite()).collect();
+        s.sort_by(f32::total_cmp);
+        s.get(s.len() * 99 / 100).copied().unwrap_or(1.0).max(1e-12)
+    };
+    let mut panels = vec![
+        io::Panel::Colour(&input),
+        io::Panel::Heat(spp, p99(spp)),
+        io::Panel::Colour(&frame.color),
+    ];
+    if frame.error.width == w {
+        panels.push(io::Panel::Heat(&rel, p99(&rel)));
+    }
+    if let Some((r, _)) = reference {
+        panels.push(io::Panel::Colour(r));
+    }
+    io::write_panels(path, w, h, &panels, 4)?;
+    if !cli.quiet {
+        eprintln!(
+            "figure: {} (input at {mean_spp:.1} spp, samples per pixel, {}, estimated error{})",
+            path.display(),
+            a.method.name(),
+            if reference.is_some() {
+                ", reference"
+            } else {
+                ""
+            }
+        );
+    }
+    Ok(())
+}
+
 pub fn run(cli: &Cli, a: &Args) -> anyhow::Result<bool> {
     if a.list_scenes {
         list_scenes();
@@ -136,10 +237,15 @@ pub fn run(cli: &Cli, a: &Args) -> anyhow::Result<bool> {
     let scene_file = Path::new(name);
     if scene_file.exists() {
         refuse_overwrite(
-            [Some(output), a.png.as_ref(), a.save_stats.as_ref()]
-                .into_iter()
-                .flatten()
-                .map(PathBuf::as_path),
+            [
+                Some(output),
+                a.png.as_ref(),
+                a.save_stats.as_ref(),
+                a.figure.as_ref(),
+            ]
+            .into_iter()
+            .flatten()
+            .map(PathBuf::as_path),
             &[scene_file],
         )?;
     }
@@ -169,12 +275,26 @@ pub fn run(cli: &Cli, a: &Args) -> anyhow::Result<bool> {
         },
         precision: a.precision.get(),
         options: Options::parse(&a.opts)?,
+        stop: (a.target_error.is_some() || a.time_limit.is_some()).then_some(adaptive::StopRules {
+            target_error: a.target_error,
+            time_limit: a.time_limit,
+            max_spp: a.max_spp,
+        }),
+    };
+    // Rendered first, so an open-ended render can report its true error
+    // after every pass.
+    let reference = match a.reference {
+        Some(k) => Some(reference_image(cli, &ctx, &scene, (w, h), k, a.seed)?),
+        None => None,
+    };
+    let budget = match cfg.stop {
+        Some(_) => format!("up to {} spp", a.max_spp),
+        None => format!("{} spp", a.spp),
     };
     let bar = pass_bar(
         cli,
         &format!(
-            "{name}, {} spp{}, {}",
-            a.spp,
+            "{name}, {budget}{}, {}",
             if a.adaptive { " adaptive" } else { "" },
             method.name()
         ),
@@ -184,6 +304,22 @@ pub fn run(cli: &Cli, a: &Args) -> anyhow::Result<bool> {
         if let Some(b) = &bar {
             b.set_length(p.total as u64);
             b.set_position(p.done as u64);
+        }
+        if let (Some(e), false) = (p.estimate, cli.quiet) {
+            let truth = match (&reference, p.frame) {
+                (Some((r, _)), Some(f)) => metrics::compare(&f.color, r)
+                    .map(|m| format!(", true {:.5}", m.rmse))
+                    .unwrap_or_default(),
+                _ => String::new(),
+            };
+            let line = format!(
+                "pass {}: {:.2} spp, estimated rMSE {e:.5}{truth}",
+                p.done, p.spp
+            );
+            match &bar {
+                Some(b) => b.println(line),
+                None => eprintln!("{line}"),
+            }
         }
     });
     if let Some(b) = bar {
@@ -210,12 +346,11 @@ pub fn run(cli: &Cli, a: &Args) -> anyhow::Result<bool> {
     }
     if !cli.quiet {
         let s = &result.split;
-        let samples = a.spp as f64 * (w * h) as f64;
+        let samples = result.samples as f64;
         eprintln!(
-            "{name} {w}x{h}, {} spp{} ({} passes), {}: {secs:.1} s wall; GPU: render {:.0} ms ({:.0} ksamples/s), reconstruction {:.0} ms, sampling {:.0} ms",
-            a.spp,
+            "{name} {w}x{h}, {:.2} spp{}, {}: {secs:.1} s wall; GPU: render {:.0} ms ({:.0} ksamples/s), reconstruction {:.0} ms, sampling {:.0} ms",
+            samples / (w * h) as f64,
             if a.adaptive { " adaptive" } else { " uniform" },
-            1 + result.schedule.as_ref().map_or(0, |s| s.budgets.len()),
             method.name(),
             s.render_ms,
             samples / s.render_ms.max(1e-9),
@@ -224,10 +359,21 @@ pub fn run(cli: &Cli, a: &Args) -> anyhow::Result<bool> {
         );
         eprintln!("-> {}", output.display());
     }
-    if let Some(k) = a.reference {
-        let (r, path) = reference_image(cli, &ctx, &scene, (w, h), k, a.seed)?;
-        let mc = metrics::compare(&colour_of(&stats), &r)?;
-        let m = metrics::compare(&frame.color, &r)?;
+    if let Some(path) = &a.figure {
+        write_figure(
+            cli,
+            a,
+            &ctx,
+            &scene,
+            &stats,
+            frame,
+            reference.as_ref(),
+            path,
+        )?;
+    }
+    if let (Some(k), Some((r, path))) = (a.reference, &reference) {
+        let mc = metrics::compare(&colour_of(&stats), r)?;
+        let m = metrics::compare(&frame.color, r)?;
         println!("reference: {} ({k} spp)", path.display());
         println!(
             "against the reference:         Monte Carlo mean   {}",
