@@ -303,6 +303,33 @@ fn assert_same_size(x: &RgbImage, r: &RgbImage) {
     );
 }
 
+/// The rMSE a reconstruction estimates for itself: the mean over pixels and
+/// channels of `E_i[ch] / (f̂_i[ch]² + 0.01)`, its per-pixel error estimate
+/// relative to its own value (what [`rmse`] measures against a reference,
+/// with the output standing in for the reference). Non-finite terms are
+/// skipped; NaN when `error` is empty or of another size than `color`.
+pub fn estimated_rmse(color: &RgbImage, error: &RgbImage) -> f64 {
+    if (error.width, error.height) != (color.width, color.height) || color.width * color.height == 0
+    {
+        return f64::NAN;
+    }
+    let (mut sum, mut n) = (0.0f64, 0usize);
+    for (f, e) in color.planes.iter().zip(&error.planes) {
+        for (&f, &e) in f.iter().zip(e) {
+            let t = e.max(0.0) as f64 / ((f as f64) * (f as f64) + RMSE_EPS);
+            if t.is_finite() {
+                sum += t;
+                n += 1;
+            }
+        }
+    }
+    if n == 0 {
+        f64::NAN
+    } else {
+        sum / n as f64
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -397,32 +424,5 @@ mod tests {
         r.planes[2][9] = f32::NAN;
         let e = compare(&a, &r).unwrap_err().to_string();
         assert!(e.contains("(1, 1)"), "{e}");
-    }
-}
-
-/// The rMSE a reconstruction estimates for itself: the mean over pixels and
-/// channels of `E_i[ch] / (f̂_i[ch]² + 0.01)`, its per-pixel error estimate
-/// relative to its own value (what [`rmse`] measures against a reference,
-/// with the output standing in for the reference). Non-finite terms are
-/// skipped; NaN when `error` is empty or of another size than `color`.
-pub fn estimated_rmse(color: &RgbImage, error: &RgbImage) -> f64 {
-    if (error.width, error.height) != (color.width, color.height) || color.width * color.height == 0
-    {
-        return f64::NAN;
-    }
-    let (mut sum, mut n) = (0.0f64, 0usize);
-    for (f, e) in color.planes.iter().zip(&error.planes) {
-        for (&f, &e) in f.iter().zip(e) {
-            let t = e.max(0.0) as f64 / ((f as f64) * (f as f64) + RMSE_EPS);
-            if t.is_finite() {
-                sum += t;
-                n += 1;
-            }
-        }
-    }
-    if n == 0 {
-        f64::NAN
-    } else {
-        sum / n as f64
     }
 }
