@@ -2,7 +2,7 @@
 //! over its input, with what AOS decided there: input, output, reference,
 //! `vbar`, chosen order (0: the input), rank, MSE, biases and variances;
 //! and what share of a 12-spp sample map each chosen order gets.
-//! Usage: `cargo run --release --example aos_worst -- stats.exr ref.exr [N [KEY=VALUE ...]]`
+//! Usage: `cargo run --release -p mcdenoise-tools --bin aos_worst -- stats.exr ref.exr [N [KEY=VALUE ...]]`
 //! (the trailing arguments are `--opt` options).
 use mcdenoise::image::Layer;
 use mcdenoise::{Config, Denoiser, Method, Source};

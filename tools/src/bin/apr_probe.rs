@@ -2,7 +2,7 @@
 //! orders 0..3 (CPU reference, raw features, default kernel, stage-1 order
 //! from (y, v)); with a reference image, first the 25 brightest input pixels
 //! within 20 of it with their variance and reference value. Usage:
-//! `cargo run --release --example apr_probe -- stats.exr X Y [channel [ref.exr]]`.
+//! `cargo run --release -p mcdenoise-tools --bin apr_probe -- stats.exr X Y [channel [ref.exr]]`.
 use mcdenoise::image::Layer;
 use mcdenoise::reference::apr as r;
 fn main() {

@@ -1,7 +1,7 @@
 //! Lists the worst pixels of an APR run on a statistics file against a
 //! reference: the pixel, its spp, input and output colour, reference, and
 //! the debug layers (order of its block, extra-centre mask). Usage:
-//! `cargo run --release --example apr_worst -- stats.exr out.exr ref.exr`.
+//! `cargo run --release -p mcdenoise-tools --bin apr_worst -- stats.exr out.exr ref.exr`.
 use mcdenoise::image::Layer;
 fn main() {
     let a: Vec<String> = std::env::args().collect();

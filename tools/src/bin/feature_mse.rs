@@ -3,7 +3,7 @@
 //! per-pixel means over the pixels valid in both, for each statistics file
 //! given after the reference. Used by `benches/prefilter_features.sh`.
 //!
-//!     cargo run --release --example feature_mse -- REF.exr A.exr [B.exr ...]
+//!     cargo run --release -p mcdenoise-tools --bin feature_mse -- REF.exr A.exr [B.exr ...]
 
 use std::path::Path;
 

@@ -3,7 +3,7 @@
 //! another (e.g. the same scene at 4x the spp), on the CPU twins, and prints
 //! the rMSE against a reference for both.
 //!
-//! `cargo run --release --example feature_swap -- colour.exr features.exr reference.exr [wlr|lp]`
+//! `cargo run --release -p mcdenoise-tools --bin feature_swap -- colour.exr features.exr reference.exr [wlr|lp]`
 
 use mcdenoise::image::Layer;
 use mcdenoise::methods::{denoise, Backend, DenoiseRequest, Method};

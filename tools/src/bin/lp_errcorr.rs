@@ -5,7 +5,7 @@
 //! estimated and the actual squared error), then the mean over the scenes.
 //! `mcdenoise bench --quality` has no `--opt`, hence this probe.
 //!
-//! `cargo run --release --example lp_errcorr -- DIR [--methods lp,wlr]
+//! `cargo run --release -p mcdenoise-tools --bin lp_errcorr -- DIR [--methods lp,wlr]
 //! [--spp 16,64] [--prefilter on,off] [--backend gpu|cpu] [--opt KEY=VALUE]...`
 
 use std::collections::BTreeMap;

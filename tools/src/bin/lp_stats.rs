@@ -2,7 +2,7 @@
 //! histogram and the mean coverage (CPU twins), then with `gpu` the GPU time
 //! of every dispatch (warm run).
 //!
-//! `cargo run --release --example lp_stats -- scene/spp16.exr [reference.exr] [gpu]`
+//! `cargo run --release -p mcdenoise-tools --bin lp_stats -- scene/spp16.exr [reference.exr] [gpu]`
 //! (with a reference: the tiles of largest estimated and actual error).
 
 use mcdenoise::gpu::{ContextOptions, GpuContext};

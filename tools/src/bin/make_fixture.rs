@@ -9,7 +9,7 @@
 //! the defocused yellow sphere behind) were made from the crate root with:
 //!
 //! ```text
-//! cargo run --example make_fixture -- \
+//! cargo run -p mcdenoise-tools --bin make_fixture -- \
 //!     ../shared/data/scenes/dof_checker/spp16.exr \
 //!     ../shared/data/scenes/dof_checker/reference.exr \
 //!     120 104 64 64 \

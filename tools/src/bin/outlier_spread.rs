@@ -13,7 +13,7 @@
 //!   `F:k` come from `SPREAD_VARIANTS` (default `1:1,2:1,4:1`).
 //!
 //! ```text
-//! SPREAD_VARIANTS=1:1,1:4 cargo run --release --example outlier_spread -- \
+//! SPREAD_VARIANTS=1:1,1:4 cargo run --release -p mcdenoise-tools --bin outlier_spread -- \
 //!     [--methods wlr,apr] a.exr=ref.exr ...
 //! ```
 

@@ -4,7 +4,7 @@
 //! and on, with the output's image mean relative to the input's. GPU, f32,
 //! prefilter auto. Used by `benches/outliers.sh`.
 //!
-//!     cargo run --release --example outlier_table -- [--methods wlr,lp] a.exr=ref.exr ...
+//!     cargo run --release -p mcdenoise-tools --bin outlier_table -- [--methods wlr,lp] a.exr=ref.exr ...
 
 use std::path::Path;
 use std::sync::Arc;

@@ -1,0 +1,429 @@
+//! The equal-sample (and equal-time) comparison of adaptive and uniform
+//! sampling on the built-in scenes, for every method, against references
+//! whose own error is estimated.
+//!
+//! Per scene: two references of K spp with independent seeds; the table
+//! uses their mean, whose error against the converged image is estimated as
+//! `rMSE(r1, r2) / 4` (each reference's is about half their distance, and
+//! the mean of two halves it again) and printed next to the rows; the
+//! ratios use the rMSE with that estimate subtracted. Per scene and spp N:
+//! one uniform render of N spp (seed `--seed`) reconstructed by every
+//! method (the Monte Carlo mean too), and per method the adaptive loop of
+//! spec §9.3 with the same seed and total. With `--oidn`, OIDN 2.5
+//! (`benches/oidn.sh`) on the uniform statistics and on each method's
+//! adaptive statistics. With `--equal-time`, per method a uniform render
+//! given the adaptive run's whole GPU time (renders, reconstructions and
+//! sample maps; its spp from the uniform run's GPU time per sample and the
+//! method's reconstruction time). Times and render rates come from the
+//! GPU timestamps, which a shared machine disturbs less than wall time.
+//!
+//! ```text
+//! cargo run --release -p mcdenoise-tools --bin equal_samples -- \
+//!     [--scenes a,b] [--size 256x256] [--spp 16,64] [--methods wlr,lp,apr,aos] \
+//!     [--reference 4096] [--seed 3] [--oidn] [--equal-time] [--json out.json] [--work DIR]
+//! ```
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
+use std::time::Instant;
+
+use anyhow::{bail, Context};
+use clap::Parser;
+use mcdenoise::render::adaptive::{self, LoopConfig};
+use mcdenoise::render::{reference, Renderer, Samples, Scene};
+use mcdenoise::{
+    colour_of, io, metrics, Batch, Config, ContextOptions, Denoiser, GpuContext, Method, Options,
+    Outliers, Pass, Precision, Prefilter, RgbImage, Source,
+};
+use serde::Serialize;
+
+#[derive(Parser)]
+struct Args {
+    /// Scenes (built-in names or TOML files), comma-separated [default: every built-in scene].
+    #[arg(long, value_delimiter = ',')]
+    scenes: Vec<String>,
+    /// Image size.
+    #[arg(long, default_value = "256x256", value_parser = |s: &str| mcdenoise::bench::parse_size(s).map_err(|e| e.to_string()))]
+    size: (usize, usize),
+    /// Average samples per pixel, comma-separated.
+    #[arg(long, value_delimiter = ',', default_value = "16,64")]
+    spp: Vec<u32>,
+    /// Methods, comma-separated.
+    #[arg(long, value_delimiter = ',', default_value = "wlr,lp,apr,aos")]
+    methods: Vec<String>,
+    /// Samples per pixel of each of the two references.
+    #[arg(long, default_value_t = 4096)]
+    reference: u32,
+    /// Seed of the renders (the references use two seeds of their own).
+    #[arg(long, default_value_t = 3)]
+    seed: u64,
+    /// Also OIDN on the uniform and on every adaptive run's statistics.
+    #[arg(long)]
+    oidn: bool,
+    /// Also a uniform render per method given the adaptive run's wall time.
+    #[arg(long)]
+    equal_time: bool,
+    /// Method option key=value for every reconstruction (repeatable).
+    #[arg(long = "opt", value_name = "KEY=VALUE")]
+    opts: Vec<String>,
+    /// Also write the rows as JSON here.
+    #[arg(long)]
+    json: Option<PathBuf>,
+    /// Working folder for statistics and OIDN outputs.
+    #[arg(long, default_value = "target/equal_samples")]
+    work: PathBuf,
+}
+
+/// One method's results on one scene and spp.
+#[derive(Clone, Debug, Default, Serialize)]
+struct MethodRow {
+    method: String,
+    uniform: f64,
+    uniform_estimate: f64,
+    adaptive: f64,
+    adaptive_estimate: f64,
+    /// (adaptive − ref_err) / (uniform − ref_err).
+    ratio: f64,
+    /// Render rate of the uniform and the adaptive run, samples per second
+    /// of GPU time.
+    uniform_rate: f64,
+    adaptive_rate: f64,
+    /// GPU seconds of the adaptive run (renders, reconstructions, maps).
+    adaptive_gpu: f64,
+    /// The uniform run given that time: its spp and rMSE.
+    equal_time_spp: Option<u32>,
+    equal_time: Option<f64>,
+    /// OIDN on this method's adaptive statistics.
+    oidn_adaptive: Option<f64>,
+}
+
+/// One scene and spp.
+#[derive(Clone, Debug, Default, Serialize)]
+struct Row {
+    scene: String,
+    spp: u32,
+    /// Estimated rMSE of the reference (the mean of two) itself.
+    ref_err: f64,
+    /// The uniform Monte Carlo mean.
+    input: f64,
+    oidn_uniform: Option<f64>,
+    methods: Vec<MethodRow>,
+}
+
+fn loop_config(method: Method, spp: u32, adaptive: bool, options: &Options) -> LoopConfig {
+    LoopConfig {
+        spp,
+        adaptive,
+        method,
+        prefilter: Prefilter::Auto,
+        outliers: Outliers::Auto,
+        pass_cap: adaptive::default_pass_cap(method),
+        precision: Precision::F32,
+        options: options.clone(),
+        stop: None,
+    }
+}
+
+fn mean_image(a: &RgbImage, b: &RgbImage) -> RgbImage {
+    let planes = std::array::from_fn(|c| {
+        a.planes[c]
+            .iter()
+            .zip(&b.planes[c])
+            .map(|(x, y)| 0.5 * (x + y))
+            .collect()
+    });
+    RgbImage::from_planes(a.width, a.height, planes)
+}
+
+/// The rMSE of `x` against `r` with the reference's own estimated error
+/// taken off (never below a tenth of the raw value).
+fn corrected(raw: f64, ref_err: f64) -> f64 {
+    (raw - ref_err).max(0.1 * raw)
+}
+
+/// A final reconstruction of `renderer`'s planes by `method`, and its GPU
+/// seconds.
+fn reconstruct(
+    ctx: &Arc<GpuContext>,
+    renderer: &Renderer,
+    method: Method,
+    options: &Options,
+) -> anyhow::Result<(mcdenoise::Frame, f64)> {
+    let mut c = Config::new(method);
+    c.pass = Pass::Final;
+    c.options = options.clone();
+    c.low_spp = false;
+    let d = Denoiser::new(ctx, Source::Accum(renderer.layout()), c)?;
+    let mut b = Batch::new(ctx)?;
+    d.record(&mut b, Some(renderer.accum()), None)?;
+    let gpu_ms: f64 = b.finish()?.iter().map(|k| k.nanoseconds / 1e6).sum();
+    Ok((d.read()?, gpu_ms / 1e3))
+}
+
+/// `(seconds of render GPU time per sample)` of a batch's timings.
+fn render_ms(t: &[mcdenoise::KernelTiming]) -> f64 {
+    t.iter()
+        .filter(|k| k.kernel.starts_with("render_"))
+        .map(|k| k.nanoseconds / 1e6)
+        .sum()
+}
+
+/// Runs OIDN on `(input, output)` pairs and returns the outputs' rMSE
+/// against `r`.
+fn oidn(pairs: &[(PathBuf, PathBuf)], r: &RgbImage) -> anyhow::Result<Vec<f64>> {
+    let mut cmd = std::process::Command::new("bash");
+    cmd.arg("benches/oidn.sh");
+    for (i, o) in pairs {
+        cmd.arg(i).arg(o);
+    }
+    let out = cmd.output().context("running benches/oidn.sh")?;
+    if !out.status.success() {
+        bail!("oidn.sh failed: {}", String::from_utf8_lossy(&out.stderr));
+    }
+    pairs
+        .iter()
+        .map(|(_, o)| Ok(metrics::rmse(&io::read_rgb(o)?, r)))
+        .collect()
+}
+
+fn scene_rows(
+    ctx: &Arc<GpuContext>,
+    a: &Args,
+    name: &str,
+    methods: &[Method],
+    options: &Options,
+) -> anyhow::Result<Vec<Row>> {
+    let scene = Scene::by_name_or_file(name)?;
+    let (w, h) = a.size;
+    let px = (w * h) as f64;
+    let stop = AtomicBool::new(false);
+    let t = Instant::now();
+    let r1 = reference::reference(
+        ctx,
+        &scene,
+        a.size,
+        a.reference,
+        reference::reference_seed(a.seed),
+        &stop,
+        |_, _| {},
+    )?;
+    let r2 = reference::reference(
+        ctx,
+        &scene,
+        a.size,
+        a.reference,
+        reference::reference_seed(a.seed) ^ 0x2,
+        &stop,
+        |_, _| {},
+    )?;
+    let ref_err = metrics::rmse(&r1.image, &r2.image) / 4.0;
+    let r = mean_image(&r1.image, &r2.image);
+    eprintln!(
+        "{name}: references {} and {} ({:.0} s), estimated error of their mean {ref_err:.2e}",
+        r1.path.display(),
+        r2.path.display(),
+        t.elapsed().as_secs_f64()
+    );
+    let stem = Path::new(name)
+        .file_stem()
+        .unwrap()
+        .to_string_lossy()
+        .to_string();
+    let mut rows = Vec::new();
+    for &n in &a.spp {
+        let mut row = Row {
+            scene: stem.clone(),
+            spp: n,
+            ref_err,
+            ..Default::default()
+        };
+        // Uniform: one render, every method.
+        let uniform = Renderer::new(ctx, &scene, w, h, a.seed)?;
+        let mut b = Batch::new(ctx)?;
+        uniform.record_clear(&mut b);
+        uniform.record_pass(&mut b, Samples::Uniform(n))?;
+        let uniform_secs = render_ms(&b.finish()?) / 1e3;
+        let uniform_rate = n as f64 * px / uniform_secs;
+        let stats = uniform.statistics()?;
+        row.input = metrics::rmse(&colour_of(&stats), &r);
+        let stats_path = a.work.join(format!("{stem}-{n}-uniform.exr"));
+        io::write_stats(&stats_path, &stats)?;
+        let mut oidn_pairs = vec![(
+            stats_path,
+            a.work.join(format!("{stem}-{n}-uniform-oidn.exr")),
+        )];
+        for &m in methods {
+            let (frame, recon_secs) = reconstruct(ctx, &uniform, m, options)?;
+            let mut mr = MethodRow {
+                method: m.name().into(),
+                uniform: metrics::rmse(&frame.color, &r),
+                uniform_estimate: metrics::estimated_rmse(&frame.color, &frame.error),
+                uniform_rate,
+                ..Default::default()
+            };
+            // Adaptive, same seed and total.
+            let ar = Renderer::new(ctx, &scene, w, h, a.seed)?;
+            let out = adaptive::render(ctx, &ar, &loop_config(m, n, true, options), &stop, |_| {})?;
+            let sp = &out.split;
+            mr.adaptive_gpu = (sp.render_ms + sp.reconstruction_ms + sp.sampling_ms) / 1e3;
+            mr.adaptive = metrics::rmse(&out.frame.color, &r);
+            mr.adaptive_estimate = metrics::estimated_rmse(&out.frame.color, &out.frame.error);
+            mr.adaptive_rate = out.samples as f64 / (out.split.render_ms / 1e3);
+            mr.ratio = corrected(mr.adaptive, ref_err) / corrected(mr.uniform, ref_err);
+            if a.oidn {
+                let p = a.work.join(format!("{stem}-{n}-{}-adaptive.exr", m.name()));
+                io::write_stats(&p, &ar.statistics()?)?;
+                oidn_pairs.push((
+                    p,
+                    a.work
+                        .join(format!("{stem}-{n}-{}-adaptive-oidn.exr", m.name())),
+                ));
+            }
+            if a.equal_time {
+                // The uniform render's seconds per sample and this method's
+                // reconstruction: what fits in the adaptive run's time.
+                let per_sample = uniform_secs / (n as f64 * px);
+                let spp = ((mr.adaptive_gpu - recon_secs) / per_sample / px)
+                    .floor()
+                    .max(1.0) as u32;
+                let eq = Renderer::new(ctx, &scene, w, h, a.seed)?;
+                let mut b = Batch::new(ctx)?;
+                eq.record_clear(&mut b);
+                eq.record_pass(&mut b, Samples::Uniform(spp))?;
+                b.finish()?;
+                let (frame, _) = reconstruct(ctx, &eq, m, options)?;
+                mr.equal_time_spp = Some(spp);
+                mr.equal_time = Some(metrics::rmse(&frame.color, &r));
+            }
+            eprintln!(
+                "  {stem} spp{n} {}: uniform {:.5} adaptive {:.5} ratio {:.2} (rates {:.0}/{:.0} ks/s)",
+                m.name(),
+                mr.uniform,
+                mr.adaptive,
+                mr.ratio,
+                mr.uniform_rate / 1e3,
+                mr.adaptive_rate / 1e3
+            );
+            row.methods.push(mr);
+        }
+        if a.oidn {
+            let scores = oidn(&oidn_pairs, &r)?;
+            row.oidn_uniform = Some(scores[0]);
+            for (mr, s) in row.methods.iter_mut().zip(&scores[1..]) {
+                mr.oidn_adaptive = Some(*s);
+            }
+        }
+        rows.push(row);
+    }
+    Ok(rows)
+}
+
+fn fmt(v: Option<f64>) -> String {
+    v.map_or("–".into(), |x| format!("{x:.5}"))
+}
+
+fn markdown(rows: &[Row], a: &Args, methods: &[Method]) -> String {
+    let mut s = String::new();
+    let mut head = "| scene | spp | ref. error | uniform MC |".to_string();
+    if a.oidn {
+        head += " OIDN |";
+    }
+    for m in methods {
+        let n = m.name();
+        head += &format!(" {n} uniform | {n} adaptive | ratio |");
+        if a.equal_time {
+            head += &format!(" {n} equal time |");
+        }
+        if a.oidn {
+            head += &format!(" OIDN on {n} adaptive |");
+        }
+    }
+    s += &head;
+    s += "\n";
+    let columns = head.matches('|').count() - 1;
+    s += &"|---".repeat(columns);
+    s += "|\n";
+    for r in rows {
+        let mut line = format!(
+            "| {} | {} | {:.1e} | {:.5} |",
+            r.scene, r.spp, r.ref_err, r.input
+        );
+        if a.oidn {
+            line += &format!(" {} |", fmt(r.oidn_uniform));
+        }
+        for m in &r.methods {
+            line += &format!(" {:.5} | {:.5} | {:.2} |", m.uniform, m.adaptive, m.ratio);
+            if a.equal_time {
+                line += &format!(
+                    " {} ({} spp) |",
+                    fmt(m.equal_time),
+                    m.equal_time_spp.unwrap_or(0)
+                );
+            }
+            if a.oidn {
+                line += &format!(" {} |", fmt(m.oidn_adaptive));
+            }
+        }
+        s += &line;
+        s += "\n";
+    }
+    // Summary per method and spp: mean ratio, the worst, losses.
+    s += "\n| method | spp | mean adaptive/uniform | worst | scenes above 1.0 | mean adaptive rate / uniform rate |\n|---|---|---|---|---|---|\n";
+    for (k, m) in methods.iter().enumerate() {
+        for &n in &a.spp {
+            let rs: Vec<&MethodRow> = rows
+                .iter()
+                .filter(|r| r.spp == n)
+                .map(|r| &r.methods[k])
+                .collect();
+            if rs.is_empty() {
+                continue;
+            }
+            let ratios: Vec<f64> = rs.iter().map(|x| x.ratio).collect();
+            let mean = ratios.iter().sum::<f64>() / ratios.len() as f64;
+            let worst = ratios.iter().copied().fold(0.0, f64::max);
+            let above = ratios.iter().filter(|&&x| x > 1.0).count();
+            let rate = rs
+                .iter()
+                .map(|x| x.adaptive_rate / x.uniform_rate)
+                .sum::<f64>()
+                / rs.len() as f64;
+            s += &format!(
+                "| {} | {n} | {mean:.3} | {worst:.2} | {above} of {} | {rate:.2} |\n",
+                m.name(),
+                ratios.len()
+            );
+        }
+    }
+    s
+}
+
+fn main() -> anyhow::Result<()> {
+    let a = Args::parse();
+    let methods: Vec<Method> = a
+        .methods
+        .iter()
+        .map(|n| Method::from_name(n).with_context(|| format!("no method {n}")))
+        .collect::<anyhow::Result<_>>()?;
+    let options = Options::parse(&a.opts)?;
+    let scenes: Vec<String> = if a.scenes.is_empty() {
+        Scene::builtin_names()
+            .into_iter()
+            .map(String::from)
+            .collect()
+    } else {
+        a.scenes.clone()
+    };
+    std::fs::create_dir_all(&a.work)?;
+    let ctx = Arc::new(GpuContext::new(&ContextOptions::default())?);
+    let mut rows = Vec::new();
+    for s in &scenes {
+        rows.extend(scene_rows(&ctx, &a, s, &methods, &options)?);
+        if let Some(p) = &a.json {
+            std::fs::write(p, serde_json::to_string_pretty(&rows)? + "\n")?;
+        }
+    }
+    print!("{}", markdown(&rows, &a, &methods));
+    Ok(())
+}
