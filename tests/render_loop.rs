@@ -330,3 +330,58 @@ fn cli_render_lists_scenes_and_renders_with_a_reference() {
     assert!(!dir.join("bad.exr").exists());
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// `render --target-error` stops when met and `--figure` writes the panels
+/// side by side: input, samples per pixel, reconstruction, error estimate
+/// and, with --reference, the reference (4 px apart).
+#[test]
+fn cli_render_to_a_target_with_a_figure() {
+    let bin = env!("CARGO_BIN_EXE_mcdenoise");
+    let dir = std::env::temp_dir().join(format!("mcdenoise-target-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let fig = dir.join("fig.png");
+    let out = Command::new(bin)
+        .args([
+            "render",
+            "--scene",
+            "cornell",
+            "--size",
+            "20x12",
+            "--adaptive",
+        ])
+        .args(["--target-error", "1e9", "--reference", "16", "--figure"])
+        .arg(&fig)
+        .arg("-o")
+        .arg(dir.join("out.exr"))
+        .env("MCDENOISE_CACHE", &dir)
+        .output()
+        .unwrap();
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{e}");
+    assert!(e.contains("pass 1: 4.00 spp, estimated rMSE"), "{e}");
+    assert!(e.contains(", true "), "{e}");
+    assert!(
+        !e.contains("pass 2"),
+        "the target was met after pass 0: {e}"
+    );
+    let decoder = png::Decoder::new(std::fs::File::open(&fig).unwrap());
+    let info = decoder.read_info().unwrap().info().clone();
+    assert_eq!((info.width, info.height), (5 * 20 + 4 * 4, 12));
+    // --spp and --target-error exclude each other.
+    let both = Command::new(bin)
+        .args([
+            "render",
+            "--scene",
+            "cornell",
+            "--spp",
+            "8",
+            "--target-error",
+            "0.1",
+            "-o",
+        ])
+        .arg(dir.join("x.exr"))
+        .output()
+        .unwrap();
+    assert_eq!(both.status.code(), Some(2));
+    std::fs::remove_dir_all(&dir).ok();
+}
