@@ -31,7 +31,7 @@ layout(push_constant) uniform Push {
     uint s_off;
     uint u_off;
     uint budget;
-    uint pad0;
+    uint base;      // samples every pixel gets before the map's share (sample_scan leaf)
     uint pad1;
     uint pad2;
 } push;
@@ -91,5 +91,5 @@ void main()
         p1 = incl;
         p0 = incl - v;
     }
-    counts[i] = uint(t * p1 / u_total - t * p0 / u_total);
+    counts[i] = push.base + uint(t * p1 / u_total - t * p0 / u_total);
 }

@@ -159,6 +159,13 @@ pub const OPTIONS: &[OptionSpec] = &[
         section: "§9.1",
         help: "σ of the Gaussian on the priority map (default: 1 for WLR and LP, 4 for APR, 2 for AOS, 0 otherwise)",
     },
+    OptionSpec {
+        key: "sampling.floor",
+        kind: Kind::Real(0.0, 0.99),
+        default: "method",
+        section: "§9.2",
+        help: "fraction of each sample map's budget spread uniformly before the priority places the rest (ours, SAMPLE-FLOOR)",
+    },
 ];
 
 /// Parsed `--opt` values, validated against [`OPTIONS`].

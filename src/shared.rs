@@ -396,10 +396,13 @@ pub struct SampleTreePush {
     pub s_off: u32,
     /// Entry of `U = sum u`.
     pub u_off: u32,
-    /// Budget `T` of the pass (`sample_scan` leaf).
+    /// Budget `T` of the pass that the map distributes (`sample_scan` leaf).
     pub budget: u32,
-    /// Unused (the block's `pad0..pad2`): rounds the block to 64 bytes; 0.
-    pub _pad: [u32; 3],
+    /// Samples every pixel gets besides its share of `budget` (the uniform
+    /// floor of [`crate::methods::sampling::floor_split`]).
+    pub base: u32,
+    /// Unused (the block's `pad1..pad2`): rounds the block to 64 bytes; 0.
+    pub _pad: [u32; 2],
 }
 
 /// `spirv/lib/outliers.glsl`, block `Push`: every kernel of the outlier stage

@@ -45,7 +45,7 @@ fn gpu_allocate(w: usize, h: usize, r: &[f32], spp: &[f32], budgets: &[u32]) -> 
         .iter()
         .map(|&t| {
             let mut batch = Batch::new(&ctx).unwrap();
-            record_allocation(&mut batch, rb.slice(), sb.slice(), &planes, t).unwrap();
+            record_allocation(&mut batch, rb.slice(), sb.slice(), &planes, t, 0.0).unwrap();
             batch.finish().unwrap();
             download(&planes).unwrap()
         })
@@ -56,7 +56,7 @@ fn gpu_allocate(w: usize, h: usize, r: &[f32], spp: &[f32], budgets: &[u32]) -> 
 fn check_allocation(what: &str, w: usize, h: usize, r: &[f32], spp: &[f32]) -> Vec<Vec<u32>> {
     let gpu_counts = gpu_allocate(w, h, r, spp, BUDGETS);
     for (&t, g) in BUDGETS.iter().zip(&gpu_counts) {
-        let c = allocate_cpu(w, h, r, spp, t).unwrap();
+        let c = allocate_cpu(w, h, r, spp, t, 0.0).unwrap();
         assert_eq!(g, &c, "{what} {w}x{h} T={t}: GPU and twin differ");
         let total: u64 = c.iter().map(|&x| x as u64).sum();
         assert_eq!(total, t as u64, "{what} {w}x{h}: total");
@@ -256,7 +256,7 @@ fn allocation_on_large_images() {
         let budgets = [12_345_678, u32::MAX];
         let g = gpu_allocate(w, h, &r, &spp, &budgets);
         for (&t, g) in budgets.iter().zip(&g) {
-            let c = allocate_cpu(w, h, &r, &spp, t).unwrap();
+            let c = allocate_cpu(w, h, &r, &spp, t, 0.0).unwrap();
             assert!(g == &c, "{w}x{h} T={t}: GPU and twin differ");
             assert_eq!(c.iter().map(|&x| x as u64).sum::<u64>(), t as u64);
         }
@@ -421,7 +421,10 @@ fn zero_error_pixel_gets_no_samples() {
         assert_eq!(counts[200], 0);
         assert_eq!(counts[201], 0);
         // Allocation of the GPU's own map by the twin: bit for bit.
-        assert_eq!(counts, allocate_cpu(w, h, &r, &case.spp, 100_000).unwrap());
+        assert_eq!(
+            counts,
+            allocate_cpu(w, h, &r, &case.spp, 100_000, 0.0).unwrap()
+        );
     }
     check_validation(&gpu());
 }
@@ -476,4 +479,40 @@ fn per_method_constants() {
     // Ours (MAP-SMOOTH-APR, MAP-SMOOTH-AOS): the spec's σs is 0.
     assert_eq!(p(Method::Apr).sigma_s, 4.0);
     assert_eq!(p(Method::Aos).sigma_s, 2.0);
+}
+
+/// SAMPLE-FLOOR: a floor spreads `floor·T` uniformly first; GPU and twin
+/// agree bit for bit, the total is exactly T, every pixel gets at least the
+/// base, and a zero-priority pixel gets exactly it.
+#[test]
+fn a_uniform_floor_keeps_the_total_and_gives_every_pixel_its_base() {
+    use mcdenoise::methods::sampling::floor_split;
+    assert_eq!(floor_split(1000, 100, 0.0), (0, 1000));
+    assert_eq!(floor_split(1000, 100, 0.25), (2, 800));
+    assert_eq!(floor_split(1000, 3000, 0.5), (0, 1000));
+    assert_eq!(floor_split(1000, 100, 0.999), (9, 100));
+    let ctx = gpu();
+    let (w, h) = (37, 23);
+    let mut rng = Rng(77);
+    let r = random_map(&mut rng, w * h);
+    let spp = vec![4.0f32; w * h];
+    let planes = SamplingPlanes::new(&ctx, w, h).unwrap();
+    let (rb, sb) = (upload(&ctx, "test.r", &r), upload(&ctx, "test.spp", &spp));
+    for (t, floor) in [(10_000u32, 0.3f32), (851, 0.5), (5, 0.9)] {
+        let mut batch = Batch::new(&ctx).unwrap();
+        record_allocation(&mut batch, rb.slice(), sb.slice(), &planes, t, floor).unwrap();
+        batch.finish().unwrap();
+        let g = download(&planes).unwrap();
+        let c = allocate_cpu(w, h, &r, &spp, t, floor).unwrap();
+        assert_eq!(g, c, "T={t} floor {floor}");
+        assert_eq!(c.iter().map(|&x| x as u64).sum::<u64>(), t as u64);
+        let (base, _) = floor_split(t, (w * h) as u32, floor);
+        assert!(c.iter().all(|&x| x >= base));
+        for (i, &ri) in r.iter().enumerate() {
+            if ri == 0.0 {
+                assert_eq!(c[i], base, "pixel {i}");
+            }
+        }
+    }
+    check_validation(&ctx);
 }

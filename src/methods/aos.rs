@@ -454,6 +454,7 @@ pub static INFO: MethodInfo = MethodInfo {
         sigma_s: sampling::SIGMA_AOS,
         e_is_dmse: false,
         dim: DimSource::Plain,
+        floor: 0.0,
     },
     align: 1,
     halo: |c| {

@@ -440,6 +440,7 @@ pub static INFO: MethodInfo = MethodInfo {
         sigma_s: sampling::SIGMA_APR,
         e_is_dmse: false,
         dim: DimSource::Plain,
+        floor: 0.0,
     },
     // The sparse centres lie every RADIUS pixels (§4.3).
     align: RADIUS as usize,

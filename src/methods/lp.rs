@@ -633,6 +633,7 @@ pub static INFO: MethodInfo = MethodInfo {
         sigma_s: sampling::SIGMA_LP,
         e_is_dmse: true,
         dim: DimSource::Plain,
+        floor: 0.0,
     },
     align: 1,
     halo: |_| Ok(reference::lp::RADIUS * (GRANULARITIES.len() + 1)),

@@ -29,6 +29,7 @@ pub static INFO: MethodInfo = MethodInfo {
         sigma_s: 0.0,
         e_is_dmse: false,
         dim: DimSource::Plain,
+        floor: 0.0,
     },
     align: 1,
     halo: |_| Ok(0),

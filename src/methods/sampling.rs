@@ -87,6 +87,22 @@ pub struct SamplingParams {
     pub e_is_dmse: bool,
     /// How to read the `d` plane.
     pub dim: DimSource,
+    /// Fraction of each map's budget spread uniformly over the pixels before
+    /// the rest follows the priority (0: the spec's map; ours,
+    /// SAMPLE-FLOOR). Must be in `[0, 1)`.
+    pub floor: f32,
+}
+
+/// Splits a map's `budget` over `n` pixels into what every pixel gets
+/// (`base = floor(floor·budget/n)`) and what the priority distributes
+/// (`budget − base·n`): the counts still sum to exactly `budget`.
+pub fn floor_split(budget: u32, n: u32, floor: f32) -> (u32, u32) {
+    if n == 0 || !(floor > 0.0) {
+        return (0, budget);
+    }
+    let base = ((floor.min(1.0) as f64 * budget as f64) / n as f64).floor() as u64;
+    let base = base.min(budget as u64 / n as u64) as u32;
+    (base, budget - base * n)
 }
 
 impl SamplingParams {
@@ -106,20 +122,29 @@ impl SamplingParams {
         options: &crate::options::Options,
     ) -> Result<SamplingParams> {
         let mut params = Self::for_method(method)?;
+        let number = |key: &str| {
+            options
+                .get(key)
+                .parse::<f32>()
+                .map_err(|_| Error::InvalidArgument(format!("{key}: not a number")))
+        };
         if options.is_set("sampling.smooth") {
-            params.sigma_s = options
-                .get("sampling.smooth")
-                .parse()
-                .map_err(|_| Error::InvalidArgument("sampling.smooth: not a number".into()))?;
+            params.sigma_s = number("sampling.smooth")?;
+        }
+        if options.is_set("sampling.floor") {
+            params.floor = number("sampling.floor")?;
         }
         Ok(params)
     }
 
     fn check(&self) -> Result<()> {
-        if !(self.eps.is_finite() && self.eps > 0.0) || self.sigma_s.is_nan() {
+        if !(self.eps.is_finite() && self.eps > 0.0)
+            || self.sigma_s.is_nan()
+            || !(0.0..1.0).contains(&self.floor)
+        {
             return Err(Error::InvalidArgument(format!(
-                "sampling: ε must be finite and > 0 and σs a number (got ε = {}, σs = {})",
-                self.eps, self.sigma_s
+                "sampling: ε must be finite and > 0, σs a number and the floor in [0, 1) (got ε = {}, σs = {}, floor = {})",
+                self.eps, self.sigma_s, self.floor
             )));
         }
         Ok(())
@@ -235,14 +260,18 @@ impl TreeLayout {
         *off.last().unwrap()
     }
 
-    /// The dispatches of the allocation, in order: `(is_scan, push)`.
-    /// Shared by the GPU recording and the CPU chain so both run the same plan.
-    pub fn plan(&self, budget: u32) -> Vec<(bool, SampleTreePush)> {
+    /// The dispatches of the allocation of `budget` with a `floor`
+    /// fraction spread uniformly ([`floor_split`]), in order: `(is_scan,
+    /// push)`. Shared by the GPU recording and the CPU chain so both run the
+    /// same plan.
+    pub fn plan(&self, budget: u32, floor: f32) -> Vec<(bool, SampleTreePush)> {
+        let (base, budget) = floor_split(budget, self.n, floor);
         let globals = SampleTreePush {
             max_off: Self::top(&self.max_off),
             s_off: Self::top(&self.q_off),
             u_off: Self::top(&self.u_off),
             budget,
+            base,
             par_off: sample_scan::NO_LEVEL,
             ..Default::default()
         };
@@ -397,7 +426,14 @@ pub fn record_sample_map(
     params: &SamplingParams,
 ) -> Result<()> {
     record_priority(batch, precision, inputs, planes, params)?;
-    record_allocation(batch, planes.priority(params), inputs.spp, planes, budget)
+    record_allocation(
+        batch,
+        planes.priority(params),
+        inputs.spp,
+        planes,
+        budget,
+        params.floor,
+    )
 }
 
 /// Records the priority map of §9.1 (in `precision`) and its optional
@@ -440,16 +476,18 @@ pub fn record_priority(
 
 /// Records §9.1 sanitise and §9.2 ROUNDING on a priority map `r` (f32 plane
 /// of `planes.width × planes.height`): the counts, summing to exactly
-/// `budget`, land in `planes.counts`.
+/// `budget` (a `floor` fraction of it spread uniformly, [`floor_split`]),
+/// land in `planes.counts`.
 pub fn record_allocation(
     batch: &mut Batch,
     r: BufferSlice,
     spp: BufferSlice,
     planes: &SamplingPlanes,
     budget: u32,
+    floor: f32,
 ) -> Result<()> {
     let tree = planes.tree.slice();
-    for (scan, push) in planes.layout.plan(budget) {
+    for (scan, push) in planes.layout.plan(budget, floor) {
         if scan {
             sample_scan::record(batch, push, r, spp, tree, planes.counts.slice())?;
         } else {
@@ -475,7 +513,7 @@ pub fn run_cpu(
     params: &SamplingParams,
 ) -> Result<Vec<u32>> {
     let r = priority_cpu(width, height, inputs, params)?;
-    allocate_cpu(width, height, &r, inputs.spp, budget)
+    allocate_cpu(width, height, &r, inputs.spp, budget, params.floor)
 }
 
 /// The priority map of [`run_cpu`] (after MAP-SMOOTH when σs > 0).
@@ -529,6 +567,7 @@ pub fn allocate_cpu(
     r: &[f32],
     spp: &[f32],
     budget: u32,
+    floor: f32,
 ) -> Result<Vec<u32>> {
     let n = pixel_count(width, height)?;
     if r.len() != n as usize || spp.len() != n as usize {
@@ -539,7 +578,7 @@ pub fn allocate_cpu(
     let layout = TreeLayout::new(n);
     let mut tree = vec![0u64; layout.entries as usize];
     let mut counts = vec![0u32; n as usize];
-    for (scan, push) in layout.plan(budget) {
+    for (scan, push) in layout.plan(budget, floor) {
         if scan {
             reference::sample_scan::sample_scan(&push, r, spp, &mut tree, &mut counts);
         } else {

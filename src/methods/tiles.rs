@@ -661,12 +661,14 @@ impl TiledChain {
         spp.upload_all(&[&img.get(Layer::Spp).expect("checked layers")[0]])?;
         planes.maps.upload_plane(0, priority)?;
         let mut batch = crate::gpu::Batch::new(&self.ctx)?;
+        let floor = SamplingParams::with_options(self.config.method, &self.config.options)?.floor;
         sampling::record_allocation(
             &mut batch,
             planes.maps.plane(0),
             spp.plane(0),
             &planes,
             budget,
+            floor,
         )?;
         timings.extend(batch.finish()?);
         sampling::download(&planes)

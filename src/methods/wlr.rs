@@ -493,6 +493,7 @@ pub static INFO: MethodInfo = MethodInfo {
         sigma_s: sampling::SIGMA_WLR,
         e_is_dmse: false,
         dim: DimSource::Kflags,
+        floor: 0.0,
     },
     align: 1,
     halo: |c| {

@@ -61,7 +61,7 @@ pub fn sample_scan(
                 0 => (i as u64 + 1, i as u64, n as u64),
                 u => (incl, incl - v[lid], u),
             };
-            counts[i] = (t * p1 / u_total - t * p0 / u_total) as u32;
+            counts[i] = push.base + (t * p1 / u_total - t * p0 / u_total) as u32;
         }
     }
 }
