@@ -97,7 +97,7 @@ pub struct SamplingParams {
 /// (`base = floor(floor·budget/n)`) and what the priority distributes
 /// (`budget − base·n`): the counts still sum to exactly `budget`.
 pub fn floor_split(budget: u32, n: u32, floor: f32) -> (u32, u32) {
-    if n == 0 || !(floor > 0.0) {
+    if n == 0 || floor.is_nan() || floor <= 0.0 {
         return (0, budget);
     }
     let base = ((floor.min(1.0) as f64 * budget as f64) / n as f64).floor() as u64;
