@@ -486,6 +486,27 @@ const BUILTIN: &[(&str, &str)] = &[
     ),
     ("glossy", include_str!("../../scenes/glossy.toml")),
     ("mix", include_str!("../../scenes/mix.toml")),
+    ("hidden_lamp", include_str!("../../scenes/hidden_lamp.toml")),
+    ("caustics", include_str!("../../scenes/caustics.toml")),
+    (
+        "sky_textures",
+        include_str!("../../scenes/sky_textures.toml"),
+    ),
+    (
+        "night_lights",
+        include_str!("../../scenes/night_lights.toml"),
+    ),
+    (
+        "rough_metals",
+        include_str!("../../scenes/rough_metals.toml"),
+    ),
+    ("fence", include_str!("../../scenes/fence.toml")),
+    (
+        "window_interior",
+        include_str!("../../scenes/window_interior.toml"),
+    ),
+    ("panel", include_str!("../../scenes/panel.toml")),
+    ("fireflies", include_str!("../../scenes/fireflies.toml")),
 ];
 
 impl Scene {
