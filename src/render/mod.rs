@@ -45,9 +45,10 @@
 //! radiance clamped to 1), the shading normal facing the ray, the distance
 //! from the lens point, the position at shutter time 0 (`M⁻¹·s` for moving
 //! objects), and visibility — 1 if the next-event shadow ray at the first
-//! hit reached its light, else 0 (1 when the scene has no lights or the
-//! first hit is an emitter, a mirror or glass, where no shadow ray is
-//! traced).
+//! hit reached its light, else 0 (1 when no emitter is sampled by
+//! next-event estimation — no lights, or only `next_event = false` ones —
+//! or the first hit is an emitter, a mirror or glass, where no shadow ray
+//! is traced).
 
 use std::sync::Arc;
 
