@@ -21,7 +21,7 @@ const INTEGER_ONLY: &[&str] = &["sample_reduce", "sample_scan"];
 /// Kernels that compute in f32 by design and never use `real`: the path
 /// tracer (`src/render/`), and LP's centre selection (it compares stored
 /// f32 reaches with distances); their `_f64` variant is the same code.
-const F32_ONLY: &[&str] = &["render_trace", "render_rays", "lp_select"];
+const F32_ONLY: &[&str] = &["render_trace", "render_rays", "render_lights", "lp_select"];
 
 /// Kernels that only move data (the bandwidth probe of `bench --peak`, the
 /// G-buffer prefilter's and APR's packing): their `_f64` variant is the same code.

@@ -28,11 +28,15 @@ layout(std430, set = 0, binding = 1) readonly buffer Nodes { vec4 nodes[]; };
 // Sphere: a = centre. Quad: corner a, edges b, c. Triangle: vertex a, edges b, c.
 layout(std430, set = 0, binding = 2) readonly buffer Prims { vec4 prims[]; };
 
-// Four vec4 per material: (class | texture << 8, texture scale, GGX alpha,
-// index of refraction), colour a, colour b, emission.
+// Three vec4 per material: (class | texture << 8, texture scale, GGX alpha,
+// index of refraction), colour a, colour b. The colours are the albedo's
+// (diffuse, plastic), the reflectance's (conductor), the tint (dielectric)
+// or the radiance (emissive); a constant has a == b.
 layout(std430, set = 0, binding = 3) readonly buffer Materials { vec4 mats[]; };
 
-// One vec4 per light: (primitive index bits, cumulative selection probability, 0, 0).
+// One vec4 per light: (primitive index bits, cumulative selection
+// probability, 0, 0), in ascending order of the cumulative probability;
+// the last entry's is 1.
 layout(std430, set = 0, binding = 4) readonly buffer Lights { vec4 lights[]; };
 
 #define KIND_SPHERE 0u
@@ -73,6 +77,26 @@ vec2 rand2(uvec4 key, uint dim)
 {
     uvec4 h = pcg4d(uvec4(key.x, key.y, key.z ^ (dim * 0x9E3779B9u), key.w));
     return vec2(h.xy >> 8u) * (1.0 / 16777216.0);
+}
+
+// ---------------------------------------------------------------- light selection
+// The light whose selection interval [cdf[l-1], cdf[l]) holds u: the first l
+// with u < cdf[l], or the last light (u ≥ every entry only by rounding).
+// Binary search over the cumulative probabilities, O(log lights); the same
+// index as a linear scan (tests/render.rs compares them through render_lights).
+uint select_light(float u)
+{
+    uint lo = 0u;
+    uint hi = P.counts.w - 1u;
+    while (lo < hi) {
+        uint mid = (lo + hi) >> 1u;
+        if (u >= lights[mid].y) {
+            lo = mid + 1u;
+        } else {
+            hi = mid;
+        }
+    }
+    return lo;
 }
 
 // ---------------------------------------------------------------- intersection

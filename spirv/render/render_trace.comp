@@ -6,8 +6,9 @@
 //
 // Per sample: box-filtered position in the pixel, thin-lens camera, shutter
 // time in [0, 1); diffuse BSDF with cosine sampling, next-event estimation
-// to emissive quads and spheres combined with BSDF sampling by MIS (power
-// heuristic), Russian roulette after 3 vertices, environment on a miss.
+// to the emitters of the light table (spheres, quads, triangles; picked by
+// power) combined with BSDF sampling by MIS (power heuristic), Russian
+// roulette after 3 vertices, environment on a miss.
 #include "render/render_scene.glsl"
 
 layout(local_size_x = 8, local_size_y = 8) in;
@@ -78,13 +79,14 @@ float value_noise(vec3 p)
                mix(mix(n001, n101, s.x), mix(n011, n111, s.x), s.y), s.z);
 }
 
-// Albedo of material m at reference-time position p.
+// Colour of material m at reference-time position p: the albedo of diffuse
+// and plastic materials, the radiance of emitters (constant or textured).
 vec3 albedo_at(uint m, vec3 p)
 {
-    vec4 m0 = mats[4u * m];
+    vec4 m0 = mats[3u * m];
     uint tex = floatBitsToUint(m0.x) >> 8u;
-    vec3 a = mats[4u * m + 1u].xyz;
-    vec3 b = mats[4u * m + 2u].xyz;
+    vec3 a = mats[3u * m + 1u].xyz;
+    vec3 b = mats[3u * m + 2u].xyz;
     if (tex == TEX_CHECKER) {
         ivec3 c = ivec3(floor(p * m0.y + 1e-4));
         return ((c.x + c.y + c.z) & 1) == 0 ? a : b;
@@ -262,15 +264,12 @@ float light_pdf(uint prim, vec3 p, float dist2, float cos_l, float time)
 
 // Picks a light (by power) and a point on it as seen from p at shutter
 // time `time`: uniform in the cone a sphere subtends, uniform by area on a
-// quad (or on a sphere around p). Returns the point and its unit normal.
+// quad or a triangle (or on a sphere around p). Returns the point and its
+// unit normal; a triangle emits on both sides, so its normal is the one
+// facing p.
 void sample_light(vec2 u_sel, vec2 u, vec3 p, float time, out vec3 pos, out vec3 nrm, out uint prim)
 {
-    uint nl = P.counts.w;
-    uint l = 0u;
-    while (l + 1u < nl && u_sel.x >= lights[l].y) {
-        l++;
-    }
-    prim = floatBitsToUint(lights[l].x);
+    prim = floatBitsToUint(lights[select_light(u_sel.x)].x);
     vec4 p0 = prims[4u * prim];
     vec4 p1 = prims[4u * prim + 1u];
     vec4 p2 = prims[4u * prim + 2u];
@@ -297,6 +296,12 @@ void sample_light(vec2 u_sel, vec2 u, vec3 p, float time, out vec3 pos, out vec3
         float phi = 2.0 * PI * u.y;
         nrm = vec3(r * cos(phi), r * sin(phi), z);
         pos = p0.xyz + p1.w * nrm + time * motion;
+    } else if ((floatBitsToUint(p0.w) & 3u) == KIND_TRIANGLE) {
+        // Uniform by area: barycentrics (1 − √u, √u (1 − v), √u v).
+        float su = sqrt(u.x);
+        pos = p0.xyz + (su * (1.0 - u.y)) * p1.xyz + (su * u.y) * p2.xyz + time * motion;
+        nrm = normalize(cross(p1.xyz, p2.xyz));
+        nrm = dot(nrm, p - pos) < 0.0 ? -nrm : nrm;
     } else {
         pos = p0.xyz + u.x * p1.xyz + u.y * p2.xyz + time * motion;
         nrm = normalize(cross(p1.xyz, p2.xyz));
@@ -385,7 +390,7 @@ void trace_sample(uvec4 key, uvec2 pix, out vec3 color, out vec3 albedo, out vec
         bool front = dot(ng, d) < 0.0;
         vec3 ngf = front ? ng : -ng;   // geometric, facing the ray
         uint m = prim_material(prim);
-        uint mkind = floatBitsToUint(mats[4u * m].x) & 255u;
+        uint mkind = floatBitsToUint(mats[3u * m].x) & 255u;
         vec3 p_ref = p - time * prims[4u * prim + 3u].xyz;
         // Shading normal on the ray's side; the geometric one where the
         // interpolated normal faces away from the viewer.
@@ -396,7 +401,7 @@ void trace_sample(uvec4 key, uvec2 pix, out vec3 color, out vec3 albedo, out vec
         }
 
         if (mkind == MAT_EMISSIVE) {
-            vec3 le = mats[4u * m + 3u].xyz;
+            vec3 le = albedo_at(m, p_ref);
             if (depth_i == 0u) {
                 albedo = clamp(le, 0.0, 1.0);
                 normal = n;
@@ -418,7 +423,7 @@ void trace_sample(uvec4 key, uvec2 pix, out vec3 color, out vec3 albedo, out vec
         }
 
         vec3 alb = albedo_at(m, p_ref);
-        vec4 m0 = mats[4u * m];
+        vec4 m0 = mats[3u * m];
         uint cls = floatBitsToUint(m0.x) & 255u;
         float alpha = m0.z;
         float ior = m0.w;
@@ -456,7 +461,7 @@ void trace_sample(uvec4 key, uvec2 pix, out vec3 color, out vec3 albedo, out vec
                 unoccluded = s.prim < 0;
                 if (unoccluded) {
                     uint lm = prim_material(lprim);
-                    vec3 le = mats[4u * lm + 3u].xyz;
+                    vec3 le = albedo_at(lm, lp - time * prims[4u * lprim + 3u].xyz);
                     float pdf_light = light_pdf(lprim, po, dist2, cos_l, time);
                     float pdf_bsdf;
                     vec3 fc = bsdf_eval(cls, alb, alpha, ior, n, wo, wi, pdf_bsdf);
@@ -479,7 +484,7 @@ void trace_sample(uvec4 key, uvec2 pix, out vec3 color, out vec3 albedo, out vec
             // eta = η_t/η_i across the surface in the direction of travel.
             float eta = front ? ior : 1.0 / ior;
             float co = dot(n, wo);
-            vec3 tint = mats[4u * m + 1u].xyz;
+            vec3 tint = mats[3u * m + 1u].xyz;
             if (abs(ior - 1.0) < 1e-4) {
                 wi = d;   // index-matched: the surface is invisible
                 weight = tint;

@@ -1,7 +1,8 @@
 //! The scene as the render kernels read it (`spirv/render/render_scene.glsl`):
 //! camera parameters, a binary BVH built with `obvhs` and flattened to two
 //! vec4 per node, primitives reordered to the BVH's leaf order, materials
-//! and the light table.
+//! and the light table (every emissive primitive whose material has
+//! `next_event`, picked in proportion to its power).
 
 use bytemuck::{Pod, Zeroable};
 use obvhs::aabb::Aabb;
@@ -62,6 +63,10 @@ fn albedo_words(albedo: &Albedo) -> (u32, f32, Vec3, Vec3) {
     }
 }
 
+/// Distinct values of the shader's uniform random numbers (`rand2` in
+/// `render_scene.glsl`: 24-bit multiples of 2⁻²⁴).
+const RANDOM_STEPS: f64 = 16_777_216.0;
+
 /// GGX width from perceptual roughness.
 fn ggx_alpha(roughness: f32) -> f32 {
     let r = roughness.clamp(0.0, 1.0);
@@ -79,9 +84,10 @@ pub struct GpuScene {
     pub prims: Vec<[f32; 16]>,
     /// The primitives in the same order as `prims`.
     pub primitives: Vec<Primitive>,
-    /// Four vec4 per material.
-    pub materials: Vec<[f32; 16]>,
-    /// One vec4 per light.
+    /// Three vec4 per material.
+    pub materials: Vec<[f32; 12]>,
+    /// One vec4 per light: (primitive index bits, cumulative selection
+    /// probability, 0, 0); the last cumulative probability is 1.
     pub lights: Vec<[f32; 4]>,
     /// Three vec4 (vertex normals) per triangle with shading normals.
     pub normals: Vec<[f32; 12]>,
@@ -105,6 +111,18 @@ fn luminance(c: Vec3) -> f64 {
     (0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]) as f64
 }
 
+/// Mean luminance of a radiance over a surface: a checker's two colours
+/// cover half of it each, and value noise averages ½ (it only weighs the
+/// light's selection, never its estimate, so an approximation is unbiased).
+fn mean_luminance(radiance: &Albedo) -> f64 {
+    match radiance {
+        Albedo::Constant(c) => luminance(*c),
+        Albedo::Texture(Texture::Checker { a, b, .. } | Texture::Noise { a, b, .. }) => {
+            0.5 * (luminance(*a) + luminance(*b))
+        }
+    }
+}
+
 impl GpuScene {
     /// Builds the BVH and the GPU tables of `scene` for a `width × height`
     /// image.
@@ -114,14 +132,18 @@ impl GpuScene {
         let primitives: Vec<Primitive> = order.iter().map(|&i| prims_in[i as usize]).collect();
         let mats = scene.material_list();
 
-        // Lights: emissive quads and spheres, chosen in proportion to power.
+        // Lights: emissive primitives with next-event estimation, chosen in
+        // proportion to power (a two-sided triangle's one side counts, as
+        // a shading point sees one).
         let mut light_prims = Vec::new();
         let mut powers = Vec::new();
         for (i, p) in primitives.iter().enumerate() {
-            if let (Material::Emissive { radiance }, Shape::Sphere { .. } | Shape::Quad { .. }) =
-                (mats[p.material as usize].1, p.shape)
+            if let Material::Emissive {
+                radiance,
+                next_event: true,
+            } = mats[p.material as usize].1
             {
-                let power = p.area() * luminance(*radiance);
+                let power = p.area() * mean_luminance(radiance);
                 if power > 0.0 {
                     light_prims.push(i);
                     powers.push(power);
@@ -132,11 +154,22 @@ impl GpuScene {
         let mut light_pdf = vec![0.0f32; primitives.len()];
         let mut lights = Vec::new();
         let mut cdf = 0.0;
+        let mut picked_below = 0.0;
         for (k, (&i, &pw)) in light_prims.iter().zip(&powers).enumerate() {
-            let select = pw / total;
-            cdf += select;
-            let c = if k + 1 == light_prims.len() { 1.0 } else { cdf };
-            lights.push([f32::from_bits(i as u32), c as f32, 0.0, 0.0]);
+            cdf += pw / total;
+            let c = if k + 1 == light_prims.len() {
+                1.0
+            } else {
+                cdf as f32
+            };
+            lights.push([f32::from_bits(i as u32), c, 0.0, 0.0]);
+            // The selection probability is the exact share of the shader's
+            // random numbers (multiples of 2⁻²⁴ in [0, 1)) below the f32
+            // boundary that pick this light: a light too dim to own one
+            // gets 0, is never picked, and its BSDF hits keep full weight.
+            let picked = (c as f64 * RANDOM_STEPS).ceil();
+            let select = (picked - picked_below) / RANDOM_STEPS;
+            picked_below = picked;
             light_pdf[i] = (select / primitives[i].area()) as f32;
         }
 
@@ -194,17 +227,16 @@ impl GpuScene {
         let materials = mats
             .iter()
             .map(|(_, m)| {
-                let (kind, scale, a, b, e, alpha, ior) = match m {
+                let (kind, scale, a, b, alpha, ior) = match m {
                     Material::Diffuse { albedo } => {
                         let (t, scale, a, b) = albedo_words(albedo);
-                        (MAT_DIFFUSE | t, scale, a, b, [0.0; 3], 0.0, 1.0)
+                        (MAT_DIFFUSE | t, scale, a, b, 0.0, 1.0)
                     }
                     Material::Conductor { color, roughness } => (
                         MAT_CONDUCTOR,
                         1.0,
                         *color,
                         *color,
-                        [0.0; 3],
                         ggx_alpha(*roughness),
                         1.0,
                     ),
@@ -215,7 +247,7 @@ impl GpuScene {
                     } => {
                         let (t, scale, a, b) = albedo_words(albedo);
                         let alpha = ggx_alpha(roughness.max(0.05));
-                        (MAT_PLASTIC | t, scale, a, b, [0.0; 3], alpha, *ior)
+                        (MAT_PLASTIC | t, scale, a, b, alpha, *ior)
                     }
                     Material::Dielectric {
                         ior,
@@ -226,12 +258,12 @@ impl GpuScene {
                         1.0,
                         *tint,
                         *tint,
-                        [0.0; 3],
                         ggx_alpha(*roughness),
                         *ior,
                     ),
-                    Material::Emissive { radiance } => {
-                        (MAT_EMISSIVE, 1.0, [0.0; 3], [0.0; 3], *radiance, 0.0, 1.0)
+                    Material::Emissive { radiance, .. } => {
+                        let (t, scale, a, b) = albedo_words(radiance);
+                        (MAT_EMISSIVE | t, scale, a, b, 0.0, 1.0)
                     }
                 };
                 [
@@ -246,10 +278,6 @@ impl GpuScene {
                     b[0],
                     b[1],
                     b[2],
-                    0.0,
-                    e[0],
-                    e[1],
-                    e[2],
                     0.0,
                 ]
             })
@@ -272,6 +300,22 @@ impl GpuScene {
             lights,
             normals,
             depth,
+        })
+    }
+
+    /// The light-table index a linear scan of the cumulative selection
+    /// probabilities picks for the random number `u ∈ [0, 1)`: the first
+    /// light with `u < cdf`, or the last. The host twin of the shader's
+    /// binary search (`select_light` in `render_scene.glsl`); `None` when
+    /// the scene has no lights.
+    pub fn select_light_linear(&self, u: f32) -> Option<u32> {
+        let n = self.lights.len();
+        (n > 0).then(|| {
+            let mut l = 0;
+            while l + 1 < n && u >= self.lights[l][1] {
+                l += 1;
+            }
+            l as u32
         })
     }
 }

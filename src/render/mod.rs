@@ -26,9 +26,13 @@
 //!   with a stack of [`STACK_SIZE`](crate::render::gpu_scene::STACK_SIZE) entries.
 //! - Materials: diffuse with constant, checker or value-noise albedo; GGX
 //!   rough conductor and rough plastic (next-event estimation with MIS);
-//!   smooth and rough glass (BSDF sampling only); emissive quads and
-//!   spheres (sampled by next-event estimation), emissive triangles (found
-//!   by BSDF sampling); a uniform environment colour (BSDF sampling).
+//!   smooth and rough glass (BSDF sampling only); emitters with constant
+//!   or textured radiance: spheres (sampled by the cone they subtend),
+//!   quads and two-sided triangles (sampled by area), picked from one light
+//!   table in proportion to power by a binary search over its cumulative
+//!   probabilities and combined with BSDF sampling by MIS (an emissive
+//!   material with `next_event = false` is found by BSDF sampling only); a
+//!   uniform environment colour (BSDF sampling).
 //! - Camera: thin lens; per-object linear motion over the shutter.
 //! - Random numbers are a hash of (pixel, sample index, dimension, seed):
 //!   the sample index of a pixel's `k`-th sample is `k`, counted by the
@@ -41,9 +45,10 @@
 //! radiance clamped to 1), the shading normal facing the ray, the distance
 //! from the lens point, the position at shutter time 0 (`M⁻¹·s` for moving
 //! objects), and visibility — 1 if the next-event shadow ray at the first
-//! hit reached its light, else 0 (1 when the scene has no lights or the
-//! first hit is an emitter, a mirror or glass, where no shadow ray is
-//! traced).
+//! hit reached its light, else 0 (1 when no emitter is sampled by
+//! next-event estimation — no lights, or only `next_event = false` ones —
+//! or the first hit is an emitter, a mirror or glass, where no shadow ray
+//! is traced).
 
 use std::sync::Arc;
 
@@ -144,6 +149,22 @@ pub const TRACE: KernelDecl = KernelDecl {
     push_size: std::mem::size_of::<TracePush>() as u32,
 };
 
+/// The light-selection kernel (`spirv/render/render_lights.comp`), a test
+/// aid: the light table index the path tracer picks for a random number.
+pub const LIGHTS: KernelDecl = KernelDecl {
+    name: "render_lights",
+    bindings: &[
+        SCENE_BINDINGS[0],
+        SCENE_BINDINGS[1],
+        SCENE_BINDINGS[2],
+        SCENE_BINDINGS[3],
+        SCENE_BINDINGS[4],
+        read("us"),
+        write("picks"),
+    ],
+    push_size: std::mem::size_of::<RaysPush>() as u32,
+};
+
 /// The ray-list traversal kernel (`spirv/render/render_rays.comp`), a test aid.
 pub const RAYS: KernelDecl = KernelDecl {
     name: "render_rays",
@@ -164,7 +185,7 @@ pub const RAYS: KernelDecl = KernelDecl {
 const ACCUM_GROUP: u64 = 8;
 
 /// Every kernel of the renderer (for the reflection test).
-pub const KERNELS: &[&KernelDecl] = &[&TRACE, &RAYS];
+pub const KERNELS: &[&KernelDecl] = &[&TRACE, &RAYS, &LIGHTS];
 
 /// How many samples a pass adds per pixel.
 #[derive(Copy, Clone, Debug)]
@@ -488,6 +509,37 @@ impl Renderer {
             .iter()
             .map(|h| (h[1] >= 0.0).then(|| (h[0], h[1] as u32)))
             .collect())
+    }
+
+    /// The light-table index (see [`GpuScene::lights`]) the path tracer's
+    /// light selection picks for each random number of `us` (in `[0, 1)`).
+    /// A test aid; empty when the scene has no lights.
+    pub fn select_lights(&self, us: &[f32]) -> Result<Vec<u32>> {
+        if us.is_empty() || self.scene.lights.is_empty() {
+            return Ok(Vec::new());
+        }
+        let ub = GpuBuffer::from_slice(&self.ctx, "render.us", us)?;
+        let pb = GpuBuffer::new(&self.ctx, "render.picks", us.len() as u64 * 4)?;
+        let width = 64u32;
+        let push = RaysPush {
+            width,
+            height: (us.len() as u32).div_ceil(width),
+            row0: 0,
+            count: us.len() as u32,
+        };
+        let [a, b, c, d, e] = self.scene_bindings();
+        let mut batch = Batch::new(&self.ctx)?;
+        batch.dispatch(
+            &LIGHTS,
+            Precision::F32,
+            &[a, b, c, d, e, ub.slice(), pb.slice()],
+            bytemuck::bytes_of(&push),
+            push.width,
+            push.height,
+            100.0,
+        )?;
+        batch.finish()?;
+        pb.read_vec(us.len())
     }
 
     /// Downloads the accumulation planes, in layout order (blocking; no

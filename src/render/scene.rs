@@ -55,6 +55,14 @@
 //! `indices = [[i, j, k], …]`; optional `scale` and `translate`). Textures
 //! (`albedo = { texture = "checker" | "noise", a, b, scale }`) are evaluated
 //! at the hit point's position at shutter time 0, in world units × `scale`.
+//!
+//! Every primitive of an `emissive` material is a light: spheres emit
+//! outward, quads on their front side, mesh triangles on both sides.
+//! Its `radiance` may be a texture like an albedo (a lit sign:
+//! `radiance = { texture = "checker", a = [8, 2, 1], b = [0.5, 0.5, 0.5], scale = 3.0 }`).
+//! Next-event estimation samples every light, picked in proportion to its
+//! power; `next_event = false` on an emissive material leaves its
+//! primitives to BSDF sampling only (as the environment always is).
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -120,11 +128,13 @@ pub enum Texture {
     },
 }
 
-/// Albedo of a diffuse material: a constant RGB or a texture.
+/// A colour that may vary over a surface: a constant RGB or a texture. The
+/// reflectance of diffuse and plastic materials (each component in
+/// `[0, 1]`) and the radiance of emissive ones (any non-negative value).
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(untagged)]
 pub enum Albedo {
-    /// The same reflectance everywhere (each component in `[0, 1]`).
+    /// The same colour everywhere.
     Constant(Vec3),
     /// A procedural texture.
     Texture(Texture),
@@ -174,11 +184,21 @@ pub enum Material {
         tint: Vec3,
     },
     /// A light: emits `radiance` (on the front side of quads, outward on
-    /// spheres) and reflects nothing. Next-event estimation samples emissive
-    /// quads and spheres; emissive triangles are found by BSDF sampling only.
+    /// spheres, on both sides of triangles) and reflects nothing.
     Emissive {
-        /// Emitted radiance, linear RGB.
-        radiance: Vec3,
+        /// Emitted radiance, linear RGB: a constant or a texture (a lit
+        /// sign), evaluated like an albedo texture.
+        radiance: Albedo,
+        /// Whether next-event estimation samples this material's
+        /// primitives (default true): each is an entry of the light table,
+        /// picked in proportion to its power (area × mean luminance) and
+        /// combined with BSDF sampling by MIS. `false`: found by BSDF
+        /// sampling only, like the environment — for dim, large emitters
+        /// that would take shadow rays from the lights that matter (like
+        /// Cycles' per-material emission sampling setting), and for tests
+        /// of the estimator.
+        #[serde(default = "yes")]
+        next_event: bool,
     },
 }
 
@@ -266,6 +286,10 @@ fn default_ior() -> f32 {
 
 fn white() -> Vec3 {
     [1.0; 3]
+}
+
+fn yes() -> bool {
+    true
 }
 
 /// A whole scene; see the module documentation for the file format.
@@ -462,6 +486,27 @@ const BUILTIN: &[(&str, &str)] = &[
     ),
     ("glossy", include_str!("../../scenes/glossy.toml")),
     ("mix", include_str!("../../scenes/mix.toml")),
+    ("hidden_lamp", include_str!("../../scenes/hidden_lamp.toml")),
+    ("caustics", include_str!("../../scenes/caustics.toml")),
+    (
+        "sky_textures",
+        include_str!("../../scenes/sky_textures.toml"),
+    ),
+    (
+        "night_lights",
+        include_str!("../../scenes/night_lights.toml"),
+    ),
+    (
+        "rough_metals",
+        include_str!("../../scenes/rough_metals.toml"),
+    ),
+    ("fence", include_str!("../../scenes/fence.toml")),
+    (
+        "window_interior",
+        include_str!("../../scenes/window_interior.toml"),
+    ),
+    ("panel", include_str!("../../scenes/panel.toml")),
+    ("fireflies", include_str!("../../scenes/fireflies.toml")),
 ];
 
 impl Scene {
@@ -538,6 +583,19 @@ impl Scene {
                 return Err(format!(
                     "material {name:?}: ior must be positive, not {ior}"
                 ));
+            }
+            if let Material::Emissive { radiance, .. } = m {
+                let (a, b) = match radiance {
+                    Albedo::Constant(c) => (*c, *c),
+                    Albedo::Texture(
+                        Texture::Checker { a, b, .. } | Texture::Noise { a, b, .. },
+                    ) => (*a, *b),
+                };
+                if !a.iter().chain(&b).all(|x| *x >= 0.0 && x.is_finite()) {
+                    return Err(format!(
+                        "material {name:?}: radiance must be finite and non-negative"
+                    ));
+                }
             }
         }
         for (i, o) in self.objects.iter().enumerate() {
