@@ -100,12 +100,14 @@ pub struct Args {
 }
 
 fn list_scenes() {
-    for name in Scene::builtin_names() {
+    let names = Scene::builtin_names();
+    let width = names.iter().map(|n| n.len()).max().unwrap_or(0);
+    for name in names {
         let about = Scene::builtin_source(name)
             .and_then(|s| s.lines().next())
             .map(|l| l.trim_start_matches('#').trim().to_string())
             .unwrap_or_default();
-        println!("{name:<14} {about}");
+        println!("{name:<width$}  {about}");
     }
 }
 
