@@ -6,8 +6,8 @@
 // push.stride). An invalid pixel (§0.2) keeps its input.
 // Scalar twin: src/reference/aos_nlm.rs.
 //
-// Offset by offset (NLM-BOX, ours): for a candidate offset (dx, dy) the
-// patch distance of every pixel p is a 7x7 box sum, over patch centres
+// Decision NLM-BOX (ours): offset by offset. For a candidate offset
+// (dx, dy) the patch distance of every pixel p is a 7x7 box sum, over patch centres
 // a = p + o, of the one term t(a) = sum_ch [(g_a - g_{a+d})^2 - ...] / ...
 // (and of the count of valid pairs). A workgroup computes t once per
 // offset for its 8x8 pixels' 14x14 patch centres, sums it in columns, then

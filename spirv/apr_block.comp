@@ -13,9 +13,8 @@
 //
 // push.mode 0 (sparse): thread (x, y) of a grid 8 wide <-> block
 // b = 8 y + x, centre (14 gx, 14 gy) with (gx, gy) = (b mod gw, b / gw)
-// (APR-LINEAR-BLOCKS: every SIMD lane and workgroup holds a block; laid
-// out on the block grid, 8x8 workgroups over 19x19 blocks at 256^2 left
-// 37 % of the lanes idle beside heavy ones); the block's 52-float state
+// (APR-LINEAR-BLOCKS: every SIMD lane and workgroup holds a block, whatever
+// the block grid's shape); the block's 52-float state
 // (reference::apr_block::Block::state) goes to
 // state[(channel * blocks + gy * gw + gx) * 52]; an invalid centre writes
 // zeros. push.mode 1 (extra, COVER, selection): thread <-> pixel of the

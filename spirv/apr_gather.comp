@@ -4,8 +4,8 @@
 // (raster order) that accept the pixel, of the block's x_i^T beta_y (and
 // x_i^T beta_s before the last stage), xi and tr H; a valid pixel no block
 // accepts takes its extra block's values (apr_block.comp, extra mode).
-// APR-PIXEL-TEST (push.flags & APR_PIXEL_TEST, ours): a block whose
-// prediction x_i^T beta_y misses y_i by more than t_threshold3(n_i)
+// Decision APR-PIXEL-TEST (ours): with push.flags & APR_PIXEL_TEST, a
+// block whose prediction x_i^T beta_y misses y_i by more than t_threshold3(n_i)
 // standard errors (variance: the larger of v_i and the channel's 3x3 mean
 // of v without its largest value) is left out; a pixel whose accepting
 // blocks are all left out keeps y_i, error v_i, dimension 0.

@@ -11,9 +11,9 @@
 // take when only the variances are known (fully correlated feature noise).
 // Local dimension d_i = mean_c k_c, and
 // Delta-MSE = E_i n_i^(-4/(d_i+4)) (§9.1).
-// LP-PIXEL-TEST (ours, LpPush.options bit LP_PIXEL_TEST): a centre whose
-// prediction at pixel i misses i's mean by more than t_threshold3(n_i)
-// standard errors is left out of i's average; if every centre is, i keeps
+// Decision LP-PIXEL-TEST (ours): with LpPush.options bit LP_PIXEL_TEST, a
+// centre whose prediction at pixel i misses i's mean by more than
+// t_threshold3(n_i) standard errors is left out of i's average; if every centre is, i keeps
 // its input with E_i = v_i, Delta-MSE = v_i / n_i, d_i = 0 and coverage 0.
 // Colour outputs are clamped >= 0 (§0.4 step 5). An invalid pixel gets the
 // mean colour of its valid 3x3 neighbours (§0.2), error, Delta-MSE,

@@ -8,9 +8,9 @@
 // outlier_grey's keys). A detected pixel is appended to the queue, whose
 // entries outlier_median replaces by the median pixel (and, in its second
 // mode, writes back): nothing else is written. The median lives in
-// its own kernel because a kernel merely containing its scans of the window
-// (then 32, now 10) ran ~9x slower on lavapipe, and because a queue keeps all SIMD
-// lanes of the median busy.
+// its own kernel because on lavapipe a kernel that merely contains its
+// scans of the window runs much slower (PERF-HISTORY), and because a queue
+// keeps all SIMD lanes of the median busy.
 // Scalar twin: src/reference/outlier_detect.rs.
 #include "lib/common.glsl"
 #include "lib/outliers.glsl"

@@ -14,7 +14,7 @@
 // A second dispatch over the same queue with push.mode = OUTLIER_APPLY
 // writes the replacements into the statistics, in place (this one cannot:
 // the median pixel of one entry may be another entry). One pipeline for
-// both: each pipeline holds about 1 MB of lavapipe's resident memory.
+// both: each pipeline costs resident memory on lavapipe (PERF-HISTORY).
 // Scalar twin: src/reference/outlier_median.rs.
 #include "lib/common.glsl"
 #include "lib/outliers.glsl"

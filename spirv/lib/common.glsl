@@ -35,7 +35,8 @@
 // mask (gallivm branches into a loop unconditionally) and through each loop
 // inside it once: cheap for a body made of loops, not for a long straight
 // one. The same holds for any loop: a heavy body inside a loop that is
-// entered often with no trips costs one pass per entry (lp_gather).
+// entered often with no trips costs one pass per entry (lp_gather before
+// LP-GATHER-FLAT; LP-GATHER-UNION keeps its single loop).
 #define ONLY(cond) for (int once_ = ((cond) ? 0 : 1); once_ < 1; ++once_)
 
 #define PLANE_IN(b, name) layout(std430, set = 0, binding = b) readonly buffer name##_blk { float name[]; };

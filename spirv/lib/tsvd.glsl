@@ -234,8 +234,8 @@ tsvd_mat4 tsvd_scale_block(tsvd_mat4 m, real4 inv_row, real4 inv_col)
 // upper block triangle), unpacked into the arrays of jacobi_eigen once per
 // window.
 //
-// One pass over the window (TSVD-ONE-PASS, ours; the twin computes the
-// same formula in f64): min, max, the sums S1 = sum y and S2 = sum y y^T of
+// Decision TSVD-ONE-PASS (ours): one pass over the window (the twin
+// computes the same formula in f64): min, max, the sums S1 = sum y and S2 = sum y y^T of
 // y = x - x_c, sqrt(e2) sqrt(e2)^T and sum e2, all in raw units; then
 // G_jl = ((n S2_jl - S1_j S1_l) / n) / (rho_j rho_l) and E^T E scaled alike
 // once the ranges are known. Pixel coordinates become small integers whose
@@ -501,8 +501,9 @@ LocalSpace tsvd_local_space_with(ivec2 c, int R, ivec2 size, bool exact_specnorm
     // Step 3: singular values and right singular vectors; then, where
     // needed, step 5's exact ||E||_2 = sqrt(lambda_max(E^T E)). Both
     // eigenproblems go through one call site (a pass loop): lavapipe
-    // inlines every call, and translating a second copy of the solver cost
-    // lp_centres', wlr_fit's and aos_space's pipeline builds ~0.1 s each.
+    // inlines every call, and a second copy of the solver made the pipeline
+    // builds of every kernel that includes this file slower
+    // (TSVD-ONE-JACOBI).
     real w[MAX_D];
     real A[MAX_D * MAX_D] = G;
     real Vj[MAX_D * MAX_D];

@@ -28,13 +28,11 @@ use crate::error::{Error, Result};
 use crate::fault::{self, Call, Object};
 
 /// Estimated work one submit may hold, in floating-point operations: a few
-/// milliseconds on a discrete GPU, far from any watchdog. On lavapipe (two
-/// cores) the denoiser's kernels run their counts at 20–70 GFLOP/s, so
-/// their submits take tens of milliseconds; the renderer's estimate
+/// milliseconds on a discrete GPU, far from any watchdog, and tens of
+/// milliseconds on lavapipe (two cores); the renderer's estimate
 /// (`render::flops_per_sample`) is calibrated so that its submits take
-/// about a second there. Raising it to 1e10 cut `lp_centres`' dispatches at
-/// 1 MP from 242 to 131 and did not change LP's GPU time (2665 against
-/// 2743 ms, one bench call each), so it stays.
+/// about a second there. Larger submits did not make LP faster
+/// (PERF-HISTORY).
 pub const DEFAULT_FLOPS_PER_SUBMIT: f64 = 2.0e9;
 
 /// Words of the header of a work queue that kernels fill on the device for

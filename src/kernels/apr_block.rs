@@ -109,19 +109,16 @@ fn mean_extent(len: u32, step: usize) -> f64 {
 }
 
 /// Records the sparse blocks (`push.mode = 0`; in raster order on a grid 8
-/// invocations wide, so that every SIMD lane of lavapipe holds one: laid
-/// out on the 19×19 block grid of a 256² image, 8×8 workgroups left 37 % of
-/// the lanes idle: APR-LINEAR-BLOCKS), or the extra blocks (`push.mode = 1`,
-/// COVER): band by band, the pixels no sparse centre accepts are queued in
-/// `queue` (u32, [`queue_words`]) and then fitted by an indirect dispatch,
-/// one invocation per entry (APR-EXTRA-QUEUE: compacted per 8×8 workgroup
-/// instead, a tile's one or two extra pixels left most lanes of their SIMD
-/// vector idle; the extra blocks took 350 of `apr_block`'s 680 ms at 256²).
+/// invocations wide, so that every SIMD lane of lavapipe holds one, not the
+/// block grid's shape: APR-LINEAR-BLOCKS), or the extra blocks
+/// (`push.mode = 1`, COVER): band by band, the pixels no sparse centre
+/// accepts are queued in `queue` (u32, [`queue_words`]) and then fitted by
+/// an indirect dispatch, one invocation per entry, so that they fill whole
+/// SIMD vectors (APR-EXTRA-QUEUE).
 /// `feats`: the two vec4 planes of [`super::apr_pack`] (normal xyz, albedo
 /// r; albedo g b, depth, visibility or 0). `extra_fraction`: the expected fraction of
-/// pixels that become extra blocks (for the band split, the progress and
-/// the timings' count; 1.4–2.0 % on glossy_cornell, 0.1–0.3 % on
-/// dof_checker, ~0 on indirect_room at 16 spp, per channel).
+/// pixels that become extra blocks, per channel (for the band split, the
+/// progress and the timings' count; typical values in COVER's record).
 #[allow(clippy::too_many_arguments)]
 pub fn record(
     batch: &mut Batch,

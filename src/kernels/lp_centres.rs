@@ -48,12 +48,11 @@ pub const DECL: KernelDecl = KernelDecl {
 /// Invocations per workgroup (`local_size_x`, `LP_CENTRES_GROUP` in
 /// `spirv/lib/common.glsl`): one per queued centre; `lp_select` counts the
 /// indirect dispatch's workgroups in units of it. One SIMD vector of
-/// lavapipe: a late pass's band queues a few dozen to a few hundred centres
-/// of unequal cost, and lavapipe gives each thread whole workgroups, so
-/// 64-centre groups left a core idle at the end of most dispatches (8
-/// instead of 64: `lp_centres` 558–590 → 509–525 ms at 1 MP, three
-/// interleaved `bench` calls each). Above 65535 groups (524,280 centres in
-/// one band) the invocations stride over the rest.
+/// lavapipe (LP-GROUP8): a late pass's band queues a few dozen to a few
+/// hundred centres of unequal cost, and lavapipe gives each thread whole
+/// workgroups, so larger groups leave a core idle at the end of a dispatch.
+/// Above 65535 groups (524,280 centres in one band) the invocations stride
+/// over the rest.
 pub const GROUP: u32 = 8;
 
 /// What `lp_centres` and `lp_gather` read: a packed copy of the sanitised

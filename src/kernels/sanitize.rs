@@ -10,9 +10,9 @@
 //!   (host file [`super::estimate_variance`]).
 //!
 //! They are separate pipelines because, on lavapipe, a kernel that merely
-//! contains the 49-value medians of stages 1–2 runs every invocation about 12x
-//! slower (measured: stage 0 at 256² took 128 ms in the combined kernel,
-//! 10.6 ms alone). Twin: `reference::sanitize`.
+//! contains the 49-value medians of stages 1–2 runs every invocation much
+//! slower, even where that path is not taken (SANITIZE's record).
+//! Twin: `reference::sanitize`.
 
 use crate::error::Result;
 use crate::gpu::reflect::{read, write, BindingDecl};

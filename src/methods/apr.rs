@@ -31,10 +31,9 @@ pub struct AprParams {
     /// Stages T (`apr.stages`, ≥ 1; 2 in the paper).
     pub stages: usize,
     /// `apr.prefilter`: run §4.6's 5×5 feature prefilter when the G-buffer
-    /// prefilter does not. Off by default (decision APR-PF-OFF): at a small
-    /// light's rim it blurs albedo across the edge and the blocks then paint
-    /// the wall with the light (glossy_cornell at 4 spp: rMSE 1.37 against
-    /// the input's 0.27; 0.017 without it).
+    /// prefilter does not. Off by default (APR-PF-OFF): at a small light's
+    /// rim it blurs albedo across the edge and the blocks then paint the
+    /// wall with the light.
     pub prefilter: bool,
     /// `apr.outlier_weight=clamped` (default): the block kernel is
     /// `K_h·o_i`, `o_i = 1/max(v_i, 1)` (decision APR-OUTLIER-W, see

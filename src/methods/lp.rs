@@ -304,7 +304,8 @@ pub fn record_lp(
     let state = planes.state();
     let passes = GRANULARITIES.len();
     batch.fill(planes.state0.all(), 0);
-    // Per pass: the rows whose reach is computed (the gather needs none).
+    // Per pass: the rows whose reach is computed (the gather needs none:
+    // LP-GATHER-UNION).
     let mut reach_done = [0u32; GRANULARITIES.len()];
     let mut front = 0u32;
     while front < height + passes as u32 * LAG_ROWS {

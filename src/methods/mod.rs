@@ -122,14 +122,12 @@ pub enum Prefilter {
 
 impl Prefilter {
     /// What `self` means for `method`. `Auto` is `Off` for `none` (its
-    /// output is the Monte Carlo mean) and for AOS (decision AOS-NO-GBF,
-    /// ours): AOS then runs its own NL-means on every feature (§5.2)
-    /// instead of only on visibility (PREFILTER-STACK, §1). Its rMSE with
-    /// GBF was 27–72 % higher on the built-in motion-blur and
-    /// depth-of-field scenes and ~45 % higher on dof_checker; on
-    /// glossy_cornell and indirect_room the two are within 9 %, except
-    /// indirect_room at 4 spp, where GBF is 15 % better
-    /// (`docs/results-adaptive.md`, `docs/results-aos.md`).
+    /// output is the Monte Carlo mean) and for AOS.
+    ///
+    /// Decision AOS-NO-GBF (ours): AOS then runs its own NL-means on every
+    /// feature (§5.2) instead of only on visibility (PREFILTER-STACK, §1):
+    /// its fixed bandwidth fits those features better than the smoother but
+    /// biased G-buffer ones.
     pub fn resolve(self, method: Method) -> Prefilter {
         match self {
             Prefilter::Auto if !method.info().prefilter_auto => Prefilter::Off,

@@ -47,21 +47,20 @@ pub const EPS_DEFAULT: f32 = 1e-3;
 pub const EPS_AOS: f32 = 1e-4;
 /// MAP-SMOOTH σs of WLR (§9.1); the plain mean uses 0 (no smoothing).
 pub const SIGMA_WLR: f32 = 1.0;
-/// MAP-SMOOTH σs of LP (ours, MAP-SMOOTH-LP; the spec's default is 0), for
-/// the reason of [`SIGMA_AOS`]. Unsmoothed, LP's map starved the ceiling
-/// beside the cornell lamp (adaptive/uniform 1.18–1.31 at 64 spp); σs = 1
-/// brings the mean over the built-in scenes at 64 spp from 0.89 to 0.85
-/// (two seeds, `docs/results-lp.md`). It waited for LP-PIXEL-TEST: before
-/// it, a smoothed map fed firefly clusters that LP spread into blobs.
+/// MAP-SMOOTH σs of LP. Decision MAP-SMOOTH-LP (ours): 1 where the spec's
+/// default is 0, for the reason of [`SIGMA_AOS`]; unsmoothed, LP's map
+/// starved the ceiling beside the cornell lamp. It waited for
+/// LP-PIXEL-TEST: before it, a smoothed map fed firefly clusters that LP
+/// spread into blobs.
 pub const SIGMA_LP: f32 = 1.0;
-/// MAP-SMOOTH σs of AOS (ours, MAP-SMOOTH-AOS; the spec's default is 0).
-/// A regression method's error at a pixel falls with the samples of its
-/// whole window, not of the pixel alone; unsmoothed, AOS's map put its
-/// samples into isolated pixels and lost to uniform sampling on every
-/// built-in scene (1.14–1.92× the uniform rMSE; `docs/results-adaptive.md`).
+/// MAP-SMOOTH σs of AOS. Decision MAP-SMOOTH-AOS (ours): 2 where the spec's
+/// default is 0. A regression method's error at a pixel falls with the
+/// samples of its whole window, not of the pixel alone; unsmoothed, AOS's
+/// map put its samples into isolated pixels and lost to uniform sampling.
 pub const SIGMA_AOS: f32 = 2.0;
-/// MAP-SMOOTH σs of APR (ours, MAP-SMOOTH-APR; the spec's default is 0),
-/// for the reason of [`SIGMA_AOS`] and APR's wider kernel (`h = 14`).
+/// MAP-SMOOTH σs of APR. Decision MAP-SMOOTH-APR (ours): 4 where the spec's
+/// default is 0, for the reason of [`SIGMA_AOS`] and APR's wider kernel
+/// (`h = 14`).
 pub const SIGMA_APR: f32 = 4.0;
 
 /// How the `d` plane holds the local dimension `d_i` of §9.1.

@@ -11,7 +11,8 @@
 //! pixels, and are carried over:
 //! - LP's candidate grids (§3.5, `px mod g = 0`): the tile's grid phase
 //!   ([`crate::shared::LpPush::phase_for`], from the tile's origin, [`Tile::placement`]);
-//! - APR's sparse centres every 14 pixels (§4.3), and the 16-pixel spans
+//! - APR's sparse centres every 14 pixels (§4.3), and the 32-pixel spans
+//!   ([`crate::kernels::box_rows::SPAN`], [`crate::kernels::outlier_spread::SPAN`])
 //!   over which the outlier redistribution restarts its running box sums:
 //!   the tile's first column and row are multiples of both ([`alignment`]),
 //!   so its grids and spans are the image's;

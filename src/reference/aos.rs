@@ -162,20 +162,17 @@ pub fn design(pl: &Planes, c: usize, radius: usize) -> Design {
     design_with(pl, c, radius, false)
 }
 
-/// Decision AOS-OUTLIER-W (ours; option `aos.outlier_weight`): the kernel
-/// is `K_i·o_i` with `o_i = 1/max(vbar_i, 1)`, WLR's OUTLIER-W (spec §2.3
-/// step 2) and APR's APR-OUTLIER-W applied to AOS. Every sum of §5.3 reads
-/// it (the normal matrix, the right-hand sides, the kernels `l_i`, the
+/// Decision AOS-OUTLIER-W (ours): with option `aos.outlier_weight`, the
+/// kernel is `K_i·o_i` with `o_i = 1/max(vbar_i, 1)`, WLR's OUTLIER-W (spec
+/// §2.3 step 2) and APR's APR-OUTLIER-W applied to AOS. Every sum of §5.3
+/// reads it (the normal matrix, the right-hand sides, the kernels `l_i`, the
 /// variances); the equivalent kernels still sum to 1.
 ///
-/// Why: AOS has no rejection. Next to a light seen directly (the built-in
-/// `mix` scene, 128², 16 spp), the window of a dark ceiling pixel holds the
-/// light's edge pixels (bright, variance in the hundreds), and the order-1
-/// fit wrote 2.9 where the input and the truth are 0.06–0.09. Its bias
-/// estimate (2.5) had a standard error of 2–3, so AOS-BIAS-TEST did not
-/// count it. AOS was then worse than its input over the image: rMSE 0.194
-/// against 0.095; 0.033 with the weight. The public scenes' pixels have
-/// variances below 1 almost everywhere, so they barely change.
+/// Why: AOS has no rejection. Next to a light seen directly, the window of
+/// a dark pixel holds the light's edge pixels (bright, variance in the
+/// hundreds), and the low-order fit follows them; their bias estimate is
+/// too noisy for AOS-BIAS-TEST to count it. Pixels with variances below 1,
+/// almost all of a typical render's, keep `K_i`.
 pub fn outlier_weight(vbar: f64) -> f64 {
     1.0 / vbar.max(1.0)
 }
@@ -364,26 +361,23 @@ pub fn fit(d: &Design, l: usize, lambda: f64) -> Option<Fit> {
     Some(Fit { p, chol, u })
 }
 
-/// Decision AOS-BIAS-TEST (ours; option `aos.bias_test`): an order's
+/// Decision AOS-BIAS-TEST (ours): with option `aos.bias_test`, an order's
 /// estimated bias counts in its MSE only when it is significant,
 /// `|bias_l| > BIAS_Z · sd(bias_l)`. The bias estimate is a linear function
 /// of the data, `Σ_j g_j grey_j`, so its variance `Σ_j g_j² vbar_j` is known.
-/// Without the test the noise of the estimate decides the order. Order 1's
+/// Without the test the noise of the estimate decides the order: order 1's
 /// bias comes from the order-2 and order-3 coefficients of the order-5 fit
-/// (AOS-ONEFIT), which are as noisy as that fit. On an affine image with
-/// noise σ, the estimate's standard error is about 0.26σ, while order 1's
-/// own standard error is 0.05σ. AOS then chose order 3 on 58 % of an affine
-/// half, whatever σ was (`tests/aos.rs`).
+/// (AOS-ONEFIT), which are as noisy as that fit and noisier than order 1
+/// itself, at any noise level (`tests/aos.rs`).
 pub const BIAS_Z: f64 = 2.0;
 
-/// Decision AOS-FEATNOISE (ours; option `aos.feature_noise`): the variance
-/// the chosen order's output inherits from the centre's own noisy features,
-/// added to the exported error estimate. Neither the order choice nor the
-/// sample map (`E_i = MSE_l̂`, §5.3 step 8) sees it: in the choice it made
-/// dof_checker 46 % worse at 4 spp (the input won where 4-spp features are
-/// noisy), and in the map it made adaptive AOS worse on cornell, motion and
-/// soft_shadows at 64 spp (1.38, 1.13, 1.49 × uniform against 1.19, 0.77,
-/// 0.87). Its noise falls as `1/n`, not at the rate the map assumes.
+/// Decision AOS-FEATNOISE (ours): with option `aos.feature_noise`, the
+/// variance the chosen order's output inherits from the centre's own noisy
+/// features, added to the exported error estimate. Neither the order choice
+/// nor the sample map (`E_i = MSE_l̂`, §5.3 step 8) sees it: in the choice
+/// the input won where low-spp features are noisy, and in the map it made
+/// adaptive AOS worse, since its noise falls as `1/n`, not at the rate the
+/// map assumes.
 ///
 /// Every `Δz_i = P (x_i − x_c)` moves with the centre's features, so the
 /// fitted value moves by `−∇f·P δx_c`; at `Δz = 0` only the power-1
@@ -396,8 +390,7 @@ pub const BIAS_Z: f64 = 2.0;
 /// Why: at the edge of a light, a pixel's albedo, normal and
 /// visibility carry the same coverage noise as its colour, so the fit
 /// follows them and reproduces the noisy input with a residual of 0 and an
-/// estimated MSE of ~0.01 where its squared error was 27–54
-/// (glossy_cornell), which decided `err corr` there.
+/// estimated MSE far below its squared error.
 pub fn feature_noise(d: &Design, beta: &[f64]) -> f64 {
     let dim = d.centre_sd.len();
     let mut g = vec![0.0; dim];
@@ -536,38 +529,35 @@ pub struct Pixel {
 
 /// AOS at pixel `c` (§5.3). `lambda_factor` is [`RIDGE`] (tests use 0).
 ///
-/// Decision AOS-FALLBACK (ours, after §0.5 SOLVE-FAIL): a pixel whose rank
+/// Decision AOS-FALLBACK (ours): after §0.5 SOLVE-FAIL, a pixel whose rank
 /// is 0 (a window of one pixel), or whose order-5 system fails, outputs its
 /// input with error `vbar_c`.
 ///
-/// Decision AOS-RESIDUAL (ours; option `aos.residual`): an order's own
+/// Decision AOS-RESIDUAL (ours): with option `aos.residual`, an order's own
 /// residual at the centre bounds its bias from below. `res = ŷ_l − grey_c`
 /// has `E[res²] = bias_l² + Σ_i (l_i − δ_ic)² v_i`. Where `res²` exceeds
 /// that variance [`t_threshold3`](super::t_threshold3)`(n_c)²` times, `res² − res_var`
 /// replaces `bias_l²` if larger. The order-5 fit only sees the bias that
 /// powers 2–5 of the same features explain; a fit that is off because the
 /// features do not explain the colour (a defocused edge, the ceiling next
-/// to a light) kept an error estimate of ~1e-6 where the error was 0.1, so
-/// the sample map starved those pixels and uniform AOS came out worse than
-/// its input on the built-in dof and mix scenes at 64 spp. The centre's
-/// `v_c` is [`residual_centre_var`]: a pixel that missed the rare bright
-/// paths of its neighbours has a variance estimate far below its true
-/// variance, and with `vbar_c` alone the test fired on indirect light
-/// (indirect_room at 16 spp: 0.00160 → 0.01126).
+/// to a light) kept an error estimate orders of magnitude below its error,
+/// so the sample map starved those pixels. The centre's `v_c` is
+/// [`residual_centre_var`]: a pixel that missed the rare bright paths of
+/// its neighbours has a variance estimate far below its true variance, and
+/// with `vbar_c` alone the test fired on indirect light.
 ///
-/// Decision AOS-ONE-RIDGE (ours, after §0.5 SOLVE-FAIL): the orders share
+/// Decision AOS-ONE-RIDGE (ours): after §0.5 SOLVE-FAIL, the orders share
 /// the order-5 system's factorisation, so they share its ridge. Each order's
 /// factor is the leading block of the order-5 factor (§5.4), and when the
 /// order-5 system needs a raised ridge, orders 1 and 3 use it too. The GPU
 /// factors once per pixel.
 ///
-/// Decision AOS-IDENTITY (ours; option `aos.identity`): the pixel's own
-/// input is a third candidate, with bias 0 and MSE `vbar_c`. It is the same
-/// idea as APR's PF-IDENTITY. AOS has a fixed spatial bandwidth and no
+/// Decision AOS-IDENTITY (ours): with option `aos.identity`, the pixel's
+/// own input is a third candidate, with bias 0 and MSE `vbar_c`. It is the
+/// same idea as APR's PF-IDENTITY. AOS has a fixed spatial bandwidth and no
 /// rejection, so a sharp, nearly noise-free highlight with the same
 /// features as its surroundings is spread over 19×19 pixels by every
-/// order. On glossy_cornell at 64 spp AOS's rMSE was 0.0278 against the
-/// input's 0.0222; with the candidate it is 0.0028.
+/// order, and AOS as specified scored worse than its input there.
 pub fn pixel(pl: &Planes, c: usize, radius: usize, set: Settings, lambda_factor: f64) -> Pixel {
     let fallback = |rank: usize| Pixel {
         color: [pl.color[0][c], pl.color[1][c], pl.color[2][c]],

@@ -29,16 +29,15 @@ pub const POLY_COLS: [usize; 4] = [0, 2, 5, 9];
 /// Confidence-interval rejection: `|y_i − y_c| <= 3·sqrt(v_i + v_c)`.
 pub const REJECT_K: f64 = 3.0;
 
-/// Decision APR-OUTLIER-W (ours, WLR's OUTLIER-W of spec §2.3 step 2 carried
-/// over to APR, per channel): a block's kernel is `K_h(i)·o_i` with
+/// Decision APR-OUTLIER-W (ours): WLR's OUTLIER-W of spec §2.3 step 2
+/// carried over to APR, per channel: a block's kernel is `K_h(i)·o_i` with
 /// `o_i = 1/max(v_i, 1)` (option `apr.outlier_weight = clamped(default)|off`).
 /// The confidence interval cannot reject a pixel dominated by one bright
 /// sample: its standard error is about its own value, so `|y_i − y_c|` is
 /// always within 3 of them. A small light seen through a glossy surface is
 /// a *cluster* of such pixels, which the outlier stage leaves alone
 /// (OUTLIER-ISOLATED); with `K_h` alone every block within 14 pixels
-/// averaged it in, and APR's output on the built-in `glossy` scene at 4 spp
-/// had 1.5× the input's rMSE (2.95 against 1.92; 0.105 with the weight).
+/// averaged it in, and APR came out worse than its input.
 /// Pixels with `v_i <= 1` keep `K_h`. `H·1 = 1` still holds (the intercept
 /// is unpenalised) and every formula of §4.2 reads `W = diag(K_h·o)`.
 #[inline]
@@ -448,8 +447,10 @@ pub fn covering(w: usize, h: usize, i: usize, valid: &[bool]) -> Vec<usize> {
 /// APR on one channel (§4.2–4.3): `pl.y`, `pl.v` are the channel, features
 /// already prefiltered; `block` is [`BLOCK`] or [`BLOCK_UNWEIGHTED`].
 /// `pixel_test`: the sample counts for APR-PIXEL-TEST, `None` for §4.3 as
-/// written. APR-PIXEL-TEST (ours, `apr.pixel_test`, after LP-PIXEL-TEST): a
-/// block whose squared miss `(x_iᵀβ_y − y_i)²` at the valid pixel `i`
+/// written.
+///
+/// Decision APR-PIXEL-TEST (ours): with option `apr.pixel_test`, after
+/// LP-PIXEL-TEST, a block whose squared miss `(x_iᵀβ_y − y_i)²` at the valid pixel `i`
 /// exceeds [`pixel_test_limit`](super::pixel_test_limit) of the channel's
 /// `v` does not predict i; a pixel whose accepting blocks all do keeps its
 /// input (`y_i`, error `v_i`, dimension 0). It keeps APR's blocks from
@@ -575,13 +576,12 @@ pub fn channel(
 /// variance: every pixel a centre, no rejection, point-wise output, two
 /// stages.
 ///
-/// Decision (PF-IDENTITY, ours): the unfiltered value is a fifth candidate,
+/// Decision PF-IDENTITY (ours): the unfiltered value is a fifth candidate,
 /// with bias 0 and error `Σ K_h σ̂² / Σ K_h` (the window's mean variance); it
 /// wins ties. Without it a noise-free feature edge (the rim of a light, an
 /// albedo step) is always blurred, since every order 0–3 has bias there, and
-/// the blurred features let the blocks mix a light with the wall next to it:
-/// on `glossy_cornell` at 4 spp APR's rMSE went from 0.017 (raw features) to
-/// 4.97 with the prefilter as specified.
+/// the blurred features let the blocks mix a light with the wall next to
+/// it.
 pub fn prefilter_plane(w: usize, h: usize, f: &[f64], var: &[f64], valid: &[bool]) -> Vec<f64> {
     let pl = Planes {
         w,

@@ -33,12 +33,13 @@ pub fn regularise(sbar: [f64; 6], p: [f64; 3]) -> [f64; 6] {
     s
 }
 
-/// GBF-PD (ours): the inverse a pixel's distances use. Smoothing separately
-/// finalised entries can leave `S̄` indefinite (pairwise Cauchy–Schwarz
-/// clamps do not make a 3×3 matrix PSD) and `+ εI` does not always repair
-/// it: its inverse then has a negative or infinite determinant and the
-/// filter weights became NaN (44 pixels of a 16-spp motion render). Such a
-/// covariance says nothing usable about the pixel's footprint, so its
+/// The inverse a pixel's distances use.
+///
+/// Decision GBF-PD (ours): smoothing separately finalised entries can leave
+/// `S̄` indefinite (pairwise Cauchy–Schwarz clamps do not make a 3×3 matrix
+/// PSD) and `+ εI` does not always repair it: its inverse then has a
+/// negative or infinite determinant and the filter weights became NaN. Such
+/// a covariance says nothing usable about the pixel's footprint, so its
 /// inverse is [`UNUSABLE`]·I: every distance through it is huge, the pixel
 /// takes no neighbours and lends itself to none (it passes through).
 pub fn regularised_inverse(sbar: [f64; 6], p: [f64; 3]) -> [f64; 6] {

@@ -251,9 +251,11 @@ impl CentreFit {
 /// times the centre's variance of the mean (3 standard errors).
 pub const CENTRE_TEST_Z2: f64 = 9.0;
 
-/// LP-CENTRE-TEST (ours, `lp.centre_test`): the error a window's model adds
-/// for missing its own centre, per channel. `miss = β(k(r))ᵀζ_c − y_c` is
-/// the model's prediction at the centre minus the centre's mean; where
+/// The error a window's model adds for missing its own centre, per channel.
+///
+/// Decision LP-CENTRE-TEST (ours): with option `lp.centre_test`,
+/// `miss = β(k(r))ᵀζ_c − y_c` is the model's prediction at the centre minus
+/// the centre's mean; where
 /// `miss² > 9·v_c` the model is significantly wrong at the very pixel it
 /// was fitted for, and `miss² − s·v_c` (the error against the truth, as in
 /// the ring terms) is counted for every pixel of the window, i.e. added to

@@ -22,8 +22,8 @@ use crate::shared::{LpPush, LP_PIXEL_TEST};
 /// (`E_i·n_i^{-4/(d_i+4)}`, §9.1, for sampling); coverage count; the local
 /// dimension `d_i = mean_c k_c`.
 ///
-/// Decision LP-PIXEL-TEST (ours, `lp.pixel_test`, [`LP_PIXEL_TEST`]): a
-/// centre's prediction `f_c(i)` enters pixel i's average only if
+/// Decision LP-PIXEL-TEST (ours): with option `lp.pixel_test`
+/// ([`LP_PIXEL_TEST`]), a centre's prediction `f_c(i)` enters pixel i's average only if
 /// `Σ_ch (f_c(i)[ch] − y_i[ch])² <= t² · max(Σ_ch v_i[ch], v̄_i)`, with `t`
 /// = [`t_threshold3`](super::t_threshold3)`(n_i)` and `v̄_i` the mean of `Σ_ch v` over i's valid
 /// 3×3 neighbourhood without its largest value (i included; a pixel whose

@@ -15,25 +15,25 @@
 //!   window is dark (DARK-WINDOW).
 //!
 //! Decisions of ours where the spec is silent:
-//! * OUTLIER-MIN-N: a pixel with fewer than [`MIN_NEIGHBOURS`] valid
+//! * Decision OUTLIER-MIN-N (ours): a pixel with fewer than [`MIN_NEIGHBOURS`] valid
 //!   neighbours in `Ω_o(14) \ {o}` is never an outlier (with one neighbour,
 //!   `sd = 0` and every pixel brighter than it would be "detected").
-//! * OUTLIER-NOISE: a pixel is a spike only if its excess over the
+//! * Decision OUTLIER-NOISE (ours): a pixel is a spike only if its excess over the
 //!   neighbourhood is within `3·se_o` of its own mean, `se_o = (√v_R + √v_G +
 //!   √v_B)/3` (the standard error of grey when the channels move together).
 //!   A firefly (one sample of value x among n) has `se = y` exactly; a pixel
 //!   that is bright in every sample, such as a small light seen directly,
 //!   has `se ≈ 0` and is signal, not an outlier: without this test such a
 //!   light is removed and its energy smeared over 87×87 pixels.
-//! * OUTLIER-ISOLATED: a pixel is a spike only if none of its 8 neighbours
+//! * Decision OUTLIER-ISOLATED (ours): a pixel is a spike only if none of its 8 neighbours
 //!   is itself above `m_o + 3·sd_o`. Samples are independent per pixel, so a
 //!   firefly is a single-pixel event; bright neighbours mean a feature (a
 //!   highlight seen through glass, the edge of a light) whose energy belongs
 //!   there and not spread over 87×87 pixels.
-//! * OUTLIER-MEDIAN: the median of an even count is the lower one (rank
+//! * Decision OUTLIER-MEDIAN (ours): the median of an even count is the lower one (rank
 //!   `(n−1)/2` of the sorted greys); among pixels whose grey equals it, the
 //!   lowest raster index is `q*`.
-//! * OUTLIER-CLAMP: the redistributed image is clamped to ≥ 0 (spec §0.4
+//! * Decision OUTLIER-CLAMP (ours): the redistributed image is clamped to ≥ 0 (spec §0.4
 //!   step 5); [`redistribute`] itself does not clamp, so energy is exact.
 
 use super::spp_of;

@@ -27,16 +27,15 @@ use super::linalg::{jacobi_eigen, JACOBI_SWEEPS, JACOBI_TOL};
 /// units) is constant: normalised to 0 with variance 0 (spec §0.6 step 1).
 pub const RANGE_EPS: f64 = 1e-6;
 
-/// Decision NOISE-CONST (ours, after spec §0.6 step 1): a component whose
+/// Decision NOISE-CONST (ours): after spec §0.6 step 1, a component whose
 /// window range is at most `NOISE_RANGE_C` times its RMS noise,
 /// `ρ_j <= 2·sqrt(mean_i e2_ij)`, is constant too. Its standard deviation
 /// over the window is at most `ρ_j/2`, below its own noise, so step 6 could
 /// never keep it; kept in `E`, its normalised noise `e2/ρ_j²` (huge for a
 /// range of float rounding) would set `τ` for every other component. The
-/// case is real: an albedo of exactly 0.73 averaged in f32 over different
-/// sample counts (adaptive sampling) spans ~2e-6 with a rounding "variance"
-/// of ~1e-8, `‖E‖₂` became ~800, and every window along an edge fell to
-/// MINRANK's two pixel coordinates.
+/// case is real: a constant albedo averaged in f32 over different sample
+/// counts (adaptive sampling) spans a few rounding steps, and every window
+/// along an edge fell to MINRANK's two pixel coordinates.
 pub const NOISE_RANGE_C: f64 = 2.0;
 
 /// Threshold factor `C` of `τ = C·‖E‖₂` (spec §0.6 step 5, `[WLR §4 Eq.5]`).
@@ -152,7 +151,7 @@ pub fn local_space_with(x: &[f64], e2: &[f64], d: usize, tol: f64, sweeps: usize
         }
     }
     // 2. centred data matrix Z; 3. G = ZᵀZ; 4. (EᵀE)_jl = Σ_i sqrt(e2'_ij e2'_il).
-    // TSVD-ONE-PASS (ours): from the sums S1 = Σ y, S2 = Σ y yᵀ of
+    // Decision TSVD-ONE-PASS (ours): from the sums S1 = Σ y, S2 = Σ y yᵀ of
     // y = x − x_0 (the first pixel), G_jl = ((n S2_jl − S1_j S1_l) / n) /
     // (ρ_j ρ_l), as the GPU computes it in one pass over the window: for
     // pixel coordinates (integers) every sum and n S2 − S1 S1ᵀ is exact, so
