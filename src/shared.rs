@@ -544,3 +544,23 @@ pub const GBF_SMOOTH_SIGMA: f32 = 1.5;
 pub fn gaussian_radius(sigma: f64) -> usize {
     (3.0 * sigma).ceil().max(0.0) as usize
 }
+
+/// `sample_reduce` mode: leaf of the max tree, the max of the sanitised `r`
+/// bits of valid pixels (bit 32 of the result set if some pixel is invalid,
+/// `n = 0`).
+pub const REDUCE_LEAF_MAX: u32 = 0;
+/// `sample_reduce` mode: inner level of the max tree.
+pub const REDUCE_MAX: u32 = 1;
+/// `sample_reduce` mode: leaf of the sum of the quantised priorities `q_i` (`S`).
+pub const REDUCE_LEAF_Q: u32 = 2;
+/// `sample_reduce` mode: leaf of the sum of the shares `u_i = floor(2^32 q_i / S)` (`U`).
+pub const REDUCE_LEAF_U: u32 = 3;
+/// `sample_reduce` mode: inner level of a sum tree.
+pub const REDUCE_SUM: u32 = 4;
+/// `sample_scan` mode: exclusive offsets of the block sums `tree[src_off..]`,
+/// written to `tree[dst_off..]`.
+pub const SCAN_INNER: u32 = 0;
+/// `sample_scan` mode: the leaf, `counts[i] = base + floor(T P_i / U) − floor(T P_{i−1} / U)`.
+pub const SCAN_LEAF: u32 = 1;
+/// "No parent level" in [`SampleTreePush::par_off`].
+pub const SCAN_NO_LEVEL: u32 = u32::MAX;

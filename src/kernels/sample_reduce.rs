@@ -22,17 +22,10 @@ pub const DECL: KernelDecl = KernelDecl {
 /// element per invocation. Mirrors `SAMPLE_BLOCK` in `spirv/lib/sampling.glsl`.
 pub const BLOCK: u32 = 64;
 
-/// Leaf: the max of the sanitised `r` bits of valid pixels; bit 32 of the
-/// result is set if some pixel is invalid (`n = 0`).
-pub const MODE_LEAF_MAX: u32 = 0;
-/// Inner level of the max tree.
-pub const MODE_MAX: u32 = 1;
-/// Leaf: the sum of the quantised priorities `q_i` (`S`).
-pub const MODE_LEAF_Q: u32 = 2;
-/// Leaf: the sum of the shares `u_i = floor(2^32 q_i / S)` (`U`).
-pub const MODE_LEAF_U: u32 = 3;
-/// Inner level of a sum tree.
-pub const MODE_SUM: u32 = 4;
+pub use crate::shared::{
+    REDUCE_LEAF_MAX as MODE_LEAF_MAX, REDUCE_LEAF_Q as MODE_LEAF_Q, REDUCE_LEAF_U as MODE_LEAF_U,
+    REDUCE_MAX as MODE_MAX, REDUCE_SUM as MODE_SUM,
+};
 
 /// A few integer operations per element and six shared-memory steps.
 pub const FLOPS_PER_ELEMENT: f64 = 16.0;

@@ -19,14 +19,9 @@ pub const DECL: KernelDecl = KernelDecl {
     push_size: std::mem::size_of::<SampleTreePush>() as u32,
 };
 
-/// Inner level: exclusive offsets of the block sums `tree[src_off..]`,
-/// written to `tree[dst_off..]`.
-pub const MODE_INNER: u32 = 0;
-/// Leaf: `counts[i] = floor(T P_i / U) − floor(T P_{i−1} / U)`.
-pub const MODE_LEAF: u32 = 1;
-
-/// Marker for "no parent level" in [`SampleTreePush::par_off`].
-pub const NO_LEVEL: u32 = u32::MAX;
+pub use crate::shared::{
+    SCAN_INNER as MODE_INNER, SCAN_LEAF as MODE_LEAF, SCAN_NO_LEVEL as NO_LEVEL,
+};
 
 /// Records one level of the down-sweep (see [`SampleTreePush`] for the
 /// fields; the grid fields are filled here). `counts` is the u32 output

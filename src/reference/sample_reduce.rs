@@ -4,8 +4,11 @@
 
 use super::sampling::{eff_bits, quantise, ref_bits, sane_bits, share_of, BLOCK};
 use super::spp_of;
-use crate::kernels::sample_reduce::{MODE_LEAF_MAX, MODE_LEAF_Q, MODE_MAX, MODE_SUM};
 use crate::shared::SampleTreePush;
+use crate::shared::{
+    REDUCE_LEAF_MAX as MODE_LEAF_MAX, REDUCE_LEAF_Q as MODE_LEAF_Q, REDUCE_MAX as MODE_MAX,
+    REDUCE_SUM as MODE_SUM,
+};
 
 const LO: u64 = 0xFFFF_FFFF;
 
@@ -19,7 +22,7 @@ fn combine(mode: u32, a: u64, b: u64) -> u64 {
 
 /// For every block `b < ceil(push.n / 64)`: `tree[dst_off + b]` = the
 /// reduction of elements `64b .. 64b + 63` of the level (see the modes in
-/// [`crate::kernels::sample_reduce`]). `r` is the f32 priority map (its bits
+/// `kernels::sample_reduce`). `r` is the f32 priority map (its bits
 /// are used), `spp` the sample counts. Grid fields of `push` are ignored.
 pub fn sample_reduce(push: &SampleTreePush, r: &[f32], spp: &[f32], tree: &mut [u64]) {
     let n = push.n as usize;

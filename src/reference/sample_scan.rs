@@ -4,8 +4,8 @@
 
 use super::sampling::{eff_bits, quantise, ref_bits, share_of, BLOCK};
 use super::spp_of;
-use crate::kernels::sample_scan::{MODE_INNER, NO_LEVEL};
 use crate::shared::SampleTreePush;
+use crate::shared::{SCAN_INNER as MODE_INNER, SCAN_NO_LEVEL as NO_LEVEL};
 
 /// For every block of 64 elements of the level: the inclusive prefix within
 /// the block plus the block's offset `tree[par_off + block]` (0 if
