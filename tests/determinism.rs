@@ -18,14 +18,10 @@ fn fixture() -> StatsImage {
     .unwrap()
 }
 
-/// The methods and whether they run on the GPU in this build.
-const METHODS: &[(Method, bool)] = &[
-    (Method::Wlr, true),
-    (Method::Lp, true),
-    (Method::None, true),
-    (Method::Apr, true),
-    (Method::Aos, true),
-];
+/// Every method of the registry, each on the GPU.
+fn methods() -> Vec<(Method, bool)> {
+    Method::all().map(|m| (m, true)).collect()
+}
 
 fn make(img: &StatsImage, method: Method, on_gpu: bool) -> Denoiser {
     let src = Source::of_image(img);
@@ -62,7 +58,7 @@ fn same_frame(first: &mcdenoise::Frame, other: &mcdenoise::Frame, method: Method
 #[test]
 fn every_method_is_bit_identical_run_after_run() {
     let img = fixture();
-    for &(method, on_gpu) in METHODS {
+    for &(method, on_gpu) in &methods() {
         let a = make(&img, method, on_gpu);
         let first = a.denoise(&img, Some(10_000)).unwrap();
         let again = a.denoise(&img, Some(10_000)).unwrap();
@@ -81,7 +77,7 @@ fn every_method_runs_on_edge_sizes() {
     let img = fixture();
     for &(w, h) in &[(1, 1), (1, 17), (23, 1), (2, 2), (13, 7), (37, 23)] {
         let crop = img.crop(5, 9, w, h);
-        for &(method, on_gpu) in METHODS {
+        for &(method, on_gpu) in &methods() {
             let budget = 3 * (w * h) as u32 + 1;
             let f = make(&crop, method, on_gpu)
                 .denoise(&crop, Some(budget))
@@ -157,7 +153,7 @@ fn huge_tiny_and_mixed_sample_counts_stay_finite() {
     img.set(Layer::Color, colour);
     img.set(Layer::ColorVariance, var);
     img.set(Layer::Spp, spp);
-    for &(method, on_gpu) in METHODS {
+    for &(method, on_gpu) in &methods() {
         let budget = 4 * 64 * 64;
         let f = make(&img, method, on_gpu)
             .denoise(&img, Some(budget))
@@ -254,7 +250,7 @@ fn a_gpu_call_consumes_its_upload() {
 #[test]
 fn without_the_error_download_nothing_else_changes() {
     let img = fixture();
-    for (method, _) in METHODS {
+    for (method, _) in &methods() {
         for (tile, budget) in [
             (None, None),
             (None, Some(2 * 64 * 64)),

@@ -158,7 +158,7 @@ fn check(img: &StatsImage, config: Config, tile: usize, what: &str) {
 #[test]
 fn every_method_tiled_along_x_is_bit_identical() {
     let img = strip(480, 32);
-    for method in [Method::Lp, Method::Wlr, Method::Apr, Method::Aos] {
+    for method in Method::all().filter(|&m| m != Method::None) {
         check(
             &img,
             Config::new(method),
@@ -316,22 +316,9 @@ fn large_images_through_every_method() {
     let methods: Vec<Method> = match std::env::var("MCDENOISE_LARGE_METHODS") {
         Ok(list) => list
             .split(',')
-            .map(|m| match m.trim() {
-                "none" => Method::None,
-                "wlr" => Method::Wlr,
-                "lp" => Method::Lp,
-                "apr" => Method::Apr,
-                "aos" => Method::Aos,
-                other => panic!("unknown method {other}"),
-            })
+            .map(|m| Method::from_name(m).unwrap_or_else(|| panic!("unknown method {m}")))
             .collect(),
-        Err(_) => vec![
-            Method::None,
-            Method::Lp,
-            Method::Apr,
-            Method::Wlr,
-            Method::Aos,
-        ],
+        Err(_) => Method::all().collect(),
     };
     let sizes: Vec<(usize, usize)> = match std::env::var("MCDENOISE_LARGE_SIZES") {
         Ok(list) => list
