@@ -31,7 +31,7 @@ layout(push_constant) uniform Push {
     uint s_off;
     uint u_off;
     uint budget;
-    uint base;      // samples every pixel gets before the map's share (sample_scan leaf)
+    uint spread;    // samples spread evenly over the pixels besides `budget` (sample_scan leaf)
     uint pad1;
     uint pad2;
 } push;

@@ -31,7 +31,7 @@ layout(push_constant) uniform Push {
     uint s_off;
     uint u_off;
     uint budget;
-    uint base;      // samples every pixel gets before the map's share (sample_scan leaf)
+    uint spread;    // samples spread evenly over the pixels besides `budget` (sample_scan leaf)
     uint pad1;
     uint pad2;
 } push;
@@ -91,5 +91,10 @@ void main()
         p1 = incl;
         p0 = incl - v;
     }
-    counts[i] = push.base + uint(t * p1 / u_total - t * p0 / u_total);
+    // SAMPLE-FLOOR: `spread` samples by the same cumulative rounding over
+    // the pixels in raster order, then the map's share of `budget`.
+    uint64_t f = uint64_t(push.spread);
+    uint64_t np = uint64_t(push.n);
+    uint even = uint(f * uint64_t(i + 1u) / np - f * uint64_t(i) / np);
+    counts[i] = even + uint(t * p1 / u_total - t * p0 / u_total);
 }

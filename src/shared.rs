@@ -398,9 +398,10 @@ pub struct SampleTreePush {
     pub u_off: u32,
     /// Budget `T` of the pass that the map distributes (`sample_scan` leaf).
     pub budget: u32,
-    /// Samples every pixel gets besides its share of `budget` (the uniform
-    /// floor of [`crate::methods::sampling::floor_split`]).
-    pub base: u32,
+    /// Samples spread evenly over the pixels besides `budget` (by
+    /// cumulative rounding in raster order: the uniform floor of
+    /// [`crate::methods::sampling::floor_split`]).
+    pub spread: u32,
     /// Unused (the block's `pad1..pad2`): rounds the block to 64 bytes; 0.
     pub _pad: [u32; 2],
 }
@@ -560,7 +561,8 @@ pub const REDUCE_SUM: u32 = 4;
 /// `sample_scan` mode: exclusive offsets of the block sums `tree[src_off..]`,
 /// written to `tree[dst_off..]`.
 pub const SCAN_INNER: u32 = 0;
-/// `sample_scan` mode: the leaf, `counts[i] = base + floor(T P_i / U) − floor(T P_{i−1} / U)`.
+/// `sample_scan` mode: the leaf, `counts[i]` = its even share of `spread` plus
+/// `floor(T P_i / U) − floor(T P_{i−1} / U)`.
 pub const SCAN_LEAF: u32 = 1;
 /// "No parent level" in [`SampleTreePush::par_off`].
 pub const SCAN_NO_LEVEL: u32 = u32::MAX;

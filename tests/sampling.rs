@@ -481,24 +481,25 @@ fn per_method_constants() {
     assert_eq!(p(Method::Aos).sigma_s, 2.0);
 }
 
-/// SAMPLE-FLOOR: a floor spreads `floor·T` uniformly first; GPU and twin
+/// SAMPLE-FLOOR: a floor spreads `floor·T` evenly first; GPU and twin
 /// agree bit for bit, the total is exactly T, every pixel gets at least the
-/// base, and a zero-priority pixel gets exactly it.
+/// floor of its even share, and a zero-priority pixel exactly its even share.
 #[test]
-fn a_uniform_floor_keeps_the_total_and_gives_every_pixel_its_base() {
+fn a_uniform_floor_keeps_the_total_and_gives_every_pixel_its_share() {
     use mcdenoise::methods::sampling::floor_split;
-    assert_eq!(floor_split(1000, 100, 0.0), (0, 1000));
-    assert_eq!(floor_split(1000, 100, 0.25), (2, 800));
-    assert_eq!(floor_split(1000, 3000, 0.5), (0, 1000));
-    assert_eq!(floor_split(1000, 100, 0.999), (9, 100));
+    assert_eq!(floor_split(1000, 0.0), (0, 1000));
+    assert_eq!(floor_split(1000, 0.25), (250, 750));
+    assert_eq!(floor_split(7, 0.5), (3, 4));
+    assert_eq!(floor_split(1000, f32::NAN), (0, 1000));
     let ctx = gpu();
     let (w, h) = (37, 23);
+    let n = (w * h) as u64;
     let mut rng = Rng(77);
     let r = random_map(&mut rng, w * h);
     let spp = vec![4.0f32; w * h];
     let planes = SamplingPlanes::new(&ctx, w, h).unwrap();
     let (rb, sb) = (upload(&ctx, "test.r", &r), upload(&ctx, "test.spp", &spp));
-    for (t, floor) in [(10_000u32, 0.3f32), (851, 0.5), (5, 0.9)] {
+    for (t, floor) in [(10_000u32, 0.3f32), (851, 0.5), (5, 0.9), (4000, 0.2)] {
         let mut batch = Batch::new(&ctx).unwrap();
         record_allocation(&mut batch, rb.slice(), sb.slice(), &planes, t, floor).unwrap();
         batch.finish().unwrap();
@@ -506,11 +507,12 @@ fn a_uniform_floor_keeps_the_total_and_gives_every_pixel_its_base() {
         let c = allocate_cpu(w, h, &r, &spp, t, floor).unwrap();
         assert_eq!(g, c, "T={t} floor {floor}");
         assert_eq!(c.iter().map(|&x| x as u64).sum::<u64>(), t as u64);
-        let (base, _) = floor_split(t, (w * h) as u32, floor);
-        assert!(c.iter().all(|&x| x >= base));
+        let (spread, _) = floor_split(t, floor);
+        let even = |i: u64| (spread as u64 * (i + 1) / n - spread as u64 * i / n) as u32;
+        assert!(c.iter().all(|&x| x as u64 >= spread as u64 / n));
         for (i, &ri) in r.iter().enumerate() {
             if ri == 0.0 {
-                assert_eq!(c[i], base, "pixel {i}");
+                assert_eq!(c[i], even(i as u64), "pixel {i}");
             }
         }
     }

@@ -92,16 +92,17 @@ pub struct SamplingParams {
     pub floor: f32,
 }
 
-/// Splits a map's `budget` over `n` pixels into what every pixel gets
-/// (`base = floor(floor·budget/n)`) and what the priority distributes
-/// (`budget − base·n`): the counts still sum to exactly `budget`.
-pub fn floor_split(budget: u32, n: u32, floor: f32) -> (u32, u32) {
-    if n == 0 || floor.is_nan() || floor <= 0.0 {
+/// Splits a map's `budget` into what is spread evenly over the pixels
+/// (`floor(floor·budget)`, by the exact cumulative rounding of §9.2 in
+/// raster order: each pixel gets the floor or the ceiling of its share)
+/// and what the priority distributes: the counts still sum to exactly
+/// `budget`.
+pub fn floor_split(budget: u32, floor: f32) -> (u32, u32) {
+    if floor.is_nan() || floor <= 0.0 {
         return (0, budget);
     }
-    let base = ((floor.min(1.0) as f64 * budget as f64) / n as f64).floor() as u64;
-    let base = base.min(budget as u64 / n as u64) as u32;
-    (base, budget - base * n)
+    let spread = (floor.min(1.0) as f64 * budget as f64).floor() as u32;
+    (spread, budget - spread)
 }
 
 impl SamplingParams {
@@ -264,13 +265,13 @@ impl TreeLayout {
     /// push)`. Shared by the GPU recording and the CPU chain so both run the
     /// same plan.
     pub fn plan(&self, budget: u32, floor: f32) -> Vec<(bool, SampleTreePush)> {
-        let (base, budget) = floor_split(budget, self.n, floor);
+        let (spread, budget) = floor_split(budget, floor);
         let globals = SampleTreePush {
             max_off: Self::top(&self.max_off),
             s_off: Self::top(&self.q_off),
             u_off: Self::top(&self.u_off),
             budget,
-            base,
+            spread,
             par_off: sample_scan::NO_LEVEL,
             ..Default::default()
         };

@@ -61,7 +61,9 @@ pub fn sample_scan(
                 0 => (i as u64 + 1, i as u64, n as u64),
                 u => (incl, incl - v[lid], u),
             };
-            counts[i] = push.base + (t * p1 / u_total - t * p0 / u_total) as u32;
+            let (f, np) = (push.spread as u64, n as u64);
+            let even = (f * (i as u64 + 1) / np - f * i as u64 / np) as u32;
+            counts[i] = even + (t * p1 / u_total - t * p0 / u_total) as u32;
         }
     }
 }
