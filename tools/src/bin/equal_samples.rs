@@ -3,10 +3,11 @@
 //! whose own error is estimated.
 //!
 //! Per scene: two references of K spp with independent seeds; the table
-//! uses their mean, whose error against the converged image is estimated as
-//! `rMSE(r1, r2) / 4` (each reference's is about half their distance, and
-//! the mean of two halves it again) and printed next to the rows; the
-//! ratios use the rMSE with that estimate subtracted. Per scene and spp N:
+//! uses their mean `r`, whose own error against the converged image is
+//! estimated as `rMSE(r1, r) = mean (r1 − r2)²/4 / (r² + 0.01)` (the
+//! expected `(r − t)²`, weighted by `r` as the metric weighs an output's
+//! error) and printed next to the rows; the ratios use the rMSE with that
+//! estimate subtracted. Per scene and spp N:
 //! one uniform render of N spp (seed `--seed`) reconstructed by every
 //! method (the Monte Carlo mean too), and per method the adaptive loop of
 //! spec §9.3 with the same seed and total. With `--oidn`, OIDN 2.5
@@ -217,8 +218,11 @@ fn scene_rows(
         &stop,
         |_, _| {},
     )?;
-    let ref_err = metrics::rmse(&r1.image, &r2.image) / 4.0;
     let r = mean_image(&r1.image, &r2.image);
+    // E[(r − t)²] = E[(r1 − r2)²]/4 = E[(r1 − r)²], weighted as the metric
+    // weighs an output's error: by the reference r's own value (a spike in
+    // one reference then counts at most ~1, as it does in rMSE(x, r)).
+    let ref_err = metrics::rmse(&r1.image, &r);
     eprintln!(
         "{name}: references {} and {} ({:.0} s), estimated error of their mean {ref_err:.2e}",
         r1.path.display(),
