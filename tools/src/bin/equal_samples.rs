@@ -21,7 +21,7 @@
 //! ```text
 //! cargo run --release -p mcdenoise-tools --bin equal_samples -- \
 //!     [--scenes a,b] [--size 256x256] [--spp 16,64] [--methods wlr,lp,apr,aos] \
-//!     [--reference 4096] [--seed 3] [--oidn] [--equal-time] [--json out.json] [--work DIR]
+//!     [--reference 4096] [--seeds 3,4] [--oidn] [--equal-time] [--json out.json] [--work DIR]
 //! ```
 
 use std::path::{Path, PathBuf};
@@ -56,9 +56,14 @@ struct Args {
     /// Samples per pixel of each of the two references.
     #[arg(long, default_value_t = 4096)]
     reference: u32,
-    /// Seed of the renders (the references use two seeds of their own).
+    /// Seeds of the renders, comma-separated: every number is the mean over
+    /// them (the comparison of two renders is noisy where rare paths
+    /// dominate, fireflies and caustics).
+    #[arg(long, value_delimiter = ',', default_value = "3")]
+    seeds: Vec<u64>,
+    /// Seed the two references derive theirs from.
     #[arg(long, default_value_t = 3)]
-    seed: u64,
+    reference_seed: u64,
     /// Also OIDN on the uniform and on every adaptive run's statistics.
     #[arg(long)]
     oidn: bool,
@@ -196,8 +201,6 @@ fn scene_rows(
     options: &Options,
 ) -> anyhow::Result<Vec<Row>> {
     let scene = Scene::by_name_or_file(name)?;
-    let (w, h) = a.size;
-    let px = (w * h) as f64;
     let stop = AtomicBool::new(false);
     let t = Instant::now();
     let r1 = reference::reference(
@@ -205,7 +208,7 @@ fn scene_rows(
         &scene,
         a.size,
         a.reference,
-        reference::reference_seed(a.seed),
+        reference::reference_seed(a.reference_seed),
         &stop,
         |_, _| {},
     )?;
@@ -214,7 +217,7 @@ fn scene_rows(
         &scene,
         a.size,
         a.reference,
-        reference::reference_seed(a.seed) ^ 0x2,
+        reference::reference_seed(a.reference_seed) ^ 0x2,
         &stop,
         |_, _| {},
     )?;
@@ -236,91 +239,142 @@ fn scene_rows(
         .to_string();
     let mut rows = Vec::new();
     for &n in &a.spp {
-        let mut row = Row {
-            scene: stem.clone(),
-            spp: n,
-            ref_err,
-            ..Default::default()
-        };
-        // Uniform: one render, every method.
-        let uniform = Renderer::new(ctx, &scene, w, h, a.seed)?;
-        let mut b = Batch::new(ctx)?;
-        uniform.record_clear(&mut b);
-        uniform.record_pass(&mut b, Samples::Uniform(n))?;
-        let uniform_secs = render_ms(&b.finish()?) / 1e3;
-        let uniform_rate = n as f64 * px / uniform_secs;
-        let stats = uniform.statistics()?;
-        row.input = metrics::rmse(&colour_of(&stats), &r);
-        let stats_path = a.work.join(format!("{stem}-{n}-uniform.exr"));
-        io::write_stats(&stats_path, &stats)?;
-        let mut oidn_pairs = vec![(
-            stats_path,
-            a.work.join(format!("{stem}-{n}-uniform-oidn.exr")),
-        )];
-        for &m in methods {
-            let (frame, recon_secs) = reconstruct(ctx, &uniform, m, options)?;
-            let mut mr = MethodRow {
-                method: m.name().into(),
-                uniform: metrics::rmse(&frame.color, &r),
-                uniform_estimate: metrics::estimated_rmse(&frame.color, &frame.error),
-                uniform_rate,
-                ..Default::default()
-            };
-            // Adaptive, same seed and total.
-            let ar = Renderer::new(ctx, &scene, w, h, a.seed)?;
-            let out = adaptive::render(ctx, &ar, &loop_config(m, n, true, options), &stop, |_| {})?;
-            let sp = &out.split;
-            mr.adaptive_gpu = (sp.render_ms + sp.reconstruction_ms + sp.sampling_ms) / 1e3;
-            mr.adaptive = metrics::rmse(&out.frame.color, &r);
-            mr.adaptive_estimate = metrics::estimated_rmse(&out.frame.color, &out.frame.error);
-            mr.adaptive_rate = out.samples as f64 / (out.split.render_ms / 1e3);
+        let runs: Vec<Row> = a
+            .seeds
+            .iter()
+            .map(|&seed| one_seed(ctx, a, &scene, &stem, n, seed, &r, methods, options))
+            .collect::<anyhow::Result<_>>()?;
+        let mut row = average(runs);
+        row.ref_err = ref_err;
+        for mr in &mut row.methods {
             mr.ratio = corrected(mr.adaptive, ref_err) / corrected(mr.uniform, ref_err);
-            if a.oidn {
-                let p = a.work.join(format!("{stem}-{n}-{}-adaptive.exr", m.name()));
-                io::write_stats(&p, &ar.statistics()?)?;
-                oidn_pairs.push((
-                    p,
-                    a.work
-                        .join(format!("{stem}-{n}-{}-adaptive-oidn.exr", m.name())),
-                ));
-            }
-            if a.equal_time {
-                // The uniform render's seconds per sample and this method's
-                // reconstruction: what fits in the adaptive run's time.
-                let per_sample = uniform_secs / (n as f64 * px);
-                let spp = ((mr.adaptive_gpu - recon_secs) / per_sample / px)
-                    .floor()
-                    .max(1.0) as u32;
-                let eq = Renderer::new(ctx, &scene, w, h, a.seed)?;
-                let mut b = Batch::new(ctx)?;
-                eq.record_clear(&mut b);
-                eq.record_pass(&mut b, Samples::Uniform(spp))?;
-                b.finish()?;
-                let (frame, _) = reconstruct(ctx, &eq, m, options)?;
-                mr.equal_time_spp = Some(spp);
-                mr.equal_time = Some(metrics::rmse(&frame.color, &r));
-            }
             eprintln!(
                 "  {stem} spp{n} {}: uniform {:.5} adaptive {:.5} ratio {:.2} (rates {:.0}/{:.0} ks/s)",
-                m.name(),
+                mr.method,
                 mr.uniform,
                 mr.adaptive,
                 mr.ratio,
                 mr.uniform_rate / 1e3,
                 mr.adaptive_rate / 1e3
             );
-            row.methods.push(mr);
-        }
-        if a.oidn {
-            let scores = oidn(&oidn_pairs, &r)?;
-            row.oidn_uniform = Some(scores[0]);
-            for (mr, s) in row.methods.iter_mut().zip(&scores[1..]) {
-                mr.oidn_adaptive = Some(*s);
-            }
         }
         rows.push(row);
     }
     Ok(rows)
+}
+
+/// The mean of per-seed rows (every number averaged; OIDN's where present).
+fn average(runs: Vec<Row>) -> Row {
+    let k = runs.len() as f64;
+    let mean = |f: &dyn Fn(&Row) -> f64| runs.iter().map(f).sum::<f64>() / k;
+    let mean_opt = |f: &dyn Fn(&Row) -> Option<f64>| {
+        let v: Option<Vec<f64>> = runs.iter().map(f).collect();
+        v.map(|v| v.iter().sum::<f64>() / k)
+    };
+    let mut row = runs[0].clone();
+    row.input = mean(&|r| r.input);
+    row.oidn_uniform = mean_opt(&|r| r.oidn_uniform);
+    for (j, mr) in row.methods.iter_mut().enumerate() {
+        let m = |f: &dyn Fn(&MethodRow) -> f64| mean(&|r: &Row| f(&r.methods[j]));
+        let mo = |f: &dyn Fn(&MethodRow) -> Option<f64>| mean_opt(&|r: &Row| f(&r.methods[j]));
+        mr.uniform = m(&|x| x.uniform);
+        mr.uniform_estimate = m(&|x| x.uniform_estimate);
+        mr.adaptive = m(&|x| x.adaptive);
+        mr.adaptive_estimate = m(&|x| x.adaptive_estimate);
+        mr.uniform_rate = m(&|x| x.uniform_rate);
+        mr.adaptive_rate = m(&|x| x.adaptive_rate);
+        mr.adaptive_gpu = m(&|x| x.adaptive_gpu);
+        mr.equal_time = mo(&|x| x.equal_time);
+        mr.oidn_adaptive = mo(&|x| x.oidn_adaptive);
+    }
+    row
+}
+
+/// One seed's uniform render (every method) and adaptive runs at `n` spp.
+#[allow(clippy::too_many_arguments)] // the scene's pieces, as scene_rows holds them
+fn one_seed(
+    ctx: &Arc<GpuContext>,
+    a: &Args,
+    scene: &Scene,
+    stem: &str,
+    n: u32,
+    seed: u64,
+    r: &RgbImage,
+    methods: &[Method],
+    options: &Options,
+) -> anyhow::Result<Row> {
+    let (w, h) = a.size;
+    let px = (w * h) as f64;
+    let stop = AtomicBool::new(false);
+    let mut row = Row {
+        scene: stem.to_string(),
+        spp: n,
+        ..Default::default()
+    };
+    let tag = format!("{stem}-{n}-s{seed}");
+    // Uniform: one render, every method.
+    let uniform = Renderer::new(ctx, scene, w, h, seed)?;
+    let mut b = Batch::new(ctx)?;
+    uniform.record_clear(&mut b);
+    uniform.record_pass(&mut b, Samples::Uniform(n))?;
+    let uniform_secs = render_ms(&b.finish()?) / 1e3;
+    let uniform_rate = n as f64 * px / uniform_secs;
+    let stats = uniform.statistics()?;
+    row.input = metrics::rmse(&colour_of(&stats), r);
+    let stats_path = a.work.join(format!("{tag}-uniform.exr"));
+    io::write_stats(&stats_path, &stats)?;
+    let mut oidn_pairs = vec![(stats_path, a.work.join(format!("{tag}-uniform-oidn.exr")))];
+    for &m in methods {
+        let (frame, recon_secs) = reconstruct(ctx, &uniform, m, options)?;
+        let mut mr = MethodRow {
+            method: m.name().into(),
+            uniform: metrics::rmse(&frame.color, r),
+            uniform_estimate: metrics::estimated_rmse(&frame.color, &frame.error),
+            uniform_rate,
+            ..Default::default()
+        };
+        // Adaptive, same seed and total.
+        let ar = Renderer::new(ctx, scene, w, h, seed)?;
+        let out = adaptive::render(ctx, &ar, &loop_config(m, n, true, options), &stop, |_| {})?;
+        let sp = &out.split;
+        mr.adaptive_gpu = (sp.render_ms + sp.reconstruction_ms + sp.sampling_ms) / 1e3;
+        mr.adaptive = metrics::rmse(&out.frame.color, r);
+        mr.adaptive_estimate = metrics::estimated_rmse(&out.frame.color, &out.frame.error);
+        mr.adaptive_rate = out.samples as f64 / (out.split.render_ms / 1e3);
+        if a.oidn {
+            let p = a.work.join(format!("{tag}-{}-adaptive.exr", m.name()));
+            io::write_stats(&p, &ar.statistics()?)?;
+            oidn_pairs.push((
+                p,
+                a.work.join(format!("{tag}-{}-adaptive-oidn.exr", m.name())),
+            ));
+        }
+        if a.equal_time {
+            // The uniform render's GPU seconds per sample and this method's
+            // reconstruction: what fits in the adaptive run's GPU time.
+            let per_sample = uniform_secs / (n as f64 * px);
+            let spp = ((mr.adaptive_gpu - recon_secs) / per_sample / px)
+                .floor()
+                .max(1.0) as u32;
+            let eq = Renderer::new(ctx, scene, w, h, seed)?;
+            let mut b = Batch::new(ctx)?;
+            eq.record_clear(&mut b);
+            eq.record_pass(&mut b, Samples::Uniform(spp))?;
+            b.finish()?;
+            let (frame, _) = reconstruct(ctx, &eq, m, options)?;
+            mr.equal_time_spp = Some(spp);
+            mr.equal_time = Some(metrics::rmse(&frame.color, r));
+        }
+        row.methods.push(mr);
+    }
+    if a.oidn {
+        let scores = oidn(&oidn_pairs, r)?;
+        row.oidn_uniform = Some(scores[0]);
+        for (mr, s) in row.methods.iter_mut().zip(&scores[1..]) {
+            mr.oidn_adaptive = Some(*s);
+        }
+    }
+    Ok(row)
 }
 
 fn fmt(v: Option<f64>) -> String {
