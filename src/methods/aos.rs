@@ -456,6 +456,7 @@ pub static INFO: MethodInfo = MethodInfo {
         dim: DimSource::Plain,
         floor: 0.0,
     },
+    error_scale: 1.0,
     align: 1,
     halo: |c| {
         let r = AosParams::new(c.pass, &c.options)?.radius;

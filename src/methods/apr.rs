@@ -441,6 +441,7 @@ pub static INFO: MethodInfo = MethodInfo {
         dim: DimSource::Plain,
         floor: 0.0,
     },
+    error_scale: 1.0,
     // The sparse centres lie every RADIUS pixels (§4.3).
     align: RADIUS as usize,
     halo: |c| {

@@ -636,6 +636,7 @@ pub static INFO: MethodInfo = MethodInfo {
         dim: DimSource::Plain,
         floor: 0.0,
     },
+    error_scale: 1.0,
     align: 1,
     halo: |_| Ok(reference::lp::RADIUS * (GRANULARITIES.len() + 1)),
     arena_bytes: |_, (w, h)| LpPlanes::scratch_bytes(w * h),

@@ -31,6 +31,7 @@ pub static INFO: MethodInfo = MethodInfo {
         dim: DimSource::Plain,
         floor: 0.0,
     },
+    error_scale: 1.0,
     align: 1,
     halo: |_| Ok(0),
     arena_bytes: registry::no_bytes,

@@ -53,6 +53,11 @@ pub struct MethodInfo {
     pub pass_cap: Option<f64>,
     /// Its parameters of §9.1 (before `sampling.smooth`).
     pub sampling: SamplingParams,
+    /// The factor by which its estimated rMSE (mean `E_i / (f̂_i² + 0.01)`)
+    /// is scaled where a stop rule judges the reconstruction against a
+    /// target: the geometric mean of true over estimated rMSE on the
+    /// tuning scenes (ERROR-SCALE). Its `E_i` and sample maps do not use it.
+    pub error_scale: f64,
     /// The multiple of which a tile's first column and row must be so that
     /// its grid keeps the image's phase (1: no grid).
     pub align: usize,

@@ -495,6 +495,7 @@ pub static INFO: MethodInfo = MethodInfo {
         dim: DimSource::Kflags,
         floor: 0.0,
     },
+    error_scale: 1.0,
     align: 1,
     halo: |c| {
         let r = WlrParams::new(c.pass, &c.options)?.radius as usize;

@@ -107,6 +107,13 @@ pub fn next_budget(history: &[(f64, f64)], target: Option<f64>, pixels: usize, c
     (want.ceil() as u64).min(cap - spent_u)
 }
 
+/// The rMSE an open-ended render judges `frame` by: the method's estimate
+/// ([`crate::metrics::estimated_rmse`]) times its
+/// [`crate::MethodInfo::error_scale`].
+pub fn stop_estimate(method: Method, frame: &Frame) -> f64 {
+    method.info().error_scale * crate::metrics::estimated_rmse(&frame.color, &frame.error)
+}
+
 /// The per-pass cap a method's adaptive render uses by default
 /// ([`LoopConfig::pass_cap`], [`crate::MethodInfo::pass_cap`]): 4× the
 /// pass's mean for LP (LP-CAP), none otherwise.
@@ -429,7 +436,7 @@ impl Runner<'_> {
             let t = Instant::now();
             let frame = self.reconstruct(&last)?;
             let mut overhead = t.elapsed().as_secs_f64();
-            let e = crate::metrics::estimated_rmse(&frame.color, &frame.error);
+            let e = stop_estimate(self.cfg.method, &frame);
             history.push((self.samples as f64, e));
             progress(&PassProgress {
                 done,

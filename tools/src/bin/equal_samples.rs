@@ -73,6 +73,14 @@ struct Args {
     /// Method option key=value for every reconstruction (repeatable).
     #[arg(long = "opt", value_name = "KEY=VALUE")]
     opts: Vec<String>,
+    /// Also, per scene and method, an open-ended adaptive render
+    /// (`--target-error`) whose target is the uniform run's true rMSE at the
+    /// largest `--spp` (less the reference's error), bounded at 4× that spp:
+    /// the estimate and the true rMSE where it stopped, its spp, and the
+    /// uniform spp that reaches the same true rMSE (log-log between the two
+    /// uniform points).
+    #[arg(long)]
+    target: bool,
     /// Also write the rows as JSON here.
     #[arg(long)]
     json: Option<PathBuf>,
@@ -102,6 +110,22 @@ struct MethodRow {
     equal_time: Option<f64>,
     /// OIDN on this method's adaptive statistics.
     oidn_adaptive: Option<f64>,
+}
+
+/// One scene and method rendered to a target error.
+#[derive(Clone, Debug, Default, Serialize)]
+struct TargetRow {
+    scene: String,
+    method: String,
+    target: f64,
+    /// The stop rule's estimate at the stop.
+    estimate: f64,
+    /// The true rMSE at the stop, less the reference's error.
+    truth: f64,
+    /// Average spp spent.
+    spp: f64,
+    /// Uniform spp that reach `truth` (interpolated).
+    uniform_spp: f64,
 }
 
 /// One scene and spp.
@@ -199,7 +223,7 @@ fn scene_rows(
     name: &str,
     methods: &[Method],
     options: &Options,
-) -> anyhow::Result<Vec<Row>> {
+) -> anyhow::Result<(Vec<Row>, Vec<TargetRow>)> {
     let scene = Scene::by_name_or_file(name)?;
     let stop = AtomicBool::new(false);
     let t = Instant::now();
@@ -260,7 +284,67 @@ fn scene_rows(
         }
         rows.push(row);
     }
-    Ok(rows)
+    let targets = if a.target {
+        target_rows(ctx, a, &scene, &rows, &r, ref_err, methods, options)?
+    } else {
+        Vec::new()
+    };
+    Ok((rows, targets))
+}
+
+/// `--target`: per method, the open-ended render to the uniform run's
+/// rMSE at the largest spp (see [`Args::target`]).
+#[allow(clippy::too_many_arguments)] // the scene's pieces, as scene_rows holds them
+fn target_rows(
+    ctx: &Arc<GpuContext>,
+    a: &Args,
+    scene: &Scene,
+    rows: &[Row],
+    r: &RgbImage,
+    ref_err: f64,
+    methods: &[Method],
+    options: &Options,
+) -> anyhow::Result<Vec<TargetRow>> {
+    let (lo, hi) = (
+        rows.iter().min_by_key(|x| x.spp).context("rows")?,
+        rows.iter().max_by_key(|x| x.spp).context("rows")?,
+    );
+    let (w, h) = a.size;
+    let stop = AtomicBool::new(false);
+    let mut out = Vec::new();
+    for (k, &m) in methods.iter().enumerate() {
+        let el = corrected(lo.methods[k].uniform, ref_err);
+        let eh = corrected(hi.methods[k].uniform, ref_err);
+        let renderer = Renderer::new(ctx, scene, w, h, a.seeds[0])?;
+        let cfg = LoopConfig {
+            stop: Some(adaptive::StopRules {
+                target_error: Some(eh),
+                time_limit: None,
+                max_spp: 4 * hi.spp,
+            }),
+            ..loop_config(m, hi.spp, true, options)
+        };
+        let res = adaptive::render(ctx, &renderer, &cfg, &stop, |_| {})?;
+        let truth = corrected(metrics::rmse(&res.frame.color, r), ref_err);
+        // Uniform: e ∝ n^-α through (lo.spp, el) and (hi.spp, eh).
+        let alpha = (el / eh).ln() / (hi.spp as f64 / lo.spp as f64).ln();
+        let uniform_spp = hi.spp as f64 * (eh / truth).powf(1.0 / alpha);
+        let t = TargetRow {
+            scene: hi.scene.clone(),
+            method: m.name().into(),
+            target: eh,
+            estimate: adaptive::stop_estimate(m, &res.frame),
+            truth,
+            spp: res.samples as f64 / (w * h) as f64,
+            uniform_spp,
+        };
+        eprintln!(
+            "  {} {} to {:.5}: estimate {:.5}, true {:.5} at {:.1} spp (uniform needs {:.1})",
+            t.scene, t.method, t.target, t.estimate, t.truth, t.spp, t.uniform_spp
+        );
+        out.push(t);
+    }
+    Ok(out)
 }
 
 /// The mean of per-seed rows (every number averaged; OIDN's where present).
@@ -475,13 +559,32 @@ fn main() -> anyhow::Result<()> {
     };
     std::fs::create_dir_all(&a.work)?;
     let ctx = Arc::new(GpuContext::new(&ContextOptions::default())?);
-    let mut rows = Vec::new();
+    let (mut rows, mut targets) = (Vec::new(), Vec::new());
     for s in &scenes {
-        rows.extend(scene_rows(&ctx, &a, s, &methods, &options)?);
+        let (r, t) = scene_rows(&ctx, &a, s, &methods, &options)?;
+        rows.extend(r);
+        targets.extend(t);
         if let Some(p) = &a.json {
-            std::fs::write(p, serde_json::to_string_pretty(&rows)? + "\n")?;
+            let json = serde_json::json!({ "rows": rows, "targets": targets });
+            std::fs::write(p, serde_json::to_string_pretty(&json)? + "\n")?;
         }
     }
     print!("{}", markdown(&rows, &a, &methods));
+    if !targets.is_empty() {
+        println!("\n| scene | method | target | estimate at stop | true at stop | true / target | spp | uniform spp for the same true rMSE |\n|---|---|---|---|---|---|---|---|");
+        for t in &targets {
+            println!(
+                "| {} | {} | {:.5} | {:.5} | {:.5} | {:.2} | {:.1} | {:.1} |",
+                t.scene,
+                t.method,
+                t.target,
+                t.estimate,
+                t.truth,
+                t.truth / t.target,
+                t.spp,
+                t.uniform_spp
+            );
+        }
+    }
     Ok(())
 }
