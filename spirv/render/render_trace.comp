@@ -23,7 +23,7 @@ layout(push_constant) uniform Push {
     uint items;         // items in the window
     uint seed_lo;
     uint seed_hi;
-    uint pad;
+    uint uniform_spp;   // > 0: every pixel has this many samples (no search)
 } push;
 
 // Per pixel: (exclusive prefix of the pass's counts, count plane at the
@@ -538,10 +538,11 @@ void main()
         return;
     }
     // Item i is sample i - prefix[p] of the last pixel p with prefix[p] <= i
-    // (it has a non-zero count): a binary search, ~log2(pixels) steps.
+    // (it has a non-zero count): a binary search, ~log2(pixels) steps, or
+    // i / spp in a uniform pass.
     uint i = push.item0 + j;
-    uint lo = 0u;
-    uint hi = push.width * push.height;
+    uint lo = push.uniform_spp > 0u ? i / push.uniform_spp : 0u;
+    uint hi = push.uniform_spp > 0u ? lo + 1u : push.width * push.height;
     while (hi - lo > 1u) {
         uint mid = (lo + hi) >> 1u;
         if (scan[mid].x <= i) {

@@ -36,14 +36,15 @@
 //!   in sample order, so the same seed gives bit-identical planes for the
 //!   same samples per pixel however they are split into passes, windows
 //!   and bands.
-//! - Work: one invocation per sample, not per pixel. A pass numbers its
-//!   samples (`render_scan`: an exclusive prefix sum of its per-pixel
-//!   counts), traces windows of them (`render_trace`, each sample's values
-//!   to a scratch buffer) and adds each window to the planes
-//!   (`render_resolve`: one invocation per pixel's run of samples, in
-//!   sample order; gather, no atomics). So a pass costs its number of
-//!   samples: a sample map that puts thousands of samples in a few pixels
-//!   traces as fast as a uniform pass (SIMD lanes are samples, not pixels).
+//! - Work (RENDER-ITEMS): one invocation per sample, not per pixel. A pass
+//!   numbers its samples (`render_scan`: an exclusive prefix sum of its
+//!   per-pixel counts), traces windows of them (`render_trace`, each
+//!   sample's values to a scratch buffer) and adds each window to the
+//!   planes (`render_resolve`: one invocation per pixel's run of samples,
+//!   in sample order; gather, no atomics). So a pass costs what its
+//!   samples cost, however crowded: a sample map that puts thousands of
+//!   samples in a few pixels traces them at the rate a uniform pass traces
+//!   those pixels (SIMD lanes are samples, not pixels).
 //!
 //! What one sample adds (all features at the first hit; a miss adds 0 to
 //! every feature and 1 to the count): colour, albedo (emitters: their
@@ -90,8 +91,9 @@ pub struct TracePush {
     pub seed_lo: u32,
     /// High 32 bits of the seed.
     pub seed_hi: u32,
-    /// Padding.
-    pub pad: u32,
+    /// Samples per pixel of a uniform pass (the pixel of item `i` is
+    /// `i / uniform_spp`); 0: a map pass (binary search in the prefix sums).
+    pub uniform_spp: u32,
 }
 
 /// Push constants of `render_scan` (mirrors its `Push` block).
@@ -174,7 +176,7 @@ pub const RESOLVE_CHUNK: u32 = 1 << 15;
 pub const RESOLVE_LANES: u32 = 4096;
 
 /// Pixels per block of `render_scan`: an invocation of its phases 0 and 2
-/// loops over one block; phase 1 loops over `blocks / 64` block sums, 64 at
+/// loops over one block; phase 1 loops over `blocks / 64` block sums, 256 at
 /// 4 Mpixels.
 pub const SCAN_BLOCK: u32 = 256;
 
@@ -474,8 +476,8 @@ impl Renderer {
     /// order), and windows of at most [`ITEM_WINDOW`] items are traced
     /// (`render_trace`, one invocation per sample, split into bands of
     /// whole grid rows by their estimated work, [`Batch::dispatch`]) and
-    /// then added to the planes (`render_resolve`). A pass's cost is its
-    /// number of samples, however they are spread over the pixels.
+    /// then added to the planes (`render_resolve`). A pass costs what its
+    /// samples cost, however they are spread over the pixels.
     ///
     /// A uniform pass of more than 2^32 − 1 samples is recorded as several
     /// passes (the items are counted in u32); the planes do not change.
@@ -569,7 +571,7 @@ impl Renderer {
                 items,
                 seed_lo: self.seed as u32,
                 seed_hi: (self.seed >> 32) as u32,
-                pad: 0,
+                uniform_spp,
             };
             batch.dispatch(
                 &TRACE,
