@@ -48,7 +48,11 @@ uint samples_of(uint p)
 void main()
 {
     if (push.phase == 1u) {
-        // One workgroup: invocation t scans blocks [t * per, (t + 1) * per).
+        // One workgroup (the host dispatches one; any other would race):
+        // invocation t scans blocks [t * per, (t + 1) * per).
+        if (gl_WorkGroupID != uvec3(0u)) {
+            return;
+        }
         uint t = gl_LocalInvocationIndex;
         uint per = (push.blocks + gl_WorkGroupSize.x - 1u) / gl_WorkGroupSize.x;
         uint b0 = min(t * per, push.blocks);
