@@ -58,11 +58,17 @@ fn main() -> anyhow::Result<()> {
             .iter()
             .filter(|k| k.kernel == "render_trace")
             .count();
+        // GPU time per kernel: tracing against numbering and resolving.
+        let kernels: Vec<String> = mcdenoise::gpu::batch::timings_per_kernel(&timings)
+            .iter()
+            .map(|(k, ns, _)| format!("{k} {:.0} ms", ns / 1e6))
+            .collect();
         println!(
-            "{name:<14} {:>6} {spp:>5} {secs:>10.2} {:>12.0} {:>10.3}   ({bands} bands)",
+            "{name:<14} {:>6} {spp:>5} {secs:>10.2} {:>12.0} {:>10.3}   ({bands} bands; {})",
             format!("{size}²"),
             samples / secs,
-            secs / spp as f64
+            secs / spp as f64,
+            kernels.join(", ")
         );
         if let Some(dir) = &out {
             std::fs::create_dir_all(dir)?;

@@ -15,13 +15,20 @@ fn all() -> impl Iterator<Item = &'static KernelDecl> {
 }
 
 /// Kernels with no float arithmetic at all (the §9.2 allocation is exact
-/// integer arithmetic): their `_f64` variant is the same code.
-const INTEGER_ONLY: &[&str] = &["sample_reduce", "sample_scan"];
+/// integer arithmetic, and so is the renderer's prefix sum of its counts):
+/// their `_f64` variant is the same code.
+const INTEGER_ONLY: &[&str] = &["sample_reduce", "sample_scan", "render_scan"];
 
 /// Kernels that compute in f32 by design and never use `real`: the path
 /// tracer (`src/render/`), and LP's centre selection (it compares stored
 /// f32 reaches with distances); their `_f64` variant is the same code.
-const F32_ONLY: &[&str] = &["render_trace", "render_rays", "render_lights", "lp_select"];
+const F32_ONLY: &[&str] = &[
+    "render_trace",
+    "render_rays",
+    "render_lights",
+    "render_resolve",
+    "lp_select",
+];
 
 /// Kernels that only move data (the bandwidth probe of `bench --peak`, the
 /// G-buffer prefilter's and APR's packing): their `_f64` variant is the same code.
@@ -46,6 +53,9 @@ fn every_kernel_matches_its_declaration() {
                 [mcdenoise::kernels::lp_centres::GROUP, 1, 1]
             } else if decl.name == "lp_reach" || decl.name == "lp_select" {
                 // One row per workgroup row: any range of rows (LP-RING).
+                [64, 1, 1]
+            } else if ["render_trace", "render_scan", "render_resolve"].contains(&decl.name) {
+                // One invocation per sample, per block of pixels, per item.
                 [64, 1, 1]
             } else {
                 [8, 8, 1]

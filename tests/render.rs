@@ -9,7 +9,8 @@ use std::collections::BTreeMap;
 
 use mcdenoise::gpu::GpuBuffer;
 use mcdenoise::render::{
-    Albedo, Camera, Material, Object, Ray, Renderer, Samples, Scene, Shape, Texture,
+    Albedo, Camera, Material, Object, Ray, Renderer, Samples, Scene, Shape, Texture, GRID_WIDTH,
+    RESOLVE_CHUNK,
 };
 use mcdenoise::{Accumulator, Batch, Config, Denoiser, Layer, Method, Source};
 
@@ -859,7 +860,15 @@ fn zero_sample_map_region_adds_nothing() {
         .collect();
     let mb = GpuBuffer::from_slice(&ctx, "test.map", &map).unwrap();
     let mut b = Batch::new(&ctx).unwrap();
-    r.record_pass(&mut b, Samples::Map(mb.slice(), 3)).unwrap();
+    let total = map.iter().sum();
+    r.record_pass(
+        &mut b,
+        Samples::Map {
+            map: mb.slice(),
+            total,
+        },
+    )
+    .unwrap();
     b.finish().unwrap();
     let after = r.download().unwrap();
     let count = r.layout().count_plane();
@@ -883,7 +892,8 @@ fn zero_sample_map_region_adds_nothing() {
     check_validation(&ctx);
 }
 
-/// Two passes of 2 spp on 20×13; the planes and the number of bands.
+/// Two passes of 2 spp on 20×13; the planes and the number of
+/// `render_trace` bands.
 fn two_passes(s: &Scene, max_flops: f64, seed: u64) -> (Vec<Vec<f32>>, usize) {
     let ctx = gpu();
     let r = Renderer::new(&ctx, s, 20, 13, seed).unwrap();
@@ -893,7 +903,8 @@ fn two_passes(s: &Scene, max_flops: f64, seed: u64) -> (Vec<Vec<f32>>, usize) {
     for _ in 0..2 {
         r.record_pass(&mut b, Samples::Uniform(2)).unwrap();
     }
-    let bands = b.finish().unwrap().len();
+    let t = b.finish().unwrap();
+    let bands = t.iter().filter(|k| k.kernel == "render_trace").count();
     (r.download().unwrap(), bands)
 }
 
@@ -906,12 +917,14 @@ fn rerender_is_bit_identical_and_band_independent() {
     let s = textured_scene();
     let (one_band, n1) = two_passes(&s, 1e15, 9);
     let r = Renderer::new(&ctx, &s, 20, 13, 9).unwrap();
-    let per_row = r.flops_per_sample() * 2.0 * 20.0;
-    // Bands of 8 rows (the workgroup height), a submit per band.
-    let (banded, n2) = two_passes(&s, per_row * 3.0, 9);
+    // A grid row of render_trace is GRID_WIDTH samples.
+    let per_row = r.flops_per_sample() * GRID_WIDTH as f64;
+    // Bands of one grid row, a submit per band.
+    let (banded, n2) = two_passes(&s, per_row * 1.5, 9);
     let (again, _) = two_passes(&s, 1e15, 9);
-    // With timestamps, one timing per band: 1 per pass vs 2 (8 + 5 rows).
-    assert!(n2 == 0 || (n1 == 2 && n2 == 4), "bands: {n1} vs {n2}");
+    // With timestamps, one timing per band: 1 per pass vs one per grid row
+    // (520 samples a pass: 9 rows).
+    assert!(n2 == 0 || (n1 == 2 && n2 == 18), "bands: {n1} vs {n2}");
     for (i, ((a, b), c)) in one_band.iter().zip(&banded).zip(&again).enumerate() {
         for p in 0..a.len() {
             assert_eq!(a[p].to_bits(), b[p].to_bits(), "plane {i} pixel {p}: bands");
@@ -929,10 +942,10 @@ fn rerender_is_bit_identical_and_band_independent() {
     r.record_pass(&mut b, Samples::Uniform(4)).unwrap();
     b.finish().unwrap();
     let single = r.download().unwrap();
-    // record_uniform with a small submit budget: one sample per pass.
+    // record_uniform with a small submit budget: a band per grid row.
     let r2 = Renderer::new(&ctx, &s, 20, 13, 9).unwrap();
     let mut b = Batch::new(&ctx).unwrap();
-    b.max_flops_per_submit = per_row * 8.0 * 0.5;
+    b.max_flops_per_submit = per_row * 0.5;
     r2.record_uniform(&mut b, 4).unwrap();
     let t = b.finish().unwrap();
     let dispatches = t.iter().filter(|k| k.kernel == "render_trace").count();
@@ -979,6 +992,196 @@ fn every_builtin_scene_renders_deterministically() {
     check_validation(&ctx);
 }
 
+/// Every plane of `a` equals `b`'s bit for bit.
+fn assert_planes_eq(a: &[Vec<f32>], b: &[Vec<f32>], what: &str) {
+    assert_eq!(a.len(), b.len(), "{what}: planes");
+    for (i, (a, b)) in a.iter().zip(b).enumerate() {
+        for p in 0..a.len() {
+            assert_eq!(
+                a[p].to_bits(),
+                b[p].to_bits(),
+                "{what}: plane {i} pixel {p}"
+            );
+        }
+    }
+}
+
+/// A map pass whose map is uniform equals a uniform pass bit for bit,
+/// after passes that left the pixels with different counts; a map pass
+/// whose `total` exceeds the map's sum adds the same.
+#[test]
+fn a_uniform_map_equals_a_uniform_pass() {
+    let ctx = gpu();
+    let s = textured_scene();
+    let (w, h) = (19usize, 11usize);
+    let uneven: Vec<u32> = (0..w * h).map(|p| (p % 5) as u32).collect();
+    let ub = GpuBuffer::from_slice(&ctx, "test.uneven", &uneven).unwrap();
+    let flat = vec![3u32; w * h];
+    let fb = GpuBuffer::from_slice(&ctx, "test.flat", &flat).unwrap();
+    let run = |last: Samples| {
+        let r = Renderer::new(&ctx, &s, w, h, 5).unwrap();
+        let mut b = Batch::new(&ctx).unwrap();
+        r.record_pass(&mut b, Samples::Uniform(2)).unwrap();
+        let total = uneven.iter().sum();
+        r.record_pass(
+            &mut b,
+            Samples::Map {
+                map: ub.slice(),
+                total,
+            },
+        )
+        .unwrap();
+        r.record_pass(&mut b, last).unwrap();
+        b.finish().unwrap();
+        r.download().unwrap()
+    };
+    let total = 3 * (w * h) as u32;
+    let uniform = run(Samples::Uniform(3));
+    let map = run(Samples::Map {
+        map: fb.slice(),
+        total,
+    });
+    assert_planes_eq(&uniform, &map, "uniform map vs uniform pass");
+    let over = run(Samples::Map {
+        map: fb.slice(),
+        total: total + 100,
+    });
+    assert_planes_eq(&uniform, &over, "a total above the map's sum");
+    check_validation(&ctx);
+}
+
+/// One pixel with 5,000 samples and most with none: one pass equals the
+/// same counts split over three passes, and the pass traced in windows of
+/// 1,000 samples. In one pass the big pixel's run crosses a resolve chunk
+/// (`RESOLVE_CHUNK`); in small windows it spans five windows.
+#[test]
+fn an_uneven_map_is_split_independent() {
+    let ctx = gpu();
+    let s = Scene::builtin("cornell").unwrap();
+    let (w, h) = (64usize, 40usize);
+    let n = w * h;
+    let big = 1234;
+    let mut counts = vec![0u32; n];
+    // 40 pixels before it hold RESOLVE_CHUNK - 2000 samples (30,760).
+    for k in 0..40 {
+        counts[big - 1 - 23 * k] = (RESOLVE_CHUNK - 2000) / 40;
+    }
+    counts[big] = 5000;
+    for p in (big + 1..n).step_by(11) {
+        counts[p] = (p % 4) as u32;
+    }
+    let before: u32 = counts[..big].iter().sum();
+    assert!(before < RESOLVE_CHUNK && before + counts[big] > RESOLVE_CHUNK);
+    // Three maps that add up to `counts`.
+    let parts: Vec<Vec<u32>> = (0..3u32)
+        .map(|k| {
+            counts
+                .iter()
+                .map(|&c| c / 3 + u32::from(k < c % 3))
+                .collect()
+        })
+        .collect();
+    let buffer = |c: &[u32]| GpuBuffer::from_slice(&ctx, "test.map", c).unwrap();
+    let pass = |r: &Renderer, c: &[u32]| {
+        let m = buffer(c);
+        let mut b = Batch::new(&ctx).unwrap();
+        let total = c.iter().sum();
+        r.record_pass(
+            &mut b,
+            Samples::Map {
+                map: m.slice(),
+                total,
+            },
+        )
+        .unwrap();
+        b.finish().unwrap();
+    };
+    let start = |window: Option<u32>| {
+        let mut r = Renderer::new(&ctx, &s, w, h, 3).unwrap();
+        if let Some(items) = window {
+            r.set_item_window(items).unwrap();
+        }
+        let mut b = Batch::new(&ctx).unwrap();
+        r.record_pass(&mut b, Samples::Uniform(1)).unwrap();
+        b.finish().unwrap();
+        r
+    };
+    let r = start(None);
+    pass(&r, &counts);
+    let one = r.download().unwrap();
+    let r = start(None);
+    for part in &parts {
+        pass(&r, part);
+    }
+    assert_planes_eq(&one, &r.download().unwrap(), "one pass vs three");
+    let r = start(Some(1000));
+    assert_eq!(r.item_window(), 1024);
+    pass(&r, &counts);
+    assert_planes_eq(&one, &r.download().unwrap(), "windows of 1024");
+    let l = r.layout();
+    let count = &one[l.count_plane()];
+    for p in 0..n {
+        assert_eq!(count[p], 1.0 + counts[p] as f32, "pixel {p}");
+    }
+    // The big pixel's mean is a mean of its 5,001 samples, like its
+    // neighbours' of one (within the noise of one sample).
+    let mean = one[l.sum_plane(0)][big] / count[big];
+    assert!(mean.is_finite() && mean > 0.0, "mean {mean}");
+    check_validation(&ctx);
+}
+
+/// `render_scan`'s items equal a host prefix sum: zero counts, all zeros,
+/// one pixel, sizes that are not multiples of the workgroup (64) or the
+/// block (256), more blocks (235) than its phase 1 has invocations, and
+/// count snapshots left by an uneven earlier pass.
+#[test]
+fn pass_items_equal_a_host_prefix_sum() {
+    let ctx = gpu();
+    let s = textured_scene();
+    let mut rng = Rng(77);
+    for (w, h) in [(1usize, 1usize), (7, 3), (37, 29), (300, 200)] {
+        let n = w * h;
+        let r = Renderer::new(&ctx, &s, w, h, 1).unwrap();
+        let earlier: Vec<u32> = (0..n).map(|_| (rng.next_u64() % 3) as u32).collect();
+        let eb = GpuBuffer::from_slice(&ctx, "test.earlier", &earlier).unwrap();
+        let mut b = Batch::new(&ctx).unwrap();
+        let total = earlier.iter().sum();
+        r.record_pass(
+            &mut b,
+            Samples::Map {
+                map: eb.slice(),
+                total,
+            },
+        )
+        .unwrap();
+        b.finish().unwrap();
+        let random: Vec<u32> = (0..n)
+            .map(|_| match rng.next_u64() % 10 {
+                0..=3 => 0,
+                4 => 1000 + (rng.next_u64() % 5000) as u32,
+                k => k as u32,
+            })
+            .collect();
+        for counts in [random, vec![0; n], vec![5; n]] {
+            let m = GpuBuffer::from_slice(&ctx, "test.counts", &counts).unwrap();
+            let samples = Samples::Map {
+                map: m.slice(),
+                total: counts.iter().sum(),
+            };
+            let mut want = vec![0u32; n + 1];
+            for p in 0..n {
+                want[p + 1] = want[p] + counts[p];
+            }
+            let (prefix, first) = r.pass_items(samples).unwrap();
+            assert_eq!(prefix, want, "{w}x{h} prefix");
+            assert_eq!(first, earlier, "{w}x{h} first sample indices");
+        }
+        let (prefix, _) = r.pass_items(Samples::Uniform(3)).unwrap();
+        assert!(prefix.iter().enumerate().all(|(p, &v)| v == 3 * p as u32));
+    }
+    check_validation(&ctx);
+}
+
 #[test]
 fn primitives_of_shapes() {
     // The host twin of the intersection on a case by hand.
@@ -1020,9 +1223,9 @@ fn renderer_and_denoiser_share_a_batch() {
     r.record_pass(&mut b, Samples::Uniform(4)).unwrap();
     d.record(&mut b, Some(r.accum()), Some(budget)).unwrap();
     let map = d.outputs().unwrap().samples.unwrap();
-    // The map's largest count is not known before the batch runs: the
-    // budget bounds it.
-    r.record_pass(&mut b, Samples::Map(map, budget)).unwrap();
+    // The map is not known before the batch runs; it sums to the budget.
+    r.record_pass(&mut b, Samples::Map { map, total: budget })
+        .unwrap();
     b.finish().unwrap();
     let frame = d.read().unwrap();
     let samples = frame.samples.unwrap();
@@ -1366,8 +1569,9 @@ fn the_renderer_is_a_facade_client() {
 
 /// lavapipe ends an invocation's loops after 65535 iterations in total: one
 /// pass of 1024 samples per pixel once kept only ~256 of them (the image a
-/// quarter as bright, with a count of 1024). Passes are traced in chunks of
-/// `RENDER_CHUNK` samples, so 1024 in one pass is bit-identical to four
+/// quarter as bright, with a count of 1024). Each sample is an invocation
+/// of its own now and each pixel's samples are resolved in chunks of at
+/// most `RESOLVE_CHUNK`, so 1024 in one pass is bit-identical to four
 /// passes of 256 and as bright as 64 spp.
 #[test]
 fn many_samples_in_one_pass_are_all_traced() {

@@ -1,8 +1,10 @@
 #version 460
-// The built-in path tracer: one invocation per pixel traces this pass's
-// samples of its pixel and adds them, one by one, to the accumulation planes
-// (src/accum.rs, layout with position and visibility). Host side:
-// src/render/mod.rs. One invocation owns its pixel: no atomics.
+// The built-in path tracer: one invocation per work item, i.e. per sample
+// of the pass. render_scan gives the items (an exclusive prefix sum of the
+// pass's per-pixel counts); this kernel traces a window of them and leaves
+// each sample's values in the items buffer, and render_resolve adds them to
+// the accumulation planes (src/accum.rs, layout with position and
+// visibility). Host side: src/render/mod.rs. No atomics.
 //
 // Per sample: box-filtered position in the pixel, thin-lens camera, shutter
 // time in [0, 1); diffuse BSDF with cosine sampling, next-event estimation
@@ -11,43 +13,34 @@
 // roulette after 3 vertices, environment on a miss.
 #include "render/render_scene.glsl"
 
-layout(local_size_x = 8, local_size_y = 8) in;
+layout(local_size_x = 64) in;
 
 // Mirrors mcdenoise::render::TracePush.
 layout(push_constant) uniform Push {
     uint width;
     uint height;
-    uint row0;
-    uint uniform_spp;   // samples per pixel when use_map == 0
-    uint use_map;       // 1: samples from spp_map
+    uint row0;          // first grid row of the band (Batch::dispatch)
+    uint item0;         // the window's first item (of the pass)
+    uint items;         // items in the window
     uint seed_lo;
     uint seed_hi;
-    uint plane_stride;  // floats between plane starts
-    uint debug_stride;  // > 0: write each sample's 14 values to dbg (test aid)
-    uint chunk;         // this dispatch traces samples [chunk, chunk + 1) * chunk_size
-    uint chunk_size;    // of each pixel's count (RENDER_CHUNK)
-    uint pad2;
+    uint uniform_spp;   // > 0: every pixel has this many samples (no search)
 } push;
 
-layout(std430, set = 0, binding = 5) readonly buffer SppMap { uint spp_map[]; };
-// The accumulation planes in four bindings of eight planes each (plane
-// 8g + k of group g at k * plane_stride), so that no binding exceeds
-// maxStorageBufferRange below 4 Mpixels.
-layout(std430, set = 0, binding = 6) buffer Accum0 { float acc0[]; };
-layout(std430, set = 0, binding = 7) buffer Accum1 { float acc1[]; };
-layout(std430, set = 0, binding = 8) buffer Accum2 { float acc2[]; };
-layout(std430, set = 0, binding = 9) buffer Accum3 { float acc3[]; };
-layout(std430, set = 0, binding = 10) buffer Debug { float dbg[]; };
+// Per pixel: (exclusive prefix of the pass's counts, count plane at the
+// start of the pass); entry width * height holds (total, 0) (render_scan).
+layout(std430, set = 0, binding = 5) readonly buffer Scan { uvec2 scan[]; };
+// Four uvec4 per item of the window: the float bits of the 14 values in
+// AccumLayout channel order (colour, albedo, normal, depth, position,
+// visibility), then the pixel (NO_PIXEL past the pass's samples) and the
+// sample index. Read by render_resolve (and Renderer::run_pass_debug).
+layout(std430, set = 0, binding = 6) buffer Items { uvec4 items[]; };
 // Per-vertex shading normals: three vec4 per entry; a triangle's entry
 // index is in the bits of its p3.w (0xffffffff: flat).
-layout(std430, set = 0, binding = 11) readonly buffer Normals { vec4 vnormals[]; };
+layout(std430, set = 0, binding = 7) readonly buffer Normals { vec4 vnormals[]; };
 
-// Plane indices of the accumulation layout with position and visibility
-// (AccumLayout: channels colour 0-2, albedo 3-5, normal 6-8, depth 9,
-// position 10-12, visibility 13; Σx at 2c, Σx² at 2c+1; cross products
-// 28-30; count 31), written at the end of main(). src/render/mod.rs tests
-// these against AccumLayout.
-// (Planes 24-31 are group 3: visibility Σ²…count at k = 3…7.)
+// The pixel of an item past the pass's samples (render_resolve skips it).
+#define NO_PIXEL 0xffffffffu
 
 // Random dimensions (pairs): camera 0-1, then 4 per path vertex.
 #define DIM_PIXEL 0u
@@ -544,90 +537,41 @@ void trace_sample(uvec4 key, uvec2 pix, out vec3 color, out vec3 albedo, out vec
 
 void main()
 {
-    uint x = gl_GlobalInvocationID.x;
-    uint y = push.row0 + gl_GlobalInvocationID.y;
-    if (x >= push.width || y >= push.height) {
+    uint row_items = gl_NumWorkGroups.x * gl_WorkGroupSize.x;
+    uint j = (push.row0 + gl_GlobalInvocationID.y) * row_items + gl_GlobalInvocationID.x;
+    if (j >= push.items) {
         return;
     }
-    uint pixel = y * push.width + x;
-    // llvmpipe ends every loop of an invocation once all its loops together
-    // have run 65535 iterations (LP_MAX_TGSI_LOOP_ITERATIONS, shared by all
-    // loops): a pixel tracing 1024 samples in one invocation silently kept
-    // ~256 of them. So each dispatch traces at most chunk_size samples per
-    // pixel, and the host records ceil(max count / chunk_size) dispatches.
-    uint total = push.use_map != 0u ? spp_map[pixel] : push.uniform_spp;
-    uint begin = push.chunk * push.chunk_size;
-    if (begin >= total) {
-        return;
-    }
-    uint spp = min(push.chunk_size, total - begin);
-    uint stride = push.plane_stride;
-    uint i0 = pixel;
-    uint i1 = stride + pixel;
-    uint i2 = 2u * stride + pixel;
-    uint i3 = 3u * stride + pixel;
-    uint i4 = 4u * stride + pixel;
-    uint i5 = 5u * stride + pixel;
-    uint i6 = 6u * stride + pixel;
-    uint i7 = 7u * stride + pixel;
-    float count = acc3[i7];
-    uint first = uint(count);
-
-    // The running sums start from the planes and add the samples one by one
-    // in sample order: the planes are bit-identical however the samples are
-    // split into passes (and bands).
-    vec3 s_col = vec3(acc0[i0], acc0[i2], acc0[i4]);
-    vec3 q_col = vec3(acc0[i1], acc0[i3], acc0[i5]);
-    vec3 s_alb = vec3(acc0[i6], acc1[i0], acc1[i2]);
-    vec3 q_alb = vec3(acc0[i7], acc1[i1], acc1[i3]);
-    vec3 s_nrm = vec3(acc1[i4], acc1[i6], acc2[i0]);
-    vec3 q_nrm = vec3(acc1[i5], acc1[i7], acc2[i1]);
-    vec3 s_pos = vec3(acc2[i4], acc2[i6], acc3[i0]);
-    vec3 q_pos = vec3(acc2[i5], acc2[i7], acc3[i1]);
-    vec3 s_cross = vec3(acc3[i4], acc3[i5], acc3[i6]);
-    vec4 s_dv = vec4(acc2[i2], acc2[i3], acc3[i2], acc3[i3]);   // Σdepth, Σdepth², Σvis, Σvis²
-    for (uint s = 0u; s < spp; s++) {
-        uvec4 key = uvec4(pixel, first + s, push.seed_hi, push.seed_lo);
-        vec3 col, alb, nrm, pos;
-        float dep, vis;
-        trace_sample(key, uvec2(x, y), col, alb, nrm, dep, pos, vis);
-        // Positions are accumulated relative to the lens centre (the
-        // layout's position_origin): f32 sums of raw world positions far
-        // from 0 lose the footprint's variance. A miss's position is 0, as
-        // before (input-format.md), i.e. -origin relative to it.
-        vec3 rel = pos - P.cam_pos.xyz;
-        s_col += col;
-        q_col += col * col;
-        s_alb += alb;
-        q_alb += alb * alb;
-        s_nrm += nrm;
-        q_nrm += nrm * nrm;
-        s_pos += rel;
-        q_pos += rel * rel;
-        s_cross += vec3(rel.x * rel.y, rel.x * rel.z, rel.y * rel.z);
-        s_dv += vec4(dep, dep * dep, vis, vis * vis);
-        if (push.debug_stride > 0u) {
-            uint b = (pixel * push.debug_stride + begin + s) * 14u;
-            dbg[b + 0u] = col.r;  dbg[b + 1u] = col.g;  dbg[b + 2u] = col.b;
-            dbg[b + 3u] = alb.r;  dbg[b + 4u] = alb.g;  dbg[b + 5u] = alb.b;
-            dbg[b + 6u] = nrm.x;  dbg[b + 7u] = nrm.y;  dbg[b + 8u] = nrm.z;
-            dbg[b + 9u] = dep;
-            dbg[b + 10u] = pos.x; dbg[b + 11u] = pos.y; dbg[b + 12u] = pos.z;
-            dbg[b + 13u] = vis;
+    // Item i is sample i - prefix[p] of the last pixel p with prefix[p] <= i
+    // (it has a non-zero count): a binary search, ~log2(pixels) steps, or
+    // i / spp in a uniform pass.
+    uint i = push.item0 + j;
+    uint lo = push.uniform_spp > 0u ? i / push.uniform_spp : 0u;
+    uint hi = push.uniform_spp > 0u ? lo + 1u : push.width * push.height;
+    while (hi - lo > 1u) {
+        uint mid = (lo + hi) >> 1u;
+        if (scan[mid].x <= i) {
+            lo = mid;
+        } else {
+            hi = mid;
         }
     }
-
-    // Planes 0-7: colour Σ, Σ² (R, G, B), albedo R.
-    acc0[i0] = s_col.r; acc0[i1] = q_col.r; acc0[i2] = s_col.g; acc0[i3] = q_col.g;
-    acc0[i4] = s_col.b; acc0[i5] = q_col.b; acc0[i6] = s_alb.r; acc0[i7] = q_alb.r;
-    // Planes 8-15: albedo G, B, normal X, Y.
-    acc1[i0] = s_alb.g; acc1[i1] = q_alb.g; acc1[i2] = s_alb.b; acc1[i3] = q_alb.b;
-    acc1[i4] = s_nrm.x; acc1[i5] = q_nrm.x; acc1[i6] = s_nrm.y; acc1[i7] = q_nrm.y;
-    // Planes 16-23: normal Z, depth, position X, Y.
-    acc2[i0] = s_nrm.z; acc2[i1] = q_nrm.z; acc2[i2] = s_dv.x;  acc2[i3] = s_dv.y;
-    acc2[i4] = s_pos.x; acc2[i5] = q_pos.x; acc2[i6] = s_pos.y; acc2[i7] = q_pos.y;
-    // Planes 24-31: position Z, visibility, cross products xy xz yz, count.
-    acc3[i0] = s_pos.z; acc3[i1] = q_pos.z; acc3[i2] = s_dv.z;  acc3[i3] = s_dv.w;
-    acc3[i4] = s_cross.x; acc3[i5] = s_cross.y; acc3[i6] = s_cross.z;
-    acc3[i7] = count + float(spp);
+    uint b = 4u * j;
+    if (i >= scan[lo + 1u].x) {
+        // Past the counts' total (a map that sums to less than the host's).
+        items[b + 3u] = uvec4(0u, 0u, NO_PIXEL, 0u);
+        return;
+    }
+    uint pixel = lo;
+    // The sample index counts the pixel's samples over all passes: the
+    // random numbers of a sample do not depend on how passes split them.
+    uint sample_index = scan[pixel].y + (i - scan[pixel].x);
+    uvec4 key = uvec4(pixel, sample_index, push.seed_hi, push.seed_lo);
+    vec3 col, alb, nrm, pos;
+    float dep, vis;
+    trace_sample(key, uvec2(pixel % push.width, pixel / push.width), col, alb, nrm, dep, pos, vis);
+    items[b] = floatBitsToUint(vec4(col, alb.r));
+    items[b + 1u] = floatBitsToUint(vec4(alb.gb, nrm.xy));
+    items[b + 2u] = floatBitsToUint(vec4(nrm.z, dep, pos.xy));
+    items[b + 3u] = uvec4(floatBitsToUint(pos.z), floatBitsToUint(vis), pixel, sample_index);
 }

@@ -322,14 +322,14 @@ impl Runner<'_> {
             .outputs()?
             .samples
             .ok_or_else(|| Error::Limit("this device cannot compute sample maps".into()))?;
-        // The largest count sets how many chunk dispatches the pass takes
-        // (render::RENDER_CHUNK): one small readback per pass.
-        let mut counts: Vec<u32> = crate::gpu::buffer::read_slice(self.ctx, map, pixels)?
-            .iter()
-            .map(|v| v.to_bits())
-            .collect();
         let pass_map = match (self.cfg.pass_cap, capped) {
             (Some(k), Some(buf)) => {
+                // Capping needs the counts on the host: one small readback
+                // per pass.
+                let mut counts: Vec<u32> = crate::gpu::buffer::read_slice(self.ctx, map, pixels)?
+                    .iter()
+                    .map(|v| v.to_bits())
+                    .collect();
                 let mean = budget as f64 / pixels as f64;
                 cap_counts(&mut counts, (k * mean).ceil().max(1.0) as u32);
                 buf.upload(0, bytemuck::cast_slice(&counts))?;
@@ -337,8 +337,17 @@ impl Runner<'_> {
             }
             _ => map,
         };
-        let max = counts.iter().copied().max().unwrap_or(0);
-        self.submit(&mut |b| r.record_pass(b, Samples::Map(pass_map, max)))?;
+        // The map sums to exactly the budget (§9.2), and capping keeps the
+        // total: the pass traces `budget` samples.
+        self.submit(&mut |b| {
+            r.record_pass(
+                b,
+                Samples::Map {
+                    map: pass_map,
+                    total: budget,
+                },
+            )
+        })?;
         self.samples += budget as u64;
         Ok(())
     }

@@ -38,7 +38,17 @@
 //!   the sample index of a pixel's `k`-th sample is `k`, counted by the
 //!   count plane, and each pixel adds its samples to its planes one by one
 //!   in sample order, so the same seed gives bit-identical planes for the
-//!   same samples per pixel however they are split into passes and bands.
+//!   same samples per pixel however they are split into passes, windows
+//!   and bands.
+//! - Work (RENDER-ITEMS): one invocation per sample, not per pixel. A pass
+//!   numbers its samples (`render_scan`: an exclusive prefix sum of its
+//!   per-pixel counts), traces windows of them (`render_trace`, each
+//!   sample's values to a scratch buffer) and adds each window to the
+//!   planes (`render_resolve`: one invocation per pixel's run of samples,
+//!   in sample order; gather, no atomics). So a pass costs what its
+//!   samples cost, however crowded: a sample map that puts thousands of
+//!   samples in a few pixels traces them at the rate a uniform pass traces
+//!   those pixels (SIMD lanes are samples, not pixels).
 //!
 //! What one sample adds (all features at the first hit; a miss adds 0 to
 //! every feature and 1 to the count): colour, albedo (emitters: their
@@ -75,37 +85,113 @@ pub struct TracePush {
     pub width: u32,
     /// Image height.
     pub height: u32,
-    /// First row of the band (set by [`Batch::dispatch`]).
+    /// First grid row of the band (set by [`Batch::dispatch`]); a grid row
+    /// is [`GRID_WIDTH`] items.
     pub row0: u32,
-    /// Samples per pixel when `use_map` is 0.
-    pub uniform_spp: u32,
-    /// 1: samples per pixel from the sample map binding.
-    pub use_map: u32,
+    /// The window's first item (of the pass).
+    pub item0: u32,
+    /// Items in the window.
+    pub items: u32,
     /// Low 32 bits of the seed.
     pub seed_lo: u32,
     /// High 32 bits of the seed.
     pub seed_hi: u32,
-    /// f32 values between plane starts.
-    pub plane_stride: u32,
-    /// Non-zero: each sample's 14 values go to the debug binding, this many
-    /// samples per pixel apart (a test aid).
-    pub debug_stride: u32,
-    /// This dispatch traces samples `[chunk·chunk_size, (chunk+1)·chunk_size)`
-    /// of each pixel's count.
-    pub chunk: u32,
-    /// [`RENDER_CHUNK`].
-    pub chunk_size: u32,
+    /// Samples per pixel of a uniform pass (the pixel of item `i` is
+    /// `i / uniform_spp`); 0: a map pass (binary search in the prefix sums).
+    pub uniform_spp: u32,
+}
+
+/// Push constants of `render_scan` (mirrors its `Push` block).
+#[repr(C)]
+#[derive(Copy, Clone, Debug, Default, Pod, Zeroable)]
+pub struct ScanPush {
+    /// Pixels of the image.
+    pub pixels: u32,
+    /// Blocks of [`SCAN_BLOCK`] pixels (the last one may be partial).
+    pub blocks: u32,
+    /// First grid row of the band (set by [`Batch::dispatch`]).
+    pub row0: u32,
+    /// 0: block sums; 1: their exclusive prefix (one workgroup); 2: the
+    /// per-pixel entries.
+    pub phase: u32,
+    /// [`SCAN_BLOCK`].
+    pub block: u32,
+    /// Samples per pixel when `use_map` is 0.
+    pub uniform_spp: u32,
+    /// 1: samples per pixel from the sample map binding.
+    pub use_map: u32,
     /// Padding.
     pub pad: u32,
 }
 
-/// Samples per pixel one dispatch traces at most. lavapipe (llvmpipe) ends
-/// all loops of an invocation after 65535 iterations in total
+/// Push constants of `render_resolve` (mirrors its `Push` block).
+#[repr(C)]
+#[derive(Copy, Clone, Debug, Default, Pod, Zeroable)]
+pub struct ResolvePush {
+    /// First item to resolve (an index into the window's items).
+    pub begin: u32,
+    /// One past the last (`end - begin` ≤ [`RESOLVE_CHUNK`]).
+    pub end: u32,
+    /// First grid row of the band (set by [`Batch::dispatch`]).
+    pub row0: u32,
+    /// f32 values between plane starts.
+    pub plane_stride: u32,
+    /// The layout's position origin (the lens centre) in xyz; w unused.
+    pub origin: [f32; 4],
+    /// The window's first item (of the pass).
+    pub item0: u32,
+    /// Pixels of the image.
+    pub pixels: u32,
+    /// [`RESOLVE_LANES`]: invocation `k` takes the resolve's pixels
+    /// `first + k`, `first + k + lanes`, …
+    pub lanes: u32,
+    /// Padding.
+    pub pad: u32,
+}
+
+/// Items (samples) one grid row of `render_trace` and `render_resolve`
+/// holds: the grid is `GRID_WIDTH × rows`, so [`Batch::dispatch`] splits a
+/// window into bands of whole rows. The kernels read the row width from
+/// their dispatch (`gl_NumWorkGroups.x · gl_WorkGroupSize.x`).
+pub const GRID_WIDTH: u32 = 64;
+
+/// Most items one `render_trace` dispatch sequence traces before their
+/// values are resolved (a window): the items buffer holds 64 bytes per
+/// item, so 2^18 items take 16 MiB. A window costs one barrier and the
+/// tail of its last band; at ~3 µs per sample on lavapipe it is ~0.8 s of
+/// tracing, so that cost is far below 1 %.
+pub const ITEM_WINDOW: u32 = 1 << 18;
+
+/// Most items one `render_resolve` dispatch covers. lavapipe (llvmpipe)
+/// ends all loops of an invocation after 65535 iterations in total
 /// (`LP_MAX_TGSI_LOOP_ITERATIONS`, shared by every loop of the shader): one
-/// invocation tracing 1024 samples of the Cornell box silently kept ~256.
-/// A sample of the built-in scenes runs a few hundred loop iterations
-/// (BVH traversal of every ray of its path), so 8 stay far below the limit.
-pub const RENDER_CHUNK: u32 = 8;
+/// invocation once tracing 1024 samples of the Cornell box silently kept
+/// ~256. An invocation of the resolve adds its pixels' runs of items, so a
+/// pixel with very many samples is resolved in chunks of at most this
+/// many, one dispatch after the other; with the pixel loop
+/// (≤ pixels / [`RESOLVE_LANES`] + 1) an invocation stays below 37,000
+/// iterations up to 16 Mpixels.
+pub const RESOLVE_CHUNK: u32 = 1 << 15;
+
+/// Invocations of one `render_resolve` dispatch: enough that a pass of one
+/// sample per pixel gives each a few neighbouring pixels (8 in a chunk of
+/// [`RESOLVE_CHUNK`]), few enough that the many invocations without a pixel
+/// cost little (its grid is 64 workgroups; one per item was ~10 % of a
+/// 16-spp pass's GPU time on lavapipe).
+pub const RESOLVE_LANES: u32 = 4096;
+
+/// Pixels per block of `render_scan`: an invocation of its phases 0 and 2
+/// loops over one block; phase 1 loops over `blocks / 64` block sums, 256 at
+/// 4 Mpixels.
+pub const SCAN_BLOCK: u32 = 256;
+
+/// Bytes of one item: four uvec4 (the 14 values, the pixel, the sample index).
+const ITEM_BYTES: u64 = 64;
+
+/// Estimated operations of `render_resolve` per item (the accumulation of
+/// 14 values, 31 sums) and of `render_scan` per pixel and phase.
+const RESOLVE_FLOPS: f64 = 60.0;
+const SCAN_FLOPS: f64 = 4.0;
 
 /// Push constants of `render_rays` (mirrors its `Push` block).
 #[repr(C)]
@@ -129,7 +215,8 @@ const SCENE_BINDINGS: [crate::gpu::BindingDecl; 5] = [
     read("lights"),
 ];
 
-/// The path-tracing kernel (`spirv/render/render_trace.comp`).
+/// The path-tracing kernel (`spirv/render/render_trace.comp`): one
+/// invocation per item (sample) of a window.
 pub const TRACE: KernelDecl = KernelDecl {
     name: "render_trace",
     bindings: &[
@@ -138,15 +225,39 @@ pub const TRACE: KernelDecl = KernelDecl {
         SCENE_BINDINGS[2],
         SCENE_BINDINGS[3],
         SCENE_BINDINGS[4],
+        read("scan"),
+        write("items"),
+        read("normals"),
+    ],
+    push_size: std::mem::size_of::<TracePush>() as u32,
+};
+
+/// The items of a pass (`spirv/render/render_scan.comp`): the exclusive
+/// prefix sum of its per-pixel counts and each pixel's count at its start.
+pub const SCAN: KernelDecl = KernelDecl {
+    name: "render_scan",
+    bindings: &[
         read("spp_map"),
+        read("count"),
+        write("scan"),
+        write("blocks"),
+    ],
+    push_size: std::mem::size_of::<ScanPush>() as u32,
+};
+
+/// Adds traced items to the accumulation planes
+/// (`spirv/render/render_resolve.comp`), each pixel's in sample order.
+pub const RESOLVE: KernelDecl = KernelDecl {
+    name: "render_resolve",
+    bindings: &[
+        read("items"),
+        read("scan"),
         write("accum0"),
         write("accum1"),
         write("accum2"),
         write("accum3"),
-        write("debug"),
-        read("normals"),
     ],
-    push_size: std::mem::size_of::<TracePush>() as u32,
+    push_size: std::mem::size_of::<ResolvePush>() as u32,
 };
 
 /// The light-selection kernel (`spirv/render/render_lights.comp`), a test
@@ -180,23 +291,32 @@ pub const RAYS: KernelDecl = KernelDecl {
     push_size: std::mem::size_of::<RaysPush>() as u32,
 };
 
-/// Planes per accumulation binding of `render_trace` (four bindings of
+/// Planes per accumulation binding of `render_resolve` (four bindings of
 /// eight: no binding exceeds 128 MiB below 4 Mpixels).
 const ACCUM_GROUP: u64 = 8;
 
 /// Every kernel of the renderer (for the reflection test).
-pub const KERNELS: &[&KernelDecl] = &[&TRACE, &RAYS, &LIGHTS];
+pub const KERNELS: &[&KernelDecl] = &[&TRACE, &RAYS, &LIGHTS, &SCAN, &RESOLVE];
 
 /// How many samples a pass adds per pixel.
 #[derive(Copy, Clone, Debug)]
 pub enum Samples {
     /// The same number in every pixel.
     Uniform(u32),
-    /// One u32 per pixel (row-major), e.g. the denoiser's sample map
-    /// ([`Outputs::samples`](crate::Outputs)), and the largest count in it
-    /// (it sets how many [`RENDER_CHUNK`]-sample dispatches the pass takes;
-    /// counts above it are not traced). A pixel with 0 costs nothing.
-    Map(BufferSlice, u32),
+    /// A count per pixel: `map` holds one u32 per pixel (row-major), e.g.
+    /// the denoiser's sample map ([`Outputs::samples`](crate::Outputs)),
+    /// and `total` is the sum of its counts, which the host knows without
+    /// reading the map back: a sample map sums to exactly its budget. The
+    /// pass traces `total` samples, whatever their spread (a pixel with 0
+    /// costs nothing). Should the map sum to more, the samples past the
+    /// first `total` in pixel order are not traced (nor counted); should
+    /// it sum to less, the missing ones trace nothing.
+    Map {
+        /// One u32 per pixel.
+        map: BufferSlice,
+        /// The sum of the counts.
+        total: u32,
+    },
 }
 
 /// A ray for [`Renderer::trace_rays`].
@@ -226,7 +346,15 @@ pub struct Renderer {
     lights: GpuBuffer,
     normals: GpuBuffer,
     accum: GpuBuffer,
-    /// Bound where a binding is unused (no map, no debug output).
+    /// A pass's items (`render_scan`): `pixels + 1` uvec2 entries.
+    scan: GpuBuffer,
+    /// `render_scan`'s block sums: one u32 per [`SCAN_BLOCK`] pixels.
+    blocks: GpuBuffer,
+    /// A window's traced items: [`ITEM_BYTES`] per item.
+    items: GpuBuffer,
+    /// Items per window (the capacity of `items`).
+    window: u32,
+    /// Bound where a binding is unused (no map).
     dummy: GpuBuffer,
     flops_per_sample: f64,
 }
@@ -256,6 +384,15 @@ fn flops_per_sample(scene: &GpuScene) -> f64 {
 /// takes ~4 µs per sample and the estimate is ~6,500, so a submit of
 /// [`crate::gpu::batch::DEFAULT_FLOPS_PER_SUBMIT`] is under a second.
 const RENDER_FLOPS_SCALE: f64 = 1.0;
+
+/// Items per window for an image of `pixels`: [`ITEM_WINDOW`], or 64 per
+/// pixel for a small image (its passes rarely need more, and the items
+/// buffer stays small), within `maxStorageBufferRange`; whole grid rows.
+fn default_window(ctx: &GpuContext, pixels: u64) -> u32 {
+    let limit = ctx.info().max_storage_buffer_range as u64 / ITEM_BYTES;
+    let items = (pixels * 64).min(ITEM_WINDOW as u64).min(limit);
+    ((items / GRID_WIDTH as u64).max(1) * GRID_WIDTH as u64) as u32
+}
 
 fn buffer_of<T: Pod>(ctx: &Arc<GpuContext>, name: &str, data: &[T]) -> Result<GpuBuffer> {
     if data.is_empty() {
@@ -287,6 +424,8 @@ impl Renderer {
         let layout =
             AccumLayout::new(width, height, true, true).with_position_origin([c[0], c[1], c[2]]);
         let accum = GpuBuffer::new(ctx, "render.accum", layout.bytes())?;
+        let pixels = (width * height) as u64;
+        let window = default_window(ctx, pixels);
         let r = Renderer {
             ctx: ctx.clone(),
             layout,
@@ -298,6 +437,14 @@ impl Renderer {
             lights: buffer_of(ctx, "render.lights", &gs.lights)?,
             normals: buffer_of(ctx, "render.normals", &gs.normals)?,
             accum,
+            scan: GpuBuffer::new(ctx, "render.scan", (pixels + 1) * 8)?,
+            blocks: GpuBuffer::new(
+                ctx,
+                "render.scan_blocks",
+                pixels.div_ceil(SCAN_BLOCK as u64) * 4,
+            )?,
+            items: GpuBuffer::new(ctx, "render.items", window as u64 * ITEM_BYTES)?,
+            window,
             dummy: GpuBuffer::from_slice(ctx, "render.dummy", &[0u32; 4])?,
             flops_per_sample: flops_per_sample(&gs),
             scene: gs,
@@ -345,121 +492,262 @@ impl Renderer {
         ]
     }
 
-    /// Records one pass: every pixel traces its samples and adds them to the
-    /// accumulation buffer, in dispatches of at most [`RENDER_CHUNK`]
-    /// samples per pixel, each split into row bands by its estimated work
-    /// ([`Batch::dispatch`]). A band is at least one workgroup (8 rows)
-    /// high; [`record_uniform`](Self::record_uniform) also splits a uniform
-    /// render into passes to keep each submit within the batch's budget.
+    /// Records one pass: every sample of the pass is a work item,
+    /// `render_scan` numbers them (pixel by pixel, each pixel's in sample
+    /// order), and windows of at most [`ITEM_WINDOW`] items are traced
+    /// (`render_trace`, one invocation per sample, split into bands of
+    /// whole grid rows by their estimated work, [`Batch::dispatch`]) and
+    /// then added to the planes (`render_resolve`). A pass costs what its
+    /// samples cost, however they are spread over the pixels.
+    ///
+    /// A uniform pass of more than 2^32 − 1 samples is recorded as several
+    /// passes (the items are counted in u32); the planes do not change.
     pub fn record_pass(&self, batch: &mut Batch, samples: Samples) -> Result<()> {
         self.record(batch, samples, None)
     }
 
+    /// [`record_pass`](Self::record_pass); with `debug`, each window's
+    /// items are also copied there, [`ITEM_BYTES`] per item of the pass.
     fn record(
         &self,
         batch: &mut Batch,
         samples: Samples,
-        debug: Option<(BufferSlice, u32)>,
+        debug: Option<BufferSlice>,
     ) -> Result<()> {
         let l = self.layout;
-        let (uniform_spp, use_map, map, max) = match samples {
-            Samples::Uniform(n) => (n, 0, self.dummy.slice(), n),
-            Samples::Map(m, max) => {
-                if m.size() < l.pixels() as u64 * 4 {
+        let pixels = l.pixels() as u64;
+        let (uniform_spp, use_map, map, total) = match samples {
+            Samples::Uniform(n) => {
+                let total = n as u64 * pixels;
+                if total > u32::MAX as u64 {
+                    if debug.is_some() {
+                        return Err(Error::Limit(format!(
+                            "a debug pass of {total} samples; at most {} fit",
+                            u32::MAX
+                        )));
+                    }
+                    let per = (u32::MAX as u64 / pixels) as u32;
+                    let mut left = n;
+                    while left > 0 {
+                        let k = per.min(left);
+                        self.record(batch, Samples::Uniform(k), None)?;
+                        left -= k;
+                    }
+                    return Ok(());
+                }
+                (n, 0, self.dummy.slice(), total as u32)
+            }
+            Samples::Map { map, total } => {
+                if map.size() < pixels * 4 {
                     return Err(Error::InvalidArgument(format!(
                         "the sample map holds {} bytes; {} pixels need {}",
-                        m.size(),
-                        l.pixels(),
-                        l.pixels() * 4
+                        map.size(),
+                        pixels,
+                        pixels * 4
                     )));
                 }
-                (0, 1, m, max)
+                (0, 1, map, total)
             }
         };
-        if max == 0 {
+        if total == 0 {
             return Ok(());
         }
-        let (dbg, debug_stride) = debug.unwrap_or((self.dummy.slice(), 0));
-        let push = TracePush {
-            width: l.width as u32,
-            height: l.height as u32,
-            uniform_spp,
-            use_map,
-            seed_lo: self.seed as u32,
-            seed_hi: (self.seed >> 32) as u32,
-            plane_stride: (l.plane_stride() / 4) as u32,
-            debug_stride,
-            chunk_size: RENDER_CHUNK,
-            ..Default::default()
-        };
+        self.record_scan(batch, uniform_spp, use_map, map)?;
         let [a, b, c, d, e] = self.scene_bindings();
-        let group = |g: u64| {
-            let stride = l.plane_stride();
-            self.accum.range(
-                g * ACCUM_GROUP * stride,
-                (ACCUM_GROUP - 1) * stride + l.pixels() as u64 * 4,
-            )
-        };
-        let bindings = [
+        let trace_bindings = [
             a,
             b,
             c,
             d,
             e,
-            map,
+            self.scan.slice(),
+            self.items.slice(),
+            self.normals.slice(),
+        ];
+        let group = |g: u64| {
+            let stride = l.plane_stride();
+            self.accum.range(
+                g * ACCUM_GROUP * stride,
+                (ACCUM_GROUP - 1) * stride + pixels * 4,
+            )
+        };
+        let resolve_bindings = [
+            self.items.slice(),
+            self.scan.slice(),
             group(0),
             group(1),
             group(2),
             group(3),
-            dbg,
-            self.normals.slice(),
         ];
-        let chunks = max.div_ceil(RENDER_CHUNK);
-        for k in 0..chunks {
-            let push = TracePush { chunk: k, ..push };
-            // Samples per pixel of this chunk, at most (sizes the bands).
-            let expected = (max - k * RENDER_CHUNK).min(RENDER_CHUNK) as f64;
+        // P.cam_pos of the scene parameters: the positions' origin.
+        let origin = self.scene.params.cam_pos;
+        let mut item0 = 0u32;
+        while item0 < total {
+            let items = (total - item0).min(self.window);
+            let push = TracePush {
+                width: l.width as u32,
+                height: l.height as u32,
+                row0: 0,
+                item0,
+                items,
+                seed_lo: self.seed as u32,
+                seed_hi: (self.seed >> 32) as u32,
+                uniform_spp,
+            };
             batch.dispatch(
                 &TRACE,
                 Precision::F32,
+                &trace_bindings,
+                bytemuck::bytes_of(&push),
+                GRID_WIDTH,
+                items.div_ceil(GRID_WIDTH),
+                self.flops_per_sample,
+            )?;
+            if let Some(dbg) = debug {
+                let bytes = items as u64 * ITEM_BYTES;
+                batch.copy(
+                    self.items.range(0, bytes),
+                    dbg.sub(item0 as u64 * ITEM_BYTES, bytes)?,
+                );
+            }
+            let mut begin = 0u32;
+            while begin < items {
+                let end = (begin + RESOLVE_CHUNK).min(items);
+                let push = ResolvePush {
+                    begin,
+                    end,
+                    row0: 0,
+                    plane_stride: (l.plane_stride() / 4) as u32,
+                    origin: [origin[0], origin[1], origin[2], 0.0],
+                    item0,
+                    pixels: pixels as u32,
+                    lanes: RESOLVE_LANES,
+                    pad: 0,
+                };
+                batch.dispatch(
+                    &RESOLVE,
+                    Precision::F32,
+                    &resolve_bindings,
+                    bytemuck::bytes_of(&push),
+                    GRID_WIDTH,
+                    RESOLVE_LANES / GRID_WIDTH,
+                    RESOLVE_FLOPS * (end - begin) as f64 / RESOLVE_LANES as f64,
+                )?;
+                begin = end;
+            }
+            item0 += items;
+        }
+        Ok(())
+    }
+
+    /// Records `render_scan`'s three phases: the pass's prefix sums and
+    /// count snapshot in `scan`.
+    fn record_scan(
+        &self,
+        batch: &mut Batch,
+        uniform_spp: u32,
+        use_map: u32,
+        map: BufferSlice,
+    ) -> Result<()> {
+        let l = self.layout;
+        let pixels = l.pixels() as u32;
+        let blocks = pixels.div_ceil(SCAN_BLOCK);
+        let count = self
+            .accum
+            .range(l.count_plane() as u64 * l.plane_stride(), pixels as u64 * 4);
+        let bindings = [map, count, self.scan.slice(), self.blocks.slice()];
+        for phase in 0..3 {
+            let push = ScanPush {
+                pixels,
+                blocks,
+                row0: 0,
+                phase,
+                block: SCAN_BLOCK,
+                uniform_spp,
+                use_map,
+                pad: 0,
+            };
+            // Phase 1 is one workgroup; 0 and 2 one invocation per block.
+            let (width, rows, flops) = match phase {
+                1 => (1, 1, SCAN_FLOPS * blocks as f64),
+                _ => (
+                    GRID_WIDTH,
+                    blocks.div_ceil(GRID_WIDTH),
+                    SCAN_FLOPS * SCAN_BLOCK as f64,
+                ),
+            };
+            batch.dispatch(
+                &SCAN,
+                Precision::F32,
                 &bindings,
                 bytemuck::bytes_of(&push),
-                push.width,
-                push.height,
-                self.flops_per_sample * expected.max(1e-3),
+                width,
+                rows,
+                flops,
             )?;
         }
         Ok(())
     }
 
-    /// Records `spp` uniform samples per pixel as several passes, each small
-    /// enough that an 8-row band stays within the batch's
-    /// [`max_flops_per_submit`](Batch::max_flops_per_submit) (a reference
-    /// render). The planes are bit-identical to one pass of `spp`.
+    /// Records `spp` uniform samples per pixel (a reference render): one
+    /// pass, whose trace the batch splits into submits within its
+    /// [`max_flops_per_submit`](Batch::max_flops_per_submit). The planes
+    /// are bit-identical to any split of `spp` into passes.
     pub fn record_uniform(&self, batch: &mut Batch, spp: u32) -> Result<()> {
-        let band = 8.0 * self.layout.width as f64 * self.flops_per_sample;
-        let per_pass = ((batch.max_flops_per_submit / band).floor() as u32).clamp(1, spp.max(1));
-        let mut left = spp;
-        while left > 0 {
-            let n = per_pass.min(left);
-            self.record_pass(batch, Samples::Uniform(n))?;
-            left -= n;
-        }
+        self.record_pass(batch, Samples::Uniform(spp))
+    }
+
+    /// Items per window (see [`ITEM_WINDOW`]).
+    pub fn item_window(&self) -> u32 {
+        self.window
+    }
+
+    /// Sets the items per window (rounded up to whole grid rows of
+    /// [`GRID_WIDTH`]) and reallocates the items buffer, 64 bytes per item.
+    /// The planes do not depend on it; a test aid, and a memory bound.
+    pub fn set_item_window(&mut self, items: u32) -> Result<()> {
+        let limit = self.ctx.info().max_storage_buffer_range as u64 / ITEM_BYTES;
+        let window = (items.max(1).div_ceil(GRID_WIDTH) as u64 * GRID_WIDTH as u64).min(limit);
+        self.items = GpuBuffer::new(&self.ctx, "render.items", window * ITEM_BYTES)?;
+        self.window = window as u32;
         Ok(())
+    }
+
+    /// The items of a pass as `render_scan` numbers them: for each pixel
+    /// the exclusive prefix sum of the pass's counts and the pixel's count
+    /// (its first sample index of the pass), then the total. Records and
+    /// submits only the scan. A test aid.
+    pub fn pass_items(&self, samples: Samples) -> Result<(Vec<u32>, Vec<u32>)> {
+        let (uniform_spp, use_map, map) = match samples {
+            Samples::Uniform(n) => (n, 0, self.dummy.slice()),
+            Samples::Map { map, .. } => (0, 1, map),
+        };
+        let mut batch = Batch::new(&self.ctx)?;
+        self.record_scan(&mut batch, uniform_spp, use_map, map)?;
+        batch.finish()?;
+        let n = self.layout.pixels();
+        let entries: Vec<[u32; 2]> = self.scan.read_vec(n + 1)?;
+        let prefix = entries.iter().map(|e| e[0]).collect();
+        let first = entries[..n].iter().map(|e| e[1]).collect();
+        Ok((prefix, first))
     }
 
     /// Renders `spp` samples per pixel and returns each sample's 14 values
     /// (AccumLayout channel order), `[pixel][sample][value]` flattened, while
-    /// also adding them to the accumulation buffer. A test aid: it submits
-    /// and waits.
+    /// also adding them to the accumulation buffer: the items of a uniform
+    /// pass are in that order, and each window's are copied out. A test
+    /// aid: it submits and waits.
     pub fn run_pass_debug(&self, spp: u32) -> Result<Vec<f32>> {
-        let n = self.layout.pixels() * spp as usize * 14;
-        let out = GpuBuffer::new(&self.ctx, "render.debug_samples", (n * 4) as u64)?;
+        let items = self.layout.pixels() * spp as usize;
+        if items == 0 {
+            return Ok(Vec::new());
+        }
+        let out = GpuBuffer::new(&self.ctx, "render.debug_samples", items as u64 * ITEM_BYTES)?;
         let mut batch = Batch::new(&self.ctx)?;
-        batch.fill(out.slice(), 0);
-        self.record(&mut batch, Samples::Uniform(spp), Some((out.slice(), spp)))?;
+        self.record(&mut batch, Samples::Uniform(spp), Some(out.slice()))?;
         batch.finish()?;
-        out.read_vec(n)
+        let raw: Vec<[f32; 16]> = out.read_vec(items)?;
+        Ok(raw.iter().flat_map(|v| v[..14].iter().copied()).collect())
     }
 
     /// Traces `rays` through the BVH and returns, per ray, the nearest hit
@@ -567,7 +855,7 @@ mod tests {
     use super::*;
     use crate::Layer;
 
-    /// The plane numbers hard-coded in `render_trace.comp`.
+    /// The plane numbers hard-coded in `render_resolve.comp`.
     #[test]
     fn shader_planes_match_the_layout() {
         let l = AccumLayout::new(3, 2, true, true);
@@ -588,7 +876,10 @@ mod tests {
 
     #[test]
     fn push_blocks_have_the_shader_sizes() {
-        assert_eq!(std::mem::size_of::<TracePush>(), 48);
+        assert_eq!(std::mem::size_of::<TracePush>(), 32);
+        assert_eq!(std::mem::size_of::<ScanPush>(), 32);
+        assert_eq!(std::mem::size_of::<ResolvePush>(), 48);
+        assert_eq!(std::mem::offset_of!(ResolvePush, origin), 16);
         assert_eq!(std::mem::size_of::<RaysPush>(), 16);
         assert_eq!(std::mem::size_of::<gpu_scene::GpuParams>(), 128);
     }
