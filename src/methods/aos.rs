@@ -454,9 +454,9 @@ pub static INFO: MethodInfo = MethodInfo {
         sigma_s: sampling::SIGMA_AOS,
         e_is_dmse: false,
         dim: DimSource::Plain,
-        floor: 0.0,
+        floor: 0.3,
     },
-    error_scale: 1.0,
+    error_scale: 4.3,
     align: 1,
     halo: |c| {
         let r = AosParams::new(c.pass, &c.options)?.radius;

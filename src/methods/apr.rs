@@ -439,9 +439,9 @@ pub static INFO: MethodInfo = MethodInfo {
         sigma_s: sampling::SIGMA_APR,
         e_is_dmse: false,
         dim: DimSource::Plain,
-        floor: 0.0,
+        floor: 0.6,
     },
-    error_scale: 1.0,
+    error_scale: 2.5,
     // The sparse centres lie every RADIUS pixels (§4.3).
     align: RADIUS as usize,
     halo: |c| {

@@ -493,9 +493,9 @@ pub static INFO: MethodInfo = MethodInfo {
         sigma_s: sampling::SIGMA_WLR,
         e_is_dmse: false,
         dim: DimSource::Kflags,
-        floor: 0.0,
+        floor: 0.3,
     },
-    error_scale: 1.0,
+    error_scale: 6.9,
     align: 1,
     halo: |c| {
         let r = WlrParams::new(c.pass, &c.options)?.radius as usize;

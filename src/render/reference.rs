@@ -49,20 +49,17 @@ pub fn fnv1a(bytes: &[u8]) -> u64 {
 }
 
 /// The renderer's shader sources: part of every cache key.
-const RENDERER: [&str; 2] = [
+const RENDERER: [&str; 4] = [
     include_str!("../../spirv/render/render_trace.comp"),
     include_str!("../../spirv/render/render_scene.glsl"),
+    include_str!("../../spirv/render/render_scan.comp"),
+    include_str!("../../spirv/render/render_resolve.comp"),
 ];
 
 /// The cache file of the `k`-spp reference of `scene` at `size` rendered
 /// with `seed`.
 pub fn cache_path(scene: &Scene, size: (usize, usize), k: u32, seed: u64) -> Result<PathBuf> {
-    let content = format!(
-        "{scene:?}{:?}{}{}",
-        scene.primitives()?,
-        RENDERER[0],
-        RENDERER[1]
-    );
+    let content = format!("{scene:?}{:?}{}", scene.primitives()?, RENDERER.concat());
     Ok(cache_dir().join(format!(
         "ref-{:016x}-{}x{}-k{k}-s{seed}.exr",
         fnv1a(content.as_bytes()),
