@@ -771,28 +771,7 @@ impl Renderer {
                 ]
             })
             .collect();
-        let rb = GpuBuffer::from_slice(&self.ctx, "render.rays", &data)?;
-        let hb = GpuBuffer::new(&self.ctx, "render.hits", rays.len() as u64 * 8)?;
-        let width = 64u32;
-        let push = RaysPush {
-            width,
-            height: (rays.len() as u32).div_ceil(width),
-            row0: 0,
-            count: rays.len() as u32,
-        };
-        let [a, b, c, d, e] = self.scene_bindings();
-        let mut batch = Batch::new(&self.ctx)?;
-        batch.dispatch(
-            &RAYS,
-            Precision::F32,
-            &[a, b, c, d, e, rb.slice(), hb.slice()],
-            bytemuck::bytes_of(&push),
-            push.width,
-            push.height,
-            1000.0,
-        )?;
-        batch.finish()?;
-        let hits: Vec<[f32; 2]> = hb.read_vec(rays.len())?;
+        let hits: Vec<[f32; 2]> = self.run_aid(&RAYS, "render.rays", &data, 1000.0)?;
         Ok(hits
             .iter()
             .map(|h| (h[1] >= 0.0).then(|| (h[0], h[1] as u32)))
@@ -806,28 +785,41 @@ impl Renderer {
         if us.is_empty() || self.scene.lights.is_empty() {
             return Ok(Vec::new());
         }
-        let ub = GpuBuffer::from_slice(&self.ctx, "render.us", us)?;
-        let pb = GpuBuffer::new(&self.ctx, "render.picks", us.len() as u64 * 4)?;
+        self.run_aid(&LIGHTS, "render.us", us, 100.0)
+    }
+
+    /// Runs a test-aid kernel (`render_rays`, `render_lights`) over the
+    /// records of `input`, one invocation each in rows of 64, and reads
+    /// back one `O` per record.
+    fn run_aid<I: bytemuck::Pod, O: bytemuck::Pod + Default>(
+        &self,
+        decl: &KernelDecl,
+        label: &str,
+        input: &[I],
+        cost: f64,
+    ) -> Result<Vec<O>> {
+        let ib = GpuBuffer::from_slice(&self.ctx, label, input)?;
+        let ob = GpuBuffer::new(&self.ctx, "render.aid_out", (input.len() * std::mem::size_of::<O>()) as u64)?;
         let width = 64u32;
         let push = RaysPush {
             width,
-            height: (us.len() as u32).div_ceil(width),
+            height: (input.len() as u32).div_ceil(width),
             row0: 0,
-            count: us.len() as u32,
+            count: input.len() as u32,
         };
         let [a, b, c, d, e] = self.scene_bindings();
         let mut batch = Batch::new(&self.ctx)?;
         batch.dispatch(
-            &LIGHTS,
+            decl,
             Precision::F32,
-            &[a, b, c, d, e, ub.slice(), pb.slice()],
+            &[a, b, c, d, e, ib.slice(), ob.slice()],
             bytemuck::bytes_of(&push),
             push.width,
             push.height,
-            100.0,
+            cost,
         )?;
         batch.finish()?;
-        pb.read_vec(us.len())
+        ob.read_vec(input.len())
     }
 
     /// Downloads the accumulation planes, in layout order (blocking; no
