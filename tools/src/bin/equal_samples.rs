@@ -21,7 +21,8 @@
 //! ```text
 //! cargo run --release -p mcdenoise-tools --bin equal_samples -- \
 //!     [--scenes a,b] [--size 256x256] [--spp 16,64] [--methods wlr,lp,apr,aos] \
-//!     [--reference 4096] [--seeds 3,4] [--oidn] [--equal-time] [--json out.json] [--work DIR]
+//!     [--reference 4096] [--seeds 3,4] [--oidn] [--equal-time] [--target | --target-only]
+//!     [--json out.json] [--work DIR]
 //! ```
 
 use std::path::{Path, PathBuf};
@@ -81,6 +82,10 @@ struct Args {
     /// uniform points).
     #[arg(long)]
     target: bool,
+    /// `--target` without the equal-sample table: each row renders only
+    /// its uniform run, which the targets and the interpolation need.
+    #[arg(long)]
+    target_only: bool,
     /// Also write the rows as JSON here.
     #[arg(long)]
     json: Option<PathBuf>,
@@ -270,7 +275,7 @@ fn scene_rows(
             .collect::<anyhow::Result<_>>()?;
         let mut row = average(runs);
         row.ref_err = ref_err;
-        for mr in &mut row.methods {
+        for mr in row.methods.iter_mut().filter(|_| !a.target_only) {
             mr.ratio = corrected(mr.adaptive, ref_err) / corrected(mr.uniform, ref_err);
             eprintln!(
                 "  {stem} spp{n} {}: uniform {:.5} adaptive {:.5} ratio {:.2} (rates {:.0}/{:.0} ks/s)",
@@ -417,6 +422,10 @@ fn one_seed(
             uniform_rate,
             ..Default::default()
         };
+        if a.target_only {
+            row.methods.push(mr);
+            continue;
+        }
         // Adaptive, same seed and total.
         let ar = Renderer::new(ctx, scene, w, h, seed)?;
         let out = adaptive::render(ctx, &ar, &loop_config(m, n, true, options), &stop, |_| {})?;
@@ -451,7 +460,7 @@ fn one_seed(
         }
         row.methods.push(mr);
     }
-    if a.oidn {
+    if a.oidn && !a.target_only {
         let scores = oidn(&oidn_pairs, r)?;
         row.oidn_uniform = Some(scores[0]);
         for (mr, s) in row.methods.iter_mut().zip(&scores[1..]) {
@@ -542,7 +551,8 @@ fn markdown(rows: &[Row], a: &Args, methods: &[Method]) -> String {
 }
 
 fn main() -> anyhow::Result<()> {
-    let a = Args::parse();
+    let mut a = Args::parse();
+    a.target |= a.target_only;
     let methods: Vec<Method> = a
         .methods
         .iter()
@@ -569,7 +579,9 @@ fn main() -> anyhow::Result<()> {
             std::fs::write(p, serde_json::to_string_pretty(&json)? + "\n")?;
         }
     }
-    print!("{}", markdown(&rows, &a, &methods));
+    if !a.target_only {
+        print!("{}", markdown(&rows, &a, &methods));
+    }
     if !targets.is_empty() {
         println!("\n| scene | method | target | estimate at stop | true at stop | true / target | spp | uniform spp for the same true rMSE |\n|---|---|---|---|---|---|---|---|");
         for t in &targets {
