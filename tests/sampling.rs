@@ -399,14 +399,16 @@ fn priority_matches_twin() {
     check_validation(&gpu());
 }
 
-/// §9.4 through the whole chain: without smoothing, a valid pixel with zero
-/// error gets no samples; the same r map on GPU and CPU gives the same counts.
+/// §9.4 through the whole chain: without smoothing and without a floor, a
+/// valid pixel with zero error gets no samples; the same r map on GPU and
+/// CPU gives the same counts.
 #[test]
 fn zero_error_pixel_gets_no_samples() {
     let (w, h) = (37, 23);
-    // APR's §9.1 parameters without our MAP-SMOOTH-APR.
+    // APR's §9.1 parameters without our MAP-SMOOTH-APR and SAMPLE-FLOOR.
     let params = SamplingParams {
         sigma_s: 0.0,
+        floor: 0.0,
         ..SamplingParams::for_method(Method::Apr).unwrap()
     };
     let mut case = priority_case(w, h, false, 99);
