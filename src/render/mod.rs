@@ -799,7 +799,11 @@ impl Renderer {
         cost: f64,
     ) -> Result<Vec<O>> {
         let ib = GpuBuffer::from_slice(&self.ctx, label, input)?;
-        let ob = GpuBuffer::new(&self.ctx, "render.aid_out", (input.len() * std::mem::size_of::<O>()) as u64)?;
+        let ob = GpuBuffer::new(
+            &self.ctx,
+            "render.aid_out",
+            (input.len() * std::mem::size_of::<O>()) as u64,
+        )?;
         let width = 64u32;
         let push = RaysPush {
             width,
