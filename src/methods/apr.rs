@@ -433,7 +433,8 @@ pub static INFO: MethodInfo = MethodInfo {
     prefilter_auto: true,
     outliers_auto: true,
     passes: 5,
-    pass_cap: None,
+    // APR-CAP: a pass gives a pixel at most 4× its mean.
+    pass_cap: Some(4.0),
     sampling: SamplingParams {
         eps: sampling::EPS_DEFAULT,
         sigma_s: sampling::SIGMA_APR,

@@ -41,7 +41,7 @@ pub struct Args {
     outliers: OutliersArg,
     /// With --adaptive: at most K times the pass's mean samples in one pixel
     /// per pass (the excess goes to the other pixels); 0 = no cap. Default:
-    /// the method's (4 for LP, no cap for the others).
+    /// the method's (4 for LP and APR, no cap for the others).
     #[arg(long, value_name = "K",
           value_parser = |s: &str| s.parse::<f64>().ok().filter(|k| *k == 0.0 || (*k >= 1.0 && k.is_finite()))
               .ok_or_else(|| "0 (no cap) or a number >= 1".to_string()))]
