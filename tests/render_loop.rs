@@ -9,19 +9,13 @@ use std::sync::atomic::AtomicBool;
 
 use mcdenoise::render::adaptive::{next_budget, render, LoopConfig, StopRules};
 use mcdenoise::render::{Renderer, Scene};
-use mcdenoise::{Layer, Method, Options, Precision, Prefilter};
+use mcdenoise::{Layer, Method};
 
+/// `method`'s defaults without a per-pass cap.
 fn config(method: Method, spp: u32, adaptive: bool) -> LoopConfig {
     LoopConfig {
-        spp,
-        adaptive,
-        method,
-        prefilter: Prefilter::Auto,
-        outliers: mcdenoise::Outliers::Auto,
         pass_cap: None,
-        precision: Precision::F32,
-        options: Options::default(),
-        stop: None,
+        ..LoopConfig::new(method, spp, adaptive)
     }
 }
 

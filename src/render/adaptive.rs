@@ -57,6 +57,25 @@ pub struct LoopConfig {
     pub stop: Option<StopRules>,
 }
 
+impl LoopConfig {
+    /// A render of `spp` on average with `method` and its defaults: the
+    /// prefilter and the outlier stage `Auto`, its per-pass cap
+    /// ([`default_pass_cap`]), f32 kernels, no options, the fixed schedule.
+    pub fn new(method: Method, spp: u32, adaptive: bool) -> Self {
+        Self {
+            spp,
+            adaptive,
+            method,
+            prefilter: Prefilter::Auto,
+            outliers: Outliers::Auto,
+            precision: Precision::F32,
+            options: Options::default(),
+            pass_cap: default_pass_cap(method),
+            stop: None,
+        }
+    }
+}
+
 /// When an open-ended render stops: at the first pass after which the
 /// final reconstruction's estimated rMSE is at most `target_error`, at the
 /// last pass that fits in `time_limit`, or when the average reaches
@@ -116,7 +135,7 @@ pub fn stop_estimate(method: Method, frame: &Frame) -> f64 {
 
 /// The per-pass cap a method's adaptive render uses by default
 /// ([`LoopConfig::pass_cap`], [`crate::MethodInfo::pass_cap`]): 4× the
-/// pass's mean for LP (LP-CAP), none otherwise.
+/// pass's mean for LP and APR (LP-CAP, APR-CAP), none otherwise.
 pub fn default_pass_cap(method: Method) -> Option<f64> {
     method.info().pass_cap
 }

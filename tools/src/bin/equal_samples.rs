@@ -36,7 +36,7 @@ use mcdenoise::render::adaptive::{self, LoopConfig};
 use mcdenoise::render::{reference, Renderer, Samples, Scene};
 use mcdenoise::{
     colour_of, io, metrics, Batch, Config, ContextOptions, Denoiser, GpuContext, Method, Options,
-    Outliers, Pass, Precision, Prefilter, RgbImage, Source,
+    Pass, RgbImage, Source,
 };
 use serde::Serialize;
 
@@ -148,15 +148,8 @@ struct Row {
 
 fn loop_config(method: Method, spp: u32, adaptive: bool, options: &Options) -> LoopConfig {
     LoopConfig {
-        spp,
-        adaptive,
-        method,
-        prefilter: Prefilter::Auto,
-        outliers: Outliers::Auto,
-        pass_cap: adaptive::default_pass_cap(method),
-        precision: Precision::F32,
         options: options.clone(),
-        stop: None,
+        ..LoopConfig::new(method, spp, adaptive)
     }
 }
 

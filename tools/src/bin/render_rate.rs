@@ -21,10 +21,7 @@ use std::sync::Arc;
 use mcdenoise::gpu::GpuBuffer;
 use mcdenoise::render::adaptive::{render, LoopConfig};
 use mcdenoise::render::{Renderer, Samples, Scene};
-use mcdenoise::{
-    Batch, ContextOptions, GpuContext, KernelTiming, Method, Options, Precision, Prefilter,
-    Validation,
-};
+use mcdenoise::{Batch, ContextOptions, GpuContext, KernelTiming, Method, Validation};
 
 /// GPU milliseconds of the renderer's kernels in `t`.
 fn render_ms(t: &[KernelTiming]) -> f64 {
@@ -98,17 +95,7 @@ fn main() -> anyhow::Result<()> {
     let mut buffers: Vec<GpuBuffer> = Vec::new();
     for name in names {
         let scene = Scene::by_name_or_file(&name)?;
-        let cfg = LoopConfig {
-            spp,
-            adaptive: true,
-            method: Method::Wlr,
-            prefilter: Prefilter::Auto,
-            outliers: mcdenoise::Outliers::Auto,
-            pass_cap: None,
-            precision: Precision::F32,
-            options: Options::default(),
-            stop: None,
-        };
+        let cfg = LoopConfig::new(Method::Wlr, spp, true);
         let r = Renderer::new(&ctx, &scene, size, size, 1)?;
         let result = render(&ctx, &r, &cfg, &AtomicBool::new(false), |_| {})?;
         let adaptive_rate = result.samples as f64 / result.split.render_ms * 1e3;
