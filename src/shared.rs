@@ -142,6 +142,31 @@ pub struct SmoothPush {
     pub _pad: [u32; 2],
 }
 
+/// `spirv/auto_score.comp` and `spirv/auto_blend.comp`, block `Push`
+/// (`--method auto`, AUTO-BLEND).
+#[repr(C)]
+#[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct AutoPush {
+    /// Image width in pixels.
+    pub width: u32,
+    /// Image height in pixels.
+    pub height: u32,
+    /// First row of the band this dispatch covers.
+    pub row0: u32,
+    /// Unused (the block's `pad`): 0.
+    pub _pad: u32,
+}
+
+/// The number of members `auto_score` and `auto_blend` blend.
+pub const AUTO_MEMBERS: usize = 3;
+/// The maps `auto_score` writes and `auto_blend` reads smoothed: each
+/// member's score, then the disagreement of members 0–1, 0–2 and 1–2.
+pub const AUTO_MAPS: usize = 6;
+/// The smallest smoothed score `auto_blend` divides by.
+pub const AUTO_SCORE_FLOOR: f64 = 1e-12;
+/// The value `auto_score` writes for a non-finite one.
+pub const AUTO_SCORE_MAX: f32 = 1e30;
+
 /// `spirv/peak_fma.comp` and `spirv/peak_copy.comp`, block `Push`: the
 /// device-peak micro-kernels of `mcdenoise bench` (issue #13).
 #[repr(C)]

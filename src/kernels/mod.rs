@@ -9,6 +9,8 @@ use crate::gpu::KernelDecl;
 pub mod aos_fit;
 pub mod aos_nlm;
 pub mod aos_space;
+pub mod auto_blend;
+pub mod auto_score;
 pub mod apr_block;
 pub mod apr_gather;
 pub mod apr_pack;
@@ -94,6 +96,8 @@ pub const ALL: &[&KernelDecl] = &[
     &box_rows::DECL,
     &outlier_weights::DECL,
     &outlier_spread::DECL,
+    &auto_score::DECL,
+    &auto_blend::DECL,
     &sample_priority::DECL,
     &sample_reduce::DECL,
     &sample_scan::DECL,

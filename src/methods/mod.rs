@@ -4,6 +4,7 @@
 
 pub mod aos;
 pub mod apr;
+pub mod auto;
 pub mod chain;
 pub mod gbf;
 pub mod lp;
@@ -50,12 +51,21 @@ pub enum Method {
     Aos,
     /// No reconstruction: the sanitised input (§0.4).
     None,
+    /// WLR, LP and APR blended per pixel by their error estimates (ours,
+    /// AUTO-BLEND).
+    Auto,
 }
 
 /// Every method's entry, in the order of [`Method`]'s variants (the order
 /// the benchmarks run them in is [`Method::all`]'s).
-pub static REGISTRY: [&MethodInfo; 5] =
-    [&wlr::INFO, &lp::INFO, &apr::INFO, &aos::INFO, &none::INFO];
+pub static REGISTRY: [&MethodInfo; 6] = [
+    &wlr::INFO,
+    &lp::INFO,
+    &apr::INFO,
+    &aos::INFO,
+    &none::INFO,
+    &auto::INFO,
+];
 
 impl Method {
     /// The method's registry entry.

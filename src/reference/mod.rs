@@ -18,6 +18,8 @@ pub mod apr;
 pub mod apr_block;
 pub mod apr_gather;
 pub mod apr_pack;
+pub mod auto_blend;
+pub mod auto_score;
 pub mod box_rows;
 pub mod channel_mean;
 pub mod estimate_variance;

@@ -1,0 +1,79 @@
+//! `auto_score`: the six maps `--method auto` smooths (AUTO-BLEND): each
+//! member's relative error estimate `Σ_c E_m,c / (f_m,c² + 0.01)` and each
+//! pair's disagreement `Σ_c (f_a,c − f_b,c)² / (f̄_c² + 0.01)`. Twin:
+//! `reference::auto_score`.
+
+use crate::error::Result;
+use crate::gpu::reflect::{read, write};
+use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};
+use crate::shared::{AutoPush, AUTO_MAPS, AUTO_MEMBERS};
+
+/// Declaration of `spirv/auto_score.comp`; checked against the SPIR-V by
+/// reflection.
+pub const DECL: KernelDecl = KernelDecl {
+    name: "auto_score",
+    bindings: &[
+        read("c0r"),
+        read("c0g"),
+        read("c0b"),
+        read("c1r"),
+        read("c1g"),
+        read("c1b"),
+        read("c2r"),
+        read("c2g"),
+        read("c2b"),
+        read("e0r"),
+        read("e0g"),
+        read("e0b"),
+        read("e1r"),
+        read("e1g"),
+        read("e1b"),
+        read("e2r"),
+        read("e2g"),
+        read("e2b"),
+        write("score0"),
+        write("score1"),
+        write("score2"),
+        write("dis01"),
+        write("dis02"),
+        write("dis12"),
+    ],
+    push_size: std::mem::size_of::<AutoPush>() as u32,
+};
+
+/// Per pixel: six maps of three channels, each a difference or clamp, a
+/// multiply-add and a division, summed; the mean of three colours.
+pub const FLOPS_PER_PIXEL: f64 = 6.0 * (3.0 * 5.0 + 2.0) + 9.0;
+
+/// Records the maps of members with `colors` and `errors` into `maps` over
+/// a `width × height` image.
+pub fn record(
+    batch: &mut Batch,
+    precision: Precision,
+    (width, height): (u32, u32),
+    colors: [[BufferSlice; 3]; AUTO_MEMBERS],
+    errors: [[BufferSlice; 3]; AUTO_MEMBERS],
+    maps: [BufferSlice; AUTO_MAPS],
+) -> Result<()> {
+    let push = AutoPush {
+        width,
+        height,
+        ..Default::default()
+    };
+    let bindings: Vec<BufferSlice> = colors
+        .iter()
+        .flatten()
+        .chain(errors.iter().flatten())
+        .chain(&maps)
+        .copied()
+        .collect();
+    batch.dispatch(
+        &DECL,
+        precision,
+        &bindings,
+        bytemuck::bytes_of(&push),
+        width,
+        height,
+        FLOPS_PER_PIXEL,
+    )
+}

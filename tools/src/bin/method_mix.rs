@@ -1,0 +1,317 @@
+//! Probe for `--method auto` (issue #41): every method's reconstruction and
+//! error estimate on the same uniform inputs, and how well rules that
+//! combine them per pixel by their estimated errors do against the best
+//! single method and against an oracle that picks per 8×8 tile by the true
+//! error.
+//!
+//! Cases: the public scenes (`--public DIR`: `DIR/<scene>/spp{4,16,64}.exr`
+//! against `reference.exr`) and built-in scenes rendered uniformly (seed 3)
+//! against the mean of two K-spp references (cached). Prints one JSON line
+//! per case with every method's and every rule's rMSE (raw: the references'
+//! own error is not subtracted, it is the same for every row of a case).
+//!
+//! ```text
+//! cargo run --release -p mcdenoise-tools --bin method_mix -- \
+//!     [--public ../shared/data/scenes] [--scenes a,b] [--size 128x128] [--spp 4,16,64] [--reference 1024]
+//! ```
+
+use std::path::PathBuf;
+use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
+
+use clap::Parser;
+use mcdenoise::render::{reference, Renderer, Samples, Scene};
+use mcdenoise::{
+    colour_of, io, metrics, Batch, Config, ContextOptions, Denoiser, GpuContext, Method, RgbImage,
+    Source, StatsImage,
+};
+
+#[derive(Parser)]
+struct Args {
+    #[arg(long)]
+    public: Option<PathBuf>,
+    #[arg(long, value_delimiter = ',')]
+    scenes: Vec<String>,
+    #[arg(long, default_value = "128x128", value_parser = |s: &str| mcdenoise::bench::parse_size(s).map_err(|e| e.to_string()))]
+    size: (usize, usize),
+    #[arg(long, value_delimiter = ',', default_value = "4,16,64")]
+    spp: Vec<u32>,
+    #[arg(long, default_value_t = 1024)]
+    reference: u32,
+    #[arg(long, value_delimiter = ',', default_value = "wlr,lp,apr,aos")]
+    methods: Vec<String>,
+    /// Folder for the uniform statistics (for OIDN).
+    #[arg(long, default_value = "target/method_mix")]
+    work: PathBuf,
+}
+
+struct Out {
+    color: RgbImage,
+    error: RgbImage,
+    /// Per-pixel relative error estimate, summed over channels.
+    rel: Vec<f64>,
+}
+
+fn box_blur(w: usize, h: usize, v: &[f64], r: usize) -> Vec<f64> {
+    if r == 0 {
+        return v.to_vec();
+    }
+    let mut out = vec![0.0; v.len()];
+    for y in 0..h {
+        for x in 0..w {
+            let (mut s, mut n) = (0.0, 0.0);
+            for yy in y.saturating_sub(r)..(y + r + 1).min(h) {
+                for xx in x.saturating_sub(r)..(x + r + 1).min(w) {
+                    s += v[yy * w + xx];
+                    n += 1.0;
+                }
+            }
+            out[y * w + x] = s / n;
+        }
+    }
+    out
+}
+
+/// Weights ∝ 1/ê^p of each method's box-smoothed relative error.
+fn blend(outs: &[&Out], scale: &[f64], r: usize, p: f64) -> RgbImage {
+    let c0 = &outs[0].color;
+    let (w, h) = (c0.width, c0.height);
+    let sm: Vec<Vec<f64>> = outs
+        .iter()
+        .zip(scale)
+        .map(|(o, s)| box_blur(w, h, &o.rel.iter().map(|e| e * s).collect::<Vec<_>>(), r))
+        .collect();
+    let mut img = RgbImage::new(w, h);
+    for i in 0..w * h {
+        let ws: Vec<f64> = sm.iter().map(|e| 1.0 / (e[i].max(1e-12)).powf(p)).collect();
+        let tot: f64 = ws.iter().sum();
+        for c in 0..3 {
+            let v: f64 = outs
+                .iter()
+                .zip(&ws)
+                .map(|(o, wt)| o.color.planes[c][i] as f64 * wt)
+                .sum();
+            img.planes[c][i] = (v / tot) as f32;
+        }
+    }
+    img
+}
+
+/// Per `t`×`t` tile, the method with the least `score` summed over the tile.
+fn select(outs: &[&Out], score: &[Vec<f64>], t: usize) -> RgbImage {
+    let c0 = &outs[0].color;
+    let (w, h) = (c0.width, c0.height);
+    let mut img = RgbImage::new(w, h);
+    for ty in (0..h).step_by(t) {
+        for tx in (0..w).step_by(t) {
+            let mut best = (f64::INFINITY, 0);
+            for (m, s) in score.iter().enumerate() {
+                let mut sum = 0.0;
+                for y in ty..(ty + t).min(h) {
+                    for x in tx..(tx + t).min(w) {
+                        sum += s[y * w + x];
+                    }
+                }
+                if sum < best.0 {
+                    best = (sum, m);
+                }
+            }
+            for y in ty..(ty + t).min(h) {
+                for x in tx..(tx + t).min(w) {
+                    for c in 0..3 {
+                        img.planes[c][y * w + x] = outs[best.1].color.planes[c][y * w + x];
+                    }
+                }
+            }
+        }
+    }
+    img
+}
+
+fn true_rel(x: &RgbImage, r: &RgbImage) -> Vec<f64> {
+    (0..x.width * x.height)
+        .map(|i| {
+            (0..3)
+                .map(|c| {
+                    let (a, b) = (x.planes[c][i] as f64, r.planes[c][i] as f64);
+                    (a - b) * (a - b) / (b * b + 0.01)
+                })
+                .sum()
+        })
+        .collect()
+}
+
+fn run(ctx: &Arc<GpuContext>, stats: &StatsImage, m: Method) -> anyhow::Result<Out> {
+    let mut c = Config::new(m);
+    c.error = true;
+    let d = Denoiser::new(ctx, Source::of_image(stats), c)?;
+    let f = d.denoise(stats, None)?;
+    let n = f.color.width * f.color.height;
+    let rel = (0..n)
+        .map(|i| {
+            (0..3)
+                .map(|c| {
+                    let v = f.color.planes[c][i] as f64;
+                    (f.error.planes[c][i].max(0.0) as f64) / (v * v + 0.01)
+                })
+                .sum()
+        })
+        .collect();
+    Ok(Out {
+        error: f.error,
+        color: f.color,
+        rel,
+    })
+}
+
+fn subsets(n: usize) -> Vec<Vec<usize>> {
+    (1..(1u32 << n))
+        .filter(|b| b.count_ones() >= 2)
+        .map(|b| (0..n).filter(|i| b & (1 << i) != 0).collect())
+        .collect()
+}
+
+fn dump(path: PathBuf, planes: &[&[f32]]) -> anyhow::Result<()> {
+    let mut bytes = Vec::new();
+    for p in planes {
+        bytes.extend_from_slice(bytemuck_bytes(p));
+    }
+    std::fs::write(path, bytes)?;
+    Ok(())
+}
+
+fn bytemuck_bytes(p: &[f32]) -> &[u8] {
+    // SAFETY: f32 has no padding and any byte pattern is a valid u8.
+    unsafe { std::slice::from_raw_parts(p.as_ptr() as *const u8, std::mem::size_of_val(p)) }
+}
+
+fn case(
+    work: &std::path::Path,
+    ctx: &Arc<GpuContext>,
+    name: &str,
+    spp: u32,
+    stats: &StatsImage,
+    r: &RgbImage,
+    methods: &[Method],
+) -> anyhow::Result<()> {
+    let mut line = serde_json::Map::new();
+    line.insert("case".into(), format!("{name}@{spp}").into());
+    line.insert("input".into(), metrics::rmse(&colour_of(stats), r).into());
+    let t = std::time::Instant::now();
+    let outs: Vec<Out> = methods
+        .iter()
+        .map(|&m| run(ctx, stats, m))
+        .collect::<anyhow::Result<_>>()?;
+    let tag = format!("{name}@{spp}-{}x{}", r.width, r.height);
+    let input = colour_of(stats);
+    dump(work.join(format!("{tag}-ref.bin")), &[&r.planes[0], &r.planes[1], &r.planes[2]])?;
+    dump(work.join(format!("{tag}-in.bin")), &[&input.planes[0], &input.planes[1], &input.planes[2]])?;
+    for (m, o) in methods.iter().zip(&outs) {
+        let e = &o.error;
+        dump(
+            work.join(format!("{tag}-{}.bin", m.name())),
+            &[&o.color.planes[0], &o.color.planes[1], &o.color.planes[2], &e.planes[0], &e.planes[1], &e.planes[2]],
+        )?;
+        line.insert(m.name().into(), metrics::rmse(&o.color, r).into());
+        line.insert(format!("{}.mean", m.name()), {
+            let mean = |x: &RgbImage| {
+                x.planes.iter().flatten().map(|&v| v as f64).sum::<f64>()
+            };
+            (mean(&o.color) / mean(r)).into()
+        });
+    }
+    let scales: Vec<f64> = methods.iter().map(|m| m.info().error_scale).collect();
+    let ones = vec![1.0; methods.len()];
+    for s in subsets(methods.len()) {
+        let key: Vec<&str> = s.iter().map(|&i| methods[i].name()).collect();
+        let key = key.join("+");
+        let o: Vec<&Out> = s.iter().map(|&i| &outs[i]).collect();
+        let sc: Vec<f64> = s.iter().map(|&i| scales[i]).collect();
+        for (cal, scv) in [("raw", &ones[..s.len()]), ("cal", &sc[..])] {
+            for r_ in [0usize, 1, 2, 4] {
+                for p in [1.0, 2.0] {
+                    let img = blend(&o, scv, r_, p);
+                    line.insert(
+                        format!("{key}|w{cal}r{r_}p{p}"),
+                        metrics::rmse(&img, r).into(),
+                    );
+                }
+            }
+            let score: Vec<Vec<f64>> = o
+                .iter()
+                .zip(scv)
+                .map(|(x, k)| x.rel.iter().map(|e| e * k).collect())
+                .collect();
+            for t in [4usize, 8, 16] {
+                line.insert(
+                    format!("{key}|sel{cal}{t}"),
+                    metrics::rmse(&select(&o, &score, t), r).into(),
+                );
+            }
+        }
+        let truth: Vec<Vec<f64>> = o.iter().map(|x| true_rel(&x.color, r)).collect();
+        line.insert(
+            format!("{key}|oracle8"),
+            metrics::rmse(&select(&o, &truth, 8), r).into(),
+        );
+    }
+    line.insert("secs".into(), t.elapsed().as_secs_f64().into());
+    println!("{}", serde_json::Value::Object(line));
+    Ok(())
+}
+
+fn main() -> anyhow::Result<()> {
+    let a = Args::parse();
+    let ctx = Arc::new(GpuContext::new(&ContextOptions::default())?);
+    let methods: Vec<Method> = a
+        .methods
+        .iter()
+        .map(|m| Method::from_name(m).ok_or_else(|| anyhow::anyhow!("unknown method {m}")))
+        .collect::<anyhow::Result<_>>()?;
+    std::fs::create_dir_all(&a.work)?;
+    if let Some(dir) = &a.public {
+        for s in ["dof_checker", "glossy_cornell", "indirect_room"] {
+            let r = io::read_rgb(&dir.join(s).join("reference.exr"))?;
+            for &n in &a.spp {
+                let stats = io::read_stats(&dir.join(s).join(format!("spp{n}.exr")))?;
+                case(&a.work, &ctx, s, n, &stats, &r, &methods)?;
+            }
+        }
+    }
+    let stop = AtomicBool::new(false);
+    for name in &a.scenes {
+        let scene = Scene::by_name_or_file(name)?;
+        let refs: Vec<RgbImage> = [0u64, 2]
+            .iter()
+            .map(|x| {
+                reference::reference(
+                    &ctx,
+                    &scene,
+                    a.size,
+                    a.reference,
+                    reference::reference_seed(3) ^ x,
+                    &stop,
+                    |_, _| {},
+                )
+                .map(|r| r.image)
+            })
+            .collect::<mcdenoise::Result<_>>()?;
+        let mut r = refs[0].clone();
+        for c in 0..3 {
+            for (v, b) in r.planes[c].iter_mut().zip(&refs[1].planes[c]) {
+                *v = 0.5 * (*v + b);
+            }
+        }
+        for &n in &a.spp {
+            let ren = Renderer::new(&ctx, &scene, a.size.0, a.size.1, 3)?;
+            let mut b = Batch::new(&ctx)?;
+            ren.record_clear(&mut b);
+            ren.record_pass(&mut b, Samples::Uniform(n))?;
+            b.finish()?;
+            let stats = ren.statistics()?;
+            io::write_stats(&a.work.join(format!("{name}-{n}.exr")), &stats)?;
+            case(&a.work, &ctx, name, n, &stats, &r, &methods)?;
+        }
+    }
+    Ok(())
+}
