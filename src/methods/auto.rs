@@ -38,10 +38,12 @@ pub const MEMBERS: [Method; AUTO_MEMBERS] = [Method::Wlr, Method::Lp, Method::Ap
 /// becomes a weight (AUTO-BLEND).
 pub const SIGMA: f32 = 1.5;
 
-/// A member's configuration: `auto`'s, with the member's method.
+/// A member's configuration: `auto`'s, with the member's method and its
+/// error estimate on (the blend reads it).
 fn member_config(c: &ChainConfig, m: Method) -> ChainConfig {
     ChainConfig {
         method: m,
+        error: true,
         ..c.clone()
     }
 }
@@ -57,7 +59,9 @@ pub static INFO: MethodInfo = MethodInfo {
     passes: super::wlr::INFO.passes,
     pass_cap: None,
     sampling: super::wlr::INFO.sampling,
-    error_scale: 1.0,
+    // ERROR-SCALE on the blend's estimate: uniform inputs of the eleven
+    // tuning scenes at 4, 16 and 64 spp (AUTO-BLEND).
+    error_scale: 2.5,
     // The least common multiple of the members' (APR's block grid).
     align: super::apr::INFO.align,
     halo: |c| {
@@ -173,7 +177,18 @@ impl GpuStage for AutoStage {
         let (maps, sums) = (self.maps(), self.row_sums());
         auto_score::record(batch, p, (w, h), colors, errors, maps)?;
         let radius = gauss_smooth::radius(SIGMA);
-        gauss_rows::record(batch, p, (w, h), (0, h), SIGMA, radius, &maps, spp, &sums, self.den())?;
+        gauss_rows::record(
+            batch,
+            p,
+            (w, h),
+            (0, h),
+            SIGMA,
+            radius,
+            &maps,
+            spp,
+            &sums,
+            self.den(),
+        )?;
         for k in 0..AUTO_MAPS {
             let scratch = [sums[k], self.den()];
             gauss_smooth::record_columns(batch, p, (w, h), (0, h), SIGMA, scratch, maps[k])?;
@@ -261,9 +276,11 @@ fn run_cpu(clean: &StatsImage, a: &CpuArgs) -> Result<CpuResult> {
             .stats
             .extend(r.stats.iter().map(|(k, v)| (format!("{name}.{k}"), *v)));
         if a.debug {
-            result
-                .debug
-                .extend(r.debug.iter().map(|(k, v)| (format!("{name}.{k}"), v.clone())));
+            result.debug.extend(
+                r.debug
+                    .iter()
+                    .map(|(k, v)| (format!("{name}.{k}"), v.clone())),
+            );
         }
         runs.push(r);
     }

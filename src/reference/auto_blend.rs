@@ -48,9 +48,13 @@ pub fn auto_blend(
             ws += w;
         }
         let inv = if ws > 0.0 { 1.0 / ws } else { 0.0 };
-        for (c, (o, e)) in [(&mut *cr, &mut *er), (&mut *cg, &mut *eg), (&mut *cb, &mut *eb)]
-            .into_iter()
-            .enumerate()
+        for (c, (o, e)) in [
+            (&mut *cr, &mut *er),
+            (&mut *cg, &mut *eg),
+            (&mut *cb, &mut *eb),
+        ]
+        .into_iter()
+        .enumerate()
         {
             o[i] = (num[c] * inv) as f32;
             let r = root[c] * inv;

@@ -204,19 +204,30 @@ fn case(
         .collect::<anyhow::Result<_>>()?;
     let tag = format!("{name}@{spp}-{}x{}", r.width, r.height);
     let input = colour_of(stats);
-    dump(work.join(format!("{tag}-ref.bin")), &[&r.planes[0], &r.planes[1], &r.planes[2]])?;
-    dump(work.join(format!("{tag}-in.bin")), &[&input.planes[0], &input.planes[1], &input.planes[2]])?;
+    dump(
+        work.join(format!("{tag}-ref.bin")),
+        &[&r.planes[0], &r.planes[1], &r.planes[2]],
+    )?;
+    dump(
+        work.join(format!("{tag}-in.bin")),
+        &[&input.planes[0], &input.planes[1], &input.planes[2]],
+    )?;
     for (m, o) in methods.iter().zip(&outs) {
         let e = &o.error;
         dump(
             work.join(format!("{tag}-{}.bin", m.name())),
-            &[&o.color.planes[0], &o.color.planes[1], &o.color.planes[2], &e.planes[0], &e.planes[1], &e.planes[2]],
+            &[
+                &o.color.planes[0],
+                &o.color.planes[1],
+                &o.color.planes[2],
+                &e.planes[0],
+                &e.planes[1],
+                &e.planes[2],
+            ],
         )?;
         line.insert(m.name().into(), metrics::rmse(&o.color, r).into());
         line.insert(format!("{}.mean", m.name()), {
-            let mean = |x: &RgbImage| {
-                x.planes.iter().flatten().map(|&v| v as f64).sum::<f64>()
-            };
+            let mean = |x: &RgbImage| x.planes.iter().flatten().map(|&v| v as f64).sum::<f64>();
             (mean(&o.color) / mean(r)).into()
         });
     }
