@@ -6,7 +6,7 @@
 // dis_ab = e_a + e_b), t_0 = (dis01 + dis02 - dis12) / 2 and so on, bounds
 // its own estimate from below: s_m = max(score_m, t_m). Then
 //   w_m = 1 / max(s_m, AUTO_SCORE_FLOOR),  k_m = s_m / score_m (1 if 0),
-//   f_c = sum w_m f_m,c / sum w_m,
+//   f_c = sum w_m f_m,c / sum w_m (as f_0 + sum w_m (f_m - f_0) / sum w_m),
 //   E_c = (sum w_m sqrt(k_m E_m,c) / sum w_m)^2:
 // each member's error estimate raised by the factor its score was, and
 // combined as the RMS error of a weighted mean is bounded (Minkowski; equal
@@ -62,15 +62,15 @@ PLANE_OUT(29, err_b)
 
 bool finite3(float a, float b, float c) { return is_finite(a) && is_finite(b) && is_finite(c); }
 
-// Adds member (f, e) with smoothed score s and hat estimate t.
-void add(inout real3 num, inout real ws, inout real3 root, bool ok, real3 f, real3 e, real s, real t)
+// Member (f, e) with smoothed score s and hat estimate t: its weight (0
+// when not ok), and adds w sqrt(k e) to root.
+real weigh(inout real3 root, bool ok, real3 e, real s, real t)
 {
     real m = max(s, t);
     real w = ok ? real(1) / max(m, real(AUTO_SCORE_FLOOR)) : real(0);
     real k = s > real(0) ? m / s : real(1);
-    num += ok ? w * f : real3(0);
     root += ok ? w * sqrt(k * max(e, real3(0))) : real3(0);
-    ws += w;
+    return w;
 }
 
 void main()
@@ -82,22 +82,26 @@ void main()
     }
     uint i = y * push.width + x;
     real d01 = real(dis01[i]), d02 = real(dis02[i]), d12 = real(dis12[i]);
-    real3 num = real3(0), root = real3(0);
-    real ws = real(0);
-    add(num, ws, root,
-        finite3(c0r[i], c0g[i], c0b[i]) && finite3(e0r[i], e0g[i], e0b[i]) && is_finite(score0[i]),
-        real3(c0r[i], c0g[i], c0b[i]), real3(e0r[i], e0g[i], e0b[i]), real(score0[i]),
-        real(0.5) * (d01 + d02 - d12));
-    add(num, ws, root,
-        finite3(c1r[i], c1g[i], c1b[i]) && finite3(e1r[i], e1g[i], e1b[i]) && is_finite(score1[i]),
-        real3(c1r[i], c1g[i], c1b[i]), real3(e1r[i], e1g[i], e1b[i]), real(score1[i]),
-        real(0.5) * (d01 + d12 - d02));
-    add(num, ws, root,
-        finite3(c2r[i], c2g[i], c2b[i]) && finite3(e2r[i], e2g[i], e2b[i]) && is_finite(score2[i]),
-        real3(c2r[i], c2g[i], c2b[i]), real3(e2r[i], e2g[i], e2b[i]), real(score2[i]),
-        real(0.5) * (d02 + d12 - d01));
+    real3 f0 = real3(c0r[i], c0g[i], c0b[i]);
+    real3 f1 = real3(c1r[i], c1g[i], c1b[i]);
+    real3 f2 = real3(c2r[i], c2g[i], c2b[i]);
+    bool ok0 = finite3(c0r[i], c0g[i], c0b[i]) && finite3(e0r[i], e0g[i], e0b[i]) && is_finite(score0[i]);
+    bool ok1 = finite3(c1r[i], c1g[i], c1b[i]) && finite3(e1r[i], e1g[i], e1b[i]) && is_finite(score1[i]);
+    bool ok2 = finite3(c2r[i], c2g[i], c2b[i]) && finite3(e2r[i], e2g[i], e2b[i]) && is_finite(score2[i]);
+    real3 root = real3(0);
+    real w0 = weigh(root, ok0, real3(e0r[i], e0g[i], e0b[i]), real(score0[i]), real(0.5) * (d01 + d02 - d12));
+    real w1 = weigh(root, ok1, real3(e1r[i], e1g[i], e1b[i]), real(score1[i]), real(0.5) * (d01 + d12 - d02));
+    real w2 = weigh(root, ok2, real3(e2r[i], e2g[i], e2b[i]), real(score2[i]), real(0.5) * (d02 + d12 - d01));
+    real ws = w0 + w1 + w2;
     real inv = ws > real(0) ? real(1) / ws : real(0);
-    num *= inv;
+    // The blend as the first usable member plus the weighted differences:
+    // members that agree give their colour back exactly.
+    real3 base = ok0 ? f0 : (ok1 ? f1 : (ok2 ? f2 : real3(0)));
+    real3 num = real3(0);
+    num += ok0 ? w0 * (f0 - base) : real3(0);
+    num += ok1 ? w1 * (f1 - base) : real3(0);
+    num += ok2 ? w2 * (f2 - base) : real3(0);
+    num = base + num * inv;
     root *= inv;
     root *= root;
     out_r[i] = float(num.x);

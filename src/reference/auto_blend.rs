@@ -30,24 +30,40 @@ pub fn auto_blend(
             0.5 * (d01 + d12 - d02),
             0.5 * (d02 + d12 - d01),
         ];
-        let (mut num, mut root, mut ws) = ([0.0f64; 3], [0.0f64; 3], 0.0f64);
+        let (mut root, mut ws) = ([0.0f64; 3], 0.0f64);
+        let mut weights = [0.0f64; AUTO_MEMBERS];
+        let mut base = None;
         for m in 0..AUTO_MEMBERS {
             let ok = colors[m].iter().chain(&errors[m]).all(|p| p[i].is_finite())
                 && maps[m][i].is_finite();
-            let s = maps[m][i] as f64;
-            let best = s.max(hat[m]);
             if !ok {
                 continue;
             }
+            let s = maps[m][i] as f64;
+            let best = s.max(hat[m]);
             let w = 1.0 / best.max(AUTO_SCORE_FLOOR);
             let k = if s > 0.0 { best / s } else { 1.0 };
             for c in 0..3 {
-                num[c] += w * colors[m][c][i] as f64;
                 root[c] += w * (k * (errors[m][c][i] as f64).max(0.0)).sqrt();
             }
+            weights[m] = w;
             ws += w;
+            base.get_or_insert(m);
         }
+        let f = |m: usize, c: usize| colors[m][c][i] as f64;
+        let mut num = [0.0f64; 3];
         let inv = if ws > 0.0 { 1.0 / ws } else { 0.0 };
+        // The first usable member plus the weighted differences, as the
+        // kernel: members that agree give their colour back exactly.
+        if let Some(b) = base {
+            for (c, n) in num.iter_mut().enumerate() {
+                let d: f64 = (0..AUTO_MEMBERS)
+                    .filter(|&m| weights[m] > 0.0)
+                    .map(|m| weights[m] * (f(m, c) - f(b, c)))
+                    .sum();
+                *n = f(b, c) + d * inv;
+            }
+        }
         for (c, (o, e)) in [
             (&mut *cr, &mut *er),
             (&mut *cg, &mut *eg),
@@ -56,7 +72,7 @@ pub fn auto_blend(
         .into_iter()
         .enumerate()
         {
-            o[i] = (num[c] * inv) as f32;
+            o[i] = num[c] as f32;
             let r = root[c] * inv;
             e[i] = (r * r) as f32;
         }
