@@ -157,7 +157,7 @@ pub const OPTIONS: &[OptionSpec] = &[
         kind: Kind::Real(0.0, 16.0),
         default: "method",
         section: "§9.1",
-        help: "σ of the Gaussian on the priority map (default: 1 for WLR and LP, 4 for APR, 2 for AOS, 0 otherwise)",
+        help: "σ of the Gaussian on the priority map (default: 1 for WLR, LP and auto, 4 for APR, 2 for AOS, 0 for none)",
     },
     OptionSpec {
         key: "sampling.floor",

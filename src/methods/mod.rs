@@ -120,7 +120,7 @@ pub type ProgressCallback = Arc<dyn Fn(f64, &str) + Send + Sync>;
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Default)]
 pub enum Prefilter {
     /// When the input has `position`, `position_variance` and
-    /// `position_covariance` (the default), for WLR, LP and APR; never for
+    /// `position_covariance` (the default), for WLR, LP, APR and auto; never for
     /// `none` and AOS ([`Prefilter::resolve`]).
     #[default]
     Auto,

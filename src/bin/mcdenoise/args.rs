@@ -64,7 +64,7 @@ impl PrecisionArg {
 #[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
 pub enum PrefilterArg {
     /// The G-buffer prefilter when the input has position, position_variance
-    /// and position_covariance, for the methods that want it (wlr, lp, apr);
+    /// and position_covariance, for the methods that want it (wlr, lp, apr, auto);
     /// none for aos (its own NL-means prefilter does better there).
     Auto,
     /// G-buffer prefilter with world positions and SURE (spec §6); an error

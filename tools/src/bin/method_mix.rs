@@ -40,6 +40,10 @@ struct Args {
     reference: u32,
     #[arg(long, value_delimiter = ',', default_value = "wlr,lp,apr,aos")]
     methods: Vec<String>,
+    /// Only the methods' own rows (rMSE, image mean over the reference's),
+    /// no blending rules.
+    #[arg(long)]
+    no_mix: bool,
     /// Folder for the uniform statistics (for OIDN).
     #[arg(long, default_value = "target/method_mix")]
     work: PathBuf,
@@ -193,6 +197,7 @@ fn case(
     stats: &StatsImage,
     r: &RgbImage,
     methods: &[Method],
+    no_mix: bool,
 ) -> anyhow::Result<()> {
     let mut line = serde_json::Map::new();
     line.insert("case".into(), format!("{name}@{spp}").into());
@@ -230,6 +235,11 @@ fn case(
             let mean = |x: &RgbImage| x.planes.iter().flatten().map(|&v| v as f64).sum::<f64>();
             (mean(&o.color) / mean(r)).into()
         });
+    }
+    if no_mix {
+        line.insert("secs".into(), t.elapsed().as_secs_f64().into());
+        println!("{}", serde_json::Value::Object(line));
+        return Ok(());
     }
     let scales: Vec<f64> = methods.iter().map(|m| m.info().error_scale).collect();
     let ones = vec![1.0; methods.len()];
@@ -285,7 +295,7 @@ fn main() -> anyhow::Result<()> {
             let r = io::read_rgb(&dir.join(s).join("reference.exr"))?;
             for &n in &a.spp {
                 let stats = io::read_stats(&dir.join(s).join(format!("spp{n}.exr")))?;
-                case(&a.work, &ctx, s, n, &stats, &r, &methods)?;
+                case(&a.work, &ctx, s, n, &stats, &r, &methods, a.no_mix)?;
             }
         }
     }
@@ -321,7 +331,7 @@ fn main() -> anyhow::Result<()> {
             b.finish()?;
             let stats = ren.statistics()?;
             io::write_stats(&a.work.join(format!("{name}-{n}.exr")), &stats)?;
-            case(&a.work, &ctx, name, n, &stats, &r, &methods)?;
+            case(&a.work, &ctx, name, n, &stats, &r, &methods, a.no_mix)?;
         }
     }
     Ok(())
