@@ -1,0 +1,211 @@
+//! Probe for issue #41's low-frequency residual noise: a method on the
+//! statistics and on their 2×2-pooled half-resolution version, and rules
+//! that take the low band of the result from the coarse reconstruction.
+//!
+//! Pooling: means weighted by the sample counts, variances (and the
+//! position covariance) as `Σ n² v / N²`, counts summed. Low band
+//! `L(x) = up(down(x))` (2×2 mean, bilinear back). Rules, per pixel:
+//! `full`: `f − L(f) + up(c)`; `blend`: the low band mixed by the error
+//! estimates, `α = Ê_f↓ / (Ê_f↓ + Ê_c)`, `f − α (L(f) − up(c))`.
+//! Reads the uniform statistics and references `method_mix --work DIR`
+//! dumped; prints one JSON line per case.
+//!
+//! ```text
+//! cargo run --release -p mcdenoise-tools --bin pyramid_probe -- --work DIR [--method auto] CASE...
+//! ```
+//! where CASE is `scene-spp` (the statistics `DIR/scene-spp.exr`, the
+//! reference `DIR/scene@spp-WxH-ref.bin`).
+
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use clap::Parser;
+use mcdenoise::{
+    io, metrics, Config, ContextOptions, Denoiser, GpuContext, Layer, Method, RgbImage, Source,
+    StatsImage,
+};
+
+#[derive(Parser)]
+struct Args {
+    #[arg(long)]
+    work: PathBuf,
+    #[arg(long, default_value = "auto")]
+    method: String,
+    cases: Vec<String>,
+}
+
+fn pool(img: &StatsImage) -> StatsImage {
+    let (w, h) = (img.width / 2, img.height / 2);
+    let spp = &img.get(Layer::Spp).unwrap()[0];
+    let mut out = StatsImage::new(w, h);
+    let idx = |x: usize, y: usize| y * img.width + x;
+    for (layer, planes) in img.layers() {
+        let is_var = matches!(
+            layer,
+            Layer::ColorVariance
+                | Layer::AlbedoVariance
+                | Layer::NormalVariance
+                | Layer::DepthVariance
+                | Layer::PositionVariance
+                | Layer::PositionCovariance
+                | Layer::VisibilityVariance
+        );
+        let mut new = vec![vec![0.0f32; w * h]; planes.len()];
+        for y in 0..h {
+            for x in 0..w {
+                let q = [
+                    idx(2 * x, 2 * y),
+                    idx(2 * x + 1, 2 * y),
+                    idx(2 * x, 2 * y + 1),
+                    idx(2 * x + 1, 2 * y + 1),
+                ];
+                let n: Vec<f64> = q.iter().map(|&i| (spp[i] as f64).max(0.0)).collect();
+                let tot: f64 = n.iter().sum();
+                for (c, p) in planes.iter().enumerate() {
+                    let v = if layer == Layer::Spp {
+                        tot
+                    } else if tot <= 0.0 {
+                        0.0
+                    } else if is_var {
+                        q.iter()
+                            .zip(&n)
+                            .map(|(&i, k)| k * k * p[i] as f64)
+                            .sum::<f64>()
+                            / (tot * tot)
+                    } else {
+                        q.iter().zip(&n).map(|(&i, k)| k * p[i] as f64).sum::<f64>() / tot
+                    };
+                    new[c][y * w + x] = v as f32;
+                }
+            }
+        }
+        out.set(layer, new);
+    }
+    out
+}
+
+/// 2×2 mean of a full-resolution plane.
+fn down(p: &[f32], w: usize, h: usize) -> Vec<f64> {
+    let (cw, ch) = (w / 2, h / 2);
+    let mut out = vec![0.0; cw * ch];
+    for y in 0..ch {
+        for x in 0..cw {
+            out[y * cw + x] = (p[2 * y * w + 2 * x] as f64
+                + p[2 * y * w + 2 * x + 1] as f64
+                + p[(2 * y + 1) * w + 2 * x] as f64
+                + p[(2 * y + 1) * w + 2 * x + 1] as f64)
+                / 4.0;
+        }
+    }
+    out
+}
+
+/// Bilinear upsampling of a half-resolution plane (pixel centres aligned).
+fn up(p: &[f64], cw: usize, ch: usize, w: usize, h: usize) -> Vec<f64> {
+    let mut out = vec![0.0; w * h];
+    for y in 0..h {
+        for x in 0..w {
+            let fx = ((x as f64 + 0.5) / 2.0 - 0.5).clamp(0.0, (cw - 1) as f64);
+            let fy = ((y as f64 + 0.5) / 2.0 - 0.5).clamp(0.0, (ch - 1) as f64);
+            let (x0, y0) = (fx.floor() as usize, fy.floor() as usize);
+            let (x1, y1) = ((x0 + 1).min(cw - 1), (y0 + 1).min(ch - 1));
+            let (tx, ty) = (fx - x0 as f64, fy - y0 as f64);
+            let a = p[y0 * cw + x0] * (1.0 - tx) + p[y0 * cw + x1] * tx;
+            let b = p[y1 * cw + x0] * (1.0 - tx) + p[y1 * cw + x1] * tx;
+            out[y * w + x] = a * (1.0 - ty) + b * ty;
+        }
+    }
+    out
+}
+
+fn run(
+    ctx: &Arc<GpuContext>,
+    m: Method,
+    s: &StatsImage,
+    coarse: bool,
+) -> anyhow::Result<mcdenoise::Frame> {
+    let mut c = Config::new(m);
+    if coarse && std::env::var("PYR_COARSE_OUTLIERS").as_deref() == Ok("off") {
+        c.outliers = mcdenoise::Outliers::Off;
+    }
+    let d = Denoiser::new(ctx, Source::of_image(s), c)?;
+    Ok(d.denoise(s, None)?)
+}
+
+fn main() -> anyhow::Result<()> {
+    let a = Args::parse();
+    let ctx = Arc::new(GpuContext::new(&ContextOptions::default())?);
+    let m = Method::from_name(&a.method).ok_or_else(|| anyhow::anyhow!("method"))?;
+    for case in &a.cases {
+        let stats = io::read_stats(&a.work.join(format!("{case}.exr")))?;
+        let (w, h) = (stats.width, stats.height);
+        let (scene, spp) = case.rsplit_once('-').unwrap();
+        let refp = a.work.join(format!("{scene}@{spp}-{w}x{h}-ref.bin"));
+        let bytes = std::fs::read(&refp)?;
+        let vals: Vec<f32> = bytes
+            .chunks(4)
+            .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+            .collect();
+        let r = RgbImage::from_planes(
+            w,
+            h,
+            [
+                vals[..w * h].to_vec(),
+                vals[w * h..2 * w * h].to_vec(),
+                vals[2 * w * h..].to_vec(),
+            ],
+        );
+        let fine = run(&ctx, m, &stats, false)?;
+        let coarse_stats = pool(&stats);
+        let coarse = run(&ctx, m, &coarse_stats, true)?;
+        let (cw, ch) = (w / 2, h / 2);
+        let mut line = serde_json::Map::new();
+        line.insert("case".into(), case.clone().into());
+        line.insert("fine".into(), metrics::rmse(&fine.color, &r).into());
+        for rule in ["full", "blend", "blend2", "clamp1", "clamp2", "clamp3"] {
+            let mut img = fine.color.clone();
+            for c in 0..3 {
+                let f = &fine.color.planes[c];
+                let lf = up(&down(f, w, h), cw, ch, w, h);
+                let cu = up(
+                    &coarse.color.planes[c]
+                        .iter()
+                        .map(|&v| v as f64)
+                        .collect::<Vec<_>>(),
+                    cw,
+                    ch,
+                    w,
+                    h,
+                );
+                let ef = up(&down(&fine.error.planes[c], w, h), cw, ch, w, h);
+                let ec = up(
+                    &coarse.error.planes[c]
+                        .iter()
+                        .map(|&v| v as f64)
+                        .collect::<Vec<_>>(),
+                    cw,
+                    ch,
+                    w,
+                    h,
+                );
+                for i in 0..w * h {
+                    let alpha = match rule {
+                        "full" => 1.0,
+                        "blend2" => (ef[i] * ef[i]) / (ef[i] * ef[i] + ec[i] * ec[i]).max(1e-60),
+                        _ => ef[i] / (ef[i] + ec[i]).max(1e-30),
+                    };
+                    let mut d = lf[i] - cu[i];
+                    if let Some(t) = rule.strip_prefix("clamp") {
+                        let t: f64 = t.parse().unwrap();
+                        let lim = t * (ef[i] + ec[i]).max(0.0).sqrt();
+                        d = d.clamp(-lim, lim);
+                    }
+                    img.planes[c][i] = (f[i] as f64 - alpha * d).max(0.0) as f32;
+                }
+            }
+            line.insert(rule.into(), metrics::rmse(&img, &r).into());
+        }
+        println!("{}", serde_json::Value::Object(line));
+    }
+    Ok(())
+}
