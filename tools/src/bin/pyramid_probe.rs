@@ -162,7 +162,10 @@ fn main() -> anyhow::Result<()> {
         let mut line = serde_json::Map::new();
         line.insert("case".into(), case.clone().into());
         line.insert("fine".into(), metrics::rmse(&fine.color, &r).into());
-        for rule in ["full", "blend", "blend2", "clamp1", "clamp2", "clamp3"] {
+        for rule in [
+            "full", "blend", "blend2", "clamp1", "clamp2", "clamp3", "vfull1", "vfull2", "vblend1",
+            "vblend2", "ratio", "rblend",
+        ] {
             let mut img = fine.color.clone();
             for c in 0..3 {
                 let f = &fine.color.planes[c];
@@ -188,10 +191,21 @@ fn main() -> anyhow::Result<()> {
                     w,
                     h,
                 );
+                let vc = up(
+                    &coarse_stats.get(Layer::ColorVariance).unwrap()[c]
+                        .iter()
+                        .map(|&v| v as f64)
+                        .collect::<Vec<_>>(),
+                    cw,
+                    ch,
+                    w,
+                    h,
+                );
                 for i in 0..w * h {
                     let alpha = match rule {
                         "full" => 1.0,
                         "blend2" => (ef[i] * ef[i]) / (ef[i] * ef[i] + ec[i] * ec[i]).max(1e-60),
+                        r if r.starts_with("vfull") => 1.0,
                         _ => ef[i] / (ef[i] + ec[i]).max(1e-30),
                     };
                     let mut d = lf[i] - cu[i];
@@ -200,7 +214,30 @@ fn main() -> anyhow::Result<()> {
                         let lim = t * (ef[i] + ec[i]).max(0.0).sqrt();
                         d = d.clamp(-lim, lim);
                     }
+                    if let Some(t) = rule.strip_prefix("vfull").or(rule.strip_prefix("vblend")) {
+                        let t: f64 = t.parse().unwrap();
+                        let lim = t * vc[i].max(0.0).sqrt();
+                        d = d.clamp(-lim, lim);
+                    }
                     img.planes[c][i] = (f[i] as f64 - alpha * d).max(0.0) as f32;
+                    if rule.starts_with('r') {
+                        // The low band corrected as a ratio: a bright
+                        // neighbour's share does not spill into dark pixels.
+                        let ratio = (cu[i].max(0.0) + 1e-3) / (lf[i].max(0.0) + 1e-3);
+                        let a = if rule == "ratio" {
+                            1.0
+                        } else {
+                            ef[i] / (ef[i] + ec[i]).max(1e-30)
+                        };
+                        img.planes[c][i] = (f[i] as f64 * (1.0 - a + a * ratio)).max(0.0) as f32;
+                    }
+                    if std::env::var("PYR_DEBUG").as_deref() == Ok(rule) {
+                        let rv = r.planes[c][i] as f64;
+                        let e = (img.planes[c][i] as f64 - rv).powi(2) / (rv * rv + 0.01);
+                        if e > 100.0 {
+                            eprintln!("{case} px {i} ch {c}: out {} fine {} ref {rv} lf {} cu {} vc {} ef {} ec {}", img.planes[c][i], f[i], lf[i], cu[i], vc[i], ef[i], ec[i]);
+                        }
+                    }
                 }
             }
             line.insert(rule.into(), metrics::rmse(&img, &r).into());
