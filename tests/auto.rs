@@ -64,21 +64,29 @@ fn rgb(p: &[Vec<f32>], m: usize) -> [&[f32]; 3] {
     [&p[3 * m], &p[3 * m + 1], &p[3 * m + 2]]
 }
 
+/// The push constants of a `w × h` image and the twin's maps of `planes`.
+fn twin_maps(planes: &[Vec<f32>], w: usize, h: usize) -> (AutoPush, [Vec<f32>; AUTO_MAPS]) {
+    let push = AutoPush {
+        width: w as u32,
+        height: h as u32,
+        ..Default::default()
+    };
+    let colors = std::array::from_fn(|m| rgb(planes, m));
+    let errors = std::array::from_fn(|m| rgb(planes, AUTO_MEMBERS + m));
+    let mut maps: [Vec<f32>; AUTO_MAPS] = std::array::from_fn(|_| vec![0.0; w * h]);
+    reference::auto_score::auto_score(&push, colors, errors, &mut maps);
+    (push, maps)
+}
+
 #[test]
 fn auto_kernels_match_twins() {
     let ctx = gpu();
     let (w, h) = (37, 21);
     let n = w * h;
     let planes = members(w, h, 5);
-    let push = AutoPush {
-        width: w as u32,
-        height: h as u32,
-        ..Default::default()
-    };
+    let (push, maps) = twin_maps(&planes, w, h);
     let colors = std::array::from_fn(|m| rgb(&planes, m));
     let errors = std::array::from_fn(|m| rgb(&planes, AUTO_MEMBERS + m));
-    let mut maps: [Vec<f32>; AUTO_MAPS] = std::array::from_fn(|_| vec![0.0; n]);
-    reference::auto_score::auto_score(&push, colors, errors, &mut maps);
     // Smoothed maps stand-in: the maps with some pixels zero (no score).
     let mut smoothed = maps.clone();
     smoothed[1][3] = 0.0;
@@ -171,15 +179,9 @@ fn agreeing_members_give_themselves_back() {
     }
     planes[4][7] = planes[1][7];
     planes[12][9] = planes[9][9];
-    let push = AutoPush {
-        width: w as u32,
-        height: h as u32,
-        ..Default::default()
-    };
+    let (push, maps) = twin_maps(&planes, w, h);
     let colors = std::array::from_fn(|m| rgb(&planes, m));
     let errors = std::array::from_fn(|m| rgb(&planes, AUTO_MEMBERS + m));
-    let mut maps: [Vec<f32>; AUTO_MAPS] = std::array::from_fn(|_| vec![0.0; n]);
-    reference::auto_score::auto_score(&push, colors, errors, &mut maps);
     let mut out: [Vec<f32>; 6] = std::array::from_fn(|_| vec![0.0; n]);
     let [r, g, b, er, eg, eb] = &mut out;
     let sm = std::array::from_fn(|k| &maps[k][..]);

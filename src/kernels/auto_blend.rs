@@ -59,34 +59,22 @@ pub const FLOPS_PER_PIXEL: f64 = 3.0 * (3.0 + 1.0 + 2.0 + 6.0 + 3.0 + 9.0) + 10.
 pub fn record(
     batch: &mut Batch,
     precision: Precision,
-    (width, height): (u32, u32),
+    size: (u32, u32),
     colors: [[BufferSlice; 3]; AUTO_MEMBERS],
     errors: [[BufferSlice; 3]; AUTO_MEMBERS],
     maps: [BufferSlice; AUTO_MAPS],
     color: [BufferSlice; 3],
     error: [BufferSlice; 3],
 ) -> Result<()> {
-    let push = AutoPush {
-        width,
-        height,
-        ..Default::default()
-    };
-    let bindings: Vec<BufferSlice> = colors
-        .iter()
-        .flatten()
-        .chain(errors.iter().flatten())
-        .chain(&maps)
-        .chain(&color)
-        .chain(&error)
-        .copied()
-        .collect();
-    batch.dispatch(
+    let rest: [&[BufferSlice]; 3] = [&maps, &color, &error];
+    super::auto_score::dispatch(
+        batch,
         &DECL,
         precision,
-        &bindings,
-        bytemuck::bytes_of(&push),
-        width,
-        height,
+        size,
+        colors,
+        errors,
+        &rest,
         FLOPS_PER_PIXEL,
     )
 }

@@ -50,10 +50,35 @@ pub const FLOPS_PER_PIXEL: f64 = 6.0 * (3.0 * 5.0 + 2.0) + 9.0;
 pub fn record(
     batch: &mut Batch,
     precision: Precision,
-    (width, height): (u32, u32),
+    size: (u32, u32),
     colors: [[BufferSlice; 3]; AUTO_MEMBERS],
     errors: [[BufferSlice; 3]; AUTO_MEMBERS],
     maps: [BufferSlice; AUTO_MAPS],
+) -> Result<()> {
+    dispatch(
+        batch,
+        &DECL,
+        precision,
+        size,
+        colors,
+        errors,
+        &[&maps],
+        FLOPS_PER_PIXEL,
+    )
+}
+
+/// Dispatches `auto_score` or `auto_blend` (`decl`) over a `width × height`
+/// image: the members' colours, then their errors, then `rest` in order.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn dispatch(
+    batch: &mut Batch,
+    decl: &KernelDecl,
+    precision: Precision,
+    (width, height): (u32, u32),
+    colors: [[BufferSlice; 3]; AUTO_MEMBERS],
+    errors: [[BufferSlice; 3]; AUTO_MEMBERS],
+    rest: &[&[BufferSlice]],
+    flops_per_pixel: f64,
 ) -> Result<()> {
     let push = AutoPush {
         width,
@@ -62,18 +87,18 @@ pub fn record(
     };
     let bindings: Vec<BufferSlice> = colors
         .iter()
-        .flatten()
-        .chain(errors.iter().flatten())
-        .chain(&maps)
+        .chain(&errors)
+        .flat_map(|p| p.iter())
+        .chain(rest.iter().flat_map(|p| p.iter()))
         .copied()
         .collect();
     batch.dispatch(
-        &DECL,
+        decl,
         precision,
         &bindings,
         bytemuck::bytes_of(&push),
         width,
         height,
-        FLOPS_PER_PIXEL,
+        flops_per_pixel,
     )
 }
