@@ -4,49 +4,29 @@
 //! weights `1 /` that, the weighted mean of the colours and the combined
 //! error estimate `(Σ w √(k E) / Σ w)²`. Twin: `reference::auto_blend`.
 
+use super::auto_score::auto_decl;
 use crate::error::Result;
 use crate::gpu::reflect::{read, write};
 use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};
-use crate::shared::{AutoPush, AUTO_MAPS, AUTO_MEMBERS};
+use crate::shared::{AUTO_MAPS, AUTO_MEMBERS};
 
 /// Declaration of `spirv/auto_blend.comp`; checked against the SPIR-V by
 /// reflection.
-pub const DECL: KernelDecl = KernelDecl {
-    name: "auto_blend",
-    bindings: &[
-        read("c0r"),
-        read("c0g"),
-        read("c0b"),
-        read("c1r"),
-        read("c1g"),
-        read("c1b"),
-        read("c2r"),
-        read("c2g"),
-        read("c2b"),
-        read("e0r"),
-        read("e0g"),
-        read("e0b"),
-        read("e1r"),
-        read("e1g"),
-        read("e1b"),
-        read("e2r"),
-        read("e2g"),
-        read("e2b"),
-        read("score0"),
-        read("score1"),
-        read("score2"),
-        read("dis01"),
-        read("dis02"),
-        read("dis12"),
-        write("out_r"),
-        write("out_g"),
-        write("out_b"),
-        write("err_r"),
-        write("err_g"),
-        write("err_b"),
-    ],
-    push_size: std::mem::size_of::<AutoPush>() as u32,
-};
+pub const DECL: KernelDecl = auto_decl!(
+    "auto_blend",
+    read("score0"),
+    read("score1"),
+    read("score2"),
+    read("dis01"),
+    read("dis02"),
+    read("dis12"),
+    write("out_r"),
+    write("out_g"),
+    write("out_b"),
+    write("err_r"),
+    write("err_g"),
+    write("err_b"),
+);
 
 /// Per pixel: per member the hat estimate, the maximum, the weight's and
 /// the factor's divisions, three multiply-adds for the colour and three

@@ -8,38 +8,38 @@ use crate::gpu::reflect::{read, write};
 use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};
 use crate::shared::{AutoPush, AUTO_MAPS, AUTO_MEMBERS};
 
+/// A declaration of `auto_score` or `auto_blend`: the three members'
+/// colours and errors (18 planes, in the shaders' order), then `$rest`.
+macro_rules! auto_decl {
+    ($name:expr, $($rest:expr),* $(,)?) => {
+        KernelDecl {
+            name: $name,
+            bindings: &[
+                read("c0r"), read("c0g"), read("c0b"),
+                read("c1r"), read("c1g"), read("c1b"),
+                read("c2r"), read("c2g"), read("c2b"),
+                read("e0r"), read("e0g"), read("e0b"),
+                read("e1r"), read("e1g"), read("e1b"),
+                read("e2r"), read("e2g"), read("e2b"),
+                $($rest),*
+            ],
+            push_size: std::mem::size_of::<crate::shared::AutoPush>() as u32,
+        }
+    };
+}
+pub(crate) use auto_decl;
+
 /// Declaration of `spirv/auto_score.comp`; checked against the SPIR-V by
 /// reflection.
-pub const DECL: KernelDecl = KernelDecl {
-    name: "auto_score",
-    bindings: &[
-        read("c0r"),
-        read("c0g"),
-        read("c0b"),
-        read("c1r"),
-        read("c1g"),
-        read("c1b"),
-        read("c2r"),
-        read("c2g"),
-        read("c2b"),
-        read("e0r"),
-        read("e0g"),
-        read("e0b"),
-        read("e1r"),
-        read("e1g"),
-        read("e1b"),
-        read("e2r"),
-        read("e2g"),
-        read("e2b"),
-        write("score0"),
-        write("score1"),
-        write("score2"),
-        write("dis01"),
-        write("dis02"),
-        write("dis12"),
-    ],
-    push_size: std::mem::size_of::<AutoPush>() as u32,
-};
+pub const DECL: KernelDecl = auto_decl!(
+    "auto_score",
+    write("score0"),
+    write("score1"),
+    write("score2"),
+    write("dis01"),
+    write("dis02"),
+    write("dis12"),
+);
 
 /// Per pixel: six maps of three channels, each a difference or clamp, a
 /// multiply-add and a division, summed; the mean of three colours.
