@@ -2,16 +2,19 @@
 //! their own error estimates (AUTO-BLEND, ours; issue #41). The methods fail
 //! in different places, and each one's `E_i` says where.
 //!
-//! For each member `m` ([`MEMBERS`]): its score
-//! `s_m = Σ_c E_m,c / (f_m,c² + 0.01)` (`auto_score`), smoothed by the
-//! Gaussian of §0.5 with σ = [`SIGMA`] over valid pixels (`gauss_rows`,
-//! `gauss_smooth`), weights `w_m = 1 / s̄_m`, and the blend
-//! `f = Σ w_m f_m / Σ w_m` with the error estimate
-//! `E = (Σ w_m √E_m / Σ w_m)²` (`auto_blend`), which is exact when the
-//! members' errors are fully correlated and an upper bound otherwise. The
-//! local dimension `d_i` and the sampling parameters of §9 are the first
-//! member's (WLR's); the G-buffer prefilter and the outlier stage run once,
-//! around the whole blend.
+//! The members ([`MEMBERS`]) run on the sanitised, prefiltered statistics.
+//! `auto_score` writes six maps: each member's relative error estimate
+//! `s_m = Σ_c E_m,c / (f_m,c² + 0.01)` and each pair's disagreement
+//! `dis_ab = Σ_c (f_a,c − f_b,c)² / (f̄_c² + 0.01)`; `gauss_rows` and
+//! `gauss_smooth` smooth them (the Gaussian of §0.5, σ = [`SIGMA`], over
+//! valid pixels). `auto_blend` weighs member `m` by `1 / max(s_m, t_m)`,
+//! `t_m` its error as the three-cornered hat of the disagreements gives it
+//! (`t_0 = (dis01 + dis02 − dis12) / 2`, …), and exports the blend with the
+//! error estimate `E_c = (Σ w_m √(k_m E_m,c) / Σ w_m)²`, `k_m` the factor
+//! by which the hat raised the member's score. The local dimension `d_i` and
+//! the sampling parameters of §9 are the first member's (WLR's); the
+//! G-buffer prefilter and the outlier stage run once, around the whole
+//! blend.
 
 use std::sync::Arc;
 
@@ -163,9 +166,10 @@ impl GpuStage for AutoStage {
                 &StageRun {
                     precision: p,
                     stats: run.stats,
+                    // Its configuration asks for the error estimate, which
+                    // the blend reads; nothing reads its sampling planes.
                     config: &m.config,
-                    // The blend reads every member's error estimate.
-                    maps: true,
+                    maps: false,
                     origin: run.origin,
                     prefiltered: run.prefiltered,
                 },
