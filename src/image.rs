@@ -278,6 +278,11 @@ impl RgbImage {
         }
     }
 
+    /// The R, G, B planes as slices, as the twins take them.
+    pub fn plane_slices(&self) -> [&[f32]; 3] {
+        [&self.planes[0], &self.planes[1], &self.planes[2]]
+    }
+
     /// A crop `[x0, x0+w) x [y0, y0+h)`, which must lie inside the image.
     pub fn crop(&self, x0: usize, y0: usize, w: usize, h: usize) -> RgbImage {
         RgbImage {

@@ -288,8 +288,8 @@ fn run_cpu(clean: &StatsImage, a: &CpuArgs) -> Result<CpuResult> {
         }
         runs.push(r);
     }
-    let colors = std::array::from_fn(|m| rgb(&runs[m].color));
-    let errors = std::array::from_fn(|m| rgb(&runs[m].error));
+    let colors = std::array::from_fn(|m| runs[m].color.plane_slices());
+    let errors = std::array::from_fn(|m| runs[m].error.plane_slices());
     let mut maps: [Vec<f32>; AUTO_MAPS] = std::array::from_fn(|_| vec![0.0; w * h]);
     reference::auto_score::auto_score(&push, colors, errors, &mut maps);
     let smoothed: [Vec<f32>; AUTO_MAPS] = std::array::from_fn(|k| {
@@ -316,9 +316,4 @@ fn run_cpu(clean: &StatsImage, a: &CpuArgs) -> Result<CpuResult> {
     }
     result.dim = runs.swap_remove(0).dim;
     Ok(result)
-}
-
-/// The planes of `i` as slices.
-fn rgb(i: &RgbImage) -> [&[f32]; 3] {
-    [&i.planes[0], &i.planes[1], &i.planes[2]]
 }

@@ -344,19 +344,12 @@ fn denoise_cpu(img: &StatsImage, req: &DenoiseRequest) -> Result<DenoiseOutput> 
             let mut params = sampling::SamplingParams::with_options(req.method, &req.options)?;
             // The CPU path passes the decoded rank, not WLR's kflags.
             params.dim = sampling::DimSource::Plain;
-            let dmse;
-            let e: [&[f32]; 3] = match &map_e {
-                Some(d) => {
-                    dmse = d;
-                    [&dmse.planes[0], &dmse.planes[1], &dmse.planes[2]]
-                }
-                None => [&error.planes[0], &error.planes[1], &error.planes[2]],
-            };
+            let e = map_e.as_ref().unwrap_or(&error).plane_slices();
             let spp = &clean.get(crate::image::Layer::Spp).unwrap()[0];
             let inputs = sampling::CpuSampleInputs {
                 error: e,
                 dim: &dim,
-                filtered: [&color.planes[0], &color.planes[1], &color.planes[2]],
+                filtered: color.plane_slices(),
                 spp,
             };
             Some(sampling::run_cpu(w, h, &inputs, t, &params)?)
