@@ -178,15 +178,10 @@ fn subsets(n: usize) -> Vec<Vec<usize>> {
 fn dump(path: PathBuf, planes: &[&[f32]]) -> anyhow::Result<()> {
     let mut bytes = Vec::new();
     for p in planes {
-        bytes.extend_from_slice(bytemuck_bytes(p));
+        bytes.extend_from_slice(bytemuck::cast_slice(p));
     }
     std::fs::write(path, bytes)?;
     Ok(())
-}
-
-fn bytemuck_bytes(p: &[f32]) -> &[u8] {
-    // SAFETY: f32 has no padding and any byte pattern is a valid u8.
-    unsafe { std::slice::from_raw_parts(p.as_ptr() as *const u8, std::mem::size_of_val(p)) }
 }
 
 fn case(
@@ -201,35 +196,19 @@ fn case(
 ) -> anyhow::Result<()> {
     let mut line = serde_json::Map::new();
     line.insert("case".into(), format!("{name}@{spp}").into());
-    line.insert("input".into(), metrics::rmse(&colour_of(stats), r).into());
+    let input = colour_of(stats);
+    line.insert("input".into(), metrics::rmse(&input, r).into());
     let t = std::time::Instant::now();
     let outs: Vec<Out> = methods
         .iter()
         .map(|&m| run(ctx, stats, m))
         .collect::<anyhow::Result<_>>()?;
     let tag = format!("{name}@{spp}-{}x{}", r.width, r.height);
-    let input = colour_of(stats);
-    dump(
-        work.join(format!("{tag}-ref.bin")),
-        &[&r.planes[0], &r.planes[1], &r.planes[2]],
-    )?;
-    dump(
-        work.join(format!("{tag}-in.bin")),
-        &[&input.planes[0], &input.planes[1], &input.planes[2]],
-    )?;
+    dump(work.join(format!("{tag}-ref.bin")), &r.plane_slices())?;
+    dump(work.join(format!("{tag}-in.bin")), &input.plane_slices())?;
     for (m, o) in methods.iter().zip(&outs) {
-        let e = &o.error;
-        dump(
-            work.join(format!("{tag}-{}.bin", m.name())),
-            &[
-                &o.color.planes[0],
-                &o.color.planes[1],
-                &o.color.planes[2],
-                &e.planes[0],
-                &e.planes[1],
-                &e.planes[2],
-            ],
-        )?;
+        let planes = [o.color.plane_slices(), o.error.plane_slices()].concat();
+        dump(work.join(format!("{tag}-{}.bin", m.name())), &planes)?;
         line.insert(m.name().into(), metrics::rmse(&o.color, r).into());
         line.insert(format!("{}.mean", m.name()), {
             let mean = |x: &RgbImage| x.planes.iter().flatten().map(|&v| v as f64).sum::<f64>();

@@ -141,11 +141,7 @@ fn main() -> anyhow::Result<()> {
         let (w, h) = (stats.width, stats.height);
         let (scene, spp) = case.rsplit_once('-').unwrap();
         let refp = a.work.join(format!("{scene}@{spp}-{w}x{h}-ref.bin"));
-        let bytes = std::fs::read(&refp)?;
-        let vals: Vec<f32> = bytes
-            .chunks(4)
-            .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
-            .collect();
+        let vals: Vec<f32> = bytemuck::pod_collect_to_vec(&std::fs::read(&refp)?);
         let r = RgbImage::from_planes(
             w,
             h,
@@ -162,6 +158,30 @@ fn main() -> anyhow::Result<()> {
         let mut line = serde_json::Map::new();
         line.insert("case".into(), case.clone().into());
         line.insert("fine".into(), metrics::rmse(&fine.color, &r).into());
+        // Per channel, at full resolution: the fine output's low band, the
+        // coarse output, the fine error pooled, the coarse error, the pooled
+        // input variance.
+        let up_half = |p: &[f32]| {
+            up(
+                &p.iter().map(|&v| v as f64).collect::<Vec<_>>(),
+                cw,
+                ch,
+                w,
+                h,
+            )
+        };
+        let coarse_var = coarse_stats.get(Layer::ColorVariance).unwrap();
+        let bands: Vec<[Vec<f64>; 5]> = (0..3)
+            .map(|c| {
+                [
+                    up(&down(&fine.color.planes[c], w, h), cw, ch, w, h),
+                    up_half(&coarse.color.planes[c]),
+                    up(&down(&fine.error.planes[c], w, h), cw, ch, w, h),
+                    up_half(&coarse.error.planes[c]),
+                    up_half(&coarse_var[c]),
+                ]
+            })
+            .collect();
         for rule in [
             "full", "blend", "blend2", "clamp1", "clamp2", "clamp3", "vfull1", "vfull2", "vblend1",
             "vblend2", "ratio", "rblend",
@@ -169,38 +189,7 @@ fn main() -> anyhow::Result<()> {
             let mut img = fine.color.clone();
             for c in 0..3 {
                 let f = &fine.color.planes[c];
-                let lf = up(&down(f, w, h), cw, ch, w, h);
-                let cu = up(
-                    &coarse.color.planes[c]
-                        .iter()
-                        .map(|&v| v as f64)
-                        .collect::<Vec<_>>(),
-                    cw,
-                    ch,
-                    w,
-                    h,
-                );
-                let ef = up(&down(&fine.error.planes[c], w, h), cw, ch, w, h);
-                let ec = up(
-                    &coarse.error.planes[c]
-                        .iter()
-                        .map(|&v| v as f64)
-                        .collect::<Vec<_>>(),
-                    cw,
-                    ch,
-                    w,
-                    h,
-                );
-                let vc = up(
-                    &coarse_stats.get(Layer::ColorVariance).unwrap()[c]
-                        .iter()
-                        .map(|&v| v as f64)
-                        .collect::<Vec<_>>(),
-                    cw,
-                    ch,
-                    w,
-                    h,
-                );
+                let [lf, cu, ef, ec, vc] = &bands[c];
                 for i in 0..w * h {
                     let alpha = match rule {
                         "full" => 1.0,
