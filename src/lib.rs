@@ -76,12 +76,14 @@
 #![warn(missing_docs)]
 
 pub mod accum;
+#[cfg(feature = "bench")]
 pub mod bench;
 pub mod error;
 #[doc(hidden)]
 pub mod fault;
 pub mod gpu;
 pub mod image;
+#[cfg(feature = "io")]
 pub mod io;
 pub mod kernels;
 pub mod methods;
@@ -90,6 +92,7 @@ pub mod options;
 pub mod reference;
 /// The built-in path tracer (issue #10): scenes, a BVH, and a Vulkan compute
 /// kernel that accumulates exactly the planes a [`Denoiser`] reads.
+#[cfg(feature = "render")]
 pub mod render;
 pub mod shared;
 
