@@ -7,7 +7,8 @@
 //! defined (see `spirv/lib/common.glsl`). `#include "lib/x.glsl"` lines are
 //! expanded textually here (once per file), so error lines refer to the
 //! expanded source, which is written next to the SPIR-V for reading.
-//! The output is `$OUT_DIR/shaders.rs`: a table of `(name, words)`.
+//! The output is `$OUT_DIR/shaders.rs`: a table of `(name, words)`; and
+//! `$OUT_DIR/accumulate.spv`, the examples' accumulation shader.
 
 use std::collections::HashSet;
 use std::fmt::Write as _;
@@ -26,7 +27,12 @@ fn expand(path: &Path, root: &Path, seen: &mut HashSet<PathBuf>, out: &mut Strin
         let t = line.trim_start();
         if let Some(rest) = t.strip_prefix("#include") {
             let name = rest.trim().trim_matches('"');
-            let inc = root.join(name);
+            // Relative to spirv/, or the public headers of include/
+            // (the accumulation layout renderers share).
+            let mut inc = root.join(name);
+            if !inc.exists() {
+                inc = root.join("..").join("include").join(name);
+            }
             if seen.insert(inc.clone()) {
                 writeln!(out, "// ---- begin {name}").unwrap();
                 expand(&inc, root, seen, out);
@@ -47,6 +53,10 @@ fn main() {
     println!("cargo:rerun-if-changed={}", root.display());
     println!("cargo:rerun-if-changed={}", root.join("lib").display());
     println!("cargo:rerun-if-changed={}", root.join("render").display());
+    println!(
+        "cargo:rerun-if-changed={}",
+        root.join("../include").display()
+    );
 
     let mut kernels: Vec<PathBuf> = [root.clone(), root.join("render")]
         .iter()
@@ -62,9 +72,24 @@ fn main() {
     table.push_str("pub static SHADERS: &[(&str, &[u32])] = &[\n");
     let mut errors = Vec::new();
 
-    for path in &kernels {
+    // The examples' accumulation shader (examples/c/accumulate.comp, on
+    // include/mcdenoise_accum.glsl): `$OUT_DIR/accumulate.spv` for
+    // examples/embed.rs, not a kernel of the library.
+    let example = root.join("../examples/c/accumulate.comp");
+    println!("cargo:rerun-if-changed={}", example.display());
+    let sources = kernels
+        .iter()
+        .map(|p| (p, true))
+        .chain(std::iter::once((&example, false)));
+
+    for (path, kernel) in sources {
         let stem = path.file_stem().unwrap().to_str().unwrap().to_owned();
-        for (suffix, define) in [("", ""), ("_f64", "#define MC_F64 1\n")] {
+        let variants: &[(&str, &str)] = if kernel {
+            &[("", ""), ("_f64", "#define MC_F64 1\n")]
+        } else {
+            &[("", "")]
+        };
+        for &(suffix, define) in variants {
             let name = format!("{stem}{suffix}");
             let mut body = String::new();
             expand(path, &root, &mut HashSet::new(), &mut body);
@@ -112,7 +137,9 @@ fn main() {
                 Ok(words) => {
                     let spv = out_dir.join(format!("{name}.spv"));
                     std::fs::write(&spv, bytemuck_words(&words)).unwrap();
-                    writeln!(table, "    ({name:?}, &{words:?}),",).unwrap();
+                    if kernel {
+                        writeln!(table, "    ({name:?}, &{words:?}),",).unwrap();
+                    }
                 }
                 Err(e) => errors.push(format!(
                     "{name} ({}): {e}",

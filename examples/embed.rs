@@ -1,14 +1,16 @@
 //! A renderer-shaped host written with raw `ash`: its own instance, device,
-//! queue, command buffer and accumulation buffer, which it fills itself (here
-//! on the CPU: a noisy gradient with an edge, 8 samples per pixel). It hands
-//! the buffer to mcdenoise, which records its whole chain into the host's
-//! command buffer; the host submits, then reads colour, error and the next
-//! pass's sample map.
+//! queue, command buffer and accumulation buffer, which its own compute
+//! shader fills (`examples/c/accumulate.comp`, shared with the C example: a
+//! noisy gradient with an edge, added with `include/mcdenoise_accum.glsl`).
+//! It hands the buffer to mcdenoise, which records its whole chain into the
+//! host's command buffer; the host submits, reads colour, error and the next
+//! pass's sample map, then renders a second pass where the map says (its
+//! shader binds the map where it lies on the GPU) and denoises again.
 //!
 //! `cargo run --release --example embed` (CI runs it through `tests/examples.rs`).
 //! Exits non-zero if the result is wrong: the sample map must spend exactly
-//! the budget, and the reconstruction must be closer to the noise-free image
-//! than the input.
+//! the budget, and each reconstruction must be closer to the noise-free
+//! image than the input.
 
 use ash::vk;
 
@@ -91,30 +93,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     };
     let queue = unsafe { device.get_device_queue(family, 0) };
 
-    // The renderer's accumulation buffer: per scalar channel Σx and Σx², the
-    // sample count (layout in mcdenoise::accum), in host-visible memory.
+    // The renderer's accumulation buffer (layout: include/mcdenoise_accum.glsl,
+    // mcdenoise::accum), filled by its own shader.
     let layout = mcdenoise::AccumLayout::new(W, H, false, false);
-    let (buffer, memory, ptr) = host_buffer(&instance, physical, &device, layout.bytes())?;
-    let mut rng = 0x9e3779b97f4a7c15u64;
-    let mut acc = mcdenoise::Accumulator::new(layout);
-    for p in 0..W * H {
-        let t = truth(p % W, p / W) as f64;
-        for _ in 0..SPP {
-            rng ^= rng << 13;
-            rng ^= rng >> 7;
-            rng ^= rng << 17;
-            let noise = (rng >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
-            let c = (t * (1.0 + 1.5 * noise)).max(0.0);
-            let a = if p % W < W / 2 { 0.2 } else { 1.0 };
-            acc.add(p, &[c, c, c, a, a, a, 0.0, 0.0, 1.0, 2.0]);
-        }
-    }
-    for (i, plane) in acc.planes().iter().enumerate() {
-        let at = i * layout.plane_stride() as usize;
-        unsafe {
-            std::ptr::copy_nonoverlapping(plane.as_ptr(), ptr.add(at) as *mut f32, plane.len())
-        };
-    }
+    let (buffer, memory) = device_buffer(&instance, physical, &device, layout.bytes())?;
+    let host = Host::new(&device, family)?;
 
     // ---- mcdenoise-facing code. ----
     let ctx = std::sync::Arc::new(unsafe {
@@ -129,72 +112,75 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             shader_int64_enabled: supported.shader_int64 == vk::TRUE,
         })?
     });
-    let config = mcdenoise::Config::new(mcdenoise::Method::Wlr);
+    let mut config = mcdenoise::Config::new(mcdenoise::Method::Wlr);
+    config.low_spp = false; // every pixel gets 0 or at least 2 samples
     let denoiser = mcdenoise::Denoiser::new(&ctx, mcdenoise::Source::Accum(layout), config)?;
     let accum = unsafe { mcdenoise::BufferSlice::from_raw(buffer, 0, layout.bytes()) };
+    // The host's shader reads mcdenoise's sample map where it lies.
+    let map = denoiser
+        .outputs()?
+        .samples
+        .ok_or("no shaderInt64: no sample map")?;
+    host.bind(&device, buffer, layout.bytes(), map);
 
-    let pool = unsafe {
-        device.create_command_pool(
-            &vk::CommandPoolCreateInfo::default().queue_family_index(family),
-            None,
-        )?
-    };
-    let cmd = unsafe {
-        device.allocate_command_buffers(
-            &vk::CommandBufferAllocateInfo::default()
-                .command_pool(pool)
-                .command_buffer_count(1),
-        )?
-    }[0];
-    unsafe { device.begin_command_buffer(cmd, &vk::CommandBufferBeginInfo::default())? };
-    // The host's own passes would be recorded here; then mcdenoise's:
-    let recorded = unsafe { denoiser.record_into(cmd, Some(accum), Some(BUDGET))? };
-    unsafe {
-        device.end_command_buffer(cmd)?;
-        let fence = device.create_fence(&vk::FenceCreateInfo::default(), None)?;
-        device.queue_submit(
-            queue,
-            &[vk::SubmitInfo::default().command_buffers(&[cmd])],
-            fence,
-        )?;
-        device.wait_for_fences(&[fence], true, u64::MAX)?;
-        device.destroy_fence(fence, None);
+    let mut first = 0.0;
+    let mut total = 0;
+    for pass in 0..2u32 {
+        let cmd = host.cmd;
+        unsafe { device.begin_command_buffer(cmd, &vk::CommandBufferBeginInfo::default())? };
+        if pass == 0 {
+            host.clear(&device, buffer);
+        }
+        // The host's own pass: this pass's samples into the accumulation.
+        host.accumulate(&device, pass, layout.plane_stride() as u32 / 4);
+        // Then mcdenoise's chain (it brings its own barriers); a sample map
+        // for the next pass after pass 0.
+        let budget = (pass == 0).then_some(BUDGET);
+        let recorded = unsafe { denoiser.record_into(cmd, Some(accum), budget)? };
+        unsafe {
+            device.end_command_buffer(cmd)?;
+            device.queue_submit(
+                queue,
+                &[vk::SubmitInfo::default().command_buffers(&[cmd])],
+                host.fence,
+            )?;
+            device.wait_for_fences(&[host.fence], true, u64::MAX)?;
+            device.reset_fences(&[host.fence])?;
+            device.reset_command_buffer(cmd, vk::CommandBufferResetFlags::empty())?;
+        }
+        drop(recorded); // the work has completed
+        let frame = denoiser.read()?;
+
+        // ---- Checks a renderer would care about. ----
+        let rmse = rel_mse(&frame.color);
+        // The input's expected relative MSE: variance truth²/3 per sample.
+        let input = 1.0 / (3.0 * SPP as f64);
+        println!("pass {pass}: rMSE {rmse:.5} (input about {input:.5})");
+        println!(
+            "mean estimated error {:.5}",
+            frame.error.planes[0].iter().sum::<f32>() / (W * H) as f32
+        );
+        if pass == 0 {
+            let samples = frame.samples.as_ref().ok_or("no sample map")?;
+            total = samples.iter().map(|&s| s as u64).sum::<u64>();
+            println!(
+                "sample map: {total} samples for a budget of {BUDGET}, max {} per pixel",
+                samples.iter().max().unwrap()
+            );
+            first = rmse;
+        } else if rmse >= first {
+            return Err("the second pass did not lower the error".into());
+        }
+        if rmse >= 0.5 * input {
+            return Err("the reconstruction is not better than its input".into());
+        }
     }
-    drop(recorded); // the work has completed
-    let frame = denoiser.read()?;
-    let samples = frame.samples.as_ref().ok_or("no sample map")?;
-
-    // ---- Checks a renderer would care about. ----
-    let total: u64 = samples.iter().map(|&s| s as u64).sum();
-    let mse = |img: &[f32]| -> f64 {
-        let e: f64 = (0..W * H)
-            .map(|p| (img[p] - truth(p % W, p / W)).powi(2) as f64)
-            .sum();
-        e / (W * H) as f64
-    };
-    let input: Vec<f32> = {
-        let s = &acc.planes();
-        (0..W * H)
-            .map(|p| s[0][p] / s[layout.count_plane()][p])
-            .collect()
-    };
-    let (mse_in, mse_out) = (mse(&input), mse(&frame.color.planes[0]));
     println!("device: {}", ctx.info().name);
-    println!("MSE of the red channel: input {mse_in:.5}, WLR {mse_out:.5}");
-    println!(
-        "mean estimated error {:.5}",
-        frame.error.planes[0].iter().sum::<f32>() / (W * H) as f32
-    );
-    println!(
-        "sample map: {total} samples for a budget of {BUDGET}, max {} per pixel",
-        samples.iter().max().unwrap()
-    );
 
     drop(denoiser);
     drop(ctx);
+    host.destroy(&device);
     unsafe {
-        device.destroy_command_pool(pool, None);
-        device.unmap_memory(memory);
         device.destroy_buffer(buffer, None);
         device.free_memory(memory, None);
         device.destroy_device(None);
@@ -208,21 +194,33 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "validation layer: {}, {messages} messages",
         if validate { "on" } else { "off" }
     );
-    if total != BUDGET as u64 || mse_out >= mse_in || messages > 0 {
+    if total != BUDGET as u64 || messages > 0 {
         return Err("wrong result".into());
     }
     Ok(())
 }
 
-/// A host-visible, host-coherent storage buffer, mapped (the host's own
-/// allocation code).
-fn host_buffer(
+/// Relative MSE of an image against `truth`.
+fn rel_mse(img: &mcdenoise::RgbImage) -> f64 {
+    let mut sum = 0.0;
+    for plane in &img.planes {
+        for (p, &v) in plane.iter().enumerate() {
+            let t = truth(p % W, p / W) as f64;
+            sum += (v as f64 - t).powi(2) / (t * t + 0.01);
+        }
+    }
+    sum / (3 * W * H) as f64
+}
+
+/// A device-local storage buffer (the host's own allocation code).
+fn device_buffer(
     instance: &ash::Instance,
     physical: vk::PhysicalDevice,
     device: &ash::Device,
     size: u64,
-) -> Result<(vk::Buffer, vk::DeviceMemory, *mut u8), vk::Result> {
+) -> Result<(vk::Buffer, vk::DeviceMemory), vk::Result> {
     unsafe {
+        // mcdenoise copies the count plane out of it: TRANSFER_SRC.
         let usage = vk::BufferUsageFlags::STORAGE_BUFFER
             | vk::BufferUsageFlags::TRANSFER_SRC
             | vk::BufferUsageFlags::TRANSFER_DST;
@@ -232,11 +230,14 @@ fn host_buffer(
         )?;
         let req = device.get_buffer_memory_requirements(buffer);
         let props = instance.get_physical_device_memory_properties(physical);
-        let want = vk::MemoryPropertyFlags::HOST_VISIBLE | vk::MemoryPropertyFlags::HOST_COHERENT;
+        let fits = |i: u32, want: vk::MemoryPropertyFlags| {
+            req.memory_type_bits & (1 << i) != 0
+                && props.memory_types[i as usize].property_flags.contains(want)
+        };
         let ty = (0..props.memory_type_count)
-            .find(|&i| {
-                req.memory_type_bits & (1 << i) != 0
-                    && props.memory_types[i as usize].property_flags.contains(want)
+            .find(|&i| fits(i, vk::MemoryPropertyFlags::DEVICE_LOCAL))
+            .or_else(|| {
+                (0..props.memory_type_count).find(|&i| fits(i, vk::MemoryPropertyFlags::empty()))
             })
             .ok_or(vk::Result::ERROR_FEATURE_NOT_PRESENT)?;
         let memory = device.allocate_memory(
@@ -246,7 +247,207 @@ fn host_buffer(
             None,
         )?;
         device.bind_buffer_memory(buffer, memory, 0)?;
-        let ptr = device.map_memory(memory, 0, size, vk::MemoryMapFlags::empty())? as *mut u8;
-        Ok((buffer, memory, ptr))
+        Ok((buffer, memory))
+    }
+}
+
+/// The host renderer's accumulation pass: `examples/c/accumulate.comp`
+/// (binding 0 the accumulation buffer, binding 1 the sample map), its
+/// command buffer and fence.
+struct Host {
+    module: vk::ShaderModule,
+    set_layout: vk::DescriptorSetLayout,
+    pipeline_layout: vk::PipelineLayout,
+    pipeline: vk::Pipeline,
+    pool: vk::DescriptorPool,
+    set: vk::DescriptorSet,
+    cmd_pool: vk::CommandPool,
+    cmd: vk::CommandBuffer,
+    fence: vk::Fence,
+}
+
+/// The shader's push constants.
+#[repr(C)]
+#[derive(Copy, Clone, bytemuck::Pod, bytemuck::Zeroable)]
+struct Push {
+    width: u32,
+    height: u32,
+    pass_index: u32,
+    uniform_spp: u32,
+    stride: u32,
+}
+
+impl Host {
+    fn new(device: &ash::Device, family: u32) -> Result<Host, vk::Result> {
+        let spv = include_bytes!(concat!(env!("OUT_DIR"), "/accumulate.spv"));
+        let words: Vec<u32> = spv
+            .chunks_exact(4)
+            .map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]))
+            .collect();
+        unsafe {
+            let module = device
+                .create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&words), None)?;
+            let bindings = [0, 1].map(|b| {
+                vk::DescriptorSetLayoutBinding::default()
+                    .binding(b)
+                    .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
+                    .descriptor_count(1)
+                    .stage_flags(vk::ShaderStageFlags::COMPUTE)
+            });
+            let set_layout = device.create_descriptor_set_layout(
+                &vk::DescriptorSetLayoutCreateInfo::default().bindings(&bindings),
+                None,
+            )?;
+            let ranges = [vk::PushConstantRange::default()
+                .stage_flags(vk::ShaderStageFlags::COMPUTE)
+                .size(std::mem::size_of::<Push>() as u32)];
+            let layouts = [set_layout];
+            let pipeline_layout = device.create_pipeline_layout(
+                &vk::PipelineLayoutCreateInfo::default()
+                    .set_layouts(&layouts)
+                    .push_constant_ranges(&ranges),
+                None,
+            )?;
+            let stage = vk::PipelineShaderStageCreateInfo::default()
+                .stage(vk::ShaderStageFlags::COMPUTE)
+                .module(module)
+                .name(c"main");
+            let pipeline = device
+                .create_compute_pipelines(
+                    vk::PipelineCache::null(),
+                    &[vk::ComputePipelineCreateInfo::default()
+                        .stage(stage)
+                        .layout(pipeline_layout)],
+                    None,
+                )
+                .map_err(|(_, e)| e)?[0];
+            let sizes = [vk::DescriptorPoolSize::default()
+                .ty(vk::DescriptorType::STORAGE_BUFFER)
+                .descriptor_count(2)];
+            let pool = device.create_descriptor_pool(
+                &vk::DescriptorPoolCreateInfo::default()
+                    .max_sets(1)
+                    .pool_sizes(&sizes),
+                None,
+            )?;
+            let set = device.allocate_descriptor_sets(
+                &vk::DescriptorSetAllocateInfo::default()
+                    .descriptor_pool(pool)
+                    .set_layouts(&layouts),
+            )?[0];
+            let cmd_pool = device.create_command_pool(
+                &vk::CommandPoolCreateInfo::default()
+                    .queue_family_index(family)
+                    .flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER),
+                None,
+            )?;
+            let cmd = device.allocate_command_buffers(
+                &vk::CommandBufferAllocateInfo::default()
+                    .command_pool(cmd_pool)
+                    .command_buffer_count(1),
+            )?[0];
+            let fence = device.create_fence(&vk::FenceCreateInfo::default(), None)?;
+            Ok(Host {
+                module,
+                set_layout,
+                pipeline_layout,
+                pipeline,
+                pool,
+                set,
+                cmd_pool,
+                cmd,
+                fence,
+            })
+        }
+    }
+
+    /// Binds the accumulation buffer and mcdenoise's sample map.
+    fn bind(
+        &self,
+        device: &ash::Device,
+        accum: vk::Buffer,
+        bytes: u64,
+        map: mcdenoise::BufferSlice,
+    ) {
+        let infos = [
+            [vk::DescriptorBufferInfo::default()
+                .buffer(accum)
+                .range(bytes)],
+            [vk::DescriptorBufferInfo::default()
+                .buffer(map.buffer())
+                .offset(map.offset())
+                .range(map.size())],
+        ];
+        let writes = [0, 1].map(|b| {
+            vk::WriteDescriptorSet::default()
+                .dst_set(self.set)
+                .dst_binding(b as u32)
+                .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
+                .buffer_info(&infos[b])
+        });
+        unsafe { device.update_descriptor_sets(&writes, &[]) };
+    }
+
+    /// Records zeroing the accumulation buffer.
+    fn clear(&self, device: &ash::Device, accum: vk::Buffer) {
+        let barrier = vk::MemoryBarrier::default()
+            .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
+            .dst_access_mask(vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE);
+        unsafe {
+            device.cmd_fill_buffer(self.cmd, accum, 0, vk::WHOLE_SIZE, 0);
+            device.cmd_pipeline_barrier(
+                self.cmd,
+                vk::PipelineStageFlags::TRANSFER,
+                vk::PipelineStageFlags::COMPUTE_SHADER,
+                vk::DependencyFlags::empty(),
+                &[barrier],
+                &[],
+                &[],
+            );
+        }
+    }
+
+    /// Records the accumulation of pass `pass` (0: SPP per pixel; then the
+    /// sample map's counts).
+    fn accumulate(&self, device: &ash::Device, pass: u32, stride: u32) {
+        let push = Push {
+            width: W as u32,
+            height: H as u32,
+            pass_index: pass,
+            uniform_spp: SPP as u32,
+            stride,
+        };
+        unsafe {
+            device.cmd_bind_pipeline(self.cmd, vk::PipelineBindPoint::COMPUTE, self.pipeline);
+            device.cmd_bind_descriptor_sets(
+                self.cmd,
+                vk::PipelineBindPoint::COMPUTE,
+                self.pipeline_layout,
+                0,
+                &[self.set],
+                &[],
+            );
+            device.cmd_push_constants(
+                self.cmd,
+                self.pipeline_layout,
+                vk::ShaderStageFlags::COMPUTE,
+                0,
+                bytemuck::bytes_of(&push),
+            );
+            device.cmd_dispatch(self.cmd, (W * H).div_ceil(64) as u32, 1, 1);
+        }
+    }
+
+    /// Destroys the host's objects (after its work completed).
+    fn destroy(&self, device: &ash::Device) {
+        unsafe {
+            device.destroy_fence(self.fence, None);
+            device.destroy_command_pool(self.cmd_pool, None);
+            device.destroy_descriptor_pool(self.pool, None);
+            device.destroy_pipeline(self.pipeline, None);
+            device.destroy_pipeline_layout(self.pipeline_layout, None);
+            device.destroy_descriptor_set_layout(self.set_layout, None);
+            device.destroy_shader_module(self.module, None);
+        }
     }
 }

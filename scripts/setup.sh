@@ -5,7 +5,7 @@
 # is missing. Rust (cargo >= 1.80) is expected to be installed (rustup).
 set -euo pipefail
 pkgs=(mesa-vulkan-drivers libvulkan1)
-[ "${1:-}" = "--tests" ] && pkgs+=(vulkan-validationlayers)
+[ "${1:-}" = "--tests" ] && pkgs+=(vulkan-validationlayers libvulkan-dev)
 missing=()
 for p in "${pkgs[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q 'install ok installed' || missing+=("$p")

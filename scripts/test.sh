@@ -10,4 +10,5 @@ export MCDENOISE_REQUIRE_VALIDATION=1
 if [ $# -eq 0 ]; then
   RUSTDOCFLAGS="-D warnings" cargo doc --no-deps --lib --quiet
 fi
-exec cargo test --no-fail-fast "$@"
+# The library and its C API (capi/: the C example is compiled and run).
+exec cargo test --no-fail-fast -p mcdenoise -p mcdenoise-capi "$@"

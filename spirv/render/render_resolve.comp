@@ -47,81 +47,66 @@ layout(std430, set = 0, binding = 3) buffer Accum1 { float acc1[]; };
 layout(std430, set = 0, binding = 4) buffer Accum2 { float acc2[]; };
 layout(std430, set = 0, binding = 5) buffer Accum3 { float acc3[]; };
 
-// Plane indices of the accumulation layout with position and visibility
-// (AccumLayout: channels colour 0-2, albedo 3-5, normal 6-8, depth 9,
-// position 10-12, visibility 13; Σx at 2c, Σx² at 2c+1; cross products
-// 28-30; count 31). src/render/mod.rs tests these against AccumLayout.
+// The accumulation layout with position and visibility, as any renderer
+// writes it: include/mcdenoise_accum.glsl (32 planes; src/render/mod.rs
+// tests the plane indices against AccumLayout). Plane k lives in binding
+// k / 8 at (k % 8) * plane_stride; the plane indices are constants once the
+// header's loops are unrolled, so the selects fold away.
+#define MCDENOISE_ACCUM_POSITION 1
+#define MCDENOISE_ACCUM_VISIBILITY 1
+#define ACC_INDEX(k, i) (((k) & 7u) * push.plane_stride + (i))
+#define MCDENOISE_ACCUM_LOAD(k, i) acc_load(k, i)
+#define MCDENOISE_ACCUM_STORE(k, i, v) acc_store(k, i, v)
+
+float acc_load(uint k, uint i)
+{
+    uint j = ACC_INDEX(k, i);
+    switch (k >> 3u) {
+    case 0u: return acc0[j];
+    case 1u: return acc1[j];
+    case 2u: return acc2[j];
+    default: return acc3[j];
+    }
+}
+
+void acc_store(uint k, uint i, float v)
+{
+    uint j = ACC_INDEX(k, i);
+    switch (k >> 3u) {
+    case 0u: acc0[j] = v; break;
+    case 1u: acc1[j] = v; break;
+    case 2u: acc2[j] = v; break;
+    default: acc3[j] = v; break;
+    }
+}
+
+#include "mcdenoise_accum.glsl"
 
 // render_trace's pixel of an item past the pass's samples.
 #define NO_PIXEL 0xffffffffu
 
-// Adds the items [a, b) of the window (all of one pixel) to its planes.
+// Adds the items [a, b) of the window (all of one pixel) to its planes:
+// running sums that start from the planes and add the samples one by one in
+// sample order. Positions are relative to the lens centre (the layout's
+// position_origin).
 void resolve(uint pixel, uint a, uint b)
 {
-    uint stride = push.plane_stride;
-    uint i0 = pixel;
-    uint i1 = stride + pixel;
-    uint i2 = 2u * stride + pixel;
-    uint i3 = 3u * stride + pixel;
-    uint i4 = 4u * stride + pixel;
-    uint i5 = 5u * stride + pixel;
-    uint i6 = 6u * stride + pixel;
-    uint i7 = 7u * stride + pixel;
-    float count = acc3[i7];
-
-    // The running sums start from the planes and add the samples one by one
-    // in sample order.
-    vec3 s_col = vec3(acc0[i0], acc0[i2], acc0[i4]);
-    vec3 q_col = vec3(acc0[i1], acc0[i3], acc0[i5]);
-    vec3 s_alb = vec3(acc0[i6], acc1[i0], acc1[i2]);
-    vec3 q_alb = vec3(acc0[i7], acc1[i1], acc1[i3]);
-    vec3 s_nrm = vec3(acc1[i4], acc1[i6], acc2[i0]);
-    vec3 q_nrm = vec3(acc1[i5], acc1[i7], acc2[i1]);
-    vec3 s_pos = vec3(acc2[i4], acc2[i6], acc3[i0]);
-    vec3 q_pos = vec3(acc2[i5], acc2[i7], acc3[i1]);
-    vec3 s_cross = vec3(acc3[i4], acc3[i5], acc3[i6]);
-    vec4 s_dv = vec4(acc2[i2], acc2[i3], acc3[i2], acc3[i3]);   // Σdepth, Σdepth², Σvis, Σvis²
+    McdSums s = mcd_load(pixel);
     for (uint k = a; k < b; k++) {
         vec4 v0 = uintBitsToFloat(items[4u * k]);
         vec4 v1 = uintBitsToFloat(items[4u * k + 1u]);
         vec4 v2 = uintBitsToFloat(items[4u * k + 2u]);
         vec4 v3 = uintBitsToFloat(items[4u * k + 3u]);
-        vec3 col = v0.xyz;
-        vec3 alb = vec3(v0.w, v1.xy);
-        vec3 nrm = vec3(v1.zw, v2.x);
-        float dep = v2.y;
-        vec3 pos = vec3(v2.zw, v3.x);
-        float vis = v3.y;
-        // Positions are accumulated relative to the lens centre (the
-        // layout's position_origin): f32 sums of raw world positions far
-        // from 0 lose the footprint's variance. A miss's position is 0, as
-        // before (input-format.md), i.e. -origin relative to it.
-        vec3 rel = pos - push.origin.xyz;
-        s_col += col;
-        q_col += col * col;
-        s_alb += alb;
-        q_alb += alb * alb;
-        s_nrm += nrm;
-        q_nrm += nrm * nrm;
-        s_pos += rel;
-        q_pos += rel * rel;
-        s_cross += vec3(rel.x * rel.y, rel.x * rel.z, rel.y * rel.z);
-        s_dv += vec4(dep, dep * dep, vis, vis * vis);
+        McdSample x;
+        x.color = v0.xyz;
+        x.albedo = vec3(v0.w, v1.xy);
+        x.normal = vec3(v1.zw, v2.x);
+        x.depth = v2.y;
+        x.position = vec3(v2.zw, v3.x);
+        x.visibility = v3.y;
+        mcd_add(s, x, push.origin.xyz);
     }
-
-    // Planes 0-7: colour Σ, Σ² (R, G, B), albedo R.
-    acc0[i0] = s_col.r; acc0[i1] = q_col.r; acc0[i2] = s_col.g; acc0[i3] = q_col.g;
-    acc0[i4] = s_col.b; acc0[i5] = q_col.b; acc0[i6] = s_alb.r; acc0[i7] = q_alb.r;
-    // Planes 8-15: albedo G, B, normal X, Y.
-    acc1[i0] = s_alb.g; acc1[i1] = q_alb.g; acc1[i2] = s_alb.b; acc1[i3] = q_alb.b;
-    acc1[i4] = s_nrm.x; acc1[i5] = q_nrm.x; acc1[i6] = s_nrm.y; acc1[i7] = q_nrm.y;
-    // Planes 16-23: normal Z, depth, position X, Y.
-    acc2[i0] = s_nrm.z; acc2[i1] = q_nrm.z; acc2[i2] = s_dv.x;  acc2[i3] = s_dv.y;
-    acc2[i4] = s_pos.x; acc2[i5] = q_pos.x; acc2[i6] = s_pos.y; acc2[i7] = q_pos.y;
-    // Planes 24-31: position Z, visibility, cross products xy xz yz, count.
-    acc3[i0] = s_pos.z; acc3[i1] = q_pos.z; acc3[i2] = s_dv.z;  acc3[i3] = s_dv.w;
-    acc3[i4] = s_cross.x; acc3[i5] = s_cross.y; acc3[i6] = s_cross.z;
-    acc3[i7] = count + float(b - a);
+    mcd_store(pixel, s);
 }
 
 void main()

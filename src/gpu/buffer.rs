@@ -33,7 +33,9 @@ impl BufferSlice {
     /// # Safety
     /// `buffer` is a buffer of the device of the context the slice is used
     /// with, created with `STORAGE_BUFFER` usage (plus `TRANSFER_SRC` /
-    /// `TRANSFER_DST` where mcdenoise copies from or fills it), bound to
+    /// `TRANSFER_DST` where mcdenoise copies from or fills it: an
+    /// accumulation buffer needs `TRANSFER_SRC`, finalisation copies its
+    /// count plane), bound to
     /// memory; `offset + size` does not exceed its size; and it stays alive
     /// until every piece of work recorded with the slice has completed.
     pub unsafe fn from_raw(buffer: vk::Buffer, offset: u64, size: u64) -> BufferSlice {

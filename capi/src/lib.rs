@@ -1,0 +1,647 @@
+//! The C API of mcdenoise (`include/mcdenoise.h`, generated from this file by
+//! cbindgen in `build.rs`).
+//!
+//! A C or C++ renderer hands mcdenoise its Vulkan instance, device and queue,
+//! accumulates its samples in its own shaders with the layout of
+//! `include/mcdenoise_accum.glsl`, and records mcdenoise's passes into its
+//! own command buffers. Objects are opaque handles; every function returns
+//! an [`McdStatus`] and, on failure, leaves a message for
+//! [`mcd_last_error`]. Nothing panics across the boundary: a panic inside is
+//! caught and returned as [`McdStatus::Internal`].
+
+#![allow(non_camel_case_types)]
+
+use std::cell::RefCell;
+use std::ffi::{c_char, CStr, CString};
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::sync::Arc;
+
+use ash::vk;
+use mcdenoise_core as core;
+use mcdenoise_core::{
+    AccumLayout, BufferSlice, Config, Denoiser, Error, GpuContext, ImportedDevice, Method, Options,
+    Pass, Recorded, Source,
+};
+
+/// The version of this API; a host checks [`mcd_api_version`] against the
+/// header's `MCDENOISE_API_VERSION` at run time.
+pub const MCDENOISE_API_VERSION: u32 = 1;
+
+/// Vulkan's instance handle (`vulkan.h`).
+pub type VkInstance = vk::Instance;
+/// Vulkan's physical-device handle (`vulkan.h`).
+pub type VkPhysicalDevice = vk::PhysicalDevice;
+/// Vulkan's device handle (`vulkan.h`).
+pub type VkDevice = vk::Device;
+/// Vulkan's queue handle (`vulkan.h`).
+pub type VkQueue = vk::Queue;
+/// Vulkan's command-buffer handle (`vulkan.h`).
+pub type VkCommandBuffer = vk::CommandBuffer;
+/// Vulkan's buffer handle (`vulkan.h`).
+pub type VkBuffer = vk::Buffer;
+/// The loader's entry point (`vulkan.h`).
+pub type PFN_vkGetInstanceProcAddr = Option<vk::PFN_vkGetInstanceProcAddr>;
+
+/// What a call returned.
+#[repr(C)]
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum McdStatus {
+    /// Success.
+    Ok = 0,
+    /// A null pointer, a size that does not match, an unknown method or
+    /// option, a call that does not apply (a sample map that was not made).
+    InvalidArgument = 1,
+    /// Device or host memory ran out; the context stays usable.
+    OutOfMemory = 2,
+    /// The device was lost or a submission timed out: make a new context.
+    DeviceLost = 3,
+    /// The device lacks a feature, or a limit is exceeded.
+    Unsupported = 4,
+    /// A Vulkan call failed.
+    Vulkan = 5,
+    /// Anything else, including a panic caught at the boundary (a bug).
+    Internal = 6,
+}
+
+/// The reconstruction method (spec sections in `docs/algorithms.md`).
+#[repr(C)]
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum McdMethod {
+    /// Weighted local regression (§2); the default.
+    Wlr = 0,
+    /// Linear predictions (§3).
+    Lp = 1,
+    /// Adaptive polynomial rendering (§4).
+    Apr = 2,
+    /// Adaptive-order polynomial fitting (§5).
+    Aos = 3,
+    /// No reconstruction: the sanitised mean.
+    None = 4,
+    /// WLR, LP and APR blended per pixel by their error estimates.
+    Auto = 5,
+}
+
+/// The accumulation layout the host's shaders write
+/// (`include/mcdenoise_accum.glsl`).
+#[repr(C)]
+#[derive(Copy, Clone, Debug)]
+pub struct McdAccumLayout {
+    /// Image width in pixels.
+    pub width: u32,
+    /// Image height in pixels.
+    pub height: u32,
+    /// Non-zero if positions are accumulated (`MCDENOISE_ACCUM_POSITION`).
+    pub position: u32,
+    /// Non-zero if visibility is accumulated (`MCDENOISE_ACCUM_VISIBILITY`).
+    pub visibility: u32,
+    /// The point positions are accumulated relative to (finite).
+    pub position_origin: [f32; 3],
+}
+
+/// The host's Vulkan objects. mcdenoise creates and destroys only its own
+/// objects on `device`; the host destroys the device and the instance after
+/// every mcdenoise object.
+#[repr(C)]
+#[derive(Copy, Clone, Debug)]
+pub struct McdVulkanDevice {
+    /// The host's instance.
+    pub instance: VkInstance,
+    /// The physical device `device` was created from.
+    pub physical_device: VkPhysicalDevice,
+    /// The host's logical device.
+    pub device: VkDevice,
+    /// A queue of `queue_family_index` (used only by calls that submit, none
+    /// of this API's today).
+    pub queue: VkQueue,
+    /// A queue family with compute; the host's command buffers handed to
+    /// [`mcd_denoiser_record`] come from a pool of this family.
+    pub queue_family_index: u32,
+    /// The loader's `vkGetInstanceProcAddr` the instance was made with.
+    pub get_instance_proc_addr: PFN_vkGetInstanceProcAddr,
+    /// Non-zero if the host enabled `shaderFloat64` on `device`.
+    pub shader_float64_enabled: u32,
+    /// Non-zero if the host enabled `shaderInt64` on `device`.
+    pub shader_int64_enabled: u32,
+}
+
+/// Flag of [`McdDenoiserDesc::flags`]: every pixel has 0 or at least 2
+/// samples, which skips the one-sample variance repair (§0.4 step 3).
+pub const MCD_FLAG_NO_SINGLE_SAMPLE_PIXELS: u32 = 1;
+/// Flag of [`McdDenoiserDesc::flags`]: the adaptive pass's smaller windows
+/// (§9.3) instead of the final reconstruction's.
+pub const MCD_FLAG_ADAPTIVE_PASS: u32 = 2;
+
+/// One denoiser's configuration: fixed for its life.
+#[repr(C)]
+#[derive(Copy, Clone, Debug)]
+pub struct McdDenoiserDesc {
+    /// The accumulation buffer's layout (and so the image size).
+    pub layout: McdAccumLayout,
+    /// The method: an [`McdMethod`] value (an unknown one is an error).
+    pub method: u32,
+    /// `MCD_FLAG_*` bits.
+    pub flags: u32,
+    /// Method options, `key=value` separated by spaces as
+    /// `mcdenoise denoise --help` lists them; NULL or "" for none.
+    pub options: *const c_char,
+}
+
+/// The denoiser's GPU-resident outputs: planes of `width × height` values in
+/// row-major order, each a range of a `VkBuffer` the denoiser owns, valid
+/// until the denoiser is destroyed and overwritten by each recording.
+#[repr(C)]
+#[derive(Copy, Clone, Debug)]
+pub struct McdOutputs {
+    /// Reconstructed colour R, G, B (f32 planes).
+    pub color_buffer: [VkBuffer; 3],
+    /// Byte offsets of the colour planes in their buffers.
+    pub color_offset: [u64; 3],
+    /// Estimated mean squared error per channel (f32 planes).
+    pub error_buffer: [VkBuffer; 3],
+    /// Byte offsets of the error planes.
+    pub error_offset: [u64; 3],
+    /// Bytes of one f32 plane (`4 × width × height`).
+    pub plane_bytes: u64,
+    /// The next pass's samples per pixel (u32), after a recording with a
+    /// budget; VK_NULL_HANDLE on a device without `shaderInt64`.
+    pub samples_buffer: VkBuffer,
+    /// Byte offset of the sample map.
+    pub samples_offset: u64,
+}
+
+/// A context: mcdenoise's allocator, pipelines and command pool on the
+/// host's device.
+pub struct McdContext {
+    ctx: Arc<GpuContext>,
+}
+
+/// A denoiser for one image size and configuration.
+pub struct McdDenoiser {
+    denoiser: Denoiser,
+    layout: AccumLayout,
+    pixels: usize,
+}
+
+/// Work recorded into a host command buffer: keeps the denoiser's buffers
+/// alive until the host releases it after its submission completed.
+pub struct McdRecording {
+    _recorded: Recorded,
+}
+
+thread_local! {
+    static LAST_ERROR: RefCell<CString> = RefCell::new(CString::default());
+}
+
+fn set_error(message: &str) {
+    let c = CString::new(message.replace('\0', " ")).unwrap_or_default();
+    LAST_ERROR.with(|e| *e.borrow_mut() = c);
+}
+
+fn status_of(e: &Error) -> McdStatus {
+    if e.is_out_of_memory() {
+        McdStatus::OutOfMemory
+    } else if e.is_device_lost() {
+        McdStatus::DeviceLost
+    } else {
+        match e {
+            Error::InvalidArgument(_) | Error::BadData(_) => McdStatus::InvalidArgument,
+            Error::Limit(_) | Error::NoDevice(_) | Error::NoLoader(_) => McdStatus::Unsupported,
+            Error::Vulkan { .. } | Error::Gpu { .. } => McdStatus::Vulkan,
+            _ => McdStatus::Internal,
+        }
+    }
+}
+
+/// Why a call failed: its status and message.
+struct Failure(McdStatus, String);
+
+impl From<Error> for Failure {
+    fn from(e: Error) -> Failure {
+        Failure(status_of(&e), e.to_string())
+    }
+}
+
+fn invalid(message: impl Into<String>) -> Failure {
+    Failure(McdStatus::InvalidArgument, message.into())
+}
+
+/// Runs `f` behind the boundary: its error or panic becomes a status and a
+/// message for [`mcd_last_error`].
+fn guard(f: impl FnOnce() -> Result<(), Failure>) -> McdStatus {
+    match catch_unwind(AssertUnwindSafe(f)) {
+        Ok(Ok(())) => {
+            set_error("");
+            McdStatus::Ok
+        }
+        Ok(Err(Failure(status, message))) => {
+            set_error(&message);
+            status
+        }
+        Err(panic) => {
+            let what = panic
+                .downcast_ref::<&str>()
+                .map(|s| s.to_string())
+                .or_else(|| panic.downcast_ref::<String>().cloned())
+                .unwrap_or_else(|| "unknown panic".into());
+            set_error(&format!("internal error (a bug in mcdenoise): {what}"));
+            McdStatus::Internal
+        }
+    }
+}
+
+/// `ptr` as a reference, or an error naming `what`.
+///
+/// # Safety
+/// `ptr` is null or points to a valid `T`.
+unsafe fn non_null<'a, T>(ptr: *const T, what: &str) -> Result<&'a T, Failure> {
+    // SAFETY: forwarded to the caller.
+    unsafe { ptr.as_ref() }.ok_or_else(|| invalid(format!("{what} is NULL")))
+}
+
+/// Writes `value` to the out-pointer `out` (checked non-null).
+///
+/// # Safety
+/// `out` is null or valid for a write of `T`.
+unsafe fn put<T>(out: *mut T, value: T, what: &str) -> Result<(), Failure> {
+    if out.is_null() {
+        return Err(invalid(format!("{what} is NULL")));
+    }
+    // SAFETY: non-null and valid for writes by the caller's contract.
+    unsafe { out.write(value) };
+    Ok(())
+}
+
+fn layout_of(l: &McdAccumLayout) -> Result<AccumLayout, Failure> {
+    if l.width == 0 || l.height == 0 {
+        return Err(invalid(format!(
+            "the layout's size {}x{} is empty",
+            l.width, l.height
+        )));
+    }
+    if !l.position_origin.iter().all(|v| v.is_finite()) {
+        return Err(invalid(format!(
+            "the layout's position origin {:?} is not finite",
+            l.position_origin
+        )));
+    }
+    Ok(AccumLayout::new(
+        l.width as usize,
+        l.height as usize,
+        l.position != 0,
+        l.visibility != 0,
+    )
+    .with_position_origin(l.position_origin))
+}
+
+/// The version of the library: compare with `MCDENOISE_API_VERSION`.
+#[no_mangle]
+pub extern "C" fn mcd_api_version() -> u32 {
+    MCDENOISE_API_VERSION
+}
+
+/// The message of the last failed call on this thread ("" after a
+/// success). Valid until the next mcdenoise call on this thread.
+#[no_mangle]
+pub extern "C" fn mcd_last_error() -> *const c_char {
+    LAST_ERROR.with(|e| e.borrow().as_ptr())
+}
+
+/// Bytes of the accumulation buffer for `layout` (0 for an invalid layout).
+///
+/// # Safety
+/// `layout` is null or points to a valid [`McdAccumLayout`].
+#[no_mangle]
+pub unsafe extern "C" fn mcd_accum_bytes(layout: *const McdAccumLayout) -> u64 {
+    // SAFETY: forwarded to the caller.
+    match unsafe { layout.as_ref() }.map(layout_of) {
+        Some(Ok(l)) => l.bytes(),
+        _ => 0,
+    }
+}
+
+/// Bytes from one accumulation plane's start to the next (the GLSL header's
+/// `4 * mcd_plane_stride(width * height)`); 0 for an invalid layout.
+///
+/// # Safety
+/// `layout` is null or points to a valid [`McdAccumLayout`].
+#[no_mangle]
+pub unsafe extern "C" fn mcd_accum_plane_stride(layout: *const McdAccumLayout) -> u64 {
+    // SAFETY: forwarded to the caller.
+    match unsafe { layout.as_ref() }.map(layout_of) {
+        Some(Ok(l)) => l.plane_stride(),
+        _ => 0,
+    }
+}
+
+/// Number of planes of the accumulation layout; 0 for an invalid layout.
+///
+/// # Safety
+/// `layout` is null or points to a valid [`McdAccumLayout`].
+#[no_mangle]
+pub unsafe extern "C" fn mcd_accum_plane_count(layout: *const McdAccumLayout) -> u32 {
+    // SAFETY: forwarded to the caller.
+    match unsafe { layout.as_ref() }.map(layout_of) {
+        Some(Ok(l)) => l.plane_count() as u32,
+        _ => 0,
+    }
+}
+
+/// Creates a context on the host's device.
+///
+/// # Safety
+/// `device` points to a valid [`McdVulkanDevice`] whose handles satisfy its
+/// field documentation: `device` was created from `physical_device` of
+/// `instance`, `queue` belongs to `queue_family_index`, which supports
+/// compute, the 64-bit flags are non-zero only if those features were
+/// enabled, and the instance and device outlive every mcdenoise object made
+/// from this context. `out` is valid for a write.
+#[no_mangle]
+pub unsafe extern "C" fn mcd_context_create(
+    device: *const McdVulkanDevice,
+    out: *mut *mut McdContext,
+) -> McdStatus {
+    guard(|| {
+        // SAFETY: forwarded to the caller.
+        let d = unsafe { non_null(device, "device") }?;
+        let gipa = d
+            .get_instance_proc_addr
+            .ok_or_else(|| invalid("device->get_instance_proc_addr is NULL"))?;
+        if d.instance == vk::Instance::null()
+            || d.physical_device == vk::PhysicalDevice::null()
+            || d.device == vk::Device::null()
+            || d.queue == vk::Queue::null()
+        {
+            return Err(invalid("a Vulkan handle of device is VK_NULL_HANDLE"));
+        }
+        // SAFETY: the caller guarantees the handles and the entry point are
+        // valid and belong together.
+        let ctx = unsafe {
+            let entry = ash::Entry::from_static_fn(ash::StaticFn {
+                get_instance_proc_addr: gipa,
+            });
+            let instance = ash::Instance::load(entry.static_fn(), d.instance);
+            let device = ash::Device::load(instance.fp_v1_0(), d.device);
+            GpuContext::from_raw(ImportedDevice {
+                entry,
+                instance,
+                physical_device: d.physical_device,
+                device,
+                queue: d.queue,
+                queue_family_index: d.queue_family_index,
+                shader_float64_enabled: d.shader_float64_enabled != 0,
+                shader_int64_enabled: d.shader_int64_enabled != 0,
+            })
+        }?;
+        let handle = Box::into_raw(Box::new(McdContext { ctx: Arc::new(ctx) }));
+        // SAFETY: forwarded to the caller; on failure the context is freed.
+        if let Err(e) = unsafe { put(out, handle, "out") } {
+            // SAFETY: `handle` came from Box::into_raw just above.
+            drop(unsafe { Box::from_raw(handle) });
+            return Err(e);
+        }
+        Ok(())
+    })
+}
+
+/// Destroys a context (NULL is ignored). Its objects on the device live
+/// until the last denoiser made from it is destroyed too.
+///
+/// # Safety
+/// `ctx` is NULL or a context from [`mcd_context_create`] not destroyed yet.
+#[no_mangle]
+pub unsafe extern "C" fn mcd_context_destroy(ctx: *mut McdContext) {
+    if !ctx.is_null() {
+        let _ = catch_unwind(AssertUnwindSafe(|| {
+            // SAFETY: the caller passes a live handle from mcd_context_create.
+            drop(unsafe { Box::from_raw(ctx) })
+        }));
+    }
+}
+
+/// Creates a denoiser: builds its pipelines and allocates its buffers.
+///
+/// # Safety
+/// `ctx` is a live context, `desc` points to a valid [`McdDenoiserDesc`]
+/// (its `options` NULL or a NUL-terminated string), `out` is valid for a
+/// write.
+#[no_mangle]
+pub unsafe extern "C" fn mcd_denoiser_create(
+    ctx: *const McdContext,
+    desc: *const McdDenoiserDesc,
+    out: *mut *mut McdDenoiser,
+) -> McdStatus {
+    guard(|| {
+        // SAFETY: forwarded to the caller.
+        let (ctx, desc) = unsafe { (non_null(ctx, "ctx")?, non_null(desc, "desc")?) };
+        let layout = layout_of(&desc.layout)?;
+        let method = match desc.method {
+            m if m == McdMethod::Wlr as u32 => Method::Wlr,
+            m if m == McdMethod::Lp as u32 => Method::Lp,
+            m if m == McdMethod::Apr as u32 => Method::Apr,
+            m if m == McdMethod::Aos as u32 => Method::Aos,
+            m if m == McdMethod::None as u32 => Method::None,
+            m if m == McdMethod::Auto as u32 => Method::Auto,
+            m => return Err(invalid(format!("unknown method {m}"))),
+        };
+        let known = MCD_FLAG_NO_SINGLE_SAMPLE_PIXELS | MCD_FLAG_ADAPTIVE_PASS;
+        if desc.flags & !known != 0 {
+            return Err(invalid(format!("unknown flags {:#x}", desc.flags & !known)));
+        }
+        let mut config = Config::new(method);
+        config.low_spp = desc.flags & MCD_FLAG_NO_SINGLE_SAMPLE_PIXELS == 0;
+        if desc.flags & MCD_FLAG_ADAPTIVE_PASS != 0 {
+            config.pass = Pass::Intermediate;
+        }
+        if !desc.options.is_null() {
+            // SAFETY: the caller passes a NUL-terminated string.
+            let text = unsafe { CStr::from_ptr(desc.options) }
+                .to_str()
+                .map_err(|_| invalid("options are not UTF-8"))?;
+            let pairs: Vec<&str> = text.split_whitespace().collect();
+            config.options = Options::parse(&pairs)?;
+        }
+        let denoiser = Denoiser::new(&ctx.ctx, Source::Accum(layout), config)?;
+        let handle = Box::into_raw(Box::new(McdDenoiser {
+            denoiser,
+            layout,
+            pixels: layout.pixels(),
+        }));
+        // SAFETY: forwarded to the caller; on failure the denoiser is freed.
+        if let Err(e) = unsafe { put(out, handle, "out") } {
+            // SAFETY: `handle` came from Box::into_raw just above.
+            drop(unsafe { Box::from_raw(handle) });
+            return Err(e);
+        }
+        Ok(())
+    })
+}
+
+/// Destroys a denoiser (NULL is ignored). Buffers that recordings not yet
+/// released still bind stay alive until those are released.
+///
+/// # Safety
+/// `denoiser` is NULL or a live denoiser from [`mcd_denoiser_create`].
+#[no_mangle]
+pub unsafe extern "C" fn mcd_denoiser_destroy(denoiser: *mut McdDenoiser) {
+    if !denoiser.is_null() {
+        let _ = catch_unwind(AssertUnwindSafe(|| {
+            // SAFETY: the caller passes a live handle from mcd_denoiser_create.
+            drop(unsafe { Box::from_raw(denoiser) })
+        }));
+    }
+}
+
+/// Records the whole chain into the host's command buffer `cmd`:
+/// finalisation of the accumulation buffer (`accum` from byte
+/// `accum_offset`, [`mcd_accum_bytes`] long), sanitation, prefilter, the
+/// method, its error estimate and, when `sample_budget` > 0, the next
+/// pass's sample map spending exactly `sample_budget` samples. Nothing is
+/// submitted. The work starts with a barrier after every earlier command of
+/// `cmd` and ends with one before every later command.
+///
+/// On success `*out` holds a recording the host releases
+/// ([`mcd_recording_release`]) once the submission of `cmd` completed (or
+/// if `cmd` is never submitted). On failure the host must discard `cmd`
+/// (reset or free it without submitting): part of the chain may be in it.
+///
+/// # Safety
+/// `denoiser` is live; `cmd` belongs to the context's device, comes from a
+/// pool of the context's queue family, is recording and outside a render
+/// pass; `accum` is a buffer of that device with storage-buffer and
+/// transfer-source usage (finalisation copies its count plane) and at least `accum_offset + mcd_accum_bytes(layout)` bytes, not written by
+/// other work while this work runs; `out` is valid for a write. No other
+/// recording of this denoiser runs on the GPU at the same time.
+#[no_mangle]
+pub unsafe extern "C" fn mcd_denoiser_record(
+    denoiser: *const McdDenoiser,
+    cmd: VkCommandBuffer,
+    accum: VkBuffer,
+    accum_offset: u64,
+    sample_budget: u32,
+    out: *mut *mut McdRecording,
+) -> McdStatus {
+    guard(|| {
+        // SAFETY: forwarded to the caller.
+        let d = unsafe { non_null(denoiser, "denoiser") }?;
+        if out.is_null() {
+            return Err(invalid("out is NULL"));
+        }
+        if cmd == vk::CommandBuffer::null() || accum == vk::Buffer::null() {
+            return Err(invalid("cmd or accum is VK_NULL_HANDLE"));
+        }
+        // SAFETY: the caller guarantees the buffer's size and usage.
+        let slice = unsafe { BufferSlice::from_raw(accum, accum_offset, d.layout.bytes()) };
+        let budget = (sample_budget > 0).then_some(sample_budget);
+        // SAFETY: forwarded to the caller (record_into's contract).
+        let recorded = unsafe { d.denoiser.record_into(cmd, Some(slice), budget) }?;
+        let handle = Box::into_raw(Box::new(McdRecording {
+            _recorded: recorded,
+        }));
+        // SAFETY: checked non-null above; the caller guarantees validity.
+        unsafe { out.write(handle) };
+        Ok(())
+    })
+}
+
+/// Releases a recording (NULL is ignored), after the submission of its
+/// command buffer completed or once the buffer was discarded.
+///
+/// # Safety
+/// `recording` is NULL or a live recording from [`mcd_denoiser_record`].
+#[no_mangle]
+pub unsafe extern "C" fn mcd_recording_release(recording: *mut McdRecording) {
+    if !recording.is_null() {
+        let _ = catch_unwind(AssertUnwindSafe(|| {
+            // SAFETY: the caller passes a live handle from mcd_denoiser_record.
+            drop(unsafe { Box::from_raw(recording) })
+        }));
+    }
+}
+
+/// The denoiser's GPU-resident outputs, for binding in the host's shaders
+/// (its next pass reads the sample map).
+///
+/// # Safety
+/// `denoiser` is live and `out` valid for a write.
+#[no_mangle]
+pub unsafe extern "C" fn mcd_denoiser_outputs(
+    denoiser: *const McdDenoiser,
+    out: *mut McdOutputs,
+) -> McdStatus {
+    guard(|| {
+        // SAFETY: forwarded to the caller.
+        let d = unsafe { non_null(denoiser, "denoiser") }?;
+        let o = d.denoiser.outputs()?;
+        let samples = o.samples;
+        let outputs = McdOutputs {
+            color_buffer: o.color.map(|s| s.buffer()),
+            color_offset: o.color.map(|s| s.offset()),
+            error_buffer: o.error.map(|s| s.buffer()),
+            error_offset: o.error.map(|s| s.offset()),
+            plane_bytes: 4 * d.pixels as u64,
+            samples_buffer: samples.map_or(vk::Buffer::null(), |s| s.buffer()),
+            samples_offset: samples.map_or(0, |s| s.offset()),
+        };
+        // SAFETY: forwarded to the caller.
+        unsafe { put(out, outputs, "out") }
+    })
+}
+
+/// Copies the outputs of the last completed recording to host memory:
+/// `color` and `error` get `width × height` RGB triples (interleaved f32,
+/// row-major), `samples` the next pass's samples per pixel. Any of them may
+/// be NULL (not copied); `pixels` is the length in pixels of those given
+/// and must equal `width × height`. Call only after the submission of the
+/// recording completed. A non-NULL `samples` after a recording without a
+/// budget is an error.
+///
+/// # Safety
+/// `denoiser` is live; each non-NULL pointer is valid for writes of
+/// `pixels` (`samples`) or `3 * pixels` (`color`, `error`) values.
+#[no_mangle]
+pub unsafe extern "C" fn mcd_denoiser_read(
+    denoiser: *const McdDenoiser,
+    color: *mut f32,
+    error: *mut f32,
+    samples: *mut u32,
+    pixels: u64,
+) -> McdStatus {
+    guard(|| {
+        // SAFETY: forwarded to the caller.
+        let d = unsafe { non_null(denoiser, "denoiser") }?;
+        if pixels != d.pixels as u64 {
+            return Err(invalid(format!(
+                "pixels is {pixels}, the denoiser's image has {}",
+                d.pixels
+            )));
+        }
+        let frame = d.denoiser.read()?;
+        let n = d.pixels;
+        let interleave = |img: &core::RgbImage, dst: *mut f32| {
+            // SAFETY: the caller guarantees room for 3 * pixels values.
+            let dst = unsafe { std::slice::from_raw_parts_mut(dst, 3 * n) };
+            for (c, plane) in img.planes.iter().enumerate() {
+                for (i, v) in plane.iter().enumerate() {
+                    dst[3 * i + c] = *v;
+                }
+            }
+        };
+        if !color.is_null() {
+            interleave(&frame.color, color);
+        }
+        if !error.is_null() {
+            if frame.error.planes[0].len() != n {
+                return Err(invalid("the denoiser computed no error estimate"));
+            }
+            interleave(&frame.error, error);
+        }
+        if !samples.is_null() {
+            let map = frame
+                .samples
+                .ok_or_else(|| invalid("no sample map: the last recording had no sample budget"))?;
+            // SAFETY: the caller guarantees room for `pixels` values.
+            unsafe { std::slice::from_raw_parts_mut(samples, n) }.copy_from_slice(&map);
+        }
+        Ok(())
+    })
+}

@@ -1,0 +1,87 @@
+//! Builds `examples/c/host.c` with the system C compiler against
+//! `include/mcdenoise.h`, the Vulkan loader and this package's
+//! `libmcdenoise.so`, and runs it under the validation layer: a C host that
+//! accumulates in its own shader (`examples/c/accumulate.comp` on
+//! `include/mcdenoise_accum.glsl`), records mcdenoise into its command
+//! buffer, renders a second pass where the sample map says and checks the
+//! results (the program exits non-zero when they are wrong, or on any
+//! validation message).
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+/// The directory holding the freshly built `libmcdenoise.so`.
+fn library_dir() -> PathBuf {
+    let exe = std::env::current_exe().unwrap();
+    let deps = exe.parent().unwrap();
+    for dir in [deps, deps.parent().unwrap()] {
+        if dir.join("libmcdenoise.so").exists() {
+            return dir.to_path_buf();
+        }
+    }
+    panic!("libmcdenoise.so not found beside {}", deps.display());
+}
+
+/// Whether the Khronos validation layer is installed (the README's test
+/// command requires it; a plain `cargo test` runs without it when missing).
+fn validation_installed() -> bool {
+    // SAFETY: loading the system's Vulkan loader.
+    let entry = unsafe { ash::Entry::load() }.expect("the Vulkan loader");
+    // SAFETY: a valid entry.
+    unsafe { entry.enumerate_instance_layer_properties() }
+        .expect("vkEnumerateInstanceLayerProperties")
+        .iter()
+        .any(|l| l.layer_name_as_c_str() == Ok(c"VK_LAYER_KHRONOS_validation"))
+}
+
+#[test]
+fn c_host_accumulates_on_the_gpu_and_denoises() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let lib = library_dir();
+    let out = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("c_example");
+    std::fs::create_dir_all(&out).unwrap();
+    let exe = out.join("host");
+    let cc = std::env::var("CC").unwrap_or_else(|_| "cc".into());
+    let status = Command::new(&cc)
+        .args(["-std=c11", "-Wall", "-Wextra", "-Werror", "-O1"])
+        .arg(root.join("examples/c/host.c"))
+        .arg("-I")
+        .arg(root.join("include"))
+        .arg("-o")
+        .arg(&exe)
+        .arg("-L")
+        .arg(&lib)
+        .arg(format!("-Wl,-rpath,{}", lib.display()))
+        .args(["-lmcdenoise", "-lvulkan", "-lm"])
+        .status()
+        .unwrap_or_else(|e| panic!("cannot run the C compiler {cc}: {e}"));
+    assert!(status.success(), "compiling examples/c/host.c failed");
+
+    let spv = Path::new(env!("OUT_DIR")).join("accumulate.spv");
+    let validate = validation_installed();
+    let output = Command::new(&exe)
+        .arg(&spv)
+        .env(
+            "MCDENOISE_EMBED_VALIDATION",
+            if validate { "1" } else { "0" },
+        )
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(
+        output.status.success(),
+        "the C host failed ({}):\n{stdout}\n{stderr}",
+        output.status
+    );
+    assert!(
+        stdout.contains("sample map:") && stdout.ends_with("ok\n"),
+        "{stdout}"
+    );
+    if std::env::var("MCDENOISE_REQUIRE_VALIDATION").is_ok_and(|v| v == "1") {
+        assert!(
+            validate,
+            "the validation layer is required but not installed"
+        );
+    }
+}

@@ -1,0 +1,256 @@
+/* mcdenoise: C API. Generated from capi/src/lib.rs by cbindgen (capi/build.rs); do not edit. */
+
+#ifndef MCDENOISE_H
+#define MCDENOISE_H
+
+#include <stdint.h>
+#include <vulkan/vulkan.h>
+
+// The version of this API; a host checks [`mcd_api_version`] against the
+// header's `MCDENOISE_API_VERSION` at run time.
+#define MCDENOISE_API_VERSION 1
+
+// Flag of [`McdDenoiserDesc::flags`]: every pixel has 0 or at least 2
+// samples, which skips the one-sample variance repair (§0.4 step 3).
+#define MCD_FLAG_NO_SINGLE_SAMPLE_PIXELS 1
+
+// Flag of [`McdDenoiserDesc::flags`]: the adaptive pass's smaller windows
+// (§9.3) instead of the final reconstruction's.
+#define MCD_FLAG_ADAPTIVE_PASS 2
+
+// What a call returned.
+typedef enum McdStatus {
+  // Success.
+  MCD_STATUS_OK = 0,
+  // A null pointer, a size that does not match, an unknown method or
+  // option, a call that does not apply (a sample map that was not made).
+  MCD_STATUS_INVALID_ARGUMENT = 1,
+  // Device or host memory ran out; the context stays usable.
+  MCD_STATUS_OUT_OF_MEMORY = 2,
+  // The device was lost or a submission timed out: make a new context.
+  MCD_STATUS_DEVICE_LOST = 3,
+  // The device lacks a feature, or a limit is exceeded.
+  MCD_STATUS_UNSUPPORTED = 4,
+  // A Vulkan call failed.
+  MCD_STATUS_VULKAN = 5,
+  // Anything else, including a panic caught at the boundary (a bug).
+  MCD_STATUS_INTERNAL = 6,
+} McdStatus;
+
+// The reconstruction method (spec sections in `docs/algorithms.md`).
+typedef enum McdMethod {
+  // Weighted local regression (§2); the default.
+  MCD_METHOD_WLR = 0,
+  // Linear predictions (§3).
+  MCD_METHOD_LP = 1,
+  // Adaptive polynomial rendering (§4).
+  MCD_METHOD_APR = 2,
+  // Adaptive-order polynomial fitting (§5).
+  MCD_METHOD_AOS = 3,
+  // No reconstruction: the sanitised mean.
+  MCD_METHOD_NONE = 4,
+  // WLR, LP and APR blended per pixel by their error estimates.
+  MCD_METHOD_AUTO = 5,
+} McdMethod;
+
+// A context: mcdenoise's allocator, pipelines and command pool on the
+// host's device.
+typedef struct McdContext McdContext;
+
+// A denoiser for one image size and configuration.
+typedef struct McdDenoiser McdDenoiser;
+
+// Work recorded into a host command buffer: keeps the denoiser's buffers
+// alive until the host releases it after its submission completed.
+typedef struct McdRecording McdRecording;
+
+// The accumulation layout the host's shaders write
+// (`include/mcdenoise_accum.glsl`).
+typedef struct McdAccumLayout {
+  // Image width in pixels.
+  uint32_t width;
+  // Image height in pixels.
+  uint32_t height;
+  // Non-zero if positions are accumulated (`MCDENOISE_ACCUM_POSITION`).
+  uint32_t position;
+  // Non-zero if visibility is accumulated (`MCDENOISE_ACCUM_VISIBILITY`).
+  uint32_t visibility;
+  // The point positions are accumulated relative to (finite).
+  float position_origin[3];
+} McdAccumLayout;
+
+// The host's Vulkan objects. mcdenoise creates and destroys only its own
+// objects on `device`; the host destroys the device and the instance after
+// every mcdenoise object.
+typedef struct McdVulkanDevice {
+  // The host's instance.
+  VkInstance instance;
+  // The physical device `device` was created from.
+  VkPhysicalDevice physical_device;
+  // The host's logical device.
+  VkDevice device;
+  // A queue of `queue_family_index` (used only by calls that submit, none
+  // of this API's today).
+  VkQueue queue;
+  // A queue family with compute; the host's command buffers handed to
+  // [`mcd_denoiser_record`] come from a pool of this family.
+  uint32_t queue_family_index;
+  // The loader's `vkGetInstanceProcAddr` the instance was made with.
+  PFN_vkGetInstanceProcAddr get_instance_proc_addr;
+  // Non-zero if the host enabled `shaderFloat64` on `device`.
+  uint32_t shader_float64_enabled;
+  // Non-zero if the host enabled `shaderInt64` on `device`.
+  uint32_t shader_int64_enabled;
+} McdVulkanDevice;
+
+// One denoiser's configuration: fixed for its life.
+typedef struct McdDenoiserDesc {
+  // The accumulation buffer's layout (and so the image size).
+  struct McdAccumLayout layout;
+  // The method: an [`McdMethod`] value (an unknown one is an error).
+  uint32_t method;
+  // `MCD_FLAG_*` bits.
+  uint32_t flags;
+  // Method options, `key=value` separated by spaces as
+  // `mcdenoise denoise --help` lists them; NULL or "" for none.
+  const char *options;
+} McdDenoiserDesc;
+
+// The denoiser's GPU-resident outputs: planes of `width × height` values in
+// row-major order, each a range of a `VkBuffer` the denoiser owns, valid
+// until the denoiser is destroyed and overwritten by each recording.
+typedef struct McdOutputs {
+  // Reconstructed colour R, G, B (f32 planes).
+  VkBuffer color_buffer[3];
+  // Byte offsets of the colour planes in their buffers.
+  uint64_t color_offset[3];
+  // Estimated mean squared error per channel (f32 planes).
+  VkBuffer error_buffer[3];
+  // Byte offsets of the error planes.
+  uint64_t error_offset[3];
+  // Bytes of one f32 plane (`4 × width × height`).
+  uint64_t plane_bytes;
+  // The next pass's samples per pixel (u32), after a recording with a
+  // budget; VK_NULL_HANDLE on a device without `shaderInt64`.
+  VkBuffer samples_buffer;
+  // Byte offset of the sample map.
+  uint64_t samples_offset;
+} McdOutputs;
+
+#ifdef __cplusplus
+extern "C" {
+#endif // __cplusplus
+
+// The version of the library: compare with `MCDENOISE_API_VERSION`.
+uint32_t mcd_api_version(void);
+
+// The message of the last failed call on this thread ("" after a
+// success). Valid until the next mcdenoise call on this thread.
+const char *mcd_last_error(void);
+
+// Bytes of the accumulation buffer for `layout` (0 for an invalid layout).
+//
+// # Safety
+// `layout` is null or points to a valid [`McdAccumLayout`].
+uint64_t mcd_accum_bytes(const struct McdAccumLayout *layout);
+
+// Bytes from one accumulation plane's start to the next (the GLSL header's
+// `4 * mcd_plane_stride(width * height)`); 0 for an invalid layout.
+//
+// # Safety
+// `layout` is null or points to a valid [`McdAccumLayout`].
+uint64_t mcd_accum_plane_stride(const struct McdAccumLayout *layout);
+
+// Number of planes of the accumulation layout; 0 for an invalid layout.
+//
+// # Safety
+// `layout` is null or points to a valid [`McdAccumLayout`].
+uint32_t mcd_accum_plane_count(const struct McdAccumLayout *layout);
+
+// Creates a context on the host's device.
+//
+// # Safety
+// `device` points to a valid [`McdVulkanDevice`] whose handles satisfy its
+// field documentation: `device` was created from `physical_device` of
+// `instance`, `queue` belongs to `queue_family_index`, which supports
+// compute, the 64-bit flags are non-zero only if those features were
+// enabled, and the instance and device outlive every mcdenoise object made
+// from this context. `out` is valid for a write.
+enum McdStatus mcd_context_create(const struct McdVulkanDevice *device, struct McdContext **out);
+
+// Destroys a context (NULL is ignored). Its objects on the device live
+// until the last denoiser made from it is destroyed too.
+//
+// # Safety
+// `ctx` is NULL or a context from [`mcd_context_create`] not destroyed yet.
+void mcd_context_destroy(struct McdContext *ctx);
+
+// Creates a denoiser: builds its pipelines and allocates its buffers.
+//
+// # Safety
+// `ctx` is a live context, `desc` points to a valid [`McdDenoiserDesc`]
+// (its `options` NULL or a NUL-terminated string), `out` is valid for a
+// write.
+enum McdStatus mcd_denoiser_create(const struct McdContext *ctx, const struct McdDenoiserDesc *desc, struct McdDenoiser **out);
+
+// Destroys a denoiser (NULL is ignored). Buffers that recordings not yet
+// released still bind stay alive until those are released.
+//
+// # Safety
+// `denoiser` is NULL or a live denoiser from [`mcd_denoiser_create`].
+void mcd_denoiser_destroy(struct McdDenoiser *denoiser);
+
+// Records the whole chain into the host's command buffer `cmd`:
+// finalisation of the accumulation buffer (`accum` from byte
+// `accum_offset`, [`mcd_accum_bytes`] long), sanitation, prefilter, the
+// method, its error estimate and, when `sample_budget` > 0, the next
+// pass's sample map spending exactly `sample_budget` samples. Nothing is
+// submitted. The work starts with a barrier after every earlier command of
+// `cmd` and ends with one before every later command.
+//
+// On success `*out` holds a recording the host releases
+// ([`mcd_recording_release`]) once the submission of `cmd` completed (or
+// if `cmd` is never submitted). On failure the host must discard `cmd`
+// (reset or free it without submitting): part of the chain may be in it.
+//
+// # Safety
+// `denoiser` is live; `cmd` belongs to the context's device, comes from a
+// pool of the context's queue family, is recording and outside a render
+// pass; `accum` is a buffer of that device with storage-buffer and
+// transfer-source usage (finalisation copies its count plane) and at least `accum_offset + mcd_accum_bytes(layout)` bytes, not written by
+// other work while this work runs; `out` is valid for a write. No other
+// recording of this denoiser runs on the GPU at the same time.
+enum McdStatus mcd_denoiser_record(const struct McdDenoiser *denoiser, VkCommandBuffer cmd, VkBuffer accum, uint64_t accum_offset, uint32_t sample_budget, struct McdRecording **out);
+
+// Releases a recording (NULL is ignored), after the submission of its
+// command buffer completed or once the buffer was discarded.
+//
+// # Safety
+// `recording` is NULL or a live recording from [`mcd_denoiser_record`].
+void mcd_recording_release(struct McdRecording *recording);
+
+// The denoiser's GPU-resident outputs, for binding in the host's shaders
+// (its next pass reads the sample map).
+//
+// # Safety
+// `denoiser` is live and `out` valid for a write.
+enum McdStatus mcd_denoiser_outputs(const struct McdDenoiser *denoiser, struct McdOutputs *out);
+
+// Copies the outputs of the last completed recording to host memory:
+// `color` and `error` get `width × height` RGB triples (interleaved f32,
+// row-major), `samples` the next pass's samples per pixel. Any of them may
+// be NULL (not copied); `pixels` is the length in pixels of those given
+// and must equal `width × height`. Call only after the submission of the
+// recording completed. A non-NULL `samples` after a recording without a
+// budget is an error.
+//
+// # Safety
+// `denoiser` is live; each non-NULL pointer is valid for writes of
+// `pixels` (`samples`) or `3 * pixels` (`color`, `error`) values.
+enum McdStatus mcd_denoiser_read(const struct McdDenoiser *denoiser, float *color, float *error, uint32_t *samples, uint64_t pixels);
+
+#ifdef __cplusplus
+}  // extern "C"
+#endif  // __cplusplus
+
+#endif  /* MCDENOISE_H */
