@@ -185,6 +185,25 @@ enum McdStatus mcd_context_create(const struct McdVulkanDevice *device, struct M
 // `ctx` is NULL or a context from [`mcd_context_create`] not destroyed yet.
 void mcd_context_destroy(struct McdContext *ctx);
 
+// Builds the context's pipelines through a `VkPipelineCache` kept in the
+// file `path` (UTF-8, NUL-terminated): loaded now (a missing file, or one
+// of another device or driver, starts empty) and written back atomically
+// when the context is destroyed if pipelines were built meanwhile, or by
+// [`mcd_context_save_pipeline_cache`]. Call before creating denoisers.
+// `loaded_bytes` (may be NULL) receives the bytes loaded.
+//
+// # Safety
+// `ctx` is live, `path` a NUL-terminated string, `loaded_bytes` NULL or
+// valid for a write.
+enum McdStatus mcd_context_use_pipeline_cache(const struct McdContext *ctx, const char *path, uint64_t *loaded_bytes);
+
+// Writes the context's pipeline cache to its file now; `saved_bytes` (may
+// be NULL) receives the bytes written (0 without a cache).
+//
+// # Safety
+// `ctx` is live, `saved_bytes` NULL or valid for a write.
+enum McdStatus mcd_context_save_pipeline_cache(const struct McdContext *ctx, uint64_t *saved_bytes);
+
 // Creates a denoiser: builds its pipelines and allocates its buffers.
 //
 // # Safety

@@ -418,6 +418,63 @@ pub unsafe extern "C" fn mcd_context_destroy(ctx: *mut McdContext) {
     }
 }
 
+/// Builds the context's pipelines through a `VkPipelineCache` kept in the
+/// file `path` (UTF-8, NUL-terminated): loaded now (a missing file, or one
+/// of another device or driver, starts empty) and written back atomically
+/// when the context is destroyed if pipelines were built meanwhile, or by
+/// [`mcd_context_save_pipeline_cache`]. Call before creating denoisers.
+/// `loaded_bytes` (may be NULL) receives the bytes loaded.
+///
+/// # Safety
+/// `ctx` is live, `path` a NUL-terminated string, `loaded_bytes` NULL or
+/// valid for a write.
+#[no_mangle]
+pub unsafe extern "C" fn mcd_context_use_pipeline_cache(
+    ctx: *const McdContext,
+    path: *const c_char,
+    loaded_bytes: *mut u64,
+) -> McdStatus {
+    guard(|| {
+        // SAFETY: forwarded to the caller.
+        let ctx = unsafe { non_null(ctx, "ctx") }?;
+        if path.is_null() {
+            return Err(invalid("path is NULL"));
+        }
+        // SAFETY: the caller passes a NUL-terminated string.
+        let path = unsafe { CStr::from_ptr(path) }
+            .to_str()
+            .map_err(|_| invalid("path is not UTF-8"))?;
+        let n = ctx.ctx.use_pipeline_cache(std::path::Path::new(path))?;
+        if !loaded_bytes.is_null() {
+            // SAFETY: non-null and valid for writes by the caller's contract.
+            unsafe { loaded_bytes.write(n as u64) };
+        }
+        Ok(())
+    })
+}
+
+/// Writes the context's pipeline cache to its file now; `saved_bytes` (may
+/// be NULL) receives the bytes written (0 without a cache).
+///
+/// # Safety
+/// `ctx` is live, `saved_bytes` NULL or valid for a write.
+#[no_mangle]
+pub unsafe extern "C" fn mcd_context_save_pipeline_cache(
+    ctx: *const McdContext,
+    saved_bytes: *mut u64,
+) -> McdStatus {
+    guard(|| {
+        // SAFETY: forwarded to the caller.
+        let ctx = unsafe { non_null(ctx, "ctx") }?;
+        let n = ctx.ctx.save_pipeline_cache()?;
+        if !saved_bytes.is_null() {
+            // SAFETY: non-null and valid for writes by the caller's contract.
+            unsafe { saved_bytes.write(n as u64) };
+        }
+        Ok(())
+    })
+}
+
 /// Creates a denoiser: builds its pipelines and allocates its buffers.
 ///
 /// # Safety

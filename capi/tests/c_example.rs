@@ -5,21 +5,46 @@
 //! `include/mcdenoise_accum.glsl`), records mcdenoise into its command
 //! buffer, renders a second pass where the sample map says and checks the
 //! results (the program exits non-zero when they are wrong, or on any
-//! validation message).
+//! validation message); its context keeps a pipeline cache file, which must
+//! be written.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-/// The directory holding the freshly built `libmcdenoise.so`.
+/// Builds `libmcdenoise.so` (cargo does not build a cdylib for an
+/// integration test) with the test's own profile and target folder, and
+/// returns the folder holding it. The library is built with the main
+/// crate's default features, as the test binaries are, so nothing is
+/// compiled twice.
 fn library_dir() -> PathBuf {
     let exe = std::env::current_exe().unwrap();
-    let deps = exe.parent().unwrap();
-    for dir in [deps, deps.parent().unwrap()] {
-        if dir.join("libmcdenoise.so").exists() {
-            return dir.to_path_buf();
-        }
+    let profile_dir = exe.parent().unwrap().parent().unwrap();
+    let target_dir = profile_dir.parent().unwrap();
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+    let mut cmd = Command::new(cargo);
+    cmd.args([
+        "build",
+        "--quiet",
+        "--lib",
+        "-p",
+        "mcdenoise",
+        "-p",
+        "mcdenoise-capi",
+    ])
+    .arg("--target-dir")
+    .arg(target_dir)
+    .current_dir(env!("CARGO_MANIFEST_DIR"));
+    if profile_dir.file_name().is_some_and(|n| n == "release") {
+        cmd.arg("--release");
     }
-    panic!("libmcdenoise.so not found beside {}", deps.display());
+    let status = cmd.status().expect("cargo build -p mcdenoise-capi");
+    assert!(status.success(), "building libmcdenoise.so failed");
+    assert!(
+        profile_dir.join("libmcdenoise.so").exists(),
+        "libmcdenoise.so not found in {}",
+        profile_dir.display()
+    );
+    profile_dir.to_path_buf()
 }
 
 /// Whether the Khronos validation layer is installed (the README's test
@@ -59,8 +84,11 @@ fn c_host_accumulates_on_the_gpu_and_denoises() {
 
     let spv = Path::new(env!("OUT_DIR")).join("accumulate.spv");
     let validate = validation_installed();
+    let cache = out.join("pipelines.bin");
+    let _ = std::fs::remove_file(&cache);
     let output = Command::new(&exe)
         .arg(&spv)
+        .arg(&cache)
         .env(
             "MCDENOISE_EMBED_VALIDATION",
             if validate { "1" } else { "0" },
@@ -77,6 +105,11 @@ fn c_host_accumulates_on_the_gpu_and_denoises() {
     assert!(
         stdout.contains("sample map:") && stdout.ends_with("ok\n"),
         "{stdout}"
+    );
+    let saved = std::fs::metadata(&cache).map(|m| m.len()).unwrap_or(0);
+    assert!(
+        saved >= 32,
+        "the pipeline cache was not written ({saved} bytes)"
     );
     if std::env::var("MCDENOISE_REQUIRE_VALIDATION").is_ok_and(|v| v == "1") {
         assert!(

@@ -7,7 +7,8 @@
  * bound in the host's shader as it lies on the GPU -- and denoises again.
  *
  * Build: cc host.c -I../../include -lvulkan -L<dir of libmcdenoise> -lmcdenoise
- * Run:   ./host accumulate.spv      (capi/tests/c_example.rs does both)
+ * Run:   ./host accumulate.spv [pipeline-cache-file]
+ *        (capi/tests/c_example.rs does both)
  * With MCDENOISE_EMBED_VALIDATION=1 the host enables the Khronos
  * validation layer and fails on any message. Exits non-zero if the result
  * is wrong: the sample map must spend exactly the budget, and each
@@ -107,8 +108,8 @@ struct Push {
 
 int main(int argc, char **argv)
 {
-    if (argc != 2) {
-        fprintf(stderr, "usage: %s accumulate.spv\n", argv[0]);
+    if (argc != 2 && argc != 3) {
+        fprintf(stderr, "usage: %s accumulate.spv [pipeline-cache-file]\n", argv[0]);
         return 2;
     }
     if (mcd_api_version() != MCDENOISE_API_VERSION) {
@@ -288,6 +289,7 @@ int main(int argc, char **argv)
                             .flags = MCD_FLAG_NO_SINGLE_SAMPLE_PIXELS};
     McdOutputs out;
     if (mcd_context_create(&host, &ctx) != MCD_STATUS_OK ||
+        (argc == 3 && mcd_context_use_pipeline_cache(ctx, argv[2], NULL) != MCD_STATUS_OK) ||
         mcd_denoiser_create(ctx, &desc, &denoiser) != MCD_STATUS_OK ||
         mcd_denoiser_outputs(denoiser, &out) != MCD_STATUS_OK) {
         fprintf(stderr, "mcdenoise: %s\n", mcd_last_error());

@@ -155,6 +155,8 @@ pub struct GpuContext {
     debug: Option<(ash::ext::debug_utils::Instance, vk::DebugUtilsMessengerEXT)>,
     validation_log: Arc<ValidationLog>,
     pub(crate) pipelines: Mutex<super::pipeline::PipelineCache>,
+    /// The on-disk `VkPipelineCache` pipelines are built through, if any.
+    disk_cache: Mutex<Option<super::pipeline::DiskCache>>,
     /// Vulkan requires external synchronisation of a queue: every submit
     /// from this context holds this lock.
     pub(crate) queue_lock: Mutex<()>,
@@ -663,6 +665,7 @@ impl GpuContext {
             debug,
             validation_log,
             pipelines: Mutex::new(Default::default()),
+            disk_cache: Mutex::new(None),
             queue_lock: Mutex::new(()),
             in_flight: Mutex::new(InFlight::default()),
             free_desc_pools: Mutex::new(Vec::new()),
@@ -936,14 +939,124 @@ impl GpuContext {
     }
 }
 
+impl GpuContext {
+    /// Builds every later pipeline of this context through a
+    /// `VkPipelineCache` loaded from `path` (a missing file, or one made by
+    /// another device or driver, starts an empty cache), and writes the
+    /// cache back to `path` when the context is dropped if a pipeline was
+    /// built meanwhile (or at [`save_pipeline_cache`](Self::save_pipeline_cache)).
+    /// A driver that keeps compiled pipelines in its cache then skips the
+    /// compilation in the next process. Returns the bytes loaded (0: an
+    /// empty cache). An error if the context already has a cache, or if
+    /// `path` exists but cannot be read.
+    pub fn use_pipeline_cache(&self, path: &std::path::Path) -> Result<usize> {
+        let mut slot = self.disk_cache.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(c) = slot.as_ref() {
+            return Err(Error::InvalidArgument(format!(
+                "the context already builds through the pipeline cache {}",
+                c.path.display()
+            )));
+        }
+        let data = match std::fs::read(path) {
+            Ok(d) => d,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => Vec::new(),
+            Err(source) => {
+                return Err(Error::Io {
+                    path: path.to_path_buf(),
+                    source,
+                })
+            }
+        };
+        // SAFETY: a valid physical device of this instance.
+        let props = unsafe { self.instance.get_physical_device_properties(self.physical) };
+        let data = if super::pipeline::cache_matches(&data, &props) {
+            data
+        } else {
+            if !data.is_empty() {
+                log::info!(
+                    "pipeline cache {} was made by another device or driver: starting empty",
+                    path.display()
+                );
+            }
+            Vec::new()
+        };
+        let info = vk::PipelineCacheCreateInfo::default().initial_data(&data);
+        // SAFETY: the create info references a live local.
+        let handle =
+            unsafe { self.device.create_pipeline_cache(&info, None) }.map_err(|result| {
+                Error::Vulkan {
+                    call: "vkCreatePipelineCache",
+                    result,
+                }
+            })?;
+        *slot = Some(super::pipeline::DiskCache {
+            handle,
+            path: path.to_path_buf(),
+            dirty: AtomicBool::new(false),
+        });
+        Ok(data.len())
+    }
+
+    /// Writes the pipeline cache ([`use_pipeline_cache`](Self::use_pipeline_cache))
+    /// to its file now (atomically: a reader sees the old file or the new
+    /// one). Returns the bytes written; `Ok(0)` when the context has no
+    /// cache.
+    pub fn save_pipeline_cache(&self) -> Result<usize> {
+        let slot = self.disk_cache.lock().unwrap_or_else(|e| e.into_inner());
+        let Some(c) = slot.as_ref() else {
+            return Ok(0);
+        };
+        // SAFETY: the cache belongs to this device; VkPipelineCache is
+        // internally synchronised.
+        let data = unsafe { self.device.get_pipeline_cache_data(c.handle) }.map_err(|result| {
+            Error::Vulkan {
+                call: "vkGetPipelineCacheData",
+                result,
+            }
+        })?;
+        super::pipeline::write_cache_file(&c.path, &data)?;
+        c.dirty.store(false, Ordering::SeqCst);
+        Ok(data.len())
+    }
+
+    /// The `VkPipelineCache` to build through (null: none).
+    pub(crate) fn disk_cache_handle(&self) -> vk::PipelineCache {
+        let slot = self.disk_cache.lock().unwrap_or_else(|e| e.into_inner());
+        slot.as_ref()
+            .map_or(vk::PipelineCache::null(), |c| c.handle)
+    }
+
+    /// Notes that a pipeline was built through the cache.
+    pub(crate) fn mark_disk_cache_dirty(&self) {
+        let slot = self.disk_cache.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(c) = slot.as_ref() {
+            c.dirty.store(true, Ordering::SeqCst);
+        }
+    }
+}
+
 impl Drop for GpuContext {
     fn drop(&mut self) {
+        let dirty = self
+            .disk_cache
+            .get_mut()
+            .ok()
+            .and_then(|c| c.as_ref())
+            .is_some_and(|c| c.dirty.load(Ordering::SeqCst));
+        if dirty {
+            if let Err(e) = self.save_pipeline_cache() {
+                log::warn!("the pipeline cache was not saved: {e}");
+            }
+        }
         // SAFETY: teardown in dependency order; nothing is used afterwards.
         unsafe {
             if self.owns_device {
                 let _ = self.device.device_wait_idle();
             }
             self.pipelines.lock().unwrap().destroy(&self.device);
+            if let Some(c) = self.disk_cache.lock().unwrap().take() {
+                self.device.destroy_pipeline_cache(c.handle, None);
+            }
             for p in self.free_desc_pools.lock().unwrap().drain(..) {
                 self.device.destroy_descriptor_pool(p, None);
                 fault::destroyed(Object::DescriptorPool);

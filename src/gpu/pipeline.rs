@@ -240,12 +240,16 @@ impl GpuContext {
             let info = [vk::ComputePipelineCreateInfo::default()
                 .stage(stage)
                 .layout(objects.layout)];
+            let cache = self.disk_cache_handle();
             let pipeline = fault::vk(Call::CreateComputePipeline)
                 .and_then(|()| {
-                    dev.create_compute_pipelines(vk::PipelineCache::null(), &info, None)
+                    dev.create_compute_pipelines(cache, &info, None)
                         .map_err(|(_, e)| e)
                 })
                 .map_err(failed("vkCreateComputePipelines"));
+            if pipeline.is_ok() {
+                self.mark_disk_cache_dirty();
+            }
             // The module is only needed while the pipeline is created.
             dev.destroy_shader_module(module, None);
             fault::destroyed(Object::ShaderModule);
@@ -280,4 +284,61 @@ fn release_compiler_heap() {
     unsafe {
         libc::malloc_trim(0);
     }
+}
+
+/// A `VkPipelineCache` kept on disk ([`GpuContext::use_pipeline_cache`]):
+/// every pipeline the context builds afterwards goes through it, and it is
+/// written back to `path` by [`GpuContext::save_pipeline_cache`] and when
+/// the context is dropped, if a pipeline was built since it was loaded.
+pub(crate) struct DiskCache {
+    pub(crate) handle: vk::PipelineCache,
+    pub(crate) path: std::path::PathBuf,
+    /// A pipeline was built through the cache since it was loaded or saved.
+    pub(crate) dirty: std::sync::atomic::AtomicBool,
+}
+
+/// Bytes of the header Vulkan puts before a pipeline cache's data
+/// (`VkPipelineCacheHeaderVersionOne`).
+const CACHE_HEADER_BYTES: usize = 32;
+
+/// Whether `data` is a pipeline cache of this device: header version one,
+/// the device's vendor and device IDs and its `pipelineCacheUUID`. Data of
+/// another device or driver is not handed to the driver (the spec lets it
+/// ignore such data, but not every driver checks it carefully).
+pub(crate) fn cache_matches(data: &[u8], props: &vk::PhysicalDeviceProperties) -> bool {
+    if data.len() < CACHE_HEADER_BYTES {
+        return false;
+    }
+    let word = |i: usize| u32::from_le_bytes(data[4 * i..4 * i + 4].try_into().unwrap());
+    let header_len = word(0) as usize;
+    header_len >= CACHE_HEADER_BYTES
+        && header_len <= data.len()
+        && word(1) == vk::PipelineCacheHeaderVersion::ONE.as_raw() as u32
+        && word(2) == props.vendor_id
+        && word(3) == props.device_id
+        && data[16..32] == props.pipeline_cache_uuid
+}
+
+/// Writes `bytes` to `path` through a temporary file in the same folder and
+/// a rename, so a reader never sees a partial cache.
+pub(crate) fn write_cache_file(path: &std::path::Path, bytes: &[u8]) -> Result<()> {
+    use std::io::Write as _;
+    let io_err = |source| Error::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(io_err)?;
+    }
+    let mut tmp = path.as_os_str().to_owned();
+    tmp.push(format!(".tmp-{}", std::process::id()));
+    let tmp = std::path::PathBuf::from(tmp);
+    let written = std::fs::File::create(&tmp)
+        .and_then(|mut f| f.write_all(bytes).and_then(|()| f.sync_all()))
+        .and_then(|()| std::fs::rename(&tmp, path));
+    if let Err(e) = written {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(io_err(e));
+    }
+    Ok(())
 }

@@ -23,6 +23,21 @@ pub fn context(cli: &Cli) -> anyhow::Result<Arc<GpuContext>> {
             Validation::Off
         },
     })?;
+    if !cli.no_pipeline_cache {
+        let path = cli.pipeline_cache.clone().unwrap_or_else(|| {
+            let device: String = ctx
+                .info()
+                .name
+                .chars()
+                .map(|c| if c.is_ascii_alphanumeric() { c } else { '_' })
+                .collect();
+            mcdenoise::render::reference::cache_dir().join(format!("pipelines-{device}.bin"))
+        });
+        // A cache that cannot be read costs only the compile time.
+        if let Err(e) = ctx.use_pipeline_cache(&path) {
+            log::warn!("pipeline cache not used: {e}");
+        }
+    }
     Ok(Arc::new(ctx))
 }
 

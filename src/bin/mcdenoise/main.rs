@@ -34,6 +34,16 @@ pub struct Cli {
     /// No progress output on stderr.
     #[arg(long, short, global = true)]
     quiet: bool,
+    /// Pipeline cache file (a VkPipelineCache, read at start and written
+    /// back when new pipelines were built): drivers that keep compiled
+    /// kernels in it skip their compilation next time. Default:
+    /// pipelines-<device>.bin in the cache folder (MCDENOISE_CACHE, else
+    /// $XDG_CACHE_HOME/mcdenoise, else ~/.cache/mcdenoise).
+    #[arg(long, global = true, value_name = "FILE")]
+    pipeline_cache: Option<std::path::PathBuf>,
+    /// Build pipelines without a pipeline cache file.
+    #[arg(long, global = true, conflicts_with = "pipeline_cache")]
+    no_pipeline_cache: bool,
     #[command(subcommand)]
     command: Command,
 }
