@@ -475,6 +475,12 @@ impl Denoiser {
     /// between its writes of `accum` and this work, or between this work and
     /// its reads of [`outputs`](Self::outputs).
     ///
+    /// # Errors
+    /// On `Err`, part of the chain may already be in `cmd`, referring to
+    /// descriptor sets that are released with the error: the host must
+    /// discard `cmd` (reset or free it) and never submit it. The denoiser
+    /// and its context stay usable.
+    ///
     /// # Safety
     /// - `cmd` belongs to the denoiser's device, comes from a pool of a
     ///   compute-capable queue family, is recording, and is outside a render
@@ -498,7 +504,7 @@ impl Denoiser {
         batch.progress = false;
         chain.record(&mut batch, accum, budget)?;
         self.sampled.store(budget.is_some(), Ordering::SeqCst);
-        Ok(batch.finish_recording())
+        batch.finish_recording()
     }
 
     /// Records the whole chain (as [`record_into`](Self::record_into)) into a

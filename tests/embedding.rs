@@ -275,7 +275,7 @@ fn host_submit(
         // SAFETY: `cmd` is the host's recording command buffer of ctx's device.
         let mut batch = unsafe { Batch::record_into(ctx, cmd) };
         record(&mut batch);
-        vec![batch.finish_recording()]
+        vec![batch.finish_recording().unwrap()]
     })
 }
 
@@ -572,15 +572,91 @@ fn buffers_outlive_a_dropped_denoiser_until_the_work_completes() {
         drop(d); // before the host's submit
         vec![r]
     });
-    // A wrongly sized host range is an error, not an out-of-bounds binding.
+    drop(ctx);
+    host_teardown(h, accum_buf, accum_mem);
+}
+
+/// Records into a fresh command buffer of the host and then discards it
+/// (frees its pool) without ever submitting it: what a host does after
+/// `record_into` returned an error.
+fn host_discard_recorded(h: &Host, record: impl FnOnce(vk::CommandBuffer)) {
+    unsafe {
+        let pool = h
+            .device
+            .create_command_pool(
+                &vk::CommandPoolCreateInfo::default().queue_family_index(h.family),
+                None,
+            )
+            .unwrap();
+        let cmd = h
+            .device
+            .allocate_command_buffers(
+                &vk::CommandBufferAllocateInfo::default()
+                    .command_pool(pool)
+                    .level(vk::CommandBufferLevel::PRIMARY)
+                    .command_buffer_count(1),
+            )
+            .unwrap()[0];
+        h.device
+            .begin_command_buffer(cmd, &vk::CommandBufferBeginInfo::default())
+            .unwrap();
+        record(cmd);
+        h.device.destroy_command_pool(pool, None);
+    }
+}
+
+/// An error from `record_into` (a wrongly sized host range, or an output
+/// slice of a dropped denoiser bound in a later batch) is an error, never
+/// an out-of-bounds or destroyed binding; the host discards its command
+/// buffer and the denoiser and context stay usable.
+#[test]
+fn a_failed_recording_is_discarded_and_the_context_stays_usable() {
+    let h = host();
+    let (layout, planes) = edge_scene(16, 12, 3);
+    let (accum_buf, accum_mem) = host_accum(&h, &layout, &planes);
+    let ctx = import(&h);
     let d = Denoiser::new(&ctx, Source::Accum(layout), Config::new(Method::Wlr)).unwrap();
     let short = unsafe { BufferSlice::from_raw(accum_buf, 0, layout.bytes() - 4) };
-    let err = host_submit_recorded(&h, |cmd| unsafe {
+    host_discard_recorded(&h, |cmd| unsafe {
         assert!(d.record_into(cmd, Some(short), None).is_err());
-        vec![]
     });
-    assert!(err.is_empty());
+    // The same denoiser records and runs afterwards.
+    let accum = unsafe { BufferSlice::from_raw(accum_buf, 0, layout.bytes()) };
+    host_submit_recorded(&h, |cmd| unsafe {
+        vec![d.record_into(cmd, Some(accum), Some(100)).unwrap()]
+    });
+    assert_eq!(d.read().unwrap().samples.unwrap().iter().sum::<u32>(), 100);
+
+    // Outputs of a dropped denoiser: a later use fails, it binds nothing.
+    let stale = d.outputs().unwrap().color[0];
     drop(d);
+    let other = Denoiser::new(&ctx, Source::Accum(layout), Config::new(Method::None)).unwrap();
+    let fresh = other.outputs().unwrap().color[0];
+    let mut batch = mcdenoise::Batch::new(&ctx).unwrap();
+    batch.copy(stale, fresh);
+    let err = batch.finish().unwrap_err();
+    assert!(err.to_string().contains("outlived its buffer"), "{err}");
+    let mut batch = mcdenoise::Batch::new(&ctx).unwrap();
+    batch.fill(stale, 0);
+    assert!(batch.finish().is_err());
+    // Ranges of different sizes are an error too, not a panic.
+    let mut batch = mcdenoise::Batch::new(&ctx).unwrap();
+    batch.copy(fresh, fresh.sub(0, 4).unwrap());
+    assert!(batch.finish().is_err());
+    // Offsets that would wrap around are refused, not wrapped.
+    let buf = mcdenoise::gpu::GpuBuffer::new(&ctx, "wrap", 64).unwrap();
+    assert!(buf.upload(u64::MAX - 3, &[0u8; 8]).is_err());
+    assert!(buf.download(u64::MAX - 3, &mut [0u8; 8]).is_err());
+    assert!(fresh.sub(u64::MAX, 2).is_err());
+    // vkDeviceWaitIdle would touch the host's queues.
+    assert!(ctx.wait_idle().is_err());
+    assert_eq!(
+        ctx.validation_errors(),
+        0,
+        "{:?}",
+        ctx.validation_messages()
+    );
+    drop((buf, other));
     drop(ctx);
     host_teardown(h, accum_buf, accum_mem);
 }

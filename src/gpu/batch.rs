@@ -143,6 +143,9 @@ pub struct Batch {
     /// Every buffer bound or copied so far, retained in the context until
     /// the work is known to be complete.
     used: HashSet<vk::Buffer>,
+    /// The first error of a `fill` or `copy` (which record nothing then),
+    /// returned by `finish` / `finish_recording`.
+    deferred: Option<Error>,
     /// Estimated work recorded so far, and completed so far (execute mode).
     flops_recorded: f64,
     flops_done: f64,
@@ -270,7 +273,10 @@ impl Batch {
     }
 
     /// Retains the buffers of `slices` until this batch's work is complete.
-    fn track(&mut self, slices: &[BufferSlice]) {
+    /// Checks that `slices` are alive ([`GpuContext::check_live`]) and
+    /// retains their buffers until the batch's work is done.
+    fn track(&mut self, slices: &[BufferSlice]) -> Result<()> {
+        self.ctx.check_live(slices)?;
         let new: Vec<vk::Buffer> = slices
             .iter()
             .map(|s| s.buffer)
@@ -279,6 +285,7 @@ impl Batch {
         if !new.is_empty() {
             self.ctx.retain(&new);
         }
+        Ok(())
     }
 
     fn empty(
@@ -296,6 +303,7 @@ impl Batch {
             sets_left: 0,
             query_pools: Vec::new(),
             queries_used: 0,
+            deferred: None,
             stamps: Vec::new(),
             timings: Vec::new(),
             timestamps: ctx.info.timestamp_period_ns > 0.0,
@@ -634,12 +642,17 @@ impl Batch {
         };
     }
 
-    /// Fills a range with a 32-bit pattern (e.g. zeroes counters).
+    /// Fills a range with a 32-bit pattern (e.g. zeroes counters). A slice
+    /// of a dropped buffer records nothing, and [`finish`](Self::finish) or
+    /// [`finish_recording`](Self::finish_recording) returns the error.
     pub fn fill(&mut self, slice: BufferSlice, value: u32) {
         if matches!(self.mode, Mode::Count) {
             return;
         }
-        self.track(&[slice]);
+        if let Err(e) = self.track(&[slice]) {
+            self.defer(e);
+            return;
+        }
         // SAFETY: cmd is recording; range inside the buffer (BufferSlice invariant).
         unsafe {
             self.ctx.device.cmd_fill_buffer(
@@ -653,13 +666,24 @@ impl Batch {
         self.barrier();
     }
 
-    /// Copies `src` into `dst` (sizes must match).
+    /// Copies `src` into `dst`. Ranges of different sizes, or of a dropped
+    /// buffer, record nothing, and [`finish`](Self::finish) or
+    /// [`finish_recording`](Self::finish_recording) returns the error.
     pub fn copy(&mut self, src: BufferSlice, dst: BufferSlice) {
-        assert_eq!(src.size, dst.size, "copy between ranges of different size");
+        if src.size != dst.size {
+            self.defer(Error::InvalidArgument(format!(
+                "copy between ranges of {} and {} bytes",
+                src.size, dst.size
+            )));
+            return;
+        }
         if matches!(self.mode, Mode::Count) {
             return;
         }
-        self.track(&[src, dst]);
+        if let Err(e) = self.track(&[src, dst]) {
+            self.defer(e);
+            return;
+        }
         let region = [vk::BufferCopy::default()
             .src_offset(src.offset)
             .dst_offset(dst.offset)
@@ -840,8 +864,8 @@ impl Batch {
             self.flops_recorded += flops;
             return Ok(());
         }
+        self.track(&[args])?;
         let set = self.bind_set(&p, bindings).map_err(recording(&p.name))?;
-        self.track(&[args]);
         let mut push = push.to_vec();
         push[8..12].copy_from_slice(&0u32.to_le_bytes());
         self.record_one(&p, set, &push, None, (flops, bytes), |dev, cmd| {
@@ -854,7 +878,7 @@ impl Batch {
     /// Allocates and writes the descriptor set of one dispatch and retains
     /// its buffers.
     fn bind_set(&mut self, p: &Pipeline, bindings: &[BufferSlice]) -> Result<vk::DescriptorSet> {
-        self.track(bindings);
+        self.track(bindings)?;
         let set = self.descriptor_set(p.set_layout)?;
         let infos: Vec<[vk::DescriptorBufferInfo; 1]> = bindings
             .iter()
@@ -957,6 +981,9 @@ impl Batch {
     /// Submits the remaining work and waits (execute mode), and returns the
     /// per-dispatch GPU times. In record mode returns a [`Recorded`] holder.
     pub fn finish(mut self) -> Result<Vec<KernelTiming>> {
+        if let Some(e) = self.deferred.take() {
+            return Err(e);
+        }
         match self.mode {
             Mode::Execute { .. } => {
                 self.flush()?;
@@ -971,7 +998,10 @@ impl Batch {
 
     /// Ends a [`record_into`](Self::record_into) batch. The returned holder
     /// must live until the host's submission has completed.
-    pub fn finish_recording(mut self) -> Recorded {
+    pub fn finish_recording(mut self) -> Result<Recorded> {
+        if let Some(e) = self.deferred.take() {
+            return Err(e);
+        }
         // To every later command, and to the host: after the host's fence,
         // mcdenoise reads its outputs through mapped memory (`read_slice`),
         // which a fence wait alone does not make visible.
@@ -983,14 +1013,20 @@ impl Batch {
                 | vk::AccessFlags::MEMORY_WRITE
                 | vk::AccessFlags::HOST_READ,
         );
-        Recorded {
+        Ok(Recorded {
             ctx: self.ctx.clone(),
             used: self.used.drain().collect(),
             desc_pools: std::mem::take(&mut self.desc_pools),
             query_pools: std::mem::take(&mut self.query_pools),
             stamps: std::mem::take(&mut self.stamps),
             queries_used: self.queries_used,
-        }
+        })
+    }
+
+    /// Keeps the first error of a call that returns nothing (`fill`,
+    /// `copy`) for `finish` / `finish_recording`.
+    fn defer(&mut self, e: Error) {
+        self.deferred.get_or_insert(e);
     }
 }
 
@@ -1098,6 +1134,7 @@ impl Drop for Batch {
 /// What a recording batch leaves behind: descriptor sets and timestamp
 /// queries used by the host's command buffer. Keep it until that work has
 /// completed; then read [`timings`](Self::timings) and drop it.
+#[must_use = "dropping Recorded before the host's submission completed frees what its commands use"]
 pub struct Recorded {
     ctx: Arc<GpuContext>,
     used: Vec<vk::Buffer>,

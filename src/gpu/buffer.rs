@@ -17,7 +17,12 @@ use crate::fault::{self, Call, Object};
 /// [`PlaneSet::plane`] (checked against the buffer), by [`BufferSlice::sub`]
 /// (checked against the parent range), or for a host's buffer by the `unsafe`
 /// [`BufferSlice::from_raw`]. Safe code therefore cannot name a range outside
-/// a live buffer.
+/// its buffer. A slice is a copyable handle, so it can outlive the
+/// [`GpuBuffer`] it came from (or the [`Denoiser`](crate::Denoiser) whose
+/// [`outputs`](crate::Denoiser::outputs) it is): every use checks that its
+/// buffer is still alive (a [`Batch`](super::Batch) binding, fill or copy,
+/// a read) and fails with [`Error::InvalidArgument`] instead of touching a
+/// destroyed buffer.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
 pub struct BufferSlice {
     pub(crate) buffer: vk::Buffer,
@@ -25,7 +30,14 @@ pub struct BufferSlice {
     pub(crate) offset: u64,
     /// Byte size of the range.
     pub(crate) size: u64,
+    /// The [`GpuBuffer`]'s unique id (never reused), checked against the
+    /// context's live buffers at every use; 0 for a host's buffer
+    /// ([`BufferSlice::from_raw`], whose contract covers its life).
+    pub(crate) id: u64,
 }
+
+/// Ids of [`GpuBuffer`]s, unique in the process (0 is a host's buffer).
+static NEXT_BUFFER_ID: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(1);
 
 impl BufferSlice {
     /// A range of a buffer mcdenoise does not own (a host renderer's).
@@ -43,6 +55,7 @@ impl BufferSlice {
             buffer,
             offset,
             size,
+            id: 0,
         }
     }
 
@@ -69,6 +82,7 @@ impl BufferSlice {
                 buffer: self.buffer,
                 offset: self.offset + offset,
                 size,
+                id: self.id,
             }),
             _ => Err(Error::InvalidArgument(format!(
                 "range [{offset}, {offset}+{size}) does not fit a buffer range of {} bytes",
@@ -85,6 +99,9 @@ pub struct GpuBuffer {
     buffer: vk::Buffer,
     allocation: Option<Allocation>,
     size: u64,
+    /// Unique in the process; registered in the context's live set while
+    /// the buffer lives (see [`BufferSlice`]).
+    id: u64,
 }
 
 impl std::fmt::Debug for GpuBuffer {
@@ -161,12 +178,15 @@ impl GpuBuffer {
         }
         ctx.name_object(buffer, name);
         ctx.count_allocation(size);
+        let id = NEXT_BUFFER_ID.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        ctx.live.lock().unwrap().insert(id);
         let b = GpuBuffer {
             ctx: ctx.clone(),
             name: name.to_owned(),
             buffer,
             allocation: Some(allocation),
             size,
+            id,
         };
         // Only coherent mappings: a direct read then needs no invalidation.
         if let Some(ptr) = b.coherent_mapping() {
@@ -234,13 +254,14 @@ impl GpuBuffer {
             buffer: self.buffer,
             offset: 0,
             size: self.size,
+            id: self.id,
         }
     }
 
     /// A byte range of the buffer as a binding.
     pub fn range(&self, offset: u64, size: u64) -> BufferSlice {
         assert!(
-            offset + size <= self.size,
+            offset.checked_add(size).is_some_and(|end| end <= self.size),
             "{}: range out of bounds",
             self.name
         );
@@ -248,6 +269,7 @@ impl GpuBuffer {
             buffer: self.buffer,
             offset,
             size,
+            id: self.id,
         }
     }
 
@@ -264,7 +286,7 @@ impl GpuBuffer {
     /// and copied chunk by chunk. No region is copied on the host first.
     pub fn upload_regions(&self, regions: &[(u64, &[u8])]) -> Result<()> {
         for &(offset, bytes) in regions {
-            if offset + bytes.len() as u64 > self.size {
+            if !fits(offset, bytes.len(), self.size) {
                 return Err(Error::InvalidArgument(format!(
                     "upload of {} bytes at {offset} exceeds buffer {} ({} bytes)",
                     bytes.len(),
@@ -324,7 +346,7 @@ impl GpuBuffer {
     /// at most [`STAGING_CHUNK`] bytes, chunk by chunk.
     pub fn download_regions(&self, regions: &mut [(u64, &mut [u8])]) -> Result<()> {
         for (offset, out) in regions.iter() {
-            if *offset + out.len() as u64 > self.size {
+            if !fits(*offset, out.len(), self.size) {
                 return Err(Error::InvalidArgument(format!(
                     "download of {} bytes at {offset} exceeds buffer {}",
                     out.len(),
@@ -361,7 +383,8 @@ impl GpuBuffer {
 /// directly; any other (device-local memory, a host's buffer) through a
 /// host-visible staging buffer, waiting for the copy.
 pub fn read_slice(ctx: &Arc<GpuContext>, slice: BufferSlice, count: usize) -> Result<Vec<f32>> {
-    let bytes = count as u64 * 4;
+    ctx.check_live(&[slice])?;
+    let bytes = (count as u64).saturating_mul(4);
     if bytes > slice.size {
         return Err(Error::InvalidArgument(format!(
             "reading {count} values from a range of {} bytes",
@@ -499,8 +522,18 @@ fn staging_chunks(lens: impl Iterator<Item = usize>) -> Vec<Chunk> {
     chunks
 }
 
+/// Whether `len` bytes at byte `offset` lie inside `size` bytes (no
+/// overflow).
+fn fits(offset: u64, len: usize, size: u64) -> bool {
+    offset
+        .checked_add(len as u64)
+        .is_some_and(|end| end <= size)
+}
+
 impl Drop for GpuBuffer {
     fn drop(&mut self) {
+        // No new use from here on: slices of this buffer fail their check.
+        self.ctx.live.lock().unwrap().remove(&self.id);
         // Destroyed now, or when the last batch or `Recorded` that binds it
         // is done (see `GpuContext::retire_buffer`).
         self.ctx.count_free(self.size);

@@ -157,6 +157,9 @@ pub struct GpuContext {
     pub(crate) pipelines: Mutex<super::pipeline::PipelineCache>,
     /// The on-disk `VkPipelineCache` pipelines are built through, if any.
     disk_cache: Mutex<Option<super::pipeline::DiskCache>>,
+    /// Ids of the live [`super::GpuBuffer`]s of this context: a
+    /// [`super::BufferSlice`] of any other is refused at use.
+    pub(crate) live: Mutex<std::collections::HashSet<u64>>,
     /// Vulkan requires external synchronisation of a queue: every submit
     /// from this context holds this lock.
     pub(crate) queue_lock: Mutex<()>,
@@ -666,6 +669,7 @@ impl GpuContext {
             validation_log,
             pipelines: Mutex::new(Default::default()),
             disk_cache: Mutex::new(None),
+            live: Mutex::new(Default::default()),
             queue_lock: Mutex::new(()),
             in_flight: Mutex::new(InFlight::default()),
             free_desc_pools: Mutex::new(Vec::new()),
@@ -857,10 +861,21 @@ impl GpuContext {
         self.free_query_pools.lock().unwrap().extend(pools);
     }
 
-    /// Waits until the device has finished all work.
+    /// Waits until the device has finished all work: only on mcdenoise's
+    /// own device. On a host's device ([`GpuContext::from_raw`]) it is an
+    /// [`Error::InvalidArgument`]: `vkDeviceWaitIdle` needs every queue of
+    /// the device externally synchronised, and the host's queues are the
+    /// host's; wait on the host's fences instead.
     pub fn wait_idle(&self) -> Result<()> {
+        if !self.owns_device {
+            return Err(Error::InvalidArgument(
+                "wait_idle on a host's device: wait on the host's own fences".into(),
+            ));
+        }
         self.check_alive()?;
-        // SAFETY: device is alive.
+        // Submits from other threads hold the queue lock.
+        let _queue = self.queue_lock.lock().unwrap_or_else(|e| e.into_inner());
+        // SAFETY: device is alive; its only queue is held.
         unsafe { self.device.device_wait_idle() }.map_err(|r| match r {
             vk::Result::ERROR_DEVICE_LOST => {
                 self.mark_lost(Lost::Device("vkDeviceWaitIdle".into()))
@@ -1017,6 +1032,20 @@ impl GpuContext {
         super::pipeline::write_cache_file(&c.path, &data)?;
         c.dirty.store(false, Ordering::SeqCst);
         Ok(data.len())
+    }
+
+    /// An error if a slice belongs to a buffer of this context that was
+    /// dropped, or to a buffer of another context (host buffers, id 0, are
+    /// the caller's responsibility under `BufferSlice::from_raw`).
+    pub(crate) fn check_live(&self, slices: &[super::BufferSlice]) -> Result<()> {
+        let live = self.live.lock().unwrap_or_else(|e| e.into_inner());
+        match slices.iter().find(|s| s.id != 0 && !live.contains(&s.id)) {
+            None => Ok(()),
+            Some(s) => Err(Error::InvalidArgument(format!(
+                "a buffer slice ({} bytes at {}) outlived its buffer, or belongs to another context",
+                s.size, s.offset
+            ))),
+        }
     }
 
     /// The `VkPipelineCache` to build through (null: none).
