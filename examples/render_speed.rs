@@ -34,6 +34,7 @@ fn main() -> anyhow::Result<()> {
     let ctx = Arc::new(GpuContext::new(&ContextOptions {
         device: None,
         validation: Validation::Off,
+        ..Default::default()
     })?);
     println!("device: {}", ctx.info().name);
     println!(

@@ -281,8 +281,11 @@ impl std::fmt::Debug for Denoiser {
 
 impl Denoiser {
     /// A denoiser on a GPU context (mcdenoise's own device, or a host's
-    /// through the `unsafe` [`GpuContext::from_raw`]). Allocates every buffer
-    /// and checks the configuration against the source's layers.
+    /// through the `unsafe` [`GpuContext::from_raw`]). Allocates every buffer,
+    /// checks the configuration against the source's layers, and builds the
+    /// pipelines of every kernel its calls will record: a device that lacks
+    /// what one needs (`shaderFloat64` for WLR, AOS and `auto`; a limit) is
+    /// an [`Error::Limit`] here, never part-way through a recording.
     ///
     /// Statistics ([`Source::Stats`]) whose chain does not fit — a binding
     /// over `maxStorageBufferRange`, or more device memory than
@@ -363,27 +366,22 @@ impl Denoiser {
         WarmUp(spawned.ok())
     }
 
-    /// [`warm_up`](Self::warm_up)'s thread: counting a chain's work (with a
-    /// sample map when asked and the device can make one) records every
-    /// kernel into a batch that runs nothing, which asks the context for,
-    /// and so builds, each pipeline.
+    /// [`warm_up`](Self::warm_up)'s thread: a chain builds every pipeline
+    /// of its run when it is made (counting its work records every kernel
+    /// into a batch that runs nothing, which asks the context for, and so
+    /// builds, each pipeline); a statistics chain counts the sample map's
+    /// kernels too when asked.
     fn warm_up_chain(
         ctx: &Arc<GpuContext>,
         source: Source,
         config: Config,
         sample_map: bool,
     ) -> Result<()> {
-        let accum = match &source {
-            Source::Accum(layout) => Some(crate::gpu::GpuBuffer::new(
-                ctx,
-                "warm_up.accum",
-                layout.bytes(),
-            )?),
-            Source::Stats { .. } => None,
-        };
+        let stats = matches!(source, Source::Stats { .. });
         let d = Denoiser::new(ctx, source, config)?;
-        let budget = (sample_map && ctx.supports_int64()).then_some(1);
-        d.chain()?.work(budget, accum.as_ref().map(|a| a.slice()))?;
+        if stats && sample_map && ctx.supports_int64() {
+            d.chain()?.work(Some(1), None)?;
+        }
         Ok(())
     }
 

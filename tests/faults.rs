@@ -36,6 +36,7 @@ fn options() -> ContextOptions {
         } else {
             Validation::IfInstalled
         },
+        ..Default::default()
     }
 }
 

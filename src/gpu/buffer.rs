@@ -59,6 +59,18 @@ impl BufferSlice {
         }
     }
 
+    /// A stand-in of `size` bytes for recording into a counting
+    /// [`Batch`](super::Batch), which binds nothing; any real use of it is
+    /// refused (its id is never live).
+    pub(crate) fn placeholder(size: u64) -> BufferSlice {
+        BufferSlice {
+            buffer: vk::Buffer::null(),
+            offset: 0,
+            size,
+            id: u64::MAX,
+        }
+    }
+
     /// The raw buffer handle.
     pub fn buffer(&self) -> vk::Buffer {
         self.buffer

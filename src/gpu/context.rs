@@ -35,6 +35,10 @@ pub struct ContextOptions {
     pub device: Option<String>,
     /// Whether to enable the Khronos validation layer (default [`Validation::Off`]).
     pub validation: Validation,
+    /// Leave `shaderFloat64` and `shaderInt64` disabled even where the
+    /// device has them: the context then runs what a GPU without 64-bit
+    /// types runs (for testing portability on any machine).
+    pub no_64bit: bool,
 }
 
 /// What `mcdenoise info` prints about a device.
@@ -563,9 +567,11 @@ impl GpuContext {
         let queue_info = [vk::DeviceQueueCreateInfo::default()
             .queue_family_index(queue_family)
             .queue_priorities(&priorities)];
+        let f64_enabled = info.shader_float64 && !options.no_64bit;
+        let int64_enabled = info.shader_int64 && !options.no_64bit;
         let features = vk::PhysicalDeviceFeatures::default()
-            .shader_float64(info.shader_float64)
-            .shader_int64(info.shader_int64);
+            .shader_float64(f64_enabled)
+            .shader_int64(int64_enabled);
         let dinfo = vk::DeviceCreateInfo::default()
             .queue_create_infos(&queue_info)
             .enabled_features(&features);
@@ -584,8 +590,6 @@ impl GpuContext {
         partial.device = None;
         partial.instance = None;
         let debug = partial.debug.take();
-        let f64_enabled = info.shader_float64;
-        let int64_enabled = info.shader_int64;
         Ok(Self::assemble(
             entry,
             instance,

@@ -256,14 +256,22 @@ impl GpuChain {
             method,
             sampling,
         };
-        if let ChainInput::Stats { .. } = chain.input_kind {
-            // Every pipeline of a run is built now (a counting batch records
-            // nothing but builds them), while the chain's device memory is
-            // untouched: lavapipe compiles with LLVM, whose transient heap
-            // would otherwise add to the run's peak (BUILD-FIRST). A
-            // renderer's chain builds them on its first run.
-            chain.work(None, None)?;
-        }
+        // Every pipeline of a run is built now (a counting batch records
+        // nothing but builds them), while the chain's device memory is
+        // untouched: lavapipe compiles with LLVM, whose transient heap would
+        // otherwise add to the run's peak (BUILD-FIRST). So a kernel the
+        // device cannot run (64-bit types, shared memory, bindings) is an
+        // error here, never part-way through a recording. A renderer's
+        // chain builds the sample map's kernels too; its accumulation
+        // buffer is a stand-in the counting batch never binds.
+        match chain.input_kind {
+            ChainInput::Stats { .. } => chain.work(None, None)?,
+            ChainInput::Accum(layout) => {
+                let budget = chain.sampling.is_some().then_some(1);
+                let accum = BufferSlice::placeholder(layout.bytes());
+                chain.work(budget, Some(accum))?
+            }
+        };
         Ok(chain)
     }
 

@@ -22,6 +22,16 @@ pub fn gpu() -> Arc<GpuContext> {
 /// tests that measure the context's allocations, which the other tests of
 /// the binary, running in parallel on the shared context, would add to.
 pub fn own_gpu() -> Arc<GpuContext> {
+    gpu_with(false)
+}
+
+/// A context of the test's own with `shaderFloat64` and `shaderInt64` left
+/// disabled: what a GPU without 64-bit types runs.
+pub fn gpu_without_64bit() -> Arc<GpuContext> {
+    gpu_with(true)
+}
+
+fn gpu_with(no_64bit: bool) -> Arc<GpuContext> {
     let required = std::env::var(REQUIRE_VALIDATION).is_ok_and(|v| v == "1");
     let ctx = GpuContext::new(&ContextOptions {
         device: None,
@@ -30,6 +40,7 @@ pub fn own_gpu() -> Arc<GpuContext> {
         } else {
             Validation::IfInstalled
         },
+        no_64bit,
     })
     .unwrap_or_else(|e| {
         panic!(

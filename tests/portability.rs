@@ -1,0 +1,66 @@
+//! A GPU without 64-bit types (`shaderFloat64`, `shaderInt64`), simulated
+//! on any device by a context that leaves them disabled: what needs them
+//! fails in `Denoiser::new` with a clear `Error::Limit`, never part-way
+//! through a recording; what does not runs, and gives the same image as on
+//! a context with them.
+
+mod common;
+
+use mcdenoise::{io, AccumLayout, Config, Denoiser, Error, Method, Source};
+
+fn fixture() -> mcdenoise::StatsImage {
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/fixtures/dof_checker_64_spp16.exr"
+    );
+    io::read_stats(std::path::Path::new(path)).unwrap()
+}
+
+#[test]
+fn without_64bit_types_each_method_runs_or_fails_at_new() {
+    let small = common::gpu_without_64bit();
+    assert!(!small.supports_f64() && !small.supports_int64());
+    let full = common::gpu();
+    let img = fixture();
+    let layout = AccumLayout::new(32, 24, true, false);
+    for method in Method::all() {
+        let config = Config::new(method);
+        let on_stats = Denoiser::new(&small, Source::of_image(&img), config.clone());
+        let on_accum = Denoiser::new(&small, Source::Accum(layout), config.clone());
+        match (&on_stats, &on_accum) {
+            (Ok(d), Ok(a)) => {
+                // The same image as with 64-bit types: these kernels never use them.
+                let got = d.denoise(&img, None).unwrap();
+                let want = Denoiser::new(&full, Source::of_image(&img), config)
+                    .unwrap()
+                    .denoise(&img, None)
+                    .unwrap();
+                assert_eq!(got.color.planes, want.color.planes, "{method:?}");
+                assert_eq!(got.error.planes, want.error.planes, "{method:?}");
+                // No sample map without shaderInt64, said up front.
+                assert!(a.outputs().unwrap().samples.is_none(), "{method:?}");
+                assert!(d.denoise(&img, Some(1000)).is_err(), "{method:?}");
+            }
+            (Err(e), Err(f)) => {
+                for e in [e, f] {
+                    assert!(matches!(e, Error::Limit(_)), "{method:?}: {e}");
+                    assert!(e.to_string().contains("shaderFloat64"), "{method:?}: {e}");
+                }
+            }
+            _ => panic!(
+                "{method:?}: stats {:?}, accumulation {:?}",
+                on_stats.err(),
+                on_accum.err()
+            ),
+        }
+        println!(
+            "{method:?}: {}",
+            if on_stats.is_ok() {
+                "runs"
+            } else {
+                "needs 64-bit types"
+            }
+        );
+    }
+    common::check_validation(&small);
+}
