@@ -117,10 +117,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let denoiser = mcdenoise::Denoiser::new(&ctx, mcdenoise::Source::Accum(layout), config)?;
     let accum = unsafe { mcdenoise::BufferSlice::from_raw(buffer, 0, layout.bytes()) };
     // The host's shader reads mcdenoise's sample map where it lies.
-    let map = denoiser
-        .outputs()?
-        .samples
-        .ok_or("no shaderInt64: no sample map")?;
+    let map = denoiser.outputs()?.samples.ok_or("no sample map")?;
     host.bind(&device, buffer, layout.bytes(), map);
 
     let mut first = 0.0;

@@ -99,7 +99,8 @@ typedef struct McdVulkanDevice {
   PFN_vkGetInstanceProcAddr get_instance_proc_addr;
   // Non-zero if the host enabled `shaderFloat64` on `device`.
   uint32_t shader_float64_enabled;
-  // Non-zero if the host enabled `shaderInt64` on `device`.
+  // Non-zero if the host enabled `shaderInt64` on `device` (no kernel
+  // needs it today).
   uint32_t shader_int64_enabled;
 } McdVulkanDevice;
 
@@ -131,7 +132,7 @@ typedef struct McdOutputs {
   // Bytes of one f32 plane (`4 × width × height`).
   uint64_t plane_bytes;
   // The next pass's samples per pixel (u32), after a recording with a
-  // budget; VK_NULL_HANDLE on a device without `shaderInt64`.
+  // budget (every device makes it).
   VkBuffer samples_buffer;
   // Byte offset of the sample map.
   uint64_t samples_offset;

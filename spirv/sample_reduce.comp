@@ -2,7 +2,7 @@
 // One level of the fixed-order reduction tree of the sampling allocation
 // (spec §9.1 sanitise, §9.2 ROUNDING steps 1 and the up-sweep of step 2).
 // Each 8x8 workgroup reduces one block of 64 consecutive elements of its
-// level and writes one u64 to tree[dst_off + block]. Modes (push.mode):
+// level and writes one u64 (a uvec2, lib/u64.glsl) to tree[dst_off + block]. Modes (push.mode):
 //   0 leaf max   element = pixel i: sanitised r bits if valid, else bit 32
 //                (the "some pixel is invalid" flag); combine = max / or
 //   1 inner max  element = tree[src_off + i]
@@ -38,19 +38,17 @@ layout(push_constant) uniform Push {
 
 layout(std430, set = 0, binding = 0) readonly buffer r_blk { uint r_bits[]; };
 PLANE_IN(1, spp)
-layout(std430, set = 0, binding = 2) buffer tree_blk { uint64_t tree[]; };
+layout(std430, set = 0, binding = 2) buffer tree_blk { u64 tree[]; };
 
-shared uint64_t acc[SAMPLE_BLOCK];
+shared u64 acc[SAMPLE_BLOCK];
 
-const uint64_t LO = uint64_t(0xFFFFFFFFu);
-const uint64_t HI = ~uint64_t(0xFFFFFFFFu);
-
-uint64_t combine(uint64_t a, uint64_t b)
+// Max of the low words, or of the high words (the "invalid" flag); or sum.
+u64 combine(u64 a, u64 b)
 {
     if (push.mode <= 1u) {
-        return max(a & LO, b & LO) | ((a | b) & HI);
+        return u64(max(a.x, b.x), a.y | b.y);
     }
-    return a + b;
+    return u64_add(a, b);
 }
 
 void main()
@@ -58,19 +56,19 @@ void main()
     uint lid = gl_LocalInvocationIndex;
     uint block = block_index(push.row0, push.groups_x);
     uint i = block * SAMPLE_BLOCK + lid;
-    uint64_t v = uint64_t(0);
+    u64 v = u64(0u);
     if (i < push.n) {
         if (push.mode == 1u || push.mode == 4u) {
             v = tree[push.src_off + i];
         } else {
             bool valid = spp_of(spp[i]) >= 1.0;
             if (push.mode == 0u) {
-                v = valid ? uint64_t(sane_bits(r_bits[i])) : (uint64_t(1) << 32);
+                v = valid ? u64_from(sane_bits(r_bits[i])) : u64(0u, 1u);
             } else {
-                uint64_t m = tree[push.max_off];
-                uint mb = uint(m & LO);
+                u64 m = tree[push.max_off];
+                uint mb = m.x;
                 uint ref = ref_bits(mb);
-                uint64_t q = quantise(eff_bits(r_bits[i], valid, mb, (m >> 32) != uint64_t(0)), ref);
+                u64 q = quantise(eff_bits(r_bits[i], valid, mb, m.y != 0u), ref);
                 v = push.mode == 2u ? q : share_of(q, tree[push.s_off]);
             }
         }

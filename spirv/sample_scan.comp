@@ -2,7 +2,7 @@
 // Down-sweep of the sampling allocation's prefix sum and the final counts
 // (spec §9.2 ROUNDING steps 2-3). Each 8x8 workgroup scans one block of 64
 // consecutive elements of its level in a fixed order (Hillis-Steele in
-// shared memory, exact u64) and adds the block's offset, read from the level
+// shared memory, exact u64 as uvec2, lib/u64.glsl) and adds the block's offset, read from the level
 // above (tree[par_off + block], exclusive prefix; 0 at the top level).
 //   mode 0 (inner level): element = block sum tree[src_off + i] of the level
 //          below; writes its exclusive prefix tree[dst_off + i].
@@ -38,63 +38,63 @@ layout(push_constant) uniform Push {
 
 layout(std430, set = 0, binding = 0) readonly buffer r_blk { uint r_bits[]; };
 PLANE_IN(1, spp)
-layout(std430, set = 0, binding = 2) buffer tree_blk { uint64_t tree[]; };
+layout(std430, set = 0, binding = 2) buffer tree_blk { u64 tree[]; };
 layout(std430, set = 0, binding = 3) buffer counts_blk { uint counts[]; };
 
-shared uint64_t acc[SAMPLE_BLOCK];
-
-const uint64_t LO = uint64_t(0xFFFFFFFFu);
+shared u64 acc[SAMPLE_BLOCK];
 
 void main()
 {
     uint lid = gl_LocalInvocationIndex;
     uint block = block_index(push.row0, push.groups_x);
     uint i = block * SAMPLE_BLOCK + lid;
-    uint64_t v = uint64_t(0);
+    u64 v = u64(0u);
     if (i < push.n) {
         if (push.mode == 0u) {
             v = tree[push.src_off + i];
         } else {
-            uint64_t m = tree[push.max_off];
-            uint mb = uint(m & LO);
+            u64 m = tree[push.max_off];
+            uint mb = m.x;
             bool valid = spp_of(spp[i]) >= 1.0;
-            uint64_t q = quantise(eff_bits(r_bits[i], valid, mb, (m >> 32) != uint64_t(0)),
-                                  ref_bits(mb));
+            u64 q = quantise(eff_bits(r_bits[i], valid, mb, m.y != 0u), ref_bits(mb));
             v = share_of(q, tree[push.s_off]);
         }
     }
     acc[lid] = v;
     barrier();
     for (uint off = 1u; off < SAMPLE_BLOCK; off <<= 1) {
-        uint64_t t = lid >= off ? acc[lid - off] : uint64_t(0);
+        u64 t = lid >= off ? acc[lid - off] : u64(0u);
         barrier();
-        acc[lid] += t;
+        acc[lid] = u64_add(acc[lid], t);
         barrier();
     }
     if (i >= push.n) {
         return;
     }
-    uint64_t base = push.par_off == NO_LEVEL ? uint64_t(0) : tree[push.par_off + block];
-    uint64_t incl = base + acc[lid];
+    u64 base = push.par_off == NO_LEVEL ? u64(0u) : tree[push.par_off + block];
+    u64 incl = u64_add(base, acc[lid]);
     if (push.mode == 0u) {
-        tree[push.dst_off + i] = incl - v;
+        tree[push.dst_off + i] = u64_sub(incl, v);
         return;
     }
-    uint64_t t = uint64_t(push.budget);
-    uint64_t u_total = tree[push.u_off];
-    uint64_t p1, p0;
-    if (u_total == uint64_t(0)) {
-        u_total = uint64_t(push.n);
-        p1 = uint64_t(i) + uint64_t(1);
-        p0 = uint64_t(i);
+    uint t = push.budget;
+    u64 u_total = tree[push.u_off];
+    u64 p1;
+    u64 p0;
+    if (u64_is_zero(u_total)) {
+        u_total = u64_from(push.n);
+        p1 = u64_from(i + 1u);
+        p0 = u64_from(i);
     } else {
         p1 = incl;
-        p0 = incl - v;
+        p0 = u64_sub(incl, v);
     }
     // SAMPLE-FLOOR: `spread` samples by the same cumulative rounding over
-    // the pixels in raster order, then the map's share of `budget`.
-    uint64_t f = uint64_t(push.spread);
-    uint64_t np = uint64_t(push.n);
-    uint even = uint(f * uint64_t(i + 1u) / np - f * uint64_t(i) / np);
-    counts[i] = even + uint(t * p1 / u_total - t * p0 / u_total);
+    // the pixels in raster order, then the map's share of `budget`
+    // (T < 2^32 and P <= 2^32: the products stay below 2^64).
+    uint f = push.spread;
+    u64 np = u64_from(push.n);
+    uint even = u64_sub(u64_div(u64_mul32(f, i + 1u), np), u64_div(u64_mul32(f, i), np)).x;
+    uint share = u64_sub(u64_div(u64_mul_u32(p1, t), u_total), u64_div(u64_mul_u32(p0, t), u_total)).x;
+    counts[i] = even + share;
 }

@@ -175,7 +175,8 @@ pub struct Outputs {
     /// Estimated MSE `E_i` per channel (f32; §9.1).
     pub error: [BufferSlice; 3],
     /// Next pass's samples per pixel (u32), valid after a call with a
-    /// budget; `None` on a device without `shaderInt64`.
+    /// budget; `Some` on every device (the allocation's 64-bit integers are
+    /// pairs of 32-bit words: no `shaderInt64` needed).
     pub samples: Option<BufferSlice>,
 }
 
@@ -301,7 +302,6 @@ impl Denoiser {
             config.chain(low_spp),
             config.max_memory,
             config.tile,
-            ctx.supports_int64(),
         )? {
             Choice::Whole(c) => Engine::Gpu(c),
             Choice::Tiled(t) => Engine::Tiled(t),
@@ -379,7 +379,7 @@ impl Denoiser {
     ) -> Result<()> {
         let stats = matches!(source, Source::Stats { .. });
         let d = Denoiser::new(ctx, source, config)?;
-        if stats && sample_map && ctx.supports_int64() {
+        if stats && sample_map {
             d.chain()?.work(Some(1), None)?;
         }
         Ok(())

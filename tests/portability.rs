@@ -1,8 +1,8 @@
 //! A GPU without 64-bit types (`shaderFloat64`, `shaderInt64`), simulated
 //! on any device by a context that leaves them disabled: what needs them
 //! fails in `Denoiser::new` with a clear `Error::Limit`, never part-way
-//! through a recording; what does not runs, and gives the same image as on
-//! a context with them.
+//! through a recording; what does not runs, and gives the same image and
+//! the same sample map as on a context with them.
 
 mod common;
 
@@ -37,9 +37,18 @@ fn without_64bit_types_each_method_runs_or_fails_at_new() {
                     .unwrap();
                 assert_eq!(got.color.planes, want.color.planes, "{method:?}");
                 assert_eq!(got.error.planes, want.error.planes, "{method:?}");
-                // No sample map without shaderInt64, said up front.
-                assert!(a.outputs().unwrap().samples.is_none(), "{method:?}");
-                assert!(d.denoise(&img, Some(1000)).is_err(), "{method:?}");
+                // The sample map needs no shaderInt64: the same map, the
+                // exact budget.
+                assert!(a.outputs().unwrap().samples.is_some(), "{method:?}");
+                let got = d.denoise(&img, Some(1000)).unwrap().samples.unwrap();
+                let want = Denoiser::new(&full, Source::of_image(&img), Config::new(method))
+                    .unwrap()
+                    .denoise(&img, Some(1000))
+                    .unwrap()
+                    .samples
+                    .unwrap();
+                assert_eq!(got, want, "{method:?}");
+                assert_eq!(got.iter().map(|&s| s as u64).sum::<u64>(), 1000);
             }
             (Err(e), Err(f)) => {
                 for e in [e, f] {

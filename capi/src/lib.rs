@@ -120,7 +120,8 @@ pub struct McdVulkanDevice {
     pub get_instance_proc_addr: PFN_vkGetInstanceProcAddr,
     /// Non-zero if the host enabled `shaderFloat64` on `device`.
     pub shader_float64_enabled: u32,
-    /// Non-zero if the host enabled `shaderInt64` on `device`.
+    /// Non-zero if the host enabled `shaderInt64` on `device` (no kernel
+    /// needs it today).
     pub shader_int64_enabled: u32,
 }
 
@@ -163,7 +164,7 @@ pub struct McdOutputs {
     /// Bytes of one f32 plane (`4 × width × height`).
     pub plane_bytes: u64,
     /// The next pass's samples per pixel (u32), after a recording with a
-    /// budget; VK_NULL_HANDLE on a device without `shaderInt64`.
+    /// budget (every device makes it).
     pub samples_buffer: VkBuffer,
     /// Byte offset of the sample map.
     pub samples_offset: u64,

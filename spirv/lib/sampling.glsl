@@ -2,9 +2,11 @@
 // §9.2 ROUNDING). Everything here is exact integer arithmetic on the bit
 // patterns of the f32 priority map, so a GPU and its scalar twin
 // (src/reference/sampling.rs) agree bit for bit whatever the device's float
-// modes (denormal flushing, division precision). Needs common.glsl first.
+// modes (denormal flushing, division precision). 64-bit integers are
+// uvec2 words (lib/u64.glsl), so no kernel needs shaderInt64. Needs
+// common.glsl first.
 
-#extension GL_EXT_shader_explicit_arithmetic_types_int64 : require
+#include "lib/u64.glsl"
 
 // Workgroup = one block of the reduction / scan tree: 8x8 = 64 elements.
 #define SAMPLE_BLOCK 64u
@@ -42,23 +44,23 @@ uint eff_bits(uint r_bits, bool valid, uint max_bits, bool any_invalid)
 
 // q_i = floor(r'_i * 2^(31 - e(M'))) with e(M') the binary exponent of M'
 // rounded up: r' as a 31-bit fixed-point fraction of M' (q(M') in [2^30, 2^31)).
-uint64_t quantise(uint b, uint ref)
+u64 quantise(uint b, uint ref)
 {
     if (b == 0u) {
-        return uint64_t(0);
+        return u64(0u);
     }
     uint sh = (ref >> 23) - (b >> 23);
     if (sh >= 32u) {
-        return uint64_t(0);
+        return u64(0u);
     }
     uint m = (b & 0x7FFFFFu) | 0x800000u;
-    return uint64_t((m << 7) >> sh);
+    return u64_from((m << 7) >> sh);
 }
 
 // u_i = floor(2^32 q_i / S), exact u64 division (q < 2^31, so 2^32 q < 2^63).
-uint64_t share_of(uint64_t q, uint64_t s)
+u64 share_of(u64 q, u64 s)
 {
-    return s == uint64_t(0) ? uint64_t(0) : (q << 32) / s;
+    return u64_is_zero(s) ? u64(0u) : u64_div(u64(0u, q.x), s);
 }
 
 // Linear workgroup index of an 8x8 grid laid out `groups_x` workgroups wide

@@ -70,7 +70,7 @@ pub struct DeviceInfo {
     pub min_storage_buffer_offset_alignment: u64,
     /// Whether the device supports `shaderFloat64` (the `_f64` kernels).
     pub shader_float64: bool,
-    /// Whether the device supports `shaderInt64` (needed by the sample-map kernels).
+    /// Whether the device supports `shaderInt64` (no kernel needs it).
     pub shader_int64: bool,
     /// Default subgroup size in invocations (informational).
     pub subgroup_size: u32,
@@ -445,8 +445,8 @@ pub struct ImportedDevice {
     /// Whether the host enabled `shaderFloat64` on `device` (f64 kernels are
     /// only used then).
     pub shader_float64_enabled: bool,
-    /// Whether the host enabled `shaderInt64` on `device` (the sample-map
-    /// kernels need it).
+    /// Whether the host enabled `shaderInt64` on `device` (no kernel needs
+    /// it today: the sample map's 64-bit sums are pairs of 32-bit words).
     pub shader_int64_enabled: bool,
 }
 

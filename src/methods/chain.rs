@@ -132,8 +132,8 @@ pub struct GpuChain {
     gbf: Option<GbfPlanes>,
     outliers: Option<OutlierPlanes>,
     method: Box<dyn GpuStage>,
-    /// `None` on a device without `shaderInt64` (a budget is then an error).
-    sampling: Option<(SamplingPlanes, SamplingParams)>,
+    /// The sample map's planes and parameters (every device has them).
+    sampling: (SamplingPlanes, SamplingParams),
 }
 
 impl std::fmt::Debug for GpuChain {
@@ -148,14 +148,6 @@ impl std::fmt::Debug for GpuChain {
 }
 
 pub use super::registry::REGRESSION_LAYERS;
-
-/// The error of a sample map asked of a device without `shaderInt64`.
-pub fn no_int64(ctx: &GpuContext) -> Error {
-    Error::Limit(format!(
-        "the sample map needs shaderInt64, which {} does not have enabled",
-        ctx.info().name
-    ))
-}
 
 /// Checks that `layers` hold what `method` reads.
 pub fn check_layers(method: Method, layers: &[Layer]) -> Result<()> {
@@ -239,11 +231,7 @@ impl GpuChain {
             arena: arena.as_ref(),
         })?;
         let params = SamplingParams::with_options(config.method, &config.options)?;
-        let sampling = if ctx.supports_int64() {
-            Some((SamplingPlanes::new(ctx, w, h)?, params))
-        } else {
-            None
-        };
+        let sampling = (SamplingPlanes::new(ctx, w, h)?, params);
         let chain = GpuChain {
             ctx: ctx.clone(),
             input_kind: input,
@@ -267,7 +255,7 @@ impl GpuChain {
         match chain.input_kind {
             ChainInput::Stats { .. } => chain.work(None, None)?,
             ChainInput::Accum(layout) => {
-                let budget = chain.sampling.is_some().then_some(1);
+                let budget = Some(1);
                 let accum = BufferSlice::placeholder(layout.bytes());
                 chain.work(budget, Some(accum))?
             }
@@ -339,13 +327,9 @@ impl GpuChain {
         accum: Option<BufferSlice>,
         budget: Option<u32>,
     ) -> Result<()> {
-        let sampling = match (budget, &self.sampling) {
-            (None, _) => None,
-            (Some(t), Some((planes, params))) => Some((t, planes, params)),
-            (Some(_), None) => return Err(no_int64(&self.ctx)),
-        };
         self.record_method(batch, accum, Placement::default(), budget.is_some())?;
-        if let Some((t, planes, params)) = sampling {
+        if let Some(t) = budget {
+            let (planes, params) = &self.sampling;
             let inputs = self.sample_inputs();
             sampling::record_sample_map(batch, self.config.precision, &inputs, planes, t, params)?;
         }
@@ -392,15 +376,12 @@ impl GpuChain {
 
     /// The sample counts (u32 per pixel) of the last run with a budget.
     pub fn samples(&self) -> Option<BufferSlice> {
-        self.sampling.as_ref().map(|(p, _)| p.counts.slice())
+        Some(self.sampling.0.counts.slice())
     }
 
     /// Downloads the sample counts of the last run with a budget.
     pub fn download_samples(&self) -> Result<Vec<u32>> {
-        match &self.sampling {
-            Some((p, _)) => sampling::download(p),
-            None => Err(Error::Limit("no sample map on this device".into())),
-        }
+        sampling::download(&self.sampling.0)
     }
 
     /// Records the chain as one tile of a larger image ([`super::tiles`]):
@@ -410,9 +391,7 @@ impl GpuChain {
     pub fn record_tile(&self, batch: &mut Batch, at: Placement, priority: bool) -> Result<()> {
         self.record_method(batch, None, at, priority)?;
         if priority {
-            let Some((planes, params)) = &self.sampling else {
-                return Err(no_int64(&self.ctx));
-            };
+            let (planes, params) = &self.sampling;
             let inputs = self.sample_inputs();
             sampling::record_priority(batch, self.config.precision, &inputs, planes, params)?;
         }
@@ -422,9 +401,7 @@ impl GpuChain {
     /// The priority map of the last [`record_tile`](Self::record_tile) with
     /// `priority`, cropped to `rect`.
     pub fn download_priority_in(&self, rect: Rect) -> Result<Vec<f32>> {
-        let Some((planes, params)) = &self.sampling else {
-            return Err(Error::Limit("no sample map on this device".into()));
-        };
+        let (planes, params) = &self.sampling;
         let (w, h) = self.size();
         let all = read(&self.ctx, planes.priority(params), w * h)?;
         Ok(tiles::crop(&all, w, rect))

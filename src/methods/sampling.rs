@@ -384,16 +384,10 @@ fn pixel_count(width: usize, height: usize) -> Result<u32> {
 
 impl SamplingPlanes {
     /// Allocates the planes for a `width × height` image (1 ..= 2^32 − 65
-    /// pixels; one f32 plane must fit `maxStorageBufferRange`). Needs
-    /// `shaderInt64` (the allocation is u64 integer arithmetic): checked on the
-    /// physical device; on a device imported with `GpuContext::from_raw` the
-    /// host must also have *enabled* it.
+    /// pixels; one f32 plane must fit `maxStorageBufferRange`). The
+    /// allocation's u64 integer arithmetic runs on pairs of 32-bit words
+    /// (`spirv/lib/u64.glsl`): any device.
     pub fn new(ctx: &Arc<GpuContext>, width: usize, height: usize) -> Result<SamplingPlanes> {
-        if !ctx.info().shader_int64 {
-            return Err(Error::Limit(
-                "adaptive sampling needs shaderInt64 (u64 prefix sums)".into(),
-            ));
-        }
         let n = pixel_count(width, height)?;
         let layout = TreeLayout::new(n);
         Ok(SamplingPlanes {

@@ -364,7 +364,6 @@ impl TiledChain {
         config: ChainConfig,
         max_memory: Option<u64>,
         tile: Option<usize>,
-        budget_possible: bool,
     ) -> Result<Choice> {
         let (w, h) = input.size();
         let layers = input.layers();
@@ -412,7 +411,7 @@ impl TiledChain {
         let halo = halo(&config, prefiltered)?;
         let hl = halo.total();
         let align = alignment(&config);
-        let global = global_bytes(w * h, budget_possible);
+        let global = global_bytes(w * h, true);
         let mut side = match tile {
             Some(0) => {
                 return Err(Error::InvalidArgument(
@@ -523,9 +522,6 @@ impl TiledChain {
                 "this denoiser was made for {w}x{h} statistics with {:?}; the image is {}x{} with {:?}",
                 self.layers, img.width, img.height, layers
             )));
-        }
-        if budget.is_some() && !self.ctx.supports_int64() {
-            return Err(super::chain::no_int64(&self.ctx));
         }
         let n = w * h;
         let want_error = self.config.error;
