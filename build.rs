@@ -4,7 +4,8 @@
 //! `#include` paths are relative to `spirv/`.
 //!
 //! Each kernel is built twice: `<k>` in f32 and `<k>_f64` with `MC_F64`
-//! defined (see `spirv/lib/common.glsl`). `#include "lib/x.glsl"` lines are
+//! defined (see `spirv/lib/common.glsl`); one that mentions `MC_DD` also as
+//! `<k>_dd` (double-float where the f32 variant uses double). `#include "lib/x.glsl"` lines are
 //! expanded textually here (once per file), so error lines refer to the
 //! expanded source, which is written next to the SPIR-V for reading.
 //! The output is `$OUT_DIR/shaders.rs`: a table of `(name, words)`; and
@@ -84,15 +85,25 @@ fn main() {
 
     for (path, kernel) in sources {
         let stem = path.file_stem().unwrap().to_str().unwrap().to_owned();
-        let variants: &[(&str, &str)] = if kernel {
-            &[("", ""), ("_f64", "#define MC_F64 1\n")]
-        } else {
+        let mut body = String::new();
+        expand(path, &root, &mut HashSet::new(), &mut body);
+        // A kernel whose f32 variant uses double somewhere has a third,
+        // `<k>_dd`, with double-float arithmetic there (MC_DD,
+        // lib/dd.glsl), for devices without shaderFloat64.
+        let variants: &[(&str, &str)] = if !kernel {
             &[("", "")]
+        } else if body.contains("MC_DD") {
+            &[
+                ("", ""),
+                ("_f64", "#define MC_F64 1\n"),
+                ("_dd", "#define MC_DD 1\n"),
+            ]
+        } else {
+            &[("", ""), ("_f64", "#define MC_F64 1\n")]
         };
         for &(suffix, define) in variants {
             let name = format!("{stem}{suffix}");
-            let mut body = String::new();
-            expand(path, &root, &mut HashSet::new(), &mut body);
+            let body = body.clone();
             // `#version` must stay first: put the variant define right after it.
             let (version, rest) = match body.find("#version") {
                 Some(at) => {

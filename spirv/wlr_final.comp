@@ -118,7 +118,11 @@ void main()
         int kf = int(kflags_p[i] + 0.5);
         int k_st = kf % 16;
         flags = kf / 16;
+#ifdef MC_DD
+        dd h = dd_clamp(dd_from(hbar_p[i]), wlr_h_min_dd(), wlr_h_max_dd());
+#else
         double h = clamp(double(hbar_p[i]), WLR_H_MIN, WLR_H_MAX);
+#endif
         WlrCentre cc = wlr_centre(c, real(n));
         f = cc.y;
         bool failed = false;
@@ -133,7 +137,11 @@ void main()
             } else {
                 // Step 9: step 5's fit at h = hbar_c.
                 real hs[1];
+#ifdef MC_DD
+                hs[0] = real(dd_to_float(h));
+#else
                 hs[0] = real(h);
+#endif
                 WlrFit fit[1];
                 wlr_fits(pr, cc, b, hs, R, size, push.options, real(WLR_FIT_LAMBDA), fit);
                 f = fit[0].f;
@@ -142,9 +150,15 @@ void main()
             }
         }
         // Step 10 (SOLVE-FAIL: the error of the pass-through, vbar_c).
+#ifdef MC_DD
+        mse = failed ? float(max(cc.vbar, real(0)))
+                     : dd_to_float(wlr_mse_model_dd(dd_from(lambda1_p[i]), dd_from(kappa0_p[i]),
+                                                    dd_from(kappa1_p[i]), k_st, dd_from(n), h));
+#else
         mse = failed ? float(max(cc.vbar, real(0)))
                      : float(wlr_mse_model(double(lambda1_p[i]), double(kappa0_p[i]),
                                            double(kappa1_p[i]), k_st, double(n), h));
+#endif
         f = max(f, real3(0));
     }
     out_r[i] = float(f.r);

@@ -121,7 +121,15 @@ void main()
         int k = ls.k;
         int flags = 0;
         // Pass-through model: h_opt = 0.2, MSE = vbar_c.
+#ifdef MC_DD
+        dd model[4];
+        model[0] = wlr_trial_h_dd(0);
+        model[1] = dd_from(0.0);
+        model[2] = dd_mul(dd_from(n), dd_from(float(cc.vbar)));
+        model[3] = dd_from(0.0);
+#else
         dvec4 model = dvec4(wlr_trial_h(0), 0.0lf, double(n) * double(cc.vbar), 0.0lf);
+#endif
         if (k == 0) {
             flags |= WLR_F_K0;
         } else {
@@ -145,10 +153,23 @@ void main()
                 // Step 5: the five trial fits.
                 real hs[WLR_NFIT];
                 for (int s = 0; s < WLR_NFIT; ++s) {
-                    hs[s] = real(wlr_trial_h(s));
+                    hs[s] = wlr_trial_h_real(s);
                 }
                 WlrFit fit[WLR_NFIT];
                 wlr_fits(pr, cc, b, hs, R, size, push.options, real(WLR_FIT_LAMBDA), fit);
+#ifdef MC_DD
+                dd bias[5];
+                dd var[5];
+                for (int s = 0; s < 5; ++s) {
+                    flags |= fit[s].flags & WLR_F_SOLVE_FAIL;
+                    bias[s] = dd_from(float(fit[s].bias));
+                    var[s] = dd_from(float(fit[s].var));
+                }
+                // Steps 6-7 in double-float.
+                dd par[4];
+                wlr_parametric_dd(bias, var, k, dd_from(n), par);
+                wlr_choose_h_dd(par, k, dd_from(n), bias[0], var[0], flags, model);
+#else
                 double bias[5];
                 double var[5];
                 for (int s = 0; s < 5; ++s) {
@@ -159,12 +180,20 @@ void main()
                 // Steps 6-7 in double.
                 dvec4 par = wlr_parametric(bias, var, k, double(n));
                 model = wlr_choose_h(par, k, double(n), bias[0], var[0], flags);
+#endif
             }
         }
+#ifdef MC_DD
+        o[0] = dd_to_float(model[0]);
+        o[1] = dd_to_float(model[1]);
+        o[2] = dd_to_float(model[2]);
+        o[3] = dd_to_float(model[3]);
+#else
         o[0] = float(model.x);
         o[1] = float(model.y);
         o[2] = float(model.z);
         o[3] = float(model.w);
+#endif
         o[4] = float(k + 16 * flags);
     }
     h_opt_out[i] = o[0];

@@ -86,6 +86,36 @@ fn every_kernel_matches_its_declaration() {
     }
 }
 
+/// Every kernel runs on a device without 64-bit types: no f32 variant uses
+/// 64-bit integers, and each that uses f64 (WLR's) has a `_dd` variant that
+/// matches its declaration and uses neither — except `aos_fit`
+/// (AOS-F64), which a device without `shaderFloat64` cannot run.
+#[test]
+fn f32_variants_or_their_dd_twins_need_no_64bit_types() {
+    for decl in all() {
+        let r = decl.check(Precision::F32).unwrap();
+        assert!(!r.uses_int64, "{}: 64-bit integers", decl.name);
+        match mcdenoise::gpu::reflect::spirv_dd(decl.name) {
+            Some(words) => {
+                let dd = decl
+                    .check_words(&format!("{}_dd", decl.name), words)
+                    .unwrap_or_else(|e| panic!("{}_dd: {e}", decl.name));
+                assert!(
+                    !dd.uses_f64 && !dd.uses_int64,
+                    "{}_dd uses 64-bit types",
+                    decl.name
+                );
+                assert_eq!(dd.workgroup_size, r.workgroup_size, "{}_dd", decl.name);
+            }
+            None => assert!(
+                !r.uses_f64 || decl.name == "aos_fit",
+                "{} uses f64 and has no _dd variant",
+                decl.name
+            ),
+        }
+    }
+}
+
 #[test]
 fn every_spirv_file_has_a_declaration() {
     // The library's kernels and the built-in renderer's shaders.

@@ -10,7 +10,9 @@
 mod common;
 use common::*;
 
-use mcdenoise::gpu::{Batch, GpuBuffer, Precision};
+use std::sync::Arc;
+
+use mcdenoise::gpu::{Batch, GpuBuffer, GpuContext, Precision};
 use mcdenoise::image::Layer;
 use mcdenoise::kernels::{channel_mean, gauss_smooth, run_planes, wlr_final, wlr_fit};
 use mcdenoise::reference::wlr::{self as rw, Planes, D, FLAG_FEW, FLAG_K0, FLAG_SOLVE_FAIL};
@@ -192,8 +194,32 @@ fn state_words(sc: &Scene, p: Precision) -> usize {
     sc.w * sc.h * wlr_fit::STATE_WORDS * word
 }
 
+/// A context without 64-bit types: its f32 WLR kernels are the `_dd`
+/// variants (steps 6-7 in double-float).
+fn gpu_dd() -> Arc<GpuContext> {
+    static CTX: std::sync::OnceLock<Arc<GpuContext>> = std::sync::OnceLock::new();
+    CTX.get_or_init(common::gpu_without_64bit).clone()
+}
+
+/// The variants the WLR kernels are compared in: f32 and f64 on the test
+/// context, and the double-float f32 variant on a context without 64-bit
+/// types.
+fn variants() -> Vec<(Arc<GpuContext>, Precision, &'static str)> {
+    let mut v: Vec<_> = precisions()
+        .into_iter()
+        .map(|p| (gpu(), p, if p == Precision::F64 { "F64" } else { "F32" }))
+        .collect();
+    v.push((gpu_dd(), Precision::F32, "F32-dd"));
+    v
+}
+
 /// GPU `wlr_fit` over the whole image: its 8 maps and its centre state.
-fn gpu_fit(sc: &Scene, push: &WlrPush, p: Precision) -> (Vec<Vec<f32>>, Vec<f32>) {
+fn gpu_fit(
+    ctx: &Arc<GpuContext>,
+    sc: &Scene,
+    push: &WlrPush,
+    p: Precision,
+) -> (Vec<Vec<f32>>, Vec<f32>) {
     let push = WlrPush {
         ring_rows: sc.h as u32,
         ..*push
@@ -205,7 +231,7 @@ fn gpu_fit(sc: &Scene, push: &WlrPush, p: Precision) -> (Vec<Vec<f32>>, Vec<f32>
     inputs.extend(sc.color());
     inputs.extend([sc.vbar(), sc.spp()]);
     let (mut o, _) = run_planes(
-        &gpu(),
+        ctx,
         &wlr_fit::DECL,
         p,
         bytemuck::bytes_of(&push),
@@ -223,6 +249,7 @@ fn gpu_fit(sc: &Scene, push: &WlrPush, p: Precision) -> (Vec<Vec<f32>>, Vec<f32>
 /// GPU `wlr_final` on `hbar`, the maps `λ1`, `κ0`, `κ1`, `kflags` and the
 /// centre state of [`gpu_fit`].
 fn gpu_final(
+    ctx: &Arc<GpuContext>,
     sc: &Scene,
     push: &WlrPush,
     p: Precision,
@@ -241,7 +268,7 @@ fn gpu_final(
     inputs.extend(fit);
     inputs.push(state);
     run_planes(
-        &gpu(),
+        ctx,
         &wlr_final::DECL,
         p,
         bytemuck::bytes_of(&push),
@@ -282,9 +309,9 @@ fn compare_wlr_with(
     let (cfit, hbar) = twin_fit(sc, &push);
     let cfin = twin_final(sc, &push, &cfit, &hbar);
     let mut summary = String::new();
-    for p in precisions() {
-        let tag = format!("{what} {w}x{h} R={radius} opt={options} {p:?}");
-        let (gfit, state) = gpu_fit(sc, &push, p);
+    for (ctx, p, variant) in variants() {
+        let tag = format!("{what} {w}x{h} R={radius} opt={options} {variant}");
+        let (gfit, state) = gpu_fit(&ctx, sc, &push, p);
         let (gk, gf) = split_kflags(&gfit[4]);
         let (ck, cf) = split_kflags(&cfit[4]);
         // Both rank classes of lib/wlr.glsl's loops (k <= 3, k >= 4).
@@ -323,7 +350,7 @@ fn compare_wlr_with(
             worst = worst.min(fr);
         }
         let model = [&cfit[1][..], &cfit[2][..], &cfit[3][..], &gfit[4][..]];
-        let gfin = gpu_final(sc, &push, p, &hbar, model, &state);
+        let gfin = gpu_final(&ctx, sc, &push, p, &hbar, model, &state);
         let afl = agreement(&gfin[4], &cfin[4]);
         assert!(afl >= 0.98, "{tag}: wlr_final flags agreement {afl}");
         let mut worst_fin = 1.0f64;
@@ -636,10 +663,10 @@ fn constant_image_is_returned_exactly() {
         fitted as f64 > 0.9 * n as f64,
         "only {fitted} pixels fitted"
     );
-    for p in precisions() {
-        let (gfit, state) = gpu_fit(&sc, &push, p);
+    for (ctx, p, _) in variants() {
+        let (gfit, state) = gpu_fit(&ctx, &sc, &push, p);
         let model = [&fit[1][..], &fit[2][..], &fit[3][..], &gfit[4][..]];
-        let g = gpu_final(&sc, &push, p, &hbar, model, &state);
+        let g = gpu_final(&ctx, &sc, &push, p, &hbar, model, &state);
         let tol = if p == Precision::F32 { 1e-5 } else { 1e-6 };
         for i in 0..n {
             if spp_of(sc.spp()[i]) >= 1.0 {

@@ -1,4 +1,4 @@
-// Unsigned 64-bit integers as uvec2 (x: low word, y: high word), for the
+// Unsigned 64-bit integers as uvec2 (NO-64BIT) (x: low word, y: high word), for the
 // sampling allocation's exact integer arithmetic on devices without
 // shaderInt64. A uvec2 array in a buffer or in shared memory has the
 // layout of a uint64_t array (little-endian words, 8-byte stride), so the

@@ -74,10 +74,20 @@
 #define WLR_F_INVALID 32
 
 // Trial bandwidths h_s (step 5).
+#ifdef MC_DD
+// (no double anywhere in the `_dd` variant: float literals, the nearest
+// floats to the decimals as float(0.2lf) is)
+real wlr_trial_h_real(int s)
+{
+    return s == 0 ? 0.2 : s == 1 ? 0.4 : s == 2 ? 0.6 : s == 3 ? 0.8 : 1.0;
+}
+#else
 double wlr_trial_h(int s)
 {
     return s == 0 ? 0.2lf : s == 1 ? 0.4lf : s == 2 ? 0.6lf : s == 3 ? 0.8lf : 1.0lf;
 }
+#define wlr_trial_h_real(s) real(wlr_trial_h(s))
+#endif
 
 void load_colour(ivec2 p, out real3 y, out real vbar);
 
@@ -920,6 +930,7 @@ void wlr_fits(TsvdProj pr, WlrCentre cc, real b[MAX_D], real h[WLR_NFIT], int R,
     }
 }
 
+#ifndef MC_DD
 // --- parametric fits and h_opt (steps 6-7, double always) ---------------------
 
 // (intercept, slope) of the least-squares line through the 5 points (t, u).
@@ -1011,6 +1022,117 @@ double wlr_mse_model(double lambda1, double kappa0, double kappa1, int k, double
     double bb = lambda1 * h * h;
     return max(bb * bb + (kappa0 + kappa1 * wlr_inv_pow(h, k)) / n, 0.0lf);
 }
+#endif
+
+#ifdef MC_DD
+// --- steps 6-7 and 10 in double-float (the `_dd` variant, lib/dd.glsl) ----------
+// The same formulas as the double functions above, for devices without
+// shaderFloat64.
+#include "lib/dd.glsl"
+
+dd wlr_h_min_dd() { return dd_ratio(1.0, 100.0); }
+dd wlr_h_max_dd() { return dd_from(1.0); }
+
+dd wlr_trial_h_dd(int s) { return s == 4 ? dd_from(1.0) : dd_ratio(float(s + 1), 5.0); }
+
+// (intercept, slope) of the least-squares line through the 5 points (t, u).
+void wlr_simple_regression_dd(dd t[5], dd u[5], out dd intercept, out dd slope)
+{
+    dd five = dd_from(5.0);
+    dd tm = dd_div(dd_add(dd_add(dd_add(dd_add(t[0], t[1]), t[2]), t[3]), t[4]), five);
+    dd um = dd_div(dd_add(dd_add(dd_add(dd_add(u[0], u[1]), u[2]), u[3]), u[4]), five);
+    dd stu = dd_from(0.0);
+    dd stt = dd_from(0.0);
+    for (int s = 0; s < 5; ++s) {
+        dd dt = dd_sub(t[s], tm);
+        stu = dd_add(stu, dd_mul(dt, dd_sub(u[s], um)));
+        stt = dd_add(stt, dd_mul(dt, dt));
+    }
+    slope = dd_div(stu, stt);
+    intercept = dd_sub(um, dd_mul(slope, tm));
+}
+
+// h^{-k} by repeated multiplication.
+dd wlr_inv_pow_dd(dd h, int k)
+{
+    dd hk = dd_from(1.0);
+    for (int i = 0; i < k; ++i) {
+        hk = dd_mul(hk, h);
+    }
+    return dd_div(dd_from(1.0), hk);
+}
+
+// a^{1/m} for a in (0, 1]: float pow refined by Newton steps.
+dd wlr_root_dd(dd a, int m)
+{
+    dd x = dd_from(pow(dd_to_float(a), 1.0 / float(m)));
+    for (int it = 0; it < 4; ++it) {
+        dd xm1 = dd_from(1.0);
+        for (int i = 0; i < m - 1; ++i) {
+            xm1 = dd_mul(xm1, x);
+        }
+        x = dd_sub(x, dd_div(dd_sub(dd_mul(x, xm1), a), dd_mul(dd_from(float(m)), xm1)));
+    }
+    return x;
+}
+
+// Step 6: par = (lambda0, lambda1, kappa0, kappa1).
+void wlr_parametric_dd(dd bias[5], dd var[5], int k, dd n, out dd par[4])
+{
+    dd t2[5];
+    dd tk[5];
+    dd nv[5];
+    for (int s = 0; s < 5; ++s) {
+        dd h = wlr_trial_h_dd(s);
+        t2[s] = dd_mul(h, h);
+        tk[s] = wlr_inv_pow_dd(h, k);
+        nv[s] = dd_mul(n, var[s]);
+    }
+    wlr_simple_regression_dd(t2, bias, par[0], par[1]);
+    wlr_simple_regression_dd(tk, nv, par[2], par[3]);
+}
+
+// Step 7 with H-CASES (k >= 1): model = (h_opt, lambda1, kappa0, kappa1).
+void wlr_choose_h_dd(dd par[4], int k, dd n, dd bias1, dd var1, inout int flags, out dd model[4])
+{
+    model[1] = par[1];
+    model[2] = par[2];
+    model[3] = par[3];
+    if (!(dd_gt(par[3], dd_from(0.0)))) {
+        flags |= WLR_F_KAPPA;
+        model[0] = wlr_trial_h_dd(0);
+        model[1] = dd_from(0.0);
+        model[2] = dd_mul(n, dd_add(dd_mul(bias1, bias1), var1));
+        model[3] = dd_from(0.0);
+        return;
+    }
+    dd l2n = dd_mul(dd_mul(par[1], par[1]), n);
+    if (dd_lt(l2n, dd_from(1e-30))  /* WLR_LAMBDA_TINY */) {
+        model[0] = wlr_h_max_dd();
+        return;
+    }
+    dd a = dd_div(dd_mul(dd_from(float(k)), par[3]), dd_mul(dd_from(4.0), l2n));
+    int m = k + 4;
+    dd lo = dd_div(dd_from(1.0), wlr_inv_pow_dd(wlr_h_min_dd(), m));  // H_MIN^m
+    if (dd_gt(a, dd_from(1.0))) {
+        model[0] = wlr_h_max_dd();
+        flags |= WLR_F_CLAMPED;
+    } else if (dd_lt(a, lo)) {
+        model[0] = wlr_h_min_dd();
+        flags |= WLR_F_CLAMPED;
+    } else {
+        model[0] = dd_clamp(wlr_root_dd(a, m), wlr_h_min_dd(), wlr_h_max_dd());
+    }
+}
+
+// Step 10: (lambda1 h^2)^2 + (kappa0 + kappa1 h^-k)/n_c, clamped >= 0.
+dd wlr_mse_model_dd(dd lambda1, dd kappa0, dd kappa1, int k, dd n, dd h)
+{
+    dd bb = dd_mul(dd_mul(lambda1, h), h);
+    dd v = dd_div(dd_add(kappa0, dd_mul(kappa1, wlr_inv_pow_dd(h, k))), n);
+    return dd_max(dd_add(dd_mul(bb, bb), v), dd_from(0.0));
+}
+#endif
 
 // --- the centre state wlr_fit leaves for wlr_final -----------------------------
 // wlr_final needs, per centre, the local space and the curvature bandwidths

@@ -145,7 +145,28 @@ impl GpuContext {
                 decl.name, self.info.max_per_stage_storage_buffers
             )));
         }
-        let reflection = decl.check(precision)?;
+        // Without shaderFloat64, a kernel whose f32 variant uses double
+        // runs its double-float variant (`<k>_dd`) when it has one.
+        let dd = (precision == Precision::F32 && !self.f64_enabled)
+            .then(|| super::reflect::spirv_dd(decl.name))
+            .flatten();
+        let words = match dd {
+            Some(w) => w,
+            None => spirv(decl.name, precision).ok_or_else(|| Error::Kernel {
+                kernel: decl.name.to_owned(),
+                message: format!("no compiled SPIR-V for variant {precision:?}"),
+            })?,
+        };
+        let variant = format!(
+            "{}{}",
+            decl.name,
+            if dd.is_some() {
+                "_dd"
+            } else {
+                precision.suffix()
+            }
+        );
+        let reflection = decl.check_words(&variant, words)?;
         if reflection.uses_f64 && !self.f64_enabled {
             return Err(Error::Limit(format!(
                 "kernel {}{} uses f64 arithmetic, which needs shaderFloat64; {} does not have it enabled",
@@ -172,7 +193,6 @@ impl GpuContext {
                 self.info.name
             )));
         }
-        let words = spirv(decl.name, precision).expect("checked above");
         let label = format!("{}{}", decl.name, precision.suffix());
         let dev = &self.device;
 

@@ -98,11 +98,23 @@ pub struct Reflection {
 
 /// The SPIR-V words of a compiled kernel variant (`name` + precision suffix).
 pub fn spirv(name: &str, precision: Precision) -> Option<&'static [u32]> {
-    let full = format!("{name}{}", precision.suffix());
+    spirv_named(&format!("{name}{}", precision.suffix()))
+}
+
+/// The compiled SPIR-V of the variant named `full` (`<k>`, `<k>_f64` or
+/// `<k>_dd`).
+pub fn spirv_named(full: &str) -> Option<&'static [u32]> {
     super::shaders::SHADERS
         .iter()
         .find(|(n, _)| *n == full)
         .map(|(_, w)| *w)
+}
+
+/// The `<k>_dd` variant of a kernel whose f32 variant uses double (WLR's
+/// steps 6-7): double-float arithmetic instead, for a device without
+/// `shaderFloat64`. `None` for every other kernel.
+pub fn spirv_dd(name: &str) -> Option<&'static [u32]> {
+    spirv_named(&format!("{name}_dd"))
 }
 
 /// Parses, validates and reflects one SPIR-V module with naga.
@@ -219,9 +231,14 @@ impl KernelDecl {
             kernel: self.name.to_owned(),
             message: format!("no compiled SPIR-V for variant {precision:?}"),
         })?;
+        self.check_words(&format!("{}{}", self.name, precision.suffix()), words)
+    }
+
+    /// [`check`](Self::check) of the SPIR-V `words` of variant `label`.
+    pub fn check_words(&self, label: &str, words: &[u32]) -> Result<Reflection> {
         let r = reflect(self.name, words)?;
         let fail = |message: String| Error::Kernel {
-            kernel: format!("{}{}", self.name, precision.suffix()),
+            kernel: label.to_owned(),
             message,
         };
         let declared: Vec<(u32, Access)> = self

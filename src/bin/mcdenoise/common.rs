@@ -22,7 +22,7 @@ pub fn context(cli: &Cli) -> anyhow::Result<Arc<GpuContext>> {
         } else {
             Validation::Off
         },
-        ..Default::default()
+        no_64bit: cli.no_64bit,
     })?;
     if !cli.no_pipeline_cache {
         let path = cli.pipeline_cache.clone().unwrap_or_else(|| {

@@ -41,6 +41,11 @@ pub struct Cli {
     /// $XDG_CACHE_HOME/mcdenoise, else ~/.cache/mcdenoise).
     #[arg(long, global = true, value_name = "FILE")]
     pipeline_cache: Option<std::path::PathBuf>,
+    /// Leave the device's shaderFloat64 and shaderInt64 disabled: run what a
+    /// GPU without 64-bit types runs (WLR's steps 6-7 in double-float; AOS
+    /// unavailable).
+    #[arg(long = "no-64bit", global = true)]
+    no_64bit: bool,
     /// Build pipelines without a pipeline cache file.
     #[arg(long, global = true, conflicts_with = "pipeline_cache")]
     no_pipeline_cache: bool,
