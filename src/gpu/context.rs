@@ -569,7 +569,12 @@ impl GpuContext {
             .queue_priorities(&priorities)];
         let f64_enabled = info.shader_float64 && !options.no_64bit;
         let int64_enabled = info.shader_int64 && !options.no_64bit;
+        // robustBufferAccess (every Vulkan device has it): a kernel that
+        // indexes past a binding reads zeros or in-range values and cannot
+        // write outside it, so a wrongly sized binding handed to a safe
+        // `record` is a wrong image, not memory corruption.
         let features = vk::PhysicalDeviceFeatures::default()
+            .robust_buffer_access(true)
             .shader_float64(f64_enabled)
             .shader_int64(int64_enabled);
         let dinfo = vk::DeviceCreateInfo::default()
