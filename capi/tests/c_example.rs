@@ -118,3 +118,36 @@ fn c_host_accumulates_on_the_gpu_and_denoises() {
         );
     }
 }
+
+/// `capi/tests/c/errors.c`: NULL and invalid arguments give a status and a
+/// message (no device needed).
+#[test]
+fn c_error_paths_return_statuses() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let lib = library_dir();
+    let out = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("c_errors");
+    std::fs::create_dir_all(&out).unwrap();
+    let exe = out.join("errors");
+    let cc = std::env::var("CC").unwrap_or_else(|_| "cc".into());
+    let status = Command::new(&cc)
+        .args(["-std=c11", "-Wall", "-Wextra", "-Werror"])
+        .arg(root.join("tests/c/errors.c"))
+        .arg("-I")
+        .arg(root.join("../include"))
+        .arg("-o")
+        .arg(&exe)
+        .arg("-L")
+        .arg(&lib)
+        .arg(format!("-Wl,-rpath,{}", lib.display()))
+        .args(["-lmcdenoise", "-lvulkan"])
+        .status()
+        .unwrap_or_else(|e| panic!("cannot run the C compiler {cc}: {e}"));
+    assert!(status.success(), "compiling capi/tests/c/errors.c failed");
+    let output = Command::new(&exe).output().unwrap();
+    assert!(
+        output.status.success(),
+        "{}\n{}",
+        String::from_utf8_lossy(&output.stdout),
+        String::from_utf8_lossy(&output.stderr)
+    );
+}
