@@ -217,10 +217,9 @@ fn import(h: &Host) -> Arc<GpuContext> {
 /// The host's own command pool and buffer: `record` records mcdenoise's
 /// work into it (returning what must live until completion); the host
 /// submits and waits. Returns the per-dispatch timings.
-fn host_submit_recorded(
-    h: &Host,
-    record: impl FnOnce(vk::CommandBuffer) -> Vec<mcdenoise::Recorded>,
-) -> Vec<mcdenoise::KernelTiming> {
+/// A command pool of the host's compute family and one primary command
+/// buffer from it, recording.
+fn host_begin(h: &Host) -> (vk::CommandPool, vk::CommandBuffer) {
     unsafe {
         let pool = h
             .device
@@ -241,6 +240,16 @@ fn host_submit_recorded(
         h.device
             .begin_command_buffer(cmd, &vk::CommandBufferBeginInfo::default())
             .unwrap();
+        (pool, cmd)
+    }
+}
+
+fn host_submit_recorded(
+    h: &Host,
+    record: impl FnOnce(vk::CommandBuffer) -> Vec<mcdenoise::Recorded>,
+) -> Vec<mcdenoise::KernelTiming> {
+    let (pool, cmd) = host_begin(h);
+    unsafe {
         let recorded = record(cmd);
         h.device.end_command_buffer(cmd).unwrap();
         let fence = h
@@ -580,29 +589,9 @@ fn buffers_outlive_a_dropped_denoiser_until_the_work_completes() {
 /// (frees its pool) without ever submitting it: what a host does after
 /// `record_into` returned an error.
 fn host_discard_recorded(h: &Host, record: impl FnOnce(vk::CommandBuffer)) {
-    unsafe {
-        let pool = h
-            .device
-            .create_command_pool(
-                &vk::CommandPoolCreateInfo::default().queue_family_index(h.family),
-                None,
-            )
-            .unwrap();
-        let cmd = h
-            .device
-            .allocate_command_buffers(
-                &vk::CommandBufferAllocateInfo::default()
-                    .command_pool(pool)
-                    .level(vk::CommandBufferLevel::PRIMARY)
-                    .command_buffer_count(1),
-            )
-            .unwrap()[0];
-        h.device
-            .begin_command_buffer(cmd, &vk::CommandBufferBeginInfo::default())
-            .unwrap();
-        record(cmd);
-        h.device.destroy_command_pool(pool, None);
-    }
+    let (pool, cmd) = host_begin(h);
+    record(cmd);
+    unsafe { h.device.destroy_command_pool(pool, None) };
 }
 
 /// An error from `record_into` (a wrongly sized host range, or an output

@@ -61,26 +61,8 @@ fn validation_installed() -> bool {
 
 #[test]
 fn c_host_accumulates_on_the_gpu_and_denoises() {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
-    let lib = library_dir();
-    let out = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("c_example");
-    std::fs::create_dir_all(&out).unwrap();
-    let exe = out.join("host");
-    let cc = std::env::var("CC").unwrap_or_else(|_| "cc".into());
-    let status = Command::new(&cc)
-        .args(["-std=c11", "-Wall", "-Wextra", "-Werror", "-O1"])
-        .arg(root.join("examples/c/host.c"))
-        .arg("-I")
-        .arg(root.join("include"))
-        .arg("-o")
-        .arg(&exe)
-        .arg("-L")
-        .arg(&lib)
-        .arg(format!("-Wl,-rpath,{}", lib.display()))
-        .args(["-lmcdenoise", "-lvulkan", "-lm"])
-        .status()
-        .unwrap_or_else(|e| panic!("cannot run the C compiler {cc}: {e}"));
-    assert!(status.success(), "compiling examples/c/host.c failed");
+    let exe = compile_c("examples/c/host.c", "host");
+    let out = exe.parent().unwrap().to_path_buf();
 
     let spv = Path::new(env!("OUT_DIR")).join("accumulate.spv");
     let validate = validation_installed();
@@ -119,30 +101,38 @@ fn c_host_accumulates_on_the_gpu_and_denoises() {
     }
 }
 
-/// `capi/tests/c/errors.c`: NULL and invalid arguments give a status and a
-/// message (no device needed).
-#[test]
-fn c_error_paths_return_statuses() {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+/// Compiles `source` (relative to the repository) with the system C
+/// compiler against `include/`, `libmcdenoise.so` and the Vulkan loader into
+/// a folder of its own; returns the executable.
+fn compile_c(source: &str, name: &str) -> PathBuf {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
     let lib = library_dir();
-    let out = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("c_errors");
+    let out = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("c_{name}"));
     std::fs::create_dir_all(&out).unwrap();
-    let exe = out.join("errors");
+    let exe = out.join(name);
     let cc = std::env::var("CC").unwrap_or_else(|_| "cc".into());
     let status = Command::new(&cc)
-        .args(["-std=c11", "-Wall", "-Wextra", "-Werror"])
-        .arg(root.join("tests/c/errors.c"))
+        .args(["-std=c11", "-Wall", "-Wextra", "-Werror", "-O1"])
+        .arg(root.join(source))
         .arg("-I")
-        .arg(root.join("../include"))
+        .arg(root.join("include"))
         .arg("-o")
         .arg(&exe)
         .arg("-L")
         .arg(&lib)
         .arg(format!("-Wl,-rpath,{}", lib.display()))
-        .args(["-lmcdenoise", "-lvulkan"])
+        .args(["-lmcdenoise", "-lvulkan", "-lm"])
         .status()
         .unwrap_or_else(|e| panic!("cannot run the C compiler {cc}: {e}"));
-    assert!(status.success(), "compiling capi/tests/c/errors.c failed");
+    assert!(status.success(), "compiling {source} failed");
+    exe
+}
+
+/// `capi/tests/c/errors.c`: NULL and invalid arguments give a status and a
+/// message (no device needed).
+#[test]
+fn c_error_paths_return_statuses() {
+    let exe = compile_c("capi/tests/c/errors.c", "errors");
     let output = Command::new(&exe).output().unwrap();
     assert!(
         output.status.success(),
