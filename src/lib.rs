@@ -45,6 +45,17 @@
 //!   ([`Frame`]: colour, per-channel error `E_i`, local dimension `d_i`,
 //!   samples, debug maps).
 //!
+//! ## Features, other languages, other GPUs
+//! `default-features = false` leaves the core (this facade, the methods,
+//! the kernels, the Vulkan plumbing); the features `io` (EXR and PNG),
+//! `render` (the path tracer), `bench` and `cli` (the default) add the
+//! rest. C and C++ hosts use `libmcdenoise` and `include/mcdenoise.h` (the
+//! `capi/` crate); every host's shaders can add samples with
+//! `include/mcdenoise_accum.glsl`. A device without `shaderFloat64` or
+//! `shaderInt64` runs every method but AOS ([`ContextOptions::no_64bit`]
+//! simulates one); what a device cannot run is an error of
+//! [`Denoiser::new`], never of a recording.
+//!
 //! ## Synchronisation contract (embedding)
 //! Work recorded into a host's command buffer starts with a memory barrier
 //! after every earlier command of that buffer and ends with one before every
