@@ -427,6 +427,11 @@ pub fn enumerate_devices() -> Result<Vec<DeviceInfo>> {
 }
 
 /// A host renderer's Vulkan objects, handed to [`GpuContext::from_raw`].
+///
+/// mcdenoise's own device enables `robustBufferAccess`, so that a wrongly
+/// sized binding given to a public kernel `record` cannot touch memory
+/// outside it; a host that wants the same guarantee for its device enables
+/// that feature itself (every Vulkan device supports it).
 #[derive(Clone)]
 pub struct ImportedDevice {
     /// The Vulkan loader the host loaded `instance` with.
