@@ -330,7 +330,6 @@ pub(crate) fn vk(call: Call) -> Result<(), vk::Result> {
 }
 
 /// [`hit`] for a file call: `Err(os error)` when a fault is armed for it.
-#[cfg(feature = "io")]
 pub(crate) fn os(call: Call) -> std::io::Result<()> {
     match hit(call) {
         None => Ok(()),
@@ -343,7 +342,6 @@ pub(crate) fn os(call: Call) -> std::io::Result<()> {
 /// the error it fails with: `None` when it may write them all. A
 /// [`Call::FileWrite`] fault armed with [`Plan::fail`] fails the write
 /// before its first byte.
-#[cfg(feature = "io")]
 pub(crate) fn write_budget(len: usize) -> Option<(usize, std::io::Error)> {
     if ARMED.load(Ordering::Relaxed) == 0 {
         return None;

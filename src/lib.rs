@@ -94,7 +94,6 @@ pub mod error;
 pub mod fault;
 pub mod gpu;
 pub mod image;
-#[cfg(feature = "io")]
 pub mod io;
 pub mod kernels;
 pub mod methods;

@@ -314,7 +314,7 @@ pub(crate) struct DiskCache {
     pub(crate) handle: vk::PipelineCache,
     pub(crate) path: std::path::PathBuf,
     /// A pipeline was built through the cache since it was loaded or saved.
-    pub(crate) dirty: std::sync::atomic::AtomicBool,
+    pub(crate) dirty: bool,
 }
 
 /// Bytes of the header Vulkan puts before a pipeline cache's data
@@ -339,8 +339,8 @@ pub(crate) fn cache_matches(data: &[u8], props: &vk::PhysicalDeviceProperties) -
         && data[16..32] == props.pipeline_cache_uuid
 }
 
-/// Writes `bytes` to `path` through a temporary file in the same folder and
-/// a rename, so a reader never sees a partial cache.
+/// Writes `bytes` to `path` atomically ([`crate::io::write_atomic`]),
+/// creating its folder first.
 pub(crate) fn write_cache_file(path: &std::path::Path, bytes: &[u8]) -> Result<()> {
     use std::io::Write as _;
     let io_err = |source| Error::Io {
@@ -350,15 +350,5 @@ pub(crate) fn write_cache_file(path: &std::path::Path, bytes: &[u8]) -> Result<(
     if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).map_err(io_err)?;
     }
-    let mut tmp = path.as_os_str().to_owned();
-    tmp.push(format!(".tmp-{}", std::process::id()));
-    let tmp = std::path::PathBuf::from(tmp);
-    let written = std::fs::File::create(&tmp)
-        .and_then(|mut f| f.write_all(bytes).and_then(|()| f.sync_all()))
-        .and_then(|()| std::fs::rename(&tmp, path));
-    if let Err(e) = written {
-        let _ = std::fs::remove_file(&tmp);
-        return Err(io_err(e));
-    }
-    Ok(())
+    crate::io::write_atomic(path, |w| w.write_all(bytes).map_err(io_err))
 }

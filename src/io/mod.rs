@@ -16,11 +16,19 @@
 //! channel or pixel. Every write is atomic ([`write_atomic`]): a reader of the
 //! destination sees either the old file or the complete new one, never a
 //! partial file, and a failed write leaves no temporary file behind.
+//!
+//! The EXR and PNG formats need the `io` feature; [`write_atomic`] is always
+//! there (the pipeline cache writes through it).
 
+#[cfg(feature = "io")]
 mod exr_in;
+#[cfg(feature = "io")]
 mod exr_out;
+#[cfg(feature = "io")]
 pub mod frames;
+#[cfg(feature = "io")]
 pub mod inspect;
+#[cfg(feature = "io")]
 mod png_out;
 
 use std::fs::{self, File, OpenOptions};
@@ -31,11 +39,15 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use crate::error::{Error, Result};
 use crate::fault::{self, Call};
 
+#[cfg(feature = "io")]
 pub use exr_in::{read_rgb, read_stats, read_stats_layers, MAX_DIMENSION, MAX_PIXELS};
+#[cfg(feature = "io")]
 pub use exr_out::{
     write_channels, write_output, write_rgb, write_samples, write_stats, OutputImage,
 };
+#[cfg(feature = "io")]
 pub use inspect::{format_report, inspect, spp_range, validate, ChannelStats, LayerReport};
+#[cfg(feature = "io")]
 pub use png_out::{
     heat_color, srgb_preview_u8, write_heatmap_png, write_panels, write_png_preview, Panel,
 };
@@ -135,6 +147,7 @@ pub fn write_atomic(path: &Path, write: impl FnOnce(&mut TempFile) -> Result<()>
 }
 
 /// An encoder failure while writing `path`, as an [`Error::Io`].
+#[cfg(feature = "io")]
 fn write_error(path: &Path, what: &str, detail: impl std::fmt::Display) -> Error {
     Error::Io {
         path: path.to_path_buf(),
