@@ -180,7 +180,6 @@ pub struct McdContext {
 pub struct McdDenoiser {
     denoiser: Denoiser,
     layout: AccumLayout,
-    pixels: usize,
 }
 
 /// Work recorded into a host command buffer: keeps the denoiser's buffers
@@ -259,17 +258,12 @@ unsafe fn non_null<'a, T>(ptr: *const T, what: &str) -> Result<&'a T, Failure> {
     unsafe { ptr.as_ref() }.ok_or_else(|| invalid(format!("{what} is NULL")))
 }
 
-/// Writes `value` to the out-pointer `out` (checked non-null).
-///
-/// # Safety
-/// `out` is null or valid for a write of `T`.
-unsafe fn put<T>(out: *mut T, value: T, what: &str) -> Result<(), Failure> {
+/// The out-pointer `out`, checked non-null before any work is done.
+fn out_ptr<T>(out: *mut T) -> Result<*mut T, Failure> {
     if out.is_null() {
-        return Err(invalid(format!("{what} is NULL")));
+        return Err(invalid("out is NULL"));
     }
-    // SAFETY: non-null and valid for writes by the caller's contract.
-    unsafe { out.write(value) };
-    Ok(())
+    Ok(out)
 }
 
 fn layout_of(l: &McdAccumLayout) -> Result<AccumLayout, Failure> {
@@ -294,6 +288,15 @@ fn layout_of(l: &McdAccumLayout) -> Result<AccumLayout, Failure> {
     .with_position_origin(l.position_origin))
 }
 
+/// The layout `ptr` points to, if it is valid.
+///
+/// # Safety
+/// `ptr` is null or points to a valid [`McdAccumLayout`].
+unsafe fn valid_layout(ptr: *const McdAccumLayout) -> Option<AccumLayout> {
+    // SAFETY: forwarded to the caller.
+    unsafe { ptr.as_ref() }.and_then(|l| layout_of(l).ok())
+}
+
 /// The version of the library: compare with `MCDENOISE_API_VERSION`.
 #[no_mangle]
 pub extern "C" fn mcd_api_version() -> u32 {
@@ -314,10 +317,7 @@ pub extern "C" fn mcd_last_error() -> *const c_char {
 #[no_mangle]
 pub unsafe extern "C" fn mcd_accum_bytes(layout: *const McdAccumLayout) -> u64 {
     // SAFETY: forwarded to the caller.
-    match unsafe { layout.as_ref() }.map(layout_of) {
-        Some(Ok(l)) => l.bytes(),
-        _ => 0,
-    }
+    unsafe { valid_layout(layout) }.map_or(0, |l| l.bytes())
 }
 
 /// Bytes from one accumulation plane's start to the next (the GLSL header's
@@ -328,10 +328,7 @@ pub unsafe extern "C" fn mcd_accum_bytes(layout: *const McdAccumLayout) -> u64 {
 #[no_mangle]
 pub unsafe extern "C" fn mcd_accum_plane_stride(layout: *const McdAccumLayout) -> u64 {
     // SAFETY: forwarded to the caller.
-    match unsafe { layout.as_ref() }.map(layout_of) {
-        Some(Ok(l)) => l.plane_stride(),
-        _ => 0,
-    }
+    unsafe { valid_layout(layout) }.map_or(0, |l| l.plane_stride())
 }
 
 /// Number of planes of the accumulation layout; 0 for an invalid layout.
@@ -341,10 +338,7 @@ pub unsafe extern "C" fn mcd_accum_plane_stride(layout: *const McdAccumLayout) -
 #[no_mangle]
 pub unsafe extern "C" fn mcd_accum_plane_count(layout: *const McdAccumLayout) -> u32 {
     // SAFETY: forwarded to the caller.
-    match unsafe { layout.as_ref() }.map(layout_of) {
-        Some(Ok(l)) => l.plane_count() as u32,
-        _ => 0,
-    }
+    unsafe { valid_layout(layout) }.map_or(0, |l| l.plane_count() as u32)
 }
 
 /// Creates a context on the host's device.
@@ -364,6 +358,7 @@ pub unsafe extern "C" fn mcd_context_create(
     guard(|| {
         // SAFETY: forwarded to the caller.
         let d = unsafe { non_null(device, "device") }?;
+        let out = out_ptr(out)?;
         let gipa = d
             .get_instance_proc_addr
             .ok_or_else(|| invalid("device->get_instance_proc_addr is NULL"))?;
@@ -394,12 +389,9 @@ pub unsafe extern "C" fn mcd_context_create(
             })
         }?;
         let handle = Box::into_raw(Box::new(McdContext { ctx: Arc::new(ctx) }));
-        // SAFETY: forwarded to the caller; on failure the context is freed.
-        if let Err(e) = unsafe { put(out, handle, "out") } {
-            // SAFETY: `handle` came from Box::into_raw just above.
-            drop(unsafe { Box::from_raw(handle) });
-            return Err(e);
-        }
+        // SAFETY: non-null (checked first) and valid for writes by the
+        // caller's contract.
+        unsafe { out.write(handle) };
         Ok(())
     })
 }
@@ -491,6 +483,7 @@ pub unsafe extern "C" fn mcd_denoiser_create(
     guard(|| {
         // SAFETY: forwarded to the caller.
         let (ctx, desc) = unsafe { (non_null(ctx, "ctx")?, non_null(desc, "desc")?) };
+        let out = out_ptr(out)?;
         let layout = layout_of(&desc.layout)?;
         let method = match desc.method {
             m if m == McdMethod::Wlr as u32 => Method::Wlr,
@@ -519,17 +512,10 @@ pub unsafe extern "C" fn mcd_denoiser_create(
             config.options = Options::parse(&pairs)?;
         }
         let denoiser = Denoiser::new(&ctx.ctx, Source::Accum(layout), config)?;
-        let handle = Box::into_raw(Box::new(McdDenoiser {
-            denoiser,
-            layout,
-            pixels: layout.pixels(),
-        }));
-        // SAFETY: forwarded to the caller; on failure the denoiser is freed.
-        if let Err(e) = unsafe { put(out, handle, "out") } {
-            // SAFETY: `handle` came from Box::into_raw just above.
-            drop(unsafe { Box::from_raw(handle) });
-            return Err(e);
-        }
+        let handle = Box::into_raw(Box::new(McdDenoiser { denoiser, layout }));
+        // SAFETY: non-null (checked first) and valid for writes by the
+        // caller's contract.
+        unsafe { out.write(handle) };
         Ok(())
     })
 }
@@ -581,9 +567,7 @@ pub unsafe extern "C" fn mcd_denoiser_record(
     guard(|| {
         // SAFETY: forwarded to the caller.
         let d = unsafe { non_null(denoiser, "denoiser") }?;
-        if out.is_null() {
-            return Err(invalid("out is NULL"));
-        }
+        let out = out_ptr(out)?;
         if cmd == vk::CommandBuffer::null() || accum == vk::Buffer::null() {
             return Err(invalid("cmd or accum is VK_NULL_HANDLE"));
         }
@@ -629,6 +613,7 @@ pub unsafe extern "C" fn mcd_denoiser_outputs(
     guard(|| {
         // SAFETY: forwarded to the caller.
         let d = unsafe { non_null(denoiser, "denoiser") }?;
+        let out = out_ptr(out)?;
         let o = d.denoiser.outputs()?;
         let samples = o.samples;
         let outputs = McdOutputs {
@@ -636,12 +621,14 @@ pub unsafe extern "C" fn mcd_denoiser_outputs(
             color_offset: o.color.map(|s| s.offset()),
             error_buffer: o.error.map(|s| s.buffer()),
             error_offset: o.error.map(|s| s.offset()),
-            plane_bytes: 4 * d.pixels as u64,
+            plane_bytes: 4 * d.layout.pixels() as u64,
             samples_buffer: samples.map_or(vk::Buffer::null(), |s| s.buffer()),
             samples_offset: samples.map_or(0, |s| s.offset()),
         };
-        // SAFETY: forwarded to the caller.
-        unsafe { put(out, outputs, "out") }
+        // SAFETY: non-null (checked first) and valid for writes by the
+        // caller's contract.
+        unsafe { out.write(outputs) };
+        Ok(())
     })
 }
 
@@ -667,14 +654,14 @@ pub unsafe extern "C" fn mcd_denoiser_read(
     guard(|| {
         // SAFETY: forwarded to the caller.
         let d = unsafe { non_null(denoiser, "denoiser") }?;
-        if pixels != d.pixels as u64 {
+        let n = d.layout.pixels();
+        if pixels != n as u64 {
             return Err(invalid(format!(
                 "pixels is {pixels}, the denoiser's image has {}",
-                d.pixels
+                n
             )));
         }
         let frame = d.denoiser.read()?;
-        let n = d.pixels;
         let interleave = |img: &core::RgbImage, dst: *mut f32| {
             // SAFETY: the caller guarantees room for 3 * pixels values.
             let dst = unsafe { std::slice::from_raw_parts_mut(dst, 3 * n) };

@@ -1021,7 +1021,7 @@ impl GpuContext {
         *slot = Some(super::pipeline::DiskCache {
             handle,
             path: path.to_path_buf(),
-            dirty: AtomicBool::new(false),
+            dirty: false,
         });
         Ok(data.len())
     }
@@ -1031,8 +1031,8 @@ impl GpuContext {
     /// one). Returns the bytes written; `Ok(0)` when the context has no
     /// cache.
     pub fn save_pipeline_cache(&self) -> Result<usize> {
-        let slot = self.disk_cache.lock().unwrap_or_else(|e| e.into_inner());
-        let Some(c) = slot.as_ref() else {
+        let mut slot = self.disk_cache.lock().unwrap_or_else(|e| e.into_inner());
+        let Some(c) = slot.as_mut() else {
             return Ok(0);
         };
         // SAFETY: the cache belongs to this device; VkPipelineCache is
@@ -1044,7 +1044,7 @@ impl GpuContext {
             }
         })?;
         super::pipeline::write_cache_file(&c.path, &data)?;
-        c.dirty.store(false, Ordering::SeqCst);
+        c.dirty = false;
         Ok(data.len())
     }
 
@@ -1071,9 +1071,9 @@ impl GpuContext {
 
     /// Notes that a pipeline was built through the cache.
     pub(crate) fn mark_disk_cache_dirty(&self) {
-        let slot = self.disk_cache.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some(c) = slot.as_ref() {
-            c.dirty.store(true, Ordering::SeqCst);
+        let mut slot = self.disk_cache.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(c) = slot.as_mut() {
+            c.dirty = true;
         }
     }
 }
@@ -1085,7 +1085,7 @@ impl Drop for GpuContext {
             .get_mut()
             .ok()
             .and_then(|c| c.as_ref())
-            .is_some_and(|c| c.dirty.load(Ordering::SeqCst));
+            .is_some_and(|c| c.dirty);
         if dirty {
             if let Err(e) = self.save_pipeline_cache() {
                 log::warn!("the pipeline cache was not saved: {e}");

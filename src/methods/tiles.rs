@@ -298,17 +298,14 @@ impl ChainMemory {
     }
 }
 
-/// Device memory the untiled part of a tiled run with a budget holds for a
-/// `pixels`-pixel image: the priority and sample-count planes, the spp
-/// plane, and the allocation's trees (§9.2).
-pub fn global_bytes(pixels: usize, budget: bool) -> f64 {
-    if budget {
-        // 4 f32 planes of the sampling maps, the u32 counts, the spp plane,
-        // and the trees (< 3 × 8 bytes × pixels/63 + levels).
-        pixels as f64 * (4.0 * 4.0 + 4.0 + 4.0 + 0.5)
-    } else {
-        0.0
-    }
+/// Device memory the untiled part of a tiled run holds for a `pixels`-pixel
+/// image, which may be asked for a sample map (every device makes one): the
+/// priority and sample-count planes, the spp plane, and the allocation's
+/// trees (§9.2).
+pub fn global_bytes(pixels: usize) -> f64 {
+    // 4 f32 planes of the sampling maps, the u32 counts, the spp plane, and
+    // the trees (< 3 × 8 bytes × pixels/63 + levels).
+    pixels as f64 * (4.0 * 4.0 + 4.0 + 4.0 + 0.5)
 }
 
 /// The memory cap when none is given: three quarters of the largest
@@ -411,7 +408,7 @@ impl TiledChain {
         let halo = halo(&config, prefiltered)?;
         let hl = halo.total();
         let align = alignment(&config);
-        let global = global_bytes(w * h, true);
+        let global = global_bytes(w * h);
         let mut side = match tile {
             Some(0) => {
                 return Err(Error::InvalidArgument(
