@@ -5,7 +5,8 @@
 //!
 //! Each kernel is built twice: `<k>` in f32 and `<k>_f64` with `MC_F64`
 //! defined (see `spirv/lib/common.glsl`); one that mentions `MC_DD` also as
-//! `<k>_dd` (double-float where the f32 variant uses double). `#include "lib/x.glsl"` lines are
+//! `<k>_dd`, the variant for devices without `shaderFloat64` (double-float
+//! where the f32 variant uses double; `aos_fit`'s is plain f32). `#include "lib/x.glsl"` lines are
 //! expanded textually here (once per file), so error lines refer to the
 //! expanded source, which is written next to the SPIR-V for reading.
 //! The output is `$OUT_DIR/shaders.rs`: a table of `(name, words)`; and
@@ -88,8 +89,8 @@ fn main() {
         let mut body = String::new();
         expand(path, &root, &mut HashSet::new(), &mut body);
         // A kernel whose f32 variant uses double somewhere has a third,
-        // `<k>_dd`, with double-float arithmetic there (MC_DD,
-        // lib/dd.glsl), for devices without shaderFloat64.
+        // `<k>_dd` (MC_DD), for devices without shaderFloat64: double-float
+        // arithmetic there (lib/dd.glsl), or plain f32 (aos_fit).
         let variants: &[(&str, &str)] = if !kernel {
             &[("", "")]
         } else if body.contains("MC_DD") {

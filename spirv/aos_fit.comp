@@ -19,7 +19,10 @@
 // order-5 design's powers dz, dz^3, dz^5 are nearly collinear, so the ridge
 // system is badly conditioned; in f32 the colour stays within §0.3 of the
 // twin, but the error estimates and biases do not (tests/aos_kernels.rs).
-#ifndef MC_F64
+// The `aos_fit_dd` variant (MC_DD), for devices without shaderFloat64, is
+// that f32 arithmetic: the colour and the order as above, the error
+// estimates within the looser bounds decision NO-64BIT records.
+#if !defined(MC_F64) && !defined(MC_DD)
 #define MC_F64 1
 #endif
 #include "lib/common.glsl"

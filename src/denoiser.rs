@@ -285,7 +285,7 @@ impl Denoiser {
     /// through the `unsafe` [`GpuContext::from_raw`]). Allocates every buffer,
     /// checks the configuration against the source's layers, and builds the
     /// pipelines of every kernel its calls will record: a device that lacks
-    /// what one needs (`shaderFloat64` for WLR, AOS and `auto`; a limit) is
+    /// what one needs (`shaderFloat64` for `Precision::F64`; a limit) is
     /// an [`Error::Limit`] here, never part-way through a recording.
     ///
     /// Statistics ([`Source::Stats`]) whose chain does not fit — a binding

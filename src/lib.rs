@@ -52,8 +52,8 @@
 //! rest. C and C++ hosts use `libmcdenoise` and `include/mcdenoise.h` (the
 //! `capi/` crate); every host's shaders can add samples with
 //! `include/mcdenoise_accum.glsl`. A device without `shaderFloat64` or
-//! `shaderInt64` runs every method but AOS ([`ContextOptions::no_64bit`]
-//! simulates one); what a device cannot run is an error of
+//! `shaderInt64` runs every method ([`ContextOptions::no_64bit`] simulates
+//! one); what a device cannot run is an error of
 //! [`Denoiser::new`], never of a recording.
 //!
 //! ## Synchronisation contract (embedding)

@@ -403,3 +403,88 @@ fn run_nlm(
     .unwrap();
     out.remove(0)
 }
+
+/// Without `shaderFloat64` (NO-64BIT), `aos_fit` runs its f32 variant
+/// (`aos_fit_dd`): the colour stays within §0.3 of the f64 twin and the
+/// orders agree; the error estimates and biases, which AOS-F64 keeps in f64
+/// for their accuracy, hold the looser bounds NO-64BIT documents.
+#[test]
+fn without_f64_aos_fit_keeps_colour_and_bounds_its_estimates() {
+    let ctx = common::gpu_without_64bit();
+    for (w, h, vis, radius) in [(31, 23, true, 9u32), (19, 13, false, 5)] {
+        let img = image(w, h, 3, vis);
+        let n = w * h;
+        let push = img.push(radius, Settings::default().flags());
+        let cpu_space = aos_space::aos_space(&push, &img.fa(), &img.va(), &img.spp);
+        let mut inputs: Vec<&[f32]> = img.fa().to_vec();
+        inputs.extend(img.color.iter().map(|p| p.as_slice()));
+        inputs.push(&img.vbar);
+        inputs.push(&img.spp);
+        inputs.push(&cpu_space);
+        inputs.extend(img.va());
+        let p = AosPush {
+            stride: n as u32,
+            ..push
+        };
+        let (out, _) = kernels::run_planes(
+            &ctx,
+            &kfit::DECL,
+            mcdenoise::gpu::Precision::F32,
+            bytemuck::bytes_of(&p),
+            w * kfit::THREADS as usize,
+            h,
+            &inputs,
+            &[OUTPUTS * n],
+            1.0,
+        )
+        .unwrap();
+        let cpu = aos_fit::aos_fit(&p, &img.inputs(), &cpu_space);
+        let what = |k: &str| format!("{w}x{h} vis={vis} R={radius} no-f64: {k}");
+        let plane = |k: usize| &out[0][k * n..(k + 1) * n];
+        // The colour as in f32 with f64 fits; the order on 98 % of pixels.
+        for k in 0..3 {
+            common::assert_close(&what(&format!("colour {k}")), plane(k), &cpu[k], 0.99);
+        }
+        let a = common::agreement(plane(4), &cpu[4]);
+        assert!(a >= 0.98, "{}: {a}", what("order agreement"));
+        // The exported error (3) and the MSE (13): within §0.3 on 97 % of
+        // pixels (measured 98.0-98.7 %), 99 % of them within 2 % (measured
+        // 0.3-1.1 %); the variances (7, 9) within 5 % everywhere (measured
+        // 1.9 %). The biases are looser (NO-64BIT) and only finite here.
+        for k in [3, 13] {
+            common::assert_close(&what(&format!("plane {k}")), plane(k), &cpu[k], 0.97);
+            let p99 = quantile(&relative_errors(plane(k), &cpu[k]), 0.99);
+            assert!(p99 <= 0.02, "{}: p99 {p99}", what(&format!("plane {k}")));
+        }
+        for k in [7, 9] {
+            let worst = quantile(&relative_errors(plane(k), &cpu[k]), 1.0);
+            assert!(worst <= 0.05, "{}: {worst}", what(&format!("plane {k}")));
+        }
+        for k in [6, 8] {
+            assert!(
+                plane(k).iter().all(|v| v.is_finite()),
+                "{}",
+                what(&format!("plane {k}"))
+            );
+        }
+    }
+    common::check_validation(&ctx);
+}
+
+/// `|g/c - 1|` where the twin's value is not ~0, sorted.
+fn relative_errors(gpu: &[f32], cpu: &[f32]) -> Vec<f64> {
+    let mut r: Vec<f64> = gpu
+        .iter()
+        .zip(cpu)
+        .filter(|(_, c)| c.abs() > 1e-12)
+        .map(|(&g, &c)| (g as f64 / c as f64 - 1.0).abs())
+        .collect();
+    r.sort_by(|a, b| a.total_cmp(b));
+    r
+}
+
+/// The `f` quantile of sorted values (0 when empty).
+fn quantile(sorted: &[f64], f: f64) -> f64 {
+    let at = ((sorted.len().max(1) - 1) as f64 * f) as usize;
+    sorted.get(at).copied().unwrap_or(0.0)
+}

@@ -1,13 +1,14 @@
 //! A GPU without 64-bit types (`shaderFloat64`, `shaderInt64`), simulated
-//! on any device by a context that leaves them disabled (NO-64BIT): AOS,
-//! which needs f64, fails in `Denoiser::new` with a clear `Error::Limit`,
-//! never part-way through a recording; every other method runs and gives
-//! the same image and sample map as on a context with them (WLR and `auto`,
-//! whose f64 steps run in double-float there, within §0.3's tolerance).
+//! on any device by a context that leaves them disabled (NO-64BIT): every
+//! method runs and gives the same image and sample map as on a context
+//! with them (WLR and `auto`, whose f64 steps run in double-float there,
+//! within §0.3's tolerance; AOS, whose fits run in f32 there, within the
+//! bounds NO-64BIT records). A limit would be an `Error::Limit` of
+//! `Denoiser::new`, never part-way through a recording.
 
 mod common;
 
-use mcdenoise::{io, AccumLayout, Config, Denoiser, Error, Method, Source};
+use mcdenoise::{io, AccumLayout, Config, Denoiser, Method, Source};
 
 fn fixture() -> mcdenoise::StatsImage {
     let path = concat!(
@@ -18,7 +19,7 @@ fn fixture() -> mcdenoise::StatsImage {
 }
 
 #[test]
-fn without_64bit_types_each_method_runs_or_fails_at_new() {
+fn without_64bit_types_every_method_runs() {
     let small = common::gpu_without_64bit();
     assert!(!small.supports_f64() && !small.supports_int64());
     let full = common::gpu();
@@ -35,23 +36,30 @@ fn without_64bit_types_each_method_runs_or_fails_at_new() {
                     .unwrap()
                     .denoise(&img, None)
                     .unwrap();
-                if matches!(method, Method::Wlr | Method::Auto) {
+                if matches!(method, Method::Wlr | Method::Auto | Method::Aos) {
                     // WLR's steps 6-7 in double-float instead of double:
-                    // the same image within §0.3's f32 tolerance.
+                    // the same image within §0.3's f32 tolerance. AOS's
+                    // fits in f32 flip the order of a few pixels: colour
+                    // within it on 98 %, error on 95 % (measured 98.4 %,
+                    // 96.5 %).
+                    let (colour, error) = match method {
+                        Method::Aos => (0.98, 0.95),
+                        _ => (0.999, 0.99),
+                    };
                     for c in 0..3 {
                         let what = format!("{method:?} colour {c}");
                         common::assert_close(
                             &what,
                             &got.color.planes[c],
                             &want.color.planes[c],
-                            0.999,
+                            colour,
                         );
                         let what = format!("{method:?} error {c}");
                         common::assert_close(
                             &what,
                             &got.error.planes[c],
                             &want.error.planes[c],
-                            0.99,
+                            error,
                         );
                     }
                 } else {
@@ -69,16 +77,10 @@ fn without_64bit_types_each_method_runs_or_fails_at_new() {
                     .unwrap()
                     .samples
                     .unwrap();
-                if !matches!(method, Method::Wlr | Method::Auto) {
+                if !matches!(method, Method::Wlr | Method::Auto | Method::Aos) {
                     assert_eq!(got, want, "{method:?}");
                 }
                 assert_eq!(got.iter().map(|&s| s as u64).sum::<u64>(), 1000);
-            }
-            (Err(e), Err(f)) => {
-                for e in [e, f] {
-                    assert!(matches!(e, Error::Limit(_)), "{method:?}: {e}");
-                    assert!(e.to_string().contains("shaderFloat64"), "{method:?}: {e}");
-                }
             }
             _ => panic!(
                 "{method:?}: stats {:?}, accumulation {:?}",
@@ -86,14 +88,25 @@ fn without_64bit_types_each_method_runs_or_fails_at_new() {
                 on_accum.err()
             ),
         }
-        println!(
-            "{method:?}: {}",
-            if on_stats.is_ok() {
-                "runs"
-            } else {
-                "needs 64-bit types"
-            }
-        );
+    }
+    common::check_validation(&small);
+}
+
+/// What such a device cannot run — the `_f64` kernel variants — is an
+/// error of `Denoiser::new`, for statistics and accumulation
+/// sources alike, never part-way through a recording.
+#[test]
+fn f64_kernels_without_shader_float64_fail_at_new() {
+    let small = common::gpu_without_64bit();
+    let img = fixture();
+    let layout = AccumLayout::new(32, 24, true, false);
+    for method in [Method::Lp, Method::Aos] {
+        let mut config = Config::new(method);
+        config.precision = mcdenoise::gpu::Precision::F64;
+        for source in [Source::of_image(&img), Source::Accum(layout)] {
+            let e = Denoiser::new(&small, source, config.clone()).err().unwrap();
+            assert!(e.to_string().contains("shaderFloat64"), "{method:?}: {e}");
+        }
     }
     common::check_validation(&small);
 }

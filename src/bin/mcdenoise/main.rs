@@ -42,8 +42,8 @@ pub struct Cli {
     #[arg(long, global = true, value_name = "FILE")]
     pipeline_cache: Option<std::path::PathBuf>,
     /// Leave the device's shaderFloat64 and shaderInt64 disabled: run what a
-    /// GPU without 64-bit types runs (WLR's steps 6-7 in double-float; AOS
-    /// unavailable).
+    /// GPU without 64-bit types runs (WLR's steps 6-7 in double-float, AOS's
+    /// fits in f32).
     #[arg(long = "no-64bit", global = true)]
     no_64bit: bool,
     /// Build pipelines without a pipeline cache file.
