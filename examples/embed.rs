@@ -133,7 +133,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         // Then mcdenoise's chain (it brings its own barriers); a sample map
         // for the next pass after pass 0.
         let budget = (pass == 0).then_some(BUDGET);
-        let recorded = unsafe { denoiser.record_into(cmd, Some(accum), budget)? };
+        let recorded = unsafe { denoiser.record_into(cmd, family, Some(accum), budget)? };
         unsafe {
             device.end_command_buffer(cmd)?;
             device.queue_submit(

@@ -228,6 +228,10 @@ void mcd_denoiser_destroy(struct McdDenoiser *denoiser);
 // submitted. The work starts with a barrier after every earlier command of
 // `cmd` and ends with one before every later command.
 //
+// `queue_family` is the family of the pool `cmd` came from; one other than
+// the context's is `MCD_STATUS_INVALID_ARGUMENT` before anything is recorded (the
+// denoiser's buffers belong to the context's family).
+//
 // On success `*out` holds a recording the host releases
 // ([`mcd_recording_release`]) once the submission of `cmd` completed (or
 // if `cmd` is never submitted). On failure the host must discard `cmd`
@@ -235,12 +239,12 @@ void mcd_denoiser_destroy(struct McdDenoiser *denoiser);
 //
 // # Safety
 // `denoiser` is live; `cmd` belongs to the context's device, comes from a
-// pool of the context's queue family, is recording and outside a render
+// pool of queue family `queue_family`, is recording and outside a render
 // pass; `accum` is a buffer of that device with storage-buffer and
 // transfer-source usage (finalisation copies its count plane) and at least `accum_offset + mcd_accum_bytes(layout)` bytes, not written by
 // other work while this work runs; `out` is valid for a write. No other
 // recording of this denoiser runs on the GPU at the same time.
-enum McdStatus mcd_denoiser_record(const struct McdDenoiser *denoiser, VkCommandBuffer cmd, VkBuffer accum, uint64_t accum_offset, uint32_t sample_budget, struct McdRecording **out);
+enum McdStatus mcd_denoiser_record(const struct McdDenoiser *denoiser, VkCommandBuffer cmd, uint32_t queue_family, VkBuffer accum, uint64_t accum_offset, uint32_t sample_budget, struct McdRecording **out);
 
 // Releases a recording (NULL is ignored), after the submission of its
 // command buffer completed or once the buffer was discarded.

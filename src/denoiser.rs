@@ -461,8 +461,8 @@ impl Denoiser {
         })
     }
 
-    /// Records the whole chain into the host's command buffer `cmd`:
-    /// finalisation of `accum` (for [`Source::Accum`]; `None` for
+    /// Records the whole chain into the host's command buffer `cmd`, allocated
+    /// from a pool of queue family `queue_family`: finalisation of `accum` (for [`Source::Accum`]; `None` for
     /// [`Source::Stats`], whose statistics must already be uploaded),
     /// sanitation, prefilter, method, error, and the sample map when
     /// `budget` is given. Nothing is submitted.
@@ -474,15 +474,18 @@ impl Denoiser {
     /// its reads of [`outputs`](Self::outputs).
     ///
     /// # Errors
-    /// On `Err`, part of the chain may already be in `cmd`, referring to
+    /// `queue_family` other than the context's
+    /// ([`GpuContext::queue_family`]) is an error before anything is
+    /// recorded: the denoiser's buffers belong to that family (exclusive
+    /// sharing), so work on another family's queue would see undefined
+    /// contents. On any other `Err`, part of the chain may already be in `cmd`, referring to
     /// descriptor sets that are released with the error: the host must
     /// discard `cmd` (reset or free it) and never submit it. The denoiser
     /// and its context stay usable.
     ///
     /// # Safety
-    /// - `cmd` belongs to the denoiser's device, comes from a pool of a
-    ///   compute-capable queue family, is recording, and is outside a render
-    ///   pass;
+    /// - `cmd` belongs to the denoiser's device, comes from a pool of queue
+    ///   family `queue_family`, is recording, and is outside a render pass;
     /// - `accum` (made with [`BufferSlice::from_raw`]) satisfies that
     ///   function's contract and is not written by other work while this work
     ///   runs;
@@ -493,10 +496,18 @@ impl Denoiser {
     pub unsafe fn record_into(
         &self,
         cmd: vk::CommandBuffer,
+        queue_family: u32,
         accum: Option<BufferSlice>,
         budget: Option<u32>,
     ) -> Result<Recorded> {
         let chain = self.chain()?;
+        let family = chain.context().queue_family();
+        if queue_family != family {
+            return Err(Error::InvalidArgument(format!(
+                "the command buffer's queue family {queue_family} is not the context's \
+                 ({family}), which owns the denoiser's buffers"
+            )));
+        }
         // SAFETY: forwarded to the caller (see above).
         let mut batch = unsafe { Batch::record_into(chain.context(), cmd) };
         batch.progress = false;

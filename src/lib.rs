@@ -11,14 +11,14 @@
 //! ```no_run
 //! use std::sync::Arc;
 //! use mcdenoise::{AccumLayout, BufferSlice, Config, Denoiser, GpuContext, Method, Source};
-//! # fn demo(ctx: Arc<GpuContext>, cmd: ash::vk::CommandBuffer, host_buffer: ash::vk::Buffer)
-//! #     -> mcdenoise::Result<()> {
+//! # fn demo(ctx: Arc<GpuContext>, cmd: ash::vk::CommandBuffer, family: u32,
+//! #     host_buffer: ash::vk::Buffer) -> mcdenoise::Result<()> {
 //! // Once per image size and configuration:
 //! let layout = AccumLayout::new(256, 256, true, false); // position sums, no visibility
 //! let denoiser = Denoiser::new(&ctx, Source::Accum(layout), Config::new(Method::Wlr))?;
 //! // Every frame, into the host's command buffer (the host submits it):
 //! let accum = unsafe { BufferSlice::from_raw(host_buffer, 0, layout.bytes()) };
-//! let recorded = unsafe { denoiser.record_into(cmd, Some(accum), Some(65536))? };
+//! let recorded = unsafe { denoiser.record_into(cmd, family, Some(accum), Some(65536))? };
 //! // ... host submits `cmd` and waits for its fence ...
 //! drop(recorded);
 //! let out = denoiser.outputs()?; // colour, error, sample map: GPU buffers to bind

@@ -238,6 +238,15 @@ pub struct LpPush {
 }
 
 impl LpPush {
+    /// Rows the ring planes hold: [`LpPush::ring_rows`], 0 read as the
+    /// image's height, at most the height.
+    pub fn ring_len(&self) -> u32 {
+        match self.ring_rows {
+            0 => self.height,
+            r => r.min(self.height),
+        }
+    }
+
     /// The candidate grid of this pass (granularity `g`, 0 read as 1):
     /// `ceil((width−φx)/g) × ceil((height−φy)/g)`, cell `(gx, gy)` ↔ pixel
     /// `(φx + g·gx, φy + g·gy)`. `lp_centres` runs one invocation per cell.
@@ -524,6 +533,9 @@ pub const APR_EXTRA_PLANES: usize = 4;
 pub const APR_OUTPUTS: usize = 10;
 /// APR's output planes of an intermediate stage: `ŷ` R G B, `σ̂²` R G B.
 pub const APR_STAGE_OUTPUTS: usize = 6;
+
+/// f32 values per (block, channel) in APR's state buffer (13 vec4).
+pub const APR_STATE: usize = 52;
 
 /// APR's sparse centres' grid: `ceil(w/14) × ceil(h/14)`, cell `(gx, gy)` ↔
 /// pixel `(14 gx, 14 gy)`.

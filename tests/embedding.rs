@@ -442,7 +442,7 @@ fn host_records_a_method_chain(method: Method) {
     let submits = ctx.submit_count();
     let timings = host_submit_recorded(&h, |cmd| unsafe {
         vec![denoiser
-            .record_into(cmd, Some(accum), Some(budget))
+            .record_into(cmd, h.family, Some(accum), Some(budget))
             .unwrap()]
     });
     assert_eq!(ctx.submit_count(), submits, "recording must not submit");
@@ -544,8 +544,10 @@ fn two_configurations_in_one_command_buffer() {
     let accum = unsafe { BufferSlice::from_raw(accum_buf, 0, layout.bytes()) };
     host_submit_recorded(&h, |cmd| unsafe {
         vec![
-            a.record_into(cmd, Some(accum), Some(1000)).unwrap(),
-            b.record_into(cmd, Some(accum), Some(5000)).unwrap(),
+            a.record_into(cmd, h.family, Some(accum), Some(1000))
+                .unwrap(),
+            b.record_into(cmd, h.family, Some(accum), Some(5000))
+                .unwrap(),
         ]
     });
     for (d, cfg, budget) in [(&a, &a_cfg, 1000), (&b, &b_cfg, 5000)] {
@@ -577,7 +579,9 @@ fn buffers_outlive_a_dropped_denoiser_until_the_work_completes() {
     let accum = unsafe { BufferSlice::from_raw(accum_buf, 0, layout.bytes()) };
     host_submit_recorded(&h, |cmd| unsafe {
         let d = Denoiser::new(&ctx, Source::Accum(layout), Config::new(Method::Wlr)).unwrap();
-        let r = d.record_into(cmd, Some(accum), Some(100)).unwrap();
+        let r = d
+            .record_into(cmd, h.family, Some(accum), Some(100))
+            .unwrap();
         drop(d); // before the host's submit
         vec![r]
     });
@@ -594,10 +598,11 @@ fn host_discard_recorded(h: &Host, record: impl FnOnce(vk::CommandBuffer)) {
     unsafe { h.device.destroy_command_pool(pool, None) };
 }
 
-/// An error from `record_into` (a wrongly sized host range, or an output
-/// slice of a dropped denoiser bound in a later batch) is an error, never
-/// an out-of-bounds or destroyed binding; the host discards its command
-/// buffer and the denoiser and context stay usable.
+/// An error from `record_into` (a wrongly sized host range, a command buffer
+/// of another queue family, or an output slice of a dropped denoiser bound
+/// in a later batch) is an error, never an out-of-bounds or destroyed
+/// binding; the host discards its command buffer and the denoiser and
+/// context stay usable.
 #[test]
 fn a_failed_recording_is_discarded_and_the_context_stays_usable() {
     let h = host();
@@ -607,12 +612,23 @@ fn a_failed_recording_is_discarded_and_the_context_stays_usable() {
     let d = Denoiser::new(&ctx, Source::Accum(layout), Config::new(Method::Wlr)).unwrap();
     let short = unsafe { BufferSlice::from_raw(accum_buf, 0, layout.bytes() - 4) };
     host_discard_recorded(&h, |cmd| unsafe {
-        assert!(d.record_into(cmd, Some(short), None).is_err());
+        assert!(d.record_into(cmd, h.family, Some(short), None).is_err());
+    });
+    // A command buffer of another queue family than the context's, whose
+    // buffers it owns, is refused before anything is recorded.
+    let accum = unsafe { BufferSlice::from_raw(accum_buf, 0, layout.bytes()) };
+    host_discard_recorded(&h, |cmd| unsafe {
+        let e = d
+            .record_into(cmd, h.family + 1, Some(accum), None)
+            .err()
+            .unwrap();
+        assert!(e.to_string().contains("queue family"), "{e}");
     });
     // The same denoiser records and runs afterwards.
-    let accum = unsafe { BufferSlice::from_raw(accum_buf, 0, layout.bytes()) };
     host_submit_recorded(&h, |cmd| unsafe {
-        vec![d.record_into(cmd, Some(accum), Some(100)).unwrap()]
+        vec![d
+            .record_into(cmd, h.family, Some(accum), Some(100))
+            .unwrap()]
     });
     assert_eq!(d.read().unwrap().samples.unwrap().iter().sum::<u32>(), 100);
 
@@ -648,4 +664,81 @@ fn a_failed_recording_is_discarded_and_the_context_stays_usable() {
     drop((buf, other));
     drop(ctx);
     host_teardown(h, accum_buf, accum_mem);
+}
+
+/// Every public kernel `record` checks its bindings' sizes against the
+/// dispatch before anything is recorded: a plane of the image one value
+/// short (checked by the batch from the declaration), and sizes only the
+/// kernel knows (a queue, a counter block, a state ring), are errors that
+/// name the kernel and the binding.
+#[test]
+fn short_bindings_are_refused_before_recording() {
+    use mcdenoise::gpu::{GpuBuffer, Precision};
+    use mcdenoise::kernels::{channel_mean, lp_select, sanitize, wlr_fit};
+    use mcdenoise::shared::{LpPush, SanitizePush};
+    let ctx = common::gpu();
+    let (w, h) = (16u32, 8u32);
+    let bytes = 4 * (w * h) as u64;
+    let buf = |n: u64| GpuBuffer::new(&ctx, "short", n).unwrap();
+    let (a, b, c) = (buf(bytes), buf(bytes), buf(bytes));
+    let (full, short) = (buf(bytes), buf(bytes - 4));
+    let fails = |r: mcdenoise::Result<()>, what: &str| {
+        let e = r.err().unwrap_or_else(|| panic!("{what}: no error"));
+        assert!(e.to_string().contains(what), "{what}: {e}");
+    };
+    let mut batch = Batch::new(&ctx).unwrap();
+    let planes = [a.slice(), b.slice(), c.slice()];
+    channel_mean::record(&mut batch, Precision::F32, w, h, planes, full.slice()).unwrap();
+    let r = channel_mean::record(&mut batch, Precision::F32, w, h, planes, short.slice());
+    fails(r, "channel_mean binding 3 (out)");
+    // Sanitation's four counters.
+    let push = SanitizePush {
+        width: w,
+        height: h,
+        ..Default::default()
+    };
+    let five = [a.slice(), b.slice(), c.slice(), full.slice(), a.slice()];
+    let counters = buf(12);
+    let r = sanitize::record(&mut batch, Precision::F32, push, five, counters.slice());
+    fails(r, "binding 5 (counters)");
+    // LP's selection queue: a header and one entry per candidate.
+    let push = LpPush {
+        width: w,
+        height: h,
+        granularity: 1,
+        ..Default::default()
+    };
+    let reach = buf(bytes);
+    let queue = buf(4 * (4 + (w * h) as u64) - 4);
+    let r = lp_select::record(
+        &mut batch,
+        Precision::F32,
+        &push,
+        a.slice(),
+        reach.slice(),
+        queue.slice(),
+        (0, h),
+    );
+    fails(r, "lp_select binding 2 (queue)");
+    // WLR's centre state ring: `ring_rows` rows of STATE_WORDS per pixel.
+    let packed = [0; 4].map(|_| buf(4 * bytes));
+    let out = [0; 8].map(|_| buf(bytes));
+    let ring = 8;
+    let state = buf(ring as u64 * w as u64 * wlr_fit::STATE_WORDS as u64 * 4 - 4);
+    let r = wlr_fit::record(
+        &mut batch,
+        Precision::F32,
+        (w, h),
+        (0, h),
+        (2, 0),
+        packed.each_ref().map(|p| p.slice()),
+        planes,
+        a.slice(),
+        b.slice(),
+        out.each_ref().map(|p| p.slice()),
+        (state.slice(), ring),
+    );
+    fails(r, "wlr_fit binding 17 (state)");
+    batch.finish().unwrap();
+    common::check_validation(&ctx);
 }

@@ -543,6 +543,10 @@ pub unsafe extern "C" fn mcd_denoiser_destroy(denoiser: *mut McdDenoiser) {
 /// submitted. The work starts with a barrier after every earlier command of
 /// `cmd` and ends with one before every later command.
 ///
+/// `queue_family` is the family of the pool `cmd` came from; one other than
+/// the context's is `MCD_STATUS_INVALID_ARGUMENT` before anything is recorded (the
+/// denoiser's buffers belong to the context's family).
+///
 /// On success `*out` holds a recording the host releases
 /// ([`mcd_recording_release`]) once the submission of `cmd` completed (or
 /// if `cmd` is never submitted). On failure the host must discard `cmd`
@@ -550,7 +554,7 @@ pub unsafe extern "C" fn mcd_denoiser_destroy(denoiser: *mut McdDenoiser) {
 ///
 /// # Safety
 /// `denoiser` is live; `cmd` belongs to the context's device, comes from a
-/// pool of the context's queue family, is recording and outside a render
+/// pool of queue family `queue_family`, is recording and outside a render
 /// pass; `accum` is a buffer of that device with storage-buffer and
 /// transfer-source usage (finalisation copies its count plane) and at least `accum_offset + mcd_accum_bytes(layout)` bytes, not written by
 /// other work while this work runs; `out` is valid for a write. No other
@@ -559,6 +563,7 @@ pub unsafe extern "C" fn mcd_denoiser_destroy(denoiser: *mut McdDenoiser) {
 pub unsafe extern "C" fn mcd_denoiser_record(
     denoiser: *const McdDenoiser,
     cmd: VkCommandBuffer,
+    queue_family: u32,
     accum: VkBuffer,
     accum_offset: u64,
     sample_budget: u32,
@@ -575,7 +580,10 @@ pub unsafe extern "C" fn mcd_denoiser_record(
         let slice = unsafe { BufferSlice::from_raw(accum, accum_offset, d.layout.bytes()) };
         let budget = (sample_budget > 0).then_some(sample_budget);
         // SAFETY: forwarded to the caller (record_into's contract).
-        let recorded = unsafe { d.denoiser.record_into(cmd, Some(slice), budget) }?;
+        let recorded = unsafe {
+            d.denoiser
+                .record_into(cmd, queue_family, Some(slice), budget)
+        }?;
         let handle = Box::into_raw(Box::new(McdRecording {
             _recorded: recorded,
         }));

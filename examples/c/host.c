@@ -336,7 +336,7 @@ int main(int argc, char **argv)
         /* mcdenoise's chain into the same command buffer (it brings its own
          * barriers): a sample map for the next pass after pass 0. */
         McdRecording *recording = NULL;
-        if (mcd_denoiser_record(denoiser, cmd, accum, 0, pass == 0 ? BUDGET : 0, &recording) !=
+        if (mcd_denoiser_record(denoiser, cmd, family, accum, 0, pass == 0 ? BUDGET : 0, &recording) !=
             MCD_STATUS_OK) {
             fprintf(stderr, "mcdenoise: %s\n", mcd_last_error());
             return 1; /* the command buffer is discarded, never submitted */

@@ -23,7 +23,7 @@ use ash::vk;
 use super::buffer::BufferSlice;
 use super::context::{GpuContext, Lost};
 use super::pipeline::Pipeline;
-use super::reflect::{KernelDecl, Precision};
+use super::reflect::{Extent, KernelDecl, Precision};
 use crate::error::{Error, Result};
 use crate::fault::{self, Call, Object};
 
@@ -1071,7 +1071,19 @@ fn check_bindings(
     }
     let limit = ctx.info.max_storage_buffer_range as u64;
     let align = ctx.info.min_storage_buffer_offset_alignment.max(1);
-    for (i, b) in bindings.iter().enumerate() {
+    let word = |at: usize| u32::from_le_bytes(push[at..at + 4].try_into().unwrap()) as u64;
+    let (width, height) = (word(0), word(4));
+    for (i, (b, d)) in bindings.iter().zip(decl.bindings).enumerate() {
+        if let Extent::Planes(n) = d.extent {
+            let need = 4 * n as u64 * width * height;
+            if b.size < need {
+                return Err(Error::InvalidArgument(format!(
+                    "kernel {} binding {i} ({}) holds {} bytes; {n} plane(s) of {width}×{height} \
+                     need {need}",
+                    decl.name, d.name, b.size
+                )));
+            }
+        }
         if b.size > limit {
             return Err(Error::Limit(format!(
                 "kernel {} binding {i} ({}) is {} bytes; maxStorageBufferRange is {limit}",

@@ -6,6 +6,7 @@
 //! push-constant size disagree. The workgroup size used for dispatch comes from
 //! the reflection, never from a second copy of it.
 
+use super::buffer::BufferSlice;
 use crate::error::{Error, Result};
 
 /// Storage access of one binding, as the shader declares it.
@@ -25,6 +26,41 @@ pub struct BindingDecl {
     pub name: &'static str,
     /// Whether the shader only reads the buffer or also writes it.
     pub access: Access,
+    /// What the bound range must hold; checked before a dispatch is recorded.
+    pub extent: Extent,
+}
+
+/// How many bytes a binding must hold for a dispatch. [`Batch`](super::Batch)
+/// checks [`Extent::Planes`] itself, before anything is recorded; a kernel's
+/// `record` checks [`Extent::Record`] bindings with
+/// [`Batch::require`](super::Batch::require).
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum Extent {
+    /// `n` planes of 4-byte values (f32 or u32) of the image the push
+    /// constants name (their first two u32: width, height): at least
+    /// `4·n·width·height` bytes.
+    Planes(u32),
+    /// Sized by something else (a band of rows, a queue, a tree, a scene
+    /// table): the kernel's `record` checks it.
+    Record,
+}
+
+impl BindingDecl {
+    /// This binding holds `n` planes of the image ([`Extent::Planes`]).
+    pub const fn planes(self, n: u32) -> BindingDecl {
+        BindingDecl {
+            extent: Extent::Planes(n),
+            ..self
+        }
+    }
+    /// This binding's size is checked by the kernel's `record`
+    /// ([`Extent::Record`]).
+    pub const fn sized_by_record(self) -> BindingDecl {
+        BindingDecl {
+            extent: Extent::Record,
+            ..self
+        }
+    }
 }
 
 /// What the host knows about a kernel: its name (= `spirv/<name>.comp`), its
@@ -41,19 +77,22 @@ pub struct KernelDecl {
     pub push_size: u32,
 }
 
-/// A [`BindingDecl`] the kernel only reads ([`Access::Read`]); with [`fn@write`],
-/// the shorthand of the binding tables.
+/// A [`BindingDecl`] the kernel only reads ([`Access::Read`]), one plane of
+/// the image; with [`fn@write`], the shorthand of the binding tables.
 pub const fn read(name: &'static str) -> BindingDecl {
     BindingDecl {
         name,
         access: Access::Read,
+        extent: Extent::Planes(1),
     }
 }
-/// A [`BindingDecl`] the kernel writes ([`Access::ReadWrite`]).
+/// A [`BindingDecl`] the kernel writes ([`Access::ReadWrite`]), one plane
+/// of the image.
 pub const fn write(name: &'static str) -> BindingDecl {
     BindingDecl {
         name,
         access: Access::ReadWrite,
+        extent: Extent::Planes(1),
     }
 }
 
@@ -224,6 +263,21 @@ pub fn reflect(kernel: &str, words: &[u32]) -> Result<Reflection> {
 }
 
 impl KernelDecl {
+    /// `Err` unless `slice`, bound at `index`, holds at least `bytes`: how a
+    /// kernel's `record` checks a binding declared [`Extent::Record`]
+    /// before anything is recorded.
+    pub fn require(&self, index: usize, slice: &BufferSlice, bytes: u64) -> Result<()> {
+        if slice.size < bytes {
+            return Err(Error::InvalidArgument(format!(
+                "kernel {} binding {index} ({}) holds {} bytes; this dispatch needs {bytes}",
+                self.name,
+                self.bindings.get(index).map_or("?", |b| b.name),
+                slice.size
+            )));
+        }
+        Ok(())
+    }
+
     /// Reflects the kernel's `precision` variant and compares it with this
     /// declaration. Returns the reflection (for the workgroup size).
     pub fn check(&self, precision: Precision) -> Result<Reflection> {

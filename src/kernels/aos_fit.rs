@@ -7,7 +7,7 @@
 use crate::error::Result;
 use crate::gpu::reflect::{read, write};
 use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};
-use crate::shared::AosPush;
+use crate::shared::{AosPush, AOS_SPACE as SPACE};
 pub use crate::shared::{
     AOS_DEBUG_NAMES as DEBUG_NAMES, AOS_MAX_COLS as MAX_COLS, AOS_OUTPUTS as OUTPUTS,
 };
@@ -33,7 +33,7 @@ pub const DECL: KernelDecl = KernelDecl {
         read("color_b"),
         read("vbar"),
         read("spp"),
-        read("space"),
+        read("space").sized_by_record(),
         read("var_depth"),
         read("var_albedo_r"),
         read("var_albedo_g"),
@@ -42,7 +42,7 @@ pub const DECL: KernelDecl = KernelDecl {
         read("var_normal_y"),
         read("var_normal_z"),
         read("var_visibility"),
-        write("dst"),
+        write("dst").sized_by_record(),
     ],
     push_size: std::mem::size_of::<AosPush>() as u32,
 };
@@ -133,6 +133,13 @@ pub fn record(
     dst: BufferSlice,
     rank: f64,
 ) -> Result<()> {
+    let (w, pixels) = (push.width as u64, push.width as u64 * push.height as u64);
+    DECL.require(13, &space, 4 * SPACE as u64 * w * rows as u64)?;
+    DECL.require(
+        22,
+        &dst,
+        4 * ((OUTPUTS as u64 - 1) * push.stride as u64 + pixels),
+    )?;
     let mut b = Vec::with_capacity(DECL.bindings.len());
     b.extend_from_slice(feats);
     b.extend_from_slice(&color);

@@ -20,7 +20,7 @@ pub const DECL: KernelDecl = KernelDecl {
         read("vg1"),
         read("vg2"),
         read("spp"),
-        write("dst"),
+        write("dst").sized_by_record(),
     ],
     push_size: std::mem::size_of::<AosPush>() as u32,
 };
@@ -50,6 +50,10 @@ pub fn record(
     spp: BufferSlice,
     dst: BufferSlice,
 ) -> Result<()> {
+    // The smoothed channels and their variances, `stride` words apart.
+    let planes = 2 * push.channels.max(1) as u64 - 1;
+    let pixels = push.width as u64 * push.height as u64;
+    DECL.require(7, &dst, 4 * (planes * push.stride as u64 + pixels))?;
     let size = (push.width, push.height);
     let groups: [&[BufferSlice]; 3] = [&g, &vg, &[spp, dst]];
     let flops = flops_per_pixel(push.channels);

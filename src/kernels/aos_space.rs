@@ -31,7 +31,7 @@ pub const DECL: KernelDecl = KernelDecl {
         read("var_normal_z"),
         read("var_visibility"),
         read("spp"),
-        write("space"),
+        write("space").sized_by_record(),
     ],
     push_size: std::mem::size_of::<AosPush>() as u32,
 };
@@ -47,7 +47,8 @@ pub fn flops_per_pixel(radius: u32) -> f64 {
 
 /// Records the local spaces of rows `push.base_row + [0, rows)`;
 /// `feats`/`vars`: depth, albedo rgb, normal xyz, visibility; `space` holds
-/// `rows × width × SPACE` f32.
+/// `rows × width × SPACE` f32, `rows` rounded up to whole workgroups of 8
+/// rows unless the band ends at the image's last row.
 pub fn record(
     batch: &mut Batch,
     precision: Precision,
@@ -58,6 +59,16 @@ pub fn record(
     spp: BufferSlice,
     space: BufferSlice,
 ) -> Result<()> {
+    // The band's projections from `base_row`: whole workgroups of 8 rows,
+    // clipped to the image.
+    let band = rows
+        .next_multiple_of(8)
+        .min(push.height.saturating_sub(push.base_row));
+    DECL.require(
+        17,
+        &space,
+        4 * (SPACE as u64) * push.width as u64 * band as u64,
+    )?;
     let groups: [&[BufferSlice]; 3] = [feats, vars, &[spp, space]];
     let flops = flops_per_pixel(push.radius);
     super::dispatch_groups(

@@ -12,7 +12,9 @@ use crate::error::Result;
 use crate::gpu::reflect::{read, write};
 use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision, QUEUE_HEADER_WORDS};
 use crate::shared::AprPush;
-use crate::shared::{apr_grid as grid, APR_P as P, APR_RADIUS as RADIUS};
+use crate::shared::{
+    apr_grid as grid, APR_EXTRA_PLANES, APR_P as P, APR_RADIUS as RADIUS, APR_STATE,
+};
 
 /// Declaration of `spirv/apr_block.comp`; checked against the SPIR-V by
 /// reflection.
@@ -23,12 +25,12 @@ pub const DECL: KernelDecl = KernelDecl {
         read("v"),
         read("yprev"),
         read("s2prev"),
-        read("features_a"),
-        read("features_b"),
+        read("features_a").planes(4),
+        read("features_b").planes(4),
         read("spp"),
-        write("state"),
-        write("extra"),
-        write("queue"),
+        write("state").sized_by_record(),
+        write("extra").sized_by_record(),
+        write("queue").sized_by_record(),
     ],
     push_size: std::mem::size_of::<AprPush>() as u32,
 };
@@ -133,6 +135,23 @@ pub fn record(
     let mut b = vec![ch.y, ch.v, ch.yprev, ch.s2prev];
     b.extend_from_slice(feats);
     b.extend([spp, state, extra, queue]);
+    let (w, h) = (push.width as u64, push.height as u64);
+    if push.mode == 0 {
+        // The block states of channels 0..=channel.
+        let (gw, gh) = grid(push.width as usize, push.height as usize);
+        let cells = (gw * gh) as u64;
+        DECL.require(
+            7,
+            &state,
+            4 * (APR_STATE as u64) * (push.channel as u64 + 1) * cells,
+        )?;
+    } else {
+        // This channel's extra-block planes (`stride` words apart) and the
+        // queue of every pixel.
+        let planes = APR_EXTRA_PLANES as u64 * push.channel as u64 + 3;
+        DECL.require(8, &extra, 4 * (planes * push.stride as u64 + w * h))?;
+        DECL.require(9, &queue, 4 * queue_words(w as usize, h as usize) as u64)?;
+    }
     let push_bytes = bytemuck::bytes_of(push);
     if push.mode == 0 {
         // APR-LINEAR-BLOCKS: the blocks in raster order on a grid 8 wide.

@@ -8,7 +8,7 @@
 use crate::error::Result;
 use crate::gpu::reflect::{read, write};
 use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};
-use crate::shared::AprPush;
+use crate::shared::{AprPush, APR_EXTRA_PLANES, APR_OUTPUTS, APR_STAGE_OUTPUTS, APR_STATE};
 pub use crate::shared::{
     APR_EXTRA_PLANES as EXTRA_PLANES, APR_OUTPUTS as OUTPUTS, APR_STAGE_OUTPUTS as STAGE_OUTPUTS,
 };
@@ -24,12 +24,12 @@ pub const DECL: KernelDecl = KernelDecl {
         read("var_r"),
         read("var_g"),
         read("var_b"),
-        read("features_a"),
-        read("features_b"),
+        read("features_a").planes(4),
+        read("features_b").planes(4),
         read("spp"),
-        read("state"),
-        read("extra"),
-        write("dst"),
+        read("state").sized_by_record(),
+        read("extra").sized_by_record(),
+        write("dst").sized_by_record(),
     ],
     push_size: std::mem::size_of::<AprPush>() as u32,
 };
@@ -51,6 +51,19 @@ pub fn record(
     extra: BufferSlice,
     dst: BufferSlice,
 ) -> Result<()> {
+    let (w, h) = (push.width as usize, push.height as usize);
+    let (gw, gh) = crate::shared::apr_grid(w, h);
+    let (pixels, stride) = ((w * h) as u64, push.stride as u64);
+    // The three channels' block states, extra planes and the outputs.
+    DECL.require(9, &state, 4 * (3 * APR_STATE * gw * gh) as u64)?;
+    let extra_planes = 3 * APR_EXTRA_PLANES as u64 - 1;
+    DECL.require(10, &extra, 4 * (extra_planes * stride + pixels))?;
+    let outputs = if push.last != 0 {
+        APR_OUTPUTS
+    } else {
+        APR_STAGE_OUTPUTS
+    } as u64;
+    DECL.require(11, &dst, 4 * ((outputs - 1) * stride + pixels))?;
     let size = (push.width, push.height);
     let groups: [&[BufferSlice]; 4] = [&color, &var, feats, &[spp, state, extra, dst]];
     let flops = FLOPS_PER_PIXEL;

@@ -19,8 +19,8 @@ pub const DECL: KernelDecl = KernelDecl {
         read("albedo_b"),
         read("depth"),
         read("visibility"),
-        write("features_a"),
-        write("features_b"),
+        write("features_a").planes(4),
+        write("features_b").planes(4),
     ],
     push_size: std::mem::size_of::<AprPush>() as u32,
 };

@@ -23,10 +23,10 @@ pub const DECL: KernelDecl = KernelDecl {
         read("inv_yz"),
         read("inv_zz"),
         read("hbar"),
-        read("features_a"),
-        read("features_b"),
-        read("variances_a"),
-        read("variances_b"),
+        read("features_a").sized_by_record(),
+        read("features_b").sized_by_record(),
+        read("variances_a").sized_by_record(),
+        read("variances_b").sized_by_record(),
         write("out0"),
         write("out1"),
         write("out2"),
@@ -97,6 +97,18 @@ pub fn record(
              image's height)",
             8 * r
         )));
+    }
+    // The packed planes hold the rows from `base` (at most 3 above the
+    // first filtered row) to 3 below the last (the 7×7 window).
+    if base > rows.0.saturating_sub(3) {
+        return Err(Error::InvalidArgument(format!(
+            "gbf_filter: packed rows start at {base}, after row {} of the first window",
+            rows.0.saturating_sub(3)
+        )));
+    }
+    let packed_bytes = 16 * width as u64 * ((rows.1 + 3).min(height).saturating_sub(base)) as u64;
+    for (k, p) in packed.iter().enumerate() {
+        DECL.require(10 + k, p, packed_bytes)?;
     }
     let grid = (rows.0 / r, rows.1.div_ceil(r));
     batch.dispatch_rows(

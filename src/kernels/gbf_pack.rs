@@ -11,25 +11,25 @@ use crate::shared::GbfPush;
 pub const DECL: KernelDecl = KernelDecl {
     name: "gbf_pack",
     bindings: &[
-        read("feature0"),
-        read("feature1"),
-        read("feature2"),
-        read("feature3"),
-        read("feature4"),
-        read("feature5"),
-        read("feature6"),
-        read("var_feature0"),
-        read("var_feature1"),
-        read("var_feature2"),
-        read("var_feature3"),
-        read("var_feature4"),
-        read("var_feature5"),
-        read("var_feature6"),
-        read("spp"),
-        write("features_a"),
-        write("features_b"),
-        write("variances_a"),
-        write("variances_b"),
+        read("feature0").sized_by_record(),
+        read("feature1").sized_by_record(),
+        read("feature2").sized_by_record(),
+        read("feature3").sized_by_record(),
+        read("feature4").sized_by_record(),
+        read("feature5").sized_by_record(),
+        read("feature6").sized_by_record(),
+        read("var_feature0").sized_by_record(),
+        read("var_feature1").sized_by_record(),
+        read("var_feature2").sized_by_record(),
+        read("var_feature3").sized_by_record(),
+        read("var_feature4").sized_by_record(),
+        read("var_feature5").sized_by_record(),
+        read("var_feature6").sized_by_record(),
+        read("spp").sized_by_record(),
+        write("features_a").sized_by_record(),
+        write("features_b").sized_by_record(),
+        write("variances_a").sized_by_record(),
+        write("variances_b").sized_by_record(),
     ],
     push_size: std::mem::size_of::<GbfPush>() as u32,
 };
@@ -74,6 +74,11 @@ pub fn record(
             short.size()
         )));
     }
+    // Each packed output holds a vec4 per pixel of `rows`, from `first`.
+    let packed_bytes = 16 * width as u64 * end.saturating_sub(first) as u64;
+    for (k, p) in packed.iter().enumerate() {
+        DECL.require(15 + k, p, packed_bytes)?;
+    }
     // Push `height`: the end of the rows packed (see the shader).
     let push = GbfPush {
         width,
@@ -94,7 +99,10 @@ pub fn record(
         &b,
         bytemuck::bytes_of(&push),
         w4,
-        ((first, first + quad_rows(end - first)), quad_rows(height)),
+        (
+            (first, first + quad_rows(end.saturating_sub(first))),
+            quad_rows(height),
+        ),
         flops_per_pixel() * 4.0,
     )
 }

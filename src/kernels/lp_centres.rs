@@ -21,26 +21,26 @@ use crate::shared::LpPush;
 pub const DECL: KernelDecl = KernelDecl {
     name: "lp_centres",
     bindings: &[
-        read("features_a"),
-        read("features_b"),
-        read("variances_a"),
-        read("variances_b"),
+        read("features_a").planes(4),
+        read("features_b").planes(4),
+        read("variances_a").planes(4),
+        read("variances_b").planes(4),
         read("color_r"),
         read("color_g"),
         read("color_b"),
         read("var_color_r"),
         read("var_color_g"),
         read("var_color_b"),
-        read("queue"),
-        write("state0"),
-        write("state1"),
-        write("state2"),
-        write("state3"),
-        write("state4"),
-        write("state5"),
-        write("state6"),
-        write("state7"),
-        write("state8"),
+        read("queue").sized_by_record(),
+        write("state0").planes(4),
+        write("state1").sized_by_record(),
+        write("state2").sized_by_record(),
+        write("state3").sized_by_record(),
+        write("state4").sized_by_record(),
+        write("state5").sized_by_record(),
+        write("state6").sized_by_record(),
+        write("state7").sized_by_record(),
+        write("state8").sized_by_record(),
     ],
     push_size: std::mem::size_of::<LpPush>() as u32,
 };
@@ -134,6 +134,7 @@ pub fn record(
     b.extend_from_slice(&inp.cvar);
     b.push(queue);
     b.extend_from_slice(&state);
+    super::lp_gather::require_ring(&DECL, 12, push, &state)?;
     let (gw, gh) = push.centre_grid();
     let (first, end) = rows.unwrap_or((0, gh));
     let end = end.min(gh);

@@ -23,10 +23,10 @@ use crate::shared::LpPush;
 pub const DECL: KernelDecl = KernelDecl {
     name: "lp_gather",
     bindings: &[
-        read("features_a"),
-        read("features_b"),
-        read("variances_a"),
-        read("variances_b"),
+        read("features_a").planes(4),
+        read("features_b").planes(4),
+        read("variances_a").planes(4),
+        read("variances_b").planes(4),
         read("color_r"),
         read("color_g"),
         read("color_b"),
@@ -34,16 +34,16 @@ pub const DECL: KernelDecl = KernelDecl {
         read("var_color_g"),
         read("var_color_b"),
         read("spp"),
-        read("state0"),
-        read("state1"),
-        read("state2"),
-        read("state3"),
-        read("state4"),
-        read("state5"),
-        read("state6"),
-        read("state7"),
-        read("state8"),
-        write("out"),
+        read("state0").planes(4),
+        read("state1").sized_by_record(),
+        read("state2").sized_by_record(),
+        read("state3").sized_by_record(),
+        read("state4").sized_by_record(),
+        read("state5").sized_by_record(),
+        read("state6").sized_by_record(),
+        read("state7").sized_by_record(),
+        read("state8").sized_by_record(),
+        write("out").sized_by_record(),
     ],
     push_size: std::mem::size_of::<LpPush>() as u32,
 };
@@ -94,6 +94,10 @@ pub fn record(
     out: BufferSlice,
     rows: (u32, u32),
 ) -> Result<()> {
+    require_ring(&DECL, 12, push, &state)?;
+    // Eleven planes `out_stride` words apart (the last always written).
+    let pixels = push.width as u64 * push.height as u64;
+    DECL.require(20, &out, 4 * (10 * push.out_stride as u64 + pixels))?;
     let mut b = Vec::with_capacity(DECL.bindings.len());
     b.extend_from_slice(&inp.packed);
     b.extend_from_slice(&inp.color);
@@ -110,4 +114,19 @@ pub fn record(
         (rows, push.height),
         flops_per_pixel(),
     )
+}
+
+/// Checks LP's state planes 1..8 (bound from binding `first`): a ring of
+/// [`LpPush::ring_len`] rows of one vec4 per pixel each.
+pub(super) fn require_ring(
+    decl: &KernelDecl,
+    first: usize,
+    push: &LpPush,
+    state: &[BufferSlice; 9],
+) -> Result<()> {
+    let bytes = 16 * push.width as u64 * push.ring_len() as u64;
+    for (k, s) in state[1..].iter().enumerate() {
+        decl.require(first + k, s, bytes)?;
+    }
+    Ok(())
 }

@@ -12,7 +12,7 @@ use crate::shared::LpPush;
 /// size of [`LpPush`]; checked against the SPIR-V by reflection.
 pub const DECL: KernelDecl = KernelDecl {
     name: "lp_reach",
-    bindings: &[read("state0"), write("reach")],
+    bindings: &[read("state0").planes(4), write("reach").sized_by_record()],
     push_size: std::mem::size_of::<LpPush>() as u32,
 };
 
@@ -53,6 +53,7 @@ pub fn record(
     reach: BufferSlice,
     rows: (u32, u32),
 ) -> Result<()> {
+    DECL.require(1, &reach, 4 * push.width as u64 * push.ring_len() as u64)?;
     let cols = columns(push, push.width).count() as u32;
     batch.dispatch_rows(
         &DECL,

@@ -14,7 +14,11 @@ use crate::shared::LpPush;
 /// the size of [`LpPush`]; checked against the SPIR-V by reflection.
 pub const DECL: KernelDecl = KernelDecl {
     name: "lp_select",
-    bindings: &[read("spp"), read("reach"), write("queue")],
+    bindings: &[
+        read("spp"),
+        read("reach").sized_by_record(),
+        write("queue").sized_by_record(),
+    ],
     push_size: std::mem::size_of::<LpPush>() as u32,
 };
 
@@ -42,8 +46,12 @@ pub fn record(
     queue: BufferSlice,
     rows: (u32, u32),
 ) -> Result<()> {
-    batch.reset_queue(queue)?;
     let (gw, gh) = push.centre_grid();
+    DECL.require(1, &reach, 4 * push.width as u64 * push.ring_len() as u64)?;
+    // The header and every candidate of the band's grid rows.
+    let candidates = gw as u64 * rows.1.min(gh).saturating_sub(rows.0) as u64;
+    DECL.require(2, &queue, 4 * (QUEUE_HEADER_WORDS as u64 + candidates))?;
+    batch.reset_queue(queue)?;
     batch.dispatch_rows(
         &DECL,
         precision,

@@ -27,7 +27,7 @@ pub const DECL: KernelDecl = KernelDecl {
         read("xn"),
         read("xm"),
         read("xq"),
-        write("queue"),
+        write("queue").sized_by_record(),
     ],
     push_size: std::mem::size_of::<OutlierPush>() as u32,
 };
@@ -64,6 +64,8 @@ pub fn record(
     excess: [BufferSlice; 3],
     queue: BufferSlice,
 ) -> Result<()> {
+    let words = queue_words(push.width as usize, push.height as usize);
+    DECL.require(14, &queue, 4 * words as u64)?;
     batch.reset_queue(queue)?;
     for plane in excess {
         batch.fill(plane, 0);

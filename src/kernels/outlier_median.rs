@@ -22,7 +22,7 @@ pub const DECL: KernelDecl = KernelDecl {
         write("vg"),
         write("vb"),
         read("keys"),
-        read("queue"),
+        read("queue").sized_by_record(),
         write("out_r"),
         write("out_g"),
         write("out_b"),
@@ -105,6 +105,8 @@ pub fn record(
         ),
         Step::Apply => (OUTLIER_APPLY, 1.0, 52.0),
     };
+    let words = super::outlier_detect::queue_words(push.width as usize, push.height as usize);
+    DECL.require(7, &queue, 4 * words as u64)?;
     let push = OutlierPush { mode, ..*push };
     let groups: [&[BufferSlice]; 5] = [&color, &var, &[keys, queue], &out, &excess];
     super::dispatch_queued(batch, &DECL, precision, &push, &groups, queue, flops, bytes)

@@ -25,7 +25,7 @@ pub const DECL: KernelDecl = KernelDecl {
         write("add_r"),
         write("add_g"),
         write("add_b"),
-        read("queue"),
+        read("queue").sized_by_record(),
     ],
     push_size: std::mem::size_of::<OutlierPush>() as u32,
 };
@@ -54,6 +54,8 @@ pub fn record(
     queue: BufferSlice,
     out: [BufferSlice; 6],
 ) -> Result<()> {
+    let words = super::outlier_detect::queue_words(push.width as usize, push.height as usize);
+    DECL.require(13, &queue, 4 * words as u64)?;
     for plane in out {
         batch.fill(plane, 0);
     }

@@ -14,7 +14,11 @@ use crate::shared::SampleTreePush;
 /// the size of [`SampleTreePush`]; checked against the SPIR-V by reflection.
 pub const DECL: KernelDecl = KernelDecl {
     name: "sample_reduce",
-    bindings: &[read("r"), read("spp"), write("tree")],
+    bindings: &[
+        read("r").sized_by_record(),
+        read("spp").sized_by_record(),
+        write("tree").sized_by_record(),
+    ],
     push_size: std::mem::size_of::<SampleTreePush>() as u32,
 };
 
@@ -66,6 +70,22 @@ pub fn record(
     tree: BufferSlice,
 ) -> Result<()> {
     let push = with_grid(push);
+    let (n, blocks) = (push.n as u64, push.n.div_ceil(BLOCK) as u64);
+    if n > 0 {
+        // Leaf modes read r and spp; inner ones read the level below.
+        let leaf = matches!(push.mode, MODE_LEAF_MAX | MODE_LEAF_Q | MODE_LEAF_U);
+        let words = if leaf { n } else { 0 };
+        DECL.require(0, &r, 4 * words)?;
+        DECL.require(1, &spp, 4 * words)?;
+        let mut entries = push.dst_off as u64 + blocks;
+        match push.mode {
+            MODE_MAX | MODE_SUM => entries = entries.max(push.src_off as u64 + n),
+            MODE_LEAF_Q => entries = entries.max(push.max_off as u64 + 1),
+            MODE_LEAF_U => entries = entries.max(push.max_off.max(push.s_off) as u64 + 1),
+            _ => {}
+        }
+        DECL.require(2, &tree, 8 * entries)?;
+    }
     batch.dispatch(
         &DECL,
         Precision::F32,

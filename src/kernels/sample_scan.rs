@@ -15,7 +15,12 @@ use crate::shared::SampleTreePush;
 /// the size of [`SampleTreePush`]; checked against the SPIR-V by reflection.
 pub const DECL: KernelDecl = KernelDecl {
     name: "sample_scan",
-    bindings: &[read("r"), read("spp"), write("tree"), write("counts")],
+    bindings: &[
+        read("r").sized_by_record(),
+        read("spp").sized_by_record(),
+        write("tree").sized_by_record(),
+        write("counts").sized_by_record(),
+    ],
     push_size: std::mem::size_of::<SampleTreePush>() as u32,
 };
 
@@ -36,6 +41,28 @@ pub fn record(
     counts: BufferSlice,
 ) -> Result<()> {
     let push = with_grid(push);
+    let (n, blocks) = (
+        push.n as u64,
+        push.n.div_ceil(super::sample_reduce::BLOCK) as u64,
+    );
+    if n > 0 {
+        // The leaf mode reads r and spp and writes the counts; the inner
+        // one scans a level of the tree.
+        let leaf = push.mode == MODE_LEAF;
+        let words = if leaf { n } else { 0 };
+        DECL.require(0, &r, 4 * words)?;
+        DECL.require(1, &spp, 4 * words)?;
+        DECL.require(3, &counts, 4 * words)?;
+        let mut entries = if leaf {
+            push.max_off.max(push.s_off).max(push.u_off) as u64 + 1
+        } else {
+            push.src_off.max(push.dst_off) as u64 + n
+        };
+        if push.par_off != NO_LEVEL {
+            entries = entries.max(push.par_off as u64 + blocks);
+        }
+        DECL.require(2, &tree, 8 * entries)?;
+    }
     batch.dispatch(
         &DECL,
         Precision::F32,

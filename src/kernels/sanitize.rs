@@ -26,7 +26,7 @@ pub const BINDINGS: &[BindingDecl] = &[
     read("spp"),
     write("value_out"),
     write("var_out"),
-    write("counters"),
+    write("counters").sized_by_record(),
 ];
 
 /// Declaration of `spirv/sanitize.comp`: its bindings in binding order and the
@@ -100,6 +100,8 @@ pub(super) fn record_grid(
     (grid_width, flops): (u32, f64),
 ) -> Result<()> {
     let [value_in, var_in, spp, value_out, var_out] = planes;
+    // Four u32 counters (the shaders use up to the fourth).
+    decl.require(5, &counters, 16)?;
     batch.dispatch(
         decl,
         precision,

@@ -19,8 +19,8 @@ use crate::shared::WlrPush;
 pub const DECL: KernelDecl = KernelDecl {
     name: "wlr_final",
     bindings: &[
-        read("features_a"),
-        read("features_b"),
+        read("features_a").planes(4),
+        read("features_b").planes(4),
         read("color_r"),
         read("color_g"),
         read("color_b"),
@@ -31,7 +31,7 @@ pub const DECL: KernelDecl = KernelDecl {
         read("kappa0"),
         read("kappa1"),
         read("kflags"),
-        read("state"),
+        read("state").sized_by_record(),
         write("out_r"),
         write("out_g"),
         write("out_b"),
@@ -105,6 +105,7 @@ pub fn record(
     (state, ring_rows): (BufferSlice, u32),
     out: [BufferSlice; 5],
 ) -> Result<()> {
+    super::wlr_fit::require_state(&DECL, 12, precision, width, height, (&state, ring_rows))?;
     let push = WlrPush {
         width,
         height,

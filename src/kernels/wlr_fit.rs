@@ -22,10 +22,10 @@ use crate::shared::WlrPush;
 pub const DECL: KernelDecl = KernelDecl {
     name: "wlr_fit",
     bindings: &[
-        read("features_a"),
-        read("features_b"),
-        read("variances_a"),
-        read("variances_b"),
+        read("features_a").planes(4),
+        read("features_b").planes(4),
+        read("variances_a").planes(4),
+        read("variances_b").planes(4),
         read("color_r"),
         read("color_g"),
         read("color_b"),
@@ -39,7 +39,7 @@ pub const DECL: KernelDecl = KernelDecl {
         write("b1"),
         write("b2"),
         write("b3"),
-        write("state"),
+        write("state").sized_by_record(),
     ],
     push_size: std::mem::size_of::<WlrPush>() as u32,
 };
@@ -194,6 +194,7 @@ pub fn record(
     out: [BufferSlice; 8],
     (state, ring_rows): (BufferSlice, u32),
 ) -> Result<()> {
+    require_state(&DECL, 17, precision, width, height, (&state, ring_rows))?;
     let push = WlrPush {
         width,
         height,
@@ -217,6 +218,32 @@ pub fn record(
         width,
         (rows, height),
         flops_per_pixel(radius),
+    )
+}
+
+/// Checks the centre state ring bound at `index`: `ring_rows` (≥ 1) rows,
+/// at most the image's height, of [`STATE_WORDS`] values per pixel (f64 in
+/// the `_f64` variant, f32 otherwise).
+pub(super) fn require_state(
+    decl: &KernelDecl,
+    index: usize,
+    precision: Precision,
+    width: u32,
+    height: u32,
+    (state, ring_rows): (&BufferSlice, u32),
+) -> Result<()> {
+    if ring_rows == 0 {
+        return Err(crate::error::Error::InvalidArgument(format!(
+            "{}: the state ring needs at least one row",
+            decl.name
+        )));
+    }
+    let word = if precision == Precision::F64 { 8 } else { 4 };
+    let rows = ring_rows.min(height) as u64;
+    decl.require(
+        index,
+        state,
+        rows * width as u64 * STATE_WORDS as u64 * word,
     )
 }
 

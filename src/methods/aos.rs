@@ -249,18 +249,33 @@ pub struct AosPlanes {
     height: usize,
 }
 
+/// Rows of one band of local spaces (`row_bytes` per row) in a binding of
+/// `cap` bytes: the whole image if it fits, else a multiple of 8 rows —
+/// `aos_space` runs whole workgroups of 8 rows, so a band that is not would
+/// have its last workgroup write past it. `None` if 8 rows do not fit.
+fn space_band_rows(row_bytes: u64, height: usize, cap: u64) -> Option<usize> {
+    let fit = (cap / row_bytes.max(1)) as usize;
+    if fit >= height {
+        Some(height.max(1))
+    } else if fit >= 8 {
+        Some(fit / 8 * 8)
+    } else {
+        None
+    }
+}
+
 impl AosPlanes {
     /// Allocates the planes for a `width × height` image.
     pub fn new(ctx: &Arc<GpuContext>, width: usize, height: usize) -> Result<AosPlanes> {
         let n = width * height;
         let row_bytes = (width * SPACE * 4) as u64;
         let cap = SPACE_BAND_BYTES.min(ctx.info.max_storage_buffer_range as u64);
-        if row_bytes > cap {
-            return Err(Error::Limit(format!(
-                "AOS's local spaces of one row of {width} pixels ({row_bytes} bytes) exceed one binding ({cap} bytes)"
-            )));
-        }
-        let band_rows = ((cap / row_bytes) as usize).clamp(1, height.max(1));
+        let band_rows = space_band_rows(row_bytes, height, cap).ok_or_else(|| {
+            Error::Limit(format!(
+                "AOS's local spaces of 8 rows of {width} pixels ({} bytes) exceed one binding ({cap} bytes)",
+                8 * row_bytes
+            ))
+        })?;
         Ok(AosPlanes {
             feat: PlaneSet::new(ctx, "aos.feat", n, FEAT_PLANES)?,
             vbar: PlaneSet::new(ctx, "aos.vbar", n, 1)?,
@@ -534,5 +549,21 @@ impl GpuStage for AosStage {
             out.debug = download(&self.planes)?.debug;
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::space_band_rows;
+
+    #[test]
+    fn space_bands_are_whole_workgroups_of_rows() {
+        // 1920 pixels per row, 64 MiB: 86 rows fit, 80 are used.
+        let row = 1920 * 101 * 4;
+        assert_eq!(space_band_rows(row, 1080, 64 << 20), Some(80));
+        assert_eq!(space_band_rows(row, 50, 64 << 20), Some(50));
+        assert_eq!(space_band_rows(row, 20, 7 * row), None);
+        assert_eq!(space_band_rows(row, 7, 7 * row), Some(7));
+        assert_eq!(space_band_rows(row, 0, 64 << 20), Some(1));
     }
 }

@@ -32,7 +32,7 @@ pub use super::apr::{BANDWIDTH, FEATURE_EPS, REJECT_K, RIDGE};
 /// Window radius and centre spacing (29×29 blocks every 14 pixels), signed.
 pub const RADIUS: i64 = super::apr::RADIUS as i64;
 /// f32 values per (block, channel) in the state buffer, [`Block::state`].
-pub const STATE: usize = 52;
+pub const STATE: usize = crate::shared::APR_STATE;
 /// Offsets in a state record ([`Block::state`]): `β_y`, `β_s` and the
 /// feature spreads, each starting on a multiple of 4 so that the gather
 /// reads them as whole vec4s (APR-STATE-VEC4).

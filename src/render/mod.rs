@@ -208,11 +208,11 @@ pub struct RaysPush {
 }
 
 const SCENE_BINDINGS: [crate::gpu::BindingDecl; 5] = [
-    read("params"),
-    read("nodes"),
-    read("prims"),
-    read("materials"),
-    read("lights"),
+    read("params").sized_by_record(),
+    read("nodes").sized_by_record(),
+    read("prims").sized_by_record(),
+    read("materials").sized_by_record(),
+    read("lights").sized_by_record(),
 ];
 
 /// The path-tracing kernel (`spirv/render/render_trace.comp`): one
@@ -225,9 +225,9 @@ pub const TRACE: KernelDecl = KernelDecl {
         SCENE_BINDINGS[2],
         SCENE_BINDINGS[3],
         SCENE_BINDINGS[4],
-        read("scan"),
-        write("items"),
-        read("normals"),
+        read("scan").sized_by_record(),
+        write("items").sized_by_record(),
+        read("normals").sized_by_record(),
     ],
     push_size: std::mem::size_of::<TracePush>() as u32,
 };
@@ -237,10 +237,10 @@ pub const TRACE: KernelDecl = KernelDecl {
 pub const SCAN: KernelDecl = KernelDecl {
     name: "render_scan",
     bindings: &[
-        read("spp_map"),
-        read("count"),
-        write("scan"),
-        write("blocks"),
+        read("spp_map").sized_by_record(),
+        read("count").sized_by_record(),
+        write("scan").sized_by_record(),
+        write("blocks").sized_by_record(),
     ],
     push_size: std::mem::size_of::<ScanPush>() as u32,
 };
@@ -250,12 +250,12 @@ pub const SCAN: KernelDecl = KernelDecl {
 pub const RESOLVE: KernelDecl = KernelDecl {
     name: "render_resolve",
     bindings: &[
-        read("items"),
-        read("scan"),
-        write("accum0"),
-        write("accum1"),
-        write("accum2"),
-        write("accum3"),
+        read("items").sized_by_record(),
+        read("scan").sized_by_record(),
+        write("accum0").sized_by_record(),
+        write("accum1").sized_by_record(),
+        write("accum2").sized_by_record(),
+        write("accum3").sized_by_record(),
     ],
     push_size: std::mem::size_of::<ResolvePush>() as u32,
 };
@@ -270,8 +270,8 @@ pub const LIGHTS: KernelDecl = KernelDecl {
         SCENE_BINDINGS[2],
         SCENE_BINDINGS[3],
         SCENE_BINDINGS[4],
-        read("us"),
-        write("picks"),
+        read("us").sized_by_record(),
+        write("picks").sized_by_record(),
     ],
     push_size: std::mem::size_of::<RaysPush>() as u32,
 };
@@ -285,8 +285,8 @@ pub const RAYS: KernelDecl = KernelDecl {
         SCENE_BINDINGS[2],
         SCENE_BINDINGS[3],
         SCENE_BINDINGS[4],
-        read("rays"),
-        write("hits"),
+        read("rays").sized_by_record(),
+        write("hits").sized_by_record(),
     ],
     push_size: std::mem::size_of::<RaysPush>() as u32,
 };

@@ -35,7 +35,7 @@ int main(void)
     expect(ctx == NULL, "no context on failure");
     expect(mcd_denoiser_create(NULL, &desc, &dn) == MCD_STATUS_INVALID_ARGUMENT,
            "denoiser on a NULL context");
-    expect(mcd_denoiser_record(NULL, VK_NULL_HANDLE, VK_NULL_HANDLE, 0, 0, &rec) ==
+    expect(mcd_denoiser_record(NULL, VK_NULL_HANDLE, 0, VK_NULL_HANDLE, 0, 0, &rec) ==
                MCD_STATUS_INVALID_ARGUMENT,
            "record on a NULL denoiser");
     expect(mcd_denoiser_outputs(NULL, &out) == MCD_STATUS_INVALID_ARGUMENT, "outputs of NULL");
