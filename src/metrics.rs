@@ -330,6 +330,44 @@ pub fn estimated_rmse(color: &RgbImage, error: &RgbImage) -> f64 {
     }
 }
 
+/// Temporal error of a sequence `out` against its references `refs` (frame
+/// by frame, the same sizes): the mean over frames `t ≥ 1`, pixels and
+/// channels of `((o_t − o_{t−1}) − (r_t − r_{t−1}))² / (r_t² + 0.01)` —
+/// flicker is a change between frames the reference does not have. `None`
+/// for fewer than two frames; +∞ if an output holds a non-finite value.
+pub fn temporal_error(out: &[&RgbImage], refs: &[&RgbImage]) -> Result<Option<f64>> {
+    if out.len() != refs.len() {
+        return Err(Error::InvalidArgument(format!(
+            "temporal error: {} frames against {} references",
+            out.len(),
+            refs.len()
+        )));
+    }
+    for (o, r) in out.iter().zip(refs) {
+        check_same_size(o, r)?;
+        check_same_size(o, out[0])?;
+    }
+    if out.len() < 2 {
+        return Ok(None);
+    }
+    let (mut sum, mut count) = (0.0f64, 0usize);
+    for t in 1..out.len() {
+        for c in 0..3 {
+            let (o1, o0) = (&out[t].planes[c], &out[t - 1].planes[c]);
+            let (r1, r0) = (&refs[t].planes[c], &refs[t - 1].planes[c]);
+            for i in 0..o1.len() {
+                if !o1[i].is_finite() || !o0[i].is_finite() {
+                    return Ok(Some(f64::INFINITY));
+                }
+                let d = (o1[i] as f64 - o0[i] as f64) - (r1[i] as f64 - r0[i] as f64);
+                sum += d * d / ((r1[i] as f64).powi(2) + RMSE_EPS);
+                count += 1;
+            }
+        }
+    }
+    Ok(Some(sum / count.max(1) as f64))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -424,5 +462,24 @@ mod tests {
         r.planes[2][9] = f32::NAN;
         let e = compare(&a, &r).unwrap_err().to_string();
         assert!(e.contains("(1, 1)"), "{e}");
+    }
+
+    #[test]
+    fn temporal_error_sees_flicker_not_a_steady_bias() {
+        let img = |v: f32| RgbImage::from_planes(2, 1, [vec![v; 2], vec![v; 2], vec![v; 2]]);
+        let refs = [img(1.0), img(2.0), img(3.0)];
+        let r: Vec<&RgbImage> = refs.iter().collect();
+        // A steady bias of +0.5 follows the reference's changes: no flicker.
+        let biased = [img(1.5), img(2.5), img(3.5)];
+        let o: Vec<&RgbImage> = biased.iter().collect();
+        assert_eq!(temporal_error(&o, &r).unwrap(), Some(0.0));
+        // ±0.1 alternating: differences of 0.2 the reference lacks.
+        let flicker = [img(1.1), img(1.9), img(3.1)];
+        let o: Vec<&RgbImage> = flicker.iter().collect();
+        let want = 0.5 * (0.2f64.powi(2) / 4.01 + 0.2f64.powi(2) / 9.01);
+        let got = temporal_error(&o, &r).unwrap().unwrap();
+        assert!((got - want).abs() < 1e-6 * want, "{got} {want}");
+        assert_eq!(temporal_error(&o[..1], &r[..1]).unwrap(), None);
+        assert!(temporal_error(&o[..2], &r).is_err());
     }
 }

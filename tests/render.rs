@@ -46,6 +46,8 @@ fn scene(
             .map(|(n, m)| (n.to_owned(), m))
             .collect::<BTreeMap<_, _>>(),
         objects,
+        animation: None,
+        frame: 0.0,
         base_dir: None,
     }
 }
@@ -56,6 +58,7 @@ fn sphere(center: [f32; 3], radius: f32, material: &str, motion: Option<[f32; 3]
         radius,
         material: material.into(),
         motion,
+        keyframes: Vec::new(),
     }
 }
 
@@ -102,6 +105,7 @@ fn bvh_traversal_equals_brute_force() {
             translate: [0.0; 3],
             material: "m".into(),
             motion: (m == 1).then(|| v(&mut rng, -0.5, 0.5)),
+            keyframes: Vec::new(),
         });
     }
     for i in 0..30 {
@@ -118,6 +122,7 @@ fn bvh_traversal_equals_brute_force() {
             v: v(&mut rng, -1.0, 1.0),
             material: "m".into(),
             motion: (i % 4 == 0).then(|| v(&mut rng, -0.5, 0.5)),
+            keyframes: Vec::new(),
         });
     }
     let s = scene(
@@ -353,6 +358,7 @@ fn diffuse_plane_closed_forms() {
         v: [100.0, 0.0, 0.0],
         material: m.into(),
         motion: None,
+        keyframes: Vec::new(),
     };
     let sky = [0.8f32, 1.0, 1.2];
     let s = scene(
@@ -492,6 +498,7 @@ fn lamp_scene(lamp: Object, lamp_material: Material) -> Scene {
                 v: [6.0, 0.0, 0.0],
                 material: "metal".into(),
                 motion: None,
+                keyframes: Vec::new(),
             },
             sphere([-0.5, 0.4, 0.0], 0.4, "plastic", None),
             sphere([0.5, 0.4, 0.2], 0.4, "white", None),
@@ -511,6 +518,7 @@ fn mesh(vertices: Vec<[f32; 3]>, indices: Vec<[u32; 3]>, m: &str) -> Object {
         translate: [0.0; 3],
         material: m.into(),
         motion: None,
+        keyframes: Vec::new(),
     }
 }
 
@@ -529,6 +537,7 @@ fn mis_agrees_with_bsdf_sampling_alone() {
         v,
         material: "lamp".into(),
         motion: None,
+        keyframes: Vec::new(),
     };
     let p = |a: [f32; 3], b: [f32; 3]| [c[0] + a[0] + b[0], c[1] + a[1] + b[1], c[2] + a[2] + b[2]];
     let lamp_tris = mesh(
@@ -604,6 +613,7 @@ fn emissive_meshes_are_sampled_by_next_event_estimation() {
         rotate_y: 0.0,
         material: "lamp".into(),
         motion: None,
+        keyframes: Vec::new(),
     };
     let (vertices, indices) = box_mesh(lo, hi);
     let tris = mesh(vertices, indices, "lamp");
@@ -657,6 +667,7 @@ fn textured_emission_is_evaluated_at_the_hit() {
             v: [0.0, 6.0, 0.0],
             material: "sign".into(),
             motion: None,
+            keyframes: Vec::new(),
         }],
     );
     let r = Renderer::new(&ctx, &s, 16, 16, 5).unwrap();
@@ -720,6 +731,7 @@ fn light_selection_matches_a_linear_scan() {
                     v: [0.0, 0.0, size],
                     material: name.clone(),
                     motion: None,
+                    keyframes: Vec::new(),
                 },
                 _ => mesh(
                     vec![c, [c[0] + size, c[1], c[2]], [c[0], c[1] + size, c[2]]],
@@ -1454,6 +1466,7 @@ fn mesh_vertex_normals_are_interpolated() {
             translate: [0.0; 3],
             material: "m".into(),
             motion: None,
+            keyframes: Vec::new(),
         }],
     );
     let rd = Renderer::new(&ctx, &s, 8, 8, 3).unwrap();
@@ -1491,6 +1504,7 @@ fn thin_lens_focuses_at_the_focus_distance() {
         v: [0.0, 20.0, 0.0],
         material: "m".into(),
         motion: None,
+        keyframes: Vec::new(),
     };
     let positions = |aperture: f32, focus: f32| {
         let mut cam = camera([0.0, 0.0, 3.0], [0.0; 3], 40.0);

@@ -909,6 +909,7 @@ mod tests {
             translate: [0.0; 3],
             material: "white".into(),
             motion: None,
+            keyframes: Vec::new(),
         });
         let g = GpuScene::new(&s, 8, 8).unwrap();
         eprintln!("{} primitives, BVH depth {}", g.primitives.len(), g.depth);

@@ -56,6 +56,15 @@
 //! (`albedo = { texture = "checker" | "noise", a, b, scale }`) are evaluated
 //! at the hit point's position at shutter time 0, in world units × `scale`.
 //!
+//! A scene animates with an `[animation]` table — `frames = 24`, and
+//! `[[animation.camera]]` keyframes (`frame`, and any of `position`,
+//! `look_at`, `focus_distance`) — and objects' `keyframes = [{ frame = 0,
+//! translate = [0, 0, 0], rotate_y = 0 }, …]` (rotation in degrees about
+//! the vertical axis through the object's centre, then translation). Values
+//! are interpolated linearly between keyframes and hold outside them;
+//! [`Scene::at_frame`] places everything at one frame, a keyframed object
+//! moving over that frame's shutter by its translation to the next.
+//!
 //! Every primitive of an `emissive` material is a light: spheres emit
 //! outward, quads on their front side, mesh triangles on both sides.
 //! Its `radiance` may be a texture like an albedo (a lit sign:
@@ -202,6 +211,54 @@ pub enum Material {
     },
 }
 
+/// An object's placement at one frame of an animation: rotated by
+/// `rotate_y` degrees about the vertical axis through the centre of its
+/// bounding box, then translated by `translate`. Between keyframes both are
+/// interpolated linearly; before the first and after the last they hold.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Keyframe {
+    /// Frame number (fractions allowed).
+    pub frame: f32,
+    /// Translation, world units.
+    #[serde(default)]
+    pub translate: Vec3,
+    /// Rotation about the vertical axis through the object's centre, degrees.
+    #[serde(default)]
+    pub rotate_y: f32,
+}
+
+/// A camera keyframe: the properties it sets, each interpolated linearly
+/// between the keyframes that set it (the `[camera]` table's value where
+/// none does).
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct CameraKey {
+    /// Frame number (fractions allowed).
+    pub frame: f32,
+    /// Centre of the lens.
+    #[serde(default)]
+    pub position: Option<Vec3>,
+    /// The point at the image centre.
+    #[serde(default)]
+    pub look_at: Option<Vec3>,
+    /// Distance to the plane in focus.
+    #[serde(default)]
+    pub focus_distance: Option<f32>,
+}
+
+/// The `[animation]` table: the sequence's length and the camera's
+/// keyframes (objects carry their own `keyframes`).
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Animation {
+    /// Frames of the sequence: frame numbers `0..frames`.
+    pub frames: u32,
+    /// Camera keyframes, in increasing frame order.
+    #[serde(default)]
+    pub camera: Vec<CameraKey>,
+}
+
 /// An object of a scene file; see the module documentation.
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
@@ -217,6 +274,9 @@ pub enum Object {
         /// Translation over the whole shutter interval.
         #[serde(default)]
         motion: Option<Vec3>,
+        /// Placement over the frames of an animation ([`Keyframe`]).
+        #[serde(default)]
+        keyframes: Vec<Keyframe>,
     },
     /// The parallelogram `corner + s·u + t·v`, `s, t ∈ [0, 1]`.
     Quad {
@@ -231,6 +291,9 @@ pub enum Object {
         /// Translation over the whole shutter interval.
         #[serde(default)]
         motion: Option<Vec3>,
+        /// Placement over the frames of an animation ([`Keyframe`]).
+        #[serde(default)]
+        keyframes: Vec<Keyframe>,
     },
     /// An axis-aligned box (before `rotate_y`), as six outward-facing quads.
     Box {
@@ -246,6 +309,9 @@ pub enum Object {
         /// Translation over the whole shutter interval.
         #[serde(default)]
         motion: Option<Vec3>,
+        /// Placement over the frames of an animation ([`Keyframe`]).
+        #[serde(default)]
+        keyframes: Vec<Keyframe>,
     },
     /// A triangle mesh: from an OBJ file or inline.
     Mesh {
@@ -273,6 +339,9 @@ pub enum Object {
         /// Translation over the whole shutter interval.
         #[serde(default)]
         motion: Option<Vec3>,
+        /// Placement over the frames of an animation ([`Keyframe`]).
+        #[serde(default)]
+        keyframes: Vec<Keyframe>,
     },
 }
 
@@ -310,6 +379,13 @@ pub struct Scene {
     /// The objects.
     #[serde(default)]
     pub objects: Vec<Object>,
+    /// The sequence, for an animated scene.
+    #[serde(default)]
+    pub animation: Option<Animation>,
+    /// The frame the camera and the objects are placed at (not in the
+    /// file; [`Scene::at_frame`] sets it, 0 otherwise).
+    #[serde(skip)]
+    pub frame: f32,
     /// Directory relative mesh paths are resolved against (not in the file).
     #[serde(skip)]
     pub base_dir: Option<PathBuf>,
@@ -507,6 +583,12 @@ const BUILTIN: &[(&str, &str)] = &[
     ),
     ("panel", include_str!("../../scenes/panel.toml")),
     ("fireflies", include_str!("../../scenes/fireflies.toml")),
+    ("pan_room", include_str!("../../scenes/pan_room.toml")),
+    ("moving_box", include_str!("../../scenes/moving_box.toml")),
+    (
+        "moving_highlight",
+        include_str!("../../scenes/moving_highlight.toml"),
+    ),
 ];
 
 impl Scene {
@@ -533,6 +615,16 @@ impl Scene {
     /// The names of the built-in scenes.
     pub fn builtin_names() -> Vec<&'static str> {
         BUILTIN.iter().map(|(n, _)| *n).collect()
+    }
+
+    /// The names of the built-in still scenes (without `[animation]`): the
+    /// set the equal-sample tables are measured on.
+    pub fn builtin_still_names() -> Vec<&'static str> {
+        BUILTIN
+            .iter()
+            .filter(|(_, text)| !text.contains("\n[animation]"))
+            .map(|(n, _)| *n)
+            .collect()
     }
 
     /// A built-in scene by name (see [`builtin_names`](Self::builtin_names)).
@@ -598,6 +690,31 @@ impl Scene {
                 }
             }
         }
+        let increasing = |frames: &mut dyn Iterator<Item = f32>| {
+            let v: Vec<f32> = frames.collect();
+            v.iter().all(|f| f.is_finite()) && v.windows(2).all(|w| w[0] < w[1])
+        };
+        if let Some(a) = &self.animation {
+            if a.frames == 0 {
+                return Err("animation.frames must be at least 1".into());
+            }
+            if !increasing(&mut a.camera.iter().map(|k| k.frame)) {
+                return Err("animation.camera keyframes must be in increasing frame order".into());
+            }
+        }
+        for (i, o) in self.objects.iter().enumerate() {
+            if !increasing(&mut o.keyframes().iter().map(|k| k.frame)) {
+                return Err(format!(
+                    "object {i}: keyframes must be in increasing frame order"
+                ));
+            }
+            if o.keyframes()
+                .iter()
+                .any(|k| !k.rotate_y.is_finite() || !k.translate.iter().all(|x| x.is_finite()))
+            {
+                return Err(format!("object {i}: keyframes must be finite"));
+            }
+        }
         for (i, o) in self.objects.iter().enumerate() {
             let m = match o {
                 Object::Sphere { material, .. }
@@ -631,12 +748,14 @@ impl Scene {
     pub fn primitives(&self) -> Result<Vec<Primitive>> {
         let mut out = Vec::new();
         for o in &self.objects {
+            let first = out.len();
             match o {
                 Object::Sphere {
                     center,
                     radius,
                     material,
                     motion,
+                    ..
                 } => out.push(Primitive {
                     shape: Shape::Sphere {
                         center: *center,
@@ -652,6 +771,7 @@ impl Scene {
                     v,
                     material,
                     motion,
+                    ..
                 } => out.push(Primitive {
                     shape: Shape::Quad {
                         corner: *corner,
@@ -668,6 +788,7 @@ impl Scene {
                     rotate_y,
                     material,
                     motion,
+                    ..
                 } => {
                     let m = self.material_index(material);
                     for shape in box_quads(*min, *max, *rotate_y) {
@@ -688,6 +809,7 @@ impl Scene {
                     translate,
                     material,
                     motion,
+                    ..
                 } => {
                     let (verts, tris, norms) = match file {
                         Some(f) => self.load_obj(f)?,
@@ -730,8 +852,54 @@ impl Scene {
                     }
                 }
             }
+            let keys = o.keyframes();
+            if !keys.is_empty() {
+                place(&mut out[first..], keys, self.frame);
+            }
         }
         Ok(out)
+    }
+
+    /// Frames of the scene's sequence: `[animation] frames`, 1 for a still.
+    pub fn frames(&self) -> u32 {
+        self.animation.as_ref().map_or(1, |a| a.frames)
+    }
+
+    /// The scene at frame `frame` of its sequence: the camera and every
+    /// keyframed object placed there, each keyframed object moving over
+    /// the shutter by its translation to the next frame (a 360° shutter;
+    /// rotations and the camera are not blurred). Textures stay where they
+    /// are in the world, as for `motion`.
+    pub fn at_frame(&self, frame: u32) -> Result<Scene> {
+        if frame >= self.frames() {
+            return Err(Error::InvalidArgument(format!(
+                "frame {frame} is outside the scene's frames 0..{}",
+                self.frames()
+            )));
+        }
+        let mut s = self.clone();
+        s.frame = frame as f32;
+        if let Some(a) = &self.animation {
+            let f = frame as f32;
+            let keys = |get: &dyn Fn(&CameraKey) -> Option<Vec3>| -> Vec<(f32, Vec3)> {
+                a.camera
+                    .iter()
+                    .filter_map(|k| get(k).map(|v| (k.frame, v)))
+                    .collect()
+            };
+            if let Some(p) = interpolate(&keys(&|k| k.position), f) {
+                s.camera.position = p;
+            }
+            if let Some(p) = interpolate(&keys(&|k| k.look_at), f) {
+                s.camera.look_at = p;
+            }
+            if let Some(d) = interpolate(&keys(&|k| k.focus_distance.map(|d| [d; 3])), f) {
+                s.camera.focus_distance = Some(d[0]);
+            }
+        }
+        s.validate()
+            .map_err(|m| Error::InvalidArgument(format!("the scene at frame {frame}: {m}")))?;
+        Ok(s)
     }
 
     #[allow(clippy::type_complexity)] // (positions, triangles, normals)
@@ -820,5 +988,188 @@ fn orient_outward(s: Shape, centre: Vec3) -> Shape {
             }
         }
         s => s,
+    }
+}
+
+impl Object {
+    /// The object's keyframes (empty when it is not animated).
+    pub fn keyframes(&self) -> &[Keyframe] {
+        match self {
+            Object::Sphere { keyframes, .. }
+            | Object::Quad { keyframes, .. }
+            | Object::Box { keyframes, .. }
+            | Object::Mesh { keyframes, .. } => keyframes,
+        }
+    }
+}
+
+/// The value at frame `f` of keys `(frame, value)` in increasing frame
+/// order: linear between two keys, the first or last key's outside them;
+/// `None` without keys.
+fn interpolate(keys: &[(f32, Vec3)], f: f32) -> Option<Vec3> {
+    let (first, last) = (keys.first()?, keys.last()?);
+    if f <= first.0 {
+        return Some(first.1);
+    }
+    if f >= last.0 {
+        return Some(last.1);
+    }
+    let i = keys.iter().position(|k| k.0 > f)?;
+    let ((f0, a), (f1, b)) = (keys[i - 1], keys[i]);
+    let t = (f - f0) / (f1 - f0);
+    Some([0, 1, 2].map(|k| a[k] + t * (b[k] - a[k])))
+}
+
+/// Places one object's primitives (at rest) at frame `frame` of `keys`:
+/// rotated about the vertical axis through their bounding box's centre,
+/// translated, and moving over the shutter by the translation to the next
+/// frame on top of their own `motion`.
+fn place(prims: &mut [Primitive], keys: &[Keyframe], frame: f32) {
+    let at = |f: f32| {
+        let k: Vec<(f32, Vec3)> = keys
+            .iter()
+            .map(|k| (k.frame, [k.translate[0], k.translate[1], k.translate[2]]))
+            .collect();
+        let r: Vec<(f32, Vec3)> = keys.iter().map(|k| (k.frame, [k.rotate_y; 3])).collect();
+        (
+            interpolate(&k, f).unwrap_or_default(),
+            interpolate(&r, f).map_or(0.0, |r| r[0]),
+        )
+    };
+    let ((t0, r0), (t1, _)) = (at(frame), at(frame + 1.0));
+    let mut lo = [f32::INFINITY; 3];
+    let mut hi = [f32::NEG_INFINITY; 3];
+    for p in prims.iter() {
+        let (a, b) = Primitive {
+            motion: [0.0; 3],
+            ..*p
+        }
+        .bounds();
+        for k in 0..3 {
+            lo[k] = lo[k].min(a[k]);
+            hi[k] = hi[k].max(b[k]);
+        }
+    }
+    let c = [0, 1, 2].map(|k| 0.5 * (lo[k] + hi[k]));
+    let (s, co) = r0.to_radians().sin_cos();
+    let rot = |v: Vec3| [co * v[0] + s * v[2], v[1], -s * v[0] + co * v[2]];
+    let pt = |p: Vec3| add(add(rot(sub(p, c)), c), t0);
+    for p in prims {
+        p.shape = match p.shape {
+            Shape::Sphere { center, radius } => Shape::Sphere {
+                center: pt(center),
+                radius,
+            },
+            Shape::Quad { corner, u, v } => Shape::Quad {
+                corner: pt(corner),
+                u: rot(u),
+                v: rot(v),
+            },
+            Shape::Triangle { a, b, c } => Shape::Triangle {
+                a: pt(a),
+                b: pt(b),
+                c: pt(c),
+            },
+        };
+        p.normals = p.normals.map(|n| n.map(rot));
+        p.motion = add(rot(p.motion), sub(t1, t0));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scene(text: &str) -> Scene {
+        Scene::from_toml(text, Path::new("test.toml"), None).unwrap()
+    }
+
+    const ANIMATED: &str = r#"
+[camera]
+position = [0.0, 1.0, 4.0]
+look_at = [0.0, 1.0, 0.0]
+fov = 40.0
+
+[materials.m]
+type = "diffuse"
+albedo = [0.5, 0.5, 0.5]
+
+[[objects]]
+type = "quad"
+corner = [-1.0, 0.0, 0.0]
+u = [2.0, 0.0, 0.0]
+v = [0.0, 2.0, 0.0]
+material = "m"
+keyframes = [
+    { frame = 0, translate = [0.0, 0.0, 0.0] },
+    { frame = 10, translate = [1.0, 0.0, 0.0], rotate_y = 90.0 },
+]
+
+[[objects]]
+type = "sphere"
+center = [0.0, 0.5, 1.0]
+radius = 0.5
+material = "m"
+
+[animation]
+frames = 11
+
+[[animation.camera]]
+frame = 0
+position = [0.0, 1.0, 4.0]
+
+[[animation.camera]]
+frame = 10
+position = [2.0, 1.0, 4.0]
+focus_distance = 3.0
+"#;
+
+    fn close(a: Vec3, b: Vec3) -> bool {
+        (0..3).all(|k| (a[k] - b[k]).abs() < 1e-5)
+    }
+
+    /// Keyframes interpolate linearly and hold outside their range; the
+    /// camera's keyed properties follow theirs, the others keep `[camera]`.
+    #[test]
+    fn frames_place_the_camera_and_the_keyframed_objects() {
+        let s = scene(ANIMATED);
+        assert_eq!(s.frames(), 11);
+        let mid = s.at_frame(5).unwrap();
+        assert!(close(mid.camera.position, [1.0, 1.0, 4.0]));
+        assert!(close(mid.camera.look_at, [0.0, 1.0, 0.0]));
+        assert_eq!(mid.camera.focus_distance, Some(3.0));
+        let p = mid.primitives().unwrap();
+        // Halfway: rotated 45° about the quad's centre (0, 1, 0), moved
+        // by 0.5 in x, and moving 0.1 in x over the shutter.
+        let Shape::Quad { corner, u, v } = p[0].shape else {
+            panic!("{:?}", p[0].shape)
+        };
+        let h = std::f32::consts::FRAC_1_SQRT_2;
+        assert!(close(corner, [0.5 - h, 0.0, h]), "{corner:?}");
+        assert!(close(u, [2.0 * h, 0.0, -2.0 * h]), "{u:?}");
+        assert!(close(v, [0.0, 2.0, 0.0]));
+        assert!(close(p[0].motion, [0.1, 0.0, 0.0]), "{:?}", p[0].motion);
+        // The sphere has no keyframes: where the file puts it, at rest.
+        assert_eq!(p[1], s.primitives().unwrap()[1]);
+        // The last frame holds the last keyframe; nothing moves after it.
+        let last = s.at_frame(10).unwrap().primitives().unwrap();
+        assert!(close(last[0].motion, [0.0; 3]));
+        assert!(s.at_frame(11).is_err());
+        // A still scene has one frame, itself.
+        let still = scene(&ANIMATED.replace("[animation]\nframes = 11", "").replace(
+            "[[animation.camera]]\nframe = 0\nposition = [0.0, 1.0, 4.0]\n\n[[animation.camera]]\nframe = 10\nposition = [2.0, 1.0, 4.0]\nfocus_distance = 3.0\n",
+            "",
+        ));
+        assert_eq!(still.frames(), 1);
+        assert!(still.at_frame(1).is_err());
+    }
+
+    #[test]
+    fn keyframes_out_of_order_are_refused() {
+        let text = ANIMATED.replace("{ frame = 10, translate", "{ frame = 0, translate");
+        let e = Scene::from_toml(&text, Path::new("t.toml"), None).unwrap_err();
+        assert!(e.to_string().contains("increasing frame order"), "{e}");
+        let text = ANIMATED.replace("frames = 11", "frames = 0");
+        assert!(Scene::from_toml(&text, Path::new("t.toml"), None).is_err());
     }
 }

@@ -553,7 +553,7 @@ fn main() -> anyhow::Result<()> {
         .collect::<anyhow::Result<_>>()?;
     let options = Options::parse(&a.opts)?;
     let scenes: Vec<String> = if a.scenes.is_empty() {
-        Scene::builtin_names()
+        Scene::builtin_still_names()
             .into_iter()
             .map(String::from)
             .collect()

@@ -69,7 +69,7 @@ fn main() -> anyhow::Result<()> {
         }
     }
     if names.is_empty() {
-        names = Scene::builtin_names()
+        names = Scene::builtin_still_names()
             .iter()
             .map(|s| s.to_string())
             .collect();

@@ -5,6 +5,7 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::bail;
+use mcdenoise::io::frames::FramePattern;
 use mcdenoise::render::{adaptive, reference, Renderer, Scene};
 use mcdenoise::{colour_of, io, metrics, schedule, GpuContext, Method, Options, RgbImage};
 
@@ -52,9 +53,17 @@ pub struct Args {
     /// Random-number seed: the same scene, seed and options give the same image.
     #[arg(long, default_value_t = 1)]
     seed: u64,
-    /// Output EXR (color.R/G/B and error.R/G/B).
+    /// Output EXR (color.R/G/B and error.R/G/B); with --frames, a pattern
+    /// such as out/frame_####.exr (as for --png and --save-stats).
     #[arg(short, long, required_unless_present = "list_scenes")]
     output: Option<PathBuf>,
+    /// Render frames of an animated scene's sequence (its `[animation]`):
+    /// A..B is frames A to B−1, A..=B includes B. One device and one set of
+    /// pipelines for all; frame f uses its own seed (from --seed and f), so
+    /// each frame renders the same alone or in any range. With --reference,
+    /// per-frame metrics and the sequence's temporal error.
+    #[arg(long, value_name = "A..B", value_parser = parse_frames, conflicts_with = "figure")]
+    frames: Option<std::ops::Range<u32>>,
     /// Also write a tone-mapped PNG.
     #[arg(long)]
     png: Option<PathBuf>,
@@ -97,6 +106,37 @@ pub struct Args {
     /// Method option key=value (repeatable); see `mcdenoise denoise --help`.
     #[arg(long = "opt", value_name = "KEY=VALUE")]
     opts: Vec<String>,
+}
+
+/// `A..B` (A to B−1) or `A..=B` (A to B).
+fn parse_frames(s: &str) -> Result<std::ops::Range<u32>, String> {
+    let bad =
+        || format!("{s:?}: expected A..B or A..=B, frame numbers with A < B (A <= B with ..=)");
+    let (a, b, inclusive) = match s.split_once("..=") {
+        Some((a, b)) => (a, b, true),
+        None => {
+            let (a, b) = s.split_once("..").ok_or_else(bad)?;
+            (a, b, false)
+        }
+    };
+    let (a, b): (u32, u32) = (
+        a.trim().parse().map_err(|_| bad())?,
+        b.trim().parse().map_err(|_| bad())?,
+    );
+    let end = if inclusive {
+        b.checked_add(1).ok_or_else(bad)?
+    } else {
+        b
+    };
+    if a >= end {
+        return Err(bad());
+    }
+    Ok(a..end)
+}
+
+/// The seed of frame `frame` of a sequence rendered with `seed`.
+fn frame_seed(seed: u64, frame: u32) -> u64 {
+    seed ^ (frame as u64 + 1).wrapping_mul(0x9e37_79b9_7f4a_7c15)
 }
 
 fn list_scenes() {
@@ -264,25 +304,11 @@ pub fn run(cli: &Cli, a: &Args) -> anyhow::Result<bool> {
     let scene = Scene::by_name_or_file(name)?;
     let ctx = context(cli)?;
     let (w, h) = a.size;
+    let cfg = loop_config(a)?;
+    if let Some(frames) = &a.frames {
+        return render_sequence(cli, a, &ctx, &scene, frames.clone(), &cfg);
+    }
     let renderer = Renderer::new(&ctx, &scene, w, h, a.seed)?;
-    let cfg = adaptive::LoopConfig {
-        spp: a.spp,
-        adaptive: a.adaptive,
-        method,
-        prefilter: a.prefilter.get(),
-        outliers: a.outliers.get(),
-        pass_cap: match a.pass_cap {
-            None => adaptive::default_pass_cap(method),
-            Some(k) => (k > 0.0).then_some(k),
-        },
-        precision: a.precision.get(),
-        options: Options::parse(&a.opts)?,
-        stop: (a.target_error.is_some() || a.time_limit.is_some()).then_some(adaptive::StopRules {
-            target_error: a.target_error,
-            time_limit: a.time_limit,
-            max_spp: a.max_spp,
-        }),
-    };
     // Rendered first, so an open-ended render can report its true error
     // after every pass.
     let reference = match a.reference {
@@ -385,6 +411,146 @@ pub fn run(cli: &Cli, a: &Args) -> anyhow::Result<bool> {
         println!("  relMSE          {:>18.5} {:>9.5}", mc.relmse, m.relmse);
         println!("  PSNR (dB)       {:>18.2} {:>9.2}", mc.psnr, m.psnr);
         println!("  SSIM            {:>18.4} {:>9.4}", mc.ssim, m.ssim);
+    }
+    Ok(true)
+}
+
+/// The adaptive loop's configuration from the command line.
+fn loop_config(a: &Args) -> anyhow::Result<adaptive::LoopConfig> {
+    let method = a.method;
+    Ok(adaptive::LoopConfig {
+        spp: a.spp,
+        adaptive: a.adaptive,
+        method,
+        prefilter: a.prefilter.get(),
+        outliers: a.outliers.get(),
+        pass_cap: match a.pass_cap {
+            None => adaptive::default_pass_cap(method),
+            Some(k) => (k > 0.0).then_some(k),
+        },
+        precision: a.precision.get(),
+        options: Options::parse(&a.opts)?,
+        stop: (a.target_error.is_some() || a.time_limit.is_some()).then_some(adaptive::StopRules {
+            target_error: a.target_error,
+            time_limit: a.time_limit,
+            max_spp: a.max_spp,
+        }),
+    })
+}
+
+/// `render --frames`: frames `frames` of `scene`'s sequence, each through
+/// the loop of `cfg` with its own seed, into the output patterns; with
+/// `--reference K`, each frame's metrics against its own K-spp reference
+/// and the sequence's temporal error ([`metrics::temporal_error`]).
+fn render_sequence(
+    cli: &Cli,
+    a: &Args,
+    ctx: &std::sync::Arc<GpuContext>,
+    scene: &Scene,
+    frames: std::ops::Range<u32>,
+    cfg: &adaptive::LoopConfig,
+) -> anyhow::Result<bool> {
+    let n = scene.frames();
+    if frames.end > n {
+        bail!(
+            "--frames {}..{}: the scene has frames 0..{n}{}",
+            frames.start,
+            frames.end,
+            if scene.animation.is_none() {
+                " (it has no [animation])"
+            } else {
+                ""
+            }
+        );
+    }
+    let pattern = |p: &Path| FramePattern::parse(p);
+    let output = pattern(a.output.as_deref().expect("clap: -o"))?;
+    let png = a.png.as_deref().map(pattern).transpose()?;
+    let stats_out = a.save_stats.as_deref().map(pattern).transpose()?;
+    let (w, h) = a.size;
+    let method = a.method;
+    let bar = pass_bar(cli, &format!("frames {}..{}", frames.start, frames.end));
+    if let Some(b) = &bar {
+        b.set_length(frames.len() as u64);
+    }
+    // (frame, Monte Carlo mean, reconstruction, reference)
+    let mut rows: Vec<(u32, RgbImage, RgbImage, Option<RgbImage>)> = Vec::new();
+    let t0 = std::time::Instant::now();
+    for f in frames.clone() {
+        let at = scene.at_frame(f)?;
+        let seed = frame_seed(a.seed, f);
+        let renderer = Renderer::new(ctx, &at, w, h, seed)?;
+        let result = adaptive::render(ctx, &renderer, cfg, &stop_flag(), |_| {})?;
+        let frame = result.frame;
+        let path = output.path(f as u64);
+        io::write_output(
+            &path,
+            &io::OutputImage {
+                color: frame.color.clone(),
+                error: (method != Method::None).then(|| frame.error.clone()),
+                samples: None,
+                debug: Vec::new(),
+            },
+        )?;
+        if let Some(p) = &png {
+            io::write_png_preview(&p.path(f as u64), &frame.color)?;
+        }
+        let stats = renderer.statistics()?;
+        if let Some(p) = &stats_out {
+            io::write_stats(&p.path(f as u64), &stats)?;
+        }
+        let reference = match a.reference {
+            Some(k) => Some(reference_image(cli, ctx, &at, (w, h), k, seed)?.0),
+            None => None,
+        };
+        let line = format!(
+            "frame {f}: {:.2} spp -> {}",
+            result.samples as f64 / (w * h) as f64,
+            path.display()
+        );
+        match (&bar, cli.quiet) {
+            (Some(b), _) => {
+                b.println(line);
+                b.inc(1);
+            }
+            (None, false) => eprintln!("{line}"),
+            (None, true) => {}
+        }
+        rows.push((f, colour_of(&stats), frame.color, reference));
+    }
+    if let Some(b) = bar {
+        b.finish_and_clear();
+    }
+    if !cli.quiet {
+        eprintln!(
+            "{} frames of {w}x{h} in {:.1} s wall",
+            rows.len(),
+            t0.elapsed().as_secs_f64()
+        );
+    }
+    if let Some(k) = a.reference {
+        println!("against per-frame {k}-spp references:");
+        println!("frame   rMSE Monte Carlo mean   rMSE {}", method.name());
+        let mut sums = (0.0, 0.0);
+        for (f, input, out, r) in &rows {
+            let r = r.as_ref().expect("a reference per frame");
+            let (mi, mo) = (metrics::rmse(input, r), metrics::rmse(out, r));
+            sums = (sums.0 + mi, sums.1 + mo);
+            println!("{f:>5} {mi:>22.5} {mo:>10.5}");
+        }
+        let count = rows.len() as f64;
+        let refs: Vec<&RgbImage> = rows.iter().filter_map(|r| r.3.as_ref()).collect();
+        let inputs: Vec<&RgbImage> = rows.iter().map(|r| &r.1).collect();
+        let outputs: Vec<&RgbImage> = rows.iter().map(|r| &r.2).collect();
+        let temporal = |x: &[&RgbImage]| -> anyhow::Result<String> {
+            Ok(metrics::temporal_error(x, &refs)?.map_or("-".into(), |t| format!("{t:.6}")))
+        };
+        println!("mean  {:>22.5} {:>10.5}", sums.0 / count, sums.1 / count);
+        println!(
+            "temporal error {:>15} {:>10}",
+            temporal(&inputs)?,
+            temporal(&outputs)?
+        );
     }
     Ok(true)
 }
