@@ -299,29 +299,7 @@ fn gpu_kernels_match_the_twins() {
                 what("space")
             );
             // Fits from the same projections.
-            let mut inputs: Vec<&[f32]> = img.fa().to_vec();
-            inputs.extend(img.color.iter().map(|p| p.as_slice()));
-            inputs.push(&img.vbar);
-            inputs.push(&img.spp);
-            inputs.push(&cpu_space);
-            inputs.extend(img.va());
-            let p = AosPush {
-                stride: n as u32,
-                ..push
-            };
-            let (out, _) = kernels::run_planes(
-                &ctx,
-                &kfit::DECL,
-                precision,
-                bytemuck::bytes_of(&p),
-                w * kfit::THREADS as usize,
-                h,
-                &inputs,
-                &[OUTPUTS * n],
-                1.0,
-            )
-            .unwrap();
-            let cpu = aos_fit::aos_fit(&p, &img.inputs(), &cpu_space);
+            let (out, cpu) = run_fit(&ctx, precision, &img, &push, &cpu_space);
             for k in 0..OUTPUTS {
                 let g = &out[0][k * n..(k + 1) * n];
                 if k == 4 || k == 5 {
@@ -416,29 +394,8 @@ fn without_f64_aos_fit_keeps_colour_and_bounds_its_estimates() {
         let n = w * h;
         let push = img.push(radius, Settings::default().flags());
         let cpu_space = aos_space::aos_space(&push, &img.fa(), &img.va(), &img.spp);
-        let mut inputs: Vec<&[f32]> = img.fa().to_vec();
-        inputs.extend(img.color.iter().map(|p| p.as_slice()));
-        inputs.push(&img.vbar);
-        inputs.push(&img.spp);
-        inputs.push(&cpu_space);
-        inputs.extend(img.va());
-        let p = AosPush {
-            stride: n as u32,
-            ..push
-        };
-        let (out, _) = kernels::run_planes(
-            &ctx,
-            &kfit::DECL,
-            mcdenoise::gpu::Precision::F32,
-            bytemuck::bytes_of(&p),
-            w * kfit::THREADS as usize,
-            h,
-            &inputs,
-            &[OUTPUTS * n],
-            1.0,
-        )
-        .unwrap();
-        let cpu = aos_fit::aos_fit(&p, &img.inputs(), &cpu_space);
+        let precision = mcdenoise::gpu::Precision::F32;
+        let (out, cpu) = run_fit(&ctx, precision, &img, &push, &cpu_space);
         let what = |k: &str| format!("{w}x{h} vis={vis} R={radius} no-f64: {k}");
         let plane = |k: usize| &out[0][k * n..(k + 1) * n];
         // The colour as in f32 with f64 fits; the order on 98 % of pixels.
@@ -487,4 +444,39 @@ fn relative_errors(gpu: &[f32], cpu: &[f32]) -> Vec<f64> {
 fn quantile(sorted: &[f64], f: f64) -> f64 {
     let at = ((sorted.len().max(1) - 1) as f64 * f) as usize;
     sorted.get(at).copied().unwrap_or(0.0)
+}
+
+/// `aos_fit` on the GPU and its twin over `img` with the projections
+/// `space`: the GPU's `OUTPUTS` planes (one buffer) and the twin's.
+fn run_fit(
+    ctx: &std::sync::Arc<mcdenoise::GpuContext>,
+    precision: mcdenoise::gpu::Precision,
+    img: &Img,
+    push: &AosPush,
+    space: &[f32],
+) -> (Vec<Vec<f32>>, Vec<Vec<f32>>) {
+    let n = img.w * img.h;
+    let mut inputs: Vec<&[f32]> = img.fa().to_vec();
+    inputs.extend(img.color.iter().map(|p| p.as_slice()));
+    inputs.push(&img.vbar);
+    inputs.push(&img.spp);
+    inputs.push(space);
+    inputs.extend(img.va());
+    let p = AosPush {
+        stride: n as u32,
+        ..*push
+    };
+    let (out, _) = kernels::run_planes(
+        ctx,
+        &kfit::DECL,
+        precision,
+        bytemuck::bytes_of(&p),
+        img.w * kfit::THREADS as usize,
+        img.h,
+        &inputs,
+        &[OUTPUTS * n],
+        1.0,
+    )
+    .unwrap();
+    (out, aos_fit::aos_fit(&p, &img.inputs(), space))
 }

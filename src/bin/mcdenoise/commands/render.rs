@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use anyhow::bail;
 use mcdenoise::io::frames::FramePattern;
 use mcdenoise::render::{adaptive, reference, Renderer, Scene};
-use mcdenoise::{colour_of, io, metrics, schedule, GpuContext, Method, Options, RgbImage};
+use mcdenoise::{colour_of, io, metrics, schedule, Frame, GpuContext, Method, Options, RgbImage};
 
 use crate::args::{method_parser, parse_size, OutliersArg, PrecisionArg, PrefilterArg};
 use crate::common::{context, pass_bar, refuse_overwrite, stop_flag};
@@ -356,18 +356,7 @@ pub fn run(cli: &Cli, a: &Args) -> anyhow::Result<bool> {
     let result = result?;
     let secs = t0.elapsed().as_secs_f64();
     let frame = &result.frame;
-    io::write_output(
-        output,
-        &io::OutputImage {
-            color: frame.color.clone(),
-            error: (method != Method::None).then(|| frame.error.clone()),
-            samples: None,
-            debug: Vec::new(),
-        },
-    )?;
-    if let Some(p) = &a.png {
-        io::write_png_preview(p, &frame.color)?;
-    }
+    write_frame(output, a.png.as_deref(), method, frame)?;
     let stats = renderer.statistics()?;
     if let Some(p) = &a.save_stats {
         io::write_stats(p, &stats)?;
@@ -483,18 +472,8 @@ fn render_sequence(
         let result = adaptive::render(ctx, &renderer, cfg, &stop_flag(), |_| {})?;
         let frame = result.frame;
         let path = output.path(f as u64);
-        io::write_output(
-            &path,
-            &io::OutputImage {
-                color: frame.color.clone(),
-                error: (method != Method::None).then(|| frame.error.clone()),
-                samples: None,
-                debug: Vec::new(),
-            },
-        )?;
-        if let Some(p) = &png {
-            io::write_png_preview(&p.path(f as u64), &frame.color)?;
-        }
+        let png = png.as_ref().map(|p| p.path(f as u64));
+        write_frame(&path, png.as_deref(), method, &frame)?;
         let stats = renderer.statistics()?;
         if let Some(p) = &stats_out {
             io::write_stats(&p.path(f as u64), &stats)?;
@@ -553,4 +532,27 @@ fn render_sequence(
         );
     }
     Ok(true)
+}
+
+/// Writes a reconstruction: the EXR (colour, and the error unless the
+/// method is `none`) and, if asked, its tone-mapped PNG.
+fn write_frame(
+    output: &Path,
+    png: Option<&Path>,
+    method: Method,
+    frame: &Frame,
+) -> anyhow::Result<()> {
+    io::write_output(
+        output,
+        &io::OutputImage {
+            color: frame.color.clone(),
+            error: (method != Method::None).then(|| frame.error.clone()),
+            samples: None,
+            debug: Vec::new(),
+        },
+    )?;
+    if let Some(p) = png {
+        io::write_png_preview(p, &frame.color)?;
+    }
+    Ok(())
 }
