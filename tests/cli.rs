@@ -522,7 +522,8 @@ fn prefilter_writes_the_same_statistics_whole_and_tiled() {
 /// `render --frames` renders an animated built-in scene's frames into the
 /// output pattern, each frame from its own seed (frame 1 alone is the same
 /// file as frame 1 of a longer run), and with --reference prints per-frame
-/// rMSE and the sequence's temporal error; a range past the scene's frames,
+/// rMSE and the sequence's temporal error, and --strip a PNG of the frames
+/// side by side; a range past the scene's frames,
 /// and a still scene, are clear errors.
 #[test]
 fn render_frames_writes_a_deterministic_sequence_with_its_metrics() {
@@ -548,7 +549,9 @@ fn render_frames_writes_a_deterministic_sequence_with_its_metrics() {
                 range,
                 "-o",
             ])
-            .arg(dir.join(out));
+            .arg(dir.join(out))
+            .arg("--strip")
+            .arg(dir.join(format!("{out}.png")));
         run(&mut cmd)
     };
     let (code, out, err) = render("0..=2", "a_##.exr");
@@ -564,6 +567,10 @@ fn render_frames_writes_a_deterministic_sequence_with_its_metrics() {
     for f in 0..3 {
         assert!(dir.join(format!("a_{f:02}.exr")).exists(), "frame {f}");
     }
+    // The strip: three 16-pixel frames, 4 pixels apart.
+    let png = std::fs::read(dir.join("a_##.exr.png")).unwrap();
+    let width = u32::from_be_bytes(png[16..20].try_into().unwrap());
+    assert_eq!(width, 3 * 16 + 2 * 4);
     let (code, _, err) = render("1..2", "b_##.exr");
     assert_eq!(code, 0, "{err}");
     let bytes = |p: &str| std::fs::read(dir.join(p)).unwrap();

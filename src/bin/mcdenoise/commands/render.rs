@@ -64,6 +64,10 @@ pub struct Args {
     /// per-frame metrics and the sequence's temporal error.
     #[arg(long, value_name = "A..B", value_parser = parse_frames, conflicts_with = "figure")]
     frames: Option<std::ops::Range<u32>>,
+    /// With --frames: also write a PNG strip of up to six frames of the
+    /// reconstruction side by side, evenly spaced over the range.
+    #[arg(long, value_name = "PNG", requires = "frames")]
+    strip: Option<PathBuf>,
     /// Also write a tone-mapped PNG.
     #[arg(long)]
     png: Option<PathBuf>,
@@ -132,6 +136,18 @@ fn parse_frames(s: &str) -> Result<std::ops::Range<u32>, String> {
         return Err(bad());
     }
     Ok(a..end)
+}
+
+/// Frames of a `--strip`.
+const STRIP_FRAMES: usize = 6;
+
+/// Indices of at most `most` of `n` frames, evenly spaced, first and last
+/// included.
+fn strip_frames(n: usize, most: usize) -> Vec<usize> {
+    if n <= most {
+        return (0..n).collect();
+    }
+    (0..most).map(|k| k * (n - 1) / (most - 1)).collect()
 }
 
 /// The seed of frame `frame` of a sequence rendered with `seed`.
@@ -499,6 +515,18 @@ fn render_sequence(
     }
     if let Some(b) = bar {
         b.finish_and_clear();
+    }
+    if let Some(path) = &a.strip {
+        let picks = strip_frames(rows.len(), STRIP_FRAMES);
+        let panels: Vec<io::Panel> = picks
+            .iter()
+            .map(|&i| io::Panel::Colour(&rows[i].2))
+            .collect();
+        io::write_panels(path, w, h, &panels, 4)?;
+        if !cli.quiet {
+            let numbers: Vec<String> = picks.iter().map(|&i| rows[i].0.to_string()).collect();
+            eprintln!("strip: {} (frames {})", path.display(), numbers.join(", "));
+        }
     }
     if !cli.quiet {
         eprintln!(
