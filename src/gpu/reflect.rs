@@ -33,15 +33,16 @@ pub struct BindingDecl {
 /// How many bytes a binding must hold for a dispatch. [`Batch`](super::Batch)
 /// checks [`Extent::Planes`] itself, before anything is recorded; a kernel's
 /// `record` checks [`Extent::Record`] bindings with
-/// [`Batch::require`](super::Batch::require).
+/// [`KernelDecl::require`].
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
 pub enum Extent {
     /// `n` planes of 4-byte values (f32 or u32) of the image the push
     /// constants name (their first two u32: width, height): at least
     /// `4·n·width·height` bytes.
     Planes(u32),
-    /// Sized by something else (a band of rows, a queue, a tree, a scene
-    /// table): the kernel's `record` checks it.
+    /// Sized by something else (a band of rows, a queue, a tree, a state
+    /// ring): the kernel's `record` checks it. The built-in renderer's
+    /// bindings, its own buffers sized when it is made, are declared so too.
     Record,
 }
 

@@ -73,6 +73,7 @@ pub mod adaptive;
 pub mod gpu_scene;
 pub mod reference;
 pub mod scene;
+pub mod sequence;
 
 pub use gpu_scene::GpuScene;
 pub use scene::{Albedo, Camera, Material, Object, Primitive, Scene, Shape, Texture};
@@ -207,6 +208,9 @@ pub struct RaysPush {
     pub count: u32,
 }
 
+// The renderer's bindings are its own buffers, sized from the scene and
+// the image when the `Renderer` is made, never a caller's: they are
+// declared `sized_by_record` and not checked again per dispatch.
 const SCENE_BINDINGS: [crate::gpu::BindingDecl; 5] = [
     read("params").sized_by_record(),
     read("nodes").sized_by_record(),

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::bail;
 use mcdenoise::io::frames::FramePattern;
-use mcdenoise::render::{adaptive, reference, Renderer, Scene};
+use mcdenoise::render::{adaptive, reference, sequence, Renderer, Scene};
 use mcdenoise::{colour_of, io, metrics, schedule, Frame, GpuContext, Method, Options, RgbImage};
 
 use crate::args::{method_parser, parse_size, OutliersArg, PrecisionArg, PrefilterArg};
@@ -150,11 +150,6 @@ fn strip_frames(n: usize, most: usize) -> Vec<usize> {
     (0..most).map(|k| k * (n - 1) / (most - 1)).collect()
 }
 
-/// The seed of frame `frame` of a sequence rendered with `seed`.
-fn frame_seed(seed: u64, frame: u32) -> u64 {
-    seed ^ (frame as u64 + 1).wrapping_mul(0x9e37_79b9_7f4a_7c15)
-}
-
 fn list_scenes() {
     let names = Scene::builtin_names();
     let width = names.iter().map(|n| n.len()).max().unwrap_or(0);
@@ -175,7 +170,7 @@ fn reference_image(
     size: (usize, usize),
     k: u32,
     seed: u64,
-) -> anyhow::Result<(RgbImage, PathBuf)> {
+) -> mcdenoise::Result<(RgbImage, PathBuf)> {
     let bar = pass_bar(cli, &format!("reference, {k} spp"));
     let t0 = std::time::Instant::now();
     let r = reference::reference(
@@ -443,8 +438,8 @@ fn loop_config(a: &Args) -> anyhow::Result<adaptive::LoopConfig> {
     })
 }
 
-/// `render --frames`: frames `frames` of `scene`'s sequence, each through
-/// the loop of `cfg` with its own seed, into the output patterns; with
+/// `render --frames`: frames `frames` of `scene`'s sequence
+/// ([`sequence::render_frames`]) into the output patterns; with
 /// `--reference K`, each frame's metrics against its own K-spp reference
 /// and the sequence's temporal error ([`metrics::temporal_error`]).
 fn render_sequence(
@@ -455,19 +450,6 @@ fn render_sequence(
     frames: std::ops::Range<u32>,
     cfg: &adaptive::LoopConfig,
 ) -> anyhow::Result<bool> {
-    let n = scene.frames();
-    if frames.end > n {
-        bail!(
-            "--frames {}..{}: the scene has frames 0..{n}{}",
-            frames.start,
-            frames.end,
-            if scene.animation.is_none() {
-                " (it has no [animation])"
-            } else {
-                ""
-            }
-        );
-    }
     let pattern = |p: &Path| FramePattern::parse(p);
     let output = pattern(a.output.as_deref().expect("clap: -o"))?;
     let png = a.png.as_deref().map(pattern).transpose()?;
@@ -481,26 +463,22 @@ fn render_sequence(
     // (frame, Monte Carlo mean, reconstruction, reference)
     let mut rows: Vec<(u32, RgbImage, RgbImage, Option<RgbImage>)> = Vec::new();
     let t0 = std::time::Instant::now();
-    for f in frames.clone() {
-        let at = scene.at_frame(f)?;
-        let seed = frame_seed(a.seed, f);
-        let renderer = Renderer::new(ctx, &at, w, h, seed)?;
-        let result = adaptive::render(ctx, &renderer, cfg, &stop_flag(), |_| {})?;
-        let frame = result.frame;
-        let path = output.path(f as u64);
-        let png = png.as_ref().map(|p| p.path(f as u64));
-        write_frame(&path, png.as_deref(), method, &frame)?;
-        let stats = renderer.statistics()?;
+    let each = |f: sequence::SequenceFrame| -> mcdenoise::Result<()> {
+        let n = f.number as u64;
+        let path = output.path(n);
+        let png = png.as_ref().map(|p| p.path(n));
+        write_frame(&path, png.as_deref(), method, &f.result.frame)?;
         if let Some(p) = &stats_out {
-            io::write_stats(&p.path(f as u64), &stats)?;
+            io::write_stats(&p.path(n), &f.stats)?;
         }
         let reference = match a.reference {
-            Some(k) => Some(reference_image(cli, ctx, &at, (w, h), k, seed)?.0),
+            Some(k) => Some(reference_image(cli, ctx, &f.scene, (w, h), k, f.seed)?.0),
             None => None,
         };
         let line = format!(
-            "frame {f}: {:.2} spp -> {}",
-            result.samples as f64 / (w * h) as f64,
+            "frame {}: {:.2} spp -> {}",
+            f.number,
+            f.result.samples as f64 / (w * h) as f64,
             path.display()
         );
         match (&bar, cli.quiet) {
@@ -511,8 +489,15 @@ fn render_sequence(
             (None, false) => eprintln!("{line}"),
             (None, true) => {}
         }
-        rows.push((f, colour_of(&stats), frame.color, reference));
-    }
+        rows.push((
+            f.number,
+            colour_of(&f.stats),
+            f.result.frame.color,
+            reference,
+        ));
+        Ok(())
+    };
+    sequence::render_frames(ctx, scene, frames, (w, h), a.seed, cfg, &stop_flag(), each)?;
     if let Some(b) = bar {
         b.finish_and_clear();
     }
@@ -569,7 +554,7 @@ fn write_frame(
     png: Option<&Path>,
     method: Method,
     frame: &Frame,
-) -> anyhow::Result<()> {
+) -> mcdenoise::Result<()> {
     io::write_output(
         output,
         &io::OutputImage {

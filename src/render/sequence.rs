@@ -1,0 +1,76 @@
+//! Sequences of an animated scene ([`Scene::at_frame`]): each frame through
+//! the adaptive loop with a seed of its own, so a frame renders the same
+//! alone or as part of any range, on one context (one set of pipelines).
+
+use std::ops::Range;
+use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
+
+use super::adaptive::{self, LoopConfig, LoopResult};
+use super::{Renderer, Scene};
+use crate::error::{Error, Result};
+use crate::gpu::GpuContext;
+use crate::image::StatsImage;
+
+/// The seed of frame `frame` of a sequence rendered with `seed`.
+pub fn frame_seed(seed: u64, frame: u32) -> u64 {
+    seed ^ (frame as u64 + 1).wrapping_mul(0x9e37_79b9_7f4a_7c15)
+}
+
+/// One rendered frame of a sequence.
+#[derive(Debug)]
+pub struct SequenceFrame {
+    /// Its frame number.
+    pub number: u32,
+    /// Its seed ([`frame_seed`]).
+    pub seed: u64,
+    /// The scene placed at this frame.
+    pub scene: Scene,
+    /// The loop's result: the reconstruction, its schedule and timings.
+    pub result: LoopResult,
+    /// The render statistics (the denoiser's input).
+    pub stats: StatsImage,
+}
+
+/// Renders frames `frames` of `scene`'s sequence at `size` through `cfg`,
+/// handing each to `each` in frame order. A range outside the scene's
+/// frames is an error before anything renders.
+pub fn render_frames(
+    ctx: &Arc<GpuContext>,
+    scene: &Scene,
+    frames: Range<u32>,
+    (width, height): (usize, usize),
+    seed: u64,
+    cfg: &LoopConfig,
+    stop: &AtomicBool,
+    mut each: impl FnMut(SequenceFrame) -> Result<()>,
+) -> Result<()> {
+    let n = scene.frames();
+    if frames.end > n {
+        return Err(Error::InvalidArgument(format!(
+            "frames {}..{}: the scene has frames 0..{n}{}",
+            frames.start,
+            frames.end,
+            if scene.animation.is_none() {
+                " (it has no [animation])"
+            } else {
+                ""
+            }
+        )));
+    }
+    for number in frames {
+        let at = scene.at_frame(number)?;
+        let seed = frame_seed(seed, number);
+        let renderer = Renderer::new(ctx, &at, width, height, seed)?;
+        let result = adaptive::render(ctx, &renderer, cfg, stop, |_| {})?;
+        let stats = renderer.statistics()?;
+        each(SequenceFrame {
+            number,
+            seed,
+            scene: at,
+            result,
+            stats,
+        })?;
+    }
+    Ok(())
+}

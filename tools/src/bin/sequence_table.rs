@@ -1,0 +1,167 @@
+//! Issue #39's baseline: on the animated built-in scenes, each method's
+//! mean per-frame rMSE and temporal error (`metrics::temporal_error`) with
+//! every frame denoised alone, the input's (the Monte Carlo mean), which
+//! the last column divides by, and OIDN's (`benches/oidn.sh`, albedo and
+//! normal) on the same statistics. Each frame is rendered once, uniformly,
+//! with its own seed (`render::sequence`); every denoiser gets the same
+//! statistics; each frame has its own reference, and a second one with
+//! another seed: half their rMSE and temporal error against each other is
+//! the references' own, which the corrected columns subtract.
+//!
+//! ```text
+//! cargo run --release -p mcdenoise-tools --bin sequence_table -- \
+//!     [--scenes pan_room,moving_box,moving_highlight] [--methods wlr,lp,apr,aos,auto] \
+//!     [--size 64x64] [--spp 16] [--frames 24] [--reference 512] [--oidn]
+//! ```
+
+use std::path::PathBuf;
+use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
+
+use anyhow::{bail, Context};
+use clap::Parser;
+use mcdenoise::render::adaptive::LoopConfig;
+use mcdenoise::render::{reference, sequence, Scene};
+use mcdenoise::{
+    io, metrics, Config, ContextOptions, Denoiser, GpuContext, Method, RgbImage, Source, StatsImage,
+};
+
+#[derive(Parser)]
+struct Args {
+    /// Animated scenes (built-in names or files).
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "pan_room,moving_box,moving_highlight"
+    )]
+    scenes: Vec<String>,
+    /// Methods, each on every frame alone.
+    #[arg(long, value_delimiter = ',', default_value = "wlr,lp,apr,aos,auto")]
+    methods: Vec<String>,
+    #[arg(long, default_value = "64x64", value_parser = |s: &str| mcdenoise::bench::parse_size(s).map_err(|e| e.to_string()))]
+    size: (usize, usize),
+    /// Samples per pixel of every frame (uniform).
+    #[arg(long, default_value_t = 16)]
+    spp: u32,
+    /// Frames from 0 (at most the scene's).
+    #[arg(long, default_value_t = 24)]
+    frames: u32,
+    /// Samples per pixel of each frame's reference.
+    #[arg(long, default_value_t = 512)]
+    reference: u32,
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Also OIDN on every frame's statistics.
+    #[arg(long)]
+    oidn: bool,
+    /// Working folder for OIDN's inputs and outputs.
+    #[arg(long, default_value = "target/sequence_table")]
+    work: PathBuf,
+}
+
+fn main() -> anyhow::Result<()> {
+    let a = Args::parse();
+    let ctx = Arc::new(GpuContext::new(&ContextOptions::default())?);
+    let methods: Vec<Method> = a
+        .methods
+        .iter()
+        .map(|n| Method::from_name(n).with_context(|| format!("no method {n}")))
+        .collect::<anyhow::Result<_>>()?;
+    let stop = AtomicBool::new(false);
+    println!(
+        "<!-- {}x{}, {} spp uniform, {} frames, {}-spp references, seed {} -->",
+        a.size.0, a.size.1, a.spp, a.frames, a.reference, a.seed
+    );
+    println!(
+        "| scene | denoiser | mean rMSE | temporal error | corrected rMSE | corrected temporal | \
+         corrected temporal / input's |"
+    );
+    println!("|---|---|---:|---:|---:|---:|---:|");
+    for name in &a.scenes {
+        let scene = Scene::by_name_or_file(name)?;
+        let frames = 0..a.frames.min(scene.frames());
+        let cfg = LoopConfig::new(Method::None, a.spp, false);
+        let mut stats: Vec<StatsImage> = Vec::new();
+        let (mut refs, mut second): (Vec<RgbImage>, Vec<RgbImage>) = (Vec::new(), Vec::new());
+        sequence::render_frames(&ctx, &scene, frames, a.size, a.seed, &cfg, &stop, |f| {
+            // Two references per frame with independent seeds: the second
+            // one's row is the floor the references' own noise sets.
+            for (seed, out) in [(f.seed, &mut refs), (!f.seed, &mut second)] {
+                let seed = reference::reference_seed(seed);
+                let k = a.reference;
+                let r = reference::reference(&ctx, &f.scene, a.size, k, seed, &stop, |_, _| {})?;
+                out.push(r.image);
+            }
+            stats.push(f.stats);
+            Ok(())
+        })?;
+        let r: Vec<&RgbImage> = refs.iter().collect();
+        // The second reference against the first: twice the references'
+        // own error, rMSE and temporal (independent seeds); half of it is
+        // subtracted from every row's figures in the corrected columns.
+        let second_refs: Vec<&RgbImage> = second.iter().collect();
+        let own = (
+            mean_rmse(&second_refs, &r) / 2.0,
+            metrics::temporal_error(&second_refs, &r)?.context("two frames or more")? / 2.0,
+        );
+        println!(
+            "| {name} | the references' own (half of two seeds') | {:.5} | {:.6} | | | |",
+            own.0, own.1
+        );
+        let mut input_temporal = None;
+        let mut row = |what: &str, outputs: &[RgbImage]| -> anyhow::Result<()> {
+            let o: Vec<&RgbImage> = outputs.iter().collect();
+            let mean = mean_rmse(&o, &r);
+            let t = metrics::temporal_error(&o, &r)?.context("two frames or more")?;
+            let (mc, tc) = (mean - own.0, t - own.1);
+            let base = *input_temporal.get_or_insert(tc);
+            println!(
+                "| {name} | {what} | {mean:.5} | {t:.6} | {mc:.5} | {tc:.6} | {:.3} |",
+                tc / base
+            );
+            Ok(())
+        };
+        let inputs: Vec<RgbImage> = stats.iter().map(mcdenoise::colour_of).collect();
+        row("input", &inputs)?;
+        for &m in &methods {
+            let mut outputs = Vec::with_capacity(stats.len());
+            for s in &stats {
+                let d = Denoiser::new(&ctx, Source::of_image(s), Config::new(m))?;
+                outputs.push(d.denoise(s, None)?.color);
+            }
+            row(m.name(), &outputs)?;
+        }
+        if a.oidn {
+            let dir = a.work.join(name);
+            std::fs::create_dir_all(&dir)?;
+            let mut cmd = std::process::Command::new("bash");
+            cmd.arg("benches/oidn.sh");
+            let mut outs = Vec::new();
+            for (k, s) in stats.iter().enumerate() {
+                let (i, o) = (
+                    dir.join(format!("in_{k:04}.exr")),
+                    dir.join(format!("oidn_{k:04}.exr")),
+                );
+                io::write_stats(&i, s)?;
+                cmd.arg(&i).arg(&o);
+                outs.push(o);
+            }
+            let out = cmd.output().context("running benches/oidn.sh")?;
+            if !out.status.success() {
+                bail!("oidn.sh failed: {}", String::from_utf8_lossy(&out.stderr));
+            }
+            let images = outs
+                .iter()
+                .map(|o| io::read_rgb(o))
+                .collect::<mcdenoise::Result<Vec<_>>>()?;
+            row("OIDN", &images)?;
+        }
+    }
+    Ok(())
+}
+
+/// Mean over frames of each frame's rMSE against its reference.
+fn mean_rmse(out: &[&RgbImage], refs: &[&RgbImage]) -> f64 {
+    let sum: f64 = out.iter().zip(refs).map(|(o, r)| metrics::rmse(o, r)).sum();
+    sum / out.len().max(1) as f64
+}
