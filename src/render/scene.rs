@@ -622,8 +622,8 @@ impl Scene {
     pub fn builtin_still_names() -> Vec<&'static str> {
         BUILTIN
             .iter()
-            .filter(|(_, text)| !text.contains("\n[animation]"))
             .map(|(n, _)| *n)
+            .filter(|n| Scene::builtin(n).is_ok_and(|s| s.animation.is_none()))
             .collect()
     }
 
@@ -881,20 +881,25 @@ impl Scene {
         s.frame = frame as f32;
         if let Some(a) = &self.animation {
             let f = frame as f32;
-            let keys = |get: &dyn Fn(&CameraKey) -> Option<Vec3>| -> Vec<(f32, Vec3)> {
+            let keys = |get: fn(&CameraKey) -> Option<Vec3>| -> Vec<(f32, Vec3)> {
                 a.camera
                     .iter()
                     .filter_map(|k| get(k).map(|v| (k.frame, v)))
                     .collect()
             };
-            if let Some(p) = interpolate(&keys(&|k| k.position), f) {
+            if let Some(p) = interpolate(&keys(|k| k.position), f) {
                 s.camera.position = p;
             }
-            if let Some(p) = interpolate(&keys(&|k| k.look_at), f) {
+            if let Some(p) = interpolate(&keys(|k| k.look_at), f) {
                 s.camera.look_at = p;
             }
-            if let Some(d) = interpolate(&keys(&|k| k.focus_distance.map(|d| [d; 3])), f) {
-                s.camera.focus_distance = Some(d[0]);
+            let focus: Vec<(f32, [f32; 1])> = a
+                .camera
+                .iter()
+                .filter_map(|k| k.focus_distance.map(|d| (k.frame, [d])))
+                .collect();
+            if let Some([d]) = interpolate(&focus, f) {
+                s.camera.focus_distance = Some(d);
             }
         }
         s.validate()
@@ -933,6 +938,13 @@ impl Scene {
     }
 }
 
+/// The rotation by `degrees` about the vertical axis (a vector's, about the
+/// origin): how boxes and keyframes turn.
+fn rotation_y(degrees: f32) -> impl Fn(Vec3) -> Vec3 + Copy {
+    let (s, c) = degrees.to_radians().sin_cos();
+    move |v: Vec3| [c * v[0] + s * v[2], v[1], -s * v[0] + c * v[2]]
+}
+
 /// The six outward-facing faces of a box rotated about the vertical axis
 /// through its centre.
 fn box_quads(min: Vec3, max: Vec3, rotate_y: f32) -> Vec<Shape> {
@@ -941,8 +953,7 @@ fn box_quads(min: Vec3, max: Vec3, rotate_y: f32) -> Vec<Shape> {
         0.5 * (min[1] + max[1]),
         0.5 * (min[2] + max[2]),
     ];
-    let (s, co) = rotate_y.to_radians().sin_cos();
-    let rot = |v: Vec3| [co * v[0] + s * v[2], v[1], -s * v[0] + co * v[2]];
+    let rot = rotation_y(rotate_y);
     let pt = |p: Vec3| add(rot(sub(p, c)), c);
     let d = sub(max, min);
     let (dx, dy, dz) = ([d[0], 0.0, 0.0], [0.0, d[1], 0.0], [0.0, 0.0, d[2]]);
@@ -1006,7 +1017,7 @@ impl Object {
 /// The value at frame `f` of keys `(frame, value)` in increasing frame
 /// order: linear between two keys, the first or last key's outside them;
 /// `None` without keys.
-fn interpolate(keys: &[(f32, Vec3)], f: f32) -> Option<Vec3> {
+fn interpolate<const N: usize>(keys: &[(f32, [f32; N])], f: f32) -> Option<[f32; N]> {
     let (first, last) = (keys.first()?, keys.last()?);
     if f <= first.0 {
         return Some(first.1);
@@ -1017,7 +1028,7 @@ fn interpolate(keys: &[(f32, Vec3)], f: f32) -> Option<Vec3> {
     let i = keys.iter().position(|k| k.0 > f)?;
     let ((f0, a), (f1, b)) = (keys[i - 1], keys[i]);
     let t = (f - f0) / (f1 - f0);
-    Some([0, 1, 2].map(|k| a[k] + t * (b[k] - a[k])))
+    Some(std::array::from_fn(|k| a[k] + t * (b[k] - a[k])))
 }
 
 /// Places one object's primitives (at rest) at frame `frame` of `keys`:
@@ -1025,18 +1036,11 @@ fn interpolate(keys: &[(f32, Vec3)], f: f32) -> Option<Vec3> {
 /// translated, and moving over the shutter by the translation to the next
 /// frame on top of their own `motion`.
 fn place(prims: &mut [Primitive], keys: &[Keyframe], frame: f32) {
-    let at = |f: f32| {
-        let k: Vec<(f32, Vec3)> = keys
-            .iter()
-            .map(|k| (k.frame, [k.translate[0], k.translate[1], k.translate[2]]))
-            .collect();
-        let r: Vec<(f32, Vec3)> = keys.iter().map(|k| (k.frame, [k.rotate_y; 3])).collect();
-        (
-            interpolate(&k, f).unwrap_or_default(),
-            interpolate(&r, f).map_or(0.0, |r| r[0]),
-        )
-    };
-    let ((t0, r0), (t1, _)) = (at(frame), at(frame + 1.0));
+    let translate: Vec<(f32, Vec3)> = keys.iter().map(|k| (k.frame, k.translate)).collect();
+    let rotate: Vec<(f32, [f32; 1])> = keys.iter().map(|k| (k.frame, [k.rotate_y])).collect();
+    let at = |f: f32| interpolate(&translate, f).unwrap_or_default();
+    let (t0, t1) = (at(frame), at(frame + 1.0));
+    let [r0] = interpolate(&rotate, frame).unwrap_or_default();
     let mut lo = [f32::INFINITY; 3];
     let mut hi = [f32::NEG_INFINITY; 3];
     for p in prims.iter() {
@@ -1051,8 +1055,7 @@ fn place(prims: &mut [Primitive], keys: &[Keyframe], frame: f32) {
         }
     }
     let c = [0, 1, 2].map(|k| 0.5 * (lo[k] + hi[k]));
-    let (s, co) = r0.to_radians().sin_cos();
-    let rot = |v: Vec3| [co * v[0] + s * v[2], v[1], -s * v[0] + co * v[2]];
+    let rot = rotation_y(r0);
     let pt = |p: Vec3| add(add(rot(sub(p, c)), c), t0);
     for p in prims {
         p.shape = match p.shape {
