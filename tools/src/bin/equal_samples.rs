@@ -30,7 +30,7 @@ use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 use std::time::Instant;
 
-use anyhow::{bail, Context};
+use anyhow::Context;
 use clap::Parser;
 use mcdenoise::render::adaptive::{self, LoopConfig};
 use mcdenoise::render::{reference, Renderer, Samples, Scene};
@@ -38,6 +38,7 @@ use mcdenoise::{
     colour_of, io, metrics, Batch, Config, ContextOptions, Denoiser, GpuContext, Method, Options,
     Pass, RgbImage, Source,
 };
+use mcdenoise_tools::parse_method;
 use serde::Serialize;
 
 #[derive(Parser)]
@@ -52,8 +53,8 @@ struct Args {
     #[arg(long, value_delimiter = ',', default_value = "16,64")]
     spp: Vec<u32>,
     /// Methods, comma-separated.
-    #[arg(long, value_delimiter = ',', default_value = "wlr,lp,apr,aos")]
-    methods: Vec<String>,
+    #[arg(long, value_delimiter = ',', default_value = "wlr,lp,apr,aos", value_parser = parse_method)]
+    methods: Vec<Method>,
     /// Samples per pixel of each of the two references.
     #[arg(long, default_value_t = 4096)]
     reference: u32,
@@ -200,15 +201,7 @@ fn render_ms(t: &[mcdenoise::KernelTiming]) -> f64 {
 /// Runs OIDN on `(input, output)` pairs and returns the outputs' rMSE
 /// against `r`.
 fn oidn(pairs: &[(PathBuf, PathBuf)], r: &RgbImage) -> anyhow::Result<Vec<f64>> {
-    let mut cmd = std::process::Command::new("bash");
-    cmd.arg("benches/oidn.sh");
-    for (i, o) in pairs {
-        cmd.arg(i).arg(o);
-    }
-    let out = cmd.output().context("running benches/oidn.sh")?;
-    if !out.status.success() {
-        bail!("oidn.sh failed: {}", String::from_utf8_lossy(&out.stderr));
-    }
+    mcdenoise_tools::oidn(pairs)?;
     pairs
         .iter()
         .map(|(_, o)| Ok(metrics::rmse(&io::read_rgb(o)?, r)))
@@ -546,11 +539,7 @@ fn markdown(rows: &[Row], a: &Args, methods: &[Method]) -> String {
 fn main() -> anyhow::Result<()> {
     let mut a = Args::parse();
     a.target |= a.target_only;
-    let methods: Vec<Method> = a
-        .methods
-        .iter()
-        .map(|n| Method::from_name(n).with_context(|| format!("no method {n}")))
-        .collect::<anyhow::Result<_>>()?;
+    let methods = a.methods.clone();
     let options = Options::parse(&a.opts)?;
     let scenes: Vec<String> = if a.scenes.is_empty() {
         Scene::builtin_still_names()

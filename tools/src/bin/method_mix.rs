@@ -25,6 +25,7 @@ use mcdenoise::{
     colour_of, io, metrics, Batch, Config, ContextOptions, Denoiser, GpuContext, Method, RgbImage,
     Source, StatsImage,
 };
+use mcdenoise_tools::parse_method;
 
 #[derive(Parser)]
 struct Args {
@@ -38,8 +39,8 @@ struct Args {
     spp: Vec<u32>,
     #[arg(long, default_value_t = 1024)]
     reference: u32,
-    #[arg(long, value_delimiter = ',', default_value = "wlr,lp,apr,aos")]
-    methods: Vec<String>,
+    #[arg(long, value_delimiter = ',', default_value = "wlr,lp,apr,aos", value_parser = parse_method)]
+    methods: Vec<Method>,
     /// Only the methods' own rows (rMSE, image mean over the reference's),
     /// no blending rules.
     #[arg(long)]
@@ -263,11 +264,7 @@ fn case(
 fn main() -> anyhow::Result<()> {
     let a = Args::parse();
     let ctx = Arc::new(GpuContext::new(&ContextOptions::default())?);
-    let methods: Vec<Method> = a
-        .methods
-        .iter()
-        .map(|m| Method::from_name(m).ok_or_else(|| anyhow::anyhow!("unknown method {m}")))
-        .collect::<anyhow::Result<_>>()?;
+    let methods = a.methods.clone();
     std::fs::create_dir_all(&a.work)?;
     if let Some(dir) = &a.public {
         for s in ["dof_checker", "glossy_cornell", "indirect_room"] {

@@ -18,13 +18,14 @@ use std::path::PathBuf;
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 
-use anyhow::{bail, Context};
+use anyhow::Context;
 use clap::Parser;
 use mcdenoise::render::adaptive::LoopConfig;
 use mcdenoise::render::{reference, sequence, Scene};
 use mcdenoise::{
     io, metrics, Config, ContextOptions, Denoiser, GpuContext, Method, RgbImage, Source, StatsImage,
 };
+use mcdenoise_tools::parse_method;
 
 #[derive(Parser)]
 struct Args {
@@ -36,8 +37,8 @@ struct Args {
     )]
     scenes: Vec<String>,
     /// Methods, each on every frame alone.
-    #[arg(long, value_delimiter = ',', default_value = "wlr,lp,apr,aos,auto")]
-    methods: Vec<String>,
+    #[arg(long, value_delimiter = ',', default_value = "wlr,lp,apr,aos,auto", value_parser = parse_method)]
+    methods: Vec<Method>,
     #[arg(long, default_value = "64x64", value_parser = |s: &str| mcdenoise::bench::parse_size(s).map_err(|e| e.to_string()))]
     size: (usize, usize),
     /// Samples per pixel of every frame (uniform).
@@ -62,11 +63,6 @@ struct Args {
 fn main() -> anyhow::Result<()> {
     let a = Args::parse();
     let ctx = Arc::new(GpuContext::new(&ContextOptions::default())?);
-    let methods: Vec<Method> = a
-        .methods
-        .iter()
-        .map(|n| Method::from_name(n).with_context(|| format!("no method {n}")))
-        .collect::<anyhow::Result<_>>()?;
     let stop = AtomicBool::new(false);
     println!(
         "<!-- {}x{}, {} spp uniform, {} frames, {}-spp references, seed {} -->",
@@ -123,7 +119,7 @@ fn main() -> anyhow::Result<()> {
         };
         let inputs: Vec<RgbImage> = stats.iter().map(mcdenoise::colour_of).collect();
         row("input", &inputs)?;
-        for &m in &methods {
+        for &m in &a.methods {
             let mut outputs = Vec::with_capacity(stats.len());
             for s in &stats {
                 let d = Denoiser::new(&ctx, Source::of_image(s), Config::new(m))?;
@@ -134,25 +130,19 @@ fn main() -> anyhow::Result<()> {
         if a.oidn {
             let dir = a.work.join(name);
             std::fs::create_dir_all(&dir)?;
-            let mut cmd = std::process::Command::new("bash");
-            cmd.arg("benches/oidn.sh");
-            let mut outs = Vec::new();
+            let mut pairs = Vec::new();
             for (k, s) in stats.iter().enumerate() {
                 let (i, o) = (
                     dir.join(format!("in_{k:04}.exr")),
                     dir.join(format!("oidn_{k:04}.exr")),
                 );
                 io::write_stats(&i, s)?;
-                cmd.arg(&i).arg(&o);
-                outs.push(o);
+                pairs.push((i, o));
             }
-            let out = cmd.output().context("running benches/oidn.sh")?;
-            if !out.status.success() {
-                bail!("oidn.sh failed: {}", String::from_utf8_lossy(&out.stderr));
-            }
-            let images = outs
+            mcdenoise_tools::oidn(&pairs)?;
+            let images = pairs
                 .iter()
-                .map(|o| io::read_rgb(o))
+                .map(|(_, o)| io::read_rgb(o))
                 .collect::<mcdenoise::Result<Vec<_>>>()?;
             row("OIDN", &images)?;
         }
