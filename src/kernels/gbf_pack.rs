@@ -67,17 +67,13 @@ pub fn record(
     }
     // The 15 inputs, then the 4 packed outputs.
     let b: Vec<BufferSlice> = [&feat[..], &var, &[spp], &packed].concat();
-    let need = (end as u64 * width as u64 * 4).div_ceil(16) * 16;
-    if let Some((k, short)) = b[..15].iter().enumerate().find(|(_, s)| s.size() < need) {
-        return Err(Error::InvalidArgument(format!(
-            "gbf_pack: input {k} is bound as {} bytes; it is read as whole vec4s up to byte {need} (PlaneSet::plane_quads)",
-            short.size()
-        )));
-    }
-    // Each packed output holds a vec4 per pixel of `rows`, from `first`.
+    // The inputs are read as whole vec4s up to the end of `rows` (a
+    // PlaneSet's plane_quads pads them); each packed output holds a vec4
+    // per pixel of `rows`, from `first`.
+    let read = (end as u64 * width as u64 * 4).div_ceil(16) * 16;
     let packed_bytes = 16 * width as u64 * end.saturating_sub(first) as u64;
-    for (k, p) in packed.iter().enumerate() {
-        DECL.require(15 + k, p, packed_bytes)?;
+    for (k, s) in b.iter().enumerate() {
+        DECL.require(k, s, if k < 15 { read } else { packed_bytes })?;
     }
     // Push `height`: the end of the rows packed (see the shader).
     let push = GbfPush {
