@@ -603,3 +603,58 @@ pub const SCAN_INNER: u32 = 0;
 pub const SCAN_LEAF: u32 = 1;
 /// "No parent level" in [`SampleTreePush::par_off`].
 pub const SCAN_NO_LEVEL: u32 = u32::MAX;
+
+/// `spirv/lp_temporal.comp`, block `Push` (spec §10.1, the LP temporal
+/// filter).
+#[repr(C)]
+#[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct TemporalPush {
+    /// Image width in pixels.
+    pub width: u32,
+    /// Image height in pixels.
+    pub height: u32,
+    /// First row of the band this dispatch covers.
+    pub row0: u32,
+    /// [`TEMPORAL_RESET`] and [`TEMPORAL_NO_SEARCH`].
+    pub flags: u32,
+    /// The forgetting factor `λ` ([`TEMPORAL_LAMBDA`] by default).
+    pub lambda: f32,
+    /// The prior `δ` of a (re)initialised pixel, `P = I/δ`
+    /// ([`TEMPORAL_DELTA`]).
+    pub delta: f32,
+    /// Unused: 0.
+    pub _pad: [u32; 2],
+}
+
+/// [`TemporalPush::flags`]: forget every pixel's history (a cut, or the
+/// first frame): every pixel is reinitialised.
+pub const TEMPORAL_RESET: u32 = 1;
+/// [`TemporalPush::flags`]: no reprojection, pixel `i` continues its own
+/// state (`j = i`) and is never reset by distance (§10.1's invariant).
+pub const TEMPORAL_NO_SEARCH: u32 = 2;
+/// The forgetting factor `λ` of §10.1 `[LP §6]`.
+pub const TEMPORAL_LAMBDA: f32 = 0.98;
+/// The prior `δ` of a reinitialised pixel, `P = I/δ` (§10.1, `[LP §7]`).
+pub const TEMPORAL_DELTA: f32 = 0.001;
+/// Radius of the reprojection search: a 7×7 window (SEARCH-7).
+pub const TEMPORAL_SEARCH: i32 = 3;
+/// RESET: a match farther than this fraction of the viewing distance
+/// reinitialises the pixel.
+pub const TEMPORAL_RESET_REL: f64 = 0.01;
+/// RESET: the floor of the viewing distance the threshold scales.
+pub const TEMPORAL_DEPTH_FLOOR: f64 = 1e-3;
+/// Planes of the temporal state, per pixel: `β` per channel (intercept,
+/// slope: R0 R1 G0 G1 B0 B1), `P` (`P00 P01 P11`), the position `W` (X Y Z)
+/// and the valid flag (1 or 0).
+pub const TEMPORAL_STATE: usize = 13;
+/// The state plane of `P00` (the debug map `temporal_p00`).
+pub const TEMPORAL_P00: usize = 6;
+/// The state plane of the valid flag.
+pub const TEMPORAL_VALID: usize = 12;
+/// The debug plane `temporal_source`: the reprojection source's offset
+/// `(dy + 3)·7 + (dx + 3)` in 0..49, this value where the pixel was
+/// reinitialised, [`TEMPORAL_SOURCE_NONE`] where it was passed through
+/// (an invalid pixel or a non-finite colour).
+pub const TEMPORAL_SOURCE_RESET: f32 = -1.0;
+/// See [`TEMPORAL_SOURCE_RESET`].
+pub const TEMPORAL_SOURCE_NONE: f32 = -2.0;

@@ -29,6 +29,7 @@ pub mod lp_centres;
 pub mod lp_gather;
 pub mod lp_reach;
 pub mod lp_select;
+pub mod lp_temporal;
 pub mod outlier_detect;
 pub mod outlier_grey;
 pub mod outlier_median;
@@ -83,6 +84,7 @@ pub const ALL: &[&KernelDecl] = &[
     &lp_reach::DECL,
     &lp_select::DECL,
     &lp_gather::DECL,
+    &lp_temporal::DECL,
     &aos_nlm::DECL,
     &aos_space::DECL,
     &aos_fit::DECL,

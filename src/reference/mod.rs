@@ -38,6 +38,7 @@ pub mod lp_centres;
 pub mod lp_gather;
 pub mod lp_reach;
 pub mod lp_select;
+pub mod lp_temporal;
 pub mod outlier_detect;
 pub mod outlier_grey;
 pub mod outlier_median;

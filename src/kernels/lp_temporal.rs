@@ -1,0 +1,96 @@
+//! `lp_temporal`: one frame of spec §10.1's LP temporal filter — the 7×7
+//! reprojection search on the world position (SEARCH-7), RESET, the shift
+//! of the time origin (TIME-ORIGIN) and the recursive least-squares update
+//! with forgetting factor `λ`. Twin: `reference::lp_temporal`.
+
+use crate::error::Result;
+use crate::gpu::reflect::{read, write};
+use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};
+use crate::shared::{TemporalPush, TEMPORAL_SEARCH, TEMPORAL_STATE};
+
+/// Declaration of `spirv/lp_temporal.comp`; checked against the SPIR-V by
+/// reflection.
+pub const DECL: KernelDecl = KernelDecl {
+    name: "lp_temporal",
+    bindings: &[
+        read("yr"),
+        read("yg"),
+        read("yb"),
+        read("px"),
+        read("py"),
+        read("pz"),
+        read("depth"),
+        read("spp"),
+        read("prev").planes(TEMPORAL_STATE as u32),
+        write("next").planes(TEMPORAL_STATE as u32),
+        write("out_r"),
+        write("out_g"),
+        write("out_b"),
+        write("source"),
+    ],
+    push_size: std::mem::size_of::<TemporalPush>() as u32,
+};
+
+/// Per pixel: per candidate of the 7×7 window the shift (5), the two
+/// distances (3 + 3 multiply-adds and subtractions, 12) and the cost (3);
+/// the update (about 20) and the stores.
+pub const FLOPS_PER_PIXEL: f64 = {
+    let side = (2 * TEMPORAL_SEARCH + 1) as f64;
+    side * side * (5.0 + 12.0 + 3.0) + 20.0
+};
+
+/// What one frame of the filter reads: the spatial reconstruction, the
+/// position (X, Y, Z) and depth planes, and the sample counts.
+#[derive(Copy, Clone, Debug)]
+pub struct TemporalIn {
+    /// The spatially filtered colour R, G, B.
+    pub color: [BufferSlice; 3],
+    /// The `position` layer.
+    pub position: [BufferSlice; 3],
+    /// The `depth` layer.
+    pub depth: BufferSlice,
+    /// The sample counts.
+    pub spp: BufferSlice,
+}
+
+/// What it writes: the next state (read as `prev` by the next frame once
+/// copied there), the output colour and the debug plane `source`.
+#[derive(Copy, Clone, Debug)]
+pub struct TemporalOut {
+    /// The state after this frame ([`TEMPORAL_STATE`] planes).
+    pub next: BufferSlice,
+    /// The filtered colour R, G, B.
+    pub color: [BufferSlice; 3],
+    /// The reprojection's offset, or reset or pass-through
+    /// ([`crate::shared::TEMPORAL_SOURCE_RESET`]).
+    pub source: BufferSlice,
+}
+
+/// Records one frame over the push's image from the state planes `prev`.
+pub fn record(
+    batch: &mut Batch,
+    precision: Precision,
+    push: &TemporalPush,
+    inp: &TemporalIn,
+    prev: BufferSlice,
+    out: &TemporalOut,
+) -> Result<()> {
+    let bindings: Vec<BufferSlice> = inp
+        .color
+        .iter()
+        .chain(&inp.position)
+        .chain([&inp.depth, &inp.spp, &prev, &out.next])
+        .chain(&out.color)
+        .chain([&out.source])
+        .copied()
+        .collect();
+    batch.dispatch(
+        &DECL,
+        precision,
+        &bindings,
+        bytemuck::bytes_of(push),
+        push.width,
+        push.height,
+        FLOPS_PER_PIXEL,
+    )
+}

@@ -1,0 +1,230 @@
+//! Scalar twin of `spirv/lp_temporal.comp`: spec §10.1, the LP temporal
+//! filter. Per pixel a recursive least-squares fit of `(1, τ) → y` over the
+//! frames, with the time origin at the current frame (TIME-ORIGIN), a
+//! forgetting factor `λ`, the state reprojected from the previous frame by
+//! a 7×7 search on the world position (SEARCH-7) and reinitialised where no
+//! surface lies within 1 % of the viewing distance (RESET; the search
+//! considers only those, TEMPORAL-GATE).
+//!
+//! [`PixelState`] is one pixel's filter in f64 (what the invariants of
+//! §10.1 are stated on); [`lp_temporal`] runs one frame over an image as
+//! the kernel does, reading and writing the state as f32 planes.
+
+use crate::shared::{
+    TemporalPush, TEMPORAL_DEPTH_FLOOR, TEMPORAL_NO_SEARCH, TEMPORAL_P00, TEMPORAL_RESET,
+    TEMPORAL_RESET_REL, TEMPORAL_SEARCH, TEMPORAL_SOURCE_NONE, TEMPORAL_SOURCE_RESET,
+    TEMPORAL_STATE, TEMPORAL_VALID,
+};
+
+/// One pixel's temporal state (§10.1), origin at the frame it was last
+/// updated in.
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct PixelState {
+    /// `β[ch] = (intercept, slope)` per channel.
+    pub beta: [[f64; 2]; 3],
+    /// `P = [[p00, p01], [p01, p11]]` as `[p00, p01, p11]`, shared by the
+    /// channels.
+    pub p: [f64; 3],
+    /// The world position `W` the state was last updated at.
+    pub w: [f64; 3],
+}
+
+impl PixelState {
+    /// RESET: `β = (y, 0)`, `P = I/δ`, at position `w`.
+    pub fn reset(y: [f64; 3], w: [f64; 3], delta: f64) -> PixelState {
+        PixelState {
+            beta: y.map(|v| [v, 0.0]),
+            p: [1.0 / delta, 0.0, 1.0 / delta],
+            w,
+        }
+    }
+
+    /// TIME-ORIGIN: the state with its origin moved one frame on,
+    /// `β ← Sβ`, `P ← S P Sᵀ` with `S = [[1, 1], [0, 1]]`.
+    pub fn shifted(&self) -> PixelState {
+        let [a, b, c] = self.p;
+        PixelState {
+            beta: self.beta.map(|[b0, b1]| [b0 + b1, b1]),
+            p: [a + 2.0 * b + c, b + c, c],
+            w: self.w,
+        }
+    }
+
+    /// The prediction at the origin, `β[ch]ᵀ(1, 0)`.
+    pub fn predict(&self) -> [f64; 3] {
+        self.beta.map(|b| b[0])
+    }
+
+    /// The recursive update with the observation `y` at `z = (1, 0)` and
+    /// forgetting factor `lambda`: `G = Pz / (λ + zᵀPz)`,
+    /// `P ← (P − G zᵀP)/λ`, `β ← β + G (y − βᵀz)`.
+    pub fn update(&mut self, y: [f64; 3], lambda: f64) {
+        let [p00, p01, p11] = self.p;
+        let den = lambda + p00;
+        let g = [p00 / den, p01 / den];
+        self.p = [
+            (p00 - g[0] * p00) / lambda,
+            (p01 - g[0] * p01) / lambda,
+            (p11 - g[1] * p01) / lambda,
+        ];
+        for (b, v) in self.beta.iter_mut().zip(y) {
+            let r = v - b[0];
+            b[0] += g[0] * r;
+            b[1] += g[1] * r;
+        }
+    }
+}
+
+/// The state planes ([`TEMPORAL_STATE`] of them) of a pixel as a
+/// [`PixelState`], or `None` where its valid flag is not set.
+pub fn load(state: &[f32], n: usize, i: usize) -> Option<PixelState> {
+    let v = |k: usize| state[k * n + i] as f64;
+    (v(TEMPORAL_VALID) == 1.0).then(|| PixelState {
+        beta: [[v(0), v(1)], [v(2), v(3)], [v(4), v(5)]],
+        p: [v(TEMPORAL_P00), v(7), v(8)],
+        w: [v(9), v(10), v(11)],
+    })
+}
+
+/// Stores `s` (or, with `None`, an invalid pixel: every plane 0) into
+/// pixel `i` of the state planes, rounded to f32.
+pub fn store(state: &mut [f32], n: usize, i: usize, s: Option<&PixelState>) {
+    let vals: [f64; TEMPORAL_STATE] = match s {
+        Some(s) => [
+            s.beta[0][0],
+            s.beta[0][1],
+            s.beta[1][0],
+            s.beta[1][1],
+            s.beta[2][0],
+            s.beta[2][1],
+            s.p[0],
+            s.p[1],
+            s.p[2],
+            s.w[0],
+            s.w[1],
+            s.w[2],
+            1.0,
+        ],
+        None => [0.0; TEMPORAL_STATE],
+    };
+    for (k, v) in vals.into_iter().enumerate() {
+        state[k * n + i] = v as f32;
+    }
+}
+
+/// The inputs of one frame: the spatial reconstruction `y` (§3's `f̂(t)`,
+/// any method's), the position and depth layers and the sample count.
+#[derive(Copy, Clone, Debug)]
+pub struct TemporalInputs<'a> {
+    /// The spatially filtered colour R, G, B.
+    pub color: [&'a [f32]; 3],
+    /// The `position` layer X, Y, Z (`W_i(t)`).
+    pub position: [&'a [f32]; 3],
+    /// The `depth` layer (`dep_i`).
+    pub depth: &'a [f32],
+    /// The sample count (a pixel with `spp < 1` is invalid, §0.2).
+    pub spp: &'a [f32],
+}
+
+/// The reprojection of pixel `(x, y)` (§10.1): among the valid previous
+/// states in the 7×7 window (clipped to the image) whose position is within
+/// `limit` of `wi` (`eW ≤ limit`, TEMPORAL-GATE), each shifted to the
+/// current frame, the one with the least `(eW + εW)(ey + εy)` (the first in
+/// raster order on a tie), and its offset `(dx, dy)`; `None` (RESET) where
+/// there is none.
+fn reproject(
+    prev: &[f32],
+    (w, h): (usize, usize),
+    (x, y): (usize, usize),
+    wi: [f64; 3],
+    yi: [f64; 3],
+    limit: f64,
+) -> Option<(PixelState, (i32, i32))> {
+    let n = w * h;
+    let ew_floor = 1e-12 * (1.0 + wi.iter().map(|v| v * v).sum::<f64>());
+    let r = TEMPORAL_SEARCH;
+    let mut best: Option<(f64, PixelState, (i32, i32))> = None;
+    for dy in -r..=r {
+        for dx in -r..=r {
+            let (jx, jy) = (x as i32 + dx, y as i32 + dy);
+            if jx < 0 || jy < 0 || jx >= w as i32 || jy >= h as i32 {
+                continue;
+            }
+            let Some(s) = load(prev, n, jy as usize * w + jx as usize) else {
+                continue;
+            };
+            let s = s.shifted();
+            let ew: f64 = (0..3).map(|k| (s.w[k] - wi[k]).powi(2)).sum();
+            if ew > limit {
+                continue;
+            }
+            let pred = s.predict();
+            let ey: f64 = (0..3).map(|c| (yi[c] - pred[c]).powi(2)).sum();
+            let cost = (ew + ew_floor) * (ey + 1e-12);
+            if best.as_ref().map_or(true, |b| cost < b.0) {
+                best = Some((cost, s, (dx, dy)));
+            }
+        }
+    }
+    best.map(|(_, s, d)| (s, d))
+}
+
+/// One frame of the filter over a `width × height` image (`row0` ignored):
+/// per pixel the reprojected (or reinitialised) state updated with this
+/// frame's colour, from the previous frame's state planes `prev` into
+/// `next` (both [`TEMPORAL_STATE`] planes), the output `β[ch][0]` clamped to
+/// ≥ 0 into `out`, and the debug plane `source`
+/// ([`TEMPORAL_SOURCE_RESET`]). With [`TEMPORAL_RESET`] no previous state is
+/// read; with [`TEMPORAL_NO_SEARCH`] pixel `i` continues its own state and
+/// only a missing one reinitialises it. An invalid pixel or a non-finite
+/// colour passes the colour through and leaves the pixel without state.
+pub fn lp_temporal(
+    push: &TemporalPush,
+    inp: &TemporalInputs,
+    prev: &[f32],
+    next: &mut [f32],
+    out: [&mut [f32]; 3],
+    source: &mut [f32],
+) {
+    let (w, h) = (push.width as usize, push.height as usize);
+    let n = w * h;
+    let (lambda, delta) = (push.lambda as f64, push.delta as f64);
+    let [or, og, ob] = out;
+    for y in 0..h {
+        for x in 0..w {
+            let i = y * w + x;
+            let col = inp.color.map(|p| p[i]);
+            let yi = col.map(|v| v as f64);
+            let wi = inp.position.map(|p| p[i] as f64);
+            let valid = super::finalize_stats::spp_of(inp.spp[i]) >= 1.0;
+            if !valid || col.iter().any(|v| !v.is_finite()) {
+                store(next, n, i, None);
+                (or[i], og[i], ob[i]) = (col[0], col[1], col[2]);
+                source[i] = TEMPORAL_SOURCE_NONE;
+                continue;
+            }
+            let found = if push.flags & TEMPORAL_RESET != 0 {
+                None
+            } else if push.flags & TEMPORAL_NO_SEARCH != 0 {
+                load(prev, n, i).map(|s| (s.shifted(), (0, 0)))
+            } else {
+                let limit =
+                    (TEMPORAL_RESET_REL * (inp.depth[i] as f64).max(TEMPORAL_DEPTH_FLOOR)).powi(2);
+                reproject(prev, (w, h), (x, y), wi, yi, limit)
+            };
+            let (s, src) = match found {
+                Some((mut s, (dx, dy))) => {
+                    s.update(yi, lambda);
+                    s.w = wi;
+                    let r = TEMPORAL_SEARCH;
+                    (s, ((dy + r) * (2 * r + 1) + dx + r) as f32)
+                }
+                None => (PixelState::reset(yi, wi, delta), TEMPORAL_SOURCE_RESET),
+            };
+            store(next, n, i, Some(&s));
+            let o = s.predict().map(|v| v.max(0.0) as f32);
+            (or[i], og[i], ob[i]) = (o[0], o[1], o[2]);
+            source[i] = src;
+        }
+    }
+}

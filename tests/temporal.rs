@@ -1,0 +1,343 @@
+//! Spec §10.1, the LP temporal filter: its invariants on the f64 twin, the
+//! kernel against the twin, and the filter in the facade on rendered
+//! sequences (a static camera converges, a cut forgets, a disoccluded
+//! pixel is reset).
+
+mod common;
+
+use common::{agreement, assert_close, check_validation, gpu, precisions, Rng};
+use mcdenoise::kernels::{lp_temporal, run_planes};
+use mcdenoise::reference::lp_temporal::{self as twin, PixelState, TemporalInputs};
+use mcdenoise::shared::{
+    TemporalPush, TEMPORAL_DELTA, TEMPORAL_LAMBDA, TEMPORAL_NO_SEARCH, TEMPORAL_RESET,
+    TEMPORAL_SOURCE_NONE, TEMPORAL_SOURCE_RESET, TEMPORAL_STATE,
+};
+
+const DELTA: f64 = TEMPORAL_DELTA as f64;
+
+fn close(a: f64, b: f64, tol: f64) -> bool {
+    (a - b).abs() <= tol * (1.0 + a.abs().max(b.abs()))
+}
+
+/// §10.1's invariant: with `λ = 1` and no reprojection the state after `T`
+/// frames is the batch ridge fit of `(1, τ) → y` over frames `1..T` with
+/// the prior `δ` around the first frame's `(y_0, 0)`, moved to the last
+/// frame's origin (`β ← S^{T−1} β`, `P ← S^{T−1} P S^{T−1 ᵀ}`).
+#[test]
+fn lambda_one_without_reprojection_is_the_batch_ridge_fit() {
+    let mut rng = Rng(11);
+    for frames in [2usize, 3, 7, 24, 100] {
+        let ys: Vec<[f64; 3]> = (0..frames)
+            .map(|t| std::array::from_fn(|c| 0.3 * c as f64 + 0.01 * t as f64 + 0.1 * rng.normal()))
+            .collect();
+        let mut s = PixelState::reset(ys[0], [0.0; 3], DELTA);
+        for y in &ys[1..] {
+            s = s.shifted();
+            s.update(*y, 1.0);
+        }
+        // Batch: A = δI + Σ z zᵀ, b = δ(y_0, 0) + Σ z y, z = (1, τ).
+        let mut a = [[DELTA, 0.0], [0.0, DELTA]];
+        for t in 1..frames {
+            let tau = t as f64;
+            a[0][0] += 1.0;
+            a[0][1] += tau;
+            a[1][0] += tau;
+            a[1][1] += tau * tau;
+        }
+        let det = a[0][0] * a[1][1] - a[0][1] * a[1][0];
+        let inv = [
+            [a[1][1] / det, -a[0][1] / det],
+            [-a[1][0] / det, a[0][0] / det],
+        ];
+        let last = (frames - 1) as f64;
+        for c in 0..3 {
+            let mut b = [DELTA * ys[0][c], 0.0];
+            for (t, y) in ys.iter().enumerate().skip(1) {
+                b[0] += y[c];
+                b[1] += t as f64 * y[c];
+            }
+            let b0 = inv[0][0] * b[0] + inv[0][1] * b[1];
+            let b1 = inv[1][0] * b[0] + inv[1][1] * b[1];
+            let want = [b0 + last * b1, b1];
+            for k in 0..2 {
+                assert!(
+                    close(s.beta[c][k], want[k], 1e-9),
+                    "T = {frames}, channel {c}, β{k}: {} vs batch {}",
+                    s.beta[c][k],
+                    want[k]
+                );
+            }
+        }
+        // P = S^(T−1) A⁻¹ S^(T−1)ᵀ with S^k = [[1, k], [0, 1]].
+        let (p00, p01, p11) = (inv[0][0], inv[0][1], inv[1][1]);
+        let want = [
+            p00 + 2.0 * last * p01 + last * last * p11,
+            p01 + last * p11,
+            p11,
+        ];
+        for k in 0..3 {
+            assert!(
+                close(s.p[k], want[k], 1e-9),
+                "T = {frames}, P[{k}]: {} vs batch {}",
+                s.p[k],
+                want[k]
+            );
+        }
+    }
+}
+
+/// TIME-ORIGIN: the shifted recursion and the one in absolute time
+/// (`z = (1, t)`, origin at the first frame) give the same outputs to 1e-9.
+#[test]
+fn shifted_and_absolute_time_origins_agree() {
+    let mut rng = Rng(5);
+    let lambda = TEMPORAL_LAMBDA as f64;
+    let ys: Vec<[f64; 3]> = (0..200)
+        .map(|t| {
+            std::array::from_fn(|c| 1.0 + c as f64 + (t as f64 * 0.05).sin() + 0.2 * rng.normal())
+        })
+        .collect();
+    let mut s = PixelState::reset(ys[0], [0.0; 3], DELTA);
+    let mut beta: [[f64; 2]; 3] = ys[0].map(|v| [v, 0.0]);
+    let mut p = [[1.0 / DELTA, 0.0], [0.0, 1.0 / DELTA]];
+    let mut worst = 0.0f64;
+    for (t, y) in ys.iter().enumerate().skip(1) {
+        s = s.shifted();
+        s.update(*y, lambda);
+        let z = [1.0, t as f64];
+        let pz = [
+            p[0][0] * z[0] + p[0][1] * z[1],
+            p[1][0] * z[0] + p[1][1] * z[1],
+        ];
+        let den = lambda + z[0] * pz[0] + z[1] * pz[1];
+        let g = [pz[0] / den, pz[1] / den];
+        // zᵀP = (Pz)ᵀ (P symmetric).
+        p = [
+            [
+                (p[0][0] - g[0] * pz[0]) / lambda,
+                (p[0][1] - g[0] * pz[1]) / lambda,
+            ],
+            [
+                (p[1][0] - g[1] * pz[0]) / lambda,
+                (p[1][1] - g[1] * pz[1]) / lambda,
+            ],
+        ];
+        for c in 0..3 {
+            let r = y[c] - (beta[c][0] + beta[c][1] * z[1]);
+            beta[c][0] += g[0] * r;
+            beta[c][1] += g[1] * r;
+            let absolute = beta[c][0] + beta[c][1] * z[1];
+            let shifted = s.predict()[c];
+            worst = worst.max((absolute - shifted).abs() / (1.0 + absolute.abs()));
+        }
+    }
+    assert!(worst <= 1e-9, "outputs differ by {worst:e}");
+}
+
+/// A synthetic sequence: a plane seen by a camera panning 0.7 px a frame
+/// (positions move), with a box in front of it over a band of columns that
+/// slides 2 px a frame (disocclusions behind it), invalid pixels and a
+/// non-finite colour; the colour is a function of the world position plus
+/// noise.
+struct Synthetic {
+    w: usize,
+    h: usize,
+    color: [Vec<f32>; 3],
+    position: [Vec<f32>; 3],
+    depth: Vec<f32>,
+    spp: Vec<f32>,
+}
+
+fn synthetic(w: usize, h: usize, t: usize, rng: &mut Rng) -> Synthetic {
+    let n = w * h;
+    let s = 0.008;
+    let mut f = Synthetic {
+        w,
+        h,
+        color: std::array::from_fn(|_| vec![0.0; n]),
+        position: std::array::from_fn(|_| vec![0.0; n]),
+        depth: vec![0.0; n],
+        spp: vec![16.0; n],
+    };
+    for y in 0..h {
+        for x in 0..w {
+            let i = y * w + x;
+            let box_x0 = 5 + 2 * t;
+            let in_box = (box_x0..box_x0 + 6).contains(&x) && y > 3;
+            let (wx, wy, wz, d) = if in_box {
+                ((x as f64 + 0.7 * t as f64) * s, y as f64 * s, -0.3, 0.7)
+            } else {
+                ((x as f64 + 0.7 * t as f64) * s, y as f64 * s, 0.0, 1.0)
+            };
+            let base = [
+                0.5 + 0.4 * (wx * 40.0).sin(),
+                0.3 + 0.2 * (wy * 30.0).cos(),
+                if in_box { 2.0 } else { 0.1 },
+            ];
+            for c in 0..3 {
+                f.color[c][i] = (base[c] + 0.05 * rng.normal()).max(0.0) as f32;
+            }
+            f.position[0][i] = wx as f32;
+            f.position[1][i] = wy as f32;
+            f.position[2][i] = wz as f32;
+            f.depth[i] = d as f32;
+        }
+    }
+    f.spp[3] = 0.0;
+    f.color[1][w + 2] = f32::NAN;
+    f
+}
+
+fn inputs(f: &Synthetic) -> TemporalInputs<'_> {
+    TemporalInputs {
+        color: [&f.color[0], &f.color[1], &f.color[2]],
+        position: [&f.position[0], &f.position[1], &f.position[2]],
+        depth: &f.depth,
+        spp: &f.spp,
+    }
+}
+
+fn push(w: usize, h: usize, flags: u32) -> TemporalPush {
+    TemporalPush {
+        width: w as u32,
+        height: h as u32,
+        flags,
+        lambda: TEMPORAL_LAMBDA,
+        delta: TEMPORAL_DELTA,
+        ..Default::default()
+    }
+}
+
+/// The twin's frame: `(next state, output planes, source)`.
+fn twin_frame(
+    p: &TemporalPush,
+    f: &Synthetic,
+    prev: &[f32],
+) -> (Vec<f32>, [Vec<f32>; 3], Vec<f32>) {
+    let n = f.w * f.h;
+    let mut next = vec![0.0; TEMPORAL_STATE * n];
+    let mut out: [Vec<f32>; 3] = std::array::from_fn(|_| vec![0.0; n]);
+    let mut source = vec![0.0; n];
+    let [r, g, b] = &mut out;
+    twin::lp_temporal(p, &inputs(f), prev, &mut next, [r, g, b], &mut source);
+    (next, out, source)
+}
+
+#[test]
+fn lp_temporal_matches_its_twin() {
+    let ctx = gpu();
+    for &(w, h) in &[(29usize, 17usize), (1, 9), (8, 8)] {
+        let n = w * h;
+        let mut rng = Rng(3 + w as u64);
+        let mut prev = vec![0.0f32; TEMPORAL_STATE * n];
+        for t in 0..6 {
+            let f = synthetic(w, h, t, &mut rng);
+            let flags = match t {
+                0 => TEMPORAL_RESET,
+                3 => TEMPORAL_NO_SEARCH,
+                _ => 0,
+            };
+            let p = push(w, h, flags);
+            let (next, out, source) = twin_frame(&p, &f, &prev);
+            for prec in precisions() {
+                let mut ins: Vec<&[f32]> = Vec::new();
+                ins.extend(f.color.iter().map(|v| &v[..]));
+                ins.extend(f.position.iter().map(|v| &v[..]));
+                ins.extend([&f.depth[..], &f.spp[..], &prev[..]]);
+                let (g, _) = run_planes(
+                    &ctx,
+                    &lp_temporal::DECL,
+                    prec,
+                    bytemuck::bytes_of(&p),
+                    w,
+                    h,
+                    &ins,
+                    &[TEMPORAL_STATE * n, n, n, n, n],
+                    lp_temporal::FLOPS_PER_PIXEL,
+                )
+                .unwrap();
+                let what = format!("{w}x{h} frame {t} {prec:?}");
+                assert_close(&format!("{what} state"), &g[0], &next, 0.99);
+                for c in 0..3 {
+                    // NaN passes through in both.
+                    let (gg, cc): (Vec<f32>, Vec<f32>) = g[1 + c]
+                        .iter()
+                        .zip(&out[c])
+                        .filter(|(a, _)| a.is_finite())
+                        .map(|(a, b)| (*a, *b))
+                        .unzip();
+                    assert_close(&format!("{what} colour {c}"), &gg, &cc, 0.99);
+                }
+                let agree = agreement(&g[4], &source);
+                assert!(agree >= 0.98, "{what}: source agrees on {agree}");
+            }
+            prev = next;
+        }
+        check_validation(&ctx);
+    }
+}
+
+/// What the twin does on the synthetic pan: the first frame resets every
+/// pixel; later frames carry the plane's state over (from one column to
+/// the right, where its points were, or a neighbour), reset the columns the
+/// box uncovered (their points were hidden: the nearest plane state is more
+/// than 1 % of the depth away, away from the box's top edge), and pass invalid and non-finite pixels
+/// through without state.
+#[test]
+fn twin_reprojects_the_pan_and_resets_disocclusions() {
+    let (w, h) = (40, 12);
+    let n = w * h;
+    let mut rng = Rng(9);
+    let mut prev = vec![0.0f32; TEMPORAL_STATE * n];
+    let (mut plane, mut aligned) = (0, 0);
+    for t in 0..5 {
+        let f = synthetic(w, h, t, &mut rng);
+        let p = push(w, h, if t == 0 { TEMPORAL_RESET } else { 0 });
+        let (next, _, source) = twin_frame(&p, &f, &prev);
+        assert_eq!(source[3], TEMPORAL_SOURCE_NONE);
+        assert_eq!(source[w + 2], TEMPORAL_SOURCE_NONE);
+        assert_eq!(next[12 * n + 3], 0.0, "an invalid pixel keeps no state");
+        for y in 4..h {
+            for x in 0..w - 4 {
+                let s = source[y * w + x];
+                if t == 0 {
+                    assert_eq!(s, TEMPORAL_SOURCE_RESET);
+                } else if (x == 3 + 2 * t || x == 4 + 2 * t) && y >= 6 {
+                    assert_eq!(
+                        s, TEMPORAL_SOURCE_RESET,
+                        "uncovered ({x}, {y}) at frame {t}"
+                    );
+                } else if x + 4 < 3 + 2 * t {
+                    assert!(s >= 0.0, "plane ({x}, {y}) at frame {t} was reset");
+                    plane += 1;
+                    aligned += (s == 24.0 || s == 25.0) as usize;
+                }
+            }
+        }
+        prev = next;
+    }
+    assert!(
+        plane > 50 && aligned * 10 >= plane * 9,
+        "{aligned} of {plane} from the same row"
+    );
+}
+
+/// A static pixel's filtered value converges: over 60 frames of noise
+/// around a constant, the filter's output error is well below the input's.
+#[test]
+fn twin_reduces_noise_on_a_static_pixel() {
+    let mut rng = Rng(21);
+    let lambda = TEMPORAL_LAMBDA as f64;
+    let mut s = PixelState::reset([1.0; 3], [0.0; 3], DELTA);
+    let (mut in_sq, mut out_sq) = (0.0, 0.0);
+    for t in 1..60 {
+        let y: [f64; 3] = std::array::from_fn(|_| 1.0 + 0.1 * rng.normal());
+        s = s.shifted();
+        s.update(y, lambda);
+        if t >= 30 {
+            in_sq += (y[0] - 1.0).powi(2);
+            out_sq += (s.predict()[0] - 1.0).powi(2);
+        }
+    }
+    assert!(out_sq < 0.3 * in_sq, "output MSE {out_sq} vs input {in_sq}");
+}
