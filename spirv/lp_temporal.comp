@@ -5,8 +5,9 @@
 // of the previous frame (origin t-1) is searched in a 7x7 window (SEARCH-7)
 // for the valid pixel j with the least (eW + epsW)(ey + epsy) after the
 // shift S = [[1,1],[0,1]] among those within 1 % of the viewing distance
-// (eW <= (0.01 max(dep, 1e-3))^2, TEMPORAL-GATE); none reinitialises the
-// pixel (RESET): beta = (y, 0), P = I/delta.
+// (eW <= (0.01 max(dep, 1e-3))^2 + RESET_NOISE * sum of W_i's variances,
+// TEMPORAL-GATE and RESET-NOISE); none reinitialises the pixel (RESET):
+// beta = (y, 0), P = I/delta.
 // Otherwise G = P z / (lambda + z^T P z), P <- (P - G z^T P)/lambda,
 // beta <- beta + G (y - beta^T z) with z = (1, 0). Output beta[ch][0],
 // clamped to >= 0 (§0.4 step 5).
@@ -36,14 +37,17 @@ PLANE_IN(2, yb)
 PLANE_IN(3, px)
 PLANE_IN(4, py)
 PLANE_IN(5, pz)
-PLANE_IN(6, depth)
-PLANE_IN(7, spp)
-PLANE_IN(8, prev)
-PLANE_OUT(9, next)
-PLANE_OUT(10, out_r)
-PLANE_OUT(11, out_g)
-PLANE_OUT(12, out_b)
-PLANE_OUT(13, source)
+PLANE_IN(6, vx)
+PLANE_IN(7, vy)
+PLANE_IN(8, vz)
+PLANE_IN(9, depth)
+PLANE_IN(10, spp)
+PLANE_IN(11, prev)
+PLANE_OUT(12, next)
+PLANE_OUT(13, out_r)
+PLANE_OUT(14, out_g)
+PLANE_OUT(15, out_b)
+PLANE_OUT(16, source)
 
 // mcdenoise::shared: TEMPORAL_RESET, TEMPORAL_NO_SEARCH, TEMPORAL_SEARCH,
 // TEMPORAL_RESET_REL, TEMPORAL_DEPTH_FLOOR, TEMPORAL_SOURCE_RESET,
@@ -53,6 +57,7 @@ PLANE_OUT(13, source)
 #define SEARCH 3
 #define RESET_REL 0.01
 #define DEPTH_FLOOR 1e-3
+#define RESET_NOISE 18.0
 #define SOURCE_RESET -1.0
 #define SOURCE_NONE -2.0
 
@@ -125,7 +130,7 @@ void main()
         } else {
             real ew_floor = real(1e-12) * (real(1) + dot(wi, wi));
             real limit = real(RESET_REL) * max(real(depth[i]), real(DEPTH_FLOOR));
-            limit *= limit;
+            limit = limit * limit + real(RESET_NOISE) * (real(vx[i]) + real(vy[i]) + real(vz[i]));
             real best_cost = real(0);
             int x0 = max(int(x) - SEARCH, 0), x1 = min(int(x) + SEARCH, int(push.width) - 1);
             int y0 = max(int(y) - SEARCH, 0), y1 = min(int(y) + SEARCH, int(push.height) - 1);

@@ -14,7 +14,7 @@ use crate::methods::chain::{ChainConfig, ChainInput, GpuChain};
 use crate::methods::prepare::PrepareReport;
 use crate::methods::tiles::{Choice, Tile, TiledChain};
 use crate::methods::{
-    self, Backend, DenoiseRequest, Method, Outliers, Pass, Prefilter, ProgressCallback,
+    self, Backend, DenoiseRequest, Method, Outliers, Pass, Prefilter, ProgressCallback, Temporal,
 };
 use crate::options::Options;
 
@@ -61,6 +61,14 @@ pub struct Config {
     /// Tiles of at most this many pixels per side (plus their halo), even
     /// when the whole image would fit; `None` tiles only when needed.
     pub tile: Option<usize>,
+    /// A temporal stage after the method (spec §10): with
+    /// [`Temporal::Lp`] every call filters the method's output with the
+    /// history of the earlier calls (a sequence's frames, in order), kept
+    /// on the GPU; [`Denoiser::reset`] at a cut. The colour outputs are
+    /// the filtered ones; the error estimate and the sample map stay the
+    /// method's. Needs the `position` and `depth` layers, the GPU and one
+    /// chain (no tiles).
+    pub temporal: Temporal,
 }
 
 impl Config {
@@ -79,6 +87,7 @@ impl Config {
             low_spp: true,
             max_memory: None,
             tile: None,
+            temporal: Temporal::Off,
         }
     }
 
@@ -93,6 +102,7 @@ impl Config {
             low_spp,
             debug: self.debug,
             error: self.error,
+            temporal: self.temporal,
         }
     }
 
@@ -388,6 +398,11 @@ impl Denoiser {
     /// A denoiser running the scalar f64 references on the CPU (slow; for
     /// checking). Only [`denoise`](Self::denoise) works on it.
     pub fn new_cpu(source: Source, config: Config) -> Result<Denoiser> {
+        if config.temporal != Temporal::Off {
+            return Err(Error::InvalidArgument(
+                "the temporal filter keeps its state on the GPU: use a GPU denoiser".into(),
+            ));
+        }
         if let Source::Stats { layers, .. } = &source {
             methods::chain::check_layers(config.method, layers)?;
         }
@@ -402,6 +417,16 @@ impl Denoiser {
     /// The configuration.
     pub fn config(&self) -> &Config {
         &self.config
+    }
+
+    /// Forgets the temporal stage's history ([`Config::temporal`]): the
+    /// next call reinitialises every pixel, as at the first frame. Call it
+    /// at a cut, or before a sequence that does not continue the last one.
+    /// Nothing without a temporal stage.
+    pub fn reset(&self) {
+        if let Engine::Gpu(c) = &self.engine {
+            c.reset_temporal();
+        }
     }
 
     /// Reports progress of [`run`](Self::run) and [`denoise`](Self::denoise)

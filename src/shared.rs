@@ -643,6 +643,11 @@ pub const TEMPORAL_SEARCH: i32 = 3;
 pub const TEMPORAL_RESET_REL: f64 = 0.01;
 /// RESET: the floor of the viewing distance the threshold scales.
 pub const TEMPORAL_DEPTH_FLOOR: f64 = 1e-3;
+/// RESET-NOISE: the squared distance RESET allows grows by this many
+/// times the sum of the pixel's mean-position variances: 3 standard
+/// deviations of the difference of two independent means of that variance
+/// (`9 · 2 · Σ var`).
+pub const TEMPORAL_RESET_NOISE: f64 = 18.0;
 /// Planes of the temporal state, per pixel: `β` per channel (intercept,
 /// slope: R0 R1 G0 G1 B0 B1), `P` (`P00 P01 P11`), the position `W` (X Y Z)
 /// and the valid flag (1 or 0).

@@ -19,6 +19,9 @@ pub const DECL: KernelDecl = KernelDecl {
         read("px"),
         read("py"),
         read("pz"),
+        read("vx"),
+        read("vy"),
+        read("vz"),
         read("depth"),
         read("spp"),
         read("prev").planes(TEMPORAL_STATE as u32),
@@ -47,6 +50,8 @@ pub struct TemporalIn {
     pub color: [BufferSlice; 3],
     /// The `position` layer.
     pub position: [BufferSlice; 3],
+    /// The `position_variance` layer.
+    pub position_variance: [BufferSlice; 3],
     /// The `depth` layer.
     pub depth: BufferSlice,
     /// The sample counts.
@@ -79,6 +84,7 @@ pub fn record(
         .color
         .iter()
         .chain(&inp.position)
+        .chain(&inp.position_variance)
         .chain([&inp.depth, &inp.spp, &prev, &out.next])
         .chain(&out.color)
         .chain([&out.source])

@@ -47,6 +47,7 @@ fn member_config(c: &ChainConfig, m: Method) -> ChainConfig {
     ChainConfig {
         method: m,
         error: true,
+        temporal: super::Temporal::Off,
         ..c.clone()
     }
 }

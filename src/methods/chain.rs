@@ -23,8 +23,10 @@ use super::prepare::{self, PrepareReport, PrepareScratch};
 use super::registry::{GpuStage, StageArgs, StageRun};
 use super::sampling::{self, SampleInputs, SamplingParams, SamplingPlanes};
 use super::stats::{self, GpuStats};
+use super::temporal::{Temporal, TemporalStage};
 use super::tiles::{self, Rect};
 use super::{Method, Pass, Prefilter};
+use crate::shared::TEMPORAL_SOURCE_NONE;
 
 /// What the chain reads.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -94,6 +96,9 @@ pub struct ChainConfig {
     pub debug: bool,
     /// Whether the error estimate and the local dimension are read back.
     pub error: bool,
+    /// The temporal stage after the method (§10): its state lives in the
+    /// chain from call to call.
+    pub temporal: Temporal,
 }
 
 /// Where a chain's image lies in a larger image of which it is one tile
@@ -134,6 +139,8 @@ pub struct GpuChain {
     method: Box<dyn GpuStage>,
     /// The sample map's planes and parameters (every device has them).
     sampling: (SamplingPlanes, SamplingParams),
+    /// The temporal stage and its state ([`ChainConfig::temporal`]).
+    temporal: Option<TemporalStage>,
 }
 
 impl std::fmt::Debug for GpuChain {
@@ -143,6 +150,7 @@ impl std::fmt::Debug for GpuChain {
             .field("method", &self.config.method)
             .field("prefilter", &self.gbf.is_some())
             .field("outliers", &self.outliers.is_some())
+            .field("temporal", &self.config.temporal)
             .finish()
     }
 }
@@ -177,6 +185,13 @@ impl GpuChain {
         }
         let layers = input.layers();
         check_layers(config.method, &layers)?;
+        if let Some(l) = config.temporal.needs().iter().find(|l| !layers.contains(l)) {
+            return Err(Error::BadData(format!(
+                "the temporal filter ({:?}) needs the {} layer",
+                config.temporal,
+                l.name()
+            )));
+        }
         // One set of planes: the source's statistics are sanitised in place
         // (prepare::record_prepare), with room for the variances it estimates.
         let stats = GpuStats::new(ctx, "chain.stats", w, h, &prepare::output_layers(&layers))?;
@@ -232,6 +247,10 @@ impl GpuChain {
         })?;
         let params = SamplingParams::with_options(config.method, &config.options)?;
         let sampling = (SamplingPlanes::new(ctx, w, h)?, params);
+        let temporal = match config.temporal {
+            Temporal::Off => None,
+            Temporal::Lp => Some(TemporalStage::new(ctx, w, h)?),
+        };
         let chain = GpuChain {
             ctx: ctx.clone(),
             input_kind: input,
@@ -243,6 +262,7 @@ impl GpuChain {
             outliers,
             method,
             sampling,
+            temporal,
         };
         // Every pipeline of a run is built now (a counting batch records
         // nothing but builds them), while the chain's device memory is
@@ -467,11 +487,31 @@ impl GpuChain {
                 prefiltered: self.gbf.is_some(),
             },
         )?;
+        let spp = self.stats.plane(Layer::Spp, 0);
         if let Some(o) = &self.outliers {
-            let spp = self.stats.plane(Layer::Spp, 0);
-            outliers::record_restore(batch, p, spp, self.color(), o)?;
+            outliers::record_restore(batch, p, spp, self.method_color(), o)?;
+        }
+        if let Some(t) = &self.temporal {
+            let three = |l| std::array::from_fn(|k| self.stats.plane(l, k));
+            t.record(
+                batch,
+                p,
+                self.method_color(),
+                three(Layer::Position),
+                three(Layer::PositionVariance),
+                self.stats.plane(Layer::Depth, 0),
+                spp,
+            )?;
         }
         Ok(())
+    }
+
+    /// Forgets the temporal stage's history (a cut): the next call
+    /// reinitialises every pixel. Nothing without a temporal stage.
+    pub fn reset_temporal(&self) {
+        if let Some(t) = &self.temporal {
+            t.reset();
+        }
     }
 
     /// Whether the outlier stage runs.
@@ -480,8 +520,18 @@ impl GpuChain {
     }
 
     /// The reconstruction's colour planes R, G, B (method `none`: the
-    /// sanitised input, not yet clamped).
+    /// sanitised input, not yet clamped): the temporal stage's output when
+    /// there is one.
     pub fn color(&self) -> [BufferSlice; 3] {
+        match &self.temporal {
+            Some(t) => t.color(),
+            None => self.method_color(),
+        }
+    }
+
+    /// The method's colour planes (after the outlier stage), before any
+    /// temporal stage.
+    pub fn method_color(&self) -> [BufferSlice; 3] {
         self.method.color(&self.stats)
     }
 
@@ -617,6 +667,23 @@ impl GpuChain {
         if let (true, Some(o)) = (debug, &self.outliers) {
             out.debug
                 .extend(outliers::debug_layers(&outliers::download_excess(o)?));
+        }
+        if let Some(t) = &self.temporal {
+            // The filtered colour, but the method's own download (`none`
+            // fills invalid pixels on the host) where the filter passed
+            // the pixel through.
+            let filtered = rgb(t.color())?;
+            let source = read(&self.ctx, t.source(), w * h)?;
+            for (c, plane) in out.color.planes.iter_mut().enumerate() {
+                for (i, v) in plane.iter_mut().enumerate() {
+                    if source[i] != TEMPORAL_SOURCE_NONE {
+                        *v = filtered.planes[c][i];
+                    }
+                }
+            }
+            if debug {
+                out.debug.extend(t.debug_layers()?);
+            }
         }
         if !error {
             out.error = RgbImage::new(0, 0);

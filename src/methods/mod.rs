@@ -14,6 +14,7 @@ pub mod prepare;
 pub mod registry;
 pub mod sampling;
 pub mod stats;
+pub mod temporal;
 pub mod tiles;
 pub mod wlr;
 
@@ -26,6 +27,7 @@ use crate::options::Options;
 
 pub use outliers::Outliers;
 pub use registry::MethodInfo;
+pub use temporal::Temporal;
 
 /// Where a method runs.
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Default)]
@@ -253,6 +255,7 @@ fn denoise_gpu(
             low_spp: prepare::has_low_spp(img),
             debug: req.debug,
             error: req.error,
+            temporal: Temporal::Off,
         },
     )?;
     denoise_with_chain(&chain, img, req, None)

@@ -390,6 +390,17 @@ impl TiledChain {
                 (cap / 1e6).floor()
             )
         };
+        if config.temporal != super::Temporal::Off {
+            return Err(Error::Limit(format!(
+                "{w}x{h} with the temporal filter: it keeps one state for the whole image and \
+                 cannot run in tiles ({})",
+                if tile.is_some() {
+                    "tiles were asked for".to_string()
+                } else {
+                    why
+                }
+            )));
+        }
         let layers = match &input {
             ChainInput::Stats { layers, .. } => layers.clone(),
             ChainInput::Accum(_) if tile.is_some() => {

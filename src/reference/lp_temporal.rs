@@ -3,8 +3,9 @@
 //! frames, with the time origin at the current frame (TIME-ORIGIN), a
 //! forgetting factor `λ`, the state reprojected from the previous frame by
 //! a 7×7 search on the world position (SEARCH-7) and reinitialised where no
-//! surface lies within 1 % of the viewing distance (RESET; the search
-//! considers only those, TEMPORAL-GATE).
+//! surface lies within 1 % of the viewing distance, plus the noise of the
+//! mean position (RESET, RESET-NOISE; the search considers only those,
+//! TEMPORAL-GATE).
 //!
 //! [`PixelState`] is one pixel's filter in f64 (what the invariants of
 //! §10.1 are stated on); [`lp_temporal`] runs one frame over an image as
@@ -12,8 +13,8 @@
 
 use crate::shared::{
     TemporalPush, TEMPORAL_DEPTH_FLOOR, TEMPORAL_NO_SEARCH, TEMPORAL_P00, TEMPORAL_RESET,
-    TEMPORAL_RESET_REL, TEMPORAL_SEARCH, TEMPORAL_SOURCE_NONE, TEMPORAL_SOURCE_RESET,
-    TEMPORAL_STATE, TEMPORAL_VALID,
+    TEMPORAL_RESET_NOISE, TEMPORAL_RESET_REL, TEMPORAL_SEARCH, TEMPORAL_SOURCE_NONE,
+    TEMPORAL_SOURCE_RESET, TEMPORAL_STATE, TEMPORAL_VALID,
 };
 
 /// One pixel's temporal state (§10.1), origin at the frame it was last
@@ -120,6 +121,8 @@ pub struct TemporalInputs<'a> {
     pub color: [&'a [f32]; 3],
     /// The `position` layer X, Y, Z (`W_i(t)`).
     pub position: [&'a [f32]; 3],
+    /// The `position_variance` layer (of the mean position, per axis).
+    pub position_variance: [&'a [f32]; 3],
     /// The `depth` layer (`dep_i`).
     pub depth: &'a [f32],
     /// The sample count (a pixel with `spp < 1` is invalid, §0.2).
@@ -128,7 +131,7 @@ pub struct TemporalInputs<'a> {
 
 /// The reprojection of pixel `(x, y)` (§10.1): among the valid previous
 /// states in the 7×7 window (clipped to the image) whose position is within
-/// `limit` of `wi` (`eW ≤ limit`, TEMPORAL-GATE), each shifted to the
+/// `limit` of `wi` (`eW ≤ limit`, TEMPORAL-GATE, RESET-NOISE), each shifted to the
 /// current frame, the one with the least `(eW + εW)(ey + εy)` (the first in
 /// raster order on a tie), and its offset `(dx, dy)`; `None` (RESET) where
 /// there is none.
@@ -208,8 +211,10 @@ pub fn lp_temporal(
             } else if push.flags & TEMPORAL_NO_SEARCH != 0 {
                 load(prev, n, i).map(|s| (s.shifted(), (0, 0)))
             } else {
-                let limit =
-                    (TEMPORAL_RESET_REL * (inp.depth[i] as f64).max(TEMPORAL_DEPTH_FLOOR)).powi(2);
+                let var: f64 = inp.position_variance.iter().map(|p| p[i] as f64).sum();
+                let limit = (TEMPORAL_RESET_REL * (inp.depth[i] as f64).max(TEMPORAL_DEPTH_FLOOR))
+                    .powi(2)
+                    + TEMPORAL_RESET_NOISE * var;
                 reproject(prev, (w, h), (x, y), wi, yi, limit)
             };
             let (s, src) = match found {

@@ -91,6 +91,20 @@ pub struct StopRules {
     pub max_spp: u32,
 }
 
+/// The denoiser configuration of the loop's `pass` after a first pass of
+/// `first_spp` samples per pixel: no pixel has `1 <= spp < 2` unless
+/// `first_spp` is 1 (§0.4 step 3), as later passes only add.
+fn loop_config(cfg: &LoopConfig, pass: Pass, first_spp: u32) -> Config {
+    let mut c = Config::new(cfg.method);
+    c.pass = pass;
+    c.prefilter = cfg.prefilter;
+    c.outliers = cfg.outliers;
+    c.precision = cfg.precision;
+    c.options = cfg.options.clone();
+    c.low_spp = first_spp < 2;
+    c
+}
+
 /// The slowest and fastest decay of the estimated error with the samples,
 /// `e ∝ S^-α`, that the budget prediction assumes: regression errors fall
 /// at `n^{-4/(d+4)}` (α ≥ 1/3 for d ≤ 8), Monte Carlo noise at `n^-1`;
@@ -250,11 +264,46 @@ pub fn render(
     stop: &AtomicBool,
     progress: impl FnMut(&PassProgress),
 ) -> Result<LoopResult> {
+    render_with_final(ctx, renderer, cfg, stop, progress, None)
+}
+
+/// A denoiser for the final reconstruction of renders of `layout` with
+/// `cfg`, and the temporal stage `temporal` ([`Config::temporal`]): what
+/// [`render_with_final`] takes to carry a temporal filter's state from one
+/// frame's render to the next.
+pub fn final_denoiser(
+    ctx: &Arc<GpuContext>,
+    layout: crate::AccumLayout,
+    cfg: &LoopConfig,
+    temporal: crate::Temporal,
+) -> Result<Denoiser> {
+    // Sanitation's step for 1 <= spp < 2 runs (it changes nothing where
+    // every pixel has 0 or at least 2 samples): one denoiser for any
+    // schedule.
+    let mut c = loop_config(cfg, Pass::Final, 1);
+    c.temporal = temporal;
+    Denoiser::new(ctx, Source::Accum(layout), c)
+}
+
+/// [`render`], with the final reconstruction by `last` (made by
+/// [`final_denoiser`] for the renderer's layout) when given: its temporal
+/// stage, if any, then filters this render as the next frame of its
+/// sequence. Open-ended renders ([`LoopConfig::stop`]) judge their passes
+/// with a denoiser of their own and give `last` the final statistics once.
+pub fn render_with_final(
+    ctx: &Arc<GpuContext>,
+    renderer: &Renderer,
+    cfg: &LoopConfig,
+    stop: &AtomicBool,
+    progress: impl FnMut(&PassProgress),
+    last: Option<&Denoiser>,
+) -> Result<LoopResult> {
     let run = Runner {
         ctx,
         renderer,
         cfg,
         stop,
+        last,
         timings: Vec::new(),
         split: TimeSplit::default(),
         samples: 0,
@@ -271,6 +320,8 @@ struct Runner<'a> {
     renderer: &'a Renderer,
     cfg: &'a LoopConfig,
     stop: &'a AtomicBool,
+    /// The caller's final denoiser ([`render_with_final`]).
+    last: Option<&'a Denoiser>,
     timings: Vec<KernelTiming>,
     split: TimeSplit,
     /// Samples rendered so far.
@@ -291,14 +342,7 @@ impl Runner<'_> {
     /// later passes only add: no pixel has `1 <= spp < 2` unless
     /// `first_spp` is 1 (§0.4 step 3).
     fn denoiser(&self, pass: Pass, first_spp: u32) -> Result<Denoiser> {
-        let cfg = self.cfg;
-        let mut c = Config::new(cfg.method);
-        c.pass = pass;
-        c.prefilter = cfg.prefilter;
-        c.outliers = cfg.outliers;
-        c.precision = cfg.precision;
-        c.options = cfg.options.clone();
-        c.low_spp = first_spp < 2;
+        let c = loop_config(self.cfg, pass, first_spp);
         Denoiser::new(self.ctx, Source::Accum(self.renderer.layout()), c)
     }
 
@@ -432,8 +476,13 @@ impl Runner<'_> {
                 report(&self, done);
             }
         }
-        let last = self.denoiser(Pass::Final, first_spp)?;
-        let frame = self.reconstruct(&last)?;
+        let frame = match self.last {
+            Some(last) => self.reconstruct(last)?,
+            None => {
+                let last = self.denoiser(Pass::Final, first_spp)?;
+                self.reconstruct(&last)?
+            }
+        };
         report(&self, total);
         Ok(self.result(frame, schedule))
     }
@@ -486,6 +535,10 @@ impl Runner<'_> {
                 budget = budget.min(fits / pixels as u64 * pixels as u64);
             }
             if met || budget < pixels as u64 {
+                let frame = match self.last {
+                    Some(l) => self.reconstruct(l)?,
+                    None => frame,
+                };
                 return Ok(self.result(frame, None));
             }
             let before = self.samples;

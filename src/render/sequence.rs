@@ -1,6 +1,9 @@
 //! Sequences of an animated scene ([`Scene::at_frame`]): each frame through
 //! the adaptive loop with a seed of its own, so a frame renders the same
 //! alone or as part of any range, on one context (one set of pipelines).
+//! With a temporal stage ([`Temporal`]) one final denoiser reconstructs
+//! every frame, carrying the filter's state from frame to frame; its
+//! output then depends on the frames before it in the range.
 
 use std::ops::Range;
 use std::sync::atomic::AtomicBool;
@@ -11,6 +14,7 @@ use super::{Renderer, Scene};
 use crate::error::{Error, Result};
 use crate::gpu::GpuContext;
 use crate::image::StatsImage;
+use crate::{Denoiser, Temporal};
 
 /// The seed of frame `frame` of a sequence rendered with `seed`.
 pub fn frame_seed(seed: u64, frame: u32) -> u64 {
@@ -33,8 +37,10 @@ pub struct SequenceFrame {
 }
 
 /// Renders frames `frames` of `scene`'s sequence at `size` through `cfg`,
-/// handing each to `each` in frame order. A range outside the scene's
-/// frames is an error before anything renders.
+/// reconstructing the final images with the temporal stage `temporal`
+/// (from the range's first frame on), and hands each to `each` in frame
+/// order. A range outside the scene's frames is an error before anything
+/// renders.
 pub fn render_frames(
     ctx: &Arc<GpuContext>,
     scene: &Scene,
@@ -42,6 +48,7 @@ pub fn render_frames(
     (width, height): (usize, usize),
     seed: u64,
     cfg: &LoopConfig,
+    temporal: Temporal,
     stop: &AtomicBool,
     mut each: impl FnMut(SequenceFrame) -> Result<()>,
 ) -> Result<()> {
@@ -58,11 +65,20 @@ pub fn render_frames(
             }
         )));
     }
+    let mut last: Option<Denoiser> = None;
     for number in frames {
         let at = scene.at_frame(number)?;
         let seed = frame_seed(seed, number);
         let renderer = Renderer::new(ctx, &at, width, height, seed)?;
-        let result = adaptive::render(ctx, &renderer, cfg, stop, |_| {})?;
+        if temporal != Temporal::Off && last.is_none() {
+            last = Some(adaptive::final_denoiser(
+                ctx,
+                renderer.layout(),
+                cfg,
+                temporal,
+            )?);
+        }
+        let result = adaptive::render_with_final(ctx, &renderer, cfg, stop, |_| {}, last.as_ref())?;
         let stats = renderer.statistics()?;
         each(SequenceFrame {
             number,

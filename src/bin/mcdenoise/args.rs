@@ -104,3 +104,23 @@ impl OutliersArg {
         }
     }
 }
+
+#[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
+pub enum TemporalArg {
+    /// Every frame alone.
+    Off,
+    /// The LP temporal filter (spec §10.1) after the method: each pixel's
+    /// output is fitted over the frames so far, reprojected by the world
+    /// position and restarted where its surface was hidden. Needs the
+    /// position and depth layers.
+    Lp,
+}
+
+impl TemporalArg {
+    pub fn get(self) -> mcdenoise::Temporal {
+        match self {
+            TemporalArg::Off => mcdenoise::Temporal::Off,
+            TemporalArg::Lp => mcdenoise::Temporal::Lp,
+        }
+    }
+}

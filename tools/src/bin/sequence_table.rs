@@ -6,12 +6,14 @@
 //! with its own seed (`render::sequence`); every denoiser gets the same
 //! statistics; each frame has its own reference, and a second one with
 //! another seed: half their rMSE and temporal error against each other is
-//! the references' own, which the corrected columns subtract.
+//! the references' own, which the corrected columns subtract. With
+//! `--temporal`, each method also with the LP temporal filter (§10.1,
+//! "+ 10.1"), one denoiser carrying its state through the frames.
 //!
 //! ```text
 //! cargo run --release -p mcdenoise-tools --bin sequence_table -- \
 //!     [--scenes pan_room,moving_box,moving_highlight] [--methods wlr,lp,apr,aos,auto] \
-//!     [--size 64x64] [--spp 16] [--frames 24] [--reference 512] [--oidn]
+//!     [--size 64x64] [--spp 16] [--frames 24] [--reference 512] [--oidn] [--temporal]
 //! ```
 
 use std::path::PathBuf;
@@ -23,7 +25,8 @@ use clap::Parser;
 use mcdenoise::render::adaptive::LoopConfig;
 use mcdenoise::render::{reference, sequence, Scene};
 use mcdenoise::{
-    io, metrics, Config, ContextOptions, Denoiser, GpuContext, Method, RgbImage, Source, StatsImage,
+    io, metrics, Config, ContextOptions, Denoiser, GpuContext, Method, RgbImage, Source,
+    StatsImage, Temporal,
 };
 use mcdenoise_tools::parse_method;
 
@@ -55,6 +58,9 @@ struct Args {
     /// Also OIDN on every frame's statistics.
     #[arg(long)]
     oidn: bool,
+    /// Also every method followed by the LP temporal filter (spec §10.1).
+    #[arg(long)]
+    temporal: bool,
     /// Working folder for OIDN's inputs and outputs.
     #[arg(long, default_value = "target/sequence_table")]
     work: PathBuf,
@@ -79,18 +85,30 @@ fn main() -> anyhow::Result<()> {
         let cfg = LoopConfig::new(Method::None, a.spp, false);
         let mut stats: Vec<StatsImage> = Vec::new();
         let (mut refs, mut second): (Vec<RgbImage>, Vec<RgbImage>) = (Vec::new(), Vec::new());
-        sequence::render_frames(&ctx, &scene, frames, a.size, a.seed, &cfg, &stop, |f| {
-            // Two references per frame with independent seeds: the second
-            // one's row is the floor the references' own noise sets.
-            for (seed, out) in [(f.seed, &mut refs), (!f.seed, &mut second)] {
-                let seed = reference::reference_seed(seed);
-                let k = a.reference;
-                let r = reference::reference(&ctx, &f.scene, a.size, k, seed, &stop, |_, _| {})?;
-                out.push(r.image);
-            }
-            stats.push(f.stats);
-            Ok(())
-        })?;
+        let off = Temporal::Off;
+        sequence::render_frames(
+            &ctx,
+            &scene,
+            frames,
+            a.size,
+            a.seed,
+            &cfg,
+            off,
+            &stop,
+            |f| {
+                // Two references per frame with independent seeds: the second
+                // one's row is the floor the references' own noise sets.
+                for (seed, out) in [(f.seed, &mut refs), (!f.seed, &mut second)] {
+                    let seed = reference::reference_seed(seed);
+                    let k = a.reference;
+                    let r =
+                        reference::reference(&ctx, &f.scene, a.size, k, seed, &stop, |_, _| {})?;
+                    out.push(r.image);
+                }
+                stats.push(f.stats);
+                Ok(())
+            },
+        )?;
         let r: Vec<&RgbImage> = refs.iter().collect();
         // The second reference against the first: twice the references'
         // own error, rMSE and temporal (independent seeds); half of it is
@@ -126,6 +144,18 @@ fn main() -> anyhow::Result<()> {
                 outputs.push(d.denoise(s, None)?.color);
             }
             row(m.name(), &outputs)?;
+            if a.temporal {
+                // One denoiser for the sequence: the filter's state goes
+                // from frame to frame.
+                let mut c = Config::new(m);
+                c.temporal = Temporal::Lp;
+                let d = Denoiser::new(&ctx, Source::of_image(&stats[0]), c)?;
+                let outputs = stats
+                    .iter()
+                    .map(|s| Ok(d.denoise(s, None)?.color))
+                    .collect::<mcdenoise::Result<Vec<_>>>()?;
+                row(&format!("{} + 10.1", m.name()), &outputs)?;
+            }
         }
         if a.oidn {
             let dir = a.work.join(name);

@@ -9,7 +9,9 @@ use mcdenoise::{
     has_low_spp, io, metrics, Config, Denoiser, Method, Options, Source, StatsImage, WarmUp,
 };
 
-use crate::args::{method_parser, BackendArg, OutliersArg, PassArg, PrecisionArg, PrefilterArg};
+use crate::args::{
+    method_parser, BackendArg, OutliersArg, PassArg, PrecisionArg, PrefilterArg, TemporalArg,
+};
 use crate::common::{
     check_error, context, print_metrics, print_report, progress_bar, read_colour, refuse_overwrite,
 };
@@ -32,8 +34,14 @@ pub struct Args {
     frames: Option<PathBuf>,
     /// With --frames: skip frames whose output exists and reads as a
     /// complete image.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "temporal")]
     resume: bool,
+    /// With --frames: a temporal filter after the method, carrying each
+    /// pixel's history from frame to frame in frame order. A gap in the
+    /// numbering, a frame that fails or one of another size or layers
+    /// starts the history again (said on stderr). GPU only.
+    #[arg(long, value_enum, default_value = "off", requires = "frames")]
+    temporal: TemporalArg,
     /// Reconstruction method.
     #[arg(long, value_parser = method_parser(), default_value = "wlr")]
     method: Method,
@@ -105,6 +113,7 @@ impl Args {
         config.progress = !cli.quiet;
         config.max_memory = self.max_memory.map(|mb| mb.saturating_mul(1 << 20));
         config.tile = self.tile.map(|t| t as usize);
+        config.temporal = self.temporal.get();
         config
     }
 }
@@ -120,9 +129,13 @@ pub fn run(cli: &Cli, a: &Args) -> anyhow::Result<bool> {
     // only by a call whose pixels need it.
     let mut warm_config = a.config(cli, &options);
     warm_config.low_spp = false;
+    let temporal = a.temporal.get() != mcdenoise::Temporal::Off;
     let config_for = |img: &StatsImage| {
         let mut config = a.config(cli, &options);
-        config.low_spp = has_low_spp(img);
+        // A temporal denoiser lives through the sequence: it runs
+        // sanitation's step for 1 <= spp < 2 (which changes nothing on
+        // frames without such pixels) rather than being replaced.
+        config.low_spp = temporal || has_low_spp(img);
         config
     };
     let Some(input) = &a.input else {
@@ -284,6 +297,9 @@ fn denoise_frames(
     let (mut done, mut skipped) = (0usize, 0usize);
     let mut failed: Vec<(u64, String)> = Vec::new();
     let t0 = std::time::Instant::now();
+    let temporal = warm_config.temporal != mcdenoise::Temporal::Off;
+    // The last frame denoised: the temporal history continues from it.
+    let mut history: Option<u64> = None;
     for frame in &frames {
         let out = outp.path(frame.number);
         if a.resume && out.exists() && io::read_rgb(&out).is_ok() {
@@ -304,8 +320,15 @@ fn denoise_frames(
             }
             let img = io::read_stats(&frame.path)?;
             let source = Source::of_image(&img);
-            let low_spp = has_low_spp(&img);
+            let low_spp = temporal || has_low_spp(&img);
             let reuse = matches!(&cached, Some((s, l, _)) if *s == source && *l == low_spp);
+            if temporal && history.is_some() && !reuse {
+                eprintln!(
+                    "frame {}: another size or layers than frame {}: the temporal history starts again",
+                    frame.number,
+                    history.unwrap_or_default()
+                );
+            }
             if !reuse {
                 // The previous chain's buffers go before the next one's.
                 cached = None;
@@ -318,7 +341,18 @@ fn denoise_frames(
                 warm.take();
             }
             let denoiser = &cached.as_ref().expect("just set").2;
+            if let (true, Some(h)) = (temporal && reuse, history) {
+                if frame.number != h + 1 {
+                    eprintln!(
+                        "frame {}: frame {} is missing or failed: the temporal history starts again",
+                        frame.number,
+                        h + 1
+                    );
+                    denoiser.reset();
+                }
+            }
             let result = denoiser.denoise_owned(img, None)?;
+            history = Some(frame.number);
             if !cli.quiet {
                 print_report(&result.report, &frame.path);
             }

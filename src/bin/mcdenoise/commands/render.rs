@@ -9,13 +9,16 @@ use mcdenoise::io::frames::FramePattern;
 use mcdenoise::render::{adaptive, reference, sequence, Renderer, Scene};
 use mcdenoise::{colour_of, io, metrics, schedule, Frame, GpuContext, Method, Options, RgbImage};
 
-use crate::args::{method_parser, parse_size, OutliersArg, PrecisionArg, PrefilterArg};
+use crate::args::{
+    method_parser, parse_size, OutliersArg, PrecisionArg, PrefilterArg, TemporalArg,
+};
 use crate::common::{context, pass_bar, refuse_overwrite, stop_flag};
 use crate::Cli;
 
 pub const AFTER_HELP: &str = "Examples:\n  mcdenoise render --list-scenes\n  \
 mcdenoise render --scene cornell --spp 16 --adaptive -o out.exr --png out.png --reference 1024\n  \
-mcdenoise render --scene my_scene.toml --spp 64 --method lp --save-stats stats.exr -o out.exr";
+mcdenoise render --scene my_scene.toml --spp 64 --method lp --save-stats stats.exr -o out.exr\n  \
+mcdenoise render --scene moving_box --frames 0..24 --size 128x128 --temporal lp -o out/f_####.exr --strip strip.png";
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -64,6 +67,11 @@ pub struct Args {
     /// per-frame metrics and the sequence's temporal error.
     #[arg(long, value_name = "A..B", value_parser = parse_frames, conflicts_with = "figure")]
     frames: Option<std::ops::Range<u32>>,
+    /// With --frames: a temporal filter after the method, carrying each
+    /// pixel's history from frame to frame (the first frame of the range
+    /// starts it).
+    #[arg(long, value_enum, default_value = "off", requires = "frames")]
+    temporal: TemporalArg,
     /// With --frames: also write a PNG strip of up to six frames of the
     /// reconstruction side by side, evenly spaced over the range.
     #[arg(long, value_name = "PNG", requires = "frames")]
@@ -497,7 +505,19 @@ fn render_sequence(
         ));
         Ok(())
     };
-    sequence::render_frames(ctx, scene, frames, (w, h), a.seed, cfg, &stop_flag(), each)?;
+    let temporal = a.temporal.get();
+    let stop = stop_flag();
+    sequence::render_frames(
+        ctx,
+        scene,
+        frames,
+        (w, h),
+        a.seed,
+        cfg,
+        temporal,
+        &stop,
+        each,
+    )?;
     if let Some(b) = bar {
         b.finish_and_clear();
     }

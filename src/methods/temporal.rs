@@ -1,0 +1,162 @@
+//! Temporal reconstruction of sequences (spec §10): a stage after the
+//! method that filters its output over the frames, keeping its state on
+//! the GPU from call to call.
+//!
+//! §10.1, the LP temporal filter ([`Temporal::Lp`]): per pixel a recursive
+//! least-squares fit over time of the method's output, reprojected from the
+//! previous frame by the world position (`kernels::lp_temporal`). The paper
+//! applies it to LP; here it follows any method.
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+
+use crate::error::{Error, Result};
+use crate::gpu::{Batch, BufferSlice, GpuContext, PlaneSet, Precision};
+use crate::image::Layer;
+use crate::kernels::lp_temporal::{self, TemporalIn, TemporalOut};
+use crate::shared::{
+    TemporalPush, TEMPORAL_DELTA, TEMPORAL_LAMBDA, TEMPORAL_P00, TEMPORAL_RESET, TEMPORAL_STATE,
+};
+
+/// A temporal stage after the method (spec §10).
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Default)]
+pub enum Temporal {
+    /// Every call stands alone (the default).
+    #[default]
+    Off,
+    /// §10.1, the LP temporal filter, on every call's output: needs the
+    /// `position` and `depth` layers (`position_variance` is estimated
+    /// when missing, §0.4).
+    Lp,
+}
+
+impl Temporal {
+    /// Parses `off` or `lp`.
+    pub fn parse(s: &str) -> Result<Temporal> {
+        match s {
+            "off" | "none" => Ok(Temporal::Off),
+            "lp" => Ok(Temporal::Lp),
+            _ => Err(Error::InvalidArgument(format!(
+                "unknown temporal filter {s:?} (off, lp)"
+            ))),
+        }
+    }
+
+    /// The layers the stage reads, besides the method's output and `spp`.
+    pub fn needs(self) -> &'static [Layer] {
+        match self {
+            Temporal::Off => &[],
+            Temporal::Lp => &[Layer::Position, Layer::Depth],
+        }
+    }
+}
+
+/// The filter's state and outputs on the GPU: the state of the last frame
+/// (`prev`), the state being written (`next`, copied to `prev` at the end
+/// of every frame), the filtered colour and the debug plane `source`.
+pub struct TemporalStage {
+    width: usize,
+    height: usize,
+    prev: PlaneSet,
+    next: PlaneSet,
+    /// R, G, B, then `source`.
+    out: PlaneSet,
+    /// Whether the next recorded frame forgets the history: set at
+    /// creation and by [`reset`](Self::reset).
+    reset: AtomicBool,
+}
+
+impl TemporalStage {
+    /// The stage for `width × height` frames, with no history.
+    pub fn new(ctx: &Arc<GpuContext>, width: usize, height: usize) -> Result<TemporalStage> {
+        let n = width * height;
+        Ok(TemporalStage {
+            width,
+            height,
+            prev: PlaneSet::new(ctx, "temporal.prev", n, TEMPORAL_STATE)?,
+            next: PlaneSet::new(ctx, "temporal.next", n, TEMPORAL_STATE)?,
+            out: PlaneSet::new(ctx, "temporal.out", n, 4)?,
+            reset: AtomicBool::new(true),
+        })
+    }
+
+    /// Bytes of device memory per pixel: two states and four output planes.
+    pub const BYTES_PER_PIXEL: u64 = 4 * (2 * TEMPORAL_STATE as u64 + 4);
+
+    /// Forgets the history: the next frame reinitialises every pixel (a
+    /// cut).
+    pub fn reset(&self) {
+        self.reset.store(true, Ordering::SeqCst);
+    }
+
+    /// Records one frame: the filter of `color` (the method's output) with
+    /// the statistics' `position`, `position_variance`, `depth` and `spp`
+    /// planes, then the copy
+    /// of the new state over the old. A counting batch leaves a pending
+    /// reset pending.
+    pub fn record(
+        &self,
+        batch: &mut Batch,
+        precision: Precision,
+        color: [BufferSlice; 3],
+        position: [BufferSlice; 3],
+        position_variance: [BufferSlice; 3],
+        depth: BufferSlice,
+        spp: BufferSlice,
+    ) -> Result<()> {
+        let reset = if batch.is_counting() {
+            self.reset.load(Ordering::SeqCst)
+        } else {
+            self.reset.swap(false, Ordering::SeqCst)
+        };
+        let push = TemporalPush {
+            width: self.width as u32,
+            height: self.height as u32,
+            flags: if reset { TEMPORAL_RESET } else { 0 },
+            lambda: TEMPORAL_LAMBDA,
+            delta: TEMPORAL_DELTA,
+            ..Default::default()
+        };
+        let inp = TemporalIn {
+            color,
+            position,
+            position_variance,
+            depth,
+            spp,
+        };
+        let out = TemporalOut {
+            next: self.next.all(),
+            color: self.color(),
+            source: self.source(),
+        };
+        lp_temporal::record(batch, precision, &push, &inp, self.prev.all(), &out)?;
+        batch.copy(self.next.all(), self.prev.all());
+        Ok(())
+    }
+
+    /// The filtered colour planes R, G, B.
+    pub fn color(&self) -> [BufferSlice; 3] {
+        [self.out.plane(0), self.out.plane(1), self.out.plane(2)]
+    }
+
+    /// The debug plane `source` of the last frame (see
+    /// [`debug_layers`](Self::debug_layers)).
+    pub fn source(&self) -> BufferSlice {
+        self.out.plane(3)
+    }
+
+    /// The debug maps of the last frame: `temporal_source` (the
+    /// reprojection's offset `(dy + 3)·7 + dx + 3`, −1 where the pixel was
+    /// reset, −2 where it was passed through) and `temporal_p00` (`P00`
+    /// after the update: the intercept's variance per unit noise).
+    pub fn debug_layers(&self) -> Result<Vec<(String, Vec<f32>)>> {
+        let n = self.width * self.height;
+        let source = self.out.download_plane::<f32>(3)?;
+        let p00 = self.prev.download_plane::<f32>(TEMPORAL_P00)?;
+        debug_assert_eq!(source.len(), n);
+        Ok(vec![
+            ("temporal_source".into(), source),
+            ("temporal_p00".into(), p00),
+        ])
+    }
+}
