@@ -18,6 +18,12 @@
 // (§9.3) instead of the final reconstruction's.
 #define MCD_FLAG_ADAPTIVE_PASS 2
 
+// Flag of [`McdDenoiserDesc::flags`]: the LP temporal filter (§10.1)
+// after the method. Each recording is the next frame of a sequence: the
+// filter's state stays in the denoiser's buffers from one to the next
+// ([`mcd_denoiser_reset`] at a cut). Needs the layout's position sums.
+#define MCD_FLAG_TEMPORAL_LP 4
+
 // What a call returned.
 typedef enum McdStatus {
   // Success.
@@ -212,6 +218,14 @@ enum McdStatus mcd_context_save_pipeline_cache(const struct McdContext *ctx, uin
 // (its `options` NULL or a NUL-terminated string), `out` is valid for a
 // write.
 enum McdStatus mcd_denoiser_create(const struct McdContext *ctx, const struct McdDenoiserDesc *desc, struct McdDenoiser **out);
+
+// Forgets the temporal filter's history ([`MCD_FLAG_TEMPORAL_LP`]): the
+// next recording reinitialises every pixel, as at a sequence's first
+// frame. Call it at a cut. Nothing for a denoiser without the filter.
+//
+// # Safety
+// `denoiser` is a live denoiser from [`mcd_denoiser_create`].
+enum McdStatus mcd_denoiser_reset(const struct McdDenoiser *denoiser);
 
 // Destroys a denoiser (NULL is ignored). Buffers that recordings not yet
 // released still bind stay alive until those are released.

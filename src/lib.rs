@@ -41,6 +41,9 @@
 //!   and [`Denoiser::denoise_owned`] frees them once they are uploaded.
 //!   Statistics are sanitised and prefiltered in place on the device, so
 //!   each call on [`Source::Stats`] consumes its [`Denoiser::upload`].
+//! - Sequences: with [`Config::temporal`] set to [`Temporal::Lp`] every
+//!   call is the next frame of a sequence, filtered over time (§10.1) with
+//!   a state kept on the GPU; [`Denoiser::reset`] at a cut.
 //! - Outputs: [`Denoiser::outputs`] (GPU buffers) or [`Denoiser::read`]
 //!   ([`Frame`]: colour, per-channel error `E_i`, local dimension `d_i`,
 //!   samples, debug maps).

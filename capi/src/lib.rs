@@ -131,6 +131,11 @@ pub const MCD_FLAG_NO_SINGLE_SAMPLE_PIXELS: u32 = 1;
 /// Flag of [`McdDenoiserDesc::flags`]: the adaptive pass's smaller windows
 /// (§9.3) instead of the final reconstruction's.
 pub const MCD_FLAG_ADAPTIVE_PASS: u32 = 2;
+/// Flag of [`McdDenoiserDesc::flags`]: the LP temporal filter (§10.1)
+/// after the method. Each recording is the next frame of a sequence: the
+/// filter's state stays in the denoiser's buffers from one to the next
+/// ([`mcd_denoiser_reset`] at a cut). Needs the layout's position sums.
+pub const MCD_FLAG_TEMPORAL_LP: u32 = 4;
 
 /// One denoiser's configuration: fixed for its life.
 #[repr(C)]
@@ -494,7 +499,8 @@ pub unsafe extern "C" fn mcd_denoiser_create(
             m if m == McdMethod::Auto as u32 => Method::Auto,
             m => return Err(invalid(format!("unknown method {m}"))),
         };
-        let known = MCD_FLAG_NO_SINGLE_SAMPLE_PIXELS | MCD_FLAG_ADAPTIVE_PASS;
+        let known =
+            MCD_FLAG_NO_SINGLE_SAMPLE_PIXELS | MCD_FLAG_ADAPTIVE_PASS | MCD_FLAG_TEMPORAL_LP;
         if desc.flags & !known != 0 {
             return Err(invalid(format!("unknown flags {:#x}", desc.flags & !known)));
         }
@@ -502,6 +508,9 @@ pub unsafe extern "C" fn mcd_denoiser_create(
         config.low_spp = desc.flags & MCD_FLAG_NO_SINGLE_SAMPLE_PIXELS == 0;
         if desc.flags & MCD_FLAG_ADAPTIVE_PASS != 0 {
             config.pass = Pass::Intermediate;
+        }
+        if desc.flags & MCD_FLAG_TEMPORAL_LP != 0 {
+            config.temporal = core::Temporal::Lp;
         }
         if !desc.options.is_null() {
             // SAFETY: the caller passes a NUL-terminated string.
@@ -516,6 +525,22 @@ pub unsafe extern "C" fn mcd_denoiser_create(
         // SAFETY: non-null (checked first) and valid for writes by the
         // caller's contract.
         unsafe { out.write(handle) };
+        Ok(())
+    })
+}
+
+/// Forgets the temporal filter's history ([`MCD_FLAG_TEMPORAL_LP`]): the
+/// next recording reinitialises every pixel, as at a sequence's first
+/// frame. Call it at a cut. Nothing for a denoiser without the filter.
+///
+/// # Safety
+/// `denoiser` is a live denoiser from [`mcd_denoiser_create`].
+#[no_mangle]
+pub unsafe extern "C" fn mcd_denoiser_reset(denoiser: *const McdDenoiser) -> McdStatus {
+    guard(|| {
+        // SAFETY: forwarded to the caller.
+        let d = unsafe { non_null(denoiser, "denoiser")? };
+        d.denoiser.reset();
         Ok(())
     })
 }

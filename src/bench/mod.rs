@@ -181,6 +181,7 @@ fn denoiser(
     config.outliers = stages.outliers;
     config.prefilter = stages.prefilter;
     config.options = stages.options.clone();
+    config.temporal = stages.temporal;
     config.low_spp = crate::has_low_spp(img);
     match backend {
         Backend::Gpu => {
@@ -203,17 +204,23 @@ pub struct Stages {
     /// `--opt KEY=VALUE` method options (those of other methods are ignored
     /// by a method, as in `denoise`).
     pub options: crate::options::Options,
+    /// The temporal stage (§10) after the method: the timed calls are
+    /// consecutive frames (of the same statistics) for it.
+    pub temporal: crate::Temporal,
 }
 
 impl Stages {
-    /// One line for the reports: `outliers auto, prefilter auto` and the
-    /// options given, `key=value` in key order.
+    /// One line for the reports: `outliers auto, prefilter auto`, the
+    /// temporal stage when there is one, and the options given, `key=value` in key order.
     pub fn describe(&self) -> String {
         let mut s = format!(
             "outliers {:?}, prefilter {:?}",
             self.outliers, self.prefilter
         )
         .to_lowercase();
+        if self.temporal != crate::Temporal::Off {
+            s.push_str(&format!(", temporal {:?}", self.temporal).to_lowercase());
+        }
         let mut keys: Vec<&str> = self.options.keys().collect();
         keys.sort_unstable();
         for k in keys {
@@ -272,6 +279,7 @@ mod tests {
             prefilter: crate::Prefilter::On,
             options: crate::options::Options::parse(&["aos.variance=sandwich", "aos.residual=off"])
                 .unwrap(),
+            temporal: crate::Temporal::Off,
         };
         assert_eq!(
             s.describe(),

@@ -39,6 +39,7 @@ int main(void)
                MCD_STATUS_INVALID_ARGUMENT,
            "record on a NULL denoiser");
     expect(mcd_denoiser_outputs(NULL, &out) == MCD_STATUS_INVALID_ARGUMENT, "outputs of NULL");
+    expect(mcd_denoiser_reset(NULL) == MCD_STATUS_INVALID_ARGUMENT, "reset of NULL");
     expect(mcd_denoiser_read(NULL, NULL, NULL, NULL, 0) == MCD_STATUS_INVALID_ARGUMENT,
            "read of NULL");
     expect(mcd_context_use_pipeline_cache(NULL, "x", NULL) == MCD_STATUS_INVALID_ARGUMENT,

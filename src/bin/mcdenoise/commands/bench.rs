@@ -8,7 +8,7 @@ use clap::ValueEnum;
 use mcdenoise::bench::{self as b, Note};
 use mcdenoise::{Backend, Method, Options};
 
-use crate::args::{method_parser, parse_size, OutliersArg, PrefilterArg};
+use crate::args::{method_parser, parse_size, OutliersArg, PrefilterArg, TemporalArg};
 use crate::common::{context, refuse_overwrite};
 use crate::Cli;
 
@@ -49,6 +49,10 @@ pub struct Args {
     /// The G-buffer prefilter (spec §6) for every method.
     #[arg(long, value_enum, default_value = "auto")]
     prefilter: PrefilterArg,
+    /// A temporal filter after every method (spec §10); the timed calls
+    /// are its consecutive frames. GPU only.
+    #[arg(long, value_enum, default_value = "off")]
+    temporal: TemporalArg,
     /// Methods to run, comma-separated [default: every method].
     #[arg(long, value_parser = method_parser(), value_delimiter = ',')]
     methods: Vec<Method>,
@@ -109,6 +113,7 @@ pub fn run(cli: &Cli, a: &Args) -> anyhow::Result<bool> {
         outliers: a.outliers.get(),
         prefilter: a.prefilter.get(),
         options: Options::parse(&a.opts)?,
+        temporal: a.temporal.get(),
     };
     if let Some(input) = &a.input {
         refuse_overwrite(
