@@ -588,3 +588,71 @@ fn render_frames_writes_a_deterministic_sequence_with_its_metrics() {
     assert_ne!(code, 0);
     assert!(err.contains("no [animation]"), "{err}");
 }
+
+/// `--temporal lp`: `render --frames` filters the sequence (frame 0, which
+/// starts the filter, is the plain render's; later frames differ from it,
+/// and a rerun is bit-identical); `denoise --frames` restarts the history
+/// at a gap in the numbering and says so; without `--frames`, or with
+/// `--resume`, it is a usage error.
+#[test]
+fn temporal_filter_from_the_command_line() {
+    let dir = tmpdir("temporal");
+    let render = |temporal: &str, out: &str| {
+        let mut cmd = bin();
+        cmd.args(["render", "--scene", "moving_box", "--size", "16x16"])
+            .args(["--spp", "4", "--frames", "0..3", "--temporal", temporal])
+            .arg("--save-stats")
+            .arg(dir.join(format!("{out}_stats_##.exr")))
+            .arg("-o")
+            .arg(dir.join(format!("{out}_##.exr")));
+        run(&mut cmd)
+    };
+    for (t, out) in [("off", "plain"), ("lp", "lp"), ("lp", "again")] {
+        let (code, _, err) = render(t, out);
+        assert_eq!(code, 0, "{err}");
+    }
+    let bytes = |p: &str| std::fs::read(dir.join(p)).unwrap();
+    let rgb = |p: &str| mcdenoise::io::read_rgb(&dir.join(p)).unwrap().planes;
+    assert_eq!(rgb("plain_00.exr"), rgb("lp_00.exr"));
+    assert_ne!(rgb("plain_02.exr"), rgb("lp_02.exr"));
+    assert_eq!(bytes("lp_02.exr"), bytes("again_02.exr"));
+    // denoise --frames over the saved statistics, frame 1 missing.
+    std::fs::remove_file(dir.join("lp_stats_01.exr")).unwrap();
+    let (code, _, err) = run(bin()
+        .arg("denoise")
+        .arg("--frames")
+        .arg(dir.join("lp_stats_##.exr"))
+        .arg("-o")
+        .arg(dir.join("d_##.exr"))
+        .args(["--temporal", "lp"]));
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        err.contains("frame 2: frame 1 is missing or failed: the temporal history starts again"),
+        "{err}"
+    );
+    for args in [
+        &["denoise", "x.exr", "-o", "y.exr", "--temporal", "lp"][..],
+        &[
+            "denoise",
+            "--frames",
+            "f_##.exr",
+            "-o",
+            "o_##.exr",
+            "--temporal",
+            "lp",
+            "--resume",
+        ],
+        &[
+            "render",
+            "--scene",
+            "cornell",
+            "-o",
+            "y.exr",
+            "--temporal",
+            "lp",
+        ],
+    ] {
+        let (code, _, err) = run(bin().args(args));
+        assert_eq!(code, 2, "{args:?}: {err}");
+    }
+}
