@@ -15,6 +15,7 @@ use crate::methods::prepare::PrepareReport;
 use crate::methods::tiles::{Choice, Tile, TiledChain};
 use crate::methods::{
     self, Backend, DenoiseRequest, Method, Outliers, Pass, Prefilter, ProgressCallback, Temporal,
+    TemporalState,
 };
 use crate::options::Options;
 
@@ -69,6 +70,13 @@ pub struct Config {
     /// method's. Needs the `position` and `depth` layers, the GPU and one
     /// chain (no tiles).
     pub temporal: Temporal,
+    /// For an adaptive pass's denoiser ([`Pass::Intermediate`]) with
+    /// `temporal` set: the final denoiser's state
+    /// ([`Denoiser::temporal_state`]). Its sample maps then weigh each
+    /// pixel's error by what the temporal filter will make of the frame —
+    /// less where a long history is reprojected, all of it where the pixel
+    /// restarts (TEMPORAL-MAP) — and its colour is not filtered.
+    pub temporal_state: Option<TemporalState>,
 }
 
 impl Config {
@@ -88,6 +96,7 @@ impl Config {
             max_memory: None,
             tile: None,
             temporal: Temporal::Off,
+            temporal_state: None,
         }
     }
 
@@ -103,6 +112,7 @@ impl Config {
             debug: self.debug,
             error: self.error,
             temporal: self.temporal,
+            temporal_state: self.temporal_state.clone(),
         }
     }
 
@@ -417,6 +427,16 @@ impl Denoiser {
     /// The configuration.
     pub fn config(&self) -> &Config {
         &self.config
+    }
+
+    /// The handle on this final denoiser's temporal state, for the
+    /// configuration of the adaptive passes' denoiser of the same frames
+    /// ([`Config::temporal_state`]); `None` without a temporal filter.
+    pub fn temporal_state(&self) -> Option<TemporalState> {
+        match &self.engine {
+            Engine::Gpu(c) => c.temporal_state(),
+            _ => None,
+        }
     }
 
     /// Forgets the temporal stage's history ([`Config::temporal`]): the

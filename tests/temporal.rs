@@ -6,8 +6,9 @@
 mod common;
 
 use common::{agreement, assert_close, check_validation, gpu, precisions, Rng};
-use mcdenoise::kernels::{lp_temporal, run_planes};
+use mcdenoise::kernels::{lp_temporal, lp_temporal_gain, run_planes};
 use mcdenoise::reference::lp_temporal::{self as twin, PixelState, TemporalInputs};
+use mcdenoise::reference::lp_temporal_gain as gain_twin;
 use mcdenoise::shared::{
     TemporalPush, TEMPORAL_DELTA, TEMPORAL_LAMBDA, TEMPORAL_NO_SEARCH, TEMPORAL_RESET,
     TEMPORAL_SOURCE_NONE, TEMPORAL_SOURCE_RESET, TEMPORAL_STATE,
@@ -226,6 +227,8 @@ fn twin_frame(
     (next, out, source)
 }
 
+/// `lp_temporal` and `lp_temporal_gain` against their twins over a
+/// synthetic sequence, each frame from the twin's previous state.
 #[test]
 fn lp_temporal_matches_its_twin() {
     let ctx = gpu();
@@ -274,6 +277,45 @@ fn lp_temporal_matches_its_twin() {
                 }
                 let agree = agreement(&g[4], &source);
                 assert!(agree >= 0.98, "{what}: source agrees on {agree}");
+                // The gain on an error estimate, from the same state.
+                let err: Vec<Vec<f32>> = (0..3)
+                    .map(|c| {
+                        (0..n)
+                            .map(|i| 0.01 * (1 + (i * 7 + c) % 13) as f32)
+                            .collect()
+                    })
+                    .collect();
+                let mut want: [Vec<f32>; 3] = std::array::from_fn(|_| vec![0.0; n]);
+                {
+                    let [a, b, c] = &mut want;
+                    let e = [&err[0][..], &err[1][..], &err[2][..]];
+                    gain_twin::lp_temporal_gain(&p, &inputs(&f), &prev, e, [a, b, c]);
+                }
+                let mut ins = ins.clone();
+                ins.extend(err.iter().map(|v| &v[..]));
+                let (gg, _) = run_planes(
+                    &ctx,
+                    &lp_temporal_gain::DECL,
+                    prec,
+                    bytemuck::bytes_of(&p),
+                    w,
+                    h,
+                    &ins,
+                    &[n, n, n],
+                    lp_temporal_gain::FLOPS_PER_PIXEL,
+                )
+                .unwrap();
+                for c in 0..3 {
+                    assert_close(&format!("{what} gain {c}"), &gg[c], &want[c], 0.99);
+                    // Never above the error it scales.
+                    assert!(gg[c].iter().zip(&err[c]).all(|(g, e)| g <= e));
+                }
+                if t > 0 && flags == 0 {
+                    assert!(
+                        gg[0].iter().zip(&err[0]).any(|(g, e)| g < e),
+                        "{what}: no gain"
+                    );
+                }
             }
             prev = next;
         }
@@ -547,4 +589,94 @@ fn temporal_needs_positions_and_the_gpu() {
     assert!(e.to_string().contains("position"), "{e}");
     let e = Denoiser::new_cpu(Source::of_image(img), c).unwrap_err();
     assert!(e.to_string().contains("GPU"), "{e}");
+}
+
+/// TEMPORAL-MAP: an adaptive pass's denoiser that reads the final
+/// denoiser's temporal state sends relatively more of its budget to the
+/// pixels the filter will restart (where the moving box uncovers the
+/// wall) than the same pass without it, and no more to the rest.
+#[test]
+fn adaptive_maps_read_the_temporal_state() {
+    let ctx = gpu();
+    let scene = Scene::by_name_or_file("moving_box").unwrap();
+    let size = 48;
+    let cfg = LoopConfig::new(Method::None, 8, false);
+    let mut stats = Vec::new();
+    let stop = AtomicBool::new(false);
+    sequence::render_frames(
+        &ctx,
+        &scene,
+        0..8,
+        (size, size),
+        1,
+        &cfg,
+        Temporal::Off,
+        &stop,
+        |f| {
+            stats.push(f.stats);
+            Ok(())
+        },
+    )
+    .unwrap();
+    let last = temporal_denoiser(Method::Wlr, &stats[0]);
+    for img in &stats[..7] {
+        last.denoise(img, None).unwrap();
+    }
+    let pass = |state: bool| {
+        let mut c = Config::new(Method::Wlr);
+        c.pass = mcdenoise::Pass::Intermediate;
+        if state {
+            c.temporal = Temporal::Lp;
+            c.temporal_state = last.temporal_state();
+        }
+        let d = Denoiser::new(&ctx, Source::of_image(&stats[7]), c).unwrap();
+        let budget = (8 * size * size) as u32;
+        let out = d.denoise(&stats[7], Some(budget)).unwrap();
+        // The map reads the filter's state; the colour is the method's.
+        assert_eq!(out.color, spatial_pass(&stats[7]));
+        out.samples.unwrap()
+    };
+    let (aware, plain) = (pass(true), pass(false));
+    assert_eq!(
+        aware.iter().map(|&c| c as u64).sum::<u64>(),
+        plain.iter().map(|&c| c as u64).sum::<u64>()
+    );
+    let out = last.denoise(&stats[7], None).unwrap();
+    let source = debug(&out, "temporal_source");
+    let share = |map: &[u32], reset: bool| {
+        let (s, k) = map
+            .iter()
+            .zip(source)
+            .filter(|(_, &s)| (s == TEMPORAL_SOURCE_RESET) == reset)
+            .fold((0u64, 0u64), |(s, k), (&c, _)| (s + c as u64, k + 1));
+        s as f64 / k.max(1) as f64
+    };
+    let restarted = source
+        .iter()
+        .filter(|&&s| s == TEMPORAL_SOURCE_RESET)
+        .count();
+    assert!(restarted >= 10, "{restarted} pixels restart");
+    let (ra, ca) = (share(&aware, true), share(&aware, false));
+    let (rp, cp) = (share(&plain, true), share(&plain, false));
+    assert!(
+        ra / ca > 1.05 * (rp / cp),
+        "samples per restarting pixel over the rest: {:.2} aware, {:.2} without",
+        ra / ca,
+        rp / cp
+    );
+    assert!(
+        ca < cp,
+        "continuing pixels: {ca:.2} aware vs {cp:.2} without"
+    );
+    check_validation(&ctx);
+}
+
+fn spatial_pass(img: &StatsImage) -> RgbImage {
+    let mut c = Config::new(Method::Wlr);
+    c.pass = mcdenoise::Pass::Intermediate;
+    Denoiser::new(&gpu(), Source::of_image(img), c)
+        .unwrap()
+        .denoise(img, None)
+        .unwrap()
+        .color
 }

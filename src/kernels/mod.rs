@@ -30,6 +30,7 @@ pub mod lp_gather;
 pub mod lp_reach;
 pub mod lp_select;
 pub mod lp_temporal;
+pub mod lp_temporal_gain;
 pub mod outlier_detect;
 pub mod outlier_grey;
 pub mod outlier_median;
@@ -85,6 +86,7 @@ pub const ALL: &[&KernelDecl] = &[
     &lp_select::DECL,
     &lp_gather::DECL,
     &lp_temporal::DECL,
+    &lp_temporal_gain::DECL,
     &aos_nlm::DECL,
     &aos_space::DECL,
     &aos_fit::DECL,

@@ -48,6 +48,7 @@ fn member_config(c: &ChainConfig, m: Method) -> ChainConfig {
         method: m,
         error: true,
         temporal: super::Temporal::Off,
+        temporal_state: None,
         ..c.clone()
     }
 }

@@ -23,9 +23,10 @@ use super::prepare::{self, PrepareReport, PrepareScratch};
 use super::registry::{GpuStage, StageArgs, StageRun};
 use super::sampling::{self, SampleInputs, SamplingParams, SamplingPlanes};
 use super::stats::{self, GpuStats};
-use super::temporal::{Temporal, TemporalStage};
+use super::temporal::{Temporal, TemporalStage, TemporalState};
 use super::tiles::{self, Rect};
 use super::{Method, Pass, Prefilter};
+use crate::kernels::lp_temporal::TemporalIn;
 use crate::shared::TEMPORAL_SOURCE_NONE;
 
 /// What the chain reads.
@@ -99,6 +100,10 @@ pub struct ChainConfig {
     /// The temporal stage after the method (§10): its state lives in the
     /// chain from call to call.
     pub temporal: Temporal,
+    /// With `temporal` on an adaptive pass's chain ([`Pass::Intermediate`]):
+    /// the final chain's state, whose factor scales the sample map's error
+    /// (TEMPORAL-MAP).
+    pub temporal_state: Option<TemporalState>,
 }
 
 /// Where a chain's image lies in a larger image of which it is one tile
@@ -139,8 +144,17 @@ pub struct GpuChain {
     method: Box<dyn GpuStage>,
     /// The sample map's planes and parameters (every device has them).
     sampling: (SamplingPlanes, SamplingParams),
-    /// The temporal stage and its state ([`ChainConfig::temporal`]).
-    temporal: Option<TemporalStage>,
+    /// The temporal stage ([`ChainConfig::temporal`]).
+    temporal: Option<TemporalRole>,
+}
+
+/// What a chain does with a temporal stage.
+enum TemporalRole {
+    /// A final reconstruction: filters its output with the stage it owns.
+    Filter(Arc<TemporalStage>),
+    /// An adaptive pass: scales the sample map's error by the factor the
+    /// final chain's stage gives (TEMPORAL-MAP), into these three planes.
+    Gain(Arc<TemporalStage>, PlaneSet),
 }
 
 impl std::fmt::Debug for GpuChain {
@@ -247,9 +261,31 @@ impl GpuChain {
         })?;
         let params = SamplingParams::with_options(config.method, &config.options)?;
         let sampling = (SamplingPlanes::new(ctx, w, h)?, params);
-        let temporal = match config.temporal {
-            Temporal::Off => None,
-            Temporal::Lp => Some(TemporalStage::new(ctx, w, h)?),
+        let temporal = match (config.temporal, config.pass, &config.temporal_state) {
+            (Temporal::Off, _, _) => None,
+            (Temporal::Lp, Pass::Final, None) => {
+                Some(TemporalRole::Filter(Arc::new(TemporalStage::new(ctx, w, h)?)))
+            }
+            (Temporal::Lp, Pass::Intermediate, Some(TemporalState(stage))) => {
+                if stage.size() != (w, h) {
+                    return Err(Error::InvalidArgument(format!(
+                        "the temporal state is of {:?} pixels, the image {w}x{h}",
+                        stage.size()
+                    )));
+                }
+                let scaled = PlaneSet::new(ctx, "chain.temporal_error", w * h, 3)?;
+                Some(TemporalRole::Gain(stage.clone(), scaled))
+            }
+            (Temporal::Lp, Pass::Final, Some(_)) => {
+                return Err(Error::InvalidArgument(
+                    "a final reconstruction owns its temporal state: temporal_state is for an adaptive pass's denoiser".into(),
+                ))
+            }
+            (Temporal::Lp, Pass::Intermediate, None) => {
+                return Err(Error::InvalidArgument(
+                    "an adaptive pass's temporal stage reads the final denoiser's state: set temporal_state (Denoiser::temporal_state)".into(),
+                ))
+            }
         };
         let chain = GpuChain {
             ctx: ctx.clone(),
@@ -391,7 +427,12 @@ impl GpuChain {
     /// What the sample map reads as `E` (§9.1): ΔMSE for LP, `MSE_c`
     /// without AOS-FEATNOISE for AOS, else `E_i`.
     fn sampling_error(&self) -> [BufferSlice; 3] {
-        self.method.sampling_error(&self.stats)
+        match &self.temporal {
+            Some(TemporalRole::Gain(_, scaled)) => {
+                [scaled.plane(0), scaled.plane(1), scaled.plane(2)]
+            }
+            _ => self.method.sampling_error(&self.stats),
+        }
     }
 
     /// The sample counts (u32 per pixel) of the last run with a budget.
@@ -491,25 +532,44 @@ impl GpuChain {
         if let Some(o) = &self.outliers {
             outliers::record_restore(batch, p, spp, self.method_color(), o)?;
         }
-        if let Some(t) = &self.temporal {
-            let three = |l| std::array::from_fn(|k| self.stats.plane(l, k));
-            t.record(
-                batch,
-                p,
-                self.method_color(),
-                three(Layer::Position),
-                three(Layer::PositionVariance),
-                self.stats.plane(Layer::Depth, 0),
-                spp,
-            )?;
+        match &self.temporal {
+            Some(TemporalRole::Filter(t)) => t.record(batch, p, &self.temporal_in())?,
+            Some(TemporalRole::Gain(t, scaled)) if maps => {
+                let error = self.method.sampling_error(&self.stats);
+                let to = [scaled.plane(0), scaled.plane(1), scaled.plane(2)];
+                t.record_gain(batch, p, &self.temporal_in(), error, to)?
+            }
+            _ => {}
         }
         Ok(())
+    }
+
+    /// What the temporal stage reads: the method's colour and the
+    /// statistics' planes.
+    fn temporal_in(&self) -> TemporalIn {
+        let three = |l| std::array::from_fn(|k| self.stats.plane(l, k));
+        TemporalIn {
+            color: self.method_color(),
+            position: three(Layer::Position),
+            position_variance: three(Layer::PositionVariance),
+            depth: self.stats.plane(Layer::Depth, 0),
+            spp: self.stats.plane(Layer::Spp, 0),
+        }
+    }
+
+    /// The handle on the temporal stage's state of a final chain with
+    /// one, for an adaptive pass's chain ([`ChainConfig::temporal_state`]).
+    pub fn temporal_state(&self) -> Option<TemporalState> {
+        match &self.temporal {
+            Some(TemporalRole::Filter(t)) => Some(TemporalState(t.clone())),
+            _ => None,
+        }
     }
 
     /// Forgets the temporal stage's history (a cut): the next call
     /// reinitialises every pixel. Nothing without a temporal stage.
     pub fn reset_temporal(&self) {
-        if let Some(t) = &self.temporal {
+        if let Some(TemporalRole::Filter(t)) = &self.temporal {
             t.reset();
         }
     }
@@ -524,8 +584,8 @@ impl GpuChain {
     /// there is one.
     pub fn color(&self) -> [BufferSlice; 3] {
         match &self.temporal {
-            Some(t) => t.color(),
-            None => self.method_color(),
+            Some(TemporalRole::Filter(t)) => t.color(),
+            _ => self.method_color(),
         }
     }
 
@@ -668,7 +728,7 @@ impl GpuChain {
             out.debug
                 .extend(outliers::debug_layers(&outliers::download_excess(o)?));
         }
-        if let Some(t) = &self.temporal {
+        if let Some(TemporalRole::Filter(t)) = &self.temporal {
             // The filtered colour, but the method's own download (`none`
             // fills invalid pixels on the host) where the filter passed
             // the pixel through.

@@ -27,7 +27,7 @@ use crate::options::Options;
 
 pub use outliers::Outliers;
 pub use registry::MethodInfo;
-pub use temporal::Temporal;
+pub use temporal::{Temporal, TemporalState};
 
 /// Where a method runs.
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Default)]
@@ -256,6 +256,7 @@ fn denoise_gpu(
             debug: req.debug,
             error: req.error,
             temporal: Temporal::Off,
+            temporal_state: None,
         },
     )?;
     denoise_with_chain(&chain, img, req, None)

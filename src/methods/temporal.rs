@@ -14,6 +14,7 @@ use crate::error::{Error, Result};
 use crate::gpu::{Batch, BufferSlice, GpuContext, PlaneSet, Precision};
 use crate::image::Layer;
 use crate::kernels::lp_temporal::{self, TemporalIn, TemporalOut};
+use crate::kernels::lp_temporal_gain;
 use crate::shared::{
     TemporalPush, TEMPORAL_DELTA, TEMPORAL_LAMBDA, TEMPORAL_P00, TEMPORAL_RESET, TEMPORAL_STATE,
 };
@@ -48,6 +49,20 @@ impl Temporal {
             Temporal::Off => &[],
             Temporal::Lp => &[Layer::Position, Layer::Depth],
         }
+    }
+}
+
+/// A handle on a chain's temporal state ([`crate::Denoiser::temporal_state`]):
+/// given to the configuration of an adaptive pass's denoiser
+/// ([`crate::Config::temporal_state`]), its sample map reads what the
+/// filter will make of the frame (TEMPORAL-MAP).
+#[derive(Clone)]
+pub struct TemporalState(pub(crate) Arc<TemporalStage>);
+
+impl std::fmt::Debug for TemporalState {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let (w, h) = self.0.size();
+        write!(f, "TemporalState({w}x{h})")
     }
 }
 
@@ -89,49 +104,58 @@ impl TemporalStage {
         self.reset.store(true, Ordering::SeqCst);
     }
 
-    /// Records one frame: the filter of `color` (the method's output) with
-    /// the statistics' `position`, `position_variance`, `depth` and `spp`
-    /// planes, then the copy
-    /// of the new state over the old. A counting batch leaves a pending
-    /// reset pending.
-    pub fn record(
-        &self,
-        batch: &mut Batch,
-        precision: Precision,
-        color: [BufferSlice; 3],
-        position: [BufferSlice; 3],
-        position_variance: [BufferSlice; 3],
-        depth: BufferSlice,
-        spp: BufferSlice,
-    ) -> Result<()> {
-        let reset = if batch.is_counting() {
-            self.reset.load(Ordering::SeqCst)
-        } else {
-            self.reset.swap(false, Ordering::SeqCst)
-        };
-        let push = TemporalPush {
+    /// The push constants of a frame: with a reset pending, every pixel
+    /// restarts.
+    fn push(&self, reset: bool) -> TemporalPush {
+        TemporalPush {
             width: self.width as u32,
             height: self.height as u32,
             flags: if reset { TEMPORAL_RESET } else { 0 },
             lambda: TEMPORAL_LAMBDA,
             delta: TEMPORAL_DELTA,
             ..Default::default()
-        };
-        let inp = TemporalIn {
-            color,
-            position,
-            position_variance,
-            depth,
-            spp,
+        }
+    }
+
+    /// Records one frame: the filter of `inp.color` (the method's output)
+    /// with the statistics' planes, then the copy of the new state over
+    /// the old. A counting batch leaves a pending reset pending.
+    pub fn record(&self, batch: &mut Batch, precision: Precision, inp: &TemporalIn) -> Result<()> {
+        let reset = if batch.is_counting() {
+            self.reset.load(Ordering::SeqCst)
+        } else {
+            self.reset.swap(false, Ordering::SeqCst)
         };
         let out = TemporalOut {
             next: self.next.all(),
             color: self.color(),
             source: self.source(),
         };
-        lp_temporal::record(batch, precision, &push, &inp, self.prev.all(), &out)?;
+        let push = self.push(reset);
+        lp_temporal::record(batch, precision, &push, inp, self.prev.all(), &out)?;
         batch.copy(self.next.all(), self.prev.all());
         Ok(())
+    }
+
+    /// Records the filter's factor on `error` into `scaled` for an adaptive
+    /// pass of the frame the filter will see next (TEMPORAL-MAP), from its
+    /// state without changing it: `inp` is the pass's reconstruction and
+    /// statistics.
+    pub fn record_gain(
+        &self,
+        batch: &mut Batch,
+        precision: Precision,
+        inp: &TemporalIn,
+        error: [BufferSlice; 3],
+        scaled: [BufferSlice; 3],
+    ) -> Result<()> {
+        let push = self.push(self.reset.load(Ordering::SeqCst));
+        lp_temporal_gain::record(batch, precision, &push, inp, self.prev.all(), error, scaled)
+    }
+
+    /// `(width, height)`.
+    pub fn size(&self) -> (usize, usize) {
+        (self.width, self.height)
     }
 
     /// The filtered colour planes R, G, B.

@@ -172,15 +172,64 @@ fn reproject(
     best.map(|(_, s, d)| (s, d))
 }
 
+/// What the filter does at one pixel of a frame.
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub enum Step {
+    /// An invalid pixel or a non-finite colour: passed through, no state.
+    PassThrough,
+    /// Reinitialised (RESET, or the first frame): `β = (y, 0)`, `P = I/δ`.
+    Reset(PixelState),
+    /// The state reprojected from offset `(dx, dy)` of the previous frame,
+    /// updated with this frame's colour.
+    Continue(PixelState, (i32, i32)),
+}
+
+/// The filter at pixel `(x, y)` of a `push.width × push.height` frame
+/// (§10.1): reprojection from the state planes `prev` (unless
+/// [`TEMPORAL_RESET`]; [`TEMPORAL_NO_SEARCH`]: pixel `i`'s own state), RESET,
+/// and the update with forgetting factor `push.lambda`.
+pub fn step(
+    push: &TemporalPush,
+    inp: &TemporalInputs,
+    prev: &[f32],
+    (x, y): (usize, usize),
+) -> Step {
+    let (w, h) = (push.width as usize, push.height as usize);
+    let n = w * h;
+    let i = y * w + x;
+    let col = inp.color.map(|p| p[i]);
+    let yi = col.map(|v| v as f64);
+    let wi = inp.position.map(|p| p[i] as f64);
+    let valid = super::finalize_stats::spp_of(inp.spp[i]) >= 1.0;
+    if !valid || col.iter().any(|v| !v.is_finite()) {
+        return Step::PassThrough;
+    }
+    let found = if push.flags & TEMPORAL_RESET != 0 {
+        None
+    } else if push.flags & TEMPORAL_NO_SEARCH != 0 {
+        load(prev, n, i).map(|s| (s.shifted(), (0, 0)))
+    } else {
+        let var: f64 = inp.position_variance.iter().map(|p| p[i] as f64).sum();
+        let limit = (TEMPORAL_RESET_REL * (inp.depth[i] as f64).max(TEMPORAL_DEPTH_FLOOR)).powi(2)
+            + TEMPORAL_RESET_NOISE * var;
+        reproject(prev, (w, h), (x, y), wi, yi, limit)
+    };
+    match found {
+        Some((mut s, offset)) => {
+            s.update(yi, push.lambda as f64);
+            s.w = wi;
+            Step::Continue(s, offset)
+        }
+        None => Step::Reset(PixelState::reset(yi, wi, push.delta as f64)),
+    }
+}
+
 /// One frame of the filter over a `width × height` image (`row0` ignored):
-/// per pixel the reprojected (or reinitialised) state updated with this
-/// frame's colour, from the previous frame's state planes `prev` into
+/// per pixel [`step`], from the previous frame's state planes `prev` into
 /// `next` (both [`TEMPORAL_STATE`] planes), the output `β[ch][0]` clamped to
-/// ≥ 0 into `out`, and the debug plane `source`
-/// ([`TEMPORAL_SOURCE_RESET`]). With [`TEMPORAL_RESET`] no previous state is
-/// read; with [`TEMPORAL_NO_SEARCH`] pixel `i` continues its own state and
-/// only a missing one reinitialises it. An invalid pixel or a non-finite
-/// colour passes the colour through and leaves the pixel without state.
+/// ≥ 0 into `out` (the colour itself where passed through), and the debug
+/// plane `source` ([`TEMPORAL_SOURCE_RESET`]). A pixel passed through has
+/// no state.
 pub fn lp_temporal(
     push: &TemporalPush,
     inp: &TemporalInputs,
@@ -191,40 +240,20 @@ pub fn lp_temporal(
 ) {
     let (w, h) = (push.width as usize, push.height as usize);
     let n = w * h;
-    let (lambda, delta) = (push.lambda as f64, push.delta as f64);
     let [or, og, ob] = out;
+    let r = TEMPORAL_SEARCH;
     for y in 0..h {
         for x in 0..w {
             let i = y * w + x;
-            let col = inp.color.map(|p| p[i]);
-            let yi = col.map(|v| v as f64);
-            let wi = inp.position.map(|p| p[i] as f64);
-            let valid = super::finalize_stats::spp_of(inp.spp[i]) >= 1.0;
-            if !valid || col.iter().any(|v| !v.is_finite()) {
-                store(next, n, i, None);
-                (or[i], og[i], ob[i]) = (col[0], col[1], col[2]);
-                source[i] = TEMPORAL_SOURCE_NONE;
-                continue;
-            }
-            let found = if push.flags & TEMPORAL_RESET != 0 {
-                None
-            } else if push.flags & TEMPORAL_NO_SEARCH != 0 {
-                load(prev, n, i).map(|s| (s.shifted(), (0, 0)))
-            } else {
-                let var: f64 = inp.position_variance.iter().map(|p| p[i] as f64).sum();
-                let limit = (TEMPORAL_RESET_REL * (inp.depth[i] as f64).max(TEMPORAL_DEPTH_FLOOR))
-                    .powi(2)
-                    + TEMPORAL_RESET_NOISE * var;
-                reproject(prev, (w, h), (x, y), wi, yi, limit)
-            };
-            let (s, src) = match found {
-                Some((mut s, (dx, dy))) => {
-                    s.update(yi, lambda);
-                    s.w = wi;
-                    let r = TEMPORAL_SEARCH;
-                    (s, ((dy + r) * (2 * r + 1) + dx + r) as f32)
+            let (s, src) = match step(push, inp, prev, (x, y)) {
+                Step::PassThrough => {
+                    store(next, n, i, None);
+                    (or[i], og[i], ob[i]) = (inp.color[0][i], inp.color[1][i], inp.color[2][i]);
+                    source[i] = TEMPORAL_SOURCE_NONE;
+                    continue;
                 }
-                None => (PixelState::reset(yi, wi, delta), TEMPORAL_SOURCE_RESET),
+                Step::Reset(s) => (s, TEMPORAL_SOURCE_RESET),
+                Step::Continue(s, (dx, dy)) => (s, ((dy + r) * (2 * r + 1) + dx + r) as f32),
             };
             store(next, n, i, Some(&s));
             let o = s.predict().map(|v| v.max(0.0) as f32);

@@ -55,6 +55,11 @@ pub struct LoopConfig {
     /// error, a time limit or a sample bound stops them. `None`: the fixed
     /// schedule of `spp` (§9.3).
     pub stop: Option<StopRules>,
+    /// With a temporal final denoiser ([`render_with_final`]): the adaptive
+    /// passes' sample maps weigh each pixel's error by what the temporal
+    /// filter will make of the frame (TEMPORAL-MAP). `true` by default;
+    /// `false` gives the maps of a render without the filter.
+    pub temporal_maps: bool,
 }
 
 impl LoopConfig {
@@ -72,6 +77,7 @@ impl LoopConfig {
             options: Options::default(),
             pass_cap: default_pass_cap(method),
             stop: None,
+            temporal_maps: true,
         }
     }
 }
@@ -288,7 +294,8 @@ pub fn final_denoiser(
 /// [`render`], with the final reconstruction by `last` (made by
 /// [`final_denoiser`] for the renderer's layout) when given: its temporal
 /// stage, if any, then filters this render as the next frame of its
-/// sequence. Open-ended renders ([`LoopConfig::stop`]) judge their passes
+/// sequence, and the adaptive passes' maps read its state
+/// ([`LoopConfig::temporal_maps`]). Open-ended renders ([`LoopConfig::stop`]) judge their passes
 /// with a denoiser of their own and give `last` the final statistics once.
 pub fn render_with_final(
     ctx: &Arc<GpuContext>,
@@ -342,7 +349,13 @@ impl Runner<'_> {
     /// later passes only add: no pixel has `1 <= spp < 2` unless
     /// `first_spp` is 1 (§0.4 step 3).
     fn denoiser(&self, pass: Pass, first_spp: u32) -> Result<Denoiser> {
-        let c = loop_config(self.cfg, pass, first_spp);
+        let mut c = loop_config(self.cfg, pass, first_spp);
+        if let (Pass::Intermediate, true, Some(last)) = (pass, self.cfg.temporal_maps, self.last) {
+            if let Some(state) = last.temporal_state() {
+                c.temporal = last.config().temporal;
+                c.temporal_state = Some(state);
+            }
+        }
         Denoiser::new(self.ctx, Source::Accum(self.renderer.layout()), c)
     }
 

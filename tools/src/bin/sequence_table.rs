@@ -8,12 +8,15 @@
 //! another seed: half their rMSE and temporal error against each other is
 //! the references' own, which the corrected columns subtract. With
 //! `--temporal`, each method also with the LP temporal filter (§10.1,
-//! "+ 10.1"), one denoiser carrying its state through the frames.
+//! "+ 10.1"), one denoiser carrying its state through the frames. With
+//! `--adaptive`, each method's adaptive renders of the sequence instead:
+//! alone, with the filter, and with maps that read the filter's state.
 //!
 //! ```text
 //! cargo run --release -p mcdenoise-tools --bin sequence_table -- \
 //!     [--scenes pan_room,moving_box,moving_highlight] [--methods wlr,lp,apr,aos,auto] \
 //!     [--size 64x64] [--spp 16] [--frames 24] [--reference 512] [--oidn] [--temporal]
+//!     [--adaptive]
 //! ```
 
 use std::path::PathBuf;
@@ -61,6 +64,11 @@ struct Args {
     /// Also every method followed by the LP temporal filter (spec §10.1).
     #[arg(long)]
     temporal: bool,
+    /// Instead of denoising the uniform frames: each method's adaptive
+    /// renders of the sequence alone, with the temporal filter, and with
+    /// the filter and sample maps that read its state (TEMPORAL-MAP).
+    #[arg(long, conflicts_with_all = ["oidn", "temporal"])]
+    adaptive: bool,
     /// Working folder for OIDN's inputs and outputs.
     #[arg(long, default_value = "target/sequence_table")]
     work: PathBuf,
@@ -137,6 +145,38 @@ fn main() -> anyhow::Result<()> {
         };
         let inputs: Vec<RgbImage> = stats.iter().map(mcdenoise::colour_of).collect();
         row("input", &inputs)?;
+        if a.adaptive {
+            // Each method's own adaptive renders of the sequence: alone, with
+            // the filter, and with the filter and maps that read its state.
+            for &m in &a.methods {
+                for (what, temporal, maps) in [
+                    ("adaptive", Temporal::Off, false),
+                    ("adaptive + 10.1", Temporal::Lp, false),
+                    ("adaptive + 10.1, TEMPORAL-MAP", Temporal::Lp, true),
+                ] {
+                    let mut cfg = LoopConfig::new(m, a.spp, true);
+                    cfg.temporal_maps = maps;
+                    let mut outputs = Vec::new();
+                    let frames = 0..a.frames.min(scene.frames());
+                    sequence::render_frames(
+                        &ctx,
+                        &scene,
+                        frames,
+                        a.size,
+                        a.seed,
+                        &cfg,
+                        temporal,
+                        &stop,
+                        |f| {
+                            outputs.push(f.result.frame.color);
+                            Ok(())
+                        },
+                    )?;
+                    row(&format!("{} {what}", m.name()), &outputs)?;
+                }
+            }
+            continue;
+        }
         for &m in &a.methods {
             let mut outputs = Vec::with_capacity(stats.len());
             for s in &stats {

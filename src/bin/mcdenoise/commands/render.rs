@@ -443,6 +443,7 @@ fn loop_config(a: &Args) -> anyhow::Result<adaptive::LoopConfig> {
             time_limit: a.time_limit,
             max_spp: a.max_spp,
         }),
+        temporal_maps: true,
     })
 }
 

@@ -1,0 +1,131 @@
+// Spec §10.1, the LP temporal filter at one pixel: the reprojection search,
+// RESET and the update, shared by lp_temporal.comp (the filter) and
+// lp_temporal_gain.comp (what the filter will do, for the sample map).
+// Scalar twin: src/reference/lp_temporal.rs (`step`).
+//
+// The including kernel declares the planes yr yg yb (the method's colour),
+// px py pz (position), vx vy vz (its variance), depth, spp and prev (the
+// previous frame's TEMPORAL_STATE planes: b0 b1 per channel R G B,
+// P00 P01 P11, W X Y Z, valid), and a push block `push` with width,
+// height, flags, lambda and delta.
+
+#ifndef MC_TEMPORAL_GLSL
+#define MC_TEMPORAL_GLSL
+
+// mcdenoise::shared: TEMPORAL_RESET, TEMPORAL_NO_SEARCH, TEMPORAL_SEARCH,
+// TEMPORAL_RESET_REL, TEMPORAL_DEPTH_FLOOR, TEMPORAL_RESET_NOISE.
+#define TEMPORAL_RESET 1u
+#define TEMPORAL_NO_SEARCH 2u
+#define SEARCH 3
+#define RESET_REL 0.01
+#define DEPTH_FLOOR 1e-3
+#define RESET_NOISE 18.0
+
+// What temporal_step did.
+#define STEP_PASS 0
+#define STEP_RESET 1
+#define STEP_CONTINUE 2
+
+// The state of pixel j (n pixels), shifted to the current frame's origin:
+// beta as (b0, b1) per channel, P as (p00, p01, p11).
+void load_shifted(uint j, uint n, out real2 b[3], out real3 p, out real3 w)
+{
+    for (int c = 0; c < 3; ++c) {
+        real b0 = real(prev[(2 * c) * n + j]);
+        real b1 = real(prev[(2 * c + 1) * n + j]);
+        b[c] = real2(b0 + b1, b1);
+    }
+    real a = real(prev[6 * n + j]);
+    real o = real(prev[7 * n + j]);
+    real d = real(prev[8 * n + j]);
+    p = real3(a + real(2) * o + d, o + d, d);
+    w = real3(prev[9 * n + j], prev[10 * n + j], prev[11 * n + j]);
+}
+
+bool valid_at(uint j, uint n) { return prev[12 * n + j] == 1.0; }
+
+// The filter at pixel (x, y): STEP_PASS for an invalid pixel or a
+// non-finite colour; STEP_RESET with beta = (y, 0), P = I/delta; or
+// STEP_CONTINUE with the state reprojected from offset index `off`
+// ((dy + 3) * 7 + dx + 3) and updated. Among the valid previous states in
+// the 7x7 window whose position is within RESET's distance (TEMPORAL-GATE,
+// RESET-NOISE), the one with the least (eW + epsW)(ey + epsy), the first in
+// raster order on a tie.
+int temporal_step(uint x, uint y, out real2 b[3], out real3 p, out int off)
+{
+    uint n = push.width * push.height;
+    uint i = y * push.width + x;
+    vec3 col = vec3(yr[i], yg[i], yb[i]);
+    off = 0;
+    p = real3(0);
+    b[0] = real2(0); b[1] = real2(0); b[2] = real2(0);
+    if (spp_of(spp[i]) < 1.0 || !is_finite(col.x) || !is_finite(col.y) || !is_finite(col.z)) {
+        return STEP_PASS;
+    }
+    real3 yi = real3(col);
+    real3 wi = real3(px[i], py[i], pz[i]);
+    real3 w;
+    bool found = false;
+    if ((push.flags & TEMPORAL_RESET) == 0u) {
+        if ((push.flags & TEMPORAL_NO_SEARCH) != 0u) {
+            if (valid_at(i, n)) {
+                load_shifted(i, n, b, p, w);
+                found = true;
+                off = SEARCH * (2 * SEARCH + 1) + SEARCH;
+            }
+        } else {
+            real ew_floor = real(1e-12) * (real(1) + dot(wi, wi));
+            real limit = real(RESET_REL) * max(real(depth[i]), real(DEPTH_FLOOR));
+            limit = limit * limit + real(RESET_NOISE) * (real(vx[i]) + real(vy[i]) + real(vz[i]));
+            real best_cost = real(0);
+            int x0 = max(int(x) - SEARCH, 0), x1 = min(int(x) + SEARCH, int(push.width) - 1);
+            int y0 = max(int(y) - SEARCH, 0), y1 = min(int(y) + SEARCH, int(push.height) - 1);
+            for (int jy = y0; jy <= y1; ++jy) {
+                for (int jx = x0; jx <= x1; ++jx) {
+                    uint j = uint(jy) * push.width + uint(jx);
+                    if (!valid_at(j, n)) {
+                        continue;
+                    }
+                    real2 cb[3];
+                    real3 cp;
+                    real3 cw;
+                    load_shifted(j, n, cb, cp, cw);
+                    real3 dw = cw - wi;
+                    real ew = dot(dw, dw);
+                    if (ew > limit) {
+                        continue;
+                    }
+                    real3 dy3 = yi - real3(cb[0].x, cb[1].x, cb[2].x);
+                    real ey = dot(dy3, dy3);
+                    real cost = (ew + ew_floor) * (ey + real(1e-12));
+                    if (!found || cost < best_cost) {
+                        found = true;
+                        best_cost = cost;
+                        off = (jy - int(y) + SEARCH) * (2 * SEARCH + 1) + (jx - int(x) + SEARCH);
+                        b = cb;
+                        p = cp;
+                    }
+                }
+            }
+        }
+    }
+    if (!found) {
+        for (int c = 0; c < 3; ++c) {
+            b[c] = real2(yi[c], real(0));
+        }
+        real inv = real(1) / real(push.delta);
+        p = real3(inv, real(0), inv);
+        return STEP_RESET;
+    }
+    real lambda = real(push.lambda);
+    real den = lambda + p.x;
+    real2 g = real2(p.x, p.y) / den;
+    p = real3(p.x - g.x * p.x, p.y - g.x * p.y, p.z - g.y * p.y) / lambda;
+    for (int c = 0; c < 3; ++c) {
+        real r = yi[c] - b[c].x;
+        b[c] += g * r;
+    }
+    return STEP_CONTINUE;
+}
+
+#endif
