@@ -412,6 +412,33 @@ fn still_frames(name: &str, size: usize, spp: u32, frames: u64) -> Vec<StatsImag
         .collect()
 }
 
+/// The statistics of the first `frames` frames of the built-in
+/// `moving_box` at `size`², 8 spp uniform, seed 1.
+fn moving_box(size: usize, frames: u32) -> Vec<StatsImage> {
+    let ctx = gpu();
+    let scene = Scene::by_name_or_file("moving_box").unwrap();
+    let cfg = LoopConfig::new(Method::None, 8, false);
+    let mut stats = Vec::new();
+    let stop = AtomicBool::new(false);
+    let size = (size, size);
+    sequence::render_frames(
+        &ctx,
+        &scene,
+        0..frames,
+        size,
+        1,
+        &cfg,
+        Temporal::Off,
+        &stop,
+        |f| {
+            stats.push(f.stats);
+            Ok(())
+        },
+    )
+    .unwrap();
+    stats
+}
+
 fn temporal_denoiser(method: Method, img: &StatsImage) -> Denoiser {
     let mut c = Config::new(method);
     c.temporal = Temporal::Lp;
@@ -490,26 +517,8 @@ fn static_sequence_converges_and_reset_forgets() {
 #[test]
 fn disoccluded_pixels_are_reset_not_smeared() {
     let ctx = gpu();
-    let scene = Scene::by_name_or_file("moving_box").unwrap();
     let size = 64;
-    let cfg = LoopConfig::new(Method::None, 8, false);
-    let mut stats = Vec::new();
-    let stop = AtomicBool::new(false);
-    sequence::render_frames(
-        &ctx,
-        &scene,
-        0..8,
-        (size, size),
-        1,
-        &cfg,
-        Temporal::Off,
-        &stop,
-        |f| {
-            stats.push(f.stats);
-            Ok(())
-        },
-    )
-    .unwrap();
+    let stats = moving_box(size, 8);
     let d = temporal_denoiser(Method::Wlr, &stats[0]);
     let n = size * size;
     let mut uncovered = 0;
@@ -598,26 +607,8 @@ fn temporal_needs_positions_and_the_gpu() {
 #[test]
 fn adaptive_maps_read_the_temporal_state() {
     let ctx = gpu();
-    let scene = Scene::by_name_or_file("moving_box").unwrap();
     let size = 48;
-    let cfg = LoopConfig::new(Method::None, 8, false);
-    let mut stats = Vec::new();
-    let stop = AtomicBool::new(false);
-    sequence::render_frames(
-        &ctx,
-        &scene,
-        0..8,
-        (size, size),
-        1,
-        &cfg,
-        Temporal::Off,
-        &stop,
-        |f| {
-            stats.push(f.stats);
-            Ok(())
-        },
-    )
-    .unwrap();
+    let stats = moving_box(size, 8);
     let last = temporal_denoiser(Method::Wlr, &stats[0]);
     for img in &stats[..7] {
         last.denoise(img, None).unwrap();

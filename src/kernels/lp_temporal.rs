@@ -8,31 +8,36 @@ use crate::gpu::reflect::{read, write};
 use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};
 use crate::shared::{TemporalPush, TEMPORAL_SEARCH, TEMPORAL_STATE};
 
+/// A temporal kernel's declaration: the filter's inputs (bindings 0–11,
+/// [`TemporalIn`] and the previous state), then `$rest`.
+macro_rules! temporal_decl {
+    ($name:expr, $($rest:expr),* $(,)?) => {
+        KernelDecl {
+            name: $name,
+            bindings: &[
+                read("yr"), read("yg"), read("yb"),
+                read("px"), read("py"), read("pz"),
+                read("vx"), read("vy"), read("vz"),
+                read("depth"), read("spp"),
+                read("prev").planes(crate::shared::TEMPORAL_STATE as u32),
+                $($rest),*
+            ],
+            push_size: std::mem::size_of::<crate::shared::TemporalPush>() as u32,
+        }
+    };
+}
+pub(crate) use temporal_decl;
+
 /// Declaration of `spirv/lp_temporal.comp`; checked against the SPIR-V by
 /// reflection.
-pub const DECL: KernelDecl = KernelDecl {
-    name: "lp_temporal",
-    bindings: &[
-        read("yr"),
-        read("yg"),
-        read("yb"),
-        read("px"),
-        read("py"),
-        read("pz"),
-        read("vx"),
-        read("vy"),
-        read("vz"),
-        read("depth"),
-        read("spp"),
-        read("prev").planes(TEMPORAL_STATE as u32),
-        write("next").planes(TEMPORAL_STATE as u32),
-        write("out_r"),
-        write("out_g"),
-        write("out_b"),
-        write("source"),
-    ],
-    push_size: std::mem::size_of::<TemporalPush>() as u32,
-};
+pub const DECL: KernelDecl = temporal_decl!(
+    "lp_temporal",
+    write("next").planes(TEMPORAL_STATE as u32),
+    write("out_r"),
+    write("out_g"),
+    write("out_b"),
+    write("source"),
+);
 
 /// Per pixel: per candidate of the 7×7 window the shift (5), the two
 /// distances (3 + 3 multiply-adds and subtractions, 12) and the cost (3);
@@ -71,6 +76,17 @@ pub struct TemporalOut {
     pub source: BufferSlice,
 }
 
+impl TemporalIn {
+    /// The bindings 0–11 of a temporal kernel: these planes and `prev`.
+    pub(crate) fn with_prev(&self, prev: BufferSlice) -> Vec<BufferSlice> {
+        let mut v: Vec<BufferSlice> = self.color.to_vec();
+        v.extend(self.position);
+        v.extend(self.position_variance);
+        v.extend([self.depth, self.spp, prev]);
+        v
+    }
+}
+
 /// Records one frame over the push's image from the state planes `prev`.
 pub fn record(
     batch: &mut Batch,
@@ -80,23 +96,22 @@ pub fn record(
     prev: BufferSlice,
     out: &TemporalOut,
 ) -> Result<()> {
-    let bindings: Vec<BufferSlice> = inp
-        .color
-        .iter()
-        .chain(&inp.position)
-        .chain(&inp.position_variance)
-        .chain([&inp.depth, &inp.spp, &prev, &out.next])
-        .chain(&out.color)
-        .chain([&out.source])
-        .copied()
-        .collect();
-    batch.dispatch(
+    let size = (push.width, push.height);
+    let rest = [
+        out.next,
+        out.color[0],
+        out.color[1],
+        out.color[2],
+        out.source,
+    ];
+    let groups: [&[BufferSlice]; 2] = [&inp.with_prev(prev), &rest];
+    super::dispatch_groups(
+        batch,
         &DECL,
         precision,
-        &bindings,
-        bytemuck::bytes_of(push),
-        push.width,
-        push.height,
+        push,
+        size,
+        &groups,
         FLOPS_PER_PIXEL,
     )
 }

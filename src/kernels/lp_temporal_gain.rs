@@ -3,38 +3,23 @@
 //! changing it, as a factor on the error estimate an adaptive pass's
 //! sample map reads (TEMPORAL-MAP). Twin: `reference::lp_temporal_gain`.
 
-use super::lp_temporal::TemporalIn;
+use super::lp_temporal::{temporal_decl, TemporalIn};
 use crate::error::Result;
 use crate::gpu::reflect::{read, write};
 use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};
-use crate::shared::{TemporalPush, TEMPORAL_STATE};
+use crate::shared::TemporalPush;
 
 /// Declaration of `spirv/lp_temporal_gain.comp`; checked against the
 /// SPIR-V by reflection.
-pub const DECL: KernelDecl = KernelDecl {
-    name: "lp_temporal_gain",
-    bindings: &[
-        read("yr"),
-        read("yg"),
-        read("yb"),
-        read("px"),
-        read("py"),
-        read("pz"),
-        read("vx"),
-        read("vy"),
-        read("vz"),
-        read("depth"),
-        read("spp"),
-        read("prev").planes(TEMPORAL_STATE as u32),
-        read("er"),
-        read("eg"),
-        read("eb"),
-        write("gr"),
-        write("gg"),
-        write("gb"),
-    ],
-    push_size: std::mem::size_of::<TemporalPush>() as u32,
-};
+pub const DECL: KernelDecl = temporal_decl!(
+    "lp_temporal_gain",
+    read("er"),
+    read("eg"),
+    read("eb"),
+    write("gr"),
+    write("gg"),
+    write("gb"),
+);
 
 /// The filter's search and update (`lp_temporal`'s) and three products.
 pub const FLOPS_PER_PIXEL: f64 = super::lp_temporal::FLOPS_PER_PIXEL + 4.0;
@@ -50,23 +35,15 @@ pub fn record(
     error: [BufferSlice; 3],
     scaled: [BufferSlice; 3],
 ) -> Result<()> {
-    let bindings: Vec<BufferSlice> = inp
-        .color
-        .iter()
-        .chain(&inp.position)
-        .chain(&inp.position_variance)
-        .chain([&inp.depth, &inp.spp, &prev])
-        .chain(&error)
-        .chain(&scaled)
-        .copied()
-        .collect();
-    batch.dispatch(
+    let size = (push.width, push.height);
+    let groups: [&[BufferSlice]; 3] = [&inp.with_prev(prev), &error, &scaled];
+    super::dispatch_groups(
+        batch,
         &DECL,
         precision,
-        &bindings,
-        bytemuck::bytes_of(push),
-        push.width,
-        push.height,
+        push,
+        size,
+        &groups,
         FLOPS_PER_PIXEL,
     )
 }
