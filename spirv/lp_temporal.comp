@@ -3,7 +3,7 @@
 // least-squares fit of (1, tau) -> y over the frames with forgetting factor
 // lambda and the time origin at the current frame (TIME-ORIGIN), the state
 // reprojected from the previous frame (SEARCH-7, TEMPORAL-GATE, RESET,
-// RESET-NOISE: lib/temporal.glsl). Output beta[ch][0], clamped to >= 0
+// RESET-NOISE, TEMPORAL-INFLATE: lib/temporal.glsl). Output beta[ch][0], clamped to >= 0
 // (§0.4 step 5); a pixel passed through keeps its colour and no state.
 // `prev` is read, `next` written: the host copies next to prev after the
 // frame. Scalar twin: src/reference/lp_temporal.rs.
@@ -34,12 +34,15 @@ PLANE_IN(7, vy)
 PLANE_IN(8, vz)
 PLANE_IN(9, depth)
 PLANE_IN(10, spp)
-PLANE_IN(11, prev)
-PLANE_OUT(12, next)
-PLANE_OUT(13, out_r)
-PLANE_OUT(14, out_g)
-PLANE_OUT(15, out_b)
-PLANE_OUT(16, source)
+PLANE_IN(11, er)
+PLANE_IN(12, eg)
+PLANE_IN(13, eb)
+PLANE_IN(14, prev)
+PLANE_OUT(15, next)
+PLANE_OUT(16, out_r)
+PLANE_OUT(17, out_g)
+PLANE_OUT(18, out_b)
+PLANE_OUT(19, source)
 
 #include "lib/temporal.glsl"
 

@@ -5,7 +5,7 @@
 // the adaptive pass's sample map reads: g = P00 after the update, the
 // weight of this frame's observation in the filtered intercept, clamped
 // to <= 1; g = 1 where the pixel is reset or passed through.
-// err_out = g * err_in per channel.
+// (sr, sg, sb: the error the map reads) -> (gr, gg, gb) = g * it.
 // Scalar twin: src/reference/lp_temporal_gain.rs.
 #include "lib/common.glsl"
 
@@ -34,13 +34,16 @@ PLANE_IN(7, vy)
 PLANE_IN(8, vz)
 PLANE_IN(9, depth)
 PLANE_IN(10, spp)
-PLANE_IN(11, prev)
-PLANE_IN(12, er)
-PLANE_IN(13, eg)
-PLANE_IN(14, eb)
-PLANE_OUT(15, gr)
-PLANE_OUT(16, gg)
-PLANE_OUT(17, gb)
+PLANE_IN(11, er)
+PLANE_IN(12, eg)
+PLANE_IN(13, eb)
+PLANE_IN(14, prev)
+PLANE_IN(15, sr)
+PLANE_IN(16, sg)
+PLANE_IN(17, sb)
+PLANE_OUT(18, gr)
+PLANE_OUT(19, gg)
+PLANE_OUT(20, gb)
 
 #include "lib/temporal.glsl"
 
@@ -57,7 +60,7 @@ void main()
     int off;
     int step = temporal_step(x, y, b, p, off);
     real g = step == STEP_CONTINUE ? min(p.x, real(1)) : real(1);
-    gr[i] = float(g * real(er[i]));
-    gg[i] = float(g * real(eg[i]));
-    gb[i] = float(g * real(eb[i]));
+    gr[i] = float(g * real(sr[i]));
+    gg[i] = float(g * real(sg[i]));
+    gb[i] = float(g * real(sb[i]));
 }

@@ -146,6 +146,7 @@ struct Synthetic {
     color: [Vec<f32>; 3],
     position: [Vec<f32>; 3],
     variance: [Vec<f32>; 3],
+    error: [Vec<f32>; 3],
     depth: Vec<f32>,
     spp: Vec<f32>,
 }
@@ -159,6 +160,7 @@ fn synthetic(w: usize, h: usize, t: usize, rng: &mut Rng) -> Synthetic {
         color: std::array::from_fn(|_| vec![0.0; n]),
         position: std::array::from_fn(|_| vec![0.0; n]),
         variance: std::array::from_fn(|_| vec![1e-7; n]),
+        error: std::array::from_fn(|_| vec![0.0025; n]),
         depth: vec![0.0; n],
         spp: vec![16.0; n],
     };
@@ -198,6 +200,7 @@ fn inputs(f: &Synthetic) -> TemporalInputs<'_> {
         position_variance: [&f.variance[0], &f.variance[1], &f.variance[2]],
         depth: &f.depth,
         spp: &f.spp,
+        error: [&f.error[0], &f.error[1], &f.error[2]],
     }
 }
 
@@ -250,7 +253,9 @@ fn lp_temporal_matches_its_twin() {
                 ins.extend(f.color.iter().map(|v| &v[..]));
                 ins.extend(f.position.iter().map(|v| &v[..]));
                 ins.extend(f.variance.iter().map(|v| &v[..]));
-                ins.extend([&f.depth[..], &f.spp[..], &prev[..]]);
+                ins.extend([&f.depth[..], &f.spp[..]]);
+                ins.extend(f.error.iter().map(|v| &v[..]));
+                ins.push(&prev[..]);
                 let (g, _) = run_planes(
                     &ctx,
                     &lp_temporal::DECL,
@@ -463,7 +468,7 @@ fn debug<'a>(f: &'a mcdenoise::Frame, name: &str) -> &'a [f32] {
 /// reset.
 #[test]
 fn static_sequence_converges_and_reset_forgets() {
-    let frames = still_frames("cornell", 32, 8, 14);
+    let frames = still_frames("cornell", 32, 32, 14);
     let reference = {
         let s = still_frames("cornell", 32, 1024, 1);
         mcdenoise::colour_of(&s[0])
@@ -477,7 +482,7 @@ fn static_sequence_converges_and_reset_forgets() {
             assert_eq!(out.color, own, "the first frame only initialises");
             assert!(debug(&out, "temporal_source").iter().all(|&s| s < 0.0));
         } else {
-            // RESET-NOISE: the noise of the mean positions (32², 8 spp)
+            // RESET-NOISE: the noise of the mean positions (32², 32 spp)
             // does not reset a static camera's pixels (28 % without it).
             let reset = debug(&out, "temporal_source")
                 .iter()

@@ -4,7 +4,8 @@
 // Scalar twin: src/reference/lp_temporal.rs (`step`).
 //
 // The including kernel declares the planes yr yg yb (the method's colour),
-// px py pz (position), vx vy vz (its variance), depth, spp and prev (the
+// px py pz (position), vx vy vz (its variance), depth, spp, er eg eb (the
+// method's error estimate) and prev (the
 // previous frame's TEMPORAL_STATE planes: b0 b1 per channel R G B,
 // P00 P01 P11, W X Y Z, valid), and a push block `push` with width,
 // height, flags, lambda and delta.
@@ -50,7 +51,8 @@ bool valid_at(uint j, uint n) { return prev[12 * n + j] == 1.0; }
 // ((dy + 3) * 7 + dx + 3) and updated. Among the valid previous states in
 // the 7x7 window whose position is within RESET's distance (TEMPORAL-GATE,
 // RESET-NOISE), the one with the least (eW + epsW)(ey + epsy), the first in
-// raster order on a tie.
+// raster order on a tie; its P inflated where its prediction misses the
+// colour by more than the noise allows (TEMPORAL-INFLATE).
 int temporal_step(uint x, uint y, out real2 b[3], out real3 p, out int off)
 {
     uint n = push.width * push.height;
@@ -64,6 +66,9 @@ int temporal_step(uint x, uint y, out real2 b[3], out real3 p, out int off)
     }
     real3 yi = real3(col);
     real3 wi = real3(px[i], py[i], pz[i]);
+    real3 ei = max(real3(er[i], eg[i], eb[i]), real3(0));
+    real t3 = t_threshold3(real(spp_of(spp[i])));
+    real t2 = t3 * t3;
     real3 w;
     bool found = false;
     if ((push.flags & TEMPORAL_RESET) == 0u) {
@@ -117,6 +122,11 @@ int temporal_step(uint x, uint y, out real2 b[3], out real3 p, out int off)
         p = real3(inv, real(0), inv);
         return STEP_RESET;
     }
+    // TEMPORAL-INFLATE: P grows by the prediction's largest miss over
+    // t3^2 E (1 + P00) where that exceeds 1.
+    real3 miss = yi - real3(b[0].x, b[1].x, b[2].x);
+    real3 ratio = (miss * miss) / (t2 * ei * (real(1) + p.x) + real3(1e-12));
+    p *= max(max(real(1), ratio.x), max(ratio.y, ratio.z));
     real lambda = real(push.lambda);
     real den = lambda + p.x;
     real2 g = real2(p.x, p.y) / den;

@@ -8,7 +8,7 @@ use crate::gpu::reflect::{read, write};
 use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};
 use crate::shared::{TemporalPush, TEMPORAL_SEARCH, TEMPORAL_STATE};
 
-/// A temporal kernel's declaration: the filter's inputs (bindings 0–11,
+/// A temporal kernel's declaration: the filter's inputs (bindings 0–14,
 /// [`TemporalIn`] and the previous state), then `$rest`.
 macro_rules! temporal_decl {
     ($name:expr, $($rest:expr),* $(,)?) => {
@@ -19,6 +19,7 @@ macro_rules! temporal_decl {
                 read("px"), read("py"), read("pz"),
                 read("vx"), read("vy"), read("vz"),
                 read("depth"), read("spp"),
+                read("er"), read("eg"), read("eb"),
                 read("prev").planes(crate::shared::TEMPORAL_STATE as u32),
                 $($rest),*
             ],
@@ -61,6 +62,8 @@ pub struct TemporalIn {
     pub depth: BufferSlice,
     /// The sample counts.
     pub spp: BufferSlice,
+    /// The method's error estimate of `color` (TEMPORAL-INFLATE).
+    pub error: [BufferSlice; 3],
 }
 
 /// What it writes: the next state (read as `prev` by the next frame once
@@ -77,12 +80,14 @@ pub struct TemporalOut {
 }
 
 impl TemporalIn {
-    /// The bindings 0–11 of a temporal kernel: these planes and `prev`.
+    /// The bindings 0–14 of a temporal kernel: these planes and `prev`.
     pub(crate) fn with_prev(&self, prev: BufferSlice) -> Vec<BufferSlice> {
         let mut v: Vec<BufferSlice> = self.color.to_vec();
         v.extend(self.position);
         v.extend(self.position_variance);
-        v.extend([self.depth, self.spp, prev]);
+        v.extend([self.depth, self.spp]);
+        v.extend(self.error);
+        v.push(prev);
         v
     }
 }

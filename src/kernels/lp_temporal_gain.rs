@@ -13,9 +13,9 @@ use crate::shared::TemporalPush;
 /// SPIR-V by reflection.
 pub const DECL: KernelDecl = temporal_decl!(
     "lp_temporal_gain",
-    read("er"),
-    read("eg"),
-    read("eb"),
+    read("sr"),
+    read("sg"),
+    read("sb"),
     write("gr"),
     write("gg"),
     write("gb"),

@@ -554,6 +554,7 @@ impl GpuChain {
             position_variance: three(Layer::PositionVariance),
             depth: self.stats.plane(Layer::Depth, 0),
             spp: self.stats.plane(Layer::Spp, 0),
+            error: self.method.error(&self.stats),
         }
     }
 

@@ -5,7 +5,8 @@
 //! a 7×7 search on the world position (SEARCH-7) and reinitialised where no
 //! surface lies within 1 % of the viewing distance, plus the noise of the
 //! mean position (RESET, RESET-NOISE; the search considers only those,
-//! TEMPORAL-GATE).
+//! TEMPORAL-GATE), its history weighing less where its prediction misses
+//! the frame's colour (TEMPORAL-INFLATE).
 //!
 //! [`PixelState`] is one pixel's filter in f64 (what the invariants of
 //! §10.1 are stated on); [`lp_temporal`] runs one frame over an image as
@@ -127,6 +128,8 @@ pub struct TemporalInputs<'a> {
     pub depth: &'a [f32],
     /// The sample count (a pixel with `spp < 1` is invalid, §0.2).
     pub spp: &'a [f32],
+    /// The method's error estimate `E_i` of `color` per channel.
+    pub error: [&'a [f32]; 3],
 }
 
 /// The reprojection of pixel `(x, y)` (§10.1): among the valid previous
@@ -214,6 +217,21 @@ pub fn step(
             + TEMPORAL_RESET_NOISE * var;
         reproject(prev, (w, h), (x, y), wi, yi, limit)
     };
+    // TEMPORAL-INFLATE: where the prediction misses this frame's colour by
+    // more than `t3² E (1 + P00)` in some channel, `P` grows by the ratio,
+    // so the history weighs only as much as that miss allows.
+    let found = found.map(|(mut s, offset)| {
+        let t2 = super::t_threshold3(super::finalize_stats::spp_of(inp.spp[i])).powi(2);
+        let pred = s.predict();
+        let q = (0..3)
+            .map(|c| {
+                let e = inp.error[c][i].max(0.0) as f64;
+                (yi[c] - pred[c]).powi(2) / (t2 * e * (1.0 + s.p[0]) + 1e-12)
+            })
+            .fold(1.0f64, f64::max);
+        s.p = s.p.map(|v| v * q);
+        (s, offset)
+    });
     match found {
         Some((mut s, offset)) => {
             s.update(yi, push.lambda as f64);
