@@ -676,3 +676,25 @@ fn spatial_pass(img: &StatsImage) -> RgbImage {
         .unwrap()
         .color
 }
+
+/// The filter reads the method's error estimate (TEMPORAL-INFLATE): a
+/// denoiser that does not download it (`Config::error = false`) filters
+/// exactly as one that does, for the methods that skip planes nobody
+/// reads.
+#[test]
+fn filtering_does_not_depend_on_downloading_the_error() {
+    let stats = moving_box(32, 4);
+    for method in [Method::Wlr, Method::Lp] {
+        let run = |error: bool| {
+            let mut c = Config::new(method);
+            c.temporal = Temporal::Lp;
+            c.error = error;
+            let d = Denoiser::new(&gpu(), Source::of_image(&stats[0]), c).unwrap();
+            stats
+                .iter()
+                .map(|s| d.denoise(s, None).unwrap().color)
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(run(false), run(true), "{method:?}");
+    }
+}

@@ -146,6 +146,9 @@ pub struct GpuChain {
     sampling: (SamplingPlanes, SamplingParams),
     /// The temporal stage ([`ChainConfig::temporal`]).
     temporal: Option<TemporalRole>,
+    /// `config` as the method sees it: with the error estimate computed
+    /// when the temporal stage reads it.
+    stage_config: ChainConfig,
 }
 
 /// What a chain does with a temporal stage.
@@ -217,6 +220,13 @@ impl GpuChain {
         // overlaps LP's queue and packed features, dead by then).
         let n = w * h;
         let with_gbf = prefilter_runs(config.method, config.prefilter, &layers)?;
+        // The temporal filter reads the method's error estimate
+        // (TEMPORAL-INFLATE): the method computes it even when it is not
+        // downloaded.
+        let stage_config = ChainConfig {
+            error: config.error || config.temporal != Temporal::Off,
+            ..config.clone()
+        };
         let info = config.method.info();
         let keep = (info.arena_kept)(n);
         let arena_bytes = [
@@ -231,7 +241,7 @@ impl GpuChain {
             } else {
                 0
             },
-            (info.arena_bytes)(&config, (w, h)),
+            (info.arena_bytes)(&stage_config, (w, h)),
         ];
         let arena = match arena_bytes.iter().max() {
             Some(&b) if b > 0 => Some(Arc::new(GpuBuffer::new(ctx, "chain.arena", b)?)),
@@ -255,7 +265,7 @@ impl GpuChain {
         };
         let method = (info.gpu)(&StageArgs {
             ctx,
-            config: &config,
+            config: &stage_config,
             size: (w, h),
             arena: arena.as_ref(),
         })?;
@@ -299,6 +309,7 @@ impl GpuChain {
             method,
             sampling,
             temporal,
+            stage_config,
         };
         // Every pipeline of a run is built now (a counting batch records
         // nothing but builds them), while the chain's device memory is
@@ -522,7 +533,7 @@ impl GpuChain {
             &StageRun {
                 precision: p,
                 stats: &self.stats,
-                config: &self.config,
+                config: &self.stage_config,
                 maps,
                 origin: at.origin,
                 prefiltered: self.gbf.is_some(),
