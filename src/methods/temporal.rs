@@ -10,7 +10,7 @@
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::gpu::{Batch, BufferSlice, GpuContext, PlaneSet, Precision};
 use crate::image::Layer;
 use crate::kernels::lp_temporal::{self, TemporalIn, TemporalOut};
@@ -32,17 +32,6 @@ pub enum Temporal {
 }
 
 impl Temporal {
-    /// Parses `off` or `lp`.
-    pub fn parse(s: &str) -> Result<Temporal> {
-        match s {
-            "off" | "none" => Ok(Temporal::Off),
-            "lp" => Ok(Temporal::Lp),
-            _ => Err(Error::InvalidArgument(format!(
-                "unknown temporal filter {s:?} (off, lp)"
-            ))),
-        }
-    }
-
     /// The layers the stage reads, besides the method's output and `spp`.
     pub fn needs(self) -> &'static [Layer] {
         match self {
