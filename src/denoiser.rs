@@ -364,6 +364,12 @@ impl Denoiser {
         config.progress = false;
         config.max_memory = None;
         config.tile = None;
+        if config.temporal_state.is_some() {
+            // The state belongs to an image of the real size: the small
+            // chain builds everything but the temporal gain's kernel.
+            config.temporal = Temporal::Off;
+            config.temporal_state = None;
+        }
         let source = match source {
             Source::Accum(layout) => Source::Accum(AccumLayout {
                 width: WARM_UP_SIZE,

@@ -332,8 +332,8 @@ fn lp_temporal_matches_its_twin() {
 /// pixel; later frames carry the plane's state over (from one column to
 /// the right, where its points were, or a neighbour), reset the columns the
 /// box uncovered (their points were hidden: the nearest plane state is more
-/// than 1 % of the depth away, away from the box's top edge), and pass invalid and non-finite pixels
-/// through without state.
+/// than 1 % of the depth away, away from the box's top edge), and pass
+/// invalid and non-finite pixels through without state.
 #[test]
 fn twin_reprojects_the_pan_and_resets_disocclusions() {
     let (w, h) = (40, 12);

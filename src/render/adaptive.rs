@@ -295,8 +295,9 @@ pub fn final_denoiser(
 /// [`final_denoiser`] for the renderer's layout) when given: its temporal
 /// stage, if any, then filters this render as the next frame of its
 /// sequence, and the adaptive passes' maps read its state
-/// ([`LoopConfig::temporal_maps`]). Open-ended renders ([`LoopConfig::stop`]) judge their passes
-/// with a denoiser of their own and give `last` the final statistics once.
+/// ([`LoopConfig::temporal_maps`]). Open-ended renders
+/// ([`LoopConfig::stop`]) judge their passes with a denoiser of their own
+/// and give `last` the final statistics once.
 pub fn render_with_final(
     ctx: &Arc<GpuContext>,
     renderer: &Renderer,
