@@ -734,17 +734,20 @@ impl GpuChain {
             debug: Vec::new(),
             stats: Vec::new(),
         };
+        // `out.color` is the temporal stage's colour when there is one; a
+        // method's download may replace it (`none` fills invalid pixels on
+        // the host), which is kept only where the filter passed through.
+        let filtered = match &self.temporal {
+            Some(TemporalRole::Filter(_)) => Some(out.color.clone()),
+            _ => None,
+        };
         self.method
             .download(&self.stats, (w, h), rect, debug, &mut out)?;
         if let (true, Some(o)) = (debug, &self.outliers) {
             out.debug
                 .extend(outliers::debug_layers(&outliers::download_excess(o)?));
         }
-        if let Some(TemporalRole::Filter(t)) = &self.temporal {
-            // The filtered colour, but the method's own download (`none`
-            // fills invalid pixels on the host) where the filter passed
-            // the pixel through.
-            let filtered = rgb(t.color())?;
+        if let (Some(TemporalRole::Filter(t)), Some(filtered)) = (&self.temporal, filtered) {
             let source = read(&self.ctx, t.source(), w * h)?;
             for (c, plane) in out.color.planes.iter_mut().enumerate() {
                 for (i, v) in plane.iter_mut().enumerate() {
@@ -754,7 +757,7 @@ impl GpuChain {
                 }
             }
             if debug {
-                out.debug.extend(t.debug_layers()?);
+                out.debug.extend(t.debug_layers(source)?);
             }
         }
         if !error {

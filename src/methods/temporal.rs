@@ -84,9 +84,6 @@ impl TemporalStage {
         })
     }
 
-    /// Bytes of device memory per pixel: two states and four output planes.
-    pub const BYTES_PER_PIXEL: u64 = 4 * (2 * TEMPORAL_STATE as u64 + 4);
-
     /// Forgets the history: the next frame reinitialises every pixel (a
     /// cut).
     pub fn reset(&self) {
@@ -158,15 +155,13 @@ impl TemporalStage {
         self.out.plane(3)
     }
 
-    /// The debug maps of the last frame: `temporal_source` (the
-    /// reprojection's offset `(dy + 3)·7 + dx + 3`, −1 where the pixel was
-    /// reset, −2 where it was passed through) and `temporal_p00` (`P00`
-    /// after the update: the intercept's variance per unit noise).
-    pub fn debug_layers(&self) -> Result<Vec<(String, Vec<f32>)>> {
-        let n = self.width * self.height;
-        let source = self.out.download_plane::<f32>(3)?;
+    /// The debug maps of the last frame, given its `source` plane (as
+    /// downloaded): `temporal_source` (the reprojection's offset
+    /// `(dy + 3)·7 + dx + 3`, −1 where the pixel was reset, −2 where it was
+    /// passed through) and `temporal_p00` (`P00` after the update: the
+    /// intercept's variance per unit noise).
+    pub fn debug_layers(&self, source: Vec<f32>) -> Result<Vec<(String, Vec<f32>)>> {
         let p00 = self.prev.download_plane::<f32>(TEMPORAL_P00)?;
-        debug_assert_eq!(source.len(), n);
         Ok(vec![
             ("temporal_source".into(), source),
             ("temporal_p00".into(), p00),
