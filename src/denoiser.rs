@@ -62,6 +62,16 @@ pub struct Config {
     /// Tiles of at most this many pixels per side (plus their halo), even
     /// when the whole image would fit; `None` tiles only when needed.
     pub tile: Option<usize>,
+    /// The pyramid's low band (PYRAMID-LOWBAND): the method also
+    /// reconstructs the statistics pooled over 2×2 blocks, and the output
+    /// takes its low band from that half-resolution reconstruction where
+    /// the two error estimates say it is the better one — it removes
+    /// low-frequency noise larger than the method's windows (light that
+    /// arrives only indirectly). Costs about a third more GPU time and
+    /// memory; the error estimate is the merged one. Needs a
+    /// reconstruction (not `none`), images of at least 16×16 pixels, the
+    /// GPU and one chain (no tiles).
+    pub pyramid: bool,
     /// A temporal stage after the method (spec §10): with
     /// [`Temporal::Lp`] every call filters the method's output with the
     /// history of the earlier calls (a sequence's frames, in order), kept
@@ -95,6 +105,7 @@ impl Config {
             low_spp: true,
             max_memory: None,
             tile: None,
+            pyramid: false,
             temporal: Temporal::Off,
             temporal_state: None,
         }
@@ -111,6 +122,7 @@ impl Config {
             low_spp,
             debug: self.debug,
             error: self.error,
+            pyramid: self.pyramid,
             temporal: self.temporal,
             temporal_state: self.temporal_state.clone(),
         }
@@ -417,6 +429,11 @@ impl Denoiser {
         if config.temporal != Temporal::Off {
             return Err(Error::InvalidArgument(
                 "the temporal filter keeps its state on the GPU: use a GPU denoiser".into(),
+            ));
+        }
+        if config.pyramid {
+            return Err(Error::InvalidArgument(
+                "the pyramid's low band runs on the GPU only: use a GPU denoiser".into(),
             ));
         }
         if let Source::Stats { layers, .. } = &source {

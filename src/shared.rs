@@ -663,3 +663,39 @@ pub const TEMPORAL_VALID: usize = 12;
 pub const TEMPORAL_SOURCE_RESET: f32 = -1.0;
 /// See [`TEMPORAL_SOURCE_RESET`].
 pub const TEMPORAL_SOURCE_NONE: f32 = -2.0;
+
+/// `spirv/pyramid_pool.comp` and `spirv/pyramid_merge.comp`, block `Push`
+/// (the pyramid's low band, PYRAMID-LOWBAND).
+#[repr(C)]
+#[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct PyramidPush {
+    /// Width in pixels of the image the dispatch covers (`pyramid_pool`:
+    /// the coarse level; `pyramid_merge`: the fine one).
+    pub width: u32,
+    /// Its height.
+    pub height: u32,
+    /// First row of the band this dispatch covers.
+    pub row0: u32,
+    /// `pyramid_pool`: how the plane pools ([`PYRAMID_MEAN`],
+    /// [`PYRAMID_VARIANCE`] or [`PYRAMID_COUNT`]); `pyramid_merge`: 0.
+    pub kind: u32,
+    /// The other level's width (`pyramid_pool`: the fine image's;
+    /// `pyramid_merge`: the coarse one's).
+    pub other_width: u32,
+    /// The other level's height.
+    pub other_height: u32,
+    /// `pyramid_merge`: the ratio's `ε` ([`PYRAMID_EPS`]).
+    pub eps: f32,
+    /// Unused: 0.
+    pub _pad: u32,
+}
+
+/// [`PyramidPush::kind`]: a mean, pooled weighted by the sample counts.
+pub const PYRAMID_MEAN: u32 = 0;
+/// [`PyramidPush::kind`]: the variance of a mean, pooled as `Σ n² v / N²`.
+pub const PYRAMID_VARIANCE: u32 = 1;
+/// [`PyramidPush::kind`]: the sample count, summed over the valid pixels.
+pub const PYRAMID_COUNT: u32 = 2;
+/// The `ε` of the low band's ratio `(up(c) + ε) / (L(f) + ε)`
+/// (PYRAMID-LOWBAND).
+pub const PYRAMID_EPS: f32 = 1e-3;

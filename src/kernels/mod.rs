@@ -39,6 +39,8 @@ pub mod outlier_spread;
 pub mod outlier_weights;
 pub mod peak_copy;
 pub mod peak_fma;
+pub mod pyramid_merge;
+pub mod pyramid_pool;
 pub mod sample_priority;
 pub mod sample_reduce;
 pub mod sample_scan;
@@ -102,6 +104,8 @@ pub const ALL: &[&KernelDecl] = &[
     &outlier_spread::DECL,
     &auto_score::DECL,
     &auto_blend::DECL,
+    &pyramid_pool::DECL,
+    &pyramid_merge::DECL,
     &sample_priority::DECL,
     &sample_reduce::DECL,
     &sample_scan::DECL,

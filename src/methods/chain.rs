@@ -20,6 +20,7 @@ use crate::options::Options;
 use super::gbf::{self, GbfPlanes};
 use super::outliers::{self, OutlierPlanes};
 use super::prepare::{self, PrepareReport, PrepareScratch};
+use super::pyramid::PyramidStage;
 use super::registry::{GpuStage, StageArgs, StageRun};
 use super::sampling::{self, SampleInputs, SamplingParams, SamplingPlanes};
 use super::stats::{self, GpuStats};
@@ -27,6 +28,7 @@ use super::temporal::{Temporal, TemporalStage, TemporalState};
 use super::tiles::{self, Rect};
 use super::{Method, Pass, Prefilter};
 use crate::kernels::lp_temporal::TemporalIn;
+use crate::kernels::pyramid_merge::Level;
 use crate::shared::TEMPORAL_SOURCE_NONE;
 
 /// What the chain reads.
@@ -100,6 +102,10 @@ pub struct ChainConfig {
     /// The temporal stage after the method (§10): its state lives in the
     /// chain from call to call.
     pub temporal: Temporal,
+    /// The pyramid's low band after the method (PYRAMID-LOWBAND): the same
+    /// method on the 2×2-pooled statistics in a second chain, merged by the
+    /// error estimates.
+    pub pyramid: bool,
     /// With `temporal` on an adaptive pass's chain ([`Pass::Intermediate`]):
     /// the final chain's state, whose factor scales the sample map's error
     /// (TEMPORAL-MAP).
@@ -144,6 +150,8 @@ pub struct GpuChain {
     method: Box<dyn GpuStage>,
     /// The sample map's planes and parameters (every device has them).
     sampling: (SamplingPlanes, SamplingParams),
+    /// The pyramid's coarse level and merge ([`ChainConfig::pyramid`]).
+    pyramid: Option<PyramidStage>,
     /// The temporal stage ([`ChainConfig::temporal`]).
     temporal: Option<TemporalRole>,
     /// `config` as the method sees it: with the error estimate computed
@@ -167,6 +175,7 @@ impl std::fmt::Debug for GpuChain {
             .field("method", &self.config.method)
             .field("prefilter", &self.gbf.is_some())
             .field("outliers", &self.outliers.is_some())
+            .field("pyramid", &self.pyramid.is_some())
             .field("temporal", &self.config.temporal)
             .finish()
     }
@@ -220,11 +229,11 @@ impl GpuChain {
         // overlaps LP's queue and packed features, dead by then).
         let n = w * h;
         let with_gbf = prefilter_runs(config.method, config.prefilter, &layers)?;
-        // The temporal filter reads the method's error estimate
-        // (TEMPORAL-INFLATE): the method computes it even when it is not
-        // downloaded.
+        // The temporal filter (TEMPORAL-INFLATE) and the pyramid's merge
+        // read the method's error estimate: the method computes it even
+        // when it is not downloaded.
         let stage_config = ChainConfig {
-            error: config.error || config.temporal != Temporal::Off,
+            error: config.error || config.temporal != Temporal::Off || config.pyramid,
             ..config.clone()
         };
         let info = config.method.info();
@@ -297,6 +306,11 @@ impl GpuChain {
                 ))
             }
         };
+        let pyramid = if config.pyramid {
+            Some(PyramidStage::new(ctx, (w, h), &layers, &config)?)
+        } else {
+            None
+        };
         let chain = GpuChain {
             ctx: ctx.clone(),
             input_kind: input,
@@ -308,6 +322,7 @@ impl GpuChain {
             outliers,
             method,
             sampling,
+            pyramid,
             temporal,
             stage_config,
         };
@@ -522,6 +537,9 @@ impl GpuChain {
             self.config.low_spp,
             at.skip,
         )?;
+        if let Some(py) = &self.pyramid {
+            py.record_coarse(batch, p, &self.stats)?;
+        }
         if let Some(o) = &self.outliers {
             outliers::record_remove(batch, p, &self.stats, o)?;
         }
@@ -543,6 +561,14 @@ impl GpuChain {
         if let Some(o) = &self.outliers {
             outliers::record_restore(batch, p, spp, self.method_color(), o)?;
         }
+        if let Some(py) = &self.pyramid {
+            let fine = Level {
+                color: self.method_color(),
+                error: self.method.error(&self.stats),
+                spp,
+            };
+            py.record_merge(batch, p, &fine)?;
+        }
         match &self.temporal {
             Some(TemporalRole::Filter(t)) => t.record(batch, p, &self.temporal_in())?,
             Some(TemporalRole::Gain(t, scaled)) if maps => {
@@ -555,17 +581,27 @@ impl GpuChain {
         Ok(())
     }
 
-    /// What the temporal stage reads: the method's colour and the
+    /// Records the coarse level of a pyramid ([`PyramidStage`]) after its
+    /// statistics were pooled into [`clean`](Self::clean): the chain up to
+    /// its method's outputs.
+    pub(super) fn record_pooled(&self, batch: &mut Batch) -> Result<()> {
+        if !batch.is_counting() {
+            self.uploaded.store(true, Ordering::SeqCst);
+        }
+        self.record_method(batch, None, Placement::default(), false)
+    }
+
+    /// What the temporal stage reads: the spatial reconstruction and the
     /// statistics' planes.
     fn temporal_in(&self) -> TemporalIn {
         let three = |l| std::array::from_fn(|k| self.stats.plane(l, k));
         TemporalIn {
-            color: self.method_color(),
+            color: self.spatial_color(),
             position: three(Layer::Position),
             position_variance: three(Layer::PositionVariance),
             depth: self.stats.plane(Layer::Depth, 0),
             spp: self.stats.plane(Layer::Spp, 0),
-            error: self.method.error(&self.stats),
+            error: self.spatial_error(),
         }
     }
 
@@ -597,7 +633,24 @@ impl GpuChain {
     pub fn color(&self) -> [BufferSlice; 3] {
         match &self.temporal {
             Some(TemporalRole::Filter(t)) => t.color(),
-            _ => self.method_color(),
+            _ => self.spatial_color(),
+        }
+    }
+
+    /// The spatial reconstruction's colour: the pyramid's merge when there
+    /// is one, else the method's.
+    pub fn spatial_color(&self) -> [BufferSlice; 3] {
+        match &self.pyramid {
+            Some(py) => py.color(),
+            None => self.method_color(),
+        }
+    }
+
+    /// The error estimate of [`spatial_color`](Self::spatial_color).
+    fn spatial_error(&self) -> [BufferSlice; 3] {
+        match &self.pyramid {
+            Some(py) => py.error(),
+            None => self.method.error(&self.stats),
         }
     }
 
@@ -609,9 +662,10 @@ impl GpuChain {
 
     /// The per-pixel error estimate `E_i` per channel (§9.1): WLR's shared
     /// MSE three times, LP's per-channel estimate, and for `none` the
-    /// variance of the mean (the MSE of the unfiltered input).
+    /// variance of the mean (the MSE of the unfiltered input); the
+    /// pyramid's merged estimate when it runs.
     pub fn error(&self) -> [BufferSlice; 3] {
-        self.method.error(&self.stats)
+        self.spatial_error()
     }
 
     /// The plane the local dimension `d_i` (§9.1) is read from and how:

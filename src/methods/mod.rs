@@ -11,6 +11,7 @@ pub mod lp;
 pub mod none;
 pub mod outliers;
 pub mod prepare;
+pub mod pyramid;
 pub mod registry;
 pub mod sampling;
 pub mod stats;
@@ -171,6 +172,9 @@ pub struct DenoiseRequest {
     pub error: bool,
     /// Keep the method's debug maps.
     pub debug: bool,
+    /// The pyramid's low band after the method (PYRAMID-LOWBAND; GPU
+    /// backend only).
+    pub pyramid: bool,
     /// Report progress on stderr for runs longer than about a second.
     pub progress: bool,
     /// Samples to distribute for the next pass: computes the sample map
@@ -193,6 +197,7 @@ impl DenoiseRequest {
             options: Options::default(),
             error: false,
             debug: false,
+            pyramid: false,
             progress: false,
             budget: None,
         }
@@ -255,6 +260,7 @@ fn denoise_gpu(
             low_spp: prepare::has_low_spp(img),
             debug: req.debug,
             error: req.error,
+            pyramid: req.pyramid,
             temporal: Temporal::Off,
             temporal_state: None,
         },
@@ -317,6 +323,11 @@ pub fn run_uploaded(
 }
 
 fn denoise_cpu(img: &StatsImage, req: &DenoiseRequest) -> Result<DenoiseOutput> {
+    if req.pyramid {
+        return Err(Error::InvalidArgument(
+            "the pyramid's low band runs on the GPU only: use the GPU backend".into(),
+        ));
+    }
     let (clean, report, removed, prefiltered) = clean_cpu(img, req)?;
     let (w, h) = (img.width, img.height);
     let registry::CpuResult {

@@ -390,10 +390,16 @@ impl TiledChain {
                 (cap / 1e6).floor()
             )
         };
-        if config.temporal != super::Temporal::Off {
+        let stage = if config.temporal != super::Temporal::Off {
+            Some("the temporal filter: it keeps one state for the whole image and")
+        } else if config.pyramid {
+            Some("the pyramid's low band: its coarse level is one more chain and")
+        } else {
+            None
+        };
+        if let Some(stage) = stage {
             return Err(Error::Limit(format!(
-                "{w}x{h} with the temporal filter: it keeps one state for the whole image and \
-                 cannot run in tiles ({})",
+                "{w}x{h} with {stage} cannot run in tiles ({})",
                 if tile.is_some() {
                     "tiles were asked for".to_string()
                 } else {

@@ -49,6 +49,8 @@ pub mod outlier_weights;
 pub mod outliers;
 pub mod peak_copy;
 pub mod peak_fma;
+pub mod pyramid_merge;
+pub mod pyramid_pool;
 pub mod sample_priority;
 pub mod sample_reduce;
 pub mod sample_scan;

@@ -11,7 +11,7 @@
 //! dumped; prints one JSON line per case.
 //!
 //! ```text
-//! cargo run --release -p mcdenoise-tools --bin pyramid_probe -- --work DIR [--method auto] CASE...
+//! cargo run --release -p mcdenoise-tools --bin pyramid_probe -- --work DIR [--method auto] [--stage-only] CASE...
 //! ```
 //! where CASE is `scene-spp` (the statistics `DIR/scene-spp.exr`, the
 //! reference `DIR/scene@spp-WxH-ref.bin`).
@@ -31,6 +31,10 @@ struct Args {
     work: PathBuf,
     #[arg(long, default_value = "auto")]
     method: String,
+    /// Only the method with and without the chain's stage
+    /// (`Config::pyramid`), with their image means over the reference's.
+    #[arg(long)]
+    stage_only: bool,
     cases: Vec<String>,
 }
 
@@ -152,12 +156,30 @@ fn main() -> anyhow::Result<()> {
             ],
         );
         let fine = run(&ctx, m, &stats, false)?;
-        let coarse_stats = pool(&stats);
-        let coarse = run(&ctx, m, &coarse_stats, true)?;
+        // The chain's stage (Config::pyramid), which implements "rblend".
+        let mut sc = Config::new(m);
+        sc.pyramid = true;
+        let staged = Denoiser::new(&ctx, Source::of_image(&stats), sc)?.denoise(&stats, None)?;
         let (cw, ch) = (w / 2, h / 2);
         let mut line = serde_json::Map::new();
         line.insert("case".into(), case.clone().into());
         line.insert("fine".into(), metrics::rmse(&fine.color, &r).into());
+        line.insert("stage".into(), metrics::rmse(&staged.color, &r).into());
+        if a.stage_only {
+            let mean = |i: &RgbImage| {
+                i.planes
+                    .iter()
+                    .flat_map(|p| p.iter())
+                    .map(|&v| v as f64)
+                    .sum::<f64>()
+            };
+            line.insert("mean_fine".into(), (mean(&fine.color) / mean(&r)).into());
+            line.insert("mean_stage".into(), (mean(&staged.color) / mean(&r)).into());
+            println!("{}", serde_json::Value::Object(line));
+            continue;
+        }
+        let coarse_stats = pool(&stats);
+        let coarse = run(&ctx, m, &coarse_stats, true)?;
         // Per channel, at full resolution: the fine output's low band, the
         // coarse output, the fine error pooled, the coarse error, the pooled
         // input variance.

@@ -1,0 +1,173 @@
+//! The pyramid's low band (PYRAMID-LOWBAND): a stage of the chain for
+//! every reconstruction. The sanitised statistics are pooled over 2×2
+//! blocks into a half-resolution image, the same method reconstructs it in
+//! a second chain (its windows reach twice as far in the image), and the
+//! fine output takes its low band from the coarse one — as a ratio, in
+//! proportion to the two error estimates (`pyramid_merge`). It removes
+//! low-frequency residual noise larger than the method's windows, where
+//! light arrives only indirectly; the error estimate and the features
+//! decide where it acts.
+
+use std::sync::Arc;
+
+use crate::error::{Error, Result};
+use crate::gpu::{Batch, BufferSlice, GpuContext, PlaneSet, Precision};
+use crate::image::Layer;
+use crate::kernels::pyramid_merge::{self, Level};
+use crate::kernels::pyramid_pool;
+use crate::reference::pyramid_pool::coarse_size;
+use crate::shared::{PyramidPush, PYRAMID_COUNT, PYRAMID_EPS, PYRAMID_MEAN, PYRAMID_VARIANCE};
+
+use super::chain::{ChainConfig, ChainInput, GpuChain};
+use super::stats::GpuStats;
+use super::temporal::Temporal;
+use super::{prepare, Method};
+
+/// The smallest image side the pyramid runs on (its coarse level is half
+/// of it: every method's smallest window still fits).
+pub const MIN_SIDE: usize = 16;
+
+/// How a statistics layer pools ([`crate::shared::PyramidPush::kind`]).
+pub fn pool_kind(layer: Layer) -> u32 {
+    match layer {
+        Layer::Spp => PYRAMID_COUNT,
+        Layer::ColorVariance
+        | Layer::AlbedoVariance
+        | Layer::NormalVariance
+        | Layer::DepthVariance
+        | Layer::PositionVariance
+        | Layer::PositionCovariance
+        | Layer::VisibilityVariance => PYRAMID_VARIANCE,
+        _ => PYRAMID_MEAN,
+    }
+}
+
+/// The coarse level's chain and the merged planes.
+pub struct PyramidStage {
+    /// The same method on the pooled statistics.
+    coarse: Box<GpuChain>,
+    /// The merged colour R, G, B (planes 0–2) and error estimate (3–5).
+    merged: PlaneSet,
+    /// The fine image's size.
+    size: (usize, usize),
+}
+
+impl std::fmt::Debug for PyramidStage {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("PyramidStage")
+            .field("size", &self.size)
+            .finish()
+    }
+}
+
+impl PyramidStage {
+    /// The stage of a `size` chain reading `layers` with `config` (whose
+    /// method must reconstruct: not `none`).
+    pub fn new(
+        ctx: &Arc<GpuContext>,
+        size: (usize, usize),
+        layers: &[Layer],
+        config: &ChainConfig,
+    ) -> Result<PyramidStage> {
+        let (w, h) = size;
+        if config.method == Method::None {
+            return Err(Error::InvalidArgument(
+                "the pyramid takes the low band of a reconstruction: method none has none".into(),
+            ));
+        }
+        if w < MIN_SIDE || h < MIN_SIDE {
+            return Err(Error::InvalidArgument(format!(
+                "the pyramid needs an image of at least {MIN_SIDE}x{MIN_SIDE} pixels, not {w}x{h}"
+            )));
+        }
+        let (cw, ch) = coarse_size(w, h);
+        let coarse_config = ChainConfig {
+            pyramid: false,
+            debug: false,
+            error: true,
+            temporal: Temporal::Off,
+            temporal_state: None,
+            ..config.clone()
+        };
+        let input = ChainInput::Stats {
+            width: cw,
+            height: ch,
+            layers: prepare::output_layers(layers),
+        };
+        let coarse = Box::new(GpuChain::new(ctx, input, coarse_config)?);
+        let merged = PlaneSet::new(ctx, "pyramid.merged", w * h, 6)?;
+        Ok(PyramidStage {
+            coarse,
+            merged,
+            size,
+        })
+    }
+
+    /// Records the coarse level: every plane of the sanitised statistics
+    /// `fine` pooled into the coarse chain's, and that chain's method. Runs
+    /// after sanitation and before the fine level's outlier stage and
+    /// prefilter, which change the statistics in place.
+    pub fn record_coarse(&self, batch: &mut Batch, p: Precision, fine: &GpuStats) -> Result<()> {
+        let coarse = self.coarse.clean();
+        let (w, h) = self.size;
+        let (cw, ch) = coarse_size(w, h);
+        let spp = fine.plane(Layer::Spp, 0);
+        for &(layer, _) in &coarse.index {
+            for c in 0..layer.channels().len() {
+                let push = PyramidPush {
+                    width: cw as u32,
+                    height: ch as u32,
+                    kind: pool_kind(layer),
+                    other_width: w as u32,
+                    other_height: h as u32,
+                    ..Default::default()
+                };
+                pyramid_pool::record(
+                    batch,
+                    p,
+                    &push,
+                    fine.plane(layer, c),
+                    spp,
+                    coarse.plane(layer, c),
+                )?;
+            }
+        }
+        self.coarse.record_pooled(batch)
+    }
+
+    /// Records the merge of the fine level's reconstruction `fine` with the
+    /// coarse one's into [`color`](Self::color) and [`error`](Self::error).
+    pub fn record_merge(&self, batch: &mut Batch, p: Precision, fine: &Level) -> Result<()> {
+        let (w, h) = self.size;
+        let (cw, ch) = coarse_size(w, h);
+        let push = PyramidPush {
+            width: w as u32,
+            height: h as u32,
+            other_width: cw as u32,
+            other_height: ch as u32,
+            eps: PYRAMID_EPS,
+            ..Default::default()
+        };
+        let coarse = Level {
+            color: self.coarse.color(),
+            error: self.coarse.error(),
+            spp: self.coarse.clean().plane(Layer::Spp, 0),
+        };
+        pyramid_merge::record(batch, p, &push, fine, &coarse, self.color(), self.error())
+    }
+
+    /// The merged colour R, G, B.
+    pub fn color(&self) -> [BufferSlice; 3] {
+        std::array::from_fn(|k| self.merged.plane(k))
+    }
+
+    /// The merged error estimate per channel.
+    pub fn error(&self) -> [BufferSlice; 3] {
+        std::array::from_fn(|k| self.merged.plane(3 + k))
+    }
+
+    /// The coarse level's chain (its outputs after a run).
+    pub fn coarse(&self) -> &GpuChain {
+        &self.coarse
+    }
+}

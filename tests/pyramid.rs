@@ -1,0 +1,433 @@
+//! The pyramid's low band (PYRAMID-LOWBAND): its two kernels against their
+//! twins, the chain's stage against the composition of its parts, what it
+//! does to low-frequency residual noise, and the configurations it refuses.
+
+mod common;
+
+use std::sync::Arc;
+
+use common::{assert_close, check_validation, gpu, precisions, Rng};
+use mcdenoise::bench::synthetic;
+use mcdenoise::gpu::{Batch, Precision};
+use mcdenoise::kernels::{pyramid_merge, pyramid_pool, run_planes};
+use mcdenoise::methods::chain::{ChainConfig, ChainInput, ChainOutput, GpuChain};
+use mcdenoise::methods::pyramid::pool_kind;
+use mcdenoise::reference::pyramid_merge::{self as merge_twin, Level};
+use mcdenoise::reference::pyramid_pool::{self as pool_twin, coarse_size};
+use mcdenoise::shared::{PyramidPush, PYRAMID_COUNT, PYRAMID_EPS, PYRAMID_MEAN, PYRAMID_VARIANCE};
+use mcdenoise::{
+    metrics, Config, Denoiser, GpuContext, Layer, Method, Options, Pass, Prefilter, RgbImage,
+    Source, StatsImage, Temporal,
+};
+
+/// Sample counts with a few invalid pixels (0, NaN, below 1).
+fn counts(n: usize, rng: &mut Rng) -> Vec<f32> {
+    (0..n)
+        .map(|i| match i % 11 {
+            3 => 0.0,
+            7 if i % 2 == 0 => f32::NAN,
+            9 => 0.5,
+            _ => (1 + (rng.uniform() * 40.0) as u32) as f32,
+        })
+        .collect()
+}
+
+fn plane(n: usize, rng: &mut Rng, scale: f64) -> Vec<f32> {
+    (0..n).map(|_| (scale * rng.uniform()) as f32).collect()
+}
+
+#[test]
+fn pyramid_pool_matches_its_twin() {
+    let ctx = gpu();
+    for &(w, h) in &[(32usize, 32usize), (37, 23), (1, 5), (3, 1)] {
+        let (cw, ch) = coarse_size(w, h);
+        let mut rng = Rng(5 + w as u64);
+        let spp = counts(w * h, &mut rng);
+        let src = plane(w * h, &mut rng, 2.0);
+        for kind in [PYRAMID_MEAN, PYRAMID_VARIANCE, PYRAMID_COUNT] {
+            let push = PyramidPush {
+                width: cw as u32,
+                height: ch as u32,
+                kind,
+                other_width: w as u32,
+                other_height: h as u32,
+                ..Default::default()
+            };
+            let mut want = vec![0.0f32; cw * ch];
+            pool_twin::pyramid_pool(&push, &src, &spp, &mut want);
+            for prec in precisions() {
+                let (g, _) = run_planes(
+                    &ctx,
+                    &pyramid_pool::DECL,
+                    prec,
+                    bytemuck::bytes_of(&push),
+                    cw,
+                    ch,
+                    &[&src, &spp],
+                    &[cw * ch],
+                    pyramid_pool::FLOPS_PER_PIXEL,
+                )
+                .unwrap();
+                assert_close(&format!("{w}x{h} kind {kind} {prec:?}"), &g[0], &want, 1.0);
+            }
+        }
+        // The count is the sum of the valid counts; a block without one
+        // is invalid (0) in every kind.
+        let valid: f64 = spp.iter().map(|&s| pool_twin_spp(s)).sum();
+        let push = PyramidPush {
+            width: cw as u32,
+            height: ch as u32,
+            kind: PYRAMID_COUNT,
+            other_width: w as u32,
+            other_height: h as u32,
+            ..Default::default()
+        };
+        let mut pooled = vec![0.0f32; cw * ch];
+        pool_twin::pyramid_pool(&push, &src, &spp, &mut pooled);
+        let total: f64 = pooled.iter().map(|&v| v as f64).sum();
+        assert!(
+            (total - valid).abs() < 1e-6 * valid.max(1.0),
+            "{w}x{h}: {total} vs {valid}"
+        );
+    }
+    check_validation(&ctx);
+}
+
+fn pool_twin_spp(s: f32) -> f64 {
+    mcdenoise::reference::finalize_stats::spp_of(s)
+}
+
+fn three(v: &[Vec<f32>]) -> [&[f32]; 3] {
+    [&v[0], &v[1], &v[2]]
+}
+
+#[test]
+fn pyramid_merge_matches_its_twin() {
+    let ctx = gpu();
+    for &(w, h) in &[(32usize, 32usize), (37, 23), (2, 9), (1, 1)] {
+        let (cw, ch) = coarse_size(w, h);
+        let mut rng = Rng(17 + h as u64);
+        let (n, m) = (w * h, cw * ch);
+        let fine: Vec<Vec<f32>> = (0..3).map(|_| plane(n, &mut rng, 1.5)).collect();
+        let fe: Vec<Vec<f32>> = (0..3).map(|_| plane(n, &mut rng, 0.01)).collect();
+        let fspp = counts(n, &mut rng);
+        let coarse: Vec<Vec<f32>> = (0..3).map(|_| plane(m, &mut rng, 1.5)).collect();
+        let ce: Vec<Vec<f32>> = (0..3).map(|_| plane(m, &mut rng, 0.01)).collect();
+        let mut cspp = vec![0.0f32; m];
+        let pool = PyramidPush {
+            width: cw as u32,
+            height: ch as u32,
+            kind: PYRAMID_COUNT,
+            other_width: w as u32,
+            other_height: h as u32,
+            ..Default::default()
+        };
+        pool_twin::pyramid_pool(&pool, &fspp, &fspp, &mut cspp);
+        let push = PyramidPush {
+            width: w as u32,
+            height: h as u32,
+            other_width: cw as u32,
+            other_height: ch as u32,
+            eps: PYRAMID_EPS,
+            ..Default::default()
+        };
+        let mut want: Vec<Vec<f32>> = vec![vec![0.0; n]; 6];
+        {
+            let (c, e) = want.split_at_mut(3);
+            let [c0, c1, c2] = c else { unreachable!() };
+            let [e0, e1, e2] = e else { unreachable!() };
+            merge_twin::pyramid_merge(
+                &push,
+                &Level {
+                    color: three(&fine),
+                    error: three(&fe),
+                    spp: &fspp,
+                },
+                &Level {
+                    color: three(&coarse),
+                    error: three(&ce),
+                    spp: &cspp,
+                },
+                [c0, c1, c2],
+                [e0, e1, e2],
+            );
+        }
+        let mut ins: Vec<&[f32]> = Vec::new();
+        ins.extend(fine.iter().map(|v| &v[..]));
+        ins.extend(fe.iter().map(|v| &v[..]));
+        ins.push(&fspp);
+        ins.extend(coarse.iter().map(|v| &v[..]));
+        ins.extend(ce.iter().map(|v| &v[..]));
+        ins.push(&cspp);
+        for prec in precisions() {
+            let (g, _) = run_planes(
+                &ctx,
+                &pyramid_merge::DECL,
+                prec,
+                bytemuck::bytes_of(&push),
+                w,
+                h,
+                &ins,
+                &[n; 6],
+                pyramid_merge::FLOPS_PER_PIXEL,
+            )
+            .unwrap();
+            for k in 0..6 {
+                assert_close(&format!("{w}x{h} plane {k} {prec:?}"), &g[k], &want[k], 1.0);
+            }
+        }
+        // Invalid pixels keep their input; the error never grows, nor
+        // goes below zero.
+        for i in 0..n {
+            if pool_twin_spp(fspp[i]) == 0.0 {
+                assert_eq!(want[0][i], fine[0][i], "{w}x{h}: invalid pixel {i}");
+            }
+            for c in 0..3 {
+                assert!(want[3 + c][i] <= fe[c][i] && want[3 + c][i] >= 0.0);
+            }
+        }
+    }
+    check_validation(&ctx);
+}
+
+fn chain_config(method: Method, pyramid: bool) -> ChainConfig {
+    ChainConfig {
+        method,
+        pass: Pass::Final,
+        precision: Precision::F32,
+        prefilter: Prefilter::Off,
+        outliers: false,
+        options: Options::default(),
+        low_spp: true,
+        debug: false,
+        error: true,
+        pyramid,
+        temporal: Temporal::Off,
+        temporal_state: None,
+    }
+}
+
+/// Runs a chain on `img`; returns its outputs and its sanitised statistics.
+fn run_chain(
+    ctx: &Arc<GpuContext>,
+    img: &StatsImage,
+    config: ChainConfig,
+) -> (ChainOutput, StatsImage) {
+    let chain = GpuChain::new(ctx, ChainInput::of_image(img), config).unwrap();
+    chain.upload(img).unwrap();
+    let mut batch = Batch::new(ctx).unwrap();
+    chain.record(&mut batch, None, None).unwrap();
+    batch.finish().unwrap();
+    (chain.download().unwrap(), chain.clean().download().unwrap())
+}
+
+/// The chain's stage equals its parts: the method on the sanitised
+/// statistics, the method on their pooled version, and the merge's twin — without the outlier stage and the prefilter, which
+/// change the statistics in place after the pooling.
+#[test]
+fn the_stage_is_the_method_on_two_levels_merged() {
+    let ctx = gpu();
+    for &(method, (w, h)) in &[(Method::Wlr, (48usize, 40usize)), (Method::Lp, (41, 37))] {
+        let img = synthetic(w, h, 4, 9).stats;
+        let (fine, clean) = run_chain(&ctx, &img, chain_config(method, false));
+        let (cw, ch) = coarse_size(w, h);
+        let mut pooled = StatsImage::new(cw, ch);
+        let spp = &clean.get(Layer::Spp).unwrap()[0];
+        for (layer, planes) in clean.layers() {
+            let push = PyramidPush {
+                width: cw as u32,
+                height: ch as u32,
+                kind: pool_kind(layer),
+                other_width: w as u32,
+                other_height: h as u32,
+                ..Default::default()
+            };
+            // Pooled by the kernel (checked against its twin above), so
+            // that the coarse chains read the same bits.
+            let out = planes
+                .iter()
+                .map(|p| {
+                    let (mut g, _) = run_planes(
+                        &ctx,
+                        &pyramid_pool::DECL,
+                        Precision::F32,
+                        bytemuck::bytes_of(&push),
+                        cw,
+                        ch,
+                        &[p, spp],
+                        &[cw * ch],
+                        pyramid_pool::FLOPS_PER_PIXEL,
+                    )
+                    .unwrap();
+                    g.remove(0)
+                })
+                .collect();
+            pooled.set(layer, out);
+        }
+        let (coarse, _) = run_chain(&ctx, &pooled, chain_config(method, false));
+        let (staged, _) = run_chain(&ctx, &img, chain_config(method, true));
+        let push = PyramidPush {
+            width: w as u32,
+            height: h as u32,
+            other_width: cw as u32,
+            other_height: ch as u32,
+            eps: PYRAMID_EPS,
+            ..Default::default()
+        };
+        let mut color = RgbImage::new(w, h);
+        let mut error = RgbImage::new(w, h);
+        {
+            let [c0, c1, c2] = &mut color.planes;
+            let [e0, e1, e2] = &mut error.planes;
+            merge_twin::pyramid_merge(
+                &push,
+                &Level {
+                    color: fine.color.plane_slices(),
+                    error: fine.error.plane_slices(),
+                    spp,
+                },
+                &Level {
+                    color: coarse.color.plane_slices(),
+                    error: coarse.error.plane_slices(),
+                    spp: &pooled.get(Layer::Spp).unwrap()[0],
+                },
+                [c0, c1, c2],
+                [e0, e1, e2],
+            );
+        }
+        for c in 0..3 {
+            let what = format!("{method:?} {w}x{h} channel {c}");
+            assert_close(
+                &format!("{what} colour"),
+                &staged.color.planes[c],
+                &color.planes[c],
+                0.99,
+            );
+            assert_close(
+                &format!("{what} error"),
+                &staged.error.planes[c],
+                &error.planes[c],
+                0.99,
+            );
+        }
+        // It changed something.
+        let moved = staged.color.planes[1]
+            .iter()
+            .zip(&fine.color.planes[1])
+            .filter(|(a, b)| (*a - *b).abs() > 1e-4 * b.abs())
+            .count();
+        assert!(moved > w * h / 4, "{method:?}: only {moved} pixels changed");
+    }
+    check_validation(&ctx);
+}
+
+/// A smooth image under heavy noise, with flat features (light that
+/// arrives only indirectly on a plain wall): `(statistics, truth)`.
+fn noisy_wall(w: usize, h: usize, spp: f32, seed: u64) -> (StatsImage, RgbImage) {
+    let n = w * h;
+    let mut rng = Rng(seed);
+    let mut truth = RgbImage::new(w, h);
+    let mut color = vec![vec![0.0f32; n]; 3];
+    let mut var = vec![vec![0.0f32; n]; 3];
+    for i in 0..n {
+        let (x, y) = ((i % w) as f64, (i / w) as f64);
+        let base = 0.4 + 0.25 * (x / 17.0).sin() * (y / 23.0).cos();
+        for c in 0..3 {
+            let t = base * [1.0, 0.8, 0.6][c];
+            // Per-sample σ of twice the signal: the mean's variance 4t²/n.
+            let v = 4.0 * t * t / spp as f64;
+            truth.planes[c][i] = t as f32;
+            color[c][i] = (t + v.sqrt() * rng.normal()) as f32;
+            var[c][i] = v as f32;
+        }
+    }
+    let mut img = StatsImage::new(w, h);
+    img.set(Layer::Color, color);
+    img.set(Layer::ColorVariance, var);
+    img.set(Layer::Albedo, vec![vec![0.5; n]; 3]);
+    img.set(
+        Layer::Normal,
+        vec![vec![0.0; n], vec![0.0; n], vec![1.0; n]],
+    );
+    img.set(Layer::Depth, vec![vec![2.0; n]]);
+    img.set(Layer::Spp, vec![vec![spp; n]]);
+    (img, truth)
+}
+
+/// What the method leaves on a smooth, noisy wall is low-frequency noise:
+/// the coarse level's wider reach removes part of it, and the merged error
+/// estimate says so.
+#[test]
+fn the_low_band_lowers_the_error_of_a_noisy_smooth_wall() {
+    let ctx = gpu();
+    let (img, truth) = noisy_wall(96, 96, 4.0, 21);
+    for method in [Method::Wlr, Method::Lp, Method::Apr] {
+        let run = |pyramid: bool| {
+            let mut c = Config::new(method);
+            c.pyramid = pyramid;
+            let d = Denoiser::new(&ctx, Source::of_image(&img), c).unwrap();
+            d.denoise(&img, None).unwrap()
+        };
+        let (off, on) = (run(false), run(true));
+        let (e_off, e_on) = (
+            metrics::rmse(&off.color, &truth),
+            metrics::rmse(&on.color, &truth),
+        );
+        assert!(
+            e_on < 0.8 * e_off,
+            "{method:?}: rMSE {e_on} with the pyramid, {e_off} without"
+        );
+        let sum = |p: &[f32]| p.iter().map(|&v| v as f64).sum::<f64>();
+        assert!(sum(&on.error.planes[1]) < sum(&off.error.planes[1]));
+        // The image's mean moves by less than 1 %.
+        let ratio = sum(&on.color.planes[1]) / sum(&off.color.planes[1]);
+        assert!((ratio - 1.0).abs() < 0.01, "{method:?}: mean ratio {ratio}");
+    }
+    check_validation(&ctx);
+}
+
+/// The stage reads the method's error estimate whether or not it is
+/// downloaded.
+#[test]
+fn the_output_does_not_depend_on_the_error_download() {
+    let ctx = gpu();
+    let s = synthetic(32, 32, 4, 2);
+    let run = |error: bool| {
+        let mut c = Config::new(Method::Wlr);
+        c.pyramid = true;
+        c.error = error;
+        let d = Denoiser::new(&ctx, Source::of_image(&s.stats), c).unwrap();
+        d.denoise(&s.stats, None).unwrap().color
+    };
+    assert_eq!(run(true).planes, run(false).planes);
+    check_validation(&ctx);
+}
+
+#[test]
+fn the_configurations_it_cannot_run_are_refused() {
+    let ctx = gpu();
+    let s = synthetic(32, 32, 4, 2);
+    let src = Source::of_image(&s.stats);
+    let with = |method: Method| {
+        let mut c = Config::new(method);
+        c.pyramid = true;
+        c
+    };
+    let msg = |r: mcdenoise::Result<Denoiser>| match r {
+        Ok(_) => panic!("not refused"),
+        Err(e) => e.to_string(),
+    };
+    assert!(msg(Denoiser::new(&ctx, src.clone(), with(Method::None))).contains("none"));
+    let small = synthetic(12, 20, 4, 2);
+    assert!(msg(Denoiser::new(
+        &ctx,
+        Source::of_image(&small.stats),
+        with(Method::Wlr)
+    ))
+    .contains("16x16"));
+    assert!(msg(Denoiser::new_cpu(src.clone(), with(Method::Wlr))).contains("GPU"));
+    let mut tiled = with(Method::Wlr);
+    tiled.tile = Some(16);
+    assert!(msg(Denoiser::new(&ctx, src, tiled)).contains("tiles"));
+    check_validation(&ctx);
+}
