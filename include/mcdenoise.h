@@ -24,6 +24,13 @@
 // ([`mcd_denoiser_reset`] at a cut). Needs the layout's position sums.
 #define MCD_FLAG_TEMPORAL_LP 4
 
+// Flag of [`McdDenoiserDesc::flags`]: the pyramid's low band after the
+// method (PYRAMID-LOWBAND): the method also reconstructs the statistics
+// pooled 2×2, and the output takes its low band from that
+// half-resolution reconstruction where the error estimates favour it.
+// Not for `MCD_METHOD_NONE` or images under 16×16 pixels.
+#define MCD_FLAG_PYRAMID 8
+
 // What a call returned.
 typedef enum McdStatus {
   // Success.

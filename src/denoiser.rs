@@ -68,9 +68,9 @@ pub struct Config {
     /// the two error estimates say it is the better one — it removes
     /// low-frequency noise larger than the method's windows (light that
     /// arrives only indirectly). Costs about a third more GPU time and
-    /// memory; the error estimate is the merged one. Needs a
-    /// reconstruction (not `none`), images of at least 16×16 pixels, the
-    /// GPU and one chain (no tiles).
+    /// memory; the error estimate is the merged one, the sample map reads
+    /// the method's. Needs a reconstruction (not `none`), images of at
+    /// least 16×16 pixels and one chain (no tiles).
     pub pyramid: bool,
     /// A temporal stage after the method (spec §10): with
     /// [`Temporal::Lp`] every call filters the method's output with the
@@ -138,6 +138,7 @@ impl Config {
         r.options = self.options.clone();
         r.error = self.error;
         r.debug = self.debug;
+        r.pyramid = self.pyramid;
         r.progress = self.progress;
         r
     }
@@ -431,11 +432,7 @@ impl Denoiser {
                 "the temporal filter keeps its state on the GPU: use a GPU denoiser".into(),
             ));
         }
-        if config.pyramid {
-            return Err(Error::InvalidArgument(
-                "the pyramid's low band runs on the GPU only: use a GPU denoiser".into(),
-            ));
-        }
+
         if let Source::Stats { layers, .. } = &source {
             methods::chain::check_layers(config.method, layers)?;
         }

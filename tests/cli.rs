@@ -656,3 +656,55 @@ fn temporal_filter_from_the_command_line() {
         assert_eq!(code, 2, "{args:?}: {err}");
     }
 }
+
+/// `--pyramid` on `render` and `denoise`: the final reconstruction
+/// changes, an adaptive render's passes do not (their sample counts are
+/// the same), and a configuration it cannot run is a clear error.
+#[test]
+fn pyramid_from_the_command_line() {
+    let dir = tmpdir("pyramid");
+    let render = |extra: &[&str], out: &str| {
+        let mut cmd = bin();
+        cmd.args([
+            "render", "--scene", "cornell", "--size", "32x32", "--spp", "8",
+        ])
+        .args(["--adaptive", "--seed", "3"])
+        .args(extra)
+        .arg("--save-stats")
+        .arg(dir.join(format!("{out}_stats.exr")))
+        .arg("-o")
+        .arg(dir.join(format!("{out}.exr")));
+        run(&mut cmd)
+    };
+    for (extra, out) in [(&[][..], "plain"), (&["--pyramid"][..], "pyr")] {
+        let (code, _, err) = render(extra, out);
+        assert_eq!(code, 0, "{err}");
+    }
+    let rgb = |p: &str| mcdenoise::io::read_rgb(&dir.join(p)).unwrap().planes;
+    let stats = |p: &str| mcdenoise::io::read_stats(&dir.join(p)).unwrap();
+    assert!(rgb("plain.exr") != rgb("pyr.exr"));
+    assert!(
+        stats("plain_stats.exr").get(mcdenoise::Layer::Spp)
+            == stats("pyr_stats.exr").get(mcdenoise::Layer::Spp)
+    );
+    // denoise --pyramid on the saved statistics changes the output too.
+    for (extra, out) in [(&[][..], "d_plain.exr"), (&["--pyramid"][..], "d_pyr.exr")] {
+        let (code, _, err) = run(bin()
+            .arg("denoise")
+            .arg(dir.join("pyr_stats.exr"))
+            .arg("-o")
+            .arg(dir.join(out))
+            .args(extra));
+        assert_eq!(code, 0, "{err}");
+    }
+    assert!(rgb("d_plain.exr") != rgb("d_pyr.exr"));
+    let (code, _, err) = run(bin()
+        .arg("denoise")
+        .arg(dir.join("pyr_stats.exr"))
+        .arg("-o")
+        .arg(dir.join("n.exr"))
+        .args(["--pyramid", "--method", "none"]));
+    assert_ne!(code, 0);
+    assert!(err.contains("method none has none"), "{err}");
+    assert!(!dir.join("n.exr").exists());
+}

@@ -136,6 +136,12 @@ pub const MCD_FLAG_ADAPTIVE_PASS: u32 = 2;
 /// filter's state stays in the denoiser's buffers from one to the next
 /// ([`mcd_denoiser_reset`] at a cut). Needs the layout's position sums.
 pub const MCD_FLAG_TEMPORAL_LP: u32 = 4;
+/// Flag of [`McdDenoiserDesc::flags`]: the pyramid's low band after the
+/// method (PYRAMID-LOWBAND): the method also reconstructs the statistics
+/// pooled 2×2, and the output takes its low band from that
+/// half-resolution reconstruction where the error estimates favour it.
+/// Not for `MCD_METHOD_NONE` or images under 16×16 pixels.
+pub const MCD_FLAG_PYRAMID: u32 = 8;
 
 /// One denoiser's configuration: fixed for its life.
 #[repr(C)]
@@ -499,8 +505,10 @@ pub unsafe extern "C" fn mcd_denoiser_create(
             m if m == McdMethod::Auto as u32 => Method::Auto,
             m => return Err(invalid(format!("unknown method {m}"))),
         };
-        let known =
-            MCD_FLAG_NO_SINGLE_SAMPLE_PIXELS | MCD_FLAG_ADAPTIVE_PASS | MCD_FLAG_TEMPORAL_LP;
+        let known = MCD_FLAG_NO_SINGLE_SAMPLE_PIXELS
+            | MCD_FLAG_ADAPTIVE_PASS
+            | MCD_FLAG_TEMPORAL_LP
+            | MCD_FLAG_PYRAMID;
         if desc.flags & !known != 0 {
             return Err(invalid(format!("unknown flags {:#x}", desc.flags & !known)));
         }
@@ -512,6 +520,7 @@ pub unsafe extern "C" fn mcd_denoiser_create(
         if desc.flags & MCD_FLAG_TEMPORAL_LP != 0 {
             config.temporal = core::Temporal::Lp;
         }
+        config.pyramid = desc.flags & MCD_FLAG_PYRAMID != 0;
         if !desc.options.is_null() {
             // SAFETY: the caller passes a NUL-terminated string.
             let text = unsafe { CStr::from_ptr(desc.options) }

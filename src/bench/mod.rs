@@ -182,6 +182,7 @@ fn denoiser(
     config.prefilter = stages.prefilter;
     config.options = stages.options.clone();
     config.temporal = stages.temporal;
+    config.pyramid = stages.pyramid;
     config.low_spp = crate::has_low_spp(img);
     match backend {
         Backend::Gpu => {
@@ -207,6 +208,8 @@ pub struct Stages {
     /// The temporal stage (§10) after the method: the timed calls are
     /// consecutive frames (of the same statistics) for it.
     pub temporal: crate::Temporal,
+    /// The pyramid's low band (PYRAMID-LOWBAND) after the method.
+    pub pyramid: bool,
 }
 
 impl Stages {
@@ -218,6 +221,9 @@ impl Stages {
             self.outliers, self.prefilter
         )
         .to_lowercase();
+        if self.pyramid {
+            s.push_str(", pyramid");
+        }
         if self.temporal != crate::Temporal::Off {
             s.push_str(&format!(", temporal {:?}", self.temporal).to_lowercase());
         }
@@ -280,6 +286,7 @@ mod tests {
             options: crate::options::Options::parse(&["aos.variance=sandwich", "aos.residual=off"])
                 .unwrap(),
             temporal: crate::Temporal::Off,
+            pyramid: false,
         };
         assert_eq!(
             s.describe(),

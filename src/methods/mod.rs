@@ -172,8 +172,7 @@ pub struct DenoiseRequest {
     pub error: bool,
     /// Keep the method's debug maps.
     pub debug: bool,
-    /// The pyramid's low band after the method (PYRAMID-LOWBAND; GPU
-    /// backend only).
+    /// The pyramid's low band after the method (PYRAMID-LOWBAND).
     pub pyramid: bool,
     /// Report progress on stderr for runs longer than about a second.
     pub progress: bool,
@@ -323,11 +322,6 @@ pub fn run_uploaded(
 }
 
 fn denoise_cpu(img: &StatsImage, req: &DenoiseRequest) -> Result<DenoiseOutput> {
-    if req.pyramid {
-        return Err(Error::InvalidArgument(
-            "the pyramid's low band runs on the GPU only: use the GPU backend".into(),
-        ));
-    }
     let (clean, report, removed, prefiltered) = clean_cpu(img, req)?;
     let (w, h) = (img.width, img.height);
     let registry::CpuResult {
@@ -353,6 +347,14 @@ fn denoise_cpu(img: &StatsImage, req: &DenoiseRequest) -> Result<DenoiseOutput> 
         if req.debug {
             debug.extend(outliers::debug_layers(&r.excess_f32()));
         }
+    }
+    // The sample map reads the method's own estimate, as on the GPU.
+    let mut map_e = map_e;
+    let mut error = error;
+    if req.pyramid {
+        let method_error = std::mem::replace(&mut error, RgbImage::new(0, 0));
+        (color, error) = pyramid::run_cpu(img, req, &color, &method_error)?;
+        map_e = map_e.or(Some(method_error));
     }
     let samples = match req.budget {
         Some(t) => {

@@ -21,11 +21,29 @@ use crate::shared::{PyramidPush, PYRAMID_COUNT, PYRAMID_EPS, PYRAMID_MEAN, PYRAM
 use super::chain::{ChainConfig, ChainInput, GpuChain};
 use super::stats::GpuStats;
 use super::temporal::Temporal;
-use super::{prepare, Method};
+use super::{prepare, DenoiseRequest, Method};
+use crate::image::{RgbImage, StatsImage};
+use crate::reference::pyramid_merge as merge_twin;
+use crate::reference::pyramid_pool as pool_twin;
 
 /// The smallest image side the pyramid runs on (its coarse level is half
 /// of it: every method's smallest window still fits).
 pub const MIN_SIDE: usize = 16;
+
+/// `Err` unless the stage can run for `method` on a `size` image.
+fn check(method: Method, (w, h): (usize, usize)) -> Result<()> {
+    if method == Method::None {
+        return Err(Error::InvalidArgument(
+            "the pyramid takes the low band of a reconstruction: method none has none".into(),
+        ));
+    }
+    if w < MIN_SIDE || h < MIN_SIDE {
+        return Err(Error::InvalidArgument(format!(
+            "the pyramid needs an image of at least {MIN_SIDE}x{MIN_SIDE} pixels, not {w}x{h}"
+        )));
+    }
+    Ok(())
+}
 
 /// How a statistics layer pools ([`crate::shared::PyramidPush::kind`]).
 pub fn pool_kind(layer: Layer) -> u32 {
@@ -70,16 +88,7 @@ impl PyramidStage {
         config: &ChainConfig,
     ) -> Result<PyramidStage> {
         let (w, h) = size;
-        if config.method == Method::None {
-            return Err(Error::InvalidArgument(
-                "the pyramid takes the low band of a reconstruction: method none has none".into(),
-            ));
-        }
-        if w < MIN_SIDE || h < MIN_SIDE {
-            return Err(Error::InvalidArgument(format!(
-                "the pyramid needs an image of at least {MIN_SIDE}x{MIN_SIDE} pixels, not {w}x{h}"
-            )));
-        }
+        check(config.method, size)?;
         let (cw, ch) = coarse_size(w, h);
         let coarse_config = ChainConfig {
             pyramid: false,
@@ -170,4 +179,94 @@ impl PyramidStage {
     pub fn coarse(&self) -> &GpuChain {
         &self.coarse
     }
+}
+
+/// The statistics `clean` (sanitised) pooled over 2×2 blocks: the coarse
+/// level's input, plane by plane as `pyramid_pool` makes it.
+pub fn pool_cpu(clean: &StatsImage) -> StatsImage {
+    let (w, h) = (clean.width, clean.height);
+    let (cw, ch) = coarse_size(w, h);
+    let mut pooled = StatsImage::new(cw, ch);
+    let spp = &clean
+        .get(Layer::Spp)
+        .expect("sanitised statistics have spp")[0];
+    for (layer, planes) in clean.layers() {
+        let push = PyramidPush {
+            width: cw as u32,
+            height: ch as u32,
+            kind: pool_kind(layer),
+            other_width: w as u32,
+            other_height: h as u32,
+            ..Default::default()
+        };
+        let out = planes
+            .iter()
+            .map(|p| {
+                let mut d = vec![0.0f32; cw * ch];
+                pool_twin::pyramid_pool(&push, p, spp, &mut d);
+                d
+            })
+            .collect();
+        pooled.set(layer, out);
+    }
+    pooled
+}
+
+/// The CPU path of the stage: `img`'s sanitised statistics pooled, the
+/// request's method on them, and the merge's twin with the fine level's
+/// `color` and `error`. Returns the merged colour and error estimate.
+pub fn run_cpu(
+    img: &StatsImage,
+    req: &DenoiseRequest,
+    color: &RgbImage,
+    error: &RgbImage,
+) -> Result<(RgbImage, RgbImage)> {
+    let (w, h) = (img.width, img.height);
+    check(req.method, (w, h))?;
+    let (clean, _) = prepare::prepare_cpu(img);
+    let pooled = pool_cpu(&clean);
+    let coarse_req = DenoiseRequest {
+        pyramid: false,
+        error: true,
+        debug: false,
+        budget: None,
+        ..req.clone()
+    };
+    let coarse = super::denoise(None, &pooled, &coarse_req)?;
+    let coarse_error = coarse
+        .error
+        .ok_or_else(|| Error::InvalidArgument("the coarse level has no error estimate".into()))?;
+    let (cw, ch) = coarse_size(w, h);
+    let push = PyramidPush {
+        width: w as u32,
+        height: h as u32,
+        other_width: cw as u32,
+        other_height: ch as u32,
+        eps: PYRAMID_EPS,
+        ..Default::default()
+    };
+    let mut out = RgbImage::new(w, h);
+    let mut out_error = RgbImage::new(w, h);
+    {
+        let [c0, c1, c2] = &mut out.planes;
+        let [e0, e1, e2] = &mut out_error.planes;
+        merge_twin::pyramid_merge(
+            &push,
+            &merge_twin::Level {
+                color: color.plane_slices(),
+                error: error.plane_slices(),
+                spp: &clean
+                    .get(Layer::Spp)
+                    .expect("sanitised statistics have spp")[0],
+            },
+            &merge_twin::Level {
+                color: coarse.color.plane_slices(),
+                error: coarse_error.plane_slices(),
+                spp: &pooled.get(Layer::Spp).expect("pooled statistics have spp")[0],
+            },
+            [c0, c1, c2],
+            [e0, e1, e2],
+        );
+    }
+    Ok((out, out_error))
 }

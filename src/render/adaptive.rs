@@ -60,6 +60,10 @@ pub struct LoopConfig {
     /// filter will make of the frame (TEMPORAL-MAP). `true` by default;
     /// `false` gives the maps of a render without the filter.
     pub temporal_maps: bool,
+    /// The pyramid's low band ([`Config::pyramid`]) in the final
+    /// reconstruction (and the open-ended renders' judging of it); the
+    /// adaptive passes' reconstructions run without it.
+    pub pyramid: bool,
 }
 
 impl LoopConfig {
@@ -78,6 +82,7 @@ impl LoopConfig {
             pass_cap: default_pass_cap(method),
             stop: None,
             temporal_maps: true,
+            pyramid: false,
         }
     }
 }
@@ -108,6 +113,7 @@ fn loop_config(cfg: &LoopConfig, pass: Pass, first_spp: u32) -> Config {
     c.precision = cfg.precision;
     c.options = cfg.options.clone();
     c.low_spp = first_spp < 2;
+    c.pyramid = cfg.pyramid && pass == Pass::Final;
     c
 }
 

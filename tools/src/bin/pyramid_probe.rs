@@ -206,7 +206,7 @@ fn main() -> anyhow::Result<()> {
             .collect();
         for rule in [
             "full", "blend", "blend2", "clamp1", "clamp2", "clamp3", "vfull1", "vfull2", "vblend1",
-            "vblend2", "ratio", "rblend",
+            "vblend2", "ratio", "rblend", "rgate2", "rgate3", "rgate5",
         ] {
             let mut img = fine.color.clone();
             for c in 0..3 {
@@ -235,11 +235,21 @@ fn main() -> anyhow::Result<()> {
                         // The low band corrected as a ratio: a bright
                         // neighbour's share does not spill into dark pixels.
                         let ratio = (cu[i].max(0.0) + 1e-3) / (lf[i].max(0.0) + 1e-3);
-                        let a = if rule == "ratio" {
+                        let mut a = if rule == "ratio" {
                             1.0
                         } else {
                             ef[i] / (ef[i] + ec[i]).max(1e-30)
                         };
+                        // A gap between the two low bands far beyond what
+                        // their estimated errors allow is bias, not noise.
+                        if let Some(k) = rule.strip_prefix("rgate") {
+                            let k: f64 = k.parse().unwrap();
+                            let gap = (cu[i] - lf[i]).powi(2);
+                            let allowed = k * k * (ef[i] + ec[i]).max(0.0);
+                            if gap > allowed {
+                                a *= allowed / gap;
+                            }
+                        }
                         img.planes[c][i] = (f[i] as f64 * (1.0 - a + a * ratio)).max(0.0) as f32;
                     }
                     if std::env::var("PYR_DEBUG").as_deref() == Ok(rule) {

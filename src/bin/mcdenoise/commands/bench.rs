@@ -49,6 +49,9 @@ pub struct Args {
     /// The G-buffer prefilter (spec §6) for every method.
     #[arg(long, value_enum, default_value = "auto")]
     prefilter: PrefilterArg,
+    /// The pyramid's low band after every method (GPU only).
+    #[arg(long)]
+    pyramid: bool,
     /// A temporal filter after every method (spec §10); the timed calls
     /// are its consecutive frames. GPU only.
     #[arg(long, value_enum, default_value = "off")]
@@ -114,6 +117,7 @@ pub fn run(cli: &Cli, a: &Args) -> anyhow::Result<bool> {
         prefilter: a.prefilter.get(),
         options: Options::parse(&a.opts)?,
         temporal: a.temporal.get(),
+        pyramid: a.pyramid,
     };
     if let Some(input) = &a.input {
         refuse_overwrite(
