@@ -69,8 +69,8 @@ pub struct Config {
     /// low-frequency noise larger than the method's windows (light that
     /// arrives only indirectly). Costs about a third more GPU time and
     /// memory; the error estimate is the merged one, the sample map reads
-    /// the method's. Needs a reconstruction (not `none`), images of at
-    /// least 16×16 pixels and one chain (no tiles).
+    /// the method's. Needs a reconstruction (not `none`) and images of at
+    /// least 16×16 pixels; in tiles the halo doubles.
     pub pyramid: bool,
     /// A temporal stage after the method (spec §10): with
     /// [`Temporal::Lp`] every call filters the method's output with the

@@ -425,9 +425,6 @@ fn the_configurations_it_cannot_run_are_refused() {
         with(Method::Wlr)
     ))
     .contains("16x16"));
-    let mut tiled = with(Method::Wlr);
-    tiled.tile = Some(16);
-    assert!(msg(Denoiser::new(&ctx, src, tiled)).contains("tiles"));
     check_validation(&ctx);
 }
 
@@ -495,5 +492,36 @@ fn the_gpu_stage_matches_the_cpu_path_on_the_fixture() {
             "{method:?}: {e_on} with the pyramid, {e_off} without"
         );
     }
+    check_validation(&ctx);
+}
+
+/// The temporal filter reads the merged reconstruction: its first frame
+/// (every pixel reset) is the pyramid's output, and later frames differ.
+#[test]
+fn the_temporal_filter_filters_the_merged_output() {
+    let ctx = gpu();
+    let s = synthetic(32, 32, 4, 5);
+    let config = |temporal: Temporal| {
+        let mut c = Config::new(Method::Wlr);
+        c.pyramid = true;
+        c.temporal = temporal;
+        c
+    };
+    let src = Source::of_image(&s.stats);
+    let spatial = Denoiser::new(&ctx, src.clone(), config(Temporal::Off))
+        .unwrap()
+        .denoise(&s.stats, None)
+        .unwrap();
+    let filtered = Denoiser::new(&ctx, src, config(Temporal::Lp)).unwrap();
+    let first = filtered.denoise(&s.stats, None).unwrap();
+    assert!(first.color.planes == spatial.color.planes);
+    // The next frame: the same scene with other noise.
+    let next = synthetic(32, 32, 4, 6).stats;
+    let alone = Denoiser::new(&ctx, Source::of_image(&next), config(Temporal::Off))
+        .unwrap()
+        .denoise(&next, None)
+        .unwrap();
+    let second = filtered.denoise(&next, None).unwrap();
+    assert!(second.color.planes != alone.color.planes);
     check_validation(&ctx);
 }

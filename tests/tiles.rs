@@ -196,6 +196,28 @@ fn tiles_along_y_and_the_stages_of_none_are_bit_identical() {
     check_validation(&gpu());
 }
 
+/// The pyramid's low band in tiles: the coarse level's halo counts
+/// twice and tiles start on twice the alignment (PYRAMID-LOWBAND).
+#[test]
+fn the_pyramid_tiled_is_bit_identical() {
+    let img = strip(480, 32);
+    for method in [Method::Wlr, Method::Lp] {
+        let mut c = Config::new(method);
+        c.pyramid = true;
+        check(&img, c, 60, &format!("{} --pyramid 480x32", method.name()));
+    }
+    // The tightest halo (an adaptive pass's WLR without the outlier stage
+    // and the prefilter: 34 px), where an undersized one shows.
+    let mut c = Config::new(Method::Wlr);
+    c.pyramid = true;
+    c.pass = mcdenoise::Pass::Intermediate;
+    c.outliers = Outliers::Off;
+    c.prefilter = Prefilter::Off;
+    check(&img, c.clone(), 60, "wlr intermediate --pyramid 480x32");
+    check(&strip(32, 480), c, 60, "wlr intermediate --pyramid 32x480");
+    check_validation(&gpu());
+}
+
 #[test]
 fn a_memory_cap_tiles_automatically_and_identically() {
     // Its own context: the peak allocation it measures must not count the

@@ -349,7 +349,17 @@ impl GpuChain {
     /// `width × height` image rather than its area (the rings of rows of LP
     /// and WLR), for the tiler's memory model.
     pub fn ring_bytes(config: &ChainConfig, width: usize, height: usize) -> u64 {
-        (config.method.info().ring_bytes)(config, (width, height))
+        let own = (config.method.info().ring_bytes)(config, (width, height));
+        if config.pyramid {
+            let (cw, ch) = crate::reference::pyramid_pool::coarse_size(width, height);
+            let coarse = ChainConfig {
+                pyramid: false,
+                ..config.clone()
+            };
+            own + Self::ring_bytes(&coarse, cw, ch)
+        } else {
+            own
+        }
     }
 
     /// The context the chain's buffers live on.
@@ -538,7 +548,7 @@ impl GpuChain {
             at.skip,
         )?;
         if let Some(py) = &self.pyramid {
-            py.record_coarse(batch, p, &self.stats)?;
+            py.record_coarse(batch, p, &self.stats, at.origin)?;
         }
         if let Some(o) = &self.outliers {
             outliers::record_remove(batch, p, &self.stats, o)?;
@@ -584,11 +594,16 @@ impl GpuChain {
     /// Records the coarse level of a pyramid ([`PyramidStage`]) after its
     /// statistics were pooled into [`clean`](Self::clean): the chain up to
     /// its method's outputs.
-    pub(super) fn record_pooled(&self, batch: &mut Batch) -> Result<()> {
+    /// `origin`: the coarse image pixel of its pixel `(0, 0)` (a tile's).
+    pub(super) fn record_pooled(&self, batch: &mut Batch, origin: (u32, u32)) -> Result<()> {
         if !batch.is_counting() {
             self.uploaded.store(true, Ordering::SeqCst);
         }
-        self.record_method(batch, None, Placement::default(), false)
+        let at = Placement {
+            origin,
+            skip: [0, 0],
+        };
+        self.record_method(batch, None, at, false)
     }
 
     /// What the temporal stage reads: the spatial reconstruction and the

@@ -115,8 +115,15 @@ impl PyramidStage {
     /// Records the coarse level: every plane of the sanitised statistics
     /// `fine` pooled into the coarse chain's, and that chain's method. Runs
     /// after sanitation and before the fine level's outlier stage and
-    /// prefilter, which change the statistics in place.
-    pub fn record_coarse(&self, batch: &mut Batch, p: Precision, fine: &GpuStats) -> Result<()> {
+    /// prefilter, which change the statistics in place. `origin`: the
+    /// image pixel of the fine level's pixel `(0, 0)` (a tile's; even).
+    pub fn record_coarse(
+        &self,
+        batch: &mut Batch,
+        p: Precision,
+        fine: &GpuStats,
+        origin: (u32, u32),
+    ) -> Result<()> {
         let coarse = self.coarse.clean();
         let (w, h) = self.size;
         let (cw, ch) = coarse_size(w, h);
@@ -141,7 +148,8 @@ impl PyramidStage {
                 )?;
             }
         }
-        self.coarse.record_pooled(batch)
+        self.coarse
+            .record_pooled(batch, (origin.0 / 2, origin.1 / 2))
     }
 
     /// Records the merge of the fine level's reconstruction `fine` with the

@@ -41,6 +41,14 @@
 //! | outlier detection and replacement (§4.4 steps 1–3) | 14 | `m_o`, `sd_o` and the median over `Ω_o(14)` |
 //! | sanitation (§0.4) | 5 | step 1: 3×3 (1); then step 3 (5×5: 2) or step 4 (3×3 residuals, 7×7 MAD: 4) |
 //!
+//! With the pyramid's low band (PYRAMID-LOWBAND) the stages between the
+//! sample map and the input, `H` in all, count twice, plus 8: the merge
+//! reads the coarse outputs within one coarse pixel (2 fine ones, and the
+//! block's second column: 3), which read the coarse inputs within `H` coarse
+//! pixels, pooled from the fine statistics after sanitation (5). The
+//! tile's origin is then a multiple of twice the alignment, so the coarse
+//! level's grids and 2×2 blocks are the whole image's.
+//!
 //! With the defaults (final pass, outlier stage on, prefilter where `auto`
 //! runs it): WLR 133, LP 175, APR 200, AOS 128 (no prefilter by default,
 //! AOS-NO-GBF; 141 with `--prefilter gbf`), and `none` 5 (it runs no
@@ -163,6 +171,17 @@ pub fn halo(config: &ChainConfig, prefiltered: bool) -> Result<Halo> {
         parts.push(("outlier detection (§4.4 steps 1-3)", detect));
     }
     parts.push(("sanitation (§0.4)", SANITIZE_HALO));
+    if config.pyramid {
+        // The merge reads the fine level within 3 and the coarse level's
+        // outputs within 1 coarse pixel, each made from coarse inputs
+        // within the same chain's halo, pooled from the sanitised fine
+        // statistics: 2 (H + 1) + 1 + 5 fine pixels, more than 3 + H.
+        let keep = usize::from(sampling.sigma_s > 0.0);
+        let chain: usize = parts[keep..].iter().map(|(_, p)| p).sum();
+        parts.truncate(keep);
+        parts.push(("pyramid merge (bilinear) and pooling", 3 + SANITIZE_HALO));
+        parts.push(("pyramid coarse level (twice its chain's)", 2 * chain));
+    }
     Ok(Halo { parts })
 }
 
@@ -179,15 +198,19 @@ pub const SANITIZE_HALO: usize = 5;
 /// rounding depends on the sequence, which must be the same): the least
 /// common multiple, or 1.
 pub fn alignment(config: &ChainConfig) -> usize {
-    let grid = config.method.info().align;
+    // The pyramid's coarse level has the same grids at half the position:
+    // a tile starts at twice their multiple, and on an even pixel (its 2×2
+    // blocks are the image's).
+    let pyramid = if config.pyramid { 2 } else { 1 };
+    let grid = pyramid * config.method.info().align;
     let spans = if config.outliers {
         let (a, b) = (
             crate::kernels::box_rows::SPAN as usize,
             crate::kernels::outlier_spread::SPAN as usize,
         );
-        lcm(a, b)
+        pyramid * lcm(a, b)
     } else {
-        1
+        pyramid
     };
     lcm(grid, spans)
 }
@@ -390,16 +413,10 @@ impl TiledChain {
                 (cap / 1e6).floor()
             )
         };
-        let stage = if config.temporal != super::Temporal::Off {
-            Some("the temporal filter: it keeps one state for the whole image and")
-        } else if config.pyramid {
-            Some("the pyramid's low band: its coarse level is one more chain and")
-        } else {
-            None
-        };
-        if let Some(stage) = stage {
+        if config.temporal != super::Temporal::Off {
             return Err(Error::Limit(format!(
-                "{w}x{h} with {stage} cannot run in tiles ({})",
+                "{w}x{h} with the temporal filter: it keeps one state for the whole image and \
+                 cannot run in tiles ({})",
                 if tile.is_some() {
                     "tiles were asked for".to_string()
                 } else {

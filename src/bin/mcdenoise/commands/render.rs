@@ -47,7 +47,7 @@ pub struct Args {
     /// reconstructs the statistics pooled 2x2, and the output takes its
     /// low-frequency part from that half-resolution reconstruction where
     /// the error estimates favour it (light that arrives only indirectly).
-    /// About 1.3x the GPU time; not for none, images under 16x16, or tiles.
+    /// 1.3-1.6x the GPU time; not for none or images under 16x16.
     #[arg(long)]
     pyramid: bool,
     /// With --adaptive: at most K times the pass's mean samples in one pixel
