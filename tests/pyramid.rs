@@ -11,10 +11,10 @@ use mcdenoise::bench::synthetic;
 use mcdenoise::gpu::{Batch, Precision};
 use mcdenoise::kernels::{pyramid_merge, pyramid_pool, run_planes};
 use mcdenoise::methods::chain::{ChainConfig, ChainInput, ChainOutput, GpuChain};
-use mcdenoise::methods::pyramid::pool_kind;
+use mcdenoise::methods::pyramid::{merge_cpu, merge_push, pool_kind, pool_push};
 use mcdenoise::reference::pyramid_merge::{self as merge_twin, Level};
 use mcdenoise::reference::pyramid_pool::{self as pool_twin, coarse_size};
-use mcdenoise::shared::{PyramidPush, PYRAMID_COUNT, PYRAMID_EPS, PYRAMID_MEAN, PYRAMID_VARIANCE};
+use mcdenoise::shared::{PYRAMID_COUNT, PYRAMID_MEAN, PYRAMID_VARIANCE};
 use mcdenoise::{
     metrics, Config, Denoiser, GpuContext, Layer, Method, Options, Pass, Prefilter, RgbImage,
     Source, StatsImage, Temporal,
@@ -45,14 +45,7 @@ fn pyramid_pool_matches_its_twin() {
         let spp = counts(w * h, &mut rng);
         let src = plane(w * h, &mut rng, 2.0);
         for kind in [PYRAMID_MEAN, PYRAMID_VARIANCE, PYRAMID_COUNT] {
-            let push = PyramidPush {
-                width: cw as u32,
-                height: ch as u32,
-                kind,
-                other_width: w as u32,
-                other_height: h as u32,
-                ..Default::default()
-            };
+            let push = pool_push((w, h), kind);
             let mut want = vec![0.0f32; cw * ch];
             pool_twin::pyramid_pool(&push, &src, &spp, &mut want);
             for prec in precisions() {
@@ -74,14 +67,7 @@ fn pyramid_pool_matches_its_twin() {
         // The count is the sum of the valid counts; a block without one
         // is invalid (0) in every kind.
         let valid: f64 = spp.iter().map(|&s| pool_twin_spp(s)).sum();
-        let push = PyramidPush {
-            width: cw as u32,
-            height: ch as u32,
-            kind: PYRAMID_COUNT,
-            other_width: w as u32,
-            other_height: h as u32,
-            ..Default::default()
-        };
+        let push = pool_push((w, h), PYRAMID_COUNT);
         let mut pooled = vec![0.0f32; cw * ch];
         pool_twin::pyramid_pool(&push, &src, &spp, &mut pooled);
         let total: f64 = pooled.iter().map(|&v| v as f64).sum();
@@ -114,23 +100,9 @@ fn pyramid_merge_matches_its_twin() {
         let coarse: Vec<Vec<f32>> = (0..3).map(|_| plane(m, &mut rng, 1.5)).collect();
         let ce: Vec<Vec<f32>> = (0..3).map(|_| plane(m, &mut rng, 0.01)).collect();
         let mut cspp = vec![0.0f32; m];
-        let pool = PyramidPush {
-            width: cw as u32,
-            height: ch as u32,
-            kind: PYRAMID_COUNT,
-            other_width: w as u32,
-            other_height: h as u32,
-            ..Default::default()
-        };
+        let pool = pool_push((w, h), PYRAMID_COUNT);
         pool_twin::pyramid_pool(&pool, &fspp, &fspp, &mut cspp);
-        let push = PyramidPush {
-            width: w as u32,
-            height: h as u32,
-            other_width: cw as u32,
-            other_height: ch as u32,
-            eps: PYRAMID_EPS,
-            ..Default::default()
-        };
+        let push = merge_push((w, h));
         let mut want: Vec<Vec<f32>> = vec![vec![0.0; n]; 6];
         {
             let (c, e) = want.split_at_mut(3);
@@ -234,14 +206,7 @@ fn the_stage_is_the_method_on_two_levels_merged() {
         let mut pooled = StatsImage::new(cw, ch);
         let spp = &clean.get(Layer::Spp).unwrap()[0];
         for (layer, planes) in clean.layers() {
-            let push = PyramidPush {
-                width: cw as u32,
-                height: ch as u32,
-                kind: pool_kind(layer),
-                other_width: w as u32,
-                other_height: h as u32,
-                ..Default::default()
-            };
+            let push = pool_push((w, h), pool_kind(layer));
             // Pooled by the kernel (checked against its twin above), so
             // that the coarse chains read the same bits.
             let out = planes
@@ -266,35 +231,19 @@ fn the_stage_is_the_method_on_two_levels_merged() {
         }
         let (coarse, _) = run_chain(&ctx, &pooled, chain_config(method, false));
         let (staged, _) = run_chain(&ctx, &img, chain_config(method, true));
-        let push = PyramidPush {
-            width: w as u32,
-            height: h as u32,
-            other_width: cw as u32,
-            other_height: ch as u32,
-            eps: PYRAMID_EPS,
-            ..Default::default()
-        };
-        let mut color = RgbImage::new(w, h);
-        let mut error = RgbImage::new(w, h);
-        {
-            let [c0, c1, c2] = &mut color.planes;
-            let [e0, e1, e2] = &mut error.planes;
-            merge_twin::pyramid_merge(
-                &push,
-                &Level {
-                    color: fine.color.plane_slices(),
-                    error: fine.error.plane_slices(),
-                    spp,
-                },
-                &Level {
-                    color: coarse.color.plane_slices(),
-                    error: coarse.error.plane_slices(),
-                    spp: &pooled.get(Layer::Spp).unwrap()[0],
-                },
-                [c0, c1, c2],
-                [e0, e1, e2],
-            );
-        }
+        let (color, error) = merge_cpu(
+            &Level {
+                color: fine.color.plane_slices(),
+                error: fine.error.plane_slices(),
+                spp,
+            },
+            &Level {
+                color: coarse.color.plane_slices(),
+                error: coarse.error.plane_slices(),
+                spp: &pooled.get(Layer::Spp).unwrap()[0],
+            },
+            (w, h),
+        );
         for c in 0..3 {
             let what = format!("{method:?} {w}x{h} channel {c}");
             assert_close(

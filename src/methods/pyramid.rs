@@ -30,6 +30,33 @@ use crate::reference::pyramid_pool as pool_twin;
 /// of it: every method's smallest window still fits).
 pub const MIN_SIDE: usize = 16;
 
+/// The push constants of `pyramid_pool` for one plane of `kind` of a
+/// `size` (fine) image.
+pub fn pool_push(size: (usize, usize), kind: u32) -> PyramidPush {
+    let (cw, ch) = coarse_size(size.0, size.1);
+    PyramidPush {
+        width: cw as u32,
+        height: ch as u32,
+        kind,
+        other_width: size.0 as u32,
+        other_height: size.1 as u32,
+        ..Default::default()
+    }
+}
+
+/// The push constants of `pyramid_merge` over a `size` (fine) image.
+pub fn merge_push(size: (usize, usize)) -> PyramidPush {
+    let (cw, ch) = coarse_size(size.0, size.1);
+    PyramidPush {
+        width: size.0 as u32,
+        height: size.1 as u32,
+        other_width: cw as u32,
+        other_height: ch as u32,
+        eps: PYRAMID_EPS,
+        ..Default::default()
+    }
+}
+
 /// `Err` unless the stage can run for `method` on a `size` image.
 fn check(method: Method, (w, h): (usize, usize)) -> Result<()> {
     if method == Method::None {
@@ -125,19 +152,10 @@ impl PyramidStage {
         origin: (u32, u32),
     ) -> Result<()> {
         let coarse = self.coarse.clean();
-        let (w, h) = self.size;
-        let (cw, ch) = coarse_size(w, h);
         let spp = fine.plane(Layer::Spp, 0);
         for &(layer, _) in &coarse.index {
+            let push = pool_push(self.size, pool_kind(layer));
             for c in 0..layer.channels().len() {
-                let push = PyramidPush {
-                    width: cw as u32,
-                    height: ch as u32,
-                    kind: pool_kind(layer),
-                    other_width: w as u32,
-                    other_height: h as u32,
-                    ..Default::default()
-                };
                 pyramid_pool::record(
                     batch,
                     p,
@@ -155,16 +173,7 @@ impl PyramidStage {
     /// Records the merge of the fine level's reconstruction `fine` with the
     /// coarse one's into [`color`](Self::color) and [`error`](Self::error).
     pub fn record_merge(&self, batch: &mut Batch, p: Precision, fine: &Level) -> Result<()> {
-        let (w, h) = self.size;
-        let (cw, ch) = coarse_size(w, h);
-        let push = PyramidPush {
-            width: w as u32,
-            height: h as u32,
-            other_width: cw as u32,
-            other_height: ch as u32,
-            eps: PYRAMID_EPS,
-            ..Default::default()
-        };
+        let push = merge_push(self.size);
         let coarse = Level {
             color: self.coarse.color(),
             error: self.coarse.error(),
@@ -195,18 +204,9 @@ pub fn pool_cpu(clean: &StatsImage) -> StatsImage {
     let (w, h) = (clean.width, clean.height);
     let (cw, ch) = coarse_size(w, h);
     let mut pooled = StatsImage::new(cw, ch);
-    let spp = &clean
-        .get(Layer::Spp)
-        .expect("sanitised statistics have spp")[0];
+    let spp = spp_plane(clean);
     for (layer, planes) in clean.layers() {
-        let push = PyramidPush {
-            width: cw as u32,
-            height: ch as u32,
-            kind: pool_kind(layer),
-            other_width: w as u32,
-            other_height: h as u32,
-            ..Default::default()
-        };
+        let push = pool_push((w, h), pool_kind(layer));
         let out = planes
             .iter()
             .map(|p| {
@@ -244,37 +244,37 @@ pub fn run_cpu(
     let coarse_error = coarse
         .error
         .ok_or_else(|| Error::InvalidArgument("the coarse level has no error estimate".into()))?;
-    let (cw, ch) = coarse_size(w, h);
-    let push = PyramidPush {
-        width: w as u32,
-        height: h as u32,
-        other_width: cw as u32,
-        other_height: ch as u32,
-        eps: PYRAMID_EPS,
-        ..Default::default()
-    };
-    let mut out = RgbImage::new(w, h);
-    let mut out_error = RgbImage::new(w, h);
-    {
-        let [c0, c1, c2] = &mut out.planes;
-        let [e0, e1, e2] = &mut out_error.planes;
-        merge_twin::pyramid_merge(
-            &push,
-            &merge_twin::Level {
-                color: color.plane_slices(),
-                error: error.plane_slices(),
-                spp: &clean
-                    .get(Layer::Spp)
-                    .expect("sanitised statistics have spp")[0],
-            },
-            &merge_twin::Level {
-                color: coarse.color.plane_slices(),
-                error: coarse_error.plane_slices(),
-                spp: &pooled.get(Layer::Spp).expect("pooled statistics have spp")[0],
-            },
-            [c0, c1, c2],
-            [e0, e1, e2],
-        );
-    }
-    Ok((out, out_error))
+    Ok(merge_cpu(
+        &merge_twin::Level {
+            color: color.plane_slices(),
+            error: error.plane_slices(),
+            spp: spp_plane(&clean),
+        },
+        &merge_twin::Level {
+            color: coarse.color.plane_slices(),
+            error: coarse_error.plane_slices(),
+            spp: spp_plane(&pooled),
+        },
+        (w, h),
+    ))
+}
+
+/// The sample counts of statistics that have them (sanitised or pooled).
+fn spp_plane(img: &StatsImage) -> &[f32] {
+    &img.get(Layer::Spp).expect("the statistics have spp")[0]
+}
+
+/// The merge's twin over a `size` image: the merged colour and error
+/// estimate of the levels `fine` and `coarse`.
+pub fn merge_cpu(
+    fine: &merge_twin::Level,
+    coarse: &merge_twin::Level,
+    size: (usize, usize),
+) -> (RgbImage, RgbImage) {
+    let mut out = RgbImage::new(size.0, size.1);
+    let mut out_error = RgbImage::new(size.0, size.1);
+    let [c0, c1, c2] = &mut out.planes;
+    let [e0, e1, e2] = &mut out_error.planes;
+    merge_twin::pyramid_merge(&merge_push(size), fine, coarse, [c0, c1, c2], [e0, e1, e2]);
+    (out, out_error)
 }
