@@ -5,8 +5,9 @@
 // Per fine pixel and channel, with the bilinear weights of the coarse
 // pixels around it (pixel centres aligned, clamped at the border; only
 // coarse pixels with n >= 1, renormalised):
-//   L  = up(down(f)),   Ef = up(down(E_f)),  (down: mean over the valid
-//   C  = up(c),         Ec = up(E_c)          fine pixels of a block)
+//   L  = up(down(f)),   Ef = up(down(E_f)),  (down: the mean over the
+//   C  = up(c),         Ec = up(E_c)          block's valid fine pixels,
+//                                             weighted by their counts)
 //   a  = Ef / (Ef + Ec)
 //   out = max(f * (1 - a + a * (max(C, 0) + eps) / (max(L, 0) + eps)), 0)
 //   E_out = E_f - a * min(E_f, Ef)
@@ -84,7 +85,8 @@ void main()
         if (w <= real(0) || spp_of(cspp[c]) <= 0.0) {
             continue;
         }
-        // down(f) and down(E_f) over the block's valid fine pixels.
+        // down(f) and down(E_f) over the block's valid fine pixels,
+        // weighted by their counts as the pooled means are.
         real3 bf = real3(0);
         real3 be = real3(0);
         real nb = real(0);
@@ -93,10 +95,11 @@ void main()
             uint by = 2u * ky + (q >> 1u);
             if (bx < push.width && by < push.height) {
                 uint j = by * push.width + bx;
-                if (spp_of(fspp[j]) > 0.0) {
-                    bf += fine_colour(j);
-                    be += fine_error(j);
-                    nb += real(1);
+                real n = real(spp_of(fspp[j]));
+                if (n > real(0)) {
+                    bf += n * fine_colour(j);
+                    be += n * fine_error(j);
+                    nb += n;
                 }
             }
         }

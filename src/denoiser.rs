@@ -67,8 +67,8 @@ pub struct Config {
     /// takes its low band from that half-resolution reconstruction where
     /// the two error estimates say it is the better one — it removes
     /// low-frequency noise larger than the method's windows (light that
-    /// arrives only indirectly). Costs about a third more GPU time and
-    /// memory; the error estimate is the merged one, the sample map reads
+    /// arrives only indirectly). Costs 1.3–1.6× the GPU time and about a
+    /// third more memory; the error estimate is the merged one, the sample map reads
     /// the method's. Needs a reconstruction (not `none`) and images of at
     /// least 16×16 pixels; in tiles the halo doubles.
     pub pyramid: bool,

@@ -707,4 +707,9 @@ fn pyramid_from_the_command_line() {
     assert_ne!(code, 0);
     assert!(err.contains("method none has none"), "{err}");
     assert!(!dir.join("n.exr").exists());
+    // render checks before it traces anything.
+    let (code, _, err) = render(&["--pyramid", "--method", "none"], "none");
+    assert_ne!(code, 0);
+    assert!(err.contains("method none has none"), "{err}");
+    assert!(!dir.join("none_stats.exr").exists());
 }

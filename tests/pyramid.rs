@@ -158,6 +158,37 @@ fn pyramid_merge_matches_its_twin() {
                 assert!(want[3 + c][i] <= fe[c][i] && want[3 + c][i] >= 0.0);
             }
         }
+        // A coarse level equal to the fine one pooled (count-weighted, as
+        // the coarse statistics are) changes nothing, whatever the counts.
+        let agreeing: Vec<Vec<f32>> = (0..3)
+            .map(|c| {
+                let mut d = vec![0.0f32; m];
+                pool_twin::pyramid_pool(&pool_push((w, h), PYRAMID_MEAN), &fine[c], &fspp, &mut d);
+                d
+            })
+            .collect();
+        let (same, _) = merge_cpu(
+            &Level {
+                color: three(&fine),
+                error: three(&fe),
+                spp: &fspp,
+            },
+            &Level {
+                color: three(&agreeing),
+                error: three(&ce),
+                spp: &cspp,
+            },
+            (w, h),
+        );
+        for c in 0..3 {
+            for i in 0..n {
+                let (a, b) = (same.planes[c][i] as f64, fine[c][i] as f64);
+                assert!(
+                    (a - b).abs() <= 1e-5 * b.abs() + 1e-7,
+                    "{w}x{h}: pixel {i} {a} != {b}"
+                );
+            }
+        }
     }
     check_validation(&ctx);
 }

@@ -207,7 +207,7 @@ fn the_pyramid_tiled_is_bit_identical() {
         check(&img, c, 60, &format!("{} --pyramid 480x32", method.name()));
     }
     // The tightest halo (an adaptive pass's WLR without the outlier stage
-    // and the prefilter: 34 px), where an undersized one shows.
+    // and the prefilter: 37 px).
     let mut c = Config::new(Method::Wlr);
     c.pyramid = true;
     c.pass = mcdenoise::Pass::Intermediate;

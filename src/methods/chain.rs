@@ -307,7 +307,7 @@ impl GpuChain {
             }
         };
         let pyramid = if config.pyramid {
-            Some(PyramidStage::new(ctx, (w, h), &layers, &config)?)
+            Some(PyramidStage::new(ctx, (w, h), &layers, &config, with_gbf)?)
         } else {
             None
         };
@@ -669,8 +669,8 @@ impl GpuChain {
         }
     }
 
-    /// The method's colour planes (after the outlier stage), before any
-    /// temporal stage.
+    /// The method's colour planes (after the outlier stage), before the
+    /// pyramid's merge and any temporal stage.
     pub fn method_color(&self) -> [BufferSlice; 3] {
         self.method.color(&self.stats)
     }

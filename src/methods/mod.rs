@@ -322,6 +322,9 @@ pub fn run_uploaded(
 }
 
 fn denoise_cpu(img: &StatsImage, req: &DenoiseRequest) -> Result<DenoiseOutput> {
+    if req.pyramid {
+        pyramid::check(req.method, (img.width, img.height))?;
+    }
     let (clean, report, removed, prefiltered) = clean_cpu(img, req)?;
     let (w, h) = (img.width, img.height);
     let registry::CpuResult {
@@ -353,7 +356,7 @@ fn denoise_cpu(img: &StatsImage, req: &DenoiseRequest) -> Result<DenoiseOutput> 
     let mut error = error;
     if req.pyramid {
         let method_error = std::mem::replace(&mut error, RgbImage::new(0, 0));
-        (color, error) = pyramid::run_cpu(img, req, &color, &method_error)?;
+        (color, error) = pyramid::run_cpu(img, req, prefiltered, &color, &method_error)?;
         map_e = map_e.or(Some(method_error));
     }
     let samples = match req.budget {

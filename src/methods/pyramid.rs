@@ -21,7 +21,7 @@ use crate::shared::{PyramidPush, PYRAMID_COUNT, PYRAMID_EPS, PYRAMID_MEAN, PYRAM
 use super::chain::{ChainConfig, ChainInput, GpuChain};
 use super::stats::GpuStats;
 use super::temporal::Temporal;
-use super::{prepare, DenoiseRequest, Method};
+use super::{prepare, DenoiseRequest, Method, Prefilter};
 use crate::image::{RgbImage, StatsImage};
 use crate::reference::pyramid_merge as merge_twin;
 use crate::reference::pyramid_pool as pool_twin;
@@ -58,7 +58,7 @@ pub fn merge_push(size: (usize, usize)) -> PyramidPush {
 }
 
 /// `Err` unless the stage can run for `method` on a `size` image.
-fn check(method: Method, (w, h): (usize, usize)) -> Result<()> {
+pub fn check(method: Method, (w, h): (usize, usize)) -> Result<()> {
     if method == Method::None {
         return Err(Error::InvalidArgument(
             "the pyramid takes the low band of a reconstruction: method none has none".into(),
@@ -107,18 +107,28 @@ impl std::fmt::Debug for PyramidStage {
 
 impl PyramidStage {
     /// The stage of a `size` chain reading `layers` with `config` (whose
-    /// method must reconstruct: not `none`).
+    /// method must reconstruct: not `none`), where the G-buffer prefilter
+    /// runs when `prefiltered`.
     pub fn new(
         ctx: &Arc<GpuContext>,
         size: (usize, usize),
         layers: &[Layer],
         config: &ChainConfig,
+        prefiltered: bool,
     ) -> Result<PyramidStage> {
         let (w, h) = size;
         check(config.method, size)?;
         let (cw, ch) = coarse_size(w, h);
+        // The coarse statistics have every variance layer (sanitation
+        // estimates the missing ones): the fine level's choice of the
+        // prefilter is made explicit, so both levels make the same one.
         let coarse_config = ChainConfig {
             pyramid: false,
+            prefilter: if prefiltered {
+                Prefilter::On
+            } else {
+                Prefilter::Off
+            },
             debug: false,
             error: true,
             temporal: Temporal::Off,
@@ -221,11 +231,13 @@ pub fn pool_cpu(clean: &StatsImage) -> StatsImage {
 }
 
 /// The CPU path of the stage: `img`'s sanitised statistics pooled, the
-/// request's method on them, and the merge's twin with the fine level's
-/// `color` and `error`. Returns the merged colour and error estimate.
+/// request's method on them (with the prefilter when the fine level's
+/// ran, `prefiltered`), and the merge's twin with the fine level's `color`
+/// and `error`. Returns the merged colour and error estimate.
 pub fn run_cpu(
     img: &StatsImage,
     req: &DenoiseRequest,
+    prefiltered: bool,
     color: &RgbImage,
     error: &RgbImage,
 ) -> Result<(RgbImage, RgbImage)> {
@@ -235,6 +247,11 @@ pub fn run_cpu(
     let pooled = pool_cpu(&clean);
     let coarse_req = DenoiseRequest {
         pyramid: false,
+        prefilter: if prefiltered {
+            Prefilter::On
+        } else {
+            Prefilter::Off
+        },
         error: true,
         debug: false,
         budget: None,

@@ -20,7 +20,8 @@ pub struct Level<'a> {
 /// (up to four) coarse pixels around it that have `n ≥ 1` (pixel centres
 /// aligned, clamped at the border, renormalised):
 /// `L = up(down(f))`, `Ef = up(down(E_f))` (`down`: the mean over a
-/// block's valid fine pixels), `C = up(c)`, `Ec = up(E_c)`,
+/// block's valid fine pixels weighted by their counts, as the coarse level
+/// pools its input), `C = up(c)`, `Ec = up(E_c)`,
 /// `a = Ef / (Ef + Ec)`;
 /// `out = max(f (1 − a + a (max(C, 0) + ε) / (max(L, 0) + ε)), 0)` and
 /// `E_out = E_f − a min(E_f, Ef)`. An invalid fine pixel, or one with no
@@ -65,13 +66,14 @@ pub fn pyramid_merge(
                     let (bx, by) = (2 * kx + (q & 1), 2 * ky + (q >> 1));
                     if bx < w && by < h {
                         let j = by * w + bx;
-                        if spp_of(fine.spp[j]) > 0.0 {
+                        let n = spp_of(fine.spp[j]);
+                        if n > 0.0 {
                             let (fj, ej) = (at(fine.color, j), at(fine.error, j));
                             for m in 0..3 {
-                                bf[m] += fj[m];
-                                be[m] += ej[m];
+                                bf[m] += n * fj[m];
+                                be[m] += n * ej[m];
                             }
-                            nb += 1.0;
+                            nb += n;
                         }
                     }
                 }

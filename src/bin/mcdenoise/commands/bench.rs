@@ -49,7 +49,7 @@ pub struct Args {
     /// The G-buffer prefilter (spec §6) for every method.
     #[arg(long, value_enum, default_value = "auto")]
     prefilter: PrefilterArg,
-    /// The pyramid's low band after every method (GPU only).
+    /// The pyramid's low band after every method.
     #[arg(long)]
     pyramid: bool,
     /// A temporal filter after every method (spec §10); the timed calls

@@ -433,6 +433,10 @@ pub fn run(cli: &Cli, a: &Args) -> anyhow::Result<bool> {
 /// The adaptive loop's configuration from the command line.
 fn loop_config(a: &Args) -> anyhow::Result<adaptive::LoopConfig> {
     let method = a.method;
+    if a.pyramid {
+        // Before any pass renders: the final denoiser is made last.
+        mcdenoise::methods::pyramid::check(method, a.size)?;
+    }
     Ok(adaptive::LoopConfig {
         spp: a.spp,
         adaptive: a.adaptive,
