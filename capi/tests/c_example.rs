@@ -85,7 +85,9 @@ fn c_host_accumulates_on_the_gpu_and_denoises() {
         output.status
     );
     assert!(
-        stdout.contains("sample map:") && stdout.ends_with("ok\n"),
+        stdout.contains("sample map:")
+            && stdout.contains("with the pyramid: rMSE")
+            && stdout.ends_with("ok\n"),
         "{stdout}"
     );
     let saved = std::fs::metadata(&cache).map(|m| m.len()).unwrap_or(0);

@@ -381,6 +381,44 @@ int main(int argc, char **argv)
         }
     }
     mcd_denoiser_destroy(denoiser);
+
+    /* The same samples reconstructed with the pyramid's low band
+     * (MCD_FLAG_PYRAMID): a denoiser of its own, recorded alone. */
+    static float plain[3 * W * H];
+    memcpy(plain, color, sizeof plain);
+    desc.flags |= MCD_FLAG_PYRAMID;
+    McdDenoiser *pyramid = NULL;
+    McdRecording *recording = NULL;
+    VkCommandBufferBeginInfo again = {.sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO,
+                                      .flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT};
+    if (mcd_denoiser_create(ctx, &desc, &pyramid) != MCD_STATUS_OK) {
+        fprintf(stderr, "mcdenoise: %s\n", mcd_last_error());
+        return 1;
+    }
+    VK_CHECK(vkBeginCommandBuffer(cmd, &again));
+    if (mcd_denoiser_record(pyramid, cmd, family, accum, 0, 0, &recording) != MCD_STATUS_OK) {
+        fprintf(stderr, "mcdenoise: %s\n", mcd_last_error());
+        return 1;
+    }
+    VK_CHECK(vkEndCommandBuffer(cmd));
+    VkSubmitInfo psi = {.sType = VK_STRUCTURE_TYPE_SUBMIT_INFO,
+                        .commandBufferCount = 1,
+                        .pCommandBuffers = &cmd};
+    VK_CHECK(vkQueueSubmit(queue, 1, &psi, fence));
+    VK_CHECK(vkWaitForFences(device, 1, &fence, VK_TRUE, UINT64_MAX));
+    VK_CHECK(vkResetFences(device, 1, &fence));
+    mcd_recording_release(recording);
+    if (mcd_denoiser_read(pyramid, color, error, NULL, W * H) != MCD_STATUS_OK) {
+        fprintf(stderr, "mcdenoise: %s\n", mcd_last_error());
+        return 1;
+    }
+    double pyramid_rmse = rel_mse(color);
+    printf("with the pyramid: rMSE %.5f\n", pyramid_rmse);
+    if (memcmp(plain, color, sizeof plain) == 0 || !(pyramid_rmse < 1.0 / (6.0 * SPP))) {
+        fprintf(stderr, "the pyramid's reconstruction is the plain one, or worse than half the input's error\n");
+        return 1;
+    }
+    mcd_denoiser_destroy(pyramid);
     mcd_context_destroy(ctx);
 
     /* ---- The host's teardown. ---- */
