@@ -130,3 +130,54 @@ pub fn precisions() -> Vec<Precision> {
 
 /// The sizes every kernel is tested on (issue #2): square, 1x1, 1xN, Nx1, prime.
 pub const SIZES: &[(usize, usize)] = &[(64, 64), (1, 1), (1, 17), (23, 1), (37, 23)];
+
+/// Issue #11's spike test input: the smooth 64² fixture, and the same with
+/// single-pixel spikes of 1000× the local value (with a renderer's
+/// variance) at three pixels. Returns `(clean, spiky, excess energy per
+/// channel, spike count)`.
+pub fn spiky_fixture() -> (
+    mcdenoise::StatsImage,
+    mcdenoise::StatsImage,
+    [f64; 3],
+    usize,
+) {
+    use mcdenoise::Layer;
+    let clean = mcdenoise::io::read_stats(std::path::Path::new("tests/fixtures/smooth_64.exr"))
+        .expect("tests/fixtures/smooth_64.exr");
+    let w = clean.width;
+    let spikes = [(20, 30), (45, 10), (50, 52)];
+    let mut spiky = clean.clone();
+    let mut energy = [0.0f64; 3];
+    let color = spiky.get(Layer::Color).unwrap().to_vec();
+    let mut var = spiky.get(Layer::ColorVariance).unwrap().to_vec();
+    let mut col = color.clone();
+    for &(x, y) in &spikes {
+        let i = y * w + x;
+        for c in 0..3 {
+            let s = color[c][i] * 1000.0;
+            energy[c] += (s - color[c][i]) as f64;
+            col[c][i] = s;
+            var[c][i] = s * s;
+        }
+    }
+    spiky.set(Layer::Color, col);
+    spiky.set(Layer::ColorVariance, var);
+    (clean, spiky, energy, spikes.len())
+}
+
+/// The largest change of one pixel between two images' channel `c`, and
+/// the change of the channel's sum.
+pub fn pixel_and_sum_change(
+    a: &mcdenoise::RgbImage,
+    b: &mcdenoise::RgbImage,
+    c: usize,
+) -> (f64, f64) {
+    let worst = a.planes[c]
+        .iter()
+        .zip(&b.planes[c])
+        .map(|(&p, &q)| (q as f64 - p as f64).abs())
+        .fold(0.0, f64::max);
+    let sa: f64 = a.planes[c].iter().map(|&v| v as f64).sum();
+    let sb: f64 = b.planes[c].iter().map(|&v| v as f64).sum();
+    (worst, sb - sa)
+}
