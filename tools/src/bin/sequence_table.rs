@@ -11,12 +11,14 @@
 //! "+ 10.1"), one denoiser carrying its state through the frames. With
 //! `--adaptive`, each method's adaptive renders of the sequence instead:
 //! alone, with the filter, and with maps that read the filter's state.
+//! With `--pyramid`, each method also with the pyramid's low band (and,
+//! with `--temporal`, followed by the filter).
 //!
 //! ```text
 //! cargo run --release -p mcdenoise-tools --bin sequence_table -- \
 //!     [--scenes pan_room,moving_box,moving_highlight] [--methods wlr,lp,apr,aos,auto] \
 //!     [--size 64x64] [--spp 16] [--frames 24] [--reference 512] [--oidn] [--temporal]
-//!     [--adaptive]
+//!     [--adaptive] [--pyramid]
 //! ```
 
 use std::path::PathBuf;
@@ -64,6 +66,10 @@ struct Args {
     /// Also every method followed by the LP temporal filter (spec §10.1).
     #[arg(long)]
     temporal: bool,
+    /// Also every method with the pyramid's low band (PYRAMID-LOWBAND),
+    /// alone and, with `--temporal`, followed by the filter.
+    #[arg(long, conflicts_with = "adaptive")]
+    pyramid: bool,
     /// Instead of denoising the uniform frames: each method's adaptive
     /// renders of the sequence alone, with the temporal filter, and with
     /// the filter and sample maps that read its state (TEMPORAL-MAP).
@@ -178,23 +184,37 @@ fn main() -> anyhow::Result<()> {
             continue;
         }
         for &m in &a.methods {
-            let mut outputs = Vec::with_capacity(stats.len());
-            for s in &stats {
-                let d = Denoiser::new(&ctx, Source::of_image(s), Config::new(m))?;
-                outputs.push(d.denoise(s, None)?.color);
-            }
-            row(m.name(), &outputs)?;
-            if a.temporal {
-                // One denoiser for the sequence: the filter's state goes
-                // from frame to frame.
-                let mut c = Config::new(m);
-                c.temporal = Temporal::Lp;
-                let d = Denoiser::new(&ctx, Source::of_image(&stats[0]), c)?;
-                let outputs = stats
-                    .iter()
-                    .map(|s| Ok(d.denoise(s, None)?.color))
-                    .collect::<mcdenoise::Result<Vec<_>>>()?;
-                row(&format!("{} + 10.1", m.name()), &outputs)?;
+            for pyramid in [false, true] {
+                if pyramid && !a.pyramid {
+                    continue;
+                }
+                let name = if pyramid {
+                    format!("{} + pyramid", m.name())
+                } else {
+                    m.name().to_string()
+                };
+                let config = |temporal: Temporal| {
+                    let mut c = Config::new(m);
+                    c.pyramid = pyramid;
+                    c.temporal = temporal;
+                    c
+                };
+                let mut outputs = Vec::with_capacity(stats.len());
+                for s in &stats {
+                    let d = Denoiser::new(&ctx, Source::of_image(s), config(Temporal::Off))?;
+                    outputs.push(d.denoise(s, None)?.color);
+                }
+                row(&name, &outputs)?;
+                if a.temporal {
+                    // One denoiser for the sequence: the filter's state goes
+                    // from frame to frame.
+                    let d = Denoiser::new(&ctx, Source::of_image(&stats[0]), config(Temporal::Lp))?;
+                    let outputs = stats
+                        .iter()
+                        .map(|s| Ok(d.denoise(s, None)?.color))
+                        .collect::<mcdenoise::Result<Vec<_>>>()?;
+                    row(&format!("{name} + 10.1"), &outputs)?;
+                }
             }
         }
         if a.oidn {
