@@ -542,3 +542,32 @@ fn spikes_with_the_pyramid() {
     }
     check_validation(&ctx);
 }
+
+/// The smallest image the stage takes (16×16, a coarse level of 8×8; 17×16
+/// pools a last column alone) runs with every reconstruction, with finite
+/// output.
+#[test]
+fn the_smallest_images_run_with_every_method() {
+    let ctx = gpu();
+    for (w, h) in [(16usize, 16usize), (17, 16)] {
+        let s = synthetic(w, h, 4, 3);
+        for method in Method::all().filter(|&m| m != Method::None) {
+            let mut c = Config::new(method);
+            c.pyramid = true;
+            let out = Denoiser::new(&ctx, Source::of_image(&s.stats), c)
+                .and_then(|d| d.denoise(&s.stats, Some((w * h * 4) as u32)))
+                .unwrap_or_else(|e| panic!("{method:?} {w}x{h}: {e}"));
+            assert!(
+                out.color.planes.iter().flatten().all(|v| v.is_finite()),
+                "{method:?} {w}x{h}: a non-finite output"
+            );
+            assert!(out
+                .error
+                .planes
+                .iter()
+                .flatten()
+                .all(|v| v.is_finite() && *v >= 0.0));
+        }
+    }
+    check_validation(&ctx);
+}
