@@ -128,6 +128,17 @@ impl Config {
         }
     }
 
+    /// `Err` unless this configuration can denoise `width × height` images
+    /// (what [`Denoiser::new`] would refuse for the size alone: the
+    /// pyramid's method and smallest image), for a caller that wants to
+    /// know before it renders.
+    pub fn check_size(&self, width: usize, height: usize) -> Result<()> {
+        if self.pyramid {
+            methods::pyramid::check(self.method, (width, height))?;
+        }
+        Ok(())
+    }
+
     fn request(&self, backend: Backend) -> DenoiseRequest {
         let mut r = DenoiseRequest::new(self.method);
         r.backend = backend;

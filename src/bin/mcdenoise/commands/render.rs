@@ -7,7 +7,9 @@ use std::path::{Path, PathBuf};
 use anyhow::bail;
 use mcdenoise::io::frames::FramePattern;
 use mcdenoise::render::{adaptive, reference, sequence, Renderer, Scene};
-use mcdenoise::{colour_of, io, metrics, schedule, Frame, GpuContext, Method, Options, RgbImage};
+use mcdenoise::{
+    colour_of, io, metrics, schedule, Config, Frame, GpuContext, Method, Options, RgbImage,
+};
 
 use crate::args::{
     method_parser, parse_size, OutliersArg, PrecisionArg, PrefilterArg, TemporalArg,
@@ -433,10 +435,12 @@ pub fn run(cli: &Cli, a: &Args) -> anyhow::Result<bool> {
 /// The adaptive loop's configuration from the command line.
 fn loop_config(a: &Args) -> anyhow::Result<adaptive::LoopConfig> {
     let method = a.method;
-    if a.pyramid {
-        // Before any pass renders: the final denoiser is made last.
-        mcdenoise::methods::pyramid::check(method, a.size)?;
+    // Before any pass renders: the final denoiser is made last.
+    Config {
+        pyramid: a.pyramid,
+        ..Config::new(method)
     }
+    .check_size(a.size.0, a.size.1)?;
     Ok(adaptive::LoopConfig {
         spp: a.spp,
         adaptive: a.adaptive,
