@@ -2,8 +2,9 @@
 //! statistics and on their 2×2-pooled half-resolution version, and rules
 //! that take the low band of the result from the coarse reconstruction.
 //!
-//! Pooling: means weighted by the sample counts, variances (and the
-//! position covariance) as `Σ n² v / N²`, counts summed. Low band
+//! Pooling: the stage's ([`mcdenoise::methods::pyramid::pool_cpu`]: means
+//! weighted by the sample counts, variances and the position covariance as
+//! `Σ n² v / N²`, counts summed), of the raw statistics. Low band
 //! `L(x) = up(down(x))` (2×2 mean, bilinear back). Rules, per pixel:
 //! `full`: `f − L(f) + up(c)`; `blend`: the low band mixed by the error
 //! estimates, `α = Ê_f↓ / (Ê_f↓ + Ê_c)`, `f − α (L(f) − up(c))`.
@@ -36,56 +37,6 @@ struct Args {
     #[arg(long)]
     stage_only: bool,
     cases: Vec<String>,
-}
-
-fn pool(img: &StatsImage) -> StatsImage {
-    let (w, h) = (img.width / 2, img.height / 2);
-    let spp = &img.get(Layer::Spp).unwrap()[0];
-    let mut out = StatsImage::new(w, h);
-    let idx = |x: usize, y: usize| y * img.width + x;
-    for (layer, planes) in img.layers() {
-        let is_var = matches!(
-            layer,
-            Layer::ColorVariance
-                | Layer::AlbedoVariance
-                | Layer::NormalVariance
-                | Layer::DepthVariance
-                | Layer::PositionVariance
-                | Layer::PositionCovariance
-                | Layer::VisibilityVariance
-        );
-        let mut new = vec![vec![0.0f32; w * h]; planes.len()];
-        for y in 0..h {
-            for x in 0..w {
-                let q = [
-                    idx(2 * x, 2 * y),
-                    idx(2 * x + 1, 2 * y),
-                    idx(2 * x, 2 * y + 1),
-                    idx(2 * x + 1, 2 * y + 1),
-                ];
-                let n: Vec<f64> = q.iter().map(|&i| (spp[i] as f64).max(0.0)).collect();
-                let tot: f64 = n.iter().sum();
-                for (c, p) in planes.iter().enumerate() {
-                    let v = if layer == Layer::Spp {
-                        tot
-                    } else if tot <= 0.0 {
-                        0.0
-                    } else if is_var {
-                        q.iter()
-                            .zip(&n)
-                            .map(|(&i, k)| k * k * p[i] as f64)
-                            .sum::<f64>()
-                            / (tot * tot)
-                    } else {
-                        q.iter().zip(&n).map(|(&i, k)| k * p[i] as f64).sum::<f64>() / tot
-                    };
-                    new[c][y * w + x] = v as f32;
-                }
-            }
-        }
-        out.set(layer, new);
-    }
-    out
 }
 
 /// 2×2 mean of a full-resolution plane.
@@ -178,7 +129,7 @@ fn main() -> anyhow::Result<()> {
             println!("{}", serde_json::Value::Object(line));
             continue;
         }
-        let coarse_stats = pool(&stats);
+        let coarse_stats = mcdenoise::methods::pyramid::pool_cpu(&stats);
         let coarse = run(&ctx, m, &coarse_stats, true)?;
         // Per channel, at full resolution: the fine output's low band, the
         // coarse output, the fine error pooled, the coarse error, the pooled
