@@ -325,15 +325,21 @@ fn denoise_cpu(img: &StatsImage, req: &DenoiseRequest) -> Result<DenoiseOutput> 
     if req.pyramid {
         pyramid::check(req.method, (img.width, img.height))?;
     }
-    let (clean, report, removed, prefiltered) = clean_cpu(img, req)?;
+    let CleanCpu {
+        clean,
+        report,
+        removed,
+        prefiltered,
+        pooled,
+    } = clean_cpu(img, req)?;
     let (w, h) = (img.width, img.height);
     let registry::CpuResult {
         mut color,
-        error,
+        mut error,
         dim,
         mut debug,
         stats,
-        map_error: map_e,
+        map_error: mut map_e,
     } = (req.method.info().cpu)(
         &clean,
         &registry::CpuArgs {
@@ -352,11 +358,11 @@ fn denoise_cpu(img: &StatsImage, req: &DenoiseRequest) -> Result<DenoiseOutput> 
         }
     }
     // The sample map reads the method's own estimate, as on the GPU.
-    let mut map_e = map_e;
-    let mut error = error;
-    if req.pyramid {
+    if let Some(pooled) = &pooled {
         let method_error = std::mem::replace(&mut error, RgbImage::new(0, 0));
-        (color, error) = pyramid::run_cpu(img, req, prefiltered, &color, &method_error)?;
+        let spp = &clean.get(crate::image::Layer::Spp).unwrap()[0];
+        let fine = (&color, &method_error, spp.as_slice());
+        (color, error) = pyramid::run_cpu(pooled, fine, req, prefiltered)?;
         map_e = map_e.or(Some(method_error));
     }
     let samples = match req.budget {
@@ -389,19 +395,25 @@ fn denoise_cpu(img: &StatsImage, req: &DenoiseRequest) -> Result<DenoiseOutput> 
     })
 }
 
-/// The CPU path's input of every method: sanitised statistics, without
-/// outliers when `req.outliers` wants it, prefiltered when `req.prefilter`
-/// wants it (§1); and whether the prefilter ran.
-fn clean_cpu(
-    img: &StatsImage,
-    req: &DenoiseRequest,
-) -> Result<(
-    StatsImage,
-    prepare::PrepareReport,
-    Option<outliers::Removed>,
-    bool,
-)> {
+/// The CPU path's input of every method ([`clean_cpu`]).
+struct CleanCpu {
+    /// Sanitised statistics, without outliers when `req.outliers` wants
+    /// it, prefiltered when `req.prefilter` wants it (§1).
+    clean: StatsImage,
+    /// What sanitation repaired.
+    report: prepare::PrepareReport,
+    /// What the outlier stage removed.
+    removed: Option<outliers::Removed>,
+    /// Whether the prefilter ran.
+    prefiltered: bool,
+    /// With `req.pyramid`: the sanitised statistics pooled 2×2 (before the
+    /// outlier stage and the prefilter, as on the GPU).
+    pooled: Option<StatsImage>,
+}
+
+fn clean_cpu(img: &StatsImage, req: &DenoiseRequest) -> Result<CleanCpu> {
     let (mut clean, report) = prepare::prepare_cpu(img);
+    let pooled = req.pyramid.then(|| pyramid::pool_cpu(&clean));
     let removed = req
         .outliers
         .resolve(req.method)
@@ -410,7 +422,13 @@ fn clean_cpu(
     if prefiltered {
         gbf::run_cpu(&mut clean)?;
     }
-    Ok((clean, report, removed, prefiltered))
+    Ok(CleanCpu {
+        clean,
+        report,
+        removed,
+        prefiltered,
+        pooled,
+    })
 }
 
 fn gpu_ctx(ctx: Option<&Arc<GpuContext>>) -> Result<&Arc<GpuContext>> {

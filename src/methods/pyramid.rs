@@ -12,19 +12,17 @@ use std::sync::Arc;
 
 use crate::error::{Error, Result};
 use crate::gpu::{Batch, BufferSlice, GpuContext, PlaneSet, Precision};
-use crate::image::Layer;
+use crate::image::{Layer, RgbImage, StatsImage};
 use crate::kernels::pyramid_merge::{self, Level};
 use crate::kernels::pyramid_pool;
-use crate::reference::pyramid_pool::coarse_size;
+use crate::reference::pyramid_merge as merge_twin;
+use crate::reference::pyramid_pool::{self as pool_twin, coarse_size};
 use crate::shared::{PyramidPush, PYRAMID_COUNT, PYRAMID_EPS, PYRAMID_MEAN, PYRAMID_VARIANCE};
 
 use super::chain::{ChainConfig, ChainInput, GpuChain};
 use super::stats::GpuStats;
 use super::temporal::Temporal;
 use super::{prepare, DenoiseRequest, Method, Prefilter};
-use crate::image::{RgbImage, StatsImage};
-use crate::reference::pyramid_merge as merge_twin;
-use crate::reference::pyramid_pool as pool_twin;
 
 /// The smallest image side the pyramid runs on (its coarse level is half
 /// of it: every method's smallest window still fits).
@@ -201,11 +199,6 @@ impl PyramidStage {
     pub fn error(&self) -> [BufferSlice; 3] {
         std::array::from_fn(|k| self.merged.plane(3 + k))
     }
-
-    /// The coarse level's chain (its outputs after a run).
-    pub fn coarse(&self) -> &GpuChain {
-        &self.coarse
-    }
 }
 
 /// The statistics `clean` (sanitised) pooled over 2×2 blocks: the coarse
@@ -230,21 +223,18 @@ pub fn pool_cpu(clean: &StatsImage) -> StatsImage {
     pooled
 }
 
-/// The CPU path of the stage: `img`'s sanitised statistics pooled, the
-/// request's method on them (with the prefilter when the fine level's
-/// ran, `prefiltered`), and the merge's twin with the fine level's `color`
-/// and `error`. Returns the merged colour and error estimate.
+/// The CPU path of the stage: the request's method on the pooled
+/// statistics `pooled` (with the prefilter when the fine level's ran,
+/// `prefiltered`), and the merge's twin with the fine level's colour,
+/// error estimate and sample counts `fine`. Returns the merged colour and
+/// error estimate.
 pub fn run_cpu(
-    img: &StatsImage,
+    pooled: &StatsImage,
+    fine: (&RgbImage, &RgbImage, &[f32]),
     req: &DenoiseRequest,
     prefiltered: bool,
-    color: &RgbImage,
-    error: &RgbImage,
 ) -> Result<(RgbImage, RgbImage)> {
-    let (w, h) = (img.width, img.height);
-    check(req.method, (w, h))?;
-    let (clean, _) = prepare::prepare_cpu(img);
-    let pooled = pool_cpu(&clean);
+    let (color, error, spp) = fine;
     let coarse_req = DenoiseRequest {
         pyramid: false,
         prefilter: if prefiltered {
@@ -257,7 +247,7 @@ pub fn run_cpu(
         budget: None,
         ..req.clone()
     };
-    let coarse = super::denoise(None, &pooled, &coarse_req)?;
+    let coarse = super::denoise(None, pooled, &coarse_req)?;
     let coarse_error = coarse
         .error
         .ok_or_else(|| Error::InvalidArgument("the coarse level has no error estimate".into()))?;
@@ -265,14 +255,14 @@ pub fn run_cpu(
         &merge_twin::Level {
             color: color.plane_slices(),
             error: error.plane_slices(),
-            spp: spp_plane(&clean),
+            spp,
         },
         &merge_twin::Level {
             color: coarse.color.plane_slices(),
             error: coarse_error.plane_slices(),
-            spp: spp_plane(&pooled),
+            spp: spp_plane(pooled),
         },
-        (w, h),
+        (color.width, color.height),
     ))
 }
 
