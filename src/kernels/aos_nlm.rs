@@ -54,8 +54,7 @@ pub fn record(
     let planes = 2 * push.channels.max(1) as u64 - 1;
     let pixels = push.width as u64 * push.height as u64;
     DECL.require(7, &dst, 4 * (planes * push.stride as u64 + pixels))?;
-    let size = (push.width, push.height);
     let groups: [&[BufferSlice]; 3] = [&g, &vg, &[spp, dst]];
     let flops = flops_per_pixel(push.channels);
-    super::dispatch_groups(batch, &DECL, precision, push, size, &groups, flops)
+    super::dispatch_image(batch, &DECL, precision, push, &groups, flops)
 }

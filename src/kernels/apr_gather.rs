@@ -64,8 +64,7 @@ pub fn record(
         APR_STAGE_OUTPUTS
     } as u64;
     DECL.require(11, &dst, 4 * ((outputs - 1) * stride + pixels))?;
-    let size = (push.width, push.height);
     let groups: [&[BufferSlice]; 4] = [&color, &var, feats, &[spp, state, extra, dst]];
     let flops = FLOPS_PER_PIXEL;
-    super::dispatch_groups(batch, &DECL, precision, push, size, &groups, flops)
+    super::dispatch_image(batch, &DECL, precision, push, &groups, flops)
 }

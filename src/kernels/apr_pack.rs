@@ -41,8 +41,7 @@ pub fn record(
     feats: &[BufferSlice; 8],
     out: [BufferSlice; 2],
 ) -> Result<()> {
-    let size = (push.width, push.height);
     let groups: [&[BufferSlice]; 2] = [feats, &out];
     let flops = flops_per_pixel();
-    super::dispatch_groups(batch, &DECL, precision, push, size, &groups, flops)
+    super::dispatch_image(batch, &DECL, precision, push, &groups, flops)
 }

@@ -101,7 +101,6 @@ pub fn record(
     prev: BufferSlice,
     out: &TemporalOut,
 ) -> Result<()> {
-    let size = (push.width, push.height);
     let rest = [
         out.next,
         out.color[0],
@@ -110,13 +109,5 @@ pub fn record(
         out.source,
     ];
     let groups: [&[BufferSlice]; 2] = [&inp.with_prev(prev), &rest];
-    super::dispatch_groups(
-        batch,
-        &DECL,
-        precision,
-        push,
-        size,
-        &groups,
-        FLOPS_PER_PIXEL,
-    )
+    super::dispatch_image(batch, &DECL, precision, push, &groups, FLOPS_PER_PIXEL)
 }

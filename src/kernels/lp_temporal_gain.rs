@@ -35,15 +35,6 @@ pub fn record(
     error: [BufferSlice; 3],
     scaled: [BufferSlice; 3],
 ) -> Result<()> {
-    let size = (push.width, push.height);
     let groups: [&[BufferSlice]; 3] = [&inp.with_prev(prev), &error, &scaled];
-    super::dispatch_groups(
-        batch,
-        &DECL,
-        precision,
-        push,
-        size,
-        &groups,
-        FLOPS_PER_PIXEL,
-    )
+    super::dispatch_image(batch, &DECL, precision, push, &groups, FLOPS_PER_PIXEL)
 }

@@ -143,17 +143,21 @@ pub(crate) fn dispatch_groups<P: bytemuck::Pod>(
     )
 }
 
-/// Records one of the outlier stage's per-pixel kernels over the push's
-/// image: the binding groups concatenated in order.
-pub(crate) fn dispatch_outlier(
+/// Records a per-pixel kernel over the image its push constants name
+/// (their first two u32, width and height: the convention of every kernel,
+/// [`crate::gpu::reflect::Extent::Planes`]): the binding groups concatenated
+/// in order.
+pub(crate) fn dispatch_image<P: bytemuck::Pod>(
     batch: &mut Batch,
     decl: &KernelDecl,
     precision: Precision,
-    push: &OutlierPush,
+    push: &P,
     groups: &[&[BufferSlice]],
     flops_per_pixel: f64,
 ) -> Result<()> {
-    let size = (push.width, push.height);
+    let bytes = bytemuck::bytes_of(push);
+    let word = |k: usize| u32::from_le_bytes(bytes[4 * k..4 * k + 4].try_into().unwrap());
+    let size = (word(0), word(1));
     dispatch_groups(batch, decl, precision, push, size, groups, flops_per_pixel)
 }
 

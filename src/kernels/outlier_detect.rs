@@ -70,7 +70,7 @@ pub fn record(
     for plane in excess {
         batch.fill(plane, 0);
     }
-    super::dispatch_outlier(
+    super::dispatch_image(
         batch,
         &DECL,
         precision,

@@ -38,7 +38,7 @@ pub fn record(
     spp: BufferSlice,
     keys: BufferSlice,
 ) -> Result<()> {
-    super::dispatch_outlier(
+    super::dispatch_image(
         batch,
         &DECL,
         precision,

@@ -38,7 +38,7 @@ pub fn record(
     keys: BufferSlice,
     out: [BufferSlice; 6],
 ) -> Result<()> {
-    super::dispatch_outlier(
+    super::dispatch_image(
         batch,
         &DECL,
         precision,

@@ -74,19 +74,10 @@ pub fn record(
     color: [BufferSlice; 3],
     error: [BufferSlice; 3],
 ) -> Result<()> {
-    let size = (push.width, push.height);
     let plane = 4 * push.other_width as u64 * push.other_height as u64;
     for (k, b) in coarse.bindings().iter().enumerate() {
         DECL.require(7 + k, b, plane)?;
     }
     let groups: [&[BufferSlice]; 4] = [&fine.bindings(), &coarse.bindings(), &color, &error];
-    super::dispatch_groups(
-        batch,
-        &DECL,
-        precision,
-        push,
-        size,
-        &groups,
-        FLOPS_PER_PIXEL,
-    )
+    super::dispatch_image(batch, &DECL, precision, push, &groups, FLOPS_PER_PIXEL)
 }

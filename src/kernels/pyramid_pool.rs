@@ -33,18 +33,9 @@ pub fn record(
     spp: BufferSlice,
     dst: BufferSlice,
 ) -> Result<()> {
-    let size = (push.width, push.height);
     let fine = 4 * push.other_width as u64 * push.other_height as u64;
     DECL.require(0, &src, fine)?;
     DECL.require(1, &spp, fine)?;
     let groups: [&[BufferSlice]; 1] = [&[src, spp, dst]];
-    super::dispatch_groups(
-        batch,
-        &DECL,
-        precision,
-        push,
-        size,
-        &groups,
-        FLOPS_PER_PIXEL,
-    )
+    super::dispatch_image(batch, &DECL, precision, push, &groups, FLOPS_PER_PIXEL)
 }
