@@ -97,22 +97,28 @@ void main()
     // its own).
     real3 lim = real3(-1);
     if (valid && (push.flags & APR_PIXEL_TEST) != 0u) {
+        // Per channel, the neighbours that agree with i (PIXEL-TEST-AGREE).
         real3 vs = real3(0), vmax = real3(0);
-        int nn = 0;
+        ivec3 nn = ivec3(0);
+        real t2 = pixel_test_t2(real(spp_of(spp[i])));
         for (int qy = max(p.y - 1, 0); qy <= min(p.y + 1, size.y - 1); ++qy) {
             for (int qx = max(p.x - 1, 0); qx <= min(p.x + 1, size.x - 1); ++qx) {
                 uint q = uint(qy * size.x + qx);
                 if (apr_valid(q)) {
                     real3 vq = real3(var_r[q], var_g[q], var_b[q]);
-                    vs += vq;
-                    vmax = max(vmax, vq);
-                    ++nn;
+                    real3 d = real3(col_r[q], col_g[q], col_b[q]) - yi3;
+                    [[unroll]] for (int ch = 0; ch < 3; ++ch) {
+                        if (q == i || pixel_test_agrees(t2, d[ch] * d[ch], vq[ch], vi3[ch])) {
+                            vs[ch] += vq[ch];
+                            vmax[ch] = max(vmax[ch], vq[ch]);
+                            ++nn[ch];
+                        }
+                    }
                 }
             }
         }
-        real n_i = real(spp_of(spp[i]));
         [[unroll]] for (int ch = 0; ch < 3; ++ch) {
-            lim[ch] = pixel_test_limit(n_i, vi3[ch], vs[ch], vmax[ch], nn);
+            lim[ch] = pixel_test_limit(t2, vi3[ch], vs[ch], vmax[ch], nn[ch]);
         }
     }
     // The blend, centre by centre in raster order, the three channels of a

@@ -103,11 +103,12 @@ shared uint t_n;
 shared vec4 t_c[TILE * TILE];
 shared uint t_ring[TILE * TILE];
 // LP-PIXEL-TEST's inputs over the workgroup's pixels and a 1-pixel halo:
-// per pixel the sum of its three colour variances, and whether it is valid
-// (outside the image: not). Staged once: 4 loads per tile pixel instead of
+// per pixel its colour, the sum of its three colour variances, and whether
+// it is valid (outside the image: not). Staged once: 4 loads per tile pixel instead of
 // 4 per pixel of each of the 9 neighbourhoods that hold it.
 #define VT 10
 shared real t_v[VT * VT];
+shared real3 t_y[VT * VT];
 shared bool t_vok[VT * VT];
 
 // The distance from tile coordinate t to the workgroup's pixels (tile
@@ -127,15 +128,18 @@ void main()
     for (uint k = lid; k < uint(VT * VT); k += 64u) {
         ivec2 t = org + (LP_RADIUS - 1) + ivec2(k % uint(VT), k / uint(VT));
         real v = real(0);
+        real3 yq = real3(0);
         bool ok = false;
         if (t.x >= 0 && t.y >= 0 && t.x < int(push.width) && t.y < int(push.height)) {
             uint q = uint(t.y) * push.width + uint(t.x);
             ok = spp_of(spp[q]) >= 1.0;
             if (ok) {
                 v = real(cv_r[q]) + real(cv_g[q]) + real(cv_b[q]);
+                yq = real3(col_r[q], col_g[q], col_b[q]);
             }
         }
         t_v[k] = v;
+        t_y[k] = yq;
         t_vok[k] = ok;
     }
     barrier();
@@ -220,11 +224,12 @@ void main()
         // LP-PIXEL-TEST: a centre whose prediction misses pixel i's own mean
         // by more than t_threshold3(n_i) standard errors (all channels
         // together) does not predict i. The variance is the larger of i's
-        // and the mean over its valid 3x3 neighbourhood (raster order, i
-        // included) without its largest value: a pixel whose few samples all
-        // agree has a variance estimate far below its true one, and the local
-        // noise says so; a single neighbour on the edge of a bright light
-        // does not.
+        // and the mean over the neighbours of its valid 3x3 neighbourhood
+        // (raster order, i included) that agree with it, without the largest
+        // value: a pixel whose few samples all agree has a variance estimate
+        // far below its true one, and the local noise says so; a neighbour on
+        // a bright light, many standard errors from i, does not
+        // (PIXEL-TEST-AGREE).
         real3 y_i = real3(col_r[i], col_g[i], col_b[i]);
         real lim = real(-1);
         if ((push.options & LP_PIXEL_TEST) != 0u) {
@@ -233,10 +238,13 @@ void main()
             int nn = 0;
             // Raster order; the staged tile (halo included) holds them.
             uint c = (gl_LocalInvocationID.y + 1u) * uint(VT) + gl_LocalInvocationID.x + 1u;
+            real v_i = t_v[c];
+            real t2 = pixel_test_t2(n_i);
             for (int dy = -1; dy <= 1; ++dy) {
                 for (int dx = -1; dx <= 1; ++dx) {
                     uint t = uint(int(c) + dy * VT + dx);
-                    if (t_vok[t]) {
+                    real3 d = t_y[t] - y_i;
+                    if (t_vok[t] && (t == c || pixel_test_agrees(t2, dot(d, d), t_v[t], v_i))) {
                         real vq = t_v[t];
                         vn += vq;
                         vmax = max(vmax, vq);
@@ -244,8 +252,7 @@ void main()
                     }
                 }
             }
-            real v_i = real(cv_r[i]) + real(cv_g[i]) + real(cv_b[i]);
-            lim = pixel_test_limit(n_i, v_i, vn, vmax, nn);
+            lim = pixel_test_limit(t2, v_i, vn, vmax, nn);
         }
         // The tile's list, one centre per iteration (the same number of
         // iterations for every lane: llvmpipe runs a loop's body while any

@@ -65,10 +65,11 @@ real t_threshold3(real n)
 }
 
 // LP-PIXEL-TEST and APR-PIXEL-TEST (twin: reference::pixel_test_limit): the
-// limit on a prediction's squared miss at a valid pixel of n samples and
-// variance v_i, from the sum, largest value and count of the variances over
-// its valid 3x3 neighbourhood (i included): t_threshold3(n)^2 times the
-// larger of v_i and the neighbourhood mean without its largest value.
+// limit on a prediction's squared miss at a valid pixel of variance v_i, from
+// t2 = pixel_test_t2(n_i) and the sum, largest value and count of the
+// variances over the neighbours of its valid 3x3 neighbourhood (i included)
+// that agree with it (pixel_test_agrees, PIXEL-TEST-AGREE): t2 times the
+// larger of v_i and their mean without the largest value.
 #define PIXEL_TEST_VAR_FLOOR 1e-20
 
 // Invocations per workgroup of lp_centres (mirror
@@ -101,9 +102,23 @@ real t_threshold3(real n)
             } \
         } \
     }
-real pixel_test_limit(real n, real v_i, real vsum, real vmax, int count)
+real pixel_test_t2(real n)
+{
+    real t = t_threshold3(n);
+    return t * t;
+}
+
+// Whether a neighbour at squared distance dist2 from pixel i (summed over
+// the channels the variances are summed over) with variance v_q counts in
+// i's neighbourhood variance: its level differs from i's by at most
+// t_threshold3(n_i) standard errors of the difference.
+bool pixel_test_agrees(real t2, real dist2, real v_q, real v_i)
+{
+    return dist2 <= t2 * (v_q + v_i);
+}
+
+real pixel_test_limit(real t2, real v_i, real vsum, real vmax, int count)
 {
     real vbar = count > 1 ? (vsum - vmax) / real(count - 1) : vsum;
-    real t = t_threshold3(n);
-    return t * t * max(max(v_i, vbar), real(PIXEL_TEST_VAR_FLOOR));
+    return t2 * max(max(v_i, vbar), real(PIXEL_TEST_VAR_FLOOR));
 }

@@ -525,8 +525,17 @@ pub fn channel(
                 dim[i] = f.trace;
                 continue;
             }
-            let limit = pixel_test
-                .map(|spp| super::pixel_test_limit(w, h, |q| pl.v[q], |q| pl.valid[q], spp, i));
+            let limit = pixel_test.map(|spp| {
+                super::pixel_test_limit(
+                    w,
+                    h,
+                    |q| pl.v[q],
+                    |q| (pl.y[q] - pl.y[i]).powi(2),
+                    |q| pl.valid[q],
+                    spp,
+                    i,
+                )
+            });
             let (mut wsum, mut acc_y, mut acc_s, mut acc_e, mut acc_d) = (0.0, 0.0, 0.0, 0.0, 0.0);
             for &b in &cover[i] {
                 let d = &designs[b];

@@ -64,7 +64,15 @@ pub fn apr_gather(
                 )
             } else {
                 let limit = pl.pixel_test.then(|| {
-                    super::pixel_test_limit(w, h, |q| pl.v[q] as f64, |q| pl.valid(q), pl.spp, i)
+                    super::pixel_test_limit(
+                        w,
+                        h,
+                        |q| pl.v[q] as f64,
+                        |q| (pl.y[q] as f64 - pl.y[i] as f64).powi(2),
+                        |q| pl.valid(q),
+                        pl.spp,
+                        i,
+                    )
                 });
                 let yi = pl.y[i] as f64;
                 let mut missed = false;

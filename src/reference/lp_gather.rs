@@ -61,7 +61,12 @@ pub fn lp_gather(
 /// variances.
 fn lp_pixel_limit(p: &Planes, i: usize) -> f64 {
     let vsum = |q: usize| p.colour(q).1.iter().sum::<f64>();
-    pixel_test_limit(p.width, p.height, vsum, |q| p.valid(q), p.spp, i)
+    let yi = p.colour(i).0;
+    let dist2 = |q: usize| {
+        let yq = p.colour(q).0;
+        (0..3).map(|c| (yq[c] - yi[c]).powi(2)).sum::<f64>()
+    };
+    pixel_test_limit(p.width, p.height, vsum, dist2, |q| p.valid(q), p.spp, i)
 }
 
 fn pixel(

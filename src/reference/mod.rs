@@ -87,26 +87,35 @@ pub const PIXEL_TEST_VAR_FLOOR: f64 = 1e-20;
 /// LP-PIXEL-TEST and APR-PIXEL-TEST: the limit on a prediction's squared
 /// miss at the valid pixel `i` of a `w × h` image,
 /// `t²·max(v(i), v̄_i, PIXEL_TEST_VAR_FLOOR)` with `t` = [`t_threshold3`]`(n_i)`
-/// and `v̄_i` the mean of `v` over i's valid 3×3 neighbourhood (raster
-/// order, i included) without its largest value: a pixel whose few samples
-/// happen to agree has a variance estimate far below its true one, and the
-/// local noise says so; one neighbour on the edge of a bright light does
-/// not. `spp` gives `n_i`.
+/// and `v̄_i` the mean of `v` over the neighbours that agree with i in its
+/// valid 3×3 neighbourhood (raster order, i included), without its largest
+/// value: a pixel whose few samples happen to agree has a variance estimate
+/// far below its true one, and the local noise says so. A neighbour agrees
+/// when its squared distance from i, `dist2(q)`, is at most `t²·(v(q) +
+/// v(i))` (PIXEL-TEST-AGREE): a neighbour on a bright light, whose level
+/// differs from i's by many of its standard errors, says nothing of i's
+/// noise. `spp` gives `n_i`.
 pub fn pixel_test_limit(
     w: usize,
     h: usize,
     v: impl Fn(usize) -> f64,
+    dist2: impl Fn(usize) -> f64,
     valid: impl Fn(usize) -> bool,
     spp: &[f32],
     i: usize,
 ) -> f64 {
     let (x, y) = (i % w, i / w);
+    let t = t_threshold3(spp_of(spp[i]));
+    let vi = v(i);
     let (mut sum, mut max, mut n) = (0.0f64, 0.0f64, 0usize);
     for qy in y.saturating_sub(1)..(y + 2).min(h) {
         for qx in x.saturating_sub(1)..(x + 2).min(w) {
             let q = qy * w + qx;
             if valid(q) {
                 let vq = v(q);
+                if q != i && dist2(q) > t * t * (vq + vi) {
+                    continue;
+                }
                 sum += vq;
                 max = max.max(vq);
                 n += 1;
@@ -118,8 +127,7 @@ pub fn pixel_test_limit(
     } else {
         sum
     };
-    let t = t_threshold3(spp_of(spp[i]));
-    t * t * v(i).max(vbar).max(PIXEL_TEST_VAR_FLOOR)
+    t * t * vi.max(vbar).max(PIXEL_TEST_VAR_FLOOR)
 }
 
 /// §0.2: the output of an invalid pixel `i` of a `w × h` image, the mean
