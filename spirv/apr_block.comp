@@ -55,6 +55,8 @@ PLANE_OUT(8, extra)
 // Modes 1 and 2: the band's extra blocks, [workgroups x, 1, 1, count,
 // pixel indices...] (the caller resets the header before the band).
 layout(std430, set = 0, binding = 9) buffer queue_blk { uint queue[]; };
+// spp_total's words (APR-COUNT-CAP).
+layout(std430, set = 0, binding = 10) readonly buffer sppt_blk { uint sppt[]; };
 
 #include "lib/apr.glsl"
 
@@ -107,11 +109,12 @@ struct Result {
     real4 bs0, bs1, bs2, bs3, bs4;
 };
 
-Result block(ivec2 c, ivec2 size, bool with_s)
+Result block(ivec2 c, ivec2 size, bool with_s, float nbar)
 {
     uint ci = uint(c.y * size.x + c.x);
     real yc = real(ych[ci]);
     real vc = real(vch[ci]);
+    real vtc = apr_test_var(vc, ci, nbar);
     real4 fca = apr_fa(ci);
     real4 fcb = apr_fb(ci);
     int y0 = max(c.y - APR_R, 0), y1 = min(c.y + APR_R, size.y - 1);
@@ -122,7 +125,8 @@ Result block(ivec2 c, ivec2 size, bool with_s)
     for (int qy = y0; qy <= y1; ++qy) {
         for (int qx = x0; qx <= x1; ++qx) {
             uint q = uint(qy * size.x + qx);
-            if (!apr_valid(q) || (q != ci && !apr_accepts(yc, vc, real(ych[q]), real(vch[q])))) {
+            if (!apr_valid(q)
+                || (q != ci && !apr_accepts(yc, vtc, real(ych[q]), apr_test_var(real(vch[q]), q, nbar)))) {
                 continue;
             }
             ma = max(ma, abs(apr_fa(q) - fca));
@@ -161,7 +165,7 @@ Result block(ivec2 c, ivec2 size, bool with_s)
             uint q = uint(qy * size.x + qx);
             real yq = real(ych[q]);
             real vq = real(vch[q]);
-            if (!apr_valid(q) || (q != ci && !apr_accepts(yc, vc, yq, vq))) {
+            if (!apr_valid(q) || (q != ci && !apr_accepts(yc, vtc, yq, apr_test_var(vq, q, nbar)))) {
                 continue;
             }
             real4 a0, a1, a2, a3, a4;
@@ -227,7 +231,7 @@ Result block(ivec2 c, ivec2 size, bool with_s)
         for (int qx = x0; qx <= x1; ++qx) {
             uint q = uint(qy * size.x + qx);
             real vq = real(vch[q]);
-            if (!apr_valid(q) || (q != ci && !apr_accepts(yc, vc, real(ych[q]), vq))) {
+            if (!apr_valid(q) || (q != ci && !apr_accepts(yc, vtc, real(ych[q]), apr_test_var(vq, q, nbar)))) {
                 continue;
             }
             real4 a0, a1, a2, a3, a4;
@@ -261,15 +265,15 @@ Result block(ivec2 c, ivec2 size, bool with_s)
 }
 
 // Whether some valid sparse centre within 14 accepts pixel p.
-bool covered(ivec2 p, ivec2 size)
+bool covered(ivec2 p, ivec2 size, float nbar)
 {
     uint i = uint(p.y * size.x + p.x);
     real yi = real(ych[i]);
-    real vi = real(vch[i]);
+    real vi = apr_test_var(real(vch[i]), i, nbar);
     for (int cy = apr_first_centre(p.y); cy <= min(p.y + APR_R, size.y - 1); cy += APR_R) {
         for (int cx = apr_first_centre(p.x); cx <= min(p.x + APR_R, size.x - 1); cx += APR_R) {
             uint c = uint(cy * size.x + cx);
-            if (apr_valid(c) && (c == i || apr_accepts(real(ych[c]), real(vch[c]), yi, vi))) {
+            if (apr_valid(c) && (c == i || apr_accepts(real(ych[c]), apr_test_var(real(vch[c]), c, nbar), yi, vi))) {
                 return true;
             }
         }
@@ -281,6 +285,7 @@ void main()
 {
     ivec2 size = ivec2(push.width, push.height);
     bool with_s = push.last == 0u;
+    float nbar = apr_nbar();
     int gw = (size.x + APR_R - 1) / APR_R;
     int gh = (size.y + APR_R - 1) / APR_R;
     if (push.mode == 0u) {
@@ -297,7 +302,7 @@ void main()
             }
             return;
         }
-        Result r = block(c, size, with_s);
+        Result r = block(c, size, with_s, nbar);
         state[base] = float(r.order);
         state[base + 1u] = float(r.xi);
         state[base + 2u] = float(r.trace);
@@ -324,7 +329,7 @@ void main()
         uint x = gl_GlobalInvocationID.x;
         uint y = push.row0 + gl_GlobalInvocationID.y;
         if (x < push.width && y < push.height && apr_valid(y * push.width + x)
-            && !covered(ivec2(x, y), size)) {
+            && !covered(ivec2(x, y), size, nbar)) {
             QUEUE_APPEND(queue, y * push.width + x, 64u, QUEUE_ROOM(queue))
         }
         return;
@@ -336,7 +341,7 @@ void main()
     uint stride = gl_NumWorkGroups.x * 64u;
     for (uint e = gl_WorkGroupID.x * 64u + gl_LocalInvocationIndex; e < count; e += stride) {
         uint i = queue[4u + e];
-        Result r = block(ivec2(i % push.width, i / push.width), size, with_s);
+        Result r = block(ivec2(i % push.width, i / push.width), size, with_s, nbar);
         uint o = 4u * push.channel * push.stride + i;
         extra[o] = float(r.by0.x);
         extra[o + push.stride] = float(r.bs0.x);

@@ -49,6 +49,8 @@ PLANE_IN(8, spp)
 layout(std430, set = 0, binding = 9) readonly buffer state_blk { vec4 state[]; };
 PLANE_IN(10, extra)
 PLANE_OUT(11, dst)
+// spp_total's words (APR-COUNT-CAP).
+layout(std430, set = 0, binding = 12) readonly buffer sppt_blk { uint sppt[]; };
 
 #include "lib/apr.glsl"
 
@@ -124,6 +126,8 @@ void main()
     // The blend, centre by centre in raster order, the three channels of a
     // centre together (APR-GATHER-CENTRES): its validity, features, colour
     // and spatial weight are loaded and computed once for the three.
+    float nbar = apr_nbar();
+    real fi = apr_test_var(real(1), i, nbar);
     bvec3 missed = bvec3(false);
     real3 ws = real3(0), ay = real3(0), as_ = real3(0), ae = real3(0), ad = real3(0);
     for (int cy = apr_first_centre(p.y); valid && cy <= min(p.y + APR_R, size.y - 1); cy += APR_R) {
@@ -135,11 +139,13 @@ void main()
             real4 fca = apr_fa(c);
             real4 fcb = apr_fb(c);
             real3 yc3 = real3(col_r[c], col_g[c], col_b[c]);
-            real3 vc3 = real3(var_r[c], var_g[c], var_b[c]);
+            // The interval test's variances (APR-COUNT-CAP).
+            real fc = apr_test_var(real(1), c, nbar);
+            real3 vc3 = fc * real3(var_r[c], var_g[c], var_b[c]);
             real k = apr_weight(p.x - cx, p.y - cy);
             uint cell = uint((cy / APR_R) * gw + cx / APR_R);
             [[unroll]] for (int ch = 0; ch < 3; ++ch) {
-                if (c != i && !apr_accepts(yc3[ch], vc3[ch], yi3[ch], vi3[ch])) {
+                if (c != i && !apr_accepts(yc3[ch], vc3[ch], yi3[ch], fi * vi3[ch])) {
                     continue;
                 }
                 // The record's vec4 index (APR_STATE / 4 per block).

@@ -146,6 +146,13 @@ pub const OPTIONS: &[OptionSpec] = &[
         help: "a block whose prediction misses a pixel's own mean by more than 3 standard errors (Student's t for its sample count) does not predict that pixel (ours, as lp.pixel_test; off: the spec)",
     },
     OptionSpec {
+        key: "apr.count_cap",
+        kind: Kind::Choice(&["on", "off"]),
+        default: "on",
+        section: "§4.2 step 1 (APR-COUNT-CAP)",
+        help: "the interval test takes a pixel with more samples than the image's mean at the variance it would have with the mean (on; matters on adaptive renders), or at its own (off, the spec)",
+    },
+    OptionSpec {
         key: "apr.prefilter",
         kind: Kind::Choice(&["off", "on"]),
         default: "off",

@@ -183,6 +183,21 @@ pub struct PeakPush {
     pub iterations: u32,
 }
 
+/// `spirv/spp_total.comp`, block `Push`: the image's sample total
+/// (APR-COUNT-CAP).
+#[repr(C)]
+#[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct SppTotalPush {
+    /// Image width in pixels.
+    pub width: u32,
+    /// Image height in pixels.
+    pub height: u32,
+    /// First row of the band this dispatch covers.
+    pub row0: u32,
+    /// Unused (the block's `pad0`): rounds the block to 16 bytes; 0.
+    pub _pad: u32,
+}
+
 /// `spirv/channel_mean.comp`, block `Push`: mean of three planes (vbar, grey).
 #[repr(C)]
 #[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
@@ -292,7 +307,8 @@ pub struct AprPush {
     pub mode: u32,
     /// 1 on the last stage: no `β_s`; `apr_gather` writes the final planes.
     pub last: u32,
-    /// Bits: [`APR_VIS`], [`APR_CLAMPED`], [`APR_PIXEL_TEST`].
+    /// Bits: [`APR_VIS`], [`APR_CLAMPED`], [`APR_PIXEL_TEST`],
+    /// [`APR_COUNT_CAP`].
     pub flags: u32,
     /// f32 values from one plane to the next in the packed bindings.
     pub stride: u32,
@@ -309,6 +325,11 @@ pub const APR_CLAMPED: u32 = 2;
 /// [`t_threshold3`](crate::reference::t_threshold3) standard errors does
 /// not predict that pixel (ours, after LP-PIXEL-TEST).
 pub const APR_PIXEL_TEST: u32 = 4;
+/// [`AprPush::flags`] bit (`apr_block`, `apr_gather`): APR-COUNT-CAP
+/// (`apr.count_cap = on`): the interval test takes a pixel with more
+/// samples than the image's mean at the variance it would have with the
+/// mean (ours).
+pub const APR_COUNT_CAP: u32 = 8;
 
 /// [`LpPush::options`] bit: subtract the test pixel's variance (LP-VARSUB, `s = 1`).
 pub const LP_VARSUB: u32 = 1;

@@ -53,6 +53,7 @@ impl Img {
             v: &self.v,
             feats: &self.feats,
             valid: &self.valid,
+            test_scale: None,
         }
     }
 }

@@ -9,6 +9,7 @@ use common::Rng;
 use mcdenoise::reference::apr::{self as r, Planes};
 use mcdenoise::reference::apr_block::{self as b, Inputs};
 use mcdenoise::reference::apr_gather;
+use mcdenoise::reference::spp_total::{spp_total, spp_total_mean};
 
 /// A noisy image with features in f32 (so both read the same values): a
 /// ramp with a step, normals and albedo with an edge, depth, visibility;
@@ -24,6 +25,8 @@ pub struct Img {
     pub clamped: bool,
     /// APR-PIXEL-TEST in the gather (the default).
     pub pixel_test: bool,
+    /// APR-COUNT-CAP (the default).
+    pub count_cap: bool,
 }
 
 pub fn image(w: usize, h: usize, seed: u64, vis: bool) -> Img {
@@ -64,8 +67,14 @@ pub fn image(w: usize, h: usize, seed: u64, vis: bool) -> Img {
             v[ch][i] = 3.0 + ch as f32;
         }
     }
+    // Counts as an adaptive render leaves them (APR-COUNT-CAP matters).
     let spp = (0..n)
-        .map(|_| if rng.uniform() < 0.03 { 0.0 } else { 4.0 })
+        .map(|_| match rng.uniform() {
+            u if u < 0.03 => 0.0,
+            u if u < 0.85 => 4.0,
+            u if u < 0.95 => 16.0,
+            _ => 64.0,
+        })
         .collect();
     Img {
         w,
@@ -76,6 +85,7 @@ pub fn image(w: usize, h: usize, seed: u64, vis: bool) -> Img {
         spp,
         clamped: true,
         pixel_test: true,
+        count_cap: true,
     }
 }
 
@@ -92,6 +102,7 @@ impl Img {
             spp: &self.spp,
             clamped: self.clamped,
             pixel_test: self.pixel_test,
+            nbar: self.count_cap.then(|| spp_total_mean(spp_total(&self.spp))),
         }
     }
 }
@@ -108,6 +119,7 @@ struct RefChannel {
     v: Vec<f64>,
     feats: Vec<Vec<f64>>,
     valid: Vec<bool>,
+    scales: Vec<f64>,
 }
 
 impl RefChannel {
@@ -119,6 +131,7 @@ impl RefChannel {
             v: f64s(&img.v[ch]),
             feats: img.feats.iter().map(|f| f64s(f)).collect(),
             valid: img.spp.iter().map(|&s| s >= 1.0).collect(),
+            scales: r::test_scales(&img.spp, img.count_cap),
         }
     }
 
@@ -130,6 +143,7 @@ impl RefChannel {
             v: &self.v,
             feats: &self.feats,
             valid: &self.valid,
+            test_scale: Some(&self.scales),
         }
     }
 }
@@ -270,15 +284,17 @@ fn gpu_kernels_match_the_twins() {
     let ctx = common::gpu();
     // `bands`: a small budget per submit, so that the sparse blocks and the
     // extra blocks' queue (reset per band) run in several bands.
-    for (w, h, vis, clamped, bands) in [
-        (45, 38, true, true, false),
-        (29, 17, false, true, false),
-        (1, 9, true, true, false),
-        (45, 38, true, false, false),
-        (45, 38, true, true, true),
+    for (w, h, vis, clamped, bands, count_cap) in [
+        (45, 38, true, true, false, true),
+        (29, 17, false, true, false, true),
+        (1, 9, true, true, false, true),
+        (45, 38, true, false, false, true),
+        (45, 38, true, true, true, true),
+        (45, 38, true, true, false, false),
     ] {
         let mut img = image(w, h, 11, vis);
         img.clamped = clamped;
+        img.count_cap = count_cap;
         let inp: [Inputs; 3] = std::array::from_fn(|ch| img.inputs(ch));
         let gs = GpuStats::upload(&ctx, "apr.test", &stats(&img)).unwrap();
         for precision in common::precisions() {
@@ -303,13 +319,15 @@ fn gpu_kernels_match_the_twins() {
                     prefilter: false,
                     clamped,
                     pixel_test: img.pixel_test,
+                    count_cap,
                 },
+                None,
             )
             .unwrap();
             batch.finish().unwrap();
             let out = planes.out.download_all().unwrap();
             let what = |k: usize| {
-                format!("{w}x{h} {precision:?} clamped={clamped} bands={bands} plane {k}")
+                format!("{w}x{h} {precision:?} clamped={clamped} bands={bands} cap={count_cap} plane {k}")
             };
             for k in [0, 1, 2, 3, 4, 5, 6] {
                 common::assert_close(&what(k), &out[k], &cpu[k], 0.99);
@@ -367,4 +385,62 @@ fn apr_pack_matches_its_twin() {
         assert_eq!(out[1], twin[1], "plane b, vis {vis}");
         assert!(vis || out[1].chunks(4).all(|p| p[3] == 0.0));
     }
+}
+
+/// `spp_total` against its twin, exactly: counts with invalid pixels (0,
+/// below 1, NaN) and fractions, and counts whose total passes 2³² (the
+/// carry into the high word).
+#[test]
+fn spp_total_matches_its_twin() {
+    use mcdenoise::kernels::{run_planes, spp_total as k};
+    use mcdenoise::shared::SppTotalPush;
+    let ctx = common::gpu();
+    let mut rng = Rng(5);
+    for (w, h, big) in [(37usize, 23usize, false), (64, 64, true), (1, 1, false)] {
+        let spp: Vec<f32> = (0..w * h)
+            .map(|_| match rng.uniform() {
+                _ if big => 100_000.0 + (rng.uniform() * 1000.0).floor() as f32,
+                u if u < 0.05 => 0.0,
+                u if u < 0.08 => 0.5,
+                u if u < 0.1 => f32::NAN,
+                u if u < 0.2 => 4.0 + rng.uniform() as f32,
+                _ => (1.0 + 64.0 * rng.uniform()).floor() as f32,
+            })
+            .collect();
+        let push = SppTotalPush {
+            width: w as u32,
+            height: h as u32,
+            ..Default::default()
+        };
+        let (out, _) = run_planes(
+            &ctx,
+            &k::DECL,
+            mcdenoise::gpu::Precision::F32,
+            bytemuck::bytes_of(&push),
+            w,
+            h,
+            &[&spp],
+            &[k::WORDS],
+            k::FLOPS_PER_PIXEL,
+        )
+        .unwrap();
+        let gpu: [u32; 3] = std::array::from_fn(|i| out[0][i].to_bits());
+        let twin = spp_total(&spp);
+        assert_eq!(gpu, twin, "{w}x{h}");
+        assert_eq!(twin[1] > 0, big, "{w}x{h}: the high word");
+        let valid = spp.iter().filter(|s| s.is_finite() && **s >= 1.0).count();
+        assert_eq!(twin[2] as usize, valid);
+        let mean = spp
+            .iter()
+            .filter(|s| s.is_finite() && **s >= 1.0)
+            .map(|&s| s as f64)
+            .sum::<f64>()
+            / valid as f64;
+        let m = spp_total_mean(twin) as f64;
+        assert!(
+            (m - mean).abs() <= 1e-3 * mean,
+            "{w}x{h}: mean {m} against {mean}"
+        );
+    }
+    common::check_validation(&ctx);
 }

@@ -20,14 +20,16 @@ fn all() -> impl Iterator<Item = &'static KernelDecl> {
 const INTEGER_ONLY: &[&str] = &["sample_reduce", "sample_scan", "render_scan"];
 
 /// Kernels that compute in f32 by design and never use `real`: the path
-/// tracer (`src/render/`), and LP's centre selection (it compares stored
-/// f32 reaches with distances); their `_f64` variant is the same code.
+/// tracer (`src/render/`), LP's centre selection (it compares stored f32
+/// reaches with distances) and the sample total (f32 counts rounded to
+/// integers, APR-COUNT-CAP); their `_f64` variant is the same code.
 const F32_ONLY: &[&str] = &[
     "render_trace",
     "render_rays",
     "render_lights",
     "render_resolve",
     "lp_select",
+    "spp_total",
 ];
 
 /// Kernels that only move data (the bandwidth probe of `bench --peak`, the

@@ -4,8 +4,8 @@
 //
 // The including kernel declares, before the include: the push block `push`
 // (AprPush: width, height, row0, channel, mode, last, flags, stride), the
-// feature planes f0..f7 (normal xyz, albedo rgb, depth, visibility) and
-// `spp`.
+// feature planes f0..f7 (normal xyz, albedo rgb, depth, visibility),
+// `spp`, and `sppt`, spp_total's three words.
 //
 // Design row (fixed 18 columns, reference::apr_block): five real4,
 // x0 = (1, dnx, dny, dnz), x1 = (dar, dag, dab, ddepth),
@@ -33,6 +33,8 @@
 // AprPush.flags bits (mirror mcdenoise::shared::APR_VIS, APR_CLAMPED).
 #define APR_VIS 1u
 #define APR_CLAMPED 2u
+// AprPush.flags bit (mirror mcdenoise::shared::APR_COUNT_CAP).
+#define APR_COUNT_CAP 8u
 
 bool apr_valid(uint i) { return spp_of(spp[i]) >= 1.0; }
 
@@ -55,10 +57,28 @@ real apr_fit_weight(real k, real vq)
     return (push.flags & APR_CLAMPED) != 0u ? k / max(vq, real(1)) : k;
 }
 
-// The confidence-interval test (§4.2 step 1) of pixel q in the block of c.
+// The confidence-interval test (§4.2 step 1) of pixel q in the block of c,
+// on the variances apr_test_var gives.
 bool apr_accepts(real yc, real vc, real yq, real vq)
 {
     return abs(yq - yc) <= real(APR_REJECT) * sqrt(max(vq + vc, real(0)));
+}
+
+// The image's mean sample count over its valid pixels (spp_total).
+float apr_nbar()
+{
+    return spp_total_mean(sppt[0], sppt[1], sppt[2]);
+}
+
+// The variance pixel q's mean enters the interval test with: with
+// APR_COUNT_CAP, the variance it would have at the image's mean count nbar
+// when it has more samples, v * max(1, n_q / nbar) (APR-COUNT-CAP); else v.
+real apr_test_var(real v, uint q, float nbar)
+{
+    if ((push.flags & APR_COUNT_CAP) == 0u || nbar <= 0.0) {
+        return v;
+    }
+    return v * real(max(1.0, spp_of(spp[q]) / nbar));
 }
 
 // The design row of pixel q (position dq = q - c) for a block with centre

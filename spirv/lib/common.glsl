@@ -48,6 +48,23 @@ bool is_finite(float x) { return !isnan(x) && !isinf(x); }
 // A non-finite or negative count is treated as 0 (invalid).
 float spp_of(float s) { return (is_finite(s) && s >= 1.0) ? s : 0.0; }
 
+// APR-COUNT-CAP's sample total (spp_total.comp; twin reference::spp_total):
+// a pixel counts at most this many samples, so that a workgroup's 64 pixels
+// of 16 n each fit in 32 bits.
+#define SPP_TOTAL_MAX 2097152.0
+
+// The mean sample count of the valid pixels from spp_total's three words
+// (0 when there are none), in this order of f32 operations (the twin and the
+// tile driver compute it alike).
+float spp_total_mean(uint lo, uint hi, uint count)
+{
+    if (count == 0u) {
+        return 0.0;
+    }
+    float sum = float(hi) * 4294967296.0 + float(lo);
+    return sum / (16.0 * float(count));
+}
+
 // A 3-sigma test's threshold for a mean whose variance is estimated from its
 // own n samples: the one-sided Phi(-3) quantile of Student's t with
 // nu = max(n - 1, 1) degrees of freedom, by its Cornish-Fisher expansion to

@@ -31,6 +31,7 @@ pub const DECL: KernelDecl = KernelDecl {
         write("state").sized_by_record(),
         write("extra").sized_by_record(),
         write("queue").sized_by_record(),
+        read("spp_total").sized_by_record(),
     ],
     push_size: std::mem::size_of::<AprPush>() as u32,
 };
@@ -128,13 +129,14 @@ pub fn record(
     push: &AprPush,
     ch: &AprChannel,
     feats: &[BufferSlice; 2],
-    spp: BufferSlice,
+    (spp, sppt): (BufferSlice, BufferSlice),
     (state, extra, queue): (BufferSlice, BufferSlice, BufferSlice),
     extra_fraction: f64,
 ) -> Result<()> {
+    DECL.require(10, &sppt, 4 * super::spp_total::WORDS as u64)?;
     let mut b = vec![ch.y, ch.v, ch.yprev, ch.s2prev];
     b.extend_from_slice(feats);
-    b.extend([spp, state, extra, queue]);
+    b.extend([spp, state, extra, queue, sppt]);
     let (w, h) = (push.width as u64, push.height as u64);
     if push.mode == 0 {
         // The block states of channels 0..=channel.

@@ -30,6 +30,7 @@ pub const DECL: KernelDecl = KernelDecl {
         read("state").sized_by_record(),
         read("extra").sized_by_record(),
         write("dst").sized_by_record(),
+        read("spp_total").sized_by_record(),
     ],
     push_size: std::mem::size_of::<AprPush>() as u32,
 };
@@ -46,11 +47,12 @@ pub fn record(
     color: [BufferSlice; 3],
     var: [BufferSlice; 3],
     feats: &[BufferSlice; 2],
-    spp: BufferSlice,
+    (spp, sppt): (BufferSlice, BufferSlice),
     state: BufferSlice,
     extra: BufferSlice,
     dst: BufferSlice,
 ) -> Result<()> {
+    DECL.require(12, &sppt, 4 * super::spp_total::WORDS as u64)?;
     let (w, h) = (push.width as usize, push.height as usize);
     let (gw, gh) = crate::shared::apr_grid(w, h);
     let (pixels, stride) = ((w * h) as u64, push.stride as u64);
@@ -64,7 +66,7 @@ pub fn record(
         APR_STAGE_OUTPUTS
     } as u64;
     DECL.require(11, &dst, 4 * ((outputs - 1) * stride + pixels))?;
-    let groups: [&[BufferSlice]; 4] = [&color, &var, feats, &[spp, state, extra, dst]];
+    let groups: [&[BufferSlice]; 4] = [&color, &var, feats, &[spp, state, extra, dst, sppt]];
     let flops = FLOPS_PER_PIXEL;
     super::dispatch_image(batch, &DECL, precision, push, &groups, flops)
 }

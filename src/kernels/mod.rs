@@ -47,6 +47,7 @@ pub mod sample_scan;
 pub mod sanitize;
 pub mod sanitize_low_spp;
 pub mod sanitize_quads;
+pub mod spp_total;
 pub mod tsvd_debug;
 pub mod wlr_final;
 pub mod wlr_fit;
@@ -75,6 +76,7 @@ pub const ALL: &[&KernelDecl] = &[
     &estimate_variance::DECL,
     &tsvd_debug::DECL,
     &channel_mean::DECL,
+    &spp_total::DECL,
     &gauss_rows::DECL,
     &gauss_smooth::DECL,
     &wlr_fit::DECL,

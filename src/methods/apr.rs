@@ -18,12 +18,12 @@ use crate::gpu::{plane_stride, Batch, BufferSlice, GpuBuffer, GpuContext, PlaneS
 use crate::image::{Layer, RgbImage, StatsImage};
 use crate::kernels::apr_block::{self, AprChannel};
 use crate::kernels::apr_gather::{self, EXTRA_PLANES, OUTPUTS, STAGE_OUTPUTS};
-use crate::kernels::apr_pack;
+use crate::kernels::{apr_pack, spp_total};
 use crate::options::Options;
 use crate::reference::apr::{self as r, Planes};
 use crate::reference::apr_block::{grid, RADIUS, STATE};
 use crate::reference::spp_of;
-use crate::shared::{AprPush, APR_CLAMPED, APR_PIXEL_TEST, APR_VIS};
+use crate::shared::{AprPush, APR_CLAMPED, APR_COUNT_CAP, APR_PIXEL_TEST, APR_VIS};
 
 /// APR's options.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
@@ -42,6 +42,10 @@ pub struct AprParams {
     /// `apr.pixel_test=on` (default): APR-PIXEL-TEST (see
     /// `reference::apr_gather::apr_gather`).
     pub pixel_test: bool,
+    /// `apr.count_cap=on` (default): APR-COUNT-CAP, the interval test takes
+    /// a pixel with more samples than the image's mean at the variance it
+    /// would have with the mean (see [`r::test_scale`]).
+    pub count_cap: bool,
 }
 
 impl AprParams {
@@ -61,6 +65,7 @@ impl AprParams {
             prefilter: opts.get("apr.prefilter") == "on",
             clamped: opts.get("apr.outlier_weight") == "clamped",
             pixel_test: opts.get("apr.pixel_test") == "on",
+            count_cap: opts.get("apr.count_cap") == "on",
         })
     }
 }
@@ -132,6 +137,8 @@ pub fn run_cpu(
         .map(|&s| spp_of(s) >= 1.0)
         .collect();
     let (mut feats, fvar) = features(clean)?;
+    let spp = &need(Layer::Spp)?[0];
+    let scales = r::test_scales(spp, params.count_cap);
     if prefilter_features {
         for (f, v) in feats.iter_mut().zip(&fvar) {
             *f = r::prefilter_plane(w, h, f, v, &valid);
@@ -151,8 +158,8 @@ pub fn run_cpu(
             v: &v,
             feats: &feats,
             valid: &valid,
+            test_scale: Some(&scales),
         };
-        let spp = &need(Layer::Spp)?[0];
         let res = r::channel(
             &pl,
             params.stages,
@@ -204,6 +211,8 @@ pub struct AprPlanes {
     pub out: PlaneSet,
     /// The features packed by [`apr_pack`] (2 vec4 planes, APR-PACKED).
     pub packed: PlaneSet,
+    /// The image's sample total ([`spp_total`], APR-COUNT-CAP).
+    pub total: GpuBuffer,
     width: usize,
     height: usize,
 }
@@ -241,6 +250,7 @@ impl AprPlanes {
             ],
             out: PlaneSet::new(ctx, "apr.out", n, OUTPUTS)?,
             packed: PlaneSet::new(ctx, "apr.packed", 4 * n, 2)?,
+            total: GpuBuffer::new(ctx, "apr.total", 4 * spp_total::WORDS as u64)?,
             width,
             height,
         })
@@ -285,20 +295,25 @@ pub fn gpu_features(clean: &GpuStats) -> ([BufferSlice; 8], bool) {
 }
 
 /// [`AprPush::flags`] of a dispatch.
-fn apr_flags(vis: bool, clamped: bool) -> u32 {
-    (if vis { APR_VIS } else { 0 }) | (if clamped { APR_CLAMPED } else { 0 })
+fn apr_flags(vis: bool, clamped: bool, count_cap: bool) -> u32 {
+    (if vis { APR_VIS } else { 0 })
+        | (if clamped { APR_CLAMPED } else { 0 })
+        | (if count_cap { APR_COUNT_CAP } else { 0 })
 }
 
 /// Records APR (§4.2–4.3) on sanitised (and outlier-cleaned) statistics:
-/// per stage, the sparse blocks of each channel, the extra blocks, the
-/// gather. The outputs stay on the GPU in `planes`. The feature prefilter
-/// (§4.6, `apr.prefilter=on`) runs on the CPU backend only.
+/// the image's sample total (APR-COUNT-CAP: `total`, the whole image's when
+/// this is a tile, else counted here), then per stage the sparse blocks of
+/// each channel, the extra blocks, the gather. The outputs stay on the GPU
+/// in `planes`. The feature prefilter (§4.6, `apr.prefilter=on`) runs on
+/// the CPU backend only.
 pub fn record_apr(
     batch: &mut Batch,
     precision: Precision,
     clean: &GpuStats,
     planes: &AprPlanes,
     params: AprParams,
+    total: Option<[u32; 3]>,
 ) -> Result<()> {
     let (w, h) = (clean.width, clean.height);
     if (w, h) != (planes.width, planes.height) {
@@ -313,6 +328,18 @@ pub fn record_apr(
     let var: [BufferSlice; 3] = std::array::from_fn(|c| clean.plane(Layer::ColorVariance, c));
     let stride = (plane_stride(w * h) / 4) as u32;
     let stages = params.stages.max(1);
+    match total {
+        Some(words) => {
+            for (k, &word) in words.iter().enumerate() {
+                batch.fill(planes.total.range(4 * k as u64, 4), word);
+            }
+        }
+        None => {
+            batch.fill(planes.total.slice(), 0);
+            spp_total::record(batch, w as u32, h as u32, spp, planes.total.slice())?;
+        }
+    }
+    let sppt = (spp, planes.total.slice());
     // APR-PACKED: the features as 2 vec4 planes, read by every stage.
     let packed = [planes.packed.plane(0), planes.packed.plane(1)];
     apr_pack::record(
@@ -321,7 +348,7 @@ pub fn record_apr(
         &AprPush {
             width: w as u32,
             height: h as u32,
-            flags: apr_flags(vis, false),
+            flags: apr_flags(vis, false, false),
             ..Default::default()
         },
         &feats,
@@ -345,7 +372,7 @@ pub fn record_apr(
                     channel: ch as u32,
                     mode,
                     last: last as u32,
-                    flags: apr_flags(vis, params.clamped),
+                    flags: apr_flags(vis, params.clamped, params.count_cap),
                     stride,
                     ..Default::default()
                 };
@@ -355,7 +382,7 @@ pub fn record_apr(
                     &push,
                     &chan,
                     &packed,
-                    spp,
+                    sppt,
                     (
                         planes.state.slice(),
                         planes.extra.all(),
@@ -369,7 +396,8 @@ pub fn record_apr(
             width: w as u32,
             height: h as u32,
             last: last as u32,
-            flags: apr_flags(vis, false) | if params.pixel_test { APR_PIXEL_TEST } else { 0 },
+            flags: apr_flags(vis, false, params.count_cap)
+                | if params.pixel_test { APR_PIXEL_TEST } else { 0 },
             stride,
             ..Default::default()
         };
@@ -385,7 +413,7 @@ pub fn record_apr(
             color,
             var,
             &packed,
-            spp,
+            sppt,
             planes.state.slice(),
             planes.extra.all(),
             dst,
@@ -487,7 +515,14 @@ struct AprStage {
 
 impl GpuStage for AprStage {
     fn record(&self, batch: &mut Batch, run: &StageRun) -> Result<()> {
-        record_apr(batch, run.precision, run.stats, &self.planes, self.params)
+        record_apr(
+            batch,
+            run.precision,
+            run.stats,
+            &self.planes,
+            self.params,
+            run.spp_total,
+        )
     }
 
     fn color(&self, _: &GpuStats) -> [BufferSlice; 3] {

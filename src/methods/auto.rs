@@ -174,6 +174,7 @@ impl GpuStage for AutoStage {
                     maps: false,
                     origin: run.origin,
                     prefiltered: run.prefiltered,
+                    spp_total: run.spp_total,
                 },
             )?;
         }

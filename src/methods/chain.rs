@@ -123,6 +123,34 @@ pub struct Placement {
     /// `[left | top << 16, right | bottom << 16]`
     /// ([`crate::shared::SanitizePush::skip_lo`]).
     pub skip: [u32; 2],
+    /// The whole image's sample totals when the chain is a tile of it
+    /// (APR-COUNT-CAP); `None`: the chain's image is the whole.
+    pub totals: Option<ImageTotals>,
+}
+
+/// An image's sample totals ([`crate::reference::spp_total::spp_total`]'s
+/// words) at the full resolution and at the pyramid's coarse level
+/// ([`ImageTotals::of`]).
+#[derive(Copy, Clone, Debug, Default, PartialEq, Eq)]
+pub struct ImageTotals {
+    /// The statistics' own.
+    pub fine: [u32; 3],
+    /// Their 2×2-pooled counts' (PYRAMID-LOWBAND).
+    pub coarse: [u32; 3],
+}
+
+impl ImageTotals {
+    /// The totals of a `width × height` image's sample counts.
+    pub fn of(spp: &[f32], width: usize, height: usize) -> ImageTotals {
+        let (cw, ch) = crate::reference::pyramid_pool::coarse_size(width, height);
+        let mut pooled = vec![0.0f32; cw * ch];
+        let push = super::pyramid::pool_push((width, height), crate::shared::PYRAMID_COUNT);
+        crate::reference::pyramid_pool::pyramid_pool(&push, spp, spp, &mut pooled);
+        ImageTotals {
+            fine: crate::reference::spp_total::spp_total(spp),
+            coarse: crate::reference::spp_total::spp_total(&pooled),
+        }
+    }
 }
 
 /// Whether the G-buffer prefilter runs for `method` with `prefilter` on an
@@ -548,7 +576,13 @@ impl GpuChain {
             at.skip,
         )?;
         if let Some(py) = &self.pyramid {
-            py.record_coarse(batch, p, &self.stats, at.origin)?;
+            py.record_coarse(
+                batch,
+                p,
+                &self.stats,
+                at.origin,
+                at.totals.map(|t| t.coarse),
+            )?;
         }
         if let Some(o) = &self.outliers {
             outliers::record_remove(batch, p, &self.stats, o)?;
@@ -565,6 +599,7 @@ impl GpuChain {
                 maps,
                 origin: at.origin,
                 prefiltered: self.gbf.is_some(),
+                spp_total: at.totals.map(|t| t.fine),
             },
         )?;
         let spp = self.stats.plane(Layer::Spp, 0);
@@ -595,13 +630,23 @@ impl GpuChain {
     /// statistics were pooled into [`clean`](Self::clean): the chain up to
     /// its method's outputs.
     /// `origin`: the coarse image pixel of its pixel `(0, 0)` (a tile's).
-    pub(super) fn record_pooled(&self, batch: &mut Batch, origin: (u32, u32)) -> Result<()> {
+    /// `total`: the whole coarse image's sample total when this is a tile.
+    pub(super) fn record_pooled(
+        &self,
+        batch: &mut Batch,
+        origin: (u32, u32),
+        total: Option<[u32; 3]>,
+    ) -> Result<()> {
         if !batch.is_counting() {
             self.uploaded.store(true, Ordering::SeqCst);
         }
         let at = Placement {
             origin,
             skip: [0, 0],
+            totals: total.map(|fine| ImageTotals {
+                fine,
+                coarse: [0; 3],
+            }),
         };
         self.record_method(batch, None, at, false)
     }

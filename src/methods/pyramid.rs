@@ -158,6 +158,7 @@ impl PyramidStage {
         p: Precision,
         fine: &GpuStats,
         origin: (u32, u32),
+        total: Option<[u32; 3]>,
     ) -> Result<()> {
         let coarse = self.coarse.clean();
         let spp = fine.plane(Layer::Spp, 0);
@@ -175,7 +176,7 @@ impl PyramidStage {
             }
         }
         self.coarse
-            .record_pooled(batch, (origin.0 / 2, origin.1 / 2))
+            .record_pooled(batch, (origin.0 / 2, origin.1 / 2), total)
     }
 
     /// Records the merge of the fine level's reconstruction `fine` with the

@@ -106,6 +106,10 @@ pub struct StageRun<'a> {
     pub origin: (u32, u32),
     /// Whether the G-buffer prefilter ran before the method.
     pub prefiltered: bool,
+    /// The whole image's sample total ([`crate::reference::spp_total`]'s
+    /// words) when the chain runs one tile of it; `None`: the chain's
+    /// statistics are the image (APR-COUNT-CAP counts them).
+    pub spp_total: Option<[u32; 3]>,
 }
 
 /// A method's GPU stage: its buffers and how to record it. Outputs stay on

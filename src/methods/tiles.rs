@@ -63,7 +63,7 @@ use crate::image::{crop_plane, Layer, RgbImage, StatsImage};
 use crate::kernels::gauss_smooth;
 use crate::reference;
 
-use super::chain::{prefilter_runs, ChainConfig, ChainInput, GpuChain, Placement};
+use super::chain::{prefilter_runs, ChainConfig, ChainInput, GpuChain, ImageTotals, Placement};
 use super::sampling::{self, SamplingParams, SamplingPlanes};
 use super::{prepare, DenoiseOutput, Method, ProgressCallback};
 
@@ -120,13 +120,15 @@ impl Tile {
 
     /// Where the tile's chain lies in the image, and the margins whose
     /// sanitation repairs other tiles count.
-    pub fn placement(&self) -> Placement {
+    /// `totals`: the whole image's ([`ImageTotals::of`]).
+    pub fn placement(&self, totals: ImageTotals) -> Placement {
         let l = self.inner_local();
         let (w, h) = (self.outer.width(), self.outer.height());
         let pack = |a: usize, b: usize| (a as u32) | (b as u32) << 16;
         Placement {
             origin: (self.outer.x0 as u32, self.outer.y0 as u32),
             skip: [pack(l.x0, l.y0), pack(w - l.x1, h - l.y1)],
+            totals: Some(totals),
         }
     }
 }
@@ -580,6 +582,11 @@ impl TiledChain {
                 .or_default()
                 .push(i);
         }
+        // What is global to the image and some stage needs (APR-COUNT-CAP).
+        let spp = img
+            .get(Layer::Spp)
+            .ok_or_else(|| Error::BadData("the statistics have no spp layer".into()))?;
+        let totals = ImageTotals::of(&spp[0], w, h);
         let mut done = 0usize;
         for ((ow, oh), members) in groups {
             let chain = GpuChain::new(
@@ -598,7 +605,7 @@ impl TiledChain {
                 drop(sub);
                 let mut batch = crate::gpu::Batch::new(&self.ctx)?;
                 batch.progress = batch_progress;
-                chain.record_tile(&mut batch, t.placement(), budget.is_some())?;
+                chain.record_tile(&mut batch, t.placement(totals), budget.is_some())?;
                 let tile_timings = batch.finish()?;
                 let local = t.inner_local();
                 let out = chain.download_in(Some(local))?;

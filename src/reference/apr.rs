@@ -75,6 +75,41 @@ pub struct Planes<'a> {
     pub feats: &'a [Vec<f64>],
     /// Valid pixels (§0.2).
     pub valid: &'a [bool],
+    /// APR-COUNT-CAP: per pixel the factor on its variance in the interval
+    /// test ([`test_scales`]); `None`: the spec's test.
+    pub test_scale: Option<&'a [f64]>,
+}
+
+impl Planes<'_> {
+    /// The variance pixel `q` enters the interval test with.
+    pub fn test_var(&self, q: usize) -> f64 {
+        self.v[q] * self.test_scale.map_or(1.0, |s| s[q])
+    }
+}
+
+/// Decision APR-COUNT-CAP (ours): the factor on pixel `q`'s variance in
+/// §4.2's interval test, `max(1, n_q / n̄)` with `n̄` the image's mean count
+/// over its valid pixels ([`spp_total_mean`](super::spp_total::spp_total_mean)),
+/// in f32 as on the GPU. The test runs on variances of the means, so under
+/// adaptive sampling it tightens without bound where a map pours samples:
+/// a pixel with 16× the mean's samples rejects neighbours whose levels the
+/// polynomial models, falls back to a block of its own (COVER), and keeps
+/// its noise. Capped, a pixel is tested as if it had the mean's count; on a
+/// uniform render nothing changes.
+pub fn test_scale(spp: f32, nbar: f32) -> f64 {
+    if nbar > 0.0 {
+        (super::spp_of(spp) as f32 / nbar).max(1.0) as f64
+    } else {
+        1.0
+    }
+}
+
+/// [`test_scale`] of every pixel of `spp` (all 1 when `on` is false).
+pub fn test_scales(spp: &[f32], on: bool) -> Vec<f64> {
+    let nbar = super::spp_total::spp_total_mean(super::spp_total::spp_total(spp));
+    spp.iter()
+        .map(|&s| if on { test_scale(s, nbar) } else { 1.0 })
+        .collect()
 }
 
 /// Window and rejection of a kind of block.
@@ -218,7 +253,8 @@ pub fn design(pl: &Planes, shape: Shape, c: usize) -> Design {
             }
             if shape.reject
                 && q != c
-                && (pl.y[q] - pl.y[c]).abs() > REJECT_K * (pl.v[q] + pl.v[c]).max(0.0).sqrt()
+                && (pl.y[q] - pl.y[c]).abs()
+                    > REJECT_K * (pl.test_var(q) + pl.test_var(c)).max(0.0).sqrt()
             {
                 continue;
             }
@@ -599,6 +635,7 @@ pub fn prefilter_plane(w: usize, h: usize, f: &[f64], var: &[f64], valid: &[bool
         v: var,
         feats: &[],
         valid,
+        test_scale: None,
     };
     let n = w * h;
     let s: Vec<f64> = var.iter().map(|v| v.max(0.0).sqrt()).collect();

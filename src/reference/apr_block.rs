@@ -66,6 +66,10 @@ pub struct Inputs<'a> {
     pub clamped: bool,
     /// APR-PIXEL-TEST in the gather ([`super::apr::channel`], [`super::pixel_test_limit`]).
     pub pixel_test: bool,
+    /// APR-COUNT-CAP: the image's mean count
+    /// ([`spp_total_mean`](super::spp_total::spp_total_mean)); `None`: the
+    /// spec's test.
+    pub nbar: Option<f32>,
 }
 
 impl Inputs<'_> {
@@ -84,12 +88,21 @@ impl Inputs<'_> {
         weight(self.w, c, q) * super::apr::outlier_weight(self.v[q] as f64, self.clamped)
     }
 
+    /// The variance pixel `q` enters the interval test with: `v_q`, times
+    /// [`test_scale`](super::apr::test_scale) under APR-COUNT-CAP.
+    pub fn test_var(&self, q: usize) -> f64 {
+        self.v[q] as f64
+            * self
+                .nbar
+                .map_or(1.0, |m| super::apr::test_scale(self.spp[q], m))
+    }
+
     /// The confidence-interval test of §4.2 step 1 (`i` always accepts
     /// itself; the caller checks validity).
     pub fn accepts(&self, c: usize, i: usize) -> bool {
         i == c
             || (self.y[i] as f64 - self.y[c] as f64).abs()
-                <= REJECT_K * (self.v[i] as f64 + self.v[c] as f64).max(0.0).sqrt()
+                <= REJECT_K * (self.test_var(i) + self.test_var(c)).max(0.0).sqrt()
     }
 }
 

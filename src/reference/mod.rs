@@ -58,6 +58,7 @@ pub mod sampling;
 pub mod sanitize;
 pub mod sanitize_low_spp;
 pub mod sanitize_quads;
+pub mod spp_total;
 pub mod tsvd;
 pub mod tsvd_debug;
 pub mod wlr;

@@ -22,6 +22,7 @@ fn main() {
         .collect();
     let valid = vec![true; w * h];
     let (feats, _) = mcdenoise::methods::apr::features(&stats).unwrap();
+    let scales = r::test_scales(&stats.get(Layer::Spp).unwrap()[0], true);
     let pl = r::Planes {
         w,
         h,
@@ -29,6 +30,7 @@ fn main() {
         v: &v,
         feats: &feats,
         valid: &valid,
+        test_scale: Some(&scales),
     };
     if a.get(5).is_some() {
         let rf = mcdenoise::io::read_rgb(std::path::Path::new(&a[5])).unwrap();
