@@ -7,8 +7,8 @@
 //! The interiors are pasted together; the output is **bit-identical** to the
 //! untiled run on the same device (tested in `tests/tiles.rs`).
 //!
-//! Three things depend on where a tile lies in the image, not only on its
-//! pixels, and are carried over:
+//! Four things depend on where a tile lies in the image, or on the whole
+//! image, not only on its pixels, and are carried over:
 //! - LP's candidate grids (§3.5, `px mod g = 0`): the tile's grid phase
 //!   ([`crate::shared::LpPush::phase_for`], from the tile's origin, [`Tile::placement`]);
 //! - APR's sparse centres every 14 pixels (§4.3), and the 32-pixel spans
@@ -17,7 +17,10 @@
 //!   the tile's first column and row are multiples of both ([`alignment`]),
 //!   so its grids and spans are the image's;
 //! - the sanitation counters (§0.4): a tile counts the repairs of its
-//!   interior only ([`Tile::placement`]'s margins), so the report counts each pixel once.
+//!   interior only ([`Tile::placement`]'s margins), so the report counts each pixel once;
+//! - APR's mean sample count (APR-COUNT-CAP): the tile driver counts the
+//!   whole image's samples on the host ([`ImageTotals::of`]) and every
+//!   tile's APR takes those words instead of counting its own.
 //!
 //! What is global by nature, the sample map's allocation (§9.2: the sum of
 //! the priorities, their prefix sum), runs once, untiled, on the priority
