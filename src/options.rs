@@ -150,7 +150,7 @@ pub const OPTIONS: &[OptionSpec] = &[
         kind: Kind::Choice(&["on", "off"]),
         default: "on",
         section: "§4.2 step 1 (APR-COUNT-CAP)",
-        help: "the interval test takes a pixel with more samples than the image's mean at the variance it would have with the mean (on; matters on adaptive renders), or at its own (off, the spec)",
+        help: "the interval test takes a pixel with more than twice the image's mean count at the variance it would have with twice the mean (on; matters on adaptive renders), or at its own (off, the spec)",
     },
     OptionSpec {
         key: "apr.prefilter",

@@ -326,9 +326,9 @@ pub const APR_CLAMPED: u32 = 2;
 /// not predict that pixel (ours, after LP-PIXEL-TEST).
 pub const APR_PIXEL_TEST: u32 = 4;
 /// [`AprPush::flags`] bit (`apr_block`, `apr_gather`): APR-COUNT-CAP
-/// (`apr.count_cap = on`): the interval test takes a pixel with more
-/// samples than the image's mean at the variance it would have with the
-/// mean (ours).
+/// (`apr.count_cap = on`): the interval test takes a pixel with more than
+/// twice the image's mean count at the variance it would have with twice
+/// the mean (ours).
 pub const APR_COUNT_CAP: u32 = 8;
 
 /// [`LpPush::options`] bit: subtract the test pixel's variance (LP-VARSUB, `s = 1`).

@@ -33,8 +33,11 @@
 // AprPush.flags bits (mirror mcdenoise::shared::APR_VIS, APR_CLAMPED).
 #define APR_VIS 1u
 #define APR_CLAMPED 2u
-// AprPush.flags bit (mirror mcdenoise::shared::APR_COUNT_CAP).
+// AprPush.flags bit (mirror mcdenoise::shared::APR_COUNT_CAP), and the
+// multiple of the mean count the test's precision stops at (mirror
+// reference::apr::COUNT_CAP_K).
 #define APR_COUNT_CAP 8u
+#define APR_COUNT_CAP_K 2.0
 
 bool apr_valid(uint i) { return spp_of(spp[i]) >= 1.0; }
 
@@ -71,14 +74,15 @@ float apr_nbar()
 }
 
 // The variance pixel q's mean enters the interval test with: with
-// APR_COUNT_CAP, the variance it would have at the image's mean count nbar
-// when it has more samples, v * max(1, n_q / nbar) (APR-COUNT-CAP); else v.
+// APR_COUNT_CAP, the variance it would have with APR_COUNT_CAP_K times the
+// image's mean count nbar when it has more samples,
+// v * max(1, n_q / (K nbar)) (APR-COUNT-CAP); else v.
 real apr_test_var(real v, uint q, float nbar)
 {
     if ((push.flags & APR_COUNT_CAP) == 0u || nbar <= 0.0) {
         return v;
     }
-    return v * real(max(1.0, spp_of(spp[q]) / nbar));
+    return v * real(max(1.0, spp_of(spp[q]) / (APR_COUNT_CAP_K * nbar)));
 }
 
 // The design row of pixel q (position dq = q - c) for a block with centre

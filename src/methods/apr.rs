@@ -43,8 +43,8 @@ pub struct AprParams {
     /// `reference::apr_gather::apr_gather`).
     pub pixel_test: bool,
     /// `apr.count_cap=on` (default): APR-COUNT-CAP, the interval test takes
-    /// a pixel with more samples than the image's mean at the variance it
-    /// would have with the mean (see [`r::test_scale`]).
+    /// a pixel with more than twice the image's mean count at the variance
+    /// it would have with twice the mean (see [`r::test_scale`]).
     pub count_cap: bool,
 }
 

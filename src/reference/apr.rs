@@ -87,18 +87,23 @@ impl Planes<'_> {
     }
 }
 
+/// APR-COUNT-CAP: the multiple of the image's mean count at which the
+/// interval test's precision stops growing.
+pub const COUNT_CAP_K: f32 = 2.0;
+
 /// Decision APR-COUNT-CAP (ours): the factor on pixel `q`'s variance in
-/// §4.2's interval test, `max(1, n_q / n̄)` with `n̄` the image's mean count
-/// over its valid pixels ([`spp_total_mean`](super::spp_total::spp_total_mean)),
-/// in f32 as on the GPU. The test runs on variances of the means, so under
-/// adaptive sampling it tightens without bound where a map pours samples:
-/// a pixel with 16× the mean's samples rejects neighbours whose levels the
-/// polynomial models, falls back to a block of its own (COVER), and keeps
-/// its noise. Capped, a pixel is tested as if it had the mean's count; on a
+/// §4.2's interval test, `max(1, n_q / (K n̄))` with `K` = [`COUNT_CAP_K`]
+/// and `n̄` the image's mean count over its valid pixels
+/// ([`spp_total_mean`](super::spp_total::spp_total_mean)), in f32 as on the
+/// GPU. The test runs on variances of the means, so under adaptive sampling
+/// it tightens without bound where a map pours samples: a pixel with many
+/// times the mean's samples rejects neighbours whose levels the polynomial
+/// models, falls back to a block of its own (COVER), and keeps its noise.
+/// Capped, a pixel is tested as if it had at most `K n̄` samples; on a
 /// uniform render nothing changes.
 pub fn test_scale(spp: f32, nbar: f32) -> f64 {
     if nbar > 0.0 {
-        (super::spp_of(spp) as f32 / nbar).max(1.0) as f64
+        (super::spp_of(spp) as f32 / (COUNT_CAP_K * nbar)).max(1.0) as f64
     } else {
         1.0
     }
