@@ -127,7 +127,7 @@ void main()
     // centre together (APR-GATHER-CENTRES): its validity, features, colour
     // and spatial weight are loaded and computed once for the three.
     float nbar = apr_nbar();
-    real fi = apr_test_var(real(1), i, nbar);
+    real fi = apr_test_scale(i, nbar);
     bvec3 missed = bvec3(false);
     real3 ws = real3(0), ay = real3(0), as_ = real3(0), ae = real3(0), ad = real3(0);
     for (int cy = apr_first_centre(p.y); valid && cy <= min(p.y + APR_R, size.y - 1); cy += APR_R) {
@@ -140,7 +140,7 @@ void main()
             real4 fcb = apr_fb(c);
             real3 yc3 = real3(col_r[c], col_g[c], col_b[c]);
             // The interval test's variances (APR-COUNT-CAP).
-            real fc = apr_test_var(real(1), c, nbar);
+            real fc = apr_test_scale(c, nbar);
             real3 vc3 = fc * real3(var_r[c], var_g[c], var_b[c]);
             real k = apr_weight(p.x - cx, p.y - cy);
             uint cell = uint((cy / APR_R) * gw + cx / APR_R);

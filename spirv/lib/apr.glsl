@@ -73,16 +73,23 @@ float apr_nbar()
     return spp_total_mean(sppt[0], sppt[1], sppt[2]);
 }
 
-// The variance pixel q's mean enters the interval test with: with
-// APR_COUNT_CAP, the variance it would have with APR_COUNT_CAP_K times the
-// image's mean count nbar when it has more samples,
-// v * max(1, n_q / (K nbar)) (APR-COUNT-CAP); else v.
-real apr_test_var(real v, uint q, float nbar)
+// The factor on pixel q's variance in the interval test: with
+// APR_COUNT_CAP, max(1, n_q / (K nbar)), so that a pixel with more than
+// APR_COUNT_CAP_K times the image's mean count nbar is tested at the
+// variance it would have with K nbar (APR-COUNT-CAP); else 1. Twin:
+// reference::apr::test_scale.
+real apr_test_scale(uint q, float nbar)
 {
     if ((push.flags & APR_COUNT_CAP) == 0u || nbar <= 0.0) {
-        return v;
+        return real(1);
     }
-    return v * real(max(1.0, spp_of(spp[q]) / (APR_COUNT_CAP_K * nbar)));
+    return real(max(1.0, spp_of(spp[q]) / (APR_COUNT_CAP_K * nbar)));
+}
+
+// The variance v of pixel q as the interval test takes it.
+real apr_test_var(real v, uint q, float nbar)
+{
+    return v * apr_test_scale(q, nbar);
 }
 
 // The design row of pixel q (position dq = q - c) for a block with centre
