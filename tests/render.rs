@@ -646,7 +646,8 @@ fn emissive_meshes_are_sampled_by_next_event_estimation() {
 
 /// A textured emitter seen directly: every camera sample's colour is the
 /// checker's colour at the sample's position feature, and its albedo
-/// feature that colour clamped to 1.
+/// feature that colour mapped by c / (1 + c), which keeps the pattern of
+/// an emitter brighter than 1.
 #[test]
 fn textured_emission_is_evaluated_at_the_hit() {
     let ctx = gpu();
@@ -687,10 +688,96 @@ fn textured_emission_is_evaluated_at_the_hit() {
         };
         for k in 0..3 {
             assert_eq!(v[k], want[k], "colour at {:?}", &v[10..13]);
-            assert_eq!(v[3 + k], want[k].min(1.0), "albedo at {:?}", &v[10..13]);
+            let feature = want[k] / (1.0 + want[k]);
+            assert!(
+                (v[3 + k] - feature).abs() <= 1e-6,
+                "albedo {} at {:?}, want {feature}",
+                v[3 + k],
+                &v[10..13]
+            );
         }
     }
     assert!(na > 100 && nb > 100, "{na} and {nb} samples of each colour");
+    check_validation(&ctx);
+}
+
+/// FEATURES-THROUGH-MIRRORS: a smooth mirror tilted 45° in front of the
+/// camera shows a wall of albedo (0.2, 0.5, 0.8) above it. Every camera
+/// sample takes its depth and position features at the mirror, and its
+/// albedo and normal features from the wall (the mirror's colour is 1, so
+/// its Fresnel tint is exactly 1); a rough mirror keeps its own.
+#[test]
+fn a_smooth_mirror_passes_on_the_features_of_what_it_shows() {
+    let ctx = gpu();
+    let wall = [0.2f32, 0.5, 0.8];
+    for roughness in [0.0f32, 0.3] {
+        let s = scene(
+            camera([0.0, 0.0, 3.0], [0.0, 0.0, 0.0], 20.0),
+            [0.0; 3],
+            vec![
+                (
+                    "mirror",
+                    Material::Conductor {
+                        color: [1.0; 3],
+                        roughness,
+                    },
+                ),
+                ("wall", diffuse(wall)),
+                ("lamp", emitter([4.0; 3], true)),
+            ],
+            vec![
+                // The mirror: normal (0, 1, 1)/√2, so a ray along -z leaves along +y.
+                Object::Quad {
+                    corner: [-2.0, -2.0, 2.0],
+                    u: [4.0, 0.0, 0.0],
+                    v: [0.0, 4.0, -4.0],
+                    material: "mirror".into(),
+                    motion: None,
+                    keyframes: Vec::new(),
+                },
+                // The wall at y = 5, facing down.
+                Object::Quad {
+                    corner: [-20.0, 5.0, -20.0],
+                    u: [40.0, 0.0, 0.0],
+                    v: [0.0, 0.0, 40.0],
+                    material: "wall".into(),
+                    motion: None,
+                    keyframes: Vec::new(),
+                },
+                sphere([0.0, 3.0, 6.0], 0.3, "lamp", None),
+            ],
+        );
+        let r = Renderer::new(&ctx, &s, 16, 16, 5).unwrap();
+        let samples = r.run_pass_debug(2).unwrap();
+        let mut n = 0;
+        for v in samples.chunks_exact(14) {
+            // On the mirror plane: y = -z (position feature).
+            assert!(
+                (v[11] + v[12]).abs() < 1e-3,
+                "position {:?} is not on the mirror",
+                &v[10..13]
+            );
+            let (albedo, normal): ([f32; 3], [f32; 3]) = if roughness == 0.0 {
+                (wall, [0.0, -1.0, 0.0])
+            } else {
+                ([1.0; 3], [0.0, 0.70710677, 0.70710677])
+            };
+            for k in 0..3 {
+                assert!(
+                    (v[3 + k] - albedo[k]).abs() < 1e-5,
+                    "roughness {roughness}: albedo {:?}, want {albedo:?}",
+                    &v[3..6]
+                );
+                assert!(
+                    (v[6 + k] - normal[k]).abs() < 1e-4,
+                    "roughness {roughness}: normal {:?}, want {normal:?}",
+                    &v[6..9]
+                );
+            }
+            n += 1;
+        }
+        assert_eq!(n, 16 * 16 * 2);
+    }
     check_validation(&ctx);
 }
 

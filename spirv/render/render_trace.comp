@@ -92,6 +92,14 @@ vec3 albedo_at(uint m, vec3 p)
     return a;
 }
 
+// The albedo feature of an emitter of radiance le (RENDER-FEATURES):
+// le / (1 + le) per channel, so an emitter brighter than 1 keeps its
+// pattern in the feature.
+vec3 emission_feature(vec3 le)
+{
+    return le / (vec3(1.0) + le);
+}
+
 // ---------------------------------------------------------------- BSDFs
 // GGX (Trowbridge-Reitz) microfacets with separable Smith masking; visible
 // normals sampled after Heitz 2018. Vectors in world space; n faces wo.
@@ -370,11 +378,17 @@ void trace_sample(uvec4 key, uvec2 pix, out vec3 color, out vec3 albedo, out vec
 
     vec3 beta = vec3(1.0);
     float prev_bsdf_pdf = 0.0;   // 0: the previous vertex was the camera
+    // The albedo and normal features are still to be taken, times feat_tint.
+    bool feat_open = true;
+    vec3 feat_tint = vec3(1.0);
     uint max_depth = P.counts.z;
     for (uint depth_i = 0u; depth_i <= max_depth; depth_i++) {
         Hit h = trace(o, d, time, 0.0, T_INF, false);
         if (h.prim < 0) {
             color += beta * P.env.rgb;
+            if (feat_open && depth_i > 0u) {
+                albedo = vec3(0.0);   // a mirror showing the sky: as a miss
+            }
             break;
         }
         uint prim = uint(h.prim);
@@ -396,11 +410,14 @@ void trace_sample(uvec4 key, uvec2 pix, out vec3 color, out vec3 albedo, out vec
         if (mkind == MAT_EMISSIVE) {
             vec3 le = albedo_at(m, p_ref);
             if (depth_i == 0u) {
-                albedo = clamp(le, 0.0, 1.0);
-                normal = n;
                 depth = h.t;
                 position = p_ref;
                 visibility = 1.0;
+            }
+            if (feat_open) {
+                albedo = feat_tint * emission_feature(le);
+                normal = n;
+                feat_open = false;
             }
             bool emits = front || (floatBitsToUint(prims[4u * prim].w) & 3u) == KIND_TRIANGLE;
             if (emits) {
@@ -429,6 +446,16 @@ void trace_sample(uvec4 key, uvec2 pix, out vec3 color, out vec3 albedo, out vec
             depth = h.t;
             position = p_ref;
             visibility = 1.0;
+        }
+        // RENDER-FEATURES: a smooth mirror passes the albedo and normal
+        // features on to what it shows, times its reflectance (glass keeps
+        // its own: its sampled lobe, reflection or refraction, would make
+        // the features noisy).
+        bool mirror = cls == MAT_CONDUCTOR && alpha < 1e-3;
+        if (feat_open && !mirror) {
+            albedo = feat_tint * alb;
+            normal = n;
+            feat_open = false;
         }
         if (depth_i == max_depth) {
             break;
@@ -519,6 +546,9 @@ void trace_sample(uvec4 key, uvec2 pix, out vec3 color, out vec3 albedo, out vec
         }
         prev_bsdf_pdf = delta ? 0.0 : pdf;
         beta *= weight;
+        if (feat_open) {
+            feat_tint *= weight;
+        }
         o = offset_origin(p, dot(ngf, wi) > 0.0 ? ngf : -ngf);
         d = normalize(wi);
 
