@@ -28,8 +28,14 @@
 // method (PYRAMID-LOWBAND): the method also reconstructs the statistics
 // pooled 2×2, and the output takes its low band from that
 // half-resolution reconstruction where the error estimates favour it.
-// Not for `MCD_METHOD_NONE` or images under 16×16 pixels.
+// Not for `MCD_METHOD_NONE` or images under 16×16 pixels. Without this
+// flag or [`MCD_FLAG_NO_PYRAMID`], the stage runs after `MCD_METHOD_AUTO`
+// on images of at least 16×16 pixels and after no other method.
 #define MCD_FLAG_PYRAMID 8
+
+// Flag of [`McdDenoiserDesc::flags`]: never the pyramid's low band (see
+// [`MCD_FLAG_PYRAMID`]); both flags together are an error.
+#define MCD_FLAG_NO_PYRAMID 16
 
 // What a call returned.
 typedef enum McdStatus {

@@ -14,8 +14,8 @@ use crate::methods::chain::{ChainConfig, ChainInput, GpuChain};
 use crate::methods::prepare::PrepareReport;
 use crate::methods::tiles::{Choice, Tile, TiledChain};
 use crate::methods::{
-    self, Backend, DenoiseRequest, Method, Outliers, Pass, Prefilter, ProgressCallback, Temporal,
-    TemporalState,
+    self, Backend, DenoiseRequest, Method, Outliers, Pass, Prefilter, ProgressCallback, Pyramid,
+    Temporal, TemporalState,
 };
 use crate::options::Options;
 
@@ -68,10 +68,12 @@ pub struct Config {
     /// the two error estimates say it is the better one — it removes
     /// low-frequency noise larger than the method's windows (light that
     /// arrives only indirectly). Costs 1.3–1.6× the GPU time and about a
-    /// third more memory; the error estimate is the merged one, the sample map reads
-    /// the method's. Needs a reconstruction (not `none`) and images of at
-    /// least 16×16 pixels; in tiles the halo doubles.
-    pub pyramid: bool,
+    /// third more memory; the error estimate is the merged one, the sample
+    /// map reads the method's. [`Pyramid::Auto`] (the default): on for
+    /// `auto` on images of at least 16×16 pixels, off for the other
+    /// methods; [`Pyramid::On`] needs a reconstruction (not `none`) and
+    /// such an image. In tiles the halo doubles.
+    pub pyramid: Pyramid,
     /// A temporal stage after the method (spec §10): with
     /// [`Temporal::Lp`] every call filters the method's output with the
     /// history of the earlier calls (a sequence's frames, in order), kept
@@ -105,13 +107,13 @@ impl Config {
             low_spp: true,
             max_memory: None,
             tile: None,
-            pyramid: false,
+            pyramid: Pyramid::Auto,
             temporal: Temporal::Off,
             temporal_state: None,
         }
     }
 
-    fn chain(&self, low_spp: bool) -> ChainConfig {
+    fn chain(&self, low_spp: bool, size: (usize, usize)) -> ChainConfig {
         ChainConfig {
             method: self.method,
             pass: self.pass,
@@ -122,7 +124,7 @@ impl Config {
             low_spp,
             debug: self.debug,
             error: self.error,
-            pyramid: self.pyramid,
+            pyramid: self.pyramid.resolve(self.method, size),
             temporal: self.temporal,
             temporal_state: self.temporal_state.clone(),
         }
@@ -133,13 +135,13 @@ impl Config {
     /// pyramid's method and smallest image), for a caller that wants to
     /// know before it renders.
     pub fn check_size(&self, width: usize, height: usize) -> Result<()> {
-        if self.pyramid {
+        if self.pyramid == Pyramid::On {
             methods::pyramid::check(self.method, (width, height))?;
         }
         Ok(())
     }
 
-    fn request(&self, backend: Backend) -> DenoiseRequest {
+    fn request(&self, backend: Backend, size: (usize, usize)) -> DenoiseRequest {
         let mut r = DenoiseRequest::new(self.method);
         r.backend = backend;
         r.pass = self.pass;
@@ -149,7 +151,7 @@ impl Config {
         r.options = self.options.clone();
         r.error = self.error;
         r.debug = self.debug;
-        r.pyramid = self.pyramid;
+        r.pyramid = self.pyramid.resolve(self.method, size);
         r.progress = self.progress;
         r
     }
@@ -189,6 +191,13 @@ impl Source {
             width: img.width,
             height: img.height,
             layers: img.layers().map(|(l, _)| l).collect(),
+        }
+    }
+
+    fn size(&self) -> (usize, usize) {
+        match self {
+            Source::Accum(l) => (l.width, l.height),
+            Source::Stats { width, height, .. } => (*width, *height),
         }
     }
 
@@ -343,7 +352,7 @@ impl Denoiser {
         let engine = match TiledChain::choose(
             ctx,
             source.chain(),
-            config.chain(low_spp),
+            config.chain(low_spp, source.size()),
             config.max_memory,
             config.tile,
         )? {
@@ -727,8 +736,9 @@ impl Denoiser {
         budget: Option<u32>,
         statistics: bool,
     ) -> Result<(Frame, Option<StatsImage>)> {
+        let size = (img.get().width, img.get().height);
         let req = |b| {
-            let mut r = self.config.request(b);
+            let mut r = self.config.request(b, size);
             r.budget = budget;
             r
         };

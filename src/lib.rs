@@ -123,7 +123,7 @@ pub use image::{Layer, RgbImage, StatsImage};
 pub use methods::prepare::{colour_of, has_low_spp, PrepareReport};
 pub use methods::{
     available_names, Backend, Method, MethodInfo, Outliers, Pass, Prefilter, ProgressCallback,
-    Temporal, TemporalState, REGISTRY,
+    Pyramid, Temporal, TemporalState, REGISTRY,
 };
 pub use options::{help_table, Options};
 pub use schedule::Schedule;

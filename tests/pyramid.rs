@@ -18,8 +18,8 @@ use mcdenoise::reference::pyramid_merge::{self as merge_twin, Level};
 use mcdenoise::reference::pyramid_pool::{self as pool_twin, coarse_size};
 use mcdenoise::shared::{PYRAMID_COUNT, PYRAMID_MEAN, PYRAMID_VARIANCE};
 use mcdenoise::{
-    metrics, Config, Denoiser, GpuContext, Layer, Method, Options, Pass, Prefilter, RgbImage,
-    Source, StatsImage, Temporal,
+    metrics, Config, Denoiser, GpuContext, Layer, Method, Options, Pass, Prefilter, Pyramid,
+    RgbImage, Source, StatsImage, Temporal,
 };
 
 /// Sample counts with a few invalid pixels (0, NaN, below 1).
@@ -346,7 +346,7 @@ fn the_low_band_lowers_the_error_of_a_noisy_smooth_wall() {
     for method in [Method::Wlr, Method::Lp, Method::Apr] {
         let run = |pyramid: bool| {
             let mut c = Config::new(method);
-            c.pyramid = pyramid;
+            c.pyramid = if pyramid { Pyramid::On } else { Pyramid::Off };
             let d = Denoiser::new(&ctx, Source::of_image(&img), c).unwrap();
             d.denoise(&img, None).unwrap()
         };
@@ -376,7 +376,7 @@ fn the_output_does_not_depend_on_the_error_download() {
     let s = synthetic(32, 32, 4, 2);
     let run = |error: bool| {
         let mut c = Config::new(Method::Wlr);
-        c.pyramid = true;
+        c.pyramid = Pyramid::On;
         c.error = error;
         let d = Denoiser::new(&ctx, Source::of_image(&s.stats), c).unwrap();
         d.denoise(&s.stats, None).unwrap().color
@@ -392,7 +392,7 @@ fn the_configurations_it_cannot_run_are_refused() {
     let src = Source::of_image(&s.stats);
     let with = |method: Method| {
         let mut c = Config::new(method);
-        c.pyramid = true;
+        c.pyramid = Pyramid::On;
         c
     };
     let msg = |r: mcdenoise::Result<Denoiser>| match r {
@@ -407,6 +407,44 @@ fn the_configurations_it_cannot_run_are_refused() {
         with(Method::Wlr)
     ))
     .contains("16x16"));
+    check_validation(&ctx);
+}
+
+/// PYRAMID-AUTO: by default the stage runs after `auto` (its output is
+/// the one with `Pyramid::On`, bit for bit, and not the one without) and
+/// after no other method; on an image too small for it, `auto` runs
+/// without it rather than failing.
+#[test]
+fn the_default_runs_the_stage_after_auto_only() {
+    let ctx = gpu();
+    let (img, _) = noisy_wall(32, 32, 4.0, 5);
+    let run = |img: &StatsImage, method: Method, pyramid: Option<Pyramid>| {
+        let mut c = Config::new(method);
+        if let Some(p) = pyramid {
+            c.pyramid = p;
+        }
+        let d = Denoiser::new(&ctx, Source::of_image(img), c).unwrap();
+        d.denoise(img, None).unwrap().color
+    };
+    let same = |a: &RgbImage, b: &RgbImage| {
+        (0..3).all(|c| {
+            a.planes[c]
+                .iter()
+                .zip(&b.planes[c])
+                .all(|(x, y)| x.to_bits() == y.to_bits())
+        })
+    };
+    let auto = run(&img, Method::Auto, None);
+    assert!(same(&auto, &run(&img, Method::Auto, Some(Pyramid::On))));
+    assert!(!same(&auto, &run(&img, Method::Auto, Some(Pyramid::Off))));
+    let wlr = run(&img, Method::Wlr, None);
+    assert!(same(&wlr, &run(&img, Method::Wlr, Some(Pyramid::Off))));
+    assert!(!same(&wlr, &run(&img, Method::Wlr, Some(Pyramid::On))));
+    let (small, _) = noisy_wall(12, 20, 4.0, 5);
+    assert!(same(
+        &run(&small, Method::Auto, None),
+        &run(&small, Method::Auto, Some(Pyramid::Off))
+    ));
     check_validation(&ctx);
 }
 
@@ -426,7 +464,7 @@ fn the_gpu_stage_matches_the_cpu_path_on_the_fixture() {
     for method in [Method::Wlr, Method::Lp] {
         let config = |pyramid: bool| {
             let mut c = Config::new(method);
-            c.pyramid = pyramid;
+            c.pyramid = if pyramid { Pyramid::On } else { Pyramid::Off };
             c
         };
         let src = Source::of_image(&img);
@@ -485,7 +523,7 @@ fn the_temporal_filter_filters_the_merged_output() {
     let s = synthetic(32, 32, 4, 5);
     let config = |temporal: Temporal| {
         let mut c = Config::new(Method::Wlr);
-        c.pyramid = true;
+        c.pyramid = Pyramid::On;
         c.temporal = temporal;
         c
     };
@@ -520,7 +558,7 @@ fn spikes_with_the_pyramid() {
     for method in [Method::Wlr, Method::Lp] {
         let run = |img: &StatsImage| {
             let mut cfg = Config::new(method);
-            cfg.pyramid = true;
+            cfg.pyramid = Pyramid::On;
             let d = Denoiser::new(&ctx, Source::of_image(img), cfg).unwrap();
             d.denoise(img, None).unwrap().color
         };
@@ -553,7 +591,7 @@ fn the_smallest_images_run_with_every_method() {
         let s = synthetic(w, h, 4, 3);
         for method in Method::all().filter(|&m| m != Method::None) {
             let mut c = Config::new(method);
-            c.pyramid = true;
+            c.pyramid = Pyramid::On;
             let out = Denoiser::new(&ctx, Source::of_image(&s.stats), c)
                 .and_then(|d| d.denoise(&s.stats, Some((w * h * 4) as u32)))
                 .unwrap_or_else(|e| panic!("{method:?} {w}x{h}: {e}"));

@@ -140,8 +140,13 @@ pub const MCD_FLAG_TEMPORAL_LP: u32 = 4;
 /// method (PYRAMID-LOWBAND): the method also reconstructs the statistics
 /// pooled 2×2, and the output takes its low band from that
 /// half-resolution reconstruction where the error estimates favour it.
-/// Not for `MCD_METHOD_NONE` or images under 16×16 pixels.
+/// Not for `MCD_METHOD_NONE` or images under 16×16 pixels. Without this
+/// flag or [`MCD_FLAG_NO_PYRAMID`], the stage runs after `MCD_METHOD_AUTO`
+/// on images of at least 16×16 pixels and after no other method.
 pub const MCD_FLAG_PYRAMID: u32 = 8;
+/// Flag of [`McdDenoiserDesc::flags`]: never the pyramid's low band (see
+/// [`MCD_FLAG_PYRAMID`]); both flags together are an error.
+pub const MCD_FLAG_NO_PYRAMID: u32 = 16;
 
 /// One denoiser's configuration: fixed for its life.
 #[repr(C)]
@@ -508,7 +513,8 @@ pub unsafe extern "C" fn mcd_denoiser_create(
         let known = MCD_FLAG_NO_SINGLE_SAMPLE_PIXELS
             | MCD_FLAG_ADAPTIVE_PASS
             | MCD_FLAG_TEMPORAL_LP
-            | MCD_FLAG_PYRAMID;
+            | MCD_FLAG_PYRAMID
+            | MCD_FLAG_NO_PYRAMID;
         if desc.flags & !known != 0 {
             return Err(invalid(format!("unknown flags {:#x}", desc.flags & !known)));
         }
@@ -520,7 +526,17 @@ pub unsafe extern "C" fn mcd_denoiser_create(
         if desc.flags & MCD_FLAG_TEMPORAL_LP != 0 {
             config.temporal = core::Temporal::Lp;
         }
-        config.pyramid = desc.flags & MCD_FLAG_PYRAMID != 0;
+        config.pyramid = match (
+            desc.flags & MCD_FLAG_PYRAMID != 0,
+            desc.flags & MCD_FLAG_NO_PYRAMID != 0,
+        ) {
+            (false, false) => core::Pyramid::Auto,
+            (true, false) => core::Pyramid::On,
+            (false, true) => core::Pyramid::Off,
+            (true, true) => {
+                return Err(invalid("MCD_FLAG_PYRAMID and MCD_FLAG_NO_PYRAMID together"))
+            }
+        };
         if !desc.options.is_null() {
             // SAFETY: the caller passes a NUL-terminated string.
             let text = unsafe { CStr::from_ptr(desc.options) }

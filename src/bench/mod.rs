@@ -208,8 +208,9 @@ pub struct Stages {
     /// The temporal stage (§10) after the method: the timed calls are
     /// consecutive frames (of the same statistics) for it.
     pub temporal: crate::Temporal,
-    /// The pyramid's low band (PYRAMID-LOWBAND) after the method.
-    pub pyramid: bool,
+    /// The pyramid's low band (PYRAMID-LOWBAND) after the method (`Auto`:
+    /// after `auto` only).
+    pub pyramid: crate::Pyramid,
 }
 
 impl Stages {
@@ -221,8 +222,8 @@ impl Stages {
             self.outliers, self.prefilter
         )
         .to_lowercase();
-        if self.pyramid {
-            s.push_str(", pyramid");
+        if self.pyramid != crate::Pyramid::Auto {
+            s.push_str(&format!(", pyramid {:?}", self.pyramid).to_lowercase());
         }
         if self.temporal != crate::Temporal::Off {
             s.push_str(&format!(", temporal {:?}", self.temporal).to_lowercase());
@@ -286,7 +287,7 @@ mod tests {
             options: crate::options::Options::parse(&["aos.variance=sandwich", "aos.residual=off"])
                 .unwrap(),
             temporal: crate::Temporal::Off,
-            pyramid: false,
+            pyramid: crate::Pyramid::Auto,
         };
         assert_eq!(
             s.describe(),

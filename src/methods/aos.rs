@@ -462,6 +462,7 @@ pub static INFO: MethodInfo = MethodInfo {
     // AOS-NO-GBF: its own NL-means prefilter (§5.2) does better.
     prefilter_auto: false,
     outliers_auto: true,
+    pyramid_auto: false,
     passes: 3,
     pass_cap: None,
     sampling: SamplingParams {

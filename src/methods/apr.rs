@@ -460,6 +460,7 @@ pub static INFO: MethodInfo = MethodInfo {
     needs: &REGRESSION_LAYERS,
     prefilter_auto: true,
     outliers_auto: true,
+    pyramid_auto: false,
     passes: 5,
     // APR-CAP: a pass gives a pixel at most 4× its mean.
     pass_cap: Some(4.0),

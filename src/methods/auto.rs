@@ -61,6 +61,7 @@ pub static INFO: MethodInfo = MethodInfo {
     needs: &REGRESSION_LAYERS,
     prefilter_auto: true,
     outliers_auto: true,
+    pyramid_auto: true,
     passes: super::wlr::INFO.passes,
     pass_cap: None,
     sampling: super::wlr::INFO.sampling,

@@ -626,6 +626,7 @@ pub static INFO: MethodInfo = MethodInfo {
     needs: &REGRESSION_LAYERS,
     prefilter_auto: true,
     outliers_auto: true,
+    pyramid_auto: false,
     passes: 5,
     // LP-CAP: LP's map concentrates samples at emitter edges.
     pass_cap: Some(4.0),

@@ -27,6 +27,7 @@ use crate::image::{RgbImage, StatsImage};
 use crate::options::Options;
 
 pub use outliers::Outliers;
+pub use pyramid::Pyramid;
 pub use registry::MethodInfo;
 pub use temporal::{Temporal, TemporalState};
 

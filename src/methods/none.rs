@@ -22,6 +22,7 @@ pub static INFO: MethodInfo = MethodInfo {
     prefilter_auto: false,
     // Its output is the Monte Carlo mean by definition.
     outliers_auto: false,
+    pyramid_auto: false,
     passes: 5,
     pass_cap: None,
     sampling: SamplingParams {

@@ -55,6 +55,42 @@ pub fn merge_push(size: (usize, usize)) -> PyramidPush {
     }
 }
 
+/// Whether the pyramid's low band runs (`Config::pyramid`); by default
+/// after `auto` only (PYRAMID-AUTO).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Pyramid {
+    /// The method's default ([`super::MethodInfo::pyramid_auto`]: `auto`
+    /// only), on images of at least [`MIN_SIDE`] pixels a side.
+    #[default]
+    Auto,
+    /// Always (an error for `none` or a smaller image).
+    On,
+    /// Never.
+    Off,
+}
+
+impl Pyramid {
+    /// Parses `auto`, `on` or `off`.
+    pub fn parse(s: &str) -> Option<Pyramid> {
+        match s {
+            "auto" => Some(Pyramid::Auto),
+            "on" => Some(Pyramid::On),
+            "off" => Some(Pyramid::Off),
+            _ => None,
+        }
+    }
+
+    /// Whether the stage runs for `method` on a `size` image ([`Pyramid::On`]
+    /// where it cannot run is refused by [`check`] when the chain is built).
+    pub fn resolve(self, method: Method, size: (usize, usize)) -> bool {
+        match self {
+            Pyramid::Auto => method.info().pyramid_auto && check(method, size).is_ok(),
+            Pyramid::On => true,
+            Pyramid::Off => false,
+        }
+    }
+}
+
 /// `Err` unless the stage can run for `method` on a `size` image.
 pub fn check(method: Method, (w, h): (usize, usize)) -> Result<()> {
     if method == Method::None {

@@ -46,6 +46,9 @@ pub struct MethodInfo {
     pub prefilter_auto: bool,
     /// Whether `--outliers auto` runs the outlier stage (§4.4) around it.
     pub outliers_auto: bool,
+    /// Whether `--pyramid auto` runs the pyramid's low band
+    /// (PYRAMID-LOWBAND) after it.
+    pub pyramid_auto: bool,
     /// Adaptive passes after the uniform pass 0 (§9.3 `N_pass`).
     pub passes: u32,
     /// The adaptive loop's default per-pass cap, as a multiple of the pass's

@@ -486,6 +486,7 @@ pub static INFO: MethodInfo = MethodInfo {
     needs: &REGRESSION_LAYERS,
     prefilter_auto: true,
     outliers_auto: true,
+    pyramid_auto: false,
     passes: 5,
     pass_cap: None,
     sampling: SamplingParams {

@@ -22,7 +22,7 @@ use crate::gpu::GpuBuffer;
 use crate::schedule::INITIAL_SPP;
 use crate::{
     Batch, Config, Denoiser, Error, Frame, GpuContext, KernelTiming, Method, Options, Outliers,
-    Pass, Precision, Prefilter, Result, Schedule, Source,
+    Pass, Precision, Prefilter, Pyramid, Result, Schedule, Source,
 };
 
 /// What to render and how.
@@ -63,7 +63,7 @@ pub struct LoopConfig {
     /// The pyramid's low band ([`Config::pyramid`]) in the final
     /// reconstruction (and the open-ended renders' judging of it); the
     /// adaptive passes' reconstructions run without it.
-    pub pyramid: bool,
+    pub pyramid: Pyramid,
 }
 
 impl LoopConfig {
@@ -82,7 +82,7 @@ impl LoopConfig {
             pass_cap: default_pass_cap(method),
             stop: None,
             temporal_maps: true,
-            pyramid: false,
+            pyramid: Pyramid::Auto,
         }
     }
 }
@@ -113,7 +113,11 @@ fn loop_config(cfg: &LoopConfig, pass: Pass, first_spp: u32) -> Config {
     c.precision = cfg.precision;
     c.options = cfg.options.clone();
     c.low_spp = first_spp < 2;
-    c.pyramid = cfg.pyramid && pass == Pass::Final;
+    c.pyramid = if pass == Pass::Final {
+        cfg.pyramid
+    } else {
+        Pyramid::Off
+    };
     c
 }
 

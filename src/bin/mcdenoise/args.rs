@@ -3,7 +3,7 @@
 use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
 use clap::ValueEnum;
 
-use mcdenoise::{Method, Outliers, Pass, Precision, Prefilter, REGISTRY};
+use mcdenoise::{Method, Outliers, Pass, Precision, Prefilter, Pyramid, REGISTRY};
 
 /// `--method`: any method of the registry, by name (its help line from the
 /// registry too).
@@ -101,6 +101,27 @@ impl OutliersArg {
             OutliersArg::Auto => Outliers::Auto,
             OutliersArg::On => Outliers::On,
             OutliersArg::Off => Outliers::Off,
+        }
+    }
+}
+
+#[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
+pub enum PyramidArg {
+    /// On for `--method auto` (on images of at least 16x16), off for the
+    /// other methods.
+    Auto,
+    /// After any reconstruction (not none; images of at least 16x16).
+    On,
+    /// Never.
+    Off,
+}
+
+impl PyramidArg {
+    pub fn get(self) -> Pyramid {
+        match self {
+            PyramidArg::Auto => Pyramid::Auto,
+            PyramidArg::On => Pyramid::On,
+            PyramidArg::Off => Pyramid::Off,
         }
     }
 }

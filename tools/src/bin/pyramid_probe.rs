@@ -109,7 +109,7 @@ fn main() -> anyhow::Result<()> {
         let fine = run(&ctx, m, &stats, false)?;
         // The chain's stage (Config::pyramid), which implements "rblend".
         let mut sc = Config::new(m);
-        sc.pyramid = true;
+        sc.pyramid = mcdenoise::Pyramid::On;
         let staged = Denoiser::new(&ctx, Source::of_image(&stats), sc)?.denoise(&stats, None)?;
         let (cw, ch) = (w / 2, h / 2);
         let mut line = serde_json::Map::new();

@@ -30,7 +30,7 @@ use clap::Parser;
 use mcdenoise::render::adaptive::LoopConfig;
 use mcdenoise::render::{reference, sequence, Scene};
 use mcdenoise::{
-    io, metrics, Config, ContextOptions, Denoiser, GpuContext, Method, RgbImage, Source,
+    io, metrics, Config, ContextOptions, Denoiser, GpuContext, Method, Pyramid, RgbImage, Source,
     StatsImage, Temporal,
 };
 use mcdenoise_tools::parse_method;
@@ -195,7 +195,7 @@ fn main() -> anyhow::Result<()> {
                 };
                 let config = |temporal: Temporal| {
                     let mut c = Config::new(m);
-                    c.pyramid = pyramid;
+                    c.pyramid = if pyramid { Pyramid::On } else { Pyramid::Off };
                     c.temporal = temporal;
                     c
                 };

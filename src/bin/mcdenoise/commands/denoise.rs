@@ -10,7 +10,8 @@ use mcdenoise::{
 };
 
 use crate::args::{
-    method_parser, BackendArg, OutliersArg, PassArg, PrecisionArg, PrefilterArg, TemporalArg,
+    method_parser, BackendArg, OutliersArg, PassArg, PrecisionArg, PrefilterArg, PyramidArg,
+    TemporalArg,
 };
 use crate::common::{
     check_error, context, print_metrics, print_report, progress_bar, read_colour, refuse_overwrite,
@@ -58,13 +59,13 @@ pub struct Args {
     /// Energy-preserving firefly removal around the method (spec §4.4).
     #[arg(long, value_enum, default_value = "auto")]
     outliers: OutliersArg,
-    /// The pyramid's low band after the method: the method also
-    /// reconstructs the statistics pooled 2x2, and the output takes its
-    /// low-frequency part from that half-resolution reconstruction where
-    /// the error estimates favour it (light that arrives only indirectly).
-    /// 1.3-1.6x the GPU time; not for none or images under 16x16.
-    #[arg(long)]
-    pyramid: bool,
+    /// The pyramid's low band after the method: the method also reconstructs the
+    /// statistics pooled 2x2, and the output takes its low-frequency part
+    /// from that half-resolution reconstruction where the error estimates
+    /// favour it (light that arrives only indirectly). 1.3-1.6x the GPU
+    /// time. `--pyramid` alone is `--pyramid=on`
+    #[arg(long, value_enum, default_value = "auto", num_args = 0..=1, require_equals = true, default_missing_value = "on")]
+    pyramid: PyramidArg,
     /// Add the estimated per-pixel MSE as error.R/G/B (method none: the
     /// variance of the mean).
     #[arg(long)]
@@ -121,7 +122,7 @@ impl Args {
         config.max_memory = self.max_memory.map(|mb| mb.saturating_mul(1 << 20));
         config.tile = self.tile.map(|t| t as usize);
         config.temporal = self.temporal.get();
-        config.pyramid = self.pyramid;
+        config.pyramid = self.pyramid.get();
         config
     }
 }

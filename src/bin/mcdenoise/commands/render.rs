@@ -12,7 +12,7 @@ use mcdenoise::{
 };
 
 use crate::args::{
-    method_parser, parse_size, OutliersArg, PrecisionArg, PrefilterArg, TemporalArg,
+    method_parser, parse_size, OutliersArg, PrecisionArg, PrefilterArg, PyramidArg, TemporalArg,
 };
 use crate::common::{context, pass_bar, refuse_overwrite, stop_flag};
 use crate::Cli;
@@ -45,13 +45,13 @@ pub struct Args {
     /// Energy-preserving firefly removal around the method (spec §4.4).
     #[arg(long, value_enum, default_value = "auto")]
     outliers: OutliersArg,
-    /// The pyramid's low band in the final reconstruction: the method also
-    /// reconstructs the statistics pooled 2x2, and the output takes its
-    /// low-frequency part from that half-resolution reconstruction where
-    /// the error estimates favour it (light that arrives only indirectly).
-    /// 1.3-1.6x the GPU time; not for none or images under 16x16.
-    #[arg(long)]
-    pyramid: bool,
+    /// The pyramid's low band in the final reconstruction: the method also reconstructs the
+    /// statistics pooled 2x2, and the output takes its low-frequency part
+    /// from that half-resolution reconstruction where the error estimates
+    /// favour it (light that arrives only indirectly). 1.3-1.6x the GPU
+    /// time. `--pyramid` alone is `--pyramid=on`
+    #[arg(long, value_enum, default_value = "auto", num_args = 0..=1, require_equals = true, default_missing_value = "on")]
+    pyramid: PyramidArg,
     /// With --adaptive: at most K times the pass's mean samples in one pixel
     /// per pass (the excess goes to the other pixels); 0 = no cap. Default:
     /// the method's (4 for LP and APR, no cap for the others).
@@ -437,7 +437,7 @@ fn loop_config(a: &Args) -> anyhow::Result<adaptive::LoopConfig> {
     let method = a.method;
     // Before any pass renders: the final denoiser is made last.
     Config {
-        pyramid: a.pyramid,
+        pyramid: a.pyramid.get(),
         ..Config::new(method)
     }
     .check_size(a.size.0, a.size.1)?;
@@ -459,7 +459,7 @@ fn loop_config(a: &Args) -> anyhow::Result<adaptive::LoopConfig> {
             max_spp: a.max_spp,
         }),
         temporal_maps: true,
-        pyramid: a.pyramid,
+        pyramid: a.pyramid.get(),
     })
 }
 
