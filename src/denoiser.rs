@@ -124,7 +124,7 @@ impl Config {
             low_spp,
             debug: self.debug,
             error: self.error,
-            pyramid: self.pyramid.resolve(self.method, size),
+            pyramid: self.pyramid.resolve(self.method, self.pass, size),
             temporal: self.temporal,
             temporal_state: self.temporal_state.clone(),
         }
@@ -151,7 +151,7 @@ impl Config {
         r.options = self.options.clone();
         r.error = self.error;
         r.debug = self.debug;
-        r.pyramid = self.pyramid.resolve(self.method, size);
+        r.pyramid = self.pyramid.resolve(self.method, self.pass, size);
         r.progress = self.progress;
         r
     }

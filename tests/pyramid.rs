@@ -412,8 +412,8 @@ fn the_configurations_it_cannot_run_are_refused() {
 
 /// PYRAMID-AUTO: by default the stage runs after `auto` (its output is
 /// the one with `Pyramid::On`, bit for bit, and not the one without) and
-/// after no other method; on an image too small for it, `auto` runs
-/// without it rather than failing.
+/// after no other method, nor in an adaptive pass; on an image too small
+/// for it, `auto` runs without it rather than failing.
 #[test]
 fn the_default_runs_the_stage_after_auto_only() {
     let ctx = gpu();
@@ -440,6 +440,17 @@ fn the_default_runs_the_stage_after_auto_only() {
     let wlr = run(&img, Method::Wlr, None);
     assert!(same(&wlr, &run(&img, Method::Wlr, Some(Pyramid::Off))));
     assert!(!same(&wlr, &run(&img, Method::Wlr, Some(Pyramid::On))));
+    // An adaptive pass's reconstruction runs without it.
+    let pass = |pyramid: Option<Pyramid>| {
+        let mut c = Config::new(Method::Auto);
+        c.pass = Pass::Intermediate;
+        if let Some(p) = pyramid {
+            c.pyramid = p;
+        }
+        let d = Denoiser::new(&ctx, Source::of_image(&img), c).unwrap();
+        d.denoise(&img, None).unwrap().color
+    };
+    assert!(same(&pass(None), &pass(Some(Pyramid::Off))));
     let (small, _) = noisy_wall(12, 20, 4.0, 5);
     assert!(same(
         &run(&small, Method::Auto, None),

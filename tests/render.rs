@@ -704,24 +704,21 @@ fn textured_emission_is_evaluated_at_the_hit() {
 /// FEATURES-THROUGH-MIRRORS: a smooth mirror tilted 45° in front of the
 /// camera shows a wall of albedo (0.2, 0.5, 0.8) above it. Every camera
 /// sample takes its depth and position features at the mirror, and its
-/// albedo and normal features from the wall (the mirror's colour is 1, so
-/// its Fresnel tint is exactly 1); a rough mirror keeps its own.
+/// albedo and normal features from the wall, times the mirror's Fresnel
+/// weight (exactly 1 for a mirror of colour 1; Schlick's for a tinted
+/// one); a rough mirror keeps its own.
 #[test]
 fn a_smooth_mirror_passes_on_the_features_of_what_it_shows() {
     let ctx = gpu();
     let wall = [0.2f32, 0.5, 0.8];
-    for roughness in [0.0f32, 0.3] {
+    // A tinted mirror's Fresnel weight (Schlick) multiplies the wall's.
+    let tinted = [0.5f32, 0.8, 1.0];
+    for (color, roughness) in [([1.0f32; 3], 0.0f32), ([1.0; 3], 0.3), (tinted, 0.0)] {
         let s = scene(
             camera([0.0, 0.0, 3.0], [0.0, 0.0, 0.0], 20.0),
             [0.0; 3],
             vec![
-                (
-                    "mirror",
-                    Material::Conductor {
-                        color: [1.0; 3],
-                        roughness,
-                    },
-                ),
+                ("mirror", Material::Conductor { color, roughness }),
                 ("wall", diffuse(wall)),
                 ("lamp", emitter([4.0; 3], true)),
             ],
@@ -758,7 +755,15 @@ fn a_smooth_mirror_passes_on_the_features_of_what_it_shows() {
                 &v[10..13]
             );
             let (albedo, normal): ([f32; 3], [f32; 3]) = if roughness == 0.0 {
-                (wall, [0.0, -1.0, 0.0])
+                // cos θ between the mirror's normal and the camera ray.
+                let p = [v[10], v[11], v[12] - 3.0];
+                let len = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
+                let cos = -(p[1] + p[2]) / (len * std::f32::consts::SQRT_2);
+                let f = |k: usize| color[k] + (1.0 - color[k]) * (1.0 - cos).powi(5);
+                (
+                    [wall[0] * f(0), wall[1] * f(1), wall[2] * f(2)],
+                    [0.0, -1.0, 0.0],
+                )
             } else {
                 ([1.0; 3], [0.0, 0.70710677, 0.70710677])
             };

@@ -22,7 +22,7 @@ use crate::shared::{PyramidPush, PYRAMID_COUNT, PYRAMID_EPS, PYRAMID_MEAN, PYRAM
 use super::chain::{ChainConfig, ChainInput, GpuChain};
 use super::stats::GpuStats;
 use super::temporal::Temporal;
-use super::{prepare, DenoiseRequest, Method, Prefilter};
+use super::{prepare, DenoiseRequest, Method, Pass, Prefilter};
 
 /// The smallest image side the pyramid runs on (its coarse level is half
 /// of it: every method's smallest window still fits).
@@ -60,7 +60,9 @@ pub fn merge_push(size: (usize, usize)) -> PyramidPush {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Pyramid {
     /// The method's default ([`super::MethodInfo::pyramid_auto`]: `auto`
-    /// only), on images of at least [`MIN_SIDE`] pixels a side.
+    /// only) in a final reconstruction ([`Pass::Final`]; an adaptive pass's
+    /// map reads the method's estimate) of an image of at least
+    /// [`MIN_SIDE`] pixels a side.
     #[default]
     Auto,
     /// Always (an error for `none` or a smaller image).
@@ -70,21 +72,14 @@ pub enum Pyramid {
 }
 
 impl Pyramid {
-    /// Parses `auto`, `on` or `off`.
-    pub fn parse(s: &str) -> Option<Pyramid> {
-        match s {
-            "auto" => Some(Pyramid::Auto),
-            "on" => Some(Pyramid::On),
-            "off" => Some(Pyramid::Off),
-            _ => None,
-        }
-    }
-
-    /// Whether the stage runs for `method` on a `size` image ([`Pyramid::On`]
-    /// where it cannot run is refused by [`check`] when the chain is built).
-    pub fn resolve(self, method: Method, size: (usize, usize)) -> bool {
+    /// Whether the stage runs for `method` in a `pass` over a `size` image
+    /// ([`Pyramid::On`] where it cannot run is refused by [`check`] when
+    /// the chain is built).
+    pub fn resolve(self, method: Method, pass: Pass, size: (usize, usize)) -> bool {
         match self {
-            Pyramid::Auto => method.info().pyramid_auto && check(method, size).is_ok(),
+            Pyramid::Auto => {
+                method.info().pyramid_auto && pass == Pass::Final && check(method, size).is_ok()
+            }
             Pyramid::On => true,
             Pyramid::Off => false,
         }

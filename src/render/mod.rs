@@ -50,9 +50,10 @@
 //!   samples in a few pixels traces them at the rate a uniform pass traces
 //!   those pixels (SIMD lanes are samples, not pixels).
 //!
-//! What one sample adds (all features at the first hit; a miss adds 0 to
-//! every feature and 1 to the count): colour, albedo (emitters: their
-//! radiance clamped to 1), the shading normal facing the ray, the distance
+//! What one sample adds (features at the first hit, but albedo and normal
+//! behind a smooth mirror, RENDER-FEATURES; a miss adds 0 to every feature
+//! and 1 to the count): colour, albedo (emitters: `L/(1+L)` per channel of
+//! their radiance), the shading normal facing the ray, the distance
 //! from the lens point, the position at shutter time 0 (`M⁻¹·s` for moving
 //! objects), and visibility — 1 if the next-event shadow ray at the first
 //! hit reached its light, else 0 (1 when no emitter is sampled by

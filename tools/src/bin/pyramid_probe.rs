@@ -79,7 +79,9 @@ fn run(
     s: &StatsImage,
     coarse: bool,
 ) -> anyhow::Result<mcdenoise::Frame> {
+    // Each level alone: the stage is what the probe compares.
     let mut c = Config::new(m);
+    c.pyramid = mcdenoise::Pyramid::Off;
     if coarse && std::env::var("PYR_COARSE_OUTLIERS").as_deref() == Ok("off") {
         c.outliers = mcdenoise::Outliers::Off;
     }

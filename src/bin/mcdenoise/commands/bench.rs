@@ -49,11 +49,11 @@ pub struct Args {
     /// The G-buffer prefilter (spec §6) for every method.
     #[arg(long, value_enum, default_value = "auto")]
     prefilter: PrefilterArg,
-    /// The pyramid's low band after every method: the method also reconstructs the
-    /// statistics pooled 2x2, and the output takes its low-frequency part
-    /// from that half-resolution reconstruction where the error estimates
-    /// favour it (light that arrives only indirectly). 1.3-1.6x the GPU
-    /// time. `--pyramid` alone is `--pyramid=on`
+    /// The pyramid's low band after every method (auto: after --method auto
+    /// only): the method also reconstructs the statistics pooled 2x2, and
+    /// the output takes its low-frequency part from that half-resolution
+    /// reconstruction where the error estimates favour it. `--pyramid`
+    /// alone is `--pyramid=on`
     #[arg(long, value_enum, default_value = "auto", num_args = 0..=1, require_equals = true, default_missing_value = "on")]
     pyramid: PyramidArg,
     /// A temporal filter after every method (spec §10); the timed calls
