@@ -237,6 +237,13 @@ fn the_pyramid_tiled_is_bit_identical() {
     c.prefilter = Prefilter::Off;
     c.options = mcdenoise::Options::parse(&["apr.stages=1".to_string()]).unwrap();
     check(&img, c, 60, "apr one stage --pyramid 480x32");
+    // `auto` with its default, the stage (PYRAMID-AUTO): a halo of ~400.
+    check(
+        &strip(1200, 32),
+        Config::new(Method::Auto),
+        200,
+        "auto (default pyramid) 1200x32",
+    );
     check_validation(&gpu());
 }
 
