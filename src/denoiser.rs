@@ -70,8 +70,8 @@ pub struct Config {
     /// arrives only indirectly). Costs 1.3–1.6× the GPU time and about a
     /// third more memory; the error estimate is the merged one, the sample
     /// map reads the method's. [`Pyramid::Auto`] (the default): on for
-    /// `auto` on images of at least 16×16 pixels, off for the other
-    /// methods; [`Pyramid::On`] needs a reconstruction (not `none`) and
+    /// `auto`'s final reconstruction ([`Pass::Final`]) of an image of at
+    /// least 16×16 pixels, off otherwise; [`Pyramid::On`] needs a reconstruction (not `none`) and
     /// such an image. In tiles the halo doubles.
     pub pyramid: Pyramid,
     /// A temporal stage after the method (spec §10): with
@@ -191,13 +191,6 @@ impl Source {
             width: img.width,
             height: img.height,
             layers: img.layers().map(|(l, _)| l).collect(),
-        }
-    }
-
-    fn size(&self) -> (usize, usize) {
-        match self {
-            Source::Accum(l) => (l.width, l.height),
-            Source::Stats { width, height, .. } => (*width, *height),
         }
     }
 
@@ -349,10 +342,12 @@ impl Denoiser {
     /// does not fit is an [`Error::Limit`].
     pub fn new(ctx: &Arc<GpuContext>, source: Source, config: Config) -> Result<Denoiser> {
         let low_spp = config.low_spp;
+        let input = source.chain();
+        let size = input.size();
         let engine = match TiledChain::choose(
             ctx,
-            source.chain(),
-            config.chain(low_spp, source.size()),
+            input,
+            config.chain(low_spp, size),
             config.max_memory,
             config.tile,
         )? {

@@ -59,11 +59,12 @@ pub struct Args {
     /// Energy-preserving firefly removal around the method (spec §4.4).
     #[arg(long, value_enum, default_value = "auto")]
     outliers: OutliersArg,
-    /// The pyramid's low band after the method: the method also reconstructs the
-    /// statistics pooled 2x2, and the output takes its low-frequency part
-    /// from that half-resolution reconstruction where the error estimates
-    /// favour it (light that arrives only indirectly). 1.3-1.6x the GPU
-    /// time. `--pyramid` alone is `--pyramid=on`
+    /// The pyramid's low band after the method (auto: with --method auto
+    /// only): the method also reconstructs the statistics pooled 2x2, and
+    /// the output takes its low-frequency part from that half-resolution
+    /// reconstruction where the error estimates favour it (light that
+    /// arrives only indirectly). 1.3-1.6x the GPU time. `--pyramid` alone
+    /// is `--pyramid=on`
     #[arg(long, value_enum, default_value = "auto", num_args = 0..=1, require_equals = true, default_missing_value = "on")]
     pyramid: PyramidArg,
     /// Add the estimated per-pixel MSE as error.R/G/B (method none: the

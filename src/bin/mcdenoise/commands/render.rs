@@ -45,11 +45,12 @@ pub struct Args {
     /// Energy-preserving firefly removal around the method (spec §4.4).
     #[arg(long, value_enum, default_value = "auto")]
     outliers: OutliersArg,
-    /// The pyramid's low band in the final reconstruction: the method also reconstructs the
-    /// statistics pooled 2x2, and the output takes its low-frequency part
-    /// from that half-resolution reconstruction where the error estimates
-    /// favour it (light that arrives only indirectly). 1.3-1.6x the GPU
-    /// time. `--pyramid` alone is `--pyramid=on`
+    /// The pyramid's low band in the final reconstruction (auto: with --method auto
+    /// only): the method also reconstructs the statistics pooled 2x2, and
+    /// the output takes its low-frequency part from that half-resolution
+    /// reconstruction where the error estimates favour it (light that
+    /// arrives only indirectly). 1.3-1.6x the GPU time. `--pyramid` alone
+    /// is `--pyramid=on`
     #[arg(long, value_enum, default_value = "auto", num_args = 0..=1, require_equals = true, default_missing_value = "on")]
     pyramid: PyramidArg,
     /// With --adaptive: at most K times the pass's mean samples in one pixel
