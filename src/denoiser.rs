@@ -14,8 +14,8 @@ use crate::methods::chain::{ChainConfig, ChainInput, GpuChain};
 use crate::methods::prepare::PrepareReport;
 use crate::methods::tiles::{Choice, Tile, TiledChain};
 use crate::methods::{
-    self, Backend, DenoiseRequest, Method, Outliers, Pass, Prefilter, ProgressCallback, Pyramid,
-    Temporal, TemporalState,
+    self, Backend, DenoiseRequest, InputBlend, Method, Outliers, Pass, Prefilter, ProgressCallback,
+    Pyramid, Temporal, TemporalState,
 };
 use crate::options::Options;
 
@@ -74,6 +74,16 @@ pub struct Config {
     /// least 16×16 pixels, off otherwise; [`Pyramid::On`] needs a reconstruction (not `none`) and
     /// such an image. In tiles the halo doubles.
     pub pyramid: Pyramid,
+    /// The input blend (INPUT-BLEND): the method's output and its input
+    /// weighed per pixel and channel by the method's error estimate and
+    /// the input's variance (floored by its mean over a small window), so
+    /// that where the method smooths across what its features do not show
+    /// the output returns towards the input. The error estimate is the
+    /// blend's, the sample map reads the method's. [`InputBlend::Auto`]
+    /// (the default): on for WLR's and AOS's final reconstruction
+    /// ([`Pass::Final`]), off otherwise; [`InputBlend::On`] needs a
+    /// reconstruction (not `none`). Parameters: `blend.radius`, `blend.k`.
+    pub input_blend: InputBlend,
     /// A temporal stage after the method (spec §10): with
     /// [`Temporal::Lp`] every call filters the method's output with the
     /// history of the earlier calls (a sequence's frames, in order), kept
@@ -108,6 +118,7 @@ impl Config {
             max_memory: None,
             tile: None,
             pyramid: Pyramid::Auto,
+            input_blend: InputBlend::Auto,
             temporal: Temporal::Off,
             temporal_state: None,
         }
@@ -125,6 +136,7 @@ impl Config {
             debug: self.debug,
             error: self.error,
             pyramid: self.pyramid.resolve(self.method, self.pass, size),
+            input_blend: self.input_blend.resolve(self.method, self.pass),
             temporal: self.temporal,
             temporal_state: self.temporal_state.clone(),
         }
@@ -137,6 +149,9 @@ impl Config {
     pub fn check_size(&self, width: usize, height: usize) -> Result<()> {
         if self.pyramid == Pyramid::On {
             methods::pyramid::check(self.method, (width, height))?;
+        }
+        if self.input_blend == InputBlend::On {
+            methods::blend::check(self.method)?;
         }
         Ok(())
     }
@@ -152,6 +167,7 @@ impl Config {
         r.error = self.error;
         r.debug = self.debug;
         r.pyramid = self.pyramid.resolve(self.method, self.pass, size);
+        r.input_blend = self.input_blend.resolve(self.method, self.pass);
         r.progress = self.progress;
         r
     }

@@ -122,8 +122,8 @@ pub use gpu::{
 pub use image::{Layer, RgbImage, StatsImage};
 pub use methods::prepare::{colour_of, has_low_spp, PrepareReport};
 pub use methods::{
-    available_names, Backend, Method, MethodInfo, Outliers, Pass, Prefilter, ProgressCallback,
-    Pyramid, Temporal, TemporalState, REGISTRY,
+    available_names, Backend, InputBlend, Method, MethodInfo, Outliers, Pass, Prefilter,
+    ProgressCallback, Pyramid, Temporal, TemporalState, REGISTRY,
 };
 pub use options::{help_table, Options};
 pub use schedule::Schedule;

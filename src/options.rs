@@ -160,6 +160,20 @@ pub const OPTIONS: &[OptionSpec] = &[
         help: "APR's own 5x5 polynomial feature prefilter when the G-buffer prefilter does not run; CPU backend only (off: see docs/results-apr.md)",
     },
     OptionSpec {
+        key: "blend.radius",
+        kind: Kind::Int(0, 16),
+        default: "method",
+        section: "ours (INPUT-BLEND)",
+        help: "the input blend's variance window: V = max(v, mean of v over (2r+1)^2 pixels) (default: 3 for WLR, 1 for AOS, 3 for the others)",
+    },
+    OptionSpec {
+        key: "blend.k",
+        kind: Kind::Real(0.0, 100.0),
+        default: "method",
+        section: "ours (INPUT-BLEND)",
+        help: "the input blend's weight of the method's error estimate against the input's variance, f' = (V f + k E y)/(V + k E) (default: 2 for AOS, 1 for the others)",
+    },
+    OptionSpec {
         key: "sampling.smooth",
         kind: Kind::Real(0.0, 16.0),
         default: "method",

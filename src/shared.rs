@@ -720,3 +720,23 @@ pub const PYRAMID_COUNT: u32 = 2;
 /// The `ε` of the low band's ratio `(up(c) + ε) / (L(f) + ε)`
 /// (PYRAMID-LOWBAND).
 pub const PYRAMID_EPS: f32 = 1e-3;
+
+/// `spirv/input_blend.comp`, block `Push` (the input blend, INPUT-BLEND).
+#[repr(C)]
+#[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct BlendPush {
+    /// Width of the image in pixels.
+    pub width: u32,
+    /// Its height.
+    pub height: u32,
+    /// First row of the band this dispatch covers.
+    pub row0: u32,
+    /// The radius `r` of the window whose mean variance floors a pixel's:
+    /// `V = max(v, box_{2r+1}(v))`.
+    pub radius: u32,
+    /// The weight `k` of the reconstruction's error estimate against the
+    /// input's variance.
+    pub k: f32,
+    /// Unused: 0.
+    pub _pad: [u32; 3],
+}

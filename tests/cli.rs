@@ -713,3 +713,62 @@ fn pyramid_from_the_command_line() {
     assert!(err.contains("method none has none"), "{err}");
     assert!(!dir.join("none_stats.exr").exists());
 }
+
+/// `--input-blend` on `render` and `denoise`: WLR's final reconstruction
+/// blends by default and `--input-blend=off` changes it, an adaptive
+/// render's passes do not (their sample counts are the same), LP's output
+/// changes with `--input-blend`, and method none is a clear error.
+#[test]
+fn input_blend_from_the_command_line() {
+    let dir = tmpdir("input_blend");
+    let render = |extra: &[&str], out: &str| {
+        let mut cmd = bin();
+        cmd.args([
+            "render", "--scene", "cornell", "--size", "32x32", "--spp", "8",
+        ])
+        .args(["--adaptive", "--seed", "3", "--method", "wlr"])
+        .args(extra)
+        .arg("--save-stats")
+        .arg(dir.join(format!("{out}_stats.exr")))
+        .arg("-o")
+        .arg(dir.join(format!("{out}.exr")));
+        run(&mut cmd)
+    };
+    for (extra, out) in [(&[][..], "plain"), (&["--input-blend=off"][..], "off")] {
+        let (code, _, err) = render(extra, out);
+        assert_eq!(code, 0, "{err}");
+    }
+    let rgb = |p: &str| mcdenoise::io::read_rgb(&dir.join(p)).unwrap().planes;
+    let stats = |p: &str| mcdenoise::io::read_stats(&dir.join(p)).unwrap();
+    assert!(rgb("plain.exr") != rgb("off.exr"));
+    assert!(
+        stats("plain_stats.exr").get(mcdenoise::Layer::Spp)
+            == stats("off_stats.exr").get(mcdenoise::Layer::Spp)
+    );
+    let denoise = |extra: &[&str], out: &str| {
+        run(bin()
+            .arg("denoise")
+            .arg(dir.join("plain_stats.exr"))
+            .arg("-o")
+            .arg(dir.join(out))
+            .args(["--method", "lp"])
+            .args(extra))
+    };
+    for (extra, out) in [
+        (&[][..], "d_plain.exr"),
+        (&["--input-blend"][..], "d_on.exr"),
+    ] {
+        let (code, _, err) = denoise(extra, out);
+        assert_eq!(code, 0, "{err}");
+    }
+    assert!(rgb("d_plain.exr") != rgb("d_on.exr"));
+    let (code, _, err) = run(bin()
+        .arg("denoise")
+        .arg(dir.join("plain_stats.exr"))
+        .arg("-o")
+        .arg(dir.join("n.exr"))
+        .args(["--input-blend", "--method", "none"]));
+    assert_ne!(code, 0);
+    assert!(err.contains("method none has none"), "{err}");
+    assert!(!dir.join("n.exr").exists());
+}

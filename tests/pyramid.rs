@@ -207,6 +207,7 @@ fn chain_config(method: Method, pyramid: bool) -> ChainConfig {
         debug: false,
         error: true,
         pyramid,
+        input_blend: false,
         temporal: Temporal::Off,
         temporal_state: None,
     }

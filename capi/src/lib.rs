@@ -147,6 +147,16 @@ pub const MCD_FLAG_PYRAMID: u32 = 8;
 /// Flag of [`McdDenoiserDesc::flags`]: never the pyramid's low band (see
 /// [`MCD_FLAG_PYRAMID`]); both flags together are an error.
 pub const MCD_FLAG_NO_PYRAMID: u32 = 16;
+/// Flag of [`McdDenoiserDesc::flags`]: the input blend after the method
+/// (INPUT-BLEND): each pixel's output is the method's and the input's,
+/// weighed by the method's error estimate and the input's variance. Not
+/// for `MCD_METHOD_NONE`. Without this flag or
+/// [`MCD_FLAG_NO_INPUT_BLEND`], the stage runs after `MCD_METHOD_WLR` and
+/// `MCD_METHOD_AOS` in a final reconstruction and after no other method.
+pub const MCD_FLAG_INPUT_BLEND: u32 = 32;
+/// Flag of [`McdDenoiserDesc::flags`]: never the input blend (see
+/// [`MCD_FLAG_INPUT_BLEND`]); both flags together are an error.
+pub const MCD_FLAG_NO_INPUT_BLEND: u32 = 64;
 
 /// One denoiser's configuration: fixed for its life.
 #[repr(C)]
@@ -535,6 +545,19 @@ pub unsafe extern "C" fn mcd_denoiser_create(
             (false, true) => core::Pyramid::Off,
             (true, true) => {
                 return Err(invalid("MCD_FLAG_PYRAMID and MCD_FLAG_NO_PYRAMID together"))
+            }
+        };
+        config.input_blend = match (
+            desc.flags & MCD_FLAG_INPUT_BLEND != 0,
+            desc.flags & MCD_FLAG_NO_INPUT_BLEND != 0,
+        ) {
+            (false, false) => core::InputBlend::Auto,
+            (true, false) => core::InputBlend::On,
+            (false, true) => core::InputBlend::Off,
+            (true, true) => {
+                return Err(invalid(
+                    "MCD_FLAG_INPUT_BLEND and MCD_FLAG_NO_INPUT_BLEND together",
+                ))
             }
         };
         if !desc.options.is_null() {

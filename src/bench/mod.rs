@@ -183,6 +183,7 @@ fn denoiser(
     config.options = stages.options.clone();
     config.temporal = stages.temporal;
     config.pyramid = stages.pyramid;
+    config.input_blend = stages.input_blend;
     config.low_spp = crate::has_low_spp(img);
     match backend {
         Backend::Gpu => {
@@ -211,6 +212,9 @@ pub struct Stages {
     /// The pyramid's low band (PYRAMID-LOWBAND) after the method (`Auto`:
     /// after `auto` only).
     pub pyramid: crate::Pyramid,
+    /// The input blend (INPUT-BLEND) after the method (`Auto`: after WLR
+    /// and AOS).
+    pub input_blend: crate::InputBlend,
 }
 
 impl Stages {
@@ -224,6 +228,9 @@ impl Stages {
         .to_lowercase();
         if self.pyramid != crate::Pyramid::Auto {
             s.push_str(&format!(", pyramid {:?}", self.pyramid).to_lowercase());
+        }
+        if self.input_blend != crate::InputBlend::Auto {
+            s.push_str(&format!(", input blend {:?}", self.input_blend).to_lowercase());
         }
         if self.temporal != crate::Temporal::Off {
             s.push_str(&format!(", temporal {:?}", self.temporal).to_lowercase());
@@ -288,6 +295,7 @@ mod tests {
                 .unwrap(),
             temporal: crate::Temporal::Off,
             pyramid: crate::Pyramid::Auto,
+            input_blend: crate::InputBlend::Auto,
         };
         assert_eq!(
             s.describe(),

@@ -25,6 +25,7 @@ pub mod gbf_filter;
 pub mod gbf_pack;
 pub mod gbf_prepare;
 pub mod gbf_sure;
+pub mod input_blend;
 pub mod lp_centres;
 pub mod lp_gather;
 pub mod lp_reach;
@@ -108,6 +109,7 @@ pub const ALL: &[&KernelDecl] = &[
     &auto_blend::DECL,
     &pyramid_pool::DECL,
     &pyramid_merge::DECL,
+    &input_blend::DECL,
     &sample_priority::DECL,
     &sample_reduce::DECL,
     &sample_scan::DECL,

@@ -463,6 +463,11 @@ pub static INFO: MethodInfo = MethodInfo {
     prefilter_auto: false,
     outliers_auto: true,
     pyramid_auto: false,
+    blend: super::blend::BlendDefaults {
+        auto: true,
+        radius: 1,
+        k: 2.0,
+    },
     passes: 3,
     pass_cap: None,
     sampling: SamplingParams {

@@ -461,6 +461,11 @@ pub static INFO: MethodInfo = MethodInfo {
     prefilter_auto: true,
     outliers_auto: true,
     pyramid_auto: false,
+    blend: super::blend::BlendDefaults {
+        auto: false,
+        radius: 3,
+        k: 1.0,
+    },
     passes: 5,
     // APR-CAP: a pass gives a pixel at most 4× its mean.
     pass_cap: Some(4.0),

@@ -62,6 +62,11 @@ pub static INFO: MethodInfo = MethodInfo {
     prefilter_auto: true,
     outliers_auto: true,
     pyramid_auto: true,
+    blend: super::blend::BlendDefaults {
+        auto: false,
+        radius: 3,
+        k: 1.0,
+    },
     passes: super::wlr::INFO.passes,
     pass_cap: None,
     sampling: super::wlr::INFO.sampling,

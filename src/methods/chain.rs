@@ -17,6 +17,7 @@ use crate::gpu::{Batch, BufferSlice, GpuBuffer, GpuContext, PlaneSet, Precision}
 use crate::image::{Layer, RgbImage, StatsImage};
 use crate::options::Options;
 
+use super::blend::BlendStage;
 use super::gbf::{self, GbfPlanes};
 use super::outliers::{self, OutlierPlanes};
 use super::prepare::{self, PrepareReport, PrepareScratch};
@@ -106,6 +107,9 @@ pub struct ChainConfig {
     /// method on the 2×2-pooled statistics in a second chain, merged by the
     /// error estimates.
     pub pyramid: bool,
+    /// The input blend after the method (INPUT-BLEND): the method's colour
+    /// weighed against the input by the two errors, in place.
+    pub input_blend: bool,
     /// With `temporal` on an adaptive pass's chain ([`Pass::Intermediate`]):
     /// the final chain's state, whose factor scales the sample map's error
     /// (TEMPORAL-MAP).
@@ -180,6 +184,8 @@ pub struct GpuChain {
     sampling: (SamplingPlanes, SamplingParams),
     /// The pyramid's coarse level and merge ([`ChainConfig::pyramid`]).
     pyramid: Option<PyramidStage>,
+    /// The input blend ([`ChainConfig::input_blend`]).
+    blend: Option<BlendStage>,
     /// The temporal stage ([`ChainConfig::temporal`]).
     temporal: Option<TemporalRole>,
     /// `config` as the method sees it: with the error estimate computed
@@ -204,6 +210,7 @@ impl std::fmt::Debug for GpuChain {
             .field("prefilter", &self.gbf.is_some())
             .field("outliers", &self.outliers.is_some())
             .field("pyramid", &self.pyramid.is_some())
+            .field("input_blend", &self.blend.is_some())
             .field("temporal", &self.config.temporal)
             .finish()
     }
@@ -257,11 +264,14 @@ impl GpuChain {
         // overlaps LP's queue and packed features, dead by then).
         let n = w * h;
         let with_gbf = prefilter_runs(config.method, config.prefilter, &layers)?;
-        // The temporal filter (TEMPORAL-INFLATE) and the pyramid's merge
-        // read the method's error estimate: the method computes it even
-        // when it is not downloaded.
+        // The temporal filter (TEMPORAL-INFLATE), the pyramid's merge and
+        // the input blend read the method's error estimate: the method
+        // computes it even when it is not downloaded.
         let stage_config = ChainConfig {
-            error: config.error || config.temporal != Temporal::Off || config.pyramid,
+            error: config.error
+                || config.temporal != Temporal::Off
+                || config.pyramid
+                || config.input_blend,
             ..config.clone()
         };
         let info = config.method.info();
@@ -339,6 +349,16 @@ impl GpuChain {
         } else {
             None
         };
+        let blend = if config.input_blend {
+            Some(BlendStage::new(
+                ctx,
+                (w, h),
+                config.method,
+                &config.options,
+            )?)
+        } else {
+            None
+        };
         let chain = GpuChain {
             ctx: ctx.clone(),
             input_kind: input,
@@ -351,6 +371,7 @@ impl GpuChain {
             method,
             sampling,
             pyramid,
+            blend,
             temporal,
             stage_config,
         };
@@ -602,14 +623,18 @@ impl GpuChain {
                 spp_total: at.totals.map(|t| t.fine),
             },
         )?;
+        if let Some(b) = &self.blend {
+            let error = self.method.error(&self.stats);
+            b.record(batch, p, self.method_color(), error, &self.stats)?;
+        }
         let spp = self.stats.plane(Layer::Spp, 0);
         if let Some(o) = &self.outliers {
-            outliers::record_restore(batch, p, spp, self.method_color(), o)?;
+            outliers::record_restore(batch, p, spp, self.fine_color(), o)?;
         }
         if let Some(py) = &self.pyramid {
             let fine = Level {
-                color: self.method_color(),
-                error: self.method.error(&self.stats),
+                color: self.fine_color(),
+                error: self.fine_error(),
                 spp,
             };
             py.record_merge(batch, p, &fine)?;
@@ -698,10 +723,19 @@ impl GpuChain {
     }
 
     /// The spatial reconstruction's colour: the pyramid's merge when there
-    /// is one, else the method's.
+    /// is one, else [`fine_color`](Self::fine_color).
     pub fn spatial_color(&self) -> [BufferSlice; 3] {
         match &self.pyramid {
             Some(py) => py.color(),
+            None => self.fine_color(),
+        }
+    }
+
+    /// The full-resolution reconstruction after the outlier stage: the
+    /// input blend's when it runs, else the method's.
+    pub fn fine_color(&self) -> [BufferSlice; 3] {
+        match &self.blend {
+            Some(b) => b.color(),
             None => self.method_color(),
         }
     }
@@ -710,20 +744,30 @@ impl GpuChain {
     fn spatial_error(&self) -> [BufferSlice; 3] {
         match &self.pyramid {
             Some(py) => py.error(),
+            None => self.fine_error(),
+        }
+    }
+
+    /// The error estimate of [`fine_color`](Self::fine_color).
+    fn fine_error(&self) -> [BufferSlice; 3] {
+        match &self.blend {
+            Some(b) => b.error(),
             None => self.method.error(&self.stats),
         }
     }
 
-    /// The method's colour planes (after the outlier stage), before the
-    /// pyramid's merge and any temporal stage.
+    /// The method's colour planes (after the outlier stage unless the
+    /// input blend runs), before the input blend, the pyramid's merge and
+    /// any temporal stage.
     pub fn method_color(&self) -> [BufferSlice; 3] {
         self.method.color(&self.stats)
     }
 
     /// The per-pixel error estimate `E_i` per channel (§9.1): WLR's shared
     /// MSE three times, LP's per-channel estimate, and for `none` the
-    /// variance of the mean (the MSE of the unfiltered input); the
-    /// pyramid's merged estimate when it runs.
+    /// variance of the mean (the MSE of the unfiltered input); the input
+    /// blend's when it runs, and the pyramid's merged estimate when that
+    /// runs.
     pub fn error(&self) -> [BufferSlice; 3] {
         self.spatial_error()
     }

@@ -627,6 +627,11 @@ pub static INFO: MethodInfo = MethodInfo {
     prefilter_auto: true,
     outliers_auto: true,
     pyramid_auto: false,
+    blend: super::blend::BlendDefaults {
+        auto: false,
+        radius: 3,
+        k: 1.0,
+    },
     passes: 5,
     // LP-CAP: LP's map concentrates samples at emitter edges.
     pass_cap: Some(4.0),

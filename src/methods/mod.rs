@@ -5,6 +5,7 @@
 pub mod aos;
 pub mod apr;
 pub mod auto;
+pub mod blend;
 pub mod chain;
 pub mod gbf;
 pub mod lp;
@@ -26,6 +27,7 @@ use crate::gpu::{GpuContext, KernelTiming, Precision};
 use crate::image::{RgbImage, StatsImage};
 use crate::options::Options;
 
+pub use blend::InputBlend;
 pub use outliers::Outliers;
 pub use pyramid::Pyramid;
 pub use registry::MethodInfo;
@@ -175,6 +177,8 @@ pub struct DenoiseRequest {
     pub debug: bool,
     /// The pyramid's low band after the method (PYRAMID-LOWBAND).
     pub pyramid: bool,
+    /// The input blend after the method (INPUT-BLEND).
+    pub input_blend: bool,
     /// Report progress on stderr for runs longer than about a second.
     pub progress: bool,
     /// Samples to distribute for the next pass: computes the sample map
@@ -198,6 +202,7 @@ impl DenoiseRequest {
             error: false,
             debug: false,
             pyramid: false,
+            input_blend: false,
             progress: false,
             budget: None,
         }
@@ -261,6 +266,7 @@ fn denoise_gpu(
             debug: req.debug,
             error: req.error,
             pyramid: req.pyramid,
+            input_blend: req.input_blend,
             temporal: Temporal::Off,
             temporal_state: None,
         },
@@ -326,6 +332,9 @@ fn denoise_cpu(img: &StatsImage, req: &DenoiseRequest) -> Result<DenoiseOutput> 
     if req.pyramid {
         pyramid::check(req.method, (img.width, img.height))?;
     }
+    if req.input_blend {
+        blend::check(req.method)?;
+    }
     let CleanCpu {
         clean,
         report,
@@ -351,6 +360,13 @@ fn denoise_cpu(img: &StatsImage, req: &DenoiseRequest) -> Result<DenoiseOutput> 
             prefiltered,
         },
     )?;
+    // The sample map reads the method's own estimate, as on the GPU.
+    if req.input_blend {
+        let params = blend::params(req.method, &req.options)?;
+        let (c, e) = blend::run_cpu(&clean, &color, &error, params)?;
+        color = c;
+        map_e = map_e.or(Some(std::mem::replace(&mut error, e)));
+    }
     if let Some(r) = &removed {
         let spp = &clean.get(crate::image::Layer::Spp).unwrap()[0];
         outliers::restore_cpu(w, h, spp, r, &mut color.planes);

@@ -23,6 +23,11 @@ pub static INFO: MethodInfo = MethodInfo {
     // Its output is the Monte Carlo mean by definition.
     outliers_auto: false,
     pyramid_auto: false,
+    blend: super::blend::BlendDefaults {
+        auto: false,
+        radius: 0,
+        k: 1.0,
+    },
     passes: 5,
     pass_cap: None,
     sampling: SamplingParams {

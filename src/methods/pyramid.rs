@@ -153,6 +153,7 @@ impl PyramidStage {
         // prefilter is made explicit, so both levels make the same one.
         let coarse_config = ChainConfig {
             pyramid: false,
+            input_blend: false,
             prefilter: if prefiltered {
                 Prefilter::On
             } else {
@@ -269,6 +270,7 @@ pub fn run_cpu(
     let (color, error, spp) = fine;
     let coarse_req = DenoiseRequest {
         pyramid: false,
+        input_blend: false,
         prefilter: if prefiltered {
             Prefilter::On
         } else {

@@ -49,6 +49,9 @@ pub struct MethodInfo {
     /// Whether `--pyramid auto` runs the pyramid's low band
     /// (PYRAMID-LOWBAND) after it.
     pub pyramid_auto: bool,
+    /// The input blend's defaults (INPUT-BLEND): whether `--input-blend
+    /// auto` runs it after the method, and its parameters.
+    pub blend: super::blend::BlendDefaults,
     /// Adaptive passes after the uniform pass 0 (§9.3 `N_pass`).
     pub passes: u32,
     /// The adaptive loop's default per-pass cap, as a multiple of the pass's

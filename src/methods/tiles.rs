@@ -167,7 +167,15 @@ pub fn halo(config: &ChainConfig, prefiltered: bool) -> Result<Halo> {
         parts.push(("outlier redistribution (§4.4 step 4)", 2 * spread));
     }
     let method = (config.method.info().halo)(config)?;
-    parts.push(("method", method));
+    // The input blend reads the statistics the method read, within its
+    // variance window of the pixel: within the method's reach but for an
+    // unusually wide window.
+    let blend = if config.input_blend {
+        super::blend::params(config.method, &config.options)?.0 as usize
+    } else {
+        0
+    };
+    parts.push(("method (and the input blend)", method.max(blend)));
     if prefiltered {
         let s = gauss_smooth::radius(reference::gbf::SMOOTH_SIGMA) as usize;
         parts.push(("G-buffer prefilter (§6.2)", 2 * s + reference::gbf::RADIUS));

@@ -487,6 +487,11 @@ pub static INFO: MethodInfo = MethodInfo {
     prefilter_auto: true,
     outliers_auto: true,
     pyramid_auto: false,
+    blend: super::blend::BlendDefaults {
+        auto: true,
+        radius: 3,
+        k: 1.0,
+    },
     passes: 5,
     pass_cap: None,
     sampling: SamplingParams {

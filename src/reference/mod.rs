@@ -32,6 +32,7 @@ pub mod gbf_filter;
 pub mod gbf_pack;
 pub mod gbf_prepare;
 pub mod gbf_sure;
+pub mod input_blend;
 pub mod linalg;
 pub mod lp;
 pub mod lp_centres;

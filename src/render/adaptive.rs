@@ -21,8 +21,8 @@ use super::{Renderer, Samples};
 use crate::gpu::GpuBuffer;
 use crate::schedule::INITIAL_SPP;
 use crate::{
-    Batch, Config, Denoiser, Error, Frame, GpuContext, KernelTiming, Method, Options, Outliers,
-    Pass, Precision, Prefilter, Pyramid, Result, Schedule, Source,
+    Batch, Config, Denoiser, Error, Frame, GpuContext, InputBlend, KernelTiming, Method, Options,
+    Outliers, Pass, Precision, Prefilter, Pyramid, Result, Schedule, Source,
 };
 
 /// What to render and how.
@@ -64,6 +64,10 @@ pub struct LoopConfig {
     /// reconstruction (and the open-ended renders' judging of it); the
     /// adaptive passes' reconstructions run without it.
     pub pyramid: Pyramid,
+    /// The input blend ([`Config::input_blend`]) in the final
+    /// reconstruction; the adaptive passes' reconstructions run without
+    /// it.
+    pub input_blend: InputBlend,
 }
 
 impl LoopConfig {
@@ -83,6 +87,7 @@ impl LoopConfig {
             stop: None,
             temporal_maps: true,
             pyramid: Pyramid::Auto,
+            input_blend: InputBlend::Auto,
         }
     }
 }
@@ -113,10 +118,10 @@ fn loop_config(cfg: &LoopConfig, pass: Pass, first_spp: u32) -> Config {
     c.precision = cfg.precision;
     c.options = cfg.options.clone();
     c.low_spp = first_spp < 2;
-    c.pyramid = if pass == Pass::Final {
-        cfg.pyramid
+    (c.pyramid, c.input_blend) = if pass == Pass::Final {
+        (cfg.pyramid, cfg.input_blend)
     } else {
-        Pyramid::Off
+        (Pyramid::Off, InputBlend::Off)
     };
     c
 }

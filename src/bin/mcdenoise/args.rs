@@ -3,7 +3,7 @@
 use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
 use clap::ValueEnum;
 
-use mcdenoise::{Method, Outliers, Pass, Precision, Prefilter, Pyramid, REGISTRY};
+use mcdenoise::{InputBlend, Method, Outliers, Pass, Precision, Prefilter, Pyramid, REGISTRY};
 
 /// `--method`: any method of the registry, by name (its help line from the
 /// registry too).
@@ -122,6 +122,26 @@ impl PyramidArg {
             PyramidArg::Auto => Pyramid::Auto,
             PyramidArg::On => Pyramid::On,
             PyramidArg::Off => Pyramid::Off,
+        }
+    }
+}
+
+#[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
+pub enum BlendArg {
+    /// On after WLR and AOS, off after the other methods.
+    Auto,
+    /// After any reconstruction (not none).
+    On,
+    /// Never.
+    Off,
+}
+
+impl BlendArg {
+    pub fn get(self) -> InputBlend {
+        match self {
+            BlendArg::Auto => InputBlend::Auto,
+            BlendArg::On => InputBlend::On,
+            BlendArg::Off => InputBlend::Off,
         }
     }
 }

@@ -5,7 +5,7 @@
 //! error.
 //!
 //! Cases: the public scenes (`--public DIR`: `DIR/<scene>/spp{4,16,64}.exr`
-//! against `reference.exr`) and built-in scenes rendered uniformly (seed 3)
+//! against `reference.exr`) and built-in scenes rendered uniformly (`--seed`, 3 by default)
 //! against the mean of two K-spp references (cached). Prints one JSON line
 //! per case with every method's and every rule's rMSE (raw: the references'
 //! own error is not subtracted, it is the same for every row of a case).
@@ -48,6 +48,9 @@ struct Args {
     /// Folder for the uniform statistics (for OIDN).
     #[arg(long, default_value = "target/method_mix")]
     work: PathBuf,
+    /// The uniform inputs' seed (the references' are fixed).
+    #[arg(long, default_value_t = 3)]
+    seed: u64,
 }
 
 struct Out {
@@ -300,7 +303,7 @@ fn main() -> anyhow::Result<()> {
             }
         }
         for &n in &a.spp {
-            let ren = Renderer::new(&ctx, &scene, a.size.0, a.size.1, 3)?;
+            let ren = Renderer::new(&ctx, &scene, a.size.0, a.size.1, a.seed)?;
             let mut b = Batch::new(&ctx)?;
             ren.record_clear(&mut b);
             ren.record_pass(&mut b, Samples::Uniform(n))?;

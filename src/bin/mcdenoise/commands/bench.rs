@@ -8,7 +8,9 @@ use clap::ValueEnum;
 use mcdenoise::bench::{self as b, Note};
 use mcdenoise::{Backend, Method, Options};
 
-use crate::args::{method_parser, parse_size, OutliersArg, PrefilterArg, PyramidArg, TemporalArg};
+use crate::args::{
+    method_parser, parse_size, BlendArg, OutliersArg, PrefilterArg, PyramidArg, TemporalArg,
+};
 use crate::common::{context, refuse_overwrite};
 use crate::Cli;
 
@@ -56,6 +58,12 @@ pub struct Args {
     /// alone is `--pyramid=on`
     #[arg(long, value_enum, default_value = "auto", num_args = 0..=1, require_equals = true, default_missing_value = "on")]
     pyramid: PyramidArg,
+    /// The input blend after the method (auto: after WLR and AOS): each
+    /// pixel's output is the method's and the input's, weighed by the
+    /// method's error estimate and the input's variance (--opt blend.radius,
+    /// blend.k). `--input-blend` alone is `--input-blend=on`
+    #[arg(long, value_enum, default_value = "auto", num_args = 0..=1, require_equals = true, default_missing_value = "on")]
+    input_blend: BlendArg,
     /// A temporal filter after every method (spec §10); the timed calls
     /// are its consecutive frames. GPU only.
     #[arg(long, value_enum, default_value = "off")]
@@ -122,6 +130,7 @@ pub fn run(cli: &Cli, a: &Args) -> anyhow::Result<bool> {
         options: Options::parse(&a.opts)?,
         temporal: a.temporal.get(),
         pyramid: a.pyramid.get(),
+        input_blend: a.input_blend.get(),
     };
     if let Some(input) = &a.input {
         refuse_overwrite(

@@ -10,8 +10,8 @@ use mcdenoise::{
 };
 
 use crate::args::{
-    method_parser, BackendArg, OutliersArg, PassArg, PrecisionArg, PrefilterArg, PyramidArg,
-    TemporalArg,
+    method_parser, BackendArg, BlendArg, OutliersArg, PassArg, PrecisionArg, PrefilterArg,
+    PyramidArg, TemporalArg,
 };
 use crate::common::{
     check_error, context, print_metrics, print_report, progress_bar, read_colour, refuse_overwrite,
@@ -67,6 +67,12 @@ pub struct Args {
     /// is `--pyramid=on`
     #[arg(long, value_enum, default_value = "auto", num_args = 0..=1, require_equals = true, default_missing_value = "on")]
     pyramid: PyramidArg,
+    /// The input blend after the method (auto: after WLR and AOS): each
+    /// pixel's output is the method's and the input's, weighed by the
+    /// method's error estimate and the input's variance (--opt blend.radius,
+    /// blend.k). `--input-blend` alone is `--input-blend=on`
+    #[arg(long, value_enum, default_value = "auto", num_args = 0..=1, require_equals = true, default_missing_value = "on")]
+    input_blend: BlendArg,
     /// Add the estimated per-pixel MSE as error.R/G/B (method none: the
     /// variance of the mean).
     #[arg(long)]
@@ -124,6 +130,7 @@ impl Args {
         config.tile = self.tile.map(|t| t as usize);
         config.temporal = self.temporal.get();
         config.pyramid = self.pyramid.get();
+        config.input_blend = self.input_blend.get();
         config
     }
 }

@@ -12,7 +12,8 @@ use mcdenoise::{
 };
 
 use crate::args::{
-    method_parser, parse_size, OutliersArg, PrecisionArg, PrefilterArg, PyramidArg, TemporalArg,
+    method_parser, parse_size, BlendArg, OutliersArg, PrecisionArg, PrefilterArg, PyramidArg,
+    TemporalArg,
 };
 use crate::common::{context, pass_bar, refuse_overwrite, stop_flag};
 use crate::Cli;
@@ -53,6 +54,12 @@ pub struct Args {
     /// is `--pyramid=on`
     #[arg(long, value_enum, default_value = "auto", num_args = 0..=1, require_equals = true, default_missing_value = "on")]
     pyramid: PyramidArg,
+    /// The input blend in the final reconstruction (auto: after WLR and AOS): each
+    /// pixel's output is the method's and the input's, weighed by the
+    /// method's error estimate and the input's variance (--opt blend.radius,
+    /// blend.k). `--input-blend` alone is `--input-blend=on`
+    #[arg(long, value_enum, default_value = "auto", num_args = 0..=1, require_equals = true, default_missing_value = "on")]
+    input_blend: BlendArg,
     /// With --adaptive: at most K times the pass's mean samples in one pixel
     /// per pass (the excess goes to the other pixels); 0 = no cap. Default:
     /// the method's (4 for LP and APR, no cap for the others).
@@ -439,6 +446,7 @@ fn loop_config(a: &Args) -> anyhow::Result<adaptive::LoopConfig> {
     // Before any pass renders: the final denoiser is made last.
     Config {
         pyramid: a.pyramid.get(),
+        input_blend: a.input_blend.get(),
         ..Config::new(method)
     }
     .check_size(a.size.0, a.size.1)?;
@@ -461,6 +469,7 @@ fn loop_config(a: &Args) -> anyhow::Result<adaptive::LoopConfig> {
         }),
         temporal_maps: true,
         pyramid: a.pyramid.get(),
+        input_blend: a.input_blend.get(),
     })
 }
 

@@ -1,0 +1,75 @@
+#version 460
+// The input blend (INPUT-BLEND, ours): one channel of the reconstruction f
+// with error estimate E, blended with the input y (the statistics
+// the method read) by inverse error, as two estimates of the same pixel:
+//   V  = max(v, mean of v over the valid pixels of the (2r+1)^2 window)
+//   f' = max((V f + k E y) / (V + k E), 0)
+//   E' = V E (V + k^2 E) / (V + k E)^2
+// (E' is the variance of the blend were the two independent.) An invalid
+// pixel, or one with V + k E = 0, keeps f and E.
+// Scalar twin: src/reference/input_blend.rs.
+#include "lib/common.glsl"
+
+layout(local_size_x = 8, local_size_y = 8) in;
+
+// Mirrors mcdenoise::shared::BlendPush.
+layout(push_constant) uniform Push {
+    uint width;
+    uint height;
+    uint row0;
+    uint radius;
+    float k;
+    uint pad0;
+    uint pad1;
+    uint pad2;
+} push;
+
+PLANE_IN(0, f)
+PLANE_IN(1, e)
+PLANE_IN(2, y)
+PLANE_IN(3, v)
+PLANE_IN(4, spp)
+PLANE_OUT(5, fout)
+PLANE_OUT(6, eout)
+
+void main()
+{
+    uint x = gl_GlobalInvocationID.x;
+    uint row = push.row0 + gl_GlobalInvocationID.y;
+    if (x >= push.width || row >= push.height) {
+        return;
+    }
+    uint i = row * push.width + x;
+    float ei_raw = e[i];
+    fout[i] = f[i];
+    if (spp_of(spp[i]) <= 0.0) {
+        eout[i] = ei_raw;
+        return;
+    }
+    int r = int(push.radius);
+    int x0 = max(int(x) - r, 0), x1 = min(int(x) + r, int(push.width) - 1);
+    int y0 = max(int(row) - r, 0), y1 = min(int(row) + r, int(push.height) - 1);
+    real sum = real(0);
+    real count = real(0);
+    for (int qy = y0; qy <= y1; ++qy) {
+        for (int qx = x0; qx <= x1; ++qx) {
+            uint q = uint(qy) * push.width + uint(qx);
+            if (spp_of(spp[q]) > 0.0) {
+                sum += max(real(v[q]), real(0));
+                count += real(1);
+            }
+        }
+    }
+    real vi = max(real(v[i]), real(0));
+    real big_v = max(vi, sum / count);
+    real ei = ei_raw > 0.0 ? real(ei_raw) : real(0);
+    real k = real(push.k);
+    real den = big_v + k * ei;
+    if (!(den > real(0))) {
+        eout[i] = ei_raw;
+        return;
+    }
+    real fi = real(f[i]);
+    fout[i] = float(max((big_v * fi + k * ei * real(y[i])) / den, real(0)));
+    eout[i] = float(big_v * ei * (big_v + k * k * ei) / (den * den));
+}

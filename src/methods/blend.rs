@@ -1,0 +1,210 @@
+//! The input blend (INPUT-BLEND): the last spatial stage of the chain. The
+//! method's reconstruction `f` and the input `y` it was made from are two
+//! estimates of each pixel with their own errors — the method's estimate
+//! `E` and the input's variance of the mean `v` — and the output weighs
+//! them by inverse error, per pixel and channel:
+//! `f' = (V f + k E y) / (V + k E)` with `V = max(v, box(v))`, the mean
+//! of `v` over a `(2r + 1)²` window flooring the pixel's own (a pixel whose
+//! few samples happen to agree has no variance of its own to speak for
+//! it). Where the method smooths across what it cannot see in its
+//! features it reports a large error, and the output returns towards the
+//! input: it keeps a reconstruction from ending worse than its input.
+//!
+//! It runs on the method's colour before the outlier stage gives back the
+//! energy it removed, on the same cleaned statistics the method read: the
+//! energy the outlier stage moves is kept whatever the blend does.
+
+use std::sync::Arc;
+
+use crate::error::{Error, Result};
+use crate::gpu::{Batch, BufferSlice, GpuContext, PlaneSet, Precision};
+use crate::image::{Layer, RgbImage, StatsImage};
+use crate::kernels::input_blend::{self, Channel};
+use crate::options::Options;
+use crate::reference::input_blend as twin;
+use crate::shared::BlendPush;
+
+use super::stats::GpuStats;
+use super::{Method, Pass};
+
+/// A method's defaults for the stage ([`super::MethodInfo::blend`]).
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct BlendDefaults {
+    /// Whether [`InputBlend::Auto`] runs it after the method.
+    pub auto: bool,
+    /// The radius `r` of the variance's window (`blend.radius`).
+    pub radius: u32,
+    /// The weight `k` of the error estimate (`blend.k`).
+    pub k: f32,
+}
+
+/// Whether the input blend runs (`Config::input_blend`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum InputBlend {
+    /// The method's default ([`BlendDefaults::auto`]: WLR and AOS) in a
+    /// final reconstruction ([`Pass::Final`]; an adaptive pass's map reads
+    /// the method's estimate).
+    #[default]
+    Auto,
+    /// Always (an error for `none`).
+    On,
+    /// Never.
+    Off,
+}
+
+impl InputBlend {
+    /// Whether the stage runs for `method` in a `pass`.
+    pub fn resolve(self, method: Method, pass: Pass) -> bool {
+        match self {
+            InputBlend::Auto => method.info().blend.auto && pass == Pass::Final,
+            InputBlend::On => true,
+            InputBlend::Off => false,
+        }
+    }
+}
+
+/// `Err` unless the stage can run after `method`.
+pub fn check(method: Method) -> Result<()> {
+    if method == Method::None {
+        return Err(Error::InvalidArgument(
+            "the input blend weighs a reconstruction against its input: method none has none"
+                .into(),
+        ));
+    }
+    Ok(())
+}
+
+/// The stage's `(radius, k)` for `method` with `options`
+/// (`blend.radius`, `blend.k`; the method's defaults otherwise).
+pub fn params(method: Method, options: &Options) -> Result<(u32, f32)> {
+    let d = method.info().blend;
+    let radius = match options.get("blend.radius") {
+        "method" => d.radius,
+        s => s
+            .parse()
+            .map_err(|_| Error::InvalidArgument(format!("blend.radius: {s:?}")))?,
+    };
+    let k = match options.get("blend.k") {
+        "method" => d.k,
+        s => s
+            .parse()
+            .map_err(|_| Error::InvalidArgument(format!("blend.k: {s:?}")))?,
+    };
+    Ok((radius, k))
+}
+
+/// The push constants over a `size` image.
+pub fn push((w, h): (usize, usize), (radius, k): (u32, f32)) -> BlendPush {
+    BlendPush {
+        width: w as u32,
+        height: h as u32,
+        radius,
+        k,
+        ..Default::default()
+    }
+}
+
+/// The stage's planes: the blend's colour R, G, B (planes 0–2) and error
+/// estimate (3–5).
+pub struct BlendStage {
+    planes: PlaneSet,
+    push: BlendPush,
+}
+
+impl std::fmt::Debug for BlendStage {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("BlendStage")
+            .field("push", &self.push)
+            .finish()
+    }
+}
+
+impl BlendStage {
+    /// The stage of a `size` chain after `method` with `options`.
+    pub fn new(
+        ctx: &Arc<GpuContext>,
+        size: (usize, usize),
+        method: Method,
+        options: &Options,
+    ) -> Result<BlendStage> {
+        check(method)?;
+        let push = push(size, params(method, options)?);
+        let planes = PlaneSet::new(ctx, "blend.out", size.0 * size.1, 6)?;
+        Ok(BlendStage { planes, push })
+    }
+
+    /// Records the blend of the reconstruction `color` with error estimate
+    /// `error` into [`color`](Self::color) and [`error`](Self::error),
+    /// against the statistics `stats` the method
+    /// read.
+    pub fn record(
+        &self,
+        batch: &mut Batch,
+        p: Precision,
+        color: [BufferSlice; 3],
+        error: [BufferSlice; 3],
+        stats: &GpuStats,
+    ) -> Result<()> {
+        let spp = stats.plane(Layer::Spp, 0);
+        for c in 0..3 {
+            let ch = Channel {
+                color: color[c],
+                error: error[c],
+                input: stats.plane(Layer::Color, c),
+                variance: stats.plane(Layer::ColorVariance, c),
+                out_color: self.planes.plane(c),
+                out_error: self.planes.plane(3 + c),
+            };
+            input_blend::record(batch, p, &self.push, &ch, spp)?;
+        }
+        Ok(())
+    }
+
+    /// The blend's colour R, G, B.
+    pub fn color(&self) -> [BufferSlice; 3] {
+        std::array::from_fn(|k| self.planes.plane(k))
+    }
+
+    /// The blend's error estimate per channel.
+    pub fn error(&self) -> [BufferSlice; 3] {
+        std::array::from_fn(|k| self.planes.plane(3 + k))
+    }
+}
+
+/// The CPU path of the stage: the method's `color` and `error` blended
+/// with the sanitised statistics `clean` the method read; returns the
+/// blend's colour and error estimate.
+pub fn run_cpu(
+    clean: &StatsImage,
+    color: &RgbImage,
+    error: &RgbImage,
+    params: (u32, f32),
+) -> Result<(RgbImage, RgbImage)> {
+    let (w, h) = (color.width, color.height);
+    let layer = |l: Layer| {
+        clean
+            .get(l)
+            .ok_or_else(|| Error::BadData(format!("the input blend needs the {} layer", l.name())))
+    };
+    let (y, v, spp) = (
+        layer(Layer::Color)?,
+        layer(Layer::ColorVariance)?,
+        &layer(Layer::Spp)?[0],
+    );
+    let push = push((w, h), params);
+    let mut out = RgbImage::new(w, h);
+    let mut out_error = RgbImage::new(w, h);
+    for c in 0..3 {
+        twin::input_blend(
+            &push,
+            &color.planes[c],
+            &error.planes[c],
+            &y[c],
+            &v[c],
+            spp,
+            &mut out.planes[c],
+            &mut out_error.planes[c],
+        );
+    }
+    Ok((out, out_error))
+}

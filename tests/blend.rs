@@ -1,0 +1,438 @@
+//! The input blend (INPUT-BLEND): its kernel against its twin, what the
+//! twin does at its limits, the chain's stage against the CPU path, the
+//! defaults, the spike test, and the configurations it refuses.
+
+mod common;
+
+use std::sync::Arc;
+
+use common::{
+    assert_close, check_validation, gpu, pixel_and_sum_change, precisions, spiky_fixture, Rng,
+};
+use mcdenoise::gpu::{Batch, Precision};
+use mcdenoise::kernels::{input_blend, run_planes};
+use mcdenoise::methods::blend::{push, run_cpu};
+use mcdenoise::methods::chain::{ChainConfig, ChainInput, ChainOutput, GpuChain};
+use mcdenoise::reference::input_blend::input_blend as twin;
+use mcdenoise::{
+    Config, Denoiser, GpuContext, InputBlend, Layer, Method, Options, Pass, Prefilter, Pyramid,
+    RgbImage, Source, StatsImage, Temporal,
+};
+
+/// Sample counts with a few invalid pixels (0, NaN, below 1).
+fn counts(n: usize, rng: &mut Rng) -> Vec<f32> {
+    (0..n)
+        .map(|i| match i % 13 {
+            3 => 0.0,
+            7 if i % 2 == 0 => f32::NAN,
+            9 => 0.5,
+            _ => (1 + (rng.uniform() * 40.0) as u32) as f32,
+        })
+        .collect()
+}
+
+fn plane(n: usize, rng: &mut Rng, scale: f64) -> Vec<f32> {
+    (0..n).map(|_| (scale * rng.uniform()) as f32).collect()
+}
+
+#[test]
+fn input_blend_matches_its_twin() {
+    let ctx = gpu();
+    for &(w, h) in &[(32usize, 32usize), (37, 23), (1, 5), (1, 1)] {
+        let n = w * h;
+        let mut rng = Rng(31 + w as u64);
+        let f = plane(n, &mut rng, 2.0);
+        let mut e = plane(n, &mut rng, 0.05);
+        let y = plane(n, &mut rng, 2.0);
+        let mut v = plane(n, &mut rng, 0.05);
+        let spp = counts(n, &mut rng);
+        // An estimate that is not a number, a negative one, a negative
+        // variance and a pixel with nothing to say (E = V = 0).
+        for (i, x) in e.iter_mut().enumerate() {
+            match i % 17 {
+                5 => *x = f32::NAN,
+                6 => *x = -0.5,
+                _ => {}
+            }
+        }
+        for (i, x) in v.iter_mut().enumerate() {
+            if i % 19 == 4 {
+                *x = -1.0;
+            }
+        }
+        for &(radius, k) in &[(0u32, 1.0f32), (1, 1.0), (3, 2.5)] {
+            let p = push((w, h), (radius, k));
+            let (mut fo, mut eo) = (vec![0.0f32; n], vec![0.0f32; n]);
+            twin(&p, &f, &e, &y, &v, &spp, &mut fo, &mut eo);
+            for prec in precisions() {
+                let (g, _) = run_planes(
+                    &ctx,
+                    &input_blend::DECL,
+                    prec,
+                    bytemuck::bytes_of(&p),
+                    w,
+                    h,
+                    &[&f, &e, &y, &v, &spp],
+                    &[n, n],
+                    input_blend::flops_per_pixel(radius),
+                )
+                .unwrap();
+                let what = format!("{w}x{h} r {radius} k {k} {prec:?}");
+                assert_close(&format!("{what} colour"), &g[0], &fo, 1.0);
+                // The error estimate passes a NaN through where the pixel
+                // keeps its own.
+                let (ge, te): (Vec<f32>, Vec<f32>) = g[1]
+                    .iter()
+                    .zip(&eo)
+                    .filter(|(a, b)| !(a.is_nan() && b.is_nan()))
+                    .map(|(a, b)| (*a, *b))
+                    .unzip();
+                assert_close(&format!("{what} error"), &ge, &te, 1.0);
+            }
+            for i in 0..n {
+                let valid = spp[i].is_finite() && spp[i] >= 1.0;
+                if !valid {
+                    assert_eq!(fo[i].to_bits(), f[i].to_bits(), "invalid pixel {i} keeps f");
+                    continue;
+                }
+                // The blend lies between the reconstruction and the input,
+                // and for k <= 2 its error below the method's.
+                let (lo, hi) = (f[i].min(y[i]), f[i].max(y[i]));
+                assert!(
+                    fo[i] >= lo - 1e-6 && fo[i] <= hi + 1e-6,
+                    "pixel {i}: {} outside [{lo}, {hi}]",
+                    fo[i]
+                );
+                if e[i] > 0.0 && k <= 2.0 {
+                    assert!(eo[i] <= e[i] * (1.0 + 1e-5), "pixel {i}: error grew");
+                }
+            }
+        }
+    }
+    check_validation(&ctx);
+}
+
+/// The weights at their limits: an exact reconstruction (E = 0) is kept,
+/// an exact input (its variance and its window's 0) is taken, and equal
+/// errors (k = 1) average the two.
+#[test]
+fn the_twin_weighs_by_inverse_error() {
+    let (w, h) = (5usize, 5usize);
+    let n = w * h;
+    let spp = vec![4.0f32; n];
+    let f = vec![1.0f32; n];
+    let y = vec![3.0f32; n];
+    let p = push((w, h), (1, 1.0));
+    let run = |e: &[f32], v: &[f32]| {
+        let (mut fo, mut eo) = (vec![0.0f32; n], vec![0.0f32; n]);
+        twin(&p, &f, e, &y, v, &spp, &mut fo, &mut eo);
+        (fo, eo)
+    };
+    let (fo, eo) = run(&vec![0.0; n], &vec![0.2; n]);
+    assert!(fo.iter().all(|&x| x == 1.0) && eo.iter().all(|&x| x == 0.0));
+    let (fo, eo) = run(&vec![0.2; n], &vec![0.0; n]);
+    assert!(fo.iter().all(|&x| x == 3.0) && eo.iter().all(|&x| x == 0.0));
+    let (fo, eo) = run(&vec![0.2; n], &vec![0.2; n]);
+    assert!(fo.iter().all(|&x| (x - 2.0).abs() < 1e-6));
+    assert!(eo.iter().all(|&x| (x - 0.1).abs() < 1e-7));
+    // A pixel whose own variance is 0 in a noisy window is floored by the
+    // window's mean: the centre of a 3x3 window of 0.2 but itself 0 takes
+    // V = 0.2 * 8 / 9.
+    let mut v = vec![0.2f32; n];
+    v[12] = 0.0;
+    let (fo, _) = run(&vec![0.2; n], &v);
+    let big_v = 0.2 * 8.0 / 9.0;
+    let want = (big_v * 1.0 + 0.2 * 3.0) / (big_v + 0.2);
+    assert!((fo[12] as f64 - want).abs() < 1e-5, "{} vs {want}", fo[12]);
+}
+
+fn fixture() -> (StatsImage, RgbImage) {
+    let img = mcdenoise::io::read_stats(std::path::Path::new(
+        "tests/fixtures/dof_checker_64_spp16.exr",
+    ))
+    .unwrap();
+    let r = mcdenoise::io::read_rgb(std::path::Path::new(
+        "tests/fixtures/dof_checker_64_ref.exr",
+    ))
+    .unwrap();
+    (img, r)
+}
+
+/// The GPU chain with the stage equals the CPU path (the twins, in f64),
+/// with and without the outlier stage around it.
+#[test]
+fn the_gpu_stage_matches_the_cpu_path_on_the_fixture() {
+    let ctx = gpu();
+    let (img, _) = fixture();
+    for (method, outliers) in [
+        (Method::Wlr, mcdenoise::Outliers::Off),
+        (Method::Wlr, mcdenoise::Outliers::On),
+    ] {
+        let config = |blend: InputBlend| {
+            let mut c = Config::new(method);
+            c.input_blend = blend;
+            c.outliers = outliers;
+            c
+        };
+        let src = Source::of_image(&img);
+        let cpu = Denoiser::new_cpu(src.clone(), config(InputBlend::On))
+            .unwrap()
+            .denoise(&img, None)
+            .unwrap();
+        let on = Denoiser::new(&ctx, src.clone(), config(InputBlend::On))
+            .unwrap()
+            .denoise(&img, None)
+            .unwrap();
+        let off = Denoiser::new(&ctx, src, config(InputBlend::Off))
+            .unwrap()
+            .denoise(&img, None)
+            .unwrap();
+        let (cpu_e, on_e) = (cpu.error, on.error);
+        let mut moved = 0.0;
+        for c in 0..3 {
+            let what = format!("{method:?} {outliers:?} channel {c}");
+            assert_close(
+                &format!("{what} colour"),
+                &on.color.planes[c],
+                &cpu.color.planes[c],
+                0.98,
+            );
+            assert_close(
+                &format!("{what} error"),
+                &on_e.planes[c],
+                &cpu_e.planes[c],
+                0.95,
+            );
+            moved += on.color.planes[c]
+                .iter()
+                .zip(&off.color.planes[c])
+                .map(|(a, b)| (a - b).abs() as f64)
+                .sum::<f64>();
+        }
+        assert!(moved > 0.0, "{method:?}: the stage changed nothing");
+    }
+    check_validation(&ctx);
+}
+
+fn chain_config(method: Method, input_blend: bool) -> ChainConfig {
+    ChainConfig {
+        method,
+        pass: Pass::Final,
+        precision: Precision::F32,
+        prefilter: Prefilter::Auto,
+        outliers: false,
+        options: Options::default(),
+        low_spp: true,
+        debug: false,
+        error: true,
+        pyramid: false,
+        input_blend,
+        temporal: Temporal::Off,
+        temporal_state: None,
+    }
+}
+
+/// Runs a chain on `img`; returns its outputs and the statistics its
+/// method read (sanitised, prefiltered).
+fn run_chain(
+    ctx: &Arc<GpuContext>,
+    img: &StatsImage,
+    config: ChainConfig,
+) -> (ChainOutput, StatsImage) {
+    let chain = GpuChain::new(ctx, ChainInput::of_image(img), config).unwrap();
+    chain.upload(img).unwrap();
+    let mut batch = Batch::new(ctx).unwrap();
+    chain.record(&mut batch, None, None).unwrap();
+    batch.finish().unwrap();
+    (chain.download().unwrap(), chain.clean().download().unwrap())
+}
+
+/// The chain's stage is its parts: every method's own GPU output and error
+/// estimate, blended by the twin with the statistics the method read.
+#[test]
+fn the_stage_is_the_method_output_blended() {
+    let ctx = gpu();
+    let (img, _) = fixture();
+    for method in [
+        Method::Wlr,
+        Method::Lp,
+        Method::Apr,
+        Method::Aos,
+        Method::Auto,
+    ] {
+        let (off, clean) = run_chain(&ctx, &img, chain_config(method, false));
+        let (on, _) = run_chain(&ctx, &img, chain_config(method, true));
+        let params = mcdenoise::methods::blend::params(method, &Options::default()).unwrap();
+        let (want, want_e) = run_cpu(&clean, &off.color, &off.error, params).unwrap();
+        for c in 0..3 {
+            let what = format!("{method:?} channel {c}");
+            assert_close(
+                &format!("{what} colour"),
+                &on.color.planes[c],
+                &want.planes[c],
+                1.0,
+            );
+            assert_close(
+                &format!("{what} error"),
+                &on.error.planes[c],
+                &want_e.planes[c],
+                1.0,
+            );
+        }
+    }
+    check_validation(&ctx);
+}
+
+/// The stage's parameters come from the options: k = 0 keeps the method's
+/// output, and the larger k the nearer the output to the input.
+#[test]
+fn the_options_set_its_parameters() {
+    let ctx = gpu();
+    let (img, _) = fixture();
+    let run = |opts: &[&str], blend: InputBlend| {
+        let mut c = Config::new(Method::Wlr);
+        c.input_blend = blend;
+        c.outliers = mcdenoise::Outliers::Off;
+        c.options = Options::parse(opts).unwrap();
+        let d = Denoiser::new(&ctx, Source::of_image(&img), c).unwrap();
+        d.denoise(&img, None).unwrap().color
+    };
+    let off = run(&[], InputBlend::Off);
+    let k0 = run(&["blend.k=0"], InputBlend::On);
+    for c in 0..3 {
+        assert_close(
+            "k = 0 keeps the method's output",
+            &k0.planes[c],
+            &off.planes[c],
+            1.0,
+        );
+    }
+    // The larger k, the nearer the input.
+    let input = mcdenoise::colour_of(&img);
+    let spp = &img.get(Layer::Spp).unwrap()[0];
+    let distance = |x: &RgbImage| -> f64 {
+        (0..3)
+            .map(|c| {
+                (0..spp.len())
+                    .filter(|&i| spp[i] >= 1.0)
+                    .map(|i| (x.planes[c][i] - input.planes[c][i]).abs() as f64)
+                    .sum::<f64>()
+            })
+            .sum()
+    };
+    let d: Vec<f64> = ["0.5", "1", "4", "100"]
+        .iter()
+        .map(|k| {
+            distance(&run(
+                &["blend.radius=0", &format!("blend.k={k}")],
+                InputBlend::On,
+            ))
+        })
+        .collect();
+    let d_off = distance(&off);
+    println!("distance to the input: off {d_off}, k = 0.5, 1, 4, 100: {d:?}");
+    assert!(
+        d_off > d[0] && d.windows(2).all(|w| w[0] > w[1]),
+        "{d_off} {d:?}"
+    );
+    check_validation(&ctx);
+}
+
+/// INPUT-BLEND's defaults: on after WLR and AOS in a final reconstruction
+/// (the output is `InputBlend::On`'s bit for bit), off after the other
+/// methods and in an adaptive pass.
+#[test]
+fn the_default_runs_the_stage_after_wlr_and_aos() {
+    let ctx = gpu();
+    let (img, _) = fixture();
+    let run = |method: Method, pass: Pass, blend: Option<InputBlend>| {
+        let mut c = Config::new(method);
+        c.pass = pass;
+        c.pyramid = Pyramid::Off;
+        if let Some(b) = blend {
+            c.input_blend = b;
+        }
+        let d = Denoiser::new(&ctx, Source::of_image(&img), c).unwrap();
+        d.denoise(&img, None).unwrap().color.planes
+    };
+    for method in [Method::Wlr, Method::Aos] {
+        let auto = run(method, Pass::Final, None);
+        assert!(auto == run(method, Pass::Final, Some(InputBlend::On)));
+        assert!(auto != run(method, Pass::Final, Some(InputBlend::Off)));
+        let pass = run(method, Pass::Intermediate, None);
+        assert!(pass == run(method, Pass::Intermediate, Some(InputBlend::Off)));
+    }
+    for method in [Method::Lp, Method::Apr, Method::Auto] {
+        let auto = run(method, Pass::Final, None);
+        assert!(
+            auto == run(method, Pass::Final, Some(InputBlend::Off)),
+            "{method:?}"
+        );
+    }
+    check_validation(&ctx);
+}
+
+#[test]
+fn method_none_is_refused() {
+    let ctx = gpu();
+    let (img, _) = fixture();
+    let mut c = Config::new(Method::None);
+    c.input_blend = InputBlend::On;
+    assert!(c.check_size(64, 64).is_err());
+    let err = Denoiser::new(&ctx, Source::of_image(&img), c.clone()).unwrap_err();
+    assert!(format!("{err}").contains("input blend"), "{err}");
+    assert!(Denoiser::new_cpu(Source::of_image(&img), c)
+        .and_then(|d| d.denoise(&img, None))
+        .is_err());
+    let mut auto = Config::new(Method::None);
+    auto.input_blend = InputBlend::Auto;
+    assert!(Denoiser::new(&ctx, Source::of_image(&img), auto).is_ok());
+    check_validation(&ctx);
+}
+
+/// Issue #11's spike test with the stage: no pixel moves by more than 1 %
+/// of a spike's excess, and the image sum keeps the spikes' energy — the
+/// outlier stage gives it back after the blend.
+#[test]
+fn spikes_with_the_blend() {
+    let (clean, spiky, energy, spikes) = spiky_fixture();
+    let ctx = gpu();
+    for method in [Method::Wlr, Method::Aos] {
+        let run = |img: &StatsImage| {
+            let mut cfg = Config::new(method);
+            cfg.input_blend = InputBlend::On;
+            cfg.outliers = mcdenoise::Outliers::On;
+            let d = Denoiser::new(&ctx, Source::of_image(img), cfg).unwrap();
+            d.denoise(img, None).unwrap().color
+        };
+        let (a, b) = (run(&clean), run(&spiky));
+        for c in 0..3 {
+            let max_e = energy[c] / spikes as f64;
+            let (worst, moved) = pixel_and_sum_change(&a, &b, c);
+            assert!(
+                worst <= 0.01 * max_e,
+                "{method:?} channel {c}: a pixel moved by {worst} (spike excess {max_e})"
+            );
+            let sb: f64 = b.planes[c].iter().map(|&v| v as f64).sum();
+            let off = (moved - energy[c]).abs();
+            assert!(
+                off <= 1e-4 * sb,
+                "{method:?} channel {c}: the sum is off by {off} of {sb}"
+            );
+        }
+    }
+    check_validation(&ctx);
+}
+
+/// The CPU helper of the stage refuses statistics without the layers it
+/// reads, by name.
+#[test]
+fn the_cpu_stage_names_a_missing_layer() {
+    let img = StatsImage::new(4, 4);
+    let c = RgbImage::new(4, 4);
+    let err = run_cpu(&img, &c, &c, (1, 1.0)).unwrap_err();
+    assert!(
+        format!("{err}").contains("colour") || format!("{err}").contains("color"),
+        "{err}"
+    );
+}
