@@ -41,8 +41,8 @@
 // (INPUT-BLEND): each pixel's output is the method's and the input's,
 // weighed by the method's error estimate and the input's variance. Not
 // for `MCD_METHOD_NONE`. Without this flag or
-// [`MCD_FLAG_NO_INPUT_BLEND`], the stage runs after `MCD_METHOD_WLR` and
-// `MCD_METHOD_AOS` in a final reconstruction and after no other method.
+// [`MCD_FLAG_NO_INPUT_BLEND`], the stage runs after `MCD_METHOD_AOS` in a
+// final reconstruction and after no other method.
 #define MCD_FLAG_INPUT_BLEND 32
 
 // Flag of [`McdDenoiserDesc::flags`]: never the input blend (see

@@ -80,8 +80,8 @@ pub struct Config {
     /// that where the method smooths across what its features do not show
     /// the output returns towards the input. The error estimate is the
     /// blend's, the sample map reads the method's. [`InputBlend::Auto`]
-    /// (the default): on for WLR's and AOS's final reconstruction
-    /// ([`Pass::Final`]), off otherwise; [`InputBlend::On`] needs a
+    /// (the default): on for AOS's final reconstruction ([`Pass::Final`]),
+    /// off otherwise; [`InputBlend::On`] needs a
     /// reconstruction (not `none`). Parameters: `blend.radius`, `blend.k`.
     pub input_blend: InputBlend,
     /// A temporal stage after the method (spec §10): with

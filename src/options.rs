@@ -164,7 +164,7 @@ pub const OPTIONS: &[OptionSpec] = &[
         kind: Kind::Int(0, 16),
         default: "method",
         section: "ours (INPUT-BLEND)",
-        help: "the input blend's variance window: V = max(v, mean of v over (2r+1)^2 pixels) (default: 3 for WLR, 1 for AOS, 3 for the others)",
+        help: "the input blend's variance window: V = max(v, mean of v over (2r+1)^2 pixels) (default: 1 for AOS, 3 for the others)",
     },
     OptionSpec {
         key: "blend.k",

@@ -1,39 +1,23 @@
 //! The input blend (INPUT-BLEND): its kernel against its twin, what the
 //! twin does at its limits, the chain's stage against the CPU path, the
-//! defaults, the spike test, and the configurations it refuses.
+//! defaults, and the configurations it refuses. The spike test and the
+//! energy identity (`tests/outliers.rs`) run AOS with its defaults, the
+//! stage on.
 
 mod common;
 
-use std::sync::Arc;
-
 use common::{
-    assert_close, check_validation, gpu, pixel_and_sum_change, precisions, spiky_fixture, Rng,
+    assert_close, bare_chain_config, check_validation, counts_with_invalid, gpu, precisions,
+    run_chain, uniform_plane, Rng,
 };
-use mcdenoise::gpu::{Batch, Precision};
 use mcdenoise::kernels::{input_blend, run_planes};
 use mcdenoise::methods::blend::{push, run_cpu};
-use mcdenoise::methods::chain::{ChainConfig, ChainInput, ChainOutput, GpuChain};
+use mcdenoise::methods::chain::ChainConfig;
 use mcdenoise::reference::input_blend::input_blend as twin;
 use mcdenoise::{
-    Config, Denoiser, GpuContext, InputBlend, Layer, Method, Options, Pass, Prefilter, Pyramid,
-    RgbImage, Source, StatsImage, Temporal,
+    Config, Denoiser, InputBlend, Layer, Method, Options, Pass, Prefilter, Pyramid, RgbImage,
+    Source, StatsImage,
 };
-
-/// Sample counts with a few invalid pixels (0, NaN, below 1).
-fn counts(n: usize, rng: &mut Rng) -> Vec<f32> {
-    (0..n)
-        .map(|i| match i % 13 {
-            3 => 0.0,
-            7 if i % 2 == 0 => f32::NAN,
-            9 => 0.5,
-            _ => (1 + (rng.uniform() * 40.0) as u32) as f32,
-        })
-        .collect()
-}
-
-fn plane(n: usize, rng: &mut Rng, scale: f64) -> Vec<f32> {
-    (0..n).map(|_| (scale * rng.uniform()) as f32).collect()
-}
 
 #[test]
 fn input_blend_matches_its_twin() {
@@ -41,11 +25,11 @@ fn input_blend_matches_its_twin() {
     for &(w, h) in &[(32usize, 32usize), (37, 23), (1, 5), (1, 1)] {
         let n = w * h;
         let mut rng = Rng(31 + w as u64);
-        let f = plane(n, &mut rng, 2.0);
-        let mut e = plane(n, &mut rng, 0.05);
-        let y = plane(n, &mut rng, 2.0);
-        let mut v = plane(n, &mut rng, 0.05);
-        let spp = counts(n, &mut rng);
+        let f = uniform_plane(n, &mut rng, 2.0);
+        let mut e = uniform_plane(n, &mut rng, 0.05);
+        let y = uniform_plane(n, &mut rng, 2.0);
+        let mut v = uniform_plane(n, &mut rng, 0.05);
+        let spp = counts_with_invalid(n, &mut rng);
         // An estimate that is not a number, a negative one, a negative
         // variance and a pixel with nothing to say (E = V = 0).
         for (i, x) in e.iter_mut().enumerate() {
@@ -216,35 +200,10 @@ fn the_gpu_stage_matches_the_cpu_path_on_the_fixture() {
 
 fn chain_config(method: Method, input_blend: bool) -> ChainConfig {
     ChainConfig {
-        method,
-        pass: Pass::Final,
-        precision: Precision::F32,
-        prefilter: Prefilter::Auto,
-        outliers: false,
-        options: Options::default(),
-        low_spp: true,
-        debug: false,
-        error: true,
-        pyramid: false,
         input_blend,
-        temporal: Temporal::Off,
-        temporal_state: None,
+        prefilter: Prefilter::Auto,
+        ..bare_chain_config(method)
     }
-}
-
-/// Runs a chain on `img`; returns its outputs and the statistics its
-/// method read (sanitised, prefiltered).
-fn run_chain(
-    ctx: &Arc<GpuContext>,
-    img: &StatsImage,
-    config: ChainConfig,
-) -> (ChainOutput, StatsImage) {
-    let chain = GpuChain::new(ctx, ChainInput::of_image(img), config).unwrap();
-    chain.upload(img).unwrap();
-    let mut batch = Batch::new(ctx).unwrap();
-    chain.record(&mut batch, None, None).unwrap();
-    batch.finish().unwrap();
-    (chain.download().unwrap(), chain.clean().download().unwrap())
 }
 
 /// The chain's stage is its parts: every method's own GPU output and error
@@ -338,11 +297,11 @@ fn the_options_set_its_parameters() {
     check_validation(&ctx);
 }
 
-/// INPUT-BLEND's defaults: on after WLR and AOS in a final reconstruction
+/// INPUT-BLEND's defaults: on after AOS in a final reconstruction
 /// (the output is `InputBlend::On`'s bit for bit), off after the other
 /// methods and in an adaptive pass.
 #[test]
-fn the_default_runs_the_stage_after_wlr_and_aos() {
+fn the_default_runs_the_stage_after_aos_only() {
     let ctx = gpu();
     let (img, _) = fixture();
     let run = |method: Method, pass: Pass, blend: Option<InputBlend>| {
@@ -355,14 +314,12 @@ fn the_default_runs_the_stage_after_wlr_and_aos() {
         let d = Denoiser::new(&ctx, Source::of_image(&img), c).unwrap();
         d.denoise(&img, None).unwrap().color.planes
     };
-    for method in [Method::Wlr, Method::Aos] {
-        let auto = run(method, Pass::Final, None);
-        assert!(auto == run(method, Pass::Final, Some(InputBlend::On)));
-        assert!(auto != run(method, Pass::Final, Some(InputBlend::Off)));
-        let pass = run(method, Pass::Intermediate, None);
-        assert!(pass == run(method, Pass::Intermediate, Some(InputBlend::Off)));
-    }
-    for method in [Method::Lp, Method::Apr, Method::Auto] {
+    let auto = run(Method::Aos, Pass::Final, None);
+    assert!(auto == run(Method::Aos, Pass::Final, Some(InputBlend::On)));
+    assert!(auto != run(Method::Aos, Pass::Final, Some(InputBlend::Off)));
+    let pass = run(Method::Aos, Pass::Intermediate, None);
+    assert!(pass == run(Method::Aos, Pass::Intermediate, Some(InputBlend::Off)));
+    for method in [Method::Wlr, Method::Lp, Method::Apr, Method::Auto] {
         let auto = run(method, Pass::Final, None);
         assert!(
             auto == run(method, Pass::Final, Some(InputBlend::Off)),
@@ -387,40 +344,6 @@ fn method_none_is_refused() {
     let mut auto = Config::new(Method::None);
     auto.input_blend = InputBlend::Auto;
     assert!(Denoiser::new(&ctx, Source::of_image(&img), auto).is_ok());
-    check_validation(&ctx);
-}
-
-/// Issue #11's spike test with the stage: no pixel moves by more than 1 %
-/// of a spike's excess, and the image sum keeps the spikes' energy — the
-/// outlier stage gives it back after the blend.
-#[test]
-fn spikes_with_the_blend() {
-    let (clean, spiky, energy, spikes) = spiky_fixture();
-    let ctx = gpu();
-    for method in [Method::Wlr, Method::Aos] {
-        let run = |img: &StatsImage| {
-            let mut cfg = Config::new(method);
-            cfg.input_blend = InputBlend::On;
-            cfg.outliers = mcdenoise::Outliers::On;
-            let d = Denoiser::new(&ctx, Source::of_image(img), cfg).unwrap();
-            d.denoise(img, None).unwrap().color
-        };
-        let (a, b) = (run(&clean), run(&spiky));
-        for c in 0..3 {
-            let max_e = energy[c] / spikes as f64;
-            let (worst, moved) = pixel_and_sum_change(&a, &b, c);
-            assert!(
-                worst <= 0.01 * max_e,
-                "{method:?} channel {c}: a pixel moved by {worst} (spike excess {max_e})"
-            );
-            let sb: f64 = b.planes[c].iter().map(|&v| v as f64).sum();
-            let off = (moved - energy[c]).abs();
-            assert!(
-                off <= 1e-4 * sb,
-                "{method:?} channel {c}: the sum is off by {off} of {sb}"
-            );
-        }
-    }
     check_validation(&ctx);
 }
 

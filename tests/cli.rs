@@ -657,25 +657,29 @@ fn temporal_filter_from_the_command_line() {
     }
 }
 
+/// An adaptive 32×32 render of `cornell` (seed 3, 8 spp) with `extra`
+/// arguments, its statistics saved: `dir/<out>.exr`, `dir/<out>_stats.exr`.
+fn render_small(dir: &Path, extra: &[&str], out: &str) -> (i32, String, String) {
+    let mut cmd = bin();
+    cmd.args([
+        "render", "--scene", "cornell", "--size", "32x32", "--spp", "8",
+    ])
+    .args(["--adaptive", "--seed", "3"])
+    .args(extra)
+    .arg("--save-stats")
+    .arg(dir.join(format!("{out}_stats.exr")))
+    .arg("-o")
+    .arg(dir.join(format!("{out}.exr")));
+    run(&mut cmd)
+}
+
 /// `--pyramid` on `render` and `denoise`: the final reconstruction
 /// changes, an adaptive render's passes do not (their sample counts are
 /// the same), and a configuration it cannot run is a clear error.
 #[test]
 fn pyramid_from_the_command_line() {
     let dir = tmpdir("pyramid");
-    let render = |extra: &[&str], out: &str| {
-        let mut cmd = bin();
-        cmd.args([
-            "render", "--scene", "cornell", "--size", "32x32", "--spp", "8",
-        ])
-        .args(["--adaptive", "--seed", "3"])
-        .args(extra)
-        .arg("--save-stats")
-        .arg(dir.join(format!("{out}_stats.exr")))
-        .arg("-o")
-        .arg(dir.join(format!("{out}.exr")));
-        run(&mut cmd)
-    };
+    let render = |extra: &[&str], out: &str| render_small(&dir, extra, out);
     for (extra, out) in [(&[][..], "plain"), (&["--pyramid"][..], "pyr")] {
         let (code, _, err) = render(extra, out);
         assert_eq!(code, 0, "{err}");
@@ -715,35 +719,24 @@ fn pyramid_from_the_command_line() {
 }
 
 /// `--input-blend` on `render` and `denoise`: WLR's final reconstruction
-/// blends by default and `--input-blend=off` changes it, an adaptive
-/// render's passes do not (their sample counts are the same), LP's output
-/// changes with `--input-blend`, and method none is a clear error.
+/// changes with `--input-blend`, an adaptive render's passes do not (their
+/// sample counts are the same), AOS's output (the stage on by default)
+/// changes with `--input-blend=off`, and method none is a clear error.
 #[test]
 fn input_blend_from_the_command_line() {
     let dir = tmpdir("input_blend");
-    let render = |extra: &[&str], out: &str| {
-        let mut cmd = bin();
-        cmd.args([
-            "render", "--scene", "cornell", "--size", "32x32", "--spp", "8",
-        ])
-        .args(["--adaptive", "--seed", "3", "--method", "wlr"])
-        .args(extra)
-        .arg("--save-stats")
-        .arg(dir.join(format!("{out}_stats.exr")))
-        .arg("-o")
-        .arg(dir.join(format!("{out}.exr")));
-        run(&mut cmd)
-    };
-    for (extra, out) in [(&[][..], "plain"), (&["--input-blend=off"][..], "off")] {
-        let (code, _, err) = render(extra, out);
+    let wlr = ["--method", "wlr"];
+    let on = ["--method", "wlr", "--input-blend"];
+    for (extra, out) in [(&wlr[..], "plain"), (&on[..], "on")] {
+        let (code, _, err) = render_small(&dir, extra, out);
         assert_eq!(code, 0, "{err}");
     }
     let rgb = |p: &str| mcdenoise::io::read_rgb(&dir.join(p)).unwrap().planes;
     let stats = |p: &str| mcdenoise::io::read_stats(&dir.join(p)).unwrap();
-    assert!(rgb("plain.exr") != rgb("off.exr"));
+    assert!(rgb("plain.exr") != rgb("on.exr"));
     assert!(
         stats("plain_stats.exr").get(mcdenoise::Layer::Spp)
-            == stats("off_stats.exr").get(mcdenoise::Layer::Spp)
+            == stats("on_stats.exr").get(mcdenoise::Layer::Spp)
     );
     let denoise = |extra: &[&str], out: &str| {
         run(bin()
@@ -751,17 +744,17 @@ fn input_blend_from_the_command_line() {
             .arg(dir.join("plain_stats.exr"))
             .arg("-o")
             .arg(dir.join(out))
-            .args(["--method", "lp"])
+            .args(["--method", "aos"])
             .args(extra))
     };
     for (extra, out) in [
         (&[][..], "d_plain.exr"),
-        (&["--input-blend"][..], "d_on.exr"),
+        (&["--input-blend=off"][..], "d_off.exr"),
     ] {
         let (code, _, err) = denoise(extra, out);
         assert_eq!(code, 0, "{err}");
     }
-    assert!(rgb("d_plain.exr") != rgb("d_on.exr"));
+    assert!(rgb("d_plain.exr") != rgb("d_off.exr"));
     let (code, _, err) = run(bin()
         .arg("denoise")
         .arg(dir.join("plain_stats.exr"))

@@ -4,39 +4,21 @@
 
 mod common;
 
-use std::sync::Arc;
-
 use common::{
-    assert_close, check_validation, gpu, pixel_and_sum_change, precisions, spiky_fixture, Rng,
+    assert_close, bare_chain_config, check_validation, counts_with_invalid, gpu,
+    pixel_and_sum_change, precisions, run_chain, spiky_fixture, uniform_plane, Rng,
 };
 use mcdenoise::bench::synthetic;
-use mcdenoise::gpu::{Batch, Precision};
+use mcdenoise::gpu::Precision;
 use mcdenoise::kernels::{pyramid_merge, pyramid_pool, run_planes};
-use mcdenoise::methods::chain::{ChainConfig, ChainInput, ChainOutput, GpuChain};
+use mcdenoise::methods::chain::ChainConfig;
 use mcdenoise::methods::pyramid::{merge_cpu, merge_push, pool_kind, pool_push};
 use mcdenoise::reference::pyramid_merge::{self as merge_twin, Level};
 use mcdenoise::reference::pyramid_pool::{self as pool_twin, coarse_size};
 use mcdenoise::shared::{PYRAMID_COUNT, PYRAMID_MEAN, PYRAMID_VARIANCE};
 use mcdenoise::{
-    metrics, Config, Denoiser, GpuContext, Layer, Method, Options, Pass, Prefilter, Pyramid,
-    RgbImage, Source, StatsImage, Temporal,
+    metrics, Config, Denoiser, Layer, Method, Pass, Pyramid, RgbImage, Source, StatsImage, Temporal,
 };
-
-/// Sample counts with a few invalid pixels (0, NaN, below 1).
-fn counts(n: usize, rng: &mut Rng) -> Vec<f32> {
-    (0..n)
-        .map(|i| match i % 11 {
-            3 => 0.0,
-            7 if i % 2 == 0 => f32::NAN,
-            9 => 0.5,
-            _ => (1 + (rng.uniform() * 40.0) as u32) as f32,
-        })
-        .collect()
-}
-
-fn plane(n: usize, rng: &mut Rng, scale: f64) -> Vec<f32> {
-    (0..n).map(|_| (scale * rng.uniform()) as f32).collect()
-}
 
 #[test]
 fn pyramid_pool_matches_its_twin() {
@@ -44,8 +26,8 @@ fn pyramid_pool_matches_its_twin() {
     for &(w, h) in &[(32usize, 32usize), (37, 23), (1, 5), (3, 1)] {
         let (cw, ch) = coarse_size(w, h);
         let mut rng = Rng(5 + w as u64);
-        let spp = counts(w * h, &mut rng);
-        let src = plane(w * h, &mut rng, 2.0);
+        let spp = counts_with_invalid(w * h, &mut rng);
+        let src = uniform_plane(w * h, &mut rng, 2.0);
         for kind in [PYRAMID_MEAN, PYRAMID_VARIANCE, PYRAMID_COUNT] {
             let push = pool_push((w, h), kind);
             let mut want = vec![0.0f32; cw * ch];
@@ -96,11 +78,11 @@ fn pyramid_merge_matches_its_twin() {
         let (cw, ch) = coarse_size(w, h);
         let mut rng = Rng(17 + h as u64);
         let (n, m) = (w * h, cw * ch);
-        let fine: Vec<Vec<f32>> = (0..3).map(|_| plane(n, &mut rng, 1.5)).collect();
-        let fe: Vec<Vec<f32>> = (0..3).map(|_| plane(n, &mut rng, 0.01)).collect();
-        let fspp = counts(n, &mut rng);
-        let coarse: Vec<Vec<f32>> = (0..3).map(|_| plane(m, &mut rng, 1.5)).collect();
-        let ce: Vec<Vec<f32>> = (0..3).map(|_| plane(m, &mut rng, 0.01)).collect();
+        let fine: Vec<Vec<f32>> = (0..3).map(|_| uniform_plane(n, &mut rng, 1.5)).collect();
+        let fe: Vec<Vec<f32>> = (0..3).map(|_| uniform_plane(n, &mut rng, 0.01)).collect();
+        let fspp = counts_with_invalid(n, &mut rng);
+        let coarse: Vec<Vec<f32>> = (0..3).map(|_| uniform_plane(m, &mut rng, 1.5)).collect();
+        let ce: Vec<Vec<f32>> = (0..3).map(|_| uniform_plane(m, &mut rng, 0.01)).collect();
         let mut cspp = vec![0.0f32; m];
         let pool = pool_push((w, h), PYRAMID_COUNT);
         pool_twin::pyramid_pool(&pool, &fspp, &fspp, &mut cspp);
@@ -197,34 +179,9 @@ fn pyramid_merge_matches_its_twin() {
 
 fn chain_config(method: Method, pyramid: bool) -> ChainConfig {
     ChainConfig {
-        method,
-        pass: Pass::Final,
-        precision: Precision::F32,
-        prefilter: Prefilter::Off,
-        outliers: false,
-        options: Options::default(),
-        low_spp: true,
-        debug: false,
-        error: true,
         pyramid,
-        input_blend: false,
-        temporal: Temporal::Off,
-        temporal_state: None,
+        ..bare_chain_config(method)
     }
-}
-
-/// Runs a chain on `img`; returns its outputs and its sanitised statistics.
-fn run_chain(
-    ctx: &Arc<GpuContext>,
-    img: &StatsImage,
-    config: ChainConfig,
-) -> (ChainOutput, StatsImage) {
-    let chain = GpuChain::new(ctx, ChainInput::of_image(img), config).unwrap();
-    chain.upload(img).unwrap();
-    let mut batch = Batch::new(ctx).unwrap();
-    chain.record(&mut batch, None, None).unwrap();
-    batch.finish().unwrap();
-    (chain.download().unwrap(), chain.clean().download().unwrap())
 }
 
 /// The chain's stage equals its parts: the method on the sanitised

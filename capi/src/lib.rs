@@ -151,8 +151,8 @@ pub const MCD_FLAG_NO_PYRAMID: u32 = 16;
 /// (INPUT-BLEND): each pixel's output is the method's and the input's,
 /// weighed by the method's error estimate and the input's variance. Not
 /// for `MCD_METHOD_NONE`. Without this flag or
-/// [`MCD_FLAG_NO_INPUT_BLEND`], the stage runs after `MCD_METHOD_WLR` and
-/// `MCD_METHOD_AOS` in a final reconstruction and after no other method.
+/// [`MCD_FLAG_NO_INPUT_BLEND`], the stage runs after `MCD_METHOD_AOS` in a
+/// final reconstruction and after no other method.
 pub const MCD_FLAG_INPUT_BLEND: u32 = 32;
 /// Flag of [`McdDenoiserDesc::flags`]: never the input blend (see
 /// [`MCD_FLAG_INPUT_BLEND`]); both flags together are an error.

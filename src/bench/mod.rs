@@ -212,8 +212,8 @@ pub struct Stages {
     /// The pyramid's low band (PYRAMID-LOWBAND) after the method (`Auto`:
     /// after `auto` only).
     pub pyramid: crate::Pyramid,
-    /// The input blend (INPUT-BLEND) after the method (`Auto`: after WLR
-    /// and AOS).
+    /// The input blend (INPUT-BLEND) after the method (`Auto`: after
+    /// AOS).
     pub input_blend: crate::InputBlend,
 }
 

@@ -41,7 +41,7 @@ pub struct BlendDefaults {
 /// Whether the input blend runs (`Config::input_blend`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum InputBlend {
-    /// The method's default ([`BlendDefaults::auto`]: WLR and AOS) in a
+    /// The method's default ([`BlendDefaults::auto`]: AOS) in a
     /// final reconstruction ([`Pass::Final`]; an adaptive pass's map reads
     /// the method's estimate).
     #[default]

@@ -488,7 +488,7 @@ pub static INFO: MethodInfo = MethodInfo {
     outliers_auto: true,
     pyramid_auto: false,
     blend: super::blend::BlendDefaults {
-        auto: true,
+        auto: false,
         radius: 3,
         k: 1.0,
     },

@@ -181,3 +181,65 @@ pub fn pixel_and_sum_change(
     let sb: f64 = b.planes[c].iter().map(|&v| v as f64).sum();
     (worst, sb - sa)
 }
+
+/// Sample counts from 1 to 40 with a few invalid pixels (0, NaN, below 1).
+#[allow(dead_code)]
+pub fn counts_with_invalid(n: usize, rng: &mut Rng) -> Vec<f32> {
+    (0..n)
+        .map(|i| match i % 11 {
+            3 => 0.0,
+            7 if i % 2 == 0 => f32::NAN,
+            9 => 0.5,
+            _ => (1 + (rng.uniform() * 40.0) as u32) as f32,
+        })
+        .collect()
+}
+
+/// `n` values uniform in `[0, scale)`.
+#[allow(dead_code)]
+pub fn uniform_plane(n: usize, rng: &mut Rng, scale: f64) -> Vec<f32> {
+    (0..n).map(|_| (scale * rng.uniform()) as f32).collect()
+}
+
+/// A final-pass f32 chain configuration of `method` with every optional
+/// stage off (no prefilter, outliers, pyramid, input blend or temporal
+/// stage), the error estimate on.
+#[allow(dead_code)]
+pub fn bare_chain_config(method: mcdenoise::Method) -> mcdenoise::methods::chain::ChainConfig {
+    mcdenoise::methods::chain::ChainConfig {
+        method,
+        pass: mcdenoise::Pass::Final,
+        precision: Precision::F32,
+        prefilter: mcdenoise::Prefilter::Off,
+        outliers: false,
+        options: mcdenoise::Options::default(),
+        low_spp: true,
+        debug: false,
+        error: true,
+        pyramid: false,
+        input_blend: false,
+        temporal: mcdenoise::Temporal::Off,
+        temporal_state: None,
+    }
+}
+
+/// Runs a chain of `config` on `img`; returns its outputs and the
+/// statistics its method read (sanitised, and changed in place by the
+/// outlier stage and the prefilter when they run).
+#[allow(dead_code)]
+pub fn run_chain(
+    ctx: &Arc<GpuContext>,
+    img: &mcdenoise::StatsImage,
+    config: mcdenoise::methods::chain::ChainConfig,
+) -> (
+    mcdenoise::methods::chain::ChainOutput,
+    mcdenoise::StatsImage,
+) {
+    use mcdenoise::methods::chain::{ChainInput, GpuChain};
+    let chain = GpuChain::new(ctx, ChainInput::of_image(img), config).unwrap();
+    chain.upload(img).unwrap();
+    let mut batch = mcdenoise::gpu::Batch::new(ctx).unwrap();
+    chain.record(&mut batch, None, None).unwrap();
+    batch.finish().unwrap();
+    (chain.download().unwrap(), chain.clean().download().unwrap())
+}

@@ -128,7 +128,7 @@ impl PyramidArg {
 
 #[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
 pub enum BlendArg {
-    /// On after WLR and AOS, off after the other methods.
+    /// On after AOS, off after the other methods.
     Auto,
     /// After any reconstruction (not none).
     On,
