@@ -3,10 +3,13 @@
 // with error estimate E, blended with the input y (the statistics
 // the method read) by inverse error, as two estimates of the same pixel:
 //   V  = max(v, mean of v over the valid pixels of the (2r+1)^2 window)
-//   f' = max((V f + k E y) / (V + k E), 0)
-//   E' = V E (V + k^2 E) / (V + k E)^2
-// (E' is the variance of the blend were the two independent.) An invalid
-// pixel, or one with V + k E = 0, keeps f and E.
+//   f' = max((V f + k E y) / (V + k E), 0) = max(f + w_y (y - f), 0)
+//   E' = V E (V + k^2 E) / (V + k E)^2 = w_f^2 E + w_y^2 V
+// with w_y = k E / (V + k E), w_f = 1 - w_y, computed from V and k E
+// divided by the larger (no overflow where the input is huge). E' is the
+// variance of the blend were the two independent. An invalid pixel, one
+// with V + k E = 0 or not finite, or one whose blend is not finite, keeps
+// f and E.
 // Scalar twin: src/reference/input_blend.rs.
 #include "lib/common.glsl"
 
@@ -63,13 +66,23 @@ void main()
     real vi = max(real(v[i]), real(0));
     real big_v = max(vi, sum / count);
     real ei = ei_raw > 0.0 ? real(ei_raw) : real(0);
-    real k = real(push.k);
-    real den = big_v + k * ei;
-    if (!(den > real(0))) {
+    real ke = real(push.k) * ei;
+    real s = max(big_v, ke);
+    if (!(s > real(0)) || isinf(s)) {
         eout[i] = ei_raw;
         return;
     }
+    real a = big_v / s;
+    real b = ke / s;
+    real wy = b / (a + b);
+    real wf = a / (a + b);
     real fi = real(f[i]);
-    fout[i] = float(max((big_v * fi + k * ei * real(y[i])) / den, real(0)));
-    eout[i] = float(big_v * ei * (big_v + k * k * ei) / (den * den));
+    real o = max(fi + wy * (real(y[i]) - fi), real(0));
+    real eo = wf * wf * ei + wy * wy * big_v;
+    if (isinf(o) || isnan(o) || isinf(eo) || isnan(eo)) {
+        eout[i] = ei_raw;
+        return;
+    }
+    fout[i] = float(o);
+    eout[i] = float(eo);
 }

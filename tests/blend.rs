@@ -44,6 +44,12 @@ fn input_blend_matches_its_twin() {
                 *x = -1.0;
             }
         }
+        // A pixel whose products overflow f32 (issue #14's range).
+        let (mut f, mut y) = (f, y);
+        if n > 1 {
+            let huge = n / 2 + 1;
+            (f[huge], y[huge], v[huge], e[huge]) = (1e30, 2e30, 1e30, 3e30);
+        }
         for &(radius, k) in &[(0u32, 1.0f32), (1, 1.0), (3, 2.5)] {
             let p = push((w, h), (radius, k));
             let (mut fo, mut eo) = (vec![0.0f32; n], vec![0.0f32; n]);
