@@ -40,6 +40,7 @@
 //! | LP (§3.5) | `9·(P + 1)` = 54 | pass `t`'s centres depend on the reach of the centres of earlier passes within 9, each fitted over its 19×19 window: `9(t + 1)` for `t < P = 5`; the gather reads the centres within 9 |
 //! | APR (§4.3) | `14 + 28 T` = 70 (T = 2 stages) | a stage's block at `c` reads the previous stage's blend within 14, which reads blocks within 14; the final blend reads blocks within 14 |
 //! | AOS (§5) | `R + 8`: 17 final, 13 intermediate | NL-means search 5 + patch 3, then the window `Ω_c(R)` |
+//! | input blend (INPUT-BLEND), with the method | `max(method, r)` | reads the statistics the method read within its variance window `r` (AOS 1, the others 3) |
 //! | G-buffer prefilter (§6.2) | 13 | `S̄ = G_1.5(S)` (5); SURE at `c` uses `S̃` within 3; `hbar = G_1.5(h_opt)` (5) |
 //! | outlier detection and replacement (§4.4 steps 1–3) | 14 | `m_o`, `sd_o` and the median over `Ω_o(14)` |
 //! | sanitation (§0.4) | 5 | step 1: 3×3 (1); then step 3 (5×5: 2) or step 4 (3×3 residuals, 7×7 MAD: 4) |
