@@ -5,8 +5,9 @@
 //   V  = max(v, mean of v over the valid pixels of the (2r+1)^2 window)
 //   f' = max((V f + k E y) / (V + k E), 0) = max(f + w_y (y - f), 0)
 //   E' = V E (V + k^2 E) / (V + k E)^2 = w_f^2 E + w_y^2 V
-// with w_y = k E / (V + k E), w_f = 1 - w_y, computed from V and k E
-// divided by the larger (no overflow where the input is huge). E' is the
+// with w_y = k E / (V + k E), w_f = 1 - w_y, computed from V and E divided
+// by the larger, and the window's mean as a running mean (no overflow
+// where the input is huge). E' is the
 // variance of the blend were the two independent. An invalid pixel, one
 // with V + k E = 0 or not finite, or one whose blend is not finite, keeps
 // f and E.
@@ -52,37 +53,36 @@ void main()
     int r = int(push.radius);
     int x0 = max(int(x) - r, 0), x1 = min(int(x) + r, int(push.width) - 1);
     int y0 = max(int(row) - r, 0), y1 = min(int(row) + r, int(push.height) - 1);
-    real sum = real(0);
+    real mean = real(0);
     real count = real(0);
     for (int qy = y0; qy <= y1; ++qy) {
         for (int qx = x0; qx <= x1; ++qx) {
             uint q = uint(qy) * push.width + uint(qx);
             if (spp_of(spp[q]) > 0.0) {
-                sum += max(real(v[q]), real(0));
                 count += real(1);
+                mean += (max(real(v[q]), real(0)) - mean) / count;
             }
         }
     }
     real vi = max(real(v[i]), real(0));
-    real big_v = max(vi, sum / count);
+    real big_v = max(vi, mean);
     real ei = ei_raw > 0.0 ? real(ei_raw) : real(0);
-    real ke = real(push.k) * ei;
-    real s = max(big_v, ke);
-    if (!(s > real(0)) || isinf(s)) {
+    real s = max(big_v, ei);
+    if (!(s > real(0)) || isinf(s) || isnan(s)) {
         eout[i] = ei_raw;
         return;
     }
     real a = big_v / s;
-    real b = ke / s;
+    real b = real(push.k) * (ei / s);
     real wy = b / (a + b);
     real wf = a / (a + b);
     real fi = real(f[i]);
-    real o = max(fi + wy * (real(y[i]) - fi), real(0));
+    real o = fi + wy * (real(y[i]) - fi);
     real eo = wf * wf * ei + wy * wy * big_v;
     if (isinf(o) || isnan(o) || isinf(eo) || isnan(eo)) {
         eout[i] = ei_raw;
         return;
     }
-    fout[i] = float(o);
+    fout[i] = float(max(o, real(0)));
     eout[i] = float(eo);
 }

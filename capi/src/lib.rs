@@ -524,7 +524,9 @@ pub unsafe extern "C" fn mcd_denoiser_create(
             | MCD_FLAG_ADAPTIVE_PASS
             | MCD_FLAG_TEMPORAL_LP
             | MCD_FLAG_PYRAMID
-            | MCD_FLAG_NO_PYRAMID;
+            | MCD_FLAG_NO_PYRAMID
+            | MCD_FLAG_INPUT_BLEND
+            | MCD_FLAG_NO_INPUT_BLEND;
         if desc.flags & !known != 0 {
             return Err(invalid(format!("unknown flags {:#x}", desc.flags & !known)));
         }

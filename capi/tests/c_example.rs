@@ -87,6 +87,7 @@ fn c_host_accumulates_on_the_gpu_and_denoises() {
     assert!(
         stdout.contains("sample map:")
             && stdout.contains("with the pyramid: rMSE")
+            && stdout.contains("stage flags: ok")
             && stdout.ends_with("ok\n"),
         "{stdout}"
     );

@@ -419,6 +419,27 @@ int main(int argc, char **argv)
         return 1;
     }
     mcd_denoiser_destroy(pyramid);
+
+    /* A stage's flag and its NO_ flag together are refused; each alone is
+     * taken (the pyramid's and the input blend's). */
+    const uint32_t stages[2][2] = {{MCD_FLAG_PYRAMID, MCD_FLAG_NO_PYRAMID},
+                                   {MCD_FLAG_INPUT_BLEND, MCD_FLAG_NO_INPUT_BLEND}};
+    for (int s = 0; s < 2; ++s) {
+        for (int k = 0; k < 3; ++k) {
+            McdDenoiserDesc probe_desc = desc;
+            probe_desc.flags &= ~(MCD_FLAG_PYRAMID | MCD_FLAG_NO_PYRAMID);
+            probe_desc.flags |= k < 2 ? stages[s][k] : stages[s][0] | stages[s][1];
+            McdDenoiser *probe = NULL;
+            enum McdStatus st = mcd_denoiser_create(ctx, &probe_desc, &probe);
+            if (st != (k < 2 ? MCD_STATUS_OK : MCD_STATUS_INVALID_ARGUMENT)) {
+                fprintf(stderr, "flags %#x: status %d (%s)\n", probe_desc.flags, (int)st,
+                        mcd_last_error());
+                return 1;
+            }
+            mcd_denoiser_destroy(probe);
+        }
+    }
+    printf("stage flags: ok\n");
     mcd_context_destroy(ctx);
 
     /* ---- The host's teardown. ---- */

@@ -9,9 +9,10 @@ use crate::shared::BlendPush;
 /// `E = max(E_i, 0)`:
 /// `f'_i = max((V f_i + k E y_i) / (V + k E), 0)` and
 /// `E'_i = V E (V + k² E) / (V + k E)²`, computed as `f + w_y (y − f)` and
-/// `w_f² E + w_y² V` from `V` and `k E` divided by the larger, as the
-/// kernel does in f32. An invalid pixel, one with `V + k E` zero or not
-/// finite, or one whose blend is not finite, keeps `f_i` and `E_i`.
+/// `w_f² E + w_y² V` from `V` and `E` divided by the larger, as the kernel
+/// does in f32. An invalid pixel, one with `V + k E` zero or not finite,
+/// or one whose blend is not finite (or whose `E'` exceeds f32), keeps
+/// `f_i` and `E_i`.
 /// Writes `f'` and `E'`.
 pub fn input_blend(
     push: &BlendPush,
@@ -47,20 +48,19 @@ pub fn input_blend(
             }
             let big_v = var(i).max(sum / count);
             let ei = if e[i] > 0.0 { e[i] as f64 } else { 0.0 };
-            let ke = k * ei;
-            let s = big_v.max(ke);
+            let s = big_v.max(ei);
             if s.is_nan() || s <= 0.0 || s.is_infinite() {
                 continue;
             }
-            let (a, b) = (big_v / s, ke / s);
+            let (a, b) = (big_v / s, k * (ei / s));
             let (wy, wf) = (b / (a + b), a / (a + b));
             let fi = f[i] as f64;
-            let o = (fi + wy * (y[i] as f64 - fi)).max(0.0);
+            let o = fi + wy * (y[i] as f64 - fi);
             let eo = wf * wf * ei + wy * wy * big_v;
-            if !o.is_finite() || !eo.is_finite() {
+            if !o.is_finite() || o > f32::MAX as f64 || !eo.is_finite() || eo > f32::MAX as f64 {
                 continue;
             }
-            f_out[i] = o as f32;
+            f_out[i] = o.max(0.0) as f32;
             e_out[i] = eo as f32;
         }
     }

@@ -128,7 +128,7 @@ impl PyramidArg {
 
 #[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
 pub enum BlendArg {
-    /// On after AOS, off after the other methods.
+    /// On after AOS in a final reconstruction, off otherwise.
     Auto,
     /// After any reconstruction (not none).
     On,

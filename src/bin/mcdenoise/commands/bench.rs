@@ -58,7 +58,7 @@ pub struct Args {
     /// alone is `--pyramid=on`
     #[arg(long, value_enum, default_value = "auto", num_args = 0..=1, require_equals = true, default_missing_value = "on")]
     pyramid: PyramidArg,
-    /// The input blend after the method (auto: after AOS): each
+    /// The input blend after the method (auto: after AOS, in final reconstructions): each
     /// pixel's output is the method's and the input's, weighed by the
     /// method's error estimate and the input's variance (--opt blend.radius,
     /// blend.k). `--input-blend` alone is `--input-blend=on`
