@@ -247,6 +247,34 @@ fn the_pyramid_tiled_is_bit_identical() {
     check_validation(&gpu());
 }
 
+/// The input blend in tiles (INPUT-BLEND): AOS's default runs it (the
+/// tests above); a variance window wider than the method's own reach
+/// widens the halo (an adaptive pass's WLR without the outlier stage and
+/// the prefilter reaches 8 px, `blend.radius` 16).
+#[test]
+fn the_input_blend_tiled_is_bit_identical() {
+    let img = strip(480, 32);
+    let mut c = Config::new(Method::Wlr);
+    c.input_blend = mcdenoise::InputBlend::On;
+    c.pass = mcdenoise::Pass::Intermediate;
+    c.outliers = Outliers::Off;
+    c.prefilter = Prefilter::Off;
+    c.options = mcdenoise::Options::parse(&["blend.radius=16".to_string()]).unwrap();
+    check(
+        &img,
+        c.clone(),
+        60,
+        "wlr intermediate --input-blend r 16 480x32",
+    );
+    check(
+        &strip(32, 480),
+        c,
+        60,
+        "wlr intermediate --input-blend r 16 32x480",
+    );
+    check_validation(&gpu());
+}
+
 #[test]
 fn a_memory_cap_tiles_automatically_and_identically() {
     // Its own context: the peak allocation it measures must not count the
