@@ -239,6 +239,19 @@ impl Options {
         })
     }
 
+    /// The value of `key` as a number when it was given explicitly (the
+    /// registry has checked its kind); `None` leaves the default to the
+    /// caller.
+    pub fn number<T: std::str::FromStr>(&self, key: &str) -> Result<Option<T>> {
+        if !self.is_set(key) {
+            return Ok(None);
+        }
+        self.get(key)
+            .parse()
+            .map(Some)
+            .map_err(|_| Error::InvalidArgument(format!("{key}: not a number")))
+    }
+
     /// Whether `key` was given explicitly.
     pub fn is_set(&self, key: &str) -> bool {
         self.values.contains_key(key)

@@ -78,19 +78,10 @@ pub fn check(method: Method) -> Result<()> {
 /// (`blend.radius`, `blend.k`; the method's defaults otherwise).
 pub fn params(method: Method, options: &Options) -> Result<(u32, f32)> {
     let d = method.info().blend;
-    let radius = match options.get("blend.radius") {
-        "method" => d.radius,
-        s => s
-            .parse()
-            .map_err(|_| Error::InvalidArgument(format!("blend.radius: {s:?}")))?,
-    };
-    let k = match options.get("blend.k") {
-        "method" => d.k,
-        s => s
-            .parse()
-            .map_err(|_| Error::InvalidArgument(format!("blend.k: {s:?}")))?,
-    };
-    Ok((radius, k))
+    Ok((
+        options.number("blend.radius")?.unwrap_or(d.radius),
+        options.number("blend.k")?.unwrap_or(d.k),
+    ))
 }
 
 /// The push constants over a `size` image.

@@ -122,17 +122,11 @@ impl SamplingParams {
         options: &crate::options::Options,
     ) -> Result<SamplingParams> {
         let mut params = Self::for_method(method)?;
-        let number = |key: &str| {
-            options
-                .get(key)
-                .parse::<f32>()
-                .map_err(|_| Error::InvalidArgument(format!("{key}: not a number")))
-        };
-        if options.is_set("sampling.smooth") {
-            params.sigma_s = number("sampling.smooth")?;
+        if let Some(s) = options.number("sampling.smooth")? {
+            params.sigma_s = s;
         }
-        if options.is_set("sampling.floor") {
-            params.floor = number("sampling.floor")?;
+        if let Some(f) = options.number("sampling.floor")? {
+            params.floor = f;
         }
         Ok(params)
     }
