@@ -108,7 +108,8 @@ pub struct ChainConfig {
     /// error estimates.
     pub pyramid: bool,
     /// The input blend after the method (INPUT-BLEND): the method's colour
-    /// weighed against the input by the two errors, in place.
+    /// weighed against the input by the two errors, into the stage's own
+    /// planes, before the outlier stage's restoration.
     pub input_blend: bool,
     /// With `temporal` on an adaptive pass's chain ([`Pass::Intermediate`]):
     /// the final chain's state, whose factor scales the sample map's error
