@@ -39,6 +39,7 @@ layout(push_constant) uniform Push {
     uint last;
     uint flags;
     uint stride;
+    uint window;
 } push;
 
 PLANE_IN(0, ych)
@@ -89,6 +90,13 @@ void acc(real4 x0, real4 x1, real4 x2, real4 x3, real4 x4, real k, real kv)
     V33 += outerProduct(v3, x3); V34 += outerProduct(v3, x4); V44 += outerProduct(v4, x4);
 }
 
+void zero_moments_m()
+{
+    aprmat4 z = aprmat4(real(0));
+    M00 = z; M01 = z; M02 = z; M03 = z; M04 = z; M11 = z; M12 = z; M13 = z;
+    M14 = z; M22 = z; M23 = z; M24 = z; M33 = z; M34 = z; M44 = z;
+}
+
 void zero_moments()
 {
     aprmat4 z = aprmat4(real(0));
@@ -109,9 +117,26 @@ struct Result {
     real4 bs0, bs1, bs2, bs3, bs4;
 };
 
+// Adds k x x^T to the moments M only (the slice's M0 of the temporal
+// window, SLICE).
+void acc_m(real4 x0, real4 x1, real4 x2, real4 x3, real4 x4, real k)
+{
+    real4 w0 = k * x0, w1 = k * x1, w2 = k * x2, w3 = k * x3, w4 = k * x4;
+    M00 += outerProduct(w0, x0); M01 += outerProduct(w0, x1); M02 += outerProduct(w0, x2);
+    M03 += outerProduct(w0, x3); M04 += outerProduct(w0, x4); M11 += outerProduct(w1, x1);
+    M12 += outerProduct(w1, x2); M13 += outerProduct(w1, x3); M14 += outerProduct(w1, x4);
+    M22 += outerProduct(w2, x2); M23 += outerProduct(w2, x3); M24 += outerProduct(w2, x4);
+    M33 += outerProduct(w3, x3); M34 += outerProduct(w3, x4); M44 += outerProduct(w4, x4);
+}
+
+// The block of centre c (a pixel of the centre frame, window index 2) over
+// the window's frames (one without APR_TEMPORAL). nbar: the centre frame's
+// mean count; a neighbour frame's pixels are tested on their own frame's.
 Result block(ivec2 c, ivec2 size, bool with_s, float nbar)
 {
-    uint ci = uint(c.y * size.x + c.x);
+    bool temporal = apr_temporal();
+    uint bc = apr_base(2);
+    uint ci = bc + uint(c.y * size.x + c.x);
     real yc = real(ych[ci]);
     real vc = real(vch[ci]);
     real vtc = apr_test_var(vc, ci, nbar);
@@ -119,19 +144,29 @@ Result block(ivec2 c, ivec2 size, bool with_s, float nbar)
     real4 fcb = apr_fb(ci);
     int y0 = max(c.y - APR_R, 0), y1 = min(c.y + APR_R, size.y - 1);
     int x0 = max(c.x - APR_R, 0), x1 = min(c.x + APR_R, size.x - 1);
+    int k0 = temporal ? 0 : 2, k1 = temporal ? 4 : 2;
     // Pass 1: A_c and the feature spreads.
     real4 ma = real4(0), mb = real4(0);
     uint count = 0u;
-    for (int qy = y0; qy <= y1; ++qy) {
-        for (int qx = x0; qx <= x1; ++qx) {
-            uint q = uint(qy * size.x + qx);
-            if (!apr_valid(q)
-                || (q != ci && !apr_accepts(yc, vtc, real(ych[q]), apr_test_var(real(vch[q]), q, nbar)))) {
-                continue;
+    bool others = false;
+    for (int k = k0; k <= k1; ++k) {
+        if (!apr_present(k)) {
+            continue;
+        }
+        uint bk = apr_base(k);
+        float nk = k == 2 ? nbar : apr_nbar_of(k);
+        for (int qy = y0; qy <= y1; ++qy) {
+            for (int qx = x0; qx <= x1; ++qx) {
+                uint q = bk + uint(qy * size.x + qx);
+                if (!apr_valid(q)
+                    || (q != ci && !apr_accepts(yc, vtc, real(ych[q]), apr_test_var(real(vch[q]), q, nk)))) {
+                    continue;
+                }
+                ma = max(ma, abs(apr_fa(q) - fca));
+                mb = max(mb, abs(apr_fb(q) - fcb));
+                ++count;
+                others = others || k != 2;
             }
-            ma = max(ma, abs(apr_fa(q) - fca));
-            mb = max(mb, abs(apr_fb(q) - fcb));
-            ++count;
         }
     }
     Result r;
@@ -139,7 +174,13 @@ Result block(ivec2 c, ivec2 size, bool with_s, float nbar)
     r.sb = mix(real4(0), mb, greaterThan(mb, real4(APR_FEATURE_EPS)));
     real4 isa = mix(real4(0), real4(1) / max(ma, real4(1e-30)), greaterThan(ma, real4(APR_FEATURE_EPS)));
     real4 isb = mix(real4(0), real4(1) / max(mb, real4(1e-30)), greaterThan(mb, real4(APR_FEATURE_EPS)));
-    uint kept = 0x3fe01u;
+    // Columns 0 and 9..17 (and 18 in the temporal window, whose tau column
+    // 11 is zero without another frame: dropped).
+    uint kept = temporal ? 0x7fe01u : 0x3fe01u;
+    real tau = temporal && !others ? real(0) : real(1);
+    if (temporal && !others) {
+        kept &= ~(1u << 11);
+    }
     kept |= (r.sa.x > 0 ? 1u : 0u) << 1 | (r.sa.y > 0 ? 1u : 0u) << 2 | (r.sa.z > 0 ? 1u : 0u) << 3
         | (r.sa.w > 0 ? 1u : 0u) << 4 | (r.sb.x > 0 ? 1u : 0u) << 5 | (r.sb.y > 0 ? 1u : 0u) << 6
         | (r.sb.z > 0 ? 1u : 0u) << 7 | (r.sb.w > 0 ? 1u : 0u) << 8;
@@ -159,26 +200,36 @@ Result block(ivec2 c, ivec2 size, bool with_s, float nbar)
     real4 bp0 = real4(0), bp1 = real4(0), bp2 = real4(0), bp3 = real4(0), bp4 = real4(0);
     real4 by0 = real4(0), by1 = real4(0), by2 = real4(0), by3 = real4(0), by4 = real4(0);
     real4 bs0 = real4(0), bs1 = real4(0), bs2 = real4(0), bs3 = real4(0), bs4 = real4(0);
-    real wsum = real(0);
-    for (int qy = y0; qy <= y1; ++qy) {
-        for (int qx = x0; qx <= x1; ++qx) {
-            uint q = uint(qy * size.x + qx);
-            real yq = real(ych[q]);
-            real vq = real(vch[q]);
-            if (!apr_valid(q) || (q != ci && !apr_accepts(yc, vtc, yq, apr_test_var(vq, q, nbar)))) {
-                continue;
+    real wsum = real(0), wslice = real(0);
+    for (int k = k0; k <= k1; ++k) {
+        if (!apr_present(k)) {
+            continue;
+        }
+        uint bk = apr_base(k);
+        float nk = k == 2 ? nbar : apr_nbar_of(k);
+        for (int qy = y0; qy <= y1; ++qy) {
+            for (int qx = x0; qx <= x1; ++qx) {
+                uint q = bk + uint(qy * size.x + qx);
+                real yq = real(ych[q]);
+                real vq = real(vch[q]);
+                if (!apr_valid(q) || (q != ci && !apr_accepts(yc, vtc, yq, apr_test_var(vq, q, nk)))) {
+                    continue;
+                }
+                real4 a0, a1, a2, a3, a4;
+                apr_row(ivec2(qx, qy) - c, k - 2, apr_fa(q), apr_fb(q), fca, fcb, isa, isb, a0, a1, a2, a3, a4);
+                real kw = apr_fit_weight(apr_weight_dt(qx - c.x, qy - c.y, k - 2), vq);
+                acc(a0, a1, a2, a3, a4, kw, kw * kw * real(s2prev[q]));
+                real kp = kw * real(yprev[q]);
+                real ky = kw * yq;
+                real ks = kw * sqrt(max(vq, real(0)));
+                bp0 += kp * a0; bp1 += kp * a1; bp2 += kp * a2; bp3 += kp * a3; bp4 += kp * a4;
+                by0 += ky * a0; by1 += ky * a1; by2 += ky * a2; by3 += ky * a3; by4 += ky * a4;
+                bs0 += ks * a0; bs1 += ks * a1; bs2 += ks * a2; bs3 += ks * a3; bs4 += ks * a4;
+                wsum += kw;
+                if (k == 2) {
+                    wslice += kw;
+                }
             }
-            real4 a0, a1, a2, a3, a4;
-            apr_row(ivec2(qx, qy) - c, apr_fa(q), apr_fb(q), fca, fcb, isa, isb, a0, a1, a2, a3, a4);
-            real k = apr_fit_weight(apr_weight(qx - c.x, qy - c.y), vq);
-            acc(a0, a1, a2, a3, a4, k, k * k * real(s2prev[q]));
-            real kp = k * real(yprev[q]);
-            real ky = k * yq;
-            real ks = k * sqrt(max(vq, real(0)));
-            bp0 += kp * a0; bp1 += kp * a1; bp2 += kp * a2; bp3 += kp * a3; bp4 += kp * a4;
-            by0 += ky * a0; by1 += ky * a1; by2 += ky * a2; by3 += ky * a3; by4 += ky * a4;
-            bs0 += ks * a0; bs1 += ks * a1; bs2 += ks * a2; bs3 += ks * a3; bs4 += ks * a4;
-            wsum += k;
         }
     }
     // The factorisation (APR-RIDGE-BLOCK) with SOLVE-FAIL's retries; the
@@ -187,15 +238,16 @@ Result block(ivec2 c, ivec2 size, bool with_s, float nbar)
     real4 kd1 = real4(M11[0][0], M11[1][1], M11[2][2], M11[3][3]);
     real4 kd2 = real4(M22[0][0], M22[1][1], M22[2][2], M22[3][3]);
     real4 kd3 = real4(M33[0][0], M33[1][1], M33[2][2], M33[3][3]);
-    real4 kd4 = real4(M44[0][0], M44[1][1], 0, 0);
-    real4 k0 = real4(1, r.sa.x > 0 ? 1 : 0, r.sa.y > 0 ? 1 : 0, r.sa.z > 0 ? 1 : 0);
-    real4 k1 = real4(r.sa.w > 0 ? 1 : 0, r.sb.x > 0 ? 1 : 0, r.sb.y > 0 ? 1 : 0, r.sb.z > 0 ? 1 : 0);
-    real4 k2 = real4(r.sb.w > 0 ? 1 : 0, 1, 1, 1);
-    real4 k3 = real4(1);
-    real4 k4 = real4(1, 1, 0, 0);
-    real mean_diag = (dot(kd0, k0) + dot(kd1, k1) + dot(kd2, k2) + dot(kd3, k3) + dot(kd4, k4))
-        / (dot(k0, real4(1)) + dot(k1, real4(1)) + dot(k2, real4(1)) + dot(k3, real4(1)) + dot(k4, real4(1)));
-    real4 kmax0 = kd0 * k0, kmax1 = kd1 * k1, kmax2 = kd2 * k2, kmax3 = kd3 * k3, kmax4 = kd4 * k4;
+    real t18 = temporal ? real(1) : real(0);
+    real4 kd4 = real4(M44[0][0], M44[1][1], t18 * M44[2][2], 0);
+    real4 k0v = real4(1, r.sa.x > 0 ? 1 : 0, r.sa.y > 0 ? 1 : 0, r.sa.z > 0 ? 1 : 0);
+    real4 k1v = real4(r.sa.w > 0 ? 1 : 0, r.sb.x > 0 ? 1 : 0, r.sb.y > 0 ? 1 : 0, r.sb.z > 0 ? 1 : 0);
+    real4 k2v = real4(r.sb.w > 0 ? 1 : 0, 1, 1, tau);
+    real4 k3v = real4(1);
+    real4 k4v = real4(1, 1, t18, 0);
+    real mean_diag = (dot(kd0, k0v) + dot(kd1, k1v) + dot(kd2, k2v) + dot(kd3, k3v) + dot(kd4, k4v))
+        / (dot(k0v, real4(1)) + dot(k1v, real4(1)) + dot(k2v, real4(1)) + dot(k3v, real4(1)) + dot(k4v, real4(1)));
+    real4 kmax0 = kd0 * k0v, kmax1 = kd1 * k1v, kmax2 = kd2 * k2v, kmax3 = kd3 * k3v, kmax4 = kd4 * k4v;
     real lambda = real(APR_RIDGE) * wsum;
     bool ok = false;
     [[dont_unroll]] for (int attempt = 0; attempt <= APR_RETRIES && !ok; ++attempt) {
@@ -204,55 +256,77 @@ Result block(ivec2 c, ivec2 size, bool with_s, float nbar)
         }
         // Diagonals with the ridge (not on the intercept).
         real4 lam = real4(lambda);
-        real4 mx = max(max(max(kmax0 + k0 * real4(0, lambda, lambda, lambda), kmax1 + k1 * lam),
-                           max(kmax2 + k2 * lam, kmax3 + k3 * lam)), kmax4 + k4 * lam);
+        real4 mx = max(max(max(kmax0 + k0v * real4(0, lambda, lambda, lambda), kmax1 + k1v * lam),
+                           max(kmax2 + k2v * lam, kmax3 + k3v * lam)), kmax4 + k4v * lam);
         real thresh = real(EPS_PIVOT) * max(max(mx.x, mx.y), max(mx.z, mx.w));
         ok = apr_factor(lambda, kept, thresh);
     }
     if (!ok) {
         return r;
     }
+    if (temporal) {
+        // SLICE: the error and the trace are the centre frame's, E from its
+        // moments M0 (the factor no longer needs M).
+        zero_moments_m();
+        uint b2 = apr_base(2);
+        for (int qy = y0; qy <= y1; ++qy) {
+            for (int qx = x0; qx <= x1; ++qx) {
+                uint q = b2 + uint(qy * size.x + qx);
+                real vq = real(vch[q]);
+                if (!apr_valid(q) || (q != ci && !apr_accepts(yc, vtc, real(ych[q]), apr_test_var(vq, q, nbar)))) {
+                    continue;
+                }
+                real4 a0, a1, a2, a3, a4;
+                apr_row(ivec2(qx, qy) - c, 0, apr_fa(q), apr_fb(q), fca, fcb, isa, isb, a0, a1, a2, a3, a4);
+                acc_m(a0, a1, a2, a3, a4, apr_fit_weight(apr_weight_dt(qx - c.x, qy - c.y, 0), vq));
+            }
+        }
+    }
     apr_products();
     real4 xi = real4(0);
     real4 trace = real4(0);
     real4 B00, B01, B02, B03, B04, B10, B11, B12, B13, B14;
     real4 B20, B21, B22, B23, B24, B30, B31, B32, B33, B34;
-    apr_order_sums(9, trace.x, xi.x);
-    apr_order_sums(11, trace.y, xi.y);
-    apr_order_sums(14, trace.z, xi.z);
-    apr_order_sums(18, trace.w, xi.w);
-    apr_solve(9, bp0, bp1, bp2, bp3, bp4, B00, B01, B02, B03, B04);
-    apr_solve(11, bp0, bp1, bp2, bp3, bp4, B10, B11, B12, B13, B14);
-    apr_solve(14, bp0, bp1, bp2, bp3, bp4, B20, B21, B22, B23, B24);
-    apr_solve(18, bp0, bp1, bp2, bp3, bp4, B30, B31, B32, B33, B34);
-    // Pass 3: the squared bias of each order.
+    // The orders' column counts: 9, 11, 14, 18, or 9, 12, 15, 19 in the
+    // temporal window.
+    ivec4 pk = temporal ? ivec4(9, 12, 15, 19) : ivec4(9, 11, 14, 18);
+    apr_order_sums(pk.x, trace.x, xi.x);
+    apr_order_sums(pk.y, trace.y, xi.y);
+    apr_order_sums(pk.z, trace.z, xi.z);
+    apr_order_sums(pk.w, trace.w, xi.w);
+    apr_solve(pk.x, bp0, bp1, bp2, bp3, bp4, B00, B01, B02, B03, B04);
+    apr_solve(pk.y, bp0, bp1, bp2, bp3, bp4, B10, B11, B12, B13, B14);
+    apr_solve(pk.z, bp0, bp1, bp2, bp3, bp4, B20, B21, B22, B23, B24);
+    apr_solve(pk.w, bp0, bp1, bp2, bp3, bp4, B30, B31, B32, B33, B34);
+    // Pass 3: the squared bias of each order, over the centre frame.
     real4 rss = real4(0);
+    uint b2 = apr_base(2);
     for (int qy = y0; qy <= y1; ++qy) {
         for (int qx = x0; qx <= x1; ++qx) {
-            uint q = uint(qy * size.x + qx);
+            uint q = b2 + uint(qy * size.x + qx);
             real vq = real(vch[q]);
             if (!apr_valid(q) || (q != ci && !apr_accepts(yc, vtc, real(ych[q]), apr_test_var(vq, q, nbar)))) {
                 continue;
             }
             real4 a0, a1, a2, a3, a4;
-            apr_row(ivec2(qx, qy) - c, apr_fa(q), apr_fb(q), fca, fcb, isa, isb, a0, a1, a2, a3, a4);
+            apr_row(ivec2(qx, qy) - c, 0, apr_fa(q), apr_fb(q), fca, fcb, isa, isb, a0, a1, a2, a3, a4);
             real yp = real(yprev[q]);
             real4 e = real4(
                 dot(a0, B00) + dot(a1, B01) + dot(a2, B02) + dot(a3, B03) + dot(a4, B04),
                 dot(a0, B10) + dot(a1, B11) + dot(a2, B12) + dot(a3, B13) + dot(a4, B14),
                 dot(a0, B20) + dot(a1, B21) + dot(a2, B22) + dot(a3, B23) + dot(a4, B24),
                 dot(a0, B30) + dot(a1, B31) + dot(a2, B32) + dot(a3, B33) + dot(a4, B34)) - yp;
-            rss += apr_fit_weight(apr_weight(qx - c.x, qy - c.y), vq) * e * e;
+            rss += apr_fit_weight(apr_weight_dt(qx - c.x, qy - c.y, 0), vq) * e * e;
         }
     }
-    xi = (rss + xi) / wsum;
+    xi = (rss + xi) / (temporal ? wslice : wsum);
     int best = 0;
     real bx = xi.x;
     real bt = trace.x;
     if (xi.y < bx) { best = 1; bx = xi.y; bt = trace.y; }
     if (xi.z < bx) { best = 2; bx = xi.z; bt = trace.z; }
     if (xi.w < bx) { best = 3; bx = xi.w; bt = trace.w; }
-    int p = best == 0 ? 9 : (best == 1 ? 11 : (best == 2 ? 14 : 18));
+    int p = best == 0 ? pk.x : (best == 1 ? pk.y : (best == 2 ? pk.z : pk.w));
     apr_solve(p, by0, by1, by2, by3, by4, r.by0, r.by1, r.by2, r.by3, r.by4);
     if (with_s) {
         apr_solve(p, bs0, bs1, bs2, bs3, bs4, r.bs0, r.bs1, r.bs2, r.bs3, r.bs4);
@@ -267,12 +341,13 @@ Result block(ivec2 c, ivec2 size, bool with_s, float nbar)
 // Whether some valid sparse centre within 14 accepts pixel p.
 bool covered(ivec2 p, ivec2 size, float nbar)
 {
-    uint i = uint(p.y * size.x + p.x);
+    uint b2 = apr_base(2);
+    uint i = b2 + uint(p.y * size.x + p.x);
     real yi = real(ych[i]);
     real vi = apr_test_var(real(vch[i]), i, nbar);
     for (int cy = apr_first_centre(p.y); cy <= min(p.y + APR_R, size.y - 1); cy += APR_R) {
         for (int cx = apr_first_centre(p.x); cx <= min(p.x + APR_R, size.x - 1); cx += APR_R) {
-            uint c = uint(cy * size.x + cx);
+            uint c = b2 + uint(cy * size.x + cx);
             if (apr_valid(c) && (c == i || apr_accepts(real(ych[c]), apr_test_var(real(vch[c]), c, nbar), yi, vi))) {
                 return true;
             }
@@ -285,7 +360,7 @@ void main()
 {
     ivec2 size = ivec2(push.width, push.height);
     bool with_s = push.last == 0u;
-    float nbar = apr_nbar();
+    float nbar = apr_nbar_of(2);
     int gw = (size.x + APR_R - 1) / APR_R;
     int gh = (size.y + APR_R - 1) / APR_R;
     if (push.mode == 0u) {
@@ -296,7 +371,7 @@ void main()
         }
         ivec2 c = g * APR_R;
         uint base = (push.channel * uint(gw * gh) + uint(g.y * gw + g.x)) * uint(APR_STATE);
-        if (!apr_valid(uint(c.y * size.x + c.x))) {
+        if (!apr_valid(apr_base(2) + uint(c.y * size.x + c.x))) {
             for (int k = 0; k < APR_STATE; ++k) {
                 state[base + uint(k)] = 0.0;
             }
@@ -309,12 +384,12 @@ void main()
         state[base + 3u] = r.degenerate ? 1.0 : 0.0;
         real4 by[5] = real4[5](r.by0, r.by1, r.by2, r.by3, r.by4);
         real4 bs[5] = real4[5](r.bs0, r.bs1, r.bs2, r.bs3, r.bs4);
-        // beta_y and beta_s each fill 5 vec4 slots, the entries past APR_P 0.
+        // beta_y and beta_s each fill 5 vec4 slots (0 past the chosen
+        // order's columns).
         for (int k = 0; k < 5; ++k) {
             for (int t = 0; t < 4; ++t) {
-                bool used = 4 * k + t < APR_P;
-                state[base + uint(APR_ST_BETA_Y + 4 * k + t)] = used ? float(by[k][t]) : 0.0;
-                state[base + uint(APR_ST_BETA_S + 4 * k + t)] = used ? float(bs[k][t]) : 0.0;
+                state[base + uint(APR_ST_BETA_Y + 4 * k + t)] = float(by[k][t]);
+                state[base + uint(APR_ST_BETA_S + 4 * k + t)] = float(bs[k][t]);
             }
         }
         real s8[8] = real[8](r.sa.x, r.sa.y, r.sa.z, r.sa.w, r.sb.x, r.sb.y, r.sb.z, r.sb.w);
@@ -328,7 +403,7 @@ void main()
         // is appended to the queue, in workgroups of 64 for mode 2.
         uint x = gl_GlobalInvocationID.x;
         uint y = push.row0 + gl_GlobalInvocationID.y;
-        if (x < push.width && y < push.height && apr_valid(y * push.width + x)
+        if (x < push.width && y < push.height && apr_valid(apr_base(2) + y * push.width + x)
             && !covered(ivec2(x, y), size, nbar)) {
             QUEUE_APPEND(queue, y * push.width + x, 64u, QUEUE_ROOM(queue))
         }

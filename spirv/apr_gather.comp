@@ -31,6 +31,7 @@ layout(push_constant) uniform Push {
     uint last;
     uint flags;
     uint stride;
+    uint window;
 } push;
 
 PLANE_IN(0, col_r)
@@ -157,7 +158,7 @@ void main()
                 real4 sb = st4(b + uint(APR_ST_SCALES / 4) + 1u);
                 real4 isa = mix(real4(0), real4(1) / max(sa, real4(1e-30)), greaterThan(sa, real4(0)));
                 real4 isb = mix(real4(0), real4(1) / max(sb, real4(1e-30)), greaterThan(sb, real4(0)));
-                apr_row(p - ivec2(cx, cy), fa, fb, fca, fcb, isa, isb, x0, x1, x2, x3, x4);
+                apr_row(p - ivec2(cx, cy), 0, fa, fb, fca, fcb, isa, isb, x0, x1, x2, x3, x4);
                 // x4's last two entries are 0, as are the records' (past APR_P).
                 real py = dot(x0, st4(by)) + dot(x1, st4(by + 1u)) + dot(x2, st4(by + 2u))
                     + dot(x3, st4(by + 3u)) + dot(x4, st4(by + 4u));

@@ -18,6 +18,7 @@ layout(push_constant) uniform Push {
     uint last;
     uint flags;
     uint stride;
+    uint window;
 } push;
 
 PLANE_IN(0, f0)

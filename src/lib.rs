@@ -43,7 +43,9 @@
 //!   each call on [`Source::Stats`] consumes its [`Denoiser::upload`].
 //! - Sequences: with [`Config::temporal`] set to [`Temporal::Lp`] every
 //!   call is the next frame of a sequence, filtered over time (§10.1) with
-//!   a state kept on the GPU; [`Denoiser::reset`] at a cut.
+//!   a state kept on the GPU; [`Denoiser::reset`] at a cut. Offline, a
+//!   [`SequenceDenoiser`] runs APR's temporal window (§10.2,
+//!   [`Temporal::Apr`]) over the frames `t−2..t+2` of each frame.
 //! - Outputs: [`Denoiser::outputs`] (GPU buffers) or [`Denoiser::read`]
 //!   ([`Frame`]: colour, per-channel error `E_i`, local dimension `d_i`,
 //!   samples, debug maps).
@@ -107,6 +109,7 @@ pub mod reference;
 /// kernel that accumulates exactly the planes a [`Denoiser`] reads.
 #[cfg(feature = "render")]
 pub mod render;
+pub mod sequence;
 pub mod shared;
 
 mod denoiser;
@@ -127,3 +130,4 @@ pub use methods::{
 };
 pub use options::{help_table, Options};
 pub use schedule::Schedule;
+pub use sequence::SequenceDenoiser;

@@ -310,9 +310,33 @@ pub struct AprPush {
     /// Bits: [`APR_VIS`], [`APR_CLAMPED`], [`APR_PIXEL_TEST`],
     /// [`APR_COUNT_CAP`].
     pub flags: u32,
-    /// f32 values from one plane to the next in the packed bindings.
+    /// f32 values from one plane to the next in the packed bindings (and
+    /// from one ring slot to the next in the temporal window's).
     pub stride: u32,
+    /// `apr_block` with [`APR_TEMPORAL`]: the window's frames `t−2..t+2`
+    /// (index k = 0..4), bit k set for a present frame, its ring slot at
+    /// bits `8 + 4k` ([`apr_window`]).
+    pub window: u32,
 }
+
+/// [`AprPush::window`] of the frames `t−2..t+2` with these ring slots
+/// (`None`: outside the sequence).
+pub fn apr_window(slots: [Option<u32>; 5]) -> u32 {
+    slots.iter().enumerate().fold(0, |w, (k, s)| match s {
+        Some(s) => {
+            assert!(*s < 16, "a ring slot is 4 bits");
+            w | 1 << k | s << (8 + 4 * k)
+        }
+        None => w,
+    })
+}
+
+/// [`AprPush::flags`] bit (`apr_block`, `apr_gather`): the temporal
+/// window of spec §10.2 (APR-TEMPORAL-COLUMNS, 3D-KERNEL, SLICE).
+pub const APR_TEMPORAL: u32 = 16;
+/// `spp_total` words per ring slot of the temporal window's totals (one
+/// slot per storage-buffer offset alignment).
+pub const APR_SPPT_SLOT: usize = 64;
 
 /// [`AprPush::flags`] bit: the visibility plane is bound (else a zero
 /// feature).

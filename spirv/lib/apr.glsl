@@ -12,6 +12,13 @@
 // x2 = (dvis, u, v, uu), x3 = (uv, vv, uuu, uuv), x4 = (uvv, vvv, 0, 0),
 // with d = (f_i - f_c) / s (0 for a dropped feature) and u, v the offsets
 // divided by R = 14. Order K uses the leading 9, 11, 14, 18 columns.
+// The temporal window (spec §10.2, APR_TEMPORAL in push.flags;
+// APR-TEMPORAL-COLUMNS): x2 = (dvis, u, v, t), x3 = (uu, uv, vv, uuu),
+// x4 = (uuv, uvv, vvv, 0), t = dt / 2; orders 0..3 use 9, 12, 15, 19
+// columns (the solve's padding column 18 gets the ridge, apr_pad_ridge).
+// push.window then holds bit k (k = 0..4, frames t-2..t+2) for a present
+// frame and, at bits 8 + 4k, the ring slot of its planes, push.stride
+// floats (vec4s in fa, fb) apart; sppt holds APR_SPPT_SLOT words per slot.
 
 #ifndef MC_APR_GLSL
 #define MC_APR_GLSL
@@ -38,6 +45,25 @@
 // reference::apr::COUNT_CAP_K).
 #define APR_COUNT_CAP 8u
 #define APR_COUNT_CAP_K 2.0
+// AprPush.flags bit (mirror mcdenoise::shared::APR_TEMPORAL) and the
+// spp_total words per ring slot (mirror shared::APR_SPPT_SLOT).
+#define APR_TEMPORAL 16u
+#define APR_SPPT_SLOT 64u
+
+bool apr_temporal() { return (push.flags & APR_TEMPORAL) != 0u; }
+
+// Frame k of the window (0..4, the centre 2): whether it is present, and
+// the first index of its planes in the bindings (0 for a single frame).
+bool apr_present(int k)
+{
+    return apr_temporal() ? ((push.window >> uint(k)) & 1u) != 0u : k == 2;
+}
+uint apr_slot(int k) { return apr_temporal() ? (push.window >> (8u + 4u * uint(k))) & 15u : 0u; }
+uint apr_base(int k) { return apr_slot(k) * push.stride; }
+
+// The ridge of the design's column 18: a polynomial column in the temporal
+// window, padding (1) otherwise (lib/apr_solve.glsl).
+real apr_pad_ridge(real lambda) { return apr_temporal() ? lambda : real(1); }
 
 bool apr_valid(uint i) { return spp_of(spp[i]) >= 1.0; }
 
@@ -73,6 +99,20 @@ float apr_nbar()
     return spp_total_mean(sppt[0], sppt[1], sppt[2]);
 }
 
+// Frame k's mean count (its own slot's spp_total words).
+float apr_nbar_of(int k)
+{
+    uint o = apr_slot(k) * APR_SPPT_SLOT;
+    return spp_total_mean(sppt[o], sppt[o + 1u], sppt[o + 2u]);
+}
+
+// K(i) of the temporal window (3D-KERNEL): h = 14 in space, 2 in frames;
+// dt = 0 gives apr_weight's value.
+real apr_weight_dt(int dx, int dy, int dt)
+{
+    return real(exp(-float(dx * dx + dy * dy) / float(2 * APR_R * APR_R) - float(dt * dt) / 8.0));
+}
+
 // The factor on pixel q's variance in the interval test: with
 // APR_COUNT_CAP, max(1, n_q / (K nbar)), so that a pixel with more than
 // APR_COUNT_CAP_K times the image's mean count nbar is tested at the
@@ -94,7 +134,8 @@ real apr_test_var(real v, uint q, float nbar)
 
 // The design row of pixel q (position dq = q - c) for a block with centre
 // features (fca, fcb) and inverse spreads (isa, isb; 0 = dropped).
-void apr_row(ivec2 dq, real4 fa, real4 fb, real4 fca, real4 fcb, real4 isa, real4 isb,
+// dt: the pixel's frame minus the centre's (the temporal layout).
+void apr_row(ivec2 dq, int dt, real4 fa, real4 fb, real4 fca, real4 fcb, real4 isa, real4 isb,
              out real4 x0, out real4 x1, out real4 x2, out real4 x3, out real4 x4)
 {
     real4 d = (fa - fca) * isa;
@@ -103,6 +144,13 @@ void apr_row(ivec2 dq, real4 fa, real4 fb, real4 fca, real4 fcb, real4 isa, real
     real v = real(dq.y) / real(APR_R);
     x0 = real4(1, d.xyz);
     x1 = real4(d.w, e.xyz);
+    if (apr_temporal()) {
+        real t = real(dt) / real(2);
+        x2 = real4(e.w, u, v, t);
+        x3 = real4(u * u, u * v, v * v, u * u * u);
+        x4 = real4(u * u * v, u * v * v, v * v * v, 0);
+        return;
+    }
     x2 = real4(e.w, u, v, u * u);
     x3 = real4(u * v, v * v, u * u * u, u * u * v);
     x4 = real4(u * v * v, v * v * v, 0, 0);

@@ -321,6 +321,11 @@ impl GpuChain {
         let sampling = (SamplingPlanes::new(ctx, w, h)?, params);
         let temporal = match (config.temporal, config.pass, &config.temporal_state) {
             (Temporal::Off, _, _) => None,
+            (Temporal::Apr, _, _) => {
+                return Err(Error::InvalidArgument(
+                    "APR's temporal window (§10.2) reconstructs a sequence from the frames around each one: use a SequenceDenoiser".into(),
+                ))
+            }
             (Temporal::Lp, Pass::Final, None) => {
                 Some(TemporalRole::Filter(Arc::new(TemporalStage::new(ctx, w, h)?)))
             }

@@ -4,6 +4,7 @@
 
 pub mod aos;
 pub mod apr;
+pub mod apr_window;
 pub mod auto;
 pub mod blend;
 pub mod chain;

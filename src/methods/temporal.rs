@@ -29,13 +29,17 @@ pub enum Temporal {
     /// `position` and `depth` layers (`position_variance` is estimated
     /// when missing, §0.4).
     Lp,
+    /// §10.2, APR's temporal window: each frame's blocks fit the frames
+    /// `t−2..t+2` (offline; [`crate::SequenceDenoiser`], with
+    /// [`Method::Apr`](super::Method::Apr)). A [`crate::Denoiser`] refuses it.
+    Apr,
 }
 
 impl Temporal {
     /// The layers the stage reads, besides the method's output and `spp`.
     pub fn needs(self) -> &'static [Layer] {
         match self {
-            Temporal::Off => &[],
+            Temporal::Off | Temporal::Apr => &[],
             Temporal::Lp => &[Layer::Position, Layer::Depth],
         }
     }

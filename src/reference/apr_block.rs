@@ -22,12 +22,29 @@
 use super::linalg::{EPS_PIVOT, RIDGE_FLOOR, SOLVE_RETRIES};
 use super::spp_of;
 
-/// Design columns.
-pub use crate::shared::APR_P as P;
+/// Design columns: the 18 of §4.2's order 3 and two more slots, of which
+/// the temporal window uses one (APR-TEMPORAL-COLUMNS); unused columns are
+/// zero and dropped.
+pub const P: usize = 20;
 /// Feature columns (normal xyz, albedo rgb, depth, visibility).
 pub const NF: usize = 8;
 /// Columns of order K: `1 + NF + (K+1)(K+2)/2 − 1`.
 pub const PK: [usize; 4] = [9, 11, 14, 18];
+/// §10.2's temporal window: the frames `t−2..t+2`, the centre frame at
+/// index [`HALF`] of a [`block_in`] window.
+pub const FRAMES: usize = 5;
+/// See [`FRAMES`].
+pub const HALF: usize = 2;
+/// Columns of order K in the temporal window (APR-TEMPORAL-COLUMNS, in
+/// place of 3D-POLY): §4.2's monomials in `(u, v)` of degree ≤ K, and `τ`
+/// from K = 1 on.
+pub const PK_T: [usize; 4] = [9, 12, 15, 19];
+
+/// The temporal kernel's bandwidth in frames (3D-KERNEL: half the
+/// temporal extent).
+pub const TIME_BANDWIDTH: f64 = 2.0;
+/// The column of the temporal design that holds `τ` ([`row_in`]).
+pub const TAU_COLUMN: usize = 11;
 pub use super::apr::{BANDWIDTH, FEATURE_EPS, REJECT_K, RIDGE};
 /// Window radius and centre spacing (29×29 blocks every 14 pixels), signed.
 pub const RADIUS: i64 = super::apr::RADIUS as i64;
@@ -100,10 +117,27 @@ impl Inputs<'_> {
     /// The confidence-interval test of §4.2 step 1 (`i` always accepts
     /// itself; the caller checks validity).
     pub fn accepts(&self, c: usize, i: usize) -> bool {
-        i == c
-            || (self.y[i] as f64 - self.y[c] as f64).abs()
-                <= REJECT_K * (self.test_var(i) + self.test_var(c)).max(0.0).sqrt()
+        i == c || accepts_from(self, c, self, i)
     }
+}
+
+/// The confidence-interval test of pixel `i` of frame `fi` against the
+/// centre `c` of frame `fc` (§4.2 step 1; §10.2: against the centre frame),
+/// each on its own frame's test variance.
+pub fn accepts_from(fc: &Inputs, c: usize, fi: &Inputs, i: usize) -> bool {
+    (fi.y[i] as f64 - fc.y[c] as f64).abs()
+        <= REJECT_K * (fi.test_var(i) + fc.test_var(c)).max(0.0).sqrt()
+}
+
+/// The kernel `K(i)` of pixel `i`, `dt` frames from the block's centre `c`
+/// (3D-KERNEL; `dt = 0`: the spatial `K_h`).
+pub fn weight_dt(w: usize, c: usize, i: usize, dt: i64) -> f64 {
+    let dx = (i % w) as f64 - (c % w) as f64;
+    let dy = (i / w) as f64 - (c / w) as f64;
+    let t = dt as f64;
+    (-(dx * dx + dy * dy) / (2.0 * BANDWIDTH * BANDWIDTH)
+        - t * t / (2.0 * TIME_BANDWIDTH * TIME_BANDWIDTH))
+        .exp()
 }
 
 /// Kernel weight `K_h(i)` of pixel `i` in the block of `c`.
@@ -116,17 +150,48 @@ pub fn weight(w: usize, c: usize, i: usize) -> f64 {
 /// The design row of pixel `i` in the block of `c` with feature spreads
 /// `scales` (0: dropped).
 pub fn row(inp: &Inputs, c: usize, scales: &[f64; NF], i: usize) -> [f64; P] {
-    let w = inp.w;
+    row_in(inp, inp, c, scales, i, None)
+}
+
+/// The design row of pixel `i` of frame `fi` in the block of `c` (of frame
+/// `fc`): `dt` `None`, the spatial layout of [`row`]; `Some(dt)`, the
+/// temporal window's (APR-TEMPORAL-COLUMNS), `[1, 8 scaled features, u, v,
+/// τ, u², uv, v², u³, u²v, uv², v³, 0]` with `τ = dt/2`.
+pub fn row_in(
+    fc: &Inputs,
+    fi: &Inputs,
+    c: usize,
+    scales: &[f64; NF],
+    i: usize,
+    dt: Option<i64>,
+) -> [f64; P] {
+    let w = fi.w;
     let u = ((i % w) as f64 - (c % w) as f64) / RADIUS as f64;
     let v = ((i / w) as f64 - (c / w) as f64) / RADIUS as f64;
     let mut x = [0.0; P];
     x[0] = 1.0;
     for j in 0..NF {
         if scales[j] > 0.0 {
-            x[1 + j] = (inp.feat(j, i) - inp.feat(j, c)) / scales[j];
+            x[1 + j] = (fi.feat(j, i) - fc.feat(j, c)) / scales[j];
         }
     }
-    x[9..].copy_from_slice(&[
+    if let Some(dt) = dt {
+        let t = dt as f64 / HALF as f64;
+        x[9..19].copy_from_slice(&[
+            u,
+            v,
+            t,
+            u * u,
+            u * v,
+            v * v,
+            u * u * u,
+            u * u * v,
+            u * v * v,
+            v * v * v,
+        ]);
+        return x;
+    }
+    x[9..18].copy_from_slice(&[
         u,
         v,
         u * u,
@@ -143,14 +208,40 @@ pub fn row(inp: &Inputs, c: usize, scales: &[f64; NF], i: usize) -> [f64; P] {
 /// The clipped window of `c` in raster order: `(pixel)` of valid pixels
 /// `c` accepts.
 pub fn accepted(inp: &Inputs, c: usize) -> Vec<usize> {
-    let (w, h) = (inp.w as i64, inp.h as i64);
+    accepted_in(&[Some(*inp)], c)
+        .into_iter()
+        .map(|(_, q)| q)
+        .collect()
+}
+
+/// The frames of a block's window: one frame (the spatial block of §4.2),
+/// or [`FRAMES`] frames `t−2..t+2` around the centre frame at [`HALF`]
+/// (§10.2; `None` outside the sequence).
+fn centre_of(frames: &[Option<Inputs>]) -> (usize, Option<i64>) {
+    match frames.len() {
+        1 => (0, None),
+        FRAMES => (HALF, Some(0)),
+        n => panic!("a block's window has 1 or {FRAMES} frames, not {n}"),
+    }
+}
+
+/// The accepted set of the block of `c` (a pixel of the centre frame) over
+/// its window's frames, frame by frame and in raster order: `(frame,
+/// pixel)` of the valid pixels the interval test against `c` accepts.
+pub fn accepted_in(frames: &[Option<Inputs>], c: usize) -> Vec<(usize, usize)> {
+    let (k0, _) = centre_of(frames);
+    let ctr = frames[k0].as_ref().expect("the centre frame is present");
+    let (w, h) = (ctr.w as i64, ctr.h as i64);
     let (cx, cy) = ((c as i64) % w, (c as i64) / w);
     let mut v = Vec::new();
-    for qy in (cy - RADIUS).max(0)..=(cy + RADIUS).min(h - 1) {
-        for qx in (cx - RADIUS).max(0)..=(cx + RADIUS).min(w - 1) {
-            let q = (qy * w + qx) as usize;
-            if inp.valid(q) && inp.accepts(c, q) {
-                v.push(q);
+    for (k, f) in frames.iter().enumerate() {
+        let Some(f) = f else { continue };
+        for qy in (cy - RADIUS).max(0)..=(cy + RADIUS).min(h - 1) {
+            for qx in (cx - RADIUS).max(0)..=(cx + RADIUS).min(w - 1) {
+                let q = (qy * w + qx) as usize;
+                if f.valid(q) && ((k == k0 && q == c) || accepts_from(ctr, c, f, q)) {
+                    v.push((k, q));
+                }
             }
         }
     }
@@ -174,6 +265,8 @@ pub struct Block {
     pub beta_s: [f64; P],
     /// Feature spreads `s_j` (0: dropped).
     pub scales: [f64; NF],
+    /// The temporal window's design (§10.2, [`row_in`]).
+    pub temporal: bool,
 }
 
 impl Block {
@@ -198,7 +291,7 @@ impl Block {
 
     /// The block's output `x_iᵀ β` (of `β_y`, or `β_s` with `s`) at pixel `i`.
     pub fn eval(&self, inp: &Inputs, c: usize, i: usize, s: bool) -> f64 {
-        let x = row(inp, c, &self.scales, i);
+        let x = row_in(inp, inp, c, &self.scales, i, self.temporal.then_some(0));
         let b = if s { &self.beta_s } else { &self.beta_y };
         x.iter().zip(b).map(|(x, b)| x * b).sum()
     }
@@ -283,64 +376,102 @@ fn solve(li: &[[f64; P]; P], p: usize, b: &[f64; P]) -> [f64; P] {
 /// One block of channel `inp` centred at `c` (a valid pixel), stage
 /// `(yprev, s2prev)`; `with_s`: also `β_s` (every stage but the last).
 pub fn block(inp: &Inputs, c: usize, with_s: bool, eps: f64) -> Block {
-    let acc = accepted(inp, c);
+    block_in(&[Some(*inp)], c, with_s, eps)
+}
+
+/// One block centred at `c` over the frames of its window (see
+/// [`accepted_in`]): the spread, the moments `M`, `V` and the right-hand
+/// sides over the whole accepted set; the error (bias, variance), the
+/// trace and the normaliser over its centre-frame slice only (SLICE),
+/// with `M0` the slice's moments; the orders [`PK`] (one frame) or
+/// [`PK_T`] (the temporal window).
+pub fn block_in(frames: &[Option<Inputs>], c: usize, with_s: bool, eps: f64) -> Block {
+    let (k0, dt0) = centre_of(frames);
+    let temporal = dt0.is_some();
+    let ctr = frames[k0].as_ref().expect("the centre frame is present");
+    let fr = |k: usize| frames[k].as_ref().expect("an accepted frame is present");
+    let dt = |k: usize| dt0.map(|_| k as i64 - k0 as i64);
+    let acc = accepted_in(frames, c);
     let mut scales = [0.0; NF];
     for (j, s) in scales.iter_mut().enumerate() {
-        if inp.feats[j].is_none() {
+        if ctr.feats[j].is_none() {
             continue;
         }
-        let fc = inp.feat(j, c);
+        let fc = ctr.feat(j, c);
         let m = acc
             .iter()
-            .map(|&q| (inp.feat(j, q) - fc).abs())
+            .map(|&(k, q)| (fr(k).feat(j, q) - fc).abs())
             .fold(0.0, f64::max);
         *s = if m <= FEATURE_EPS { 0.0 } else { m };
     }
     let degenerate = |scales| {
         let mut by = [0.0; P];
         let mut bs = [0.0; P];
-        by[0] = inp.y[c] as f64;
-        bs[0] = (inp.v[c] as f64).max(0.0).sqrt();
+        by[0] = ctr.y[c] as f64;
+        bs[0] = (ctr.v[c] as f64).max(0.0).sqrt();
         Block {
             order: 0,
-            xi: inp.v[c] as f64,
+            xi: ctr.v[c] as f64,
             trace: 1.0,
             degenerate: true,
             beta_y: by,
             beta_s: if with_s { bs } else { [0.0; P] },
             scales,
+            temporal,
         }
     };
     if acc.len() <= 1 {
         return degenerate(scales);
     }
+    let fit_weight = |k: usize, q: usize| {
+        let f = fr(k);
+        weight_dt(f.w, c, q, dt(k).unwrap_or(0))
+            * super::apr::outlier_weight(f.v[q] as f64, f.clamped)
+    };
     let mut m = [[0.0; P]; P];
+    let mut m0 = [[0.0; P]; P];
     let mut vm = [[0.0; P]; P];
     let (mut bp, mut by, mut bs) = ([0.0; P], [0.0; P], [0.0; P]);
-    let mut wsum = 0.0;
-    for &q in &acc {
-        let x = row(inp, c, &scales, q);
-        let k = inp.fit_weight(c, q);
-        let kv = k * k * inp.s2prev[q] as f64;
+    let (mut wsum, mut wslice) = (0.0, 0.0);
+    for &(k, q) in &acc {
+        let f = fr(k);
+        let x = row_in(ctr, f, c, &scales, q, dt(k));
+        let kw = fit_weight(k, q);
+        let kv = kw * kw * f.s2prev[q] as f64;
         let (yp, y, s) = (
-            inp.yprev[q] as f64,
-            inp.y[q] as f64,
-            (inp.v[q] as f64).max(0.0).sqrt(),
+            f.yprev[q] as f64,
+            f.y[q] as f64,
+            (f.v[q] as f64).max(0.0).sqrt(),
         );
         for a in 0..P {
             for b in 0..P {
-                m[a][b] += k * x[a] * x[b];
+                m[a][b] += kw * x[a] * x[b];
                 vm[a][b] += kv * x[a] * x[b];
+                if k == k0 {
+                    m0[a][b] += kw * x[a] * x[b];
+                }
             }
-            bp[a] += k * x[a] * yp;
-            by[a] += k * x[a] * y;
-            bs[a] += k * x[a] * s;
+            bp[a] += kw * x[a] * yp;
+            by[a] += kw * x[a] * y;
+            bs[a] += kw * x[a] * s;
         }
-        wsum += k;
+        wsum += kw;
+        if k == k0 {
+            wslice += kw;
+        }
     }
     let mut kept = [true; P];
     for j in 0..NF {
         kept[1 + j] = scales[j] > 0.0;
+    }
+    if temporal && acc.iter().all(|&(k, _)| k == k0) {
+        // The τ column is zero without another frame: dropped, as a
+        // feature without spread.
+        kept[TAU_COLUMN] = false;
+    }
+    let orders: &[usize] = if temporal { &PK_T } else { &PK };
+    for k in kept.iter_mut().skip(*orders.last().unwrap()) {
+        *k = false;
     }
     let nkept = kept.iter().filter(|&&k| k).count();
     let mean_diag = (0..P).filter(|&j| kept[j]).map(|j| m[j][j]).sum::<f64>() / nkept as f64;
@@ -359,15 +490,17 @@ pub fn block(inp: &Inputs, c: usize, with_s: bool, eps: f64) -> Block {
         return degenerate(scales);
     };
     let li = invert_lower(&l);
-    // G = L⁻¹ V L⁻ᵀ and E = L⁻¹ M0 L⁻ᵀ (M0 without the ridge): tr H_K =
-    // Σ_{a<p} E_aa and Σ K_h var = tr(M_K⁻¹ V_K M_K⁻¹ M0_K) = Σ_{a,b<p} G_ab E_ab,
-    // both free of the cancellation of `p − λ Σ (M⁻¹)_jj` in f32.
+    // G = L⁻¹ V L⁻ᵀ and E = L⁻¹ M0 L⁻ᵀ (M0: the slice's moments, without
+    // the ridge): tr H_K = Σ_{a<p} E_aa and Σ K_h var = tr(M_K⁻¹ V_K M_K⁻¹
+    // M0_K) = Σ_{a,b<p} G_ab E_ab, both free of the cancellation of
+    // `p − λ Σ (M⁻¹)_jj` in f32.
     let g = sandwich(&li, &vm);
-    let e = sandwich(&li, &m);
+    let e = sandwich(&li, &m0);
+    let no = orders.len();
     let mut betas = [[0.0; P]; 4];
     let mut varsum = [0.0; 4];
     let mut trace = [0.0; 4];
-    for (k, &p) in PK.iter().enumerate() {
+    for (k, &p) in orders.iter().enumerate() {
         betas[k] = solve(&li, p, &bp);
         for a in 0..p {
             trace[k] += e[a][a];
@@ -377,18 +510,19 @@ pub fn block(inp: &Inputs, c: usize, with_s: bool, eps: f64) -> Block {
         }
     }
     let mut rss = [0.0; 4];
-    for &q in &acc {
-        let x = row(inp, c, &scales, q);
-        let k = inp.fit_weight(c, q);
-        let yp = inp.yprev[q] as f64;
-        for o in 0..4 {
+    for &(k, q) in acc.iter().filter(|&&(k, _)| k == k0) {
+        let f = fr(k);
+        let x = row_in(ctr, f, c, &scales, q, dt(k));
+        let kw = fit_weight(k, q);
+        let yp = f.yprev[q] as f64;
+        for o in 0..no {
             let r: f64 = x.iter().zip(&betas[o]).map(|(x, b)| x * b).sum::<f64>() - yp;
-            rss[o] += k * r * r;
+            rss[o] += kw * r * r;
         }
     }
     let mut best = 0;
-    let xi = |o: usize| (rss[o] + varsum[o]) / wsum;
-    for o in 1..4 {
+    let xi = |o: usize| (rss[o] + varsum[o]) / wslice;
+    for o in 1..no {
         if xi(o) < xi(best) {
             best = o;
         }
@@ -398,13 +532,14 @@ pub fn block(inp: &Inputs, c: usize, with_s: bool, eps: f64) -> Block {
         xi: xi(best),
         trace: trace[best],
         degenerate: false,
-        beta_y: solve(&li, PK[best], &by),
+        beta_y: solve(&li, orders[best], &by),
         beta_s: if with_s {
-            solve(&li, PK[best], &bs)
+            solve(&li, orders[best], &bs)
         } else {
             [0.0; P]
         },
         scales,
+        temporal,
     }
 }
 
@@ -439,12 +574,19 @@ pub fn covering(w: usize, h: usize, i: usize) -> Vec<usize> {
 /// The kernel in sparse mode: the state of every sparse block of the
 /// channel (`grid` order; all zero for an invalid centre, order −1).
 pub fn sparse(inp: &Inputs, with_s: bool, eps: f64) -> Vec<Option<Block>> {
+    sparse_in(&[Some(*inp)], with_s, eps)
+}
+
+/// [`sparse`] over a window's frames ([`block_in`]): the centres are the
+/// centre frame's.
+pub fn sparse_in(frames: &[Option<Inputs>], with_s: bool, eps: f64) -> Vec<Option<Block>> {
+    let inp = frames[centre_of(frames).0].expect("the centre frame is present");
     let (gw, gh) = grid(inp.w, inp.h);
     let r = RADIUS as usize;
     (0..gw * gh)
         .map(|b| {
             let c = (b / gw) * r * inp.w + (b % gw) * r;
-            inp.valid(c).then(|| block(inp, c, with_s, eps))
+            inp.valid(c).then(|| block_in(frames, c, with_s, eps))
         })
         .collect()
 }
@@ -453,7 +595,14 @@ pub fn sparse(inp: &Inputs, with_s: bool, eps: f64) -> Vec<Option<Block>> {
 /// pixel no sparse block accepts (its output is `β[0]`, the fit at its own
 /// centre).
 pub fn extra(inp: &Inputs, i: usize, with_s: bool, eps: f64) -> Option<Block> {
-    (inp.valid(i) && !covered(inp, i)).then(|| block(inp, i, with_s, eps))
+    extra_in(&[Some(*inp)], i, with_s, eps)
+}
+
+/// [`extra`] over a window's frames: coverage is the centre frame's, the
+/// block [`block_in`]'s.
+pub fn extra_in(frames: &[Option<Inputs>], i: usize, with_s: bool, eps: f64) -> Option<Block> {
+    let inp = frames[centre_of(frames).0].expect("the centre frame is present");
+    (inp.valid(i) && !covered(&inp, i)).then(|| block_in(frames, i, with_s, eps))
 }
 
 /// The pivot threshold of the f64 twin (§0.5).

@@ -13,7 +13,7 @@
 //! intermediate stage it keeps `y_i`, `v_i`.
 
 use super::apr_block::{
-    covering, row, weight, Inputs, NF, P, STATE, ST_BETA_S, ST_BETA_Y, ST_SCALES,
+    covering, row_in, weight, Inputs, NF, P, STATE, ST_BETA_S, ST_BETA_Y, ST_SCALES,
 };
 
 pub use crate::shared::{
@@ -23,12 +23,12 @@ pub use crate::shared::{
 /// One state record of `state` (a channel's `grid` of blocks): `None` for
 /// an invalid centre (all-zero record, degenerate flag unset and `β` zero
 /// can not tell; the caller checks validity).
-fn eval(inp: &Inputs, st: &[f32], c: usize, i: usize, s: bool) -> f64 {
+fn eval(inp: &Inputs, st: &[f32], c: usize, i: usize, s: bool, temporal: bool) -> f64 {
     let mut scales = [0.0; NF];
     for (j, sc) in scales.iter_mut().enumerate() {
         *sc = st[ST_SCALES + j] as f64;
     }
-    let x = row(inp, c, &scales, i);
+    let x = row_in(inp, inp, c, &scales, i, temporal.then_some(0));
     let off = if s { ST_BETA_S } else { ST_BETA_Y };
     (0..P).map(|j| x[j] * st[off + j] as f64).sum()
 }
@@ -42,6 +42,18 @@ pub fn apr_gather(
     state: &[Vec<f32>; 3],
     extra: &[Vec<f32>],
     last: bool,
+) -> Vec<Vec<f32>> {
+    apr_gather_in(inp, state, extra, last, false)
+}
+
+/// [`apr_gather`] of the centre frame of a temporal window (§10.2) when
+/// `temporal`: the blocks' temporal design at `τ = 0`.
+pub fn apr_gather_in(
+    inp: &[Inputs; 3],
+    state: &[Vec<f32>; 3],
+    extra: &[Vec<f32>],
+    last: bool,
+    temporal: bool,
 ) -> Vec<Vec<f32>> {
     let (w, h) = (inp[0].w, inp[0].h);
     let n = w * h;
@@ -84,7 +96,7 @@ pub fn apr_gather(
                     let b = (c / w / r) * gw + (c % w) / r;
                     let st = &state[ch][b * STATE..(b + 1) * STATE];
                     let k = weight(w, c, i);
-                    let fy = eval(pl, st, c, i, false);
+                    let fy = eval(pl, st, c, i, false, temporal);
                     if limit.is_some_and(|l| (fy - yi).powi(2) > l) {
                         missed = true;
                         continue;
@@ -92,7 +104,7 @@ pub fn apr_gather(
                     ws += k;
                     ay += k * fy;
                     if !last {
-                        as_ += k * eval(pl, st, c, i, true);
+                        as_ += k * eval(pl, st, c, i, true, temporal);
                     }
                     ae += k * st[1] as f64;
                     ad += k * st[2] as f64;
@@ -174,6 +186,66 @@ pub fn run(inp: &[Inputs; 3], stages: usize, eps: f64) -> (Vec<Vec<f32>>, [Vec<f
             return (out, state);
         }
         prev = Some(out);
+    }
+    unreachable!("stages >= 1")
+}
+
+/// §10.2, APR's temporal window, on a sequence with the twins:
+/// `frames[t][ch]` each frame's inputs (`yprev = y`, `s2prev = v`). Stage
+/// by stage over the whole sequence: every frame's blocks fit the frames
+/// `t−2..t+2` that exist (stage `s ≥ 2` on their stage-`s−1` planes), its
+/// gather writes its own planes. Returns each frame's last [`OUTPUTS`]
+/// planes.
+pub fn run_sequence(frames: &[[Inputs; 3]], stages: usize, eps: f64) -> Vec<Vec<Vec<f32>>> {
+    use super::apr_block::{extra_in, sparse_in, FRAMES, HALF};
+    let nf = frames.len();
+    let stages = stages.max(1);
+    let mut prev: Vec<Vec<Vec<f32>>> = Vec::new();
+    for stage in 1..=stages {
+        let last = stage == stages;
+        let chans = |t: usize| -> [Inputs; 3] {
+            std::array::from_fn(|ch| {
+                let mut c = frames[t][ch];
+                if let Some(p) = prev.get(t) {
+                    c.yprev = &p[ch];
+                    c.s2prev = &p[3 + ch];
+                }
+                c
+            })
+        };
+        let mut outs = Vec::with_capacity(nf);
+        for t in 0..nf {
+            let centre = chans(t);
+            let (w, h) = (centre[0].w, centre[0].h);
+            let window: [[Option<Inputs>; FRAMES]; 3] = std::array::from_fn(|ch| {
+                std::array::from_fn(|k| {
+                    let t2 = (t + k).checked_sub(HALF).filter(|&t2| t2 < nf)?;
+                    Some(chans(t2)[ch])
+                })
+            });
+            let state: [Vec<f32>; 3] = std::array::from_fn(|ch| {
+                sparse_in(&window[ch], !last, eps)
+                    .iter()
+                    .flat_map(|b| b.as_ref().map_or([0.0f32; STATE], |b| b.state()))
+                    .collect()
+            });
+            let mut extra = vec![vec![0.0f32; w * h]; 3 * EXTRA_PLANES];
+            for ch in 0..3 {
+                for i in 0..w * h {
+                    if let Some(b) = extra_in(&window[ch], i, !last, eps) {
+                        extra[ch * EXTRA_PLANES][i] = b.beta_y[0] as f32;
+                        extra[ch * EXTRA_PLANES + 1][i] = b.beta_s[0] as f32;
+                        extra[ch * EXTRA_PLANES + 2][i] = b.xi as f32;
+                        extra[ch * EXTRA_PLANES + 3][i] = b.trace as f32;
+                    }
+                }
+            }
+            outs.push(apr_gather_in(&centre, &state, &extra, last, true));
+        }
+        if last {
+            return outs;
+        }
+        prev = outs;
     }
     unreachable!("stages >= 1")
 }

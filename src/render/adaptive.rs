@@ -298,12 +298,19 @@ pub fn final_denoiser(
     cfg: &LoopConfig,
     temporal: crate::Temporal,
 ) -> Result<Denoiser> {
+    Denoiser::new(ctx, Source::Accum(layout), final_config(cfg, temporal))
+}
+
+/// The configuration of a loop's final reconstruction with the temporal
+/// stage `temporal` ([`final_denoiser`]; a [`crate::SequenceDenoiser`]'s
+/// with [`crate::Temporal::Apr`]).
+pub fn final_config(cfg: &LoopConfig, temporal: crate::Temporal) -> crate::Config {
     // Sanitation's step for 1 <= spp < 2 runs (it changes nothing where
     // every pixel has 0 or at least 2 samples): one denoiser for any
     // schedule.
     let mut c = loop_config(cfg, Pass::Final, 1);
     c.temporal = temporal;
-    Denoiser::new(ctx, Source::Accum(layout), c)
+    c
 }
 
 /// [`render`], with the final reconstruction by `last` (made by

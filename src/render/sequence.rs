@@ -3,8 +3,11 @@
 //! alone or as part of any range, on one context (one set of pipelines).
 //! With a temporal stage ([`Temporal`]) one final denoiser reconstructs
 //! every frame, carrying the filter's state from frame to frame; its
-//! output then depends on the frames before it in the range.
+//! output then depends on the frames before it in the range. With APR's
+//! temporal window ([`Temporal::Apr`]) a [`SequenceDenoiser`] reconstructs
+//! each frame from the range's frames around it once they are rendered.
 
+use std::collections::VecDeque;
 use std::ops::Range;
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
@@ -14,7 +17,7 @@ use super::{Renderer, Scene};
 use crate::error::{Error, Result};
 use crate::gpu::GpuContext;
 use crate::image::StatsImage;
-use crate::{Denoiser, Temporal};
+use crate::{Denoiser, SequenceDenoiser, Source, Temporal};
 
 /// The seed of frame `frame` of a sequence rendered with `seed`.
 pub fn frame_seed(seed: u64, frame: u32) -> u64 {
@@ -66,10 +69,35 @@ pub fn render_frames(
         )));
     }
     let mut last: Option<Denoiser> = None;
+    // APR's window: the frames rendered and not yet reconstructed.
+    let mut window: Option<SequenceDenoiser> = None;
+    let mut waiting: VecDeque<SequenceFrame> = VecDeque::new();
     for number in frames {
         let at = scene.at_frame(number)?;
         let seed = frame_seed(seed, number);
         let renderer = Renderer::new(ctx, &at, width, height, seed)?;
+        if temporal == Temporal::Apr {
+            let result = adaptive::render_with_final(ctx, &renderer, cfg, stop, |_| {}, None)?;
+            let stats = renderer.statistics()?;
+            if window.is_none() {
+                let config = adaptive::final_config(cfg, temporal);
+                window = Some(SequenceDenoiser::new(
+                    ctx,
+                    Source::of_image(&stats),
+                    config,
+                )?);
+            }
+            let done = window.as_mut().expect("just set").push(&stats)?;
+            waiting.push_back(SequenceFrame {
+                number,
+                seed,
+                scene: at,
+                result,
+                stats,
+            });
+            release(done, &mut waiting, &mut each)?;
+            continue;
+        }
         if temporal != Temporal::Off && last.is_none() {
             last = Some(adaptive::final_denoiser(
                 ctx,
@@ -87,6 +115,29 @@ pub fn render_frames(
             result,
             stats,
         })?;
+    }
+    if let Some(w) = &mut window {
+        let done = w.finish()?;
+        release(done, &mut waiting, &mut each)?;
+    }
+    Ok(())
+}
+
+/// Hands the frames APR's window finished (`done`, in order) to `each`,
+/// each with its rendered frame from `waiting` (the window's colour, error
+/// and dimension in place of the loop's).
+fn release(
+    done: Vec<(usize, crate::Frame)>,
+    waiting: &mut VecDeque<SequenceFrame>,
+    each: &mut impl FnMut(SequenceFrame) -> Result<()>,
+) -> Result<()> {
+    for (_, frame) in done {
+        let mut f = waiting.pop_front().expect("a frame out is a frame in");
+        f.result.frame = crate::Frame {
+            samples: f.result.frame.samples.take(),
+            ..frame
+        };
+        each(f)?;
     }
     Ok(())
 }

@@ -2,6 +2,8 @@
 //! when installed), tolerance checks of spec §0.3, a deterministic PRNG.
 #![allow(dead_code)] // each test binary uses a different subset
 
+pub mod apr;
+
 use std::sync::{Arc, OnceLock};
 
 use mcdenoise::gpu::{ContextOptions, GpuContext, Precision, Validation};

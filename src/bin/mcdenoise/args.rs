@@ -155,6 +155,10 @@ pub enum TemporalArg {
     /// position and restarted where its surface was hidden. Needs the
     /// position and depth layers.
     Lp,
+    /// APR's temporal window (spec §10.2), offline, with --method apr: each
+    /// frame's blocks fit polynomials in space and time over the frames
+    /// t-2..t+2 around it.
+    Apr,
 }
 
 impl TemporalArg {
@@ -162,6 +166,7 @@ impl TemporalArg {
         match self {
             TemporalArg::Off => mcdenoise::Temporal::Off,
             TemporalArg::Lp => mcdenoise::Temporal::Lp,
+            TemporalArg::Apr => mcdenoise::Temporal::Apr,
         }
     }
 }

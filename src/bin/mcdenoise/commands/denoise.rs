@@ -1,12 +1,14 @@
 //! `mcdenoise denoise`: one render-statistics file, or a sequence of them
-//! (`--frames`), through the [`Denoiser`] facade.
+//! (`--frames`), through the [`Denoiser`] facade (and, for APR's temporal
+//! window, the [`SequenceDenoiser`]).
 
-use std::collections::HashSet;
+use std::collections::{HashSet, VecDeque};
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
 use mcdenoise::{
-    has_low_spp, io, metrics, Config, Denoiser, Method, Options, Source, StatsImage, WarmUp,
+    has_low_spp, io, metrics, Config, Denoiser, Frame, Method, Options, SequenceDenoiser, Source,
+    StatsImage, Temporal, WarmUp,
 };
 
 use crate::args::{
@@ -37,10 +39,9 @@ pub struct Args {
     /// complete image.
     #[arg(long, conflicts_with = "temporal")]
     resume: bool,
-    /// With --frames: a temporal filter after the method, carrying each
-    /// pixel's history from frame to frame in frame order. A gap in the
-    /// numbering, a frame that fails or one of another size or layers
-    /// starts the history again (said on stderr). GPU only.
+    /// With --frames: a temporal stage, over the frames in frame order. A
+    /// gap in the numbering, a frame that fails or one of another size or
+    /// layers starts the history again (said on stderr). GPU only.
     #[arg(long, value_enum, default_value = "off", requires = "frames")]
     temporal: TemporalArg,
     /// Reconstruction method.
@@ -157,6 +158,9 @@ pub fn run(cli: &Cli, a: &Args) -> anyhow::Result<bool> {
     };
     let Some(input) = &a.input else {
         let frames = a.frames.as_ref().expect("clap: input or --frames");
+        if a.temporal.get() == Temporal::Apr {
+            return denoise_window(cli, a, frames, &config_for);
+        }
         return denoise_frames(cli, a, frames, &warm_config, &config_for);
     };
     if a.resume {
@@ -273,17 +277,12 @@ pub fn run(cli: &Cli, a: &Args) -> anyhow::Result<bool> {
     Ok(true)
 }
 
-/// `denoise --frames`: every existing frame of `pattern` into the output
-/// pattern, on one device; a denoiser is reused while the frames keep their
-/// size and layers. A frame that fails is reported and skipped; the summary
-/// lists them, and the result is `false` (exit status 1) if any failed.
-fn denoise_frames(
-    cli: &Cli,
+/// The output pattern and the input frames of `denoise --frames`, refusing
+/// an output pattern that names an input frame.
+fn frame_patterns(
     a: &Args,
     pattern: &Path,
-    warm_config: &Config,
-    config_for: &dyn Fn(&StatsImage) -> Config,
-) -> anyhow::Result<bool> {
+) -> anyhow::Result<(io::frames::FramePattern, Vec<io::frames::Frame>)> {
     let inp = io::frames::FramePattern::parse(pattern)?;
     let outp = io::frames::FramePattern::parse(&a.output)?;
     let frames = inp.list()?;
@@ -303,6 +302,138 @@ fn denoise_frames(
             pattern.display()
         );
     }
+    Ok((outp, frames))
+}
+
+/// Writes frame `number`'s reconstruction to the output pattern.
+fn write_frame(
+    a: &Args,
+    outp: &io::frames::FramePattern,
+    number: u64,
+    result: Frame,
+) -> anyhow::Result<()> {
+    io::write_output(
+        &outp.path(number),
+        &io::OutputImage {
+            color: result.color,
+            error: a.error.then_some(result.error),
+            samples: None,
+            debug: result.debug,
+        },
+    )?;
+    Ok(())
+}
+
+/// `denoise --frames --temporal apr`: APR's temporal window (spec §10.2)
+/// over every run of consecutive frames of one size and set of layers. A
+/// gap in the numbering, a frame that fails to read or one of another
+/// shape ends the run (its last frames come out) and starts another.
+fn denoise_window(
+    cli: &Cli,
+    a: &Args,
+    pattern: &Path,
+    config_for: &dyn Fn(&StatsImage) -> Config,
+) -> anyhow::Result<bool> {
+    if a.backend == BackendArg::Cpu {
+        bail!("--temporal apr keeps its frames on the GPU: use --backend gpu");
+    }
+    let (outp, frames) = frame_patterns(a, pattern)?;
+    let ctx = context(cli)?;
+    let t0 = std::time::Instant::now();
+    let mut run: Option<(Source, SequenceDenoiser)> = None;
+    // The frames of the run in the window, oldest first.
+    let mut waiting: VecDeque<&io::frames::Frame> = VecDeque::new();
+    let mut last: Option<u64> = None;
+    let mut failed: Vec<(u64, String)> = Vec::new();
+    let mut done = 0usize;
+    let mut emit = |out: Vec<(usize, Frame)>,
+                    waiting: &mut VecDeque<&io::frames::Frame>|
+     -> anyhow::Result<()> {
+        for (_, result) in out {
+            let f = waiting.pop_front().expect("a frame out is a frame in");
+            if !cli.quiet {
+                print_report(&result.report, &f.path);
+                eprintln!(
+                    "frame {}: {} -> {}",
+                    f.number,
+                    f.path.display(),
+                    outp.path(f.number).display()
+                );
+            }
+            write_frame(a, &outp, f.number, result)?;
+            done += 1;
+        }
+        Ok(())
+    };
+    for frame in &frames {
+        let img = match io::read_stats(&frame.path) {
+            Ok(img) => img,
+            Err(e) => {
+                let msg = format!("{e:#}");
+                eprintln!(
+                    "frame {}: {} failed: {msg}",
+                    frame.number,
+                    frame.path.display()
+                );
+                failed.push((frame.number, msg));
+                continue;
+            }
+        };
+        let source = Source::of_image(&img);
+        let same_shape = matches!(&run, Some((s, _)) if *s == source);
+        if let (Some((_, seq)), false) = (
+            &mut run,
+            same_shape && last.map(|l| l + 1) == Some(frame.number),
+        ) {
+            eprintln!(
+                "frame {}: {}: a new sequence starts",
+                frame.number,
+                if same_shape {
+                    "not the next frame of the last one"
+                } else {
+                    "another size or layers"
+                }
+            );
+            emit(seq.finish()?, &mut waiting)?;
+        }
+        if !same_shape {
+            // The previous run's buffers go before the next one's.
+            drop(run.take());
+            let seq = SequenceDenoiser::new(&ctx, source.clone(), config_for(&img))?;
+            run = Some((source, seq));
+        }
+        let seq = &mut run.as_mut().expect("just set").1;
+        waiting.push_back(frame);
+        emit(seq.push(&img)?, &mut waiting)?;
+        last = Some(frame.number);
+    }
+    if let Some((_, seq)) = &mut run {
+        emit(seq.finish()?, &mut waiting)?;
+    }
+    eprintln!(
+        "{} frames in {:.1} s: {done} denoised, {} failed",
+        frames.len(),
+        t0.elapsed().as_secs_f64(),
+        failed.len()
+    );
+    for (n, msg) in &failed {
+        eprintln!("  failed frame {n}: {msg}");
+    }
+    Ok(failed.is_empty())
+}
+
+/// `denoise --frames`: every existing frame of `pattern` into the output
+/// pattern, on one device; a denoiser is reused while the frames keep their
+/// size and layers. A frame that fails is reported and skipped; the summary
+/// lists them, and the result is `false` (exit status 1) if any failed.
+fn denoise_frames(
+    cli: &Cli,
+    a: &Args,
+    pattern: &Path,
+    warm_config: &Config,
+    config_for: &dyn Fn(&StatsImage) -> Config,
+) -> anyhow::Result<bool> {
+    let (outp, frames) = frame_patterns(a, pattern)?;
     let ctx = match a.backend {
         BackendArg::Gpu => Some(context(cli)?),
         BackendArg::Cpu => None,
@@ -373,16 +504,7 @@ fn denoise_frames(
             if !cli.quiet {
                 print_report(&result.report, &frame.path);
             }
-            io::write_output(
-                &out,
-                &io::OutputImage {
-                    color: result.color,
-                    error: a.error.then_some(result.error),
-                    samples: None,
-                    debug: result.debug,
-                },
-            )?;
-            Ok(())
+            write_frame(a, &outp, frame.number, result)
         };
         match attempt() {
             Ok(()) => {

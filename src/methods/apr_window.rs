@@ -1,0 +1,556 @@
+//! §10.2, APR's temporal window, for offline sequences: every frame's
+//! blocks fit the frames `t−2..t+2` (APR-TEMPORAL-COLUMNS in place of
+//! 3D-POLY; 3D-KERNEL; SLICE), on the GPU, streaming.
+//!
+//! Frames go in one at a time ([`AprWindow::record_push`]); each is
+//! sanitised, cleaned of outliers and prefiltered alone, in 2-D (§10.2),
+//! and its statistics are kept in a ring of [`slots`] frames. Stage `s` of
+//! frame `t` needs frames `t−2..t+2` and, for `s ≥ 2`, their stage-`s−1`
+//! planes, so it runs once frame `t + 2s` is in: the final reconstruction
+//! of frame `t` comes out `2T` frames after it went in (T = `apr.stages`),
+//! and the last `2T` come out at the end ([`AprWindow::record_step`] with
+//! the sequence's length). Every stage writes what it measured into its
+//! own ring of five frames. Twin: `reference::apr_gather::run_sequence`.
+
+use std::sync::Arc;
+
+use super::apr::{gpu_features, AprParams, AprPlanes};
+use super::chain::prefilter_runs;
+use super::gbf::{self, GbfPlanes};
+use super::outliers::{self, OutlierPlanes};
+use super::prepare::{self, PrepareScratch};
+use super::stats::GpuStats;
+use super::{Method, Prefilter};
+use crate::error::{Error, Result};
+use crate::gpu::{plane_stride, Batch, BufferSlice, GpuBuffer, GpuContext, PlaneSet, Precision};
+use crate::image::{Layer, StatsImage};
+use crate::kernels::apr_block::{self, AprChannel};
+use crate::kernels::{apr_gather, apr_pack, spp_total};
+use crate::shared::{
+    apr_window, AprPush, APR_CLAMPED, APR_COUNT_CAP, APR_PIXEL_TEST, APR_SPPT_SLOT,
+    APR_STAGE_OUTPUTS, APR_TEMPORAL, APR_VIS,
+};
+
+/// Frames in a block's window (`t−2..t+2`).
+pub const FRAMES: usize = crate::reference::apr_block::FRAMES;
+/// Frames on either side of the centre.
+const HALF: usize = crate::reference::apr_block::HALF;
+
+/// Ring slots of the statistics for `stages` stages: stage T of frame
+/// `f − 2T` reads frames from `f − 2T − 2` while frame `f` goes in.
+pub fn slots(stages: usize) -> usize {
+    2 * stages.max(1) + 2 * HALF - 1
+}
+
+/// The rings of the window: every frame's statistics (colour, variance,
+/// counts, packed features, sample total) in slot `t mod slots`, every
+/// intermediate stage's `ŷ`, `σ̂²` in the same slot of its own ring (one
+/// window of slots serves both in the kernel), and
+/// APR's planes for one frame at a time (block states, extra blocks,
+/// outputs).
+pub struct AprRing {
+    width: usize,
+    height: usize,
+    params: AprParams,
+    slots: usize,
+    /// Colour R, G, B: plane `ch · slots + slot`.
+    y: PlaneSet,
+    /// Colour variance, as `y`.
+    v: PlaneSet,
+    /// Sample counts: plane `slot`.
+    spp: PlaneSet,
+    /// Packed features (APR-PACKED), `slots` vec4 planes each, one
+    /// [`plane_stride`] of vec4s apart.
+    fa: GpuBuffer,
+    fb: GpuBuffer,
+    /// `spp_total`'s words, [`APR_SPPT_SLOT`] per slot.
+    sppt: GpuBuffer,
+    /// Whether every frame had visibility.
+    vis: bool,
+    /// Per intermediate stage: `ŷ` R G B, `σ̂²` R G B, plane
+    /// `k · slots + slot`.
+    stages: Vec<PlaneSet>,
+    apr: AprPlanes,
+}
+
+impl AprRing {
+    /// The rings for `width × height` frames.
+    pub fn new(
+        ctx: &Arc<GpuContext>,
+        width: usize,
+        height: usize,
+        params: AprParams,
+    ) -> Result<AprRing> {
+        let n = width * height;
+        let s = slots(params.stages);
+        let ps = plane_stride(n);
+        let limit = ctx.info.max_storage_buffer_range as u64;
+        let vec4_bytes = 4 * ps * s as u64;
+        if vec4_bytes > limit {
+            return Err(Error::Limit(format!(
+                "APR's temporal window keeps {s} frames of packed features for {width}x{height} ({vec4_bytes} bytes, one binding), more than maxStorageBufferRange ({limit} bytes)"
+            )));
+        }
+        Ok(AprRing {
+            width,
+            height,
+            params,
+            slots: s,
+            y: PlaneSet::new(ctx, "apr_window.y", n, 3 * s)?,
+            v: PlaneSet::new(ctx, "apr_window.v", n, 3 * s)?,
+            spp: PlaneSet::new(ctx, "apr_window.spp", n, s)?,
+            fa: GpuBuffer::new(ctx, "apr_window.fa", vec4_bytes)?,
+            fb: GpuBuffer::new(ctx, "apr_window.fb", vec4_bytes)?,
+            sppt: GpuBuffer::new(ctx, "apr_window.sppt", (4 * APR_SPPT_SLOT * s) as u64)?,
+            vis: true,
+            stages: (1..params.stages.max(1))
+                .map(|_| PlaneSet::new(ctx, "apr_window.stage", n, APR_STAGE_OUTPUTS * s))
+                .collect::<Result<_>>()?,
+            apr: AprPlanes::new(ctx, width, height)?,
+        })
+    }
+
+    fn ps(&self) -> u64 {
+        plane_stride(self.width * self.height)
+    }
+
+    /// Planes `first..first + count` of a ring as one binding.
+    fn run(set: &PlaneSet, ps: u64, first: usize, count: usize) -> BufferSlice {
+        set.range(first as u64 * ps, count as u64 * ps)
+    }
+
+    fn packed_slot(&self, slot: usize) -> [BufferSlice; 2] {
+        let n = (self.width * self.height) as u64;
+        let at = 4 * self.ps() * slot as u64;
+        [self.fa.range(at, 16 * n), self.fb.range(at, 16 * n)]
+    }
+
+    fn sppt_slot(&self, slot: usize) -> BufferSlice {
+        self.sppt.range(
+            (4 * APR_SPPT_SLOT * slot) as u64,
+            4 * spp_total::WORDS as u64,
+        )
+    }
+
+    /// The ring slot of frame `t`.
+    pub fn slot(&self, t: usize) -> usize {
+        t % self.slots
+    }
+
+    /// The sample counts of frame `t` (while it is in the ring).
+    pub fn spp(&self, t: usize) -> BufferSlice {
+        self.spp.plane(self.slot(t))
+    }
+
+    /// Records frame `t`'s sanitised (and cleaned, prefiltered) statistics
+    /// `clean` into its slot: colour, variance, counts, packed features,
+    /// sample total.
+    pub fn record_insert(
+        &mut self,
+        batch: &mut Batch,
+        precision: Precision,
+        clean: &GpuStats,
+        t: usize,
+    ) -> Result<()> {
+        let (w, h) = (self.width, self.height);
+        if (clean.width, clean.height) != (w, h) {
+            return Err(Error::InvalidArgument(format!(
+                "a frame of {}x{} in a {w}x{h} sequence",
+                clean.width, clean.height
+            )));
+        }
+        let s = self.slot(t);
+        for ch in 0..3 {
+            batch.copy(
+                clean.plane(Layer::Color, ch),
+                self.y.plane(ch * self.slots + s),
+            );
+            batch.copy(
+                clean.plane(Layer::ColorVariance, ch),
+                self.v.plane(ch * self.slots + s),
+            );
+        }
+        batch.copy(clean.plane(Layer::Spp, 0), self.spp.plane(s));
+        let (feats, vis) = gpu_features(clean);
+        self.vis &= vis;
+        apr_pack::record(
+            batch,
+            precision,
+            &AprPush {
+                width: w as u32,
+                height: h as u32,
+                flags: if vis { APR_VIS } else { 0 },
+                ..Default::default()
+            },
+            &feats,
+            self.packed_slot(s),
+        )?;
+        batch.fill(self.sppt_slot(s), 0);
+        spp_total::record(
+            batch,
+            w as u32,
+            h as u32,
+            self.spp.plane(s),
+            self.sppt_slot(s),
+        )
+    }
+
+    /// Records what frame `step` makes computable, `len` the sequence's
+    /// length once known (frames `len..` absent): stage `s` of frame
+    /// `step − 2s` for every stage. Returns the frame whose final planes
+    /// ([`color`](Self::color), [`error`](Self::error), [`dim`](Self::dim))
+    /// the recording writes, if any.
+    pub fn record_step(
+        &self,
+        batch: &mut Batch,
+        precision: Precision,
+        step: usize,
+        len: Option<usize>,
+    ) -> Result<Option<usize>> {
+        let stages = self.params.stages.max(1);
+        let inside = |t: usize| len.map_or(true, |l| t < l) && t <= step;
+        let mut done = None;
+        for stage in 1..=stages {
+            let Some(t) = step.checked_sub(2 * stage).filter(|&t| inside(t)) else {
+                continue;
+            };
+            self.record_stage(batch, precision, stage, t, &inside)?;
+            if stage == stages {
+                done = Some(t);
+            }
+        }
+        Ok(done)
+    }
+
+    fn record_stage(
+        &self,
+        batch: &mut Batch,
+        precision: Precision,
+        stage: usize,
+        t: usize,
+        inside: &dyn Fn(usize) -> bool,
+    ) -> Result<()> {
+        let (w, h) = (self.width, self.height);
+        let (ps, s) = (self.ps(), self.slots);
+        let last = stage == self.params.stages.max(1);
+        let stride = (ps / 4) as u32;
+        // The window's frames and their slots: the statistics' ring, and
+        // the previous stage's (five slots).
+        let frame = |k: usize| (t + k).checked_sub(HALF).filter(|&f| inside(f));
+        let window = apr_window(std::array::from_fn(|k| frame(k).map(|f| (f % s) as u32)));
+        let flags = |clamped: bool| {
+            APR_TEMPORAL
+                | if self.vis { APR_VIS } else { 0 }
+                | if clamped { APR_CLAMPED } else { 0 }
+                | if self.params.count_cap {
+                    APR_COUNT_CAP
+                } else {
+                    0
+                }
+        };
+        let packed = [self.fa.slice(), self.fb.slice()];
+        let sppt = (self.spp.all(), self.sppt.slice());
+        let apr = &self.apr;
+        batch.fill(apr.extra.all(), 0);
+        for ch in 0..3 {
+            let y = Self::run(&self.y, ps, ch * s, s);
+            let v = Self::run(&self.v, ps, ch * s, s);
+            let chan = match stage {
+                1 => AprChannel {
+                    y,
+                    v,
+                    yprev: y,
+                    s2prev: v,
+                },
+                _ => {
+                    let p = &self.stages[stage - 2];
+                    AprChannel {
+                        y,
+                        v,
+                        yprev: Self::run(p, ps, ch * s, s),
+                        s2prev: Self::run(p, ps, (3 + ch) * s, s),
+                    }
+                }
+            };
+            for mode in [0, 1] {
+                let push = AprPush {
+                    width: w as u32,
+                    height: h as u32,
+                    channel: ch as u32,
+                    mode,
+                    last: last as u32,
+                    flags: flags(self.params.clamped),
+                    stride,
+                    window,
+                    ..Default::default()
+                };
+                apr_block::record(
+                    batch,
+                    precision,
+                    &push,
+                    &chan,
+                    &packed,
+                    sppt,
+                    (apr.state.slice(), apr.extra.all(), apr.queue.slice()),
+                    0.02,
+                )?;
+            }
+        }
+        let slot = t % s;
+        let push = AprPush {
+            width: w as u32,
+            height: h as u32,
+            last: last as u32,
+            flags: flags(false)
+                | if self.params.pixel_test {
+                    APR_PIXEL_TEST
+                } else {
+                    0
+                },
+            stride,
+            ..Default::default()
+        };
+        let color: [BufferSlice; 3] = std::array::from_fn(|ch| self.y.plane(ch * s + slot));
+        let var: [BufferSlice; 3] = std::array::from_fn(|ch| self.v.plane(ch * s + slot));
+        let dst = if last {
+            apr.out.all()
+        } else {
+            apr.stage[0].all()
+        };
+        apr_gather::record(
+            batch,
+            precision,
+            &push,
+            color,
+            var,
+            &self.packed_slot(slot),
+            (self.spp.plane(slot), self.sppt_slot(slot)),
+            apr.state.slice(),
+            apr.extra.all(),
+            dst,
+        )?;
+        if !last {
+            let ring = &self.stages[stage - 1];
+            for k in 0..APR_STAGE_OUTPUTS {
+                batch.copy(apr.stage[0].plane(k), ring.plane(k * s + slot));
+            }
+        }
+        Ok(())
+    }
+
+    /// The last final stage's colour R, G, B (clamped ≥ 0).
+    pub fn color(&self) -> [BufferSlice; 3] {
+        self.apr.color()
+    }
+
+    /// Its `ξ̂_i` per channel.
+    pub fn error(&self) -> [BufferSlice; 3] {
+        self.apr.error()
+    }
+
+    /// Its blended `tr H` (the centre frame's, SLICE), mean over the channels.
+    pub fn dim(&self) -> BufferSlice {
+        self.apr.dim()
+    }
+
+    /// All [`crate::shared::APR_OUTPUTS`] final planes.
+    pub fn outputs(&self) -> &PlaneSet {
+        &self.apr.out
+    }
+}
+
+/// The whole of §10.2 on a sequence: every frame's front (sanitation,
+/// §0.4; the outlier stage's removal, §4.4, per frame in 2-D; the G-buffer
+/// prefilter, §6), the [`AprRing`], and the outlier stage's restoration
+/// of each final frame with the energy removed from that frame.
+pub struct AprWindow {
+    layers: Vec<Layer>,
+    precision: Precision,
+    low_spp: bool,
+    stats: GpuStats,
+    scratch: PrepareScratch,
+    gbf: Option<GbfPlanes>,
+    /// One per ring slot: each frame's removed energy and outlier queue,
+    /// alive until its final frame; their scratch shares the arena.
+    outliers: Vec<OutlierPlanes>,
+    ring: AprRing,
+    /// Frames recorded since the start of the sequence.
+    pushed: usize,
+    _arena: Option<Arc<GpuBuffer>>,
+}
+
+/// What an [`AprWindow`] runs besides APR.
+#[derive(Clone, Debug)]
+pub struct WindowConfig {
+    /// Kernel arithmetic.
+    pub precision: Precision,
+    /// The G-buffer prefilter (`Auto`: APR's default, on).
+    pub prefilter: Prefilter,
+    /// The outlier stage.
+    pub outliers: bool,
+    /// See [`crate::Config::low_spp`].
+    pub low_spp: bool,
+    /// APR's options (`apr.stages` sets the lag, `2T` frames).
+    pub params: AprParams,
+}
+
+impl AprWindow {
+    /// A window for `width × height` frames with the input layers `layers`.
+    pub fn new(
+        ctx: &Arc<GpuContext>,
+        (width, height): (usize, usize),
+        layers: &[Layer],
+        config: &WindowConfig,
+    ) -> Result<AprWindow> {
+        if config.params.prefilter {
+            return Err(Error::InvalidArgument(
+                "apr.prefilter=on (APR's own 5x5 feature prefilter) runs on the CPU backend only"
+                    .into(),
+            ));
+        }
+        super::chain::check_layers(Method::Apr, layers)?;
+        let stats = GpuStats::new(
+            ctx,
+            "apr_window.stats",
+            width,
+            height,
+            &prepare::output_layers(layers),
+        )?;
+        let n = width * height;
+        let with_gbf = prefilter_runs(Method::Apr, config.prefilter, layers)?;
+        let arena_bytes = [
+            PlaneSet::bytes(n, prepare::PLANES),
+            if with_gbf {
+                PlaneSet::bytes(n, gbf::PLANES)
+            } else {
+                0
+            },
+            if config.outliers {
+                PlaneSet::bytes(n, outliers::SCRATCH)
+            } else {
+                0
+            },
+        ]
+        .into_iter()
+        .max()
+        .unwrap_or(0);
+        let arena = Arc::new(GpuBuffer::new(ctx, "apr_window.arena", arena_bytes)?);
+        let ring = AprRing::new(ctx, width, height, config.params)?;
+        let outliers = if config.outliers {
+            (0..ring.slots)
+                .map(|_| OutlierPlanes::new(ctx, width, height, Some((&arena, 0))))
+                .collect::<Result<_>>()?
+        } else {
+            Vec::new()
+        };
+        Ok(AprWindow {
+            layers: layers.to_vec(),
+            precision: config.precision,
+            low_spp: config.low_spp,
+            scratch: PrepareScratch::new(ctx, &stats, Some(&arena))?,
+            gbf: if with_gbf {
+                Some(GbfPlanes::new(ctx, width, height, Some(&arena))?)
+            } else {
+                None
+            },
+            stats,
+            outliers,
+            ring,
+            pushed: 0,
+            _arena: Some(arena),
+        })
+    }
+
+    /// Uploads the next frame's statistics (of the window's size and
+    /// layers) for [`record_push`](Self::record_push).
+    pub fn upload(&self, img: &StatsImage) -> Result<()> {
+        self.stats.upload_image(img)
+    }
+
+    /// Frames recorded since the start of the sequence.
+    pub fn pushed(&self) -> usize {
+        self.pushed
+    }
+
+    /// Frames between a frame going in and its reconstruction coming out.
+    pub fn lag(&self) -> usize {
+        2 * self.ring.params.stages.max(1)
+    }
+
+    /// Records the uploaded frame: its front, its slot, and the step it
+    /// makes computable. Returns the frame whose final planes
+    /// ([`outputs`](Self::outputs)) the recording writes, if any.
+    pub fn record_push(&mut self, batch: &mut Batch) -> Result<Option<usize>> {
+        let p = self.precision;
+        let f = self.pushed;
+        prepare::record_prepare(
+            batch,
+            p,
+            &self.layers,
+            &self.stats,
+            &self.scratch,
+            self.low_spp,
+            [0, 0],
+        )?;
+        if let Some(o) = self.outliers.get(self.ring.slot(f)) {
+            outliers::record_remove(batch, p, &self.stats, o)?;
+        }
+        if let Some(g) = &self.gbf {
+            gbf::record_gbf(batch, p, &self.stats, g)?;
+        }
+        self.ring.record_insert(batch, p, &self.stats, f)?;
+        self.pushed += 1;
+        self.record_step(batch, f, None)
+    }
+
+    /// Records step `pushed + i` (`i < lag`) after the sequence's last
+    /// frame: the frames that wait for no more input.
+    pub fn record_end(&mut self, batch: &mut Batch, i: usize) -> Result<Option<usize>> {
+        let len = self.pushed;
+        self.record_step(batch, len + i, Some(len))
+    }
+
+    fn record_step(
+        &self,
+        batch: &mut Batch,
+        step: usize,
+        len: Option<usize>,
+    ) -> Result<Option<usize>> {
+        let done = self.ring.record_step(batch, self.precision, step, len)?;
+        if let Some(t) = done {
+            if let Some(o) = self.outliers.get(self.ring.slot(t)) {
+                outliers::record_restore(
+                    batch,
+                    self.precision,
+                    self.ring.spp(t),
+                    self.ring.color(),
+                    o,
+                )?;
+            }
+        }
+        Ok(done)
+    }
+
+    /// Starts a new sequence (a cut): the next frame is frame 0 again.
+    /// Frames of the old sequence still waiting are dropped.
+    pub fn restart(&mut self) {
+        self.pushed = 0;
+    }
+
+    /// The sanitation counters of the last pushed frame.
+    pub fn counters(&self) -> Result<[u64; 4]> {
+        self.scratch.read_counters()
+    }
+
+    /// The last recorded final frame's planes: colour R G B (after the
+    /// outlier stage's restoration), error R G B, dimension, extra mask
+    /// R G B.
+    pub fn outputs(&self) -> &PlaneSet {
+        self.ring.outputs()
+    }
+
+    /// The last pushed frame's sanitised statistics.
+    pub fn clean(&self) -> &GpuStats {
+        &self.stats
+    }
+}

@@ -1,0 +1,239 @@
+//! The facade for offline sequences: [`SequenceDenoiser`] runs APR's
+//! temporal window (spec §10.2, [`Temporal::Apr`]) over a sequence's
+//! frames given in order, and hands each reconstruction back once the
+//! frames after it that its window reads are in.
+
+use std::collections::VecDeque;
+use std::sync::Arc;
+
+use crate::denoiser::{Config, Frame, Source};
+use crate::error::{Error, Result};
+use crate::gpu::{Batch, GpuContext, KernelTiming};
+use crate::image::{Layer, RgbImage, StatsImage};
+use crate::methods::apr::AprParams;
+use crate::methods::apr_window::{AprWindow, WindowConfig};
+use crate::methods::prepare::PrepareReport;
+use crate::methods::{InputBlend, Method, Pass, Pyramid, Temporal};
+use crate::reference::spp_of;
+
+/// APR's temporal window on a sequence (spec §10.2): every frame's
+/// reconstruction fits the frames `t−2..t+2` with polynomials in space and
+/// time. Frames go in with [`push`](Self::push), in order; frame `t` comes
+/// out of the push of frame `t + lag` ([`lag`](Self::lag): `2·apr.stages`,
+/// 4 by default), and the last ones out of [`finish`](Self::finish), which
+/// also ends the sequence (a cut: the next push is frame 0 of a new one).
+/// Each frame is sanitised, cleaned of outliers and prefiltered alone, as
+/// [`crate::Denoiser`] would; the outlier stage gives each frame back its
+/// own removed energy. The GPU keeps `2·stages + 3` frames of statistics.
+///
+/// ```no_run
+/// # use std::sync::Arc;
+/// # use mcdenoise::{Config, GpuContext, Method, SequenceDenoiser, Source, StatsImage, Temporal};
+/// # fn demo(ctx: Arc<GpuContext>, frames: Vec<StatsImage>) -> mcdenoise::Result<()> {
+/// let mut config = Config::new(Method::Apr);
+/// config.temporal = Temporal::Apr;
+/// let mut seq = SequenceDenoiser::new(&ctx, Source::of_image(&frames[0]), config)?;
+/// for f in &frames {
+///     for (t, out) in seq.push(f)? {
+///         // out.color is frame t's reconstruction
+///     }
+/// }
+/// for (t, out) in seq.finish()? { /* the last frames */ }
+/// # Ok(()) }
+/// ```
+pub struct SequenceDenoiser {
+    ctx: Arc<GpuContext>,
+    config: Config,
+    size: (usize, usize),
+    layers: Vec<Layer>,
+    window: AprWindow,
+    /// The reports of the frames pushed and not yet out, oldest first.
+    reports: VecDeque<PrepareReport>,
+}
+
+impl std::fmt::Debug for SequenceDenoiser {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SequenceDenoiser")
+            .field("size", &self.size)
+            .field("pushed", &self.window.pushed())
+            .finish()
+    }
+}
+
+impl SequenceDenoiser {
+    /// A sequence denoiser for frames of `source` (statistics of one size
+    /// and set of layers). `config` must have [`Method::Apr`] and
+    /// [`Temporal::Apr`], a final pass, no pyramid and no input blend
+    /// (their `Auto` is off for APR); its precision, prefilter, outlier
+    /// stage, options (`apr.*`) and `low_spp` apply. GPU only, one chain:
+    /// a frame whose window does not fit the device is an
+    /// [`Error::Limit`].
+    pub fn new(ctx: &Arc<GpuContext>, source: Source, config: Config) -> Result<SequenceDenoiser> {
+        let Source::Stats {
+            width,
+            height,
+            layers,
+        } = &source
+        else {
+            return Err(Error::InvalidArgument(
+                "the APR temporal window reads statistics (Source::Stats), not a renderer's accumulation planes".into(),
+            ));
+        };
+        if config.method != Method::Apr || config.temporal != Temporal::Apr {
+            return Err(Error::InvalidArgument(format!(
+                "a SequenceDenoiser runs APR's temporal window (method apr, temporal apr), not method {} with temporal {:?}",
+                config.method.name(),
+                config.temporal
+            )));
+        }
+        if config.pass != Pass::Final
+            || config.pyramid == Pyramid::On
+            || config.input_blend == InputBlend::On
+        {
+            return Err(Error::InvalidArgument(
+                "the APR temporal window is a final reconstruction without the pyramid or the input blend".into(),
+            ));
+        }
+        if config.precision == crate::gpu::Precision::F64 && !ctx.supports_f64() {
+            return Err(Error::InvalidArgument(
+                "f64 kernels need shaderFloat64, which this device does not enable".into(),
+            ));
+        }
+        if *width == 0 || *height == 0 {
+            return Err(Error::InvalidArgument(format!(
+                "empty image ({width}x{height})"
+            )));
+        }
+        let wc = WindowConfig {
+            precision: config.precision,
+            prefilter: config.prefilter,
+            outliers: config.outliers.resolve(Method::Apr),
+            low_spp: config.low_spp,
+            params: AprParams::new(&config.options)?,
+        };
+        let window = AprWindow::new(ctx, (*width, *height), layers, &wc)?;
+        Ok(SequenceDenoiser {
+            ctx: ctx.clone(),
+            config,
+            size: (*width, *height),
+            layers: layers.clone(),
+            window,
+            reports: VecDeque::new(),
+        })
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &Config {
+        &self.config
+    }
+
+    /// Frames between a frame going in and its reconstruction coming out
+    /// (`2·apr.stages`).
+    pub fn lag(&self) -> usize {
+        self.window.lag()
+    }
+
+    /// Frames pushed since the sequence began.
+    pub fn pushed(&self) -> usize {
+        self.window.pushed()
+    }
+
+    /// Adds the sequence's next frame (statistics of the denoiser's source)
+    /// and returns the frames this completes, `(index in the sequence,
+    /// result)`: none while the first `lag` frames go in, then one.
+    pub fn push(&mut self, img: &StatsImage) -> Result<Vec<(usize, Frame)>> {
+        let source = Source::of_image(img);
+        let expected = Source::Stats {
+            width: self.size.0,
+            height: self.size.1,
+            layers: self.layers.clone(),
+        };
+        if source != expected {
+            return Err(Error::InvalidArgument(format!(
+                "frame {} has another size or other layers than the sequence's ({}x{})",
+                self.window.pushed(),
+                self.size.0,
+                self.size.1
+            )));
+        }
+        let invalid = img
+            .get(Layer::Spp)
+            .map_or(0, |p| p[0].iter().filter(|&&s| spp_of(s) < 1.0).count());
+        self.window.upload(img)?;
+        let mut batch = Batch::new(&self.ctx)?;
+        batch.progress = self.config.progress;
+        let done = self.window.record_push(&mut batch)?;
+        let timings = batch.finish()?;
+        self.reports.push_back(PrepareReport {
+            counters: self.window.counters()?,
+            estimated: Layer::WITH_VARIANCE
+                .into_iter()
+                .filter(|l| {
+                    self.layers.contains(l) && !self.layers.contains(&l.variance().unwrap())
+                })
+                .collect(),
+            invalid_pixels: invalid,
+            timings: Vec::new(),
+        });
+        self.collect(done, timings)
+    }
+
+    /// Ends the sequence: returns its frames still waiting, in order. The
+    /// next [`push`](Self::push) starts a new sequence (a cut).
+    pub fn finish(&mut self) -> Result<Vec<(usize, Frame)>> {
+        let mut out = Vec::new();
+        if self.window.pushed() > 0 {
+            for i in 0..self.window.lag() {
+                let mut batch = Batch::new(&self.ctx)?;
+                batch.progress = self.config.progress;
+                let done = self.window.record_end(&mut batch, i)?;
+                let timings = batch.finish()?;
+                out.extend(self.collect(done, timings)?);
+            }
+        }
+        self.window.restart();
+        self.reports.clear();
+        Ok(out)
+    }
+
+    /// The host copy of a finished frame's planes.
+    fn collect(
+        &mut self,
+        done: Option<usize>,
+        timings: Vec<KernelTiming>,
+    ) -> Result<Vec<(usize, Frame)>> {
+        let Some(t) = done else {
+            return Ok(Vec::new());
+        };
+        let (w, h) = self.size;
+        let planes = self.window.outputs().download_all()?;
+        let rgb =
+            |k: usize| RgbImage::from_planes(w, h, std::array::from_fn(|c| planes[k + c].clone()));
+        let report = self.reports.pop_front().unwrap_or_default();
+        let (error, dim) = if self.config.error {
+            (rgb(3), planes[6].clone())
+        } else {
+            (RgbImage::new(0, 0), Vec::new())
+        };
+        let mut debug = Vec::new();
+        if self.config.debug {
+            for (c, name) in ["R", "G", "B"].iter().enumerate() {
+                debug.push((format!("apr_extra.{name}"), planes[7 + c].clone()));
+            }
+            debug.push(("apr_trace".into(), planes[6].clone()));
+        }
+        Ok(vec![(
+            t,
+            Frame {
+                color: rgb(0),
+                error,
+                dim,
+                samples: None,
+                debug,
+                report,
+                timings,
+                stats: Vec::new(),
+            },
+        )])
+    }
+}
