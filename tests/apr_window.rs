@@ -2,7 +2,9 @@
 //! against its twin (`reference::apr_gather::run_sequence`), and the
 //! window's invariants on the twin: a constant sequence is reproduced, a
 //! static scene's noise averages over the frames, a moving object does
-//! not smear into the background it uncovers.
+//! not smear into the background it uncovers; and the facade's
+//! `SequenceDenoiser`: its stream of frames, its gain through the whole
+//! chain, its refusals.
 
 mod common;
 
@@ -14,6 +16,7 @@ use mcdenoise::methods::apr_window::AprRing;
 use mcdenoise::methods::stats::GpuStats;
 use mcdenoise::reference::apr_block::{self as b, Inputs};
 use mcdenoise::reference::apr_gather;
+use mcdenoise::{Config, Denoiser, Method, SequenceDenoiser, Source, StatsImage, Temporal};
 
 const PARAMS: AprParams = AprParams {
     stages: 2,
@@ -119,57 +122,32 @@ fn gpu_window_matches_the_twin() {
     }
 }
 
-/// A `w × h` frame of the twin's inputs from its colour planes `y`:
-/// variance `var` everywhere, 16 samples, smooth features (normal, albedo,
-/// depth) that follow `albedo`.
-struct Frame {
-    w: usize,
-    h: usize,
-    y: [Vec<f32>; 3],
-    v: [Vec<f32>; 3],
-    feats: Vec<Vec<f32>>,
-    spp: Vec<f32>,
-}
-
-impl Frame {
-    fn new(w: usize, h: usize, y: [Vec<f32>; 3], var: f32, albedo: &[f32]) -> Frame {
-        let n = w * h;
-        let feats = (0..7)
-            .map(|k| match k {
-                2 => vec![1.0; n],
-                3..=5 => albedo.to_vec(),
-                6 => (0..n).map(|i| 2.0 + 0.01 * (i / w) as f32).collect(),
-                _ => vec![0.0; n],
-            })
-            .collect();
-        Frame {
-            w,
-            h,
-            y,
-            v: std::array::from_fn(|_| vec![var; n]),
-            feats,
-            spp: vec![16.0; n],
-        }
-    }
-
-    fn inputs(&self, ch: usize) -> Inputs<'_> {
-        Inputs {
-            w: self.w,
-            h: self.h,
-            y: &self.y[ch],
-            v: &self.v[ch],
-            yprev: &self.y[ch],
-            s2prev: &self.v[ch],
-            feats: std::array::from_fn(|j| self.feats.get(j).map(|f| f.as_slice())),
-            spp: &self.spp,
-            clamped: true,
-            pixel_test: true,
-            nbar: Some(16.0),
-        }
+/// A `w × h` frame from its colour planes `y`: variance `var` everywhere,
+/// 16 samples, flat normals, albedo `albedo`, a depth ramp.
+fn frame(w: usize, h: usize, y: [Vec<f32>; 3], var: f32, albedo: &[f32]) -> Img {
+    let n = w * h;
+    let feats = (0..7)
+        .map(|k| match k {
+            2 => vec![1.0; n],
+            3..=5 => albedo.to_vec(),
+            6 => (0..n).map(|i| 2.0 + 0.01 * (i / w) as f32).collect(),
+            _ => vec![0.0; n],
+        })
+        .collect();
+    Img {
+        w,
+        h,
+        y,
+        v: std::array::from_fn(|_| vec![var; n]),
+        feats,
+        spp: vec![16.0; n],
+        clamped: true,
+        pixel_test: true,
+        count_cap: true,
     }
 }
 
-fn run(frames: &[Frame]) -> Vec<Vec<Vec<f32>>> {
+fn run(frames: &[Img]) -> Vec<Vec<Vec<f32>>> {
     let inputs: Vec<[Inputs; 3]> = frames
         .iter()
         .map(|f| std::array::from_fn(|ch| f.inputs(ch)))
@@ -184,9 +162,9 @@ fn a_constant_sequence_is_reproduced() {
     let (w, h) = (31, 23);
     let n = w * h;
     let albedo: Vec<f32> = (0..n).map(|i| if i % w > 12 { 0.8 } else { 0.2 }).collect();
-    let frames: Vec<Frame> = (0..4)
+    let frames: Vec<Img> = (0..4)
         .map(|_| {
-            Frame::new(
+            frame(
                 w,
                 h,
                 [vec![0.25; n], vec![0.5; n], vec![1.5; n]],
@@ -208,20 +186,16 @@ fn a_constant_sequence_is_reproduced() {
     }
 }
 
-/// A static scene with noise of its own in every frame: the window's
-/// middle frame has less than 0.6× the squared error of the same frame
-/// reconstructed alone (§4's APR), and more frames help more.
-#[test]
-fn a_static_scene_averages_over_the_frames() {
-    let (w, h) = (42, 42);
+/// A smooth static scene (`truth`, grey) and `frames` frames of it with
+/// noise of standard deviation `sigma` of their own.
+fn static_scene(w: usize, h: usize, frames: usize, sigma: f64) -> (Vec<f64>, Vec<Img>) {
     let n = w * h;
     let mut rng = Rng(9);
     let truth: Vec<f64> = (0..n)
         .map(|i| 0.4 + 0.3 * ((i % w) as f64 / 9.0).sin() * ((i / w) as f64 / 13.0).cos())
         .collect();
     let albedo = vec![0.5f32; n];
-    let sigma = 0.1;
-    let frames: Vec<Frame> = (0..5)
+    let imgs = (0..frames)
         .map(|_| {
             let y = std::array::from_fn(|_| {
                 truth
@@ -229,26 +203,109 @@ fn a_static_scene_averages_over_the_frames() {
                     .map(|&t| (t + sigma * rng.normal()) as f32)
                     .collect()
             });
-            Frame::new(w, h, y, (sigma * sigma) as f32, &albedo)
+            frame(w, h, y, (sigma * sigma) as f32, &albedo)
         })
         .collect();
-    let truth = &truth;
-    let mse = |out: &[Vec<f32>]| -> f64 {
-        (0..3)
-            .flat_map(|ch| (0..n).map(move |i| (out[ch][i] as f64 - truth[i]).powi(2)))
-            .sum::<f64>()
-            / (3 * n) as f64
-    };
+    (truth, imgs)
+}
+
+/// Mean squared error of colour planes against a grey truth.
+fn mse(out: &[Vec<f32>], truth: &[f64]) -> f64 {
+    let n = truth.len();
+    (0..3)
+        .flat_map(|ch| (0..n).map(move |i| (out[ch][i] as f64 - truth[i]).powi(2)))
+        .sum::<f64>()
+        / (3 * n) as f64
+}
+
+/// A static scene with noise of its own in every frame: the window's
+/// middle frame has less than 0.6× the squared error of the same frame
+/// reconstructed alone (§4's APR), and more frames help more.
+#[test]
+fn a_static_scene_averages_over_the_frames() {
+    let (truth, frames) = static_scene(42, 42, 5, 0.1);
     let alone = {
         let inp: [Inputs; 3] = std::array::from_fn(|ch| frames[2].inputs(ch));
-        mse(&apr_gather::run(&inp, 2, b::EPS).0)
+        mse(&apr_gather::run(&inp, 2, b::EPS).0, &truth)
     };
-    let three = mse(&run(&frames[1..4])[1]);
-    let five = mse(&run(&frames)[2]);
+    let three = mse(&run(&frames[1..4])[1], &truth);
+    let five = mse(&run(&frames)[2], &truth);
     assert!(
         five < 0.6 * alone && five < three && three < alone,
         "squared error: alone {alone:.3e}, window of 3 {three:.3e}, of 5 {five:.3e}"
     );
+}
+
+fn window_config() -> Config {
+    let mut c = Config::new(Method::Apr);
+    c.temporal = Temporal::Apr;
+    c
+}
+
+/// The facade: a `SequenceDenoiser` hands back every frame once, in order,
+/// `lag` (4) pushes late and the rest at `finish`, which ends the sequence
+/// (the next push is frame 0 again); through the whole chain (sanitation,
+/// outlier stage, prefilter) the static scene's middle frame has less
+/// than 0.6× the squared error of APR on that frame alone.
+#[test]
+fn the_sequence_denoiser_streams_a_sequence() {
+    let ctx = common::gpu();
+    let (truth, frames) = static_scene(42, 42, 6, 0.1);
+    let stats: Vec<StatsImage> = frames.iter().map(stats).collect();
+    let mut seq =
+        SequenceDenoiser::new(&ctx, Source::of_image(&stats[0]), window_config()).unwrap();
+    assert_eq!(seq.lag(), 4);
+    for round in 0..2 {
+        let mut out = Vec::new();
+        for (k, s) in stats.iter().enumerate() {
+            let done = seq.push(s).unwrap();
+            assert_eq!(done.len(), usize::from(k >= 4), "round {round}, push {k}");
+            out.extend(done);
+        }
+        out.extend(seq.finish().unwrap());
+        let order: Vec<usize> = out.iter().map(|(t, _)| *t).collect();
+        assert_eq!(order, (0..6).collect::<Vec<_>>(), "round {round}");
+        let alone = Denoiser::new(&ctx, Source::of_image(&stats[2]), Config::new(Method::Apr))
+            .unwrap()
+            .denoise(&stats[2], None)
+            .unwrap();
+        let (w, a) = (
+            mse(&out[2].1.color.planes, &truth),
+            mse(&alone.color.planes, &truth),
+        );
+        assert!(w < 0.6 * a, "round {round}: window {w:.3e}, alone {a:.3e}");
+        assert_eq!(out[2].1.error.width, 42);
+    }
+    common::check_validation(&ctx);
+}
+
+/// What a `SequenceDenoiser` and a `Denoiser` refuse, with the reason.
+#[test]
+fn the_window_refuses_what_it_cannot_run() {
+    let ctx = common::gpu();
+    let (_, frames) = static_scene(16, 12, 1, 0.1);
+    let s = stats(&frames[0]);
+    let err = |r: mcdenoise::Result<SequenceDenoiser>| r.unwrap_err().to_string();
+    let mut wlr = window_config();
+    wlr.method = Method::Wlr;
+    assert!(err(SequenceDenoiser::new(&ctx, Source::of_image(&s), wlr))
+        .contains("method apr, temporal apr"));
+    assert!(err(SequenceDenoiser::new(
+        &ctx,
+        Source::of_image(&s),
+        Config::new(Method::Apr)
+    ))
+    .contains("method apr, temporal apr"));
+    let e = Denoiser::new(&ctx, Source::of_image(&s), window_config()).unwrap_err();
+    assert!(e.to_string().contains("use a SequenceDenoiser"), "{e}");
+    let mut seq = SequenceDenoiser::new(&ctx, Source::of_image(&s), window_config()).unwrap();
+    let (_, other) = static_scene(12, 16, 1, 0.1);
+    let e = seq.push(&stats(&other[0])).unwrap_err();
+    assert!(
+        e.to_string().contains("another size or other layers"),
+        "{e}"
+    );
+    common::check_validation(&ctx);
 }
 
 /// A bright box moving 6 pixels per frame over a dark floor: where the
@@ -262,7 +319,7 @@ fn a_moving_box_does_not_smear() {
         let (x, y) = (i % w, i / w);
         (8..16).contains(&y) && (10 + 6 * t..18 + 6 * t).contains(&x)
     };
-    let frames: Vec<Frame> = (0..5)
+    let frames: Vec<Img> = (0..5)
         .map(|t| {
             let plane: Vec<f32> = (0..n)
                 .map(|i| if in_box(t, i) { 5.0 } else { 0.5 })
@@ -270,7 +327,7 @@ fn a_moving_box_does_not_smear() {
             let albedo: Vec<f32> = (0..n)
                 .map(|i| if in_box(t, i) { 0.9 } else { 0.3 })
                 .collect();
-            Frame::new(w, h, std::array::from_fn(|_| plane.clone()), 0.01, &albedo)
+            frame(w, h, std::array::from_fn(|_| plane.clone()), 0.01, &albedo)
         })
         .collect();
     let out = run(&frames);

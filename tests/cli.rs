@@ -657,6 +657,80 @@ fn temporal_filter_from_the_command_line() {
     }
 }
 
+/// `--temporal apr` (APR's window, §10.2): `render --frames` writes every
+/// frame of the range, different from the frame-by-frame render, and
+/// `denoise --frames` over the saved statistics writes the same frames;
+/// a gap in the numbering starts a new sequence and says so; another
+/// method, or the CPU backend, is a clear error.
+#[test]
+fn temporal_window_from_the_command_line() {
+    let dir = tmpdir("window");
+    let render = |temporal: &str, out: &str| {
+        let mut cmd = bin();
+        cmd.args(["render", "--scene", "moving_box", "--size", "24x24"])
+            .args(["--spp", "4", "--frames", "0..4", "--method", "apr"])
+            .args(["--temporal", temporal])
+            .arg("--save-stats")
+            .arg(dir.join(format!("{out}_stats_##.exr")))
+            .arg("-o")
+            .arg(dir.join(format!("{out}_##.exr")));
+        run(&mut cmd)
+    };
+    for (t, out) in [("off", "plain"), ("apr", "apr")] {
+        let (code, _, err) = render(t, out);
+        assert_eq!(code, 0, "{err}");
+    }
+    let rgb = |p: &str| mcdenoise::io::read_rgb(&dir.join(p)).unwrap().planes;
+    for f in 0..4 {
+        assert_ne!(
+            rgb(&format!("plain_{f:02}.exr")),
+            rgb(&format!("apr_{f:02}.exr"))
+        );
+    }
+    let denoise = |out: &str, extra: &[&str]| {
+        run(bin()
+            .arg("denoise")
+            .arg("--frames")
+            .arg(dir.join("apr_stats_##.exr"))
+            .arg("-o")
+            .arg(dir.join(format!("{out}_##.exr")))
+            .args(["--method", "apr", "--temporal", "apr"])
+            .args(extra))
+    };
+    let (code, _, err) = denoise("d", &[]);
+    assert_eq!(code, 0, "{err}");
+    for f in 0..4 {
+        assert_eq!(
+            rgb(&format!("apr_{f:02}.exr")),
+            rgb(&format!("d_{f:02}.exr")),
+            "frame {f}"
+        );
+    }
+    std::fs::remove_file(dir.join("apr_stats_01.exr")).unwrap();
+    let (code, _, err) = denoise("gap", &[]);
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        err.contains("frame 2: not the next frame of the last one: a new sequence starts"),
+        "{err}"
+    );
+    assert!(dir.join("gap_03.exr").exists() && !dir.join("gap_01.exr").exists());
+    let (code, _, err) = denoise("cpu", &["--backend", "cpu"]);
+    assert_ne!(code, 0);
+    assert!(
+        err.contains("--temporal apr keeps its frames on the GPU"),
+        "{err}"
+    );
+    let (code, _, err) = run(bin()
+        .arg("denoise")
+        .arg("--frames")
+        .arg(dir.join("apr_stats_##.exr"))
+        .arg("-o")
+        .arg(dir.join("w_##.exr"))
+        .args(["--method", "wlr", "--temporal", "apr"]));
+    assert_ne!(code, 0);
+    assert!(err.contains("method apr, temporal apr"), "{err}");
+}
+
 /// An adaptive 32×32 render of `cornell` (seed 3, 8 spp) with `extra`
 /// arguments, its statistics saved: `dir/<out>.exr`, `dir/<out>_stats.exr`.
 fn render_small(dir: &Path, extra: &[&str], out: &str) -> (i32, String, String) {

@@ -12,13 +12,15 @@
 //! `--adaptive`, each method's adaptive renders of the sequence instead:
 //! alone, with the filter, and with maps that read the filter's state.
 //! With `--pyramid`, each method also with the pyramid's low band (and,
-//! with `--temporal`, followed by the filter).
+//! with `--temporal`, followed by the filter). With `--window` (and `apr`
+//! among the methods), also APR's temporal window (§10.2, "apr + 10.2",
+//! one `SequenceDenoiser` for the sequence).
 //!
 //! ```text
 //! cargo run --release -p mcdenoise-tools --bin sequence_table -- \
 //!     [--scenes pan_room,moving_box,moving_highlight] [--methods wlr,lp,apr,aos,auto] \
 //!     [--size 64x64] [--spp 16] [--frames 24] [--reference 512] [--oidn] [--temporal]
-//!     [--adaptive] [--pyramid]
+//!     [--adaptive] [--pyramid] [--window]
 //! ```
 
 use std::path::PathBuf;
@@ -30,8 +32,8 @@ use clap::Parser;
 use mcdenoise::render::adaptive::LoopConfig;
 use mcdenoise::render::{reference, sequence, Scene};
 use mcdenoise::{
-    io, metrics, Config, ContextOptions, Denoiser, GpuContext, Method, Pyramid, RgbImage, Source,
-    StatsImage, Temporal,
+    io, metrics, Config, ContextOptions, Denoiser, GpuContext, Method, Pyramid, RgbImage,
+    SequenceDenoiser, Source, StatsImage, Temporal,
 };
 use mcdenoise_tools::parse_method;
 
@@ -75,6 +77,10 @@ struct Args {
     /// the filter and sample maps that read its state (TEMPORAL-MAP).
     #[arg(long, conflicts_with_all = ["oidn", "temporal"])]
     adaptive: bool,
+    /// Also APR's temporal window (spec §10.2) when apr is among the
+    /// methods.
+    #[arg(long, conflicts_with = "adaptive")]
+    window: bool,
     /// Working folder for OIDN's inputs and outputs.
     #[arg(long, default_value = "target/sequence_table")]
     work: PathBuf,
@@ -215,6 +221,28 @@ fn main() -> anyhow::Result<()> {
                         .collect::<mcdenoise::Result<Vec<_>>>()?;
                     row(&format!("{name} + 10.1"), &outputs)?;
                 }
+            }
+            if a.window && m == Method::Apr {
+                let mut c = Config::new(m);
+                c.temporal = Temporal::Apr;
+                let mut seq = SequenceDenoiser::new(&ctx, Source::of_image(&stats[0]), c)?;
+                let mut outputs = Vec::with_capacity(stats.len());
+                let mut gpu_ms = 0.0;
+                for s in &stats {
+                    for (_, f) in seq.push(s)? {
+                        gpu_ms += f.timings.iter().map(|t| t.nanoseconds * 1e-6).sum::<f64>();
+                        outputs.push(f.color);
+                    }
+                }
+                for (_, f) in seq.finish()? {
+                    gpu_ms += f.timings.iter().map(|t| t.nanoseconds * 1e-6).sum::<f64>();
+                    outputs.push(f.color);
+                }
+                row("apr + 10.2", &outputs)?;
+                eprintln!(
+                    "{name}: apr + 10.2, GPU {:.1} ms per frame (the calls that output one)",
+                    gpu_ms / outputs.len() as f64
+                );
             }
         }
         if a.oidn {

@@ -174,8 +174,7 @@ fn main() -> anyhow::Result<()> {
             .iter()
             .map(|o| image(w, h, o))
             .collect();
-        let layout = std::env::var("MCD_APR_T").unwrap_or_else(|_| "1".into());
-        row(&format!("apr + 10.2 (layout {layout})"), &window)?;
+        row("apr + 10.2", &window)?;
     }
     Ok(())
 }
