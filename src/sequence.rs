@@ -12,9 +12,8 @@ use crate::gpu::{Batch, GpuContext, KernelTiming};
 use crate::image::{Layer, RgbImage, StatsImage};
 use crate::methods::apr::AprParams;
 use crate::methods::apr_window::{AprWindow, WindowConfig};
-use crate::methods::prepare::PrepareReport;
+use crate::methods::prepare::{base_report, PrepareReport};
 use crate::methods::{InputBlend, Method, Pass, Pyramid, Temporal};
-use crate::reference::spp_of;
 
 /// APR's temporal window on a sequence (spec §10.2): every frame's
 /// reconstruction fits the frames `t−2..t+2` with polynomials in space and
@@ -156,9 +155,7 @@ impl SequenceDenoiser {
                 self.size.1
             )));
         }
-        let invalid = img
-            .get(Layer::Spp)
-            .map_or(0, |p| p[0].iter().filter(|&&s| spp_of(s) < 1.0).count());
+        let report = base_report(img);
         self.window.upload(img)?;
         let mut batch = Batch::new(&self.ctx)?;
         batch.progress = self.config.progress;
@@ -166,14 +163,7 @@ impl SequenceDenoiser {
         let timings = batch.finish()?;
         self.reports.push_back(PrepareReport {
             counters: self.window.counters()?,
-            estimated: Layer::WITH_VARIANCE
-                .into_iter()
-                .filter(|l| {
-                    self.layers.contains(l) && !self.layers.contains(&l.variance().unwrap())
-                })
-                .collect(),
-            invalid_pixels: invalid,
-            timings: Vec::new(),
+            ..report
         });
         self.collect(done, timings)
     }

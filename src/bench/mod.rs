@@ -177,14 +177,7 @@ fn denoiser(
     stages: &Stages,
 ) -> Result<Denoiser> {
     let source = Source::of_image(img);
-    let mut config = Config::new(method);
-    config.outliers = stages.outliers;
-    config.prefilter = stages.prefilter;
-    config.options = stages.options.clone();
-    config.temporal = stages.temporal;
-    config.pyramid = stages.pyramid;
-    config.input_blend = stages.input_blend;
-    config.low_spp = crate::has_low_spp(img);
+    let config = config(img, method, stages);
     match backend {
         Backend::Gpu => {
             let ctx = ctx.ok_or_else(|| {
@@ -194,6 +187,20 @@ fn denoiser(
         }
         Backend::Cpu => Denoiser::new_cpu(source, config),
     }
+}
+
+/// The configuration of a benchmarked call on `img`: the method's defaults
+/// with `stages`.
+fn config(img: &StatsImage, method: Method, stages: &Stages) -> Config {
+    let mut config = Config::new(method);
+    config.outliers = stages.outliers;
+    config.prefilter = stages.prefilter;
+    config.options = stages.options.clone();
+    config.temporal = stages.temporal;
+    config.pyramid = stages.pyramid;
+    config.input_blend = stages.input_blend;
+    config.low_spp = crate::has_low_spp(img);
+    config
 }
 
 /// The optional stages and method options of every benchmarked call.

@@ -83,13 +83,29 @@ pub const EXTRA_ACCEPTED: f64 = 0.3;
 /// block triangle of the symmetric moments.
 /// Flops as [`EXP_FLOPS`](super::EXP_FLOPS) counts them.
 pub fn flops_of_block(window: f64, accepted: f64) -> f64 {
+    flops_of_window_block(window, accepted, 1.0)
+}
+
+/// [`flops_of_block`] of a block of APR's temporal window (§10.2) over
+/// `frames` frames, each with `window` valid pixels and `accepted`
+/// accepted: passes 1 and 2 over every frame, pass 3 over the centre
+/// frame, and (more than one frame) the centre frame's moments again
+/// (SLICE: the row, the weight and `M`'s lower triangle, 25 + 2 + 361).
+pub fn flops_of_window_block(window: f64, accepted: f64, frames: f64) -> f64 {
     let p = P as f64;
     let weight = 1.0 + super::EXP_FLOPS + 2.0;
     let moments = 2.0 * (p + p * (p + 1.0)) + 2.0;
     let pass2 = 25.0 + weight + moments + 114.0;
     let pass3 = 25.0 + weight + 2.0 * (9.0 + 11.0 + 14.0 + 18.0) + 4.0 + 12.0;
+    let slice = if frames > 1.0 {
+        25.0 + weight + p * (p + 1.0) + 1.0
+    } else {
+        0.0
+    };
     let once = 2115.0 + 1962.0 + 2.0 * 8436.0 + 826.0 + 1548.0 + 1368.0 + 70.0;
-    window * 21.0 + accepted * (16.0 + pass2 + pass3) + once
+    window * (2.0 * frames + 1.0) * 7.0
+        + accepted * (frames * (16.0 + pass2) + pass3 + slice)
+        + once
 }
 
 /// An upper bound of [`flops_of_block`], which sizes the extra blocks'
@@ -155,6 +171,12 @@ pub fn record(
         DECL.require(9, &queue, 4 * queue_words(w as usize, h as usize) as u64)?;
     }
     let push_bytes = bytemuck::bytes_of(push);
+    // The frames a block reads (APR's temporal window, §10.2).
+    let frames = if push.flags & crate::shared::APR_TEMPORAL != 0 {
+        (push.window & 31).count_ones().max(1) as f64
+    } else {
+        1.0
+    };
     if push.mode == 0 {
         // APR-LINEAR-BLOCKS: the blocks in raster order on a grid 8 wide.
         let (gw, gh) = grid(push.width as usize, push.height as usize);
@@ -163,7 +185,7 @@ pub fn record(
         // SPARSE_ACCEPTED of them accepted), spread over the grid's
         // invocations (the last row's idle lanes charged nothing).
         let window = mean_extent(push.width, RADIUS) * mean_extent(push.height, RADIUS);
-        let block = flops_of_block(window, SPARSE_ACCEPTED * window);
+        let block = flops_of_window_block(window, SPARSE_ACCEPTED * window, frames);
         let per_lane = block * (gw * gh) as f64 / (8.0 * rows.max(1) as f64);
         return batch.dispatch(&DECL, precision, &b, push_bytes, 8, rows, per_lane);
     }
@@ -173,9 +195,9 @@ pub fn record(
     }
     // Bands whose expected extra blocks stay within a submit's work, each
     // charged as a full block; the timings get their typical work.
-    let px_flops = flops_per_block() * extra_fraction + SELECT_FLOPS;
+    let px_flops = flops_of_window_block(841.0, 841.0, frames) * extra_fraction + SELECT_FLOPS;
     let window = mean_extent(w, 1) * mean_extent(h, 1);
-    let extra_block = flops_of_block(window, EXTRA_ACCEPTED * window);
+    let extra_block = flops_of_window_block(window, EXTRA_ACCEPTED * window, frames);
     let band = batch.band_rows(px_flops * w as f64, 8);
     let fit = AprPush { mode: 2, ..*push };
     let mut row0 = 0;

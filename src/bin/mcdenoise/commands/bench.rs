@@ -64,8 +64,9 @@ pub struct Args {
     /// blend.k). `--input-blend` alone is `--input-blend=on`
     #[arg(long, value_enum, default_value = "auto", num_args = 0..=1, require_equals = true, default_missing_value = "on")]
     input_blend: BlendArg,
-    /// A temporal filter after every method (spec §10); the timed calls
-    /// are its consecutive frames. GPU only.
+    /// A temporal stage (spec §10); the timed calls are its consecutive
+    /// frames (for apr, APR's window with --methods apr: each call a full
+    /// window's push, one frame's whole work). GPU only.
     #[arg(long, value_enum, default_value = "off")]
     temporal: TemporalArg,
     /// Methods to run, comma-separated [default: every method].
