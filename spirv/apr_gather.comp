@@ -159,7 +159,7 @@ void main()
                 real4 isa = mix(real4(0), real4(1) / max(sa, real4(1e-30)), greaterThan(sa, real4(0)));
                 real4 isb = mix(real4(0), real4(1) / max(sb, real4(1e-30)), greaterThan(sb, real4(0)));
                 apr_row(p - ivec2(cx, cy), 0, fa, fb, fca, fcb, isa, isb, x0, x1, x2, x3, x4);
-                // x4's last two entries are 0, as are the records' (past APR_P).
+                // The records' entries past the chosen order's columns are 0.
                 real py = dot(x0, st4(by)) + dot(x1, st4(by + 1u)) + dot(x2, st4(by + 2u))
                     + dot(x3, st4(by + 3u)) + dot(x4, st4(by + 4u));
                 if (lim[ch] >= real(0) && (py - yi3[ch]) * (py - yi3[ch]) > lim[ch]) {

@@ -268,6 +268,22 @@ pub struct Frame {
     pub stats: Vec<(String, f64)>,
 }
 
+impl Frame {
+    /// A frame with nothing in it (0×0 images, no maps).
+    pub fn empty() -> Frame {
+        Frame {
+            color: RgbImage::new(0, 0),
+            error: RgbImage::new(0, 0),
+            dim: Vec::new(),
+            samples: None,
+            debug: Vec::new(),
+            report: PrepareReport::default(),
+            timings: Vec::new(),
+            stats: Vec::new(),
+        }
+    }
+}
+
 /// Side of the image [`Denoiser::warm_up`] builds a chain for: small, and a
 /// multiple of 4 like most real widths (`sanitize_quads`; other widths use
 /// `sanitize`, built by the denoiser itself).

@@ -48,6 +48,9 @@ pub struct SequenceDenoiser {
     window: AprWindow,
     /// The reports of the frames pushed and not yet out, oldest first.
     reports: VecDeque<PrepareReport>,
+    /// A push failed part-way: the window's state no longer matches its
+    /// frames until [`finish`](SequenceDenoiser::finish) ends the sequence.
+    broken: bool,
 }
 
 impl std::fmt::Debug for SequenceDenoiser {
@@ -118,6 +121,7 @@ impl SequenceDenoiser {
             layers: layers.clone(),
             window,
             reports: VecDeque::new(),
+            broken: false,
         })
     }
 
@@ -139,8 +143,16 @@ impl SequenceDenoiser {
 
     /// Adds the sequence's next frame (statistics of the denoiser's source)
     /// and returns the frames this completes, `(index in the sequence,
-    /// result)`: none while the first `lag` frames go in, then one.
+    /// result)`: none while the first `lag` frames go in, then one. A
+    /// frame of another size or layers is refused and changes nothing;
+    /// after any other error the sequence is broken: pushes are refused
+    /// until [`finish`](Self::finish), which drops its waiting frames.
     pub fn push(&mut self, img: &StatsImage) -> Result<Vec<(usize, Frame)>> {
+        if self.broken {
+            return Err(Error::InvalidArgument(
+                "an earlier push of this sequence failed: finish() ends it (its waiting frames are lost) and the next push starts a new one".into(),
+            ));
+        }
         let source = Source::of_image(img);
         let expected = Source::Stats {
             width: self.size.0,
@@ -156,34 +168,46 @@ impl SequenceDenoiser {
             )));
         }
         let report = base_report(img);
-        self.window.upload(img)?;
-        let mut batch = Batch::new(&self.ctx)?;
-        batch.progress = self.config.progress;
-        let done = self.window.record_push(&mut batch)?;
-        let timings = batch.finish()?;
-        self.reports.push_back(PrepareReport {
-            counters: self.window.counters()?,
-            ..report
-        });
-        self.collect(done, timings)
+        let run = |me: &mut Self| -> Result<Vec<(usize, Frame)>> {
+            me.window.upload(img)?;
+            let mut batch = Batch::new(&me.ctx)?;
+            batch.progress = me.config.progress;
+            let done = me.window.record_push(&mut batch)?;
+            let timings = batch.finish()?;
+            me.reports.push_back(PrepareReport {
+                counters: me.window.counters()?,
+                ..report
+            });
+            me.collect(done, timings)
+        };
+        let out = run(self);
+        self.broken = out.is_err();
+        out
     }
 
-    /// Ends the sequence: returns its frames still waiting, in order. The
-    /// next [`push`](Self::push) starts a new sequence (a cut).
+    /// Ends the sequence: returns its frames still waiting, in order (none
+    /// after a failed push). The next [`push`](Self::push) starts a new
+    /// sequence (a cut). On an error here the sequence ends as well.
     pub fn finish(&mut self) -> Result<Vec<(usize, Frame)>> {
-        let mut out = Vec::new();
-        if self.window.pushed() > 0 {
-            for i in 0..self.window.lag() {
-                let mut batch = Batch::new(&self.ctx)?;
-                batch.progress = self.config.progress;
-                let done = self.window.record_end(&mut batch, i)?;
-                let timings = batch.finish()?;
-                out.extend(self.collect(done, timings)?);
+        let drain = |me: &mut Self| -> Result<Vec<(usize, Frame)>> {
+            let mut out = Vec::new();
+            if me.window.pushed() == 0 || me.broken {
+                return Ok(out);
             }
-        }
+            for i in 0..me.window.lag() {
+                let mut batch = Batch::new(&me.ctx)?;
+                batch.progress = me.config.progress;
+                let done = me.window.record_end(&mut batch, i)?;
+                let timings = batch.finish()?;
+                out.extend(me.collect(done, timings)?);
+            }
+            Ok(out)
+        };
+        let out = drain(self);
         self.window.restart();
         self.reports.clear();
-        Ok(out)
+        self.broken = false;
+        out
     }
 
     /// The host copy of a finished frame's planes.

@@ -90,6 +90,9 @@ fn gpu_window_matches_the_twin() {
         (29, 17, 2, false, 2),
         (23, 19, 1, true, 2),
         (29, 17, 3, true, 1),
+        // Longer than the rings (7 and 5 slots): every slot is reused.
+        (29, 17, 9, true, 2),
+        (23, 19, 7, false, 1),
     ] {
         let seq = sequence(w, h, frames, vis);
         let params = AprParams { stages, ..PARAMS };
@@ -244,7 +247,8 @@ fn window_config() -> Config {
 
 /// The facade: a `SequenceDenoiser` hands back every frame once, in order,
 /// `lag` (4) pushes late and the rest at `finish`, which ends the sequence
-/// (the next push is frame 0 again); through the whole chain (sanitation,
+/// (the next push is frame 0 again, and nothing of the sequence before
+/// reaches it); through the whole chain (sanitation,
 /// outlier stage, prefilter) the static scene's middle frame has less
 /// than 0.6× the squared error of APR on that frame alone.
 #[test]
@@ -255,26 +259,47 @@ fn the_sequence_denoiser_streams_a_sequence() {
     let mut seq =
         SequenceDenoiser::new(&ctx, Source::of_image(&stats[0]), window_config()).unwrap();
     assert_eq!(seq.lag(), 4);
+    // Round 1 runs the frames backwards, round 2 forwards: what round 2
+    // outputs must not depend on round 1 (a fresh denoiser's, bit for bit).
+    let mut rounds = Vec::new();
     for round in 0..2 {
+        let order: Vec<&StatsImage> = match round {
+            0 => stats.iter().rev().collect(),
+            _ => stats.iter().collect(),
+        };
         let mut out = Vec::new();
-        for (k, s) in stats.iter().enumerate() {
+        for (k, s) in order.iter().enumerate() {
             let done = seq.push(s).unwrap();
             assert_eq!(done.len(), usize::from(k >= 4), "round {round}, push {k}");
             out.extend(done);
         }
         out.extend(seq.finish().unwrap());
-        let order: Vec<usize> = out.iter().map(|(t, _)| *t).collect();
-        assert_eq!(order, (0..6).collect::<Vec<_>>(), "round {round}");
-        let alone = Denoiser::new(&ctx, Source::of_image(&stats[2]), Config::new(Method::Apr))
-            .unwrap()
-            .denoise(&stats[2], None)
-            .unwrap();
-        let (w, a) = (
-            mse(&out[2].1.color.planes, &truth),
-            mse(&alone.color.planes, &truth),
-        );
+        let index: Vec<usize> = out.iter().map(|(t, _)| *t).collect();
+        assert_eq!(index, (0..6).collect::<Vec<_>>(), "round {round}");
+        // Frames 2 and 3 have all five frames in their windows.
+        let (mut w, mut a) = (0.0, 0.0);
+        for t in [2, 3] {
+            let alone = Denoiser::new(&ctx, Source::of_image(order[t]), Config::new(Method::Apr))
+                .unwrap()
+                .denoise(order[t], None)
+                .unwrap();
+            w += mse(&out[t].1.color.planes, &truth);
+            a += mse(&alone.color.planes, &truth);
+        }
         assert!(w < 0.6 * a, "round {round}: window {w:.3e}, alone {a:.3e}");
         assert_eq!(out[2].1.error.width, 42);
+        rounds.push(out);
+    }
+    let mut fresh =
+        SequenceDenoiser::new(&ctx, Source::of_image(&stats[0]), window_config()).unwrap();
+    let mut again = Vec::new();
+    for s in &stats {
+        again.extend(fresh.push(s).unwrap());
+    }
+    again.extend(fresh.finish().unwrap());
+    for ((_, a), (_, b)) in rounds[1].iter().zip(&again) {
+        assert_eq!(a.color.planes, b.color.planes);
+        assert_eq!(a.error.planes, b.error.planes);
     }
     common::check_validation(&ctx);
 }

@@ -660,8 +660,9 @@ fn temporal_filter_from_the_command_line() {
 /// `--temporal apr` (APR's window, §10.2): `render --frames` writes every
 /// frame of the range, different from the frame-by-frame render, and
 /// `denoise --frames` over the saved statistics writes the same frames;
-/// a gap in the numbering starts a new sequence and says so; another
-/// method, or the CPU backend, is a clear error.
+/// a gap in the numbering starts a new sequence and says so; a frame that
+/// does not read fails alone (exit status 1); another method, tiles or the
+/// CPU backend is a clear error.
 #[test]
 fn temporal_window_from_the_command_line() {
     let dir = tmpdir("window");
@@ -714,6 +715,18 @@ fn temporal_window_from_the_command_line() {
         "{err}"
     );
     assert!(dir.join("gap_03.exr").exists() && !dir.join("gap_01.exr").exists());
+    // A frame that does not read fails alone; the others are written.
+    std::fs::write(dir.join("apr_stats_02.exr"), b"not an EXR").unwrap();
+    let (code, _, err) = denoise("bad", &[]);
+    assert_eq!(code, 1, "{err}");
+    assert!(err.contains("failed frame 2"), "{err}");
+    assert!(dir.join("bad_00.exr").exists() && dir.join("bad_03.exr").exists());
+    let (code, _, err) = denoise("tiled", &["--tile", "16"]);
+    assert_ne!(code, 0);
+    assert!(
+        err.contains("--max-memory and --tile do not apply"),
+        "{err}"
+    );
     let (code, _, err) = denoise("cpu", &["--backend", "cpu"]);
     assert_ne!(code, 0);
     assert!(

@@ -363,7 +363,7 @@ fn time_case(
 /// full (every push then outputs a frame: one frame's whole work).
 enum Timed {
     One(crate::Denoiser),
-    Window(crate::SequenceDenoiser),
+    Window(Box<crate::SequenceDenoiser>),
 }
 
 impl Timed {
@@ -388,7 +388,7 @@ impl Timed {
         for _ in 0..w.lag() {
             w.push(img)?;
         }
-        Ok(Timed::Window(w))
+        Ok(Timed::Window(Box::new(w)))
     }
 
     fn call(&mut self, img: &StatsImage) -> Result<crate::Frame> {

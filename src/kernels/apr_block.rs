@@ -90,7 +90,8 @@ pub fn flops_of_block(window: f64, accepted: f64) -> f64 {
 /// `frames` frames, each with `window` valid pixels and `accepted`
 /// accepted: passes 1 and 2 over every frame, pass 3 over the centre
 /// frame, and (more than one frame) the centre frame's moments again
-/// (SLICE: the row, the weight and `M`'s lower triangle, 25 + 2 + 361).
+/// (SLICE: the acceptance test, the row, the weight and `M`'s lower
+/// triangle).
 pub fn flops_of_window_block(window: f64, accepted: f64, frames: f64) -> f64 {
     let p = P as f64;
     let weight = 1.0 + super::EXP_FLOPS + 2.0;
@@ -103,9 +104,10 @@ pub fn flops_of_window_block(window: f64, accepted: f64, frames: f64) -> f64 {
         0.0
     };
     let once = 2115.0 + 1962.0 + 2.0 * 8436.0 + 826.0 + 1548.0 + 1368.0 + 70.0;
-    window * (2.0 * frames + 1.0) * 7.0
-        + accepted * (frames * (16.0 + pass2) + pass3 + slice)
-        + once
+    // The acceptance test: passes 1 and 2 per frame, pass 3, and the
+    // slice's pass.
+    let tests = 2.0 * frames + if frames > 1.0 { 2.0 } else { 1.0 };
+    window * tests * 7.0 + accepted * (frames * (16.0 + pass2) + pass3 + slice) + once
 }
 
 /// An upper bound of [`flops_of_block`], which sizes the extra blocks'

@@ -83,6 +83,12 @@ impl AprRing {
     ) -> Result<AprRing> {
         let n = width * height;
         let s = slots(params.stages);
+        if s > 16 {
+            return Err(Error::InvalidArgument(format!(
+                "APR's temporal window with {} stages keeps {s} frames; AprPush::window holds 16 slots (at most 6 stages)",
+                params.stages
+            )));
+        }
         let ps = plane_stride(n);
         let limit = ctx.info.max_storage_buffer_range as u64;
         let vec4_bytes = 4 * ps * s as u64;

@@ -328,12 +328,51 @@ pub fn render_with_final(
     progress: impl FnMut(&PassProgress),
     last: Option<&Denoiser>,
 ) -> Result<LoopResult> {
+    run(ctx, renderer, cfg, stop, progress, Final::Reconstruct(last))
+}
+
+/// [`render`]'s passes without its final reconstruction, for a caller
+/// that reconstructs the statistics itself (APR's temporal window): the
+/// result's frame is [`Frame::empty`]. Open-ended renders
+/// ([`LoopConfig::stop`]) judge every pass by a reconstruction and make
+/// the final one as [`render`] does.
+pub fn render_passes(
+    ctx: &Arc<GpuContext>,
+    renderer: &Renderer,
+    cfg: &LoopConfig,
+    stop: &AtomicBool,
+    progress: impl FnMut(&PassProgress),
+) -> Result<LoopResult> {
+    run(ctx, renderer, cfg, stop, progress, Final::Skip)
+}
+
+/// What a render does after its last pass.
+#[derive(Copy, Clone)]
+enum Final<'a> {
+    /// Reconstructs, with the caller's denoiser or one of its own.
+    Reconstruct(Option<&'a Denoiser>),
+    /// Nothing ([`render_passes`]).
+    Skip,
+}
+
+fn run(
+    ctx: &Arc<GpuContext>,
+    renderer: &Renderer,
+    cfg: &LoopConfig,
+    stop: &AtomicBool,
+    progress: impl FnMut(&PassProgress),
+    last: Final,
+) -> Result<LoopResult> {
     let run = Runner {
         ctx,
         renderer,
         cfg,
         stop,
-        last,
+        last: match last {
+            Final::Reconstruct(d) => d,
+            Final::Skip => None,
+        },
+        skip_final: matches!(last, Final::Skip),
         timings: Vec::new(),
         split: TimeSplit::default(),
         samples: 0,
@@ -352,6 +391,8 @@ struct Runner<'a> {
     stop: &'a AtomicBool,
     /// The caller's final denoiser ([`render_with_final`]).
     last: Option<&'a Denoiser>,
+    /// No final reconstruction after a fixed schedule ([`render_passes`]).
+    skip_final: bool,
     timings: Vec<KernelTiming>,
     split: TimeSplit,
     /// Samples rendered so far.
@@ -513,6 +554,7 @@ impl Runner<'_> {
             }
         }
         let frame = match self.last {
+            _ if self.skip_final => Frame::empty(),
             Some(last) => self.reconstruct(last)?,
             None => {
                 let last = self.denoiser(Pass::Final, first_spp)?;

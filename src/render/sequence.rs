@@ -77,7 +77,7 @@ pub fn render_frames(
         let seed = frame_seed(seed, number);
         let renderer = Renderer::new(ctx, &at, width, height, seed)?;
         if temporal == Temporal::Apr {
-            let result = adaptive::render_with_final(ctx, &renderer, cfg, stop, |_| {}, None)?;
+            let result = adaptive::render_passes(ctx, &renderer, cfg, stop, |_| {})?;
             let stats = renderer.statistics()?;
             if window.is_none() {
                 let config = adaptive::final_config(cfg, temporal);

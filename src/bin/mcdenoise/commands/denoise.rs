@@ -326,8 +326,10 @@ fn write_frame(
 
 /// `denoise --frames --temporal apr`: APR's temporal window (spec §10.2)
 /// over every run of consecutive frames of one size and set of layers. A
-/// gap in the numbering, a frame that fails to read or one of another
-/// shape ends the run (its last frames come out) and starts another.
+/// gap in the numbering or a frame of another shape ends the run (its
+/// last frames come out) and starts another; a frame that fails to read or
+/// to denoise is reported and skipped, and the frames waiting in the window
+/// with it fail too; the exit status is 1 if any frame failed.
 fn denoise_window(
     cli: &Cli,
     a: &Args,
@@ -337,54 +339,34 @@ fn denoise_window(
     if a.backend == BackendArg::Cpu {
         bail!("--temporal apr keeps its frames on the GPU: use --backend gpu");
     }
+    if a.max_memory.is_some() || a.tile.is_some() {
+        bail!("--temporal apr denoises whole frames: --max-memory and --tile do not apply");
+    }
     let (outp, frames) = frame_patterns(a, pattern)?;
     let ctx = context(cli)?;
     let t0 = std::time::Instant::now();
-    let mut run: Option<(Source, SequenceDenoiser)> = None;
-    // The frames of the run in the window, oldest first.
-    let mut waiting: VecDeque<&io::frames::Frame> = VecDeque::new();
-    let mut last: Option<u64> = None;
-    let mut failed: Vec<(u64, String)> = Vec::new();
-    let mut done = 0usize;
-    let mut emit = |out: Vec<(usize, Frame)>,
-                    waiting: &mut VecDeque<&io::frames::Frame>|
-     -> anyhow::Result<()> {
-        for (_, result) in out {
-            let f = waiting.pop_front().expect("a frame out is a frame in");
-            if !cli.quiet {
-                print_report(&result.report, &f.path);
-                eprintln!(
-                    "frame {}: {} -> {}",
-                    f.number,
-                    f.path.display(),
-                    outp.path(f.number).display()
-                );
-            }
-            write_frame(a, &outp, f.number, result)?;
-            done += 1;
-        }
-        Ok(())
+    let mut out = WindowOutput {
+        a,
+        quiet: cli.quiet,
+        outp,
+        waiting: VecDeque::new(),
+        done: 0,
+        failed: Vec::new(),
     };
+    let mut run: Option<(Source, SequenceDenoiser)> = None;
+    let mut last: Option<u64> = None;
     for frame in &frames {
         let img = match io::read_stats(&frame.path) {
             Ok(img) => img,
             Err(e) => {
-                let msg = format!("{e:#}");
-                eprintln!(
-                    "frame {}: {} failed: {msg}",
-                    frame.number,
-                    frame.path.display()
-                );
-                failed.push((frame.number, msg));
+                out.fail(frame, &format!("{e:#}"));
                 continue;
             }
         };
         let source = Source::of_image(&img);
         let same_shape = matches!(&run, Some((s, _)) if *s == source);
-        if let (Some((_, seq)), false) = (
-            &mut run,
-            same_shape && last.map(|l| l + 1) == Some(frame.number),
-        ) {
+        let next = same_shape && last.map(|l| l + 1) == Some(frame.number);
+        if let (Some((_, seq)), false) = (&mut run, next) {
             eprintln!(
                 "frame {}: {}: a new sequence starts",
                 frame.number,
@@ -394,32 +376,108 @@ fn denoise_window(
                     "another size or layers"
                 }
             );
-            emit(seq.finish()?, &mut waiting)?;
+            out.end(seq);
         }
         if !same_shape {
             // The previous run's buffers go before the next one's.
             drop(run.take());
-            let seq = SequenceDenoiser::new(&ctx, source.clone(), config_for(&img))?;
-            run = Some((source, seq));
+            match SequenceDenoiser::new(&ctx, source.clone(), config_for(&img)) {
+                Ok(seq) => run = Some((source, seq)),
+                Err(e) => {
+                    out.fail(frame, &format!("{e:#}"));
+                    continue;
+                }
+            }
         }
         let seq = &mut run.as_mut().expect("just set").1;
-        waiting.push_back(frame);
-        emit(seq.push(&img)?, &mut waiting)?;
+        out.waiting.push_back(frame);
+        match seq.push(&img) {
+            Ok(done) => out.emit(done),
+            Err(e) => {
+                // The window is broken: its frames are lost with this one.
+                let msg = format!("{e:#}");
+                out.waiting.pop_back();
+                out.fail(frame, &msg);
+                out.lose(&format!("lost with frame {}: {msg}", frame.number));
+                run = None;
+                last = None;
+                continue;
+            }
+        }
         last = Some(frame.number);
     }
     if let Some((_, seq)) = &mut run {
-        emit(seq.finish()?, &mut waiting)?;
+        out.end(seq);
     }
     eprintln!(
-        "{} frames in {:.1} s: {done} denoised, {} failed",
+        "{} frames in {:.1} s: {} denoised, {} failed",
         frames.len(),
         t0.elapsed().as_secs_f64(),
-        failed.len()
+        out.done,
+        out.failed.len()
     );
-    for (n, msg) in &failed {
+    for (n, msg) in &out.failed {
         eprintln!("  failed frame {n}: {msg}");
     }
-    Ok(failed.is_empty())
+    Ok(out.failed.is_empty())
+}
+
+/// Where `denoise_window`'s frames go: the output pattern, the frames in
+/// the window (oldest first), the counts.
+struct WindowOutput<'a> {
+    a: &'a Args,
+    quiet: bool,
+    outp: io::frames::FramePattern,
+    waiting: VecDeque<&'a io::frames::Frame>,
+    done: usize,
+    failed: Vec<(u64, String)>,
+}
+
+impl WindowOutput<'_> {
+    fn fail(&mut self, f: &io::frames::Frame, msg: &str) {
+        eprintln!("frame {}: {} failed: {msg}", f.number, f.path.display());
+        self.failed.push((f.number, msg.to_string()));
+    }
+
+    /// The frames in the window fail with `msg`.
+    fn lose(&mut self, msg: &str) {
+        while let Some(f) = self.waiting.pop_front() {
+            self.fail(f, msg);
+        }
+    }
+
+    /// Writes the frames a call completed (they leave the window in order).
+    fn emit(&mut self, out: Vec<(usize, Frame)>) {
+        for (_, result) in out {
+            let f = self.waiting.pop_front().expect("a frame out is a frame in");
+            let path = self.outp.path(f.number);
+            if !self.quiet {
+                print_report(&result.report, &f.path);
+            }
+            match write_frame(self.a, &self.outp, f.number, result) {
+                Ok(()) => {
+                    self.done += 1;
+                    if !self.quiet {
+                        eprintln!(
+                            "frame {}: {} -> {}",
+                            f.number,
+                            f.path.display(),
+                            path.display()
+                        );
+                    }
+                }
+                Err(e) => self.fail(f, &format!("{e:#}")),
+            }
+        }
+    }
+
+    /// Ends a run: its last frames come out, or fail with it.
+    fn end(&mut self, seq: &mut SequenceDenoiser) {
+        match seq.finish() {
+            Ok(out) => self.emit(out),
+            Err(e) => self.lose(&format!("the sequence's end failed: {e:#}")),
+        }
+    }
 }
 
 /// `denoise --frames`: every existing frame of `pattern` into the output
