@@ -354,72 +354,120 @@ pub fn record_apr(
         &feats,
         packed,
     )?;
-    batch.fill(planes.extra.all(), 0);
     for stage in 1..=stages {
         let last = stage == stages;
         let prev = (stage >= 2).then(|| &planes.stage[stage % 2]);
-        for ch in 0..3 {
-            let chan = AprChannel {
-                y: color[ch],
-                v: var[ch],
-                yprev: prev.map_or(color[ch], |p| p.plane(ch)),
-                s2prev: prev.map_or(var[ch], |p| p.plane(3 + ch)),
-            };
-            for mode in [0, 1] {
-                let push = AprPush {
-                    width: w as u32,
-                    height: h as u32,
-                    channel: ch as u32,
-                    mode,
-                    last: last as u32,
-                    flags: apr_flags(vis, params.clamped, params.count_cap),
-                    stride,
-                    ..Default::default()
-                };
-                apr_block::record(
-                    batch,
-                    precision,
-                    &push,
-                    &chan,
-                    &packed,
-                    sppt,
-                    (
-                        planes.state.slice(),
-                        planes.extra.all(),
-                        planes.queue.slice(),
-                    ),
-                    0.02,
-                )?;
-            }
-        }
         let push = AprPush {
             width: w as u32,
             height: h as u32,
             last: last as u32,
-            flags: apr_flags(vis, false, params.count_cap)
-                | if params.pixel_test { APR_PIXEL_TEST } else { 0 },
+            flags: apr_flags(vis, params.clamped, params.count_cap),
             stride,
             ..Default::default()
         };
-        let dst = if last {
-            planes.out.all()
-        } else {
-            planes.stage[(stage + 1) % 2].all()
-        };
-        apr_gather::record(
-            batch,
-            precision,
-            &push,
+        let gather_flags = apr_flags(vis, false, params.count_cap)
+            | if params.pixel_test { APR_PIXEL_TEST } else { 0 };
+        let io = StageBindings {
+            chans: std::array::from_fn(|ch| AprChannel {
+                y: color[ch],
+                v: var[ch],
+                yprev: prev.map_or(color[ch], |p| p.plane(ch)),
+                s2prev: prev.map_or(var[ch], |p| p.plane(3 + ch)),
+            }),
+            packed,
+            sppt,
             color,
             var,
-            &packed,
-            sppt,
-            planes.state.slice(),
-            planes.extra.all(),
-            dst,
-        )?;
+            gather_packed: packed,
+            gather_sppt: sppt,
+            dst: if last {
+                planes.out.all()
+            } else {
+                planes.stage[(stage + 1) % 2].all()
+            },
+        };
+        record_stage(batch, precision, planes, push, gather_flags, &io)?;
     }
     Ok(())
+}
+
+/// The bindings of one APR stage: per channel the blocks' inputs, and the
+/// packed features and sample counts and totals they read (the ring's in
+/// APR's temporal window, `methods::apr_window`); the gather's colour,
+/// variance, features and counts (the centre frame's there), and its
+/// output planes.
+pub struct StageBindings {
+    /// The blocks' `y`, `v`, `ŷ_{t−1}`, `σ̂²_{t−1}` per channel.
+    pub chans: [AprChannel; 3],
+    /// The blocks' packed features.
+    pub packed: [BufferSlice; 2],
+    /// The blocks' counts and sample totals.
+    pub sppt: (BufferSlice, BufferSlice),
+    /// The gather's colour.
+    pub color: [BufferSlice; 3],
+    /// The gather's colour variance.
+    pub var: [BufferSlice; 3],
+    /// The gather's packed features.
+    pub gather_packed: [BufferSlice; 2],
+    /// The gather's counts and sample total.
+    pub gather_sppt: (BufferSlice, BufferSlice),
+    /// [`OUTPUTS`] planes after the last stage, else [`STAGE_OUTPUTS`].
+    pub dst: BufferSlice,
+}
+
+/// Records one stage of APR (§4.3): the sparse and the extra blocks of
+/// each channel, then the gather. `push` gives the size, `last`, the
+/// plane stride, the blocks' flags and (temporal window) `window`;
+/// `gather_flags` the gather's.
+pub fn record_stage(
+    batch: &mut Batch,
+    precision: Precision,
+    planes: &AprPlanes,
+    push: AprPush,
+    gather_flags: u32,
+    io: &StageBindings,
+) -> Result<()> {
+    batch.fill(planes.extra.all(), 0);
+    for (ch, chan) in io.chans.iter().enumerate() {
+        for mode in [0, 1] {
+            let push = AprPush {
+                channel: ch as u32,
+                mode,
+                ..push
+            };
+            apr_block::record(
+                batch,
+                precision,
+                &push,
+                chan,
+                &io.packed,
+                io.sppt,
+                (
+                    planes.state.slice(),
+                    planes.extra.all(),
+                    planes.queue.slice(),
+                ),
+                0.02,
+            )?;
+        }
+    }
+    let push = AprPush {
+        flags: gather_flags,
+        window: 0,
+        ..push
+    };
+    apr_gather::record(
+        batch,
+        precision,
+        &push,
+        io.color,
+        io.var,
+        &io.gather_packed,
+        io.gather_sppt,
+        planes.state.slice(),
+        planes.extra.all(),
+        io.dst,
+    )
 }
 
 /// Downloads a finished [`record_apr`] as the CPU path's [`AprResult`].

@@ -14,7 +14,7 @@
 
 use std::sync::Arc;
 
-use super::apr::{gpu_features, AprParams, AprPlanes};
+use super::apr::{gpu_features, record_stage, AprParams, AprPlanes, StageBindings};
 use super::chain::prefilter_runs;
 use super::gbf::{self, GbfPlanes};
 use super::outliers::{self, OutlierPlanes};
@@ -24,8 +24,8 @@ use super::{Method, Prefilter};
 use crate::error::{Error, Result};
 use crate::gpu::{plane_stride, Batch, BufferSlice, GpuBuffer, GpuContext, PlaneSet, Precision};
 use crate::image::{Layer, StatsImage};
-use crate::kernels::apr_block::{self, AprChannel};
-use crate::kernels::{apr_gather, apr_pack, spp_total};
+use crate::kernels::apr_block::AprChannel;
+use crate::kernels::{apr_pack, spp_total};
 use crate::shared::{
     apr_window, AprPush, APR_CLAMPED, APR_COUNT_CAP, APR_PIXEL_TEST, APR_SPPT_SLOT,
     APR_STAGE_OUTPUTS, APR_TEMPORAL, APR_VIS,
@@ -220,7 +220,7 @@ impl AprRing {
             let Some(t) = step.checked_sub(2 * stage).filter(|&t| inside(t)) else {
                 continue;
             };
-            self.record_stage(batch, precision, stage, t, &inside)?;
+            self.record_frame_stage(batch, precision, stage, t, &inside)?;
             if stage == stages {
                 done = Some(t);
             }
@@ -228,7 +228,7 @@ impl AprRing {
         Ok(done)
     }
 
-    fn record_stage(
+    fn record_frame_stage(
         &self,
         batch: &mut Batch,
         precision: Precision,
@@ -240,8 +240,8 @@ impl AprRing {
         let (ps, s) = (self.ps(), self.slots);
         let last = stage == self.params.stages.max(1);
         let stride = (ps / 4) as u32;
-        // The window's frames and their slots: the statistics' ring, and
-        // the previous stage's (five slots).
+        // The window's frames and their slots (the same in the statistics'
+        // ring and the stages' rings).
         let frame = |k: usize| (t + k).checked_sub(HALF).filter(|&f| inside(f));
         let window = apr_window(std::array::from_fn(|k| frame(k).map(|f| (f % s) as u32)));
         let flags = |clamped: bool| {
@@ -254,87 +254,58 @@ impl AprRing {
                     0
                 }
         };
-        let packed = [self.fa.slice(), self.fb.slice()];
-        let sppt = (self.spp.all(), self.sppt.slice());
-        let apr = &self.apr;
-        batch.fill(apr.extra.all(), 0);
-        for ch in 0..3 {
-            let y = Self::run(&self.y, ps, ch * s, s);
-            let v = Self::run(&self.v, ps, ch * s, s);
-            let chan = match stage {
-                1 => AprChannel {
-                    y,
-                    v,
-                    yprev: y,
-                    s2prev: v,
-                },
-                _ => {
-                    let p = &self.stages[stage - 2];
-                    AprChannel {
-                        y,
-                        v,
-                        yprev: Self::run(p, ps, ch * s, s),
-                        s2prev: Self::run(p, ps, (3 + ch) * s, s),
-                    }
-                }
-            };
-            for mode in [0, 1] {
-                let push = AprPush {
-                    width: w as u32,
-                    height: h as u32,
-                    channel: ch as u32,
-                    mode,
-                    last: last as u32,
-                    flags: flags(self.params.clamped),
-                    stride,
-                    window,
-                    ..Default::default()
-                };
-                apr_block::record(
-                    batch,
-                    precision,
-                    &push,
-                    &chan,
-                    &packed,
-                    sppt,
-                    (apr.state.slice(), apr.extra.all(), apr.queue.slice()),
-                    0.02,
-                )?;
-            }
-        }
         let slot = t % s;
         let push = AprPush {
             width: w as u32,
             height: h as u32,
             last: last as u32,
-            flags: flags(false)
-                | if self.params.pixel_test {
-                    APR_PIXEL_TEST
-                } else {
-                    0
-                },
+            flags: flags(self.params.clamped),
             stride,
+            window,
             ..Default::default()
         };
-        let color: [BufferSlice; 3] = std::array::from_fn(|ch| self.y.plane(ch * s + slot));
-        let var: [BufferSlice; 3] = std::array::from_fn(|ch| self.v.plane(ch * s + slot));
-        let dst = if last {
-            apr.out.all()
-        } else {
-            apr.stage[0].all()
+        let gather_flags = flags(false)
+            | if self.params.pixel_test {
+                APR_PIXEL_TEST
+            } else {
+                0
+            };
+        let io = StageBindings {
+            chans: std::array::from_fn(|ch| {
+                let y = Self::run(&self.y, ps, ch * s, s);
+                let v = Self::run(&self.v, ps, ch * s, s);
+                match stage {
+                    1 => AprChannel {
+                        y,
+                        v,
+                        yprev: y,
+                        s2prev: v,
+                    },
+                    _ => {
+                        let p = &self.stages[stage - 2];
+                        AprChannel {
+                            y,
+                            v,
+                            yprev: Self::run(p, ps, ch * s, s),
+                            s2prev: Self::run(p, ps, (3 + ch) * s, s),
+                        }
+                    }
+                }
+            }),
+            packed: [self.fa.slice(), self.fb.slice()],
+            sppt: (self.spp.all(), self.sppt.slice()),
+            color: std::array::from_fn(|ch| self.y.plane(ch * s + slot)),
+            var: std::array::from_fn(|ch| self.v.plane(ch * s + slot)),
+            gather_packed: self.packed_slot(slot),
+            gather_sppt: (self.spp.plane(slot), self.sppt_slot(slot)),
+            dst: if last {
+                self.apr.out.all()
+            } else {
+                self.apr.stage[0].all()
+            },
         };
-        apr_gather::record(
-            batch,
-            precision,
-            &push,
-            color,
-            var,
-            &self.packed_slot(slot),
-            (self.spp.plane(slot), self.sppt_slot(slot)),
-            apr.state.slice(),
-            apr.extra.all(),
-            dst,
-        )?;
+        let apr = &self.apr;
+        record_stage(batch, precision, apr, push, gather_flags, &io)?;
         if !last {
             let ring = &self.stages[stage - 1];
             for k in 0..APR_STAGE_OUTPUTS {

@@ -175,23 +175,8 @@ pub fn row_in(
             x[1 + j] = (fi.feat(j, i) - fc.feat(j, c)) / scales[j];
         }
     }
-    if let Some(dt) = dt {
-        let t = dt as f64 / HALF as f64;
-        x[9..19].copy_from_slice(&[
-            u,
-            v,
-            t,
-            u * u,
-            u * v,
-            v * v,
-            u * u * u,
-            u * u * v,
-            u * v * v,
-            v * v * v,
-        ]);
-        return x;
-    }
-    x[9..18].copy_from_slice(&[
+    // §4.2's monomials in (u, v) of degree 1..3, in column order.
+    let m = [
         u,
         v,
         u * u,
@@ -201,7 +186,15 @@ pub fn row_in(
         u * u * v,
         u * v * v,
         v * v * v,
-    ]);
+    ];
+    match dt {
+        None => x[9..18].copy_from_slice(&m),
+        Some(dt) => {
+            x[9..11].copy_from_slice(&m[..2]);
+            x[11] = dt as f64 / HALF as f64;
+            x[12..19].copy_from_slice(&m[2..]);
+        }
+    }
     x
 }
 

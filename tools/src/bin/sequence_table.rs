@@ -226,19 +226,43 @@ fn main() -> anyhow::Result<()> {
                 let mut c = Config::new(m);
                 c.temporal = Temporal::Apr;
                 let mut seq = SequenceDenoiser::new(&ctx, Source::of_image(&stats[0]), c)?;
-                let mut outputs = Vec::with_capacity(stats.len());
+                let mut frames = Vec::with_capacity(stats.len());
                 let mut gpu_ms = 0.0;
                 for s in &stats {
-                    for (_, f) in seq.push(s)? {
-                        gpu_ms += f.timings.iter().map(|t| t.nanoseconds * 1e-6).sum::<f64>();
-                        outputs.push(f.color);
-                    }
+                    frames.extend(seq.push(s)?);
                 }
-                for (_, f) in seq.finish()? {
+                frames.extend(seq.finish()?);
+                let mut outputs = Vec::with_capacity(stats.len());
+                let mut errors = Vec::with_capacity(stats.len());
+                for (_, f) in frames {
                     gpu_ms += f.timings.iter().map(|t| t.nanoseconds * 1e-6).sum::<f64>();
                     outputs.push(f.color);
+                    errors.push(f.error);
                 }
                 row("apr + 10.2", &outputs)?;
+                if a.temporal {
+                    // The LP filter on the window's frames: each frame's
+                    // statistics with the window's colour as the colour and
+                    // its error estimate as the variance, through `none`.
+                    let staged: Vec<StatsImage> = stats
+                        .iter()
+                        .zip(outputs.iter().zip(&errors))
+                        .map(|(s, (o, e))| {
+                            let mut s = s.clone();
+                            s.set(mcdenoise::Layer::Color, o.planes.to_vec());
+                            s.set(mcdenoise::Layer::ColorVariance, e.planes.to_vec());
+                            s
+                        })
+                        .collect();
+                    let mut c = Config::new(Method::None);
+                    c.temporal = Temporal::Lp;
+                    let d = Denoiser::new(&ctx, Source::of_image(&staged[0]), c)?;
+                    let filtered = staged
+                        .iter()
+                        .map(|s| Ok(d.denoise(s, None)?.color))
+                        .collect::<mcdenoise::Result<Vec<_>>>()?;
+                    row("apr + 10.2 + 10.1", &filtered)?;
+                }
                 eprintln!(
                     "{name}: apr + 10.2, GPU {:.1} ms per frame (the calls that output one)",
                     gpu_ms / outputs.len() as f64
