@@ -90,7 +90,8 @@ pub struct Config {
     /// on the GPU; [`Denoiser::reset`] at a cut. The colour outputs are
     /// the filtered ones; the error estimate and the sample map stay the
     /// method's. Needs the `position` and `depth` layers, the GPU and one
-    /// chain (no tiles).
+    /// chain (no tiles). [`Temporal::Apr`] is for a
+    /// [`crate::SequenceDenoiser`]; a `Denoiser` refuses it.
     pub temporal: Temporal,
     /// For an adaptive pass's denoiser ([`Pass::Intermediate`]) with
     /// `temporal` set: the final denoiser's state
@@ -284,6 +285,17 @@ impl Frame {
     }
 }
 
+/// APR's temporal window is a [`crate::SequenceDenoiser`]'s, never a
+/// [`Denoiser`]'s.
+fn refuse_window(config: &Config) -> Result<()> {
+    if config.temporal == Temporal::Apr {
+        return Err(Error::InvalidArgument(
+            "APR's temporal window (§10.2) reconstructs a sequence from the frames around each one: use a SequenceDenoiser".into(),
+        ));
+    }
+    Ok(())
+}
+
 /// Side of the image [`Denoiser::warm_up`] builds a chain for: small, and a
 /// multiple of 4 like most real widths (`sanitize_quads`; other widths use
 /// `sanitize`, built by the denoiser itself).
@@ -373,6 +385,7 @@ impl Denoiser {
     /// a denoiser has no GPU-resident outputs. An accumulation source that
     /// does not fit is an [`Error::Limit`].
     pub fn new(ctx: &Arc<GpuContext>, source: Source, config: Config) -> Result<Denoiser> {
+        refuse_window(&config)?;
         let low_spp = config.low_spp;
         let input = source.chain();
         let size = input.size();
@@ -474,6 +487,7 @@ impl Denoiser {
     /// A denoiser running the scalar f64 references on the CPU (slow; for
     /// checking). Only [`denoise`](Self::denoise) works on it.
     pub fn new_cpu(source: Source, config: Config) -> Result<Denoiser> {
+        refuse_window(&config)?;
         if config.temporal != Temporal::Off {
             return Err(Error::InvalidArgument(
                 "the temporal filter keeps its state on the GPU: use a GPU denoiser".into(),

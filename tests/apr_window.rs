@@ -323,6 +323,12 @@ fn the_window_refuses_what_it_cannot_run() {
     .contains("method apr, temporal apr"));
     let e = Denoiser::new(&ctx, Source::of_image(&s), window_config()).unwrap_err();
     assert!(e.to_string().contains("use a SequenceDenoiser"), "{e}");
+    let mut tiled = window_config();
+    tiled.tile = Some(8);
+    let e = Denoiser::new(&ctx, Source::of_image(&s), tiled).unwrap_err();
+    assert!(e.to_string().contains("use a SequenceDenoiser"), "{e}");
+    let e = Denoiser::new_cpu(Source::of_image(&s), window_config()).unwrap_err();
+    assert!(e.to_string().contains("use a SequenceDenoiser"), "{e}");
     let mut seq = SequenceDenoiser::new(&ctx, Source::of_image(&s), window_config()).unwrap();
     let (_, other) = static_scene(12, 16, 1, 0.1);
     let e = seq.push(&stats(&other[0])).unwrap_err();

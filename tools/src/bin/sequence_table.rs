@@ -10,7 +10,8 @@
 //! `--temporal`, each method also with the LP temporal filter (§10.1,
 //! "+ 10.1"), one denoiser carrying its state through the frames. With
 //! `--adaptive`, each method's adaptive renders of the sequence instead:
-//! alone, with the filter, and with maps that read the filter's state.
+//! alone, with the filter, and with maps that read the filter's state (and
+//! APR's also reconstructed by its temporal window, "adaptive + 10.2").
 //! With `--pyramid`, each method also with the pyramid's low band (and,
 //! with `--temporal`, followed by the filter). With `--window` (and `apr`
 //! among the methods), also APR's temporal window (§10.2, "apr + 10.2",
@@ -161,11 +162,16 @@ fn main() -> anyhow::Result<()> {
             // Each method's own adaptive renders of the sequence: alone, with
             // the filter, and with the filter and maps that read its state.
             for &m in &a.methods {
+                let window =
+                    (m == Method::Apr).then_some(("adaptive + 10.2", Temporal::Apr, false));
                 for (what, temporal, maps) in [
                     ("adaptive", Temporal::Off, false),
                     ("adaptive + 10.1", Temporal::Lp, false),
                     ("adaptive + 10.1, TEMPORAL-MAP", Temporal::Lp, true),
-                ] {
+                ]
+                .into_iter()
+                .chain(window)
+                {
                     let mut cfg = LoopConfig::new(m, a.spp, true);
                     cfg.temporal_maps = maps;
                     let mut outputs = Vec::new();
