@@ -8,9 +8,9 @@
 //! frame `t` needs frames `t−2..t+2` and, for `s ≥ 2`, their stage-`s−1`
 //! planes, so it runs once frame `t + 2s` is in: the final reconstruction
 //! of frame `t` comes out `2T` frames after it went in (T = `apr.stages`),
-//! and the last `2T` come out at the end ([`AprWindow::record_step`] with
-//! the sequence's length). Every stage writes what it measured into its
-//! own ring of five frames. Twin: `reference::apr_gather::run_sequence`.
+//! and the last `2T` come out at the end ([`AprWindow::record_end`]).
+//! Every intermediate stage writes its planes into a ring of its own with
+//! the same slots. Twin: `reference::apr_gather::run_sequence`.
 
 use std::sync::Arc;
 
