@@ -69,7 +69,8 @@ impl SequenceDenoiser {
     /// (their `Auto` is off for APR); its precision, prefilter, outlier
     /// stage, options (`apr.*`) and `low_spp` apply. GPU only, one chain:
     /// a frame whose window does not fit the device is an
-    /// [`Error::Limit`].
+    /// [`Error::Limit`]. Every pipeline is built here, so a kernel the
+    /// device cannot run is an error of `new`, never of a push.
     pub fn new(ctx: &Arc<GpuContext>, source: Source, config: Config) -> Result<SequenceDenoiser> {
         let Source::Stats {
             width,
@@ -113,7 +114,8 @@ impl SequenceDenoiser {
             low_spp: config.low_spp,
             params: AprParams::new(&config.options)?,
         };
-        let window = AprWindow::new(ctx, (*width, *height), layers, &wc)?;
+        let mut window = AprWindow::new(ctx, (*width, *height), layers, &wc)?;
+        window.build_pipelines(ctx)?;
         Ok(SequenceDenoiser {
             ctx: ctx.clone(),
             config,

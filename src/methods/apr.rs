@@ -294,6 +294,30 @@ pub fn gpu_features(clean: &GpuStats) -> ([BufferSlice; 8], bool) {
     (f, vis)
 }
 
+/// Records `apr_pack` (APR-PACKED): `clean`'s features into the two vec4
+/// planes `out`. Returns whether visibility is present (else its lane is 0).
+pub fn record_pack(
+    batch: &mut Batch,
+    precision: Precision,
+    clean: &GpuStats,
+    out: [BufferSlice; 2],
+) -> Result<bool> {
+    let (feats, vis) = gpu_features(clean);
+    apr_pack::record(
+        batch,
+        precision,
+        &AprPush {
+            width: clean.width as u32,
+            height: clean.height as u32,
+            flags: apr_flags(vis, false, false),
+            ..Default::default()
+        },
+        &feats,
+        out,
+    )?;
+    Ok(vis)
+}
+
 /// [`AprPush::flags`] of a dispatch.
 fn apr_flags(vis: bool, clamped: bool, count_cap: bool) -> u32 {
     (if vis { APR_VIS } else { 0 })
@@ -322,7 +346,7 @@ pub fn record_apr(
             planes.width, planes.height
         )));
     }
-    let (feats, vis) = gpu_features(clean);
+    let vis = clean.has(Layer::Visibility);
     let spp = clean.plane(Layer::Spp, 0);
     let color: [BufferSlice; 3] = std::array::from_fn(|c| clean.plane(Layer::Color, c));
     let var: [BufferSlice; 3] = std::array::from_fn(|c| clean.plane(Layer::ColorVariance, c));
@@ -342,18 +366,7 @@ pub fn record_apr(
     let sppt = (spp, planes.total.slice());
     // APR-PACKED: the features as 2 vec4 planes, read by every stage.
     let packed = [planes.packed.plane(0), planes.packed.plane(1)];
-    apr_pack::record(
-        batch,
-        precision,
-        &AprPush {
-            width: w as u32,
-            height: h as u32,
-            flags: apr_flags(vis, false, false),
-            ..Default::default()
-        },
-        &feats,
-        packed,
-    )?;
+    record_pack(batch, precision, clean, packed)?;
     for stage in 1..=stages {
         let last = stage == stages;
         let prev = (stage >= 2).then(|| &planes.stage[stage % 2]);

@@ -14,7 +14,7 @@
 
 use std::sync::Arc;
 
-use super::apr::{gpu_features, record_stage, AprParams, AprPlanes, StageBindings};
+use super::apr::{record_pack, record_stage, AprParams, AprPlanes, StageBindings};
 use super::chain::prefilter_runs;
 use super::gbf::{self, GbfPlanes};
 use super::outliers::{self, OutlierPlanes};
@@ -25,7 +25,7 @@ use crate::error::{Error, Result};
 use crate::gpu::{plane_stride, Batch, BufferSlice, GpuBuffer, GpuContext, PlaneSet, Precision};
 use crate::image::{Layer, StatsImage};
 use crate::kernels::apr_block::AprChannel;
-use crate::kernels::{apr_pack, spp_total};
+use crate::kernels::spp_total;
 use crate::shared::{
     apr_window, AprPush, APR_CLAMPED, APR_COUNT_CAP, APR_PIXEL_TEST, APR_SPPT_SLOT,
     APR_STAGE_OUTPUTS, APR_TEMPORAL, APR_VIS,
@@ -177,20 +177,7 @@ impl AprRing {
             );
         }
         batch.copy(clean.plane(Layer::Spp, 0), self.spp.plane(s));
-        let (feats, vis) = gpu_features(clean);
-        self.vis &= vis;
-        apr_pack::record(
-            batch,
-            precision,
-            &AprPush {
-                width: w as u32,
-                height: h as u32,
-                flags: if vis { APR_VIS } else { 0 },
-                ..Default::default()
-            },
-            &feats,
-            self.packed_slot(s),
-        )?;
+        self.vis &= record_pack(batch, precision, clean, self.packed_slot(s))?;
         batch.fill(self.sppt_slot(s), 0);
         spp_total::record(
             batch,
@@ -478,6 +465,27 @@ impl AprWindow {
         self.ring.record_insert(batch, p, &self.stats, f)?;
         self.pushed += 1;
         self.record_step(batch, f, None)
+    }
+
+    /// Builds every pipeline a sequence uses, before any device memory of
+    /// a frame is touched (BUILD-FIRST): a counting batch records a frame's
+    /// push and the steps that run each stage on it, and changes nothing.
+    /// A kernel the device cannot run is an error here, never part-way
+    /// through a sequence.
+    pub fn build_pipelines(&mut self, ctx: &Arc<GpuContext>) -> Result<()> {
+        let (pushed, vis) = (self.pushed, self.ring.vis);
+        let mut batch = Batch::counting(ctx);
+        let mut run = || -> Result<()> {
+            self.record_push(&mut batch)?;
+            for step in 1..=self.lag() {
+                self.record_step(&mut batch, pushed + step, Some(pushed + 1))?;
+            }
+            Ok(())
+        };
+        let built = run();
+        self.pushed = pushed;
+        self.ring.vis = vis;
+        built
     }
 
     /// Records step `pushed + i` (`i < lag`) after the sequence's last
