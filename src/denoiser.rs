@@ -285,17 +285,6 @@ impl Frame {
     }
 }
 
-/// APR's temporal window is a [`crate::SequenceDenoiser`]'s, never a
-/// [`Denoiser`]'s.
-fn refuse_window(config: &Config) -> Result<()> {
-    if config.temporal == Temporal::Apr {
-        return Err(Error::InvalidArgument(
-            "APR's temporal window (§10.2) reconstructs a sequence from the frames around each one: use a SequenceDenoiser".into(),
-        ));
-    }
-    Ok(())
-}
-
 /// Side of the image [`Denoiser::warm_up`] builds a chain for: small, and a
 /// multiple of 4 like most real widths (`sanitize_quads`; other widths use
 /// `sanitize`, built by the denoiser itself).
@@ -385,7 +374,7 @@ impl Denoiser {
     /// a denoiser has no GPU-resident outputs. An accumulation source that
     /// does not fit is an [`Error::Limit`].
     pub fn new(ctx: &Arc<GpuContext>, source: Source, config: Config) -> Result<Denoiser> {
-        refuse_window(&config)?;
+        config.temporal.refuse_window()?;
         let low_spp = config.low_spp;
         let input = source.chain();
         let size = input.size();
@@ -487,7 +476,7 @@ impl Denoiser {
     /// A denoiser running the scalar f64 references on the CPU (slow; for
     /// checking). Only [`denoise`](Self::denoise) works on it.
     pub fn new_cpu(source: Source, config: Config) -> Result<Denoiser> {
-        refuse_window(&config)?;
+        config.temporal.refuse_window()?;
         if config.temporal != Temporal::Off {
             return Err(Error::InvalidArgument(
                 "the temporal filter keeps its state on the GPU: use a GPU denoiser".into(),

@@ -9,7 +9,7 @@ use std::sync::Arc;
 use crate::denoiser::{Config, Frame, Source};
 use crate::error::{Error, Result};
 use crate::gpu::{Batch, GpuContext, KernelTiming};
-use crate::image::{Layer, RgbImage, StatsImage};
+use crate::image::{RgbImage, StatsImage};
 use crate::methods::apr::AprParams;
 use crate::methods::apr_window::{AprWindow, WindowConfig};
 use crate::methods::prepare::{base_report, PrepareReport};
@@ -43,8 +43,8 @@ use crate::methods::{InputBlend, Method, Pass, Pyramid, Temporal};
 pub struct SequenceDenoiser {
     ctx: Arc<GpuContext>,
     config: Config,
-    size: (usize, usize),
-    layers: Vec<Layer>,
+    /// The statistics every frame must match (`Source::Stats`).
+    source: Source,
     window: AprWindow,
     /// The reports of the frames pushed and not yet out, oldest first.
     reports: VecDeque<PrepareReport>,
@@ -56,7 +56,7 @@ pub struct SequenceDenoiser {
 impl std::fmt::Debug for SequenceDenoiser {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("SequenceDenoiser")
-            .field("size", &self.size)
+            .field("source", &self.source)
             .field("pushed", &self.window.pushed())
             .finish()
     }
@@ -97,16 +97,6 @@ impl SequenceDenoiser {
                 "the APR temporal window is a final reconstruction without the pyramid or the input blend".into(),
             ));
         }
-        if config.precision == crate::gpu::Precision::F64 && !ctx.supports_f64() {
-            return Err(Error::InvalidArgument(
-                "f64 kernels need shaderFloat64, which this device does not enable".into(),
-            ));
-        }
-        if *width == 0 || *height == 0 {
-            return Err(Error::InvalidArgument(format!(
-                "empty image ({width}x{height})"
-            )));
-        }
         let wc = WindowConfig {
             precision: config.precision,
             prefilter: config.prefilter,
@@ -118,13 +108,20 @@ impl SequenceDenoiser {
         window.build_pipelines(ctx)?;
         Ok(SequenceDenoiser {
             ctx: ctx.clone(),
+            source: source.clone(),
             config,
-            size: (*width, *height),
-            layers: layers.clone(),
             window,
             reports: VecDeque::new(),
             broken: false,
         })
+    }
+
+    /// The frames' `(width, height)`.
+    pub fn size(&self) -> (usize, usize) {
+        match &self.source {
+            Source::Stats { width, height, .. } => (*width, *height),
+            _ => unreachable!("new accepts statistics only"),
+        }
     }
 
     /// The configuration.
@@ -155,18 +152,12 @@ impl SequenceDenoiser {
                 "an earlier push of this sequence failed: finish() ends it (its waiting frames are lost) and the next push starts a new one".into(),
             ));
         }
-        let source = Source::of_image(img);
-        let expected = Source::Stats {
-            width: self.size.0,
-            height: self.size.1,
-            layers: self.layers.clone(),
-        };
-        if source != expected {
+        if Source::of_image(img) != self.source {
             return Err(Error::InvalidArgument(format!(
                 "frame {} has another size or other layers than the sequence's ({}x{})",
                 self.window.pushed(),
-                self.size.0,
-                self.size.1
+                self.size().0,
+                self.size().1
             )));
         }
         let report = base_report(img);
@@ -221,7 +212,7 @@ impl SequenceDenoiser {
         let Some(t) = done else {
             return Ok(Vec::new());
         };
-        let (w, h) = self.size;
+        let (w, h) = self.size();
         let planes = self.window.outputs().download_all()?;
         let rgb =
             |k: usize| RgbImage::from_planes(w, h, std::array::from_fn(|c| planes[k + c].clone()));

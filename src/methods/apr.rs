@@ -319,7 +319,7 @@ pub fn record_pack(
 }
 
 /// [`AprPush::flags`] of a dispatch.
-fn apr_flags(vis: bool, clamped: bool, count_cap: bool) -> u32 {
+pub(super) fn apr_flags(vis: bool, clamped: bool, count_cap: bool) -> u32 {
     (if vis { APR_VIS } else { 0 })
         | (if clamped { APR_CLAMPED } else { 0 })
         | (if count_cap { APR_COUNT_CAP } else { 0 })
@@ -378,8 +378,6 @@ pub fn record_apr(
             stride,
             ..Default::default()
         };
-        let gather_flags = apr_flags(vis, false, params.count_cap)
-            | if params.pixel_test { APR_PIXEL_TEST } else { 0 };
         let io = StageBindings {
             chans: std::array::from_fn(|ch| AprChannel {
                 y: color[ch],
@@ -399,7 +397,7 @@ pub fn record_apr(
                 planes.stage[(stage + 1) % 2].all()
             },
         };
-        record_stage(batch, precision, planes, push, gather_flags, &io)?;
+        record_stage(batch, precision, planes, push, params.pixel_test, &io)?;
     }
     Ok(())
 }
@@ -430,14 +428,15 @@ pub struct StageBindings {
 
 /// Records one stage of APR (§4.3): the sparse and the extra blocks of
 /// each channel, then the gather. `push` gives the size, `last`, the
-/// plane stride, the blocks' flags and (temporal window) `window`;
-/// `gather_flags` the gather's.
+/// plane stride, the blocks' flags and (temporal window) `window`; the
+/// gather takes the same flags but APR-OUTLIER-W's, and APR-PIXEL-TEST's
+/// with `pixel_test`.
 pub fn record_stage(
     batch: &mut Batch,
     precision: Precision,
     planes: &AprPlanes,
     push: AprPush,
-    gather_flags: u32,
+    pixel_test: bool,
     io: &StageBindings,
 ) -> Result<()> {
     batch.fill(planes.extra.all(), 0);
@@ -465,7 +464,7 @@ pub fn record_stage(
         }
     }
     let push = AprPush {
-        flags: gather_flags,
+        flags: (push.flags & !APR_CLAMPED) | if pixel_test { APR_PIXEL_TEST } else { 0 },
         window: 0,
         ..push
     };

@@ -14,8 +14,8 @@
 
 use std::sync::Arc;
 
-use super::apr::{record_pack, record_stage, AprParams, AprPlanes, StageBindings};
-use super::chain::prefilter_runs;
+use super::apr::{apr_flags, record_pack, record_stage, AprParams, AprPlanes, StageBindings};
+use super::chain::{front_arena_bytes, prefilter_runs};
 use super::gbf::{self, GbfPlanes};
 use super::outliers::{self, OutlierPlanes};
 use super::prepare::{self, PrepareScratch};
@@ -26,13 +26,8 @@ use crate::gpu::{plane_stride, Batch, BufferSlice, GpuBuffer, GpuContext, PlaneS
 use crate::image::{Layer, StatsImage};
 use crate::kernels::apr_block::AprChannel;
 use crate::kernels::spp_total;
-use crate::shared::{
-    apr_window, AprPush, APR_CLAMPED, APR_COUNT_CAP, APR_PIXEL_TEST, APR_SPPT_SLOT,
-    APR_STAGE_OUTPUTS, APR_TEMPORAL, APR_VIS,
-};
+use crate::shared::{apr_window, AprPush, APR_SPPT_SLOT, APR_STAGE_OUTPUTS, APR_TEMPORAL};
 
-/// Frames in a block's window (`t−2..t+2`).
-pub const FRAMES: usize = crate::reference::apr_block::FRAMES;
 /// Frames on either side of the centre.
 const HALF: usize = crate::reference::apr_block::HALF;
 
@@ -191,8 +186,7 @@ impl AprRing {
     /// Records what frame `step` makes computable, `len` the sequence's
     /// length once known (frames `len..` absent): stage `s` of frame
     /// `step − 2s` for every stage. Returns the frame whose final planes
-    /// ([`color`](Self::color), [`error`](Self::error), [`dim`](Self::dim))
-    /// the recording writes, if any.
+    /// ([`outputs`](Self::outputs)) the recording writes, if any.
     pub fn record_step(
         &self,
         batch: &mut Batch,
@@ -231,32 +225,16 @@ impl AprRing {
         // ring and the stages' rings).
         let frame = |k: usize| (t + k).checked_sub(HALF).filter(|&f| inside(f));
         let window = apr_window(std::array::from_fn(|k| frame(k).map(|f| (f % s) as u32)));
-        let flags = |clamped: bool| {
-            APR_TEMPORAL
-                | if self.vis { APR_VIS } else { 0 }
-                | if clamped { APR_CLAMPED } else { 0 }
-                | if self.params.count_cap {
-                    APR_COUNT_CAP
-                } else {
-                    0
-                }
-        };
         let slot = t % s;
         let push = AprPush {
             width: w as u32,
             height: h as u32,
             last: last as u32,
-            flags: flags(self.params.clamped),
+            flags: APR_TEMPORAL | apr_flags(self.vis, self.params.clamped, self.params.count_cap),
             stride,
             window,
             ..Default::default()
         };
-        let gather_flags = flags(false)
-            | if self.params.pixel_test {
-                APR_PIXEL_TEST
-            } else {
-                0
-            };
         let io = StageBindings {
             chans: std::array::from_fn(|ch| {
                 let y = Self::run(&self.y, ps, ch * s, s);
@@ -292,7 +270,7 @@ impl AprRing {
             },
         };
         let apr = &self.apr;
-        record_stage(batch, precision, apr, push, gather_flags, &io)?;
+        record_stage(batch, precision, apr, push, self.params.pixel_test, &io)?;
         if !last {
             let ring = &self.stages[stage - 1];
             for k in 0..APR_STAGE_OUTPUTS {
@@ -305,16 +283,6 @@ impl AprRing {
     /// The last final stage's colour R, G, B (clamped ≥ 0).
     pub fn color(&self) -> [BufferSlice; 3] {
         self.apr.color()
-    }
-
-    /// Its `ξ̂_i` per channel.
-    pub fn error(&self) -> [BufferSlice; 3] {
-        self.apr.error()
-    }
-
-    /// Its blended `tr H` (the centre frame's, SLICE), mean over the channels.
-    pub fn dim(&self) -> BufferSlice {
-        self.apr.dim()
     }
 
     /// All [`crate::shared::APR_OUTPUTS`] final planes.
@@ -340,7 +308,7 @@ pub struct AprWindow {
     ring: AprRing,
     /// Frames recorded since the start of the sequence.
     pushed: usize,
-    _arena: Option<Arc<GpuBuffer>>,
+    _arena: Arc<GpuBuffer>,
 }
 
 /// What an [`AprWindow`] runs besides APR.
@@ -372,6 +340,7 @@ impl AprWindow {
                     .into(),
             ));
         }
+        super::chain::check_device(ctx, config.precision, (width, height))?;
         super::chain::check_layers(Method::Apr, layers)?;
         let stats = GpuStats::new(
             ctx,
@@ -382,22 +351,7 @@ impl AprWindow {
         )?;
         let n = width * height;
         let with_gbf = prefilter_runs(Method::Apr, config.prefilter, layers)?;
-        let arena_bytes = [
-            PlaneSet::bytes(n, prepare::PLANES),
-            if with_gbf {
-                PlaneSet::bytes(n, gbf::PLANES)
-            } else {
-                0
-            },
-            if config.outliers {
-                PlaneSet::bytes(n, outliers::SCRATCH)
-            } else {
-                0
-            },
-        ]
-        .into_iter()
-        .max()
-        .unwrap_or(0);
+        let arena_bytes = front_arena_bytes(n, with_gbf, config.outliers.then_some(0));
         let arena = Arc::new(GpuBuffer::new(ctx, "apr_window.arena", arena_bytes)?);
         let ring = AprRing::new(ctx, width, height, config.params)?;
         let outliers = if config.outliers {
@@ -421,7 +375,7 @@ impl AprWindow {
             outliers,
             ring,
             pushed: 0,
-            _arena: Some(arena),
+            _arena: arena,
         })
     }
 
@@ -532,10 +486,5 @@ impl AprWindow {
     /// R G B.
     pub fn outputs(&self) -> &PlaneSet {
         self.ring.outputs()
-    }
-
-    /// The last pushed frame's sanitised statistics.
-    pub fn clean(&self) -> &GpuStats {
-        &self.stats
     }
 }

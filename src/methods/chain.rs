@@ -233,18 +233,40 @@ pub fn check_layers(method: Method, layers: &[Layer]) -> Result<()> {
     Ok(())
 }
 
+/// Bytes of arena the stages before the method need for a `n`-pixel image
+/// (their lifetimes do not overlap): sanitation's, the prefilter's when
+/// `with_gbf`, and the outlier stage's scratch from byte `outliers` when
+/// given.
+pub fn front_arena_bytes(n: usize, with_gbf: bool, outliers: Option<u64>) -> u64 {
+    let gbf = if with_gbf {
+        PlaneSet::bytes(n, gbf::PLANES)
+    } else {
+        0
+    };
+    let outliers = outliers.map_or(0, |at| at + PlaneSet::bytes(n, outliers::SCRATCH));
+    PlaneSet::bytes(n, prepare::PLANES).max(gbf).max(outliers)
+}
+
+/// The checks every chain makes before it allocates: `precision` on this
+/// device, and a non-empty image.
+pub fn check_device(ctx: &GpuContext, precision: Precision, (w, h): (usize, usize)) -> Result<()> {
+    if precision == Precision::F64 && !ctx.supports_f64() {
+        return Err(Error::InvalidArgument(
+            "f64 kernels need shaderFloat64, which this device does not enable".into(),
+        ));
+    }
+    if w == 0 || h == 0 {
+        return Err(Error::InvalidArgument(format!("empty image ({w}x{h})")));
+    }
+    Ok(())
+}
+
 impl GpuChain {
     /// Allocates every buffer of the chain and checks the configuration.
     pub fn new(ctx: &Arc<GpuContext>, input: ChainInput, config: ChainConfig) -> Result<GpuChain> {
-        if config.precision == Precision::F64 && !ctx.supports_f64() {
-            return Err(Error::InvalidArgument(
-                "f64 kernels need shaderFloat64, which this device does not enable".into(),
-            ));
-        }
         let (w, h) = input.size();
-        if w == 0 || h == 0 {
-            return Err(Error::InvalidArgument(format!("empty image ({w}x{h})")));
-        }
+        check_device(ctx, config.precision, (w, h))?;
+        config.temporal.refuse_window()?;
         let layers = input.layers();
         check_layers(config.method, &layers)?;
         if let Some(l) = config.temporal.needs().iter().find(|l| !layers.contains(l)) {
@@ -278,17 +300,7 @@ impl GpuChain {
         let info = config.method.info();
         let keep = (info.arena_kept)(n);
         let arena_bytes = [
-            PlaneSet::bytes(n, prepare::PLANES),
-            if with_gbf {
-                PlaneSet::bytes(n, gbf::PLANES)
-            } else {
-                0
-            },
-            if config.outliers {
-                keep + PlaneSet::bytes(n, outliers::SCRATCH)
-            } else {
-                0
-            },
+            front_arena_bytes(n, with_gbf, config.outliers.then_some(keep)),
             (info.arena_bytes)(&stage_config, (w, h)),
         ];
         let arena = match arena_bytes.iter().max() {
@@ -321,11 +333,7 @@ impl GpuChain {
         let sampling = (SamplingPlanes::new(ctx, w, h)?, params);
         let temporal = match (config.temporal, config.pass, &config.temporal_state) {
             (Temporal::Off, _, _) => None,
-            (Temporal::Apr, _, _) => {
-                return Err(Error::InvalidArgument(
-                    "APR's temporal window (§10.2) reconstructs a sequence from the frames around each one: use a SequenceDenoiser".into(),
-                ))
-            }
+            (Temporal::Apr, _, _) => unreachable!("refused above"),
             (Temporal::Lp, Pass::Final, None) => {
                 Some(TemporalRole::Filter(Arc::new(TemporalStage::new(ctx, w, h)?)))
             }

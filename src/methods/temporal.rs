@@ -10,7 +10,7 @@
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::gpu::{Batch, BufferSlice, GpuContext, PlaneSet, Precision};
 use crate::image::Layer;
 use crate::kernels::lp_temporal::{self, TemporalIn, TemporalOut};
@@ -36,6 +36,17 @@ pub enum Temporal {
 }
 
 impl Temporal {
+    /// An error for [`Temporal::Apr`], which only a
+    /// [`crate::SequenceDenoiser`] runs; `Ok` otherwise.
+    pub fn refuse_window(self) -> Result<()> {
+        if self == Temporal::Apr {
+            return Err(Error::InvalidArgument(
+                "APR's temporal window (§10.2) reconstructs a sequence from the frames around each one: use a SequenceDenoiser".into(),
+            ));
+        }
+        Ok(())
+    }
+
     /// The layers the stage reads, besides the method's output and `spp`.
     pub fn needs(self) -> &'static [Layer] {
         match self {

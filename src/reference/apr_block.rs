@@ -565,14 +565,10 @@ pub fn covering(w: usize, h: usize, i: usize) -> Vec<usize> {
 }
 
 /// The kernel in sparse mode: the state of every sparse block of the
-/// channel (`grid` order; all zero for an invalid centre, order −1).
-pub fn sparse(inp: &Inputs, with_s: bool, eps: f64) -> Vec<Option<Block>> {
-    sparse_in(&[Some(*inp)], with_s, eps)
-}
-
-/// [`sparse`] over a window's frames ([`block_in`]): the centres are the
-/// centre frame's.
-pub fn sparse_in(frames: &[Option<Inputs>], with_s: bool, eps: f64) -> Vec<Option<Block>> {
+/// channel (`grid` order; all zero for an invalid centre, order −1), each
+/// over its window's frames ([`block_in`]: one frame, or §10.2's five); the
+/// centres are the centre frame's.
+pub fn sparse(frames: &[Option<Inputs>], with_s: bool, eps: f64) -> Vec<Option<Block>> {
     let inp = frames[centre_of(frames).0].expect("the centre frame is present");
     let (gw, gh) = grid(inp.w, inp.h);
     let r = RADIUS as usize;
@@ -586,14 +582,9 @@ pub fn sparse_in(frames: &[Option<Inputs>], with_s: bool, eps: f64) -> Vec<Optio
 
 /// The kernel in extra mode at pixel `i`: `Some(block)` when `i` is a valid
 /// pixel no sparse block accepts (its output is `β[0]`, the fit at its own
-/// centre).
-pub fn extra(inp: &Inputs, i: usize, with_s: bool, eps: f64) -> Option<Block> {
-    extra_in(&[Some(*inp)], i, with_s, eps)
-}
-
-/// [`extra`] over a window's frames: coverage is the centre frame's, the
+/// centre), over its window's frames: coverage is the centre frame's, the
 /// block [`block_in`]'s.
-pub fn extra_in(frames: &[Option<Inputs>], i: usize, with_s: bool, eps: f64) -> Option<Block> {
+pub fn extra(frames: &[Option<Inputs>], i: usize, with_s: bool, eps: f64) -> Option<Block> {
     let inp = frames[centre_of(frames).0].expect("the centre frame is present");
     (inp.valid(i) && !covered(&inp, i)).then(|| block_in(frames, i, with_s, eps))
 }

@@ -149,8 +149,6 @@ pub fn invalid_fill(pl: &Inputs, i: usize) -> f64 {
 /// Returns the last gather's [`OUTPUTS`] planes and the last stage's
 /// states.
 pub fn run(inp: &[Inputs; 3], stages: usize, eps: f64) -> (Vec<Vec<f32>>, [Vec<f32>; 3]) {
-    let (w, h) = (inp[0].w, inp[0].h);
-    let n = w * h;
     let stages = stages.max(1);
     let mut prev: Option<Vec<Vec<f32>>> = None;
     for stage in 1..=stages {
@@ -163,24 +161,8 @@ pub fn run(inp: &[Inputs; 3], stages: usize, eps: f64) -> (Vec<Vec<f32>>, [Vec<f
             }
             c
         });
-        // Extend the borrows of `prev` over this stage.
-        let state: [Vec<f32>; 3] = std::array::from_fn(|ch| {
-            super::apr_block::sparse(&chans[ch], !last, eps)
-                .iter()
-                .flat_map(|b| b.as_ref().map_or([0.0f32; STATE], |b| b.state()))
-                .collect()
-        });
-        let mut extra = vec![vec![0.0f32; n]; 3 * EXTRA_PLANES];
-        for (ch, pl) in chans.iter().enumerate() {
-            for i in 0..n {
-                if let Some(b) = super::apr_block::extra(pl, i, !last, eps) {
-                    extra[ch * EXTRA_PLANES][i] = b.beta_y[0] as f32;
-                    extra[ch * EXTRA_PLANES + 1][i] = b.beta_s[0] as f32;
-                    extra[ch * EXTRA_PLANES + 2][i] = b.xi as f32;
-                    extra[ch * EXTRA_PLANES + 3][i] = b.trace as f32;
-                }
-            }
-        }
+        let one: [[Option<Inputs>; 1]; 3] = std::array::from_fn(|ch| [Some(chans[ch])]);
+        let (state, extra) = stage_blocks(std::array::from_fn(|ch| &one[ch][..]), last, eps);
         let out = apr_gather(&chans, &state, &extra, last);
         if last {
             return (out, state);
@@ -197,7 +179,7 @@ pub fn run(inp: &[Inputs; 3], stages: usize, eps: f64) -> (Vec<Vec<f32>>, [Vec<f
 /// gather writes its own planes. Returns each frame's last [`OUTPUTS`]
 /// planes.
 pub fn run_sequence(frames: &[[Inputs; 3]], stages: usize, eps: f64) -> Vec<Vec<Vec<f32>>> {
-    use super::apr_block::{extra_in, sparse_in, FRAMES, HALF};
+    use super::apr_block::{FRAMES, HALF};
     let nf = frames.len();
     let stages = stages.max(1);
     let mut prev: Vec<Vec<Vec<f32>>> = Vec::new();
@@ -216,30 +198,13 @@ pub fn run_sequence(frames: &[[Inputs; 3]], stages: usize, eps: f64) -> Vec<Vec<
         let mut outs = Vec::with_capacity(nf);
         for t in 0..nf {
             let centre = chans(t);
-            let (w, h) = (centre[0].w, centre[0].h);
             let window: [[Option<Inputs>; FRAMES]; 3] = std::array::from_fn(|ch| {
                 std::array::from_fn(|k| {
                     let t2 = (t + k).checked_sub(HALF).filter(|&t2| t2 < nf)?;
                     Some(chans(t2)[ch])
                 })
             });
-            let state: [Vec<f32>; 3] = std::array::from_fn(|ch| {
-                sparse_in(&window[ch], !last, eps)
-                    .iter()
-                    .flat_map(|b| b.as_ref().map_or([0.0f32; STATE], |b| b.state()))
-                    .collect()
-            });
-            let mut extra = vec![vec![0.0f32; w * h]; 3 * EXTRA_PLANES];
-            for ch in 0..3 {
-                for i in 0..w * h {
-                    if let Some(b) = extra_in(&window[ch], i, !last, eps) {
-                        extra[ch * EXTRA_PLANES][i] = b.beta_y[0] as f32;
-                        extra[ch * EXTRA_PLANES + 1][i] = b.beta_s[0] as f32;
-                        extra[ch * EXTRA_PLANES + 2][i] = b.xi as f32;
-                        extra[ch * EXTRA_PLANES + 3][i] = b.trace as f32;
-                    }
-                }
-            }
+            let (state, extra) = stage_blocks(std::array::from_fn(|ch| &window[ch][..]), last, eps);
             outs.push(apr_gather_in(&centre, &state, &extra, last, true));
         }
         if last {
@@ -248,4 +213,36 @@ pub fn run_sequence(frames: &[[Inputs; 3]], stages: usize, eps: f64) -> Vec<Vec<
         prev = outs;
     }
     unreachable!("stages >= 1")
+}
+
+/// One stage's blocks of the three channels, each over the frames of its
+/// window (one frame, or §10.2's five): the sparse blocks' states (`grid`
+/// order, an invalid centre all zero) and the extra planes (COVER), as
+/// `apr_block` writes them.
+fn stage_blocks(
+    windows: [&[Option<Inputs>]; 3],
+    last: bool,
+    eps: f64,
+) -> ([Vec<f32>; 3], Vec<Vec<f32>>) {
+    use super::apr_block::{self as b};
+    let state = std::array::from_fn(|ch| {
+        b::sparse(windows[ch], !last, eps)
+            .iter()
+            .flat_map(|blk| blk.as_ref().map_or([0.0f32; STATE], |blk| blk.state()))
+            .collect()
+    });
+    let centre = windows[0].iter().flatten().next().expect("a centre frame");
+    let n = centre.w * centre.h;
+    let mut extra = vec![vec![0.0f32; n]; 3 * EXTRA_PLANES];
+    for (ch, window) in windows.iter().enumerate() {
+        for i in 0..n {
+            if let Some(blk) = b::extra(window, i, !last, eps) {
+                extra[ch * EXTRA_PLANES][i] = blk.beta_y[0] as f32;
+                extra[ch * EXTRA_PLANES + 1][i] = blk.beta_s[0] as f32;
+                extra[ch * EXTRA_PLANES + 2][i] = blk.xi as f32;
+                extra[ch * EXTRA_PLANES + 3][i] = blk.trace as f32;
+            }
+        }
+    }
+    (state, extra)
 }

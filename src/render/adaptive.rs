@@ -355,6 +355,16 @@ enum Final<'a> {
     Skip,
 }
 
+impl<'a> Final<'a> {
+    /// The caller's final denoiser, if it gave one.
+    fn denoiser(self) -> Option<&'a Denoiser> {
+        match self {
+            Final::Reconstruct(d) => d,
+            Final::Skip => None,
+        }
+    }
+}
+
 fn run(
     ctx: &Arc<GpuContext>,
     renderer: &Renderer,
@@ -368,11 +378,7 @@ fn run(
         renderer,
         cfg,
         stop,
-        last: match last {
-            Final::Reconstruct(d) => d,
-            Final::Skip => None,
-        },
-        skip_final: matches!(last, Final::Skip),
+        last,
         timings: Vec::new(),
         split: TimeSplit::default(),
         samples: 0,
@@ -389,10 +395,10 @@ struct Runner<'a> {
     renderer: &'a Renderer,
     cfg: &'a LoopConfig,
     stop: &'a AtomicBool,
-    /// The caller's final denoiser ([`render_with_final`]).
-    last: Option<&'a Denoiser>,
-    /// No final reconstruction after a fixed schedule ([`render_passes`]).
-    skip_final: bool,
+    /// The final reconstruction: the caller's denoiser
+    /// ([`render_with_final`]), one of its own, or none after a fixed
+    /// schedule ([`render_passes`]).
+    last: Final<'a>,
     timings: Vec<KernelTiming>,
     split: TimeSplit,
     /// Samples rendered so far.
@@ -414,7 +420,9 @@ impl Runner<'_> {
     /// `first_spp` is 1 (§0.4 step 3).
     fn denoiser(&self, pass: Pass, first_spp: u32) -> Result<Denoiser> {
         let mut c = loop_config(self.cfg, pass, first_spp);
-        if let (Pass::Intermediate, true, Some(last)) = (pass, self.cfg.temporal_maps, self.last) {
+        if let (Pass::Intermediate, true, Some(last)) =
+            (pass, self.cfg.temporal_maps, self.last.denoiser())
+        {
             if let Some(state) = last.temporal_state() {
                 c.temporal = last.config().temporal;
                 c.temporal_state = Some(state);
@@ -554,9 +562,9 @@ impl Runner<'_> {
             }
         }
         let frame = match self.last {
-            _ if self.skip_final => Frame::empty(),
-            Some(last) => self.reconstruct(last)?,
-            None => {
+            Final::Skip => Frame::empty(),
+            Final::Reconstruct(Some(last)) => self.reconstruct(last)?,
+            Final::Reconstruct(None) => {
                 let last = self.denoiser(Pass::Final, first_spp)?;
                 self.reconstruct(&last)?
             }
@@ -613,7 +621,7 @@ impl Runner<'_> {
                 budget = budget.min(fits / pixels as u64 * pixels as u64);
             }
             if met || budget < pixels as u64 {
-                let frame = match self.last {
+                let frame = match self.last.denoiser() {
                     Some(l) => self.reconstruct(l)?,
                     None => frame,
                 };
