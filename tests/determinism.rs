@@ -264,22 +264,26 @@ fn a_gpu_call_consumes_its_upload() {
 #[test]
 fn without_the_error_download_nothing_else_changes() {
     let img = fixture();
+    // Tiles of 40 px over a 48×24 crop: two tiles, each with its halo.
+    let crop = img.crop(0, 0, 48, 24);
     for (method, _) in &methods() {
-        for (tile, budget) in [
-            (None, None),
-            (None, Some(2 * 64 * 64)),
-            (Some(40), Some(8192)),
+        for (img, tile, budget) in [
+            (&img, None, None),
+            (&img, None, Some(2 * 64 * 64)),
+            (&crop, Some(40), Some(4096)),
         ] {
             let run = |error: bool| {
                 let mut config = Config::new(*method);
                 config.error = error;
                 config.tile = tile;
-                let d = Denoiser::new(&gpu(), Source::of_image(&img), config).unwrap();
-                d.denoise(&img, budget).unwrap()
+                let d = Denoiser::new(&gpu(), Source::of_image(img), config).unwrap();
+                assert_eq!(d.tiles().is_some(), tile.is_some());
+                d.denoise(img, budget).unwrap()
             };
             let (with, without) = (run(true), run(false));
             let what = format!("{} tile {tile:?} budget {budget:?}", method.name());
-            assert_eq!((with.error.width, with.error.height), (64, 64), "{what}");
+            let (w, h) = (img.width, img.height);
+            assert_eq!((with.error.width, with.error.height), (w, h), "{what}");
             assert_eq!(
                 (without.error.width, without.error.height),
                 (0, 0),
@@ -293,7 +297,7 @@ fn without_the_error_download_nothing_else_changes() {
                 );
             }
             assert_eq!(with.samples, without.samples, "{what}: samples");
-            assert_eq!(with.dim.len(), 64 * 64, "{what}: dimension");
+            assert_eq!(with.dim.len(), w * h, "{what}: dimension");
             assert!(without.dim.is_empty(), "{what}: dimension downloaded");
         }
     }

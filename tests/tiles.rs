@@ -172,18 +172,25 @@ fn check(img: &StatsImage, config: Config, tile: usize, what: &str) {
 #[test]
 fn every_method_tiled_along_x_is_bit_identical() {
     let img = strip(480, 32);
+    // AOS, the slowest per pixel, reaches 128-141 px: half the strip still
+    // has tiles that read less than the whole (its hazards wrap into it).
+    let short = strip(240, 32);
     for method in Method::all().filter(|&m| m != Method::None) {
         // `auto`'s default pyramid doubles a halo of ~200 px: wider than
         // this strip (the pyramid in tiles is the next test's).
         let mut c = Config::new(method);
         c.pyramid = Pyramid::Off;
-        check(&img, c, 60, &format!("{} 480x32", method.name()));
+        let (img, w) = match method {
+            Method::Aos => (&short, 240),
+            _ => (&img, 480),
+        };
+        check(img, c, 60, &format!("{} {w}x32", method.name()));
     }
     // AOS with the G-buffer prefilter (not its default since AOS-NO-GBF):
     // its NL-means then filters only visibility (PREFILTER-STACK).
     let mut aos_gbf = Config::new(Method::Aos);
     aos_gbf.prefilter = Prefilter::On;
-    check(&img, aos_gbf, 60, "aos --prefilter gbf 480x32");
+    check(&short, aos_gbf, 60, "aos --prefilter gbf 240x32");
     check_validation(&gpu());
 }
 
