@@ -15,7 +15,10 @@
 #define MCD_FLAG_NO_SINGLE_SAMPLE_PIXELS 1
 
 // Flag of [`McdDenoiserDesc::flags`]: the adaptive pass's smaller windows
-// (§9.3) instead of the final reconstruction's.
+// (§9.3) instead of the final reconstruction's. For a final image by LP,
+// APR or AOS, the built-in loop makes its adaptive passes with WLR, whose
+// maps served them better than their own on its scenes (decision record
+// MAP-WLR).
 #define MCD_FLAG_ADAPTIVE_PASS 2
 
 // Flag of [`McdDenoiserDesc::flags`]: the LP temporal filter (§10.1)

@@ -178,7 +178,7 @@ pub const OPTIONS: &[OptionSpec] = &[
         kind: Kind::Real(0.0, 16.0),
         default: "method",
         section: "§9.1",
-        help: "σ of the Gaussian on the priority map (default: 1 for WLR, LP and auto, 4 for APR, 2 for AOS, 0 for none)",
+        help: "σ of the Gaussian on the priority map of the method that makes it (default: 1 for WLR, LP and auto, 4 for APR, 2 for AOS, 0 for none; an adaptive render's maps are WLR's for LP, APR and AOS unless --map-method says otherwise)",
     },
     OptionSpec {
         key: "sampling.floor",

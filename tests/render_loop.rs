@@ -205,6 +205,38 @@ fn adaptive_run_spends_exactly_the_average() {
     check_validation(&ctx);
 }
 
+/// MAP-WLR: LP's adaptive render samples exactly where WLR's does, pass
+/// for pass, and reconstructs its final image with LP; `map_method` set to
+/// LP itself gives LP's own maps.
+#[test]
+fn lp_samples_where_wlr_does_unless_told_otherwise() {
+    let ctx = gpu();
+    let scene = Scene::builtin("cornell").unwrap();
+    let (w, h) = (24, 20);
+    let run = |cfg: &LoopConfig| {
+        let r = Renderer::new(&ctx, &scene, w, h, 3).unwrap();
+        let out = render(&ctx, &r, cfg, &AtomicBool::new(false), |_| {}).unwrap();
+        let spp = r.statistics().unwrap().get(Layer::Spp).unwrap()[0].clone();
+        (spp, out.frame.color)
+    };
+    let (wlr_spp, wlr_color) = run(&config(Method::Wlr, 9, true));
+    let lp = config(Method::Lp, 9, true);
+    assert_eq!(lp.mapper(), Method::Wlr);
+    let (spp, color) = run(&lp);
+    assert_eq!(spp, wlr_spp, "the samples of WLR's maps");
+    assert_ne!(color, wlr_color, "the final image is LP's");
+    assert_eq!(LoopConfig::new(Method::Lp, 9, true).pass_cap, None);
+    let own = LoopConfig::new(Method::Lp, 9, true).with_map_method(Some(Method::Lp));
+    assert_eq!(own.pass_cap, Some(4.0), "LP-CAP with LP's own maps");
+    // Uncapped, so that only the maps differ from WLR's run.
+    let (own_spp, _) = run(&LoopConfig {
+        pass_cap: None,
+        ..own
+    });
+    assert_ne!(own_spp, wlr_spp, "LP's own maps differ");
+    check_validation(&ctx);
+}
+
 /// Uniform rendering gives every pixel exactly spp samples; the same seed
 /// renders the same image twice.
 #[test]
@@ -322,6 +354,16 @@ fn cli_render_lists_scenes_and_renders_with_a_reference() {
         .unwrap();
     assert_eq!(bad.status.code(), Some(2));
     assert!(!dir.join("bad.exr").exists());
+    // --map-method shapes adaptive passes: without --adaptive it is an
+    // error, not an option that does nothing.
+    let lone = Command::new(bin)
+        .args(["render", "--scene", "dof", "--map-method", "wlr", "-o"])
+        .arg(dir.join("lone.exr"))
+        .output()
+        .unwrap();
+    assert_eq!(lone.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&lone.stderr).contains("--adaptive"));
+    assert!(!dir.join("lone.exr").exists());
     std::fs::remove_dir_all(&dir).ok();
 }
 

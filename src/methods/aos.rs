@@ -468,6 +468,8 @@ pub static INFO: MethodInfo = MethodInfo {
         radius: 1,
         k: 2.0,
     },
+    // MAP-WLR: WLR's estimate places the adaptive passes' samples.
+    map_method: Method::Wlr,
     passes: 3,
     pass_cap: None,
     sampling: SamplingParams {

@@ -526,6 +526,8 @@ pub static INFO: MethodInfo = MethodInfo {
         radius: 3,
         k: 1.0,
     },
+    // MAP-WLR: WLR's estimate places the adaptive passes' samples.
+    map_method: Method::Wlr,
     passes: 5,
     // APR-CAP: a pass gives a pixel at most 4× its mean.
     pass_cap: Some(4.0),

@@ -67,6 +67,7 @@ pub static INFO: MethodInfo = MethodInfo {
         radius: 3,
         k: 1.0,
     },
+    map_method: Method::Auto,
     passes: super::wlr::INFO.passes,
     pass_cap: None,
     sampling: super::wlr::INFO.sampling,

@@ -632,6 +632,8 @@ pub static INFO: MethodInfo = MethodInfo {
         radius: 3,
         k: 1.0,
     },
+    // MAP-WLR: WLR's estimate places the adaptive passes' samples.
+    map_method: Method::Wlr,
     passes: 5,
     // LP-CAP: LP's map concentrates samples at emitter edges.
     pass_cap: Some(4.0),

@@ -28,6 +28,7 @@ pub static INFO: MethodInfo = MethodInfo {
         radius: 0,
         k: 1.0,
     },
+    map_method: Method::None,
     passes: 5,
     pass_cap: None,
     sampling: SamplingParams {

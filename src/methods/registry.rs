@@ -52,6 +52,11 @@ pub struct MethodInfo {
     /// The input blend's defaults (INPUT-BLEND): whether `--input-blend
     /// auto` runs it after the method, and its parameters.
     pub blend: super::blend::BlendDefaults,
+    /// The method whose reconstruction and error estimate make the
+    /// adaptive loop's sample maps when this method makes the final image,
+    /// with that method's `passes` and `sampling` (MAP-WLR: WLR for LP, APR
+    /// and AOS; itself otherwise).
+    pub map_method: Method,
     /// Adaptive passes after the uniform pass 0 (§9.3 `N_pass`).
     pub passes: u32,
     /// The adaptive loop's default per-pass cap, as a multiple of the pass's

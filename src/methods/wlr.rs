@@ -492,6 +492,7 @@ pub static INFO: MethodInfo = MethodInfo {
         radius: 3,
         k: 1.0,
     },
+    map_method: Method::Wlr,
     passes: 5,
     pass_cap: None,
     sampling: SamplingParams {

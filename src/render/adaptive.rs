@@ -32,10 +32,16 @@ pub struct LoopConfig {
     pub spp: u32,
     /// Adaptive passes (§9.3) or `spp` uniform samples in one pass.
     pub adaptive: bool,
-    /// Reconstruction of the final image (and, when adaptive, of the
-    /// intermediate passes). `none`: the plain Monte Carlo mean (adaptive
-    /// `none` samples where the input variance is).
+    /// Reconstruction of the final image. `none`: the plain Monte Carlo
+    /// mean.
     pub method: Method,
+    /// The method whose reconstruction and error estimate make the
+    /// adaptive passes' sample maps, with its schedule and sampling
+    /// parameters ([`mapper`](Self::mapper); `None`: the final method's
+    /// [`crate::MethodInfo::map_method`], MAP-WLR). `none` samples where
+    /// the input variance is. [`with_map_method`](Self::with_map_method)
+    /// also sets [`pass_cap`](Self::pass_cap) to that method's.
+    pub map_method: Option<Method>,
     /// The G-buffer prefilter (§6).
     pub prefilter: Prefilter,
     /// The outlier stage (§4.4).
@@ -72,23 +78,46 @@ pub struct LoopConfig {
 
 impl LoopConfig {
     /// A render of `spp` on average with `method` and its defaults: the
-    /// prefilter and the outlier stage `Auto`, its per-pass cap
+    /// prefilter and the outlier stage `Auto`, the maps of its
+    /// [`crate::MethodInfo::map_method`] with that method's per-pass cap
     /// ([`default_pass_cap`]), f32 kernels, no options, the fixed schedule.
     pub fn new(method: Method, spp: u32, adaptive: bool) -> Self {
         Self {
             spp,
             adaptive,
             method,
+            map_method: None,
             prefilter: Prefilter::Auto,
             outliers: Outliers::Auto,
             precision: Precision::F32,
             options: Options::default(),
-            pass_cap: default_pass_cap(method),
+            pass_cap: default_pass_cap(method.info().map_method),
             stop: None,
             temporal_maps: true,
             pyramid: Pyramid::Auto,
             input_blend: InputBlend::Auto,
         }
+    }
+
+    /// The same render with the adaptive passes' maps from `map` (`None`:
+    /// the final method's [`crate::MethodInfo::map_method`]) and the
+    /// per-pass cap of a render whose maps that method makes
+    /// ([`default_pass_cap`]).
+    pub fn with_map_method(self, map: Option<Method>) -> Self {
+        let cfg = Self {
+            map_method: map,
+            ..self
+        };
+        Self {
+            pass_cap: default_pass_cap(cfg.mapper()),
+            ..cfg
+        }
+    }
+
+    /// The method of the adaptive passes' maps.
+    pub fn mapper(&self) -> Method {
+        self.map_method
+            .unwrap_or_else(|| self.method.info().map_method)
     }
 }
 
@@ -111,7 +140,10 @@ pub struct StopRules {
 /// `first_spp` samples per pixel: no pixel has `1 <= spp < 2` unless
 /// `first_spp` is 1 (§0.4 step 3), as later passes only add.
 fn loop_config(cfg: &LoopConfig, pass: Pass, first_spp: u32) -> Config {
-    let mut c = Config::new(cfg.method);
+    let mut c = Config::new(match pass {
+        Pass::Intermediate => cfg.mapper(),
+        Pass::Final => cfg.method,
+    });
     c.pass = pass;
     c.prefilter = cfg.prefilter;
     c.outliers = cfg.outliers;
@@ -168,9 +200,10 @@ pub fn stop_estimate(method: Method, frame: &Frame) -> f64 {
     method.info().error_scale * crate::metrics::estimated_rmse(&frame.color, &frame.error)
 }
 
-/// The per-pass cap a method's adaptive render uses by default
+/// The per-pass cap of an adaptive render whose maps `method` makes
 /// ([`LoopConfig::pass_cap`], [`crate::MethodInfo::pass_cap`]): 4× the
-/// pass's mean for LP and APR (LP-CAP, APR-CAP), none otherwise.
+/// pass's mean for LP's and APR's own maps (LP-CAP, APR-CAP), none
+/// otherwise.
 pub fn default_pass_cap(method: Method) -> Option<f64> {
     method.info().pass_cap
 }
@@ -534,7 +567,7 @@ impl Runner<'_> {
     fn fixed(mut self, mut progress: impl FnMut(&PassProgress)) -> Result<LoopResult> {
         let cfg = self.cfg;
         let schedule = if cfg.adaptive {
-            Some(Schedule::for_method(cfg.method, cfg.spp, self.pixels())?)
+            Some(Schedule::for_method(cfg.mapper(), cfg.spp, self.pixels())?)
         } else {
             None
         };

@@ -22,6 +22,7 @@
 //! cargo run --release -p mcdenoise-tools --bin equal_samples -- \
 //!     [--scenes a,b] [--size 256x256] [--spp 16,64] [--methods wlr,lp,apr,aos] \
 //!     [--reference 4096] [--seeds 3,4] [--oidn] [--equal-time] [--target | --target-only]
+//!     [--map-method M] [--pass-cap K] [--opt key=value]
 //!     [--json out.json] [--work DIR]
 //! ```
 
@@ -72,6 +73,16 @@ struct Args {
     /// Also a uniform render per method given the adaptive run's wall time.
     #[arg(long)]
     equal_time: bool,
+    /// The method whose maps drive every adaptive run, with its schedule,
+    /// sampling parameters and cap (default: each method's `map_method`,
+    /// MAP-WLR).
+    #[arg(long, value_parser = parse_method)]
+    map_method: Option<Method>,
+    /// Per-pass cap of every adaptive run, as a multiple of the pass's mean
+    /// (0: none; default: that of the method that makes the maps).
+    #[arg(long, value_parser = |s: &str| s.parse::<f64>().ok().filter(|k| *k == 0.0 || (*k >= 1.0 && k.is_finite()))
+              .ok_or_else(|| "0 (no cap) or a number >= 1".to_string()))]
+    pass_cap: Option<f64>,
     /// Method option key=value for every reconstruction (repeatable).
     #[arg(long = "opt", value_name = "KEY=VALUE")]
     opts: Vec<String>,
@@ -147,10 +158,15 @@ struct Row {
     methods: Vec<MethodRow>,
 }
 
-fn loop_config(method: Method, spp: u32, adaptive: bool, options: &Options) -> LoopConfig {
+fn loop_config(a: &Args, method: Method, spp: u32, options: &Options) -> LoopConfig {
+    let base = LoopConfig::new(method, spp, true).with_map_method(a.map_method);
     LoopConfig {
         options: options.clone(),
-        ..LoopConfig::new(method, spp, adaptive)
+        pass_cap: match a.pass_cap {
+            None => base.pass_cap,
+            Some(k) => (k > 0.0).then_some(k),
+        },
+        ..base
     }
 }
 
@@ -313,7 +329,7 @@ fn target_rows(
                 time_limit: None,
                 max_spp: 4 * hi.spp,
             }),
-            ..loop_config(m, hi.spp, true, options)
+            ..loop_config(a, m, hi.spp, options)
         };
         let res = adaptive::render(ctx, &renderer, &cfg, &stop, |_| {})?;
         let truth = corrected(metrics::rmse(&res.frame.color, r), ref_err);
@@ -414,7 +430,7 @@ fn one_seed(
         }
         // Adaptive, same seed and total.
         let ar = Renderer::new(ctx, scene, w, h, seed)?;
-        let out = adaptive::render(ctx, &ar, &loop_config(m, n, true, options), &stop, |_| {})?;
+        let out = adaptive::render(ctx, &ar, &loop_config(a, m, n, options), &stop, |_| {})?;
         let sp = &out.split;
         mr.adaptive_gpu = (sp.render_ms + sp.reconstruction_ms + sp.sampling_ms) / 1e3;
         mr.adaptive = metrics::rmse(&out.frame.color, r);

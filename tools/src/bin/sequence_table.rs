@@ -9,7 +9,8 @@
 //! the references' own, which the corrected columns subtract. With
 //! `--temporal`, each method also with the LP temporal filter (§10.1,
 //! "+ 10.1"), one denoiser carrying its state through the frames. With
-//! `--adaptive`, each method's adaptive renders of the sequence instead:
+//! `--adaptive`, each method's adaptive renders of the sequence instead
+//! (its loop's maps: WLR's for LP, APR and AOS, MAP-WLR):
 //! alone, with the filter, and with maps that read the filter's state (and
 //! APR's also reconstructed by its temporal window, "adaptive + 10.2").
 //! With `--pyramid`, each method also with the pyramid's low band (and,
@@ -159,8 +160,9 @@ fn main() -> anyhow::Result<()> {
         let inputs: Vec<RgbImage> = stats.iter().map(mcdenoise::colour_of).collect();
         row("input", &inputs)?;
         if a.adaptive {
-            // Each method's own adaptive renders of the sequence: alone, with
-            // the filter, and with the filter and maps that read its state.
+            // Each method's adaptive renders of the sequence (its loop's
+            // maps): alone, with the filter, and with the filter and maps
+            // that read its state.
             for &m in &a.methods {
                 let window =
                     (m == Method::Apr).then_some(("adaptive + 10.2", Temporal::Apr, false));

@@ -60,9 +60,16 @@ pub struct Args {
     /// blend.k). `--input-blend` alone is `--input-blend=on`
     #[arg(long, value_enum, default_value = "auto", num_args = 0..=1, require_equals = true, default_missing_value = "on")]
     input_blend: BlendArg,
+    /// With --adaptive: the method whose reconstruction and error estimate
+    /// make the adaptive passes' sample maps, with its schedule and sampling
+    /// parameters and per-pass cap (none: the input's variance); the final
+    /// image is still --method's. Default: wlr for lp, apr and aos
+    /// (decision record MAP-WLR), the method itself otherwise
+    #[arg(long, value_parser = method_parser())]
+    map_method: Option<Method>,
     /// With --adaptive: at most K times the pass's mean samples in one pixel
     /// per pass (the excess goes to the other pixels); 0 = no cap. Default:
-    /// the method's (4 for LP and APR, no cap for the others).
+    /// 4 when LP or APR makes the maps (--map-method), no cap otherwise.
     #[arg(long, value_name = "K",
           value_parser = |s: &str| s.parse::<f64>().ok().filter(|k| *k == 0.0 || (*k >= 1.0 && k.is_finite()))
               .ok_or_else(|| "0 (no cap) or a number >= 1".to_string()))]
@@ -337,6 +344,9 @@ pub fn run(cli: &Cli, a: &Args) -> anyhow::Result<bool> {
     if a.spp == 0 {
         bail!("--spp must be at least 1");
     }
+    if !a.adaptive && a.map_method.is_some() {
+        bail!("--map-method makes the adaptive passes' sample maps: it needs --adaptive");
+    }
     let scene = Scene::by_name_or_file(name)?;
     let ctx = context(cli)?;
     let (w, h) = a.size;
@@ -450,14 +460,12 @@ fn loop_config(a: &Args) -> anyhow::Result<adaptive::LoopConfig> {
         ..Config::new(method)
     }
     .check_size(a.size.0, a.size.1)?;
+    let base = adaptive::LoopConfig::new(method, a.spp, a.adaptive).with_map_method(a.map_method);
     Ok(adaptive::LoopConfig {
-        spp: a.spp,
-        adaptive: a.adaptive,
-        method,
         prefilter: a.prefilter.get(),
         outliers: a.outliers.get(),
         pass_cap: match a.pass_cap {
-            None => adaptive::default_pass_cap(method),
+            None => base.pass_cap,
             Some(k) => (k > 0.0).then_some(k),
         },
         precision: a.precision.get(),
@@ -467,9 +475,9 @@ fn loop_config(a: &Args) -> anyhow::Result<adaptive::LoopConfig> {
             time_limit: a.time_limit,
             max_spp: a.max_spp,
         }),
-        temporal_maps: true,
         pyramid: a.pyramid.get(),
         input_blend: a.input_blend.get(),
+        ..base
     })
 }
 
