@@ -91,27 +91,32 @@ impl LoopConfig {
             outliers: Outliers::Auto,
             precision: Precision::F32,
             options: Options::default(),
-            pass_cap: default_pass_cap(method.info().map_method),
+            pass_cap: None,
             stop: None,
             temporal_maps: true,
             pyramid: Pyramid::Auto,
             input_blend: InputBlend::Auto,
         }
+        .with_map_method(None)
     }
 
     /// The same render with the adaptive passes' maps from `map` (`None`:
     /// the final method's [`crate::MethodInfo::map_method`]) and the
     /// per-pass cap of a render whose maps that method makes
     /// ([`default_pass_cap`]).
-    pub fn with_map_method(self, map: Option<Method>) -> Self {
-        let cfg = Self {
-            map_method: map,
-            ..self
-        };
-        Self {
-            pass_cap: default_pass_cap(cfg.mapper()),
-            ..cfg
+    pub fn with_map_method(mut self, map: Option<Method>) -> Self {
+        self.map_method = map;
+        self.pass_cap = default_pass_cap(self.mapper());
+        self
+    }
+
+    /// The same render with the per-pass cap `k` as the command line gives
+    /// it ([`parse_pass_cap`]): `None` keeps the cap, 0 removes it.
+    pub fn with_pass_cap(mut self, k: Option<f64>) -> Self {
+        if let Some(k) = k {
+            self.pass_cap = (k > 0.0).then_some(k);
         }
+        self
     }
 
     /// The method of the adaptive passes' maps.
@@ -206,6 +211,15 @@ pub fn stop_estimate(method: Method, frame: &Frame) -> f64 {
 /// otherwise.
 pub fn default_pass_cap(method: Method) -> Option<f64> {
     method.info().pass_cap
+}
+
+/// A per-pass cap from the command line: 0 (no cap) or a finite number of
+/// at least 1.
+pub fn parse_pass_cap(s: &str) -> std::result::Result<f64, String> {
+    s.parse::<f64>()
+        .ok()
+        .filter(|k| *k == 0.0 || (*k >= 1.0 && k.is_finite()))
+        .ok_or_else(|| "0 (no cap) or a number >= 1".to_string())
 }
 
 /// Caps `counts` at `cap` each and gives the excess to the pixels below the

@@ -80,8 +80,7 @@ struct Args {
     map_method: Option<Method>,
     /// Per-pass cap of every adaptive run, as a multiple of the pass's mean
     /// (0: none; default: that of the method that makes the maps).
-    #[arg(long, value_parser = |s: &str| s.parse::<f64>().ok().filter(|k| *k == 0.0 || (*k >= 1.0 && k.is_finite()))
-              .ok_or_else(|| "0 (no cap) or a number >= 1".to_string()))]
+    #[arg(long, value_parser = adaptive::parse_pass_cap)]
     pass_cap: Option<f64>,
     /// Method option key=value for every reconstruction (repeatable).
     #[arg(long = "opt", value_name = "KEY=VALUE")]
@@ -159,14 +158,11 @@ struct Row {
 }
 
 fn loop_config(a: &Args, method: Method, spp: u32, options: &Options) -> LoopConfig {
-    let base = LoopConfig::new(method, spp, true).with_map_method(a.map_method);
     LoopConfig {
         options: options.clone(),
-        pass_cap: match a.pass_cap {
-            None => base.pass_cap,
-            Some(k) => (k > 0.0).then_some(k),
-        },
-        ..base
+        ..LoopConfig::new(method, spp, true)
+            .with_map_method(a.map_method)
+            .with_pass_cap(a.pass_cap)
     }
 }
 

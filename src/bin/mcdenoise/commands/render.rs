@@ -70,9 +70,7 @@ pub struct Args {
     /// With --adaptive: at most K times the pass's mean samples in one pixel
     /// per pass (the excess goes to the other pixels); 0 = no cap. Default:
     /// 4 when LP or APR makes the maps (--map-method), no cap otherwise.
-    #[arg(long, value_name = "K",
-          value_parser = |s: &str| s.parse::<f64>().ok().filter(|k| *k == 0.0 || (*k >= 1.0 && k.is_finite()))
-              .ok_or_else(|| "0 (no cap) or a number >= 1".to_string()))]
+    #[arg(long, value_name = "K", value_parser = adaptive::parse_pass_cap)]
     pass_cap: Option<f64>,
     /// Image size.
     #[arg(long, value_name = "WxH", default_value = "256x256", value_parser = parse_size)]
@@ -460,14 +458,12 @@ fn loop_config(a: &Args) -> anyhow::Result<adaptive::LoopConfig> {
         ..Config::new(method)
     }
     .check_size(a.size.0, a.size.1)?;
-    let base = adaptive::LoopConfig::new(method, a.spp, a.adaptive).with_map_method(a.map_method);
+    let base = adaptive::LoopConfig::new(method, a.spp, a.adaptive)
+        .with_map_method(a.map_method)
+        .with_pass_cap(a.pass_cap);
     Ok(adaptive::LoopConfig {
         prefilter: a.prefilter.get(),
         outliers: a.outliers.get(),
-        pass_cap: match a.pass_cap {
-            None => base.pass_cap,
-            Some(k) => (k > 0.0).then_some(k),
-        },
         precision: a.precision.get(),
         options: Options::parse(&a.opts)?,
         stop: (a.target_error.is_some() || a.time_limit.is_some()).then_some(adaptive::StopRules {
