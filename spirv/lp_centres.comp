@@ -106,7 +106,8 @@ void fit(uint i, ivec2 size)
     LocalSpace ls = tsvd_local_space(c, LP_RADIUS, size);
     TsvdProj pr = tsvd_projection(ls);
     real s = (push.options & LP_VARSUB) != 0u ? real(1) : real(0);
-    LpFit f = lp_centre_fit(c, size, pr, s, (push.options & LP_CENTRE_TEST) != 0u);
+    LpFit f = lp_centre_fit(c, size, pr, s, (push.options & LP_CENTRE_TEST) != 0u,
+                            (push.options & LP_OUTLIER_W) != 0u);
 
     // The state (StateLayout): pass + 1, r_opt, k, beta0 RGB, xi RGB, u[ch][j].
     float o[36];

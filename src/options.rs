@@ -83,6 +83,13 @@ pub const OPTIONS: &[OptionSpec] = &[
         help: "a centre whose prediction misses a pixel's own mean by more than 3 standard errors (Student's t for its sample count) does not predict that pixel (ours; off: the spec)",
     },
     OptionSpec {
+        key: "lp.outlier_weight",
+        kind: Kind::Choice(&["clamped", "off"]),
+        default: "off",
+        section: "§3.3 (LP-OUTLIER-W)",
+        help: "pixel i's row in centre c's least squares weighted by 1/max(vbar_i / max(vbar_c, 1), 1), WLR's outlier weight in the centre's noise (clamped: keeps one-sample clusters out of the fits, but loses beside small lamps), or unweighted (off, the paper)",
+    },
+    OptionSpec {
         key: "apr.stages",
         kind: Kind::Int(1, 4),
         default: "2",

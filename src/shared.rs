@@ -229,8 +229,8 @@ pub struct LpPush {
     /// Index of this pass (0..5); stored as `pass + 1` in the centre map.
     pub pass: u32,
     /// Bit 0: [`LP_VARSUB`] (`lp.error_mode = varsub`, `s = 1`, §3.4);
-    /// bit 4: [`LP_CENTRE_TEST`]; bit 5: [`LP_PIXEL_TEST`]; bits 1..3: the
-    /// gather's `LP_SKIP_*`.
+    /// bit 4: [`LP_CENTRE_TEST`]; bit 5: [`LP_PIXEL_TEST`]; bit 6:
+    /// [`LP_OUTLIER_W`]; bits 1..3: the gather's `LP_SKIP_*`.
     pub options: u32,
     /// `lp_gather` only: f32 values from one output plane to the next in its
     /// packed output binding.
@@ -375,6 +375,10 @@ pub const LP_CENTRE_TEST: u32 = 16;
 /// [`t_threshold3`](crate::reference::t_threshold3) standard errors does
 /// not predict that pixel (§3.5, ours).
 pub const LP_PIXEL_TEST: u32 = 32;
+/// [`LpPush::options`] bit: LP-OUTLIER-W (`lp.outlier_weight = clamped`):
+/// pixel i's row in centre c's fit has weight `1/max(vbar_i / max(vbar_c,
+/// 1), 1)`, WLR's OUTLIER-W in the centre's noise (§3.3, ours).
+pub const LP_OUTLIER_W: u32 = 64;
 
 /// Index of the values of one LP centre in its 36-float state, written by
 /// `spirv/lp_centres.comp` and read by `spirv/lp_gather.comp` (9 vec4

@@ -237,6 +237,7 @@ fn option_strings_never_panic() {
         Just("sampling.smooth".to_string()),
         Just("lp.error_mode".to_string()),
         Just("lp.centre_test".to_string()),
+        Just("lp.outlier_weight".to_string()),
         ".{0,24}",
     ];
     let pair = (

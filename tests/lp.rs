@@ -13,11 +13,11 @@ use mcdenoise::kernels::{lp_centres, lp_gather, lp_reach, lp_select, run_planes}
 use mcdenoise::methods::{denoise, lp as mlp, Backend, DenoiseRequest, Method};
 use mcdenoise::options::Options;
 use mcdenoise::reference::lp::{
-    self as rl, batch_ridge, centre_fit, regressor, Planes, Rls, StateLayout as S, MAX_P, RINGS,
+    self as rl, centre_fit, regressor, Planes, Rls, StateLayout as S, MAX_P, RINGS,
 };
 use mcdenoise::reference::tsvd::projection;
 use mcdenoise::reference::{lp_centres as rc, lp_gather as rg, lp_reach as rr, lp_select as rs};
-use mcdenoise::shared::{LpPush, LP_CENTRE_TEST, LP_PIXEL_TEST, LP_VARSUB};
+use mcdenoise::shared::{LpPush, LP_CENTRE_TEST, LP_OUTLIER_W, LP_PIXEL_TEST, LP_VARSUB};
 
 /// The 21 statistics planes LP reads: 7 features, their 7 variances,
 /// colour R G B, colour variances R G B, spp (the kernels take the first 14
@@ -166,11 +166,29 @@ fn push(sc: &Scene, pass: usize) -> LpPush {
         height: sc.h as u32,
         granularity: rl::GRANULARITIES[pass],
         pass: pass as u32,
-        // The defaults (LP-VARSUB, LP-CENTRE-TEST, LP-PIXEL-TEST).
-        options: LP_VARSUB | LP_CENTRE_TEST | LP_PIXEL_TEST,
+        // The defaults (LP-VARSUB, LP-CENTRE-TEST, LP-PIXEL-TEST) and
+        // LP-OUTLIER-W (off by default), which changes nothing where every
+        // variance is below 1 (the synthetic scenes, the fixture) and is
+        // compared on `with_spikes`.
+        options: LP_VARSUB | LP_CENTRE_TEST | LP_PIXEL_TEST | LP_OUTLIER_W,
         phase: LpPush::phase_for(rl::GRANULARITIES[pass], sc.origin),
         ..Default::default()
     }
+}
+
+/// `sc` with one pixel in seven a one-sample spike: 6–24 added to each
+/// channel, its square as that channel's variance of the mean (`vbar`
+/// 87–447; so under LP-OUTLIER-W a centre off the spikes weighs their rows
+/// 1/87–1/447, a centre on one weighs those noisier than itself).
+fn with_spikes(mut sc: Scene) -> Scene {
+    for q in (0..sc.w * sc.h).step_by(7) {
+        for ch in 0..3 {
+            let spike = 6.0 + 3.0 * ((q * 13 + ch) % 7) as f32;
+            sc.planes[14 + ch][q] += spike;
+            sc.planes[17 + ch][q] = spike * spike;
+        }
+    }
+    sc
 }
 
 /// The twin's state and reach after passes `0..passes`.
@@ -509,6 +527,23 @@ fn lp_centres_matches_twin() {
                 &format!("synthetic 64² pass {pass} {prec:?}"),
             ));
         }
+        // One-sample spikes: rows of LP-OUTLIER-W's weights below 1.
+        let spiky = with_spikes(synthetic(64, 64, 11, 1.0));
+        let mut spiky_centres = (0, 0);
+        for pass in [0, 1, 2] {
+            let c = compare_centres(
+                &spiky,
+                pass,
+                prec,
+                &format!("spiky 64² pass {pass} {prec:?}"),
+            );
+            spiky_centres = (spiky_centres.0 + c.0, spiky_centres.1 + c.1);
+            add(c);
+        }
+        assert!(
+            spiky_centres.0 + spiky_centres.1 >= 30,
+            "{prec:?}: spiky centres compared (k <= 3, k >= 4): {spiky_centres:?}"
+        );
         // As one tile of a larger image whose pixel (0, 0) is (7, 30):
         // the candidate grids keep the image's phase.
         let tile = Scene {
@@ -891,21 +926,47 @@ fn error_estimate_tracks_noise_passed_on_by_features() {
     check_validation(&gpu());
 }
 
+/// §3.8's invariants, with the rows unweighted (the spec) and weighted by
+/// LP-OUTLIER-W on a scene where one pixel in seven is a one-sample spike
+/// ([`with_spikes`]): `ξ̂(0) = v_c`, `Ξ(1)` equals the leave-one-out
+/// errors of weighted refits, and `Ξ(r) − Ξ(r−1)` the errors of the
+/// weighted batch fit on `Ω^P(r−1)`.
 #[test]
 fn centre_fit_invariants() {
-    let sc = synthetic(30, 30, 17, 1.0);
+    let sc = with_spikes(synthetic(30, 30, 17, 1.0));
     let p = sc.p();
     let s = 1.0;
-    for (cx, cy) in [(15, 14), (0, 0), (29, 3), (9, 22)] {
+    for outlier_weight in [false, true] {
+        centre_fit_invariants_with(&sc, &p, s, outlier_weight);
+    }
+}
+
+fn centre_fit_invariants_with(sc: &Scene, p: &Planes, s: f64, outlier_weight: bool) {
+    // Centres on spikes ((0, 0), (29, 3), (14, 14)) and off them.
+    let (mut weighted, mut checked_loo) = (0, 0);
+    for (cx, cy) in [(15, 14), (0, 0), (29, 3), (9, 22), (14, 14)] {
         if !p.valid(cy * sc.w + cx) {
             continue;
         }
-        let fit = centre_fit(&p, cx, cy, s, false);
+        let vc = p.colour(cy * sc.w + cx).1;
+        let weight = |q: usize| 1.0 / rl::inverse_weight(&p.colour(q).1, &vc, outlier_weight);
+        let in_window = |q: usize| (q % sc.w).abs_diff(cx).max((q / sc.w).abs_diff(cy)) <= 9;
+        weighted += usize::from((0..sc.w * sc.h).any(|q| in_window(q) && weight(q) < 0.1));
+        let fit = centre_fit(
+            p,
+            cx,
+            cy,
+            rl::FitOptions {
+                s,
+                centre_test: false,
+                outlier_weight,
+            },
+        );
         let (yc, vc) = p.colour(cy * sc.w + cx);
         // ξ̂(0) = v_c.
         assert_eq!(fit.curve[0], vc);
         // Ξ(r) = Ξ(r-1) + errors of the batch ridge fit on Ω^P(r-1), r >= 2.
-        let ls = rl::local_space(&p, cx, cy);
+        let ls = rl::local_space(p, cx, cy);
         let pr = projection(&ls);
         let xc = p.features(cx, cy);
         let mut prior = [[0.0; MAX_P]; 3];
@@ -918,6 +979,56 @@ fn centre_fit_invariants() {
                 .filter(|&(x, y)| p.valid(y * sc.w + x))
                 .collect()
         };
+        // Ξ(1): each pixel of Ω^P(1) scored by a weighted refit on the
+        // others (skipped where LOO-DEN's clamp acts).
+        let block = pixels_within(1);
+        let rows1: Vec<[f64; MAX_P]> = block
+            .iter()
+            .map(|&(x, y)| regressor(&pr, &p.features(x, y), &xc))
+            .collect();
+        let ys1: Vec<[f64; 3]> = block
+            .iter()
+            .map(|&(x, y)| p.colour(y * sc.w + x).0)
+            .collect();
+        let ws1: Vec<f64> = block.iter().map(|&(x, y)| weight(y * sc.w + x)).collect();
+        let (_, inv) = rl::batch_ridge_weighted(&rows1, &ys1, &ws1, pr.k + 1, &prior);
+        let leverage = |z: &[f64; MAX_P]| -> f64 {
+            (0..=pr.k)
+                .map(|j| z[j] * (0..=pr.k).map(|l| inv[j][l] * z[l]).sum::<f64>())
+                .sum()
+        };
+        let clamped =
+            (0..block.len()).any(|i| 1.0 - ws1[i] * leverage(&rows1[i]) < rl::LOO_DEN_MIN);
+        if !clamped {
+            let mut loo = [0.0; 3];
+            for i in 0..block.len() {
+                fn keep<T: Copy>(v: &[T], i: usize) -> Vec<T> {
+                    (0..v.len()).filter(|&j| j != i).map(|j| v[j]).collect()
+                }
+                let (beta, _) = rl::batch_ridge_weighted(
+                    &keep(&rows1, i),
+                    &keep(&ys1, i),
+                    &keep(&ws1, i),
+                    pr.k + 1,
+                    &prior,
+                );
+                let (x, y) = block[i];
+                let v = p.colour(y * sc.w + x).1;
+                for ch in 0..3 {
+                    let f: f64 = (0..=pr.k).map(|j| beta[ch][j] * rows1[i][j]).sum();
+                    loo[ch] += (f - ys1[i][ch]).powi(2) - s * v[ch];
+                }
+            }
+            for ch in 0..3 {
+                let got = fit.curve[1][ch] * fit.count[1] as f64;
+                assert!(
+                    (got - loo[ch]).abs() <= 1e-6 * (loo[ch].abs() + 1e-6),
+                    "({cx},{cy}) r=1 ch={ch}: {got} vs refits {}",
+                    loo[ch]
+                );
+            }
+            checked_loo += 1;
+        }
         for r in 2..RINGS {
             let train = pixels_within(r - 1);
             let rows: Vec<[f64; MAX_P]> = train
@@ -928,7 +1039,8 @@ fn centre_fit_invariants() {
                 .iter()
                 .map(|&(x, y)| p.colour(y * sc.w + x).0)
                 .collect();
-            let (beta, _) = batch_ridge(&rows, &ys, pr.k + 1, &prior);
+            let ws: Vec<f64> = train.iter().map(|&(x, y)| weight(y * sc.w + x)).collect();
+            let (beta, _) = rl::batch_ridge_weighted(&rows, &ys, &ws, pr.k + 1, &prior);
             let mut delta = [0.0; 3];
             for (x, y) in rl::ring(sc.w, sc.h, cx, cy, r) {
                 let q = y * sc.w + x;
@@ -953,8 +1065,15 @@ fn centre_fit_invariants() {
             }
         }
     }
+    assert!(
+        !outlier_weight || weighted >= 2,
+        "centres with down-weighted rows: {weighted}"
+    );
+    assert!(checked_loo >= 3, "Ξ(1) checked at {checked_loo} centres");
 }
 
+/// §3.8: the closed-form leave-one-out residual equals refits without the
+/// pixel, with unit weights (the spec) and LP-OUTLIER-W's (`e/(1 − w ζᵀPζ)`).
 #[test]
 fn loo_closed_form_equals_brute_force_refits() {
     let mut rng = Rng(77);
@@ -973,29 +1092,37 @@ fn loo_closed_form_equals_brute_force_refits() {
         let ys: Vec<[f64; 3]> = (0..n)
             .map(|_| [rng.uniform(), rng.uniform(), 2.0 * rng.uniform()])
             .collect();
-        let mut rls = Rls::new(p, ys[0]);
-        let prior = rls.beta;
-        for (z, y) in rows.iter().zip(&ys) {
-            rls.update(z, *y);
-        }
-        rls.symmetrise();
-        for i in 0..n {
-            let den = 1.0 - rls.leverage(&rows[i]);
-            if den < rl::LOO_DEN_MIN {
-                continue;
+        let inverse: Vec<f64> = (0..n)
+            .map(|i| if i % 3 == 1 { 50.0 } else { 1.0 })
+            .collect();
+        for weighted in [false, true] {
+            let c = |i: usize| if weighted { inverse[i] } else { 1.0 };
+            let mut rls = Rls::new(p, ys[0]);
+            let prior = rls.beta;
+            for (i, (z, y)) in rows.iter().zip(&ys).enumerate() {
+                rls.update_weighted(z, *y, c(i));
             }
-            let f = rls.predict(&rows[i]);
-            let others: Vec<usize> = (0..n).filter(|&j| j != i).collect();
-            let r: Vec<_> = others.iter().map(|&j| rows[j]).collect();
-            let y: Vec<_> = others.iter().map(|&j| ys[j]).collect();
-            let (beta, _) = batch_ridge(&r, &y, p, &prior);
-            for ch in 0..3 {
-                let closed = (f[ch] - ys[i][ch]) / den;
-                let brute: f64 = (0..p).map(|j| beta[ch][j] * rows[i][j]).sum::<f64>() - ys[i][ch];
-                assert!(
-                    (closed - brute).abs() <= 1e-7 * (brute.abs() + 1e-6),
-                    "p={p} i={i} ch={ch}: closed {closed} vs refit {brute}"
-                );
+            rls.symmetrise();
+            for i in 0..n {
+                let den = 1.0 - rls.leverage(&rows[i]) / c(i);
+                if den < rl::LOO_DEN_MIN {
+                    continue;
+                }
+                let f = rls.predict(&rows[i]);
+                let others: Vec<usize> = (0..n).filter(|&j| j != i).collect();
+                let r: Vec<_> = others.iter().map(|&j| rows[j]).collect();
+                let y: Vec<_> = others.iter().map(|&j| ys[j]).collect();
+                let w: Vec<_> = others.iter().map(|&j| 1.0 / c(j)).collect();
+                let (beta, _) = rl::batch_ridge_weighted(&r, &y, &w, p, &prior);
+                for ch in 0..3 {
+                    let closed = (f[ch] - ys[i][ch]) / den;
+                    let brute: f64 =
+                        (0..p).map(|j| beta[ch][j] * rows[i][j]).sum::<f64>() - ys[i][ch];
+                    assert!(
+                        (closed - brute).abs() <= 1e-7 * (brute.abs() + 1e-6),
+                        "p={p} i={i} ch={ch} weighted={weighted}: closed {closed} vs refit {brute}"
+                    );
+                }
             }
         }
     }
@@ -1012,6 +1139,16 @@ fn error_mode_paper_changes_the_choice() {
     req.options = Options::parse(&["lp.error_mode=paper".to_string()]).unwrap();
     assert_eq!(
         mlp::LpParams::new(&req.options).unwrap().options & LP_VARSUB,
+        0
+    );
+    assert_eq!(
+        mlp::LpParams::new(&req.options).unwrap().options & LP_OUTLIER_W,
+        0,
+        "LP-OUTLIER-W is off by default"
+    );
+    let clamped = Options::parse(&["lp.outlier_weight=clamped".to_string()]).unwrap();
+    assert_ne!(
+        mlp::LpParams::new(&clamped).unwrap().options & LP_OUTLIER_W,
         0
     );
     let paper = denoise(None, &img, &req).unwrap();
@@ -1180,10 +1317,12 @@ fn the_centre_test_keeps_a_highlight_from_taking_the_whole_window() {
             let mut req = DenoiseRequest::new(Method::Lp);
             req.backend = backend;
             req.debug = true;
-            // LP-PIXEL-TEST off: it, too, keeps the blob away (below).
+            // LP-PIXEL-TEST and LP-OUTLIER-W off: they, too, keep the
+            // blob away (below, and LP-OUTLIER-W's test).
             req.options = Options::parse(&[
                 format!("lp.centre_test={test}"),
                 "lp.pixel_test=off".to_string(),
+                "lp.outlier_weight=off".to_string(),
             ])
             .unwrap();
             let out = denoise(Some(&ctx), &img, &req).unwrap();
@@ -1235,7 +1374,13 @@ fn the_pixel_test_keeps_dark_pixels_out_of_a_highlight_window() {
         let run = |test: &str| {
             let mut req = DenoiseRequest::new(Method::Lp);
             req.backend = backend;
-            req.options = Options::parse(&[format!("lp.pixel_test={test}")]).unwrap();
+            // LP-OUTLIER-W off: it, too, keeps the highlight out of the
+            // centre's model (LP-OUTLIER-W's test).
+            req.options = Options::parse(&[
+                format!("lp.pixel_test={test}"),
+                "lp.outlier_weight=off".to_string(),
+            ])
+            .unwrap();
             let out = denoise(Some(&ctx), &img, &req).unwrap();
             // Over the dark pixels (input < 0.2): the largest change and
             // how many changed by more than 1.
@@ -1354,5 +1499,81 @@ fn census_counts_centres_their_ranks_and_the_pixels_they_cover() {
     let f = mcdenoise::kernels::lp_centres::flops_of_centre;
     assert!(f(2) < f(3) && f(3) < f(9));
     assert!(f(9) < mcdenoise::kernels::lp_centres::flops_per_centre());
+    check_validation(&gpu());
+}
+
+/// LP-OUTLIER-W (`lp.outlier_weight=clamped`, off by default): a cluster of
+/// one-sample pixels (each 100 with a standard error of 100, as one sample
+/// in a hundred of 10⁴ gives) on a flat 0.1 stays out of the centres'
+/// models. The outlier stage leaves a cluster (OUTLIER-ISOLATED), and a
+/// one-sample pixel agrees with its dark neighbours within its own
+/// standard error (PIXEL-TEST-AGREE), so without the weight the centres
+/// that hold it predict several at the pixels next to it: the 3×3 blob of
+/// the built-in `caustics` at 64 spp adaptive. CPU twins and GPU kernels.
+#[test]
+fn one_sample_clusters_stay_out_of_the_centres_models() {
+    let (w, h) = (41, 37);
+    let mut rng = Rng(5);
+    let mut planes = vec![vec![0.0f32; w * h]; 21];
+    let feat = [0.0, 0.8, 0.6, 5.0, 0.5, 0.5, 0.5];
+    for i in 0..w * h {
+        for (k, f) in feat.iter().enumerate() {
+            planes[k][i] = *f as f32;
+            planes[7 + k][i] = 1e-6;
+        }
+        for ch in 0..3 {
+            planes[14 + ch][i] = (0.1 + 0.01 * rng.normal()) as f32;
+            planes[17 + ch][i] = 1e-4;
+        }
+        planes[20][i] = 100.0;
+    }
+    let cluster = [(20, 18), (21, 18), (20, 19)];
+    for &(x, y) in &cluster {
+        for ch in 0..3 {
+            planes[14 + ch][y * w + x] = 100.0;
+            planes[17 + ch][y * w + x] = 1e4;
+        }
+    }
+    let img = Scene {
+        w,
+        h,
+        planes,
+        origin: (0, 0),
+    }
+    .image();
+    let near = |x: usize, y: usize| {
+        let d = cluster
+            .iter()
+            .map(|&(cx, cy)| x.abs_diff(cx).max(y.abs_diff(cy)))
+            .min();
+        d.unwrap()
+    };
+    for backend in [Backend::Cpu, Backend::Gpu] {
+        // The largest |output − 0.1| over the pixels next to the cluster
+        // (8-neighbours) and over the rest of the image.
+        let worst = |weight: &str| {
+            let out = run_with(&img, backend, Precision::F32, &[weight]);
+            let (mut next, mut far) = (0.0f32, 0.0f32);
+            for y in 0..h {
+                for x in 0..w {
+                    let d = (out.color.planes[1][y * w + x] - 0.1).abs();
+                    match near(x, y) {
+                        0 => {}
+                        1 => next = next.max(d),
+                        _ => far = far.max(d),
+                    }
+                }
+            }
+            (next, far)
+        };
+        let (next_off, far_off) = worst("lp.outlier_weight=off");
+        let (next_on, far_on) = worst("lp.outlier_weight=clamped");
+        let what = format!(
+            "{backend:?}: off: {next_off} next to the cluster, {far_off} elsewhere; clamped: {next_on}, {far_on}"
+        );
+        println!("{what}");
+        assert!(next_off > 1.0, "the paper's fit bleeds: {what}");
+        assert!(next_on < 0.05 && far_on < 0.05, "{what}");
+    }
     check_validation(&gpu());
 }

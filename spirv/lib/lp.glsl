@@ -43,6 +43,8 @@
 #define LP_VARSUB 1u
 // LpPush.options bit (mirror mcdenoise::shared::LP_CENTRE_TEST).
 #define LP_CENTRE_TEST 16u
+// LpPush.options bit (mirror mcdenoise::shared::LP_OUTLIER_W).
+#define LP_OUTLIER_W 64u
 // LP-CENTRE-TEST's threshold (mirror reference::lp::CENTRE_TEST_Z2).
 #define LP_CENTRE_TEST_Z2 9.0
 
@@ -121,13 +123,28 @@ real lp_leverage(LpRls s, real4 z0, real4 z1, real4 z2)
     return dot(z0, q0) + dot(z1, q1) + dot(z2, q2);
 }
 
-// One RLS update (§3.3): q = P zeta, G = q / (1 + zeta^T q), P -= G q^T,
+// LP-OUTLIER-W (twin: reference::lp::inverse_weight): a centre with colour
+// variances vc weighs the row of a pixel with variances v by
+// 1 / lp_inverse_weight(v, lp_weight_scale(vc, clamped)) =
+// 1 / max(vbar / max(vbar_c, 1), 1); scale 0 (option off) gives 1.
+real lp_weight_scale(real3 vc, bool clamped)
+{
+    return clamped ? max((vc.r + vc.g + vc.b) / real(3), real(1)) : real(0);
+}
+
+real lp_inverse_weight(real3 v, real scale)
+{
+    return scale > real(0) ? max((v.r + v.g + v.b) / real(3) / scale, real(1)) : real(1);
+}
+
+// One RLS update (§3.3) of a row of weight 1/c (LP-OUTLIER-W; c = 1: the
+// spec's): q = P zeta, G = q / (c + zeta^T q), P -= G q^T,
 // beta[ch] += G (y[ch] - beta[ch]^T zeta).
-void lp_update(inout LpRls s, real4 z0, real4 z1, real4 z2, real3 y)
+void lp_update(inout LpRls s, real4 z0, real4 z1, real4 z2, real3 y, real c)
 {
     real4 q0, q1, q2;
     lp_p_zeta(s, z0, z1, z2, q0, q1, q2);
-    real den = real(1) + dot(z0, q0) + dot(z1, q1) + dot(z2, q2);
+    real den = c + dot(z0, q0) + dot(z1, q1) + dot(z2, q2);
     real4 g0 = q0 / den;
     real4 g1 = q1 / den;
     real4 g2 = q2 / den;
@@ -209,7 +226,7 @@ void lp_regressor(TsvdProj pr, real xc[MAX_D], ivec2 q, out real4 z0, out real4 
 // then adding it, as §3.4 words it, gives the same numbers; one pass loads
 // and projects every pixel once. With `score` false the ring is only added.
 void lp_ring(inout LpRls st, TsvdProj pr, real xc[MAX_D], ivec2 c, int r, ivec2 size, bool score,
-             real s, inout real3 xi, inout int n)
+             real s, real ws, inout real3 xi, inout int n)
 {
     LpRls prev;
     prev.B = st.B;
@@ -233,7 +250,7 @@ void lp_ring(inout LpRls st, TsvdProj pr, real xc[MAX_D], ivec2 c, int r, ivec2 
                 xi += e * e - s * v;
                 n += 1;
             }
-            lp_update(st, z0, z1, z2, y);
+            lp_update(st, z0, z1, z2, y, lp_inverse_weight(v, ws));
         }
     }
 }
@@ -255,10 +272,10 @@ real4 lp_regressor3(TsvdProj pr, real xc[MAX_D], ivec2 q)
     return real4(1, tsvd_dz0(pr, xc, x).xyz);
 }
 
-void lp_update3(inout LpRls s, real4 z0, real3 y)
+void lp_update3(inout LpRls s, real4 z0, real3 y, real c)
 {
     real4 q0 = s.P[0] * z0;
-    real den = real(1) + dot(z0, q0);
+    real den = c + dot(z0, q0);
     real4 g0 = q0 / den;
     real3 e = y - lp_predict3(s, z0);
     s.P[0] -= outerProduct(g0, q0);
@@ -268,7 +285,7 @@ void lp_update3(inout LpRls s, real4 z0, real3 y)
 }
 
 void lp_ring3(inout LpRls st, TsvdProj pr, real xc[MAX_D], ivec2 c, int r, ivec2 size, bool score,
-              real s, inout real3 xi, inout int n)
+              real s, real ws, inout real3 xi, inout int n)
 {
     LpRls prev;  // the model of the previous rings, as in lp_ring
     prev.B = st.B;
@@ -289,7 +306,7 @@ void lp_ring3(inout LpRls st, TsvdProj pr, real xc[MAX_D], ivec2 c, int r, ivec2
                 xi += e * e - s * v;
                 n += 1;
             }
-            lp_update3(st, z0, y);
+            lp_update3(st, z0, y, lp_inverse_weight(v, ws));
         }
     }
 }
@@ -312,8 +329,10 @@ real3 lp_centre_miss(real3 miss, real3 vc, real s)
 }
 
 // Spec §3.3-3.4 for the valid centre c with projection pr; s = 1 (VARSUB)
-// or 0 (paper-literal); centre_test: LP-CENTRE-TEST.
-LpFit lp_centre_fit(ivec2 c, ivec2 size, TsvdProj pr, real s, bool centre_test)
+// or 0 (paper-literal); centre_test: LP-CENTRE-TEST; clamped: LP-OUTLIER-W
+// (weighted rows, LOO residual e / (1 - w zeta^T P zeta), unweighted error
+// terms).
+LpFit lp_centre_fit(ivec2 c, ivec2 size, TsvdProj pr, real s, bool centre_test, bool clamped)
 {
     real xc[MAX_D];
     real e2[MAX_D];
@@ -321,6 +340,7 @@ LpFit lp_centre_fit(ivec2 c, ivec2 size, TsvdProj pr, real s, bool centre_test)
     real3 yc, vc;
     load_colour(c, yc, vc);
     LpRls st = lp_rls_new(yc, pr.k);
+    real ws = lp_weight_scale(vc, clamped);
     LpFit best;
     best.k = pr.k;
 
@@ -328,7 +348,7 @@ LpFit lp_centre_fit(ivec2 c, ivec2 size, TsvdProj pr, real s, bool centre_test)
     real4 z0, z1, z2;
     lp_regressor(pr, xc, c, z0, z1, z2);
     real4 c0 = z0, c1 = z1, c2 = z2;  // the centre's regressor
-    lp_update(st, z0, z1, z2, yc);
+    lp_update(st, z0, z1, z2, yc, lp_inverse_weight(vc, ws));
     lp_symmetrise(st);
     best.r_opt = 0;
     best.B = st.B;
@@ -340,8 +360,8 @@ LpFit lp_centre_fit(ivec2 c, ivec2 size, TsvdProj pr, real s, bool centre_test)
     // 3x3 block (LOO-DEN).
     real3 xi = real3(0);
     int n1 = 0;
-    lp_ring3(st, pr, xc, c, 1, size, false, s, xi, n1);
-    lp_ring(st, pr, xc, c, 1, size, false, s, xi, n1);
+    lp_ring3(st, pr, xc, c, 1, size, false, s, ws, xi, n1);
+    lp_ring(st, pr, xc, c, 1, size, false, s, ws, xi, n1);
     lp_symmetrise(st);
     for (int qy = max(c.y - 1, 0); qy <= min(c.y + 1, size.y - 1); ++qy) {
         for (int qx = max(c.x - 1, 0); qx <= min(c.x + 1, size.x - 1); ++qx) {
@@ -352,7 +372,8 @@ LpFit lp_centre_fit(ivec2 c, ivec2 size, TsvdProj pr, real s, bool centre_test)
             lp_regressor(pr, xc, q, z0, z1, z2);
             real3 y, v;
             load_colour(q, y, v);
-            real den = max(real(1) - lp_leverage(st, z0, z1, z2), real(LP_LOO_DEN_MIN));
+            real den = max(real(1) - lp_leverage(st, z0, z1, z2) / lp_inverse_weight(v, ws),
+                           real(LP_LOO_DEN_MIN));
             real3 e = (lp_predict(st, z0, z1, z2) - y) / den;
             xi += e * e - s * v;
             n += (qx == c.x && qy == c.y) ? 0 : 1;
@@ -374,8 +395,8 @@ LpFit lp_centre_fit(ivec2 c, ivec2 size, TsvdProj pr, real s, bool centre_test)
 
     // r >= 2: score the previous model on ring r, then add the ring.
     for (int r = 2; r <= LP_RADIUS; ++r) {
-        lp_ring3(st, pr, xc, c, r, size, true, s, xi, n);
-        lp_ring(st, pr, xc, c, r, size, true, s, xi, n);
+        lp_ring3(st, pr, xc, c, r, size, true, s, ws, xi, n);
+        lp_ring(st, pr, xc, c, r, size, true, s, ws, xi, n);
         lp_symmetrise(st);
         real3 xr = xi / real(n);
         if (centre_test) {

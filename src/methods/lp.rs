@@ -36,7 +36,8 @@ use crate::options::Options;
 use crate::reference;
 use crate::reference::lp::{StateLayout, GRANULARITIES};
 use crate::shared::{
-    LpPush, LP_CENTRE_TEST, LP_PIXEL_TEST, LP_SKIP_COVERAGE, LP_SKIP_DMSE, LP_SKIP_ERROR, LP_VARSUB,
+    LpPush, LP_CENTRE_TEST, LP_OUTLIER_W, LP_PIXEL_TEST, LP_SKIP_COVERAGE, LP_SKIP_DMSE,
+    LP_SKIP_ERROR, LP_VARSUB,
 };
 
 /// The parameters of one LP run.
@@ -62,6 +63,9 @@ impl LpParams {
             _ => 0,
         } | match opts.get("lp.pixel_test") {
             "on" => LP_PIXEL_TEST,
+            _ => 0,
+        } | match opts.get("lp.outlier_weight") {
+            "clamped" => LP_OUTLIER_W,
             _ => 0,
         };
         Ok(LpParams {

@@ -165,9 +165,16 @@ impl Rls {
     /// `q = Pζ`, `G = q/(1 + ζᵀq)`, `P ← P − G qᵀ` (`qᵀ = ζᵀP` for the
     /// symmetric `P`), `β[ch] ← β[ch] + G (y[ch] − β[ch]ᵀζ)`.
     pub fn update(&mut self, zeta: &[f64; MAX_P], y: [f64; 3]) {
+        self.update_weighted(zeta, y, 1.0);
+    }
+
+    /// [`Rls::update`] for a row of weight `1/c` (LP-OUTLIER-W):
+    /// `G = q/(c + ζᵀq)`. After the rows, `β = (δI + XᵀWX)⁻¹(δβ(0) +
+    /// XᵀWY)` and `P = (δI + XᵀWX)⁻¹` ([`batch_ridge_weighted`]).
+    pub fn update_weighted(&mut self, zeta: &[f64; MAX_P], y: [f64; 3], c: f64) {
         let p = self.p;
         let q = self.p_zeta(zeta);
-        let den = 1.0 + (0..p).map(|j| zeta[j] * q[j]).sum::<f64>();
+        let den = c + (0..p).map(|j| zeta[j] * q[j]).sum::<f64>();
         let g: [f64; MAX_P] = std::array::from_fn(|j| q[j] / den);
         let res = self.predict(zeta);
         for j in 0..p {
@@ -269,10 +276,57 @@ pub fn centre_miss(miss: f64, v_c: f64, s: f64) -> f64 {
     }
 }
 
-/// Spec §3.3–3.4 for the valid centre `(cx, cy)`. `s` is the test-variance
-/// correction of LP-VARSUB (1, default) or the paper-literal 0;
-/// `centre_test` adds [`centre_miss`] to every `ξ̂(r ≥ 1)`.
-pub fn centre_fit(p: &Planes, cx: usize, cy: usize, s: f64, centre_test: bool) -> CentreFit {
+/// LP-OUTLIER-W (ours, WLR's OUTLIER-W carried to LP's fits, measured in
+/// the centre's own noise): the inverse weight `max(vbar / max(vbar_c, 1),
+/// 1)` in the RLS of the centre with colour variances `vc` of a pixel with
+/// colour variances `v` (`vbar`, `vbar_c` their means, §0.1), so a centre
+/// in a lamp's halo weighs its equally noisy neighbours fully while a dark
+/// centre weighs a one-sample pixel of variance V by 1/V; 1 with the
+/// option off.
+#[inline]
+pub fn inverse_weight(v: &[f64; 3], vc: &[f64; 3], clamped: bool) -> f64 {
+    if clamped {
+        let scale = ((vc[0] + vc[1] + vc[2]) / 3.0).max(1.0);
+        ((v[0] + v[1] + v[2]) / 3.0 / scale).max(1.0)
+    } else {
+        1.0
+    }
+}
+
+/// The options of [`centre_fit`].
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct FitOptions {
+    /// The test-variance correction of LP-VARSUB: 1 (default) or the
+    /// paper-literal 0.
+    pub s: f64,
+    /// LP-CENTRE-TEST: add [`centre_miss`] to every `ξ̂(r ≥ 1)`.
+    pub centre_test: bool,
+    /// LP-OUTLIER-W: weigh each pixel's row by `1/`[`inverse_weight`].
+    pub outlier_weight: bool,
+}
+
+impl FitOptions {
+    /// From [`LpPush::options`](crate::shared::LpPush::options) bits.
+    pub fn from_bits(options: u32) -> FitOptions {
+        use crate::shared::{LP_CENTRE_TEST, LP_OUTLIER_W, LP_VARSUB};
+        FitOptions {
+            s: if options & LP_VARSUB != 0 { 1.0 } else { 0.0 },
+            centre_test: options & LP_CENTRE_TEST != 0,
+            outlier_weight: options & LP_OUTLIER_W != 0,
+        }
+    }
+}
+
+/// Spec §3.3–3.4 for the valid centre `(cx, cy)`, with the options `o`.
+/// With LP-OUTLIER-W the rows are weighted, the leave-one-out residual of
+/// pixel i is `e_i/(1 − w_i ζᵢᵀPζᵢ)`, and the error terms are unweighted
+/// (errors against the truth, as the spec's).
+pub fn centre_fit(p: &Planes, cx: usize, cy: usize, o: FitOptions) -> CentreFit {
+    let FitOptions {
+        s,
+        centre_test,
+        outlier_weight,
+    } = o;
     let ls = local_space(p, cx, cy);
     let pr = projection(&ls);
     let k = pr.k;
@@ -280,11 +334,12 @@ pub fn centre_fit(p: &Planes, cx: usize, cy: usize, s: f64, centre_test: bool) -
     let (yc, vc) = p.colour(cy * p.width + cx);
     let mut rls = Rls::new(k + 1, yc);
     let zeta_of = |px: usize, py: usize| regressor(&pr, &p.features(px, py), &xc);
+    let c_of = |v: &[f64; 3]| inverse_weight(v, &vc, outlier_weight);
 
     let mut curve = [[0.0; 3]; RINGS];
     let mut count = [0usize; RINGS];
     // r = 0: the centre (residual 0: β unchanged, P changes); Ξ(0) = v_c.
-    rls.update(&zeta_of(cx, cy), yc);
+    rls.update_weighted(&zeta_of(cx, cy), yc, c_of(&vc));
     rls.symmetrise();
     let mut n = 1usize;
     curve[0] = vc;
@@ -297,8 +352,8 @@ pub fn centre_fit(p: &Planes, cx: usize, cy: usize, s: f64, centre_test: bool) -
         .filter(|&(px, py)| p.valid(py * p.width + px))
         .collect();
     for &(px, py) in &ring1 {
-        let (y, _) = p.colour(py * p.width + px);
-        rls.update(&zeta_of(px, py), y);
+        let (y, v) = p.colour(py * p.width + px);
+        rls.update_weighted(&zeta_of(px, py), y, c_of(&v));
         n += 1;
     }
     rls.symmetrise();
@@ -311,7 +366,7 @@ pub fn centre_fit(p: &Planes, cx: usize, cy: usize, s: f64, centre_test: bool) -
             }
             let (y, v) = p.colour(q);
             let z = zeta_of(px, py);
-            let den = (1.0 - rls.leverage(&z)).max(LOO_DEN_MIN);
+            let den = (1.0 - rls.leverage(&z) / c_of(&v)).max(LOO_DEN_MIN);
             let f = rls.predict(&z);
             for ch in 0..3 {
                 let e = (f[ch] - y[ch]) / den;
@@ -351,8 +406,8 @@ pub fn centre_fit(p: &Planes, cx: usize, cy: usize, s: f64, centre_test: bool) -
         }
         n += ring_r.len();
         for &(px, py) in &ring_r {
-            let (y, _) = p.colour(py * p.width + px);
-            rls.update(&zeta_of(px, py), y);
+            let (y, v) = p.colour(py * p.width + px);
+            rls.update_weighted(&zeta_of(px, py), y, c_of(&v));
         }
         rls.symmetrise();
         consider(r, &xi_acc, n, &rls);
@@ -397,13 +452,26 @@ pub fn batch_ridge(
     p: usize,
     beta0: &[[f64; MAX_P]; 3],
 ) -> ([[f64; MAX_P]; 3], [[f64; MAX_P]; MAX_P]) {
+    batch_ridge_weighted(rows, y, &vec![1.0; rows.len()], p, beta0)
+}
+
+/// [`batch_ridge`] with row weights `w`: `(δI + XᵀWX)⁻¹ (δβ(0) + XᵀWY)`
+/// and `(δI + XᵀWX)⁻¹` (LP-OUTLIER-W's invariant).
+pub fn batch_ridge_weighted(
+    rows: &[[f64; MAX_P]],
+    y: &[[f64; 3]],
+    w: &[f64],
+    p: usize,
+    beta0: &[[f64; MAX_P]; 3],
+) -> ([[f64; MAX_P]; 3], [[f64; MAX_P]; MAX_P]) {
+    assert_eq!(rows.len(), w.len(), "batch_ridge_weighted: weights");
     let mut a = vec![vec![0.0; 2 * p]; p];
     for j in 0..p {
         a[j][j] = DELTA;
         a[j][p + j] = 1.0;
-        for r in rows {
+        for (r, wr) in rows.iter().zip(w) {
             for l in 0..p {
-                a[j][l] += r[j] * r[l];
+                a[j][l] += wr * r[j] * r[l];
             }
         }
     }
@@ -438,8 +506,8 @@ pub fn batch_ridge(
         let mut rhs = [0.0; MAX_P];
         for j in 0..p {
             rhs[j] = DELTA * beta0[ch][j];
-            for (r, yy) in rows.iter().zip(y) {
-                rhs[j] += r[j] * yy[ch];
+            for ((r, yy), wr) in rows.iter().zip(y).zip(w) {
+                rhs[j] += wr * r[j] * yy[ch];
             }
         }
         for j in 0..p {
@@ -477,6 +545,17 @@ mod tests {
     }
 
     #[test]
+    fn inverse_weight_is_the_noise_over_the_centres() {
+        let v = |x: f64| [x, x, x];
+        assert_eq!(inverse_weight(&v(100.0), &v(0.5), true), 100.0);
+        assert_eq!(inverse_weight(&v(100.0), &v(4.0), true), 25.0);
+        assert_eq!(inverse_weight(&v(2.0), &v(4.0), true), 1.0);
+        assert_eq!(inverse_weight(&v(0.3), &v(0.0), true), 1.0);
+        assert_eq!(inverse_weight(&[30.0, 60.0, 90.0], &v(0.0), true), 60.0);
+        assert_eq!(inverse_weight(&v(100.0), &v(0.5), false), 1.0);
+    }
+
+    #[test]
     fn rls_equals_batch_ridge() {
         let mut s = 12345u64;
         let mut rnd = || {
@@ -485,12 +564,15 @@ mod tests {
             s ^= s << 17;
             (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
         };
-        for p in [1, 3, 10] {
+        // p = 3 and 10 twice: unit weights, then LP-OUTLIER-W's (every
+        // fifth row at 1/40).
+        for (p, weighted) in [(1, false), (3, false), (10, false), (3, true), (10, true)] {
             let y0 = [0.3, -1.0, 2.0];
             let mut rls = Rls::new(p, y0);
             let prior = rls.beta;
             let mut rows = Vec::new();
             let mut ys = Vec::new();
+            let mut ws = Vec::new();
             for n in 1..=40 {
                 let mut z = [0.0; MAX_P];
                 z[0] = 1.0;
@@ -498,13 +580,19 @@ mod tests {
                     *v = rnd();
                 }
                 let y = [rnd(), rnd() + 1.0, 3.0 * rnd()];
-                rls.update(&z, y);
+                let c = if weighted && n % 5 == 0 { 40.0 } else { 1.0 };
+                rls.update_weighted(&z, y, c);
                 rows.push(z);
                 ys.push(y);
+                ws.push(1.0 / c);
                 if n % 7 == 0 {
                     rls.symmetrise();
                 }
-                let (beta, inv) = batch_ridge(&rows, &ys, p, &prior);
+                let (beta, inv) = if weighted {
+                    batch_ridge_weighted(&rows, &ys, &ws, p, &prior)
+                } else {
+                    batch_ridge(&rows, &ys, p, &prior)
+                };
                 for ch in 0..3 {
                     for j in 0..p {
                         let (a, b) = (rls.beta[ch][j], beta[ch][j]);

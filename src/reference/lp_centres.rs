@@ -3,8 +3,8 @@
 //! earlier pass covers ([`super::lp_select`]) becomes a centre and gets its
 //! optimisation of §3.3–3.4 ([`super::lp::centre_fit`]).
 
-use super::lp::{centre_fit, Planes, StateLayout};
-use crate::shared::{LpPush, LP_CENTRE_TEST, LP_VARSUB};
+use super::lp::{centre_fit, FitOptions, Planes, StateLayout};
+use crate::shared::LpPush;
 
 /// One pass. `reach` is the [`lp_reach`](super::lp_reach) plane of the state
 /// as it was after the earlier passes (PASS-SNAPSHOT).
@@ -14,11 +14,7 @@ use crate::shared::{LpPush, LP_CENTRE_TEST, LP_VARSUB};
 pub fn lp_centres(push: &LpPush, p: &Planes, reach: &[f32], state: &mut [Vec<f32>]) -> usize {
     assert_eq!(state.len(), StateLayout::PLANES, "lp_centres: state planes");
     let w = p.width;
-    let s = if push.options & LP_VARSUB != 0 {
-        1.0
-    } else {
-        0.0
-    };
+    let o = FitOptions::from_bits(push.options);
     let (_, gh) = push.centre_grid();
     let cand: Vec<(usize, usize)> = super::lp_select::lp_select(push, p, reach, (0, gh))
         .into_iter()
@@ -26,10 +22,7 @@ pub fn lp_centres(push: &LpPush, p: &Planes, reach: &[f32], state: &mut [Vec<f32
         .collect();
     let results: Vec<(usize, [f32; StateLayout::LEN])> = super::par_map(cand.len(), |i| {
         let (px, py) = cand[i];
-        (
-            py * w + px,
-            centre_fit(p, px, py, s, push.options & LP_CENTRE_TEST != 0).state(push.pass),
-        )
+        (py * w + px, centre_fit(p, px, py, o).state(push.pass))
     });
     for (q, st) in &results {
         for (i, v) in st.iter().enumerate() {

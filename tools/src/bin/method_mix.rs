@@ -12,7 +12,8 @@
 //!
 //! ```text
 //! cargo run --release -p mcdenoise-tools --bin method_mix -- \
-//!     [--public ../shared/data/scenes] [--scenes a,b] [--size 128x128] [--spp 4,16,64] [--reference 1024]
+//!     [--public ../shared/data/scenes] [--scenes a,b] [--size 128x128] [--spp 4,16,64] [--reference 1024] \
+//!     [--methods wlr,lp] [--no-mix] [--opt key=value]
 //! ```
 
 use std::path::PathBuf;
@@ -22,8 +23,8 @@ use std::sync::Arc;
 use clap::Parser;
 use mcdenoise::render::{reference, Renderer, Samples, Scene};
 use mcdenoise::{
-    colour_of, io, metrics, Batch, Config, ContextOptions, Denoiser, GpuContext, Method, RgbImage,
-    Source, StatsImage,
+    colour_of, io, metrics, Batch, Config, ContextOptions, Denoiser, GpuContext, Method, Options,
+    RgbImage, Source, StatsImage,
 };
 use mcdenoise_tools::parse_method;
 
@@ -51,6 +52,9 @@ struct Args {
     /// The uniform inputs' seed (the references' are fixed).
     #[arg(long, default_value_t = 3)]
     seed: u64,
+    /// Method option key=value (repeatable), for every method.
+    #[arg(long = "opt", value_name = "KEY=VALUE")]
+    opts: Vec<String>,
 }
 
 struct Out {
@@ -149,9 +153,15 @@ fn true_rel(x: &RgbImage, r: &RgbImage) -> Vec<f64> {
         .collect()
 }
 
-fn run(ctx: &Arc<GpuContext>, stats: &StatsImage, m: Method) -> anyhow::Result<Out> {
+fn run(
+    ctx: &Arc<GpuContext>,
+    stats: &StatsImage,
+    m: Method,
+    opts: &Options,
+) -> anyhow::Result<Out> {
     let mut c = Config::new(m);
     c.error = true;
+    c.options = opts.clone();
     let d = Denoiser::new(ctx, Source::of_image(stats), c)?;
     let f = d.denoise(stats, None)?;
     let n = f.color.width * f.color.height;
@@ -188,6 +198,14 @@ fn dump(path: PathBuf, planes: &[&[f32]]) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// What every case runs: the methods, their options, and whether to try
+/// the blending rules.
+struct Runs<'a> {
+    methods: &'a [Method],
+    opts: &'a Options,
+    no_mix: bool,
+}
+
 fn case(
     work: &std::path::Path,
     ctx: &Arc<GpuContext>,
@@ -195,9 +213,13 @@ fn case(
     spp: u32,
     stats: &StatsImage,
     r: &RgbImage,
-    methods: &[Method],
-    no_mix: bool,
+    runs: &Runs,
 ) -> anyhow::Result<()> {
+    let Runs {
+        methods,
+        opts,
+        no_mix,
+    } = *runs;
     let mut line = serde_json::Map::new();
     line.insert("case".into(), format!("{name}@{spp}").into());
     let input = colour_of(stats);
@@ -205,7 +227,7 @@ fn case(
     let t = std::time::Instant::now();
     let outs: Vec<Out> = methods
         .iter()
-        .map(|&m| run(ctx, stats, m))
+        .map(|&m| run(ctx, stats, m, opts))
         .collect::<anyhow::Result<_>>()?;
     let tag = format!("{name}@{spp}-{}x{}", r.width, r.height);
     dump(work.join(format!("{tag}-ref.bin")), &r.plane_slices())?;
@@ -268,13 +290,19 @@ fn main() -> anyhow::Result<()> {
     let a = Args::parse();
     let ctx = Arc::new(GpuContext::new(&ContextOptions::default())?);
     let methods = a.methods.clone();
+    let opts = Options::parse(&a.opts)?;
+    let runs = Runs {
+        methods: &methods,
+        opts: &opts,
+        no_mix: a.no_mix,
+    };
     std::fs::create_dir_all(&a.work)?;
     if let Some(dir) = &a.public {
         for s in ["dof_checker", "glossy_cornell", "indirect_room"] {
             let r = io::read_rgb(&dir.join(s).join("reference.exr"))?;
             for &n in &a.spp {
                 let stats = io::read_stats(&dir.join(s).join(format!("spp{n}.exr")))?;
-                case(&a.work, &ctx, s, n, &stats, &r, &methods, a.no_mix)?;
+                case(&a.work, &ctx, s, n, &stats, &r, &runs)?;
             }
         }
     }
@@ -310,7 +338,7 @@ fn main() -> anyhow::Result<()> {
             b.finish()?;
             let stats = ren.statistics()?;
             io::write_stats(&a.work.join(format!("{name}-{n}.exr")), &stats)?;
-            case(&a.work, &ctx, name, n, &stats, &r, &methods, a.no_mix)?;
+            case(&a.work, &ctx, name, n, &stats, &r, &runs)?;
         }
     }
     Ok(())
