@@ -979,18 +979,22 @@ fn centre_fit_invariants_with(sc: &Scene, p: &Planes, s: f64, outlier_weight: bo
                 .filter(|&(x, y)| p.valid(y * sc.w + x))
                 .collect()
         };
+        // The regressors, responses and weights of a set of pixels.
+        type Design = (Vec<[f64; MAX_P]>, Vec<[f64; 3]>, Vec<f64>);
+        let design = |px: &[(usize, usize)]| -> Design {
+            let q = |&(x, y): &(usize, usize)| y * sc.w + x;
+            (
+                px.iter()
+                    .map(|&(x, y)| regressor(&pr, &p.features(x, y), &xc))
+                    .collect(),
+                px.iter().map(|c| p.colour(q(c)).0).collect(),
+                px.iter().map(|c| weight(q(c))).collect(),
+            )
+        };
         // Ξ(1): each pixel of Ω^P(1) scored by a weighted refit on the
         // others (skipped where LOO-DEN's clamp acts).
         let block = pixels_within(1);
-        let rows1: Vec<[f64; MAX_P]> = block
-            .iter()
-            .map(|&(x, y)| regressor(&pr, &p.features(x, y), &xc))
-            .collect();
-        let ys1: Vec<[f64; 3]> = block
-            .iter()
-            .map(|&(x, y)| p.colour(y * sc.w + x).0)
-            .collect();
-        let ws1: Vec<f64> = block.iter().map(|&(x, y)| weight(y * sc.w + x)).collect();
+        let (rows1, ys1, ws1) = design(&block);
         let (_, inv) = rl::batch_ridge_weighted(&rows1, &ys1, &ws1, pr.k + 1, &prior);
         let leverage = |z: &[f64; MAX_P]| -> f64 {
             (0..=pr.k)
@@ -1030,16 +1034,7 @@ fn centre_fit_invariants_with(sc: &Scene, p: &Planes, s: f64, outlier_weight: bo
             checked_loo += 1;
         }
         for r in 2..RINGS {
-            let train = pixels_within(r - 1);
-            let rows: Vec<[f64; MAX_P]> = train
-                .iter()
-                .map(|&(x, y)| regressor(&pr, &p.features(x, y), &xc))
-                .collect();
-            let ys: Vec<[f64; 3]> = train
-                .iter()
-                .map(|&(x, y)| p.colour(y * sc.w + x).0)
-                .collect();
-            let ws: Vec<f64> = train.iter().map(|&(x, y)| weight(y * sc.w + x)).collect();
+            let (rows, ys, ws) = design(&pixels_within(r - 1));
             let (beta, _) = rl::batch_ridge_weighted(&rows, &ys, &ws, pr.k + 1, &prior);
             let mut delta = [0.0; 3];
             for (x, y) in rl::ring(sc.w, sc.h, cx, cy, r) {
