@@ -949,7 +949,8 @@ fn centre_fit_invariants_with(sc: &Scene, p: &Planes, s: f64, outlier_weight: bo
             continue;
         }
         let vc = p.colour(cy * sc.w + cx).1;
-        let weight = |q: usize| 1.0 / rl::inverse_weight(&p.colour(q).1, &vc, outlier_weight);
+        let scale = rl::weight_scale(&vc, outlier_weight);
+        let weight = |q: usize| 1.0 / rl::inverse_weight(&p.colour(q).1, scale);
         let in_window = |q: usize| (q % sc.w).abs_diff(cx).max((q / sc.w).abs_diff(cy)) <= 9;
         weighted += usize::from((0..sc.w * sc.h).any(|q| in_window(q) && weight(q) < 0.1));
         let fit = centre_fit(

@@ -123,10 +123,11 @@ real lp_leverage(LpRls s, real4 z0, real4 z1, real4 z2)
     return dot(z0, q0) + dot(z1, q1) + dot(z2, q2);
 }
 
-// LP-OUTLIER-W (twin: reference::lp::inverse_weight): a centre with colour
-// variances vc weighs the row of a pixel with variances v by
-// 1 / lp_inverse_weight(v, lp_weight_scale(vc, clamped)) =
-// 1 / max(vbar / max(vbar_c, 1), 1); scale 0 (option off) gives 1.
+// LP-OUTLIER-W (twins: reference::lp::weight_scale, inverse_weight): a
+// centre with colour variances vc weighs the row of a pixel with variances
+// v by 1 / lp_inverse_weight(v, lp_weight_scale(vc, clamped)) =
+// 1 / max(vbar / max(vbar_c, 1), 1); scale 0 (option off) gives 1, and so
+// does the centre's own row.
 real lp_weight_scale(real3 vc, bool clamped)
 {
     return clamped ? max((vc.r + vc.g + vc.b) / real(3), real(1)) : real(0);
@@ -348,7 +349,7 @@ LpFit lp_centre_fit(ivec2 c, ivec2 size, TsvdProj pr, real s, bool centre_test, 
     real4 z0, z1, z2;
     lp_regressor(pr, xc, c, z0, z1, z2);
     real4 c0 = z0, c1 = z1, c2 = z2;  // the centre's regressor
-    lp_update(st, z0, z1, z2, yc, lp_inverse_weight(vc, ws));
+    lp_update(st, z0, z1, z2, yc, real(1));  // its own row weighs 1
     lp_symmetrise(st);
     best.r_opt = 0;
     best.B = st.B;

@@ -277,16 +277,27 @@ pub fn centre_miss(miss: f64, v_c: f64, s: f64) -> f64 {
 }
 
 /// LP-OUTLIER-W (ours, WLR's OUTLIER-W carried to LP's fits, measured in
-/// the centre's own noise): the inverse weight `max(vbar / max(vbar_c, 1),
-/// 1)` in the RLS of the centre with colour variances `vc` of a pixel with
-/// colour variances `v` (`vbar`, `vbar_c` their means, §0.1), so a centre
-/// in a lamp's halo weighs its equally noisy neighbours fully while a dark
-/// centre weighs a one-sample pixel of variance V by 1/V; 1 with the
-/// option off.
+/// the centre's own noise): the scale of a centre with colour variances
+/// `vc`, `max(vbar_c, 1)` (`vbar_c` their mean, §0.1), or 0 with the option
+/// off. Twin of `lp_weight_scale`.
 #[inline]
-pub fn inverse_weight(v: &[f64; 3], vc: &[f64; 3], clamped: bool) -> f64 {
+pub fn weight_scale(vc: &[f64; 3], clamped: bool) -> f64 {
     if clamped {
-        let scale = ((vc[0] + vc[1] + vc[2]) / 3.0).max(1.0);
+        ((vc[0] + vc[1] + vc[2]) / 3.0).max(1.0)
+    } else {
+        0.0
+    }
+}
+
+/// LP-OUTLIER-W: the inverse weight `max(vbar / scale, 1)` in the RLS of
+/// a centre with [`weight_scale`] `scale` of a pixel with colour variances
+/// `v`; 1 when `scale` is 0 (the option off). So a centre in a lamp's halo
+/// weighs its equally noisy neighbours fully while a dark centre weighs a
+/// one-sample pixel of variance V by 1/V, and a centre's own row always
+/// weighs 1. Twin of `lp_inverse_weight`.
+#[inline]
+pub fn inverse_weight(v: &[f64; 3], scale: f64) -> f64 {
+    if scale > 0.0 {
         ((v[0] + v[1] + v[2]) / 3.0 / scale).max(1.0)
     } else {
         1.0
@@ -334,12 +345,14 @@ pub fn centre_fit(p: &Planes, cx: usize, cy: usize, o: FitOptions) -> CentreFit 
     let (yc, vc) = p.colour(cy * p.width + cx);
     let mut rls = Rls::new(k + 1, yc);
     let zeta_of = |px: usize, py: usize| regressor(&pr, &p.features(px, py), &xc);
-    let c_of = |v: &[f64; 3]| inverse_weight(v, &vc, outlier_weight);
+    let scale = weight_scale(&vc, outlier_weight);
+    let c_of = |v: &[f64; 3]| inverse_weight(v, scale);
 
     let mut curve = [[0.0; 3]; RINGS];
     let mut count = [0usize; RINGS];
-    // r = 0: the centre (residual 0: β unchanged, P changes); Ξ(0) = v_c.
-    rls.update_weighted(&zeta_of(cx, cy), yc, c_of(&vc));
+    // r = 0: the centre (residual 0: β unchanged, P changes; its own row
+    // weighs 1 under LP-OUTLIER-W); Ξ(0) = v_c.
+    rls.update(&zeta_of(cx, cy), yc);
     rls.symmetrise();
     let mut n = 1usize;
     curve[0] = vc;
@@ -547,12 +560,15 @@ mod tests {
     #[test]
     fn inverse_weight_is_the_noise_over_the_centres() {
         let v = |x: f64| [x, x, x];
-        assert_eq!(inverse_weight(&v(100.0), &v(0.5), true), 100.0);
-        assert_eq!(inverse_weight(&v(100.0), &v(4.0), true), 25.0);
-        assert_eq!(inverse_weight(&v(2.0), &v(4.0), true), 1.0);
-        assert_eq!(inverse_weight(&v(0.3), &v(0.0), true), 1.0);
-        assert_eq!(inverse_weight(&[30.0, 60.0, 90.0], &v(0.0), true), 60.0);
-        assert_eq!(inverse_weight(&v(100.0), &v(0.5), false), 1.0);
+        let w = |x: [f64; 3], c: [f64; 3], on: bool| inverse_weight(&x, weight_scale(&c, on));
+        assert_eq!(w(v(100.0), v(0.5), true), 100.0);
+        assert_eq!(w(v(100.0), v(4.0), true), 25.0);
+        assert_eq!(w(v(2.0), v(4.0), true), 1.0);
+        assert_eq!(w(v(0.3), v(0.0), true), 1.0);
+        assert_eq!(w([30.0, 60.0, 90.0], v(0.0), true), 60.0);
+        assert_eq!(w(v(100.0), v(0.5), false), 1.0);
+        // A centre's own row.
+        assert_eq!(w(v(867.0), v(867.0), true), 1.0);
     }
 
     #[test]
