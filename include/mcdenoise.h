@@ -42,10 +42,11 @@
 
 // Flag of [`McdDenoiserDesc::flags`]: the input blend after the method
 // (INPUT-BLEND): each pixel's output is the method's and the input's,
-// weighed by the method's error estimate and the input's variance. Not
-// for `MCD_METHOD_NONE`. Without this flag or
-// [`MCD_FLAG_NO_INPUT_BLEND`], the stage runs after `MCD_METHOD_AOS` in a
-// final reconstruction and after no other method.
+// weighed by the method's error estimate (read as at least what the
+// residual shows, BLEND-RESIDUAL) and the input's variance. Not for
+// `MCD_METHOD_NONE`. Without this flag or [`MCD_FLAG_NO_INPUT_BLEND`], the
+// stage runs in a final reconstruction after every method but
+// `MCD_METHOD_AUTO`.
 #define MCD_FLAG_INPUT_BLEND 32
 
 // Flag of [`McdDenoiserDesc::flags`]: never the input blend (see

@@ -3,13 +3,18 @@
 // with error estimate E, blended with the input y (the statistics
 // the method read) by inverse error, as two estimates of the same pixel:
 //   V  = max(v, mean of v over the valid pixels of the (2r+1)^2 window)
-//   f' = max((V f + k E y) / (V + k E), 0) = max(f + w_y (y - f), 0)
-//   E' = V E (V + k^2 E) / (V + k E)^2 = w_f^2 E + w_y^2 V
-// with w_y = k E / (V + k E), w_f = 1 - w_y, computed from V and E divided
-// by the larger, and the window's mean as a running mean (no overflow
+//   B  = mean of (f - y)^2 - v over the valid pixels of the (2s+1)^2
+//        window, less z sqrt(2 mean(v^2) / n) (BLEND-RESIDUAL; not read
+//        with s = 0, or where a term (f - y)^2 or v^2 is not finite or
+//        exceeds f32's largest)
+//   M  = max(E, B),  W = max(k E, B)
+//   f' = max((V f + W y) / (V + W), 0) = max(f + w_y (y - f), 0)
+//   E' = w_f^2 M + w_y^2 V
+// with w_y = W / (V + W), w_f = 1 - w_y, computed from V, M and W divided
+// by the largest, and the windows' means as running means (no overflow
 // where the input is huge). E' is the
 // variance of the blend were the two independent. An invalid pixel, one
-// with V + k E = 0 or not finite, or one whose blend is not finite, keeps
+// with V + W = 0 or not finite, or one whose blend is not finite, keeps
 // f and E.
 // Scalar twin: src/reference/input_blend.rs.
 #include "lib/common.glsl"
@@ -23,9 +28,9 @@ layout(push_constant) uniform Push {
     uint row0;
     uint radius;
     float k;
+    uint residual_radius;
+    float z;
     uint pad0;
-    uint pad1;
-    uint pad2;
 } push;
 
 PLANE_IN(0, f)
@@ -67,18 +72,47 @@ void main()
     real vi = max(real(v[i]), real(0));
     real big_v = max(vi, mean);
     real ei = ei_raw > 0.0 ? real(ei_raw) : real(0);
-    real s = max(big_v, ei);
+    // The residual's window: a lower bound on the reconstruction's error
+    // that its own estimate cannot miss (BLEND-RESIDUAL).
+    real bias = real(0);
+    int rs = int(push.residual_radius);
+    if (rs > 0) {
+        int sx0 = max(int(x) - rs, 0), sx1 = min(int(x) + rs, int(push.width) - 1);
+        int sy0 = max(int(row) - rs, 0), sy1 = min(int(row) + rs, int(push.height) - 1);
+        real big = real(3.4028234663852886e38);
+        real n = real(0), md = real(0), mv = real(0), mv2 = real(0);
+        bool within = true;
+        for (int qy = sy0; qy <= sy1; ++qy) {
+            for (int qx = sx0; qx <= sx1; ++qx) {
+                uint q = uint(qy) * push.width + uint(qx);
+                if (spp_of(spp[q]) > 0.0) {
+                    n += real(1);
+                    real d = real(f[q]) - real(y[q]);
+                    real vq = max(real(v[q]), real(0));
+                    within = within && d * d <= big && vq * vq <= big;
+                    md += (d * d - md) / n;
+                    mv += (vq - mv) / n;
+                    mv2 += (vq * vq - mv2) / n;
+                }
+            }
+        }
+        if (within) {
+            bias = md - mv - real(push.z) * sqrt(real(2) * mv2 / n);
+        }
+    }
+    real mi = max(ei, bias);
+    real s = max(big_v, mi);
     if (!(s > real(0)) || isinf(s) || isnan(s)) {
         eout[i] = ei_raw;
         return;
     }
     real a = big_v / s;
-    real b = real(push.k) * (ei / s);
+    real b = max(real(push.k) * (ei / s), bias / s);
     real wy = b / (a + b);
     real wf = a / (a + b);
     real fi = real(f[i]);
     real o = fi + wy * (real(y[i]) - fi);
-    real eo = wf * wf * ei + wy * wy * big_v;
+    real eo = wf * wf * mi + wy * wy * big_v;
     if (isinf(o) || isnan(o) || isinf(eo) || isnan(eo)) {
         eout[i] = ei_raw;
         return;

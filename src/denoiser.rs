@@ -79,10 +79,13 @@ pub struct Config {
     /// the input's variance (floored by its mean over a small window), so
     /// that where the method smooths across what its features do not show
     /// the output returns towards the input. The error estimate is the
-    /// blend's, the sample map reads the method's. [`InputBlend::Auto`]
-    /// (the default): on for AOS's final reconstruction ([`Pass::Final`]),
-    /// off otherwise; [`InputBlend::On`] needs a
-    /// reconstruction (not `none`). Parameters: `blend.radius`, `blend.k`.
+    /// blend's, the sample map reads the method's. The method's error is
+    /// read as at least what the residual `(f − y)²` shows beyond the
+    /// input's variance (BLEND-RESIDUAL). [`InputBlend::Auto`] (the
+    /// default): on in the final reconstruction ([`Pass::Final`]) of WLR,
+    /// LP, APR and AOS, off for `auto` and in adaptive passes;
+    /// [`InputBlend::On`] needs a reconstruction (not `none`). Parameters:
+    /// `blend.radius`, `blend.k`, `blend.residual_radius`, `blend.z`.
     pub input_blend: InputBlend,
     /// A temporal stage after the method (spec §10): with
     /// [`Temporal::Lp`] every call filters the method's output with the

@@ -178,7 +178,21 @@ pub const OPTIONS: &[OptionSpec] = &[
         kind: Kind::Real(0.0, 100.0),
         default: "method",
         section: "ours (INPUT-BLEND)",
-        help: "the input blend's weight of the method's error estimate against the input's variance, f' = (V f + k E y)/(V + k E) (default: 2 for AOS, 1 for the others)",
+        help: "the input blend's weight of the method's error estimate against the input's variance, f' = (V f + k E y)/(V + k E) (default: 2 for AOS, 0.5 for WLR, 0.25 for LP and APR, 1 for auto)",
+    },
+    OptionSpec {
+        key: "blend.residual_radius",
+        kind: Kind::Int(0, 16),
+        default: "3",
+        section: "ours (BLEND-RESIDUAL)",
+        help: "the input blend's residual window: the method's error is read as at least the mean of (f - y)^2 - v over (2s+1)^2 pixels, less z of its standard deviation (0: not read)",
+    },
+    OptionSpec {
+        key: "blend.z",
+        kind: Kind::Real(0.0, 100.0),
+        default: "1",
+        section: "ours (BLEND-RESIDUAL)",
+        help: "the input blend's residual test: how many of its standard deviations the residual's mean must exceed the variance by",
     },
     OptionSpec {
         key: "sampling.smooth",

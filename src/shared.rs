@@ -765,6 +765,19 @@ pub struct BlendPush {
     /// The weight `k` of the reconstruction's error estimate against the
     /// input's variance.
     pub k: f32,
+    /// The radius `s` of the residual's window (BLEND-RESIDUAL): the
+    /// reconstruction's error is read as at least the window's mean of
+    /// `(f − y)² − v`, less `z` of its standard deviation; 0: not read.
+    pub residual_radius: u32,
+    /// The `z` of the residual's test.
+    pub z: f32,
     /// Unused: 0.
-    pub _pad: [u32; 3],
+    pub _pad: u32,
 }
+
+/// The `z` of the input blend's residual test (BLEND-RESIDUAL,
+/// `blend.z`).
+pub const BLEND_Z: f32 = 1.0;
+/// The radius of the input blend's residual window (BLEND-RESIDUAL,
+/// `blend.residual_radius`).
+pub const BLEND_RESIDUAL_RADIUS: u32 = 3;

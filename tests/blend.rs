@@ -11,13 +11,24 @@ use common::{
     run_chain, uniform_plane, Rng,
 };
 use mcdenoise::kernels::{input_blend, run_planes};
-use mcdenoise::methods::blend::{push, run_cpu};
+use mcdenoise::methods::blend::{push, run_cpu, BlendParams};
 use mcdenoise::methods::chain::ChainConfig;
-use mcdenoise::reference::input_blend::input_blend as twin;
+use mcdenoise::reference::input_blend::{input_blend as twin, residual_bound};
 use mcdenoise::{
     Config, Denoiser, InputBlend, Layer, Method, Options, Pass, Prefilter, Pyramid, RgbImage,
     Source, StatsImage,
 };
+
+/// The stage's parameters: the variance's window `radius`, `k`, the
+/// residual's window `s` (0: not read) and its `z`.
+fn params(radius: u32, k: f32, s: u32, z: f32) -> BlendParams {
+    BlendParams {
+        radius,
+        k,
+        residual_radius: s,
+        z,
+    }
+}
 
 #[test]
 fn input_blend_matches_its_twin() {
@@ -57,8 +68,15 @@ fn input_blend_matches_its_twin() {
             (v[b], e[b]) = (3e38, 3e38);
             f[c] = f32::NAN;
         }
-        for &(radius, k) in &[(0u32, 1.0f32), (1, 1.0), (3, 2.5)] {
-            let p = push((w, h), (radius, k));
+        for &(radius, k, s, z) in &[
+            (0u32, 1.0f32, 0u32, 1.0f32),
+            (1, 1.0, 0, 1.0),
+            (3, 2.5, 0, 1.0),
+            (1, 2.0, 3, 1.0),
+            (3, 0.5, 1, 0.0),
+            (0, 0.0, 2, 2.0),
+        ] {
+            let p = push((w, h), params(radius, k, s, z));
             let (mut fo, mut eo) = (vec![0.0f32; n], vec![0.0f32; n]);
             twin(&p, &f, &e, &y, &v, &spp, &mut fo, &mut eo);
             for prec in precisions() {
@@ -74,7 +92,7 @@ fn input_blend_matches_its_twin() {
                     input_blend::flops_per_pixel(radius),
                 )
                 .unwrap();
-                let what = format!("{w}x{h} r {radius} k {k} {prec:?}");
+                let what = format!("{w}x{h} r {radius} k {k} s {s} z {z} {prec:?}");
                 // A pixel that keeps its own f or E passes a NaN through:
                 // both sides hold it at the same pixels.
                 for (name, gpu_plane, want) in [("colour", &g[0], &fo), ("error", &g[1], &eo)] {
@@ -94,15 +112,22 @@ fn input_blend_matches_its_twin() {
                     continue;
                 }
                 // The blend lies between the reconstruction and the input,
-                // and for k <= 2 its error below the method's.
+                // and for k <= 2 its error below the method's, read as at
+                // least the residual's bound.
                 let (lo, hi) = (f[i].min(y[i]), f[i].max(y[i]));
                 assert!(
                     fo[i] >= lo - 1e-6 && fo[i] <= hi + 1e-6,
                     "pixel {i}: {} outside [{lo}, {hi}]",
                     fo[i]
                 );
+                let bound = if s > 0 {
+                    residual_bound(&p, (&f, &y, &v, &spp), (i % w, i / w))
+                } else {
+                    0.0
+                };
                 if e[i] > 0.0 && k <= 2.0 {
-                    assert!(eo[i] <= e[i] * (1.0 + 1e-5), "pixel {i}: error grew");
+                    let m = (e[i] as f64).max(bound);
+                    assert!(eo[i] as f64 <= m * (1.0 + 1e-5), "pixel {i}: error grew");
                 }
             }
         }
@@ -120,7 +145,7 @@ fn the_twin_weighs_by_inverse_error() {
     let spp = vec![4.0f32; n];
     let f = vec![1.0f32; n];
     let y = vec![3.0f32; n];
-    let p = push((w, h), (1, 1.0));
+    let p = push((w, h), params(1, 1.0, 0, 1.0));
     let run = |e: &[f32], v: &[f32]| {
         let (mut fo, mut eo) = (vec![0.0f32; n], vec![0.0f32; n]);
         twin(&p, &f, e, &y, v, &spp, &mut fo, &mut eo);
@@ -142,6 +167,108 @@ fn the_twin_weighs_by_inverse_error() {
     let big_v = 0.2 * 8.0 / 9.0;
     let want = (big_v * 1.0 + 0.2 * 3.0) / (big_v + 0.2);
     assert!((fo[12] as f64 - want).abs() < 1e-5, "{} vs {want}", fo[12]);
+    // BLEND-RESIDUAL: f = 1 where every input says 3 within their variance
+    // of 0.2 is that far off whatever its estimate says. At the centre of
+    // a 3x3 window B = 2² − 0.2 − z √(2 · 0.2² / 9), and the output is
+    // taken towards the input by W = max(k E, B) = B.
+    let (mut fo, mut eo) = (vec![0.0f32; n], vec![0.0f32; n]);
+    let p1 = push((w, h), params(1, 1.0, 1, 1.0));
+    twin(
+        &p1,
+        &f,
+        &vec![0.0; n],
+        &y,
+        &vec![0.2; n],
+        &spp,
+        &mut fo,
+        &mut eo,
+    );
+    let b = 4.0 - 0.2 - (2.0f64 * 0.04 / 9.0).sqrt();
+    let wy = b / (0.2 + b);
+    assert!(
+        (fo[12] as f64 - (1.0 + 2.0 * wy)).abs() < 1e-5,
+        "{}",
+        fo[12]
+    );
+    let want_e = (1.0 - wy) * (1.0 - wy) * b + wy * wy * 0.2;
+    assert!(
+        (eo[12] as f64 - want_e).abs() < 1e-5,
+        "{} vs {want_e}",
+        eo[12]
+    );
+    // Where f agrees with the input the bound is negative: the output is
+    // the residual-free one, bit for bit.
+    let same = vec![3.0f32; n];
+    let (mut a, mut ae) = (vec![0.0f32; n], vec![0.0f32; n]);
+    let (mut b0, mut be) = (vec![0.0f32; n], vec![0.0f32; n]);
+    let e = vec![0.05f32; n];
+    twin(&p1, &same, &e, &y, &vec![0.2; n], &spp, &mut a, &mut ae);
+    twin(&p, &same, &e, &y, &vec![0.2; n], &spp, &mut b0, &mut be);
+    assert!(a == b0 && ae == be);
+}
+
+/// BLEND-RESIDUAL: a reconstruction that smoothed away a thin bright line
+/// its features do not show, and whose estimate does not know it, is
+/// taken back towards the input on the line, while on the flat noisy
+/// ground around it, where it is right, the input's noise stays out.
+#[test]
+fn the_residual_takes_a_lost_line_back_from_the_input() {
+    let (w, h) = (48usize, 48usize);
+    let n = w * h;
+    let mut rng = Rng(7);
+    let truth: Vec<f32> = (0..n)
+        .map(|i| if i % w == 24 { 4.0 } else { 0.5 })
+        .collect();
+    let v = vec![0.01f32; n];
+    // The input: the truth with noise of variance v.
+    let noise = uniform_plane(n, &mut rng, 1.0);
+    let y: Vec<f32> = (0..n)
+        .map(|i| truth[i] + (noise[i] - 0.5) * (12.0f32 * 0.01).sqrt())
+        .collect();
+    // The reconstruction: exact off the line, the ground's level on it.
+    let f = vec![0.5f32; n];
+    let e = vec![1e-4f32; n];
+    let spp = vec![16.0f32; n];
+    let run = |s: u32| {
+        let (mut fo, mut eo) = (vec![0.0f32; n], vec![0.0f32; n]);
+        twin(
+            &push((w, h), params(3, 1.0, s, 1.0)),
+            &f,
+            &e,
+            &y,
+            &v,
+            &spp,
+            &mut fo,
+            &mut eo,
+        );
+        fo
+    };
+    let mse = |o: &[f32], on_line: bool| {
+        let px: Vec<usize> = (0..n).filter(|&i| (i % w == 24) == on_line).collect();
+        px.iter()
+            .map(|&i| ((o[i] - truth[i]) as f64).powi(2))
+            .sum::<f64>()
+            / px.len() as f64
+    };
+    let (off, on) = (run(0), run(3));
+    println!(
+        "line MSE {} -> {}, ground MSE {} -> {}",
+        mse(&off, true),
+        mse(&on, true),
+        mse(&off, false),
+        mse(&on, false)
+    );
+    assert!(mse(&on, true) < 0.01 * mse(&off, true));
+    assert!(mse(&on, true) < 2.0 * 0.01);
+    // On the ground away from the line (its window does not reach it) the
+    // input's noise adds less than 2 % of its variance.
+    let far: Vec<usize> = (0..n).filter(|&i| (i % w).abs_diff(24) > 3).collect();
+    let added = far
+        .iter()
+        .map(|&i| ((on[i] - truth[i]) as f64).powi(2))
+        .sum::<f64>()
+        / far.len() as f64;
+    assert!(added < 0.02 * 0.01, "{added}");
 }
 
 fn fixture() -> (StatsImage, RgbImage) {
@@ -256,8 +383,9 @@ fn the_stage_is_the_method_output_blended() {
     check_validation(&ctx);
 }
 
-/// The stage's parameters come from the options: k = 0 keeps the method's
-/// output, and the larger k the nearer the output to the input.
+/// The stage's parameters come from the options: k = 0 without the
+/// residual keeps the method's output, the larger k the nearer the output
+/// to the input, and the residual's bound only moves it nearer.
 #[test]
 fn the_options_set_its_parameters() {
     let ctx = gpu();
@@ -271,10 +399,10 @@ fn the_options_set_its_parameters() {
         d.denoise(&img, None).unwrap().color
     };
     let off = run(&[], InputBlend::Off);
-    let k0 = run(&["blend.k=0"], InputBlend::On);
+    let k0 = run(&["blend.k=0", "blend.residual_radius=0"], InputBlend::On);
     for c in 0..3 {
         assert_close(
-            "k = 0 keeps the method's output",
+            "k = 0 without the residual keeps the method's output",
             &k0.planes[c],
             &off.planes[c],
             1.0,
@@ -297,7 +425,11 @@ fn the_options_set_its_parameters() {
         .iter()
         .map(|k| {
             distance(&run(
-                &["blend.radius=0", &format!("blend.k={k}")],
+                &[
+                    "blend.radius=0",
+                    "blend.residual_radius=0",
+                    &format!("blend.k={k}"),
+                ],
                 InputBlend::On,
             ))
         })
@@ -308,14 +440,32 @@ fn the_options_set_its_parameters() {
         d_off > d[0] && d.windows(2).all(|w| w[0] > w[1]),
         "{d_off} {d:?}"
     );
+    // The residual (BLEND-RESIDUAL, on by default) can only raise the
+    // input's weight; the larger z, the less it does.
+    let with = |z: &str| {
+        distance(&run(
+            &["blend.k=1", &format!("blend.z={z}")],
+            InputBlend::On,
+        ))
+    };
+    let without = distance(&run(
+        &["blend.k=1", "blend.residual_radius=0"],
+        InputBlend::On,
+    ));
+    let (z0, z1, z4) = (with("0"), with("1"), with("4"));
+    println!("residual: off {without}, z = 0, 1, 4: {z0} {z1} {z4}");
+    assert!(
+        z0 < z1 && z1 < z4 && z4 <= without,
+        "{z0} {z1} {z4} {without}"
+    );
     check_validation(&ctx);
 }
 
-/// INPUT-BLEND's defaults: on after AOS in a final reconstruction
-/// (the output is `InputBlend::On`'s bit for bit), off after the other
-/// methods and in an adaptive pass.
+/// INPUT-BLEND's defaults: on after WLR, LP, APR and AOS in a final
+/// reconstruction (the output is `InputBlend::On`'s bit for bit), off
+/// after `auto` and in an adaptive pass.
 #[test]
-fn the_default_runs_the_stage_after_aos_only() {
+fn the_default_runs_the_stage_after_every_method_but_auto() {
     let ctx = gpu();
     let (img, _) = fixture();
     let run = |method: Method, pass: Pass, blend: Option<InputBlend>| {
@@ -328,18 +478,24 @@ fn the_default_runs_the_stage_after_aos_only() {
         let d = Denoiser::new(&ctx, Source::of_image(&img), c).unwrap();
         d.denoise(&img, None).unwrap().color.planes
     };
-    let auto = run(Method::Aos, Pass::Final, None);
-    assert!(auto == run(Method::Aos, Pass::Final, Some(InputBlend::On)));
-    assert!(auto != run(Method::Aos, Pass::Final, Some(InputBlend::Off)));
-    let pass = run(Method::Aos, Pass::Intermediate, None);
-    assert!(pass == run(Method::Aos, Pass::Intermediate, Some(InputBlend::Off)));
-    for method in [Method::Wlr, Method::Lp, Method::Apr, Method::Auto] {
+    for method in [Method::Wlr, Method::Lp, Method::Apr, Method::Aos] {
         let auto = run(method, Pass::Final, None);
         assert!(
-            auto == run(method, Pass::Final, Some(InputBlend::Off)),
+            auto == run(method, Pass::Final, Some(InputBlend::On)),
+            "{method:?}"
+        );
+        assert!(
+            auto != run(method, Pass::Final, Some(InputBlend::Off)),
+            "{method:?}"
+        );
+        let pass = run(method, Pass::Intermediate, None);
+        assert!(
+            pass == run(method, Pass::Intermediate, Some(InputBlend::Off)),
             "{method:?}"
         );
     }
+    let auto = run(Method::Auto, Pass::Final, None);
+    assert!(auto == run(Method::Auto, Pass::Final, Some(InputBlend::Off)));
     check_validation(&ctx);
 }
 
@@ -367,7 +523,7 @@ fn method_none_is_refused() {
 fn the_cpu_stage_names_a_missing_layer() {
     let img = StatsImage::new(4, 4);
     let c = RgbImage::new(4, 4);
-    let err = run_cpu(&img, &c, &c, (1, 1.0)).unwrap_err();
+    let err = run_cpu(&img, &c, &c, params(1, 1.0, 3, 1.0)).unwrap_err();
     assert!(
         format!("{err}").contains("colour") || format!("{err}").contains("color"),
         "{err}"

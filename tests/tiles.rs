@@ -279,6 +279,21 @@ fn the_input_blend_tiled_is_bit_identical() {
         60,
         "wlr intermediate --input-blend r 16 32x480",
     );
+    // The residual's window reads the method's output (BLEND-RESIDUAL):
+    // the halo holds the method's reach beyond it. (With k = 0 and z = 0
+    // the bound decides every pixel where it is positive.)
+    let mut c = Config::new(Method::Wlr);
+    c.input_blend = mcdenoise::InputBlend::On;
+    c.outliers = Outliers::Off;
+    c.prefilter = Prefilter::Off;
+    c.options = mcdenoise::Options::parse(&[
+        "blend.radius=0".to_string(),
+        "blend.k=0".to_string(),
+        "blend.z=0".to_string(),
+        "blend.residual_radius=16".to_string(),
+    ])
+    .unwrap();
+    check(&img, c, 60, "wlr --input-blend s 16 480x32");
     check_validation(&gpu());
 }
 

@@ -522,9 +522,9 @@ pub static INFO: MethodInfo = MethodInfo {
     outliers_auto: true,
     pyramid_auto: false,
     blend: super::blend::BlendDefaults {
-        auto: false,
+        auto: true,
         radius: 3,
-        k: 1.0,
+        k: 0.25,
     },
     // MAP-WLR: WLR's estimate places the adaptive passes' samples.
     map_method: Method::Wlr,

@@ -10,6 +10,15 @@
 //! features it reports a large error, and the output returns towards the
 //! input: it keeps a reconstruction from ending worse than its input.
 //!
+//! Where the method does not see its own bias either, the residual does
+//! (BLEND-RESIDUAL): over a `(2s + 1)²` window `(f − y)²` exceeds the
+//! input's variance by about the reconstruction's squared error, so the
+//! stage reads that error as at least
+//! `B = mean (f − y)² − mean v − z √(2 mean v² / n)` (the excess less `z`
+//! of its standard deviation were `f` exact): the weight of the input is
+//! `W = max(k E, B)` in place of `k E`, and the error `max(E, B)` in the
+//! blend's estimate.
+//!
 //! It runs on the method's colour before the outlier stage gives back the
 //! energy it removed, on the same cleaned statistics the method read: the
 //! energy the outlier stage moves is kept whatever the blend does.
@@ -22,7 +31,7 @@ use crate::image::{Layer, RgbImage, StatsImage};
 use crate::kernels::input_blend::{self, Channel};
 use crate::options::Options;
 use crate::reference::input_blend as twin;
-use crate::shared::BlendPush;
+use crate::shared::{BlendPush, BLEND_RESIDUAL_RADIUS, BLEND_Z};
 
 use super::stats::GpuStats;
 use super::{Method, Pass};
@@ -41,7 +50,7 @@ pub struct BlendDefaults {
 /// Whether the input blend runs (`Config::input_blend`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum InputBlend {
-    /// The method's default ([`BlendDefaults::auto`]: AOS) in a
+    /// The method's default ([`BlendDefaults::auto`]: WLR, LP, APR, AOS) in a
     /// final reconstruction ([`Pass::Final`]; an adaptive pass's map reads
     /// the method's estimate).
     #[default]
@@ -74,23 +83,52 @@ pub fn check(method: Method) -> Result<()> {
     Ok(())
 }
 
-/// The stage's `(radius, k)` for `method` with `options`
-/// (`blend.radius`, `blend.k`; the method's defaults otherwise).
-pub fn params(method: Method, options: &Options) -> Result<(u32, f32)> {
+/// The stage's parameters ([`params`]).
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct BlendParams {
+    /// The radius `r` of the variance's window (`blend.radius`).
+    pub radius: u32,
+    /// The weight `k` of the error estimate (`blend.k`).
+    pub k: f32,
+    /// The radius `s` of the residual's window (BLEND-RESIDUAL,
+    /// `blend.residual_radius`; 0: the residual is not read).
+    pub residual_radius: u32,
+    /// The `z` of the residual's test (`blend.z`).
+    pub z: f32,
+}
+
+/// The stage's parameters for `method` with `options` (`blend.radius`,
+/// `blend.k`, `blend.residual_radius`, `blend.z`; the method's and the
+/// stage's defaults otherwise).
+pub fn params(method: Method, options: &Options) -> Result<BlendParams> {
     let d = method.info().blend;
-    Ok((
-        options.number("blend.radius")?.unwrap_or(d.radius),
-        options.number("blend.k")?.unwrap_or(d.k),
-    ))
+    Ok(BlendParams {
+        radius: options.number("blend.radius")?.unwrap_or(d.radius),
+        k: options.number("blend.k")?.unwrap_or(d.k),
+        residual_radius: options
+            .number("blend.residual_radius")?
+            .unwrap_or(BLEND_RESIDUAL_RADIUS),
+        z: options.number("blend.z")?.unwrap_or(BLEND_Z),
+    })
+}
+
+impl BlendParams {
+    /// How far from a pixel the stage reads: the variance's window, and
+    /// the residual's, which reads the reconstruction there too.
+    pub fn reach(&self) -> usize {
+        self.radius.max(self.residual_radius) as usize
+    }
 }
 
 /// The push constants over a `size` image.
-pub fn push((w, h): (usize, usize), (radius, k): (u32, f32)) -> BlendPush {
+pub fn push((w, h): (usize, usize), p: BlendParams) -> BlendPush {
     BlendPush {
         width: w as u32,
         height: h as u32,
-        radius,
-        k,
+        radius: p.radius,
+        k: p.k,
+        residual_radius: p.residual_radius,
+        z: p.z,
         ..Default::default()
     }
 }
@@ -169,7 +207,7 @@ pub fn run_cpu(
     clean: &StatsImage,
     color: &RgbImage,
     error: &RgbImage,
-    params: (u32, f32),
+    params: BlendParams,
 ) -> Result<(RgbImage, RgbImage)> {
     let (w, h) = (color.width, color.height);
     let layer = |l: Layer| {

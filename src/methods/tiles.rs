@@ -40,7 +40,7 @@
 //! | LP (§3.5) | `9·(P + 1)` = 54 | pass `t`'s centres depend on the reach of the centres of earlier passes within 9, each fitted over its 19×19 window: `9(t + 1)` for `t < P = 5`; the gather reads the centres within 9 |
 //! | APR (§4.3) | `14 + 28 T` = 70 (T = 2 stages) | a stage's block at `c` reads the previous stage's blend within 14, which reads blocks within 14; the final blend reads blocks within 14 |
 //! | AOS (§5) | `R + 8`: 17 final, 13 intermediate | NL-means search 5 + patch 3, then the window `Ω_c(R)` |
-//! | input blend (INPUT-BLEND), with the method | `max(method, r)` | reads the statistics the method read within its variance window `r` (AOS 1, the others 3) |
+//! | input blend (INPUT-BLEND), with the method | `max(method + s, r)` | reads the statistics the method read within its variance window `r` (AOS 1, the others 3), and the method's output within its residual window `s` (3, BLEND-RESIDUAL) |
 //! | G-buffer prefilter (§6.2) | 13 | `S̄ = G_1.5(S)` (5); SURE at `c` uses `S̃` within 3; `hbar = G_1.5(h_opt)` (5) |
 //! | outlier detection and replacement (§4.4 steps 1–3) | 14 | `m_o`, `sd_o` and the median over `Ω_o(14)` |
 //! | sanitation (§0.4) | 5 | step 1: 3×3 (1); then step 3 (5×5: 2) or step 4 (3×3 residuals, 7×7 MAD: 4) |
@@ -54,8 +54,9 @@
 //! level's grids and 2×2 blocks are the whole image's.
 //!
 //! With the defaults (final pass, outlier stage on, prefilter where `auto`
-//! runs it): WLR 133, LP 175, APR 200, AOS 128 (no prefilter by default,
-//! AOS-NO-GBF; 141 with `--prefilter gbf`), and `none` 5 (it runs no
+//! runs it, the input blend after every method but `auto`): WLR 136, LP
+//! 178, APR 203, AOS 131 (no prefilter by default, AOS-NO-GBF; 144 with
+//! `--prefilter gbf`), and `none` 5 (it runs no
 //! outlier stage and no prefilter by default). [`halo`] computes it for any configuration.
 
 use std::collections::BTreeMap;
@@ -168,15 +169,16 @@ pub fn halo(config: &ChainConfig, prefiltered: bool) -> Result<Halo> {
         parts.push(("outlier redistribution (§4.4 step 4)", 2 * spread));
     }
     let method = (config.method.info().halo)(config)?;
-    // The input blend reads the statistics the method read, within its
-    // variance window of the pixel: within the method's reach but for an
-    // unusually wide window.
-    let blend = if config.input_blend {
-        super::blend::params(config.method, &config.options)?.0 as usize
+    // The input blend reads the statistics the method read within its
+    // variance window of the pixel, and the method's output (and the
+    // statistics) within its residual window (BLEND-RESIDUAL).
+    let with_blend = if config.input_blend {
+        let b = super::blend::params(config.method, &config.options)?;
+        (method + b.residual_radius as usize).max(b.reach())
     } else {
-        0
+        method
     };
-    parts.push(("method (and the input blend)", method.max(blend)));
+    parts.push(("method (and the input blend)", with_blend));
     if prefiltered {
         let s = gauss_smooth::radius(reference::gbf::SMOOTH_SIGMA) as usize;
         parts.push(("G-buffer prefilter (§6.2)", 2 * s + reference::gbf::RADIUS));

@@ -488,9 +488,9 @@ pub static INFO: MethodInfo = MethodInfo {
     outliers_auto: true,
     pyramid_auto: false,
     blend: super::blend::BlendDefaults {
-        auto: false,
+        auto: true,
         radius: 3,
-        k: 1.0,
+        k: 0.5,
     },
     map_method: Method::Wlr,
     passes: 5,

@@ -128,7 +128,8 @@ impl PyramidArg {
 
 #[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
 pub enum BlendArg {
-    /// On after AOS in a final reconstruction, off otherwise.
+    /// On after WLR, LP, APR and AOS in a final reconstruction, off
+    /// otherwise.
     Auto,
     /// After any reconstruction (not none).
     On,

@@ -1,14 +1,15 @@
 //! Probe for the input blend (INPUT-BLEND, issue #41): every method's rMSE
-//! without the stage and with it at each `radius:k`, on the uniform inputs
+//! without the stage and with it at each configuration, on the uniform inputs
 //! and references `method_mix` leaves in its work folder
 //! (`<scene>-<spp>.exr`, `<scene>@<spp>-<w>x<h>-ref.bin`). One JSON line
 //! per case and method: the input's rMSE, the method's without the stage
-//! (`off`), and with it (`r:k`); raw (the references' own error is the
-//! same for every row of a case).
+//! (`off`), and with it at each `--config` (keyed by the configuration);
+//! raw (the references' own error is the same for every row of a case).
 //!
 //! ```text
 //! cargo run --release -p mcdenoise-tools --bin blend_probe -- \
-//!     --work /tmp/mm-seed3 --methods wlr,aos --configs 3:1,1:1,2:2
+//!     --work /tmp/mm-seed3 --methods wlr,aos \
+//!     --config "blend.radius=3 blend.k=1" --config "blend.residual_radius=0"
 //! ```
 
 use std::path::PathBuf;
@@ -27,8 +28,10 @@ struct Args {
     work: PathBuf,
     #[arg(long, value_delimiter = ',', default_value = "wlr,lp,apr,aos", value_parser = parse_method)]
     methods: Vec<Method>,
-    /// `radius:k` pairs to try.
-    #[arg(long, value_delimiter = ',', default_value = "3:1")]
+    /// A configuration of the stage to try: `--opt` settings separated by
+    /// spaces (`blend.radius`, `blend.k`, `blend.residual_radius`,
+    /// `blend.z`); an empty one runs the method's defaults. Repeatable.
+    #[arg(long = "config")]
     configs: Vec<String>,
     /// Instead: write each method's output without the stage, its error
     /// estimate and the statistics it read (colour, colour variance, spp)
@@ -109,20 +112,21 @@ fn read_ref(path: &std::path::Path, w: usize, h: usize) -> anyhow::Result<RgbIma
     Ok(r)
 }
 
-/// The denoiser of `m` without the stage (`None`) or with it at
-/// `(radius, k)`, for images like `stats`.
+/// The denoiser of `m` without the stage (`None`) or with it and the
+/// options `blend` (space-separated `key=value`), for images like `stats`.
 fn denoiser(
     ctx: &std::sync::Arc<GpuContext>,
     stats: &StatsImage,
     m: Method,
-    blend: Option<(&str, &str)>,
+    blend: Option<&str>,
 ) -> anyhow::Result<Denoiser> {
     let mut c = Config::new(m);
     c.error = false;
     c.input_blend = InputBlend::Off;
-    if let Some((r, k)) = blend {
+    if let Some(opts) = blend {
         c.input_blend = InputBlend::On;
-        c.options = Options::parse(&[format!("blend.radius={r}"), format!("blend.k={k}")])?;
+        let opts: Vec<String> = opts.split_whitespace().map(str::to_owned).collect();
+        c.options = Options::parse(&opts)?;
     }
     Ok(Denoiser::new(ctx, Source::of_image(stats), c)?)
 }
@@ -171,13 +175,7 @@ fn main() -> anyhow::Result<()> {
             line.insert("method".into(), m.name().into());
             line.insert("input".into(), input.into());
             for cfg in std::iter::once("off").chain(a.configs.iter().map(|c| c.as_str())) {
-                let blend = match cfg {
-                    "off" => None,
-                    c => Some(
-                        c.split_once(':')
-                            .ok_or_else(|| anyhow::anyhow!("--configs: {c:?} is not radius:k"))?,
-                    ),
-                };
+                let blend = (cfg != "off").then_some(cfg);
                 let key = (m, cfg.to_owned());
                 if !denoisers.contains_key(&key) {
                     denoisers.insert(key.clone(), denoiser(&ctx, &stats, m, blend)?);

@@ -68,10 +68,13 @@ pub struct Args {
     /// is `--pyramid=on`
     #[arg(long, value_enum, default_value = "auto", num_args = 0..=1, require_equals = true, default_missing_value = "on")]
     pyramid: PyramidArg,
-    /// The input blend after the method (auto: after AOS, in final reconstructions): each
-    /// pixel's output is the method's and the input's, weighed by the
-    /// method's error estimate and the input's variance (--opt blend.radius,
-    /// blend.k). `--input-blend` alone is `--input-blend=on`
+    /// The input blend after the method (auto: after every method but
+    /// auto, in final reconstructions): each pixel's output is the
+    /// method's and the input's, weighed by the method's error estimate,
+    /// read as at least the residual's excess over the input's variance,
+    /// and the input's variance (--opt blend.radius, blend.k,
+    /// blend.residual_radius, blend.z). `--input-blend` alone is
+    /// `--input-blend=on`
     #[arg(long, value_enum, default_value = "auto", num_args = 0..=1, require_equals = true, default_missing_value = "on")]
     input_blend: BlendArg,
     /// Add the estimated per-pixel MSE as error.R/G/B (method none: the
