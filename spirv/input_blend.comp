@@ -97,7 +97,9 @@ void main()
             }
         }
         if (within) {
-            bias = md - mv - real(push.z) * sqrt(real(2) * mv2 / n);
+            // sqrt(mv2) sqrt(2 / n): 2 mv2 can exceed f32 where mv2 does
+            // not.
+            bias = md - mv - real(push.z) * (sqrt(mv2) * sqrt(real(2) / n));
         }
     }
     real mi = max(ei, bias);

@@ -178,7 +178,7 @@ pub const OPTIONS: &[OptionSpec] = &[
         kind: Kind::Real(0.0, 100.0),
         default: "method",
         section: "ours (INPUT-BLEND)",
-        help: "the input blend's weight of the method's error estimate against the input's variance, f' = (V f + k E y)/(V + k E) (default: 2 for AOS, 0.5 for WLR, 0.25 for LP and APR, 1 for auto)",
+        help: "the input blend's weight of the method's error estimate against the input's variance, f' = (V f + W y)/(V + W) with W = max(k E, B), B the residual's bound (default: 2 for AOS, 0.5 for WLR, 0.25 for LP and APR, 1 for auto)",
     },
     OptionSpec {
         key: "blend.residual_radius",

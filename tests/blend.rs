@@ -62,7 +62,15 @@ fn input_blend_matches_its_twin() {
         let valid: Vec<usize> = (0..n)
             .filter(|&i| spp[i].is_finite() && spp[i] >= 1.0)
             .collect();
-        if valid.len() > 3 {
+        // Variances and residuals whose squares f32 still holds but twice
+        // whose square it does not (the residual's test, BLEND-RESIDUAL;
+        // its bound is positive), alone in the 1x1 image's window and
+        // filling the 1x5 image's.
+        if n <= 5 {
+            for &i in &valid {
+                (f[i], y[i], v[i]) = (1.7e19, 0.0, 1.8e19);
+            }
+        } else if valid.len() > 3 {
             let (a, b, c) = (valid[valid.len() / 2], valid[1], valid[valid.len() - 1]);
             (f[a], y[a], v[a], e[a]) = (1e30, 2e30, 1e30, 3e30);
             (v[b], e[b]) = (3e38, 3e38);
@@ -89,7 +97,7 @@ fn input_blend_matches_its_twin() {
                     h,
                     &[&f, &e, &y, &v, &spp],
                     &[n, n],
-                    input_blend::flops_per_pixel(radius),
+                    input_blend::flops_per_pixel(radius, s),
                 )
                 .unwrap();
                 let what = format!("{w}x{h} r {radius} k {k} s {s} z {z} {prec:?}");
@@ -210,7 +218,8 @@ fn the_twin_weighs_by_inverse_error() {
 /// BLEND-RESIDUAL: a reconstruction that smoothed away a thin bright line
 /// its features do not show, and whose estimate does not know it, is
 /// taken back towards the input on the line, while on the flat noisy
-/// ground around it, where it is right, the input's noise stays out.
+/// ground beyond the residual's window of the line, where it is right, the
+/// input's noise stays out (within the window it comes in with the line).
 #[test]
 fn the_residual_takes_a_lost_line_back_from_the_input() {
     let (w, h) = (48usize, 48usize);
@@ -528,4 +537,40 @@ fn the_cpu_stage_names_a_missing_layer() {
         format!("{err}").contains("colour") || format!("{err}").contains("color"),
         "{err}"
     );
+}
+
+/// BLEND-RESIDUAL on the GPU: where the reconstruction equals the input the
+/// residual's bound is negative, and the kernel's output is the one
+/// without the residual bit for bit, in both precisions.
+#[test]
+fn a_negative_residual_bound_leaves_the_kernel_output_unchanged() {
+    let ctx = gpu();
+    let (w, h) = (29usize, 17usize);
+    let n = w * h;
+    let mut rng = Rng(5);
+    let f = uniform_plane(n, &mut rng, 2.0);
+    let e = uniform_plane(n, &mut rng, 0.05);
+    let v = uniform_plane(n, &mut rng, 0.05);
+    let spp = counts_with_invalid(n, &mut rng);
+    for prec in precisions() {
+        let run = |s: u32| {
+            let p = push((w, h), params(3, 0.5, s, 1.0));
+            run_planes(
+                &ctx,
+                &input_blend::DECL,
+                prec,
+                bytemuck::bytes_of(&p),
+                w,
+                h,
+                &[&f, &e, &f, &v, &spp],
+                &[n, n],
+                input_blend::flops_per_pixel(3, s),
+            )
+            .unwrap()
+            .0
+        };
+        let (with, without) = (run(3), run(0));
+        assert!(with == without, "{prec:?}");
+    }
+    check_validation(&ctx);
 }

@@ -806,24 +806,31 @@ fn pyramid_from_the_command_line() {
 }
 
 /// `--input-blend` on `render` and `denoise`: WLR's final reconstruction
-/// changes with `--input-blend`, an adaptive render's passes do not (their
-/// sample counts are the same), AOS's output (the stage on by default)
-/// changes with `--input-blend=off`, and method none is a clear error.
+/// (the stage on by default) changes with `--input-blend=off` and not with
+/// `--input-blend`, an adaptive render's passes do not (their sample
+/// counts are the same), AOS's output changes with `--input-blend=off`,
+/// and method none is a clear error.
 #[test]
 fn input_blend_from_the_command_line() {
     let dir = tmpdir("input_blend");
     let wlr = ["--method", "wlr"];
-    let on = ["--method", "wlr", "--input-blend"];
-    for (extra, out) in [(&wlr[..], "plain"), (&on[..], "on")] {
+    let off = ["--method", "wlr", "--input-blend=off"];
+    let explicit = ["--method", "wlr", "--input-blend"];
+    for (extra, out) in [
+        (&wlr[..], "plain"),
+        (&off[..], "off"),
+        (&explicit[..], "explicit"),
+    ] {
         let (code, _, err) = render_small(&dir, extra, out);
         assert_eq!(code, 0, "{err}");
     }
     let rgb = |p: &str| mcdenoise::io::read_rgb(&dir.join(p)).unwrap().planes;
     let stats = |p: &str| mcdenoise::io::read_stats(&dir.join(p)).unwrap();
-    assert!(rgb("plain.exr") != rgb("on.exr"));
+    assert!(rgb("plain.exr") != rgb("off.exr"));
+    assert!(rgb("plain.exr") == rgb("explicit.exr"));
     assert!(
         stats("plain_stats.exr").get(mcdenoise::Layer::Spp)
-            == stats("on_stats.exr").get(mcdenoise::Layer::Spp)
+            == stats("off_stats.exr").get(mcdenoise::Layer::Spp)
     );
     let denoise = |extra: &[&str], out: &str| {
         run(bin()

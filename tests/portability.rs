@@ -39,11 +39,13 @@ fn without_64bit_types_every_method_runs() {
                 if matches!(method, Method::Wlr | Method::Auto | Method::Aos) {
                     // WLR's steps 6-7 in double-float instead of double:
                     // the same image within §0.3's f32 tolerance. AOS's
-                    // fits in f32 flip the order of a few pixels: colour
-                    // within it on 98 %, error on 95 % (measured 98.4 %,
-                    // 96.5 %).
+                    // fits in f32 flip the order of a few pixels, and its
+                    // input blend's residual window (BLEND-RESIDUAL)
+                    // carries each one's difference to the 7×7 pixels
+                    // around it: colour within it on 95 %, error on 90 %
+                    // (measured 95.9 %, 91.1 %).
                     let (colour, error) = match method {
-                        Method::Aos => (0.98, 0.95),
+                        Method::Aos => (0.95, 0.90),
                         _ => (0.999, 0.99),
                     };
                     for c in 0..3 {

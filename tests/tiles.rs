@@ -5,7 +5,7 @@
 //! defaults (outlier stage and G-buffer prefilter included), with tiles cut
 //! along x and along y. The images are strips (480×32, 32×480: ≤ 128²
 //! pixels) so that tiles are narrower than the image by more than twice the
-//! largest halo (APR's 200 px) while the suite stays small. The input has
+//! largest halo (APR's 203 px) while the suite stays small. The input has
 //! what the halo must carry across a cut: fireflies (the outlier stage)
 //! next to tile borders, non-finite values and negative variances
 //! (sanitation step 1–2), one-sample and empty pixels (step 3, §0.2).
@@ -172,7 +172,7 @@ fn check(img: &StatsImage, config: Config, tile: usize, what: &str) {
 #[test]
 fn every_method_tiled_along_x_is_bit_identical() {
     let img = strip(480, 32);
-    // AOS, the slowest per pixel, reaches 128-141 px: half the strip still
+    // AOS, the slowest per pixel, reaches 131-144 px: half the strip still
     // has tiles that read less than the whole (its hazards wrap into it).
     let short = strip(240, 32);
     for method in Method::all().filter(|&m| m != Method::None) {
@@ -254,10 +254,11 @@ fn the_pyramid_tiled_is_bit_identical() {
     check_validation(&gpu());
 }
 
-/// The input blend in tiles (INPUT-BLEND): AOS's default runs it (the
-/// tests above); a variance window wider than the method's own reach
-/// widens the halo (an adaptive pass's WLR without the outlier stage and
-/// the prefilter reaches 8 px, `blend.radius` 16).
+/// The input blend in tiles (INPUT-BLEND): every method's default but
+/// `auto`'s runs it (the tests above); a variance window wider than the
+/// method's own reach widens the halo (an adaptive pass's WLR without the
+/// outlier stage and the prefilter reaches 8 px, `blend.radius` 16), and
+/// so does the residual's window (BLEND-RESIDUAL).
 #[test]
 fn the_input_blend_tiled_is_bit_identical() {
     let img = strip(480, 32);
@@ -310,7 +311,7 @@ fn a_memory_cap_tiles_automatically_and_identically() {
     let a = whole.denoise(&img, None).unwrap();
     drop(whole);
     // A cap of 75 % of what the whole chain holds: tiles of ≈ 120 px
-    // (plus 2 × 175 of halo and up to 15 of alignment) fit it.
+    // (plus 2 × 178 of halo and up to 15 of alignment) fit it.
     let cap = whole_bytes * 3 / 4;
     let capped = Config {
         max_memory: Some(cap),

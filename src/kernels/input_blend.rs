@@ -24,10 +24,18 @@ pub const DECL: KernelDecl = KernelDecl {
 };
 
 /// Per pixel of one channel: the window's mean variance (a test and an
-/// add per pixel of the `(2r + 1)²` window) and the blend (about 14).
-pub fn flops_per_pixel(radius: u32) -> f64 {
+/// add per pixel of the `(2r + 1)²` window), the residual's three running
+/// means (about 16 per pixel of the `(2s + 1)²` window, BLEND-RESIDUAL)
+/// and the blend (about 14).
+pub fn flops_per_pixel(radius: u32, residual_radius: u32) -> f64 {
     let side = 2.0 * radius as f64 + 1.0;
-    2.0 * side * side + 14.0
+    let rs = residual_radius as f64;
+    let residual = if residual_radius > 0 {
+        16.0 * (2.0 * rs + 1.0) * (2.0 * rs + 1.0)
+    } else {
+        0.0
+    };
+    2.0 * side * side + residual + 14.0
 }
 
 /// One channel's planes.
@@ -70,6 +78,6 @@ pub fn record(
         precision,
         push,
         &[&planes],
-        flops_per_pixel(push.radius),
+        flops_per_pixel(push.radius, push.residual_radius),
     )
 }

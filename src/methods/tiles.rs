@@ -188,15 +188,21 @@ pub fn halo(config: &ChainConfig, prefiltered: bool) -> Result<Halo> {
     }
     parts.push(("sanitation (§0.4)", SANITIZE_HALO));
     if config.pyramid {
-        // The merge reads the fine level within 3 and the coarse level's
-        // outputs within 1 coarse pixel, each made from coarse inputs
-        // within the same chain's halo, pooled from the sanitised fine
-        // statistics: 2 (H + 1) + 1 + 5 fine pixels, more than 3 + H.
+        // The merge reads the fine level within 3 (its chain's halo `F`)
+        // and the coarse level's outputs within 1 coarse pixel, each made
+        // from coarse inputs within the coarse chain's halo `H`, pooled
+        // from the sanitised fine statistics: 2 (H + 1) + 1 + 5 fine
+        // pixels, or 3 + F if more. The coarse chain runs no input blend:
+        // `H` is `F` without the blend's reach beyond the method's.
         let keep = usize::from(sampling.sigma_s > 0.0);
-        let chain: usize = parts[keep..].iter().map(|(_, p)| p).sum();
+        let fine: usize = parts[keep..].iter().map(|(_, p)| p).sum();
+        let coarse = fine - (with_blend - method);
         parts.truncate(keep);
         parts.push(("pyramid merge (bilinear) and pooling", 3 + SANITIZE_HALO));
-        parts.push(("pyramid coarse level (twice its chain's)", 2 * chain));
+        parts.push((
+            "pyramid coarse level (twice its chain's), or the fine level",
+            (2 * coarse).max(fine.saturating_sub(SANITIZE_HALO)),
+        ));
     }
     Ok(Halo { parts })
 }

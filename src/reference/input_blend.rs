@@ -107,5 +107,5 @@ pub fn residual_bound(
             }
         }
     }
-    d2 / n - mv / n - push.z as f64 * (2.0 * (mv2 / n) / n).sqrt()
+    d2 / n - mv / n - push.z as f64 * ((mv2 / n).sqrt() * (2.0 / n).sqrt())
 }
