@@ -23,10 +23,10 @@ pub const DECL: KernelDecl = KernelDecl {
     push_size: std::mem::size_of::<BlendPush>() as u32,
 };
 
-/// Per pixel of one channel: the window's mean variance (a test and an
-/// add per pixel of the `(2r + 1)²` window), the residual's three running
-/// means (about 16 per pixel of the `(2s + 1)²` window, BLEND-RESIDUAL)
-/// and the blend (about 14).
+/// Per pixel of one channel: the window's mean variance (a test and a
+/// running mean, about 5 per pixel of the `(2r + 1)²` window), the
+/// residual's three running means (about 16 per pixel of the `(2s + 1)²`
+/// window, BLEND-RESIDUAL) and the blend (about 14).
 pub fn flops_per_pixel(radius: u32, residual_radius: u32) -> f64 {
     let side = 2.0 * radius as f64 + 1.0;
     let rs = residual_radius as f64;
@@ -35,7 +35,7 @@ pub fn flops_per_pixel(radius: u32, residual_radius: u32) -> f64 {
     } else {
         0.0
     };
-    2.0 * side * side + residual + 14.0
+    5.0 * side * side + residual + 14.0
 }
 
 /// One channel's planes.

@@ -46,10 +46,12 @@
 //! | sanitation (§0.4) | 5 | step 1: 3×3 (1); then step 3 (5×5: 2) or step 4 (3×3 residuals, 7×7 MAD: 4) |
 //!
 //! With the pyramid's low band (PYRAMID-LOWBAND) the stages between the
-//! sample map and the input, `H` in all, count twice, plus 8: the merge
-//! reads the coarse outputs within one coarse pixel (2 fine ones, and the
-//! block's second column: 3), which read the coarse inputs within `H` coarse
-//! pixels, pooled from the fine statistics after sanitation (5). The
+//! sample map and the input, `H` in all (without the input blend's reach
+//! beyond the method's: the coarse chain runs no blend), count twice, plus
+//! 8: the merge reads the coarse outputs within one coarse pixel (2 fine
+//! ones, and the block's second column: 3), which read the coarse inputs
+//! within `H` coarse pixels, pooled from the fine statistics after
+//! sanitation (5); and the fine level within 3, if that reaches further. The
 //! tile's origin is then a multiple of twice the alignment, so the coarse
 //! level's grids and 2×2 blocks are the whole image's.
 //!
