@@ -30,6 +30,29 @@ fn params(radius: u32, k: f32, s: u32, z: f32) -> BlendParams {
     }
 }
 
+/// The kernel's colour and error planes on the planes `f, e, y, v, spp`.
+fn kernel(
+    ctx: &std::sync::Arc<mcdenoise::GpuContext>,
+    prec: mcdenoise::Precision,
+    p: &mcdenoise::shared::BlendPush,
+    planes: [&[f32]; 5],
+) -> Vec<Vec<f32>> {
+    let n = planes[0].len();
+    run_planes(
+        ctx,
+        &input_blend::DECL,
+        prec,
+        bytemuck::bytes_of(p),
+        p.width as usize,
+        p.height as usize,
+        &planes,
+        &[n, n],
+        input_blend::flops_per_pixel(p.radius, p.residual_radius),
+    )
+    .unwrap()
+    .0
+}
+
 #[test]
 fn input_blend_matches_its_twin() {
     let ctx = gpu();
@@ -88,18 +111,7 @@ fn input_blend_matches_its_twin() {
             let (mut fo, mut eo) = (vec![0.0f32; n], vec![0.0f32; n]);
             twin(&p, &f, &e, &y, &v, &spp, &mut fo, &mut eo);
             for prec in precisions() {
-                let (g, _) = run_planes(
-                    &ctx,
-                    &input_blend::DECL,
-                    prec,
-                    bytemuck::bytes_of(&p),
-                    w,
-                    h,
-                    &[&f, &e, &y, &v, &spp],
-                    &[n, n],
-                    input_blend::flops_per_pixel(radius, s),
-                )
-                .unwrap();
+                let g = kernel(&ctx, prec, &p, [&f, &e, &y, &v, &spp]);
                 let what = format!("{w}x{h} r {radius} k {k} s {s} z {z} {prec:?}");
                 // A pixel that keeps its own f or E passes a NaN through:
                 // both sides hold it at the same pixels.
@@ -570,19 +582,7 @@ fn a_negative_residual_bound_leaves_the_kernel_output_unchanged() {
     for prec in precisions() {
         let run = |s: u32| {
             let p = push((w, h), params(3, 0.5, s, 1.0));
-            run_planes(
-                &ctx,
-                &input_blend::DECL,
-                prec,
-                bytemuck::bytes_of(&p),
-                w,
-                h,
-                &[&f, &e, &y, &v, &spp],
-                &[n, n],
-                input_blend::flops_per_pixel(3, s),
-            )
-            .unwrap()
-            .0
+            kernel(&ctx, prec, &p, [&f, &e, &y, &v, &spp])
         };
         let (with, without) = (run(3), run(0));
         assert!(with[0] != f, "{prec:?}: the blend moved nothing");
