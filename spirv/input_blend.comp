@@ -55,52 +55,49 @@ void main()
         eout[i] = ei_raw;
         return;
     }
+    // One pass over the larger of the two windows: the variance's (radius
+    // r) and the residual's (radius s; BLEND-RESIDUAL, a lower bound on
+    // the reconstruction's error that its own estimate cannot miss), each
+    // a running mean over its valid pixels in row order.
     int r = int(push.radius);
-    int x0 = max(int(x) - r, 0), x1 = min(int(x) + r, int(push.width) - 1);
-    int y0 = max(int(row) - r, 0), y1 = min(int(row) + r, int(push.height) - 1);
+    int rs = int(push.residual_radius);
+    int reach = max(r, rs);
+    int x0 = max(int(x) - reach, 0), x1 = min(int(x) + reach, int(push.width) - 1);
+    int y0 = max(int(row) - reach, 0), y1 = min(int(row) + reach, int(push.height) - 1);
+    real big = real(3.4028234663852886e38);
     real mean = real(0);
     real count = real(0);
+    real n = real(0), md = real(0), mv = real(0), mv2 = real(0);
+    bool within = true;
     for (int qy = y0; qy <= y1; ++qy) {
         for (int qx = x0; qx <= x1; ++qx) {
             uint q = uint(qy) * push.width + uint(qx);
-            if (spp_of(spp[q]) > 0.0) {
+            if (spp_of(spp[q]) <= 0.0) {
+                continue;
+            }
+            int dist = max(abs(qx - int(x)), abs(qy - int(row)));
+            real vq = max(real(v[q]), real(0));
+            if (dist <= r) {
                 count += real(1);
-                mean += (max(real(v[q]), real(0)) - mean) / count;
+                mean += (vq - mean) / count;
+            }
+            if (dist <= rs) {
+                n += real(1);
+                real d = real(f[q]) - real(y[q]);
+                within = within && d * d <= big && vq * vq <= big;
+                md += (d * d - md) / n;
+                mv += (vq - mv) / n;
+                mv2 += (vq * vq - mv2) / n;
             }
         }
     }
     real vi = max(real(v[i]), real(0));
     real big_v = max(vi, mean);
     real ei = ei_raw > 0.0 ? real(ei_raw) : real(0);
-    // The residual's window: a lower bound on the reconstruction's error
-    // that its own estimate cannot miss (BLEND-RESIDUAL).
     real bias = real(0);
-    int rs = int(push.residual_radius);
-    if (rs > 0) {
-        int sx0 = max(int(x) - rs, 0), sx1 = min(int(x) + rs, int(push.width) - 1);
-        int sy0 = max(int(row) - rs, 0), sy1 = min(int(row) + rs, int(push.height) - 1);
-        real big = real(3.4028234663852886e38);
-        real n = real(0), md = real(0), mv = real(0), mv2 = real(0);
-        bool within = true;
-        for (int qy = sy0; qy <= sy1; ++qy) {
-            for (int qx = sx0; qx <= sx1; ++qx) {
-                uint q = uint(qy) * push.width + uint(qx);
-                if (spp_of(spp[q]) > 0.0) {
-                    n += real(1);
-                    real d = real(f[q]) - real(y[q]);
-                    real vq = max(real(v[q]), real(0));
-                    within = within && d * d <= big && vq * vq <= big;
-                    md += (d * d - md) / n;
-                    mv += (vq - mv) / n;
-                    mv2 += (vq * vq - mv2) / n;
-                }
-            }
-        }
-        if (within) {
-            // sqrt(mv2) sqrt(2 / n): 2 mv2 can exceed f32 where mv2 does
-            // not.
-            bias = md - mv - real(push.z) * (sqrt(mv2) * sqrt(real(2) / n));
-        }
+    if (rs > 0 && within) {
+        // sqrt(mv2) sqrt(2 / n): 2 mv2 can exceed f32 where mv2 does not.
+        bias = md - mv - real(push.z) * (sqrt(mv2) * sqrt(real(2) / n));
     }
     real mi = max(ei, bias);
     real s = max(big_v, mi);
