@@ -2,7 +2,9 @@
 // The input blend (INPUT-BLEND, ours): one channel of the reconstruction f
 // with error estimate E, blended with the input y (the statistics
 // the method read) by inverse error, as two estimates of the same pixel:
-//   V  = max(v, mean of v over the valid pixels of the (2r+1)^2 window)
+//   V  = max(v, mean of v over the valid pixels of the (2r+1)^2 window
+//        without its ceil(n/10) largest values, at most BLEND_TRIM_MAX and
+//        never all (BLEND-TRIM))
 //   B  = mean of (f - y)^2 - v over the valid pixels of the (2s+1)^2
 //        window, less z sqrt(2 mean(v^2) / n) (BLEND-RESIDUAL; not read
 //        with s = 0, or where a term (f - y)^2 or v^2 is not finite or
@@ -17,9 +19,14 @@
 // with V + W = 0 or not finite, or one whose blend is not finite, keeps
 // f and E.
 // Scalar twin: src/reference/input_blend.rs.
+#extension GL_EXT_control_flow_attributes : require
 #include "lib/common.glsl"
 
 layout(local_size_x = 8, local_size_y = 8) in;
+
+// The most values the variance's window drops (mirrors
+// mcdenoise::shared::BLEND_TRIM_MAX).
+#define BLEND_TRIM_MAX 8
 
 // Mirrors mcdenoise::shared::BlendPush.
 layout(push_constant) uniform Push {
@@ -67,6 +74,11 @@ void main()
     real big = real(3.4028234663852886e38);
     real mean = real(0);
     real count = real(0);
+    real rest = real(0);
+    real top[BLEND_TRIM_MAX];
+    [[unroll]] for (int j = 0; j < BLEND_TRIM_MAX; ++j) {
+        top[j] = real(-1);
+    }
     real n = real(0), md = real(0), mv = real(0), mv2 = real(0);
     bool within = true;
     for (int qy = y0; qy <= y1; ++qy) {
@@ -78,8 +90,20 @@ void main()
             int dist = max(abs(qx - int(x)), abs(qy - int(row)));
             real vq = max(real(v[q]), real(0));
             if (dist <= r) {
+                // The window's largest variances, in descending order
+                // (-1: empty); what one pushes out joins the running mean
+                // of the rest.
                 count += real(1);
-                mean += (vq - mean) / count;
+                real c = vq;
+                [[unroll]] for (int j = 0; j < BLEND_TRIM_MAX; ++j) {
+                    real hi = max(c, top[j]);
+                    c = min(c, top[j]);
+                    top[j] = hi;
+                }
+                if (c >= real(0)) {
+                    rest += real(1);
+                    mean += (c - mean) / rest;
+                }
             }
             if (dist <= rs) {
                 n += real(1);
@@ -89,6 +113,15 @@ void main()
                 mv += (vq - mv) / n;
                 mv2 += (vq * vq - mv2) / n;
             }
+        }
+    }
+    // BLEND-TRIM: the ceil(n/10) largest stay out (a lamp's few pixels
+    // beside a dark one); the others join the mean.
+    int drop = min(min((int(count) + 9) / 10, int(count) - 1), BLEND_TRIM_MAX);
+    [[unroll]] for (int j = 0; j < BLEND_TRIM_MAX; ++j) {
+        if (j >= drop && top[j] >= real(0)) {
+            rest += real(1);
+            mean += (top[j] - mean) / rest;
         }
     }
     real vi = max(real(v[i]), real(0));

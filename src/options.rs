@@ -171,14 +171,14 @@ pub const OPTIONS: &[OptionSpec] = &[
         kind: Kind::Int(0, 16),
         default: "method",
         section: "ours (INPUT-BLEND)",
-        help: "the input blend's variance window: V = max(v, mean of v over (2r+1)^2 pixels) (default: 1 for AOS, 3 for the others)",
+        help: "the input blend's variance window: V = max(v, mean of v over (2r+1)^2 pixels without their tenth of largest values, at most 8; BLEND-TRIM) (default: 1 for AOS, 3 for the others)",
     },
     OptionSpec {
         key: "blend.k",
         kind: Kind::Real(0.0, 100.0),
         default: "method",
         section: "ours (INPUT-BLEND)",
-        help: "the input blend's weight of the method's error estimate against the input's variance, f' = (V f + W y)/(V + W) with W = max(k E, B), B the residual's bound (default: 2 for AOS, 0.5 for WLR, 0.25 for LP and APR, 1 for auto)",
+        help: "the input blend's weight of the method's error estimate against the input's variance, f' = (V f + W y)/(V + W) with W = max(k E, B), B the residual's bound (default: 2 for AOS, 0.25 for WLR, 0.125 for LP and APR, 1 for auto)",
     },
     OptionSpec {
         key: "blend.residual_radius",

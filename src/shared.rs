@@ -760,7 +760,8 @@ pub struct BlendPush {
     /// First row of the band this dispatch covers.
     pub row0: u32,
     /// The radius `r` of the window whose mean variance floors a pixel's:
-    /// `V = max(v, box_{2r+1}(v))`.
+    /// `V = max(v, box_{2r+1}(v))`, the mean without the window's largest
+    /// values (BLEND-TRIM).
     pub radius: u32,
     /// The weight `k` of the reconstruction's error estimate against the
     /// input's variance.
@@ -781,3 +782,7 @@ pub const BLEND_Z: f32 = 1.0;
 /// The radius of the input blend's residual window (BLEND-RESIDUAL,
 /// `blend.residual_radius`).
 pub const BLEND_RESIDUAL_RADIUS: u32 = 3;
+/// The most variances the input blend's variance window leaves out of its
+/// mean: it drops its `⌈n/10⌉` largest, at most this many and never all
+/// (BLEND-TRIM; mirrored as `BLEND_TRIM_MAX` in `spirv/input_blend.comp`).
+pub const BLEND_TRIM_MAX: usize = 8;

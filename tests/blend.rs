@@ -13,7 +13,8 @@ use common::{
 use mcdenoise::kernels::{input_blend, run_planes};
 use mcdenoise::methods::blend::{push, run_cpu, BlendParams};
 use mcdenoise::methods::chain::ChainConfig;
-use mcdenoise::reference::input_blend::{input_blend as twin, residual_bound};
+use mcdenoise::reference::input_blend::{input_blend as twin, residual_bound, trimmed_mean};
+use mcdenoise::shared::BLEND_TRIM_MAX;
 use mcdenoise::{
     Config, Denoiser, InputBlend, Layer, Method, Options, Pass, Prefilter, Pyramid, RgbImage,
     Source, StatsImage,
@@ -106,6 +107,7 @@ fn input_blend_matches_its_twin() {
             (1, 2.0, 3, 1.0),
             (3, 0.5, 1, 0.0),
             (0, 0.0, 2, 2.0),
+            (5, 1.0, 0, 1.0),
         ] {
             let p = push((w, h), params(radius, k, s, z));
             let (mut fo, mut eo) = (vec![0.0f32; n], vec![0.0f32; n]);
@@ -179,12 +181,12 @@ fn the_twin_weighs_by_inverse_error() {
     assert!(fo.iter().all(|&x| (x - 2.0).abs() < 1e-6));
     assert!(eo.iter().all(|&x| (x - 0.1).abs() < 1e-7));
     // A pixel whose own variance is 0 in a noisy window is floored by the
-    // window's mean: the centre of a 3x3 window of 0.2 but itself 0 takes
-    // V = 0.2 * 8 / 9.
+    // window's mean without its largest value (BLEND-TRIM): the centre of
+    // a 3x3 window of 0.2 but itself 0 takes V = 0.2 * 7 / 8.
     let mut v = vec![0.2f32; n];
     v[12] = 0.0;
     let (fo, _) = run(&vec![0.2; n], &v);
-    let big_v = 0.2 * 8.0 / 9.0;
+    let big_v = 0.2 * 7.0 / 8.0;
     let want = (big_v * 1.0 + 0.2 * 3.0) / (big_v + 0.2);
     assert!((fo[12] as f64 - want).abs() < 1e-5, "{} vs {want}", fo[12]);
     // BLEND-RESIDUAL: f = 1 where every input says 3 within their variance
@@ -290,6 +292,82 @@ fn the_residual_takes_a_lost_line_back_from_the_input() {
         .sum::<f64>()
         / far.len() as f64;
     assert!(added < 0.02 * 0.01, "{added}");
+}
+
+/// BLEND-TRIM: the variance window leaves out its tenth of largest
+/// values, at most `BLEND_TRIM_MAX`, never all.
+#[test]
+fn the_variance_floor_is_a_trimmed_mean() {
+    let mut ten: Vec<f64> = (1..=10).map(f64::from).collect();
+    assert_eq!(trimmed_mean(&mut ten), 5.0);
+    let mut nine: Vec<f64> = (1..=9).map(f64::from).collect();
+    assert_eq!(trimmed_mean(&mut nine), 4.5);
+    assert_eq!(trimmed_mean(&mut [7.0]), 7.0);
+    assert_eq!(trimmed_mean(&mut [7.0, 1.0]), 1.0);
+    let mut many = vec![1.0; 100];
+    many[..20].fill(1e9);
+    let drop = BLEND_TRIM_MAX as f64;
+    assert_eq!(
+        trimmed_mean(&mut many),
+        ((20.0 - drop) * 1e9 + 80.0) / (100.0 - drop)
+    );
+}
+
+/// BLEND-TRIM: a dark pixel beside a small lamp whose pixels are partly
+/// covered (a huge variance each) and into which the method leaked the
+/// lamp, knowing its error to be large, takes its input back: the lamp's
+/// few variances do not lift its floor `V` above the method's error. On
+/// the GPU in both precisions as in the twin.
+#[test]
+fn a_lamp_beside_a_dark_pixel_does_not_lift_its_variance_floor() {
+    let ctx = gpu();
+    let (w, h) = (24usize, 24usize);
+    let n = w * h;
+    let lamp = |i: usize| (11..13).contains(&(i % w)) && (11..13).contains(&(i / w));
+    let leaked = |i: usize| {
+        !lamp(i) && (i % w).abs_diff(11) <= 2 && (i / w).abs_diff(11) <= 2 && i % w <= 13
+    };
+    let y: Vec<f32> = (0..n).map(|i| if lamp(i) { 450.0 } else { 0.1 }).collect();
+    let v: Vec<f32> = (0..n).map(|i| if lamp(i) { 6.7e4 } else { 1e-3 }).collect();
+    let f: Vec<f32> = (0..n)
+        .map(|i| {
+            if leaked(i) {
+                30.0
+            } else if lamp(i) {
+                300.0
+            } else {
+                0.1
+            }
+        })
+        .collect();
+    let e: Vec<f32> = (0..n)
+        .map(|i| if leaked(i) || lamp(i) { 1e3 } else { 1e-4 })
+        .collect();
+    let spp = vec![4.0f32; n];
+    let p = push((w, h), params(3, 0.125, 3, 1.0));
+    let (mut fo, mut eo) = (vec![0.0f32; n], vec![0.0f32; n]);
+    twin(&p, &f, &e, &y, &v, &spp, &mut fo, &mut eo);
+    let mut outs = vec![fo];
+    for prec in precisions() {
+        outs.push(kernel(&ctx, prec, &p, [&f, &e, &y, &v, &spp]).swap_remove(0));
+    }
+    let dark: Vec<usize> = (0..n).filter(|&i| leaked(i)).collect();
+    assert!(dark.len() >= 10);
+    for out in &outs {
+        for &i in &dark {
+            // Within 2 % of the leak from the input: the untrimmed floor,
+            // about 5500, kept about 98 % of it.
+            assert!(
+                (out[i] - y[i]).abs() < 0.02 * (f[i] - y[i]),
+                "pixel ({}, {}): {} from input {}",
+                i % w,
+                i / w,
+                out[i],
+                y[i]
+            );
+        }
+    }
+    check_validation(&ctx);
 }
 
 fn fixture() -> (StatsImage, RgbImage) {

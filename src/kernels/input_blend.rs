@@ -23,8 +23,9 @@ pub const DECL: KernelDecl = KernelDecl {
     push_size: std::mem::size_of::<BlendPush>() as u32,
 };
 
-/// Per pixel of one channel: the window's mean variance (a test and a
-/// running mean, about 5 per pixel of the `(2r + 1)²` window), the
+/// Per pixel of one channel: the window's trimmed mean variance (a test,
+/// the largest values kept in order and a running mean, about 21 per pixel
+/// of the `(2r + 1)²` window, BLEND-TRIM), the
 /// residual's three running means (about 16 per pixel of the `(2s + 1)²`
 /// window, BLEND-RESIDUAL) and the blend (about 14).
 pub fn flops_per_pixel(radius: u32, residual_radius: u32) -> f64 {
@@ -35,7 +36,7 @@ pub fn flops_per_pixel(radius: u32, residual_radius: u32) -> f64 {
     } else {
         0.0
     };
-    5.0 * side * side + residual + 14.0
+    21.0 * side * side + residual + 14.0
 }
 
 /// One channel's planes.

@@ -524,7 +524,7 @@ pub static INFO: MethodInfo = MethodInfo {
     blend: super::blend::BlendDefaults {
         auto: true,
         radius: 3,
-        k: 0.25,
+        k: 0.125,
     },
     // MAP-WLR: WLR's estimate places the adaptive passes' samples.
     map_method: Method::Wlr,

@@ -41,7 +41,8 @@ use super::{Method, Pass};
 pub struct BlendDefaults {
     /// Whether [`InputBlend::Auto`] runs it after the method.
     pub auto: bool,
-    /// The radius `r` of the variance's window (`blend.radius`).
+    /// The radius `r` of the variance's window (`blend.radius`; its mean
+    /// leaves out the largest values, BLEND-TRIM).
     pub radius: u32,
     /// The weight `k` of the error estimate (`blend.k`).
     pub k: f32,

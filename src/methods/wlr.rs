@@ -490,7 +490,7 @@ pub static INFO: MethodInfo = MethodInfo {
     blend: super::blend::BlendDefaults {
         auto: true,
         radius: 3,
-        k: 0.5,
+        k: 0.25,
     },
     map_method: Method::Wlr,
     passes: 5,

@@ -2,10 +2,11 @@
 //! reconstruction blended with its input by inverse error (INPUT-BLEND).
 
 use super::finalize_stats::spp_of;
-use crate::shared::BlendPush;
+use crate::shared::{BlendPush, BLEND_TRIM_MAX};
 
-/// Per valid pixel `i` (`n ≥ 1`), with `V = max(v_i, mean of v over the
-/// valid pixels within radius r)` (negative variances read as 0),
+/// Per valid pixel `i` (`n ≥ 1`), with `V = max(v_i, trimmed_mean)`
+/// (negative variances read as 0; [`trimmed_mean`] over the valid pixels
+/// within radius r),
 /// `E = max(E_i, 0)` and, where `s = push.residual_radius > 0`, the
 /// residual's bound over the valid pixels `q` within radius `s`
 /// (BLEND-RESIDUAL): `B = mean (f_q − y_q)² − mean v_q − z √(2 mean v_q² /
@@ -41,17 +42,16 @@ pub fn input_blend(
             if spp_of(spp[i]) <= 0.0 {
                 continue;
             }
-            let (mut sum, mut count) = (0.0, 0.0);
+            let mut window = Vec::with_capacity((2 * r + 1) * (2 * r + 1));
             for qy in py.saturating_sub(r)..(py + r + 1).min(h) {
                 for qx in px.saturating_sub(r)..(px + r + 1).min(w) {
                     let q = qy * w + qx;
                     if spp_of(spp[q]) > 0.0 {
-                        sum += var(q);
-                        count += 1.0;
+                        window.push(var(q));
                     }
                 }
             }
-            let big_v = var(i).max(sum / count);
+            let big_v = var(i).max(trimmed_mean(&mut window));
             let ei = if e[i] > 0.0 { e[i] as f64 } else { 0.0 };
             let bias = if rs > 0 {
                 residual_bound(push, (f, y, v, spp), (px, py))
@@ -75,6 +75,18 @@ pub fn input_blend(
             e_out[i] = eo as f32;
         }
     }
+}
+
+/// The mean of `values` without its `⌈n/10⌉` largest, at most
+/// [`BLEND_TRIM_MAX`] and never all of them (BLEND-TRIM): the variance
+/// window's floor, which a lamp's few pixels beside a dark one do not
+/// lift. Reorders `values`; NaN for none.
+pub fn trimmed_mean(values: &mut [f64]) -> f64 {
+    let n = values.len();
+    let drop = n.div_ceil(10).min(n.saturating_sub(1)).min(BLEND_TRIM_MAX);
+    values.sort_by(|a, b| b.total_cmp(a));
+    let rest = &values[drop..];
+    rest.iter().sum::<f64>() / rest.len() as f64
 }
 
 /// The residual's bound `B` at pixel `(px, py)` (BLEND-RESIDUAL): the mean
