@@ -76,7 +76,8 @@ pub struct Config {
     pub pyramid: Pyramid,
     /// The input blend (INPUT-BLEND): the method's output and its input
     /// weighed per pixel and channel by the method's error estimate and
-    /// the input's variance (floored by its mean over a small window), so
+    /// the input's variance (floored by its mean over a small window
+    /// without the window's largest values, BLEND-TRIM), so
     /// that where the method smooths across what its features do not show
     /// the output returns towards the input. The error estimate is the
     /// blend's, the sample map reads the method's. The method's error is

@@ -759,9 +759,10 @@ pub struct BlendPush {
     pub height: u32,
     /// First row of the band this dispatch covers.
     pub row0: u32,
-    /// The radius `r` of the window whose mean variance floors a pixel's:
-    /// `V = max(v, box_{2r+1}(v))`, the mean without the window's largest
-    /// values (BLEND-TRIM).
+    /// The radius `r` of the window whose trimmed mean variance floors a
+    /// pixel's: `V = max(v, trim_{2r+1}(v))`, the mean over the window
+    /// without its `⌈n/10⌉` largest values, at most [`BLEND_TRIM_MAX`]
+    /// (BLEND-TRIM).
     pub radius: u32,
     /// The weight `k` of the reconstruction's error estimate against the
     /// input's variance.

@@ -3,10 +3,11 @@
 //! estimates of each pixel with their own errors — the method's estimate
 //! `E` and the input's variance of the mean `v` — and the output weighs
 //! them by inverse error, per pixel and channel:
-//! `f' = (V f + k E y) / (V + k E)` with `V = max(v, box(v))`, the mean
-//! of `v` over a `(2r + 1)²` window flooring the pixel's own (a pixel whose
-//! few samples happen to agree has no variance of its own to speak for
-//! it). Where the method smooths across what it cannot see in its
+//! `f' = (V f + k E y) / (V + k E)` with `V = max(v, trim(v))`, the mean
+//! of `v` over a `(2r + 1)²` window without its tenth of largest values
+//! flooring the pixel's own (a pixel whose few samples happen to agree has
+//! no variance of its own to speak for it; a small lamp's few pixels beside
+//! it do not speak for it either, BLEND-TRIM). Where the method smooths across what it cannot see in its
 //! features it reports a large error, and the output returns towards the
 //! input: it keeps a reconstruction from ending worse than its input.
 //!
@@ -87,7 +88,8 @@ pub fn check(method: Method) -> Result<()> {
 /// The stage's parameters ([`params`]).
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub struct BlendParams {
-    /// The radius `r` of the variance's window (`blend.radius`).
+    /// The radius `r` of the variance's window (`blend.radius`; its mean
+    /// leaves out the largest values, BLEND-TRIM).
     pub radius: u32,
     /// The weight `k` of the error estimate (`blend.k`).
     pub k: f32,
