@@ -306,7 +306,7 @@ fn the_low_band_lowers_the_error_of_a_noisy_smooth_wall() {
             let mut c = Config::new(method);
             c.pyramid = if pyramid { Pyramid::On } else { Pyramid::Off };
             // The stage alone: the input blend, on by default, costs these
-            // methods 1.6-1.7x on this wall (BLEND-RESIDUAL).
+            // methods 1.5-1.7x on this wall (BLEND-RESIDUAL, BLEND-TRIM).
             c.input_blend = mcdenoise::InputBlend::Off;
             let d = Denoiser::new(&ctx, Source::of_image(&img), c).unwrap();
             d.denoise(&img, None).unwrap()

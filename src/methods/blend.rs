@@ -7,9 +7,10 @@
 //! of `v` over a `(2r + 1)²` window without its tenth of largest values
 //! flooring the pixel's own (a pixel whose few samples happen to agree has
 //! no variance of its own to speak for it; a small lamp's few pixels beside
-//! it do not speak for it either, BLEND-TRIM). Where the method smooths across what it cannot see in its
-//! features it reports a large error, and the output returns towards the
-//! input: it keeps a reconstruction from ending worse than its input.
+//! it do not speak for it either, BLEND-TRIM). Where the method smooths
+//! across what it cannot see in its features it reports a large error, and
+//! the output returns towards the input: it keeps a reconstruction from
+//! ending worse than its input.
 //!
 //! Where the method does not see its own bias either, the residual does
 //! (BLEND-RESIDUAL): over a `(2s + 1)²` window `(f − y)²` exceeds the
