@@ -26,9 +26,8 @@ pub const DECL: KernelDecl = KernelDecl {
 /// Per pixel of one channel: the window's trimmed mean variance (a test,
 /// the largest values kept in order and a running mean, about 21 per pixel
 /// of the `(2r + 1)²` window, and the kept values' last pass, about 40,
-/// BLEND-TRIM), the
-/// residual's three running means (about 16 per pixel of the `(2s + 1)²`
-/// window, BLEND-RESIDUAL) and the blend (about 14).
+/// BLEND-TRIM), the residual's three running means (about 16 per pixel of
+/// the `(2s + 1)²` window, BLEND-RESIDUAL) and the blend (about 14).
 pub fn flops_per_pixel(radius: u32, residual_radius: u32) -> f64 {
     let side = 2.0 * radius as f64 + 1.0;
     let rs = residual_radius as f64;
