@@ -1,7 +1,9 @@
 #version 460
 // Outlier detection and replacement (spec §4.4 steps 1-3). Per valid pixel o:
 // the (count, mean, M2) of grey over Ω_o(R) \ {o} merged from outlier_rows'
-// row summaries (the row of o without o: EXCL-CENTRE); o is an outlier when
+// row summaries (the row of o without o: EXCL-CENTRE) of the keys that
+// outlier_clip's rounds kept (OUTLIER-CLIP; all valid keys without them);
+// o is an outlier when
 // count >= min_n (OUTLIER-MIN-N), grey_o - m > k sd (SPIKE-SIDE, population
 // sd) and grey_o - m <= k se_o (OUTLIER-NOISE, se from the pixel's
 // variances) and no 8-neighbour is above m + k sd (OUTLIER-ISOLATED, on
@@ -38,24 +40,7 @@ layout(std430, set = 0, binding = 14) buffer queue_blk { uint queue[]; };
 
 real grey_at(uint i) { return (real(cr[i]) + real(cg[i]) + real(cb[i])) / real(3); }
 
-// Row summary at q: with the pixel of column x (rows other than o's) or
-// without it (o's row).
-Summary with_x(uint q)
-{
-    Summary s;
-    s.n = real(wn[q]);
-    s.mean = real(wm[q]);
-    s.m2 = real(wq[q]);
-    return s;
-}
-Summary without_x(uint q)
-{
-    Summary s;
-    s.n = real(xn[q]);
-    s.mean = real(xm[q]);
-    s.m2 = real(xq[q]);
-    return s;
-}
+#include "lib/outlier_window.glsl"
 
 void main()
 {
@@ -65,23 +50,9 @@ void main()
         return;
     }
     uint o = y * push.width + x;
-    int r = int(push.radius);
-    int x0 = max(int(x) - r, 0), x1 = min(int(x) + r, int(push.width) - 1);
-    int y0 = max(int(y) - r, 0), y1 = min(int(y) + r, int(push.height) - 1);
     if (valid_at(spp[o])) {
-        Summary s;
-        s.n = real(0);
-        s.mean = real(0);
-        s.m2 = real(0);
-        // Rows in order, o's own without o.
-        for (int qy = y0; qy < int(y); ++qy) {
-            s = merge(s, with_x(uint(qy) * push.width + x));
-        }
-        s = merge(s, without_x(o));
-        for (int qy = int(y) + 1; qy <= y1; ++qy) {
-            s = merge(s, with_x(uint(qy) * push.width + x));
-        }
-        real sd = sqrt(max(s.m2 / max(s.n, real(1)), real(0)));
+        Summary s = window_summary(x, y);
+        real sd = summary_sd(s);
         // OUTLIER-NOISE: the excess must also be within k standard errors of
         // the pixel's own mean (a directly seen small light is not noise).
         real se = (sqrt(max(real(vr[o]), real(0))) + sqrt(max(real(vg[o]), real(0)))

@@ -195,6 +195,13 @@ pub const OPTIONS: &[OptionSpec] = &[
         help: "the input blend's residual test: how many of its standard deviations the residual's mean must exceed the variance by",
     },
     OptionSpec {
+        key: "outliers.clip",
+        kind: Kind::Int(0, 4),
+        default: "0",
+        section: "§4.4 step 1 (OUTLIER-CLIP)",
+        help: "rounds of clipping before detection: each drops from the window statistics the pixels more than 3 sd above the mean of their own window's kept pixels, so a small lamp beside a firefly does not hide it (0: the spec)",
+    },
+    OptionSpec {
         key: "sampling.smooth",
         kind: Kind::Real(0.0, 16.0),
         default: "method",

@@ -32,6 +32,7 @@ pub mod lp_reach;
 pub mod lp_select;
 pub mod lp_temporal;
 pub mod lp_temporal_gain;
+pub mod outlier_clip;
 pub mod outlier_detect;
 pub mod outlier_grey;
 pub mod outlier_median;
@@ -100,6 +101,7 @@ pub const ALL: &[&KernelDecl] = &[
     &apr_pack::DECL,
     &outlier_grey::DECL,
     &outlier_rows::DECL,
+    &outlier_clip::DECL,
     &outlier_detect::DECL,
     &outlier_median::DECL,
     &box_rows::DECL,

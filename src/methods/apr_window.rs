@@ -320,6 +320,8 @@ pub struct WindowConfig {
     pub prefilter: Prefilter,
     /// The outlier stage.
     pub outliers: bool,
+    /// OUTLIER-CLIP's rounds in the outlier stage.
+    pub outlier_clip: u32,
     /// See [`crate::Config::low_spp`].
     pub low_spp: bool,
     /// APR's options (`apr.stages` sets the lag, `2T` frames).
@@ -356,7 +358,9 @@ impl AprWindow {
         let ring = AprRing::new(ctx, width, height, config.params)?;
         let outliers = if config.outliers {
             (0..ring.slots)
-                .map(|_| OutlierPlanes::new(ctx, width, height, Some((&arena, 0))))
+                .map(|_| {
+                    OutlierPlanes::new(ctx, width, height, config.outlier_clip, Some((&arena, 0)))
+                })
                 .collect::<Result<_>>()?
         } else {
             Vec::new()

@@ -318,6 +318,7 @@ impl GpuChain {
                 ctx,
                 w,
                 h,
+                outliers::clip_rounds(&config.options)?,
                 arena.as_ref().map(|a| (a, keep)),
             )?)
         } else {

@@ -435,7 +435,9 @@ fn clean_cpu(img: &StatsImage, req: &DenoiseRequest) -> Result<CleanCpu> {
     let removed = req
         .outliers
         .resolve(req.method)
-        .then(|| outliers::remove_cpu(&mut clean));
+        .then(|| outliers::clip_rounds(&req.options))
+        .transpose()?
+        .map(|rounds| outliers::remove_cpu(&mut clean, rounds));
     let prefiltered = gbf::wanted(req.method, req.prefilter, |l| clean.has(l))?;
     if prefiltered {
         gbf::run_cpu(&mut clean)?;

@@ -5,6 +5,8 @@
 //! sanitize → remove (steps 1–3) → G-buffer prefilter → method → restore (step 4) → sample map
 //!
 //! remove:   outlier_grey      order-preserving key of grey (0: invalid)
+//!           (per OUTLIER-CLIP round, on a copy of the keys:
+//!            outlier_rows, outlier_clip   key ← 0 where grey > m + 3 max(sd, se))
 //!           outlier_rows      row (count, mean, M2) of grey with and without x, R = 14
 //!           outlier_detect    merge → m, sd without o; queue the spikes; e ← 0
 //!           outlier_median    (indirect, per queued spike) the median pixel; e = y − y_q*
@@ -29,11 +31,23 @@ use crate::gpu::{Batch, BufferSlice, GpuBuffer, GpuContext, PlaneSet, Precision}
 use crate::image::{Layer, StatsImage};
 use crate::kernels::box_rows::BoxPlanes;
 use crate::kernels::{
-    box_rows, outlier_detect, outlier_grey, outlier_median, outlier_rows, outlier_spread,
-    outlier_weights,
+    box_rows, outlier_clip, outlier_detect, outlier_grey, outlier_median, outlier_rows,
+    outlier_spread, outlier_weights,
 };
+use crate::options::Options;
 use crate::reference::outliers::{self as reference, DETECT_RADIUS, SPREAD_RADIUS};
 use crate::shared::OutlierPush;
+
+/// Rounds of OUTLIER-CLIP before detection (`outliers.clip`; `reference::outliers`
+/// documents the decision).
+pub fn clip_rounds(options: &Options) -> Result<u32> {
+    Ok(options
+        .number("outliers.clip")?
+        .unwrap_or(DEFAULT_CLIP_ROUNDS))
+}
+
+/// OUTLIER-CLIP's rounds when `outliers.clip` is not given.
+pub const DEFAULT_CLIP_ROUNDS: u32 = 0;
 
 /// Whether the outlier stage runs (`--outliers`).
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Default)]
@@ -104,20 +118,24 @@ pub struct OutlierPlanes {
     queue: GpuBuffer,
     width: usize,
     height: usize,
+    /// OUTLIER-CLIP's rounds.
+    clip: u32,
 }
 
-/// Scratch planes of the stage: row summaries (6) and replacements (6) of the
-/// detection, or the box sums (12) and weights (6) of the restoration; the
-/// keys of grey (1).
+/// Scratch planes of the stage: row summaries (6), replacements (6) and the
+/// kept keys of OUTLIER-CLIP (1) of the detection, or the box sums (12) and
+/// weights (6) of the restoration; the keys of grey (1).
 pub const SCRATCH: usize = 19;
 
 impl OutlierPlanes {
-    /// Allocates the planes for a `w × h` image; the scratch in an arena
-    /// from a byte offset ([`PlaneSet::view`]) when given.
+    /// Allocates the planes for a `w × h` image, whose detection runs
+    /// `clip` rounds of OUTLIER-CLIP; the scratch in an arena from a byte
+    /// offset ([`PlaneSet::view`]) when given.
     pub fn new(
         ctx: &Arc<GpuContext>,
         w: usize,
         h: usize,
+        clip: u32,
         arena: Option<(&Arc<GpuBuffer>, u64)>,
     ) -> Result<OutlierPlanes> {
         let planes = match arena {
@@ -134,6 +152,7 @@ impl OutlierPlanes {
             )?,
             width: w,
             height: h,
+            clip,
         })
     }
 
@@ -163,7 +182,20 @@ pub fn record_remove(
     let rep = p.set::<6>(6);
     let keys = p.planes.plane(18);
     outlier_grey::record(batch, precision, &pu, color, spp, keys)?;
-    outlier_rows::record(batch, precision, &pu, keys, rows)?;
+    // OUTLIER-CLIP: the detection's statistics come from the kept keys; the
+    // isolation test and the median read every valid pixel's.
+    let stats_keys = if p.clip > 0 {
+        let kept = p.planes.plane(12);
+        batch.copy(keys, kept);
+        for _ in 0..p.clip {
+            outlier_rows::record(batch, precision, &pu, kept, rows)?;
+            outlier_clip::record(batch, precision, &pu, kept, rows, var)?;
+        }
+        kept
+    } else {
+        keys
+    };
+    outlier_rows::record(batch, precision, &pu, stats_keys, rows)?;
     let queue = p.queue.slice();
     outlier_detect::record(
         batch,
@@ -292,8 +324,9 @@ impl Removed {
     }
 }
 
-/// Steps 1–3 on sanitised statistics, in place (CPU path).
-pub fn remove_cpu(clean: &mut StatsImage) -> Removed {
+/// Steps 1–3 with `clip` rounds of OUTLIER-CLIP on sanitised statistics, in
+/// place (CPU path).
+pub fn remove_cpu(clean: &mut StatsImage, clip: u32) -> Removed {
     let (w, h) = (clean.width, clean.height);
     let spp = clean.get(Layer::Spp).unwrap()[0].clone();
     let mut color: [Vec<f32>; 3] = clean
@@ -308,7 +341,7 @@ pub fn remove_cpu(clean: &mut StatsImage) -> Removed {
         .to_vec()
         .try_into()
         .unwrap();
-    let (mask, excess) = reference::remove(w, h, &mut color, &mut var, &spp);
+    let (mask, excess) = reference::remove(w, h, &mut color, &mut var, &spp, clip);
     clean.set(Layer::Color, color.to_vec());
     clean.set(Layer::ColorVariance, var.to_vec());
     Removed { mask, excess }

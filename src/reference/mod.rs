@@ -41,6 +41,7 @@ pub mod lp_reach;
 pub mod lp_select;
 pub mod lp_temporal;
 pub mod lp_temporal_gain;
+pub mod outlier_clip;
 pub mod outlier_detect;
 pub mod outlier_grey;
 pub mod outlier_median;

@@ -1,7 +1,9 @@
 //! Scalar twin of `spirv/outlier_detect.comp`: outlier detection (spec §4.4
 //! step 1). The kernel merges `outlier_rows`' row summaries; the twin
 //! computes the same statistics of `Ω_o(14) \ {o}` from their definition
-//! ([`super::outliers::is_outlier`]), so it reads no summaries.
+//! ([`super::outliers::is_outlier`]) over the pixels `kept` by OUTLIER-CLIP
+//! (the nonzero keys the kernel's summaries were made from), so it reads no
+//! summaries.
 
 use super::outliers::{is_outlier, DETECT_RADIUS, K_SIGMA, MIN_NEIGHBOURS};
 use crate::shared::OutlierPush;
@@ -13,6 +15,7 @@ pub fn outlier_detect(
     color: [&[f32]; 3],
     var: [&[f32]; 3],
     spp: &[f32],
+    kept: &[bool],
     e: [&mut [f32]; 3],
 ) -> Vec<usize> {
     assert_eq!(
@@ -26,6 +29,6 @@ pub fn outlier_detect(
         plane.fill(0.0);
     }
     (0..w * h)
-        .filter(|&o| is_outlier(w, h, color, var, spp, o))
+        .filter(|&o| is_outlier(w, h, color, var, spp, kept, o))
         .collect()
 }

@@ -35,6 +35,15 @@
 //!   lowest raster index is `q*`.
 //! * Decision OUTLIER-CLAMP (ours): the redistributed image is clamped to ≥ 0 (spec §0.4
 //!   step 5); [`redistribute`] itself does not clamp, so energy is exact.
+//! * Decision OUTLIER-CLIP (ours): `m_o` and `sd_o` are taken over the pixels
+//!   that survive `rounds` rounds of clipping ([`kept_after_clip`]): in each
+//!   round every pixel still kept whose excess over the mean of the kept
+//!   pixels of its own window is above both `3·sd` and `3·se` (a light:
+//!   bright, and signal by OUTLIER-NOISE) leaves the statistics. A small lamp
+//!   in a dark window otherwise inflates `sd` so much that a firefly beside
+//!   it passes the test; spikes stay in the statistics, as the spec has
+//!   them. OUTLIER-NOISE, OUTLIER-ISOLATED and the median still see every
+//!   valid pixel. `rounds = 0` is the spec.
 
 use super::spp_of;
 
@@ -84,39 +93,78 @@ pub fn window(
     }
 }
 
+/// The mean and population standard deviation of grey over the pixels of
+/// `Ω_o(14) \ {o}` that are valid and `kept` (OUTLIER-CLIP), or `None` when
+/// fewer than [`MIN_NEIGHBOURS`] are (OUTLIER-MIN-N).
+fn window_stats(
+    w: usize,
+    h: usize,
+    color: [&[f32]; 3],
+    spp: &[f32],
+    kept: &[bool],
+    o: usize,
+) -> Option<(f64, f64)> {
+    let (x, y) = (o % w, o / w);
+    let mut g = Vec::with_capacity((2 * DETECT_RADIUS + 1).pow(2));
+    window(w, h, x, y, DETECT_RADIUS, spp, |q| {
+        if q != o && kept[q] {
+            g.push(grey(color, q));
+        }
+    });
+    if (g.len() as u32) < MIN_NEIGHBOURS {
+        return None;
+    }
+    let n = g.len() as f64;
+    let m = g.iter().sum::<f64>() / n;
+    let m2: f64 = g.iter().map(|v| (v - m) * (v - m)).sum();
+    Some((m, (m2 / n).sqrt()))
+}
+
+/// OUTLIER-CLIP: the valid pixels that stay in the detection statistics
+/// after `rounds` rounds, each testing every pixel still kept against the
+/// kept pixels of its window as they were before the round.
+pub fn kept_after_clip(
+    w: usize,
+    h: usize,
+    color: [&[f32]; 3],
+    var: [&[f32]; 3],
+    spp: &[f32],
+    rounds: u32,
+) -> Vec<bool> {
+    let mut kept: Vec<bool> = spp.iter().map(|&s| spp_of(s) >= 1.0).collect();
+    for _ in 0..rounds {
+        let before = kept.clone();
+        for (o, k) in kept.iter_mut().enumerate() {
+            if *k {
+                if let Some((m, sd)) = window_stats(w, h, color, spp, &before, o) {
+                    let excess = grey(color, o) - m;
+                    *k = excess <= K_SIGMA * sd || excess <= K_SIGMA * grey_sd(var, o);
+                }
+            }
+        }
+    }
+    kept
+}
+
 /// Step 1 at pixel `o`: whether it is an outlier (SPIKE-SIDE,
-/// OUTLIER-NOISE, OUTLIER-MIN-N, OUTLIER-ISOLATED).
+/// OUTLIER-NOISE, OUTLIER-MIN-N, OUTLIER-ISOLATED), with the statistics over
+/// the `kept` pixels ([`kept_after_clip`]).
 pub fn is_outlier(
     w: usize,
     h: usize,
     color: [&[f32]; 3],
     var: [&[f32]; 3],
     spp: &[f32],
+    kept: &[bool],
     o: usize,
 ) -> bool {
     if spp_of(spp[o]) < 1.0 {
         return false;
     }
     let (x, y) = (o % w, o / w);
-    let (mut n, mut sum) = (0u32, 0.0);
-    window(w, h, x, y, DETECT_RADIUS, spp, |q| {
-        if q != o {
-            n += 1;
-            sum += grey(color, q);
-        }
-    });
-    if n < MIN_NEIGHBOURS {
+    let Some((m, sd)) = window_stats(w, h, color, spp, kept, o) else {
         return false;
-    }
-    let m = sum / n as f64;
-    let mut m2 = 0.0;
-    window(w, h, x, y, DETECT_RADIUS, spp, |q| {
-        if q != o {
-            let d = grey(color, q) - m;
-            m2 += d * d;
-        }
-    });
-    let sd = (m2 / n as f64).sqrt();
+    };
     let excess = grey(color, o) - m;
     if excess <= K_SIGMA * sd || excess > K_SIGMA * grey_sd(var, o) {
         return false;
@@ -142,9 +190,10 @@ pub fn detect_at(
     color: [&[f32]; 3],
     var: [&[f32]; 3],
     spp: &[f32],
+    kept: &[bool],
     o: usize,
 ) -> Option<usize> {
-    is_outlier(w, h, color, var, spp, o).then(|| median_at(w, h, color, spp, o))
+    is_outlier(w, h, color, var, spp, kept, o).then(|| median_at(w, h, color, spp, o))
 }
 
 /// The pixel of median grey in `Ω_o(14)`, `o` included (OUTLIER-MEDIAN).
@@ -159,17 +208,20 @@ pub fn median_at(w: usize, h: usize, color: [&[f32]; 3], spp: &[f32], o: usize) 
     v.iter().find(|p| p.0 == med).map(|p| p.1).unwrap_or(o)
 }
 
-/// Steps 1–2 for every pixel: the replacement `q*` of each outlier. All
-/// detections read the original image (spec: applied at once).
+/// Steps 1–2 for every pixel, after `rounds` rounds of OUTLIER-CLIP: the
+/// replacement `q*` of each outlier. All detections read the original image
+/// (spec: applied at once).
 pub fn detect(
     w: usize,
     h: usize,
     color: [&[f32]; 3],
     var: [&[f32]; 3],
     spp: &[f32],
+    rounds: u32,
 ) -> Vec<Option<usize>> {
+    let kept = kept_after_clip(w, h, color, var, spp, rounds);
     (0..w * h)
-        .map(|o| detect_at(w, h, color, var, spp, o))
+        .map(|o| detect_at(w, h, color, var, spp, &kept, o))
         .collect()
 }
 
@@ -254,14 +306,15 @@ pub fn redistribute(
     }
 }
 
-/// The pre-method part (steps 1–3) on f32 planes, in place. Returns the
-/// outlier mask and the excess per channel.
+/// The pre-method part (steps 1–3, `rounds` of OUTLIER-CLIP) on f32 planes,
+/// in place. Returns the outlier mask and the excess per channel.
 pub fn remove(
     w: usize,
     h: usize,
     color: &mut [Vec<f32>; 3],
     var: &mut [Vec<f32>; 3],
     spp: &[f32],
+    rounds: u32,
 ) -> (Vec<bool>, [Vec<f64>; 3]) {
     let found = detect(
         w,
@@ -269,6 +322,7 @@ pub fn remove(
         [&color[0], &color[1], &color[2]],
         [&var[0], &var[1], &var[2]],
         spp,
+        rounds,
     );
     let e = replace(&found, color, var);
     (found.iter().map(Option::is_some).collect(), e)
