@@ -3,9 +3,10 @@
 // (key != 0), the (count, mean, M2) of grey over Ω_o(R) \ {o} from
 // outlier_rows' summaries of the kept keys; o leaves the statistics (its key
 // becomes 0) when count >= min_n, grey_o - m > k sd (the spec's test) and
-// grey_o - m > k se_o: bright, and signal by OUTLIER-NOISE (a light, not a
-// spike; spikes stay in the statistics as the spec has them). After the
-// rounds, outlier_rows and outlier_detect read the kept
+// either grey_o - m > k se_o (signal by OUTLIER-NOISE: a light) or
+// grey_o - m > CLIP_FAR sd (a spike so far out that it is no part of the
+// window's noise; spikes nearer stay in the statistics as the spec has
+// them). After the rounds, outlier_rows and outlier_detect read the kept
 // keys, so a light beside a firefly no longer inflates the firefly's sd;
 // OUTLIER-NOISE, OUTLIER-ISOLATED and the median read the original keys.
 // Each invocation reads and writes only its own key (the summaries were
@@ -15,6 +16,9 @@
 #include "lib/outliers.glsl"
 
 layout(local_size_x = 8, local_size_y = 8) in;
+
+// Mirrors mcdenoise::reference::outliers::CLIP_FAR.
+#define CLIP_FAR 50.0
 
 layout(std430, set = 0, binding = 0) buffer keys_blk { uint keys[]; };
 PLANE_IN(1, wn)
@@ -44,7 +48,9 @@ void main()
                    + sqrt(max(real(vb[o]), real(0)))) / real(3);
         real excess = g - s.mean;
         real k = real(push.k_sigma);
-        if (s.n >= real(push.min_n) && excess > k * summary_sd(s) && excess > k * se) {
+        real sd = summary_sd(s);
+        if (s.n >= real(push.min_n) && excess > k * sd
+            && (excess > k * se || excess > real(CLIP_FAR) * sd)) {
             keys[o] = 0u;
         }
     }

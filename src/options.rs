@@ -197,7 +197,7 @@ pub const OPTIONS: &[OptionSpec] = &[
     OptionSpec {
         key: "outliers.clip",
         kind: Kind::Int(0, 4),
-        default: "0",
+        default: "2",
         section: "§4.4 step 1 (OUTLIER-CLIP)",
         help: "rounds of clipping before detection: each drops from the window statistics the pixels more than 3 sd above the mean of their own window's kept pixels, so a small lamp beside a firefly does not hide it (0: the spec)",
     },

@@ -1,8 +1,8 @@
 //! `outlier_clip`: one round of OUTLIER-CLIP (ours, spec §4.4 step 1): a
 //! pixel whose grey is more than `k·sd` above the mean of its window's kept
 //! pixels (from [`super::outlier_rows`]' summaries of the kept keys) and
-//! more than `k·se` above it (signal by OUTLIER-NOISE) leaves the
-//! statistics: its key becomes 0, in place. Twin:
+//! either more than `k·se` above it (signal by OUTLIER-NOISE) or more than
+//! `CLIP_FAR·sd` leaves the statistics: its key becomes 0, in place. Twin:
 //! `reference::outlier_clip`.
 
 use crate::error::Result;

@@ -6,7 +6,7 @@
 //!
 //! remove:   outlier_grey      order-preserving key of grey (0: invalid)
 //!           (per OUTLIER-CLIP round, on a copy of the keys:
-//!            outlier_rows, outlier_clip   key ← 0 where grey > m + 3 max(sd, se))
+//!            outlier_rows, outlier_clip   key ← 0 for a light or a far spike)
 //!           outlier_rows      row (count, mean, M2) of grey with and without x, R = 14
 //!           outlier_detect    merge → m, sd without o; queue the spikes; e ← 0
 //!           outlier_median    (indirect, per queued spike) the median pixel; e = y − y_q*
@@ -38,16 +38,14 @@ use crate::options::Options;
 use crate::reference::outliers::{self as reference, DETECT_RADIUS, SPREAD_RADIUS};
 use crate::shared::OutlierPush;
 
-/// Rounds of OUTLIER-CLIP before detection (`outliers.clip`; `reference::outliers`
-/// documents the decision).
+/// Rounds of OUTLIER-CLIP before detection: `outliers.clip`, else the
+/// registry's default (`reference::outliers` documents the decision).
 pub fn clip_rounds(options: &Options) -> Result<u32> {
-    Ok(options
-        .number("outliers.clip")?
-        .unwrap_or(DEFAULT_CLIP_ROUNDS))
+    options
+        .get("outliers.clip")
+        .parse()
+        .map_err(|_| crate::error::Error::InvalidArgument("outliers.clip: not a number".into()))
 }
-
-/// OUTLIER-CLIP's rounds when `outliers.clip` is not given.
-pub const DEFAULT_CLIP_ROUNDS: u32 = 0;
 
 /// Whether the outlier stage runs (`--outliers`).
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Default)]

@@ -2,12 +2,12 @@
 //! (ours, spec §4.4 step 1) on the kept keys, from the definition of the
 //! window statistics (no row summaries): a kept pixel `o` is dropped (key 0)
 //! when at least `min_n` kept pixels of `Ω_o(R) \ {o}` have mean `m` and
-//! population standard deviation `sd` with `grey_o − m > k·sd` and
-//! `grey_o − m > k·se_o` (signal by OUTLIER-NOISE). Every test reads the keys
-//! as they were before the round.
+//! population standard deviation `sd` with `grey_o − m > k·sd` and either
+//! `grey_o − m > k·se_o` (signal by OUTLIER-NOISE) or `grey_o − m >
+//! CLIP_FAR·sd`. Every test reads the keys as they were before the round.
 
 use super::outlier_grey::unkey;
-use super::outliers::grey_sd;
+use super::outliers::{grey_sd, CLIP_FAR};
 use crate::shared::OutlierPush;
 
 /// One round in place on `keys` (0: invalid or already dropped); `var` is
@@ -35,7 +35,8 @@ pub fn outlier_clip(push: &OutlierPush, var: [&[f32]; 3], keys: &mut [u32]) {
         let m = vals.iter().sum::<f64>() / n;
         let sd = (vals.iter().map(|v| (v - m) * (v - m)).sum::<f64>() / n).sqrt();
         let k = push.k_sigma as f64;
-        if g - m > k * sd && g - m > k * grey_sd(var, o) {
+        let excess = g - m;
+        if excess > k * sd && (excess > k * grey_sd(var, o) || excess > CLIP_FAR * sd) {
             keys[o] = 0;
         }
     }

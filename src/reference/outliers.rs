@@ -38,11 +38,12 @@
 //! * Decision OUTLIER-CLIP (ours): `m_o` and `sd_o` are taken over the pixels
 //!   that survive `rounds` rounds of clipping ([`kept_after_clip`]): in each
 //!   round every pixel still kept whose excess over the mean of the kept
-//!   pixels of its own window is above both `3·sd` and `3·se` (a light:
-//!   bright, and signal by OUTLIER-NOISE) leaves the statistics. A small lamp
-//!   in a dark window otherwise inflates `sd` so much that a firefly beside
-//!   it passes the test; spikes stay in the statistics, as the spec has
-//!   them. OUTLIER-NOISE, OUTLIER-ISOLATED and the median still see every
+//!   pixels of its own window is above `3·sd` and either above `3·se` (a
+//!   light: bright, and signal by OUTLIER-NOISE) or above [`CLIP_FAR`]`·sd`
+//!   (a spike no part of the window's noise) leaves the statistics. A small
+//!   lamp, or a far brighter spike, in a dark window otherwise inflates `sd`
+//!   so much that a firefly beside it passes the test; nearer spikes stay
+//!   in the statistics, as the spec has them. OUTLIER-NOISE, OUTLIER-ISOLATED and the median still see every
 //!   valid pixel. `rounds = 0` is the spec.
 
 use super::spp_of;
@@ -55,6 +56,10 @@ pub const SPREAD_RADIUS: usize = 43;
 pub const K_SIGMA: f64 = 3.0;
 /// Fewest valid neighbours (centre excluded) a detection needs (OUTLIER-MIN-N).
 pub const MIN_NEIGHBOURS: u32 = 8;
+/// OUTLIER-CLIP: a pixel this many standard deviations above its window's
+/// kept mean leaves the statistics even when it is noise (mirrored as
+/// `CLIP_FAR` in `spirv/outlier_clip.comp`).
+pub const CLIP_FAR: f64 = 50.0;
 /// DARK-WINDOW: a window whose `Σ ŷ <= DARK · |Ω_o|` gets `e_o` uniformly.
 pub const DARK: f64 = 1e-8;
 
@@ -138,7 +143,8 @@ pub fn kept_after_clip(
             if *k {
                 if let Some((m, sd)) = window_stats(w, h, color, spp, &before, o) {
                     let excess = grey(color, o) - m;
-                    *k = excess <= K_SIGMA * sd || excess <= K_SIGMA * grey_sd(var, o);
+                    let light = excess > K_SIGMA * grey_sd(var, o);
+                    *k = excess <= K_SIGMA * sd || !(light || excess > CLIP_FAR * sd);
                 }
             }
         }
