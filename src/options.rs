@@ -199,7 +199,7 @@ pub const OPTIONS: &[OptionSpec] = &[
         kind: Kind::Int(0, 4),
         default: "2",
         section: "§4.4 step 1 (OUTLIER-CLIP)",
-        help: "rounds of clipping before detection: each drops from the window statistics the pixels more than 3 sd above the mean of their own window's kept pixels, so a small lamp beside a firefly does not hide it (0: the spec)",
+        help: "rounds of clipping before detection: each drops from the window statistics the pixels more than 3 sd above the mean of their own window's kept pixels that are also above 3 se (a light) or 50 sd (a far spike), so neither hides a firefly beside it (0: the spec)",
     },
     OptionSpec {
         key: "sampling.smooth",

@@ -839,7 +839,8 @@ fn clip_kernel_matches_twin() {
 /// a background's 0.006) that the spec's test misses the firefly; with the
 /// clipping rounds it is found, by the reference and by the stage on the
 /// GPU (f32, f64) and the CPU, and nothing else is: not the lamp (steady:
-/// OUTLIER-NOISE), not the background.
+/// OUTLIER-NOISE), not a firefly touching the lamp (OUTLIER-ISOLATED), not
+/// the background.
 #[test]
 fn a_lamp_beside_a_firefly_does_not_hide_it() {
     let (w, h) = (48, 48);
@@ -854,6 +855,11 @@ fn a_lamp_beside_a_firefly_does_not_hide_it() {
     let firefly = 21 * w + 27;
     color[firefly] = 10.0;
     var[firefly] = 100.0;
+    // A firefly beside the lamp stays: OUTLIER-ISOLATED reads every valid
+    // pixel, the clipped lamp too.
+    let beside = 20 * w + 22;
+    color[beside] = 10.0;
+    var[beside] = 100.0;
     check_clip_finds((w, h), &color, &var, &[], &[firefly]);
 }
 
@@ -895,8 +901,8 @@ fn check_clip_finds(
 ) {
     let n = w * h;
     let spp = vec![16.0f32; n];
-    let c3 = [&color[..], &color[..], &color[..]];
-    let v3 = [&var[..], &var[..], &var[..]];
+    let c3 = [color, color, color];
+    let v3 = [var, var, var];
     for rounds in [0, 1, 2] {
         let found: Vec<usize> = ro::detect(w, h, c3, v3, &spp, rounds)
             .iter()

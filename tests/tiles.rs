@@ -5,7 +5,7 @@
 //! defaults (outlier stage and G-buffer prefilter included), with tiles cut
 //! along x and along y. The images are strips (480×32, 32×480: ≤ 128²
 //! pixels) so that tiles are narrower than the image by more than twice the
-//! largest halo (APR's 203 px) while the suite stays small. The input has
+//! largest halo (APR's 231 px) while the suite stays small. The input has
 //! what the halo must carry across a cut: fireflies (the outlier stage)
 //! next to tile borders, non-finite values and negative variances
 //! (sanitation step 1–2), one-sample and empty pixels (step 3, §0.2).
@@ -172,7 +172,7 @@ fn check(img: &StatsImage, config: Config, tile: usize, what: &str) {
 #[test]
 fn every_method_tiled_along_x_is_bit_identical() {
     let img = strip(480, 32);
-    // AOS, the slowest per pixel, reaches 131-144 px: half the strip still
+    // AOS, the slowest per pixel, reaches 159-172 px: half the strip still
     // has tiles that read less than the whole (its hazards wrap into it).
     let short = strip(240, 32);
     for method in Method::all().filter(|&m| m != Method::None) {
@@ -303,15 +303,15 @@ fn a_memory_cap_tiles_automatically_and_identically() {
     // Its own context: the peak allocation it measures must not count the
     // other tests of this binary, which run beside it.
     let ctx = own_gpu();
-    let img = strip(640, 24);
+    let img = strip(1024, 16);
     let config = Config::new(Method::Lp);
     let before = ctx.allocated_bytes();
     let whole = Denoiser::new(&ctx, Source::of_image(&img), config.clone()).unwrap();
     let whole_bytes = ctx.allocated_bytes() - before;
     let a = whole.denoise(&img, None).unwrap();
     drop(whole);
-    // A cap of 75 % of what the whole chain holds: tiles of ≈ 120 px
-    // (plus 2 × 178 of halo and up to 15 of alignment) fit it.
+    // A cap of 75 % of what the whole chain holds: tiles of ≈ 250 px
+    // (plus 2 × 206 of halo and up to 15 of alignment) fit it.
     let cap = whole_bytes * 3 / 4;
     let capped = Config {
         max_memory: Some(cap),
@@ -636,4 +636,36 @@ fn tiled_statistics_are_those_of_one_chain() {
         }
     }
     check_validation(&ctx);
+}
+
+/// OUTLIER-CLIP: round r keeps a pixel by what round r − 1 kept within the
+/// detection radius (14), so each round widens the halo by 14; WLR's halo
+/// with the defaults (two rounds) is the documented 164.
+#[test]
+fn each_clip_round_widens_the_halo_by_the_detection_radius() {
+    let ctx = gpu();
+    let img = strip(480, 32);
+    let halo = |rounds: u32| {
+        let mut c = Config::new(Method::Wlr);
+        c.tile = Some(60);
+        c.options = mcdenoise::Options::parse(&[format!("outliers.clip={rounds}")]).unwrap();
+        let d = Denoiser::new(&ctx, Source::of_image(&img), c).unwrap();
+        d.tiles().expect("tiles were asked for").1
+    };
+    let (h0, h1, h2) = (halo(0), halo(1), halo(2));
+    assert_eq!((h1 - h0, h2 - h0), (14, 28));
+    assert_eq!(h2, halo_default(Method::Wlr, &ctx, &img));
+    assert_eq!(h2, 164);
+    check_validation(&ctx);
+}
+
+fn halo_default(
+    method: Method,
+    ctx: &std::sync::Arc<mcdenoise::GpuContext>,
+    img: &StatsImage,
+) -> usize {
+    let mut c = Config::new(method);
+    c.tile = Some(60);
+    let d = Denoiser::new(ctx, Source::of_image(img), c).unwrap();
+    d.tiles().expect("tiles were asked for").1
 }

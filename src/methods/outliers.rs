@@ -103,7 +103,8 @@ pub fn push(w: usize, h: usize, radius: usize, mode: u32) -> OutlierPush {
 }
 
 /// The stage's planes: two six-plane scratch sets, the excess `e` (3), the
-/// weights (6) and the grey keys (1); and the queue of detected pixels.
+/// weights (6), the grey keys (1) and OUTLIER-CLIP's kept keys (1, in the
+/// scratch of the restoration's weights); and the queue of detected pixels.
 #[derive(Debug)]
 pub struct OutlierPlanes {
     /// Scratch of each step ([`SCRATCH`] planes): dead between

@@ -42,7 +42,7 @@
 //! | AOS (§5) | `R + 8`: 17 final, 13 intermediate | NL-means search 5 + patch 3, then the window `Ω_c(R)` |
 //! | input blend (INPUT-BLEND), with the method | `max(method + s, r)` | reads the statistics the method read within its variance window `r` (AOS 1, the others 3), and the method's output within its residual window `s` (3, BLEND-RESIDUAL) |
 //! | G-buffer prefilter (§6.2) | 13 | `S̄ = G_1.5(S)` (5); SURE at `c` uses `S̃` within 3; `hbar = G_1.5(h_opt)` (5) |
-//! | outlier detection and replacement (§4.4 steps 1–3) | 14 | `m_o`, `sd_o` and the median over `Ω_o(14)` |
+//! | outlier detection and replacement (§4.4 steps 1–3) | `14 (1 + rounds)` = 42 | `m_o`, `sd_o` and the median over `Ω_o(14)`; each OUTLIER-CLIP round keeps a pixel by what the round before kept within 14 |
 //! | sanitation (§0.4) | 5 | step 1: 3×3 (1); then step 3 (5×5: 2) or step 4 (3×3 residuals, 7×7 MAD: 4) |
 //!
 //! With the pyramid's low band (PYRAMID-LOWBAND) the stages between the
@@ -56,8 +56,8 @@
 //! level's grids and 2×2 blocks are the whole image's.
 //!
 //! With the defaults (final pass, outlier stage on, prefilter where `auto`
-//! runs it, the input blend after every method but `auto`): WLR 136, LP
-//! 178, APR 203, AOS 131 (no prefilter by default, AOS-NO-GBF; 144 with
+//! runs it, the input blend after every method but `auto`): WLR 164, LP
+//! 206, APR 231, AOS 159 (no prefilter by default, AOS-NO-GBF; 172 with
 //! `--prefilter gbf`), and `none` 5 (it runs no
 //! outlier stage and no prefilter by default). [`halo`] computes it for any configuration.
 
@@ -186,7 +186,14 @@ pub fn halo(config: &ChainConfig, prefiltered: bool) -> Result<Halo> {
         parts.push(("G-buffer prefilter (§6.2)", 2 * s + reference::gbf::RADIUS));
     }
     if config.outliers {
-        parts.push(("outlier detection (§4.4 steps 1-3)", detect));
+        // OUTLIER-CLIP: round r keeps a pixel by the pixels within R that
+        // round r - 1 kept, so the kept set after the rounds reads R more
+        // per round.
+        let rounds = super::outliers::clip_rounds(&config.options)? as usize;
+        parts.push((
+            "outlier detection (§4.4 steps 1-3, OUTLIER-CLIP)",
+            detect * (1 + rounds),
+        ));
     }
     parts.push(("sanitation (§0.4)", SANITIZE_HALO));
     if config.pyramid {
