@@ -44,8 +44,7 @@ void main()
     real g;
     if (key_grey(keys[o], g)) {
         Summary s = window_summary(x, y);
-        real se = (sqrt(max(real(vr[o]), real(0))) + sqrt(max(real(vg[o]), real(0)))
-                   + sqrt(max(real(vb[o]), real(0)))) / real(3);
+        real se = grey_se(o);
         real excess = g - s.mean;
         real k = real(push.k_sigma);
         real sd = summary_sd(s);

@@ -55,8 +55,7 @@ void main()
         real sd = summary_sd(s);
         // OUTLIER-NOISE: the excess must also be within k standard errors of
         // the pixel's own mean (a directly seen small light is not noise).
-        real se = (sqrt(max(real(vr[o]), real(0))) + sqrt(max(real(vg[o]), real(0)))
-                   + sqrt(max(real(vb[o]), real(0)))) / real(3);
+        real se = grey_se(o);
         real excess = grey_at(o) - s.mean;
         bool outlier = s.n >= real(push.min_n) && excess > real(push.k_sigma) * sd
             && excess <= real(push.k_sigma) * se;

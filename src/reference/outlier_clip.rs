@@ -4,10 +4,11 @@
 //! when at least `min_n` kept pixels of `Ω_o(R) \ {o}` have mean `m` and
 //! population standard deviation `sd` with `grey_o − m > k·sd` and either
 //! `grey_o − m > k·se_o` (signal by OUTLIER-NOISE) or `grey_o − m >
-//! CLIP_FAR·sd`. Every test reads the keys as they were before the round.
+//! CLIP_FAR·sd` ([`super::outliers::leaves_statistics`]). Every test reads
+//! the keys as they were before the round.
 
 use super::outlier_grey::unkey;
-use super::outliers::{grey_sd, CLIP_FAR};
+use super::outliers::{grey_sd, leaves_statistics, mean_sd};
 use crate::shared::OutlierPush;
 
 /// One round in place on `keys` (0: invalid or already dropped); `var` is
@@ -28,15 +29,10 @@ pub fn outlier_clip(push: &OutlierPush, var: [&[f32]; 3], keys: &mut [u32]) {
             .filter(|&q| q != o)
             .filter_map(grey)
             .collect();
-        if (vals.len() as u32) < push.min_n {
+        let Some((m, sd)) = mean_sd(&vals, push.min_n) else {
             continue;
-        }
-        let n = vals.len() as f64;
-        let m = vals.iter().sum::<f64>() / n;
-        let sd = (vals.iter().map(|v| (v - m) * (v - m)).sum::<f64>() / n).sqrt();
-        let k = push.k_sigma as f64;
-        let excess = g - m;
-        if excess > k * sd && (excess > k * grey_sd(var, o) || excess > CLIP_FAR * sd) {
+        };
+        if leaves_statistics(g - m, sd, grey_sd(var, o), push.k_sigma as f64) {
             keys[o] = 0;
         }
     }

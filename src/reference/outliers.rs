@@ -43,8 +43,9 @@
 //!   (a spike no part of the window's noise) leaves the statistics. A small
 //!   lamp, or a far brighter spike, in a dark window otherwise inflates `sd`
 //!   so much that a firefly beside it passes the test; nearer spikes stay
-//!   in the statistics, as the spec has them. OUTLIER-NOISE, OUTLIER-ISOLATED and the median still see every
-//!   valid pixel. `rounds = 0` is the spec.
+//!   in the statistics, as the spec has them. OUTLIER-NOISE,
+//!   OUTLIER-ISOLATED and the median still see every valid pixel.
+//!   `rounds = 0` is the spec.
 
 use super::spp_of;
 
@@ -116,13 +117,27 @@ fn window_stats(
             g.push(grey(color, q));
         }
     });
-    if (g.len() as u32) < MIN_NEIGHBOURS {
+    mean_sd(&g, MIN_NEIGHBOURS)
+}
+
+/// The mean and population standard deviation of `values` (two passes), or
+/// `None` for fewer than `min_n` of them.
+pub fn mean_sd(values: &[f64], min_n: u32) -> Option<(f64, f64)> {
+    if (values.len() as u32) < min_n || values.is_empty() {
         return None;
     }
-    let n = g.len() as f64;
-    let m = g.iter().sum::<f64>() / n;
-    let m2: f64 = g.iter().map(|v| (v - m) * (v - m)).sum();
+    let n = values.len() as f64;
+    let m = values.iter().sum::<f64>() / n;
+    let m2: f64 = values.iter().map(|v| (v - m) * (v - m)).sum();
     Some((m, (m2 / n).sqrt()))
+}
+
+/// OUTLIER-CLIP's test: a pixel `excess` above its window's kept mean (of
+/// standard deviation `sd`), with standard error `se`, leaves the
+/// statistics when it is above `k·sd` and either above `k·se` (a light) or
+/// above [`CLIP_FAR`]`·sd` (a far spike).
+pub fn leaves_statistics(excess: f64, sd: f64, se: f64, k: f64) -> bool {
+    excess > k * sd && (excess > k * se || excess > CLIP_FAR * sd)
 }
 
 /// OUTLIER-CLIP: the valid pixels that stay in the detection statistics
@@ -143,8 +158,7 @@ pub fn kept_after_clip(
             if *k {
                 if let Some((m, sd)) = window_stats(w, h, color, spp, &before, o) {
                     let excess = grey(color, o) - m;
-                    let light = excess > K_SIGMA * grey_sd(var, o);
-                    *k = excess <= K_SIGMA * sd || !(light || excess > CLIP_FAR * sd);
+                    *k = !leaves_statistics(excess, sd, grey_sd(var, o), K_SIGMA);
                 }
             }
         }
