@@ -1,10 +1,11 @@
 #!/usr/bin/env bash
 # Equal-sample and equal-time comparison of adaptive and uniform sampling on
 # the built-in scenes, for every method, against references whose own error
-# is estimated from two seeds (tools/src/bin/equal_samples.rs says how).
+# is estimated from independent seeds (tools/src/bin/equal_samples.rs says how).
 #
 #   bash benches/equal_samples.sh [--scenes a,b] [--size 256x256] [--spp 16,64]
-#        [--methods wlr,lp,apr,aos] [--reference 4096] [--oidn] [--equal-time]
+#        [--methods wlr,lp,apr,aos] [--reference 4096] [--reference-renders 2]
+#        [--oidn] [--equal-time]
 #        [--json out.json] [--opt KEY=VALUE ...]
 set -euo pipefail
 cd "$(dirname "$0")/.."

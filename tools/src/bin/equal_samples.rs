@@ -2,12 +2,13 @@
 //! sampling on the built-in scenes, for every method, against references
 //! whose own error is estimated.
 //!
-//! Per scene: two references of K spp with independent seeds; the table
-//! uses their mean `r`, whose own error against the converged image is
-//! estimated as `rMSE(r1, r) = mean (r1 − r2)²/4 / (r² + 0.01)` (the
-//! expected `(r − t)²`, weighted by `r` as the metric weighs an output's
-//! error) and printed next to the rows; the ratios use the rMSE with that
-//! estimate subtracted. Per scene and spp N:
+//! Per scene: `--reference-renders` references (2 unless told) of K spp
+//! with independent seeds; the table uses their mean `r`, whose own error
+//! against the converged image is estimated from the means `h₀`, `h₁` of
+//! the even- and the odd-numbered renders as `rMSE(h₀, r) = mean (h₀ −
+//! h₁)²/4 / (r² + 0.01)` (the expected `(r − t)²`, weighted by `r` as the
+//! metric weighs an output's error) and printed next to the rows; the
+//! ratios use the rMSE with that estimate subtracted. Per scene and spp N:
 //! one uniform render of N spp (seed `--seed`) reconstructed by every
 //! method (the Monte Carlo mean too), and per method the adaptive loop of
 //! spec §9.3 with the same seed and total. With `--oidn`, OIDN 2.5
@@ -21,7 +22,7 @@
 //! ```text
 //! cargo run --release -p mcdenoise-tools --bin equal_samples -- \
 //!     [--scenes a,b] [--size 256x256] [--spp 16,64] [--methods wlr,lp,apr,aos] \
-//!     [--reference 4096] [--seeds 3,4] [--oidn] [--equal-time] [--target | --target-only]
+//!     [--reference 4096] [--reference-renders 2] [--seeds 3,4] [--oidn] [--equal-time] [--target | --target-only]
 //!     [--map-method M] [--pass-cap K] [--opt key=value]
 //!     [--json out.json] [--work DIR]
 //! ```
@@ -56,15 +57,21 @@ struct Args {
     /// Methods, comma-separated.
     #[arg(long, value_delimiter = ',', default_value = "wlr,lp,apr,aos", value_parser = parse_method)]
     methods: Vec<Method>,
-    /// Samples per pixel of each of the two references.
+    /// Samples per pixel of each reference render.
     #[arg(long, default_value_t = 4096)]
     reference: u32,
+    /// Reference renders per scene, with independent seeds (even, at least
+    /// 2): the reference is their mean, its own error estimated from the
+    /// mean of the even- against the odd-numbered ones. Renders already
+    /// made are read from the cache, so raising it adds only the new ones.
+    #[arg(long, default_value_t = 2, value_parser = parse_renders)]
+    reference_renders: u32,
     /// Seeds of the renders, comma-separated: every number is the mean over
     /// them (the comparison of two renders is noisy where rare paths
     /// dominate, fireflies and caustics).
     #[arg(long, value_delimiter = ',', default_value = "3")]
     seeds: Vec<u64>,
-    /// Seed the two references derive theirs from.
+    /// Seed the references derive theirs from.
     #[arg(long, default_value_t = 3)]
     reference_seed: u64,
     /// Also OIDN on the uniform and on every adaptive run's statistics.
@@ -149,8 +156,10 @@ struct TargetRow {
 struct Row {
     scene: String,
     spp: u32,
-    /// Estimated rMSE of the reference (the mean of two) itself.
+    /// Estimated rMSE of the reference (the mean of the renders) itself.
     ref_err: f64,
+    /// Reference renders of `--reference` spp averaged.
+    ref_renders: u32,
     /// The uniform Monte Carlo mean.
     input: f64,
     oidn_uniform: Option<f64>,
@@ -166,15 +175,25 @@ fn loop_config(a: &Args, method: Method, spp: u32, options: &Options) -> LoopCon
     }
 }
 
-fn mean_image(a: &RgbImage, b: &RgbImage) -> RgbImage {
+/// `--reference-renders`: an even count of at least 2.
+fn parse_renders(s: &str) -> Result<u32, String> {
+    match s.parse::<u32>() {
+        Ok(n) if n >= 2 && n % 2 == 0 => Ok(n),
+        _ => Err(format!("{s}: an even number of at least 2")),
+    }
+}
+
+/// The pixel-wise mean of `images` (at least one, all of one size).
+fn mean_image<'a>(images: impl IntoIterator<Item = &'a RgbImage>) -> RgbImage {
+    let images: Vec<&RgbImage> = images.into_iter().collect();
+    let first = images[0];
+    let k = 1.0 / images.len() as f32;
     let planes = std::array::from_fn(|c| {
-        a.planes[c]
-            .iter()
-            .zip(&b.planes[c])
-            .map(|(x, y)| 0.5 * (x + y))
+        (0..first.planes[c].len())
+            .map(|i| images.iter().map(|m| m.planes[c][i]).sum::<f32>() * k)
             .collect()
     });
-    RgbImage::from_planes(a.width, a.height, planes)
+    RgbImage::from_planes(first.width, first.height, planes)
 }
 
 /// The rMSE of `x` against `r` with the reference's own estimated error
@@ -230,33 +249,32 @@ fn scene_rows(
     let scene = Scene::by_name_or_file(name)?;
     let stop = AtomicBool::new(false);
     let t = Instant::now();
-    let r1 = reference::reference(
-        ctx,
-        &scene,
-        a.size,
-        a.reference,
-        reference::reference_seed(a.reference_seed),
-        &stop,
-        |_, _| {},
-    )?;
-    let r2 = reference::reference(
-        ctx,
-        &scene,
-        a.size,
-        a.reference,
-        reference::reference_seed(a.reference_seed) ^ 0x2,
-        &stop,
-        |_, _| {},
-    )?;
-    let r = mean_image(&r1.image, &r2.image);
-    // E[(r − t)²] = E[(r1 − r2)²]/4 = E[(r1 − r)²], weighted as the metric
+    // Render k's seed: the first two are those of the references every
+    // table before `--reference-renders` used, so the cache serves them.
+    let refs = (0..u64::from(a.reference_renders))
+        .map(|k| {
+            reference::reference(
+                ctx,
+                &scene,
+                a.size,
+                a.reference,
+                reference::reference_seed(a.reference_seed) ^ (2 * k),
+                &stop,
+                |_, _| {},
+            )
+        })
+        .collect::<mcdenoise::Result<Vec<_>>>()?;
+    let half = |parity: usize| mean_image(refs.iter().skip(parity).step_by(2).map(|r| &r.image));
+    let h0 = half(0);
+    let r = mean_image([&h0, &half(1)]);
+    // E[(r − t)²] = E[(h0 − h1)²]/4 = E[(h0 − r)²], weighted as the metric
     // weighs an output's error: by the reference r's own value (a spike in
     // one reference then counts at most ~1, as it does in rMSE(x, r)).
-    let ref_err = metrics::rmse(&r1.image, &r);
+    let ref_err = metrics::rmse(&h0, &r);
+    let paths: Vec<String> = refs.iter().map(|r| r.path.display().to_string()).collect();
     eprintln!(
-        "{name}: references {} and {} ({:.0} s), estimated error of their mean {ref_err:.2e}",
-        r1.path.display(),
-        r2.path.display(),
+        "{name}: references {} ({:.0} s), estimated error of their mean {ref_err:.2e}",
+        paths.join(", "),
         t.elapsed().as_secs_f64()
     );
     let stem = Path::new(name)
@@ -273,6 +291,7 @@ fn scene_rows(
             .collect::<anyhow::Result<_>>()?;
         let mut row = average(runs);
         row.ref_err = ref_err;
+        row.ref_renders = a.reference_renders;
         for mr in row.methods.iter_mut().filter(|_| !a.target_only) {
             mr.ratio = corrected(mr.adaptive, ref_err) / corrected(mr.uniform, ref_err);
             eprintln!(
