@@ -249,8 +249,9 @@ fn scene_rows(
     let scene = Scene::by_name_or_file(name)?;
     let stop = AtomicBool::new(false);
     let t = Instant::now();
-    // Render k's seed: the first two are those of the references every
-    // table before `--reference-renders` used, so the cache serves them.
+    // Render k's seed is `reference_seed(s) ^ 2k`: k = 0 and 1 give the
+    // pair that two-render tables and method_mix use, so the cache serves
+    // them.
     let refs = (0..u64::from(a.reference_renders))
         .map(|k| {
             reference::reference(
