@@ -524,15 +524,17 @@ fn detection_invariants_with(rounds: u32) {
             .map(|i| 0.1 + 0.01 * (i % w) as f32 + 0.02 * c as f32)
             .collect()
     });
-    let var = flat(0.0);
-    let found = ro::detect(
-        w,
-        h,
-        [&smooth[0], &smooth[1], &smooth[2]],
-        [&var[0], &var[1], &var[2]],
-        &spp,
-        rounds,
-    );
+    let detect = |c: &[Vec<f32>; 3], v: &[Vec<f32>; 3]| {
+        ro::detect(
+            w,
+            h,
+            [&c[0], &c[1], &c[2]],
+            [&v[0], &v[1], &v[2]],
+            &spp,
+            rounds,
+        )
+    };
+    let found = detect(&smooth, &flat(0.0));
     assert!(
         found.iter().all(Option::is_none),
         "smooth image: detections ({rounds} rounds)"
@@ -544,14 +546,7 @@ fn detection_invariants_with(rounds: u32) {
         c[ch][o] = 400.0;
         v[ch][o] = 400.0 * 400.0;
     }
-    let found = ro::detect(
-        w,
-        h,
-        [&c[0], &c[1], &c[2]],
-        [&v[0], &v[1], &v[2]],
-        &spp,
-        rounds,
-    );
+    let found = detect(&c, &v);
     assert!(
         found[o].is_some(),
         "the firefly is not detected ({rounds} rounds)"
@@ -560,14 +555,7 @@ fn detection_invariants_with(rounds: u32) {
     for ch in 0..3 {
         v[ch][o] = 0.0;
     }
-    let found = ro::detect(
-        w,
-        h,
-        [&c[0], &c[1], &c[2]],
-        [&v[0], &v[1], &v[2]],
-        &spp,
-        rounds,
-    );
+    let found = detect(&c, &v);
     assert!(
         found.iter().all(Option::is_none),
         "a steady light is not noise ({rounds} rounds)"

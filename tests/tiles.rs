@@ -645,27 +645,18 @@ fn tiled_statistics_are_those_of_one_chain() {
 fn each_clip_round_widens_the_halo_by_the_detection_radius() {
     let ctx = gpu();
     let img = strip(480, 32);
-    let halo = |rounds: u32| {
+    // WLR's halo with these options (none: the defaults).
+    let halo = |opts: &[String]| {
         let mut c = Config::new(Method::Wlr);
         c.tile = Some(60);
-        c.options = mcdenoise::Options::parse(&[format!("outliers.clip={rounds}")]).unwrap();
+        c.options = mcdenoise::Options::parse(opts).unwrap();
         let d = Denoiser::new(&ctx, Source::of_image(&img), c).unwrap();
         d.tiles().expect("tiles were asked for").1
     };
-    let (h0, h1, h2) = (halo(0), halo(1), halo(2));
+    let rounds = |r: u32| halo(&[format!("outliers.clip={r}")]);
+    let (h0, h1, h2) = (rounds(0), rounds(1), rounds(2));
     assert_eq!((h1 - h0, h2 - h0), (14, 28));
-    assert_eq!(h2, halo_default(Method::Wlr, &ctx, &img));
+    assert_eq!(h2, halo(&[]));
     assert_eq!(h2, 164);
     check_validation(&ctx);
-}
-
-fn halo_default(
-    method: Method,
-    ctx: &std::sync::Arc<mcdenoise::GpuContext>,
-    img: &StatsImage,
-) -> usize {
-    let mut c = Config::new(method);
-    c.tile = Some(60);
-    let d = Denoiser::new(ctx, Source::of_image(img), c).unwrap();
-    d.tiles().expect("tiles were asked for").1
 }
