@@ -274,9 +274,13 @@ impl Options {
         if !self.is_set(key) {
             return Ok(None);
         }
+        self.value(key).map(Some)
+    }
+
+    /// The value of `key` as a number: given, else the registry's default.
+    pub fn value<T: std::str::FromStr>(&self, key: &str) -> Result<T> {
         self.get(key)
             .parse()
-            .map(Some)
             .map_err(|_| Error::InvalidArgument(format!("{key}: not a number")))
     }
 

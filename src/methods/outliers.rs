@@ -41,10 +41,7 @@ use crate::shared::OutlierPush;
 /// Rounds of OUTLIER-CLIP before detection: `outliers.clip`, else the
 /// registry's default (`reference::outliers` documents the decision).
 pub fn clip_rounds(options: &Options) -> Result<u32> {
-    options
-        .get("outliers.clip")
-        .parse()
-        .map_err(|_| crate::error::Error::InvalidArgument("outliers.clip: not a number".into()))
+    options.value("outliers.clip")
 }
 
 /// Whether the outlier stage runs (`--outliers`).
