@@ -7,6 +7,10 @@
 // invocation per entry (striding past 65535 workgroups), on outputs the
 // host has zeroed, so every SIMD lane sums a window (a per-pixel grid ran
 // each window's 87 rows for the whole vector of a detected pixel).
+// OUTLIER-WIDE: mode WEIGHTS_NARROW weighs only the outliers whose grey
+// excess is at most push.wide of the window's grey sum and marks the others
+// in their queue entry (QUEUE_WIDE); mode WEIGHTS_WIDE, over the wide
+// window, weighs only the marked ones; mode 0 weighs every one.
 // Scalar twin: src/reference/outlier_weights.rs.
 #include "lib/common.glsl"
 #include "lib/outliers.glsl"
@@ -26,11 +30,13 @@ PLANE_OUT(9, rho_b)
 PLANE_OUT(10, add_r)
 PLANE_OUT(11, add_g)
 PLANE_OUT(12, add_b)
-layout(std430, set = 0, binding = 13) readonly buffer queue_blk { uint queue[]; };
+layout(std430, set = 0, binding = 13) buffer queue_blk { uint queue[]; };
 
-// The weights of the queued pixel o.
-void weigh(uint o)
+// The weights of the queue's entry at.
+void weigh(uint at)
 {
+    uint entry = queue[4u + at];
+    uint o = entry & ~QUEUE_WIDE;
     uint x = o % push.width;
     uint y = o / push.width;
     real3 e = real3(er[o], eg[o], eb[o]);
@@ -45,7 +51,15 @@ void weigh(uint o)
             s += real3(sr[q], sg[q], sb[q]);
             n += real(cnt[q]);
         }
-        if (n > real(0)) {
+        bool weighs = n > real(0);
+        if (weighs && push.mode == WEIGHTS_NARROW) {
+            bool wide = e.x + e.y + e.z > real(push.wide) * (s.x + s.y + s.z);
+            queue[4u + at] = wide ? (o | QUEUE_WIDE) : o;
+            weighs = !wide;
+        } else if (push.mode == WEIGHTS_WIDE) {
+            weighs = weighs && (entry & QUEUE_WIDE) != 0u;
+        }
+        if (weighs) {
             for (int ch = 0; ch < 3; ++ch) {
                 if (s[ch] <= real(push.dark) * n) {
                     add[ch] = e[ch] / n;
@@ -67,6 +81,6 @@ void main()
 {
     uint entries = min(queue[3], queue_capacity());
     for (uint at = gl_GlobalInvocationID.x; at < entries; at += gl_NumWorkGroups.x * 64u) {
-        weigh(queue[4u + at]);
+        weigh(at);
     }
 }

@@ -202,6 +202,13 @@ pub const OPTIONS: &[OptionSpec] = &[
         help: "rounds of clipping before detection: each drops from the window statistics the pixels more than 3 sd above the mean of their own window's kept pixels that are also above 3 se (a light) or 50 sd (a far spike), so neither hides a firefly beside it (0: the spec)",
     },
     OptionSpec {
+        key: "outliers.wide",
+        kind: Kind::Real(0.0, 1.0),
+        default: "0.05",
+        section: "§4.4 step 4 (OUTLIER-WIDE)",
+        help: "an outlier whose grey excess is above this fraction of the grey sum of the reconstruction over its 87x87 window is spread, after the others, over a 431x431 window instead (a rare path whose energy belongs far wider; 0: the spec's single window)",
+    },
+    OptionSpec {
         key: "sampling.smooth",
         kind: Kind::Real(0.0, 16.0),
         default: "method",

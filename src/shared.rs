@@ -501,12 +501,14 @@ pub struct OutlierPush {
     pub height: u32,
     /// First row of the band this dispatch covers.
     pub row0: u32,
-    /// Window radius: 14 for detection, 43 for redistribution.
+    /// Window radius: 14 for detection, 43 or 215 (OUTLIER-WIDE) for
+    /// redistribution.
     pub radius: u32,
     /// `box_rows`: how many planes one dispatch sums over the valid pixels
     /// (2 or 4), plus [`BOX_COUNT_LAST`] when the fourth counts them instead
     /// (set by `kernels::box_rows::record`); `outlier_median`: 0, or
-    /// [`OUTLIER_APPLY`] (set by `kernels::outlier_median`).
+    /// [`OUTLIER_APPLY`] (set by `kernels::outlier_median`);
+    /// `outlier_weights`: 0, [`WEIGHTS_NARROW`] or [`WEIGHTS_WIDE`].
     pub mode: u32,
     /// Fewest valid neighbours a detection needs (OUTLIER-MIN-N).
     pub min_n: u32,
@@ -514,7 +516,19 @@ pub struct OutlierPush {
     pub k_sigma: f32,
     /// DARK-WINDOW factor (1e-8).
     pub dark: f32,
+    /// `outlier_weights`: OUTLIER-WIDE's fraction of the window's grey sum
+    /// (mode [`WEIGHTS_NARROW`]).
+    pub wide: f32,
 }
+
+/// [`OutlierPush::mode`] of `outlier_weights`: weigh the outliers whose
+/// excess is at most [`OutlierPush::wide`] of their window's grey sum and
+/// mark the others for the wide window (OUTLIER-WIDE; 0 weighs every one).
+pub const WEIGHTS_NARROW: u32 = 1;
+
+/// [`OutlierPush::mode`] of `outlier_weights`: weigh only the outliers that
+/// [`WEIGHTS_NARROW`] marked.
+pub const WEIGHTS_WIDE: u32 = 2;
 
 /// [`OutlierPush::mode`] flag of `box_rows`: the last plane counts the valid
 /// pixels (its value is not read). The twin `reference::box_rows` counts when

@@ -17,7 +17,7 @@ use mcdenoise::reference::{
     box_rows as rb, outlier_clip as rc, outlier_detect as rd, outlier_grey as rg,
     outlier_median as rm, outlier_rows as rr, outlier_spread as rs, outlier_weights as rw,
 };
-use mcdenoise::shared::{OutlierPush, BOX_COUNT_LAST};
+use mcdenoise::shared::{OutlierPush, BOX_COUNT_LAST, WEIGHTS_NARROW, WEIGHTS_WIDE};
 use mcdenoise::{Config, Denoiser, Method, Outliers, Source};
 
 /// A noisy image with spikes (variance = value², as one bright sample among
@@ -167,8 +167,8 @@ fn weights_from_queue(
     ps: &OutlierPush,
     e3: &[Vec<f32>],
     sums: &[Vec<f32>],
-    list: &[usize],
-) -> Vec<Vec<f32>> {
+    list: &[u32],
+) -> (Vec<Vec<f32>>, Vec<u32>) {
     let (w, h) = (ps.width as usize, ps.height as usize);
     let up = |v: &[f32]| GpuBuffer::from_slice(ctx, "test.in", v).unwrap();
     let e: Vec<GpuBuffer> = e3.iter().map(|v| up(v)).collect();
@@ -176,9 +176,7 @@ fn weights_from_queue(
     let out: Vec<GpuBuffer> = (0..6).map(|_| up(&vec![f32::NAN; w * h])).collect();
     let mut words = vec![0u32; outlier_detect::queue_words(w, h)];
     words[..4].copy_from_slice(&[list.len().div_ceil(64) as u32, 1, 1, list.len() as u32]);
-    for (k, &o) in list.iter().enumerate() {
-        words[4 + k] = o as u32;
-    }
+    words[4..4 + list.len()].copy_from_slice(list);
     let queue = GpuBuffer::from_slice(ctx, "test.queue", &words).unwrap();
     let mut batch = Batch::new(ctx).unwrap();
     outlier_weights::record(
@@ -193,9 +191,14 @@ fn weights_from_queue(
     )
     .unwrap();
     batch.finish().unwrap();
-    out.iter()
+    let planes = out
+        .iter()
         .map(|b| b.read_vec::<f32>(w * h).unwrap())
-        .collect()
+        .collect();
+    (
+        planes,
+        queue.read_vec::<u32>(4 + list.len()).unwrap()[4..].to_vec(),
+    )
 }
 
 #[test]
@@ -390,21 +393,74 @@ fn kernels_match_twins() {
             assert_close(&what("box_rows, 2 planes"), &g[1], &sums[0], 0.99);
             // outlier_weights
             let ps = push(&img, ro::SPREAD_RADIUS, 0);
-            let mut wts = vec![vec![0.0f32; n]; 6];
-            {
+            let weigh = |ps: &OutlierPush, sums: &[Vec<f32>], wide: &mut [bool]| {
+                let mut wts = vec![vec![0.0f32; n]; 6];
                 let (a, b) = wts.split_at_mut(3);
                 rw::outlier_weights(
-                    &ps,
+                    ps,
                     [&e3[0], &e3[1], &e3[2]],
                     [&sums[0], &sums[1], &sums[2]],
                     &sums[3],
+                    wide,
                     muts(a),
                     muts(b),
                 );
-            }
-            let g = weights_from_queue(&ctx, p, &ps, &e3, &sums, &list);
+                wts
+            };
+            let wts = weigh(&ps, &sums, &mut vec![false; n]);
+            let entries: Vec<u32> = list.iter().map(|&o| o as u32).collect();
+            let (g, _) = weights_from_queue(&ctx, p, &ps, &e3, &sums, &entries);
             for k in 0..6 {
                 assert_close(&what("outlier_weights"), &g[k], &wts[k], 0.99);
+            }
+            // OUTLIER-WIDE: the 87×87 pass at a fraction that sends some
+            // outliers wide and keeps others, then the wide pass over the
+            // queue it marked.
+            let split = [1e-3f32, 1e-2, 0.1, 1.0].into_iter().find_map(|f| {
+                let pn = OutlierPush {
+                    mode: WEIGHTS_NARROW,
+                    wide: f,
+                    ..ps
+                };
+                let mut wide = vec![false; n];
+                let wts = weigh(&pn, &sums, &mut wide);
+                let k = list.iter().filter(|&&o| wide[o]).count();
+                (k > 0 && k < list.len()).then_some((pn, wide, wts))
+            });
+            if n >= 64 * 64 {
+                assert!(split.is_some(), "{}", what("OUTLIER-WIDE: no split"));
+            }
+            if let Some((pn, mut wide, wts)) = split {
+                let (g, queue) = weights_from_queue(&ctx, p, &pn, &e3, &sums, &entries);
+                for k in 0..6 {
+                    assert_close(&what("outlier_weights narrow"), &g[k], &wts[k], 0.99);
+                }
+                for (&o, &q) in list.iter().zip(&queue) {
+                    assert_eq!(q & 0x7fff_ffff, o as u32, "{}", what("queue entry"));
+                    assert_eq!(q >> 31 == 1, wide[o], "{} at {o}", what("wide mark"));
+                }
+                let pw = OutlierPush {
+                    mode: WEIGHTS_WIDE,
+                    radius: ro::WIDE_RADIUS as u32,
+                    ..pn
+                };
+                let mut wsums = vec![vec![0.0f32; n]; 4];
+                for c in 0..4 {
+                    let mode = if c == 3 { BOX_COUNT_LAST } else { 0 };
+                    let src = if c < 3 { &img.color[c] } else { &img.spp };
+                    let pc = OutlierPush { mode, ..pw };
+                    rb::box_rows(&pc, src, &img.spp, &mut wsums[c]);
+                }
+                let wts = weigh(&pw, &wsums, &mut wide);
+                let (g, _) = weights_from_queue(&ctx, p, &pw, &e3, &wsums, &queue);
+                for k in 0..6 {
+                    assert_close(&what("outlier_weights wide"), &g[k], &wts[k], 0.99);
+                }
+                assert!(
+                    (0..n).any(|o| wts[0][o] != 0.0 || wts[3][o] != 0.0),
+                    "{}",
+                    what("nothing weighed wide")
+                );
             }
             // outlier_spread (weights row-summed by the twin)
             let mut wrows = vec![vec![0.0f32; n]; 6];
@@ -467,9 +523,16 @@ fn spread_in_place(
 }
 
 /// §4.5: redistribution conserves energy per channel to 1e-9 relative, in a
-/// bright and in a dark (DARK-WINDOW) neighbourhood.
+/// bright and in a dark (DARK-WINDOW) neighbourhood, with one window (the
+/// spec) and with OUTLIER-WIDE sending some outliers to the wide one.
 #[test]
 fn redistribution_conserves_energy() {
+    for wide in [0.0, 0.05, 1e-3] {
+        redistribution_conserves_energy_with(wide);
+    }
+}
+
+fn redistribution_conserves_energy_with(wide: f64) {
     let mut img = noisy(96, 80, 3);
     let (w, h) = (img.w, img.h);
     let spp = img.spp.clone();
@@ -492,7 +555,17 @@ fn redistribution_conserves_energy() {
             .collect()
     });
     let before: Vec<f64> = (0..3).map(|c| y[c].iter().sum()).collect();
-    ro::redistribute(w, h, &spp, &mask, &e, &mut y);
+    let far = ro::wide_mask(w, h, &spp, &mask, &e, &y, wide);
+    let far = far.iter().filter(|&&f| f).count();
+    if wide == 0.0 {
+        assert_eq!(far, 0);
+    } else {
+        eprintln!("wide {wide}: {far} of {} outliers spread wide", found + 1);
+    }
+    if wide == 1e-3 {
+        assert!(far > 0 && far <= found, "{far} of {} wide", found + 1);
+    }
+    ro::redistribute(w, h, &spp, &mask, &e, wide, &mut y);
     for c in 0..3 {
         let after: f64 = y[c].iter().sum();
         let want: f64 = (0..w * h).filter(|&o| mask[o]).map(|o| e[c][o]).sum();
@@ -678,7 +751,9 @@ fn spikes_are_removed_and_their_energy_kept() {
 /// window ends just short of a very bright column (a light with a faint
 /// glow) keeps its energy: the window's sum is 0, so the spike's excess is
 /// spread uniformly. Box sums that run across the light must not leave its
-/// rounding in the sums of windows that no longer hold it.
+/// rounding in the sums of windows that no longer hold it. With one window
+/// (`outliers.wide=0`): OUTLIER-WIDE sends such a spike to the wide window,
+/// which holds the light.
 #[test]
 fn dark_window_next_to_a_light_keeps_the_energy() {
     let (w, h) = (128, 64);
@@ -704,6 +779,7 @@ fn dark_window_next_to_a_light_keeps_the_energy() {
     for gpu_backend in [true, false] {
         let mut cfg = Config::new(Method::None);
         cfg.outliers = Outliers::On;
+        cfg.options = mcdenoise::Options::parse(&["outliers.wide=0"]).unwrap();
         let d = if gpu_backend {
             Denoiser::new(&ctx, Source::of_image(&img), cfg).unwrap()
         } else {

@@ -131,10 +131,29 @@ fn assert_identical(what: &str, a: &Frame, b: &Frame) {
     }
 }
 
-/// Runs `config` on `img` whole and in tiles of `tile` px; checks that the
-/// tiles really cut the image (some tile reads less than all of it) and
-/// that the outputs are bit-identical.
+/// `config` with the outlier stage's spec window only (`outliers.wide=0`)
+/// unless its options say otherwise: OUTLIER-WIDE's 431×431 window adds
+/// 430 px to every halo, more than these strips are long
+/// (`outlier_wide_tiled_is_bit_identical` tiles it).
+fn one_spread_window(mut config: Config) -> Config {
+    if !config.options.is_set("outliers.wide") {
+        let mut pairs: Vec<String> = config
+            .options
+            .keys()
+            .map(|k| format!("{k}={}", config.options.get(k)))
+            .collect();
+        pairs.push("outliers.wide=0".into());
+        config.options = mcdenoise::Options::parse(&pairs).unwrap();
+    }
+    config
+}
+
+/// Runs `config` on `img` whole and in tiles of `tile` px ([`one_spread_window`]
+/// unless it sets `outliers.wide`); checks that the tiles really cut the
+/// image (some tile reads less than all of it) and that the outputs are
+/// bit-identical.
 fn check(img: &StatsImage, config: Config, tile: usize, what: &str) {
+    let config = one_spread_window(config);
     let ctx = gpu();
     let budget = Some((img.width * img.height * 3) as u32);
     let whole = Denoiser::new(&ctx, Source::of_image(img), config.clone()).unwrap();
@@ -304,7 +323,7 @@ fn a_memory_cap_tiles_automatically_and_identically() {
     // other tests of this binary, which run beside it.
     let ctx = own_gpu();
     let img = strip(1024, 16);
-    let config = Config::new(Method::Lp);
+    let config = one_spread_window(Config::new(Method::Lp));
     let before = ctx.allocated_bytes();
     let whole = Denoiser::new(&ctx, Source::of_image(&img), config.clone()).unwrap();
     let whole_bytes = ctx.allocated_bytes() - before;
@@ -650,6 +669,7 @@ fn each_clip_round_widens_the_halo_by_the_detection_radius() {
         let mut c = Config::new(Method::Wlr);
         c.tile = Some(60);
         c.options = mcdenoise::Options::parse(opts).unwrap();
+        let c = one_spread_window(c);
         let d = Denoiser::new(&ctx, Source::of_image(&img), c).unwrap();
         d.tiles().expect("tiles were asked for").1
     };
@@ -658,5 +678,63 @@ fn each_clip_round_widens_the_halo_by_the_detection_radius() {
     assert_eq!((h1 - h0, h2 - h0), (14, 28));
     assert_eq!(h2, halo(&[]));
     assert_eq!(h2, 164);
+    check_validation(&ctx);
+}
+
+/// OUTLIER-WIDE in tiles: its second spread reads the first's output within
+/// 215 px of each outlier it weighs, and which outliers it weighs is read
+/// from their 87×87 windows, so it adds 2·215 to the halo; tiled along x
+/// and along y, `none` with the stage on (the stage's own reach) and planted
+/// fireflies far brighter than their windows (each sent wide) gives output
+/// bit-identical to the whole image's.
+#[test]
+fn outlier_wide_tiled_is_bit_identical() {
+    let ctx = gpu();
+    let halo = |wide: &str| {
+        let mut c = Config::new(Method::None);
+        c.outliers = Outliers::On;
+        c.tile = Some(60);
+        c.options = mcdenoise::Options::parse(&[format!("outliers.wide={wide}")]).unwrap();
+        let img = strip(480, 32);
+        let d = Denoiser::new(&ctx, Source::of_image(&img), c).unwrap();
+        d.tiles().expect("tiles were asked for").1
+    };
+    assert_eq!(halo("0.05") - halo("0"), 430);
+    let mut none = Config::new(Method::None);
+    none.outliers = Outliers::On;
+    none.debug = true;
+    none.options = mcdenoise::Options::parse(&["outliers.wide=0.05"]).unwrap();
+    // Fireflies of 1e4 (one sample among n: standard error = value) at
+    // these positions along the strip.
+    let planted = |w: usize, h: usize| {
+        let mut img = strip(w, h);
+        let mut color = img.get(Layer::Color).unwrap().to_vec();
+        let mut var = img.get(Layer::ColorVariance).unwrap().to_vec();
+        for t in [70, 333, 700, 1010, 1330] {
+            let i = if w > h {
+                (t % h) * w + t
+            } else {
+                t * w + t % w
+            };
+            for c in 0..3 {
+                color[c][i] = 1.0e4;
+                var[c][i] = 1.0e8;
+            }
+        }
+        img.set(Layer::Color, color);
+        img.set(Layer::ColorVariance, var);
+        img
+    };
+    let img = planted(1400, 8);
+    // Some are sent wide: the whole image differs from the spec's spread.
+    let whole = |c: &Config| {
+        let d = Denoiser::new(&ctx, Source::of_image(&img), c.clone()).unwrap();
+        d.denoise(&img, None).unwrap().color
+    };
+    let mut spec = none.clone();
+    spec.options = mcdenoise::Options::parse(&["outliers.wide=0"]).unwrap();
+    assert_ne!(whole(&none), whole(&spec), "no outlier was sent wide");
+    check(&img, none.clone(), 200, "none + outliers wide 1400x8");
+    check(&planted(8, 1400), none, 200, "none + outliers wide 8x1400");
     check_validation(&ctx);
 }

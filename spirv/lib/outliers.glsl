@@ -7,12 +7,19 @@ layout(push_constant) uniform Push {
     uint width;
     uint height;
     uint row0;
-    uint radius;    // 14 (detection) or 43 (redistribution)
+    uint radius;    // 14 (detection) or 43 / 215 (redistribution)
     uint mode;      // box_rows: 0 = sum of valid values, 1 = count of valid pixels
     uint min_n;     // OUTLIER-MIN-N
     float k_sigma;  // 3
     float dark;     // DARK-WINDOW factor, 1e-8
+    float wide;     // outlier_weights: OUTLIER-WIDE's fraction
 } push;
+
+// OutlierPush::mode of outlier_weights (mcdenoise::shared::WEIGHTS_*).
+#define WEIGHTS_NARROW 1u
+#define WEIGHTS_WIDE 2u
+// The queue entry's bit that marks an outlier for the wide window.
+#define QUEUE_WIDE 0x80000000u
 
 bool valid_at(float s) { return spp_of(s) >= 1.0; }
 

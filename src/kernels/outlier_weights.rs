@@ -1,7 +1,9 @@
 //! `outlier_weights`: the redistribution weights `ρ_o = e_o / Σ_{Ω_o(43)} ŷ`
 //! (or the DARK-WINDOW share) at pixels with an excess (spec §4.4 step 4),
 //! dispatched indirectly over the queue of detected pixels
-//! ([`super::outlier_detect`]). Twin: `reference::outlier_weights`.
+//! ([`super::outlier_detect`]); its modes split the outliers between the
+//! 87×87 window and OUTLIER-WIDE's, marking the wide ones in the queue.
+//! Twin: `reference::outlier_weights`.
 
 use crate::error::Result;
 use crate::gpu::reflect::{read, write};
@@ -25,7 +27,7 @@ pub const DECL: KernelDecl = KernelDecl {
         write("add_r"),
         write("add_g"),
         write("add_b"),
-        read("queue").sized_by_record(),
+        write("queue").sized_by_record(),
     ],
     push_size: std::mem::size_of::<OutlierPush>() as u32,
 };
@@ -39,7 +41,10 @@ pub fn flops_per_entry(radius: u32) -> f64 {
 /// Records the weights: `sums` are `box_rows` of ŷ per channel, `count` of
 /// the valid count; `out` = ρ R, G, B, add R, G, B, zeroed here and then
 /// written at the pixels of `queue` (from [`super::outlier_detect`], the
-/// only ones whose `excess` can be non-zero). Like
+/// only ones whose `excess` can be non-zero) that `push.mode` selects
+/// (OUTLIER-WIDE: [`crate::shared::WEIGHTS_NARROW`] also marks the others in
+/// their queue entries, which [`crate::shared::WEIGHTS_WIDE`] then
+/// weighs). Like
 /// [`super::outlier_median`]'s, the indirect dispatch is one unit (its
 /// bound: ≈ 360 flops per entry, a quarter of the pixels at most); the cost
 /// estimate assumes [`super::outlier_median::DETECTED_FRACTION`].

@@ -322,6 +322,8 @@ pub struct WindowConfig {
     pub outliers: bool,
     /// OUTLIER-CLIP's rounds in the outlier stage.
     pub outlier_clip: u32,
+    /// OUTLIER-WIDE's fraction (`outliers.wide`; 0: off).
+    pub outlier_wide: f64,
     /// See [`crate::Config::low_spp`].
     pub low_spp: bool,
     /// APR's options (`apr.stages` sets the lag, `2T` frames).
@@ -359,7 +361,14 @@ impl AprWindow {
         let outliers = if config.outliers {
             (0..ring.slots)
                 .map(|_| {
-                    OutlierPlanes::new(ctx, width, height, config.outlier_clip, Some((&arena, 0)))
+                    OutlierPlanes::new(
+                        ctx,
+                        width,
+                        height,
+                        config.outlier_clip,
+                        config.outlier_wide,
+                        Some((&arena, 0)),
+                    )
                 })
                 .collect::<Result<_>>()?
         } else {

@@ -319,6 +319,7 @@ impl GpuChain {
                 w,
                 h,
                 outliers::clip_rounds(&config.options)?,
+                outliers::wide_fraction(&config.options)?,
                 arena.as_ref().map(|a| (a, keep)),
             )?)
         } else {

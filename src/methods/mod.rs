@@ -370,7 +370,8 @@ fn denoise_cpu(img: &StatsImage, req: &DenoiseRequest) -> Result<DenoiseOutput> 
     }
     if let Some(r) = &removed {
         let spp = &clean.get(crate::image::Layer::Spp).unwrap()[0];
-        outliers::restore_cpu(w, h, spp, r, &mut color.planes);
+        let wide = outliers::wide_fraction(&req.options)?;
+        outliers::restore_cpu(w, h, spp, r, wide, &mut color.planes);
         if req.debug {
             debug.extend(outliers::debug_layers(&r.excess_f32()));
         }

@@ -16,6 +16,9 @@
 //!                             (indirect, per queued pixel; 0 elsewhere)
 //!           box_rows ×2       row sums of ρ and of the dark shares (4 + 2 planes)
 //!           outlier_spread    ŷ ← max(0, ŷ(1 + Σρ) + Σ add), in place
+//!           (OUTLIER-WIDE, when on: the weights skip and mark the outliers
+//!            whose excess is above `outliers.wide` of their window's grey
+//!            sum; then the four passes again, R = 215, for those)
 //! ```
 //!
 //! Every pass is a gather over fixed windows (box sums split into a row and a
@@ -35,13 +38,19 @@ use crate::kernels::{
     outlier_spread, outlier_weights,
 };
 use crate::options::Options;
-use crate::reference::outliers::{self as reference, DETECT_RADIUS, SPREAD_RADIUS};
-use crate::shared::OutlierPush;
+use crate::reference::outliers::{self as reference, DETECT_RADIUS, SPREAD_RADIUS, WIDE_RADIUS};
+use crate::shared::{OutlierPush, WEIGHTS_NARROW, WEIGHTS_WIDE};
 
 /// Rounds of OUTLIER-CLIP before detection: `outliers.clip`, else the
 /// registry's default (`reference::outliers` documents the decision).
 pub fn clip_rounds(options: &Options) -> Result<u32> {
     options.value("outliers.clip")
+}
+
+/// OUTLIER-WIDE's fraction: `outliers.wide`, else the registry's default
+/// ([`reference::WIDE_FRACTION`]); 0 is the spec's single window.
+pub fn wide_fraction(options: &Options) -> Result<f64> {
+    options.value("outliers.wide")
 }
 
 /// Whether the outlier stage runs (`--outliers`).
@@ -116,6 +125,8 @@ pub struct OutlierPlanes {
     height: usize,
     /// OUTLIER-CLIP's rounds.
     clip: u32,
+    /// OUTLIER-WIDE's fraction (0: off).
+    wide: f32,
 }
 
 /// Scratch planes of the stage: row summaries (6), replacements (6) and the
@@ -125,13 +136,16 @@ pub const SCRATCH: usize = 19;
 
 impl OutlierPlanes {
     /// Allocates the planes for a `w × h` image, whose detection runs
-    /// `clip` rounds of OUTLIER-CLIP; the scratch in an arena from a byte
-    /// offset ([`PlaneSet::view`]) when given.
+    /// `clip` rounds of OUTLIER-CLIP and whose restoration sends excesses
+    /// above `wide` of their window to OUTLIER-WIDE's (0: never); the
+    /// scratch in an arena from a byte offset ([`PlaneSet::view`]) when
+    /// given.
     pub fn new(
         ctx: &Arc<GpuContext>,
         w: usize,
         h: usize,
         clip: u32,
+        wide: f64,
         arena: Option<(&Arc<GpuBuffer>, u64)>,
     ) -> Result<OutlierPlanes> {
         let planes = match arena {
@@ -149,6 +163,7 @@ impl OutlierPlanes {
             width: w,
             height: h,
             clip,
+            wide: wide as f32,
         })
     }
 
@@ -223,7 +238,8 @@ pub fn record_remove(
 }
 
 /// Records step 4 on the method's colour planes `color`, in place; `spp` gives
-/// the valid pixels.
+/// the valid pixels. With OUTLIER-WIDE on, two spreads: the 87×87 window's
+/// outliers, then, over the wide window, the ones its weights marked.
 pub fn record_restore(
     batch: &mut Batch,
     precision: Precision,
@@ -231,8 +247,34 @@ pub fn record_restore(
     color: [BufferSlice; 3],
     p: &OutlierPlanes,
 ) -> Result<()> {
+    if p.wide > 0.0 {
+        record_spread(
+            batch,
+            precision,
+            spp,
+            color,
+            p,
+            SPREAD_RADIUS,
+            WEIGHTS_NARROW,
+        )?;
+        record_spread(batch, precision, spp, color, p, WIDE_RADIUS, WEIGHTS_WIDE)
+    } else {
+        record_spread(batch, precision, spp, color, p, SPREAD_RADIUS, 0)
+    }
+}
+
+/// One spread of the outliers `mode` selects over windows of radius `r`.
+fn record_spread(
+    batch: &mut Batch,
+    precision: Precision,
+    spp: BufferSlice,
+    color: [BufferSlice; 3],
+    p: &OutlierPlanes,
+    r: usize,
+    mode: u32,
+) -> Result<()> {
     let (w, h) = (p.width, p.height);
-    let sum = push(w, h, SPREAD_RADIUS, 0);
+    let sum = push(w, h, r, 0);
     let a = p.set::<6>(0);
     let b = p.set::<6>(6);
     let weights = p.set::<6>(12);
@@ -248,7 +290,11 @@ pub fn record_restore(
     outlier_weights::record(
         batch,
         precision,
-        &sum,
+        &OutlierPush {
+            mode,
+            wide: p.wide,
+            ..sum
+        },
         p.excess(),
         [a[0], a[1], a[2]],
         a[3],
@@ -343,7 +389,15 @@ pub fn remove_cpu(clean: &mut StatsImage, clip: u32) -> Removed {
     Removed { mask, excess }
 }
 
-/// Step 4 on a reconstruction (CPU path), in place.
-pub fn restore_cpu(w: usize, h: usize, spp: &[f32], removed: &Removed, color: &mut [Vec<f32>; 3]) {
-    reference::restore(w, h, spp, &removed.mask, &removed.excess, color);
+/// Step 4 on a reconstruction (CPU path), in place, with OUTLIER-WIDE's
+/// fraction `wide`.
+pub fn restore_cpu(
+    w: usize,
+    h: usize,
+    spp: &[f32],
+    removed: &Removed,
+    wide: f64,
+    color: &mut [Vec<f32>; 3],
+) {
+    reference::restore(w, h, spp, &removed.mask, &removed.excess, wide, color);
 }

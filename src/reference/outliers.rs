@@ -46,6 +46,13 @@
 //!   in the statistics, as the spec has them. OUTLIER-NOISE,
 //!   OUTLIER-ISOLATED and the median still see every valid pixel.
 //!   `rounds = 0` is the spec.
+//! * Decision OUTLIER-WIDE (ours): an outlier whose grey excess is above
+//!   [`WIDE_FRACTION`] of the grey sum of ŷ over its 87×87 window carries
+//!   more than that window can hold: a rare path (a caustic from a tiny
+//!   lamp, a firefly of thousands) whose expected energy is spread far wider.
+//!   Its excess is spread, after the others', over a [`WIDE_RADIUS`] window
+//!   in proportion to ŷ as it then is ([`redistribute`]). The energy is
+//!   still exact per pass; `wide = 0` is the spec.
 
 use super::spp_of;
 
@@ -53,6 +60,12 @@ use super::spp_of;
 pub const DETECT_RADIUS: usize = 14;
 /// `Ω_o(43)`: the redistribution window (87×87).
 pub const SPREAD_RADIUS: usize = 43;
+/// OUTLIER-WIDE: the window (431×431) of the outliers whose excess is too
+/// much for their 87×87 one.
+pub const WIDE_RADIUS: usize = 5 * SPREAD_RADIUS;
+/// OUTLIER-WIDE: the default fraction of its 87×87 window's grey sum above
+/// which an outlier's excess goes to the wide window (`outliers.wide`).
+pub const WIDE_FRACTION: f64 = 0.05;
 /// Detection threshold in standard deviations.
 pub const K_SIGMA: f64 = 3.0;
 /// Fewest valid neighbours (centre excluded) a detection needs (OUTLIER-MIN-N).
@@ -267,9 +280,33 @@ pub fn replace(
     e
 }
 
-/// Step 4 in f64, unclamped: adds the excess `e` back to `yhat` over the
-/// valid pixels of each outlier's 87×87 window, in proportion to `yhat`
-/// (or uniformly when the window is dark). `outlier` marks the pixels whose
+/// OUTLIER-WIDE: whether outlier `o`'s excess goes to the wide window: its
+/// grey excess is above `wide` times the grey sum of `yhat` over the valid
+/// pixels of `Ω_o(43)` (`wide <= 0`: never, the spec).
+pub fn goes_wide(
+    w: usize,
+    h: usize,
+    spp: &[f32],
+    e: &[Vec<f64>; 3],
+    yhat: &[Vec<f64>; 3],
+    wide: f64,
+    o: usize,
+) -> bool {
+    if wide <= 0.0 {
+        return false;
+    }
+    let mut s = 0.0;
+    window(w, h, o % w, o / w, SPREAD_RADIUS, spp, |q| {
+        s += yhat[0][q] + yhat[1][q] + yhat[2][q];
+    });
+    e[0][o] + e[1][o] + e[2][o] > wide * s
+}
+
+/// Step 4 in f64, unclamped: adds the excess `e` back to `yhat`, in
+/// proportion to `yhat` (or uniformly when the window is dark), over the
+/// valid pixels of each outlier's 87×87 window or, for the outliers that
+/// [`goes_wide`] picks from `yhat` as it comes in, afterwards over their
+/// [`WIDE_RADIUS`] window (OUTLIER-WIDE). `outlier` marks the pixels whose
 /// `e` is redistributed. Energy: `Σ ŷ_final − Σ ŷ = Σ_o e_o` per channel.
 pub fn redistribute(
     w: usize,
@@ -277,16 +314,52 @@ pub fn redistribute(
     spp: &[f32],
     outlier: &[bool],
     e: &[Vec<f64>; 3],
+    wide: f64,
     yhat: &mut [Vec<f64>; 3],
 ) {
+    let far = wide_mask(w, h, spp, outlier, e, yhat, wide);
+    let near: Vec<bool> = outlier.iter().zip(&far).map(|(&o, &f)| o && !f).collect();
+    spread_pass(w, h, spp, &near, e, SPREAD_RADIUS, yhat);
+    spread_pass(w, h, spp, &far, e, WIDE_RADIUS, yhat);
+}
+
+/// The outliers that [`goes_wide`] sends to the wide window.
+pub fn wide_mask(
+    w: usize,
+    h: usize,
+    spp: &[f32],
+    outlier: &[bool],
+    e: &[Vec<f64>; 3],
+    yhat: &[Vec<f64>; 3],
+    wide: f64,
+) -> Vec<bool> {
+    (0..w * h)
+        .map(|o| outlier[o] && goes_wide(w, h, spp, e, yhat, wide, o))
+        .collect()
+}
+
+/// One spread of the outliers in `sel` over their windows of radius `r`,
+/// unclamped, every weight from `yhat` as it comes in.
+pub fn spread_pass(
+    w: usize,
+    h: usize,
+    spp: &[f32],
+    sel: &[bool],
+    e: &[Vec<f64>; 3],
+    r: usize,
+    yhat: &mut [Vec<f64>; 3],
+) {
+    if !sel.iter().any(|&o| o) {
+        return;
+    }
     let n = w * h;
     let mut rho: [Vec<f64>; 3] = std::array::from_fn(|_| vec![0.0; n]);
     let mut add: [Vec<f64>; 3] = std::array::from_fn(|_| vec![0.0; n]);
-    for o in (0..n).filter(|&o| outlier[o]) {
+    for o in (0..n).filter(|&o| sel[o]) {
         let (x, y) = (o % w, o / w);
         let mut cnt = 0usize;
         let mut s = [0.0f64; 3];
-        window(w, h, x, y, SPREAD_RADIUS, spp, |q| {
+        window(w, h, x, y, r, spp, |q| {
             cnt += 1;
             for ch in 0..3 {
                 s[ch] += yhat[ch][q];
@@ -309,19 +382,19 @@ pub fn redistribute(
             continue;
         }
         let (x, y) = (i % w, i / w);
-        let mut r = [0.0f64; 3];
+        let mut rs = [0.0f64; 3];
         let mut a = [0.0f64; 3];
         // Ω is symmetric: o's window holds i iff i's window holds o.
-        window(w, h, x, y, SPREAD_RADIUS, spp, |o| {
-            if outlier[o] {
+        window(w, h, x, y, r, spp, |o| {
+            if sel[o] {
                 for ch in 0..3 {
-                    r[ch] += rho[ch][o];
+                    rs[ch] += rho[ch][o];
                     a[ch] += add[ch][o];
                 }
             }
         });
         for ch in 0..3 {
-            yhat[ch][i] = before[ch][i] * (1.0 + r[ch]) + a[ch];
+            yhat[ch][i] = before[ch][i] * (1.0 + rs[ch]) + a[ch];
         }
     }
 }
@@ -349,13 +422,14 @@ pub fn remove(
 }
 
 /// The post-method part (step 4) on f32 planes, in place, clamped to ≥ 0
-/// (OUTLIER-CLAMP).
+/// after each of its spreads (OUTLIER-CLAMP) as the GPU clamps them.
 pub fn restore(
     w: usize,
     h: usize,
     spp: &[f32],
     outlier: &[bool],
     e: &[Vec<f64>; 3],
+    wide: f64,
     color: &mut [Vec<f32>; 3],
 ) {
     if !outlier.iter().any(|&o| o) {
@@ -363,10 +437,19 @@ pub fn restore(
     }
     let mut y: [Vec<f64>; 3] =
         std::array::from_fn(|ch| color[ch].iter().map(|&v| v as f64).collect());
-    redistribute(w, h, spp, outlier, e, &mut y);
+    let far = wide_mask(w, h, spp, outlier, e, &y, wide);
+    let near: Vec<bool> = outlier.iter().zip(&far).map(|(&o, &f)| o && !f).collect();
+    for (sel, r) in [(near, SPREAD_RADIUS), (far, WIDE_RADIUS)] {
+        spread_pass(w, h, spp, &sel, e, r, &mut y);
+        for ch in &mut y {
+            for v in ch.iter_mut() {
+                *v = v.max(0.0);
+            }
+        }
+    }
     for ch in 0..3 {
         for (c, v) in color[ch].iter_mut().zip(&y[ch]) {
-            *c = v.max(0.0) as f32;
+            *c = *v as f32;
         }
     }
 }
