@@ -1,7 +1,8 @@
 #version 460
 // Outlier redistribution weights (spec §4.4 step 4) at each pixel o with an
 // excess e_o (0 elsewhere): S = Σ ŷ and |Ω_o| over the valid pixels of
-// Ω_o(R), R = 43, from box_rows' row sums; rho = e/S, or, when S <=
+// Ω_o(R), R = 43 (215 in OUTLIER-WIDE's second run), from box_rows' row
+// sums; rho = e/S, or, when S <=
 // dark |Ω_o| (DARK-WINDOW), add = e/|Ω_o|. Only the pixels outlier_detect
 // queued can have an excess: dispatched indirectly over that queue, one
 // invocation per entry (striding past 65535 workgroups), on outputs the

@@ -1011,3 +1011,53 @@ fn check_clip_finds(
     }
     check_validation(&ctx);
 }
+
+/// OUTLIER-WIDE end to end: on the spike fixture (spikes of 1000× their
+/// window's mean, each above 5 % of its 87×87 window's sum), the GPU's two
+/// spreads give the CPU path's (`reference::outliers::restore`) output
+/// within f32 rounding, keep the energy, and differ from the spec's single
+/// window (`outliers.wide=0`).
+#[test]
+fn wide_spread_on_gpu_matches_the_cpu_path() {
+    // The registry's default is the reference's constant.
+    let none: [&str; 0] = [];
+    let default = mcdenoise::Options::parse(&none).unwrap();
+    assert_eq!(
+        mcdenoise::methods::outliers::wide_fraction(&default).unwrap(),
+        ro::WIDE_FRACTION
+    );
+    let (_, spiky, energy, _) = spiky_fixture();
+    let ctx = gpu();
+    let run = |gpu_backend: bool, wide: &str| {
+        let mut cfg = Config::new(Method::None);
+        cfg.outliers = Outliers::On;
+        cfg.options = mcdenoise::Options::parse(&[format!("outliers.wide={wide}")]).unwrap();
+        let d = if gpu_backend {
+            Denoiser::new(&ctx, Source::of_image(&spiky), cfg).unwrap()
+        } else {
+            Denoiser::new_cpu(Source::of_image(&spiky), cfg).unwrap()
+        };
+        d.denoise(&spiky, None).unwrap().color
+    };
+    let (g, c, spec) = (run(true, "0.05"), run(false, "0.05"), run(true, "0"));
+    let input = mcdenoise::colour_of(&spiky);
+    for ch in 0..3 {
+        assert_close(
+            &format!("wide spread, channel {ch}"),
+            &g.planes[ch],
+            &c.planes[ch],
+            0.999,
+        );
+        let sum = |img: &mcdenoise::RgbImage| img.planes[ch].iter().map(|&v| v as f64).sum::<f64>();
+        // `none` returns the input: the output's sum is the input's.
+        assert!(
+            (sum(&g) - sum(&input)).abs() <= 1e-6 * sum(&input),
+            "channel {ch}: {} against {} (spikes {})",
+            sum(&g),
+            sum(&input),
+            energy[ch]
+        );
+    }
+    assert_ne!(g, spec, "no spike was spread wide");
+    check_validation(&ctx);
+}

@@ -2,8 +2,9 @@
 //! tiles with their halos (`methods::tiles`) gives output bit-identical to
 //! the whole image's — colour, error, local dimension, the sample map, the
 //! sanitation report and LP's centre fraction — for every method with its
-//! defaults (outlier stage and G-buffer prefilter included), with tiles cut
-//! along x and along y. The images are strips (480×32, 32×480: ≤ 128²
+//! defaults (outlier stage and G-buffer prefilter included; the whole
+//! image's outlier spread with `outliers.wide=0`, as tiles run it), with
+//! tiles cut along x and along y. The images are strips (480×32, 32×480: ≤ 128²
 //! pixels) so that tiles are narrower than the image by more than twice the
 //! largest halo (APR's 231 px) while the suite stays small. The input has
 //! what the halo must carry across a cut: fireflies (the outlier stage)
@@ -131,27 +132,16 @@ fn assert_identical(what: &str, a: &Frame, b: &Frame) {
     }
 }
 
-/// `config` with the outlier stage's spec window only (`outliers.wide=0`)
-/// unless its options say otherwise: OUTLIER-WIDE's 431×431 window adds
-/// 430 px to every halo, more than these strips are long
-/// (`outlier_wide_tiled_is_bit_identical` tiles it).
+/// `config` with the outlier stage's spec window (`outliers.wide=0`), which
+/// is what tiles run (OUTLIER-WIDE: `outlier_wide_is_not_tiled`).
 fn one_spread_window(mut config: Config) -> Config {
-    if !config.options.is_set("outliers.wide") {
-        let mut pairs: Vec<String> = config
-            .options
-            .keys()
-            .map(|k| format!("{k}={}", config.options.get(k)))
-            .collect();
-        pairs.push("outliers.wide=0".into());
-        config.options = mcdenoise::Options::parse(&pairs).unwrap();
-    }
+    config.options = mcdenoise::methods::outliers::one_window(&config.options).unwrap();
     config
 }
 
-/// Runs `config` on `img` whole and in tiles of `tile` px ([`one_spread_window`]
-/// unless it sets `outliers.wide`); checks that the tiles really cut the
-/// image (some tile reads less than all of it) and that the outputs are
-/// bit-identical.
+/// Runs `config` on `img` whole and in tiles of `tile` px, both with
+/// [`one_spread_window`]; checks that the tiles really cut the image (some
+/// tile reads less than all of it) and that the outputs are bit-identical.
 fn check(img: &StatsImage, config: Config, tile: usize, what: &str) {
     let config = one_spread_window(config);
     let ctx = gpu();
@@ -669,7 +659,6 @@ fn each_clip_round_widens_the_halo_by_the_detection_radius() {
         let mut c = Config::new(Method::Wlr);
         c.tile = Some(60);
         c.options = mcdenoise::Options::parse(opts).unwrap();
-        let c = one_spread_window(c);
         let d = Denoiser::new(&ctx, Source::of_image(&img), c).unwrap();
         d.tiles().expect("tiles were asked for").1
     };
@@ -681,60 +670,46 @@ fn each_clip_round_widens_the_halo_by_the_detection_radius() {
     check_validation(&ctx);
 }
 
-/// OUTLIER-WIDE in tiles: its second spread reads the first's output within
-/// 215 px of each outlier it weighs, and which outliers it weighs is read
-/// from their 87×87 windows, so it adds 2·215 to the halo; tiled along x
-/// and along y, `none` with the stage on (the stage's own reach) and planted
-/// fireflies far brighter than their windows (each sent wide) gives output
-/// bit-identical to the whole image's.
+/// OUTLIER-WIDE does not run in tiles: its 431×431 window would add 430 px
+/// to every halo. A tiled run with the default options has the halo and the
+/// output of a whole run with `outliers.wide=0`, and differs from the whole
+/// run with the default where fireflies far brighter than their windows
+/// (each sent wide there) stand.
 #[test]
-fn outlier_wide_tiled_is_bit_identical() {
+fn outlier_wide_is_not_tiled() {
     let ctx = gpu();
-    let halo = |wide: &str| {
-        let mut c = Config::new(Method::None);
-        c.outliers = Outliers::On;
-        c.tile = Some(60);
-        c.options = mcdenoise::Options::parse(&[format!("outliers.wide={wide}")]).unwrap();
-        let img = strip(480, 32);
+    let mut none = Config::new(Method::None);
+    none.outliers = Outliers::On;
+    let img = strip(480, 32);
+    let halo = |c: &Config| {
+        let c = Config {
+            tile: Some(60),
+            ..c.clone()
+        };
         let d = Denoiser::new(&ctx, Source::of_image(&img), c).unwrap();
         d.tiles().expect("tiles were asked for").1
     };
-    assert_eq!(halo("0.05") - halo("0"), 430);
-    let mut none = Config::new(Method::None);
-    none.outliers = Outliers::On;
-    none.debug = true;
-    none.options = mcdenoise::Options::parse(&["outliers.wide=0.05"]).unwrap();
-    // Fireflies of 1e4 (one sample among n: standard error = value) at
-    // these positions along the strip.
-    let planted = |w: usize, h: usize| {
-        let mut img = strip(w, h);
-        let mut color = img.get(Layer::Color).unwrap().to_vec();
-        let mut var = img.get(Layer::ColorVariance).unwrap().to_vec();
-        for t in [70, 333, 700, 1010, 1330] {
-            let i = if w > h {
-                (t % h) * w + t
-            } else {
-                t * w + t % w
-            };
-            for c in 0..3 {
-                color[c][i] = 1.0e4;
-                var[c][i] = 1.0e8;
-            }
+    assert_eq!(halo(&none), halo(&one_spread_window(none.clone())));
+    // Fireflies of 1e4 (one sample among n: standard error = value).
+    let mut planted = img.clone();
+    let mut color = planted.get(Layer::Color).unwrap().to_vec();
+    let mut var = planted.get(Layer::ColorVariance).unwrap().to_vec();
+    for x in [70, 200, 333] {
+        let i = (x % 32) * 480 + x;
+        for c in 0..3 {
+            color[c][i] = 1.0e4;
+            var[c][i] = 1.0e8;
         }
-        img.set(Layer::Color, color);
-        img.set(Layer::ColorVariance, var);
-        img
+    }
+    planted.set(Layer::Color, color);
+    planted.set(Layer::ColorVariance, var);
+    let run = |c: &Config, tile: Option<usize>| {
+        let c = Config { tile, ..c.clone() };
+        let d = Denoiser::new(&ctx, Source::of_image(&planted), c).unwrap();
+        d.denoise(&planted, None).unwrap().color
     };
-    let img = planted(1400, 8);
-    // Some are sent wide: the whole image differs from the spec's spread.
-    let whole = |c: &Config| {
-        let d = Denoiser::new(&ctx, Source::of_image(&img), c.clone()).unwrap();
-        d.denoise(&img, None).unwrap().color
-    };
-    let mut spec = none.clone();
-    spec.options = mcdenoise::Options::parse(&["outliers.wide=0"]).unwrap();
-    assert_ne!(whole(&none), whole(&spec), "no outlier was sent wide");
-    check(&img, none.clone(), 200, "none + outliers wide 1400x8");
-    check(&planted(8, 1400), none, 200, "none + outliers wide 8x1400");
+    let tiled = run(&none, Some(60));
+    assert_eq!(tiled, run(&one_spread_window(none.clone()), None));
+    assert_ne!(tiled, run(&none, None), "no outlier was sent wide");
     check_validation(&ctx);
 }

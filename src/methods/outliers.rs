@@ -53,6 +53,19 @@ pub fn wide_fraction(options: &Options) -> Result<f64> {
     options.value("outliers.wide")
 }
 
+/// `options` with OUTLIER-WIDE off (`outliers.wide=0`): what a tiled run
+/// spreads with, since the wide window would add 430 px to every tile's
+/// halo ([`crate::methods::tiles`]).
+pub fn one_window(options: &Options) -> Result<Options> {
+    let mut pairs: Vec<String> = options
+        .keys()
+        .filter(|&k| k != "outliers.wide")
+        .map(|k| format!("{k}={}", options.get(k)))
+        .collect();
+    pairs.push("outliers.wide=0".into());
+    Options::parse(&pairs)
+}
+
 /// Whether the outlier stage runs (`--outliers`).
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Default)]
 pub enum Outliers {

@@ -35,7 +35,7 @@
 //! | stage | adds | why |
 //! |---|---|---|
 //! | sample map priority, MAP-SMOOTH (§9.1) | `ceil(3 σs)`: WLR and LP 3, APR 12, AOS 6, none 0 | `G_σs(r)` |
-//! | outlier redistribution (§4.4 step 4) | 86, or 516 with OUTLIER-WIDE (`outliers.wide > 0`, the default) | `ŷ_final(i)` sums `ρ_o` over `o ∈ Ω_i(43)`, and `ρ_o` sums `ŷ` over `Ω_o(43)`; the wide spread adds the same over 215, on the first spread's output |
+//! | outlier redistribution (§4.4 step 4) | 86 | `ŷ_final(i)` sums `ρ_o` over `o ∈ Ω_i(43)`, and `ρ_o` sums `ŷ` over `Ω_o(43)` |
 //! | WLR (§2.3) | `R + 3`: 12 final, 8 intermediate | fits over `Ω_c(R)`; `hbar = G_1(h_opt)` (3) |
 //! | LP (§3.5) | `9·(P + 1)` = 54 | pass `t`'s centres depend on the reach of the centres of earlier passes within 9, each fitted over its 19×19 window: `9(t + 1)` for `t < P = 5`; the gather reads the centres within 9 |
 //! | APR (§4.3) | `14 + 28 T` = 70 (T = 2 stages) | a stage's block at `c` reads the previous stage's blend within 14, which reads blocks within 14; the final blend reads blocks within 14 |
@@ -55,12 +55,18 @@
 //! tile's origin is then a multiple of twice the alignment, so the coarse
 //! level's grids and 2×2 blocks are the whole image's.
 //!
-//! With the defaults (final pass, outlier stage on with OUTLIER-WIDE,
-//! prefilter where `auto` runs it, the input blend after every method but
-//! `auto`): WLR 594, LP 636, APR 661, AOS 589 (no prefilter by default,
-//! AOS-NO-GBF; 602 with `--prefilter gbf`), `auto` 654, and `none` 5 (it
-//! runs no outlier stage and no prefilter by default); 430 less each with
-//! `outliers.wide=0`. [`halo`] computes it for any configuration.
+//! With the defaults (final pass, outlier stage on, prefilter where `auto`
+//! runs it, the input blend after every method but `auto`): WLR 164, LP
+//! 206, APR 231, AOS 159 (no prefilter by default, AOS-NO-GBF; 172 with
+//! `--prefilter gbf`), and `none` 5 (it runs no
+//! outlier stage and no prefilter by default). [`halo`] computes it for any configuration.
+//!
+//! Tiles run without OUTLIER-WIDE (`outliers.wide=0` whatever the
+//! options say): its second spread reads the first's output within 215 px
+//! of each outlier it weighs, which would add 2·215 px to every halo (APR
+//! 231 → 661). A tiled run is bit-identical to a whole run with
+//! `outliers.wide=0`, and differs from a whole run with the default where
+//! an outlier goes wide.
 
 use std::collections::BTreeMap;
 use std::sync::Arc;
@@ -169,16 +175,9 @@ pub fn halo(config: &ChainConfig, prefiltered: bool) -> Result<Halo> {
     let detect = reference::outliers::DETECT_RADIUS;
     if config.outliers {
         // A spread reads ŷ within its radius R of each outlier within R:
-        // 2R. OUTLIER-WIDE's second spread (R = 215) reads the first's
-        // output, and which outliers it takes is read from the 87×87
-        // windows: 2·215 + 2·43.
+        // 2R. Tiles run without OUTLIER-WIDE ([`TiledChain::choose`]).
         let spread = reference::outliers::SPREAD_RADIUS;
-        let wide = if super::outliers::wide_fraction(&config.options)? > 0.0 {
-            2 * reference::outliers::WIDE_RADIUS
-        } else {
-            0
-        };
-        parts.push(("outlier redistribution (§4.4 step 4)", 2 * spread + wide));
+        parts.push(("outlier redistribution (§4.4 step 4)", 2 * spread));
     }
     let method = (config.method.info().halo)(config)?;
     // The input blend reads the statistics the method read within its
@@ -479,6 +478,10 @@ impl TiledChain {
                 )))
             }
         };
+        // OUTLIER-WIDE's second spread (R = 215) would add 2·215 px to every
+        // halo: tiles spread as the spec does.
+        let mut config = config;
+        config.options = super::outliers::one_window(&config.options)?;
         let prefiltered = prefilter_runs(config.method, config.prefilter, &layers)?;
         let halo = halo(&config, prefiltered)?;
         let hl = halo.total();

@@ -319,8 +319,8 @@ pub fn redistribute(
 ) {
     let far = wide_mask(w, h, spp, outlier, e, yhat, wide);
     let near: Vec<bool> = outlier.iter().zip(&far).map(|(&o, &f)| o && !f).collect();
-    spread_pass(w, h, spp, &near, e, SPREAD_RADIUS, yhat);
-    spread_pass(w, h, spp, &far, e, WIDE_RADIUS, yhat);
+    spread_pass(w, h, spp, &near, e, SPREAD_RADIUS, false, yhat);
+    spread_pass(w, h, spp, &far, e, WIDE_RADIUS, false, yhat);
 }
 
 /// The outliers that [`goes_wide`] sends to the wide window.
@@ -339,7 +339,10 @@ pub fn wide_mask(
 }
 
 /// One spread of the outliers in `sel` over their windows of radius `r`,
-/// unclamped, every weight from `yhat` as it comes in.
+/// every weight from `yhat` as it comes in; with `clamp`, the valid pixels
+/// it reaches are clamped to ≥ 0 (OUTLIER-CLAMP, as `outlier_spread`
+/// clamps them). The weights are scattered from the outliers (a wide
+/// window would make a gather per pixel cost 431² steps).
 pub fn spread_pass(
     w: usize,
     h: usize,
@@ -347,13 +350,11 @@ pub fn spread_pass(
     sel: &[bool],
     e: &[Vec<f64>; 3],
     r: usize,
+    clamp: bool,
     yhat: &mut [Vec<f64>; 3],
 ) {
-    if !sel.iter().any(|&o| o) {
-        return;
-    }
     let n = w * h;
-    let mut rho: [Vec<f64>; 3] = std::array::from_fn(|_| vec![0.0; n]);
+    let mut rs: [Vec<f64>; 3] = std::array::from_fn(|_| vec![0.0; n]);
     let mut add: [Vec<f64>; 3] = std::array::from_fn(|_| vec![0.0; n]);
     for o in (0..n).filter(|&o| sel[o]) {
         let (x, y) = (o % w, o / w);
@@ -369,32 +370,23 @@ pub fn spread_pass(
             continue;
         }
         for ch in 0..3 {
-            if s[ch] <= DARK * cnt as f64 {
-                add[ch][o] = e[ch][o] / cnt as f64;
+            // Ω is symmetric: o's window holds i iff i's window holds o.
+            let (rho, a) = if s[ch] <= DARK * cnt as f64 {
+                (0.0, e[ch][o] / cnt as f64)
             } else {
-                rho[ch][o] = e[ch][o] / s[ch];
-            }
+                (e[ch][o] / s[ch], 0.0)
+            };
+            window(w, h, x, y, r, spp, |i| {
+                rs[ch][i] += rho;
+                add[ch][i] += a;
+            });
         }
     }
-    let before = yhat.clone();
-    for i in 0..n {
-        if spp_of(spp[i]) < 1.0 {
-            continue;
-        }
-        let (x, y) = (i % w, i / w);
-        let mut rs = [0.0f64; 3];
-        let mut a = [0.0f64; 3];
-        // Ω is symmetric: o's window holds i iff i's window holds o.
-        window(w, h, x, y, r, spp, |o| {
-            if sel[o] {
-                for ch in 0..3 {
-                    rs[ch] += rho[ch][o];
-                    a[ch] += add[ch][o];
-                }
-            }
-        });
+    for i in (0..n).filter(|&i| spp_of(spp[i]) >= 1.0) {
+        let reached = (0..3).any(|ch| rs[ch][i] != 0.0 || add[ch][i] != 0.0);
         for ch in 0..3 {
-            yhat[ch][i] = before[ch][i] * (1.0 + rs[ch]) + a[ch];
+            let v = yhat[ch][i] * (1.0 + rs[ch][i]) + add[ch][i];
+            yhat[ch][i] = if clamp && reached { v.max(0.0) } else { v };
         }
     }
 }
@@ -421,8 +413,9 @@ pub fn remove(
     (found.iter().map(Option::is_some).collect(), e)
 }
 
-/// The post-method part (step 4) on f32 planes, in place, clamped to ≥ 0
-/// after each of its spreads (OUTLIER-CLAMP) as the GPU clamps them.
+/// The post-method part (step 4) on f32 planes, in place: each spread
+/// clamps the valid pixels it reaches to ≥ 0 as `outlier_spread` does, and
+/// the result is clamped to ≥ 0 (OUTLIER-CLAMP).
 pub fn restore(
     w: usize,
     h: usize,
@@ -439,17 +432,11 @@ pub fn restore(
         std::array::from_fn(|ch| color[ch].iter().map(|&v| v as f64).collect());
     let far = wide_mask(w, h, spp, outlier, e, &y, wide);
     let near: Vec<bool> = outlier.iter().zip(&far).map(|(&o, &f)| o && !f).collect();
-    for (sel, r) in [(near, SPREAD_RADIUS), (far, WIDE_RADIUS)] {
-        spread_pass(w, h, spp, &sel, e, r, &mut y);
-        for ch in &mut y {
-            for v in ch.iter_mut() {
-                *v = v.max(0.0);
-            }
-        }
-    }
+    spread_pass(w, h, spp, &near, e, SPREAD_RADIUS, true, &mut y);
+    spread_pass(w, h, spp, &far, e, WIDE_RADIUS, true, &mut y);
     for ch in 0..3 {
         for (c, v) in color[ch].iter_mut().zip(&y[ch]) {
-            *c = *v as f32;
+            *c = v.max(0.0) as f32;
         }
     }
 }
