@@ -1,9 +1,14 @@
-//! What the tools share: method names on the command line, and OIDN.
+//! What the tools share: method names on the command line, OIDN, and the
+//! mean of reference renders with their own error taken off.
 
 use std::path::PathBuf;
 
 use anyhow::{bail, Context};
-use mcdenoise::Method;
+use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
+
+use mcdenoise::render::{reference, Scene};
+use mcdenoise::{GpuContext, Method, RgbImage};
 
 /// A method by name, for clap's `value_parser` (`--methods wlr,lp`).
 pub fn parse_method(name: &str) -> Result<Method, String> {
@@ -23,4 +28,51 @@ pub fn oidn(pairs: &[(PathBuf, PathBuf)]) -> anyhow::Result<()> {
         bail!("oidn.sh failed: {}", String::from_utf8_lossy(&out.stderr));
     }
     Ok(())
+}
+
+/// The pixel-wise mean of `images` (at least one, all of one size).
+pub fn mean_image<'a>(images: impl IntoIterator<Item = &'a RgbImage>) -> RgbImage {
+    let images: Vec<&RgbImage> = images.into_iter().collect();
+    let first = images[0];
+    let k = 1.0 / images.len() as f32;
+    let planes = std::array::from_fn(|c| {
+        (0..first.planes[c].len())
+            .map(|i| images.iter().map(|m| m.planes[c][i]).sum::<f32>() * k)
+            .collect()
+    });
+    RgbImage::from_planes(first.width, first.height, planes)
+}
+
+/// The rMSE of an output against a reference with the reference's own
+/// estimated error taken off (never below a tenth of the raw value).
+pub fn corrected(raw: f64, ref_err: f64) -> f64 {
+    (raw - ref_err).max(0.1 * raw)
+}
+
+/// `renders` references of `spp` spp of `scene` (cached; render k's seed is
+/// `reference_seed(seed) ^ 2k`, so k = 0 and 1 are the pair every
+/// two-render table uses), their mean `r`, and the mean's own estimated
+/// error `rMSE(h₀, r)`, h₀ and h₁ the means of the even- and odd-numbered
+/// renders: E[(r − t)²] = E[(h₀ − h₁)²]/4 = E[(h₀ − r)²], weighted as the
+/// metric weighs an output's error.
+pub fn references(
+    ctx: &Arc<GpuContext>,
+    scene: &Scene,
+    size: (usize, usize),
+    spp: u32,
+    renders: u32,
+    seed: u64,
+) -> mcdenoise::Result<(Vec<reference::Reference>, RgbImage, f64)> {
+    let stop = AtomicBool::new(false);
+    let refs = (0..u64::from(renders))
+        .map(|k| {
+            let s = reference::reference_seed(seed) ^ (2 * k);
+            reference::reference(ctx, scene, size, spp, s, &stop, |_, _| {})
+        })
+        .collect::<mcdenoise::Result<Vec<_>>>()?;
+    let half = |parity: usize| mean_image(refs.iter().skip(parity).step_by(2).map(|r| &r.image));
+    let h0 = half(0);
+    let r = mean_image([&h0, &half(1)]);
+    let err = mcdenoise::metrics::rmse(&h0, &r);
+    Ok((refs, r, err))
 }

@@ -35,12 +35,12 @@ use std::time::Instant;
 use anyhow::Context;
 use clap::Parser;
 use mcdenoise::render::adaptive::{self, LoopConfig};
-use mcdenoise::render::{reference, Renderer, Samples, Scene};
+use mcdenoise::render::{Renderer, Samples, Scene};
 use mcdenoise::{
     colour_of, io, metrics, Batch, Config, ContextOptions, Denoiser, GpuContext, Method, Options,
     Pass, RgbImage, Source,
 };
-use mcdenoise_tools::parse_method;
+use mcdenoise_tools::{corrected, parse_method, references};
 use serde::Serialize;
 
 #[derive(Parser)]
@@ -183,25 +183,6 @@ fn parse_renders(s: &str) -> Result<u32, String> {
     }
 }
 
-/// The pixel-wise mean of `images` (at least one, all of one size).
-fn mean_image<'a>(images: impl IntoIterator<Item = &'a RgbImage>) -> RgbImage {
-    let images: Vec<&RgbImage> = images.into_iter().collect();
-    let first = images[0];
-    let k = 1.0 / images.len() as f32;
-    let planes = std::array::from_fn(|c| {
-        (0..first.planes[c].len())
-            .map(|i| images.iter().map(|m| m.planes[c][i]).sum::<f32>() * k)
-            .collect()
-    });
-    RgbImage::from_planes(first.width, first.height, planes)
-}
-
-/// The rMSE of `x` against `r` with the reference's own estimated error
-/// taken off (never below a tenth of the raw value).
-fn corrected(raw: f64, ref_err: f64) -> f64 {
-    (raw - ref_err).max(0.1 * raw)
-}
-
 /// A final reconstruction of `renderer`'s planes by `method`, and its GPU
 /// seconds.
 fn reconstruct(
@@ -247,31 +228,15 @@ fn scene_rows(
     options: &Options,
 ) -> anyhow::Result<(Vec<Row>, Vec<TargetRow>)> {
     let scene = Scene::by_name_or_file(name)?;
-    let stop = AtomicBool::new(false);
     let t = Instant::now();
-    // Render k's seed is `reference_seed(s) ^ 2k`: k = 0 and 1 give the
-    // pair that two-render tables and method_mix use, so the cache serves
-    // them.
-    let refs = (0..u64::from(a.reference_renders))
-        .map(|k| {
-            reference::reference(
-                ctx,
-                &scene,
-                a.size,
-                a.reference,
-                reference::reference_seed(a.reference_seed) ^ (2 * k),
-                &stop,
-                |_, _| {},
-            )
-        })
-        .collect::<mcdenoise::Result<Vec<_>>>()?;
-    let half = |parity: usize| mean_image(refs.iter().skip(parity).step_by(2).map(|r| &r.image));
-    let h0 = half(0);
-    let r = mean_image([&h0, &half(1)]);
-    // E[(r − t)²] = E[(h0 − h1)²]/4 = E[(h0 − r)²], weighted as the metric
-    // weighs an output's error: by the reference r's own value (a spike in
-    // one reference then counts at most ~1, as it does in rMSE(x, r)).
-    let ref_err = metrics::rmse(&h0, &r);
+    let (refs, r, ref_err) = references(
+        ctx,
+        &scene,
+        a.size,
+        a.reference,
+        a.reference_renders,
+        a.reference_seed,
+    )?;
     let paths: Vec<String> = refs.iter().map(|r| r.path.display().to_string()).collect();
     eprintln!(
         "{name}: references {} ({:.0} s), estimated error of their mean {ref_err:.2e}",

@@ -20,17 +20,16 @@
 //! ```
 
 use std::path::{Path, PathBuf};
-use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 
 use clap::Parser;
 use mcdenoise::metrics::rmse;
-use mcdenoise::render::{reference, Renderer, Samples, Scene};
+use mcdenoise::render::{Renderer, Samples, Scene};
 use mcdenoise::{
     Batch, Config, ContextOptions, Denoiser, GpuContext, Method, Options, Outliers, RgbImage,
     Source, StatsImage,
 };
-use mcdenoise_tools::parse_method;
+use mcdenoise_tools::{corrected, parse_method, references};
 use serde::Serialize;
 
 #[derive(Parser)]
@@ -92,24 +91,6 @@ fn mean(img: &RgbImage) -> f64 {
     img.planes.iter().flatten().map(|&v| v as f64).sum::<f64>() / n as f64
 }
 
-/// The pixel-wise mean of two images of one size.
-fn mean_of(a: &RgbImage, b: &RgbImage) -> RgbImage {
-    let planes = std::array::from_fn(|c| {
-        a.planes[c]
-            .iter()
-            .zip(&b.planes[c])
-            .map(|(x, y)| 0.5 * (x + y))
-            .collect()
-    });
-    RgbImage::from_planes(a.width, a.height, planes)
-}
-
-/// The rMSE with the reference's estimated error taken off (never below a
-/// tenth of the raw value), as `equal_samples` takes it off.
-fn corrected(raw: f64, ref_err: f64) -> f64 {
-    (raw - ref_err).max(0.1 * raw)
-}
-
 /// Every method off and on for one input.
 fn run(
     ctx: &Arc<GpuContext>,
@@ -158,22 +139,7 @@ fn scene_rows(
     name: &str,
 ) -> anyhow::Result<Vec<Row>> {
     let scene = Scene::by_name_or_file(name)?;
-    let stop = AtomicBool::new(false);
-    let refs = (0..2u64)
-        .map(|k| {
-            reference::reference(
-                ctx,
-                &scene,
-                a.size,
-                a.reference,
-                reference::reference_seed(3) ^ (2 * k),
-                &stop,
-                |_, _| {},
-            )
-        })
-        .collect::<mcdenoise::Result<Vec<_>>>()?;
-    let r = mean_of(&refs[0].image, &refs[1].image);
-    let ref_err = rmse(&refs[0].image, &r);
+    let (_, r, ref_err) = references(ctx, &scene, a.size, a.reference, 2, 3)?;
     let stem = Path::new(name).file_stem().unwrap().to_string_lossy();
     let (w, h) = a.size;
     let mut rows = Vec::new();
