@@ -30,7 +30,7 @@ layout(local_size_x = 8, local_size_y = 8) in;
 #define BLEND_TRIM_MAX 8
 // The most pixels the residual's window drops (mirrors
 // mcdenoise::shared::BLEND_RESIDUAL_TRIM_MAX).
-#define RESIDUAL_TRIM_MAX 4
+#define RESIDUAL_TRIM_MAX 2
 
 // Mirrors mcdenoise::shared::BlendPush.
 layout(push_constant) uniform Push {

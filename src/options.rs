@@ -196,7 +196,7 @@ pub const OPTIONS: &[OptionSpec] = &[
     },
     OptionSpec {
         key: "blend.residual_trim",
-        kind: Kind::Int(0, 4),
+        kind: Kind::Int(0, 2),
         default: "0",
         section: "ours (BLEND-RESIDUAL-TRIM)",
         help: "the input blend's residual window leaves out its pixels of the m largest terms (f - y)^2 - v, never all: one pixel the method missed (a lamp's) does not make its neighbours' bound",

@@ -804,7 +804,7 @@ pub const BLEND_RESIDUAL_RADIUS: u32 = 3;
 pub const BLEND_RESIDUAL_TRIM: u32 = 0;
 /// The most pixels `blend.residual_trim` may leave out (mirrored as
 /// `RESIDUAL_TRIM_MAX` in `spirv/input_blend.comp`).
-pub const BLEND_RESIDUAL_TRIM_MAX: u32 = 4;
+pub const BLEND_RESIDUAL_TRIM_MAX: u32 = 2;
 /// The most variances the input blend's variance window leaves out of its
 /// mean: it drops its `⌈n/10⌉` largest, at most this many and never all
 /// (BLEND-TRIM; mirrored as `BLEND_TRIM_MAX` in `spirv/input_blend.comp`).
