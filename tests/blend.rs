@@ -759,3 +759,18 @@ fn one_missed_pixel_does_not_make_its_neighbours_bound() {
     );
     check_validation(&ctx);
 }
+
+/// The kernel's window limits mirror the crate's constants.
+#[test]
+fn the_kernel_mirrors_the_trim_limits() {
+    let source = include_str!("../spirv/input_blend.comp");
+    let define = |name: &str| -> u32 {
+        let line = source
+            .lines()
+            .find(|l| l.starts_with(&format!("#define {name} ")))
+            .unwrap_or_else(|| panic!("no #define {name}"));
+        line.rsplit(' ').next().unwrap().parse().unwrap()
+    };
+    assert_eq!(define("BLEND_TRIM_MAX") as usize, BLEND_TRIM_MAX);
+    assert_eq!(define("RESIDUAL_TRIM_MAX"), BLEND_RESIDUAL_TRIM_MAX);
+}

@@ -33,6 +33,9 @@ struct Args {
     /// `blend.z`); an empty one runs the method's defaults. Repeatable.
     #[arg(long = "config")]
     configs: Vec<String>,
+    /// Leave out the run without the stage (`off`).
+    #[arg(long)]
+    no_off: bool,
     /// Instead: write each method's output without the stage, its error
     /// estimate and the statistics it read (colour, colour variance, spp)
     /// as `<case>-<method>.dump.bin` (13 f32 planes) into this folder, for
@@ -174,7 +177,8 @@ fn main() -> anyhow::Result<()> {
             line.insert("case".into(), format!("{scene}@{n}").into());
             line.insert("method".into(), m.name().into());
             line.insert("input".into(), input.into());
-            for cfg in std::iter::once("off").chain(a.configs.iter().map(|c| c.as_str())) {
+            let off = (!a.no_off).then_some("off");
+            for cfg in off.into_iter().chain(a.configs.iter().map(|c| c.as_str())) {
                 let blend = (cfg != "off").then_some(cfg);
                 let key = (m, cfg.to_owned());
                 if !denoisers.contains_key(&key) {
