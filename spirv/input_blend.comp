@@ -6,10 +6,9 @@
 //        without its ceil(n/10) largest values, at most BLEND_TRIM_MAX and
 //        never all (BLEND-TRIM))
 //   B  = mean of (f - y)^2 - v over the valid pixels of the (2s+1)^2
-//        window without the m pixels of the largest terms (never all;
-//        BLEND-RESIDUAL-TRIM), less z sqrt(2 mean(v^2) / n) over the
-//        same pixels (BLEND-RESIDUAL; not read with s = 0, or where a
-//        term (f - y)^2 or v^2 is not finite or exceeds f32's largest)
+//        window, less z sqrt(2 mean(v^2) / n) (BLEND-RESIDUAL; not read
+//        with s = 0, or where a term (f - y)^2 or v^2 is not finite or
+//        exceeds f32's largest)
 //   M  = max(E, B),  W = max(k E, B)
 //   f' = max((V f + W y) / (V + W), 0) = max(f + w_y (y - f), 0)
 //   E' = w_f^2 M + w_y^2 V
@@ -28,9 +27,6 @@ layout(local_size_x = 8, local_size_y = 8) in;
 // The most values the variance's window drops (mirrors
 // mcdenoise::shared::BLEND_TRIM_MAX).
 #define BLEND_TRIM_MAX 8
-// The most pixels the residual's window drops (mirrors
-// mcdenoise::shared::BLEND_RESIDUAL_TRIM_MAX).
-#define RESIDUAL_TRIM_MAX 2
 
 // Mirrors mcdenoise::shared::BlendPush.
 layout(push_constant) uniform Push {
@@ -41,7 +37,7 @@ layout(push_constant) uniform Push {
     float k;
     uint residual_radius;
     float z;
-    uint residual_trim;
+    uint pad0;
 } push;
 
 PLANE_IN(0, f)
@@ -83,16 +79,7 @@ void main()
     [[unroll]] for (int j = 0; j < BLEND_TRIM_MAX; ++j) {
         top[j] = real(-1);
     }
-    // The residual window's pixels of the largest terms (f - y)^2 - v, in
-    // descending order: their (f - y)^2 (-1: empty) and v.
-    int trim = min(int(push.residual_trim), RESIDUAL_TRIM_MAX);
-    real top_d[RESIDUAL_TRIM_MAX];
-    real top_v[RESIDUAL_TRIM_MAX];
-    [[unroll]] for (int j = 0; j < RESIDUAL_TRIM_MAX; ++j) {
-        top_d[j] = real(-1);
-        top_v[j] = real(0);
-    }
-    real n = real(0), kept = real(0), md = real(0), mv = real(0), mv2 = real(0);
+    real n = real(0), md = real(0), mv = real(0), mv2 = real(0);
     bool within = true;
     for (int qy = y0; qy <= y1; ++qy) {
         for (int qx = x0; qx <= x1; ++qx) {
@@ -122,26 +109,9 @@ void main()
                 n += real(1);
                 real d = real(f[q]) - real(y[q]);
                 within = within && d * d <= big && vq * vq <= big;
-                // BLEND-RESIDUAL-TRIM: the pixel goes into the largest
-                // terms' slots (an earlier one keeps its place on a tie);
-                // what one pushes out joins the running means.
-                real cd = d * d, cv = vq;
-                [[unroll]] for (int j = 0; j < RESIDUAL_TRIM_MAX; ++j) {
-                    if (j < trim && cd >= real(0)
-                        && (top_d[j] < real(0) || cd - cv > top_d[j] - top_v[j])) {
-                        real td = top_d[j], tv = top_v[j];
-                        top_d[j] = cd;
-                        top_v[j] = cv;
-                        cd = td;
-                        cv = tv;
-                    }
-                }
-                if (cd >= real(0)) {
-                    kept += real(1);
-                    md += (cd - md) / kept;
-                    mv += (cv - mv) / kept;
-                    mv2 += (cv * cv - mv2) / kept;
-                }
+                md += (d * d - md) / n;
+                mv += (vq - mv) / n;
+                mv2 += (vq * vq - mv2) / n;
             }
         }
     }
@@ -154,23 +124,13 @@ void main()
             mean += (top[j] - mean) / rest;
         }
     }
-    // BLEND-RESIDUAL-TRIM: the m largest terms stay out, never all.
-    int drop_r = min(trim, int(n) - 1);
-    [[unroll]] for (int j = 0; j < RESIDUAL_TRIM_MAX; ++j) {
-        if (j >= drop_r && top_d[j] >= real(0)) {
-            kept += real(1);
-            md += (top_d[j] - md) / kept;
-            mv += (top_v[j] - mv) / kept;
-            mv2 += (top_v[j] * top_v[j] - mv2) / kept;
-        }
-    }
     real vi = max(real(v[i]), real(0));
     real big_v = max(vi, mean);
     real ei = ei_raw > 0.0 ? real(ei_raw) : real(0);
     real bias = real(0);
     if (rs > 0 && within) {
         // sqrt(mv2) sqrt(2 / n): 2 mv2 can exceed f32 where mv2 does not.
-        bias = md - mv - real(push.z) * (sqrt(mv2) * sqrt(real(2) / kept));
+        bias = md - mv - real(push.z) * (sqrt(mv2) * sqrt(real(2) / n));
     }
     real mi = max(ei, bias);
     real s = max(big_v, mi);

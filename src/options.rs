@@ -195,13 +195,6 @@ pub const OPTIONS: &[OptionSpec] = &[
         help: "the input blend's residual test: how many of its standard deviations the residual's mean must exceed the variance by",
     },
     OptionSpec {
-        key: "blend.residual_trim",
-        kind: Kind::Int(0, 2),
-        default: "0",
-        section: "ours (BLEND-RESIDUAL-TRIM)",
-        help: "the input blend's residual window leaves out its pixels of the m largest terms (f - y)^2 - v, never all: one pixel the method missed (a lamp's) does not make its neighbours' bound",
-    },
-    OptionSpec {
         key: "outliers.clip",
         kind: Kind::Int(0, 4),
         default: "2",

@@ -787,10 +787,8 @@ pub struct BlendPush {
     pub residual_radius: u32,
     /// The `z` of the residual's test.
     pub z: f32,
-    /// How many pixels of the residual's window, those of the largest
-    /// terms `(f − y)² − v`, stay out of its means (never all; at most
-    /// [`BLEND_RESIDUAL_TRIM_MAX`]; BLEND-RESIDUAL-TRIM).
-    pub residual_trim: u32,
+    /// Unused: 0.
+    pub _pad: u32,
 }
 
 /// The `z` of the input blend's residual test (BLEND-RESIDUAL,
@@ -799,12 +797,6 @@ pub const BLEND_Z: f32 = 1.0;
 /// The radius of the input blend's residual window (BLEND-RESIDUAL,
 /// `blend.residual_radius`).
 pub const BLEND_RESIDUAL_RADIUS: u32 = 3;
-/// The pixels of the largest terms the input blend's residual window
-/// leaves out (BLEND-RESIDUAL-TRIM, `blend.residual_trim`).
-pub const BLEND_RESIDUAL_TRIM: u32 = 0;
-/// The most pixels `blend.residual_trim` may leave out (mirrored as
-/// `RESIDUAL_TRIM_MAX` in `spirv/input_blend.comp`).
-pub const BLEND_RESIDUAL_TRIM_MAX: u32 = 2;
 /// The most variances the input blend's variance window leaves out of its
 /// mean: it drops its `⌈n/10⌉` largest, at most this many and never all
 /// (BLEND-TRIM; mirrored as `BLEND_TRIM_MAX` in `spirv/input_blend.comp`).

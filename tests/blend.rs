@@ -14,7 +14,7 @@ use mcdenoise::kernels::{input_blend, run_planes};
 use mcdenoise::methods::blend::{push, run_cpu, BlendParams};
 use mcdenoise::methods::chain::ChainConfig;
 use mcdenoise::reference::input_blend::{input_blend as twin, residual_bound, trimmed_mean};
-use mcdenoise::shared::{BLEND_RESIDUAL_TRIM_MAX, BLEND_TRIM_MAX};
+use mcdenoise::shared::BLEND_TRIM_MAX;
 use mcdenoise::{
     Config, Denoiser, InputBlend, Layer, Method, Options, Pass, Prefilter, Pyramid, RgbImage,
     Source, StatsImage,
@@ -28,7 +28,6 @@ fn params(radius: u32, k: f32, s: u32, z: f32) -> BlendParams {
         k,
         residual_radius: s,
         z,
-        residual_trim: 0,
     }
 }
 
@@ -49,7 +48,7 @@ fn kernel(
         p.height as usize,
         &planes,
         &[n, n],
-        input_blend::flops_per_pixel(p.radius, p.residual_radius, p.residual_trim),
+        input_blend::flops_per_pixel(p.radius, p.residual_radius),
     )
     .unwrap()
     .0
@@ -101,28 +100,21 @@ fn input_blend_matches_its_twin() {
             (v[b], e[b]) = (3e38, 3e38);
             f[c] = f32::NAN;
         }
-        for &(radius, k, s, z, trim) in &[
-            (0u32, 1.0f32, 0u32, 1.0f32, 0u32),
-            (1, 1.0, 0, 1.0, 0),
-            (3, 2.5, 0, 1.0, 0),
-            (1, 2.0, 3, 1.0, 0),
-            (1, 2.0, 3, 1.0, 1),
-            (3, 0.5, 1, 0.0, 2),
-            (0, 0.0, 2, 2.0, 2),
-            (5, 1.0, 0, 1.0, 0),
+        for &(radius, k, s, z) in &[
+            (0u32, 1.0f32, 0u32, 1.0f32),
+            (1, 1.0, 0, 1.0),
+            (3, 2.5, 0, 1.0),
+            (1, 2.0, 3, 1.0),
+            (3, 0.5, 1, 0.0),
+            (0, 0.0, 2, 2.0),
+            (5, 1.0, 0, 1.0),
         ] {
-            let p = push(
-                (w, h),
-                BlendParams {
-                    residual_trim: trim,
-                    ..params(radius, k, s, z)
-                },
-            );
+            let p = push((w, h), params(radius, k, s, z));
             let (mut fo, mut eo) = (vec![0.0f32; n], vec![0.0f32; n]);
             twin(&p, &f, &e, &y, &v, &spp, &mut fo, &mut eo);
             for prec in precisions() {
                 let g = kernel(&ctx, prec, &p, [&f, &e, &y, &v, &spp]);
-                let what = format!("{w}x{h} r {radius} k {k} s {s} z {z} m {trim} {prec:?}");
+                let what = format!("{w}x{h} r {radius} k {k} s {s} z {z} {prec:?}");
                 // A pixel that keeps its own f or E passes a NaN through:
                 // both sides hold it at the same pixels.
                 for (name, gpu_plane, want) in [("colour", &g[0], &fo), ("error", &g[1], &eo)] {
@@ -260,13 +252,18 @@ fn the_residual_takes_a_lost_line_back_from_the_input() {
     let f = vec![0.5f32; n];
     let e = vec![1e-4f32; n];
     let spp = vec![16.0f32; n];
-    let run = |s: u32, trim: u32| {
+    let run = |s: u32| {
         let (mut fo, mut eo) = (vec![0.0f32; n], vec![0.0f32; n]);
-        let p = BlendParams {
-            residual_trim: trim,
-            ..params(3, 1.0, s, 1.0)
-        };
-        twin(&push((w, h), p), &f, &e, &y, &v, &spp, &mut fo, &mut eo);
+        twin(
+            &push((w, h), params(3, 1.0, s, 1.0)),
+            &f,
+            &e,
+            &y,
+            &v,
+            &spp,
+            &mut fo,
+            &mut eo,
+        );
         fo
     };
     let mse = |o: &[f32], on_line: bool| {
@@ -276,30 +273,25 @@ fn the_residual_takes_a_lost_line_back_from_the_input() {
             .sum::<f64>()
             / px.len() as f64
     };
-    // A line crosses a window in 7 pixels, 4 at the image's edge: leaving
-    // out the pixels of the largest terms (BLEND-RESIDUAL-TRIM, up to its
-    // most) keeps the bound.
-    for trim in 0..=BLEND_RESIDUAL_TRIM_MAX {
-        let (off, on) = (run(0, trim), run(3, trim));
-        println!(
-            "m {trim}: line MSE {} -> {}, ground MSE {} -> {}",
-            mse(&off, true),
-            mse(&on, true),
-            mse(&off, false),
-            mse(&on, false)
-        );
-        assert!(mse(&on, true) < 0.01 * mse(&off, true), "m {trim}");
-        assert!(mse(&on, true) < 2.0 * 0.01, "m {trim}");
-        // On the ground away from the line (its window does not reach it)
-        // the input's noise adds less than 2 % of its variance.
-        let far: Vec<usize> = (0..n).filter(|&i| (i % w).abs_diff(24) > 3).collect();
-        let added = far
-            .iter()
-            .map(|&i| ((on[i] - truth[i]) as f64).powi(2))
-            .sum::<f64>()
-            / far.len() as f64;
-        assert!(added < 0.02 * 0.01, "m {trim}: {added}");
-    }
+    let (off, on) = (run(0), run(3));
+    println!(
+        "line MSE {} -> {}, ground MSE {} -> {}",
+        mse(&off, true),
+        mse(&on, true),
+        mse(&off, false),
+        mse(&on, false)
+    );
+    assert!(mse(&on, true) < 0.01 * mse(&off, true));
+    assert!(mse(&on, true) < 2.0 * 0.01);
+    // On the ground away from the line (its window does not reach it) the
+    // input's noise adds less than 2 % of its variance.
+    let far: Vec<usize> = (0..n).filter(|&i| (i % w).abs_diff(24) > 3).collect();
+    let added = far
+        .iter()
+        .map(|&i| ((on[i] - truth[i]) as f64).powi(2))
+        .sum::<f64>()
+        / far.len() as f64;
+    assert!(added < 0.02 * 0.01, "{added}");
 }
 
 /// BLEND-TRIM: the variance window leaves out its tenth of largest
@@ -677,100 +669,14 @@ fn a_negative_residual_bound_leaves_the_kernel_output_unchanged() {
     check_validation(&ctx);
 }
 
-/// BLEND-RESIDUAL-TRIM: one pixel the method missed by far more than its
-/// noise (a lamp's edge pixel fitted down) lifts the residual's bound of
-/// every pixel within `s` and pulls a dark neighbour towards its own
-/// noisy input; with `m = 1` the bound leaves that pixel out, and the
-/// neighbour keeps the method's value. The kernel agrees with the twin,
-/// the missed pixel's own output still moves towards its input (its
-/// estimate knows), and with `m` larger than the window all but one pixel
-/// stay in (never all).
+/// The kernel's window limit mirrors the crate's constant.
 #[test]
-fn one_missed_pixel_does_not_make_its_neighbours_bound() {
-    let ctx = gpu();
-    let (w, h) = (9usize, 9usize);
-    let n = w * h;
-    // A dark, exact reconstruction of a dark input with small variances,
-    // but pixel (5, 4), a lamp, fitted at 25 where its input is 240; and
-    // beside it, at (4, 4), a pixel whose one lamp sample makes its input
-    // 17 (variance 400), the method's 0.06.
-    let mut f = vec![0.05f32; n];
-    let mut y = vec![0.05f32; n];
-    let mut v = vec![1e-4f32; n];
-    let mut e = vec![1e-4f32; n];
-    let lamp = 4 * w + 5;
-    let (f_lamp, y_lamp) = (25.0f32, 240.0f32);
-    (f[lamp], y[lamp], v[lamp], e[lamp]) = (f_lamp, y_lamp, 4800.0, 720.0);
-    let rim = 4 * w + 4;
-    (f[rim], y[rim], v[rim], e[rim]) = (0.06, 17.0, 400.0, 1.0);
-    let spp = vec![16.0f32; n];
-    let run = |trim: u32| {
-        let p = push(
-            (w, h),
-            BlendParams {
-                residual_trim: trim,
-                ..params(1, 2.0, 3, 1.0)
-            },
-        );
-        let (mut fo, mut eo) = (vec![0.0f32; n], vec![0.0f32; n]);
-        twin(&p, &f, &e, &y, &v, &spp, &mut fo, &mut eo);
-        for prec in precisions() {
-            let g = kernel(&ctx, prec, &p, [&f, &e, &y, &v, &spp]);
-            assert_close(&format!("m {trim} {prec:?} colour"), &g[0], &fo, 1.0);
-            assert_close(&format!("m {trim} {prec:?} error"), &g[1], &eo, 1.0);
-        }
-        let bound = residual_bound(&p, (&f, &y, &v, &spp), (4, 4));
-        (fo, bound)
-    };
-    let (spec, spec_bound) = run(0);
-    let (trimmed, trimmed_bound) = run(1);
-    assert!(spec_bound > 100.0, "the lamp lifts the bound: {spec_bound}");
-    assert!(trimmed_bound < 0.0, "without it, none: {trimmed_bound}");
-    assert!(
-        spec[rim] > 5.0,
-        "the spec's blend takes the rim's input: {}",
-        spec[rim]
-    );
-    // Without the bound the weight is k E / (V + k E), V = v (BLEND-TRIM's
-    // floor drops the lamp): the method's value, nearly.
-    let want = 0.06 + 2.0 / 402.0 * (17.0 - 0.06);
-    assert!(
-        (trimmed[rim] as f64 - want).abs() < 1e-4,
-        "the trimmed one keeps the method's: {} (want {want})",
-        trimmed[rim]
-    );
-    assert!(
-        trimmed[lamp] > f_lamp + 0.1 * (y_lamp - f_lamp),
-        "the lamp still moves towards its input: {}",
-        trimmed[lamp]
-    );
-    // A 1x1 image with m at its most: the pixel stays in its own window.
-    let p = push(
-        (1, 1),
-        BlendParams {
-            residual_trim: BLEND_RESIDUAL_TRIM_MAX,
-            ..params(0, 2.0, 3, 1.0)
-        },
-    );
-    let b = residual_bound(&p, (&[3.0], &[0.0], &[1.0], &[4.0]), (0, 0));
-    assert!(
-        (b - (9.0 - 1.0 - 2f64.sqrt())).abs() < 1e-9,
-        "never all: {b}"
-    );
-    check_validation(&ctx);
-}
-
-/// The kernel's window limits mirror the crate's constants.
-#[test]
-fn the_kernel_mirrors_the_trim_limits() {
+fn the_kernel_mirrors_the_trim_limit() {
     let source = include_str!("../spirv/input_blend.comp");
-    let define = |name: &str| -> u32 {
-        let line = source
-            .lines()
-            .find(|l| l.starts_with(&format!("#define {name} ")))
-            .unwrap_or_else(|| panic!("no #define {name}"));
-        line.rsplit(' ').next().unwrap().parse().unwrap()
-    };
-    assert_eq!(define("BLEND_TRIM_MAX") as usize, BLEND_TRIM_MAX);
-    assert_eq!(define("RESIDUAL_TRIM_MAX"), BLEND_RESIDUAL_TRIM_MAX);
+    let line = source
+        .lines()
+        .find(|l| l.starts_with("#define BLEND_TRIM_MAX "))
+        .expect("no #define BLEND_TRIM_MAX");
+    let value: usize = line.rsplit(' ').next().unwrap().parse().unwrap();
+    assert_eq!(value, BLEND_TRIM_MAX);
 }

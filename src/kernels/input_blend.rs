@@ -27,14 +27,12 @@ pub const DECL: KernelDecl = KernelDecl {
 /// the largest values kept in order and a running mean, about 21 per pixel
 /// of the `(2r + 1)²` window, and the kept values' last pass, about 40,
 /// BLEND-TRIM), the residual's three running means (about 16 per pixel of
-/// the `(2s + 1)²` window, BLEND-RESIDUAL, and about 6 more for each of the
-/// `m` largest terms it keeps in order, BLEND-RESIDUAL-TRIM) and the blend
-/// (about 14).
-pub fn flops_per_pixel(radius: u32, residual_radius: u32, residual_trim: u32) -> f64 {
+/// the `(2s + 1)²` window, BLEND-RESIDUAL) and the blend (about 14).
+pub fn flops_per_pixel(radius: u32, residual_radius: u32) -> f64 {
     let side = 2.0 * radius as f64 + 1.0;
     let rs = residual_radius as f64;
     let residual = if residual_radius > 0 {
-        (16.0 + 6.0 * residual_trim as f64) * (2.0 * rs + 1.0) * (2.0 * rs + 1.0)
+        16.0 * (2.0 * rs + 1.0) * (2.0 * rs + 1.0)
     } else {
         0.0
     };
@@ -81,6 +79,6 @@ pub fn record(
         precision,
         push,
         &[&planes],
-        flops_per_pixel(push.radius, push.residual_radius, push.residual_trim),
+        flops_per_pixel(push.radius, push.residual_radius),
     )
 }

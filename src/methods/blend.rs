@@ -33,7 +33,7 @@ use crate::image::{Layer, RgbImage, StatsImage};
 use crate::kernels::input_blend::{self, Channel};
 use crate::options::Options;
 use crate::reference::input_blend as twin;
-use crate::shared::{BlendPush, BLEND_RESIDUAL_RADIUS, BLEND_RESIDUAL_TRIM, BLEND_Z};
+use crate::shared::{BlendPush, BLEND_RESIDUAL_RADIUS, BLEND_Z};
 
 use super::stats::GpuStats;
 use super::{Method, Pass};
@@ -99,14 +99,10 @@ pub struct BlendParams {
     pub residual_radius: u32,
     /// The `z` of the residual's test (`blend.z`).
     pub z: f32,
-    /// The pixels of the largest terms the residual's window leaves out
-    /// (BLEND-RESIDUAL-TRIM, `blend.residual_trim`).
-    pub residual_trim: u32,
 }
 
 /// The stage's parameters for `method` with `options` (`blend.radius`,
-/// `blend.k`, `blend.residual_radius`, `blend.z`, `blend.residual_trim`;
-/// the method's and the
+/// `blend.k`, `blend.residual_radius`, `blend.z`; the method's and the
 /// stage's defaults otherwise).
 pub fn params(method: Method, options: &Options) -> Result<BlendParams> {
     let d = method.info().blend;
@@ -117,9 +113,6 @@ pub fn params(method: Method, options: &Options) -> Result<BlendParams> {
             .number("blend.residual_radius")?
             .unwrap_or(BLEND_RESIDUAL_RADIUS),
         z: options.number("blend.z")?.unwrap_or(BLEND_Z),
-        residual_trim: options
-            .number("blend.residual_trim")?
-            .unwrap_or(BLEND_RESIDUAL_TRIM),
     })
 }
 
@@ -140,7 +133,6 @@ pub fn push((w, h): (usize, usize), p: BlendParams) -> BlendPush {
         k: p.k,
         residual_radius: p.residual_radius,
         z: p.z,
-        residual_trim: p.residual_trim,
         ..Default::default()
     }
 }

@@ -2,7 +2,7 @@
 //! reconstruction blended with its input by inverse error (INPUT-BLEND).
 
 use super::finalize_stats::spp_of;
-use crate::shared::{BlendPush, BLEND_RESIDUAL_TRIM_MAX, BLEND_TRIM_MAX};
+use crate::shared::{BlendPush, BLEND_TRIM_MAX};
 
 /// Per valid pixel `i` (`n ≥ 1`), with `V = max(v_i, trimmed_mean)`
 /// (negative variances read as 0; [`trimmed_mean`] over the valid pixels
@@ -10,8 +10,7 @@ use crate::shared::{BlendPush, BLEND_RESIDUAL_TRIM_MAX, BLEND_TRIM_MAX};
 /// `E = max(E_i, 0)` and, where `s = push.residual_radius > 0`, the
 /// residual's bound over the valid pixels `q` within radius `s`
 /// (BLEND-RESIDUAL): `B = mean (f_q − y_q)² − mean v_q − z √(2 mean v_q² /
-/// n)` over the window without its pixels of the largest terms
-/// ([`residual_bound`], BLEND-RESIDUAL-TRIM), not read (0) where a term `(f_q − y_q)²` or `v_q²` is not finite
+/// n)`, not read (0) where a term `(f_q − y_q)²` or `v_q²` is not finite
 /// or exceeds f32's largest; with `M = max(E, B)` and `W = max(k E, B)`:
 /// `f'_i = max((V f_i + W y_i) / (V + W), 0)` and
 /// `E'_i = w_f² M + w_y² V` with `w_y = W / (V + W)`, computed as
@@ -91,12 +90,10 @@ pub fn trimmed_mean(values: &mut [f64]) -> f64 {
 }
 
 /// The residual's bound `B` at pixel `(px, py)` (BLEND-RESIDUAL): the mean
-/// of `(f − y)² − v` over the valid pixels within `push.residual_radius`
-/// without the `push.residual_trim` (at most [`BLEND_RESIDUAL_TRIM_MAX`])
-/// of the largest terms, never all, the first in row order kept on a tie
-/// (BLEND-RESIDUAL-TRIM), less `z` standard deviations of that mean were
-/// `f` exact (`√(2 Σ v²) / n` over the same pixels); 0 where a term is not
-/// finite or exceeds f32's largest, as in the kernel.
+/// of `(f − y)² − v` over the valid pixels within `push.residual_radius`,
+/// less `z` standard deviations of that mean were `f` exact
+/// (`√(2 Σ v²) / n`); 0 where a term is not finite or exceeds f32's
+/// largest, as in the kernel.
 pub fn residual_bound(
     push: &BlendPush,
     (f, y, v, spp): (&[f32], &[f32], &[f32], &[f32]),
@@ -105,8 +102,7 @@ pub fn residual_bound(
     let (w, h) = (push.width as usize, push.height as usize);
     let r = push.residual_radius as usize;
     let big = f32::MAX as f64;
-    // (d², v) of each valid pixel, in row order.
-    let mut terms = Vec::with_capacity((2 * r + 1) * (2 * r + 1));
+    let (mut n, mut d2, mut mv, mut mv2) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
     for qy in py.saturating_sub(r)..(py + r + 1).min(h) {
         for qx in px.saturating_sub(r)..(px + r + 1).min(w) {
             let q = qy * w + qx;
@@ -116,20 +112,12 @@ pub fn residual_bound(
                 if !(d * d <= big && vq * vq <= big) {
                     return 0.0;
                 }
-                terms.push((d * d, vq));
+                n += 1.0;
+                d2 += d * d;
+                mv += vq;
+                mv2 += vq * vq;
             }
         }
     }
-    let trim = push.residual_trim.min(BLEND_RESIDUAL_TRIM_MAX) as usize;
-    let drop = trim.min(terms.len().saturating_sub(1));
-    if drop > 0 {
-        // A stable sort: on a tie the earlier pixel stays first.
-        terms.sort_by(|a, b| (b.0 - b.1).total_cmp(&(a.0 - a.1)));
-    }
-    let kept = &terms[drop..];
-    let n = kept.len() as f64;
-    let d2 = kept.iter().map(|t| t.0).sum::<f64>();
-    let mv = kept.iter().map(|t| t.1).sum::<f64>();
-    let mv2 = kept.iter().map(|t| t.1 * t.1).sum::<f64>();
     d2 / n - mv / n - push.z as f64 * ((mv2 / n).sqrt() * (2.0 / n).sqrt())
 }
