@@ -317,10 +317,27 @@ pub fn redistribute(
     wide: f64,
     yhat: &mut [Vec<f64>; 3],
 ) {
+    spread_both(w, h, spp, outlier, e, wide, false, yhat);
+}
+
+/// The two spreads of step 4: the outliers [`goes_wide`] leaves over their
+/// 87×87 windows, then the ones it picks over their [`WIDE_RADIUS`]
+/// windows (each [`spread_pass`] with `clamp`).
+#[allow(clippy::too_many_arguments)]
+fn spread_both(
+    w: usize,
+    h: usize,
+    spp: &[f32],
+    outlier: &[bool],
+    e: &[Vec<f64>; 3],
+    wide: f64,
+    clamp: bool,
+    yhat: &mut [Vec<f64>; 3],
+) {
     let far = wide_mask(w, h, spp, outlier, e, yhat, wide);
     let near: Vec<bool> = outlier.iter().zip(&far).map(|(&o, &f)| o && !f).collect();
-    spread_pass(w, h, spp, &near, e, SPREAD_RADIUS, false, yhat);
-    spread_pass(w, h, spp, &far, e, WIDE_RADIUS, false, yhat);
+    spread_pass(w, h, spp, &near, e, SPREAD_RADIUS, clamp, yhat);
+    spread_pass(w, h, spp, &far, e, WIDE_RADIUS, clamp, yhat);
 }
 
 /// The outliers that [`goes_wide`] sends to the wide window.
@@ -430,10 +447,7 @@ pub fn restore(
     }
     let mut y: [Vec<f64>; 3] =
         std::array::from_fn(|ch| color[ch].iter().map(|&v| v as f64).collect());
-    let far = wide_mask(w, h, spp, outlier, e, &y, wide);
-    let near: Vec<bool> = outlier.iter().zip(&far).map(|(&o, &f)| o && !f).collect();
-    spread_pass(w, h, spp, &near, e, SPREAD_RADIUS, true, &mut y);
-    spread_pass(w, h, spp, &far, e, WIDE_RADIUS, true, &mut y);
+    spread_both(w, h, spp, outlier, e, wide, true, &mut y);
     for ch in 0..3 {
         for (c, v) in color[ch].iter_mut().zip(&y[ch]) {
             *c = v.max(0.0) as f32;
