@@ -1,0 +1,94 @@
+"""`auto`'s rMSE over OIDN's on method_mix's uniform built-in cases.
+
+Reads method_mix's JSON lines (with an `auto` column) and its work folder,
+where `benches/oidn.sh` has written `oidn-<scene>-<spp>.exr` beside each
+`<scene>-<spp>.exr`. Each reference's own error is estimated from the two
+cached renders whose mean it is (~/.cache/mcdenoise) and subtracted from
+both rMSEs (never below a tenth of the raw value). Prints one line per case
+and the geometric mean per spp; with OUT, writes the rows as JSON lines.
+
+    target/oidn-venv/bin/python benches/auto_oidn.py WORK LINES.jsonl [OUT.jsonl]
+"""
+import collections
+import glob
+import json
+import math
+import os
+import sys
+
+import numpy as np
+import OpenEXR
+
+
+def load(path):
+    with OpenEXR.File(path, separate_channels=True) as f:
+        ch = f.channels()
+        return np.stack([np.asarray(ch[f"color.{c}"].pixels, dtype=np.float64).ravel()
+                         for c in "RGB"], -1)
+
+
+def rmse(x, r):
+    return float(((x - r) ** 2 / (r ** 2 + 0.01)).mean())
+
+
+def corrected(raw, err):
+    return max(raw - err, 0.1 * raw)
+
+
+def main():
+    work, lines = sys.argv[1], sys.argv[2]
+    rows = [json.loads(l) for l in open(lines) if l.strip()]
+    first = rows[0]["case"].split("@")
+    size = None
+    for p in glob.glob(f"{work}/{first[0]}@{first[1]}-*-ref.bin"):
+        size = p.rsplit("-", 2)[1]
+    w, h = map(int, size.split("x"))
+
+    def ref(case):
+        a = np.fromfile(f"{work}/{case}-{size}-ref.bin", dtype=np.float32)
+        return a.reshape(3, w * h).T.astype(np.float64)
+
+    pairs = collections.defaultdict(list)
+    cache = os.path.expanduser("~/.cache/mcdenoise")
+    for p in sorted(glob.glob(f"{cache}/ref-*-{size}-k*-s*.exr")):
+        pairs[os.path.basename(p).rsplit("-s", 1)[0]].append(p)
+    means = {}
+    for key, ps in pairs.items():
+        if len(ps) == 2:
+            a, b = load(ps[0]), load(ps[1])
+            means[key] = (a, (a.astype(np.float32) + b.astype(np.float32)) * 0.5)
+    errors = {}
+
+    def ref_error(scene, r):
+        if scene not in errors:
+            errors[scene] = next((rmse(a, r) for a, m in means.values()
+                                  if np.allclose(m, r, rtol=1e-5, atol=1e-7)), None)
+        if errors[scene] is None:
+            sys.exit(f"{scene}: no cached pair of renders whose mean is the reference")
+        return errors[scene]
+
+    out, by_spp = [], collections.defaultdict(list)
+    for row in rows:
+        scene, spp = row["case"].split("@")
+        r = ref(row["case"])
+        oidn = rmse(load(f"{work}/oidn-{scene}-{spp}.exr"), r)
+        err = ref_error(scene, r)
+        ratio = corrected(row["auto"], err) / corrected(oidn, err)
+        by_spp[int(spp)].append(ratio)
+        print(f"{row['case']}: ref. error {err:.2e}, auto {row['auto']:.5f}, "
+              f"OIDN {oidn:.5f}, auto / OIDN {ratio:.3f}")
+        out.append({"case": row["case"], "input": row["input"], "auto": row["auto"],
+                    "auto.mean": row["auto.mean"], "oidn": oidn, "ref_error": err,
+                    "auto/oidn": ratio})
+    for spp in sorted(by_spp):
+        v = by_spp[spp]
+        g = math.exp(sum(map(math.log, v)) / len(v))
+        print(f"{spp} spp: geometric mean {g:.3f}, below OIDN on {sum(x < 1 for x in v)} of {len(v)}")
+    if len(sys.argv) > 3:
+        with open(sys.argv[3], "w") as f:
+            for o in out:
+                f.write(json.dumps(o) + "\n")
+
+
+if __name__ == "__main__":
+    main()
