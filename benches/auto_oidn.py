@@ -3,7 +3,7 @@
 Reads method_mix's JSON lines (with an `auto` column) and its work folder,
 where `benches/oidn.sh` has written `oidn-<scene>-<spp>.exr` beside each
 `<scene>-<spp>.exr`. Each reference's own error is estimated from the two
-cached renders whose mean it is (~/.cache/mcdenoise) and subtracted from
+cached renders whose mean it is (mcdenoise's reference cache) and subtracted from
 both rMSEs (never below a tenth of the raw value). Prints one line per case
 and the geometric mean per spp; with OUT, writes the rows as JSON lines.
 
@@ -11,6 +11,7 @@ and the geometric mean per spp; with OUT, writes the rows as JSON lines.
 """
 import collections
 import glob
+import itertools
 import json
 import math
 import os
@@ -39,29 +40,38 @@ def main():
     work, lines = sys.argv[1], sys.argv[2]
     rows = [json.loads(l) for l in open(lines) if l.strip()]
     first = rows[0]["case"].split("@")
-    size = None
-    for p in glob.glob(f"{work}/{first[0]}@{first[1]}-*-ref.bin"):
-        size = p.rsplit("-", 2)[1]
+    found = glob.glob(f"{work}/{first[0]}@{first[1]}-*-ref.bin")
+    if not found:
+        sys.exit(f"{work}: no {first[0]}@{first[1]}-<w>x<h>-ref.bin (method_mix's work folder?)")
+    size = found[0].rsplit("-", 2)[1]
     w, h = map(int, size.split("x"))
 
     def ref(case):
         a = np.fromfile(f"{work}/{case}-{size}-ref.bin", dtype=np.float32)
         return a.reshape(3, w * h).T.astype(np.float64)
 
-    pairs = collections.defaultdict(list)
-    cache = os.path.expanduser("~/.cache/mcdenoise")
+    # The cache as `mcdenoise` finds it (src/render/reference.rs, cache_dir).
+    if os.environ.get("MCDENOISE_CACHE"):
+        cache = os.environ["MCDENOISE_CACHE"]
+    elif os.environ.get("XDG_CACHE_HOME"):
+        cache = os.path.join(os.environ["XDG_CACHE_HOME"], "mcdenoise")
+    else:
+        cache = os.path.expanduser("~/.cache/mcdenoise")
+    renders = collections.defaultdict(list)
     for p in sorted(glob.glob(f"{cache}/ref-*-{size}-k*-s*.exr")):
-        pairs[os.path.basename(p).rsplit("-s", 1)[0]].append(p)
-    means = {}
-    for key, ps in pairs.items():
-        if len(ps) == 2:
-            a, b = load(ps[0]), load(ps[1])
-            means[key] = (a, (a.astype(np.float32) + b.astype(np.float32)) * 0.5)
+        renders[os.path.basename(p).rsplit("-s", 1)[0]].append(p)
+    # Every pair of renders of one scene, K and size (more than two where a
+    # table used --reference-renders 4): the reference is one pair's mean.
+    means = []
+    for ps in renders.values():
+        images = [load(p) for p in ps]
+        for a, b in itertools.combinations(images, 2):
+            means.append((a, (a.astype(np.float32) + b.astype(np.float32)) * 0.5))
     errors = {}
 
     def ref_error(scene, r):
         if scene not in errors:
-            errors[scene] = next((rmse(a, r) for a, m in means.values()
+            errors[scene] = next((rmse(a, r) for a, m in means
                                   if np.allclose(m, r, rtol=1e-5, atol=1e-7)), None)
         if errors[scene] is None:
             sys.exit(f"{scene}: no cached pair of renders whose mean is the reference")

@@ -4,7 +4,8 @@
 //! (`<scene>-<spp>.exr`, `<scene>@<spp>-<w>x<h>-ref.bin`). One JSON line
 //! per case and method: the input's rMSE, the method's without the stage
 //! (`off`), and with it at each `--config` (keyed by the configuration);
-//! raw (the references' own error is the same for every row of a case).
+//! raw (the references' own error is the same for every row of a case);
+//! `--no-off` leaves the run without the stage out.
 //!
 //! ```text
 //! cargo run --release -p mcdenoise-tools --bin blend_probe -- \
