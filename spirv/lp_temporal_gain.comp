@@ -18,9 +18,9 @@ layout(push_constant) uniform Push {
     uint row0;
     uint flags;
     float lambda;
-    float delta;
+    float p00;
+    float p11;
     uint pad0;
-    uint pad1;
 } push;
 
 PLANE_IN(0, yr)
@@ -57,8 +57,9 @@ void main()
     uint i = y * push.width + x;
     real2 b[3];
     real3 p;
+    real m;
     int off;
-    int step = temporal_step(x, y, b, p, off);
+    int step = temporal_step(x, y, b, p, m, off);
     real g = step == STEP_CONTINUE ? min(p.x, real(1)) : real(1);
     gr[i] = float(g * real(sr[i]));
     gg[i] = float(g * real(sg[i]));

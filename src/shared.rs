@@ -682,11 +682,14 @@ pub struct TemporalPush {
     pub flags: u32,
     /// The forgetting factor `λ` ([`TEMPORAL_LAMBDA`] by default).
     pub lambda: f32,
-    /// The prior `δ` of a (re)initialised pixel, `P = I/δ`
-    /// ([`TEMPORAL_DELTA`]).
-    pub delta: f32,
+    /// `P₀₀` of a (re)initialised pixel: its intercept's variance per unit
+    /// noise ([`TEMPORAL_RESET_P00`]; §10.1 has `1/δ`).
+    pub p00: f32,
+    /// `P₁₁` of a (re)initialised pixel: its slope's prior variance per unit
+    /// noise ([`TEMPORAL_RESET_P11`]; §10.1 has `1/δ`).
+    pub p11: f32,
     /// Unused: 0.
-    pub _pad: [u32; 2],
+    pub _pad: u32,
 }
 
 /// [`TemporalPush::flags`]: forget every pixel's history (a cut, or the
@@ -697,8 +700,13 @@ pub const TEMPORAL_RESET: u32 = 1;
 pub const TEMPORAL_NO_SEARCH: u32 = 2;
 /// The forgetting factor `λ` of §10.1 `[LP §6]`.
 pub const TEMPORAL_LAMBDA: f32 = 0.98;
-/// The prior `δ` of a reinitialised pixel, `P = I/δ` (§10.1, `[LP §7]`).
-pub const TEMPORAL_DELTA: f32 = 0.001;
+/// TEMPORAL-PRIOR: `P₀₀` of a reinitialised pixel. The frame that starts
+/// a history counts as one observation, where §10.1's `P = I/δ`
+/// (`δ = 0.001`, `[LP §7]`) makes it a prior the next frame overrides.
+pub const TEMPORAL_RESET_P00: f32 = 1.0;
+/// TEMPORAL-PRIOR: `P₁₁` of a reinitialised pixel, the slope's prior
+/// variance per unit noise per frame² (§10.1: `1/δ`).
+pub const TEMPORAL_RESET_P11: f32 = 0.0;
 /// Radius of the reprojection search: a 7×7 window (SEARCH-7).
 pub const TEMPORAL_SEARCH: i32 = 3;
 /// RESET: a match farther than this fraction of the viewing distance
@@ -713,12 +721,15 @@ pub const TEMPORAL_DEPTH_FLOOR: f64 = 1e-3;
 pub const TEMPORAL_RESET_NOISE: f64 = 18.0;
 /// Planes of the temporal state, per pixel: `β` per channel (intercept,
 /// slope: R0 R1 G0 G1 B0 B1), `P` (`P00 P01 P11`), the position `W` (X Y Z)
-/// and the valid flag (1 or 0).
-pub const TEMPORAL_STATE: usize = 13;
+/// the valid flag (1 or 0) and the history's mean error estimate
+/// (TEMPORAL-MEMORY).
+pub const TEMPORAL_STATE: usize = 14;
 /// The state plane of `P00` (the debug map `temporal_p00`).
 pub const TEMPORAL_P00: usize = 6;
 /// The state plane of the valid flag.
 pub const TEMPORAL_VALID: usize = 12;
+/// The state plane of the history's mean error estimate (TEMPORAL-MEMORY).
+pub const TEMPORAL_MEMORY: usize = 13;
 /// The debug plane `temporal_source`: the reprojection source's offset
 /// `(dy + 3)·7 + (dx + 3)` in 0..49, this value where the pixel was
 /// reinitialised, [`TEMPORAL_SOURCE_NONE`] where it was passed through

@@ -10,11 +10,14 @@ use mcdenoise::kernels::{lp_temporal, lp_temporal_gain, run_planes};
 use mcdenoise::reference::lp_temporal::{self as twin, PixelState, TemporalInputs};
 use mcdenoise::reference::lp_temporal_gain as gain_twin;
 use mcdenoise::shared::{
-    TemporalPush, TEMPORAL_DELTA, TEMPORAL_LAMBDA, TEMPORAL_NO_SEARCH, TEMPORAL_RESET,
-    TEMPORAL_SOURCE_NONE, TEMPORAL_SOURCE_RESET, TEMPORAL_STATE,
+    TemporalPush, TEMPORAL_LAMBDA, TEMPORAL_NO_SEARCH, TEMPORAL_RESET, TEMPORAL_RESET_P00,
+    TEMPORAL_RESET_P11, TEMPORAL_SOURCE_NONE, TEMPORAL_SOURCE_RESET, TEMPORAL_STATE,
 };
 
-const DELTA: f64 = TEMPORAL_DELTA as f64;
+/// §10.1's prior `δ` (`[LP §7]`): its reset is `P = I/δ`.
+const DELTA: f64 = 0.001;
+/// §10.1's reset prior, `(P00, P11)`.
+const SPEC_PRIOR: (f64, f64) = (1.0 / DELTA, 1.0 / DELTA);
 
 fn close(a: f64, b: f64, tol: f64) -> bool {
     (a - b).abs() <= tol * (1.0 + a.abs().max(b.abs()))
@@ -22,22 +25,28 @@ fn close(a: f64, b: f64, tol: f64) -> bool {
 
 /// §10.1's invariant: with `λ = 1` and no reprojection the state after `T`
 /// frames is the batch ridge fit of `(1, τ) → y` over frames `1..T` with
-/// the prior `δ` around the first frame's `(y_0, 0)`, moved to the last
-/// frame's origin (`β ← S^{T−1} β`, `P ← S^{T−1} P S^{T−1 ᵀ}`).
+/// the prior `diag(P00, P11)⁻¹` around the first frame's `(y_0, 0)`
+/// (§10.1's `δI`, and TEMPORAL-PRIOR's with a finite slope variance),
+/// moved to the last frame's origin (`β ← S^{T−1} β`,
+/// `P ← S^{T−1} P S^{T−1 ᵀ}`).
 #[test]
 fn lambda_one_without_reprojection_is_the_batch_ridge_fit() {
     let mut rng = Rng(11);
-    for frames in [2usize, 3, 7, 24, 100] {
+    for ((p00, p11), frames) in [SPEC_PRIOR, (TEMPORAL_RESET_P00 as f64, 0.01)]
+        .into_iter()
+        .flat_map(|prior| [2usize, 3, 7, 24, 100].map(|f| (prior, f)))
+    {
         let ys: Vec<[f64; 3]> = (0..frames)
             .map(|t| std::array::from_fn(|c| 0.3 * c as f64 + 0.01 * t as f64 + 0.1 * rng.normal()))
             .collect();
-        let mut s = PixelState::reset(ys[0], [0.0; 3], DELTA);
+        let mut s = PixelState::reset(ys[0], [0.0; 3], (p00, p11), 0.0);
         for y in &ys[1..] {
             s = s.shifted();
-            s.update(*y, 1.0);
+            s.update(*y, 0.0, 1.0);
         }
-        // Batch: A = δI + Σ z zᵀ, b = δ(y_0, 0) + Σ z y, z = (1, τ).
-        let mut a = [[DELTA, 0.0], [0.0, DELTA]];
+        // Batch: A = diag(1/P00, 1/P11) + Σ z zᵀ, b = (y_0/P00, 0) + Σ z y,
+        // z = (1, τ).
+        let mut a = [[1.0 / p00, 0.0], [0.0, 1.0 / p11]];
         for t in 1..frames {
             let tau = t as f64;
             a[0][0] += 1.0;
@@ -52,7 +61,7 @@ fn lambda_one_without_reprojection_is_the_batch_ridge_fit() {
         ];
         let last = (frames - 1) as f64;
         for c in 0..3 {
-            let mut b = [DELTA * ys[0][c], 0.0];
+            let mut b = [ys[0][c] / p00, 0.0];
             for (t, y) in ys.iter().enumerate().skip(1) {
                 b[0] += y[c];
                 b[1] += t as f64 * y[c];
@@ -98,13 +107,13 @@ fn shifted_and_absolute_time_origins_agree() {
             std::array::from_fn(|c| 1.0 + c as f64 + (t as f64 * 0.05).sin() + 0.2 * rng.normal())
         })
         .collect();
-    let mut s = PixelState::reset(ys[0], [0.0; 3], DELTA);
+    let mut s = PixelState::reset(ys[0], [0.0; 3], SPEC_PRIOR, 0.0);
     let mut beta: [[f64; 2]; 3] = ys[0].map(|v| [v, 0.0]);
     let mut p = [[1.0 / DELTA, 0.0], [0.0, 1.0 / DELTA]];
     let mut worst = 0.0f64;
     for (t, y) in ys.iter().enumerate().skip(1) {
         s = s.shifted();
-        s.update(*y, lambda);
+        s.update(*y, 0.0, lambda);
         let z = [1.0, t as f64];
         let pz = [
             p[0][0] * z[0] + p[0][1] * z[1],
@@ -210,7 +219,8 @@ fn push(w: usize, h: usize, flags: u32) -> TemporalPush {
         height: h as u32,
         flags,
         lambda: TEMPORAL_LAMBDA,
-        delta: TEMPORAL_DELTA,
+        p00: TEMPORAL_RESET_P00,
+        p11: TEMPORAL_RESET_P11,
         ..Default::default()
     }
 }
@@ -379,18 +389,83 @@ fn twin_reprojects_the_pan_and_resets_disocclusions() {
 fn twin_reduces_noise_on_a_static_pixel() {
     let mut rng = Rng(21);
     let lambda = TEMPORAL_LAMBDA as f64;
-    let mut s = PixelState::reset([1.0; 3], [0.0; 3], DELTA);
+    let prior = (TEMPORAL_RESET_P00 as f64, TEMPORAL_RESET_P11 as f64);
+    let mut s = PixelState::reset([1.0; 3], [0.0; 3], prior, 0.0);
     let (mut in_sq, mut out_sq) = (0.0, 0.0);
     for t in 1..60 {
         let y: [f64; 3] = std::array::from_fn(|_| 1.0 + 0.1 * rng.normal());
         s = s.shifted();
-        s.update(y, lambda);
+        s.update(y, 0.0, lambda);
         if t >= 30 {
             in_sq += (y[0] - 1.0).powi(2);
             out_sq += (s.predict()[0] - 1.0).powi(2);
         }
     }
     assert!(out_sq < 0.3 * in_sq, "output MSE {out_sq} vs input {in_sq}");
+}
+
+/// One pixel through the twin's [`twin::step`] without reprojection:
+/// frames of grey colour `y` with error estimate `e`, the outputs.
+fn one_pixel_outputs(frames: &[(f32, f32)]) -> Vec<f64> {
+    let p = push(1, 1, TEMPORAL_NO_SEARCH);
+    let mut prev = vec![0.0f32; TEMPORAL_STATE];
+    let mut outputs = Vec::new();
+    for (t, &(y, e)) in frames.iter().enumerate() {
+        let (c, zero, one, spp, err) = ([y], [0.0f32], [1.0f32], [16.0f32], [e]);
+        let inp = TemporalInputs {
+            color: [&c, &c, &c],
+            position: [&zero, &zero, &zero],
+            position_variance: [&zero, &zero, &zero],
+            depth: &one,
+            spp: &spp,
+            error: [&err, &err, &err],
+        };
+        let p = TemporalPush {
+            flags: if t == 0 { TEMPORAL_RESET } else { p.flags },
+            ..p
+        };
+        let s = match twin::step(&p, &inp, &prev, (0, 0)) {
+            twin::Step::Reset(s) | twin::Step::Continue(s, _) => s,
+            twin::Step::PassThrough => panic!("frame {t} passed through"),
+        };
+        twin::store(&mut prev, 1, 0, Some(&s));
+        outputs.push(s.predict()[0]);
+    }
+    outputs
+}
+
+/// TEMPORAL-MEMORY: a pixel on a bright light's rim, quiet (0.2, tiny
+/// error estimate) in three frames of four and lit (1.2, a large estimate)
+/// in the fourth, is averaged: its quiet frames' small estimates do not
+/// restart the history. A lasting change of a quiet pixel is still
+/// followed at once.
+#[test]
+fn twin_averages_a_rim_pixel_and_follows_a_change() {
+    let rim: Vec<(f32, f32)> = (0..48)
+        .map(|t| if t % 4 == 3 { (1.2, 0.3) } else { (0.2, 1e-4) })
+        .collect();
+    let out = one_pixel_outputs(&rim);
+    let mean = 0.45;
+    let rms = |v: &mut dyn Iterator<Item = f64>| {
+        let d: Vec<f64> = v.map(|x| (x - mean).powi(2)).collect();
+        (d.iter().sum::<f64>() / d.len() as f64).sqrt()
+    };
+    let input = rms(&mut rim[16..].iter().map(|&(y, _)| y as f64));
+    let output = rms(&mut out[16..].iter().copied());
+    assert!(
+        output < 0.35 * input,
+        "rim pixel: output RMS {output:.4} against the input's {input:.4}"
+    );
+
+    let step: Vec<(f32, f32)> = (0..30)
+        .map(|t| if t < 20 { (0.2, 1e-4) } else { (1.0, 1e-4) })
+        .collect();
+    let out = one_pixel_outputs(&step);
+    assert!(
+        (out[20] - 1.0).abs() < 0.05,
+        "after a lasting change the output is {:.4}, not 1",
+        out[20]
+    );
 }
 
 // ---- The filter in the facade, on rendered sequences ----

@@ -16,7 +16,8 @@ use crate::image::Layer;
 use crate::kernels::lp_temporal::{self, TemporalIn, TemporalOut};
 use crate::kernels::lp_temporal_gain;
 use crate::shared::{
-    TemporalPush, TEMPORAL_DELTA, TEMPORAL_LAMBDA, TEMPORAL_P00, TEMPORAL_RESET, TEMPORAL_STATE,
+    TemporalPush, TEMPORAL_LAMBDA, TEMPORAL_P00, TEMPORAL_RESET, TEMPORAL_RESET_P00,
+    TEMPORAL_RESET_P11, TEMPORAL_STATE,
 };
 
 /// A temporal stage after the method (spec §10).
@@ -113,7 +114,8 @@ impl TemporalStage {
             height: self.height as u32,
             flags: if reset { TEMPORAL_RESET } else { 0 },
             lambda: TEMPORAL_LAMBDA,
-            delta: TEMPORAL_DELTA,
+            p00: TEMPORAL_RESET_P00,
+            p11: TEMPORAL_RESET_P11,
             ..Default::default()
         }
     }
