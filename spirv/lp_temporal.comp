@@ -50,7 +50,7 @@ PLANE_OUT(19, source)
 #define SOURCE_RESET -1.0
 #define SOURCE_NONE -2.0
 
-void store(uint i, uint n, real2 b[3], real3 p, vec3 w, float valid, real m)
+void store(uint i, uint n, real2 b[3], real3 p, vec3 w, float valid)
 {
     for (int c = 0; c < 3; ++c) {
         next[(2 * c) * n + i] = float(b[c].x);
@@ -63,7 +63,6 @@ void store(uint i, uint n, real2 b[3], real3 p, vec3 w, float valid, real m)
     next[10 * n + i] = w.y;
     next[11 * n + i] = w.z;
     next[12 * n + i] = valid;
-    next[13 * n + i] = float(m);
 }
 
 void main()
@@ -77,18 +76,17 @@ void main()
     uint i = y * push.width + x;
     real2 b[3];
     real3 p;
-    real m;
     int off;
-    int step = temporal_step(x, y, b, p, m, off);
+    int step = temporal_step(x, y, b, p, off);
     if (step == STEP_PASS) {
-        store(i, n, b, real3(0), vec3(0), 0.0, real(0));
+        store(i, n, b, real3(0), vec3(0), 0.0);
         out_r[i] = yr[i];
         out_g[i] = yg[i];
         out_b[i] = yb[i];
         source[i] = SOURCE_NONE;
         return;
     }
-    store(i, n, b, p, vec3(px[i], py[i], pz[i]), 1.0, m);
+    store(i, n, b, p, vec3(px[i], py[i], pz[i]), 1.0);
     source[i] = step == STEP_RESET ? SOURCE_RESET : float(off);
     out_r[i] = float(max(b[0].x, real(0)));
     out_g[i] = float(max(b[1].x, real(0)));

@@ -57,9 +57,8 @@ void main()
     uint i = y * push.width + x;
     real2 b[3];
     real3 p;
-    real m;
     int off;
-    int step = temporal_step(x, y, b, p, m, off);
+    int step = temporal_step(x, y, b, p, off);
     real g = step == STEP_CONTINUE ? min(p.x, real(1)) : real(1);
     gr[i] = float(g * real(sr[i]));
     gg[i] = float(g * real(sg[i]));

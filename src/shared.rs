@@ -721,15 +721,12 @@ pub const TEMPORAL_DEPTH_FLOOR: f64 = 1e-3;
 pub const TEMPORAL_RESET_NOISE: f64 = 18.0;
 /// Planes of the temporal state, per pixel: `β` per channel (intercept,
 /// slope: R0 R1 G0 G1 B0 B1), `P` (`P00 P01 P11`), the position `W` (X Y Z)
-/// the valid flag (1 or 0) and the history's mean error estimate
-/// (TEMPORAL-MEMORY).
-pub const TEMPORAL_STATE: usize = 14;
+/// and the valid flag (1 or 0).
+pub const TEMPORAL_STATE: usize = 13;
 /// The state plane of `P00` (the debug map `temporal_p00`).
 pub const TEMPORAL_P00: usize = 6;
 /// The state plane of the valid flag.
 pub const TEMPORAL_VALID: usize = 12;
-/// The state plane of the history's mean error estimate (TEMPORAL-MEMORY).
-pub const TEMPORAL_MEMORY: usize = 13;
 /// The debug plane `temporal_source`: the reprojection source's offset
 /// `(dy + 3)·7 + (dx + 3)` in 0..49, this value where the pixel was
 /// reinitialised, [`TEMPORAL_SOURCE_NONE`] where it was passed through

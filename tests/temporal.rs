@@ -39,10 +39,10 @@ fn lambda_one_without_reprojection_is_the_batch_ridge_fit() {
         let ys: Vec<[f64; 3]> = (0..frames)
             .map(|t| std::array::from_fn(|c| 0.3 * c as f64 + 0.01 * t as f64 + 0.1 * rng.normal()))
             .collect();
-        let mut s = PixelState::reset(ys[0], [0.0; 3], (p00, p11), 0.0);
+        let mut s = PixelState::reset(ys[0], [0.0; 3], (p00, p11));
         for y in &ys[1..] {
             s = s.shifted();
-            s.update(*y, 0.0, 1.0);
+            s.update(*y, 1.0);
         }
         // Batch: A = diag(1/P00, 1/P11) + Σ z zᵀ, b = (y_0/P00, 0) + Σ z y,
         // z = (1, τ).
@@ -107,13 +107,13 @@ fn shifted_and_absolute_time_origins_agree() {
             std::array::from_fn(|c| 1.0 + c as f64 + (t as f64 * 0.05).sin() + 0.2 * rng.normal())
         })
         .collect();
-    let mut s = PixelState::reset(ys[0], [0.0; 3], SPEC_PRIOR, 0.0);
+    let mut s = PixelState::reset(ys[0], [0.0; 3], SPEC_PRIOR);
     let mut beta: [[f64; 2]; 3] = ys[0].map(|v| [v, 0.0]);
     let mut p = [[1.0 / DELTA, 0.0], [0.0, 1.0 / DELTA]];
     let mut worst = 0.0f64;
     for (t, y) in ys.iter().enumerate().skip(1) {
         s = s.shifted();
-        s.update(*y, 0.0, lambda);
+        s.update(*y, lambda);
         let z = [1.0, t as f64];
         let pz = [
             p[0][0] * z[0] + p[0][1] * z[1],
@@ -390,12 +390,12 @@ fn twin_reduces_noise_on_a_static_pixel() {
     let mut rng = Rng(21);
     let lambda = TEMPORAL_LAMBDA as f64;
     let prior = (TEMPORAL_RESET_P00 as f64, TEMPORAL_RESET_P11 as f64);
-    let mut s = PixelState::reset([1.0; 3], [0.0; 3], prior, 0.0);
+    let mut s = PixelState::reset([1.0; 3], [0.0; 3], prior);
     let (mut in_sq, mut out_sq) = (0.0, 0.0);
     for t in 1..60 {
         let y: [f64; 3] = std::array::from_fn(|_| 1.0 + 0.1 * rng.normal());
         s = s.shifted();
-        s.update(y, 0.0, lambda);
+        s.update(y, lambda);
         if t >= 30 {
             in_sq += (y[0] - 1.0).powi(2);
             out_sq += (s.predict()[0] - 1.0).powi(2);
@@ -404,68 +404,29 @@ fn twin_reduces_noise_on_a_static_pixel() {
     assert!(out_sq < 0.3 * in_sq, "output MSE {out_sq} vs input {in_sq}");
 }
 
-/// One pixel through the twin's [`twin::step`] without reprojection:
-/// frames of grey colour `y` with error estimate `e`, the outputs.
-fn one_pixel_outputs(frames: &[(f32, f32)]) -> Vec<f64> {
-    let p = push(1, 1, TEMPORAL_NO_SEARCH);
-    let mut prev = vec![0.0f32; TEMPORAL_STATE];
-    let mut outputs = Vec::new();
-    for (t, &(y, e)) in frames.iter().enumerate() {
-        let (c, zero, one, spp, err) = ([y], [0.0f32], [1.0f32], [16.0f32], [e]);
-        let inp = TemporalInputs {
-            color: [&c, &c, &c],
-            position: [&zero, &zero, &zero],
-            position_variance: [&zero, &zero, &zero],
-            depth: &one,
-            spp: &spp,
-            error: [&err, &err, &err],
-        };
-        let p = TemporalPush {
-            flags: if t == 0 { TEMPORAL_RESET } else { p.flags },
-            ..p
-        };
-        let s = match twin::step(&p, &inp, &prev, (0, 0)) {
-            twin::Step::Reset(s) | twin::Step::Continue(s, _) => s,
-            twin::Step::PassThrough => panic!("frame {t} passed through"),
-        };
-        twin::store(&mut prev, 1, 0, Some(&s));
-        outputs.push(s.predict()[0]);
-    }
-    outputs
-}
-
-/// TEMPORAL-MEMORY: a pixel on a bright light's rim, quiet (0.2, tiny
-/// error estimate) in three frames of four and lit (1.2, a large estimate)
-/// in the fourth, is averaged: its quiet frames' small estimates do not
-/// restart the history. A lasting change of a quiet pixel is still
-/// followed at once.
+/// TEMPORAL-PRIOR: the frame that starts a history counts as one
+/// observation (§10.1's `P = I/δ` would make the second frame's output
+/// that frame's colour alone), and the slope stays 0: a recursive mean
+/// with forgetting.
 #[test]
-fn twin_averages_a_rim_pixel_and_follows_a_change() {
-    let rim: Vec<(f32, f32)> = (0..48)
-        .map(|t| if t % 4 == 3 { (1.2, 0.3) } else { (0.2, 1e-4) })
-        .collect();
-    let out = one_pixel_outputs(&rim);
-    let mean = 0.45;
-    let rms = |v: &mut dyn Iterator<Item = f64>| {
-        let d: Vec<f64> = v.map(|x| (x - mean).powi(2)).collect();
-        (d.iter().sum::<f64>() / d.len() as f64).sqrt()
-    };
-    let input = rms(&mut rim[16..].iter().map(|&(y, _)| y as f64));
-    let output = rms(&mut out[16..].iter().copied());
-    assert!(
-        output < 0.35 * input,
-        "rim pixel: output RMS {output:.4} against the input's {input:.4}"
-    );
-
-    let step: Vec<(f32, f32)> = (0..30)
-        .map(|t| if t < 20 { (0.2, 1e-4) } else { (1.0, 1e-4) })
-        .collect();
-    let out = one_pixel_outputs(&step);
-    assert!(
-        (out[20] - 1.0).abs() < 0.05,
-        "after a lasting change the output is {:.4}, not 1",
-        out[20]
-    );
+fn a_history_starts_as_one_observation_without_slope() {
+    let lambda = TEMPORAL_LAMBDA as f64;
+    let prior = (TEMPORAL_RESET_P00 as f64, TEMPORAL_RESET_P11 as f64);
+    let ys = [1.0, 3.0, 2.0, 6.0, 4.0];
+    let mut s = PixelState::reset([ys[0]; 3], [0.0; 3], prior);
+    let (mut num, mut den) = (ys[0], 1.0);
+    for &y in &ys[1..] {
+        s = s.shifted();
+        s.update([y; 3], lambda);
+        (num, den) = (lambda * num + y, lambda * den + 1.0);
+        let want = num / den;
+        assert!(
+            close(s.predict()[0], want, 1e-12),
+            "output {} against the forgetting mean {want}",
+            s.predict()[0]
+        );
+        assert_eq!(s.beta[0][1], 0.0, "the slope moved");
+    }
 }
 
 // ---- The filter in the facade, on rendered sequences ----

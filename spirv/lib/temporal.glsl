@@ -7,7 +7,7 @@
 // px py pz (position), vx vy vz (its variance), depth, spp, er eg eb (the
 // method's error estimate) and prev (the
 // previous frame's TEMPORAL_STATE planes: b0 b1 per channel R G B,
-// P00 P01 P11, W X Y Z, valid, m), and a push block `push` with width,
+// P00 P01 P11, W X Y Z, valid), and a push block `push` with width,
 // height, flags, lambda, p00 and p11.
 
 #ifndef MC_TEMPORAL_GLSL
@@ -29,7 +29,7 @@
 
 // The state of pixel j (n pixels), shifted to the current frame's origin:
 // beta as (b0, b1) per channel, P as (p00, p01, p11).
-void load_shifted(uint j, uint n, out real2 b[3], out real3 p, out real3 w, out real m)
+void load_shifted(uint j, uint n, out real2 b[3], out real3 p, out real3 w)
 {
     for (int c = 0; c < 3; ++c) {
         real b0 = real(prev[(2 * c) * n + j]);
@@ -41,28 +41,26 @@ void load_shifted(uint j, uint n, out real2 b[3], out real3 p, out real3 w, out 
     real d = real(prev[8 * n + j]);
     p = real3(a + real(2) * o + d, o + d, d);
     w = real3(prev[9 * n + j], prev[10 * n + j], prev[11 * n + j]);
-    m = real(prev[13 * n + j]);
 }
 
 bool valid_at(uint j, uint n) { return prev[12 * n + j] == 1.0; }
 
 // The filter at pixel (x, y): STEP_PASS for an invalid pixel or a
 // non-finite colour; STEP_RESET with beta = (y, 0), P = diag(p00, p11)
-// (TEMPORAL-PRIOR) and m = max_ch E; or
+// (TEMPORAL-PRIOR); or
 // STEP_CONTINUE with the state reprojected from offset index `off`
 // ((dy + 3) * 7 + dx + 3) and updated. Among the valid previous states in
 // the 7x7 window whose position is within RESET's distance (TEMPORAL-GATE,
 // RESET-NOISE), the one with the least (eW + epsW)(ey + epsy), the first in
 // raster order on a tie; its P inflated where its prediction misses the
 // colour by more than the noise allows (TEMPORAL-INFLATE).
-int temporal_step(uint x, uint y, out real2 b[3], out real3 p, out real m, out int off)
+int temporal_step(uint x, uint y, out real2 b[3], out real3 p, out int off)
 {
     uint n = push.width * push.height;
     uint i = y * push.width + x;
     vec3 col = vec3(yr[i], yg[i], yb[i]);
     off = 0;
     p = real3(0);
-    m = real(0);
     b[0] = real2(0); b[1] = real2(0); b[2] = real2(0);
     if (spp_of(spp[i]) < 1.0 || !is_finite(col.x) || !is_finite(col.y) || !is_finite(col.z)) {
         return STEP_PASS;
@@ -77,7 +75,7 @@ int temporal_step(uint x, uint y, out real2 b[3], out real3 p, out real m, out i
     if ((push.flags & TEMPORAL_RESET) == 0u) {
         if ((push.flags & TEMPORAL_NO_SEARCH) != 0u) {
             if (valid_at(i, n)) {
-                load_shifted(i, n, b, p, w, m);
+                load_shifted(i, n, b, p, w);
                 found = true;
                 off = SEARCH * (2 * SEARCH + 1) + SEARCH;
             }
@@ -97,8 +95,7 @@ int temporal_step(uint x, uint y, out real2 b[3], out real3 p, out real m, out i
                     real2 cb[3];
                     real3 cp;
                     real3 cw;
-                    real cm;
-                    load_shifted(j, n, cb, cp, cw, cm);
+                    load_shifted(j, n, cb, cp, cw);
                     real3 dw = cw - wi;
                     real ew = dot(dw, dw);
                     if (ew > limit) {
@@ -113,26 +110,22 @@ int temporal_step(uint x, uint y, out real2 b[3], out real3 p, out real m, out i
                         off = (jy - int(y) + SEARCH) * (2 * SEARCH + 1) + (jx - int(x) + SEARCH);
                         b = cb;
                         p = cp;
-                        m = cm;
                     }
                 }
             }
         }
     }
-    real emax = max(ei.x, max(ei.y, ei.z));
     if (!found) {
         for (int c = 0; c < 3; ++c) {
             b[c] = real2(yi[c], real(0));
         }
         p = real3(real(push.p00), real(0), real(push.p11));
-        m = emax;
         return STEP_RESET;
     }
     // TEMPORAL-INFLATE: P grows by the prediction's largest miss over
-    // t3^2 max(E, m) (1 + P00) where that exceeds 1 (TEMPORAL-MEMORY: m is
-    // the history's mean error estimate).
+    // t3^2 E (1 + P00) where that exceeds 1.
     real3 miss = yi - real3(b[0].x, b[1].x, b[2].x);
-    real3 ratio = (miss * miss) / (t2 * max(ei, real3(m)) * (real(1) + p.x) + real3(1e-12));
+    real3 ratio = (miss * miss) / (t2 * ei * (real(1) + p.x) + real3(1e-12));
     p *= max(max(real(1), ratio.x), max(ratio.y, ratio.z));
     real lambda = real(push.lambda);
     real den = lambda + p.x;
@@ -142,7 +135,6 @@ int temporal_step(uint x, uint y, out real2 b[3], out real3 p, out real m, out i
         real r = yi[c] - b[c].x;
         b[c] += g * r;
     }
-    m += g.x * (emax - m);
     return STEP_CONTINUE;
 }
 

@@ -6,19 +6,17 @@
 //! surface lies within 1 % of the viewing distance, plus the noise of the
 //! mean position (RESET, RESET-NOISE; the search considers only those,
 //! TEMPORAL-GATE), its history weighing less where its prediction misses
-//! the frame's colour by more than this frame's or the history's error
-//! estimate allows (TEMPORAL-INFLATE, TEMPORAL-MEMORY). A history starts
-//! from its first frame as one observation, its slope held at 0
-//! (TEMPORAL-PRIOR).
+//! the frame's colour (TEMPORAL-INFLATE). A history starts from its first
+//! frame as one observation, its slope held at 0 (TEMPORAL-PRIOR).
 //!
 //! [`PixelState`] is one pixel's filter in f64 (what the invariants of
 //! §10.1 are stated on); [`lp_temporal`] runs one frame over an image as
 //! the kernel does, reading and writing the state as f32 planes.
 
 use crate::shared::{
-    TemporalPush, TEMPORAL_DEPTH_FLOOR, TEMPORAL_MEMORY, TEMPORAL_NO_SEARCH, TEMPORAL_P00,
-    TEMPORAL_RESET, TEMPORAL_RESET_NOISE, TEMPORAL_RESET_REL, TEMPORAL_SEARCH,
-    TEMPORAL_SOURCE_NONE, TEMPORAL_SOURCE_RESET, TEMPORAL_STATE, TEMPORAL_VALID,
+    TemporalPush, TEMPORAL_DEPTH_FLOOR, TEMPORAL_NO_SEARCH, TEMPORAL_P00, TEMPORAL_RESET,
+    TEMPORAL_RESET_NOISE, TEMPORAL_RESET_REL, TEMPORAL_SEARCH, TEMPORAL_SOURCE_NONE,
+    TEMPORAL_SOURCE_RESET, TEMPORAL_STATE, TEMPORAL_VALID,
 };
 
 /// One pixel's temporal state (§10.1), origin at the frame it was last
@@ -32,20 +30,16 @@ pub struct PixelState {
     pub p: [f64; 3],
     /// The world position `W` the state was last updated at.
     pub w: [f64; 3],
-    /// The history's mean error estimate `m` (TEMPORAL-MEMORY): the
-    /// largest channel's, averaged with the intercept's gain.
-    pub m: f64,
 }
 
 impl PixelState {
     /// RESET: `β = (y, 0)`, `P = diag(p00, p11)` (TEMPORAL-PRIOR; §10.1
-    /// has `I/δ`) at position `w`, with the error memory `m`.
-    pub fn reset(y: [f64; 3], w: [f64; 3], (p00, p11): (f64, f64), m: f64) -> PixelState {
+    /// has `I/δ`) at position `w`.
+    pub fn reset(y: [f64; 3], w: [f64; 3], (p00, p11): (f64, f64)) -> PixelState {
         PixelState {
             beta: y.map(|v| [v, 0.0]),
             p: [p00, 0.0, p11],
             w,
-            m,
         }
     }
 
@@ -57,7 +51,6 @@ impl PixelState {
             beta: self.beta.map(|[b0, b1]| [b0 + b1, b1]),
             p: [a + 2.0 * b + c, b + c, c],
             w: self.w,
-            m: self.m,
         }
     }
 
@@ -68,9 +61,8 @@ impl PixelState {
 
     /// The recursive update with the observation `y` at `z = (1, 0)` and
     /// forgetting factor `lambda`: `G = Pz / (λ + zᵀPz)`,
-    /// `P ← (P − G zᵀP)/λ`, `β ← β + G (y − βᵀz)`; the error memory moves
-    /// towards `e` by the intercept's gain, `m ← m + G₀ (e − m)`.
-    pub fn update(&mut self, y: [f64; 3], e: f64, lambda: f64) {
+    /// `P ← (P − G zᵀP)/λ`, `β ← β + G (y − βᵀz)`.
+    pub fn update(&mut self, y: [f64; 3], lambda: f64) {
         let [p00, p01, p11] = self.p;
         let den = lambda + p00;
         let g = [p00 / den, p01 / den];
@@ -84,7 +76,6 @@ impl PixelState {
             b[0] += g[0] * r;
             b[1] += g[1] * r;
         }
-        self.m += g[0] * (e - self.m);
     }
 }
 
@@ -96,7 +87,6 @@ pub fn load(state: &[f32], n: usize, i: usize) -> Option<PixelState> {
         beta: [[v(0), v(1)], [v(2), v(3)], [v(4), v(5)]],
         p: [v(TEMPORAL_P00), v(7), v(8)],
         w: [v(9), v(10), v(11)],
-        m: v(TEMPORAL_MEMORY),
     })
 }
 
@@ -118,7 +108,6 @@ pub fn store(state: &mut [f32], n: usize, i: usize, s: Option<&PixelState>) {
             s.w[1],
             s.w[2],
             1.0,
-            s.m,
         ],
         None => [0.0; TEMPORAL_STATE],
     };
@@ -194,7 +183,7 @@ pub enum Step {
     /// An invalid pixel or a non-finite colour: passed through, no state.
     PassThrough,
     /// Reinitialised (RESET, or the first frame): `β = (y, 0)`,
-    /// `P = diag(p00, p11)` (TEMPORAL-PRIOR), `m = maxₖ E`.
+    /// `P = diag(p00, p11)` (TEMPORAL-PRIOR).
     Reset(PixelState),
     /// The state reprojected from offset `(dx, dy)` of the previous frame,
     /// updated with this frame's colour.
@@ -232,25 +221,23 @@ pub fn step(
         reproject(prev, (w, h), (x, y), wi, yi, limit)
     };
     // TEMPORAL-INFLATE: where the prediction misses this frame's colour by
-    // more than `t3² max(E, m) (1 + P00)` in some channel, `P` grows by the
-    // ratio, so the history weighs only as much as that miss allows
-    // (TEMPORAL-MEMORY: `m`, the history's mean error estimate, keeps a
-    // pixel whose frames scatter, such as a bright light's rim, from taking
-    // a quiet frame's small `E` for the truth).
-    let ei = inp.error.map(|p| p[i].max(0.0) as f64);
-    let emax = ei.into_iter().fold(0.0f64, f64::max);
+    // more than `t3² E (1 + P00)` in some channel, `P` grows by the ratio,
+    // so the history weighs only as much as that miss allows.
     let found = found.map(|(mut s, offset)| {
         let t2 = super::t_threshold3(super::finalize_stats::spp_of(inp.spp[i])).powi(2);
         let pred = s.predict();
         let q = (0..3)
-            .map(|c| (yi[c] - pred[c]).powi(2) / (t2 * ei[c].max(s.m) * (1.0 + s.p[0]) + 1e-12))
+            .map(|c| {
+                let e = inp.error[c][i].max(0.0) as f64;
+                (yi[c] - pred[c]).powi(2) / (t2 * e * (1.0 + s.p[0]) + 1e-12)
+            })
             .fold(1.0f64, f64::max);
         s.p = s.p.map(|v| v * q);
         (s, offset)
     });
     match found {
         Some((mut s, offset)) => {
-            s.update(yi, emax, push.lambda as f64);
+            s.update(yi, push.lambda as f64);
             s.w = wi;
             Step::Continue(s, offset)
         }
@@ -258,7 +245,6 @@ pub fn step(
             yi,
             wi,
             (push.p00 as f64, push.p11 as f64),
-            emax,
         )),
     }
 }
