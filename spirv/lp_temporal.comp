@@ -1,7 +1,8 @@
 #version 460
 // Spec §10.1, the LP temporal filter, one frame: per pixel a recursive
 // least-squares fit of (1, tau) -> y over the frames with forgetting factor
-// lambda and the time origin at the current frame (TIME-ORIGIN), the state
+// lambda and the time origin at the current frame (TIME-ORIGIN; with
+// TEMPORAL-PRIOR's reset the slope stays 0: a mean with forgetting), the state
 // reprojected from the previous frame (SEARCH-7, TEMPORAL-GATE, RESET,
 // RESET-NOISE, TEMPORAL-INFLATE: lib/temporal.glsl). Output beta[ch][0], clamped to >= 0
 // (§0.4 step 5); a pixel passed through keeps its colour and no state.

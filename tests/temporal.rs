@@ -241,11 +241,21 @@ fn twin_frame(
 }
 
 /// `lp_temporal` and `lp_temporal_gain` against their twins over a
-/// synthetic sequence, each frame from the twin's previous state.
+/// synthetic sequence, each frame from the twin's previous state; with
+/// TEMPORAL-PRIOR's reset, and on the largest frame also with §10.1's and
+/// with a free slope of prior 0.01 (the slope's arithmetic).
 #[test]
 fn lp_temporal_matches_its_twin() {
     let ctx = gpu();
-    for &(w, h) in &[(29usize, 17usize), (1, 9), (8, 8)] {
+    let ours = (TEMPORAL_RESET_P00, TEMPORAL_RESET_P11);
+    let spec = (SPEC_PRIOR.0 as f32, SPEC_PRIOR.1 as f32);
+    for &((w, h), (p00, p11)) in &[
+        ((29usize, 17usize), ours),
+        ((29, 17), spec),
+        ((29, 17), (1.0, 0.01)),
+        ((1, 9), ours),
+        ((8, 8), ours),
+    ] {
         let n = w * h;
         let mut rng = Rng(3 + w as u64);
         let mut prev = vec![0.0f32; TEMPORAL_STATE * n];
@@ -256,7 +266,11 @@ fn lp_temporal_matches_its_twin() {
                 3 => TEMPORAL_NO_SEARCH,
                 _ => 0,
             };
-            let p = push(w, h, flags);
+            let p = TemporalPush {
+                p00,
+                p11,
+                ..push(w, h, flags)
+            };
             let (next, out, source) = twin_frame(&p, &f, &prev);
             for prec in precisions() {
                 let mut ins: Vec<&[f32]> = Vec::new();
@@ -278,7 +292,7 @@ fn lp_temporal_matches_its_twin() {
                     lp_temporal::FLOPS_PER_PIXEL,
                 )
                 .unwrap();
-                let what = format!("{w}x{h} frame {t} {prec:?}");
+                let what = format!("{w}x{h} prior ({p00}, {p11}) frame {t} {prec:?}");
                 assert_close(&format!("{what} state"), &g[0], &next, 0.99);
                 for c in 0..3 {
                     // NaN passes through in both.

@@ -1,7 +1,8 @@
 //! `lp_temporal`: one frame of spec §10.1's LP temporal filter — the 7×7
 //! reprojection search on the world position (SEARCH-7), RESET, the shift
 //! of the time origin (TIME-ORIGIN) and the recursive least-squares update
-//! with forgetting factor `λ`. Twin: `reference::lp_temporal`.
+//! with forgetting factor `λ` (from TEMPORAL-PRIOR's reset, with the slope
+//! held at 0). Twin: `reference::lp_temporal`.
 
 use crate::error::Result;
 use crate::gpu::reflect::{read, write};

@@ -3,7 +3,8 @@
 //! the GPU from call to call.
 //!
 //! §10.1, the LP temporal filter ([`Temporal::Lp`]): per pixel a recursive
-//! least-squares fit over time of the method's output, reprojected from the
+//! least-squares fit over time of the method's output (with TEMPORAL-PRIOR's
+//! reset, of a constant: a mean with forgetting), reprojected from the
 //! previous frame by the world position (`kernels::lp_temporal`). The paper
 //! applies it to LP; here it follows any method.
 

@@ -152,8 +152,9 @@ pub enum TemporalArg {
     /// Every frame alone.
     Off,
     /// The LP temporal filter (spec §10.1) after the method: each pixel's
-    /// output is fitted over the frames so far, reprojected by the world
-    /// position and restarted where its surface was hidden. Needs the
+    /// output is the mean of its frames so far, older ones weighing less,
+    /// reprojected by the world position and restarted where its surface
+    /// was hidden. Needs the
     /// position and depth layers.
     Lp,
     /// APR's temporal window (spec §10.2), offline, with --method apr: each
