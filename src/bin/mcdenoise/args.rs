@@ -154,8 +154,7 @@ pub enum TemporalArg {
     /// The LP temporal filter (spec §10.1) after the method: each pixel's
     /// output is the mean of its frames so far, older ones weighing less,
     /// reprojected by the world position and restarted where its surface
-    /// was hidden. Needs the
-    /// position and depth layers.
+    /// was hidden. Needs the position and depth layers.
     Lp,
     /// APR's temporal window (spec §10.2), offline, with --method apr: each
     /// frame's blocks fit polynomials in space and time over the frames
