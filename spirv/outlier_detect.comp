@@ -7,7 +7,8 @@
 // count >= min_n (OUTLIER-MIN-N), grey_o - m > k sd (SPIKE-SIDE, population
 // sd) and grey_o - m <= k se_o (OUTLIER-NOISE, se from the pixel's
 // variances) and no 8-neighbour is above m + k sd (OUTLIER-ISOLATED, on
-// outlier_grey's keys). A detected pixel is appended to the queue, whose
+// outlier_grey's keys; OUTLIER-RIM: only a neighbour within its own noise,
+// with push.mode = DETECT_RIM). A detected pixel is appended to the queue, whose
 // entries outlier_median replaces by the median pixel (and, in its second
 // mode, writes back): nothing else is written. The median lives in
 // its own kernel because on lavapipe a kernel that merely contains its
@@ -59,12 +60,16 @@ void main()
         real excess = grey_at(o) - s.mean;
         bool outlier = s.n >= real(push.min_n) && excess > real(push.k_sigma) * sd
             && excess <= real(push.k_sigma) * se;
-        // OUTLIER-ISOLATED: a bright 8-neighbour makes o part of a feature.
+        // OUTLIER-ISOLATED: a bright 8-neighbour makes o part of a feature;
+        // with OUTLIER-RIM (mode DETECT_RIM) only one that is itself within
+        // its own noise (a cluster of rare paths), not a light.
+        bool rim = push.mode == DETECT_RIM;
         for (int qy = max(int(y) - 1, 0); outlier && qy <= min(int(y) + 1, int(push.height) - 1); ++qy) {
             for (int qx = max(int(x) - 1, 0); qx <= min(int(x) + 1, int(push.width) - 1); ++qx) {
                 uint j = uint(qy) * push.width + uint(qx);
                 real gj;
-                if (j != o && key_grey(keys[j], gj) && gj - s.mean > real(push.k_sigma) * sd) {
+                if (j != o && key_grey(keys[j], gj) && gj - s.mean > real(push.k_sigma) * sd
+                    && (!rim || gj - s.mean <= real(push.k_sigma) * grey_se(j))) {
                     outlier = false;
                 }
             }

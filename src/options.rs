@@ -202,6 +202,13 @@ pub const OPTIONS: &[OptionSpec] = &[
         help: "rounds of clipping before detection: each drops from the window statistics the pixels more than 3 sd above the mean of their own window's kept pixels that are also above 3 se (a light) or 50 sd (a far spike), so neither hides a firefly beside it (0: the spec)",
     },
     OptionSpec {
+        key: "outliers.rim",
+        kind: Kind::Choice(&["off", "on"]),
+        default: "off",
+        section: "§4.4 step 1 (OUTLIER-RIM)",
+        help: "on: a bright 8-neighbour keeps a pixel from being detected only if the neighbour is itself within 3 of its own standard errors of the window's mean (a cluster of rare paths), not a light seen directly, so that one rare hit on a lamp's rim is a spike (off: OUTLIER-ISOLATED, any bright neighbour)",
+    },
+    OptionSpec {
         key: "outliers.wide",
         kind: Kind::Real(0.0, 1.0),
         default: "0.05",

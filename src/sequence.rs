@@ -101,7 +101,7 @@ impl SequenceDenoiser {
             precision: config.precision,
             prefilter: config.prefilter,
             outliers: config.outliers.resolve(Method::Apr),
-            outlier_clip: crate::methods::outliers::clip_rounds(&config.options)?,
+            outlier_detection: crate::methods::outliers::Detection::of(&config.options)?,
             outlier_wide: crate::methods::outliers::wide_fraction(&config.options)?,
             low_spp: config.low_spp,
             params: AprParams::new(&config.options)?,

@@ -508,7 +508,8 @@ pub struct OutlierPush {
     /// (2 or 4), plus [`BOX_COUNT_LAST`] when the fourth counts them instead
     /// (set by `kernels::box_rows::record`); `outlier_median`: 0, or
     /// [`OUTLIER_APPLY`] (set by `kernels::outlier_median`);
-    /// `outlier_weights`: 0, [`WEIGHTS_NARROW`] or [`WEIGHTS_WIDE`].
+    /// `outlier_weights`: 0, [`WEIGHTS_NARROW`] or [`WEIGHTS_WIDE`];
+    /// `outlier_detect`: 0, or [`DETECT_RIM`].
     pub mode: u32,
     /// Fewest valid neighbours a detection needs (OUTLIER-MIN-N).
     pub min_n: u32,
@@ -525,6 +526,11 @@ pub struct OutlierPush {
 /// excess is at most [`OutlierPush::wide`] of their window's grey sum and
 /// mark the others for the wide window (OUTLIER-WIDE; 0 weighs every one).
 pub const WEIGHTS_NARROW: u32 = 1;
+
+/// [`OutlierPush::mode`] of `outlier_detect`: OUTLIER-RIM (`outliers.rim=on`),
+/// a bright 8-neighbour keeps a pixel from detection only when it is itself
+/// within its own noise (`DETECT_RIM` in `spirv/lib/outliers.glsl`).
+pub const DETECT_RIM: u32 = 1;
 
 /// [`OutlierPush::mode`] of `outlier_weights`: weigh only the outliers that
 /// [`WEIGHTS_NARROW`] marked.

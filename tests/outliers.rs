@@ -17,7 +17,7 @@ use mcdenoise::reference::{
     box_rows as rb, outlier_clip as rc, outlier_detect as rd, outlier_grey as rg,
     outlier_median as rm, outlier_rows as rr, outlier_spread as rs, outlier_weights as rw,
 };
-use mcdenoise::shared::{OutlierPush, BOX_COUNT_LAST, WEIGHTS_NARROW, WEIGHTS_WIDE};
+use mcdenoise::shared::{OutlierPush, BOX_COUNT_LAST, DETECT_RIM, WEIGHTS_NARROW, WEIGHTS_WIDE};
 use mcdenoise::{Config, Denoiser, Method, Outliers, Source};
 
 /// A noisy image with spikes (variance = value², as one bright sample among
@@ -536,7 +536,7 @@ fn redistribution_conserves_energy_with(wide: f64) {
     let mut img = noisy(96, 80, 3);
     let (w, h) = (img.w, img.h);
     let spp = img.spp.clone();
-    let (mask, e) = ro::remove(w, h, &mut img.color, &mut img.var, &spp, 0);
+    let (mask, e) = ro::remove(w, h, &mut img.color, &mut img.var, &spp, 0, false);
     let found = mask.iter().filter(|&&m| m).count();
     assert!(found > 50, "{found} spikes");
     // A spike inside the dark corner too.
@@ -605,6 +605,7 @@ fn detection_invariants_with(rounds: u32) {
             [&v[0], &v[1], &v[2]],
             &spp,
             rounds,
+            false,
         )
     };
     let found = detect(&smooth, &flat(0.0));
@@ -884,15 +885,25 @@ fn clip_kernel_matches_twin() {
             if n >= 64 * 64 {
                 assert!(dropped > 5, "{}: {dropped} dropped", what("clip"));
             }
-            let mut e = vec![vec![0.0f32; n]; 3];
-            let list = rd::outlier_detect(&pu, c3, v3, &img.spp, &mask, muts(&mut e));
-            let (_, queue) = detect_and_replace(&ctx, p, &pu, &img, &summaries(&kept), &key_bits);
-            let mut queued: Vec<usize> = queue[4..4 + queue[3] as usize]
-                .iter()
-                .map(|&o| o as usize)
-                .collect();
-            queued.sort_unstable();
-            assert_eq!(queued, list, "{}", what("detection over the kept pixels"));
+            // OUTLIER-ISOLATED, then OUTLIER-RIM.
+            for mode in [0, DETECT_RIM] {
+                let pd = OutlierPush { mode, ..pu };
+                let mut e = vec![vec![0.0f32; n]; 3];
+                let list = rd::outlier_detect(&pd, c3, v3, &img.spp, &mask, muts(&mut e));
+                let (_, queue) =
+                    detect_and_replace(&ctx, p, &pd, &img, &summaries(&kept), &key_bits);
+                let mut queued: Vec<usize> = queue[4..4 + queue[3] as usize]
+                    .iter()
+                    .map(|&o| o as usize)
+                    .collect();
+                queued.sort_unstable();
+                assert_eq!(
+                    queued,
+                    list,
+                    "{} mode {mode}",
+                    what("detection over the kept pixels")
+                );
+            }
         }
     }
     check_validation(&ctx);
@@ -924,7 +935,38 @@ fn a_lamp_beside_a_firefly_does_not_hide_it() {
     let beside = 20 * w + 22;
     color[beside] = 10.0;
     var[beside] = 100.0;
-    check_clip_finds((w, h), &color, &var, &[], &[firefly]);
+    check_clip_finds((w, h), &color, &var, &[], &[firefly], false);
+}
+
+/// OUTLIER-RIM: the fixture above with `outliers.rim=on`. The firefly
+/// touching the steady lamp is a spike now (the lamp is far above its own
+/// noise, so it is no cluster the firefly belongs to), and is found once the
+/// clipping rounds take the lamp out of the statistics; two fireflies side
+/// by side, each within its own noise, are a cluster and stay.
+#[test]
+fn a_rare_hit_on_a_lamps_rim_is_a_spike_with_outlier_rim() {
+    let (w, h) = (48, 48);
+    let mut color = dark_room(w, h);
+    let mut var = vec![1e-4f32; w * h];
+    for y in 20..22 {
+        for x in 20..22 {
+            color[y * w + x] = 500.0;
+            var[y * w + x] = 0.0;
+        }
+    }
+    let mut spike = |i: usize| {
+        color[i] = 10.0;
+        var[i] = 100.0;
+        i
+    };
+    let firefly = spike(21 * w + 27);
+    let beside = spike(20 * w + 22);
+    // The cluster.
+    spike(35 * w + 10);
+    spike(35 * w + 11);
+    check_clip_finds((w, h), &color, &var, &[], &[beside, firefly], true);
+    // Without the rule, neither the rim hit nor the cluster.
+    check_clip_finds((w, h), &color, &var, &[], &[firefly], false);
 }
 
 /// OUTLIER-CLIP: two fireflies six pixels apart. The brighter (20, about
@@ -941,7 +983,7 @@ fn a_far_brighter_firefly_does_not_hide_a_faint_one() {
     var[bright] = 400.0;
     color[faint] = 2.0;
     var[faint] = 4.0;
-    check_clip_finds((w, h), &color, &var, &[bright], &[bright, faint]);
+    check_clip_finds((w, h), &color, &var, &[bright], &[bright, faint], false);
 }
 
 /// A dark room: grey uniform in [0.04, 0.06].
@@ -955,20 +997,22 @@ fn dark_room(w: usize, h: usize) -> Vec<f32> {
 /// The pixels detected in a grey image (`color`, `var` in every channel,
 /// 16 spp) are `spec` without OUTLIER-CLIP and `clipped` with one or two
 /// rounds: in the reference, and for two rounds in the stage on the GPU
-/// (f32, f64) and the CPU, read from the `outlier_mask` debug layer.
+/// (f32, f64) and the CPU, read from the `outlier_mask` debug layer; with
+/// OUTLIER-RIM when `rim`.
 fn check_clip_finds(
     (w, h): (usize, usize),
     color: &[f32],
     var: &[f32],
     spec: &[usize],
     clipped: &[usize],
+    rim: bool,
 ) {
     let n = w * h;
     let spp = vec![16.0f32; n];
     let c3 = [color, color, color];
     let v3 = [var, var, var];
     for rounds in [0, 1, 2] {
-        let found: Vec<usize> = ro::detect(w, h, c3, v3, &spp, rounds)
+        let found: Vec<usize> = ro::detect(w, h, c3, v3, &spp, rounds, rim)
             .iter()
             .enumerate()
             .filter_map(|(o, f)| f.map(|_| o))
@@ -991,7 +1035,12 @@ fn check_clip_finds(
             cfg.outliers = Outliers::On;
             cfg.precision = precision;
             cfg.debug = true;
-            cfg.options = mcdenoise::Options::parse(&[format!("outliers.clip={rounds}")]).unwrap();
+            let rim = if rim { "on" } else { "off" };
+            cfg.options = mcdenoise::Options::parse(&[
+                format!("outliers.clip={rounds}"),
+                format!("outliers.rim={rim}"),
+            ])
+            .unwrap();
             let d = if backend == "GPU" {
                 Denoiser::new(&ctx, Source::of_image(&img), cfg).unwrap()
             } else {

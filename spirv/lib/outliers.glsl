@@ -18,6 +18,9 @@ layout(push_constant) uniform Push {
 // OutlierPush::mode of outlier_weights (mcdenoise::shared::WEIGHTS_*).
 #define WEIGHTS_NARROW 1u
 #define WEIGHTS_WIDE 2u
+// OutlierPush::mode of outlier_detect (mcdenoise::shared::DETECT_RIM):
+// OUTLIER-RIM.
+#define DETECT_RIM 1u
 // The queue entry's bit that marks an outlier for the wide window.
 #define QUEUE_WIDE 0x80000000u
 

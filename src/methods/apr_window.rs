@@ -320,8 +320,8 @@ pub struct WindowConfig {
     pub prefilter: Prefilter,
     /// The outlier stage.
     pub outliers: bool,
-    /// OUTLIER-CLIP's rounds in the outlier stage.
-    pub outlier_clip: u32,
+    /// How the outlier stage detects (OUTLIER-CLIP, OUTLIER-RIM).
+    pub outlier_detection: crate::methods::outliers::Detection,
     /// OUTLIER-WIDE's fraction (`outliers.wide`; 0: off).
     pub outlier_wide: f64,
     /// See [`crate::Config::low_spp`].
@@ -365,7 +365,7 @@ impl AprWindow {
                         ctx,
                         width,
                         height,
-                        config.outlier_clip,
+                        config.outlier_detection,
                         config.outlier_wide,
                         Some((&arena, 0)),
                     )

@@ -318,7 +318,7 @@ impl GpuChain {
                 ctx,
                 w,
                 h,
-                outliers::clip_rounds(&config.options)?,
+                outliers::Detection::of(&config.options)?,
                 outliers::wide_fraction(&config.options)?,
                 arena.as_ref().map(|a| (a, keep)),
             )?)

@@ -436,9 +436,9 @@ fn clean_cpu(img: &StatsImage, req: &DenoiseRequest) -> Result<CleanCpu> {
     let removed = req
         .outliers
         .resolve(req.method)
-        .then(|| outliers::clip_rounds(&req.options))
+        .then(|| outliers::Detection::of(&req.options))
         .transpose()?
-        .map(|rounds| outliers::remove_cpu(&mut clean, rounds));
+        .map(|detection| outliers::remove_cpu(&mut clean, detection));
     let prefiltered = gbf::wanted(req.method, req.prefilter, |l| clean.has(l))?;
     if prefiltered {
         gbf::run_cpu(&mut clean)?;

@@ -39,12 +39,40 @@ use crate::kernels::{
 };
 use crate::options::Options;
 use crate::reference::outliers::{self as reference, DETECT_RADIUS, SPREAD_RADIUS, WIDE_RADIUS};
-use crate::shared::{OutlierPush, WEIGHTS_NARROW, WEIGHTS_WIDE};
+use crate::shared::{OutlierPush, DETECT_RIM, WEIGHTS_NARROW, WEIGHTS_WIDE};
 
 /// Rounds of OUTLIER-CLIP before detection: `outliers.clip`, else the
 /// registry's default (`reference::outliers` documents the decision).
 pub fn clip_rounds(options: &Options) -> Result<u32> {
     options.value("outliers.clip")
+}
+
+/// How steps 1–3 detect the spikes.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, Default)]
+pub struct Detection {
+    /// OUTLIER-CLIP's rounds (`outliers.clip`).
+    pub clip: u32,
+    /// OUTLIER-RIM (`outliers.rim=on`).
+    pub rim: bool,
+}
+
+impl Detection {
+    /// `outliers.clip` and `outliers.rim`, else the registry's defaults.
+    pub fn of(options: &Options) -> Result<Detection> {
+        Ok(Detection {
+            clip: clip_rounds(options)?,
+            rim: options.get("outliers.rim") == "on",
+        })
+    }
+
+    /// [`OutlierPush::mode`] of `outlier_detect`.
+    fn mode(self) -> u32 {
+        if self.rim {
+            DETECT_RIM
+        } else {
+            0
+        }
+    }
 }
 
 /// OUTLIER-WIDE's fraction: `outliers.wide`, else the registry's default
@@ -136,8 +164,8 @@ pub struct OutlierPlanes {
     queue: GpuBuffer,
     width: usize,
     height: usize,
-    /// OUTLIER-CLIP's rounds.
-    clip: u32,
+    /// OUTLIER-CLIP's rounds and OUTLIER-RIM.
+    detection: Detection,
     /// OUTLIER-WIDE's fraction (0: off).
     wide: f32,
 }
@@ -148,8 +176,8 @@ pub struct OutlierPlanes {
 pub const SCRATCH: usize = 19;
 
 impl OutlierPlanes {
-    /// Allocates the planes for a `w × h` image, whose detection runs
-    /// `clip` rounds of OUTLIER-CLIP and whose restoration sends excesses
+    /// Allocates the planes for a `w × h` image, whose detection runs as
+    /// `detection` says and whose restoration sends excesses
     /// above `wide` of their window to OUTLIER-WIDE's (0: never); the
     /// scratch in an arena from a byte offset ([`PlaneSet::view`]) when
     /// given.
@@ -157,7 +185,7 @@ impl OutlierPlanes {
         ctx: &Arc<GpuContext>,
         w: usize,
         h: usize,
-        clip: u32,
+        detection: Detection,
         wide: f64,
         arena: Option<(&Arc<GpuBuffer>, u64)>,
     ) -> Result<OutlierPlanes> {
@@ -175,7 +203,7 @@ impl OutlierPlanes {
             )?,
             width: w,
             height: h,
-            clip,
+            detection,
             wide: wide as f32,
         })
     }
@@ -208,10 +236,10 @@ pub fn record_remove(
     outlier_grey::record(batch, precision, &pu, color, spp, keys)?;
     // OUTLIER-CLIP: the detection's statistics come from the kept keys; the
     // isolation test and the median read every valid pixel's.
-    let stats_keys = if p.clip > 0 {
+    let stats_keys = if p.detection.clip > 0 {
         let kept = p.planes.plane(12);
         batch.copy(keys, kept);
-        for _ in 0..p.clip {
+        for _ in 0..p.detection.clip {
             outlier_rows::record(batch, precision, &pu, kept, rows)?;
             outlier_clip::record(batch, precision, &pu, kept, rows, var)?;
         }
@@ -221,10 +249,14 @@ pub fn record_remove(
     };
     outlier_rows::record(batch, precision, &pu, stats_keys, rows)?;
     let queue = p.queue.slice();
+    let detect = OutlierPush {
+        mode: p.detection.mode(),
+        ..pu
+    };
     outlier_detect::record(
         batch,
         precision,
-        &pu,
+        &detect,
         color,
         var,
         spp,
@@ -379,9 +411,9 @@ impl Removed {
     }
 }
 
-/// Steps 1–3 with `clip` rounds of OUTLIER-CLIP on sanitised statistics, in
-/// place (CPU path).
-pub fn remove_cpu(clean: &mut StatsImage, clip: u32) -> Removed {
+/// Steps 1–3 as `detection` says on sanitised statistics, in place (CPU
+/// path).
+pub fn remove_cpu(clean: &mut StatsImage, detection: Detection) -> Removed {
     let (w, h) = (clean.width, clean.height);
     let spp = clean.get(Layer::Spp).unwrap()[0].clone();
     let mut color: [Vec<f32>; 3] = clean
@@ -396,7 +428,15 @@ pub fn remove_cpu(clean: &mut StatsImage, clip: u32) -> Removed {
         .to_vec()
         .try_into()
         .unwrap();
-    let (mask, excess) = reference::remove(w, h, &mut color, &mut var, &spp, clip);
+    let (mask, excess) = reference::remove(
+        w,
+        h,
+        &mut color,
+        &mut var,
+        &spp,
+        detection.clip,
+        detection.rim,
+    );
     clean.set(Layer::Color, color.to_vec());
     clean.set(Layer::ColorVariance, var.to_vec());
     Removed { mask, excess }

@@ -6,10 +6,11 @@
 //! summaries.
 
 use super::outliers::{is_outlier, DETECT_RADIUS, K_SIGMA, MIN_NEIGHBOURS};
-use crate::shared::OutlierPush;
+use crate::shared::{OutlierPush, DETECT_RIM};
 
 /// Zeroes the excess `e` and returns the detected pixels in raster order
-/// (the kernel's queue holds the same set in any order).
+/// (the kernel's queue holds the same set in any order); `push.mode`
+/// [`DETECT_RIM`] is OUTLIER-RIM.
 pub fn outlier_detect(
     push: &OutlierPush,
     color: [&[f32]; 3],
@@ -25,10 +26,11 @@ pub fn outlier_detect(
     assert_eq!(push.min_n, MIN_NEIGHBOURS);
     assert_eq!(push.k_sigma as f64, K_SIGMA);
     let (w, h) = (push.width as usize, push.height as usize);
+    let rim = push.mode == DETECT_RIM;
     for plane in e {
         plane.fill(0.0);
     }
     (0..w * h)
-        .filter(|&o| is_outlier(w, h, color, var, spp, kept, o))
+        .filter(|&o| is_outlier(w, h, color, var, spp, kept, rim, o))
         .collect()
 }

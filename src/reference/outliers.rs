@@ -30,6 +30,12 @@
 //!   firefly is a single-pixel event; bright neighbours mean a feature (a
 //!   highlight seen through glass, the edge of a light) whose energy belongs
 //!   there and not spread over 87×87 pixels.
+//! * Decision OUTLIER-RIM (ours, `outliers.rim`): with it, only a bright
+//!   neighbour whose own excess over `m_o` is within `3·se` of its mean (by
+//!   OUTLIER-NOISE, itself a rare path: a cluster of them) keeps `o` from
+//!   detection. A light seen directly is far above its own noise, so a rare
+//!   hit on its rim, one sample among many that see the dark wall beside
+//!   it, is a spike.
 //! * Decision OUTLIER-MEDIAN (ours): the median of an even count is the lower one (rank
 //!   `(n−1)/2` of the sorted greys); among pixels whose grey equals it, the
 //!   lowest raster index is `q*`.
@@ -180,8 +186,9 @@ pub fn kept_after_clip(
 }
 
 /// Step 1 at pixel `o`: whether it is an outlier (SPIKE-SIDE,
-/// OUTLIER-NOISE, OUTLIER-MIN-N, OUTLIER-ISOLATED), with the statistics over
-/// the `kept` pixels ([`kept_after_clip`]).
+/// OUTLIER-NOISE, OUTLIER-MIN-N, OUTLIER-ISOLATED, with `rim` OUTLIER-RIM),
+/// with the statistics over the `kept` pixels ([`kept_after_clip`]).
+#[allow(clippy::too_many_arguments)]
 pub fn is_outlier(
     w: usize,
     h: usize,
@@ -189,6 +196,7 @@ pub fn is_outlier(
     var: [&[f32]; 3],
     spp: &[f32],
     kept: &[bool],
+    rim: bool,
     o: usize,
 ) -> bool {
     if spp_of(spp[o]) < 1.0 {
@@ -202,10 +210,12 @@ pub fn is_outlier(
     if excess <= K_SIGMA * sd || excess > K_SIGMA * grey_sd(var, o) {
         return false;
     }
-    // OUTLIER-ISOLATED: a bright neighbour makes o part of a feature.
+    // OUTLIER-ISOLATED: a bright neighbour makes o part of a feature;
+    // OUTLIER-RIM: only one within its own noise, not a light.
     let mut isolated = true;
     window(w, h, x, y, 1, spp, |q| {
-        if q != o && grey(color, q) - m > K_SIGMA * sd {
+        let excess = grey(color, q) - m;
+        if q != o && excess > K_SIGMA * sd && (!rim || excess <= K_SIGMA * grey_sd(var, q)) {
             isolated = false;
         }
     });
@@ -217,6 +227,7 @@ pub fn is_outlier(
 
 /// Steps 1–2 at pixel `o`: `Some(q*)` (step 3's replacement) if `o` is an
 /// outlier, else `None`.
+#[allow(clippy::too_many_arguments)]
 pub fn detect_at(
     w: usize,
     h: usize,
@@ -224,9 +235,10 @@ pub fn detect_at(
     var: [&[f32]; 3],
     spp: &[f32],
     kept: &[bool],
+    rim: bool,
     o: usize,
 ) -> Option<usize> {
-    is_outlier(w, h, color, var, spp, kept, o).then(|| median_at(w, h, color, spp, o))
+    is_outlier(w, h, color, var, spp, kept, rim, o).then(|| median_at(w, h, color, spp, o))
 }
 
 /// The pixel of median grey in `Ω_o(14)`, `o` included (OUTLIER-MEDIAN).
@@ -241,9 +253,9 @@ pub fn median_at(w: usize, h: usize, color: [&[f32]; 3], spp: &[f32], o: usize) 
     v.iter().find(|p| p.0 == med).map(|p| p.1).unwrap_or(o)
 }
 
-/// Steps 1–2 for every pixel, after `rounds` rounds of OUTLIER-CLIP: the
-/// replacement `q*` of each outlier. All detections read the original image
-/// (spec: applied at once).
+/// Steps 1–2 for every pixel, after `rounds` rounds of OUTLIER-CLIP and
+/// with OUTLIER-RIM when `rim`: the replacement `q*` of each outlier. All
+/// detections read the original image (spec: applied at once).
 pub fn detect(
     w: usize,
     h: usize,
@@ -251,10 +263,11 @@ pub fn detect(
     var: [&[f32]; 3],
     spp: &[f32],
     rounds: u32,
+    rim: bool,
 ) -> Vec<Option<usize>> {
     let kept = kept_after_clip(w, h, color, var, spp, rounds);
     (0..w * h)
-        .map(|o| detect_at(w, h, color, var, spp, &kept, o))
+        .map(|o| detect_at(w, h, color, var, spp, &kept, rim, o))
         .collect()
 }
 
@@ -408,8 +421,9 @@ pub fn spread_pass(
     }
 }
 
-/// The pre-method part (steps 1–3, `rounds` of OUTLIER-CLIP) on f32 planes,
-/// in place. Returns the outlier mask and the excess per channel.
+/// The pre-method part (steps 1–3, `rounds` of OUTLIER-CLIP, OUTLIER-RIM
+/// when `rim`) on f32 planes, in place. Returns the outlier mask and the
+/// excess per channel.
 pub fn remove(
     w: usize,
     h: usize,
@@ -417,6 +431,7 @@ pub fn remove(
     var: &mut [Vec<f32>; 3],
     spp: &[f32],
     rounds: u32,
+    rim: bool,
 ) -> (Vec<bool>, [Vec<f64>; 3]) {
     let found = detect(
         w,
@@ -425,6 +440,7 @@ pub fn remove(
         [&var[0], &var[1], &var[2]],
         spp,
         rounds,
+        rim,
     );
     let e = replace(&found, color, var);
     (found.iter().map(Option::is_some).collect(), e)

@@ -20,7 +20,7 @@
 use std::path::Path;
 use std::sync::Arc;
 
-use mcdenoise::methods::outliers::{clip_rounds, remove_cpu, Removed};
+use mcdenoise::methods::outliers::{remove_cpu, Detection, Removed};
 use mcdenoise::metrics::rmse;
 use mcdenoise::{
     Config, ContextOptions, Denoiser, GpuContext, Layer, Method, Outliers, RgbImage, Source,
@@ -179,7 +179,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let img = mcdenoise::io::read_stats(Path::new(s))?;
         let reference = mcdenoise::io::read_rgb(Path::new(rpath))?;
         let (mut clean, _) = mcdenoise::methods::prepare::prepare_cpu(&img);
-        let rem = remove_cpu(&mut clean, clip_rounds(&mcdenoise::Options::default())?);
+        let rem = remove_cpu(&mut clean, Detection::of(&mcdenoise::Options::default())?);
         let (w, h) = (img.width, img.height);
         let spp = clean.get(Layer::Spp).unwrap()[0].clone();
         let p = Path::new(s);
