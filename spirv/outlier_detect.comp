@@ -7,10 +7,12 @@
 // count >= min_n (OUTLIER-MIN-N), grey_o - m > k sd (SPIKE-SIDE, population
 // sd) and grey_o - m <= k se_o (OUTLIER-NOISE, se from the pixel's
 // variances) and no 8-neighbour is above m + k sd (OUTLIER-ISOLATED, on
-// outlier_grey's keys; OUTLIER-RIM: only a neighbour within its own noise,
-// with push.mode = DETECT_RIM). A detected pixel is appended to the queue, whose
-// entries outlier_median replaces by the median pixel (and, in its second
-// mode, writes back): nothing else is written. The median lives in
+// outlier_grey's keys; OUTLIER-RIM, with push.mode = DETECT_RIM: not a
+// steady neighbour with RIM_SHARE of o's excess or more, a light, nor a
+// rare path with less). A
+// detected pixel is appended to the queue, whose entries outlier_median
+// replaces by the median pixel (and, in its second mode, writes back):
+// nothing else is written. The median lives in
 // its own kernel because on lavapipe a kernel that merely contains its
 // scans of the window runs much slower (PERF-HISTORY), and because a queue
 // keeps all SIMD lanes of the median busy.
@@ -39,6 +41,13 @@ PLANE_IN(13, xq)
 // detected pixels. The host zeroes x and the count before the dispatch.
 layout(std430, set = 0, binding = 14) buffer queue_blk { uint queue[]; };
 
+// OUTLIER-RIM: for a pixel whose excess is at most RIM_LONE of its standard
+// errors (one or two rare paths), a bright neighbour within its own noise
+// keeps it from detection only with at least RIM_SHARE of its excess, a
+// steady one only with less (reference::outliers::RIM_LONE, RIM_SHARE).
+const real RIM_LONE = real(1.5);
+const real RIM_SHARE = real(0.5);
+
 real grey_at(uint i) { return (real(cr[i]) + real(cg[i]) + real(cb[i])) / real(3); }
 
 #include "lib/outlier_window.glsl"
@@ -61,15 +70,19 @@ void main()
         bool outlier = s.n >= real(push.min_n) && excess > real(push.k_sigma) * sd
             && excess <= real(push.k_sigma) * se;
         // OUTLIER-ISOLATED: a bright 8-neighbour makes o part of a feature;
-        // with OUTLIER-RIM (mode DETECT_RIM) only one that is itself within
-        // its own noise (a cluster of rare paths), not a light.
-        bool rim = push.mode == DETECT_RIM;
+        // with OUTLIER-RIM (mode DETECT_RIM), when o is one or two rare
+        // paths, not a light or a fainter rare path beside it.
+        bool rim = push.mode == DETECT_RIM && excess <= RIM_LONE * se;
         for (int qy = max(int(y) - 1, 0); outlier && qy <= min(int(y) + 1, int(push.height) - 1); ++qy) {
             for (int qx = max(int(x) - 1, 0); qx <= min(int(x) + 1, int(push.width) - 1); ++qx) {
                 uint j = uint(qy) * push.width + uint(qx);
                 real gj;
+                // OUTLIER-RIM: a rare path (within its own noise) shields o
+                // when it has RIM_SHARE of o's excess (a cluster), a steady
+                // pixel when it has less (a lit surface, not a light).
                 if (j != o && key_grey(keys[j], gj) && gj - s.mean > real(push.k_sigma) * sd
-                    && (!rim || gj - s.mean <= real(push.k_sigma) * grey_se(j))) {
+                    && (!rim || ((gj - s.mean <= real(push.k_sigma) * grey_se(j))
+                                 == (gj - s.mean >= RIM_SHARE * excess)))) {
                     outlier = false;
                 }
             }

@@ -203,10 +203,10 @@ pub const OPTIONS: &[OptionSpec] = &[
     },
     OptionSpec {
         key: "outliers.rim",
-        kind: Kind::Choice(&["off", "on"]),
-        default: "off",
+        kind: Kind::Choice(&["on", "off"]),
+        default: "on",
         section: "§4.4 step 1 (OUTLIER-RIM)",
-        help: "on: a bright 8-neighbour keeps a pixel from being detected only if the neighbour is itself within 3 of its own standard errors of the window's mean (a cluster of rare paths), not a light seen directly, so that one rare hit on a lamp's rim is a spike (off: OUTLIER-ISOLATED, any bright neighbour)",
+        help: "for a pixel whose excess is at most 1.5 of its standard errors (one or two rare paths), a bright 8-neighbour keeps it from detection only if it is a rare path itself (within 3 of its own standard errors) with at least half the pixel's excess, or a steady pixel with less: a light seen directly, or a fainter hit on its edge, does not shield one rare hit on the lamp's rim (off: OUTLIER-ISOLATED, any bright neighbour shields)",
     },
     OptionSpec {
         key: "outliers.wide",

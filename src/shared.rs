@@ -527,9 +527,11 @@ pub struct OutlierPush {
 /// mark the others for the wide window (OUTLIER-WIDE; 0 weighs every one).
 pub const WEIGHTS_NARROW: u32 = 1;
 
-/// [`OutlierPush::mode`] of `outlier_detect`: OUTLIER-RIM (`outliers.rim=on`),
-/// a bright 8-neighbour keeps a pixel from detection only when it is itself
-/// within its own noise (`DETECT_RIM` in `spirv/lib/outliers.glsl`).
+/// [`OutlierPush::mode`] of `outlier_detect`: OUTLIER-RIM (`outliers.rim=on`,
+/// the default): for a pixel of one or two rare paths, a bright 8-neighbour
+/// keeps it from detection only when it is a rare path with at least half
+/// the pixel's excess, or a steady pixel with less (`DETECT_RIM` in
+/// `spirv/lib/outliers.glsl`).
 pub const DETECT_RIM: u32 = 1;
 
 /// [`OutlierPush::mode`] of `outlier_weights`: weigh only the outliers that

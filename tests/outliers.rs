@@ -914,8 +914,8 @@ fn clip_kernel_matches_twin() {
 /// a background's 0.006) that the spec's test misses the firefly; with the
 /// clipping rounds it is found, by the reference and by the stage on the
 /// GPU (f32, f64) and the CPU, and nothing else is: not the lamp (steady:
-/// OUTLIER-NOISE), not a firefly touching the lamp (OUTLIER-ISOLATED), not
-/// the background.
+/// OUTLIER-NOISE), not a firefly touching the lamp (OUTLIER-ISOLATED, with
+/// `outliers.rim=off`), not the background.
 #[test]
 fn a_lamp_beside_a_firefly_does_not_hide_it() {
     let (w, h) = (48, 48);
@@ -940,9 +940,13 @@ fn a_lamp_beside_a_firefly_does_not_hide_it() {
 
 /// OUTLIER-RIM: the fixture above with `outliers.rim=on`. The firefly
 /// touching the steady lamp is a spike now (the lamp is far above its own
-/// noise, so it is no cluster the firefly belongs to), and is found once the
-/// clipping rounds take the lamp out of the statistics; two fireflies side
-/// by side, each within its own noise, are a cluster and stay.
+/// noise, and the faint rare hit beside it has less than half its excess,
+/// so neither makes a cluster with it), and is found once the clipping
+/// rounds take the lamp out of the statistics. What stays: two fireflies
+/// side by side, each within its own noise (a cluster); the faint one,
+/// beside a brighter rare hit; a pixel of the lamp's edge that more samples
+/// saw than one or two rare paths would give; and a rare hit beside a
+/// steady pixel with less than half its excess (a lit surface).
 #[test]
 fn a_rare_hit_on_a_lamps_rim_is_a_spike_with_outlier_rim() {
     let (w, h) = (48, 48);
@@ -954,16 +958,24 @@ fn a_rare_hit_on_a_lamps_rim_is_a_spike_with_outlier_rim() {
             var[y * w + x] = 0.0;
         }
     }
-    let mut spike = |i: usize| {
-        color[i] = 10.0;
-        var[i] = 100.0;
+    // (pixel, grey, variance): a rare path has a standard error equal to
+    // its value.
+    let mut set = |i: usize, value: f32, variance: f32| {
+        color[i] = value;
+        var[i] = variance;
         i
     };
-    let firefly = spike(21 * w + 27);
-    let beside = spike(20 * w + 22);
+    let firefly = set(21 * w + 27, 10.0, 100.0);
+    let beside = set(20 * w + 22, 10.0, 100.0);
+    set(20 * w + 23, 4.0, 16.0);
     // The cluster.
-    spike(35 * w + 10);
-    spike(35 * w + 11);
+    set(35 * w + 10, 10.0, 100.0);
+    set(35 * w + 11, 10.0, 100.0);
+    // The lamp's edge: 2.5 standard errors, more than two rare paths.
+    set(21 * w + 19, 25.0, 100.0);
+    // A rare path beside a steady, fainter lit pixel (a caustic's body).
+    set(10 * w + 35, 10.0, 100.0);
+    set(10 * w + 36, 3.0, 0.01);
     check_clip_finds((w, h), &color, &var, &[], &[beside, firefly], true);
     // Without the rule, neither the rim hit nor the cluster.
     check_clip_finds((w, h), &color, &var, &[], &[firefly], false);

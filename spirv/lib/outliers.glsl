@@ -36,9 +36,9 @@ bool key_grey(uint k, out real g)
 }
 
 // Entries of the queue of detected pixels (outlier_detect, outlier_median):
-// OUTLIER-ISOLATED never detects two 8-neighbours, so at most one pixel of
-// each 2x2 block; entries past it (a near-tie the two tests round apart)
-// are not queued.
+// OUTLIER-ISOLATED (and OUTLIER-RIM) never detects two 8-neighbours, so at
+// most one pixel of each 2x2 block; entries past it (a near-tie the two
+// tests round apart) are not queued.
 uint queue_capacity() { return ((push.width + 1u) / 2u) * ((push.height + 1u) / 2u); }
 
 // hi + lo += x without rounding error (Knuth's TwoSum; component-wise for

@@ -41,8 +41,9 @@ pub fn flops_per_pixel(radius: u32) -> f64 {
 
 /// Words of the queue of a `width × height` image: the indirect dispatch
 /// arguments (3), the entry count, then the entries: at most one pixel per
-/// 2×2 block (OUTLIER-ISOLATED never detects two 8-neighbours; the kernels
-/// drop any excess, `queue_capacity` in `spirv/lib/outliers.glsl`).
+/// 2×2 block (OUTLIER-ISOLATED and OUTLIER-RIM never detect two
+/// 8-neighbours; the kernels drop any excess, `queue_capacity` in
+/// `spirv/lib/outliers.glsl`).
 pub fn queue_words(width: usize, height: usize) -> usize {
     QUEUE_HEADER_WORDS + width.div_ceil(2) * height.div_ceil(2)
 }

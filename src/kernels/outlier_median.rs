@@ -77,9 +77,9 @@ pub enum Step {
 /// `color` and `var`. Both steps take the same bindings.
 ///
 /// A dispatch cannot be split into bands. Its worst case is bounded:
-/// OUTLIER-ISOLATED never detects two 8-neighbours, so at most a quarter of
-/// the pixels are queued (the queue's capacity; the kernels drop any
-/// excess): ≈ 0.1 MFLOP per entry at R = 14, at most ≈ 25 GFLOP per
+/// OUTLIER-ISOLATED (and OUTLIER-RIM) never detects two 8-neighbours, so
+/// at most a quarter of the pixels are queued (the queue's capacity; the
+/// kernels drop any excess): ≈ 0.1 MFLOP per entry at R = 14, at most ≈ 25 GFLOP per
 /// megapixel, milliseconds on a discrete GPU. At most 65535 workgroups are
 /// dispatched; the invocations stride over more entries. The cost estimate
 /// assumes [`DETECTED_FRACTION`].

@@ -52,7 +52,7 @@ pub fn clip_rounds(options: &Options) -> Result<u32> {
 pub struct Detection {
     /// OUTLIER-CLIP's rounds (`outliers.clip`).
     pub clip: u32,
-    /// OUTLIER-RIM (`outliers.rim=on`).
+    /// OUTLIER-RIM (`outliers.rim`, on by default).
     pub rim: bool,
 }
 

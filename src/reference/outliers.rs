@@ -30,12 +30,15 @@
 //!   firefly is a single-pixel event; bright neighbours mean a feature (a
 //!   highlight seen through glass, the edge of a light) whose energy belongs
 //!   there and not spread over 87×87 pixels.
-//! * Decision OUTLIER-RIM (ours, `outliers.rim`): with it, only a bright
-//!   neighbour whose own excess over `m_o` is within `3·se` of its mean (by
-//!   OUTLIER-NOISE, itself a rare path: a cluster of them) keeps `o` from
-//!   detection. A light seen directly is far above its own noise, so a rare
-//!   hit on its rim, one sample among many that see the dark wall beside
-//!   it, is a spike.
+//! * Decision OUTLIER-RIM (ours, `outliers.rim`): for a pixel whose excess
+//!   is at most [`RIM_LONE`] of its standard errors (one or two rare
+//!   paths), a bright neighbour whose own excess over `m_o` is within `3·se`
+//!   of its mean (by OUTLIER-NOISE, itself a rare path) keeps `o` from
+//!   detection only with at least [`RIM_SHARE`] of `o`'s excess (a cluster
+//!   of similar ones), and a steady one only with less (a lit surface,
+//!   such as a caustic's body). A light seen directly is steady and
+//!   brighter, and the partial hits of its edge fainter rare paths, so one
+//!   sample among many that see the dark wall beside a lamp is a spike.
 //! * Decision OUTLIER-MEDIAN (ours): the median of an even count is the lower one (rank
 //!   `(n−1)/2` of the sorted greys); among pixels whose grey equals it, the
 //!   lowest raster index is `q*`.
@@ -61,6 +64,17 @@
 //!   still exact per pass; `wide = 0` is the spec.
 
 use super::spp_of;
+
+/// OUTLIER-RIM: the rule applies to a pixel whose excess is at most this
+/// many of its standard errors (one rare path among `n` samples gives 1,
+/// two about 1.4; a lamp's edge that many samples see, more);
+/// `RIM_LONE` in `spirv/outlier_detect.comp`.
+pub const RIM_LONE: f64 = 1.5;
+
+/// OUTLIER-RIM: the share of `o`'s excess from which a bright neighbour
+/// within its own noise keeps `o` from detection, and below which a steady
+/// one does (`RIM_SHARE` in `spirv/outlier_detect.comp`).
+pub const RIM_SHARE: f64 = 0.5;
 
 /// `Ω_o(14)`: the detection and median window (29×29).
 pub const DETECT_RADIUS: usize = 14;
@@ -211,11 +225,17 @@ pub fn is_outlier(
         return false;
     }
     // OUTLIER-ISOLATED: a bright neighbour makes o part of a feature;
-    // OUTLIER-RIM: only one within its own noise, not a light.
+    // OUTLIER-RIM, when o is one or two rare paths: not a light, nor a
+    // fainter rare path beside it.
+    let rim = rim && excess <= RIM_LONE * grey_sd(var, o);
     let mut isolated = true;
     window(w, h, x, y, 1, spp, |q| {
-        let excess = grey(color, q) - m;
-        if q != o && excess > K_SIGMA * sd && (!rim || excess <= K_SIGMA * grey_sd(var, q)) {
+        let ej = grey(color, q) - m;
+        // OUTLIER-RIM: a rare path shields o when it has RIM_SHARE of o's
+        // excess (a cluster), a steady pixel when it has less (a lit
+        // surface, not a light).
+        let rare = ej <= K_SIGMA * grey_sd(var, q);
+        if q != o && ej > K_SIGMA * sd && (!rim || rare == (ej >= RIM_SHARE * excess)) {
             isolated = false;
         }
     });
