@@ -7,10 +7,10 @@
 // count >= min_n (OUTLIER-MIN-N), grey_o - m > k sd (SPIKE-SIDE, population
 // sd) and grey_o - m <= k se_o (OUTLIER-NOISE, se from the pixel's
 // variances) and no 8-neighbour is above m + k sd (OUTLIER-ISOLATED, on
-// outlier_grey's keys; OUTLIER-RIM, with push.mode = DETECT_RIM: not a
-// steady neighbour with RIM_SHARE of o's excess or more, a light, nor a
-// rare path with less). A
-// detected pixel is appended to the queue, whose entries outlier_median
+// outlier_grey's keys; OUTLIER-RIM, with push.mode = DETECT_RIM and o's
+// excess within RIM_LONE se_o: not a steady neighbour with RIM_SHARE of
+// o's excess or more, a light, nor a rare path with less). A detected
+// pixel is appended to the queue, whose entries outlier_median
 // replaces by the median pixel (and, in its second mode, writes back):
 // nothing else is written. The median lives in
 // its own kernel because on lavapipe a kernel that merely contains its

@@ -919,6 +919,16 @@ fn clip_kernel_matches_twin() {
 #[test]
 fn a_lamp_beside_a_firefly_does_not_hide_it() {
     let (w, h) = (48, 48);
+    let (color, var, firefly, _) = lamp_room(w, h);
+    // The firefly beside the lamp stays: OUTLIER-ISOLATED reads every valid
+    // pixel, the clipped lamp too.
+    check_clip_finds((w, h), &color, &var, &[], &[firefly], false);
+}
+
+/// A dark room (`dark_room`) with a steady 2×2 lamp of 500 at (20..22,
+/// 20..22), a firefly six pixels from it and one touching it (10 ± 10
+/// each): (colour, variance, firefly, the one beside the lamp).
+fn lamp_room(w: usize, h: usize) -> (Vec<f32>, Vec<f32>, usize, usize) {
     let mut color = dark_room(w, h);
     let mut var = vec![1e-4f32; w * h];
     for y in 20..22 {
@@ -927,57 +937,50 @@ fn a_lamp_beside_a_firefly_does_not_hide_it() {
             var[y * w + x] = 0.0;
         }
     }
-    let firefly = 21 * w + 27;
-    color[firefly] = 10.0;
-    var[firefly] = 100.0;
-    // A firefly beside the lamp stays: OUTLIER-ISOLATED reads every valid
-    // pixel, the clipped lamp too.
-    let beside = 20 * w + 22;
-    color[beside] = 10.0;
-    var[beside] = 100.0;
-    check_clip_finds((w, h), &color, &var, &[], &[firefly], false);
+    let (firefly, beside) = (21 * w + 27, 20 * w + 22);
+    for i in [firefly, beside] {
+        color[i] = 10.0;
+        var[i] = 100.0;
+    }
+    (color, var, firefly, beside)
 }
 
 /// OUTLIER-RIM: the fixture above with `outliers.rim=on`. The firefly
 /// touching the steady lamp is a spike now (the lamp is far above its own
 /// noise, and the faint rare hit beside it has less than half its excess,
 /// so neither makes a cluster with it), and is found once the clipping
-/// rounds take the lamp out of the statistics. What stays: two fireflies
-/// side by side, each within its own noise (a cluster); the faint one,
-/// beside a brighter rare hit; a pixel of the lamp's edge that more samples
-/// saw than one or two rare paths would give; and a rare hit beside a
-/// steady pixel with less than half its excess (a lit surface).
+/// rounds take the lamp out of the statistics. What stays: fireflies side
+/// by side, each within its own noise with more than half the other's
+/// excess (a cluster); the faint one, beside a brighter rare hit; pixels
+/// of the lamp's edge that more samples saw than one or two rare paths
+/// would give (2.5 and 1.6 standard errors); and a rare hit beside a steady
+/// pixel with less than half its excess (a lit surface).
 #[test]
 fn a_rare_hit_on_a_lamps_rim_is_a_spike_with_outlier_rim() {
     let (w, h) = (48, 48);
-    let mut color = dark_room(w, h);
-    let mut var = vec![1e-4f32; w * h];
-    for y in 20..22 {
-        for x in 20..22 {
-            color[y * w + x] = 500.0;
-            var[y * w + x] = 0.0;
-        }
-    }
+    let (mut color, mut var, firefly, beside) = lamp_room(w, h);
     // (pixel, grey, variance): a rare path has a standard error equal to
     // its value.
     let mut set = |i: usize, value: f32, variance: f32| {
         color[i] = value;
         var[i] = variance;
-        i
     };
-    let firefly = set(21 * w + 27, 10.0, 100.0);
-    let beside = set(20 * w + 22, 10.0, 100.0);
-    set(20 * w + 23, 4.0, 16.0);
-    // The cluster.
+    // 0.45 of its excess: too faint to shield it.
+    set(20 * w + 23, 4.5, 20.25);
+    // The cluster, and one of 0.55 of its neighbour's excess.
     set(35 * w + 10, 10.0, 100.0);
     set(35 * w + 11, 10.0, 100.0);
-    // The lamp's edge: 2.5 standard errors, more than two rare paths.
+    set(40 * w + 10, 10.0, 100.0);
+    set(40 * w + 11, 5.5, 30.25);
+    // The lamp's edge: 2.5 standard errors, more than two rare paths; and
+    // 1.6 of them.
     set(21 * w + 19, 25.0, 100.0);
+    set(19 * w + 20, 16.0, 100.0);
     // A rare path beside a steady, fainter lit pixel (a caustic's body).
     set(10 * w + 35, 10.0, 100.0);
     set(10 * w + 36, 3.0, 0.01);
     check_clip_finds((w, h), &color, &var, &[], &[beside, firefly], true);
-    // Without the rule, neither the rim hit nor the cluster.
+    // Without the rule the hit beside the lamp stays too.
     check_clip_finds((w, h), &color, &var, &[], &[firefly], false);
 }
 

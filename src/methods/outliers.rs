@@ -47,8 +47,9 @@ pub fn clip_rounds(options: &Options) -> Result<u32> {
     options.value("outliers.clip")
 }
 
-/// How steps 1–3 detect the spikes.
-#[derive(Copy, Clone, Debug, PartialEq, Eq, Default)]
+/// How steps 1–3 detect the spikes ([`Detection::of`] gives the
+/// registry's defaults).
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
 pub struct Detection {
     /// OUTLIER-CLIP's rounds (`outliers.clip`).
     pub clip: u32,
