@@ -10,12 +10,12 @@
 // outlier_grey's keys; OUTLIER-RIM, with push.mode = DETECT_RIM and o's
 // excess within RIM_LONE se_o: not a steady neighbour with RIM_SHARE of
 // o's excess or more, a light, nor a rare path with less). A detected
-// pixel is appended to the queue, whose entries outlier_median
-// replaces by the median pixel (and, in its second mode, writes back):
-// nothing else is written. The median lives in
-// its own kernel because on lavapipe a kernel that merely contains its
-// scans of the window runs much slower (PERF-HISTORY), and because a queue
-// keeps all SIMD lanes of the median busy.
+// pixel is appended to the queue, whose entries outlier_median replaces by
+// the median pixel (and, in its second mode, writes back): nothing else is
+// written. The median lives in its own kernel because on lavapipe a kernel
+// that merely contains its scans of the window runs much slower
+// (PERF-HISTORY), and because a queue keeps all SIMD lanes of the median
+// busy.
 // Scalar twin: src/reference/outlier_detect.rs.
 #include "lib/common.glsl"
 #include "lib/outliers.glsl"
@@ -77,13 +77,16 @@ void main()
             for (int qx = max(int(x) - 1, 0); qx <= min(int(x) + 1, int(push.width) - 1); ++qx) {
                 uint j = uint(qy) * push.width + uint(qx);
                 real gj;
-                // OUTLIER-RIM: a rare path (within its own noise) shields o
-                // when it has RIM_SHARE of o's excess (a cluster), a steady
-                // pixel when it has less (a lit surface, not a light).
-                if (j != o && key_grey(keys[j], gj) && gj - s.mean > real(push.k_sigma) * sd
-                    && (!rim || ((gj - s.mean <= real(push.k_sigma) * grey_se(j))
-                                 == (gj - s.mean >= RIM_SHARE * excess)))) {
-                    outlier = false;
+                if (j != o && key_grey(keys[j], gj)) {
+                    real ej = gj - s.mean;
+                    // OUTLIER-RIM: a rare path (within its own noise)
+                    // shields o when it has RIM_SHARE of o's excess (a
+                    // cluster), a steady pixel when it has less (a lit
+                    // surface, not a light).
+                    if (ej > real(push.k_sigma) * sd
+                        && (!rim || (ej <= real(push.k_sigma) * grey_se(j)) == (ej >= RIM_SHARE * excess))) {
+                        outlier = false;
+                    }
                 }
             }
         }

@@ -79,8 +79,8 @@ pub enum Step {
 /// A dispatch cannot be split into bands. Its worst case is bounded:
 /// OUTLIER-ISOLATED (and OUTLIER-RIM) never detects two 8-neighbours, so
 /// at most a quarter of the pixels are queued (the queue's capacity; the
-/// kernels drop any excess): ≈ 0.1 MFLOP per entry at R = 14, at most ≈ 25 GFLOP per
-/// megapixel, milliseconds on a discrete GPU. At most 65535 workgroups are
+/// kernels drop any excess): ≈ 0.1 MFLOP per entry at R = 14, at most ≈ 25
+/// GFLOP per megapixel, milliseconds on a discrete GPU. At most 65535 workgroups are
 /// dispatched; the invocations stride over more entries. The cost estimate
 /// assumes [`DETECTED_FRACTION`].
 #[allow(clippy::too_many_arguments)]
