@@ -4,23 +4,37 @@
 //! and what share of a 12-spp sample map each chosen order gets.
 //! Usage: `cargo run --release -p mcdenoise-tools --bin aos_worst -- stats.exr ref.exr [N [KEY=VALUE ...]]`
 //! (the trailing arguments are `--opt` options).
+use anyhow::Context;
 use mcdenoise::image::Layer;
 use mcdenoise::{Config, Denoiser, Method, Source};
-fn main() {
+
+const USAGE: &str = "usage: aos_worst stats.exr ref.exr [N [KEY=VALUE ...]]";
+
+fn main() -> anyhow::Result<()> {
     let a: Vec<String> = std::env::args().collect();
-    let img = mcdenoise::io::read_stats(std::path::Path::new(&a[1])).unwrap();
-    let rf = mcdenoise::io::read_rgb(std::path::Path::new(&a[2])).unwrap();
-    let n: usize = a.get(3).map(|s| s.parse().unwrap()).unwrap_or(20);
+    if a.iter().any(|s| s == "--help" || s == "-h") {
+        println!("{USAGE}");
+        return Ok(());
+    }
+    if a.len() < 3 {
+        anyhow::bail!("{USAGE}");
+    }
+    let img = mcdenoise::io::read_stats(std::path::Path::new(&a[1]))?;
+    let rf = mcdenoise::io::read_rgb(std::path::Path::new(&a[2]))?;
+    let n: usize = match a.get(3) {
+        Some(s) => s.parse().with_context(|| format!("N: {s}"))?,
+        None => 20,
+    };
     let mut cfg = Config::new(Method::Aos);
     cfg.debug = true;
     let opts: Vec<&str> = a.iter().skip(4).map(|s| s.as_str()).collect();
-    cfg.options = mcdenoise::options::Options::parse(&opts).unwrap();
-    let f = Denoiser::new_cpu(Source::of_image(&img), cfg)
-        .unwrap()
-        .denoise(&img, Some(12 * (img.width * img.height) as u32))
-        .unwrap();
+    cfg.options = mcdenoise::options::Options::parse(&opts)?;
+    let f = Denoiser::new_cpu(Source::of_image(&img), cfg)?
+        .denoise(&img, Some(12 * (img.width * img.height) as u32))?;
     let input = mcdenoise::colour_of(&img);
-    let var = img.get(Layer::ColorVariance).unwrap();
+    let var = img
+        .get(Layer::ColorVariance)
+        .context("the statistics have no colour variance")?;
     let dbg = |name: &str| -> &Vec<f32> {
         &f.debug
             .iter()
@@ -44,7 +58,7 @@ fn main() {
     println!("relative squared error summed: input {total_in:.3}, AOS {total_out:.3}");
     // The sample map for 12 more samples per pixel on average: what share
     // each chosen order (0: the input) gets.
-    let samples = f.samples.as_ref().unwrap();
+    let samples = f.samples.as_ref().context("AOS returned no sample map")?;
     let total: f64 = samples.iter().map(|&s| s as f64).sum();
     for o in [0.0f32, 1.0, 3.0] {
         let px: Vec<usize> = (0..w * img.height)
@@ -59,7 +73,7 @@ fn main() {
     }
     let mut idx: Vec<usize> = (0..w * img.height).collect();
     let gain = |i: usize| se(&f.color.planes, i) - se(&input.planes, i);
-    idx.sort_by(|p, q| gain(*q).partial_cmp(&gain(*p)).unwrap());
+    idx.sort_by(|p, q| gain(*q).total_cmp(&gain(*p)));
     let top: f64 = idx.iter().take(n).map(|&i| gain(i)).sum();
     println!("the {n} worst pixels add {top:.3}");
     for &i in idx.iter().take(n) {
@@ -82,4 +96,5 @@ fn main() {
             dbg("aos_bias_sd1")[i],
         );
     }
+    Ok(())
 }
