@@ -79,6 +79,7 @@ PLANE_OUT(22, dst)
 #define AOS_OUTLIER_W 8u
 #define AOS_RESIDUAL 16u
 #define AOS_FEATNOISE 32u
+#define AOS_IDENTITY_FLOOR 64u
 
 #define NT 64        // invocations per pixel
 #define D 10         // features
@@ -770,6 +771,40 @@ void main()
 // The choice of order (thread 0, after the quadratic forms' partial sums are
 // in QF_SUM): sigma*^2, each order's bias, variance and MSE, AOS-RESIDUAL,
 // AOS-IDENTITY, the output and AOS-FEATNOISE.
+// AOS-IDENTITY's candidate MSE: vbar_c, with AOS_IDENTITY_FLOOR at least
+// the median over the valid pixels of c's 3x3 of the per-sample variances
+// n_q vbar_q (the upper one of an even count), over n_c (AOS-IDENTITY-FLOOR).
+// Twin: reference::aos::identity_mse.
+real identity_mse(uint ci)
+{
+    real v = real(vbar[ci]);
+    if ((push.flags & AOS_IDENTITY_FLOOR) == 0u) {
+        return v;
+    }
+    int cx = int(ci % push.width);
+    int cy = int(ci / push.width);
+    float vv[9];
+    int nv = 0;
+    for (int qy = max(cy - 1, 0); qy <= min(cy + 1, int(push.height) - 1); ++qy) {
+        for (int qx = max(cx - 1, 0); qx <= min(cx + 1, int(push.width) - 1); ++qx) {
+            uint q = uint(qy) * push.width + uint(qx);
+            if (!valid_at(q)) {
+                continue;
+            }
+            // Insertion into the sorted prefix vv[0..nv).
+            float x = vbar[q] * spp_of(spp[q]);
+            int m = nv;
+            while (m > 0 && vv[m - 1] > x) {
+                vv[m] = vv[m - 1];
+                --m;
+            }
+            vv[m] = x;
+            ++nv;
+        }
+    }
+    return nv == 0 ? v : max(v, real(vv[nv / 2]) / real(max(spp_of(spp[ci]), 1.0)));
+}
+
 void pick(uint ci, int k, int p1, int p3, real o[14])
 {
     real tot[NSUM];
@@ -819,7 +854,10 @@ void pick(uint ci, int k, int p1, int p3, real o[14])
             best_mse = mse;
         }
     }
-    if ((push.flags & AOS_IDENTITY) != 0u && real(vbar[ci]) < best_mse) {
+    real vid = identity_mse(ci);
+    if ((push.flags & AOS_IDENTITY) != 0u && vid < best_mse) {
+        o[3] = vid;
+        o[13] = vid;
         write_out(ci, o);
         return;
     }

@@ -118,6 +118,13 @@ pub const OPTIONS: &[OptionSpec] = &[
         help: "the pixel's input competes as a candidate with MSE = its variance (on), or not (off, the paper)",
     },
     OptionSpec {
+        key: "aos.identity_floor",
+        kind: Kind::Choice(&["on", "off"]),
+        default: "on",
+        section: "§5.3 step 6 (AOS-IDENTITY-FLOOR)",
+        help: "the input candidate's MSE is at least the median per-sample variance of its 3x3 over its own count (on), or its own variance alone (off)",
+    },
+    OptionSpec {
         key: "aos.outlier_weight",
         kind: Kind::Choice(&["clamped", "off"]),
         default: "clamped",

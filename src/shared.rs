@@ -586,6 +586,8 @@ pub const AOS_OUTLIER_W: u32 = 8;
 pub const AOS_RESIDUAL: u32 = 16;
 /// [`AosPush::flags`]: AOS-FEATNOISE (`aos.feature_noise=on`).
 pub const AOS_FEATNOISE: u32 = 32;
+/// [`AosPush::flags`]: AOS-IDENTITY-FLOOR (`aos.identity_floor=on`).
+pub const AOS_IDENTITY_FLOOR: u32 = 64;
 
 // Constants the kernels and their scalar twins share (layouts and sizes that
 // both the host dispatch and the twin must agree on). `src/kernels` reads

@@ -635,3 +635,51 @@ fn the_residual_centre_variance_follows_the_centre_sample_count() {
     let own = residual_centre_var(1e-2, lnsum(16.0), 5.0, 128.0);
     assert_eq!(own, 1e-2);
 }
+
+/// AOS-IDENTITY-FLOOR: in a noisy flat region (0.1, per-sample variance
+/// 0.16 at 64 samples), one pixel whose samples missed the rare paths its
+/// neighbours caught (0.02, every sample alike: variance 0) kept its input as
+/// the identity candidate with the floor off; with it, the candidate's MSE
+/// is the 3×3's median per-sample variance over its count, a fit wins and
+/// the pixel comes out near the region's level. One firefly beside a quiet
+/// pixel does not raise that pixel's floor (the median).
+#[test]
+fn a_pixel_that_missed_its_neighbours_rare_paths_is_not_kept() {
+    let (w, h) = (21, 21);
+    let n = w * h;
+    let mut rng = Rng(5);
+    let c = 10 * w + 10;
+    let vbar_q: f64 = 0.16 / 64.0;
+    let y: Vec<f64> = (0..n)
+        .map(|i| {
+            if i == c {
+                0.02
+            } else {
+                0.1 + vbar_q.sqrt() * rng.normal()
+            }
+        })
+        .collect();
+    let vbar: Vec<f64> = (0..n).map(|i| if i == c { 0.0 } else { vbar_q }).collect();
+    let img = Img::grey(w, h, y, vbar, vec![vec![0.5; n]; 7]);
+    let pl = img.planes();
+    assert_eq!(r::identity_mse(&pl, c, false), 0.0);
+    let floor = r::identity_mse(&pl, c, true);
+    assert!((floor / vbar_q - 1.0).abs() < 1e-6, "floor {floor}");
+    let off = Settings {
+        identity_floor: false,
+        ..Settings::default()
+    };
+    let kept = r::pixel(&pl, c, r::RADIUS_FINAL, off, r::RIDGE);
+    assert_eq!((kept.order, kept.color[0]), (0, 0.02));
+    let p = r::pixel(&pl, c, r::RADIUS_FINAL, Settings::default(), r::RIDGE);
+    assert!(p.order > 0, "order {}", p.order);
+    assert!((p.color[0] - 0.1).abs() < 0.01, "out {}", p.color[0]);
+    assert!(p.mse >= p.var[0].min(p.var[1]), "mse {}", p.mse);
+
+    // A quiet image with one firefly beside pixel c.
+    let mut vbar = vec![1e-4; n];
+    vbar[c + 1] = 100.0;
+    let img = Img::grey(w, h, vec![0.1; n], vbar, vec![vec![0.5; n]; 7]);
+    let pl = img.planes();
+    assert_eq!(r::identity_mse(&pl, c, true), 1e-4);
+}

@@ -42,7 +42,7 @@ pub struct AosParams {
 
 impl AosParams {
     /// From the pass and `--opt aos.variance=paper|sandwich`,
-    /// `aos.bias_test=on|off`, `aos.identity=on|off`,
+    /// `aos.bias_test=on|off`, `aos.identity=on|off`, `aos.identity_floor=on|off`,
     /// `aos.outlier_weight=clamped|off`, `aos.residual=on|off`.
     pub fn new(pass: Pass, opts: &Options) -> Result<AosParams> {
         let variance = match opts.get("aos.variance") {
@@ -63,6 +63,7 @@ impl AosParams {
                 variance,
                 bias_test: opts.get("aos.bias_test") == "on",
                 identity: opts.get("aos.identity") == "on",
+                identity_floor: opts.get("aos.identity_floor") == "on",
                 outlier_weight: opts.get("aos.outlier_weight") == "clamped",
                 residual: opts.get("aos.residual") == "on",
                 feature_noise: opts.get("aos.feature_noise") == "on",

@@ -451,6 +451,8 @@ pub struct Settings {
     pub bias_test: bool,
     /// `aos.identity` (AOS-IDENTITY, see [`pixel`]).
     pub identity: bool,
+    /// `aos.identity_floor` (AOS-IDENTITY-FLOOR, see [`identity_mse`]).
+    pub identity_floor: bool,
     /// `aos.outlier_weight` (AOS-OUTLIER-W, see [`outlier_weight`]).
     pub outlier_weight: bool,
     /// `aos.residual` (AOS-RESIDUAL, see [`pixel`]).
@@ -464,12 +466,14 @@ impl Settings {
     /// settings.
     pub fn flags(&self) -> u32 {
         use crate::shared::{
-            AOS_BIAS_TEST, AOS_FEATNOISE, AOS_IDENTITY, AOS_OUTLIER_W, AOS_RESIDUAL, AOS_SANDWICH,
+            AOS_BIAS_TEST, AOS_FEATNOISE, AOS_IDENTITY, AOS_IDENTITY_FLOOR, AOS_OUTLIER_W,
+            AOS_RESIDUAL, AOS_SANDWICH,
         };
         let bit = |on: bool, b: u32| if on { b } else { 0 };
         bit(self.variance == Variance::Sandwich, AOS_SANDWICH)
             | bit(self.bias_test, AOS_BIAS_TEST)
             | bit(self.identity, AOS_IDENTITY)
+            | bit(self.identity_floor, AOS_IDENTITY_FLOOR)
             | bit(self.outlier_weight, AOS_OUTLIER_W)
             | bit(self.residual, AOS_RESIDUAL)
             | bit(self.feature_noise, AOS_FEATNOISE)
@@ -480,6 +484,7 @@ impl Settings {
         variance: Variance::Paper,
         bias_test: false,
         identity: false,
+        identity_floor: false,
         outlier_weight: false,
         residual: false,
         feature_noise: false,
@@ -492,6 +497,7 @@ impl Default for Settings {
             variance: Variance::Paper,
             bias_test: true,
             identity: true,
+            identity_floor: true,
             outlier_weight: true,
             residual: true,
             feature_noise: true,
@@ -682,8 +688,12 @@ pub fn pixel(pl: &Planes, c: usize, radius: usize, set: Settings, lambda_factor:
     let (Some((l, mse, kern)), Some(f)) = (best, best_fit) else {
         return out;
     };
-    if set.identity && pl.vbar[c] < mse {
-        return out;
+    if set.identity {
+        let v = identity_mse(pl, c, set.identity_floor);
+        if v < mse {
+            out.mse = v;
+            return out;
+        }
     }
     for ch in 0..3 {
         out.color[ch] = kern
@@ -698,6 +708,56 @@ pub fn pixel(pl: &Planes, c: usize, radius: usize, set: Settings, lambda_factor:
         out.feat_var = feature_noise(&d, &f.beta(&d, |q| pl.grey(q)));
     }
     out
+}
+
+/// The identity candidate's MSE (AOS-IDENTITY): `vbar_c`, and with
+/// `floor` (decision AOS-IDENTITY-FLOOR, ours) at least `m / n_c`, with
+/// `m` the median (the upper one of an even count) of the per-sample
+/// variances `n_q·vbar_q` over the valid pixels of c's 3×3, in f32 as on
+/// the GPU. A pixel whose few samples missed the rare paths its neighbours
+/// caught has a variance far below its true one, and its noisy input then
+/// beat every fit; the median ignores a lone firefly beside it.
+pub fn identity_mse(pl: &Planes, c: usize, floor: bool) -> f64 {
+    if !floor {
+        return pl.vbar[c];
+    }
+    identity_floor(
+        (pl.w, pl.h),
+        c,
+        pl.vbar[c],
+        pl.spp[c],
+        |q| pl.valid[q],
+        |q| pl.vbar[q] as f32 * pl.spp[q] as f32,
+    )
+}
+
+/// [`identity_mse`] with the floor, on any planes: `v_c` and `n_c` the
+/// centre's variance and count, `valid` and `per_sample` (`n_q·vbar_q` in
+/// f32) of any pixel of the `size` image. Also `aos_fit`'s twin.
+pub fn identity_floor(
+    size: (usize, usize),
+    c: usize,
+    v_c: f64,
+    n_c: f64,
+    valid: impl Fn(usize) -> bool,
+    per_sample: impl Fn(usize) -> f32,
+) -> f64 {
+    let (w, h) = size;
+    let (cx, cy) = (c % w, c / w);
+    let mut vv: Vec<f32> = Vec::with_capacity(9);
+    for qy in cy.saturating_sub(1)..=(cy + 1).min(h - 1) {
+        for qx in cx.saturating_sub(1)..=(cx + 1).min(w - 1) {
+            let q = qy * w + qx;
+            if valid(q) {
+                vv.push(per_sample(q));
+            }
+        }
+    }
+    if vv.is_empty() {
+        return v_c;
+    }
+    vv.sort_by(f32::total_cmp);
+    v_c.max(vv[vv.len() / 2] as f64 / n_c.max(1.0))
 }
 
 /// AOS over the image: every valid pixel (invalid ones are left to the

@@ -34,7 +34,8 @@ use super::aos_space::{features, Proj, D};
 use super::linalg::{ridge_cholesky, EPS_PIVOT};
 use super::spp_of;
 use crate::shared::{
-    AosPush, AOS_BIAS_TEST, AOS_FEATNOISE, AOS_IDENTITY, AOS_OUTLIER_W, AOS_RESIDUAL, AOS_SANDWICH,
+    AosPush, AOS_BIAS_TEST, AOS_FEATNOISE, AOS_IDENTITY, AOS_IDENTITY_FLOOR, AOS_OUTLIER_W,
+    AOS_RESIDUAL, AOS_SANDWICH,
 };
 
 pub use crate::shared::{
@@ -287,8 +288,25 @@ pub fn fit_pixel(push: &AosPush, inp: &FitInputs, c: usize, proj: &Proj) -> [f64
     }
     o[10] = sigma2;
     let (o_i, mse) = best.expect("two orders");
-    if push.flags & AOS_IDENTITY != 0 && vbar(c) < mse {
-        return o;
+    if push.flags & AOS_IDENTITY != 0 {
+        // AOS-IDENTITY-FLOOR.
+        let v = if push.flags & AOS_IDENTITY_FLOOR != 0 {
+            super::aos::identity_floor(
+                (w, h),
+                c,
+                vbar(c),
+                spp_of(inp.spp[c]),
+                |q| spp_of(inp.spp[q]) >= 1.0,
+                |q| inp.vbar[q] * spp_of(inp.spp[q]) as f32,
+            )
+        } else {
+            vbar(c)
+        };
+        if v < mse {
+            o[3] = v;
+            o[13] = v;
+            return o;
+        }
     }
     for ch in 0..3 {
         o[ch] = us[o_i]
