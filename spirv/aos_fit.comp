@@ -854,12 +854,14 @@ void pick(uint ci, int k, int p1, int p3, real o[14])
             best_mse = mse;
         }
     }
-    real vid = identity_mse(ci);
-    if ((push.flags & AOS_IDENTITY) != 0u && vid < best_mse) {
-        o[3] = vid;
-        o[13] = vid;
-        write_out(ci, o);
-        return;
+    if ((push.flags & AOS_IDENTITY) != 0u) {
+        real vid = identity_mse(ci);
+        if (vid < best_mse) {
+            o[3] = vid;
+            o[13] = vid;
+            write_out(ci, o);
+            return;
+        }
     }
     int pl = best == 0 ? p1 : p3;
     int ua = best == 0 ? V_U1 : V_U3;

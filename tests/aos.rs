@@ -681,5 +681,33 @@ fn a_pixel_that_missed_its_neighbours_rare_paths_is_not_kept() {
     vbar[c + 1] = 100.0;
     let img = Img::grey(w, h, vec![0.1; n], vbar, vec![vec![0.5; n]; 7]);
     let pl = img.planes();
-    assert_eq!(r::identity_mse(&pl, c, true), 1e-4);
+    let quiet = r::identity_mse(&pl, c, true);
+    assert!((quiet / 1e-4 - 1.0).abs() < 1e-6, "floor {quiet}");
+
+    // The corner pixel 0 (its 3×3 clamped to 2×2) with pixel 1 invalid:
+    // three valid pixels, per-sample variances 0.1·4 (its own), 1·2 and
+    // 3·1 (counts 4, 2, 1), sorted 0.4, 2, 3: the floor is the middle one
+    // over the corner's own count, 2/4, not a mean (0.45), not over a
+    // neighbour's count, and nothing from outside the 3×3 (pixels 2 and
+    // 2w have huge variances).
+    let mut img = Img::grey(w, h, vec![0.1; n], vec![0.0; n], vec![vec![0.5; n]; 7]);
+    img.vbar[0] = 0.1;
+    img.spp[0] = 4.0;
+    img.valid[1] = false;
+    img.vbar[w] = 1.0;
+    img.spp[w] = 2.0;
+    img.vbar[w + 1] = 3.0;
+    img.spp[w + 1] = 1.0;
+    img.vbar[2] = 1e6;
+    img.vbar[2 * w] = 1e6;
+    let corner = r::identity_mse(&img.planes(), 0, true);
+    assert!((corner - 0.5).abs() < 1e-9, "corner floor {corner}");
+    // An even count (four valid pixels) takes the upper median: pixel 1
+    // valid again with per-sample variance 16·1 = 16 gives 0.4, 2, 3, 16
+    // and 3/4 (the lower one would give 2/4).
+    img.valid[1] = true;
+    img.vbar[1] = 1.0;
+    img.spp[1] = 16.0;
+    let upper = r::identity_mse(&img.planes(), 0, true);
+    assert!((upper - 0.75).abs() < 1e-9, "upper median {upper}");
 }

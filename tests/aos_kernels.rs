@@ -404,13 +404,15 @@ fn without_f64_aos_fit_keeps_colour_and_bounds_its_estimates() {
         }
         let a = common::agreement(plane(4), &cpu[4]);
         assert!(a >= 0.98, "{}: {a}", what("order agreement"));
-        // The exported error (3) and the MSE (13): within §0.3 on 96 % of
-        // pixels (measured 96.4-98.7 %: a fit's MSE in f32 is off by up to
-        // ~0.5 %, and AOS-IDENTITY-FLOOR leaves fewer pixels to the input,
-        // whose MSE is exact), 99 % of them within 2 %; the variances (7, 9) within 5 % everywhere (measured
+        // The exported error (3) and the MSE (13): within §0.3 on 95 % of
+        // pixels (measured: 8 and 9 of 247 pixels outside on 19×13,
+        // 1.3-1.5 % on 31×23; with AOS-IDENTITY-FLOOR fewer pixels keep the
+        // input, whose MSE is within an ulp, and more take a fit's, which
+        // f32 moves by about 1 %), 99 % of them within 2 % (measured
+        // 0.85-1.1 %); the variances (7, 9) within 5 % everywhere (measured
         // 1.9 %). The biases are looser (NO-64BIT) and only finite here.
         for k in [3, 13] {
-            common::assert_close(&what(&format!("plane {k}")), plane(k), &cpu[k], 0.96);
+            common::assert_close(&what(&format!("plane {k}")), plane(k), &cpu[k], 0.95);
             let p99 = quantile(&relative_errors(plane(k), &cpu[k]), 0.99);
             assert!(p99 <= 0.02, "{}: p99 {p99}", what(&format!("plane {k}")));
         }
