@@ -768,9 +768,6 @@ void main()
     }
 }
 
-// The choice of order (thread 0, after the quadratic forms' partial sums are
-// in QF_SUM): sigma*^2, each order's bias, variance and MSE, AOS-RESIDUAL,
-// AOS-IDENTITY, the output and AOS-FEATNOISE.
 // AOS-IDENTITY's candidate MSE: vbar_c, with AOS_IDENTITY_FLOOR at least
 // the median over the valid pixels of c's 3x3 of the per-sample variances
 // n_q vbar_q (the upper one of an even count), over n_c (AOS-IDENTITY-FLOOR).
@@ -805,6 +802,9 @@ real identity_mse(uint ci)
     return nv == 0 ? v : max(v, real(vv[nv / 2]) / real(max(spp_of(spp[ci]), 1.0)));
 }
 
+// The choice of order (thread 0, after the quadratic forms' partial sums are
+// in QF_SUM): sigma*^2, each order's bias, variance and MSE, AOS-RESIDUAL,
+// AOS-IDENTITY, the output and AOS-FEATNOISE.
 void pick(uint ci, int k, int p1, int p3, real o[14])
 {
     real tot[NSUM];

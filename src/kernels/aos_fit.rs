@@ -117,8 +117,9 @@ pub fn flops_of_pixel(window: f64, rank: u32) -> f64 {
 
 /// Records the fits of rows `push.base_row + [0, rows)` (`push.flags`:
 /// `AOS_SANDWICH`, `AOS_BIAS_TEST`, `AOS_IDENTITY`, `AOS_IDENTITY_FLOOR`,
-/// `AOS_OUTLIER_W`, `AOS_RESIDUAL`, `AOS_FEATNOISE`). `vars`: the features' variances. `rank` is the mean TSVD
-/// rank assumed by the cost count (progress and the roofline only).
+/// `AOS_OUTLIER_W`, `AOS_RESIDUAL`, `AOS_FEATNOISE`). `vars`: the features'
+/// variances. `rank` is the mean TSVD rank assumed by the cost count
+/// (progress and the roofline only).
 pub fn record(
     batch: &mut Batch,
     precision: Precision,
