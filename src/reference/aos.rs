@@ -743,16 +743,10 @@ pub fn identity_floor(
     per_sample: impl Fn(usize) -> f32,
 ) -> f64 {
     let (w, h) = size;
-    let (cx, cy) = (c % w, c / w);
-    let mut vv: Vec<f32> = Vec::with_capacity(9);
-    for qy in cy.saturating_sub(1)..=(cy + 1).min(h - 1) {
-        for qx in cx.saturating_sub(1)..=(cx + 1).min(w - 1) {
-            let q = qy * w + qx;
-            if valid(q) {
-                vv.push(per_sample(q));
-            }
-        }
-    }
+    let mut vv: Vec<f32> = super::neighbourhood_3x3(w, h, c)
+        .filter(|&q| valid(q))
+        .map(per_sample)
+        .collect();
     if vv.is_empty() {
         return v_c;
     }

@@ -107,23 +107,17 @@ pub fn pixel_test_limit(
     spp: &[f32],
     i: usize,
 ) -> f64 {
-    let (x, y) = (i % w, i / w);
     let t = t_threshold3(spp_of(spp[i]));
     let vi = v(i);
     let (mut sum, mut max, mut n) = (0.0f64, 0.0f64, 0usize);
-    for qy in y.saturating_sub(1)..(y + 2).min(h) {
-        for qx in x.saturating_sub(1)..(x + 2).min(w) {
-            let q = qy * w + qx;
-            if valid(q) {
-                let vq = v(q);
-                if q != i && dist2(q) > t * t * (vq + vi) {
-                    continue;
-                }
-                sum += vq;
-                max = max.max(vq);
-                n += 1;
-            }
+    for q in neighbourhood_3x3(w, h, i).filter(|&q| valid(q)) {
+        let vq = v(q);
+        if q != i && dist2(q) > t * t * (vq + vi) {
+            continue;
         }
+        sum += vq;
+        max = max.max(vq);
+        n += 1;
     }
     let vbar = if n > 1 {
         (sum - max) / (n - 1) as f64
@@ -131,6 +125,14 @@ pub fn pixel_test_limit(
         sum
     };
     t * t * vi.max(vbar).max(PIXEL_TEST_VAR_FLOOR)
+}
+
+/// The pixels of `i`'s 3×3 neighbourhood in a `w × h` image, `i` among
+/// them, clipped at the borders, in raster order.
+pub fn neighbourhood_3x3(w: usize, h: usize, i: usize) -> impl Iterator<Item = usize> {
+    let (x, y) = (i % w, i / w);
+    (y.saturating_sub(1)..(y + 2).min(h))
+        .flat_map(move |qy| (x.saturating_sub(1)..(x + 2).min(w)).map(move |qx| qy * w + qx))
 }
 
 /// §0.2: the output of an invalid pixel `i` of a `w × h` image, the mean
@@ -143,16 +145,10 @@ pub fn valid_mean_3x3(
     valid: impl Fn(usize) -> bool,
     value: impl Fn(usize) -> f64,
 ) -> f64 {
-    let (x, y) = (i % w, i / w);
     let (mut s, mut n) = (0.0, 0usize);
-    for qy in y.saturating_sub(1)..(y + 2).min(h) {
-        for qx in x.saturating_sub(1)..(x + 2).min(w) {
-            let q = qy * w + qx;
-            if valid(q) {
-                s += value(q);
-                n += 1;
-            }
-        }
+    for q in neighbourhood_3x3(w, h, i).filter(|&q| valid(q)) {
+        s += value(q);
+        n += 1;
     }
     if n > 0 {
         s / n as f64
