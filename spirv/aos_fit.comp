@@ -168,9 +168,18 @@ real4 g_pb[D];
 real2 g_pc[D];
 real g_xc[D];
 // AOS-RESIDUAL: this invocation's sum of K (ln max(vbar, floor) + ln n) (the
-// per-sample variance) over the window rows it staged (f32 logarithm: GLSL
-// has no f64 one).
+// per-sample variance) over the window rows it staged that are not
+// all_black, and of their K (f32 logarithm: GLSL has no f64 one).
 real g_lnsum = real(0);
+real g_lnk = real(0);
+
+// ALL-BLACK: pixel q's samples all came out black (variance 0, colour 0):
+// AOS-RESIDUAL's window mean and AOS-IDENTITY-FLOOR's median leave it out.
+// Twin: reference::aos::all_black.
+bool all_black(uint q)
+{
+    return vbar[q] <= 0.0 && col_r[q] <= 0.0 && col_g[q] <= 0.0 && col_b[q] <= 0.0;
+}
 
 real feature(int j, uint q)
 {
@@ -296,8 +305,9 @@ void stage(ivec2 c, int base, int nrows, uint t, int k, inout ivec2 off)
         S_AT(X_K + rr * 4 + 1) = k2;
         S_AT(X_K + rr * 4 + 2) = k2 * vb;
         S_AT(X_K + rr * 4 + 3) = real(0);
-        if (use) {
+        if (use && !all_black(q)) {
             g_lnsum += kw * real(log(max(vbar[q], float(RESIDUAL_VBAR_FLOOR))) + log(max(spp_of(spp[q]), 1.0)));
+            g_lnk += kw;
         }
         S_AT(X_Y + rr * 4) = use ? real(col_r[q]) : real(0);
         S_AT(X_Y + rr * 4 + 1) = use ? real(col_g[q]) : real(0);
@@ -487,9 +497,10 @@ void main()
         }
         barrier();
     }
-    // The lanes' sums of K ln vbar (S_L is free until the Cholesky).
+    // The lanes' sums of K ln vbar and of K (S_L is free until the Cholesky).
     if (t < uint(CH)) {
         S_AT(S_L + int(t)) = g_lnsum;
+        S_AT(S_L + CH + int(t)) = g_lnk;
     }
     // The raw N and right-hand sides to workgroup memory.
     for (int h2 = 0; h2 < 2; ++h2) {
@@ -517,10 +528,12 @@ void main()
         real ksum = S_AT(S_N);
         S_AT(S_SC + SC_KSUM) = ksum;
         real lnsum = real(0);
+        real lnk = real(0);
         for (int i = 0; i < CH; ++i) {
             lnsum += S_AT(S_L + i);
+            lnk += S_AT(S_L + CH + i);
         }
-        S_AT(S_SC + SC_VC) = max(real(vbar[ci]), real(exp(float(lnsum / ksum))) / max(real(spp_of(spp[ci])), real(1)));
+        S_AT(S_SC + SC_VC) = lnk > real(0) ? max(real(vbar[ci]), real(exp(float(lnsum / lnk))) / max(real(spp_of(spp[ci])), real(1))) : real(vbar[ci]);
         S_AT(S_SCALE) = real(1);
         s_cidx[0] = 0;
         s_colv[0] = 0;
@@ -769,8 +782,9 @@ void main()
 }
 
 // AOS-IDENTITY's candidate MSE: vbar_c, with AOS_IDENTITY_FLOOR at least
-// the median over the valid pixels of c's 3x3 of the per-sample variances
-// n_q vbar_q (the upper one of an even count), over n_c (AOS-IDENTITY-FLOOR).
+// the median over the valid pixels of c's 3x3 that are not all_black of the
+// per-sample variances n_q vbar_q (the upper one of an even count), over n_c
+// (AOS-IDENTITY-FLOOR).
 // Twin: reference::aos::identity_mse.
 real identity_mse(uint ci)
 {
@@ -785,7 +799,7 @@ real identity_mse(uint ci)
     for (int qy = max(cy - 1, 0); qy <= min(cy + 1, int(push.height) - 1); ++qy) {
         for (int qx = max(cx - 1, 0); qx <= min(cx + 1, int(push.width) - 1); ++qx) {
             uint q = uint(qy) * push.width + uint(qx);
-            if (!valid_at(q)) {
+            if (!valid_at(q) || all_black(q)) {
                 continue;
             }
             // Insertion into the sorted prefix vv[0..nv).

@@ -613,20 +613,14 @@ fn feature_noise_is_the_fitted_gradient_times_the_feature_sd() {
 /// sampling it is the geometric mean of `vbar`; a centre with 8× the
 /// samples of its window gets 1/8 of that (not its neighbours' larger
 /// variances of the mean, which hid a biased fit at the ceiling edge of the
-/// adaptive cornell scene); and never less than its own `vbar_c`.
+/// adaptive cornell scene); and never less than its own `vbar_c`. With
+/// every pixel left out of the window's sums (ALL-BLACK) it is `vbar_c`.
 #[test]
 fn the_residual_centre_variance_follows_the_centre_sample_count() {
     use mcdenoise::reference::aos::{residual_centre_var, residual_ln_term};
     // A window of 5 pixels with equal weights: vbar 1e-3, 2e-3, 4e-3 ... at 16 spp.
     let vbars = [1e-3, 2e-3, 4e-3, 8e-3, 16e-3];
-    let k = [1.0; 5];
-    let lnsum = |n: f64| -> f64 {
-        vbars
-            .iter()
-            .zip(&k)
-            .map(|(v, k)| k * residual_ln_term(*v, n))
-            .sum()
-    };
+    let lnsum = |n: f64| -> f64 { vbars.iter().map(|v| residual_ln_term(*v, n)).sum() };
     let geo = 4e-3; // geometric mean of vbars
     let uniform = residual_centre_var(1e-4, lnsum(16.0), 5.0, 16.0);
     assert!((uniform / geo - 1.0).abs() < 1e-12, "{uniform}");
@@ -634,6 +628,67 @@ fn the_residual_centre_variance_follows_the_centre_sample_count() {
     assert!((more / (geo / 8.0) - 1.0).abs() < 1e-12, "{more}");
     let own = residual_centre_var(1e-2, lnsum(16.0), 5.0, 128.0);
     assert_eq!(own, 1e-2);
+    // A window whose every pixel is left out: the centre's own.
+    assert_eq!(residual_centre_var(1e-4, 0.0, 0.0, 16.0), 1e-4);
+    // ALL-BLACK: variance 0 and colour 0 in every channel; a steady
+    // non-zero colour (a lamp) or any variance is counted.
+    use mcdenoise::reference::aos::all_black;
+    assert!(all_black(0.0, [0.0; 3]));
+    assert!(!all_black(0.0, [0.0, 0.0, 0.5]));
+    assert!(!all_black(1e-6, [0.0; 3]));
+}
+
+/// ALL-BLACK: a flat wall lit only by rare paths (16 samples per
+/// pixel, each reaching the light with probability 0.042 and bringing 2.4,
+/// so the wall's level is 0.1): half the pixels saw none of it, came out 0
+/// with variance 0, and their zeros pulled both AOS-RESIDUAL's geometric
+/// mean and AOS-IDENTITY-FLOOR's median to 0. A black pixel then kept its
+/// input (the residual of every fit looked significant, the identity's
+/// MSE was 0). Skipping the zero variances, a fit wins, the black pixels
+/// come out near the wall's level, and the fit's MSE is its variance.
+#[test]
+fn a_pixel_whose_samples_all_missed_the_light_is_not_kept() {
+    let (w, h) = (21, 21);
+    let n = w * h;
+    let spp = 16.0;
+    let mut rng = Rng(11);
+    let (mut y, mut vbar) = (vec![0.0; n], vec![0.0; n]);
+    for i in 0..n {
+        let hits = (0..16).filter(|_| rng.uniform() < 0.042).count() as f64;
+        let m = 2.4 * hits / spp;
+        // The unbiased sample variance of 16 values in {0, 2.4}, over 16.
+        let s2 = (2.4 * 2.4 * hits - spp * m * m) / (spp - 1.0);
+        y[i] = m;
+        vbar[i] = s2 / spp;
+    }
+    let mut img = Img::grey(w, h, y, vbar, vec![vec![0.5; n]; 7]);
+    img.spp = vec![spp; n];
+    let pl = img.planes();
+    let black: Vec<usize> = (0..n)
+        .filter(|&i| {
+            let (x, yy) = (i % w, i / w);
+            pl.vbar[i] == 0.0 && (5..16).contains(&x) && (5..16).contains(&yy)
+        })
+        .collect();
+    assert!(black.len() > 30, "{} black pixels", black.len());
+    let mut kept = 0;
+    for &c in &black {
+        let p = r::pixel(&pl, c, r::RADIUS_FINAL, Settings::default(), r::RIDGE);
+        if p.order == 0 {
+            kept += 1;
+        } else {
+            assert!(
+                (p.color[0] - 0.1).abs() < 0.05,
+                "pixel {c}: out {}",
+                p.color[0]
+            );
+            // The fit's MSE is its variance, not a residual's "bias" of
+            // about 0.1² (the black input's distance from the wall).
+            assert!(p.mse < 2e-3, "pixel {c}: mse {}", p.mse);
+        }
+        assert!(r::identity_mse(&pl, c, true) > 0.0, "pixel {c}");
+    }
+    assert_eq!(kept, 0, "{kept} of {} black pixels kept", black.len());
 }
 
 /// AOS-IDENTITY-FLOOR: in a noisy flat region (0.1, per-sample variance

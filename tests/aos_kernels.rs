@@ -60,15 +60,26 @@ fn image(w: usize, h: usize, seed: u64, vis: bool) -> Img {
                 } else {
                     0.0
                 };
+                // Black where ALL-BLACK applies (variance 0 below).
+                if i % 28 == 5 {
+                    return 0.0;
+                }
                 (t + 0.05 * rng.normal()) as f32
             })
             .collect()
     });
-    // Every 13th pixel has a variance above 1 (AOS-OUTLIER-W weighs it).
+    // Every 13th pixel has a variance above 1 (AOS-OUTLIER-W weighs it);
+    // every 7th has 0 (and colour 0 where i % 28 == 5, ALL-BLACK).
     let vbar = (0..n)
         .map(|i| {
             let v = 0.0025 * (0.5 + rng.uniform());
-            (if i % 13 == 3 { 3.0 + v } else { v }) as f32
+            (if i % 13 == 3 {
+                3.0 + v
+            } else if i % 7 == 5 {
+                0.0
+            } else {
+                v
+            }) as f32
         })
         .collect();
     // Sample counts differ from pixel to pixel, as under adaptive sampling

@@ -92,6 +92,11 @@ impl Planes<'_> {
         }
     }
 
+    /// [`all_black`] at pixel `q`.
+    pub fn all_black(&self, q: usize) -> bool {
+        all_black(self.vbar[q], [0, 1, 2].map(|ch| self.color[ch][q]))
+    }
+
     /// `grey = (R + G + B)/3` of pixel `q` (§0.1).
     pub fn grey(&self, q: usize) -> f64 {
         (self.color[0][q] + self.color[1][q] + self.color[2][q]) / 3.0
@@ -417,9 +422,15 @@ pub const RESIDUAL_VBAR_FLOOR: f64 = 1e-20;
 /// (`lnsum = Σ K_i ln …`, `ksum = Σ K_i`), over the centre's sample count
 /// `n_c`. Under uniform sampling that is the geometric mean of `vbar`; under
 /// adaptive sampling a centre with more samples than its window is not
-/// given its neighbours' larger variances of the mean.
+/// given its neighbours' larger variances of the mean. Both sums skip the
+/// [`all_black`] pixels: with no other pixel (`ksum = 0`) the result is
+/// `vbar_c`.
 pub fn residual_centre_var(vbar_c: f64, lnsum: f64, ksum: f64, n_c: f64) -> f64 {
-    vbar_c.max((lnsum / ksum).exp() / n_c.max(1.0))
+    if ksum > 0.0 {
+        vbar_c.max((lnsum / ksum).exp() / n_c.max(1.0))
+    } else {
+        vbar_c
+    }
 }
 
 /// The term of [`residual_centre_var`]'s `lnsum` for a window pixel with
@@ -428,6 +439,18 @@ pub fn residual_centre_var(vbar_c: f64, lnsum: f64, ksum: f64, n_c: f64) -> f64 
 /// product, which could overflow).
 pub fn residual_ln_term(vbar: f64, n: f64) -> f64 {
     vbar.max(RESIDUAL_VBAR_FLOOR).ln() + n.max(1.0).ln()
+}
+
+/// Decision ALL-BLACK (ours): a pixel whose samples all came out black
+/// (`vbar` 0 and colour 0 in every channel) says nothing of the noise
+/// around it, so AOS-RESIDUAL's window mean and AOS-IDENTITY-FLOOR's median
+/// leave it out. Where light arrives by rare paths, most pixels of a
+/// region can miss them all; their zero variances pulled both statistics
+/// to 0, and a black pixel kept its black input. A pixel of one steady
+/// non-zero colour (a lamp, the sky) is still counted: its variance 0 is
+/// real.
+pub fn all_black(vbar: f64, rgb: [f64; 3]) -> bool {
+    vbar <= 0.0 && rgb.iter().all(|&c| c <= 0.0)
 }
 
 /// AOS-RESIDUAL: the bias² an order's residual at the centre shows, or 0.
@@ -597,12 +620,14 @@ pub fn pixel(pl: &Planes, c: usize, radius: usize, set: Settings, lambda_factor:
     // AOS-RESIDUAL's variance of the centre, from the window's geometric
     // mean of vbar.
     let v_c = set.residual.then(|| {
-        let lnsum: f64 =
-            d.kh.iter()
-                .zip(&d.idx)
-                .map(|(k, &q)| k * residual_ln_term(pl.vbar[q], pl.spp[q]))
-                .sum();
-        residual_centre_var(pl.vbar[c], lnsum, d.kh.iter().sum(), pl.spp[c])
+        let (mut lnsum, mut ksum) = (0.0, 0.0);
+        for (k, &q) in d.kh.iter().zip(&d.idx) {
+            if !pl.all_black(q) {
+                lnsum += k * residual_ln_term(pl.vbar[q], pl.spp[q]);
+                ksum += k;
+            }
+        }
+        residual_centre_var(pl.vbar[c], lnsum, ksum, pl.spp[c])
     });
     let mut out = Pixel {
         rank: d.rank,
@@ -716,7 +741,8 @@ pub fn pixel(pl: &Planes, c: usize, radius: usize, set: Settings, lambda_factor:
 /// variances `n_q·vbar_q` over the valid pixels of c's 3×3, in f32 as on
 /// the GPU. A pixel whose few samples missed the rare paths its neighbours
 /// caught has a variance far below its true one, and its noisy input then
-/// beat every fit; the median ignores a lone firefly beside it.
+/// beat every fit; the median ignores a lone firefly beside it. The
+/// [`all_black`] pixels are not counted.
 pub fn identity_mse(pl: &Planes, c: usize, floor: bool) -> f64 {
     if !floor {
         return pl.vbar[c];
@@ -726,25 +752,26 @@ pub fn identity_mse(pl: &Planes, c: usize, floor: bool) -> f64 {
         c,
         pl.vbar[c],
         pl.spp[c],
-        |q| pl.valid[q],
+        |q| pl.valid[q] && !pl.all_black(q),
         |q| pl.vbar[q] as f32 * pl.spp[q] as f32,
     )
 }
 
 /// [`identity_mse`] with the floor, on any planes: `v_c` and `n_c` the
-/// centre's variance and count, `valid` and `per_sample` (`n_q·vbar_q` in
-/// f32) of any pixel of the `size` image. Also `aos_fit`'s twin.
+/// centre's variance and count; `counted` (valid and not [`all_black`])
+/// and `per_sample` (`n_q·vbar_q` in f32) of any pixel of the `size`
+/// image. Also `aos_fit`'s twin.
 pub fn identity_floor(
     size: (usize, usize),
     c: usize,
     v_c: f64,
     n_c: f64,
-    valid: impl Fn(usize) -> bool,
+    counted: impl Fn(usize) -> bool,
     per_sample: impl Fn(usize) -> f32,
 ) -> f64 {
     let (w, h) = size;
     let mut vv: Vec<f32> = super::neighbourhood_3x3(w, h, c)
-        .filter(|&q| valid(q))
+        .filter(|&q| counted(q))
         .map(per_sample)
         .collect();
     if vv.is_empty() {

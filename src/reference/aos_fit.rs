@@ -27,8 +27,8 @@
 //!   columns' `β s` and the projection, `(Σ_j |Σ_m β_m s_m P[m][j]| σ_j)²`.
 
 use super::aos::{
-    outlier_weight, residual_bias2, residual_centre_var, residual_ln_term, BIAS_Z, INCREMENT,
-    P_STAR, RIDGE, RMS_EPS,
+    all_black, outlier_weight, residual_bias2, residual_centre_var, residual_ln_term, BIAS_Z,
+    INCREMENT, P_STAR, RIDGE, RMS_EPS,
 };
 use super::aos_space::{features, Proj, D};
 use super::linalg::{ridge_cholesky, EPS_PIVOT};
@@ -97,7 +97,7 @@ pub fn fit_pixel(push: &AosPush, inp: &FitInputs, c: usize, proj: &Proj) -> [f64
     let mut br = vec![0.0; pr * pr];
     let mut gr = vec![0.0; pr * pr];
     let mut xr = vec![0.0; pe];
-    let mut lnsum = 0.0;
+    let (mut lnsum, mut lnk) = (0.0, 0.0);
     for qy in cy.saturating_sub(r)..(cy + r + 1).min(h) {
         for qx in cx.saturating_sub(r)..(cx + r + 1).min(w) {
             let q = qy * w + qx;
@@ -117,7 +117,10 @@ pub fn fit_pixel(push: &AosPush, inp: &FitInputs, c: usize, proj: &Proj) -> [f64
             for ch in 0..3 {
                 xr[pr + ch] = col(ch, q);
             }
-            lnsum += kw * residual_ln_term(vbar(q), spp_of(inp.spp[q]));
+            if !all_black(vbar(q), [0, 1, 2].map(|ch| col(ch, q))) {
+                lnsum += kw * residual_ln_term(vbar(q), spp_of(inp.spp[q]));
+                lnk += kw;
+            }
             let (k2, kv) = (kw * kw, kw * kw * vbar(q));
             for i in 0..pe {
                 for j in 0..=i {
@@ -251,7 +254,7 @@ pub fn fit_pixel(push: &AosPush, inp: &FitInputs, c: usize, proj: &Proj) -> [f64
         sw[o_i] = qf(&gm, &u);
         bv[o_i] = qf(&gm, &qs[o_i]);
     }
-    let v_c = residual_centre_var(vbar(c), lnsum, ksum, spp_of(inp.spp[c]));
+    let v_c = residual_centre_var(vbar(c), lnsum, lnk, spp_of(inp.spp[c]));
     let mut best: Option<(usize, f64)> = None;
     for o_i in 0..2 {
         let var = if push.flags & AOS_SANDWICH != 0 {
@@ -296,7 +299,9 @@ pub fn fit_pixel(push: &AosPush, inp: &FitInputs, c: usize, proj: &Proj) -> [f64
                 c,
                 vbar(c),
                 spp_of(inp.spp[c]),
-                |q| spp_of(inp.spp[q]) >= 1.0,
+                |q| {
+                    spp_of(inp.spp[q]) >= 1.0 && !all_black(vbar(q), [0, 1, 2].map(|ch| col(ch, q)))
+                },
                 |q| inp.vbar[q] * spp_of(inp.spp[q]) as f32,
             )
         } else {
