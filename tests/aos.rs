@@ -628,8 +628,9 @@ fn the_residual_centre_variance_follows_the_centre_sample_count() {
     assert!((more / (geo / 8.0) - 1.0).abs() < 1e-12, "{more}");
     let own = residual_centre_var(1e-2, lnsum(16.0), 5.0, 128.0);
     assert_eq!(own, 1e-2);
-    // A window whose every pixel is left out: the centre's own.
-    assert_eq!(residual_centre_var(1e-4, 0.0, 0.0, 16.0), 1e-4);
+    // A window whose every pixel is left out (a sum of weight 0): the
+    // centre's own.
+    assert_eq!(residual_centre_var(1e-4, 1.0, 0.0, 16.0), 1e-4);
     // ALL-BLACK: variance 0 and colour 0 in every channel; a steady
     // non-zero colour (a lamp) or any variance is counted.
     use mcdenoise::reference::aos::all_black;

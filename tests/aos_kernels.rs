@@ -30,6 +30,15 @@ fn image(w: usize, h: usize, seed: u64, vis: bool) -> Img {
     let mut rng = Rng(seed);
     let n = w * h;
     let edge = |i: usize| (i % w) * 2 > w + (i / w) / 2;
+    // ALL-BLACK: pixels whose samples all came out black (colour 0,
+    // variance 0): every 28th, and three in four of a patch lit by rare
+    // paths in the top third, where the window's sums and the 3×3
+    // medians are mostly theirs.
+    let black = |i: usize| {
+        let (x, y) = (i % w, i / w);
+        let patch = 4 * x >= w && 2 * x < w && 3 * y < h;
+        i % 28 == 5 || (patch && (x + 2 * y) % 4 != 0)
+    };
     let feats: Vec<Vec<f32>> = (0..8)
         .map(|k| {
             (0..n)
@@ -60,8 +69,7 @@ fn image(w: usize, h: usize, seed: u64, vis: bool) -> Img {
                 } else {
                     0.0
                 };
-                // Black where ALL-BLACK applies (variance 0 below).
-                if i % 28 == 5 {
+                if black(i) {
                     return 0.0;
                 }
                 (t + 0.05 * rng.normal()) as f32
@@ -69,11 +77,13 @@ fn image(w: usize, h: usize, seed: u64, vis: bool) -> Img {
             .collect()
     });
     // Every 13th pixel has a variance above 1 (AOS-OUTLIER-W weighs it);
-    // every 7th has 0 (and colour 0 where i % 28 == 5, ALL-BLACK).
+    // every 7th has 0, and the black ones.
     let vbar = (0..n)
         .map(|i| {
             let v = 0.0025 * (0.5 + rng.uniform());
-            (if i % 13 == 3 {
+            (if black(i) {
+                0.0
+            } else if i % 13 == 3 {
                 3.0 + v
             } else if i % 7 == 5 {
                 0.0

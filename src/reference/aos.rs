@@ -423,7 +423,7 @@ pub const RESIDUAL_VBAR_FLOOR: f64 = 1e-20;
 /// `n_c`. Under uniform sampling that is the geometric mean of `vbar`; under
 /// adaptive sampling a centre with more samples than its window is not
 /// given its neighbours' larger variances of the mean. Both sums skip the
-/// [`all_black`] pixels: with no other pixel (`ksum = 0`) the result is
+/// [`all_black`] pixels: with no pixel left (`ksum = 0`) the result is
 /// `vbar_c`.
 pub fn residual_centre_var(vbar_c: f64, lnsum: f64, ksum: f64, n_c: f64) -> f64 {
     if ksum > 0.0 {
@@ -618,7 +618,7 @@ pub fn pixel(pl: &Planes, c: usize, radius: usize, set: Settings, lambda_factor:
     let mut best: Option<(usize, f64, Vec<f64>)> = None;
     let mut best_fit: Option<Fit> = None;
     // AOS-RESIDUAL's variance of the centre, from the window's geometric
-    // mean of vbar.
+    // mean of per-sample variances (all-black pixels left out).
     let v_c = set.residual.then(|| {
         let (mut lnsum, mut ksum) = (0.0, 0.0);
         for (k, &q) in d.kh.iter().zip(&d.idx) {

@@ -22,7 +22,8 @@
 //! * AOS-RESIDUAL: `res_l = u_lᵀ (X_lᵀ W grey) − grey_c`, and with the
 //!   centre's weight `l_c = K_c u_l[0]` (its row is `e_1`),
 //!   `Σ_i (l_i − δ_ic)² v_i = u_lᵀ G u_l − l_c² vbar_c + (l_c − 1)² v_c`;
-//!   the window pass also sums `K_i ln max(vbar_i, floor)` for `v_c`;
+//!   the window pass also sums `K_i (ln max(vbar_i, floor) + ln n_i)` and
+//!   `K_i` over the pixels that are not all black, for `v_c` (ALL-BLACK);
 //! * AOS-FEATNOISE: `β_l = A_l⁻¹ (X_lᵀ W grey)`, and with the power-1
 //!   columns' `β s` and the projection, `(Σ_j |Σ_m β_m s_m P[m][j]| σ_j)²`.
 
