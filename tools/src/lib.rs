@@ -10,6 +10,27 @@ use std::sync::Arc;
 use mcdenoise::render::{reference, Scene};
 use mcdenoise::{GpuContext, Method, RgbImage};
 
+/// Prints `usage` and returns true when the command line asks for help
+/// (`-h` or `--help` anywhere): the tools that read their arguments by hand
+/// call it first, so that `--help` is never taken for a file name.
+pub fn asked_for_help(usage: &str) -> bool {
+    let asked = std::env::args().skip(1).any(|a| a == "-h" || a == "--help");
+    if asked {
+        println!("{usage}");
+    }
+    asked
+}
+
+/// Exits with status 2 after printing `usage` on stderr when the command
+/// line has fewer than `n` arguments (not counting the program), instead of
+/// a panic at the first missing one.
+pub fn require_args(usage: &str, n: usize) {
+    if std::env::args().len() <= n {
+        eprintln!("{usage}");
+        std::process::exit(2);
+    }
+}
+
 /// A method by name, for clap's `value_parser` (`--methods wlr,lp`).
 pub fn parse_method(name: &str) -> Result<Method, String> {
     Method::from_name(name).ok_or_else(|| format!("no method {name:?}"))

@@ -11,11 +11,10 @@ use mcdenoise::{Config, Denoiser, Method, Source};
 const USAGE: &str = "usage: aos_worst stats.exr ref.exr [N [KEY=VALUE ...]]";
 
 fn main() -> anyhow::Result<()> {
-    let a: Vec<String> = std::env::args().collect();
-    if a.iter().any(|s| s == "--help" || s == "-h") {
-        println!("{USAGE}");
+    if mcdenoise_tools::asked_for_help(USAGE) {
         return Ok(());
     }
+    let a: Vec<String> = std::env::args().collect();
     if a.len() < 3 {
         anyhow::bail!("{USAGE}");
     }

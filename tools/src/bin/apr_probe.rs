@@ -5,7 +5,13 @@
 //! `cargo run --release -p mcdenoise-tools --bin apr_probe -- stats.exr X Y [channel [ref.exr]]`.
 use mcdenoise::image::Layer;
 use mcdenoise::reference::apr as r;
+const USAGE: &str = "usage: apr_probe stats.exr X Y [channel [ref.exr]]";
+
 fn main() {
+    if mcdenoise_tools::asked_for_help(USAGE) {
+        return;
+    }
+    mcdenoise_tools::require_args(USAGE, 3);
     let a: Vec<String> = std::env::args().collect();
     let stats = mcdenoise::io::read_stats(std::path::Path::new(&a[1])).unwrap();
     let (x, yy): (usize, usize) = (a[2].parse().unwrap(), a[3].parse().unwrap());

@@ -3,7 +3,13 @@
 //! the debug layers (order of its block, extra-centre mask). Usage:
 //! `cargo run --release -p mcdenoise-tools --bin apr_worst -- stats.exr out.exr ref.exr`.
 use mcdenoise::image::Layer;
+const USAGE: &str = "usage: apr_worst stats.exr out.exr ref.exr";
+
 fn main() {
+    if mcdenoise_tools::asked_for_help(USAGE) {
+        return;
+    }
+    mcdenoise_tools::require_args(USAGE, 3);
     let a: Vec<String> = std::env::args().collect();
     let stats = mcdenoise::io::read_stats(std::path::Path::new(&a[1])).unwrap();
     let out = mcdenoise::io::read_rgb(std::path::Path::new(&a[2])).unwrap();

@@ -9,7 +9,12 @@ use std::path::Path;
 
 use mcdenoise::Layer;
 
+const USAGE: &str = "usage: feature_mse REF.exr A.exr [B.exr ...]";
+
 fn main() -> Result<(), Box<dyn std::error::Error>> {
+    if mcdenoise_tools::asked_for_help(USAGE) {
+        return Ok(());
+    }
     let args: Vec<String> = std::env::args().skip(1).collect();
     let (rf, rest) = args
         .split_first()

@@ -8,7 +8,13 @@
 use mcdenoise::image::Layer;
 use mcdenoise::methods::{denoise, Backend, DenoiseRequest, Method};
 
+const USAGE: &str = "usage: feature_swap colour.exr features.exr reference.exr [wlr|lp]";
+
 fn main() -> mcdenoise::error::Result<()> {
+    if mcdenoise_tools::asked_for_help(USAGE) {
+        return Ok(());
+    }
+    mcdenoise_tools::require_args(USAGE, 3);
     let a: Vec<String> = std::env::args().collect();
     let p = |i: usize| std::path::PathBuf::from(&a[i]);
     let colour = mcdenoise::io::read_stats(&p(1))?;

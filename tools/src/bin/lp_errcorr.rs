@@ -17,9 +17,15 @@ use mcdenoise::gpu::{ContextOptions, GpuContext};
 use mcdenoise::methods::{denoise, Backend, DenoiseRequest, Method};
 use mcdenoise::options::Options;
 
+const USAGE: &str = "usage: lp_errcorr DIR [--methods lp,wlr] [--spp 16,64] [--prefilter on,off] [--backend gpu|cpu] [--opt KEY=VALUE]...";
+
 fn main() -> mcdenoise::error::Result<()> {
+    if mcdenoise_tools::asked_for_help(USAGE) {
+        return Ok(());
+    }
+    mcdenoise_tools::require_args(USAGE, 1);
     let mut args = std::env::args().skip(1);
-    let dir = PathBuf::from(args.next().expect("usage: lp_errcorr DIR [options]"));
+    let dir = PathBuf::from(args.next().expect("checked by require_args"));
     let (mut methods, mut spps, mut pre) =
         ("lp".to_string(), "16,64".to_string(), "on,off".to_string());
     let mut backend = Backend::Gpu;

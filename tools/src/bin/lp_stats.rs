@@ -9,10 +9,14 @@ use mcdenoise::gpu::{ContextOptions, GpuContext};
 use mcdenoise::methods::{denoise, lp, prepare, DenoiseRequest, Method};
 use mcdenoise::options::Options;
 
+const USAGE: &str = "usage: lp_stats IN.exr [reference.exr] [gpu]";
+
 fn main() -> mcdenoise::error::Result<()> {
-    let path = std::env::args()
-        .nth(1)
-        .expect("usage: lp_stats IN.exr [gpu]");
+    if mcdenoise_tools::asked_for_help(USAGE) {
+        return Ok(());
+    }
+    mcdenoise_tools::require_args(USAGE, 1);
+    let path = std::env::args().nth(1).expect("checked by require_args");
     let img = mcdenoise::io::read_stats(std::path::Path::new(&path))?;
     let (clean, _) = prepare::prepare_cpu(&img);
     let r = lp::run_cpu(&clean, lp::LpParams::new(&Options::default())?, false)?;

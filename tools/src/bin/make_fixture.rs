@@ -71,7 +71,12 @@ fn run() -> anyhow::Result<()> {
     Ok(())
 }
 
+const USAGE: &str = "usage: make_fixture <input.exr> <reference.exr> <x0> <y0> <w> <h> <out_stats.exr> <out_ref.exr>";
+
 fn main() -> ExitCode {
+    if mcdenoise_tools::asked_for_help(USAGE) {
+        return ExitCode::SUCCESS;
+    }
     match run() {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {

@@ -140,7 +140,13 @@ fn near(w: usize, h: usize, rem: &Removed, f: f64, k: usize) -> Vec<usize> {
     r
 }
 
+const USAGE: &str =
+    "usage: [SPREAD_VARIANTS=F:k,...] outlier_spread [--methods wlr,apr] STATS.exr=REF.exr ...";
+
 fn main() -> Result<(), Box<dyn std::error::Error>> {
+    if mcdenoise_tools::asked_for_help(USAGE) {
+        return Ok(());
+    }
     let mut args: Vec<String> = std::env::args().skip(1).collect();
     let mut methods = vec![Method::Wlr, Method::Lp, Method::Apr, Method::Aos];
     if args.first().is_some_and(|a| a == "--methods") {

@@ -54,7 +54,12 @@ fn timed_pass(
     Ok(render_ms(&b.finish()?))
 }
 
+const USAGE: &str = "usage: render_rate [--size 256] [--spp 16] [--reps 5] [scene ...]";
+
 fn main() -> anyhow::Result<()> {
+    if mcdenoise_tools::asked_for_help(USAGE) {
+        return Ok(());
+    }
     let mut size = 256usize;
     let mut spp = 16u32;
     let mut reps = 5usize;

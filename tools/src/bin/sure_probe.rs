@@ -38,7 +38,14 @@ fn hash(mut x: u64) -> u64 {
     x ^ (x >> 33)
 }
 
+const USAGE: &str =
+    "usage: sure_probe STATS.exr REF1.exr [REF2.exr] [--methods wlr,lp] [--eps 0.01]";
+
 fn main() -> anyhow::Result<()> {
+    if mcdenoise_tools::asked_for_help(USAGE) {
+        return Ok(());
+    }
+    mcdenoise_tools::require_args(USAGE, 2);
     let args: Vec<String> = std::env::args().skip(1).collect();
     let mut files = Vec::new();
     let mut methods = vec![Method::Wlr, Method::Lp, Method::Apr, Method::Aos];
