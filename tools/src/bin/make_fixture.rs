@@ -26,7 +26,7 @@ use mcdenoise::io::{read_rgb, read_stats, write_rgb, write_stats};
 fn run() -> anyhow::Result<()> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     if args.len() != 8 {
-        bail!("usage: make_fixture <input.exr> <reference.exr> <x0> <y0> <w> <h> <out_stats.exr> <out_ref.exr>");
+        bail!("{USAGE}");
     }
     let number = |i: usize, what: &str| -> anyhow::Result<usize> {
         args[i]
