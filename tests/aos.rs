@@ -645,7 +645,7 @@ fn the_residual_centre_variance_follows_the_centre_sample_count() {
 /// with variance 0, and their zeros pulled both AOS-RESIDUAL's geometric
 /// mean and AOS-IDENTITY-FLOOR's median to 0. A black pixel then kept its
 /// input (the residual of every fit looked significant, the identity's
-/// MSE was 0). Skipping the zero variances, a fit wins, the black pixels
+/// MSE was 0). With the black pixels left out of both, a fit wins, they
 /// come out near the wall's level, and the fit's MSE is its variance.
 #[test]
 fn a_pixel_whose_samples_all_missed_the_light_is_not_kept() {
@@ -655,7 +655,7 @@ fn a_pixel_whose_samples_all_missed_the_light_is_not_kept() {
     let mut rng = Rng(11);
     let (mut y, mut vbar) = (vec![0.0; n], vec![0.0; n]);
     for i in 0..n {
-        let hits = (0..16).filter(|_| rng.uniform() < 0.042).count() as f64;
+        let hits = (0..spp as usize).filter(|_| rng.uniform() < 0.042).count() as f64;
         let m = 2.4 * hits / spp;
         // The unbiased sample variance of 16 values in {0, 2.4}, over 16.
         let s2 = (2.4 * 2.4 * hits - spp * m * m) / (spp - 1.0);

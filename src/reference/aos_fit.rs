@@ -74,6 +74,7 @@ pub fn fit_pixel(push: &AosPush, inp: &FitInputs, c: usize, proj: &Proj) -> [f64
     }
     let vbar = |q: usize| inp.vbar[q] as f64;
     let col = |ch: usize, q: usize| inp.color[ch][q] as f64;
+    let black = |q: usize| all_black(vbar(q), [0, 1, 2].map(|ch| col(ch, q)));
     // AOS-FALLBACK: the input, error vbar_c.
     for ch in 0..3 {
         o[ch] = col(ch, c).max(0.0);
@@ -118,7 +119,7 @@ pub fn fit_pixel(push: &AosPush, inp: &FitInputs, c: usize, proj: &Proj) -> [f64
             for ch in 0..3 {
                 xr[pr + ch] = col(ch, q);
             }
-            if !all_black(vbar(q), [0, 1, 2].map(|ch| col(ch, q))) {
+            if !black(q) {
                 lnsum += kw * residual_ln_term(vbar(q), spp_of(inp.spp[q]));
                 lnk += kw;
             }
@@ -300,9 +301,7 @@ pub fn fit_pixel(push: &AosPush, inp: &FitInputs, c: usize, proj: &Proj) -> [f64
                 c,
                 vbar(c),
                 spp_of(inp.spp[c]),
-                |q| {
-                    spp_of(inp.spp[q]) >= 1.0 && !all_black(vbar(q), [0, 1, 2].map(|ch| col(ch, q)))
-                },
+                |q| spp_of(inp.spp[q]) >= 1.0 && !black(q),
                 |q| inp.vbar[q] * spp_of(inp.spp[q]) as f32,
             )
         } else {

@@ -16,9 +16,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         return Ok(());
     }
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let (rf, rest) = args
-        .split_first()
-        .ok_or("usage: feature_mse REF.exr A.exr ...")?;
+    let (rf, rest) = args.split_first().ok_or(USAGE)?;
     let reference = mcdenoise::io::read_stats(Path::new(rf))?;
     for a in rest {
         let img = mcdenoise::io::read_stats(Path::new(a))?;
