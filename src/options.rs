@@ -174,6 +174,13 @@ pub const OPTIONS: &[OptionSpec] = &[
         help: "APR's own 5x5 polynomial feature prefilter when the G-buffer prefilter does not run; CPU backend only (off: see docs/results-apr.md)",
     },
     OptionSpec {
+        key: "auto.aos",
+        kind: Kind::Choice(&["on", "off"]),
+        default: "off",
+        section: "ours (AUTO-AOS)",
+        help: "auto blends AOS as a fourth member with WLR, LP and APR (on: lower rMSE for several times the GPU time) or not (off)",
+    },
+    OptionSpec {
         key: "blend.radius",
         kind: Kind::Int(0, 16),
         default: "method",

@@ -142,8 +142,8 @@ pub struct SmoothPush {
     pub _pad: [u32; 2],
 }
 
-/// `spirv/auto_score.comp` and `spirv/auto_blend.comp`, block `Push`
-/// (`--method auto`, AUTO-BLEND).
+/// `spirv/auto_score.comp`, `spirv/auto_dis.comp` and
+/// `spirv/auto_blend.comp`, block `Push` (`--method auto`, AUTO-BLEND).
 #[repr(C)]
 #[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct AutoPush {
@@ -153,15 +153,32 @@ pub struct AutoPush {
     pub height: u32,
     /// First row of the band this dispatch covers.
     pub row0: u32,
-    /// Unused (the block's `pad`): 0.
-    pub _pad: u32,
+    /// The number of members (3 or 4; `auto_dis`, `auto_blend`).
+    pub members: u32,
+    /// The member this dispatch blends (`auto_blend`; 0 reads no sums).
+    pub member: u32,
+    /// 1 on `auto_blend`'s last dispatch, which writes the outputs.
+    pub last: u32,
+    /// Unused (the block's `pad0`, `pad1`): rounds the block to 32 bytes; 0.
+    pub _pad: [u32; 2],
 }
 
-/// The number of members `auto_score` and `auto_blend` blend.
-pub const AUTO_MEMBERS: usize = 3;
-/// The maps `auto_score` writes and `auto_blend` reads smoothed: each
-/// member's score, then the disagreement of members 0–1, 0–2 and 1–2.
-pub const AUTO_MAPS: usize = 6;
+/// The most members `auto_dis` and `auto_blend` take.
+pub const AUTO_MAX_MEMBERS: usize = 4;
+/// The most disagreement maps (pairs of [`AUTO_MAX_MEMBERS`] members).
+pub const AUTO_MAX_PAIRS: usize = 6;
+/// The planes `auto_blend` carries between its dispatches: the base colour,
+/// the weighted differences, the error roots (three each) and the weights'
+/// sum.
+pub const AUTO_SUMS: usize = 10;
+
+/// The pairs `(a, b)`, `a < b`, of `members` members in the order of
+/// `auto_dis`'s maps: `(0, 1), (0, 2), …, (0, n − 1), (1, 2), …`.
+pub fn auto_pairs(members: usize) -> Vec<(usize, usize)> {
+    (0..members)
+        .flat_map(|a| (a + 1..members).map(move |b| (a, b)))
+        .collect()
+}
 /// The smallest smoothed score `auto_blend` divides by.
 pub const AUTO_SCORE_FLOOR: f64 = 1e-12;
 /// The value `auto_score` writes for a non-finite one.

@@ -13,6 +13,7 @@ pub mod apr_block;
 pub mod apr_gather;
 pub mod apr_pack;
 pub mod auto_blend;
+pub mod auto_dis;
 pub mod auto_score;
 pub mod box_rows;
 pub mod channel_mean;
@@ -108,6 +109,7 @@ pub const ALL: &[&KernelDecl] = &[
     &outlier_weights::DECL,
     &outlier_spread::DECL,
     &auto_score::DECL,
+    &auto_dis::DECL,
     &auto_blend::DECL,
     &pyramid_pool::DECL,
     &pyramid_merge::DECL,

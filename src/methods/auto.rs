@@ -2,14 +2,15 @@
 //! their own error estimates (AUTO-BLEND, ours; issue #41). The methods fail
 //! in different places, and each one's `E_i` says where.
 //!
-//! The members ([`MEMBERS`]) run on the sanitised, prefiltered statistics.
-//! `auto_score` writes six maps: each member's relative error estimate
-//! `s_m = Σ_c E_m,c / (f_m,c² + 0.01)` and each pair's disagreement
-//! `dis_ab = Σ_c (f_a,c − f_b,c)² / (f̄_c² + 0.01)`; `gauss_rows` and
-//! `gauss_smooth` smooth them (the Gaussian of §0.5, σ = [`SIGMA`], over
-//! valid pixels). `auto_blend` weighs member `m` by `1 / max(s_m, t_m)`,
-//! `t_m` its error as the three-cornered hat of the disagreements gives it
-//! (`t_0 = (dis01 + dis02 − dis12) / 2`, …), and exports the blend with the
+//! The members ([`members`]: WLR, LP, APR and, with `auto.aos=on`, AOS) run
+//! on the sanitised, prefiltered statistics. `auto_score` writes each
+//! member's relative error estimate `s_m = Σ_c E_m,c / (f_m,c² + 0.01)` and
+//! `auto_dis` each pair's disagreement `dis_ab = Σ_c (f_a,c − f_b,c)² /
+//! (f̄_c² + 0.01)`; `gauss_rows` and `gauss_smooth` smooth these maps (the
+//! Gaussian of §0.5, σ = [`SIGMA`], over valid pixels). `auto_blend` weighs
+//! member `m` by `1 / max(s_m, t_m)`, `t_m` its error as the n-cornered hat
+//! of the disagreements gives it (for three members `t_0 = (dis01 + dis02 −
+//! dis12) / 2`, …), and exports the blend with the
 //! error estimate `E_c = (Σ w_m √(k_m E_m,c) / Σ w_m)²`, `k_m` the factor
 //! by which the hat raised the member's score. The local dimension `d_i` and
 //! the sampling parameters of §9 are the first member's (WLR's); the
@@ -28,18 +29,31 @@ use super::Method;
 use crate::error::Result;
 use crate::gpu::{Batch, BufferSlice, GpuBuffer, GpuContext, PlaneSet};
 use crate::image::{Layer, RgbImage, StatsImage};
-use crate::kernels::{auto_blend, auto_score, gauss_rows, gauss_smooth};
+use crate::kernels::{auto_blend, auto_dis, auto_score, gauss_rows, gauss_smooth};
+use crate::options::Options;
 use crate::reference;
-use crate::shared::{AutoPush, SmoothPush, AUTO_MAPS, AUTO_MEMBERS};
+use crate::shared::{auto_pairs, AutoPush, SmoothPush, AUTO_SUMS};
 
-/// The methods `auto` runs, in the order they are blended; the first one
-/// gives `d_i` and the sampling parameters (AUTO-BLEND: the set that gained
-/// most for its cost on the tuning scenes).
-pub const MEMBERS: [Method; AUTO_MEMBERS] = [Method::Wlr, Method::Lp, Method::Apr];
+/// The methods `auto` runs with `options`, in the order they are blended:
+/// WLR, LP, APR, and AOS with `auto.aos=on`. The first one gives `d_i` and
+/// the sampling parameters (AUTO-BLEND, AUTO-AOS).
+pub fn members(options: &Options) -> Vec<Method> {
+    let mut m = vec![Method::Wlr, Method::Lp, Method::Apr];
+    if options.get("auto.aos") == "on" {
+        m.push(Method::Aos);
+    }
+    m
+}
 
 /// σ (pixels) of the Gaussian that smooths each member's score before it
 /// becomes a weight (AUTO-BLEND).
 pub const SIGMA: f32 = 1.5;
+
+/// The maps of `members` members: their scores and their pairs'
+/// disagreements.
+fn map_count(members: usize) -> usize {
+    members + auto_pairs(members).len()
+}
 
 /// A member's configuration: `auto`'s, with the member's method and its
 /// error estimate on (the blend reads it).
@@ -57,7 +71,7 @@ fn member_config(c: &ChainConfig, m: Method) -> ChainConfig {
 pub static INFO: MethodInfo = MethodInfo {
     method: Method::Auto,
     name: "auto",
-    about: "WLR, LP and APR blended per pixel by their own error estimates (ours; LP's and APR's patents apply)",
+    about: "WLR, LP and APR (and AOS with --opt auto.aos=on) blended per pixel by their own error estimates (ours; LP's and APR's patents apply)",
     needs: &REGRESSION_LAYERS,
     prefilter_auto: true,
     outliers_auto: true,
@@ -78,7 +92,7 @@ pub static INFO: MethodInfo = MethodInfo {
     align: super::apr::INFO.align,
     halo: |c| {
         let mut h = 0;
-        for m in MEMBERS {
+        for m in members(&c.options) {
             h = h.max((m.info().halo)(&member_config(c, m))?);
         }
         Ok(h + crate::shared::gaussian_radius(SIGMA as f64))
@@ -86,9 +100,9 @@ pub static INFO: MethodInfo = MethodInfo {
     arena_bytes: registry::no_bytes,
     arena_kept: registry::nothing_kept,
     ring_bytes: |c, size| {
-        MEMBERS
-            .iter()
-            .map(|&m| (m.info().ring_bytes)(&member_config(c, m), size))
+        members(&c.options)
+            .into_iter()
+            .map(|m| (m.info().ring_bytes)(&member_config(c, m), size))
             .sum()
     },
     gpu: |a| Ok(Box::new(AutoStage::new(a)?)),
@@ -99,6 +113,9 @@ pub static INFO: MethodInfo = MethodInfo {
 /// while the later members run, so they cannot share the chain's).
 struct Member {
     method: Method,
+    /// Whether it reads the features before the G-buffer prefilter (a
+    /// method that does not prefilter by default: AOS, AUTO-AOS).
+    unfiltered: bool,
     config: ChainConfig,
     stage: Box<dyn GpuStage>,
     _arena: Option<Arc<GpuBuffer>>,
@@ -107,8 +124,9 @@ struct Member {
 /// `auto`'s GPU stage: its members, their maps and the blend.
 struct AutoStage {
     members: Vec<Member>,
-    /// The [`AUTO_MAPS`] maps (smoothed in place), their row sums, the
-    /// weights' row sums, then the blend's colour and error (3 + 3).
+    /// The maps (smoothed in place: the members' scores, then the pairs'
+    /// disagreements), their row sums, the weights' row sums, the blend's
+    /// [`AUTO_SUMS`] sums, then its colour and error (3 + 3).
     planes: PlaneSet,
     size: (usize, usize),
     ctx: Arc<GpuContext>,
@@ -117,8 +135,10 @@ struct AutoStage {
 impl AutoStage {
     fn new(a: &StageArgs) -> Result<AutoStage> {
         let (w, h) = a.size;
-        let mut members = Vec::with_capacity(MEMBERS.len());
-        for m in MEMBERS {
+        let methods = members(&a.config.options);
+        auto_dis::check_members(methods.len())?;
+        let mut members = Vec::with_capacity(methods.len());
+        for m in methods {
             let config = member_config(a.config, m);
             let bytes = (m.info().arena_bytes)(&config, a.size);
             let arena = if bytes > 0 {
@@ -135,80 +155,147 @@ impl AutoStage {
             })?;
             members.push(Member {
                 method: m,
+                unfiltered: !m.info().prefilter_auto,
                 config,
                 stage,
                 _arena: arena,
             });
         }
+        let planes = 2 * map_count(members.len()) + 1 + AUTO_SUMS + 6;
         Ok(AutoStage {
             members,
-            planes: PlaneSet::new(a.ctx, "auto.planes", w * h, 2 * AUTO_MAPS + 1 + 6)?,
+            planes: PlaneSet::new(a.ctx, "auto.planes", w * h, planes)?,
             size: a.size,
             ctx: a.ctx.clone(),
         })
     }
 
-    fn maps(&self) -> [BufferSlice; AUTO_MAPS] {
-        std::array::from_fn(|k| self.planes.plane(k))
+    fn map_count(&self) -> usize {
+        map_count(self.members.len())
     }
 
-    fn row_sums(&self) -> [BufferSlice; AUTO_MAPS] {
-        std::array::from_fn(|k| self.planes.plane(AUTO_MAPS + k))
+    /// The maps: the members' scores, then the pairs' disagreements.
+    fn maps(&self) -> Vec<BufferSlice> {
+        (0..self.map_count())
+            .map(|k| self.planes.plane(k))
+            .collect()
+    }
+
+    fn row_sums(&self) -> Vec<BufferSlice> {
+        let n = self.map_count();
+        (0..n).map(|k| self.planes.plane(n + k)).collect()
     }
 
     fn den(&self) -> BufferSlice {
-        self.planes.plane(2 * AUTO_MAPS)
+        self.planes.plane(2 * self.map_count())
+    }
+
+    fn sums(&self) -> [BufferSlice; AUTO_SUMS] {
+        std::array::from_fn(|k| self.planes.plane(2 * self.map_count() + 1 + k))
     }
 
     fn out(&self, k: usize) -> BufferSlice {
-        self.planes.plane(2 * AUTO_MAPS + 1 + k)
+        self.planes.plane(2 * self.map_count() + 1 + AUTO_SUMS + k)
+    }
+}
+
+impl AutoStage {
+    /// Records `m` on `run`'s statistics.
+    fn record_member(&self, batch: &mut Batch, run: &StageRun, m: &Member) -> Result<()> {
+        m.stage.record(
+            batch,
+            &StageRun {
+                precision: run.precision,
+                stats: run.stats,
+                // Its configuration asks for the error estimate, which
+                // the blend reads; nothing reads its sampling planes.
+                config: &m.config,
+                maps: false,
+                origin: run.origin,
+                prefiltered: run.prefiltered,
+                spp_total: run.spp_total,
+            },
+        )
     }
 }
 
 impl GpuStage for AutoStage {
+    fn record_unfiltered(&self, batch: &mut Batch, run: &StageRun) -> Result<()> {
+        for m in self.members.iter().filter(|m| m.unfiltered) {
+            self.record_member(batch, run, m)?;
+        }
+        Ok(())
+    }
+
     fn record(&self, batch: &mut Batch, run: &StageRun) -> Result<()> {
         let p = run.precision;
         let (w, h) = (self.size.0 as u32, self.size.1 as u32);
+        // The members that read unprefiltered features ran before the
+        // prefilter (record_unfiltered) when it runs.
         for m in &self.members {
-            m.stage.record(
-                batch,
-                &StageRun {
-                    precision: p,
-                    stats: run.stats,
-                    // Its configuration asks for the error estimate, which
-                    // the blend reads; nothing reads its sampling planes.
-                    config: &m.config,
-                    maps: false,
-                    origin: run.origin,
-                    prefiltered: run.prefiltered,
-                    spp_total: run.spp_total,
-                },
-            )?;
+            if !(m.unfiltered && run.prefiltered) {
+                self.record_member(batch, run, m)?;
+            }
         }
         let spp = run.stats.plane(Layer::Spp, 0);
-        let colors = std::array::from_fn(|m| self.members[m].stage.color(run.stats));
-        let errors = std::array::from_fn(|m| self.members[m].stage.error(run.stats));
+        let n = self.members.len();
+        let colors: Vec<[BufferSlice; 3]> = self
+            .members
+            .iter()
+            .map(|m| m.stage.color(run.stats))
+            .collect();
+        let errors: Vec<[BufferSlice; 3]> = self
+            .members
+            .iter()
+            .map(|m| m.stage.error(run.stats))
+            .collect();
         let (maps, sums) = (self.maps(), self.row_sums());
-        auto_score::record(batch, p, (w, h), colors, errors, maps)?;
+        for m in 0..n {
+            auto_score::record(batch, p, (w, h), colors[m], errors[m], maps[m])?;
+        }
+        auto_dis::record(batch, p, (w, h), &colors, &maps[n..])?;
+        // gauss_rows takes six maps at once, or one.
         let radius = gauss_smooth::radius(SIGMA);
-        gauss_rows::record(
+        let mut k = 0;
+        while k < maps.len() {
+            let take = if maps.len() - k >= 6 { 6 } else { 1 };
+            let (m, s) = (&maps[k..k + take], &sums[k..k + take]);
+            gauss_rows::record(
+                batch,
+                p,
+                (w, h),
+                (0, h),
+                SIGMA,
+                radius,
+                m,
+                spp,
+                s,
+                self.den(),
+            )?;
+            for j in k..k + take {
+                let scratch = [sums[j], self.den()];
+                gauss_smooth::record_columns(batch, p, (w, h), (0, h), SIGMA, scratch, maps[j])?;
+            }
+            k += take;
+        }
+        let members: Vec<auto_blend::Member> = (0..n)
+            .map(|m| auto_blend::Member {
+                color: colors[m],
+                error: errors[m],
+                score: maps[m],
+            })
+            .collect();
+        let (color, error) = (self.color(run.stats), self.error(run.stats));
+        auto_blend::record(
             batch,
             p,
             (w, h),
-            (0, h),
-            SIGMA,
-            radius,
-            &maps,
-            spp,
-            &sums,
-            self.den(),
-        )?;
-        for k in 0..AUTO_MAPS {
-            let scratch = [sums[k], self.den()];
-            gauss_smooth::record_columns(batch, p, (w, h), (0, h), SIGMA, scratch, maps[k])?;
-        }
-        let (color, error) = (self.color(run.stats), self.error(run.stats));
-        auto_blend::record(batch, p, (w, h), colors, errors, maps, color, error)
+            &members,
+            &maps[n..],
+            self.sums(),
+            color,
+            error,
+        )
     }
 
     fn color(&self, _: &GpuStats) -> [BufferSlice; 3] {
@@ -282,9 +369,23 @@ fn run_cpu(clean: &StatsImage, a: &CpuArgs) -> Result<CpuResult> {
         stats: Vec::new(),
         map_error: None,
     };
-    let mut runs = Vec::with_capacity(AUTO_MEMBERS);
-    for m in MEMBERS {
-        let r = (m.info().cpu)(clean, a)?;
+    let methods = members(&a.options);
+    auto_dis::check_members(methods.len())?;
+    let mut runs = Vec::with_capacity(methods.len());
+    for &m in &methods {
+        // A member that does not prefilter by default reads the statistics
+        // from before the prefilter (AUTO-AOS), as on the GPU.
+        let r = match &a.unfiltered {
+            Some(u) if !m.info().prefilter_auto => {
+                let args = CpuArgs {
+                    prefiltered: false,
+                    unfiltered: None,
+                    ..a.clone()
+                };
+                (m.info().cpu)(u, &args)?
+            }
+            _ => (m.info().cpu)(clean, a)?,
+        };
         let name = m.name();
         result
             .stats
@@ -298,27 +399,39 @@ fn run_cpu(clean: &StatsImage, a: &CpuArgs) -> Result<CpuResult> {
         }
         runs.push(r);
     }
-    let colors = std::array::from_fn(|m| runs[m].color.plane_slices());
-    let errors = std::array::from_fn(|m| runs[m].error.plane_slices());
-    let mut maps: [Vec<f32>; AUTO_MAPS] = std::array::from_fn(|_| vec![0.0; w * h]);
-    reference::auto_score::auto_score(&push, colors, errors, &mut maps);
-    let smoothed: [Vec<f32>; AUTO_MAPS] = std::array::from_fn(|k| {
-        let mut out = vec![0.0f32; w * h];
-        reference::gauss_smooth::smooth(&smooth, &maps[k], spp, &mut out);
-        out
-    });
+    let n = methods.len();
+    let push = AutoPush {
+        members: n as u32,
+        ..push
+    };
+    let colors: Vec<_> = runs.iter().map(|r| r.color.plane_slices()).collect();
+    let errors: Vec<_> = runs.iter().map(|r| r.error.plane_slices()).collect();
+    let mut maps: Vec<Vec<f32>> = vec![vec![0.0; w * h]; map_count(n)];
+    for m in 0..n {
+        reference::auto_score::auto_score(&push, colors[m], errors[m], &mut maps[m]);
+    }
+    reference::auto_dis::auto_dis(&push, &colors, &mut maps[n..]);
+    let smoothed: Vec<Vec<f32>> = maps
+        .iter()
+        .map(|map| {
+            let mut out = vec![0.0f32; w * h];
+            reference::gauss_smooth::smooth(&smooth, map, spp, &mut out);
+            out
+        })
+        .collect();
+    let members: Vec<reference::auto_blend::Member> = (0..n)
+        .map(|m| reference::auto_blend::Member {
+            color: colors[m],
+            error: errors[m],
+            score: &smoothed[m],
+        })
+        .collect();
+    let dis: Vec<&[f32]> = smoothed[n..].iter().map(|v| &v[..]).collect();
     let [cr, cg, cb] = &mut result.color.planes;
     let [er, eg, eb] = &mut result.error.planes;
-    reference::auto_blend::auto_blend(
-        &push,
-        colors,
-        errors,
-        std::array::from_fn(|k| &smoothed[k][..]),
-        [cr, cg, cb],
-        [er, eg, eb],
-    );
+    reference::auto_blend::auto_blend(&push, &members, &dis, [cr, cg, cb], [er, eg, eb]);
     if a.debug {
-        for (m, k) in MEMBERS.iter().zip(0..) {
+        for (m, k) in methods.iter().zip(0..) {
             result
                 .debug
                 .push((format!("auto.score.{}", m.name()), smoothed[k].clone()));

@@ -625,6 +625,18 @@ impl GpuChain {
             outliers::record_remove(batch, p, &self.stats, o)?;
         }
         if let Some(g) = &self.gbf {
+            self.method.record_unfiltered(
+                batch,
+                &StageRun {
+                    precision: p,
+                    stats: &self.stats,
+                    config: &self.stage_config,
+                    maps,
+                    origin: at.origin,
+                    prefiltered: false,
+                    spp_total: at.totals.map(|t| t.fine),
+                },
+            )?;
             gbf::record_gbf(batch, p, &self.stats, g)?;
         }
         self.method.record(

@@ -341,6 +341,7 @@ fn denoise_cpu(img: &StatsImage, req: &DenoiseRequest) -> Result<DenoiseOutput> 
         report,
         removed,
         prefiltered,
+        unfiltered,
         pooled,
     } = clean_cpu(img, req)?;
     let (w, h) = (img.width, img.height);
@@ -359,6 +360,7 @@ fn denoise_cpu(img: &StatsImage, req: &DenoiseRequest) -> Result<DenoiseOutput> 
             progress: req.progress,
             debug: req.debug,
             prefiltered,
+            unfiltered,
         },
     )?;
     // The sample map reads the method's own estimate, as on the GPU.
@@ -428,6 +430,8 @@ struct CleanCpu {
     /// With `req.pyramid`: the sanitised statistics pooled 2×2 (before the
     /// outlier stage and the prefilter, as on the GPU).
     pooled: Option<StatsImage>,
+    /// When the prefilter ran: the statistics before it.
+    unfiltered: Option<std::sync::Arc<StatsImage>>,
 }
 
 fn clean_cpu(img: &StatsImage, req: &DenoiseRequest) -> Result<CleanCpu> {
@@ -440,6 +444,7 @@ fn clean_cpu(img: &StatsImage, req: &DenoiseRequest) -> Result<CleanCpu> {
         .transpose()?
         .map(|detection| outliers::remove_cpu(&mut clean, detection));
     let prefiltered = gbf::wanted(req.method, req.prefilter, |l| clean.has(l))?;
+    let unfiltered = prefiltered.then(|| std::sync::Arc::new(clean.clone()));
     if prefiltered {
         gbf::run_cpu(&mut clean)?;
     }
@@ -448,6 +453,7 @@ fn clean_cpu(img: &StatsImage, req: &DenoiseRequest) -> Result<CleanCpu> {
         report,
         removed,
         prefiltered,
+        unfiltered,
         pooled,
     })
 }

@@ -128,6 +128,14 @@ pub struct StageRun<'a> {
 pub trait GpuStage: Send + Sync {
     /// Records the method on `run.stats`.
     fn record(&self, batch: &mut Batch, run: &StageRun) -> Result<()>;
+    /// Records what reads the statistics before the G-buffer prefilter
+    /// changes their features in place; the chain calls it, before the
+    /// prefilter, only when the prefilter runs. Nothing by default; `auto`
+    /// records its members that read unprefiltered features (AOS,
+    /// AUTO-AOS).
+    fn record_unfiltered(&self, _batch: &mut Batch, _run: &StageRun) -> Result<()> {
+        Ok(())
+    }
     /// The reconstruction's colour planes R, G, B.
     fn color(&self, stats: &GpuStats) -> [BufferSlice; 3];
     /// The per-pixel error estimate `E_i` per channel (§9.1).
@@ -166,6 +174,10 @@ pub struct CpuArgs {
     pub debug: bool,
     /// Whether the G-buffer prefilter ran.
     pub prefiltered: bool,
+    /// When it ran: the statistics before it (sanitised, outlier-cleaned),
+    /// for a member of `auto` that reads unprefiltered features (AOS,
+    /// AUTO-AOS).
+    pub unfiltered: Option<std::sync::Arc<StatsImage>>,
 }
 
 /// A method's CPU output.

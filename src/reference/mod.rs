@@ -19,6 +19,7 @@ pub mod apr_block;
 pub mod apr_gather;
 pub mod apr_pack;
 pub mod auto_blend;
+pub mod auto_dis;
 pub mod auto_score;
 pub mod box_rows;
 pub mod channel_mean;

@@ -13,7 +13,7 @@
 //! ```text
 //! cargo run --release -p mcdenoise-tools --bin method_mix -- \
 //!     [--public ../shared/data/scenes] [--scenes a,b] [--size 128x128] [--spp 4,16,64] [--reference 1024] \
-//!     [--methods wlr,lp] [--no-mix] [--opt key=value]
+//!     [--methods wlr,lp] [--no-mix] [--opt key=value] [--no-input-blend] [--no-pyramid] [--prefilter-on]
 //! ```
 
 use std::path::PathBuf;
@@ -55,6 +55,15 @@ struct Args {
     /// Method option key=value (repeatable), for every method.
     #[arg(long = "opt", value_name = "KEY=VALUE")]
     opts: Vec<String>,
+    /// Run every method without the input blend (as `auto`'s members run).
+    #[arg(long)]
+    no_input_blend: bool,
+    /// Run every method without the pyramid's low band.
+    #[arg(long)]
+    no_pyramid: bool,
+    /// Run every method on prefiltered features (as inside `auto`), AOS too.
+    #[arg(long)]
+    prefilter_on: bool,
 }
 
 struct Out {
@@ -153,15 +162,19 @@ fn true_rel(x: &RgbImage, r: &RgbImage) -> Vec<f64> {
         .collect()
 }
 
-fn run(
-    ctx: &Arc<GpuContext>,
-    stats: &StatsImage,
-    m: Method,
-    opts: &Options,
-) -> anyhow::Result<Out> {
+fn run(ctx: &Arc<GpuContext>, stats: &StatsImage, m: Method, runs: &Runs) -> anyhow::Result<Out> {
     let mut c = Config::new(m);
     c.error = true;
-    c.options = opts.clone();
+    c.options = runs.opts.clone();
+    if runs.no_input_blend {
+        c.input_blend = mcdenoise::InputBlend::Off;
+    }
+    if runs.no_pyramid {
+        c.pyramid = mcdenoise::Pyramid::Off;
+    }
+    if runs.prefilter_on {
+        c.prefilter = mcdenoise::Prefilter::On;
+    }
     let d = Denoiser::new(ctx, Source::of_image(stats), c)?;
     let f = d.denoise(stats, None)?;
     let n = f.color.width * f.color.height;
@@ -204,6 +217,9 @@ struct Runs<'a> {
     methods: &'a [Method],
     opts: &'a Options,
     no_mix: bool,
+    no_input_blend: bool,
+    no_pyramid: bool,
+    prefilter_on: bool,
 }
 
 fn case(
@@ -216,9 +232,7 @@ fn case(
     runs: &Runs,
 ) -> anyhow::Result<()> {
     let Runs {
-        methods,
-        opts,
-        no_mix,
+        methods, no_mix, ..
     } = *runs;
     let mut line = serde_json::Map::new();
     line.insert("case".into(), format!("{name}@{spp}").into());
@@ -227,7 +241,7 @@ fn case(
     let t = std::time::Instant::now();
     let outs: Vec<Out> = methods
         .iter()
-        .map(|&m| run(ctx, stats, m, opts))
+        .map(|&m| run(ctx, stats, m, runs))
         .collect::<anyhow::Result<_>>()?;
     let tag = format!("{name}@{spp}-{}x{}", r.width, r.height);
     dump(work.join(format!("{tag}-ref.bin")), &r.plane_slices())?;
@@ -295,6 +309,9 @@ fn main() -> anyhow::Result<()> {
         methods: &methods,
         opts: &opts,
         no_mix: a.no_mix,
+        no_input_blend: a.no_input_blend,
+        no_pyramid: a.no_pyramid,
+        prefilter_on: a.prefilter_on,
     };
     std::fs::create_dir_all(&a.work)?;
     if let Some(dir) = &a.public {

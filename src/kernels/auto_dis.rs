@@ -1,0 +1,90 @@
+//! `auto_dis`: how far each pair of `--method auto`'s 3 or 4 members
+//! disagrees (AUTO-BLEND), `Σ_c (f_a,c − f_b,c)² / (f̄_c² + 0.01)` per pair
+//! of [`crate::shared::auto_pairs`]. Twin: `reference::auto_dis`.
+
+use crate::error::{Error, Result};
+use crate::gpu::reflect::{read, write};
+use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};
+use crate::shared::{auto_pairs, AutoPush, AUTO_MAX_MEMBERS, AUTO_MAX_PAIRS};
+
+/// Declaration of `spirv/auto_dis.comp`; checked against the SPIR-V by
+/// reflection.
+pub const DECL: KernelDecl = KernelDecl {
+    name: "auto_dis",
+    bindings: &[
+        read("c0r"),
+        read("c0g"),
+        read("c0b"),
+        read("c1r"),
+        read("c1g"),
+        read("c1b"),
+        read("c2r"),
+        read("c2g"),
+        read("c2b"),
+        read("c3r"),
+        read("c3g"),
+        read("c3b"),
+        write("dis0"),
+        write("dis1"),
+        write("dis2"),
+        write("dis3"),
+        write("dis4"),
+        write("dis5"),
+    ],
+    push_size: std::mem::size_of::<AutoPush>() as u32,
+};
+
+/// Per pixel and pair: three channels, each a difference, a square and a
+/// division, summed; per pixel the members' mean and its squares.
+pub fn flops_per_pixel(members: usize) -> f64 {
+    auto_pairs(members).len() as f64 * (3.0 * 4.0 + 2.0) + 3.0 * (members as f64 + 3.0)
+}
+
+/// `Err` unless `members` is 3 or 4.
+pub fn check_members(members: usize) -> Result<()> {
+    if !(3..=AUTO_MAX_MEMBERS).contains(&members) {
+        return Err(Error::InvalidArgument(format!(
+            "auto blends 3 or 4 members, not {members}"
+        )));
+    }
+    Ok(())
+}
+
+/// Records the disagreements of the members with `colors` (3 or 4) into
+/// `dis` (one map per pair of [`auto_pairs`]) over a `width × height`
+/// image. The bindings a smaller set does not use get its first member's
+/// colour and its first map, which the kernel then neither reads nor
+/// writes.
+pub fn record(
+    batch: &mut Batch,
+    precision: Precision,
+    (width, height): (u32, u32),
+    colors: &[[BufferSlice; 3]],
+    dis: &[BufferSlice],
+) -> Result<()> {
+    check_members(colors.len())?;
+    assert_eq!(
+        dis.len(),
+        auto_pairs(colors.len()).len(),
+        "one map per pair"
+    );
+    let push = AutoPush {
+        width,
+        height,
+        members: colors.len() as u32,
+        ..Default::default()
+    };
+    let mut bindings: Vec<BufferSlice> = (0..AUTO_MAX_MEMBERS)
+        .flat_map(|m| colors.get(m).unwrap_or(&colors[0]).iter().copied())
+        .collect();
+    bindings.extend((0..AUTO_MAX_PAIRS).map(|k| *dis.get(k).unwrap_or(&dis[0])));
+    batch.dispatch(
+        &DECL,
+        precision,
+        &bindings,
+        bytemuck::bytes_of(&push),
+        width,
+        height,
+        flops_per_pixel(colors.len()),
+    )
+}
