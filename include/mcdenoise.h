@@ -84,7 +84,8 @@ typedef enum McdMethod {
   MCD_METHOD_AOS = 3,
   // No reconstruction: the sanitised mean.
   MCD_METHOD_NONE = 4,
-  // WLR, LP and APR blended per pixel by their error estimates.
+  // WLR, LP and APR (and AOS with the option `auto.aos=on`) blended per
+  // pixel by their error estimates.
   MCD_METHOD_AUTO = 5,
 } McdMethod;
 

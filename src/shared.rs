@@ -181,7 +181,7 @@ pub fn auto_pairs(members: usize) -> Vec<(usize, usize)> {
 }
 /// The smallest smoothed score `auto_blend` divides by.
 pub const AUTO_SCORE_FLOOR: f64 = 1e-12;
-/// The value `auto_score` writes for a non-finite one.
+/// The value `auto_score` and `auto_dis` write for a non-finite one.
 pub const AUTO_SCORE_MAX: f32 = 1e30;
 
 /// `spirv/peak_fma.comp` and `spirv/peak_copy.comp`, block `Push`: the

@@ -32,7 +32,9 @@ fn run(
 }
 
 /// `n` members' colours and errors (`6n` planes, colours first), random
-/// around a common image, with a non-finite colour and error at two pixels.
+/// around a common image, with member 1's colour and error not finite at
+/// pixels 7 and 9, member 0's colour at pixel 11 (the base then comes from
+/// a later dispatch), and every member's colour at pixel 13.
 fn members(w: usize, h: usize, n_members: usize, seed: u64) -> Vec<Vec<f32>> {
     let mut rng = Rng(seed);
     let n = w * h;
@@ -60,7 +62,16 @@ fn members(w: usize, h: usize, n_members: usize, seed: u64) -> Vec<Vec<f32>> {
     }
     planes[4][7] = f32::NAN;
     planes[3 * n_members + 3][9] = f32::INFINITY;
+    planes[0][11] = f32::NAN;
+    for m in 0..n_members {
+        planes[3 * m + 1][13] = f32::INFINITY;
+    }
     planes
+}
+
+/// Whether member `m` of `n` has a finite colour and error at pixel `i`.
+fn usable(planes: &[Vec<f32>], n: usize, m: usize, i: usize) -> bool {
+    (0..3).all(|c| planes[3 * m + c][i].is_finite() && planes[3 * (n + m) + c][i].is_finite())
 }
 
 fn rgb(p: &[Vec<f32>], m: usize) -> [&[f32]; 3] {
@@ -198,14 +209,16 @@ fn auto_kernels_match_twins() {
                 assert_close(&what, &o[k], &out[k], 1.0);
             }
         }
-        // The blend is a convex combination of the finite members.
+        // The blend is a convex combination of the usable members; 0 where
+        // none is.
         for i in 0..w * h {
             for c in 0..3 {
                 let vals: Vec<f32> = (0..n_members)
+                    .filter(|&m| usable(&planes, n_members, m, i))
                     .map(|m| planes[3 * m + c][i])
-                    .filter(|_| i != 7 && i != 9)
                     .collect();
                 if vals.is_empty() {
+                    assert_eq!((out[c][i], out[3 + c][i]), (0.0, 0.0), "pixel {i}");
                     continue;
                 }
                 let (lo, hi) = vals
@@ -260,6 +273,11 @@ fn agreeing_members_give_themselves_back() {
         let out = twin_blend(&planes, &maps, w, h, n_members);
         for k in 0..3 {
             for i in 0..n {
+                if !usable(&planes, n_members, 0, i) {
+                    // Pixels 11 and 13: no member is usable.
+                    assert_eq!((out[k][i], out[3 + k][i]), (0.0, 0.0), "pixel {i}");
+                    continue;
+                }
                 assert_eq!(
                     out[k][i], planes[k][i],
                     "{n_members} members colour {k} pixel {i}"

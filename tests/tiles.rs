@@ -200,6 +200,12 @@ fn every_method_tiled_along_x_is_bit_identical() {
     let mut aos_gbf = Config::new(Method::Aos);
     aos_gbf.prefilter = Prefilter::On;
     check(&short, aos_gbf, 60, "aos --prefilter gbf 240x32");
+    // `auto` with AOS as a fourth member (AUTO-AOS): recorded before the
+    // prefilter the others read, in every tile.
+    let mut auto_aos = Config::new(Method::Auto);
+    auto_aos.pyramid = Pyramid::Off;
+    auto_aos.options = mcdenoise::Options::parse(&["auto.aos=on"]).unwrap();
+    check(&img, auto_aos, 60, "auto auto.aos=on 480x32");
     check_validation(&gpu());
 }
 

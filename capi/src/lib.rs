@@ -77,7 +77,8 @@ pub enum McdMethod {
     Aos = 3,
     /// No reconstruction: the sanitised mean.
     None = 4,
-    /// WLR, LP and APR blended per pixel by their error estimates.
+    /// WLR, LP and APR (and AOS with the option `auto.aos=on`) blended per
+    /// pixel by their error estimates.
     Auto = 5,
 }
 

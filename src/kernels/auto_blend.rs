@@ -5,11 +5,11 @@
 //! colours and the combined error estimate `(Σ w √(k E) / Σ w)²`. Twin:
 //! `reference::auto_blend`.
 
-use super::auto_dis::check_members;
+use super::auto_dis::{check_members, pair_slots};
 use crate::error::Result;
 use crate::gpu::reflect::{read, write};
 use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};
-use crate::shared::{auto_pairs, AutoPush, AUTO_MAX_PAIRS, AUTO_SUMS};
+use crate::shared::{auto_pairs, AutoPush, AUTO_SUMS};
 
 /// Declaration of `spirv/auto_blend.comp`; checked against the SPIR-V by
 /// reflection.
@@ -105,7 +105,7 @@ pub fn record(
             .copied()
             .chain([mem.score])
             .collect();
-        bindings.extend((0..AUTO_MAX_PAIRS).map(|k| *dis.get(k).unwrap_or(&dis[0])));
+        bindings.extend(pair_slots(dis));
         bindings.extend(sums);
         bindings.extend(color);
         bindings.extend(error);

@@ -50,11 +50,18 @@ pub fn check_members(members: usize) -> Result<()> {
     Ok(())
 }
 
+/// The disagreement maps bound to a kernel's [`AUTO_MAX_PAIRS`] slots:
+/// `dis`, then its first map again in the slots a smaller set does not use.
+pub(crate) fn pair_slots(dis: &[BufferSlice]) -> impl Iterator<Item = BufferSlice> + '_ {
+    (0..AUTO_MAX_PAIRS).map(|k| *dis.get(k).unwrap_or(&dis[0]))
+}
+
 /// Records the disagreements of the members with `colors` (3 or 4) into
 /// `dis` (one map per pair of [`auto_pairs`]) over a `width × height`
 /// image. The bindings a smaller set does not use get its first member's
-/// colour and its first map, which the kernel then neither reads nor
-/// writes.
+/// colour and its first map (`pair_slots`): the kernel neither reads nor
+/// writes them with three members (`dis3`–`dis5` alias `dis0` then, so a
+/// write to them must stay under `push.members == 4`).
 pub fn record(
     batch: &mut Batch,
     precision: Precision,
@@ -77,7 +84,7 @@ pub fn record(
     let mut bindings: Vec<BufferSlice> = (0..AUTO_MAX_MEMBERS)
         .flat_map(|m| colors.get(m).unwrap_or(&colors[0]).iter().copied())
         .collect();
-    bindings.extend((0..AUTO_MAX_PAIRS).map(|k| *dis.get(k).unwrap_or(&dis[0])));
+    bindings.extend(pair_slots(dis));
     batch.dispatch(
         &DECL,
         precision,

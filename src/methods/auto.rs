@@ -3,20 +3,23 @@
 //! in different places, and each one's `E_i` says where.
 //!
 //! The members ([`members`]: WLR, LP, APR and, with `auto.aos=on`, AOS) run
-//! on the sanitised, prefiltered statistics. `auto_score` writes each
-//! member's relative error estimate `s_m = Σ_c E_m,c / (f_m,c² + 0.01)` and
-//! `auto_dis` each pair's disagreement `dis_ab = Σ_c (f_a,c − f_b,c)² /
-//! (f̄_c² + 0.01)`; `gauss_rows` and `gauss_smooth` smooth these maps (the
-//! Gaussian of §0.5, σ = [`SIGMA`], over valid pixels). `auto_blend` weighs
-//! member `m` by `1 / max(s_m, t_m)`, `t_m` its error as the n-cornered hat
-//! of the disagreements gives it (for three members `t_0 = (dis01 + dis02 −
-//! dis12) / 2`, …), and exports the blend with the
-//! error estimate `E_c = (Σ w_m √(k_m E_m,c) / Σ w_m)²`, `k_m` the factor
-//! by which the hat raised the member's score. The local dimension `d_i` and
-//! the sampling parameters of §9 are the first member's (WLR's); the
-//! G-buffer prefilter and the outlier stage run once, around the whole
-//! blend.
+//! on the sanitised, prefiltered statistics, but a member that does not
+//! prefilter by default (AOS) reads them from before the prefilter
+//! ([`GpuStage::record_unfiltered`], AUTO-AOS), even with `--prefilter on`.
+//! `auto_score` writes each member's relative error estimate `s_m = Σ_c
+//! E_m,c / (f_m,c² + 0.01)` and `auto_dis` each pair's disagreement `dis_ab
+//! = Σ_c (f_a,c − f_b,c)² / (f̄_c² + 0.01)`; `gauss_rows` and
+//! `gauss_smooth` smooth these maps (the Gaussian of §0.5, σ = [`SIGMA`],
+//! over valid pixels). `auto_blend` weighs member `m` by `1 / max(s_m,
+//! t_m)`, `t_m` its error as the n-cornered hat of the disagreements gives
+//! it (for three members `t_0 = (dis01 + dis02 − dis12) / 2`, …), and
+//! exports the blend with the error estimate `E_c = (Σ w_m √(k_m E_m,c) /
+//! Σ w_m)²`, `k_m` the factor by which the hat raised the member's score.
+//! The local dimension `d_i` and the sampling parameters of §9 are the
+//! first member's (WLR's); the G-buffer prefilter and the outlier stage run
+//! once, around the whole blend.
 
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
 use super::chain::{ChainConfig, ChainOutput};
@@ -49,10 +52,23 @@ pub fn members(options: &Options) -> Vec<Method> {
 /// becomes a weight (AUTO-BLEND).
 pub const SIGMA: f32 = 1.5;
 
+/// Whether a member with `options` reads the features from before the
+/// G-buffer prefilter (a method that does not prefilter by default: AOS,
+/// AUTO-AOS), so that the CPU path must keep them.
+pub fn reads_unfiltered(options: &Options) -> bool {
+    members(options).iter().any(|m| !m.info().prefilter_auto)
+}
+
 /// The maps of `members` members: their scores and their pairs'
 /// disagreements.
 fn map_count(members: usize) -> usize {
     members + auto_pairs(members).len()
+}
+
+/// The planes after the maps: the smoothing's row sums and weights, then
+/// the blend's sums in the same planes, as many as the larger needs.
+fn scratch_count(members: usize) -> usize {
+    (map_count(members) + 1).max(AUTO_SUMS)
 }
 
 /// A member's configuration: `auto`'s, with the member's method and its
@@ -125,9 +141,13 @@ struct Member {
 struct AutoStage {
     members: Vec<Member>,
     /// The maps (smoothed in place: the members' scores, then the pairs'
-    /// disagreements), their row sums, the weights' row sums, the blend's
-    /// [`AUTO_SUMS`] sums, then its colour and error (3 + 3).
+    /// disagreements); their row sums and the weights' row sums, whose
+    /// planes (and more, up to [`AUTO_SUMS`]) then carry the blend's sums;
+    /// then its colour and error (3 + 3).
     planes: PlaneSet,
+    /// Set by `record_unfiltered`, taken by `record` when the members that
+    /// read unprefiltered features were recorded there.
+    unfiltered_recorded: AtomicBool,
     size: (usize, usize),
     ctx: Arc<GpuContext>,
 }
@@ -161,10 +181,11 @@ impl AutoStage {
                 _arena: arena,
             });
         }
-        let planes = 2 * map_count(members.len()) + 1 + AUTO_SUMS + 6;
+        let planes = map_count(members.len()) + scratch_count(members.len()) + 6;
         Ok(AutoStage {
             members,
             planes: PlaneSet::new(a.ctx, "auto.planes", w * h, planes)?,
+            unfiltered_recorded: AtomicBool::new(false),
             size: a.size,
             ctx: a.ctx.clone(),
         })
@@ -190,12 +211,14 @@ impl AutoStage {
         self.planes.plane(2 * self.map_count())
     }
 
+    /// The blend's sums: the smoothing's scratch planes, free by then.
     fn sums(&self) -> [BufferSlice; AUTO_SUMS] {
-        std::array::from_fn(|k| self.planes.plane(2 * self.map_count() + 1 + k))
+        std::array::from_fn(|k| self.planes.plane(self.map_count() + k))
     }
 
     fn out(&self, k: usize) -> BufferSlice {
-        self.planes.plane(2 * self.map_count() + 1 + AUTO_SUMS + k)
+        let n = self.members.len();
+        self.planes.plane(map_count(n) + scratch_count(n) + k)
     }
 }
 
@@ -224,6 +247,7 @@ impl GpuStage for AutoStage {
         for m in self.members.iter().filter(|m| m.unfiltered) {
             self.record_member(batch, run, m)?;
         }
+        self.unfiltered_recorded.store(true, Ordering::SeqCst);
         Ok(())
     }
 
@@ -232,6 +256,12 @@ impl GpuStage for AutoStage {
         let (w, h) = (self.size.0 as u32, self.size.1 as u32);
         // The members that read unprefiltered features ran before the
         // prefilter (record_unfiltered) when it runs.
+        let before = self.unfiltered_recorded.swap(false, Ordering::SeqCst);
+        if run.prefiltered && !before && self.members.iter().any(|m| m.unfiltered) {
+            return Err(crate::error::Error::InvalidArgument(
+                "auto: the prefilter ran, but the members that read unprefiltered features were not recorded before it (GpuStage::record_unfiltered)".into(),
+            ));
+        }
         for m in &self.members {
             if !(m.unfiltered && run.prefiltered) {
                 self.record_member(batch, run, m)?;

@@ -624,33 +624,20 @@ impl GpuChain {
         if let Some(o) = &self.outliers {
             outliers::record_remove(batch, p, &self.stats, o)?;
         }
+        let run = |prefiltered| StageRun {
+            precision: p,
+            stats: &self.stats,
+            config: &self.stage_config,
+            maps,
+            origin: at.origin,
+            prefiltered,
+            spp_total: at.totals.map(|t| t.fine),
+        };
         if let Some(g) = &self.gbf {
-            self.method.record_unfiltered(
-                batch,
-                &StageRun {
-                    precision: p,
-                    stats: &self.stats,
-                    config: &self.stage_config,
-                    maps,
-                    origin: at.origin,
-                    prefiltered: false,
-                    spp_total: at.totals.map(|t| t.fine),
-                },
-            )?;
+            self.method.record_unfiltered(batch, &run(false))?;
             gbf::record_gbf(batch, p, &self.stats, g)?;
         }
-        self.method.record(
-            batch,
-            &StageRun {
-                precision: p,
-                stats: &self.stats,
-                config: &self.stage_config,
-                maps,
-                origin: at.origin,
-                prefiltered: self.gbf.is_some(),
-                spp_total: at.totals.map(|t| t.fine),
-            },
-        )?;
+        self.method.record(batch, &run(self.gbf.is_some()))?;
         if let Some(b) = &self.blend {
             let error = self.method.error(&self.stats);
             b.record(batch, p, self.method_color(), error, &self.stats)?;

@@ -430,7 +430,8 @@ struct CleanCpu {
     /// With `req.pyramid`: the sanitised statistics pooled 2×2 (before the
     /// outlier stage and the prefilter, as on the GPU).
     pooled: Option<StatsImage>,
-    /// When the prefilter ran: the statistics before it.
+    /// When the prefilter ran and a member of `auto` reads the features
+    /// from before it (AUTO-AOS): the statistics before it.
     unfiltered: Option<std::sync::Arc<StatsImage>>,
 }
 
@@ -444,7 +445,8 @@ fn clean_cpu(img: &StatsImage, req: &DenoiseRequest) -> Result<CleanCpu> {
         .transpose()?
         .map(|detection| outliers::remove_cpu(&mut clean, detection));
     let prefiltered = gbf::wanted(req.method, req.prefilter, |l| clean.has(l))?;
-    let unfiltered = prefiltered.then(|| std::sync::Arc::new(clean.clone()));
+    let keep = prefiltered && req.method == Method::Auto && auto::reads_unfiltered(&req.options);
+    let unfiltered = keep.then(|| std::sync::Arc::new(clean.clone()));
     if prefiltered {
         gbf::run_cpu(&mut clean)?;
     }

@@ -107,7 +107,8 @@ pub struct StageArgs<'a> {
 pub struct StageRun<'a> {
     /// Kernel arithmetic.
     pub precision: Precision,
-    /// The sanitised (outlier-cleaned, prefiltered) statistics.
+    /// The sanitised (outlier-cleaned) statistics, prefiltered when
+    /// `prefiltered` says so (not yet in [`GpuStage::record_unfiltered`]).
     pub stats: &'a GpuStats,
     /// The chain's configuration.
     pub config: &'a ChainConfig,
@@ -115,7 +116,8 @@ pub struct StageRun<'a> {
     pub maps: bool,
     /// The image pixel of the chain's pixel `(0, 0)` (a tile's origin).
     pub origin: (u32, u32),
-    /// Whether the G-buffer prefilter ran before the method.
+    /// Whether the G-buffer prefilter ran before the method (false in
+    /// [`GpuStage::record_unfiltered`], which runs before it).
     pub prefiltered: bool,
     /// The whole image's sample total ([`crate::reference::spp_total`]'s
     /// words) when the chain runs one tile of it; `None`: the chain's
@@ -174,9 +176,9 @@ pub struct CpuArgs {
     pub debug: bool,
     /// Whether the G-buffer prefilter ran.
     pub prefiltered: bool,
-    /// When it ran: the statistics before it (sanitised, outlier-cleaned),
-    /// for a member of `auto` that reads unprefiltered features (AOS,
-    /// AUTO-AOS).
+    /// When it ran and a member of `auto` reads unprefiltered features
+    /// (AOS, AUTO-AOS): the statistics before it (sanitised,
+    /// outlier-cleaned).
     pub unfiltered: Option<std::sync::Arc<StatsImage>>,
 }
 

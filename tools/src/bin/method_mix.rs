@@ -61,7 +61,8 @@ struct Args {
     /// Run every method without the pyramid's low band.
     #[arg(long)]
     no_pyramid: bool,
-    /// Run every method on prefiltered features (as inside `auto`), AOS too.
+    /// Run every method on prefiltered features, AOS too (inside `auto`
+    /// AOS reads them unprefiltered: AUTO-AOS).
     #[arg(long)]
     prefilter_on: bool,
 }
