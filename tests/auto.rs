@@ -353,7 +353,7 @@ fn auto_gpu_matches_cpu_on_the_fixture_and_beats_its_members() {
             }
         }
         let auto = metrics::rmse(&cpu.color, &r);
-        let members = mcdenoise::methods::auto::members(&opts);
+        let members = mcdenoise::methods::auto::members(&opts, mcdenoise::Pass::Final);
         assert_eq!(members.len(), if aos == "on" { 4 } else { 3 });
         let alone: Vec<f64> = members
             .iter()
@@ -410,5 +410,32 @@ fn the_aos_member_reads_unprefiltered_features() {
             "{backend:?}: {compared} planes, {moved} moved"
         );
     }
+    check_validation(&gpu());
+}
+
+/// AUTO-AOS joins final reconstructions only: an adaptive pass's `auto`
+/// with `auto.aos=on` is the three members' blend, bit for bit.
+#[test]
+fn an_intermediate_pass_blends_three_members() {
+    let img = io::read_stats(Path::new("tests/fixtures/dof_checker_64_spp16.exr")).unwrap();
+    let out = |aos: &str| {
+        let mut req = DenoiseRequest::new(Method::Auto);
+        req.options = Options::parse(&[format!("auto.aos={aos}")]).unwrap();
+        req.pass = mcdenoise::Pass::Intermediate;
+        denoise(Some(&gpu()), &img, &req).unwrap().color
+    };
+    assert_eq!(out("on").planes, out("off").planes);
+    let final_on = run(&img, Method::Auto, Backend::Gpu, Precision::F32, false, &{
+        Options::parse(&["auto.aos=on"]).unwrap()
+    });
+    let final_off = run(
+        &img,
+        Method::Auto,
+        Backend::Gpu,
+        Precision::F32,
+        false,
+        &Options::default(),
+    );
+    assert_ne!(final_on.color.planes, final_off.color.planes);
     check_validation(&gpu());
 }

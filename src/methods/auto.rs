@@ -28,7 +28,7 @@ use super::registry::{
 };
 use super::stats::GpuStats;
 use super::tiles::Rect;
-use super::Method;
+use super::{Method, Pass};
 use crate::error::Result;
 use crate::gpu::{Batch, BufferSlice, GpuBuffer, GpuContext, PlaneSet};
 use crate::image::{Layer, RgbImage, StatsImage};
@@ -37,12 +37,14 @@ use crate::options::Options;
 use crate::reference;
 use crate::shared::{auto_pairs, AutoPush, SmoothPush, AUTO_SUMS};
 
-/// The methods `auto` runs with `options`, in the order they are blended:
-/// WLR, LP, APR, and AOS with `auto.aos=on`. The first one gives `d_i` and
-/// the sampling parameters (AUTO-BLEND, AUTO-AOS).
-pub fn members(options: &Options) -> Vec<Method> {
+/// The methods `auto` runs with `options` in a `pass`, in the order they
+/// are blended: WLR, LP, APR, and AOS with `auto.aos=on` in a final
+/// reconstruction (an adaptive render's intermediate passes, whose
+/// reconstructions only make sample maps, do without its cost). The first
+/// one gives `d_i` and the sampling parameters (AUTO-BLEND, AUTO-AOS).
+pub fn members(options: &Options, pass: Pass) -> Vec<Method> {
     let mut m = vec![Method::Wlr, Method::Lp, Method::Apr];
-    if options.get("auto.aos") == "on" {
+    if options.get("auto.aos") == "on" && pass == Pass::Final {
         m.push(Method::Aos);
     }
     m
@@ -52,11 +54,13 @@ pub fn members(options: &Options) -> Vec<Method> {
 /// becomes a weight (AUTO-BLEND).
 pub const SIGMA: f32 = 1.5;
 
-/// Whether a member with `options` reads the features from before the
-/// G-buffer prefilter (a method that does not prefilter by default: AOS,
-/// AUTO-AOS), so that the CPU path must keep them.
-pub fn reads_unfiltered(options: &Options) -> bool {
-    members(options).iter().any(|m| !m.info().prefilter_auto)
+/// Whether a member with `options` in `pass` reads the features from
+/// before the G-buffer prefilter (a method that does not prefilter by
+/// default: AOS, AUTO-AOS), so that the CPU path must keep them.
+pub fn reads_unfiltered(options: &Options, pass: Pass) -> bool {
+    members(options, pass)
+        .iter()
+        .any(|m| !m.info().prefilter_auto)
 }
 
 /// The maps of `members` members: their scores and their pairs'
@@ -108,7 +112,7 @@ pub static INFO: MethodInfo = MethodInfo {
     align: super::apr::INFO.align,
     halo: |c| {
         let mut h = 0;
-        for m in members(&c.options) {
+        for m in members(&c.options, c.pass) {
             h = h.max((m.info().halo)(&member_config(c, m))?);
         }
         Ok(h + crate::shared::gaussian_radius(SIGMA as f64))
@@ -116,7 +120,7 @@ pub static INFO: MethodInfo = MethodInfo {
     arena_bytes: registry::no_bytes,
     arena_kept: registry::nothing_kept,
     ring_bytes: |c, size| {
-        members(&c.options)
+        members(&c.options, c.pass)
             .into_iter()
             .map(|m| (m.info().ring_bytes)(&member_config(c, m), size))
             .sum()
@@ -155,7 +159,7 @@ struct AutoStage {
 impl AutoStage {
     fn new(a: &StageArgs) -> Result<AutoStage> {
         let (w, h) = a.size;
-        let methods = members(&a.config.options);
+        let methods = members(&a.config.options, a.config.pass);
         auto_dis::check_members(methods.len())?;
         let mut members = Vec::with_capacity(methods.len());
         for m in methods {
@@ -399,7 +403,7 @@ fn run_cpu(clean: &StatsImage, a: &CpuArgs) -> Result<CpuResult> {
         stats: Vec::new(),
         map_error: None,
     };
-    let methods = members(&a.options);
+    let methods = members(&a.options, a.pass);
     auto_dis::check_members(methods.len())?;
     let mut runs = Vec::with_capacity(methods.len());
     for &m in &methods {

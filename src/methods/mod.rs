@@ -445,7 +445,8 @@ fn clean_cpu(img: &StatsImage, req: &DenoiseRequest) -> Result<CleanCpu> {
         .transpose()?
         .map(|detection| outliers::remove_cpu(&mut clean, detection));
     let prefiltered = gbf::wanted(req.method, req.prefilter, |l| clean.has(l))?;
-    let keep = prefiltered && req.method == Method::Auto && auto::reads_unfiltered(&req.options);
+    let keep =
+        prefiltered && req.method == Method::Auto && auto::reads_unfiltered(&req.options, req.pass);
     let unfiltered = keep.then(|| std::sync::Arc::new(clean.clone()));
     if prefiltered {
         gbf::run_cpu(&mut clean)?;
