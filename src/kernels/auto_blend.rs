@@ -83,12 +83,7 @@ pub fn record(
     color: [BufferSlice; 3],
     error: [BufferSlice; 3],
 ) -> Result<()> {
-    check_members(members.len())?;
-    assert_eq!(
-        dis.len(),
-        auto_pairs(members.len()).len(),
-        "one map per pair"
-    );
+    check_members(members.len(), Some(dis.len()))?;
     for (m, mem) in members.iter().enumerate() {
         let push = AutoPush {
             width,

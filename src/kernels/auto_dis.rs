@@ -40,14 +40,21 @@ pub fn flops_per_pixel(members: usize) -> f64 {
     auto_pairs(members).len() as f64 * (3.0 * 4.0 + 2.0) + 3.0 * (members as f64 + 3.0)
 }
 
-/// `Err` unless `members` is 3 or 4.
-pub fn check_members(members: usize) -> Result<()> {
+/// `Err` unless `members` is 3 or 4 and, with `dis`, `dis` has one map
+/// per pair of them.
+pub fn check_members(members: usize, dis: Option<usize>) -> Result<()> {
     if !(3..=AUTO_MAX_MEMBERS).contains(&members) {
         return Err(Error::InvalidArgument(format!(
             "auto blends 3 or 4 members, not {members}"
         )));
     }
-    Ok(())
+    let pairs = auto_pairs(members).len();
+    match dis {
+        Some(d) if d != pairs => Err(Error::InvalidArgument(format!(
+            "auto: {members} members need {pairs} disagreement maps, not {d}"
+        ))),
+        _ => Ok(()),
+    }
 }
 
 /// The disagreement maps bound to a kernel's [`AUTO_MAX_PAIRS`] slots:
@@ -69,12 +76,7 @@ pub fn record(
     colors: &[[BufferSlice; 3]],
     dis: &[BufferSlice],
 ) -> Result<()> {
-    check_members(colors.len())?;
-    assert_eq!(
-        dis.len(),
-        auto_pairs(colors.len()).len(),
-        "one map per pair"
-    );
+    check_members(colors.len(), Some(dis.len()))?;
     let push = AutoPush {
         width,
         height,

@@ -160,7 +160,7 @@ impl AutoStage {
     fn new(a: &StageArgs) -> Result<AutoStage> {
         let (w, h) = a.size;
         let methods = members(&a.config.options, a.config.pass);
-        auto_dis::check_members(methods.len())?;
+        auto_dis::check_members(methods.len(), None)?;
         let mut members = Vec::with_capacity(methods.len());
         for m in methods {
             let config = member_config(a.config, m);
@@ -224,9 +224,7 @@ impl AutoStage {
         let n = self.members.len();
         self.planes.plane(map_count(n) + scratch_count(n) + k)
     }
-}
 
-impl AutoStage {
     /// Records `m` on `run`'s statistics.
     fn record_member(&self, batch: &mut Batch, run: &StageRun, m: &Member) -> Result<()> {
         m.stage.record(
@@ -404,7 +402,7 @@ fn run_cpu(clean: &StatsImage, a: &CpuArgs) -> Result<CpuResult> {
         map_error: None,
     };
     let methods = members(&a.options, a.pass);
-    auto_dis::check_members(methods.len())?;
+    auto_dis::check_members(methods.len(), None)?;
     let mut runs = Vec::with_capacity(methods.len());
     for &m in &methods {
         // A member that does not prefilter by default reads the statistics
