@@ -104,13 +104,12 @@ pub fn record(
         bindings.extend(sums);
         bindings.extend(color);
         bindings.extend(error);
-        batch.dispatch(
+        super::auto_score::dispatch(
+            batch,
             &DECL,
             precision,
+            &push,
             &bindings,
-            bytemuck::bytes_of(&push),
-            width,
-            height,
             flops_per_pixel(members.len()),
         )?;
     }

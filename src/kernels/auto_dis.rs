@@ -87,13 +87,12 @@ pub fn record(
         .flat_map(|m| colors.get(m).unwrap_or(&colors[0]).iter().copied())
         .collect();
     bindings.extend(pair_slots(dis));
-    batch.dispatch(
+    super::auto_score::dispatch(
+        batch,
         &DECL,
         precision,
+        &push,
         &bindings,
-        bytemuck::bytes_of(&push),
-        width,
-        height,
         flops_per_pixel(colors.len()),
     )
 }

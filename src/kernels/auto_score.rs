@@ -43,13 +43,26 @@ pub fn record(
         ..Default::default()
     };
     let bindings: Vec<BufferSlice> = color.iter().chain(&error).copied().chain([score]).collect();
+    dispatch(batch, &DECL, precision, &push, &bindings, FLOPS_PER_PIXEL)
+}
+
+/// Dispatches one of `auto`'s kernels (`decl`) over `push`'s image with
+/// `bindings` in order.
+pub(crate) fn dispatch(
+    batch: &mut Batch,
+    decl: &KernelDecl,
+    precision: Precision,
+    push: &AutoPush,
+    bindings: &[BufferSlice],
+    flops_per_pixel: f64,
+) -> Result<()> {
     batch.dispatch(
-        &DECL,
+        decl,
         precision,
-        &bindings,
-        bytemuck::bytes_of(&push),
-        width,
-        height,
-        FLOPS_PER_PIXEL,
+        bindings,
+        bytemuck::bytes_of(push),
+        push.width,
+        push.height,
+        flops_per_pixel,
     )
 }

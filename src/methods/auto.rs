@@ -58,9 +58,13 @@ pub const SIGMA: f32 = 1.5;
 /// before the G-buffer prefilter (a method that does not prefilter by
 /// default: AOS, AUTO-AOS), so that the CPU path must keep them.
 pub fn reads_unfiltered(options: &Options, pass: Pass) -> bool {
-    members(options, pass)
-        .iter()
-        .any(|m| !m.info().prefilter_auto)
+    members(options, pass).into_iter().any(unfiltered)
+}
+
+/// Whether member `m` reads the features from before the G-buffer
+/// prefilter: a method that does not prefilter by default (AOS).
+fn unfiltered(m: Method) -> bool {
+    !m.info().prefilter_auto
 }
 
 /// The maps of `members` members: their scores and their pairs'
@@ -133,9 +137,6 @@ pub static INFO: MethodInfo = MethodInfo {
 /// while the later members run, so they cannot share the chain's).
 struct Member {
     method: Method,
-    /// Whether it reads the features before the G-buffer prefilter (a
-    /// method that does not prefilter by default: AOS, AUTO-AOS).
-    unfiltered: bool,
     config: ChainConfig,
     stage: Box<dyn GpuStage>,
     _arena: Option<Arc<GpuBuffer>>,
@@ -179,7 +180,6 @@ impl AutoStage {
             })?;
             members.push(Member {
                 method: m,
-                unfiltered: !m.info().prefilter_auto,
                 config,
                 stage,
                 _arena: arena,
@@ -246,7 +246,7 @@ impl AutoStage {
 
 impl GpuStage for AutoStage {
     fn record_unfiltered(&self, batch: &mut Batch, run: &StageRun) -> Result<()> {
-        for m in self.members.iter().filter(|m| m.unfiltered) {
+        for m in self.members.iter().filter(|m| unfiltered(m.method)) {
             self.record_member(batch, run, m)?;
         }
         self.unfiltered_recorded.store(true, Ordering::SeqCst);
@@ -259,13 +259,13 @@ impl GpuStage for AutoStage {
         // The members that read unprefiltered features ran before the
         // prefilter (record_unfiltered) when it runs.
         let before = self.unfiltered_recorded.swap(false, Ordering::SeqCst);
-        if run.prefiltered && !before && self.members.iter().any(|m| m.unfiltered) {
+        if run.prefiltered && !before && self.members.iter().any(|m| unfiltered(m.method)) {
             return Err(crate::error::Error::InvalidArgument(
                 "auto: the prefilter ran, but the members that read unprefiltered features were not recorded before it (GpuStage::record_unfiltered)".into(),
             ));
         }
         for m in &self.members {
-            if !(m.unfiltered && run.prefiltered) {
+            if !(unfiltered(m.method) && run.prefiltered) {
                 self.record_member(batch, run, m)?;
             }
         }
@@ -408,7 +408,7 @@ fn run_cpu(clean: &StatsImage, a: &CpuArgs) -> Result<CpuResult> {
         // A member that does not prefilter by default reads the statistics
         // from before the prefilter (AUTO-AOS), as on the GPU.
         let r = match &a.unfiltered {
-            Some(u) if !m.info().prefilter_auto => {
+            Some(u) if unfiltered(m) => {
                 let args = CpuArgs {
                     prefiltered: false,
                     unfiltered: None,
