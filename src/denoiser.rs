@@ -107,6 +107,22 @@ pub struct Config {
 }
 
 impl Config {
+    /// The factor a stop rule multiplies this configuration's estimated
+    /// rMSE by on a `width × height` image: the method's
+    /// [`crate::MethodInfo::error_scale`], or its `pyramid_error_scale`
+    /// where the pyramid's low band runs (PYRAMID-ERROR-SCALE).
+    pub fn error_scale(&self, width: usize, height: usize) -> f64 {
+        let info = self.method.info();
+        if self
+            .pyramid
+            .resolve(self.method, self.pass, (width, height))
+        {
+            info.pyramid_error_scale
+        } else {
+            info.error_scale
+        }
+    }
+
     /// `method` with defaults: final pass, f32, prefilter `auto`, no options.
     pub fn new(method: Method) -> Config {
         Config {

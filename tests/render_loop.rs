@@ -67,6 +67,45 @@ fn a_target_met_after_pass_0_renders_nothing_more() {
     check_validation(&ctx);
 }
 
+/// A stop rule scales the final pass's estimate by the factor of what that
+/// pass runs: `auto`'s pyramid by default (PYRAMID-ERROR-SCALE), the
+/// method's own estimate where the pyramid cannot or does not run.
+#[test]
+fn the_stop_rule_scales_the_estimate_of_the_final_pass() {
+    use mcdenoise::{Config, Pass, Pyramid};
+    for m in [
+        Method::Wlr,
+        Method::Lp,
+        Method::Apr,
+        Method::Aos,
+        Method::Auto,
+    ] {
+        let info = m.info();
+        // The merged estimate is at most the method's (E_f − a·min(E_f, Ef)).
+        assert!(info.pyramid_error_scale >= info.error_scale, "{m:?}");
+        let mut c = Config::new(m);
+        c.pyramid = Pyramid::On;
+        assert_eq!(c.error_scale(128, 128), info.pyramid_error_scale, "{m:?}");
+        c.pyramid = Pyramid::Off;
+        assert_eq!(c.error_scale(128, 128), info.error_scale, "{m:?}");
+        c.pyramid = Pyramid::Auto;
+        let by_default = if m == Method::Auto {
+            info.pyramid_error_scale
+        } else {
+            info.error_scale
+        };
+        assert_eq!(c.error_scale(128, 128), by_default, "{m:?}");
+        // Too small for the pyramid, or an adaptive pass's map.
+        assert_eq!(c.error_scale(8, 8), info.error_scale, "{m:?}");
+        c.pass = Pass::Intermediate;
+        assert_eq!(c.error_scale(128, 128), info.error_scale, "{m:?}");
+        let final_config = LoopConfig::new(m, 16, true).final_config();
+        assert_eq!(final_config.error_scale(128, 128), by_default, "{m:?}");
+    }
+    let auto = Method::Auto.info();
+    assert!(auto.pyramid_error_scale > 1.5 * auto.error_scale);
+}
+
 /// An unreachable target spends exactly up to --max-spp and never past it,
 /// in whole passes, adaptive or uniform; the estimate falls as it goes.
 #[test]

@@ -481,6 +481,8 @@ pub static INFO: MethodInfo = MethodInfo {
         floor: 0.3,
     },
     error_scale: 4.3,
+    // PYRAMID-ERROR-SCALE: error_scale × 2.16.
+    pyramid_error_scale: 9.3,
     align: 1,
     halo: |c| {
         let r = AosParams::new(c.pass, &c.options)?.radius;

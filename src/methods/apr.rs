@@ -539,6 +539,8 @@ pub static INFO: MethodInfo = MethodInfo {
         floor: 0.6,
     },
     error_scale: 2.5,
+    // PYRAMID-ERROR-SCALE: error_scale × 2.06.
+    pyramid_error_scale: 5.2,
     // The sparse centres lie every RADIUS pixels (§4.3).
     align: RADIUS as usize,
     halo: |c| {

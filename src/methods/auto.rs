@@ -112,6 +112,8 @@ pub static INFO: MethodInfo = MethodInfo {
     // ERROR-SCALE on the blend's estimate: uniform inputs of the eleven
     // tuning scenes at 4, 16 and 64 spp (AUTO-BLEND).
     error_scale: 2.5,
+    // PYRAMID-ERROR-SCALE: error_scale × 2.07.
+    pyramid_error_scale: 5.2,
     // The least common multiple of the members' (APR's block grid).
     align: super::apr::INFO.align,
     halo: |c| {

@@ -649,6 +649,8 @@ pub static INFO: MethodInfo = MethodInfo {
         floor: 0.6,
     },
     error_scale: 0.8,
+    // PYRAMID-ERROR-SCALE: error_scale × 2.17.
+    pyramid_error_scale: 1.7,
     align: 1,
     halo: |_| Ok(reference::lp::RADIUS * (GRANULARITIES.len() + 1)),
     arena_bytes: |_, (w, h)| LpPlanes::scratch_bytes(w * h),

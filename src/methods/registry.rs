@@ -69,6 +69,11 @@ pub struct MethodInfo {
     /// target: the geometric mean of true over estimated rMSE on the
     /// tuning scenes (ERROR-SCALE). Its `E_i` and sample maps do not use it.
     pub error_scale: f64,
+    /// The factor in place of `error_scale` where the pyramid's low band
+    /// (PYRAMID-LOWBAND) ran ([`crate::Config::error_scale`]): the merged
+    /// estimate falls about twice as far as the true error does
+    /// (PYRAMID-ERROR-SCALE).
+    pub pyramid_error_scale: f64,
     /// The multiple of which a tile's first column and row must be so that
     /// its grid keeps the image's phase (1: no grid).
     pub align: usize,

@@ -503,6 +503,8 @@ pub static INFO: MethodInfo = MethodInfo {
         floor: 0.3,
     },
     error_scale: 6.9,
+    // PYRAMID-ERROR-SCALE: error_scale × 2.22.
+    pyramid_error_scale: 15.0,
     align: 1,
     halo: |c| {
         let r = WlrParams::new(c.pass, &c.options)?.radius as usize;

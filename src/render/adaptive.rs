@@ -124,6 +124,12 @@ impl LoopConfig {
         self.map_method
             .unwrap_or_else(|| self.method.info().map_method)
     }
+
+    /// The configuration of the final reconstruction (the one
+    /// [`stop_estimate`] judges).
+    pub fn final_config(&self) -> Config {
+        loop_config(self, Pass::Final, self.spp)
+    }
 }
 
 /// When an open-ended render stops: at the first pass after which the
@@ -198,11 +204,13 @@ pub fn next_budget(history: &[(f64, f64)], target: Option<f64>, pixels: usize, c
     (want.ceil() as u64).min(cap - spent_u)
 }
 
-/// The rMSE an open-ended render judges `frame` by: the method's estimate
-/// ([`crate::metrics::estimated_rmse`]) times its
-/// [`crate::MethodInfo::error_scale`].
-pub fn stop_estimate(method: Method, frame: &Frame) -> f64 {
-    method.info().error_scale * crate::metrics::estimated_rmse(&frame.color, &frame.error)
+/// The rMSE an open-ended render judges `frame`, the reconstruction of the
+/// final pass's `config`, by: the estimate
+/// ([`crate::metrics::estimated_rmse`]) times the configuration's
+/// [`Config::error_scale`].
+pub fn stop_estimate(config: &Config, frame: &Frame) -> f64 {
+    let (w, h) = (frame.color.width, frame.color.height);
+    config.error_scale(w, h) * crate::metrics::estimated_rmse(&frame.color, &frame.error)
 }
 
 /// The per-pass cap of an adaptive render whose maps `method` makes
@@ -646,7 +654,7 @@ impl Runner<'_> {
             let t = Instant::now();
             let frame = self.reconstruct(&last)?;
             let mut overhead = t.elapsed().as_secs_f64();
-            let e = stop_estimate(self.cfg.method, &frame);
+            let e = stop_estimate(last.config(), &frame);
             history.push((self.samples as f64, e));
             progress(&PassProgress {
                 done,

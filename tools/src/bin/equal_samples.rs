@@ -321,7 +321,7 @@ fn target_rows(
             scene: hi.scene.clone(),
             method: m.name().into(),
             target: eh,
-            estimate: adaptive::stop_estimate(m, &res.frame),
+            estimate: adaptive::stop_estimate(&cfg.final_config(), &res.frame),
             truth,
             spp: res.samples as f64 / (w * h) as f64,
             uniform_spp,

@@ -61,6 +61,10 @@ struct Args {
     /// Run every method without the pyramid's low band.
     #[arg(long)]
     no_pyramid: bool,
+    /// Run every method with the pyramid's low band (by default `auto`
+    /// only: PYRAMID-AUTO).
+    #[arg(long, conflicts_with = "no_pyramid")]
+    pyramid_on: bool,
     /// Run every method on prefiltered features, AOS too (inside `auto`
     /// AOS reads them unprefiltered: AUTO-AOS).
     #[arg(long)]
@@ -173,6 +177,9 @@ fn run(ctx: &Arc<GpuContext>, stats: &StatsImage, m: Method, runs: &Runs) -> any
     if runs.no_pyramid {
         c.pyramid = mcdenoise::Pyramid::Off;
     }
+    if runs.pyramid_on {
+        c.pyramid = mcdenoise::Pyramid::On;
+    }
     if runs.prefilter_on {
         c.prefilter = mcdenoise::Prefilter::On;
     }
@@ -220,6 +227,7 @@ struct Runs<'a> {
     no_mix: bool,
     no_input_blend: bool,
     no_pyramid: bool,
+    pyramid_on: bool,
     prefilter_on: bool,
 }
 
@@ -312,6 +320,7 @@ fn main() -> anyhow::Result<()> {
         no_mix: a.no_mix,
         no_input_blend: a.no_input_blend,
         no_pyramid: a.no_pyramid,
+        pyramid_on: a.pyramid_on,
         prefilter_on: a.prefilter_on,
     };
     std::fs::create_dir_all(&a.work)?;
