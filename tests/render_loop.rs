@@ -7,9 +7,9 @@ use common::*;
 use std::process::Command;
 use std::sync::atomic::AtomicBool;
 
-use mcdenoise::render::adaptive::{next_budget, render, LoopConfig, StopRules};
+use mcdenoise::render::adaptive::{final_config, next_budget, render, LoopConfig, StopRules};
 use mcdenoise::render::{Renderer, Scene};
-use mcdenoise::{Layer, Method};
+use mcdenoise::{Layer, Method, Pyramid, Temporal};
 
 /// `method`'s defaults without a per-pass cap.
 fn config(method: Method, spp: u32, adaptive: bool) -> LoopConfig {
@@ -72,7 +72,7 @@ fn a_target_met_after_pass_0_renders_nothing_more() {
 /// method's own estimate where the pyramid cannot or does not run.
 #[test]
 fn the_stop_rule_scales_the_estimate_of_the_final_pass() {
-    use mcdenoise::{Config, Pass, Pyramid};
+    use mcdenoise::{Config, Pass};
     for m in [
         Method::Wlr,
         Method::Lp,
@@ -99,11 +99,51 @@ fn the_stop_rule_scales_the_estimate_of_the_final_pass() {
         assert_eq!(c.error_scale(8, 8), info.error_scale, "{m:?}");
         c.pass = Pass::Intermediate;
         assert_eq!(c.error_scale(128, 128), info.error_scale, "{m:?}");
-        let final_config = LoopConfig::new(m, 16, true).final_config();
+        let final_config = final_config(&LoopConfig::new(m, 16, true), Temporal::Off);
         assert_eq!(final_config.error_scale(128, 128), by_default, "{m:?}");
     }
     let auto = Method::Auto.info();
     assert!(auto.pyramid_error_scale > 1.5 * auto.error_scale);
+}
+
+/// An open-ended render judges its final reconstruction with the factor of
+/// that reconstruction's configuration: WLR with the pyramid's low band
+/// takes the pyramid's factor, without it its own.
+#[test]
+fn an_open_render_scales_the_estimate_its_final_pass_makes() {
+    let ctx = gpu();
+    let scene = Scene::builtin("cornell").unwrap();
+    let wlr = Method::Wlr.info();
+    for (pyramid, scale) in [
+        (Pyramid::On, wlr.pyramid_error_scale),
+        (Pyramid::Off, wlr.error_scale),
+    ] {
+        let r = Renderer::new(&ctx, &scene, 16, 16, 5).unwrap();
+        let rules = StopRules {
+            target_error: Some(1e9),
+            time_limit: None,
+            max_spp: 64,
+        };
+        let cfg = LoopConfig {
+            pyramid,
+            ..open(Method::Wlr, true, rules)
+        };
+        let mut estimates = Vec::new();
+        let out = render(&ctx, &r, &cfg, &AtomicBool::new(false), |p| {
+            estimates.extend(p.estimate)
+        })
+        .unwrap();
+        let own = mcdenoise::metrics::estimated_rmse(&out.frame.color, &out.frame.error);
+        assert_eq!(estimates.len(), 1, "{estimates:?}");
+        assert!(own > 0.0);
+        let want = scale * own;
+        assert!(
+            (estimates[0] - want).abs() <= 1e-12 * want,
+            "{pyramid:?}: {} against {want}",
+            estimates[0]
+        );
+    }
+    check_validation(&ctx);
 }
 
 /// An unreachable target spends exactly up to --max-spp and never past it,

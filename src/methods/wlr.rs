@@ -504,7 +504,7 @@ pub static INFO: MethodInfo = MethodInfo {
     },
     error_scale: 6.9,
     // PYRAMID-ERROR-SCALE: error_scale × 2.22.
-    pyramid_error_scale: 15.0,
+    pyramid_error_scale: 15.3,
     align: 1,
     halo: |c| {
         let r = WlrParams::new(c.pass, &c.options)?.radius as usize;

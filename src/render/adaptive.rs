@@ -124,12 +124,6 @@ impl LoopConfig {
         self.map_method
             .unwrap_or_else(|| self.method.info().map_method)
     }
-
-    /// The configuration of the final reconstruction (the one
-    /// [`stop_estimate`] judges).
-    pub fn final_config(&self) -> Config {
-        loop_config(self, Pass::Final, self.spp)
-    }
 }
 
 /// When an open-ended render stops: at the first pass after which the

@@ -321,7 +321,10 @@ fn target_rows(
             scene: hi.scene.clone(),
             method: m.name().into(),
             target: eh,
-            estimate: adaptive::stop_estimate(&cfg.final_config(), &res.frame),
+            estimate: adaptive::stop_estimate(
+                &adaptive::final_config(&cfg, mcdenoise::Temporal::Off),
+                &res.frame,
+            ),
             truth,
             spp: res.samples as f64 / (w * h) as f64,
             uniform_spp,

@@ -62,7 +62,7 @@ struct Args {
     #[arg(long)]
     no_pyramid: bool,
     /// Run every method with the pyramid's low band (by default `auto`
-    /// only: PYRAMID-AUTO).
+    /// only: PYRAMID-AUTO); not with `none`, which has no low band.
     #[arg(long, conflicts_with = "no_pyramid")]
     pyramid_on: bool,
     /// Run every method on prefiltered features, AOS too (inside `auto`
@@ -76,6 +76,9 @@ struct Out {
     error: RgbImage,
     /// Per-pixel relative error estimate, summed over channels.
     rel: Vec<f64>,
+    /// The factor a stop rule would scale this configuration's estimate by
+    /// (ERROR-SCALE, PYRAMID-ERROR-SCALE): the blends' "cal" rules use it.
+    scale: f64,
 }
 
 fn box_blur(w: usize, h: usize, v: &[f64], r: usize) -> Vec<f64> {
@@ -183,6 +186,7 @@ fn run(ctx: &Arc<GpuContext>, stats: &StatsImage, m: Method, runs: &Runs) -> any
     if runs.prefilter_on {
         c.prefilter = mcdenoise::Prefilter::On;
     }
+    let scale = c.error_scale(stats.width, stats.height);
     let d = Denoiser::new(ctx, Source::of_image(stats), c)?;
     let f = d.denoise(stats, None)?;
     let n = f.color.width * f.color.height;
@@ -200,6 +204,7 @@ fn run(ctx: &Arc<GpuContext>, stats: &StatsImage, m: Method, runs: &Runs) -> any
         error: f.error,
         color: f.color,
         rel,
+        scale,
     })
 }
 
@@ -269,7 +274,7 @@ fn case(
         println!("{}", serde_json::Value::Object(line));
         return Ok(());
     }
-    let scales: Vec<f64> = methods.iter().map(|m| m.info().error_scale).collect();
+    let scales: Vec<f64> = outs.iter().map(|o| o.scale).collect();
     let ones = vec![1.0; methods.len()];
     for s in subsets(methods.len()) {
         let key: Vec<&str> = s.iter().map(|&i| methods[i].name()).collect();

@@ -111,7 +111,8 @@ pub struct Args {
     #[arg(long, value_name = "K")]
     reference: Option<u32>,
     /// Render until the reconstruction's estimated rMSE (mean E_i/(f̂_i²+0.01)
-    /// over pixels and channels) is at most E: passes continue, each sized
+    /// over pixels and channels, times a factor per method that corrects the
+    /// estimate's measured bias) is at most E: passes continue, each sized
     /// from how the estimate fell so far, bounded by --max-spp. Uniform
     /// passes without --adaptive.
     #[arg(long, value_name = "E", conflicts_with = "spp",
