@@ -5,6 +5,9 @@
 // depth, albedo r g b) the filtered value sum w g / W and its propagated
 // variance sum w^2 var(g) / W^2 (GBF-VAR), written to seven + seven planes
 // (the feature planes themselves: this kernel reads only the packed copies).
+// With push.second_below > 0 it is GBF-SECOND's second pass over the first
+// pass's output: only the pixels with fewer samples than that are filtered,
+// and only the features are written (the variances stay the first pass's).
 // Scalar twin: src/reference/gbf_filter.rs.
 #include "lib/common.glsl"
 
@@ -16,6 +19,7 @@ layout(push_constant) uniform Push {
     uint height;
     uint row0;
     uint base;      // gbf_pack, gbf_filter: first row of the packed bindings
+    float second_below;  // gbf_filter: GBF-SECOND's pass when > 0
 } push;
 
 PLANE_IN(0, px)
@@ -109,7 +113,10 @@ void main()
         if (x < push.width && y < push.height) {
             uint c = y * push.width + x;
             real h = real(hbar[c]);
-            if (gbf_valid(c - push.base * push.width) && h >= real(GBF_H0)) {
+            uint ck = c - push.base * push.width;
+            bool second = push.second_below > 0.0;
+            if (gbf_valid(ck) && h >= real(GBF_H0)
+                && (!second || spp_of(fb[ck].w) < push.second_below)) {
                 act[k] = true;
                 k2[k] = real(-GBF_LOG2E) / (real(2) * h * h);
                 pc[k] = gbf_position(c);
@@ -190,6 +197,9 @@ void main()
         g4[c] = float(gb.x);
         g5[c] = float(gb.y);
         g6[c] = float(gb.z);
+        if (push.second_below > 0.0) {
+            continue;
+        }
         gv0[c] = float(gva.x);
         gv1[c] = float(gva.y);
         gv2[c] = float(gva.z);

@@ -29,6 +29,7 @@ layout(push_constant) uniform Push {
     uint height;    // gbf_pack: the end of its rows
     uint row0;
     uint base;      // gbf_pack, gbf_filter: first row of the packed bindings
+    float second_below;  // gbf_filter: GBF-SECOND's pass when > 0
 } push;
 
 layout(std430, set = 0, binding = 0) readonly buffer f0_blk { vec4 f0[]; };

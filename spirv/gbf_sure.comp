@@ -17,6 +17,7 @@ layout(push_constant) uniform Push {
     uint height;
     uint row0;
     uint base;      // gbf_pack, gbf_filter: first row of the packed bindings
+    float second_below;  // gbf_filter: GBF-SECOND's pass when > 0
 } push;
 
 PLANE_IN(0, px)

@@ -181,6 +181,13 @@ pub const OPTIONS: &[OptionSpec] = &[
         help: "auto blends AOS, on the features from before the G-buffer prefilter, as a fourth member with WLR, LP and APR in final reconstructions (on: 0.91-0.96 of the rMSE for about 6x the GPU time; adaptive passes keep three) or not (off)",
     },
     OptionSpec {
+        key: "gbf.second_below",
+        kind: Kind::Real(0.0, 65536.0),
+        default: "8",
+        section: "§6.2 step 9 (GBF-SECOND)",
+        help: "the G-buffer prefilter filters the features of the pixels with fewer samples than this a second time, with the same weights, over its own output (their variances stay the first pass's): at 4 spp their noise, which the colour's shares, is what the regressions follow (0: one pass, the spec)",
+    },
+    OptionSpec {
         key: "blend.radius",
         kind: Kind::Int(0, 16),
         default: "method",

@@ -438,6 +438,11 @@ pub struct GbfPush {
     /// vec4 bindings start (0 unless the image is filtered in row chunks,
     /// see `methods::gbf`); unused by the other kernels.
     pub base: u32,
+    /// `gbf_filter`: 0 for the spec's pass (steps 9–10: features and
+    /// variances); above 0, GBF-SECOND's second pass, which filters again
+    /// only the pixels with fewer samples than this and writes their
+    /// features, not their variances. Unused by the other kernels.
+    pub second_below: f32,
 }
 
 /// `spirv/sample_priority.comp`, block `Push` (spec §9.1).

@@ -96,8 +96,9 @@ fn synthetic(w: usize, h: usize, seed: u64, blur: f64) -> Scene {
     s
 }
 
-/// The twins of gbf_pack and gbf_filter at `hbar`: 7 features, 7 variances.
-fn filter_twin(s: &Scene, hbar: &[f32]) -> Vec<Vec<f32>> {
+/// The twins of gbf_pack and gbf_filter at `hbar`: 7 features, 7 variances
+/// (`second_below`: [`GbfPush::second_below`]).
+fn filter_twin(s: &Scene, hbar: &[f32], second_below: f32) -> Vec<Vec<f32>> {
     let p = s.planes();
     let packed = rk::gbf_pack(
         std::array::from_fn(|j| s.feat[j].as_slice()),
@@ -106,7 +107,10 @@ fn filter_twin(s: &Scene, hbar: &[f32]) -> Vec<Vec<f32>> {
     );
     let mut out = vec![vec![0.0f32; s.w * s.h]; 14];
     rf::gbf_filter(
-        &push(s, 0),
+        &GbfPush {
+            second_below,
+            ..push(s, 0)
+        },
         p.pos,
         p.inv,
         &s.spp,
@@ -237,9 +241,28 @@ fn gbf_sure_matches_twin() {
 
 #[test]
 fn gbf_filter_matches_twin() {
+    filter_matches_twin(0.0);
+}
+
+/// GBF-SECOND's pass (`second_below` 8) on pixels of 4 and 16 samples: the
+/// GPU equals the twin; the pixels with 16 keep their features, and every
+/// pixel keeps its variances, exactly; the pixels with 4 are filtered.
+#[test]
+fn gbf_filter_second_pass_matches_twin() {
+    filter_matches_twin(8.0);
+}
+
+fn filter_matches_twin(second_below: f32) {
     let ctx = gpu();
     for &(w, h) in SIZES {
-        let s = synthetic(w, h, 7 + h as u64, 0.1);
+        let mut s = synthetic(w, h, 7 + h as u64, 0.1);
+        if second_below > 0.0 {
+            for (i, n) in s.spp.iter_mut().enumerate() {
+                if *n > 0.0 && i % 3 == 0 {
+                    *n = 4.0;
+                }
+            }
+        }
         let p = s.planes();
         let mut hopt = vec![0.0f32; w * h];
         rs::gbf_sure(
@@ -250,7 +273,33 @@ fn gbf_filter_matches_twin() {
             &s.spp,
             &mut hopt,
         );
-        let cpu = filter_twin(&s, &hopt);
+        let cpu = filter_twin(&s, &hopt, second_below);
+        if second_below > 0.0 {
+            let mut changed = 0;
+            for i in 0..w * h {
+                for j in 0..7 {
+                    assert_eq!(cpu[7 + j][i], s.var[j][i], "variance {j} at {i}");
+                    if s.spp[i] >= second_below {
+                        assert_eq!(
+                            cpu[j][i], s.feat[j][i],
+                            "feature {j} at {i} ({} spp)",
+                            s.spp[i]
+                        );
+                    } else if cpu[j][i] != s.feat[j][i] {
+                        changed += 1;
+                    }
+                }
+            }
+            let low = s
+                .spp
+                .iter()
+                .filter(|&&n| (1.0..second_below).contains(&n))
+                .count();
+            assert!(
+                w * h < 100 || changed * 2 > low * 7,
+                "{w}x{h}: {changed} of {low} x 7 filtered"
+            );
+        }
         for prec in precisions() {
             let up = |v: &[f32]| GpuBuffer::from_slice(&ctx, "test.in", v).unwrap();
             let bufs = |v: &[Vec<f32>]| -> Vec<GpuBuffer> { v.iter().map(|p| up(p)).collect() };
@@ -260,7 +309,18 @@ fn gbf_filter_matches_twin() {
             let (pos, inv, feat, var) = (bufs(&s.pos), bufs(&s.inv), quads(&s.feat), quads(&s.var));
             let (spp, hbar) = (up(&padded(&s.spp)), up(&hopt));
             let packed: Vec<GpuBuffer> = (0..4).map(|_| up(&vec![0.0; 4 * w * h])).collect();
-            let out: Vec<GpuBuffer> = (0..14).map(|_| up(&vec![0.0; w * h])).collect();
+            // The variance planes hold the input's, as in the chain, where
+            // the filter writes over the planes it packed (the second pass
+            // leaves them).
+            let out: Vec<GpuBuffer> = (0..14)
+                .map(|k| {
+                    up(&if k < 7 {
+                        vec![0.0; w * h]
+                    } else {
+                        s.var[k - 7].clone()
+                    })
+                })
+                .collect();
             let mut batch = Batch::new(&ctx).unwrap();
             let sl = |v: &[GpuBuffer], k: usize| v[k].slice();
             gbf_pack::record(
@@ -287,6 +347,7 @@ fn gbf_filter_matches_twin() {
                 hbar.slice(),
                 std::array::from_fn(|k| sl(&packed, k)),
                 std::array::from_fn(|k| sl(&out, k)),
+                second_below,
             )
             .unwrap();
             batch.finish().unwrap();
@@ -415,7 +476,8 @@ fn row_chunks_are_bit_identical() {
     let img = mcdenoise::io::read_stats(&dir.join("dof_checker_64_spp16.exr")).unwrap();
     let run = |max_binding: u64| {
         let stats = GpuStats::upload(&ctx, "test.stats", &img).unwrap();
-        let planes = GbfPlanes::new(&ctx, img.width, img.height, None).unwrap();
+        // GBF-SECOND's pass too (the fixture has 16 spp).
+        let planes = GbfPlanes::new(&ctx, img.width, img.height, None, 32.0).unwrap();
         let mut batch = Batch::new(&ctx).unwrap();
         record_gbf_chunked(&mut batch, Precision::F32, &stats, &planes, max_binding).unwrap();
         let timings = batch.finish().unwrap();
@@ -425,8 +487,9 @@ fn row_chunks_are_bit_identical() {
     let (one, n1) = run(u64::MAX);
     // 32 rows of 16-byte pixels: chunks of 16 rows (the smallest).
     let (many, n16) = run(32 * 16 * img.width as u64);
-    assert_eq!(n1, 1, "one chunk");
-    assert_eq!(n16, img.height.div_ceil(16), "chunks of 16 rows");
+    // Two passes (GBF-SECOND) of each.
+    assert_eq!(n1, 2, "one chunk");
+    assert_eq!(n16, 2 * img.height.div_ceil(16), "chunks of 16 rows");
     for layer in [
         Layer::Normal,
         Layer::NormalVariance,
@@ -525,7 +588,7 @@ fn zero_position_variance_is_passed_through() {
         &mut hopt,
     );
     assert!(hopt.iter().all(|&v| v == 0.0), "every h_opt = 0");
-    let out = filter_twin(&s, &hopt);
+    let out = filter_twin(&s, &hopt, 0.0);
     for j in 0..7 {
         assert_eq!(out[j], s.feat[j]);
         assert_eq!(out[7 + j], s.var[j]);
@@ -537,7 +600,7 @@ fn outputs_are_convex_combinations() {
     let s = synthetic(30, 30, 13, 0.2);
     let p = s.planes();
     let hbar = vec![1.5f32; s.w * s.h];
-    let out = filter_twin(&s, &hbar);
+    let out = filter_twin(&s, &hbar, 0.0);
     for y in 0..s.h {
         for x in 0..s.w {
             let q = y * s.w + x;
@@ -575,18 +638,22 @@ fn prefilter_chain_on_the_fixture() {
     let img = mcdenoise::io::read_stats(&dir.join("dof_checker_64_spp16.exr")).unwrap();
     assert!(img.has(Layer::PositionCovariance));
     let reference = mcdenoise::io::read_rgb(&dir.join("dof_checker_64_ref.exr")).unwrap();
-    let run = |backend: Backend, prefilter: Prefilter| {
+    let run = |backend: Backend, prefilter: Prefilter, second: &str| {
         let mut req = DenoiseRequest::new(Method::Wlr);
         req.backend = backend;
         req.prefilter = prefilter;
+        req.options = mcdenoise::Options::parse(&[format!("gbf.second_below={second}")]).unwrap();
         denoise(Some(&gpu()), &img, &req).unwrap().color
     };
-    let g = run(Backend::Gpu, Prefilter::Auto);
-    let c = run(Backend::Cpu, Prefilter::Auto);
+    let g = run(Backend::Gpu, Prefilter::Auto, "8");
+    let c = run(Backend::Cpu, Prefilter::Auto, "8");
     for k in 0..3 {
         assert_close(&format!("colour {k}"), &g.planes[k], &c.planes[k], 0.99);
     }
-    let off = run(Backend::Cpu, Prefilter::Off);
+    // The CPU path reads `gbf.second_below` (16 spp < 32: every pixel is
+    // filtered twice).
+    assert_ne!(run(Backend::Cpu, Prefilter::Auto, "32").planes, c.planes);
+    let off = run(Backend::Cpu, Prefilter::Off, "8");
     let e =
         |x: &mcdenoise::image::RgbImage| mcdenoise::metrics::compare(x, &reference).unwrap().rmse;
     println!(
@@ -596,6 +663,52 @@ fn prefilter_chain_on_the_fixture() {
     );
     assert!(e(&c) < e(&off), "prefilter {} vs off {}", e(&c), e(&off));
     check_validation(&gpu());
+}
+
+/// GBF-SECOND through the chain: the statistics a GPU chain prefilters with
+/// `gbf.second_below=32` (every pixel of the 16-spp fixture filtered twice)
+/// equal the twins' (`gbf::run_cpu`), and differ from one pass's.
+#[test]
+fn second_pass_in_the_chain_matches_twins() {
+    use mcdenoise::{Config, Denoiser, Method, Prefilter, Source};
+    let img = mcdenoise::io::read_stats(std::path::Path::new(
+        "tests/fixtures/dof_checker_64_spp16.exr",
+    ))
+    .unwrap();
+    let ctx = gpu();
+    let gpu_stats = |second: f32| {
+        let mut cfg = Config::new(Method::None);
+        cfg.prefilter = Prefilter::On;
+        cfg.options = mcdenoise::Options::parse(&[format!("gbf.second_below={second}")]).unwrap();
+        let d = Denoiser::new(&ctx, Source::of_image(&img), cfg).unwrap();
+        d.denoise_with_statistics(&img, None).unwrap().1
+    };
+    let (one, two) = (gpu_stats(0.0), gpu_stats(32.0));
+    let (mut twin, _) = mcdenoise::methods::prepare::prepare_cpu(&img);
+    mcdenoise::methods::gbf::run_cpu(&mut twin, 32.0).unwrap();
+    for l in [
+        Layer::Normal,
+        Layer::Albedo,
+        Layer::Depth,
+        Layer::NormalVariance,
+        Layer::AlbedoVariance,
+        Layer::DepthVariance,
+    ] {
+        for (c, (g, t)) in two
+            .get(l)
+            .unwrap()
+            .iter()
+            .zip(twin.get(l).unwrap())
+            .enumerate()
+        {
+            assert_close(&format!("{} {c}", l.name()), g, t, 0.99);
+        }
+        let variance = l.variance().is_none();
+        let same = two.get(l).unwrap() == one.get(l).unwrap();
+        // The features change; their variances stay the first pass's.
+        assert_eq!(same, variance, "{}", l.name());
+    }
+    check_validation(&ctx);
 }
 
 /// GBF-PD: covariances whose pairwise entries pass Cauchy–Schwarz but whose

@@ -65,7 +65,9 @@ pub fn flops_per_pixel() -> f64 {
 /// covers whole workgroups of 16 rows) from the packed features (`packed` from
 /// [`super::gbf_pack`]: ranges that start at image row `base` and cover the
 /// rows `rows` ± 3) into `out` (7 features, then their 7 variances; full
-/// planes).
+/// planes). `second_below` is [`GbfPush::second_below`]: 0 for the spec's
+/// pass; above 0 GBF-SECOND's second pass, which filters only the pixels
+/// with fewer samples and leaves the variance planes of `out` unwritten.
 #[allow(clippy::too_many_arguments)]
 pub fn record(
     batch: &mut Batch,
@@ -79,11 +81,13 @@ pub fn record(
     hbar: BufferSlice,
     packed: [BufferSlice; 4],
     out: [BufferSlice; 14],
+    second_below: f32,
 ) -> Result<()> {
     let push = GbfPush {
         width,
         height,
         base,
+        second_below,
         ..Default::default()
     };
     let b: Vec<BufferSlice> = [&pos[..], &inv, &[hbar], &packed, &out].concat();

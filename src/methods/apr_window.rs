@@ -324,6 +324,8 @@ pub struct WindowConfig {
     pub outlier_detection: crate::methods::outliers::Detection,
     /// OUTLIER-WIDE's fraction (`outliers.wide`; 0: off).
     pub outlier_wide: f64,
+    /// GBF-SECOND's threshold (`gbf.second_below`; 0: one pass).
+    pub gbf_second_below: f32,
     /// See [`crate::Config::low_spp`].
     pub low_spp: bool,
     /// APR's options (`apr.stages` sets the lag, `2T` frames).
@@ -380,7 +382,13 @@ impl AprWindow {
             low_spp: config.low_spp,
             scratch: PrepareScratch::new(ctx, &stats, Some(&arena))?,
             gbf: if with_gbf {
-                Some(GbfPlanes::new(ctx, width, height, Some(&arena))?)
+                Some(GbfPlanes::new(
+                    ctx,
+                    width,
+                    height,
+                    Some(&arena),
+                    config.gbf_second_below,
+                )?)
             } else {
                 None
             },

@@ -309,7 +309,13 @@ impl GpuChain {
         };
         let scratch = PrepareScratch::new(ctx, &stats, arena.as_ref())?;
         let gbf = if with_gbf {
-            Some(GbfPlanes::new(ctx, w, h, arena.as_ref())?)
+            Some(GbfPlanes::new(
+                ctx,
+                w,
+                h,
+                arena.as_ref(),
+                gbf::second_below(&config.options)?,
+            )?)
         } else {
             None
         };

@@ -8,6 +8,8 @@
 //! gauss_rows, gauss_smooth   hbar = G_1.5(h_opt)
 //! gbf_pack         normal xyz + depth, albedo rgb and their variances → 4 vec4 planes
 //! gbf_filter       all seven at hbar, written over the feature planes
+//! gbf_pack, gbf_filter   GBF-SECOND: again, over the pixels with fewer
+//!                  than `gbf.second_below` samples, features only
 //! ```
 //!
 //! It runs before the method (spec §1) when [`Prefilter::resolve`] says
@@ -50,6 +52,11 @@ pub fn wanted(method: Method, prefilter: Prefilter, has: impl Fn(Layer) -> bool)
     }
 }
 
+/// GBF-SECOND's threshold from `options` (`gbf.second_below`).
+pub fn second_below(options: &crate::options::Options) -> Result<f32> {
+    options.value("gbf.second_below")
+}
+
 /// The feature planes in filtering (and packing) order.
 const FEATURES: [(Layer, usize); 7] = super::wlr::FEATURE_PLANES;
 
@@ -61,6 +68,9 @@ pub struct GbfPlanes {
     /// 16 planes of scratch and packed features.
     pub set: PlaneSet,
     pixels: usize,
+    /// GBF-SECOND (`gbf.second_below`): pixels with fewer samples are
+    /// filtered twice; 0: once, as the spec says.
+    pub second_below: f32,
 }
 
 const INV: usize = 0;
@@ -74,18 +84,24 @@ impl GbfPlanes {
     /// Allocates the scratch for a `width × height` image: [`PLANES`]
     /// planes, in `arena` (from its start, [`PlaneSet::view`]) when given:
     /// nothing of it is needed once the prefilter has written its outputs.
+    /// `second_below`: [`GbfPlanes::second_below`].
     pub fn new(
         ctx: &Arc<GpuContext>,
         width: usize,
         height: usize,
         arena: Option<&Arc<GpuBuffer>>,
+        second_below: f32,
     ) -> Result<GbfPlanes> {
         let n = width * height;
         let set = match arena {
             Some(a) => PlaneSet::view(a, 0, n, PLANES)?,
             None => PlaneSet::new(ctx, "gbf", n, PLANES)?,
         };
-        Ok(GbfPlanes { set, pixels: n })
+        Ok(GbfPlanes {
+            set,
+            pixels: n,
+            second_below,
+        })
     }
 
     /// `h_opt` and `hbar` (debug).
@@ -218,21 +234,45 @@ pub fn record_gbf_chunked(
         )?;
     }
     let out: [BufferSlice; 14] = std::array::from_fn(|k| if k < 7 { feat[k] } else { var[k - 7] });
-    for &(r0, r1) in &chunks {
-        let halo = (r0.saturating_sub(8), (r1 + 8).min(h));
-        gbf_filter::record(
-            batch,
-            precision,
-            w,
-            h,
-            (r0, r1),
-            halo.0,
-            pos,
-            inv,
-            p(HBAR),
-            packed(halo)?,
-            out,
-        )?;
+    // GBF-SECOND: the same weights again, over the first pass's output.
+    let passes: &[f32] = if planes.second_below > 0.0 {
+        &[0.0, planes.second_below]
+    } else {
+        &[0.0]
+    };
+    for (pass, &second_below) in passes.iter().enumerate() {
+        if pass > 0 {
+            for &rows in &chunks {
+                gbf_pack::record(
+                    batch,
+                    precision,
+                    w,
+                    h,
+                    rows,
+                    feat,
+                    var,
+                    spp_quads,
+                    packed(rows)?,
+                )?;
+            }
+        }
+        for &(r0, r1) in &chunks {
+            let halo = (r0.saturating_sub(8), (r1 + 8).min(h));
+            gbf_filter::record(
+                batch,
+                precision,
+                w,
+                h,
+                (r0, r1),
+                halo.0,
+                pos,
+                inv,
+                p(HBAR),
+                packed(halo)?,
+                out,
+                second_below,
+            )?;
+        }
     }
     Ok(())
 }
@@ -247,8 +287,9 @@ pub struct GbfMaps {
 }
 
 /// The CPU path: the scalar twins in the order of [`record_gbf`], on
-/// sanitised statistics, in place.
-pub fn run_cpu(clean: &mut StatsImage) -> Result<GbfMaps> {
+/// sanitised statistics, in place; `second_below` as
+/// [`GbfPlanes::second_below`].
+pub fn run_cpu(clean: &mut StatsImage, second_below: f32) -> Result<GbfMaps> {
     for l in NEEDS {
         if !clean.has(l) {
             return Err(Error::BadData(format!(
@@ -309,6 +350,27 @@ pub fn run_cpu(clean: &mut StatsImage) -> Result<GbfMaps> {
         std::array::from_fn(|k| packed[k].as_slice()),
         &mut out,
     );
+    if second_below > 0.0 {
+        let packed = reference::gbf_pack::gbf_pack(
+            std::array::from_fn(|j| out[j].as_slice()),
+            std::array::from_fn(|j| out[7 + j].as_slice()),
+            &spp,
+        );
+        let mut again = vec![vec![0.0f32; n]; 14];
+        reference::gbf_filter::gbf_filter(
+            &GbfPush {
+                second_below,
+                ..push
+            },
+            pos_r,
+            inv_r,
+            &spp,
+            &hbar,
+            std::array::from_fn(|k| packed[k].as_slice()),
+            &mut again,
+        );
+        out = again;
+    }
     let mut out = out.into_iter();
     for (l, c) in FEATURES {
         clean.get_mut(l).unwrap()[c] = out.next().unwrap();

@@ -4,11 +4,14 @@
 
 use super::gbf::{filter_features, Planes};
 use super::gbf_pack::unpack;
+use super::spp_of;
 use crate::shared::GbfPush;
 
 /// Output planes: the 7 filtered features, then their 7 variances, from the
 /// packed planes of [`super::gbf_pack`]. An invalid pixel or one with
-/// `hbar < 1e-3` (H0) keeps its input.
+/// `hbar < 1e-3` (H0) keeps its input. With `push.second_below > 0`
+/// (GBF-SECOND's second pass) only the pixels with fewer samples than that
+/// are filtered, and every pixel keeps its input variances.
 pub fn gbf_filter(
     push: &GbfPush,
     pos: [&[f32]; 3],
@@ -35,7 +38,8 @@ pub fn gbf_filter(
     super::wlr::par_pixels::<14>(w, h, out, |x, y| {
         let q = y * w + x;
         let mut o = [0.0f32; 14];
-        if !p.valid(q) {
+        let second = push.second_below > 0.0;
+        if !p.valid(q) || (second && spp_of(spp[q]) >= push.second_below as f64) {
             for j in 0..7 {
                 o[j] = feat[j][q];
                 o[7 + j] = var[j][q];
@@ -45,7 +49,7 @@ pub fn gbf_filter(
         let r = filter_features(&p, x, y, hbar[q] as f64, &feat_r, &var_r);
         for j in 0..7 {
             o[j] = r[j].0 as f32;
-            o[7 + j] = r[j].1 as f32;
+            o[7 + j] = if second { var[j][q] } else { r[j].1 as f32 };
         }
         o
     });

@@ -46,7 +46,10 @@ fn main() -> mcdenoise::error::Result<()> {
     }
     // The G-buffer prefilter (spec §6) on the file's own features.
     let (mut clean, _) = mcdenoise::methods::prepare::prepare_cpu(&colour);
-    let maps = mcdenoise::methods::gbf::run_cpu(&mut clean)?;
+    let maps = mcdenoise::methods::gbf::run_cpu(
+        &mut clean,
+        mcdenoise::methods::gbf::second_below(&req.options)?,
+    )?;
     let mean = |v: &[f32]| v.iter().map(|&x| x as f64).sum::<f64>() / v.len() as f64;
     println!(
         "gbf: mean h_opt {:.3}, mean hbar {:.3}",
