@@ -185,7 +185,7 @@ pub const OPTIONS: &[OptionSpec] = &[
         kind: Kind::Real(0.0, 65536.0),
         default: "8",
         section: "§6.2 step 9 (GBF-SECOND)",
-        help: "the G-buffer prefilter filters the features of the pixels with fewer samples than this a second time, with the same weights, over its own output (their variances stay the first pass's): at 4 spp their noise, which the colour's shares, is what the regressions follow (0: one pass, the spec)",
+        help: "the G-buffer prefilter filters the features of the pixels with fewer samples than this a second time, with the same weights, over its own output (their variances stay the first pass's): at 4 spp their noise, which the colour's shares, is what the regressions follow; final reconstructions only (0: one pass, the spec)",
     },
     OptionSpec {
         key: "blend.radius",

@@ -481,14 +481,23 @@ fn denoise_frames_continues_past_a_bad_frame_and_resumes() {
 }
 
 /// `mcdenoise prefilter` writes readable statistics with every input layer;
-/// in tiles (`--tile`) the file is byte-identical; it refuses to overwrite
-/// its input.
+/// in tiles (`--tile`) the file is byte-identical; `--opt` reaches the
+/// stage (`gbf.second_below=32` filters the 16-spp fixture twice: other
+/// features); it refuses to overwrite its input.
 #[test]
 fn prefilter_writes_the_same_statistics_whole_and_tiled() {
     let dir = tmpdir("prefilter");
     let input = fixture("dof_checker_64_spp16.exr");
-    let (whole, tiled) = (dir.join("whole.exr"), dir.join("tiled.exr"));
-    for (out, extra) in [(&whole, vec![]), (&tiled, vec!["--tile", "24"])] {
+    let (whole, tiled, twice) = (
+        dir.join("whole.exr"),
+        dir.join("tiled.exr"),
+        dir.join("twice.exr"),
+    );
+    for (out, extra) in [
+        (&whole, vec![]),
+        (&tiled, vec!["--tile", "24"]),
+        (&twice, vec!["--opt", "gbf.second_below=32"]),
+    ] {
         let (code, _, err) = run(bin()
             .args(["-q", "prefilter"])
             .arg(&input)
@@ -508,6 +517,11 @@ fn prefilter_writes_the_same_statistics_whole_and_tiled() {
     assert_ne!(
         stats.get(mcdenoise::image::Layer::Normal),
         raw.get(mcdenoise::image::Layer::Normal)
+    );
+    let twice = mcdenoise::io::read_stats(&twice).unwrap();
+    assert_ne!(
+        twice.get(mcdenoise::image::Layer::Normal),
+        stats.get(mcdenoise::image::Layer::Normal)
     );
     let (code, _, err) = run(bin()
         .args(["-q", "prefilter"])

@@ -667,23 +667,26 @@ fn prefilter_chain_on_the_fixture() {
 
 /// GBF-SECOND through the chain: the statistics a GPU chain prefilters with
 /// `gbf.second_below=32` (every pixel of the 16-spp fixture filtered twice)
-/// equal the twins' (`gbf::run_cpu`), and differ from one pass's.
+/// equal the twins' (`gbf::run_cpu`), and differ from one pass's; an
+/// adaptive pass's (intermediate) reconstruction runs one pass.
 #[test]
 fn second_pass_in_the_chain_matches_twins() {
-    use mcdenoise::{Config, Denoiser, Method, Prefilter, Source};
+    use mcdenoise::{Config, Denoiser, Method, Pass, Prefilter, Source};
     let img = mcdenoise::io::read_stats(std::path::Path::new(
         "tests/fixtures/dof_checker_64_spp16.exr",
     ))
     .unwrap();
     let ctx = gpu();
-    let gpu_stats = |second: f32| {
+    let gpu_stats = |second: f32, pass: Pass| {
         let mut cfg = Config::new(Method::None);
         cfg.prefilter = Prefilter::On;
+        cfg.pass = pass;
         cfg.options = mcdenoise::Options::parse(&[format!("gbf.second_below={second}")]).unwrap();
         let d = Denoiser::new(&ctx, Source::of_image(&img), cfg).unwrap();
         d.denoise_with_statistics(&img, None).unwrap().1
     };
-    let (one, two) = (gpu_stats(0.0), gpu_stats(32.0));
+    let (one, two) = (gpu_stats(0.0, Pass::Final), gpu_stats(32.0, Pass::Final));
+    let intermediate = gpu_stats(32.0, Pass::Intermediate);
     let (mut twin, _) = mcdenoise::methods::prepare::prepare_cpu(&img);
     mcdenoise::methods::gbf::run_cpu(&mut twin, 32.0).unwrap();
     for l in [
@@ -707,6 +710,7 @@ fn second_pass_in_the_chain_matches_twins() {
         let same = two.get(l).unwrap() == one.get(l).unwrap();
         // The features change; their variances stay the first pass's.
         assert_eq!(same, variance, "{}", l.name());
+        assert_eq!(intermediate.get(l), one.get(l), "{} intermediate", l.name());
     }
     check_validation(&ctx);
 }

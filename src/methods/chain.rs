@@ -314,7 +314,7 @@ impl GpuChain {
                 w,
                 h,
                 arena.as_ref(),
-                gbf::second_below(&config.options)?,
+                gbf::second_below(&config.options, config.pass)?,
             )?)
         } else {
             None

@@ -52,9 +52,12 @@ pub fn wanted(method: Method, prefilter: Prefilter, has: impl Fn(Layer) -> bool)
     }
 }
 
-/// GBF-SECOND's threshold from `options` (`gbf.second_below`).
-pub fn second_below(options: &crate::options::Options) -> Result<f32> {
-    options.value("gbf.second_below")
+/// GBF-SECOND's threshold from `options` (`gbf.second_below`) in a
+/// reconstruction of `pass`: an adaptive pass's (intermediate) runs the
+/// spec's one pass, so the sample maps are the spec's.
+pub fn second_below(options: &crate::options::Options, pass: super::Pass) -> Result<f32> {
+    let t: f32 = options.value("gbf.second_below")?;
+    Ok(if pass == super::Pass::Final { t } else { 0.0 })
 }
 
 /// The feature planes in filtering (and packing) order.
@@ -220,19 +223,6 @@ pub fn record_gbf_chunked(
     // gbf_pack reads its inputs as whole vec4s (PACK-QUADS; `feat` and
     // `var` are bound so by wlr::features).
     let spp_quads = clean.plane_quads(Layer::Spp, 0);
-    for &rows in &chunks {
-        gbf_pack::record(
-            batch,
-            precision,
-            w,
-            h,
-            rows,
-            feat,
-            var,
-            spp_quads,
-            packed(rows)?,
-        )?;
-    }
     let out: [BufferSlice; 14] = std::array::from_fn(|k| if k < 7 { feat[k] } else { var[k - 7] });
     // GBF-SECOND: the same weights again, over the first pass's output.
     let passes: &[f32] = if planes.second_below > 0.0 {
@@ -240,21 +230,19 @@ pub fn record_gbf_chunked(
     } else {
         &[0.0]
     };
-    for (pass, &second_below) in passes.iter().enumerate() {
-        if pass > 0 {
-            for &rows in &chunks {
-                gbf_pack::record(
-                    batch,
-                    precision,
-                    w,
-                    h,
-                    rows,
-                    feat,
-                    var,
-                    spp_quads,
-                    packed(rows)?,
-                )?;
-            }
+    for &second_below in passes {
+        for &rows in &chunks {
+            gbf_pack::record(
+                batch,
+                precision,
+                w,
+                h,
+                rows,
+                feat,
+                var,
+                spp_quads,
+                packed(rows)?,
+            )?;
         }
         for &(r0, r1) in &chunks {
             let halo = (r0.saturating_sub(8), (r1 + 8).min(h));

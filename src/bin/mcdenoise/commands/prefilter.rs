@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 
 use anyhow::Context;
-use mcdenoise::{has_low_spp, io, Config, Denoiser, Method, Prefilter, Source};
+use mcdenoise::{has_low_spp, io, Config, Denoiser, Method, Options, Prefilter, Source};
 
 use crate::args::PrecisionArg;
 use crate::common::{context, print_report, refuse_overwrite};
@@ -29,6 +29,10 @@ pub struct Args {
     /// whole image fits.
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
     tile: Option<u64>,
+    /// Option key=value (repeatable), e.g. `gbf.second_below=0` for the
+    /// spec's single filter pass; see `mcdenoise denoise --help`.
+    #[arg(long = "opt", value_name = "KEY=VALUE")]
+    opts: Vec<String>,
 }
 
 pub fn run(cli: &Cli, a: &Args) -> anyhow::Result<bool> {
@@ -40,6 +44,7 @@ pub fn run(cli: &Cli, a: &Args) -> anyhow::Result<bool> {
     config.low_spp = has_low_spp(&img);
     config.max_memory = a.max_memory.map(|mb| mb.saturating_mul(1 << 20));
     config.tile = a.tile.map(|t| t as usize);
+    config.options = Options::parse(&a.opts)?;
     let denoiser = Denoiser::new(&context(cli)?, Source::of_image(&img), config)
         .with_context(|| a.input.display().to_string())?;
     // Tiled when the image does not fit one chain: the statistics then come
