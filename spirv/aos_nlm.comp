@@ -199,6 +199,12 @@ void main()
     if (valid) {
         out_g = acc / wsum * cm;
         out_v = vacc / (wsum * wsum) * cm;
+        if ((push.flags & 128u) != 0u) {
+            // Mirrors mcdenoise::shared::NLM_CLAMP_Z.
+            real3 g = g_at(i) * cm;
+            real3 se = real(2) * sqrt(max(real3(vg0[i], vg1[i], vg2[i]), real3(0))) * cm;
+            out_g = clamp(out_g, g - se, g + se);
+        }
     }
     uint s = push.stride;
     for (int c = 0; c < 3; ++c) {

@@ -188,6 +188,13 @@ pub const OPTIONS: &[OptionSpec] = &[
         help: "the G-buffer prefilter filters the features of the pixels with fewer samples than this a second time, with the same weights, over its own output (their variances stay the first pass's): at 4 spp their noise, which the colour's shares, is what the regressions follow; final reconstructions only (0: one pass, the spec)",
     },
     OptionSpec {
+        key: "gbf.albedo_nlm",
+        kind: Kind::Choice(&["auto", "on", "off"]),
+        default: "auto",
+        section: "ours (GBF-NLM)",
+        help: "after the G-buffer prefilter, the albedo gets AOS's NL-means (§5.2), each channel clamped to 2 standard errors around the prefilter's value: in lens blur and on texture edges the albedo's noise, which the colour shares, is what the regressions follow, and the positions do not tell the prefilter to filter it; final reconstructions only (auto: every method but LP, which loses with it on glossy_cornell; off: the spec)",
+    },
+    OptionSpec {
         key: "blend.radius",
         kind: Kind::Int(0, 16),
         default: "method",

@@ -103,7 +103,11 @@ impl SequenceDenoiser {
             outliers: config.outliers.resolve(Method::Apr),
             outlier_detection: crate::methods::outliers::Detection::of(&config.options)?,
             outlier_wide: crate::methods::outliers::wide_fraction(&config.options)?,
-            gbf_second_below: crate::methods::gbf::second_below(&config.options, config.pass)?,
+            gbf: crate::methods::gbf::GbfSettings::new(
+                &config.options,
+                config.method,
+                config.pass,
+            )?,
             low_spp: config.low_spp,
             params: AprParams::new(&config.options)?,
         };

@@ -585,7 +585,8 @@ pub struct AosPush {
     /// `aos_nlm`: channels of the buffer (1 or 3).
     pub channels: u32,
     /// `aos_fit`: bits [`AOS_SANDWICH`], [`AOS_BIAS_TEST`], [`AOS_IDENTITY`],
-    /// [`AOS_OUTLIER_W`], [`AOS_RESIDUAL`], [`AOS_FEATNOISE`].
+    /// [`AOS_OUTLIER_W`], [`AOS_RESIDUAL`], [`AOS_FEATNOISE`];
+    /// `aos_nlm`: [`AOS_NLM_CLAMP`].
     pub flags: u32,
     /// The image row of the scratch buffer's first row: `aos_space` and
     /// `aos_fit` cover rows `base_row + row0 ..` and index the per-pixel
@@ -610,6 +611,13 @@ pub const AOS_RESIDUAL: u32 = 16;
 pub const AOS_FEATNOISE: u32 = 32;
 /// [`AosPush::flags`]: AOS-IDENTITY-FLOOR (`aos.identity_floor=on`).
 pub const AOS_IDENTITY_FLOOR: u32 = 64;
+/// [`AosPush::flags`] (`aos_nlm`): each filtered channel is clamped to
+/// [`NLM_CLAMP_Z`] of its input's standard errors around the input
+/// (GBF-NLM, the prefilter's albedo pass).
+pub const AOS_NLM_CLAMP: u32 = 128;
+/// Standard errors around its input that [`AOS_NLM_CLAMP`] keeps a
+/// filtered channel within.
+pub const NLM_CLAMP_Z: f32 = 2.0;
 
 // Constants the kernels and their scalar twins share (layouts and sizes that
 // both the host dispatch and the twin must agree on). `src/kernels` reads

@@ -260,11 +260,17 @@ fn gpu_kernels_match_the_twins() {
         let push = img.push(radius, flags);
         for precision in common::precisions() {
             let what = |k: &str| format!("{w}x{h} vis={vis} R={radius} {precision:?}: {k}");
-            // NL-means of a 3-channel and a 1-channel buffer.
-            for (first, nc) in [(1usize, 3u32), (0, 1)] {
+            // NL-means of a 3-channel and a 1-channel buffer, and of a
+            // 3-channel one clamped to 2 standard errors (GBF-NLM).
+            for (first, nc, clamp) in [(1usize, 3u32, false), (0, 1, false), (1, 3, true)] {
                 let p = AosPush {
                     channels: nc,
                     stride: n as u32,
+                    flags: if clamp {
+                        mcdenoise::shared::AOS_NLM_CLAMP
+                    } else {
+                        push.flags
+                    },
                     ..push
                 };
                 let g: Vec<&[f32]> = (0..3)
@@ -276,7 +282,30 @@ fn gpu_kernels_match_the_twins() {
                 let out = run_nlm(&ctx, precision, &p, &g, &vg, &img.spp);
                 let cpu = aos_nlm::aos_nlm(&p, &g, &vg, &img.spp);
                 let cpu: Vec<f32> = cpu.concat();
-                common::assert_close(&what(&format!("nlm {nc} channels")), &out, &cpu, 0.99);
+                common::assert_close(
+                    &what(&format!("nlm {nc} channels, clamp {clamp}")),
+                    &out,
+                    &cpu,
+                    0.99,
+                );
+                if clamp {
+                    // The clamp holds every value within 2 standard errors
+                    // of its input, and binds somewhere.
+                    let mut bound = 0;
+                    for c in 0..3 {
+                        for i in 0..n {
+                            let se = 2.0 * (vg[c][i].max(0.0) as f64).sqrt();
+                            let d = (cpu[c * n + i] as f64 - g[c][i] as f64).abs();
+                            assert!(d <= se * (1.0 + 1e-6) + 1e-9, "{}", what("clamp"));
+                            bound += usize::from(se > 0.0 && d >= se * (1.0 - 1e-6));
+                        }
+                    }
+                    assert!(
+                        bound > 0 || w == 1,
+                        "{}: the clamp never binds",
+                        what("clamp")
+                    );
+                }
             }
             // Local spaces: ranks, and the projections where the ranks agree.
             let mut inputs: Vec<&[f32]> = img.fa().to_vec();

@@ -6,7 +6,7 @@ mod common;
 use common::*;
 
 use mcdenoise::gpu::{Batch, GpuBuffer};
-use mcdenoise::image::Layer;
+use mcdenoise::image::{Layer, StatsImage};
 use mcdenoise::kernels::{gbf_filter, gbf_pack, gbf_prepare, gbf_sure, run_planes};
 use mcdenoise::reference::gbf::{self as rg, Planes};
 use mcdenoise::reference::{gbf_filter as rf, gbf_pack as rk, gbf_prepare as rp, gbf_sure as rs};
@@ -476,8 +476,12 @@ fn row_chunks_are_bit_identical() {
     let img = mcdenoise::io::read_stats(&dir.join("dof_checker_64_spp16.exr")).unwrap();
     let run = |max_binding: u64| {
         let stats = GpuStats::upload(&ctx, "test.stats", &img).unwrap();
-        // GBF-SECOND's pass too (the fixture has 16 spp).
-        let planes = GbfPlanes::new(&ctx, img.width, img.height, None, 32.0).unwrap();
+        // GBF-SECOND's pass (the fixture has 16 spp) and GBF-NLM too.
+        let settings = mcdenoise::methods::gbf::GbfSettings {
+            second_below: 32.0,
+            albedo_nlm: true,
+        };
+        let planes = GbfPlanes::new(&ctx, img.width, img.height, None, settings).unwrap();
         let mut batch = Batch::new(&ctx).unwrap();
         record_gbf_chunked(&mut batch, Precision::F32, &stats, &planes, max_binding).unwrap();
         let timings = batch.finish().unwrap();
@@ -665,38 +669,63 @@ fn prefilter_chain_on_the_fixture() {
     check_validation(&gpu());
 }
 
-/// GBF-SECOND through the chain: the statistics a GPU chain prefilters with
-/// `gbf.second_below=32` (every pixel of the 16-spp fixture filtered twice)
-/// equal the twins' (`gbf::run_cpu`), and differ from one pass's; an
-/// adaptive pass's (intermediate) reconstruction runs one pass.
-#[test]
-fn second_pass_in_the_chain_matches_twins() {
-    use mcdenoise::{Config, Denoiser, Method, Pass, Prefilter, Source};
+/// The statistics a GPU chain with no method prefilters from the 16-spp
+/// fixture, with `gbf.second_below` and `gbf.albedo_nlm` as given.
+fn chain_stats(second: f32, nlm: &str, pass: mcdenoise::Pass) -> StatsImage {
+    use mcdenoise::{Config, Denoiser, Method, Prefilter, Source};
     let img = mcdenoise::io::read_stats(std::path::Path::new(
         "tests/fixtures/dof_checker_64_spp16.exr",
     ))
     .unwrap();
-    let ctx = gpu();
-    let gpu_stats = |second: f32, pass: Pass| {
-        let mut cfg = Config::new(Method::None);
-        cfg.prefilter = Prefilter::On;
-        cfg.pass = pass;
-        cfg.options = mcdenoise::Options::parse(&[format!("gbf.second_below={second}")]).unwrap();
-        let d = Denoiser::new(&ctx, Source::of_image(&img), cfg).unwrap();
-        d.denoise_with_statistics(&img, None).unwrap().1
-    };
-    let (one, two) = (gpu_stats(0.0, Pass::Final), gpu_stats(32.0, Pass::Final));
-    let intermediate = gpu_stats(32.0, Pass::Intermediate);
+    let mut cfg = Config::new(Method::None);
+    cfg.prefilter = Prefilter::On;
+    cfg.pass = pass;
+    cfg.options = mcdenoise::Options::parse(&[
+        format!("gbf.second_below={second}"),
+        format!("gbf.albedo_nlm={nlm}"),
+    ])
+    .unwrap();
+    let d = Denoiser::new(&gpu(), Source::of_image(&img), cfg).unwrap();
+    d.denoise_with_statistics(&img, None).unwrap().1
+}
+
+/// The fixture prefiltered by the twins (`gbf::run_cpu`) with `settings`.
+fn twin_stats(settings: mcdenoise::methods::gbf::GbfSettings) -> StatsImage {
+    let img = mcdenoise::io::read_stats(std::path::Path::new(
+        "tests/fixtures/dof_checker_64_spp16.exr",
+    ))
+    .unwrap();
     let (mut twin, _) = mcdenoise::methods::prepare::prepare_cpu(&img);
-    mcdenoise::methods::gbf::run_cpu(&mut twin, 32.0).unwrap();
-    for l in [
-        Layer::Normal,
-        Layer::Albedo,
-        Layer::Depth,
-        Layer::NormalVariance,
-        Layer::AlbedoVariance,
-        Layer::DepthVariance,
-    ] {
+    mcdenoise::methods::gbf::run_cpu(&mut twin, settings).unwrap();
+    twin
+}
+
+const FEATURE_LAYERS: [Layer; 6] = [
+    Layer::Normal,
+    Layer::Albedo,
+    Layer::Depth,
+    Layer::NormalVariance,
+    Layer::AlbedoVariance,
+    Layer::DepthVariance,
+];
+
+/// GBF-SECOND through the chain: the statistics a GPU chain prefilters with
+/// `gbf.second_below=32` (every pixel of the 16-spp fixture filtered twice)
+/// equal the twins' (`gbf::run_cpu`), and differ from one pass's; an
+/// adaptive pass's (intermediate) reconstruction runs one pass (and no
+/// GBF-NLM).
+#[test]
+fn second_pass_in_the_chain_matches_twins() {
+    use mcdenoise::methods::gbf::GbfSettings;
+    use mcdenoise::Pass;
+    let one = chain_stats(0.0, "off", Pass::Final);
+    let two = chain_stats(32.0, "off", Pass::Final);
+    let intermediate = chain_stats(32.0, "on", Pass::Intermediate);
+    let twin = twin_stats(GbfSettings {
+        second_below: 32.0,
+        albedo_nlm: false,
+    });
+    for l in FEATURE_LAYERS {
         for (c, (g, t)) in two
             .get(l)
             .unwrap()
@@ -712,7 +741,62 @@ fn second_pass_in_the_chain_matches_twins() {
         assert_eq!(same, variance, "{}", l.name());
         assert_eq!(intermediate.get(l), one.get(l), "{} intermediate", l.name());
     }
-    check_validation(&ctx);
+    check_validation(&gpu());
+}
+
+/// GBF-NLM through the chain: the albedo's NL-means after the prefilter
+/// equals the twins', changes the albedo and its variance and nothing
+/// else, and moves no albedo value further than 2 of its standard errors
+/// (the clamp) from the prefilter's.
+#[test]
+fn albedo_nlm_in_the_chain_matches_twins() {
+    use mcdenoise::methods::gbf::GbfSettings;
+    use mcdenoise::Pass;
+    let off = chain_stats(0.0, "off", Pass::Final);
+    let on = chain_stats(0.0, "on", Pass::Final);
+    let twin = twin_stats(GbfSettings {
+        second_below: 0.0,
+        albedo_nlm: true,
+    });
+    for l in FEATURE_LAYERS {
+        for (c, (g, t)) in on
+            .get(l)
+            .unwrap()
+            .iter()
+            .zip(twin.get(l).unwrap())
+            .enumerate()
+        {
+            assert_close(&format!("{} {c}", l.name()), g, t, 0.99);
+        }
+        let albedo = matches!(l, Layer::Albedo | Layer::AlbedoVariance);
+        assert_eq!(
+            on.get(l).unwrap() == off.get(l).unwrap(),
+            !albedo,
+            "{}",
+            l.name()
+        );
+    }
+    let (a_on, a_off) = (
+        on.get(Layer::Albedo).unwrap(),
+        off.get(Layer::Albedo).unwrap(),
+    );
+    let v_off = off.get(Layer::AlbedoVariance).unwrap();
+    let (mut moved, mut clamped) = (0, 0);
+    for c in 0..3 {
+        for i in 0..a_on[c].len() {
+            let d = (a_on[c][i] - a_off[c][i]).abs();
+            let se = 2.0 * v_off[c][i].max(0.0).sqrt();
+            assert!(
+                d <= se * (1.0 + 1e-5) + 1e-7,
+                "channel {c} pixel {i}: moved {d}, bound {se}"
+            );
+            moved += usize::from(d > 0.0);
+            clamped += usize::from(d > 0.0 && d >= se * (1.0 - 1e-5));
+        }
+    }
+    eprintln!("albedo values moved {moved}, at the clamp {clamped}");
+    assert!(moved > 0 && clamped > 0, "moved {moved}, clamped {clamped}");
+    check_validation(&gpu());
 }
 
 /// GBF-PD: covariances whose pairwise entries pass Cauchy–Schwarz but whose

@@ -324,8 +324,9 @@ pub struct WindowConfig {
     pub outlier_detection: crate::methods::outliers::Detection,
     /// OUTLIER-WIDE's fraction (`outliers.wide`; 0: off).
     pub outlier_wide: f64,
-    /// GBF-SECOND's threshold (`gbf.second_below`; 0: one pass).
-    pub gbf_second_below: f32,
+    /// What the G-buffer prefilter runs beyond the spec's one pass
+    /// (GBF-SECOND, GBF-NLM).
+    pub gbf: crate::methods::gbf::GbfSettings,
     /// See [`crate::Config::low_spp`].
     pub low_spp: bool,
     /// APR's options (`apr.stages` sets the lag, `2T` frames).
@@ -387,7 +388,7 @@ impl AprWindow {
                     width,
                     height,
                     Some(&arena),
-                    config.gbf_second_below,
+                    config.gbf,
                 )?)
             } else {
                 None

@@ -314,7 +314,7 @@ impl GpuChain {
                 w,
                 h,
                 arena.as_ref(),
-                gbf::second_below(&config.options, config.pass)?,
+                gbf::GbfSettings::new(&config.options, config.method, config.pass)?,
             )?)
         } else {
             None

@@ -10,7 +10,12 @@
 //! gbf_filter       all seven at hbar, written over the feature planes
 //! gbf_pack, gbf_filter   GBF-SECOND: again, over the pixels with fewer
 //!                  than `gbf.second_below` samples, features only
+//! aos_nlm, copies  GBF-NLM: the albedo's NL-means (§5.2), clamped to 2
+//!                  standard errors (`gbf.albedo_nlm`)
 //! ```
+//!
+//! GBF-SECOND and GBF-NLM run in final reconstructions only
+//! ([`GbfSettings::new`]).
 //!
 //! It runs before the method (spec §1) when [`Prefilter::resolve`] says
 //! so: `auto` (the default) runs it for WLR, LP and APR when the input has
@@ -24,10 +29,10 @@ use super::{Method, Prefilter};
 use crate::error::{Error, Result};
 use crate::gpu::{Batch, BufferSlice, GpuBuffer, GpuContext, PlaneSet, Precision};
 use crate::image::{Layer, StatsImage};
-use crate::kernels::{gauss_smooth, gbf_filter, gbf_pack, gbf_prepare, gbf_sure};
+use crate::kernels::{aos_nlm, gauss_smooth, gbf_filter, gbf_pack, gbf_prepare, gbf_sure};
 use crate::reference;
 use crate::reference::gbf::SMOOTH_SIGMA;
-use crate::shared::{GbfPush, SmoothPush};
+use crate::shared::{AosPush, GbfPush, SmoothPush, AOS_NLM_CLAMP};
 
 /// The layers the prefilter reads besides the features.
 pub const NEEDS: [Layer; 3] = [
@@ -52,12 +57,57 @@ pub fn wanted(method: Method, prefilter: Prefilter, has: impl Fn(Layer) -> bool)
     }
 }
 
-/// GBF-SECOND's threshold from `options` (`gbf.second_below`) in a
-/// reconstruction of `pass`: an adaptive pass's (intermediate) runs the
-/// spec's one pass, so the sample maps are the spec's.
-pub fn second_below(options: &crate::options::Options, pass: super::Pass) -> Result<f32> {
-    let t: f32 = options.value("gbf.second_below")?;
-    Ok(if pass == super::Pass::Final { t } else { 0.0 })
+/// What the prefilter runs beyond the spec's one pass (ours), as a
+/// reconstruction's options and pass ask.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct GbfSettings {
+    /// GBF-SECOND (`gbf.second_below`): pixels with fewer samples are
+    /// filtered twice; 0: once, as the spec says.
+    pub second_below: f32,
+    /// GBF-NLM (`gbf.albedo_nlm`): the albedo's NL-means pass (§5.2,
+    /// clamped to [`NLM_CLAMP_Z`](crate::shared::NLM_CLAMP_Z) standard
+    /// errors) after the prefilter.
+    pub albedo_nlm: bool,
+}
+
+impl GbfSettings {
+    /// The spec's prefilter: one pass, nothing after it.
+    pub const SPEC: GbfSettings = GbfSettings {
+        second_below: 0.0,
+        albedo_nlm: false,
+    };
+
+    /// The settings of `options` in a reconstruction of `pass` by
+    /// `method`: an adaptive pass's (intermediate) runs the spec's
+    /// prefilter, so the sample maps are the spec's; `gbf.albedo_nlm=auto`
+    /// runs GBF-NLM for every method but LP, which loses with it on
+    /// `glossy_cornell`.
+    pub fn new(
+        options: &crate::options::Options,
+        method: Method,
+        pass: super::Pass,
+    ) -> Result<GbfSettings> {
+        if pass != super::Pass::Final {
+            return Ok(GbfSettings::SPEC);
+        }
+        let albedo_nlm = match options.get("gbf.albedo_nlm") {
+            "auto" => method != Method::Lp,
+            v => v == "on",
+        };
+        Ok(GbfSettings {
+            second_below: options.value("gbf.second_below")?,
+            albedo_nlm,
+        })
+    }
+
+    /// The pixels beyond the first pass's window that the output reads:
+    /// GBF-SECOND's window, then the NL-means' search and patch radii.
+    pub fn extra_halo(&self) -> usize {
+        let second = usize::from(self.second_below > 0.0) * reference::gbf::RADIUS;
+        second
+            + usize::from(self.albedo_nlm)
+                * (reference::aos::NLM_SEARCH + reference::aos::NLM_PATCH)
+    }
 }
 
 /// The feature planes in filtering (and packing) order.
@@ -71,9 +121,8 @@ pub struct GbfPlanes {
     /// 16 planes of scratch and packed features.
     pub set: PlaneSet,
     pixels: usize,
-    /// GBF-SECOND (`gbf.second_below`): pixels with fewer samples are
-    /// filtered twice; 0: once, as the spec says.
-    pub second_below: f32,
+    /// What runs beyond the spec's one pass.
+    pub settings: GbfSettings,
 }
 
 const INV: usize = 0;
@@ -87,13 +136,12 @@ impl GbfPlanes {
     /// Allocates the scratch for a `width × height` image: [`PLANES`]
     /// planes, in `arena` (from its start, [`PlaneSet::view`]) when given:
     /// nothing of it is needed once the prefilter has written its outputs.
-    /// `second_below`: [`GbfPlanes::second_below`].
     pub fn new(
         ctx: &Arc<GpuContext>,
         width: usize,
         height: usize,
         arena: Option<&Arc<GpuBuffer>>,
-        second_below: f32,
+        settings: GbfSettings,
     ) -> Result<GbfPlanes> {
         let n = width * height;
         let set = match arena {
@@ -103,7 +151,7 @@ impl GbfPlanes {
         Ok(GbfPlanes {
             set,
             pixels: n,
-            second_below,
+            settings,
         })
     }
 
@@ -225,8 +273,8 @@ pub fn record_gbf_chunked(
     let spp_quads = clean.plane_quads(Layer::Spp, 0);
     let out: [BufferSlice; 14] = std::array::from_fn(|k| if k < 7 { feat[k] } else { var[k - 7] });
     // GBF-SECOND: the same weights again, over the first pass's output.
-    let passes: &[f32] = if planes.second_below > 0.0 {
-        &[0.0, planes.second_below]
+    let passes: &[f32] = if planes.settings.second_below > 0.0 {
+        &[0.0, planes.settings.second_below]
     } else {
         &[0.0]
     };
@@ -262,6 +310,61 @@ pub fn record_gbf_chunked(
             )?;
         }
     }
+    if planes.settings.albedo_nlm {
+        record_albedo_nlm(batch, precision, clean, planes)?;
+    }
+    Ok(())
+}
+
+/// GBF-NLM: AOS's NL-means (§5.2, `aos_nlm`) of the prefiltered albedo,
+/// clamped ([`AOS_NLM_CLAMP`]), into the scratch planes, then copied over
+/// the albedo and its variance.
+fn record_albedo_nlm(
+    batch: &mut Batch,
+    precision: Precision,
+    clean: &GpuStats,
+    planes: &GbfPlanes,
+) -> Result<()> {
+    let (w, h) = (clean.width, clean.height);
+    let stride = planes.set.stride;
+    let bytes = 5 * stride + 4 * (w * h) as u64;
+    let limit = batch.context().info.max_storage_buffer_range as u64;
+    if bytes > limit {
+        return Err(Error::Limit(format!(
+            "the prefilter's albedo NL-means (gbf.albedo_nlm) binds {bytes} bytes for a {w}x{h} \
+             image; maxStorageBufferRange is {limit} (tile the image, or gbf.albedo_nlm=off)"
+        )));
+    }
+    let albedo = Layer::Albedo;
+    let vlayer = albedo.variance().expect("albedo has a variance layer");
+    let g: [BufferSlice; 3] = std::array::from_fn(|c| clean.plane(albedo, c));
+    let vg: [BufferSlice; 3] = std::array::from_fn(|c| clean.plane(vlayer, c));
+    let push = AosPush {
+        width: w as u32,
+        height: h as u32,
+        channels: 3,
+        flags: AOS_NLM_CLAMP,
+        stride: (stride / 4) as u32,
+        ..Default::default()
+    };
+    let first = planes.set.plane(SCRATCH);
+    let dst = planes
+        .set
+        .all()
+        .sub(first.offset() - planes.set.all().offset(), bytes)?;
+    aos_nlm::record(
+        batch,
+        precision,
+        &push,
+        g,
+        vg,
+        clean.plane(Layer::Spp, 0),
+        dst,
+    )?;
+    for c in 0..3 {
+        batch.copy(planes.set.plane(SCRATCH + c), g[c]);
+        batch.copy(planes.set.plane(SCRATCH + 3 + c), vg[c]);
+    }
     Ok(())
 }
 
@@ -275,9 +378,10 @@ pub struct GbfMaps {
 }
 
 /// The CPU path: the scalar twins in the order of [`record_gbf`], on
-/// sanitised statistics, in place; `second_below` as
-/// [`GbfPlanes::second_below`].
-pub fn run_cpu(clean: &mut StatsImage, second_below: f32) -> Result<GbfMaps> {
+/// sanitised statistics, in place, with `settings` as
+/// [`GbfPlanes::settings`].
+pub fn run_cpu(clean: &mut StatsImage, settings: GbfSettings) -> Result<GbfMaps> {
+    let second_below = settings.second_below;
     for l in NEEDS {
         if !clean.has(l) {
             return Err(Error::BadData(format!(
@@ -365,6 +469,31 @@ pub fn run_cpu(clean: &mut StatsImage, second_below: f32) -> Result<GbfMaps> {
     }
     for (l, c) in FEATURES {
         clean.get_mut(l.variance().unwrap()).unwrap()[c] = out.next().unwrap();
+    }
+    if settings.albedo_nlm {
+        let vlayer = Layer::Albedo.variance().unwrap();
+        let push = AosPush {
+            width: w as u32,
+            height: h as u32,
+            channels: 3,
+            flags: AOS_NLM_CLAMP,
+            ..Default::default()
+        };
+        let g = clean.get(Layer::Albedo).unwrap();
+        let vg = clean.get(vlayer).unwrap();
+        let mut out = reference::aos_nlm::aos_nlm(
+            &push,
+            &[&g[0], &g[1], &g[2]],
+            &[&vg[0], &vg[1], &vg[2]],
+            &spp,
+        )
+        .into_iter();
+        for c in 0..3 {
+            clean.get_mut(Layer::Albedo).unwrap()[c] = out.next().unwrap();
+        }
+        for c in 0..3 {
+            clean.get_mut(vlayer).unwrap()[c] = out.next().unwrap();
+        }
     }
     Ok(GbfMaps { h_opt, hbar })
 }

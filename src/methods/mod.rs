@@ -449,7 +449,10 @@ fn clean_cpu(img: &StatsImage, req: &DenoiseRequest) -> Result<CleanCpu> {
         prefiltered && req.method == Method::Auto && auto::reads_unfiltered(&req.options, req.pass);
     let unfiltered = keep.then(|| std::sync::Arc::new(clean.clone()));
     if prefiltered {
-        gbf::run_cpu(&mut clean, gbf::second_below(&req.options, req.pass)?)?;
+        gbf::run_cpu(
+            &mut clean,
+            gbf::GbfSettings::new(&req.options, req.method, req.pass)?,
+        )?;
     }
     Ok(CleanCpu {
         clean,

@@ -56,15 +56,15 @@
 //! level's grids and 2×2 blocks are the whole image's.
 //!
 //! With the defaults (final pass, outlier stage on, prefilter where `auto`
-//! runs it, the input blend after every method but `auto`): WLR 167, LP
-//! 209, APR 234, AOS 159 (no prefilter by default, AOS-NO-GBF; 175 with
+//! runs it, the input blend after every method but `auto`): WLR 175, LP
+//! 209, APR 242, AOS 159 (no prefilter by default, AOS-NO-GBF; 183 with
 //! `--prefilter gbf`), and `none` 5 (it runs no
 //! outlier stage and no prefilter by default). [`halo`] computes it for any configuration.
 //!
 //! Tiles run without OUTLIER-WIDE (`outliers.wide=0` whatever the
 //! options say): its second spread reads the first's output within 215 px
 //! of each outlier it weighs, which would add 2·215 px to every halo (APR
-//! 234 → 664). A tiled run is bit-identical to a whole run with
+//! 242 → 672). A tiled run is bit-identical to a whole run with
 //! `outliers.wide=0`, and differs from a whole run with the default where
 //! an outlier goes wide.
 
@@ -193,11 +193,13 @@ pub fn halo(config: &ChainConfig, prefiltered: bool) -> Result<Halo> {
     if prefiltered {
         let s = gauss_smooth::radius(reference::gbf::SMOOTH_SIGMA) as usize;
         // GBF-SECOND's pass reads the first pass's output within the
-        // filter's window.
-        let second = super::gbf::second_below(&config.options, config.pass)? > 0.0;
+        // filter's window, GBF-NLM's the last pass's within its search and
+        // patch radii.
+        let extra =
+            super::gbf::GbfSettings::new(&config.options, config.method, config.pass)?.extra_halo();
         parts.push((
-            "G-buffer prefilter (§6.2, GBF-SECOND)",
-            2 * s + reference::gbf::RADIUS + usize::from(second) * reference::gbf::RADIUS,
+            "G-buffer prefilter (§6.2, GBF-SECOND, GBF-NLM)",
+            2 * s + reference::gbf::RADIUS + extra,
         ));
     }
     if config.outliers {

@@ -13,6 +13,10 @@ use mcdenoise::gpu::{ContextOptions, GpuContext, Precision, Validation};
 /// GPU test instead of running them unchecked.
 pub const REQUIRE_VALIDATION: &str = "MCDENOISE_REQUIRE_VALIDATION";
 
+/// The fence timeout of the tests' contexts: first dispatches include
+/// llvmpipe's compile.
+pub const TEST_FENCE_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(600);
+
 /// The test context. Tests fail if the validation layer reported an error
 /// (checked by [`check_validation`]).
 pub fn gpu() -> Arc<GpuContext> {
@@ -50,6 +54,10 @@ fn gpu_with(no_64bit: bool) -> Arc<GpuContext> {
              with {REQUIRE_VALIDATION}=1 also the validation layer: vulkan-validationlayers)"
         )
     });
+    // llvmpipe compiles a pipeline at its first dispatch, inside the fence
+    // wait; a cold f64 kernel on a loaded 2-core CI machine has taken longer
+    // than the 60 s default (apr_block_f64, 2026-12-01).
+    ctx.set_fence_timeout(TEST_FENCE_TIMEOUT);
     eprintln!(
         "test device: {} (validation {})",
         ctx.info().name,

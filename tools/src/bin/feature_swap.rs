@@ -48,7 +48,7 @@ fn main() -> mcdenoise::error::Result<()> {
     let (mut clean, _) = mcdenoise::methods::prepare::prepare_cpu(&colour);
     let maps = mcdenoise::methods::gbf::run_cpu(
         &mut clean,
-        mcdenoise::methods::gbf::second_below(&req.options, req.pass)?,
+        mcdenoise::methods::gbf::GbfSettings::new(&req.options, req.method, req.pass)?,
     )?;
     let mean = |v: &[f32]| v.iter().map(|&x| x as f64).sum::<f64>() / v.len() as f64;
     println!(
