@@ -41,7 +41,7 @@
 //! | APR (§4.3) | `14 + 28 T` = 70 (T = 2 stages) | a stage's block at `c` reads the previous stage's blend within 14, which reads blocks within 14; the final blend reads blocks within 14 |
 //! | AOS (§5) | `R + 8`: 17 final, 13 intermediate | NL-means search 5 + patch 3, then the window `Ω_c(R)` |
 //! | input blend (INPUT-BLEND), with the method | `max(method + s, r)` | reads the statistics the method read within its variance window `r` (AOS 1, the others 3), and the method's output within its residual window `s` (3, BLEND-RESIDUAL) |
-//! | G-buffer prefilter (§6.2) | 16 | `S̄ = G_1.5(S)` (5); SURE at `c` uses `S̃` within 3; `hbar = G_1.5(h_opt)` (5); GBF-SECOND's second pass reads the first's output within 3 |
+//! | G-buffer prefilter (§6.2) | 24 (LP: 16) | `S̄ = G_1.5(S)` (5); SURE at `c` uses `S̃` within 3; `hbar = G_1.5(h_opt)` (5); GBF-SECOND's second pass reads the first's output within 3; GBF-NLM's albedo NL-means (not LP's by default) reads the prefilter's output within search 5 + patch 3 |
 //! | outlier detection and replacement (§4.4 steps 1–3) | `14 (1 + rounds)` = 42 | `m_o`, `sd_o` and the median over `Ω_o(14)`; each OUTLIER-CLIP round keeps a pixel by what the round before kept within 14 |
 //! | sanitation (§0.4) | 5 | step 1: 3×3 (1); then step 3 (5×5: 2) or step 4 (3×3 residuals, 7×7 MAD: 4) |
 //!
