@@ -709,6 +709,19 @@ const FEATURE_LAYERS: [Layer; 6] = [
     Layer::DepthVariance,
 ];
 
+/// Every plane of layer `l` of `gpu` within §0.3 of the twins'.
+fn assert_layer_close(gpu: &StatsImage, twin: &StatsImage, l: Layer) {
+    for (c, (g, t)) in gpu
+        .get(l)
+        .unwrap()
+        .iter()
+        .zip(twin.get(l).unwrap())
+        .enumerate()
+    {
+        assert_close(&format!("{} {c}", l.name()), g, t, 0.99);
+    }
+}
+
 /// GBF-SECOND through the chain: the statistics a GPU chain prefilters with
 /// `gbf.second_below=32` (every pixel of the 16-spp fixture filtered twice)
 /// equal the twins' (`gbf::run_cpu`), and differ from one pass's; an
@@ -726,15 +739,7 @@ fn second_pass_in_the_chain_matches_twins() {
         albedo_nlm: false,
     });
     for l in FEATURE_LAYERS {
-        for (c, (g, t)) in two
-            .get(l)
-            .unwrap()
-            .iter()
-            .zip(twin.get(l).unwrap())
-            .enumerate()
-        {
-            assert_close(&format!("{} {c}", l.name()), g, t, 0.99);
-        }
+        assert_layer_close(&two, &twin, l);
         let variance = l.variance().is_none();
         let same = two.get(l).unwrap() == one.get(l).unwrap();
         // The features change; their variances stay the first pass's.
@@ -759,15 +764,7 @@ fn albedo_nlm_in_the_chain_matches_twins() {
         albedo_nlm: true,
     });
     for l in FEATURE_LAYERS {
-        for (c, (g, t)) in on
-            .get(l)
-            .unwrap()
-            .iter()
-            .zip(twin.get(l).unwrap())
-            .enumerate()
-        {
-            assert_close(&format!("{} {c}", l.name()), g, t, 0.99);
-        }
+        assert_layer_close(&on, &twin, l);
         let albedo = matches!(l, Layer::Albedo | Layer::AlbedoVariance);
         assert_eq!(
             on.get(l).unwrap() == off.get(l).unwrap(),
