@@ -44,6 +44,9 @@ PLANE_OUT(7, dst)
 #define NLM_SEARCH 5
 #define NLM_PATCH 3
 #define NLM_K2 1.0
+// Mirror mcdenoise::shared::AOS_NLM_CLAMP and NLM_CLAMP_Z.
+#define AOS_NLM_CLAMP 128u
+#define NLM_CLAMP_Z 2.0
 // The staged region (search + patch halo) and the patch centres' region.
 #define NLM_RG (8 + 2 * NLM_SEARCH + 2 * NLM_PATCH)
 #define NLM_TA (8 + 2 * NLM_PATCH)
@@ -199,10 +202,9 @@ void main()
     if (valid) {
         out_g = acc / wsum * cm;
         out_v = vacc / (wsum * wsum) * cm;
-        if ((push.flags & 128u) != 0u) {
-            // Mirrors mcdenoise::shared::NLM_CLAMP_Z.
+        if ((push.flags & AOS_NLM_CLAMP) != 0u) {
             real3 g = g_at(i) * cm;
-            real3 se = real(2) * sqrt(max(real3(vg0[i], vg1[i], vg2[i]), real3(0))) * cm;
+            real3 se = real(NLM_CLAMP_Z) * sqrt(max(real3(vg0[i], vg1[i], vg2[i]), real3(0))) * cm;
             out_g = clamp(out_g, g - se, g + se);
         }
     }

@@ -290,13 +290,17 @@ fn gpu_kernels_match_the_twins() {
                 );
                 if clamp {
                     // The clamp holds every value within 2 standard errors
-                    // of its input, and binds somewhere.
+                    // of its input (on the GPU to its rounding), and binds
+                    // somewhere.
                     let mut bound = 0;
                     for c in 0..3 {
                         for i in 0..n {
-                            let se = 2.0 * (vg[c][i].max(0.0) as f64).sqrt();
-                            let d = (cpu[c * n + i] as f64 - g[c][i] as f64).abs();
+                            let (x, se) = (g[c][i] as f64, 2.0 * (vg[c][i].max(0.0) as f64).sqrt());
+                            let d = (cpu[c * n + i] as f64 - x).abs();
                             assert!(d <= se * (1.0 + 1e-6) + 1e-9, "{}", what("clamp"));
+                            let d_gpu = (out[c * n + i] as f64 - x).abs();
+                            let tol = se * (1.0 + 1e-5) + 1e-6 * x.abs().max(1.0);
+                            assert!(d_gpu <= tol, "{}: pixel {i}[{c}]", what("GPU clamp"));
                             bound += usize::from(se > 0.0 && d >= se * (1.0 - 1e-6));
                         }
                     }

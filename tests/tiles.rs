@@ -689,6 +689,44 @@ fn each_clip_round_widens_the_halo_by_the_detection_radius() {
     check_validation(&ctx);
 }
 
+/// The documented halos with the defaults (`src/methods/tiles.rs`): WLR
+/// 175, LP 209, APR 242, AOS with the prefilter 183. GBF-NLM's search and
+/// patch radii (8 px) count where `gbf.albedo_nlm=auto` turns it on (not
+/// for LP) and only after the prefilter (not AOS's default).
+#[test]
+fn the_documented_halos_and_gbf_nlm_reach() {
+    let ctx = gpu();
+    let img = strip(480, 32);
+    let halo = |method: Method, prefilter: Prefilter, opts: &[&str]| {
+        let mut c = Config::new(method);
+        c.tile = Some(60);
+        c.prefilter = prefilter;
+        c.options = mcdenoise::Options::parse(opts).unwrap();
+        let d = Denoiser::new(&ctx, Source::of_image(&img), c).unwrap();
+        d.tiles().expect("tiles were asked for").1
+    };
+    let cases = [
+        (Method::Wlr, Prefilter::Auto, 175, 167),
+        (Method::Lp, Prefilter::Auto, 209, 209),
+        (Method::Apr, Prefilter::Auto, 242, 234),
+        (Method::Aos, Prefilter::On, 183, 175),
+    ];
+    for (m, pf, default, off) in cases {
+        assert_eq!(halo(m, pf, &[]), default, "{m:?}");
+        let without = halo(m, pf, &["gbf.albedo_nlm=off"]);
+        assert_eq!(without, off, "{m:?} without GBF-NLM");
+        let with = halo(m, pf, &["gbf.albedo_nlm=on"]);
+        assert_eq!(with, off + 8, "{m:?} with GBF-NLM");
+    }
+    let aos = halo(Method::Aos, Prefilter::Auto, &[]);
+    assert_eq!(
+        halo(Method::Aos, Prefilter::Auto, &["gbf.albedo_nlm=on"]),
+        aos
+    );
+    assert!(aos < 175, "AOS without the prefilter: {aos}");
+    check_validation(&ctx);
+}
+
 /// OUTLIER-WIDE does not run in tiles: its 431×431 window would add 430 px
 /// to every halo. A tiled run with the default options has the halo and the
 /// output of a whole run with `outliers.wide=0`, and differs from the whole

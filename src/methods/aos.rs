@@ -373,9 +373,11 @@ pub fn record_aos(
         // Sanitation gives every feature its variance layer (§0.4).
         let vg: Vec<BufferSlice> = (0..nc).map(|c| clean.plane(vlayer, c)).collect();
         if layer == Layer::Visibility || !gbf_ran {
+            // The fit's flags are not the prefilter's: §5.2's NL-means, unclamped.
             let push = AosPush {
                 channels: nc as u32,
                 stride,
+                flags: 0,
                 ..base_push
             };
             let pick = |v: &[BufferSlice]| -> [BufferSlice; 3] {

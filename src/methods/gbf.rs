@@ -497,3 +497,45 @@ pub fn run_cpu(clean: &mut StatsImage, settings: GbfSettings) -> Result<GbfMaps>
     }
     Ok(GbfMaps { h_opt, hbar })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::methods::Pass;
+    use crate::options::Options;
+
+    fn settings(opts: &[&str], method: Method, pass: Pass) -> GbfSettings {
+        GbfSettings::new(&Options::parse(opts).unwrap(), method, pass).unwrap()
+    }
+
+    /// `gbf.albedo_nlm=auto` is on for every method but LP, `on` and `off`
+    /// override it, and an intermediate pass runs the spec's prefilter
+    /// whatever the options say.
+    #[test]
+    fn albedo_nlm_auto_rule_and_intermediate_passes() {
+        for m in [Method::Wlr, Method::Apr, Method::Aos, Method::Auto] {
+            assert!(settings(&[], m, Pass::Final).albedo_nlm, "{m:?}");
+        }
+        assert!(!settings(&[], Method::Lp, Pass::Final).albedo_nlm);
+        assert!(settings(&["gbf.albedo_nlm=on"], Method::Lp, Pass::Final).albedo_nlm);
+        assert!(!settings(&["gbf.albedo_nlm=off"], Method::Wlr, Pass::Final).albedo_nlm);
+        for m in [Method::Wlr, Method::Lp] {
+            let s = settings(
+                &["gbf.albedo_nlm=on", "gbf.second_below=8"],
+                m,
+                Pass::Intermediate,
+            );
+            assert_eq!(s, GbfSettings::SPEC, "{m:?}");
+            assert_eq!(s.extra_halo(), 0);
+        }
+        let on = settings(
+            &["gbf.albedo_nlm=on", "gbf.second_below=0"],
+            Method::Wlr,
+            Pass::Final,
+        );
+        assert_eq!(
+            on.extra_halo(),
+            reference::aos::NLM_SEARCH + reference::aos::NLM_PATCH
+        );
+    }
+}
