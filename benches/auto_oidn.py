@@ -36,47 +36,55 @@ def corrected(raw, err):
     return max(raw - err, 0.1 * raw)
 
 
+class Work:
+    """method_mix's work folder: its dumped references (planar f32 RGB) and
+    each reference's own error, from the two cached renders whose mean it is."""
+
+    def __init__(self, work, first_case):
+        scene, spp = first_case.split("@")
+        found = glob.glob(f"{work}/{scene}@{spp}-*-ref.bin")
+        if not found:
+            sys.exit(f"{work}: no {scene}@{spp}-<w>x<h>-ref.bin (method_mix's work folder?)")
+        self.work = work
+        self.size = found[0].rsplit("-", 2)[1]
+        self.w, self.h = map(int, self.size.split("x"))
+        # The cache as `mcdenoise` finds it (src/render/reference.rs, cache_dir).
+        if os.environ.get("MCDENOISE_CACHE"):
+            cache = os.environ["MCDENOISE_CACHE"]
+        elif os.environ.get("XDG_CACHE_HOME"):
+            cache = os.path.join(os.environ["XDG_CACHE_HOME"], "mcdenoise")
+        else:
+            cache = os.path.expanduser("~/.cache/mcdenoise")
+        renders = collections.defaultdict(list)
+        for p in sorted(glob.glob(f"{cache}/ref-*-{self.size}-k*-s*.exr")):
+            renders[os.path.basename(p).rsplit("-s", 1)[0]].append(p)
+        # Every pair of renders of one scene, K and size (more than two where a
+        # table used --reference-renders 4): the reference is one pair's mean.
+        self.means = []
+        for ps in renders.values():
+            images = [load(p) for p in ps]
+            for a, b in itertools.combinations(images, 2):
+                self.means.append((a, (a.astype(np.float32) + b.astype(np.float32)) * 0.5))
+        self.errors = {}
+
+    def ref(self, case):
+        a = np.fromfile(f"{self.work}/{case}-{self.size}-ref.bin", dtype=np.float32)
+        return a.reshape(3, self.w * self.h).T.astype(np.float64)
+
+    def ref_error(self, scene, r):
+        if scene not in self.errors:
+            self.errors[scene] = next((rmse(a, r) for a, m in self.means
+                                       if np.allclose(m, r, rtol=1e-5, atol=1e-7)), None)
+        if self.errors[scene] is None:
+            sys.exit(f"{scene}: no cached pair of renders whose mean is the reference")
+        return self.errors[scene]
+
+
 def main():
     work, lines = sys.argv[1], sys.argv[2]
     rows = [json.loads(l) for l in open(lines) if l.strip()]
-    first = rows[0]["case"].split("@")
-    found = glob.glob(f"{work}/{first[0]}@{first[1]}-*-ref.bin")
-    if not found:
-        sys.exit(f"{work}: no {first[0]}@{first[1]}-<w>x<h>-ref.bin (method_mix's work folder?)")
-    size = found[0].rsplit("-", 2)[1]
-    w, h = map(int, size.split("x"))
-
-    def ref(case):
-        a = np.fromfile(f"{work}/{case}-{size}-ref.bin", dtype=np.float32)
-        return a.reshape(3, w * h).T.astype(np.float64)
-
-    # The cache as `mcdenoise` finds it (src/render/reference.rs, cache_dir).
-    if os.environ.get("MCDENOISE_CACHE"):
-        cache = os.environ["MCDENOISE_CACHE"]
-    elif os.environ.get("XDG_CACHE_HOME"):
-        cache = os.path.join(os.environ["XDG_CACHE_HOME"], "mcdenoise")
-    else:
-        cache = os.path.expanduser("~/.cache/mcdenoise")
-    renders = collections.defaultdict(list)
-    for p in sorted(glob.glob(f"{cache}/ref-*-{size}-k*-s*.exr")):
-        renders[os.path.basename(p).rsplit("-s", 1)[0]].append(p)
-    # Every pair of renders of one scene, K and size (more than two where a
-    # table used --reference-renders 4): the reference is one pair's mean.
-    means = []
-    for ps in renders.values():
-        images = [load(p) for p in ps]
-        for a, b in itertools.combinations(images, 2):
-            means.append((a, (a.astype(np.float32) + b.astype(np.float32)) * 0.5))
-    errors = {}
-
-    def ref_error(scene, r):
-        if scene not in errors:
-            errors[scene] = next((rmse(a, r) for a, m in means
-                                  if np.allclose(m, r, rtol=1e-5, atol=1e-7)), None)
-        if errors[scene] is None:
-            sys.exit(f"{scene}: no cached pair of renders whose mean is the reference")
-        return errors[scene]
-
+    folder = Work(work, rows[0]["case"])
+    ref, ref_error = folder.ref, folder.ref_error
     out, by_spp = [], collections.defaultdict(list)
     for row in rows:
         scene, spp = row["case"].split("@")

@@ -1,0 +1,88 @@
+"""Every method's rMSE over OIDN's on method_mix's uniform built-in cases.
+
+Reads method_mix's JSON lines (any methods; several files are merged by
+case, so methods run separately on the same renders can be joined) and its
+work folder, where `benches/oidn.sh` has written `oidn-<scene>-<spp>.exr`
+beside each `<scene>-<spp>.exr`. Each reference's own error (from its two
+cached renders) is subtracted from every rMSE, never below a tenth of the
+raw value, as in `auto_oidn.py`. Prints a Markdown table per case (rMSE,
+ratio to OIDN, image mean over the reference's for OIDN and each method),
+then per method and spp: the geometric mean of the ratios to OIDN, the
+ratio of the summed rMSE, the cases below OIDN, the worst ratio and the
+worst output over input.
+
+    target/oidn-venv/bin/python benches/quality_table.py WORK LINES.jsonl [LINES.jsonl ...]
+"""
+import collections
+import json
+import math
+import sys
+
+from auto_oidn import Work, corrected, load, rmse
+
+ORDER = ["none", "wlr", "lp", "apr", "aos", "auto"]
+
+
+def main():
+    if len(sys.argv) < 3:
+        sys.exit(__doc__)
+    work = sys.argv[1]
+    rows = {}
+    for path in sys.argv[2:]:
+        for line in open(path):
+            if line.strip():
+                row = json.loads(line)
+                rows.setdefault(row["case"], {}).update(row)
+    cases = list(rows)
+    methods = [m for m in ORDER if m != "none" and any(m in r for r in rows.values())]
+    folder = Work(work, cases[0])
+    ratios = collections.defaultdict(list)
+    sums = collections.defaultdict(float)
+    oidn_sums = collections.defaultdict(float)
+    worst = collections.defaultdict(lambda: (0.0, ""))
+    over_input = collections.defaultdict(float)
+    head = ["scene", "spp", "ref. error", "input", "OIDN"] + methods
+    head += [f"{m} ÷ OIDN" for m in methods] + ["mean: OIDN"] + [f"mean: {m}" for m in methods]
+    print("| " + " | ".join(head) + " |")
+    print("|---|" + "---:|" * (len(head) - 1))
+    for case in cases:
+        row = rows[case]
+        scene, spp = case.split("@")
+        r = folder.ref(case)
+        o = load(f"{work}/oidn-{scene}-{spp}.exr")
+        err = folder.ref_error(scene, r)
+        oidn = rmse(o, r)
+        o_mean = float(o.sum() / r.sum())
+        cells = [scene, spp, f"{err:.1e}", f"{row['input']:.5f}", f"{oidn:.5f}"]
+        q = {}
+        for m in methods:
+            if m not in row:
+                continue
+            q[m] = corrected(row[m], err) / corrected(oidn, err)
+            key = (m, int(spp))
+            ratios[key].append(q[m])
+            sums[key] += corrected(row[m], err)
+            oidn_sums[key] += corrected(oidn, err)
+            if q[m] > worst[key][0]:
+                worst[key] = (q[m], scene)
+            over_input[key] = max(over_input[key], row[m] / row["input"])
+        cells += [f"{row[m]:.5f}" if m in row else "" for m in methods]
+        cells += [f"{q[m]:.2f}" if m in q else "" for m in methods]
+        cells += [f"{o_mean:.3f}"] + [f"{row[m + '.mean']:.3f}" if m in row else "" for m in methods]
+        print("| " + " | ".join(cells) + " |")
+    print()
+    print("| method | spp | cases | geometric mean ÷ OIDN | summed ÷ OIDN's | below OIDN | worst ÷ OIDN | worst output ÷ input |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|")
+    for m in methods:
+        for spp in sorted({s for (_, s) in ratios}):
+            v = ratios[(m, spp)]
+            if not v:
+                continue
+            g = math.exp(sum(map(math.log, v)) / len(v))
+            w, ws = worst[(m, spp)]
+            print(f"| {m} | {spp} | {len(v)} | {g:.3f} | {sums[(m, spp)] / oidn_sums[(m, spp)]:.3f} | "
+                  f"{sum(x < 1 for x in v)} | {w:.2f} ({ws}) | {over_input[(m, spp)]:.3f} |")
+
+
+if __name__ == "__main__":
+    main()
