@@ -5,9 +5,9 @@ case, so methods run separately on the same renders can be joined) and its
 work folder, where `benches/oidn.sh` has written `oidn-<scene>-<spp>.exr`
 beside each `<scene>-<spp>.exr`. Each reference's own error (from its two
 cached renders) is subtracted from every rMSE, never below a tenth of the
-raw value, as in `auto_oidn.py`. Prints a Markdown table per case (rMSE,
-ratio to OIDN, image mean over the reference's for OIDN and each method),
-then per method and spp: the geometric mean of the ratios to OIDN, the
+raw value, as in `auto_oidn.py`. Prints Markdown tables: per case each
+method's rMSE and (in brackets) its ratio to OIDN's; per case the image
+mean over the reference's of OIDN and each method; per method and spp: the geometric mean of the ratios to OIDN, the
 ratio of the summed rMSE, the cases below OIDN, the worst ratio and the
 worst output over input.
 
@@ -42,9 +42,9 @@ def main():
     worst = collections.defaultdict(lambda: (0.0, ""))
     over_input = collections.defaultdict(float)
     head = ["scene", "spp", "ref. error", "input", "OIDN"] + methods
-    head += [f"{m} ÷ OIDN" for m in methods] + ["mean: OIDN"] + [f"mean: {m}" for m in methods]
     print("| " + " | ".join(head) + " |")
     print("|---|" + "---:|" * (len(head) - 1))
+    mean_rows = []
     for case in cases:
         row = rows[case]
         scene, spp = case.split("@")
@@ -52,23 +52,28 @@ def main():
         o = load(f"{work}/oidn-{scene}-{spp}.exr")
         err = folder.ref_error(scene, r)
         oidn = rmse(o, r)
-        o_mean = float(o.sum() / r.sum())
         cells = [scene, spp, f"{err:.1e}", f"{row['input']:.5f}", f"{oidn:.5f}"]
-        q = {}
         for m in methods:
             if m not in row:
+                cells.append("")
                 continue
-            q[m] = corrected(row[m], err) / corrected(oidn, err)
+            q = corrected(row[m], err) / corrected(oidn, err)
             key = (m, int(spp))
-            ratios[key].append(q[m])
+            ratios[key].append(q)
             sums[key] += corrected(row[m], err)
             oidn_sums[key] += corrected(oidn, err)
-            if q[m] > worst[key][0]:
-                worst[key] = (q[m], scene)
+            if q > worst[key][0]:
+                worst[key] = (q, scene)
             over_input[key] = max(over_input[key], row[m] / row["input"])
-        cells += [f"{row[m]:.5f}" if m in row else "" for m in methods]
-        cells += [f"{q[m]:.2f}" if m in q else "" for m in methods]
-        cells += [f"{o_mean:.3f}"] + [f"{row[m + '.mean']:.3f}" if m in row else "" for m in methods]
+            cells.append(f"{row[m]:.5f} ({q:.2f})")
+        print("| " + " | ".join(cells) + " |")
+        means = [f"{float(o.sum() / r.sum()):.3f}"]
+        means += [f"{row[m + '.mean']:.3f}" if m in row else "" for m in methods]
+        mean_rows.append([scene, spp] + means)
+    print()
+    print("| scene | spp | OIDN | " + " | ".join(methods) + " |")
+    print("|---|" + "---:|" * (len(methods) + 2))
+    for cells in mean_rows:
         print("| " + " | ".join(cells) + " |")
     print()
     print("| method | spp | cases | geometric mean ÷ OIDN | summed ÷ OIDN's | below OIDN | worst ÷ OIDN | worst output ÷ input |")
