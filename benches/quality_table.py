@@ -53,7 +53,7 @@ def main():
         err = folder.ref_error(scene, r)
         oidn = rmse(o, r)
         cells = [scene, spp, f"{err:.1e}", f"{row['input']:.5f}", f"{oidn:.5f}"]
-        for m in methods:
+        for m in ["input"] + methods:
             if m not in row:
                 cells.append("")
                 continue
@@ -65,7 +65,8 @@ def main():
             if q > worst[key][0]:
                 worst[key] = (q, scene)
             over_input[key] = max(over_input[key], row[m] / row["input"])
-            cells.append(f"{row[m]:.5f} ({q:.2f})")
+            if m != "input":
+                cells.append(f"{row[m]:.5f} ({q:.2f})")
         print("| " + " | ".join(cells) + " |")
         means = [f"{float(o.sum() / r.sum()):.3f}"]
         means += [f"{row[m + '.mean']:.3f}" if m in row else "" for m in methods]
@@ -78,7 +79,7 @@ def main():
     print()
     print("| method | spp | cases | geometric mean ÷ OIDN | summed ÷ OIDN's | below OIDN | worst ÷ OIDN | worst output ÷ input |")
     print("|---|---:|---:|---:|---:|---:|---:|---:|")
-    for m in methods:
+    for m in ["input"] + methods:
         for spp in sorted({s for (_, s) in ratios}):
             v = ratios[(m, spp)]
             if not v:
