@@ -32,7 +32,11 @@ def main():
         for line in open(path):
             if line.strip():
                 row = json.loads(line)
-                rows.setdefault(row["case"], {}).update(row)
+                have = rows.setdefault(row["case"], {})
+                if "input" in have and have["input"] != row["input"]:
+                    sys.exit(f"{path}: {row['case']} has another input than the lines before "
+                             "(other renders or seed)")
+                have.update(row)
     cases = list(rows)
     methods = [m for m in ORDER if m != "none" and any(m in r for r in rows.values())]
     folder = Work(work, cases[0])
