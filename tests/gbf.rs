@@ -722,6 +722,23 @@ fn assert_layer_close(gpu: &StatsImage, twin: &StatsImage, l: Layer) {
     }
 }
 
+/// A final reconstruction's prefiltered statistics (`chain_stats`), after
+/// checking every feature layer against the twins run with the same
+/// settings.
+fn final_chain_matching_twin(second_below: f32, albedo_nlm: bool) -> StatsImage {
+    use mcdenoise::methods::gbf::GbfSettings;
+    let nlm = if albedo_nlm { "on" } else { "off" };
+    let chain = chain_stats(second_below, nlm, mcdenoise::Pass::Final);
+    let twin = twin_stats(GbfSettings {
+        second_below,
+        albedo_nlm,
+    });
+    for l in FEATURE_LAYERS {
+        assert_layer_close(&chain, &twin, l);
+    }
+    chain
+}
+
 /// GBF-SECOND through the chain: the statistics a GPU chain prefilters with
 /// `gbf.second_below=32` (every pixel of the 16-spp fixture filtered twice)
 /// equal the twins' (`gbf::run_cpu`), and differ from one pass's; an
@@ -729,17 +746,11 @@ fn assert_layer_close(gpu: &StatsImage, twin: &StatsImage, l: Layer) {
 /// GBF-NLM).
 #[test]
 fn second_pass_in_the_chain_matches_twins() {
-    use mcdenoise::methods::gbf::GbfSettings;
     use mcdenoise::Pass;
     let one = chain_stats(0.0, "off", Pass::Final);
-    let two = chain_stats(32.0, "off", Pass::Final);
+    let two = final_chain_matching_twin(32.0, false);
     let intermediate = chain_stats(32.0, "on", Pass::Intermediate);
-    let twin = twin_stats(GbfSettings {
-        second_below: 32.0,
-        albedo_nlm: false,
-    });
     for l in FEATURE_LAYERS {
-        assert_layer_close(&two, &twin, l);
         let variance = l.variance().is_none();
         let same = two.get(l).unwrap() == one.get(l).unwrap();
         // The features change; their variances stay the first pass's.
@@ -755,16 +766,9 @@ fn second_pass_in_the_chain_matches_twins() {
 /// (the clamp) from the prefilter's.
 #[test]
 fn albedo_nlm_in_the_chain_matches_twins() {
-    use mcdenoise::methods::gbf::GbfSettings;
-    use mcdenoise::Pass;
-    let off = chain_stats(0.0, "off", Pass::Final);
-    let on = chain_stats(0.0, "on", Pass::Final);
-    let twin = twin_stats(GbfSettings {
-        second_below: 0.0,
-        albedo_nlm: true,
-    });
+    let off = chain_stats(0.0, "off", mcdenoise::Pass::Final);
+    let on = final_chain_matching_twin(0.0, true);
     for l in FEATURE_LAYERS {
-        assert_layer_close(&on, &twin, l);
         let albedo = matches!(l, Layer::Albedo | Layer::AlbedoVariance);
         assert_eq!(
             on.get(l).unwrap() == off.get(l).unwrap(),
