@@ -7,9 +7,11 @@ WORK is a `method_mix --work` folder, CASE a case such as
 `night_lights@16` (its `<case>-<W>x<H>-{ref,in,<method>}.bin` planes).
 Prints, per class of the reference's grey value (the mean of R, G, B),
 the pixel count and the grey sums of the reference, the input and each
-method's output (default: wlr and auto).
+method's output (default: wlr and auto); then each image's sum over the
+reference's.
 """
 import glob
+import os
 import sys
 
 import numpy as np
@@ -17,7 +19,15 @@ import numpy as np
 
 def planes(path, n):
     """The first three planes (R, G, B) of a method_mix .bin dump."""
-    return np.fromfile(path, np.float32).reshape(-1, n)[:3].astype(np.float64)
+    if not os.path.isfile(path):
+        sys.exit(f"{path}: missing")
+    x = np.fromfile(path, np.float32)
+    if x.size % n or x.size < 3 * n:
+        sys.exit(f"{path}: {x.size} floats, not 3 or more planes of {n}")
+    x = x.reshape(-1, n)[:3].astype(np.float64)
+    if not np.isfinite(x).all():
+        sys.exit(f"{path}: non-finite values")
+    return x
 
 
 def main():
@@ -25,16 +35,18 @@ def main():
         sys.exit(__doc__)
     work, case = sys.argv[1], sys.argv[2]
     methods = sys.argv[3:] or ["wlr", "auto"]
-    refs = glob.glob(f"{work}/{case}-*x*-ref.bin")
+    refs = glob.glob(f"{glob.escape(work)}/{glob.escape(case)}-*x*-ref.bin")
     if len(refs) != 1:
         sys.exit(f"{work}: expected one {case}-WxH-ref.bin, found {len(refs)}")
     stem = refs[0][: -len("-ref.bin")]
     w, h = map(int, stem.rsplit("-", 1)[1].split("x"))
     n = w * h
     ref = planes(refs[0], n).mean(0)
+    if ref.sum() <= 0:
+        sys.exit(f"{refs[0]}: the reference's sum is not positive")
     cols = {"input": planes(f"{stem}-in.bin", n).mean(0)}
     for m in methods:
-        cols[m] = planes(f"{stem}-{m}.bin", n).mean(0)
+        cols[f"{m} (output)" if m == "input" else m] = planes(f"{stem}-{m}.bin", n).mean(0)
     print(f"| reference class | pixels | reference | {' | '.join(cols)} |")
     print("|---|---:|---:|" + "---:|" * len(cols))
     bounds = [0.0, 0.1, 1.0, 10.0, 100.0, np.inf]
