@@ -25,6 +25,8 @@ import sys
 
 import numpy as np
 
+from mix_dump import planes
+
 SIGMA, RADIUS = 1.5, 5
 
 
@@ -76,7 +78,7 @@ def main():
         w, h = map(int, ref.rsplit("-", 2)[1].split("x"))
 
         def load(m):
-            return np.fromfile(f"{work}/{case}-{w}x{h}-{m}.bin", dtype=np.float32).astype(np.float64).reshape(-1, w * h)
+            return planes(f"{work}/{case}-{w}x{h}-{m}.bin", w * h)
 
         r = load("ref")
         o = oidn[case]

@@ -20,6 +20,8 @@ import sys
 import numpy as np
 import OpenEXR
 
+from mix_dump import planes
+
 
 def load(path):
     with OpenEXR.File(path, separate_channels=True) as f:
@@ -68,8 +70,7 @@ class Work:
         self.errors = {}
 
     def ref(self, case):
-        a = np.fromfile(f"{self.work}/{case}-{self.size}-ref.bin", dtype=np.float32)
-        return a.reshape(3, self.w * self.h).T.astype(np.float64)
+        return planes(f"{self.work}/{case}-{self.size}-ref.bin", self.w * self.h, 3).T
 
     def ref_error(self, scene, r):
         if scene not in self.errors:

@@ -11,23 +11,11 @@ method's output (default: wlr and auto); then each image's sum over the
 reference's.
 """
 import glob
-import os
 import sys
 
 import numpy as np
 
-
-def planes(path, n):
-    """The first three planes (R, G, B) of a method_mix .bin dump."""
-    if not os.path.isfile(path):
-        sys.exit(f"{path}: missing")
-    x = np.fromfile(path, np.float32)
-    if x.size % n or x.size < 3 * n:
-        sys.exit(f"{path}: {x.size} floats, not 3 or more planes of {n}")
-    x = x.reshape(-1, n)[:3].astype(np.float64)
-    if not np.isfinite(x).all():
-        sys.exit(f"{path}: non-finite values")
-    return x
+from mix_dump import planes
 
 
 def main():
@@ -41,12 +29,12 @@ def main():
     stem = refs[0][: -len("-ref.bin")]
     w, h = map(int, stem.rsplit("-", 1)[1].split("x"))
     n = w * h
-    ref = planes(refs[0], n).mean(0)
+    ref = planes(refs[0], n, 3).mean(0)
     if ref.sum() <= 0:
         sys.exit(f"{refs[0]}: the reference's sum is not positive")
-    cols = {"input": planes(f"{stem}-in.bin", n).mean(0)}
+    cols = {"input": planes(f"{stem}-in.bin", n, 3).mean(0)}
     for m in methods:
-        cols[f"{m} (output)" if m == "input" else m] = planes(f"{stem}-{m}.bin", n).mean(0)
+        cols[f"{m} (output)" if m == "input" else m] = planes(f"{stem}-{m}.bin", n, 3).mean(0)
     print(f"| reference class | pixels | reference | {' | '.join(cols)} |")
     print("|---|---:|---:|" + "---:|" * len(cols))
     bounds = [0.0, 0.1, 1.0, 10.0, 100.0, np.inf]
