@@ -51,7 +51,10 @@ def smooth(m, w, h):
     return (num / den).ravel()
 
 
-def blend(cols, errs, w, h):
+def blend(cols, errs, w, h, excluded=None):
+    """`auto`'s blend of the members' colours and errors (each (3, w·h));
+    `excluded`, per member a boolean mask or None: pixels where that
+    member's weight is 0 (AUTO-FALLBACK's probe)."""
     n = len(cols)
     score = [smooth(np.sum(np.maximum(e, 0) / (c * c + 0.01), 0), w, h) for c, e in zip(cols, errs)]
     fbar = sum(cols) / n
@@ -63,6 +66,8 @@ def blend(cols, errs, w, h):
     for a in range(n):
         hat = (sum(dis[a, b] for b in range(n) if b != a) - total / (n - 1)) / (n - 2)
         wa = 1 / np.maximum(np.maximum(score[a], hat), 1e-12)
+        if excluded is not None and excluded[a] is not None:
+            wa = np.where(excluded[a], 0.0, wa)
         ws, num = ws + wa, num + wa * cols[a]
     return num / ws
 

@@ -20,7 +20,8 @@ def planes(path, n, count=None):
         sys.exit(f"{path}: missing")
     x = np.fromfile(path, np.float32)
     if x.size % n or x.size < (count or 1) * n:
-        sys.exit(f"{path}: {x.size} floats, not {count or 'whole'} planes of {n}")
+        want = f"{count} or more planes" if count else "whole planes"
+        sys.exit(f"{path}: {x.size} floats, not {want} of {n}")
     x = x.reshape(-1, n)[:count].astype(np.float64)
     if not np.isfinite(x).all():
         sys.exit(f"{path}: non-finite values")
