@@ -4,7 +4,9 @@ their input at a pixel.
 LP and APR keep a pixel's input where their pixel test left out every
 prediction (LP-PIXEL-TEST, APR-PIXEL-TEST); their local dimension `d_i`
 is then 0. This recomputes `auto`'s blend (auto_members.py's rule) from
-the members run alone, with and without leaving such members out, and
+the members run alone (each with its own outlier stage and, for LP,
+without GBF-NLM: not exactly as inside `auto`), with and without leaving
+such members out, and
 prints each rule's rMSE over the blend's as built per case (each
 reference's own error subtracted) and the geometric mean per spp.
 
@@ -16,7 +18,7 @@ reference's own error subtracted) and the geometric mean per spp.
 
 Rules: `each` leaves a member out where its `d_i` is 0; `both` leaves
 LP and APR out where both have `d_i = 0`; `both-v0` the same except at
-pixels whose input variance is 0 in every channel; `both-flat` the same
+pixels whose input variance is 0 in every channel; `both-flat` as `both`,
 only where the 3×3 neighbourhood's albedo and normal (the input's, raw)
 differ from the centre's by less than 0.1.
 """

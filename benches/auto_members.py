@@ -54,7 +54,8 @@ def smooth(m, w, h):
 def blend(cols, errs, w, h, excluded=None):
     """`auto`'s blend of the members' colours and errors (each (3, w·h));
     `excluded`, per member a boolean mask or None: pixels where that
-    member's weight is 0 (AUTO-FALLBACK's probe)."""
+    member's weight is 0 (AUTO-FALLBACK's probe); at least one member must
+    keep its weight at every pixel."""
     n = len(cols)
     score = [smooth(np.sum(np.maximum(e, 0) / (c * c + 0.01), 0), w, h) for c, e in zip(cols, errs)]
     fbar = sum(cols) / n

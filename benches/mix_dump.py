@@ -3,7 +3,8 @@
 `method_mix` writes each case's reference, input and method outputs as
 `<case>-<W>x<H>-<name>.bin`: planar little-endian f32, R, G, B first (a
 method's output then has its error estimate's R, G, B). Used by
-`auto_oidn.py`, `auto_members.py` and `energy_classes.py`.
+`auto_oidn.py`, `auto_members.py`, `energy_classes.py` and
+`fresh_sample_error.py`.
 """
 import os
 import sys
@@ -19,9 +20,10 @@ def planes(path, n, count=None):
     if not os.path.isfile(path):
         sys.exit(f"{path}: missing")
     x = np.fromfile(path, np.float32)
-    if x.size % n or x.size < (count or 1) * n:
-        want = f"{count} or more planes" if count else "whole planes"
-        sys.exit(f"{path}: {x.size} floats, not {want} of {n}")
+    if x.size % n:
+        sys.exit(f"{path}: {x.size} floats, not whole planes of {n}")
+    if x.size < (count or 1) * n:
+        sys.exit(f"{path}: {x.size // n} planes of {n}, fewer than {count or 1}")
     x = x.reshape(-1, n)[:count].astype(np.float64)
     if not np.isfinite(x).all():
         sys.exit(f"{path}: non-finite values")
