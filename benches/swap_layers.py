@@ -18,7 +18,7 @@ def main():
     if len(sys.argv) != 5:
         sys.exit(__doc__)
     src, feat, out, names = sys.argv[1], sys.argv[2], sys.argv[3], sys.argv[4].split(",")
-    with OpenEXR.File(src) as f:
+    with OpenEXR.File(src, separate_channels=True) as f:
         header, channels = dict(f.header()), dict(f.channels())
     with OpenEXR.File(feat, separate_channels=True) as g:
         other = g.channels()
