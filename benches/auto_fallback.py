@@ -70,8 +70,8 @@ def main():
     acc = collections.defaultdict(list)
     for case in cases:
         scene, spp = case.split("@")
-        r = folder.ref(case).T
-        err = folder.ref_error(scene, r.T)
+        r = folder.ref(case)
+        err = folder.ref_error(scene, r)
         stats = layers(f"{work}/{scene}-{spp}.exr")
         d = {m: layers(f"{out}/{case}-{m}.exr") for m in MEMBERS}
         cols = [stack(d[m], "color", "RGB") for m in MEMBERS]
@@ -91,7 +91,7 @@ def main():
 
         def score(excluded):
             f = blend(cols, errs, folder.w, folder.h, excluded)
-            return corrected(rmse(f.T, r.T), err)
+            return corrected(rmse(f.T, r), err)
 
         base = score(None)
         row = {k: score(v) / base for k, v in rules.items()}
@@ -100,8 +100,7 @@ def main():
         print(f"{case}: blend {base:.5f} " + " ".join(f"{k} {v:.3f}" for k, v in row.items()), flush=True)
     for (spp, k), v in sorted(acc.items()):
         g = math.exp(sum(map(math.log, v)) / len(v))
-        w = max(range(len(v)), key=lambda i: v[i])
-        print(f"{spp} spp {k}: geometric mean {g:.3f}, worst {v[w]:.3f}, best {min(v):.3f} ({len(v)} cases)")
+        print(f"{spp} spp {k}: geometric mean {g:.3f}, worst {max(v):.3f}, best {min(v):.3f} ({len(v)} cases)")
 
 
 if __name__ == "__main__":

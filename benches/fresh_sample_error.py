@@ -51,12 +51,11 @@ def main():
     for case in cases:
         scene, spp = case.split("@")
         r = folder.ref(case)
-        true = corrected(rmse(planes(f"{a}/{case}-{folder.size}-{method}.bin", n, 3).T, r),
-                         folder.ref_error(scene, r))
         o = planes(f"{a}/{case}-{folder.size}-{method}.bin", n, 6)
         f, e = o[:3], o[3:]
+        true = corrected(rmse(f.T, r), folder.ref_error(scene, r))
         z, v = stats(f"{b}/{scene}-{spp}.exr")
-        est = float((e / (f * f + 0.01)).sum(0).mean() / 3)
+        est = float((e / (f * f + 0.01)).mean())
         term = (((z - f) ** 2 - v) / (f * f + 0.01)).mean(0)
         xv = float(term.mean())
         se = float(term.std() / np.sqrt(term.size)) / abs(xv)
