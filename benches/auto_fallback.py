@@ -29,21 +29,12 @@ import os
 import sys
 
 import numpy as np
-import OpenEXR
 
 from auto_members import blend
 from auto_oidn import Work, corrected, rmse
+from exr_layers import layers, stack
 
 MEMBERS = ["wlr", "lp", "apr"]
-
-
-def layers(path):
-    with OpenEXR.File(path, separate_channels=True) as f:
-        return {k: np.asarray(v.pixels, dtype=np.float64).ravel() for k, v in f.channels().items()}
-
-
-def stack(d, layer, comps):
-    return np.stack([d[f"{layer}.{c}"] for c in comps])
 
 
 def spread(planes, w, h):

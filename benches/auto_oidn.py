@@ -18,16 +18,14 @@ import os
 import sys
 
 import numpy as np
-import OpenEXR
 
+from exr_layers import layers, stack
 from mix_dump import planes
 
 
 def load(path):
-    with OpenEXR.File(path, separate_channels=True) as f:
-        ch = f.channels()
-        return np.stack([np.asarray(ch[f"color.{c}"].pixels, dtype=np.float64).ravel()
-                         for c in "RGB"], -1)
+    """The colour of the EXR at `path`, shape (pixels, 3)."""
+    return stack(layers(path), "color", "RGB").T
 
 
 def rmse(x, r):

@@ -21,18 +21,15 @@ import os
 import sys
 
 import numpy as np
-import OpenEXR
 
 from auto_oidn import Work, corrected, rmse
+from exr_layers import layers, stack
 from mix_dump import planes
 
 
 def stats(path):
-    with OpenEXR.File(path, separate_channels=True) as f:
-        ch = f.channels()
-        get = lambda k: np.asarray(ch[k].pixels, dtype=np.float64).ravel()
-        return (np.stack([get(f"color.{c}") for c in "RGB"]),
-                np.stack([get(f"color_variance.{c}") for c in "RGB"]))
+    d = layers(path)
+    return stack(d, "color", "RGB"), stack(d, "color_variance", "RGB")
 
 
 def main():
