@@ -5,7 +5,7 @@
 #
 #   bash benches/equal_samples.sh [--scenes a,b] [--size 256x256] [--spp 16,64]
 #        [--methods wlr,lp,apr,aos] [--reference 4096] [--reference-renders 2]
-#        [--oidn] [--equal-time]
+#        [--oidn] [--equal-time] [--passes N]
 #        [--json out.json] [--opt KEY=VALUE ...]
 set -euo pipefail
 cd "$(dirname "$0")/.."

@@ -284,6 +284,53 @@ fn adaptive_run_spends_exactly_the_average() {
     check_validation(&ctx);
 }
 
+/// `passes` replaces the map method's pass count: two adaptive passes
+/// still spend exactly the average, differ from the five of the default
+/// schedule, and the command line refuses `--passes` without
+/// `--adaptive`.
+#[test]
+fn passes_sets_the_schedule_and_keeps_the_total() {
+    let ctx = gpu();
+    let scene = Scene::builtin("cornell").unwrap();
+    let (w, h) = (24, 20);
+    let run = |passes: Option<u32>| {
+        let r = Renderer::new(&ctx, &scene, w, h, 3).unwrap();
+        let cfg = LoopConfig {
+            passes,
+            ..config(Method::Wlr, 9, true)
+        };
+        let out = render(&ctx, &r, &cfg, &AtomicBool::new(false), |_| {}).unwrap();
+        let spp = r.statistics().unwrap().get(Layer::Spp).unwrap()[0].clone();
+        (out.schedule.unwrap(), spp)
+    };
+    let (five, spp5) = run(None);
+    let (two, spp2) = run(Some(2));
+    assert_eq!(five.budgets.len(), 5);
+    assert_eq!(two.budgets.len(), 2);
+    assert_eq!(two.total(w * h), 9 * (w * h) as u64);
+    let total: f64 = spp2.iter().map(|&s| s as f64).sum();
+    assert_eq!(total, 9.0 * (w * h) as f64);
+    assert!(spp2.iter().all(|&s| s >= 4.0), "pass 0 gives every pixel 4");
+    assert_ne!(spp2, spp5, "two maps place samples unlike five");
+    check_validation(&ctx);
+    let never = std::env::temp_dir().join(format!("mcdenoise-passes-{}.exr", std::process::id()));
+    let out = Command::new(env!("CARGO_BIN_EXE_mcdenoise"))
+        .args([
+            "render", "--scene", "cornell", "--size", "8x8", "--spp", "8", "--passes", "2",
+            "--output",
+        ])
+        .arg(&never)
+        .output()
+        .unwrap();
+    assert!(!never.exists(), "nothing rendered");
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("--passes") && err.contains("--adaptive"),
+        "{err}"
+    );
+}
+
 /// MAP-WLR: LP's adaptive render samples exactly where WLR's does, pass
 /// for pass, and reconstructs its final image with LP; `map_method` set to
 /// LP itself gives LP's own maps.

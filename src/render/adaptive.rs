@@ -61,6 +61,12 @@ pub struct LoopConfig {
     /// error, a time limit or a sample bound stops them. `None`: the fixed
     /// schedule of `spp` (§9.3).
     pub stop: Option<StopRules>,
+    /// Adaptive passes of the fixed schedule after pass 0 (`None`: the
+    /// map method's [`crate::MethodInfo::passes`], §9.3). Each pass costs
+    /// one reconstruction for its map, so fewer passes leave more of a time
+    /// budget to samples (EQUAL-TIME).
+    /// Open-ended renders size their passes themselves and ignore it.
+    pub passes: Option<u32>,
     /// With a temporal final denoiser ([`render_with_final`]): the adaptive
     /// passes' sample maps weigh each pixel's error by what the temporal
     /// filter will make of the frame (TEMPORAL-MAP). `true` by default;
@@ -93,6 +99,7 @@ impl LoopConfig {
             options: Options::default(),
             pass_cap: None,
             stop: None,
+            passes: None,
             temporal_maps: true,
             pyramid: Pyramid::Auto,
             input_blend: InputBlend::Auto,
@@ -583,7 +590,10 @@ impl Runner<'_> {
     fn fixed(mut self, mut progress: impl FnMut(&PassProgress)) -> Result<LoopResult> {
         let cfg = self.cfg;
         let schedule = if cfg.adaptive {
-            Some(Schedule::for_method(cfg.mapper(), cfg.spp, self.pixels())?)
+            Some(match cfg.passes {
+                Some(n) => Schedule::new(cfg.spp, self.pixels(), INITIAL_SPP, n)?,
+                None => Schedule::for_method(cfg.mapper(), cfg.spp, self.pixels())?,
+            })
         } else {
             None
         };

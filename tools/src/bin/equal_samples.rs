@@ -23,7 +23,7 @@
 //! cargo run --release -p mcdenoise-tools --bin equal_samples -- \
 //!     [--scenes a,b] [--size 256x256] [--spp 16,64] [--methods wlr,lp,apr,aos] \
 //!     [--reference 4096] [--reference-renders 2] [--seeds 3,4] [--oidn] [--equal-time] [--target | --target-only]
-//!     [--map-method M] [--pass-cap K] [--opt key=value]
+//!     [--map-method M] [--pass-cap K] [--passes N] [--opt key=value]
 //!     [--json out.json] [--work DIR]
 //! ```
 
@@ -77,9 +77,13 @@ struct Args {
     /// Also OIDN on the uniform and on every adaptive run's statistics.
     #[arg(long)]
     oidn: bool,
-    /// Also a uniform render per method given the adaptive run's wall time.
+    /// Also a uniform render per method given the adaptive run's GPU time.
     #[arg(long)]
     equal_time: bool,
+    /// Adaptive passes after the uniform first one (default: the map
+    /// method's schedule, §9.3).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+    passes: Option<u32>,
     /// The method whose maps drive every adaptive run, with its schedule,
     /// sampling parameters and cap (default: each method's `map_method`,
     /// MAP-WLR).
@@ -131,6 +135,8 @@ struct MethodRow {
     /// The uniform run given that time: its spp and rMSE.
     equal_time_spp: Option<u32>,
     equal_time: Option<f64>,
+    /// (adaptive − ref_err) / (equal_time − ref_err).
+    equal_time_ratio: Option<f64>,
     /// OIDN on this method's adaptive statistics.
     oidn_adaptive: Option<f64>,
 }
@@ -169,6 +175,7 @@ struct Row {
 fn loop_config(a: &Args, method: Method, spp: u32, options: &Options) -> LoopConfig {
     LoopConfig {
         options: options.clone(),
+        passes: a.passes,
         ..LoopConfig::new(method, spp, true)
             .with_map_method(a.map_method)
             .with_pass_cap(a.pass_cap)
@@ -260,6 +267,9 @@ fn scene_rows(
         row.ref_renders = a.reference_renders;
         for mr in row.methods.iter_mut().filter(|_| !a.target_only) {
             mr.ratio = corrected(mr.adaptive, ref_err) / corrected(mr.uniform, ref_err);
+            mr.equal_time_ratio = mr
+                .equal_time
+                .map(|t| corrected(mr.adaptive, ref_err) / corrected(t, ref_err));
             eprintln!(
                 "  {stem} spp{n} {}: uniform {:.5} adaptive {:.5} ratio {:.2} (rates {:.0}/{:.0} ks/s)",
                 mr.method,
@@ -493,9 +503,10 @@ fn markdown(rows: &[Row], a: &Args, methods: &[Method]) -> String {
             line += &format!(" {:.5} | {:.5} | {:.2} |", m.uniform, m.adaptive, m.ratio);
             if a.equal_time {
                 line += &format!(
-                    " {} ({} spp) |",
+                    " {} ({} spp; {}) |",
                     fmt(m.equal_time),
-                    m.equal_time_spp.unwrap_or(0)
+                    m.equal_time_spp.unwrap_or(0),
+                    m.equal_time_ratio.map_or("–".into(), |x| format!("{x:.2}"))
                 );
             }
             if a.oidn {
@@ -506,7 +517,12 @@ fn markdown(rows: &[Row], a: &Args, methods: &[Method]) -> String {
         s += "\n";
     }
     // Summary per method and spp: mean ratio, the worst, losses.
-    s += "\n| method | spp | mean adaptive/uniform | worst | scenes above 1.0 | mean adaptive rate / uniform rate |\n|---|---|---|---|---|---|\n";
+    s += "\n| method | spp | mean adaptive/uniform | worst | scenes above 1.0 | mean adaptive rate / uniform rate |";
+    s += if a.equal_time {
+        " mean adaptive/equal time | equal time above 1.0 |\n|---|---|---|---|---|---|---|---|\n"
+    } else {
+        "\n|---|---|---|---|---|---|\n"
+    };
     for (k, m) in methods.iter().enumerate() {
         for &n in &a.spp {
             let rs: Vec<&MethodRow> = rows
@@ -527,10 +543,22 @@ fn markdown(rows: &[Row], a: &Args, methods: &[Method]) -> String {
                 .sum::<f64>()
                 / rs.len() as f64;
             s += &format!(
-                "| {} | {n} | {mean:.3} | {worst:.2} | {above} of {} | {rate:.2} |\n",
+                "| {} | {n} | {mean:.3} | {worst:.2} | {above} of {} | {rate:.2} |",
                 m.name(),
                 ratios.len()
             );
+            let et: Vec<f64> = rs.iter().filter_map(|x| x.equal_time_ratio).collect();
+            if a.equal_time && et.is_empty() {
+                s += " – | – |";
+            } else if a.equal_time {
+                let above = et.iter().filter(|&&x| x > 1.0).count();
+                s += &format!(
+                    " {:.3} | {above} of {} |",
+                    et.iter().sum::<f64>() / et.len() as f64,
+                    et.len()
+                );
+            }
+            s += "\n";
         }
     }
     s

@@ -74,6 +74,12 @@ pub struct Args {
     /// 4 when LP or APR makes the maps (--map-method), no cap otherwise.
     #[arg(long, value_name = "K", value_parser = adaptive::parse_pass_cap)]
     pass_cap: Option<f64>,
+    /// With --adaptive: N adaptive passes after the uniform first one, each
+    /// with a reconstruction for its sample map (default: the map method's,
+    /// 5 for wlr, lp and apr, 3 for aos). Fewer passes leave more time to
+    /// samples where a reconstruction costs many of them
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
+    passes: Option<u32>,
     /// Image size.
     #[arg(long, value_name = "WxH", default_value = "256x256", value_parser = parse_size)]
     size: (usize, usize),
@@ -348,6 +354,12 @@ pub fn run(cli: &Cli, a: &Args) -> anyhow::Result<bool> {
     if !a.adaptive && a.map_method.is_some() {
         bail!("--map-method makes the adaptive passes' sample maps: it needs --adaptive");
     }
+    if a.passes.is_some() && !a.adaptive {
+        bail!("--passes sets the adaptive schedule: it needs --adaptive");
+    }
+    if a.passes.is_some() && (a.target_error.is_some() || a.time_limit.is_some()) {
+        bail!("--passes sets the fixed schedule; --target-error and --time-limit size their passes themselves");
+    }
     let scene = Scene::by_name_or_file(name)?;
     let ctx = context(cli)?;
     let (w, h) = a.size;
@@ -474,6 +486,7 @@ fn loop_config(a: &Args) -> anyhow::Result<adaptive::LoopConfig> {
             time_limit: a.time_limit,
             max_spp: a.max_spp,
         }),
+        passes: a.passes,
         pyramid: a.pyramid.get(),
         input_blend: a.input_blend.get(),
         ..base
