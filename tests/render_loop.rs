@@ -286,8 +286,8 @@ fn adaptive_run_spends_exactly_the_average() {
 
 /// `passes` replaces the map method's pass count: two adaptive passes
 /// still spend exactly the average, differ from the five of the default
-/// schedule, and the command line refuses `--passes` without
-/// `--adaptive`.
+/// schedule, more passes than samples is an error, and the command line
+/// refuses `--passes` without `--adaptive` or with a stop rule.
 #[test]
 fn passes_sets_the_schedule_and_keeps_the_total() {
     let ctx = gpu();
@@ -312,6 +312,14 @@ fn passes_sets_the_schedule_and_keeps_the_total() {
     assert_eq!(total, 9.0 * (w * h) as f64);
     assert!(spp2.iter().all(|&s| s >= 4.0), "pass 0 gives every pixel 4");
     assert_ne!(spp2, spp5, "two maps place samples unlike five");
+    // More passes than samples to place is an error, not empty passes.
+    let r = Renderer::new(&ctx, &scene, 4, 4, 3).unwrap();
+    let cfg = LoopConfig {
+        passes: Some(17),
+        ..config(Method::Wlr, 5, true)
+    };
+    let e = render(&ctx, &r, &cfg, &AtomicBool::new(false), |_| {}).unwrap_err();
+    assert!(e.to_string().contains("17 adaptive passes"), "{e}");
     check_validation(&ctx);
     let never = std::env::temp_dir().join(format!("mcdenoise-passes-{}.exr", std::process::id()));
     let out = Command::new(env!("CARGO_BIN_EXE_mcdenoise"))
@@ -327,6 +335,32 @@ fn passes_sets_the_schedule_and_keeps_the_total() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
         err.contains("--passes") && err.contains("--adaptive"),
+        "{err}"
+    );
+    // Nor with a stop rule, which sizes its passes itself.
+    let out = Command::new(env!("CARGO_BIN_EXE_mcdenoise"))
+        .args([
+            "render",
+            "--scene",
+            "cornell",
+            "--size",
+            "8x8",
+            "--spp",
+            "8",
+            "--adaptive",
+            "--passes",
+            "2",
+            "--target-error",
+            "0.01",
+            "--output",
+        ])
+        .arg(&never)
+        .output()
+        .unwrap();
+    assert!(!never.exists(), "nothing rendered");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("--target-error"),
         "{err}"
     );
 }

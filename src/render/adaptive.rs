@@ -64,8 +64,9 @@ pub struct LoopConfig {
     /// Adaptive passes of the fixed schedule after pass 0 (`None`: the
     /// map method's [`crate::MethodInfo::passes`], §9.3). Each pass costs
     /// one reconstruction for its map, so fewer passes leave more of a time
-    /// budget to samples (EQUAL-TIME).
-    /// Open-ended renders size their passes themselves and ignore it.
+    /// budget to samples (EQUAL-TIME). At most [`MAX_PASSES`], and no more
+    /// than the samples left after pass 0. Uniform and open-ended renders
+    /// ignore it (the latter size their passes themselves).
     pub passes: Option<u32>,
     /// With a temporal final denoiser ([`render_with_final`]): the adaptive
     /// passes' sample maps weigh each pixel's error by what the temporal
@@ -176,6 +177,11 @@ fn loop_config(cfg: &LoopConfig, pass: Pass, first_spp: u32) -> Config {
 /// adaptive passes can do a little better while they remove the worst
 /// pixels' error.
 const DECAY: (f64, f64) = (0.3, 1.5);
+
+/// Most adaptive passes [`LoopConfig::passes`] may ask for: each costs a
+/// reconstruction, and more than this many leave too few samples per pass
+/// for a map to place.
+pub const MAX_PASSES: u32 = 64;
 
 /// The next open-ended pass's budget in samples: enough to reach `target`
 /// if the estimate keeps falling as it did over the last two passes
@@ -591,7 +597,15 @@ impl Runner<'_> {
         let cfg = self.cfg;
         let schedule = if cfg.adaptive {
             Some(match cfg.passes {
-                Some(n) => Schedule::new(cfg.spp, self.pixels(), INITIAL_SPP, n)?,
+                Some(n) => {
+                    let rest = cfg.spp.saturating_sub(INITIAL_SPP) as u64 * self.pixels() as u64;
+                    if n > MAX_PASSES || n as u64 > rest.max(1) {
+                        return Err(Error::InvalidArgument(format!(
+                            "{n} adaptive passes: at most {MAX_PASSES}, and no more than the {rest} samples left after pass 0"
+                        )));
+                    }
+                    Schedule::new(cfg.spp, self.pixels(), INITIAL_SPP, n)?
+                }
                 None => Schedule::for_method(cfg.mapper(), cfg.spp, self.pixels())?,
             })
         } else {

@@ -82,7 +82,7 @@ struct Args {
     equal_time: bool,
     /// Adaptive passes after the uniform first one (default: the map
     /// method's schedule, §9.3).
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=adaptive::MAX_PASSES as i64))]
     passes: Option<u32>,
     /// The method whose maps drive every adaptive run, with its schedule,
     /// sampling parameters and cap (default: each method's `map_method`,
@@ -480,7 +480,7 @@ fn markdown(rows: &[Row], a: &Args, methods: &[Method]) -> String {
         let n = m.name();
         head += &format!(" {n} uniform | {n} adaptive | ratio |");
         if a.equal_time {
-            head += &format!(" {n} equal time |");
+            head += &format!(" {n} equal time (spp; adaptive ÷ it) |");
         }
         if a.oidn {
             head += &format!(" OIDN on {n} adaptive |");
@@ -567,6 +567,11 @@ fn markdown(rows: &[Row], a: &Args, methods: &[Method]) -> String {
 fn main() -> anyhow::Result<()> {
     let mut a = Args::parse();
     a.target |= a.target_only;
+    if a.passes.is_some() && a.target {
+        anyhow::bail!(
+            "--passes sets the fixed schedule; the --target runs size their passes themselves"
+        );
+    }
     let methods = a.methods.clone();
     let options = Options::parse(&a.opts)?;
     let scenes: Vec<String> = if a.scenes.is_empty() {
@@ -585,7 +590,7 @@ fn main() -> anyhow::Result<()> {
         rows.extend(r);
         targets.extend(t);
         if let Some(p) = &a.json {
-            let json = serde_json::json!({ "rows": rows, "targets": targets });
+            let json = serde_json::json!({ "rows": rows, "targets": targets, "passes": a.passes });
             std::fs::write(p, serde_json::to_string_pretty(&json)? + "\n")?;
         }
     }

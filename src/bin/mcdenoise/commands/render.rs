@@ -78,7 +78,7 @@ pub struct Args {
     /// with a reconstruction for its sample map (default: the map method's,
     /// 5 for wlr, lp and apr, 3 for aos). Fewer passes leave more time to
     /// samples where a reconstruction costs many of them
-    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=adaptive::MAX_PASSES as i64))]
     passes: Option<u32>,
     /// Image size.
     #[arg(long, value_name = "WxH", default_value = "256x256", value_parser = parse_size)]
