@@ -13,10 +13,12 @@ fn fixture(name: &str) -> PathBuf {
         .join(name)
 }
 
-fn tmpdir(tag: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("mcdenoise-cli-{tag}-{}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d
+/// A fresh folder of one test's own, removed when the guard drops.
+fn tmpdir(tag: &str) -> tempfile::TempDir {
+    tempfile::Builder::new()
+        .prefix(&format!("mcdenoise-cli-{tag}-"))
+        .tempdir()
+        .unwrap()
 }
 
 fn run(cmd: &mut Command) -> (i32, String, String) {
@@ -55,7 +57,8 @@ fn inspect_fixture() {
 fn compare_and_max_error() {
     let input = fixture("dof_checker_64_spp16.exr");
     let reference = fixture("dof_checker_64_ref.exr");
-    let dir = tmpdir("compare");
+    let tmp = tmpdir("compare");
+    let dir = tmp.path();
     let heat = dir.join("heat.png");
     let (code, out, err) = run(bin()
         .arg("compare")
@@ -92,7 +95,8 @@ fn compare_and_max_error() {
 #[test]
 fn denoise_none_gpu_and_cpu_agree_and_inputs_are_protected() {
     let input = fixture("dof_checker_64_spp16.exr");
-    let dir = tmpdir("denoise");
+    let tmp = tmpdir("denoise");
+    let dir = tmp.path();
     let (g, c) = (dir.join("gpu.exr"), dir.join("cpu.exr"));
     let (code, _, err) = run(bin()
         .arg("denoise")
@@ -204,7 +208,8 @@ fn denoise_none_gpu_and_cpu_agree_and_inputs_are_protected() {
 fn denoise_lp_writes_error_and_debug_layers() {
     let input = fixture("dof_checker_64_spp16.exr");
     let reference = fixture("dof_checker_64_ref.exr");
-    let dir = tmpdir("lp");
+    let tmp = tmpdir("lp");
+    let dir = tmp.path();
     let (g, c) = (dir.join("gpu.exr"), dir.join("cpu.exr"));
     let (code, out, err) = run(bin()
         .arg("denoise")
@@ -257,7 +262,8 @@ fn denoise_lp_writes_error_and_debug_layers() {
 
 #[test]
 fn bad_files_give_clear_errors() {
-    let dir = tmpdir("bad");
+    let tmp = tmpdir("bad");
+    let dir = tmp.path();
     let text = dir.join("notes.exr");
     std::fs::write(&text, "this is not an image").unwrap();
     let (code, _, err) = run(bin().arg("inspect").arg(&text));
@@ -311,8 +317,9 @@ fn help_lists_the_spec_options() {
 
 #[test]
 fn demo_runs() {
-    let dir = tmpdir("demo");
-    let (code, out, err) = run(bin().arg("demo").arg("--out").arg(&dir));
+    let tmp = tmpdir("demo");
+    let dir = tmp.path();
+    let (code, out, err) = run(bin().arg("demo").arg("--out").arg(dir));
     assert_eq!(code, 0, "{err}");
     assert!(out.contains("rMSE"), "{out}");
     assert!(dir.join("output.exr").exists() && dir.join("output.png").exists());
@@ -367,7 +374,8 @@ fn closed_stdout_is_not_a_panic() {
 /// output pattern naming the inputs is refused.
 #[test]
 fn denoise_frames_continues_past_a_bad_frame_and_resumes() {
-    let dir = tmpdir("frames");
+    let tmp = tmpdir("frames");
+    let dir = tmp.path();
     let (inp, out) = (dir.join("in"), dir.join("out"));
     std::fs::create_dir_all(&inp).unwrap();
     std::fs::create_dir_all(&out).unwrap();
@@ -477,7 +485,6 @@ fn denoise_frames_continues_past_a_bad_frame_and_resumes() {
         .arg(dir.join("x.exr"))
         .arg("--resume"));
     assert_eq!(code, 2);
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 /// `mcdenoise prefilter` writes readable statistics with every input layer;
@@ -486,7 +493,8 @@ fn denoise_frames_continues_past_a_bad_frame_and_resumes() {
 /// features); it refuses to overwrite its input.
 #[test]
 fn prefilter_writes_the_same_statistics_whole_and_tiled() {
-    let dir = tmpdir("prefilter");
+    let tmp = tmpdir("prefilter");
+    let dir = tmp.path();
     let input = fixture("dof_checker_64_spp16.exr");
     let (whole, tiled, twice) = (
         dir.join("whole.exr"),
@@ -530,7 +538,6 @@ fn prefilter_writes_the_same_statistics_whole_and_tiled() {
         .arg(&input));
     assert_ne!(code, 0);
     assert!(err.contains("refusing to overwrite"), "{err}");
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// `render --frames` renders an animated built-in scene's frames into the
@@ -541,7 +548,8 @@ fn prefilter_writes_the_same_statistics_whole_and_tiled() {
 /// and a still scene, are clear errors.
 #[test]
 fn render_frames_writes_a_deterministic_sequence_with_its_metrics() {
-    let dir = tmpdir("frames");
+    let tmp = tmpdir("frames");
+    let dir = tmp.path();
     let render = |range: &str, out: &str| {
         let mut cmd = bin();
         cmd.env("MCDENOISE_CACHE", dir.join("cache"))
@@ -610,7 +618,8 @@ fn render_frames_writes_a_deterministic_sequence_with_its_metrics() {
 /// `--resume`, it is a usage error.
 #[test]
 fn temporal_filter_from_the_command_line() {
-    let dir = tmpdir("temporal");
+    let tmp = tmpdir("temporal");
+    let dir = tmp.path();
     let render = |temporal: &str, out: &str| {
         let mut cmd = bin();
         cmd.args(["render", "--scene", "moving_box", "--size", "16x16"])
@@ -679,7 +688,8 @@ fn temporal_filter_from_the_command_line() {
 /// CPU backend is a clear error.
 #[test]
 fn temporal_window_from_the_command_line() {
-    let dir = tmpdir("window");
+    let tmp = tmpdir("window");
+    let dir = tmp.path();
     let render = |temporal: &str, out: &str| {
         let mut cmd = bin();
         cmd.args(["render", "--scene", "moving_box", "--size", "24x24"])
@@ -779,8 +789,9 @@ fn render_small(dir: &Path, extra: &[&str], out: &str) -> (i32, String, String) 
 /// the same), and a configuration it cannot run is a clear error.
 #[test]
 fn pyramid_from_the_command_line() {
-    let dir = tmpdir("pyramid");
-    let render = |extra: &[&str], out: &str| render_small(&dir, extra, out);
+    let tmp = tmpdir("pyramid");
+    let dir = tmp.path();
+    let render = |extra: &[&str], out: &str| render_small(dir, extra, out);
     for (extra, out) in [(&[][..], "plain"), (&["--pyramid"][..], "pyr")] {
         let (code, _, err) = render(extra, out);
         assert_eq!(code, 0, "{err}");
@@ -826,7 +837,8 @@ fn pyramid_from_the_command_line() {
 /// and method none is a clear error.
 #[test]
 fn input_blend_from_the_command_line() {
-    let dir = tmpdir("input_blend");
+    let tmp = tmpdir("input_blend");
+    let dir = tmp.path();
     let wlr = ["--method", "wlr"];
     let off = ["--method", "wlr", "--input-blend=off"];
     let explicit = ["--method", "wlr", "--input-blend"];
@@ -835,7 +847,7 @@ fn input_blend_from_the_command_line() {
         (&off[..], "off"),
         (&explicit[..], "explicit"),
     ] {
-        let (code, _, err) = render_small(&dir, extra, out);
+        let (code, _, err) = render_small(dir, extra, out);
         assert_eq!(code, 0, "{err}");
     }
     let rgb = |p: &str| mcdenoise::io::read_rgb(&dir.join(p)).unwrap().planes;

@@ -185,7 +185,7 @@ fn mutated_statistics_files_never_panic() {
     count_our_panics();
     let seeds = corpus();
     let dir = tempdir();
-    let path = dir.join("case.exr");
+    let path = dir.path().join("case.exr");
     let mut runner = TestRunner::new(RunnerConfig {
         cases: cases(),
         failure_persistence: None,
@@ -203,14 +203,16 @@ fn mutated_statistics_files_never_panic() {
                 .then_some(())
                 .ok_or(())
         });
+        // Outside the test's folder, which is removed when the test ends.
+        let keep =
+            std::env::temp_dir().join(format!("mcdenoise-fuzz-failing-{}.exr", std::process::id()));
         if outcome.is_err() {
-            let keep = dir.join("failing.exr");
             std::fs::write(&keep, &bytes).unwrap();
         }
         prop_assert!(
             outcome.is_ok(),
             "panicked on seed {seed} with {edits:?} (bytes kept in {})",
-            dir.join("failing.exr").display()
+            keep.display()
         );
         Ok(())
     });
@@ -280,9 +282,10 @@ fn regressions_are_handled() {
     assert!(files >= 1, "the regression corpus is missing");
 }
 
-/// A fresh directory under the target directory for this test binary.
-fn tempdir() -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("mcdenoise-fuzz-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+/// A fresh folder, removed when the guard drops.
+fn tempdir() -> tempfile::TempDir {
+    tempfile::Builder::new()
+        .prefix("mcdenoise-fuzz-")
+        .tempdir()
+        .unwrap()
 }
