@@ -365,11 +365,12 @@ fn passes_sets_the_schedule_and_keeps_the_total() {
     );
 }
 
-/// MAP-WLR: LP's adaptive render samples exactly where WLR's does, pass
-/// for pass, and reconstructs its final image with LP; `map_method` set to
-/// LP itself gives LP's own maps.
+/// MAP-WLR, AUTO-MAPS: LP's and `auto`'s adaptive renders sample exactly
+/// where WLR's does, pass for pass, and reconstruct their final images
+/// with their own method; `map_method` set to the method itself gives its
+/// own maps.
 #[test]
-fn lp_samples_where_wlr_does_unless_told_otherwise() {
+fn lp_and_auto_sample_where_wlr_does_unless_told_otherwise() {
     let ctx = gpu();
     let scene = Scene::builtin("cornell").unwrap();
     let (w, h) = (24, 20);
@@ -380,12 +381,14 @@ fn lp_samples_where_wlr_does_unless_told_otherwise() {
         (spp, out.frame.color)
     };
     let (wlr_spp, wlr_color) = run(&config(Method::Wlr, 9, true));
-    let lp = config(Method::Lp, 9, true);
-    assert_eq!(lp.mapper(), Method::Wlr);
-    let (spp, color) = run(&lp);
-    assert_eq!(spp, wlr_spp, "the samples of WLR's maps");
-    assert_ne!(color, wlr_color, "the final image is LP's");
-    assert_eq!(LoopConfig::new(Method::Lp, 9, true).pass_cap, None);
+    for m in [Method::Lp, Method::Auto] {
+        let cfg = config(m, 9, true);
+        assert_eq!(cfg.mapper(), Method::Wlr, "{m:?}");
+        let (spp, color) = run(&cfg);
+        assert_eq!(spp, wlr_spp, "{m:?}: the samples of WLR's maps");
+        assert_ne!(color, wlr_color, "{m:?}: the final image is its own");
+        assert_eq!(LoopConfig::new(m, 9, true).pass_cap, None, "{m:?}");
+    }
     let own = LoopConfig::new(Method::Lp, 9, true).with_map_method(Some(Method::Lp));
     assert_eq!(own.pass_cap, Some(4.0), "LP-CAP with LP's own maps");
     // Uncapped, so that only the maps differ from WLR's run.
@@ -394,6 +397,10 @@ fn lp_samples_where_wlr_does_unless_told_otherwise() {
         ..own
     });
     assert_ne!(own_spp, wlr_spp, "LP's own maps differ");
+    let own = config(Method::Auto, 9, true).with_map_method(Some(Method::Auto));
+    assert_eq!(own.pass_cap, None);
+    let (own_spp, _) = run(&own);
+    assert_ne!(own_spp, wlr_spp, "auto's own maps differ");
     check_validation(&ctx);
 }
 

@@ -65,8 +65,8 @@ pub struct Args {
     /// With --adaptive: the method whose reconstruction and error estimate
     /// make the adaptive passes' sample maps, with its schedule and sampling
     /// parameters and per-pass cap (none: the input's variance); the final
-    /// image is still --method's. Default: wlr for lp, apr and aos
-    /// (decision record MAP-WLR), the method itself otherwise
+    /// image is still --method's. Default: wlr for lp, apr, aos and auto
+    /// (decision records MAP-WLR, AUTO-MAPS), the method itself otherwise
     #[arg(long, value_parser = method_parser())]
     map_method: Option<Method>,
     /// With --adaptive: at most K times the pass's mean samples in one pixel
