@@ -16,9 +16,9 @@
 
 // Flag of [`McdDenoiserDesc::flags`]: the adaptive pass's smaller windows
 // (§9.3) instead of the final reconstruction's. For a final image by LP,
-// APR or AOS, the built-in loop makes its adaptive passes with WLR, whose
-// maps served them better than their own on its scenes (decision record
-// MAP-WLR).
+// APR, AOS or `auto`, the built-in loop makes its adaptive passes with
+// WLR, whose maps served them better than their own on its scenes, or
+// as well for less time (decision records MAP-WLR, AUTO-MAPS).
 #define MCD_FLAG_ADAPTIVE_PASS 2
 
 // Flag of [`McdDenoiserDesc::flags`]: the LP temporal filter (§10.1)

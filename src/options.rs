@@ -178,7 +178,7 @@ pub const OPTIONS: &[OptionSpec] = &[
         kind: Kind::Choice(&["on", "off"]),
         default: "off",
         section: "ours (AUTO-AOS)",
-        help: "auto blends AOS, on the features from before the G-buffer prefilter, as a fourth member with WLR, LP and APR in final reconstructions (on: 0.91-0.96 of the rMSE for about 6x the GPU time; adaptive passes keep three) or not (off)",
+        help: "auto blends AOS, on the features from before the G-buffer prefilter, as a fourth member with WLR, LP and APR in final reconstructions (on: 0.91-0.96 of the rMSE for about 6x the GPU time; with --map-method auto its adaptive passes keep three) or not (off)",
     },
     OptionSpec {
         key: "gbf.second_below",
@@ -248,7 +248,7 @@ pub const OPTIONS: &[OptionSpec] = &[
         kind: Kind::Real(0.0, 16.0),
         default: "method",
         section: "§9.1",
-        help: "σ of the Gaussian on the priority map of the method that makes it (default: 1 for WLR, LP and auto, 4 for APR, 2 for AOS, 0 for none; an adaptive render's maps are WLR's for LP, APR and AOS unless --map-method says otherwise)",
+        help: "σ of the Gaussian on the priority map of the method that makes it (default: 1 for WLR, LP and auto, 4 for APR, 2 for AOS, 0 for none; an adaptive render's maps are WLR's for LP, APR, AOS and auto unless --map-method says otherwise)",
     },
     OptionSpec {
         key: "sampling.floor",

@@ -39,8 +39,9 @@ use crate::shared::{auto_pairs, AutoPush, SmoothPush, AUTO_SUMS};
 
 /// The methods `auto` runs with `options` in a `pass`, in the order they
 /// are blended: WLR, LP, APR, and AOS with `auto.aos=on` in a final
-/// reconstruction (an adaptive render's intermediate passes, whose
-/// reconstructions only make sample maps, do without its cost). The first
+/// reconstruction (an adaptive render's intermediate passes with
+/// `--map-method auto`, whose reconstructions only make sample maps, do
+/// without its cost). The first
 /// one gives `d_i` and the sampling parameters (AUTO-BLEND, AUTO-AOS).
 pub fn members(options: &Options, pass: Pass) -> Vec<Method> {
     let mut m = vec![Method::Wlr, Method::Lp, Method::Apr];

@@ -54,8 +54,8 @@ pub struct MethodInfo {
     pub blend: super::blend::BlendDefaults,
     /// The method whose reconstruction and error estimate make the
     /// adaptive loop's sample maps when this method makes the final image,
-    /// with that method's `passes` and `sampling` (MAP-WLR: WLR for LP, APR
-    /// and AOS; itself otherwise).
+    /// with that method's `passes` and `sampling` (MAP-WLR, AUTO-MAPS: WLR
+    /// for LP, APR, AOS and `auto`; itself otherwise).
     pub map_method: Method,
     /// Adaptive passes after the uniform pass 0 (§9.3 `N_pass`).
     pub passes: u32,

@@ -10,7 +10,8 @@
 //! `--temporal`, each method also with the LP temporal filter (§10.1,
 //! "+ 10.1"), one denoiser carrying its state through the frames. With
 //! `--adaptive`, each method's adaptive renders of the sequence instead
-//! (its loop's maps: WLR's for LP, APR and AOS, MAP-WLR):
+//! (its loop's maps: WLR's for LP, APR, AOS and `auto`, MAP-WLR and
+//! AUTO-MAPS):
 //! alone, with the filter, and with maps that read the filter's state (and
 //! APR's also reconstructed by its temporal window, "adaptive + 10.2").
 //! With `--pyramid`, each method also with the pyramid's low band (and,
