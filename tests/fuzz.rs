@@ -186,6 +186,9 @@ fn mutated_statistics_files_never_panic() {
     let seeds = corpus();
     let dir = tempdir();
     let path = dir.path().join("case.exr");
+    // Outside the test's folder, which is removed when the test ends.
+    let keep =
+        std::env::temp_dir().join(format!("mcdenoise-fuzz-failing-{}.exr", std::process::id()));
     let mut runner = TestRunner::new(RunnerConfig {
         cases: cases(),
         failure_persistence: None,
@@ -203,9 +206,6 @@ fn mutated_statistics_files_never_panic() {
                 .then_some(())
                 .ok_or(())
         });
-        // Outside the test's folder, which is removed when the test ends.
-        let keep =
-            std::env::temp_dir().join(format!("mcdenoise-fuzz-failing-{}.exr", std::process::id()));
         if outcome.is_err() {
             std::fs::write(&keep, &bytes).unwrap();
         }
