@@ -104,6 +104,17 @@ pub struct Config {
     /// less where a long history is reprojected, all of it where the pixel
     /// restarts (TEMPORAL-MAP) — and its colour is not filtered.
     pub temporal_state: Option<TemporalState>,
+    /// For an adaptive pass's denoiser ([`Pass::Intermediate`]): make the
+    /// sample map from a half-resolution reconstruction (MAP-COARSE). The
+    /// method runs only on the statistics pooled over 2×2 blocks — about a
+    /// quarter of its work — and each pixel takes its block's §9.1
+    /// priority; MAP-SMOOTH and the allocation run at the full resolution.
+    /// The colour and error outputs are then the sanitised input's and its
+    /// variance (`none`'s): such a denoiser is for maps. Needs a method
+    /// with a reconstruction (not `none`), an image of at least 16×16
+    /// pixels, one chain (no tiles), and neither the pyramid, the input
+    /// blend nor a temporal stage.
+    pub coarse_map: bool,
 }
 
 impl Config {
@@ -142,6 +153,7 @@ impl Config {
             input_blend: InputBlend::Auto,
             temporal: Temporal::Off,
             temporal_state: None,
+            coarse_map: false,
         }
     }
 
@@ -160,6 +172,7 @@ impl Config {
             input_blend: self.input_blend.resolve(self.method, self.pass),
             temporal: self.temporal,
             temporal_state: self.temporal_state.clone(),
+            coarse_map: self.coarse_map,
         }
     }
 
@@ -190,6 +203,7 @@ impl Config {
         r.pyramid = self.pyramid.resolve(self.method, self.pass, size);
         r.input_blend = self.input_blend.resolve(self.method, self.pass);
         r.progress = self.progress;
+        r.coarse_map = self.coarse_map;
         r
     }
 }

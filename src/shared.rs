@@ -776,7 +776,9 @@ pub const TEMPORAL_SOURCE_RESET: f32 = -1.0;
 pub const TEMPORAL_SOURCE_NONE: f32 = -2.0;
 
 /// `spirv/pyramid_pool.comp` and `spirv/pyramid_merge.comp`, block `Push`
-/// (the pyramid's low band, PYRAMID-LOWBAND).
+/// (the pyramid's low band, PYRAMID-LOWBAND), and
+/// `spirv/sample_upsample.comp`'s (MAP-COARSE: `width × height` the fine
+/// image, `other_*` the coarse one).
 #[repr(C)]
 #[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct PyramidPush {

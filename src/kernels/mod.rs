@@ -47,6 +47,7 @@ pub mod pyramid_pool;
 pub mod sample_priority;
 pub mod sample_reduce;
 pub mod sample_scan;
+pub mod sample_upsample;
 pub mod sanitize;
 pub mod sanitize_low_spp;
 pub mod sanitize_quads;
@@ -117,6 +118,7 @@ pub const ALL: &[&KernelDecl] = &[
     &sample_priority::DECL,
     &sample_reduce::DECL,
     &sample_scan::DECL,
+    &sample_upsample::DECL,
     &peak_fma::DECL,
     &peak_copy::DECL,
 ];

@@ -88,6 +88,7 @@ fn member_config(c: &ChainConfig, m: Method) -> ChainConfig {
         error: true,
         temporal: super::Temporal::Off,
         temporal_state: None,
+        coarse_map: false,
         ..c.clone()
     }
 }

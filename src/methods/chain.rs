@@ -115,6 +115,12 @@ pub struct ChainConfig {
     /// the final chain's state, whose factor scales the sample map's error
     /// (TEMPORAL-MAP).
     pub temporal_state: Option<TemporalState>,
+    /// An adaptive pass's map from a half-resolution reconstruction
+    /// (MAP-COARSE, [`Pass::Intermediate`] only): the method runs on the
+    /// statistics pooled over 2×2 blocks in a second chain, and each fine
+    /// pixel takes its block's §9.1 priority. The fine level runs no
+    /// method: its outputs are the sanitised input's (as `none`'s).
+    pub coarse_map: bool,
 }
 
 /// Where a chain's image lies in a larger image of which it is one tile
@@ -189,6 +195,9 @@ pub struct GpuChain {
     blend: Option<BlendStage>,
     /// The temporal stage ([`ChainConfig::temporal`]).
     temporal: Option<TemporalRole>,
+    /// The half-resolution chain whose map this one's is
+    /// ([`ChainConfig::coarse_map`]).
+    coarse_map: Option<Box<GpuChain>>,
     /// `config` as the method sees it: with the error estimate computed
     /// when the temporal stage reads it.
     stage_config: ChainConfig,
@@ -213,6 +222,7 @@ impl std::fmt::Debug for GpuChain {
             .field("pyramid", &self.pyramid.is_some())
             .field("input_blend", &self.blend.is_some())
             .field("temporal", &self.config.temporal)
+            .field("coarse_map", &self.coarse_map.is_some())
             .finish()
     }
 }
@@ -247,6 +257,30 @@ pub fn front_arena_bytes(n: usize, with_gbf: bool, outliers: Option<u64>) -> u64
     PlaneSet::bytes(n, prepare::PLANES).max(gbf).max(outliers)
 }
 
+/// `Err` unless `config` can make a coarse map (MAP-COARSE) of a `size`
+/// image: an adaptive pass's chain of a method with a reconstruction, on an
+/// image the pyramid's coarse level fits ([`super::pyramid::check`]),
+/// without the stages of a final reconstruction.
+pub fn check_coarse_map(config: &ChainConfig, size: (usize, usize)) -> Result<()> {
+    let refuse = |why: &str| {
+        Err(Error::InvalidArgument(format!(
+            "a coarse sample map (MAP-COARSE) {why}"
+        )))
+    };
+    if config.pass != Pass::Intermediate {
+        return refuse("is an adaptive pass's (Pass::Intermediate)");
+    }
+    if config.pyramid || config.input_blend {
+        return refuse(
+            "runs neither the pyramid nor the input blend (final reconstructions' stages)",
+        );
+    }
+    if config.temporal != Temporal::Off {
+        return refuse("does not read the temporal filter's state");
+    }
+    super::pyramid::check(config.method, size)
+}
+
 /// The checks every chain makes before it allocates: `precision` on this
 /// device, and a non-empty image.
 pub fn check_device(ctx: &GpuContext, precision: Precision, (w, h): (usize, usize)) -> Result<()> {
@@ -276,6 +310,9 @@ impl GpuChain {
                 l.name()
             )));
         }
+        if config.coarse_map {
+            check_coarse_map(&config, (w, h))?;
+        }
         // One set of planes: the source's statistics are sanitised in place
         // (prepare::record_prepare), with room for the variances it estimates.
         let stats = GpuStats::new(ctx, "chain.stats", w, h, &prepare::output_layers(&layers))?;
@@ -286,21 +323,30 @@ impl GpuChain {
         // after the run, so the outlier scratch starts after it (and
         // overlaps LP's queue and packed features, dead by then).
         let n = w * h;
-        let with_gbf = prefilter_runs(config.method, config.prefilter, &layers)?;
+        let method_gbf = prefilter_runs(config.method, config.prefilter, &layers)?;
+        // With a coarse map the method runs at half resolution only: the
+        // fine level is `none`'s, without the prefilter or outlier stage.
+        let with_gbf = method_gbf && !config.coarse_map;
+        let fine_method = match config.coarse_map {
+            true => Method::None,
+            false => config.method,
+        };
         // The temporal filter (TEMPORAL-INFLATE), the pyramid's merge and
         // the input blend read the method's error estimate: the method
         // computes it even when it is not downloaded.
         let stage_config = ChainConfig {
+            method: fine_method,
+            outliers: config.outliers && !config.coarse_map,
             error: config.error
                 || config.temporal != Temporal::Off
                 || config.pyramid
                 || config.input_blend,
             ..config.clone()
         };
-        let info = config.method.info();
+        let info = fine_method.info();
         let keep = (info.arena_kept)(n);
         let arena_bytes = [
-            front_arena_bytes(n, with_gbf, config.outliers.then_some(keep)),
+            front_arena_bytes(n, with_gbf, stage_config.outliers.then_some(keep)),
             (info.arena_bytes)(&stage_config, (w, h)),
         ];
         let arena = match arena_bytes.iter().max() {
@@ -319,7 +365,7 @@ impl GpuChain {
         } else {
             None
         };
-        let outliers = if config.outliers {
+        let outliers = if stage_config.outliers {
             Some(OutlierPlanes::new(
                 ctx,
                 w,
@@ -381,6 +427,28 @@ impl GpuChain {
         } else {
             None
         };
+        let coarse_map = if config.coarse_map {
+            let (cw, ch) = crate::reference::pyramid_pool::coarse_size(w, h);
+            let coarse_config = ChainConfig {
+                coarse_map: false,
+                prefilter: if method_gbf {
+                    Prefilter::On
+                } else {
+                    Prefilter::Off
+                },
+                debug: false,
+                error: true,
+                ..config.clone()
+            };
+            let input = ChainInput::Stats {
+                width: cw,
+                height: ch,
+                layers: prepare::output_layers(&layers),
+            };
+            Some(Box::new(GpuChain::new(ctx, input, coarse_config)?))
+        } else {
+            None
+        };
         let chain = GpuChain {
             ctx: ctx.clone(),
             input_kind: input,
@@ -395,6 +463,7 @@ impl GpuChain {
             pyramid,
             blend,
             temporal,
+            coarse_map,
             stage_config,
         };
         // Every pipeline of a run is built now (a counting batch records
@@ -420,6 +489,14 @@ impl GpuChain {
     /// `width × height` image rather than its area (the rings of rows of LP
     /// and WLR), for the tiler's memory model.
     pub fn ring_bytes(config: &ChainConfig, width: usize, height: usize) -> u64 {
+        if config.coarse_map {
+            let (cw, ch) = crate::reference::pyramid_pool::coarse_size(width, height);
+            let coarse = ChainConfig {
+                coarse_map: false,
+                ..config.clone()
+            };
+            return Self::ring_bytes(&coarse, cw, ch);
+        }
         let own = (config.method.info().ring_bytes)(config, (width, height));
         if config.pyramid {
             let (cw, ch) = crate::reference::pyramid_pool::coarse_size(width, height);
@@ -493,8 +570,23 @@ impl GpuChain {
         self.record_method(batch, accum, Placement::default(), budget.is_some())?;
         if let Some(t) = budget {
             let (planes, params) = &self.sampling;
-            let inputs = self.sample_inputs();
-            sampling::record_sample_map(batch, self.config.precision, &inputs, planes, t, params)?;
+            let p = self.config.precision;
+            match &self.coarse_map {
+                Some(coarse) => sampling::record_coarse_sample_map(
+                    batch,
+                    p,
+                    &coarse.sample_inputs(),
+                    &coarse.sampling.0,
+                    self.stats.plane(Layer::Spp, 0),
+                    planes,
+                    t,
+                    params,
+                )?,
+                None => {
+                    let inputs = self.sample_inputs();
+                    sampling::record_sample_map(batch, p, &inputs, planes, t, params)?
+                }
+            }
         }
         Ok(())
     }
@@ -557,6 +649,11 @@ impl GpuChain {
     /// ([`download_priority_in`](Self::download_priority_in)), whose
     /// allocation runs over the whole image. Uploaded statistics only.
     pub fn record_tile(&self, batch: &mut Batch, at: Placement, priority: bool) -> Result<()> {
+        if self.coarse_map.is_some() {
+            return Err(Error::InvalidArgument(
+                "a coarse map (MAP-COARSE) is made by one chain, not in tiles".into(),
+            ));
+        }
         self.record_method(batch, None, at, priority)?;
         if priority {
             let (planes, params) = &self.sampling;
@@ -627,6 +724,10 @@ impl GpuChain {
                 at.totals.map(|t| t.coarse),
             )?;
         }
+        if let Some(coarse) = &self.coarse_map {
+            super::pyramid::record_pool(batch, p, self.size(), &self.stats, coarse.clean())?;
+            coarse.record_pooled(batch, (0, 0), None, maps)?;
+        }
         if let Some(o) = &self.outliers {
             outliers::record_remove(batch, p, &self.stats, o)?;
         }
@@ -677,11 +778,14 @@ impl GpuChain {
     /// its method's outputs.
     /// `origin`: the coarse image pixel of its pixel `(0, 0)` (a tile's).
     /// `total`: the whole coarse image's sample total when this is a tile.
+    /// `maps`: its sample map's inputs are read after
+    /// ([`ChainConfig::coarse_map`]).
     pub(super) fn record_pooled(
         &self,
         batch: &mut Batch,
         origin: (u32, u32),
         total: Option<[u32; 3]>,
+        maps: bool,
     ) -> Result<()> {
         if !batch.is_counting() {
             self.uploaded.store(true, Ordering::SeqCst);
@@ -694,7 +798,7 @@ impl GpuChain {
                 coarse: [0; 3],
             }),
         };
-        self.record_method(batch, None, at, false)
+        self.record_method(batch, None, at, maps)
     }
 
     /// What the temporal stage reads: the spatial reconstruction and the

@@ -185,6 +185,9 @@ pub struct DenoiseRequest {
     /// Samples to distribute for the next pass: computes the sample map
     /// (§9).
     pub budget: Option<u32>,
+    /// The map from a half-resolution reconstruction (MAP-COARSE,
+    /// [`chain::ChainConfig::coarse_map`]): an adaptive pass's only.
+    pub coarse_map: bool,
 }
 
 impl DenoiseRequest {
@@ -206,6 +209,7 @@ impl DenoiseRequest {
             input_blend: false,
             progress: false,
             budget: None,
+            coarse_map: false,
         }
     }
 }
@@ -270,6 +274,7 @@ fn denoise_gpu(
             input_blend: req.input_blend,
             temporal: Temporal::Off,
             temporal_state: None,
+            coarse_map: req.coarse_map,
         },
     )?;
     denoise_with_chain(&chain, img, req, None)
@@ -330,6 +335,19 @@ pub fn run_uploaded(
 }
 
 fn denoise_cpu(img: &StatsImage, req: &DenoiseRequest) -> Result<DenoiseOutput> {
+    if req.coarse_map {
+        return coarse_map_cpu(img, req);
+    }
+    Ok(denoise_cpu_parts(img, req)?.0)
+}
+
+/// The CPU path without a coarse map: the output, and the error estimate
+/// the sample map reads when it is not the output's (the method's own
+/// before the input blend or the pyramid, LP's ΔMSE).
+fn denoise_cpu_parts(
+    img: &StatsImage,
+    req: &DenoiseRequest,
+) -> Result<(DenoiseOutput, Option<RgbImage>)> {
     if req.pyramid {
         pyramid::check(req.method, (img.width, img.height))?;
     }
@@ -403,7 +421,7 @@ fn denoise_cpu(img: &StatsImage, req: &DenoiseRequest) -> Result<DenoiseOutput> 
         }
         None => None,
     };
-    Ok(DenoiseOutput {
+    let out = DenoiseOutput {
         color,
         error: req.error.then_some(error),
         // As the GPU path: the local dimension comes with the error estimate.
@@ -413,7 +431,79 @@ fn denoise_cpu(img: &StatsImage, req: &DenoiseRequest) -> Result<DenoiseOutput> 
         report,
         timings: Vec::new(),
         stats,
-    })
+    };
+    Ok((out, map_e))
+}
+
+/// The CPU path of a coarse map (MAP-COARSE), as the GPU chain runs it:
+/// the fine level is `none`'s (the sanitised input and its variance), the
+/// request's method reconstructs the sanitised statistics pooled over 2×2
+/// blocks, and the map takes its priority from that reconstruction.
+fn coarse_map_cpu(img: &StatsImage, req: &DenoiseRequest) -> Result<DenoiseOutput> {
+    let size = (img.width, img.height);
+    chain::check_coarse_map(
+        &chain::ChainConfig {
+            method: req.method,
+            pass: req.pass,
+            precision: req.precision,
+            prefilter: req.prefilter,
+            outliers: false,
+            options: req.options.clone(),
+            low_spp: true,
+            debug: false,
+            error: true,
+            pyramid: req.pyramid,
+            input_blend: req.input_blend,
+            temporal: Temporal::Off,
+            temporal_state: None,
+            coarse_map: true,
+        },
+        size,
+    )?;
+    let fine_req = DenoiseRequest {
+        method: Method::None,
+        coarse_map: false,
+        budget: None,
+        ..req.clone()
+    };
+    let mut out = denoise_cpu(img, &fine_req)?;
+    let Some(budget) = req.budget else {
+        return Ok(out);
+    };
+    let (clean, _) = prepare::prepare_cpu(img);
+    let layers: Vec<crate::image::Layer> = img.layers().map(|(l, _)| l).collect();
+    let prefiltered = gbf::wanted(req.method, req.prefilter, |l| layers.contains(&l))?;
+    let pooled = pyramid::pool_cpu(&clean);
+    let coarse_req = DenoiseRequest {
+        coarse_map: false,
+        budget: None,
+        error: true,
+        debug: false,
+        prefilter: if prefiltered {
+            Prefilter::On
+        } else {
+            Prefilter::Off
+        },
+        ..req.clone()
+    };
+    let (coarse, map_error) = denoise_cpu_parts(&pooled, &coarse_req)?;
+    let mut params = sampling::SamplingParams::with_options(req.method, &req.options)?;
+    params.dim = sampling::DimSource::Plain;
+    let coarse_error = map_error
+        .as_ref()
+        .or(coarse.error.as_ref())
+        .ok_or_else(|| Error::InvalidArgument("the coarse level has no error estimate".into()))?;
+    let inputs = sampling::CpuSampleInputs {
+        error: coarse_error.plane_slices(),
+        dim: &coarse.dim,
+        filtered: coarse.color.plane_slices(),
+        spp: &pooled.get(crate::image::Layer::Spp).unwrap()[0],
+    };
+    let spp = &clean.get(crate::image::Layer::Spp).unwrap()[0];
+    out.samples = Some(sampling::coarse_run_cpu(
+        size, &inputs, spp, budget, &params,
+    )?);
+    Ok(out)
 }
 
 /// The CPU path's input of every method ([`clean_cpu`]).

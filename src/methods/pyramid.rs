@@ -163,6 +163,7 @@ impl PyramidStage {
             error: true,
             temporal: Temporal::Off,
             temporal_state: None,
+            coarse_map: false,
             ..config.clone()
         };
         let input = ChainInput::Stats {
@@ -192,23 +193,9 @@ impl PyramidStage {
         origin: (u32, u32),
         total: Option<[u32; 3]>,
     ) -> Result<()> {
-        let coarse = self.coarse.clean();
-        let spp = fine.plane(Layer::Spp, 0);
-        for &(layer, _) in &coarse.index {
-            let push = pool_push(self.size, pool_kind(layer));
-            for c in 0..layer.channels().len() {
-                pyramid_pool::record(
-                    batch,
-                    p,
-                    &push,
-                    fine.plane(layer, c),
-                    spp,
-                    coarse.plane(layer, c),
-                )?;
-            }
-        }
+        record_pool(batch, p, self.size, fine, self.coarse.clean())?;
         self.coarse
-            .record_pooled(batch, (origin.0 / 2, origin.1 / 2), total)
+            .record_pooled(batch, (origin.0 / 2, origin.1 / 2), total, false)
     }
 
     /// Records the merge of the fine level's reconstruction `fine` with the
@@ -232,6 +219,33 @@ impl PyramidStage {
     pub fn error(&self) -> [BufferSlice; 3] {
         std::array::from_fn(|k| self.merged.plane(3 + k))
     }
+}
+
+/// Records the pooling of every plane of the sanitised statistics `fine`
+/// (of a `size` image) over 2×2 blocks into `coarse`'s planes (the coarse
+/// level's layers; [`pool_cpu`] is the twin).
+pub fn record_pool(
+    batch: &mut Batch,
+    p: Precision,
+    size: (usize, usize),
+    fine: &GpuStats,
+    coarse: &GpuStats,
+) -> Result<()> {
+    let spp = fine.plane(Layer::Spp, 0);
+    for &(layer, _) in &coarse.index {
+        let push = pool_push(size, pool_kind(layer));
+        for c in 0..layer.channels().len() {
+            pyramid_pool::record(
+                batch,
+                p,
+                &push,
+                fine.plane(layer, c),
+                spp,
+                coarse.plane(layer, c),
+            )?;
+        }
+    }
+    Ok(())
 }
 
 /// The statistics `clean` (sanitised) pooled over 2×2 blocks: the coarse

@@ -35,10 +35,11 @@ use std::sync::Arc;
 use super::Method;
 use crate::error::{Error, Result};
 use crate::gpu::{Batch, BufferSlice, GpuBuffer, GpuContext, PlaneSet, Precision};
-use crate::kernels::{gauss_smooth, sample_priority, sample_reduce, sample_scan};
+use crate::kernels::{gauss_smooth, sample_priority, sample_reduce, sample_scan, sample_upsample};
 use crate::reference;
+use crate::reference::pyramid_pool::coarse_size;
 use crate::shared::{
-    SamplePriorityPush, SampleTreePush, SmoothPush, SAMPLE_D_KFLAGS, SAMPLE_E_IS_DMSE,
+    PyramidPush, SamplePriorityPush, SampleTreePush, SmoothPush, SAMPLE_D_KFLAGS, SAMPLE_E_IS_DMSE,
 };
 
 /// `ε` of §9.1 for WLR, LP and APR.
@@ -446,20 +447,92 @@ pub fn record_priority(
         inputs.spp,
         planes.maps.plane(0),
     )?;
+    record_smooth(batch, precision, inputs.spp, planes, params)
+}
+
+/// MAP-SMOOTH of `planes`' priority (plane 0 into plane 1) when σs > 0,
+/// over the pixels whose counts `spp` are valid.
+fn record_smooth(
+    batch: &mut Batch,
+    precision: Precision,
+    spp: BufferSlice,
+    planes: &SamplingPlanes,
+    params: &SamplingParams,
+) -> Result<()> {
     if params.sigma_s > 0.0 {
         gauss_smooth::record(
             batch,
             precision,
-            w,
-            h,
+            planes.width as u32,
+            planes.height as u32,
             params.sigma_s,
             planes.maps.plane(0),
-            inputs.spp,
+            spp,
             [planes.maps.plane(2), planes.maps.plane(3)],
             planes.maps.plane(1),
         )?;
     }
     Ok(())
+}
+
+/// The whole §9 map of a coarse level (MAP-COARSE): the §9.1 priority of
+/// `coarse_inputs` — a reconstruction of the statistics pooled over 2×2
+/// blocks ([`crate::methods::pyramid::pool_cpu`]'s layout) — into
+/// `coarse`'s plane 0, copied to the fine pixels of each block
+/// (`sample_upsample`), MAP-SMOOTH at the fine resolution, and the
+/// allocation of `budget` samples over the fine pixels, whose counts are
+/// `spp`, into `planes`. [`coarse_run_cpu`] is its twin.
+#[allow(clippy::too_many_arguments)]
+pub fn record_coarse_sample_map(
+    batch: &mut Batch,
+    precision: Precision,
+    coarse_inputs: &SampleInputs,
+    coarse: &SamplingPlanes,
+    spp: BufferSlice,
+    planes: &SamplingPlanes,
+    budget: u32,
+    params: &SamplingParams,
+) -> Result<()> {
+    params.check()?;
+    sample_priority::record(
+        batch,
+        precision,
+        params.push(coarse.width as u32, coarse.height as u32),
+        coarse_inputs.error,
+        coarse_inputs.dim,
+        coarse_inputs.filtered,
+        coarse_inputs.spp,
+        coarse.maps.plane(0),
+    )?;
+    let push = upsample_push(planes, coarse);
+    sample_upsample::record(
+        batch,
+        precision,
+        &push,
+        coarse.maps.plane(0),
+        planes.maps.plane(0),
+    )?;
+    record_smooth(batch, precision, spp, planes, params)?;
+    record_allocation(
+        batch,
+        planes.priority(params),
+        spp,
+        planes,
+        budget,
+        params.floor,
+    )
+}
+
+/// `sample_upsample`'s push constants from the `coarse` level's size to
+/// the `fine` one's.
+fn upsample_push(fine: &SamplingPlanes, coarse: &SamplingPlanes) -> PyramidPush {
+    PyramidPush {
+        width: fine.width as u32,
+        height: fine.height as u32,
+        other_width: coarse.width as u32,
+        other_height: coarse.height as u32,
+        ..Default::default()
+    }
 }
 
 /// Records §9.1 sanitise and §9.2 ROUNDING on a priority map `r` (f32 plane
@@ -511,6 +584,17 @@ pub fn priority_cpu(
     inputs: &CpuSampleInputs,
     params: &SamplingParams,
 ) -> Result<Vec<f32>> {
+    let r = raw_priority_cpu(width, height, inputs, params)?;
+    Ok(smooth_cpu(width, height, r, inputs.spp, params))
+}
+
+/// `sample_priority`'s twin over `inputs` (every plane checked).
+fn raw_priority_cpu(
+    width: usize,
+    height: usize,
+    inputs: &CpuSampleInputs,
+    params: &SamplingParams,
+) -> Result<Vec<f32>> {
     params.check()?;
     let n = pixel_count(width, height)? as usize;
     let all = inputs
@@ -532,19 +616,62 @@ pub fn priority_cpu(
         inputs.spp,
         &mut r,
     );
-    if params.sigma_s > 0.0 {
-        let push = SmoothPush {
-            width: width as u32,
-            height: height as u32,
-            radius: gauss_smooth::radius(params.sigma_s),
-            sigma: params.sigma_s,
-            ..Default::default()
-        };
-        let mut s = vec![0.0f32; n];
-        reference::gauss_smooth::smooth(&push, &r, inputs.spp, &mut s);
-        r = s;
-    }
     Ok(r)
+}
+
+/// MAP-SMOOTH's twin: `r` smoothed over the valid pixels of `spp` when
+/// σs > 0, else `r`.
+fn smooth_cpu(
+    width: usize,
+    height: usize,
+    r: Vec<f32>,
+    spp: &[f32],
+    params: &SamplingParams,
+) -> Vec<f32> {
+    if params.sigma_s <= 0.0 {
+        return r;
+    }
+    let push = SmoothPush {
+        width: width as u32,
+        height: height as u32,
+        radius: gauss_smooth::radius(params.sigma_s),
+        sigma: params.sigma_s,
+        ..Default::default()
+    };
+    let mut s = vec![0.0f32; width * height];
+    reference::gauss_smooth::smooth(&push, &r, spp, &mut s);
+    s
+}
+
+/// The twin of [`record_coarse_sample_map`]: the counts over the fine
+/// `width × height` pixels (counts `spp`) of a map whose priority comes
+/// from the coarse level's `coarse_inputs` (of [`coarse_size`]).
+pub fn coarse_run_cpu(
+    (width, height): (usize, usize),
+    coarse_inputs: &CpuSampleInputs,
+    spp: &[f32],
+    budget: u32,
+    params: &SamplingParams,
+) -> Result<Vec<u32>> {
+    let (cw, ch) = coarse_size(width, height);
+    let coarse_r = raw_priority_cpu(cw, ch, coarse_inputs, params)?;
+    let n = pixel_count(width, height)? as usize;
+    if spp.len() != n {
+        return Err(Error::InvalidArgument(format!(
+            "sampling: spp must hold {width}×{height} values"
+        )));
+    }
+    let push = PyramidPush {
+        width: width as u32,
+        height: height as u32,
+        other_width: cw as u32,
+        other_height: ch as u32,
+        ..Default::default()
+    };
+    let mut r = vec![0.0f32; n];
+    reference::sample_upsample::sample_upsample(&push, &coarse_r, &mut r);
+    let r = smooth_cpu(width, height, r, spp, params);
+    allocate_cpu(width, height, &r, spp, budget, params.floor)
 }
 
 /// The twin of [`record_allocation`]: §9.1 sanitise and §9.2 ROUNDING of the

@@ -461,6 +461,17 @@ impl TiledChain {
                 (cap / 1e6).floor()
             )
         };
+        if config.coarse_map {
+            return Err(Error::Limit(format!(
+                "{w}x{h} with a coarse sample map (MAP-COARSE): its chain makes the whole image's map and \
+                 cannot run in tiles ({})",
+                if tile.is_some() {
+                    "tiles were asked for".to_string()
+                } else {
+                    why.clone()
+                }
+            )));
+        }
         if config.temporal != super::Temporal::Off {
             return Err(Error::Limit(format!(
                 "{w}x{h} with the temporal filter: it keeps one state for the whole image and \

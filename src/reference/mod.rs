@@ -57,6 +57,7 @@ pub mod pyramid_pool;
 pub mod sample_priority;
 pub mod sample_reduce;
 pub mod sample_scan;
+pub mod sample_upsample;
 pub mod sampling;
 pub mod sanitize;
 pub mod sanitize_low_spp;

@@ -81,6 +81,12 @@ pub struct LoopConfig {
     /// reconstruction; the adaptive passes' reconstructions run without
     /// it.
     pub input_blend: InputBlend,
+    /// The adaptive passes' sample maps from a half-resolution
+    /// reconstruction ([`Config::coarse_map`], MAP-COARSE): the map method
+    /// runs on the statistics pooled over 2×2 blocks, about a quarter of
+    /// its work per pass. `false` by default. Not with the temporal maps
+    /// of a temporal final denoiser, nor on images below 16×16 pixels.
+    pub coarse_maps: bool,
 }
 
 impl LoopConfig {
@@ -104,6 +110,7 @@ impl LoopConfig {
             temporal_maps: true,
             pyramid: Pyramid::Auto,
             input_blend: InputBlend::Auto,
+            coarse_maps: false,
         }
         .with_map_method(None)
     }
@@ -163,6 +170,7 @@ fn loop_config(cfg: &LoopConfig, pass: Pass, first_spp: u32) -> Config {
     c.precision = cfg.precision;
     c.options = cfg.options.clone();
     c.low_spp = first_spp < 2;
+    c.coarse_map = pass == Pass::Intermediate && cfg.coarse_maps;
     (c.pyramid, c.input_blend) = if pass == Pass::Final {
         (cfg.pyramid, cfg.input_blend)
     } else {

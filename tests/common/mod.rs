@@ -230,6 +230,7 @@ pub fn bare_chain_config(method: mcdenoise::Method) -> mcdenoise::methods::chain
         input_blend: false,
         temporal: mcdenoise::Temporal::Off,
         temporal_state: None,
+        coarse_map: false,
     }
 }
 

@@ -67,6 +67,7 @@ fn dump(
         input_blend: false,
         temporal: mcdenoise::Temporal::Off,
         temporal_state: None,
+        coarse_map: false,
     };
     let chain = GpuChain::new(ctx, ChainInput::of_image(stats), config)?;
     chain.upload(stats)?;

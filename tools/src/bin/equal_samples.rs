@@ -23,7 +23,7 @@
 //! cargo run --release -p mcdenoise-tools --bin equal_samples -- \
 //!     [--scenes a,b] [--size 256x256] [--spp 16,64] [--methods wlr,lp,apr,aos] \
 //!     [--reference 4096] [--reference-renders 2] [--seeds 3,4] [--oidn] [--equal-time] [--target | --target-only]
-//!     [--map-method M] [--pass-cap K] [--passes N] [--opt key=value]
+//!     [--map-method M] [--pass-cap K] [--passes N] [--coarse-maps] [--opt key=value]
 //!     [--json out.json] [--work DIR]
 //! ```
 
@@ -89,6 +89,10 @@ struct Args {
     /// MAP-WLR).
     #[arg(long, value_parser = parse_method)]
     map_method: Option<Method>,
+    /// Every adaptive run's maps from half-resolution reconstructions
+    /// (MAP-COARSE).
+    #[arg(long)]
+    coarse_maps: bool,
     /// Per-pass cap of every adaptive run, as a multiple of the pass's mean
     /// (0: none; default: that of the method that makes the maps).
     #[arg(long, value_parser = adaptive::parse_pass_cap)]
@@ -176,6 +180,7 @@ fn loop_config(a: &Args, method: Method, spp: u32, options: &Options) -> LoopCon
     LoopConfig {
         options: options.clone(),
         passes: a.passes,
+        coarse_maps: a.coarse_maps,
         ..LoopConfig::new(method, spp, true)
             .with_map_method(a.map_method)
             .with_pass_cap(a.pass_cap)
@@ -590,7 +595,7 @@ fn main() -> anyhow::Result<()> {
         rows.extend(r);
         targets.extend(t);
         if let Some(p) = &a.json {
-            let json = serde_json::json!({ "rows": rows, "targets": targets, "passes": a.passes });
+            let json = serde_json::json!({ "rows": rows, "targets": targets, "passes": a.passes, "coarse_maps": a.coarse_maps });
             std::fs::write(p, serde_json::to_string_pretty(&json)? + "\n")?;
         }
     }

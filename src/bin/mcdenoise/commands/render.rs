@@ -80,6 +80,12 @@ pub struct Args {
     /// samples where a reconstruction costs many of them
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=adaptive::MAX_PASSES as i64))]
     passes: Option<u32>,
+    /// With --adaptive: make each adaptive pass's sample map from a
+    /// half-resolution reconstruction (the statistics pooled over 2x2
+    /// blocks), about a quarter of the map method's work per pass
+    /// (decision record MAP-COARSE). Images of at least 16x16 pixels
+    #[arg(long)]
+    coarse_maps: bool,
     /// Image size.
     #[arg(long, value_name = "WxH", default_value = "256x256", value_parser = parse_size)]
     size: (usize, usize),
@@ -354,6 +360,12 @@ pub fn run(cli: &Cli, a: &Args) -> anyhow::Result<bool> {
     if !a.adaptive && a.map_method.is_some() {
         bail!("--map-method makes the adaptive passes' sample maps: it needs --adaptive");
     }
+    if a.coarse_maps && !a.adaptive {
+        bail!("--coarse-maps makes the adaptive passes' sample maps: it needs --adaptive");
+    }
+    if a.coarse_maps && a.temporal.get() == mcdenoise::Temporal::Lp {
+        bail!("--coarse-maps and --temporal lp: the adaptive passes' maps read the temporal filter's state at the full resolution (TEMPORAL-MAP)");
+    }
     if a.passes.is_some() && !a.adaptive {
         bail!("--passes sets the adaptive schedule: it needs --adaptive");
     }
@@ -489,6 +501,7 @@ fn loop_config(a: &Args) -> anyhow::Result<adaptive::LoopConfig> {
         passes: a.passes,
         pyramid: a.pyramid.get(),
         input_blend: a.input_blend.get(),
+        coarse_maps: a.coarse_maps,
         ..base
     })
 }
