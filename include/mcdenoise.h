@@ -53,6 +53,16 @@
 // [`MCD_FLAG_INPUT_BLEND`]); both flags together are an error.
 #define MCD_FLAG_NO_INPUT_BLEND 64
 
+// Flag of [`McdDenoiserDesc::flags`], with [`MCD_FLAG_ADAPTIVE_PASS`]: the
+// sample map from a half-resolution reconstruction (MAP-COARSE). The
+// method runs on the statistics pooled over 2×2 blocks only, about a
+// quarter of its work, and each pixel takes its block's priority; the
+// denoiser's colour and error outputs are then the input's mean and
+// variance. Not for `MCD_METHOD_NONE`, images under 16×16 pixels, the
+// temporal filter, or with [`MCD_FLAG_PYRAMID`] or
+// [`MCD_FLAG_INPUT_BLEND`].
+#define MCD_FLAG_COARSE_MAP 128
+
 // What a call returned.
 typedef enum McdStatus {
   // Success.

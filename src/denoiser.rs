@@ -178,14 +178,17 @@ impl Config {
 
     /// `Err` unless this configuration can denoise `width × height` images
     /// (what [`Denoiser::new`] would refuse for the size alone: the
-    /// pyramid's method and smallest image), for a caller that wants to
-    /// know before it renders.
+    /// pyramid's and a coarse map's method and smallest image), for a
+    /// caller that wants to know before it renders.
     pub fn check_size(&self, width: usize, height: usize) -> Result<()> {
         if self.pyramid == Pyramid::On {
             methods::pyramid::check(self.method, (width, height))?;
         }
         if self.input_blend == InputBlend::On {
             methods::blend::check(self.method)?;
+        }
+        if self.coarse_map {
+            methods::chain::check_coarse_size(self.method, (width, height))?;
         }
         Ok(())
     }

@@ -237,3 +237,34 @@ fn the_loop_renders_with_coarse_maps() {
     assert!(color.planes.iter().flatten().all(|v| v.is_finite()));
     check_validation(&ctx);
 }
+
+/// The command line refuses `--coarse-maps` without `--adaptive`, and on an
+/// image too small for it before anything renders.
+#[test]
+fn the_command_line_refuses_what_it_cannot_run() {
+    let dir = tempfile::TempDir::new().unwrap();
+    let never = dir.path().join("never.exr");
+    let run = |extra: &[&str]| {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_mcdenoise"))
+            .args([
+                "render",
+                "--scene",
+                "cornell",
+                "--spp",
+                "8",
+                "--coarse-maps",
+            ])
+            .args(extra)
+            .arg("--output")
+            .arg(&never)
+            .output()
+            .unwrap();
+        assert!(!out.status.success(), "{extra:?} ran");
+        assert!(!never.exists(), "{extra:?}: nothing rendered");
+        String::from_utf8_lossy(&out.stderr).into_owned()
+    };
+    let err = run(&["--size", "32x32"]);
+    assert!(err.contains("--adaptive"), "{err}");
+    let err = run(&["--size", "12x12", "--adaptive"]);
+    assert!(err.contains("16x16"), "{err}");
+}

@@ -162,6 +162,15 @@ pub const MCD_FLAG_INPUT_BLEND: u32 = 32;
 /// Flag of [`McdDenoiserDesc::flags`]: never the input blend (see
 /// [`MCD_FLAG_INPUT_BLEND`]); both flags together are an error.
 pub const MCD_FLAG_NO_INPUT_BLEND: u32 = 64;
+/// Flag of [`McdDenoiserDesc::flags`], with [`MCD_FLAG_ADAPTIVE_PASS`]: the
+/// sample map from a half-resolution reconstruction (MAP-COARSE). The
+/// method runs on the statistics pooled over 2×2 blocks only, about a
+/// quarter of its work, and each pixel takes its block's priority; the
+/// denoiser's colour and error outputs are then the input's mean and
+/// variance. Not for `MCD_METHOD_NONE`, images under 16×16 pixels, the
+/// temporal filter, or with [`MCD_FLAG_PYRAMID`] or
+/// [`MCD_FLAG_INPUT_BLEND`].
+pub const MCD_FLAG_COARSE_MAP: u32 = 128;
 
 /// One denoiser's configuration: fixed for its life.
 #[repr(C)]
@@ -531,7 +540,8 @@ pub unsafe extern "C" fn mcd_denoiser_create(
             | MCD_FLAG_PYRAMID
             | MCD_FLAG_NO_PYRAMID
             | MCD_FLAG_INPUT_BLEND
-            | MCD_FLAG_NO_INPUT_BLEND;
+            | MCD_FLAG_NO_INPUT_BLEND
+            | MCD_FLAG_COARSE_MAP;
         if desc.flags & !known != 0 {
             return Err(invalid(format!("unknown flags {:#x}", desc.flags & !known)));
         }
@@ -543,6 +553,7 @@ pub unsafe extern "C" fn mcd_denoiser_create(
         if desc.flags & MCD_FLAG_TEMPORAL_LP != 0 {
             config.temporal = core::Temporal::Lp;
         }
+        config.coarse_map = desc.flags & MCD_FLAG_COARSE_MAP != 0;
         config.pyramid = match (
             desc.flags & MCD_FLAG_PYRAMID != 0,
             desc.flags & MCD_FLAG_NO_PYRAMID != 0,

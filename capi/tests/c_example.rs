@@ -88,6 +88,7 @@ fn c_host_accumulates_on_the_gpu_and_denoises() {
         stdout.contains("sample map:")
             && stdout.contains("with the pyramid: rMSE")
             && stdout.contains("stage flags: ok")
+            && stdout.contains("coarse map flag: ok")
             && stdout.ends_with("ok\n"),
         "{stdout}"
     );

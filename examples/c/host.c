@@ -440,6 +440,23 @@ int main(int argc, char **argv)
         }
     }
     printf("stage flags: ok\n");
+
+    /* A coarse sample map is an adaptive pass's: taken with
+     * MCD_FLAG_ADAPTIVE_PASS, refused without it. */
+    for (int k = 0; k < 2; ++k) {
+        McdDenoiserDesc probe_desc = desc;
+        probe_desc.flags &= ~(MCD_FLAG_PYRAMID | MCD_FLAG_NO_PYRAMID | MCD_FLAG_ADAPTIVE_PASS);
+        probe_desc.flags |= MCD_FLAG_COARSE_MAP | (k == 0 ? MCD_FLAG_ADAPTIVE_PASS : 0u);
+        McdDenoiser *probe = NULL;
+        enum McdStatus st = mcd_denoiser_create(ctx, &probe_desc, &probe);
+        if (st != (k == 0 ? MCD_STATUS_OK : MCD_STATUS_INVALID_ARGUMENT)) {
+            fprintf(stderr, "coarse map, flags %#x: status %d (%s)\n", probe_desc.flags, (int)st,
+                    mcd_last_error());
+            return 1;
+        }
+        mcd_denoiser_destroy(probe);
+    }
+    printf("coarse map flag: ok\n");
     mcd_context_destroy(ctx);
 
     /* ---- The host's teardown. ---- */

@@ -278,7 +278,25 @@ pub fn check_coarse_map(config: &ChainConfig, size: (usize, usize)) -> Result<()
     if config.temporal != Temporal::Off {
         return refuse("does not read the temporal filter's state");
     }
-    super::pyramid::check(config.method, size)
+    check_coarse_size(config.method, size)
+}
+
+/// `Err` unless `method` can make a coarse map (MAP-COARSE) of a `size`
+/// image: a reconstruction (not `none`) on an image whose pooled level
+/// every method's smallest window fits ([`super::pyramid::MIN_SIDE`]).
+pub fn check_coarse_size(method: Method, (w, h): (usize, usize)) -> Result<()> {
+    let min = super::pyramid::MIN_SIDE;
+    if method == Method::None {
+        return Err(Error::InvalidArgument(
+            "a coarse sample map (MAP-COARSE) is a reconstruction's: method none has none".into(),
+        ));
+    }
+    if w < min || h < min {
+        return Err(Error::InvalidArgument(format!(
+            "a coarse sample map (MAP-COARSE) needs an image of at least {min}x{min} pixels, not {w}x{h}"
+        )));
+    }
+    Ok(())
 }
 
 /// The checks every chain makes before it allocates: `precision` on this

@@ -488,6 +488,13 @@ fn loop_config(a: &Args) -> anyhow::Result<adaptive::LoopConfig> {
     let base = adaptive::LoopConfig::new(method, a.spp, a.adaptive)
         .with_map_method(a.map_method)
         .with_pass_cap(a.pass_cap);
+    if a.coarse_maps {
+        Config {
+            coarse_map: true,
+            ..Config::new(base.mapper())
+        }
+        .check_size(a.size.0, a.size.1)?;
+    }
     Ok(adaptive::LoopConfig {
         prefilter: a.prefilter.get(),
         outliers: a.outliers.get(),
