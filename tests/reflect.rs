@@ -33,8 +33,9 @@ const F32_ONLY: &[&str] = &[
 ];
 
 /// Kernels that only move data (the bandwidth probe of `bench --peak`, the
-/// G-buffer prefilter's and APR's packing): their `_f64` variant is the same code.
-const COPY_ONLY: &[&str] = &["peak_copy", "gbf_pack", "apr_pack"];
+/// G-buffer prefilter's and APR's packing, MAP-COARSE's upsampling): their
+/// `_f64` variant is the same code.
+const COPY_ONLY: &[&str] = &["peak_copy", "gbf_pack", "apr_pack", "sample_upsample"];
 
 #[test]
 fn every_kernel_matches_its_declaration() {
