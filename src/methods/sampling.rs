@@ -504,7 +504,13 @@ pub fn record_coarse_sample_map(
         coarse_inputs.spp,
         coarse.maps.plane(0),
     )?;
-    let push = upsample_push(planes, coarse);
+    if coarse_size(planes.width, planes.height) != (coarse.width, coarse.height) {
+        return Err(Error::InvalidArgument(format!(
+            "sampling: a coarse map of {}x{} pixels for an image of {}x{}",
+            coarse.width, coarse.height, planes.width, planes.height
+        )));
+    }
+    let push = upsample_push((planes.width, planes.height));
     sample_upsample::record(
         batch,
         precision,
@@ -523,14 +529,15 @@ pub fn record_coarse_sample_map(
     )
 }
 
-/// `sample_upsample`'s push constants from the `coarse` level's size to
-/// the `fine` one's.
-fn upsample_push(fine: &SamplingPlanes, coarse: &SamplingPlanes) -> PyramidPush {
+/// `sample_upsample`'s push constants over a `(width, height)` image
+/// from its coarse level ([`coarse_size`]).
+pub fn upsample_push((width, height): (usize, usize)) -> PyramidPush {
+    let (cw, ch) = coarse_size(width, height);
     PyramidPush {
-        width: fine.width as u32,
-        height: fine.height as u32,
-        other_width: coarse.width as u32,
-        other_height: coarse.height as u32,
+        width: width as u32,
+        height: height as u32,
+        other_width: cw as u32,
+        other_height: ch as u32,
         ..Default::default()
     }
 }
@@ -661,13 +668,7 @@ pub fn coarse_run_cpu(
             "sampling: spp must hold {width}×{height} values"
         )));
     }
-    let push = PyramidPush {
-        width: width as u32,
-        height: height as u32,
-        other_width: cw as u32,
-        other_height: ch as u32,
-        ..Default::default()
-    };
+    let push = upsample_push((width, height));
     let mut r = vec![0.0f32; n];
     reference::sample_upsample::sample_upsample(&push, &coarse_r, &mut r);
     let r = smooth_cpu(width, height, r, spp, params);
