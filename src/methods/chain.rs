@@ -258,9 +258,9 @@ pub fn front_arena_bytes(n: usize, with_gbf: bool, outliers: Option<u64>) -> u64
 }
 
 /// `Err` unless `config` can make a coarse map (MAP-COARSE) of a `size`
-/// image: an adaptive pass's chain of a method with a reconstruction, on an
-/// image the pyramid's coarse level fits ([`super::pyramid::check`]),
-/// without the stages of a final reconstruction.
+/// image: an adaptive pass's chain of a method with a reconstruction on a
+/// large enough image ([`check_coarse_size`]), without the stages of a
+/// final reconstruction or a temporal stage.
 pub fn check_coarse_map(config: &ChainConfig, size: (usize, usize)) -> Result<()> {
     let refuse = |why: &str| {
         Err(Error::InvalidArgument(format!(
