@@ -460,8 +460,12 @@ fn coarse_map_cpu(img: &StatsImage, req: &DenoiseRequest) -> Result<DenoiseOutpu
         },
         size,
     )?;
+    // As on the GPU, the fine level runs neither the outlier stage nor
+    // the prefilter.
     let fine_req = DenoiseRequest {
         method: Method::None,
+        outliers: Outliers::Off,
+        prefilter: Prefilter::Off,
         coarse_map: false,
         budget: None,
         ..req.clone()
