@@ -742,7 +742,9 @@ impl GpuChain {
                 at.totals.map(|t| t.coarse),
             )?;
         }
-        if let Some(coarse) = &self.coarse_map {
+        // The coarse level is for the map only: a call without a budget
+        // reads nothing of it.
+        if let (Some(coarse), true) = (&self.coarse_map, maps) {
             super::pyramid::record_pool(batch, p, self.size(), &self.stats, coarse.clean())?;
             coarse.record_pooled(batch, (0, 0), None, maps)?;
         }
