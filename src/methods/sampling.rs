@@ -436,18 +436,29 @@ pub fn record_priority(
     params: &SamplingParams,
 ) -> Result<()> {
     params.check()?;
-    let (w, h) = (planes.width as u32, planes.height as u32);
+    record_raw_priority(batch, precision, inputs, planes, params)?;
+    record_smooth(batch, precision, inputs.spp, planes, params)
+}
+
+/// `sample_priority` over `planes`' image: §9.1's `r` of `inputs` into
+/// plane 0, before MAP-SMOOTH.
+fn record_raw_priority(
+    batch: &mut Batch,
+    precision: Precision,
+    inputs: &SampleInputs,
+    planes: &SamplingPlanes,
+    params: &SamplingParams,
+) -> Result<()> {
     sample_priority::record(
         batch,
         precision,
-        params.push(w, h),
+        params.push(planes.width as u32, planes.height as u32),
         inputs.error,
         inputs.dim,
         inputs.filtered,
         inputs.spp,
         planes.maps.plane(0),
-    )?;
-    record_smooth(batch, precision, inputs.spp, planes, params)
+    )
 }
 
 /// MAP-SMOOTH of `planes`' priority (plane 0 into plane 1) when σs > 0,
@@ -494,22 +505,13 @@ pub fn record_coarse_sample_map(
     params: &SamplingParams,
 ) -> Result<()> {
     params.check()?;
-    sample_priority::record(
-        batch,
-        precision,
-        params.push(coarse.width as u32, coarse.height as u32),
-        coarse_inputs.error,
-        coarse_inputs.dim,
-        coarse_inputs.filtered,
-        coarse_inputs.spp,
-        coarse.maps.plane(0),
-    )?;
     if coarse_size(planes.width, planes.height) != (coarse.width, coarse.height) {
         return Err(Error::InvalidArgument(format!(
             "sampling: a coarse map of {}x{} pixels for an image of {}x{}",
             coarse.width, coarse.height, planes.width, planes.height
         )));
     }
+    record_raw_priority(batch, precision, coarse_inputs, coarse, params)?;
     let push = upsample_push((planes.width, planes.height));
     sample_upsample::record(
         batch,
