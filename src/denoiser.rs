@@ -520,8 +520,17 @@ impl Denoiser {
             ));
         }
 
-        if let Source::Stats { layers, .. } = &source {
+        if let Source::Stats {
+            width,
+            height,
+            layers,
+        } = &source
+        {
             methods::chain::check_layers(config.method, layers)?;
+            if config.coarse_map {
+                let size = (*width, *height);
+                methods::chain::check_coarse_map(&config.chain(config.low_spp, size), size)?;
+            }
         }
         Ok(Denoiser {
             engine: Engine::Cpu(source),

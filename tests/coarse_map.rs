@@ -10,7 +10,7 @@ use mcdenoise::kernels::{run_planes, sample_upsample};
 use mcdenoise::methods::sampling::upsample_push;
 use mcdenoise::reference::pyramid_pool::coarse_size;
 use mcdenoise::reference::sample_upsample::sample_upsample as upsample_twin;
-use mcdenoise::render::adaptive::{render, LoopConfig};
+use mcdenoise::render::adaptive::{render, render_with_final, LoopConfig};
 use mcdenoise::render::{Renderer, Scene};
 use mcdenoise::{
     Config, Denoiser, Layer, Method, Options, Pass, Pyramid, Source, StatsImage, Temporal,
@@ -178,14 +178,17 @@ fn the_configurations_it_cannot_run_are_refused() {
     assert!(msg(tiled, &src).contains("tiles"));
     let small: StatsImage = synthetic(12, 20, 4, 2).stats;
     assert!(msg(coarse(Method::Wlr, &[]), &Source::of_image(&small)).contains("16x16"));
-    // The CPU path refuses what the GPU chain does.
+    // The CPU path refuses what the GPU chain does, when it is made.
+    let cpu_msg = |c: Config, src: Source| match Denoiser::new_cpu(src, c) {
+        Ok(_) => panic!("not refused"),
+        Err(e) => e.to_string(),
+    };
     let mut cpu_final = coarse(Method::Wlr, &[]);
     cpu_final.pass = Pass::Final;
-    let err = Denoiser::new_cpu(src, cpu_final)
-        .and_then(|d| d.denoise(&s.stats, Some(100)))
-        .map(|_| ())
-        .unwrap_err();
-    assert!(err.to_string().contains("adaptive pass"), "{err}");
+    let err = cpu_msg(cpu_final, src);
+    assert!(err.contains("adaptive pass"), "{err}");
+    let err = cpu_msg(coarse(Method::Wlr, &[]), Source::of_image(&small));
+    assert!(err.contains("MAP-COARSE") && err.contains("16x16"), "{err}");
     check_validation(&ctx);
 }
 
@@ -250,4 +253,36 @@ fn the_command_line_refuses_what_it_cannot_run() {
     assert!(err.contains("--adaptive"), "{err}");
     let err = run(&["--size", "12x12", "--adaptive"]);
     assert!(err.contains("16x16"), "{err}");
+}
+
+/// A library caller's render with coarse maps whose final denoiser keeps
+/// temporal state (which a coarse map does not read) is refused before
+/// anything renders, as the CLI refuses it.
+#[test]
+fn the_loop_refuses_temporal_maps_before_it_renders() {
+    let ctx = gpu();
+    let scene = Scene::builtin("cornell").unwrap();
+    let (w, h) = (32usize, 32usize);
+    let r = Renderer::new(&ctx, &scene, w, h, 3).unwrap();
+    let mut last = Config::new(Method::Wlr);
+    last.temporal = Temporal::Lp;
+    let last = Denoiser::new(&ctx, Source::Accum(r.layout()), last).unwrap();
+    let cfg = LoopConfig {
+        coarse_maps: true,
+        ..LoopConfig::new(Method::Wlr, 8, true)
+    };
+    let err = render_with_final(&ctx, &r, &cfg, &AtomicBool::new(false), |_| {}, Some(&last))
+        .map(|_| ())
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("MAP-COARSE"), "{err}");
+    let counts = r.statistics().unwrap().get(Layer::Spp).unwrap()[0].clone();
+    assert!(counts.iter().all(|&c| c == 0.0), "rendered before refusing");
+    // Without the temporal maps the same render runs.
+    let cfg = LoopConfig {
+        temporal_maps: false,
+        ..cfg
+    };
+    render_with_final(&ctx, &r, &cfg, &AtomicBool::new(false), |_| {}, Some(&last)).unwrap();
+    check_validation(&ctx);
 }

@@ -282,21 +282,9 @@ pub fn check_coarse_map(config: &ChainConfig, size: (usize, usize)) -> Result<()
 }
 
 /// `Err` unless `method` can make a coarse map (MAP-COARSE) of a `size`
-/// image: a reconstruction (not `none`) on an image whose pooled level
-/// every method's smallest window fits ([`super::pyramid::MIN_SIDE`]).
-pub fn check_coarse_size(method: Method, (w, h): (usize, usize)) -> Result<()> {
-    let min = super::pyramid::MIN_SIDE;
-    if method == Method::None {
-        return Err(Error::InvalidArgument(
-            "a coarse sample map (MAP-COARSE) is a reconstruction's: method none has none".into(),
-        ));
-    }
-    if w < min || h < min {
-        return Err(Error::InvalidArgument(format!(
-            "a coarse sample map (MAP-COARSE) needs an image of at least {min}x{min} pixels, not {w}x{h}"
-        )));
-    }
-    Ok(())
+/// image ([`super::pyramid::check_level`]).
+pub fn check_coarse_size(method: Method, size: (usize, usize)) -> Result<()> {
+    super::pyramid::check_level("a coarse sample map (MAP-COARSE)", method, size)
 }
 
 /// The checks every chain makes before it allocates: `precision` on this

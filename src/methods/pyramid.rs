@@ -87,15 +87,23 @@ impl Pyramid {
 }
 
 /// `Err` unless the stage can run for `method` on a `size` image.
-pub fn check(method: Method, (w, h): (usize, usize)) -> Result<()> {
+pub fn check(method: Method, size: (usize, usize)) -> Result<()> {
+    check_level("the pyramid", method, size)
+}
+
+/// `Err` unless a stage that runs `method` on the 2×2-pooled level
+/// (`stage`, named in the message: the pyramid, a coarse sample map) can
+/// run for a `size` image: a reconstruction (not `none`) whose smallest
+/// window fits the pooled level ([`MIN_SIDE`]).
+pub fn check_level(stage: &str, method: Method, (w, h): (usize, usize)) -> Result<()> {
     if method == Method::None {
-        return Err(Error::InvalidArgument(
-            "the pyramid takes the low band of a reconstruction: method none has none".into(),
-        ));
+        return Err(Error::InvalidArgument(format!(
+            "{stage} runs a reconstruction on the half-resolution level: method none has none"
+        )));
     }
     if w < MIN_SIDE || h < MIN_SIDE {
         return Err(Error::InvalidArgument(format!(
-            "the pyramid needs an image of at least {MIN_SIDE}x{MIN_SIDE} pixels, not {w}x{h}"
+            "{stage} needs an image of at least {MIN_SIDE}x{MIN_SIDE} pixels, not {w}x{h}"
         )));
     }
     Ok(())

@@ -443,6 +443,7 @@ fn run(
     progress: impl FnMut(&PassProgress),
     last: Final,
 ) -> Result<LoopResult> {
+    check_coarse_maps(renderer, cfg, last)?;
     let run = Runner {
         ctx,
         renderer,
@@ -457,6 +458,27 @@ fn run(
         None => run.fixed(progress),
         Some(rules) => run.open(rules, progress),
     }
+}
+
+/// Refuses, before anything renders, a render whose adaptive passes'
+/// coarse maps ([`LoopConfig::coarse_maps`]) could not run: on too small an
+/// image, or reading the caller's temporal state
+/// ([`LoopConfig::temporal_maps`]), which a coarse map does not read.
+fn check_coarse_maps(renderer: &Renderer, cfg: &LoopConfig, last: Final) -> Result<()> {
+    if !cfg.coarse_maps {
+        return Ok(());
+    }
+    let layout = renderer.layout();
+    loop_config(cfg, Pass::Intermediate, 1).check_size(layout.width, layout.height)?;
+    let temporal = last.denoiser().and_then(Denoiser::temporal_state);
+    if cfg.temporal_maps && temporal.is_some() {
+        return Err(Error::InvalidArgument(
+            "a coarse sample map (MAP-COARSE) does not read the temporal filter's state: \
+             turn off coarse maps or the temporal maps"
+                .into(),
+        ));
+    }
+    Ok(())
 }
 
 /// One render's state: what it has spent and timed.
