@@ -842,10 +842,10 @@ pub struct BlendPush {
 }
 
 /// The `z` of the input blend's residual test (BLEND-RESIDUAL,
-/// `blend.z`).
+/// `blend.z`) for every method but AOS (BLEND-AOS: 0.7).
 pub const BLEND_Z: f32 = 1.0;
 /// The radius of the input blend's residual window (BLEND-RESIDUAL,
-/// `blend.residual_radius`).
+/// `blend.residual_radius`) for every method but AOS (BLEND-AOS: 4).
 pub const BLEND_RESIDUAL_RADIUS: u32 = 3;
 /// The most variances the input blend's variance window leaves out of its
 /// mean: it drops its `⌈n/10⌉` largest, at most this many and never all

@@ -680,3 +680,36 @@ fn the_kernel_mirrors_the_trim_limit() {
     let value: usize = line.rsplit(' ').next().unwrap().parse().unwrap();
     assert_eq!(value, BLEND_TRIM_MAX);
 }
+
+/// AOS's residual test has its own defaults (BLEND-AOS: `s` = 4, `z` =
+/// 0.7), the other methods BLEND-RESIDUAL's (`s` = 3, `z` = 1): AOS's
+/// default output is that of the options spelled out, and not that of
+/// BLEND-RESIDUAL's.
+#[test]
+fn aos_has_its_own_residual_defaults() {
+    use mcdenoise::shared::{BLEND_RESIDUAL_RADIUS, BLEND_Z};
+    let params = |m: Method| mcdenoise::methods::blend::params(m, &Options::default()).unwrap();
+    for m in [Method::Wlr, Method::Lp, Method::Apr] {
+        assert_eq!(
+            (params(m).residual_radius, params(m).z),
+            (BLEND_RESIDUAL_RADIUS, BLEND_Z),
+            "{m:?}"
+        );
+    }
+    assert_eq!(
+        (params(Method::Aos).residual_radius, params(Method::Aos).z),
+        (4, 0.7)
+    );
+    let ctx = gpu();
+    let (img, _) = fixture();
+    let run = |opts: &[&str]| {
+        let mut c = Config::new(Method::Aos);
+        c.options = Options::parse(opts).unwrap();
+        let d = Denoiser::new(&ctx, Source::of_image(&img), c).unwrap();
+        d.denoise(&img, None).unwrap().color
+    };
+    let default = run(&[]);
+    assert_eq!(default, run(&["blend.residual_radius=4", "blend.z=0.7"]));
+    assert_ne!(default, run(&["blend.residual_radius=3", "blend.z=1"]));
+    check_validation(&ctx);
+}

@@ -709,7 +709,7 @@ fn the_documented_halos_and_gbf_nlm_reach() {
         (Method::Wlr, Prefilter::Auto, 175, 167),
         (Method::Lp, Prefilter::Auto, 209, 209),
         (Method::Apr, Prefilter::Auto, 242, 234),
-        (Method::Aos, Prefilter::On, 183, 175),
+        (Method::Aos, Prefilter::On, 184, 176),
     ];
     for (m, pf, default, off) in cases {
         assert_eq!(halo(m, pf, &[]), default, "{m:?}");

@@ -470,6 +470,10 @@ pub static INFO: MethodInfo = MethodInfo {
         auto: true,
         radius: 1,
         k: 2.0,
+        // BLEND-AOS: a wider residual window and a lower z find the bias
+        // AOS's estimate misses (the reflections in `panel`).
+        residual_radius: 4,
+        z: 0.7,
     },
     // MAP-WLR: WLR's estimate places the adaptive passes' samples.
     map_method: Method::Wlr,

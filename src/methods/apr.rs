@@ -525,6 +525,8 @@ pub static INFO: MethodInfo = MethodInfo {
         auto: true,
         radius: 3,
         k: 0.125,
+        residual_radius: crate::shared::BLEND_RESIDUAL_RADIUS,
+        z: crate::shared::BLEND_Z,
     },
     // MAP-WLR: WLR's estimate places the adaptive passes' samples.
     map_method: Method::Wlr,

@@ -106,6 +106,8 @@ pub static INFO: MethodInfo = MethodInfo {
         auto: false,
         radius: 3,
         k: 1.0,
+        residual_radius: crate::shared::BLEND_RESIDUAL_RADIUS,
+        z: crate::shared::BLEND_Z,
     },
     // AUTO-MAPS: WLR's maps place samples as well at a third less GPU time.
     map_method: Method::Wlr,

@@ -33,7 +33,7 @@ use crate::image::{Layer, RgbImage, StatsImage};
 use crate::kernels::input_blend::{self, Channel};
 use crate::options::Options;
 use crate::reference::input_blend as twin;
-use crate::shared::{BlendPush, BLEND_RESIDUAL_RADIUS, BLEND_Z};
+use crate::shared::BlendPush;
 
 use super::stats::GpuStats;
 use super::{Method, Pass};
@@ -48,6 +48,11 @@ pub struct BlendDefaults {
     pub radius: u32,
     /// The weight `k` of the error estimate (`blend.k`).
     pub k: f32,
+    /// The radius `s` of the residual's window (BLEND-RESIDUAL,
+    /// `blend.residual_radius`).
+    pub residual_radius: u32,
+    /// The `z` of the residual's test (`blend.z`).
+    pub z: f32,
 }
 
 /// Whether the input blend runs (`Config::input_blend`).
@@ -111,8 +116,8 @@ pub fn params(method: Method, options: &Options) -> Result<BlendParams> {
         k: options.number("blend.k")?.unwrap_or(d.k),
         residual_radius: options
             .number("blend.residual_radius")?
-            .unwrap_or(BLEND_RESIDUAL_RADIUS),
-        z: options.number("blend.z")?.unwrap_or(BLEND_Z),
+            .unwrap_or(d.residual_radius),
+        z: options.number("blend.z")?.unwrap_or(d.z),
     })
 }
 

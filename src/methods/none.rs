@@ -27,6 +27,8 @@ pub static INFO: MethodInfo = MethodInfo {
         auto: false,
         radius: 0,
         k: 1.0,
+        residual_radius: crate::shared::BLEND_RESIDUAL_RADIUS,
+        z: crate::shared::BLEND_Z,
     },
     map_method: Method::None,
     passes: 5,

@@ -491,6 +491,8 @@ pub static INFO: MethodInfo = MethodInfo {
         auto: true,
         radius: 3,
         k: 0.25,
+        residual_radius: crate::shared::BLEND_RESIDUAL_RADIUS,
+        z: crate::shared::BLEND_Z,
     },
     map_method: Method::Wlr,
     passes: 5,
