@@ -40,12 +40,13 @@ fn without_64bit_types_every_method_runs() {
                     // WLR's steps 6-7 in double-float instead of double:
                     // the same image within §0.3's f32 tolerance. AOS's
                     // fits in f32 flip the order of a few pixels, and its
-                    // input blend's residual window (BLEND-RESIDUAL)
-                    // carries each one's difference to the 7×7 pixels
-                    // around it: colour within it on 95 %, error on 90 %
-                    // (measured 95.9 %, 91.1 %).
+                    // input blend's residual window (BLEND-AOS: 9×9)
+                    // carries each one's difference to the 81 pixels
+                    // around it: colour within it on 93 %, error on 85 %
+                    // (measured 94.6 % and 86.3 % in the worst channels;
+                    // 95.9 % and 91.1 % with BLEND-RESIDUAL's 7×7).
                     let (colour, error) = match method {
-                        Method::Aos => (0.95, 0.90),
+                        Method::Aos => (0.93, 0.85),
                         _ => (0.999, 0.99),
                     };
                     for c in 0..3 {
