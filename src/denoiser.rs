@@ -193,6 +193,19 @@ impl Config {
         Ok(())
     }
 
+    /// `Err` if this is a coarse-map configuration ([`Config::coarse_map`])
+    /// that [`Denoiser::new`] would refuse for `width × height` images:
+    /// not an adaptive pass's, with the pyramid, the input blend or a
+    /// temporal filter, or on too small an image (MAP-COARSE); for a caller
+    /// that wants to know before it renders. `Ok` without a coarse map.
+    pub fn check_coarse_map(&self, width: usize, height: usize) -> Result<()> {
+        if !self.coarse_map {
+            return Ok(());
+        }
+        let size = (width, height);
+        methods::chain::check_coarse_map(&self.chain(self.low_spp, size), size)
+    }
+
     fn request(&self, backend: Backend, size: (usize, usize)) -> DenoiseRequest {
         let mut r = DenoiseRequest::new(self.method);
         r.backend = backend;
@@ -527,10 +540,7 @@ impl Denoiser {
         } = &source
         {
             methods::chain::check_layers(config.method, layers)?;
-            if config.coarse_map {
-                let size = (*width, *height);
-                methods::chain::check_coarse_map(&config.chain(config.low_spp, size), size)?;
-            }
+            config.check_coarse_map(*width, *height)?;
         }
         Ok(Denoiser {
             engine: Engine::Cpu(source),

@@ -461,24 +461,27 @@ fn run(
 }
 
 /// Refuses, before anything renders, a render whose adaptive passes'
-/// coarse maps ([`LoopConfig::coarse_maps`]) could not run: on too small an
-/// image, or reading the caller's temporal state
-/// ([`LoopConfig::temporal_maps`]), which a coarse map does not read.
+/// coarse maps ([`LoopConfig::coarse_maps`]) could not run: the adaptive
+/// passes' configuration, checked as their denoiser would check it (too
+/// small an image; the caller's temporal state, [`LoopConfig::temporal_maps`],
+/// which a coarse map does not read).
 fn check_coarse_maps(renderer: &Renderer, cfg: &LoopConfig, last: Final) -> Result<()> {
-    if !cfg.coarse_maps {
-        return Ok(());
-    }
     let layout = renderer.layout();
-    loop_config(cfg, Pass::Intermediate, 1).check_size(layout.width, layout.height)?;
-    let temporal = last.denoiser().and_then(Denoiser::temporal_state);
-    if cfg.temporal_maps && temporal.is_some() {
-        return Err(Error::InvalidArgument(
-            "a coarse sample map (MAP-COARSE) does not read the temporal filter's state: \
-             turn off coarse maps or the temporal maps"
-                .into(),
-        ));
+    pass_config(cfg, last, Pass::Intermediate, 1).check_coarse_map(layout.width, layout.height)
+}
+
+/// The configuration of the loop's denoiser for `pass` ([`loop_config`]),
+/// whose adaptive passes read the temporal state of the caller's final
+/// denoiser when there is one and [`LoopConfig::temporal_maps`] is on.
+fn pass_config(cfg: &LoopConfig, last: Final, pass: Pass, first_spp: u32) -> Config {
+    let mut c = loop_config(cfg, pass, first_spp);
+    if let (Pass::Intermediate, true, Some(last)) = (pass, cfg.temporal_maps, last.denoiser()) {
+        if let Some(state) = last.temporal_state() {
+            c.temporal = last.config().temporal;
+            c.temporal_state = Some(state);
+        }
     }
-    Ok(())
+    c
 }
 
 /// One render's state: what it has spent and timed.
@@ -511,15 +514,7 @@ impl Runner<'_> {
     /// later passes only add: no pixel has `1 <= spp < 2` unless
     /// `first_spp` is 1 (§0.4 step 3).
     fn denoiser(&self, pass: Pass, first_spp: u32) -> Result<Denoiser> {
-        let mut c = loop_config(self.cfg, pass, first_spp);
-        if let (Pass::Intermediate, true, Some(last)) =
-            (pass, self.cfg.temporal_maps, self.last.denoiser())
-        {
-            if let Some(state) = last.temporal_state() {
-                c.temporal = last.config().temporal;
-                c.temporal_state = Some(state);
-            }
-        }
+        let c = pass_config(self.cfg, self.last, pass, first_spp);
         Denoiser::new(self.ctx, Source::Accum(self.renderer.layout()), c)
     }
 
