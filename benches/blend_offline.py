@@ -17,7 +17,7 @@ BLEND-AOS.
     target/release/blend_probe --work DIR --methods aos --dump OUT
     python benches/blend_offline.py OUT DIR aos 1:2:3:1 1:2:4:0.7 1:2:4:0.6
 """
-import sys, os, glob, json, itertools
+import sys, os, glob, json
 import numpy as np
 
 def windows(a, r, fill):
@@ -31,7 +31,7 @@ def windows(a, r, fill):
     return np.stack(out)
 
 def trimmed(vw, valid_w):
-    # vw: (K, h, w) with invalid = nan; drop ceil(n/10) largest (<=8, never all)
+    # vw: (K, h, w), valid_w its validity; drop ceil(n/10) largest (<=8, never all)
     n = valid_w.sum(0)
     drop = np.minimum(np.minimum(np.ceil(n / 10), np.maximum(n - 1, 0)), 8)
     s = np.sort(np.where(valid_w, vw, -np.inf), axis=0)[::-1]  # descending, invalid last
@@ -78,7 +78,7 @@ def ref(work, case, w=128, h=128):
 
 HELD = {"night_lights", "fence", "window_interior", "panel"}
 
-def run(dumps, work, method, configs, base):
+def run(dumps, work, method, configs):
     rows = []
     for p in sorted(glob.glob(os.path.join(dumps, f"*-{method}.dump.bin"))):
         case = os.path.basename(p)[: -len(f"-{method}.dump.bin")]
@@ -111,6 +111,6 @@ if __name__ == "__main__":
         r, k, s, z = spec.split(":")
         grid[spec] = (int(r), float(k), int(s), float(z))
     base = sys.argv[4]
-    rows = run(dumps, work, method, grid, base)
+    rows = run(dumps, work, method, grid)
     json.dump(rows, open(os.path.join(dumps, f"offline-{method}.json"), "w"))
     summary(rows, ["off"] + list(grid), base)
