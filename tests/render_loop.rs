@@ -7,9 +7,11 @@ use common::*;
 use std::process::Command;
 use std::sync::atomic::AtomicBool;
 
-use mcdenoise::render::adaptive::{final_config, next_budget, render, LoopConfig, StopRules};
+use mcdenoise::render::adaptive::{
+    final_config, next_budget, render, LoopConfig, StopEstimates, StopRules, CHANGE_SCALE,
+};
 use mcdenoise::render::{Renderer, Scene};
-use mcdenoise::{Layer, Method, Pyramid, Temporal};
+use mcdenoise::{metrics, Config, Frame, Layer, Method, Pyramid, RgbImage, Temporal};
 
 /// `method`'s defaults without a per-pass cap.
 fn config(method: Method, spp: u32, adaptive: bool) -> LoopConfig {
@@ -147,7 +149,8 @@ fn an_open_render_scales_the_estimate_its_final_pass_makes() {
 }
 
 /// An unreachable target spends exactly up to --max-spp and never past it,
-/// in whole passes, adaptive or uniform; the estimate falls as it goes.
+/// in whole passes, adaptive or uniform; the estimate falls as it goes, and
+/// after pass 0 it is the change since an earlier pass (STOP-CHANGE).
 #[test]
 fn max_spp_is_never_exceeded() {
     let ctx = gpu();
@@ -165,14 +168,41 @@ fn max_spp_is_never_exceeded() {
             max_spp: 13,
         };
         let mut estimates = Vec::new();
+        let mut passes: Vec<(f64, RgbImage)> = Vec::new();
         let out = render(
             &ctx,
             &r,
             &open(method, adaptive, rules),
             &AtomicBool::new(false),
-            |p| estimates.extend(p.estimate),
+            |p| {
+                estimates.extend(p.estimate);
+                passes.push((p.spp, p.frame.unwrap().color.clone()));
+            },
         )
         .unwrap();
+        // STOP-CHANGE: after pass 0, the change since the latest kept pass
+        // (kept: pass 0, then each one at least doubling the last kept)
+        // with at most half the samples, else since pass 0.
+        let mut kept = vec![0usize];
+        for k in 1..passes.len() {
+            let (n, f) = &passes[k];
+            let base = *kept
+                .iter()
+                .rev()
+                .find(|&&j| passes[j].0 <= n / 2.0)
+                .unwrap_or(&kept[0]);
+            let m = passes[base].0;
+            let want = CHANGE_SCALE * m / (n - m) * metrics::rmse(&passes[base].1, f);
+            assert!(
+                (estimates[k] - want).abs() <= 1e-12 * want,
+                "{method:?} pass {k}: {} against {want}",
+                estimates[k]
+            );
+            if *n >= 2.0 * passes[*kept.last().unwrap()].0 {
+                kept.push(k);
+            }
+        }
+        assert_eq!(out.estimate, estimates.last().copied());
         let total = samples_of(&r);
         assert!(total <= 13.0 * (w * h) as f64, "{method:?}: {total}");
         assert_eq!(total, out.samples as f64);
@@ -221,6 +251,63 @@ fn the_time_limit_is_honoured_within_one_pass() {
     );
     assert!(passes.len() >= 2, "{passes:?}");
     check_validation(&ctx);
+}
+
+/// STOP-CHANGE: after pass 0 the stop estimate is the method's; after the
+/// others, for running means of independent samples (an error that falls
+/// as 1/N), the change since an earlier reconstruction is the true rMSE of
+/// the newer one times [`CHANGE_SCALE`], whatever the passes' sizes.
+#[test]
+fn the_change_since_an_earlier_pass_estimates_the_error() {
+    let (w, h) = (64, 64);
+    let n = w * h;
+    let mut rng = 0x2545_f491_4f6c_dd1du64;
+    let mut uniform = move || {
+        rng ^= rng << 13;
+        rng ^= rng >> 7;
+        rng ^= rng << 17;
+        (rng >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let truth: Vec<f64> = (0..3 * n).map(|_| 0.1 + 2.0 * uniform()).collect();
+    let mut sums = vec![0.0f64; 3 * n];
+    let image = |v: Vec<f32>| {
+        let p = |c: usize| v[c * n..(c + 1) * n].to_vec();
+        RgbImage::from_planes(w, h, [p(0), p(1), p(2)])
+    };
+    let reference = image(truth.iter().map(|&t| t as f32).collect());
+    let config = Config::new(Method::Wlr);
+    let mut estimates = StopEstimates::default();
+    let mut spp = 0u32;
+    // Doubling passes, then smaller ones, then one far larger.
+    for (pass, total) in [4u32, 8, 16, 24, 30, 37, 50, 200].into_iter().enumerate() {
+        for _ in spp..total {
+            for (s, t) in sums.iter_mut().zip(&truth) {
+                // Mean t, standard deviation t/2.
+                *s += t * (1.0 + (uniform() - 0.5) * 12f64.sqrt() / 2.0);
+            }
+        }
+        spp = total;
+        let mut frame = Frame::empty();
+        frame.color = image(sums.iter().map(|s| (s / spp as f64) as f32).collect());
+        frame.error = image(vec![0.5f32; 3 * n]);
+        let (e, change) = estimates.estimate(&config, &frame, (spp as usize * n) as f64);
+        if pass == 0 {
+            assert!(!change);
+            assert!(e > 0.0);
+            assert_eq!(
+                e,
+                mcdenoise::render::adaptive::stop_estimate(&config, &frame)
+            );
+            continue;
+        }
+        assert!(change, "pass {pass}");
+        let truth_rmse = metrics::rmse(&frame.color, &reference);
+        let ratio = e / (CHANGE_SCALE * truth_rmse);
+        assert!(
+            (0.85..1.15).contains(&ratio),
+            "pass {pass} at {spp} spp: {e} against {truth_rmse} ({ratio})"
+        );
+    }
 }
 
 /// The next budget: doubling with no target, α = 1 after one pass, the

@@ -8,10 +8,12 @@
 //! passes); only the final image comes back.
 //!
 //! With [`StopRules`] the number of passes is open: after each pass the final
-//! reconstruction's *estimated* rMSE ([`crate::metrics::estimated_rmse`]) is
-//! compared with a target, the next pass's budget is predicted from how the
-//! estimate fell so far, and a time limit stops the render at the last pass
-//! that fits. `--max-spp` bounds the samples in every case.
+//! reconstruction's *estimated* rMSE ([`StopEstimates`]: after pass 0 the
+//! method's own estimate, after the others how far the reconstruction moved
+//! since an earlier one) is compared with a target, the next pass's budget
+//! is predicted from how the estimate fell so far, and a time limit stops
+//! the render at the last pass that fits. `--max-spp` bounds the samples in
+//! every case.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -22,7 +24,7 @@ use crate::gpu::GpuBuffer;
 use crate::schedule::INITIAL_SPP;
 use crate::{
     Batch, Config, Denoiser, Error, Frame, GpuContext, InputBlend, KernelTiming, Method, Options,
-    Outliers, Pass, Precision, Prefilter, Pyramid, Result, Schedule, Source,
+    Outliers, Pass, Precision, Prefilter, Pyramid, Result, RgbImage, Schedule, Source,
 };
 
 /// What to render and how.
@@ -147,7 +149,8 @@ impl LoopConfig {
 /// `max_spp`, whichever comes first.
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub struct StopRules {
-    /// Estimated rMSE (`mean E_i / (f̂_i² + 0.01)`) to reach.
+    /// Estimated rMSE of the final reconstruction to reach, as
+    /// [`StopEstimates`] estimates it.
     pub target_error: Option<f64>,
     /// Wall time the render may take, reconstructions included.
     pub time_limit: Option<std::time::Duration>,
@@ -220,12 +223,60 @@ pub fn next_budget(history: &[(f64, f64)], target: Option<f64>, pixels: usize, c
 }
 
 /// The rMSE an open-ended render judges `frame`, the reconstruction of the
-/// final pass's `config`, by: the estimate
+/// final pass's `config`, by after pass 0: the method's estimate
 /// ([`crate::metrics::estimated_rmse`]) times the configuration's
 /// [`Config::error_scale`].
 pub fn stop_estimate(config: &Config, frame: &Frame) -> f64 {
     let (w, h) = (frame.color.width, frame.color.height);
     config.error_scale(w, h) * crate::metrics::estimated_rmse(&frame.color, &frame.error)
+}
+
+/// The factor on the change estimate ([`StopEstimates`], STOP-CHANGE):
+/// the 1/N law's factor is 1, and reconstructions whose error falls more
+/// slowly than 1/N move less than it says.
+pub const CHANGE_SCALE: f64 = 1.25;
+
+/// An open-ended render's stop estimates, pass by pass (STOP-CHANGE).
+///
+/// After pass 0, the method's own estimate ([`stop_estimate`]). After a
+/// later pass with `N` samples in all, how far the reconstruction `F_N`
+/// moved since an earlier one `F_M` (the latest kept with `M ≤ N/2`, else
+/// pass 0's): `CHANGE_SCALE · M/(N − M) · mean (F_M − F_N)² / (F_N² +
+/// 0.01)`. For an error that falls as `1/N`, `E[(F_M − F_N)²] = E[e_M²] −
+/// E[e_N²] = E[e_N²] (N − M)/M` (the newer samples are independent of the
+/// older), so the change measures the error of the image the render has,
+/// whatever the method's estimate misses or overstates. Reconstructions
+/// are kept at least doubling apart, so at most a few are held at once.
+#[derive(Default)]
+pub struct StopEstimates {
+    /// Earlier reconstructions' colour and total samples, oldest first.
+    kept: Vec<(f64, RgbImage)>,
+}
+
+impl StopEstimates {
+    /// The estimate after a pass that left `samples` in all and whose final
+    /// reconstruction by `config` is `frame`, and whether it is a change
+    /// estimate (the first one of those is no decay to extrapolate from
+    /// the method's).
+    pub fn estimate(&mut self, config: &Config, frame: &Frame, samples: f64) -> (f64, bool) {
+        let base = self
+            .kept
+            .iter()
+            .rposition(|(m, _)| *m <= samples / 2.0)
+            .unwrap_or(0);
+        self.kept.drain(..base);
+        let (e, change) = match self.kept.first() {
+            Some((m, older)) if *m < samples => {
+                let moved = crate::metrics::rmse(older, &frame.color);
+                (CHANGE_SCALE * m / (samples - m) * moved, true)
+            }
+            _ => (stop_estimate(config, frame), false),
+        };
+        if self.kept.last().map_or(true, |(m, _)| samples >= 2.0 * m) {
+            self.kept.push((samples, frame.color.clone()));
+        }
+        (e, change)
+    }
 }
 
 /// The per-pass cap of an adaptive render whose maps `method` makes
@@ -306,6 +357,9 @@ pub struct LoopResult {
     pub timings: Vec<KernelTiming>,
     /// Samples rendered in all.
     pub samples: u64,
+    /// An open-ended render's stop estimate after its last pass
+    /// ([`StopEstimates`]); `None` for a fixed schedule.
+    pub estimate: Option<f64>,
 }
 
 /// Where a render stands after a pass, for progress displays.
@@ -613,6 +667,7 @@ impl Runner<'_> {
             split: self.split,
             timings: self.timings,
             samples: self.samples,
+            estimate: None,
         }
     }
 
@@ -692,12 +747,17 @@ impl Runner<'_> {
         // Seconds per sample of the passes so far, and of a reconstruction.
         let mut per_sample = t.elapsed().as_secs_f64() / self.samples as f64;
         let mut history: Vec<(f64, f64)> = Vec::new();
+        let mut estimates = StopEstimates::default();
         let mut done = 1;
         loop {
             let t = Instant::now();
             let frame = self.reconstruct(&last)?;
             let mut overhead = t.elapsed().as_secs_f64();
-            let e = stop_estimate(last.config(), &frame);
+            let (e, change) = estimates.estimate(last.config(), &frame, self.samples as f64);
+            if change && history.len() == 1 {
+                // Pass 0's estimate is the method's: no decay to fit across.
+                history.clear();
+            }
             history.push((self.samples as f64, e));
             progress(&PassProgress {
                 done,
@@ -723,7 +783,10 @@ impl Runner<'_> {
                     Some(l) => self.reconstruct(l)?,
                     None => frame,
                 };
-                return Ok(self.result(frame, None));
+                return Ok(LoopResult {
+                    estimate: Some(e),
+                    ..self.result(frame, None)
+                });
             }
             let before = self.samples;
             let t = Instant::now();

@@ -336,10 +336,7 @@ fn target_rows(
             scene: hi.scene.clone(),
             method: m.name().into(),
             target: eh,
-            estimate: adaptive::stop_estimate(
-                &adaptive::final_config(&cfg, mcdenoise::Temporal::Off),
-                &res.frame,
-            ),
+            estimate: res.estimate.context("an open-ended render's estimate")?,
             truth,
             spp: res.samples as f64 / (w * h) as f64,
             uniform_spp,

@@ -122,11 +122,13 @@ pub struct Args {
     /// by scene content, size, K and seed) and print rMSE, relMSE, PSNR, SSIM.
     #[arg(long, value_name = "K")]
     reference: Option<u32>,
-    /// Render until the reconstruction's estimated rMSE (mean E_i/(f̂_i²+0.01)
-    /// over pixels and channels, times a factor per method that corrects the
-    /// estimate's measured bias) is at most E: passes continue, each sized
-    /// from how the estimate fell so far, bounded by --max-spp. Uniform
-    /// passes without --adaptive.
+    /// Render until the reconstruction's estimated rMSE is at most E: after
+    /// pass 0 the method's own estimate (mean E_i/(f̂_i²+0.01) over pixels
+    /// and channels, times a factor per method that corrects its measured
+    /// bias), after the others how far the reconstruction moved since an
+    /// earlier pass, weighed by the samples added (STOP-CHANGE). Passes
+    /// continue, each sized from how the estimate fell so far, bounded by
+    /// --max-spp. Uniform passes without --adaptive.
     #[arg(long, value_name = "E", conflicts_with = "spp",
           value_parser = |s: &str| s.parse::<f64>().ok().filter(|e| *e > 0.0 && e.is_finite())
               .ok_or_else(|| "a positive number".to_string()))]
