@@ -523,10 +523,8 @@ pub static INFO: MethodInfo = MethodInfo {
     pyramid_auto: false,
     blend: super::blend::BlendDefaults {
         auto: true,
-        radius: 3,
         k: 0.125,
-        residual_radius: crate::shared::BLEND_RESIDUAL_RADIUS,
-        z: crate::shared::BLEND_Z,
+        ..super::blend::BlendDefaults::BASE
     },
     // MAP-WLR: WLR's estimate places the adaptive passes' samples.
     map_method: Method::Wlr,

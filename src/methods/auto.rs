@@ -102,13 +102,7 @@ pub static INFO: MethodInfo = MethodInfo {
     prefilter_auto: true,
     outliers_auto: true,
     pyramid_auto: true,
-    blend: super::blend::BlendDefaults {
-        auto: false,
-        radius: 3,
-        k: 1.0,
-        residual_radius: crate::shared::BLEND_RESIDUAL_RADIUS,
-        z: crate::shared::BLEND_Z,
-    },
+    blend: super::blend::BlendDefaults::BASE,
     // AUTO-MAPS: WLR's maps place samples as well at a third less GPU time.
     map_method: Method::Wlr,
     passes: super::wlr::INFO.passes,

@@ -55,6 +55,18 @@ pub struct BlendDefaults {
     pub z: f32,
 }
 
+impl BlendDefaults {
+    /// Off, `r` = 3, `k` = 1, and BLEND-RESIDUAL's residual window and `z`:
+    /// the registry's entries spread it and name what they change.
+    pub const BASE: BlendDefaults = BlendDefaults {
+        auto: false,
+        radius: 3,
+        k: 1.0,
+        residual_radius: crate::shared::BLEND_RESIDUAL_RADIUS,
+        z: crate::shared::BLEND_Z,
+    };
+}
+
 /// Whether the input blend runs (`Config::input_blend`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum InputBlend {

@@ -24,11 +24,8 @@ pub static INFO: MethodInfo = MethodInfo {
     outliers_auto: false,
     pyramid_auto: false,
     blend: super::blend::BlendDefaults {
-        auto: false,
         radius: 0,
-        k: 1.0,
-        residual_radius: crate::shared::BLEND_RESIDUAL_RADIUS,
-        z: crate::shared::BLEND_Z,
+        ..super::blend::BlendDefaults::BASE
     },
     map_method: Method::None,
     passes: 5,

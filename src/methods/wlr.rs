@@ -489,10 +489,8 @@ pub static INFO: MethodInfo = MethodInfo {
     pyramid_auto: false,
     blend: super::blend::BlendDefaults {
         auto: true,
-        radius: 3,
         k: 0.25,
-        residual_radius: crate::shared::BLEND_RESIDUAL_RADIUS,
-        z: crate::shared::BLEND_Z,
+        ..super::blend::BlendDefaults::BASE
     },
     map_method: Method::Wlr,
     passes: 5,
