@@ -598,14 +598,16 @@ impl Runner<'_> {
 
     /// One adaptive pass: `intermediate`'s reconstruction and sample map for
     /// `budget`, capped as the configuration says, then the samples.
+    /// Returns the wall seconds of the map (reconstruction and cap).
     fn adaptive_pass(
         &mut self,
         intermediate: &Denoiser,
         capped: Option<&GpuBuffer>,
         budget: u32,
-    ) -> Result<()> {
+    ) -> Result<f64> {
         let pixels = self.pixels();
         let r = self.renderer;
+        let t = Instant::now();
         self.submit(&mut |b| intermediate.record(b, Some(r.accum()), Some(budget)))?;
         let map = intermediate
             .outputs()?
@@ -626,6 +628,7 @@ impl Runner<'_> {
             }
             _ => map,
         };
+        let map_secs = t.elapsed().as_secs_f64();
         // The map sums to exactly the budget (§9.2), and capping keeps the
         // total: the pass traces `budget` samples.
         self.submit(&mut |b| {
@@ -638,7 +641,7 @@ impl Runner<'_> {
             )
         })?;
         self.samples += budget as u64;
-        Ok(())
+        Ok(map_secs)
     }
 
     /// The buffer of capped counts, when the configuration caps.
@@ -744,15 +747,17 @@ impl Runner<'_> {
         let capped = self.capped_buffer()?;
         let t = Instant::now();
         self.first_pass(first_spp)?;
-        // Seconds per sample of the passes so far, and of a reconstruction.
+        // Seconds per sample of the last pass's rendering.
         let mut per_sample = t.elapsed().as_secs_f64() / self.samples as f64;
         let mut history: Vec<(f64, f64)> = Vec::new();
         let mut estimates = StopEstimates::default();
+        // Wall seconds of the last adaptive pass's sample map.
+        let mut map_secs: Option<f64> = None;
         let mut done = 1;
         loop {
             let t = Instant::now();
             let frame = self.reconstruct(&last)?;
-            let mut overhead = t.elapsed().as_secs_f64();
+            let overhead = t.elapsed().as_secs_f64();
             let (e, change) = estimates.estimate(last.config(), &frame, self.samples as f64);
             if change && history.len() == 1 {
                 // Pass 0's estimate is the method's: no decay to fit across.
@@ -769,12 +774,14 @@ impl Runner<'_> {
             let met = rules.target_error.is_some_and(|t| e <= t);
             let mut budget = next_budget(&history, rules.target_error, pixels, cap);
             if let (Some(limit), false) = (rules.time_limit, met) {
-                // The next pass's samples at the rate so far, and its
-                // reconstructions (the map's, when adaptive, and the check).
-                if intermediate.is_some() {
-                    overhead *= 2.0;
-                }
-                let left = limit.as_secs_f64() - started.elapsed().as_secs_f64() - overhead;
+                // The next pass: its map, when adaptive (as long as the
+                // last one took; before the first, as long as the check),
+                // its samples at the rate so far, and the check.
+                let map = match &intermediate {
+                    Some(_) => map_secs.unwrap_or(overhead),
+                    None => 0.0,
+                };
+                let left = limit.as_secs_f64() - started.elapsed().as_secs_f64() - overhead - map;
                 let fits = (left / per_sample).max(0.0) as u64;
                 budget = budget.min(fits / pixels as u64 * pixels as u64);
             }
@@ -790,10 +797,12 @@ impl Runner<'_> {
             }
             let before = self.samples;
             let t = Instant::now();
+            let mut map = 0.0;
             match &intermediate {
                 Some(d) => {
                     let budget = u32::try_from(budget).unwrap_or(u32::MAX);
-                    self.adaptive_pass(d, capped.as_ref(), budget)?;
+                    map = self.adaptive_pass(d, capped.as_ref(), budget)?;
+                    map_secs = Some(map);
                 }
                 None => {
                     let spp = u32::try_from(budget / pixels as u64).unwrap_or(u32::MAX);
@@ -802,7 +811,7 @@ impl Runner<'_> {
                     self.samples += spp as u64 * pixels as u64;
                 }
             }
-            per_sample = t.elapsed().as_secs_f64() / (self.samples - before) as f64;
+            per_sample = (t.elapsed().as_secs_f64() - map) / (self.samples - before) as f64;
             done += 1;
         }
     }
