@@ -74,7 +74,9 @@
 //! Every GPU failure is an [`Error`]: out of memory ([`Error::is_out_of_memory`])
 //! names the buffer, kernel or submit and leaves the context usable, so the
 //! next call (or a smaller one) can succeed; a lost device or a fence wait
-//! longer than [`GpuContext::fence_timeout`] (60 s per submit by default)
+//! longer than [`GpuContext::fence_timeout`] (60 s per submit by default,
+//! more for a submit that is the first to run a pipeline:
+//! [`GpuContext::submit_timeout`])
 //! names the kernels that were running and marks the context lost
 //! ([`Error::is_device_lost`]): every later call on it returns the same
 //! error, and the caller makes a new context. A constructor that fails

@@ -600,6 +600,56 @@ fn a_fence_wait_past_the_timeout_is_an_error_not_a_hang() {
     close(ctx, log, &baseline);
 }
 
+/// A submit that is the first on its context to run a pipeline may take
+/// [`FIRST_DISPATCH_ALLOWANCE`] more per such pipeline (llvmpipe compiles a
+/// pipeline at its first dispatch, inside the submit): on a fresh context
+/// LP's whole chain in one submit completes under a fence timeout of 1 ns;
+/// run again, the same submit times out at 1 ns.
+#[test]
+fn a_first_dispatch_is_given_time_to_compile() {
+    use mcdenoise::gpu::context::{FIRST_DISPATCH_ALLOWANCE, FIRST_DISPATCH_ALLOWANCE_MAX};
+    let _serial = serial();
+    let baseline = fault::live();
+    let img = fixture();
+    let (ctx, log) = context();
+    let ns = Duration::from_nanos(1);
+    let d = Denoiser::new(&ctx, Source::of_image(&img), Config::new(Method::Lp)).unwrap();
+    d.upload(&img).unwrap();
+    let mut batch = Batch::new(&ctx).unwrap();
+    // One submit: a budget this large is one band per dispatch.
+    batch.max_flops_per_submit = f64::INFINITY;
+    assert_eq!(batch.band_rows(64.0, 8), u32::MAX / 8 * 8);
+    assert_eq!(batch.band_rows(1e-30, 3), u32::MAX / 3 * 3);
+    d.record(&mut batch, None, None).unwrap();
+    ctx.set_fence_timeout(ns);
+    assert_eq!(ctx.submit_timeout(0), ns);
+    assert_eq!(ctx.submit_timeout(3), ns + 3 * FIRST_DISPATCH_ALLOWANCE);
+    assert_eq!(ctx.submit_timeout(1000), ns + FIRST_DISPATCH_ALLOWANCE_MAX);
+    batch.flush().unwrap();
+    assert_eq!(batch.submits, 1);
+    ctx.set_fence_timeout(Duration::from_secs(60));
+    batch.finish().unwrap();
+    let first = d.read().unwrap();
+    assert_eq!(bits(&first), bits(&d.denoise(&img, None).unwrap()));
+
+    // Every pipeline has run: no allowance any more.
+    d.upload(&img).unwrap();
+    let mut batch = Batch::new(&ctx).unwrap();
+    batch.max_flops_per_submit = f64::INFINITY;
+    d.record(&mut batch, None, None).unwrap();
+    ctx.set_fence_timeout(ns);
+    let err = batch.flush().unwrap_err();
+    match &err {
+        Error::Timeout { seconds, .. } => assert_eq!(*seconds, 1e-9),
+        other => panic!("{other:?}"),
+    }
+    ctx.set_fence_timeout(Duration::from_secs(60));
+    drop(batch);
+    assert_stays_lost(&ctx, &d, &img, &err.to_string());
+    drop(d);
+    close(ctx, log, &baseline);
+}
+
 /// A plane read straight from mapped memory (lavapipe's) equals the same
 /// read through a staging copy (the path of device-local memory), at an
 /// offset inside the buffer; a range past the end is an error on both paths.

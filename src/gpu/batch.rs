@@ -158,6 +158,11 @@ pub struct Batch {
     work: Vec<(String, Option<Band>)>,
     /// Descriptions of the other work since the last submit (transfers).
     notes: Vec<String>,
+    /// The pipelines recorded since the last submit that no completed
+    /// submit on the context has run (execute mode): each adds
+    /// [`FIRST_DISPATCH_ALLOWANCE`](super::context::FIRST_DISPATCH_ALLOWANCE)
+    /// to the wait.
+    fresh: Vec<vk::Pipeline>,
 }
 
 impl Batch {
@@ -321,6 +326,7 @@ impl Batch {
             pending: false,
             work: Vec::new(),
             notes: Vec::new(),
+            fresh: Vec::new(),
         }
     }
 
@@ -451,12 +457,16 @@ impl Batch {
                 self.ctx.count_submit();
             }
             self.pending = true;
-            let timeout = self.ctx.fence_timeout();
+            let timeout = self.ctx.submit_timeout(self.fresh.len());
             let ns = u64::try_from(timeout.as_nanos()).unwrap_or(u64::MAX);
             match fault::vk(Call::WaitForFences)
                 .and_then(|()| dev.wait_for_fences(&[fence], true, ns))
             {
-                Ok(()) => self.pending = false,
+                Ok(()) => {
+                    self.pending = false;
+                    self.ctx.mark_ran(&self.fresh);
+                    self.fresh.clear();
+                }
                 Err(vk::Result::TIMEOUT) => {
                     return Err(self
                         .ctx
@@ -792,12 +802,15 @@ impl Batch {
     /// Rows per band of work estimated at `row_flops` per row: as many as
     /// fit in [`max_flops_per_submit`](Self::max_flops_per_submit), at
     /// least one, rounded up to a multiple of `multiple` (a workgroup's
-    /// height, or the rows a queue's band is selected in).
+    /// height, or the rows a queue's band is selected in), and at most the
+    /// largest such multiple a `u32` holds (a budget without bound is one
+    /// band).
     pub fn band_rows(&self, row_flops: f64, multiple: u32) -> u32 {
-        ((self.max_flops_per_submit / row_flops).floor() as u32)
-            .max(1)
-            .div_ceil(multiple)
-            * multiple
+        let multiple = multiple.max(1);
+        let most = u32::MAX / multiple * multiple;
+        let rows = (self.max_flops_per_submit / row_flops).floor();
+        // `as` saturates (NaN to 0); the ceiling cannot pass `most`.
+        (rows.min(most as f64) as u32).max(1).div_ceil(multiple) * multiple
     }
 
     /// Records the reset of a work queue's header ([`QUEUE_HEADER_WORDS`]):
@@ -926,6 +939,12 @@ impl Batch {
             && self.flops_in_submit + flops > self.max_flops_per_submit
         {
             self.flush()?;
+        }
+        if matches!(self.mode, Mode::Execute { .. })
+            && !self.fresh.contains(&p.pipeline)
+            && self.ctx.first_run(p.pipeline)
+        {
+            self.fresh.push(p.pipeline);
         }
         let dev = self.ctx.device.clone();
         let q = self.query_pair().map_err(recording(&p.name))?;

@@ -1,6 +1,6 @@
 //! Instance, physical-device choice, logical device, queue and allocator.
 
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 use std::ffi::{c_void, CStr, CString};
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
@@ -163,7 +163,7 @@ pub struct GpuContext {
     disk_cache: Mutex<Option<super::pipeline::DiskCache>>,
     /// Ids of the live [`super::GpuBuffer`]s of this context: a
     /// [`super::BufferSlice`] of any other is refused at use.
-    pub(crate) live: Mutex<std::collections::HashSet<u64>>,
+    pub(crate) live: Mutex<HashSet<u64>>,
     /// Vulkan requires external synchronisation of a queue: every submit
     /// from this context holds this lock.
     pub(crate) queue_lock: Mutex<()>,
@@ -193,6 +193,9 @@ pub struct GpuContext {
     lost: Mutex<Option<Lost>>,
     /// How long a fence wait may take, in nanoseconds.
     fence_timeout_ns: AtomicU64,
+    /// The pipelines a completed submit has run: a submit with another
+    /// gets [`FIRST_DISPATCH_ALLOWANCE`] more to wait.
+    ran: Mutex<HashSet<vk::Pipeline>>,
 }
 
 /// The default of [`GpuContext::fence_timeout`]: 60 s for one submit. A
@@ -200,6 +203,16 @@ pub struct GpuContext {
 /// [`DEFAULT_FLOPS_PER_SUBMIT`](super::batch::DEFAULT_FLOPS_PER_SUBMIT)), a
 /// few milliseconds on a discrete GPU.
 pub const DEFAULT_FENCE_TIMEOUT: Duration = Duration::from_secs(60);
+
+/// What a submit may take beyond [`GpuContext::fence_timeout`] for each
+/// pipeline it is the first on this context to run, up to
+/// [`FIRST_DISPATCH_ALLOWANCE_MAX`]: llvmpipe compiles a compute pipeline at
+/// its first dispatch, inside the submit, and with a cold shader cache on a
+/// busy machine one compile can take about a minute.
+pub const FIRST_DISPATCH_ALLOWANCE: Duration = Duration::from_secs(60);
+
+/// The most [`FIRST_DISPATCH_ALLOWANCE`] adds to one submit.
+pub const FIRST_DISPATCH_ALLOWANCE_MAX: Duration = Duration::from_secs(600);
 
 /// Why a context cannot continue.
 #[derive(Clone, Debug)]
@@ -695,6 +708,7 @@ impl GpuContext {
             lost_flag: AtomicBool::new(false),
             lost: Mutex::new(None),
             fence_timeout_ns: AtomicU64::new(DEFAULT_FENCE_TIMEOUT.as_nanos() as u64),
+            ran: Mutex::new(HashSet::new()),
         }
     }
 
@@ -942,6 +956,27 @@ impl GpuContext {
     pub fn set_fence_timeout(&self, timeout: Duration) {
         let ns = u64::try_from(timeout.as_nanos()).unwrap_or(u64::MAX);
         self.fence_timeout_ns.store(ns, Ordering::Relaxed);
+    }
+
+    /// How long a submit that is the first to run `fresh` of its pipelines
+    /// may take: [`fence_timeout`](Self::fence_timeout) plus
+    /// [`FIRST_DISPATCH_ALLOWANCE`] for each, at most
+    /// [`FIRST_DISPATCH_ALLOWANCE_MAX`] in all.
+    pub fn submit_timeout(&self, fresh: usize) -> Duration {
+        let allowance = FIRST_DISPATCH_ALLOWANCE
+            .saturating_mul(u32::try_from(fresh).unwrap_or(u32::MAX))
+            .min(FIRST_DISPATCH_ALLOWANCE_MAX);
+        self.fence_timeout().saturating_add(allowance)
+    }
+
+    /// Whether no completed submit has run `pipeline` yet.
+    pub(crate) fn first_run(&self, pipeline: vk::Pipeline) -> bool {
+        !self.ran.lock().unwrap().contains(&pipeline)
+    }
+
+    /// Records that a completed submit ran `pipelines`.
+    pub(crate) fn mark_ran(&self, pipelines: &[vk::Pipeline]) {
+        self.ran.lock().unwrap().extend(pipelines.iter().copied());
     }
 
     /// The validation messages' log, shared: it stays readable after the
