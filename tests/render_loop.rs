@@ -491,6 +491,71 @@ fn lp_and_auto_sample_where_wlr_does_unless_told_otherwise() {
     check_validation(&ctx);
 }
 
+/// MAP-CHECK: APR's render with the check spends exactly the average,
+/// gives every pixel pass 0's samples, records one share per adaptive pass
+/// in `[0, 1]`, renders the same samples twice, and samples unlike the
+/// unchecked render when a share is below 1; a render whose maps are its
+/// own method's (WLR) is not checked.
+#[test]
+fn the_final_method_checks_the_maps_of_another() {
+    let ctx = gpu();
+    let scene = Scene::builtin("cornell").unwrap();
+    let (w, h) = (24, 20);
+    let run = |cfg: &LoopConfig| {
+        let r = Renderer::new(&ctx, &scene, w, h, 3).unwrap();
+        let out = render(&ctx, &r, cfg, &AtomicBool::new(false), |_| {}).unwrap();
+        let spp = r.statistics().unwrap().get(Layer::Spp).unwrap()[0].clone();
+        (spp, out.map_weights)
+    };
+    let checked = |m| LoopConfig {
+        map_check: true,
+        ..config(m, 9, true)
+    };
+    let unchecked = |m| LoopConfig {
+        map_check: false,
+        ..config(m, 9, true)
+    };
+    assert!(config(Method::Apr, 9, true).map_check, "APR's default");
+    let (spp, weights) = run(&checked(Method::Apr));
+    let total: f64 = spp.iter().map(|&s| s as f64).sum();
+    assert_eq!(total, 9.0 * (w * h) as f64);
+    assert!(spp.iter().all(|&s| s >= 4.0), "pass 0 gives every pixel 4");
+    assert_eq!(weights.len(), 5, "{weights:?}");
+    assert!(
+        weights.iter().all(|w| (0.0..=1.0).contains(w)),
+        "{weights:?}"
+    );
+    let (again, weights_again) = run(&checked(Method::Apr));
+    assert_eq!((&again, &weights_again), (&spp, &weights), "deterministic");
+    let (plain, none) = run(&unchecked(Method::Apr));
+    assert!(none.is_empty());
+    if weights.iter().any(|&w| w < 1.0) {
+        assert_ne!(plain, spp, "a share below 1 moves samples");
+    }
+    let (wlr, weights) = run(&checked(Method::Wlr));
+    assert!(weights.is_empty(), "WLR's own maps are not checked");
+    assert_eq!(wlr, run(&unchecked(Method::Wlr)).0);
+    // Open-ended: the reconstruction that judges the stop checks each map.
+    let rules = StopRules {
+        target_error: Some(1e-12),
+        time_limit: None,
+        max_spp: 16,
+    };
+    let mut passes = 0;
+    let r = Renderer::new(&ctx, &scene, w, h, 3).unwrap();
+    let out = render(
+        &ctx,
+        &r,
+        &open(Method::Apr, true, rules),
+        &AtomicBool::new(false),
+        |_| passes += 1,
+    )
+    .unwrap();
+    assert_eq!(out.samples, 16 * (w * h) as u64);
+    assert_eq!(out.map_weights.len(), passes - 1, "{:?}", out.map_weights);
+    check_validation(&ctx);
+}
+
 /// Uniform rendering gives every pixel exactly spp samples; the same seed
 /// renders the same image twice.
 #[test]

@@ -531,6 +531,7 @@ pub static INFO: MethodInfo = MethodInfo {
     passes: 5,
     // APR-CAP: a pass gives a pixel at most 4× its mean.
     pass_cap: Some(4.0),
+    map_check: true,
     sampling: SamplingParams {
         eps: sampling::EPS_DEFAULT,
         sigma_s: sampling::SIGMA_APR,

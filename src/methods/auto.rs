@@ -107,6 +107,7 @@ pub static INFO: MethodInfo = MethodInfo {
     map_method: Method::Wlr,
     passes: super::wlr::INFO.passes,
     pass_cap: None,
+    map_check: false,
     sampling: super::wlr::INFO.sampling,
     // ERROR-SCALE on the blend's estimate: uniform inputs of the eleven
     // tuning scenes at 4, 16 and 64 spp (AUTO-BLEND).

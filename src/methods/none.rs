@@ -30,6 +30,7 @@ pub static INFO: MethodInfo = MethodInfo {
     map_method: Method::None,
     passes: 5,
     pass_cap: None,
+    map_check: false,
     sampling: SamplingParams {
         eps: sampling::EPS_DEFAULT,
         sigma_s: 0.0,

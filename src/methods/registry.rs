@@ -62,6 +62,11 @@ pub struct MethodInfo {
     /// The adaptive loop's default per-pass cap, as a multiple of the pass's
     /// mean samples per pixel (`None`: no cap).
     pub pass_cap: Option<f64>,
+    /// Whether, when another method makes the adaptive maps, this method's
+    /// own error estimate decides how much of each pass follows the map
+    /// and how much is spread evenly (MAP-CHECK; the adaptive loop's
+    /// default `map_check`).
+    pub map_check: bool,
     /// Its parameters of §9.1 (before `sampling.smooth`).
     pub sampling: SamplingParams,
     /// The factor by which its estimated rMSE (mean `E_i / (f̂_i² + 0.01)`)

@@ -495,6 +495,7 @@ pub static INFO: MethodInfo = MethodInfo {
     map_method: Method::Wlr,
     passes: 5,
     pass_cap: None,
+    map_check: false,
     sampling: SamplingParams {
         eps: sampling::EPS_DEFAULT,
         sigma_s: sampling::SIGMA_WLR,

@@ -89,13 +89,25 @@ pub struct LoopConfig {
     /// its work per pass. `false` by default. Not with the temporal maps
     /// of a temporal final denoiser, nor on images below 16×16 pixels.
     pub coarse_maps: bool,
+    /// Before each adaptive pass whose map another method makes
+    /// ([`mapper`](Self::mapper) is not [`method`](Self::method)), the
+    /// final method's own error estimate decides how much of the pass
+    /// follows that map and how much is spread evenly ([`map_weight`],
+    /// MAP-CHECK). A fixed schedule pays one final reconstruction per
+    /// adaptive pass for it; an open-ended render reuses the one it judges
+    /// its stop by. Not with a temporal final denoiser
+    /// ([`render_with_final`]), whose maps weigh what the filter knows and
+    /// the frame alone does not. Default: the final method's
+    /// [`crate::MethodInfo::map_check`].
+    pub map_check: bool,
 }
 
 impl LoopConfig {
     /// A render of `spp` on average with `method` and its defaults: the
     /// prefilter and the outlier stage `Auto`, the maps of its
     /// [`crate::MethodInfo::map_method`] with that method's per-pass cap
-    /// ([`default_pass_cap`]), f32 kernels, no options, the fixed schedule.
+    /// ([`default_pass_cap`]) and its [`crate::MethodInfo::map_check`],
+    /// f32 kernels, no options, the fixed schedule.
     pub fn new(method: Method, spp: u32, adaptive: bool) -> Self {
         Self {
             spp,
@@ -113,6 +125,7 @@ impl LoopConfig {
             pyramid: Pyramid::Auto,
             input_blend: InputBlend::Auto,
             coarse_maps: false,
+            map_check: method.info().map_check,
         }
         .with_map_method(None)
     }
@@ -333,6 +346,94 @@ pub fn cap_counts(counts: &mut [u32], cap: u32) {
     }
 }
 
+/// Steps of [`map_weight`]'s grid: the share of an adaptive pass that
+/// follows the map is a multiple of `1 / MIX_STEPS`.
+pub const MIX_STEPS: u32 = 20;
+
+/// MAP-CHECK: how many of [`MIX_STEPS`] parts of an adaptive pass follow
+/// `map` (its counts, summing to the pass's budget), the rest spread
+/// evenly ([`mix_counts`]), so that the final method's predicted error
+/// after the pass is least. The prediction is `Σ_i e_i (n_i / (n_i +
+/// c_i))^{a_i}`: `error` is the final method's estimated relative MSE of
+/// each pixel now, `rate` the exponent `a_i` with which it falls with the
+/// pixel's samples (`4/(d_i + 4)`, §9.1), `counts` the samples so far and
+/// `c_i` what the mixture gives the pixel. Pixels without samples or with
+/// a non-finite or non-positive error count for nothing; ties go to the
+/// map.
+pub fn map_weight(error: &[f64], rate: &[f64], counts: &[u64], map: &[u32]) -> u32 {
+    let total: u64 = map.iter().map(|&m| m as u64).sum();
+    let even = total as f64 / map.len().max(1) as f64;
+    let used: Vec<usize> = (0..map.len())
+        .filter(|&i| counts[i] > 0 && error[i].is_finite() && error[i] > 0.0)
+        .collect();
+    let predicted = |k: u32| -> f64 {
+        let l = k as f64 / MIX_STEPS as f64;
+        used.iter()
+            .map(|&i| {
+                let n = counts[i] as f64;
+                let c = l * map[i] as f64 + (1.0 - l) * even;
+                error[i] * (n / (n + c)).powf(rate[i])
+            })
+            .sum()
+    };
+    let p: Vec<f64> = (0..=MIX_STEPS).map(predicted).collect();
+    let best = p.iter().copied().fold(f64::INFINITY, f64::min);
+    (0..=MIX_STEPS)
+        .rev()
+        .find(|&k| p[k as usize] <= best * (1.0 + 1e-12))
+        .unwrap_or(MIX_STEPS)
+}
+
+/// `k / MIX_STEPS` of `map` and the rest of its total spread evenly, as
+/// counts with exactly `map`'s total (the cumulative rounding of §9.2 in
+/// raster order: each pixel gets the floor or the ceiling of its share).
+pub fn mix_counts(map: &[u32], k: u32) -> Vec<u32> {
+    let n = map.len() as u128;
+    let total: u128 = map.iter().map(|&m| m as u128).sum();
+    let (k, s) = (k.min(MIX_STEPS) as u128, MIX_STEPS as u128);
+    let (mut q, mut given) = (0u128, 0u128);
+    map.iter()
+        .map(|&m| {
+            q += k * m as u128 * n + (s - k) * total;
+            let upto = q / (s * n);
+            let c = (upto - given) as u32;
+            given = upto;
+            c
+        })
+        .collect()
+}
+
+/// The inputs of [`map_weight`] from a reconstruction by `method`: each
+/// pixel's estimated relative MSE, `(1/3) Σ_ch max(E, 0) / (f̂² + ε)` with
+/// the method's `ε` (§9.1), and the exponent `4/(d + 4)` of its decay.
+fn judged(frame: &Frame, method: Method) -> (Vec<f64>, Vec<f64>) {
+    let eps = method.info().sampling.eps as f64;
+    let (c, e) = (&frame.color, &frame.error);
+    let n = c.width * c.height;
+    let error = (0..n)
+        .map(|i| {
+            (0..3)
+                .map(|ch| {
+                    let f = c.planes[ch][i] as f64;
+                    (e.planes[ch][i] as f64).max(0.0) / (f * f + eps)
+                })
+                .sum::<f64>()
+                / 3.0
+        })
+        .collect();
+    let rate = (0..n)
+        .map(|i| {
+            let d = frame.dim.get(i).map_or(0.0, |&d| (d as f64).max(0.0));
+            if d.is_finite() {
+                4.0 / (d + 4.0)
+            } else {
+                1.0
+            }
+        })
+        .collect();
+    (error, rate)
+}
+
 /// GPU time of a render, split by what it was spent on (timestamp queries).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct TimeSplit {
@@ -360,6 +461,10 @@ pub struct LoopResult {
     /// An open-ended render's stop estimate after its last pass
     /// ([`StopEstimates`]); `None` for a fixed schedule.
     pub estimate: Option<f64>,
+    /// The share of each adaptive pass's samples that followed its map,
+    /// the rest spread evenly ([`LoopConfig::map_check`]); empty when the
+    /// maps are not checked.
+    pub map_weights: Vec<f64>,
 }
 
 /// Where a render stands after a pass, for progress displays.
@@ -507,6 +612,8 @@ fn run(
         timings: Vec::new(),
         split: TimeSplit::default(),
         samples: 0,
+        counts: Vec::new(),
+        map_weights: Vec::new(),
     };
     match cfg.stop {
         None => run.fixed(progress),
@@ -552,6 +659,11 @@ struct Runner<'a> {
     split: TimeSplit,
     /// Samples rendered so far.
     samples: u64,
+    /// Each pixel's samples so far, kept when the maps are checked
+    /// ([`Runner::checks`]).
+    counts: Vec<u64>,
+    /// The share of each adaptive pass that followed its map (MAP-CHECK).
+    map_weights: Vec<f64>,
 }
 
 impl Runner<'_> {
@@ -561,6 +673,16 @@ impl Runner<'_> {
 
     fn spp(&self) -> f64 {
         self.samples as f64 / self.pixels() as f64
+    }
+
+    /// Whether the final method checks each adaptive pass's map
+    /// ([`LoopConfig::map_check`]).
+    fn checks(&self) -> bool {
+        let temporal = self
+            .last
+            .denoiser()
+            .is_some_and(|d| d.config().temporal != crate::Temporal::Off);
+        self.cfg.map_check && self.cfg.adaptive && self.cfg.mapper() != self.cfg.method && !temporal
     }
 
     /// A denoiser of the loop's configuration for `pass`, on the renderer's
@@ -593,17 +715,23 @@ impl Runner<'_> {
             r.record_pass(b, Samples::Uniform(spp))
         })?;
         self.samples = spp as u64 * self.pixels() as u64;
+        if self.checks() {
+            self.counts = vec![spp as u64; self.pixels()];
+        }
         Ok(())
     }
 
     /// One adaptive pass: `intermediate`'s reconstruction and sample map for
-    /// `budget`, capped as the configuration says, then the samples.
-    /// Returns the wall seconds of the map (reconstruction and cap).
+    /// `budget`, mixed with an even spread as the final method's
+    /// reconstruction `judge` says (MAP-CHECK, when given) and capped as
+    /// the configuration says, then the samples. Returns the wall seconds
+    /// of the map (reconstruction, check and cap).
     fn adaptive_pass(
         &mut self,
         intermediate: &Denoiser,
         capped: Option<&GpuBuffer>,
         budget: u32,
+        judge: Option<&Frame>,
     ) -> Result<f64> {
         let pixels = self.pixels();
         let r = self.renderer;
@@ -613,16 +741,29 @@ impl Runner<'_> {
             .outputs()?
             .samples
             .ok_or_else(|| Error::Limit("this device cannot compute sample maps".into()))?;
-        let pass_map = match (self.cfg.pass_cap, capped) {
-            (Some(k), Some(buf)) => {
-                // Capping needs the counts on the host: one small readback
-                // per pass.
+        let pass_map = match capped {
+            Some(buf) if judge.is_some() || self.cfg.pass_cap.is_some() => {
+                // Checking and capping need the counts on the host: one
+                // small readback per pass.
                 let mut counts: Vec<u32> = crate::gpu::buffer::read_slice(self.ctx, map, pixels)?
                     .iter()
                     .map(|v| v.to_bits())
                     .collect();
-                let mean = budget as f64 / pixels as f64;
-                cap_counts(&mut counts, (k * mean).ceil().max(1.0) as u32);
+                if let Some(frame) = judge {
+                    let (error, rate) = judged(frame, self.cfg.method);
+                    let k = map_weight(&error, &rate, &self.counts, &counts);
+                    self.map_weights.push(k as f64 / MIX_STEPS as f64);
+                    counts = mix_counts(&counts, k);
+                }
+                if let Some(k) = self.cfg.pass_cap {
+                    let mean = budget as f64 / pixels as f64;
+                    cap_counts(&mut counts, (k * mean).ceil().max(1.0) as u32);
+                }
+                if !self.counts.is_empty() {
+                    for (n, &c) in self.counts.iter_mut().zip(&counts) {
+                        *n += c as u64;
+                    }
+                }
                 buf.upload(0, bytemuck::cast_slice(&counts))?;
                 buf.slice()
             }
@@ -644,15 +785,16 @@ impl Runner<'_> {
         Ok(map_secs)
     }
 
-    /// The buffer of capped counts, when the configuration caps.
+    /// The buffer of checked or capped counts, when the configuration
+    /// checks or caps.
     fn capped_buffer(&self) -> Result<Option<GpuBuffer>> {
-        match self.cfg.pass_cap {
-            Some(_) => Ok(Some(GpuBuffer::new(
+        match self.cfg.pass_cap.is_some() || self.checks() {
+            true => Ok(Some(GpuBuffer::new(
                 self.ctx,
                 "loop.capped_map",
                 (self.pixels() * 4) as u64,
             )?)),
-            None => Ok(None),
+            false => Ok(None),
         }
     }
 
@@ -671,6 +813,7 @@ impl Runner<'_> {
             timings: self.timings,
             samples: self.samples,
             estimate: None,
+            map_weights: self.map_weights,
         }
     }
 
@@ -708,19 +851,31 @@ impl Runner<'_> {
         self.first_pass(first_spp)?;
         let mut done = 1;
         report(&self, done);
+        // The final method's own denoiser, when it checks the maps (not
+        // the caller's: a temporal filter's state must see only the final
+        // statistics).
+        let judge = match self.checks() {
+            true => Some(self.denoiser(Pass::Final, first_spp)?),
+            false => None,
+        };
         if let Some(s) = &schedule {
             let intermediate = self.denoiser(Pass::Intermediate, first_spp)?;
             let capped = self.capped_buffer()?;
             for &budget in &s.budgets {
-                self.adaptive_pass(&intermediate, capped.as_ref(), budget)?;
+                let frame = match &judge {
+                    Some(j) => Some(self.reconstruct(j)?),
+                    None => None,
+                };
+                self.adaptive_pass(&intermediate, capped.as_ref(), budget, frame.as_ref())?;
                 done += 1;
                 report(&self, done);
             }
         }
-        let frame = match self.last {
-            Final::Skip => Frame::empty(),
-            Final::Reconstruct(Some(last)) => self.reconstruct(last)?,
-            Final::Reconstruct(None) => {
+        let frame = match (self.last, &judge) {
+            (Final::Skip, _) => Frame::empty(),
+            (Final::Reconstruct(Some(last)), _) => self.reconstruct(last)?,
+            (Final::Reconstruct(None), Some(j)) => self.reconstruct(j)?,
+            (Final::Reconstruct(None), None) => {
                 let last = self.denoiser(Pass::Final, first_spp)?;
                 self.reconstruct(&last)?
             }
@@ -801,7 +956,8 @@ impl Runner<'_> {
             match &intermediate {
                 Some(d) => {
                     let budget = u32::try_from(budget).unwrap_or(u32::MAX);
-                    map = self.adaptive_pass(d, capped.as_ref(), budget)?;
+                    let judge = self.checks().then_some(&frame);
+                    map = self.adaptive_pass(d, capped.as_ref(), budget, judge)?;
                     map_secs = Some(map);
                 }
                 None => {
@@ -819,7 +975,56 @@ impl Runner<'_> {
 
 #[cfg(test)]
 mod tests {
-    use super::cap_counts;
+    use super::{cap_counts, map_weight, mix_counts, MIX_STEPS};
+
+    #[test]
+    fn a_mixture_keeps_the_total_and_its_ends() {
+        let map = [0u32, 7, 0, 30, 1, 0, 0, 2, 9];
+        let total: u32 = map.iter().sum();
+        for k in 0..=MIX_STEPS {
+            let c = mix_counts(&map, k);
+            assert_eq!(c.iter().sum::<u32>(), total, "k = {k}");
+        }
+        assert_eq!(mix_counts(&map, MIX_STEPS), map);
+        // 49 samples over 9 pixels: 5 or 6 each.
+        let even = mix_counts(&map, 0);
+        assert!(even.iter().all(|&c| c == 5 || c == 6), "{even:?}");
+        // Half the map, half spread: each pixel within one of its share.
+        let half = mix_counts(&map, MIX_STEPS / 2);
+        for (h, &m) in half.iter().zip(&map) {
+            let share = 0.5 * m as f64 + 0.5 * total as f64 / 9.0;
+            assert!((*h as f64 - share).abs() < 1.0, "{h} against {share}");
+        }
+    }
+
+    #[test]
+    fn the_map_is_kept_where_the_final_method_agrees_and_spread_where_not() {
+        let n = 64;
+        let counts = vec![4u64; n];
+        let rate = vec![0.5; n];
+        // The map puts everything on the first quarter.
+        let map: Vec<u32> = (0..n).map(|i| if i < n / 4 { 16 } else { 0 }).collect();
+        // The final method's error is there too: follow the map.
+        let agree: Vec<f64> = (0..n).map(|i| if i < n / 4 { 1.0 } else { 0.01 }).collect();
+        assert_eq!(map_weight(&agree, &rate, &counts, &map), MIX_STEPS);
+        // Its error is flat: spread evenly (the prediction is convex).
+        let flat = vec![1.0; n];
+        assert_eq!(map_weight(&flat, &rate, &counts, &map), 0);
+        // Its error is elsewhere: spread evenly too.
+        let other: Vec<f64> = agree.iter().map(|e| 1.01 - e).collect();
+        assert_eq!(map_weight(&other, &rate, &counts, &map), 0);
+        // Somewhere between: a mixture.
+        let some: Vec<f64> = (0..n).map(|i| if i < n / 4 { 2.0 } else { 1.0 }).collect();
+        let k = map_weight(&some, &rate, &counts, &map);
+        assert!(0 < k && k < MIX_STEPS, "{k}");
+        // Pixels without samples or with no usable error count for nothing.
+        let mut odd = agree.clone();
+        odd[n - 1] = f64::NAN;
+        odd[n - 2] = -1.0;
+        let mut c = counts.clone();
+        c[n - 3] = 0;
+        assert_eq!(map_weight(&odd, &rate, &c, &map), MIX_STEPS);
+    }
 
     #[test]
     fn cap_keeps_the_total_and_the_cap() {

@@ -148,6 +148,27 @@ impl BlendArg {
 }
 
 #[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
+pub enum MapCheckArg {
+    /// The final method's default: on for apr.
+    Auto,
+    /// Whenever another method makes the maps.
+    On,
+    /// Never: every adaptive pass follows its map.
+    Off,
+}
+
+impl MapCheckArg {
+    /// Whether `method`'s render checks its maps.
+    pub fn get(self, method: mcdenoise::Method) -> bool {
+        match self {
+            MapCheckArg::Auto => method.info().map_check,
+            MapCheckArg::On => true,
+            MapCheckArg::Off => false,
+        }
+    }
+}
+
+#[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
 pub enum TemporalArg {
     /// Every frame alone.
     Off,

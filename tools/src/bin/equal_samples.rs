@@ -23,7 +23,7 @@
 //! cargo run --release -p mcdenoise-tools --bin equal_samples -- \
 //!     [--scenes a,b] [--size 256x256] [--spp 16,64] [--methods wlr,lp,apr,aos] \
 //!     [--reference 4096] [--reference-renders 2] [--seeds 3,4] [--oidn] [--equal-time] [--target | --target-only]
-//!     [--map-method M] [--pass-cap K] [--passes N] [--coarse-maps] [--opt key=value]
+//!     [--map-method M] [--pass-cap K] [--passes N] [--coarse-maps] [--map-check on|off] [--opt key=value]
 //!     [--json out.json] [--work DIR]
 //! ```
 
@@ -93,6 +93,11 @@ struct Args {
     /// (MAP-COARSE).
     #[arg(long)]
     coarse_maps: bool,
+    /// `on` or `off`: the final method's estimate decides each adaptive
+    /// pass's mixture of the map and an even spread (MAP-CHECK; default:
+    /// each method's `map_check`).
+    #[arg(long, value_parser = parse_on_off)]
+    map_check: Option<bool>,
     /// Per-pass cap of every adaptive run, as a multiple of the pass's mean
     /// (0: none; default: that of the method that makes the maps).
     #[arg(long, value_parser = adaptive::parse_pass_cap)]
@@ -143,6 +148,8 @@ struct MethodRow {
     equal_time_ratio: Option<f64>,
     /// OIDN on this method's adaptive statistics.
     oidn_adaptive: Option<f64>,
+    /// The share of each adaptive pass that followed its map (MAP-CHECK).
+    map_weights: Vec<f64>,
 }
 
 /// One scene and method rendered to a target error.
@@ -181,9 +188,19 @@ fn loop_config(a: &Args, method: Method, spp: u32, options: &Options) -> LoopCon
         options: options.clone(),
         passes: a.passes,
         coarse_maps: a.coarse_maps,
+        map_check: a.map_check.unwrap_or(method.info().map_check),
         ..LoopConfig::new(method, spp, true)
             .with_map_method(a.map_method)
             .with_pass_cap(a.pass_cap)
+    }
+}
+
+/// `on` or `off`.
+fn parse_on_off(s: &str) -> Result<bool, String> {
+    match s {
+        "on" => Ok(true),
+        "off" => Ok(false),
+        _ => Err(format!("{s}: on or off")),
     }
 }
 
@@ -432,6 +449,7 @@ fn one_seed(
         mr.adaptive = metrics::rmse(&out.frame.color, r);
         mr.adaptive_estimate = metrics::estimated_rmse(&out.frame.color, &out.frame.error);
         mr.adaptive_rate = out.samples as f64 / (out.split.render_ms / 1e3);
+        mr.map_weights = out.map_weights.clone();
         if a.oidn {
             let p = a.work.join(format!("{tag}-{}-adaptive.exr", m.name()));
             io::write_stats(&p, &ar.statistics()?)?;
@@ -592,7 +610,7 @@ fn main() -> anyhow::Result<()> {
         rows.extend(r);
         targets.extend(t);
         if let Some(p) = &a.json {
-            let json = serde_json::json!({ "rows": rows, "targets": targets, "passes": a.passes, "coarse_maps": a.coarse_maps });
+            let json = serde_json::json!({ "rows": rows, "targets": targets, "passes": a.passes, "coarse_maps": a.coarse_maps, "map_check": a.map_check });
             std::fs::write(p, serde_json::to_string_pretty(&json)? + "\n")?;
         }
     }

@@ -12,8 +12,8 @@ use mcdenoise::{
 };
 
 use crate::args::{
-    method_parser, parse_size, BlendArg, OutliersArg, PrecisionArg, PrefilterArg, PyramidArg,
-    TemporalArg,
+    method_parser, parse_size, BlendArg, MapCheckArg, OutliersArg, PrecisionArg, PrefilterArg,
+    PyramidArg, TemporalArg,
 };
 use crate::common::{context, pass_bar, refuse_overwrite, stop_flag};
 use crate::Cli;
@@ -86,6 +86,15 @@ pub struct Args {
     /// (decision record MAP-COARSE). Images of at least 16x16 pixels
     #[arg(long)]
     coarse_maps: bool,
+    /// With --adaptive, when another method makes the maps (--map-method):
+    /// before each adaptive pass the final method's own error estimate
+    /// decides how much of the pass follows the map and how much is spread
+    /// evenly over the image, to the least error it predicts for itself
+    /// (decision record MAP-CHECK). Costs one final reconstruction per
+    /// pass. Not with --temporal lp. `--map-check` alone is
+    /// `--map-check=on`
+    #[arg(long, value_enum, default_value = "auto", num_args = 0..=1, require_equals = true, default_missing_value = "on")]
+    map_check: MapCheckArg,
     /// Image size.
     #[arg(long, value_name = "WxH", default_value = "256x256", value_parser = parse_size)]
     size: (usize, usize),
@@ -368,6 +377,12 @@ pub fn run(cli: &Cli, a: &Args) -> anyhow::Result<bool> {
     if a.coarse_maps && a.temporal.get() == mcdenoise::Temporal::Lp {
         bail!("--coarse-maps and --temporal lp: the adaptive passes' maps read the temporal filter's state at the full resolution (TEMPORAL-MAP)");
     }
+    if a.map_check == MapCheckArg::On && !a.adaptive {
+        bail!("--map-check checks the adaptive passes' sample maps: it needs --adaptive");
+    }
+    if a.map_check == MapCheckArg::On && a.temporal.get() == mcdenoise::Temporal::Lp {
+        bail!("--map-check and --temporal lp: the adaptive passes' maps weigh what the temporal filter knows, which a frame's own reconstruction does not (TEMPORAL-MAP)");
+    }
     if a.passes.is_some() && !a.adaptive {
         bail!("--passes sets the adaptive schedule: it needs --adaptive");
     }
@@ -511,6 +526,7 @@ fn loop_config(a: &Args) -> anyhow::Result<adaptive::LoopConfig> {
         pyramid: a.pyramid.get(),
         input_blend: a.input_blend.get(),
         coarse_maps: a.coarse_maps,
+        map_check: a.map_check.get(method),
         ..base
     })
 }
