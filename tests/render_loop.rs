@@ -452,6 +452,19 @@ fn passes_sets_the_schedule_and_keeps_the_total() {
     );
 }
 
+/// `cfg`'s render of `cornell` at 24×20, seed 3: each pixel's samples and
+/// the loop's result.
+fn cornell_24x20(
+    ctx: &std::sync::Arc<mcdenoise::GpuContext>,
+    cfg: &LoopConfig,
+) -> (Vec<f32>, mcdenoise::render::adaptive::LoopResult) {
+    let scene = Scene::builtin("cornell").unwrap();
+    let r = Renderer::new(ctx, &scene, 24, 20, 3).unwrap();
+    let out = render(ctx, &r, cfg, &AtomicBool::new(false), |_| {}).unwrap();
+    let spp = r.statistics().unwrap().get(Layer::Spp).unwrap()[0].clone();
+    (spp, out)
+}
+
 /// MAP-WLR, AUTO-MAPS: LP's and `auto`'s adaptive renders sample exactly
 /// where WLR's does, pass for pass, and reconstruct their final images
 /// with their own method; `map_method` set to the method itself gives its
@@ -459,12 +472,8 @@ fn passes_sets_the_schedule_and_keeps_the_total() {
 #[test]
 fn lp_and_auto_sample_where_wlr_does_unless_told_otherwise() {
     let ctx = gpu();
-    let scene = Scene::builtin("cornell").unwrap();
-    let (w, h) = (24, 20);
     let run = |cfg: &LoopConfig| {
-        let r = Renderer::new(&ctx, &scene, w, h, 3).unwrap();
-        let out = render(&ctx, &r, cfg, &AtomicBool::new(false), |_| {}).unwrap();
-        let spp = r.statistics().unwrap().get(Layer::Spp).unwrap()[0].clone();
+        let (spp, out) = cornell_24x20(&ctx, cfg);
         (spp, out.frame.color)
     };
     let (wlr_spp, wlr_color) = run(&config(Method::Wlr, 9, true));
@@ -502,9 +511,7 @@ fn the_final_method_checks_the_maps_of_another() {
     let scene = Scene::builtin("cornell").unwrap();
     let (w, h) = (24, 20);
     let run = |cfg: &LoopConfig| {
-        let r = Renderer::new(&ctx, &scene, w, h, 3).unwrap();
-        let out = render(&ctx, &r, cfg, &AtomicBool::new(false), |_| {}).unwrap();
-        let spp = r.statistics().unwrap().get(Layer::Spp).unwrap()[0].clone();
+        let (spp, out) = cornell_24x20(&ctx, cfg);
         (spp, out.map_weights)
     };
     let checked = |m| LoopConfig {
