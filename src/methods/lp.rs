@@ -641,7 +641,7 @@ pub static INFO: MethodInfo = MethodInfo {
     passes: 5,
     // LP-CAP: LP's map concentrates samples at emitter edges.
     pass_cap: Some(4.0),
-    map_check: false,
+    map_check: true,
     sampling: SamplingParams {
         eps: sampling::EPS_DEFAULT,
         sigma_s: sampling::SIGMA_LP,
