@@ -479,7 +479,7 @@ pub static INFO: MethodInfo = MethodInfo {
     map_method: Method::Wlr,
     passes: 3,
     pass_cap: None,
-    map_check: true,
+    map_check: false,
     sampling: SamplingParams {
         eps: sampling::EPS_AOS,
         sigma_s: sampling::SIGMA_AOS,

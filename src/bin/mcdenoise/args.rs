@@ -149,7 +149,7 @@ impl BlendArg {
 
 #[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
 pub enum MapCheckArg {
-    /// The final method's default: on for lp, apr and aos.
+    /// The final method's default: on for lp and apr.
     Auto,
     /// Whenever another method makes the maps.
     On,
