@@ -328,22 +328,39 @@ pub fn cap_counts(counts: &mut [u32], cap: u32) {
         for c in counts.iter_mut() {
             *c = (*c).min(cap);
         }
-        let mut w: Vec<u64> = counts
+        let mut w: Vec<u128> = counts
             .iter()
-            .map(|&c| if c < cap { c as u64 } else { 0 })
+            .map(|&c| if c < cap { c as u128 } else { 0 })
             .collect();
         if w.iter().all(|&x| x == 0) {
-            w = counts.iter().map(|&c| (c < cap) as u64).collect();
+            w = counts.iter().map(|&c| (c < cap) as u128).collect();
         }
-        let sum: u64 = w.iter().sum();
-        let (mut p, mut given) = (0u64, 0u64);
-        for (c, &wi) in counts.iter_mut().zip(&w) {
-            p += wi;
-            let upto = (over as u128 * p as u128 / sum as u128) as u64;
-            *c += (upto - given) as u32;
-            given = upto;
+        for (c, add) in counts.iter_mut().zip(spread(over as u128, &w)) {
+            *c += add;
         }
     }
+}
+
+/// `total` split in proportion to `weights` by the exact cumulative
+/// rounding of spec §9.2 in raster order: the parts sum to exactly `total`
+/// and each is the floor or the ceiling of its share. All parts are 0 when
+/// the weights are.
+fn spread(total: u128, weights: &[u128]) -> Vec<u32> {
+    let sum: u128 = weights.iter().sum();
+    if sum == 0 {
+        return vec![0; weights.len()];
+    }
+    let (mut p, mut given) = (0u128, 0u128);
+    weights
+        .iter()
+        .map(|&w| {
+            p += w;
+            let upto = total * p / sum;
+            let part = (upto - given) as u32;
+            given = upto;
+            part
+        })
+        .collect()
 }
 
 /// Steps of [`map_weight`]'s grid: the share of an adaptive pass that
@@ -391,16 +408,12 @@ pub fn mix_counts(map: &[u32], k: u32) -> Vec<u32> {
     let n = map.len() as u128;
     let total: u128 = map.iter().map(|&m| m as u128).sum();
     let (k, s) = (k.min(MIX_STEPS) as u128, MIX_STEPS as u128);
-    let (mut q, mut given) = (0u128, 0u128);
-    map.iter()
-        .map(|&m| {
-            q += k * m as u128 * n + (s - k) * total;
-            let upto = q / (s * n);
-            let c = (upto - given) as u32;
-            given = upto;
-            c
-        })
-        .collect()
+    // Pixel i's share of the total is (k·m_i·n + (s − k)·total) / (s·n·total).
+    let w: Vec<u128> = map
+        .iter()
+        .map(|&m| k * m as u128 * n + (s - k) * total)
+        .collect();
+    spread(total, &w)
 }
 
 /// The inputs of [`map_weight`] from a reconstruction by `method`: each

@@ -158,10 +158,11 @@ pub enum MapCheckArg {
 }
 
 impl MapCheckArg {
-    /// Whether `method`'s render checks its maps.
-    pub fn get(self, method: mcdenoise::Method) -> bool {
+    /// Whether the render checks its maps, given the final method's
+    /// `default`.
+    pub fn get(self, default: bool) -> bool {
         match self {
-            MapCheckArg::Auto => method.info().map_check,
+            MapCheckArg::Auto => default,
             MapCheckArg::On => true,
             MapCheckArg::Off => false,
         }

@@ -184,14 +184,15 @@ struct Row {
 }
 
 fn loop_config(a: &Args, method: Method, spp: u32, options: &Options) -> LoopConfig {
+    let base = LoopConfig::new(method, spp, true)
+        .with_map_method(a.map_method)
+        .with_pass_cap(a.pass_cap);
     LoopConfig {
         options: options.clone(),
         passes: a.passes,
         coarse_maps: a.coarse_maps,
-        map_check: a.map_check.unwrap_or(method.info().map_check),
-        ..LoopConfig::new(method, spp, true)
-            .with_map_method(a.map_method)
-            .with_pass_cap(a.pass_cap)
+        map_check: a.map_check.unwrap_or(base.map_check),
+        ..base
     }
 }
 

@@ -526,7 +526,7 @@ fn loop_config(a: &Args) -> anyhow::Result<adaptive::LoopConfig> {
         pyramid: a.pyramid.get(),
         input_blend: a.input_blend.get(),
         coarse_maps: a.coarse_maps,
-        map_check: a.map_check.get(method),
+        map_check: a.map_check.get(base.map_check),
         ..base
     })
 }
