@@ -85,9 +85,9 @@ pub const OPTIONS: &[OptionSpec] = &[
     OptionSpec {
         key: "lp.outlier_weight",
         kind: Kind::Choice(&["clamped", "off"]),
-        default: "off",
-        section: "§3.3 (LP-OUTLIER-W)",
-        help: "pixel i's row in centre c's least squares weighted by 1/max(vbar_i / max(vbar_c, 1), 1), WLR's outlier weight in the centre's noise (clamped: keeps one-sample clusters out of the fits, but loses beside small lamps), or unweighted (off, the paper)",
+        default: "clamped",
+        section: "§3.3 (LP-OUTLIER-W, LP-OUTLIER-W-ON)",
+        help: "pixel i's row in centre c's least squares weighted by 1/max(vbar_i / max(vbar_c, 1), 1), WLR's outlier weight in the centre's noise (clamped: keeps one-sample clusters out of the fits), or unweighted (off, the paper)",
     },
     OptionSpec {
         key: "apr.stages",

@@ -1137,16 +1137,13 @@ fn error_mode_paper_changes_the_choice() {
         mlp::LpParams::new(&req.options).unwrap().options & LP_VARSUB,
         0
     );
-    assert_eq!(
+    assert_ne!(
         mlp::LpParams::new(&req.options).unwrap().options & LP_OUTLIER_W,
         0,
-        "LP-OUTLIER-W is off by default"
+        "LP-OUTLIER-W is on by default (LP-OUTLIER-W-ON)"
     );
-    let clamped = Options::parse(&["lp.outlier_weight=clamped".to_string()]).unwrap();
-    assert_ne!(
-        mlp::LpParams::new(&clamped).unwrap().options & LP_OUTLIER_W,
-        0
-    );
+    let off = Options::parse(&["lp.outlier_weight=off".to_string()]).unwrap();
+    assert_eq!(mlp::LpParams::new(&off).unwrap().options & LP_OUTLIER_W, 0);
     let paper = denoise(None, &img, &req).unwrap();
     let centres = |o: &mcdenoise::methods::DenoiseOutput| {
         layer(o, "centre_pass").iter().filter(|&&v| v > 0.0).count()
@@ -1498,7 +1495,7 @@ fn census_counts_centres_their_ranks_and_the_pixels_they_cover() {
     check_validation(&gpu());
 }
 
-/// LP-OUTLIER-W (`lp.outlier_weight=clamped`, off by default): a cluster of
+/// LP-OUTLIER-W (`lp.outlier_weight=clamped`, the default: LP-OUTLIER-W-ON): a cluster of
 /// one-sample pixels (each 100 with a standard error of 100, as one sample
 /// in a hundred of 10⁴ gives) on a flat 0.1 stays out of the centres'
 /// models. The outlier stage leaves a cluster (OUTLIER-ISOLATED), and a
@@ -1570,6 +1567,15 @@ fn one_sample_clusters_stay_out_of_the_centres_models() {
         println!("{what}");
         assert!(next_off > 1.0, "the paper's fit bleeds: {what}");
         assert!(next_on < 0.05 && far_on < 0.05, "{what}");
+        // The default is the weighted fit.
+        let default = run_with(&img, backend, Precision::F32, &[]);
+        let clamped = run_with(
+            &img,
+            backend,
+            Precision::F32,
+            &["lp.outlier_weight=clamped"],
+        );
+        assert_eq!(default.color.planes, clamped.color.planes, "{backend:?}");
     }
     check_validation(&gpu());
 }
