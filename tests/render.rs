@@ -9,8 +9,8 @@ use std::collections::BTreeMap;
 
 use mcdenoise::gpu::GpuBuffer;
 use mcdenoise::render::{
-    Albedo, Camera, Material, Object, Ray, Renderer, Samples, Scene, Shape, Texture, GRID_WIDTH,
-    RESOLVE_CHUNK,
+    Albedo, Camera, Material, Object, Ray, Renderer, Samples, Scene, Shape, Texture, Traversal,
+    GRID_WIDTH, RESOLVE_CHUNK,
 };
 use mcdenoise::{Accumulator, Batch, Config, Denoiser, Layer, Method, Source};
 
@@ -998,7 +998,7 @@ fn zero_sample_map_region_adds_nothing() {
 
 /// Two passes of 2 spp on 20×13; the planes and the number of
 /// `render_trace` bands.
-fn two_passes(s: &Scene, max_flops: f64, seed: u64) -> (Vec<Vec<f32>>, usize) {
+fn two_passes(s: &Scene, max_flops: f64, seed: u64) -> (Vec<Vec<f32>>, usize, Traversal) {
     let ctx = gpu();
     let r = Renderer::new(&ctx, s, 20, 13, seed).unwrap();
     let mut b = Batch::new(&ctx).unwrap();
@@ -1009,23 +1009,28 @@ fn two_passes(s: &Scene, max_flops: f64, seed: u64) -> (Vec<Vec<f32>>, usize) {
     }
     let t = b.finish().unwrap();
     let bands = t.iter().filter(|k| k.kernel == "render_trace").count();
-    (r.download().unwrap(), bands)
+    (r.download().unwrap(), bands, r.traversal().unwrap())
 }
 
-/// The same seed gives bit-identical planes, however the rows are split
-/// into bands and submits and the samples into passes (4 × 1, 2 × 2,
-/// 1 × 4); another seed gives other samples.
+/// The same seed gives bit-identical planes and the same traversal counts,
+/// however the rows are split into bands and submits and the samples into
+/// passes (4 × 1, 2 × 2, 1 × 4); another seed gives other samples.
 #[test]
 fn rerender_is_bit_identical_and_band_independent() {
     let ctx = gpu();
     let s = textured_scene();
-    let (one_band, n1) = two_passes(&s, 1e15, 9);
+    let (one_band, n1, work) = two_passes(&s, 1e15, 9);
     let r = Renderer::new(&ctx, &s, 20, 13, 9).unwrap();
     // A grid row of render_trace is GRID_WIDTH samples.
     let per_row = r.flops_per_sample() * GRID_WIDTH as f64;
     // Bands of one grid row, a submit per band.
-    let (banded, n2) = two_passes(&s, per_row * 1.5, 9);
-    let (again, _) = two_passes(&s, 1e15, 9);
+    let (banded, n2, banded_work) = two_passes(&s, per_row * 1.5, 9);
+    let (again, _, _) = two_passes(&s, 1e15, 9);
+    assert_eq!(work, banded_work, "traversal: bands");
+    assert!(
+        work.rays >= 4 * 20 * 13 && work.nodes > work.rays,
+        "{work:?}"
+    );
     // With timestamps, one timing per band: 1 per pass vs one per grid row
     // (520 samples a pass: 9 rows).
     assert!(n2 == 0 || (n1 == 2 && n2 == 18), "bands: {n1} vs {n2}");
@@ -1039,7 +1044,7 @@ fn rerender_is_bit_identical_and_band_independent() {
             );
         }
     }
-    let (other, _) = two_passes(&s, 1e15, 10);
+    let (other, _, _) = two_passes(&s, 1e15, 10);
     assert_ne!(one_band[0], other[0], "the seed changes nothing");
 
     let mut b = Batch::new(&ctx).unwrap();
@@ -1055,6 +1060,8 @@ fn rerender_is_bit_identical_and_band_independent() {
     let dispatches = t.iter().filter(|k| k.kernel == "render_trace").count();
     assert!(t.is_empty() || dispatches >= 4, "{dispatches} dispatches");
     let split = r2.download().unwrap();
+    assert_eq!(r.traversal().unwrap(), work, "traversal: 4 × 1");
+    assert_eq!(r2.traversal().unwrap(), work, "traversal: 1 × 4, banded");
     for (i, ((a, b), c)) in one_band.iter().zip(&single).zip(&split).enumerate() {
         for p in 0..a.len() {
             assert_eq!(
@@ -1065,6 +1072,46 @@ fn rerender_is_bit_identical_and_band_independent() {
             assert_eq!(a[p].to_bits(), c[p].to_bits(), "plane {i} pixel {p}: 4 × 1");
         }
     }
+    check_validation(&ctx);
+}
+
+/// `Renderer::traversal` counts what the samples trace: a camera that sees
+/// only the environment traces one ray per sample and visits no BVH node
+/// (the ray misses the root's box); in a closed box every sample bounces,
+/// within two rays (a bounce and a shadow ray) per vertex of
+/// `max_depth + 1`; a clear starts the count over.
+#[test]
+fn traversal_counts_the_rays_of_each_sample() {
+    let ctx = gpu();
+    let (w, h, spp) = (24usize, 16usize, 3u32);
+    let samples = (w * h) as u64 * spp as u64;
+    // The sphere is behind the camera.
+    let away = scene(
+        camera([0.0, 0.0, 0.0], [0.0, 0.0, -1.0], 40.0),
+        [0.5, 0.5, 0.5],
+        vec![("grey", diffuse([0.5, 0.5, 0.5]))],
+        vec![sphere([0.0, 0.0, 5.0], 1.0, "grey", None)],
+    );
+    let r = render(&away, w, h, spp, 1);
+    assert_eq!(
+        r.traversal().unwrap(),
+        Traversal {
+            rays: samples,
+            nodes: 0
+        }
+    );
+    let cornell = Scene::builtin("cornell").unwrap();
+    let r = render(&cornell, w, h, spp, 1);
+    let work = r.traversal().unwrap();
+    let most = samples * 2 * (cornell.max_depth as u64 + 1);
+    assert!(
+        work.rays > 2 * samples && work.rays <= most && work.nodes > work.rays,
+        "{work:?} for {samples} samples"
+    );
+    let mut b = Batch::new(&ctx).unwrap();
+    r.record_clear(&mut b);
+    b.finish().unwrap();
+    assert_eq!(r.traversal().unwrap(), Traversal::default());
     check_validation(&ctx);
 }
 
@@ -1213,15 +1260,19 @@ fn an_uneven_map_is_split_independent() {
     let r = start(None);
     pass(&r, &counts);
     let one = r.download().unwrap();
+    let work = r.traversal().unwrap();
     let r = start(None);
     for part in &parts {
         pass(&r, part);
     }
     assert_planes_eq(&one, &r.download().unwrap(), "one pass vs three");
+    assert_eq!(r.traversal().unwrap(), work, "traversal: one pass vs three");
     let r = start(Some(1000));
     assert_eq!(r.item_window(), 1024);
     pass(&r, &counts);
     assert_planes_eq(&one, &r.download().unwrap(), "windows of 1024");
+    // Items past a window's samples trace nothing.
+    assert_eq!(r.traversal().unwrap(), work, "traversal: windows of 1024");
     let l = r.layout();
     let count = &one[l.count_plane()];
     for p in 0..n {

@@ -164,10 +164,17 @@ float box_entry(uint n, vec3 o, vec3 inv_d, float tmin, float tbest)
     return enter <= leave ? enter : T_INF;
 }
 
+// This invocation's traversal work so far: rays traced and BVH nodes
+// visited (render_trace adds them up per pass; the other kernels ignore
+// them).
+uint g_rays = 0u;
+uint g_nodes = 0u;
+
 // Nearest hit in (tmin, tmax) at shutter time `time`. With any_hit, returns
 // the first hit found (shadow rays).
 Hit trace(vec3 o, vec3 d, float time, float tmin, float tmax, bool any_hit)
 {
+    g_rays++;
     Hit h;
     h.t = tmax;
     h.prim = -1;
@@ -184,6 +191,7 @@ Hit trace(vec3 o, vec3 d, float time, float tmin, float tmax, bool any_hit)
     int sp = 0;
     uint node = 0u;
     while (true) {
+        g_nodes++;
         vec4 hi = nodes[2u * node + 1u];
         uint first = floatBitsToUint(nodes[2u * node].w);
         uint count = floatBitsToUint(hi.w);

@@ -233,6 +233,7 @@ pub const TRACE: KernelDecl = KernelDecl {
         read("scan").sized_by_record(),
         write("items").sized_by_record(),
         read("normals").sized_by_record(),
+        write("work").sized_by_record(),
     ],
     push_size: std::mem::size_of::<TracePush>() as u32,
 };
@@ -361,7 +362,32 @@ pub struct Renderer {
     window: u32,
     /// Bound where a binding is unused (no map).
     dummy: GpuBuffer,
+    /// `render_trace`'s traversal counters: rays and BVH node visits, each
+    /// a (low, high) pair of u32 words.
+    work: GpuBuffer,
     flops_per_sample: f64,
+}
+
+/// Traversal work of a renderer's passes since its last clear
+/// ([`Renderer::traversal`]): how much the samples cost, which samples per
+/// second alone does not say (a sample that sees only the environment
+/// costs one short traversal, one under glass a dozen rays).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Traversal {
+    /// Rays traced: camera and bounce rays and shadow rays.
+    pub rays: u64,
+    /// BVH nodes visited by them (inner nodes and leaves).
+    pub nodes: u64,
+}
+
+impl std::ops::Sub for Traversal {
+    type Output = Traversal;
+    fn sub(self, o: Traversal) -> Traversal {
+        Traversal {
+            rays: self.rays - o.rays,
+            nodes: self.nodes - o.nodes,
+        }
+    }
 }
 
 impl std::fmt::Debug for Renderer {
@@ -451,6 +477,7 @@ impl Renderer {
             items: GpuBuffer::new(ctx, "render.items", window as u64 * ITEM_BYTES)?,
             window,
             dummy: GpuBuffer::from_slice(ctx, "render.dummy", &[0u32; 4])?,
+            work: GpuBuffer::from_slice(ctx, "render.work", &[0u32; 4])?,
             flops_per_sample: flops_per_sample(&gs),
             scene: gs,
         };
@@ -482,9 +509,22 @@ impl Renderer {
         self.flops_per_sample
     }
 
-    /// Records zeroing the accumulation buffer (every sum and the count).
+    /// Records zeroing the accumulation buffer (every sum and the count)
+    /// and the traversal counters ([`traversal`](Self::traversal)).
     pub fn record_clear(&self, batch: &mut Batch) {
         batch.fill(self.accum.slice(), 0);
+        batch.fill(self.work.slice(), 0);
+    }
+
+    /// The rays traced and BVH nodes visited by the passes finished since
+    /// the last clear (read back from the GPU: call it after the batch).
+    pub fn traversal(&self) -> Result<Traversal> {
+        let w = self.work.read_vec::<u32>(4)?;
+        let wide = |lo: usize| w[lo] as u64 | (w[lo + 1] as u64) << 32;
+        Ok(Traversal {
+            rays: wide(0),
+            nodes: wide(2),
+        })
     }
 
     fn scene_bindings(&self) -> [BufferSlice; 5] {
@@ -568,6 +608,7 @@ impl Renderer {
             self.scan.slice(),
             self.items.slice(),
             self.normals.slice(),
+            self.work.slice(),
         ];
         let group = |g: u64| {
             let stride = l.plane_stride();

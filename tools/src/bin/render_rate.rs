@@ -7,7 +7,11 @@
 //! other pixels: what is left of the gap is the cost of the pixels the map
 //! chose), and a uniform pass over only the pixels that see geometry (a
 //! sample that sees the environment costs one short traversal, and an
-//! adaptive map gives such pixels almost nothing).
+//! adaptive map gives such pixels almost nothing). The last columns are
+//! the uniform and the map pass's rays per sample (camera, bounce and
+//! shadow rays, counted by the renderer: `Renderer::traversal`) and their
+//! millions of rays per second: what a sample costs, and how fast the
+//! renderer traces whichever samples it is given.
 //!
 //! Each pass is timed `--reps` times (default 5), the three kinds in turn,
 //! and the median is reported: on a shared machine single timings vary by
@@ -20,7 +24,7 @@ use std::sync::Arc;
 
 use mcdenoise::gpu::GpuBuffer;
 use mcdenoise::render::adaptive::{render, LoopConfig};
-use mcdenoise::render::{Renderer, Samples, Scene};
+use mcdenoise::render::{Renderer, Samples, Scene, Traversal};
 use mcdenoise::{Batch, ContextOptions, GpuContext, KernelTiming, Method, Validation};
 
 /// GPU milliseconds of the renderer's kernels in `t`.
@@ -38,20 +42,22 @@ fn median(v: &mut [f64]) -> f64 {
 }
 
 /// A fresh renderer after a uniform first pass of 4 spp, then `samples`;
-/// the GPU time of the second pass.
+/// the GPU time of the second pass and its traversal work.
 fn timed_pass(
     ctx: &Arc<GpuContext>,
     scene: &Scene,
     size: usize,
     samples: impl Fn(&Renderer) -> Samples,
-) -> anyhow::Result<f64> {
+) -> anyhow::Result<(f64, Traversal)> {
     let r = Renderer::new(ctx, scene, size, size, 1)?;
     let mut b = Batch::new(ctx)?;
     r.record_pass(&mut b, Samples::Uniform(4))?;
     b.finish()?;
+    let before = r.traversal()?;
     let mut b = Batch::new(ctx)?;
     r.record_pass(&mut b, samples(&r))?;
-    Ok(render_ms(&b.finish()?))
+    let ms = render_ms(&b.finish()?);
+    Ok((ms, r.traversal()? - before))
 }
 
 const USAGE: &str = "usage: render_rate [--size 256] [--spp 16] [--reps 5] [scene ...]";
@@ -86,7 +92,7 @@ fn main() -> anyhow::Result<()> {
     })?);
     println!("device: {}", ctx.info().name);
     println!(
-        "{:<14} {:>9} {:>11} {:>11} {:>11} {:>11} {:>11} {:>6} {:>6}",
+        "{:<14} {:>9} {:>11} {:>11} {:>11} {:>11} {:>11} {:>6} {:>6} {:>7} {:>7} {:>7} {:>7}",
         "scene",
         "samples",
         "adaptive/s",
@@ -95,7 +101,11 @@ fn main() -> anyhow::Result<()> {
         "shuffled/s",
         "geometry/s",
         "miss%",
-        "map/u"
+        "map/u",
+        "rays/u",
+        "rays/m",
+        "Mrays/u",
+        "Mrays/m",
     );
     let pixels = size * size;
     let mut buffers: Vec<GpuBuffer> = Vec::new();
@@ -140,25 +150,36 @@ fn main() -> anyhow::Result<()> {
                 .chain(variants)
                 .collect();
         let mut ms = vec![Vec::new(); variants.len()];
+        // A pass's traversal work is the same in every repetition.
+        let mut work = vec![Traversal::default(); variants.len()];
         for _ in 0..reps.max(1) {
             for (v, (samples, _)) in variants.iter().enumerate() {
-                ms[v].push(timed_pass(&ctx, &scene, size, |_| *samples)?);
+                let (t, w) = timed_pass(&ctx, &scene, size, |_| *samples)?;
+                ms[v].push(t);
+                work[v] = w;
             }
         }
+        let medians: Vec<f64> = ms.iter_mut().map(|t| median(t)).collect();
         let rates: Vec<f64> = variants
             .iter()
-            .zip(&mut ms)
-            .map(|((_, n), t)| *n as f64 / median(t) * 1e3)
+            .zip(&medians)
+            .map(|((_, n), t)| *n as f64 / t * 1e3)
             .collect();
+        let rays_per_sample = |v: usize| work[v].rays as f64 / variants[v].1.max(1) as f64;
+        let mrays = |v: usize| work[v].rays as f64 / medians[v] / 1e3;
         println!(
-            "{name:<14} {total:>9} {:>11.0} {:>11.0} {:>11.0} {:>11.0} {:>11.0} {:>6.1} {:>6.2}",
+            "{name:<14} {total:>9} {:>11.0} {:>11.0} {:>11.0} {:>11.0} {:>11.0} {:>6.1} {:>6.2} {:>7.2} {:>7.2} {:>7.2} {:>7.2}",
             adaptive_rate,
             rates[0],
             rates[1],
             rates[2],
             rates[3],
             100.0 * misses as f64 / pixels as f64,
-            rates[1] / rates[0]
+            rates[1] / rates[0],
+            rays_per_sample(0),
+            rays_per_sample(1),
+            mrays(0),
+            mrays(1),
         );
     }
     Ok(())

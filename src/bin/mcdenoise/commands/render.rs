@@ -452,13 +452,18 @@ pub fn run(cli: &Cli, a: &Args) -> anyhow::Result<bool> {
     if !cli.quiet {
         let s = &result.split;
         let samples = result.samples as f64;
+        let work = renderer.traversal()?;
+        let ms = s.render_ms.max(1e-9);
         eprintln!(
-            "{name} {w}x{h}, {:.2} spp{}, {}: {secs:.1} s wall; GPU: render {:.0} ms ({:.0} ksamples/s), reconstruction {:.0} ms, sampling {:.0} ms",
+            "{name} {w}x{h}, {:.2} spp{}, {}: {secs:.1} s wall; GPU: render {:.0} ms ({:.0} ksamples/s, {:.2} Mrays/s, {:.1} rays and {:.0} BVH nodes per sample), reconstruction {:.0} ms, sampling {:.0} ms",
             samples / (w * h) as f64,
             if a.adaptive { " adaptive" } else { " uniform" },
             method.name(),
             s.render_ms,
-            samples / s.render_ms.max(1e-9),
+            samples / ms,
+            work.rays as f64 / ms / 1e3,
+            work.rays as f64 / samples.max(1.0),
+            work.nodes as f64 / samples.max(1.0),
             s.reconstruction_ms,
             s.sampling_ms
         );
