@@ -6,11 +6,8 @@
 // the accumulation planes (src/accum.rs, layout with position and
 // visibility). Host side: src/render/mod.rs. The images use no atomics;
 // the traversal counters (binding 8) add each invocation's rays and BVH
-// node visits with integer atomics and a carry, so their totals are exact.
-// Per invocation, not per workgroup: a barrier and a shared reduction cost
-// 8 % of a Cornell render on lavapipe, the atomics nothing measurable
-// (Mesa's GPU drivers merge a subgroup's atomics on one address:
-// nir_opt_uniform_atomics).
+// node visits with integer atomics and a carry, so their totals are exact
+// (RENDER-COUNT).
 //
 // Per sample: box-filtered position in the pixel, thin-lens camera, shutter
 // time in [0, 1); diffuse BSDF with cosine sampling, next-event estimation
