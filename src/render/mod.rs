@@ -371,7 +371,8 @@ pub struct Renderer {
 /// Traversal work of a renderer's passes since its last clear
 /// ([`Renderer::traversal`]): how much the samples cost, which samples per
 /// second alone does not say (a sample that sees only the environment
-/// costs one short traversal, one under glass a dozen rays).
+/// traces one ray and visits no node; on the `panel` scene the average
+/// sample traces 2.2 rays, on `rough_metals` 5.2).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Traversal {
     /// Rays traced: camera and bounce rays and shadow rays.
