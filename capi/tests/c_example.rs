@@ -13,9 +13,13 @@ use std::process::Command;
 
 /// Builds `libmcdenoise.so` (cargo does not build a cdylib for an
 /// integration test) with the test's own profile and target folder, and
-/// returns the folder holding it. The library is built with the main
-/// crate's default features, as the test binaries are, so nothing is
-/// compiled twice.
+/// returns the folder holding it. It builds what `cargo test -p mcdenoise
+/// -p mcdenoise-capi` built, so that only the C library is new: the same
+/// profile (`test`, or `bench` with `--release`), the main crate's default
+/// features, and the examples, which `cargo test` builds too: with a
+/// target that takes the dev-dependencies, their features on the shared
+/// dependencies (`getrandom`'s `std` under `tobj`) are those of the test
+/// binaries' build, and the main crate is not compiled again.
 fn library_dir() -> PathBuf {
     let exe = std::env::current_exe().unwrap();
     let profile_dir = exe.parent().unwrap().parent().unwrap();
@@ -26,6 +30,7 @@ fn library_dir() -> PathBuf {
         "build",
         "--quiet",
         "--lib",
+        "--examples",
         "-p",
         "mcdenoise",
         "-p",
@@ -34,9 +39,8 @@ fn library_dir() -> PathBuf {
     .arg("--target-dir")
     .arg(target_dir)
     .current_dir(env!("CARGO_MANIFEST_DIR"));
-    if profile_dir.file_name().is_some_and(|n| n == "release") {
-        cmd.arg("--release");
-    }
+    let release = profile_dir.file_name().is_some_and(|n| n == "release");
+    cmd.args(["--profile", if release { "bench" } else { "test" }]);
     let status = cmd.status().expect("cargo build -p mcdenoise-capi");
     assert!(status.success(), "building libmcdenoise.so failed");
     assert!(
