@@ -1,7 +1,7 @@
 //! Converged references of scenes: a K-spp uniform render with its own
 //! random numbers, cached on disk by the scene's content, the renderer's
-//! shaders, the size, K and the seed, so that a changed scene or renderer
-//! never reuses a stale image.
+//! compiled kernels, the size, K and the seed, so that a changed scene or
+//! renderer never reuses a stale image.
 
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -48,21 +48,27 @@ pub fn fnv1a(bytes: &[u8]) -> u64 {
     h
 }
 
-/// The renderer's shader sources: part of every cache key.
-const RENDERER: [&str; 4] = [
-    include_str!("../../spirv/render/render_trace.comp"),
-    include_str!("../../spirv/render/render_scene.glsl"),
-    include_str!("../../spirv/render/render_scan.comp"),
-    include_str!("../../spirv/render/render_resolve.comp"),
-];
+/// The renderer's kernels a reference runs (`render_scene.glsl` is part of
+/// `render_trace`): their SPIR-V, which holds no comments, is part of every
+/// cache key, so that a changed comment or layout in their sources does not
+/// render every reference again.
+const RENDERER: [&crate::gpu::KernelDecl; 3] = [&super::TRACE, &super::SCAN, &super::RESOLVE];
 
 /// The cache file of the `k`-spp reference of `scene` at `size` rendered
 /// with `seed`.
 pub fn cache_path(scene: &Scene, size: (usize, usize), k: u32, seed: u64) -> Result<PathBuf> {
-    let content = format!("{scene:?}{:?}{}", scene.primitives()?, RENDERER.concat());
+    let mut content = format!("{scene:?}{:?}", scene.primitives()?).into_bytes();
+    for kernel in RENDERER {
+        let words = crate::gpu::reflect::spirv(kernel.name, crate::gpu::Precision::F32)
+            .ok_or_else(|| Error::Kernel {
+                kernel: kernel.name.to_owned(),
+                message: "not compiled into the library".into(),
+            })?;
+        content.extend_from_slice(bytemuck::cast_slice(words));
+    }
     Ok(cache_dir().join(format!(
         "ref-{:016x}-{}x{}-k{k}-s{seed}.exr",
-        fnv1a(content.as_bytes()),
+        fnv1a(&content),
         size.0,
         size.1
     )))
@@ -132,4 +138,37 @@ pub fn reference(
         path,
         cached: false,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_cache_key_follows_the_scene_and_the_renderers_kernels() {
+        let key = |s: &Scene| {
+            let p = cache_path(s, (64, 64), 256, 7).unwrap();
+            p.file_name().unwrap().to_string_lossy().into_owned()
+        };
+        let cornell = Scene::builtin("cornell").unwrap();
+        let a = key(&cornell);
+        assert_eq!(a, key(&Scene::builtin("cornell").unwrap()));
+        assert!(a.ends_with("-64x64-k256-s7.exr"), "{a}");
+        assert_ne!(a, key(&Scene::builtin("glossy").unwrap()));
+        // The SPIR-V of the three kernels is in the key: their words hash
+        // to what cache_path's does before the size.
+        let mut content = format!("{cornell:?}{:?}", cornell.primitives().unwrap()).into_bytes();
+        let prefix = fnv1a(&content);
+        for kernel in RENDERER {
+            let words =
+                crate::gpu::reflect::spirv(kernel.name, crate::gpu::Precision::F32).unwrap();
+            assert!(words.len() > 100, "{}", kernel.name);
+            content.extend_from_slice(bytemuck::cast_slice(words));
+        }
+        assert!(
+            a.starts_with(&format!("ref-{:016x}-", fnv1a(&content))),
+            "{a}"
+        );
+        assert!(!a.starts_with(&format!("ref-{prefix:016x}-")));
+    }
 }
