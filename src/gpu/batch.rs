@@ -82,6 +82,46 @@ pub fn timings_per_kernel(t: &[KernelTiming]) -> Vec<(String, f64, usize)> {
 /// the start stamp, flops, bytes).
 type Stamp = (String, (u32, u32), u32, f64, f64);
 
+/// The first `used` timestamps of `pools` ([`QUERIES_PER_POOL`] each), in
+/// order.
+///
+/// # Safety
+/// The work that wrote them must have completed.
+unsafe fn query_results(ctx: &GpuContext, pools: &[vk::QueryPool], used: u32) -> Result<Vec<u64>> {
+    let mut values = vec![0u64; used as usize];
+    for (pi, pool) in pools.iter().enumerate() {
+        let first = pi as u32 * QUERIES_PER_POOL;
+        if first >= used {
+            break;
+        }
+        let count = (used - first).min(QUERIES_PER_POOL);
+        // SAFETY: queries [0, count) of the pool were written by completed
+        // work (the caller's contract).
+        unsafe {
+            ctx.device.get_query_pool_results(
+                *pool,
+                0,
+                &mut values[first as usize..(first + count) as usize],
+                vk::QueryResultFlags::TYPE_64 | vk::QueryResultFlags::WAIT,
+            )
+        }
+        .map_err(Error::vk("vkGetQueryPoolResults"))?;
+    }
+    Ok(values)
+}
+
+/// A stamp's time from the timestamps it indexes (`period` ns per tick).
+fn timing((kernel, rows, q, flops, bytes): Stamp, values: &[u64], period: f64) -> KernelTiming {
+    let dt = values[q as usize + 1].wrapping_sub(values[q as usize]);
+    KernelTiming {
+        kernel,
+        rows,
+        nanoseconds: dt as f64 * period,
+        flops,
+        bytes,
+    }
+}
+
 /// A dispatch's band of rows: (first row, end row, height).
 type Band = (u32, u32, u32);
 
@@ -508,35 +548,11 @@ impl Batch {
         if self.stamps.is_empty() {
             return Ok(());
         }
+        // SAFETY: the submit that wrote the queries has completed.
+        let values = unsafe { query_results(&self.ctx, &self.query_pools, self.queries_used)? };
         let period = self.ctx.info.timestamp_period_ns as f64;
-        let mut values = vec![0u64; self.queries_used as usize];
-        for (pi, pool) in self.query_pools.iter().enumerate() {
-            let first = pi as u32 * QUERIES_PER_POOL;
-            if first >= self.queries_used {
-                break;
-            }
-            let count = (self.queries_used - first).min(QUERIES_PER_POOL);
-            // SAFETY: queries [0, count) of the pool were written by completed work.
-            unsafe {
-                self.ctx.device.get_query_pool_results(
-                    *pool,
-                    0,
-                    &mut values[first as usize..(first + count) as usize],
-                    vk::QueryResultFlags::TYPE_64 | vk::QueryResultFlags::WAIT,
-                )
-            }
-            .map_err(Error::vk("vkGetQueryPoolResults"))?;
-        }
-        for (label, rows, q, flops, bytes) in self.stamps.drain(..) {
-            let dt = values[q as usize + 1].wrapping_sub(values[q as usize]);
-            self.timings.push(KernelTiming {
-                kernel: label,
-                rows,
-                nanoseconds: dt as f64 * period,
-                flops,
-                bytes,
-            });
-        }
+        self.timings
+            .extend(self.stamps.drain(..).map(|s| timing(s, &values, period)));
         // Reuse the pools from the start for the next submit.
         self.queries_used = 0;
         Ok(())
@@ -1178,36 +1194,13 @@ pub struct Recorded {
 impl Recorded {
     /// Per-dispatch GPU times. Call only after the host's submission completed.
     pub fn timings(&self) -> Result<Vec<KernelTiming>> {
+        // SAFETY: the caller guarantees the work has completed.
+        let values = unsafe { query_results(&self.ctx, &self.query_pools, self.queries_used)? };
         let period = self.ctx.info.timestamp_period_ns as f64;
-        let mut values = vec![0u64; self.queries_used as usize];
-        for (pi, pool) in self.query_pools.iter().enumerate() {
-            let first = pi as u32 * QUERIES_PER_POOL;
-            if first >= self.queries_used {
-                break;
-            }
-            let count = (self.queries_used - first).min(QUERIES_PER_POOL);
-            // SAFETY: the caller guarantees the work has completed.
-            unsafe {
-                self.ctx.device.get_query_pool_results(
-                    *pool,
-                    0,
-                    &mut values[first as usize..(first + count) as usize],
-                    vk::QueryResultFlags::TYPE_64 | vk::QueryResultFlags::WAIT,
-                )
-            }
-            .map_err(Error::vk("vkGetQueryPoolResults"))?;
-        }
         Ok(self
             .stamps
             .iter()
-            .map(|(label, rows, q, flops, bytes)| KernelTiming {
-                kernel: label.clone(),
-                rows: *rows,
-                flops: *flops,
-                bytes: *bytes,
-                nanoseconds: values[*q as usize + 1].wrapping_sub(values[*q as usize]) as f64
-                    * period,
-            })
+            .map(|s| timing(s.clone(), &values, period))
             .collect())
     }
 }
