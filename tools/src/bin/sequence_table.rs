@@ -6,7 +6,9 @@
 //! with its own seed (`render::sequence`); every denoiser gets the same
 //! statistics; each frame has its own reference, and a second one with
 //! another seed: half their rMSE and temporal error against each other is
-//! the references' own, which the corrected columns subtract. With
+//! the references' own, which the corrected columns subtract; the
+//! references' seeds follow `--seed` unless `--reference-seed` names
+//! another sequence seed, whose cached references a run then reuses. With
 //! `--temporal`, each method also with the LP temporal filter (§10.1,
 //! "+ 10.1"), one denoiser carrying its state through the frames. With
 //! `--adaptive`, each method's adaptive renders of the sequence instead
@@ -23,7 +25,7 @@
 //! cargo run --release -p mcdenoise-tools --bin sequence_table -- \
 //!     [--scenes pan_room,moving_box,moving_highlight] [--methods wlr,lp,apr,aos,auto] \
 //!     [--size 64x64] [--spp 16] [--frames 24] [--reference 512] [--oidn] [--temporal]
-//!     [--adaptive] [--pyramid] [--window]
+//!     [--adaptive] [--pyramid] [--window] [--seed 1] [--reference-seed R]
 //! ```
 
 use std::path::PathBuf;
@@ -63,8 +65,14 @@ struct Args {
     /// Samples per pixel of each frame's reference.
     #[arg(long, default_value_t = 512)]
     reference: u32,
+    /// Seed of the sequence the denoisers get (each frame's own: `render::sequence::frame_seed`).
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// The sequence seed the references' seeds derive from (default:
+    /// `--seed`): runs of other input seeds reuse one seed's cached
+    /// references instead of rendering their own.
+    #[arg(long)]
+    reference_seed: Option<u64>,
     /// Also OIDN on every frame's statistics.
     #[arg(long)]
     oidn: bool,
@@ -94,8 +102,14 @@ fn main() -> anyhow::Result<()> {
     let ctx = Arc::new(GpuContext::new(&ContextOptions::default())?);
     let stop = AtomicBool::new(false);
     println!(
-        "<!-- {}x{}, {} spp uniform, {} frames, {}-spp references, seed {} -->",
-        a.size.0, a.size.1, a.spp, a.frames, a.reference, a.seed
+        "<!-- {}x{}, {} spp uniform, {} frames, {}-spp references of seed {}, seed {} -->",
+        a.size.0,
+        a.size.1,
+        a.spp,
+        a.frames,
+        a.reference,
+        a.reference_seed.unwrap_or(a.seed),
+        a.seed
     );
     println!(
         "| scene | denoiser | mean rMSE | temporal error | corrected rMSE | corrected temporal | \
@@ -121,7 +135,10 @@ fn main() -> anyhow::Result<()> {
             |f| {
                 // Two references per frame with independent seeds: the second
                 // one's row is the floor the references' own noise sets.
-                for (seed, out) in [(f.seed, &mut refs), (!f.seed, &mut second)] {
+                let base = a
+                    .reference_seed
+                    .map_or(f.seed, |r| sequence::frame_seed(r, f.number));
+                for (seed, out) in [(base, &mut refs), (!base, &mut second)] {
                     let seed = reference::reference_seed(seed);
                     let k = a.reference;
                     let r =
