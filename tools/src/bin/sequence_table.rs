@@ -101,15 +101,10 @@ fn main() -> anyhow::Result<()> {
     let a = Args::parse();
     let ctx = Arc::new(GpuContext::new(&ContextOptions::default())?);
     let stop = AtomicBool::new(false);
+    let reference_seed = a.reference_seed.unwrap_or(a.seed);
     println!(
         "<!-- {}x{}, {} spp uniform, {} frames, {}-spp references of seed {}, seed {} -->",
-        a.size.0,
-        a.size.1,
-        a.spp,
-        a.frames,
-        a.reference,
-        a.reference_seed.unwrap_or(a.seed),
-        a.seed
+        a.size.0, a.size.1, a.spp, a.frames, a.reference, reference_seed, a.seed
     );
     println!(
         "| scene | denoiser | mean rMSE | temporal error | corrected rMSE | corrected temporal | \
@@ -135,9 +130,7 @@ fn main() -> anyhow::Result<()> {
             |f| {
                 // Two references per frame with independent seeds: the second
                 // one's row is the floor the references' own noise sets.
-                let base = a
-                    .reference_seed
-                    .map_or(f.seed, |r| sequence::frame_seed(r, f.number));
+                let base = sequence::frame_seed(reference_seed, f.number);
                 for (seed, out) in [(base, &mut refs), (!base, &mut second)] {
                     let seed = reference::reference_seed(seed);
                     let k = a.reference;
