@@ -16,7 +16,8 @@
 //! AUTO-MAPS):
 //! alone, with the filter, and with maps that read the filter's state (and
 //! APR's also reconstructed by its temporal window, "adaptive + 10.2").
-//! With `--pyramid`, each method also with the pyramid's low band (and,
+//! Every method runs without the pyramid's low band (`auto` too, whose
+//! default has it); with `--pyramid`, each method also with it (and,
 //! with `--temporal`, followed by the filter). With `--window` (and `apr`
 //! among the methods), also APR's temporal window (§10.2, "apr + 10.2",
 //! one `SequenceDenoiser` for the sequence).
