@@ -1,0 +1,269 @@
+//! Where the LP temporal filter (spec §10.1) gains and loses, per class of
+//! pixel: on an animated scene, each method's every frame alone and with
+//! the filter (one denoiser carrying its state, as `sequence_table
+//! --temporal`), each frame against the first of `sequence_table`'s two
+//! references (the same seeds, so its cache serves both). A pixel of a
+//! frame is `bright` where the reference exceeds 1 in some frame and
+//! channel (lights and their rims), `changing` where the reference moves
+//! by more than 0.02 (rMSE's relative square) since the last frame,
+//! `recent` where it did within the four frames before, `static`
+//! otherwise. Printed per class: its share of the pixels and its part of
+//! the mean rMSE and of the temporal error (`metrics::temporal_error`,
+//! uncorrected), alone and filtered, so a column's classes sum to the
+//! image's figure. Written to `--out`: per method the sum over frames of
+//! the filter's change of the per-pixel rMSE (`<method>_rmse_delta.png`:
+//! red where the filter raises it, green where it lowers it, full scale at
+//! `--scale`) and the filtered output's per-pixel temporal error
+//! (`<method>_temporal.png`, heat map, full scale at the 99th percentile).
+//!
+//! ```text
+//! cargo run --release -p mcdenoise-tools --bin temporal_probe -- \
+//!     [--scene moving_box] [--methods wlr,auto] [--size 128x128] [--spp 16] \
+//!     [--frames 24] [--reference 512] [--seed 1] [--out target/temporal_probe] [--scale 0.05]
+//! ```
+
+use std::path::PathBuf;
+use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
+
+use anyhow::Context;
+use clap::Parser;
+use mcdenoise::render::adaptive::LoopConfig;
+use mcdenoise::render::{reference, sequence, Scene};
+use mcdenoise::{
+    io, metrics, Config, ContextOptions, Denoiser, GpuContext, Method, RgbImage, Source,
+    StatsImage, Temporal,
+};
+use mcdenoise_tools::parse_method;
+
+#[derive(Parser)]
+struct Args {
+    /// An animated scene (built-in name or file).
+    #[arg(long, default_value = "moving_box")]
+    scene: String,
+    /// Methods, each with its default configuration.
+    #[arg(long, value_delimiter = ',', default_value = "wlr,auto", value_parser = parse_method)]
+    methods: Vec<Method>,
+    #[arg(long, default_value = "128x128", value_parser = |s: &str| mcdenoise::bench::parse_size(s).map_err(|e| e.to_string()))]
+    size: (usize, usize),
+    /// Samples per pixel of every frame (uniform).
+    #[arg(long, default_value_t = 16)]
+    spp: u32,
+    /// Frames from 0 (at most the scene's).
+    #[arg(long, default_value_t = 24)]
+    frames: u32,
+    /// Samples per pixel of each frame's reference.
+    #[arg(long, default_value_t = 512)]
+    reference: u32,
+    /// Seed of the sequence and of its references (`sequence_table --seed`).
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Folder of the maps.
+    #[arg(long, default_value = "target/temporal_probe")]
+    out: PathBuf,
+    /// The summed rMSE change that saturates the delta map.
+    #[arg(long, default_value_t = 0.05)]
+    scale: f32,
+}
+
+const CLASSES: [&str; 4] = ["static", "bright", "changing", "recent"];
+
+fn main() -> anyhow::Result<()> {
+    let a = Args::parse();
+    let ctx = Arc::new(GpuContext::new(&ContextOptions::default())?);
+    let stop = AtomicBool::new(false);
+    let scene = Scene::by_name_or_file(&a.scene)?;
+    let cfg = LoopConfig::new(Method::None, a.spp, false);
+    let mut stats: Vec<StatsImage> = Vec::new();
+    let (mut refs, mut second): (Vec<RgbImage>, Vec<RgbImage>) = (Vec::new(), Vec::new());
+    let frames = 0..a.frames.min(scene.frames());
+    sequence::render_frames(
+        &ctx,
+        &scene,
+        frames,
+        a.size,
+        a.seed,
+        &cfg,
+        Temporal::Off,
+        &stop,
+        |f| {
+            let base = sequence::frame_seed(a.seed, f.number);
+            for (seed, out) in [(base, &mut refs), (!base, &mut second)] {
+                let seed = reference::reference_seed(seed);
+                let k = a.reference;
+                out.push(
+                    reference::reference(&ctx, &f.scene, a.size, k, seed, &stop, |_, _| {})?.image,
+                );
+            }
+            stats.push(f.stats);
+            Ok(())
+        },
+    )?;
+    anyhow::ensure!(refs.len() >= 2, "{}: two frames or more", a.scene);
+    let (w, h) = a.size;
+    let n = w * h;
+    let class = classes(&refs);
+    std::fs::create_dir_all(&a.out)?;
+    println!(
+        "<!-- {}, {w}x{h}, {} spp, {} frames, {}-spp references of seed {}; \
+         the references' own: half of a second seed's -->",
+        a.scene,
+        a.spp,
+        refs.len(),
+        a.reference,
+        a.seed
+    );
+    println!(
+        "| method | class | share | rMSE: references' own | alone | + 10.1 | \
+         temporal error: references' own | alone | + 10.1 |"
+    );
+    println!("|---|---|---:|---:|---:|---:|---:|---:|---:|");
+    let own = Tally::new(&second, &refs, &class)?;
+    for &m in &a.methods {
+        let mut filtered = Config::new(m);
+        filtered.temporal = Temporal::Lp;
+        let d = Denoiser::new(&ctx, Source::of_image(&stats[0]), filtered)?;
+        let mut alone = Vec::with_capacity(stats.len());
+        let mut with = Vec::with_capacity(stats.len());
+        for s in &stats {
+            let spatial = Denoiser::new(&ctx, Source::of_image(s), Config::new(m))?;
+            alone.push(spatial.denoise(s, None)?.color);
+            with.push(d.denoise(s, None)?.color);
+        }
+        let (alone, with) = (
+            Tally::new(&alone, &refs, &class)?,
+            Tally::new(&with, &refs, &class)?,
+        );
+        for k in 0..=CLASSES.len() {
+            let name = CLASSES.get(k).copied().unwrap_or("all");
+            let share = if k < CLASSES.len() { own.share[k] } else { 1.0 };
+            println!(
+                "| {} | {name} | {share:.3} | {:.6} | {:.6} | {:.6} | {:.6} | {:.6} | {:.6} |",
+                m.name(),
+                own.rmse[k] / 2.0,
+                alone.rmse[k],
+                with.rmse[k],
+                own.temporal[k] / 2.0,
+                alone.temporal[k],
+                with.temporal[k]
+            );
+        }
+        let delta: Vec<f32> = with
+            .rmse_map
+            .iter()
+            .zip(&alone.rmse_map)
+            .map(|(a, b)| a - b)
+            .collect();
+        let scaled = |sign: f32| {
+            delta
+                .iter()
+                .map(|v| (sign * v / a.scale).clamp(0.0, 1.0))
+                .collect()
+        };
+        let path = a.out.join(format!("{}_rmse_delta.png", m.name()));
+        let img = RgbImage::from_planes(w, h, [scaled(1.0), scaled(-1.0), vec![0.0; n]]);
+        io::write_png_preview(&path, &img).with_context(|| path.display().to_string())?;
+        let path = a.out.join(format!("{}_temporal.png", m.name()));
+        // Full scale at the 99th percentile: the lamp's rim would leave the
+        // rest black.
+        let mut sorted = with.temporal_map.clone();
+        sorted.sort_by(f32::total_cmp);
+        let top = sorted[(sorted.len() - 1) * 99 / 100];
+        io::write_heatmap_png(&path, w, h, &with.temporal_map, top)?;
+    }
+    Ok(())
+}
+
+/// A sequence's rMSE and temporal error against its references, per class
+/// (as parts of the image's mean, so the classes sum to it; the last entry
+/// is the whole image) and per pixel (summed over frames).
+struct Tally {
+    /// Each class's share of the pixel-frames.
+    share: Vec<f64>,
+    rmse: Vec<f64>,
+    temporal: Vec<f64>,
+    rmse_map: Vec<f32>,
+    temporal_map: Vec<f32>,
+}
+
+impl Tally {
+    fn new(out: &[RgbImage], refs: &[RgbImage], class: &[Vec<usize>]) -> anyhow::Result<Tally> {
+        let n = refs[0].width * refs[0].height;
+        let k = CLASSES.len();
+        let mut t = Tally {
+            share: vec![0.0; k],
+            rmse: vec![0.0; k + 1],
+            temporal: vec![0.0; k + 1],
+            rmse_map: vec![0.0; n],
+            temporal_map: vec![0.0; n],
+        };
+        let frames = refs.len() as f64;
+        let (pixels, pairs) = (frames * n as f64, (frames - 1.0) * n as f64);
+        for f in 0..refs.len() {
+            let e = metrics::rmse_heatmap(&out[f], &refs[f])?;
+            for i in 0..n {
+                let c = class[f][i];
+                t.share[c] += 1.0 / pixels;
+                t.rmse[c] += e[i] as f64 / pixels;
+                t.rmse_map[i] += e[i];
+            }
+            if f > 0 {
+                let d = temporal_map(&out[f], &out[f - 1], &refs[f], &refs[f - 1]);
+                for i in 0..n {
+                    t.temporal[class[f][i]] += d[i] as f64 / pairs;
+                    t.temporal_map[i] += d[i];
+                }
+            }
+        }
+        t.rmse[k] = t.rmse[..k].iter().sum();
+        t.temporal[k] = t.temporal[..k].iter().sum();
+        Ok(t)
+    }
+}
+
+/// Each frame's class of every pixel (an index into [`CLASSES`]).
+fn classes(refs: &[RgbImage]) -> Vec<Vec<usize>> {
+    let n = refs[0].width * refs[0].height;
+    let bright: Vec<bool> = (0..n)
+        .map(|i| refs.iter().any(|r| r.planes.iter().any(|p| p[i] > 1.0)))
+        .collect();
+    let mut moved = vec![vec![false; n]; refs.len()];
+    for t in 1..refs.len() {
+        let d = metrics::rmse_heatmap(&refs[t], &refs[t - 1]).expect("same sizes");
+        moved[t] = d.iter().map(|&v| v > 0.02).collect();
+    }
+    (0..refs.len())
+        .map(|t| {
+            (0..n)
+                .map(|i| {
+                    if bright[i] {
+                        1
+                    } else if moved[t][i] {
+                        2
+                    } else if (t.saturating_sub(4)..t).any(|k| moved[k][i]) {
+                        3
+                    } else {
+                        0
+                    }
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// Per pixel, `metrics::temporal_error`'s term between frames `t − 1` and
+/// `t`, averaged over the channels.
+fn temporal_map(o1: &RgbImage, o0: &RgbImage, r1: &RgbImage, r0: &RgbImage) -> Vec<f32> {
+    (0..o1.width * o1.height)
+        .map(|i| {
+            let sum: f64 = (0..3)
+                .map(|c| {
+                    let v = |img: &RgbImage| img.planes[c][i] as f64;
+                    let d = (v(o1) - v(o0)) - (v(r1) - v(r0));
+                    d * d / (v(r1).powi(2) + metrics::RMSE_EPS)
+                })
+                .sum();
+            (sum / 3.0) as f32
+        })
+        .collect()
+}
