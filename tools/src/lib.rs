@@ -1,5 +1,6 @@
-//! What the tools share: method names on the command line, OIDN, and the
-//! mean of reference renders with their own error taken off.
+//! What the tools share: method names on the command line, OIDN, the
+//! mean of reference renders with their own error taken off, and an
+//! animated scene's frames with two references each.
 
 use std::path::PathBuf;
 
@@ -96,4 +97,54 @@ pub fn references(
     let r = mean_image([&h0, &half(1)]);
     let err = mcdenoise::metrics::rmse(&h0, &r);
     Ok((refs, r, err))
+}
+
+/// An animated scene's frames `0..frames` (at most the scene's), each
+/// rendered once, uniformly at `spp` with its own seed
+/// (`render::sequence`), and two `reference`-spp references of every
+/// frame with independent seeds derived from `reference_seed`'s sequence
+/// (cached): `(statistics, first references, second references)`. Half
+/// the second's error against the first is the references' own.
+pub struct SequenceWithReferences {
+    /// Every frame's statistics.
+    pub stats: Vec<mcdenoise::StatsImage>,
+    /// Every frame's reference.
+    pub refs: Vec<RgbImage>,
+    /// Every frame's second reference, of another seed.
+    pub second: Vec<RgbImage>,
+}
+
+impl SequenceWithReferences {
+    /// Renders (or reads from the cache) the frames and their references.
+    pub fn render(
+        ctx: &Arc<GpuContext>,
+        scene: &Scene,
+        frames: u32,
+        size: (usize, usize),
+        (spp, reference): (u32, u32),
+        (seed, reference_seed): (u64, u64),
+    ) -> mcdenoise::Result<SequenceWithReferences> {
+        use mcdenoise::render::{adaptive::LoopConfig, sequence};
+        let stop = AtomicBool::new(false);
+        let cfg = LoopConfig::new(Method::None, spp, false);
+        let mut s = SequenceWithReferences {
+            stats: Vec::new(),
+            refs: Vec::new(),
+            second: Vec::new(),
+        };
+        let off = mcdenoise::Temporal::Off;
+        let frames = 0..frames.min(scene.frames());
+        sequence::render_frames(ctx, scene, frames, size, seed, &cfg, off, &stop, |f| {
+            let base = sequence::frame_seed(reference_seed, f.number);
+            for (seed, out) in [(base, &mut s.refs), (!base, &mut s.second)] {
+                let seed = reference::reference_seed(seed);
+                let r =
+                    reference::reference(ctx, &f.scene, size, reference, seed, &stop, |_, _| {})?;
+                out.push(r.image);
+            }
+            s.stats.push(f.stats);
+            Ok(())
+        })?;
+        Ok(s)
+    }
 }

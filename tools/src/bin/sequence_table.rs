@@ -36,12 +36,12 @@ use std::sync::Arc;
 use anyhow::Context;
 use clap::Parser;
 use mcdenoise::render::adaptive::LoopConfig;
-use mcdenoise::render::{reference, sequence, Scene};
+use mcdenoise::render::{sequence, Scene};
 use mcdenoise::{
     io, metrics, Config, ContextOptions, Denoiser, GpuContext, Method, Pyramid, RgbImage,
     SequenceDenoiser, Source, StatsImage, Temporal,
 };
-use mcdenoise_tools::parse_method;
+use mcdenoise_tools::{parse_method, SequenceWithReferences};
 
 #[derive(Parser)]
 struct Args {
@@ -114,34 +114,17 @@ fn main() -> anyhow::Result<()> {
     println!("|---|---|---:|---:|---:|---:|---:|");
     for name in &a.scenes {
         let scene = Scene::by_name_or_file(name)?;
-        let frames = 0..a.frames.min(scene.frames());
-        let cfg = LoopConfig::new(Method::None, a.spp, false);
-        let mut stats: Vec<StatsImage> = Vec::new();
-        let (mut refs, mut second): (Vec<RgbImage>, Vec<RgbImage>) = (Vec::new(), Vec::new());
-        let off = Temporal::Off;
-        sequence::render_frames(
+        let SequenceWithReferences {
+            stats,
+            refs,
+            second,
+        } = SequenceWithReferences::render(
             &ctx,
             &scene,
-            frames,
+            a.frames,
             a.size,
-            a.seed,
-            &cfg,
-            off,
-            &stop,
-            |f| {
-                // Two references per frame with independent seeds: the second
-                // one's row is the floor the references' own noise sets.
-                let base = sequence::frame_seed(reference_seed, f.number);
-                for (seed, out) in [(base, &mut refs), (!base, &mut second)] {
-                    let seed = reference::reference_seed(seed);
-                    let k = a.reference;
-                    let r =
-                        reference::reference(&ctx, &f.scene, a.size, k, seed, &stop, |_, _| {})?;
-                    out.push(r.image);
-                }
-                stats.push(f.stats);
-                Ok(())
-            },
+            (a.spp, a.reference),
+            (a.seed, reference_seed),
         )?;
         let r: Vec<&RgbImage> = refs.iter().collect();
         // The second reference against the first: twice the references'

@@ -23,18 +23,15 @@
 //! ```
 
 use std::path::PathBuf;
-use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 
 use anyhow::Context;
 use clap::Parser;
-use mcdenoise::render::adaptive::LoopConfig;
-use mcdenoise::render::{reference, sequence, Scene};
+use mcdenoise::render::Scene;
 use mcdenoise::{
-    io, metrics, Config, ContextOptions, Denoiser, GpuContext, Method, RgbImage, Source,
-    StatsImage, Temporal,
+    io, metrics, Config, ContextOptions, Denoiser, GpuContext, Method, RgbImage, Source, Temporal,
 };
-use mcdenoise_tools::parse_method;
+use mcdenoise_tools::{parse_method, SequenceWithReferences};
 
 #[derive(Parser)]
 struct Args {
@@ -71,33 +68,18 @@ const CLASSES: [&str; 4] = ["static", "bright", "changing", "recent"];
 fn main() -> anyhow::Result<()> {
     let a = Args::parse();
     let ctx = Arc::new(GpuContext::new(&ContextOptions::default())?);
-    let stop = AtomicBool::new(false);
     let scene = Scene::by_name_or_file(&a.scene)?;
-    let cfg = LoopConfig::new(Method::None, a.spp, false);
-    let mut stats: Vec<StatsImage> = Vec::new();
-    let (mut refs, mut second): (Vec<RgbImage>, Vec<RgbImage>) = (Vec::new(), Vec::new());
-    let frames = 0..a.frames.min(scene.frames());
-    sequence::render_frames(
+    let SequenceWithReferences {
+        stats,
+        refs,
+        second,
+    } = SequenceWithReferences::render(
         &ctx,
         &scene,
-        frames,
+        a.frames,
         a.size,
-        a.seed,
-        &cfg,
-        Temporal::Off,
-        &stop,
-        |f| {
-            let base = sequence::frame_seed(a.seed, f.number);
-            for (seed, out) in [(base, &mut refs), (!base, &mut second)] {
-                let seed = reference::reference_seed(seed);
-                let k = a.reference;
-                out.push(
-                    reference::reference(&ctx, &f.scene, a.size, k, seed, &stop, |_, _| {})?.image,
-                );
-            }
-            stats.push(f.stats);
-            Ok(())
-        },
+        (a.spp, a.reference),
+        (a.seed, a.seed),
     )?;
     anyhow::ensure!(refs.len() >= 2, "{}: two frames or more", a.scene);
     let (w, h) = a.size;
