@@ -20,7 +20,7 @@
 //! or garbage).
 //!
 //! The bare functions panic if the two images differ in size (a programming
-//! error); [`compare`], [`rmse_heatmap`] and [`check_same_size`] return an
+//! error); [`compare`], [`rmse_heatmap`], [`temporal_heatmap`] and [`check_same_size`] return an
 //! error instead and are the entry points for user-supplied images.
 
 use crate::error::{Error, Result};
@@ -330,6 +330,44 @@ pub fn estimated_rmse(color: &RgbImage, error: &RgbImage) -> f64 {
     }
 }
 
+/// One pixel and channel's term of [`temporal_error`]: the output's change
+/// `o1 − o0` between two frames less the reference's `r1 − r0`, squared,
+/// over `r1² + 0.01`.
+fn temporal_term(o1: f32, o0: f32, r1: f32, r0: f32) -> f64 {
+    let d = (o1 as f64 - o0 as f64) - (r1 as f64 - r0 as f64);
+    d * d / ((r1 as f64).powi(2) + RMSE_EPS)
+}
+
+/// Per pixel, [`temporal_error`]'s term between two consecutive frames
+/// (`o0`, `r0` the earlier output and reference), averaged over the
+/// channels: where a sequence flickers (+∞ where an output is not finite).
+///
+/// # Errors
+/// [`Error::InvalidArgument`] if the sizes differ.
+pub fn temporal_heatmap(
+    o1: &RgbImage,
+    o0: &RgbImage,
+    r1: &RgbImage,
+    r0: &RgbImage,
+) -> Result<Vec<f32>> {
+    for x in [o0, r1, r0] {
+        check_same_size(o1, x)?;
+    }
+    Ok((0..o1.width * o1.height)
+        .map(|i| {
+            let mut sum = 0.0f64;
+            for c in 0..3 {
+                let (a, b) = (o1.planes[c][i], o0.planes[c][i]);
+                if !a.is_finite() || !b.is_finite() {
+                    return f32::INFINITY;
+                }
+                sum += temporal_term(a, b, r1.planes[c][i], r0.planes[c][i]);
+            }
+            (sum / 3.0) as f32
+        })
+        .collect())
+}
+
 /// Temporal error of a sequence `out` against its references `refs` (frame
 /// by frame, the same sizes): the mean over frames `t ≥ 1`, pixels and
 /// channels of `((o_t − o_{t−1}) − (r_t − r_{t−1}))² / (r_t² + 0.01)` —
@@ -359,8 +397,7 @@ pub fn temporal_error(out: &[&RgbImage], refs: &[&RgbImage]) -> Result<Option<f6
                 if !o1[i].is_finite() || !o0[i].is_finite() {
                     return Ok(Some(f64::INFINITY));
                 }
-                let d = (o1[i] as f64 - o0[i] as f64) - (r1[i] as f64 - r0[i] as f64);
-                sum += d * d / ((r1[i] as f64).powi(2) + RMSE_EPS);
+                sum += temporal_term(o1[i], o0[i], r1[i], r0[i]);
                 count += 1;
             }
         }
@@ -481,5 +518,26 @@ mod tests {
         assert!((got - want).abs() < 1e-6 * want, "{got} {want}");
         assert_eq!(temporal_error(&o[..1], &r[..1]).unwrap(), None);
         assert!(temporal_error(&o[..2], &r).is_err());
+    }
+
+    #[test]
+    fn temporal_heatmap_is_the_error_per_pixel() {
+        let img =
+            |a: f32, b: f32| RgbImage::from_planes(2, 1, [vec![a, b], vec![a, b], vec![a, b]]);
+        let (r0, r1) = (img(1.0, 1.0), img(2.0, 1.0));
+        // The first pixel follows the reference; the second jumps by 0.3.
+        let (o0, o1) = (img(1.0, 1.0), img(2.0, 1.3));
+        let map = temporal_heatmap(&o1, &o0, &r1, &r0).unwrap();
+        assert_eq!(map[0], 0.0);
+        assert!((map[1] as f64 - 0.09 / 1.01).abs() < 1e-6, "{map:?}");
+        let mean = (map[0] + map[1]) as f64 / 2.0;
+        let got = temporal_error(&[&o0, &o1], &[&r0, &r1]).unwrap().unwrap();
+        assert!((got - mean).abs() < 1e-6 * got, "{got} {mean}");
+        let nan = img(f32::NAN, 1.0);
+        assert_eq!(
+            temporal_heatmap(&nan, &o0, &r1, &r0).unwrap()[0],
+            f32::INFINITY
+        );
+        assert!(temporal_heatmap(&o1, &RgbImage::new(1, 1), &r1, &r0).is_err());
     }
 }

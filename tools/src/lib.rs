@@ -103,8 +103,8 @@ pub fn references(
 /// rendered once, uniformly at `spp` with its own seed
 /// (`render::sequence`), and two `reference`-spp references of every
 /// frame with independent seeds derived from `reference_seed`'s sequence
-/// (cached): `(statistics, first references, second references)`. Half
-/// the second's error against the first is the references' own.
+/// (cached). Half the second references' error against the first is the
+/// references' own.
 pub struct SequenceWithReferences {
     /// Every frame's statistics.
     pub stats: Vec<mcdenoise::StatsImage>,

@@ -190,7 +190,7 @@ impl Tally {
                 t.rmse_map[i] += e[i];
             }
             if f > 0 {
-                let d = temporal_map(&out[f], &out[f - 1], &refs[f], &refs[f - 1]);
+                let d = metrics::temporal_heatmap(&out[f], &out[f - 1], &refs[f], &refs[f - 1])?;
                 for i in 0..n {
                     t.temporal[class[f][i]] += d[i] as f64 / pairs;
                     t.temporal_map[i] += d[i];
@@ -229,23 +229,6 @@ fn classes(refs: &[RgbImage]) -> Vec<Vec<usize>> {
                     }
                 })
                 .collect()
-        })
-        .collect()
-}
-
-/// Per pixel, `metrics::temporal_error`'s term between frames `t − 1` and
-/// `t`, averaged over the channels.
-fn temporal_map(o1: &RgbImage, o0: &RgbImage, r1: &RgbImage, r0: &RgbImage) -> Vec<f32> {
-    (0..o1.width * o1.height)
-        .map(|i| {
-            let sum: f64 = (0..3)
-                .map(|c| {
-                    let v = |img: &RgbImage| img.planes[c][i] as f64;
-                    let d = (v(o1) - v(o0)) - (v(r1) - v(r0));
-                    d * d / (v(r1).powi(2) + metrics::RMSE_EPS)
-                })
-                .sum();
-            (sum / 3.0) as f32
         })
         .collect()
 }
