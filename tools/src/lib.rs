@@ -148,3 +148,92 @@ impl SequenceWithReferences {
         Ok(s)
     }
 }
+
+/// A method's frames of a sequence alone, through the LP temporal filter
+/// (§10.1) forwards and backwards (one denoiser each, carrying its state),
+/// and the two directions combined as a two-filter smoother would: per
+/// pixel and channel, with `a = 1/P₀₀` of each direction after its update
+/// (the information of its estimate in units of one frame's),
+/// `(a_f·F + a_b·B − y)/(a_f + a_b − 1)`, `y` the frame alone, which both
+/// directions hold once; `y` where either direction passed the pixel
+/// through. An emulation on the host from the facade's outputs (the
+/// `temporal_p00` debug plane), for measuring what an offline smoother
+/// would give; the library has none.
+pub struct TwoWay {
+    /// Every frame alone.
+    pub alone: Vec<RgbImage>,
+    /// Every frame through the filter in frame order.
+    pub forward: Vec<RgbImage>,
+    /// Every frame through the filter in reverse order.
+    pub backward: Vec<RgbImage>,
+    /// The two combined.
+    pub combined: Vec<RgbImage>,
+}
+
+impl TwoWay {
+    /// Runs `method` (its default configuration) on `stats`, a sequence's
+    /// frames in order.
+    pub fn run(
+        ctx: &Arc<GpuContext>,
+        method: Method,
+        stats: &[mcdenoise::StatsImage],
+    ) -> anyhow::Result<TwoWay> {
+        use mcdenoise::{Config, Denoiser, Source, Temporal};
+        let source = Source::of_image(&stats[0]);
+        let spatial = Denoiser::new(ctx, source.clone(), Config::new(method))?;
+        let alone = stats
+            .iter()
+            .map(|s| Ok(spatial.denoise(s, None)?.color))
+            .collect::<mcdenoise::Result<Vec<_>>>()?;
+        let filter = |order: &mut dyn Iterator<Item = &mcdenoise::StatsImage>| {
+            let mut c = Config::new(method);
+            c.temporal = Temporal::Lp;
+            c.debug = true;
+            let d = Denoiser::new(ctx, source.clone(), c)?;
+            let mut out = Vec::with_capacity(stats.len());
+            for s in order {
+                let f = d.denoise(s, None)?;
+                let p00 = f
+                    .debug
+                    .into_iter()
+                    .find(|(name, _)| name == "temporal_p00")
+                    .context("the filter's debug plane temporal_p00")?
+                    .1;
+                out.push((f.color, p00));
+            }
+            anyhow::Ok(out)
+        };
+        let forward = filter(&mut stats.iter())?;
+        let mut backward = filter(&mut stats.iter().rev())?;
+        backward.reverse();
+        let combined = alone
+            .iter()
+            .zip(forward.iter().zip(&backward))
+            .map(|(y, ((f, pf), (b, pb)))| {
+                let planes = std::array::from_fn(|c| {
+                    (0..y.planes[c].len())
+                        .map(|i| {
+                            let (af, ab) = (1.0 / f64::from(pf[i]), 1.0 / f64::from(pb[i]));
+                            let den = af + ab - 1.0;
+                            let y = y.planes[c][i];
+                            if !(af.is_finite() && ab.is_finite() && den > 1e-9) {
+                                return y;
+                            }
+                            let sum = af * f64::from(f.planes[c][i])
+                                + ab * f64::from(b.planes[c][i])
+                                - f64::from(y);
+                            (sum / den).max(0.0) as f32
+                        })
+                        .collect()
+                });
+                RgbImage::from_planes(y.width, y.height, planes)
+            })
+            .collect();
+        Ok(TwoWay {
+            alone,
+            forward: forward.into_iter().map(|(c, _)| c).collect(),
+            backward: backward.into_iter().map(|(c, _)| c).collect(),
+            combined,
+        })
+    }
+}

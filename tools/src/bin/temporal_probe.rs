@@ -15,11 +15,14 @@
 //! red where the filter raises it, green where it lowers it, full scale at
 //! `--scale`) and the filtered output's per-pixel temporal error
 //! (`<method>_temporal.png`, heat map, full scale at the 99th percentile).
+//! With `--two-way`, a third column: the filter run forwards and backwards
+//! and combined, an emulated offline smoother (`TwoWay`).
 //!
 //! ```text
 //! cargo run --release -p mcdenoise-tools --bin temporal_probe -- \
 //!     [--scene moving_box] [--methods wlr,auto] [--size 128x128] [--spp 16] \
-//!     [--frames 24] [--reference 512] [--seed 1] [--out target/temporal_probe] [--scale 0.05]
+//!     [--frames 24] [--reference 512] [--seed 1] [--out target/temporal_probe] [--scale 0.05] \
+//!     [--two-way]
 //! ```
 
 use std::path::PathBuf;
@@ -31,7 +34,7 @@ use mcdenoise::render::Scene;
 use mcdenoise::{
     io, metrics, Config, ContextOptions, Denoiser, GpuContext, Method, RgbImage, Source, Temporal,
 };
-use mcdenoise_tools::{parse_method, SequenceWithReferences};
+use mcdenoise_tools::{parse_method, SequenceWithReferences, TwoWay};
 
 #[derive(Parser)]
 struct Args {
@@ -61,6 +64,10 @@ struct Args {
     /// The summed rMSE change that saturates the delta map.
     #[arg(long, default_value_t = 0.05)]
     scale: f32,
+    /// Also the filter run forwards and backwards and combined, an
+    /// emulated two-filter smoother (`mcdenoise_tools::TwoWay`).
+    #[arg(long)]
+    two_way: bool,
 }
 
 const CLASSES: [&str; 4] = ["static", "bright", "changing", "recent"];
@@ -95,41 +102,63 @@ fn main() -> anyhow::Result<()> {
         a.reference,
         a.seed
     );
+    let columns: &[&str] = if a.two_way {
+        &["alone", "+ 10.1", "two-way"]
+    } else {
+        &["alone", "+ 10.1"]
+    };
+    let head = |what: &str| {
+        std::iter::once(format!("{what}: references' own"))
+            .chain(columns.iter().map(|c| c.to_string()))
+            .collect::<Vec<_>>()
+            .join(" | ")
+    };
     println!(
-        "| method | class | share | rMSE: references' own | alone | + 10.1 | \
-         temporal error: references' own | alone | + 10.1 |"
+        "| method | class | share | {} | {} |",
+        head("rMSE"),
+        head("temporal error")
     );
-    println!("|---|---|---:|---:|---:|---:|---:|---:|---:|");
+    println!("|---|---|---:|{}", "---:|".repeat(2 + 2 * columns.len()));
     let own = Tally::new(&second, &refs, &class)?;
     for &m in &a.methods {
-        let mut filtered = Config::new(m);
-        filtered.temporal = Temporal::Lp;
-        let d = Denoiser::new(&ctx, Source::of_image(&stats[0]), filtered)?;
-        let mut alone = Vec::with_capacity(stats.len());
-        let mut with = Vec::with_capacity(stats.len());
-        for s in &stats {
-            let spatial = Denoiser::new(&ctx, Source::of_image(s), Config::new(m))?;
-            alone.push(spatial.denoise(s, None)?.color);
-            with.push(d.denoise(s, None)?.color);
-        }
-        let (alone, with) = (
-            Tally::new(&alone, &refs, &class)?,
-            Tally::new(&with, &refs, &class)?,
-        );
+        let outputs: Vec<Vec<RgbImage>> = if a.two_way {
+            let t = TwoWay::run(&ctx, m, &stats)?;
+            vec![t.alone, t.forward, t.combined]
+        } else {
+            let mut filtered = Config::new(m);
+            filtered.temporal = Temporal::Lp;
+            let d = Denoiser::new(&ctx, Source::of_image(&stats[0]), filtered)?;
+            let spatial = Denoiser::new(&ctx, Source::of_image(&stats[0]), Config::new(m))?;
+            let mut alone = Vec::with_capacity(stats.len());
+            let mut with = Vec::with_capacity(stats.len());
+            for s in &stats {
+                alone.push(spatial.denoise(s, None)?.color);
+                with.push(d.denoise(s, None)?.color);
+            }
+            vec![alone, with]
+        };
+        let tallies = outputs
+            .iter()
+            .map(|o| Tally::new(o, &refs, &class))
+            .collect::<anyhow::Result<Vec<_>>>()?;
         for k in 0..=CLASSES.len() {
             let name = CLASSES.get(k).copied().unwrap_or("all");
             let share = if k < CLASSES.len() { own.share[k] } else { 1.0 };
+            let cells = |own: f64, of: &dyn Fn(&Tally) -> f64| {
+                std::iter::once(own / 2.0)
+                    .chain(tallies.iter().map(of))
+                    .map(|v| format!("{v:.6}"))
+                    .collect::<Vec<_>>()
+                    .join(" | ")
+            };
             println!(
-                "| {} | {name} | {share:.3} | {:.6} | {:.6} | {:.6} | {:.6} | {:.6} | {:.6} |",
+                "| {} | {name} | {share:.3} | {} | {} |",
                 m.name(),
-                own.rmse[k] / 2.0,
-                alone.rmse[k],
-                with.rmse[k],
-                own.temporal[k] / 2.0,
-                alone.temporal[k],
-                with.temporal[k]
+                cells(own.rmse[k], &|t| t.rmse[k]),
+                cells(own.temporal[k], &|t| t.temporal[k])
             );
         }
+        let (alone, with) = (&tallies[0], &tallies[1]);
         let delta: Vec<f32> = with
             .rmse_map
             .iter()
