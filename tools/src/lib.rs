@@ -150,8 +150,8 @@ impl SequenceWithReferences {
 }
 
 /// A method's frames of a sequence alone, through the LP temporal filter
-/// (§10.1) forwards and backwards (one denoiser each, carrying its state),
-/// and the two directions combined as a two-filter smoother would: per
+/// (§10.1) forwards and, when asked, backwards (one denoiser each,
+/// carrying its state), and the two directions combined as a two-filter smoother would: per
 /// pixel and channel, with `a = 1/P₀₀` of each direction after its update
 /// (the information of its estimate in units of one frame's),
 /// `(a_f·F + a_b·B − y)/(a_f + a_b − 1)`, `y` the frame alone, which both
@@ -164,19 +164,22 @@ pub struct TwoWay {
     pub alone: Vec<RgbImage>,
     /// Every frame through the filter in frame order.
     pub forward: Vec<RgbImage>,
-    /// Every frame through the filter in reverse order.
+    /// Every frame through the filter in reverse order (empty unless
+    /// asked for).
     pub backward: Vec<RgbImage>,
-    /// The two combined.
+    /// The two combined (empty unless the backward pass was asked for).
     pub combined: Vec<RgbImage>,
 }
 
 impl TwoWay {
     /// Runs `method` (its default configuration) on `stats`, a sequence's
-    /// frames in order.
+    /// frames in order: alone and forwards, and with `two_way` backwards
+    /// and combined.
     pub fn run(
         ctx: &Arc<GpuContext>,
         method: Method,
         stats: &[mcdenoise::StatsImage],
+        two_way: bool,
     ) -> anyhow::Result<TwoWay> {
         use mcdenoise::{Config, Denoiser, Source, Temporal};
         let source = Source::of_image(&stats[0]);
@@ -204,7 +207,11 @@ impl TwoWay {
             anyhow::Ok(out)
         };
         let forward = filter(&mut stats.iter())?;
-        let mut backward = filter(&mut stats.iter().rev())?;
+        let mut backward = if two_way {
+            filter(&mut stats.iter().rev())?
+        } else {
+            Vec::new()
+        };
         backward.reverse();
         let combined = alone
             .iter()

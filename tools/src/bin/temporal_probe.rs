@@ -31,9 +31,7 @@ use std::sync::Arc;
 use anyhow::Context;
 use clap::Parser;
 use mcdenoise::render::Scene;
-use mcdenoise::{
-    io, metrics, Config, ContextOptions, Denoiser, GpuContext, Method, RgbImage, Source, Temporal,
-};
+use mcdenoise::{io, metrics, ContextOptions, GpuContext, Method, RgbImage};
 use mcdenoise_tools::{parse_method, SequenceWithReferences, TwoWay};
 
 #[derive(Parser)]
@@ -121,22 +119,11 @@ fn main() -> anyhow::Result<()> {
     println!("|---|---|---:|{}", "---:|".repeat(2 + 2 * columns.len()));
     let own = Tally::new(&second, &refs, &class)?;
     for &m in &a.methods {
-        let outputs: Vec<Vec<RgbImage>> = if a.two_way {
-            let t = TwoWay::run(&ctx, m, &stats)?;
-            vec![t.alone, t.forward, t.combined]
-        } else {
-            let mut filtered = Config::new(m);
-            filtered.temporal = Temporal::Lp;
-            let d = Denoiser::new(&ctx, Source::of_image(&stats[0]), filtered)?;
-            let spatial = Denoiser::new(&ctx, Source::of_image(&stats[0]), Config::new(m))?;
-            let mut alone = Vec::with_capacity(stats.len());
-            let mut with = Vec::with_capacity(stats.len());
-            for s in &stats {
-                alone.push(spatial.denoise(s, None)?.color);
-                with.push(d.denoise(s, None)?.color);
-            }
-            vec![alone, with]
-        };
+        let t = TwoWay::run(&ctx, m, &stats, a.two_way)?;
+        let mut outputs = vec![t.alone, t.forward];
+        if a.two_way {
+            outputs.push(t.combined);
+        }
         let tallies = outputs
             .iter()
             .map(|o| Tally::new(o, &refs, &class))
