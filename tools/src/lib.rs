@@ -191,17 +191,19 @@ impl TwoWay {
         let filter = |order: &mut dyn Iterator<Item = &mcdenoise::StatsImage>| {
             let mut c = Config::new(method);
             c.temporal = Temporal::Lp;
-            c.debug = true;
+            // P00 is read only to combine the two directions.
+            c.debug = two_way;
             let d = Denoiser::new(ctx, source.clone(), c)?;
             let mut out = Vec::with_capacity(stats.len());
             for s in order {
                 let f = d.denoise(s, None)?;
-                let p00 = f
-                    .debug
-                    .into_iter()
-                    .find(|(name, _)| name == "temporal_p00")
-                    .context("the filter's debug plane temporal_p00")?
-                    .1;
+                let p00 = if two_way {
+                    let mut debug = f.debug.into_iter();
+                    let p00 = debug.find(|(name, _)| name == "temporal_p00");
+                    p00.context("the filter's debug plane temporal_p00")?.1
+                } else {
+                    Vec::new()
+                };
                 out.push((f.color, p00));
             }
             anyhow::Ok(out)
