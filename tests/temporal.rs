@@ -10,8 +10,9 @@ use mcdenoise::kernels::{lp_temporal, lp_temporal_gain, run_planes};
 use mcdenoise::reference::lp_temporal::{self as twin, PixelState, TemporalInputs};
 use mcdenoise::reference::lp_temporal_gain as gain_twin;
 use mcdenoise::shared::{
-    TemporalPush, TEMPORAL_LAMBDA, TEMPORAL_NO_SEARCH, TEMPORAL_RESET, TEMPORAL_RESET_P00,
-    TEMPORAL_RESET_P11, TEMPORAL_SOURCE_NONE, TEMPORAL_SOURCE_RESET, TEMPORAL_STATE,
+    TemporalPush, TEMPORAL_LAMBDA, TEMPORAL_NO_SEARCH, TEMPORAL_P00, TEMPORAL_RESET,
+    TEMPORAL_RESET_P00, TEMPORAL_RESET_P11, TEMPORAL_SOURCE_NONE, TEMPORAL_SOURCE_RESET,
+    TEMPORAL_STATE,
 };
 
 /// §10.1's prior `δ` (`[LP §7]`): its reset is `P = I/δ`.
@@ -350,6 +351,77 @@ fn lp_temporal_matches_its_twin() {
         }
         check_validation(&ctx);
     }
+}
+
+/// TEMPORAL-INFLATE on a pixel whose error estimate is 0 (a lamp): a step
+/// in its colour inflates `P` by a ratio near 1e18, after which the
+/// update must leave `P₀₀` at about one frame's (the history restarts at
+/// the step), not cancel it to 0 — a state with `P₀₀ = 0` never moves
+/// again. GPU (each precision) and twin, frame after frame.
+#[test]
+fn an_inflated_history_restarts_at_the_step() {
+    let ctx = gpu();
+    let (w, h) = (8usize, 8usize);
+    let n = w * h;
+    let frame = |v: f32| Synthetic {
+        w,
+        h,
+        color: std::array::from_fn(|_| vec![v; n]),
+        position: std::array::from_fn(|k| (0..n).map(|i| (i * 3 + k) as f32 * 0.01).collect()),
+        variance: std::array::from_fn(|_| vec![0.0; n]),
+        error: std::array::from_fn(|_| vec![0.0; n]),
+        depth: vec![1.0; n],
+        spp: vec![16.0; n],
+    };
+    let values = [1.0f32, 1.0, 1000.0, 2000.0];
+    for prec in precisions() {
+        let mut prev = vec![0.0f32; TEMPORAL_STATE * n];
+        let mut twin_prev = prev.clone();
+        for (t, &v) in values.iter().enumerate() {
+            let f = frame(v);
+            let p = push(
+                w,
+                h,
+                if t == 0 {
+                    TEMPORAL_RESET
+                } else {
+                    TEMPORAL_NO_SEARCH
+                },
+            );
+            let (next, out, _) = twin_frame(&p, &f, &twin_prev);
+            let mut ins: Vec<&[f32]> = Vec::new();
+            ins.extend(f.color.iter().map(|v| &v[..]));
+            ins.extend(f.position.iter().map(|v| &v[..]));
+            ins.extend(f.variance.iter().map(|v| &v[..]));
+            ins.extend([&f.depth[..], &f.spp[..]]);
+            ins.extend(f.error.iter().map(|v| &v[..]));
+            ins.push(&prev[..]);
+            let (g, _) = run_planes(
+                &ctx,
+                &lp_temporal::DECL,
+                prec,
+                bytemuck::bytes_of(&p),
+                w,
+                h,
+                &ins,
+                &[TEMPORAL_STATE * n, n, n, n, n],
+                lp_temporal::FLOPS_PER_PIXEL,
+            )
+            .unwrap();
+            for (who, state, color) in [("gpu", &g[0], &g[1]), ("twin", &next, &out[0])] {
+                let p00 = state[TEMPORAL_P00 * n + 9];
+                let what = format!("{prec:?} {who} frame {t}");
+                if t >= 2 {
+                    assert!((0.5..=1.01).contains(&p00), "{what}: P00 {p00}");
+                    let c = color[9];
+                    assert!((c - v).abs() <= 1e-3 * v, "{what}: colour {c}, frame {v}");
+                }
+            }
+            prev = g[0].clone();
+            twin_prev = next;
+        }
+    }
+    check_validation(&ctx);
 }
 
 /// What the twin does on the synthetic pan: the first frame resets every

@@ -130,7 +130,10 @@ int temporal_step(uint x, uint y, out real2 b[3], out real3 p, out int off)
     real lambda = real(push.lambda);
     real den = lambda + p.x;
     real2 g = real2(p.x, p.y) / den;
-    p = real3(p.x - g.x * p.x, p.y - g.x * p.y, p.z - g.y * p.y) / lambda;
+    // (P00 - g0 P00)/lambda written as P00/den (and P01 alike): the same
+    // in exact arithmetic, but it does not cancel to 0 when an inflated
+    // P00 makes g0 round to 1 (TEMPORAL-INFLATE).
+    p = real3(p.x / den, p.y / den, (p.z - g.y * p.y) / lambda);
     for (int c = 0; c < 3; ++c) {
         real r = yi[c] - b[c].x;
         b[c] += g * r;

@@ -66,11 +66,9 @@ impl PixelState {
         let [p00, p01, p11] = self.p;
         let den = lambda + p00;
         let g = [p00 / den, p01 / den];
-        self.p = [
-            (p00 - g[0] * p00) / lambda,
-            (p01 - g[0] * p01) / lambda,
-            (p11 - g[1] * p01) / lambda,
-        ];
+        // `(P₀₀ − G₀P₀₀)/λ = P₀₀/(λ + P₀₀)` (and `P₀₁` alike), in the form
+        // that does not cancel to 0 when an inflated `P₀₀` rounds `G₀` to 1.
+        self.p = [p00 / den, p01 / den, (p11 - g[1] * p01) / lambda];
         for (b, v) in self.beta.iter_mut().zip(y) {
             let r = v - b[0];
             b[0] += g[0] * r;
