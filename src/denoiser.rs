@@ -12,6 +12,7 @@ use crate::gpu::{Batch, BufferSlice, GpuContext, KernelTiming, Precision, Record
 use crate::image::{Layer, RgbImage, StatsImage};
 use crate::methods::chain::{ChainConfig, ChainInput, GpuChain};
 use crate::methods::prepare::PrepareReport;
+use crate::methods::temporal::FilterRecord;
 use crate::methods::tiles::{Choice, Tile, TiledChain};
 use crate::methods::{
     self, Backend, DenoiseRequest, InputBlend, Method, Outliers, Pass, Prefilter, ProgressCallback,
@@ -619,6 +620,16 @@ impl Denoiser {
             Engine::Cpu(_) => Err(Error::InvalidArgument(
                 "a CPU denoiser has no GPU buffers: use denoise()".into(),
             )),
+        }
+    }
+
+    /// The host copy of what the temporal filter of a denoiser with one on
+    /// one chain read and made on the last call ([`crate::Smoother`]);
+    /// `None` without one.
+    pub(crate) fn temporal_record(&self) -> Result<Option<FilterRecord>> {
+        match &self.engine {
+            Engine::Gpu(c) => c.temporal_record(),
+            _ => Ok(None),
         }
     }
 

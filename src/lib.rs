@@ -45,7 +45,10 @@
 //!   call is the next frame of a sequence, filtered over time (§10.1) with
 //!   a state kept on the GPU; [`Denoiser::reset`] at a cut. Offline, a
 //!   [`SequenceDenoiser`] runs APR's temporal window (§10.2,
-//!   [`Temporal::Apr`]) over the frames `t−2..t+2` of each frame.
+//!   [`Temporal::Apr`]) over the frames `t−2..t+2` of each frame, or the
+//!   filter over the whole sequence in both directions
+//!   ([`Temporal::LpSmooth`]; [`Smoother`] for a caller's own temporal
+//!   denoiser).
 //! - Outputs: [`Denoiser::outputs`] (GPU buffers) or [`Denoiser::read`]
 //!   ([`Frame`]: colour, per-channel error `E_i`, local dimension `d_i`,
 //!   samples, debug maps).
@@ -132,4 +135,4 @@ pub use methods::{
 };
 pub use options::{help_table, Options};
 pub use schedule::Schedule;
-pub use sequence::SequenceDenoiser;
+pub use sequence::{SequenceDenoiser, Smoother};

@@ -680,6 +680,51 @@ fn temporal_filter_from_the_command_line() {
     }
 }
 
+/// `--temporal lp-smooth` (TEMPORAL-SMOOTH): `render --frames` writes every
+/// frame once the range is rendered, the first one different from the
+/// filter in frame order's (which is the frame alone's: the two-way filter
+/// sees the frames after it); `denoise --frames` runs it over saved
+/// statistics; the CPU backend is a clear error.
+#[test]
+fn two_way_filter_from_the_command_line() {
+    let tmp = tmpdir("two_way");
+    let dir = tmp.path();
+    for (t, out) in [("lp", "lp"), ("lp-smooth", "two")] {
+        let (code, _, err) = run(bin()
+            .args(["render", "--scene", "moving_box", "--size", "16x16"])
+            .args(["--spp", "4", "--frames", "0..3", "--temporal", t])
+            .arg("--save-stats")
+            .arg(dir.join(format!("{out}_stats_##.exr")))
+            .arg("-o")
+            .arg(dir.join(format!("{out}_##.exr"))));
+        assert_eq!(code, 0, "{err}");
+    }
+    let rgb = |p: &str| mcdenoise::io::read_rgb(&dir.join(p)).unwrap().planes;
+    assert_ne!(rgb("lp_00.exr"), rgb("two_00.exr"));
+    let denoise = |out: &str, extra: &[&str]| {
+        run(bin()
+            .arg("denoise")
+            .arg("--frames")
+            .arg(dir.join("two_stats_##.exr"))
+            .arg("-o")
+            .arg(dir.join(format!("{out}_##.exr")))
+            .args(["--temporal", "lp-smooth"])
+            .args(extra))
+    };
+    let (code, _, err) = denoise("d", &[]);
+    assert_eq!(code, 0, "{err}");
+    for f in 0..3 {
+        assert!(dir.join(format!("d_{f:02}.exr")).exists(), "frame {f}");
+    }
+    assert_ne!(rgb("d_00.exr"), rgb("d_01.exr"));
+    let (code, _, err) = denoise("cpu", &["--backend", "cpu"]);
+    assert_ne!(code, 0);
+    assert!(
+        err.contains("--temporal lp-smooth keeps its frames on the GPU"),
+        "{err}"
+    );
+}
+
 /// `--temporal apr` (APR's window, §10.2): `render --frames` writes every
 /// frame of the range, different from the frame-by-frame render, and
 /// `denoise --frames` over the saved statistics writes the same frames;

@@ -820,3 +820,221 @@ fn filtering_does_not_depend_on_downloading_the_error() {
         assert_eq!(run(false), run(true), "{method:?}");
     }
 }
+
+// ---- The two-way filter (TEMPORAL-SMOOTH) ----
+
+use mcdenoise::kernels::lp_smooth;
+use mcdenoise::reference::lp_smooth::{self as smooth_twin, Direction};
+use mcdenoise::{SequenceDenoiser, Smoother};
+
+/// `lp_smooth` against its twin: random colours and `P₀₀` of both
+/// directions, some pixels without state (`P₀₀ = 0`, one direction or
+/// both), where the forward colour is kept.
+#[test]
+fn lp_smooth_matches_its_twin() {
+    let ctx = gpu();
+    for &(w, h) in &[(29usize, 17usize), (1, 9), (8, 8)] {
+        let n = w * h;
+        let mut rng = Rng(41 + w as u64);
+        let mut plane = |scale: f64| -> Vec<f32> {
+            (0..n)
+                .map(|_| (scale * rng.normal().abs()) as f32)
+                .collect()
+        };
+        let y: Vec<Vec<f32>> = (0..3).map(|_| plane(1.0)).collect();
+        let f: Vec<Vec<f32>> = (0..3).map(|_| plane(1.0)).collect();
+        let b: Vec<Vec<f32>> = (0..3).map(|_| plane(1.0)).collect();
+        let mut pf: Vec<f32> = plane(0.3).iter().map(|p| p.min(1.0) + 0.02).collect();
+        let mut pb: Vec<f32> = plane(0.3).iter().map(|p| p.min(1.0) + 0.02).collect();
+        pf[0] = 0.0;
+        pb[n - 1] = 0.0;
+        (pf[n / 2], pb[n / 2]) = (0.0, 0.0);
+        fn three(v: &[Vec<f32>]) -> [&[f32]; 3] {
+            [&v[0][..], &v[1][..], &v[2][..]]
+        }
+        let mut want: [Vec<f32>; 3] = std::array::from_fn(|_| vec![0.0; n]);
+        {
+            let [r, g, bb] = &mut want;
+            smooth_twin::lp_smooth(
+                three(&y),
+                &Direction {
+                    color: three(&f),
+                    p00: &pf,
+                },
+                &Direction {
+                    color: three(&b),
+                    p00: &pb,
+                },
+                [r, g, bb],
+            );
+        }
+        for i in [0, n - 1, n / 2] {
+            assert_eq!(want[0][i], f[0][i], "pixel {i} without state keeps F");
+        }
+        let mut ins: Vec<&[f32]> = y.iter().map(|v| &v[..]).collect();
+        ins.extend(f.iter().map(|v| &v[..]));
+        ins.push(&pf);
+        ins.extend(b.iter().map(|v| &v[..]));
+        ins.push(&pb);
+        for prec in precisions() {
+            let (g, _) = run_planes(
+                &ctx,
+                &lp_smooth::DECL,
+                prec,
+                bytemuck::bytes_of(&push(w, h, 0)),
+                w,
+                h,
+                &ins,
+                &[n, n, n],
+                lp_smooth::FLOPS_PER_PIXEL,
+            )
+            .unwrap();
+            for c in 0..3 {
+                assert_close(&format!("{w}x{h} {prec:?} {c}"), &g[c], &want[c], 0.99);
+            }
+        }
+    }
+    check_validation(&ctx);
+}
+
+/// TEMPORAL-SMOOTH's invariant: with `λ = 1` (and no change test), the
+/// filter in frame order and in reverse order, combined, give every frame
+/// the mean of the whole sequence.
+#[test]
+fn two_way_with_lambda_one_is_the_mean_of_every_frame() {
+    let prior = (TEMPORAL_RESET_P00 as f64, TEMPORAL_RESET_P11 as f64);
+    let ys = [1.0, 3.0, 2.0, 6.0, 4.0, 0.5, 2.5];
+    let mean = ys.iter().sum::<f64>() / ys.len() as f64;
+    let run = |order: &mut dyn Iterator<Item = &f64>| -> Vec<(f64, f64)> {
+        let mut out = Vec::new();
+        let mut s: Option<PixelState> = None;
+        for &y in order {
+            s = Some(match s {
+                None => PixelState::reset([y; 3], [0.0; 3], prior),
+                Some(s) => {
+                    let mut s = s.shifted();
+                    s.update([y; 3], 1.0);
+                    s
+                }
+            });
+            let s = s.as_ref().unwrap();
+            out.push((s.predict()[0], s.p[0]));
+        }
+        out
+    };
+    let forward = run(&mut ys.iter());
+    let mut backward = run(&mut ys.iter().rev());
+    backward.reverse();
+    for (t, &y) in ys.iter().enumerate() {
+        let v = smooth_twin::combine(y, forward[t], backward[t]);
+        assert!(
+            close(v, mean, 1e-12),
+            "frame {t}: {v} against the mean {mean}"
+        );
+    }
+}
+
+/// The two-way filter in the facade, on a static camera over a static
+/// scene: every frame comes out of `finish`, in order; each is well below
+/// its frame alone's rMSE and, but for the last (where the two are the
+/// same), below the filter in frame order's, the first as well (it sees
+/// the frames after it, where the filter in frame order has only the frame
+/// itself); `finish` ends the sequence, and a sequence of one frame is
+/// that frame's own reconstruction.
+#[test]
+fn two_way_gives_every_frame_the_whole_sequence() {
+    let ctx = gpu();
+    let frames = still_frames("cornell", 32, 32, 8);
+    let reference = {
+        let s = still_frames("cornell", 32, 1024, 1);
+        mcdenoise::colour_of(&s[0])
+    };
+    let mut c = Config::new(Method::None);
+    c.temporal = Temporal::LpSmooth;
+    let mut seq = SequenceDenoiser::new(&ctx, Source::of_image(&frames[0]), c).unwrap();
+    assert_eq!(seq.lag(), None);
+    for img in &frames {
+        assert!(seq.push(img).unwrap().is_empty());
+    }
+    assert_eq!(seq.pushed(), frames.len());
+    let out = seq.finish().unwrap();
+    assert_eq!(seq.pushed(), 0);
+    assert_eq!(
+        out.iter().map(|(t, _)| *t).collect::<Vec<_>>(),
+        (0..frames.len()).collect::<Vec<_>>()
+    );
+    let d = temporal_denoiser(Method::None, &frames[0]);
+    for (t, (_, f)) in out.iter().enumerate() {
+        let alone = metrics::rmse(&spatial(Method::None, &frames[t]), &reference);
+        let forward = metrics::rmse(&d.denoise(&frames[t], None).unwrap().color, &reference);
+        let both = metrics::rmse(&f.color, &reference);
+        assert!(
+            both < 0.6 * alone,
+            "frame {t}: {both:.5} two-way, {alone:.5} alone"
+        );
+        // The last frame: the reverse pass holds the frame alone, and the
+        // combination is the forward filter's.
+        let bound = if t + 1 < out.len() {
+            forward
+        } else {
+            1.0001 * forward
+        };
+        assert!(
+            both <= bound,
+            "frame {t}: {both:.5} two-way, {forward:.5} in frame order"
+        );
+    }
+    seq.push(&frames[3]).unwrap();
+    let one = seq.finish().unwrap();
+    let own = spatial(Method::None, &frames[3]);
+    for c in 0..3 {
+        assert_close("one frame", &one[0].1.color.planes[c], &own.planes[c], 1.0);
+    }
+    check_validation(&ctx);
+}
+
+/// A `Smoother` keeps every frame of its denoiser's sequence right after
+/// its call: a denoiser without the filter, a frame skipped, a history
+/// from before the sequence or a reset within it are errors that keep
+/// nothing; `Temporal::LpSmooth` is refused by a `Denoiser` and
+/// `Temporal::Lp` by a `SequenceDenoiser`.
+#[test]
+fn the_smoother_refuses_what_it_cannot_combine() {
+    let ctx = gpu();
+    let frames = still_frames("cornell", 16, 4, 3);
+    let source = Source::of_image(&frames[0]);
+    let plain = Denoiser::new(&ctx, source.clone(), Config::new(Method::Wlr)).unwrap();
+    let e = Smoother::new(&ctx, &plain).unwrap_err().to_string();
+    assert!(e.contains("temporal lp"), "{e}");
+    let d = temporal_denoiser(Method::Wlr, &frames[0]);
+    let mut s = Smoother::new(&ctx, &d).unwrap();
+    let f0 = d.denoise(&frames[0], None).unwrap();
+    s.keep(&d, &f0.color).unwrap();
+    d.denoise(&frames[1], None).unwrap();
+    let f2 = d.denoise(&frames[2], None).unwrap();
+    let e = s.keep(&d, &f2.color).unwrap_err().to_string();
+    assert!(e.contains("ran 2 frame(s) since the last keep"), "{e}");
+    assert_eq!(s.len(), 1);
+    d.reset();
+    let f = d.denoise(&frames[1], None).unwrap();
+    let e = s.keep(&d, &f.color).unwrap_err().to_string();
+    assert!(e.contains("was reset"), "{e}");
+    assert_eq!(s.finish().unwrap().len(), 1);
+    assert!(s.is_empty());
+    let f = d.denoise(&frames[2], None).unwrap();
+    let e = s.keep(&d, &f.color).unwrap_err().to_string();
+    assert!(e.contains("reset it (Denoiser::reset)"), "{e}");
+    let mut c = Config::new(Method::Wlr);
+    c.temporal = Temporal::LpSmooth;
+    let e = Denoiser::new(&ctx, source.clone(), c)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("use a SequenceDenoiser"), "{e}");
+    let mut c = Config::new(Method::Wlr);
+    c.temporal = Temporal::Lp;
+    let e = SequenceDenoiser::new(&ctx, source, c)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("temporal lp-smooth"), "{e}");
+    check_validation(&ctx);
+}

@@ -385,7 +385,7 @@ impl Timed {
         let mut config = super::config(img, method, stages);
         config.temporal = crate::Temporal::Apr;
         let mut w = crate::SequenceDenoiser::new(ctx, crate::Source::of_image(img), config)?;
-        for _ in 0..w.lag() {
+        for _ in 0..w.lag().unwrap_or(0) {
             w.push(img)?;
         }
         Ok(Timed::Window(Box::new(w)))

@@ -31,6 +31,7 @@ pub mod lp_centres;
 pub mod lp_gather;
 pub mod lp_reach;
 pub mod lp_select;
+pub mod lp_smooth;
 pub mod lp_temporal;
 pub mod lp_temporal_gain;
 pub mod outlier_clip;
@@ -93,6 +94,7 @@ pub const ALL: &[&KernelDecl] = &[
     &lp_reach::DECL,
     &lp_select::DECL,
     &lp_gather::DECL,
+    &lp_smooth::DECL,
     &lp_temporal::DECL,
     &lp_temporal_gain::DECL,
     &aos_nlm::DECL,

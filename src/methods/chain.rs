@@ -25,7 +25,7 @@ use super::pyramid::PyramidStage;
 use super::registry::{GpuStage, StageArgs, StageRun};
 use super::sampling::{self, SampleInputs, SamplingParams, SamplingPlanes};
 use super::stats::{self, GpuStats};
-use super::temporal::{Temporal, TemporalStage, TemporalState};
+use super::temporal::{FilterRecord, Temporal, TemporalStage, TemporalState};
 use super::tiles::{self, Rect};
 use super::{Method, Pass, Prefilter};
 use crate::kernels::lp_temporal::TemporalIn;
@@ -393,7 +393,7 @@ impl GpuChain {
         let sampling = (SamplingPlanes::new(ctx, w, h)?, params);
         let temporal = match (config.temporal, config.pass, &config.temporal_state) {
             (Temporal::Off, _, _) => None,
-            (Temporal::Apr, _, _) => unreachable!("refused above"),
+            (Temporal::Apr | Temporal::LpSmooth, _, _) => unreachable!("refused above"),
             (Temporal::Lp, Pass::Final, None) => {
                 Some(TemporalRole::Filter(Arc::new(TemporalStage::new(ctx, w, h)?)))
             }
@@ -829,6 +829,17 @@ impl GpuChain {
         match &self.temporal {
             Some(TemporalRole::Filter(t)) => Some(TemporalState(t.clone())),
             _ => None,
+        }
+    }
+
+    /// The host copy of what the temporal filter read and made on the last
+    /// call (TEMPORAL-SMOOTH); `None` without a filter.
+    pub fn temporal_record(&self) -> Result<Option<FilterRecord>> {
+        match &self.temporal {
+            Some(TemporalRole::Filter(t)) => {
+                Ok(Some(t.download_record(&self.ctx, &self.temporal_in())?))
+            }
+            _ => Ok(None),
         }
     }
 

@@ -8,12 +8,13 @@
 //! previous frame by the world position (`kernels::lp_temporal`). The paper
 //! applies it to LP; here it follows any method.
 
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
 
 use crate::error::{Error, Result};
-use crate::gpu::{Batch, BufferSlice, GpuContext, PlaneSet, Precision};
-use crate::image::Layer;
+use crate::gpu::{Batch, BufferSlice, GpuContext, KernelTiming, PlaneSet, Precision};
+use crate::image::{Layer, RgbImage};
+use crate::kernels::lp_smooth::{self, Direction};
 use crate::kernels::lp_temporal::{self, TemporalIn, TemporalOut};
 use crate::kernels::lp_temporal_gain;
 use crate::shared::{
@@ -35,25 +36,33 @@ pub enum Temporal {
     /// `t−2..t+2` (offline; [`crate::SequenceDenoiser`], with
     /// [`Method::Apr`](super::Method::Apr)). A [`crate::Denoiser`] refuses it.
     Apr,
+    /// §10.1's filter run over an offline sequence in frame order and in
+    /// reverse order, the two combined per pixel (TEMPORAL-SMOOTH): every
+    /// frame sees the whole sequence ([`crate::SequenceDenoiser`], any
+    /// method; a [`crate::Denoiser`] refuses it). Needs what
+    /// [`Temporal::Lp`] needs.
+    LpSmooth,
 }
 
 impl Temporal {
-    /// An error for [`Temporal::Apr`], which only a
-    /// [`crate::SequenceDenoiser`] runs; `Ok` otherwise.
+    /// An error for [`Temporal::Apr`] and [`Temporal::LpSmooth`], which
+    /// only a [`crate::SequenceDenoiser`] runs; `Ok` otherwise.
     pub fn refuse_window(self) -> Result<()> {
-        if self == Temporal::Apr {
-            return Err(Error::InvalidArgument(
-                "APR's temporal window (§10.2) reconstructs a sequence from the frames around each one: use a SequenceDenoiser".into(),
-            ));
-        }
-        Ok(())
+        let what = match self {
+            Temporal::Apr => "APR's temporal window (§10.2) reconstructs a sequence from the frames around each one",
+            Temporal::LpSmooth => "the two-way temporal filter reconstructs a sequence from all its frames",
+            Temporal::Off | Temporal::Lp => return Ok(()),
+        };
+        Err(Error::InvalidArgument(format!(
+            "{what}: use a SequenceDenoiser"
+        )))
     }
 
     /// The layers the stage reads, besides the method's output and `spp`.
     pub fn needs(self) -> &'static [Layer] {
         match self {
             Temporal::Off | Temporal::Apr => &[],
-            Temporal::Lp => &[Layer::Position, Layer::Depth],
+            Temporal::Lp | Temporal::LpSmooth => &[Layer::Position, Layer::Depth],
         }
     }
 }
@@ -85,6 +94,10 @@ pub struct TemporalStage {
     /// Whether the next recorded frame forgets the history: set at
     /// creation and by [`reset`](Self::reset).
     reset: AtomicBool,
+    /// Frames recorded, and whether the last one forgot the history
+    /// ([`history`](Self::history)).
+    frames: AtomicU64,
+    last_reset: AtomicBool,
 }
 
 impl TemporalStage {
@@ -98,7 +111,19 @@ impl TemporalStage {
             next: PlaneSet::new(ctx, "temporal.next", n, TEMPORAL_STATE)?,
             out: PlaneSet::new(ctx, "temporal.out", n, 4)?,
             reset: AtomicBool::new(true),
+            frames: AtomicU64::new(0),
+            last_reset: AtomicBool::new(false),
         })
+    }
+
+    /// Frames recorded since the stage was made, and whether the last one
+    /// forgot the history (the first frame and every frame after a
+    /// [`reset`](Self::reset)).
+    pub fn history(&self) -> (u64, bool) {
+        (
+            self.frames.load(Ordering::SeqCst),
+            self.last_reset.load(Ordering::SeqCst),
+        )
     }
 
     /// Forgets the history: the next frame reinitialises every pixel (a
@@ -128,7 +153,10 @@ impl TemporalStage {
         let reset = if batch.is_counting() {
             self.reset.load(Ordering::SeqCst)
         } else {
-            self.reset.swap(false, Ordering::SeqCst)
+            let reset = self.reset.swap(false, Ordering::SeqCst);
+            self.frames.fetch_add(1, Ordering::SeqCst);
+            self.last_reset.store(reset, Ordering::SeqCst);
+            reset
         };
         let out = TemporalOut {
             next: self.next.all(),
@@ -173,6 +201,12 @@ impl TemporalStage {
         self.out.plane(3)
     }
 
+    /// `P00` of the last frame after its update, per pixel (0 where the
+    /// pixel was passed through).
+    pub fn p00(&self) -> BufferSlice {
+        self.prev.plane(TEMPORAL_P00)
+    }
+
     /// The debug maps of the last frame, given its `source` plane (as
     /// downloaded): `temporal_source` (the reprojection's offset
     /// `(dy + 3)·7 + dx + 3`, −1 where the pixel was reset, −2 where it was
@@ -184,5 +218,154 @@ impl TemporalStage {
             ("temporal_source".into(), source),
             ("temporal_p00".into(), p00),
         ])
+    }
+}
+
+/// The host copy of what one frame of the filter read and made, kept for
+/// the pass in reverse order of TEMPORAL-SMOOTH ([`SmoothStage`]).
+#[derive(Clone, Debug)]
+pub struct FilterRecord {
+    /// The filter's inputs in [`TemporalIn`]'s order: the method's colour
+    /// (3), position (3), position variance (3), depth, samples, the
+    /// method's error estimate (3).
+    pub inputs: Vec<Vec<f32>>,
+    /// `P00` after the update ([`TemporalStage::p00`]).
+    pub p00: Vec<f32>,
+    /// The frames' `(width, height)`.
+    pub size: (usize, usize),
+    /// The stage's [`history`](TemporalStage::history) after the frame.
+    pub history: (u64, bool),
+}
+
+/// Planes in a [`FilterRecord`]'s `inputs`.
+const RECORD_INPUTS: usize = 14;
+
+impl TemporalStage {
+    /// The host copy of the last frame's inputs `inp` and `P00`.
+    pub fn download_record(&self, ctx: &Arc<GpuContext>, inp: &TemporalIn) -> Result<FilterRecord> {
+        let n = self.width * self.height;
+        let read = |s: BufferSlice| crate::gpu::buffer::read_slice(ctx, s, n);
+        let mut planes: Vec<BufferSlice> = inp.color.to_vec();
+        planes.extend(inp.position);
+        planes.extend(inp.position_variance);
+        planes.extend([inp.depth, inp.spp]);
+        planes.extend(inp.error);
+        Ok(FilterRecord {
+            inputs: planes.into_iter().map(read).collect::<Result<_>>()?,
+            p00: read(self.p00())?,
+            size: self.size(),
+            history: self.history(),
+        })
+    }
+}
+
+/// TEMPORAL-SMOOTH's pass in reverse order: §10.1's filter over the frames
+/// kept by the forward pass ([`FilterRecord`]), last frame first, each
+/// combined with the forward pass's output by `lp_smooth`.
+pub struct SmoothStage {
+    ctx: Arc<GpuContext>,
+    precision: Precision,
+    backward: TemporalStage,
+    /// A frame's [`FilterRecord::inputs`].
+    inputs: PlaneSet,
+    /// The forward pass's colour R, G, B and `P00`.
+    forward: PlaneSet,
+    out: PlaneSet,
+}
+
+impl SmoothStage {
+    /// The stage for `width × height` frames.
+    pub fn new(
+        ctx: &Arc<GpuContext>,
+        (width, height): (usize, usize),
+        precision: Precision,
+    ) -> Result<SmoothStage> {
+        let n = width * height;
+        Ok(SmoothStage {
+            ctx: ctx.clone(),
+            precision,
+            backward: TemporalStage::new(ctx, width, height)?,
+            inputs: PlaneSet::new(ctx, "smooth.inputs", n, RECORD_INPUTS)?,
+            forward: PlaneSet::new(ctx, "smooth.forward", n, 4)?,
+            out: PlaneSet::new(ctx, "smooth.out", n, 3)?,
+        })
+    }
+
+    /// Builds the pipelines its frames record.
+    pub fn build_pipelines(&self) -> Result<()> {
+        for decl in [&lp_temporal::DECL, &lp_smooth::DECL] {
+            self.ctx.pipeline(decl, self.precision)?;
+        }
+        Ok(())
+    }
+
+    /// The next frame in reverse order: `record` and `forward` (the
+    /// forward pass's output colour) of a frame, after the frames that
+    /// follow it in the sequence (`last`: the sequence's last frame, which
+    /// starts the reverse pass). Returns the combined colour and the
+    /// kernels' timings.
+    pub fn run(
+        &self,
+        record: &FilterRecord,
+        forward: &RgbImage,
+        last: bool,
+        progress: bool,
+    ) -> Result<(RgbImage, Vec<KernelTiming>)> {
+        let (w, h) = self.backward.size();
+        if record.inputs.len() != RECORD_INPUTS || forward.width != w || forward.height != h {
+            return Err(Error::InvalidArgument(format!(
+                "a frame of the two-way filter is not of its {w}x{h} frames"
+            )));
+        }
+        for (k, p) in record.inputs.iter().enumerate() {
+            self.inputs.upload_plane(k, p)?;
+        }
+        for (c, p) in forward.planes.iter().enumerate() {
+            self.forward.upload_plane(c, p)?;
+        }
+        self.forward.upload_plane(3, &record.p00)?;
+        if last {
+            self.backward.reset();
+        }
+        let plane = |k: usize| self.inputs.plane(k);
+        let three = |k: usize| [plane(k), plane(k + 1), plane(k + 2)];
+        let inp = TemporalIn {
+            color: three(0),
+            position: three(3),
+            position_variance: three(6),
+            depth: plane(9),
+            spp: plane(10),
+            error: three(11),
+        };
+        let mut batch = Batch::new(&self.ctx)?;
+        batch.progress = progress;
+        self.backward.record(&mut batch, self.precision, &inp)?;
+        let push = self.backward.push(false);
+        let fwd = Direction {
+            color: [
+                self.forward.plane(0),
+                self.forward.plane(1),
+                self.forward.plane(2),
+            ],
+            p00: self.forward.plane(3),
+        };
+        let bwd = Direction {
+            color: self.backward.color(),
+            p00: self.backward.p00(),
+        };
+        let out = [self.out.plane(0), self.out.plane(1), self.out.plane(2)];
+        lp_smooth::record(
+            &mut batch,
+            self.precision,
+            &push,
+            inp.color,
+            &fwd,
+            &bwd,
+            out,
+        )?;
+        let timings = batch.finish()?;
+        let planes = [0, 1, 2].map(|c| self.out.download_plane::<f32>(c));
+        let [r, g, b] = planes;
+        Ok((RgbImage::from_planes(w, h, [r?, g?, b?]), timings))
     }
 }

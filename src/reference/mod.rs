@@ -40,6 +40,7 @@ pub mod lp_centres;
 pub mod lp_gather;
 pub mod lp_reach;
 pub mod lp_select;
+pub mod lp_smooth;
 pub mod lp_temporal;
 pub mod lp_temporal_gain;
 pub mod outlier_clip;

@@ -6,6 +6,10 @@
 //! output then depends on the frames before it in the range. With APR's
 //! temporal window ([`Temporal::Apr`]) a [`SequenceDenoiser`] reconstructs
 //! each frame from the range's frames around it once they are rendered.
+//! With the two-way filter ([`Temporal::LpSmooth`]) the final denoiser
+//! filters in frame order, as with [`Temporal::Lp`], and a [`Smoother`]
+//! combines it with the filter in reverse order once the range is
+//! rendered.
 
 use std::collections::VecDeque;
 use std::ops::Range;
@@ -17,7 +21,7 @@ use super::{Renderer, Scene};
 use crate::error::{Error, Result};
 use crate::gpu::GpuContext;
 use crate::image::StatsImage;
-use crate::{Denoiser, SequenceDenoiser, Source, Temporal};
+use crate::{Denoiser, SequenceDenoiser, Smoother, Source, Temporal};
 
 /// The seed of frame `frame` of a sequence rendered with `seed`.
 pub fn frame_seed(seed: u64, frame: u32) -> u64 {
@@ -69,8 +73,10 @@ pub fn render_frames(
         )));
     }
     let mut last: Option<Denoiser> = None;
-    // APR's window: the frames rendered and not yet reconstructed.
+    // APR's window and the two-way filter: the frames rendered and not yet
+    // reconstructed.
     let mut window: Option<SequenceDenoiser> = None;
+    let mut smoother: Option<Smoother> = None;
     let mut waiting: VecDeque<SequenceFrame> = VecDeque::new();
     for number in frames {
         let at = scene.at_frame(number)?;
@@ -99,26 +105,43 @@ pub fn render_frames(
             continue;
         }
         if temporal != Temporal::Off && last.is_none() {
-            last = Some(adaptive::final_denoiser(
-                ctx,
-                renderer.layout(),
-                cfg,
-                temporal,
-            )?);
+            // The two-way filter's forward direction is the filter itself.
+            let forward = match temporal {
+                Temporal::LpSmooth => Temporal::Lp,
+                t => t,
+            };
+            let d = adaptive::final_denoiser(ctx, renderer.layout(), cfg, forward)?;
+            if temporal == Temporal::LpSmooth {
+                smoother = Some(Smoother::new(ctx, &d)?);
+            }
+            last = Some(d);
         }
         let result = adaptive::render_with_final(ctx, &renderer, cfg, stop, |_| {}, last.as_ref())?;
         let stats = renderer.statistics()?;
-        each(SequenceFrame {
+        let frame = SequenceFrame {
             number,
             seed,
             scene: at,
             result,
             stats,
-        })?;
+        };
+        if let (Some(s), Some(d)) = (&mut smoother, &last) {
+            s.keep(d, &frame.result.frame.color)?;
+            waiting.push_back(frame);
+            continue;
+        }
+        each(frame)?;
     }
     if let Some(w) = &mut window {
         let done = w.finish()?;
         release(done, &mut waiting, &mut each)?;
+    }
+    if let Some(s) = &mut smoother {
+        for ((color, timings), mut f) in s.finish()?.into_iter().zip(waiting.drain(..)) {
+            f.result.frame.color = color;
+            f.result.frame.timings.extend(timings);
+            each(f)?;
+        }
     }
     Ok(())
 }

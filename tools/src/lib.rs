@@ -150,98 +150,52 @@ impl SequenceWithReferences {
 }
 
 /// A method's frames of a sequence alone, through the LP temporal filter
-/// (§10.1) forwards and, when asked, backwards (one denoiser each,
-/// carrying its state), and the two directions combined as a two-filter smoother would: per
-/// pixel and channel, with `a = 1/P₀₀` of each direction after its update
-/// (the information of its estimate in units of one frame's),
-/// `(a_f·F + a_b·B − y)/(a_f + a_b − 1)`, `y` the frame alone, which both
-/// directions hold once; `y` where either direction passed the pixel
-/// through. An emulation on the host from the facade's outputs (the
-/// `temporal_p00` debug plane), for measuring what an offline smoother
-/// would give; the library has none.
+/// (§10.1) in frame order, and when asked through the two-way filter
+/// (TEMPORAL-SMOOTH, [`mcdenoise::Temporal::LpSmooth`]).
 pub struct TwoWay {
     /// Every frame alone.
     pub alone: Vec<RgbImage>,
     /// Every frame through the filter in frame order.
     pub forward: Vec<RgbImage>,
-    /// Every frame through the filter in reverse order (empty unless
-    /// asked for).
-    pub backward: Vec<RgbImage>,
-    /// The two combined (empty unless the backward pass was asked for).
+    /// Every frame through the two-way filter (empty unless asked for).
     pub combined: Vec<RgbImage>,
 }
 
 impl TwoWay {
     /// Runs `method` (its default configuration) on `stats`, a sequence's
-    /// frames in order: alone and forwards, and with `two_way` backwards
-    /// and combined.
+    /// frames in order: alone, through the filter, and with `two_way`
+    /// through the two-way filter.
     pub fn run(
         ctx: &Arc<GpuContext>,
         method: Method,
         stats: &[mcdenoise::StatsImage],
         two_way: bool,
     ) -> anyhow::Result<TwoWay> {
-        use mcdenoise::{Config, Denoiser, Source, Temporal};
+        use mcdenoise::{Config, Denoiser, SequenceDenoiser, Source, Temporal};
         let source = Source::of_image(&stats[0]);
-        let spatial = Denoiser::new(ctx, source.clone(), Config::new(method))?;
-        let alone = stats
-            .iter()
-            .map(|s| Ok(spatial.denoise(s, None)?.color))
-            .collect::<mcdenoise::Result<Vec<_>>>()?;
-        let filter = |order: &mut dyn Iterator<Item = &mcdenoise::StatsImage>| {
+        let run = |temporal: Temporal| -> mcdenoise::Result<Vec<RgbImage>> {
             let mut c = Config::new(method);
-            c.temporal = Temporal::Lp;
-            // P00 is read only to combine the two directions.
-            c.debug = two_way;
+            c.temporal = temporal;
             let d = Denoiser::new(ctx, source.clone(), c)?;
-            let mut out = Vec::with_capacity(stats.len());
-            for s in order {
-                let f = d.denoise(s, None)?;
-                let p00 = if two_way {
-                    let mut debug = f.debug.into_iter();
-                    let p00 = debug.find(|(name, _)| name == "temporal_p00");
-                    p00.context("the filter's debug plane temporal_p00")?.1
-                } else {
-                    Vec::new()
-                };
-                out.push((f.color, p00));
-            }
-            anyhow::Ok(out)
+            stats
+                .iter()
+                .map(|s| Ok(d.denoise(s, None)?.color))
+                .collect()
         };
-        let forward = filter(&mut stats.iter())?;
-        let mut backward = if two_way {
-            filter(&mut stats.iter().rev())?
+        let combined = if two_way {
+            let mut c = Config::new(method);
+            c.temporal = Temporal::LpSmooth;
+            let mut seq = SequenceDenoiser::new(ctx, source.clone(), c)?;
+            for s in stats {
+                seq.push(s)?;
+            }
+            seq.finish()?.into_iter().map(|(_, f)| f.color).collect()
         } else {
             Vec::new()
         };
-        backward.reverse();
-        let combined = alone
-            .iter()
-            .zip(forward.iter().zip(&backward))
-            .map(|(y, ((f, pf), (b, pb)))| {
-                let planes = std::array::from_fn(|c| {
-                    (0..y.planes[c].len())
-                        .map(|i| {
-                            let (af, ab) = (1.0 / f64::from(pf[i]), 1.0 / f64::from(pb[i]));
-                            let den = af + ab - 1.0;
-                            let y = y.planes[c][i];
-                            if !(af.is_finite() && ab.is_finite() && den > 1e-9) {
-                                return y;
-                            }
-                            let sum = af * f64::from(f.planes[c][i])
-                                + ab * f64::from(b.planes[c][i])
-                                - f64::from(y);
-                            (sum / den).max(0.0) as f32
-                        })
-                        .collect()
-                });
-                RgbImage::from_planes(y.width, y.height, planes)
-            })
-            .collect();
         Ok(TwoWay {
-            alone,
-            forward: forward.into_iter().map(|(c, _)| c).collect(),
-            backward: backward.into_iter().map(|(c, _)| c).collect(),
+            alone: run(Temporal::Off)?,
+            forward: run(Temporal::Lp)?,
             combined,
         })
     }

@@ -182,6 +182,12 @@ pub enum TemporalArg {
     /// frame's blocks fit polynomials in space and time over the frames
     /// t-2..t+2 around it.
     Apr,
+    /// The LP temporal filter run over the whole sequence forwards and
+    /// backwards, the two combined per pixel, offline: every frame sees
+    /// the frames before and after it. Frames come out once the sequence
+    /// is done; the host holds 18 planes per frame until then. Needs the
+    /// position and depth layers.
+    LpSmooth,
 }
 
 impl TemporalArg {
@@ -190,6 +196,23 @@ impl TemporalArg {
             TemporalArg::Off => mcdenoise::Temporal::Off,
             TemporalArg::Lp => mcdenoise::Temporal::Lp,
             TemporalArg::Apr => mcdenoise::Temporal::Apr,
+            TemporalArg::LpSmooth => mcdenoise::Temporal::LpSmooth,
         }
+    }
+
+    /// The flag's value as typed (`--temporal NAME`).
+    pub fn name(self) -> &'static str {
+        match self {
+            TemporalArg::Off => "off",
+            TemporalArg::Lp => "lp",
+            TemporalArg::Apr => "apr",
+            TemporalArg::LpSmooth => "lp-smooth",
+        }
+    }
+
+    /// Whether a filter carries state from frame to frame on the GPU, whose
+    /// maps an adaptive pass reads (TEMPORAL-MAP): lp and lp-smooth.
+    pub fn filters(self) -> bool {
+        matches!(self, TemporalArg::Lp | TemporalArg::LpSmooth)
     }
 }

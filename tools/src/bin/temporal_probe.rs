@@ -15,8 +15,8 @@
 //! red where the filter raises it, green where it lowers it, full scale at
 //! `--scale`) and the filtered output's per-pixel temporal error
 //! (`<method>_temporal.png`, heat map, full scale at the 99th percentile).
-//! With `--two-way`, a third column: the filter run forwards and backwards
-//! and combined, an emulated offline smoother (`TwoWay`).
+//! With `--two-way`, a third column: the two-way filter
+//! (`--temporal lp-smooth`, TEMPORAL-SMOOTH).
 //!
 //! ```text
 //! cargo run --release -p mcdenoise-tools --bin temporal_probe -- \
@@ -62,8 +62,7 @@ struct Args {
     /// The summed rMSE change that saturates the delta map.
     #[arg(long, default_value_t = 0.05)]
     scale: f32,
-    /// Also the filter run forwards and backwards and combined, an
-    /// emulated two-filter smoother (`mcdenoise_tools::TwoWay`).
+    /// Also the two-way filter (`Temporal::LpSmooth`).
     #[arg(long)]
     two_way: bool,
 }

@@ -161,7 +161,7 @@ pub fn run(cli: &Cli, a: &Args) -> anyhow::Result<bool> {
     };
     let Some(input) = &a.input else {
         let frames = a.frames.as_ref().expect("clap: input or --frames");
-        if a.temporal.get() == Temporal::Apr {
+        if matches!(a.temporal.get(), Temporal::Apr | Temporal::LpSmooth) {
             return denoise_window(cli, a, frames, &config_for);
         }
         return denoise_frames(cli, a, frames, &warm_config, &config_for);
@@ -327,11 +327,11 @@ fn write_frame(
     Ok(())
 }
 
-/// `denoise --frames --temporal apr`: APR's temporal window (spec §10.2)
-/// over every run of consecutive frames of one size and set of layers. A
+/// `denoise --frames --temporal apr|lp-smooth`: APR's temporal window
+/// (spec §10.2) or the two-way filter (TEMPORAL-SMOOTH) over every run of consecutive frames of one size and set of layers. A
 /// gap in the numbering or a frame of another shape ends the run (its
 /// last frames come out) and starts another; a frame that fails to read or
-/// to denoise is reported and skipped, and the frames waiting in the window
+/// to denoise is reported and skipped, and the frames waiting in the sequence
 /// with it fail too; the exit status is 1 if any frame failed.
 fn denoise_window(
     cli: &Cli,
@@ -340,10 +340,16 @@ fn denoise_window(
     config_for: &dyn Fn(&StatsImage) -> Config,
 ) -> anyhow::Result<bool> {
     if a.backend == BackendArg::Cpu {
-        bail!("--temporal apr keeps its frames on the GPU: use --backend gpu");
+        bail!(
+            "--temporal {} keeps its frames on the GPU: use --backend gpu",
+            a.temporal.name()
+        );
     }
     if a.max_memory.is_some() || a.tile.is_some() {
-        bail!("--temporal apr denoises whole frames: --max-memory and --tile do not apply");
+        bail!(
+            "--temporal {} denoises whole frames: --max-memory and --tile do not apply",
+            a.temporal.name()
+        );
     }
     let (outp, frames) = frame_patterns(a, pattern)?;
     let ctx = context(cli)?;

@@ -91,7 +91,7 @@ pub struct Args {
     /// decides how much of the pass follows the map and how much is spread
     /// evenly over the image, to the least error it predicts for itself
     /// (decision record MAP-CHECK). Costs one final reconstruction per
-    /// pass. Not with --temporal lp. `--map-check` alone is
+    /// pass. Not with --temporal lp or lp-smooth. `--map-check` alone is
     /// `--map-check=on`
     #[arg(long, value_enum, default_value = "auto", num_args = 0..=1, require_equals = true, default_missing_value = "on")]
     map_check: MapCheckArg,
@@ -374,14 +374,14 @@ pub fn run(cli: &Cli, a: &Args) -> anyhow::Result<bool> {
     if a.coarse_maps && !a.adaptive {
         bail!("--coarse-maps makes the adaptive passes' sample maps: it needs --adaptive");
     }
-    if a.coarse_maps && a.temporal.get() == mcdenoise::Temporal::Lp {
-        bail!("--coarse-maps and --temporal lp: the adaptive passes' maps read the temporal filter's state at the full resolution (TEMPORAL-MAP)");
+    if a.coarse_maps && a.temporal.filters() {
+        bail!("--coarse-maps and --temporal {}: the adaptive passes' maps read the temporal filter's state at the full resolution (TEMPORAL-MAP)", a.temporal.name());
     }
     if a.map_check == MapCheckArg::On && !a.adaptive {
         bail!("--map-check checks the adaptive passes' sample maps: it needs --adaptive");
     }
-    if a.map_check == MapCheckArg::On && a.temporal.get() == mcdenoise::Temporal::Lp {
-        bail!("--map-check and --temporal lp: the adaptive passes' maps weigh what the temporal filter knows, which a frame's own reconstruction does not (TEMPORAL-MAP)");
+    if a.map_check == MapCheckArg::On && a.temporal.filters() {
+        bail!("--map-check and --temporal {}: the adaptive passes' maps weigh what the temporal filter knows, which a frame's own reconstruction does not (TEMPORAL-MAP)", a.temporal.name());
     }
     if a.passes.is_some() && !a.adaptive {
         bail!("--passes sets the adaptive schedule: it needs --adaptive");
