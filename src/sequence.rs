@@ -34,8 +34,9 @@ use crate::methods::{InputBlend, Method, Pass, Pyramid, Temporal};
 /// - [`Temporal::LpSmooth`], the two-way temporal filter (TEMPORAL-SMOOTH)
 ///   after any method: each push runs the method and §10.1's filter in
 ///   frame order; `finish` runs the filter in reverse order and combines
-///   the two, so every frame comes out of `finish`. The host keeps 18
-///   planes per frame until then (a cut bounds it).
+///   the two, so every frame comes out of `finish`. Until then the host
+///   keeps, per frame, its output and 18 planes of the filter's (a cut
+///   bounds it).
 ///
 /// ```no_run
 /// # use std::sync::Arc;

@@ -726,3 +726,30 @@ fn timing_benchmark_from_the_cli_on_the_gpu() {
     assert!(err.contains("WIDTHxHEIGHT"), "{err}");
     let _ = std::fs::remove_dir_all(&root);
 }
+
+/// `bench --temporal lp-smooth` times one frame's whole work of the
+/// two-way filter: the filter runs twice per call (in frame order and in
+/// reverse order) and `lp_smooth` once.
+#[test]
+fn timing_benchmark_of_the_two_way_filter() {
+    let (code, out, err) = run(Command::new(env!("CARGO_BIN_EXE_mcdenoise")).args([
+        "bench",
+        "--size",
+        "16x16",
+        "--runs",
+        "2",
+        "--methods",
+        "none",
+        "--temporal",
+        "lp-smooth",
+    ]));
+    assert_eq!(code, 0, "stdout:\n{out}\nstderr:\n{err}");
+    let case = "none.synthetic.16x16";
+    let dispatches = |kernel: &str| {
+        let row =
+            table_row(&out, &[case, "gpu", kernel]).unwrap_or_else(|| panic!("{kernel}: {out}"));
+        row[4].clone()
+    };
+    assert_eq!(dispatches("lp_temporal"), "2", "{out}");
+    assert_eq!(dispatches("lp_smooth"), "1", "{out}");
+}

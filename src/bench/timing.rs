@@ -360,10 +360,20 @@ fn time_case(
 /// What a timed call runs: a [`crate::Denoiser`] call, or with APR's
 /// temporal window ([`crate::Temporal::Apr`]) a push of the same
 /// statistics as the next frame of a sequence, timed once the window is
-/// full (every push then outputs a frame: one frame's whole work).
+/// full (every push then outputs a frame: one frame's whole work); with
+/// the two-way filter ([`crate::Temporal::LpSmooth`]) one frame's whole
+/// work too: the method and the filter in frame order, the host copy of
+/// the filter's inputs, and the reverse pass's frame (upload, the filter,
+/// `lp_smooth`, download), both directions carrying their state from call
+/// to call.
 enum Timed {
     One(crate::Denoiser),
     Window(Box<crate::SequenceDenoiser>),
+    Smooth {
+        forward: Box<crate::Denoiser>,
+        reverse: Box<crate::methods::temporal::SmoothStage>,
+        calls: usize,
+    },
 }
 
 impl Timed {
@@ -374,14 +384,36 @@ impl Timed {
         backend: Backend,
         stages: &super::Stages,
     ) -> Result<Timed> {
-        if stages.temporal != crate::Temporal::Apr {
+        if !matches!(
+            stages.temporal,
+            crate::Temporal::Apr | crate::Temporal::LpSmooth
+        ) {
             return Ok(Timed::One(denoiser(ctx, img, method, backend, stages)?));
         }
         let Some(ctx) = ctx.filter(|_| backend == Backend::Gpu) else {
             return Err(crate::Error::InvalidArgument(
-                "APR's temporal window runs on the GPU backend".into(),
+                "the offline temporal stages (apr, lp-smooth) run on the GPU backend".into(),
             ));
         };
+        if stages.temporal == crate::Temporal::LpSmooth {
+            let lp = super::Stages {
+                temporal: crate::Temporal::Lp,
+                ..stages.clone()
+            };
+            let forward = super::denoiser(Some(ctx), img, method, backend, &lp)?;
+            let precision = forward.config().precision;
+            let reverse = crate::methods::temporal::SmoothStage::new(
+                ctx,
+                (img.width, img.height),
+                precision,
+            )?;
+            reverse.build_pipelines()?;
+            return Ok(Timed::Smooth {
+                forward: Box::new(forward),
+                reverse: Box::new(reverse),
+                calls: 0,
+            });
+        }
         let mut config = super::config(img, method, stages);
         config.temporal = crate::Temporal::Apr;
         let mut w = crate::SequenceDenoiser::new(ctx, crate::Source::of_image(img), config)?;
@@ -397,6 +429,21 @@ impl Timed {
             Timed::Window(w) => w.push(img)?.pop().map(|(_, f)| f).ok_or_else(|| {
                 crate::Error::InvalidArgument("a full window outputs a frame per push".into())
             }),
+            Timed::Smooth {
+                forward,
+                reverse,
+                calls,
+            } => {
+                let mut f = forward.denoise(img, None)?;
+                let record = forward.temporal_record()?.ok_or_else(|| {
+                    crate::Error::InvalidArgument("the forward pass has no temporal filter".into())
+                })?;
+                let (color, timings) = reverse.run(&record, &f.color, *calls == 0, false)?;
+                *calls += 1;
+                f.color = color;
+                f.timings.extend(timings);
+                Ok(f)
+            }
         }
     }
 }

@@ -10,11 +10,14 @@
 //! references' seeds follow `--seed` unless `--reference-seed` names
 //! another sequence seed, whose cached references a run then reuses. With
 //! `--temporal`, each method also with the LP temporal filter (§10.1,
-//! "+ 10.1"), one denoiser carrying its state through the frames. With
+//! "+ 10.1"), one denoiser carrying its state through the frames, and
+//! with the filter both ways ("+ two-way", TEMPORAL-SMOOTH, a
+//! `SequenceDenoiser`). With
 //! `--adaptive`, each method's adaptive renders of the sequence instead
 //! (its loop's maps: WLR's for LP, APR, AOS and `auto`, MAP-WLR and
 //! AUTO-MAPS):
-//! alone, with the filter, and with maps that read the filter's state (and
+//! alone, with the filter, and with maps that read the filter's state
+//! (forwards, and both ways: "adaptive + two-way, TEMPORAL-MAP"; and
 //! APR's also reconstructed by its temporal window, "adaptive + 10.2").
 //! Every method runs without the pyramid's low band (`auto` too, whose
 //! default has it); with `--pyramid`, each method also with it (and,
@@ -165,6 +168,7 @@ fn main() -> anyhow::Result<()> {
                     ("adaptive", Temporal::Off, false),
                     ("adaptive + 10.1", Temporal::Lp, false),
                     ("adaptive + 10.1, TEMPORAL-MAP", Temporal::Lp, true),
+                    ("adaptive + two-way, TEMPORAL-MAP", Temporal::LpSmooth, true),
                 ]
                 .into_iter()
                 .chain(window)
@@ -223,6 +227,15 @@ fn main() -> anyhow::Result<()> {
                         .map(|s| Ok(d.denoise(s, None)?.color))
                         .collect::<mcdenoise::Result<Vec<_>>>()?;
                     row(&format!("{name} + 10.1"), &outputs)?;
+                    // The filter both ways (TEMPORAL-SMOOTH).
+                    let source = Source::of_image(&stats[0]);
+                    let mut seq = SequenceDenoiser::new(&ctx, source, config(Temporal::LpSmooth))?;
+                    for s in &stats {
+                        seq.push(s)?;
+                    }
+                    let outputs: Vec<RgbImage> =
+                        seq.finish()?.into_iter().map(|(_, f)| f.color).collect();
+                    row(&format!("{name} + two-way"), &outputs)?;
                 }
             }
             if a.window && m == Method::Apr {
