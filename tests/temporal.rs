@@ -6,6 +6,7 @@
 mod common;
 
 use common::{agreement, assert_close, check_validation, gpu, precisions, Rng};
+use mcdenoise::gpu::Precision;
 use mcdenoise::kernels::{lp_temporal, lp_temporal_gain, run_planes};
 use mcdenoise::reference::lp_temporal::{self as twin, PixelState, TemporalInputs};
 use mcdenoise::reference::lp_temporal_gain as gain_twin;
@@ -241,6 +242,36 @@ fn twin_frame(
     (next, out, source)
 }
 
+/// `lp_temporal`'s input bindings for frame `f` over the state `prev`.
+fn kernel_inputs<'a>(f: &'a Synthetic, prev: &'a [f32]) -> Vec<&'a [f32]> {
+    let mut ins: Vec<&[f32]> = Vec::new();
+    ins.extend(f.color.iter().map(|v| &v[..]));
+    ins.extend(f.position.iter().map(|v| &v[..]));
+    ins.extend(f.variance.iter().map(|v| &v[..]));
+    ins.extend([&f.depth[..], &f.spp[..]]);
+    ins.extend(f.error.iter().map(|v| &v[..]));
+    ins.push(prev);
+    ins
+}
+
+/// The GPU's frame: next state, output R, G, B and source.
+fn gpu_frame(p: &TemporalPush, f: &Synthetic, prev: &[f32], prec: Precision) -> Vec<Vec<f32>> {
+    let n = f.w * f.h;
+    run_planes(
+        &gpu(),
+        &lp_temporal::DECL,
+        prec,
+        bytemuck::bytes_of(p),
+        f.w,
+        f.h,
+        &kernel_inputs(f, prev),
+        &[TEMPORAL_STATE * n, n, n, n, n],
+        lp_temporal::FLOPS_PER_PIXEL,
+    )
+    .unwrap()
+    .0
+}
+
 /// `lp_temporal` and `lp_temporal_gain` against their twins over a
 /// synthetic sequence, each frame from the twin's previous state; with
 /// TEMPORAL-PRIOR's reset, and on the largest frame also with §10.1's and
@@ -274,25 +305,8 @@ fn lp_temporal_matches_its_twin() {
             };
             let (next, out, source) = twin_frame(&p, &f, &prev);
             for prec in precisions() {
-                let mut ins: Vec<&[f32]> = Vec::new();
-                ins.extend(f.color.iter().map(|v| &v[..]));
-                ins.extend(f.position.iter().map(|v| &v[..]));
-                ins.extend(f.variance.iter().map(|v| &v[..]));
-                ins.extend([&f.depth[..], &f.spp[..]]);
-                ins.extend(f.error.iter().map(|v| &v[..]));
-                ins.push(&prev[..]);
-                let (g, _) = run_planes(
-                    &ctx,
-                    &lp_temporal::DECL,
-                    prec,
-                    bytemuck::bytes_of(&p),
-                    w,
-                    h,
-                    &ins,
-                    &[TEMPORAL_STATE * n, n, n, n, n],
-                    lp_temporal::FLOPS_PER_PIXEL,
-                )
-                .unwrap();
+                let ins = kernel_inputs(&f, &prev);
+                let g = gpu_frame(&p, &f, &prev, prec);
                 let what = format!("{w}x{h} prior ({p00}, {p11}) frame {t} {prec:?}");
                 assert_close(&format!("{what} state"), &g[0], &next, 0.99);
                 for c in 0..3 {
@@ -389,25 +403,7 @@ fn an_inflated_history_restarts_at_the_step() {
                 },
             );
             let (next, out, _) = twin_frame(&p, &f, &twin_prev);
-            let mut ins: Vec<&[f32]> = Vec::new();
-            ins.extend(f.color.iter().map(|v| &v[..]));
-            ins.extend(f.position.iter().map(|v| &v[..]));
-            ins.extend(f.variance.iter().map(|v| &v[..]));
-            ins.extend([&f.depth[..], &f.spp[..]]);
-            ins.extend(f.error.iter().map(|v| &v[..]));
-            ins.push(&prev[..]);
-            let (g, _) = run_planes(
-                &ctx,
-                &lp_temporal::DECL,
-                prec,
-                bytemuck::bytes_of(&p),
-                w,
-                h,
-                &ins,
-                &[TEMPORAL_STATE * n, n, n, n, n],
-                lp_temporal::FLOPS_PER_PIXEL,
-            )
-            .unwrap();
+            let g = gpu_frame(&p, &f, &prev, prec);
             for (who, state, color) in [("gpu", &g[0], &g[1]), ("twin", &next, &out[0])] {
                 let p00 = state[TEMPORAL_P00 * n + 9];
                 let what = format!("{prec:?} {who} frame {t}");
