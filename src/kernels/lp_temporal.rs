@@ -80,14 +80,37 @@ pub struct TemporalOut {
     pub source: BufferSlice,
 }
 
+/// Planes in a [`TemporalIn`] ([`TemporalIn::planes`]).
+pub const INPUT_PLANES: usize = 14;
+
 impl TemporalIn {
-    /// The bindings 0–14 of a temporal kernel: these planes and `prev`.
-    pub(crate) fn with_prev(&self, prev: BufferSlice) -> Vec<BufferSlice> {
+    /// The planes in binding order (bindings 0–13): colour, position,
+    /// position variance (3 each), depth, samples, error (3).
+    pub fn planes(&self) -> Vec<BufferSlice> {
         let mut v: Vec<BufferSlice> = self.color.to_vec();
         v.extend(self.position);
         v.extend(self.position_variance);
         v.extend([self.depth, self.spp]);
         v.extend(self.error);
+        v
+    }
+
+    /// The inputs whose [`planes`](Self::planes) are `plane(0..14)`.
+    pub fn from_planes(plane: impl Fn(usize) -> BufferSlice) -> TemporalIn {
+        let three = |k: usize| [plane(k), plane(k + 1), plane(k + 2)];
+        TemporalIn {
+            color: three(0),
+            position: three(3),
+            position_variance: three(6),
+            depth: plane(9),
+            spp: plane(10),
+            error: three(11),
+        }
+    }
+
+    /// The bindings 0–14 of a temporal kernel: these planes and `prev`.
+    pub(crate) fn with_prev(&self, prev: BufferSlice) -> Vec<BufferSlice> {
+        let mut v = self.planes();
         v.push(prev);
         v
     }

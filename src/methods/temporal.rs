@@ -15,7 +15,7 @@ use crate::error::{Error, Result};
 use crate::gpu::{Batch, BufferSlice, GpuContext, KernelTiming, PlaneSet, Precision};
 use crate::image::{Layer, RgbImage};
 use crate::kernels::lp_smooth::{self, Direction};
-use crate::kernels::lp_temporal::{self, TemporalIn, TemporalOut};
+use crate::kernels::lp_temporal::{self, TemporalIn, TemporalOut, INPUT_PLANES};
 use crate::kernels::lp_temporal_gain;
 use crate::shared::{
     TemporalPush, TEMPORAL_LAMBDA, TEMPORAL_P00, TEMPORAL_RESET, TEMPORAL_RESET_P00,
@@ -225,9 +225,9 @@ impl TemporalStage {
 /// the pass in reverse order of TEMPORAL-SMOOTH ([`SmoothStage`]).
 #[derive(Clone, Debug)]
 pub struct FilterRecord {
-    /// The filter's inputs in [`TemporalIn`]'s order: the method's colour
-    /// (3), position (3), position variance (3), depth, samples, the
-    /// method's error estimate (3).
+    /// The filter's inputs in the order of [`TemporalIn::planes`]: the
+    /// method's colour (3), position (3), position variance (3), depth,
+    /// samples, the method's error estimate (3).
     pub inputs: Vec<Vec<f32>>,
     /// `P00` after the update ([`TemporalStage::p00`]).
     pub p00: Vec<f32>,
@@ -237,21 +237,13 @@ pub struct FilterRecord {
     pub history: (u64, bool),
 }
 
-/// Planes in a [`FilterRecord`]'s `inputs`.
-const RECORD_INPUTS: usize = 14;
-
 impl TemporalStage {
     /// The host copy of the last frame's inputs `inp` and `P00`.
     pub fn download_record(&self, ctx: &Arc<GpuContext>, inp: &TemporalIn) -> Result<FilterRecord> {
         let n = self.width * self.height;
         let read = |s: BufferSlice| crate::gpu::buffer::read_slice(ctx, s, n);
-        let mut planes: Vec<BufferSlice> = inp.color.to_vec();
-        planes.extend(inp.position);
-        planes.extend(inp.position_variance);
-        planes.extend([inp.depth, inp.spp]);
-        planes.extend(inp.error);
         Ok(FilterRecord {
-            inputs: planes.into_iter().map(read).collect::<Result<_>>()?,
+            inputs: inp.planes().into_iter().map(read).collect::<Result<_>>()?,
             p00: read(self.p00())?,
             size: self.size(),
             history: self.history(),
@@ -285,7 +277,7 @@ impl SmoothStage {
             ctx: ctx.clone(),
             precision,
             backward: TemporalStage::new(ctx, width, height)?,
-            inputs: PlaneSet::new(ctx, "smooth.inputs", n, RECORD_INPUTS)?,
+            inputs: PlaneSet::new(ctx, "smooth.inputs", n, INPUT_PLANES)?,
             forward: PlaneSet::new(ctx, "smooth.forward", n, 4)?,
             out: PlaneSet::new(ctx, "smooth.out", n, 3)?,
         })
@@ -312,7 +304,7 @@ impl SmoothStage {
         progress: bool,
     ) -> Result<(RgbImage, Vec<KernelTiming>)> {
         let (w, h) = self.backward.size();
-        if record.inputs.len() != RECORD_INPUTS || forward.width != w || forward.height != h {
+        if record.inputs.len() != INPUT_PLANES || forward.width != w || forward.height != h {
             return Err(Error::InvalidArgument(format!(
                 "a frame of the two-way filter is not of its {w}x{h} frames"
             )));
@@ -327,16 +319,7 @@ impl SmoothStage {
         if last {
             self.backward.reset();
         }
-        let plane = |k: usize| self.inputs.plane(k);
-        let three = |k: usize| [plane(k), plane(k + 1), plane(k + 2)];
-        let inp = TemporalIn {
-            color: three(0),
-            position: three(3),
-            position_variance: three(6),
-            depth: plane(9),
-            spp: plane(10),
-            error: three(11),
-        };
+        let inp = TemporalIn::from_planes(|k| self.inputs.plane(k));
         let mut batch = Batch::new(&self.ctx)?;
         batch.progress = progress;
         self.backward.record(&mut batch, self.precision, &inp)?;
