@@ -13,6 +13,7 @@ use crate::denoiser::{Config, Denoiser, Frame, Source};
 use crate::error::{Error, Result};
 use crate::gpu::{Batch, GpuContext, KernelTiming};
 use crate::image::{RgbImage, StatsImage};
+use crate::kernels::lp_temporal::INPUT_PLANES;
 use crate::methods::apr::AprParams;
 use crate::methods::apr_window::{AprWindow, WindowConfig};
 use crate::methods::prepare::{base_report, PrepareReport};
@@ -35,8 +36,8 @@ use crate::methods::{InputBlend, Method, Pass, Pyramid, Temporal};
 ///   after any method: each push runs the method and §10.1's filter in
 ///   frame order; `finish` runs the filter in reverse order and combines
 ///   the two, so every frame comes out of `finish`. Until then the host
-///   keeps, per frame, its output and 18 planes of the filter's (a cut
-///   bounds it).
+///   keeps each frame's error estimate and report, and a [`Smoother`]
+///   its colour and the filter's planes in a temporary file.
 ///
 /// ```no_run
 /// # use std::sync::Arc;
@@ -260,8 +261,10 @@ impl SequenceDenoiser {
                 frames,
             } => {
                 let mut run = || -> Result<()> {
-                    let f = forward.denoise(img, None)?;
+                    let mut f = forward.denoise(img, None)?;
                     smoother.keep(forward, &f.color)?;
+                    // The smoother keeps the colour; finish replaces it.
+                    f.color = RgbImage::new(0, 0);
                     frames.push(f);
                     Ok(())
                 };
@@ -322,20 +325,17 @@ impl SequenceDenoiser {
                 let frames = std::mem::take(frames);
                 forward.reset();
                 if broken {
-                    smoother.clear();
+                    smoother.clear()?;
                     return Ok(Vec::new());
                 }
-                let colors = smoother.finish()?;
-                Ok(frames
-                    .into_iter()
-                    .zip(colors)
-                    .enumerate()
-                    .map(|(t, (mut f, (color, timings)))| {
-                        f.color = color;
-                        f.timings.extend(timings);
-                        (t, f)
-                    })
-                    .collect())
+                let mut frames: Vec<(usize, Frame)> = frames.into_iter().enumerate().collect();
+                smoother.finish_each(|t, color, timings| {
+                    let f = &mut frames[t].1;
+                    f.color = color;
+                    f.timings.extend(timings);
+                    Ok(())
+                })?;
+                Ok(frames)
             }
         }
     }
@@ -400,7 +400,10 @@ impl SequenceDenoiser {
 /// The two-way temporal filter (TEMPORAL-SMOOTH) on the frames of a
 /// caller's temporal [`Denoiser`] ([`Temporal::Lp`], one chain): after
 /// each of its calls, [`keep`](Self::keep) copies what its filter read and
-/// made to the host (18 planes per frame); [`finish`](Self::finish) runs
+/// made and the call's colour to an unnamed temporary file in
+/// [`std::env::temp_dir`] (`TMPDIR` on Unix; 18 planes, 72 bytes per pixel
+/// and frame), so the host's memory does not grow with the sequence;
+/// [`finish`](Self::finish) runs
 /// the filter over them in reverse order and combines the two directions,
 /// per pixel and channel, `(a_f F + a_b B − y)/(a_f + a_b − 1)` with `a =
 /// 1/P₀₀` of each direction and `y` the method's output. Every frame's
@@ -413,16 +416,123 @@ pub struct Smoother {
     progress: bool,
     size: (usize, usize),
     /// Every kept frame's record and forward colour, in order.
-    kept: Vec<(FilterRecord, RgbImage)>,
+    kept: Spill,
     /// The denoiser's filter frames at the last keep.
     last: Option<u64>,
+}
+
+/// The planes a [`Smoother`] keeps per frame: the filter's inputs, its
+/// `P00` and the forward colour.
+const KEPT_PLANES: usize = INPUT_PLANES + 1 + 3;
+
+/// A [`Smoother`]'s kept frames in an unnamed temporary file, so that the
+/// host's memory does not grow with the sequence: frame `k`'s
+/// [`KEPT_PLANES`] planes of `n` floats at byte `k·KEPT_PLANES·n·4`.
+struct Spill {
+    file: std::fs::File,
+    /// Floats per plane.
+    n: usize,
+    /// The frames kept.
+    frames: usize,
+    /// Each kept frame's [`FilterRecord::history`].
+    histories: Vec<(u64, bool)>,
+}
+
+impl Spill {
+    /// An empty spill for planes of `n` floats, in a file of
+    /// [`std::env::temp_dir`] (`TMPDIR` on Unix) that the OS removes when
+    /// it is closed.
+    fn new(n: usize) -> Result<Spill> {
+        let file = tempfile::tempfile().map_err(|e| Spill::error(e, "create"))?;
+        Ok(Spill {
+            file,
+            n,
+            frames: 0,
+            histories: Vec::new(),
+        })
+    }
+
+    fn error(source: std::io::Error, what: &str) -> Error {
+        Error::Io {
+            path: std::env::temp_dir(),
+            source: std::io::Error::new(
+                source.kind(),
+                format!(
+                    "the two-way filter could not {what} its temporary file of kept frames here (TMPDIR chooses the directory): {source}"
+                ),
+            ),
+        }
+    }
+
+    /// Appends a frame: its record's planes and the forward colour.
+    fn push(&mut self, record: &FilterRecord, color: &RgbImage) -> Result<()> {
+        use std::io::{Seek, SeekFrom, Write};
+        let planes = record
+            .inputs
+            .iter()
+            .chain([&record.p00])
+            .chain(&color.planes);
+        let write = |file: &mut std::fs::File| -> std::io::Result<()> {
+            let at = (self.frames * KEPT_PLANES * self.n * 4) as u64;
+            file.seek(SeekFrom::Start(at))?;
+            let mut w = std::io::BufWriter::new(file);
+            for p in planes {
+                debug_assert_eq!(p.len(), self.n);
+                w.write_all(bytemuck::cast_slice(p))?;
+            }
+            w.flush()
+        };
+        write(&mut self.file).map_err(|e| Spill::error(e, "write"))?;
+        self.frames += 1;
+        self.histories.push(record.history);
+        Ok(())
+    }
+
+    /// Frame `k`'s record (of `size`) and forward colour.
+    fn read(&mut self, k: usize, size: (usize, usize)) -> Result<(FilterRecord, RgbImage)> {
+        use std::io::{Read, Seek, SeekFrom};
+        let n = self.n;
+        let mut planes = vec![vec![0f32; n]; KEPT_PLANES];
+        let mut read = || -> std::io::Result<()> {
+            let at = (k * KEPT_PLANES * n * 4) as u64;
+            self.file.seek(SeekFrom::Start(at))?;
+            let mut r = std::io::BufReader::new(&mut self.file);
+            for p in &mut planes {
+                r.read_exact(bytemuck::cast_slice_mut(p))?;
+            }
+            Ok(())
+        };
+        read().map_err(|e| Spill::error(e, "read"))?;
+        let color: [Vec<f32>; 3] =
+            std::array::from_fn(|c| std::mem::take(&mut planes[INPUT_PLANES + 1 + c]));
+        let p00 = std::mem::take(&mut planes[INPUT_PLANES]);
+        planes.truncate(INPUT_PLANES);
+        Ok((
+            FilterRecord {
+                inputs: planes,
+                p00,
+                size,
+                history: self.histories[k],
+            },
+            RgbImage::from_planes(size.0, size.1, color),
+        ))
+    }
+
+    /// Drops every frame (the file shrinks to nothing).
+    fn clear(&mut self) -> Result<()> {
+        self.frames = 0;
+        self.histories.clear();
+        self.file
+            .set_len(0)
+            .map_err(|e| Spill::error(e, "truncate"))
+    }
 }
 
 impl std::fmt::Debug for Smoother {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Smoother")
             .field("size", &self.size)
-            .field("kept", &self.kept.len())
+            .field("kept", &self.kept.frames)
             .finish()
     }
 }
@@ -430,7 +540,8 @@ impl std::fmt::Debug for Smoother {
 impl Smoother {
     /// The two-way filter for the frames of `denoiser`, which must filter
     /// on one GPU chain ([`Temporal::Lp`], a final pass); its precision and
-    /// progress setting apply. Builds its pipelines.
+    /// progress setting apply. Builds its pipelines and creates its temporary
+    /// file (an [`Error::Io`] if the temporary directory cannot hold one).
     pub fn new(ctx: &Arc<GpuContext>, denoiser: &Denoiser) -> Result<Smoother> {
         let Some(size) = denoiser.temporal_state().map(|s| s.0.size()) else {
             return Err(Error::InvalidArgument(
@@ -444,7 +555,7 @@ impl Smoother {
             stage,
             progress: config.progress,
             size,
-            kept: Vec::new(),
+            kept: Spill::new(size.0 * size.1)?,
             last: None,
         })
     }
@@ -483,25 +594,25 @@ impl Smoother {
             }
             _ => {}
         }
-        self.kept.push((record, color.clone()));
+        self.kept.push(&record, color)?;
         self.last = Some(frames);
         Ok(())
     }
 
     /// Frames kept since the sequence began.
     pub fn len(&self) -> usize {
-        self.kept.len()
+        self.kept.frames
     }
 
     /// Whether no frame is kept.
     pub fn is_empty(&self) -> bool {
-        self.kept.is_empty()
+        self.kept.frames == 0
     }
 
     /// Drops the kept frames: the next keep starts a new sequence.
-    pub fn clear(&mut self) {
-        self.kept.clear();
+    pub fn clear(&mut self) -> Result<()> {
         self.last = None;
+        self.kept.clear()
     }
 
     /// Ends the sequence: every kept frame's two-way reconstruction, in
@@ -509,14 +620,37 @@ impl Smoother {
     /// frames are dropped (also on an error); the next keep starts a new
     /// sequence, after a [`Denoiser::reset`] of the denoiser.
     pub fn finish(&mut self) -> Result<Vec<(RgbImage, Vec<KernelTiming>)>> {
-        let kept = std::mem::take(&mut self.kept);
-        self.last = None;
-        let mut out = Vec::with_capacity(kept.len());
-        for (k, (record, color)) in kept.iter().enumerate().rev() {
-            let last = k + 1 == kept.len();
-            out.push(self.stage.run(record, color, last, self.progress)?);
-        }
+        let mut out = Vec::with_capacity(self.len());
+        self.finish_each(|_, color, timings| {
+            out.push((color, timings));
+            Ok(())
+        })?;
         out.reverse();
         Ok(out)
+    }
+
+    /// [`finish`](Self::finish) one frame at a time, last frame first:
+    /// hands `each` the frame's index in the sequence, its reconstruction
+    /// and its timings, so the host holds one frame's output at a time. An
+    /// error of `each` ends the sequence too.
+    pub fn finish_each(
+        &mut self,
+        mut each: impl FnMut(usize, RgbImage, Vec<KernelTiming>) -> Result<()>,
+    ) -> Result<()> {
+        self.last = None;
+        let frames = self.kept.frames;
+        let mut run = || -> Result<()> {
+            for k in (0..frames).rev() {
+                let (record, color) = self.kept.read(k, self.size)?;
+                let (out, timings) =
+                    self.stage
+                        .run(&record, &color, k + 1 == frames, self.progress)?;
+                each(k, out, timings)?;
+            }
+            Ok(())
+        };
+        let done = run();
+        let cleared = self.kept.clear();
+        done.and(cleared)
     }
 }

@@ -684,7 +684,8 @@ fn temporal_filter_from_the_command_line() {
 /// frame once the range is rendered, the first one different from the
 /// filter in frame order's (which is the frame alone's: the two-way filter
 /// sees the frames after it); `denoise --frames` runs it over saved
-/// statistics; the CPU backend is a clear error.
+/// statistics; the CPU backend, or a temporary directory that cannot hold
+/// the kept frames, is a clear error.
 #[test]
 fn two_way_filter_from_the_command_line() {
     let tmp = tmpdir("two_way");
@@ -723,6 +724,22 @@ fn two_way_filter_from_the_command_line() {
         err.contains("--temporal lp-smooth keeps its frames on the GPU"),
         "{err}"
     );
+    let missing = dir.join("no_such_dir");
+    let (code, _, err) = run(bin()
+        .env("TMPDIR", &missing)
+        .args(["render", "--scene", "moving_box", "--size", "16x16"])
+        .args(["--spp", "4", "--frames", "0..2", "--temporal", "lp-smooth"])
+        .arg("-o")
+        .arg(dir.join("tmp_##.exr")));
+    assert_ne!(code, 0);
+    assert!(
+        err.contains(&format!(
+            "{}: the two-way filter could not create its temporary file",
+            missing.display()
+        )),
+        "{err}"
+    );
+    assert!(!dir.join("tmp_00.exr").exists());
 }
 
 /// `--temporal apr` (APR's window, §10.2): `render --frames` writes every

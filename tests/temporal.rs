@@ -1034,3 +1034,41 @@ fn the_smoother_refuses_what_it_cannot_combine() {
     assert!(e.contains("temporal lp-smooth"), "{e}");
     check_validation(&ctx);
 }
+
+/// A `Smoother` keeps its frames in a temporary file and empties it at
+/// `finish`: the same frames kept again after a reset come out bit for bit
+/// the same, and `finish_each` hands them over last first.
+#[test]
+fn the_smoother_reuses_its_file_and_hands_frames_last_first() {
+    let ctx = gpu();
+    let frames = still_frames("cornell", 16, 4, 4);
+    let d = temporal_denoiser(Method::Wlr, &frames[0]);
+    let mut s = Smoother::new(&ctx, &d).unwrap();
+    let keep_all = |s: &mut Smoother| {
+        d.reset();
+        for img in &frames {
+            let f = d.denoise(img, None).unwrap();
+            s.keep(&d, &f.color).unwrap();
+        }
+        assert_eq!(s.len(), frames.len());
+    };
+    keep_all(&mut s);
+    let first = s.finish().unwrap();
+    assert!(s.is_empty());
+    keep_all(&mut s);
+    let mut order = Vec::new();
+    s.finish_each(|t, color, _| {
+        order.push(t);
+        for c in 0..3 {
+            assert_eq!(
+                color.planes[c], first[t].0.planes[c],
+                "frame {t}, channel {c}"
+            );
+        }
+        Ok(())
+    })
+    .unwrap();
+    assert_eq!(order, vec![3, 2, 1, 0]);
+    assert!(s.is_empty());
+    check_validation(&ctx);
+}

@@ -118,7 +118,7 @@ pub fn render_frames(
         }
         let result = adaptive::render_with_final(ctx, &renderer, cfg, stop, |_| {}, last.as_ref())?;
         let stats = renderer.statistics()?;
-        let frame = SequenceFrame {
+        let mut frame = SequenceFrame {
             number,
             seed,
             scene: at,
@@ -127,6 +127,8 @@ pub fn render_frames(
         };
         if let (Some(s), Some(d)) = (&mut smoother, &last) {
             s.keep(d, &frame.result.frame.color)?;
+            // The smoother keeps the colour; its finish gives it back.
+            frame.result.frame.color = crate::image::RgbImage::new(0, 0);
             waiting.push_back(frame);
             continue;
         }
@@ -137,9 +139,13 @@ pub fn render_frames(
         release(done, &mut waiting, &mut each)?;
     }
     if let Some(s) = &mut smoother {
-        for ((color, timings), mut f) in s.finish()?.into_iter().zip(waiting.drain(..)) {
-            f.result.frame.color = color;
-            f.result.frame.timings.extend(timings);
+        s.finish_each(|t, color, timings| {
+            let f = &mut waiting[t].result.frame;
+            f.color = color;
+            f.timings.extend(timings);
+            Ok(())
+        })?;
+        for f in waiting.drain(..) {
             each(f)?;
         }
     }
