@@ -185,8 +185,8 @@ pub enum TemporalArg {
     /// The LP temporal filter run over the whole sequence forwards and
     /// backwards, the two combined per pixel, offline: every frame sees
     /// the frames before and after it. Frames come out once the sequence
-    /// is done; the host holds 18 planes per frame until then. Needs the
-    /// position and depth layers.
+    /// is done; until then a temporary file in TMPDIR holds 72 bytes per
+    /// pixel and frame. Needs the position and depth layers.
     LpSmooth,
 }
 
