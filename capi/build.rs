@@ -2,7 +2,8 @@
 //! `$OUT_DIR/mcdenoise.h` (`tests/header.rs` checks that the committed
 //! `include/mcdenoise.h` equals it), and compiles the C example's
 //! accumulation shader (`examples/c/accumulate.comp`, which includes
-//! `include/mcdenoise_accum.glsl`) to `$OUT_DIR/accumulate.spv` for
+//! `include/mcdenoise_accum.glsl`) to `$OUT_DIR/accumulate.spv`, and with
+//! the position sums to `$OUT_DIR/accumulate_position.spv`, for
 //! `tests/c_example.rs`.
 
 use std::path::PathBuf;
@@ -47,19 +48,33 @@ fn main() {
         version_profile: None,
         messages: ShaderMessage::DEFAULT,
     };
-    let source = ShaderSource::from(text);
-    let input = ShaderInput::new(
-        &source,
-        ShaderStage::Compute,
-        &options,
-        None::<&[(&str, Option<&str>)]>,
-        None,
-    )
-    .unwrap_or_else(|e| panic!("examples/c/accumulate.comp: {e:?}"));
-    let words = compiler
-        .create_shader(input)
-        .and_then(|shader| shader.compile())
-        .unwrap_or_else(|e| panic!("examples/c/accumulate.comp: {e}"));
-    let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
-    std::fs::write(out_dir.join("accumulate.spv"), bytes).expect("write accumulate.spv");
+    // Two builds: as written (no position sums), and with them
+    // (`accumulate_position.spv`, for the temporal filter's sequence).
+    for (name, text) in [
+        ("accumulate.spv", text.clone()),
+        (
+            "accumulate_position.spv",
+            text.replacen(
+                "#version 450",
+                "#version 450\n#define MCDENOISE_ACCUM_POSITION 1",
+                1,
+            ),
+        ),
+    ] {
+        let source = ShaderSource::from(text);
+        let input = ShaderInput::new(
+            &source,
+            ShaderStage::Compute,
+            &options,
+            None::<&[(&str, Option<&str>)]>,
+            None,
+        )
+        .unwrap_or_else(|e| panic!("examples/c/accumulate.comp: {e:?}"));
+        let words = compiler
+            .create_shader(input)
+            .and_then(|shader| shader.compile())
+            .unwrap_or_else(|e| panic!("examples/c/accumulate.comp: {e}"));
+        let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
+        std::fs::write(out_dir.join(name), bytes).expect("write the C example's SPIR-V");
+    }
 }

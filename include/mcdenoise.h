@@ -110,6 +110,13 @@ typedef struct McdDenoiser McdDenoiser;
 // alive until the host releases it after its submission completed.
 typedef struct McdRecording McdRecording;
 
+// The two-way temporal filter (TEMPORAL-SMOOTH) for offline sequences: the
+// frames of a denoiser with [`MCD_FLAG_TEMPORAL_LP`], kept one by one, are
+// filtered again in reverse order at the end and the two directions
+// combined per pixel, so every frame's reconstruction sees the frames
+// before and after it.
+typedef struct McdSmoother McdSmoother;
+
 // The accumulation layout the host's shaders write
 // (`include/mcdenoise_accum.glsl`).
 typedef struct McdAccumLayout {
@@ -183,6 +190,13 @@ typedef struct McdOutputs {
   // Byte offset of the sample map.
   uint64_t samples_offset;
 } McdOutputs;
+
+// Receives one frame of [`mcd_smoother_finish`]: `user` as given, the
+// frame's index in the sequence (0 for the first kept), its
+// reconstruction as `pixels` RGB triples (interleaved f32, row-major,
+// valid during the call only). Returns 0 to go on; anything else stops
+// the finish with `MCD_STATUS_INVALID_ARGUMENT`.
+typedef int32_t (*McdFrameFn)(void *user, uint64_t frame, const float *color, uint64_t pixels);
 
 #ifdef __cplusplus
 extern "C" {
@@ -326,6 +340,44 @@ enum McdStatus mcd_denoiser_outputs(const struct McdDenoiser *denoiser, struct M
 // `denoiser` is live; each non-NULL pointer is valid for writes of
 // `pixels` (`samples`) or `3 * pixels` (`color`, `error`) values.
 enum McdStatus mcd_denoiser_read(const struct McdDenoiser *denoiser, float *color, float *error, uint32_t *samples, uint64_t pixels);
+
+// Creates the two-way filter for the frames of `denoiser`, which must have
+// [`MCD_FLAG_TEMPORAL_LP`] and not [`MCD_FLAG_ADAPTIVE_PASS`]. The kept
+// frames go to an unnamed temporary file in `$TMPDIR` (72 bytes per pixel
+// and frame), not to the host's memory.
+//
+// # Safety
+// `ctx` is the live context of `denoiser`, a live denoiser; `out` is
+// valid for a write.
+enum McdStatus mcd_smoother_create(const struct McdContext *ctx, const struct McdDenoiser *denoiser, struct McdSmoother **out);
+
+// Keeps the frame `denoiser` (the smoother's) just reconstructed: call it
+// after the submission of each recording of the sequence completed, every
+// frame in order, the first right after [`mcd_denoiser_reset`] (or the
+// denoiser's first recording). A frame skipped, or a reset within the
+// sequence, is `MCD_STATUS_INVALID_ARGUMENT` and keeps nothing.
+//
+// # Safety
+// `smoother` and `denoiser` are live; no recording of `denoiser` is
+// running on the GPU.
+enum McdStatus mcd_smoother_keep(struct McdSmoother *smoother, const struct McdDenoiser *denoiser);
+
+// Ends the sequence: hands every kept frame's two-way reconstruction to
+// `each`, last frame first, one at a time. The kept frames are dropped
+// (also on an error or when `each` stops); the next keep starts a new
+// sequence, after [`mcd_denoiser_reset`]. `*frames`, if `frames` is not
+// NULL, gets the number of frames handed over.
+//
+// # Safety
+// `smoother` is live; `each` is safe to call with `user`; `frames` is NULL
+// or valid for a write.
+enum McdStatus mcd_smoother_finish(struct McdSmoother *smoother, McdFrameFn each, void *user, uint64_t *frames);
+
+// Destroys a smoother (NULL is ignored), with its kept frames.
+//
+// # Safety
+// `smoother` is NULL or a live smoother from [`mcd_smoother_create`].
+void mcd_smoother_destroy(struct McdSmoother *smoother);
 
 #ifdef __cplusplus
 }  // extern "C"

@@ -12,7 +12,7 @@
 #![allow(non_camel_case_types)]
 
 use std::cell::RefCell;
-use std::ffi::{c_char, CStr, CString};
+use std::ffi::{c_char, c_void, CStr, CString};
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::sync::Arc;
 
@@ -788,4 +788,149 @@ pub unsafe extern "C" fn mcd_denoiser_read(
         }
         Ok(())
     })
+}
+
+/// The two-way temporal filter (TEMPORAL-SMOOTH) for offline sequences: the
+/// frames of a denoiser with [`MCD_FLAG_TEMPORAL_LP`], kept one by one, are
+/// filtered again in reverse order at the end and the two directions
+/// combined per pixel, so every frame's reconstruction sees the frames
+/// before and after it.
+pub struct McdSmoother {
+    smoother: core::Smoother,
+}
+
+/// Receives one frame of [`mcd_smoother_finish`]: `user` as given, the
+/// frame's index in the sequence (0 for the first kept), its
+/// reconstruction as `pixels` RGB triples (interleaved f32, row-major,
+/// valid during the call only). Returns 0 to go on; anything else stops
+/// the finish with `MCD_STATUS_INVALID_ARGUMENT`.
+pub type McdFrameFn = Option<
+    unsafe extern "C" fn(user: *mut c_void, frame: u64, color: *const f32, pixels: u64) -> i32,
+>;
+
+/// Creates the two-way filter for the frames of `denoiser`, which must have
+/// [`MCD_FLAG_TEMPORAL_LP`] and not [`MCD_FLAG_ADAPTIVE_PASS`]. The kept
+/// frames go to an unnamed temporary file in `$TMPDIR` (72 bytes per pixel
+/// and frame), not to the host's memory.
+///
+/// # Safety
+/// `ctx` is the live context of `denoiser`, a live denoiser; `out` is
+/// valid for a write.
+#[no_mangle]
+pub unsafe extern "C" fn mcd_smoother_create(
+    ctx: *const McdContext,
+    denoiser: *const McdDenoiser,
+    out: *mut *mut McdSmoother,
+) -> McdStatus {
+    guard(|| {
+        // SAFETY: forwarded to the caller.
+        let (ctx, d) = unsafe { (non_null(ctx, "ctx")?, non_null(denoiser, "denoiser")?) };
+        let out = out_ptr(out)?;
+        let smoother = core::Smoother::new(&ctx.ctx, &d.denoiser)?;
+        let handle = Box::into_raw(Box::new(McdSmoother { smoother }));
+        // SAFETY: non-null (checked first) and valid for writes by the
+        // caller's contract.
+        unsafe { out.write(handle) };
+        Ok(())
+    })
+}
+
+/// Keeps the frame `denoiser` (the smoother's) just reconstructed: call it
+/// after the submission of each recording of the sequence completed, every
+/// frame in order, the first right after [`mcd_denoiser_reset`] (or the
+/// denoiser's first recording). A frame skipped, or a reset within the
+/// sequence, is `MCD_STATUS_INVALID_ARGUMENT` and keeps nothing.
+///
+/// # Safety
+/// `smoother` and `denoiser` are live; no recording of `denoiser` is
+/// running on the GPU.
+#[no_mangle]
+pub unsafe extern "C" fn mcd_smoother_keep(
+    smoother: *mut McdSmoother,
+    denoiser: *const McdDenoiser,
+) -> McdStatus {
+    guard(|| {
+        // SAFETY: forwarded to the caller.
+        let (s, d) = unsafe {
+            (
+                smoother
+                    .as_mut()
+                    .ok_or_else(|| invalid("smoother is NULL"))?,
+                non_null(denoiser, "denoiser")?,
+            )
+        };
+        let color = d.denoiser.read()?.color;
+        s.smoother.keep(&d.denoiser, &color)?;
+        Ok(())
+    })
+}
+
+/// Ends the sequence: hands every kept frame's two-way reconstruction to
+/// `each`, last frame first, one at a time. The kept frames are dropped
+/// (also on an error or when `each` stops); the next keep starts a new
+/// sequence, after [`mcd_denoiser_reset`]. `*frames`, if `frames` is not
+/// NULL, gets the number of frames handed over.
+///
+/// # Safety
+/// `smoother` is live; `each` is safe to call with `user`; `frames` is NULL
+/// or valid for a write.
+#[no_mangle]
+pub unsafe extern "C" fn mcd_smoother_finish(
+    smoother: *mut McdSmoother,
+    each: McdFrameFn,
+    user: *mut c_void,
+    frames: *mut u64,
+) -> McdStatus {
+    guard(|| {
+        // SAFETY: forwarded to the caller.
+        let s = unsafe { smoother.as_mut() }.ok_or_else(|| invalid("smoother is NULL"))?;
+        let Some(each) = each else {
+            return Err(invalid("each is NULL"));
+        };
+        let mut handed = 0u64;
+        let mut stopped: Option<(u64, i32)> = None;
+        let done = s.smoother.finish_each(|t, color, _| {
+            let n = color.width * color.height;
+            let mut rgb = vec![0f32; 3 * n];
+            for (c, plane) in color.planes.iter().enumerate() {
+                for (i, v) in plane.iter().enumerate() {
+                    rgb[3 * i + c] = *v;
+                }
+            }
+            // SAFETY: the caller guarantees `each` may be called with `user`;
+            // `rgb` holds `n` triples for the call's duration.
+            let r = unsafe { each(user, t as u64, rgb.as_ptr(), n as u64) };
+            handed += 1;
+            if r != 0 {
+                stopped = Some((t as u64, r));
+                return Err(Error::InvalidArgument("stopped".into()));
+            }
+            Ok(())
+        });
+        if !frames.is_null() {
+            // SAFETY: non-null and valid for writes by the caller's contract.
+            unsafe { frames.write(handed) };
+        }
+        match (done, stopped) {
+            (_, Some((t, r))) => Err(invalid(format!(
+                "the callback returned {r} at frame {t}: the sequence ended there"
+            ))),
+            (Err(e), None) => Err(e.into()),
+            (Ok(()), None) => Ok(()),
+        }
+    })
+}
+
+/// Destroys a smoother (NULL is ignored), with its kept frames.
+///
+/// # Safety
+/// `smoother` is NULL or a live smoother from [`mcd_smoother_create`].
+#[no_mangle]
+pub unsafe extern "C" fn mcd_smoother_destroy(smoother: *mut McdSmoother) {
+    if !smoother.is_null() {
+        let _ = catch_unwind(AssertUnwindSafe(|| {
+            // SAFETY: the caller passes a live handle from mcd_smoother_create.
+            drop(unsafe { Box::from_raw(smoother) })
+        }));
+    }
 }

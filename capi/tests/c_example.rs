@@ -5,8 +5,9 @@
 //! `include/mcdenoise_accum.glsl`), records mcdenoise into its command
 //! buffer, renders a second pass where the sample map says and checks the
 //! results (the program exits non-zero when they are wrong, or on any
-//! validation message); its context keeps a pipeline cache file, which must
-//! be written.
+//! validation message), then denoises a sequence with the temporal filter
+//! in frame order and both ways (`McdSmoother`), which must beat frame
+//! order; its context keeps a pipeline cache file, which must be written.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -69,11 +70,13 @@ fn c_host_accumulates_on_the_gpu_and_denoises() {
     let out = exe.parent().unwrap().to_path_buf();
 
     let spv = Path::new(env!("OUT_DIR")).join("accumulate.spv");
+    let spv_position = Path::new(env!("OUT_DIR")).join("accumulate_position.spv");
     let validate = validation_installed();
     let cache = out.join("pipelines.bin");
     let _ = std::fs::remove_file(&cache);
     let output = Command::new(&exe)
         .arg(&spv)
+        .arg(&spv_position)
         .arg(&cache)
         .env(
             "MCDENOISE_EMBED_VALIDATION",
@@ -93,6 +96,7 @@ fn c_host_accumulates_on_the_gpu_and_denoises() {
             && stdout.contains("with the pyramid: rMSE")
             && stdout.contains("stage flags: ok")
             && stdout.contains("coarse map flag: ok")
+            && stdout.contains("two-way: rMSE")
             && stdout.ends_with("ok\n"),
         "{stdout}"
     );

@@ -13,12 +13,14 @@ layout(push_constant) uniform Push {
     uint pass_index;
     uint uniform_spp;
     uint stride;     // floats between plane starts: mcd_plane_stride(width * height)
+    uint frame;      // a sequence's frame: noise of its own (0 outside one)
 } pc;
 
 layout(std430, binding = 0) buffer Accum { float accum[]; };
 layout(std430, binding = 1) readonly buffer SampleMap { uint sample_map[]; };
 
-// No position, no visibility: 10 channels, 21 planes.
+// No visibility; the position sums only if MCDENOISE_ACCUM_POSITION is
+// defined to 1 before the include (10 channels and 21 planes without them).
 #define MCDENOISE_ACCUM_LOAD(p, i) accum[(p) * pc.stride + (i)]
 #define MCDENOISE_ACCUM_STORE(p, i, v) accum[(p) * pc.stride + (i)] = (v)
 #include "mcdenoise_accum.glsl"
@@ -45,14 +47,14 @@ void main()
     uint n = pc.pass_index == 0u ? pc.uniform_spp : sample_map[pixel];
     McdSums s = mcd_load(pixel);
     for (uint k = 0u; k < n; k++) {
-        uint h = pcg(pixel * 7919u + pcg(pc.pass_index * 1000003u + k));
+        uint h = pcg(pixel * 7919u + pcg((pc.pass_index + 16u * pc.frame) * 1000003u + k));
         float u = float(h >> 8u) * (1.0 / 16777216.0);
         McdSample x;
         x.color = vec3(truth * 2.0 * u);   // mean truth, variance truth^2 / 3
         x.albedo = vec3(left ? 0.2 : 1.0);
         x.normal = vec3(0.0, 0.0, 1.0);
         x.depth = 1.0;
-        x.position = vec3(0.0);
+        x.position = vec3(float(pixel % pc.width), float(pixel / pc.width), 1.0);
         x.visibility = 0.0;
         mcd_add(s, x, vec3(0.0));
     }

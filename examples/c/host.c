@@ -5,9 +5,11 @@
  * host's command buffer; the host submits, reads colour, error and the
  * sample map, then renders a second pass where the map says -- the map is
  * bound in the host's shader as it lies on the GPU -- and denoises again.
+ * Last, an offline sequence: frames with the LP temporal filter and the
+ * two-way filter (McdSmoother) over them.
  *
  * Build: cc host.c -I../../include -lvulkan -L<dir of libmcdenoise> -lmcdenoise
- * Run:   ./host accumulate.spv [pipeline-cache-file]
+ * Run:   ./host accumulate.spv accumulate_position.spv [pipeline-cache-file]
  *        (capi/tests/c_example.rs does both)
  * With MCDENOISE_EMBED_VALIDATION=1 the host enables the Khronos
  * validation layer and fails on any message. Exits non-zero if the result
@@ -103,13 +105,108 @@ static uint32_t *read_file(const char *path, size_t *bytes)
 }
 
 struct Push {
-    uint32_t width, height, pass_index, uniform_spp, stride;
+    uint32_t width, height, pass_index, uniform_spp, stride, frame;
 };
+
+/* A device-local buffer of `size` bytes for the host's accumulation. */
+static VkBuffer accumulation_buffer(VkDevice device, VkPhysicalDevice physical, uint64_t size,
+                                    VkDeviceMemory *memory)
+{
+    VkBufferCreateInfo bci = {.sType = VK_STRUCTURE_TYPE_BUFFER_CREATE_INFO,
+                              .size = size,
+                              .usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT |
+                                       VK_BUFFER_USAGE_TRANSFER_SRC_BIT |
+                                       VK_BUFFER_USAGE_TRANSFER_DST_BIT};
+    VkBuffer buffer;
+    VK_CHECK(vkCreateBuffer(device, &bci, NULL, &buffer));
+    VkMemoryRequirements req;
+    vkGetBufferMemoryRequirements(device, buffer, &req);
+    VkMemoryAllocateInfo mai = {.sType = VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO,
+                                .allocationSize = req.size,
+                                .memoryTypeIndex = memory_type(physical, req.memoryTypeBits)};
+    VK_CHECK(vkAllocateMemory(device, &mai, NULL, memory));
+    VK_CHECK(vkBindBufferMemory(device, buffer, *memory, 0));
+    return buffer;
+}
+
+/* The host's accumulation pipeline from the SPIR-V file `path`. */
+static VkPipeline accumulation_pipeline(VkDevice device, const char *path,
+                                        VkPipelineLayout layout, VkShaderModule *module)
+{
+    size_t spv_bytes;
+    uint32_t *spv = read_file(path, &spv_bytes);
+    VkShaderModuleCreateInfo smci = {.sType = VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO,
+                                     .codeSize = spv_bytes,
+                                     .pCode = spv};
+    VK_CHECK(vkCreateShaderModule(device, &smci, NULL, module));
+    free(spv);
+    VkComputePipelineCreateInfo cpci = {
+        .sType = VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO,
+        .stage = {.sType = VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO,
+                  .stage = VK_SHADER_STAGE_COMPUTE_BIT,
+                  .module = *module,
+                  .pName = "main"},
+        .layout = layout};
+    VkPipeline pipeline;
+    VK_CHECK(vkCreateComputePipelines(device, VK_NULL_HANDLE, 1, &cpci, NULL, &pipeline));
+    return pipeline;
+}
+
+/* Points `set`'s bindings at the accumulation and the sample map. */
+static void bind_buffers(VkDevice device, VkDescriptorSet set, VkBuffer accum, uint64_t accum_bytes,
+                         VkBuffer samples, uint64_t samples_offset)
+{
+    VkDescriptorBufferInfo infos[2] = {{accum, 0, accum_bytes},
+                                       {samples, samples_offset, 4 * W * H}};
+    VkWriteDescriptorSet writes[2];
+    for (int i = 0; i < 2; i++)
+        writes[i] = (VkWriteDescriptorSet){.sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET,
+                                           .dstSet = set,
+                                           .dstBinding = (uint32_t)i,
+                                           .descriptorCount = 1,
+                                           .descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER,
+                                           .pBufferInfo = &infos[i]};
+    vkUpdateDescriptorSets(device, 2, writes, 0, NULL);
+}
+
+/* Submits `cmd` (recorded and ended), waits for it and resets it. */
+static void submit_and_wait(VkDevice device, VkQueue queue, VkCommandBuffer cmd, VkFence fence)
+{
+    VkSubmitInfo si = {.sType = VK_STRUCTURE_TYPE_SUBMIT_INFO,
+                       .commandBufferCount = 1,
+                       .pCommandBuffers = &cmd};
+    VK_CHECK(vkQueueSubmit(queue, 1, &si, fence));
+    VK_CHECK(vkWaitForFences(device, 1, &fence, VK_TRUE, UINT64_MAX));
+    VK_CHECK(vkResetFences(device, 1, &fence));
+    VK_CHECK(vkResetCommandBuffer(cmd, 0));
+}
+
+/* The frames of the sequence that mcd_smoother_finish hands back, and the
+ * order it hands them in; `stop_at` makes the callback stop there. */
+#define FRAMES 4
+struct Sequence {
+    float frames[FRAMES][3 * W * H];
+    uint64_t order[FRAMES];
+    uint64_t count;
+    uint64_t stop_at;
+};
+
+static int32_t on_frame(void *user, uint64_t frame, const float *color, uint64_t pixels)
+{
+    struct Sequence *s = user;
+    if (frame >= FRAMES || pixels != W * H || s->count >= FRAMES)
+        return 2;
+    memcpy(s->frames[frame], color, sizeof s->frames[frame]);
+    s->order[s->count++] = frame;
+    return s->count == s->stop_at ? 1 : 0;
+}
 
 int main(int argc, char **argv)
 {
-    if (argc != 2 && argc != 3) {
-        fprintf(stderr, "usage: %s accumulate.spv [pipeline-cache-file]\n", argv[0]);
+    if (argc != 3 && argc != 4) {
+        fprintf(stderr,
+                "usage: %s accumulate.spv accumulate_position.spv [pipeline-cache-file]\n",
+                argv[0]);
         return 2;
     }
     if (mcd_api_version() != MCDENOISE_API_VERSION) {
@@ -193,31 +290,10 @@ int main(int argc, char **argv)
     /* The accumulation layout, and the buffer the host's shader fills. */
     McdAccumLayout layout = {.width = W, .height = H};
     uint64_t accum_bytes = mcd_accum_bytes(&layout);
-    VkBufferCreateInfo bci = {.sType = VK_STRUCTURE_TYPE_BUFFER_CREATE_INFO,
-                              .size = accum_bytes,
-                              .usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT |
-                                       VK_BUFFER_USAGE_TRANSFER_SRC_BIT |
-                                       VK_BUFFER_USAGE_TRANSFER_DST_BIT};
-    VkBuffer accum;
-    VK_CHECK(vkCreateBuffer(device, &bci, NULL, &accum));
-    VkMemoryRequirements req;
-    vkGetBufferMemoryRequirements(device, accum, &req);
-    VkMemoryAllocateInfo mai = {.sType = VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO,
-                                .allocationSize = req.size,
-                                .memoryTypeIndex = memory_type(physical, req.memoryTypeBits)};
     VkDeviceMemory memory;
-    VK_CHECK(vkAllocateMemory(device, &mai, NULL, &memory));
-    VK_CHECK(vkBindBufferMemory(device, accum, memory, 0));
+    VkBuffer accum = accumulation_buffer(device, physical, accum_bytes, &memory);
 
     /* The host's accumulation pipeline. */
-    size_t spv_bytes;
-    uint32_t *spv = read_file(argv[1], &spv_bytes);
-    VkShaderModuleCreateInfo smci = {.sType = VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO,
-                                     .codeSize = spv_bytes,
-                                     .pCode = spv};
-    VkShaderModule module;
-    VK_CHECK(vkCreateShaderModule(device, &smci, NULL, &module));
-    free(spv);
     VkDescriptorSetLayoutBinding bindings[2] = {
         {.binding = 0, .descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER,
          .descriptorCount = 1, .stageFlags = VK_SHADER_STAGE_COMPUTE_BIT},
@@ -237,18 +313,11 @@ int main(int argc, char **argv)
                                        .pPushConstantRanges = &range};
     VkPipelineLayout pipeline_layout;
     VK_CHECK(vkCreatePipelineLayout(device, &plci, NULL, &pipeline_layout));
-    VkComputePipelineCreateInfo cpci = {
-        .sType = VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO,
-        .stage = {.sType = VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO,
-                  .stage = VK_SHADER_STAGE_COMPUTE_BIT,
-                  .module = module,
-                  .pName = "main"},
-        .layout = pipeline_layout};
-    VkPipeline pipeline;
-    VK_CHECK(vkCreateComputePipelines(device, VK_NULL_HANDLE, 1, &cpci, NULL, &pipeline));
-    VkDescriptorPoolSize pool_size = {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 2};
+    VkShaderModule module;
+    VkPipeline pipeline = accumulation_pipeline(device, argv[1], pipeline_layout, &module);
+    VkDescriptorPoolSize pool_size = {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 4};
     VkDescriptorPoolCreateInfo dpci = {.sType = VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO,
-                                       .maxSets = 1,
+                                       .maxSets = 2,
                                        .poolSizeCount = 1,
                                        .pPoolSizes = &pool_size};
     VkDescriptorPool pool;
@@ -289,24 +358,14 @@ int main(int argc, char **argv)
                             .flags = MCD_FLAG_NO_SINGLE_SAMPLE_PIXELS};
     McdOutputs out;
     if (mcd_context_create(&host, &ctx) != MCD_STATUS_OK ||
-        (argc == 3 && mcd_context_use_pipeline_cache(ctx, argv[2], NULL) != MCD_STATUS_OK) ||
+        (argc == 4 && mcd_context_use_pipeline_cache(ctx, argv[3], NULL) != MCD_STATUS_OK) ||
         mcd_denoiser_create(ctx, &desc, &denoiser) != MCD_STATUS_OK ||
         mcd_denoiser_outputs(denoiser, &out) != MCD_STATUS_OK) {
         fprintf(stderr, "mcdenoise: %s\n", mcd_last_error());
         return 1;
     }
     /* The host's shader reads mcdenoise's sample map where it lies. */
-    VkDescriptorBufferInfo infos[2] = {{accum, 0, accum_bytes},
-                                       {out.samples_buffer, out.samples_offset, 4 * W * H}};
-    VkWriteDescriptorSet writes[2];
-    for (int i = 0; i < 2; i++)
-        writes[i] = (VkWriteDescriptorSet){.sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET,
-                                           .dstSet = set,
-                                           .dstBinding = (uint32_t)i,
-                                           .descriptorCount = 1,
-                                           .descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER,
-                                           .pBufferInfo = &infos[i]};
-    vkUpdateDescriptorSets(device, 2, writes, 0, NULL);
+    bind_buffers(device, set, accum, accum_bytes, out.samples_buffer, out.samples_offset);
 
     static float color[3 * W * H], error[3 * W * H];
     static uint32_t samples[W * H];
@@ -326,7 +385,7 @@ int main(int argc, char **argv)
                                  NULL);
         }
         /* The host's own pass: this pass's samples into the accumulation. */
-        struct Push push = {W, H, pass, SPP, (uint32_t)(mcd_accum_plane_stride(&layout) / 4)};
+        struct Push push = {W, H, pass, SPP, (uint32_t)(mcd_accum_plane_stride(&layout) / 4), 0};
         vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline);
         vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline_layout, 0, 1, &set,
                                 0, NULL);
@@ -342,14 +401,8 @@ int main(int argc, char **argv)
             return 1; /* the command buffer is discarded, never submitted */
         }
         VK_CHECK(vkEndCommandBuffer(cmd));
-        VkSubmitInfo si = {.sType = VK_STRUCTURE_TYPE_SUBMIT_INFO,
-                           .commandBufferCount = 1,
-                           .pCommandBuffers = &cmd};
-        VK_CHECK(vkQueueSubmit(queue, 1, &si, fence));
-        VK_CHECK(vkWaitForFences(device, 1, &fence, VK_TRUE, UINT64_MAX));
-        VK_CHECK(vkResetFences(device, 1, &fence));
+        submit_and_wait(device, queue, cmd, fence);
         mcd_recording_release(recording);
-        VK_CHECK(vkResetCommandBuffer(cmd, 0));
 
         if (mcd_denoiser_read(denoiser, color, error, pass == 0 ? samples : NULL, W * H) !=
             MCD_STATUS_OK) {
@@ -401,12 +454,7 @@ int main(int argc, char **argv)
         return 1;
     }
     VK_CHECK(vkEndCommandBuffer(cmd));
-    VkSubmitInfo psi = {.sType = VK_STRUCTURE_TYPE_SUBMIT_INFO,
-                        .commandBufferCount = 1,
-                        .pCommandBuffers = &cmd};
-    VK_CHECK(vkQueueSubmit(queue, 1, &psi, fence));
-    VK_CHECK(vkWaitForFences(device, 1, &fence, VK_TRUE, UINT64_MAX));
-    VK_CHECK(vkResetFences(device, 1, &fence));
+    submit_and_wait(device, queue, cmd, fence);
     mcd_recording_release(recording);
     if (mcd_denoiser_read(pyramid, color, error, NULL, W * H) != MCD_STATUS_OK) {
         fprintf(stderr, "mcdenoise: %s\n", mcd_last_error());
@@ -457,7 +505,124 @@ int main(int argc, char **argv)
         mcd_denoiser_destroy(probe);
     }
     printf("coarse map flag: ok\n");
+
+    /* ---- An offline sequence: FRAMES frames of the (static) scene, each
+     * with noise of its own, through the temporal filter in frame order
+     * (MCD_FLAG_TEMPORAL_LP, which reads the position sums: a layout and
+     * a shader build with them) and both ways (McdSmoother). ---- */
+    McdAccumLayout seq_layout = {.width = W, .height = H, .position = 1};
+    uint64_t seq_bytes = mcd_accum_bytes(&seq_layout);
+    VkDeviceMemory seq_memory;
+    VkBuffer seq_accum = accumulation_buffer(device, physical, seq_bytes, &seq_memory);
+    VkShaderModule seq_module;
+    VkPipeline seq_pipeline = accumulation_pipeline(device, argv[2], pipeline_layout, &seq_module);
+    McdDenoiserDesc seq_desc = {.layout = seq_layout, .method = MCD_METHOD_WLR,
+                                .flags = MCD_FLAG_NO_SINGLE_SAMPLE_PIXELS | MCD_FLAG_TEMPORAL_LP};
+    McdDenoiser *filter = NULL;
+    McdSmoother *smoother = NULL;
+    McdOutputs seq_out;
+    if (mcd_denoiser_create(ctx, &seq_desc, &filter) != MCD_STATUS_OK ||
+        mcd_smoother_create(ctx, filter, &smoother) != MCD_STATUS_OK ||
+        mcd_denoiser_outputs(filter, &seq_out) != MCD_STATUS_OK) {
+        fprintf(stderr, "mcdenoise: %s\n", mcd_last_error());
+        return 1;
+    }
+    VkDescriptorSet seq_set;
+    VK_CHECK(vkAllocateDescriptorSets(device, &dsai, &seq_set));
+    /* Binding 1 is not read in a first pass; any buffer of the size does. */
+    bind_buffers(device, seq_set, seq_accum, seq_bytes, seq_out.samples_buffer,
+                 seq_out.samples_offset);
+    static struct Sequence both, stopped;
+    static float forward[FRAMES][3 * W * H];
+    for (int run = 0; run < 2; run++) {
+        /* Run 1: a second sequence (after a reset) of two frames, whose
+         * callback stops at its first frame. */
+        uint32_t frames = run == 0 ? FRAMES : 2;
+        if (run == 1 && mcd_denoiser_reset(filter) != MCD_STATUS_OK) {
+            fprintf(stderr, "mcdenoise: %s\n", mcd_last_error());
+            return 1;
+        }
+        for (uint32_t f = 0; f < frames; f++) {
+            VkCommandBufferBeginInfo begin = {
+                .sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO,
+                .flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT};
+            VK_CHECK(vkBeginCommandBuffer(cmd, &begin));
+            vkCmdFillBuffer(cmd, seq_accum, 0, VK_WHOLE_SIZE, 0);
+            VkMemoryBarrier mb = {.sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER,
+                                  .srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT,
+                                  .dstAccessMask =
+                                      VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT};
+            vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT,
+                                 VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0, 1, &mb, 0, NULL, 0,
+                                 NULL);
+            struct Push push = {W, H, 0, SPP, (uint32_t)(mcd_accum_plane_stride(&seq_layout) / 4),
+                                1 + f + FRAMES * (uint32_t)run};
+            vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, seq_pipeline);
+            vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline_layout, 0, 1,
+                                    &seq_set, 0, NULL);
+            vkCmdPushConstants(cmd, pipeline_layout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof push,
+                               &push);
+            vkCmdDispatch(cmd, (W * H + 63) / 64, 1, 1);
+            McdRecording *rec = NULL;
+            if (mcd_denoiser_record(filter, cmd, family, seq_accum, 0, 0, &rec) != MCD_STATUS_OK) {
+                fprintf(stderr, "mcdenoise: %s\n", mcd_last_error());
+                return 1;
+            }
+            VK_CHECK(vkEndCommandBuffer(cmd));
+            submit_and_wait(device, queue, cmd, fence);
+            mcd_recording_release(rec);
+            /* The frame in frame order, then kept for the way back. */
+            if ((run == 0 && mcd_denoiser_read(filter, forward[f], NULL, NULL, W * H) !=
+                                 MCD_STATUS_OK) ||
+                mcd_smoother_keep(smoother, filter) != MCD_STATUS_OK) {
+                fprintf(stderr, "mcdenoise: %s\n", mcd_last_error());
+                return 1;
+            }
+        }
+        struct Sequence *seq = run == 0 ? &both : &stopped;
+        seq->stop_at = run == 0 ? 0 : 1;
+        uint64_t handed = 0;
+        enum McdStatus st = mcd_smoother_finish(smoother, on_frame, seq, &handed);
+        if (st != (run == 0 ? MCD_STATUS_OK : MCD_STATUS_INVALID_ARGUMENT) ||
+            handed != (run == 0 ? FRAMES : 1)) {
+            fprintf(stderr, "sequence %d: status %d, %llu frames handed (%s)\n", run, (int)st,
+                    (unsigned long long)handed, mcd_last_error());
+            return 1;
+        }
+    }
+    /* Frames come back last first; every frame in both directions is
+     * closer to the truth than in frame order on average, and the first,
+     * which in frame order is the frame alone, by far. */
+    double mean_forward = 0.0, mean_both = 0.0;
+    for (int f = 0; f < FRAMES; f++) {
+        if (both.order[f] != (uint64_t)(FRAMES - 1 - f)) {
+            fprintf(stderr, "frame %d handed back as %llu\n", f,
+                    (unsigned long long)both.order[f]);
+            return 1;
+        }
+        mean_forward += rel_mse(forward[f]) / FRAMES;
+        mean_both += rel_mse(both.frames[f]) / FRAMES;
+    }
+    double first_forward = rel_mse(forward[0]), first_both = rel_mse(both.frames[0]);
+    printf("two-way: rMSE %.5f (frame 0 %.5f), in frame order %.5f (frame 0 %.5f)\n", mean_both,
+           first_both, mean_forward, first_forward);
+    if (!(mean_both < mean_forward) || !(first_both < 0.8 * first_forward)) {
+        fprintf(stderr, "the two-way filter is not better than the filter in frame order\n");
+        return 1;
+    }
+    /* After its finish the smoother starts a new sequence only after a
+     * reset: keeping the denoiser's next frame without one is refused. */
+    if (mcd_smoother_keep(smoother, filter) != MCD_STATUS_INVALID_ARGUMENT) {
+        fprintf(stderr, "a keep without a reset was taken\n");
+        return 1;
+    }
+    mcd_smoother_destroy(smoother);
+    mcd_denoiser_destroy(filter);
     mcd_context_destroy(ctx);
+    vkDestroyPipeline(device, seq_pipeline, NULL);
+    vkDestroyShaderModule(device, seq_module, NULL);
+    vkDestroyBuffer(device, seq_accum, NULL);
+    vkFreeMemory(device, seq_memory, NULL);
 
     /* ---- The host's teardown. ---- */
     vkDestroyFence(device, fence, NULL);
