@@ -116,6 +116,7 @@ pub mod reference;
 pub mod render;
 pub mod sequence;
 pub mod shared;
+pub mod spill;
 
 mod denoiser;
 pub mod schedule;

@@ -19,6 +19,7 @@ use crate::methods::apr_window::{AprWindow, WindowConfig};
 use crate::methods::prepare::{base_report, PrepareReport};
 use crate::methods::temporal::{FilterRecord, SmoothStage};
 use crate::methods::{InputBlend, Method, Pass, Pyramid, Temporal};
+use crate::spill::PlaneSpill;
 
 /// A sequence's frames reconstructed from the frames around each one,
 /// given in order with [`push`](Self::push); [`finish`](Self::finish)
@@ -415,8 +416,11 @@ pub struct Smoother {
     stage: SmoothStage,
     progress: bool,
     size: (usize, usize),
-    /// Every kept frame's record and forward colour, in order.
-    kept: Spill,
+    /// Every kept frame's record and forward colour ([`KEPT_PLANES`]), in
+    /// order.
+    kept: PlaneSpill,
+    /// Each kept frame's [`FilterRecord::history`].
+    histories: Vec<(u64, bool)>,
     /// The denoiser's filter frames at the last keep.
     last: Option<u64>,
 }
@@ -425,114 +429,11 @@ pub struct Smoother {
 /// `P00` and the forward colour.
 const KEPT_PLANES: usize = INPUT_PLANES + 1 + 3;
 
-/// A [`Smoother`]'s kept frames in an unnamed temporary file, so that the
-/// host's memory does not grow with the sequence: frame `k`'s
-/// [`KEPT_PLANES`] planes of `n` floats at byte `k·KEPT_PLANES·n·4`.
-struct Spill {
-    file: std::fs::File,
-    /// Floats per plane.
-    n: usize,
-    /// The frames kept.
-    frames: usize,
-    /// Each kept frame's [`FilterRecord::history`].
-    histories: Vec<(u64, bool)>,
-}
-
-impl Spill {
-    /// An empty spill for planes of `n` floats, in a file of
-    /// [`std::env::temp_dir`] (`TMPDIR` on Unix) that the OS removes when
-    /// it is closed.
-    fn new(n: usize) -> Result<Spill> {
-        let file = tempfile::tempfile().map_err(|e| Spill::error(e, "create"))?;
-        Ok(Spill {
-            file,
-            n,
-            frames: 0,
-            histories: Vec::new(),
-        })
-    }
-
-    fn error(source: std::io::Error, what: &str) -> Error {
-        Error::Io {
-            path: std::env::temp_dir(),
-            source: std::io::Error::new(
-                source.kind(),
-                format!(
-                    "the two-way filter could not {what} its temporary file of kept frames here (TMPDIR chooses the directory): {source}"
-                ),
-            ),
-        }
-    }
-
-    /// Appends a frame: its record's planes and the forward colour.
-    fn push(&mut self, record: &FilterRecord, color: &RgbImage) -> Result<()> {
-        use std::io::{Seek, SeekFrom, Write};
-        let planes = record
-            .inputs
-            .iter()
-            .chain([&record.p00])
-            .chain(&color.planes);
-        let write = |file: &mut std::fs::File| -> std::io::Result<()> {
-            let at = (self.frames * KEPT_PLANES * self.n * 4) as u64;
-            file.seek(SeekFrom::Start(at))?;
-            let mut w = std::io::BufWriter::new(file);
-            for p in planes {
-                debug_assert_eq!(p.len(), self.n);
-                w.write_all(bytemuck::cast_slice(p))?;
-            }
-            w.flush()
-        };
-        write(&mut self.file).map_err(|e| Spill::error(e, "write"))?;
-        self.frames += 1;
-        self.histories.push(record.history);
-        Ok(())
-    }
-
-    /// Frame `k`'s record (of `size`) and forward colour.
-    fn read(&mut self, k: usize, size: (usize, usize)) -> Result<(FilterRecord, RgbImage)> {
-        use std::io::{Read, Seek, SeekFrom};
-        let n = self.n;
-        let mut planes = vec![vec![0f32; n]; KEPT_PLANES];
-        let mut read = || -> std::io::Result<()> {
-            let at = (k * KEPT_PLANES * n * 4) as u64;
-            self.file.seek(SeekFrom::Start(at))?;
-            let mut r = std::io::BufReader::new(&mut self.file);
-            for p in &mut planes {
-                r.read_exact(bytemuck::cast_slice_mut(p))?;
-            }
-            Ok(())
-        };
-        read().map_err(|e| Spill::error(e, "read"))?;
-        let color: [Vec<f32>; 3] =
-            std::array::from_fn(|c| std::mem::take(&mut planes[INPUT_PLANES + 1 + c]));
-        let p00 = std::mem::take(&mut planes[INPUT_PLANES]);
-        planes.truncate(INPUT_PLANES);
-        Ok((
-            FilterRecord {
-                inputs: planes,
-                p00,
-                size,
-                history: self.histories[k],
-            },
-            RgbImage::from_planes(size.0, size.1, color),
-        ))
-    }
-
-    /// Drops every frame (the file shrinks to nothing).
-    fn clear(&mut self) -> Result<()> {
-        self.frames = 0;
-        self.histories.clear();
-        self.file
-            .set_len(0)
-            .map_err(|e| Spill::error(e, "truncate"))
-    }
-}
-
 impl std::fmt::Debug for Smoother {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Smoother")
             .field("size", &self.size)
-            .field("kept", &self.kept.frames)
+            .field("kept", &self.kept.len())
             .finish()
     }
 }
@@ -555,7 +456,8 @@ impl Smoother {
             stage,
             progress: config.progress,
             size,
-            kept: Spill::new(size.0 * size.1)?,
+            kept: PlaneSpill::new("the two-way filter's kept frames")?,
+            histories: Vec::new(),
             last: None,
         })
     }
@@ -594,25 +496,49 @@ impl Smoother {
             }
             _ => {}
         }
-        self.kept.push(&record, color)?;
+        let planes = record
+            .inputs
+            .iter()
+            .chain([&record.p00])
+            .chain(&color.planes);
+        self.kept.push(planes.map(|p| p.as_slice()))?;
+        self.histories.push(record.history);
         self.last = Some(frames);
         Ok(())
     }
 
     /// Frames kept since the sequence began.
     pub fn len(&self) -> usize {
-        self.kept.frames
+        self.kept.len()
     }
 
     /// Whether no frame is kept.
     pub fn is_empty(&self) -> bool {
-        self.kept.frames == 0
+        self.kept.is_empty()
     }
 
     /// Drops the kept frames: the next keep starts a new sequence.
     pub fn clear(&mut self) -> Result<()> {
         self.last = None;
+        self.histories.clear();
         self.kept.clear()
+    }
+
+    /// Kept frame `k`'s record and forward colour.
+    fn kept_frame(&mut self, k: usize) -> Result<(FilterRecord, RgbImage)> {
+        let mut planes = self.kept.read(k)?;
+        debug_assert_eq!(planes.len(), KEPT_PLANES);
+        let (w, h) = self.size;
+        let color = planes.split_off(INPUT_PLANES + 1);
+        let p00 = planes.pop().expect("KEPT_PLANES planes");
+        let color: [Vec<f32>; 3] = color.try_into().expect("three colour planes");
+        let record = FilterRecord {
+            inputs: planes,
+            p00,
+            size: self.size,
+            history: self.histories[k],
+        };
+        Ok((record, RgbImage::from_planes(w, h, color)))
     }
 
     /// Ends the sequence: every kept frame's two-way reconstruction, in
@@ -637,11 +563,10 @@ impl Smoother {
         &mut self,
         mut each: impl FnMut(usize, RgbImage, Vec<KernelTiming>) -> Result<()>,
     ) -> Result<()> {
-        self.last = None;
-        let frames = self.kept.frames;
+        let frames = self.kept.len();
         let mut run = || -> Result<()> {
             for k in (0..frames).rev() {
-                let (record, color) = self.kept.read(k, self.size)?;
+                let (record, color) = self.kept_frame(k)?;
                 let (out, timings) =
                     self.stage
                         .run(&record, &color, k + 1 == frames, self.progress)?;
@@ -650,7 +575,7 @@ impl Smoother {
             Ok(())
         };
         let done = run();
-        let cleared = self.kept.clear();
+        let cleared = self.clear();
         done.and(cleared)
     }
 }

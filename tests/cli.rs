@@ -702,6 +702,14 @@ fn two_way_filter_from_the_command_line() {
     }
     let rgb = |p: &str| mcdenoise::io::read_rgb(&dir.join(p)).unwrap().planes;
     assert_ne!(rgb("lp_00.exr"), rgb("two_00.exr"));
+    // The statistics waited for the two-way filter in a temporary file.
+    for f in 0..3 {
+        let bytes = |p: String| std::fs::read(dir.join(p)).unwrap();
+        assert!(
+            bytes(format!("lp_stats_{f:02}.exr")) == bytes(format!("two_stats_{f:02}.exr")),
+            "frame {f}'s statistics"
+        );
+    }
     let denoise = |out: &str, extra: &[&str]| {
         run(bin()
             .arg("denoise")
@@ -734,7 +742,7 @@ fn two_way_filter_from_the_command_line() {
     assert_ne!(code, 0);
     assert!(
         err.contains(&format!(
-            "{}: the two-way filter could not create its temporary file",
+            "{}: could not create the temporary file of the two-way filter's kept frames",
             missing.display()
         )),
         "{err}"

@@ -9,7 +9,8 @@
 //! With the two-way filter ([`Temporal::LpSmooth`]) the final denoiser
 //! filters in frame order, as with [`Temporal::Lp`], and a [`Smoother`]
 //! combines it with the filter in reverse order once the range is
-//! rendered.
+//! rendered; until then the frames' statistics wait in a temporary file
+//! ([`PlaneSpill`]).
 
 use std::collections::VecDeque;
 use std::ops::Range;
@@ -20,7 +21,8 @@ use super::adaptive::{self, LoopConfig, LoopResult};
 use super::{Renderer, Scene};
 use crate::error::{Error, Result};
 use crate::gpu::GpuContext;
-use crate::image::StatsImage;
+use crate::image::{Layer, StatsImage};
+use crate::spill::PlaneSpill;
 use crate::{Denoiser, SequenceDenoiser, Smoother, Source, Temporal};
 
 /// The seed of frame `frame` of a sequence rendered with `seed`.
@@ -76,7 +78,7 @@ pub fn render_frames(
     // APR's window and the two-way filter: the frames rendered and not yet
     // reconstructed.
     let mut window: Option<SequenceDenoiser> = None;
-    let mut smoother: Option<Smoother> = None;
+    let mut smoother: Option<(Smoother, StatsSpill)> = None;
     let mut waiting: VecDeque<SequenceFrame> = VecDeque::new();
     for number in frames {
         let at = scene.at_frame(number)?;
@@ -112,7 +114,7 @@ pub fn render_frames(
             };
             let d = adaptive::final_denoiser(ctx, renderer.layout(), cfg, forward)?;
             if temporal == Temporal::LpSmooth {
-                smoother = Some(Smoother::new(ctx, &d)?);
+                smoother = Some((Smoother::new(ctx, &d)?, StatsSpill::new()?));
             }
             last = Some(d);
         }
@@ -125,10 +127,12 @@ pub fn render_frames(
             result,
             stats,
         };
-        if let (Some(s), Some(d)) = (&mut smoother, &last) {
+        if let (Some((s, spill)), Some(d)) = (&mut smoother, &last) {
             s.keep(d, &frame.result.frame.color)?;
-            // The smoother keeps the colour; its finish gives it back.
+            // The smoother keeps the colour, and the spill the statistics,
+            // until the end.
             frame.result.frame.color = crate::image::RgbImage::new(0, 0);
+            spill.put(&mut frame.stats)?;
             waiting.push_back(frame);
             continue;
         }
@@ -138,18 +142,63 @@ pub fn render_frames(
         let done = w.finish()?;
         release(done, &mut waiting, &mut each)?;
     }
-    if let Some(s) = &mut smoother {
+    if let Some((s, spill)) = &mut smoother {
         s.finish_each(|t, color, timings| {
             let f = &mut waiting[t].result.frame;
             f.color = color;
             f.timings.extend(timings);
             Ok(())
         })?;
-        for f in waiting.drain(..) {
+        for (t, mut f) in waiting.drain(..).enumerate() {
+            f.stats = spill.take(t)?;
             each(f)?;
         }
     }
     Ok(())
+}
+
+/// The statistics of the frames waiting for the two-way filter, in a
+/// temporary file ([`PlaneSpill`]) rather than in memory.
+struct StatsSpill {
+    spill: PlaneSpill,
+    /// Each frame's size and layers, with their planes' counts.
+    shapes: Vec<((usize, usize), LayerPlanes)>,
+}
+
+/// A statistics image's layers and their planes' counts.
+type LayerPlanes = Vec<(Layer, usize)>;
+
+impl StatsSpill {
+    fn new() -> Result<StatsSpill> {
+        Ok(StatsSpill {
+            spill: PlaneSpill::new("the rendered statistics awaiting the two-way filter")?,
+            shapes: Vec::new(),
+        })
+    }
+
+    /// Appends `stats`'s planes and leaves it without layers.
+    fn put(&mut self, stats: &mut StatsImage) -> Result<()> {
+        let layers: LayerPlanes = stats.layers().map(|(l, p)| (l, p.len())).collect();
+        self.spill.push(
+            stats
+                .layers()
+                .flat_map(|(_, p)| p.iter().map(|v| v.as_slice())),
+        )?;
+        self.shapes.push(((stats.width, stats.height), layers));
+        *stats = StatsImage::new(stats.width, stats.height);
+        Ok(())
+    }
+
+    /// Frame `k`'s statistics.
+    fn take(&mut self, k: usize) -> Result<StatsImage> {
+        let mut planes = self.spill.read(k)?.into_iter();
+        let ((w, h), layers) = &self.shapes[k];
+        let mut stats = StatsImage::new(*w, *h);
+        for &(layer, n) in layers {
+            stats.set(layer, planes.by_ref().take(n).collect());
+        }
+        Ok(stats)
+    }
 }
 
 /// Hands the frames APR's window finished (`done`, in order) to `each`,

@@ -558,8 +558,12 @@ fn render_sequence(
     if let Some(b) = &bar {
         b.set_length(frames.len() as u64);
     }
-    // (frame, Monte Carlo mean, reconstruction, reference)
-    let mut rows: Vec<(u32, RgbImage, RgbImage, Option<RgbImage>)> = Vec::new();
+    // Only what the metrics and the strip need is kept: the last frame's
+    // images, each frame's two numbers, the strip's frames.
+    let mut metrics = SequenceMetrics::default();
+    let picks = strip_frames(frames.len(), STRIP_FRAMES);
+    let mut strip: Vec<(u32, RgbImage)> = Vec::new();
+    let mut done = 0usize;
     let t0 = std::time::Instant::now();
     let each = |f: sequence::SequenceFrame| -> mcdenoise::Result<()> {
         let n = f.number as u64;
@@ -587,12 +591,13 @@ fn render_sequence(
             (None, false) => eprintln!("{line}"),
             (None, true) => {}
         }
-        rows.push((
-            f.number,
-            colour_of(&f.stats),
-            f.result.frame.color,
-            reference,
-        ));
+        if a.strip.is_some() && picks.contains(&done) {
+            strip.push((f.number, f.result.frame.color.clone()));
+        }
+        done += 1;
+        if let Some(r) = reference {
+            metrics.add(f.number, colour_of(&f.stats), f.result.frame.color, r)?;
+        }
         Ok(())
     };
     let temporal = a.temporal.get();
@@ -611,50 +616,77 @@ fn render_sequence(
     if let Some(b) = bar {
         b.finish_and_clear();
     }
-    if let Some(path) = &a.strip {
-        let picks = strip_frames(rows.len(), STRIP_FRAMES);
-        let panels: Vec<io::Panel> = picks
-            .iter()
-            .map(|&i| io::Panel::Colour(&rows[i].2))
-            .collect();
+    if let (Some(path), false) = (&a.strip, strip.is_empty()) {
+        let panels: Vec<io::Panel> = strip.iter().map(|(_, c)| io::Panel::Colour(c)).collect();
         io::write_panels(path, w, h, &panels, 4)?;
         if !cli.quiet {
-            let numbers: Vec<String> = picks.iter().map(|&i| rows[i].0.to_string()).collect();
+            let numbers: Vec<String> = strip.iter().map(|(n, _)| n.to_string()).collect();
             eprintln!("strip: {} (frames {})", path.display(), numbers.join(", "));
         }
     }
     if !cli.quiet {
         eprintln!(
-            "{} frames of {w}x{h} in {:.1} s wall",
-            rows.len(),
+            "{done} frames of {w}x{h} in {:.1} s wall",
             t0.elapsed().as_secs_f64()
         );
     }
     if let Some(k) = a.reference {
         println!("against per-frame {k}-spp references:");
         println!("frame   rMSE Monte Carlo mean   rMSE {}", method.name());
-        let mut sums = (0.0, 0.0);
-        for (f, input, out, r) in &rows {
-            let r = r.as_ref().expect("a reference per frame");
-            let (mi, mo) = (metrics::rmse(input, r), metrics::rmse(out, r));
-            sums = (sums.0 + mi, sums.1 + mo);
+        for (f, mi, mo) in &metrics.frames {
             println!("{f:>5} {mi:>22.5} {mo:>10.5}");
         }
-        let count = rows.len() as f64;
-        let refs: Vec<&RgbImage> = rows.iter().filter_map(|r| r.3.as_ref()).collect();
-        let inputs: Vec<&RgbImage> = rows.iter().map(|r| &r.1).collect();
-        let outputs: Vec<&RgbImage> = rows.iter().map(|r| &r.2).collect();
-        let temporal = |x: &[&RgbImage]| -> anyhow::Result<String> {
-            Ok(metrics::temporal_error(x, &refs)?.map_or("-".into(), |t| format!("{t:.6}")))
+        let count = metrics.frames.len() as f64;
+        let mean = |k: usize| metrics.frames.iter().map(|r| [r.1, r.2][k]).sum::<f64>() / count;
+        let temporal = |k: usize| match metrics.pairs {
+            0 => "-".to_string(),
+            n => format!("{:.6}", metrics.temporal[k] / n as f64),
         };
-        println!("mean  {:>22.5} {:>10.5}", sums.0 / count, sums.1 / count);
-        println!(
-            "temporal error {:>15} {:>10}",
-            temporal(&inputs)?,
-            temporal(&outputs)?
-        );
+        println!("mean  {:>22.5} {:>10.5}", mean(0), mean(1));
+        println!("temporal error {:>15} {:>10}", temporal(0), temporal(1));
     }
     Ok(true)
+}
+
+/// A sequence's metrics against its per-frame references, taken frame by
+/// frame in order, holding only the last frame's images: each frame's
+/// rMSE of the input and the output, and the temporal error
+/// ([`metrics::temporal_error`], a mean over the pairs of consecutive
+/// frames, each of the same size).
+#[derive(Default)]
+struct SequenceMetrics {
+    /// (frame, input's rMSE, output's rMSE)
+    frames: Vec<(u32, f64, f64)>,
+    /// The input's and the output's temporal error summed over the pairs.
+    temporal: [f64; 2],
+    pairs: usize,
+    /// The last frame's input, output and reference.
+    last: Option<[RgbImage; 3]>,
+}
+
+impl SequenceMetrics {
+    fn add(
+        &mut self,
+        number: u32,
+        input: RgbImage,
+        output: RgbImage,
+        reference: RgbImage,
+    ) -> mcdenoise::Result<()> {
+        self.frames.push((
+            number,
+            metrics::rmse(&input, &reference),
+            metrics::rmse(&output, &reference),
+        ));
+        if let Some([i0, o0, r0]) = &self.last {
+            for (k, (x0, x1)) in [(i0, &input), (o0, &output)].into_iter().enumerate() {
+                let t = metrics::temporal_error(&[x0, x1], &[r0, &reference])?;
+                self.temporal[k] += t.expect("two frames");
+            }
+            self.pairs += 1;
+        }
+        self.last = Some([input, output, reference]);
+        Ok(())
+    }
 }
 
 /// Writes a reconstruction: the EXR (colour, and the error unless the
@@ -678,4 +710,44 @@ fn write_frame(
         io::write_png_preview(p, &frame.color)?;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Frame by frame, the metrics equal those of the whole sequence at once.
+    #[test]
+    fn sequence_metrics_taken_frame_by_frame_equal_the_whole_sequences() {
+        let image = |seed: u32| {
+            let mut v = seed.wrapping_mul(2654435761);
+            let planes = std::array::from_fn(|_| {
+                (0..12)
+                    .map(|_| {
+                        v = v.wrapping_mul(1664525).wrapping_add(1013904223);
+                        (v >> 8) as f32 / (1 << 24) as f32
+                    })
+                    .collect()
+            });
+            RgbImage::from_planes(4, 3, planes)
+        };
+        let frames: Vec<[RgbImage; 3]> = (0..4)
+            .map(|t| [image(3 * t), image(3 * t + 1), image(3 * t + 2)])
+            .collect();
+        let mut m = SequenceMetrics::default();
+        for (t, [i, o, r]) in frames.iter().cloned().enumerate() {
+            m.add(t as u32, i, o, r).unwrap();
+        }
+        let all = |k: usize| frames.iter().map(|f| &f[k]).collect::<Vec<_>>();
+        for k in 0..2 {
+            let whole = metrics::temporal_error(&all(k), &all(2)).unwrap().unwrap();
+            let streamed = m.temporal[k] / m.pairs as f64;
+            assert!(
+                (whole - streamed).abs() <= 1e-12 * whole,
+                "{whole} {streamed}"
+            );
+        }
+        assert_eq!(m.frames.len(), 4);
+        assert_eq!(m.frames[2].2, metrics::rmse(&frames[2][1], &frames[2][2]));
+    }
 }
