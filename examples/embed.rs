@@ -272,6 +272,8 @@ struct Push {
     pass_index: u32,
     uniform_spp: u32,
     stride: u32,
+    /// A sequence's frame (fresh noise); 0 here, a single image.
+    frame: u32,
 }
 
 impl Host {
@@ -413,6 +415,7 @@ impl Host {
             pass_index: pass,
             uniform_spp: SPP as u32,
             stride,
+            frame: 0,
         };
         unsafe {
             device.cmd_bind_pipeline(self.cmd, vk::PipelineBindPoint::COMPUTE, self.pipeline);
