@@ -328,6 +328,15 @@ fn layout_of(l: &McdAccumLayout) -> Result<AccumLayout, Failure> {
     .with_position_origin(l.position_origin))
 }
 
+/// `img`'s planes as RGB triples in `dst` (3 values per pixel).
+fn interleave_rgb(img: &core::RgbImage, dst: &mut [f32]) {
+    for (c, plane) in img.planes.iter().enumerate() {
+        for (i, v) in plane.iter().enumerate() {
+            dst[3 * i + c] = *v;
+        }
+    }
+}
+
 /// The layout `ptr` points to, if it is valid.
 ///
 /// # Safety
@@ -763,12 +772,7 @@ pub unsafe extern "C" fn mcd_denoiser_read(
         let frame = d.denoiser.read()?;
         let interleave = |img: &core::RgbImage, dst: *mut f32| {
             // SAFETY: the caller guarantees room for 3 * pixels values.
-            let dst = unsafe { std::slice::from_raw_parts_mut(dst, 3 * n) };
-            for (c, plane) in img.planes.iter().enumerate() {
-                for (i, v) in plane.iter().enumerate() {
-                    dst[3 * i + c] = *v;
-                }
-            }
+            interleave_rgb(img, unsafe { std::slice::from_raw_parts_mut(dst, 3 * n) });
         };
         if !color.is_null() {
             interleave(&frame.color, color);
@@ -892,11 +896,7 @@ pub unsafe extern "C" fn mcd_smoother_finish(
         let done = s.smoother.finish_each(|t, color, _| {
             let n = color.width * color.height;
             let mut rgb = vec![0f32; 3 * n];
-            for (c, plane) in color.planes.iter().enumerate() {
-                for (i, v) in plane.iter().enumerate() {
-                    rgb[3 * i + c] = *v;
-                }
-            }
+            interleave_rgb(&color, &mut rgb);
             // SAFETY: the caller guarantees `each` may be called with `user`;
             // `rgb` holds `n` triples for the call's duration.
             let r = unsafe { each(user, t as u64, rgb.as_ptr(), n as u64) };

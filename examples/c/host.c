@@ -181,6 +181,31 @@ static void submit_and_wait(VkDevice device, VkQueue queue, VkCommandBuffer cmd,
     VK_CHECK(vkResetCommandBuffer(cmd, 0));
 }
 
+/* Begins `cmd` and records the host's accumulation pass into it: with
+ * `clear`, the buffer zeroed first; then `push`'s samples added by
+ * `pipeline` through `set`. */
+static void record_accumulation(VkCommandBuffer cmd, VkPipeline pipeline, VkPipelineLayout layout,
+                                VkDescriptorSet set, VkBuffer accum, int clear,
+                                const struct Push *push)
+{
+    VkCommandBufferBeginInfo begin = {.sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO,
+                                      .flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT};
+    VK_CHECK(vkBeginCommandBuffer(cmd, &begin));
+    if (clear) {
+        vkCmdFillBuffer(cmd, accum, 0, VK_WHOLE_SIZE, 0);
+        VkMemoryBarrier mb = {.sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER,
+                              .srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT,
+                              .dstAccessMask =
+                                  VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT};
+        vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT,
+                             VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0, 1, &mb, 0, NULL, 0, NULL);
+    }
+    vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline);
+    vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout, 0, 1, &set, 0, NULL);
+    vkCmdPushConstants(cmd, layout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof *push, push);
+    vkCmdDispatch(cmd, (W * H + 63) / 64, 1, 1);
+}
+
 /* The frames of the sequence that mcd_smoother_finish hands back, and the
  * order it hands them in; `stop_at` makes the callback stop there. */
 #define FRAMES 4
@@ -371,27 +396,10 @@ int main(int argc, char **argv)
     static uint32_t samples[W * H];
     double first_rmse = 0.0;
     for (uint32_t pass = 0; pass < 2; pass++) {
-        VkCommandBufferBeginInfo begin = {.sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO,
-                                          .flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT};
-        VK_CHECK(vkBeginCommandBuffer(cmd, &begin));
-        if (pass == 0) {
-            vkCmdFillBuffer(cmd, accum, 0, VK_WHOLE_SIZE, 0);
-            VkMemoryBarrier mb = {.sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER,
-                                  .srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT,
-                                  .dstAccessMask = VK_ACCESS_SHADER_READ_BIT |
-                                                   VK_ACCESS_SHADER_WRITE_BIT};
-            vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT,
-                                 VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0, 1, &mb, 0, NULL, 0,
-                                 NULL);
-        }
-        /* The host's own pass: this pass's samples into the accumulation. */
+        /* The host's own pass: this pass's samples into the accumulation
+         * (zeroed before the first). */
         struct Push push = {W, H, pass, SPP, (uint32_t)(mcd_accum_plane_stride(&layout) / 4), 0};
-        vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline);
-        vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline_layout, 0, 1, &set,
-                                0, NULL);
-        vkCmdPushConstants(cmd, pipeline_layout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof push,
-                           &push);
-        vkCmdDispatch(cmd, (W * H + 63) / 64, 1, 1);
+        record_accumulation(cmd, pipeline, pipeline_layout, set, accum, pass == 0, &push);
         /* mcdenoise's chain into the same command buffer (it brings its own
          * barriers): a sample map for the next pass after pass 0. */
         McdRecording *recording = NULL;
@@ -543,26 +551,9 @@ int main(int argc, char **argv)
             return 1;
         }
         for (uint32_t f = 0; f < frames; f++) {
-            VkCommandBufferBeginInfo begin = {
-                .sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO,
-                .flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT};
-            VK_CHECK(vkBeginCommandBuffer(cmd, &begin));
-            vkCmdFillBuffer(cmd, seq_accum, 0, VK_WHOLE_SIZE, 0);
-            VkMemoryBarrier mb = {.sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER,
-                                  .srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT,
-                                  .dstAccessMask =
-                                      VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT};
-            vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT,
-                                 VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0, 1, &mb, 0, NULL, 0,
-                                 NULL);
             struct Push push = {W, H, 0, SPP, (uint32_t)(mcd_accum_plane_stride(&seq_layout) / 4),
                                 1 + f + FRAMES * (uint32_t)run};
-            vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, seq_pipeline);
-            vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline_layout, 0, 1,
-                                    &seq_set, 0, NULL);
-            vkCmdPushConstants(cmd, pipeline_layout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof push,
-                               &push);
-            vkCmdDispatch(cmd, (W * H + 63) / 64, 1, 1);
+            record_accumulation(cmd, seq_pipeline, pipeline_layout, seq_set, seq_accum, 1, &push);
             McdRecording *rec = NULL;
             if (mcd_denoiser_record(filter, cmd, family, seq_accum, 0, 0, &rec) != MCD_STATUS_OK) {
                 fprintf(stderr, "mcdenoise: %s\n", mcd_last_error());
