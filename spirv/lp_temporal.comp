@@ -39,11 +39,13 @@ PLANE_IN(11, er)
 PLANE_IN(12, eg)
 PLANE_IN(13, eb)
 PLANE_IN(14, prev)
-PLANE_OUT(15, next)
-PLANE_OUT(16, out_r)
-PLANE_OUT(17, out_g)
-PLANE_OUT(18, out_b)
-PLANE_OUT(19, source)
+PLANE_IN(15, mx)
+PLANE_IN(16, my)
+PLANE_OUT(17, next)
+PLANE_OUT(18, out_r)
+PLANE_OUT(19, out_g)
+PLANE_OUT(20, out_b)
+PLANE_OUT(21, source)
 
 #include "lib/temporal.glsl"
 

@@ -718,7 +718,7 @@ pub struct TemporalPush {
     pub height: u32,
     /// First row of the band this dispatch covers.
     pub row0: u32,
-    /// [`TEMPORAL_RESET`] and [`TEMPORAL_NO_SEARCH`].
+    /// [`TEMPORAL_RESET`], [`TEMPORAL_NO_SEARCH`] and [`TEMPORAL_MOTION`].
     pub flags: u32,
     /// The forgetting factor `λ` ([`TEMPORAL_LAMBDA`] by default).
     pub lambda: f32,
@@ -738,6 +738,18 @@ pub const TEMPORAL_RESET: u32 = 1;
 /// [`TemporalPush::flags`]: no reprojection, pixel `i` continues its own
 /// state (`j = i`) and is never reset by distance (§10.1's invariant).
 pub const TEMPORAL_NO_SEARCH: u32 = 2;
+/// [`TemporalPush::flags`]: the 7×7 search window is centred where the
+/// coarse-to-fine motion search put each pixel (TEMPORAL-MOTION: the
+/// bindings `mx`, `my` hold the offsets at half resolution); without it,
+/// on the pixel itself.
+pub const TEMPORAL_MOTION: u32 = 4;
+/// TEMPORAL-MOTION: levels of the motion search's pyramids of positions
+/// (1: half resolution, up to 4: a sixteenth).
+pub const TEMPORAL_MOTION_LEVELS: usize = 4;
+/// TEMPORAL-MOTION: the search radius at every level (5×5); with
+/// [`TEMPORAL_MOTION_LEVELS`] and the final 7×7 window it reaches
+/// `3 + 2·(2 + 2·(2 + 2·(2 + 2·2)))` = 63 pixels.
+pub const TEMPORAL_MOTION_RADIUS: i32 = 2;
 /// The forgetting factor `λ` of §10.1 `[LP §6]`.
 pub const TEMPORAL_LAMBDA: f32 = 0.98;
 /// TEMPORAL-PRIOR: `P₀₀` of a reinitialised pixel. The frame that starts
@@ -768,12 +780,37 @@ pub const TEMPORAL_P00: usize = 6;
 /// The state plane of the valid flag.
 pub const TEMPORAL_VALID: usize = 12;
 /// The debug plane `temporal_source`: the reprojection source's offset
-/// `(dy + 3)·7 + (dx + 3)` in 0..49, this value where the pixel was
+/// from the window's centre (TEMPORAL-MOTION) `(dy + 3)·7 + (dx + 3)` in
+/// 0..49, this value where the pixel was
 /// reinitialised, [`TEMPORAL_SOURCE_NONE`] where it was passed through
 /// (an invalid pixel or a non-finite colour).
 pub const TEMPORAL_SOURCE_RESET: f32 = -1.0;
 /// See [`TEMPORAL_SOURCE_RESET`].
 pub const TEMPORAL_SOURCE_NONE: f32 = -2.0;
+
+/// `spirv/temporal_motion.comp`, block `Push` (TEMPORAL-MOTION): one level
+/// of the coarse-to-fine motion search.
+#[repr(C)]
+#[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct MotionPush {
+    /// The level's width in pixels.
+    pub width: u32,
+    /// Its height.
+    pub height: u32,
+    /// First row of the band this dispatch covers.
+    pub row0: u32,
+    /// 1 where the coarser level's offsets (`ox_c`, `oy_c`) centre the
+    /// search; 0 at the coarsest level (centre 0).
+    pub coarse: u32,
+    /// The coarser level's width (its offsets' plane).
+    pub coarse_width: u32,
+    /// Its height.
+    pub coarse_height: u32,
+    /// The search radius ([`TEMPORAL_MOTION_RADIUS`]).
+    pub radius: i32,
+    /// Unused: 0.
+    pub _pad: u32,
+}
 
 /// `spirv/pyramid_pool.comp` and `spirv/pyramid_merge.comp`, block `Push`
 /// (the pyramid's low band, PYRAMID-LOWBAND), and

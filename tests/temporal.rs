@@ -7,13 +7,14 @@ mod common;
 
 use common::{agreement, assert_close, check_validation, gpu, precisions, Rng};
 use mcdenoise::gpu::Precision;
-use mcdenoise::kernels::{lp_temporal, lp_temporal_gain, run_planes};
+use mcdenoise::kernels::{lp_temporal, lp_temporal_gain, run_planes, temporal_motion};
 use mcdenoise::reference::lp_temporal::{self as twin, PixelState, TemporalInputs};
 use mcdenoise::reference::lp_temporal_gain as gain_twin;
+use mcdenoise::reference::temporal_motion as motion_twin;
 use mcdenoise::shared::{
-    TemporalPush, TEMPORAL_LAMBDA, TEMPORAL_NO_SEARCH, TEMPORAL_P00, TEMPORAL_RESET,
-    TEMPORAL_RESET_P00, TEMPORAL_RESET_P11, TEMPORAL_SOURCE_NONE, TEMPORAL_SOURCE_RESET,
-    TEMPORAL_STATE,
+    MotionPush, TemporalPush, TEMPORAL_LAMBDA, TEMPORAL_MOTION, TEMPORAL_NO_SEARCH, TEMPORAL_P00,
+    TEMPORAL_RESET, TEMPORAL_RESET_P00, TEMPORAL_RESET_P11, TEMPORAL_SOURCE_NONE,
+    TEMPORAL_SOURCE_RESET, TEMPORAL_STATE,
 };
 
 /// §10.1's prior `δ` (`[LP §7]`): its reset is `P = I/δ`.
@@ -242,8 +243,23 @@ fn twin_frame(
     (next, out, source)
 }
 
-/// `lp_temporal`'s input bindings for frame `f` over the state `prev`.
-fn kernel_inputs<'a>(f: &'a Synthetic, prev: &'a [f32]) -> Vec<&'a [f32]> {
+/// TEMPORAL-MOTION's offsets at half resolution for frame `f` over the
+/// state `prev` (the twin's search, where `p` asks for it; a zero plane
+/// otherwise).
+fn twin_motion(p: &TemporalPush, f: &Synthetic, prev: &[f32]) -> [Vec<f32>; 2] {
+    match twin::frame_motion(p, &inputs(f), prev) {
+        Some(m) => [m.ox, m.oy],
+        None => [vec![0.0], vec![0.0]],
+    }
+}
+
+/// `lp_temporal`'s input bindings for frame `f` over the state `prev` and
+/// the offsets `motion`.
+fn kernel_inputs<'a>(
+    f: &'a Synthetic,
+    prev: &'a [f32],
+    motion: &'a [Vec<f32>; 2],
+) -> Vec<&'a [f32]> {
     let mut ins: Vec<&[f32]> = Vec::new();
     ins.extend(f.color.iter().map(|v| &v[..]));
     ins.extend(f.position.iter().map(|v| &v[..]));
@@ -251,12 +267,15 @@ fn kernel_inputs<'a>(f: &'a Synthetic, prev: &'a [f32]) -> Vec<&'a [f32]> {
     ins.extend([&f.depth[..], &f.spp[..]]);
     ins.extend(f.error.iter().map(|v| &v[..]));
     ins.push(prev);
+    ins.extend(motion.iter().map(|v| &v[..]));
     ins
 }
 
-/// The GPU's frame: next state, output R, G, B and source.
+/// The GPU's frame: next state, output R, G, B and source (the window
+/// centred by the twin's motion search).
 fn gpu_frame(p: &TemporalPush, f: &Synthetic, prev: &[f32], prec: Precision) -> Vec<Vec<f32>> {
     let n = f.w * f.h;
+    let motion = twin_motion(p, f, prev);
     run_planes(
         &gpu(),
         &lp_temporal::DECL,
@@ -264,7 +283,7 @@ fn gpu_frame(p: &TemporalPush, f: &Synthetic, prev: &[f32], prec: Precision) -> 
         bytemuck::bytes_of(p),
         f.w,
         f.h,
-        &kernel_inputs(f, prev),
+        &kernel_inputs(f, prev, &motion),
         &[TEMPORAL_STATE * n, n, n, n, n],
         lp_temporal::FLOPS_PER_PIXEL,
     )
@@ -296,7 +315,8 @@ fn lp_temporal_matches_its_twin() {
             let flags = match t {
                 0 => TEMPORAL_RESET,
                 3 => TEMPORAL_NO_SEARCH,
-                _ => 0,
+                4 => 0,
+                _ => TEMPORAL_MOTION,
             };
             let p = TemporalPush {
                 p00,
@@ -304,8 +324,9 @@ fn lp_temporal_matches_its_twin() {
                 ..push(w, h, flags)
             };
             let (next, out, source) = twin_frame(&p, &f, &prev);
+            let motion = twin_motion(&p, &f, &prev);
             for prec in precisions() {
-                let ins = kernel_inputs(&f, &prev);
+                let ins = kernel_inputs(&f, &prev, &motion);
                 let g = gpu_frame(&p, &f, &prev, prec);
                 let what = format!("{w}x{h} prior ({p00}, {p11}) frame {t} {prec:?}");
                 assert_close(&format!("{what} state"), &g[0], &next, 0.99);
@@ -354,7 +375,7 @@ fn lp_temporal_matches_its_twin() {
                     // Never above the error it scales.
                     assert!(gg[c].iter().zip(&err[c]).all(|(g, e)| g <= e));
                 }
-                if t > 0 && flags == 0 {
+                if t > 0 && flags & TEMPORAL_NO_SEARCH == 0 {
                     assert!(
                         gg[0].iter().zip(&err[0]).any(|(g, e)| g < e),
                         "{what}: no gain"
@@ -1070,5 +1091,255 @@ fn the_smoother_reuses_its_file_and_hands_frames_last_first() {
     .unwrap();
     assert_eq!(order, vec![3, 2, 1, 0]);
     assert!(s.is_empty());
+    check_validation(&ctx);
+}
+
+/// A position field: pixel `(x, y)` of the previous frame saw the point
+/// `field(x, y)`; a smooth, one-to-one surface.
+fn field(x: f64, y: f64) -> [f32; 3] {
+    [
+        (0.01 * x) as f32,
+        (0.01 * y) as f32,
+        (0.1 * (0.07 * x).sin()) as f32,
+    ]
+}
+
+/// Two frames of a static scene under a camera that moved: frame 1's pixel
+/// `(x, y)` sees what frame 0's `(x + sx, y + sy)` saw.
+fn panned(w: usize, h: usize, (sx, sy): (i32, i32), rng: &mut Rng) -> [Synthetic; 2] {
+    let n = w * h;
+    std::array::from_fn(|t| {
+        let (ox, oy) = if t == 0 { (0, 0) } else { (sx, sy) };
+        let mut f = Synthetic {
+            w,
+            h,
+            color: std::array::from_fn(|_| vec![0.0; n]),
+            position: std::array::from_fn(|_| vec![0.0; n]),
+            variance: std::array::from_fn(|_| vec![1e-7; n]),
+            error: std::array::from_fn(|_| vec![0.0025; n]),
+            depth: vec![1.0; n],
+            spp: vec![16.0; n],
+        };
+        for y in 0..h {
+            for x in 0..w {
+                let i = y * w + x;
+                let p = field((x as i32 + ox) as f64, (y as i32 + oy) as f64);
+                for k in 0..3 {
+                    f.position[k][i] = p[k];
+                    f.color[k][i] = (0.4 + 0.3 * p[k] as f64 + 0.05 * rng.normal()).max(0.0) as f32;
+                }
+            }
+        }
+        f
+    })
+}
+
+/// Where each pixel's reprojected state came from, as one number: the
+/// offset `(dx, dy)` from the pixel (the window's centre `(mx, my)` plus
+/// the debug plane `source`'s offset) as `dy · 1000 + dx`; `source` itself
+/// where the pixel was reset or passed through.
+fn absolute(source: &[f32], mx: &[f32], my: &[f32]) -> Vec<f32> {
+    source
+        .iter()
+        .zip(mx.iter().zip(my))
+        .map(|(&s, (&x, &y))| {
+            if s < 0.0 {
+                return s;
+            }
+            let (dx, dy) = (s as i32 % 7 - 3 + x as i32, s as i32 / 7 - 3 + y as i32);
+            (dy * 1000 + dx) as f32
+        })
+        .collect()
+}
+
+/// `temporal_motion` against its twin on one level: random positions and
+/// counts (some pixels empty), with and without a coarser level's offsets.
+#[test]
+fn temporal_motion_matches_its_twin() {
+    let ctx = gpu();
+    let (w, h, cw, ch) = (23usize, 14usize, 12usize, 7usize);
+    let n = w * h;
+    let mut rng = Rng(41);
+    let plane = |rng: &mut Rng, scale: f64| -> Vec<f32> {
+        (0..n).map(|_| (scale * rng.normal()) as f32).collect()
+    };
+    let counts = |rng: &mut Rng| -> Vec<f32> {
+        (0..n)
+            .map(|_| if rng.normal() > -1.5 { 4.0 } else { 0.0 })
+            .collect()
+    };
+    let cur: Vec<Vec<f32>> = vec![
+        plane(&mut rng, 1.0),
+        plane(&mut rng, 1.0),
+        plane(&mut rng, 1.0),
+        counts(&mut rng),
+    ];
+    let prev: Vec<Vec<f32>> = vec![
+        plane(&mut rng, 1.0),
+        plane(&mut rng, 1.0),
+        plane(&mut rng, 1.0),
+        counts(&mut rng),
+    ];
+    let coarse: Vec<Vec<f32>> = (0..2)
+        .map(|_| {
+            (0..cw * ch)
+                .map(|_| (rng.normal() * 2.0).round() as f32)
+                .collect()
+        })
+        .collect();
+    for has_coarse in [0u32, 1] {
+        let push = MotionPush {
+            width: w as u32,
+            height: h as u32,
+            coarse: has_coarse,
+            coarse_width: cw as u32,
+            coarse_height: ch as u32,
+            radius: 2,
+            ..Default::default()
+        };
+        let mut want: [Vec<f32>; 2] = std::array::from_fn(|_| vec![0.0; n]);
+        {
+            let [a, b] = &mut want;
+            let c4 = [&cur[0][..], &cur[1][..], &cur[2][..], &cur[3][..]];
+            let p4 = [&prev[0][..], &prev[1][..], &prev[2][..], &prev[3][..]];
+            motion_twin::temporal_motion(&push, c4, p4, [&coarse[0], &coarse[1]], [a, b]);
+        }
+        if has_coarse == 1 {
+            assert!(
+                want[0].iter().any(|&v| v.abs() > 2.0),
+                "the coarse offsets move the centre"
+            );
+        }
+        let ins: Vec<&[f32]> = cur
+            .iter()
+            .chain(&prev)
+            .chain(&coarse)
+            .map(|v| &v[..])
+            .collect();
+        for prec in precisions() {
+            let (g, _) = run_planes(
+                &ctx,
+                &temporal_motion::DECL,
+                prec,
+                bytemuck::bytes_of(&push),
+                w,
+                h,
+                &ins,
+                &[n, n],
+                temporal_motion::FLOPS_PER_PIXEL,
+            )
+            .unwrap();
+            for k in 0..2 {
+                let agree = agreement(&g[k], &want[k]);
+                assert!(
+                    agree >= 0.98,
+                    "coarse {has_coarse} {prec:?} offset {k}: {agree}"
+                );
+            }
+        }
+    }
+    check_validation(&ctx);
+}
+
+/// TEMPORAL-MOTION: a camera that moved 17 pixels across and 5 up between
+/// two frames, beyond the 7×7 window. Without the motion search every
+/// pixel resets; with it (twin), the windows centre within a pixel of
+/// the shift and the pixels whose surface was in view continue their
+/// history; the GPU's stage (each precision) does what the twin does.
+#[test]
+fn motion_follows_a_pan_beyond_the_window() {
+    use mcdenoise::gpu::{buffer::read_slice, Batch, PlaneSet};
+    use mcdenoise::kernels::lp_temporal::TemporalIn;
+    use mcdenoise::methods::temporal::TemporalStage;
+
+    let (w, h, shift) = (96usize, 64usize, (17i32, -5i32));
+    let n = w * h;
+    let frames = panned(w, h, shift, &mut Rng(5));
+    let seen = |i: usize| {
+        let (x, y) = ((i % w) as i32 + shift.0, (i / w) as i32 + shift.1);
+        x >= 0 && y >= 0 && x < w as i32 && y < h as i32
+    };
+    let inside: Vec<usize> = (0..n).filter(|&i| seen(i)).collect();
+    let mut twin_sources = Vec::new();
+    for flags in [0, TEMPORAL_MOTION] {
+        let (s0, _, _) = twin_frame(
+            &push(w, h, TEMPORAL_RESET),
+            &frames[0],
+            &vec![0.0; TEMPORAL_STATE * n],
+        );
+        let p = push(w, h, flags);
+        let (_, out, source) = twin_frame(&p, &frames[1], &s0);
+        let carried = inside.iter().filter(|&&i| source[i] >= 0.0).count();
+        if flags == 0 {
+            assert!(
+                carried * 20 <= inside.len(),
+                "without motion {carried} of {} carried",
+                inside.len()
+            );
+            continue;
+        }
+        assert!(
+            carried * 20 >= inside.len() * 19,
+            "with motion {carried} of {} carried",
+            inside.len()
+        );
+        let m = twin::frame_motion(&p, &inputs(&frames[1]), &s0).unwrap();
+        let near = inside
+            .iter()
+            .filter(|&&i| {
+                let c = m.centre(i % w, i / w);
+                (c.0 - shift.0).abs() <= 1 && (c.1 - shift.1).abs() <= 1
+            })
+            .count();
+        assert!(
+            near * 20 >= inside.len() * 19,
+            "{near} of {} centred on the shift",
+            inside.len()
+        );
+        let tx: Vec<f32> = (0..n).map(|i| m.centre(i % w, i / w).0 as f32).collect();
+        let ty: Vec<f32> = (0..n).map(|i| m.centre(i % w, i / w).1 as f32).collect();
+        let from = absolute(&source, &tx, &ty);
+        twin_sources = vec![source, out[0].clone(), from];
+    }
+    let ctx = gpu();
+    for prec in precisions() {
+        let stage = TemporalStage::new(&ctx, w, h).unwrap();
+        let planes = PlaneSet::new(&ctx, "test.inputs", n, 14).unwrap();
+        let mut last = Vec::new();
+        for f in &frames {
+            let data: Vec<&Vec<f32>> = f
+                .color
+                .iter()
+                .chain(&f.position)
+                .chain(&f.variance)
+                .chain([&f.depth, &f.spp])
+                .chain(&f.error)
+                .collect();
+            for (k, v) in data.into_iter().enumerate() {
+                planes.upload_plane(k, v).unwrap();
+            }
+            let inp = TemporalIn::from_planes(|k| planes.plane(k));
+            let mut batch = Batch::new(&ctx).unwrap();
+            stage.record(&mut batch, prec, &inp).unwrap();
+            batch.finish().unwrap();
+            last = vec![
+                read_slice(&ctx, stage.source(), n).unwrap(),
+                read_slice(&ctx, stage.color()[0], n).unwrap(),
+            ];
+        }
+        // Where each pixel's state came from (the centre plus the source's
+        // offset), as the centres may differ on a tie (a shift of 5 is 2.5
+        // at half resolution) where the window finds the same pixel.
+        let dbg = stage.debug_layers(last[0].clone()).unwrap();
+        let gpu_from = absolute(&last[0], &dbg[2].1, &dbg[3].1);
+        let agree = agreement(&gpu_from, &twin_sources[2]);
+        assert!(agree >= 0.98, "{prec:?}: source agrees on {agree}");
+        assert_close(
+            &format!("{prec:?} colour"),
+            &last[1],
+            &twin_sources[1],
+            0.98,
+        );
+    }
     check_validation(&ctx);
 }

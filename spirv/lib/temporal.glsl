@@ -5,18 +5,21 @@
 //
 // The including kernel declares the planes yr yg yb (the method's colour),
 // px py pz (position), vx vy vz (its variance), depth, spp, er eg eb (the
-// method's error estimate) and prev (the
+// method's error estimate), prev (the
 // previous frame's TEMPORAL_STATE planes: b0 b1 per channel R G B,
-// P00 P01 P11, W X Y Z, valid), and a push block `push` with width,
-// height, flags, lambda, p00 and p11.
+// P00 P01 P11, W X Y Z, valid) and mx my (TEMPORAL-MOTION's offsets at half
+// resolution, temporal_motion.comp's level 1), and a push block `push` with
+// width, height, flags, lambda, p00 and p11.
 
 #ifndef MC_TEMPORAL_GLSL
 #define MC_TEMPORAL_GLSL
 
-// mcdenoise::shared: TEMPORAL_RESET, TEMPORAL_NO_SEARCH, TEMPORAL_SEARCH,
-// TEMPORAL_RESET_REL, TEMPORAL_DEPTH_FLOOR, TEMPORAL_RESET_NOISE.
+// mcdenoise::shared: TEMPORAL_RESET, TEMPORAL_NO_SEARCH, TEMPORAL_MOTION,
+// TEMPORAL_SEARCH, TEMPORAL_RESET_REL, TEMPORAL_DEPTH_FLOOR,
+// TEMPORAL_RESET_NOISE.
 #define TEMPORAL_RESET 1u
 #define TEMPORAL_NO_SEARCH 2u
+#define TEMPORAL_MOTION 4u
 #define SEARCH 3
 #define RESET_REL 0.01
 #define DEPTH_FLOOR 1e-3
@@ -49,8 +52,9 @@ bool valid_at(uint j, uint n) { return prev[12 * n + j] == 1.0; }
 // non-finite colour; STEP_RESET with beta = (y, 0), P = diag(p00, p11)
 // (TEMPORAL-PRIOR); or
 // STEP_CONTINUE with the state reprojected from offset index `off`
-// ((dy + 3) * 7 + dx + 3) and updated. Among the valid previous states in
-// the 7x7 window whose position is within RESET's distance (TEMPORAL-GATE,
+// ((dy + 3) * 7 + dx + 3, from the window's centre) and updated. Among the
+// valid previous states in the 7x7 window (centred on the pixel, or with
+// TEMPORAL_MOTION twice its block's offset in mx my) whose position is within RESET's distance (TEMPORAL-GATE,
 // RESET-NOISE), the one with the least (eW + epsW)(ey + epsy), the first in
 // raster order on a tie; its P inflated where its prediction misses the
 // colour by more than the noise allows (TEMPORAL-INFLATE).
@@ -84,8 +88,15 @@ int temporal_step(uint x, uint y, out real2 b[3], out real3 p, out int off)
             real limit = real(RESET_REL) * max(real(depth[i]), real(DEPTH_FLOOR));
             limit = limit * limit + real(RESET_NOISE) * (real(vx[i]) + real(vy[i]) + real(vz[i]));
             real best_cost = real(0);
-            int x0 = max(int(x) - SEARCH, 0), x1 = min(int(x) + SEARCH, int(push.width) - 1);
-            int y0 = max(int(y) - SEARCH, 0), y1 = min(int(y) + SEARCH, int(push.height) - 1);
+            ivec2 c = ivec2(x, y);
+            if ((push.flags & TEMPORAL_MOTION) != 0u) {
+                uint w1 = (push.width + 1u) / 2u;
+                uint h1 = (push.height + 1u) / 2u;
+                uint k = min(y / 2u, h1 - 1u) * w1 + min(x / 2u, w1 - 1u);
+                c += 2 * ivec2(int(mx[k]), int(my[k]));
+            }
+            int x0 = max(c.x - SEARCH, 0), x1 = min(c.x + SEARCH, int(push.width) - 1);
+            int y0 = max(c.y - SEARCH, 0), y1 = min(c.y + SEARCH, int(push.height) - 1);
             for (int jy = y0; jy <= y1; ++jy) {
                 for (int jx = x0; jx <= x1; ++jx) {
                     uint j = uint(jy) * push.width + uint(jx);
@@ -107,7 +118,7 @@ int temporal_step(uint x, uint y, out real2 b[3], out real3 p, out int off)
                     if (!found || cost < best_cost) {
                         found = true;
                         best_cost = cost;
-                        off = (jy - int(y) + SEARCH) * (2 * SEARCH + 1) + (jx - int(x) + SEARCH);
+                        off = (jy - c.y + SEARCH) * (2 * SEARCH + 1) + (jx - c.x + SEARCH);
                         b = cb;
                         p = cp;
                     }

@@ -7,10 +7,11 @@
 use crate::error::Result;
 use crate::gpu::reflect::{read, write};
 use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};
-use crate::shared::{TemporalPush, TEMPORAL_SEARCH, TEMPORAL_STATE};
+use crate::shared::{TemporalPush, TEMPORAL_MOTION, TEMPORAL_SEARCH, TEMPORAL_STATE};
 
-/// A temporal kernel's declaration: the filter's inputs (bindings 0–14,
-/// [`TemporalIn`] and the previous state), then `$rest`.
+/// A temporal kernel's declaration: the filter's inputs (bindings 0–16,
+/// [`TemporalIn`], the previous state and TEMPORAL-MOTION's offsets at half
+/// resolution), then `$rest`.
 macro_rules! temporal_decl {
     ($name:expr, $($rest:expr),* $(,)?) => {
         KernelDecl {
@@ -22,6 +23,7 @@ macro_rules! temporal_decl {
                 read("depth"), read("spp"),
                 read("er"), read("eg"), read("eb"),
                 read("prev").planes(crate::shared::TEMPORAL_STATE as u32),
+                read("mx").sized_by_record(), read("my").sized_by_record(),
                 $($rest),*
             ],
             push_size: std::mem::size_of::<crate::shared::TemporalPush>() as u32,
@@ -41,12 +43,12 @@ pub const DECL: KernelDecl = temporal_decl!(
     write("source"),
 );
 
-/// Per pixel: per candidate of the 7×7 window the shift (5), the two
+/// Per pixel: the window's centre (4), per candidate of the 7×7 window the shift (5), the two
 /// distances (3 + 3 multiply-adds and subtractions, 12) and the cost (3);
 /// the update (about 20) and the stores.
 pub const FLOPS_PER_PIXEL: f64 = {
     let side = (2 * TEMPORAL_SEARCH + 1) as f64;
-    side * side * (5.0 + 12.0 + 3.0) + 20.0
+    4.0 + side * side * (5.0 + 12.0 + 3.0) + 20.0
 };
 
 /// What one frame of the filter reads: the spatial reconstruction, the
@@ -108,21 +110,38 @@ impl TemporalIn {
         }
     }
 
-    /// The bindings 0–14 of a temporal kernel: these planes and `prev`.
-    pub(crate) fn with_prev(&self, prev: BufferSlice) -> Vec<BufferSlice> {
+    /// The bindings 0–16 of a temporal kernel: these planes, `prev` and
+    /// the motion offsets `motion` (X, Y at half resolution; read only
+    /// where `push` has [`TEMPORAL_MOTION`]).
+    pub(crate) fn with_prev(
+        &self,
+        push: &TemporalPush,
+        prev: BufferSlice,
+        motion: [BufferSlice; 2],
+    ) -> Result<Vec<BufferSlice>> {
+        if push.flags & TEMPORAL_MOTION != 0 {
+            let half = |v: u32| v.div_ceil(2) as u64;
+            let bytes = 4 * half(push.width) * half(push.height);
+            DECL.require(15, &motion[0], bytes)?;
+            DECL.require(16, &motion[1], bytes)?;
+        }
         let mut v = self.planes();
         v.push(prev);
-        v
+        v.extend(motion);
+        Ok(v)
     }
 }
 
-/// Records one frame over the push's image from the state planes `prev`.
+/// Records one frame over the push's image from the state planes `prev`,
+/// with TEMPORAL-MOTION's offsets `motion` where `push` has
+/// [`TEMPORAL_MOTION`].
 pub fn record(
     batch: &mut Batch,
     precision: Precision,
     push: &TemporalPush,
     inp: &TemporalIn,
     prev: BufferSlice,
+    motion: [BufferSlice; 2],
     out: &TemporalOut,
 ) -> Result<()> {
     let rest = [
@@ -132,6 +151,6 @@ pub fn record(
         out.color[2],
         out.source,
     ];
-    let groups: [&[BufferSlice]; 2] = [&inp.with_prev(prev), &rest];
+    let groups: [&[BufferSlice]; 2] = [&inp.with_prev(push, prev, motion)?, &rest];
     super::dispatch_image(batch, &DECL, precision, push, &groups, FLOPS_PER_PIXEL)
 }

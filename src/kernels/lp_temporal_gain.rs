@@ -25,16 +25,19 @@ pub const DECL: KernelDecl = temporal_decl!(
 pub const FLOPS_PER_PIXEL: f64 = super::lp_temporal::FLOPS_PER_PIXEL + 4.0;
 
 /// Records the factor's product with `error` into `scaled` over the push's
-/// image, from the filter's inputs and its state planes `prev`.
+/// image, from the filter's inputs, its state planes `prev` and
+/// TEMPORAL-MOTION's offsets `motion` (as `lp_temporal::record`).
+#[allow(clippy::too_many_arguments)]
 pub fn record(
     batch: &mut Batch,
     precision: Precision,
     push: &TemporalPush,
     inp: &TemporalIn,
     prev: BufferSlice,
+    motion: [BufferSlice; 2],
     error: [BufferSlice; 3],
     scaled: [BufferSlice; 3],
 ) -> Result<()> {
-    let groups: [&[BufferSlice]; 3] = [&inp.with_prev(prev), &error, &scaled];
+    let groups: [&[BufferSlice]; 3] = [&inp.with_prev(push, prev, motion)?, &error, &scaled];
     super::dispatch_image(batch, &DECL, precision, push, &groups, FLOPS_PER_PIXEL)
 }

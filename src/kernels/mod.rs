@@ -53,6 +53,7 @@ pub mod sanitize;
 pub mod sanitize_low_spp;
 pub mod sanitize_quads;
 pub mod spp_total;
+pub mod temporal_motion;
 pub mod tsvd_debug;
 pub mod wlr_final;
 pub mod wlr_fit;
@@ -97,6 +98,7 @@ pub const ALL: &[&KernelDecl] = &[
     &lp_smooth::DECL,
     &lp_temporal::DECL,
     &lp_temporal_gain::DECL,
+    &temporal_motion::DECL,
     &aos_nlm::DECL,
     &aos_space::DECL,
     &aos_fit::DECL,

@@ -5,7 +5,9 @@
 //! §10.1, the LP temporal filter ([`Temporal::Lp`]): per pixel a recursive
 //! least-squares fit over time of the method's output (with TEMPORAL-PRIOR's
 //! reset, of a constant: a mean with forgetting), reprojected from the
-//! previous frame by the world position (`kernels::lp_temporal`). The paper
+//! previous frame by the world position (`kernels::lp_temporal`) in a
+//! window centred where a coarse-to-fine search on the positions found the
+//! pixel's surface (TEMPORAL-MOTION, `kernels::temporal_motion`). The paper
 //! applies it to LP; here it follows any method.
 
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -17,9 +19,12 @@ use crate::image::{Layer, RgbImage};
 use crate::kernels::lp_smooth::{self, Direction};
 use crate::kernels::lp_temporal::{self, TemporalIn, TemporalOut, INPUT_PLANES};
 use crate::kernels::lp_temporal_gain;
+use crate::kernels::pyramid_pool;
+use crate::kernels::temporal_motion::{self, LevelPlanes};
 use crate::shared::{
-    TemporalPush, TEMPORAL_LAMBDA, TEMPORAL_P00, TEMPORAL_RESET, TEMPORAL_RESET_P00,
-    TEMPORAL_RESET_P11, TEMPORAL_STATE,
+    MotionPush, PyramidPush, TemporalPush, PYRAMID_COUNT, PYRAMID_MEAN, TEMPORAL_LAMBDA,
+    TEMPORAL_MOTION, TEMPORAL_MOTION_LEVELS, TEMPORAL_MOTION_RADIUS, TEMPORAL_P00, TEMPORAL_RESET,
+    TEMPORAL_RESET_P00, TEMPORAL_RESET_P11, TEMPORAL_STATE, TEMPORAL_VALID,
 };
 
 /// A temporal stage after the method (spec §10).
@@ -91,6 +96,7 @@ pub struct TemporalStage {
     next: PlaneSet,
     /// R, G, B, then `source`.
     out: PlaneSet,
+    motion: MotionSearch,
     /// Whether the next recorded frame forgets the history: set at
     /// creation and by [`reset`](Self::reset).
     reset: AtomicBool,
@@ -110,6 +116,7 @@ impl TemporalStage {
             prev: PlaneSet::new(ctx, "temporal.prev", n, TEMPORAL_STATE)?,
             next: PlaneSet::new(ctx, "temporal.next", n, TEMPORAL_STATE)?,
             out: PlaneSet::new(ctx, "temporal.out", n, 4)?,
+            motion: MotionSearch::new(ctx, (width, height))?,
             reset: AtomicBool::new(true),
             frames: AtomicU64::new(0),
             last_reset: AtomicBool::new(false),
@@ -133,12 +140,16 @@ impl TemporalStage {
     }
 
     /// The push constants of a frame: with a reset pending, every pixel
-    /// restarts.
+    /// restarts; otherwise the windows follow TEMPORAL-MOTION's search.
     fn push(&self, reset: bool) -> TemporalPush {
         TemporalPush {
             width: self.width as u32,
             height: self.height as u32,
-            flags: if reset { TEMPORAL_RESET } else { 0 },
+            flags: if reset {
+                TEMPORAL_RESET
+            } else {
+                TEMPORAL_MOTION
+            },
             lambda: TEMPORAL_LAMBDA,
             p00: TEMPORAL_RESET_P00,
             p11: TEMPORAL_RESET_P11,
@@ -164,7 +175,11 @@ impl TemporalStage {
             source: self.source(),
         };
         let push = self.push(reset);
-        lp_temporal::record(batch, precision, &push, inp, self.prev.all(), &out)?;
+        if !reset {
+            self.motion.record(batch, precision, inp, &self.prev)?;
+        }
+        let motion = self.motion.offsets();
+        lp_temporal::record(batch, precision, &push, inp, self.prev.all(), motion, &out)?;
         batch.copy(self.next.all(), self.prev.all());
         Ok(())
     }
@@ -181,8 +196,22 @@ impl TemporalStage {
         error: [BufferSlice; 3],
         scaled: [BufferSlice; 3],
     ) -> Result<()> {
-        let push = self.push(self.reset.load(Ordering::SeqCst));
-        lp_temporal_gain::record(batch, precision, &push, inp, self.prev.all(), error, scaled)
+        let reset = self.reset.load(Ordering::SeqCst);
+        let push = self.push(reset);
+        if !reset {
+            self.motion.record(batch, precision, inp, &self.prev)?;
+        }
+        let motion = self.motion.offsets();
+        lp_temporal_gain::record(
+            batch,
+            precision,
+            &push,
+            inp,
+            self.prev.all(),
+            motion,
+            error,
+            scaled,
+        )
     }
 
     /// `(width, height)`.
@@ -209,15 +238,152 @@ impl TemporalStage {
 
     /// The debug maps of the last frame, given its `source` plane (as
     /// downloaded): `temporal_source` (the reprojection's offset
-    /// `(dy + 3)·7 + dx + 3`, −1 where the pixel was reset, −2 where it was
-    /// passed through) and `temporal_p00` (`P00` after the update: the
-    /// intercept's variance per unit noise).
+    /// `(dy + 3)·7 + dx + 3` from the window's centre, −1 where the pixel
+    /// was reset, −2 where it was passed through), `temporal_p00` (`P00`
+    /// after the update: the intercept's variance per unit noise) and
+    /// `temporal_motion_x`, `temporal_motion_y` (the window's centre less
+    /// the pixel, TEMPORAL-MOTION; 0 on a frame that reset every pixel).
     pub fn debug_layers(&self, source: Vec<f32>) -> Result<Vec<(String, Vec<f32>)>> {
         let p00 = self.prev.download_plane::<f32>(TEMPORAL_P00)?;
+        let (mx, my) = if self.last_reset.load(Ordering::SeqCst) {
+            let n = self.width * self.height;
+            (vec![0.0; n], vec![0.0; n])
+        } else {
+            self.motion.download_centres()?
+        };
         Ok(vec![
             ("temporal_source".into(), source),
             ("temporal_p00".into(), p00),
+            ("temporal_motion_x".into(), mx),
+            ("temporal_motion_y".into(), my),
         ])
+    }
+}
+
+/// TEMPORAL-MOTION on the GPU: pyramids of a frame's positions and of the
+/// previous state's (levels 1 to [`TEMPORAL_MOTION_LEVELS`], pooled by
+/// `pyramid_pool`), and each level's offsets, searched from the coarsest
+/// level to level 1 (`temporal_motion`).
+struct MotionSearch {
+    /// Per level: its size, this frame's planes and the previous one's
+    /// (X, Y, Z, count each), and its offsets X, Y.
+    levels: Vec<MotionLevel>,
+    size: (usize, usize),
+}
+
+struct MotionLevel {
+    size: (usize, usize),
+    cur: PlaneSet,
+    prev: PlaneSet,
+    offsets: PlaneSet,
+}
+
+fn four(set: &PlaneSet) -> LevelPlanes {
+    [0, 1, 2, 3].map(|k| set.plane(k))
+}
+
+impl MotionSearch {
+    fn new(ctx: &Arc<GpuContext>, size: (usize, usize)) -> Result<MotionSearch> {
+        let mut levels = Vec::with_capacity(TEMPORAL_MOTION_LEVELS);
+        let mut s = size;
+        for l in 1..=TEMPORAL_MOTION_LEVELS {
+            s = (s.0.div_ceil(2), s.1.div_ceil(2));
+            let n = s.0 * s.1;
+            levels.push(MotionLevel {
+                size: s,
+                cur: PlaneSet::new(ctx, &format!("temporal.motion{l}.cur"), n, 4)?,
+                prev: PlaneSet::new(ctx, &format!("temporal.motion{l}.prev"), n, 4)?,
+                offsets: PlaneSet::new(ctx, &format!("temporal.motion{l}.offsets"), n, 2)?,
+            });
+        }
+        Ok(MotionSearch { levels, size })
+    }
+
+    /// Level 1's offsets X, Y (what `lp_temporal` reads).
+    fn offsets(&self) -> [BufferSlice; 2] {
+        let o = &self.levels[0].offsets;
+        [o.plane(0), o.plane(1)]
+    }
+
+    /// Records the pyramids of `inp`'s positions and of the state `prev`,
+    /// then the search from the coarsest level to level 1.
+    fn record(
+        &self,
+        batch: &mut Batch,
+        precision: Precision,
+        inp: &TemporalIn,
+        prev: &PlaneSet,
+    ) -> Result<()> {
+        let mut fine_size = self.size;
+        let p = inp.position;
+        let mut fine_cur: LevelPlanes = [p[0], p[1], p[2], inp.spp];
+        let mut fine_prev: LevelPlanes = [9, 10, 11, TEMPORAL_VALID].map(|k| prev.plane(k));
+        for level in &self.levels {
+            for (fine, coarse) in [(&fine_cur, &level.cur), (&fine_prev, &level.prev)] {
+                for k in 0..4 {
+                    let push = PyramidPush {
+                        width: level.size.0 as u32,
+                        height: level.size.1 as u32,
+                        kind: if k == 3 { PYRAMID_COUNT } else { PYRAMID_MEAN },
+                        other_width: fine_size.0 as u32,
+                        other_height: fine_size.1 as u32,
+                        ..Default::default()
+                    };
+                    pyramid_pool::record(
+                        batch,
+                        precision,
+                        &push,
+                        fine[k],
+                        fine[3],
+                        coarse.plane(k),
+                    )?;
+                }
+            }
+            fine_size = level.size;
+            fine_cur = four(&level.cur);
+            fine_prev = four(&level.prev);
+        }
+        for (l, level) in self.levels.iter().enumerate().rev() {
+            let coarser = self.levels.get(l + 1);
+            let (coarse, csize) = match coarser {
+                Some(c) => ([c.offsets.plane(0), c.offsets.plane(1)], c.size),
+                // Not read at the coarsest level.
+                None => ([level.cur.plane(0), level.cur.plane(1)], (1, 1)),
+            };
+            let push = MotionPush {
+                width: level.size.0 as u32,
+                height: level.size.1 as u32,
+                coarse: coarser.is_some() as u32,
+                coarse_width: csize.0 as u32,
+                coarse_height: csize.1 as u32,
+                radius: TEMPORAL_MOTION_RADIUS,
+                ..Default::default()
+            };
+            let out = [level.offsets.plane(0), level.offsets.plane(1)];
+            temporal_motion::record(
+                batch,
+                precision,
+                &push,
+                &four(&level.cur),
+                &four(&level.prev),
+                coarse,
+                out,
+            )?;
+        }
+        Ok(())
+    }
+
+    /// The last search's window centres less the pixel, per pixel of the
+    /// frame (X, Y).
+    fn download_centres(&self) -> Result<(Vec<f32>, Vec<f32>)> {
+        let level = &self.levels[0];
+        let ox = level.offsets.download_plane::<f32>(0)?;
+        let oy = level.offsets.download_plane::<f32>(1)?;
+        let (w, h) = self.size;
+        let at = |o: &[f32], x: usize, y: usize| 2.0 * o[(y / 2) * level.size.0 + x / 2];
+        let mx = (0..w * h).map(|i| at(&ox, i % w, i / w)).collect();
+        let my = (0..w * h).map(|i| at(&oy, i % w, i / w)).collect();
+        Ok((mx, my))
     }
 }
 
@@ -285,7 +451,12 @@ impl SmoothStage {
 
     /// Builds the pipelines its frames record.
     pub fn build_pipelines(&self) -> Result<()> {
-        for decl in [&lp_temporal::DECL, &lp_smooth::DECL] {
+        for decl in [
+            &lp_temporal::DECL,
+            &lp_smooth::DECL,
+            &temporal_motion::DECL,
+            &pyramid_pool::DECL,
+        ] {
             self.ctx.pipeline(decl, self.precision)?;
         }
         Ok(())

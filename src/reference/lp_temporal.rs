@@ -13,10 +13,11 @@
 //! §10.1 are stated on); [`lp_temporal`] runs one frame over an image as
 //! the kernel does, reading and writing the state as f32 planes.
 
+use super::temporal_motion::{motion, Motion};
 use crate::shared::{
-    TemporalPush, TEMPORAL_DEPTH_FLOOR, TEMPORAL_NO_SEARCH, TEMPORAL_P00, TEMPORAL_RESET,
-    TEMPORAL_RESET_NOISE, TEMPORAL_RESET_REL, TEMPORAL_SEARCH, TEMPORAL_SOURCE_NONE,
-    TEMPORAL_SOURCE_RESET, TEMPORAL_STATE, TEMPORAL_VALID,
+    TemporalPush, TEMPORAL_DEPTH_FLOOR, TEMPORAL_MOTION, TEMPORAL_NO_SEARCH, TEMPORAL_P00,
+    TEMPORAL_RESET, TEMPORAL_RESET_NOISE, TEMPORAL_RESET_REL, TEMPORAL_SEARCH,
+    TEMPORAL_SOURCE_NONE, TEMPORAL_SOURCE_RESET, TEMPORAL_STATE, TEMPORAL_VALID,
 };
 
 /// One pixel's temporal state (§10.1), origin at the frame it was last
@@ -133,15 +134,17 @@ pub struct TemporalInputs<'a> {
 }
 
 /// The reprojection of pixel `(x, y)` (§10.1): among the valid previous
-/// states in the 7×7 window (clipped to the image) whose position is within
+/// states in the 7×7 window centred at `(x, y) + centre` (TEMPORAL-MOTION;
+/// clipped to the image) whose position is within
 /// `limit` of `wi` (`eW ≤ limit`, TEMPORAL-GATE, RESET-NOISE), each shifted to the
 /// current frame, the one with the least `(eW + εW)(ey + εy)` (the first in
-/// raster order on a tie), and its offset `(dx, dy)`; `None` (RESET) where
-/// there is none.
+/// raster order on a tie), and its offset `(dx, dy)` from the centre;
+/// `None` (RESET) where there is none.
 fn reproject(
     prev: &[f32],
     (w, h): (usize, usize),
     (x, y): (usize, usize),
+    centre: (i32, i32),
     wi: [f64; 3],
     yi: [f64; 3],
     limit: f64,
@@ -152,7 +155,7 @@ fn reproject(
     let mut best: Option<(f64, PixelState, (i32, i32))> = None;
     for dy in -r..=r {
         for dx in -r..=r {
-            let (jx, jy) = (x as i32 + dx, y as i32 + dy);
+            let (jx, jy) = (x as i32 + centre.0 + dx, y as i32 + centre.1 + dy);
             if jx < 0 || jy < 0 || jx >= w as i32 || jy >= h as i32 {
                 continue;
             }
@@ -183,20 +186,22 @@ pub enum Step {
     /// Reinitialised (RESET, or the first frame): `β = (y, 0)`,
     /// `P = diag(p00, p11)` (TEMPORAL-PRIOR).
     Reset(PixelState),
-    /// The state reprojected from offset `(dx, dy)` of the previous frame,
-    /// updated with this frame's colour.
+    /// The state reprojected from offset `(dx, dy)` from the window's centre
+    /// in the previous frame, updated with this frame's colour.
     Continue(PixelState, (i32, i32)),
 }
 
 /// The filter at pixel `(x, y)` of a `push.width × push.height` frame
-/// (§10.1): reprojection from the state planes `prev` (unless
-/// [`TEMPORAL_RESET`]; [`TEMPORAL_NO_SEARCH`]: pixel `i`'s own state), RESET,
-/// and the update with forgetting factor `push.lambda`.
+/// (§10.1): reprojection from the state planes `prev` in the window
+/// centred at `(x, y) + centre` (unless [`TEMPORAL_RESET`];
+/// [`TEMPORAL_NO_SEARCH`]: pixel `i`'s own state), RESET, and the update
+/// with forgetting factor `push.lambda`.
 pub fn step(
     push: &TemporalPush,
     inp: &TemporalInputs,
     prev: &[f32],
     (x, y): (usize, usize),
+    centre: (i32, i32),
 ) -> Step {
     let (w, h) = (push.width as usize, push.height as usize);
     let n = w * h;
@@ -216,7 +221,7 @@ pub fn step(
         let var: f64 = inp.position_variance.iter().map(|p| p[i] as f64).sum();
         let limit = (TEMPORAL_RESET_REL * (inp.depth[i] as f64).max(TEMPORAL_DEPTH_FLOOR)).powi(2)
             + TEMPORAL_RESET_NOISE * var;
-        reproject(prev, (w, h), (x, y), wi, yi, limit)
+        reproject(prev, (w, h), (x, y), centre, wi, yi, limit)
     };
     // TEMPORAL-INFLATE: where the prediction misses this frame's colour by
     // more than `t3² E (1 + P00)` in some channel, `P` grows by the ratio,
@@ -247,8 +252,26 @@ pub fn step(
     }
 }
 
+/// TEMPORAL-MOTION for a frame: the coarse-to-fine search
+/// ([`motion`](super::temporal_motion::motion)) where `push.flags` has
+/// [`TEMPORAL_MOTION`] and neither [`TEMPORAL_RESET`] nor
+/// [`TEMPORAL_NO_SEARCH`]; `None` (every window centred on its pixel)
+/// otherwise.
+pub fn frame_motion(push: &TemporalPush, inp: &TemporalInputs, prev: &[f32]) -> Option<Motion> {
+    let searching = push.flags & (TEMPORAL_RESET | TEMPORAL_NO_SEARCH) == 0;
+    (searching && push.flags & TEMPORAL_MOTION != 0).then(|| {
+        let size = (push.width as usize, push.height as usize);
+        motion(size, inp.position, inp.spp, prev)
+    })
+}
+
+/// The centre of pixel `(x, y)`'s window under `motion` (0 without).
+pub fn centre(motion: Option<&Motion>, (x, y): (usize, usize)) -> (i32, i32) {
+    motion.map_or((0, 0), |m| m.centre(x, y))
+}
+
 /// One frame of the filter over a `width × height` image (`row0` ignored):
-/// per pixel [`step`], from the previous frame's state planes `prev` into
+/// [`frame_motion`], then per pixel [`step`], from the previous frame's state planes `prev` into
 /// `next` (both [`TEMPORAL_STATE`] planes), the output `β[ch][0]` clamped to
 /// ≥ 0 into `out` (the colour itself where passed through), and the debug
 /// plane `source` ([`TEMPORAL_SOURCE_RESET`]). A pixel passed through has
@@ -265,10 +288,11 @@ pub fn lp_temporal(
     let n = w * h;
     let [or, og, ob] = out;
     let r = TEMPORAL_SEARCH;
+    let motion = frame_motion(push, inp, prev);
     for y in 0..h {
         for x in 0..w {
             let i = y * w + x;
-            let (s, src) = match step(push, inp, prev, (x, y)) {
+            let (s, src) = match step(push, inp, prev, (x, y), centre(motion.as_ref(), (x, y))) {
                 Step::PassThrough => {
                     store(next, n, i, None);
                     (or[i], og[i], ob[i]) = (inp.color[0][i], inp.color[1][i], inp.color[2][i]);

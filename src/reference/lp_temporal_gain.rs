@@ -1,7 +1,7 @@
 //! Scalar twin of `spirv/lp_temporal_gain.comp`: the LP temporal filter's
 //! factor on an adaptive pass's error estimate (TEMPORAL-MAP).
 
-use super::lp_temporal::{step, Step, TemporalInputs};
+use super::lp_temporal::{centre, frame_motion, step, Step, TemporalInputs};
 use crate::shared::TemporalPush;
 
 /// Per pixel, the filter's [`step`] from the state planes `prev` (read
@@ -17,10 +17,11 @@ pub fn lp_temporal_gain(
 ) {
     let (w, h) = (push.width as usize, push.height as usize);
     let [sr, sg, sb] = scaled;
+    let motion = frame_motion(push, inp, prev);
     for y in 0..h {
         for x in 0..w {
             let i = y * w + x;
-            let g = match step(push, inp, prev, (x, y)) {
+            let g = match step(push, inp, prev, (x, y), centre(motion.as_ref(), (x, y))) {
                 Step::Continue(s, _) => s.p[0].min(1.0),
                 Step::Reset(_) | Step::PassThrough => 1.0,
             };

@@ -64,6 +64,7 @@ pub mod sanitize;
 pub mod sanitize_low_spp;
 pub mod sanitize_quads;
 pub mod spp_total;
+pub mod temporal_motion;
 pub mod tsvd;
 pub mod tsvd_debug;
 pub mod wlr;
