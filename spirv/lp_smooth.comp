@@ -20,7 +20,7 @@ layout(push_constant) uniform Push {
     float lambda;
     float p00;
     float p11;
-    uint pad0;
+    float error_scale;
 } push;
 
 PLANE_IN(0, yr)

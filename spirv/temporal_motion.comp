@@ -3,13 +3,15 @@
 // coarse-to-fine search for where each pixel's surface was in the previous
 // frame. Both frames' world positions are pooled into pyramids
 // (pyramid_pool: means weighted by the sample counts, and by the previous
-// state's valid flags); at a level, a pixel's search is centred on twice
-// its coarser block's offset (0 at the coarsest level) and takes, among
-// the previous frame's pixels within `radius` of that centre that hold a
-// position, the one nearest its own position (squared distance; the
-// centre first, then raster order, a later one only if strictly nearer).
-// A pixel without samples, or without a candidate, keeps the centre. The
-// LP temporal filter's 7x7 window is centred on twice level 1's offsets.
+// state's valid flags); at a level (from the coarsest to the full
+// resolution, level 0, which reads the frames' own planes), a pixel's
+// search is centred on twice its coarser block's offset (0 at the
+// coarsest level) and takes, among the previous frame's pixels that hold
+// a position, the pixel itself, the centre and those within `radius` of
+// the centre, in that order, the one nearest its own position (squared
+// distance; a later one only if strictly nearer). A pixel without
+// samples, or without a candidate, keeps the centre. The LP temporal
+// filter's 7x7 window is centred on level 0's offsets.
 // Scalar twin: src/reference/temporal_motion.rs.
 #include "lib/common.glsl"
 
@@ -60,13 +62,24 @@ void main()
         bool found = false;
         real best_cost = real(0);
         int r = push.radius;
-        // The centre first, then the window in raster order.
-        for (int k = -1; k < (2 * r + 1) * (2 * r + 1); ++k) {
-            ivec2 d = k < 0 ? ivec2(0) : ivec2(k % (2 * r + 1) - r, k / (2 * r + 1) - r);
-            if (k >= 0 && d == ivec2(0)) {
-                continue;
+        // The pixel itself, the centre, then the window in raster order.
+        for (int k = -2; k < (2 * r + 1) * (2 * r + 1); ++k) {
+            ivec2 o;
+            if (k == -2) {
+                o = ivec2(0);
+            } else if (k == -1) {
+                if (centre == ivec2(0)) {
+                    continue;
+                }
+                o = centre;
+            } else {
+                ivec2 d = ivec2(k % (2 * r + 1) - r, k / (2 * r + 1) - r);
+                o = centre + d;
+                if (d == ivec2(0) || o == ivec2(0)) {
+                    continue;
+                }
             }
-            ivec2 j2 = ivec2(x, y) + centre + d;
+            ivec2 j2 = ivec2(x, y) + o;
             if (j2.x < 0 || j2.y < 0 || j2.x >= int(push.width) || j2.y >= int(push.height)) {
                 continue;
             }
@@ -79,7 +92,7 @@ void main()
             if (!found || cost < best_cost) {
                 found = true;
                 best_cost = cost;
-                best = centre + d;
+                best = o;
             }
         }
     }

@@ -421,6 +421,8 @@ pub struct Smoother {
     kept: PlaneSpill,
     /// Each kept frame's [`FilterRecord::history`].
     histories: Vec<(u64, bool)>,
+    /// The kept frames' error scale ([`FilterRecord::error_scale`]).
+    error_scale: f64,
     /// The denoiser's filter frames at the last keep.
     last: Option<u64>,
 }
@@ -458,6 +460,7 @@ impl Smoother {
             size,
             kept: PlaneSpill::new("the two-way filter's kept frames")?,
             histories: Vec::new(),
+            error_scale: 1.0,
             last: None,
         })
     }
@@ -503,6 +506,7 @@ impl Smoother {
             .chain(&color.planes);
         self.kept.push(planes.map(|p| p.as_slice()))?;
         self.histories.push(record.history);
+        self.error_scale = record.error_scale;
         self.last = Some(frames);
         Ok(())
     }
@@ -537,6 +541,7 @@ impl Smoother {
             p00,
             size: self.size,
             history: self.histories[k],
+            error_scale: self.error_scale,
         };
         Ok((record, RgbImage::from_planes(w, h, color)))
     }

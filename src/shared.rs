@@ -728,8 +728,9 @@ pub struct TemporalPush {
     /// `P₁₁` of a (re)initialised pixel: its slope's prior variance per unit
     /// noise ([`TEMPORAL_RESET_P11`]; §10.1 has `1/δ`).
     pub p11: f32,
-    /// Unused: 0.
-    pub _pad: u32,
+    /// TEMPORAL-MISREG: the factor the method's error estimate is low by
+    /// on average (its `MethodInfo::error_scale`); 0 reads as 1.
+    pub error_scale: f32,
 }
 
 /// [`TemporalPush::flags`]: forget every pixel's history (a cut, or the
@@ -740,15 +741,17 @@ pub const TEMPORAL_RESET: u32 = 1;
 pub const TEMPORAL_NO_SEARCH: u32 = 2;
 /// [`TemporalPush::flags`]: the 7×7 search window is centred where the
 /// coarse-to-fine motion search put each pixel (TEMPORAL-MOTION: the
-/// bindings `mx`, `my` hold the offsets at half resolution); without it,
-/// on the pixel itself.
+/// bindings `mx`, `my` hold the offsets per pixel); without it, on the
+/// pixel itself.
 pub const TEMPORAL_MOTION: u32 = 4;
-/// TEMPORAL-MOTION: levels of the motion search's pyramids of positions
-/// (1: half resolution, up to 4: a sixteenth).
+/// TEMPORAL-MOTION: pooled levels of the motion search's pyramids of
+/// positions (1: half resolution, up to 4: a sixteenth), searched before
+/// the full resolution (level 0).
 pub const TEMPORAL_MOTION_LEVELS: usize = 4;
 /// TEMPORAL-MOTION: the search radius at every level (5×5); with
-/// [`TEMPORAL_MOTION_LEVELS`] and the final 7×7 window it reaches
-/// `3 + 2·(2 + 2·(2 + 2·(2 + 2·2)))` = 63 pixels.
+/// [`TEMPORAL_MOTION_LEVELS`] and level 0 it reaches
+/// `2 + 2·(2 + 2·(2 + 2·(2 + 2·2)))` = 62 pixels, and the 7×7 window
+/// around that 3 more.
 pub const TEMPORAL_MOTION_RADIUS: i32 = 2;
 /// The forgetting factor `λ` of §10.1 `[LP §6]`.
 pub const TEMPORAL_LAMBDA: f32 = 0.98;

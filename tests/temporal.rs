@@ -1343,3 +1343,67 @@ fn motion_follows_a_pan_beyond_the_window() {
     }
     check_validation(&ctx);
 }
+
+/// TEMPORAL-MISREG: where the surface moved on screen, a state carried from
+/// another pixel counts for less where the previous frame's picture
+/// changes fast around it. A long
+/// history (`P00` 0.05) of a step edge (1 left of x = 5, 10 from it),
+/// every pixel's surface moved one pixel left: the pixel whose state comes
+/// from beside the edge keeps about one frame's weight, one whose state
+/// comes from the flat part keeps its history.
+#[test]
+fn a_state_from_another_pixel_weighs_less_across_an_edge() {
+    let (w, h) = (9usize, 3usize);
+    let n = w * h;
+    let level = |x: usize| if x < 5 { 1.0f64 } else { 10.0 };
+    let mut prev = vec![0.0f32; TEMPORAL_STATE * n];
+    for y in 0..h {
+        for x in 0..w {
+            let s = PixelState {
+                beta: [[level(x), 0.0]; 3],
+                p: [0.05, 0.0, 0.0],
+                w: [0.01 * x as f64, 0.01 * y as f64, 0.0],
+            };
+            twin::store(&mut prev, n, y * w + x, Some(&s));
+        }
+    }
+    let f = Synthetic {
+        w,
+        h,
+        // Each pixel sees what its right neighbour saw.
+        color: std::array::from_fn(|_| {
+            (0..n)
+                .map(|i| level((i % w + 1).min(w - 1)) as f32)
+                .collect()
+        }),
+        position: [
+            (0..n).map(|i| 0.01 * (i % w + 1) as f32).collect(),
+            (0..n).map(|i| 0.01 * (i / w) as f32).collect(),
+            vec![0.0; n],
+        ],
+        variance: std::array::from_fn(|_| vec![0.0; n]),
+        error: std::array::from_fn(|_| vec![0.01; n]),
+        depth: vec![1.0; n],
+        spp: vec![16.0; n],
+    };
+    let p = push(w, h, 0);
+    // The motion search's offset (1, 0), or none (the window on the pixel).
+    let p00 =
+        |x: usize, centre: (i32, i32)| match twin::step(&p, &inputs(&f), &prev, (x, 1), centre) {
+            twin::Step::Continue(s, (dx, dy)) => {
+                let from = (centre.0 + dx, centre.1 + dy);
+                assert_eq!(from, (1, 0), "pixel {x} continues its surface");
+                s.p[0]
+            }
+            other => panic!("pixel {x}: {other:?}"),
+        };
+    assert!(p00(2, (1, 0)) < 0.1, "flat: P00 {}", p00(2, (1, 0)));
+    assert!(
+        p00(3, (1, 0)) > 0.9,
+        "beside the edge: P00 {}",
+        p00(3, (1, 0))
+    );
+    assert!(p00(5, (1, 0)) < 0.1, "flat: P00 {}", p00(5, (1, 0)));
+    // Where the search saw no motion the state counts as it did.
+    assert!(p00(3, (0, 0)) < 0.1, "no motion: P00 {}", p00(3, (0, 0)));
+}

@@ -7,9 +7,9 @@
 // px py pz (position), vx vy vz (its variance), depth, spp, er eg eb (the
 // method's error estimate), prev (the
 // previous frame's TEMPORAL_STATE planes: b0 b1 per channel R G B,
-// P00 P01 P11, W X Y Z, valid) and mx my (TEMPORAL-MOTION's offsets at half
-// resolution, temporal_motion.comp's level 1), and a push block `push` with
-// width, height, flags, lambda, p00 and p11.
+// P00 P01 P11, W X Y Z, valid) and mx my (TEMPORAL-MOTION's offsets,
+// temporal_motion.comp's level 0), and a push block `push` with
+// width, height, flags, lambda, p00, p11 and error_scale.
 
 #ifndef MC_TEMPORAL_GLSL
 #define MC_TEMPORAL_GLSL
@@ -48,13 +48,29 @@ void load_shifted(uint j, uint n, out real2 b[3], out real3 p, out real3 w)
 
 bool valid_at(uint j, uint n) { return prev[12 * n + j] == 1.0; }
 
+// The intercepts R, G, B of the previous state at (jx, jy), shifted to the
+// current frame; `fallback` where that pixel is outside the image or has no
+// state.
+real3 intercept_at(int jx, int jy, uint n, real3 fallback)
+{
+    if (jx < 0 || jy < 0 || jx >= int(push.width) || jy >= int(push.height)) {
+        return fallback;
+    }
+    uint j = uint(jy) * push.width + uint(jx);
+    if (!valid_at(j, n)) {
+        return fallback;
+    }
+    return real3(prev[j] + prev[n + j], prev[2 * n + j] + prev[3 * n + j],
+                 prev[4 * n + j] + prev[5 * n + j]);
+}
+
 // The filter at pixel (x, y): STEP_PASS for an invalid pixel or a
 // non-finite colour; STEP_RESET with beta = (y, 0), P = diag(p00, p11)
 // (TEMPORAL-PRIOR); or
 // STEP_CONTINUE with the state reprojected from offset index `off`
 // ((dy + 3) * 7 + dx + 3, from the window's centre) and updated. Among the
 // valid previous states in the 7x7 window (centred on the pixel, or with
-// TEMPORAL_MOTION twice its block's offset in mx my) whose position is within RESET's distance (TEMPORAL-GATE,
+// TEMPORAL_MOTION on the pixel plus its offset in mx my) whose position is within RESET's distance (TEMPORAL-GATE,
 // RESET-NOISE), the one with the least (eW + epsW)(ey + epsy), the first in
 // raster order on a tie; its P inflated where its prediction misses the
 // colour by more than the noise allows (TEMPORAL-INFLATE).
@@ -84,16 +100,14 @@ int temporal_step(uint x, uint y, out real2 b[3], out real3 p, out int off)
                 off = SEARCH * (2 * SEARCH + 1) + SEARCH;
             }
         } else {
+            ivec2 best_j = ivec2(-1);
             real ew_floor = real(1e-12) * (real(1) + dot(wi, wi));
             real limit = real(RESET_REL) * max(real(depth[i]), real(DEPTH_FLOOR));
             limit = limit * limit + real(RESET_NOISE) * (real(vx[i]) + real(vy[i]) + real(vz[i]));
             real best_cost = real(0);
             ivec2 c = ivec2(x, y);
             if ((push.flags & TEMPORAL_MOTION) != 0u) {
-                uint w1 = (push.width + 1u) / 2u;
-                uint h1 = (push.height + 1u) / 2u;
-                uint k = min(y / 2u, h1 - 1u) * w1 + min(x / 2u, w1 - 1u);
-                c += 2 * ivec2(int(mx[k]), int(my[k]));
+                c += ivec2(int(mx[i]), int(my[i]));
             }
             int x0 = max(c.x - SEARCH, 0), x1 = min(c.x + SEARCH, int(push.width) - 1);
             int y0 = max(c.y - SEARCH, 0), y1 = min(c.y + SEARCH, int(push.height) - 1);
@@ -119,10 +133,27 @@ int temporal_step(uint x, uint y, out real2 b[3], out real3 p, out int off)
                         found = true;
                         best_cost = cost;
                         off = (jy - c.y + SEARCH) * (2 * SEARCH + 1) + (jx - c.x + SEARCH);
+                        best_j = ivec2(jx, jy);
                         b = cb;
                         p = cp;
                     }
                 }
+            }
+            // TEMPORAL-MISREG: where the surface moved on screen (a motion
+            // offset), a state from another pixel predicts this one's colour
+            // up to where the two pixels' footprints differ: P00 grows by the
+            // variance of a shift uniform over a pixel along the state's
+            // gradient, (gx^2 + gy^2)/12, in units of the error (times the
+            // method's error scale, which corrects its average bias).
+            if (found && c != ivec2(x, y) && best_j != ivec2(x, y)) {
+                real3 b0 = real3(b[0].x, b[1].x, b[2].x);
+                real3 gx = (intercept_at(best_j.x + 1, best_j.y, n, b0)
+                    - intercept_at(best_j.x - 1, best_j.y, n, b0)) * real(0.5);
+                real3 gy = (intercept_at(best_j.x, best_j.y + 1, n, b0)
+                    - intercept_at(best_j.x, best_j.y - 1, n, b0)) * real(0.5);
+                real scale = push.error_scale > 0.0 ? real(push.error_scale) : real(1);
+                real3 mis = (gx * gx + gy * gy) / (real(12) * scale * ei + real3(1e-12));
+                p.x += max(mis.x, max(mis.y, mis.z));
             }
         }
     }

@@ -10,8 +10,8 @@ use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};
 use crate::shared::{TemporalPush, TEMPORAL_MOTION, TEMPORAL_SEARCH, TEMPORAL_STATE};
 
 /// A temporal kernel's declaration: the filter's inputs (bindings 0–16,
-/// [`TemporalIn`], the previous state and TEMPORAL-MOTION's offsets at half
-/// resolution), then `$rest`.
+/// [`TemporalIn`], the previous state and TEMPORAL-MOTION's offsets), then
+/// `$rest`.
 macro_rules! temporal_decl {
     ($name:expr, $($rest:expr),* $(,)?) => {
         KernelDecl {
@@ -111,7 +111,7 @@ impl TemporalIn {
     }
 
     /// The bindings 0–16 of a temporal kernel: these planes, `prev` and
-    /// the motion offsets `motion` (X, Y at half resolution; read only
+    /// the motion offsets `motion` (X, Y per pixel; read only
     /// where `push` has [`TEMPORAL_MOTION`]).
     pub(crate) fn with_prev(
         &self,
@@ -120,8 +120,7 @@ impl TemporalIn {
         motion: [BufferSlice; 2],
     ) -> Result<Vec<BufferSlice>> {
         if push.flags & TEMPORAL_MOTION != 0 {
-            let half = |v: u32| v.div_ceil(2) as u64;
-            let bytes = 4 * half(push.width) * half(push.height);
+            let bytes = 4 * push.width as u64 * push.height as u64;
             DECL.require(15, &motion[0], bytes)?;
             DECL.require(16, &motion[1], bytes)?;
         }

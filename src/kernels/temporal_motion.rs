@@ -1,7 +1,8 @@
 //! `temporal_motion`: one level of TEMPORAL-MOTION's coarse-to-fine search
 //! for where each pixel's surface was in the previous frame, over pyramids
-//! of both frames' world positions (`pyramid_pool`); its level-1 offsets
-//! centre the LP temporal filter's 7×7 window (`lp_temporal`). Twin:
+//! of both frames' world positions (`pyramid_pool`); its full-resolution
+//! offsets (level 0) centre the LP temporal filter's 7×7 window
+//! (`lp_temporal`). Twin:
 //! `reference::temporal_motion`.
 
 use crate::error::Result;
@@ -30,10 +31,10 @@ pub const DECL: KernelDecl = KernelDecl {
     push_size: std::mem::size_of::<MotionPush>() as u32,
 };
 
-/// Per pixel: the centre (3), then per candidate of the 5×5 window the
-/// count test and the squared distance (3 subtractions, 3 multiply-adds)
-/// and the comparison.
-pub const FLOPS_PER_PIXEL: f64 = 3.0 + 25.0 * (1.0 + 9.0 + 1.0);
+/// Per pixel: the centre (3), then per candidate (the pixel, the centre
+/// and the 5×5 window) the count test and the squared distance (3
+/// subtractions, 3 multiply-adds) and the comparison.
+pub const FLOPS_PER_PIXEL: f64 = 3.0 + 27.0 * (1.0 + 9.0 + 1.0);
 
 /// One level's planes: positions X, Y, Z and counts.
 pub type LevelPlanes = [BufferSlice; 4];

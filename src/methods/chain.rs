@@ -395,7 +395,14 @@ impl GpuChain {
             (Temporal::Off, _, _) => None,
             (Temporal::Apr | Temporal::LpSmooth, _, _) => unreachable!("refused above"),
             (Temporal::Lp, Pass::Final, None) => {
-                Some(TemporalRole::Filter(Arc::new(TemporalStage::new(ctx, w, h)?)))
+                let stage = TemporalStage::new(ctx, w, h)?;
+                let own = config.method.info();
+                stage.set_error_scale(if config.pyramid {
+                    own.pyramid_error_scale
+                } else {
+                    own.error_scale
+                });
+                Some(TemporalRole::Filter(Arc::new(stage)))
             }
             (Temporal::Lp, Pass::Intermediate, Some(TemporalState(stage))) => {
                 if stage.size() != (w, h) {

@@ -10,7 +10,7 @@
 //! pixel's surface (TEMPORAL-MOTION, `kernels::temporal_motion`). The paper
 //! applies it to LP; here it follows any method.
 
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, Ordering};
 use std::sync::Arc;
 
 use crate::error::{Error, Result};
@@ -97,6 +97,9 @@ pub struct TemporalStage {
     /// R, G, B, then `source`.
     out: PlaneSet,
     motion: MotionSearch,
+    /// TEMPORAL-MISREG's correction of the method's error estimate
+    /// ([`set_error_scale`](Self::set_error_scale)).
+    error_scale: AtomicU32,
     /// Whether the next recorded frame forgets the history: set at
     /// creation and by [`reset`](Self::reset).
     reset: AtomicBool,
@@ -117,6 +120,7 @@ impl TemporalStage {
             next: PlaneSet::new(ctx, "temporal.next", n, TEMPORAL_STATE)?,
             out: PlaneSet::new(ctx, "temporal.out", n, 4)?,
             motion: MotionSearch::new(ctx, (width, height))?,
+            error_scale: AtomicU32::new(1.0f32.to_bits()),
             reset: AtomicBool::new(true),
             frames: AtomicU64::new(0),
             last_reset: AtomicBool::new(false),
@@ -131,6 +135,19 @@ impl TemporalStage {
             self.frames.load(Ordering::SeqCst),
             self.last_reset.load(Ordering::SeqCst),
         )
+    }
+
+    /// The factor the method's error estimate is low by on average
+    /// (`MethodInfo::error_scale`, or its `pyramid_error_scale`), which
+    /// TEMPORAL-MISREG's term corrects the estimate by. Default 1.
+    pub fn set_error_scale(&self, scale: f64) {
+        let bits = (scale as f32).to_bits();
+        self.error_scale.store(bits, Ordering::SeqCst);
+    }
+
+    /// The error scale ([`set_error_scale`](Self::set_error_scale)).
+    pub fn error_scale(&self) -> f64 {
+        f32::from_bits(self.error_scale.load(Ordering::SeqCst)) as f64
     }
 
     /// Forgets the history: the next frame reinitialises every pixel (a
@@ -153,6 +170,7 @@ impl TemporalStage {
             lambda: TEMPORAL_LAMBDA,
             p00: TEMPORAL_RESET_P00,
             p11: TEMPORAL_RESET_P11,
+            error_scale: self.error_scale() as f32,
             ..Default::default()
         }
     }
@@ -263,12 +281,14 @@ impl TemporalStage {
 /// TEMPORAL-MOTION on the GPU: pyramids of a frame's positions and of the
 /// previous state's (levels 1 to [`TEMPORAL_MOTION_LEVELS`], pooled by
 /// `pyramid_pool`), and each level's offsets, searched from the coarsest
-/// level to level 1 (`temporal_motion`).
+/// level to the full resolution (`temporal_motion`).
 struct MotionSearch {
     /// Per level: its size, this frame's planes and the previous one's
     /// (X, Y, Z, count each), and its offsets X, Y.
     levels: Vec<MotionLevel>,
     size: (usize, usize),
+    /// Level 0's offsets X, Y: each pixel's.
+    offsets: PlaneSet,
 }
 
 struct MotionLevel {
@@ -296,13 +316,17 @@ impl MotionSearch {
                 offsets: PlaneSet::new(ctx, &format!("temporal.motion{l}.offsets"), n, 2)?,
             });
         }
-        Ok(MotionSearch { levels, size })
+        let offsets = PlaneSet::new(ctx, "temporal.motion0.offsets", size.0 * size.1, 2)?;
+        Ok(MotionSearch {
+            levels,
+            size,
+            offsets,
+        })
     }
 
-    /// Level 1's offsets X, Y (what `lp_temporal` reads).
+    /// Level 0's offsets X, Y (what `lp_temporal` reads).
     fn offsets(&self) -> [BufferSlice; 2] {
-        let o = &self.levels[0].offsets;
-        [o.plane(0), o.plane(1)]
+        [self.offsets.plane(0), self.offsets.plane(1)]
     }
 
     /// Records the pyramids of `inp`'s positions and of the state `prev`,
@@ -343,47 +367,43 @@ impl MotionSearch {
             fine_cur = four(&level.cur);
             fine_prev = four(&level.prev);
         }
-        for (l, level) in self.levels.iter().enumerate().rev() {
-            let coarser = self.levels.get(l + 1);
-            let (coarse, csize) = match coarser {
-                Some(c) => ([c.offsets.plane(0), c.offsets.plane(1)], c.size),
-                // Not read at the coarsest level.
-                None => ([level.cur.plane(0), level.cur.plane(1)], (1, 1)),
-            };
+        // From the coarsest level to level 0, which reads the frames' own
+        // planes: (size, this frame's, the previous one's, offsets).
+        let pooled = self.levels.iter().rev().map(|l| {
+            let out = [l.offsets.plane(0), l.offsets.plane(1)];
+            (l.size, four(&l.cur), four(&l.prev), out)
+        });
+        let full = (
+            self.size,
+            [p[0], p[1], p[2], inp.spp],
+            [9, 10, 11, TEMPORAL_VALID].map(|k| prev.plane(k)),
+            self.offsets(),
+        );
+        let mut coarser: Option<((usize, usize), [BufferSlice; 2])> = None;
+        for (size, cur, prv, out) in pooled.chain(std::iter::once(full)) {
+            // Not read at the coarsest level.
+            let (csize, coarse) = coarser.unwrap_or(((1, 1), [cur[0], cur[1]]));
             let push = MotionPush {
-                width: level.size.0 as u32,
-                height: level.size.1 as u32,
+                width: size.0 as u32,
+                height: size.1 as u32,
                 coarse: coarser.is_some() as u32,
                 coarse_width: csize.0 as u32,
                 coarse_height: csize.1 as u32,
                 radius: TEMPORAL_MOTION_RADIUS,
                 ..Default::default()
             };
-            let out = [level.offsets.plane(0), level.offsets.plane(1)];
-            temporal_motion::record(
-                batch,
-                precision,
-                &push,
-                &four(&level.cur),
-                &four(&level.prev),
-                coarse,
-                out,
-            )?;
+            temporal_motion::record(batch, precision, &push, &cur, &prv, coarse, out)?;
+            coarser = Some((size, out));
         }
         Ok(())
     }
 
-    /// The last search's window centres less the pixel, per pixel of the
-    /// frame (X, Y).
+    /// The last search's window centres less the pixel, per pixel (X, Y).
     fn download_centres(&self) -> Result<(Vec<f32>, Vec<f32>)> {
-        let level = &self.levels[0];
-        let ox = level.offsets.download_plane::<f32>(0)?;
-        let oy = level.offsets.download_plane::<f32>(1)?;
-        let (w, h) = self.size;
-        let at = |o: &[f32], x: usize, y: usize| 2.0 * o[(y / 2) * level.size.0 + x / 2];
-        let mx = (0..w * h).map(|i| at(&ox, i % w, i / w)).collect();
-        let my = (0..w * h).map(|i| at(&oy, i % w, i / w)).collect();
-        Ok((mx, my))
+        Ok((
+            self.offsets.download_plane::<f32>(0)?,
+            self.offsets.download_plane::<f32>(1)?,
+        ))
     }
 }
 
@@ -401,6 +421,8 @@ pub struct FilterRecord {
     pub size: (usize, usize),
     /// The stage's [`history`](TemporalStage::history) after the frame.
     pub history: (u64, bool),
+    /// The stage's error scale ([`TemporalStage::set_error_scale`]).
+    pub error_scale: f64,
 }
 
 impl TemporalStage {
@@ -413,6 +435,7 @@ impl TemporalStage {
             p00: read(self.p00())?,
             size: self.size(),
             history: self.history(),
+            error_scale: self.error_scale(),
         })
     }
 }
@@ -490,6 +513,7 @@ impl SmoothStage {
         if last {
             self.backward.reset();
         }
+        self.backward.set_error_scale(record.error_scale);
         let inp = TemporalIn::from_planes(|k| self.inputs.plane(k));
         let mut batch = Batch::new(&self.ctx)?;
         batch.progress = progress;

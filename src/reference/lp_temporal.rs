@@ -178,6 +178,42 @@ fn reproject(
     best.map(|(_, s, d)| (s, d))
 }
 
+/// TEMPORAL-MISREG: what a state carried from pixel `j` to another pixel,
+/// where the motion search moved the window, adds to its `P00`: the variance of a shift uniform over a pixel along
+/// the previous state's gradient at `j` (central differences of the
+/// shifted intercepts; a neighbour outside the image or without state
+/// reads `b0`, pixel `j`'s), `(gx² + gy²)/12`, over the pixel's error `e`
+/// (the method's estimate times its error scale), the largest over the
+/// channels.
+fn misregistration(
+    prev: &[f32],
+    (w, h): (usize, usize),
+    (jx, jy): (i32, i32),
+    b0: [f64; 3],
+    e: [f64; 3],
+) -> f64 {
+    let n = w * h;
+    let at = |x: i32, y: i32| -> [f64; 3] {
+        if x < 0 || y < 0 || x >= w as i32 || y >= h as i32 {
+            return b0;
+        }
+        load(prev, n, y as usize * w + x as usize).map_or(b0, |s| s.shifted().predict())
+    };
+    let (xp, xm, yp, ym) = (
+        at(jx + 1, jy),
+        at(jx - 1, jy),
+        at(jx, jy + 1),
+        at(jx, jy - 1),
+    );
+    (0..3)
+        .map(|c| {
+            let gx = (xp[c] - xm[c]) * 0.5;
+            let gy = (yp[c] - ym[c]) * 0.5;
+            (gx * gx + gy * gy) / (12.0 * e[c] + 1e-12)
+        })
+        .fold(0.0f64, f64::max)
+}
+
 /// What the filter does at one pixel of a frame.
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub enum Step {
@@ -221,7 +257,19 @@ pub fn step(
         let var: f64 = inp.position_variance.iter().map(|p| p[i] as f64).sum();
         let limit = (TEMPORAL_RESET_REL * (inp.depth[i] as f64).max(TEMPORAL_DEPTH_FLOOR)).powi(2)
             + TEMPORAL_RESET_NOISE * var;
-        reproject(prev, (w, h), (x, y), centre, wi, yi, limit)
+        reproject(prev, (w, h), (x, y), centre, wi, yi, limit).map(|(mut s, (dx, dy))| {
+            let j = (x as i32 + centre.0 + dx, y as i32 + centre.1 + dy);
+            if centre != (0, 0) && j != (x as i32, y as i32) {
+                let scale = if push.error_scale > 0.0 {
+                    push.error_scale as f64
+                } else {
+                    1.0
+                };
+                let ei = inp.error.map(|e| scale * e[i].max(0.0) as f64);
+                s.p[0] += misregistration(prev, (w, h), j, s.predict(), ei);
+            }
+            (s, (dx, dy))
+        })
     };
     // TEMPORAL-INFLATE: where the prediction misses this frame's colour by
     // more than `t3² E (1 + P00)` in some channel, `P` grows by the ratio,
@@ -253,7 +301,7 @@ pub fn step(
 }
 
 /// TEMPORAL-MOTION for a frame: the coarse-to-fine search
-/// ([`motion`](super::temporal_motion::motion)) where `push.flags` has
+/// ([`motion`]) where `push.flags` has
 /// [`TEMPORAL_MOTION`] and neither [`TEMPORAL_RESET`] nor
 /// [`TEMPORAL_NO_SEARCH`]; `None` (every window centred on its pixel)
 /// otherwise.

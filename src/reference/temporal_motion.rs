@@ -1,7 +1,8 @@
 //! Scalar twin of `spirv/temporal_motion.comp`: one level of TEMPORAL-MOTION's
 //! coarse-to-fine search for where each pixel's surface was in the
-//! previous frame, and ([`motion`]) the whole search as the LP temporal
-//! filter runs it before its 7×7 window.
+//! previous frame, and ([`motion`]) the whole search, from the coarsest
+//! pooled level to the full resolution, as the LP temporal filter runs it
+//! before its 7×7 window.
 
 use super::finalize_stats::spp_of;
 use super::pyramid_pool::{coarse_size, pyramid_pool};
@@ -12,10 +13,11 @@ use crate::shared::{
 
 /// One level over the push's image: per pixel, the search centred on twice
 /// its coarser block's offset (`coarse`, read where `push.coarse` is set;
-/// 0 otherwise) among the previous frame's pixels within `push.radius` of
-/// it whose count `prev[3]` is at least 1, for the least squared distance
-/// between their position `prev[0..3]` and the pixel's `cur[0..3]` (the
-/// centre first, then raster order, a later one only if strictly nearer);
+/// 0 otherwise) among the previous frame's pixels whose count `prev[3]` is
+/// at least 1 — the pixel itself, the centre, then those within
+/// `push.radius` of the centre in raster order — for the least squared
+/// distance between their position `prev[0..3]` and the pixel's
+/// `cur[0..3]` (a later one only if strictly nearer);
 /// a pixel whose count `cur[3]` is below 1, or without a candidate, keeps
 /// the centre. Writes the offsets X, Y into `out`.
 pub fn temporal_motion(
@@ -43,8 +45,13 @@ pub fn temporal_motion(
                 let p = [0, 1, 2].map(|k| cur[k][i] as f64);
                 let mut best_cost: Option<f64> = None;
                 let window = (-r..=r).flat_map(|dy| (-r..=r).map(move |dx| (dx, dy)));
-                for (dx, dy) in std::iter::once((0, 0)).chain(window.filter(|&d| d != (0, 0))) {
-                    let (jx, jy) = (x + centre.0 + dx, y + centre.1 + dy);
+                let window = window
+                    .filter(|&d| d != (0, 0))
+                    .map(|(dx, dy)| (centre.0 + dx, centre.1 + dy))
+                    .filter(|&o| o != (0, 0));
+                let first = std::iter::once((0, 0)).chain((centre != (0, 0)).then_some(centre));
+                for (dx, dy) in first.chain(window) {
+                    let (jx, jy) = (x + dx, y + dy);
                     if jx < 0 || jy < 0 || jx >= w || jy >= h {
                         continue;
                     }
@@ -55,7 +62,7 @@ pub fn temporal_motion(
                     let cost: f64 = (0..3).map(|k| (prev[k][j] as f64 - p[k]).powi(2)).sum();
                     if best_cost.map_or(true, |b| cost < b) {
                         best_cost = Some(cost);
-                        best = (centre.0 + dx, centre.1 + dy);
+                        best = (dx, dy);
                     }
                 }
             }
@@ -65,26 +72,25 @@ pub fn temporal_motion(
     }
 }
 
-/// The search's result: the offsets at half resolution (level 1), which
-/// centre the LP temporal filter's window.
+/// A level's offsets, in its pixels; at level 0 (the search's result) each
+/// pixel's, which centre the LP temporal filter's window.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Motion {
-    /// Level 1's width (the frame's, halved and rounded up).
+    /// The level's width.
     pub width: usize,
-    /// Level 1's height.
+    /// Its height.
     pub height: usize,
-    /// Offset X per level-1 pixel, in level-1 pixels.
+    /// Offset X per pixel.
     pub ox: Vec<f32>,
     /// Offset Y.
     pub oy: Vec<f32>,
 }
 
 impl Motion {
-    /// The centre of pixel `(x, y)`'s window in the frame: twice its block's
-    /// offset.
+    /// Pixel `(x, y)`'s offset: the centre of its window less the pixel.
     pub fn centre(&self, x: usize, y: usize) -> (i32, i32) {
-        let k = (y / 2).min(self.height - 1) * self.width + (x / 2).min(self.width - 1);
-        (2 * self.ox[k] as i32, 2 * self.oy[k] as i32)
+        let k = y * self.width + x;
+        (self.ox[k] as i32, self.oy[k] as i32)
     }
 }
 
@@ -118,9 +124,9 @@ fn pool(fine: [&[f32]; 4], (fw, fh): (usize, usize)) -> ((usize, usize), [Vec<f3
 /// TEMPORAL-MOTION over a `width × height` frame: the pyramids of this
 /// frame's `position` (weighted by `spp`) and of the previous state's
 /// positions (the [`TEMPORAL_STATE`](crate::shared::TEMPORAL_STATE) planes `prev`, weighted by their valid
-/// flags), levels 1 to [`TEMPORAL_MOTION_LEVELS`], each level's search
+/// flags), levels 1 to [`TEMPORAL_MOTION_LEVELS`], and each level's search
 /// ([`temporal_motion`], radius [`TEMPORAL_MOTION_RADIUS`]) from the
-/// coarsest to level 1.
+/// coarsest to the frame itself (level 0): each pixel's offset.
 pub fn motion(
     (width, height): (usize, usize),
     position: [&[f32]; 3],
@@ -151,10 +157,20 @@ pub fn motion(
             prev: prv,
         });
     }
-    // The offsets of the level below the current one, as a Motion.
+    // The coarser level's offsets, as a Motion; level 0 reads the frames'
+    // own planes.
+    let full = (
+        (width, height),
+        [position[0], position[1], position[2], spp],
+        [state(9), state(10), state(11), state(TEMPORAL_VALID)],
+    );
+    let pooled = levels.iter().rev().map(|l| {
+        let cur = l.cur.each_ref().map(|v| &v[..]);
+        let prv = l.prev.each_ref().map(|v| &v[..]);
+        (l.size, cur, prv)
+    });
     let mut coarse: Option<Motion> = None;
-    for level in levels.iter().rev() {
-        let (w, h) = level.size;
+    for ((w, h), cur, prv) in pooled.chain(std::iter::once(full)) {
         let push = MotionPush {
             width: w as u32,
             height: h as u32,
@@ -169,13 +185,7 @@ pub fn motion(
             .as_ref()
             .map_or([&zero[..], &zero[..]], |c| [&c.ox[..], &c.oy[..]]);
         let (mut ox, mut oy) = (vec![0.0; w * h], vec![0.0; w * h]);
-        temporal_motion(
-            &push,
-            level.cur.each_ref().map(|v| &v[..]),
-            level.prev.each_ref().map(|v| &v[..]),
-            planes,
-            [&mut ox, &mut oy],
-        );
+        temporal_motion(&push, cur, prv, planes, [&mut ox, &mut oy]);
         coarse = Some(Motion {
             width: w,
             height: h,
