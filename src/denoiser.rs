@@ -124,15 +124,10 @@ impl Config {
     /// [`crate::MethodInfo::error_scale`], or its `pyramid_error_scale`
     /// where the pyramid's low band runs (PYRAMID-ERROR-SCALE).
     pub fn error_scale(&self, width: usize, height: usize) -> f64 {
-        let info = self.method.info();
-        if self
+        let pyramid = self
             .pyramid
-            .resolve(self.method, self.pass, (width, height))
-        {
-            info.pyramid_error_scale
-        } else {
-            info.error_scale
-        }
+            .resolve(self.method, self.pass, (width, height));
+        self.method.info().error_scale_with(pyramid)
     }
 
     /// `method` with defaults: final pass, f32, prefilter `auto`, no options.

@@ -396,12 +396,7 @@ impl GpuChain {
             (Temporal::Apr | Temporal::LpSmooth, _, _) => unreachable!("refused above"),
             (Temporal::Lp, Pass::Final, None) => {
                 let stage = TemporalStage::new(ctx, w, h)?;
-                let own = config.method.info();
-                stage.set_error_scale(if config.pyramid {
-                    own.pyramid_error_scale
-                } else {
-                    own.error_scale
-                });
+                stage.set_error_scale(config.method.info().error_scale_with(config.pyramid));
                 Some(TemporalRole::Filter(Arc::new(stage)))
             }
             (Temporal::Lp, Pass::Intermediate, Some(TemporalState(stage))) => {

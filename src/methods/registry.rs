@@ -72,7 +72,8 @@ pub struct MethodInfo {
     /// The factor by which its estimated rMSE (mean `E_i / (f̂_i² + 0.01)`)
     /// is scaled where a stop rule judges the reconstruction against a
     /// target: the geometric mean of true over estimated rMSE on the
-    /// tuning scenes (ERROR-SCALE). Its `E_i` and sample maps do not use it.
+    /// tuning scenes (ERROR-SCALE). Its `E_i` and sample maps do not use
+    /// it; the temporal filter's TEMPORAL-MISREG term does.
     pub error_scale: f64,
     /// The factor in place of `error_scale` where the pyramid's low band
     /// (PYRAMID-LOWBAND) ran ([`crate::Config::error_scale`]): the merged
@@ -99,6 +100,19 @@ pub struct MethodInfo {
     pub gpu: fn(&StageArgs) -> Result<Box<dyn GpuStage>>,
     /// Runs it on the CPU (the scalar twins) on sanitised statistics.
     pub cpu: fn(&StatsImage, &CpuArgs) -> Result<CpuResult>,
+}
+
+impl MethodInfo {
+    /// Its [`error_scale`](Self::error_scale), or its
+    /// [`pyramid_error_scale`](Self::pyramid_error_scale) where the
+    /// pyramid's low band ran.
+    pub fn error_scale_with(&self, pyramid: bool) -> f64 {
+        if pyramid {
+            self.pyramid_error_scale
+        } else {
+            self.error_scale
+        }
+    }
 }
 
 /// What a method's [`MethodInfo::gpu`] constructor gets.
