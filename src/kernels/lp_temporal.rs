@@ -110,19 +110,20 @@ impl TemporalIn {
         }
     }
 
-    /// The bindings 0–16 of a temporal kernel: these planes, `prev` and
-    /// the motion offsets `motion` (X, Y per pixel; read only
+    /// The bindings 0–16 of the temporal kernel `decl`: these planes,
+    /// `prev` and the motion offsets `motion` (X, Y per pixel; read only
     /// where `push` has [`TEMPORAL_MOTION`]).
     pub(crate) fn with_prev(
         &self,
+        decl: &KernelDecl,
         push: &TemporalPush,
         prev: BufferSlice,
         motion: [BufferSlice; 2],
     ) -> Result<Vec<BufferSlice>> {
         if push.flags & TEMPORAL_MOTION != 0 {
             let bytes = 4 * push.width as u64 * push.height as u64;
-            DECL.require(15, &motion[0], bytes)?;
-            DECL.require(16, &motion[1], bytes)?;
+            decl.require(15, &motion[0], bytes)?;
+            decl.require(16, &motion[1], bytes)?;
         }
         let mut v = self.planes();
         v.push(prev);
@@ -150,6 +151,6 @@ pub fn record(
         out.color[2],
         out.source,
     ];
-    let groups: [&[BufferSlice]; 2] = [&inp.with_prev(push, prev, motion)?, &rest];
+    let groups: [&[BufferSlice]; 2] = [&inp.with_prev(&DECL, push, prev, motion)?, &rest];
     super::dispatch_image(batch, &DECL, precision, push, &groups, FLOPS_PER_PIXEL)
 }

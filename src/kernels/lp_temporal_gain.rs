@@ -38,6 +38,6 @@ pub fn record(
     error: [BufferSlice; 3],
     scaled: [BufferSlice; 3],
 ) -> Result<()> {
-    let groups: [&[BufferSlice]; 3] = [&inp.with_prev(push, prev, motion)?, &error, &scaled];
+    let groups: [&[BufferSlice]; 3] = [&inp.with_prev(&DECL, push, prev, motion)?, &error, &scaled];
     super::dispatch_image(batch, &DECL, precision, push, &groups, FLOPS_PER_PIXEL)
 }

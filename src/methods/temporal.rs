@@ -330,7 +330,7 @@ impl MotionSearch {
     }
 
     /// Records the pyramids of `inp`'s positions and of the state `prev`,
-    /// then the search from the coarsest level to level 1.
+    /// then the search from the coarsest level to the full resolution.
     fn record(
         &self,
         batch: &mut Batch,
@@ -338,10 +338,10 @@ impl MotionSearch {
         inp: &TemporalIn,
         prev: &PlaneSet,
     ) -> Result<()> {
-        let mut fine_size = self.size;
         let p = inp.position;
-        let mut fine_cur: LevelPlanes = [p[0], p[1], p[2], inp.spp];
-        let mut fine_prev: LevelPlanes = [9, 10, 11, TEMPORAL_VALID].map(|k| prev.plane(k));
+        let full_cur: LevelPlanes = [p[0], p[1], p[2], inp.spp];
+        let full_prev: LevelPlanes = [9, 10, 11, TEMPORAL_VALID].map(|k| prev.plane(k));
+        let (mut fine_size, mut fine_cur, mut fine_prev) = (self.size, full_cur, full_prev);
         for level in &self.levels {
             for (fine, coarse) in [(&fine_cur, &level.cur), (&fine_prev, &level.prev)] {
                 for k in 0..4 {
@@ -373,12 +373,7 @@ impl MotionSearch {
             let out = [l.offsets.plane(0), l.offsets.plane(1)];
             (l.size, four(&l.cur), four(&l.prev), out)
         });
-        let full = (
-            self.size,
-            [p[0], p[1], p[2], inp.spp],
-            [9, 10, 11, TEMPORAL_VALID].map(|k| prev.plane(k)),
-            self.offsets(),
-        );
+        let full = (self.size, full_cur, full_prev, self.offsets());
         let mut coarser: Option<((usize, usize), [BufferSlice; 2])> = None;
         for (size, cur, prv, out) in pooled.chain(std::iter::once(full)) {
             // Not read at the coarsest level.

@@ -135,14 +135,12 @@ pub fn motion(
 ) -> Motion {
     let n = width * height;
     let state = |k: usize| &prev[k * n..(k + 1) * n];
+    let full_cur = [position[0], position[1], position[2], spp];
+    let full_prev = [state(9), state(10), state(11), state(TEMPORAL_VALID)];
     let mut levels: Vec<Level> = Vec::new();
     for _ in 0..TEMPORAL_MOTION_LEVELS {
         let (fine_size, cur, prv) = match levels.last() {
-            None => (
-                (width, height),
-                [position[0], position[1], position[2], spp],
-                [state(9), state(10), state(11), state(TEMPORAL_VALID)],
-            ),
+            None => ((width, height), full_cur, full_prev),
             Some(f) => (
                 f.size,
                 f.cur.each_ref().map(|v| &v[..]),
@@ -159,11 +157,7 @@ pub fn motion(
     }
     // The coarser level's offsets, as a Motion; level 0 reads the frames'
     // own planes.
-    let full = (
-        (width, height),
-        [position[0], position[1], position[2], spp],
-        [state(9), state(10), state(11), state(TEMPORAL_VALID)],
-    );
+    let full = ((width, height), full_cur, full_prev);
     let pooled = levels.iter().rev().map(|l| {
         let cur = l.cur.each_ref().map(|v| &v[..]);
         let prv = l.prev.each_ref().map(|v| &v[..]);
