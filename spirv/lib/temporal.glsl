@@ -70,8 +70,8 @@ real3 intercept_at(int jx, int jy, uint n, real3 fallback)
 // STEP_CONTINUE with the state reprojected from offset index `off`
 // ((dy + 3) * 7 + dx + 3, from the window's centre) and updated. Among the
 // valid previous states in the 7x7 window (centred on the pixel, or with
-// TEMPORAL_MOTION on the pixel plus its offset in mx my) whose position is within RESET's distance (TEMPORAL-GATE,
-// RESET-NOISE), the one with the least (eW + epsW)(ey + epsy), the first in
+// TEMPORAL_MOTION on the pixel plus its offset in mx my) whose position is
+// within RESET's distance (TEMPORAL-GATE, RESET-NOISE), the one with the least (eW + epsW)(ey + epsy), the first in
 // raster order on a tie; its P inflated where its prediction misses the
 // colour by more than the noise allows (TEMPORAL-INFLATE).
 int temporal_step(uint x, uint y, out real2 b[3], out real3 p, out int off)

@@ -43,8 +43,8 @@ pub const DECL: KernelDecl = temporal_decl!(
     write("source"),
 );
 
-/// Per pixel: the window's centre (4), per candidate of the 7×7 window the shift (5), the two
-/// distances (3 + 3 multiply-adds and subtractions, 12) and the cost (3);
+/// Per pixel: the window's centre (4), per candidate of the 7×7 window the
+/// shift (5), the two distances (3 + 3 multiply-adds and subtractions, 12) and the cost (3);
 /// the update (about 20) and the stores.
 pub const FLOPS_PER_PIXEL: f64 = {
     let side = (2 * TEMPORAL_SEARCH + 1) as f64;

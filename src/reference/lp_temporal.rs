@@ -179,8 +179,9 @@ fn reproject(
 }
 
 /// TEMPORAL-MISREG: what a state carried from pixel `j` to another pixel,
-/// where the motion search moved the window, adds to its `P00`: the variance of a shift uniform over a pixel along
-/// the previous state's gradient at `j` (central differences of the
+/// where the motion search moved the window, adds to its `P00`: the
+/// variance of a shift uniform over a pixel along the previous state's
+/// gradient at `j` (central differences of the
 /// shifted intercepts; a neighbour outside the image or without state
 /// reads `b0`, pixel `j`'s), `(gx² + gy²)/12`, over the pixel's error `e`
 /// (the method's estimate times its error scale), the largest over the
@@ -319,11 +320,11 @@ pub fn centre(motion: Option<&Motion>, (x, y): (usize, usize)) -> (i32, i32) {
 }
 
 /// One frame of the filter over a `width × height` image (`row0` ignored):
-/// [`frame_motion`], then per pixel [`step`], from the previous frame's state planes `prev` into
-/// `next` (both [`TEMPORAL_STATE`] planes), the output `β[ch][0]` clamped to
-/// ≥ 0 into `out` (the colour itself where passed through), and the debug
-/// plane `source` ([`TEMPORAL_SOURCE_RESET`]). A pixel passed through has
-/// no state.
+/// [`frame_motion`], then per pixel [`step`], from the previous frame's
+/// state planes `prev` into `next` (both [`TEMPORAL_STATE`] planes), the
+/// output `β[ch][0]` clamped to ≥ 0 into `out` (the colour itself where
+/// passed through), and the debug plane `source`
+/// ([`TEMPORAL_SOURCE_RESET`]). A pixel passed through has no state.
 pub fn lp_temporal(
     push: &TemporalPush,
     inp: &TemporalInputs,

@@ -123,8 +123,8 @@ fn pool(fine: [&[f32]; 4], (fw, fh): (usize, usize)) -> ((usize, usize), [Vec<f3
 
 /// TEMPORAL-MOTION over a `width × height` frame: the pyramids of this
 /// frame's `position` (weighted by `spp`) and of the previous state's
-/// positions (the [`TEMPORAL_STATE`](crate::shared::TEMPORAL_STATE) planes `prev`, weighted by their valid
-/// flags), levels 1 to [`TEMPORAL_MOTION_LEVELS`], and each level's search
+/// positions (the [`TEMPORAL_STATE`](crate::shared::TEMPORAL_STATE)
+/// planes `prev`, weighted by their valid flags), levels 1 to [`TEMPORAL_MOTION_LEVELS`], and each level's search
 /// ([`temporal_motion`], radius [`TEMPORAL_MOTION_RADIUS`]) from the
 /// coarsest to the frame itself (level 0): each pixel's offset.
 pub fn motion(
