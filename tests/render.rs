@@ -701,6 +701,103 @@ fn textured_emission_is_evaluated_at_the_hit() {
     check_validation(&ctx);
 }
 
+/// A keyframed object reports its position feature, and takes its texture,
+/// in its placement as the scene file writes it: at a frame where it is
+/// turned and moved (and moving over the shutter), every sample that hits
+/// the checkered sign lies on the file's plane z = 0, inside the file's
+/// square, with the checker's colour there; its depth says where it is now.
+#[test]
+fn keyframed_objects_report_positions_and_textures_at_rest() {
+    let ctx = gpu();
+    let text = r#"
+[camera]
+position = [0.0, 0.0, 4.0]
+look_at = [0.0, 0.0, 0.0]
+fov = 40.0
+
+[materials.sign]
+type = "emissive"
+radiance = { texture = "checker", a = [3.0, 0.5, 0.25], b = [0.2, 0.4, 0.8], scale = 4.0 }
+
+[[objects]]
+type = "quad"
+corner = [-1.0, -1.0, 0.0]
+u = [2.0, 0.0, 0.0]
+v = [0.0, 2.0, 0.0]
+material = "sign"
+keyframes = [
+    { frame = 0, translate = [0.0, 0.0, 0.0] },
+    { frame = 4, translate = [0.4, 0.2, -1.0], rotate_y = 40.0 },
+]
+
+[animation]
+frames = 5
+"#;
+    let s = Scene::from_toml(text, std::path::Path::new("sign.toml"), None)
+        .unwrap()
+        .at_frame(2)
+        .unwrap();
+    let (a, b, scale) = ([3.0f32, 0.5, 0.25], [0.2f32, 0.4, 0.8], 4.0f32);
+    let r = Renderer::new(&ctx, &s, 16, 16, 3).unwrap();
+    let samples = r.run_pass_debug(2).unwrap();
+    let mut hits = 0;
+    for v in samples.chunks_exact(14) {
+        if v[9] == 0.0 {
+            continue; // a miss
+        }
+        hits += 1;
+        let p = &v[10..13];
+        assert!(p[2].abs() < 1e-4, "position {p:?} is off the file's plane");
+        assert!(
+            p[0].abs() <= 1.0 + 1e-4 && p[1].abs() <= 1.0 + 1e-4,
+            "{p:?}"
+        );
+        // Halfway the sign has moved 0.5 away and turned 20° (its near
+        // edge 0.34 forward): the depth is the distance to where it is.
+        assert!(v[9] > 4.1, "depth {} at {p:?}", v[9]);
+        let c: Vec<i64> = p
+            .iter()
+            .map(|&x| (x * scale + 1e-4).floor() as i64)
+            .collect();
+        let want = if (c[0] + c[1] + c[2]).rem_euclid(2) == 0 {
+            a
+        } else {
+            b
+        };
+        assert_eq!(&v[..3], &want[..], "colour at {p:?}");
+    }
+    assert!(hits > 100, "{hits} samples hit the sign");
+    check_validation(&ctx);
+}
+
+/// The renderer keeps each keyframed object's placement in seven bits of a
+/// primitive's word: 127 objects render, 128 are refused with a message.
+#[test]
+fn too_many_keyframed_objects_are_refused() {
+    let ctx = gpu();
+    let text = |n: usize| {
+        let mut t = String::from(
+            "[camera]\nposition = [0.0, 0.0, 4.0]\nlook_at = [0.0, 0.0, 0.0]\nfov = 40.0\n\n\
+             [materials.m]\ntype = \"diffuse\"\nalbedo = [0.5, 0.5, 0.5]\n\n\
+             [animation]\nframes = 2\n",
+        );
+        for k in 0..n {
+            t += &format!(
+                "\n[[objects]]\ntype = \"sphere\"\ncenter = [0.0, 0.0, 0.0]\nradius = 0.01\n\
+                 material = \"m\"\nkeyframes = [{{ frame = 0, translate = [{x}, 0.0, 0.0] }}]\n",
+                x = 0.01 * k as f32
+            );
+        }
+        Scene::from_toml(&t, std::path::Path::new("many.toml"), None).unwrap()
+    };
+    assert!(Renderer::new(&ctx, &text(127), 4, 4, 1).is_ok());
+    let Err(e) = Renderer::new(&ctx, &text(128), 4, 4, 1) else {
+        panic!("128 keyframed objects rendered");
+    };
+    assert!(e.to_string().contains("127 keyframed objects"), "{e}");
+    check_validation(&ctx);
+}
+
 /// FEATURES-THROUGH-MIRRORS: a smooth mirror tilted 45° in front of the
 /// camera shows a wall of albedo (0.2, 0.5, 0.8) above it. Every camera
 /// sample takes its depth and position features at the mirror, and its
@@ -1349,6 +1446,7 @@ fn primitives_of_shapes() {
         material: 0,
         motion: [0.0, 0.0, 1.0],
         normals: None,
+        rest: None,
     };
     let t = p.intersect([0.5, 0.5, 5.0], [0.0, 0.0, -1.0], 0.5, 0.0);
     assert_eq!(t, Some(4.5));

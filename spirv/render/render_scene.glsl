@@ -23,8 +23,10 @@ layout(std430, set = 0, binding = 0) readonly buffer Params {
 // [first, first + count).
 layout(std430, set = 0, binding = 1) readonly buffer Nodes { vec4 nodes[]; };
 
-// Four vec4 per primitive (see gpu_scene.rs): p0 = (a, kind | material << 2),
-// p1 = (b, radius), p2 = (c, light pdf per unit area), p3 = (motion, 0).
+// Four vec4 per primitive (see gpu_scene.rs): p0 = (a, kind | material << 2
+// | placement << 16),
+// p1 = (b, radius), p2 = (c, light pdf per unit area), p3 = (motion, bits of
+// the shading-normal entry).
 // Sphere: a = centre. Quad: corner a, edges b, c. Triangle: vertex a, edges b, c.
 layout(std430, set = 0, binding = 2) readonly buffer Prims { vec4 prims[]; };
 
@@ -106,7 +108,7 @@ struct Hit {
 };
 
 uint prim_kind(uint i) { return floatBitsToUint(prims[4u * i].w) & 3u; }
-uint prim_material(uint i) { return floatBitsToUint(prims[4u * i].w) >> 2u; }
+uint prim_material(uint i) { return (floatBitsToUint(prims[4u * i].w) >> 2u) & 0x3fffu; }
 
 // Nearest hit of primitive i in (tmin, tbest), or tbest.
 float intersect_prim(uint i, vec3 o, vec3 d, float time, float tmin, float tbest)

@@ -44,6 +44,24 @@ layout(std430, set = 0, binding = 7) readonly buffer Normals { vec4 vnormals[]; 
 // Traversal counters since the renderer's last reset: rays (low, high
 // word), BVH node visits (low, high word).
 layout(std430, set = 0, binding = 8) buffer Work { uint work[]; };
+// Placements of keyframed objects back to the scene file's: three vec4
+// (the rows of a 3x4 affine map) per entry, entry 0 the identity; a
+// primitive's entry is in bits 16-22 of its p0.w (GpuScene::rest).
+layout(std430, set = 0, binding = 9) readonly buffer Rest { vec4 rest[]; };
+
+// Where the point p_ref of primitive i at shutter time 0 lies in its
+// object's placement as the scene file writes it: the position feature
+// and the textures' coordinates, so that a point on a keyframed object
+// keeps both from frame to frame (spec §10.1's W; RENDER-REST).
+vec3 rest_position(uint i, vec3 p_ref)
+{
+    uint r = floatBitsToUint(prims[4u * i].w) >> 16u;
+    if (r == 0u) {
+        return p_ref;
+    }
+    vec4 q = vec4(p_ref, 1.0);
+    return vec3(dot(rest[3u * r], q), dot(rest[3u * r + 1u], q), dot(rest[3u * r + 2u], q));
+}
 
 // The pixel of an item past the pass's samples (render_resolve skips it).
 #define NO_PIXEL 0xffffffffu
@@ -78,7 +96,7 @@ float value_noise(vec3 p)
                mix(mix(n001, n101, s.x), mix(n011, n111, s.x), s.y), s.z);
 }
 
-// Colour of material m at reference-time position p: the albedo of diffuse
+// Colour of material m at the rest position p (rest_position): the albedo of diffuse
 // and plastic materials, the radiance of emitters (constant or textured).
 vec3 albedo_at(uint m, vec3 p)
 {
@@ -405,6 +423,7 @@ void trace_sample(uvec4 key, uvec2 pix, out vec3 color, out vec3 albedo, out vec
         uint m = prim_material(prim);
         uint mkind = floatBitsToUint(mats[3u * m].x) & 255u;
         vec3 p_ref = p - time * prims[4u * prim + 3u].xyz;
+        vec3 p_rest = rest_position(prim, p_ref);
         // Shading normal on the ray's side; the geometric one where the
         // interpolated normal faces away from the viewer.
         vec3 n = shading_normal(prim, p_ref, ng);
@@ -414,10 +433,10 @@ void trace_sample(uvec4 key, uvec2 pix, out vec3 color, out vec3 albedo, out vec
         }
 
         if (mkind == MAT_EMISSIVE) {
-            vec3 le = albedo_at(m, p_ref);
+            vec3 le = albedo_at(m, p_rest);
             if (depth_i == 0u) {
                 depth = h.t;
-                position = p_ref;
+                position = p_rest;
                 visibility = 1.0;
             }
             if (feat_open) {
@@ -438,7 +457,7 @@ void trace_sample(uvec4 key, uvec2 pix, out vec3 color, out vec3 albedo, out vec
             break;
         }
 
-        vec3 alb = albedo_at(m, p_ref);
+        vec3 alb = albedo_at(m, p_rest);
         vec4 m0 = mats[3u * m];
         uint cls = floatBitsToUint(m0.x) & 255u;
         float alpha = m0.z;
@@ -450,7 +469,7 @@ void trace_sample(uvec4 key, uvec2 pix, out vec3 color, out vec3 albedo, out vec
             albedo = alb;
             normal = n;
             depth = h.t;
-            position = p_ref;
+            position = p_rest;
             visibility = 1.0;
         }
         // RENDER-FEATURES: a smooth mirror passes the albedo and normal
@@ -487,7 +506,7 @@ void trace_sample(uvec4 key, uvec2 pix, out vec3 color, out vec3 albedo, out vec
                 unoccluded = s.prim < 0;
                 if (unoccluded) {
                     uint lm = prim_material(lprim);
-                    vec3 le = albedo_at(lm, lp - time * prims[4u * lprim + 3u].xyz);
+                    vec3 le = albedo_at(lm, rest_position(lprim, lp - time * prims[4u * lprim + 3u].xyz));
                     float pdf_light = light_pdf(lprim, po, dist2, cos_l, time);
                     float pdf_bsdf;
                     vec3 fc = bsdf_eval(cls, alb, alpha, ior, n, wo, wi, pdf_bsdf);

@@ -44,6 +44,15 @@ const KIND_SPHERE: u32 = 0;
 const KIND_QUAD: u32 = 1;
 const KIND_TRIANGLE: u32 = 2;
 
+/// A primitive's first word: its kind in bits 0–1, its material in bits
+/// 2–15 and its placement (an index into [`GpuScene::rest`]) in bits 16–22
+/// (`prim_material` and `rest_position` in the shaders). The word is
+/// stored as a float's bits: below bit 23 its exponent stays 0, so it is
+/// never a NaN, whose payload a GPU need not keep.
+const PLACEMENT_SHIFT: u32 = 16;
+const MAX_MATERIALS: usize = 1 << (PLACEMENT_SHIFT - 2);
+const MAX_PLACEMENTS: usize = 1 << (23 - PLACEMENT_SHIFT);
+
 /// Material classes (low byte of a material's first word) and albedo
 /// textures (second byte).
 const MAT_DIFFUSE: u32 = 0;
@@ -91,6 +100,9 @@ pub struct GpuScene {
     pub lights: Vec<[f32; 4]>,
     /// Three vec4 (vertex normals) per triangle with shading normals.
     pub normals: Vec<[f32; 12]>,
+    /// Three vec4 per placement (the rows of [`Primitive::rest`]); entry 0
+    /// is the identity, the placement of every primitive without one.
+    pub rest: Vec<[f32; 12]>,
     /// Depth of the BVH (edges from the root to the deepest leaf).
     pub depth: usize,
 }
@@ -173,11 +185,44 @@ impl GpuScene {
             light_pdf[i] = (select / primitives[i].area()) as f32;
         }
 
+        if mats.len() > MAX_MATERIALS {
+            return Err(Error::InvalidArgument(format!(
+                "a scene has {} materials; the renderer takes at most {MAX_MATERIALS}",
+                mats.len()
+            )));
+        }
+        let mut rest: Vec<[f32; 12]> =
+            vec![std::array::from_fn(|i| if i % 5 == 0 { 1.0 } else { 0.0 })];
+        // One entry per distinct placement (an object's primitives share
+        // theirs but are not consecutive in BVH order).
+        let mut seen = std::collections::HashMap::new();
+        let mut rest_index = Vec::with_capacity(primitives.len());
+        for p in &primitives {
+            let index = match p.rest {
+                None => 0,
+                Some(m) => {
+                    let words: [f32; 12] = std::array::from_fn(|i| m[i / 4][i % 4]);
+                    *seen.entry(words.map(f32::to_bits)).or_insert_with(|| {
+                        rest.push(words);
+                        rest.len() - 1
+                    })
+                }
+            };
+            if index >= MAX_PLACEMENTS {
+                return Err(Error::InvalidArgument(format!(
+                    "a scene has more than {} keyframed objects",
+                    MAX_PLACEMENTS - 1
+                )));
+            }
+            rest_index.push(index as u32);
+        }
+
         let mut normals = Vec::new();
         let prims = primitives
             .iter()
             .zip(&light_pdf)
-            .map(|(p, &pdf)| {
+            .zip(&rest_index)
+            .map(|((p, &pdf), &placement)| {
                 let normal_index = match p.normals {
                     Some(n) => {
                         normals.push(std::array::from_fn(|i| {
@@ -207,7 +252,7 @@ impl GpuScene {
                     a[0],
                     a[1],
                     a[2],
-                    f32::from_bits(kind | p.material << 2),
+                    f32::from_bits(kind | p.material << 2 | placement << PLACEMENT_SHIFT),
                     b[0],
                     b[1],
                     b[2],
@@ -299,6 +344,7 @@ impl GpuScene {
             materials,
             lights,
             normals,
+            rest,
             depth,
         })
     }

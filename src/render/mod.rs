@@ -55,7 +55,9 @@
 //! and 1 to the count): colour, albedo (emitters: `L/(1+L)` per channel of
 //! their radiance), the shading normal facing the ray, the distance
 //! from the lens point, the position at shutter time 0 (`M⁻¹·s` for moving
-//! objects), and visibility — 1 if the next-event shadow ray at the first
+//! objects) in the object's placement as the scene file writes it (a
+//! keyframed object's point keeps its position from frame to frame, spec
+//! §10.1's `W`), and visibility — 1 if the next-event shadow ray at the first
 //! hit reached its light, else 0 (1 when no emitter is sampled by
 //! next-event estimation — no lights, or only `next_event = false` ones —
 //! or the first hit is an emitter, a mirror or glass, where no shadow ray
@@ -234,6 +236,7 @@ pub const TRACE: KernelDecl = KernelDecl {
         write("items").sized_by_record(),
         read("normals").sized_by_record(),
         write("work").sized_by_record(),
+        read("rest").sized_by_record(),
     ],
     push_size: std::mem::size_of::<TracePush>() as u32,
 };
@@ -351,6 +354,9 @@ pub struct Renderer {
     materials: GpuBuffer,
     lights: GpuBuffer,
     normals: GpuBuffer,
+    /// Keyframed objects' placements back to the scene file's
+    /// ([`GpuScene::rest`]).
+    rest: GpuBuffer,
     accum: GpuBuffer,
     /// A pass's items (`render_scan`): `pixels + 1` uvec2 entries.
     scan: GpuBuffer,
@@ -468,6 +474,7 @@ impl Renderer {
             materials: buffer_of(ctx, "render.materials", &gs.materials)?,
             lights: buffer_of(ctx, "render.lights", &gs.lights)?,
             normals: buffer_of(ctx, "render.normals", &gs.normals)?,
+            rest: buffer_of(ctx, "render.rest", &gs.rest)?,
             accum,
             scan: GpuBuffer::new(ctx, "render.scan", (pixels + 1) * 8)?,
             blocks: GpuBuffer::new(
@@ -610,6 +617,7 @@ impl Renderer {
             self.items.slice(),
             self.normals.slice(),
             self.work.slice(),
+            self.rest.slice(),
         ];
         let group = |g: u64| {
             let stride = l.plane_stride();

@@ -54,7 +54,8 @@
 //! relative to the scene file, or inline `vertices = [[x, y, z], …]` and
 //! `indices = [[i, j, k], …]`; optional `scale` and `translate`). Textures
 //! (`albedo = { texture = "checker" | "noise", a, b, scale }`) are evaluated
-//! at the hit point's position at shutter time 0, in world units × `scale`.
+//! at the hit point's position at shutter time 0, in world units × `scale`,
+//! in the object's placement as the file writes it: they move with it.
 //!
 //! A scene animates with an `[animation]` table — `frames = 24`, and
 //! `[[animation.camera]]` keyframes (`frame`, and any of `position`,
@@ -433,6 +434,12 @@ pub struct Primitive {
     pub motion: Vec3,
     /// Per-vertex shading normals of a triangle (interpolated), if any.
     pub normals: Option<[Vec3; 3]>,
+    /// The map from a point of the primitive at shutter time 0 back to its
+    /// object's placement as the scene file writes it, before keyframes
+    /// (the rows of a 3×4 affine matrix): a keyframed object's points keep
+    /// these coordinates from frame to frame. `None` where the two
+    /// coincide.
+    pub rest: Option<[[f32; 4]; 3]>,
 }
 
 fn add(a: Vec3, b: Vec3) -> Vec3 {
@@ -443,6 +450,17 @@ fn sub(a: Vec3, b: Vec3) -> Vec3 {
 }
 
 impl Primitive {
+    /// Where the point `p` of the primitive at shutter time 0 lies in its
+    /// object's placement as the scene file writes it ([`Primitive::rest`]).
+    pub fn rest_point(&self, p: Vec3) -> Vec3 {
+        match &self.rest {
+            None => p,
+            Some(m) => {
+                std::array::from_fn(|i| m[i][0] * p[0] + m[i][1] * p[1] + m[i][2] * p[2] + m[i][3])
+            }
+        }
+    }
+
     /// Bounding box over the shutter interval: the union of the boxes at
     /// times 0 and 1 (motion is linear).
     pub fn bounds(&self) -> (Vec3, Vec3) {
@@ -764,6 +782,7 @@ impl Scene {
                     material: self.material_index(material),
                     motion: motion.unwrap_or_default(),
                     normals: None,
+                    rest: None,
                 }),
                 Object::Quad {
                     corner,
@@ -781,6 +800,7 @@ impl Scene {
                     material: self.material_index(material),
                     motion: motion.unwrap_or_default(),
                     normals: None,
+                    rest: None,
                 }),
                 Object::Box {
                     min,
@@ -797,6 +817,7 @@ impl Scene {
                             material: m,
                             motion: motion.unwrap_or_default(),
                             normals: None,
+                            rest: None,
                         });
                     }
                 }
@@ -848,6 +869,7 @@ impl Scene {
                             material: m,
                             motion: motion.unwrap_or_default(),
                             normals: (!norms.is_empty()).then(|| [norms[i], norms[j], norms[k]]),
+                            rest: None,
                         });
                     }
                 }
@@ -868,8 +890,8 @@ impl Scene {
     /// The scene at frame `frame` of its sequence: the camera and every
     /// keyframed object placed there, each keyframed object moving over
     /// the shutter by its translation to the next frame (a 360° shutter;
-    /// rotations and the camera are not blurred). Textures stay where they
-    /// are in the world, as for `motion`.
+    /// rotations and the camera are not blurred). Textures move with their
+    /// objects ([`Primitive::rest`]).
     pub fn at_frame(&self, frame: u32) -> Result<Scene> {
         if frame >= self.frames() {
             return Err(Error::InvalidArgument(format!(
@@ -1034,7 +1056,8 @@ fn interpolate<const N: usize>(keys: &[(f32, [f32; N])], f: f32) -> Option<[f32;
 /// Places one object's primitives (at rest) at frame `frame` of `keys`:
 /// rotated about the vertical axis through their bounding box's centre,
 /// translated, and moving over the shutter by the translation to the next
-/// frame on top of their own `motion`.
+/// frame on top of their own `motion`; each records the inverse placement
+/// in [`Primitive::rest`].
 fn place(prims: &mut [Primitive], keys: &[Keyframe], frame: f32) {
     let translate: Vec<(f32, Vec3)> = keys.iter().map(|k| (k.frame, k.translate)).collect();
     let rotate: Vec<(f32, [f32; 1])> = keys.iter().map(|k| (k.frame, [k.rotate_y])).collect();
@@ -1057,6 +1080,12 @@ fn place(prims: &mut [Primitive], keys: &[Keyframe], frame: f32) {
     let c = [0, 1, 2].map(|k| 0.5 * (lo[k] + hi[k]));
     let rot = rotation_y(r0);
     let pt = |p: Vec3| add(add(rot(sub(p, c)), c), t0);
+    // rest(p) = R⁻¹(p − c − t0) + c: columns R⁻¹ eₖ, offset c − R⁻¹(c + t0).
+    let back = rotation_y(-r0);
+    let cols = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]].map(back);
+    let offset = sub(c, back(add(c, t0)));
+    let rest: [[f32; 4]; 3] =
+        std::array::from_fn(|i| [cols[0][i], cols[1][i], cols[2][i], offset[i]]);
     for p in prims {
         p.shape = match p.shape {
             Shape::Sphere { center, radius } => Shape::Sphere {
@@ -1076,6 +1105,7 @@ fn place(prims: &mut [Primitive], keys: &[Keyframe], frame: f32) {
         };
         p.normals = p.normals.map(|n| n.map(rot));
         p.motion = add(rot(p.motion), sub(t1, t0));
+        p.rest = Some(rest);
     }
 }
 
@@ -1152,8 +1182,13 @@ focus_distance = 3.0
         assert!(close(u, [2.0 * h, 0.0, -2.0 * h]), "{u:?}");
         assert!(close(v, [0.0, 2.0, 0.0]));
         assert!(close(p[0].motion, [0.1, 0.0, 0.0]), "{:?}", p[0].motion);
+        // Its points map back to where the file puts them.
+        assert!(close(p[0].rest_point(corner), [-1.0, 0.0, 0.0]));
+        let far = add(add(corner, u), v);
+        assert!(close(p[0].rest_point(far), [1.0, 2.0, 0.0]), "{far:?}");
         // The sphere has no keyframes: where the file puts it, at rest.
         assert_eq!(p[1], s.primitives().unwrap()[1]);
+        assert_eq!(p[1].rest, None);
         // The last frame holds the last keyframe; nothing moves after it.
         let last = s.at_frame(10).unwrap().primitives().unwrap();
         assert!(close(last[0].motion, [0.0; 3]));
