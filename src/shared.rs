@@ -774,6 +774,13 @@ pub const TEMPORAL_DEPTH_FLOOR: f64 = 1e-3;
 /// deviations of the difference of two independent means of that variance
 /// (`9 · 2 · Σ var`).
 pub const TEMPORAL_RESET_NOISE: f64 = 18.0;
+/// TEMPORAL-SUBPIXEL: a neighbour of the reprojected pixel is on its
+/// surface where their positions are within this many times RESET's
+/// squared distance (twice the distance).
+pub const TEMPORAL_SUBPIXEL_GATE: f64 = 4.0;
+/// TEMPORAL-SUBPIXEL: the resampling offset's bound per axis, in pixels:
+/// the reprojected pixel is the nearest in position, or nearly.
+pub const TEMPORAL_SUBPIXEL_REACH: f64 = 0.5;
 /// Planes of the temporal state, per pixel: `β` per channel (intercept,
 /// slope: R0 R1 G0 G1 B0 B1), `P` (`P00 P01 P11`), the position `W` (X Y Z)
 /// and the valid flag (1 or 0).

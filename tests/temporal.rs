@@ -1407,3 +1407,97 @@ fn a_state_from_another_pixel_weighs_less_across_an_edge() {
     // Where the search saw no motion the state counts as it did.
     assert!(p00(3, (0, 0)) < 0.1, "no motion: P00 {}", p00(3, (0, 0)));
 }
+
+/// TEMPORAL-SUBPIXEL: under a camera that moved by (1.4, 0.3) pixels, over
+/// a plane whose colour is a linear ramp, the state carried from the
+/// previous frame is resampled at the surface point the pixel now sees,
+/// which its position says: the prediction is the ramp there, and the
+/// output with it. Where the search saw no motion the state is carried by
+/// whole pixels, 0.4 of a pixel off.
+#[test]
+fn a_state_between_pixels_is_resampled_where_the_surface_moved() {
+    let (w, h) = (12usize, 8usize);
+    let n = w * h;
+    let ramp = |x: f64, _y: f64| 0.2 + 0.05 * x;
+    let mut prev = vec![0.0f32; TEMPORAL_STATE * n];
+    for y in 0..h {
+        for x in 0..w {
+            let s = PixelState {
+                beta: [[ramp(x as f64, y as f64), 0.0]; 3],
+                p: [0.05, 0.0, 0.0],
+                w: [0.01 * x as f64, 0.01 * y as f64, 0.0],
+            };
+            twin::store(&mut prev, n, y * w + x, Some(&s));
+        }
+    }
+    let (sx, sy) = (1.4, 0.3);
+    let at = |i: usize| ((i % w) as f64 + sx, (i / w) as f64 + sy);
+    let f = Synthetic {
+        w,
+        h,
+        color: std::array::from_fn(|_| {
+            (0..n)
+                .map(|i| {
+                    let (x, y) = at(i);
+                    ramp(x, y) as f32
+                })
+                .collect()
+        }),
+        position: [
+            (0..n).map(|i| (0.01 * at(i).0) as f32).collect(),
+            (0..n).map(|i| (0.01 * at(i).1) as f32).collect(),
+            vec![0.0; n],
+        ],
+        variance: std::array::from_fn(|_| vec![0.0; n]),
+        error: std::array::from_fn(|_| vec![0.01; n]),
+        depth: vec![1.0; n],
+        spp: vec![16.0; n],
+    };
+    let p = push(w, h, 0);
+    let mut checked = 0;
+    for y in 1..h - 2 {
+        for x in 1..w - 3 {
+            let (tx, ty) = at(y * w + x);
+            let truth = ramp(tx, ty);
+            match twin::step(&p, &inputs(&f), &prev, (x, y), (1, 0)) {
+                twin::Step::Continue(s, _) => {
+                    let out = s.predict()[0];
+                    assert!(
+                        (out - truth).abs() < 1e-6,
+                        "pixel ({x}, {y}): {out} against the ramp's {truth}"
+                    );
+                    checked += 1;
+                }
+                other => panic!("pixel ({x}, {y}): {other:?}"),
+            }
+            // Where the search saw no motion the state is carried as it is.
+            if let twin::Step::Continue(s, _) = twin::step(&p, &inputs(&f), &prev, (x, y), (0, 0)) {
+                let from = s.predict()[0];
+                assert!(
+                    (from - truth).abs() > 0.01,
+                    "({x}, {y}) unmoved: {from}, {truth}"
+                );
+            }
+        }
+    }
+    assert!(checked >= 30, "{checked} pixels");
+    // The kernel, with the motion search finding the move, does the same.
+    let p = push(w, h, TEMPORAL_MOTION);
+    let (_, want, _) = twin_frame(&p, &f, &prev);
+    for prec in precisions() {
+        let g = gpu_frame(&p, &f, &prev, prec);
+        for y in 1..h - 2 {
+            for x in 1..w - 3 {
+                let i = y * w + x;
+                let (tx, ty) = at(i);
+                let truth = ramp(tx, ty) as f32;
+                assert!(
+                    (g[1][i] - want[0][i]).abs() < 1e-5 && (g[1][i] - truth).abs() < 1e-5,
+                    "{prec:?} ({x}, {y}): {} against the twin's {} and the ramp's {truth}",
+                    g[1][i],
+                    want[0][i]
+                );
+            }
+        }
+    }
+}

@@ -16,7 +16,7 @@
 
 // mcdenoise::shared: TEMPORAL_RESET, TEMPORAL_NO_SEARCH, TEMPORAL_MOTION,
 // TEMPORAL_SEARCH, TEMPORAL_RESET_REL, TEMPORAL_DEPTH_FLOOR,
-// TEMPORAL_RESET_NOISE.
+// TEMPORAL_RESET_NOISE, TEMPORAL_SUBPIXEL_GATE, TEMPORAL_SUBPIXEL_REACH.
 #define TEMPORAL_RESET 1u
 #define TEMPORAL_NO_SEARCH 2u
 #define TEMPORAL_MOTION 4u
@@ -24,6 +24,8 @@
 #define RESET_REL 0.01
 #define DEPTH_FLOOR 1e-3
 #define RESET_NOISE 18.0
+#define SUBPIXEL_GATE 4.0
+#define SUBPIXEL_REACH 0.5
 
 // What temporal_step did.
 #define STEP_PASS 0
@@ -62,6 +64,93 @@ real3 intercept_at(int jx, int jy, uint n, real3 fallback)
     }
     return real3(prev[j] + prev[n + j], prev[2 * n + j] + prev[3 * n + j],
                  prev[4 * n + j] + prev[5 * n + j]);
+}
+
+// TEMPORAL-SUBPIXEL: whether pixel k of the previous frame has a state on
+// the surface of the state at position wj (within `gate`, squared).
+bool near_state(ivec2 k, uint n, real3 wj, real gate)
+{
+    if (k.x < 0 || k.y < 0 || k.x >= int(push.width) || k.y >= int(push.height)) {
+        return false;
+    }
+    uint m = uint(k.y) * push.width + uint(k.x);
+    if (!valid_at(m, n)) {
+        return false;
+    }
+    real3 d = real3(prev[9 * n + m], prev[10 * n + m], prev[11 * n + m]) - wj;
+    return dot(d, d) <= gate;
+}
+
+real3 w_of(ivec2 k, uint n)
+{
+    uint m = uint(k.y) * push.width + uint(k.x);
+    return real3(prev[9 * n + m], prev[10 * n + m], prev[11 * n + m]);
+}
+
+// TEMPORAL-SUBPIXEL: the previous state's position derivative along one
+// axis at j (central where both neighbours are on j's surface, else the
+// one-sided difference); false where neither is.
+bool w_derivative(ivec2 j, ivec2 axis, uint n, real3 wj, real gate, out real3 dw)
+{
+    bool up = near_state(j + axis, n, wj, gate);
+    bool down = near_state(j - axis, n, wj, gate);
+    dw = real3(0);
+    if (up && down) {
+        dw = (w_of(j + axis, n) - w_of(j - axis, n)) * real(0.5);
+    } else if (up) {
+        dw = w_of(j + axis, n) - wj;
+    } else if (down) {
+        dw = wj - w_of(j - axis, n);
+    }
+    return up || down;
+}
+
+// TEMPORAL-SUBPIXEL: the state carried from pixel j resampled where the
+// surface point at position wi lies between pixels of the previous frame:
+// the offset d solving W(j + d) = wi to first order (least squares on the
+// previous positions' derivatives, clamped to SUBPIXEL_REACH), then the
+// shifted beta interpolated bilinearly between j and its neighbours
+// towards d, a neighbour not on j's surface (`gate`) reading j's. b holds
+// j's shifted beta on entry.
+void resample(ivec2 j, real3 wi, real gate, uint n, inout real2 b[3])
+{
+    real3 wj = w_of(j, n);
+    real3 ex, ey;
+    if (!w_derivative(j, ivec2(1, 0), n, wj, gate, ex)
+        || !w_derivative(j, ivec2(0, 1), n, wj, gate, ey)) {
+        return;
+    }
+    real a = dot(ex, ex), o = dot(ex, ey), c = dot(ey, ey);
+    real det = a * c - o * o;
+    if (!(det > real(1e-6) * a * c)) {
+        return;
+    }
+    real3 dw = wi - wj;
+    real rx = dot(ex, dw), ry = dot(ey, dw);
+    real dx = clamp((c * rx - o * ry) / det, -real(SUBPIXEL_REACH), real(SUBPIXEL_REACH));
+    real dy = clamp((a * ry - o * rx) / det, -real(SUBPIXEL_REACH), real(SUBPIXEL_REACH));
+    ivec2 s = ivec2(dx < real(0) ? -1 : 1, dy < real(0) ? -1 : 1);
+    real fx = abs(dx), fy = abs(dy);
+    ivec2 corner[3] = ivec2[3](j + ivec2(s.x, 0), j + ivec2(0, s.y), j + s);
+    real weight[3] = real[3](fx * (real(1) - fy), (real(1) - fx) * fy, fx * fy);
+    real2 acc[3];
+    real w0 = (real(1) - fx) * (real(1) - fy);
+    for (int ch = 0; ch < 3; ++ch) {
+        acc[ch] = w0 * b[ch];
+    }
+    for (int k = 0; k < 3; ++k) {
+        real2 cb[3];
+        if (near_state(corner[k], n, wj, gate)) {
+            real3 cp, cw;
+            load_shifted(uint(corner[k].y) * push.width + uint(corner[k].x), n, cb, cp, cw);
+        } else {
+            cb = b;
+        }
+        for (int ch = 0; ch < 3; ++ch) {
+            acc[ch] += weight[k] * cb[ch];
+        }
+    }
+    b = acc;
 }
 
 // The filter at pixel (x, y): STEP_PASS for an invalid pixel or a
@@ -154,6 +243,7 @@ int temporal_step(uint x, uint y, out real2 b[3], out real3 p, out int off)
                 real scale = push.error_scale > 0.0 ? real(push.error_scale) : real(1);
                 real3 mis = (gx * gx + gy * gy) / (real(12) * scale * ei + real3(1e-12));
                 p.x += max(mis.x, max(mis.y, mis.z));
+                resample(best_j, wi, real(SUBPIXEL_GATE) * limit, n, b);
             }
         }
     }

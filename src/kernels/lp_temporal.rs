@@ -45,10 +45,13 @@ pub const DECL: KernelDecl = temporal_decl!(
 
 /// Per pixel: the window's centre (4), per candidate of the 7×7 window the
 /// shift (5), the two distances (3 + 3 multiply-adds and subtractions, 12) and the cost (3);
-/// the update (about 20) and the stores.
+/// the update (about 20) and the stores; where the window moved,
+/// TEMPORAL-MISREG's gradient (about 20) and TEMPORAL-SUBPIXEL's
+/// resampling (the neighbours' distances 24, the derivatives and the
+/// offset 30, the interpolation 36), counted as if everywhere.
 pub const FLOPS_PER_PIXEL: f64 = {
     let side = (2 * TEMPORAL_SEARCH + 1) as f64;
-    4.0 + side * side * (5.0 + 12.0 + 3.0) + 20.0
+    4.0 + side * side * (5.0 + 12.0 + 3.0) + 20.0 + 20.0 + 90.0
 };
 
 /// What one frame of the filter reads: the spatial reconstruction, the

@@ -17,7 +17,8 @@ use super::temporal_motion::{motion, Motion};
 use crate::shared::{
     TemporalPush, TEMPORAL_DEPTH_FLOOR, TEMPORAL_MOTION, TEMPORAL_NO_SEARCH, TEMPORAL_P00,
     TEMPORAL_RESET, TEMPORAL_RESET_NOISE, TEMPORAL_RESET_REL, TEMPORAL_SEARCH,
-    TEMPORAL_SOURCE_NONE, TEMPORAL_SOURCE_RESET, TEMPORAL_STATE, TEMPORAL_VALID,
+    TEMPORAL_SOURCE_NONE, TEMPORAL_SOURCE_RESET, TEMPORAL_STATE, TEMPORAL_SUBPIXEL_GATE,
+    TEMPORAL_SUBPIXEL_REACH, TEMPORAL_VALID,
 };
 
 /// One pixel's temporal state (§10.1), origin at the frame it was last
@@ -215,6 +216,72 @@ fn misregistration(
         .fold(0.0f64, f64::max)
 }
 
+/// TEMPORAL-SUBPIXEL: the state `s` carried from pixel `j` resampled where
+/// the surface point at `wi` lies between the previous frame's pixels: the
+/// offset `d` solving `W(j + d) = wi` to first order (least squares on the
+/// previous states' position derivatives at `j`, central where both
+/// neighbours are on `j`'s surface — within `gate` of `W_j`, squared —
+/// else one-sided; unchanged where an axis has neither), each component
+/// clamped to [`TEMPORAL_SUBPIXEL_REACH`], then the shifted `β` interpolated bilinearly
+/// between `j` and its neighbours towards `d`, a neighbour not on `j`'s
+/// surface reading `j`'s.
+fn resample(
+    prev: &[f32],
+    (w, h): (usize, usize),
+    (jx, jy): (i32, i32),
+    wi: [f64; 3],
+    gate: f64,
+    s: &mut PixelState,
+) {
+    let n = w * h;
+    let near = |x: i32, y: i32| -> Option<PixelState> {
+        if x < 0 || y < 0 || x >= w as i32 || y >= h as i32 {
+            return None;
+        }
+        let c = load(prev, n, y as usize * w + x as usize)?;
+        let d2: f64 = (0..3).map(|k| (c.w[k] - s.w[k]).powi(2)).sum();
+        (d2 <= gate).then(|| c.shifted())
+    };
+    let derivative = |ax: i32, ay: i32| -> Option<[f64; 3]> {
+        let (up, down) = (near(jx + ax, jy + ay), near(jx - ax, jy - ay));
+        match (up, down) {
+            (Some(u), Some(d)) => Some(std::array::from_fn(|k| (u.w[k] - d.w[k]) * 0.5)),
+            (Some(u), None) => Some(std::array::from_fn(|k| u.w[k] - s.w[k])),
+            (None, Some(d)) => Some(std::array::from_fn(|k| s.w[k] - d.w[k])),
+            (None, None) => None,
+        }
+    };
+    let (Some(ex), Some(ey)) = (derivative(1, 0), derivative(0, 1)) else {
+        return;
+    };
+    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let (a, o, c) = (dot(ex, ex), dot(ex, ey), dot(ey, ey));
+    let det = a * c - o * o;
+    // Also where a derivative is not finite (NaN compares false).
+    if det.partial_cmp(&(1e-6 * a * c)) != Some(std::cmp::Ordering::Greater) {
+        return;
+    }
+    let dw = std::array::from_fn(|k| wi[k] - s.w[k]);
+    let (rx, ry) = (dot(ex, dw), dot(ey, dw));
+    let dx = ((c * rx - o * ry) / det).clamp(-TEMPORAL_SUBPIXEL_REACH, TEMPORAL_SUBPIXEL_REACH);
+    let dy = ((a * ry - o * rx) / det).clamp(-TEMPORAL_SUBPIXEL_REACH, TEMPORAL_SUBPIXEL_REACH);
+    let (sx, sy) = (if dx < 0.0 { -1 } else { 1 }, if dy < 0.0 { -1 } else { 1 });
+    let (fx, fy) = (dx.abs(), dy.abs());
+    let mut beta = s.beta.map(|b| b.map(|v| v * (1.0 - fx) * (1.0 - fy)));
+    for ((cx, cy), wk) in [
+        ((jx + sx, jy), fx * (1.0 - fy)),
+        ((jx, jy + sy), (1.0 - fx) * fy),
+        ((jx + sx, jy + sy), fx * fy),
+    ] {
+        let cb = near(cx, cy).map_or(s.beta, |c| c.beta);
+        for (acc, b) in beta.iter_mut().zip(cb) {
+            acc[0] += wk * b[0];
+            acc[1] += wk * b[1];
+        }
+    }
+    s.beta = beta;
+}
+
 /// What the filter does at one pixel of a frame.
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub enum Step {
@@ -268,6 +335,7 @@ pub fn step(
                 };
                 let ei = inp.error.map(|e| scale * e[i].max(0.0) as f64);
                 s.p[0] += misregistration(prev, (w, h), j, s.predict(), ei);
+                resample(prev, (w, h), j, wi, TEMPORAL_SUBPIXEL_GATE * limit, &mut s);
             }
             (s, (dx, dy))
         })
