@@ -1344,6 +1344,31 @@ fn motion_follows_a_pan_beyond_the_window() {
     check_validation(&ctx);
 }
 
+/// A frame of the plane z = 0 at 0.01 per pixel: pixel `i` sees the
+/// point `at(i)` (in pixels of the previous frame), grey `colour(i)`,
+/// noiseless positions, error 0.01, depth 1, 16 spp.
+fn on_a_plane(
+    (w, h): (usize, usize),
+    colour: impl Fn(usize) -> f64,
+    at: impl Fn(usize) -> (f64, f64),
+) -> Synthetic {
+    let n = w * h;
+    Synthetic {
+        w,
+        h,
+        color: std::array::from_fn(|_| (0..n).map(|i| colour(i) as f32).collect()),
+        position: [
+            (0..n).map(|i| (0.01 * at(i).0) as f32).collect(),
+            (0..n).map(|i| (0.01 * at(i).1) as f32).collect(),
+            vec![0.0; n],
+        ],
+        variance: std::array::from_fn(|_| vec![0.0; n]),
+        error: std::array::from_fn(|_| vec![0.01; n]),
+        depth: vec![1.0; n],
+        spp: vec![16.0; n],
+    }
+}
+
 /// TEMPORAL-MISREG: where the surface moved on screen, a state carried from
 /// another pixel counts for less where the previous frame's picture
 /// changes fast around it. A long
@@ -1367,25 +1392,12 @@ fn a_state_from_another_pixel_weighs_less_across_an_edge() {
             twin::store(&mut prev, n, y * w + x, Some(&s));
         }
     }
-    let f = Synthetic {
-        w,
-        h,
-        // Each pixel sees what its right neighbour saw.
-        color: std::array::from_fn(|_| {
-            (0..n)
-                .map(|i| level((i % w + 1).min(w - 1)) as f32)
-                .collect()
-        }),
-        position: [
-            (0..n).map(|i| 0.01 * (i % w + 1) as f32).collect(),
-            (0..n).map(|i| 0.01 * (i / w) as f32).collect(),
-            vec![0.0; n],
-        ],
-        variance: std::array::from_fn(|_| vec![0.0; n]),
-        error: std::array::from_fn(|_| vec![0.01; n]),
-        depth: vec![1.0; n],
-        spp: vec![16.0; n],
-    };
+    // Each pixel sees what its right neighbour saw.
+    let f = on_a_plane(
+        (w, h),
+        |i| level((i % w + 1).min(w - 1)),
+        |i| ((i % w + 1) as f64, (i / w) as f64),
+    );
     let p = push(w, h, 0);
     // The motion search's offset (1, 0), or none (the window on the pixel).
     let p00 =
@@ -1432,27 +1444,7 @@ fn a_state_between_pixels_is_resampled_where_the_surface_moved() {
     }
     let (sx, sy) = (1.4, 0.3);
     let at = |i: usize| ((i % w) as f64 + sx, (i / w) as f64 + sy);
-    let f = Synthetic {
-        w,
-        h,
-        color: std::array::from_fn(|_| {
-            (0..n)
-                .map(|i| {
-                    let (x, y) = at(i);
-                    ramp(x, y) as f32
-                })
-                .collect()
-        }),
-        position: [
-            (0..n).map(|i| (0.01 * at(i).0) as f32).collect(),
-            (0..n).map(|i| (0.01 * at(i).1) as f32).collect(),
-            vec![0.0; n],
-        ],
-        variance: std::array::from_fn(|_| vec![0.0; n]),
-        error: std::array::from_fn(|_| vec![0.01; n]),
-        depth: vec![1.0; n],
-        spp: vec![16.0; n],
-    };
+    let f = on_a_plane((w, h), |i| ramp(at(i).0, at(i).1), at);
     let p = push(w, h, 0);
     let mut checked = 0;
     for y in 1..h - 2 {
