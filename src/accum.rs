@@ -41,7 +41,11 @@ pub struct AccumLayout {
     /// covariance the G-buffer prefilter reads (at |p| ≈ 1000 and 64 spp the
     /// rounding of Σp² is larger than the variance of a pixel's footprint).
     /// A miss's position is 0 as without an origin (`−origin` relative to it).
-    /// Default 0.
+    /// Default 0. A denoiser finalises every call with the origin of the
+    /// layout it was made with: keep one origin for all the frames a
+    /// temporal denoiser filters (the built-in renderer uses the first
+    /// frame's lens centre for a whole sequence), or their positions, and
+    /// so the reprojection, move with it.
     pub position_origin: [f32; 3],
 }
 

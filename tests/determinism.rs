@@ -76,6 +76,40 @@ fn every_method_is_bit_identical_run_after_run() {
     check_validation(&gpu());
 }
 
+/// `img` mirrored left to right, every layer alike: another image of the
+/// same size and kind.
+fn mirrored(img: &StatsImage) -> StatsImage {
+    let (w, h) = (img.width, img.height);
+    let mut out = StatsImage::new(w, h);
+    for (layer, planes) in img.layers() {
+        let flipped = planes
+            .iter()
+            .map(|p| (0..w * h).map(|i| p[i - i % w + (w - 1 - i % w)]).collect())
+            .collect();
+        out.set(layer, flipped);
+    }
+    out
+}
+
+/// A denoiser that has denoised one image gives the next exactly what a
+/// new one gives it: nothing of a call outlives it without the temporal
+/// stage.
+#[test]
+fn a_reused_denoiser_forgets_the_previous_image() {
+    let img = fixture();
+    let other = mirrored(&img);
+    for &(method, on_gpu) in &methods() {
+        let a = make(&img, method, on_gpu);
+        a.denoise(&img, Some(10_000)).unwrap();
+        let second = a.denoise(&other, Some(10_000)).unwrap();
+        let fresh = make(&other, method, on_gpu)
+            .denoise(&other, Some(10_000))
+            .unwrap();
+        same_frame(&fresh, &second, method);
+    }
+    check_validation(&gpu());
+}
+
 #[test]
 fn every_method_runs_on_edge_sizes() {
     let img = fixture();

@@ -495,9 +495,22 @@ impl Renderer {
         Ok(r)
     }
 
-    /// The accumulation layout: position and visibility included.
+    /// The accumulation layout: position and visibility included, the
+    /// positions relative to the lens centre unless
+    /// [`with_position_origin`](Self::with_position_origin) chose another
+    /// point.
     pub fn layout(&self) -> AccumLayout {
         self.layout
+    }
+
+    /// The same renderer with positions accumulated relative to `origin`
+    /// ([`AccumLayout::position_origin`]) instead of the lens centre: the
+    /// frames of a sequence share one, since a denoiser finalises every
+    /// frame with the layout it was made for. Panics if `origin` is not
+    /// finite.
+    pub fn with_position_origin(mut self, origin: [f32; 3]) -> Renderer {
+        self.layout = self.layout.with_position_origin(origin);
+        self
     }
 
     /// The accumulation buffer, as [`Denoiser::record`](crate::Denoiser::record) reads it.
@@ -634,8 +647,7 @@ impl Renderer {
             group(2),
             group(3),
         ];
-        // P.cam_pos of the scene parameters: the positions' origin.
-        let origin = self.scene.params.cam_pos;
+        let origin = l.position_origin;
         let mut item0 = 0u32;
         while item0 < total {
             let items = (total - item0).min(self.window);

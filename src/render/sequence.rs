@@ -80,10 +80,16 @@ pub fn render_frames(
     let mut window: Option<SequenceDenoiser> = None;
     let mut smoother: Option<(Smoother, StatsSpill)> = None;
     let mut waiting: VecDeque<SequenceFrame> = VecDeque::new();
+    // The first frame's lens centre is every frame's position origin: the
+    // final denoiser finalises each frame with the layout it was made for,
+    // and its temporal stage compares positions across frames.
+    let mut origin: Option<[f32; 3]> = None;
     for number in frames {
         let at = scene.at_frame(number)?;
         let seed = frame_seed(seed, number);
         let renderer = Renderer::new(ctx, &at, width, height, seed)?;
+        let own = renderer.layout().position_origin;
+        let renderer = renderer.with_position_origin(*origin.get_or_insert(own));
         if temporal == Temporal::Apr {
             let result = adaptive::render_passes(ctx, &renderer, cfg, stop, |_| {})?;
             let stats = renderer.statistics()?;
