@@ -128,7 +128,9 @@ typedef struct McdAccumLayout {
   uint32_t position;
   // Non-zero if visibility is accumulated (`MCDENOISE_ACCUM_VISIBILITY`).
   uint32_t visibility;
-  // The point positions are accumulated relative to (finite).
+  // The point positions are accumulated relative to (finite). A
+  // denoiser finalises every frame with the origin it was made with:
+  // keep one for all the frames a temporal denoiser filters.
   float position_origin[3];
 } McdAccumLayout;
 

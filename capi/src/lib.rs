@@ -95,7 +95,9 @@ pub struct McdAccumLayout {
     pub position: u32,
     /// Non-zero if visibility is accumulated (`MCDENOISE_ACCUM_VISIBILITY`).
     pub visibility: u32,
-    /// The point positions are accumulated relative to (finite).
+    /// The point positions are accumulated relative to (finite). A
+    /// denoiser finalises every frame with the origin it was made with:
+    /// keep one for all the frames a temporal denoiser filters.
     pub position_origin: [f32; 3],
 }
 
