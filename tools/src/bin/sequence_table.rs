@@ -20,7 +20,7 @@
 //! (forwards, and both ways: "adaptive + two-way, TEMPORAL-MAP"; and
 //! APR's also reconstructed by its temporal window, "adaptive + 10.2").
 //! Every method runs without the pyramid's low band (`auto` too, whose
-//! default has it); with `--pyramid`, each method also with it (and,
+//! default has it: its rows say "without pyramid"); with `--pyramid`, each method also with it (and,
 //! with `--temporal`, followed by the filter). With `--window` (and `apr`
 //! among the methods), also APR's temporal window (§10.2, "apr + 10.2",
 //! one `SequenceDenoiser` for the sequence).
@@ -201,10 +201,12 @@ fn main() -> anyhow::Result<()> {
                 if pyramid && !a.pyramid {
                     continue;
                 }
-                let name = if pyramid {
-                    format!("{} + pyramid", m.name())
-                } else {
-                    m.name().to_string()
+                // A method whose default has the pyramid (`auto`) says
+                // so where it runs without.
+                let name = match (pyramid, m.info().pyramid_auto) {
+                    (true, _) => format!("{} + pyramid", m.name()),
+                    (false, true) => format!("{} without pyramid", m.name()),
+                    (false, false) => m.name().to_string(),
                 };
                 let config = |temporal: Temporal| {
                     let mut c = Config::new(m);
