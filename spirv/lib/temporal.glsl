@@ -66,25 +66,28 @@ real3 intercept_at(int jx, int jy, uint n, real3 fallback)
                  prev[4 * n + j] + prev[5 * n + j]);
 }
 
-// TEMPORAL-SUBPIXEL: whether pixel k of the previous frame has a state on
-// the surface of the state at position wj (within `gate`, squared).
-bool near_state(ivec2 k, uint n, real3 wj, real gate)
-{
-    if (k.x < 0 || k.y < 0 || k.x >= int(push.width) || k.y >= int(push.height)) {
-        return false;
-    }
-    uint m = uint(k.y) * push.width + uint(k.x);
-    if (!valid_at(m, n)) {
-        return false;
-    }
-    real3 d = real3(prev[9 * n + m], prev[10 * n + m], prev[11 * n + m]) - wj;
-    return dot(d, d) <= gate;
-}
-
+// The position W of pixel k's previous state.
 real3 w_of(ivec2 k, uint n)
 {
     uint m = uint(k.y) * push.width + uint(k.x);
     return real3(prev[9 * n + m], prev[10 * n + m], prev[11 * n + m]);
+}
+
+// TEMPORAL-SUBPIXEL: whether pixel k of the previous frame has a state on
+// the surface of the state at position wj (within `gate`, squared); w is
+// its position where it has a state.
+bool near_state(ivec2 k, uint n, real3 wj, real gate, out real3 w)
+{
+    w = real3(0);
+    if (k.x < 0 || k.y < 0 || k.x >= int(push.width) || k.y >= int(push.height)) {
+        return false;
+    }
+    if (!valid_at(uint(k.y) * push.width + uint(k.x), n)) {
+        return false;
+    }
+    w = w_of(k, n);
+    real3 d = w - wj;
+    return dot(d, d) <= gate;
 }
 
 // TEMPORAL-SUBPIXEL: the previous state's position derivative along one
@@ -92,15 +95,16 @@ real3 w_of(ivec2 k, uint n)
 // one-sided difference); false where neither is.
 bool w_derivative(ivec2 j, ivec2 axis, uint n, real3 wj, real gate, out real3 dw)
 {
-    bool up = near_state(j + axis, n, wj, gate);
-    bool down = near_state(j - axis, n, wj, gate);
+    real3 wu, wd;
+    bool up = near_state(j + axis, n, wj, gate, wu);
+    bool down = near_state(j - axis, n, wj, gate, wd);
     dw = real3(0);
     if (up && down) {
-        dw = (w_of(j + axis, n) - w_of(j - axis, n)) * real(0.5);
+        dw = (wu - wd) * real(0.5);
     } else if (up) {
-        dw = w_of(j + axis, n) - wj;
+        dw = wu - wj;
     } else if (down) {
-        dw = wj - w_of(j - axis, n);
+        dw = wj - wd;
     }
     return up || down;
 }
@@ -140,8 +144,9 @@ void resample(ivec2 j, real3 wi, real gate, uint n, inout real2 b[3])
     }
     for (int k = 0; k < 3; ++k) {
         real2 cb[3];
-        if (near_state(corner[k], n, wj, gate)) {
-            real3 cp, cw;
+        real3 cw;
+        if (near_state(corner[k], n, wj, gate, cw)) {
+            real3 cp;
             load_shifted(uint(corner[k].y) * push.width + uint(corner[k].x), n, cb, cp, cw);
         } else {
             cb = b;

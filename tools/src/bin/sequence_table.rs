@@ -20,8 +20,9 @@
 //! (forwards, and both ways: "adaptive + two-way, TEMPORAL-MAP"; and
 //! APR's also reconstructed by its temporal window, "adaptive + 10.2").
 //! Every method runs without the pyramid's low band (`auto` too, whose
-//! default has it: its rows say "without pyramid"); with `--pyramid`, each method also with it (and,
-//! with `--temporal`, followed by the filter). With `--window` (and `apr`
+//! default has it: its rows say "without pyramid"); with `--pyramid`,
+//! each method also with it (and, with `--temporal`, followed by the
+//! filter). With `--window` (and `apr`
 //! among the methods), also APR's temporal window (§10.2, "apr + 10.2",
 //! one `SequenceDenoiser` for the sequence).
 //!
