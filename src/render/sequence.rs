@@ -80,16 +80,15 @@ pub fn render_frames(
     let mut window: Option<SequenceDenoiser> = None;
     let mut smoother: Option<(Smoother, StatsSpill)> = None;
     let mut waiting: VecDeque<SequenceFrame> = VecDeque::new();
-    // The first frame's lens centre is every frame's position origin: the
-    // final denoiser finalises each frame with the layout it was made for,
-    // and its temporal stage compares positions across frames.
-    let mut origin: Option<[f32; 3]> = None;
+    // The lens centre of the scene's frame 0 is every frame's position
+    // origin: the final denoiser finalises each frame with the layout it
+    // was made for, its temporal stage compares positions across frames,
+    // and a frame's statistics do not depend on where the range starts.
+    let origin = scene.at_frame(0)?.camera.position;
     for number in frames {
         let at = scene.at_frame(number)?;
         let seed = frame_seed(seed, number);
-        let renderer = Renderer::new(ctx, &at, width, height, seed)?;
-        let own = renderer.layout().position_origin;
-        let renderer = renderer.with_position_origin(*origin.get_or_insert(own));
+        let renderer = Renderer::new(ctx, &at, width, height, seed)?.with_position_origin(origin);
         if temporal == Temporal::Apr {
             let result = adaptive::render_passes(ctx, &renderer, cfg, stop, |_| {})?;
             let stats = renderer.statistics()?;
