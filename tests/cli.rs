@@ -205,6 +205,149 @@ fn denoise_none_gpu_and_cpu_agree_and_inputs_are_protected() {
 }
 
 #[test]
+fn outputs_never_replace_inputs_or_each_other() {
+    let tmp = tmpdir("outputs");
+    let dir = tmp.path();
+    let input = dir.join("in.exr");
+    let reference = dir.join("ref.exr");
+    std::fs::copy(fixture("dof_checker_64_spp16.exr"), &input).unwrap();
+    std::fs::copy(fixture("dof_checker_64_ref.exr"), &reference).unwrap();
+    let kept = |p: &Path, what: &str| {
+        let name = p.file_name().unwrap().to_str().unwrap();
+        let original = fixture(if name == "in.exr" {
+            "dof_checker_64_spp16.exr"
+        } else {
+            "dof_checker_64_ref.exr"
+        });
+        assert_eq!(
+            std::fs::read(p).unwrap(),
+            std::fs::read(original).unwrap(),
+            "{what} changed {name}"
+        );
+    };
+    let refused = |args: &[&std::ffi::OsStr], what: &str, message: &str| {
+        let (code, _, err) = run(bin().args(args));
+        assert_eq!(code, 2, "{what}: {err}");
+        assert!(err.contains(message), "{what}: {err}");
+    };
+    let os = |s: &str| std::ffi::OsStr::new(s).to_owned();
+    let (i, r) = (input.as_os_str(), reference.as_os_str());
+    // compare's heat map on its image or reference.
+    for target in [i, r] {
+        refused(
+            &[&os("compare"), i, r, &os("--heatmap"), target],
+            "compare --heatmap",
+            "refusing to overwrite an input file",
+        );
+    }
+    // A gate that can never fail is refused.
+    refused(
+        &[&os("compare"), i, r, &os("--max-error"), &os("nan")],
+        "compare --max-error nan",
+        "finite",
+    );
+    // Two outputs on one file.
+    let same = dir.join("same.exr");
+    refused(
+        &[
+            &os("denoise"),
+            i,
+            &os("-o"),
+            same.as_os_str(),
+            &os("--sample-map"),
+            same.as_os_str(),
+            &os("--budget"),
+            &os("1000"),
+        ],
+        "denoise -o X --sample-map X",
+        "named for two outputs",
+    );
+    refused(
+        &[
+            &os("render"),
+            &os("--scene"),
+            &os("cornell"),
+            &os("--size"),
+            &os("16x16"),
+            &os("--spp"),
+            &os("4"),
+            &os("-o"),
+            same.as_os_str(),
+            &os("--save-stats"),
+            dir.join(".").join("same.exr").as_os_str(),
+        ],
+        "render -o X --save-stats X",
+        "named for two outputs",
+    );
+    assert!(!same.exists());
+    // bench's quality folder holds inputs.
+    let q = dir.join("q").join("scene");
+    std::fs::create_dir_all(&q).unwrap();
+    std::fs::copy(&input, q.join("spp16.exr")).unwrap();
+    std::fs::copy(&reference, q.join("reference.exr")).unwrap();
+    refused(
+        &[
+            &os("bench"),
+            &os("--quality"),
+            dir.join("q").as_os_str(),
+            &os("--methods"),
+            &os("none"),
+            &os("--markdown"),
+            q.join("reference.exr").as_os_str(),
+        ],
+        "bench --markdown into --quality",
+        "refusing to overwrite a file of the --quality folder",
+    );
+    kept(&q.join("reference.exr"), "bench --markdown");
+    // A pipeline cache path that names a statistics file: the file is not
+    // a cache, so the run goes on without one and leaves the file alone.
+    let out = dir.join("out.exr");
+    let (code, _, err) = run(bin()
+        .arg("--pipeline-cache")
+        .arg(&input)
+        .arg("denoise")
+        .arg(&input)
+        .arg("-o")
+        .arg(&out)
+        .args(["--method", "none"]));
+    assert_eq!(code, 0, "{err}");
+    assert!(out.exists());
+    kept(&input, "--pipeline-cache");
+    kept(&reference, "compare");
+    // Frame options that would fail every frame are refused before the first.
+    let frames = dir.join("f");
+    std::fs::create_dir_all(&frames).unwrap();
+    std::fs::copy(&input, frames.join("f_0000.exr")).unwrap();
+    let (code, _, err) = run(bin()
+        .arg("denoise")
+        .arg("--frames")
+        .arg(frames.join("f_####.exr"))
+        .arg("-o")
+        .arg(dir.join("o_####.exr"))
+        .args(["--temporal", "apr"]));
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("runs with --method apr"), "{err}");
+    assert!(!dir.join("o_0000.exr").exists());
+}
+
+#[test]
+fn a_file_without_samples_is_refused() {
+    let tmp = tmpdir("nosamples");
+    let dir = tmp.path();
+    let mut img = mcdenoise::io::read_stats(&fixture("dof_checker_64_spp16.exr")).unwrap();
+    for v in img.get_mut(mcdenoise::Layer::Spp).unwrap()[0].iter_mut() {
+        *v = 0.0;
+    }
+    let empty = dir.join("empty.exr");
+    mcdenoise::io::write_stats(&empty, &img).unwrap();
+    let out = dir.join("out.exr");
+    let (code, _, err) = run(bin().arg("denoise").arg(&empty).arg("-o").arg(&out));
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("no pixel has a sample"), "{err}");
+    assert!(!out.exists());
+}
+
+#[test]
 fn denoise_lp_writes_error_and_debug_layers() {
     let input = fixture("dof_checker_64_spp16.exr");
     let reference = fixture("dof_checker_64_ref.exr");

@@ -1,7 +1,7 @@
 //! The on-disk pipeline cache (`GpuContext::use_pipeline_cache`): written
 //! back with the device's header after pipelines were built, loaded by the
-//! next context, and ignored (not fatal) when it belongs to another device
-//! or is garbage.
+//! next context, ignored when it belongs to another device, and refused
+//! (never written over) when the file is not a pipeline cache.
 
 mod common;
 
@@ -57,16 +57,34 @@ fn pipeline_cache_round_trips_and_rejects_foreign_data() {
     common::check_validation(&ctx);
     drop(ctx);
 
-    // Another device's data (a changed UUID) and garbage start empty.
+    // Another device's data (a changed UUID) starts empty.
     let mut foreign = saved.clone();
     foreign[16] ^= 0xff;
-    for (name, bytes) in [("foreign", foreign), ("garbage", b"not a cache".to_vec())] {
-        let p = dir.join(format!("{name}.bin"));
+    let p = dir.join("foreign.bin");
+    std::fs::write(&p, &foreign).unwrap();
+    let ctx = common::own_gpu();
+    assert_eq!(ctx.use_pipeline_cache(&p).unwrap(), 0);
+    build_some_pipelines(&ctx);
+    common::check_validation(&ctx);
+    drop(ctx);
+
+    // A file that is no pipeline cache (a mistyped path naming someone's
+    // data) is refused and never written over.
+    let mut not_cache = b"not a cache".to_vec();
+    not_cache.resize(64, b'.');
+    for (name, bytes) in [("short", b"x".to_vec()), ("text", not_cache)] {
+        let p = dir.join(format!("{name}.exr"));
         std::fs::write(&p, &bytes).unwrap();
         let ctx = common::own_gpu();
-        assert_eq!(ctx.use_pipeline_cache(&p).unwrap(), 0, "{name}");
+        let err = ctx.use_pipeline_cache(&p).unwrap_err().to_string();
+        assert!(
+            err.contains("is not a Vulkan pipeline cache"),
+            "{name}: {err}"
+        );
         build_some_pipelines(&ctx);
         common::check_validation(&ctx);
+        drop(ctx);
+        assert_eq!(std::fs::read(&p).unwrap(), bytes, "{name}");
     }
 
     // A context without a cache saves nothing.

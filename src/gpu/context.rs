@@ -1012,7 +1012,9 @@ impl GpuContext {
     /// A driver that keeps compiled pipelines in its cache then skips the
     /// compilation in the next process. Returns the bytes loaded (0: an
     /// empty cache). An error if the context already has a cache, or if
-    /// `path` exists but cannot be read.
+    /// `path` exists but cannot be read or is not a pipeline cache (a
+    /// header of version one): a file of anything else is never written
+    /// over.
     pub fn use_pipeline_cache(&self, path: &std::path::Path) -> Result<usize> {
         let mut slot = self.disk_cache.lock().unwrap_or_else(|e| e.into_inner());
         if let Some(c) = slot.as_ref() {
@@ -1033,6 +1035,12 @@ impl GpuContext {
         };
         // SAFETY: a valid physical device of this instance.
         let props = unsafe { self.instance.get_physical_device_properties(self.physical) };
+        if !data.is_empty() && !super::pipeline::is_pipeline_cache(&data) {
+            return Err(Error::InvalidArgument(format!(
+                "{} is not a Vulkan pipeline cache: refusing to use it (the cache would be written over it)",
+                path.display()
+            )));
+        }
         let data = if super::pipeline::cache_matches(&data, &props) {
             data
         } else {

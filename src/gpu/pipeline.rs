@@ -321,19 +321,26 @@ pub(crate) struct DiskCache {
 /// (`VkPipelineCacheHeaderVersionOne`).
 const CACHE_HEADER_BYTES: usize = 32;
 
-/// Whether `data` is a pipeline cache of this device: header version one,
-/// the device's vendor and device IDs and its `pipelineCacheUUID`. Data of
-/// another device or driver is not handed to the driver (the spec lets it
-/// ignore such data, but not every driver checks it carefully).
-pub(crate) fn cache_matches(data: &[u8], props: &vk::PhysicalDeviceProperties) -> bool {
+/// Whether `data` starts as a Vulkan pipeline cache of any device: a
+/// header of version one (`VkPipelineCacheHeaderVersionOne`) whose length
+/// fits the data.
+pub(crate) fn is_pipeline_cache(data: &[u8]) -> bool {
     if data.len() < CACHE_HEADER_BYTES {
         return false;
     }
     let word = |i: usize| u32::from_le_bytes(data[4 * i..4 * i + 4].try_into().unwrap());
     let header_len = word(0) as usize;
-    header_len >= CACHE_HEADER_BYTES
-        && header_len <= data.len()
+    (CACHE_HEADER_BYTES..=data.len()).contains(&header_len)
         && word(1) == vk::PipelineCacheHeaderVersion::ONE.as_raw() as u32
+}
+
+/// Whether `data` is a pipeline cache of this device: header version one,
+/// the device's vendor and device IDs and its `pipelineCacheUUID`. Data of
+/// another device or driver is not handed to the driver (the spec lets it
+/// ignore such data, but not every driver checks it carefully).
+pub(crate) fn cache_matches(data: &[u8], props: &vk::PhysicalDeviceProperties) -> bool {
+    let word = |i: usize| u32::from_le_bytes(data[4 * i..4 * i + 4].try_into().unwrap());
+    is_pipeline_cache(data)
         && word(2) == props.vendor_id
         && word(3) == props.device_id
         && data[16..32] == props.pipeline_cache_uuid

@@ -2,13 +2,14 @@
 //! checks and metric printing.
 
 use std::io::IsTerminal;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, OnceLock};
 use std::time::Duration;
 
 use mcdenoise::{
-    io, metrics, ContextOptions, Denoiser, GpuContext, PrepareReport, RgbImage, Validation,
+    io, metrics, ContextOptions, Denoiser, GpuContext, Layer, PrepareReport, RgbImage, StatsImage,
+    Validation,
 };
 
 use crate::Cli;
@@ -115,17 +116,54 @@ pub fn same_file(a: &Path, b: &Path) -> bool {
     }
 }
 
-/// Refuses any of `outputs` that is one of `inputs`.
+/// Where `p` would be written, to tell two outputs apart: the file when it
+/// exists, else its folder's canonical path joined with its name (the path
+/// as given when the folder does not exist either).
+fn output_key(p: &Path) -> PathBuf {
+    if let Ok(c) = p.canonicalize() {
+        return c;
+    }
+    let dir = p
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    match (dir.canonicalize(), p.file_name()) {
+        (Ok(d), Some(name)) => d.join(name),
+        _ => p.to_path_buf(),
+    }
+}
+
+/// Refuses any of `outputs` that is one of `inputs`, and two outputs that
+/// name the same file (or the same frame pattern): one would silently
+/// replace the other.
 pub fn refuse_overwrite<'a>(
     outputs: impl IntoIterator<Item = &'a Path>,
     inputs: &[&Path],
 ) -> anyhow::Result<()> {
-    for out in outputs {
+    let outputs: Vec<&Path> = outputs.into_iter().collect();
+    for (k, out) in outputs.iter().enumerate() {
         if inputs.iter().any(|i| same_file(out, i)) {
             anyhow::bail!("{}: refusing to overwrite an input file", out.display());
         }
+        let key = output_key(out);
+        if outputs[..k].iter().any(|o| output_key(o) == key) {
+            anyhow::bail!(
+                "{}: named for two outputs; give each output its own file",
+                out.display()
+            );
+        }
     }
     Ok(())
+}
+
+/// clap's parser of `--max-error`: a finite number ≥ 0 (NaN would never
+/// fail a check).
+pub fn parse_max_error(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(v) if v.is_finite() && v >= 0.0 => Ok(v),
+        Ok(_) => Err("must be a finite number of at least 0".into()),
+        Err(e) => Err(e.to_string()),
+    }
 }
 
 /// `Ok(false)` (exit status 1) when `rmse` exceeds `max`.
@@ -144,6 +182,23 @@ pub fn print_metrics(m: &metrics::Metrics) {
     println!("relMSE  {:.5}", m.relmse);
     println!("PSNR    {:.2} dB", m.psnr);
     println!("SSIM    {:.4}", m.ssim);
+}
+
+/// A statistics file to denoise: [`io::read_stats`], refusing one in
+/// which no pixel has a sample (every `spp` below 1), whose output could
+/// only be black.
+pub fn read_stats(path: &Path) -> anyhow::Result<StatsImage> {
+    let img = io::read_stats(path)?;
+    let spp = img.get(Layer::Spp).map(|p| &p[0]);
+    if spp
+        .is_some_and(|s| !s.is_empty() && s.iter().all(|&v| mcdenoise::reference::spp_of(v) < 1.0))
+    {
+        anyhow::bail!(
+            "{}: no pixel has a sample (spp < 1 everywhere): nothing to denoise",
+            path.display()
+        );
+    }
+    Ok(img)
 }
 
 /// The colour of `path`: a render-statistics file or a plain RGB image.

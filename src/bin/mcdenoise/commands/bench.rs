@@ -136,14 +136,28 @@ pub fn run(cli: &Cli, a: &Args) -> anyhow::Result<bool> {
         pyramid: a.pyramid.get(),
         input_blend: a.input_blend.get(),
     };
-    if let Some(input) = &a.input {
-        refuse_overwrite(
-            [&a.json, &a.markdown]
-                .into_iter()
-                .flatten()
-                .map(PathBuf::as_path),
-            &[input],
-        )?;
+    let outputs = || {
+        [&a.json, &a.markdown]
+            .into_iter()
+            .flatten()
+            .map(PathBuf::as_path)
+    };
+    refuse_overwrite(
+        outputs(),
+        &a.input.iter().map(PathBuf::as_path).collect::<Vec<_>>(),
+    )?;
+    if let Some(dir) = &a.quality {
+        // Every file of the quality folder may be an input.
+        if let Ok(dir) = dir.canonicalize() {
+            for out in outputs() {
+                if out.canonicalize().is_ok_and(|o| o.starts_with(&dir)) {
+                    bail!(
+                        "{}: refusing to overwrite a file of the --quality folder",
+                        out.display()
+                    );
+                }
+            }
+        }
     }
     let ctx = if backends.contains(&Backend::Gpu) {
         Some(context(cli)?)

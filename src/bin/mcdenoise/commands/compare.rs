@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use anyhow::Context;
 use mcdenoise::{io, metrics};
 
-use crate::common::{check_error, print_metrics, read_colour};
+use crate::common::{check_error, print_metrics, read_colour, refuse_overwrite};
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -15,11 +15,15 @@ pub struct Args {
     #[arg(long)]
     heatmap: Option<PathBuf>,
     /// Exit with status 1 if rMSE exceeds this.
-    #[arg(long)]
+    #[arg(long, value_parser = crate::common::parse_max_error)]
     max_error: Option<f64>,
 }
 
 pub fn run(a: &Args) -> anyhow::Result<bool> {
+    refuse_overwrite(
+        a.heatmap.as_deref(),
+        &[a.image.as_path(), a.reference.as_path()],
+    )?;
     let x = read_colour(&a.image)?;
     let r = read_colour(&a.reference)?;
     let m = metrics::compare(&x, &r)

@@ -99,7 +99,7 @@ pub struct Args {
     #[arg(long = "ref")]
     reference: Option<PathBuf>,
     /// With --ref: exit with status 1 if rMSE exceeds this.
-    #[arg(long, requires = "reference")]
+    #[arg(long, value_parser = crate::common::parse_max_error, requires = "reference")]
     max_error: Option<f64>,
     /// Method option key=value (repeatable); the list is below.
     #[arg(long = "opt", value_name = "KEY=VALUE")]
@@ -161,6 +161,20 @@ pub fn run(cli: &Cli, a: &Args) -> anyhow::Result<bool> {
     };
     let Some(input) = &a.input else {
         let frames = a.frames.as_ref().expect("clap: input or --frames");
+        // What would fail every frame is refused before the first.
+        let t = a.temporal.get();
+        if t == Temporal::Apr && a.method != Method::Apr {
+            bail!(
+                "--temporal apr is APR's temporal window: it runs with --method apr, not {}",
+                a.method.name()
+            );
+        }
+        if t != Temporal::Off && a.tile.is_some() {
+            bail!(
+                "--temporal {} keeps one state for the whole image: it cannot run in --tile tiles",
+                a.temporal.name()
+            );
+        }
         if matches!(a.temporal.get(), Temporal::Apr | Temporal::LpSmooth) {
             return denoise_window(cli, a, frames, &config_for);
         }
@@ -202,7 +216,7 @@ pub fn run(cli: &Cli, a: &Args) -> anyhow::Result<bool> {
         ));
         ctx = Some(c);
     }
-    let img = io::read_stats(input)?;
+    let img = crate::common::read_stats(input)?;
     let config = config_for(&img);
     let source = Source::of_image(&img);
     let mut denoiser = match a.backend {
@@ -365,7 +379,7 @@ fn denoise_window(
     let mut run: Option<(Source, SequenceDenoiser)> = None;
     let mut last: Option<u64> = None;
     for frame in &frames {
-        let img = match io::read_stats(&frame.path) {
+        let img = match crate::common::read_stats(&frame.path) {
             Ok(img) => img,
             Err(e) => {
                 out.fail(frame, &format!("{e:#}"));
@@ -533,7 +547,7 @@ fn denoise_frames(
                     warm = Some(Denoiser::warm_up(ctx, &source, warm_config, false));
                 }
             }
-            let img = io::read_stats(&frame.path)?;
+            let img = crate::common::read_stats(&frame.path)?;
             let source = Source::of_image(&img);
             let low_spp = temporal || has_low_spp(&img);
             let reuse = matches!(&cached, Some((s, l, _)) if *s == source && *l == low_spp);

@@ -37,7 +37,7 @@ pub struct Args {
 
 pub fn run(cli: &Cli, a: &Args) -> anyhow::Result<bool> {
     refuse_overwrite([a.output.as_path()], &[&a.input])?;
-    let img = io::read_stats(&a.input)?;
+    let img = crate::common::read_stats(&a.input)?;
     let mut config = Config::new(Method::None);
     config.prefilter = Prefilter::On;
     config.precision = a.precision.get();

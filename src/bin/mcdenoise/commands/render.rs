@@ -344,20 +344,23 @@ pub fn run(cli: &Cli, a: &Args) -> anyhow::Result<bool> {
         bail!("--scene and -o are required");
     };
     let scene_file = Path::new(name);
-    if scene_file.exists() {
-        refuse_overwrite(
-            [
-                Some(output),
-                a.png.as_ref(),
-                a.save_stats.as_ref(),
-                a.figure.as_ref(),
-            ]
-            .into_iter()
-            .flatten()
-            .map(PathBuf::as_path),
-            &[scene_file],
-        )?;
-    }
+    let scene_inputs: &[&Path] = if scene_file.exists() {
+        &[scene_file]
+    } else {
+        &[]
+    };
+    refuse_overwrite(
+        [
+            Some(output),
+            a.png.as_ref(),
+            a.save_stats.as_ref(),
+            a.figure.as_ref(),
+        ]
+        .into_iter()
+        .flatten()
+        .map(PathBuf::as_path),
+        scene_inputs,
+    )?;
     let method = a.method;
     if a.adaptive && a.spp < schedule::INITIAL_SPP {
         bail!(
