@@ -55,13 +55,6 @@ pub const OPTIONS: &[OptionSpec] = &[
         help: "positive-weight fallback when a fitted value is negative",
     },
     OptionSpec {
-        key: "wlr.extra_features",
-        kind: Kind::Choice(&["none", "visibility"]),
-        default: "none",
-        section: "§2.1",
-        help: "features appended to the 9 of the paper",
-    },
-    OptionSpec {
         key: "lp.error_mode",
         kind: Kind::Choice(&["varsub", "paper"]),
         default: "varsub",

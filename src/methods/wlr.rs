@@ -53,13 +53,6 @@ pub struct WlrParams {
 impl WlrParams {
     /// From the pass and the `wlr.*` options of the registry.
     pub fn new(pass: Pass, opts: &Options) -> Result<WlrParams> {
-        if opts.get("wlr.extra_features") != "none" {
-            return Err(Error::InvalidArgument(
-                "wlr.extra_features: only the paper's 9 features are built (visibility would need a \
-                 wider kernel binding layout)"
-                    .into(),
-            ));
-        }
         let mut options = 0;
         if opts.get("wlr.reject") == "on" {
             options |= WLR_REJECT;

@@ -8,8 +8,8 @@ use std::sync::{Arc, OnceLock};
 use std::time::Duration;
 
 use mcdenoise::{
-    io, metrics, ContextOptions, Denoiser, GpuContext, Layer, PrepareReport, RgbImage, StatsImage,
-    Validation,
+    io, metrics, ContextOptions, Denoiser, GpuContext, Layer, Method, Options, Pass, PrepareReport,
+    RgbImage, StatsImage, Validation,
 };
 
 use crate::Cli;
@@ -97,7 +97,9 @@ pub fn stop_flag() -> Arc<AtomicBool> {
             if g.swap(true, Ordering::SeqCst) {
                 std::process::exit(130);
             }
-            eprintln!("\nmcdenoise: stopping after this pass (Ctrl-C again to quit now)");
+            eprintln!(
+                "\nmcdenoise: stopping after this pass, without the output in progress (Ctrl-C again to quit now)"
+            );
         })
         .is_err()
         {
@@ -154,6 +156,29 @@ pub fn refuse_overwrite<'a>(
         }
     }
     Ok(())
+}
+
+/// Warns about each `--opt` key of a method (`wlr.`, `lp.`, `apr.`,
+/// `aos.`, `auto.`) that none of `running` (with `auto`'s members) is:
+/// such an option has no effect on this command.
+pub fn warn_unused_method_options(options: &Options, running: &[Method]) {
+    let mut all = running.to_vec();
+    if running.contains(&Method::Auto) {
+        all.extend(mcdenoise::methods::auto::members(options, Pass::Final));
+        all.extend(mcdenoise::methods::auto::members(
+            options,
+            Pass::Intermediate,
+        ));
+    }
+    for key in options.keys() {
+        let prefix = key.split('.').next().unwrap_or(key);
+        if let Some(m) = Method::from_name(prefix).filter(|m| !all.contains(m)) {
+            eprintln!(
+                "mcdenoise: warning: --opt {key}: method {} does not run in this command, so the option has no effect",
+                m.name()
+            );
+        }
+    }
 }
 
 /// clap's parser of `--max-error`: a finite number ≥ 0 (NaN would never

@@ -124,7 +124,7 @@ fn main() -> ExitCode {
         Ok(true) => ExitCode::SUCCESS,
         Ok(false) => ExitCode::from(1),
         Err(e) if matches!(e.downcast_ref(), Some(mcdenoise::Error::Interrupted)) => {
-            eprintln!("mcdenoise: interrupted; no output written");
+            eprintln!("mcdenoise: interrupted; the output in progress was not written (those finished before are kept)");
             ExitCode::from(130)
         }
         Err(e) => {

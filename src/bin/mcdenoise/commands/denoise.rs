@@ -141,6 +141,7 @@ impl Args {
 
 pub fn run(cli: &Cli, a: &Args) -> anyhow::Result<bool> {
     let options = Options::parse(&a.opts)?;
+    crate::common::warn_unused_method_options(&options, &[a.method]);
     if (a.max_memory.is_some() || a.tile.is_some()) && a.backend == BackendArg::Cpu {
         bail!("--max-memory and --tile apply to the GPU backend");
     }
@@ -169,7 +170,7 @@ pub fn run(cli: &Cli, a: &Args) -> anyhow::Result<bool> {
                 a.method.name()
             );
         }
-        if t != Temporal::Off && a.tile.is_some() {
+        if t == Temporal::Lp && a.tile.is_some() {
             bail!(
                 "--temporal {} keeps one state for the whole image: it cannot run in --tile tiles",
                 a.temporal.name()

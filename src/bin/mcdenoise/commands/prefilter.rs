@@ -45,6 +45,7 @@ pub fn run(cli: &Cli, a: &Args) -> anyhow::Result<bool> {
     config.max_memory = a.max_memory.map(|mb| mb.saturating_mul(1 << 20));
     config.tile = a.tile.map(|t| t as usize);
     config.options = Options::parse(&a.opts)?;
+    crate::common::warn_unused_method_options(&config.options, &[]);
     let denoiser = Denoiser::new(&context(cli)?, Source::of_image(&img), config)
         .with_context(|| a.input.display().to_string())?;
     // Tiled when the image does not fit one chain: the statistics then come

@@ -101,7 +101,7 @@ pub struct Args {
     /// Random-number seed: the same scene, seed and options give the same image.
     #[arg(long, default_value_t = 1)]
     seed: u64,
-    /// Output EXR (color.R/G/B and error.R/G/B); with --frames, a pattern
+    /// Output EXR (color.R/G/B, and error.R/G/B unless --method none); with --frames, a pattern
     /// such as out/frame_####.exr (as for --png and --save-stats).
     #[arg(short, long, required_unless_present = "list_scenes")]
     output: Option<PathBuf>,
@@ -150,10 +150,9 @@ pub struct Args {
               .ok_or_else(|| "a positive number of seconds".to_string()))]
     time_limit: Option<std::time::Duration>,
     /// With --target-error or --time-limit: the most samples per pixel on
-    /// average the render may take.
-    #[arg(long, value_name = "N", default_value_t = 1024,
-          value_parser = clap::value_parser!(u32).range(1..))]
-    max_spp: u32,
+    /// average the render may take [default: 1024].
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
+    max_spp: Option<u32>,
     /// Write a figure (PNG): the Monte Carlo input (with --adaptive, a
     /// uniform render of the same samples per pixel and seed), the samples
     /// per pixel, the reconstruction, its estimated error and, with
@@ -166,6 +165,13 @@ pub struct Args {
     /// Method option key=value (repeatable); see `mcdenoise denoise --help`.
     #[arg(long = "opt", value_name = "KEY=VALUE")]
     opts: Vec<String>,
+}
+
+impl Args {
+    /// `--max-spp`, or its default.
+    fn max_spp(&self) -> u32 {
+        self.max_spp.unwrap_or(1024)
+    }
 }
 
 /// `A..B` (A to B−1) or `A..=B` (A to B).
@@ -386,6 +392,12 @@ pub fn run(cli: &Cli, a: &Args) -> anyhow::Result<bool> {
     if a.map_check == MapCheckArg::On && a.temporal.filters() {
         bail!("--map-check and --temporal {}: the adaptive passes' maps weigh what the temporal filter knows, which a frame's own reconstruction does not (TEMPORAL-MAP)", a.temporal.name());
     }
+    if a.max_spp.is_some() && a.target_error.is_none() && a.time_limit.is_none() {
+        bail!("--max-spp bounds --target-error and --time-limit: it needs one of them (--spp sets a fixed budget)");
+    }
+    if a.pass_cap.is_some() && !a.adaptive {
+        bail!("--pass-cap caps the adaptive passes' sample maps: it needs --adaptive");
+    }
     if a.passes.is_some() && !a.adaptive {
         bail!("--passes sets the adaptive schedule: it needs --adaptive");
     }
@@ -407,7 +419,7 @@ pub fn run(cli: &Cli, a: &Args) -> anyhow::Result<bool> {
         None => None,
     };
     let budget = match cfg.stop {
-        Some(_) => format!("up to {} spp", a.max_spp),
+        Some(_) => format!("up to {} spp", a.max_spp()),
         None => format!("{} spp", a.spp),
     };
     let bar = pass_bar(
@@ -520,15 +532,21 @@ fn loop_config(a: &Args) -> anyhow::Result<adaptive::LoopConfig> {
         }
         .check_size(a.size.0, a.size.1)?;
     }
+    let options = Options::parse(&a.opts)?;
+    let mut running = vec![method];
+    if a.adaptive {
+        running.push(base.mapper());
+    }
+    crate::common::warn_unused_method_options(&options, &running);
     Ok(adaptive::LoopConfig {
         prefilter: a.prefilter.get(),
         outliers: a.outliers.get(),
         precision: a.precision.get(),
-        options: Options::parse(&a.opts)?,
+        options,
         stop: (a.target_error.is_some() || a.time_limit.is_some()).then_some(adaptive::StopRules {
             target_error: a.target_error,
             time_limit: a.time_limit,
-            max_spp: a.max_spp,
+            max_spp: a.max_spp(),
         }),
         passes: a.passes,
         pyramid: a.pyramid.get(),
