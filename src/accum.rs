@@ -174,6 +174,19 @@ impl AccumLayout {
     pub fn finalize(&self, planes: &[Vec<f32>]) -> crate::image::StatsImage {
         crate::methods::stats::finalize_cpu(self, planes)
     }
+
+    /// Finalises an accumulation buffer on the GPU at `precision` (the
+    /// kernels a denoiser reading `accum` runs) and downloads the result:
+    /// the statistics bit for bit as that denoiser sees them, so that
+    /// denoising them as a file reproduces its output. Blocking.
+    pub fn finalize_gpu(
+        &self,
+        ctx: &std::sync::Arc<crate::gpu::GpuContext>,
+        accum: crate::gpu::BufferSlice,
+        precision: crate::gpu::Precision,
+    ) -> crate::error::Result<crate::image::StatsImage> {
+        crate::methods::stats::finalize_gpu(ctx, precision, self, accum)
+    }
 }
 
 /// CPU-side accumulation, as a renderer would do it: sums in f64, stored f32.

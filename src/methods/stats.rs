@@ -226,6 +226,28 @@ pub fn record_finalize(
     Ok(())
 }
 
+/// [`record_finalize`] of `accum` into new planes at `precision`, run and
+/// downloaded: the statistics exactly as a denoiser reading the
+/// accumulation buffer at that precision finalises them (blocking).
+pub fn finalize_gpu(
+    ctx: &Arc<GpuContext>,
+    precision: Precision,
+    layout: &AccumLayout,
+    accum: BufferSlice,
+) -> Result<StatsImage> {
+    let out = GpuStats::new(
+        ctx,
+        "finalized",
+        layout.width,
+        layout.height,
+        &finalized_layers(layout),
+    )?;
+    let mut batch = Batch::new(ctx)?;
+    record_finalize(&mut batch, precision, layout, accum, &out)?;
+    batch.finish()?;
+    out.download()
+}
+
 /// The same on the CPU with the scalar twins: `planes` in layout order.
 pub fn finalize_cpu(layout: &AccumLayout, planes: &[Vec<f32>]) -> StatsImage {
     use crate::reference::{

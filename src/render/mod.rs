@@ -907,9 +907,17 @@ impl Renderer {
 
     /// The statistics of what has been accumulated: mean and variance of
     /// the mean per layer, position covariance, spp — finalised on the host
-    /// (as a statistics EXR holds them).
+    /// in f64 (as a statistics EXR holds them).
     pub fn statistics(&self) -> Result<StatsImage> {
         Ok(self.layout.finalize(&self.download()?))
+    }
+
+    /// The same statistics finalised on the GPU at `precision`, bit for bit
+    /// what a denoiser at that precision reads from the accumulation
+    /// buffer: denoising them again reproduces its output (blocking).
+    pub fn statistics_at(&self, precision: Precision) -> Result<StatsImage> {
+        self.layout
+            .finalize_gpu(&self.ctx, self.accum.slice(), precision)
     }
 }
 

@@ -91,7 +91,7 @@ pub fn render_frames(
         let renderer = Renderer::new(ctx, &at, width, height, seed)?.with_position_origin(origin);
         if temporal == Temporal::Apr {
             let result = adaptive::render_passes(ctx, &renderer, cfg, stop, |_| {})?;
-            let stats = renderer.statistics()?;
+            let stats = renderer.statistics_at(cfg.precision)?;
             if window.is_none() {
                 let config = adaptive::final_config(cfg, temporal);
                 window = Some(SequenceDenoiser::new(
@@ -124,7 +124,7 @@ pub fn render_frames(
             last = Some(d);
         }
         let result = adaptive::render_with_final(ctx, &renderer, cfg, stop, |_| {}, last.as_ref())?;
-        let stats = renderer.statistics()?;
+        let stats = renderer.statistics_at(cfg.precision)?;
         let mut frame = SequenceFrame {
             number,
             seed,

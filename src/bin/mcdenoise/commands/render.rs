@@ -460,7 +460,7 @@ pub fn run(cli: &Cli, a: &Args) -> anyhow::Result<bool> {
     let secs = t0.elapsed().as_secs_f64();
     let frame = &result.frame;
     write_frame(output, a.png.as_deref(), method, frame)?;
-    let stats = renderer.statistics()?;
+    let stats = renderer.statistics_at(cfg.precision)?;
     if let Some(p) = &a.save_stats {
         io::write_stats(p, &stats)?;
     }
