@@ -3,6 +3,7 @@
 // (input-format.md: S = sum_k (p_k - pbar)(p_k - pbar)^T / n, "divided by spp").
 // Cancellation guard: diagonal clamped to >= 0, each off-diagonal clamped to
 // |S_ab| <= sqrt(S_aa S_bb) (Cauchy-Schwarz), so S stays a valid covariance.
+// Always finite: what f32 cannot hold is 0 (see kept).
 #include "lib/common.glsl"
 
 layout(local_size_x = 8, local_size_y = 8) in;
@@ -25,10 +26,18 @@ PLANE_OUT(13, cov_yy)
 PLANE_OUT(14, cov_yz)
 PLANE_OUT(15, cov_zz)
 
+// A value the f32 output cannot hold (NaN, +-inf, beyond the f32 range: from
+// non-finite or overflowing sums) is 0; the diagonal is kept before the
+// off-diagonals are clamped to it, so a zeroed variance zeroes its
+// covariances. Twin: reference::finalize_covariance::kept.
+real kept(real v) {
+    return (isnan(v) || isinf(v) || abs(v) > real(3.4028234663852886e38)) ? real(0.0) : v;
+}
+
 real off_diag(real sab, real ma, real mb, real n, real daa, real dbb) {
     real c = (sab - n * ma * mb) / n;
     real bound = sqrt(daa * dbb);
-    return clamp(c, -bound, bound);
+    return clamp(kept(c), -bound, bound);
 }
 
 void main() {
@@ -42,9 +51,9 @@ void main() {
         real mx = real(sum_x[i]) / n;
         real my = real(sum_y[i]) / n;
         real mz = real(sum_z[i]) / n;
-        xx = max((real(sumsq_x[i]) - n * mx * mx) / n, real(0.0));
-        yy = max((real(sumsq_y[i]) - n * my * my) / n, real(0.0));
-        zz = max((real(sumsq_z[i]) - n * mz * mz) / n, real(0.0));
+        xx = kept(max((real(sumsq_x[i]) - n * mx * mx) / n, real(0.0)));
+        yy = kept(max((real(sumsq_y[i]) - n * my * my) / n, real(0.0)));
+        zz = kept(max((real(sumsq_z[i]) - n * mz * mz) / n, real(0.0)));
         xy = off_diag(real(sum_xy[i]), mx, my, n, xx, yy);
         xz = off_diag(real(sum_xz[i]), mx, mz, n, xx, zz);
         yz = off_diag(real(sum_yz[i]), my, mz, n, yy, zz);

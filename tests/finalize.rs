@@ -40,10 +40,14 @@ fn accumulate(w: usize, h: usize, seed: u64, offset: f64) -> (Accumulator, Vec<V
 /// Packs the accumulation exactly as a renderer would (planes at the
 /// stride) into a GPU buffer.
 fn upload_accum(acc: &Accumulator) -> GpuBuffer {
-    let layout = acc.layout;
+    upload_planes(&acc.layout, &acc.planes())
+}
+
+/// Packs planes in layout order at the stride into a GPU buffer.
+fn upload_planes(layout: &AccumLayout, planes: &[Vec<f32>]) -> GpuBuffer {
     let stride = layout.plane_stride() as usize;
     let mut bytes = vec![0u8; layout.bytes() as usize];
-    for (i, p) in acc.planes().iter().enumerate() {
+    for (i, p) in planes.iter().enumerate() {
         bytes[i * stride..i * stride + p.len() * 4].copy_from_slice(bytemuck::cast_slice(p));
     }
     let buf = GpuBuffer::new(&gpu(), "accum", layout.bytes()).unwrap();
@@ -268,5 +272,92 @@ fn positions_far_from_the_origin_keep_their_variance() {
     assert!(shifted >= 0.99, "relative to the origin: {shifted}");
     let raw = run([0.0; 3]);
     assert!(raw < 0.5, "raw f32 sums kept the variance?! {raw}");
+    check_validation(&ctx);
+}
+
+/// Non-finite and overflowing position sums (a NaN sample, positions of
+/// 1e30 whose squares leave f32 range) finalise to a finite covariance
+/// without panicking: what f32 cannot hold is 0, a zeroed variance zeroes
+/// its covariances (`reference::finalize_covariance::kept`); the kernel in
+/// both precisions agrees with the twin.
+#[test]
+fn non_finite_position_sums_give_a_finite_covariance() {
+    let (w, h) = (12, 2);
+    let layout = AccumLayout::new(w, h, true, false);
+    let mut acc = Accumulator::new(layout);
+    let nch = layout.channels().len();
+    let mut rng = Rng(3);
+    for p in 0..w * h {
+        for _ in 0..4 {
+            let v: Vec<f64> = (0..nch).map(|_| 0.5 + 0.3 * rng.normal()).collect();
+            acc.add(p, &v);
+        }
+    }
+    let mut planes = acc.planes();
+    let p0 = layout.channel_index(Layer::Position, 0).unwrap();
+    let (sx, sy) = (layout.sum_plane(p0), layout.sum_plane(p0 + 1));
+    let (qx, qy) = (layout.sumsq_plane(p0), layout.sumsq_plane(p0 + 1));
+    let xy = layout.cross_plane(0).unwrap();
+    let (nan, inf) = (f32::NAN, f32::INFINITY);
+    // (pixel, plane, value); pixels 10 and 11 keep their samples.
+    let edits = [
+        (0, sx, nan),
+        (1, qx, nan),
+        (2, qx, inf),
+        (3, sx, inf),
+        (4, xy, nan),
+        (5, xy, -inf),
+        (6, qx, -inf),
+        // A camera at 1e30: sums of 4e30, their squares overflow f32.
+        (7, sx, 4e30),
+        (7, sy, 4e30),
+        (7, qx, inf),
+        (7, qy, inf),
+        (7, xy, inf),
+        (8, qy, inf),
+        (8, qx, 0.0),
+        (8, sx, 0.0),
+        (9, layout.count_plane(), nan),
+    ];
+    for &(p, plane, v) in &edits {
+        planes[plane][p] = v;
+    }
+    let twin = finalize_cpu(&layout, &planes);
+    let cov = twin.get(Layer::PositionCovariance).unwrap();
+    for (k, c) in cov.iter().enumerate() {
+        assert!(c.iter().all(|v| v.is_finite()), "plane {k}: {c:?}");
+    }
+    // Planes XX XY XZ YY YZ ZZ: a non-finite x variance zeroes XX, XY, XZ.
+    for p in [0, 1, 2, 3, 6, 7] {
+        for k in [0, 1, 2] {
+            assert_eq!(cov[k][p], 0.0, "pixel {p} plane {k}");
+        }
+    }
+    // A NaN or infinite cross sum zeroes that covariance only.
+    for p in [4, 5] {
+        assert_eq!(cov[1][p], 0.0, "pixel {p}");
+        assert!(cov[0][p] > 0.0 && cov[3][p] > 0.0, "pixel {p}");
+    }
+    // y overflows, x is constant: zero variances, covariance zero.
+    assert_eq!((cov[3][8], cov[1][8]), (0.0, 0.0));
+    assert!(cov.iter().all(|c| c[9] == 0.0));
+    assert!(cov[0][10] > 0.0 && cov[0][11] > 0.0);
+
+    let ctx = gpu();
+    let buf = upload_planes(&layout, &planes);
+    for p in [Precision::F32, Precision::F64] {
+        if p == Precision::F64 && !ctx.supports_f64() {
+            continue;
+        }
+        let out = GpuStats::new(&ctx, "stats", w, h, &finalized_layers(&layout)).unwrap();
+        let mut batch = Batch::new(&ctx).unwrap();
+        record_finalize(&mut batch, p, &layout, buf.slice(), &out).unwrap();
+        batch.finish().unwrap();
+        let g = out.download().unwrap();
+        let gcov = g.get(Layer::PositionCovariance).unwrap();
+        for k in 0..6 {
+            assert_close(&format!("{p:?} covariance {k}"), &gcov[k], &cov[k], 1.0);
+        }
+    }
     check_validation(&ctx);
 }

@@ -1618,6 +1618,217 @@ next_event = false
     }
 }
 
+/// Scene values that would panic or render silently wrong are refused by
+/// the loader with an error naming the field (and the object, material or
+/// keyframe): non-finite camera, keyframe, colour and geometry numbers,
+/// negative or (for albedos) above-1 colours, coordinates beyond ±1e8.
+#[test]
+fn scene_files_refuse_non_finite_and_out_of_range_values() {
+    let text = r#"
+environment = [0.1, 0.2, 0.3]
+
+[camera]
+position = [0.0, 1.0, 4.0]
+look_at = [0.0, 1.0, 0.0]
+fov = 40.0
+aperture = 0.05
+focus_distance = 4.0
+
+[materials.m]
+type = "diffuse"
+albedo = [0.5, 0.6, 0.7]
+
+[materials.t]
+type = "plastic"
+albedo = { texture = "checker", a = [0.8, 0.8, 0.8], b = [0.1, 0.1, 0.1], scale = 4.0 }
+roughness = 0.3
+
+[[objects]]
+type = "sphere"
+center = [0.0, 0.5, 0.0]
+radius = 0.5
+material = "m"
+motion = [0.1, 0.0, 0.0]
+
+[[objects]]
+type = "quad"
+corner = [-1.0, 0.0, -1.0]
+u = [2.0, 0.0, 0.0]
+v = [0.0, 0.0, 2.0]
+material = "t"
+keyframes = [{ frame = 0, translate = [0.0, 0.0, 0.0] }, { frame = 4, translate = [1.0, 0.0, 0.0], rotate_y = 30.0 }]
+
+[[objects]]
+type = "mesh"
+vertices = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]
+indices = [[0, 1, 2]]
+scale = 1.0
+material = "m"
+
+[animation]
+frames = 5
+
+[[animation.camera]]
+frame = 0
+position = [0.0, 1.0, 4.0]
+
+[[animation.camera]]
+frame = 4
+position = [1.0, 1.0, 4.0]
+look_at = [0.0, 1.0, 0.0]
+"#;
+    let load = |t: &str| Scene::from_toml(t, std::path::Path::new("t.toml"), None);
+    // The unedited scene is valid in every frame, so each error below is
+    // the edit's.
+    let s = load(text).unwrap();
+    for f in 0..5 {
+        s.at_frame(f).unwrap().primitives().unwrap();
+    }
+    let cases: &[(&str, &str, &[&str])] = &[
+        (
+            "position = [0.0, 1.0, 4.0]\nlook_at",
+            "position = [nan, 1.0, 4.0]\nlook_at",
+            &["camera.position", "NaN"],
+        ),
+        (
+            "position = [0.0, 1.0, 4.0]\nlook_at",
+            "position = [inf, 1.0, 4.0]\nlook_at",
+            &["camera.position"],
+        ),
+        (
+            "position = [0.0, 1.0, 4.0]\nlook_at",
+            "position = [1e30, 1.0, 4.0]\nlook_at",
+            &["camera.position", "1e8"],
+        ),
+        (
+            "look_at = [0.0, 1.0, 0.0]\nfov",
+            "look_at = [nan, 1.0, 0.0]\nfov",
+            &["camera.look_at"],
+        ),
+        (
+            "fov = 40.0",
+            "fov = 40.0\nup = [0.0, 0.0, 1.0]",
+            &["camera.up", "parallel"],
+        ),
+        (
+            "fov = 40.0",
+            "fov = 40.0\nup = [0.0, nan, 0.0]",
+            &["camera.up"],
+        ),
+        ("aperture = 0.05", "aperture = nan", &["camera.aperture"]),
+        (
+            "focus_distance = 4.0",
+            "focus_distance = inf",
+            &["camera.focus_distance"],
+        ),
+        (
+            "frame = 4\nposition = [1.0, 1.0, 4.0]",
+            "frame = 4\nposition = [1.0, nan, 4.0]",
+            &["animation.camera keyframe 1", "position"],
+        ),
+        (
+            "[1.0, 1.0, 4.0]\nlook_at = [0.0, 1.0, 0.0]",
+            "[1.0, 1.0, 4.0]\nlook_at = [0.0, -inf, 0.0]",
+            &["animation.camera keyframe 1", "look_at"],
+        ),
+        (
+            "translate = [1.0, 0.0, 0.0]",
+            "translate = [nan, 0.0, 0.0]",
+            &["object 1 keyframe 1", "translate"],
+        ),
+        (
+            "translate = [1.0, 0.0, 0.0]",
+            "translate = [2e8, 0.0, 0.0]",
+            &["object 1 keyframe 1", "translate", "1e8"],
+        ),
+        (
+            "rotate_y = 30.0",
+            "rotate_y = inf",
+            &["object 1 keyframe 1", "rotate_y"],
+        ),
+        (
+            "albedo = [0.5, 0.6, 0.7]",
+            "albedo = [nan, 0.6, 0.7]",
+            &["\"m\"", "albedo"],
+        ),
+        (
+            "albedo = [0.5, 0.6, 0.7]",
+            "albedo = [0.5, -0.6, 0.7]",
+            &["\"m\"", "albedo", "[0, 1]"],
+        ),
+        (
+            "albedo = [0.5, 0.6, 0.7]",
+            "albedo = [0.5, 1.5, 0.7]",
+            &["\"m\"", "albedo", "[0, 1]"],
+        ),
+        (
+            "b = [0.1, 0.1, 0.1]",
+            "b = [0.1, inf, 0.1]",
+            &["\"t\"", "albedo.b"],
+        ),
+        ("scale = 4.0", "scale = nan", &["\"t\"", "albedo.scale"]),
+        (
+            "roughness = 0.3",
+            "roughness = nan",
+            &["\"t\"", "roughness"],
+        ),
+        (
+            "environment = [0.1, 0.2, 0.3]",
+            "environment = [0.1, -0.2, 0.3]",
+            &["environment", "non-negative"],
+        ),
+        (
+            "environment = [0.1, 0.2, 0.3]",
+            "environment = [nan, 0.2, 0.3]",
+            &["environment"],
+        ),
+        (
+            "center = [0.0, 0.5, 0.0]",
+            "center = [0.0, nan, 0.0]",
+            &["object 0", "center"],
+        ),
+        ("radius = 0.5", "radius = nan", &["object 0", "radius"]),
+        ("radius = 0.5", "radius = -0.5", &["object 0", "radius"]),
+        (
+            "motion = [0.1, 0.0, 0.0]",
+            "motion = [inf, 0.0, 0.0]",
+            &["object 0", "motion"],
+        ),
+        (
+            "u = [2.0, 0.0, 0.0]",
+            "u = [1e9, 0.0, 0.0]",
+            &["object 1", "u", "1e8"],
+        ),
+        (
+            "[0.0, 1.0, 0.0]]\nindices",
+            "[0.0, nan, 0.0]]\nindices",
+            &["object 2", "vertex 2"],
+        ),
+        ("scale = 1.0", "scale = inf", &["object 2", "scale"]),
+    ];
+    for (from, to, want) in cases {
+        assert!(text.contains(from), "{from:?}");
+        let e = load(&text.replacen(from, to, 1))
+            .map(|_| ())
+            .unwrap_err()
+            .to_string();
+        assert!(want.iter().all(|w| e.contains(w)), "{to:?}: {e}");
+    }
+    // Inline mesh coordinates in range, placed beyond it by `scale`.
+    let big = text.replacen("scale = 1.0", "scale = 1e8\ntranslate = [1e8, 0.0, 0.0]", 1);
+    let big = load(&big).unwrap();
+    let e = big.primitives().unwrap_err().to_string();
+    assert!(e.contains("object 2") && e.contains("vertex 1"), "{e}");
+    // A scene built in code is checked too.
+    let mut s = load(text).unwrap();
+    s.camera.position[0] = f32::NAN;
+    assert!(s
+        .check()
+        .unwrap_err()
+        .to_string()
+        .contains("camera.position"));
+}
+
 /// Motion blur: a moving sphere smears across the image, while every
 /// sample's position feature lies on the sphere at shutter time 0 (the hit
 /// mapped back to the reference time) and its normal is the sphere's there.

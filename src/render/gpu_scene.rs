@@ -139,6 +139,8 @@ impl GpuScene {
     /// Builds the BVH and the GPU tables of `scene` for a `width × height`
     /// image.
     pub fn new(scene: &Scene, width: usize, height: usize) -> Result<GpuScene> {
+        // A scene built in code has not been through the loader's checks.
+        scene.check()?;
         let prims_in = scene.primitives()?;
         let (nodes, order, depth) = build(&prims_in)?;
         let primitives: Vec<Primitive> = order.iter().map(|&i| prims_in[i as usize]).collect();

@@ -73,6 +73,20 @@
 //! Next-event estimation samples every light, picked in proportion to its
 //! power; `next_event = false` on an emissive material leaves its
 //! primitives to BSDF sampling only (as the environment always is).
+//!
+//! Loading checks the values, and an error names the field with its
+//! material, object (by index in `objects`) or keyframe (by index in its
+//! list): every number finite; `fov` in (0, 180); every position, edge,
+//! offset and length — the camera's `position`, `look_at`, `aperture` and
+//! `focus_distance` (also in its keyframes), objects' geometry, `motion`,
+//! keyframe `translate`s, mesh vertices once scaled and translated (an OBJ
+//! file's when [`Scene::primitives`] reads it) — within ±1e8 world units
+//! ([`MAX_COORDINATE`]: f32 positions there are 8 units apart, and beyond
+//! it the renderer's sums of squared positions overflow);
+//! `radius` and `focus_distance` > 0; `up` not parallel to the view
+//! direction; albedos (diffuse, plastic, their textures' `a` and `b`) in
+//! `[0, 1]`; radiance, `environment`, conductor `color` and dielectric
+//! `tint` non-negative; `ior` positive.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -670,6 +684,13 @@ impl Scene {
         BUILTIN.iter().find(|(n, _)| *n == name).map(|(_, t)| *t)
     }
 
+    /// Checks the scene as [`from_toml`](Self::from_toml) and
+    /// [`at_frame`](Self::at_frame) do (the renderer checks a scene built
+    /// in code the same way): an error names the offending field.
+    pub fn check(&self) -> Result<()> {
+        self.validate().map_err(Error::InvalidArgument)
+    }
+
     fn validate(&self) -> std::result::Result<(), String> {
         let c = &self.camera;
         if !(c.fov > 0.0 && c.fov < 180.0) {
@@ -678,12 +699,28 @@ impl Scene {
                 c.fov
             ));
         }
-        if c.aperture < 0.0 || c.focus_distance.is_some_and(|f| f <= 0.0) {
-            return Err("camera.aperture must be ≥ 0 and focus_distance > 0".into());
+        check_point("camera.position", c.position)?;
+        check_point("camera.look_at", c.look_at)?;
+        if !c.up.iter().all(|x| x.is_finite()) {
+            return Err(format!("camera.up must be finite, not {:?}", c.up));
+        }
+        check_length("camera.aperture", c.aperture, true)?;
+        if let Some(f) = c.focus_distance {
+            check_length("camera.focus_distance", f, false)?;
         }
         if sub(c.look_at, c.position) == [0.0; 3] {
             return Err("camera.look_at equals camera.position".into());
         }
+        // The camera's right vector is view direction × up.
+        let (dir, up) = (sub(c.look_at, c.position), c.up);
+        let norm = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        let widen = |v: Vec3| v.map(f64::from);
+        if norm(cross64(dir, up)) <= 1e-6 * norm(widen(dir)) * norm(widen(up)) {
+            return Err(format!(
+                "camera.up {up:?} must be non-zero and not parallel to the view direction"
+            ));
+        }
+        check_colour("environment", self.environment, f32::INFINITY)?;
         for (name, m) in &self.materials {
             let ior = match m {
                 Material::Plastic { ior, .. } | Material::Dielectric { ior, .. } => *ior,
@@ -694,16 +731,28 @@ impl Scene {
                     "material {name:?}: ior must be positive, not {ior}"
                 ));
             }
-            if let Material::Emissive { radiance, .. } = m {
-                let (a, b) = match radiance {
-                    Albedo::Constant(c) => (*c, *c),
-                    Albedo::Texture(
-                        Texture::Checker { a, b, .. } | Texture::Noise { a, b, .. },
-                    ) => (*a, *b),
-                };
-                if !a.iter().chain(&b).all(|x| *x >= 0.0 && x.is_finite()) {
+            let field = |f: &str| format!("material {name:?}: {f}");
+            match m {
+                Material::Diffuse { albedo } | Material::Plastic { albedo, .. } => {
+                    check_albedo(&field("albedo"), albedo, 1.0)?
+                }
+                Material::Conductor { color, .. } => {
+                    check_colour(&field("color"), *color, f32::INFINITY)?
+                }
+                Material::Dielectric { tint, .. } => {
+                    check_colour(&field("tint"), *tint, f32::INFINITY)?
+                }
+                Material::Emissive { radiance, .. } => {
+                    check_albedo(&field("radiance"), radiance, f32::INFINITY)?
+                }
+            }
+            if let Material::Conductor { roughness, .. }
+            | Material::Plastic { roughness, .. }
+            | Material::Dielectric { roughness, .. } = m
+            {
+                if !roughness.is_finite() {
                     return Err(format!(
-                        "material {name:?}: radiance must be finite and non-negative"
+                        "material {name:?}: roughness must be finite, not {roughness}"
                     ));
                 }
             }
@@ -719,6 +768,18 @@ impl Scene {
             if !increasing(&mut a.camera.iter().map(|k| k.frame)) {
                 return Err("animation.camera keyframes must be in increasing frame order".into());
             }
+            for (k, key) in a.camera.iter().enumerate() {
+                let field = |f: &str| format!("animation.camera keyframe {k}: {f}");
+                if let Some(p) = key.position {
+                    check_point(&field("position"), p)?;
+                }
+                if let Some(p) = key.look_at {
+                    check_point(&field("look_at"), p)?;
+                }
+                if let Some(f) = key.focus_distance {
+                    check_length(&field("focus_distance"), f, false)?;
+                }
+            }
         }
         for (i, o) in self.objects.iter().enumerate() {
             if !increasing(&mut o.keyframes().iter().map(|k| k.frame)) {
@@ -726,12 +787,12 @@ impl Scene {
                     "object {i}: keyframes must be in increasing frame order"
                 ));
             }
-            if o.keyframes()
-                .iter()
-                .any(|k| !k.rotate_y.is_finite() || !k.translate.iter().all(|x| x.is_finite()))
-            {
-                return Err(format!("object {i}: keyframes must be finite"));
+            for (k, key) in o.keyframes().iter().enumerate() {
+                let field = |f: &str| format!("object {i} keyframe {k}: {f}");
+                check_point(&field("translate"), key.translate)?;
+                check_angle(&field("rotate_y"), key.rotate_y)?;
             }
+            o.validate_geometry(&|f: &str| format!("object {i}: {f}"))?;
         }
         for (i, o) in self.objects.iter().enumerate() {
             let m = match o {
@@ -765,7 +826,7 @@ impl Scene {
     /// The scene's primitives, in object order (meshes loaded from disk).
     pub fn primitives(&self) -> Result<Vec<Primitive>> {
         let mut out = Vec::new();
-        for o in &self.objects {
+        for (index, o) in self.objects.iter().enumerate() {
             let first = out.len();
             match o {
                 Object::Sphere {
@@ -858,6 +919,13 @@ impl Scene {
                         let p = verts[i];
                         add([p[0] * scale, p[1] * scale, p[2] * scale], *translate)
                     };
+                    // An OBJ file's numbers, and inline ones once scaled.
+                    let field = |f: &str| format!("object {index}: {f}");
+                    for k in 0..verts.len() {
+                        check_point(&field(&format!("vertex {k} (placed)")), place(k))
+                            .map_err(Error::InvalidArgument)?;
+                    }
+                    check_normals(&field, &norms).map_err(Error::InvalidArgument)?;
                     for t in tris {
                         let [i, j, k] = [get(t[0])?, get(t[1])?, get(t[2])?];
                         out.push(Primitive {
@@ -1021,6 +1089,158 @@ fn orient_outward(s: Shape, centre: Vec3) -> Shape {
             }
         }
         s => s,
+    }
+}
+
+/// The largest magnitude of any coordinate, offset or length in a scene,
+/// world units: f32 positions near 1e8 are 8 units apart, and beyond it the
+/// renderer's sums of squared positions leave f32 range.
+pub const MAX_COORDINATE: f32 = 1e8;
+
+/// `what` (a point or vector) is finite, each component within
+/// ±[`MAX_COORDINATE`].
+fn check_point(what: &str, v: Vec3) -> std::result::Result<(), String> {
+    if v.iter().all(|x| x.is_finite() && x.abs() <= MAX_COORDINATE) {
+        Ok(())
+    } else {
+        Err(format!(
+            "{what} must be finite, each component within ±{MAX_COORDINATE:e}, not {v:?}"
+        ))
+    }
+}
+
+/// `what` (a length) is finite, positive (or 0 if `zero_ok`) and at most
+/// [`MAX_COORDINATE`].
+fn check_length(what: &str, x: f32, zero_ok: bool) -> std::result::Result<(), String> {
+    let low_ok = if zero_ok { x >= 0.0 } else { x > 0.0 };
+    if low_ok && x <= MAX_COORDINATE {
+        Ok(())
+    } else {
+        let low = if zero_ok { "≥ 0" } else { "> 0" };
+        Err(format!(
+            "{what} must be {low} and at most {MAX_COORDINATE:e}, not {x}"
+        ))
+    }
+}
+
+/// `what` (an angle in degrees) is finite.
+fn check_angle(what: &str, x: f32) -> std::result::Result<(), String> {
+    if x.is_finite() {
+        Ok(())
+    } else {
+        Err(format!("{what} must be finite, not {x}"))
+    }
+}
+
+/// `what` (a colour) is finite with every component in `[0, max]`.
+fn check_colour(what: &str, v: Vec3, max: f32) -> std::result::Result<(), String> {
+    if v.iter().all(|x| x.is_finite() && *x >= 0.0 && *x <= max) {
+        Ok(())
+    } else if max.is_finite() {
+        Err(format!(
+            "{what} must have every component in [0, {max}], not {v:?}"
+        ))
+    } else {
+        Err(format!("{what} must be finite and non-negative, not {v:?}"))
+    }
+}
+
+/// An albedo or radiance: its colours as [`check_colour`], a texture's
+/// `scale` finite.
+fn check_albedo(what: &str, albedo: &Albedo, max: f32) -> std::result::Result<(), String> {
+    match albedo {
+        Albedo::Constant(c) => check_colour(what, *c, max),
+        Albedo::Texture(Texture::Checker { a, b, scale } | Texture::Noise { a, b, scale }) => {
+            check_colour(&format!("{what}.a"), *a, max)?;
+            check_colour(&format!("{what}.b"), *b, max)?;
+            check_angle(&format!("{what}.scale"), *scale)
+        }
+    }
+}
+
+impl Object {
+    /// Checks the object's own numbers (not its keyframes); `field` names
+    /// a field in an error message.
+    fn validate_geometry(&self, field: &dyn Fn(&str) -> String) -> std::result::Result<(), String> {
+        let motion = match self {
+            Object::Sphere {
+                center,
+                radius,
+                motion,
+                ..
+            } => {
+                check_point(&field("center"), *center)?;
+                check_length(&field("radius"), *radius, false)?;
+                motion
+            }
+            Object::Quad {
+                corner,
+                u,
+                v,
+                motion,
+                ..
+            } => {
+                check_point(&field("corner"), *corner)?;
+                check_point(&field("u"), *u)?;
+                check_point(&field("v"), *v)?;
+                motion
+            }
+            Object::Box {
+                min,
+                max,
+                rotate_y,
+                motion,
+                ..
+            } => {
+                check_point(&field("min"), *min)?;
+                check_point(&field("max"), *max)?;
+                check_angle(&field("rotate_y"), *rotate_y)?;
+                motion
+            }
+            Object::Mesh {
+                vertices,
+                normals,
+                scale,
+                translate,
+                motion,
+                ..
+            } => {
+                for (k, p) in vertices.iter().enumerate() {
+                    check_point(&field(&format!("vertex {k}")), *p)?;
+                }
+                check_normals(field, normals)?;
+                if !(scale.is_finite() && scale.abs() <= MAX_COORDINATE) {
+                    return Err(format!(
+                        "{} must be finite and within ±{MAX_COORDINATE:e}, not {scale}",
+                        field("scale")
+                    ));
+                }
+                check_point(&field("translate"), *translate)?;
+                motion
+            }
+        };
+        if let Some(m) = motion {
+            check_point(&field("motion"), *m)?;
+        }
+        Ok(())
+    }
+}
+
+/// A mesh's normals are finite.
+fn check_normals(
+    field: &dyn Fn(&str) -> String,
+    normals: &[Vec3],
+) -> std::result::Result<(), String> {
+    match normals
+        .iter()
+        .position(|n| !n.iter().all(|x| x.is_finite()))
+    {
+        Some(k) => Err(format!(
+            "{} must be finite, not {:?}",
+            field(&format!("normal {k}")),
+            normals[k]
+        )),
+        None => Ok(()),
     }
 }
 
