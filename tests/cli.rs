@@ -280,6 +280,41 @@ fn outputs_never_replace_inputs_or_each_other() {
         "named for two outputs",
     );
     assert!(!same.exists());
+    // A folder is not an output file; a missing folder is made before the
+    // work, as the README's `-o out/frame_####.exr` needs.
+    refused(
+        &[
+            &os("render"),
+            &os("--scene"),
+            &os("cornell"),
+            &os("--size"),
+            &os("16x16"),
+            &os("--spp"),
+            &os("4"),
+            &os("-o"),
+            dir.as_os_str(),
+        ],
+        "render -o FOLDER",
+        "a folder; name the output file",
+    );
+    let nested = dir.join("new").join("deeper").join("f_####.exr");
+    let (code, _, err) = run(bin()
+        .args(["render", "--scene", "moving_box", "--frames", "0..1"])
+        .args(["--size", "16x16", "--spp", "4", "-o"])
+        .arg(&nested));
+    assert_eq!(code, 0, "{err}");
+    assert!(dir.join("new/deeper/f_0000.exr").exists());
+    refused(
+        &[
+            &os("render"),
+            &os("--scene"),
+            &os("no_such_scene"),
+            &os("-o"),
+            same.as_os_str(),
+        ],
+        "render --scene TYPO",
+        "neither a scene file nor a built-in scene (cornell,",
+    );
     // bench's quality folder holds inputs.
     let q = dir.join("q").join("scene");
     std::fs::create_dir_all(&q).unwrap();

@@ -674,6 +674,11 @@ impl Scene {
     pub fn by_name_or_file(name: &str) -> Result<Scene> {
         if BUILTIN.iter().any(|(n, _)| *n == name) {
             Scene::builtin(name)
+        } else if !Path::new(name).exists() {
+            Err(Error::InvalidArgument(format!(
+                "{name}: neither a scene file nor a built-in scene ({})",
+                Scene::builtin_names().join(", ")
+            )))
         } else {
             Scene::load(Path::new(name))
         }

@@ -7,6 +7,8 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, OnceLock};
 use std::time::Duration;
 
+use anyhow::Context as _;
+
 use mcdenoise::{
     io, metrics, ContextOptions, Denoiser, GpuContext, Layer, Method, Options, Pass, PrepareReport,
     RgbImage, StatsImage, Validation,
@@ -135,15 +137,20 @@ fn output_key(p: &Path) -> PathBuf {
     }
 }
 
-/// Refuses any of `outputs` that is one of `inputs`, and two outputs that
-/// name the same file (or the same frame pattern): one would silently
-/// replace the other.
-pub fn refuse_overwrite<'a>(
+/// Before any work: refuses any of `outputs` that is one of `inputs` or a
+/// folder, and two outputs that name the same file (or the same frame
+/// pattern), one of which would silently replace the other; then creates
+/// the folders the outputs go in, so that a missing one fails now, not
+/// after the render.
+pub fn check_outputs<'a>(
     outputs: impl IntoIterator<Item = &'a Path>,
     inputs: &[&Path],
 ) -> anyhow::Result<()> {
     let outputs: Vec<&Path> = outputs.into_iter().collect();
     for (k, out) in outputs.iter().enumerate() {
+        if out.is_dir() {
+            anyhow::bail!("{}: a folder; name the output file", out.display());
+        }
         if inputs.iter().any(|i| same_file(out, i)) {
             anyhow::bail!("{}: refusing to overwrite an input file", out.display());
         }
@@ -153,6 +160,12 @@ pub fn refuse_overwrite<'a>(
                 "{}: named for two outputs; give each output its own file",
                 out.display()
             );
+        }
+    }
+    for out in outputs {
+        if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
+            std::fs::create_dir_all(dir)
+                .with_context(|| format!("{}: creating its folder", out.display()))?;
         }
     }
     Ok(())

@@ -11,7 +11,7 @@ use mcdenoise::{Backend, Method, Options};
 use crate::args::{
     method_parser, parse_size, BlendArg, OutliersArg, PrefilterArg, PyramidArg, TemporalArg,
 };
-use crate::common::{context, refuse_overwrite};
+use crate::common::{check_outputs, context};
 use crate::Cli;
 
 /// The long help of `mcdenoise bench`.
@@ -142,7 +142,7 @@ pub fn run(cli: &Cli, a: &Args) -> anyhow::Result<bool> {
             .flatten()
             .map(PathBuf::as_path)
     };
-    refuse_overwrite(
+    check_outputs(
         outputs(),
         &a.input.iter().map(PathBuf::as_path).collect::<Vec<_>>(),
     )?;

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use anyhow::Context;
 use mcdenoise::{io, metrics};
 
-use crate::common::{check_error, print_metrics, read_colour, refuse_overwrite};
+use crate::common::{check_error, check_outputs, print_metrics, read_colour};
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -20,7 +20,7 @@ pub struct Args {
 }
 
 pub fn run(a: &Args) -> anyhow::Result<bool> {
-    refuse_overwrite(
+    check_outputs(
         a.heatmap.as_deref(),
         &[a.image.as_path(), a.reference.as_path()],
     )?;

@@ -16,7 +16,7 @@ use crate::args::{
     PyramidArg, TemporalArg,
 };
 use crate::common::{
-    check_error, context, print_metrics, print_report, progress_bar, read_colour, refuse_overwrite,
+    check_error, check_outputs, context, print_metrics, print_report, progress_bar, read_colour,
 };
 use crate::Cli;
 
@@ -47,11 +47,15 @@ pub struct Args {
     /// Reconstruction method.
     #[arg(long, value_parser = method_parser(), default_value = "wlr")]
     method: Method,
+    /// Where the kernels run: the Vulkan device, or their scalar f64 twins
+    /// on the CPU (slow; for checking).
     #[arg(long, value_enum, default_value = "gpu")]
     backend: BackendArg,
     /// Kernel arithmetic on the GPU (f64 where the device supports it).
     #[arg(long, value_enum, default_value = "f32")]
     precision: PrecisionArg,
+    /// The reconstruction's pass: the final image, or an intermediate one
+    /// of an adaptive loop (smaller windows, as for a sample map).
     #[arg(long, value_enum, default_value = "final")]
     pass: PassArg,
     /// Feature prefilter before the method (spec §1, §6).
@@ -187,7 +191,7 @@ pub fn run(cli: &Cli, a: &Args) -> anyhow::Result<bool> {
     }
     let mut inputs = vec![input.as_path()];
     inputs.extend(a.reference.as_deref());
-    refuse_overwrite(
+    check_outputs(
         [Some(&a.output), a.png.as_ref(), a.sample_map.as_ref()]
             .into_iter()
             .flatten()
@@ -320,6 +324,7 @@ fn frame_patterns(
             pattern.display()
         );
     }
+    check_outputs([a.output.as_path()], &[])?;
     Ok((outp, frames))
 }
 

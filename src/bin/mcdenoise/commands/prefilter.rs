@@ -7,7 +7,7 @@ use anyhow::Context;
 use mcdenoise::{has_low_spp, io, Config, Denoiser, Method, Options, Prefilter, Source};
 
 use crate::args::PrecisionArg;
-use crate::common::{context, print_report, refuse_overwrite};
+use crate::common::{check_outputs, context, print_report};
 use crate::Cli;
 
 #[derive(clap::Args)]
@@ -36,7 +36,7 @@ pub struct Args {
 }
 
 pub fn run(cli: &Cli, a: &Args) -> anyhow::Result<bool> {
-    refuse_overwrite([a.output.as_path()], &[&a.input])?;
+    check_outputs([a.output.as_path()], &[&a.input])?;
     let img = crate::common::read_stats(&a.input)?;
     let mut config = Config::new(Method::None);
     config.prefilter = Prefilter::On;

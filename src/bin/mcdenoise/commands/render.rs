@@ -15,7 +15,7 @@ use crate::args::{
     method_parser, parse_size, BlendArg, MapCheckArg, OutliersArg, PrecisionArg, PrefilterArg,
     PyramidArg, TemporalArg,
 };
-use crate::common::{context, pass_bar, refuse_overwrite, stop_flag};
+use crate::common::{check_outputs, context, pass_bar, stop_flag};
 use crate::Cli;
 
 pub const AFTER_HELP: &str = "Examples:\n  mcdenoise render --list-scenes\n  \
@@ -355,12 +355,13 @@ pub fn run(cli: &Cli, a: &Args) -> anyhow::Result<bool> {
     } else {
         &[]
     };
-    refuse_overwrite(
+    check_outputs(
         [
             Some(output),
             a.png.as_ref(),
             a.save_stats.as_ref(),
             a.figure.as_ref(),
+            a.strip.as_ref(),
         ]
         .into_iter()
         .flatten()
