@@ -430,7 +430,7 @@ fn saved_statistics_denoise_to_the_rendered_image() {
 }
 
 #[test]
-fn a_file_without_samples_is_refused() {
+fn files_without_samples_or_with_non_finite_values() {
     let tmp = tmpdir("nosamples");
     let dir = tmp.path();
     let mut img = mcdenoise::io::read_stats(&fixture("dof_checker_64_spp16.exr")).unwrap();
@@ -444,6 +444,30 @@ fn a_file_without_samples_is_refused() {
     assert_eq!(code, 2, "{err}");
     assert!(err.contains("no pixel has a sample"), "{err}");
     assert!(!out.exists());
+    // Non-finite values are named by layer and first pixel; a channel with
+    // nothing else is refused.
+    let mut img = mcdenoise::io::read_stats(&fixture("dof_checker_64_spp16.exr")).unwrap();
+    img.get_mut(mcdenoise::Layer::Albedo).unwrap()[1][5 * 64 + 7] = f32::NAN;
+    let nan = dir.join("nan.exr");
+    mcdenoise::io::write_stats(&nan, &img).unwrap();
+    let (code, _, err) = run(bin().arg("denoise").arg(&nan).arg("-o").arg(&out));
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        err.contains("layer albedo: 1 non-finite values, the first at pixel (7, 5)"),
+        "{err}"
+    );
+    img.get_mut(mcdenoise::Layer::Color).unwrap()[2].fill(f32::INFINITY);
+    mcdenoise::io::write_stats(&nan, &img).unwrap();
+    let (code, _, err) = run(bin()
+        .arg("denoise")
+        .arg(&nan)
+        .arg("-o")
+        .arg(dir.join("o2.exr")));
+    assert_eq!(code, 2, "{err}");
+    assert!(
+        err.contains("layer color, channel B: every value is non-finite"),
+        "{err}"
+    );
 }
 
 #[test]

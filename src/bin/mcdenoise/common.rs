@@ -236,6 +236,37 @@ pub fn read_stats(path: &Path) -> anyhow::Result<StatsImage> {
             path.display()
         );
     }
+    // Sanitation repairs them and counts them over all layers; say where.
+    for (layer, planes) in img.layers() {
+        let bad = planes
+            .iter()
+            .map(|p| p.iter().filter(|v| !v.is_finite()).count());
+        let count: usize = bad.sum();
+        let first = planes
+            .iter()
+            .filter_map(|p| p.iter().position(|v| !v.is_finite()))
+            .min();
+        if let Some(c) = planes
+            .iter()
+            .position(|p| !p.is_empty() && p.iter().all(|v| !v.is_finite()))
+        {
+            anyhow::bail!(
+                "{}: layer {}, channel {}: every value is non-finite (NaN or infinite)",
+                path.display(),
+                layer.name(),
+                layer.channels()[c]
+            );
+        }
+        if let Some(i) = first {
+            eprintln!(
+                "{}: layer {}: {count} non-finite values, the first at pixel ({}, {}); sanitation repairs them",
+                path.display(),
+                layer.name(),
+                i % img.width,
+                i / img.width
+            );
+        }
+    }
     Ok(img)
 }
 

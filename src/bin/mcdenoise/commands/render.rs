@@ -4,7 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
-use anyhow::bail;
+use anyhow::{bail, Context};
 use mcdenoise::io::frames::FramePattern;
 use mcdenoise::render::{adaptive, reference, sequence, Renderer, Scene};
 use mcdenoise::{
@@ -412,7 +412,8 @@ pub fn run(cli: &Cli, a: &Args) -> anyhow::Result<bool> {
     if let Some(frames) = &a.frames {
         return render_sequence(cli, a, &ctx, &scene, frames.clone(), &cfg);
     }
-    let renderer = Renderer::new(&ctx, &scene, w, h, a.seed)?;
+    let renderer = Renderer::new(&ctx, &scene, w, h, a.seed)
+        .with_context(|| format!("rendering {w}x{h} pixels"))?;
     // Rendered first, so an open-ended render can report its true error
     // after every pass.
     let reference = match a.reference {
@@ -484,6 +485,17 @@ pub fn run(cli: &Cli, a: &Args) -> anyhow::Result<bool> {
             s.sampling_ms
         );
         eprintln!("-> {}", output.display());
+    }
+    // A target the render stopped short of is said even with -q: the
+    // image is not what was asked for.
+    if let (Some(target), Some(est)) = (a.target_error, result.estimate) {
+        if est > target {
+            eprintln!(
+                "mcdenoise: warning: the estimated rMSE {est:.5} is above --target-error {target}: the render stopped at {} ({:.1} spp)",
+                if a.time_limit.is_some() { "--time-limit or --max-spp" } else { "--max-spp" },
+                result.samples as f64 / (w * h) as f64
+            );
+        }
     }
     if let Some(path) = &a.figure {
         write_figure(
