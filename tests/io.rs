@@ -920,6 +920,29 @@ fn writes_are_atomic() {
     std::fs::create_dir(dir.path("a_directory")).unwrap();
     assert!(write_stats(&dir.path("a_directory"), &img).is_err());
     assert_eq!(dir.entries(), ["a_directory", "p.png", "stats.exr"]);
+
+    // Through a symbolic link (relative, two deep) the file it names is
+    // written and the links stay links.
+    #[cfg(unix)]
+    {
+        std::os::unix::fs::symlink("stats.exr", dir.path("link1.exr")).unwrap();
+        std::os::unix::fs::symlink("link1.exr", dir.path("link2.exr")).unwrap();
+        write_stats(&dir.path("link2.exr"), &synthetic_stats(3, 2, &REQUIRED)).unwrap();
+        assert_eq!(read_stats(&path).unwrap().width, 3);
+        for l in ["link1.exr", "link2.exr"] {
+            assert!(dir.path(l).is_symlink(), "{l}");
+        }
+        assert_eq!(
+            dir.entries(),
+            [
+                "a_directory",
+                "link1.exr",
+                "link2.exr",
+                "p.png",
+                "stats.exr"
+            ]
+        );
+    }
 }
 
 /// The OS error of an [`Error::Io`] for `path`.

@@ -104,6 +104,25 @@ impl Seek for TempFile {
     }
 }
 
+/// The file `path` names once its symbolic links are followed (a relative
+/// link from the link's folder), or `path` itself when it is none; at most
+/// 40 links deep, as the kernel allows.
+fn link_target(path: &Path) -> PathBuf {
+    let mut p = path.to_path_buf();
+    for _ in 0..40 {
+        match fs::read_link(&p) {
+            Ok(to) => {
+                p = match p.parent() {
+                    Some(dir) if to.is_relative() => dir.join(to),
+                    _ => to,
+                }
+            }
+            Err(_) => break,
+        }
+    }
+    p
+}
+
 /// Writes `path` atomically.
 ///
 /// `write` receives a buffered writer on a fresh temporary file next to `path`
@@ -114,7 +133,11 @@ impl Seek for TempFile {
 /// (a full disk: "No space left on device").
 ///
 /// A directory that does not exist is not created: that is an error.
+/// Where `path` is a symbolic link, the file it points to is written (the
+/// link stays a link), as a plain write through the link would.
 pub fn write_atomic(path: &Path, write: impl FnOnce(&mut TempFile) -> Result<()>) -> Result<()> {
+    let target = link_target(path);
+    let path = target.as_path();
     let tmp = temp_path(path)?;
     let io_err = |source: std::io::Error| Error::Io {
         path: path.to_path_buf(),
