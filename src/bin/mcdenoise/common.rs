@@ -281,3 +281,22 @@ pub fn print_report(r: &PrepareReport, input: &Path) {
         eprintln!("{line}");
     }
 }
+
+/// The error and its causes, `: `-separated, each cause once: an error whose
+/// message already quotes its source (mcdenoise's `Io`: "path: OS error")
+/// would otherwise print the OS error twice.
+pub fn error_text(e: &(dyn std::error::Error + 'static)) -> String {
+    let mut text = String::new();
+    let mut cause = Some(e);
+    while let Some(c) = cause {
+        let part = c.to_string();
+        if !text.contains(&part) {
+            if !text.is_empty() {
+                text.push_str(": ");
+            }
+            text.push_str(&part);
+        }
+        cause = c.source();
+    }
+    text
+}

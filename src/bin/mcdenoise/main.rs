@@ -128,26 +128,8 @@ fn main() -> ExitCode {
             ExitCode::from(130)
         }
         Err(e) => {
-            eprintln!("mcdenoise: error: {}", error_text(&e));
+            eprintln!("mcdenoise: error: {}", common::error_text(e.as_ref()));
             ExitCode::from(2)
         }
     }
-}
-
-/// The error and its causes, `: `-separated, each cause once: an error whose
-/// message already quotes its source (mcdenoise's `Io`: "path: OS error")
-/// would otherwise print the OS error twice.
-fn error_text(e: &anyhow::Error) -> String {
-    let mut text = String::new();
-    for cause in e.chain() {
-        let part = cause.to_string();
-        if text.contains(&part) {
-            continue;
-        }
-        if !text.is_empty() {
-            text.push_str(": ");
-        }
-        text.push_str(&part);
-    }
-    text
 }

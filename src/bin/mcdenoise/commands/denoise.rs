@@ -388,7 +388,7 @@ fn denoise_window(
         let img = match crate::common::read_stats(&frame.path) {
             Ok(img) => img,
             Err(e) => {
-                out.fail(frame, &format!("{e:#}"));
+                out.fail(frame, &crate::common::error_text(e.as_ref()));
                 continue;
             }
         };
@@ -413,7 +413,7 @@ fn denoise_window(
             match SequenceDenoiser::new(&ctx, source.clone(), config_for(&img)) {
                 Ok(seq) => run = Some((source, seq)),
                 Err(e) => {
-                    out.fail(frame, &format!("{e:#}"));
+                    out.fail(frame, &crate::common::error_text(&e));
                     continue;
                 }
             }
@@ -424,7 +424,7 @@ fn denoise_window(
             Ok(done) => out.emit(done),
             Err(e) => {
                 // The window is broken: its frames are lost with this one.
-                let msg = format!("{e:#}");
+                let msg = crate::common::error_text(&e);
                 out.waiting.pop_back();
                 out.fail(frame, &msg);
                 out.lose(&format!("lost with frame {}: {msg}", frame.number));
@@ -495,7 +495,7 @@ impl WindowOutput<'_> {
                         );
                     }
                 }
-                Err(e) => self.fail(f, &format!("{e:#}")),
+                Err(e) => self.fail(f, &crate::common::error_text(e.as_ref())),
             }
         }
     }
@@ -504,7 +504,10 @@ impl WindowOutput<'_> {
     fn end(&mut self, seq: &mut SequenceDenoiser) {
         match seq.finish() {
             Ok(out) => self.emit(out),
-            Err(e) => self.lose(&format!("the sequence's end failed: {e:#}")),
+            Err(e) => self.lose(&format!(
+                "the sequence's end failed: {}",
+                crate::common::error_text(&e)
+            )),
         }
     }
 }
@@ -606,7 +609,7 @@ fn denoise_frames(
                 }
             }
             Err(e) => {
-                let msg = format!("{e:#}");
+                let msg = crate::common::error_text(e.as_ref());
                 eprintln!(
                     "frame {}: {} failed: {msg}",
                     frame.number,
