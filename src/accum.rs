@@ -43,9 +43,9 @@ pub struct AccumLayout {
     /// A miss's position is 0 as without an origin (`−origin` relative to it).
     /// Default 0. A denoiser finalises every call with the origin of the
     /// layout it was made with: keep one origin for all the frames a
-    /// temporal denoiser filters (the built-in renderer uses the first
-    /// frame's lens centre for a whole sequence), or their positions, and
-    /// so the reprojection, move with it.
+    /// temporal denoiser filters (the built-in renderer uses the lens
+    /// centre of the scene's frame 0 for a whole sequence), or their
+    /// positions, and so the reprojection, move with it.
     pub position_origin: [f32; 3],
 }
 

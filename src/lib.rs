@@ -129,7 +129,7 @@ pub use gpu::{
     DeviceInfo, GpuContext, ImportedDevice, KernelTiming, Precision, Recorded, Validation,
 };
 pub use image::{Layer, RgbImage, StatsImage};
-pub use methods::prepare::{colour_of, has_low_spp, PrepareReport};
+pub use methods::prepare::{colour_of, has_low_spp, has_samples, PrepareReport};
 pub use methods::{
     available_names, Backend, InputBlend, Method, MethodInfo, Outliers, Pass, Prefilter,
     ProgressCallback, Pyramid, Temporal, TemporalState, REGISTRY,

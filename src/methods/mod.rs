@@ -98,6 +98,18 @@ impl Method {
         )
     }
 
+    /// The methods a reconstruction by this one runs with `options`, in
+    /// any pass: itself, and `auto`'s members.
+    pub fn runs(self, options: &Options) -> Vec<Method> {
+        let mut m = vec![self];
+        if self == Method::Auto {
+            for pass in [Pass::Final, Pass::Intermediate] {
+                m.extend(auto::members(options, pass));
+            }
+        }
+        m
+    }
+
     /// The method called `name` (case-insensitive, surrounding blanks
     /// ignored).
     pub fn from_name(name: &str) -> Option<Method> {

@@ -441,6 +441,13 @@ pub fn has_low_spp(img: &StatsImage) -> bool {
         .is_some_and(|s| s[0].iter().any(|&v| (1.0..2.0).contains(&spp_of(v))))
 }
 
+/// Whether any pixel of `img` has a sample (a valid count, `spp` ≥ 1); an
+/// image without a `spp` layer has none.
+pub fn has_samples(img: &StatsImage) -> bool {
+    img.get(Layer::Spp)
+        .is_some_and(|s| s[0].iter().any(|&v| spp_of(v) >= 1.0))
+}
+
 /// The colour layer as an image, clamped to ≥ 0 (spec §0.4 step 5). Invalid
 /// pixels (n < 1) get the mean of the valid pixels of their 3x3
 /// neighbourhood, or 0 (spec §0.2).

@@ -10,7 +10,7 @@ use std::time::Duration;
 use anyhow::Context as _;
 
 use mcdenoise::{
-    io, metrics, ContextOptions, Denoiser, GpuContext, Layer, Method, Options, Pass, PrepareReport,
+    io, metrics, ContextOptions, Denoiser, GpuContext, Layer, Method, Options, PrepareReport,
     RgbImage, StatsImage, Validation,
 };
 
@@ -172,17 +172,10 @@ pub fn check_outputs<'a>(
 }
 
 /// Warns about each `--opt` key of a method (`wlr.`, `lp.`, `apr.`,
-/// `aos.`, `auto.`) that none of `running` (with `auto`'s members) is:
+/// `aos.`, `auto.`) that none of `running` runs ([`Method::runs`]):
 /// such an option has no effect on this command.
 pub fn warn_unused_method_options(options: &Options, running: &[Method]) {
-    let mut all = running.to_vec();
-    if running.contains(&Method::Auto) {
-        all.extend(mcdenoise::methods::auto::members(options, Pass::Final));
-        all.extend(mcdenoise::methods::auto::members(
-            options,
-            Pass::Intermediate,
-        ));
-    }
+    let all: Vec<Method> = running.iter().flat_map(|m| m.runs(options)).collect();
     for key in options.keys() {
         let prefix = key.split('.').next().unwrap_or(key);
         if let Some(m) = Method::from_name(prefix).filter(|m| !all.contains(m)) {
@@ -227,10 +220,8 @@ pub fn print_metrics(m: &metrics::Metrics) {
 /// only be black.
 pub fn read_stats(path: &Path) -> anyhow::Result<StatsImage> {
     let img = io::read_stats(path)?;
-    let spp = img.get(Layer::Spp).map(|p| &p[0]);
-    if spp
-        .is_some_and(|s| !s.is_empty() && s.iter().all(|&v| mcdenoise::reference::spp_of(v) < 1.0))
-    {
+    let counted = img.get(Layer::Spp).is_some_and(|p| !p[0].is_empty());
+    if counted && !mcdenoise::has_samples(&img) {
         anyhow::bail!(
             "{}: no pixel has a sample (spp < 1 everywhere): nothing to denoise",
             path.display()
@@ -238,24 +229,21 @@ pub fn read_stats(path: &Path) -> anyhow::Result<StatsImage> {
     }
     // Sanitation repairs them and counts them over all layers; say where.
     for (layer, planes) in img.layers() {
-        let bad = planes
-            .iter()
-            .map(|p| p.iter().filter(|v| !v.is_finite()).count());
-        let count: usize = bad.sum();
-        let first = planes
-            .iter()
-            .filter_map(|p| p.iter().position(|v| !v.is_finite()))
-            .min();
-        if let Some(c) = planes
-            .iter()
-            .position(|p| !p.is_empty() && p.iter().all(|v| !v.is_finite()))
-        {
-            anyhow::bail!(
-                "{}: layer {}, channel {}: every value is non-finite (NaN or infinite)",
-                path.display(),
-                layer.name(),
-                layer.channels()[c]
-            );
+        let (mut count, mut first) = (0, None::<usize>);
+        for (c, plane) in planes.iter().enumerate() {
+            let mut bad = plane.iter().enumerate().filter(|(_, v)| !v.is_finite());
+            let Some((i, _)) = bad.next() else { continue };
+            let n = 1 + bad.count();
+            if n == plane.len() {
+                anyhow::bail!(
+                    "{}: layer {}, channel {}: every value is non-finite (NaN or infinite)",
+                    path.display(),
+                    layer.name(),
+                    layer.channels()[c]
+                );
+            }
+            count += n;
+            first = Some(first.map_or(i, |f| f.min(i)));
         }
         if let Some(i) = first {
             eprintln!(

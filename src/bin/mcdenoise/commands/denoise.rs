@@ -180,7 +180,7 @@ pub fn run(cli: &Cli, a: &Args) -> anyhow::Result<bool> {
                 a.temporal.name()
             );
         }
-        if matches!(a.temporal.get(), Temporal::Apr | Temporal::LpSmooth) {
+        if matches!(t, Temporal::Apr | Temporal::LpSmooth) {
             return denoise_window(cli, a, frames, &config_for);
         }
         return denoise_frames(cli, a, frames, &warm_config, &config_for);
