@@ -382,6 +382,50 @@ fn multi_part_file_uses_the_part_with_the_statistics() {
 }
 
 #[test]
+fn statistics_split_over_parts_are_refused() {
+    let dir = TempDir::new("splitparts");
+    let img = synthetic_stats(8, 5, &Layer::ALL);
+    let part = |name: &str, keep: &dyn Fn(&str) -> bool| {
+        let channels: SmallVec<[AnyChannel<FlatSamples>; 4]> = named_planes(&img)
+            .into_iter()
+            .filter(|(n, _)| keep(n))
+            .map(|(n, p)| AnyChannel::new(Text::new_or_panic(n), FlatSamples::F32(p)))
+            .collect();
+        exr::image::Layer::new(
+            Vec2(8, 5),
+            LayerAttributes::named(name),
+            encoding(Compression::ZIP16, Blocks::ScanLines),
+            AnyChannels::sort(channels),
+        )
+    };
+    // The required layers in one part, the variances and the position in
+    // another: reading the first alone would estimate the variances and
+    // drop the G-buffer prefilter's input without a word.
+    let required = |n: &str| {
+        REQUIRED
+            .iter()
+            .any(|l| l.channel_names().iter().any(|c| c == n))
+    };
+    let path = dir.path("split.exr");
+    Image::from_layers(
+        ImageAttributes::new(exr::prelude::IntegerBounds::from_dimensions(Vec2(8, 5))),
+        vec![part("means", &required), part("rest", &|n| !required(n))],
+    )
+    .write()
+    .to_file(&path)
+    .unwrap();
+    let err = read_stats(&path).unwrap_err().to_string();
+    assert!(err.contains("split.exr"), "{err}");
+    assert!(
+        err.contains("split over parts")
+            && err.contains("part 1 has")
+            && err.contains("color_variance.R")
+            && err.contains("part 0"),
+        "{err}"
+    );
+}
+
+#[test]
 fn missing_variance_layers_are_absent_not_an_error() {
     let dir = TempDir::new("novariance");
     let img = synthetic_stats(6, 4, &REQUIRED);

@@ -62,8 +62,10 @@ const RESAVE_HINT: &str = "re-save with ZIP, PIZ, RLE or no compression";
 /// file and the problem if it is empty, not an EXR, truncated or corrupt,
 /// uses an unsupported compression (ZSTD, HTJ2K) or subsampled channels, has
 /// an empty or oversized ([`MAX_DIMENSION`], [`MAX_PIXELS`]) data window, lacks
-/// a [`Requirement::Required`] layer, or holds only some channels of a layer.
-/// Missing variance layers are not an error: they are absent from the result.
+/// a [`Requirement::Required`] layer, holds only some channels of a layer, or
+/// (multi-part) has statistics channels in a part other than the one with
+/// `color.R`. Missing variance layers are not an error: they are absent from
+/// the result.
 pub fn read_stats(path: &Path) -> Result<StatsImage> {
     let bytes = read_file(path)?;
     let part = decode_part(
@@ -209,6 +211,8 @@ struct DecodedPart {
     all_names: Vec<String>,
     /// The wanted channels, converted; `None` once taken.
     planes: Vec<(String, Option<Vec<f32>>)>,
+    /// Wanted channels the part lacks that another part has: (part, names).
+    elsewhere: Vec<(usize, Vec<String>)>,
 }
 
 impl DecodedPart {
@@ -252,6 +256,29 @@ impl DecodedPart {
 
 /// Builds the [`StatsImage`], checking required and complete layers.
 fn assemble_stats(path: &Path, mut part: DecodedPart) -> Result<StatsImage> {
+    // Statistics are read from one part: a layer in another part would be
+    // left out without a word (an estimated variance, no prefilter).
+    if let Some((other, names)) = part.elsewhere.first() {
+        const SHOWN: usize = 8;
+        let mut list = names
+            .iter()
+            .take(SHOWN)
+            .cloned()
+            .collect::<Vec<_>>()
+            .join(", ");
+        if names.len() > SHOWN {
+            list.push_str(&format!(", ... ({} channels)", names.len()));
+        }
+        return Err(Error::bad_input(
+            path,
+            format!(
+                "the statistics are split over parts: part {other} has {list}, which part {} \
+                 (the one with color.R) lacks; the statistics are read from one part: \
+                 write every layer into it",
+                part.part_index
+            ),
+        ));
+    }
     let mut img = StatsImage::new(part.width, part.height);
     let mut problems = Vec::new();
     for layer in Layer::ALL {
@@ -448,6 +475,20 @@ fn decode_unguarded(
     let (width, height) = (header.layer_size.width(), header.layer_size.height());
     let pixels = width * height;
     let all_names = part_channel_names(&header);
+    let elsewhere: Vec<(usize, Vec<String>)> = reader
+        .headers()
+        .iter()
+        .enumerate()
+        .filter(|&(i, _)| i != part_index)
+        .map(|(i, h)| {
+            let names: Vec<String> = part_channel_names(h)
+                .into_iter()
+                .filter(|n| wanted(n) && !all_names.contains(n))
+                .collect();
+            (i, names)
+        })
+        .filter(|(_, names)| !names.is_empty())
+        .collect();
 
     // One output slot per wanted channel, indexed by the channel's position in
     // the part's channel list (the order of the lines in a block).
@@ -555,6 +596,7 @@ fn decode_unguarded(
         part_count,
         all_names,
         planes,
+        elsewhere,
     })
 }
 
