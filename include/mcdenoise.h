@@ -316,6 +316,21 @@ void mcd_denoiser_destroy(struct McdDenoiser *denoiser);
 // recording of this denoiser runs on the GPU at the same time.
 enum McdStatus mcd_denoiser_record(const struct McdDenoiser *denoiser, VkCommandBuffer cmd, uint32_t queue_family, VkBuffer accum, uint64_t accum_offset, uint32_t sample_budget, struct McdRecording **out);
 
+// Denoises accumulation sums in host memory, for a renderer that
+// accumulates on the CPU: `sums` holds `bytes` = [`mcd_accum_bytes`] of
+// the denoiser's layout, the planes exactly as `include/mcdenoise_accum.glsl`
+// lays them out in a device buffer ([`mcd_accum_plane_stride`] apart).
+// mcdenoise copies them to a device buffer of its own (kept for the next
+// call), submits the whole chain to the context's queue and waits; then
+// [`mcd_denoiser_read`] copies the results to host memory. `sample_budget`
+// as for [`mcd_denoiser_record`]. The results are those of
+// [`mcd_denoiser_record`] on a device buffer holding the same bytes.
+//
+// # Safety
+// `denoiser` is live; `sums` is valid for reads of `bytes` bytes. The
+// context's queue is not used by the host during the call.
+enum McdStatus mcd_denoiser_run_host(const struct McdDenoiser *denoiser, const void *sums, uint64_t bytes, uint32_t sample_budget);
+
 // Releases a recording (NULL is ignored), after the submission of its
 // command buffer completed or once the buffer was discarded.
 //

@@ -387,6 +387,9 @@ pub struct Denoiser {
     progress: Option<ProgressCallback>,
     /// Whether the last call computed a sample map.
     sampled: AtomicBool,
+    /// The device copy of accumulation sums handed over in host memory
+    /// ([`run_host_accum`](Self::run_host_accum)), kept for the next call.
+    host_accum: std::sync::Mutex<Option<Box<crate::gpu::GpuBuffer>>>,
 }
 
 impl std::fmt::Debug for Denoiser {
@@ -439,6 +442,7 @@ impl Denoiser {
             config,
             progress: None,
             sampled: AtomicBool::new(false),
+            host_accum: std::sync::Mutex::new(None),
         })
     }
 
@@ -543,6 +547,7 @@ impl Denoiser {
             config,
             progress: None,
             sampled: AtomicBool::new(false),
+            host_accum: std::sync::Mutex::new(None),
         })
     }
 
@@ -736,6 +741,51 @@ impl Denoiser {
         let t = batch.finish()?;
         self.sampled.store(budget.is_some(), Ordering::SeqCst);
         Ok(t)
+    }
+
+    /// [`run`](Self::run) on accumulation sums in host memory: `sums` holds
+    /// the planes of the denoiser's [`Source::Accum`] layout exactly as a
+    /// device buffer would ([`AccumLayout::bytes`] long, planes
+    /// [`AccumLayout::plane_stride`] apart), for a renderer that
+    /// accumulates on the CPU. They are copied to a device buffer the
+    /// denoiser keeps for its next call; the results are bit-identical to
+    /// [`run`](Self::run) on a device buffer with the same bytes.
+    /// [`read`](Self::read) after.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] for a denoiser of another source or sums
+    /// of another length; as [`run`](Self::run) otherwise.
+    pub fn run_host_accum(&self, sums: &[u8], budget: Option<u32>) -> Result<Vec<KernelTiming>> {
+        let chain = self.chain()?;
+        let ChainInput::Accum(layout) = chain.input_kind() else {
+            return Err(Error::InvalidArgument(
+                "run_host_accum needs a denoiser made for an accumulation layout (Source::Accum)"
+                    .into(),
+            ));
+        };
+        if sums.len() as u64 != layout.bytes() {
+            return Err(Error::InvalidArgument(format!(
+                "the accumulation sums are {} bytes, the layout's {}x{} planes {}",
+                sums.len(),
+                layout.width,
+                layout.height,
+                layout.bytes()
+            )));
+        }
+        let mut kept = self
+            .host_accum
+            .lock()
+            .map_err(|_| Error::InvalidArgument("an earlier call panicked".into()))?;
+        if kept.is_none() {
+            *kept = Some(Box::new(crate::gpu::GpuBuffer::new(
+                chain.context(),
+                "host.accum",
+                layout.bytes(),
+            )?));
+        }
+        let buffer = kept.as_ref().expect("just made");
+        buffer.upload(0, sums)?;
+        self.run(Some(buffer.slice()), budget)
     }
 
     /// Downloads the outputs of the last completed call.

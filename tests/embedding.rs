@@ -724,3 +724,75 @@ fn short_bindings_are_refused_before_recording() {
     batch.finish().unwrap();
     common::check_validation(&ctx);
 }
+
+/// `planes` as the bytes of a device accumulation buffer of `layout`.
+fn accum_bytes(layout: &AccumLayout, planes: &[Vec<f32>]) -> Vec<u8> {
+    let mut bytes = vec![0u8; layout.bytes() as usize];
+    let stride = layout.plane_stride() as usize;
+    for (i, p) in planes.iter().enumerate() {
+        let src: &[u8] = bytemuck::cast_slice(p);
+        bytes[i * stride..i * stride + src.len()].copy_from_slice(src);
+    }
+    bytes
+}
+
+/// A renderer that accumulates on the CPU hands its sums over in host
+/// memory (`Denoiser::run_host_accum`, the C API's
+/// `mcd_denoiser_run_host`): the results are bit-identical to the same
+/// bytes in a device buffer, also on a second call (the denoiser keeps its
+/// device copy), and sums of another length are refused.
+#[test]
+fn sums_in_host_memory_denoise_as_a_device_buffer() {
+    let ctx = gpu();
+    let (w, hgt) = (24usize, 20usize);
+    let budget = (4 * w * hgt) as u32;
+    let config = Config::new(Method::Wlr);
+    let host = Denoiser::new(
+        &ctx,
+        Source::Accum(AccumLayout::new(w, hgt, false, false)),
+        config.clone(),
+    )
+    .unwrap();
+    let device = Denoiser::new(
+        &ctx,
+        Source::Accum(AccumLayout::new(w, hgt, false, false)),
+        config,
+    )
+    .unwrap();
+    for seed in [9, 10] {
+        let (layout, planes) = edge_scene(w, hgt, seed);
+        let bytes = accum_bytes(&layout, &planes);
+        host.run_host_accum(&bytes, Some(budget)).unwrap();
+        let a = host.read().unwrap();
+        let buf = mcdenoise::gpu::GpuBuffer::from_slice(&ctx, "test.accum", &bytes).unwrap();
+        device.run(Some(buf.slice()), Some(budget)).unwrap();
+        let b = device.read().unwrap();
+        assert_eq!(a.color.planes, b.color.planes, "seed {seed}: colour");
+        assert_eq!(a.error.planes, b.error.planes, "seed {seed}: error");
+        assert_eq!(a.samples, b.samples, "seed {seed}: sample map");
+        assert_eq!(
+            a.samples
+                .as_ref()
+                .unwrap()
+                .iter()
+                .map(|&n| n as u64)
+                .sum::<u64>(),
+            budget as u64
+        );
+    }
+    let (layout, planes) = edge_scene(w, hgt, 11);
+    let bytes = accum_bytes(&layout, &planes);
+    let err = host
+        .run_host_accum(&bytes[4..], None)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("bytes"), "{err}");
+    let stats = Denoiser::new(
+        &ctx,
+        Source::of_image(&finalize_cpu(&layout, &planes)),
+        Config::new(Method::Wlr),
+    )
+    .unwrap();
+    let err = stats.run_host_accum(&bytes, None).unwrap_err().to_string();
+    assert!(err.contains("Source::Accum"), "{err}");
+}

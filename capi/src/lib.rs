@@ -695,6 +695,46 @@ pub unsafe extern "C" fn mcd_denoiser_record(
     })
 }
 
+/// Denoises accumulation sums in host memory, for a renderer that
+/// accumulates on the CPU: `sums` holds `bytes` = [`mcd_accum_bytes`] of
+/// the denoiser's layout, the planes exactly as `include/mcdenoise_accum.glsl`
+/// lays them out in a device buffer ([`mcd_accum_plane_stride`] apart).
+/// mcdenoise copies them to a device buffer of its own (kept for the next
+/// call), submits the whole chain to the context's queue and waits; then
+/// [`mcd_denoiser_read`] copies the results to host memory. `sample_budget`
+/// as for [`mcd_denoiser_record`]. The results are those of
+/// [`mcd_denoiser_record`] on a device buffer holding the same bytes.
+///
+/// # Safety
+/// `denoiser` is live; `sums` is valid for reads of `bytes` bytes. The
+/// context's queue is not used by the host during the call.
+#[no_mangle]
+pub unsafe extern "C" fn mcd_denoiser_run_host(
+    denoiser: *const McdDenoiser,
+    sums: *const c_void,
+    bytes: u64,
+    sample_budget: u32,
+) -> McdStatus {
+    guard(|| {
+        // SAFETY: forwarded to the caller.
+        let d = unsafe { non_null(denoiser, "denoiser") }?;
+        if sums.is_null() {
+            return Err(invalid("sums is NULL"));
+        }
+        if bytes != d.layout.bytes() {
+            return Err(invalid(format!(
+                "bytes is {bytes}, mcd_accum_bytes of the denoiser's layout is {}",
+                d.layout.bytes()
+            )));
+        }
+        // SAFETY: the caller guarantees `bytes` readable bytes at `sums`.
+        let data = unsafe { std::slice::from_raw_parts(sums.cast::<u8>(), bytes as usize) };
+        let budget = (sample_budget > 0).then_some(sample_budget);
+        d.denoiser.run_host_accum(data, budget)?;
+        Ok(())
+    })
+}
+
 /// Releases a recording (NULL is ignored), after the submission of its
 /// command buffer completed or once the buffer was discarded.
 ///

@@ -85,6 +85,7 @@ fn c_host_accumulates_on_the_gpu_and_denoises() {
         .output()
         .unwrap();
     let stdout = String::from_utf8_lossy(&output.stdout);
+    println!("{stdout}");
     let stderr = String::from_utf8_lossy(&output.stderr);
     assert!(
         output.status.success(),
@@ -95,6 +96,7 @@ fn c_host_accumulates_on_the_gpu_and_denoises() {
         stdout.contains("sample map:")
             && stdout.contains("with the pyramid: rMSE")
             && stdout.contains("stage flags: ok")
+            && stdout.contains("sums in host memory:")
             && stdout.contains("coarse map flag: ok")
             && stdout.contains("two-way: rMSE")
             && stdout.ends_with("ok\n"),

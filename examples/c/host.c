@@ -5,7 +5,8 @@
  * host's command buffer; the host submits, reads colour, error and the
  * sample map, then renders a second pass where the map says -- the map is
  * bound in the host's shader as it lies on the GPU -- and denoises again.
- * Last, an offline sequence: frames with the LP temporal filter and the
+ * Then sums accumulated on the CPU, handed over in host memory
+ * (mcd_denoiser_run_host). Last, an offline sequence: frames with the LP temporal filter and the
  * two-way filter (McdSmoother) over them.
  *
  * Build: cc host.c -I../../include -lvulkan -L<dir of libmcdenoise> -lmcdenoise
@@ -496,6 +497,58 @@ int main(int argc, char **argv)
         }
     }
     printf("stage flags: ok\n");
+
+    /* A renderer that accumulates on the CPU: the same layout's planes in
+     * host memory (Σx and Σx² per channel, then the count), handed over by
+     * mcd_denoiser_run_host, which submits and waits itself. */
+    {
+        uint64_t stride = mcd_accum_plane_stride(&layout) / 4;
+        uint64_t floats = mcd_accum_bytes(&layout) / 4;
+        float *sums = calloc(floats, sizeof(float));
+        static float mean[3 * W * H];
+        uint32_t state = 12345u;
+        for (int y = 0; y < H; y++)
+            for (int x = 0; x < W; x++) {
+                uint64_t i = (uint64_t)y * W + x;
+                for (int s = 0; s < SPP; s++) {
+                    /* 10 channels: colour, albedo, normal, depth. */
+                    float v[10] = {0, 0, 0, 1, 1, 1, 0, 0, 1, 2};
+                    for (int c = 0; c < 3; c++) {
+                        state = state * 1664525u + 1013904223u;
+                        float u = (float)(state >> 8) / 16777216.0f;
+                        v[c] = truth(x, y) * (0.4f + 1.2f * u);
+                    }
+                    for (int c = 0; c < 10; c++) {
+                        sums[(2 * c) * stride + i] += v[c];
+                        sums[(2 * c + 1) * stride + i] += v[c] * v[c];
+                    }
+                }
+                sums[20 * stride + i] = SPP;
+                for (int c = 0; c < 3; c++)
+                    mean[3 * i + c] = sums[(2 * c) * stride + i] / SPP;
+            }
+        McdDenoiserDesc cpu_desc = {.layout = layout, .method = MCD_METHOD_WLR,
+                                    .flags = MCD_FLAG_NO_SINGLE_SAMPLE_PIXELS};
+        McdDenoiser *cpu = NULL;
+        if (mcd_denoiser_create(ctx, &cpu_desc, &cpu) != MCD_STATUS_OK ||
+            mcd_denoiser_run_host(cpu, sums, floats * 4, 0) != MCD_STATUS_OK ||
+            mcd_denoiser_read(cpu, color, NULL, NULL, W * H) != MCD_STATUS_OK) {
+            fprintf(stderr, "mcdenoise: %s\n", mcd_last_error());
+            return 1;
+        }
+        double in_rmse = rel_mse(mean), out_rmse = rel_mse(color);
+        printf("sums in host memory: input rMSE %.5f, WLR %.5f\n", in_rmse, out_rmse);
+        if (!(out_rmse < 0.5 * in_rmse)) {
+            fprintf(stderr, "the host sums' reconstruction did not halve the input's error\n");
+            return 1;
+        }
+        if (mcd_denoiser_run_host(cpu, sums, floats * 4 - 4, 0) != MCD_STATUS_INVALID_ARGUMENT) {
+            fprintf(stderr, "sums of the wrong length were taken\n");
+            return 1;
+        }
+        mcd_denoiser_destroy(cpu);
+        free(sums);
+    }
 
     /* A coarse sample map is an adaptive pass's: taken with
      * MCD_FLAG_ADAPTIVE_PASS, refused without it. */

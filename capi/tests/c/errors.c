@@ -38,6 +38,8 @@ int main(void)
     expect(mcd_denoiser_record(NULL, VK_NULL_HANDLE, 0, VK_NULL_HANDLE, 0, 0, &rec) ==
                MCD_STATUS_INVALID_ARGUMENT,
            "record on a NULL denoiser");
+    expect(mcd_denoiser_run_host(NULL, NULL, 0, 0) == MCD_STATUS_INVALID_ARGUMENT,
+           "run_host on a NULL denoiser");
     expect(mcd_denoiser_outputs(NULL, &out) == MCD_STATUS_INVALID_ARGUMENT, "outputs of NULL");
     expect(mcd_denoiser_reset(NULL) == MCD_STATUS_INVALID_ARGUMENT, "reset of NULL");
     expect(mcd_denoiser_read(NULL, NULL, NULL, NULL, 0) == MCD_STATUS_INVALID_ARGUMENT,
