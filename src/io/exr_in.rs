@@ -60,7 +60,7 @@ const RESAVE_HINT: &str = "re-save with ZIP, PIZ, RLE or no compression";
 /// # Errors
 /// [`Error::Io`] if the file cannot be read; [`Error::BadInput`] naming the
 /// file and the problem if it is empty, not an EXR, truncated or corrupt,
-/// uses an unsupported compression (ZSTD, HTJ2K) or subsampled channels, has
+/// uses an unsupported compression (HTJ2K, ZSTD) or subsampled channels, has
 /// an empty or oversized ([`MAX_DIMENSION`], [`MAX_PIXELS`]) data window, lacks
 /// a [`Requirement::Required`] layer, holds only some channels of a layer, or
 /// (multi-part) has statistics channels in a part other than the one with
@@ -614,14 +614,18 @@ fn check_header(path: &Path, header: &Header, part: usize, parts: usize) -> Resu
         ));
     }
     if let Compression::HTJ2K32 | Compression::HTJ2K256 = header.compression {
-        let name = if header.compression == Compression::HTJ2K32 {
-            "HTJ2K32"
+        // The `exr` crate's reading of ids 10 and 11.
+        let id = if header.compression == Compression::HTJ2K32 {
+            11
         } else {
-            "HTJ2K256"
+            10
         };
         return Err(Error::bad_input(
             path,
-            format!("compression {name} is not supported; {RESAVE_HINT}"),
+            format!(
+                "compression {} is not supported; {RESAVE_HINT}",
+                compression_name(id)
+            ),
         ));
     }
     if let Some(c) = header
@@ -733,8 +737,10 @@ fn describe_exr_error(bytes: &[u8], error: exr::error::Error) -> String {
     }
 }
 
-/// OpenEXR compression ids, including those the `exr` crate does not know
-/// (ZSTD is id 12 in OpenEXR 3.4).
+/// OpenEXR compression ids, including those the `exr` crate does not know.
+/// Ids 10 and up are the newer codecs (HTJ2K, ZSTD), which OpenEXR
+/// releases and development versions have numbered differently (ZSTD has
+/// been 11, 12 and 13), so they are not named by one table.
 fn compression_name(id: u8) -> String {
     match id {
         0 => "NONE".into(),
@@ -747,9 +753,7 @@ fn compression_name(id: u8) -> String {
         7 => "B44A".into(),
         8 => "DWAA".into(),
         9 => "DWAB".into(),
-        10 => "HTJ2K256".into(),
-        11 => "HTJ2K32".into(),
-        12 => "ZSTD".into(),
+        10..=13 => format!("id {id} (HTJ2K or ZSTD, which OpenEXR versions number differently)"),
         other => format!("UNKNOWN (id {other})"),
     }
 }
