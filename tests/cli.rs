@@ -1221,3 +1221,40 @@ fn input_blend_from_the_command_line() {
     assert!(err.contains("method none has none"), "{err}");
     assert!(!dir.join("n.exr").exists());
 }
+
+/// Statistics piped in (`denoise /dev/stdin`) denoise as the file does: the
+/// header pre-read that warms the pipelines up must not consume a pipe.
+#[test]
+fn statistics_from_a_pipe_denoise_as_the_file() {
+    let input = fixture("dof_checker_64_spp16.exr");
+    let tmp = tmpdir("stdin");
+    let (piped, file) = (tmp.path().join("piped.exr"), tmp.path().join("file.exr"));
+    let mut child = bin()
+        .args(["denoise", "/dev/stdin", "--method", "wlr", "-o"])
+        .arg(&piped)
+        .stdin(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stdin = child.stdin.take().unwrap();
+    let bytes = std::fs::read(&input).unwrap();
+    let writer = std::thread::spawn(move || {
+        use std::io::Write;
+        // The reader may stop early on an error: a broken pipe is its story.
+        let _ = stdin.write_all(&bytes);
+    });
+    let out = child.wait_with_output().unwrap();
+    writer.join().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    let (code, _, err) = run(bin()
+        .arg("denoise")
+        .arg(&input)
+        .args(["--method", "wlr", "-o"])
+        .arg(&file));
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(
+        std::fs::read(&piped).unwrap(),
+        std::fs::read(&file).unwrap()
+    );
+}

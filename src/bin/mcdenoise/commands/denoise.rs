@@ -22,6 +22,7 @@ use crate::Cli;
 
 #[derive(clap::Args)]
 pub struct Args {
+    /// The statistics EXR (`/dev/stdin` reads them from a pipe)
     #[arg(required_unless_present = "frames")]
     input: Option<PathBuf>,
     /// Output EXR (color.R/G/B, plus error.*, samples.Y, debug.* on request);
@@ -200,10 +201,12 @@ pub fn run(cli: &Cli, a: &Args) -> anyhow::Result<bool> {
     )?;
     // The pipelines build while the file is read (from its headers'
     // layers); a file whose headers do not read goes straight to
-    // read_stats, whose error names the problem.
+    // read_stats, whose error names the problem. Not for a pipe
+    // (`/dev/stdin`): reading its headers would consume them.
+    let regular = std::fs::metadata(input).is_ok_and(|m| m.is_file());
     let hint = match a.backend {
-        BackendArg::Gpu => io::read_stats_layers(input).ok(),
-        BackendArg::Cpu => None,
+        BackendArg::Gpu if regular => io::read_stats_layers(input).ok(),
+        _ => None,
     };
     let (mut ctx, mut warm) = (None, None);
     if let Some((width, height, layers)) = hint {
