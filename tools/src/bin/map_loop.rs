@@ -4,7 +4,9 @@
 //! replaces each pixel's colour variance of the mean by the median over
 //! its 5×5 window of the per-sample variances (`vbar·n`), over its own
 //! count — the map no longer follows one pixel's rare bright sample.
-//! The final statistics are written as they are.
+//! The final statistics are written as they are; with a second output,
+//! also with each pass's mean weighed by the pass's share of the budget
+//! instead of the pixel's count in it (MAP-DEPENDENCE).
 //!
 //! `cargo run --release -p mcdenoise-tools --bin map_loop -- SCENE SIZE SPP SEED MODE out.exr`
 use std::sync::Arc;
@@ -16,7 +18,8 @@ use mcdenoise::{
     Precision, Pyramid, Schedule, Source, StatsImage, Validation,
 };
 
-const USAGE: &str = "usage: map_loop SCENE SIZE SPP SEED plain|medvar[:R] out.exr";
+const USAGE: &str =
+    "usage: map_loop SCENE SIZE SPP SEED plain|medvar[:R] out.exr [passweighted.exr]";
 
 fn medvar(img: &mut StatsImage, radius: usize) {
     let (w, h) = (img.width, img.height);
@@ -51,7 +54,7 @@ fn main() -> anyhow::Result<()> {
         return Ok(());
     }
     let a: Vec<String> = std::env::args().collect();
-    if a.len() != 7 {
+    if a.len() != 7 && a.len() != 8 {
         anyhow::bail!("{USAGE}");
     }
     let scene = Scene::by_name_or_file(&a[1])?;
@@ -74,6 +77,29 @@ fn main() -> anyhow::Result<()> {
     let mut b = Batch::new(&ctx)?;
     r.record_pass(&mut b, Samples::Uniform(s.initial_spp))?;
     b.finish()?;
+    let l = r.layout();
+    // Per pass: (Σx of R G B, count), from the accumulation's differences.
+    let mut passes: Vec<([Vec<f64>; 3], Vec<f64>)> = Vec::new();
+    let mut before: Option<Vec<Vec<f32>>> = None;
+    let mut take_pass = |planes: Vec<Vec<f32>>| {
+        let diff = |k: usize| -> Vec<f64> {
+            planes[k]
+                .iter()
+                .enumerate()
+                .map(|(i, &v)| v as f64 - before.as_ref().map_or(0.0, |b| b[k][i] as f64))
+                .collect()
+        };
+        passes.push((
+            [
+                diff(l.sum_plane(0)),
+                diff(l.sum_plane(1)),
+                diff(l.sum_plane(2)),
+            ],
+            diff(l.count_plane()),
+        ));
+        before = Some(planes);
+    };
+    take_pass(r.download()?);
     let mut c = Config::new(Method::Wlr);
     c.pass = Pass::Intermediate;
     c.pyramid = Pyramid::Off;
@@ -97,10 +123,44 @@ fn main() -> anyhow::Result<()> {
             },
         )?;
         b.finish()?;
+        take_pass(r.download()?);
     }
-    mcdenoise::io::write_stats(
-        std::path::Path::new(&a[6]),
-        &r.statistics_at(Precision::F32)?,
-    )?;
+    let stats = r.statistics_at(Precision::F32)?;
+    mcdenoise::io::write_stats(std::path::Path::new(&a[6]), &stats)?;
+    if let Some(out) = a.get(7) {
+        // Each pass's mean weighed by the pass's share of the budget, not
+        // by the pixel's count in it (which depends on the earlier passes'
+        // samples); passes without a sample at a pixel give their share to
+        // the others. The variance of the mean scales accordingly.
+        let budgets: Vec<f64> = std::iter::once((s.initial_spp as usize * size * size) as f64)
+            .chain(s.budgets.iter().map(|&b| b as f64))
+            .collect();
+        let mut img = stats.clone();
+        let n_all = img.get(Layer::Spp).unwrap()[0].clone();
+        for c in 0..3 {
+            let var = img.get(Layer::ColorVariance).unwrap()[c].clone();
+            let mut col = img.get(Layer::Color).unwrap()[c].clone();
+            let mut v_out = var.clone();
+            for i in 0..size * size {
+                let (mut wsum, mut m, mut w2n) = (0.0, 0.0, 0.0);
+                for (p, (sums, counts)) in passes.iter().enumerate() {
+                    let n = counts[i].round();
+                    if n >= 1.0 {
+                        wsum += budgets[p];
+                        m += budgets[p] * sums[c][i] / n;
+                        w2n += budgets[p] * budgets[p] / n;
+                    }
+                }
+                if wsum > 0.0 {
+                    col[i] = (m / wsum) as f32;
+                    // var = s²/n_all; the estimator's is s² Σ w_p²/n_p.
+                    v_out[i] = (var[i] as f64 * n_all[i] as f64 * w2n / (wsum * wsum)) as f32;
+                }
+            }
+            img.get_mut(Layer::Color).unwrap()[c] = col;
+            img.get_mut(Layer::ColorVariance).unwrap()[c] = v_out;
+        }
+        mcdenoise::io::write_stats(std::path::Path::new(out), &img)?;
+    }
     Ok(())
 }
