@@ -200,3 +200,17 @@ impl TwoWay {
         })
     }
 }
+
+/// Each pixel's samples after a uniform first pass of `first` spp (what
+/// an adaptive render's maps gave it), from a renderer's downloaded
+/// accumulation planes.
+pub fn samples_after_first(
+    planes: &[Vec<f32>],
+    layout: &mcdenoise::AccumLayout,
+    first: u32,
+) -> Vec<u32> {
+    planes[layout.count_plane()]
+        .iter()
+        .map(|&c| c as u32 - first)
+        .collect()
+}

@@ -118,10 +118,7 @@ fn main() -> anyhow::Result<()> {
         let first = result.schedule.as_ref().map_or(4, |s| s.initial_spp);
         let l = r.layout();
         let planes = r.download()?;
-        let counts: Vec<u32> = planes[l.count_plane()]
-            .iter()
-            .map(|&c| c as u32 - first)
-            .collect();
+        let counts = mcdenoise_tools::samples_after_first(&planes, &l, first);
         let total: u32 = counts.iter().sum();
         let uniform_spp = total / pixels as u32;
         // A fixed permutation (multiplicative hash of the pixel index).

@@ -41,12 +41,7 @@ fn main() -> anyhow::Result<()> {
         std::path::Path::new(&a[6]),
         &r.statistics_at(Precision::F32)?,
     )?;
-    let l = r.layout();
-    let planes = r.download()?;
-    let counts: Vec<u32> = planes[l.count_plane()]
-        .iter()
-        .map(|&c| c as u32 - first)
-        .collect();
+    let counts = mcdenoise_tools::samples_after_first(&r.download()?, &r.layout(), first);
     let total: u32 = counts.iter().sum();
     let map = GpuBuffer::from_slice(&ctx, "replay.map", &counts)?;
     let r2 = Renderer::new(&ctx, &scene, size, size, seed_b)?;
