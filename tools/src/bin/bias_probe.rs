@@ -12,10 +12,8 @@ fn main() -> anyhow::Result<()> {
     if mcdenoise_tools::asked_for_help(USAGE) {
         return Ok(());
     }
+    mcdenoise_tools::require_args(USAGE, 2);
     let a: Vec<String> = std::env::args().collect();
-    if a.len() < 3 {
-        anyhow::bail!("{USAGE}");
-    }
     let img = mcdenoise::io::read_stats(std::path::Path::new(&a[1]))?;
     // The reference: the mean of comma-separated renders.
     let refs: Vec<_> = a[2]
