@@ -721,12 +721,7 @@ pub unsafe extern "C" fn mcd_denoiser_run_host(
         if sums.is_null() {
             return Err(invalid("sums is NULL"));
         }
-        if bytes != d.layout.bytes() {
-            return Err(invalid(format!(
-                "bytes is {bytes}, mcd_accum_bytes of the denoiser's layout is {}",
-                d.layout.bytes()
-            )));
-        }
+        // The length is checked against the layout by run_host_accum.
         // SAFETY: the caller guarantees `bytes` readable bytes at `sums`.
         let data = unsafe { std::slice::from_raw_parts(sums.cast::<u8>(), bytes as usize) };
         let budget = (sample_budget > 0).then_some(sample_budget);

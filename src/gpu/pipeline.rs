@@ -328,10 +328,15 @@ pub(crate) fn is_pipeline_cache(data: &[u8]) -> bool {
     if data.len() < CACHE_HEADER_BYTES {
         return false;
     }
-    let word = |i: usize| u32::from_le_bytes(data[4 * i..4 * i + 4].try_into().unwrap());
-    let header_len = word(0) as usize;
+    let header_len = header_word(data, 0) as usize;
     (CACHE_HEADER_BYTES..=data.len()).contains(&header_len)
-        && word(1) == vk::PipelineCacheHeaderVersion::ONE.as_raw() as u32
+        && header_word(data, 1) == vk::PipelineCacheHeaderVersion::ONE.as_raw() as u32
+}
+
+/// The `i`th little-endian u32 of a pipeline cache's header (at least
+/// [`CACHE_HEADER_BYTES`] long).
+fn header_word(data: &[u8], i: usize) -> u32 {
+    u32::from_le_bytes(data[4 * i..4 * i + 4].try_into().unwrap())
 }
 
 /// Whether `data` is a pipeline cache of this device: header version one,
@@ -339,10 +344,9 @@ pub(crate) fn is_pipeline_cache(data: &[u8]) -> bool {
 /// another device or driver is not handed to the driver (the spec lets it
 /// ignore such data, but not every driver checks it carefully).
 pub(crate) fn cache_matches(data: &[u8], props: &vk::PhysicalDeviceProperties) -> bool {
-    let word = |i: usize| u32::from_le_bytes(data[4 * i..4 * i + 4].try_into().unwrap());
     is_pipeline_cache(data)
-        && word(2) == props.vendor_id
-        && word(3) == props.device_id
+        && header_word(data, 2) == props.vendor_id
+        && header_word(data, 3) == props.device_id
         && data[16..32] == props.pipeline_cache_uuid
 }
 

@@ -72,8 +72,8 @@ fn main() -> anyhow::Result<()> {
         ..Default::default()
     })?);
     let r = Renderer::new(&ctx, &scene, size, size, seed)?;
-    // The schedule of WLR's loop (§9.3): 4 uniform spp, five passes.
-    let s = Schedule::new(spp, size * size, 4, 5)?;
+    // The schedule of WLR's loop (§9.3).
+    let s = Schedule::for_method(Method::Wlr, spp, size * size)?;
     let mut b = Batch::new(&ctx)?;
     r.record_pass(&mut b, Samples::Uniform(s.initial_spp))?;
     b.finish()?;
