@@ -781,6 +781,14 @@ pub const TEMPORAL_SUBPIXEL_GATE: f64 = 4.0;
 /// TEMPORAL-SUBPIXEL: the resampling offset's bound per axis, in pixels:
 /// the reprojected pixel is the nearest in position, or nearly.
 pub const TEMPORAL_SUBPIXEL_REACH: f64 = 0.5;
+/// TEMPORAL-RIM: a window's brightest pixel excuses a history within the
+/// window's colours where it is at least this many times as bright as the
+/// pixel (R + G + B, the pixel's plus 0.01).
+pub const TEMPORAL_RIM_CONTRAST: f64 = 8.0;
+/// TEMPORAL-RIM: … and where its previous intercepts are within this
+/// fraction of its colour (absolute differences and colour summed over
+/// the channels).
+pub const TEMPORAL_RIM_TOL: f64 = 0.25;
 /// Planes of the temporal state, per pixel: `β` per channel (intercept,
 /// slope: R0 R1 G0 G1 B0 B1), `P` (`P00 P01 P11`), the position `W` (X Y Z)
 /// and the valid flag (1 or 0).

@@ -441,6 +441,101 @@ fn an_inflated_history_restarts_at_the_step() {
     check_validation(&ctx);
 }
 
+/// TEMPORAL-RIM on a still 8×8 frame (each pixel's own state): the rim
+/// pixel (3, 3) of a one-pixel lamp at (4, 3) is lit (3.0, a large error
+/// estimate) in two frames and quiet (0.1, a tiny one) in the third; the
+/// lamp beside it is where it was, so the history stays (the output stays
+/// near 3 instead of restarting at 0.1). When the lamp moves on to (5, 3)
+/// instead, the pixel it left (4, 3) is quiet beside a pixel that was not
+/// bright before: its history restarts, no ghost. GPU (each precision) and
+/// twin.
+#[test]
+fn a_static_rim_keeps_its_history_and_a_moved_light_does_not() {
+    let ctx = gpu();
+    let (w, h) = (8usize, 8usize);
+    let n = w * h;
+    // Pixel values and error estimates other than the background's.
+    let frame = |lit: &[((usize, usize), f32, f32)]| {
+        let mut f = Synthetic {
+            w,
+            h,
+            color: std::array::from_fn(|_| vec![0.1; n]),
+            position: std::array::from_fn(|k| {
+                (0..n)
+                    .map(|i| {
+                        if k == 2 {
+                            0.0
+                        } else {
+                            [i % w, i / w][k] as f32 * 0.1
+                        }
+                    })
+                    .collect()
+            }),
+            variance: std::array::from_fn(|_| vec![0.0; n]),
+            error: std::array::from_fn(|_| vec![1e-4; n]),
+            depth: vec![1.0; n],
+            spp: vec![16.0; n],
+        };
+        for &((x, y), v, e) in lit {
+            for c in 0..3 {
+                f.color[c][y * w + x] = v;
+                f.error[c][y * w + x] = e;
+            }
+        }
+        f
+    };
+    let lamp = ((4, 3), 30.0, 1e-3);
+    let rim_lit = ((3, 3), 3.0, 1.0);
+    let rim = [
+        frame(&[lamp, rim_lit]),
+        frame(&[lamp, rim_lit]),
+        frame(&[lamp]),
+    ];
+    let moved = [
+        frame(&[lamp]),
+        frame(&[lamp]),
+        frame(&[((5, 3), 30.0, 1e-3)]),
+    ];
+    for prec in precisions() {
+        for (name, seq, (x, y), keeps) in [
+            ("rim", &rim, (3, 3), true),
+            ("moved", &moved, (4, 3), false),
+        ] {
+            let mut prev = vec![0.0f32; TEMPORAL_STATE * n];
+            let mut twin_prev = prev.clone();
+            for (t, f) in seq.iter().enumerate() {
+                let p = push(
+                    w,
+                    h,
+                    if t == 0 {
+                        TEMPORAL_RESET
+                    } else {
+                        TEMPORAL_NO_SEARCH
+                    },
+                );
+                let (next, out, _) = twin_frame(&p, f, &twin_prev);
+                let g = gpu_frame(&p, f, &prev, prec);
+                let (gc, tc) = (g[1][y * w + x], out[0][y * w + x]);
+                let what = format!("{prec:?} {name} frame {t}");
+                assert!(
+                    (gc - tc).abs() <= 1e-3 * tc.abs().max(1.0),
+                    "{what}: gpu {gc}, twin {tc}"
+                );
+                if t == 2 {
+                    if keeps {
+                        assert!(tc > 1.0, "{what}: the rim's history restarted ({tc})");
+                    } else {
+                        assert!(tc < 0.2, "{what}: the light's history stayed ({tc})");
+                    }
+                }
+                prev = g[0].clone();
+                twin_prev = next;
+            }
+        }
+    }
+    check_validation(&ctx);
+}
+
 /// What the twin does on the synthetic pan: the first frame resets every
 /// pixel; later frames carry the plane's state over (from one column to
 /// the right, where its points were, or a neighbour), reset the columns the

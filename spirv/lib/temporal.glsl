@@ -16,7 +16,8 @@
 
 // mcdenoise::shared: TEMPORAL_RESET, TEMPORAL_NO_SEARCH, TEMPORAL_MOTION,
 // TEMPORAL_SEARCH, TEMPORAL_RESET_REL, TEMPORAL_DEPTH_FLOOR,
-// TEMPORAL_RESET_NOISE, TEMPORAL_SUBPIXEL_GATE, TEMPORAL_SUBPIXEL_REACH.
+// TEMPORAL_RESET_NOISE, TEMPORAL_SUBPIXEL_GATE, TEMPORAL_SUBPIXEL_REACH,
+// TEMPORAL_RIM_TOL, TEMPORAL_RIM_CONTRAST.
 #define TEMPORAL_RESET 1u
 #define TEMPORAL_NO_SEARCH 2u
 #define TEMPORAL_MOTION 4u
@@ -26,6 +27,8 @@
 #define RESET_NOISE 18.0
 #define SUBPIXEL_GATE 4.0
 #define SUBPIXEL_REACH 0.5
+#define RIM_TOL 0.25
+#define RIM_CONTRAST 8.0
 
 // What temporal_step did.
 #define STEP_PASS 0
@@ -158,6 +161,54 @@ void resample(ivec2 j, real3 wi, real gate, uint n, inout real2 b[3])
     b = acc;
 }
 
+// TEMPORAL-RIM: the miss of prediction b0 at pixel (x, y) becomes its
+// distance from the range of this frame's colours in the 3x3 window where
+// the window's brightest pixel (the greatest R + G + B, the first in raster
+// order) is at least RIM_CONTRAST times as bright as this pixel and has a
+// previous state at the same pixel whose intercepts are within RIM_TOL of
+// its colour (summed over the channels): a static bright neighbour makes a
+// history between this pixel's colour and the neighbour's plausible, as on
+// the rim of a light seen directly, whose frames are quiet or lit.
+void rim_miss(uint x, uint y, uint n, real3 yi, real3 b0, inout real3 miss)
+{
+    real3 lo = yi, hi = yi;
+    real best = real(-1);
+    ivec2 bk = ivec2(x, y);
+    for (int dy = -1; dy <= 1; ++dy) {
+        for (int dx = -1; dx <= 1; ++dx) {
+            int kx = int(x) + dx, ky = int(y) + dy;
+            if (kx < 0 || ky < 0 || kx >= int(push.width) || ky >= int(push.height)) {
+                continue;
+            }
+            uint m = uint(ky) * push.width + uint(kx);
+            vec3 ck = vec3(yr[m], yg[m], yb[m]);
+            if (spp_of(spp[m]) < 1.0 || !is_finite(ck.x) || !is_finite(ck.y) || !is_finite(ck.z)) {
+                continue;
+            }
+            real3 c = real3(ck);
+            lo = min(lo, c);
+            hi = max(hi, c);
+            real l = c.x + c.y + c.z;
+            if (l > best) {
+                best = l;
+                bk = ivec2(kx, ky);
+            }
+        }
+    }
+    if (!(best > real(RIM_CONTRAST) * (yi.x + yi.y + yi.z + real(0.01)))) {
+        return;
+    }
+    uint bm = uint(bk.y) * push.width + uint(bk.x);
+    if (!valid_at(bm, n)) {
+        return;
+    }
+    real3 cb = real3(vec3(yr[bm], yg[bm], yb[bm]));
+    real3 d = abs(intercept_at(bk.x, bk.y, n, cb) - cb);
+    if (d.x + d.y + d.z <= real(RIM_TOL) * best) {
+        miss = max(lo - b0, real3(0)) + max(b0 - hi, real3(0));
+    }
+}
+
 // The filter at pixel (x, y): STEP_PASS for an invalid pixel or a
 // non-finite colour; STEP_RESET with beta = (y, 0), P = diag(p00, p11)
 // (TEMPORAL-PRIOR); or
@@ -186,6 +237,10 @@ int temporal_step(uint x, uint y, out real2 b[3], out real3 p, out int off)
     real t2 = t3 * t3;
     real3 w;
     bool found = false;
+    // TEMPORAL-RIM applies where the window is centred on the pixel.
+    bool still = (push.flags & TEMPORAL_MOTION) == 0u
+        || (push.flags & (TEMPORAL_RESET | TEMPORAL_NO_SEARCH)) != 0u
+        || (int(mx[i]) == 0 && int(my[i]) == 0);
     if ((push.flags & TEMPORAL_RESET) == 0u) {
         if ((push.flags & TEMPORAL_NO_SEARCH) != 0u) {
             if (valid_at(i, n)) {
@@ -260,8 +315,12 @@ int temporal_step(uint x, uint y, out real2 b[3], out real3 p, out int off)
         return STEP_RESET;
     }
     // TEMPORAL-INFLATE: P grows by the prediction's largest miss over
-    // t3^2 E (1 + P00) where that exceeds 1.
+    // t3^2 E (1 + P00) where that exceeds 1; the miss beside a static bright
+    // pixel as TEMPORAL-RIM has it.
     real3 miss = yi - real3(b[0].x, b[1].x, b[2].x);
+    if (still) {
+        rim_miss(x, y, n, yi, real3(b[0].x, b[1].x, b[2].x), miss);
+    }
     real3 ratio = (miss * miss) / (t2 * ei * (real(1) + p.x) + real3(1e-12));
     p *= max(max(real(1), ratio.x), max(ratio.y, ratio.z));
     real lambda = real(push.lambda);

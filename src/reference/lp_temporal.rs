@@ -6,7 +6,8 @@
 //! surface lies within 1 % of the viewing distance, plus the noise of the
 //! mean position (RESET, RESET-NOISE; the search considers only those,
 //! TEMPORAL-GATE), its history weighing less where its prediction misses
-//! the frame's colour (TEMPORAL-INFLATE). A history starts from its first
+//! the frame's colour (TEMPORAL-INFLATE; less so beside a static bright
+//! pixel, TEMPORAL-RIM). A history starts from its first
 //! frame as one observation, its slope held at 0 (TEMPORAL-PRIOR).
 //!
 //! [`PixelState`] is one pixel's filter in f64 (what the invariants of
@@ -16,9 +17,9 @@
 use super::temporal_motion::{motion, Motion};
 use crate::shared::{
     TemporalPush, TEMPORAL_DEPTH_FLOOR, TEMPORAL_MOTION, TEMPORAL_NO_SEARCH, TEMPORAL_P00,
-    TEMPORAL_RESET, TEMPORAL_RESET_NOISE, TEMPORAL_RESET_REL, TEMPORAL_SEARCH,
-    TEMPORAL_SOURCE_NONE, TEMPORAL_SOURCE_RESET, TEMPORAL_STATE, TEMPORAL_SUBPIXEL_GATE,
-    TEMPORAL_SUBPIXEL_REACH, TEMPORAL_VALID,
+    TEMPORAL_RESET, TEMPORAL_RESET_NOISE, TEMPORAL_RESET_REL, TEMPORAL_RIM_CONTRAST,
+    TEMPORAL_RIM_TOL, TEMPORAL_SEARCH, TEMPORAL_SOURCE_NONE, TEMPORAL_SOURCE_RESET, TEMPORAL_STATE,
+    TEMPORAL_SUBPIXEL_GATE, TEMPORAL_SUBPIXEL_REACH, TEMPORAL_VALID,
 };
 
 /// One pixel's temporal state (§10.1), origin at the frame it was last
@@ -282,6 +283,60 @@ fn resample(
     s.beta = beta;
 }
 
+/// TEMPORAL-RIM: the miss of prediction `b0` at pixel `(x, y)` becomes its
+/// distance from the range of this frame's colours in the 3×3 window where
+/// the window's brightest pixel (the greatest R + G + B, the first in
+/// raster order) is at least [`TEMPORAL_RIM_CONTRAST`] times as bright as
+/// this pixel and has a previous state at the same pixel whose intercepts
+/// are within [`TEMPORAL_RIM_TOL`] of its colour (summed over the
+/// channels): a static bright neighbour makes a history between this
+/// pixel's colour and the neighbour's plausible, as on the rim of a light
+/// seen directly, whose frames are quiet or lit.
+fn rim_miss(
+    inp: &TemporalInputs,
+    prev: &[f32],
+    (w, h): (usize, usize),
+    (x, y): (usize, usize),
+    yi: [f64; 3],
+    b0: [f64; 3],
+    miss: &mut [f64; 3],
+) {
+    let n = w * h;
+    let (mut lo, mut hi) = (yi, yi);
+    let mut best = (-1.0f64, y * w + x);
+    for ky in y.saturating_sub(1)..(y + 2).min(h) {
+        for kx in x.saturating_sub(1)..(x + 2).min(w) {
+            let m = ky * w + kx;
+            let c = inp.color.map(|p| p[m]);
+            if super::finalize_stats::spp_of(inp.spp[m]) < 1.0 || c.iter().any(|v| !v.is_finite()) {
+                continue;
+            }
+            let c = c.map(|v| v as f64);
+            for k in 0..3 {
+                lo[k] = lo[k].min(c[k]);
+                hi[k] = hi[k].max(c[k]);
+            }
+            let l = c[0] + c[1] + c[2];
+            if l > best.0 {
+                best = (l, m);
+            }
+        }
+    }
+    // Every colour here is finite.
+    if best.0 <= TEMPORAL_RIM_CONTRAST * (yi[0] + yi[1] + yi[2] + 0.01) {
+        return;
+    }
+    let Some(s) = load(prev, n, best.1) else {
+        return;
+    };
+    let cb = inp.color.map(|p| p[best.1] as f64);
+    let was = s.shifted().predict();
+    let d: f64 = (0..3).map(|k| (was[k] - cb[k]).abs()).sum();
+    if d <= TEMPORAL_RIM_TOL * best.0 {
+        *miss = std::array::from_fn(|k| (lo[k] - b0[k]).max(0.0) + (b0[k] - hi[k]).max(0.0));
+    }
+}
+
 /// What the filter does at one pixel of a frame.
 #[derive(Copy, Clone, Debug, PartialEq)]
 pub enum Step {
@@ -346,10 +401,14 @@ pub fn step(
     let found = found.map(|(mut s, offset)| {
         let t2 = super::t_threshold3(super::finalize_stats::spp_of(inp.spp[i])).powi(2);
         let pred = s.predict();
+        let mut miss: [f64; 3] = std::array::from_fn(|c| yi[c] - pred[c]);
+        if centre == (0, 0) {
+            rim_miss(inp, prev, (w, h), (x, y), yi, pred, &mut miss);
+        }
         let q = (0..3)
             .map(|c| {
                 let e = inp.error[c][i].max(0.0) as f64;
-                (yi[c] - pred[c]).powi(2) / (t2 * e * (1.0 + s.p[0]) + 1e-12)
+                miss[c].powi(2) / (t2 * e * (1.0 + s.p[0]) + 1e-12)
             })
             .fold(1.0f64, f64::max);
         s.p = s.p.map(|v| v * q);
