@@ -6,9 +6,11 @@
 //! count — the map no longer follows one pixel's rare bright sample.
 //! The final statistics are written as they are; with a second output,
 //! also with each pass's mean weighed by the pass's share of the budget
-//! instead of the pixel's count in it (MAP-DEPENDENCE).
+//! instead of the pixel's count in it (MAP-DEPENDENCE); `first:out.exr`
+//! weighs only the uniform first pass by its share and pools the map
+//! passes by count.
 //!
-//! `cargo run --release -p mcdenoise-tools --bin map_loop -- SCENE SIZE SPP SEED MODE out.exr`
+//! `cargo run --release -p mcdenoise-tools --bin map_loop -- SCENE SIZE SPP SEED MODE out.exr [[first:]weighted.exr]`
 use std::sync::Arc;
 
 use mcdenoise::gpu::GpuBuffer;
@@ -19,7 +21,7 @@ use mcdenoise::{
 };
 
 const USAGE: &str =
-    "usage: map_loop SCENE SIZE SPP SEED plain|medvar[:R] out.exr [passweighted.exr]";
+    "usage: map_loop SCENE SIZE SPP SEED plain|medvar[:R] out.exr [[first:]weighted.exr]";
 
 fn medvar(img: &mut StatsImage, radius: usize) {
     let (w, h) = (img.width, img.height);
@@ -128,13 +130,23 @@ fn main() -> anyhow::Result<()> {
     let stats = r.statistics_at(Precision::F32)?;
     mcdenoise::io::write_stats(std::path::Path::new(&a[6]), &stats)?;
     if let Some(out) = a.get(7) {
-        // Each pass's mean weighed by the pass's share of the budget, not
-        // by the pixel's count in it (which depends on the earlier passes'
-        // samples); passes without a sample at a pixel give their share to
-        // the others. The variance of the mean scales accordingly.
-        let budgets: Vec<f64> = std::iter::once((s.initial_spp as usize * size * size) as f64)
-            .chain(s.budgets.iter().map(|&b| b as f64))
-            .collect();
+        // Each group of passes' mean weighed by the group's share of the
+        // budget, not by the pixel's count in it (which depends on the
+        // earlier passes' samples); groups without a sample at a pixel give
+        // their share to the others. A group is one pass, or with `first:`
+        // the uniform first pass and the map passes together. The variance
+        // of the mean scales accordingly.
+        let (first_only, out) = match out.strip_prefix("first:") {
+            Some(o) => (true, o),
+            None => (false, out.as_str()),
+        };
+        let group = |p: usize| if first_only { p.min(1) } else { p };
+        let groups = group(passes.len() - 1) + 1;
+        let mut budgets = vec![0.0f64; groups];
+        budgets[0] = (s.initial_spp as usize * size * size) as f64;
+        for (p, &b) in s.budgets.iter().enumerate() {
+            budgets[group(p + 1)] += b as f64;
+        }
         let mut img = stats.clone();
         let n_all = img.get(Layer::Spp).unwrap()[0].clone();
         for c in 0..3 {
@@ -142,18 +154,23 @@ fn main() -> anyhow::Result<()> {
             let mut col = img.get(Layer::Color).unwrap()[c].clone();
             let mut v_out = var.clone();
             for i in 0..size * size {
-                let (mut wsum, mut m, mut w2n) = (0.0, 0.0, 0.0);
+                let mut sum = vec![0.0f64; groups];
+                let mut cnt = vec![0.0f64; groups];
                 for (p, (sums, counts)) in passes.iter().enumerate() {
-                    let n = counts[i].round();
-                    if n >= 1.0 {
-                        wsum += budgets[p];
-                        m += budgets[p] * sums[c][i] / n;
-                        w2n += budgets[p] * budgets[p] / n;
+                    sum[group(p)] += sums[c][i];
+                    cnt[group(p)] += counts[i].round();
+                }
+                let (mut wsum, mut m, mut w2n) = (0.0, 0.0, 0.0);
+                for g in 0..groups {
+                    if cnt[g] >= 1.0 {
+                        wsum += budgets[g];
+                        m += budgets[g] * sum[g] / cnt[g];
+                        w2n += budgets[g] * budgets[g] / cnt[g];
                     }
                 }
                 if wsum > 0.0 {
                     col[i] = (m / wsum) as f32;
-                    // var = s²/n_all; the estimator's is s² Σ w_p²/n_p.
+                    // var = s²/n_all; the estimator's is s² Σ w_g²/n_g.
                     v_out[i] = (var[i] as f64 * n_all[i] as f64 * w2n / (wsum * wsum)) as f32;
                 }
             }
