@@ -73,6 +73,7 @@ pub fn read_stats(path: &Path) -> Result<StatsImage> {
         &bytes,
         &|headers| find_part(headers, &["color.R"]),
         &|name| stats_channel(name).is_some(),
+        true,
     )?;
     assemble_stats(path, part)
 }
@@ -128,6 +129,7 @@ pub fn read_rgb(path: &Path) -> Result<RgbImage> {
         &bytes,
         &|headers| find_part(headers, &["color.R", "R"]),
         &|name| matches!(name, "color.R" | "color.G" | "color.B" | "R" | "G" | "B"),
+        false,
     )?;
     for prefix in ["color.", ""] {
         let names = ["R", "G", "B"].map(|c| format!("{prefix}{c}"));
@@ -211,8 +213,6 @@ struct DecodedPart {
     all_names: Vec<String>,
     /// The wanted channels, converted; `None` once taken.
     planes: Vec<(String, Option<Vec<f32>>)>,
-    /// Wanted channels the part lacks that another part has: (part, names).
-    elsewhere: Vec<(usize, Vec<String>)>,
 }
 
 impl DecodedPart {
@@ -256,29 +256,6 @@ impl DecodedPart {
 
 /// Builds the [`StatsImage`], checking required and complete layers.
 fn assemble_stats(path: &Path, mut part: DecodedPart) -> Result<StatsImage> {
-    // Statistics are read from one part: a layer in another part would be
-    // left out without a word (an estimated variance, no prefilter).
-    if let Some((other, names)) = part.elsewhere.first() {
-        const SHOWN: usize = 8;
-        let mut list = names
-            .iter()
-            .take(SHOWN)
-            .cloned()
-            .collect::<Vec<_>>()
-            .join(", ");
-        if names.len() > SHOWN {
-            list.push_str(&format!(", ... ({} channels)", names.len()));
-        }
-        return Err(Error::bad_input(
-            path,
-            format!(
-                "the statistics are split over parts: part {other} has {list}, which part {} \
-                 (the one with color.R) lacks; the statistics are read from one part: \
-                 write every layer into it",
-                part.part_index
-            ),
-        ));
-    }
     let mut img = StatsImage::new(part.width, part.height);
     let mut problems = Vec::new();
     for layer in Layer::ALL {
@@ -326,12 +303,15 @@ fn assemble_stats(path: &Path, mut part: DecodedPart) -> Result<StatsImage> {
     }
 }
 
-/// Checks the container, then decodes under `catch_unwind`.
+/// Checks the container, then decodes under `catch_unwind`. With
+/// `one_part`, wanted channels that only another part has are refused
+/// before any pixel is decoded ([`refuse_split`]).
 fn decode_part(
     path: &Path,
     bytes: &[u8],
     select: &dyn Fn(&[Header]) -> usize,
     wanted: &dyn Fn(&str) -> bool,
+    one_part: bool,
 ) -> Result<DecodedPart> {
     if bytes.is_empty() {
         return Err(Error::bad_input(
@@ -346,7 +326,7 @@ fn decode_part(
         ));
     }
     match panic::catch_unwind(AssertUnwindSafe(|| {
-        decode_unguarded(path, bytes, select, wanted)
+        decode_unguarded(path, bytes, select, wanted, one_part)
     })) {
         Ok(result) => result,
         Err(payload) => Err(Error::bad_input(
@@ -455,11 +435,52 @@ fn decompress_blocks<C: ChunksReader + Send>(
     })
 }
 
+/// Statistics are read from one part: wanted channels that part lacks and
+/// another part has would be left out without a word (an estimated
+/// variance, no prefilter), so they are an error naming that part.
+fn refuse_split(
+    path: &Path,
+    headers: &[Header],
+    part_index: usize,
+    all_names: &[String],
+    wanted: &dyn Fn(&str) -> bool,
+) -> Result<()> {
+    for (other, h) in headers.iter().enumerate().filter(|&(i, _)| i != part_index) {
+        let names: Vec<String> = part_channel_names(h)
+            .into_iter()
+            .filter(|n| wanted(n) && !all_names.contains(n))
+            .collect();
+        if names.is_empty() {
+            continue;
+        }
+        const SHOWN: usize = 8;
+        let mut list = names
+            .iter()
+            .take(SHOWN)
+            .cloned()
+            .collect::<Vec<_>>()
+            .join(", ");
+        if names.len() > SHOWN {
+            list.push_str(&format!(", ... ({} channels)", names.len()));
+        }
+        return Err(Error::bad_input(
+            path,
+            format!(
+                "the statistics are split over parts: part {other} has {list}, which part \
+                 {part_index} (the one with color.R) lacks; the statistics are read from one \
+                 part: write every layer into it"
+            ),
+        ));
+    }
+    Ok(())
+}
+
 fn decode_unguarded(
     path: &Path,
     bytes: &[u8],
     select: &dyn Fn(&[Header]) -> usize,
     wanted: &dyn Fn(&str) -> bool,
+    one_part: bool,
 ) -> Result<DecodedPart> {
     let bad_exr = |e: exr::error::Error| Error::bad_input(path, describe_exr_error(bytes, e));
 
@@ -475,20 +496,9 @@ fn decode_unguarded(
     let (width, height) = (header.layer_size.width(), header.layer_size.height());
     let pixels = width * height;
     let all_names = part_channel_names(&header);
-    let elsewhere: Vec<(usize, Vec<String>)> = reader
-        .headers()
-        .iter()
-        .enumerate()
-        .filter(|&(i, _)| i != part_index)
-        .map(|(i, h)| {
-            let names: Vec<String> = part_channel_names(h)
-                .into_iter()
-                .filter(|n| wanted(n) && !all_names.contains(n))
-                .collect();
-            (i, names)
-        })
-        .filter(|(_, names)| !names.is_empty())
-        .collect();
+    if one_part {
+        refuse_split(path, reader.headers(), part_index, &all_names, wanted)?;
+    }
 
     // One output slot per wanted channel, indexed by the channel's position in
     // the part's channel list (the order of the lines in a block).
@@ -596,7 +606,6 @@ fn decode_unguarded(
         part_count,
         all_names,
         planes,
-        elsewhere,
     })
 }
 
@@ -834,9 +843,13 @@ mod tests {
         let path =
             Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/dof_checker_64_ref.exr");
         let bytes = std::fs::read(&path).unwrap();
-        let result = decode_part(&path, &bytes, &|_| panic!("simulated decoder bug"), &|_| {
-            true
-        });
+        let result = decode_part(
+            &path,
+            &bytes,
+            &|_| panic!("simulated decoder bug"),
+            &|_| true,
+            false,
+        );
         match result {
             Err(Error::BadInput { path: p, message }) => {
                 assert_eq!(p, path);
