@@ -789,6 +789,10 @@ pub const TEMPORAL_RIM_CONTRAST: f64 = 8.0;
 /// fraction of its colour (absolute differences and colour summed over
 /// the channels).
 pub const TEMPORAL_RIM_TOL: f64 = 0.25;
+/// TEMPORAL-RIM: … and where the pixel's prediction (R + G + B) is at most
+/// this fraction of the brightest pixel's colour: a pixel the light partly
+/// covers, not one it covered and has left.
+pub const TEMPORAL_RIM_HISTORY: f64 = 0.5;
 /// Planes of the temporal state, per pixel: `β` per channel (intercept,
 /// slope: R0 R1 G0 G1 B0 B1), `P` (`P00 P01 P11`), the position `W` (X Y Z)
 /// and the valid flag (1 or 0).

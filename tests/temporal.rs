@@ -447,8 +447,10 @@ fn an_inflated_history_restarts_at_the_step() {
 /// lamp beside it is where it was, so the history stays (the output stays
 /// near 3 instead of restarting at 0.1). When the lamp moves on to (5, 3)
 /// instead, the pixel it left (4, 3) is quiet beside a pixel that was not
-/// bright before: its history restarts, no ghost. GPU (each precision) and
-/// twin.
+/// bright before: its history restarts, no ghost. So does the pixel a
+/// two-pixel light leaves when it moves on by one: beside it the light is
+/// where it was, but the pixel's history is as bright as the light. GPU
+/// (each precision) and twin.
 #[test]
 fn a_static_rim_keeps_its_history_and_a_moved_light_does_not() {
     let ctx = gpu();
@@ -496,10 +498,16 @@ fn a_static_rim_keeps_its_history_and_a_moved_light_does_not() {
         frame(&[lamp]),
         frame(&[((5, 3), 30.0, 1e-3)]),
     ];
+    // A light two pixels wide that moves one pixel and stops: the pixel it
+    // left has a static bright neighbour too, but its history is as bright
+    // as that neighbour, not between the two.
+    let wide = |x0: usize| frame(&[((x0, 3), 30.0, 1e-3), ((x0 + 1, 3), 30.0, 1e-3)]);
+    let left = [wide(3), wide(3), wide(4)];
     for prec in precisions() {
         for (name, seq, (x, y), keeps) in [
             ("rim", &rim, (3, 3), true),
             ("moved", &moved, (4, 3), false),
+            ("left", &left, (3, 3), false),
         ] {
             let mut prev = vec![0.0f32; TEMPORAL_STATE * n];
             let mut twin_prev = prev.clone();

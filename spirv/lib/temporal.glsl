@@ -17,7 +17,7 @@
 // mcdenoise::shared: TEMPORAL_RESET, TEMPORAL_NO_SEARCH, TEMPORAL_MOTION,
 // TEMPORAL_SEARCH, TEMPORAL_RESET_REL, TEMPORAL_DEPTH_FLOOR,
 // TEMPORAL_RESET_NOISE, TEMPORAL_SUBPIXEL_GATE, TEMPORAL_SUBPIXEL_REACH,
-// TEMPORAL_RIM_TOL, TEMPORAL_RIM_CONTRAST.
+// TEMPORAL_RIM_TOL, TEMPORAL_RIM_CONTRAST, TEMPORAL_RIM_HISTORY.
 #define TEMPORAL_RESET 1u
 #define TEMPORAL_NO_SEARCH 2u
 #define TEMPORAL_MOTION 4u
@@ -29,6 +29,7 @@
 #define SUBPIXEL_REACH 0.5
 #define RIM_TOL 0.25
 #define RIM_CONTRAST 8.0
+#define RIM_HISTORY 0.5
 
 // What temporal_step did.
 #define STEP_PASS 0
@@ -166,9 +167,11 @@ void resample(ivec2 j, real3 wi, real gate, uint n, inout real2 b[3])
 // the window's brightest pixel (the greatest R + G + B, the first in raster
 // order) is at least RIM_CONTRAST times as bright as this pixel and has a
 // previous state at the same pixel whose intercepts are within RIM_TOL of
-// its colour (summed over the channels): a static bright neighbour makes a
-// history between this pixel's colour and the neighbour's plausible, as on
-// the rim of a light seen directly, whose frames are quiet or lit.
+// its colour (summed over the channels), and the prediction is at most
+// RIM_HISTORY of its brightness: a static bright neighbour makes a history
+// between this pixel's colour and the neighbour's plausible, as on the rim
+// of a light seen directly, whose frames are quiet or lit; a history as
+// bright as the light is of a pixel the light has left.
 void rim_miss(uint x, uint y, uint n, real3 yi, real3 b0, inout real3 miss)
 {
     real3 lo = yi, hi = yi;
@@ -195,7 +198,8 @@ void rim_miss(uint x, uint y, uint n, real3 yi, real3 b0, inout real3 miss)
             }
         }
     }
-    if (!(best > real(RIM_CONTRAST) * (yi.x + yi.y + yi.z + real(0.01)))) {
+    if (!(best > real(RIM_CONTRAST) * (yi.x + yi.y + yi.z + real(0.01)))
+        || b0.x + b0.y + b0.z > real(RIM_HISTORY) * best) {
         return;
     }
     uint bm = uint(bk.y) * push.width + uint(bk.x);

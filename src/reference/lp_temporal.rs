@@ -18,8 +18,9 @@ use super::temporal_motion::{motion, Motion};
 use crate::shared::{
     TemporalPush, TEMPORAL_DEPTH_FLOOR, TEMPORAL_MOTION, TEMPORAL_NO_SEARCH, TEMPORAL_P00,
     TEMPORAL_RESET, TEMPORAL_RESET_NOISE, TEMPORAL_RESET_REL, TEMPORAL_RIM_CONTRAST,
-    TEMPORAL_RIM_TOL, TEMPORAL_SEARCH, TEMPORAL_SOURCE_NONE, TEMPORAL_SOURCE_RESET, TEMPORAL_STATE,
-    TEMPORAL_SUBPIXEL_GATE, TEMPORAL_SUBPIXEL_REACH, TEMPORAL_VALID,
+    TEMPORAL_RIM_HISTORY, TEMPORAL_RIM_TOL, TEMPORAL_SEARCH, TEMPORAL_SOURCE_NONE,
+    TEMPORAL_SOURCE_RESET, TEMPORAL_STATE, TEMPORAL_SUBPIXEL_GATE, TEMPORAL_SUBPIXEL_REACH,
+    TEMPORAL_VALID,
 };
 
 /// One pixel's temporal state (§10.1), origin at the frame it was last
@@ -289,9 +290,11 @@ fn resample(
 /// raster order) is at least [`TEMPORAL_RIM_CONTRAST`] times as bright as
 /// this pixel and has a previous state at the same pixel whose intercepts
 /// are within [`TEMPORAL_RIM_TOL`] of its colour (summed over the
-/// channels): a static bright neighbour makes a history between this
+/// channels), and `b0` is at most [`TEMPORAL_RIM_HISTORY`] of its
+/// brightness: a static bright neighbour makes a history between this
 /// pixel's colour and the neighbour's plausible, as on the rim of a light
-/// seen directly, whose frames are quiet or lit.
+/// seen directly, whose frames are quiet or lit; a history as bright as
+/// the light is of a pixel the light has left.
 fn rim_miss(
     inp: &TemporalInputs,
     prev: &[f32],
@@ -323,7 +326,9 @@ fn rim_miss(
         }
     }
     // Every colour here is finite.
-    if best.0 <= TEMPORAL_RIM_CONTRAST * (yi[0] + yi[1] + yi[2] + 0.01) {
+    if best.0 <= TEMPORAL_RIM_CONTRAST * (yi[0] + yi[1] + yi[2] + 0.01)
+        || b0[0] + b0[1] + b0[2] > TEMPORAL_RIM_HISTORY * best.0
+    {
         return;
     }
     let Some(s) = load(prev, n, best.1) else {
