@@ -5,16 +5,23 @@
 //! references (the same seeds, so its cache serves both). A pixel of a
 //! frame is `bright` where the reference exceeds 1 in some frame and
 //! channel (lights and their rims), `changing` where the reference moves
-//! by more than 0.02 (rMSE's relative square) since the last frame,
-//! `recent` where it did within the four frames before, `static`
-//! otherwise. Printed per class: its share of the pixels and its part of
+//! by more than 0.02 (rMSE's relative square) since the last frame, and
+//! only then (not in the frame before, nor in the next), `ramp` where it
+//! does so in consecutive frames, `recent` where it did within the four
+//! frames before, `static` otherwise. Of each pixel's ramp frames that
+//! follow another ramp frame, printed first: how often the two changes
+//! of the channels' mean agree in sign, and the later change's mean
+//! relative square (over `r_t² + 0.01`, `r` the channels' mean) before and
+//! after predicting it as the earlier one (a line in time). Printed per class: its share of the pixels and its part of
 //! the mean rMSE and of the temporal error (`metrics::temporal_error`,
 //! uncorrected), alone and filtered, so a column's classes sum to the
 //! image's figure. Written to `--out`: per method the sum over frames of
 //! the filter's change of the per-pixel rMSE (`<method>_rmse_delta.png`:
 //! red where the filter raises it, green where it lowers it, full scale at
 //! `--scale`) and the filtered output's per-pixel temporal error
-//! (`<method>_temporal.png`, heat map, full scale at the 99th percentile).
+//! (`<method>_temporal.png`, heat map, full scale at the 99th percentile),
+//! and per pixel its number of ramp frames (`ramps.png`, full scale at a
+//! quarter of the frames).
 //! With `--two-way`, a third column: the two-way filter
 //! (`--temporal lp-smooth`, TEMPORAL-SMOOTH).
 //!
@@ -67,7 +74,7 @@ struct Args {
     two_way: bool,
 }
 
-const CLASSES: [&str; 4] = ["static", "bright", "changing", "recent"];
+const CLASSES: [&str; 5] = ["static", "bright", "changing", "ramp", "recent"];
 
 fn main() -> anyhow::Result<()> {
     let a = Args::parse();
@@ -89,7 +96,26 @@ fn main() -> anyhow::Result<()> {
     let (w, h) = a.size;
     let n = w * h;
     let class = classes(&refs);
+    let r = Ramps::new(&refs, &class);
     std::fs::create_dir_all(&a.out)?;
+    let ramps: Vec<f32> = (0..n)
+        .map(|i| class.iter().filter(|c| c[i] == 3).count() as f32)
+        .collect();
+    io::write_heatmap_png(
+        &a.out.join("ramps.png"),
+        w,
+        h,
+        &ramps,
+        refs.len() as f32 / 4.0,
+    )?;
+    println!(
+        "<!-- ramps: {} pairs of consecutive ramp frames, the changes agree in sign in {:.1} %; \
+         their mean relative square {:.4}, less the last change {:.4} -->",
+        r.pairs,
+        100.0 * r.agree as f64 / r.pairs.max(1) as f64,
+        r.change / r.pairs.max(1) as f64,
+        r.after_line / r.pairs.max(1) as f64
+    );
     println!(
         "<!-- {}, {w}x{h}, {} spp, {} frames, {}-spp references of seed {}; \
          the references' own: half of a second seed's -->",
@@ -236,9 +262,15 @@ fn classes(refs: &[RgbImage]) -> Vec<Vec<usize>> {
                     if bright[i] {
                         1
                     } else if moved[t][i] {
-                        2
+                        let before = moved[t - 1][i];
+                        let after = moved.get(t + 1).is_some_and(|m| m[i]);
+                        if before || after {
+                            3
+                        } else {
+                            2
+                        }
                     } else if (t.saturating_sub(4)..t).any(|k| moved[k][i]) {
-                        3
+                        4
                     } else {
                         0
                     }
@@ -246,4 +278,43 @@ fn classes(refs: &[RgbImage]) -> Vec<Vec<usize>> {
                 .collect()
         })
         .collect()
+}
+
+/// The ramps' changes from frame to frame (the references' channel mean),
+/// over the pairs of consecutive ramp frames of a pixel.
+struct Ramps {
+    pairs: usize,
+    /// Pairs whose two changes agree in sign.
+    agree: usize,
+    /// Sums of the later change's relative square, and of its difference
+    /// from the earlier one's.
+    change: f64,
+    after_line: f64,
+}
+
+impl Ramps {
+    fn new(refs: &[RgbImage], class: &[Vec<usize>]) -> Ramps {
+        let mean = |r: &RgbImage, i: usize| r.planes.iter().map(|p| p[i] as f64).sum::<f64>() / 3.0;
+        let mut r = Ramps {
+            pairs: 0,
+            agree: 0,
+            change: 0.0,
+            after_line: 0.0,
+        };
+        for t in 2..refs.len() {
+            for i in 0..class[t].len() {
+                if class[t][i] != 3 || class[t - 1][i] != 3 {
+                    continue;
+                }
+                let d1 = mean(&refs[t], i) - mean(&refs[t - 1], i);
+                let d0 = mean(&refs[t - 1], i) - mean(&refs[t - 2], i);
+                let scale = mean(&refs[t], i).powi(2) + 0.01;
+                r.pairs += 1;
+                r.agree += (d1 * d0 > 0.0) as usize;
+                r.change += d1 * d1 / scale;
+                r.after_line += (d1 - d0).powi(2) / scale;
+            }
+        }
+        r
+    }
 }
