@@ -23,13 +23,14 @@
 //! and per pixel its number of ramp frames (`ramps.png`, full scale at a
 //! quarter of the frames).
 //! With `--two-way`, a third column: the two-way filter
-//! (`--temporal lp-smooth`, TEMPORAL-SMOOTH).
+//! (`--temporal lp-smooth`, TEMPORAL-SMOOTH); with `--oidn`, OIDN on every
+//! frame (`benches/oidn.sh`) in the "alone" column.
 //!
 //! ```text
 //! cargo run --release -p mcdenoise-tools --bin temporal_probe -- \
 //!     [--scene moving_box] [--methods wlr,auto] [--size 128x128] [--spp 16] \
 //!     [--frames 24] [--reference 512] [--seed 1] [--out target/temporal_probe] [--scale 0.05] \
-//!     [--two-way]
+//!     [--two-way] [--oidn]
 //! ```
 
 use std::path::PathBuf;
@@ -72,6 +73,9 @@ struct Args {
     /// Also the two-way filter (`Temporal::LpSmooth`).
     #[arg(long)]
     two_way: bool,
+    /// Also OIDN on every frame (`benches/oidn.sh`), in the "alone" column.
+    #[arg(long)]
+    oidn: bool,
 }
 
 const CLASSES: [&str; 5] = ["static", "bright", "changing", "ramp", "recent"];
@@ -143,6 +147,27 @@ fn main() -> anyhow::Result<()> {
     );
     println!("|---|---|---:|{}", "---:|".repeat(2 + 2 * columns.len()));
     let own = Tally::new(&second, &refs, &class)?;
+    let print = |name: &str, tallies: &[Tally]| {
+        for k in 0..=CLASSES.len() {
+            let class = CLASSES.get(k).copied().unwrap_or("all");
+            let share = if k < CLASSES.len() { own.share[k] } else { 1.0 };
+            let cells = |own: f64, of: &dyn Fn(&Tally) -> f64| {
+                std::iter::once(format!("{:.6}", own / 2.0))
+                    .chain((0..columns.len()).map(|c| {
+                        tallies
+                            .get(c)
+                            .map_or("–".to_string(), |t| format!("{:.6}", of(t)))
+                    }))
+                    .collect::<Vec<_>>()
+                    .join(" | ")
+            };
+            println!(
+                "| {name} | {class} | {share:.3} | {} | {} |",
+                cells(own.rmse[k], &|t| t.rmse[k]),
+                cells(own.temporal[k], &|t| t.temporal[k])
+            );
+        }
+    };
     for &m in &a.methods {
         let t = TwoWay::run(&ctx, m, &stats, a.two_way)?;
         let mut outputs = vec![t.alone, t.forward];
@@ -153,23 +178,7 @@ fn main() -> anyhow::Result<()> {
             .iter()
             .map(|o| Tally::new(o, &refs, &class))
             .collect::<anyhow::Result<Vec<_>>>()?;
-        for k in 0..=CLASSES.len() {
-            let name = CLASSES.get(k).copied().unwrap_or("all");
-            let share = if k < CLASSES.len() { own.share[k] } else { 1.0 };
-            let cells = |own: f64, of: &dyn Fn(&Tally) -> f64| {
-                std::iter::once(own / 2.0)
-                    .chain(tallies.iter().map(of))
-                    .map(|v| format!("{v:.6}"))
-                    .collect::<Vec<_>>()
-                    .join(" | ")
-            };
-            println!(
-                "| {} | {name} | {share:.3} | {} | {} |",
-                m.name(),
-                cells(own.rmse[k], &|t| t.rmse[k]),
-                cells(own.temporal[k], &|t| t.temporal[k])
-            );
-        }
+        print(m.name(), &tallies);
         let (alone, with) = (&tallies[0], &tallies[1]);
         let delta: Vec<f32> = with
             .rmse_map
@@ -193,6 +202,25 @@ fn main() -> anyhow::Result<()> {
         sorted.sort_by(f32::total_cmp);
         let top = sorted[(sorted.len() - 1) * 99 / 100];
         io::write_heatmap_png(&path, w, h, &with.temporal_map, top)?;
+    }
+    if a.oidn {
+        let dir = a.out.join("oidn");
+        std::fs::create_dir_all(&dir)?;
+        let mut pairs = Vec::new();
+        for (k, s) in stats.iter().enumerate() {
+            let (i, o) = (
+                dir.join(format!("in_{k:04}.exr")),
+                dir.join(format!("oidn_{k:04}.exr")),
+            );
+            io::write_stats(&i, s)?;
+            pairs.push((i, o));
+        }
+        mcdenoise_tools::oidn(&pairs)?;
+        let images = pairs
+            .iter()
+            .map(|(_, o)| io::read_rgb(o))
+            .collect::<mcdenoise::Result<Vec<_>>>()?;
+        print("OIDN", &[Tally::new(&images, &refs, &class)?]);
     }
     Ok(())
 }
