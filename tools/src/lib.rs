@@ -52,6 +52,30 @@ pub fn oidn(pairs: &[(PathBuf, PathBuf)]) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// OIDN ([`oidn`]) on every frame of a sequence: each frame's statistics
+/// written to `dir` (`in_0000.exr`, …), OIDN's outputs beside them
+/// (`oidn_0000.exr`, …) and read back, in frame order.
+pub fn oidn_frames(
+    stats: &[mcdenoise::StatsImage],
+    dir: &std::path::Path,
+) -> anyhow::Result<Vec<RgbImage>> {
+    std::fs::create_dir_all(dir)?;
+    let mut pairs = Vec::new();
+    for (k, s) in stats.iter().enumerate() {
+        let (i, o) = (
+            dir.join(format!("in_{k:04}.exr")),
+            dir.join(format!("oidn_{k:04}.exr")),
+        );
+        mcdenoise::io::write_stats(&i, s)?;
+        pairs.push((i, o));
+    }
+    oidn(&pairs)?;
+    Ok(pairs
+        .iter()
+        .map(|(_, o)| mcdenoise::io::read_rgb(o))
+        .collect::<mcdenoise::Result<Vec<_>>>()?)
+}
+
 /// The pixel-wise mean of `images` (at least one, all of one size).
 pub fn mean_image<'a>(images: impl IntoIterator<Item = &'a RgbImage>) -> RgbImage {
     let images: Vec<&RgbImage> = images.into_iter().collect();

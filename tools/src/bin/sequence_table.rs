@@ -42,7 +42,7 @@ use clap::Parser;
 use mcdenoise::render::adaptive::LoopConfig;
 use mcdenoise::render::{sequence, Scene};
 use mcdenoise::{
-    io, metrics, Config, ContextOptions, Denoiser, GpuContext, Method, Pyramid, RgbImage,
+    metrics, Config, ContextOptions, Denoiser, GpuContext, Method, Pyramid, RgbImage,
     SequenceDenoiser, Source, StatsImage, Temporal,
 };
 use mcdenoise_tools::{parse_method, SequenceWithReferences};
@@ -289,22 +289,7 @@ fn main() -> anyhow::Result<()> {
             }
         }
         if a.oidn {
-            let dir = a.work.join(name);
-            std::fs::create_dir_all(&dir)?;
-            let mut pairs = Vec::new();
-            for (k, s) in stats.iter().enumerate() {
-                let (i, o) = (
-                    dir.join(format!("in_{k:04}.exr")),
-                    dir.join(format!("oidn_{k:04}.exr")),
-                );
-                io::write_stats(&i, s)?;
-                pairs.push((i, o));
-            }
-            mcdenoise_tools::oidn(&pairs)?;
-            let images = pairs
-                .iter()
-                .map(|(_, o)| io::read_rgb(o))
-                .collect::<mcdenoise::Result<Vec<_>>>()?;
+            let images = mcdenoise_tools::oidn_frames(&stats, &a.work.join(name))?;
             row("OIDN", &images)?;
         }
     }

@@ -204,22 +204,7 @@ fn main() -> anyhow::Result<()> {
         io::write_heatmap_png(&path, w, h, &with.temporal_map, top)?;
     }
     if a.oidn {
-        let dir = a.out.join("oidn");
-        std::fs::create_dir_all(&dir)?;
-        let mut pairs = Vec::new();
-        for (k, s) in stats.iter().enumerate() {
-            let (i, o) = (
-                dir.join(format!("in_{k:04}.exr")),
-                dir.join(format!("oidn_{k:04}.exr")),
-            );
-            io::write_stats(&i, s)?;
-            pairs.push((i, o));
-        }
-        mcdenoise_tools::oidn(&pairs)?;
-        let images = pairs
-            .iter()
-            .map(|(_, o)| io::read_rgb(o))
-            .collect::<mcdenoise::Result<Vec<_>>>()?;
+        let images = mcdenoise_tools::oidn_frames(&stats, &a.out.join("oidn"))?;
         print("OIDN", &[Tally::new(&images, &refs, &class)?]);
     }
     Ok(())
