@@ -456,28 +456,12 @@ fn a_static_rim_keeps_its_history_and_a_moved_light_does_not() {
     let ctx = gpu();
     let (w, h) = (8usize, 8usize);
     let n = w * h;
-    // Pixel values and error estimates other than the background's.
+    // Pixel values and error estimates other than the background's (0.1,
+    // 1e-4); each pixel's own state is carried (no search), so the
+    // positions do not matter.
     let frame = |lit: &[((usize, usize), f32, f32)]| {
-        let mut f = Synthetic {
-            w,
-            h,
-            color: std::array::from_fn(|_| vec![0.1; n]),
-            position: std::array::from_fn(|k| {
-                (0..n)
-                    .map(|i| {
-                        if k == 2 {
-                            0.0
-                        } else {
-                            [i % w, i / w][k] as f32 * 0.1
-                        }
-                    })
-                    .collect()
-            }),
-            variance: std::array::from_fn(|_| vec![0.0; n]),
-            error: std::array::from_fn(|_| vec![1e-4; n]),
-            depth: vec![1.0; n],
-            spp: vec![16.0; n],
-        };
+        let mut f = on_a_plane((w, h), |_| 0.1, |i| ((i % w) as f64, (i / w) as f64));
+        f.error = std::array::from_fn(|_| vec![1e-4; n]);
         for &((x, y), v, e) in lit {
             for c in 0..3 {
                 f.color[c][y * w + x] = v;

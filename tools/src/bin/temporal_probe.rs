@@ -12,10 +12,10 @@
 //! follow another ramp frame, printed first: how often the two changes
 //! of the channels' mean agree in sign, and the later change's mean
 //! relative square (over `r_t² + 0.01`, `r` the channels' mean) before and
-//! after predicting it as the earlier one (a line in time). Printed per class: its share of the pixels and its part of
-//! the mean rMSE and of the temporal error (`metrics::temporal_error`,
-//! uncorrected), alone and filtered, so a column's classes sum to the
-//! image's figure. Written to `--out`: per method the sum over frames of
+//! after predicting it as the earlier one (a line in time). Printed per
+//! class: its share of the pixels and its part of the mean rMSE and of the
+//! temporal error (`metrics::temporal_error`, uncorrected), alone and
+//! filtered, so a column's classes sum to the image's figure. Written to `--out`: per method the sum over frames of
 //! the filter's change of the per-pixel rMSE (`<method>_rmse_delta.png`:
 //! red where the filter raises it, green where it lowers it, full scale at
 //! `--scale`) and the filtered output's per-pixel temporal error
@@ -79,6 +79,8 @@ struct Args {
 }
 
 const CLASSES: [&str; 5] = ["static", "bright", "changing", "ramp", "recent"];
+/// The index of `ramp` in [`CLASSES`].
+const RAMP: usize = 3;
 
 fn main() -> anyhow::Result<()> {
     let a = Args::parse();
@@ -103,7 +105,7 @@ fn main() -> anyhow::Result<()> {
     let r = Ramps::new(&refs, &class);
     std::fs::create_dir_all(&a.out)?;
     let ramps: Vec<f32> = (0..n)
-        .map(|i| class.iter().filter(|c| c[i] == 3).count() as f32)
+        .map(|i| class.iter().filter(|c| c[i] == RAMP).count() as f32)
         .collect();
     io::write_heatmap_png(
         &a.out.join("ramps.png"),
@@ -278,7 +280,7 @@ fn classes(refs: &[RgbImage]) -> Vec<Vec<usize>> {
                         let before = moved[t - 1][i];
                         let after = moved.get(t + 1).is_some_and(|m| m[i]);
                         if before || after {
-                            3
+                            RAMP
                         } else {
                             2
                         }
@@ -316,7 +318,7 @@ impl Ramps {
         };
         for t in 2..refs.len() {
             for i in 0..class[t].len() {
-                if class[t][i] != 3 || class[t - 1][i] != 3 {
+                if class[t][i] != RAMP || class[t - 1][i] != RAMP {
                     continue;
                 }
                 let d1 = mean(&refs[t], i) - mean(&refs[t - 1], i);
