@@ -6,7 +6,10 @@
 //! Each kernel is built twice: `<k>` in f32 and `<k>_f64` with `MC_F64`
 //! defined (see `spirv/lib/common.glsl`); one that mentions `MC_DD` also as
 //! `<k>_dd`, the variant for devices without `shaderFloat64` (double-float
-//! where the f32 variant uses double; `aos_fit`'s is plain f32). `#include "lib/x.glsl"` lines are
+//! where the f32 variant uses double; `aos_fit`'s is plain f32). One that
+//! mentions `WLR_VIS` (the WLR kernels) is also built with it defined, as
+//! `<k>_vis`, `<k>_vis_f64` and `<k>_vis_dd`: WLR with the visibility as a
+//! tenth feature (WLR-VIS). `#include "lib/x.glsl"` lines are
 //! expanded textually here (once per file), so error lines refer to the
 //! expanded source, which is written next to the SPIR-V for reading.
 //! The output is `$OUT_DIR/shaders.rs`: a table of `(name, words)`; and
@@ -102,8 +105,20 @@ fn main() {
         } else {
             &[("", ""), ("_f64", "#define MC_F64 1\n")]
         };
-        for &(suffix, define) in variants {
-            let name = format!("{stem}{suffix}");
+        // WLR-VIS: the same variants again with the visibility feature.
+        let mut builds: Vec<(String, String)> = variants
+            .iter()
+            .map(|&(suffix, define)| (format!("{stem}{suffix}"), define.to_owned()))
+            .collect();
+        if kernel && body.contains("WLR_VIS") {
+            builds.extend(variants.iter().map(|&(suffix, define)| {
+                (
+                    format!("{stem}_vis{suffix}"),
+                    format!("#define WLR_VIS 1\n{define}"),
+                )
+            }));
+        }
+        for (name, define) in builds {
             let body = body.clone();
             // `#version` must stay first: put the variant define right after it.
             let (version, rest) = match body.find("#version") {

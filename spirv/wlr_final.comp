@@ -47,15 +47,17 @@ PLANE_OUT(14, out_g)
 PLANE_OUT(15, out_b)
 PLANE_OUT(16, mse_out)
 PLANE_OUT(17, flags_out)
+#ifdef WLR_VIS
+// WLR-VIS (the `_vis` kernels): the prefiltered visibility.
+PLANE_IN(18, vis_p)
+#endif
 
 #define WLR_NFIT 1
-
-
-
+#include "lib/wlr.glsl"
 
 // The features as in wlr_fit.comp; the fits do not read the variances (only
 // the TSVD does, and wlr_fit's is reused).
-bool load_features(ivec2 p, out real x[9], out real e2[9])
+bool load_features(ivec2 p, out real x[MAX_D], out real e2[MAX_D])
 {
     uint i = uint(p.y) * push.width + uint(p.x);
     vec4 a = fa[i];
@@ -69,7 +71,10 @@ bool load_features(ivec2 p, out real x[9], out real e2[9])
     x[6] = real(b.x);
     x[7] = real(b.y);
     x[8] = real(b.z);
-    for (int j = 0; j < 9; ++j) {
+#ifdef WLR_VIS
+    x[9] = real(vis_p[i]);
+#endif
+    for (int j = 0; j < MAX_D; ++j) {
         e2[j] = real(0);
     }
     return spp_of(b.w) >= 1.0;  // PACKED-SPP
@@ -81,8 +86,6 @@ void load_colour(ivec2 p, out real3 y, out real vbar)
     y = real3(col_r[i], col_g[i], col_b[i]);
     vbar = real(vbar_p[i]);
 }
-
-#include "lib/wlr.glsl"
 
 void main()
 {

@@ -49,11 +49,14 @@ PLANE_OUT(16, b3_out)
 // The centre state for wlr_final (lib/wlr.glsl, WLR_STATE_OUT).
 layout(std430, set = 0, binding = 17) buffer state_blk { real4 state[]; };
 #define WLR_STATE_OUT
+#ifdef WLR_VIS
+// WLR-VIS (the `_vis` kernels): the prefiltered visibility and its variance.
+PLANE_IN(18, vis_p)
+PLANE_IN(19, vis_var_p)
+#endif
 
 #define WLR_NFIT 5
-
-
-
+#include "lib/wlr.glsl"
 
 
 
@@ -61,7 +64,7 @@ layout(std430, set = 0, binding = 17) buffer state_blk { real4 state[]; };
 
 // Features (px, py, nrm xyz, dep, albedo rgb), variances (0, 0, vn xyz, vd,
 // va rgb); valid iff spp_of >= 1 (spec §0.2, §2.1).
-bool load_features(ivec2 p, out real x[9], out real e2[9])
+bool load_features(ivec2 p, out real x[MAX_D], out real e2[MAX_D])
 {
     uint i = uint(p.y) * push.width + uint(p.x);
     vec4 a = fa[i];
@@ -86,6 +89,10 @@ bool load_features(ivec2 p, out real x[9], out real e2[9])
     e2[6] = real(v.x);
     e2[7] = real(v.y);
     e2[8] = real(v.z);
+#ifdef WLR_VIS
+    x[9] = real(vis_p[i]);
+    e2[9] = real(vis_var_p[i]);
+#endif
     return spp_of(b.w) >= 1.0;  // PACKED-SPP
 }
 
@@ -95,8 +102,6 @@ void load_colour(ivec2 p, out real3 y, out real vbar)
     y = real3(col_r[i], col_g[i], col_b[i]);
     vbar = real(vbar_p[i]);
 }
-
-#include "lib/wlr.glsl"
 
 void main()
 {

@@ -55,6 +55,13 @@ pub const OPTIONS: &[OptionSpec] = &[
         help: "positive-weight fallback when a fitted value is negative",
     },
     OptionSpec {
+        key: "wlr.extra_features",
+        kind: Kind::Choice(&["none", "visibility"]),
+        default: "none",
+        section: "§2.1",
+        help: "regress on the NL-means filtered visibility as a tenth feature (visibility; needs the layer) or on the spec's nine (none)",
+    },
+    OptionSpec {
         key: "lp.error_mode",
         kind: Kind::Choice(&["varsub", "paper"]),
         default: "varsub",

@@ -719,8 +719,26 @@ fn short_bindings_are_refused_before_recording() {
         b.slice(),
         out.each_ref().map(|p| p.slice()),
         (state.slice(), ring),
+        None,
     );
     fails(r, "wlr_fit binding 17 (state)");
+    // WLR-VIS: a ring sized for nine features is short for ten.
+    let nine = buf(ring as u64 * w as u64 * wlr_fit::STATE_WORDS as u64 * 4);
+    let r = wlr_fit::record(
+        &mut batch,
+        Precision::F32,
+        (w, h),
+        (0, h),
+        (2, 0),
+        packed.each_ref().map(|p| p.slice()),
+        planes,
+        a.slice(),
+        b.slice(),
+        out.each_ref().map(|p| p.slice()),
+        (nine.slice(), ring),
+        Some([a.slice(), b.slice()]),
+    );
+    fails(r, "wlr_fit_vis binding 17 (state)");
     batch.finish().unwrap();
     common::check_validation(&ctx);
 }

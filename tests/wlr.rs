@@ -14,7 +14,9 @@ use std::sync::Arc;
 
 use mcdenoise::gpu::{Batch, GpuBuffer, GpuContext, Precision};
 use mcdenoise::image::Layer;
-use mcdenoise::kernels::{channel_mean, gauss_smooth, run_planes, wlr_final, wlr_fit};
+use mcdenoise::kernels::{
+    channel_mean, gauss_smooth, run_bound, run_planes, wlr_final, wlr_fit, Bound,
+};
 use mcdenoise::reference::wlr::{self as rw, Planes, D, FLAG_FEW, FLAG_K0, FLAG_SOLVE_FAIL};
 use mcdenoise::reference::{self, spp_of};
 use mcdenoise::shared::{
@@ -24,7 +26,8 @@ use mcdenoise::shared::{
 
 /// The 19 input planes of WLR: 7 features, their 7 variances, colour R, G,
 /// B, vbar, spp (the kernels get the features and variances packed, as
-/// `reference::gbf_pack` packs them).
+/// `reference::gbf_pack` packs them); with WLR-VIS two more, the visibility
+/// and its variance (the `_vis` kernels' tenth feature).
 #[derive(Clone)]
 struct Scene {
     w: usize,
@@ -48,6 +51,16 @@ impl Scene {
     fn spp(&self) -> &[f32] {
         &self.planes[18]
     }
+    fn vis(&self) -> Option<[&[f32]; 2]> {
+        (self.planes.len() > 19).then(|| [&self.planes[19][..], &self.planes[20][..]])
+    }
+    fn features(&self) -> usize {
+        if self.vis().is_some() {
+            10
+        } else {
+            9
+        }
+    }
     fn rw_planes(&self) -> Planes<'_> {
         Planes {
             width: self.w,
@@ -57,8 +70,33 @@ impl Scene {
             color: self.color(),
             vbar: self.vbar(),
             spp: self.spp(),
+            vis: self.vis(),
         }
     }
+}
+
+/// [`synthetic`] with a soft shadow across it: a visibility feature (noisy,
+/// with its variance) that darkens the colour, which no other feature
+/// explains.
+fn synthetic_vis(w: usize, h: usize, seed: u64) -> Scene {
+    let mut sc = synthetic(w, h, seed);
+    let mut rng = Rng(seed ^ 0x5eed);
+    let n = w * h;
+    let (mut vis, mut vv) = (vec![0.0f32; n], vec![0.0f32; n]);
+    for i in 0..n {
+        let (x, y) = ((i % w) as f64, (i / w) as f64);
+        let t = ((x - 0.6 * w as f64 + 0.4 * y) / 3.0).tanh();
+        let v = 0.5 + 0.5 * t;
+        let sd = 0.05;
+        vis[i] = (v + sd * rng.normal()) as f32;
+        vv[i] = (sd * sd * (0.5 + rng.uniform())) as f32;
+        for ch in 14..17 {
+            sc.planes[ch][i] *= (0.2 + 0.8 * v) as f32;
+        }
+    }
+    sc.planes.push(vis);
+    sc.planes.push(vv);
+    sc
 }
 
 /// Structured features (a sphere on a tilted floor, checker albedo) with
@@ -154,6 +192,7 @@ fn twin_fit(sc: &Scene, push: &WlrPush) -> (Vec<Vec<f32>>, Vec<f32>) {
         push,
         sc.feat(),
         sc.var(),
+        sc.vis(),
         sc.color(),
         sc.vbar(),
         sc.spp(),
@@ -177,6 +216,7 @@ fn twin_final(sc: &Scene, push: &WlrPush, fit: &[Vec<f32>], hbar: &[f32]) -> Vec
         push,
         sc.feat(),
         sc.var(),
+        sc.vis(),
         sc.color(),
         sc.vbar(),
         sc.spp(),
@@ -191,7 +231,7 @@ fn twin_final(sc: &Scene, push: &WlrPush, fit: &[Vec<f32>], hbar: &[f32]) -> Vec
 /// (`ring_rows` = height).
 fn state_words(sc: &Scene, p: Precision) -> usize {
     let word = if p == Precision::F64 { 2 } else { 1 };
-    sc.w * sc.h * wlr_fit::STATE_WORDS * word
+    sc.w * sc.h * wlr_fit::state_words(sc.features()) * word
 }
 
 /// A context without 64-bit types: its f32 WLR kernels are the `_dd`
@@ -224,22 +264,22 @@ fn gpu_fit(
         ring_rows: sc.h as u32,
         ..*push
     };
-    let mut outs = vec![sc.w * sc.h; 8];
-    outs.push(state_words(sc, p));
     let pk = reference::gbf_pack::gbf_pack(sc.feat(), sc.var(), sc.spp());
-    let mut inputs: Vec<&[f32]> = pk.iter().map(|v| v.as_slice()).collect();
-    inputs.extend(sc.color());
-    inputs.extend([sc.vbar(), sc.spp()]);
-    let (mut o, _) = run_planes(
+    let mut bound: Vec<Bound> = pk.iter().map(|v| Bound::In(v)).collect();
+    bound.extend(sc.color().map(Bound::In));
+    bound.extend([Bound::In(sc.vbar()), Bound::In(sc.spp())]);
+    bound.extend([Bound::Out(sc.w * sc.h); 8]);
+    bound.push(Bound::Out(state_words(sc, p)));
+    // The `_vis` kernel's inputs follow the state.
+    bound.extend(sc.vis().into_iter().flatten().map(Bound::In));
+    let (mut o, _) = run_bound(
         ctx,
-        &wlr_fit::DECL,
+        wlr_fit::decl(sc.features()),
         p,
         bytemuck::bytes_of(&push),
-        sc.w,
-        sc.h,
-        &inputs,
-        &outs,
-        wlr_fit::flops_per_pixel(push.radius),
+        (sc.w, sc.h),
+        &bound,
+        wlr_fit::flops_per_pixel(push.radius, sc.features()),
     )
     .unwrap();
     let state = o.pop().unwrap();
@@ -262,21 +302,26 @@ fn gpu_final(
         ..*push
     };
     let pk = reference::gbf_pack::gbf_pack(sc.feat(), sc.var(), sc.spp());
-    let mut inputs: Vec<&[f32]> = vec![&pk[0], &pk[1]];
-    inputs.extend(sc.color());
-    inputs.extend([sc.vbar(), sc.spp(), hbar]);
-    inputs.extend(fit);
-    inputs.push(state);
-    run_planes(
+    let mut bound: Vec<Bound> = vec![Bound::In(&pk[0]), Bound::In(&pk[1])];
+    bound.extend(sc.color().map(Bound::In));
+    bound.extend([sc.vbar(), sc.spp(), hbar].map(Bound::In));
+    bound.extend(fit.map(Bound::In));
+    bound.push(Bound::In(state));
+    bound.extend([Bound::Out(sc.w * sc.h); 5]);
+    // The `_vis` kernel's visibility follows the outputs.
+    bound.extend(sc.vis().map(|[v, _]| Bound::In(v)));
+    run_bound(
         ctx,
-        &wlr_final::DECL,
+        if sc.vis().is_some() {
+            &wlr_final::DECL_VIS
+        } else {
+            &wlr_final::DECL
+        },
         p,
         bytemuck::bytes_of(&push),
-        sc.w,
-        sc.h,
-        &inputs,
-        &[sc.w * sc.h; 5],
-        wlr_final::flops_per_pixel(push.radius),
+        (sc.w, sc.h),
+        &bound,
+        wlr_final::flops_per_pixel(push.radius, sc.features()),
     )
     .unwrap()
     .0
@@ -487,6 +532,35 @@ fn wlr_synthetic_matches_twin() {
     let sc = synthetic(64, 64, 2024);
     compare_wlr("synthetic", &sc, 5, WLR_DEFAULT_OPTIONS);
     compare_wlr("synthetic", &sc, 9, WLR_DEFAULT_OPTIONS);
+    check_validation(&gpu());
+}
+
+/// WLR-VIS: the `_vis` kernels (the visibility as a tenth feature) against
+/// the twin with it.
+#[test]
+fn wlr_with_visibility_matches_twin() {
+    let sc = synthetic_vis(64, 64, 2025);
+    compare_wlr("synthetic", &sc, 5, WLR_DEFAULT_OPTIONS);
+    compare_wlr("synthetic", &sc, 9, WLR_DEFAULT_OPTIONS);
+    compare_wlr("small", &synthetic_vis(37, 23, 12), 5, WLR_DEFAULT_OPTIONS);
+    // Noiseless features (every variance 0): all ten are kept by the TSVD,
+    // and the rank is cut to the 9 local coordinates the kernels hold.
+    let mut clean = synthetic_vis(32, 32, 7);
+    for k in (7..14).chain([20]) {
+        clean.planes[k].iter_mut().for_each(|v| *v = 0.0);
+    }
+    let push = wlr_push(&clean, 5, WLR_DEFAULT_OPTIONS);
+    let (fit, _) = twin_fit(&clean, &push);
+    let (k, _) = split_kflags(&fit[4]);
+    let full = k.iter().filter(|&&k| k == 9.0).count();
+    assert!(k.iter().all(|&k| k <= 9.0), "a rank above 9");
+    assert!(
+        full > 32 * 32 / 2,
+        "{full} pixels of rank 9: the cap barely tested"
+    );
+    // Rank-9 fits everywhere: wlr_fit's f32 maps within tolerance on 98 %
+    // (lambda1 0.9893 measured; f64 as everywhere).
+    compare_wlr_with("noiseless", &clean, 5, WLR_DEFAULT_OPTIONS, 0.98);
     check_validation(&gpu());
 }
 
@@ -856,4 +930,54 @@ fn rank_and_bandwidth_bounds() {
     }
     // The scene exercises several ranks.
     assert!(ranks.iter().filter(|&&c| c > 0).count() >= 2, "{ranks:?}");
+}
+
+/// WLR-VIS through the chain: `wlr.extra_features=visibility` on the GPU
+/// equals the CPU path (the NL-means of the visibility and the twins),
+/// changes the output, and on an input without the layer is an error that
+/// names it.
+#[test]
+fn the_visibility_option_runs_end_to_end() {
+    let ctx = gpu();
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/fixtures/night_lights_40_spp64.exr");
+    let img = mcdenoise::io::read_stats(&path).unwrap();
+    let mut config = bare_chain_config(mcdenoise::Method::Wlr);
+    config.options = mcdenoise::Options::parse(&["wlr.extra_features=visibility"]).unwrap();
+    let (vis, clean) = run_chain(&ctx, &img, config.clone());
+    let (nine, _) = run_chain(&ctx, &img, bare_chain_config(mcdenoise::Method::Wlr));
+    let params =
+        mcdenoise::methods::wlr::WlrParams::new(mcdenoise::Pass::Final, &config.options).unwrap();
+    assert_eq!(params.features, 10);
+    let cpu = mcdenoise::methods::wlr::run_cpu(&clean, params).unwrap();
+    for c in 0..3 {
+        assert_close(
+            &format!("wlr.extra_features=visibility, channel {c}"),
+            &vis.color.planes[c],
+            &cpu.color.planes[c],
+            0.99,
+        );
+    }
+    let moved = mcdenoise::metrics::rmse(&vis.color, &nine.color);
+    eprintln!("wlr.extra_features=visibility: rMSE against nine features {moved:.3e}");
+    assert!(
+        moved > 1e-4,
+        "the visibility feature changed little ({moved})"
+    );
+
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/fixtures/dof_checker_64_spp16.exr");
+    let img = mcdenoise::io::read_stats(&path).unwrap();
+    let run = || -> mcdenoise::Result<()> {
+        use mcdenoise::methods::chain::{ChainInput, GpuChain};
+        let chain = GpuChain::new(&ctx, ChainInput::of_image(&img), config.clone())?;
+        chain.upload(&img)?;
+        let mut batch = mcdenoise::gpu::Batch::new(&ctx)?;
+        chain.record(&mut batch, None, None)?;
+        batch.finish()?;
+        Ok(())
+    };
+    let err = run().expect_err("no visibility layer").to_string();
+    assert!(err.contains("visibility layer"), "{err}");
+    check_validation(&ctx);
 }

@@ -28,6 +28,11 @@
 #if TSVD_D > MAX_D
 #error "tsvd.glsl: TSVD_D exceeds MAX_D"
 #endif
+// The largest rank the kernel's local coordinates hold (default TSVD_D):
+// a higher one is cut to it after MINRANK (WLR-VIS: 9 of 10 features).
+#ifndef TSVD_MAX_RANK
+#define TSVD_MAX_RANK TSVD_D
+#endif
 
 // Spec §0.6: constant-component range (natural units), tau = C ||E||_2,
 // numerically-zero singular values, MINRANK.
@@ -561,7 +566,7 @@ LocalSpace tsvd_local_space_with(ivec2 c, int R, ivec2 size, bool exact_specnorm
         }
     }
     ls.k_nz = k_nz;
-    ls.k = max(k, min(TSVD_MIN_RANK, k_nz));
+    ls.k = min(max(k, min(TSVD_MIN_RANK, k_nz)), TSVD_MAX_RANK);
     return ls;
 }
 
@@ -605,16 +610,17 @@ void tsvd_local_coords(LocalSpace ls, real xi[MAX_D], real xc[MAX_D], out real d
     }
 }
 
-#if TSVD_D == 9
+#if (TSVD_D == 9 || TSVD_D == 10) && TSVD_MAX_RANK <= 9
 
-// Local coordinates for D = 9 (WLR, LP), twin reference::tsvd::Projection:
-// dz = P (x - x_c) with P[m][j] = V_jm / rho_j (0 for constant j and m >= k),
-// which equals step 7 (the window minimum cancels).
+// Local coordinates for D = 9 (WLR, LP) or 10 with rank at most 9 (WLR
+// with visibility), twin reference::tsvd::Projection: dz = P (x - x_c)
+// with P[m][j] = V_jm / rho_j (0 for constant j and m >= k), which equals
+// step 7 (the window minimum cancels).
 // Column j of P is (P0[j], P1[j], P8[j]) = rows 0-3, 4-7, 8.
 struct TsvdProj {
-    real4 P0[9];
-    real4 P1[9];
-    real P8[9];
+    real4 P0[TSVD_D];
+    real4 P1[TSVD_D];
+    real P8[TSVD_D];
     int k;
     bvec4 m0;  // components 0-3 active (m < k)
     bvec4 m1;  // components 4-7
@@ -625,11 +631,11 @@ TsvdProj tsvd_projection(LocalSpace ls)
 {
     TsvdProj pr;
     pr.k = ls.k;
-    for (int j = 0; j < 9; ++j) {
+    for (int j = 0; j < TSVD_D; ++j) {
         real inv = ls.range[j] > real(TSVD_RANGE_EPS) ? real(1) / ls.range[j] : real(0);
         real col[9];
         for (int m = 0; m < 9; ++m) {
-            col[m] = m < ls.k ? ls.V[j * 9 + m] * inv : real(0);
+            col[m] = m < ls.k ? ls.V[j * TSVD_D + m] * inv : real(0);
         }
         pr.P0[j] = real4(col[0], col[1], col[2], col[3]);
         pr.P1[j] = real4(col[4], col[5], col[6], col[7]);
@@ -646,7 +652,7 @@ TsvdProj tsvd_projection(LocalSpace ls)
 real4 tsvd_dz0(TsvdProj pr, real xc[MAX_D], real x[MAX_D])
 {
     real4 d0 = real4(0);
-    for (int j = 0; j < 9; ++j) {
+    for (int j = 0; j < TSVD_D; ++j) {
         d0 += pr.P0[j] * (x[j] - xc[j]);
     }
     return d0;
@@ -659,7 +665,7 @@ void tsvd_dz(TsvdProj pr, real xc[MAX_D], real x[MAX_D], out real4 d0, out real4
     d0 = real4(0);
     d1 = real4(0);
     d8 = real(0);
-    for (int j = 0; j < 9; ++j) {
+    for (int j = 0; j < TSVD_D; ++j) {
         real dx = x[j] - xc[j];
         d0 += pr.P0[j] * dx;
         d1 += pr.P1[j] * dx;

@@ -7,7 +7,9 @@
 //              wlr_fit, 1 in wlr_final); only 1 and 5 are supported.
 // and, before or after it (prototypes below):
 //   bool load_features(ivec2 p, out real x[MAX_D], out real e2[MAX_D])
-//              the 9 WLR features (spec §2.1) and validity (tsvd.glsl hook);
+//              the 9 WLR features (spec §2.1), with WLR_VIS defined the
+//              prefiltered visibility as a tenth (WLR-VIS: `_vis` kernels,
+//              at most 9 local coordinates), and validity (tsvd.glsl hook);
 //   void load_colour(ivec2 p, out real3 y, out real vbar)
 //              colour and vbar of a pixel.
 //
@@ -29,8 +31,14 @@
 #ifndef MC_WLR_GLSL
 #define MC_WLR_GLSL
 
+#ifdef WLR_VIS
+#define MAX_D 10
+#define TSVD_D 10
+#define TSVD_MAX_RANK 9
+#else
 #define MAX_D 9
 #define TSVD_D 9
+#endif
 // The fits solve their systems with the block routines below, not with
 // linalg.glsl's WLS: keep its (unused) arrays small.
 #define MAX_P 4
@@ -642,7 +650,7 @@ bool wlr_curvature(TsvdProj pr, WlrCentre cc, int R, ivec2 size, uint options,
         h2 += abs(real(2) * q2) / real(3);
     }
     real Hv[9] = real[9](h0.x, h0.y, h1.x, h1.y, h1.z, h1.w, h2.x, h2.y, h2.z);
-    for (int j = 0; j < 9; ++j) {
+    for (int j = 0; j < 9; ++j) {  // b[9] (WLR_VIS) stays 0: k <= 9
         Hb[j] = j < k ? Hv[j] : real(0);
         b[j] = j < k ? real(1) / sqrt(Hv[j] + real(WLR_BETA0)) : real(0);
     }
@@ -1142,11 +1150,16 @@ dd wlr_mse_model_dd(dd lambda1, dd kappa0, dd kappa1, int k, dd n, dd h)
 // real4 in `state`, declared by the kernel, which then defines WLR_STATE_OUT
 // (wlr_fit: the store) or WLR_STATE_IN (wlr_final: the load):
 //   [0, 9) P0[j], [9, 18) P1[j], 18 P8[0..4), 19 P8[4..8),
-//   20 (P8[8], b_1, b_2, b_3), 21 (b_4..b_7), 22 (b_8, b_9, ok, 0),
+//   20 (P8[8], b_1, b_2, b_3), 21 (b_4..b_7), 22 (b_8, b_9, ok, P8[9]),
+//   with WLR_VIS 23 P0[9], 24 P1[9] (the visibility's column),
 // ok = 1 when the curvature fit succeeded. Pixel (x, y) lives in row
 // y mod push.ring_rows of a ring of rows (src/methods/wlr.rs: the host runs
 // wlr_fit a band of rows ahead of wlr_final).
+#ifdef WLR_VIS
+#define WLR_STATE_VEC4 25
+#else
 #define WLR_STATE_VEC4 23
+#endif
 
 #if defined(WLR_STATE_OUT) || defined(WLR_STATE_IN)
 
@@ -1168,7 +1181,13 @@ void wlr_state_store(ivec2 c, TsvdProj pr, real b[MAX_D], bool ok)
     state[s + 19] = real4(pr.P8[4], pr.P8[5], pr.P8[6], pr.P8[7]);
     state[s + 20] = real4(pr.P8[8], b[0], b[1], b[2]);
     state[s + 21] = real4(b[3], b[4], b[5], b[6]);
+#ifdef WLR_VIS
+    state[s + 22] = real4(b[7], b[8], ok ? real(1) : real(0), pr.P8[9]);
+    state[s + 23] = pr.P0[9];
+    state[s + 24] = pr.P1[9];
+#else
     state[s + 22] = real4(b[7], b[8], ok ? real(1) : real(0), real(0));
+#endif
 }
 #endif // WLR_STATE_OUT
 
@@ -1188,8 +1207,15 @@ bool wlr_state_load(ivec2 c, int k, out TsvdProj pr, out real b[MAX_D])
     real4 t20 = state[s + 20];
     real4 t21 = state[s + 21];
     real4 t22 = state[s + 22];
+#ifdef WLR_VIS
+    pr.P0[9] = state[s + 23];
+    pr.P1[9] = state[s + 24];
+    pr.P8 = real[10](t18.x, t18.y, t18.z, t18.w, t19.x, t19.y, t19.z, t19.w, t20.x, t22.w);
+    b = real[10](t20.y, t20.z, t20.w, t21.x, t21.y, t21.z, t21.w, t22.x, t22.y, real(0));
+#else
     pr.P8 = real[9](t18.x, t18.y, t18.z, t18.w, t19.x, t19.y, t19.z, t19.w, t20.x);
     b = real[9](t20.y, t20.z, t20.w, t21.x, t21.y, t21.z, t21.w, t22.x, t22.y);
+#endif
     pr.k = k;
     pr.m0 = lessThan(ivec4(0, 1, 2, 3), ivec4(k));
     pr.m1 = lessThan(ivec4(4, 5, 6, 7), ivec4(k));

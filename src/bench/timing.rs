@@ -496,6 +496,8 @@ fn count_by_rank(t: &mut [KernelTiming], method: Method, dim: &[f32], (w, h): (u
             &[
                 ("wlr_fit", wlr_fit::flops_of_pixel),
                 ("wlr_final", wlr_final::flops_of_pixel),
+                ("wlr_fit_vis", wlr_fit::flops_of_pixel_vis),
+                ("wlr_final_vis", wlr_final::flops_of_pixel_vis),
             ],
         ),
         Method::Aos => (

@@ -86,7 +86,9 @@ pub const ALL: &[&KernelDecl] = &[
     &gauss_rows::DECL,
     &gauss_smooth::DECL,
     &wlr_fit::DECL,
+    &wlr_fit::DECL_VIS,
     &wlr_final::DECL,
+    &wlr_final::DECL_VIS,
     &gbf_prepare::DECL,
     &gbf_sure::DECL,
     &gbf_filter::DECL,
@@ -208,6 +210,7 @@ pub(crate) fn dispatch_queued(
 /// zeroed buffers of `outputs[j]` 32-bit words each (f32, or u32 bits for
 /// counters), returned in order. For tests and benchmarks: it uploads and
 /// downloads everything.
+#[allow(clippy::too_many_arguments)]
 pub fn run_planes(
     ctx: &Arc<GpuContext>,
     decl: &KernelDecl,
@@ -219,37 +222,73 @@ pub fn run_planes(
     outputs: &[usize],
     flops_per_pixel: f64,
 ) -> Result<(Vec<Vec<f32>>, Vec<crate::gpu::KernelTiming>)> {
-    let mut buffers = Vec::with_capacity(inputs.len() + outputs.len());
-    for (i, p) in inputs.iter().enumerate() {
-        buffers.push(GpuBuffer::from_slice(
-            ctx,
-            &format!("{}.in{i}", decl.name),
-            p,
-        )?);
+    let bound: Vec<Bound> = inputs
+        .iter()
+        .map(|&p| Bound::In(p))
+        .chain(outputs.iter().map(|&n| Bound::Out(n)))
+        .collect();
+    run_bound(
+        ctx,
+        decl,
+        precision,
+        push,
+        (width, height),
+        &bound,
+        flops_per_pixel,
+    )
+}
+
+/// One binding of [`run_bound`].
+#[derive(Copy, Clone, Debug)]
+pub enum Bound<'a> {
+    /// A plane uploaded from the host.
+    In(&'a [f32]),
+    /// A fresh zeroed buffer of this many 32-bit words, read back.
+    Out(usize),
+}
+
+/// [`run_planes`] with the inputs and outputs in any binding order (a
+/// kernel whose inputs follow an output): binding `i` is `bindings[i]`;
+/// returns the [`Bound::Out`] buffers' contents in order.
+pub fn run_bound(
+    ctx: &Arc<GpuContext>,
+    decl: &KernelDecl,
+    precision: Precision,
+    push: &[u8],
+    (width, height): (usize, usize),
+    bindings: &[Bound],
+    flops_per_pixel: f64,
+) -> Result<(Vec<Vec<f32>>, Vec<crate::gpu::KernelTiming>)> {
+    let mut buffers = Vec::with_capacity(bindings.len());
+    for (i, b) in bindings.iter().enumerate() {
+        buffers.push(match *b {
+            Bound::In(p) => GpuBuffer::from_slice(ctx, &format!("{}.in{i}", decl.name), p)?,
+            Bound::Out(len) => GpuBuffer::from_slice(
+                ctx,
+                &format!("{}.out{i}", decl.name),
+                &vec![0.0f32; len.max(1)],
+            )?,
+        });
     }
-    for (j, &len) in outputs.iter().enumerate() {
-        buffers.push(GpuBuffer::from_slice(
-            ctx,
-            &format!("{}.out{j}", decl.name),
-            &vec![0.0f32; len.max(1)],
-        )?);
-    }
-    let bindings: Vec<_> = buffers.iter().map(|b| b.slice()).collect();
+    let slices: Vec<_> = buffers.iter().map(|b| b.slice()).collect();
     let mut batch = Batch::new(ctx)?;
     batch.dispatch(
         decl,
         precision,
-        &bindings,
+        &slices,
         push,
         width as u32,
         height as u32,
         flops_per_pixel,
     )?;
     let timings = batch.finish()?;
-    let outs = outputs
+    let outs = bindings
         .iter()
-        .enumerate()
-        .map(|(j, &len)| buffers[inputs.len() + j].read_vec::<f32>(len))
+        .zip(&buffers)
+        .filter_map(|(b, buf)| match *b {
+            Bound::Out(len) => Some(buf.read_vec::<f32>(len)),
+            Bound::In(_) => None,
+        })
         .collect::<Result<Vec<_>>>()?;
     Ok((outs, timings))
 }

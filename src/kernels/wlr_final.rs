@@ -18,7 +18,20 @@ use crate::shared::WlrPush;
 /// size of [`WlrPush`]; checked against the SPIR-V by reflection.
 pub const DECL: KernelDecl = KernelDecl {
     name: "wlr_final",
-    bindings: &[
+    bindings: bindings!(),
+    push_size: std::mem::size_of::<WlrPush>() as u32,
+};
+
+/// Declaration of `wlr_final_vis` (WLR-VIS): [`DECL`]'s bindings, then the
+/// prefiltered visibility.
+pub const DECL_VIS: KernelDecl = KernelDecl {
+    name: "wlr_final_vis",
+    bindings: bindings!(read("visibility")),
+    push_size: std::mem::size_of::<WlrPush>() as u32,
+};
+
+macro_rules! bindings {
+    ($($extra:expr),*) => { &[
         read("features_a").planes(4),
         read("features_b").planes(4),
         read("color_r"),
@@ -37,9 +50,10 @@ pub const DECL: KernelDecl = KernelDecl {
         write("out_b"),
         write("mse"),
         write("flags"),
-    ],
-    push_size: std::mem::size_of::<WlrPush>() as u32,
-};
+        $($extra),*
+    ] };
+}
+use bindings;
 
 /// Names of the 5 output maps, in binding order.
 pub const OUTPUTS: [&str; 5] = ["out_r", "out_g", "out_b", "mse", "flags"];
@@ -62,23 +76,33 @@ pub const FINAL_SUPPORT: f64 = 0.63;
 /// this at its rank; the dispatch charges the bound [`flops_per_pixel`].
 /// Flops as [`EXP_FLOPS`](super::EXP_FLOPS) counts them.
 pub fn flops_of_pixel(window: f64, rank: u32) -> f64 {
+    flops_of(window, rank, 9.0)
+}
+
+/// [`flops_of_pixel`] of `wlr_final_vis` (ten features).
+pub fn flops_of_pixel_vis(window: f64, rank: u32) -> f64 {
+    flops_of(window, rank, 10.0)
+}
+
+fn flops_of(window: f64, rank: u32, d: f64) -> f64 {
     if rank == 0 {
         return 0.0;
     }
     super::wlr_fit::fits_flops(
         window,
         rank as f64,
+        d,
         super::wlr_fit::ACCEPTED,
         &[FINAL_SUPPORT],
     ) + 30.0
 }
 
-/// An upper bound of [`flops_of_pixel`], which sizes the bands: a full
-/// `(2R+1)²` window, rank 9, every neighbour accepted and inside the
-/// kernel's support.
-pub fn flops_per_pixel(radius: u32) -> f64 {
+/// An upper bound of [`flops_of_pixel`] (of [`flops_of_pixel_vis`] for 10
+/// `features`), which sizes the bands: a full `(2R+1)²` window, rank 9,
+/// every neighbour accepted and inside the kernel's support.
+pub fn flops_per_pixel(radius: u32, features: usize) -> f64 {
     let n = ((2 * radius + 1) * (2 * radius + 1)) as f64;
-    super::wlr_fit::fits_flops(n, 9.0, 1.0, &[1.0]) + 30.0
+    super::wlr_fit::fits_flops(n, 9.0, features as f64, 1.0, &[1.0]) + 30.0
 }
 
 /// Records `wlr_final` over the rows `rows = [first, end)` (`first` a
@@ -88,7 +112,8 @@ pub fn flops_per_pixel(radius: u32) -> f64 {
 /// (`gauss_smooth` with σ = 1), `fit` = the `λ1`, `κ0`, `κ1`, `kflags` maps of
 /// `wlr_fit` and its centre state ring (same `radius`, `options`,
 /// `ring_rows`, and still holding these rows). `out` = the 5 maps of
-/// [`OUTPUTS`].
+/// [`OUTPUTS`]; `vis` = the prefiltered visibility for `wlr_final_vis`
+/// (WLR-VIS, with `wlr_fit_vis`'s state), or `None` for `wlr_final`.
 #[allow(clippy::too_many_arguments)]
 pub fn record(
     batch: &mut Batch,
@@ -104,8 +129,19 @@ pub fn record(
     fit: [BufferSlice; 4],
     (state, ring_rows): (BufferSlice, u32),
     out: [BufferSlice; 5],
+    vis: Option<BufferSlice>,
 ) -> Result<()> {
-    super::wlr_fit::require_state(&DECL, 12, precision, width, height, (&state, ring_rows))?;
+    let features = if vis.is_some() { 10 } else { 9 };
+    let decl = if vis.is_some() { &DECL_VIS } else { &DECL };
+    super::wlr_fit::require_state(
+        decl,
+        12,
+        precision,
+        width,
+        height,
+        (&state, ring_rows),
+        features,
+    )?;
     let push = WlrPush {
         width,
         height,
@@ -123,13 +159,14 @@ pub fn record(
     b.extend_from_slice(&fit);
     b.push(state);
     b.extend_from_slice(&out);
+    b.extend(vis);
     batch.dispatch_rows(
-        &DECL,
+        decl,
         precision,
         &b,
         bytemuck::bytes_of(&push),
         width,
         (rows, height),
-        flops_per_pixel(radius),
+        flops_per_pixel(radius, features),
     )
 }

@@ -11,6 +11,11 @@
 //! Binding 17, `state`: per centre with `k >= 1`, the local space and the
 //! `b_j` that `wlr_final` reads back instead of recomputing them
 //! ([`STATE_WORDS`] per pixel, in a ring of [`WlrPush::ring_rows`] rows).
+//!
+//! [`DECL_VIS`], `wlr_fit_vis` (the same source with `WLR_VIS`): WLR-VIS,
+//! the prefiltered visibility and its variance as a tenth feature
+//! (bindings 18, 19), at most 9 local coordinates; its state holds
+//! [`STATE_WORDS_VIS`] per pixel.
 
 use crate::error::Result;
 use crate::gpu::reflect::{read, write};
@@ -21,7 +26,30 @@ use crate::shared::WlrPush;
 /// size of [`WlrPush`]; checked against the SPIR-V by reflection.
 pub const DECL: KernelDecl = KernelDecl {
     name: "wlr_fit",
-    bindings: &[
+    bindings: bindings!(),
+    push_size: std::mem::size_of::<WlrPush>() as u32,
+};
+
+/// Declaration of `wlr_fit_vis` (WLR-VIS): [`DECL`]'s bindings, then the
+/// prefiltered visibility and its variance.
+pub const DECL_VIS: KernelDecl = KernelDecl {
+    name: "wlr_fit_vis",
+    bindings: bindings!(read("visibility"), read("visibility_variance")),
+    push_size: std::mem::size_of::<WlrPush>() as u32,
+};
+
+/// The declaration of the variant that reads `features` (9, or 10 with the
+/// visibility).
+pub fn decl(features: usize) -> &'static KernelDecl {
+    if features > 9 {
+        &DECL_VIS
+    } else {
+        &DECL
+    }
+}
+
+macro_rules! bindings {
+    ($($extra:expr),*) => { &[
         read("features_a").planes(4),
         read("features_b").planes(4),
         read("variances_a").planes(4),
@@ -40,9 +68,10 @@ pub const DECL: KernelDecl = KernelDecl {
         write("b2"),
         write("b3"),
         write("state").sized_by_record(),
-    ],
-    push_size: std::mem::size_of::<WlrPush>() as u32,
-};
+        $($extra),*
+    ] };
+}
+use bindings;
 
 /// Names of the 8 output maps, in binding order.
 pub const OUTPUTS: [&str; 8] = [
@@ -52,6 +81,18 @@ pub const OUTPUTS: [&str; 8] = [
 /// Words (of the kernel's precision, f32 or f64) of the centre state per
 /// pixel: 23 `vec4` (`WLR_STATE_VEC4` in `spirv/lib/wlr.glsl`).
 pub const STATE_WORDS: usize = 23 * 4;
+/// The same for `wlr_fit_vis`: 25 `vec4` (the visibility's column of the
+/// projection).
+pub const STATE_WORDS_VIS: usize = 25 * 4;
+
+/// [`STATE_WORDS`] or [`STATE_WORDS_VIS`] for `features` features.
+pub fn state_words(features: usize) -> usize {
+    if features > 9 {
+        STATE_WORDS_VIS
+    } else {
+        STATE_WORDS
+    }
+}
 
 /// Typical share of a centre's valid window pixels that WLR-CI accepts
 /// (steps 3, 5, 9) and that lie in the support of the curvature fit's
@@ -83,7 +124,13 @@ const JACOBI_ROTATION: f64 = 117.0;
 /// minimum and maximum (18), their difference from the centre and its sum
 /// (18), the square roots of the 7 noisy variances and their sum (14), the
 /// 45 products of the Gram sum (90) and the 28 of the noise sum (56).
-pub const TSVD_PASS: f64 = 196.0;
+pub const TSVD_PASS: f64 = tsvd_pass(9.0);
+
+/// [`TSVD_PASS`] for `d` features (two of them the noiseless pixel
+/// coordinates).
+pub const fn tsvd_pass(d: f64) -> f64 {
+    4.0 * d + 2.0 * (d - 2.0) + d * (d + 1.0) + (d - 2.0) * (d - 1.0)
+}
 
 /// Once per centre, the rest of the TSVD (§0.6): [`JACOBI_SWEEPS`] sweeps
 /// of 36 rotations and the off-diagonal norms (75 each, one check more
@@ -93,8 +140,25 @@ pub const TSVD_PASS: f64 = 196.0;
 /// their maximum and scaling: ~830); ranges, square roots and the rank
 /// (~60); the projection `P = V_kᵀ diag(1/ρ)` (`9k + 9`).
 pub fn tsvd_once(k: f64) -> f64 {
-    let jacobi = JACOBI_SWEEPS * 36.0 * JACOBI_ROTATION + (JACOBI_SWEEPS + 1.0) * 75.0 + 90.0;
-    jacobi + 45.0 * 5.0 + 28.0 * 2.0 + 830.0 + 60.0 + 9.0 * k + 9.0
+    tsvd_once_of(9.0, k)
+}
+
+/// [`tsvd_once`] for `d` features: `d(d−1)/2` rotations of
+/// `17 + 6(d−2) + 4 + 6d` (117 at 9), the norms and entries
+/// by their counts, the bounds by the noisy block's size squared.
+pub fn tsvd_once_of(d: f64, k: f64) -> f64 {
+    let pairs = d * (d - 1.0) / 2.0;
+    let rotation = JACOBI_ROTATION + 12.0 * (d - 9.0);
+    let jacobi =
+        JACOBI_SWEEPS * pairs * rotation + (JACOBI_SWEEPS + 1.0) * (2.0 * pairs + 3.0) + 90.0;
+    let noisy = d - 2.0;
+    jacobi
+        + d * (d + 1.0) / 2.0 * 5.0
+        + noisy * (noisy + 1.0)
+        + 830.0 * (noisy / 7.0) * (noisy / 7.0)
+        + 60.0
+        + d * k
+        + d
 }
 
 /// The local linear fits of steps 5 / 9 (`p = k + 1` regressors) over a
@@ -104,32 +168,32 @@ pub fn tsvd_once(k: f64) -> f64 {
 /// normal matrices; B: the equivalent kernels and step 5's sums):
 /// - per valid pixel and pass: grey (3), the WLR-CI test (8), the outlier
 ///   weight (2), the centred colour (3);
-/// - per accepted pixel and pass: `Δz` (9 differences, `9k`
-///   multiply-adds), and per bandwidth its kernel `Π_j K_E` (`6k + 1`);
+/// - per accepted pixel and pass: `Δz` (`d` differences, `dk`
+///   multiply-adds; `d` features), and per bandwidth its kernel `Π_j K_E` (`6k + 1`);
 /// - per pixel in a bandwidth's support: pass A the weighted row and the
 ///   `p(p+1)/2` multiply-adds of the normal matrix' lower triangle
 ///   (`p(p+2)`), pass B `l_i` (`2p`) and the sums of `l`, `l₊` (20);
 /// - once per bandwidth: `1/(h b_j)` (`2k`), the ridge Cholesky (`p³/3`),
 ///   the first column of the inverse (`2p²`), NONNEG and the bias (30).
-pub(crate) fn fits_flops(window: f64, k: f64, accepted: f64, support: &[f64]) -> f64 {
+pub(crate) fn fits_flops(window: f64, k: f64, d: f64, accepted: f64, support: &[f64]) -> f64 {
     let p = k + 1.0;
     let nfit = support.len() as f64;
     let valid = 2.0 * 16.0;
-    let acc = accepted * 2.0 * (9.0 + 18.0 * k + nfit * (6.0 * k + 1.0));
+    let acc = accepted * 2.0 * (d + 2.0 * d * k + nfit * (6.0 * k + 1.0));
     let pos = support.iter().sum::<f64>() * (p * (p + 2.0) + 2.0 * p + 20.0);
     window * (valid + acc + pos) + nfit * (2.0 * k + p * p * p / 3.0 + 2.0 * p * p + 30.0)
 }
 
 /// The curvature fit (step 4, `q = 1 + 2k` columns) over `window` valid
 /// pixels, `support` of them in its kernel's support: per valid pixel the
-/// centred colour and outlier weight (5), `Δz` (`9 + 18k`) and the kernel
+/// centred colour and outlier weight (5), `Δz` (`d + 2dk`) and the kernel
 /// (`5k + 1`); per pixel in the support the squares (`k`), the weighted row
 /// (`q`), the lower triangle of the normal matrix (`q(q+1)`) and three
 /// right-hand sides (`6q`); once, the ridge Cholesky (`q³/3 + q²/2`), three
 /// solves (`6q²`) and `Hbar_j`, `b_j` (`15k`).
-fn curvature_flops(window: f64, k: f64, support: f64) -> f64 {
+fn curvature_flops(window: f64, k: f64, d: f64, support: f64) -> f64 {
     let q = 1.0 + 2.0 * k;
-    window * (14.0 + 23.0 * k + support * (k + q * q + 8.0 * q))
+    window * (5.0 + d + (2.0 * d + 5.0) * k + support * (k + q * q + 8.0 * q))
         + q * q * q / 3.0
         + 6.5 * q * q
         + 15.0 * k
@@ -152,24 +216,52 @@ fn curvature_flops(window: f64, k: f64, support: f64) -> f64 {
 /// [`flops_per_pixel`].
 /// Flops as [`EXP_FLOPS`](super::EXP_FLOPS) counts them.
 pub fn flops_of_pixel(window: f64, rank: u32) -> f64 {
-    flops_with(window, rank, ACCEPTED, CURVATURE_SUPPORT, &TRIAL_SUPPORT)
+    flops_with(
+        window,
+        rank,
+        9.0,
+        ACCEPTED,
+        CURVATURE_SUPPORT,
+        &TRIAL_SUPPORT,
+    )
 }
 
-fn flops_with(window: f64, rank: u32, accepted: f64, curvature: f64, trials: &[f64]) -> f64 {
+/// [`flops_of_pixel`] of `wlr_fit_vis` (ten features).
+pub fn flops_of_pixel_vis(window: f64, rank: u32) -> f64 {
+    flops_with(
+        window,
+        rank,
+        10.0,
+        ACCEPTED,
+        CURVATURE_SUPPORT,
+        &TRIAL_SUPPORT,
+    )
+}
+
+fn flops_with(
+    window: f64,
+    rank: u32,
+    d: f64,
+    accepted: f64,
+    curvature: f64,
+    trials: &[f64],
+) -> f64 {
     let k = rank as f64;
-    let tsvd = window * TSVD_PASS + tsvd_once(k);
+    let tsvd = window * tsvd_pass(d) + tsvd_once_of(d, k);
     if rank == 0 {
         return tsvd;
     }
-    tsvd + curvature_flops(window, k, curvature) + fits_flops(window, k, accepted, trials) + 250.0
+    tsvd + curvature_flops(window, k, d, curvature)
+        + fits_flops(window, k, d, accepted, trials)
+        + 250.0
 }
 
-/// An upper bound of [`flops_of_pixel`], which sizes the bands: a full
-/// `(2R+1)²` window, rank 9, every neighbour accepted and inside every
-/// kernel's support.
-pub fn flops_per_pixel(radius: u32) -> f64 {
+/// An upper bound of [`flops_of_pixel`] (of [`flops_of_pixel_vis`] for 10
+/// `features`), which sizes the bands: a full `(2R+1)²` window, rank 9,
+/// every neighbour accepted and inside every kernel's support.
+pub fn flops_per_pixel(radius: u32, features: usize) -> f64 {
     let n = ((2 * radius + 1) * (2 * radius + 1)) as f64;
-    flops_with(n, 9, 1.0, 1.0, &[1.0; 5])
+    flops_with(n, 9, features as f64, 1.0, 1.0, &[1.0; 5])
 }
 
 /// Records `wlr_fit` over the rows `rows = [first, end)` (`first` a multiple
@@ -178,8 +270,10 @@ pub fn flops_per_pixel(radius: u32) -> f64 {
 /// `packed` = the features (normal xyz, depth, albedo rgb) and their
 /// variances as `gbf_pack` packs them (4 vec4 planes); `color` = R, G, B;
 /// `vbar` = mean colour variance; `out` = the 8 maps of
-/// [`OUTPUTS`]; `state` = a ring of `ring_rows` rows of [`STATE_WORDS`]
-/// per pixel, which must hold the rows `wlr_final` will read.
+/// [`OUTPUTS`]; `state` = a ring of `ring_rows` rows of [`state_words`]
+/// per pixel, which must hold the rows `wlr_final` will read; `vis` = the
+/// prefiltered visibility and its variance for `wlr_fit_vis` (WLR-VIS), or
+/// `None` for `wlr_fit`.
 #[allow(clippy::too_many_arguments)]
 pub fn record(
     batch: &mut Batch,
@@ -193,8 +287,19 @@ pub fn record(
     spp: BufferSlice,
     out: [BufferSlice; 8],
     (state, ring_rows): (BufferSlice, u32),
+    vis: Option<[BufferSlice; 2]>,
 ) -> Result<()> {
-    require_state(&DECL, 17, precision, width, height, (&state, ring_rows))?;
+    let features = if vis.is_some() { 10 } else { 9 };
+    let decl = decl(features);
+    require_state(
+        decl,
+        17,
+        precision,
+        width,
+        height,
+        (&state, ring_rows),
+        features,
+    )?;
     let push = WlrPush {
         width,
         height,
@@ -203,27 +308,28 @@ pub fn record(
         ring_rows,
         ..Default::default()
     };
-    let mut b = Vec::with_capacity(18);
+    let mut b = Vec::with_capacity(20);
     b.extend_from_slice(&packed);
     b.extend_from_slice(&color);
     b.push(vbar);
     b.push(spp);
     b.extend_from_slice(&out);
     b.push(state);
+    b.extend(vis.iter().flatten());
     batch.dispatch_rows(
-        &DECL,
+        decl,
         precision,
         &b,
         bytemuck::bytes_of(&push),
         width,
         (rows, height),
-        flops_per_pixel(radius),
+        flops_per_pixel(radius, features),
     )
 }
 
 /// Checks the centre state ring bound at `index`: `ring_rows` (≥ 1) rows,
-/// at most the image's height, of [`STATE_WORDS`] values per pixel (f64 in
-/// the `_f64` variant, f32 otherwise).
+/// at most the image's height, of [`state_words`] values per pixel (f64 in
+/// the `_f64` variant, f32 otherwise) for `features` features.
 pub(super) fn require_state(
     decl: &KernelDecl,
     index: usize,
@@ -231,6 +337,7 @@ pub(super) fn require_state(
     width: u32,
     height: u32,
     (state, ring_rows): (&BufferSlice, u32),
+    features: usize,
 ) -> Result<()> {
     if ring_rows == 0 {
         return Err(crate::error::Error::InvalidArgument(format!(
@@ -243,7 +350,7 @@ pub(super) fn require_state(
     decl.require(
         index,
         state,
-        rows * width as u64 * STATE_WORDS as u64 * word,
+        rows * width as u64 * state_words(features) as u64 * word,
     )
 }
 
@@ -257,10 +364,12 @@ mod tests {
             let full = ((2 * radius + 1) * (2 * radius + 1)) as f64;
             for rank in 0..=9 {
                 for window in [1.0, full / 2.0, full] {
-                    assert!(flops_of_pixel(window, rank) < flops_per_pixel(radius));
+                    assert!(flops_of_pixel(window, rank) < flops_per_pixel(radius, 9));
+                    assert!(flops_of_pixel_vis(window, rank) < flops_per_pixel(radius, 10));
+                    assert!(flops_of_pixel(window, rank) < flops_of_pixel_vis(window, rank));
                     assert!(
                         super::super::wlr_final::flops_of_pixel(window, rank)
-                            < super::super::wlr_final::flops_per_pixel(radius)
+                            < super::super::wlr_final::flops_per_pixel(radius, 9)
                     );
                 }
             }

@@ -26,11 +26,11 @@ use super::{Method, Pass};
 use crate::error::{Error, Result};
 use crate::gpu::{Batch, BufferSlice, GpuBuffer, GpuContext, PlaneSet, Precision};
 use crate::image::{Layer, RgbImage, StatsImage};
-use crate::kernels::{channel_mean, gauss_smooth, gbf_pack, wlr_final, wlr_fit};
+use crate::kernels::{aos_nlm, channel_mean, gauss_smooth, gbf_pack, wlr_final, wlr_fit};
 use crate::options::Options;
 use crate::reference;
 use crate::shared::{
-    ChannelMeanPush, SmoothPush, WlrPush, WLR_NONNEG, WLR_OUTLIER_CLAMPED, WLR_REJECT,
+    AosPush, ChannelMeanPush, SmoothPush, WlrPush, WLR_NONNEG, WLR_OUTLIER_CLAMPED, WLR_REJECT,
     WLR_SKIP_DEBUG, WLR_SKIP_MSE,
 };
 
@@ -48,6 +48,9 @@ pub struct WlrParams {
     pub radius: u32,
     /// [`WlrPush::options`] bits.
     pub options: u32,
+    /// Features regressed on: the spec's 9, or 10 with the prefiltered
+    /// visibility (`wlr.extra_features=visibility`, WLR-VIS).
+    pub features: usize,
 }
 
 impl WlrParams {
@@ -69,7 +72,18 @@ impl WlrParams {
                 Pass::Intermediate => RADIUS_INTERMEDIATE,
             },
             options,
+            features: Self::features(opts),
         })
+    }
+
+    /// The feature count `wlr.extra_features` asks for: 9, or 10 with the
+    /// visibility.
+    pub fn features(opts: &Options) -> usize {
+        if opts.get("wlr.extra_features") == "visibility" {
+            10
+        } else {
+            9
+        }
     }
 }
 
@@ -86,9 +100,11 @@ const OUT0: usize = 6; // R, G, B, mse, flags
 
 /// Scratch planes, dead once `wlr_final` has run: vbar, the MSE model `λ1`,
 /// `κ0`, `κ1` (`wlr_fit` → `wlr_final`), the row sums of the smoothing;
-/// after them the features and their variances packed by `gbf_pack` (4
-/// vec4 planes: the kernels load a vec4 instead of four scalars).
+/// with WLR-VIS the NL-means filtered visibility and its variance; after
+/// them the features and their variances packed by `gbf_pack` (4 vec4
+/// planes: the kernels load a vec4 instead of four scalars).
 const SCRATCH: usize = 6;
+const VIS: usize = 6; // visibility, its variance (WLR-VIS only)
 const PACKED: usize = 4;
 const VBAR: usize = 0;
 const MODEL: usize = 1; // λ1, κ0, κ1
@@ -117,7 +133,7 @@ pub struct WlrPlanes {
     /// The [`PACKED`] vec4 planes, after them.
     packed: PlaneSet,
     /// The ring of centre states `wlr_fit` leaves for `wlr_final`
-    /// ([`wlr_fit::STATE_WORDS`] per pixel, `ring_rows` rows). A buffer of
+    /// ([`wlr_fit::state_words`] per pixel, `ring_rows` rows). A buffer of
     /// its own: in the arena, its size (∝ width) would bend the tiler's
     /// linear memory model below the truth.
     state: PlaneSet,
@@ -132,15 +148,19 @@ impl WlrPlanes {
     /// Fails with [`Error::Limit`] when the ring, one binding, exceeds
     /// `maxStorageBufferRange` (a width of ~22,000 pixels in f32, half that
     /// in f64; tiling narrows it).
+    /// `features`: 9, or 10 for WLR-VIS (its state and two scratch planes
+    /// more).
     pub fn new(
         ctx: &Arc<GpuContext>,
         (width, height): (usize, usize),
         precision: Precision,
         arena: Option<&Arc<GpuBuffer>>,
+        features: usize,
     ) -> Result<WlrPlanes> {
         let n = width * height;
         let ring_rows = Self::ring_rows(height);
-        let ring_bytes = Self::ring_bytes(width, height, precision);
+        let ring_bytes = Self::ring_bytes(width, height, precision, features);
+        let scratch_planes = Self::scratch_planes(features);
         let limit = ctx.info.max_storage_buffer_range as u64;
         if ring_bytes > limit {
             return Err(Error::Limit(format!(
@@ -149,11 +169,11 @@ impl WlrPlanes {
         }
         let (scratch, packed) = match arena {
             Some(a) => (
-                PlaneSet::view(a, 0, n, SCRATCH)?,
-                PlaneSet::view(a, PlaneSet::bytes(n, SCRATCH), 4 * n, PACKED)?,
+                PlaneSet::view(a, 0, n, scratch_planes)?,
+                PlaneSet::view(a, PlaneSet::bytes(n, scratch_planes), 4 * n, PACKED)?,
             ),
             None => (
-                PlaneSet::new(ctx, "wlr.scratch", n, SCRATCH)?,
+                PlaneSet::new(ctx, "wlr.scratch", n, scratch_planes)?,
                 PlaneSet::new(ctx, "wlr.packed", 4 * n, PACKED)?,
             ),
         };
@@ -171,21 +191,33 @@ impl WlrPlanes {
         (CHUNK_ROWS + LAG_ROWS).min(height.max(1) as u32)
     }
 
+    /// Scratch planes (vbar, the model, the smoothing's sums; the
+    /// visibility's two for WLR-VIS).
+    fn scratch_planes(features: usize) -> usize {
+        if features > 9 {
+            SCRATCH + 2
+        } else {
+            SCRATCH
+        }
+    }
+
     /// Bytes of the centre-state ring of a `width × height` image at
-    /// `precision`: it grows with the width, not the area.
-    pub fn ring_bytes(width: usize, height: usize, precision: Precision) -> u64 {
+    /// `precision` with `features` features: it grows with the width, not
+    /// the area.
+    pub fn ring_bytes(width: usize, height: usize, precision: Precision, features: usize) -> u64 {
         let ring_rows = Self::ring_rows(height);
         let word = match precision {
             Precision::F32 => 4,
             Precision::F64 => 8,
         };
-        ring_rows as u64 * width.max(1) as u64 * (wlr_fit::STATE_WORDS * word) as u64
+        ring_rows as u64 * width.max(1) as u64 * (wlr_fit::state_words(features) * word) as u64
     }
 
-    /// Bytes of the scratch an arena must hold for a `width × height` image.
-    pub fn scratch_bytes((width, height): (usize, usize)) -> u64 {
+    /// Bytes of the scratch an arena must hold for a `width × height` image
+    /// with `features` features.
+    pub fn scratch_bytes((width, height): (usize, usize), features: usize) -> u64 {
         let n = width * height;
-        PlaneSet::bytes(n, SCRATCH) + PlaneSet::bytes(4 * n, PACKED)
+        PlaneSet::bytes(n, Self::scratch_planes(features)) + PlaneSet::bytes(4 * n, PACKED)
     }
 
     /// The output colour planes R, G, B.
@@ -262,6 +294,12 @@ pub fn record_wlr(
     let packed: [BufferSlice; 4] = std::array::from_fn(|k| planes.packed.plane(k));
     let spp_quads = clean.plane_quads(Layer::Spp, 0);
     gbf_pack::record(batch, precision, w, h, (0, h), feat, var, spp_quads, packed)?;
+    let vis = if params.features > 9 {
+        record_visibility(batch, precision, clean, &planes.scratch)?;
+        Some([q(VIS), q(VIS + 1)])
+    } else {
+        None
+    };
     let ring = (planes.state.plane(0), planes.ring_rows);
     let wr = (params.radius, params.options);
     let size = (w, h);
@@ -286,6 +324,7 @@ pub fn record_wlr(
             spp,
             fit_out,
             ring,
+            vis,
         )?;
         gauss_smooth::record_row_sums(
             batch,
@@ -323,11 +362,52 @@ pub fn record_wlr(
                 fit_in,
                 ring,
                 out,
+                vis.map(|v| v[0]),
             )?;
             done = ready;
         }
     }
     Ok(())
+}
+
+/// WLR-VIS: the visibility and its variance, NL-means filtered as AOS
+/// filters them (§5.2, unclamped), into the [`VIS`] scratch planes.
+fn record_visibility(
+    batch: &mut Batch,
+    precision: Precision,
+    clean: &GpuStats,
+    scratch: &PlaneSet,
+) -> Result<()> {
+    let layer = Layer::Visibility;
+    if !clean.has(layer) {
+        return Err(Error::BadData(
+            "wlr.extra_features=visibility needs the visibility layer".into(),
+        ));
+    }
+    let vlayer = layer.variance().expect("visibility has a variance layer");
+    let (w, h) = (clean.width, clean.height);
+    let push = AosPush {
+        width: w as u32,
+        height: h as u32,
+        channels: 1,
+        stride: (scratch.stride / 4) as u32,
+        ..Default::default()
+    };
+    let dst = scratch.range(
+        VIS as u64 * scratch.stride,
+        scratch.stride + (w * h * 4) as u64,
+    );
+    let g = clean.plane(layer, 0);
+    let vg = clean.plane(vlayer, 0);
+    aos_nlm::record(
+        batch,
+        precision,
+        &push,
+        [g; 3],
+        [vg; 3],
+        clean.plane(Layer::Spp, 0),
+        dst,
+    )
 }
 
 /// What a WLR run gives back on the host.
@@ -430,6 +510,28 @@ pub fn run_cpu_with_progress(
         &nvar[0], &nvar[1], &nvar[2], &dvar[0], &avar[0], &avar[1], &avar[2],
     ];
     let color: [&[f32]; 3] = [&col[0], &col[1], &col[2]];
+    // WLR-VIS: the visibility NL-means filtered (as `record_visibility`).
+    let vis_planes = if params.features > 9 {
+        let need_vis = |l: Layer| {
+            clean.get(l).ok_or_else(|| {
+                Error::BadData("wlr.extra_features=visibility needs the visibility layer".into())
+            })
+        };
+        let (v, vv) = (
+            need_vis(Layer::Visibility)?,
+            need_vis(Layer::VisibilityVariance)?,
+        );
+        let push = AosPush {
+            width: w as u32,
+            height: h as u32,
+            channels: 1,
+            ..Default::default()
+        };
+        Some(reference::aos_nlm::aos_nlm(&push, &[&v[0]], &[&vv[0]], spp))
+    } else {
+        None
+    };
+    let vis: Option<[&[f32]; 2]> = vis_planes.as_ref().map(|p| [&p[0][..], &p[1][..]]);
 
     let push_cm = ChannelMeanPush {
         width: w as u32,
@@ -447,7 +549,7 @@ pub fn run_cpu_with_progress(
         ..Default::default()
     };
     let mut fit = vec![vec![0.0f32; n]; 8];
-    reference::wlr_fit::wlr_fit(&push, feat, var, color, &vbar, spp, &mut fit);
+    reference::wlr_fit::wlr_fit(&push, feat, var, vis, color, &vbar, spp, &mut fit);
     report("wlr_fit");
 
     let push_s = SmoothPush {
@@ -462,7 +564,9 @@ pub fn run_cpu_with_progress(
 
     let mut out = vec![vec![0.0f32; n]; 5];
     let fit_in: [&[f32]; 4] = [&fit[1], &fit[2], &fit[3], &fit[4]];
-    reference::wlr_final::wlr_final(&push, feat, var, color, &vbar, spp, &hbar, fit_in, &mut out);
+    reference::wlr_final::wlr_final(
+        &push, feat, var, vis, color, &vbar, spp, &hbar, fit_in, &mut out,
+    );
     report("wlr_final");
 
     let [h_opt, _, _, _, kflags, b1, b2, b3] = <[Vec<f32>; 8]>::try_from(fit).unwrap();
@@ -504,12 +608,20 @@ pub static INFO: MethodInfo = MethodInfo {
         let r = WlrParams::new(c.pass, &c.options)?.radius as usize;
         Ok(r + gauss_smooth::radius(H_SMOOTH_SIGMA) as usize)
     },
-    arena_bytes: |_, size| WlrPlanes::scratch_bytes(size),
+    arena_bytes: |c, size| WlrPlanes::scratch_bytes(size, WlrParams::features(&c.options)),
     arena_kept: registry::nothing_kept,
-    ring_bytes: |c, (w, h)| WlrPlanes::ring_bytes(w, h, c.precision),
+    ring_bytes: |c, (w, h)| {
+        WlrPlanes::ring_bytes(w, h, c.precision, WlrParams::features(&c.options))
+    },
     gpu: |a| {
         Ok(Box::new(WlrStage {
-            planes: WlrPlanes::new(a.ctx, a.size, a.config.precision, a.arena)?,
+            planes: WlrPlanes::new(
+                a.ctx,
+                a.size,
+                a.config.precision,
+                a.arena,
+                WlrParams::features(&a.config.options),
+            )?,
             params: WlrParams::new(a.config.pass, &a.config.options)?,
         }))
     },

@@ -286,12 +286,14 @@ pub struct Projection<const D: usize = D9> {
     pub p: [[f64; D]; D],
 }
 
-/// Builds the [`Projection`] of a local space of `D` features.
+/// Builds the [`Projection`] of a local space of at most `D` features (the
+/// entries of the features beyond the space's stay 0: WLR's arrays hold 10
+/// entries, 9 of them features without the visibility).
 pub fn projection<const D: usize>(ls: &LocalSpace) -> Projection<D> {
-    assert_eq!(ls.d, D, "tsvd::projection: D");
+    assert!(ls.d <= D, "tsvd::projection: D");
     let mut p = [[0.0; D]; D];
     for (m, row) in p.iter_mut().enumerate().take(ls.k) {
-        for (j, v) in row.iter_mut().enumerate() {
+        for (j, v) in row.iter_mut().enumerate().take(ls.d) {
             *v = ls.projection_entry(m, j);
         }
     }

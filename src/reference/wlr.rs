@@ -25,6 +25,12 @@ use crate::shared::{WLR_NONNEG, WLR_OUTLIER_CLAMPED, WLR_REJECT};
 
 /// Feature dimension `D` of WLR (§2.1): `(px, py, nrm xyz, dep, albedo rgb)`.
 pub const D: usize = 9;
+/// WLR's feature arrays: [`D`] and the visibility (WLR-VIS, 10 features;
+/// the tenth entry is 0 without it).
+pub const DV: usize = 10;
+/// WLR-VIS: the local coordinates hold at most the spec's 9 components (the
+/// kernels' `TSVD_MAX_RANK`).
+pub const MAX_RANK: usize = 9;
 /// Trial bandwidths `h_s` (§2.3 step 5).
 pub const TRIAL_H: [f64; 5] = [0.2, 0.4, 0.6, 0.8, 1.0];
 /// Ridge of the curvature fit (step 4, release value).
@@ -76,6 +82,9 @@ pub struct Planes<'a> {
     pub color: [&'a [f32]; 3],
     /// `vbar = mean of the colour variances` (§0.1).
     pub vbar: &'a [f32],
+    /// WLR-VIS: the prefiltered visibility and its variance, the tenth
+    /// feature (bindings 18, 19 of `wlr_fit_vis`); `None`: the spec's 9.
+    pub vis: Option<[&'a [f32]; 2]>,
     /// Sample count `n` per pixel (f32); valid when `spp_of(n) >= 1` (§0.2).
     pub spp: &'a [f32],
 }
@@ -85,13 +94,33 @@ impl Planes<'_> {
     /// whether the pixel is valid (`spp_of >= 1`). Mirrors `load_features`.
     pub fn load_features(&self, px: usize, py: usize, x: &mut [f64], e2: &mut [f64]) -> bool {
         load_features(self.width, &self.feat, &self.var, px, py, x, e2);
+        if let Some([v, vv]) = self.vis {
+            let q = py * self.width + px;
+            x[D] = v[q] as f64;
+            e2[D] = vv[q] as f64;
+        }
         self.valid(py * self.width + px)
     }
 
-    /// Raw features only.
+    /// The feature count: [`D`], or [`DV`] with the visibility.
     #[inline]
-    pub fn features(&self, px: usize, py: usize) -> [f64; D] {
-        features(self.width, &self.feat, px, py)
+    pub fn d(&self) -> usize {
+        if self.vis.is_some() {
+            DV
+        } else {
+            D
+        }
+    }
+
+    /// Raw features only (the tenth 0 without the visibility).
+    #[inline]
+    pub fn features(&self, px: usize, py: usize) -> [f64; DV] {
+        let mut x = [0.0; DV];
+        x[..D].copy_from_slice(&features(self.width, &self.feat, px, py));
+        if let Some([v, _]) = self.vis {
+            x[D] = v[py * self.width + px] as f64;
+        }
+        x
     }
 
     /// Colour and `vbar` of pixel index `q`. Mirrors `load_colour`.
@@ -165,7 +194,7 @@ pub struct Centre {
     /// Centre row, in pixels.
     pub cy: usize,
     /// Raw features.
-    pub x: [f64; D],
+    pub x: [f64; DV],
     /// Colour `y_c`.
     pub y: [f64; 3],
     /// `vbar_c`, the mean of the colour variances (§0.1 GREY).
@@ -194,12 +223,16 @@ pub fn centre(p: &Planes, cx: usize, cy: usize) -> Centre {
     }
 }
 
-/// Step 1: the TSVD local space (§0.6) of `Ω_c(R)` on the 9 WLR features.
+/// Step 1: the TSVD local space (§0.6) of `Ω_c(R)` on the 9 WLR features
+/// (10 with the visibility, the rank then at most [`MAX_RANK`]).
 pub fn local_space(p: &Planes, cx: usize, cy: usize, radius: usize) -> LocalSpace {
-    let win = gather_window(p.width, p.height, cx, cy, radius, D, |px, py, x, e2| {
+    let d = p.d();
+    let win = gather_window(p.width, p.height, cx, cy, radius, d, |px, py, x, e2| {
         p.load_features(px, py, x, e2)
     });
-    super::tsvd::local_space(&win.x, &win.e2, D)
+    let mut ls = super::tsvd::local_space(&win.x, &win.e2, d);
+    ls.k = ls.k.min(MAX_RANK);
+    ls
 }
 
 /// Step 2 (OUTLIER-W): `o_i = 1/max(vbar_i, 1)` with [`WLR_OUTLIER_CLAMPED`],
@@ -233,7 +266,7 @@ pub fn epanechnikov(t: f64) -> f64 {
 
 /// `Π_{j<k} K_E(Δz_j · inv_bw_j)`, the product kernel. Mirrors `wlr_kernel`.
 #[inline]
-pub fn kernel_weight(dz: &[f64; D], inv_bw: &[f64; D], k: usize) -> f64 {
+pub fn kernel_weight(dz: &[f64; DV], inv_bw: &[f64; DV], k: usize) -> f64 {
     let mut w = 1.0;
     for j in 0..k {
         w *= epanechnikov(dz[j] * inv_bw[j]);
@@ -258,9 +291,9 @@ fn for_window(p: &Planes, c: &Centre, radius: usize, mut f: impl FnMut(usize, us
 #[derive(Clone, Debug, PartialEq)]
 pub struct Curvature {
     /// `b_j` for `j < k`, 0 beyond (and all 0 if `failed`).
-    pub b: [f64; D],
+    pub b: [f64; DV],
     /// `Hbar_j = (1/3) Σ_ch |2 γ_j[ch]|`.
-    pub hbar: [f64; D],
+    pub hbar: [f64; DV],
     /// SOLVE-FAIL: the pixel passes through (flag bit 0).
     pub failed: bool,
 }
@@ -271,7 +304,7 @@ pub struct Curvature {
 /// Mirrors `wlr_curvature`.
 pub fn curvature(
     p: &Planes,
-    pr: &Projection,
+    pr: &Projection<DV>,
     c: &Centre,
     radius: usize,
     options: u32,
@@ -280,7 +313,7 @@ pub fn curvature(
     let np = 1 + 2 * k;
     let mut a = [0.0; 19 * 19];
     let mut rhs = [[0.0; 19]; 3];
-    let ones = [1.0; D];
+    let ones = [1.0; DV];
     for_window(p, c, radius, |q, px, py| {
         let x = p.features(px, py);
         let (y, vb) = p.colour(q);
@@ -309,8 +342,8 @@ pub fn curvature(
     });
     let chol = ridge_cholesky(&a[..np * np], np, CURV_LAMBDA, EPS_PIVOT);
     let mut out = Curvature {
-        b: [0.0; D],
-        hbar: [0.0; D],
+        b: [0.0; DV],
+        hbar: [0.0; DV],
         failed: chol.failed,
     };
     if chol.failed {
@@ -352,9 +385,9 @@ pub struct Fit {
 /// positive for `j < k`. Mirrors `wlr_fits`.
 pub fn fits(
     p: &Planes,
-    pr: &Projection,
+    pr: &Projection<DV>,
     c: &Centre,
-    b: &[f64; D],
+    b: &[f64; DV],
     h: &[f64],
     radius: usize,
     options: u32,
@@ -363,10 +396,10 @@ pub fn fits(
     let k = pr.k;
     let np = k + 1;
     let nh = h.len();
-    let inv_bw: Vec<[f64; D]> = h
+    let inv_bw: Vec<[f64; DV]> = h
         .iter()
         .map(|&hs| {
-            let mut inv = [0.0; D];
+            let mut inv = [0.0; DV];
             for j in 0..k {
                 inv[j] = 1.0 / (hs * b[j]);
             }
@@ -629,7 +662,7 @@ pub struct FitPixel {
     pub kappa0: f64,
     /// `κ1` of the stored MSE model.
     pub kappa1: f64,
-    /// TSVD rank `k` of the window (§0.6; `0..=D`).
+    /// TSVD rank `k` of the window (§0.6; `0..=D`, at most [`MAX_RANK`]).
     pub k: usize,
     /// Debug flag bits of §2.5 set by steps 1–7: [`FLAG_SOLVE_FAIL`],
     /// [`FLAG_K0`], [`FLAG_KAPPA`], [`FLAG_CLAMPED`].
@@ -839,6 +872,7 @@ mod tests {
             color: [&one; 3],
             vbar: &z,
             spp: &one,
+            vis: None,
         };
         let ls = local_space(&planes, 4, 4, 3);
         assert!(ls.k >= 2);

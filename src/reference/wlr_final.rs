@@ -21,6 +21,7 @@ pub fn wlr_final(
     push: &WlrPush,
     feat: [&[f32]; 7],
     var: [&[f32]; 7],
+    vis: Option<[&[f32]; 2]>,
     color: [&[f32]; 3],
     vbar: &[f32],
     spp: &[f32],
@@ -38,6 +39,7 @@ pub fn wlr_final(
         color,
         vbar,
         spp,
+        vis,
     };
     let r = push.radius as usize;
     par_pixels::<WLR_FINAL_OUTPUTS>(w, h, out, |x, y| {

@@ -12,7 +12,9 @@ pub const WLR_FIT_OUTPUTS: usize = 8;
 /// For every pixel of the `push.width × push.height` image (`row0` ignored:
 /// all bands at once), on all cores. Inputs as the kernel's bindings 0..18:
 /// `feat` = normal x,y,z, depth, albedo r,g,b; `var` their variances;
-/// `color` R,G,B; `vbar`; `spp`. `out` = [`WLR_FIT_OUTPUTS`] full planes.
+/// `color` R,G,B; `vbar`; `spp`; with `vis` (`wlr_fit_vis`, bindings 18,
+/// 19) the prefiltered visibility and its variance as a tenth feature
+/// (WLR-VIS). `out` = [`WLR_FIT_OUTPUTS`] full planes.
 /// An invalid centre (`spp_of < 1`) gets 0 everywhere.
 ///
 /// The stored MSE model is such that `MSE(h) = (λ1 h²)² + (κ0 + κ1 h^{-k})/n_c`
@@ -23,6 +25,7 @@ pub fn wlr_fit(
     push: &WlrPush,
     feat: [&[f32]; 7],
     var: [&[f32]; 7],
+    vis: Option<[&[f32]; 2]>,
     color: [&[f32]; 3],
     vbar: &[f32],
     spp: &[f32],
@@ -38,6 +41,7 @@ pub fn wlr_fit(
         color,
         vbar,
         spp,
+        vis,
     };
     let r = push.radius as usize;
     par_pixels::<WLR_FIT_OUTPUTS>(w, h, out, |x, y| {
