@@ -706,39 +706,34 @@ fn short_bindings_are_refused_before_recording() {
     let packed = [0; 4].map(|_| buf(4 * bytes));
     let out = [0; 8].map(|_| buf(bytes));
     let ring = 8;
-    let state = buf(ring as u64 * w as u64 * wlr_fit::STATE_WORDS as u64 * 4 - 4);
-    let r = wlr_fit::record(
-        &mut batch,
-        Precision::F32,
-        (w, h),
-        (0, h),
-        (2, 0),
-        packed.each_ref().map(|p| p.slice()),
-        planes,
-        a.slice(),
-        b.slice(),
-        out.each_ref().map(|p| p.slice()),
-        (state.slice(), ring),
-        None,
-    );
-    fails(r, "wlr_fit binding 17 (state)");
-    // WLR-VIS: a ring sized for nine features is short for ten.
-    let nine = buf(ring as u64 * w as u64 * wlr_fit::STATE_WORDS as u64 * 4);
-    let r = wlr_fit::record(
-        &mut batch,
-        Precision::F32,
-        (w, h),
-        (0, h),
-        (2, 0),
-        packed.each_ref().map(|p| p.slice()),
-        planes,
-        a.slice(),
-        b.slice(),
-        out.each_ref().map(|p| p.slice()),
-        (nine.slice(), ring),
-        Some([a.slice(), b.slice()]),
-    );
-    fails(r, "wlr_fit_vis binding 17 (state)");
+    let words = |features| ring as u64 * w as u64 * wlr_fit::state_words(features) as u64 * 4;
+    // One word short; and (WLR-VIS) a ring sized for nine features is short
+    // for ten.
+    let cases = [
+        (buf(words(9) - 4), None, "wlr_fit binding 17 (state)"),
+        (
+            buf(words(9)),
+            Some([a.slice(), b.slice()]),
+            "wlr_fit_vis binding 17 (state)",
+        ),
+    ];
+    for (state, vis, what) in &cases {
+        let r = wlr_fit::record(
+            &mut batch,
+            Precision::F32,
+            (w, h),
+            (0, h),
+            (2, 0),
+            packed.each_ref().map(|p| p.slice()),
+            planes,
+            a.slice(),
+            b.slice(),
+            out.each_ref().map(|p| p.slice()),
+            (state.slice(), ring),
+            *vis,
+        );
+        fails(r, what);
+    }
     batch.finish().unwrap();
     common::check_validation(&ctx);
 }
