@@ -696,6 +696,35 @@ fn each_clip_round_widens_the_halo_by_the_detection_radius() {
 /// 175, LP 209, APR 242, AOS with the prefilter 183. GBF-NLM's search and
 /// patch radii (8 px) count where `gbf.albedo_nlm=auto` turns it on (not
 /// for LP) and only after the prefilter (not AOS's default).
+/// WLR-VIS (`wlr.extra_features=visibility`) in tiles, with the default
+/// stages and without them (then the halo is WLR's own, which the
+/// visibility's NL-means widens by its search and patch radii).
+#[test]
+fn the_visibility_feature_tiled_is_bit_identical() {
+    // (Wider than 60 px plus the default stages' halo, 183 px.)
+    let mut img = strip(480, 16);
+    let (w, n) = (img.width, img.width * img.height);
+    // A soft shadow edge every 40 columns, and noise of known variance.
+    let mut rng = common::Rng(11);
+    let vis: Vec<f32> = (0..n)
+        .map(|i| {
+            let x = (i % w) as f64;
+            let v = 0.5 + 0.5 * ((x % 40.0 - 20.0) / 4.0).tanh();
+            (v + 0.05 * rng.normal()) as f32
+        })
+        .collect();
+    img.set(Layer::Visibility, vec![vis]);
+    img.set(Layer::VisibilityVariance, vec![vec![0.0025; n]]);
+    let mut c = Config::new(Method::Wlr);
+    c.options = mcdenoise::Options::parse(&["wlr.extra_features=visibility"]).unwrap();
+    check(&img, c.clone(), 60, "wlr wlr.extra_features=visibility");
+    c.outliers = Outliers::Off;
+    c.prefilter = Prefilter::Off;
+    c.input_blend = mcdenoise::InputBlend::Off;
+    check(&img, c, 60, "wlr wlr.extra_features=visibility, no stage");
+    check_validation(&gpu());
+}
+
 #[test]
 fn the_documented_halos_and_gbf_nlm_reach() {
     let ctx = gpu();

@@ -605,8 +605,15 @@ pub static INFO: MethodInfo = MethodInfo {
     pyramid_error_scale: 15.3,
     align: 1,
     halo: |c| {
-        let r = WlrParams::new(c.pass, &c.options)?.radius as usize;
-        Ok(r + gauss_smooth::radius(H_SMOOTH_SIGMA) as usize)
+        let p = WlrParams::new(c.pass, &c.options)?;
+        // WLR-VIS: the visibility's NL-means reaches its search and patch
+        // radii further.
+        let nlm = if p.features > 9 {
+            reference::aos::NLM_SEARCH + reference::aos::NLM_PATCH
+        } else {
+            0
+        };
+        Ok(p.radius as usize + gauss_smooth::radius(H_SMOOTH_SIGMA) as usize + nlm)
     },
     arena_bytes: |c, size| WlrPlanes::scratch_bytes(size, WlrParams::features(&c.options)),
     arena_kept: registry::nothing_kept,
