@@ -186,12 +186,13 @@ pub struct TwoWay {
 }
 
 impl TwoWay {
-    /// Runs `method` (its default configuration) on `stats`, a sequence's
-    /// frames in order: alone, through the filter, and with `two_way`
-    /// through the two-way filter.
+    /// Runs `method` (its default configuration with `options`) on
+    /// `stats`, a sequence's frames in order: alone, through the filter,
+    /// and with `two_way` through the two-way filter.
     pub fn run(
         ctx: &Arc<GpuContext>,
         method: Method,
+        options: &mcdenoise::Options,
         stats: &[mcdenoise::StatsImage],
         two_way: bool,
     ) -> anyhow::Result<TwoWay> {
@@ -200,6 +201,7 @@ impl TwoWay {
         let run = |temporal: Temporal| -> mcdenoise::Result<Vec<RgbImage>> {
             let mut c = Config::new(method);
             c.temporal = temporal;
+            c.options = options.clone();
             let d = Denoiser::new(ctx, source.clone(), c)?;
             stats
                 .iter()
@@ -209,6 +211,7 @@ impl TwoWay {
         let combined = if two_way {
             let mut c = Config::new(method);
             c.temporal = Temporal::LpSmooth;
+            c.options = options.clone();
             let mut seq = SequenceDenoiser::new(ctx, source.clone(), c)?;
             for s in stats {
                 seq.push(s)?;

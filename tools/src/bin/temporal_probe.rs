@@ -30,7 +30,7 @@
 //! cargo run --release -p mcdenoise-tools --bin temporal_probe -- \
 //!     [--scene moving_box] [--methods wlr,auto] [--size 128x128] [--spp 16] \
 //!     [--frames 24] [--reference 512] [--seed 1] [--out target/temporal_probe] [--scale 0.05] \
-//!     [--two-way] [--oidn]
+//!     [--two-way] [--oidn] [--opt key=value]
 //! ```
 
 use std::path::PathBuf;
@@ -70,6 +70,9 @@ struct Args {
     /// The summed rMSE change that saturates the delta map.
     #[arg(long, default_value_t = 0.05)]
     scale: f32,
+    /// Method option key=value for every reconstruction (repeatable).
+    #[arg(long = "opt", value_name = "KEY=VALUE")]
+    opts: Vec<String>,
     /// Also the two-way filter (`Temporal::LpSmooth`).
     #[arg(long)]
     two_way: bool,
@@ -84,6 +87,7 @@ const RAMP: usize = 3;
 
 fn main() -> anyhow::Result<()> {
     let a = Args::parse();
+    let options = mcdenoise::Options::parse(&a.opts)?;
     let ctx = Arc::new(GpuContext::new(&ContextOptions::default())?);
     let scene = Scene::by_name_or_file(&a.scene)?;
     let SequenceWithReferences {
@@ -171,7 +175,7 @@ fn main() -> anyhow::Result<()> {
         }
     };
     for &m in &a.methods {
-        let t = TwoWay::run(&ctx, m, &stats, a.two_way)?;
+        let t = TwoWay::run(&ctx, m, &options, &stats, a.two_way)?;
         let mut outputs = vec![t.alone, t.forward];
         if a.two_way {
             outputs.push(t.combined);
