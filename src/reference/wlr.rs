@@ -881,7 +881,7 @@ mod tests {
         for (px, py) in [(1, 1), (7, 5), (4, 4), (2, 6)] {
             let x = planes.features(px, py);
             let a = pr.dz(&x, &xc);
-            let b = local_coords(&ls, &x, &xc);
+            let b = local_coords(&ls, &x[..ls.d], &xc[..ls.d]);
             for m in 0..ls.k {
                 assert!((a[m] - b[m]).abs() < 1e-12, "{m}: {} vs {}", a[m], b[m]);
             }
