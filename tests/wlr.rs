@@ -312,11 +312,7 @@ fn gpu_final(
     bound.extend(sc.vis().map(|[v, _]| Bound::In(v)));
     run_bound(
         ctx,
-        if sc.vis().is_some() {
-            &wlr_final::DECL_VIS
-        } else {
-            &wlr_final::DECL
-        },
+        wlr_final::decl(sc.features()),
         p,
         bytemuck::bytes_of(&push),
         (sc.w, sc.h),

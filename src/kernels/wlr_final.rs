@@ -30,6 +30,16 @@ pub const DECL_VIS: KernelDecl = KernelDecl {
     push_size: std::mem::size_of::<WlrPush>() as u32,
 };
 
+/// The declaration of the variant that reads `features` (9, or 10 with the
+/// visibility).
+pub fn decl(features: usize) -> &'static KernelDecl {
+    if features > 9 {
+        &DECL_VIS
+    } else {
+        &DECL
+    }
+}
+
 macro_rules! bindings {
     ($($extra:expr),*) => { &[
         read("features_a").planes(4),
@@ -132,7 +142,7 @@ pub fn record(
     vis: Option<BufferSlice>,
 ) -> Result<()> {
     let features = if vis.is_some() { 10 } else { 9 };
-    let decl = if vis.is_some() { &DECL_VIS } else { &DECL };
+    let decl = decl(features);
     super::wlr_fit::require_state(
         decl,
         12,
