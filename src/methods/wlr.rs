@@ -380,9 +380,7 @@ fn record_visibility(
 ) -> Result<()> {
     let layer = Layer::Visibility;
     if !clean.has(layer) {
-        return Err(Error::BadData(
-            "wlr.extra_features=visibility needs the visibility layer".into(),
-        ));
+        return Err(no_visibility());
     }
     let vlayer = layer.variance().expect("visibility has a variance layer");
     let (w, h) = (clean.width, clean.height);
@@ -408,6 +406,11 @@ fn record_visibility(
         clean.plane(Layer::Spp, 0),
         dst,
     )
+}
+
+/// WLR-VIS on statistics without the visibility layer (GPU and CPU paths).
+fn no_visibility() -> Error {
+    Error::BadData("wlr.extra_features=visibility needs the visibility layer".into())
 }
 
 /// What a WLR run gives back on the host.
@@ -512,11 +515,7 @@ pub fn run_cpu_with_progress(
     let color: [&[f32]; 3] = [&col[0], &col[1], &col[2]];
     // WLR-VIS: the visibility NL-means filtered (as `record_visibility`).
     let vis_planes = if params.features > 9 {
-        let need_vis = |l: Layer| {
-            clean.get(l).ok_or_else(|| {
-                Error::BadData("wlr.extra_features=visibility needs the visibility layer".into())
-            })
-        };
+        let need_vis = |l: Layer| clean.get(l).ok_or_else(no_visibility);
         let (v, vv) = (
             need_vis(Layer::Visibility)?,
             need_vis(Layer::VisibilityVariance)?,

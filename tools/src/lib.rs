@@ -198,21 +198,21 @@ impl TwoWay {
     ) -> anyhow::Result<TwoWay> {
         use mcdenoise::{Config, Denoiser, SequenceDenoiser, Source, Temporal};
         let source = Source::of_image(&stats[0]);
-        let run = |temporal: Temporal| -> mcdenoise::Result<Vec<RgbImage>> {
+        let config = |temporal: Temporal| {
             let mut c = Config::new(method);
             c.temporal = temporal;
             c.options = options.clone();
-            let d = Denoiser::new(ctx, source.clone(), c)?;
+            c
+        };
+        let run = |temporal: Temporal| -> mcdenoise::Result<Vec<RgbImage>> {
+            let d = Denoiser::new(ctx, source.clone(), config(temporal))?;
             stats
                 .iter()
                 .map(|s| Ok(d.denoise(s, None)?.color))
                 .collect()
         };
         let combined = if two_way {
-            let mut c = Config::new(method);
-            c.temporal = Temporal::LpSmooth;
-            c.options = options.clone();
-            let mut seq = SequenceDenoiser::new(ctx, source.clone(), c)?;
+            let mut seq = SequenceDenoiser::new(ctx, source.clone(), config(Temporal::LpSmooth))?;
             for s in stats {
                 seq.push(s)?;
             }
