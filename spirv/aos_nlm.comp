@@ -4,7 +4,8 @@
 // (NLM-K). Output: the filtered channels, then their propagated variances
 // var = sum_q (w_pq / sum w)^2 vg_q, as planes of `dst` (stride
 // push.stride). An invalid pixel (§0.2) keeps its input.
-// Scalar twin: src/reference/aos_nlm.rs.
+// Scalar twin: src/reference/aos_nlm.rs. Built a second time as
+// `aos_nlm_vis` with WLR_VIS (WLR's visibility, WLR-VIS): a 3x3 mean first.
 //
 // Decision NLM-BOX (ours): offset by offset. For a candidate offset
 // (dx, dy) the patch distance of every pixel p is a 7x7 box sum, over patch centres
@@ -62,6 +63,35 @@ PLANE_OUT(7, dst)
 
 real3 g_at(uint i) { return real3(g0[i], g1[i], g2[i]); }
 
+#ifdef WLR_VIS
+// WLR-VIS (the `_vis` build, for WLR's visibility): the buffer is first
+// replaced by its mean over the valid pixels of the 3x3 window (clipped),
+// with variance sum(max(vg, 0)) / n^2, then filtered; valid pixels only.
+// The mean over rows then columns in raster order, as the twin sums it;
+// staged as f32 like the plain input. Returns the mean; `v` the variance.
+real3 box3_at(ivec2 q, int w, int h, out vec3 v)
+{
+    real3 s = real3(0);
+    real3 sv = real3(0);
+    real n = real(0);
+    for (int dy = -1; dy <= 1; ++dy) {
+        for (int dx = -1; dx <= 1; ++dx) {
+            ivec2 t = q + ivec2(dx, dy);
+            if (t.x >= 0 && t.y >= 0 && t.x < w && t.y < h) {
+                uint j = uint(t.y * w + t.x);
+                if (spp_of(spp[j]) >= 1.0) {
+                    s += g_at(j);
+                    sv += max(real3(vg0[j], vg1[j], vg2[j]), real3(0));
+                    n += real(1);
+                }
+            }
+        }
+    }
+    v = vec3(sv / (n * n));
+    return s / n;
+}
+#endif
+
 shared vec4 s_g[NLM_RG * NLM_RG];           // g (3 channels), 1 if valid (0: invalid or outside)
 shared vec4 s_v[NLM_RG * NLM_RG];           // max(vg, 0)
 // Per offset of the batch, t of the 14x14 patch centres; then, in place,
@@ -115,8 +145,16 @@ void main()
         vec4 v = vec4(0);
         if (q.x >= 0 && q.y >= 0 && q.x < w && q.y < h) {
             uint i = uint(q.y * w + q.x);
+#ifdef WLR_VIS
+            g = vec4(g_at(i), spp_of(spp[i]) >= 1.0 ? 1.0 : 0.0);
+            v = vec4(max(vec3(vg0[i], vg1[i], vg2[i]), vec3(0)), 0.0);
+            if (g.w > 0.0) {
+                g.xyz = vec3(box3_at(q, w, h, v.xyz));
+            }
+#else
             g = vec4(g0[i], g1[i], g2[i], spp_of(spp[i]) >= 1.0 ? 1.0 : 0.0);
             v = vec4(max(vec3(vg0[i], vg1[i], vg2[i]), vec3(0)), 0.0);
+#endif
         }
         s_g[k] = g;
         s_v[k] = v;

@@ -260,9 +260,15 @@ fn gpu_kernels_match_the_twins() {
         let push = img.push(radius, flags);
         for precision in common::precisions() {
             let what = |k: &str| format!("{w}x{h} vis={vis} R={radius} {precision:?}: {k}");
-            // NL-means of a 3-channel and a 1-channel buffer, and of a
-            // 3-channel one clamped to 2 standard errors (GBF-NLM).
-            for (first, nc, clamp) in [(1usize, 3u32, false), (0, 1, false), (1, 3, true)] {
+            // NL-means of a 3-channel and a 1-channel buffer, of a
+            // 3-channel one clamped to 2 standard errors (GBF-NLM), and of
+            // a 1-channel one's 3×3 means (`aos_nlm_vis`, WLR-VIS).
+            for (first, nc, clamp, boxed) in [
+                (1usize, 3u32, false, false),
+                (0, 1, false, false),
+                (1, 3, true, false),
+                (0, 1, false, true),
+            ] {
                 let p = AosPush {
                     channels: nc,
                     stride: n as u32,
@@ -279,11 +285,15 @@ fn gpu_kernels_match_the_twins() {
                 let vg: Vec<&[f32]> = (0..3)
                     .map(|c| img.fvar[first + c.min(nc as usize - 1)].as_slice())
                     .collect();
-                let out = run_nlm(&ctx, precision, &p, &g, &vg, &img.spp);
-                let cpu = aos_nlm::aos_nlm(&p, &g, &vg, &img.spp);
-                let cpu: Vec<f32> = cpu.concat();
+                let (decl, twin) = if boxed {
+                    (&knlm::DECL_VIS, aos_nlm::aos_nlm_boxed as NlmTwin)
+                } else {
+                    (&knlm::DECL, aos_nlm::aos_nlm as NlmTwin)
+                };
+                let out = run_nlm(&ctx, decl, precision, &p, &g, &vg, &img.spp);
+                let cpu: Vec<f32> = twin(&p, &g, &vg, &img.spp).concat();
                 common::assert_close(
-                    &what(&format!("nlm {nc} channels, clamp {clamp}")),
+                    &what(&format!("nlm {nc} channels, clamp {clamp}, boxed {boxed}")),
                     &out,
                     &cpu,
                     0.99,
@@ -403,14 +413,19 @@ fn nlm_huge_terms_stay_in_their_boxes() {
     let vs: Vec<&[f32]> = vec![&vg; 3];
     let cpu = aos_nlm::aos_nlm(&p, &gs, &vs, &spp).concat();
     for precision in common::precisions() {
-        let out = run_nlm(&ctx, precision, &p, &gs, &vs, &spp);
+        let out = run_nlm(&ctx, &knlm::DECL, precision, &p, &gs, &vs, &spp);
         common::assert_close(&format!("nlm spikes {precision:?}"), &out, &cpu, 1.0);
     }
 }
 
-/// `aos_nlm` on the GPU: the `2·channels` output planes, concatenated.
+/// The twins of `aos_nlm` and `aos_nlm_vis`.
+type NlmTwin = fn(&AosPush, &[&[f32]], &[&[f32]], &[f32]) -> Vec<Vec<f32>>;
+
+/// `aos_nlm` (or its `_vis` build) on the GPU: the `2·channels` output
+/// planes, concatenated.
 fn run_nlm(
     ctx: &std::sync::Arc<mcdenoise::gpu::GpuContext>,
+    decl: &mcdenoise::gpu::KernelDecl,
     precision: mcdenoise::gpu::Precision,
     p: &AosPush,
     g: &[&[f32]],
@@ -423,7 +438,7 @@ fn run_nlm(
     inputs.push(spp);
     let (mut out, _) = kernels::run_planes(
         ctx,
-        &knlm::DECL,
+        decl,
         precision,
         bytemuck::bytes_of(p),
         w,

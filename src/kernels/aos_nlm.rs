@@ -1,7 +1,9 @@
 //! `aos_nlm`: AOS's variance-aware NL-means feature prefilter (spec §5.2)
 //! of one buffer of 1 or 3 channels. Writes the filtered channels, then
 //! their propagated variances, `push.stride` f32 values apart in one
-//! binding. Twin: `reference::aos_nlm`.
+//! binding. Twin: `reference::aos_nlm`. [`record_boxed`] runs the
+//! `aos_nlm_vis` build of the same source, which first takes each pixel's
+//! 3×3 mean (WLR-VIS: WLR's visibility); twin `reference::aos_nlm::aos_nlm_boxed`.
 
 use crate::error::Result;
 use crate::gpu::reflect::{read, write};
@@ -23,6 +25,13 @@ pub const DECL: KernelDecl = KernelDecl {
         write("dst").sized_by_record(),
     ],
     push_size: std::mem::size_of::<AosPush>() as u32,
+};
+
+/// Declaration of the `aos_nlm_vis` build (`WLR_VIS`: a 3×3 mean of the
+/// input first); the same bindings.
+pub const DECL_VIS: KernelDecl = KernelDecl {
+    name: "aos_nlm_vis",
+    ..DECL
 };
 
 /// Per pixel and per each of the `11²` candidate offsets (NLM-BOX, the
@@ -50,11 +59,42 @@ pub fn record(
     spp: BufferSlice,
     dst: BufferSlice,
 ) -> Result<()> {
+    record_decl(batch, &DECL, precision, push, [g, vg], spp, dst)
+}
+
+/// [`record`] of the 3×3 means of `g` (variances `Σ vg / n²` over the
+/// window's valid pixels): the `aos_nlm_vis` build.
+pub fn record_boxed(
+    batch: &mut Batch,
+    precision: Precision,
+    push: &AosPush,
+    g: [BufferSlice; 3],
+    vg: [BufferSlice; 3],
+    spp: BufferSlice,
+    dst: BufferSlice,
+) -> Result<()> {
+    record_decl(batch, &DECL_VIS, precision, push, [g, vg], spp, dst)
+}
+
+fn record_decl(
+    batch: &mut Batch,
+    decl: &KernelDecl,
+    precision: Precision,
+    push: &AosPush,
+    [g, vg]: [[BufferSlice; 3]; 2],
+    spp: BufferSlice,
+    dst: BufferSlice,
+) -> Result<()> {
     // The smoothed channels and their variances, `stride` words apart.
     let planes = 2 * push.channels.max(1) as u64 - 1;
     let pixels = push.width as u64 * push.height as u64;
-    DECL.require(7, &dst, 4 * (planes * push.stride as u64 + pixels))?;
+    decl.require(7, &dst, 4 * (planes * push.stride as u64 + pixels))?;
     let groups: [&[BufferSlice]; 3] = [&g, &vg, &[spp, dst]];
-    let flops = flops_per_pixel(push.channels);
-    super::dispatch_image(batch, &DECL, precision, push, &groups, flops)
+    let mut flops = flops_per_pixel(push.channels);
+    if decl.name == DECL_VIS.name {
+        // The 3×3 means of the staged region's 24² pixels per 8×8 tile:
+        // per channel 9 sums of value and variance and a division.
+        flops += 24.0 * 24.0 / 64.0 * (9.0 * 2.0 * push.channels as f64 + 4.0);
+    }
+    super::dispatch_image(batch, decl, precision, push, &groups, flops)
 }

@@ -102,6 +102,7 @@ pub const ALL: &[&KernelDecl] = &[
     &lp_temporal_gain::DECL,
     &temporal_motion::DECL,
     &aos_nlm::DECL,
+    &aos_nlm::DECL_VIS,
     &aos_space::DECL,
     &aos_fit::DECL,
     &apr_block::DECL,

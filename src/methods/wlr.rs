@@ -100,7 +100,7 @@ const OUT0: usize = 6; // R, G, B, mse, flags
 
 /// Scratch planes, dead once `wlr_final` has run: vbar, the MSE model `λ1`,
 /// `κ0`, `κ1` (`wlr_fit` → `wlr_final`), the row sums of the smoothing;
-/// with WLR-VIS the NL-means filtered visibility and its variance; after
+/// with WLR-VIS the filtered visibility and its variance; after
 /// them the features and their variances packed by `gbf_pack` (4 vec4
 /// planes: the kernels load a vec4 instead of four scalars).
 const SCRATCH: usize = 6;
@@ -370,8 +370,9 @@ pub fn record_wlr(
     Ok(())
 }
 
-/// WLR-VIS: the visibility and its variance, NL-means filtered as AOS
-/// filters them (§5.2, unclamped), into the [`VIS`] scratch planes.
+/// WLR-VIS: the visibility and its variance, their 3×3 means NL-means
+/// filtered as AOS filters them (§5.2, unclamped; `aos_nlm_vis`), into the
+/// [`VIS`] scratch planes.
 fn record_visibility(
     batch: &mut Batch,
     precision: Precision,
@@ -397,7 +398,7 @@ fn record_visibility(
     );
     let g = clean.plane(layer, 0);
     let vg = clean.plane(vlayer, 0);
-    aos_nlm::record(
+    aos_nlm::record_boxed(
         batch,
         precision,
         &push,
@@ -513,7 +514,7 @@ pub fn run_cpu_with_progress(
         &nvar[0], &nvar[1], &nvar[2], &dvar[0], &avar[0], &avar[1], &avar[2],
     ];
     let color: [&[f32]; 3] = [&col[0], &col[1], &col[2]];
-    // WLR-VIS: the visibility NL-means filtered (as `record_visibility`).
+    // WLR-VIS: the visibility filtered as `record_visibility` filters it.
     let vis_planes = if params.features > 9 {
         let need_vis = |l: Layer| clean.get(l).ok_or_else(no_visibility);
         let (v, vv) = (
@@ -526,7 +527,12 @@ pub fn run_cpu_with_progress(
             channels: 1,
             ..Default::default()
         };
-        Some(reference::aos_nlm::aos_nlm(&push, &[&v[0]], &[&vv[0]], spp))
+        Some(reference::aos_nlm::aos_nlm_boxed(
+            &push,
+            &[&v[0]],
+            &[&vv[0]],
+            spp,
+        ))
     } else {
         None
     };
@@ -605,10 +611,10 @@ pub static INFO: MethodInfo = MethodInfo {
     align: 1,
     halo: |c| {
         let p = WlrParams::new(c.pass, &c.options)?;
-        // WLR-VIS: the visibility's NL-means reaches its search and patch
-        // radii further.
+        // WLR-VIS: the visibility's 3×3 mean and NL-means reach 1 and
+        // their search and patch radii further.
         let nlm = if p.features > 9 {
-            reference::aos::NLM_SEARCH + reference::aos::NLM_PATCH
+            1 + reference::aos::NLM_SEARCH + reference::aos::NLM_PATCH
         } else {
             0
         };

@@ -1,7 +1,8 @@
 //! Scalar twin of `spirv/aos_nlm.comp`: AOS's variance-aware NL-means
 //! feature prefilter (spec §5.2) of one buffer of 1 or 3 channels, by
 //! [`super::aos::nlmeans`] (which is already a per-pixel gather in the
-//! kernel's order).
+//! kernel's order). [`aos_nlm_boxed`]: the `aos_nlm_vis` build (WLR-VIS),
+//! which first takes each valid pixel's 3×3 mean.
 
 use super::aos::nlmeans;
 use super::spp_of;
@@ -38,4 +39,89 @@ pub fn aos_nlm(push: &AosPush, g: &[&[f32]], vg: &[&[f32]], spp: &[f32]) -> Vec<
         .chain(var)
         .map(|p| p.into_iter().map(|x| x as f32).collect())
         .collect()
+}
+
+/// [`aos_nlm`] of the 3×3 means: each valid pixel's channels first become
+/// their mean over the valid pixels of its clipped 3×3 window and its
+/// variances `Σ max(vg, 0) / n²` (summed in f64 in raster order, rounded
+/// to f32 as the kernel stages them); invalid pixels keep theirs (and their
+/// output keeps the unboxed input). The `aos_nlm_vis` kernel.
+pub fn aos_nlm_boxed(push: &AosPush, g: &[&[f32]], vg: &[&[f32]], spp: &[f32]) -> Vec<Vec<f32>> {
+    let c = push.channels as usize;
+    let (w, h) = (push.width as usize, push.height as usize);
+    let valid = |i: usize| spp_of(spp[i]) >= 1.0;
+    let mut bg: Vec<Vec<f32>> = g[..c].iter().map(|p| p.to_vec()).collect();
+    let mut bv: Vec<Vec<f32>> = vg[..c].iter().map(|p| p.to_vec()).collect();
+    for y in 0..h {
+        for x in 0..w {
+            let i = y * w + x;
+            if !valid(i) {
+                continue;
+            }
+            let mut s = vec![0.0f64; c];
+            let mut sv = vec![0.0f64; c];
+            let mut n = 0.0f64;
+            for qy in y.saturating_sub(1)..(y + 2).min(h) {
+                for qx in x.saturating_sub(1)..(x + 2).min(w) {
+                    let j = qy * w + qx;
+                    if valid(j) {
+                        for k in 0..c {
+                            s[k] += g[k][j] as f64;
+                            sv[k] += (vg[k][j] as f64).max(0.0);
+                        }
+                        n += 1.0;
+                    }
+                }
+            }
+            for k in 0..c {
+                bg[k][i] = (s[k] / n) as f32;
+                bv[k][i] = (sv[k] / (n * n)) as f32;
+            }
+        }
+    }
+    let br: Vec<&[f32]> = bg.iter().map(|p| p.as_slice()).collect();
+    let vr: Vec<&[f32]> = bv.iter().map(|p| p.as_slice()).collect();
+    // An invalid pixel was left as it was: its output is its own input.
+    aos_nlm(push, &br, &vr, spp)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The 3×3 mean first: a constant buffer stays constant with its
+    /// variance divided by the window's valid count (9 inside, 4 in a
+    /// corner), and one bright pixel spreads into its 3×3 window before
+    /// the NL-means sees it.
+    #[test]
+    fn boxed_means_first() {
+        let (w, h) = (12usize, 10usize);
+        let n = w * h;
+        let push = AosPush {
+            width: w as u32,
+            height: h as u32,
+            channels: 1,
+            stride: n as u32,
+            ..Default::default()
+        };
+        let spp = vec![16.0f32; n];
+        let g = vec![0.5f32; n];
+        let v = vec![0.09f32; n];
+        let out = aos_nlm_boxed(&push, &[&g], &[&v], &spp);
+        assert!(out[0].iter().all(|&x| (x - 0.5).abs() < 1e-6));
+        let inner = 5 * w + 5;
+        // The NL-means of constant means keeps them; its propagated
+        // variance is below the boxed one (0.01 inside, 0.0225 at a corner).
+        assert!(out[1][inner] < 0.01 && out[1][inner] > 0.0);
+        let plain = aos_nlm(&push, &[&g], &[&v], &spp);
+        assert!(out[1][inner] < plain[1][inner] / 4.0);
+        let mut spike = vec![0.0f32; n];
+        spike[inner] = 9.0;
+        let v = vec![1e-6f32; n];
+        let out = aos_nlm_boxed(&push, &[&spike], &[&v], &spp);
+        // The spike's 3×3 window holds its mass spread; far away nothing.
+        assert!(out[0][inner] < 2.0, "{}", out[0][inner]);
+        assert!(out[0][inner + 1] > 0.5);
+        assert!(out[0][0].abs() < 1e-3);
+    }
 }
