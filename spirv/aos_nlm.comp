@@ -5,7 +5,8 @@
 // var = sum_q (w_pq / sum w)^2 vg_q, as planes of `dst` (stride
 // push.stride). An invalid pixel (§0.2) keeps its input.
 // Scalar twin: src/reference/aos_nlm.rs. Built a second time as
-// `aos_nlm_vis` with WLR_VIS (WLR's visibility, WLR-VIS): a 3x3 mean first.
+// `aos_nlm_vis` with WLR_VIS (WLR's visibility, WLR-VIS): one channel, its
+// 3x3 means first.
 //
 // Decision NLM-BOX (ours): offset by offset. For a candidate offset
 // (dx, dy) the patch distance of every pixel p is a 7x7 box sum, over patch centres
@@ -64,15 +65,16 @@ PLANE_OUT(7, dst)
 real3 g_at(uint i) { return real3(g0[i], g1[i], g2[i]); }
 
 #ifdef WLR_VIS
-// WLR-VIS (the `_vis` build, for WLR's visibility): the buffer is first
-// replaced by its mean over the valid pixels of the 3x3 window (clipped),
-// with variance sum(max(vg, 0)) / n^2, then filtered; valid pixels only.
-// The mean over rows then columns in raster order, as the twin sums it;
-// staged as f32 like the plain input. Returns the mean; `v` the variance.
-real3 box3_at(ivec2 q, int w, int h, out vec3 v)
+// WLR-VIS (the `_vis` build, for WLR's visibility; one channel, g0): the
+// buffer is first replaced by its mean over the valid pixels of the 3x3
+// window (clipped), with variance sum(max(vg, 0)) / n^2, then filtered;
+// valid pixels only. Summed in raster order, as the twin sums it; staged
+// as f32 like the plain input. Returns the mean; `v` the variance. Only
+// g0, vg0 and spp are loaded (lavapipe pays per load).
+real box3_at(ivec2 q, int w, int h, out float v)
 {
-    real3 s = real3(0);
-    real3 sv = real3(0);
+    real s = real(0);
+    real sv = real(0);
     real n = real(0);
     for (int dy = -1; dy <= 1; ++dy) {
         for (int dx = -1; dx <= 1; ++dx) {
@@ -80,14 +82,14 @@ real3 box3_at(ivec2 q, int w, int h, out vec3 v)
             if (t.x >= 0 && t.y >= 0 && t.x < w && t.y < h) {
                 uint j = uint(t.y * w + t.x);
                 if (spp_of(spp[j]) >= 1.0) {
-                    s += g_at(j);
-                    sv += max(real3(vg0[j], vg1[j], vg2[j]), real3(0));
+                    s += real(g0[j]);
+                    sv += max(real(vg0[j]), real(0));
                     n += real(1);
                 }
             }
         }
     }
-    v = vec3(sv / (n * n));
+    v = float(sv / (n * n));
     return s / n;
 }
 #endif
@@ -146,10 +148,10 @@ void main()
         if (q.x >= 0 && q.y >= 0 && q.x < w && q.y < h) {
             uint i = uint(q.y * w + q.x);
 #ifdef WLR_VIS
-            g = vec4(g_at(i), spp_of(spp[i]) >= 1.0 ? 1.0 : 0.0);
-            v = vec4(max(vec3(vg0[i], vg1[i], vg2[i]), vec3(0)), 0.0);
+            g = vec4(g0[i], 0.0, 0.0, spp_of(spp[i]) >= 1.0 ? 1.0 : 0.0);
+            v = vec4(max(vg0[i], 0.0), 0.0, 0.0, 0.0);
             if (g.w > 0.0) {
-                g.xyz = vec3(box3_at(q, w, h, v.xyz));
+                g.x = float(box3_at(q, w, h, v.x));
             }
 #else
             g = vec4(g0[i], g1[i], g2[i], spp_of(spp[i]) >= 1.0 ? 1.0 : 0.0);

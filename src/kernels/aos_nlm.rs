@@ -3,7 +3,8 @@
 //! their propagated variances, `push.stride` f32 values apart in one
 //! binding. Twin: `reference::aos_nlm`. [`record_boxed`] runs the
 //! `aos_nlm_vis` build of the same source, which first takes each pixel's
-//! 3×3 mean (WLR-VIS: WLR's visibility); twin `reference::aos_nlm::aos_nlm_boxed`.
+//! 3×3 mean of one channel (WLR-VIS: WLR's visibility); twin
+//! `reference::aos_nlm::aos_nlm_boxed`.
 
 use crate::error::Result;
 use crate::gpu::reflect::{read, write};
@@ -62,8 +63,11 @@ pub fn record(
     record_decl(batch, &DECL, precision, push, [g, vg], spp, dst)
 }
 
-/// [`record`] of the 3×3 means of `g` (variances `Σ vg / n²` over the
-/// window's valid pixels): the `aos_nlm_vis` build.
+/// [`record`] of the 3×3 means of one channel, `g[0]` (variances
+/// `Σ vg / n²` over the window's valid pixels): the `aos_nlm_vis` build.
+///
+/// # Panics
+/// If `push.channels` is not 1.
 pub fn record_boxed(
     batch: &mut Batch,
     precision: Precision,
@@ -73,6 +77,7 @@ pub fn record_boxed(
     spp: BufferSlice,
     dst: BufferSlice,
 ) -> Result<()> {
+    assert_eq!(push.channels, 1, "aos_nlm_vis filters one channel");
     record_decl(batch, &DECL_VIS, precision, push, [g, vg], spp, dst)
 }
 
@@ -93,8 +98,8 @@ fn record_decl(
     let mut flops = flops_per_pixel(push.channels);
     if decl.name == DECL_VIS.name {
         // The 3×3 means of the staged region's 24² pixels per 8×8 tile:
-        // per channel 9 sums of value and variance and a division.
-        flops += 24.0 * 24.0 / 64.0 * (9.0 * 2.0 * push.channels as f64 + 4.0);
+        // 9 sums of value and variance and the divisions.
+        flops += 24.0 * 24.0 / 64.0 * (9.0 * 2.0 + 4.0);
     }
     super::dispatch_image(batch, decl, precision, push, &groups, flops)
 }

@@ -41,13 +41,15 @@ pub fn aos_nlm(push: &AosPush, g: &[&[f32]], vg: &[&[f32]], spp: &[f32]) -> Vec<
         .collect()
 }
 
-/// [`aos_nlm`] of the 3×3 means: each valid pixel's channels first become
-/// their mean over the valid pixels of its clipped 3×3 window and its
-/// variances `Σ max(vg, 0) / n²` (summed in f64 in raster order, rounded
-/// to f32 as the kernel stages them); invalid pixels keep theirs (and their
-/// output keeps the unboxed input). The `aos_nlm_vis` kernel.
+/// [`aos_nlm`] of the 3×3 means of one channel (`push.channels` = 1; the
+/// kernel's `_vis` build reads only `g[0]`): each valid pixel's value first
+/// becomes its mean over the valid pixels of its clipped 3×3 window, its
+/// variance `Σ max(vg, 0) / n²` (summed in f64 in raster order, rounded to
+/// f32 as the kernel stages them); invalid pixels keep theirs, and their
+/// output is their input. The `aos_nlm_vis` kernel.
 pub fn aos_nlm_boxed(push: &AosPush, g: &[&[f32]], vg: &[&[f32]], spp: &[f32]) -> Vec<Vec<f32>> {
     let c = push.channels as usize;
+    assert_eq!(c, 1, "aos_nlm_boxed: one channel");
     let (w, h) = (push.width as usize, push.height as usize);
     let valid = |i: usize| spp_of(spp[i]) >= 1.0;
     let mut bg: Vec<Vec<f32>> = g[..c].iter().map(|p| p.to_vec()).collect();
