@@ -63,8 +63,9 @@ pub fn record(
     record_decl(batch, &DECL, precision, push, [g, vg], spp, dst)
 }
 
-/// [`record`] of the 3×3 means of one channel, `g[0]` (variances
-/// `Σ vg / n²` over the window's valid pixels): the `aos_nlm_vis` build.
+/// [`record`] of the 3×3 means of one plane `g` (variances `Σ vg / n²`
+/// over the window's valid pixels): the `aos_nlm_vis` build, `dst` two
+/// planes.
 ///
 /// # Panics
 /// If `push.channels` is not 1.
@@ -72,13 +73,19 @@ pub fn record_boxed(
     batch: &mut Batch,
     precision: Precision,
     push: &AosPush,
-    g: [BufferSlice; 3],
-    vg: [BufferSlice; 3],
-    spp: BufferSlice,
+    [g, vg, spp]: [BufferSlice; 3],
     dst: BufferSlice,
 ) -> Result<()> {
     assert_eq!(push.channels, 1, "aos_nlm_vis filters one channel");
-    record_decl(batch, &DECL_VIS, precision, push, [g, vg], spp, dst)
+    record_decl(
+        batch,
+        &DECL_VIS,
+        precision,
+        push,
+        [[g; 3], [vg; 3]],
+        spp,
+        dst,
+    )
 }
 
 fn record_decl(

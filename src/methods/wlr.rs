@@ -396,17 +396,12 @@ fn record_visibility(
         VIS as u64 * scratch.stride,
         scratch.stride + (w * h * 4) as u64,
     );
-    let g = clean.plane(layer, 0);
-    let vg = clean.plane(vlayer, 0);
-    aos_nlm::record_boxed(
-        batch,
-        precision,
-        &push,
-        [g; 3],
-        [vg; 3],
+    let planes = [
+        clean.plane(layer, 0),
+        clean.plane(vlayer, 0),
         clean.plane(Layer::Spp, 0),
-        dst,
-    )
+    ];
+    aos_nlm::record_boxed(batch, precision, &push, planes, dst)
 }
 
 /// WLR-VIS on statistics without the visibility layer (GPU and CPU paths).
