@@ -60,7 +60,8 @@ pub fn record(
     spp: BufferSlice,
     dst: BufferSlice,
 ) -> Result<()> {
-    record_decl(batch, &DECL, precision, push, [g, vg], spp, dst)
+    let flops = flops_per_pixel(push.channels);
+    record_decl(batch, &DECL, precision, push, [g, vg], spp, dst, flops)
 }
 
 /// [`record`] of the 3×3 means of one plane `g` (variances `Σ vg / n²`
@@ -77,17 +78,14 @@ pub fn record_boxed(
     dst: BufferSlice,
 ) -> Result<()> {
     assert_eq!(push.channels, 1, "aos_nlm_vis filters one channel");
-    record_decl(
-        batch,
-        &DECL_VIS,
-        precision,
-        push,
-        [[g; 3], [vg; 3]],
-        spp,
-        dst,
-    )
+    // The 3×3 means of the staged region's 24² pixels per 8×8 tile: 9 sums
+    // of value and variance and the divisions.
+    let flops = flops_per_pixel(1) + 24.0 * 24.0 / 64.0 * (9.0 * 2.0 + 4.0);
+    let planes = [[g; 3], [vg; 3]];
+    record_decl(batch, &DECL_VIS, precision, push, planes, spp, dst, flops)
 }
 
+#[allow(clippy::too_many_arguments)] // record's arguments, and the variant's decl and flops
 fn record_decl(
     batch: &mut Batch,
     decl: &KernelDecl,
@@ -96,17 +94,12 @@ fn record_decl(
     [g, vg]: [[BufferSlice; 3]; 2],
     spp: BufferSlice,
     dst: BufferSlice,
+    flops: f64,
 ) -> Result<()> {
     // The smoothed channels and their variances, `stride` words apart.
     let planes = 2 * push.channels.max(1) as u64 - 1;
     let pixels = push.width as u64 * push.height as u64;
     decl.require(7, &dst, 4 * (planes * push.stride as u64 + pixels))?;
     let groups: [&[BufferSlice]; 3] = [&g, &vg, &[spp, dst]];
-    let mut flops = flops_per_pixel(push.channels);
-    if decl.name == DECL_VIS.name {
-        // The 3×3 means of the staged region's 24² pixels per 8×8 tile:
-        // 9 sums of value and variance and the divisions.
-        flops += 24.0 * 24.0 / 64.0 * (9.0 * 2.0 + 4.0);
-    }
     super::dispatch_image(batch, decl, precision, push, &groups, flops)
 }

@@ -48,43 +48,33 @@ pub fn aos_nlm(push: &AosPush, g: &[&[f32]], vg: &[&[f32]], spp: &[f32]) -> Vec<
 /// f32 as the kernel stages them); invalid pixels keep theirs, and their
 /// output is their input. The `aos_nlm_vis` kernel.
 pub fn aos_nlm_boxed(push: &AosPush, g: &[&[f32]], vg: &[&[f32]], spp: &[f32]) -> Vec<Vec<f32>> {
-    let c = push.channels as usize;
-    assert_eq!(c, 1, "aos_nlm_boxed: one channel");
+    assert_eq!(push.channels, 1, "aos_nlm_boxed: one channel");
     let (w, h) = (push.width as usize, push.height as usize);
+    let (g, vg) = (g[0], vg[0]);
     let valid = |i: usize| spp_of(spp[i]) >= 1.0;
-    let mut bg: Vec<Vec<f32>> = g[..c].iter().map(|p| p.to_vec()).collect();
-    let mut bv: Vec<Vec<f32>> = vg[..c].iter().map(|p| p.to_vec()).collect();
+    let (mut bg, mut bv) = (g.to_vec(), vg.to_vec());
     for y in 0..h {
         for x in 0..w {
             let i = y * w + x;
             if !valid(i) {
                 continue;
             }
-            let mut s = vec![0.0f64; c];
-            let mut sv = vec![0.0f64; c];
-            let mut n = 0.0f64;
+            let (mut s, mut sv, mut n) = (0.0f64, 0.0f64, 0.0f64);
             for qy in y.saturating_sub(1)..(y + 2).min(h) {
-                for qx in x.saturating_sub(1)..(x + 2).min(w) {
-                    let j = qy * w + qx;
+                for j in (qy * w + x.saturating_sub(1))..(qy * w + (x + 2).min(w)) {
                     if valid(j) {
-                        for k in 0..c {
-                            s[k] += g[k][j] as f64;
-                            sv[k] += (vg[k][j] as f64).max(0.0);
-                        }
+                        s += g[j] as f64;
+                        sv += (vg[j] as f64).max(0.0);
                         n += 1.0;
                     }
                 }
             }
-            for k in 0..c {
-                bg[k][i] = (s[k] / n) as f32;
-                bv[k][i] = (sv[k] / (n * n)) as f32;
-            }
+            bg[i] = (s / n) as f32;
+            bv[i] = (sv / (n * n)) as f32;
         }
     }
-    let br: Vec<&[f32]> = bg.iter().map(|p| p.as_slice()).collect();
-    let vr: Vec<&[f32]> = bv.iter().map(|p| p.as_slice()).collect();
     // An invalid pixel was left as it was: its output is its own input.
-    aos_nlm(push, &br, &vr, spp)
+    aos_nlm(push, &[&bg], &[&bv], spp)
 }
 
 #[cfg(test)]
