@@ -65,7 +65,9 @@ def blend(cols, errs, w, h, excluded=None):
     total = sum(dis[a, b] for a, b in itertools.combinations(range(n), 2))
     ws, num = 0, 0
     for a in range(n):
-        hat = (sum(dis[a, b] for b in range(n) if b != a) - total / (n - 1)) / (n - 2)
+        # Two members cannot tell whose error their disagreement is: their
+        # own scores alone.
+        hat = (sum(dis[a, b] for b in range(n) if b != a) - total / (n - 1)) / (n - 2) if n > 2 else score[a]
         wa = 1 / np.maximum(np.maximum(score[a], hat), 1e-12)
         if excluded is not None and excluded[a] is not None:
             wa = np.where(excluded[a], 0.0, wa)

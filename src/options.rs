@@ -57,9 +57,9 @@ pub const OPTIONS: &[OptionSpec] = &[
     OptionSpec {
         key: "wlr.extra_features",
         kind: Kind::Choice(&["none", "visibility"]),
-        default: "none",
-        section: "§2.1",
-        help: "regress on the NL-means filtered visibility as a tenth feature (visibility; needs the layer) or on the spec's nine (none)",
+        default: "method",
+        section: "§2.1 (WLR-VIS, AUTO-VIS)",
+        help: "regress on the NL-means filtered visibility as a tenth feature (visibility; needs the layer) or on the spec's nine (none); method: none for WLR, visibility for auto's WLR member in final reconstructions of statistics with the visibility layer (AUTO-VIS)",
     },
     OptionSpec {
         key: "lp.error_mode",
@@ -324,6 +324,13 @@ impl Options {
         self.get(key)
             .parse()
             .map_err(|_| Error::InvalidArgument(format!("{key}: not a number")))
+    }
+
+    /// Sets `key` to `value`, validated as [`Options::parse`] validates it.
+    pub fn set(&mut self, key: &str, value: &str) -> Result<()> {
+        let one = Options::parse(&[format!("{key}={value}")])?;
+        self.values.extend(one.values);
+        Ok(())
     }
 
     /// Whether `key` was given explicitly.

@@ -439,3 +439,89 @@ fn an_intermediate_pass_blends_three_members() {
     assert_ne!(final_on.color.planes, final_off.color.planes);
     check_validation(&gpu());
 }
+
+/// AUTO-VIS: in a final reconstruction `auto`'s WLR member reads the
+/// visibility as a tenth feature (WLR-VIS) when the statistics have the
+/// layer: the default is `wlr.extra_features=visibility` bit for bit, on
+/// the GPU as on the CPU (which agree), and differs from `none`. Without
+/// the layer the default is `none`, bit for bit, and asking for the
+/// visibility names the missing layer; adaptive passes keep nine features.
+#[test]
+fn the_wlr_member_reads_the_visibility_when_there_is_one() {
+    let fixture = |name: &str| {
+        io::read_stats(
+            &Path::new(env!("CARGO_MANIFEST_DIR"))
+                .join("tests/fixtures")
+                .join(name),
+        )
+        .unwrap()
+    };
+    let opts = |o: &[&str]| Options::parse(o).unwrap();
+    let colour = |img: &StatsImage, backend: Backend, o: &Options, pass: mcdenoise::Pass| {
+        let mut req = DenoiseRequest::new(Method::Auto);
+        req.options = o.clone();
+        req.backend = backend;
+        req.pass = pass;
+        denoise(Some(&gpu()), img, &req).map(|out| out.color)
+    };
+    let fin = mcdenoise::Pass::Final;
+    let vis = fixture("night_lights_40_spp64.exr");
+    assert!(vis.get(mcdenoise::Layer::Visibility).is_some());
+    let default = colour(&vis, Backend::Gpu, &Options::default(), fin).unwrap();
+    let with = colour(
+        &vis,
+        Backend::Gpu,
+        &opts(&["wlr.extra_features=visibility"]),
+        fin,
+    )
+    .unwrap();
+    let without = colour(&vis, Backend::Gpu, &opts(&["wlr.extra_features=none"]), fin).unwrap();
+    assert_eq!(default.planes, with.planes);
+    let moved = metrics::rmse(&default, &without);
+    assert!(
+        moved > 1e-5,
+        "the visibility moved auto's output by {moved}"
+    );
+    let cpu = colour(&vis, Backend::Cpu, &Options::default(), fin).unwrap();
+    for c in 0..3 {
+        assert_close(
+            &format!("auto with the visibility, channel {c}"),
+            &default.planes[c],
+            &cpu.planes[c],
+            0.98,
+        );
+    }
+    let mid = mcdenoise::Pass::Intermediate;
+    assert_eq!(
+        colour(&vis, Backend::Gpu, &Options::default(), mid)
+            .unwrap()
+            .planes,
+        colour(&vis, Backend::Gpu, &opts(&["wlr.extra_features=none"]), mid)
+            .unwrap()
+            .planes,
+    );
+
+    let plain = fixture("dof_checker_64_spp16.exr");
+    assert!(plain.get(mcdenoise::Layer::Visibility).is_none());
+    for backend in [Backend::Gpu, Backend::Cpu] {
+        assert_eq!(
+            colour(&plain, backend, &Options::default(), fin)
+                .unwrap()
+                .planes,
+            colour(&plain, backend, &opts(&["wlr.extra_features=none"]), fin)
+                .unwrap()
+                .planes,
+            "{backend:?}"
+        );
+        let err = colour(
+            &plain,
+            backend,
+            &opts(&["wlr.extra_features=visibility"]),
+            fin,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(err.contains("visibility"), "{backend:?}: {err}");
+    }
+    check_validation(&gpu());
+}

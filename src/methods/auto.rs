@@ -3,7 +3,9 @@
 //! in different places, and each one's `E_i` says where.
 //!
 //! The members ([`members`]: WLR, LP, APR and, with `auto.aos=on`, AOS) run
-//! on the sanitised, prefiltered statistics, but a member that does not
+//! on the sanitised, prefiltered statistics; in a final reconstruction of
+//! statistics with the visibility layer the WLR member reads it as a tenth
+//! feature (WLR-VIS, [`member_options`], AUTO-VIS). A member that does not
 //! prefilter by default (AOS) reads them from before the prefilter
 //! ([`GpuStage::record_unfiltered`], AUTO-AOS), even with `--prefilter on`.
 //! `auto_score` writes each member's relative error estimate `s_m = Σ_c
@@ -80,11 +82,42 @@ fn scratch_count(members: usize) -> usize {
     (map_count(members) + 1).max(AUTO_SUMS)
 }
 
-/// A member's configuration: `auto`'s, with the member's method and its
-/// error estimate on (the blend reads it).
+/// A member's options in `pass` (AUTO-VIS): `auto`'s, and the WLR member of
+/// a final reconstruction reads the visibility as a tenth feature
+/// (WLR-VIS) unless `wlr.extra_features` was given ([`for_layers`] gives
+/// `none` to statistics without the layer).
+pub fn member_options(options: &Options, m: Method, pass: Pass) -> Options {
+    let mut o = options.clone();
+    if m == Method::Wlr && pass == Pass::Final && !o.is_set(WLR_FEATURES) {
+        o.set(WLR_FEATURES, "visibility")
+            .expect("a value of the registry");
+    }
+    o
+}
+
+/// `auto`'s options for statistics with `layers`: without the visibility
+/// layer its WLR member regresses on the spec's nine features (AUTO-VIS),
+/// unless `wlr.extra_features` was given (then WLR reports the missing
+/// layer).
+pub fn for_layers(options: &Options, layers: &[Layer]) -> Options {
+    let mut o = options.clone();
+    if !layers.contains(&Layer::Visibility) && !o.is_set(WLR_FEATURES) {
+        o.set(WLR_FEATURES, "none")
+            .expect("a value of the registry");
+    }
+    o
+}
+
+/// The option AUTO-VIS sets for the WLR member.
+const WLR_FEATURES: &str = "wlr.extra_features";
+
+/// A member's configuration: `auto`'s, with the member's method, its
+/// options ([`member_options`]) and its error estimate on (the blend reads
+/// it).
 fn member_config(c: &ChainConfig, m: Method) -> ChainConfig {
     ChainConfig {
         method: m,
+        options: member_options(&c.options, m, c.pass),
         error: true,
         temporal: super::Temporal::Off,
         temporal_state: None,
@@ -97,7 +130,7 @@ fn member_config(c: &ChainConfig, m: Method) -> ChainConfig {
 pub static INFO: MethodInfo = MethodInfo {
     method: Method::Auto,
     name: "auto",
-    about: "WLR, LP and APR (and AOS with --opt auto.aos=on) blended per pixel by their own error estimates (ours; LP's and APR's patents apply)",
+    about: "WLR (reading the visibility where the input has it), LP and APR (and AOS with --opt auto.aos=on) blended per pixel by their own error estimates (ours; LP's and APR's patents apply)",
     needs: &REGRESSION_LAYERS,
     prefilter_auto: true,
     outliers_auto: true,
@@ -405,8 +438,14 @@ fn run_cpu(clean: &StatsImage, a: &CpuArgs) -> Result<CpuResult> {
     };
     let methods = members(&a.options, a.pass);
     auto_dis::check_members(methods.len(), None)?;
+    let layers: Vec<Layer> = clean.layers().map(|(l, _)| l).collect();
+    let options = for_layers(&a.options, &layers);
     let mut runs = Vec::with_capacity(methods.len());
     for &m in &methods {
+        let a = &CpuArgs {
+            options: member_options(&options, m, a.pass),
+            ..a.clone()
+        };
         // A member that does not prefilter by default reads the statistics
         // from before the prefilter (AUTO-AOS), as on the GPU.
         let r = match &a.unfiltered {

@@ -309,6 +309,14 @@ impl GpuChain {
         config.temporal.refuse_window()?;
         let layers = input.layers();
         check_layers(config.method, &layers)?;
+        // AUTO-VIS: `auto`'s WLR member reads the visibility when there is one.
+        let config = match config.method {
+            Method::Auto => ChainConfig {
+                options: super::auto::for_layers(&config.options, &layers),
+                ..config
+            },
+            _ => config,
+        };
         if let Some(l) = config.temporal.needs().iter().find(|l| !layers.contains(l)) {
             return Err(Error::BadData(format!(
                 "the temporal filter ({:?}) needs the {} layer",
