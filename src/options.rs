@@ -178,7 +178,7 @@ pub const OPTIONS: &[OptionSpec] = &[
         kind: Kind::Choice(&["on", "off"]),
         default: "off",
         section: "ours (AUTO-AOS)",
-        help: "auto blends AOS, on the features from before the G-buffer prefilter, as a fourth member with WLR, LP and APR in final reconstructions (on: 0.91-0.96 of the rMSE for about 6x the GPU time; with --map-method auto its adaptive passes keep three) or not (off)",
+        help: "auto blends AOS, on the features from before the G-buffer prefilter, as a fourth member with WLR, LP and APR in final reconstructions (on: 0.93-0.97 of the rMSE for about 6x the GPU time; with --map-method auto its adaptive passes keep three) or not (off)",
     },
     OptionSpec {
         key: "gbf.second_below",
