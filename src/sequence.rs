@@ -406,8 +406,9 @@ impl SequenceDenoiser {
 /// and frame), so the host's memory does not grow with the sequence;
 /// [`finish`](Self::finish) runs
 /// the filter over them in reverse order and combines the two directions,
-/// per pixel and channel, `(a_f F + a_b B − y)/(a_f + a_b − 1)` with `a =
-/// 1/P₀₀` of each direction and `y` the method's output. Every frame's
+/// per pixel and channel, `(w_f F + w_b B − y)/(w_f + w_b − 1)` with `w =
+/// 1/P₀₀` of each direction, but at most the other's where that one has
+/// met a change (SMOOTH-SHORT), and `y` the method's output. Every frame's
 /// reconstruction then sees the whole sequence; the method runs once per
 /// frame. For an adaptive loop whose final denoiser carries the filter's
 /// state into its sample maps; [`SequenceDenoiser`] with
@@ -572,9 +573,12 @@ impl Smoother {
         let mut run = || -> Result<()> {
             for k in (0..frames).rev() {
                 let (record, color) = self.kept_frame(k)?;
-                let (out, timings) =
-                    self.stage
-                        .run(&record, &color, k + 1 == frames, self.progress)?;
+                let (out, timings) = self.stage.run(
+                    &record,
+                    &color,
+                    (k as u64 + 1, (frames - k) as u64),
+                    self.progress,
+                )?;
                 each(k, out, timings)?;
             }
             Ok(())

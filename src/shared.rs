@@ -733,6 +733,51 @@ pub struct TemporalPush {
     pub error_scale: f32,
 }
 
+/// `spirv/lp_smooth.comp`, block `Push` (TEMPORAL-SMOOTH, SMOOTH-SHORT).
+#[repr(C)]
+#[derive(Copy, Clone, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct TwoWayPush {
+    /// Image width in pixels.
+    pub width: u32,
+    /// Image height in pixels.
+    pub height: u32,
+    /// First row of the band this dispatch covers.
+    pub row0: u32,
+    /// Unused (alignment).
+    pub pad: u32,
+    /// SMOOTH-SHORT: the information `1/P₀₀` the filter in frame order
+    /// holds at a pixel that met no change since the sequence began
+    /// ([`full_information`] of its frames).
+    pub full_forward: f32,
+    /// … and the filter in reverse order.
+    pub full_backward: f32,
+    /// Unused: rounds the block to 32 bytes; 0.
+    pub _pad: [u32; 2],
+}
+
+/// SMOOTH-SHORT: a direction whose information falls below this fraction
+/// of its [`full_information`] has met a change (a restart, a discount),
+/// and the other direction weighs at most as much as it.
+pub const SMOOTH_SHORT: f32 = 0.9;
+
+/// The information `1/P₀₀` of the LP temporal filter (§10.1, its slope
+/// held at 0) after `frames` updates without a change test that
+/// discounted the history: the first frame's `1/p00`, then `a ← λa + 1`
+/// per frame, `λⁿ⁻¹/p00 + Σ_{j<n−1} λʲ`. 0 for no frames.
+pub fn full_information(frames: u64, lambda: f64, p00: f64) -> f64 {
+    if frames == 0 {
+        return 0.0;
+    }
+    let m = (frames - 1) as f64;
+    let decay = lambda.powf(m);
+    let sum = if (1.0 - lambda).abs() < 1e-12 {
+        m
+    } else {
+        (1.0 - decay) / (1.0 - lambda)
+    };
+    decay / p00 + sum
+}
+
 /// [`TemporalPush::flags`]: forget every pixel's history (a cut, or the
 /// first frame): every pixel is reinitialised.
 pub const TEMPORAL_RESET: u32 = 1;

@@ -1012,6 +1012,7 @@ fn filtering_does_not_depend_on_downloading_the_error() {
 
 use mcdenoise::kernels::lp_smooth;
 use mcdenoise::reference::lp_smooth::{self as smooth_twin, Direction};
+use mcdenoise::shared::{full_information, TwoWayPush, SMOOTH_SHORT};
 use mcdenoise::{SequenceDenoiser, Smoother};
 
 /// `lp_smooth` against its twin: random colours and `P₀₀` of both
@@ -1039,45 +1040,58 @@ fn lp_smooth_matches_its_twin() {
         fn three(v: &[Vec<f32>]) -> [&[f32]; 3] {
             [&v[0][..], &v[1][..], &v[2][..]]
         }
-        let mut want: [Vec<f32>; 3] = std::array::from_fn(|_| vec![0.0; n]);
-        {
-            let [r, g, bb] = &mut want;
-            smooth_twin::lp_smooth(
-                three(&y),
-                &Direction {
-                    color: three(&f),
-                    p00: &pf,
-                },
-                &Direction {
-                    color: three(&b),
-                    p00: &pb,
-                },
-                [r, g, bb],
-            );
-        }
-        for i in [0, n - 1, n / 2] {
-            assert_eq!(want[0][i], f[0][i], "pixel {i} without state keeps F");
-        }
         let mut ins: Vec<&[f32]> = y.iter().map(|v| &v[..]).collect();
         ins.extend(f.iter().map(|v| &v[..]));
         ins.push(&pf);
         ins.extend(b.iter().map(|v| &v[..]));
         ins.push(&pb);
-        for prec in precisions() {
-            let (g, _) = run_planes(
-                &ctx,
-                &lp_smooth::DECL,
-                prec,
-                bytemuck::bytes_of(&push(w, h, 0)),
-                w,
-                h,
-                &ins,
-                &[n, n, n],
-                lp_smooth::FLOPS_PER_PIXEL,
-            )
-            .unwrap();
-            for c in 0..3 {
-                assert_close(&format!("{w}x{h} {prec:?} {c}"), &g[c], &want[c], 0.99);
+        // No direction short of its full information; many; the two
+        // directions' full informations apart.
+        for (full_forward, full_backward) in [(1.0, 1.0), (20.0, 20.0), (4.0, 30.0)] {
+            let p = TwoWayPush {
+                width: w as u32,
+                height: h as u32,
+                full_forward,
+                full_backward,
+                ..Default::default()
+            };
+            let mut want: [Vec<f32>; 3] = std::array::from_fn(|_| vec![0.0; n]);
+            {
+                let [r, g, bb] = &mut want;
+                smooth_twin::lp_smooth(
+                    &p,
+                    three(&y),
+                    &Direction {
+                        color: three(&f),
+                        p00: &pf,
+                    },
+                    &Direction {
+                        color: three(&b),
+                        p00: &pb,
+                    },
+                    [r, g, bb],
+                );
+            }
+            for i in [0, n - 1, n / 2] {
+                assert_eq!(want[0][i], f[0][i], "pixel {i} without state keeps F");
+            }
+            for prec in precisions() {
+                let (g, _) = run_planes(
+                    &ctx,
+                    &lp_smooth::DECL,
+                    prec,
+                    bytemuck::bytes_of(&p),
+                    w,
+                    h,
+                    &ins,
+                    &[n, n, n],
+                    lp_smooth::FLOPS_PER_PIXEL,
+                )
+                .unwrap();
+                for c in 0..3 {
+                    let what = format!("{w}x{h} {prec:?} {c} full {full_forward} {full_backward}");
+                    assert_close(&what, &g[c], &want[c], 0.99);
+                }
             }
         }
     }
@@ -1113,12 +1127,63 @@ fn two_way_with_lambda_one_is_the_mean_of_every_frame() {
     let mut backward = run(&mut ys.iter().rev());
     backward.reverse();
     for (t, &y) in ys.iter().enumerate() {
-        let v = smooth_twin::combine(y, forward[t], backward[t]);
+        // With λ = 1 a direction that met no change holds one unit per frame.
+        let n = ys.len() as u64;
+        let full = (
+            full_information(t as u64 + 1, 1.0, prior.0),
+            full_information(n - t as u64, 1.0, prior.0),
+        );
+        let v = smooth_twin::combine(y, forward[t], backward[t], full);
         assert!(
             close(v, mean, 1e-12),
             "frame {t}: {v} against the mean {mean}"
         );
     }
+}
+
+/// SMOOTH-SHORT: a direction short of the information its frames give (it
+/// met a change) caps the other's weight at its own; a direction at its
+/// full information leaves the combination TEMPORAL-SMOOTH's. The kernel
+/// mirrors the crate's fraction.
+#[test]
+fn a_direction_that_met_a_change_caps_the_other() {
+    let (y, f, b) = (1.0, 2.0, 4.0);
+    // Forward: 10 frames' information of 12 possible (not short); reverse:
+    // 2 of 6 (short).
+    let full = (12.0, 6.0);
+    let two_way = |af: f64, ab: f64| (af * f + ab * b - y) / (af + ab - 1.0);
+    let capped = smooth_twin::combine(y, (f, 0.1), (b, 0.5), full);
+    assert!(close(capped, two_way(2.0, 2.0), 1e-12), "{capped}");
+    assert!(!close(capped, two_way(10.0, 2.0), 1e-3));
+    // The reverse direction at its full information: no cap.
+    let full = (12.0, 2.0);
+    let plain = smooth_twin::combine(y, (f, 0.1), (b, 0.5), full);
+    assert!(close(plain, two_way(10.0, 2.0), 1e-12), "{plain}");
+    // Both short: the weaker weighs as itself, the stronger as the weaker.
+    let both = smooth_twin::combine(y, (f, 0.25), (b, 0.5), (12.0, 6.0));
+    assert!(close(both, two_way(2.0, 2.0), 1e-12), "{both}");
+    // Just above the fraction: not short.
+    let edge = smooth_twin::combine(
+        y,
+        (f, 0.1),
+        (b, 0.5),
+        (12.0, 2.0 / SMOOTH_SHORT as f64 - 1e-6),
+    );
+    assert!(close(edge, two_way(10.0, 2.0), 1e-12), "{edge}");
+    let source = include_str!("../spirv/lp_smooth.comp");
+    let line = source
+        .lines()
+        .find(|l| l.starts_with("#define SMOOTH_SHORT "))
+        .expect("no #define SMOOTH_SHORT");
+    let value: f32 = line.rsplit(' ').next().unwrap().parse().unwrap();
+    assert_eq!(value, SMOOTH_SHORT);
+    // The information of a history without a change: 1, then λa + 1.
+    let mut a = 0.0;
+    for k in 0..30u64 {
+        a = if k == 0 { 1.0 } else { 0.98 * a + 1.0 };
+        assert!(close(full_information(k + 1, 0.98, 1.0), a, 1e-12), "{k}");
+    }
+    assert_eq!(full_information(0, 0.98, 1.0), 0.0);
 }
 
 /// The two-way filter in the facade, on a static camera over a static

@@ -438,7 +438,9 @@ impl Timed {
                 let record = forward.temporal_record()?.ok_or_else(|| {
                     crate::Error::InvalidArgument("the forward pass has no temporal filter".into())
                 })?;
-                let (color, timings) = reverse.run(&record, &f.color, *calls == 0, false)?;
+                // Both directions have filtered every call so far.
+                let n = *calls as u64 + 1;
+                let (color, timings) = reverse.run(&record, &f.color, (n, n), false)?;
                 *calls += 1;
                 f.color = color;
                 f.timings.extend(timings);

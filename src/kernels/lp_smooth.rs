@@ -1,11 +1,11 @@
 //! `lp_smooth`: the LP temporal filter's two directions combined per pixel
-//! and channel, a two-filter smoother (TEMPORAL-SMOOTH). Twin:
-//! `reference::lp_smooth`.
+//! and channel, a two-filter smoother (TEMPORAL-SMOOTH, SMOOTH-SHORT).
+//! Twin: `reference::lp_smooth`.
 
 use crate::error::Result;
 use crate::gpu::reflect::{read, write};
 use crate::gpu::{Batch, BufferSlice, KernelDecl, Precision};
-use crate::shared::TemporalPush;
+use crate::shared::TwoWayPush;
 
 /// Declaration of `spirv/lp_smooth.comp`; checked against the SPIR-V by
 /// reflection.
@@ -27,12 +27,13 @@ pub const DECL: KernelDecl = KernelDecl {
         write("out_g"),
         write("out_b"),
     ],
-    push_size: std::mem::size_of::<TemporalPush>() as u32,
+    push_size: std::mem::size_of::<TwoWayPush>() as u32,
 };
 
-/// Per pixel: two reciprocals and the denominator (3), per channel two
-/// multiply-adds, a subtraction, a division and the clamp (5).
-pub const FLOPS_PER_PIXEL: f64 = 3.0 + 3.0 * 5.0;
+/// Per pixel: two reciprocals, the two tests and weights (4) and the
+/// denominator (2), per channel two multiply-adds, a subtraction, a
+/// division and the clamp (5).
+pub const FLOPS_PER_PIXEL: f64 = 6.0 + 3.0 * 5.0;
 
 /// One direction of the filter on a frame: its output colour and `P₀₀`
 /// after its update (0 where it passed the pixel through).
@@ -50,13 +51,12 @@ impl Direction {
     }
 }
 
-/// Records the combination over the push's image (its `width`, `height`
-/// and `row0` are read) of `forward` and `backward` on a frame whose method
-/// output is `y` into `out`.
+/// Records the combination over the push's image of `forward` and
+/// `backward` on a frame whose method output is `y` into `out`.
 pub fn record(
     batch: &mut Batch,
     precision: Precision,
-    push: &TemporalPush,
+    push: &TwoWayPush,
     y: [BufferSlice; 3],
     forward: &Direction,
     backward: &Direction,

@@ -22,9 +22,10 @@ use crate::kernels::lp_temporal_gain;
 use crate::kernels::pyramid_pool;
 use crate::kernels::temporal_motion::{self, LevelPlanes};
 use crate::shared::{
-    MotionPush, PyramidPush, TemporalPush, PYRAMID_COUNT, PYRAMID_MEAN, TEMPORAL_LAMBDA,
-    TEMPORAL_MOTION, TEMPORAL_MOTION_LEVELS, TEMPORAL_MOTION_RADIUS, TEMPORAL_P00, TEMPORAL_RESET,
-    TEMPORAL_RESET_P00, TEMPORAL_RESET_P11, TEMPORAL_STATE, TEMPORAL_VALID,
+    full_information, MotionPush, PyramidPush, TemporalPush, TwoWayPush, PYRAMID_COUNT,
+    PYRAMID_MEAN, TEMPORAL_LAMBDA, TEMPORAL_MOTION, TEMPORAL_MOTION_LEVELS, TEMPORAL_MOTION_RADIUS,
+    TEMPORAL_P00, TEMPORAL_RESET, TEMPORAL_RESET_P00, TEMPORAL_RESET_P11, TEMPORAL_STATE,
+    TEMPORAL_VALID,
 };
 
 /// A temporal stage after the method (spec §10).
@@ -482,14 +483,17 @@ impl SmoothStage {
 
     /// The next frame in reverse order: `record` and `forward` (the
     /// forward pass's output colour) of a frame, after the frames that
-    /// follow it in the sequence (`last`: the sequence's last frame, which
-    /// starts the reverse pass). Returns the combined colour and the
-    /// kernels' timings.
+    /// follow it in the sequence. `frames`: how many frames each direction
+    /// has filtered with this one since the sequence began (in frame order
+    /// from the first, in reverse from the last; `(k + 1, n − k)` for frame
+    /// `k` of `n`), from which SMOOTH-SHORT knows the information a
+    /// direction that met no change holds; a reverse count of 1 starts the
+    /// reverse pass. Returns the combined colour and the kernels' timings.
     pub fn run(
         &self,
         record: &FilterRecord,
         forward: &RgbImage,
-        last: bool,
+        frames: (u64, u64),
         progress: bool,
     ) -> Result<(RgbImage, Vec<KernelTiming>)> {
         let (w, h) = self.backward.size();
@@ -505,7 +509,7 @@ impl SmoothStage {
             self.forward.upload_plane(c, p)?;
         }
         self.forward.upload_plane(3, &record.p00)?;
-        if last {
+        if frames.1 <= 1 {
             self.backward.reset();
         }
         self.backward.set_error_scale(record.error_scale);
@@ -513,7 +517,15 @@ impl SmoothStage {
         let mut batch = Batch::new(&self.ctx)?;
         batch.progress = progress;
         self.backward.record(&mut batch, self.precision, &inp)?;
-        let push = self.backward.push(false);
+        let full =
+            |n: u64| full_information(n, TEMPORAL_LAMBDA as f64, TEMPORAL_RESET_P00 as f64) as f32;
+        let push = TwoWayPush {
+            width: w as u32,
+            height: h as u32,
+            full_forward: full(frames.0),
+            full_backward: full(frames.1),
+            ..Default::default()
+        };
         let fwd = Direction {
             color: [
                 self.forward.plane(0),
