@@ -1148,26 +1148,26 @@ fn two_way_with_lambda_one_is_the_mean_of_every_frame() {
 #[test]
 fn a_direction_that_met_a_change_caps_the_other() {
     let (y, f, b) = (1.0, 2.0, 4.0);
-    // Forward: 10 frames' information of 12 possible (not short); reverse:
+    // Forward: 10 frames' information of 11 possible (not short); reverse:
     // 2 of 6 (short).
-    let full = (12.0, 6.0);
+    let full = (11.0, 6.0);
     let two_way = |af: f64, ab: f64| (af * f + ab * b - y) / (af + ab - 1.0);
     let capped = smooth_twin::combine(y, (f, 0.1), (b, 0.5), full);
     assert!(close(capped, two_way(2.0, 2.0), 1e-12), "{capped}");
     assert!(!close(capped, two_way(10.0, 2.0), 1e-3));
     // The reverse direction at its full information: no cap.
-    let full = (12.0, 2.0);
+    let full = (11.0, 2.0);
     let plain = smooth_twin::combine(y, (f, 0.1), (b, 0.5), full);
     assert!(close(plain, two_way(10.0, 2.0), 1e-12), "{plain}");
     // Both short: the weaker weighs as itself, the stronger as the weaker.
-    let both = smooth_twin::combine(y, (f, 0.25), (b, 0.5), (12.0, 6.0));
+    let both = smooth_twin::combine(y, (f, 0.25), (b, 0.5), (11.0, 6.0));
     assert!(close(both, two_way(2.0, 2.0), 1e-12), "{both}");
     // Just above the fraction: not short.
     let edge = smooth_twin::combine(
         y,
         (f, 0.1),
         (b, 0.5),
-        (12.0, 2.0 / SMOOTH_SHORT as f64 - 1e-6),
+        (11.0, 2.0 / SMOOTH_SHORT as f64 - 1e-6),
     );
     assert!(close(edge, two_way(10.0, 2.0), 1e-12), "{edge}");
     let source = include_str!("../spirv/lp_smooth.comp");

@@ -30,10 +30,10 @@ pub const DECL: KernelDecl = KernelDecl {
     push_size: std::mem::size_of::<TwoWayPush>() as u32,
 };
 
-/// Per pixel: two reciprocals, the two tests and weights (4) and the
+/// Per pixel: two reciprocals (2), the two tests and weights (4) and the
 /// denominator (2), per channel two multiply-adds, a subtraction, a
 /// division and the clamp (5).
-pub const FLOPS_PER_PIXEL: f64 = 6.0 + 3.0 * 5.0;
+pub const FLOPS_PER_PIXEL: f64 = 8.0 + 3.0 * 5.0;
 
 /// One direction of the filter on a frame: its output colour and `P₀₀`
 /// after its update (0 where it passed the pixel through).
