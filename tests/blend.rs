@@ -673,11 +673,7 @@ fn a_negative_residual_bound_leaves_the_kernel_output_unchanged() {
 #[test]
 fn the_kernel_mirrors_the_trim_limit() {
     let source = include_str!("../spirv/input_blend.comp");
-    let line = source
-        .lines()
-        .find(|l| l.starts_with("#define BLEND_TRIM_MAX "))
-        .expect("no #define BLEND_TRIM_MAX");
-    let value: usize = line.rsplit(' ').next().unwrap().parse().unwrap();
+    let value: usize = common::shader_define(source, "BLEND_TRIM_MAX");
     assert_eq!(value, BLEND_TRIM_MAX);
 }
 

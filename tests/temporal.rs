@@ -1171,11 +1171,7 @@ fn a_direction_that_met_a_change_caps_the_other() {
     );
     assert!(close(edge, two_way(10.0, 2.0), 1e-12), "{edge}");
     let source = include_str!("../spirv/lp_smooth.comp");
-    let line = source
-        .lines()
-        .find(|l| l.starts_with("#define SMOOTH_SHORT "))
-        .expect("no #define SMOOTH_SHORT");
-    let value: f32 = line.rsplit(' ').next().unwrap().parse().unwrap();
+    let value: f32 = common::shader_define(source, "SMOOTH_SHORT");
     assert_eq!(value, SMOOTH_SHORT);
     // The information of a history without a change: 1, then λa + 1.
     let mut a = 0.0;

@@ -128,6 +128,20 @@ pub fn agreement(gpu: &[f32], cpu: &[f32]) -> f64 {
     eq as f64 / gpu.len().max(1) as f64
 }
 
+/// The value of `#define NAME value` in a shader's source (a kernel's
+/// mirror of a crate constant).
+pub fn shader_define<T: std::str::FromStr>(source: &str, name: &str) -> T
+where
+    T::Err: std::fmt::Debug,
+{
+    let prefix = format!("#define {name} ");
+    let line = source
+        .lines()
+        .find(|l| l.starts_with(&prefix))
+        .unwrap_or_else(|| panic!("no #define {name}"));
+    line[prefix.len()..].trim().parse().unwrap()
+}
+
 /// The precisions every kernel is tested in: f32, and f64 where the device
 /// has it.
 pub fn precisions() -> Vec<Precision> {
