@@ -1182,6 +1182,89 @@ fn a_direction_that_met_a_change_caps_the_other() {
     assert_eq!(full_information(0, 0.98, 1.0), 0.0);
 }
 
+/// SMOOTH-SHORT's frame counts in the facade: each frame `k` of `n` of a
+/// `SequenceDenoiser`'s two-way filter is the twin's combination of the
+/// filter in frame order and the filter over the reversed frames with the
+/// full informations of `k + 1` and `n − k` frames; with the two swapped
+/// some frame differs (the noise makes directions short).
+#[test]
+fn two_way_counts_each_directions_frames() {
+    fn three(i: &RgbImage) -> [&[f32]; 3] {
+        [&i.planes[0][..], &i.planes[1][..], &i.planes[2][..]]
+    }
+    let frames = still_frames("cornell", 24, 4, 6);
+    let n = frames.len();
+    let run = |order: Vec<&StatsImage>| -> Vec<(RgbImage, Vec<f32>)> {
+        let d = temporal_denoiser(Method::None, &frames[0]);
+        order
+            .into_iter()
+            .map(|s| {
+                let f = d.denoise(s, None).unwrap();
+                let p00 = debug(&f, "temporal_p00").to_vec();
+                (f.color, p00)
+            })
+            .collect()
+    };
+    let forward = run(frames.iter().collect());
+    let mut backward = run(frames.iter().rev().collect());
+    backward.reverse();
+    let mut c = Config::new(Method::None);
+    c.temporal = Temporal::LpSmooth;
+    let mut seq = SequenceDenoiser::new(&gpu(), Source::of_image(&frames[0]), c).unwrap();
+    for img in &frames {
+        seq.push(img).unwrap();
+    }
+    let out = seq.finish().unwrap();
+    let full = |m: usize| {
+        full_information(m as u64, TEMPORAL_LAMBDA as f64, TEMPORAL_RESET_P00 as f64) as f32
+    };
+    let mut swapped_differs = false;
+    for k in 0..n {
+        let y = spatial(Method::None, &frames[k]);
+        let combine = |full_forward: f32, full_backward: f32| -> [Vec<f32>; 3] {
+            let p = TwoWayPush {
+                full_forward,
+                full_backward,
+                ..Default::default()
+            };
+            let mut o: [Vec<f32>; 3] = std::array::from_fn(|_| vec![0.0; y.planes[0].len()]);
+            let [r, g, b] = &mut o;
+            smooth_twin::lp_smooth(
+                &p,
+                three(&y),
+                &Direction {
+                    color: three(&forward[k].0),
+                    p00: &forward[k].1,
+                },
+                &Direction {
+                    color: three(&backward[k].0),
+                    p00: &backward[k].1,
+                },
+                [r, g, b],
+            );
+            o
+        };
+        let want = combine(full(k + 1), full(n - k));
+        for c in 0..3 {
+            assert_close(
+                &format!("frame {k} {c}"),
+                &out[k].1.color.planes[c],
+                &want[c],
+                0.99,
+            );
+        }
+        let swapped = combine(full(n - k), full(k + 1));
+        swapped_differs |= (0..3).any(|c| {
+            swapped[c]
+                .iter()
+                .zip(&want[c])
+                .any(|(a, b)| (a - b).abs() > 1e-4 * (1.0 + b.abs()))
+        });
+    }
+    assert!(swapped_differs, "no frame depends on the counts");
+    check_validation(&gpu());
+}
+
 /// The two-way filter in the facade, on a static camera over a static
 /// scene: every frame comes out of `finish`, in order; each is well below
 /// its frame alone's rMSE and, but for the last (where the two are the
