@@ -19,7 +19,7 @@ layout(push_constant) uniform Push {
     uint width;
     uint height;
     uint row0;
-    uint pad;
+    uint pad0;
     float full_forward;
     float full_backward;
     uint pad1;

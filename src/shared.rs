@@ -743,15 +743,16 @@ pub struct TwoWayPush {
     pub height: u32,
     /// First row of the band this dispatch covers.
     pub row0: u32,
-    /// Unused (alignment).
-    pub pad: u32,
+    /// Unused (the block's `pad0`): keeps the two informations in the
+    /// block's second 16 bytes; 0.
+    pub _pad0: u32,
     /// SMOOTH-SHORT: the information `1/P₀₀` the filter in frame order
     /// holds at a pixel that met no change since the sequence began
     /// ([`full_information`] of its frames).
     pub full_forward: f32,
     /// … and the filter in reverse order.
     pub full_backward: f32,
-    /// Unused: rounds the block to 32 bytes; 0.
+    /// Unused (the block's `pad1`, `pad2`): rounds the block to 32 bytes; 0.
     pub _pad: [u32; 2],
 }
 

@@ -497,6 +497,7 @@ pub static INFO: MethodInfo = MethodInfo {
     },
     arena_bytes: registry::no_bytes,
     arena_kept: registry::nothing_kept,
+    options_for: registry::same_options,
     ring_bytes: registry::no_bytes,
     gpu: |a| {
         Ok(Box::new(AosStage {

@@ -551,6 +551,7 @@ pub static INFO: MethodInfo = MethodInfo {
     },
     arena_bytes: registry::no_bytes,
     arena_kept: registry::nothing_kept,
+    options_for: registry::same_options,
     ring_bytes: registry::no_bytes,
     gpu: |a| {
         let params = AprParams::new(&a.config.options)?;

@@ -158,6 +158,7 @@ pub static INFO: MethodInfo = MethodInfo {
     },
     arena_bytes: registry::no_bytes,
     arena_kept: registry::nothing_kept,
+    options_for: for_layers,
     ring_bytes: |c, size| {
         members(&c.options, c.pass)
             .into_iter()
@@ -438,12 +439,10 @@ fn run_cpu(clean: &StatsImage, a: &CpuArgs) -> Result<CpuResult> {
     };
     let methods = members(&a.options, a.pass);
     auto_dis::check_members(methods.len(), None)?;
-    let layers: Vec<Layer> = clean.layers().map(|(l, _)| l).collect();
-    let options = for_layers(&a.options, &layers);
     let mut runs = Vec::with_capacity(methods.len());
     for &m in &methods {
         let a = &CpuArgs {
-            options: member_options(&options, m, a.pass),
+            options: member_options(&a.options, m, a.pass),
             ..a.clone()
         };
         // A member that does not prefilter by default reads the statistics

@@ -309,13 +309,9 @@ impl GpuChain {
         config.temporal.refuse_window()?;
         let layers = input.layers();
         check_layers(config.method, &layers)?;
-        // AUTO-VIS: `auto`'s WLR member reads the visibility when there is one.
-        let config = match config.method {
-            Method::Auto => ChainConfig {
-                options: super::auto::for_layers(&config.options, &layers),
-                ..config
-            },
-            _ => config,
+        let config = ChainConfig {
+            options: (config.method.info().options_for)(&config.options, &layers),
+            ..config
         };
         if let Some(l) = config.temporal.needs().iter().find(|l| !layers.contains(l)) {
             return Err(Error::BadData(format!(

@@ -22,7 +22,7 @@
 use std::sync::Arc;
 
 use super::chain::ChainOutput;
-use super::registry::{CpuResult, GpuStage, MethodInfo, StageRun, REGRESSION_LAYERS};
+use super::registry::{self, CpuResult, GpuStage, MethodInfo, StageRun, REGRESSION_LAYERS};
 use super::sampling::{self, DimSource, SamplingParams};
 use super::stats::GpuStats;
 use super::tiles::Rect;
@@ -656,6 +656,7 @@ pub static INFO: MethodInfo = MethodInfo {
     halo: |_| Ok(reference::lp::RADIUS * (GRANULARITIES.len() + 1)),
     arena_bytes: |_, (w, h)| LpPlanes::scratch_bytes(w * h),
     arena_kept: LpPlanes::kept_bytes,
+    options_for: registry::same_options,
     ring_bytes: |_, (w, h)| LpPlanes::ring_bytes(w, h),
     gpu: |a| {
         Ok(Box::new(LpStage {

@@ -375,6 +375,7 @@ fn denoise_cpu_parts(
         pooled,
     } = clean_cpu(img, req)?;
     let (w, h) = (img.width, img.height);
+    let layers: Vec<crate::image::Layer> = clean.layers().map(|(l, _)| l).collect();
     let registry::CpuResult {
         mut color,
         mut error,
@@ -386,7 +387,7 @@ fn denoise_cpu_parts(
         &clean,
         &registry::CpuArgs {
             pass: req.pass,
-            options: req.options.clone(),
+            options: (req.method.info().options_for)(&req.options, &layers),
             progress: req.progress,
             debug: req.debug,
             prefiltered,

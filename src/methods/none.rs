@@ -45,6 +45,7 @@ pub static INFO: MethodInfo = MethodInfo {
     halo: |_| Ok(0),
     arena_bytes: registry::no_bytes,
     arena_kept: registry::nothing_kept,
+    options_for: registry::same_options,
     ring_bytes: registry::no_bytes,
     gpu: |a| {
         let (w, h) = a.size;

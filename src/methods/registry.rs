@@ -96,6 +96,10 @@ pub struct MethodInfo {
     /// Bytes of its buffers that grow with the width rather than the area
     /// (rings of rows), for the tiler's memory model.
     pub ring_bytes: fn(&ChainConfig, (usize, usize)) -> u64,
+    /// Its options for statistics with these layers: the given ones, or
+    /// what the method makes of them (AUTO-VIS: `auto`'s WLR member drops
+    /// the visibility feature where the statistics have none).
+    pub options_for: fn(&Options, &[Layer]) -> Options,
     /// Allocates its GPU stage.
     pub gpu: fn(&StageArgs) -> Result<Box<dyn GpuStage>>,
     /// Runs it on the CPU (the scalar twins) on sanitised statistics.
@@ -227,6 +231,12 @@ pub struct CpuResult {
 /// that have none.
 pub fn no_bytes(_: &ChainConfig, _: (usize, usize)) -> u64 {
     0
+}
+
+/// A [`MethodInfo::options_for`] for methods whose options do not depend
+/// on the layers.
+pub fn same_options(options: &Options, _: &[Layer]) -> Options {
+    options.clone()
 }
 
 /// A [`MethodInfo::arena_kept`] for methods that keep nothing in the arena.

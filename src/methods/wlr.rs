@@ -617,6 +617,7 @@ pub static INFO: MethodInfo = MethodInfo {
     },
     arena_bytes: |c, size| WlrPlanes::scratch_bytes(size, WlrParams::features(&c.options)),
     arena_kept: registry::nothing_kept,
+    options_for: registry::same_options,
     ring_bytes: |c, (w, h)| {
         WlrPlanes::ring_bytes(w, h, c.precision, WlrParams::features(&c.options))
     },
