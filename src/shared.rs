@@ -2,9 +2,10 @@
 //! constants, and the constants and layouts at the end of this module.
 //!
 //! Each is `#[repr(C)]` + [`bytemuck::Pod`] and mirrors one `push_constant`
-//! block in `spirv/` (named in its doc). Sizes and offsets are tested in
-//! `tests/layout.rs`; push-constant sizes are also checked against the SPIR-V
-//! by reflection (`tests/reflect.rs`).
+//! block in `spirv/` (named in its doc). Each kernel's declared push size
+//! is checked against its block's in the SPIR-V by reflection when its
+//! pipeline is made (`gpu::reflect`, `tests/reflect.rs`); member offsets
+//! are not checked: both sides follow from the members' order and types.
 
 use bytemuck::{Pod, Zeroable};
 

@@ -102,7 +102,9 @@ pub struct MethodInfo {
     pub options_for: fn(&Options, &[Layer]) -> Options,
     /// Allocates its GPU stage.
     pub gpu: fn(&StageArgs) -> Result<Box<dyn GpuStage>>,
-    /// Runs it on the CPU (the scalar twins) on sanitised statistics.
+    /// Runs it on the CPU (the scalar twins) on sanitised statistics, with
+    /// [`CpuArgs::options`] as [`options_for`](Self::options_for) resolved
+    /// them (the CPU path resolves them before it calls this).
     pub cpu: fn(&StatsImage, &CpuArgs) -> Result<CpuResult>,
 }
 
