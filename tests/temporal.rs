@@ -1015,6 +1015,32 @@ use mcdenoise::reference::lp_smooth::{self as smooth_twin, Direction};
 use mcdenoise::shared::{full_information, TwoWayPush, SMOOTH_SHORT};
 use mcdenoise::{SequenceDenoiser, Smoother};
 
+/// The twin's two-way combination of `forward` and `backward` (each its
+/// colour and `P₀₀`) on a frame whose method output is `y`.
+fn twin_smooth(
+    p: &TwoWayPush,
+    y: [&[f32]; 3],
+    forward: ([&[f32]; 3], &[f32]),
+    backward: ([&[f32]; 3], &[f32]),
+) -> [Vec<f32>; 3] {
+    let mut out: [Vec<f32>; 3] = std::array::from_fn(|_| vec![0.0; y[0].len()]);
+    let [r, g, b] = &mut out;
+    smooth_twin::lp_smooth(
+        p,
+        y,
+        &Direction {
+            color: forward.0,
+            p00: forward.1,
+        },
+        &Direction {
+            color: backward.0,
+            p00: backward.1,
+        },
+        [r, g, b],
+    );
+    out
+}
+
 /// `lp_smooth` against its twin: random colours and `P₀₀` of both
 /// directions, some pixels without state (`P₀₀ = 0`, one direction or
 /// both), where the forward colour is kept.
@@ -1055,23 +1081,7 @@ fn lp_smooth_matches_its_twin() {
                 full_backward,
                 ..Default::default()
             };
-            let mut want: [Vec<f32>; 3] = std::array::from_fn(|_| vec![0.0; n]);
-            {
-                let [r, g, bb] = &mut want;
-                smooth_twin::lp_smooth(
-                    &p,
-                    three(&y),
-                    &Direction {
-                        color: three(&f),
-                        p00: &pf,
-                    },
-                    &Direction {
-                        color: three(&b),
-                        p00: &pb,
-                    },
-                    [r, g, bb],
-                );
-            }
+            let want = twin_smooth(&p, three(&y), (three(&f), &pf), (three(&b), &pb));
             for i in [0, n - 1, n / 2] {
                 assert_eq!(want[0][i], f[0][i], "pixel {i} without state keeps F");
             }
@@ -1189,9 +1199,6 @@ fn a_direction_that_met_a_change_caps_the_other() {
 /// some frame differs (the noise makes directions short).
 #[test]
 fn two_way_counts_each_directions_frames() {
-    fn three(i: &RgbImage) -> [&[f32]; 3] {
-        [&i.planes[0][..], &i.planes[1][..], &i.planes[2][..]]
-    }
     let frames = still_frames("cornell", 24, 4, 6);
     let n = frames.len();
     let run = |order: Vec<&StatsImage>| -> Vec<(RgbImage, Vec<f32>)> {
@@ -1221,28 +1228,18 @@ fn two_way_counts_each_directions_frames() {
     let mut swapped_differs = false;
     for k in 0..n {
         let y = spatial(Method::None, &frames[k]);
-        let combine = |full_forward: f32, full_backward: f32| -> [Vec<f32>; 3] {
+        let combine = |full_forward: f32, full_backward: f32| {
             let p = TwoWayPush {
                 full_forward,
                 full_backward,
                 ..Default::default()
             };
-            let mut o: [Vec<f32>; 3] = std::array::from_fn(|_| vec![0.0; y.planes[0].len()]);
-            let [r, g, b] = &mut o;
-            smooth_twin::lp_smooth(
+            twin_smooth(
                 &p,
-                three(&y),
-                &Direction {
-                    color: three(&forward[k].0),
-                    p00: &forward[k].1,
-                },
-                &Direction {
-                    color: three(&backward[k].0),
-                    p00: &backward[k].1,
-                },
-                [r, g, b],
-            );
-            o
+                y.plane_slices(),
+                (forward[k].0.plane_slices(), &forward[k].1),
+                (backward[k].0.plane_slices(), &backward[k].1),
+            )
         };
         let want = combine(full(k + 1), full(n - k));
         for c in 0..3 {
