@@ -25,6 +25,7 @@ const INTEGER_ONLY: &[&str] = &["sample_reduce", "sample_scan", "render_scan"];
 /// integers, APR-COUNT-CAP); their `_f64` variant is the same code.
 const F32_ONLY: &[&str] = &[
     "render_trace",
+    "render_features",
     "render_rays",
     "render_lights",
     "render_resolve",
@@ -57,7 +58,14 @@ fn every_kernel_matches_its_declaration() {
             } else if decl.name == "lp_reach" || decl.name == "lp_select" {
                 // One row per workgroup row: any range of rows (LP-RING).
                 [64, 1, 1]
-            } else if ["render_trace", "render_scan", "render_resolve"].contains(&decl.name) {
+            } else if [
+                "render_trace",
+                "render_features",
+                "render_scan",
+                "render_resolve",
+            ]
+            .contains(&decl.name)
+            {
                 // One invocation per sample, per block of pixels, per item.
                 [64, 1, 1]
             } else {

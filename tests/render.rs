@@ -9,8 +9,8 @@ use std::collections::BTreeMap;
 
 use mcdenoise::gpu::GpuBuffer;
 use mcdenoise::render::{
-    Albedo, Camera, Material, Object, Ray, Renderer, Samples, Scene, Shape, Texture, Traversal,
-    GRID_WIDTH, RESOLVE_CHUNK,
+    Albedo, Camera, FeatureSamples, Material, Object, Ray, Renderer, Samples, Scene, Shape,
+    Texture, Traversal, GRID_WIDTH, RESOLVE_CHUNK,
 };
 use mcdenoise::{Accumulator, Batch, Config, Denoiser, Layer, Method, Source};
 
@@ -880,6 +880,79 @@ fn a_smooth_mirror_passes_on_the_features_of_what_it_shows() {
         }
         assert_eq!(n, 16 * 16 * 2);
     }
+    check_validation(&ctx);
+}
+
+/// Features from samples of their own (RENDER-FEATURE-SAMPLES): every
+/// sample's colour and the pixel counts are the shared render's, bit for
+/// bit; the features follow a camera path of their own, so at a moving
+/// sphere's blurred edge a sample's albedo no longer tells whether its
+/// colour saw the sphere or the sky; the features keep their expectation;
+/// the render is deterministic.
+#[test]
+fn independent_features_keep_the_colour_and_not_its_noise() {
+    let ctx = gpu();
+    let s = scene(
+        camera([0.0, 0.0, 4.0], [0.0, 0.0, 0.0], 40.0),
+        [1.0; 3],
+        vec![("ball", diffuse([0.6, 0.4, 0.2]))],
+        vec![sphere([0.0, 0.0, 0.0], 0.8, "ball", Some([0.8, 0.0, 0.0]))],
+    );
+    let spp = 32u32;
+    let run = |features| {
+        let r = Renderer::new(&ctx, &s, 16, 16, 7)
+            .unwrap()
+            .with_feature_samples(features);
+        (r.run_pass_debug(spp).unwrap(), r.download().unwrap())
+    };
+    let (shared, shared_planes) = run(FeatureSamples::Shared);
+    let (own, own_planes) = run(FeatureSamples::Independent);
+    let (again, again_planes) = run(FeatureSamples::Independent);
+    assert_planes_eq(&own_planes, &again_planes, "independent features, twice");
+    assert_eq!(own, again);
+    let l = Renderer::new(&ctx, &s, 16, 16, 7).unwrap().layout();
+    for c in 0..3 {
+        for plane in [l.sum_plane(c), l.sumsq_plane(c)] {
+            assert_planes_eq(
+                &own_planes[plane..plane + 1],
+                &shared_planes[plane..plane + 1],
+                "colour",
+            );
+        }
+    }
+    assert_planes_eq(
+        &own_planes[l.count_plane()..],
+        &shared_planes[l.count_plane()..],
+        "count",
+    );
+    // Within-pixel deviations of the colour's red and the albedo's red,
+    // pooled over the pixels: their correlation, and the albedo's mean.
+    let stats = |samples: &[f32]| {
+        let (mut sxy, mut sxx, mut syy, mut mean) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
+        for px in samples.chunks_exact(14 * spp as usize) {
+            let value = |k: usize| px.chunks_exact(14).map(move |v| v[k] as f64);
+            let (mc, ma) = (
+                value(0).sum::<f64>() / spp as f64,
+                value(3).sum::<f64>() / spp as f64,
+            );
+            for (c, a) in value(0).zip(value(3)) {
+                sxy += (c - mc) * (a - ma);
+                sxx += (c - mc) * (c - mc);
+                syy += (a - ma) * (a - ma);
+            }
+            mean += ma / 256.0;
+        }
+        (sxy / (sxx * syy).sqrt(), mean)
+    };
+    let (corr_shared, mean_shared) = stats(&shared);
+    let (corr_own, mean_own) = stats(&own);
+    eprintln!("colour-albedo correlation {corr_shared:.3} shared, {corr_own:.3} independent; mean albedo {mean_shared:.4}, {mean_own:.4}");
+    assert!(corr_shared < -0.5, "shared: correlation {corr_shared}");
+    assert!(corr_own.abs() < 0.1, "independent: correlation {corr_own}");
+    assert!(
+        (mean_shared - mean_own).abs() < 0.01,
+        "mean albedo {mean_shared} against {mean_own}"
+    );
     check_validation(&ctx);
 }
 

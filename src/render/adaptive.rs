@@ -19,7 +19,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Instant;
 
-use super::{Renderer, Samples};
+use super::{FeatureSamples, Renderer, Samples};
 use crate::gpu::GpuBuffer;
 use crate::schedule::INITIAL_SPP;
 use crate::{
@@ -100,6 +100,11 @@ pub struct LoopConfig {
     /// the frame alone does not. Default: the final method's
     /// [`crate::MethodInfo::map_check`].
     pub map_check: bool,
+    /// The features of the renderers the loop makes itself (a sequence's
+    /// frames, [`super::sequence::render_frames`]); a caller that makes its
+    /// own [`Renderer`] chooses with [`Renderer::with_feature_samples`].
+    /// Default: [`FeatureSamples::Shared`].
+    pub feature_samples: FeatureSamples,
 }
 
 impl LoopConfig {
@@ -126,6 +131,7 @@ impl LoopConfig {
             input_blend: InputBlend::Auto,
             coarse_maps: false,
             map_check: method.info().map_check,
+            feature_samples: FeatureSamples::Shared,
         }
         .with_map_method(None)
     }

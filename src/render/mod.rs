@@ -241,6 +241,25 @@ pub const TRACE: KernelDecl = KernelDecl {
     push_size: std::mem::size_of::<TracePush>() as u32,
 };
 
+/// Features from samples of their own (`spirv/render/render_features.comp`,
+/// [`FeatureSamples::Independent`]): one invocation per traced item of a
+/// window, after [`TRACE`].
+pub const FEATURES: KernelDecl = KernelDecl {
+    name: "render_features",
+    bindings: &[
+        SCENE_BINDINGS[0],
+        SCENE_BINDINGS[1],
+        SCENE_BINDINGS[2],
+        SCENE_BINDINGS[3],
+        SCENE_BINDINGS[4],
+        write("items").sized_by_record(),
+        read("normals").sized_by_record(),
+        write("work").sized_by_record(),
+        read("rest").sized_by_record(),
+    ],
+    push_size: std::mem::size_of::<TracePush>() as u32,
+};
+
 /// The items of a pass (`spirv/render/render_scan.comp`): the exclusive
 /// prefix sum of its per-pixel counts and each pixel's count at its start.
 pub const SCAN: KernelDecl = KernelDecl {
@@ -305,7 +324,27 @@ pub const RAYS: KernelDecl = KernelDecl {
 const ACCUM_GROUP: u64 = 8;
 
 /// Every kernel of the renderer (for the reflection test).
-pub const KERNELS: &[&KernelDecl] = &[&TRACE, &RAYS, &LIGHTS, &SCAN, &RESOLVE];
+pub const KERNELS: &[&KernelDecl] = &[&TRACE, &FEATURES, &RAYS, &LIGHTS, &SCAN, &RESOLVE];
+
+/// Which samples a renderer's feature planes (albedo, normal, depth,
+/// position, visibility) average (RENDER-FEATURE-SAMPLES).
+#[derive(Copy, Clone, Debug, Default, PartialEq, Eq)]
+pub enum FeatureSamples {
+    /// The colour's own samples: a sample's features are those of its
+    /// camera path. Where a pixel's coverage is random (edges under motion
+    /// blur, lens blur, sub-pixel geometry) the features then carry the
+    /// colour's noise, and a regression on them keeps it
+    /// (FEATURE-SHARED-NOISE).
+    #[default]
+    Shared,
+    /// Every sample's features from a camera path of its own, with
+    /// independent pixel position, lens point, shutter time and light
+    /// sample: as many feature samples as colour samples, whose noise is
+    /// not the colour's. Costs a camera ray and a shadow ray per sample
+    /// (`render_features`); the colour planes are those of
+    /// [`Shared`](Self::Shared), bit for bit.
+    Independent,
+}
 
 /// How many samples a pass adds per pixel.
 #[derive(Copy, Clone, Debug)]
@@ -372,6 +411,7 @@ pub struct Renderer {
     /// a (low, high) pair of u32 words.
     work: GpuBuffer,
     flops_per_sample: f64,
+    features: FeatureSamples,
 }
 
 /// Traversal work of a renderer's passes since its last clear
@@ -417,6 +457,10 @@ fn flops_per_sample(scene: &GpuScene) -> f64 {
     let per_ray = 20.0 * (4.0 * n.log2() + 8.0) + 30.0 * 8.0;
     RENDER_FLOPS_SCALE * rays * per_ray
 }
+
+/// A feature path's share of a sample's estimated work: a camera ray and a
+/// shadow ray of a path's few vertices of two rays.
+const FEATURE_FLOPS_SHARE: f64 = 0.5;
 
 /// Scale of [`flops_per_sample`]: on lavapipe (2 cores) the Cornell box
 /// takes ~4 µs per sample and the estimate is ~6,500, so a submit of
@@ -487,6 +531,7 @@ impl Renderer {
             dummy: GpuBuffer::from_slice(ctx, "render.dummy", &[0u32; 4])?,
             work: GpuBuffer::from_slice(ctx, "render.work", &[0u32; 4])?,
             flops_per_sample: flops_per_sample(&gs),
+            features: FeatureSamples::Shared,
             scene: gs,
         };
         let mut batch = Batch::new(ctx)?;
@@ -511,6 +556,18 @@ impl Renderer {
     pub fn with_position_origin(mut self, origin: [f32; 3]) -> Renderer {
         self.layout = self.layout.with_position_origin(origin);
         self
+    }
+
+    /// The same renderer with its features from `features`' samples
+    /// ([`FeatureSamples::Shared`] unless set).
+    pub fn with_feature_samples(mut self, features: FeatureSamples) -> Renderer {
+        self.features = features;
+        self
+    }
+
+    /// Which samples the feature planes average.
+    pub fn feature_samples(&self) -> FeatureSamples {
+        self.features
     }
 
     /// The accumulation buffer, as [`Denoiser::record`](crate::Denoiser::record) reads it.
@@ -632,6 +689,17 @@ impl Renderer {
             self.work.slice(),
             self.rest.slice(),
         ];
+        let feature_bindings = [
+            a,
+            b,
+            c,
+            d,
+            e,
+            self.items.slice(),
+            self.normals.slice(),
+            self.work.slice(),
+            self.rest.slice(),
+        ];
         let group = |g: u64| {
             let stride = l.plane_stride();
             self.accum.range(
@@ -670,6 +738,17 @@ impl Renderer {
                 items.div_ceil(GRID_WIDTH),
                 self.flops_per_sample,
             )?;
+            if self.features == FeatureSamples::Independent {
+                batch.dispatch(
+                    &FEATURES,
+                    Precision::F32,
+                    &feature_bindings,
+                    bytemuck::bytes_of(&push),
+                    GRID_WIDTH,
+                    items.div_ceil(GRID_WIDTH),
+                    FEATURE_FLOPS_SHARE * self.flops_per_sample,
+                )?;
+            }
             if let Some(dbg) = debug {
                 let bytes = items as u64 * ITEM_BYTES;
                 batch.copy(

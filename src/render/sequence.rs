@@ -88,7 +88,9 @@ pub fn render_frames(
     for number in frames {
         let at = scene.at_frame(number)?;
         let seed = frame_seed(seed, number);
-        let renderer = Renderer::new(ctx, &at, width, height, seed)?.with_position_origin(origin);
+        let renderer = Renderer::new(ctx, &at, width, height, seed)?
+            .with_position_origin(origin)
+            .with_feature_samples(cfg.feature_samples);
         if temporal == Temporal::Apr {
             let result = adaptive::render_passes(ctx, &renderer, cfg, stop, |_| {})?;
             let stats = renderer.statistics_at(cfg.precision)?;

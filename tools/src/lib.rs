@@ -139,7 +139,8 @@ pub struct SequenceWithReferences {
 }
 
 impl SequenceWithReferences {
-    /// Renders (or reads from the cache) the frames and their references.
+    /// Renders (or reads from the cache) the frames, their features from
+    /// `feature_samples`, and their references.
     pub fn render(
         ctx: &Arc<GpuContext>,
         scene: &Scene,
@@ -147,10 +148,14 @@ impl SequenceWithReferences {
         size: (usize, usize),
         (spp, reference): (u32, u32),
         (seed, reference_seed): (u64, u64),
+        feature_samples: mcdenoise::render::FeatureSamples,
     ) -> mcdenoise::Result<SequenceWithReferences> {
         use mcdenoise::render::{adaptive::LoopConfig, sequence};
         let stop = AtomicBool::new(false);
-        let cfg = LoopConfig::new(Method::None, spp, false);
+        let cfg = LoopConfig {
+            feature_samples,
+            ..LoopConfig::new(Method::None, spp, false)
+        };
         let mut s = SequenceWithReferences {
             stats: Vec::new(),
             refs: Vec::new(),
@@ -170,6 +175,16 @@ impl SequenceWithReferences {
             Ok(())
         })?;
         Ok(s)
+    }
+}
+
+/// The renderer's features: from samples of their own when `independent`
+/// (the tools' `--independent-features`), else the colour's.
+pub fn feature_samples(independent: bool) -> mcdenoise::render::FeatureSamples {
+    if independent {
+        mcdenoise::render::FeatureSamples::Independent
+    } else {
+        mcdenoise::render::FeatureSamples::Shared
     }
 }
 

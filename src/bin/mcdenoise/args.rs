@@ -147,6 +147,26 @@ impl BlendArg {
     }
 }
 
+/// Which samples the rendered features average.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
+pub enum FeatureSamplesArg {
+    /// The colour's own samples.
+    Shared,
+    /// A camera path and a shadow ray of their own per sample: features
+    /// whose noise is not the colour's.
+    Independent,
+}
+
+impl FeatureSamplesArg {
+    /// The renderer's setting.
+    pub fn get(self) -> mcdenoise::render::FeatureSamples {
+        match self {
+            FeatureSamplesArg::Shared => mcdenoise::render::FeatureSamples::Shared,
+            FeatureSamplesArg::Independent => mcdenoise::render::FeatureSamples::Independent,
+        }
+    }
+}
+
 #[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
 pub enum MapCheckArg {
     /// The final method's default: on for lp and apr.

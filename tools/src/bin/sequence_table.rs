@@ -100,6 +100,10 @@ struct Args {
     /// Working folder for OIDN's inputs and outputs.
     #[arg(long, default_value = "target/sequence_table")]
     work: PathBuf,
+    /// The frames' features from samples of their own
+    /// (`render --feature-samples independent`, RENDER-FEATURE-SAMPLES).
+    #[arg(long)]
+    independent_features: bool,
 }
 
 fn main() -> anyhow::Result<()> {
@@ -129,6 +133,7 @@ fn main() -> anyhow::Result<()> {
             a.size,
             (a.spp, a.reference),
             (a.seed, reference_seed),
+            mcdenoise_tools::feature_samples(a.independent_features),
         )?;
         let r: Vec<&RgbImage> = refs.iter().collect();
         // The second reference against the first: twice the references'

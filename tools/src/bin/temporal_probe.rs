@@ -79,6 +79,10 @@ struct Args {
     /// Also OIDN on every frame (`benches/oidn.sh`), in the "alone" column.
     #[arg(long)]
     oidn: bool,
+    /// The frames' features from samples of their own
+    /// (`render --feature-samples independent`, RENDER-FEATURE-SAMPLES).
+    #[arg(long)]
+    independent_features: bool,
 }
 
 const CLASSES: [&str; 5] = ["static", "bright", "changing", "ramp", "recent"];
@@ -101,6 +105,7 @@ fn main() -> anyhow::Result<()> {
         a.size,
         (a.spp, a.reference),
         (a.seed, a.seed),
+        mcdenoise_tools::feature_samples(a.independent_features),
     )?;
     anyhow::ensure!(refs.len() >= 2, "{}: two frames or more", a.scene);
     let (w, h) = a.size;

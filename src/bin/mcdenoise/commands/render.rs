@@ -12,8 +12,8 @@ use mcdenoise::{
 };
 
 use crate::args::{
-    method_parser, parse_size, BlendArg, MapCheckArg, OutliersArg, PrecisionArg, PrefilterArg,
-    PyramidArg, TemporalArg,
+    method_parser, parse_size, BlendArg, FeatureSamplesArg, MapCheckArg, OutliersArg, PrecisionArg,
+    PrefilterArg, PyramidArg, TemporalArg,
 };
 use crate::common::{check_outputs, context, pass_bar, stop_flag};
 use crate::Cli;
@@ -95,6 +95,14 @@ pub struct Args {
     /// `--map-check=on`
     #[arg(long, value_enum, default_value = "auto", num_args = 0..=1, require_equals = true, default_missing_value = "on")]
     map_check: MapCheckArg,
+    /// Which samples the feature planes (albedo, normal, depth, position,
+    /// visibility) average: the colour's own, or a camera path and a
+    /// shadow ray of their own per sample, whose noise is not the colour's
+    /// (decision record RENDER-FEATURE-SAMPLES). Independent features cost
+    /// those two rays per sample and help where a pixel's coverage is
+    /// random: edges under motion blur and lens blur, thin geometry
+    #[arg(long, value_enum, default_value = "shared")]
+    feature_samples: FeatureSamplesArg,
     /// Image size.
     #[arg(long, value_name = "WxH", default_value = "256x256", value_parser = parse_size)]
     size: (usize, usize),
@@ -413,7 +421,8 @@ pub fn run(cli: &Cli, a: &Args) -> anyhow::Result<bool> {
         return render_sequence(cli, a, &ctx, &scene, frames.clone(), &cfg);
     }
     let renderer = Renderer::new(&ctx, &scene, w, h, a.seed)
-        .with_context(|| format!("rendering {w}x{h} pixels"))?;
+        .with_context(|| format!("rendering {w}x{h} pixels"))?
+        .with_feature_samples(cfg.feature_samples);
     // Rendered first, so an open-ended render can report its true error
     // after every pass.
     let reference = match a.reference {
@@ -566,6 +575,7 @@ fn loop_config(a: &Args) -> anyhow::Result<adaptive::LoopConfig> {
         input_blend: a.input_blend.get(),
         coarse_maps: a.coarse_maps,
         map_check: a.map_check.get(base.map_check),
+        feature_samples: a.feature_samples.get(),
         ..base
     })
 }

@@ -1,0 +1,61 @@
+#version 460
+// Features from samples of their own (RENDER-FEATURE-SAMPLES): after
+// render_trace has traced a window, each of its items gets its albedo,
+// normal, depth, position and visibility again from a camera path with
+// independent random numbers (another pixel position, lens point and
+// shutter time, another light sample for the visibility), so that the
+// features' noise is not the colour's. The colour stays the item's own.
+// Traces the camera ray through smooth mirrors to the first other surface
+// and, there, the visibility's shadow ray (render_path.glsl with
+// FEATURES_ONLY). Host side: Renderer::record in src/render/mod.rs.
+#include "render/render_scene.glsl"
+
+layout(local_size_x = 64) in;
+
+// Mirrors mcdenoise::render::TracePush (uniform_spp unused).
+layout(push_constant) uniform Push {
+    uint width;
+    uint height;
+    uint row0;          // first grid row of the band (Batch::dispatch)
+    uint item0;         // the window's first item (of the pass)
+    uint items;         // items in the window
+    uint seed_lo;
+    uint seed_hi;
+    uint uniform_spp;
+} push;
+
+// render_trace's items: the feature values are replaced, the colour, the
+// pixel and the sample index kept.
+layout(std430, set = 0, binding = 5) buffer Items { uvec4 items[]; };
+layout(std430, set = 0, binding = 6) readonly buffer Normals { vec4 vnormals[]; };
+layout(std430, set = 0, binding = 7) buffer Work { uint work[]; };
+layout(std430, set = 0, binding = 8) readonly buffer Rest { vec4 rest[]; };
+
+#define FEATURES_ONLY
+#include "render/render_path.glsl"
+
+// The feature paths' random numbers: the sample's key with this in the
+// seed's high word, a stream apart from every colour path's.
+#define FEATURE_STREAM 0x6a09e667u
+
+void main()
+{
+    uint row_items = gl_NumWorkGroups.x * gl_WorkGroupSize.x;
+    uint j = (push.row0 + gl_GlobalInvocationID.y) * row_items + gl_GlobalInvocationID.x;
+    uint b = 4u * j;
+    if (j < push.items && items[b + 3u].z != NO_PIXEL) {
+        uint pixel = items[b + 3u].z;
+        uvec4 key = uvec4(pixel, items[b + 3u].w, push.seed_hi ^ FEATURE_STREAM, push.seed_lo);
+        vec3 col, alb, nrm, pos;
+        float dep, vis;
+        trace_sample(key, uvec2(pixel % push.width, pixel / push.width), col, alb, nrm, dep, pos, vis);
+        items[b].w = floatBitsToUint(alb.r);
+        items[b + 1u] = floatBitsToUint(vec4(alb.gb, nrm.xy));
+        items[b + 2u] = floatBitsToUint(vec4(nrm.z, dep, pos.xy));
+        items[b + 3u].xy = floatBitsToUint(vec2(pos.z, vis));
+    }
+    if (g_rays > 0u) {
+        add_wide(0u, g_rays);
+        add_wide(2u, g_nodes);
+    }
+}
