@@ -24,12 +24,14 @@ layout(push_constant) uniform Push {
     uint uniform_spp;
 } push;
 
+// render_trace's bindings, so that both take one set. Scan is not read.
+layout(std430, set = 0, binding = 5) readonly buffer Scan { uvec2 scan[]; };
 // render_trace's items: the feature values are replaced, the colour, the
 // pixel and the sample index kept.
-layout(std430, set = 0, binding = 5) buffer Items { uvec4 items[]; };
-layout(std430, set = 0, binding = 6) readonly buffer Normals { vec4 vnormals[]; };
-layout(std430, set = 0, binding = 7) buffer Work { uint work[]; };
-layout(std430, set = 0, binding = 8) readonly buffer Rest { vec4 rest[]; };
+layout(std430, set = 0, binding = 6) buffer Items { uvec4 items[]; };
+layout(std430, set = 0, binding = 7) readonly buffer Normals { vec4 vnormals[]; };
+layout(std430, set = 0, binding = 8) buffer Work { uint work[]; };
+layout(std430, set = 0, binding = 9) readonly buffer Rest { vec4 rest[]; };
 
 #define FEATURES_ONLY
 #include "render/render_path.glsl"

@@ -244,19 +244,10 @@ pub const TRACE: KernelDecl = KernelDecl {
 /// Features from samples of their own (`spirv/render/render_features.comp`,
 /// [`FeatureSamples::Independent`]): one invocation per traced item of a
 /// window, after [`TRACE`].
+/// It takes [`TRACE`]'s bindings (it does not read `scan`).
 pub const FEATURES: KernelDecl = KernelDecl {
     name: "render_features",
-    bindings: &[
-        SCENE_BINDINGS[0],
-        SCENE_BINDINGS[1],
-        SCENE_BINDINGS[2],
-        SCENE_BINDINGS[3],
-        SCENE_BINDINGS[4],
-        write("items").sized_by_record(),
-        read("normals").sized_by_record(),
-        write("work").sized_by_record(),
-        read("rest").sized_by_record(),
-    ],
+    bindings: TRACE.bindings,
     push_size: std::mem::size_of::<TracePush>() as u32,
 };
 
@@ -689,17 +680,6 @@ impl Renderer {
             self.work.slice(),
             self.rest.slice(),
         ];
-        let feature_bindings = [
-            a,
-            b,
-            c,
-            d,
-            e,
-            self.items.slice(),
-            self.normals.slice(),
-            self.work.slice(),
-            self.rest.slice(),
-        ];
         let group = |g: u64| {
             let stride = l.plane_stride();
             self.accum.range(
@@ -742,7 +722,7 @@ impl Renderer {
                 batch.dispatch(
                     &FEATURES,
                     Precision::F32,
-                    &feature_bindings,
+                    &trace_bindings,
                     bytemuck::bytes_of(&push),
                     GRID_WIDTH,
                     items.div_ceil(GRID_WIDTH),
