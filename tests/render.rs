@@ -903,14 +903,17 @@ fn independent_features_keep_the_colour_and_not_its_noise() {
         let r = Renderer::new(&ctx, &s, 16, 16, 7)
             .unwrap()
             .with_feature_samples(features);
-        (r.run_pass_debug(spp).unwrap(), r.download().unwrap())
+        (
+            r.run_pass_debug(spp).unwrap(),
+            r.download().unwrap(),
+            r.layout(),
+        )
     };
-    let (shared, shared_planes) = run(FeatureSamples::Shared);
-    let (own, own_planes) = run(FeatureSamples::Independent);
-    let (again, again_planes) = run(FeatureSamples::Independent);
+    let (shared, shared_planes, l) = run(FeatureSamples::Shared);
+    let (own, own_planes, _) = run(FeatureSamples::Independent);
+    let (again, again_planes, _) = run(FeatureSamples::Independent);
     assert_planes_eq(&own_planes, &again_planes, "independent features, twice");
     assert_eq!(own, again);
-    let l = Renderer::new(&ctx, &s, 16, 16, 7).unwrap().layout();
     for c in 0..3 {
         for plane in [l.sum_plane(c), l.sumsq_plane(c)] {
             assert_planes_eq(

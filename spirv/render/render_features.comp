@@ -10,29 +10,6 @@
 // FEATURES_ONLY). Host side: Renderer::record in src/render/mod.rs.
 #include "render/render_scene.glsl"
 
-layout(local_size_x = 64) in;
-
-// Mirrors mcdenoise::render::TracePush (uniform_spp unused).
-layout(push_constant) uniform Push {
-    uint width;
-    uint height;
-    uint row0;          // first grid row of the band (Batch::dispatch)
-    uint item0;         // the window's first item (of the pass)
-    uint items;         // items in the window
-    uint seed_lo;
-    uint seed_hi;
-    uint uniform_spp;
-} push;
-
-// render_trace's bindings, so that both take one set. Scan is not read.
-layout(std430, set = 0, binding = 5) readonly buffer Scan { uvec2 scan[]; };
-// render_trace's items: the feature values are replaced, the colour, the
-// pixel and the sample index kept.
-layout(std430, set = 0, binding = 6) buffer Items { uvec4 items[]; };
-layout(std430, set = 0, binding = 7) readonly buffer Normals { vec4 vnormals[]; };
-layout(std430, set = 0, binding = 8) buffer Work { uint work[]; };
-layout(std430, set = 0, binding = 9) readonly buffer Rest { vec4 rest[]; };
-
 #define FEATURES_ONLY
 #include "render/render_path.glsl"
 

@@ -1,11 +1,47 @@
 // The built-in path tracer's shared part: materials, BSDFs, light
 // sampling and one camera path (trace_sample), included by render_trace
 // (the samples) and render_features (features from samples of their own,
-// RENDER-FEATURE-SAMPLES). The including kernel declares, before the
-// include, the scene bindings (render_scene.glsl) and the buffers Items,
-// Normals, Work and Rest. With FEATURES_ONLY defined, trace_sample stops
-// once the features are taken: the camera path up to the first surface
-// that is not a smooth mirror, and the visibility's shadow ray there.
+// RENDER-FEATURE-SAMPLES). The including kernel includes
+// render_scene.glsl (bindings 0-4) first; the workgroup, the push block
+// and bindings 5-9 below are both kernels', so that one descriptor set
+// and one push serve both (render_features does not read Scan). With
+// FEATURES_ONLY defined, trace_sample stops once the features are taken:
+// the camera path up to the first surface that is not a smooth mirror,
+// and the visibility's shadow ray there.
+
+layout(local_size_x = 64) in;
+
+// Mirrors mcdenoise::render::TracePush.
+layout(push_constant) uniform Push {
+    uint width;
+    uint height;
+    uint row0;          // first grid row of the band (Batch::dispatch)
+    uint item0;         // the window's first item (of the pass)
+    uint items;         // items in the window
+    uint seed_lo;
+    uint seed_hi;
+    uint uniform_spp;   // > 0: every pixel has this many samples (no search)
+} push;
+
+// Per pixel: (exclusive prefix of the pass's counts, count plane at the
+// start of the pass); entry width * height holds (total, 0) (render_scan).
+layout(std430, set = 0, binding = 5) readonly buffer Scan { uvec2 scan[]; };
+// Four uvec4 per item of the window: the float bits of the 14 values in
+// AccumLayout channel order (colour, albedo, normal, depth, position,
+// visibility), then the pixel (NO_PIXEL past the pass's samples) and the
+// sample index. Read by render_resolve (and Renderer::run_pass_debug);
+// render_features rewrites the feature values.
+layout(std430, set = 0, binding = 6) buffer Items { uvec4 items[]; };
+// Per-vertex shading normals: three vec4 per entry; a triangle's entry
+// index is in the bits of its p3.w (0xffffffff: flat).
+layout(std430, set = 0, binding = 7) readonly buffer Normals { vec4 vnormals[]; };
+// Traversal counters since the renderer's last reset: rays (low, high
+// word), BVH node visits (low, high word).
+layout(std430, set = 0, binding = 8) buffer Work { uint work[]; };
+// Placements of keyframed objects back to the scene file's: three vec4
+// (the rows of a 3x4 affine map) per entry, entry 0 the identity; a
+// primitive's entry is in bits 16-22 of its p0.w (GpuScene::rest).
+layout(std430, set = 0, binding = 9) readonly buffer Rest { vec4 rest[]; };
 
 // Where the point p_ref of primitive i at shutter time 0 lies in its
 // object's placement as the scene file writes it: the position feature

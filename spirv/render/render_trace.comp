@@ -16,39 +16,6 @@
 // roulette after 3 vertices, environment on a miss.
 #include "render/render_scene.glsl"
 
-layout(local_size_x = 64) in;
-
-// Mirrors mcdenoise::render::TracePush.
-layout(push_constant) uniform Push {
-    uint width;
-    uint height;
-    uint row0;          // first grid row of the band (Batch::dispatch)
-    uint item0;         // the window's first item (of the pass)
-    uint items;         // items in the window
-    uint seed_lo;
-    uint seed_hi;
-    uint uniform_spp;   // > 0: every pixel has this many samples (no search)
-} push;
-
-// Per pixel: (exclusive prefix of the pass's counts, count plane at the
-// start of the pass); entry width * height holds (total, 0) (render_scan).
-layout(std430, set = 0, binding = 5) readonly buffer Scan { uvec2 scan[]; };
-// Four uvec4 per item of the window: the float bits of the 14 values in
-// AccumLayout channel order (colour, albedo, normal, depth, position,
-// visibility), then the pixel (NO_PIXEL past the pass's samples) and the
-// sample index. Read by render_resolve (and Renderer::run_pass_debug).
-layout(std430, set = 0, binding = 6) buffer Items { uvec4 items[]; };
-// Per-vertex shading normals: three vec4 per entry; a triangle's entry
-// index is in the bits of its p3.w (0xffffffff: flat).
-layout(std430, set = 0, binding = 7) readonly buffer Normals { vec4 vnormals[]; };
-// Traversal counters since the renderer's last reset: rays (low, high
-// word), BVH node visits (low, high word).
-layout(std430, set = 0, binding = 8) buffer Work { uint work[]; };
-// Placements of keyframed objects back to the scene file's: three vec4
-// (the rows of a 3x4 affine map) per entry, entry 0 the identity; a
-// primitive's entry is in bits 16-22 of its p0.w (GpuScene::rest).
-layout(std430, set = 0, binding = 9) readonly buffer Rest { vec4 rest[]; };
-
 #include "render/render_path.glsl"
 
 // Traces item j of the window (if it is one of the pass's samples).

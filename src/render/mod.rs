@@ -556,11 +556,6 @@ impl Renderer {
         self
     }
 
-    /// Which samples the feature planes average.
-    pub fn feature_samples(&self) -> FeatureSamples {
-        self.features
-    }
-
     /// The accumulation buffer, as [`Denoiser::record`](crate::Denoiser::record) reads it.
     pub fn accum(&self) -> BufferSlice {
         self.accum.slice()
