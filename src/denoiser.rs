@@ -805,7 +805,7 @@ impl Denoiser {
             debug: out.debug,
             report: chain.report()?,
             timings: Vec::new(),
-            stats: out.stats,
+            stats: crate::methods::Tally::means(&out.stats),
         })
     }
 

@@ -30,7 +30,7 @@ use super::registry::{
 };
 use super::stats::GpuStats;
 use super::tiles::Rect;
-use super::{Method, Pass};
+use super::{Method, Pass, Tally};
 use crate::error::Result;
 use crate::gpu::{Batch, BufferSlice, GpuBuffer, GpuContext, PlaneSet};
 use crate::image::{Layer, RgbImage, StatsImage};
@@ -397,8 +397,7 @@ impl GpuStage for AutoStage {
             };
             m.stage.download(stats, size, rect, debug, &mut o)?;
             let name = m.method.name();
-            out.stats
-                .extend(o.stats.into_iter().map(|(k, v)| (format!("{name}.{k}"), v)));
+            out.stats.extend(Tally::prefixed(name, o.stats));
             if debug {
                 out.debug
                     .extend(o.debug.into_iter().map(|(k, v)| (format!("{name}.{k}"), v)));
@@ -461,7 +460,7 @@ fn run_cpu(clean: &StatsImage, a: &CpuArgs) -> Result<CpuResult> {
         let name = m.name();
         result
             .stats
-            .extend(r.stats.iter().map(|(k, v)| (format!("{name}.{k}"), *v)));
+            .extend(Tally::prefixed(name, r.stats.iter().cloned()));
         if a.debug {
             result.debug.extend(
                 r.debug

@@ -1099,6 +1099,7 @@ pub struct ChainOutput {
     pub dim: Vec<f32>,
     /// Named debug planes (when asked).
     pub debug: Vec<(String, Vec<f32>)>,
-    /// Named scalar statistics (LP: `centre_fraction`, `centre_flops`, `covering`, [`crate::methods::lp::Census`]).
-    pub stats: Vec<(String, f64)>,
+    /// Scalar statistics over the pixels downloaded (LP: `centre_fraction`,
+    /// `centre_flops`, `covering`, [`crate::methods::lp::Census`]).
+    pub stats: Vec<super::Tally>,
 }

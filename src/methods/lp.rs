@@ -26,7 +26,7 @@ use super::registry::{self, CpuResult, GpuStage, MethodInfo, StageRun, REGRESSIO
 use super::sampling::{self, DimSource, SamplingParams};
 use super::stats::GpuStats;
 use super::tiles::Rect;
-use super::Method;
+use super::{Method, Tally};
 use crate::error::{Error, Result};
 use crate::gpu::{plane_stride, Batch, BufferSlice, GpuBuffer, GpuContext, PlaneSet, Precision};
 use crate::image::{Layer, RgbImage, StatsImage};
@@ -435,16 +435,24 @@ impl Census {
         self.covered += (clipped_span(x, ro, w) * clipped_span(y, ro, h)) as f64;
     }
 
-    /// Per pixel of the rectangle: `centre_fraction` (centres),
-    /// `centre_flops` (their fits' work) and `covering` (centres covering a
-    /// pixel, on average). A tiled run weights each tile's by its pixels.
-    pub fn stats(&self) -> Vec<(String, f64)> {
-        let n = (self.rect.width() * self.rect.height()).max(1) as f64;
-        vec![
-            ("centre_fraction".into(), self.centres as f64 / n),
-            ("centre_flops".into(), self.centre_flops / n),
-            ("covering".into(), self.covered / n),
+    /// Over the rectangle's pixels: `centre_fraction` (centres),
+    /// `centre_flops` (their fits' work) and `covering` (the pixels their
+    /// squares cover; per pixel, the centres covering it on average). Each
+    /// sum is a whole number, so a tiled run's equals the whole run's.
+    pub fn stats(&self) -> Vec<Tally> {
+        let pixels = self.rect.width() * self.rect.height();
+        [
+            ("centre_fraction", self.centres as f64),
+            ("centre_flops", self.centre_flops),
+            ("covering", self.covered),
         ]
+        .into_iter()
+        .map(|(name, sum)| Tally {
+            name: name.into(),
+            sum,
+            pixels,
+        })
+        .collect()
     }
 }
 

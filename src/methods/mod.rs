@@ -226,6 +226,54 @@ impl DenoiseRequest {
     }
 }
 
+/// A scalar statistic of a run over the pixels it counts (LP's
+/// [`lp::Census`]): its value per pixel is `sum / pixels`. A tiled run adds
+/// its tiles' sums and pixels and divides once, so it equals the whole
+/// run's exactly where the sums are whole numbers (below 2⁵³).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Tally {
+    /// The statistic's name.
+    pub name: String,
+    /// Σ over the counted pixels.
+    pub sum: f64,
+    /// The pixels counted.
+    pub pixels: usize,
+}
+
+impl Tally {
+    /// `tallies`' names prefixed with `prefix` and a dot (`auto`'s members).
+    pub fn prefixed(prefix: &str, tallies: impl IntoIterator<Item = Tally>) -> Vec<Tally> {
+        tallies
+            .into_iter()
+            .map(|t| Tally {
+                name: format!("{prefix}.{}", t.name),
+                ..t
+            })
+            .collect()
+    }
+
+    /// Adds `more` into `into`, statistic by statistic (sums and pixels).
+    pub fn merge(into: &mut Vec<Tally>, more: impl IntoIterator<Item = Tally>) {
+        for t in more {
+            match into.iter_mut().find(|s| s.name == t.name) {
+                Some(s) => {
+                    s.sum += t.sum;
+                    s.pixels += t.pixels;
+                }
+                None => into.push(t),
+            }
+        }
+    }
+
+    /// Each statistic per pixel, by name (0 over no pixels).
+    pub fn means(tallies: &[Tally]) -> Vec<(String, f64)> {
+        tallies
+            .iter()
+            .map(|t| (t.name.clone(), t.sum / t.pixels.max(1) as f64))
+            .collect()
+    }
+}
+
 /// What a method returns.
 #[derive(Clone, Debug)]
 pub struct DenoiseOutput {
@@ -342,7 +390,7 @@ pub fn run_uploaded(
         debug: out.debug,
         report,
         timings,
-        stats: out.stats,
+        stats: Tally::means(&out.stats),
     })
 }
 
@@ -443,7 +491,7 @@ fn denoise_cpu_parts(
         debug,
         report,
         timings: Vec::new(),
-        stats,
+        stats: Tally::means(&stats),
     };
     Ok((out, map_e))
 }

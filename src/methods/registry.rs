@@ -223,8 +223,8 @@ pub struct CpuResult {
     pub dim: Vec<f32>,
     /// Named debug planes (empty unless asked).
     pub debug: Vec<(String, Vec<f32>)>,
-    /// Named run statistics.
-    pub stats: Vec<(String, f64)>,
+    /// Scalar statistics of the run.
+    pub stats: Vec<super::Tally>,
     /// What the sample map reads as `E` when it is not `error`.
     pub map_error: Option<RgbImage>,
 }

@@ -79,7 +79,7 @@ use crate::reference;
 
 use super::chain::{prefilter_runs, ChainConfig, ChainInput, GpuChain, ImageTotals, Placement};
 use super::sampling::{self, SamplingParams, SamplingPlanes};
-use super::{prepare, DenoiseOutput, Method, ProgressCallback};
+use super::{prepare, DenoiseOutput, Method, ProgressCallback, Tally};
 
 /// A rectangle of pixels `[x0, x1) × [y0, y1)`.
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -631,8 +631,8 @@ impl TiledChain {
         let mut debug_planes: Vec<(String, Vec<f32>)> = Vec::new();
         let mut report = prepare::base_report(img);
         let mut timings: Vec<KernelTiming> = Vec::new();
-        // Per-pixel statistics (LP's census), summed over the tiles' pixels.
-        let mut sums: Vec<(String, f64)> = Vec::new();
+        // The run's statistics (LP's census): the tiles' sums and pixels.
+        let mut sums: Vec<Tally> = Vec::new();
         // The sanitised (and prefiltered) statistics of every tile's interior.
         let mut clean: Option<StatsImage> = None;
         // Group the tiles by outer size: one chain per size, one at a time.
@@ -705,13 +705,7 @@ impl TiledChain {
                     };
                     paste(&mut debug_planes[slot].1, w, plane, t.inner);
                 }
-                for (name, v) in &out.stats {
-                    let add = v * t.inner.pixels() as f64;
-                    match sums.iter_mut().find(|(n, _)| n == name) {
-                        Some((_, s)) => *s += add,
-                        None => sums.push((name.clone(), add)),
-                    }
-                }
+                Tally::merge(&mut sums, out.stats);
                 timings.extend(tile_timings);
                 done += 1;
                 if let Some(p) = progress {
@@ -723,10 +717,7 @@ impl TiledChain {
             (Some(t), Some(r)) => Some(self.allocate(img, &r, t, &mut timings)?),
             _ => None,
         };
-        let stats = sums
-            .into_iter()
-            .map(|(name, s)| (name, s / n.max(1) as f64))
-            .collect();
+        let stats = Tally::means(&sums);
         if self.config.method == Method::None {
             report.timings = timings.clone();
         }
