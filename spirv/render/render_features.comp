@@ -5,8 +5,10 @@
 // independent random numbers (another pixel position, lens point and
 // shutter time, another light sample for the visibility), so that the
 // features' noise is not the colour's. The colour stays the item's own.
-// Traces the camera ray through smooth mirrors to the first other surface
-// and, there, the visibility's shadow ray (render_path.glsl with
+// Traces the camera ray through smooth mirrors to the first other surface,
+// and the visibility's shadow ray at the first surface the camera ray hits
+// unless it is smooth (a mirror or glass takes no light sample; the
+// visibility stays 1), as render_trace takes it (render_path.glsl with
 // FEATURES_ONLY). Host side: Renderer::record in src/render/mod.rs.
 #include "render/render_scene.glsl"
 

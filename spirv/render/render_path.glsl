@@ -7,7 +7,8 @@
 // and one push serve both (render_features does not read Scan). With
 // FEATURES_ONLY defined, trace_sample stops once the features are taken:
 // the camera path up to the first surface that is not a smooth mirror,
-// and the visibility's shadow ray there.
+// and the visibility's shadow ray at the first vertex (none where that is
+// smooth), as the samples take it.
 
 layout(local_size_x = 64) in;
 
