@@ -655,4 +655,31 @@ mod tests {
         assert_eq!(Method::all().next(), Some(Method::None));
         assert_eq!(Method::from_name("nope"), None);
     }
+
+    /// Tiles' tallies add up to the whole image's (names prefixed as
+    /// `auto` prefixes its members'), and their mean is the whole run's
+    /// bit for bit.
+    #[test]
+    fn tallies_of_tiles_are_the_whole_runs() {
+        let tally = |name: &str, sum: f64, pixels: usize| Tally {
+            name: name.into(),
+            sum,
+            pixels,
+        };
+        // 3117 centres over a 1024x16 strip, in tiles of 200, 200, 200, 200, 224 columns.
+        let (centres, widths) = (
+            [611.0, 640.0, 598.0, 603.0, 665.0],
+            [200, 200, 200, 200, 224],
+        );
+        let whole = Tally::means(&[tally("c", centres.iter().sum(), 1024 * 16)]);
+        let mut merged = Vec::new();
+        for (c, w) in centres.iter().zip(widths) {
+            Tally::merge(&mut merged, Tally::prefixed("lp", [tally("c", *c, w * 16)]));
+        }
+        assert_eq!(merged.len(), 1);
+        assert_eq!(merged[0].pixels, 1024 * 16);
+        let tiled = Tally::means(&merged);
+        assert_eq!(tiled[0].0, "lp.c");
+        assert_eq!(tiled[0].1.to_bits(), whole[0].1.to_bits());
+    }
 }
