@@ -990,6 +990,31 @@ fn writes_are_atomic() {
             ]
         );
     }
+
+    // A FIFO, like a device such as /dev/null, is not a file to replace:
+    // it is written in place and stays a FIFO.
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        let fifo = dir.path("pipe");
+        let name = std::ffi::CString::new(fifo.as_os_str().as_encoded_bytes()).unwrap();
+        // SAFETY: `name` is a valid NUL-terminated path that outlives the call.
+        assert_eq!(unsafe { libc::mkfifo(name.as_ptr(), 0o600) }, 0);
+        let reader = {
+            let fifo = fifo.clone();
+            std::thread::spawn(move || std::fs::read(fifo).unwrap())
+        };
+        write_atomic(&fifo, |w| {
+            use std::io::Write;
+            w.write_all(b"through the pipe").unwrap();
+            Ok(())
+        })
+        .unwrap();
+        let kind = std::fs::symlink_metadata(&fifo).unwrap().file_type();
+        assert!(kind.is_fifo(), "the FIFO was replaced: {kind:?}");
+        assert_eq!(reader.join().unwrap(), b"through the pipe");
+        assert!(dir.entries().iter().all(|e| !e.contains(".tmp-")));
+    }
 }
 
 /// The OS error of an [`Error::Io`] for `path`.

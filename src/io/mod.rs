@@ -76,7 +76,8 @@ fn temp_path(path: &Path) -> Result<PathBuf> {
     })
 }
 
-/// The writer [`write_atomic`] hands out: a buffered temporary file.
+/// The writer [`write_atomic`] hands out: a buffered temporary file (or
+/// the device or FIFO that `write_atomic` writes in place).
 /// (Writes go through the test-only fault hook, which can make them fail
 /// like a full disk.)
 pub struct TempFile {
@@ -134,15 +135,29 @@ fn link_target(path: &Path) -> PathBuf {
 ///
 /// A directory that does not exist is not created: that is an error.
 /// Where `path` is a symbolic link, the file it points to is written (the
-/// link stays a link), as a plain write through the link would.
+/// link stays a link), as a plain write through the link would. Where it
+/// is neither a regular file nor a directory (a device such as
+/// `/dev/null`, a FIFO), there is no file to replace: it is opened and
+/// written in place, and stays what it is.
 pub fn write_atomic(path: &Path, write: impl FnOnce(&mut TempFile) -> Result<()>) -> Result<()> {
     let target = link_target(path);
     let path = target.as_path();
-    let tmp = temp_path(path)?;
     let io_err = |source: std::io::Error| Error::Io {
         path: path.to_path_buf(),
         source,
     };
+    let special = fs::metadata(path).is_ok_and(|m| !m.is_file() && !m.is_dir());
+    if special {
+        let file = fault::os(Call::FileCreate)
+            .and_then(|()| OpenOptions::new().write(true).open(path))
+            .map_err(io_err)?;
+        let mut writer = TempFile {
+            inner: BufWriter::new(file),
+        };
+        write(&mut writer)?;
+        return writer.flush().map_err(io_err);
+    }
+    let tmp = temp_path(path)?;
     let file = fault::os(Call::FileCreate)
         .and_then(|()| OpenOptions::new().write(true).create_new(true).open(&tmp))
         .map_err(io_err)?;
