@@ -146,20 +146,18 @@ pub fn write_atomic(path: &Path, write: impl FnOnce(&mut TempFile) -> Result<()>
         path: path.to_path_buf(),
         source,
     };
-    let special = fs::metadata(path).is_ok_and(|m| !m.is_file() && !m.is_dir());
-    if special {
-        let file = fault::os(Call::FileCreate)
-            .and_then(|()| OpenOptions::new().write(true).open(path))
-            .map_err(io_err)?;
-        let mut writer = TempFile {
-            inner: BufWriter::new(file),
-        };
-        write(&mut writer)?;
-        return writer.flush().map_err(io_err);
-    }
-    let tmp = temp_path(path)?;
+    // A device or FIFO has no file to replace: it is written in place.
+    let in_place = fs::metadata(path).is_ok_and(|m| !m.is_file() && !m.is_dir());
+    let tmp = if in_place {
+        None
+    } else {
+        Some(temp_path(path)?)
+    };
     let file = fault::os(Call::FileCreate)
-        .and_then(|()| OpenOptions::new().write(true).create_new(true).open(&tmp))
+        .and_then(|()| match &tmp {
+            Some(tmp) => OpenOptions::new().write(true).create_new(true).open(tmp),
+            None => OpenOptions::new().write(true).open(path),
+        })
         .map_err(io_err)?;
     let result = (|| {
         let mut writer = TempFile {
@@ -167,6 +165,9 @@ pub fn write_atomic(path: &Path, write: impl FnOnce(&mut TempFile) -> Result<()>
         };
         write(&mut writer)?;
         writer.flush().map_err(io_err)?;
+        let Some(tmp) = &tmp else {
+            return Ok(());
+        };
         let file = writer
             .inner
             .into_inner()
@@ -174,12 +175,12 @@ pub fn write_atomic(path: &Path, write: impl FnOnce(&mut TempFile) -> Result<()>
         file.sync_all().map_err(io_err)?;
         drop(file);
         fault::os(Call::FileRename)
-            .and_then(|()| fs::rename(&tmp, path))
+            .and_then(|()| fs::rename(tmp, path))
             .map_err(io_err)
     })();
-    if result.is_err() {
+    if let (Err(_), Some(tmp)) = (&result, &tmp) {
         // Best effort: the temporary file may already be gone.
-        let _ = fs::remove_file(&tmp);
+        let _ = fs::remove_file(tmp);
     }
     result
 }
