@@ -446,7 +446,7 @@ fn run_cpu(clean: &StatsImage, a: &CpuArgs) -> Result<CpuResult> {
         };
         // A member that does not prefilter by default reads the statistics
         // from before the prefilter (AUTO-AOS), as on the GPU.
-        let r = match &a.unfiltered {
+        let mut r = match &a.unfiltered {
             Some(u) if unfiltered(m) => {
                 let args = CpuArgs {
                     prefiltered: false,
@@ -460,7 +460,7 @@ fn run_cpu(clean: &StatsImage, a: &CpuArgs) -> Result<CpuResult> {
         let name = m.name();
         result
             .stats
-            .extend(Tally::prefixed(name, r.stats.iter().cloned()));
+            .extend(Tally::prefixed(name, std::mem::take(&mut r.stats)));
         if a.debug {
             result.debug.extend(
                 r.debug
