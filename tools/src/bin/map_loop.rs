@@ -3,7 +3,12 @@
 //! `plain` hands each pass's WLR the statistics as they are; `medvar`
 //! replaces each pixel's colour variance of the mean by the median over
 //! its 5×5 window of the per-sample variances (`vbar·n`), over its own
-//! count — the map no longer follows one pixel's rare bright sample.
+//! count — the map no longer follows one pixel's rare bright sample;
+//! `loovar:R` the mean over the `(2R+1)²` window without the pixel itself,
+//! `loo:R` the same for the colour mean too; `checker` makes each
+//! checkerboard colour's counts from a map of the image whose pixels of
+//! that colour hold their four neighbours' statistics, so no pixel's
+//! count reads its own samples (two reconstructions per pass).
 //! The final statistics are written as they are; with a second output,
 //! also with each pass's mean weighed by the pass's share of the budget
 //! instead of the pixel's count in it (MAP-DEPENDENCE); `first:out.exr`
@@ -21,7 +26,7 @@ use mcdenoise::{
 };
 
 const USAGE: &str =
-    "usage: map_loop SCENE SIZE SPP SEED plain|medvar[:R] out.exr [[first:]weighted.exr]";
+    "usage: map_loop SCENE SIZE SPP SEED plain|medvar[:R]|loovar[:R]|loo[:R] out.exr [[first:]weighted.exr]";
 
 fn medvar(img: &mut StatsImage, radius: usize) {
     let (w, h) = (img.width, img.height);
@@ -51,6 +56,104 @@ fn medvar(img: &mut StatsImage, radius: usize) {
     }
 }
 
+/// Each pixel's colour variance of the mean replaced by the mean over its
+/// `(2r+1)²` window, itself left out, of the per-sample variances
+/// (`vbar·n`), over its own count; with `colour`, its colour mean too: the
+/// map at a pixel no longer reads the pixel's own samples directly.
+fn loo(img: &mut StatsImage, radius: usize, colour: bool) {
+    let (w, h) = (img.width, img.height);
+    let n: Vec<f32> = img.get(Layer::Spp).unwrap()[0].clone();
+    let layers: &[Layer] = if colour {
+        &[Layer::ColorVariance, Layer::Color]
+    } else {
+        &[Layer::ColorVariance]
+    };
+    for &layer in layers {
+        let per_sample = layer == Layer::ColorVariance;
+        let planes = img.get_mut(layer).unwrap();
+        for p in planes.iter_mut() {
+            let src: Vec<f64> = p
+                .iter()
+                .zip(&n)
+                .map(|(v, &c)| {
+                    if per_sample {
+                        *v as f64 * c.max(1.0) as f64
+                    } else {
+                        *v as f64
+                    }
+                })
+                .collect();
+            for y in 0..h {
+                for x in 0..w {
+                    let (mut sum, mut cnt) = (0.0f64, 0.0f64);
+                    for qy in y.saturating_sub(radius)..(y + radius + 1).min(h) {
+                        for qx in x.saturating_sub(radius)..(x + radius + 1).min(w) {
+                            if (qx, qy) != (x, y) && n[qy * w + qx] >= 1.0 {
+                                sum += src[qy * w + qx];
+                                cnt += 1.0;
+                            }
+                        }
+                    }
+                    if cnt > 0.0 {
+                        let i = y * w + x;
+                        let m = sum / cnt;
+                        p[i] = if per_sample {
+                            m / n[i].max(1.0) as f64
+                        } else {
+                            m
+                        } as f32;
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// `img` with the pixels of one colour of a checkerboard (`(x + y) % 2 ==
+/// parity`) given the mean colour and per-sample variance of their four
+/// edge neighbours (of the other colour), over their own count: a map from
+/// it reads none of those pixels' samples.
+fn checker(img: &StatsImage, parity: usize) -> StatsImage {
+    let mut out = img.clone();
+    let (w, h) = (img.width, img.height);
+    let n: Vec<f32> = img.get(Layer::Spp).unwrap()[0].clone();
+    for layer in [Layer::ColorVariance, Layer::Color] {
+        let per_sample = layer == Layer::ColorVariance;
+        let src = img.get(layer).unwrap().to_vec();
+        let dst = out.get_mut(layer).unwrap();
+        for (p, q) in src.iter().zip(dst.iter_mut()) {
+            for y in 0..h {
+                for x in (0..w).filter(|x| (x + y) % 2 == parity) {
+                    let (mut sum, mut cnt) = (0.0f64, 0.0f64);
+                    let nb = [
+                        (x.wrapping_sub(1), y),
+                        (x + 1, y),
+                        (x, y.wrapping_sub(1)),
+                        (x, y + 1),
+                    ];
+                    for (qx, qy) in nb {
+                        if qx < w && qy < h && n[qy * w + qx] >= 1.0 {
+                            let j = qy * w + qx;
+                            sum += p[j] as f64 * if per_sample { n[j] as f64 } else { 1.0 };
+                            cnt += 1.0;
+                        }
+                    }
+                    if cnt > 0.0 {
+                        let i = y * w + x;
+                        let m = sum / cnt;
+                        q[i] = if per_sample {
+                            m / n[i].max(1.0) as f64
+                        } else {
+                            m
+                        } as f32;
+                    }
+                }
+            }
+        }
+    }
+    out
+}
+
 fn main() -> anyhow::Result<()> {
     if mcdenoise_tools::asked_for_help(USAGE) {
         return Ok(());
@@ -63,9 +166,11 @@ fn main() -> anyhow::Result<()> {
     let size: usize = a[2].parse()?;
     let spp: u32 = a[3].parse()?;
     let seed: u64 = a[4].parse()?;
-    let radius: Option<usize> = match a[5].as_str() {
+    let mode = a[5].split(':').next().unwrap_or_default().to_string();
+    let radius: Option<usize> = match mode.as_str() {
         "plain" => None,
-        m if m.starts_with("medvar") => Some(m.split(':').nth(1).map_or(Ok(2), |r| r.parse())?),
+        "checker" => Some(0),
+        "medvar" | "loovar" | "loo" => Some(a[5].split(':').nth(1).map_or(Ok(2), |r| r.parse())?),
         m => anyhow::bail!("mode {m}"),
     };
     let ctx = Arc::new(GpuContext::new(&ContextOptions {
@@ -109,12 +214,30 @@ fn main() -> anyhow::Result<()> {
     let mut bufs = Vec::new();
     for &budget in &s.budgets {
         let mut img = r.statistics_at(Precision::F32)?;
-        if let Some(rad) = radius {
-            medvar(&mut img, rad);
-        }
-        let d = Denoiser::new(&ctx, Source::of_image(&img), c.clone())?;
-        let f = d.denoise(&img, Some(budget))?;
-        let counts = f.samples.expect("a sample map");
+        let counts = if mode == "checker" {
+            // Each colour's counts from the map of the image whose pixels
+            // of that colour hold their neighbours' statistics.
+            let mut parts = Vec::new();
+            for parity in 0..2 {
+                let im = checker(&img, parity);
+                let d = Denoiser::new(&ctx, Source::of_image(&im), c.clone())?;
+                parts.push(d.denoise(&im, Some(budget))?.samples.expect("a sample map"));
+            }
+            (0..size * size)
+                .map(|i| parts[((i % size) + (i / size)) % 2][i])
+                .collect::<Vec<u32>>()
+        } else {
+            if let Some(rad) = radius {
+                match mode.as_str() {
+                    "medvar" => medvar(&mut img, rad),
+                    m => loo(&mut img, rad, m == "loo"),
+                }
+            }
+            let d = Denoiser::new(&ctx, Source::of_image(&img), c.clone())?;
+            let f = d.denoise(&img, Some(budget))?;
+            f.samples.expect("a sample map")
+        };
+        let budget: u32 = counts.iter().sum();
         bufs.push(GpuBuffer::from_slice(&ctx, "loop.map", &counts)?);
         let mut b = Batch::new(&ctx)?;
         r.record_pass(
