@@ -56,57 +56,68 @@ fn medvar(img: &mut StatsImage, radius: usize) {
     }
 }
 
-/// Each pixel's colour variance of the mean replaced by the mean over its
-/// `(2r+1)²` window, itself left out, of the per-sample variances
-/// (`vbar·n`), over its own count; with `colour`, its colour mean too: the
-/// map at a pixel no longer reads the pixel's own samples directly.
-fn loo(img: &mut StatsImage, radius: usize, colour: bool) {
+/// Each pixel that `pick` gives neighbours (inside the image) gets, in
+/// `layers`, their mean: of the colour means, of the per-sample variances
+/// (`vbar·n`) over its own count. The neighbours' values are read before
+/// any is replaced.
+fn neighbour_means(
+    img: &mut StatsImage,
+    layers: &[Layer],
+    pick: impl Fn(usize, usize) -> Option<Vec<(usize, usize)>>,
+) {
     let (w, h) = (img.width, img.height);
     let n: Vec<f32> = img.get(Layer::Spp).unwrap()[0].clone();
-    let layers: &[Layer] = if colour {
-        &[Layer::ColorVariance, Layer::Color]
-    } else {
-        &[Layer::ColorVariance]
-    };
     for &layer in layers {
         let per_sample = layer == Layer::ColorVariance;
-        let planes = img.get_mut(layer).unwrap();
-        for p in planes.iter_mut() {
+        for p in img.get_mut(layer).unwrap().iter_mut() {
             let src: Vec<f64> = p
                 .iter()
                 .zip(&n)
-                .map(|(v, &c)| {
-                    if per_sample {
-                        *v as f64 * c.max(1.0) as f64
-                    } else {
-                        *v as f64
-                    }
-                })
+                .map(|(&v, &c)| v as f64 * if per_sample { c.max(1.0) as f64 } else { 1.0 })
                 .collect();
             for y in 0..h {
                 for x in 0..w {
-                    let (mut sum, mut cnt) = (0.0f64, 0.0f64);
-                    for qy in y.saturating_sub(radius)..(y + radius + 1).min(h) {
-                        for qx in x.saturating_sub(radius)..(x + radius + 1).min(w) {
-                            if (qx, qy) != (x, y) && n[qy * w + qx] >= 1.0 {
-                                sum += src[qy * w + qx];
-                                cnt += 1.0;
-                            }
-                        }
-                    }
-                    if cnt > 0.0 {
+                    let Some(nb) = pick(x, y) else { continue };
+                    let vals: Vec<f64> = nb
+                        .into_iter()
+                        .filter(|&(qx, qy)| qx < w && qy < h && n[qy * w + qx] >= 1.0)
+                        .map(|(qx, qy)| src[qy * w + qx])
+                        .collect();
+                    if !vals.is_empty() {
                         let i = y * w + x;
-                        let m = sum / cnt;
-                        p[i] = if per_sample {
-                            m / n[i].max(1.0) as f64
+                        let m = vals.iter().sum::<f64>() / vals.len() as f64;
+                        let own = if per_sample {
+                            n[i].max(1.0) as f64
                         } else {
-                            m
-                        } as f32;
+                            1.0
+                        };
+                        p[i] = (m / own) as f32;
                     }
                 }
             }
         }
     }
+}
+
+/// Each pixel's colour variance of the mean replaced by the mean over its
+/// `(2r+1)²` window, itself left out, of the per-sample variances; with
+/// `colour`, its colour mean too: the map at a pixel no longer reads the
+/// pixel's own samples directly.
+fn loo(img: &mut StatsImage, radius: usize, colour: bool) {
+    let layers: &[Layer] = if colour {
+        &[Layer::ColorVariance, Layer::Color]
+    } else {
+        &[Layer::ColorVariance]
+    };
+    neighbour_means(img, layers, |x, y| {
+        let (x0, y0) = (x.saturating_sub(radius), y.saturating_sub(radius));
+        Some(
+            (y0..=y + radius)
+                .flat_map(|qy| (x0..=x + radius).map(move |qx| (qx, qy)))
+                .filter(|&q| q != (x, y))
+                .collect(),
+        )
+    });
 }
 
 /// `img` with the pixels of one colour of a checkerboard (`(x + y) % 2 ==
@@ -115,42 +126,16 @@ fn loo(img: &mut StatsImage, radius: usize, colour: bool) {
 /// it reads none of those pixels' samples.
 fn checker(img: &StatsImage, parity: usize) -> StatsImage {
     let mut out = img.clone();
-    let (w, h) = (img.width, img.height);
-    let n: Vec<f32> = img.get(Layer::Spp).unwrap()[0].clone();
-    for layer in [Layer::ColorVariance, Layer::Color] {
-        let per_sample = layer == Layer::ColorVariance;
-        let src = img.get(layer).unwrap().to_vec();
-        let dst = out.get_mut(layer).unwrap();
-        for (p, q) in src.iter().zip(dst.iter_mut()) {
-            for y in 0..h {
-                for x in (0..w).filter(|x| (x + y) % 2 == parity) {
-                    let (mut sum, mut cnt) = (0.0f64, 0.0f64);
-                    let nb = [
-                        (x.wrapping_sub(1), y),
-                        (x + 1, y),
-                        (x, y.wrapping_sub(1)),
-                        (x, y + 1),
-                    ];
-                    for (qx, qy) in nb {
-                        if qx < w && qy < h && n[qy * w + qx] >= 1.0 {
-                            let j = qy * w + qx;
-                            sum += p[j] as f64 * if per_sample { n[j] as f64 } else { 1.0 };
-                            cnt += 1.0;
-                        }
-                    }
-                    if cnt > 0.0 {
-                        let i = y * w + x;
-                        let m = sum / cnt;
-                        q[i] = if per_sample {
-                            m / n[i].max(1.0) as f64
-                        } else {
-                            m
-                        } as f32;
-                    }
-                }
-            }
-        }
-    }
+    neighbour_means(&mut out, &[Layer::ColorVariance, Layer::Color], |x, y| {
+        ((x + y) % 2 == parity).then(|| {
+            vec![
+                (x.wrapping_sub(1), y),
+                (x + 1, y),
+                (x, y.wrapping_sub(1)),
+                (x, y + 1),
+            ]
+        })
+    });
     out
 }
 
