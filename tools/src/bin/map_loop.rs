@@ -26,7 +26,7 @@ use mcdenoise::{
 };
 
 const USAGE: &str =
-    "usage: map_loop SCENE SIZE SPP SEED plain|medvar[:R]|loovar[:R]|loo[:R] out.exr [[first:]weighted.exr]";
+    "usage: map_loop SCENE SIZE SPP SEED plain|medvar[:R]|loovar[:R]|loo[:R]|checker out.exr [[first:]weighted.exr]";
 
 fn medvar(img: &mut StatsImage, radius: usize) {
     let (w, h) = (img.width, img.height);
