@@ -28,6 +28,16 @@ use mcdenoise::{
 const USAGE: &str =
     "usage: map_loop SCENE SIZE SPP SEED plain|medvar[:R]|loovar[:R]|loo[:R]|checker out.exr [[first:]weighted.exr]";
 
+/// What each pass's map sees (the module's comment).
+#[derive(Clone, Copy)]
+enum Mode {
+    Plain,
+    Medvar(usize),
+    /// The window's radius; whether the colour mean is replaced too.
+    Loo(usize, bool),
+    Checker,
+}
+
 fn medvar(img: &mut StatsImage, radius: usize) {
     let (w, h) = (img.width, img.height);
     let n: Vec<f32> = img.get(Layer::Spp).unwrap()[0].clone();
@@ -151,11 +161,15 @@ fn main() -> anyhow::Result<()> {
     let size: usize = a[2].parse()?;
     let spp: u32 = a[3].parse()?;
     let seed: u64 = a[4].parse()?;
-    let mode = a[5].split(':').next().unwrap_or_default().to_string();
-    let radius: Option<usize> = match mode.as_str() {
-        "plain" => None,
-        "checker" => Some(0),
-        "medvar" | "loovar" | "loo" => Some(a[5].split(':').nth(1).map_or(Ok(2), |r| r.parse())?),
+    let mut parts = a[5].splitn(2, ':');
+    let name = parts.next().unwrap_or_default();
+    let mut radius = || parts.next().map_or(Ok(2), str::parse::<usize>);
+    let mode = match name {
+        "plain" => Mode::Plain,
+        "medvar" => Mode::Medvar(radius()?),
+        "loovar" => Mode::Loo(radius()?, false),
+        "loo" => Mode::Loo(radius()?, true),
+        "checker" => Mode::Checker,
         m => anyhow::bail!("mode {m}"),
     };
     let ctx = Arc::new(GpuContext::new(&ContextOptions {
@@ -199,28 +213,28 @@ fn main() -> anyhow::Result<()> {
     let mut bufs = Vec::new();
     for &budget in &s.budgets {
         let mut img = r.statistics_at(Precision::F32)?;
-        let counts = if mode == "checker" {
-            // Each colour's counts from the map of the image whose pixels
-            // of that colour hold their neighbours' statistics.
-            let mut parts = Vec::new();
-            for parity in 0..2 {
-                let im = checker(&img, parity);
-                let d = Denoiser::new(&ctx, Source::of_image(&im), c.clone())?;
-                parts.push(d.denoise(&im, Some(budget))?.samples.expect("a sample map"));
+        let map_of = |im: &StatsImage| -> anyhow::Result<Vec<u32>> {
+            let d = Denoiser::new(&ctx, Source::of_image(im), c.clone())?;
+            Ok(d.denoise(im, Some(budget))?.samples.expect("a sample map"))
+        };
+        let counts = match mode {
+            Mode::Checker => {
+                // Each colour's counts from the map of the image whose
+                // pixels of that colour hold their neighbours' statistics.
+                let parts = [map_of(&checker(&img, 0))?, map_of(&checker(&img, 1))?];
+                (0..size * size)
+                    .map(|i| parts[((i % size) + (i / size)) % 2][i])
+                    .collect()
             }
-            (0..size * size)
-                .map(|i| parts[((i % size) + (i / size)) % 2][i])
-                .collect::<Vec<u32>>()
-        } else {
-            if let Some(rad) = radius {
-                match mode.as_str() {
-                    "medvar" => medvar(&mut img, rad),
-                    m => loo(&mut img, rad, m == "loo"),
-                }
+            Mode::Medvar(rad) => {
+                medvar(&mut img, rad);
+                map_of(&img)?
             }
-            let d = Denoiser::new(&ctx, Source::of_image(&img), c.clone())?;
-            let f = d.denoise(&img, Some(budget))?;
-            f.samples.expect("a sample map")
+            Mode::Loo(rad, colour) => {
+                loo(&mut img, rad, colour);
+                map_of(&img)?
+            }
+            Mode::Plain => map_of(&img)?,
         };
         let budget: u32 = counts.iter().sum();
         bufs.push(GpuBuffer::from_slice(&ctx, "loop.map", &counts)?);
