@@ -201,13 +201,13 @@ pub struct TwoWay {
 }
 
 impl TwoWay {
-    /// Runs `method` (its default configuration with `options`) on
-    /// `stats`, a sequence's frames in order: alone, through the filter,
-    /// and with `two_way` through the two-way filter.
+    /// Runs `method` (its default configuration with `options` and
+    /// `prefilter`) on `stats`, a sequence's frames in order: alone,
+    /// through the filter, and with `two_way` through the two-way filter.
     pub fn run(
         ctx: &Arc<GpuContext>,
         method: Method,
-        options: &mcdenoise::Options,
+        (options, prefilter): (&mcdenoise::Options, mcdenoise::Prefilter),
         stats: &[mcdenoise::StatsImage],
         two_way: bool,
     ) -> anyhow::Result<TwoWay> {
@@ -217,6 +217,7 @@ impl TwoWay {
             let mut c = Config::new(method);
             c.temporal = temporal;
             c.options = options.clone();
+            c.prefilter = prefilter;
             c
         };
         let run = |temporal: Temporal| -> mcdenoise::Result<Vec<RgbImage>> {
