@@ -37,6 +37,17 @@ pub fn parse_method(name: &str) -> Result<Method, String> {
     Method::from_name(name).ok_or_else(|| format!("no method {name:?}"))
 }
 
+/// A G-buffer prefilter by the CLI's names (`render --prefilter`): `auto`,
+/// `gbf` or `none`.
+pub fn parse_prefilter(name: &str) -> Result<mcdenoise::Prefilter, String> {
+    match name {
+        "auto" => Ok(mcdenoise::Prefilter::Auto),
+        "gbf" => Ok(mcdenoise::Prefilter::On),
+        "none" => Ok(mcdenoise::Prefilter::Off),
+        _ => Err(format!("no prefilter {name:?}: auto, gbf or none")),
+    }
+}
+
 /// Runs OIDN 2.5 (`benches/oidn.sh`: albedo and normal, installed on first
 /// use) on `(statistics EXR, output EXR)` pairs, from the repository root.
 pub fn oidn(pairs: &[(PathBuf, PathBuf)]) -> anyhow::Result<()> {
@@ -207,7 +218,8 @@ impl TwoWay {
     pub fn run(
         ctx: &Arc<GpuContext>,
         method: Method,
-        (options, prefilter): (&mcdenoise::Options, mcdenoise::Prefilter),
+        options: &mcdenoise::Options,
+        prefilter: mcdenoise::Prefilter,
         stats: &[mcdenoise::StatsImage],
         two_way: bool,
     ) -> anyhow::Result<TwoWay> {

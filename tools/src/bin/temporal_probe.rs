@@ -30,7 +30,7 @@
 //! cargo run --release -p mcdenoise-tools --bin temporal_probe -- \
 //!     [--scene moving_box] [--methods wlr,auto] [--size 128x128] [--spp 16] \
 //!     [--frames 24] [--reference 512] [--seed 1] [--out target/temporal_probe] [--scale 0.05] \
-//!     [--two-way] [--oidn] [--opt key=value] [--prefilter auto|on|off]
+//!     [--two-way] [--oidn] [--opt key=value] [--prefilter auto|gbf|none]
 //! ```
 
 use std::path::PathBuf;
@@ -40,7 +40,7 @@ use anyhow::Context;
 use clap::Parser;
 use mcdenoise::render::Scene;
 use mcdenoise::{io, metrics, ContextOptions, GpuContext, Method, RgbImage};
-use mcdenoise_tools::{parse_method, SequenceWithReferences, TwoWay};
+use mcdenoise_tools::{parse_method, parse_prefilter, SequenceWithReferences, TwoWay};
 
 #[derive(Parser)]
 struct Args {
@@ -80,7 +80,7 @@ struct Args {
     #[arg(long)]
     oidn: bool,
     /// The G-buffer prefilter (spec §6) of every reconstruction: `auto`
-    /// (each method's default), `on` or `off`.
+    /// (each method's default), `gbf` or `none`, as `render --prefilter`.
     #[arg(long, default_value = "auto", value_parser = parse_prefilter)]
     prefilter: mcdenoise::Prefilter,
     /// The frames' features from samples of their own
@@ -184,7 +184,7 @@ fn main() -> anyhow::Result<()> {
         }
     };
     for &m in &a.methods {
-        let t = TwoWay::run(&ctx, m, (&options, a.prefilter), &stats, a.two_way)?;
+        let t = TwoWay::run(&ctx, m, &options, a.prefilter, &stats, a.two_way)?;
         let mut outputs = vec![t.alone, t.forward];
         if a.two_way {
             outputs.push(t.combined);
@@ -223,15 +223,6 @@ fn main() -> anyhow::Result<()> {
         print("OIDN", &[Tally::new(&images, &refs, &class)?]);
     }
     Ok(())
-}
-
-fn parse_prefilter(s: &str) -> Result<mcdenoise::Prefilter, String> {
-    match s {
-        "auto" => Ok(mcdenoise::Prefilter::Auto),
-        "on" => Ok(mcdenoise::Prefilter::On),
-        "off" => Ok(mcdenoise::Prefilter::Off),
-        _ => Err(format!("{s}: auto, on or off")),
-    }
 }
 
 /// A sequence's rMSE and temporal error against its references, per class
