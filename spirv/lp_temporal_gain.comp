@@ -21,6 +21,7 @@ layout(push_constant) uniform Push {
     float p00;
     float p11;
     float error_scale;
+    float inflate_scale;
 } push;
 
 PLANE_IN(0, yr)

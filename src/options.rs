@@ -244,6 +244,13 @@ pub const OPTIONS: &[OptionSpec] = &[
         help: "an outlier whose grey excess is above this fraction of the grey sum of the reconstruction over its 87x87 window is spread, after the others, over a 431x431 window instead (a rare path whose energy belongs far wider; 0: the spec's single window)",
     },
     OptionSpec {
+        key: "temporal.inflate",
+        kind: Kind::Real(0.01, 100.0),
+        default: "method",
+        section: "§10.1 (TEMPORAL-TEST-SCALE)",
+        help: "the factor on the method's error estimate in the temporal filter's colour test, where a history whose prediction misses the frame by more than t3 sqrt(factor E (1 + P00)) weighs less (default: the method's output noise over its estimate relative to WLR's where that is far from 1: 0.17 for LP, 1 for the others)",
+    },
+    OptionSpec {
         key: "sampling.smooth",
         kind: Kind::Real(0.0, 16.0),
         default: "method",

@@ -424,6 +424,8 @@ pub struct Smoother {
     histories: Vec<(u64, bool)>,
     /// The kept frames' error scale ([`FilterRecord::error_scale`]).
     error_scale: f64,
+    /// Their TEMPORAL-TEST-SCALE factor ([`FilterRecord::inflate_scale`]).
+    inflate_scale: f64,
     /// The denoiser's filter frames at the last keep.
     last: Option<u64>,
 }
@@ -462,6 +464,7 @@ impl Smoother {
             kept: PlaneSpill::new("the two-way filter's kept frames")?,
             histories: Vec::new(),
             error_scale: 1.0,
+            inflate_scale: 1.0,
             last: None,
         })
     }
@@ -508,6 +511,7 @@ impl Smoother {
         self.kept.push(planes.map(|p| p.as_slice()))?;
         self.histories.push(record.history);
         self.error_scale = record.error_scale;
+        self.inflate_scale = record.inflate_scale;
         self.last = Some(frames);
         Ok(())
     }
@@ -543,6 +547,7 @@ impl Smoother {
             size: self.size,
             history: self.histories[k],
             error_scale: self.error_scale,
+            inflate_scale: self.inflate_scale,
         };
         Ok((record, RgbImage::from_planes(w, h, color)))
     }

@@ -732,6 +732,10 @@ pub struct TemporalPush {
     /// TEMPORAL-MISREG: the factor the method's error estimate is low by
     /// on average (its `MethodInfo::error_scale`); 0 reads as 1.
     pub error_scale: f32,
+    /// TEMPORAL-TEST-SCALE: the factor on the method's error estimate in
+    /// TEMPORAL-INFLATE's test (its `MethodInfo::inflate_scale`); 0 reads
+    /// as 1.
+    pub inflate_scale: f32,
 }
 
 /// `spirv/lp_smooth.comp`, block `Push` (TEMPORAL-SMOOTH, SMOOTH-SHORT).

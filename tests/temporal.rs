@@ -318,9 +318,12 @@ fn lp_temporal_matches_its_twin() {
                 4 => 0,
                 _ => TEMPORAL_MOTION,
             };
+            // TEMPORAL-TEST-SCALE's factor on odd frames (0 reads as 1).
+            let inflate_scale = if t % 2 == 1 { 0.17 } else { 0.0 };
             let p = TemporalPush {
                 p00,
                 p11,
+                inflate_scale,
                 ..push(w, h, flags)
             };
             let (next, out, source) = twin_frame(&p, &f, &prev);
@@ -438,6 +441,71 @@ fn an_inflated_history_restarts_at_the_step() {
             twin_prev = next;
         }
     }
+    check_validation(&ctx);
+}
+
+/// TEMPORAL-TEST-SCALE: the factor scales the error estimate in
+/// TEMPORAL-INFLATE's test. A still pixel's second frame misses its history
+/// by half the test's threshold: with the factor 1 the history keeps its
+/// weight (the update's gain `P₀₀/(λ + P₀₀)`, about a half), with 0.17 the
+/// miss is 2.9 times the threshold and `P` grows by that ratio, so the
+/// output moves further towards the new frame. GPU (each precision) and
+/// twin.
+#[test]
+fn the_inflate_scale_scales_the_colour_test() {
+    let ctx = gpu();
+    let (w, h) = (4usize, 4usize);
+    let n = w * h;
+    let e = 0.01f32;
+    let t2 = mcdenoise::reference::t_threshold3(16.0).powi(2);
+    // miss² = 0.5 t3² E (1 + P₀₀) with P₀₀ = 1 after the first frame.
+    let d = (0.5 * t2 * e as f64 * 2.0).sqrt() as f32;
+    let frame = |v: f32| Synthetic {
+        w,
+        h,
+        color: std::array::from_fn(|_| vec![v; n]),
+        position: std::array::from_fn(|k| (0..n).map(|i| (i * 3 + k) as f32 * 0.01).collect()),
+        variance: std::array::from_fn(|_| vec![e; n]),
+        error: std::array::from_fn(|_| vec![e; n]),
+        depth: vec![1.0; n],
+        spp: vec![16.0; n],
+    };
+    let gain = |q: f64| {
+        let p = TEMPORAL_RESET_P00 as f64 * q;
+        p / (TEMPORAL_LAMBDA as f64 + p)
+    };
+    for (scale, q) in [(1.0f32, 1.0f64), (0.17, 0.5 / 0.17)] {
+        let want = 1.0 + gain(q) * d as f64;
+        for prec in precisions() {
+            let mut prev = vec![0.0f32; TEMPORAL_STATE * n];
+            let mut twin_prev = prev.clone();
+            for (t, v) in [1.0f32, 1.0 + d].into_iter().enumerate() {
+                let f = frame(v);
+                let flags = if t == 0 {
+                    TEMPORAL_RESET
+                } else {
+                    TEMPORAL_NO_SEARCH
+                };
+                let p = TemporalPush {
+                    inflate_scale: scale,
+                    ..push(w, h, flags)
+                };
+                let (next, out, _) = twin_frame(&p, &f, &twin_prev);
+                let g = gpu_frame(&p, &f, &prev, prec);
+                if t == 1 {
+                    for (who, c) in [("gpu", g[1][5]), ("twin", out[0][5])] {
+                        assert!(
+                            (c as f64 - want).abs() <= 1e-4,
+                            "{prec:?} {who}, factor {scale}: colour {c}, want {want}"
+                        );
+                    }
+                }
+                prev = g[0].clone();
+                twin_prev = next;
+            }
+        }
+    }
+    assert!(gain(0.5 / 0.17) > gain(1.0) + 0.2);
     check_validation(&ctx);
 }
 

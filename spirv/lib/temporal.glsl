@@ -9,7 +9,7 @@
 // previous frame's TEMPORAL_STATE planes: b0 b1 per channel R G B,
 // P00 P01 P11, W X Y Z, valid) and mx my (TEMPORAL-MOTION's offsets,
 // temporal_motion.comp's level 0), and a push block `push` with
-// width, height, flags, lambda, p00, p11 and error_scale.
+// width, height, flags, lambda, p00, p11, error_scale and inflate_scale.
 
 #ifndef MC_TEMPORAL_GLSL
 #define MC_TEMPORAL_GLSL
@@ -325,7 +325,10 @@ int temporal_step(uint x, uint y, out real2 b[3], out real3 p, out int off)
     if (still) {
         rim_miss(x, y, n, yi, real3(b[0].x, b[1].x, b[2].x), miss);
     }
-    real3 ratio = (miss * miss) / (t2 * ei * (real(1) + p.x) + real3(1e-12));
+    // TEMPORAL-TEST-SCALE: E times the method's factor, its output's noise over
+    // its estimate relative to WLR's, on which the threshold was set.
+    real tscale = push.inflate_scale > 0.0 ? real(push.inflate_scale) : real(1);
+    real3 ratio = (miss * miss) / (t2 * tscale * ei * (real(1) + p.x) + real3(1e-12));
     p *= max(max(real(1), ratio.x), max(ratio.y, ratio.z));
     real lambda = real(push.lambda);
     real den = lambda + p.x;

@@ -490,6 +490,8 @@ pub static INFO: MethodInfo = MethodInfo {
     error_scale: 4.3,
     // PYRAMID-ERROR-SCALE: error_scale × 2.16.
     pyramid_error_scale: 9.3,
+    // TEMPORAL-TEST-SCALE: WLR's factor (the record has the measured ratio).
+    inflate_scale: 1.0,
     align: 1,
     halo: |c| {
         let r = AosParams::new(c.pass, &c.options)?.radius;

@@ -542,6 +542,8 @@ pub static INFO: MethodInfo = MethodInfo {
     error_scale: 2.5,
     // PYRAMID-ERROR-SCALE: error_scale × 2.06.
     pyramid_error_scale: 5.2,
+    // TEMPORAL-TEST-SCALE: WLR's factor (the record has the measured ratio).
+    inflate_scale: 1.0,
     // The sparse centres lie every RADIUS pixels (§4.3).
     align: RADIUS as usize,
     halo: |c| {

@@ -147,6 +147,8 @@ pub static INFO: MethodInfo = MethodInfo {
     error_scale: 2.5,
     // PYRAMID-ERROR-SCALE: error_scale × 2.07.
     pyramid_error_scale: 5.2,
+    // TEMPORAL-TEST-SCALE: WLR's factor (the record has the measured ratio).
+    inflate_scale: 1.0,
     // The least common multiple of the members' (APR's block grid).
     align: super::apr::INFO.align,
     halo: |c| {

@@ -400,7 +400,10 @@ impl GpuChain {
             (Temporal::Apr | Temporal::LpSmooth, _, _) => unreachable!("refused above"),
             (Temporal::Lp, Pass::Final, None) => {
                 let stage = TemporalStage::new(ctx, w, h)?;
-                stage.set_error_scale(config.method.info().error_scale_with(config.pyramid));
+                let info = config.method.info();
+                stage.set_error_scale(info.error_scale_with(config.pyramid));
+                let given = config.options.number::<f64>("temporal.inflate")?;
+                stage.set_inflate_scale(given.unwrap_or(info.inflate_scale));
                 Some(TemporalRole::Filter(Arc::new(stage)))
             }
             (Temporal::Lp, Pass::Intermediate, Some(TemporalState(stage))) => {

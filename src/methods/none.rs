@@ -41,6 +41,8 @@ pub static INFO: MethodInfo = MethodInfo {
     error_scale: 1.0,
     // The pyramid never runs after `none` (it has no low band to take).
     pyramid_error_scale: 1.0,
+    // TEMPORAL-TEST-SCALE: WLR's factor (the record has the measured ratio).
+    inflate_scale: 1.0,
     align: 1,
     halo: |_| Ok(0),
     arena_bytes: registry::no_bytes,

@@ -80,6 +80,13 @@ pub struct MethodInfo {
     /// estimate falls about twice as far as the true error does
     /// (PYRAMID-ERROR-SCALE).
     pub pyramid_error_scale: f64,
+    /// The factor on its error estimate in the temporal filter's colour test
+    /// (TEMPORAL-INFLATE), in its default configuration: the variance of
+    /// its output between renders of independent seeds over its estimate,
+    /// relative to WLR's, on which the test's threshold was set, where both
+    /// sets of scenes measured put that far from 1 (LP); else 1
+    /// (TEMPORAL-TEST-SCALE; `--opt temporal.inflate` in its place).
+    pub inflate_scale: f64,
     /// The multiple of which a tile's first column and row must be so that
     /// its grid keeps the image's phase (1: no grid).
     pub align: usize,

@@ -101,6 +101,9 @@ pub struct TemporalStage {
     /// TEMPORAL-MISREG's correction of the method's error estimate
     /// ([`set_error_scale`](Self::set_error_scale)).
     error_scale: AtomicU32,
+    /// TEMPORAL-TEST-SCALE's factor on the error estimate in TEMPORAL-INFLATE's
+    /// test ([`set_inflate_scale`](Self::set_inflate_scale)).
+    inflate_scale: AtomicU32,
     /// Whether the next recorded frame forgets the history: set at
     /// creation and by [`reset`](Self::reset).
     reset: AtomicBool,
@@ -122,6 +125,7 @@ impl TemporalStage {
             out: PlaneSet::new(ctx, "temporal.out", n, 4)?,
             motion: MotionSearch::new(ctx, (width, height))?,
             error_scale: AtomicU32::new(1.0f32.to_bits()),
+            inflate_scale: AtomicU32::new(1.0f32.to_bits()),
             reset: AtomicBool::new(true),
             frames: AtomicU64::new(0),
             last_reset: AtomicBool::new(false),
@@ -151,6 +155,20 @@ impl TemporalStage {
         f32::from_bits(self.error_scale.load(Ordering::SeqCst)) as f64
     }
 
+    /// The factor on the method's error estimate in TEMPORAL-INFLATE's
+    /// colour test: its output's noise over its estimate, relative to
+    /// WLR's (`MethodInfo::inflate_scale`, TEMPORAL-TEST-SCALE). Default 1,
+    /// WLR's.
+    pub fn set_inflate_scale(&self, scale: f64) {
+        let bits = (scale as f32).to_bits();
+        self.inflate_scale.store(bits, Ordering::SeqCst);
+    }
+
+    /// The factor of [`set_inflate_scale`](Self::set_inflate_scale).
+    pub fn inflate_scale(&self) -> f64 {
+        f32::from_bits(self.inflate_scale.load(Ordering::SeqCst)) as f64
+    }
+
     /// Forgets the history: the next frame reinitialises every pixel (a
     /// cut).
     pub fn reset(&self) {
@@ -172,6 +190,7 @@ impl TemporalStage {
             p00: TEMPORAL_RESET_P00,
             p11: TEMPORAL_RESET_P11,
             error_scale: self.error_scale() as f32,
+            inflate_scale: self.inflate_scale() as f32,
             ..Default::default()
         }
     }
@@ -419,6 +438,9 @@ pub struct FilterRecord {
     pub history: (u64, bool),
     /// The stage's error scale ([`TemporalStage::set_error_scale`]).
     pub error_scale: f64,
+    /// The stage's TEMPORAL-TEST-SCALE factor
+    /// ([`TemporalStage::set_inflate_scale`]).
+    pub inflate_scale: f64,
 }
 
 impl TemporalStage {
@@ -432,6 +454,7 @@ impl TemporalStage {
             size: self.size(),
             history: self.history(),
             error_scale: self.error_scale(),
+            inflate_scale: self.inflate_scale(),
         })
     }
 }
@@ -513,6 +536,7 @@ impl SmoothStage {
             self.backward.reset();
         }
         self.backward.set_error_scale(record.error_scale);
+        self.backward.set_inflate_scale(record.inflate_scale);
         let inp = TemporalIn::from_planes(|k| self.inputs.plane(k));
         let mut batch = Batch::new(&self.ctx)?;
         batch.progress = progress;

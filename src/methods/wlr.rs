@@ -603,6 +603,8 @@ pub static INFO: MethodInfo = MethodInfo {
     error_scale: 6.9,
     // PYRAMID-ERROR-SCALE: error_scale × 2.22.
     pyramid_error_scale: 15.3,
+    // TEMPORAL-TEST-SCALE: the reference the others are measured against.
+    inflate_scale: 1.0,
     align: 1,
     halo: |c| {
         let p = WlrParams::new(c.pass, &c.options)?;

@@ -405,6 +405,12 @@ pub fn step(
     // so the history weighs only as much as that miss allows.
     let found = found.map(|(mut s, offset)| {
         let t2 = super::t_threshold3(super::finalize_stats::spp_of(inp.spp[i])).powi(2);
+        // TEMPORAL-TEST-SCALE: `E` times the method's factor.
+        let tscale = if push.inflate_scale > 0.0 {
+            push.inflate_scale as f64
+        } else {
+            1.0
+        };
         let pred = s.predict();
         let mut miss: [f64; 3] = std::array::from_fn(|c| yi[c] - pred[c]);
         if centre == (0, 0) {
@@ -413,7 +419,7 @@ pub fn step(
         let q = (0..3)
             .map(|c| {
                 let e = inp.error[c][i].max(0.0) as f64;
-                miss[c].powi(2) / (t2 * e * (1.0 + s.p[0]) + 1e-12)
+                miss[c].powi(2) / (t2 * tscale * e * (1.0 + s.p[0]) + 1e-12)
             })
             .fold(1.0f64, f64::max);
         s.p = s.p.map(|v| v * q);
