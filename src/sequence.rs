@@ -17,7 +17,7 @@ use crate::kernels::lp_temporal::INPUT_PLANES;
 use crate::methods::apr::AprParams;
 use crate::methods::apr_window::{AprWindow, WindowConfig};
 use crate::methods::prepare::{base_report, PrepareReport};
-use crate::methods::temporal::{FilterRecord, SmoothStage};
+use crate::methods::temporal::{FilterRecord, SmoothStage, TemporalScales};
 use crate::methods::{InputBlend, Method, Pass, Pyramid, Temporal};
 use crate::spill::PlaneSpill;
 
@@ -422,10 +422,8 @@ pub struct Smoother {
     kept: PlaneSpill,
     /// Each kept frame's [`FilterRecord::history`].
     histories: Vec<(u64, bool)>,
-    /// The kept frames' error scale ([`FilterRecord::error_scale`]).
-    error_scale: f64,
-    /// Their TEMPORAL-TEST-SCALE factor ([`FilterRecord::inflate_scale`]).
-    inflate_scale: f64,
+    /// The kept frames' factors ([`FilterRecord::scales`]).
+    scales: TemporalScales,
     /// The denoiser's filter frames at the last keep.
     last: Option<u64>,
 }
@@ -463,8 +461,7 @@ impl Smoother {
             size,
             kept: PlaneSpill::new("the two-way filter's kept frames")?,
             histories: Vec::new(),
-            error_scale: 1.0,
-            inflate_scale: 1.0,
+            scales: TemporalScales::default(),
             last: None,
         })
     }
@@ -510,8 +507,7 @@ impl Smoother {
             .chain(&color.planes);
         self.kept.push(planes.map(|p| p.as_slice()))?;
         self.histories.push(record.history);
-        self.error_scale = record.error_scale;
-        self.inflate_scale = record.inflate_scale;
+        self.scales = record.scales;
         self.last = Some(frames);
         Ok(())
     }
@@ -546,8 +542,7 @@ impl Smoother {
             p00,
             size: self.size,
             history: self.histories[k],
-            error_scale: self.error_scale,
-            inflate_scale: self.inflate_scale,
+            scales: self.scales,
         };
         Ok((record, RgbImage::from_planes(w, h, color)))
     }

@@ -54,6 +54,9 @@ void load_shifted(uint j, uint n, out real2 b[3], out real3 p, out real3 w)
 
 bool valid_at(uint j, uint n) { return prev[12 * n + j] == 1.0; }
 
+// A push constant's factor on the error estimate: 0 (or less) reads as 1.
+real factor_or_one(float v) { return v > 0.0 ? real(v) : real(1); }
+
 // The intercepts R, G, B of the previous state at (jx, jy), shifted to the
 // current frame; `fallback` where that pixel is outside the image or has no
 // state.
@@ -304,7 +307,7 @@ int temporal_step(uint x, uint y, out real2 b[3], out real3 p, out int off)
                     - intercept_at(best_j.x - 1, best_j.y, n, b0)) * real(0.5);
                 real3 gy = (intercept_at(best_j.x, best_j.y + 1, n, b0)
                     - intercept_at(best_j.x, best_j.y - 1, n, b0)) * real(0.5);
-                real scale = push.error_scale > 0.0 ? real(push.error_scale) : real(1);
+                real scale = factor_or_one(push.error_scale);
                 real3 mis = (gx * gx + gy * gy) / (real(12) * scale * ei + real3(1e-12));
                 p.x += max(mis.x, max(mis.y, mis.z));
                 resample(best_j, wi, real(SUBPIXEL_GATE) * limit, n, b);
@@ -327,7 +330,7 @@ int temporal_step(uint x, uint y, out real2 b[3], out real3 p, out int off)
     }
     // TEMPORAL-TEST-SCALE: E times the method's factor, its output's noise over
     // its estimate relative to WLR's, on which the threshold was set.
-    real tscale = push.inflate_scale > 0.0 ? real(push.inflate_scale) : real(1);
+    real tscale = factor_or_one(push.inflate_scale);
     real3 ratio = (miss * miss) / (t2 * tscale * ei * (real(1) + p.x) + real3(1e-12));
     p *= max(max(real(1), ratio.x), max(ratio.y, ratio.z));
     real lambda = real(push.lambda);

@@ -25,7 +25,7 @@ use super::pyramid::PyramidStage;
 use super::registry::{GpuStage, StageArgs, StageRun};
 use super::sampling::{self, SampleInputs, SamplingParams, SamplingPlanes};
 use super::stats::{self, GpuStats};
-use super::temporal::{FilterRecord, Temporal, TemporalStage, TemporalState};
+use super::temporal::{FilterRecord, Temporal, TemporalScales, TemporalStage, TemporalState};
 use super::tiles::{self, Rect};
 use super::{Method, Pass, Prefilter};
 use crate::kernels::lp_temporal::TemporalIn;
@@ -401,9 +401,11 @@ impl GpuChain {
             (Temporal::Lp, Pass::Final, None) => {
                 let stage = TemporalStage::new(ctx, w, h)?;
                 let info = config.method.info();
-                stage.set_error_scale(info.error_scale_with(config.pyramid));
-                let given = config.options.number::<f64>("temporal.inflate")?;
-                stage.set_inflate_scale(given.unwrap_or(info.inflate_scale));
+                let inflate = config.options.number::<f64>("temporal.inflate")?;
+                stage.set_scales(TemporalScales {
+                    error: info.error_scale_with(config.pyramid) as f32,
+                    inflate: inflate.unwrap_or(info.inflate_scale) as f32,
+                });
                 Some(TemporalRole::Filter(Arc::new(stage)))
             }
             (Temporal::Lp, Pass::Intermediate, Some(TemporalState(stage))) => {

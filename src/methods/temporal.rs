@@ -10,8 +10,8 @@
 //! pixel's surface (TEMPORAL-MOTION, `kernels::temporal_motion`). The paper
 //! applies it to LP; here it follows any method.
 
-use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, Ordering};
-use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, Mutex, PoisonError};
 
 use crate::error::{Error, Result};
 use crate::gpu::{Batch, BufferSlice, GpuContext, KernelTiming, PlaneSet, Precision};
@@ -87,6 +87,28 @@ impl std::fmt::Debug for TemporalState {
     }
 }
 
+/// The factors the filter reads the method's error estimate by.
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct TemporalScales {
+    /// TEMPORAL-MISREG: the factor the estimate is low by on average
+    /// (`MethodInfo::error_scale`, or its `pyramid_error_scale`).
+    pub error: f32,
+    /// TEMPORAL-TEST-SCALE: the factor in TEMPORAL-INFLATE's colour test, the
+    /// method's output noise over its estimate relative to WLR's
+    /// (`MethodInfo::inflate_scale`, `--opt temporal.inflate`).
+    pub inflate: f32,
+}
+
+impl Default for TemporalScales {
+    /// 1 and 1: the estimate as it is, WLR's test.
+    fn default() -> Self {
+        TemporalScales {
+            error: 1.0,
+            inflate: 1.0,
+        }
+    }
+}
+
 /// The filter's state and outputs on the GPU: the state of the last frame
 /// (`prev`), the state being written (`next`, copied to `prev` at the end
 /// of every frame), the filtered colour and the debug plane `source`.
@@ -98,12 +120,9 @@ pub struct TemporalStage {
     /// R, G, B, then `source`.
     out: PlaneSet,
     motion: MotionSearch,
-    /// TEMPORAL-MISREG's correction of the method's error estimate
-    /// ([`set_error_scale`](Self::set_error_scale)).
-    error_scale: AtomicU32,
-    /// TEMPORAL-TEST-SCALE's factor on the error estimate in TEMPORAL-INFLATE's
-    /// test ([`set_inflate_scale`](Self::set_inflate_scale)).
-    inflate_scale: AtomicU32,
+    /// The factors on the method's error estimate
+    /// ([`set_scales`](Self::set_scales)).
+    scales: Mutex<TemporalScales>,
     /// Whether the next recorded frame forgets the history: set at
     /// creation and by [`reset`](Self::reset).
     reset: AtomicBool,
@@ -124,8 +143,7 @@ impl TemporalStage {
             next: PlaneSet::new(ctx, "temporal.next", n, TEMPORAL_STATE)?,
             out: PlaneSet::new(ctx, "temporal.out", n, 4)?,
             motion: MotionSearch::new(ctx, (width, height))?,
-            error_scale: AtomicU32::new(1.0f32.to_bits()),
-            inflate_scale: AtomicU32::new(1.0f32.to_bits()),
+            scales: Mutex::new(TemporalScales::default()),
             reset: AtomicBool::new(true),
             frames: AtomicU64::new(0),
             last_reset: AtomicBool::new(false),
@@ -142,31 +160,15 @@ impl TemporalStage {
         )
     }
 
-    /// The factor the method's error estimate is low by on average
-    /// (`MethodInfo::error_scale`, or its `pyramid_error_scale`), which
-    /// TEMPORAL-MISREG's term corrects the estimate by. Default 1.
-    pub fn set_error_scale(&self, scale: f64) {
-        let bits = (scale as f32).to_bits();
-        self.error_scale.store(bits, Ordering::SeqCst);
+    /// The factors the filter reads the method's error estimate by, for
+    /// the frames recorded from now on (default: 1 and 1).
+    pub fn set_scales(&self, scales: TemporalScales) {
+        *self.scales.lock().unwrap_or_else(PoisonError::into_inner) = scales;
     }
 
-    /// The error scale ([`set_error_scale`](Self::set_error_scale)).
-    pub fn error_scale(&self) -> f64 {
-        f32::from_bits(self.error_scale.load(Ordering::SeqCst)) as f64
-    }
-
-    /// The factor on the method's error estimate in TEMPORAL-INFLATE's
-    /// colour test: its output's noise over its estimate, relative to
-    /// WLR's (`MethodInfo::inflate_scale`, TEMPORAL-TEST-SCALE). Default 1,
-    /// WLR's.
-    pub fn set_inflate_scale(&self, scale: f64) {
-        let bits = (scale as f32).to_bits();
-        self.inflate_scale.store(bits, Ordering::SeqCst);
-    }
-
-    /// The factor of [`set_inflate_scale`](Self::set_inflate_scale).
-    pub fn inflate_scale(&self) -> f64 {
-        f32::from_bits(self.inflate_scale.load(Ordering::SeqCst)) as f64
+    /// The factors of [`set_scales`](Self::set_scales).
+    pub fn scales(&self) -> TemporalScales {
+        *self.scales.lock().unwrap_or_else(PoisonError::into_inner)
     }
 
     /// Forgets the history: the next frame reinitialises every pixel (a
@@ -178,6 +180,7 @@ impl TemporalStage {
     /// The push constants of a frame: with a reset pending, every pixel
     /// restarts; otherwise the windows follow TEMPORAL-MOTION's search.
     fn push(&self, reset: bool) -> TemporalPush {
+        let scales = self.scales();
         TemporalPush {
             width: self.width as u32,
             height: self.height as u32,
@@ -189,8 +192,8 @@ impl TemporalStage {
             lambda: TEMPORAL_LAMBDA,
             p00: TEMPORAL_RESET_P00,
             p11: TEMPORAL_RESET_P11,
-            error_scale: self.error_scale() as f32,
-            inflate_scale: self.inflate_scale() as f32,
+            error_scale: scales.error,
+            inflate_scale: scales.inflate,
             ..Default::default()
         }
     }
@@ -436,11 +439,8 @@ pub struct FilterRecord {
     pub size: (usize, usize),
     /// The stage's [`history`](TemporalStage::history) after the frame.
     pub history: (u64, bool),
-    /// The stage's error scale ([`TemporalStage::set_error_scale`]).
-    pub error_scale: f64,
-    /// The stage's TEMPORAL-TEST-SCALE factor
-    /// ([`TemporalStage::set_inflate_scale`]).
-    pub inflate_scale: f64,
+    /// The stage's factors ([`TemporalStage::set_scales`]).
+    pub scales: TemporalScales,
 }
 
 impl TemporalStage {
@@ -453,8 +453,7 @@ impl TemporalStage {
             p00: read(self.p00())?,
             size: self.size(),
             history: self.history(),
-            error_scale: self.error_scale(),
-            inflate_scale: self.inflate_scale(),
+            scales: self.scales(),
         })
     }
 }
@@ -535,8 +534,7 @@ impl SmoothStage {
         if frames.1 <= 1 {
             self.backward.reset();
         }
-        self.backward.set_error_scale(record.error_scale);
-        self.backward.set_inflate_scale(record.inflate_scale);
+        self.backward.set_scales(record.scales);
         let inp = TemporalIn::from_planes(|k| self.inputs.plane(k));
         let mut batch = Batch::new(&self.ctx)?;
         batch.progress = progress;

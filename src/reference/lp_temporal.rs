@@ -136,6 +136,15 @@ pub struct TemporalInputs<'a> {
     pub error: [&'a [f32]; 3],
 }
 
+/// A push constant's factor on the error estimate: 0 (or less) reads as 1.
+fn factor(v: f32) -> f64 {
+    if v > 0.0 {
+        v as f64
+    } else {
+        1.0
+    }
+}
+
 /// The reprojection of pixel `(x, y)` (§10.1): among the valid previous
 /// states in the 7×7 window centred at `(x, y) + centre` (TEMPORAL-MOTION;
 /// clipped to the image) whose position is within
@@ -388,11 +397,7 @@ pub fn step(
         reproject(prev, (w, h), (x, y), centre, wi, yi, limit).map(|(mut s, (dx, dy))| {
             let j = (x as i32 + centre.0 + dx, y as i32 + centre.1 + dy);
             if centre != (0, 0) && j != (x as i32, y as i32) {
-                let scale = if push.error_scale > 0.0 {
-                    push.error_scale as f64
-                } else {
-                    1.0
-                };
+                let scale = factor(push.error_scale);
                 let ei = inp.error.map(|e| scale * e[i].max(0.0) as f64);
                 s.p[0] += misregistration(prev, (w, h), j, s.predict(), ei);
                 resample(prev, (w, h), j, wi, TEMPORAL_SUBPIXEL_GATE * limit, &mut s);
@@ -406,11 +411,7 @@ pub fn step(
     let found = found.map(|(mut s, offset)| {
         let t2 = super::t_threshold3(super::finalize_stats::spp_of(inp.spp[i])).powi(2);
         // TEMPORAL-TEST-SCALE: `E` times the method's factor.
-        let tscale = if push.inflate_scale > 0.0 {
-            push.inflate_scale as f64
-        } else {
-            1.0
-        };
+        let tscale = factor(push.inflate_scale);
         let pred = s.predict();
         let mut miss: [f64; 3] = std::array::from_fn(|c| yi[c] - pred[c]);
         if centre == (0, 0) {
