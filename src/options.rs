@@ -167,6 +167,13 @@ pub const OPTIONS: &[OptionSpec] = &[
         help: "the interval test takes a pixel with more than twice the image's mean count at the variance it would have with twice the mean (on; matters on adaptive renders), or at its own (off, the spec)",
     },
     OptionSpec {
+        key: "apr.visibility",
+        kind: Kind::Choice(&["filtered", "raw"]),
+        default: "filtered",
+        section: "§4.1 (APR-VIS)",
+        help: "the visibility feature: its 3x3 means, NL-means filtered as WLR-VIS and AOS read it (filtered), or the input's (raw, the spec); a block's fit on the raw visibility passes the colour's direct-light noise to the output",
+    },
+    OptionSpec {
         key: "apr.prefilter",
         kind: Kind::Choice(&["off", "on"]),
         default: "off",

@@ -263,3 +263,70 @@ fn apr_denoises_the_fixture() {
     let s: u64 = f.samples.unwrap().iter().map(|&s| s as u64).sum();
     assert_eq!(s, 4096);
 }
+
+/// APR-VIS: on a flat surface whose colour shares the noise of its
+/// visibility (the same shadow rays), a block's fit on the raw visibility
+/// hands that noise to the output; on the filtered visibility (the
+/// default) it does not. Both backends; `apr.visibility=raw` is the spec.
+#[test]
+fn the_visibility_noise_does_not_pass_into_the_output() {
+    use mcdenoise::image::{Layer, StatsImage};
+    use mcdenoise::options::Options;
+    use mcdenoise::{Config, Denoiser, Method, Source};
+    let (w, h) = (48usize, 48usize);
+    let n = w * h;
+    let mut rng = Rng(5);
+    // Visibility 0.5 ± 0.15 per pixel; colour 0.2 + 0.4 (vis − 0.5), the
+    // truth 0.2 everywhere.
+    let vis: Vec<f32> = (0..n).map(|_| (0.5 + 0.15 * rng.normal()) as f32).collect();
+    let col: Vec<f32> = vis.iter().map(|&v| 0.2 + 0.4 * (v - 0.5)).collect();
+    let mut s = StatsImage::new(w, h);
+    s.set(Layer::Color, vec![col.clone(); 3]);
+    s.set(
+        Layer::ColorVariance,
+        vec![vec![(0.4f32 * 0.15).powi(2); n]; 3],
+    );
+    s.set(
+        Layer::Normal,
+        vec![vec![0.0; n], vec![0.0; n], vec![1.0; n]],
+    );
+    s.set(Layer::NormalVariance, vec![vec![0.0; n]; 3]);
+    s.set(Layer::Albedo, vec![vec![0.5; n]; 3]);
+    s.set(Layer::AlbedoVariance, vec![vec![0.0; n]; 3]);
+    s.set(Layer::Depth, vec![vec![2.0; n]]);
+    s.set(Layer::DepthVariance, vec![vec![0.0; n]]);
+    s.set(Layer::Visibility, vec![vis]);
+    s.set(Layer::VisibilityVariance, vec![vec![0.15f32 * 0.15; n]]);
+    s.set(Layer::Spp, vec![vec![16.0; n]]);
+    let ctx = common::gpu();
+    let mse = |visibility: &str, gpu: bool| {
+        let mut config = Config::new(Method::Apr);
+        config.options = Options::parse(&[format!("apr.visibility={visibility}")]).unwrap();
+        let d = if gpu {
+            Denoiser::new(&ctx, Source::of_image(&s), config)
+        } else {
+            Denoiser::new_cpu(Source::of_image(&s), config)
+        }
+        .unwrap();
+        let out = d.denoise(&s, None).unwrap().color;
+        let e: f64 = out.planes[1]
+            .iter()
+            .map(|&o| (o as f64 - 0.2).powi(2))
+            .sum::<f64>()
+            / n as f64;
+        e
+    };
+    let input: f64 = col.iter().map(|&c| (c as f64 - 0.2).powi(2)).sum::<f64>() / n as f64;
+    for gpu in [false, true] {
+        let (raw, filtered) = (mse("raw", gpu), mse("filtered", gpu));
+        assert!(
+            raw > 0.5 * input,
+            "gpu={gpu}: raw {raw}, input {input}: the fit follows the visibility"
+        );
+        assert!(
+            filtered < 0.1 * raw,
+            "gpu={gpu}: filtered {filtered} against raw {raw}"
+        );
+    }
+    common::check_validation(&ctx);
+}

@@ -160,7 +160,8 @@ fn twin_run_equals_the_reference_channel() {
 /// `apr_block` (sparse and extra mode) and `apr_gather` through
 /// `record_apr`, both precisions, against the twins' run: continuous
 /// outputs within §0.3 on 99 % of the pixels, the extra mask and the chosen
-/// orders equal on 98 %.
+/// orders equal on 98 %. With APR-VIS the twins read the visibility as
+/// `apr::filter_visibility` filters it, the GPU the input's raw one.
 #[test]
 fn gpu_kernels_match_the_twins() {
     use mcdenoise::gpu::Batch;
@@ -169,19 +170,27 @@ fn gpu_kernels_match_the_twins() {
     let ctx = common::gpu();
     // `bands`: a small budget per submit, so that the sparse blocks and the
     // extra blocks' queue (reset per band) run in several bands.
-    for (w, h, vis, clamped, bands, count_cap) in [
-        (45, 38, true, true, false, true),
-        (29, 17, false, true, false, true),
-        (1, 9, true, true, false, true),
-        (45, 38, true, false, false, true),
-        (45, 38, true, true, true, true),
-        (45, 38, true, true, false, false),
+    for (w, h, vis, clamped, bands, count_cap, filtered) in [
+        (45, 38, true, true, false, true, false),
+        (29, 17, false, true, false, true, false),
+        (1, 9, true, true, false, true, false),
+        (45, 38, true, false, false, true, false),
+        (45, 38, true, true, true, true, false),
+        (45, 38, true, true, false, false, false),
+        (45, 38, true, true, false, true, true),
+        (29, 17, false, true, false, true, true),
     ] {
         let mut img = image(w, h, 11, vis);
         img.clamped = clamped;
         img.count_cap = count_cap;
-        let inp: [Inputs; 3] = std::array::from_fn(|ch| img.inputs(ch));
         let gs = GpuStats::upload(&ctx, "apr.test", &stats(&img)).unwrap();
+        if filtered && vis {
+            let zero = vec![0.0; w * h];
+            let [g, _] = apr::filter_visibility(w, h, &img.feats[7], &zero, &img.spp);
+            assert_ne!(g, img.feats[7], "the filter changes the visibility");
+            img.feats[7] = g;
+        }
+        let inp: [Inputs; 3] = std::array::from_fn(|ch| img.inputs(ch));
         for precision in common::precisions() {
             let eps = if precision == mcdenoise::gpu::Precision::F64 {
                 b::EPS
@@ -205,6 +214,7 @@ fn gpu_kernels_match_the_twins() {
                     clamped,
                     pixel_test: img.pixel_test,
                     count_cap,
+                    filter_visibility: filtered,
                 },
                 None,
             )
@@ -212,7 +222,7 @@ fn gpu_kernels_match_the_twins() {
             batch.finish().unwrap();
             let out = planes.out.download_all().unwrap();
             let what = |k: usize| {
-                format!("{w}x{h} {precision:?} clamped={clamped} bands={bands} cap={count_cap} plane {k}")
+                format!("{w}x{h} {precision:?} clamped={clamped} bands={bands} cap={count_cap} filtered={filtered} plane {k}")
             };
             for k in [0, 1, 2, 3, 4, 5, 6] {
                 common::assert_close(&what(k), &out[k], &cpu[k], 0.99);

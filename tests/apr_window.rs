@@ -24,6 +24,8 @@ const PARAMS: AprParams = AprParams {
     clamped: true,
     pixel_test: true,
     count_cap: true,
+    // The window's kernels against the twin's, on the input's visibility.
+    filter_visibility: false,
 };
 
 /// `frames` frames of [`image`] with the same scene and noise of their

@@ -3,7 +3,8 @@
 //! [`crate::reference::apr`]; its features come from the G-buffer prefilter
 //! when that ran (PREFILTER-STACK), else they are the input's, or with
 //! `apr.prefilter=on` APR's own 5×5 polynomial prefilter (§4.6; off by
-//! default, see [`AprParams::prefilter`]).
+//! default, see [`AprParams::prefilter`]). The visibility, when present,
+//! is read as WLR-VIS filters it (APR-VIS, [`AprParams::filter_visibility`]).
 
 use std::sync::Arc;
 
@@ -18,12 +19,12 @@ use crate::gpu::{plane_stride, Batch, BufferSlice, GpuBuffer, GpuContext, PlaneS
 use crate::image::{Layer, RgbImage, StatsImage};
 use crate::kernels::apr_block::{self, AprChannel};
 use crate::kernels::apr_gather::{self, EXTRA_PLANES, OUTPUTS, STAGE_OUTPUTS};
-use crate::kernels::{apr_pack, spp_total};
+use crate::kernels::{aos_nlm, apr_pack, spp_total};
 use crate::options::Options;
 use crate::reference::apr::{self as r, Planes};
 use crate::reference::apr_block::{grid, RADIUS, STATE};
 use crate::reference::spp_of;
-use crate::shared::{AprPush, APR_CLAMPED, APR_COUNT_CAP, APR_PIXEL_TEST, APR_VIS};
+use crate::shared::{AosPush, AprPush, APR_CLAMPED, APR_COUNT_CAP, APR_PIXEL_TEST, APR_VIS};
 
 /// APR's options.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
@@ -46,6 +47,12 @@ pub struct AprParams {
     /// a pixel with more than twice the image's mean count at the variance
     /// it would have with twice the mean (see [`r::test_scale`]).
     pub count_cap: bool,
+    /// `apr.visibility=filtered` (default): APR-VIS, the visibility feature
+    /// is its 3×3 means, NL-means filtered, as WLR-VIS reads it
+    /// ([`filter_visibility`]); `raw`: the input's, as §4.1 reads it. The
+    /// raw mean of a pixel's shadow rays carries the noise of the colour's
+    /// direct light, which a block's fit on it passes to the output.
+    pub filter_visibility: bool,
 }
 
 impl AprParams {
@@ -66,6 +73,7 @@ impl AprParams {
             clamped: opts.get("apr.outlier_weight") == "clamped",
             pixel_test: opts.get("apr.pixel_test") == "on",
             count_cap: opts.get("apr.count_cap") == "on",
+            filter_visibility: opts.get("apr.visibility") == "filtered",
         })
     }
 }
@@ -116,6 +124,22 @@ pub fn features(clean: &StatsImage) -> Result<FeaturePlanes> {
     Ok((f, v))
 }
 
+/// APR-VIS on the CPU: the visibility `g` (variances `gv`) as
+/// [`record_pack`] filters it on the GPU, the `aos_nlm_vis` kernel's twin
+/// ([`crate::reference::aos_nlm::aos_nlm_boxed`]): value and variance.
+pub fn filter_visibility(w: usize, h: usize, g: &[f32], gv: &[f32], spp: &[f32]) -> [Vec<f32>; 2] {
+    let push = AosPush {
+        width: w as u32,
+        height: h as u32,
+        channels: 1,
+        ..Default::default()
+    };
+    let mut out = crate::reference::aos_nlm::aos_nlm_boxed(&push, &[g], &[gv], spp).into_iter();
+    let g = out.next().expect("aos_nlm_boxed gives the value");
+    let gv = out.next().expect("aos_nlm_boxed gives the variance");
+    [g, gv]
+}
+
 /// APR on the CPU. `prefilter_features`: run §4.6 (false when the G-buffer
 /// prefilter already replaced the features).
 pub fn run_cpu(
@@ -136,8 +160,14 @@ pub fn run_cpu(
         .iter()
         .map(|&s| spp_of(s) >= 1.0)
         .collect();
-    let (mut feats, fvar) = features(clean)?;
+    let (mut feats, mut fvar) = features(clean)?;
     let spp = &need(Layer::Spp)?[0];
+    if params.filter_visibility && feats.len() == 8 {
+        let f32s = |p: &[f64]| p.iter().map(|&x| x as f32).collect::<Vec<f32>>();
+        let [g, gv] = filter_visibility(w, h, &f32s(&feats[7]), &f32s(&fvar[7]), spp);
+        feats[7] = g.iter().map(|&x| x as f64).collect();
+        fvar[7] = gv.iter().map(|&x| x as f64).collect();
+    }
     let scales = r::test_scales(spp, params.count_cap);
     if prefilter_features {
         for (f, v) in feats.iter_mut().zip(&fvar) {
@@ -213,6 +243,9 @@ pub struct AprPlanes {
     pub packed: PlaneSet,
     /// The image's sample total ([`spp_total`], APR-COUNT-CAP).
     pub total: GpuBuffer,
+    /// APR-VIS: the filtered visibility and its variance (2 planes), which
+    /// [`record_pack`] packs.
+    pub vis: PlaneSet,
     width: usize,
     height: usize,
 }
@@ -251,6 +284,7 @@ impl AprPlanes {
             out: PlaneSet::new(ctx, "apr.out", n, OUTPUTS)?,
             packed: PlaneSet::new(ctx, "apr.packed", 4 * n, 2)?,
             total: GpuBuffer::new(ctx, "apr.total", 4 * spp_total::WORDS as u64)?,
+            vis: PlaneSet::new(ctx, "apr.vis", n, 2)?,
             width,
             height,
         })
@@ -295,14 +329,36 @@ pub fn gpu_features(clean: &GpuStats) -> ([BufferSlice; 8], bool) {
 }
 
 /// Records `apr_pack` (APR-PACKED): `clean`'s features into the two vec4
-/// planes `out`. Returns whether visibility is present (else its lane is 0).
+/// planes `out`. With `vis_filter` (APR-VIS) the visibility is first
+/// filtered into those two planes (`aos_nlm_vis`: its 3×3 means,
+/// NL-means filtered, as WLR-VIS reads it) and packed from there. Returns
+/// whether visibility is present (else its lane is 0).
 pub fn record_pack(
     batch: &mut Batch,
     precision: Precision,
     clean: &GpuStats,
+    vis_filter: Option<&PlaneSet>,
     out: [BufferSlice; 2],
 ) -> Result<bool> {
-    let (feats, vis) = gpu_features(clean);
+    let (mut feats, vis) = gpu_features(clean);
+    if let (true, Some(scratch)) = (vis, vis_filter) {
+        let (w, h) = (clean.width, clean.height);
+        let push = AosPush {
+            width: w as u32,
+            height: h as u32,
+            channels: 1,
+            stride: (scratch.stride / 4) as u32,
+            ..Default::default()
+        };
+        let planes = [
+            clean.plane(Layer::Visibility, 0),
+            clean.plane(Layer::VisibilityVariance, 0),
+            clean.plane(Layer::Spp, 0),
+        ];
+        let dst = scratch.range(0, scratch.stride + (w * h * 4) as u64);
+        aos_nlm::record_boxed(batch, precision, &push, planes, dst)?;
+        feats[7] = scratch.plane(0);
+    }
     apr_pack::record(
         batch,
         precision,
@@ -366,7 +422,8 @@ pub fn record_apr(
     let sppt = (spp, planes.total.slice());
     // APR-PACKED: the features as 2 vec4 planes, read by every stage.
     let packed = [planes.packed.plane(0), planes.packed.plane(1)];
-    record_pack(batch, precision, clean, packed)?;
+    let vis_filter = params.filter_visibility.then_some(&planes.vis);
+    record_pack(batch, precision, clean, vis_filter, packed)?;
     for stage in 1..=stages {
         let last = stage == stages;
         let prev = (stage >= 2).then(|| &planes.stage[stage % 2]);
@@ -548,8 +605,16 @@ pub static INFO: MethodInfo = MethodInfo {
     align: RADIUS as usize,
     halo: |c| {
         let r = RADIUS as usize;
-        let stages = AprParams::new(&c.options)?.stages.max(1);
-        Ok(r + 2 * r * stages)
+        let params = AprParams::new(&c.options)?;
+        let stages = params.stages.max(1);
+        // APR-VIS: the visibility's 3×3 mean and NL-means reach 1 and
+        // their search and patch radii further.
+        let nlm = if params.filter_visibility {
+            1 + crate::reference::aos::NLM_SEARCH + crate::reference::aos::NLM_PATCH
+        } else {
+            0
+        };
+        Ok(r + 2 * r * stages + nlm)
     },
     arena_bytes: registry::no_bytes,
     arena_kept: registry::nothing_kept,

@@ -172,7 +172,8 @@ impl AprRing {
             );
         }
         batch.copy(clean.plane(Layer::Spp, 0), self.spp.plane(s));
-        self.vis &= record_pack(batch, precision, clean, self.packed_slot(s))?;
+        let vis_filter = self.params.filter_visibility.then_some(&self.apr.vis);
+        self.vis &= record_pack(batch, precision, clean, vis_filter, self.packed_slot(s))?;
         batch.fill(self.sppt_slot(s), 0);
         spp_total::record(
             batch,

@@ -38,7 +38,7 @@
 //! | outlier redistribution (§4.4 step 4) | 86 | `ŷ_final(i)` sums `ρ_o` over `o ∈ Ω_i(43)`, and `ρ_o` sums `ŷ` over `Ω_o(43)` |
 //! | WLR (§2.3) | `R + 3`: 12 final, 8 intermediate | fits over `Ω_c(R)`; `hbar = G_1(h_opt)` (3) |
 //! | LP (§3.5) | `9·(P + 1)` = 54 | pass `t`'s centres depend on the reach of the centres of earlier passes within 9, each fitted over its 19×19 window: `9(t + 1)` for `t < P = 5`; the gather reads the centres within 9 |
-//! | APR (§4.3) | `14 + 28 T` = 70 (T = 2 stages) | a stage's block at `c` reads the previous stage's blend within 14, which reads blocks within 14; the final blend reads blocks within 14 |
+//! | APR (§4.3) | `14 + 28 T + 9` = 79 (T = 2 stages) | a stage's block at `c` reads the previous stage's blend within 14, which reads blocks within 14; the final blend reads blocks within 14; APR-VIS's filtered visibility reads the input within 9 (3×3 mean 1, NL-means search 5 + patch 3) |
 //! | AOS (§5) | `R + 8`: 17 final, 13 intermediate | NL-means search 5 + patch 3, then the window `Ω_c(R)` |
 //! | input blend (INPUT-BLEND), with the method | `max(method + s, r)` | reads the statistics the method read within its variance window `r` (AOS 1, the others 3), and the method's output within its residual window `s` (3, BLEND-RESIDUAL) |
 //! | G-buffer prefilter (§6.2) | 24 (LP: 16) | `S̄ = G_1.5(S)` (5); SURE at `c` uses `S̃` within 3; `hbar = G_1.5(h_opt)` (5); GBF-SECOND's second pass reads the first's output within 3; GBF-NLM's albedo NL-means (not LP's by default) reads the prefilter's output within search 5 + patch 3 |
@@ -57,14 +57,14 @@
 //!
 //! With the defaults (final pass, outlier stage on, prefilter where `auto`
 //! runs it, the input blend after every method but `auto`): WLR 175, LP
-//! 209, APR 242, AOS 159 (no prefilter by default, AOS-NO-GBF; 183 with
+//! 209, APR 251, AOS 159 (no prefilter by default, AOS-NO-GBF; 183 with
 //! `--prefilter gbf`), and `none` 5 (it runs no
 //! outlier stage and no prefilter by default). [`halo`] computes it for any configuration.
 //!
 //! Tiles run without OUTLIER-WIDE (`outliers.wide=0` whatever the
 //! options say): its second spread reads the first's output within 215 px
 //! of each outlier it weighs, which would add 2·215 px to every halo (APR
-//! 242 → 672). A tiled run is bit-identical to a whole run with
+//! 251 → 681). A tiled run is bit-identical to a whole run with
 //! `outliers.wide=0`, and differs from a whole run with the default where
 //! an outlier goes wide.
 
