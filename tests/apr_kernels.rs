@@ -161,7 +161,7 @@ fn twin_run_equals_the_reference_channel() {
 /// `record_apr`, both precisions, against the twins' run: continuous
 /// outputs within §0.3 on 99 % of the pixels, the extra mask and the chosen
 /// orders equal on 98 %. With APR-VIS the twins read the visibility as
-/// `apr::filter_visibility` filters it, the GPU the input's raw one.
+/// `wlr::filter_visibility` filters it, the GPU the input's raw one.
 #[test]
 fn gpu_kernels_match_the_twins() {
     use mcdenoise::gpu::Batch;
@@ -186,7 +186,8 @@ fn gpu_kernels_match_the_twins() {
         let gs = GpuStats::upload(&ctx, "apr.test", &stats(&img)).unwrap();
         if filtered && vis {
             let zero = vec![0.0; w * h];
-            let [g, _] = apr::filter_visibility(w, h, &img.feats[7], &zero, &img.spp);
+            let [g, _] =
+                mcdenoise::methods::wlr::filter_visibility(w, h, &img.feats[7], &zero, &img.spp);
             assert_ne!(g, img.feats[7], "the filter changes the visibility");
             img.feats[7] = g;
         }

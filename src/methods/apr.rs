@@ -19,12 +19,12 @@ use crate::gpu::{plane_stride, Batch, BufferSlice, GpuBuffer, GpuContext, PlaneS
 use crate::image::{Layer, RgbImage, StatsImage};
 use crate::kernels::apr_block::{self, AprChannel};
 use crate::kernels::apr_gather::{self, EXTRA_PLANES, OUTPUTS, STAGE_OUTPUTS};
-use crate::kernels::{aos_nlm, apr_pack, spp_total};
+use crate::kernels::{apr_pack, spp_total};
 use crate::options::Options;
 use crate::reference::apr::{self as r, Planes};
 use crate::reference::apr_block::{grid, RADIUS, STATE};
 use crate::reference::spp_of;
-use crate::shared::{AosPush, AprPush, APR_CLAMPED, APR_COUNT_CAP, APR_PIXEL_TEST, APR_VIS};
+use crate::shared::{AprPush, APR_CLAMPED, APR_COUNT_CAP, APR_PIXEL_TEST, APR_VIS};
 
 /// APR's options.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
@@ -49,9 +49,10 @@ pub struct AprParams {
     pub count_cap: bool,
     /// `apr.visibility=filtered` (default): APR-VIS, the visibility feature
     /// is its 3×3 means, NL-means filtered, as WLR-VIS reads it
-    /// ([`filter_visibility`]); `raw`: the input's, as §4.1 reads it. The
-    /// raw mean of a pixel's shadow rays carries the noise of the colour's
-    /// direct light, which a block's fit on it passes to the output.
+    /// ([`super::wlr::filter_visibility`]); `raw`: the input's, as §4.1
+    /// reads it. The raw mean of a pixel's shadow rays carries the noise of
+    /// the colour's direct light, which a block's fit on it passes to the
+    /// output.
     pub filter_visibility: bool,
 }
 
@@ -124,22 +125,6 @@ pub fn features(clean: &StatsImage) -> Result<FeaturePlanes> {
     Ok((f, v))
 }
 
-/// APR-VIS on the CPU: the visibility `g` (variances `gv`) as
-/// [`record_pack`] filters it on the GPU, the `aos_nlm_vis` kernel's twin
-/// ([`crate::reference::aos_nlm::aos_nlm_boxed`]): value and variance.
-pub fn filter_visibility(w: usize, h: usize, g: &[f32], gv: &[f32], spp: &[f32]) -> [Vec<f32>; 2] {
-    let push = AosPush {
-        width: w as u32,
-        height: h as u32,
-        channels: 1,
-        ..Default::default()
-    };
-    let mut out = crate::reference::aos_nlm::aos_nlm_boxed(&push, &[g], &[gv], spp).into_iter();
-    let g = out.next().expect("aos_nlm_boxed gives the value");
-    let gv = out.next().expect("aos_nlm_boxed gives the variance");
-    [g, gv]
-}
-
 /// APR on the CPU. `prefilter_features`: run §4.6 (false when the G-buffer
 /// prefilter already replaced the features).
 pub fn run_cpu(
@@ -164,7 +149,7 @@ pub fn run_cpu(
     let spp = &need(Layer::Spp)?[0];
     if params.filter_visibility && feats.len() == 8 {
         let f32s = |p: &[f64]| p.iter().map(|&x| x as f32).collect::<Vec<f32>>();
-        let [g, gv] = filter_visibility(w, h, &f32s(&feats[7]), &f32s(&fvar[7]), spp);
+        let [g, gv] = super::wlr::filter_visibility(w, h, &f32s(&feats[7]), &f32s(&fvar[7]), spp);
         feats[7] = g.iter().map(|&x| x as f64).collect();
         fvar[7] = gv.iter().map(|&x| x as f64).collect();
     }
@@ -342,21 +327,7 @@ pub fn record_pack(
 ) -> Result<bool> {
     let (mut feats, vis) = gpu_features(clean);
     if let (true, Some(scratch)) = (vis, vis_filter) {
-        let (w, h) = (clean.width, clean.height);
-        let push = AosPush {
-            width: w as u32,
-            height: h as u32,
-            channels: 1,
-            stride: (scratch.stride / 4) as u32,
-            ..Default::default()
-        };
-        let planes = [
-            clean.plane(Layer::Visibility, 0),
-            clean.plane(Layer::VisibilityVariance, 0),
-            clean.plane(Layer::Spp, 0),
-        ];
-        let dst = scratch.range(0, scratch.stride + (w * h * 4) as u64);
-        aos_nlm::record_boxed(batch, precision, &push, planes, dst)?;
+        super::wlr::record_visibility(batch, precision, clean, scratch, 0)?;
         feats[7] = scratch.plane(0);
     }
     apr_pack::record(

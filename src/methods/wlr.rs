@@ -295,7 +295,7 @@ pub fn record_wlr(
     let spp_quads = clean.plane_quads(Layer::Spp, 0);
     gbf_pack::record(batch, precision, w, h, (0, h), feat, var, spp_quads, packed)?;
     let vis = if params.features > 9 {
-        record_visibility(batch, precision, clean, &planes.scratch)?;
+        record_visibility(batch, precision, clean, &planes.scratch, VIS)?;
         Some([q(VIS), q(VIS + 1)])
     } else {
         None
@@ -370,14 +370,16 @@ pub fn record_wlr(
     Ok(())
 }
 
-/// WLR-VIS: the visibility and its variance, their 3×3 means NL-means
-/// filtered as AOS filters them (§5.2, unclamped; `aos_nlm_vis`), into the
-/// [`VIS`] scratch planes.
-fn record_visibility(
+/// WLR-VIS (and APR-VIS): the visibility and its variance, their 3×3
+/// means NL-means filtered as AOS filters them (§5.2, unclamped;
+/// `aos_nlm_vis`), into planes `first` and `first + 1` of `scratch`
+/// (WLR's [`VIS`]). [`filter_visibility`] is its CPU path.
+pub(super) fn record_visibility(
     batch: &mut Batch,
     precision: Precision,
     clean: &GpuStats,
     scratch: &PlaneSet,
+    first: usize,
 ) -> Result<()> {
     let layer = Layer::Visibility;
     if !clean.has(layer) {
@@ -393,7 +395,7 @@ fn record_visibility(
         ..Default::default()
     };
     let dst = scratch.range(
-        VIS as u64 * scratch.stride,
+        first as u64 * scratch.stride,
         scratch.stride + (w * h * 4) as u64,
     );
     let planes = [
@@ -402,6 +404,22 @@ fn record_visibility(
         clean.plane(Layer::Spp, 0),
     ];
     aos_nlm::record_boxed(batch, precision, &push, planes, dst)
+}
+
+/// WLR-VIS (and APR-VIS) on the CPU: the visibility `g` (variances `gv`)
+/// as `record_visibility` filters it, the `aos_nlm_vis` kernel's twin
+/// ([`reference::aos_nlm::aos_nlm_boxed`]): value and variance.
+pub fn filter_visibility(w: usize, h: usize, g: &[f32], gv: &[f32], spp: &[f32]) -> [Vec<f32>; 2] {
+    let push = AosPush {
+        width: w as u32,
+        height: h as u32,
+        channels: 1,
+        ..Default::default()
+    };
+    let mut out = reference::aos_nlm::aos_nlm_boxed(&push, &[g], &[gv], spp).into_iter();
+    let g = out.next().expect("aos_nlm_boxed gives the value");
+    let gv = out.next().expect("aos_nlm_boxed gives the variance");
+    [g, gv]
 }
 
 /// WLR-VIS on statistics without the visibility layer (GPU and CPU paths).
@@ -516,18 +534,7 @@ pub fn run_cpu_with_progress(
             need_vis(Layer::Visibility)?,
             need_vis(Layer::VisibilityVariance)?,
         );
-        let push = AosPush {
-            width: w as u32,
-            height: h as u32,
-            channels: 1,
-            ..Default::default()
-        };
-        Some(reference::aos_nlm::aos_nlm_boxed(
-            &push,
-            &[&v[0]],
-            &[&vv[0]],
-            spp,
-        ))
+        Some(filter_visibility(w, h, &v[0], &vv[0], spp))
     } else {
         None
     };
