@@ -578,10 +578,9 @@ pub static INFO: MethodInfo = MethodInfo {
         let r = RADIUS as usize;
         let params = AprParams::new(&c.options)?;
         let stages = params.stages.max(1);
-        // APR-VIS: the visibility's 3×3 mean and NL-means reach 1 and
-        // their search and patch radii further.
+        // APR-VIS: the visibility's filter reads it within its reach.
         let nlm = if params.filter_visibility {
-            1 + crate::reference::aos::NLM_SEARCH + crate::reference::aos::NLM_PATCH
+            super::wlr::VIS_FILTER_REACH
         } else {
             0
         };

@@ -370,6 +370,12 @@ pub fn record_wlr(
     Ok(())
 }
 
+/// How far [`record_visibility`]'s output reads its input: the 3×3 mean
+/// (1), then the NL-means search and patch radii. WLR-VIS and APR-VIS add
+/// it to their halos.
+pub(super) const VIS_FILTER_REACH: usize =
+    1 + reference::aos::NLM_SEARCH + reference::aos::NLM_PATCH;
+
 /// WLR-VIS (and APR-VIS): the visibility and its variance, their 3×3
 /// means NL-means filtered as AOS filters them (§5.2, unclamped;
 /// `aos_nlm_vis`), into planes `first` and `first + 1` of `scratch`
@@ -615,13 +621,8 @@ pub static INFO: MethodInfo = MethodInfo {
     align: 1,
     halo: |c| {
         let p = WlrParams::new(c.pass, &c.options)?;
-        // WLR-VIS: the visibility's 3×3 mean and NL-means reach 1 and
-        // their search and patch radii further.
-        let nlm = if p.features > 9 {
-            1 + reference::aos::NLM_SEARCH + reference::aos::NLM_PATCH
-        } else {
-            0
-        };
+        // WLR-VIS: the visibility's filter reads it within its reach.
+        let nlm = if p.features > 9 { VIS_FILTER_REACH } else { 0 };
         Ok(p.radius as usize + gauss_smooth::radius(H_SMOOTH_SIGMA) as usize + nlm)
     },
     arena_bytes: |c, size| WlrPlanes::scratch_bytes(size, WlrParams::features(&c.options)),
