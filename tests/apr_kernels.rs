@@ -218,6 +218,7 @@ fn gpu_kernels_match_the_twins() {
                     filter_visibility: filtered,
                 },
                 None,
+                None,
             )
             .unwrap();
             batch.finish().unwrap();

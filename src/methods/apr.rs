@@ -313,22 +313,57 @@ pub fn gpu_features(clean: &GpuStats) -> ([BufferSlice; 8], bool) {
     (f, vis)
 }
 
+/// Which visibility [`record_pack`] packs.
+#[derive(Copy, Clone)]
+pub enum VisFeature<'a> {
+    /// The input's (§4.1).
+    Raw,
+    /// APR-VIS: filtered first into the two planes of this scratch set
+    /// (`aos_nlm_vis`: its 3×3 means, NL-means filtered, as WLR-VIS reads
+    /// it).
+    Filter(&'a PlaneSet),
+    /// APR-VIS, already filtered by the caller (`StageRun::visibility`):
+    /// the filtered visibility plane.
+    Filtered(BufferSlice),
+}
+
+impl<'a> VisFeature<'a> {
+    /// APR-VIS's choice for `params`: the caller's filtered plane when
+    /// given, else a filter into `scratch`; the raw feature when
+    /// `apr.visibility=raw`.
+    pub(super) fn of(
+        params: AprParams,
+        scratch: &'a PlaneSet,
+        filtered: Option<[BufferSlice; 2]>,
+    ) -> Self {
+        match (params.filter_visibility, filtered) {
+            (false, _) => VisFeature::Raw,
+            (true, Some([v, _])) => VisFeature::Filtered(v),
+            (true, None) => VisFeature::Filter(scratch),
+        }
+    }
+}
+
 /// Records `apr_pack` (APR-PACKED): `clean`'s features into the two vec4
-/// planes `out`. With `vis_filter` (APR-VIS) the visibility is first
-/// filtered into those two planes (`aos_nlm_vis`: its 3×3 means,
-/// NL-means filtered, as WLR-VIS reads it) and packed from there. Returns
-/// whether visibility is present (else its lane is 0).
+/// planes `out`, the visibility as `vis_feature` says. Returns whether
+/// visibility is present (else its lane is 0).
 pub fn record_pack(
     batch: &mut Batch,
     precision: Precision,
     clean: &GpuStats,
-    vis_filter: Option<&PlaneSet>,
+    vis_feature: VisFeature,
     out: [BufferSlice; 2],
 ) -> Result<bool> {
     let (mut feats, vis) = gpu_features(clean);
-    if let (true, Some(scratch)) = (vis, vis_filter) {
-        super::wlr::record_visibility(batch, precision, clean, scratch, 0)?;
-        feats[7] = scratch.plane(0);
+    if vis {
+        match vis_feature {
+            VisFeature::Raw => {}
+            VisFeature::Filter(scratch) => {
+                super::wlr::record_visibility(batch, precision, clean, scratch, 0)?;
+                feats[7] = scratch.plane(0);
+            }
+            VisFeature::Filtered(plane) => feats[7] = plane,
+        }
     }
     apr_pack::record(
         batch,
@@ -365,6 +400,7 @@ pub fn record_apr(
     planes: &AprPlanes,
     params: AprParams,
     total: Option<[u32; 3]>,
+    filtered: Option<[BufferSlice; 2]>,
 ) -> Result<()> {
     let (w, h) = (clean.width, clean.height);
     if (w, h) != (planes.width, planes.height) {
@@ -393,8 +429,8 @@ pub fn record_apr(
     let sppt = (spp, planes.total.slice());
     // APR-PACKED: the features as 2 vec4 planes, read by every stage.
     let packed = [planes.packed.plane(0), planes.packed.plane(1)];
-    let vis_filter = params.filter_visibility.then_some(&planes.vis);
-    record_pack(batch, precision, clean, vis_filter, packed)?;
+    let vis_feature = VisFeature::of(params, &planes.vis, filtered);
+    record_pack(batch, precision, clean, vis_feature, packed)?;
     for stage in 1..=stages {
         let last = stage == stages;
         let prev = (stage >= 2).then(|| &planes.stage[stage % 2]);
@@ -631,6 +667,7 @@ impl GpuStage for AprStage {
             &self.planes,
             self.params,
             run.spp_total,
+            run.visibility,
         )
     }
 

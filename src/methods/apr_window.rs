@@ -14,7 +14,9 @@
 
 use std::sync::Arc;
 
-use super::apr::{apr_flags, record_pack, record_stage, AprParams, AprPlanes, StageBindings};
+use super::apr::{
+    apr_flags, record_pack, record_stage, AprParams, AprPlanes, StageBindings, VisFeature,
+};
 use super::chain::{front_arena_bytes, prefilter_runs};
 use super::gbf::{self, GbfPlanes};
 use super::outliers::{self, OutlierPlanes};
@@ -172,8 +174,8 @@ impl AprRing {
             );
         }
         batch.copy(clean.plane(Layer::Spp, 0), self.spp.plane(s));
-        let vis_filter = self.params.filter_visibility.then_some(&self.apr.vis);
-        self.vis &= record_pack(batch, precision, clean, vis_filter, self.packed_slot(s))?;
+        let vis_feature = VisFeature::of(self.params, &self.apr.vis, None);
+        self.vis &= record_pack(batch, precision, clean, vis_feature, self.packed_slot(s))?;
         batch.fill(self.sppt_slot(s), 0);
         spp_total::record(
             batch,

@@ -188,6 +188,10 @@ struct AutoStage {
     /// planes (and more, up to [`AUTO_SUMS`]) then carry the blend's sums;
     /// then its colour and error (3 + 3).
     planes: PlaneSet,
+    /// The visibility and its variance filtered once for every member
+    /// that filters them (WLR-VIS and APR-VIS: `StageRun::visibility`),
+    /// when more than one does.
+    visibility: Option<PlaneSet>,
     /// Set by `record_unfiltered`, taken by `record` when the members that
     /// read unprefiltered features were recorded there.
     unfiltered_recorded: AtomicBool,
@@ -224,9 +228,19 @@ impl AutoStage {
             });
         }
         let planes = map_count(members.len()) + scratch_count(members.len()) + 6;
+        let mut filtering = 0;
+        for m in &members {
+            filtering += filters_visibility(m.method, &m.config.options)? as usize;
+        }
+        let visibility = if filtering > 1 {
+            Some(PlaneSet::new(a.ctx, "auto.visibility", w * h, 2)?)
+        } else {
+            None
+        };
         Ok(AutoStage {
             members,
             planes: PlaneSet::new(a.ctx, "auto.planes", w * h, planes)?,
+            visibility,
             unfiltered_recorded: AtomicBool::new(false),
             size: a.size,
             ctx: a.ctx.clone(),
@@ -263,8 +277,15 @@ impl AutoStage {
         self.planes.plane(map_count(n) + scratch_count(n) + k)
     }
 
-    /// Records `m` on `run`'s statistics.
-    fn record_member(&self, batch: &mut Batch, run: &StageRun, m: &Member) -> Result<()> {
+    /// Records `m` on `run`'s statistics; `visibility`: the filtered
+    /// visibility it reads if it filters it.
+    fn record_member(
+        &self,
+        batch: &mut Batch,
+        run: &StageRun,
+        m: &Member,
+        visibility: Option<[BufferSlice; 2]>,
+    ) -> Result<()> {
         m.stage.record(
             batch,
             &StageRun {
@@ -277,15 +298,42 @@ impl AutoStage {
                 origin: run.origin,
                 prefiltered: run.prefiltered,
                 spp_total: run.spp_total,
+                visibility,
             },
         )
     }
+
+    /// Records the visibility's filter once for the members that filter
+    /// it, when the statistics have the layer; the planes they read.
+    fn record_visibility(
+        &self,
+        batch: &mut Batch,
+        run: &StageRun,
+    ) -> Result<Option<[BufferSlice; 2]>> {
+        match &self.visibility {
+            Some(set) if run.stats.has(Layer::Visibility) => {
+                super::wlr::record_visibility(batch, run.precision, run.stats, set, 0)?;
+                Ok(Some([set.plane(0), set.plane(1)]))
+            }
+            _ => Ok(None),
+        }
+    }
+}
+
+/// Whether member `m` with `options` filters the visibility (WLR-VIS,
+/// APR-VIS), which the members can then share.
+fn filters_visibility(m: Method, options: &Options) -> Result<bool> {
+    Ok(match m {
+        Method::Wlr => super::wlr::WlrParams::features(options) > 9,
+        Method::Apr => super::apr::AprParams::new(options)?.filter_visibility,
+        _ => false,
+    })
 }
 
 impl GpuStage for AutoStage {
     fn record_unfiltered(&self, batch: &mut Batch, run: &StageRun) -> Result<()> {
         for m in self.members.iter().filter(|m| unfiltered(m.method)) {
-            self.record_member(batch, run, m)?;
+            self.record_member(batch, run, m, None)?;
         }
         self.unfiltered_recorded.store(true, Ordering::SeqCst);
         Ok(())
@@ -302,9 +350,10 @@ impl GpuStage for AutoStage {
                 "auto: the prefilter ran, but the members that read unprefiltered features were not recorded before it (GpuStage::record_unfiltered)".into(),
             ));
         }
+        let visibility = self.record_visibility(batch, run)?;
         for m in &self.members {
             if !(unfiltered(m.method) && run.prefiltered) {
-                self.record_member(batch, run, m)?;
+                self.record_member(batch, run, m, visibility)?;
             }
         }
         let spp = run.stats.plane(Layer::Spp, 0);

@@ -758,6 +758,7 @@ impl GpuChain {
             origin: at.origin,
             prefiltered,
             spp_total: at.totals.map(|t| t.fine),
+            visibility: None,
         };
         if let Some(g) = &self.gbf {
             self.method.record_unfiltered(batch, &run(false))?;

@@ -160,6 +160,11 @@ pub struct StageRun<'a> {
     /// words) when the chain runs one tile of it; `None`: the chain's
     /// statistics are the image (APR-COUNT-CAP counts them).
     pub spp_total: Option<[u32; 3]>,
+    /// The visibility and its variance as WLR-VIS filters them, when the
+    /// caller recorded that filter for several stages (`auto`): a stage
+    /// that filters the visibility (WLR-VIS, APR-VIS) reads these planes
+    /// instead of filtering it again. `None`: each filters its own.
+    pub visibility: Option<[BufferSlice; 2]>,
 }
 
 /// A method's GPU stage: its buffers and how to record it. Outputs stay on

@@ -261,13 +261,16 @@ pub(crate) fn features(s: &GpuStats) -> ([BufferSlice; 7], [BufferSlice; 7]) {
 
 /// Records WLR on sanitised statistics `clean` (which must hold colour,
 /// albedo, normal, depth, their variances and spp). Outputs stay on the GPU
-/// in `planes`.
+/// in `planes`. With WLR-VIS, `filtered` is the visibility and its variance
+/// already filtered by `record_visibility` (`StageRun::visibility`);
+/// `None` filters them here.
 pub fn record_wlr(
     batch: &mut Batch,
     precision: Precision,
     clean: &GpuStats,
     planes: &WlrPlanes,
     params: WlrParams,
+    filtered: Option<[BufferSlice; 2]>,
 ) -> Result<()> {
     let (w, h) = (clean.width as u32, clean.height as u32);
     let p = |i: usize| planes.set.plane(i);
@@ -294,11 +297,13 @@ pub fn record_wlr(
     let packed: [BufferSlice; 4] = std::array::from_fn(|k| planes.packed.plane(k));
     let spp_quads = clean.plane_quads(Layer::Spp, 0);
     gbf_pack::record(batch, precision, w, h, (0, h), feat, var, spp_quads, packed)?;
-    let vis = if params.features > 9 {
-        record_visibility(batch, precision, clean, &planes.scratch, VIS)?;
-        Some([q(VIS), q(VIS + 1)])
-    } else {
-        None
+    let vis = match (params.features > 9, filtered) {
+        (false, _) => None,
+        (true, Some(v)) => Some(v),
+        (true, None) => {
+            record_visibility(batch, precision, clean, &planes.scratch, VIS)?;
+            Some([q(VIS), q(VIS + 1)])
+        }
     };
     let ring = (planes.state.plane(0), planes.ring_rows);
     let wr = (params.radius, params.options);
@@ -683,7 +688,14 @@ impl GpuStage for WlrStage {
             options: super::chain::skip_bits(self.params.options, &skip),
             ..self.params
         };
-        record_wlr(batch, run.precision, run.stats, &self.planes, params)
+        record_wlr(
+            batch,
+            run.precision,
+            run.stats,
+            &self.planes,
+            params,
+            run.visibility,
+        )
     }
 
     fn color(&self, _: &GpuStats) -> [BufferSlice; 3] {
