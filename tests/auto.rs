@@ -443,7 +443,8 @@ fn an_intermediate_pass_blends_three_members() {
 /// AUTO-VIS: in a final reconstruction `auto`'s WLR member reads the
 /// visibility as a tenth feature (WLR-VIS) when the statistics have the
 /// layer: the default is `wlr.extra_features=visibility` bit for bit, on
-/// the GPU as on the CPU (which agree), and differs from `none`. Without
+/// the GPU as on the CPU (which agree), and differs from `none`; the WLR
+/// and APR members filter the visibility once between them. Without
 /// the layer the default is `none`, bit for bit, and asking for the
 /// visibility names the missing layer; adaptive passes keep nine features.
 #[test]
@@ -477,6 +478,31 @@ fn the_wlr_member_reads_the_visibility_when_there_is_one() {
     .unwrap();
     let without = colour(&vis, Backend::Gpu, &opts(&["wlr.extra_features=none"]), fin).unwrap();
     assert_eq!(default.planes, with.planes);
+    // The WLR and APR members share one filter of the visibility, and
+    // each alone filters it once.
+    let filters = |m: Method| {
+        let mut req = DenoiseRequest::new(m);
+        req.pass = fin;
+        let out = denoise(Some(&gpu()), &vis, &req).unwrap();
+        let n = out
+            .timings
+            .iter()
+            .filter(|t| t.kernel == "aos_nlm_vis")
+            .count();
+        (n, out.color)
+    };
+    assert_eq!(filters(Method::Auto), (1, default.clone()));
+    assert_eq!(filters(Method::Apr).0, 1);
+    let mut req = DenoiseRequest::new(Method::Wlr);
+    req.options = opts(&["wlr.extra_features=visibility"]);
+    let wlr = denoise(Some(&gpu()), &vis, &req).unwrap();
+    assert_eq!(
+        wlr.timings
+            .iter()
+            .filter(|t| t.kernel == "aos_nlm_vis")
+            .count(),
+        1
+    );
     let moved = metrics::rmse(&default, &without);
     assert!(
         moved > 1e-5,
